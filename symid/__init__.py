@@ -1,0 +1,1 @@
+"""symid: symbolic derivation and code generation for planar multibody inverse dynamics."""

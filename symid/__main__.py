@@ -1,0 +1,3 @@
+from symid.cli import main
+
+raise SystemExit(main())

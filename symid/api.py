@@ -1,0 +1,129 @@
+"""The Python API; the command line is a thin layer over it.
+
+    >>> from symid import api
+    >>> study = api.prepare(api.example("slider_crank"))
+    >>> results = study.solve()
+    >>> torque = results["motor.T_j"]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any, Iterator, Mapping
+
+import numpy as np
+import sympy as sp
+
+from symid import backends
+from symid.assemble import Layout, assemble
+from symid.backends import Array, Evaluator, Needs
+from symid.errors import AnalysisError
+from symid.io.reader import load
+from symid.model import Mechanism
+from symid.params import parameter_values, to_float
+from symid.results import Results, columns, row, write_csv
+from symid.solve import Instant, run
+
+
+def examples() -> list[str]:
+    """Names of the bundled example mechanisms."""
+    folder = resources.files("symid") / "examples"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def example(name: str) -> Path:
+    """Path of a bundled example's mechanism file (works from an installed package)."""
+    path = Path(str(resources.files("symid") / "examples" / f"{name}.toml"))
+    if not path.is_file():
+        raise FileNotFoundError(f"no bundled example {name!r} (examples: {', '.join(examples())})")
+    return path
+
+
+@dataclass
+class Study:
+    """A mechanism prepared for one analysis on one backend.
+
+    Attributes:
+        mechanism: the (immutable) description; layout: its rows and columns;
+        evaluator: the backend's numeric workspace; values: parameter values.
+    """
+
+    mechanism: Mechanism
+    layout: Layout
+    evaluator: Evaluator
+    values: Mapping[sp.Symbol, float]
+
+    @property
+    def analysis(self):  # type: ignore[no-untyped-def]
+        return self.mechanism.analysis
+
+    def q0(self) -> Array:
+        """The initial guess, size ng."""
+        return np.array([to_float(v, self.values) for b in self.mechanism.bodies for v in b.q0])
+
+    def columns(self) -> list[str]:
+        return columns(self.layout, self.analysis)
+
+    def instants(self) -> Iterator[Instant]:
+        """Solve instant by instant (raises AnalysisError at a failure)."""
+        return run(self.evaluator, self.analysis, self.q0())
+
+    def rows(self) -> Iterator[Array]:
+        for instant in self.instants():
+            yield row(instant, self.layout, self.analysis)
+
+    def solve(self) -> Results:
+        """Solve the whole run. A failure is kept in `Results.error` with the
+        instants solved before it; `raise_on_error()` re-raises it."""
+        rows: list[Array] = []
+        cond: list[float] = []
+        error = None
+        try:
+            for instant in self.instants():
+                rows.append(row(instant, self.layout, self.analysis))
+                cond.append(instant.cond)
+        except AnalysisError as exc:
+            error = exc
+        width = len(self.columns())
+        data = np.array(rows).reshape(len(rows), width)
+        return Results(self.columns(), data, np.array(cond), error)
+
+    def write_csv(self, path: str | Path) -> int:
+        """Stream the run to a CSV file (atomic); returns the rows written."""
+        return write_csv(path, self.columns(), self.rows())
+
+
+def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
+            set_values: Mapping[str, str] | None = None, **analysis: Any) -> Study:
+    """Load (if a path), lay out and build the evaluator of a mechanism.
+
+    Args:
+        mechanism: a `Mechanism` or the path of a mechanism file.
+        backend: one of `symid.backends.names()`.
+        set_values: parameter overrides (files only), name -> expression text.
+        analysis: `[analysis]` overrides: kind, t0, t1, steps, tol, outputs, reactions.
+    """
+    if isinstance(mechanism, Mechanism):
+        mech = mechanism
+        if analysis:
+            mech = dataclasses.replace(mech, analysis=dataclasses.replace(mech.analysis, **analysis))
+    else:
+        mech = load(mechanism, set_values, analysis)
+    layout = assemble(mech)
+    values = parameter_values(mech.parameters)
+    a = mech.analysis
+    groups = a.output_groups()
+    reactions: tuple[str, ...] = ()
+    if "reactions" in groups and a.kind != "kinematics":
+        reactions = a.reactions if a.reactions is not None else tuple(c.name for c in mech.constraints)
+    needs = Needs(velocity=a.kind != "statics", reactions=reactions)
+    evaluator = backends.get(backend).evaluator(layout, values, needs)
+    return Study(mech, layout, evaluator, values)
+
+
+def solve(mechanism: Mechanism | str | Path, backend: str = "numpy", **analysis: Any) -> Results:
+    """Prepare and solve in one call; see `prepare` and `Study.solve`."""
+    return prepare(mechanism, backend, **analysis).solve()

@@ -1,0 +1,102 @@
+"""The command line: a thin layer over `symid.api`.
+
+Exit status: 0 success, 2 input error, 3 analysis failed. Errors are one
+line on stderr, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Callable, Sequence
+
+from symid.errors import EXIT_INPUT, AnalysisError, InputError, SymidError
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line and exit status 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        print(f"{self.prog}: {message} (see --help)", file=sys.stderr)
+        raise SystemExit(EXIT_INPUT)
+
+
+def _set_values(pairs: Sequence[str]) -> dict[str, str]:
+    out = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep or not name.strip():
+            raise InputError(f"--set {pair}: expected NAME=VALUE")
+        out[name.strip()] = value.strip()
+    return out
+
+
+def _analysis_overrides(args: argparse.Namespace) -> dict[str, object]:
+    return {"kind": args.kind, "t0": args.t0, "t1": args.t1, "steps": args.steps, "tol": args.tol}
+
+
+def cmd_solve(args: argparse.Namespace) -> int:
+    from symid import api
+
+    study = api.prepare(args.file, args.backend, _set_values(args.set), **_analysis_overrides(args))
+    out = Path(args.output) if args.output else Path(f"{study.mechanism.name}.csv")
+    try:
+        count = study.write_csv(out)
+    except AnalysisError as exc:
+        raise AnalysisError(f"{args.file}: t = {exc.time:.17g}: {exc}; the {exc.solved} instants "
+                            f"before it are in {out}", exc.time, exc.solved) from None
+    print(f"{out}: {count} instants, {len(study.columns())} columns")
+    return 0
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from symid import api
+    from symid.check import check
+
+    study = api.prepare(args.file, "numpy", _set_values(args.set))
+    report = check(study)
+    print(report.text())
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = _Parser(prog="symid", description="Planar multibody inverse dynamics, derived by sympy.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    solve = sub.add_parser("solve", help="solve a mechanism file and write the results table (CSV)")
+    solve.add_argument("file")
+    solve.add_argument("-o", "--output", help="CSV file to write (default: <name>.csv)")
+    solve.add_argument("--kind", choices=("inverse_dynamics", "kinematics", "statics"))
+    solve.add_argument("--t0", type=float)
+    solve.add_argument("--t1", type=float)
+    solve.add_argument("--steps", type=int)
+    solve.add_argument("--tol", type=float)
+    solve.add_argument("--backend", default="numpy")
+    solve.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                       help="override a parameter (repeatable)")
+    solve.set_defaults(run=cmd_solve)
+
+    chk = sub.add_parser("check", help="validate a file; report ng, nc, rank and conditioning at q0")
+    chk.add_argument("file")
+    chk.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
+    chk.set_defaults(run=cmd_check)
+
+    args = parser.parse_args(argv)
+    run: Callable[[argparse.Namespace], int] = args.run
+    try:
+        return run(args)
+    except SymidError as exc:
+        message = str(exc)
+        if isinstance(exc, AnalysisError) and not message.startswith(str(args.file)):
+            where = f"t = {exc.time:.17g}: " if exc.time is not None else ""
+            message = f"{args.file}: {where}{message}"
+        print(f"symid: {message}", file=sys.stderr)
+        return exc.exit_status
+    except KeyboardInterrupt:
+        print("symid: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

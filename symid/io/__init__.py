@@ -1,0 +1,1 @@
+"""Reading mechanism files and writing results."""

@@ -1,0 +1,343 @@
+"""Read and validate a mechanism file (contract v1) into a `Mechanism`.
+
+Every problem becomes one `InputError` line naming the file and the key.
+Expressions go through the whitelist parser of `symid.expr`, never eval.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from pathlib import Path
+from typing import Any, Mapping
+
+import sympy as sp
+
+from symid.constraints import TYPES as CONSTRAINTS
+from symid.elements import Family, Key
+from symid.errors import InputError
+from symid.expr import FUNCTIONS, parse_expression
+from symid.forces import TYPES as FORCES
+from symid.model import (
+    GROUND, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, T, Analysis, Body, Element, Mechanism,
+    parameter_symbol,
+)
+from symid.params import order_parameters, parameter_values, to_float
+
+MAX_FILE_BYTES = 16 * 1024 * 1024
+IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+TOP_KEYS = ("mechanism", "parameters", "analysis", "body", "constraint", "force")
+RESERVED = {"t", "pi", GROUND} | set(FUNCTIONS)
+
+
+def load(path: str | Path, set_values: Mapping[str, str] | None = None,
+         analysis: Mapping[str, Any] | None = None) -> Mechanism:
+    """Read a mechanism file.
+
+    Args:
+        path: the TOML file.
+        set_values: parameter name -> expression text replacing its value.
+        analysis: `[analysis]` keys overriding the file's (from the command line).
+    """
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise InputError(f"{path}: file is {size} bytes, more than the {MAX_FILE_BYTES} allowed")
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not UTF-8 text") from None
+    return loads(text, str(path), set_values, analysis)
+
+
+def loads(text: str, source: str = "<string>", set_values: Mapping[str, str] | None = None,
+          analysis: Mapping[str, Any] | None = None) -> Mechanism:
+    """Parse mechanism-file text; `source` names it in messages."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{source}: TOML syntax error: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{source}: TOML nested too deeply") from None
+    return _Reader(source).mechanism(data, dict(set_values or {}), dict(analysis or {}))
+
+
+class _Reader:
+    def __init__(self, source: str) -> None:
+        self.source = source
+        self.params: dict[str, sp.Symbol] = {}
+        self.values: dict[sp.Symbol, float] = {}
+
+    def fail(self, where: str, message: str) -> InputError:
+        return InputError(f"{self.source}: {where}: {message}")
+
+    # -- generic checks -------------------------------------------------
+    def table(self, data: Any, where: str) -> dict[str, Any]:
+        if not isinstance(data, dict):
+            raise self.fail(where, f"must be a table, not {_kind(data)}")
+        return data
+
+    def unknown(self, data: Mapping[str, Any], allowed: Any, where: str) -> None:
+        extra = [k for k in data if k not in allowed]
+        if extra:
+            raise self.fail(f"{where} key '{extra[0]}'", f"unknown key (allowed: {', '.join(allowed)})")
+
+    def require(self, data: Mapping[str, Any], key: str, where: str) -> Any:
+        if key not in data:
+            raise self.fail(where, f"missing key '{key}'")
+        return data[key]
+
+    def expr(self, value: Any, where: str, time: bool = False) -> sp.Expr:
+        if not isinstance(value, (str, int, float)) or isinstance(value, bool):
+            raise self.fail(where, f"must be a number or an expression string, not {_kind(value)}")
+        symbols: dict[str, sp.Expr] = dict(self.params)
+        if time:
+            symbols["t"] = T
+        return parse_expression(value, symbols, f"{self.source}: {where}")
+
+    def number(self, value: Any, where: str) -> tuple[sp.Expr, float]:
+        expr = self.expr(value, where)
+        try:
+            return expr, to_float(expr, self.values)
+        except ValueError as exc:
+            raise self.fail(where, str(exc.args[1])) from None
+
+    def pair(self, value: Any, where: str, time: bool = False, n: int = 2) -> tuple[sp.Expr, ...]:
+        if not isinstance(value, list) or len(value) != n:
+            raise self.fail(where, f"must be a list of {n} numbers or expressions, not {_kind(value)}")
+        if time:
+            return tuple(self.expr(v, where, time=True) for v in value)
+        return tuple(self.number(v, where)[0] for v in value)
+
+    def name(self, data: Mapping[str, Any], where: str) -> str:
+        name = self.require(data, "name", where)
+        if not isinstance(name, str) or not IDENTIFIER.match(name):
+            raise self.fail(f"{where} key 'name'", f"{name!r} is not a name (letters, digits, _)")
+        return name
+
+    # -- sections ---------------------------------------------------------
+    def mechanism(self, data: dict[str, Any], set_values: dict[str, str],
+                  overrides: dict[str, Any]) -> Mechanism:
+        self.unknown(data, TOP_KEYS, "top level")
+        head = self.table(self.require(data, "mechanism", "top level"), "[mechanism]")
+        self.unknown(head, ("name", "gravity"), "[mechanism]")
+        name = self.name(head, "[mechanism]")
+        parameters = self.parameters(self.table(data.get("parameters", {}), "[parameters]"), set_values)
+        gravity = self.pair(head.get("gravity", [0, 0]), "[mechanism] key 'gravity'")
+        analysis = self.analysis(self.table(data.get("analysis", {}), "[analysis]"), overrides)
+        bodies = tuple(self.body(b, n) for n, b in enumerate(self.array(data, "body")))
+        names: dict[str, str] = {}
+        for b in bodies:
+            if b.name in names or b.name == GROUND:
+                raise self.fail(f"body '{b.name}' key 'name'", "duplicate or reserved name")
+            names[b.name] = "body"
+        if not bodies:
+            raise self.fail("top level", "no [[body]]: a mechanism needs at least one body")
+        constraints = tuple(self.element(c, n, "constraint", CONSTRAINTS, names)
+                            for n, c in enumerate(self.array(data, "constraint")))
+        forces = tuple(self.element(f, n, "force", FORCES, names)
+                       for n, f in enumerate(self.array(data, "force")))
+        mech = Mechanism(name=name, bodies=bodies, constraints=constraints, forces=forces,
+                         parameters=parameters, gravity=gravity, analysis=analysis,  # type: ignore[arg-type]
+                         source=self.source)
+        self.check_reactions(mech)
+        self.check_counts(mech)
+        return mech
+
+    def array(self, data: Mapping[str, Any], key: str) -> list[Any]:
+        items = data.get(key, [])
+        if not isinstance(items, list):
+            raise self.fail(f"[[{key}]]", f"must be an array of tables ([[{key}]]), not {_kind(items)}")
+        return items
+
+    def parameters(self, table: dict[str, Any], set_values: dict[str, str]) -> dict[str, sp.Expr]:
+        for name in set_values:
+            if name not in table:
+                known = ", ".join(table) or "none"
+                raise self.fail(f"--set {name}", f"no such parameter (parameters: {known})")
+        raw = {**table, **set_values}
+        for name in raw:
+            if not IDENTIFIER.match(name) or name in RESERVED or name.startswith("_"):
+                raise self.fail(f"[parameters] key '{name}'", "is reserved or not a valid name")
+        self.params = {n: parameter_symbol(n) for n in raw}
+        exprs = {n: self.expr(v, f"[parameters] key '{n}'" if n not in set_values else f"--set {n}")
+                 for n, v in raw.items()}
+        try:
+            order = order_parameters(exprs)
+        except ValueError as exc:
+            raise self.fail("[parameters]", f"parameters defined in a cycle: {exc}") from None
+        ordered = {n: exprs[n] for n in order}
+        try:
+            self.values = parameter_values(ordered)
+        except ValueError as exc:
+            raise self.fail(f"[parameters] key '{exc.args[0]}'", str(exc.args[1])) from None
+        return {n: exprs[n] for n in order}
+
+    def analysis(self, table: dict[str, Any], overrides: dict[str, Any]) -> Analysis:
+        where = "[analysis]"
+        fields = ("kind", "t0", "t1", "steps", "tol", "outputs", "reactions")
+        self.unknown(table, fields, where)
+        merged = {**table, **{k: v for k, v in overrides.items() if v is not None}}
+        kind = merged.get("kind", "inverse_dynamics")
+        if kind not in KINDS:
+            raise self.fail(f"{where} key 'kind'", f"unknown kind {kind!r} (valid: {', '.join(KINDS)})")
+        t0 = self.real(merged.get("t0", 0.0), f"{where} key 't0'")
+        t1 = self.real(merged.get("t1", 1.0), f"{where} key 't1'")
+        steps = merged.get("steps", 1001)
+        if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
+            raise self.fail(f"{where} key 'steps'", f"must be a whole number >= 1, not {steps!r}")
+        if steps > 1 and not t1 > t0:
+            raise self.fail(f"{where} key 't1'", f"must be greater than t0 = {t0!r}")
+        tol = self.real(merged.get("tol", 1e-12), f"{where} key 'tol'")
+        if not tol > 0:
+            raise self.fail(f"{where} key 'tol'", "must be positive")
+        outputs = self.names(merged.get("outputs"), f"{where} key 'outputs'", OUTPUT_GROUPS)
+        if outputs is not None:
+            allowed = KIND_OUTPUTS[kind] + (("qdot", "qddot") if kind == "statics" else ())
+            bad = [o for o in outputs if o not in allowed]
+            if bad:
+                raise self.fail(f"{where} key 'outputs'", f"{bad[0]!r} is not an output of {kind}")
+        reactions = self.names(merged.get("reactions"), f"{where} key 'reactions'", None)
+        return Analysis(kind=kind, t0=t0, t1=t1, steps=steps, tol=tol, outputs=outputs,
+                        reactions=reactions)
+
+    def real(self, value: Any, where: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise self.fail(where, f"must be a finite number, not {value!r}")
+        return float(value)
+
+    def names(self, value: Any, where: str, allowed: tuple[str, ...] | None) -> tuple[str, ...] | None:
+        if value is None:
+            return None
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise self.fail(where, "must be a list of names")
+        if allowed is not None:
+            bad = [v for v in value if v not in allowed]
+            if bad:
+                raise self.fail(where, f"unknown output {bad[0]!r} (valid: {', '.join(allowed)})")
+        if len(set(value)) != len(value):
+            raise self.fail(where, "names a group twice")
+        return tuple(value)
+
+    def body(self, data: Any, n: int) -> Body:
+        where = f"[[body]] #{n + 1}"
+        data = self.table(data, where)
+        name = self.name(data, where)
+        where = f"body '{name}'"
+        self.unknown(data, ("name", "mass", "inertia", "q0"), where)
+        mass, inertia = (self.inertial(data, key, where) for key in ("mass", "inertia"))
+        q0 = self.pair(self.require(data, "q0", where), f"{where} key 'q0'", n=3)
+        return Body(name=name, mass=mass, inertia=inertia, q0=q0)  # type: ignore[arg-type]
+
+    def inertial(self, data: Mapping[str, Any], key: str, where: str) -> sp.Expr:
+        expr, value = self.number(self.require(data, key, where), f"{where} key '{key}'")
+        if value < 0:
+            raise self.fail(f"{where} key '{key}'", f"must not be negative (it is {value:g})")
+        return expr
+
+    def element(self, data: Any, n: int, section: str, registry: Mapping[str, Family],
+                names: dict[str, str]) -> Element:
+        where = f"[[{section}]] #{n + 1}"
+        data = self.table(data, where)
+        name = self.name(data, where)
+        where = f"{section} '{name}'"
+        if name in names or name == GROUND:
+            raise self.fail(f"{where} key 'name'", f"duplicate name (already a {names.get(name, 'reserved name')})")
+        kind = self.require(data, "type", where)
+        if kind not in registry:
+            raise self.fail(f"{where} key 'type'",
+                            f"unknown {section} type {kind!r} (valid: {', '.join(sorted(registry))})")
+        family = registry[kind]
+        self.unknown(data, ("name", "type") + tuple(k.name for k in family.keys), where)
+        bodies: dict[str, str] = {}
+        values: dict[str, Any] = {}
+        options: dict[str, str] = {}
+        for key in family.keys:
+            kw = f"{where} key '{key.name}'"
+            if key.name not in data:
+                if key.required:
+                    raise self.fail(where, f"missing key '{key.name}'")
+                if key.kind == "flag":
+                    values[key.name] = key.default
+                elif key.default is not None:
+                    values[key.name] = self.expr(key.default, kw)
+                continue
+            raw = data[key.name]
+            if key.kind == "body":
+                bodies[key.role] = self.body_name(raw, kw, names)  # type: ignore[index]
+            else:
+                value = self.value(key, raw, kw)
+                if key.kind == "choice":
+                    options[key.name] = value
+                else:
+                    values[key.name] = value
+        if family.resolve is not None:
+            try:
+                values = family.resolve(values, where)
+            except ValueError as exc:
+                raise InputError(f"{self.source}: {exc}") from None
+            for k, v in values.items():
+                if isinstance(v, sp.Expr) and not v.has(T):
+                    self.finite(v, f"{where} key '{k}'")
+        if len(set(bodies.values())) != len(bodies):
+            raise self.fail(where, f"connects a body to itself ({', '.join(bodies.values())})")
+        if all(b == GROUND for b in bodies.values()):
+            raise self.fail(where, "acts on ground only")
+        names[name] = section
+        return Element(name=name, type=kind, bodies=bodies, values=values, options=options)
+
+    def finite(self, expr: sp.Expr, where: str) -> None:
+        try:
+            to_float(expr, self.values)
+        except ValueError as exc:
+            raise self.fail(where, str(exc.args[1])) from None
+
+    def body_name(self, raw: Any, where: str, names: Mapping[str, str]) -> str:
+        if raw == GROUND:
+            return GROUND
+        if not isinstance(raw, str) or names.get(raw) != "body":
+            bodies = [n for n, kind in names.items() if kind == "body"]
+            raise self.fail(where, f"unknown body {raw!r} (bodies: {', '.join(bodies)}, ground)")
+        return raw
+
+    def value(self, key: Key, raw: Any, where: str) -> Any:
+        if key.kind in ("point", "vector"):
+            return self.pair(raw, where)
+        if key.kind == "scalar":
+            return self.number(raw, where)[0]
+        if key.kind == "function":
+            return self.expr(raw, where, time=True)
+        if key.kind == "function2":
+            return self.pair(raw, where, time=True)
+        if key.kind == "choice":
+            if raw not in key.choices:
+                raise self.fail(where, f"must be one of {', '.join(map(repr, key.choices))}, not {raw!r}")
+            return raw
+        if not isinstance(raw, bool):
+            raise self.fail(where, f"must be true or false, not {raw!r}")
+        return raw
+
+    def check_reactions(self, mech: Mechanism) -> None:
+        wanted = mech.analysis.reactions
+        known = [c.name for c in mech.constraints]
+        for name in wanted or ():
+            if name not in known:
+                raise self.fail("[analysis] key 'reactions'",
+                                f"unknown constraint {name!r} (constraints: {', '.join(known)})")
+
+    def check_counts(self, mech: Mechanism) -> None:
+        ng = 3 * len(mech.bodies)
+        nc = sum(CONSTRAINTS[c.type].rows for c in mech.constraints)
+        if nc < ng:
+            raise self.fail("[[constraint]]", f"{nc} constraint rows for {ng} coordinates: "
+                            f"{ng - nc} missing (inverse dynamics needs one driver per degree of freedom)")
+        if nc > ng:
+            raise self.fail("[[constraint]]", f"{nc} constraint rows for {ng} coordinates: {nc - ng} extra")
+
+
+def _kind(value: Any) -> str:
+    return {dict: "a table", list: "a list", str: "a string", bool: "a boolean"}.get(
+        type(value), type(value).__name__)

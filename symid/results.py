@@ -1,0 +1,126 @@
+"""Results: the contract's column names, arrays over time and the CSV table."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Iterator
+
+import numpy as np
+
+from symid.assemble import Layout, reaction_columns
+from symid.backends import Array
+from symid.constraints import TYPES as CONSTRAINTS
+from symid.errors import AnalysisError, InputError
+from symid.model import Analysis
+from symid.solve import Instant
+
+GROUP_SUFFIXES = {"q": ("x", "y", "phi"), "qdot": ("vx", "vy", "omega"), "qddot": ("ax", "ay", "alpha")}
+
+
+def columns(layout: Layout, analysis: Analysis) -> list[str]:
+    """The CSV header: `t`, then each requested group in contract order."""
+    mech = layout.mechanism
+    out = ["t"]
+    for group in analysis.output_groups():
+        if group in GROUP_SUFFIXES:
+            out += [f"{b.name}.{c}" for b in mech.bodies for c in GROUP_SUFFIXES[group]]
+        elif group == "lambda":
+            for c in mech.constraints:
+                rows = CONSTRAINTS[c.type].rows
+                out += [f"{c.name}.lambda"] if rows == 1 else [f"{c.name}.lambda{k + 1}" for k in range(rows)]
+        else:
+            out += [col for _, col in reaction_columns(layout, analysis.reactions)]
+    return out
+
+
+def row(instant: Instant, layout: Layout, analysis: Analysis) -> Array:
+    """One CSV row (same order as `columns`)."""
+    parts: list[Array] = [np.array([instant.t])]
+    zeros = np.zeros(layout.ng)
+    for group in analysis.output_groups():
+        value = {"q": instant.q, "qdot": instant.qd, "qddot": instant.qdd,
+                 "lambda": instant.lam, "reactions": instant.reactions}[group]
+        parts.append(zeros if value is None else value)
+    return np.concatenate(parts)
+
+
+@dataclass
+class Results:
+    """All instants of a run as arrays; a failed run keeps the solved ones.
+
+    Attributes:
+        columns: the contract's column names; data: (instants, columns).
+        cond: condition estimate of Phi_q per instant.
+        error: the failure that ended the run early, if any.
+    """
+
+    columns: list[str]
+    data: Array
+    cond: Array
+    error: AnalysisError | None = None
+    index: dict[str, int] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.index = {c: k for k, c in enumerate(self.columns)}
+
+    def __getitem__(self, column: str) -> Array:
+        """The values of one column over time, e.g. `results["motor.T_j"]`."""
+        try:
+            return self.data[:, self.index[column]]
+        except KeyError:
+            raise KeyError(f"no column {column!r}") from None
+
+    @property
+    def t(self) -> Array:
+        return self.data[:, 0]
+
+    def block(self, prefix_columns: list[str]) -> Array:
+        """Several columns at once, shape (instants, len(prefix_columns))."""
+        return self.data[:, [self.index[c] for c in prefix_columns]]
+
+    def to_csv(self, path: str | Path) -> None:
+        write_csv(path, self.columns, iter(self.data))
+
+
+def format_row(values: Iterable[float]) -> str:
+    """17 significant digits: a CSV value reads back as the same double."""
+    return ",".join(f"{v:.17g}" for v in values)
+
+
+def write_csv(path: str | Path, header: list[str], rows: Iterator[Array]) -> int:
+    """Write rows as they come, to a temporary name renamed at the end.
+
+    If the row iterator raises `AnalysisError`, the rows already produced are
+    kept (the file is completed and renamed) and the error is re-raised; on
+    any other error no file is left behind.
+
+    Returns:
+        the number of rows written.
+    """
+    path = Path(path)
+    directory = path.parent if str(path.parent) else Path(".")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
+    count = 0
+    failure: AnalysisError | None = None
+    try:
+        with os.fdopen(fd, "w", newline="") as out:
+            out.write(",".join(header) + "\n")
+            try:
+                for values in rows:
+                    out.write(format_row(values) + "\n")
+                    count += 1
+            except AnalysisError as exc:
+                failure = exc
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    if failure is not None:
+        raise failure
+    return count
