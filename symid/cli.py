@@ -60,6 +60,19 @@ def cmd_check(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_example(args: argparse.Namespace) -> int:
+    from symid import api
+
+    if args.name is None:
+        print("\n".join(api.examples()))
+        return 0
+    try:
+        print(api.example(args.name))
+    except FileNotFoundError as exc:
+        raise InputError(str(exc).strip('"')) from None
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = _Parser(prog="symid", description="Planar multibody inverse dynamics, derived by sympy.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -81,6 +94,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     chk.add_argument("file")
     chk.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
     chk.set_defaults(run=cmd_check)
+
+    ex = sub.add_parser("example", help="print the path of a bundled example (no name: list them)")
+    ex.add_argument("name", nargs="?")
+    ex.set_defaults(run=cmd_example, file="example")
 
     args = parser.parse_args(argv)
     run: Callable[[argparse.Namespace], int] = args.run
