@@ -99,15 +99,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     ex.add_argument("name", nargs="?")
     ex.set_defaults(run=cmd_example, file="example")
 
+    from importlib import import_module
+
+    from symid.commands import MODULES
+
+    for module in MODULES:
+        import_module(module).register(sub)
+
     args = parser.parse_args(argv)
     run: Callable[[argparse.Namespace], int] = args.run
     try:
         return run(args)
     except SymidError as exc:
         message = str(exc)
-        if isinstance(exc, AnalysisError) and not message.startswith(str(args.file)):
+        file = getattr(args, "file", None)
+        if isinstance(exc, AnalysisError) and file and not message.startswith(str(file)):
             where = f"t = {exc.time:.17g}: " if exc.time is not None else ""
-            message = f"{args.file}: {where}{message}"
+            message = f"{file}: {where}{message}"
         print(f"symid: {message}", file=sys.stderr)
         return exc.exit_status
     except KeyboardInterrupt:
