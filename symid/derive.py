@@ -106,9 +106,13 @@ class DerivedConstraint:
         return self.family.roles
 
 
-@cache
 def derive_constraint(name: str, options: Variant = ()) -> DerivedConstraint:
-    """Derive the constraint family `name` (cached)."""
+    """Derive the constraint family `name` (cached per family and variant)."""
+    return _derive_constraint(name, tuple(options))
+
+
+@cache
+def _derive_constraint(name: str, options: Variant) -> DerivedConstraint:
     family = CONSTRAINTS[name]
     roles = family.roles
     phi = sp.Matrix(family.phi(dict(options)))
@@ -160,9 +164,13 @@ class DerivedForce:
         return self.family.roles
 
 
-@cache
 def derive_force(name: str, options: Variant = ()) -> DerivedForce:
-    """Derive the force family `name` (cached)."""
+    """Derive the force family `name` (cached per family and variant)."""
+    return _derive_force(name, tuple(options))
+
+
+@cache
+def _derive_force(name: str, options: Variant) -> DerivedForce:
     family = FORCES[name]
     loads = {role: sp.Matrix(v) for role, v in family.loads(dict(options)).items()}
     generalized = {}
