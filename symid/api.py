@@ -72,24 +72,27 @@ class Study:
         return run(self.evaluator, self.analysis, self.q0())
 
     def rows(self) -> Iterator[Array]:
+        """The results table row by row; a compiled backend runs its own loop."""
+        own = getattr(self.evaluator, "rows", None)
+        if own is not None:
+            yield from own(self.analysis, self.q0())
+            return
         for instant in self.instants():
             yield row(instant, self.layout, self.analysis)
 
     def solve(self) -> Results:
         """Solve the whole run. A failure is kept in `Results.error` with the
-        instants solved before it; `raise_on_error()` re-raises it."""
+        instants solved before it."""
         rows: list[Array] = []
-        cond: list[float] = []
         error = None
         try:
-            for instant in self.instants():
-                rows.append(row(instant, self.layout, self.analysis))
-                cond.append(instant.cond)
+            for values in self.rows():
+                rows.append(values)
         except AnalysisError as exc:
             error = exc
         width = len(self.columns())
         data = np.array(rows).reshape(len(rows), width)
-        return Results(self.columns(), data, np.array(cond), error)
+        return Results(self.columns(), data, error)
 
     def write_csv(self, path: str | Path) -> int:
         """Stream the run to a CSV file (atomic); returns the rows written."""

@@ -53,13 +53,11 @@ class Results:
 
     Attributes:
         columns: the contract's column names; data: (instants, columns).
-        cond: condition estimate of Phi_q per instant.
         error: the failure that ended the run early, if any.
     """
 
     columns: list[str]
     data: Array
-    cond: Array
     error: AnalysisError | None = None
     index: dict[str, int] = field(init=False)
 

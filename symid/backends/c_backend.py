@@ -1,0 +1,195 @@
+"""The C backend: generate, compile once (cached by model hash), call through ctypes.
+
+The compiled solver runs whole trajectories in C; Python only streams the
+rows. The per-quantity functions are bound too, for `check` and the tests.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+from typing import Iterator, Mapping
+
+import numpy as np
+import sympy as sp
+
+from symid.assemble import Layout
+from symid.backends import Array, Needs
+from symid.codegen.cache import cache_root, key
+from symid.codegen.flat import Options
+from symid.errors import AnalysisError, InputError
+from symid.model import Analysis
+
+CFLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared")
+CHUNK = 1024
+STATUS = {1: "Newton did not converge", 2: "Phi_q is singular"}
+
+
+def compiler() -> str:
+    """The C compiler to use ($CC, cc, gcc or clang), or an input error naming the others."""
+    from symid.backends import names
+
+    for candidate in (os.environ.get("CC"), "cc", "gcc", "clang"):
+        if candidate and shutil.which(candidate):
+            return candidate
+    others = ", ".join(n for n in names() if n != "c")
+    raise InputError(f"--backend c: no C compiler found (set CC, or install cc/gcc/clang); "
+                     f"other backends: {others}")
+
+
+def build(layout: Layout, options: Options) -> Path:
+    """The folder holding the compiled solver for this model, building it if needed."""
+    from symid.codegen.model import code_model
+    from symid.codegen.targets import c
+
+    mech = layout.mechanism
+    folder = cache_root() / f"c-{mech.name}-{key(mech, options, 'c')}"
+    if (folder / "meta.json").is_file():
+        return folder
+    cc = compiler()
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=folder.name + ".", dir=folder.parent))
+    try:
+        model = code_model(mech, options)
+        c.generate(model, staging)
+        source = staging / f"{mech.name}_solver.c"
+        result = subprocess.run([cc, *CFLAGS, str(source), "-o", str(staging / "solver.so"), "-lm"],
+                                capture_output=True, text=True)
+        if result.returncode != 0:
+            raise RuntimeError(f"compiling the generated solver failed:\n{result.stderr}")
+        f = model.flat
+        meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
+                "row": len(model.row_columns), "columns": list(model.row_columns),
+                "work": c.context(model)["work"], "params": list(f.params),
+                "rows": [r for r, _, _ in f.jac], "cols": [cc_ for _, cc_, _ in f.jac],
+                "velocity": options.velocity, "multipliers": options.multipliers}
+        (staging / "meta.json").write_text(json.dumps(meta))
+        try:
+            staging.rename(folder)
+        except OSError:  # another process built it first
+            shutil.rmtree(staging, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return folder
+
+
+_P = ctypes.POINTER(ctypes.c_double)
+_I = ctypes.POINTER(ctypes.c_int)
+
+
+def _ptr(a: Array | None) -> _P:
+    return a.ctypes.data_as(_P) if a is not None else None  # type: ignore[return-value]
+
+
+class CEvaluator:
+    """The compiled solver of one mechanism, with numeric parameter values."""
+
+    def __init__(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs,
+                 options: Options) -> None:
+        self.layout = layout
+        folder = build(layout, options)
+        self.meta = json.loads((folder / "meta.json").read_text())
+        self.lib = ctypes.CDLL(str(folder / "solver.so"))
+        name = layout.mechanism.name
+        self._fn = {n: getattr(self.lib, f"{name}_{n}", None) for n in
+                    ("phi", "phi_q", "nu", "gamma", "applied", "mass", "reactions", "instant", "trajectory")}
+        self._fn["trajectory"].argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_long, _P, ctypes.c_double,
+                                           _P, _P, ctypes.POINTER(ctypes.c_long), _P, _I]
+        self._fn["instant"].argtypes = [ctypes.c_double, _P, ctypes.c_double, _P, _P, _P, _P, _P, _I, _P, _I]
+        self.p = np.array([values[sp.Symbol(n, real=True)] for n in self.meta["params"]], dtype=float)
+        self.work = np.zeros(self.meta["work"])
+        self.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
+
+    def _call(self, name: str, *args: object, size: int) -> Array:
+        out = np.zeros(size)
+        conv = [ctypes.c_double(a) if isinstance(a, float) else _ptr(a) for a in args]  # type: ignore[arg-type]
+        self._fn[name](*conv, _ptr(self.p), _ptr(out)) if name != "mass" else self._fn[name](_ptr(self.p), _ptr(out))
+        return out
+
+    def phi(self, q: Array, t: float) -> Array:
+        return self._call("phi", np.ascontiguousarray(q, float), float(t), size=self.meta["nc"])
+
+    def phi_q(self, q: Array, t: float) -> Array:
+        values = self._call("phi_q", np.ascontiguousarray(q, float), float(t), size=self.meta["nnz"])
+        out = np.zeros((self.meta["nc"], self.meta["ng"]))
+        out[self.meta["rows"], self.meta["cols"]] = values
+        return out
+
+    def nu(self, q: Array, t: float) -> Array:
+        return self._call("nu", np.ascontiguousarray(q, float), float(t), size=self.meta["nc"])
+
+    def gamma(self, q: Array, qd: Array, t: float) -> Array:
+        return self._call("gamma", np.ascontiguousarray(q, float), np.ascontiguousarray(qd, float), float(t),
+                          size=self.meta["nc"])
+
+    def applied(self, q: Array, qd: Array | None, t: float) -> Array:
+        qd_arr = np.ascontiguousarray(qd if qd is not None else np.zeros(self.meta["ng"]), float)
+        return self._call("applied", np.ascontiguousarray(q, float), qd_arr, float(t), size=self.meta["ng"])
+
+    def mass(self) -> Array:
+        return self._call("mass", size=self.meta["ng"])
+
+    def reactions(self, q: Array, lam: Array, t: float) -> Array:
+        return self._call("reactions", np.ascontiguousarray(q, float), np.ascontiguousarray(lam, float),
+                          float(t), size=self.meta["nr"])
+
+    def rows(self, analysis: Analysis, q0: Array) -> Iterator[Array]:
+        """Solve the whole run in C, CHUNK instants per call, yielding rows."""
+        ng, width = self.meta["ng"], self.meta["row"]
+        state = np.zeros(5 * ng + 1)
+        state[:ng] = q0
+        times = analysis.steps
+        h = (analysis.t1 - analysis.t0) / (times - 1) if times > 1 else 0.0
+        buf = np.zeros((CHUNK, width))
+        solved = ctypes.c_long(0)
+        start = 0
+        while start < times:
+            n = min(CHUNK, times - start)
+            t0 = analysis.t0 + start * h
+            # t = t0 + (start + i) h exactly as the Python loop computes it
+            status = self._fn["trajectory"](ctypes.c_double(t0), ctypes.c_double(h), ctypes.c_long(n),
+                                            _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(state),
+                                            _ptr(buf), ctypes.byref(solved), _ptr(self.work),
+                                            self.iwork.ctypes.data_as(_I))
+            for k in range(solved.value):
+                yield buf[k].copy()
+            if status != 0:
+                t = analysis.t0 + (start + solved.value) * h
+                raise AnalysisError(self._diagnose(status, state, h, t, analysis), t, start + solved.value)
+            start += n
+
+    def _diagnose(self, status: int, state: Array, h: float, t: float, analysis: Analysis) -> str:
+        """Name the constraints involved, as the Python loop does."""
+        from symid.solve import _dependent
+
+        ng = self.meta["ng"]
+        q = state[:ng] + (h * state[ng:2 * ng] + 0.5 * h * h * state[2 * ng:3 * ng] if state[-1] > 0 else 0)
+        info = np.zeros(2, dtype=np.intc)
+        trial = q.copy()
+        vec = [np.zeros(max(self.meta["ng"], self.meta["nc"], self.meta["nr"], 1)) for _ in range(4)]
+        self._fn["instant"](ctypes.c_double(t), _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(trial),
+                            _ptr(vec[0]), _ptr(vec[1]), _ptr(vec[2]), _ptr(vec[3]), info.ctypes.data_as(_I),
+                            _ptr(self.work), self.iwork.ctypes.data_as(_I))
+        if status == 2:
+            names = ", ".join(_dependent(self, self.phi_q(trial, t)))
+            return f"{STATUS[2]} (compiled solver); dependent constraints: {names}"
+        phi = np.nan_to_num(self.phi(trial, t), nan=np.inf)
+        worst = self.layout.constraint_names_of_rows(np.argsort(-np.abs(phi))[:3])
+        return f"{STATUS[1]} in {info[0]} iterations (compiled solver); largest residuals in: {', '.join(worst)}"
+
+
+class CBackend:
+    """Registry entry: the compiled C solver."""
+
+    name = "c"
+
+    def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> CEvaluator:
+        from symid.codegen.model import options_for
+
+        return CEvaluator(layout, values, needs, options_for(layout.mechanism))

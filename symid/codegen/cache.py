@@ -1,0 +1,47 @@
+"""Where generated solvers are kept between runs, keyed by what they depend on.
+
+The key hashes the mechanism's structure (parameter values excluded: they
+are run-time inputs), the generation options and symid's own code and
+templates, so a change to any of them regenerates and nothing stale is used.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+from functools import cache
+from pathlib import Path
+
+import symid
+from symid.codegen.flat import Options
+from symid.codegen.render import template_dir
+from symid.model import Mechanism
+
+
+def cache_root() -> Path:
+    """$SYMID_CACHE, else $XDG_CACHE_HOME/symid, else ~/.cache/symid."""
+    if "SYMID_CACHE" in os.environ:
+        return Path(os.environ["SYMID_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "symid"
+
+
+@cache
+def code_version() -> str:
+    """Hash of symid's sources and templates: any change invalidates the cache."""
+    h = hashlib.sha256()
+    for root in (Path(symid.__file__).parent, template_dir()):
+        for path in sorted(root.rglob("*")):
+            if path.suffix in (".py", ".j2") and path.is_file():
+                h.update(path.relative_to(root).as_posix().encode())
+                h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def key(mech: Mechanism, options: Options, target: str) -> str:
+    """The cache key of one generated solver."""
+    structure = dataclasses.replace(mech, parameters={n: None for n in mech.parameters}, source="",
+                                    analysis=None)
+    text = repr((structure, options, target, code_version()))
+    return hashlib.sha256(text.encode()).hexdigest()[:24]

@@ -1,0 +1,70 @@
+"""Target-independent preparation of the generated code: CSE'd blocks and the
+elimination plan, handed to each target's printer."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+import sympy as sp
+
+from symid.codegen.flat import Flat
+from symid.codegen.sparse import Plan, Step
+
+
+@dataclass(frozen=True)
+class Block:
+    """Straight-line code for a list of outputs.
+
+    Attributes:
+        temps: (name, printed expression) of the common subexpressions, in order.
+        outputs: (index, printed expression) of every output (zeros included).
+    """
+
+    temps: tuple[tuple[str, str], ...]
+    outputs: tuple[tuple[int, str], ...]
+
+    def uses(self, name: str) -> bool:
+        """Whether an argument (`q`, `qd`, `t`, `p`, `lam`) appears in the code."""
+        token = name + "[" if name != "t" else None
+        texts = [e for _, e in self.temps] + [e for _, e in self.outputs]
+        if token is not None:
+            return any(token in e for e in texts)
+        return any(_has_word(e, "t") for e in texts)
+
+
+def _has_word(text: str, word: str) -> bool:
+    import re
+
+    return re.search(rf"(?<![\w\[.]){word}(?![\w\[])", text) is not None
+
+
+def block(exprs: Sequence[sp.Expr], printer: Callable[[sp.Expr], str], prefix: str = "e") -> Block:
+    """CSE a list of expressions once and print it."""
+    temps, reduced = sp.cse(list(exprs), symbols=sp.numbered_symbols(prefix, real=True), order="none")
+    return Block(
+        temps=tuple((str(sym), printer(e)) for sym, e in temps),
+        outputs=tuple((k, printer(e)) for k, e in enumerate(reduced)),
+    )
+
+
+def above(plan: Plan) -> dict[int, list[Step]]:
+    """Per column: the earlier steps whose U row has an entry in it."""
+    out: dict[int, list[Step]] = {}
+    for st in plan.steps:
+        for c in st.right:
+            out.setdefault(c, []).append(st)
+    return out
+
+
+def sample_jacobian(flat: Flat, q: np.ndarray, t: float, p: np.ndarray) -> np.ndarray:
+    """Phi_q as a dense matrix at one configuration (for the pivot choice)."""
+    syms = [sp.Symbol(f"q[{k}]", real=True) for k in range(flat.ng)]
+    psyms = [sp.Symbol(f"p[{k}]", real=True) for k in range(len(flat.params))]
+    fn = sp.lambdify([syms, sp.Symbol("t", real=True), psyms], [e for _, _, e in flat.jac], "numpy")
+    values = np.array(fn(list(q), t, list(p)), dtype=float).reshape(-1)
+    out = np.zeros((flat.nc, flat.ng))
+    for (r, c, _), v in zip(flat.jac, values):
+        out[r, c] = v
+    return out

@@ -1,0 +1,167 @@
+"""A sparse LU whose pivot order and fill are fixed at generation time.
+
+`plan` chooses pivots by Markowitz cost among entries that pass a threshold
+test on a sample matrix (Phi_q at the assembled configuration), and records
+every operation; targets emit them as straight-line code. At run time each
+fixed pivot is checked against the same threshold, and a configuration where
+it fails falls back to a pivoting factorization.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+THRESHOLD = 0.1  # a pivot must be >= THRESHOLD * the largest entry of its column
+
+
+@dataclass(frozen=True)
+class Step:
+    """One elimination step.
+
+    Attributes:
+        row, col: the pivot's position in the original matrix.
+        below: rows eliminated later that have an entry in `col` (their
+            multipliers are stored in place of that entry).
+        right: columns pivoted later in which `row` has an entry (U's row).
+    """
+
+    row: int
+    col: int
+    below: tuple[int, ...]
+    right: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Plan:
+    """The factorization of an n x n pattern.
+
+    Attributes:
+        slots: (row, col) -> index into the factor array; the first entries
+            are the original pattern in the given order, fill follows.
+        steps: the elimination steps in order.
+    """
+
+    n: int
+    slots: dict[tuple[int, int], int]
+    steps: tuple[Step, ...]
+
+    @property
+    def size(self) -> int:
+        return len(self.slots)
+
+    @property
+    def fill(self) -> int:
+        return len(self.slots)
+
+
+def plan(pattern: list[tuple[int, int]], sample: np.ndarray) -> Plan:
+    """Choose pivots and compute the fill for a square pattern.
+
+    Args:
+        pattern: the structural nonzeros (row, col), in slot order.
+        sample: a dense n x n matrix with that pattern, used for the threshold test.
+
+    Raises:
+        ValueError: the sample is structurally or numerically singular.
+    """
+    n = sample.shape[0]
+    a = {(r, c): float(sample[r, c]) for r, c in pattern}
+    slots = {rc: k for k, rc in enumerate(pattern)}
+    rows: dict[int, set[int]] = {r: set() for r in range(n)}
+    cols: dict[int, set[int]] = {c: set() for c in range(n)}
+    for r, c in pattern:
+        rows[r].add(c)
+        cols[c].add(r)
+    steps = []
+    for _ in range(n):
+        best = None
+        for c, rset in cols.items():
+            if not rset:
+                continue
+            colmax = max(abs(a[(r, c)]) for r in rset)
+            for r in rset:
+                v = abs(a[(r, c)])
+                if v == 0 or v < THRESHOLD * colmax:
+                    continue
+                cost = ((len(rows[r]) - 1) * (len(rset) - 1), -v / colmax, r, c)
+                if best is None or cost < best:
+                    best = cost
+        if best is None:
+            raise ValueError("Phi_q is singular at the sample configuration")
+        _, _, pr, pc = best
+        below = tuple(sorted(cols[pc] - {pr}))
+        right = tuple(sorted(rows[pr] - {pc}))
+        piv = a[(pr, pc)]
+        for r in below:
+            a[(r, pc)] /= piv
+            for c in right:
+                if (r, c) not in a:
+                    a[(r, c)] = 0.0
+                    slots[(r, c)] = len(slots)
+                    rows[r].add(c)
+                    cols[c].add(r)
+                a[(r, c)] -= a[(r, pc)] * a[(pr, c)]
+        for r in cols[pc]:
+            rows[r].discard(pc)
+        for c in rows[pr]:
+            cols[c].discard(pr)
+        del cols[pc]
+        del rows[pr]
+        steps.append(Step(pr, pc, below, right))
+    return Plan(n, slots, tuple(steps))
+
+
+def factor(p: Plan, values: np.ndarray) -> np.ndarray | None:
+    """Execute the plan on the pattern's values (reference for the emitted code).
+
+    Returns:
+        the factor array, or None where a fixed pivot fails the threshold test.
+    """
+    lu = np.zeros(p.size)
+    lu[: len(values)] = values
+    s = p.slots
+    for st in p.steps:
+        piv = lu[s[(st.row, st.col)]]
+        colmax = max([abs(piv)] + [abs(lu[s[(r, st.col)]]) for r in st.below])
+        if not abs(piv) >= THRESHOLD * colmax or piv == 0:
+            return None
+        for r in st.below:
+            lu[s[(r, st.col)]] /= piv
+            m = lu[s[(r, st.col)]]
+            for c in st.right:
+                lu[s[(r, c)]] -= m * lu[s[(st.row, c)]]
+    return lu
+
+
+def solve(p: Plan, lu: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x with A x = b, from the factors (reference for the emitted code)."""
+    s = p.slots
+    y = b.astype(float).copy()
+    for st in p.steps:
+        for r in st.below:
+            y[r] -= lu[s[(r, st.col)]] * y[st.row]
+    x = np.zeros(p.n)
+    for st in reversed(p.steps):
+        acc = y[st.row] - sum(lu[s[(st.row, c)]] * x[c] for c in st.right)
+        x[st.col] = acc / lu[s[(st.row, st.col)]]
+    return x
+
+
+def solve_transposed(p: Plan, lu: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x with A^T x = b, from the same factors."""
+    s = p.slots
+    z = np.zeros(p.n)  # indexed by pivot row
+    for st in p.steps:
+        acc = b[st.col] - sum(lu[s[(prev.row, st.col)]] * z[prev.row] for prev in _above(p, st))
+        z[st.row] = acc / lu[s[(st.row, st.col)]]
+    x = z.copy()
+    for st in reversed(p.steps):
+        x[st.row] -= sum(lu[s[(r, st.col)]] * x[r] for r in st.below)
+    return x
+
+
+def _above(p: Plan, st: Step) -> list[Step]:
+    """Earlier steps whose U row has an entry in st.col."""
+    return [prev for prev in p.steps if prev is not st and st.col in prev.right]

@@ -1,0 +1,21 @@
+"""Code-generation targets behind one registry: c, numpy, casadi.
+
+A target is a module with `NAME` and `generate(model, out_dir) -> list[Path]`.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from types import ModuleType
+
+from symid.errors import InputError
+
+TARGETS = {"c": "symid.codegen.targets.c", "numpy": "symid.codegen.targets.numpy_target",
+           "casadi": "symid.codegen.targets.casadi_target"}
+
+
+def get(name: str) -> ModuleType:
+    """The target module `name`; an input error lists the valid ones."""
+    if name not in TARGETS:
+        raise InputError(f"--target: unknown target {name!r} (valid: {', '.join(TARGETS)})")
+    return import_module(TARGETS[name])

@@ -1,0 +1,121 @@
+"""The C target: a dependency-free C99 solver (`.h`, `.c`, Makefile) per mechanism."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import sympy as sp
+from sympy.printing.c import C99CodePrinter
+
+from symid.codegen.emit import Block, above, block
+from symid.codegen.model import CodeModel
+from symid.codegen.render import render
+from symid.codegen.sparse import THRESHOLD
+
+NAME = "c"
+MAX_NEWTON = 50
+
+
+class Printer(C99CodePrinter):
+    """C99 without the POSIX constants (M_PI is not in strict C99)."""
+
+    def _print_Pi(self, expr: sp.Expr) -> str:
+        return repr(float(sp.pi))
+
+    def _print_Exp1(self, expr: sp.Expr) -> str:
+        return repr(float(sp.E))
+
+    def _print_Float(self, expr: sp.Float) -> str:
+        return repr(float(expr))
+
+
+_PRINTER = Printer({"math_macros": {}})
+
+
+def ccode(expr: sp.Expr) -> str:
+    return _PRINTER.doprint(expr)
+
+
+def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr]) -> dict[str, Any]:
+    """One generated function: its signature, the arguments it ignores, its code."""
+    code: Block = block(exprs, ccode)
+    unused = [a for _, a in args if not code.uses(a)]
+    signature = ", ".join(f"{ctype} {a}" for ctype, a in args) + ", double *out" if args else "double *out"
+    return {"name": name, "signature": signature, "unused": unused, "block": code}
+
+
+def _steps(model: CodeModel) -> list[dict[str, Any]]:
+    plan = model.plan
+    slots = plan.slots
+    up = above(plan)
+    out = []
+    for st in plan.steps:
+        out.append({
+            "row": st.row, "col": st.col, "pivot": slots[(st.row, st.col)],
+            "column": [slots[(r, st.col)] for r in st.below],
+            "mults": [{"slot": slots[(r, st.col)],
+                       "updates": [(slots[(r, c)], slots[(st.row, c)]) for c in st.right]} for r in st.below],
+            "below": [(r, slots[(r, st.col)]) for r in st.below],
+            "right": [(c, slots[(st.row, c)]) for c in st.right],
+            "above": [(prev.row, slots[(prev.row, st.col)]) for prev in up.get(st.col, [])],
+        })
+    return out
+
+
+def context(model: CodeModel) -> dict[str, Any]:
+    """Everything the C templates need, expressions already printed."""
+    f = model.flat
+    o = f.options
+    cq, cqd, ct, cp, clam = ("const double *", "q"), ("const double *", "qd"), ("double", "t"), \
+        ("const double *", "p"), ("const double *", "lam")
+    functions = [
+        _function("phi", [cq, ct, cp], f.phi),
+        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac]),
+    ]
+    if o.velocity:
+        functions += [_function("nu", [cq, ct, cp], f.nu), _function("gamma", [cq, cqd, ct, cp], f.gamma)]
+    dynamics = o.kind != "kinematics" and o.multipliers
+    if dynamics:
+        functions += [_function("applied", [cq, cqd, ct, cp], f.applied), _function("mass", [cp], f.mass)]
+    if f.reactions:
+        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions))
+    ng, nc, nr = f.ng, f.nc, len(f.reactions)
+    has = {g: int(g in o.outputs) for g in ("qdot", "qddot", "lambda", "reactions")}
+    # a trajectory row: t, then each group in contract order
+    row_parts, offset = [], 1
+    sources = {"q": ("q", ng), "qdot": ("qd" if o.velocity else None, ng),
+               "qddot": ("qdd" if o.velocity else None, ng), "lambda": ("lam", nc), "reactions": ("reac", nr)}
+    for group in o.outputs:
+        source, size = sources[group]
+        row_parts.append((group, source, size, offset))
+        offset += size
+    stride = max(ng, nc, nr, 1)
+    return {
+        "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
+        "nnz": len(f.jac), "nr": nr, "row_width": offset, "lu_size": model.plan.size,
+        "work": len(f.jac) + model.plan.size + ng * ng + 9 * stride, "stride": stride,
+        "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
+        "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
+        "functions": functions, "steps": _steps(model), "threshold": repr(THRESHOLD),
+        "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
+        "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
+        "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
+    }
+
+
+def generate(model: CodeModel, out_dir: Path) -> list[Path]:
+    """Write `<name>_solver.h`, `<name>_solver.c` and a Makefile into out_dir."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    ctx = context(model)
+    files = {
+        f"{model.name}_solver.h": render("c/solver.h.j2", **ctx),
+        f"{model.name}_solver.c": render("c/solver.c.j2", **ctx),
+        "Makefile": render("c/Makefile.j2", **ctx),
+    }
+    written = []
+    for fname, text in files.items():
+        path = out_dir / fname
+        path.write_text(text)
+        written.append(path)
+    return written
