@@ -62,6 +62,7 @@ class Backend(Protocol):
 _REGISTRY = {
     "numpy": ("symid.backends.numpy_backend", "NumpyBackend"),
     "c": ("symid.backends.c_backend", "CBackend"),
+    "casadi": ("symid.backends.casadi_backend", "CasadiBackend"),
 }
 
 
