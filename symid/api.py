@@ -127,6 +127,35 @@ def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
     return Study(mech, layout, evaluator, values)
 
 
+def load_mechanism(path: str | Path, set_values: Mapping[str, str] | None = None,
+                   **analysis: Any) -> Mechanism:
+    """Read and validate a mechanism file (see `symid.io.reader.load`)."""
+    return load(path, set_values, analysis)
+
+
+def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path) -> list[Path]:
+    """Write the generated code of one target ("c", "numpy", "casadi") into out_dir.
+
+    What is emitted follows the mechanism's `[analysis]`: kind, outputs and reactions.
+    """
+    from symid.codegen import targets
+    from symid.codegen.model import code_model
+
+    module = targets.get(target)
+    mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
+    return module.generate(code_model(mech), Path(out_dir))  # type: ignore[no-any-return]
+
+
+def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "numpy", "casadi")) -> list[Path]:
+    """Regenerate the committed `generated/<example>/<target>/` folders."""
+    written = []
+    for name in examples():
+        mech = load(example(name))
+        for target in targets:
+            written += generate(mech, target, Path(out_dir) / name / target)
+    return written
+
+
 def solve(mechanism: Mechanism | str | Path, backend: str = "numpy", **analysis: Any) -> Results:
     """Prepare and solve in one call; see `prepare` and `Study.solve`."""
     return prepare(mechanism, backend, **analysis).solve()

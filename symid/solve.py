@@ -8,6 +8,7 @@ stream to a file with memory that does not grow with the run.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Iterator
 
@@ -46,7 +47,9 @@ class Instant:
 def _factor(ev: Evaluator, q: Array, t: float) -> tuple[tuple[Array, Array], float]:
     """LU factors of Phi_q(q) and its 1-norm condition estimate; raise if singular."""
     jac = ev.phi_q(q, t)
-    lu = sla.lu_factor(jac, check_finite=False)
+    with warnings.catch_warnings():  # a singular matrix is reported below, in one line
+        warnings.simplefilter("ignore", sla.LinAlgWarning)
+        lu = sla.lu_factor(jac, check_finite=False)
     anorm = np.linalg.norm(jac, 1)
     rcond = sla.lapack.dgecon(lu[0], anorm, norm="1")[0] if anorm > 0 else 0.0
     if not rcond > SINGULAR_RCOND:

@@ -61,6 +61,7 @@ class Backend(Protocol):
 
 _REGISTRY = {
     "numpy": ("symid.backends.numpy_backend", "NumpyBackend"),
+    "reference": ("symid.backends.reference", "ReferenceBackend"),
     "c": ("symid.backends.c_backend", "CBackend"),
     "casadi": ("symid.backends.casadi_backend", "CasadiBackend"),
 }

@@ -11,7 +11,6 @@ import json
 import os
 import shutil
 import subprocess
-import tempfile
 from pathlib import Path
 from typing import Iterator, Mapping
 
@@ -20,7 +19,7 @@ import sympy as sp
 
 from symid.assemble import Layout
 from symid.backends import Array, Needs
-from symid.codegen.cache import cache_root, key
+from symid.codegen.cache import cached
 from symid.codegen.flat import Options
 from symid.errors import AnalysisError, InputError
 from symid.model import Analysis
@@ -44,21 +43,17 @@ def compiler() -> str:
 
 def build(layout: Layout, options: Options) -> Path:
     """The folder holding the compiled solver for this model, building it if needed."""
-    from symid.codegen.model import code_model
-    from symid.codegen.targets import c
-
     mech = layout.mechanism
-    folder = cache_root() / f"c-{mech.name}-{key(mech, options, 'c')}"
-    if (folder / "meta.json").is_file():
-        return folder
-    cc = compiler()
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=folder.name + ".", dir=folder.parent))
-    try:
+
+    def make(folder: Path) -> None:
+        from symid.codegen.model import code_model
+        from symid.codegen.targets import c
+
+        cc = compiler()
         model = code_model(mech, options)
-        c.generate(model, staging)
-        source = staging / f"{mech.name}_solver.c"
-        result = subprocess.run([cc, *CFLAGS, str(source), "-o", str(staging / "solver.so"), "-lm"],
+        c.generate(model, folder)
+        source = folder / f"{mech.name}_solver.c"
+        result = subprocess.run([cc, *CFLAGS, str(source), "-o", str(folder / "solver.so"), "-lm"],
                                 capture_output=True, text=True)
         if result.returncode != 0:
             raise RuntimeError(f"compiling the generated solver failed:\n{result.stderr}")
@@ -66,17 +61,10 @@ def build(layout: Layout, options: Options) -> Path:
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
                 "row": len(model.row_columns), "columns": list(model.row_columns),
                 "work": c.context(model)["work"], "params": list(f.params),
-                "rows": [r for r, _, _ in f.jac], "cols": [cc_ for _, cc_, _ in f.jac],
-                "velocity": options.velocity, "multipliers": options.multipliers}
-        (staging / "meta.json").write_text(json.dumps(meta))
-        try:
-            staging.rename(folder)
-        except OSError:  # another process built it first
-            shutil.rmtree(staging, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-    return folder
+                "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac]}
+        (folder / "meta.json").write_text(json.dumps(meta))
+
+    return cached(mech, options, "c", make)
 
 
 _P = ctypes.POINTER(ctypes.c_double)

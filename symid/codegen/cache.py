@@ -10,8 +10,11 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import os
+import shutil
+import tempfile
 from functools import cache
 from pathlib import Path
+from typing import Callable
 
 import symid
 from symid.codegen.flat import Options
@@ -45,3 +48,32 @@ def key(mech: Mechanism, options: Options, target: str) -> str:
                                     analysis=None)
     text = repr((structure, options, target, code_version()))
     return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+def cached(mech: Mechanism, options: Options, target: str, make: Callable[[Path], None]) -> Path:
+    """The cache folder of one generated artefact, made by `make(folder)` if absent.
+
+    `make` writes into a private staging folder that is renamed into place
+    only when complete, so concurrent runs and failures never leave a
+    half-built entry.
+    """
+    folder = cache_root() / f"{target}-{mech.name}-{key(mech, options, target)}"
+    if (folder / "complete").is_file():
+        return folder
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=folder.name + ".", dir=folder.parent))
+    try:
+        make(staging)
+        (staging / "complete").write_text("")
+        try:
+            staging.rename(folder)
+        except OSError:  # built meanwhile by another process, or a stale partial folder
+            if not (folder / "complete").is_file():
+                shutil.rmtree(folder, ignore_errors=True)
+                staging.rename(folder)
+            else:
+                shutil.rmtree(staging, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return folder

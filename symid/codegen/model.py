@@ -49,7 +49,7 @@ def options_for(mech: Mechanism) -> Options:
 
 def code_model(mech: Mechanism, options: Options | None = None) -> CodeModel:
     """Build the flat system and fix the elimination order at q(t0)."""
-    from symid.backends.numpy_backend import NumpyEvaluator
+    from symid.backends.reference import ReferenceEvaluator
     from symid.backends import Needs
     from symid.results import columns
     from symid.solve import newton
@@ -62,7 +62,7 @@ def code_model(mech: Mechanism, options: Options | None = None) -> CodeModel:
     q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
     t0 = mech.analysis.t0
     try:
-        q0, _ = newton(NumpyEvaluator(layout, values, Needs()), q0, t0, mech.analysis.tol)
+        q0, _ = newton(ReferenceEvaluator(layout, values, Needs()), q0, t0, mech.analysis.tol)
     except AnalysisError:
         pass  # the plan still needs a sample; the solver reports the failure at run time
     sample = sample_jacobian(flat, q0, t0, np.array(defaults))

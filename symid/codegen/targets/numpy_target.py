@@ -1,0 +1,68 @@
+"""The NumPy target: one standalone module per mechanism, importing only numpy."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import sympy as sp
+from sympy.printing.numpy import NumPyPrinter
+
+from symid.codegen.emit import block
+from symid.codegen.model import CodeModel
+from symid.codegen.render import render
+
+NAME = "numpy"
+
+
+class Printer(NumPyPrinter):
+    """NumPy printing with every float at full precision."""
+
+    def _print_Float(self, expr: sp.Float) -> str:
+        return repr(float(expr))
+
+
+_PRINTER = Printer({"fully_qualified_modules": True})
+
+
+def pycode(expr: sp.Expr) -> str:
+    return _PRINTER.doprint(expr)
+
+
+def _function(name: str, args: list[str], exprs: list[sp.Expr], doc: str) -> dict[str, Any]:
+    return {"name": name, "args": args, "block": block(exprs, pycode), "doc": doc,
+            "like": "q[0]" if "q" in args else "0.0"}
+
+
+def context(model: CodeModel) -> dict[str, Any]:
+    f = model.flat
+    o = f.options
+    functions = [
+        _function("phi", ["q", "t", "p"], f.phi, "Phi, size NC."),
+        _function("phi_q_values", ["q", "t", "p"], [e for _, _, e in f.jac],
+                  "The stored values of Phi_q (rows PHI_Q_ROWS, columns PHI_Q_COLS)."),
+    ]
+    if o.velocity:
+        functions += [_function("nu", ["q", "t", "p"], f.nu, "nu = -Phi_t, size NC."),
+                      _function("gamma", ["q", "qd", "t", "p"], f.gamma, "gamma, size NC.")]
+    if o.multipliers:
+        functions += [_function("applied", ["q", "qd", "t", "p"], f.applied, "Q^A, size NG."),
+                      _function("mass", ["p"], f.mass, "The diagonal of M, size NG.")]
+    if f.reactions:
+        functions.append(_function("reactions", ["q", "lam", "t", "p"], f.reactions,
+                                   "Fx, Fy, T per body role of each requested constraint, size NR."))
+    return {
+        "name": f.name, "ng": f.ng, "nc": f.nc, "np_": len(f.params), "nr": len(f.reactions),
+        "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
+        "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
+        "functions": functions, "outputs": o.outputs, "kind": o.kind,
+        "velocity": o.velocity, "multipliers": o.multipliers,
+    }
+
+
+def generate(model: CodeModel, out_dir: Path) -> list[Path]:
+    """Write `<name>_solver.py` into out_dir."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / f"{model.name}_solver.py"
+    path.write_text(render("numpy/module.py.j2", **context(model)))
+    return [path]

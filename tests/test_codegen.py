@@ -1,0 +1,256 @@
+"""Generated solvers: agreement with the reference, strict C, the fallback
+and singular paths, code size with fewer outputs, staleness of generated/."""
+
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import filecmp
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from data_mechanisms import SINGULAR_PENDULUM, TWO_CABLES
+from symid import api
+from symid.cli import main
+from symid.codegen import sparse
+from symid.codegen.emit import sample_jacobian
+from symid.codegen.model import code_model
+from symid.codegen.targets import c as c_target
+from symid.io.reader import load, loads
+
+ROOT = Path(__file__).resolve().parents[1]
+STRICT = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic"]
+GENERATED_BACKENDS = ("numpy", "c")
+needs_cc = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler")
+
+
+def assert_agree(got: np.ndarray, expected: np.ndarray, rel: float = 1e-12) -> None:
+    """Per column, relative to the column's peak; columns that are zero up to
+    rounding are measured against the table's largest value instead."""
+    assert got.shape == expected.shape
+    col = np.max(np.abs(expected), axis=0)
+    scale = np.maximum(col, 1e-3 * np.max(col))
+    worst = np.max(np.abs(got - expected) / scale)
+    assert worst <= rel, worst
+
+
+@pytest.fixture(scope="module")
+def reference() -> dict[str, np.ndarray]:
+    return {name: api.solve(api.example(name), backend="reference", steps=60).data for name in api.examples()}
+
+
+@pytest.mark.parametrize("backend", GENERATED_BACKENDS)
+@pytest.mark.parametrize("example", api.examples())
+def test_backend_agrees_with_reference_through_api(example: str, backend: str, reference) -> None:
+    if backend == "c":
+        needs_cc(lambda: None)
+    result = api.solve(api.example(example), backend=backend, steps=60)
+    assert result.error is None
+    assert_agree(result.data, reference[example])
+
+
+@needs_cc
+@pytest.mark.parametrize("backend", GENERATED_BACKENDS)
+def test_backend_agrees_through_command_line(backend: str, tmp_path: Path, reference) -> None:
+    out = tmp_path / "four_bar.csv"
+    assert main(["solve", str(api.example("four_bar")), "--backend", backend, "--steps", "60", "-o", str(out)]) == 0
+    data = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert_agree(data, reference["four_bar"])
+
+
+def test_unknown_backend_lists_the_valid_ones(capsys) -> None:
+    assert main(["solve", str(api.example("four_bar")), "--backend", "fortran"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown backend 'fortran'" in err and "numpy" in err and "c" in err
+
+
+@needs_cc
+@pytest.mark.parametrize("example", api.examples())
+def test_generated_c_compiles_with_strict_flags(example: str, tmp_path: Path) -> None:
+    api.generate(api.example(example), "c", tmp_path)
+    source = tmp_path / f"{load(api.example(example)).name}_solver.c"
+    result = subprocess.run(["cc", *STRICT, "-c", str(source), "-o", str(tmp_path / "x.o")],
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+
+
+@needs_cc
+def test_emitted_makefile_builds_a_c_program_alone(tmp_path: Path) -> None:
+    api.generate(api.example("slider_crank"), "c", tmp_path)
+    subprocess.run(["make", "-C", str(tmp_path)], check=True, capture_output=True)
+    exe = tmp_path / "main"
+    subprocess.run(["cc", *STRICT, f"-I{tmp_path}", str(ROOT / "docs/c_example/main.c"),
+                    str(tmp_path / "libslider_crank_solver.a"), "-lm", "-o", str(exe)], check=True)
+    printed = np.loadtxt(subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.splitlines())
+    expected = api.solve(api.example("slider_crank"), backend="reference", steps=11)
+    assert np.array_equal(printed[:, 0], expected.t)
+    torque = expected["motor.T_j"]
+    assert np.max(np.abs(printed[:, 1] - torque)) <= 1e-12 * np.max(np.abs(torque))
+
+
+def _compile(folder: Path, name: str) -> ctypes.CDLL:
+    subprocess.run(["cc", *STRICT, "-fPIC", "-shared", str(folder / f"{name}_solver.c"), "-o",
+                    str(folder / "s.so"), "-lm"], check=True)
+    return ctypes.CDLL(str(folder / "s.so"))
+
+
+def _instant(lib: ctypes.CDLL, name: str, ctx: dict, t: float, q: np.ndarray, p: np.ndarray):
+    """Call <name>_instant; returns (status, info, q, lam)."""
+    dp = ctypes.POINTER(ctypes.c_double)
+    ip = ctypes.POINTER(ctypes.c_int)
+    f = getattr(lib, f"{name}_instant")
+    f.argtypes = [ctypes.c_double, dp, ctypes.c_double, dp, dp, dp, dp, dp, ip, dp, ip]
+    size = max(ctx["ng"], ctx["nc"], ctx["nr"], 1)
+    q = q.astype(float).copy()
+    qd, qdd, lam, reac = (np.zeros(size) for _ in range(4))
+    info, work, iwork = np.zeros(2, np.intc), np.zeros(ctx["work"]), np.zeros(ctx["ng"], np.intc)
+    ptr = lambda a: a.ctypes.data_as(dp)  # noqa: E731
+    status = f(t, ptr(p), 1e-12, ptr(q), ptr(qd), ptr(qdd), ptr(lam), ptr(reac), info.ctypes.data_as(ip),
+               ptr(work), iwork.ctypes.data_as(ip))
+    return status, info, q, lam[: ctx["nc"]]
+
+
+@needs_cc
+def test_fixed_pivot_too_small_falls_back_and_stays_exact(tmp_path: Path) -> None:
+    mech = loads(TWO_CABLES, "two_cables.toml")
+    model = code_model(mech)
+    ctx = c_target.context(model)
+    c_target.generate(model, tmp_path)
+    lib = _compile(tmp_path, "two_cables")
+    reference = api.solve(mech, backend="reference")
+    p = np.array(model.flat.defaults)
+    fallbacks = 0
+    for row in reference.data:
+        status, info, q, lam = _instant(lib, "two_cables", ctx, row[0], row[1:4] + 1e-3, p)
+        assert status == 0
+        fallbacks += info[1]
+        assert np.max(np.abs(lam - row[10:13])) <= 1e-12 * np.max(np.abs(reference.data[:, 10:13]))
+        pattern = [(r, c) for r, c, _ in model.flat.jac]
+        jac = sample_jacobian(model.flat, row[1:4], row[0], p)
+        fixed = sparse.factor(model.plan, np.array([jac[r, c] for r, c in pattern]))
+        assert bool(info[1]) == (fixed is None)  # C and the plan's reference executor agree
+    assert fallbacks >= 1
+    # the whole trajectory through the backend matches as well
+    result = api.solve(mech, backend="c")
+    assert_agree(result.data, reference.data)
+
+
+@needs_cc
+def test_singular_configuration_returns_singular_status(tmp_path: Path) -> None:
+    mech = loads(SINGULAR_PENDULUM, "stretched.toml")
+    model = code_model(mech)
+    c_target.generate(model, tmp_path)
+    lib = _compile(tmp_path, "stretched_pendulum")
+    status, _, _, _ = _instant(lib, "stretched_pendulum", c_target.context(model), 0.0,
+                               np.array([1.0, 0.0, 0.0]), np.zeros(0))
+    assert status == 2  # STRETCHED_PENDULUM_SINGULAR
+
+
+@pytest.mark.parametrize("backend", ("reference", "numpy", "c"))
+def test_singular_configuration_exits_3_naming_the_constraints(backend: str, tmp_path: Path, capsys) -> None:
+    if backend == "c":
+        needs_cc(lambda: None)
+    path = tmp_path / "stretched.toml"
+    path.write_text(SINGULAR_PENDULUM)
+    out = tmp_path / "out.csv"
+    assert main(["solve", str(path), "--backend", backend, "-o", str(out)]) == 3
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "singular" in err and "t = 0" in err
+    assert "pivot" in err and "push" in err
+    assert out.read_text().count("\n") == 1  # the header only: nothing was solved
+
+
+def _sizes(mech_text: str, target: str, tmp_path: Path, **analysis: object) -> int:
+    mech = loads(mech_text, "m.toml", analysis=analysis)
+    folder = tmp_path / f"{target}-{abs(hash(repr(analysis)))}"
+    paths = api.generate(mech, target, folder)
+    return sum(p.stat().st_size for p in paths if p.suffix in (".c", ".py"))
+
+
+@pytest.mark.parametrize("target", ("c", "numpy"))
+def test_fewer_outputs_give_smaller_code(target: str, tmp_path: Path) -> None:
+    text = api.example("slider_crank").read_text()
+    everything = _sizes(text, target, tmp_path)
+    motor_only = _sizes(text, target, tmp_path, reactions=["motor"])
+    positions = _sizes(text, target, tmp_path, outputs=["q", "qdot"], kind="kinematics")
+    assert positions < motor_only < everything
+
+
+@pytest.mark.parametrize("target", ("c", "numpy"))
+def test_statics_code_has_no_velocity_terms(target: str, tmp_path: Path) -> None:
+    mech = loads(api.example("four_bar").read_text(), "four_bar.toml", analysis={"kind": "statics"})
+    paths = api.generate(mech, target, tmp_path)
+    code = "".join(p.read_text() for p in paths if p.suffix in (".c", ".py", ".h"))
+    assert "qd[" not in code and "gamma" not in code and "_nu(" not in code and "def nu" not in code
+    # the damper of the four-bar is in the dynamic code, with velocity terms
+    dynamic = api.generate(api.example("four_bar"), target, tmp_path / "dyn")
+    assert "qd[" in "".join(p.read_text() for p in dynamic if p.suffix in (".c", ".py"))
+
+
+def test_generating_twice_gives_identical_bytes(tmp_path: Path) -> None:
+    for folder in (tmp_path / "a", tmp_path / "b"):
+        api.generate(api.example("quick_return"), "c", folder)
+        api.generate(api.example("quick_return"), "numpy", folder)
+    match, mismatch, errors = filecmp.cmpfiles(tmp_path / "a", tmp_path / "b",
+                                               [p.name for p in (tmp_path / "a").iterdir()], shallow=False)
+    assert not mismatch and not errors and len(match) == 4
+
+
+def test_every_generated_file_names_symid_template_mechanism_and_do_not_edit(tmp_path: Path) -> None:
+    for target in ("c", "numpy"):
+        for path in api.generate(api.example("planetary"), target, tmp_path / target):
+            head = "\n".join(path.read_text().splitlines()[:3])
+            assert "symid" in head and "do not edit" in head.lower() and "planetary" in head
+            assert ".j2" in head and str(ROOT) not in path.read_text()
+
+
+def test_generated_folder_is_current(tmp_path: Path) -> None:
+    """generated/ holds every example's output; `symid generate --examples` rewrites it."""
+    committed = ROOT / "generated"
+    targets = tuple(sorted({p.name for p in committed.glob("*/*") if p.is_dir()}))
+    assert {"c", "numpy"} <= set(targets)
+    api.generate_examples(tmp_path, targets)
+    fresh = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*") if p.is_file())
+    kept = sorted(p.relative_to(committed) for p in committed.rglob("*") if p.is_file())
+    assert fresh == kept, "generated/ has missing or extra files: run `symid generate --examples`"
+    stale = [str(rel) for rel in fresh if (tmp_path / rel).read_bytes() != (committed / rel).read_bytes()]
+    assert not stale, f"stale generated files (run `symid generate --examples`): {stale}"
+
+
+@needs_cc
+def test_second_run_compiles_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
+    api.prepare(api.example("slider_pendulum"), backend="c")
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("compiled again")
+
+    monkeypatch.setattr(subprocess, "run", refuse)
+    monkeypatch.setattr("symid.codegen.model.code_model", refuse)
+    assert api.prepare(api.example("slider_pendulum"), backend="c").solve().error is None
+
+
+def test_missing_compiler_names_the_other_backends(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys) -> None:
+    monkeypatch.setenv("SYMID_CACHE", str(tmp_path))
+    monkeypatch.delenv("CC", raising=False)
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    assert main(["solve", str(api.example("slider_crank")), "--backend", "c", "-o", str(tmp_path / "x.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "no C compiler" in err and "numpy" in err and "reference" in err
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_sparse_plan_solves_like_dense_lu(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 15))
+    a = rng.normal(size=(n, n)) * (rng.random((n, n)) < 0.3) + np.diag(rng.normal(size=n) + 3)
+    pattern = [(r, c) for r in range(n) for c in range(n) if a[r, c] != 0]
+    plan = sparse.plan(pattern, a)
+    lu = sparse.factor(plan, np.array([a[r, c] for r, c in pattern]))
+    assert lu is not None
+    b = rng.normal(size=n)
+    assert np.allclose(a @ sparse.solve(plan, lu, b), b, rtol=0, atol=1e-10)
+    assert np.allclose(a.T @ sparse.solve_transposed(plan, lu, b), b, rtol=0, atol=1e-10)
