@@ -37,16 +37,32 @@ def _analysis_overrides(args: argparse.Namespace) -> dict[str, object]:
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
-    from symid import api
+    from symid import api, progress, summary
+    from symid.io.npz import write_npz
+    from symid.results import write_csv
 
     study = api.prepare(args.file, args.backend, _set_values(args.set), **_analysis_overrides(args))
     out = Path(args.output) if args.output else Path(f"{study.mechanism.name}.csv")
+    plots = args.plot or args.plot_dir is not None
+    header = study.columns()
+    record = summary.Recorder(header, None if plots else summary.needed_columns(study.mechanism, header))
+    write = write_npz if out.suffix.lower() == ".npz" else write_csv
     try:
-        count = study.write_csv(out)
+        count = write(out, header, record(progress.bar(study.rows(), study.analysis.steps, study.mechanism.name)))
     except AnalysisError as exc:
         raise AnalysisError(f"{args.file}: t = {exc.time:.17g}: {exc}; the {exc.solved} instants "
                             f"before it are in {out}", exc.time, exc.solved) from None
     print(f"{out}: {count} instants, {len(study.columns())} columns")
+    for line in summary.lines(study.mechanism, record.results()):
+        print(line)
+    if plots:
+        from symid import plot
+
+        written = plot.write_all(record.results(), study.mechanism, args.plot_dir or out.parent, out.stem)
+        for path in written.paths:
+            print(path)
+        for note in written.skipped:
+            print(f"symid: skipped the {note}", file=sys.stderr)
     return 0
 
 
@@ -88,6 +104,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     solve.add_argument("--backend", default="numpy")
     solve.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                        help="override a parameter (repeatable)")
+    solve.add_argument("--plot", action="store_true", help="also write PNG plots beside the output")
+    solve.add_argument("--plot-dir", metavar="DIR", help="folder for the plots (implies --plot)")
     solve.set_defaults(run=cmd_solve)
 
     chk = sub.add_parser("check", help="validate a file; report ng, nc, rank and conditioning at q0")

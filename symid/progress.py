@@ -1,0 +1,100 @@
+"""A progress bar for long solves: on a terminal only, silent in a pipe or under CI.
+
+A few lines of our own rather than a dependency: one bar, one line on stderr,
+redrawn at most every `INTERVAL` seconds, showing the rate in instants/s.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import time
+from typing import Callable, Iterable, Iterator, Mapping, TextIO, TypeVar
+
+Item = TypeVar("Item")
+
+DELAY = 0.5     # s before the bar first shows, so that quick solves print nothing
+INTERVAL = 0.1  # s between redraws: drawing stays a negligible cost per instant
+
+
+def enabled(stream: TextIO, environ: Mapping[str, str] | None = None) -> bool:
+    """True when `stream` is a terminal and the environment is not CI.
+
+    `CI` counts as set unless empty, "0" or "false" (CI services set CI=true).
+    """
+    env = os.environ if environ is None else environ
+    if env.get("CI", "").strip().lower() not in ("", "0", "false"):
+        return False
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError, OSError):  # no isatty, or a closed stream
+        return False
+
+
+def _clock(seconds: float) -> str:
+    seconds = int(round(seconds))
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}" if seconds >= 3600 \
+        else f"{seconds // 60}:{seconds % 60:02d}"
+
+
+def render(label: str, done: int, total: int | None, elapsed: float, width: int, fill: str = "#") -> str:
+    """One line of the bar, at most `width` characters.
+
+    Args:
+        done: instants solved; total: instants in the run (None: unknown).
+        elapsed: seconds since the start; fill: the bar's character.
+    """
+    rate = done / elapsed if elapsed > 0 else 0.0
+    speed = f"{rate:.4g} instants/s"
+    if not total:
+        return f"{label} {done} instants  {speed}  {_clock(elapsed)}"[:width]
+    left = _clock((total - done) / rate) if rate > 0 else "?"
+    head = f"{label} {100 * done // total:3d}% "
+    tail = f" {done}/{total}  {speed}  {left} left"
+    room = max(width - len(head) - len(tail) - 2, 0)
+    cells = min(room, 40)
+    filled = cells * done // total
+    return (head + "|" + fill * filled + " " * (cells - filled) + "|" + tail)[:width]
+
+
+def bar(items: Iterable[Item], total: int | None = None, label: str = "solve",
+        stream: TextIO | None = None, environ: Mapping[str, str] | None = None,
+        delay: float | None = None, clock: Callable[[], float] = time.monotonic) -> Iterator[Item]:
+    """Yield `items` unchanged, showing their progress on `stream` (default stderr).
+
+    Nothing is written unless `enabled(stream)`, nor before `delay` seconds
+    (default `DELAY`).
+    Once shown, the bar's last state stays on its own line when the items
+    end, also when they end by an exception (so an error message that follows
+    starts on a fresh line).
+    """
+    out = sys.stderr if stream is None else stream
+    wait = DELAY if delay is None else delay
+    if not enabled(out, environ):
+        yield from items
+        return
+    fill = "#"
+    try:
+        "█".encode(getattr(out, "encoding", None) or "ascii")
+        fill = "█"
+    except (UnicodeEncodeError, LookupError):
+        pass
+    width = max(shutil.get_terminal_size((80, 24)).columns - 1, 20)
+    start = clock()
+    last = -float("inf")
+    done = 0
+    shown = False
+    try:
+        for item in items:
+            done += 1
+            now = clock()
+            if now - start >= wait and now - last >= INTERVAL:
+                out.write("\r" + render(label, done, total, now - start, width, fill).ljust(width))
+                out.flush()
+                last, shown = now, True
+            yield item
+    finally:
+        if shown:
+            out.write("\r" + render(label, done, total, clock() - start, width, fill).ljust(width) + "\n")
+            out.flush()

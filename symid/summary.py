@@ -1,0 +1,213 @@
+"""Driver efforts (motor torque, actuator force), their power and a summary line each.
+
+An effort is what a driver's actuator applies, from the reference's reaction
+formulas (`planar-inverse-dynamics.md`), with `lambda` the driver's multiplier
+and `f(t)` its imposed function:
+
+| driver | effort | positive when | rate of the driven quantity |
+|---|---|---|---|
+| relative_angle_driver | torque on body j, `C.T_j` (= -lambda) | counter-clockwise on j | fdot |
+| coordinate_driver | `-lambda`: force along x or y, or torque (`C.Fx_i`, `C.Fy_i`, `C.T_i`) | along +x, +y, counter-clockwise | fdot |
+| distance_driver | axial force on j, `-2 |f| lambda` | pushing the points apart (actuator in compression) | d|f|/dt |
+| translational_driver | force on j along the slide `u_i`, `-lambda` | pushing j towards +u_i | fdot |
+
+The power is effort x rate = `lambda Phi_t`, the power of the driver's
+reaction forces: positive when the actuator delivers energy to the mechanism.
+The rate is the derivative of `f` (exact, and defined for statics too, where
+it gives the quasi-static power). Units: SI is assumed (the file has none).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Iterator, Mapping, Protocol, Sequence
+
+import numpy as np
+import sympy as sp
+
+from symid.backends import Array
+from symid.model import Element, Mechanism, T
+from symid.params import parameter_values
+from symid.results import Results
+
+DRIVERS = ("relative_angle_driver", "coordinate_driver", "distance_driver", "translational_driver")
+
+
+class Table(Protocol):
+    """What the efforts need of a results table: column names and columns by name."""
+
+    columns: list[str]
+
+    def __getitem__(self, column: str) -> Array: ...
+
+
+@dataclass(frozen=True)
+class Effort:
+    """One driver's effort over the run.
+
+    Attributes:
+        name, type: the driver constraint's name and type.
+        quantity: "torque" or "force"; unit and rate_unit: SI units of the
+            effort and of the driven quantity's rate.
+        meaning: what the effort is and its positive sense, in words.
+        t, value, rate: shape (instants,); value in `unit`, rate in `rate_unit`.
+    """
+
+    name: str
+    type: str
+    quantity: str
+    unit: str
+    rate_unit: str
+    meaning: str
+    t: Array
+    value: Array
+    rate: Array
+
+    @property
+    def power(self) -> Array:
+        """Power delivered to the mechanism [W], shape (instants,)."""
+        return self.value * self.rate
+
+
+@dataclass(frozen=True)
+class Summary:
+    """Peak and RMS effort and peak power of one driver (SI units)."""
+
+    name: str
+    quantity: str
+    unit: str
+    peak: float
+    t_peak: float
+    rms: float
+    peak_power: float
+    t_peak_power: float
+
+    def line(self) -> str:
+        return (f"{self.name}: peak {self.quantity} {self.peak:.4g} {self.unit} at t = {self.t_peak:.4g} s, "
+                f"RMS {self.rms:.4g} {self.unit}, peak power {self.peak_power:.4g} W "
+                f"at t = {self.t_peak_power:.4g} s")
+
+
+def drivers(mechanism: Mechanism) -> list[Element]:
+    """The driver constraints, in file order."""
+    return [c for c in mechanism.constraints if c.type in DRIVERS]
+
+
+def _sources(c: Element) -> list[str]:
+    """Columns an effort can be read from, preferred first (each alone is enough)."""
+    if c.type == "relative_angle_driver":
+        return [f"{c.name}.T_j", f"{c.name}.lambda"]
+    if c.type == "coordinate_driver":
+        column = {"x": "Fx_i", "y": "Fy_i", "phi": "T_i"}[c.options["coordinate"]]
+        return [f"{c.name}.{column}", f"{c.name}.lambda"]
+    return [f"{c.name}.lambda"]
+
+
+def needed_columns(mechanism: Mechanism, header: Sequence[str]) -> list[str]:
+    """`t` and the one column per driver that its effort is computed from."""
+    present = set(header)
+    out = ["t"]
+    for c in drivers(mechanism):
+        out += [col for col in _sources(c) if col in present][:1]
+    return out
+
+
+def time_function(expr: sp.Expr, values: Mapping[sp.Symbol, float], t: Array, order: int = 0) -> Array:
+    """An expression of t and the parameters (or its d^order/dt^order) at the instants t."""
+    e = sp.diff(sp.sympify(expr), T, order).xreplace({k: sp.Float(v, 17) for k, v in values.items()})
+    return np.broadcast_to(np.asarray(sp.lambdify(T, e, "numpy")(t), dtype=float), t.shape).copy()
+
+
+def effort(c: Element, table: Table, values: Mapping[sp.Symbol, float]) -> Effort | None:
+    """The effort of driver `c`, or None when the table lacks its columns."""
+    source = next((col for col in _sources(c) if col in table.columns), None)
+    if source is None:
+        return None
+    t = np.asarray(table["t"], dtype=float)
+    raw = np.asarray(table[source], dtype=float)
+    from_lambda = source.endswith(".lambda")
+    f = time_function(c.values["f"], values, t)
+    fd = time_function(c.values["f"], values, t, 1)
+    if c.type == "distance_driver":
+        value = -2 * np.abs(f) * raw
+        return Effort(c.name, c.type, "force", "N", "m/s",
+                      f"axial force, positive pushing {c.bodies['i']} and {c.bodies['j']} apart",
+                      t, value, np.sign(f) * fd)
+    value = -raw if from_lambda else raw
+    if c.type == "relative_angle_driver":
+        return Effort(c.name, c.type, "torque", "N·m", "rad/s",
+                      f"motor torque on {c.bodies['j']}, positive counter-clockwise", t, value, fd)
+    if c.type == "translational_driver":
+        return Effort(c.name, c.type, "force", "N", "m/s",
+                      f"force on {c.bodies['j']} along the slide, positive towards +vi", t, value, fd)
+    coordinate = c.options["coordinate"]
+    if coordinate == "phi":
+        return Effort(c.name, c.type, "torque", "N·m", "rad/s",
+                      f"torque on {c.bodies['i']}, positive counter-clockwise", t, value, fd)
+    return Effort(c.name, c.type, "force", "N", "m/s",
+                  f"force on {c.bodies['i']} along +{coordinate}", t, value, fd)
+
+
+def efforts(mechanism: Mechanism, table: Table) -> list[Effort]:
+    """Every driver's effort that the table has the columns for, in file order."""
+    values = parameter_values(mechanism.parameters)
+    found = (effort(c, table, values) for c in drivers(mechanism))
+    return [e for e in found if e is not None]
+
+
+def summarize(e: Effort) -> Summary:
+    """Peak |effort|, RMS effort (time average, trapezoidal) and peak |power|."""
+    if len(e.t) == 0:
+        nan = float("nan")
+        return Summary(e.name, e.quantity, e.unit, nan, nan, nan, nan, nan)
+    k = int(np.argmax(np.abs(e.value)))
+    p = int(np.argmax(np.abs(e.power)))
+    span = float(e.t[-1] - e.t[0])
+    if span > 0:
+        square = e.value ** 2
+        rms = float(np.sqrt(np.sum((square[1:] + square[:-1]) * np.diff(e.t)) / 2 / span))
+    else:
+        rms = float(np.sqrt(np.mean(e.value ** 2)))
+    return Summary(e.name, e.quantity, e.unit, float(abs(e.value[k])), float(e.t[k]), rms,
+                   float(abs(e.power[p])), float(e.t[p]))
+
+
+def lines(mechanism: Mechanism, table: Table) -> list[str]:
+    """One summary line per driver; a driver without its columns says so
+    (no line at all for a table without multipliers or reactions)."""
+    if not any(c.rpartition(".")[2].startswith(("lambda", "T_", "Fx_")) for c in table.columns):
+        return []  # a kinematics table: no driver has an effort, and none is missed
+    values = parameter_values(mechanism.parameters)
+    out = []
+    for c in drivers(mechanism):
+        e = effort(c, table, values)
+        if e is None:
+            out.append(f"{c.name}: no effort (the table has none of {', '.join(_sources(c))})")
+        else:
+            out.append(summarize(e).line())
+    return out
+
+
+class Recorder:
+    """Pass a solve's rows through unchanged, keeping a copy of some columns.
+
+    Args:
+        header: the rows' column names.
+        keep: the columns to keep (None: all), in any order; kept in header order.
+    """
+
+    def __init__(self, header: Sequence[str], keep: Iterable[str] | None = None) -> None:
+        wanted = set(header if keep is None else keep)
+        self.index = [k for k, c in enumerate(header) if c in wanted]
+        self.columns = [header[k] for k in self.index]
+        self.rows: list[Array] = []
+
+    def __call__(self, rows: Iterable[Array]) -> Iterator[Array]:
+        for values in rows:
+            self.rows.append(np.asarray(values, dtype=float)[self.index])
+            yield values
+
+    def results(self) -> Results:
+        """What was kept, as a `Results` table."""
+        data = np.array(self.rows).reshape(len(self.rows), len(self.columns))
+        return Results(list(self.columns), data)
