@@ -5,4 +5,5 @@ the argparse subparsers and sets `run=` to a function (args) -> exit status.
 """
 
 MODULES: tuple[str, ...] = (
+    "symid.commands.plot",
 )

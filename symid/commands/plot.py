@@ -1,0 +1,79 @@
+"""`symid plot RESULTS [--mechanism FILE] [-o DIR] [--gif]`: PNGs (and a GIF) of a results table."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from symid.errors import InputError
+from symid.model import Mechanism
+from symid.results import Results
+
+
+def read_csv(path: Path) -> Results:
+    """A results table written by `symid solve` (CSV) as a `Results`."""
+    try:
+        with path.open(encoding="utf-8") as f:
+            header = f.readline().strip().split(",")
+            data = np.loadtxt(f, delimiter=",", ndmin=2)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not a symid results table: {exc}") from None
+    if header[0] != "t" or (data.size and data.shape[1] != len(header)):
+        raise InputError(f"{path}: not a symid results table (first column 't', one value per column)")
+    return Results(header, data.reshape(len(data), len(header)))
+
+
+def read_results(path: str | Path) -> Results:
+    """A results table from a `.csv` or `.npz` file written by `symid solve`."""
+    path = Path(path)
+    if path.suffix.lower() == ".npz":
+        from symid.io.npz import read_npz
+
+        return read_npz(path)
+    return read_csv(path)
+
+
+def check_match(table: Results, mechanism: Mechanism, results: str, file: str) -> None:
+    """Every column must belong to a body or constraint of the mechanism."""
+    names = {b.name for b in mechanism.bodies} | {c.name for c in mechanism.constraints}
+    for column in table.columns[1:]:
+        if column.rpartition(".")[0] not in names:
+            raise InputError(f"{results}: column '{column}' names nothing in {file}: "
+                             "were these results solved from it?")
+
+
+def run(args: argparse.Namespace) -> int:
+    from symid import plot
+    from symid.cli import _set_values
+    from symid.io.reader import load
+
+    table = read_results(args.file)
+    mechanism = None
+    if args.mechanism:
+        mechanism = load(args.mechanism, _set_values(args.set))
+        check_match(table, mechanism, args.file, args.mechanism)
+    directory = Path(args.output) if args.output else Path(args.file).parent
+    written = plot.write_all(table, mechanism, directory, Path(args.file).stem, gif=args.gif)
+    for path in written.paths:
+        print(path)
+    for note in written.skipped:
+        print(f"symid plot: skipped the {note}", file=sys.stderr)
+    return 0
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser("plot", help="plot a results table: driver efforts, joint reactions, the mechanism")
+    p.add_argument("file", metavar="RESULTS", help="a .csv (or .npz) written by symid solve")
+    p.add_argument("--mechanism", metavar="FILE",
+                   help="the mechanism file it was solved from: needed for efforts and the drawing")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="the parameter overrides the results were solved with (repeatable)")
+    p.add_argument("-o", "--output", metavar="DIR", help="folder for the images (default: beside RESULTS)")
+    p.add_argument("--gif", action="store_true", help="also write an animated GIF of the motion")
+    p.set_defaults(run=run)

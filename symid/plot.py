@@ -1,0 +1,609 @@
+"""Figures of a solved run: driver efforts, joint reactions, the mechanism drawn.
+
+matplotlib is imported only inside the functions that draw, and only its Agg
+canvas is used (no pyplot, no global state): solving never pays for it. The
+mechanism file has no units; labels assume SI (m, s, rad, N, N·m).
+
+Every line that carries results has a `gid` ("effort:<driver>",
+"force:<constraint>", "path:<body>:<n>", "pin:<constraint>") so that tests and
+scripts can find a figure's data again.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable
+
+import numpy as np
+
+from symid.backends import Array
+from symid.constraints import TYPES as CONSTRAINTS
+from symid.forces import TYPES as FORCES
+from symid.io.npz import readable
+from symid.model import GROUND, Element, Mechanism
+from symid.params import parameter_values, to_float
+from symid.summary import Table, efforts
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+DPI = 110
+PANELS = 4           # instants drawn in the mechanism figure
+BLOCK = 0.09         # bodies smaller than this fraction of the drawing are drawn as blocks
+# Where the traced paths come from: points where parts meet or loads act,
+# not actuator or spring attachments (these would only add clutter).
+TRACED = ("revolute", "revolute_revolute", "pin_in_slot", "translational", "point_force")
+SLOTS = ("pin_in_slot", "translational")
+GEARS = ("gear", "gear_on_link")
+TIME = "time t [s]"
+
+
+def _figure(width: float, height: float, layout: str | None = "constrained") -> "Figure":
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), layout=layout)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def save(fig: "Figure", path: str | Path) -> Path:
+    """Write a figure as PNG, to a temporary name renamed at the end."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as out:
+            fig.savefig(out, format="png", dpi=DPI)
+        readable(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+# -- time histories ---------------------------------------------------------
+
+def efforts_figure(table: Table, mechanism: Mechanism) -> "Figure":
+    """Each driver's effort (motor torque or actuator force) against time, one panel each.
+
+    Raises:
+        ValueError: the table has no driver effort (no driver, or no lambda / reaction columns).
+    """
+    found = efforts(mechanism, table)
+    if not found:
+        raise ValueError("no driver effort in the table")
+    fig = _figure(8.0, 1.0 + 2.1 * len(found))
+    axes = fig.subplots(len(found), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, e in zip(axes, found):
+        ax.axhline(0.0, color="0.6", lw=0.8)
+        ax.plot(e.t, e.value, color="C0", lw=1.8, gid=f"effort:{e.name}")
+        ax.set_title(f"{e.name} ({e.type}): {e.meaning}", fontsize=10, loc="left")
+        ax.set_ylabel(f"{e.quantity} [{e.unit}]")
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel(TIME)
+    fig.suptitle(f"{mechanism.name}: driver efforts", fontsize=12)
+    return fig
+
+
+@dataclass(frozen=True)
+class Reaction:
+    """|force| and |torque| of one constraint's reaction on body `role`, shape (instants,)."""
+
+    name: str
+    role: str
+    force: Array
+    torque: Array
+
+
+def reactions(table: Table) -> list[Reaction]:
+    """Reaction magnitudes of every constraint in the table, on its body j (i if j has none).
+
+    For a joint the force on i is equal and opposite, so |force| is the joint's
+    load; the torque is about the joint's point on that body.
+    """
+    out = []
+    for column in table.columns:
+        name, _, rest = column.rpartition(".")
+        if rest not in ("Fx_i", "Fx_j") or (rest == "Fx_i" and f"{name}.Fx_j" in table.columns):
+            continue
+        role = rest[-1]
+        fx, fy, tq = (np.asarray(table[f"{name}.{q}_{role}"]) for q in ("Fx", "Fy", "T"))
+        out.append(Reaction(name, role, np.hypot(fx, fy), np.abs(tq)))
+    return out
+
+
+def _nonzero(curves: list[Array]) -> list[bool]:
+    """Which curves are more than rounding noise next to the largest of them."""
+    scale = max((float(np.max(c)) for c in curves if c.size), default=0.0)
+    return [c.size > 0 and float(np.max(c)) > 1e-9 * scale and scale > 0 for c in curves]
+
+
+def reactions_figure(table: Table, mechanism: Mechanism | None = None) -> "Figure":
+    """Magnitude of every joint's reaction force (and torque, where one is non-zero) against time.
+
+    Raises:
+        ValueError: the table has no reaction columns.
+    """
+    found = reactions(table)
+    if not found:
+        raise ValueError("no reaction columns in the table")
+    types = {c.name: c.type for c in mechanism.constraints} if mechanism else {}
+    t = np.asarray(table["t"])
+    panels = [("force", "|F| force [N]", [r.force for r in found]),
+              ("torque", "|T| torque [N·m], about the joint point", [r.torque for r in found])]
+    panels = [p for p in panels if any(_nonzero(p[2]))]
+    fig = _figure(9.0, 1.2 + 2.8 * max(len(panels), 1))
+    axes = fig.subplots(max(len(panels), 1), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (what, label, curves) in zip(axes, panels):
+        for k, (r, curve, keep) in enumerate(zip(found, curves, _nonzero(curves))):
+            if keep:
+                kind = f" ({types[r.name]})" if r.name in types else ""
+                ax.plot(t, curve, lw=1.5, color=f"C{k % 10}", label=f"{r.name}{kind}", gid=f"{what}:{r.name}")
+        ax.set_ylabel(label)
+        ax.set_ylim(bottom=0.0)
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    axes[-1].set_xlabel(TIME)
+    name = mechanism.name if mechanism else "results"
+    fig.suptitle(f"{name}: joint reactions (magnitude, on body j)", fontsize=12)
+    if any(types.get(r.name) in GEARS for r in found):
+        fig.supxlabel("Gear rows couple angles only: their reactions are couples, and the tooth "
+                      "force's share of the bearing loads is not represented.", fontsize=8, color="0.35")
+    return fig
+
+
+# -- the mechanism's geometry over the run (numbers only) -------------------
+
+@dataclass
+class Scene:
+    """What to draw, in global coordinates [m]; every array has instants first.
+
+    Attributes:
+        outlines: body -> (instants, k, 2) closed outline through its points
+            (k = 2: a bar); extent: body -> its largest size in the outline.
+            A body smaller than `BLOCK` x size is drawn as a block.
+        phi: body -> (instants,) angle, for blocks and gear ticks.
+        anchors: ground pivots, (x, y) each.
+        pins: constraint -> (instants, 2) revolute points.
+        links: (name, Pi, Pj, kind) with kind "link" or "cylinder".
+        slots: (name, start, end, on_ground), ends (instants, 2).
+        gears: (body, centre (instants, 2), radius, phi (instants,)); body may be ground.
+        springs: (name, Pi, Pj); torsion: (name, centre (instants, 2)).
+        paths: (body, (instants, 2)) of the points that move.
+        size: the drawing's extent, for symbol sizes.
+    """
+
+    names: list[str]
+    outlines: dict[str, Array] = field(default_factory=dict)
+    phi: dict[str, Array] = field(default_factory=dict)
+    extent: dict[str, float] = field(default_factory=dict)
+    gear_bodies: set[str] = field(default_factory=set)
+    anchors: list[tuple[float, float]] = field(default_factory=list)
+    pins: dict[str, Array] = field(default_factory=dict)
+    links: list[tuple[str, Array, Array, str]] = field(default_factory=list)
+    slots: list[tuple[str, Array, Array, bool]] = field(default_factory=list)
+    gears: list[tuple[str, Array, float, Array]] = field(default_factory=list)
+    springs: list[tuple[str, Array, Array]] = field(default_factory=list)
+    torsion: list[tuple[str, Array]] = field(default_factory=list)
+    paths: list[tuple[str, Array]] = field(default_factory=list)
+    size: float = 1.0
+    bounds: tuple[float, float, float, float] = (0.0, 1.0, 0.0, 1.0)
+
+    def color(self, body: str) -> str:
+        return f"C{self.names.index(body) % 10}" if body in self.names else "0.45"
+
+
+class _Geometry:
+    """Global positions of body points over the run, from the table's q columns."""
+
+    def __init__(self, mechanism: Mechanism, table: Table) -> None:
+        self.values = parameter_values(mechanism.parameters)
+        self.n = len(table["t"])
+        self.q = {b.name: tuple(np.asarray(table[f"{b.name}.{c}"], dtype=float) for c in ("x", "y", "phi"))
+                  for b in mechanism.bodies}
+
+    def num(self, pair: Any) -> Array:
+        return np.array([to_float(v, self.values) for v in pair])
+
+    def point(self, body: str, s: Array) -> Array:
+        """(instants, 2) global position of body point s."""
+        if body == GROUND:
+            return np.tile(s, (self.n, 1))
+        x, y, phi = self.q[body]
+        c, sn = np.cos(phi), np.sin(phi)
+        return np.stack([x + c * s[0] - sn * s[1], y + sn * s[0] + c * s[1]], 1)
+
+    def angle(self, body: str) -> Array:
+        return np.zeros(self.n) if body == GROUND else self.q[body][2]
+
+
+def _element_points(mechanism: Mechanism, geo: _Geometry) -> list[tuple[Element, str, str, Array]]:
+    """(element, role, body, s) for every point where a constraint or force acts."""
+    out = []
+    for e in mechanism.constraints + mechanism.forces:
+        family = CONSTRAINTS.get(e.type) or FORCES[e.type]
+        for role, body in e.bodies.items():
+            key = family.points.get(role)
+            if key is not None:
+                out.append((e, role, body, geo.num(e.values[key])))
+    return out
+
+
+def _hull(points: Array) -> Array:
+    """Convex hull (counter-clockwise) of 2-D points; 1 or 2 points when degenerate."""
+    pts = sorted({(round(float(x), 12), round(float(y), 12)) for x, y in points})
+    if len(pts) <= 2:
+        return np.array(pts)
+
+    def half(seq: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        chain: list[tuple[float, float]] = []
+        for p in seq:
+            while len(chain) >= 2 and ((chain[-1][0] - chain[-2][0]) * (p[1] - chain[-2][1])
+                                       - (chain[-1][1] - chain[-2][1]) * (p[0] - chain[-2][0])) <= 0:
+                chain.pop()
+            chain.append(p)
+        return chain
+
+    return np.array(half(pts)[:-1] + half(pts[::-1])[:-1])  # collinear: the two extremes
+
+
+def scene(table: Table, mechanism: Mechanism) -> Scene:
+    """The mechanism's drawable geometry over the run (needs the q columns).
+
+    Raises:
+        ValueError: the table has no q columns.
+    """
+    if any(f"{b.name}.x" not in table.columns for b in mechanism.bodies):
+        raise ValueError("the table has no q columns (positions) to draw the mechanism from")
+    geo = _Geometry(mechanism, table)
+    sc = Scene([b.name for b in mechanism.bodies])
+    points = _element_points(mechanism, geo)
+
+    # Body outlines through the centre of mass and every point on the body.
+    for b in mechanism.bodies:
+        local = np.array([[0.0, 0.0]] + [s for _, _, body, s in points if body == b.name])
+        hull = _hull(local)
+        sc.outlines[b.name] = np.stack([geo.point(b.name, p) for p in hull], 1)
+        sc.phi[b.name] = geo.angle(b.name)
+        sc.extent[b.name] = float(max(np.hypot(*(p - r)) for p in hull for r in hull))
+
+    by_type: dict[str, list[Element]] = {}
+    for c in mechanism.constraints:
+        by_type.setdefault(c.type, []).append(c)
+
+    def at(c: Element, role: str, key: str) -> Array:
+        return geo.point(c.bodies[role], geo.num(c.values[key]))
+
+    for c in by_type.get("revolute", []) + by_type.get("pin_in_slot", []):
+        sc.pins[c.name] = at(c, "j", "sj")
+    for kind, family in (("link", "revolute_revolute"), ("cylinder", "distance_driver")):
+        for c in by_type.get(family, []):
+            sc.links.append((c.name, at(c, "i", "si"), at(c, "j", "sj"), kind))
+    for family in SLOTS:
+        for c in by_type.get(family, []):
+            sc.slots.append(_slot(c, geo))
+    for family in GEARS:
+        for c in by_type.get(family, []):
+            sc.gears += _gears(c, mechanism, geo)
+    sc.gear_bodies = {g[0] for g in sc.gears}
+    for f in mechanism.forces:
+        if f.type == "spring_damper":
+            sc.springs.append((f.name, at(f, "i", "si"), at(f, "j", "sj")))
+        elif f.type == "rotational_spring_damper":
+            sc.torsion.append((f.name, _torsion_centre(f, by_type.get("revolute", []), geo)))
+
+    # Ground pivots: ground points of everything but guides (drawn as slots).
+    for e, role, body, s in points:
+        if body == GROUND and e.type not in SLOTS + ("translational_driver",):
+            if not any(np.allclose(s, a) for a in sc.anchors):
+                sc.anchors.append((float(s[0]), float(s[1])))
+
+    everything = [o.reshape(-1, 2) for o in sc.outlines.values()] + [np.array(sc.anchors).reshape(-1, 2)]
+    everything += [p for p in sc.pins.values()] + [s for _, a, b, _ in sc.slots for s in (a, b)]
+    everything += [c + sign * r for _, c, r, _ in sc.gears for sign in (-1, 1)]
+    allpts = np.concatenate(everything)
+    lo, hi = allpts.min(0), allpts.max(0)
+    sc.size = float(max(hi - lo)) or 1.0
+    pad = 0.08 * sc.size
+    sc.bounds = (lo[0] - pad, hi[0] + pad, lo[1] - 1.6 * pad, hi[1] + pad)
+
+    # Traced paths: each distinct moving point where something acts on a body.
+    for e, role, body, s in points:
+        if body == GROUND or e.type not in TRACED or (e.type in SLOTS and role == "i"):
+            continue
+        path = geo.point(body, s)
+        if np.ptp(path, axis=0).max() < 1e-6 * sc.size:
+            continue
+        if any(np.allclose(path, other, atol=1e-9 * sc.size) for _, other in sc.paths):
+            continue
+        sc.paths.append((body, path))
+    # A body that ends at its centre of mass (a pendulum on one hinge): trace that end too.
+    for b in mechanism.bodies:
+        ends = sc.outlines[b.name][0]
+        centre = geo.point(b.name, np.zeros(2))
+        if len(ends) > 1 and np.min(np.hypot(*(ends - centre[0]).T)) < 1e-9 * sc.size \
+                and not any(np.allclose(centre, other, atol=1e-9 * sc.size) for _, other in sc.paths):
+            sc.paths.append((b.name, centre))
+    return sc
+
+
+def _slot(c: Element, geo: _Geometry) -> tuple[str, Array, Array, bool]:
+    """The slot line on body i, long enough for the pin's travel over the run."""
+    si, vi, sj = (geo.num(c.values[k]) for k in ("si", "vi", "sj"))
+    u = vi / np.linalg.norm(vi)
+    pi, pj = geo.point(c.bodies["i"], si), geo.point(c.bodies["j"], sj)
+    phi = geo.angle(c.bodies["i"])
+    # Travel along the slot, measured in body i's frame.
+    d = pj - pi
+    along = (np.cos(phi) * d[:, 0] + np.sin(phi) * d[:, 1]) * u[0] + (-np.sin(phi) * d[:, 0] + np.cos(phi) * d[:, 1]) * u[1]
+    lo, hi = float(along.min()), float(along.max())
+    margin = 0.15 * (hi - lo) + 0.05 * max(abs(lo), abs(hi), 1e-3)
+    start = geo.point(c.bodies["i"], si + (lo - margin) * u)
+    end = geo.point(c.bodies["i"], si + (hi + margin) * u)
+    return c.name, start, end, c.bodies["i"] == GROUND
+
+
+def _centre(body: str, carrier: str | None, mechanism: Mechanism, geo: _Geometry) -> Array | None:
+    """Centre of a gear: the body's centre of mass; for a ground gear on a
+    carrier, the carrier's pivot on the ground (or its centre of mass)."""
+    if body != GROUND:
+        return geo.point(body, np.zeros(2))
+    if carrier is None:
+        return None
+    for c in mechanism.constraints:
+        if c.type == "revolute" and {c.bodies["i"], c.bodies["j"]} == {GROUND, carrier}:
+            role = "i" if c.bodies["i"] == GROUND else "j"
+            return geo.point(GROUND, geo.num(c.values["s" + role]))
+    return geo.point(carrier, np.zeros(2))
+
+
+def _gears(c: Element, mechanism: Mechanism, geo: _Geometry) -> list[tuple[str, Array, float, Array]]:
+    """Pitch circles of a gear pair, from K and the centre distance:
+    r_j = d / |1 - K|, r_i = |K| r_j (external K < 0, internal K > 0)."""
+    k = to_float(c.values["K"], geo.values)
+    carrier = c.bodies.get("k")
+    ci, cj = (_centre(c.bodies[r], carrier, mechanism, geo) for r in ("i", "j"))
+    if ci is None or cj is None or abs(1 - k) < 1e-12:
+        return []
+    d = float(np.hypot(*(cj[0] - ci[0])))
+    if d <= 0:
+        return []
+    rj = d / abs(1 - k)
+    return [(c.bodies["i"], ci, abs(k) * rj, geo.angle(c.bodies["i"])),
+            (c.bodies["j"], cj, rj, geo.angle(c.bodies["j"]))]
+
+
+def _torsion_centre(f: Element, revolutes: list[Element], geo: _Geometry) -> Array:
+    """Where a torsion spring sits: the revolute between its two bodies, else body j's centre."""
+    pair = {f.bodies["i"], f.bodies["j"]}
+    for c in revolutes:
+        if {c.bodies["i"], c.bodies["j"]} == pair:
+            return geo.point(c.bodies["j"], geo.num(c.values["sj"]))
+    return geo.point(f.bodies["j"], np.zeros(2))
+
+
+# -- drawing ----------------------------------------------------------------
+
+def _zigzag(a: Array, b: Array, width: float, turns: int = 7) -> Array:
+    """A spring's zigzag from a to b, shape (points, 2)."""
+    d = b - a
+    length = float(np.hypot(*d)) or 1.0
+    u, n = d / length, np.array([-d[1], d[0]]) / length
+    s = np.concatenate([[0.0, 0.15], 0.15 + 0.7 * (np.arange(2 * turns) + 0.5) / (2 * turns), [0.85, 1.0]])
+    side = np.concatenate([[0, 0], np.where(np.arange(2 * turns) % 2 == 0, 1.0, -1.0), [0, 0]])
+    return a + np.outer(s * length, u) + np.outer(side * width, n)
+
+
+def draw_paths(ax: "Axes", sc: Scene) -> None:
+    """Draw the traced paths of the moving points (dashed, in their body's colour)."""
+    for n, (body, path) in enumerate(sc.paths):
+        ax.plot(path[:, 0], path[:, 1], color=sc.color(body), lw=0.9, ls="--", alpha=0.55, zorder=1,
+                gid=f"path:{body}:{n}")
+
+
+def draw(ax: "Axes", sc: Scene, k: int) -> None:
+    """Draw the mechanism at instant k on `ax` (paths apart: `draw_paths`)."""
+    from matplotlib.patches import Circle, Polygon, Rectangle
+
+    size = sc.size
+    for x, y in sc.anchors:  # a ground pivot: a triangle on a hatched base
+        h = 0.045 * size
+        ax.add_patch(Polygon([(x, y), (x - 0.6 * h, y - h), (x + 0.6 * h, y - h)], closed=True,
+                             facecolor="0.85", edgecolor="0.25", lw=1.0, zorder=2))
+        ax.add_patch(Rectangle((x - 0.9 * h, y - 1.45 * h), 1.8 * h, 0.45 * h, facecolor="none",
+                               edgecolor="0.35", hatch="////", lw=0.0, zorder=2))
+        ax.plot([x - 0.9 * h, x + 0.9 * h], [y - h, y - h], color="0.25", lw=1.2, zorder=2)
+    for name, start, end, on_ground in sc.slots:
+        xs, ys = [start[k, 0], end[k, 0]], [start[k, 1], end[k, 1]]
+        if on_ground:  # a guide fixed to the ground: hatched strip beside the channel
+            u = (end[k] - start[k]) / (np.hypot(*(end[k] - start[k])) or 1.0)
+            off = -np.array([-u[1], u[0]]) * 0.03 * size
+            if off[1] > 0:
+                off = -off
+            ax.add_patch(Polygon([start[k] + off, end[k] + off, end[k] + 1.7 * off, start[k] + 1.7 * off],
+                                 closed=True, facecolor="none", edgecolor="0.35", hatch="////", lw=0.0, zorder=2))
+        ax.plot(xs, ys, color="0.35", lw=9, solid_capstyle="round", zorder=3)
+        ax.plot(xs, ys, color="white", lw=5.5, solid_capstyle="round", zorder=3)
+    for body, centre, radius, phi in sc.gears:
+        c = centre[k]
+        ground = body == GROUND
+        ax.add_patch(Circle(tuple(c), radius, facecolor="none" if ground else sc.color(body),
+                            alpha=1.0 if ground else 0.25, edgecolor="none", zorder=4))
+        ax.add_patch(Circle(tuple(c), radius, facecolor="none", edgecolor="0.3" if ground else sc.color(body),
+                            lw=3.0 if ground else 1.6, ls="-", zorder=4))
+        if not ground:
+            tip = c + radius * np.array([np.cos(phi[k]), np.sin(phi[k])])
+            ax.plot([c[0], tip[0]], [c[1], tip[1]], color=sc.color(body), lw=1.6, zorder=4)
+    for body, outline in sc.outlines.items():
+        pts = outline[k]
+        color = sc.color(body)
+        z = 5 + 0.9 * (1 - min(sc.extent[body] / size, 1))  # smaller bodies on top of larger ones
+        if sc.extent[body] < BLOCK * size:
+            if body in sc.gear_bodies:
+                continue
+            half = max(0.045 * size, 0.6 * sc.extent[body])
+            c, s = np.cos(sc.phi[body][k]), np.sin(sc.phi[body][k])
+            corners = np.array([[-1.3, -1], [1.3, -1], [1.3, 1], [-1.3, 1]]) * half
+            block = pts.mean(0) + corners @ np.array([[c, s], [-s, c]])
+            ax.add_patch(Polygon(block, closed=True, facecolor=color, alpha=0.45, edgecolor=color, lw=2, zorder=z))
+        elif len(pts) == 2:
+            ax.plot(pts[:, 0], pts[:, 1], color=color, lw=7, solid_capstyle="round", alpha=0.85, zorder=z)
+        else:
+            ax.add_patch(Polygon(pts, closed=True, facecolor=color, alpha=0.35, edgecolor=color, lw=2,
+                                 joinstyle="round", zorder=z))
+    for name, pi, pj, kind in sc.links:
+        a, b = pi[k], pj[k]
+        if kind == "cylinder":
+            u = (b - a) / (np.hypot(*(b - a)) or 1.0)
+            shortest = float(np.min(np.hypot(*(pj - pi).T)))
+            ax.plot([a[0] + 0.2 * shortest * u[0], b[0]], [a[1] + 0.2 * shortest * u[1], b[1]],
+                    color="0.55", lw=2.5, solid_capstyle="round", zorder=6)
+            barrel = a + 0.6 * shortest * u
+            ax.plot([a[0], barrel[0]], [a[1], barrel[1]], color="0.2", lw=7, solid_capstyle="butt", zorder=6)
+        else:
+            ax.plot([a[0], b[0]], [a[1], b[1]], color="0.3", lw=3, solid_capstyle="round", zorder=6)
+        ax.plot([a[0], b[0]], [a[1], b[1]], ls="none", marker="o", ms=5, mfc="white", mec="0.1", zorder=8)
+    for name, pi, pj in sc.springs:
+        z = _zigzag(pi[k], pj[k], 0.02 * size)
+        ax.plot(z[:, 0], z[:, 1], color="0.15", lw=1.1, zorder=7, gid=f"spring:{name}")
+    for name, centre in sc.torsion:
+        turn = np.linspace(0, 4 * np.pi, 120)
+        r = 0.012 * size + 0.035 * size * turn / turn[-1]
+        ax.plot(centre[k, 0] + r * np.cos(turn), centre[k, 1] + r * np.sin(turn), color="0.15", lw=0.9, zorder=7)
+    for name, p in sc.pins.items():
+        ax.plot([p[k, 0]], [p[k, 1]], ls="none", marker="o", ms=6, mfc="white", mec="0.1", mew=1.3, zorder=9,
+                gid=f"pin:{name}")
+    from matplotlib.ticker import MaxNLocator
+
+    ax.set_xlim(sc.bounds[0], sc.bounds[1])
+    ax.set_ylim(sc.bounds[2], sc.bounds[3])
+    ax.set_aspect("equal")
+    ax.xaxis.set_major_locator(MaxNLocator(6))
+    ax.yaxis.set_major_locator(MaxNLocator(6))
+
+
+def _instants(sc: Scene, n: int, count: int) -> list[int]:
+    """`count` instants spread over the run; a run that ends where it began
+    (a full cycle) does not repeat its first configuration."""
+    if n <= 1:
+        return [0]
+    outlines = list(sc.outlines.values())
+    cyclic = all(np.allclose(o[0], o[-1], atol=1e-6 * sc.size) for o in outlines)
+    spots = np.linspace(0, n - 1, count + 1)[:-1] if cyclic else np.linspace(0, n - 1, count)
+    return sorted({int(round(s)) for s in spots})
+
+
+def _panel_size(sc: Scene, width: float) -> tuple[float, float]:
+    x0, x1, y0, y1 = sc.bounds
+    return width, float(np.clip(width * (y1 - y0) / (x1 - x0), 1.6, 1.5 * width))
+
+
+def mechanism_figure(table: Table, mechanism: Mechanism, panels: int = PANELS) -> "Figure":
+    """The mechanism drawn at a few instants, each with the paths of its moving points."""
+    sc = scene(table, mechanism)
+    t = np.asarray(table["t"])
+    ks = _instants(sc, len(t), panels)
+    cols = 1 if len(ks) == 1 else 2
+    rows = -(-len(ks) // cols)
+    w, h = _panel_size(sc, 4.6)
+    fig = _figure(cols * w + 0.4, rows * h + 0.9)
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    for n, (ax, k) in enumerate(zip(axes, ks)):
+        draw_paths(ax, sc)
+        draw(ax, sc, k)
+        ax.set_gid(f"instant:{k}")
+        ax.set_title(f"t = {t[k]:.4g} s", fontsize=10)
+        ax.grid(True, alpha=0.2)
+        if n % cols == 0:
+            ax.set_ylabel("y [m]")
+        if n >= len(ks) - cols:
+            ax.set_xlabel("x [m]")
+    for ax in axes[len(ks):]:
+        ax.set_visible(False)
+    fig.suptitle(f"{mechanism.name}: the mechanism at {len(ks)} instants, paths dashed", fontsize=12)
+    return fig
+
+
+def write_gif(table: Table, mechanism: Mechanism, path: str | Path, frames: int = 60, fps: int = 15) -> Path:
+    """An animated GIF of the motion (at most `frames` frames), written atomically."""
+    from matplotlib.animation import PillowWriter
+
+    path = Path(path)
+    sc = scene(table, mechanism)
+    t = np.asarray(table["t"])
+    ks = _instants(sc, len(t), min(frames, len(t)))
+    w, h = _panel_size(sc, 5.0)
+    fig = _figure(w, h + 0.5, layout=None)  # a fixed layout: frames do not jump, nor re-solve it
+    ax = fig.add_axes((0.16, 0.12, 0.8, 0.8))
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".gif", dir=path.parent)
+    os.close(fd)
+    try:
+        writer = PillowWriter(fps=fps)
+        draw_paths(ax, sc)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.grid(True, alpha=0.2)
+        static = set(ax.get_children())
+        with writer.saving(fig, tmp, dpi=90):
+            for k in ks:
+                # Only the mechanism is redrawn: clearing the axes would rebuild every tick per frame.
+                for artist in set(ax.get_children()) - static:
+                    artist.remove()
+                draw(ax, sc, k)
+                ax.set_title(f"{mechanism.name}   t = {t[k]:.3f} s", fontsize=10)
+                writer.grab_frame()
+        readable(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+# -- all of them ------------------------------------------------------------
+
+@dataclass
+class Written:
+    """The files `write_all` wrote and, for the plots it could not make, why."""
+
+    paths: list[Path] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+
+
+def write_all(table: Table, mechanism: Mechanism | None, directory: str | Path, stem: str,
+              gif: bool = False) -> Written:
+    """Write `<stem>_efforts.png`, `<stem>_reactions.png`, `<stem>_mechanism.png`
+    (and `<stem>_motion.gif`) in `directory`, each that the table allows."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    out = Written()
+    need = "needs the mechanism file (--mechanism)"
+    jobs: list[tuple[str, Callable[[], Any]]] = [
+        ("efforts", lambda: efforts_figure(table, mechanism) if mechanism else need),
+        ("reactions", lambda: reactions_figure(table, mechanism)),
+        ("mechanism", lambda: mechanism_figure(table, mechanism) if mechanism else need),
+    ]
+    for what, make in jobs:
+        try:
+            fig = make()
+        except ValueError as exc:
+            out.skipped.append(f"{what} plot: {exc}")
+            continue
+        if isinstance(fig, str):
+            out.skipped.append(f"{what} plot: {fig}")
+            continue
+        out.paths.append(save(fig, directory / f"{stem}_{what}.png"))
+    if gif:
+        if mechanism is None:
+            out.skipped.append(f"animation: {need}")
+        else:
+            try:
+                out.paths.append(write_gif(table, mechanism, directory / f"{stem}_motion.gif"))
+            except ValueError as exc:
+                out.skipped.append(f"animation: {exc}")
+    return out
