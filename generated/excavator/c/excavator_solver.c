@@ -10,6 +10,7 @@
 #define EXCAVATOR_SINGULAR_RATIO (1e3 * EXCAVATOR_EPS)
 #define EXCAVATOR_MAX_NEWTON 50
 #define EXCAVATOR_LU_SIZE 35
+#define EXCAVATOR_MAX(a, b) ((a) > (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define EXCAVATOR_OFF_LU 35
 #define EXCAVATOR_OFF_DENSE (EXCAVATOR_OFF_LU + EXCAVATOR_LU_SIZE)
@@ -19,133 +20,167 @@
 const double excavator_default_params[18] = { 5.7, 2.9, 1.5, 1.0, 1500.0, 700.0, 500.0, 8.0, 0.7853981633974483, 2.68, 0.25, 2.31, 0.65, 2.3, 0.55, 30000.0, 2.4, 1.0 };
 const int excavator_phi_q_rows[35] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8 };
 const int excavator_phi_q_cols[35] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 8, 0, 1, 2, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 8 };
+/* Sines and cosines of the body angles, computed once per configuration. */
+static void excavator_trig(const double *q, double *tr)
+{
+    tr[0] = sin(q[2]);
+    tr[1] = cos(q[2]);
+    tr[2] = sin(q[5]);
+    tr[3] = cos(q[5]);
+    tr[4] = sin(q[8]);
+    tr[5] = cos(q[8]);
+}
+
+/* Update tr after the angles moved by dq: a Newton correction is small, and
+   sin(a + d), cos(a + d) by the addition formulas with d's Taylor series
+   (exact to rounding for |d| < 1e-3) avoid calling sin and cos again. */
+static void excavator_trig_step(const double *q, const double *dq, double *tr)
+{
+    int b;
+    for (b = 0; b < 3; ++b) {
+        const double d = dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        if (fabs(d) < 1e-3) {
+            const double d2 = d * d;
+            const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
+            const double cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0);
+            tr[2 * b] = s * cd + c * sd;
+            tr[2 * b + 1] = c * cd - s * sd;
+        } else {
+            tr[2 * b] = sin(q[3 * b + 2]);
+            tr[2 * b + 1] = cos(q[3 * b + 2]);
+        }
+    }
+}
+
+static void excavator_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    const double e0 = (1.0/2.0)*p[0];
+    const double e1 = e0*tr[1];
+    const double e2 = e0*tr[0];
+    const double e3 = (1.0/2.0)*p[1];
+    const double e4 = e3*tr[3];
+    const double e5 = q[0] - q[3];
+    const double e6 = e3*tr[2];
+    const double e7 = q[1] - q[4];
+    const double e8 = (1.0/2.0)*p[2];
+    const double e9 = q[3] - q[6];
+    const double e10 = (1.0/2.0)*tr[4];
+    const double e11 = q[4] - q[7];
+    const double e12 = 23.0/10.0 - e0;
+    const double e13 = p[8]*t;
+    const double e14 = -e3 - 3.0/4.0;
+    const double e15 = 1.0/2.0 - 1.0/2.0*cos(e13);
+    const double e16 = 2.0/5.0 - e3;
+    const double e17 = -e8 - 1.0/20.0;
+    out[0] = -e1 + q[0];
+    out[1] = -e2 + q[1];
+    out[2] = -e1 - e4 - e5;
+    out[3] = -e2 - e6 - e7;
+    out[4] = -e4 - e8*tr[5] - e9;
+    out[5] = -e10*p[2] - e11 - e6;
+    out[6] = -pow(-p[10]*sin(e13) + p[9], 2) + pow(e12*tr[0] + q[1] - 2.0/5.0*tr[1] + 6.0/5.0, 2) + pow(e12*tr[1] + q[0] + (2.0/5.0)*tr[0] - 3.0/10.0, 2);
+    out[7] = -pow(e15*p[12] + p[11], 2) + pow(e14*tr[2] - e7 - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3], 2) + pow(e14*tr[3] - e5 + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2], 2);
+    out[8] = -pow(e15*p[14] + p[13], 2) + pow(-e10 - e16*tr[3] + e17*tr[5] - e9 + (7.0/20.0)*tr[2], 2) + pow(-e11 - e16*tr[2] + e17*tr[4] - 7.0/20.0*tr[3] + (1.0/2.0)*tr[5], 2);
+}
 
 void excavator_phi(const double * q, double t, const double * p, double *out)
 {
-    const double e0 = cos(q[2]);
-    const double e1 = (1.0/2.0)*p[0];
-    const double e2 = e0*e1;
-    const double e3 = sin(q[2]);
-    const double e4 = e1*e3;
-    const double e5 = cos(q[5]);
-    const double e6 = (1.0/2.0)*p[1];
-    const double e7 = e5*e6;
-    const double e8 = q[0] - q[3];
-    const double e9 = sin(q[5]);
-    const double e10 = e6*e9;
-    const double e11 = q[1] - q[4];
-    const double e12 = cos(q[8]);
-    const double e13 = (1.0/2.0)*p[2];
-    const double e14 = q[3] - q[6];
-    const double e15 = sin(q[8]);
-    const double e16 = (1.0/2.0)*e15;
-    const double e17 = q[4] - q[7];
-    const double e18 = 23.0/10.0 - e1;
-    const double e19 = p[8]*t;
-    const double e20 = -e6 - 3.0/4.0;
-    const double e21 = 1.0/2.0 - 1.0/2.0*cos(e19);
-    const double e22 = 2.0/5.0 - e6;
-    const double e23 = -e13 - 1.0/20.0;
-    out[0] = -e2 + q[0];
-    out[1] = -e4 + q[1];
-    out[2] = -e2 - e7 - e8;
-    out[3] = -e10 - e11 - e4;
-    out[4] = -e12*e13 - e14 - e7;
-    out[5] = -e10 - e16*p[2] - e17;
-    out[6] = -pow(-p[10]*sin(e19) + p[9], 2) + pow(-2.0/5.0*e0 + e18*e3 + q[1] + 6.0/5.0, 2) + pow(e0*e18 + (2.0/5.0)*e3 + q[0] - 3.0/10.0, 2);
-    out[7] = -pow(e21*p[12] + p[11], 2) + pow(-11.0/20.0*e0 - e11 + e20*e9 - 3.0/10.0*e3 + (3.0/20.0)*e5, 2) + pow(-3.0/10.0*e0 + e20*e5 + (11.0/20.0)*e3 - e8 - 3.0/20.0*e9, 2);
-    out[8] = -pow(e21*p[14] + p[13], 2) + pow((1.0/2.0)*e12 + e15*e23 - e17 - e22*e9 - 7.0/20.0*e5, 2) + pow(e12*e23 - e14 - e16 - e22*e5 + (7.0/20.0)*e9, 2);
+    double tr[6];
+    excavator_trig(q, tr);
+    excavator_phi_k(q, tr, t, p, out);
+}
+
+static void excavator_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    (void)t;
+    const double e0 = (1.0/2.0)*p[0];
+    const double e1 = e0*tr[0];
+    const double e2 = -e0*tr[1];
+    const double e3 = (1.0/2.0)*p[1];
+    const double e4 = e3*tr[2];
+    const double e5 = -e3*tr[3];
+    const double e6 = (1.0/2.0)*p[2];
+    const double e7 = 2*q[0];
+    const double e8 = 23.0/10.0 - e0;
+    const double e9 = e8*tr[1];
+    const double e10 = 2*e9 + (4.0/5.0)*tr[0];
+    const double e11 = 2*q[1];
+    const double e12 = e8*tr[0];
+    const double e13 = 2*e12 - 4.0/5.0*tr[1];
+    const double e14 = 2*q[3];
+    const double e15 = (11.0/10.0)*tr[0];
+    const double e16 = (3.0/5.0)*tr[1];
+    const double e17 = -e3 - 3.0/4.0;
+    const double e18 = -2*e17*tr[3] + (3.0/10.0)*tr[2];
+    const double e19 = -e14 - e15 + e16 + e18 + e7;
+    const double e20 = 2*q[4];
+    const double e21 = (3.0/10.0)*tr[3];
+    const double e22 = 2*e17*tr[2];
+    const double e23 = (3.0/5.0)*tr[0] + (11.0/10.0)*tr[1];
+    const double e24 = e11 - e20 - e21 - e22 + e23;
+    const double e25 = e17*tr[2] - q[1] + q[4] - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3];
+    const double e26 = e17*tr[3] - q[0] + q[3] + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2];
+    const double e27 = (7.0/10.0)*tr[2];
+    const double e28 = 2.0/5.0 - e3;
+    const double e29 = e28*tr[3];
+    const double e30 = 2*e29;
+    const double e31 = -e6 - 1.0/20.0;
+    const double e32 = -2*e31*tr[5] + tr[4];
+    const double e33 = e14 - e27 + e30 + e32 - 2*q[6];
+    const double e34 = 2*e31*tr[4];
+    const double e35 = e28*tr[2];
+    const double e36 = 2*e35 + (7.0/10.0)*tr[3];
+    const double e37 = e20 - e34 + e36 - 2*q[7] - tr[5];
+    const double e38 = e31*tr[4] - e35 - q[4] + q[7] - 7.0/20.0*tr[3] + (1.0/2.0)*tr[5];
+    const double e39 = -e29 + e31*tr[5] - q[3] + q[6] + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4];
+    out[0] = 1;
+    out[1] = e1;
+    out[2] = 1;
+    out[3] = e2;
+    out[4] = -1;
+    out[5] = e1;
+    out[6] = 1;
+    out[7] = e4;
+    out[8] = -1;
+    out[9] = e2;
+    out[10] = 1;
+    out[11] = e5;
+    out[12] = -1;
+    out[13] = e4;
+    out[14] = 1;
+    out[15] = e6*tr[4];
+    out[16] = -1;
+    out[17] = e5;
+    out[18] = 1;
+    out[19] = -e6*tr[5];
+    out[20] = e10 + e7 - 3.0/5.0;
+    out[21] = e11 + e13 + 12.0/5.0;
+    out[22] = e10*(e12 + q[1] - 2.0/5.0*tr[1] + 6.0/5.0) - e13*(e9 + q[0] + (2.0/5.0)*tr[0] - 3.0/10.0);
+    out[23] = e19;
+    out[24] = e24;
+    out[25] = e23*e26 + e25*(e15 - e16);
+    out[26] = -e19;
+    out[27] = -e24;
+    out[28] = -e18*e25 + e26*(-e21 - e22);
+    out[29] = e33;
+    out[30] = e37;
+    out[31] = e36*e39 + e38*(e27 - e30);
+    out[32] = -e33;
+    out[33] = -e37;
+    out[34] = -e32*e38 + e39*(-e34 - tr[5]);
 }
 
 void excavator_phi_q(const double * q, double t, const double * p, double *out)
 {
-    (void)t;
-    const double e0 = sin(q[2]);
-    const double e1 = (1.0/2.0)*p[0];
-    const double e2 = e0*e1;
-    const double e3 = cos(q[2]);
-    const double e4 = -e1*e3;
-    const double e5 = sin(q[5]);
-    const double e6 = (1.0/2.0)*p[1];
-    const double e7 = e5*e6;
-    const double e8 = cos(q[5]);
-    const double e9 = -e6*e8;
-    const double e10 = sin(q[8]);
-    const double e11 = (1.0/2.0)*p[2];
-    const double e12 = cos(q[8]);
-    const double e13 = 2*q[0];
-    const double e14 = 23.0/10.0 - e1;
-    const double e15 = e14*e3;
-    const double e16 = (4.0/5.0)*e0 + 2*e15;
-    const double e17 = 2*q[1];
-    const double e18 = e0*e14;
-    const double e19 = 2*e18 - 4.0/5.0*e3;
-    const double e20 = 2*q[3];
-    const double e21 = (11.0/10.0)*e0;
-    const double e22 = (3.0/5.0)*e3;
-    const double e23 = (3.0/10.0)*e5;
-    const double e24 = -e6 - 3.0/4.0;
-    const double e25 = 2*e24*e8;
-    const double e26 = e13 - e20 - e21 + e22 + e23 - e25;
-    const double e27 = 2*q[4];
-    const double e28 = (3.0/10.0)*e8;
-    const double e29 = 2*e24*e5;
-    const double e30 = (3.0/5.0)*e0 + (11.0/10.0)*e3;
-    const double e31 = e17 - e27 - e28 - e29 + e30;
-    const double e32 = -3.0/10.0*e0 + e24*e5 - 11.0/20.0*e3 + (3.0/20.0)*e8 - q[1] + q[4];
-    const double e33 = (11.0/20.0)*e0 + e24*e8 - 3.0/10.0*e3 - 3.0/20.0*e5 - q[0] + q[3];
-    const double e34 = -e11 - 1.0/20.0;
-    const double e35 = 2*e12*e34;
-    const double e36 = 2.0/5.0 - e6;
-    const double e37 = e36*e8;
-    const double e38 = 2*e37 - 7.0/10.0*e5;
-    const double e39 = e10 + e20 - e35 + e38 - 2*q[6];
-    const double e40 = 2*e10*e34;
-    const double e41 = e36*e5;
-    const double e42 = 2*e41 + (7.0/10.0)*e8;
-    const double e43 = -e12 + e27 - e40 + e42 - 2*q[7];
-    const double e44 = -1.0/2.0*e10 + e12*e34 - e37 + (7.0/20.0)*e5 - q[3] + q[6];
-    const double e45 = e10*e34 + (1.0/2.0)*e12 - e41 - 7.0/20.0*e8 - q[4] + q[7];
-    out[0] = 1;
-    out[1] = e2;
-    out[2] = 1;
-    out[3] = e4;
-    out[4] = -1;
-    out[5] = e2;
-    out[6] = 1;
-    out[7] = e7;
-    out[8] = -1;
-    out[9] = e4;
-    out[10] = 1;
-    out[11] = e9;
-    out[12] = -1;
-    out[13] = e7;
-    out[14] = 1;
-    out[15] = e10*e11;
-    out[16] = -1;
-    out[17] = e9;
-    out[18] = 1;
-    out[19] = -e11*e12;
-    out[20] = e13 + e16 - 3.0/5.0;
-    out[21] = e17 + e19 + 12.0/5.0;
-    out[22] = e16*(e18 - 2.0/5.0*e3 + q[1] + 6.0/5.0) - e19*((2.0/5.0)*e0 + e15 + q[0] - 3.0/10.0);
-    out[23] = e26;
-    out[24] = e31;
-    out[25] = e30*e33 + e32*(e21 - e22);
-    out[26] = -e26;
-    out[27] = -e31;
-    out[28] = e32*(-e23 + e25) + e33*(-e28 - e29);
-    out[29] = e39;
-    out[30] = e43;
-    out[31] = -e38*e45 + e42*e44;
-    out[32] = -e39;
-    out[33] = -e43;
-    out[34] = e44*(-e12 - e40) + e45*(-e10 + e35);
+    double tr[6];
+    excavator_trig(q, tr);
+    excavator_phi_q_k(q, tr, t, p, out);
 }
 
-void excavator_nu(const double * q, double t, const double * p, double *out)
+static void excavator_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
+    (void)tr;
     const double e0 = p[8]*t;
     const double e1 = sin(e0);
     const double e2 = cos(e0);
@@ -162,95 +197,103 @@ void excavator_nu(const double * q, double t, const double * p, double *out)
     out[8] = e4*p[14]*(e3*p[14] + p[13]);
 }
 
-void excavator_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void excavator_nu(const double * q, double t, const double * p, double *out)
+{
+    double tr[6];
+    excavator_trig(q, tr);
+    excavator_nu_k(q, tr, t, p, out);
+}
+
+static void excavator_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     const double e0 = (1.0/2.0)*p[0];
     const double e1 = pow(qd[2], 2);
-    const double e2 = cos(q[2]);
-    const double e3 = e1*e2;
-    const double e4 = e0*e3;
-    const double e5 = sin(q[2]);
-    const double e6 = e1*e5;
-    const double e7 = e0*e6;
-    const double e8 = cos(q[5]);
-    const double e9 = pow(qd[5], 2);
-    const double e10 = (1.0/2.0)*p[1];
-    const double e11 = e10*e9;
-    const double e12 = e11*e8;
-    const double e13 = sin(q[5]);
-    const double e14 = e11*e13;
-    const double e15 = (1.0/2.0)*p[2];
-    const double e16 = pow(qd[8], 2);
-    const double e17 = cos(q[8]);
-    const double e18 = e16*e17;
-    const double e19 = sin(q[8]);
-    const double e20 = e16*e19;
-    const double e21 = pow(p[8], 2);
-    const double e22 = p[8]*t;
-    const double e23 = cos(e22);
-    const double e24 = 23.0/10.0 - e0;
-    const double e25 = (3.0/5.0)*e3;
-    const double e26 = (8.0/5.0)*qd[2];
-    const double e27 = sin(e22);
-    const double e28 = e2*qd[2];
-    const double e29 = 2*pow(qd[0], 2) + 2*pow(qd[1], 2);
-    const double e30 = pow(e27, 2);
-    const double e31 = (3.0/5.0)*e6;
-    const double e32 = (3.0/5.0)*qd[5];
-    const double e33 = (3.0/10.0)*e9;
-    const double e34 = (6.0/5.0)*qd[2];
-    const double e35 = (9.0/100.0)*e8;
-    const double e36 = e5*e9;
-    const double e37 = (11.0/5.0)*qd[2];
-    const double e38 = e37*e5;
-    const double e39 = (11.0/10.0)*e3;
-    const double e40 = (33.0/200.0)*e8;
-    const double e41 = (33.0/200.0)*e13;
-    const double e42 = e2*e9;
-    const double e43 = 1.0/2.0 - 1.0/2.0*e23;
-    const double e44 = -e10 - 3.0/4.0;
-    const double e45 = e44*e9;
-    const double e46 = e44*qd[5];
-    const double e47 = 4*qd[4];
-    const double e48 = e46*e8;
-    const double e49 = e44*e8;
-    const double e50 = e13*e44;
-    const double e51 = 2*pow(qd[3], 2) + 2*pow(qd[4], 2);
-    const double e52 = 2*qd[8];
-    const double e53 = e19*e52;
-    const double e54 = (7.0/5.0)*qd[5];
-    const double e55 = e13*e54;
-    const double e56 = (7.0/10.0)*e9;
-    const double e57 = e56*e8;
-    const double e58 = (7.0/20.0)*e9;
-    const double e59 = e17*e8;
-    const double e60 = e13*e19;
-    const double e61 = e18*e8;
-    const double e62 = e13*e20;
-    const double e63 = 2.0/5.0 - e10;
-    const double e64 = e13*e63;
-    const double e65 = e64*e9;
-    const double e66 = -e15 - 1.0/20.0;
-    const double e67 = e20*e66;
-    const double e68 = e63*e8;
-    const double e69 = e66*qd[8];
-    const double e70 = e68*qd[5];
-    const double e71 = e17*e69;
-    const double e72 = 2*e63*e66;
-    const double e73 = e72*e9;
-    out[0] = -e4;
-    out[1] = -e7;
-    out[2] = -e12 - e4;
-    out[3] = -e14 - e7;
-    out[4] = -e12 - e15*e18;
-    out[5] = -e14 - e15*e20;
-    out[6] = 2*e1*e2*e24*q[0] + 2*e1*e24*e5*q[1] + (12.0/5.0)*e1*e24*e5 + (4.0/5.0)*e1*e5*q[0] - e2*e26*qd[0] + 2*e21*pow(e23, 2)*pow(p[10], 2) + 2*e21*e27*p[10]*(-e27*p[10] + p[9]) - e24*e25 - 4*e24*e28*qd[1] + 4*e24*e5*qd[0]*qd[2] - e26*e5*qd[1] - e29 - 4.0/5.0*e3*q[1] - 24.0/25.0*e3 - 6.0/25.0*e6;
-    out[7] = (9.0/100.0)*e1*e13*e2 + (3.0/5.0)*e1*e2*q[0] + (11.0/10.0)*e1*e2*q[1] + (11.0/10.0)*e1*e44*e5*e8 + (3.0/5.0)*e1*e5*q[1] + (11.0/10.0)*e1*e5*q[3] + (11.0/5.0)*e13*e2*e44*qd[2]*qd[5] + (9.0/100.0)*e13*e2*e9 - 9.0/50.0*e13*e28*qd[5] - e13*e32*qd[1] - e13*e33*q[3] + (6.0/5.0)*e13*e44*e5*qd[2]*qd[5] + 2*e13*e44*e9*q[4] + 4*e13*e44*qd[3]*qd[5] - 2*e13*e45*q[1] - 4*e13*e46*qd[0] + (33.0/100.0)*e13*e5*qd[2]*qd[5] + (3.0/10.0)*e13*e9*q[0] + (3.0/5.0)*e13*qd[4]*qd[5] - e2*e34*qd[1] - e2*e37*qd[3] + (6.0/5.0)*e2*e44*e8*qd[2]*qd[5] + (33.0/100.0)*e2*e8*qd[2]*qd[5] + (11.0/5.0)*e2*qd[0]*qd[2] + (6.0/5.0)*e2*qd[2]*qd[4] + e21*e23*p[12]*(e43*p[12] + p[11]) + (1.0/2.0)*e21*e30*pow(p[12], 2) - e25*e49 - e25*q[3] - e29 - e3*e40 - e31*e50 - e31*q[4] - e32*e8*qd[0] - e33*e8*q[1] - e34*e5*qd[3] - e35*e36 - e35*e6 - e36*e41 - 3.0/5.0*e36*e50 - e38*e48 - e38*qd[4] - e39*e50 - e39*q[4] - e40*e42 - e41*e6 - 3.0/5.0*e42*e49 - 11.0/10.0*e42*e50 + (11.0/10.0)*e44*e5*e8*e9 + 2*e44*e8*e9*q[3] + 4*e44*e8*qd[1]*qd[5] - 2*e45*e8*q[0] - e47*e48 + (9.0/50.0)*e5*e8*qd[2]*qd[5] + (6.0/5.0)*e5*qd[0]*qd[2] + (11.0/5.0)*e5*qd[1]*qd[2] - e51 - 11.0/10.0*e6*q[0] + (3.0/10.0)*e8*e9*q[4] + (3.0/5.0)*e8*qd[3]*qd[5] + 4*qd[0]*qd[3] + 4*qd[1]*qd[4];
-    out[8] = (7.0/10.0)*e13*e16*e17*e66 + 2*e13*e17*e63*qd[5]*qd[8] + (7.0/10.0)*e13*e17*e66*e9 + 4*e13*e19*e63*e66*qd[5]*qd[8] + (7.0/10.0)*e13*e19*qd[5]*qd[8] - e13*e56*q[3] + 2*e13*e63*e9*q[4] + 4*e13*e63*qd[3]*qd[5] + (7.0/10.0)*e13*e9*q[6] + (7.0/5.0)*e13*qd[4]*qd[5] + 2*e16*e17*e66*q[6] + e16*e17*q[7] + e16*e19*e63*e8 + 2*e16*e19*e66*q[7] + e16*e19*q[3] - e17*e52*qd[3] + 4*e17*e63*e66*e8*qd[5]*qd[8] - e17*e65 + 4*e17*e66*qd[4]*qd[8] + (7.0/10.0)*e17*e8*qd[5]*qd[8] + 2*e17*qd[6]*qd[8] - e18*e64 - 2*e18*e66*q[3] - e18*q[4] - e19*e57*e66 + e19*e63*e8*e9 + (7.0/5.0)*e19*e66*e8*qd[5]*qd[8] + 4*e19*e66*qd[6]*qd[8] - 4*e19*e69*qd[3] + 2*e19*qd[7]*qd[8] - e20*q[6] + e21*e23*p[14]*(e43*p[14] + p[13]) + (1.0/2.0)*e21*e30*pow(p[14], 2) - e47*e70 - e51 - e53*e70 - e53*qd[4] - e54*e8*qd[6] - e55*e71 - e55*qd[7] - e57*q[7] - e58*e59 - e58*e60 - e59*e73 - e60*e73 - e61*e72 - 7.0/20.0*e61 - e62*e72 - 7.0/20.0*e62 + 2*e63*e8*e9*q[3] + 4*e63*e8*qd[5]*qd[7] - 4*e64*qd[5]*qd[6] - 2*e65*q[7] - 7.0/10.0*e67*e8 - 2*e67*q[4] - 2*e68*e9*q[6] - 4*e71*qd[7] + (7.0/10.0)*e8*e9*q[4] + (7.0/5.0)*e8*qd[3]*qd[5] + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*pow(qd[6], 2) - 2*pow(qd[7], 2);
+    const double e2 = e1*tr[1];
+    const double e3 = e0*e2;
+    const double e4 = e1*tr[0];
+    const double e5 = e0*e4;
+    const double e6 = pow(qd[5], 2);
+    const double e7 = (1.0/2.0)*p[1];
+    const double e8 = e6*e7;
+    const double e9 = e8*tr[3];
+    const double e10 = e8*tr[2];
+    const double e11 = (1.0/2.0)*p[2];
+    const double e12 = pow(qd[8], 2);
+    const double e13 = e12*tr[5];
+    const double e14 = e12*tr[4];
+    const double e15 = pow(p[8], 2);
+    const double e16 = p[8]*t;
+    const double e17 = cos(e16);
+    const double e18 = 23.0/10.0 - e0;
+    const double e19 = (3.0/5.0)*e2;
+    const double e20 = (8.0/5.0)*qd[2];
+    const double e21 = sin(e16);
+    const double e22 = qd[2]*tr[1];
+    const double e23 = 2*pow(qd[0], 2) + 2*pow(qd[1], 2);
+    const double e24 = pow(e21, 2);
+    const double e25 = (3.0/5.0)*e4;
+    const double e26 = (3.0/5.0)*qd[5];
+    const double e27 = (3.0/10.0)*e6;
+    const double e28 = (6.0/5.0)*qd[2];
+    const double e29 = (9.0/100.0)*tr[3];
+    const double e30 = e6*tr[0];
+    const double e31 = (11.0/5.0)*qd[2];
+    const double e32 = e31*tr[0];
+    const double e33 = (11.0/10.0)*e2;
+    const double e34 = (33.0/200.0)*tr[2];
+    const double e35 = (33.0/200.0)*tr[3];
+    const double e36 = e6*tr[1];
+    const double e37 = 1.0/2.0 - 1.0/2.0*e17;
+    const double e38 = -e7 - 3.0/4.0;
+    const double e39 = e38*e6;
+    const double e40 = e38*qd[5];
+    const double e41 = 4*qd[4];
+    const double e42 = e40*tr[3];
+    const double e43 = e38*tr[2];
+    const double e44 = e38*tr[3];
+    const double e45 = 2*pow(qd[3], 2) + 2*pow(qd[4], 2);
+    const double e46 = 2*qd[8];
+    const double e47 = e46*tr[4];
+    const double e48 = (7.0/5.0)*qd[5];
+    const double e49 = e48*tr[2];
+    const double e50 = (7.0/10.0)*e6;
+    const double e51 = e50*tr[3];
+    const double e52 = (7.0/20.0)*tr[2];
+    const double e53 = e6*tr[4];
+    const double e54 = (7.0/20.0)*tr[3];
+    const double e55 = e6*tr[5];
+    const double e56 = 2.0/5.0 - e7;
+    const double e57 = e56*tr[2];
+    const double e58 = -e11 - 1.0/20.0;
+    const double e59 = e13*e58;
+    const double e60 = e14*e58;
+    const double e61 = e56*tr[3];
+    const double e62 = 2*e6;
+    const double e63 = e58*qd[8];
+    const double e64 = e61*qd[5];
+    const double e65 = e63*tr[5];
+    const double e66 = 2*e58;
+    out[0] = -e3;
+    out[1] = -e5;
+    out[2] = -e3 - e9;
+    out[3] = -e10 - e5;
+    out[4] = -e11*e13 - e9;
+    out[5] = -e10 - e11*e14;
+    out[6] = 2*e1*e18*q[0]*tr[1] + 2*e1*e18*q[1]*tr[0] + (12.0/5.0)*e1*e18*tr[0] + (4.0/5.0)*e1*q[0]*tr[0] + 2*e15*pow(e17, 2)*pow(p[10], 2) + 2*e15*e21*p[10]*(-e21*p[10] + p[9]) - e18*e19 - 4*e18*e22*qd[1] + 4*e18*qd[0]*qd[2]*tr[0] - 4.0/5.0*e2*q[1] - 24.0/25.0*e2 - e20*qd[0]*tr[1] - e20*qd[1]*tr[0] - e23 - 6.0/25.0*e4;
+    out[7] = (11.0/10.0)*e1*e38*tr[0]*tr[3] + (3.0/5.0)*e1*q[0]*tr[1] + (3.0/5.0)*e1*q[1]*tr[0] + (11.0/10.0)*e1*q[1]*tr[1] + (11.0/10.0)*e1*q[3]*tr[0] + (9.0/100.0)*e1*tr[1]*tr[2] + e15*e17*p[12]*(e37*p[12] + p[11]) + (1.0/2.0)*e15*e24*pow(p[12], 2) - e19*e44 - e19*q[3] - e2*e35 - 9.0/50.0*e22*qd[5]*tr[2] - e23 - e25*e43 - e25*q[4] - e26*qd[0]*tr[3] - e26*qd[1]*tr[2] - e27*q[1]*tr[3] - e27*q[3]*tr[2] - e28*qd[1]*tr[1] - e28*qd[3]*tr[0] - e29*e30 - e29*e4 - e30*e34 - 3.0/5.0*e30*e43 - e31*qd[3]*tr[1] - e32*e42 - e32*qd[4] - e33*e43 - e33*q[4] - e34*e4 - e35*e36 - 11.0/10.0*e36*e43 - 3.0/5.0*e36*e44 + 2*e38*e6*q[3]*tr[3] + 2*e38*e6*q[4]*tr[2] + (11.0/10.0)*e38*e6*tr[0]*tr[3] + 4*e38*qd[1]*qd[5]*tr[3] + (6.0/5.0)*e38*qd[2]*qd[5]*tr[0]*tr[2] + (11.0/5.0)*e38*qd[2]*qd[5]*tr[1]*tr[2] + (6.0/5.0)*e38*qd[2]*qd[5]*tr[1]*tr[3] + 4*e38*qd[3]*qd[5]*tr[2] - 2*e39*q[0]*tr[3] - 2*e39*q[1]*tr[2] - 11.0/10.0*e4*q[0] - 4*e40*qd[0]*tr[2] - e41*e42 - e45 + (3.0/10.0)*e6*q[0]*tr[2] + (3.0/10.0)*e6*q[4]*tr[3] + (9.0/100.0)*e6*tr[1]*tr[2] + (6.0/5.0)*qd[0]*qd[2]*tr[0] + (11.0/5.0)*qd[0]*qd[2]*tr[1] + 4*qd[0]*qd[3] + (11.0/5.0)*qd[1]*qd[2]*tr[0] + 4*qd[1]*qd[4] + (6.0/5.0)*qd[2]*qd[4]*tr[1] + (33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2] + (9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3] + (33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3] + (3.0/5.0)*qd[3]*qd[5]*tr[3] + (3.0/5.0)*qd[4]*qd[5]*tr[2];
+    out[8] = e12*e56*tr[3]*tr[4] + 2*e12*e58*q[6]*tr[5] + 2*e12*e58*q[7]*tr[4] + (7.0/10.0)*e12*e58*tr[2]*tr[5] + e12*q[3]*tr[4] + e12*q[7]*tr[5] - e13*e54 - e13*e57 - e13*q[4] - e14*e52 - e14*q[6] + e15*e17*p[14]*(e37*p[14] + p[13]) + (1.0/2.0)*e15*e24*pow(p[14], 2) - e41*e64 - e45 - e46*qd[3]*tr[5] - e47*e64 - e47*qd[4] - e48*qd[6]*tr[3] - e49*e65 - e49*qd[7] - e50*q[3]*tr[2] - e51*e58*tr[4] - e51*q[7] - e52*e53 - e53*e57*e66 - e54*e55 - e55*e57 - e55*e61*e66 + 4*e56*e58*qd[5]*qd[8]*tr[2]*tr[4] + 4*e56*e58*qd[5]*qd[8]*tr[3]*tr[5] + 2*e56*e6*q[3]*tr[3] + 2*e56*e6*q[4]*tr[2] + e56*e6*tr[3]*tr[4] + 4*e56*qd[3]*qd[5]*tr[2] + 4*e56*qd[5]*qd[7]*tr[3] + 2*e56*qd[5]*qd[8]*tr[2]*tr[5] - 2*e57*e60 - e57*e62*q[7] - 4*e57*qd[5]*qd[6] + (7.0/10.0)*e58*e6*tr[2]*tr[5] + 4*e58*qd[4]*qd[8]*tr[5] + (7.0/5.0)*e58*qd[5]*qd[8]*tr[3]*tr[4] + 4*e58*qd[6]*qd[8]*tr[4] - 2*e59*e61 - 2*e59*q[3] + (7.0/10.0)*e6*q[4]*tr[3] + (7.0/10.0)*e6*q[6]*tr[2] - 2*e60*q[4] - 7.0/10.0*e60*tr[3] - e61*e62*q[6] - 4*e63*qd[3]*tr[4] - 4*e65*qd[7] + (7.0/5.0)*qd[3]*qd[5]*tr[3] + 4*qd[3]*qd[6] + (7.0/5.0)*qd[4]*qd[5]*tr[2] + 4*qd[4]*qd[7] + (7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4] + (7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5] - 2*pow(qd[6], 2) + 2*qd[6]*qd[8]*tr[5] - 2*pow(qd[7], 2) + 2*qd[7]*qd[8]*tr[4];
 }
 
-void excavator_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void excavator_gamma(const double * q, const double * qd, double t, const double * p, double *out)
 {
+    double tr[6];
+    excavator_trig(q, tr);
+    excavator_gamma_k(q, tr, qd, t, p, out);
+}
+
+static void excavator_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    (void)q;
     (void)qd;
     const double e0 = exp(-pow(-p[16] + t, 2)/pow(p[17], 2));
     const double e1 = e0*p[15];
@@ -262,10 +305,17 @@ void excavator_applied(const double * q, const double * qd, double t, const doub
     out[5] = 0;
     out[6] = e1;
     out[7] = (3.0/10.0)*e1 - 981.0/100.0*p[6];
-    out[8] = (3.0/20.0)*e0*p[15]*p[2]*cos(q[8]) - 1.0/2.0*e1*p[2]*sin(q[8]);
+    out[8] = (3.0/20.0)*e0*p[15]*p[2]*tr[5] - 1.0/2.0*e1*p[2]*tr[4];
 }
 
-void excavator_mass(const double * p, double *out)
+void excavator_applied(const double * q, const double * qd, double t, const double * p, double *out)
+{
+    double tr[6];
+    excavator_trig(q, tr);
+    excavator_applied_k(q, tr, qd, t, p, out);
+}
+
+static void excavator_mass_k(const double * p, double *out)
 {
     out[0] = p[4];
     out[1] = p[4];
@@ -278,31 +328,30 @@ void excavator_mass(const double * p, double *out)
     out[8] = (1.0/12.0)*p[6]*(pow(p[2], 2) + pow(p[3], 2));
 }
 
-void excavator_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void excavator_mass(const double * p, double *out)
+{
+    excavator_mass_k(p, out);
+}
+
+static void excavator_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
 {
     (void)t;
     const double e0 = 2*lam[6];
-    const double e1 = sin(q[2]);
-    const double e2 = (4.0/5.0)*lam[6];
-    const double e3 = cos(q[2]);
-    const double e4 = e0*(23.0/10.0 - 1.0/2.0*p[0]);
-    const double e5 = e0*q[0] + e1*e2 + e3*e4 - 3.0/5.0*lam[6];
-    const double e6 = e0*q[1] + e1*e4 - e2*e3 + (12.0/5.0)*lam[6];
-    const double e7 = 2*lam[7];
-    const double e8 = e3*lam[7];
-    const double e9 = sin(q[5]);
-    const double e10 = (1.0/2.0)*p[1];
-    const double e11 = -e10 - 3.0/4.0;
-    const double e12 = cos(q[5]);
-    const double e13 = -11.0/10.0*e1*lam[7] - 2*e11*e12*lam[7] + e7*q[0] + (3.0/5.0)*e8 + (3.0/10.0)*e9*lam[7] - 2*lam[7]*q[3];
-    const double e14 = (3.0/5.0)*e1*lam[7] - 2*e11*e9*lam[7] - 3.0/10.0*e12*lam[7] + e7*q[1] + (11.0/10.0)*e8 - 2*lam[7]*q[4];
-    const double e15 = sin(q[8]);
-    const double e16 = 2*lam[8];
-    const double e17 = -1.0/2.0*p[2] - 1.0/20.0;
-    const double e18 = cos(q[8]);
-    const double e19 = e16*(2.0/5.0 - e10);
-    const double e20 = e12*e19 + e15*lam[8] + e16*q[3] - 2*e17*e18*lam[8] - 7.0/10.0*e9*lam[8] - 2*lam[8]*q[6];
-    const double e21 = (7.0/10.0)*e12*lam[8] - 2*e15*e17*lam[8] + e16*q[4] - e18*lam[8] + e19*e9 - 2*lam[8]*q[7];
+    const double e1 = (4.0/5.0)*lam[6];
+    const double e2 = e0*(23.0/10.0 - 1.0/2.0*p[0]);
+    const double e3 = e0*q[0] + e1*tr[0] + e2*tr[1] - 3.0/5.0*lam[6];
+    const double e4 = e0*q[1] - e1*tr[1] + e2*tr[0] + (12.0/5.0)*lam[6];
+    const double e5 = 2*lam[7];
+    const double e6 = lam[7]*tr[1];
+    const double e7 = (1.0/2.0)*p[1];
+    const double e8 = -e7 - 3.0/4.0;
+    const double e9 = e5*q[0] + (3.0/5.0)*e6 - 2*e8*lam[7]*tr[3] - 2*lam[7]*q[3] - 11.0/10.0*lam[7]*tr[0] + (3.0/10.0)*lam[7]*tr[2];
+    const double e10 = e5*q[1] + (11.0/10.0)*e6 - 2*e8*lam[7]*tr[2] - 2*lam[7]*q[4] + (3.0/5.0)*lam[7]*tr[0] - 3.0/10.0*lam[7]*tr[3];
+    const double e11 = 2*lam[8];
+    const double e12 = -1.0/2.0*p[2] - 1.0/20.0;
+    const double e13 = e11*(2.0/5.0 - e7);
+    const double e14 = e11*q[3] - 2*e12*lam[8]*tr[5] + e13*tr[3] - 2*lam[8]*q[6] - 7.0/10.0*lam[8]*tr[2] + lam[8]*tr[4];
+    const double e15 = e11*q[4] - 2*e12*lam[8]*tr[4] + e13*tr[2] - 2*lam[8]*q[7] + (7.0/10.0)*lam[8]*tr[3] - lam[8]*tr[5];
     out[0] = lam[0];
     out[1] = lam[1];
     out[2] = 0;
@@ -321,24 +370,31 @@ void excavator_reactions(const double * q, const double * lam, double t, const d
     out[15] = -lam[4];
     out[16] = -lam[5];
     out[17] = 0;
-    out[18] = e5;
-    out[19] = e6;
+    out[18] = e3;
+    out[19] = e4;
     out[20] = 0;
-    out[21] = -e5;
-    out[22] = -e6;
+    out[21] = -e3;
+    out[22] = -e4;
     out[23] = 0;
-    out[24] = -e13;
-    out[25] = -e14;
+    out[24] = -e9;
+    out[25] = -e10;
     out[26] = 0;
-    out[27] = e13;
-    out[28] = e14;
+    out[27] = e9;
+    out[28] = e10;
     out[29] = 0;
-    out[30] = -e20;
-    out[31] = -e21;
+    out[30] = -e14;
+    out[31] = -e15;
     out[32] = 0;
-    out[33] = e20;
-    out[34] = e21;
+    out[33] = e14;
+    out[34] = e15;
     out[35] = 0;
+}
+
+void excavator_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+{
+    double tr[6];
+    excavator_trig(q, tr);
+    excavator_reactions_k(q, tr, lam, t, p, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time; returns 1
@@ -348,7 +404,7 @@ static int excavator_sparse_factor(double *lu)
     double piv, cm;
     piv = lu[18];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[33]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[33]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[33] /= piv;
     lu[30] -= lu[33] * lu[16];
@@ -356,9 +412,9 @@ static int excavator_sparse_factor(double *lu)
     lu[34] -= lu[33] * lu[19];
     piv = lu[2];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[8]));
-    cm = fmax(cm, fabs(lu[21]));
-    cm = fmax(cm, fabs(lu[24]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[8]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[21]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[24]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[8] /= piv;
     lu[9] -= lu[8] * lu[3];
@@ -368,9 +424,9 @@ static int excavator_sparse_factor(double *lu)
     lu[25] -= lu[24] * lu[3];
     piv = lu[20];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[0]));
-    cm = fmax(cm, fabs(lu[4]));
-    cm = fmax(cm, fabs(lu[23]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[0]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[4]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[23]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[0] /= piv;
     lu[1] -= lu[0] * lu[22];
@@ -380,17 +436,17 @@ static int excavator_sparse_factor(double *lu)
     lu[25] -= lu[23] * lu[22];
     piv = lu[1];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[5]));
-    cm = fmax(cm, fabs(lu[9]));
-    cm = fmax(cm, fabs(lu[25]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[5]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[9]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[25]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[5] /= piv;
     lu[9] /= piv;
     lu[25] /= piv;
     piv = lu[10];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[27]));
-    cm = fmax(cm, fabs(lu[30]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[27]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[30]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[27] /= piv;
     lu[28] -= lu[27] * lu[11];
@@ -398,9 +454,9 @@ static int excavator_sparse_factor(double *lu)
     lu[31] -= lu[30] * lu[11];
     piv = lu[26];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[6]));
-    cm = fmax(cm, fabs(lu[12]));
-    cm = fmax(cm, fabs(lu[29]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[6]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[12]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[29]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[6] /= piv;
     lu[7] -= lu[6] * lu[28];
@@ -410,14 +466,14 @@ static int excavator_sparse_factor(double *lu)
     lu[31] -= lu[29] * lu[28];
     piv = lu[7];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[13]));
-    cm = fmax(cm, fabs(lu[31]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[13]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[31]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[13] /= piv;
     lu[31] /= piv;
     piv = lu[32];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[14]));
+    cm = EXCAVATOR_MAX(cm, fabs(lu[14]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[14] /= piv;
     lu[15] -= lu[14] * lu[34];
@@ -556,11 +612,12 @@ static void excavator_dense_solve_t(const double *a, const int *perm, const doub
 }
 
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
-static int excavator_factorize(const double *q, double t, const double *p, double *work, int *iwork, int *dense)
+static int excavator_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+                             int *iwork, int *dense)
 {
     double *values = work, *lu = work + EXCAVATOR_OFF_LU, *a = work + EXCAVATOR_OFF_DENSE;
     int k;
-    excavator_phi_q(q, t, p, values);
+    excavator_phi_q_k(q, tr, t, p, values);
     memcpy(lu, values, sizeof(double) * 35);
     memset(lu + 35, 0, sizeof(double) * (EXCAVATOR_LU_SIZE - 35));
     *dense = 0;
@@ -583,34 +640,42 @@ static void excavator_solve_t(const double *work, const int *iwork, int dense, c
     else excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, b, x);
 }
 
+/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes). */
 static double excavator_maxabs(const double *v, int n)
 {
-    double m = 0.0;
+    double m = 0.0, sum = 0.0;
     int k;
-    for (k = 0; k < n; ++k) m = (fabs(v[k]) > m || v[k] != v[k]) ? fabs(v[k]) : m;
-    return m;
+    for (k = 0; k < n; ++k) {
+        const double a = fabs(v[k]);
+        m = a > m ? a : m;
+        sum += a;
+    }
+    return sum == sum ? m : sum;
 }
 
 int excavator_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *r = EXCAVATOR_VEC(work, 0), *dq = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
-    double *b = EXCAVATOR_VEC(work, 3);
-    double step = INFINITY;
+    double *b = EXCAVATOR_VEC(work, 3), *tr = EXCAVATOR_VEC(work, 9);
+    double step = INFINITY, lim, qmag;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
+    excavator_trig(q, tr);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = EXCAVATOR_MAX(1.0, excavator_maxabs(q, 9));
+    lim = EXCAVATOR_MAX(tol, 8.0 * EXCAVATOR_EPS * qmag);
     for (it = 0;; ++it) {
-        double rmax, lim;
-        excavator_phi(q, t, p, r);
+        double rmax;
+        excavator_phi_k(q, tr, t, p, r);
         rmax = excavator_maxabs(r, 9);
-        lim = fmax(tol, 8.0 * EXCAVATOR_EPS * fmax(1.0, excavator_maxabs(q, 9)));
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
         }
         if (it == EXCAVATOR_MAX_NEWTON) break;
-        if (excavator_factorize(q, t, p, work, iwork, &dense) != EXCAVATOR_OK) {
+        if (excavator_factorize(q, tr, t, p, work, iwork, &dense) != EXCAVATOR_OK) {
             info[0] = it;
             info[1] = dense;
             return EXCAVATOR_SINGULAR;
@@ -619,20 +684,25 @@ int excavator_instant(double t, const double *p, double tol, double *q, double *
         excavator_solve(work, iwork, dense, r, dq, y);
         for (k = 0; k < 9; ++k) q[k] += dq[k];
         step = excavator_maxabs(dq, 9);
+        excavator_trig_step(q, dq, tr);
     }
     info[0] = it;
     if (!converged) return EXCAVATOR_NOT_CONVERGED;
-    if (excavator_factorize(q, t, p, work, iwork, &dense) != EXCAVATOR_OK) return EXCAVATOR_SINGULAR;
+    /* The factors are those of the last iterate but one; where the last step
+       was negligible (quadratic convergence) they serve the solution too. */
+    if (step > 1e-14 * qmag
+        && excavator_factorize(q, tr, t, p, work, iwork, &dense) != EXCAVATOR_OK)
+        return EXCAVATOR_SINGULAR;
     info[1] = dense;
-    excavator_nu(q, t, p, b);
+    excavator_nu_k(q, tr, t, p, b);
     excavator_solve(work, iwork, dense, b, qd, y);
-    excavator_gamma(q, qd, t, p, b);
+    excavator_gamma_k(q, tr, qd, t, p, b);
     excavator_solve(work, iwork, dense, b, qdd, y);
-    excavator_applied(q, qd, t, p, b);
-    excavator_mass(p, y);
+    excavator_applied_k(q, tr, qd, t, p, b);
+    excavator_mass_k(p, y);
     for (k = 0; k < 9; ++k) b[k] -= y[k] * qdd[k];
     excavator_solve_t(work, iwork, dense, b, lam);
-    excavator_reactions(q, lam, t, p, reactions);
+    excavator_reactions_k(q, tr, lam, t, p, reactions);
     return EXCAVATOR_OK;
 }
 
@@ -646,6 +716,7 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
     double *lam = EXCAVATOR_VEC(work, 7), *reac = EXCAVATOR_VEC(work, 8);
     long i;
     int k, status, info[2];
+    (void)qm1; (void)qm2;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * EXCAVATOR_ROW;
@@ -657,11 +728,9 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
             *solved = i;
             return status;
         }
-        memcpy(qm2, qm1, sizeof(double) * 9);
-        memcpy(qm1, q, sizeof(double) * 9);
-        memcpy(q, qn, sizeof(double) * 9);
         memcpy(qd, qdn, sizeof(double) * 9);
         memcpy(qdd, qddn, sizeof(double) * 9);
+        memcpy(q, qn, sizeof(double) * 9);
         *count += 1.0;
         row[0] = t;
         /* q */

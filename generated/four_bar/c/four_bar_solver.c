@@ -10,6 +10,7 @@
 #define FOUR_BAR_SINGULAR_RATIO (1e3 * FOUR_BAR_EPS)
 #define FOUR_BAR_MAX_NEWTON 50
 #define FOUR_BAR_LU_SIZE 25
+#define FOUR_BAR_MAX(a, b) ((a) > (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define FOUR_BAR_OFF_LU 25
 #define FOUR_BAR_OFF_DENSE (FOUR_BAR_OFF_LU + FOUR_BAR_LU_SIZE)
@@ -19,20 +20,51 @@
 const double four_bar_default_params[16] = { 0.4, 0.1, 0.35, 0.3, 0.3, 0.8, 0.7, 0.05, 0.1, 2.0, 12.566370614359172, 50.0, 2.0, 500.0, 5.0, 0.3 };
 const int four_bar_phi_q_rows[25] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 7, 7, 8 };
 const int four_bar_phi_q_cols[25] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 8, 6, 8, 7, 8, 2 };
+/* Sines and cosines of the body angles, computed once per configuration. */
+static void four_bar_trig(const double *q, double *tr)
+{
+    tr[0] = sin(q[2]);
+    tr[1] = cos(q[2]);
+    tr[2] = sin(q[5]);
+    tr[3] = cos(q[5]);
+    tr[4] = sin(q[8]);
+    tr[5] = cos(q[8]);
+}
 
-void four_bar_phi(const double * q, double t, const double * p, double *out)
+/* Update tr after the angles moved by dq: a Newton correction is small, and
+   sin(a + d), cos(a + d) by the addition formulas with d's Taylor series
+   (exact to rounding for |d| < 1e-3) avoid calling sin and cos again. */
+static void four_bar_trig_step(const double *q, const double *dq, double *tr)
+{
+    int b;
+    for (b = 0; b < 3; ++b) {
+        const double d = dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        if (fabs(d) < 1e-3) {
+            const double d2 = d * d;
+            const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
+            const double cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0);
+            tr[2 * b] = s * cd + c * sd;
+            tr[2 * b + 1] = c * cd - s * sd;
+        } else {
+            tr[2 * b] = sin(q[3 * b + 2]);
+            tr[2 * b + 1] = cos(q[3 * b + 2]);
+        }
+    }
+}
+
+static void four_bar_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
     const double e0 = (1.0/2.0)*p[1];
-    const double e1 = e0*cos(q[2]);
-    const double e2 = e0*sin(q[2]);
+    const double e1 = e0*tr[1];
+    const double e2 = e0*tr[0];
     const double e3 = (1.0/2.0)*p[2];
-    const double e4 = e3*cos(q[5]);
-    const double e5 = e3*sin(q[5]);
+    const double e4 = e3*tr[3];
+    const double e5 = e3*tr[2];
     const double e6 = -q[6];
     const double e7 = (1.0/2.0)*p[3];
-    const double e8 = e7*cos(q[8]);
+    const double e8 = e7*tr[5];
     const double e9 = -q[7];
-    const double e10 = e7*sin(q[8]);
+    const double e10 = e7*tr[4];
     out[0] = -e1 + q[0];
     out[1] = -e2 + q[1];
     out[2] = -e1 - e4 - q[0] + q[3];
@@ -44,18 +76,26 @@ void four_bar_phi(const double * q, double t, const double * p, double *out)
     out[8] = -p[10]*t + q[2];
 }
 
-void four_bar_phi_q(const double * q, double t, const double * p, double *out)
+void four_bar_phi(const double * q, double t, const double * p, double *out)
 {
+    double tr[6];
+    four_bar_trig(q, tr);
+    four_bar_phi_k(q, tr, t, p, out);
+}
+
+static void four_bar_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    (void)q;
     (void)t;
     const double e0 = (1.0/2.0)*p[1];
-    const double e1 = e0*sin(q[2]);
-    const double e2 = -e0*cos(q[2]);
+    const double e1 = e0*tr[0];
+    const double e2 = -e0*tr[1];
     const double e3 = (1.0/2.0)*p[2];
-    const double e4 = e3*sin(q[5]);
-    const double e5 = -e3*cos(q[5]);
+    const double e4 = e3*tr[2];
+    const double e5 = -e3*tr[3];
     const double e6 = (1.0/2.0)*p[3];
-    const double e7 = e6*sin(q[8]);
-    const double e8 = e6*cos(q[8]);
+    const double e7 = e6*tr[4];
+    const double e8 = e6*tr[5];
     out[0] = 1;
     out[1] = e1;
     out[2] = 1;
@@ -83,9 +123,17 @@ void four_bar_phi_q(const double * q, double t, const double * p, double *out)
     out[24] = 1;
 }
 
-void four_bar_nu(const double * q, double t, const double * p, double *out)
+void four_bar_phi_q(const double * q, double t, const double * p, double *out)
+{
+    double tr[6];
+    four_bar_trig(q, tr);
+    four_bar_phi_q_k(q, tr, t, p, out);
+}
+
+static void four_bar_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
+    (void)tr;
     (void)t;
     out[0] = 0;
     out[1] = 0;
@@ -98,18 +146,26 @@ void four_bar_nu(const double * q, double t, const double * p, double *out)
     out[8] = p[10];
 }
 
-void four_bar_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void four_bar_nu(const double * q, double t, const double * p, double *out)
 {
+    double tr[6];
+    four_bar_trig(q, tr);
+    four_bar_nu_k(q, tr, t, p, out);
+}
+
+static void four_bar_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    (void)q;
     (void)t;
     const double e0 = (1.0/2.0)*p[1]*pow(qd[2], 2);
-    const double e1 = e0*cos(q[2]);
-    const double e2 = e0*sin(q[2]);
+    const double e1 = e0*tr[1];
+    const double e2 = e0*tr[0];
     const double e3 = (1.0/2.0)*p[2]*pow(qd[5], 2);
-    const double e4 = e3*cos(q[5]);
-    const double e5 = e3*sin(q[5]);
+    const double e4 = e3*tr[3];
+    const double e5 = e3*tr[2];
     const double e6 = (1.0/2.0)*p[3]*pow(qd[8], 2);
-    const double e7 = -e6*cos(q[8]);
-    const double e8 = -e6*sin(q[8]);
+    const double e7 = -e6*tr[5];
+    const double e8 = -e6*tr[4];
     out[0] = -e1;
     out[1] = -e2;
     out[2] = -e1 - e4;
@@ -121,31 +177,44 @@ void four_bar_gamma(const double * q, const double * qd, double t, const double 
     out[8] = 0;
 }
 
-void four_bar_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void four_bar_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+{
+    double tr[6];
+    four_bar_trig(q, tr);
+    four_bar_gamma_k(q, tr, qd, t, p, out);
+}
+
+static void four_bar_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     const double e0 = p[11]*((1.0/2.0)*sin(p[10]*t) + 1);
-    const double e1 = cos(q[8]);
-    const double e2 = (1.0/20.0)*e1;
-    const double e3 = e2 + q[6] - 3.0/4.0;
-    const double e4 = (1.0/20.0)*sin(q[8]);
-    const double e5 = e4 + q[7] - 3.0/10.0;
-    const double e6 = sqrt(pow(e3, 2) + pow(e5, 2));
-    const double e7 = 1.0/e6;
-    const double e8 = e3*e7;
-    const double e9 = -p[13]*(e6 - p[15]) - p[14]*(e5*e7*(e2*qd[8] + qd[7]) + e8*(-e4*qd[8] + qd[6]));
-    const double e10 = e8*e9;
+    const double e1 = (1.0/20.0)*tr[5];
+    const double e2 = e1 + q[6] - 3.0/4.0;
+    const double e3 = (1.0/20.0)*tr[4];
+    const double e4 = e3 + q[7] - 3.0/10.0;
+    const double e5 = sqrt(pow(e2, 2) + pow(e4, 2));
+    const double e6 = 1.0/e5;
+    const double e7 = e2*e6;
+    const double e8 = -p[13]*(e5 - p[15]) - p[14]*(e4*e6*(e1*qd[8] + qd[7]) + e7*(-e3*qd[8] + qd[6]));
+    const double e9 = e7*e8;
     out[0] = 0;
     out[1] = -981.0/100.0*p[4];
     out[2] = 0;
     out[3] = 0;
     out[4] = -e0 - 981.0/100.0*p[5];
-    out[5] = -e0*(p[7]*cos(q[5]) - p[8]*sin(q[5]));
-    out[6] = e10;
-    out[7] = e5*e7*e9 - 981.0/100.0*p[6];
-    out[8] = (1.0/20.0)*e1*e5*e7*e9 - e10*e4 - p[12];
+    out[5] = -e0*(p[7]*tr[3] - p[8]*tr[2]);
+    out[6] = e9;
+    out[7] = e4*e6*e8 - 981.0/100.0*p[6];
+    out[8] = -e3*e9 + (1.0/20.0)*e4*e6*e8*tr[5] - p[12];
 }
 
-void four_bar_mass(const double * p, double *out)
+void four_bar_applied(const double * q, const double * qd, double t, const double * p, double *out)
+{
+    double tr[6];
+    four_bar_trig(q, tr);
+    four_bar_applied_k(q, tr, qd, t, p, out);
+}
+
+static void four_bar_mass_k(const double * p, double *out)
 {
     out[0] = p[4];
     out[1] = p[4];
@@ -158,9 +227,15 @@ void four_bar_mass(const double * p, double *out)
     out[8] = (1.0/12.0)*pow(p[3], 2)*p[6];
 }
 
-void four_bar_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void four_bar_mass(const double * p, double *out)
+{
+    four_bar_mass_k(p, out);
+}
+
+static void four_bar_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
 {
     (void)q;
+    (void)tr;
     (void)t;
     (void)p;
     out[0] = lam[0];
@@ -195,6 +270,13 @@ void four_bar_reactions(const double * q, const double * lam, double t, const do
     out[29] = -lam[8];
 }
 
+void four_bar_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+{
+    double tr[6];
+    four_bar_trig(q, tr);
+    four_bar_reactions_k(q, tr, lam, t, p, out);
+}
+
 /* Sparse LU in the elimination order fixed at generation time; returns 1
    where a fixed pivot fails the threshold test for this configuration. */
 static int four_bar_sparse_factor(double *lu)
@@ -202,10 +284,10 @@ static int four_bar_sparse_factor(double *lu)
     double piv, cm;
     piv = lu[24];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[1]));
-    cm = fmax(cm, fabs(lu[3]));
-    cm = fmax(cm, fabs(lu[5]));
-    cm = fmax(cm, fabs(lu[9]));
+    cm = FOUR_BAR_MAX(cm, fabs(lu[1]));
+    cm = FOUR_BAR_MAX(cm, fabs(lu[3]));
+    cm = FOUR_BAR_MAX(cm, fabs(lu[5]));
+    cm = FOUR_BAR_MAX(cm, fabs(lu[9]));
     if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[1] /= piv;
     lu[3] /= piv;
@@ -213,41 +295,41 @@ static int four_bar_sparse_factor(double *lu)
     lu[9] /= piv;
     piv = lu[0];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[4]));
+    cm = FOUR_BAR_MAX(cm, fabs(lu[4]));
     if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[4] /= piv;
     piv = lu[2];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[8]));
+    cm = FOUR_BAR_MAX(cm, fabs(lu[8]));
     if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[8] /= piv;
     piv = lu[6];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[12]));
+    cm = FOUR_BAR_MAX(cm, fabs(lu[12]));
     if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[12] /= piv;
     lu[13] -= lu[12] * lu[7];
     piv = lu[10];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[16]));
+    cm = FOUR_BAR_MAX(cm, fabs(lu[16]));
     if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[16] /= piv;
     lu[17] -= lu[16] * lu[11];
     piv = lu[20];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[14]));
+    cm = FOUR_BAR_MAX(cm, fabs(lu[14]));
     if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[14] /= piv;
     lu[15] -= lu[14] * lu[21];
     piv = lu[13];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[17]));
+    cm = FOUR_BAR_MAX(cm, fabs(lu[17]));
     if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[17] /= piv;
     lu[19] -= lu[17] * lu[15];
     piv = lu[18];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[22]));
+    cm = FOUR_BAR_MAX(cm, fabs(lu[22]));
     if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[22] /= piv;
     lu[23] -= lu[22] * lu[19];
@@ -372,11 +454,12 @@ static void four_bar_dense_solve_t(const double *a, const int *perm, const doubl
 }
 
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
-static int four_bar_factorize(const double *q, double t, const double *p, double *work, int *iwork, int *dense)
+static int four_bar_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+                             int *iwork, int *dense)
 {
     double *values = work, *lu = work + FOUR_BAR_OFF_LU, *a = work + FOUR_BAR_OFF_DENSE;
     int k;
-    four_bar_phi_q(q, t, p, values);
+    four_bar_phi_q_k(q, tr, t, p, values);
     memcpy(lu, values, sizeof(double) * 25);
     memset(lu + 25, 0, sizeof(double) * (FOUR_BAR_LU_SIZE - 25));
     *dense = 0;
@@ -399,34 +482,42 @@ static void four_bar_solve_t(const double *work, const int *iwork, int dense, co
     else four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, b, x);
 }
 
+/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes). */
 static double four_bar_maxabs(const double *v, int n)
 {
-    double m = 0.0;
+    double m = 0.0, sum = 0.0;
     int k;
-    for (k = 0; k < n; ++k) m = (fabs(v[k]) > m || v[k] != v[k]) ? fabs(v[k]) : m;
-    return m;
+    for (k = 0; k < n; ++k) {
+        const double a = fabs(v[k]);
+        m = a > m ? a : m;
+        sum += a;
+    }
+    return sum == sum ? m : sum;
 }
 
 int four_bar_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *r = FOUR_BAR_VEC(work, 0), *dq = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
-    double *b = FOUR_BAR_VEC(work, 3);
-    double step = INFINITY;
+    double *b = FOUR_BAR_VEC(work, 3), *tr = FOUR_BAR_VEC(work, 9);
+    double step = INFINITY, lim, qmag;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
+    four_bar_trig(q, tr);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = FOUR_BAR_MAX(1.0, four_bar_maxabs(q, 9));
+    lim = FOUR_BAR_MAX(tol, 8.0 * FOUR_BAR_EPS * qmag);
     for (it = 0;; ++it) {
-        double rmax, lim;
-        four_bar_phi(q, t, p, r);
+        double rmax;
+        four_bar_phi_k(q, tr, t, p, r);
         rmax = four_bar_maxabs(r, 9);
-        lim = fmax(tol, 8.0 * FOUR_BAR_EPS * fmax(1.0, four_bar_maxabs(q, 9)));
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
         }
         if (it == FOUR_BAR_MAX_NEWTON) break;
-        if (four_bar_factorize(q, t, p, work, iwork, &dense) != FOUR_BAR_OK) {
+        if (four_bar_factorize(q, tr, t, p, work, iwork, &dense) != FOUR_BAR_OK) {
             info[0] = it;
             info[1] = dense;
             return FOUR_BAR_SINGULAR;
@@ -435,20 +526,25 @@ int four_bar_instant(double t, const double *p, double tol, double *q, double *q
         four_bar_solve(work, iwork, dense, r, dq, y);
         for (k = 0; k < 9; ++k) q[k] += dq[k];
         step = four_bar_maxabs(dq, 9);
+        four_bar_trig_step(q, dq, tr);
     }
     info[0] = it;
     if (!converged) return FOUR_BAR_NOT_CONVERGED;
-    if (four_bar_factorize(q, t, p, work, iwork, &dense) != FOUR_BAR_OK) return FOUR_BAR_SINGULAR;
+    /* The factors are those of the last iterate but one; where the last step
+       was negligible (quadratic convergence) they serve the solution too. */
+    if (step > 1e-14 * qmag
+        && four_bar_factorize(q, tr, t, p, work, iwork, &dense) != FOUR_BAR_OK)
+        return FOUR_BAR_SINGULAR;
     info[1] = dense;
-    four_bar_nu(q, t, p, b);
+    four_bar_nu_k(q, tr, t, p, b);
     four_bar_solve(work, iwork, dense, b, qd, y);
-    four_bar_gamma(q, qd, t, p, b);
+    four_bar_gamma_k(q, tr, qd, t, p, b);
     four_bar_solve(work, iwork, dense, b, qdd, y);
-    four_bar_applied(q, qd, t, p, b);
-    four_bar_mass(p, y);
+    four_bar_applied_k(q, tr, qd, t, p, b);
+    four_bar_mass_k(p, y);
     for (k = 0; k < 9; ++k) b[k] -= y[k] * qdd[k];
     four_bar_solve_t(work, iwork, dense, b, lam);
-    four_bar_reactions(q, lam, t, p, reactions);
+    four_bar_reactions_k(q, tr, lam, t, p, reactions);
     return FOUR_BAR_OK;
 }
 
@@ -462,6 +558,7 @@ int four_bar_trajectory(double t0, double h, long n, const double *p, double tol
     double *lam = FOUR_BAR_VEC(work, 7), *reac = FOUR_BAR_VEC(work, 8);
     long i;
     int k, status, info[2];
+    (void)qm1; (void)qm2;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * FOUR_BAR_ROW;
@@ -473,11 +570,9 @@ int four_bar_trajectory(double t0, double h, long n, const double *p, double tol
             *solved = i;
             return status;
         }
-        memcpy(qm2, qm1, sizeof(double) * 9);
-        memcpy(qm1, q, sizeof(double) * 9);
-        memcpy(q, qn, sizeof(double) * 9);
         memcpy(qd, qdn, sizeof(double) * 9);
         memcpy(qdd, qddn, sizeof(double) * 9);
+        memcpy(q, qn, sizeof(double) * 9);
         *count += 1.0;
         row[0] = t;
         /* q */

@@ -10,6 +10,7 @@
 #define PLANETARY_SINGULAR_RATIO (1e3 * PLANETARY_EPS)
 #define PLANETARY_MAX_NEWTON 50
 #define PLANETARY_LU_SIZE 20
+#define PLANETARY_MAX(a, b) ((a) > (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define PLANETARY_OFF_LU 20
 #define PLANETARY_OFF_DENSE (PLANETARY_OFF_LU + PLANETARY_LU_SIZE)
@@ -19,8 +20,41 @@
 const double planetary_default_params[11] = { 0.03, 0.03, 0.09, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 31.41592653589793, 5.0 };
 const int planetary_phi_q_rows[20] = { 0, 1, 2, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 8, 9, 10, 10, 11 };
 const int planetary_phi_q_cols[20] = { 0, 1, 3, 4, 3, 5, 6, 4, 5, 7, 2, 5, 8, 5, 8, 9, 10, 2, 11, 11 };
+/* Sines and cosines of the body angles, computed once per configuration. */
+static void planetary_trig(const double *q, double *tr)
+{
+    tr[0] = sin(q[2]);
+    tr[1] = cos(q[2]);
+    tr[2] = sin(q[5]);
+    tr[3] = cos(q[5]);
+    tr[4] = sin(q[8]);
+    tr[5] = cos(q[8]);
+    tr[6] = sin(q[11]);
+    tr[7] = cos(q[11]);
+}
 
-void planetary_phi(const double * q, double t, const double * p, double *out)
+/* Update tr after the angles moved by dq: a Newton correction is small, and
+   sin(a + d), cos(a + d) by the addition formulas with d's Taylor series
+   (exact to rounding for |d| < 1e-3) avoid calling sin and cos again. */
+static void planetary_trig_step(const double *q, const double *dq, double *tr)
+{
+    int b;
+    for (b = 0; b < 4; ++b) {
+        const double d = dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        if (fabs(d) < 1e-3) {
+            const double d2 = d * d;
+            const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
+            const double cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0);
+            tr[2 * b] = s * cd + c * sd;
+            tr[2 * b + 1] = c * cd - s * sd;
+        } else {
+            tr[2 * b] = sin(q[3 * b + 2]);
+            tr[2 * b + 1] = cos(q[3 * b + 2]);
+        }
+    }
+}
+
+static void planetary_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
     const double e0 = p[0] + p[1];
     const double e1 = -q[5];
@@ -28,8 +62,8 @@ void planetary_phi(const double * q, double t, const double * p, double *out)
     out[1] = q[1];
     out[2] = q[3];
     out[3] = q[4];
-    out[4] = -e0*cos(q[5]) - q[3] + q[6];
-    out[5] = -e0*sin(q[5]) - q[4] + q[7];
+    out[4] = -e0*tr[3] - q[3] + q[6];
+    out[5] = -e0*tr[2] - q[4] + q[7];
     out[6] = e1 + p[0]*(e1 + q[2])/p[1] + q[8];
     out[7] = -p[1]*(-q[5] + q[8])/p[2] - q[5];
     out[8] = p[0] + p[3] + q[9];
@@ -38,8 +72,16 @@ void planetary_phi(const double * q, double t, const double * p, double *out)
     out[11] = -p[9]*t + q[11];
 }
 
-void planetary_phi_q(const double * q, double t, const double * p, double *out)
+void planetary_phi(const double * q, double t, const double * p, double *out)
 {
+    double tr[8];
+    planetary_trig(q, tr);
+    planetary_phi_k(q, tr, t, p, out);
+}
+
+static void planetary_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    (void)q;
     (void)t;
     const double e0 = p[0] + p[1];
     const double e1 = p[0]/p[1];
@@ -49,10 +91,10 @@ void planetary_phi_q(const double * q, double t, const double * p, double *out)
     out[2] = 1;
     out[3] = 1;
     out[4] = -1;
-    out[5] = e0*sin(q[5]);
+    out[5] = e0*tr[2];
     out[6] = 1;
     out[7] = -1;
-    out[8] = -e0*cos(q[5]);
+    out[8] = -e0*tr[3];
     out[9] = 1;
     out[10] = e1;
     out[11] = -e1 - 1;
@@ -66,9 +108,17 @@ void planetary_phi_q(const double * q, double t, const double * p, double *out)
     out[19] = 1;
 }
 
-void planetary_nu(const double * q, double t, const double * p, double *out)
+void planetary_phi_q(const double * q, double t, const double * p, double *out)
+{
+    double tr[8];
+    planetary_trig(q, tr);
+    planetary_phi_q_k(q, tr, t, p, out);
+}
+
+static void planetary_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
+    (void)tr;
     (void)t;
     out[0] = 0;
     out[1] = 0;
@@ -84,16 +134,24 @@ void planetary_nu(const double * q, double t, const double * p, double *out)
     out[11] = p[9];
 }
 
-void planetary_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void planetary_nu(const double * q, double t, const double * p, double *out)
 {
+    double tr[8];
+    planetary_trig(q, tr);
+    planetary_nu_k(q, tr, t, p, out);
+}
+
+static void planetary_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    (void)q;
     (void)t;
     const double e0 = pow(qd[5], 2)*(p[0] + p[1]);
     out[0] = 0;
     out[1] = 0;
     out[2] = 0;
     out[3] = 0;
-    out[4] = -e0*cos(q[5]);
-    out[5] = -e0*sin(q[5]);
+    out[4] = -e0*tr[3];
+    out[5] = -e0*tr[2];
     out[6] = 0;
     out[7] = 0;
     out[8] = 0;
@@ -102,9 +160,17 @@ void planetary_gamma(const double * q, const double * qd, double t, const double
     out[11] = 0;
 }
 
-void planetary_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void planetary_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+{
+    double tr[8];
+    planetary_trig(q, tr);
+    planetary_gamma_k(q, tr, qd, t, p, out);
+}
+
+static void planetary_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)q;
+    (void)tr;
     (void)qd;
     (void)t;
     out[0] = 0;
@@ -121,7 +187,14 @@ void planetary_applied(const double * q, const double * qd, double t, const doub
     out[11] = 0;
 }
 
-void planetary_mass(const double * p, double *out)
+void planetary_applied(const double * q, const double * qd, double t, const double * p, double *out)
+{
+    double tr[8];
+    planetary_trig(q, tr);
+    planetary_applied_k(q, tr, qd, t, p, out);
+}
+
+static void planetary_mass_k(const double * p, double *out)
 {
     out[0] = p[4];
     out[1] = p[4];
@@ -137,9 +210,15 @@ void planetary_mass(const double * p, double *out)
     out[11] = (1.0/2.0)*pow(p[3], 2)*p[6];
 }
 
-void planetary_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void planetary_mass(const double * p, double *out)
+{
+    planetary_mass_k(p, out);
+}
+
+static void planetary_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
 {
     (void)q;
+    (void)tr;
     (void)t;
     const double e0 = lam[6]*p[0]/p[1];
     const double e1 = lam[7]*p[1]/p[2];
@@ -197,6 +276,13 @@ void planetary_reactions(const double * q, const double * lam, double t, const d
     out[50] = -lam[11];
 }
 
+void planetary_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+{
+    double tr[8];
+    planetary_trig(q, tr);
+    planetary_reactions_k(q, tr, lam, t, p, out);
+}
+
 /* Sparse LU in the elimination order fixed at generation time; returns 1
    where a fixed pivot fails the threshold test for this configuration. */
 static int planetary_sparse_factor(double *lu)
@@ -210,12 +296,12 @@ static int planetary_sparse_factor(double *lu)
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[2];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[4]));
+    cm = PLANETARY_MAX(cm, fabs(lu[4]));
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[4] /= piv;
     piv = lu[3];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[7]));
+    cm = PLANETARY_MAX(cm, fabs(lu[7]));
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[7] /= piv;
     piv = lu[6];
@@ -232,17 +318,17 @@ static int planetary_sparse_factor(double *lu)
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[19];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[18]));
+    cm = PLANETARY_MAX(cm, fabs(lu[18]));
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[18] /= piv;
     piv = lu[17];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[10]));
+    cm = PLANETARY_MAX(cm, fabs(lu[10]));
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[10] /= piv;
     piv = lu[11];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[13]));
+    cm = PLANETARY_MAX(cm, fabs(lu[13]));
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[13] /= piv;
     lu[14] -= lu[13] * lu[12];
@@ -361,11 +447,12 @@ static void planetary_dense_solve_t(const double *a, const int *perm, const doub
 }
 
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
-static int planetary_factorize(const double *q, double t, const double *p, double *work, int *iwork, int *dense)
+static int planetary_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+                             int *iwork, int *dense)
 {
     double *values = work, *lu = work + PLANETARY_OFF_LU, *a = work + PLANETARY_OFF_DENSE;
     int k;
-    planetary_phi_q(q, t, p, values);
+    planetary_phi_q_k(q, tr, t, p, values);
     memcpy(lu, values, sizeof(double) * 20);
     memset(lu + 20, 0, sizeof(double) * (PLANETARY_LU_SIZE - 20));
     *dense = 0;
@@ -388,34 +475,42 @@ static void planetary_solve_t(const double *work, const int *iwork, int dense, c
     else planetary_sparse_solve_t(work + PLANETARY_OFF_LU, b, x);
 }
 
+/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes). */
 static double planetary_maxabs(const double *v, int n)
 {
-    double m = 0.0;
+    double m = 0.0, sum = 0.0;
     int k;
-    for (k = 0; k < n; ++k) m = (fabs(v[k]) > m || v[k] != v[k]) ? fabs(v[k]) : m;
-    return m;
+    for (k = 0; k < n; ++k) {
+        const double a = fabs(v[k]);
+        m = a > m ? a : m;
+        sum += a;
+    }
+    return sum == sum ? m : sum;
 }
 
 int planetary_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *r = PLANETARY_VEC(work, 0), *dq = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
-    double *b = PLANETARY_VEC(work, 3);
-    double step = INFINITY;
+    double *b = PLANETARY_VEC(work, 3), *tr = PLANETARY_VEC(work, 9);
+    double step = INFINITY, lim, qmag;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
+    planetary_trig(q, tr);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = PLANETARY_MAX(1.0, planetary_maxabs(q, 12));
+    lim = PLANETARY_MAX(tol, 8.0 * PLANETARY_EPS * qmag);
     for (it = 0;; ++it) {
-        double rmax, lim;
-        planetary_phi(q, t, p, r);
+        double rmax;
+        planetary_phi_k(q, tr, t, p, r);
         rmax = planetary_maxabs(r, 12);
-        lim = fmax(tol, 8.0 * PLANETARY_EPS * fmax(1.0, planetary_maxabs(q, 12)));
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
         }
         if (it == PLANETARY_MAX_NEWTON) break;
-        if (planetary_factorize(q, t, p, work, iwork, &dense) != PLANETARY_OK) {
+        if (planetary_factorize(q, tr, t, p, work, iwork, &dense) != PLANETARY_OK) {
             info[0] = it;
             info[1] = dense;
             return PLANETARY_SINGULAR;
@@ -424,20 +519,25 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
         planetary_solve(work, iwork, dense, r, dq, y);
         for (k = 0; k < 12; ++k) q[k] += dq[k];
         step = planetary_maxabs(dq, 12);
+        planetary_trig_step(q, dq, tr);
     }
     info[0] = it;
     if (!converged) return PLANETARY_NOT_CONVERGED;
-    if (planetary_factorize(q, t, p, work, iwork, &dense) != PLANETARY_OK) return PLANETARY_SINGULAR;
+    /* The factors are those of the last iterate but one; where the last step
+       was negligible (quadratic convergence) they serve the solution too. */
+    if (step > 1e-14 * qmag
+        && planetary_factorize(q, tr, t, p, work, iwork, &dense) != PLANETARY_OK)
+        return PLANETARY_SINGULAR;
     info[1] = dense;
-    planetary_nu(q, t, p, b);
+    planetary_nu_k(q, tr, t, p, b);
     planetary_solve(work, iwork, dense, b, qd, y);
-    planetary_gamma(q, qd, t, p, b);
+    planetary_gamma_k(q, tr, qd, t, p, b);
     planetary_solve(work, iwork, dense, b, qdd, y);
-    planetary_applied(q, qd, t, p, b);
-    planetary_mass(p, y);
+    planetary_applied_k(q, tr, qd, t, p, b);
+    planetary_mass_k(p, y);
     for (k = 0; k < 12; ++k) b[k] -= y[k] * qdd[k];
     planetary_solve_t(work, iwork, dense, b, lam);
-    planetary_reactions(q, lam, t, p, reactions);
+    planetary_reactions_k(q, tr, lam, t, p, reactions);
     return PLANETARY_OK;
 }
 
@@ -451,6 +551,7 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
     double *lam = PLANETARY_VEC(work, 7), *reac = PLANETARY_VEC(work, 8);
     long i;
     int k, status, info[2];
+    (void)qm1; (void)qm2;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * PLANETARY_ROW;
@@ -462,11 +563,9 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
             *solved = i;
             return status;
         }
-        memcpy(qm2, qm1, sizeof(double) * 12);
-        memcpy(qm1, q, sizeof(double) * 12);
-        memcpy(q, qn, sizeof(double) * 12);
         memcpy(qd, qdn, sizeof(double) * 12);
         memcpy(qdd, qddn, sizeof(double) * 12);
+        memcpy(q, qn, sizeof(double) * 12);
         *count += 1.0;
         row[0] = t;
         /* q */

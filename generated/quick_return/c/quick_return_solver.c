@@ -10,6 +10,7 @@
 #define QUICK_RETURN_SINGULAR_RATIO (1e3 * QUICK_RETURN_EPS)
 #define QUICK_RETURN_MAX_NEWTON 50
 #define QUICK_RETURN_LU_SIZE 20
+#define QUICK_RETURN_MAX(a, b) ((a) > (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define QUICK_RETURN_OFF_LU 20
 #define QUICK_RETURN_OFF_DENSE (QUICK_RETURN_OFF_LU + QUICK_RETURN_LU_SIZE)
@@ -19,65 +20,107 @@
 const double quick_return_default_params[14] = { 0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 6.283185307179586, 500.0 };
 const int quick_return_phi_q_rows[20] = { 0, 1, 2, 2, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 6, 7, 8 };
 const int quick_return_phi_q_cols[20] = { 0, 1, 3, 5, 4, 5, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 7, 8, 2 };
+/* Sines and cosines of the body angles, computed once per configuration. */
+static void quick_return_trig(const double *q, double *tr)
+{
+    tr[0] = sin(q[2]);
+    tr[1] = cos(q[2]);
+    tr[2] = sin(q[5]);
+    tr[3] = cos(q[5]);
+    tr[4] = sin(q[8]);
+    tr[5] = cos(q[8]);
+}
 
-void quick_return_phi(const double * q, double t, const double * p, double *out)
+/* Update tr after the angles moved by dq: a Newton correction is small, and
+   sin(a + d), cos(a + d) by the addition formulas with d's Taylor series
+   (exact to rounding for |d| < 1e-3) avoid calling sin and cos again. */
+static void quick_return_trig_step(const double *q, const double *dq, double *tr)
+{
+    int b;
+    for (b = 0; b < 3; ++b) {
+        const double d = dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        if (fabs(d) < 1e-3) {
+            const double d2 = d * d;
+            const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
+            const double cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0);
+            tr[2 * b] = s * cd + c * sd;
+            tr[2 * b + 1] = c * cd - s * sd;
+        } else {
+            tr[2 * b] = sin(q[3 * b + 2]);
+            tr[2 * b + 1] = cos(q[3 * b + 2]);
+        }
+    }
+}
+
+static void quick_return_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
     const double e0 = -q[3];
-    const double e1 = cos(q[5]);
-    const double e2 = (1.0/2.0)*p[2];
-    const double e3 = e1*e2;
-    const double e4 = sin(q[5]);
-    const double e5 = e2*e4;
-    const double e6 = -q[7];
+    const double e1 = (1.0/2.0)*p[2];
+    const double e2 = e1*tr[3];
+    const double e3 = e1*tr[2];
+    const double e4 = -q[7];
     out[0] = q[0];
     out[1] = q[1];
-    out[2] = -e0 - e3;
-    out[3] = -e5 + p[1] + q[4];
-    out[4] = e1*(p[0]*sin(q[2]) + q[1] - q[4]) - e4*(e0 + p[0]*cos(q[2]) + q[0]);
-    out[5] = -pow(p[3], 2) + pow(-e3 - q[3] + q[6], 2) + pow(-e5 - e6 - q[4], 2);
-    out[6] = -e6 - p[4];
+    out[2] = -e0 - e2;
+    out[3] = -e3 + p[1] + q[4];
+    out[4] = -tr[2]*(e0 + p[0]*tr[1] + q[0]) + tr[3]*(p[0]*tr[0] + q[1] - q[4]);
+    out[5] = -pow(p[3], 2) + pow(-e2 - q[3] + q[6], 2) + pow(-e3 - e4 - q[4], 2);
+    out[6] = -e4 - p[4];
     out[7] = q[8];
     out[8] = -p[12]*t + q[2];
 }
 
-void quick_return_phi_q(const double * q, double t, const double * p, double *out)
+void quick_return_phi(const double * q, double t, const double * p, double *out)
+{
+    double tr[6];
+    quick_return_trig(q, tr);
+    quick_return_phi_k(q, tr, t, p, out);
+}
+
+static void quick_return_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)t;
-    const double e0 = sin(q[5]);
-    const double e1 = e0*p[2];
-    const double e2 = (1.0/2.0)*e1;
-    const double e3 = cos(q[5]);
-    const double e4 = e3*p[2];
-    const double e5 = (1.0/2.0)*e4;
-    const double e6 = p[0]*cos(q[2]);
-    const double e7 = p[0]*sin(q[2]);
-    const double e8 = e4 + 2*q[3] - 2*q[6];
-    const double e9 = e1 + 2*q[4] - 2*q[7];
+    const double e0 = p[2]*tr[2];
+    const double e1 = (1.0/2.0)*e0;
+    const double e2 = p[2]*tr[3];
+    const double e3 = (1.0/2.0)*e2;
+    const double e4 = p[0]*tr[0];
+    const double e5 = p[0]*tr[1];
+    const double e6 = e2 + 2*q[3] - 2*q[6];
+    const double e7 = e0 + 2*q[4] - 2*q[7];
     out[0] = 1;
     out[1] = 1;
     out[2] = 1;
-    out[3] = e2;
+    out[3] = e1;
     out[4] = 1;
-    out[5] = -e5;
-    out[6] = -e0;
-    out[7] = e3;
-    out[8] = e0*e7 + e3*e6;
-    out[9] = e0;
-    out[10] = -e3;
-    out[11] = -e0*(e7 + q[1] - q[4]) - e3*(e6 + q[0] - q[3]);
-    out[12] = e8;
-    out[13] = e9;
-    out[14] = e0*p[2]*(-e5 - q[3] + q[6]) - e4*(-e2 - q[4] + q[7]);
-    out[15] = -e8;
-    out[16] = -e9;
+    out[5] = -e3;
+    out[6] = -tr[2];
+    out[7] = tr[3];
+    out[8] = e4*tr[2] + e5*tr[3];
+    out[9] = tr[2];
+    out[10] = -tr[3];
+    out[11] = -tr[2]*(e4 + q[1] - q[4]) - tr[3]*(e5 + q[0] - q[3]);
+    out[12] = e6;
+    out[13] = e7;
+    out[14] = e0*(-e3 - q[3] + q[6]) - e2*(-e1 - q[4] + q[7]);
+    out[15] = -e6;
+    out[16] = -e7;
     out[17] = 1;
     out[18] = 1;
     out[19] = 1;
 }
 
-void quick_return_nu(const double * q, double t, const double * p, double *out)
+void quick_return_phi_q(const double * q, double t, const double * p, double *out)
+{
+    double tr[6];
+    quick_return_trig(q, tr);
+    quick_return_phi_q_k(q, tr, t, p, out);
+}
+
+static void quick_return_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
+    (void)tr;
     (void)t;
     out[0] = 0;
     out[1] = 0;
@@ -90,35 +133,48 @@ void quick_return_nu(const double * q, double t, const double * p, double *out)
     out[8] = p[12];
 }
 
-void quick_return_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void quick_return_nu(const double * q, double t, const double * p, double *out)
+{
+    double tr[6];
+    quick_return_trig(q, tr);
+    quick_return_nu_k(q, tr, t, p, out);
+}
+
+static void quick_return_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)t;
     const double e0 = pow(qd[5], 2);
-    const double e1 = cos(q[5]);
-    const double e2 = e0*e1;
-    const double e3 = (1.0/2.0)*p[2];
-    const double e4 = sin(q[5]);
-    const double e5 = e0*e4;
-    const double e6 = 2*qd[5];
-    const double e7 = e1*e6;
-    const double e8 = e4*e6;
-    const double e9 = pow(qd[2], 2);
-    const double e10 = p[0]*sin(q[2]);
-    const double e11 = p[0]*cos(q[2]);
+    const double e1 = e0*tr[3];
+    const double e2 = (1.0/2.0)*p[2];
+    const double e3 = e0*tr[2];
+    const double e4 = 2*qd[5];
+    const double e5 = e4*tr[3];
+    const double e6 = e4*tr[2];
+    const double e7 = pow(qd[2], 2);
+    const double e8 = p[0]*tr[0];
+    const double e9 = p[0]*tr[1];
     out[0] = 0;
     out[1] = 0;
-    out[2] = -e2*e3;
-    out[3] = -e3*e5;
-    out[4] = e1*e10*e9 + e10*e2 - e10*e7*qd[2] - e11*e4*e9 - e11*e5 + e11*e8*qd[2] + e2*q[1] - e2*q[4] - e5*q[0] + e5*q[3] + e7*qd[0] - e7*qd[3] + e8*qd[1] - e8*qd[4];
-    out[5] = e0*e1*p[2]*q[3] + e0*e4*p[2]*q[4] + 2*e1*p[2]*qd[5]*qd[7] - e2*p[2]*q[6] + 2*e4*p[2]*qd[3]*qd[5] - e5*p[2]*q[7] - e7*p[2]*qd[4] - e8*p[2]*qd[6] - 2*pow(qd[3], 2) + 4*qd[3]*qd[6] - 2*pow(qd[4], 2) + 4*qd[4]*qd[7] - 2*pow(qd[6], 2) - 2*pow(qd[7], 2);
+    out[2] = -e1*e2;
+    out[3] = -e2*e3;
+    out[4] = e1*e8 + e1*q[1] - e1*q[4] - e3*e9 - e3*q[0] + e3*q[3] - e5*e8*qd[2] + e5*qd[0] - e5*qd[3] + e6*e9*qd[2] + e6*qd[1] - e6*qd[4] + e7*e8*tr[3] - e7*e9*tr[2];
+    out[5] = e0*p[2]*q[3]*tr[3] + e0*p[2]*q[4]*tr[2] - e1*p[2]*q[6] - e3*p[2]*q[7] - e5*p[2]*qd[4] - e6*p[2]*qd[6] + 2*p[2]*qd[3]*qd[5]*tr[2] + 2*p[2]*qd[5]*qd[7]*tr[3] - 2*pow(qd[3], 2) + 4*qd[3]*qd[6] - 2*pow(qd[4], 2) + 4*qd[4]*qd[7] - 2*pow(qd[6], 2) - 2*pow(qd[7], 2);
     out[6] = 0;
     out[7] = 0;
     out[8] = 0;
 }
 
-void quick_return_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void quick_return_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+{
+    double tr[6];
+    quick_return_trig(q, tr);
+    quick_return_gamma_k(q, tr, qd, t, p, out);
+}
+
+static void quick_return_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)q;
+    (void)tr;
     (void)qd;
     out[0] = 0;
     out[1] = -981.0/100.0*p[5];
@@ -131,7 +187,14 @@ void quick_return_applied(const double * q, const double * qd, double t, const d
     out[8] = 0;
 }
 
-void quick_return_mass(const double * p, double *out)
+void quick_return_applied(const double * q, const double * qd, double t, const double * p, double *out)
+{
+    double tr[6];
+    quick_return_trig(q, tr);
+    quick_return_applied_k(q, tr, qd, t, p, out);
+}
+
+static void quick_return_mass_k(const double * p, double *out)
 {
     out[0] = p[5];
     out[1] = p[5];
@@ -144,17 +207,20 @@ void quick_return_mass(const double * p, double *out)
     out[8] = (1.0/12.0)*p[8]*(pow(p[10], 2) + pow(p[9], 2));
 }
 
-void quick_return_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void quick_return_mass(const double * p, double *out)
+{
+    quick_return_mass_k(p, out);
+}
+
+static void quick_return_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
 {
     (void)t;
-    const double e0 = sin(q[5]);
-    const double e1 = e0*lam[4];
-    const double e2 = cos(q[5]);
-    const double e3 = e2*lam[4];
-    const double e4 = 2*lam[5];
-    const double e5 = lam[5]*p[2];
-    const double e6 = e2*e5 + e4*q[3] - 2*lam[5]*q[6];
-    const double e7 = e0*e5 + e4*q[4] - 2*lam[5]*q[7];
+    const double e0 = lam[4]*tr[2];
+    const double e1 = lam[4]*tr[3];
+    const double e2 = 2*lam[5];
+    const double e3 = lam[5]*p[2];
+    const double e4 = e2*q[3] + e3*tr[3] - 2*lam[5]*q[6];
+    const double e5 = e2*q[4] + e3*tr[2] - 2*lam[5]*q[7];
     out[0] = lam[0];
     out[1] = lam[1];
     out[2] = 0;
@@ -167,17 +233,17 @@ void quick_return_reactions(const double * q, const double * lam, double t, cons
     out[9] = -lam[2];
     out[10] = -lam[3];
     out[11] = 0;
-    out[12] = -e1;
-    out[13] = e3;
-    out[14] = e1*p[0]*sin(q[2]) + e1*q[1] - e1*q[4] + e3*p[0]*cos(q[2]) + e3*q[0] - e3*q[3];
-    out[15] = e1;
-    out[16] = -e3;
+    out[12] = -e0;
+    out[13] = e1;
+    out[14] = e0*p[0]*tr[0] + e0*q[1] - e0*q[4] + e1*p[0]*tr[1] + e1*q[0] - e1*q[3];
+    out[15] = e0;
+    out[16] = -e1;
     out[17] = 0;
-    out[18] = -e6;
-    out[19] = -e7;
+    out[18] = -e4;
+    out[19] = -e5;
     out[20] = 0;
-    out[21] = e6;
-    out[22] = e7;
+    out[21] = e4;
+    out[22] = e5;
     out[23] = 0;
     out[24] = 0;
     out[25] = lam[6];
@@ -193,6 +259,13 @@ void quick_return_reactions(const double * q, const double * lam, double t, cons
     out[35] = -lam[8];
 }
 
+void quick_return_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+{
+    double tr[6];
+    quick_return_trig(q, tr);
+    quick_return_reactions_k(q, tr, lam, t, p, out);
+}
+
 /* Sparse LU in the elimination order fixed at generation time; returns 1
    where a fixed pivot fails the threshold test for this configuration. */
 static int quick_return_sparse_factor(double *lu)
@@ -200,12 +273,12 @@ static int quick_return_sparse_factor(double *lu)
     double piv, cm;
     piv = lu[0];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[6]));
+    cm = QUICK_RETURN_MAX(cm, fabs(lu[6]));
     if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[6] /= piv;
     piv = lu[1];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[7]));
+    cm = QUICK_RETURN_MAX(cm, fabs(lu[7]));
     if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[7] /= piv;
     piv = lu[15];
@@ -219,18 +292,18 @@ static int quick_return_sparse_factor(double *lu)
     if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[19];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[8]));
+    cm = QUICK_RETURN_MAX(cm, fabs(lu[8]));
     if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[8] /= piv;
     piv = lu[2];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[9]));
+    cm = QUICK_RETURN_MAX(cm, fabs(lu[9]));
     if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[9] /= piv;
     lu[11] -= lu[9] * lu[3];
     piv = lu[4];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[10]));
+    cm = QUICK_RETURN_MAX(cm, fabs(lu[10]));
     if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[10] /= piv;
     lu[11] -= lu[10] * lu[5];
@@ -343,11 +416,12 @@ static void quick_return_dense_solve_t(const double *a, const int *perm, const d
 }
 
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
-static int quick_return_factorize(const double *q, double t, const double *p, double *work, int *iwork, int *dense)
+static int quick_return_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+                             int *iwork, int *dense)
 {
     double *values = work, *lu = work + QUICK_RETURN_OFF_LU, *a = work + QUICK_RETURN_OFF_DENSE;
     int k;
-    quick_return_phi_q(q, t, p, values);
+    quick_return_phi_q_k(q, tr, t, p, values);
     memcpy(lu, values, sizeof(double) * 20);
     memset(lu + 20, 0, sizeof(double) * (QUICK_RETURN_LU_SIZE - 20));
     *dense = 0;
@@ -370,34 +444,42 @@ static void quick_return_solve_t(const double *work, const int *iwork, int dense
     else quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, b, x);
 }
 
+/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes). */
 static double quick_return_maxabs(const double *v, int n)
 {
-    double m = 0.0;
+    double m = 0.0, sum = 0.0;
     int k;
-    for (k = 0; k < n; ++k) m = (fabs(v[k]) > m || v[k] != v[k]) ? fabs(v[k]) : m;
-    return m;
+    for (k = 0; k < n; ++k) {
+        const double a = fabs(v[k]);
+        m = a > m ? a : m;
+        sum += a;
+    }
+    return sum == sum ? m : sum;
 }
 
 int quick_return_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *r = QUICK_RETURN_VEC(work, 0), *dq = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
-    double *b = QUICK_RETURN_VEC(work, 3);
-    double step = INFINITY;
+    double *b = QUICK_RETURN_VEC(work, 3), *tr = QUICK_RETURN_VEC(work, 9);
+    double step = INFINITY, lim, qmag;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
+    quick_return_trig(q, tr);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = QUICK_RETURN_MAX(1.0, quick_return_maxabs(q, 9));
+    lim = QUICK_RETURN_MAX(tol, 8.0 * QUICK_RETURN_EPS * qmag);
     for (it = 0;; ++it) {
-        double rmax, lim;
-        quick_return_phi(q, t, p, r);
+        double rmax;
+        quick_return_phi_k(q, tr, t, p, r);
         rmax = quick_return_maxabs(r, 9);
-        lim = fmax(tol, 8.0 * QUICK_RETURN_EPS * fmax(1.0, quick_return_maxabs(q, 9)));
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
         }
         if (it == QUICK_RETURN_MAX_NEWTON) break;
-        if (quick_return_factorize(q, t, p, work, iwork, &dense) != QUICK_RETURN_OK) {
+        if (quick_return_factorize(q, tr, t, p, work, iwork, &dense) != QUICK_RETURN_OK) {
             info[0] = it;
             info[1] = dense;
             return QUICK_RETURN_SINGULAR;
@@ -406,20 +488,25 @@ int quick_return_instant(double t, const double *p, double tol, double *q, doubl
         quick_return_solve(work, iwork, dense, r, dq, y);
         for (k = 0; k < 9; ++k) q[k] += dq[k];
         step = quick_return_maxabs(dq, 9);
+        quick_return_trig_step(q, dq, tr);
     }
     info[0] = it;
     if (!converged) return QUICK_RETURN_NOT_CONVERGED;
-    if (quick_return_factorize(q, t, p, work, iwork, &dense) != QUICK_RETURN_OK) return QUICK_RETURN_SINGULAR;
+    /* The factors are those of the last iterate but one; where the last step
+       was negligible (quadratic convergence) they serve the solution too. */
+    if (step > 1e-14 * qmag
+        && quick_return_factorize(q, tr, t, p, work, iwork, &dense) != QUICK_RETURN_OK)
+        return QUICK_RETURN_SINGULAR;
     info[1] = dense;
-    quick_return_nu(q, t, p, b);
+    quick_return_nu_k(q, tr, t, p, b);
     quick_return_solve(work, iwork, dense, b, qd, y);
-    quick_return_gamma(q, qd, t, p, b);
+    quick_return_gamma_k(q, tr, qd, t, p, b);
     quick_return_solve(work, iwork, dense, b, qdd, y);
-    quick_return_applied(q, qd, t, p, b);
-    quick_return_mass(p, y);
+    quick_return_applied_k(q, tr, qd, t, p, b);
+    quick_return_mass_k(p, y);
     for (k = 0; k < 9; ++k) b[k] -= y[k] * qdd[k];
     quick_return_solve_t(work, iwork, dense, b, lam);
-    quick_return_reactions(q, lam, t, p, reactions);
+    quick_return_reactions_k(q, tr, lam, t, p, reactions);
     return QUICK_RETURN_OK;
 }
 
@@ -433,6 +520,7 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
     double *lam = QUICK_RETURN_VEC(work, 7), *reac = QUICK_RETURN_VEC(work, 8);
     long i;
     int k, status, info[2];
+    (void)qm1; (void)qm2;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * QUICK_RETURN_ROW;
@@ -444,11 +532,9 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
             *solved = i;
             return status;
         }
-        memcpy(qm2, qm1, sizeof(double) * 9);
-        memcpy(qm1, q, sizeof(double) * 9);
-        memcpy(q, qn, sizeof(double) * 9);
         memcpy(qd, qdn, sizeof(double) * 9);
         memcpy(qdd, qddn, sizeof(double) * 9);
+        memcpy(q, qn, sizeof(double) * 9);
         *count += 1.0;
         row[0] = t;
         /* q */

@@ -10,6 +10,7 @@
 #define SLIDER_CRANK_SINGULAR_RATIO (1e3 * SLIDER_CRANK_EPS)
 #define SLIDER_CRANK_MAX_NEWTON 50
 #define SLIDER_CRANK_LU_SIZE 21
+#define SLIDER_CRANK_MAX(a, b) ((a) > (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define SLIDER_CRANK_OFF_LU 21
 #define SLIDER_CRANK_OFF_DENSE (SLIDER_CRANK_OFF_LU + SLIDER_CRANK_LU_SIZE)
@@ -19,15 +20,46 @@
 const double slider_crank_default_params[10] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 5.0, 31.41592653589793, 100.0 };
 const int slider_crank_phi_q_rows[21] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 7, 8 };
 const int slider_crank_phi_q_cols[21] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 4, 5, 7, 7, 8, 2 };
+/* Sines and cosines of the body angles, computed once per configuration. */
+static void slider_crank_trig(const double *q, double *tr)
+{
+    tr[0] = sin(q[2]);
+    tr[1] = cos(q[2]);
+    tr[2] = sin(q[5]);
+    tr[3] = cos(q[5]);
+    tr[4] = sin(q[8]);
+    tr[5] = cos(q[8]);
+}
 
-void slider_crank_phi(const double * q, double t, const double * p, double *out)
+/* Update tr after the angles moved by dq: a Newton correction is small, and
+   sin(a + d), cos(a + d) by the addition formulas with d's Taylor series
+   (exact to rounding for |d| < 1e-3) avoid calling sin and cos again. */
+static void slider_crank_trig_step(const double *q, const double *dq, double *tr)
+{
+    int b;
+    for (b = 0; b < 3; ++b) {
+        const double d = dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        if (fabs(d) < 1e-3) {
+            const double d2 = d * d;
+            const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
+            const double cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0);
+            tr[2 * b] = s * cd + c * sd;
+            tr[2 * b + 1] = c * cd - s * sd;
+        } else {
+            tr[2 * b] = sin(q[3 * b + 2]);
+            tr[2 * b + 1] = cos(q[3 * b + 2]);
+        }
+    }
+}
+
+static void slider_crank_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
     const double e0 = (1.0/2.0)*p[0];
-    const double e1 = e0*cos(q[2]);
-    const double e2 = e0*sin(q[2]);
+    const double e1 = e0*tr[1];
+    const double e2 = e0*tr[0];
     const double e3 = (1.0/2.0)*p[1];
-    const double e4 = e3*cos(q[5]);
-    const double e5 = e3*sin(q[5]);
+    const double e4 = e3*tr[3];
+    const double e5 = e3*tr[2];
     out[0] = -e1 + q[0];
     out[1] = -e2 + q[1];
     out[2] = -e1 - e4 - q[0] + q[3];
@@ -39,15 +71,23 @@ void slider_crank_phi(const double * q, double t, const double * p, double *out)
     out[8] = -p[8]*t + q[2];
 }
 
-void slider_crank_phi_q(const double * q, double t, const double * p, double *out)
+void slider_crank_phi(const double * q, double t, const double * p, double *out)
 {
+    double tr[6];
+    slider_crank_trig(q, tr);
+    slider_crank_phi_k(q, tr, t, p, out);
+}
+
+static void slider_crank_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    (void)q;
     (void)t;
     const double e0 = (1.0/2.0)*p[0];
-    const double e1 = e0*sin(q[2]);
-    const double e2 = -e0*cos(q[2]);
+    const double e1 = e0*tr[0];
+    const double e2 = -e0*tr[1];
     const double e3 = (1.0/2.0)*p[1];
-    const double e4 = e3*sin(q[5]);
-    const double e5 = -e3*cos(q[5]);
+    const double e4 = e3*tr[2];
+    const double e5 = -e3*tr[3];
     out[0] = 1;
     out[1] = e1;
     out[2] = 1;
@@ -71,9 +111,17 @@ void slider_crank_phi_q(const double * q, double t, const double * p, double *ou
     out[20] = 1;
 }
 
-void slider_crank_nu(const double * q, double t, const double * p, double *out)
+void slider_crank_phi_q(const double * q, double t, const double * p, double *out)
+{
+    double tr[6];
+    slider_crank_trig(q, tr);
+    slider_crank_phi_q_k(q, tr, t, p, out);
+}
+
+static void slider_crank_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
+    (void)tr;
     (void)t;
     out[0] = 0;
     out[1] = 0;
@@ -86,15 +134,23 @@ void slider_crank_nu(const double * q, double t, const double * p, double *out)
     out[8] = p[8];
 }
 
-void slider_crank_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void slider_crank_nu(const double * q, double t, const double * p, double *out)
 {
+    double tr[6];
+    slider_crank_trig(q, tr);
+    slider_crank_nu_k(q, tr, t, p, out);
+}
+
+static void slider_crank_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    (void)q;
     (void)t;
     const double e0 = (1.0/2.0)*p[0]*pow(qd[2], 2);
-    const double e1 = e0*cos(q[2]);
-    const double e2 = e0*sin(q[2]);
+    const double e1 = e0*tr[1];
+    const double e2 = e0*tr[0];
     const double e3 = (1.0/2.0)*p[1]*pow(qd[5], 2);
-    const double e4 = e3*cos(q[5]);
-    const double e5 = e3*sin(q[5]);
+    const double e4 = e3*tr[3];
+    const double e5 = e3*tr[2];
     out[0] = -e1;
     out[1] = -e2;
     out[2] = -e1 - e4;
@@ -106,9 +162,17 @@ void slider_crank_gamma(const double * q, const double * qd, double t, const dou
     out[8] = 0;
 }
 
-void slider_crank_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void slider_crank_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+{
+    double tr[6];
+    slider_crank_trig(q, tr);
+    slider_crank_gamma_k(q, tr, qd, t, p, out);
+}
+
+static void slider_crank_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)q;
+    (void)tr;
     (void)qd;
     out[0] = 0;
     out[1] = -981.0/100.0*p[2];
@@ -121,7 +185,14 @@ void slider_crank_applied(const double * q, const double * qd, double t, const d
     out[8] = 0;
 }
 
-void slider_crank_mass(const double * p, double *out)
+void slider_crank_applied(const double * q, const double * qd, double t, const double * p, double *out)
+{
+    double tr[6];
+    slider_crank_trig(q, tr);
+    slider_crank_applied_k(q, tr, qd, t, p, out);
+}
+
+static void slider_crank_mass_k(const double * p, double *out)
 {
     out[0] = p[2];
     out[1] = p[2];
@@ -134,8 +205,14 @@ void slider_crank_mass(const double * p, double *out)
     out[8] = (1.0/12.0)*p[4]*(pow(p[5], 2) + pow(p[6], 2));
 }
 
-void slider_crank_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void slider_crank_mass(const double * p, double *out)
 {
+    slider_crank_mass_k(p, out);
+}
+
+static void slider_crank_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+{
+    (void)tr;
     (void)t;
     (void)p;
     out[0] = lam[0];
@@ -170,6 +247,13 @@ void slider_crank_reactions(const double * q, const double * lam, double t, cons
     out[29] = -lam[8];
 }
 
+void slider_crank_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+{
+    double tr[6];
+    slider_crank_trig(q, tr);
+    slider_crank_reactions_k(q, tr, lam, t, p, out);
+}
+
 /* Sparse LU in the elimination order fixed at generation time; returns 1
    where a fixed pivot fails the threshold test for this configuration. */
 static int slider_crank_sparse_factor(double *lu)
@@ -186,7 +270,7 @@ static int slider_crank_sparse_factor(double *lu)
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[18];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[17]));
+    cm = SLIDER_CRANK_MAX(cm, fabs(lu[17]));
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[17] /= piv;
     piv = lu[19];
@@ -194,19 +278,19 @@ static int slider_crank_sparse_factor(double *lu)
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[20];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[3]));
-    cm = fmax(cm, fabs(lu[9]));
+    cm = SLIDER_CRANK_MAX(cm, fabs(lu[3]));
+    cm = SLIDER_CRANK_MAX(cm, fabs(lu[9]));
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[3] /= piv;
     lu[9] /= piv;
     piv = lu[2];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[8]));
+    cm = SLIDER_CRANK_MAX(cm, fabs(lu[8]));
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[8] /= piv;
     piv = lu[10];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[15]));
+    cm = SLIDER_CRANK_MAX(cm, fabs(lu[15]));
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[15] /= piv;
     lu[16] -= lu[15] * lu[11];
@@ -319,11 +403,12 @@ static void slider_crank_dense_solve_t(const double *a, const int *perm, const d
 }
 
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
-static int slider_crank_factorize(const double *q, double t, const double *p, double *work, int *iwork, int *dense)
+static int slider_crank_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+                             int *iwork, int *dense)
 {
     double *values = work, *lu = work + SLIDER_CRANK_OFF_LU, *a = work + SLIDER_CRANK_OFF_DENSE;
     int k;
-    slider_crank_phi_q(q, t, p, values);
+    slider_crank_phi_q_k(q, tr, t, p, values);
     memcpy(lu, values, sizeof(double) * 21);
     memset(lu + 21, 0, sizeof(double) * (SLIDER_CRANK_LU_SIZE - 21));
     *dense = 0;
@@ -346,34 +431,42 @@ static void slider_crank_solve_t(const double *work, const int *iwork, int dense
     else slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, b, x);
 }
 
+/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes). */
 static double slider_crank_maxabs(const double *v, int n)
 {
-    double m = 0.0;
+    double m = 0.0, sum = 0.0;
     int k;
-    for (k = 0; k < n; ++k) m = (fabs(v[k]) > m || v[k] != v[k]) ? fabs(v[k]) : m;
-    return m;
+    for (k = 0; k < n; ++k) {
+        const double a = fabs(v[k]);
+        m = a > m ? a : m;
+        sum += a;
+    }
+    return sum == sum ? m : sum;
 }
 
 int slider_crank_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *r = SLIDER_CRANK_VEC(work, 0), *dq = SLIDER_CRANK_VEC(work, 1), *y = SLIDER_CRANK_VEC(work, 2);
-    double *b = SLIDER_CRANK_VEC(work, 3);
-    double step = INFINITY;
+    double *b = SLIDER_CRANK_VEC(work, 3), *tr = SLIDER_CRANK_VEC(work, 9);
+    double step = INFINITY, lim, qmag;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
+    slider_crank_trig(q, tr);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = SLIDER_CRANK_MAX(1.0, slider_crank_maxabs(q, 9));
+    lim = SLIDER_CRANK_MAX(tol, 8.0 * SLIDER_CRANK_EPS * qmag);
     for (it = 0;; ++it) {
-        double rmax, lim;
-        slider_crank_phi(q, t, p, r);
+        double rmax;
+        slider_crank_phi_k(q, tr, t, p, r);
         rmax = slider_crank_maxabs(r, 9);
-        lim = fmax(tol, 8.0 * SLIDER_CRANK_EPS * fmax(1.0, slider_crank_maxabs(q, 9)));
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
         }
         if (it == SLIDER_CRANK_MAX_NEWTON) break;
-        if (slider_crank_factorize(q, t, p, work, iwork, &dense) != SLIDER_CRANK_OK) {
+        if (slider_crank_factorize(q, tr, t, p, work, iwork, &dense) != SLIDER_CRANK_OK) {
             info[0] = it;
             info[1] = dense;
             return SLIDER_CRANK_SINGULAR;
@@ -382,20 +475,25 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
         slider_crank_solve(work, iwork, dense, r, dq, y);
         for (k = 0; k < 9; ++k) q[k] += dq[k];
         step = slider_crank_maxabs(dq, 9);
+        slider_crank_trig_step(q, dq, tr);
     }
     info[0] = it;
     if (!converged) return SLIDER_CRANK_NOT_CONVERGED;
-    if (slider_crank_factorize(q, t, p, work, iwork, &dense) != SLIDER_CRANK_OK) return SLIDER_CRANK_SINGULAR;
+    /* The factors are those of the last iterate but one; where the last step
+       was negligible (quadratic convergence) they serve the solution too. */
+    if (step > 1e-14 * qmag
+        && slider_crank_factorize(q, tr, t, p, work, iwork, &dense) != SLIDER_CRANK_OK)
+        return SLIDER_CRANK_SINGULAR;
     info[1] = dense;
-    slider_crank_nu(q, t, p, b);
+    slider_crank_nu_k(q, tr, t, p, b);
     slider_crank_solve(work, iwork, dense, b, qd, y);
-    slider_crank_gamma(q, qd, t, p, b);
+    slider_crank_gamma_k(q, tr, qd, t, p, b);
     slider_crank_solve(work, iwork, dense, b, qdd, y);
-    slider_crank_applied(q, qd, t, p, b);
-    slider_crank_mass(p, y);
+    slider_crank_applied_k(q, tr, qd, t, p, b);
+    slider_crank_mass_k(p, y);
     for (k = 0; k < 9; ++k) b[k] -= y[k] * qdd[k];
     slider_crank_solve_t(work, iwork, dense, b, lam);
-    slider_crank_reactions(q, lam, t, p, reactions);
+    slider_crank_reactions_k(q, tr, lam, t, p, reactions);
     return SLIDER_CRANK_OK;
 }
 
@@ -409,6 +507,7 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
     double *lam = SLIDER_CRANK_VEC(work, 7), *reac = SLIDER_CRANK_VEC(work, 8);
     long i;
     int k, status, info[2];
+    (void)qm1; (void)qm2;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * SLIDER_CRANK_ROW;
@@ -420,11 +519,9 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
             *solved = i;
             return status;
         }
-        memcpy(qm2, qm1, sizeof(double) * 9);
-        memcpy(qm1, q, sizeof(double) * 9);
-        memcpy(q, qn, sizeof(double) * 9);
         memcpy(qd, qdn, sizeof(double) * 9);
         memcpy(qdd, qddn, sizeof(double) * 9);
+        memcpy(q, qn, sizeof(double) * 9);
         *count += 1.0;
         row[0] = t;
         /* q */

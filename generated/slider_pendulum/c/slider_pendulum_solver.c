@@ -10,6 +10,7 @@
 #define SLIDER_PENDULUM_SINGULAR_RATIO (1e3 * SLIDER_PENDULUM_EPS)
 #define SLIDER_PENDULUM_MAX_NEWTON 50
 #define SLIDER_PENDULUM_LU_SIZE 15
+#define SLIDER_PENDULUM_MAX(a, b) ((a) > (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define SLIDER_PENDULUM_OFF_LU 15
 #define SLIDER_PENDULUM_OFF_DENSE (SLIDER_PENDULUM_OFF_LU + SLIDER_PENDULUM_LU_SIZE)
@@ -19,53 +20,94 @@
 const double slider_pendulum_default_params[13] = { 0.17453292519943295, 0.2, 1.0, 0.6, 2.0, 2.0, 0.2, 0.08, 0.04, 0.5, 1.0, 20.0, 0.5 };
 const int slider_pendulum_phi_q_rows[15] = { 0, 1, 1, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5 };
 const int slider_pendulum_phi_q_cols[15] = { 2, 0, 1, 0, 1, 0, 2, 3, 5, 1, 2, 4, 5, 2, 5 };
+/* Sines and cosines of the body angles, computed once per configuration. */
+static void slider_pendulum_trig(const double *q, double *tr)
+{
+    tr[0] = sin(q[2]);
+    tr[1] = cos(q[2]);
+    tr[2] = sin(q[5]);
+    tr[3] = cos(q[5]);
+}
+
+/* Update tr after the angles moved by dq: a Newton correction is small, and
+   sin(a + d), cos(a + d) by the addition formulas with d's Taylor series
+   (exact to rounding for |d| < 1e-3) avoid calling sin and cos again. */
+static void slider_pendulum_trig_step(const double *q, const double *dq, double *tr)
+{
+    int b;
+    for (b = 0; b < 2; ++b) {
+        const double d = dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        if (fabs(d) < 1e-3) {
+            const double d2 = d * d;
+            const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
+            const double cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0);
+            tr[2 * b] = s * cd + c * sd;
+            tr[2 * b + 1] = c * cd - s * sd;
+        } else {
+            tr[2 * b] = sin(q[3 * b + 2]);
+            tr[2 * b + 1] = cos(q[3 * b + 2]);
+        }
+    }
+}
+
+static void slider_pendulum_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    const double e0 = sin(p[0]);
+    const double e1 = cos(p[0]);
+    const double e2 = 2*3.141592653589793*t;
+    const double e3 = pow(pow(e0, 2) + pow(e1, 2), -1.0/2.0);
+    const double e4 = (1.0/2.0)*p[9];
+    out[0] = -e0*(-e0*tr[0] + e1*tr[1]) + e1*(e0*tr[1] + e1*tr[0]);
+    out[1] = -e0*q[0] + e1*q[1];
+    out[2] = e0*e3*q[1] + e1*e3*q[0] - p[1]*sin(e2*p[2]);
+    out[3] = -e4*tr[3] - p[8]*tr[0] - q[0] + q[3];
+    out[4] = -e4*tr[2] + p[8]*tr[1] - q[1] + q[4];
+    out[5] = -p[3]*sin(e2*p[4]) - q[2] + q[5] + (1.0/2.0)*3.141592653589793;
+}
 
 void slider_pendulum_phi(const double * q, double t, const double * p, double *out)
 {
-    const double e0 = sin(p[0]);
-    const double e1 = sin(q[2]);
-    const double e2 = cos(p[0]);
-    const double e3 = cos(q[2]);
-    const double e4 = 2*3.141592653589793*t;
-    const double e5 = pow(pow(e0, 2) + pow(e2, 2), -1.0/2.0);
-    const double e6 = (1.0/2.0)*p[9];
-    out[0] = -e0*(-e0*e1 + e2*e3) + e2*(e0*e3 + e1*e2);
-    out[1] = -e0*q[0] + e2*q[1];
-    out[2] = e0*e5*q[1] + e2*e5*q[0] - p[1]*sin(e4*p[2]);
-    out[3] = -e1*p[8] - e6*cos(q[5]) - q[0] + q[3];
-    out[4] = e3*p[8] - e6*sin(q[5]) - q[1] + q[4];
-    out[5] = -p[3]*sin(e4*p[4]) - q[2] + q[5] + (1.0/2.0)*3.141592653589793;
+    double tr[4];
+    slider_pendulum_trig(q, tr);
+    slider_pendulum_phi_k(q, tr, t, p, out);
 }
 
-void slider_pendulum_phi_q(const double * q, double t, const double * p, double *out)
+static void slider_pendulum_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
+    (void)q;
     (void)t;
     const double e0 = sin(p[0]);
-    const double e1 = sin(q[2]);
-    const double e2 = cos(p[0]);
-    const double e3 = cos(q[2]);
-    const double e4 = pow(pow(e0, 2) + pow(e2, 2), -1.0/2.0);
-    const double e5 = (1.0/2.0)*p[9];
-    out[0] = -e0*(-e0*e3 - e1*e2) + e2*(-e0*e1 + e2*e3);
+    const double e1 = cos(p[0]);
+    const double e2 = pow(pow(e0, 2) + pow(e1, 2), -1.0/2.0);
+    const double e3 = (1.0/2.0)*p[9];
+    out[0] = -e0*(-e0*tr[1] - e1*tr[0]) + e1*(-e0*tr[0] + e1*tr[1]);
     out[1] = -e0;
-    out[2] = e2;
-    out[3] = e2*e4;
-    out[4] = e0*e4;
+    out[2] = e1;
+    out[3] = e1*e2;
+    out[4] = e0*e2;
     out[5] = -1;
-    out[6] = -e3*p[8];
+    out[6] = -p[8]*tr[1];
     out[7] = 1;
-    out[8] = e5*sin(q[5]);
+    out[8] = e3*tr[2];
     out[9] = -1;
-    out[10] = -e1*p[8];
+    out[10] = -p[8]*tr[0];
     out[11] = 1;
-    out[12] = -e5*cos(q[5]);
+    out[12] = -e3*tr[3];
     out[13] = -1;
     out[14] = 1;
 }
 
-void slider_pendulum_nu(const double * q, double t, const double * p, double *out)
+void slider_pendulum_phi_q(const double * q, double t, const double * p, double *out)
+{
+    double tr[4];
+    slider_pendulum_trig(q, tr);
+    slider_pendulum_phi_q_k(q, tr, t, p, out);
+}
+
+static void slider_pendulum_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
+    (void)tr;
     const double e0 = 2*3.141592653589793;
     const double e1 = e0*t;
     out[0] = 0;
@@ -76,23 +118,39 @@ void slider_pendulum_nu(const double * q, double t, const double * p, double *ou
     out[5] = e0*p[3]*p[4]*cos(e1*p[4]);
 }
 
-void slider_pendulum_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void slider_pendulum_nu(const double * q, double t, const double * p, double *out)
 {
+    double tr[4];
+    slider_pendulum_trig(q, tr);
+    slider_pendulum_nu_k(q, tr, t, p, out);
+}
+
+static void slider_pendulum_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    (void)q;
     const double e0 = pow(qd[2], 2);
-    const double e1 = e0*sin(q[2]);
+    const double e1 = e0*tr[0];
     const double e2 = 2*3.141592653589793*t;
     const double e3 = 4*pow(3.141592653589793, 2);
     const double e4 = (1.0/2.0)*p[9]*pow(qd[5], 2);
     out[0] = e1*pow(sin(p[0]), 2) + e1*pow(cos(p[0]), 2);
     out[1] = 0;
     out[2] = -e3*p[1]*pow(p[2], 2)*sin(e2*p[2]);
-    out[3] = -e1*p[8] - e4*cos(q[5]);
-    out[4] = e0*p[8]*cos(q[2]) - e4*sin(q[5]);
+    out[3] = -e1*p[8] - e4*tr[3];
+    out[4] = e0*p[8]*tr[1] - e4*tr[2];
     out[5] = -e3*p[3]*pow(p[4], 2)*sin(e2*p[4]);
 }
 
-void slider_pendulum_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void slider_pendulum_gamma(const double * q, const double * qd, double t, const double * p, double *out)
 {
+    double tr[4];
+    slider_pendulum_trig(q, tr);
+    slider_pendulum_gamma_k(q, tr, qd, t, p, out);
+}
+
+static void slider_pendulum_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    (void)tr;
     (void)t;
     const double e0 = p[11]*(-q[2] + q[5] + (1.0/2.0)*3.141592653589793) + p[12]*(-qd[2] + qd[5]);
     out[0] = 0;
@@ -103,7 +161,14 @@ void slider_pendulum_applied(const double * q, const double * qd, double t, cons
     out[5] = -e0;
 }
 
-void slider_pendulum_mass(const double * p, double *out)
+void slider_pendulum_applied(const double * q, const double * qd, double t, const double * p, double *out)
+{
+    double tr[4];
+    slider_pendulum_trig(q, tr);
+    slider_pendulum_applied_k(q, tr, qd, t, p, out);
+}
+
+static void slider_pendulum_mass_k(const double * p, double *out)
 {
     out[0] = p[5];
     out[1] = p[5];
@@ -113,12 +178,17 @@ void slider_pendulum_mass(const double * p, double *out)
     out[5] = (1.0/12.0)*p[10]*pow(p[9], 2);
 }
 
-void slider_pendulum_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void slider_pendulum_mass(const double * p, double *out)
+{
+    slider_pendulum_mass_k(p, out);
+}
+
+static void slider_pendulum_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
 {
     (void)t;
     const double e0 = cos(p[0]);
     const double e1 = pow(e0, 2);
-    const double e2 = lam[0]*cos(q[2]);
+    const double e2 = lam[0]*tr[1];
     const double e3 = sin(p[0]);
     const double e4 = pow(e3, 2);
     const double e5 = e1*e2 + e2*e4;
@@ -159,6 +229,13 @@ void slider_pendulum_reactions(const double * q, const double * lam, double t, c
     out[29] = -lam[5];
 }
 
+void slider_pendulum_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+{
+    double tr[4];
+    slider_pendulum_trig(q, tr);
+    slider_pendulum_reactions_k(q, tr, lam, t, p, out);
+}
+
 /* Sparse LU in the elimination order fixed at generation time; returns 1
    where a fixed pivot fails the threshold test for this configuration. */
 static int slider_pendulum_sparse_factor(double *lu)
@@ -178,7 +255,7 @@ static int slider_pendulum_sparse_factor(double *lu)
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[2];
     cm = fabs(piv);
-    cm = fmax(cm, fabs(lu[4]));
+    cm = SLIDER_PENDULUM_MAX(cm, fabs(lu[4]));
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
     lu[4] /= piv;
     lu[3] -= lu[4] * lu[1];
@@ -277,11 +354,12 @@ static void slider_pendulum_dense_solve_t(const double *a, const int *perm, cons
 }
 
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
-static int slider_pendulum_factorize(const double *q, double t, const double *p, double *work, int *iwork, int *dense)
+static int slider_pendulum_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+                             int *iwork, int *dense)
 {
     double *values = work, *lu = work + SLIDER_PENDULUM_OFF_LU, *a = work + SLIDER_PENDULUM_OFF_DENSE;
     int k;
-    slider_pendulum_phi_q(q, t, p, values);
+    slider_pendulum_phi_q_k(q, tr, t, p, values);
     memcpy(lu, values, sizeof(double) * 15);
     memset(lu + 15, 0, sizeof(double) * (SLIDER_PENDULUM_LU_SIZE - 15));
     *dense = 0;
@@ -304,34 +382,42 @@ static void slider_pendulum_solve_t(const double *work, const int *iwork, int de
     else slider_pendulum_sparse_solve_t(work + SLIDER_PENDULUM_OFF_LU, b, x);
 }
 
+/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes). */
 static double slider_pendulum_maxabs(const double *v, int n)
 {
-    double m = 0.0;
+    double m = 0.0, sum = 0.0;
     int k;
-    for (k = 0; k < n; ++k) m = (fabs(v[k]) > m || v[k] != v[k]) ? fabs(v[k]) : m;
-    return m;
+    for (k = 0; k < n; ++k) {
+        const double a = fabs(v[k]);
+        m = a > m ? a : m;
+        sum += a;
+    }
+    return sum == sum ? m : sum;
 }
 
 int slider_pendulum_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *r = SLIDER_PENDULUM_VEC(work, 0), *dq = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
-    double *b = SLIDER_PENDULUM_VEC(work, 3);
-    double step = INFINITY;
+    double *b = SLIDER_PENDULUM_VEC(work, 3), *tr = SLIDER_PENDULUM_VEC(work, 9);
+    double step = INFINITY, lim, qmag;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
+    slider_pendulum_trig(q, tr);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = SLIDER_PENDULUM_MAX(1.0, slider_pendulum_maxabs(q, 6));
+    lim = SLIDER_PENDULUM_MAX(tol, 8.0 * SLIDER_PENDULUM_EPS * qmag);
     for (it = 0;; ++it) {
-        double rmax, lim;
-        slider_pendulum_phi(q, t, p, r);
+        double rmax;
+        slider_pendulum_phi_k(q, tr, t, p, r);
         rmax = slider_pendulum_maxabs(r, 6);
-        lim = fmax(tol, 8.0 * SLIDER_PENDULUM_EPS * fmax(1.0, slider_pendulum_maxabs(q, 6)));
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
         }
         if (it == SLIDER_PENDULUM_MAX_NEWTON) break;
-        if (slider_pendulum_factorize(q, t, p, work, iwork, &dense) != SLIDER_PENDULUM_OK) {
+        if (slider_pendulum_factorize(q, tr, t, p, work, iwork, &dense) != SLIDER_PENDULUM_OK) {
             info[0] = it;
             info[1] = dense;
             return SLIDER_PENDULUM_SINGULAR;
@@ -340,20 +426,25 @@ int slider_pendulum_instant(double t, const double *p, double tol, double *q, do
         slider_pendulum_solve(work, iwork, dense, r, dq, y);
         for (k = 0; k < 6; ++k) q[k] += dq[k];
         step = slider_pendulum_maxabs(dq, 6);
+        slider_pendulum_trig_step(q, dq, tr);
     }
     info[0] = it;
     if (!converged) return SLIDER_PENDULUM_NOT_CONVERGED;
-    if (slider_pendulum_factorize(q, t, p, work, iwork, &dense) != SLIDER_PENDULUM_OK) return SLIDER_PENDULUM_SINGULAR;
+    /* The factors are those of the last iterate but one; where the last step
+       was negligible (quadratic convergence) they serve the solution too. */
+    if (step > 1e-14 * qmag
+        && slider_pendulum_factorize(q, tr, t, p, work, iwork, &dense) != SLIDER_PENDULUM_OK)
+        return SLIDER_PENDULUM_SINGULAR;
     info[1] = dense;
-    slider_pendulum_nu(q, t, p, b);
+    slider_pendulum_nu_k(q, tr, t, p, b);
     slider_pendulum_solve(work, iwork, dense, b, qd, y);
-    slider_pendulum_gamma(q, qd, t, p, b);
+    slider_pendulum_gamma_k(q, tr, qd, t, p, b);
     slider_pendulum_solve(work, iwork, dense, b, qdd, y);
-    slider_pendulum_applied(q, qd, t, p, b);
-    slider_pendulum_mass(p, y);
+    slider_pendulum_applied_k(q, tr, qd, t, p, b);
+    slider_pendulum_mass_k(p, y);
     for (k = 0; k < 6; ++k) b[k] -= y[k] * qdd[k];
     slider_pendulum_solve_t(work, iwork, dense, b, lam);
-    slider_pendulum_reactions(q, lam, t, p, reactions);
+    slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
     return SLIDER_PENDULUM_OK;
 }
 
@@ -367,6 +458,7 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
     double *lam = SLIDER_PENDULUM_VEC(work, 7), *reac = SLIDER_PENDULUM_VEC(work, 8);
     long i;
     int k, status, info[2];
+    (void)qm1; (void)qm2;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * SLIDER_PENDULUM_ROW;
@@ -378,11 +470,9 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
             *solved = i;
             return status;
         }
-        memcpy(qm2, qm1, sizeof(double) * 6);
-        memcpy(qm1, q, sizeof(double) * 6);
-        memcpy(q, qn, sizeof(double) * 6);
         memcpy(qd, qdn, sizeof(double) * 6);
         memcpy(qdd, qddn, sizeof(double) * 6);
+        memcpy(q, qn, sizeof(double) * 6);
         *count += 1.0;
         row[0] = t;
         /* q */

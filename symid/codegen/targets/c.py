@@ -37,12 +37,29 @@ def ccode(expr: sp.Expr) -> str:
     return _PRINTER.doprint(expr)
 
 
-def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr]) -> dict[str, Any]:
-    """One generated function: its signature, the arguments it ignores, its code."""
-    code: Block = block(exprs, ccode)
-    unused = [a for _, a in args if not code.uses(a)]
-    signature = ", ".join(f"{ctype} {a}" for ctype, a in args) + ", double *out" if args else "double *out"
-    return {"name": name, "signature": signature, "unused": unused, "block": code}
+def _trig_map(ng: int) -> dict[sp.Expr, sp.Symbol]:
+    """sin and cos of every body angle -> tr[2b], tr[2b + 1]: computed once per
+    configuration and shared by Phi, Phi_q, gamma, Q^A and the reactions."""
+    out: dict[sp.Expr, sp.Symbol] = {}
+    for b in range(ng // 3):
+        angle = sp.Symbol(f"q[{3 * b + 2}]", real=True)
+        out[sp.sin(angle)] = sp.Symbol(f"tr[{2 * b}]", real=True)
+        out[sp.cos(angle)] = sp.Symbol(f"tr[{2 * b + 1}]", real=True)
+    return out
+
+
+def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
+              trig: dict[sp.Expr, sp.Symbol]) -> dict[str, Any]:
+    """One generated function: a kernel taking the angles' sines and cosines
+    precomputed (`tr`), and the public signature without them."""
+    with_trig = any(a == "q" for _, a in args)
+    code: Block = block([e.xreplace(trig) for e in exprs] if with_trig else list(exprs), ccode)
+    kernel_args = args[:1] + [("const double *", "tr")] + args[1:] if with_trig else args
+    unused = [a for _, a in kernel_args if not code.uses(a)]
+    def sig(items: list[tuple[str, str]]) -> str:
+        return ", ".join([f"{ctype} {a}" for ctype, a in items] + ["double *out"])
+    return {"name": name, "signature": sig(kernel_args), "public_signature": sig(args), "unused": unused,
+            "block": code, "trig": with_trig, "call": ", ".join([a for _, a in kernel_args] + ["out"])}
 
 
 def _steps(model: CodeModel) -> list[dict[str, Any]]:
@@ -69,17 +86,20 @@ def context(model: CodeModel) -> dict[str, Any]:
     o = f.options
     cq, cqd, ct, cp, clam = ("const double *", "q"), ("const double *", "qd"), ("double", "t"), \
         ("const double *", "p"), ("const double *", "lam")
+    trig = _trig_map(f.ng)
     functions = [
-        _function("phi", [cq, ct, cp], f.phi),
-        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac]),
+        _function("phi", [cq, ct, cp], f.phi, trig),
+        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac], trig),
     ]
     if o.velocity:
-        functions += [_function("nu", [cq, ct, cp], f.nu), _function("gamma", [cq, cqd, ct, cp], f.gamma)]
+        functions += [_function("nu", [cq, ct, cp], f.nu, trig),
+                      _function("gamma", [cq, cqd, ct, cp], f.gamma, trig)]
     dynamics = o.kind != "kinematics" and o.multipliers
     if dynamics:
-        functions += [_function("applied", [cq, cqd, ct, cp], f.applied), _function("mass", [cp], f.mass)]
+        functions += [_function("applied", [cq, cqd, ct, cp], f.applied, trig),
+                      _function("mass", [cp], f.mass, trig)]
     if f.reactions:
-        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions))
+        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions, trig))
     ng, nc, nr = f.ng, f.nc, len(f.reactions)
     has = {g: int(g in o.outputs) for g in ("qdot", "qddot", "lambda", "reactions")}
     # a trajectory row: t, then each group in contract order
@@ -94,13 +114,13 @@ def context(model: CodeModel) -> dict[str, Any]:
     return {
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": offset, "lu_size": model.plan.size,
-        "work": len(f.jac) + model.plan.size + ng * ng + 9 * stride, "stride": stride,
+        "work": len(f.jac) + model.plan.size + ng * ng + 10 * stride, "stride": stride,
         "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "steps": _steps(model), "threshold": repr(THRESHOLD),
         "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
-        "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
+        "nb": ng // 3, "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
 
 
