@@ -6,4 +6,5 @@ the argparse subparsers and sets `run=` to a function (args) -> exit status.
 
 MODULES: tuple[str, ...] = (
     "symid.commands.plot",
+    "symid.commands.generate",
 )
