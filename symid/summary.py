@@ -71,7 +71,11 @@ class Effort:
 
 @dataclass(frozen=True)
 class Summary:
-    """Peak and RMS effort and peak power of one driver (SI units)."""
+    """Peak and RMS effort and peak power of one driver (SI units).
+
+    `peak` is the largest |effort|; `peak_power` the power of largest
+    magnitude, signed: negative when the actuator absorbs energy (brakes).
+    """
 
     name: str
     quantity: str
@@ -156,7 +160,7 @@ def efforts(mechanism: Mechanism, table: Table) -> list[Effort]:
 
 
 def summarize(e: Effort) -> Summary:
-    """Peak |effort|, RMS effort (time average, trapezoidal) and peak |power|."""
+    """Peak |effort|, RMS effort (time average, trapezoidal) and the signed peak power."""
     if len(e.t) == 0:
         nan = float("nan")
         return Summary(e.name, e.quantity, e.unit, nan, nan, nan, nan, nan)
@@ -169,7 +173,7 @@ def summarize(e: Effort) -> Summary:
     else:
         rms = float(np.sqrt(np.mean(e.value ** 2)))
     return Summary(e.name, e.quantity, e.unit, float(abs(e.value[k])), float(e.t[k]), rms,
-                   float(abs(e.power[p])), float(e.t[p]))
+                   float(e.power[p]), float(e.t[p]))
 
 
 def lines(mechanism: Mechanism, table: Table) -> list[str]:

@@ -99,6 +99,16 @@ def test_summary_peak_rms_and_peak_power_of_a_sine_over_one_period():
                         "peak power 6 W at t = 0.5 s")
 
 
+def test_peak_power_keeps_its_sign_when_the_motor_brakes():
+    mech = load(api.example("slider_crank"), analysis={"steps": STEPS})
+    results = api.solve(mech)
+    s = summary.summarize(summary.efforts(mech, results)[0])
+    power = results["motor.T_j"] * results["crank.omega"]
+    k = int(np.argmax(np.abs(power)))
+    assert s.peak_power == pytest.approx(power[k], rel=1e-9) and s.peak_power < 0
+    assert f"peak power {s.peak_power:.4g} W" in s.line()
+
+
 def test_summary_lines_say_which_driver_has_no_columns():
     mech = load(api.example("slider_crank"), analysis={"steps": 5, "outputs": ["q", "reactions"],
                                                        "reactions": ["main_bearing"]})
