@@ -7,4 +7,5 @@ the argparse subparsers and sets `run=` to a function (args) -> exit status.
 MODULES: tuple[str, ...] = (
     "symid.commands.plot",
     "symid.commands.generate",
+    "symid.commands.derive",
 )
