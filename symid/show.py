@@ -201,8 +201,8 @@ def _abbreviations(der: DerivedConstraint) -> tuple[dict[sp.Symbol, sp.Expr], li
         xdj, ydj, _ = s.qd("j")
         subs.update({xj: dx + xi + six - sjx, yj: dy + yi + siy - sjy,
                      xdj: ddx + xdi - siy * pdi + sjy * pdj, ydj: ddy + ydi + six * pdi - sjx * pdj})
-        where.append(("d = r\u2c7c + s\u2c7c - r\u1d62 - s\u1d62, \u1e0b = dd/dt",
-                      r"d = r_{j} + s_{j} - r_{i} - s_{i},\ \dot{d} = \tfrac{d}{dt} d"))
+        where.append(("d = r\u2c7c + s\u2c7c - r\u1d62 - s\u1d62 and its rate \u1e0b",
+                      r"d = r_{j} + s_{j} - r_{i} - s_{i} \text{ and its rate } \dot{d}"))
     return subs, where
 
 
@@ -247,7 +247,7 @@ def derive_type(name: str, options: Mapping[str, str] | None = None, expanded: b
     notes = [GEAR_NOTE] if name.startswith("gear") else []
     rows = f"{len(der.lam)} row{'s' if len(der.lam) > 1 else ''}"
     variant = "".join(f" ({k} = {v})" for k, v in options.items())
-    title = f"{name}{variant}: {rows}, multipliers "
+    title = f"{name}{variant}: {rows}, multiplier{'s' if len(der.lam) > 1 else ''} "
     tex_title = rf"&\text{{{_tex_text(title)}}}" + ", ".join(latex(x) for x in der.lam)
     title += ", ".join(pretty(x) for x in der.lam)
     return Derivation(title, tuple(items), tuple(where), tuple(notes), tex_title)

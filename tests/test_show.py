@@ -7,6 +7,7 @@ d = d_ij and its rate, written here again) and finite differences of Phi.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -176,3 +177,4 @@ def test_derivation_is_plain_data_for_the_api():
     assert isinstance(shown, Derivation)
     values = {item.label.split()[0]: item.value for item in shown.items}
     assert values["T_on_i"] == s.scalar("K") * s.lam(1)[0]
+
