@@ -8,4 +8,5 @@ MODULES: tuple[str, ...] = (
     "symid.commands.plot",
     "symid.commands.generate",
     "symid.commands.derive",
+    "symid.commands.verify",
 )
