@@ -22,12 +22,12 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_INPUT)
 
 
-def _set_values(pairs: Sequence[str]) -> dict[str, str]:
+def _set_values(pairs: Sequence[str], file: str = "") -> dict[str, str]:
     out = {}
     for pair in pairs:
         name, sep, value = pair.partition("=")
         if not sep or not name.strip():
-            raise InputError(f"--set {pair}: expected NAME=VALUE")
+            raise InputError(f"{file + ': ' if file else ''}--set {pair}: expected NAME=VALUE")
         out[name.strip()] = value.strip()
     return out
 
@@ -41,7 +41,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
     from symid.io.npz import write_npz
     from symid.results import write_csv
 
-    study = api.prepare(args.file, args.backend, _set_values(args.set), **_analysis_overrides(args))
+    study = api.prepare(args.file, args.backend, _set_values(args.set, args.file), **_analysis_overrides(args))
     out = Path(args.output) if args.output else Path(f"{study.mechanism.name}.csv")
     plots = args.plot or args.plot_dir is not None
     header = study.columns()
@@ -70,7 +70,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     from symid import api
     from symid.check import check
 
-    study = api.prepare(args.file, "numpy", _set_values(args.set))
+    study = api.prepare(args.file, "reference", _set_values(args.set, args.file))
     report = check(study)
     print(report.text())
     return 0

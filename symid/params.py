@@ -53,14 +53,52 @@ def parameter_values(exprs: Mapping[str, sp.Expr]) -> dict[sp.Symbol, float]:
     return values
 
 
+_MATH = {
+    sp.sin: math.sin, sp.cos: math.cos, sp.tan: math.tan, sp.asin: math.asin, sp.acos: math.acos,
+    sp.atan: math.atan, sp.sinh: math.sinh, sp.cosh: math.cosh, sp.tanh: math.tanh, sp.exp: math.exp,
+    sp.log: math.log, sp.atan2: math.atan2,
+}
+
+
 def to_float(expr: sp.Expr, values: Mapping[sp.Symbol, float], what: str = "value") -> float:
-    """A finite float from an expression of parameters with known values."""
+    """A finite float from an expression of parameters with known values.
+
+    Evaluated in double precision node by node (not by arbitrary-precision
+    evalf, which can run for ever on `exp(exp(exp(100)))`): an overflow, a
+    domain error or a non-real result is an error naming `what`.
+
+    Raises:
+        ValueError: (what, message).
+    """
     try:
-        number = complex(sp.N(expr.xreplace({k: sp.Float(v) for k, v in values.items()}), 17))
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise ValueError(what, f"is not a number ({exc})") from None
-    if number.imag != 0 and abs(number.imag) > 1e-300:
-        raise ValueError(what, "is not a real number")
-    if not math.isfinite(number.real):
+        number = _evaluate(sp.sympify(expr), values)
+    except (OverflowError, ZeroDivisionError):
+        raise ValueError(what, "is not finite") from None
+    except (ValueError, TypeError) as exc:
+        raise ValueError(what, f"is not a real number ({exc})") from None
+    if not math.isfinite(number):
         raise ValueError(what, "is not finite")
-    return number.real
+    return number
+
+
+def _evaluate(e: sp.Basic, values: Mapping[sp.Symbol, float]) -> float:
+    if e.is_Number or e.is_NumberSymbol:
+        return float(e)
+    if e.is_Symbol:
+        if e not in values:
+            raise ValueError(f"no value for {e}")
+        return values[e]  # type: ignore[index]
+    args = [_evaluate(a, values) for a in e.args]
+    if e.is_Add:
+        return math.fsum(args)
+    if e.is_Mul:
+        return math.prod(args)
+    if e.is_Pow:
+        base, exponent = args
+        if base < 0 and not float(exponent).is_integer():
+            raise ValueError("a negative number to a fractional power")
+        return float(base**exponent) if base != 0 or exponent >= 0 else math.inf
+    func = _MATH.get(e.func)  # type: ignore[call-overload]
+    if func is None:
+        raise TypeError(f"cannot evaluate {e.func}")
+    return float(func(*args))

@@ -106,7 +106,10 @@ def write_csv(path: str | Path, header: list[str], rows: Iterator[Array]) -> int
         raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
     count = 0
     failure: AnalysisError | None = None
+    umask = os.umask(0)
+    os.umask(umask)
     try:
+        os.chmod(tmp, 0o666 & ~umask)  # as an ordinary new file, not mkstemp's 0600
         with os.fdopen(fd, "w", newline="") as out:
             out.write(",".join(header) + "\n")
             try:
@@ -115,7 +118,10 @@ def write_csv(path: str | Path, header: list[str], rows: Iterator[Array]) -> int
                     count += 1
             except AnalysisError as exc:
                 failure = exc
-        os.replace(tmp, path)
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

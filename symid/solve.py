@@ -112,7 +112,7 @@ def run(ev: Evaluator, analysis: Analysis, q0: Array) -> Iterator[Instant]:
     statics = analysis.kind == "statics"
     want_lam = not analysis.kind == "kinematics" and ("lambda" in groups or "reactions" in groups)
     want_reactions = "reactions" in groups and analysis.kind != "kinematics"
-    mass = ev.mass()
+    mass = ev.mass() if want_lam and not statics else None
     times = analysis.times()
     history: list[Array] = []
     prev: Instant | None = None
@@ -129,7 +129,7 @@ def run(ev: Evaluator, analysis: Analysis, q0: Array) -> Iterator[Instant]:
                 out.qd = sla.lu_solve(lu, ev.nu(q, t), check_finite=False)
                 out.qdd = sla.lu_solve(lu, ev.gamma(q, out.qd, t), check_finite=False)
                 if want_lam:
-                    rhs = ev.applied(q, out.qd, t) - mass * out.qdd
+                    rhs = ev.applied(q, out.qd, t) - mass * out.qdd  # type: ignore[operator]
                     out.lam = sla.lu_solve(lu, rhs, trans=1, check_finite=False)
             if want_reactions and out.lam is not None:
                 out.reactions = ev.reactions(q, out.lam, t)

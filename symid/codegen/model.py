@@ -9,7 +9,6 @@ import numpy as np
 
 from symid.assemble import Layout, assemble
 from symid.codegen import sparse
-from symid.codegen.emit import sample_jacobian
 from symid.codegen.flat import Flat, Options, build
 from symid.errors import AnalysisError
 from symid.model import Mechanism
@@ -61,26 +60,15 @@ def code_model(mech: Mechanism, options: Options | None = None) -> CodeModel:
     flat = build(layout, options, defaults)
     q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
     t0 = mech.analysis.t0
+    reference = ReferenceEvaluator(layout, values, Needs(velocity=False))
     try:
-        q0, _ = newton(ReferenceEvaluator(layout, values, Needs()), q0, t0, mech.analysis.tol)
+        q0, _ = newton(reference, q0, t0, mech.analysis.tol)
     except AnalysisError:
         pass  # the plan still needs a sample; the solver reports the failure at run time
-    sample = sample_jacobian(flat, q0, t0, np.array(defaults))
-    pattern = [(r, c) for r, c, _ in flat.jac]
-    try:
-        plan = sparse.plan(pattern, sample)
-    except ValueError:
-        # singular sample: choose by structure alone (unit values)
-        plan = sparse.plan(pattern, np.where(sample != 0, 1.0, 0.0) + _pattern_matrix(pattern, flat.nc))
+    sample = reference.phi_q(q0, t0)
+    plan = sparse.plan([(r, c) for r, c, _ in flat.jac], sample)
     cols = tuple(columns(layout, _analysis_like(mech, options)))
     return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0))
-
-
-def _pattern_matrix(pattern: list[tuple[int, int]], n: int) -> np.ndarray:
-    out = np.zeros((n, n))
-    for r, c in pattern:
-        out[r, c] = 1.0
-    return out
 
 
 def _analysis_like(mech: Mechanism, options: Options):  # type: ignore[no-untyped-def]

@@ -46,6 +46,7 @@ class Plan:
     n: int
     slots: dict[tuple[int, int], int]
     steps: tuple[Step, ...]
+    singular: bool = False
 
     @property
     def size(self) -> int:
@@ -63,8 +64,9 @@ def plan(pattern: list[tuple[int, int]], sample: np.ndarray) -> Plan:
         pattern: the structural nonzeros (row, col), in slot order.
         sample: a dense n x n matrix with that pattern, used for the threshold test.
 
-    Raises:
-        ValueError: the sample is structurally or numerically singular.
+    Where the sample is numerically singular, pivots are chosen by structure
+    alone; where it is structurally singular (no pivot left in some column),
+    the plan is marked `singular` and the factorization always falls back.
     """
     n = sample.shape[0]
     a = {(r, c): float(sample[r, c]) for r, c in pattern}
@@ -88,12 +90,18 @@ def plan(pattern: list[tuple[int, int]], sample: np.ndarray) -> Plan:
                 cost = ((len(rows[r]) - 1) * (len(rset) - 1), -v / colmax, r, c)
                 if best is None or cost < best:
                     best = cost
+        if best is None:  # numerically singular sample: any structural entry will do
+            for c, rset in cols.items():
+                for r in rset:
+                    cost = ((len(rows[r]) - 1) * (len(rset) - 1), 0.0, r, c)
+                    if best is None or cost < best:
+                        best = cost
         if best is None:
-            raise ValueError("Phi_q is singular at the sample configuration")
+            return Plan(n, slots, tuple(steps), singular=True)
         _, _, pr, pc = best
         below = tuple(sorted(cols[pc] - {pr}))
         right = tuple(sorted(rows[pr] - {pc}))
-        piv = a[(pr, pc)]
+        piv = a[(pr, pc)] or 1.0  # the sample only guides the choice
         for r in below:
             a[(r, pc)] /= piv
             for c in right:
@@ -119,6 +127,8 @@ def factor(p: Plan, values: np.ndarray) -> np.ndarray | None:
     Returns:
         the factor array, or None where a fixed pivot fails the threshold test.
     """
+    if p.singular:
+        return None
     lu = np.zeros(p.size)
     lu[: len(values)] = values
     s = p.slots

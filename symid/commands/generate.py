@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if not args.file or not args.target:
         raise InputError("generate: give FILE and --target (or --examples)")
-    study_mech = api.load_mechanism(args.file, _set_values(args.set))
+    study_mech = api.load_mechanism(args.file, _set_values(args.set, args.file))
     for target in args.target:
         out = Path(args.output) if args.output else Path(f"{study_mech.name}_{target}")
         for path in api.generate(study_mech, target, out):

@@ -31,6 +31,8 @@ def _ratio(values: dict[str, Any], where: str) -> dict[str, Any]:
         if any(r is None for r in radii):
             missing = "radius_i" if radii[0] is None else "radius_j"
             raise ValueError(f"{where}: missing key '{missing}' (or give 'K')")
+        if radii[1] == 0:
+            raise ValueError(f"{where} key 'radius_j': must not be zero")
         sign = 1 if values["internal"] else -1
         values["K"] = sign * radii[0] / radii[1]
     for key in ("radius_i", "radius_j", "internal"):

@@ -120,7 +120,7 @@ def context(model: CodeModel) -> dict[str, Any]:
         "functions": functions, "steps": _steps(model), "threshold": repr(THRESHOLD),
         "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
-        "nb": ng // 3, "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
+        "nb": ng // 3, "singular": model.plan.singular, "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
 
 
