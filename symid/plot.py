@@ -340,7 +340,8 @@ def _slot(c: Element, geo: _Geometry) -> tuple[str, Array, Array, bool]:
     phi = geo.angle(c.bodies["i"])
     # Travel along the slot, measured in body i's frame.
     d = pj - pi
-    along = (np.cos(phi) * d[:, 0] + np.sin(phi) * d[:, 1]) * u[0] + (-np.sin(phi) * d[:, 0] + np.cos(phi) * d[:, 1]) * u[1]
+    cos, sin = np.cos(phi), np.sin(phi)
+    along = (cos * d[:, 0] + sin * d[:, 1]) * u[0] + (cos * d[:, 1] - sin * d[:, 0]) * u[1]
     lo, hi = float(along.min()), float(along.max())
     margin = 0.15 * (hi - lo) + 0.05 * max(abs(lo), abs(hi), 1e-3)
     start = geo.point(c.bodies["i"], si + (lo - margin) * u)
@@ -583,27 +584,24 @@ def write_all(table: Table, mechanism: Mechanism | None, directory: str | Path, 
     directory.mkdir(parents=True, exist_ok=True)
     out = Written()
     need = "needs the mechanism file (--mechanism)"
-    jobs: list[tuple[str, Callable[[], Any]]] = [
-        ("efforts", lambda: efforts_figure(table, mechanism) if mechanism else need),
-        ("reactions", lambda: reactions_figure(table, mechanism)),
-        ("mechanism", lambda: mechanism_figure(table, mechanism) if mechanism else need),
+    jobs: list[tuple[str, Callable[[], Any] | None]] = [
+        ("efforts plot", (lambda: efforts_figure(table, mechanism)) if mechanism else None),
+        ("reactions plot", lambda: reactions_figure(table, mechanism)),
+        ("mechanism plot", (lambda: mechanism_figure(table, mechanism)) if mechanism else None),
     ]
-    for what, make in jobs:
-        try:
-            fig = make()
-        except ValueError as exc:
-            out.skipped.append(f"{what} plot: {exc}")
-            continue
-        if isinstance(fig, str):
-            out.skipped.append(f"{what} plot: {fig}")
-            continue
-        out.paths.append(save(fig, directory / f"{stem}_{what}.png"))
     if gif:
-        if mechanism is None:
-            out.skipped.append(f"animation: {need}")
-        else:
-            try:
-                out.paths.append(write_gif(table, mechanism, directory / f"{stem}_motion.gif"))
-            except ValueError as exc:
-                out.skipped.append(f"animation: {exc}")
+        jobs.append(("animation", (lambda: write_gif(table, mechanism, directory / f"{stem}_motion.gif"))
+                     if mechanism else None))
+    for what, make in jobs:
+        if make is None:
+            out.skipped.append(f"{what}: {need}")
+            continue
+        try:
+            made = make()
+        except ValueError as exc:  # the table lacks what this plot needs
+            out.skipped.append(f"{what}: {exc}")
+            continue
+        if not isinstance(made, Path):
+            made = save(made, directory / f"{stem}_{what.split()[0]}.png")
+        out.paths.append(made)
     return out

@@ -4,12 +4,14 @@ An effort is what a driver's actuator applies, from the reference's reaction
 formulas (`planar-inverse-dynamics.md`), with `lambda` the driver's multiplier
 and `f(t)` its imposed function:
 
-| driver | effort | positive when | rate of the driven quantity |
-|---|---|---|---|
-| relative_angle_driver | torque on body j, `C.T_j` (= -lambda) | counter-clockwise on j | fdot |
-| coordinate_driver | `-lambda`: force along x or y, or torque (`C.Fx_i`, `C.Fy_i`, `C.T_i`) | along +x, +y, counter-clockwise | fdot |
-| distance_driver | axial force on j, `-2 |f| lambda` | pushing the points apart (actuator in compression) | d|f|/dt |
-| translational_driver | force on j along the slide `u_i`, `-lambda` | pushing j towards +u_i | fdot |
+- relative_angle_driver: the torque on body j, `C.T_j` (= -lambda), positive
+  counter-clockwise; rate fdot.
+- coordinate_driver: `-lambda`, a force along x or y or a torque (`C.Fx_i`,
+  `C.Fy_i`, `C.T_i`), positive along +x, +y or counter-clockwise; rate fdot.
+- distance_driver: the axial force on j, `-2 |f| lambda`, positive pushing the
+  points apart (the actuator in compression); rate d|f|/dt.
+- translational_driver: the force on j along the slide `u_i`, `-lambda`,
+  positive pushing j towards +u_i; rate fdot.
 
 The power is effort x rate = `lambda Phi_t`, the power of the driver's
 reaction forces: positive when the actuator delivers energy to the mechanism.

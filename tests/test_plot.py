@@ -108,6 +108,23 @@ def test_the_slider_crank_paths_are_the_crank_circle_and_the_guide_line():
     assert [s[0] for s in sc.slots] == ["cylinder_guide"] and sc.slots[0][3]
 
 
+@pytest.mark.parametrize("name", ["quick_return", "slider_pendulum", "slider_crank"])
+def test_every_slot_holds_its_pin_at_every_instant(name):
+    mech = load(api.example(name), analysis={"steps": STEPS})
+    results = api.solve(mech)
+    truth = Truth(mech, results)
+    sc = plot.scene(results, mech)
+    assert sc.slots
+    for slot, start, end, _ in sc.slots:
+        c = next(c for c in mech.constraints if c.name == slot)
+        pin, _ = truth.point(c.bodies["j"], c.values["sj"])
+        along = end - start
+        s = np.sum((pin - start) * along, 1) / np.sum(along * along, 1)
+        off = np.abs(along[:, 0] * (pin - start)[:, 1] - along[:, 1] * (pin - start)[:, 0])
+        assert np.all((0.05 < s) & (s < 0.95)), slot  # inside, with a margin at each end
+        assert np.max(off / np.hypot(*along.T)) < 1e-9, slot  # on the line
+
+
 def test_planetary_gears_are_drawn_with_their_pitch_radii():
     mech = load(api.example("planetary"), analysis={"steps": 9})
     sc = plot.scene(api.solve(mech), mech)
