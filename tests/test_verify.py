@@ -264,3 +264,16 @@ def test_claim_file_may_name_a_mechanism_file_next_to_it(tmp_path):
                                      'constraint = "sun_planet_mesh"\nvalue = 0\n')
     assert verify(tmp_path / "c.toml").ok
 
+
+def test_readme_verify_example_gives_the_verdicts_shown(tmp_path, capsys, monkeypatch):
+    section = (Path(__file__).parents[1] / "README.md").read_text().split("## Derive and verify", 1)[1]
+    claim = section.split("```toml\n", 1)[1].split("```", 1)[0]
+    shown = section.split("$ symid verify gear_homework.toml\n", 1)[1].split("$ echo", 1)[0]
+    (tmp_path / "gear_homework.toml").write_text(claim)
+    monkeypatch.chdir(tmp_path)
+    assert main(["verify", "gear_homework.toml"]) == 1
+    out = capsys.readouterr().out
+
+    def verdicts(text: str) -> list[str]:
+        return [line for line in text.splitlines() if re.match(r"\s+#\d", line) or "entries" in line]
+    assert verdicts(out) == verdicts(shown) and len(verdicts(out)) == 3
