@@ -583,6 +583,9 @@ def write_all(table: Table, mechanism: Mechanism | None, directory: str | Path, 
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     out = Written()
+    if len(table["t"]) == 0:
+        out.skipped.append("plots: the table has no instants")
+        return out
     need = "needs the mechanism file (--mechanism)"
     jobs: list[tuple[str, Callable[[], Any] | None]] = [
         ("efforts plot", (lambda: efforts_figure(table, mechanism)) if mechanism else None),

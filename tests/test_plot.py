@@ -178,6 +178,15 @@ def test_plot_command_refuses_results_of_another_mechanism(tmp_path, capsys):
     assert status == 2 and "run.csv: column 'coupler.x' names nothing in" in err and "\n" == err[-1]
 
 
+def test_a_table_without_instants_is_skipped_with_a_reason(tmp_path, capsys):
+    mech = load(api.example("slider_crank"), analysis={"steps": 3})
+    header = ",".join(api.solve(mech).columns)
+    (tmp_path / "failed.csv").write_text(header + "\n")
+    assert main(["plot", str(tmp_path / "failed.csv"), "--mechanism", str(api.example("slider_crank"))]) == 0
+    out, err = capsys.readouterr()
+    assert out == "" and err == "symid plot: skipped the plots: the table has no instants\n"
+
+
 def test_solve_plot_writes_the_pngs_beside_the_table(tmp_path, capsys):
     out = tmp_path / "sc.csv"
     assert main(["solve", str(api.example("slider_crank")), "-o", str(out), "--steps", "21", "--plot"]) == 0

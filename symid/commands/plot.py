@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,8 @@ from symid.results import Results
 def read_csv(path: Path) -> Results:
     """A results table written by `symid solve` (CSV) as a `Results`."""
     try:
-        with path.open(encoding="utf-8") as f:
+        with path.open(encoding="utf-8") as f, warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # no rows: a run that failed at t0
             header = f.readline().strip().split(",")
             data = np.loadtxt(f, delimiter=",", ndmin=2)
     except OSError as exc:
