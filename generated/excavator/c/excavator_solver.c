@@ -611,18 +611,19 @@ static void excavator_dense_solve_t(const double *a, const int *perm, const doub
     }
 }
 
-/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
+/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
+   Phi_q's values are written straight into the factor array (its first NNZ
+   slots); only a fallback evaluates them again, into the dense matrix. */
 static int excavator_factorize(const double *q, const double *tr, double t, const double *p, double *work,
                              int *iwork, int *dense)
 {
     double *values = work, *lu = work + EXCAVATOR_OFF_LU, *a = work + EXCAVATOR_OFF_DENSE;
     int k;
-    excavator_phi_q_k(q, tr, t, p, values);
-    memcpy(lu, values, sizeof(double) * 35);
-    memset(lu + 35, 0, sizeof(double) * (EXCAVATOR_LU_SIZE - 35));
+    excavator_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (excavator_sparse_factor(lu) == 0) return EXCAVATOR_OK;
     *dense = 1;
+    excavator_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 81);
     for (k = 0; k < 35; ++k) a[excavator_phi_q_rows[k] * 9 + excavator_phi_q_cols[k]] = values[k];
     return excavator_dense_factor(a, iwork);
@@ -682,8 +683,12 @@ int excavator_instant(double t, const double *p, double tol, double *q, double *
         }
         for (k = 0; k < 9; ++k) r[k] = -r[k];
         excavator_solve(work, iwork, dense, r, dq, y);
-        for (k = 0; k < 9; ++k) q[k] += dq[k];
-        step = excavator_maxabs(dq, 9);
+        step = 0.0;
+        for (k = 0; k < 9; ++k) {
+            const double a = fabs(dq[k]);
+            q[k] += dq[k];
+            step = a > step || a != a ? a : step;
+        }
         excavator_trig_step(q, dq, tr);
     }
     info[0] = it;

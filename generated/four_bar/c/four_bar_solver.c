@@ -453,18 +453,19 @@ static void four_bar_dense_solve_t(const double *a, const int *perm, const doubl
     }
 }
 
-/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
+/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
+   Phi_q's values are written straight into the factor array (its first NNZ
+   slots); only a fallback evaluates them again, into the dense matrix. */
 static int four_bar_factorize(const double *q, const double *tr, double t, const double *p, double *work,
                              int *iwork, int *dense)
 {
     double *values = work, *lu = work + FOUR_BAR_OFF_LU, *a = work + FOUR_BAR_OFF_DENSE;
     int k;
-    four_bar_phi_q_k(q, tr, t, p, values);
-    memcpy(lu, values, sizeof(double) * 25);
-    memset(lu + 25, 0, sizeof(double) * (FOUR_BAR_LU_SIZE - 25));
+    four_bar_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (four_bar_sparse_factor(lu) == 0) return FOUR_BAR_OK;
     *dense = 1;
+    four_bar_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 81);
     for (k = 0; k < 25; ++k) a[four_bar_phi_q_rows[k] * 9 + four_bar_phi_q_cols[k]] = values[k];
     return four_bar_dense_factor(a, iwork);
@@ -524,8 +525,12 @@ int four_bar_instant(double t, const double *p, double tol, double *q, double *q
         }
         for (k = 0; k < 9; ++k) r[k] = -r[k];
         four_bar_solve(work, iwork, dense, r, dq, y);
-        for (k = 0; k < 9; ++k) q[k] += dq[k];
-        step = four_bar_maxabs(dq, 9);
+        step = 0.0;
+        for (k = 0; k < 9; ++k) {
+            const double a = fabs(dq[k]);
+            q[k] += dq[k];
+            step = a > step || a != a ? a : step;
+        }
         four_bar_trig_step(q, dq, tr);
     }
     info[0] = it;

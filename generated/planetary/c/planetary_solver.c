@@ -446,18 +446,19 @@ static void planetary_dense_solve_t(const double *a, const int *perm, const doub
     }
 }
 
-/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
+/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
+   Phi_q's values are written straight into the factor array (its first NNZ
+   slots); only a fallback evaluates them again, into the dense matrix. */
 static int planetary_factorize(const double *q, const double *tr, double t, const double *p, double *work,
                              int *iwork, int *dense)
 {
     double *values = work, *lu = work + PLANETARY_OFF_LU, *a = work + PLANETARY_OFF_DENSE;
     int k;
-    planetary_phi_q_k(q, tr, t, p, values);
-    memcpy(lu, values, sizeof(double) * 20);
-    memset(lu + 20, 0, sizeof(double) * (PLANETARY_LU_SIZE - 20));
+    planetary_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (planetary_sparse_factor(lu) == 0) return PLANETARY_OK;
     *dense = 1;
+    planetary_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 144);
     for (k = 0; k < 20; ++k) a[planetary_phi_q_rows[k] * 12 + planetary_phi_q_cols[k]] = values[k];
     return planetary_dense_factor(a, iwork);
@@ -517,8 +518,12 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
         }
         for (k = 0; k < 12; ++k) r[k] = -r[k];
         planetary_solve(work, iwork, dense, r, dq, y);
-        for (k = 0; k < 12; ++k) q[k] += dq[k];
-        step = planetary_maxabs(dq, 12);
+        step = 0.0;
+        for (k = 0; k < 12; ++k) {
+            const double a = fabs(dq[k]);
+            q[k] += dq[k];
+            step = a > step || a != a ? a : step;
+        }
         planetary_trig_step(q, dq, tr);
     }
     info[0] = it;

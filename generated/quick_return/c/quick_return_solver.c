@@ -415,18 +415,19 @@ static void quick_return_dense_solve_t(const double *a, const int *perm, const d
     }
 }
 
-/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
+/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
+   Phi_q's values are written straight into the factor array (its first NNZ
+   slots); only a fallback evaluates them again, into the dense matrix. */
 static int quick_return_factorize(const double *q, const double *tr, double t, const double *p, double *work,
                              int *iwork, int *dense)
 {
     double *values = work, *lu = work + QUICK_RETURN_OFF_LU, *a = work + QUICK_RETURN_OFF_DENSE;
     int k;
-    quick_return_phi_q_k(q, tr, t, p, values);
-    memcpy(lu, values, sizeof(double) * 20);
-    memset(lu + 20, 0, sizeof(double) * (QUICK_RETURN_LU_SIZE - 20));
+    quick_return_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (quick_return_sparse_factor(lu) == 0) return QUICK_RETURN_OK;
     *dense = 1;
+    quick_return_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 81);
     for (k = 0; k < 20; ++k) a[quick_return_phi_q_rows[k] * 9 + quick_return_phi_q_cols[k]] = values[k];
     return quick_return_dense_factor(a, iwork);
@@ -486,8 +487,12 @@ int quick_return_instant(double t, const double *p, double tol, double *q, doubl
         }
         for (k = 0; k < 9; ++k) r[k] = -r[k];
         quick_return_solve(work, iwork, dense, r, dq, y);
-        for (k = 0; k < 9; ++k) q[k] += dq[k];
-        step = quick_return_maxabs(dq, 9);
+        step = 0.0;
+        for (k = 0; k < 9; ++k) {
+            const double a = fabs(dq[k]);
+            q[k] += dq[k];
+            step = a > step || a != a ? a : step;
+        }
         quick_return_trig_step(q, dq, tr);
     }
     info[0] = it;

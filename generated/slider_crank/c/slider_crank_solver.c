@@ -402,18 +402,19 @@ static void slider_crank_dense_solve_t(const double *a, const int *perm, const d
     }
 }
 
-/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
+/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
+   Phi_q's values are written straight into the factor array (its first NNZ
+   slots); only a fallback evaluates them again, into the dense matrix. */
 static int slider_crank_factorize(const double *q, const double *tr, double t, const double *p, double *work,
                              int *iwork, int *dense)
 {
     double *values = work, *lu = work + SLIDER_CRANK_OFF_LU, *a = work + SLIDER_CRANK_OFF_DENSE;
     int k;
-    slider_crank_phi_q_k(q, tr, t, p, values);
-    memcpy(lu, values, sizeof(double) * 21);
-    memset(lu + 21, 0, sizeof(double) * (SLIDER_CRANK_LU_SIZE - 21));
+    slider_crank_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (slider_crank_sparse_factor(lu) == 0) return SLIDER_CRANK_OK;
     *dense = 1;
+    slider_crank_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 81);
     for (k = 0; k < 21; ++k) a[slider_crank_phi_q_rows[k] * 9 + slider_crank_phi_q_cols[k]] = values[k];
     return slider_crank_dense_factor(a, iwork);
@@ -473,8 +474,12 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
         }
         for (k = 0; k < 9; ++k) r[k] = -r[k];
         slider_crank_solve(work, iwork, dense, r, dq, y);
-        for (k = 0; k < 9; ++k) q[k] += dq[k];
-        step = slider_crank_maxabs(dq, 9);
+        step = 0.0;
+        for (k = 0; k < 9; ++k) {
+            const double a = fabs(dq[k]);
+            q[k] += dq[k];
+            step = a > step || a != a ? a : step;
+        }
         slider_crank_trig_step(q, dq, tr);
     }
     info[0] = it;

@@ -353,18 +353,19 @@ static void slider_pendulum_dense_solve_t(const double *a, const int *perm, cons
     }
 }
 
-/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1). */
+/* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
+   Phi_q's values are written straight into the factor array (its first NNZ
+   slots); only a fallback evaluates them again, into the dense matrix. */
 static int slider_pendulum_factorize(const double *q, const double *tr, double t, const double *p, double *work,
                              int *iwork, int *dense)
 {
     double *values = work, *lu = work + SLIDER_PENDULUM_OFF_LU, *a = work + SLIDER_PENDULUM_OFF_DENSE;
     int k;
-    slider_pendulum_phi_q_k(q, tr, t, p, values);
-    memcpy(lu, values, sizeof(double) * 15);
-    memset(lu + 15, 0, sizeof(double) * (SLIDER_PENDULUM_LU_SIZE - 15));
+    slider_pendulum_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (slider_pendulum_sparse_factor(lu) == 0) return SLIDER_PENDULUM_OK;
     *dense = 1;
+    slider_pendulum_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 36);
     for (k = 0; k < 15; ++k) a[slider_pendulum_phi_q_rows[k] * 6 + slider_pendulum_phi_q_cols[k]] = values[k];
     return slider_pendulum_dense_factor(a, iwork);
@@ -424,8 +425,12 @@ int slider_pendulum_instant(double t, const double *p, double tol, double *q, do
         }
         for (k = 0; k < 6; ++k) r[k] = -r[k];
         slider_pendulum_solve(work, iwork, dense, r, dq, y);
-        for (k = 0; k < 6; ++k) q[k] += dq[k];
-        step = slider_pendulum_maxabs(dq, 6);
+        step = 0.0;
+        for (k = 0; k < 6; ++k) {
+            const double a = fabs(dq[k]);
+            q[k] += dq[k];
+            step = a > step || a != a ? a : step;
+        }
         slider_pendulum_trig_step(q, dq, tr);
     }
     info[0] = it;
