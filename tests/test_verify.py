@@ -277,3 +277,46 @@ def test_readme_verify_example_gives_the_verdicts_shown(tmp_path, capsys, monkey
     def verdicts(text: str) -> list[str]:
         return [line for line in text.splitlines() if re.match(r"\s+#\d", line) or "entries" in line]
     assert verdicts(out) == verdicts(shown) and len(verdicts(out)) == 3
+
+
+def test_blocks_may_be_claimed_whole_split_or_by_body():
+    text = """
+[claim]
+type = "gear_on_link"
+[[entry]]
+quantity = "Phi_q"
+value = [[0, 0, "-K", 0, 0, 1, 0, 0, "K - 1"]]
+[[entry]]
+quantity = "Phi_r"
+body = "k"
+value = [0, 0]
+[[entry]]
+quantity = "Phi_phi"
+body = "i"
+value = "-K"
+[[entry]]
+quantity = "T_on"
+body = "k"
+value = "(1 - K)*lambda"
+[[entry]]
+quantity = "Phi_q"
+value = { k = [0, 0, "K - 1"] }
+"""
+    report = verify_text(text)
+    assert report.ok and [o.label for o in report.outcomes] == [
+        "Phi_q", "Phi_r, body k", "Phi_phi, body i", "T_on_k", "Phi_q"]
+
+
+def test_mechanism_whole_quantities_are_assembled_in_row_and_body_order():
+    text = """
+[claim]
+mechanism = "planetary"
+[[entry]]
+quantity = "Q_A"
+value = [0, "-9.81*m_sun", 0, 0, "-9.81*m_carrier", "T_load", 0, "-9.81*m_planet", 0, 0, "-9.81*m_pinion", 0]
+[[entry]]
+quantity = "gamma"
+value = [0, 0, 0, 0, "-phid_carrier^2*(r_sun + r_planet)*cos(phi_carrier)",
+         "-phid_carrier^2*(r_sun + r_planet)*sin(phi_carrier)", 0, 0, 0, 0, 0, 0]
+"""
+    assert verify_text(text).ok
