@@ -185,3 +185,12 @@ def test_readme_derive_example_matches_the_derivation():
     actual = [line.rstrip() for line in derive_type("revolute_revolute").text().splitlines()]
     one_line = [line for line in shown.splitlines() if " = " in line and not re.search("[\u239b-\u23a6]", line)]
     assert len(one_line) >= 6 and all(line in actual for line in one_line)
+
+
+def test_driver_symbols_become_f_of_t_and_its_derivatives_for_the_api():
+    from symid.show import with_functions
+
+    f = sp.Function("f", real=True)(s.T)
+    gamma = with_functions(derive_constraint("relative_angle_driver").gamma[0])
+    assert gamma == sp.Derivative(f, (s.T, 2))
+    assert with_functions(s.F_SERIES[0] + s.F_SERIES[1]) == f + sp.Derivative(f, s.T)
