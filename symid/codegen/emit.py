@@ -40,13 +40,40 @@ def _has_word(text: str, word: str) -> bool:
     return re.search(rf"(?<![\w\[.]){word}(?![\w\[])", text) is not None
 
 
-def block(exprs: Sequence[sp.Expr], printer: Callable[[sp.Expr], str], prefix: str = "e") -> Block:
-    """CSE a list of expressions once and print it."""
+def block(exprs: Sequence[sp.Expr], printer: Callable[[sp.Expr], str], prefix: str = "e",
+          offset: int = 0) -> Block:
+    """CSE a list of expressions once and print it; outputs numbered from `offset`."""
     temps, reduced = sp.cse(list(exprs), symbols=sp.numbered_symbols(prefix, real=True), order="none")
     return Block(
         temps=tuple((str(sym), printer(e)) for sym, e in temps),
-        outputs=tuple((k, printer(e)) for k, e in enumerate(reduced)),
+        outputs=tuple((offset + k, printer(e)) for k, e in enumerate(reduced)),
     )
+
+
+# Outputs CSE'd together. Consecutive outputs belong to the same joint or
+# body (rows, Jacobian entries and reactions are laid out instance by
+# instance), so chunks keep nearly all the sharing while CSE, printing and
+# the C compiler work on pieces of bounded size: total cost linear in the
+# mechanism's size instead of superlinear.
+CHUNK = 48
+
+
+def blocks(exprs: Sequence[sp.Expr], printer: Callable[[sp.Expr], str], chunk: int = CHUNK) -> list[Block]:
+    """`block` over consecutive chunks of the outputs."""
+    return [block(exprs[k:k + chunk], printer, offset=k) for k in range(0, len(exprs), chunk)]
+
+
+def chunked(items: Sequence[object], weights: Sequence[int], limit: int = 400) -> list[list[object]]:
+    """Consecutive groups of items whose weights add up to at most `limit` (at least one item each)."""
+    out: list[list[object]] = []
+    total = limit
+    for item, w in zip(items, weights):
+        if total + w > limit:
+            out.append([])
+            total = 0
+        out[-1].append(item)
+        total += w
+    return out
 
 
 def above(plan: Plan) -> dict[int, list[Step]]:

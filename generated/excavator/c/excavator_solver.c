@@ -52,7 +52,7 @@ static void excavator_trig_step(const double *q, const double *dq, double *tr)
     }
 }
 
-static void excavator_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void excavator_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     const double e0 = (1.0/2.0)*p[0];
     const double e1 = e0*tr[1];
@@ -83,6 +83,11 @@ static void excavator_phi_k(const double * q, const double * tr, double t, const
     out[8] = -pow(e15*p[14] + p[13], 2) + pow(-e10 - e16*tr[3] + e17*tr[5] - e9 + (7.0/20.0)*tr[2], 2) + pow(-e11 - e16*tr[2] + e17*tr[4] - 7.0/20.0*tr[3] + (1.0/2.0)*tr[5], 2);
 }
 
+static void excavator_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    excavator_phi_k0(q, tr, t, p, out);
+}
+
 void excavator_phi(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -90,7 +95,7 @@ void excavator_phi(const double * q, double t, const double * p, double *out)
     excavator_phi_k(q, tr, t, p, out);
 }
 
-static void excavator_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void excavator_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)t;
     const double e0 = (1.0/2.0)*p[0];
@@ -170,6 +175,11 @@ static void excavator_phi_q_k(const double * q, const double * tr, double t, con
     out[34] = -e32*e38 + e39*(-e34 - tr[5]);
 }
 
+static void excavator_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    excavator_phi_q_k0(q, tr, t, p, out);
+}
+
 void excavator_phi_q(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -177,7 +187,7 @@ void excavator_phi_q(const double * q, double t, const double * p, double *out)
     excavator_phi_q_k(q, tr, t, p, out);
 }
 
-static void excavator_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void excavator_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
     (void)tr;
@@ -197,6 +207,11 @@ static void excavator_nu_k(const double * q, const double * tr, double t, const 
     out[8] = e4*p[14]*(e3*p[14] + p[13]);
 }
 
+static void excavator_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    excavator_nu_k0(q, tr, t, p, out);
+}
+
 void excavator_nu(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -204,7 +219,7 @@ void excavator_nu(const double * q, double t, const double * p, double *out)
     excavator_nu_k(q, tr, t, p, out);
 }
 
-static void excavator_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void excavator_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     const double e0 = (1.0/2.0)*p[0];
     const double e1 = pow(qd[2], 2);
@@ -284,6 +299,11 @@ static void excavator_gamma_k(const double * q, const double * tr, const double 
     out[8] = e12*e56*tr[3]*tr[4] + 2*e12*e58*q[6]*tr[5] + 2*e12*e58*q[7]*tr[4] + (7.0/10.0)*e12*e58*tr[2]*tr[5] + e12*q[3]*tr[4] + e12*q[7]*tr[5] - e13*e54 - e13*e57 - e13*q[4] - e14*e52 - e14*q[6] + e15*e17*p[14]*(e37*p[14] + p[13]) + (1.0/2.0)*e15*e24*pow(p[14], 2) - e41*e64 - e45 - e46*qd[3]*tr[5] - e47*e64 - e47*qd[4] - e48*qd[6]*tr[3] - e49*e65 - e49*qd[7] - e50*q[3]*tr[2] - e51*e58*tr[4] - e51*q[7] - e52*e53 - e53*e57*e66 - e54*e55 - e55*e57 - e55*e61*e66 + 4*e56*e58*qd[5]*qd[8]*tr[2]*tr[4] + 4*e56*e58*qd[5]*qd[8]*tr[3]*tr[5] + 2*e56*e6*q[3]*tr[3] + 2*e56*e6*q[4]*tr[2] + e56*e6*tr[3]*tr[4] + 4*e56*qd[3]*qd[5]*tr[2] + 4*e56*qd[5]*qd[7]*tr[3] + 2*e56*qd[5]*qd[8]*tr[2]*tr[5] - 2*e57*e60 - e57*e62*q[7] - 4*e57*qd[5]*qd[6] + (7.0/10.0)*e58*e6*tr[2]*tr[5] + 4*e58*qd[4]*qd[8]*tr[5] + (7.0/5.0)*e58*qd[5]*qd[8]*tr[3]*tr[4] + 4*e58*qd[6]*qd[8]*tr[4] - 2*e59*e61 - 2*e59*q[3] + (7.0/10.0)*e6*q[4]*tr[3] + (7.0/10.0)*e6*q[6]*tr[2] - 2*e60*q[4] - 7.0/10.0*e60*tr[3] - e61*e62*q[6] - 4*e63*qd[3]*tr[4] - 4*e65*qd[7] + (7.0/5.0)*qd[3]*qd[5]*tr[3] + 4*qd[3]*qd[6] + (7.0/5.0)*qd[4]*qd[5]*tr[2] + 4*qd[4]*qd[7] + (7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4] + (7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5] - 2*pow(qd[6], 2) + 2*qd[6]*qd[8]*tr[5] - 2*pow(qd[7], 2) + 2*qd[7]*qd[8]*tr[4];
 }
 
+static void excavator_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    excavator_gamma_k0(q, tr, qd, t, p, out);
+}
+
 void excavator_gamma(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[6];
@@ -291,7 +311,7 @@ void excavator_gamma(const double * q, const double * qd, double t, const double
     excavator_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void excavator_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void excavator_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)q;
     (void)qd;
@@ -308,6 +328,11 @@ static void excavator_applied_k(const double * q, const double * tr, const doubl
     out[8] = (3.0/20.0)*e0*p[15]*p[2]*tr[5] - 1.0/2.0*e1*p[2]*tr[4];
 }
 
+static void excavator_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    excavator_applied_k0(q, tr, qd, t, p, out);
+}
+
 void excavator_applied(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[6];
@@ -315,7 +340,7 @@ void excavator_applied(const double * q, const double * qd, double t, const doub
     excavator_applied_k(q, tr, qd, t, p, out);
 }
 
-static void excavator_mass_k(const double * p, double *out)
+static void excavator_mass_k0(const double * p, double *out)
 {
     out[0] = p[4];
     out[1] = p[4];
@@ -328,12 +353,17 @@ static void excavator_mass_k(const double * p, double *out)
     out[8] = (1.0/12.0)*p[6]*(pow(p[2], 2) + pow(p[3], 2));
 }
 
+static void excavator_mass_k(const double * p, double *out)
+{
+    excavator_mass_k0(p, out);
+}
+
 void excavator_mass(const double * p, double *out)
 {
     excavator_mass_k(p, out);
 }
 
-static void excavator_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void excavator_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
 {
     (void)t;
     const double e0 = 2*lam[6];
@@ -390,6 +420,11 @@ static void excavator_reactions_k(const double * q, const double * tr, const dou
     out[35] = 0;
 }
 
+static void excavator_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+{
+    excavator_reactions_k0(q, tr, lam, t, p, out);
+}
+
 void excavator_reactions(const double * q, const double * lam, double t, const double * p, double *out)
 {
     double tr[6];
@@ -397,9 +432,10 @@ void excavator_reactions(const double * q, const double * lam, double t, const d
     excavator_reactions_k(q, tr, lam, t, p, out);
 }
 
-/* Sparse LU in the elimination order fixed at generation time; returns 1
-   where a fixed pivot fails the threshold test for this configuration. */
-static int excavator_sparse_factor(double *lu)
+/* Sparse LU in the elimination order fixed at generation time, in pieces of
+   bounded size; a piece returns 1 where a fixed pivot fails the threshold
+   test for this configuration. */
+static int excavator_sparse_factor0(double *lu)
 {
     double piv, cm;
     piv = lu[18];
@@ -483,9 +519,14 @@ static int excavator_sparse_factor(double *lu)
     return 0;
 }
 
-static void excavator_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static int excavator_sparse_factor(double *lu)
 {
-    memcpy(y, b, sizeof(double) * 9);
+    return excavator_sparse_factor0(lu);
+}
+
+static void excavator_sparse_forward0(const double *lu, double *y)
+{
+    (void)lu;
     y[8] -= lu[33] * y[5];
     y[3] -= lu[8] * y[1];
     y[6] -= lu[21] * y[1];
@@ -504,6 +545,10 @@ static void excavator_sparse_solve(const double *lu, const double *b, double *x,
     y[4] -= lu[13] * y[2];
     y[8] -= lu[31] * y[2];
     y[4] -= lu[14] * y[8];
+}
+
+static void excavator_sparse_back0(const double *lu, const double *y, double *x)
+{
     x[8] = (y[4]) / lu[15];
     x[6] = (y[8] - lu[34] * x[8]) / lu[32];
     x[5] = (y[2]) / lu[7];
@@ -515,7 +560,14 @@ static void excavator_sparse_solve(const double *lu, const double *b, double *x,
     x[7] = (y[5] - lu[16] * x[4] - lu[17] * x[5] - lu[19] * x[8]) / lu[18];
 }
 
-static void excavator_sparse_solve_t(const double *lu, const double *b, double *x)
+static void excavator_sparse_solve(const double *lu, const double *b, double *x, double *y)
+{
+    memcpy(y, b, sizeof(double) * 9);
+    excavator_sparse_forward0(lu, y);
+    excavator_sparse_back0(lu, y, x);
+}
+
+static void excavator_sparse_t_forward0(const double *lu, const double *b, double *x)
 {
     x[5] = (b[7]) / lu[18];
     x[1] = (b[1]) / lu[2];
@@ -526,6 +578,11 @@ static void excavator_sparse_solve_t(const double *lu, const double *b, double *
     x[2] = (b[5] - lu[17] * x[5] - lu[11] * x[3] - lu[28] * x[7]) / lu[7];
     x[8] = (b[6]) / lu[32];
     x[4] = (b[8] - lu[19] * x[5] - lu[34] * x[8]) / lu[15];
+}
+
+static void excavator_sparse_t_back0(const double *lu, double *x)
+{
+    (void)lu;
     x[8] -= lu[14] * x[4];
     x[2] -= lu[13] * x[4];
     x[2] -= lu[31] * x[8];
@@ -544,6 +601,12 @@ static void excavator_sparse_solve_t(const double *lu, const double *b, double *
     x[1] -= lu[21] * x[6];
     x[1] -= lu[24] * x[7];
     x[5] -= lu[33] * x[8];
+}
+
+static void excavator_sparse_solve_t(const double *lu, const double *b, double *x)
+{
+    excavator_sparse_t_forward0(lu, b, x);
+    excavator_sparse_t_back0(lu, x);
 }
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns

@@ -52,7 +52,7 @@ static void four_bar_trig_step(const double *q, const double *dq, double *tr)
     }
 }
 
-static void four_bar_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void four_bar_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     const double e0 = (1.0/2.0)*p[1];
     const double e1 = e0*tr[1];
@@ -76,6 +76,11 @@ static void four_bar_phi_k(const double * q, const double * tr, double t, const 
     out[8] = -p[10]*t + q[2];
 }
 
+static void four_bar_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    four_bar_phi_k0(q, tr, t, p, out);
+}
+
 void four_bar_phi(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -83,7 +88,7 @@ void four_bar_phi(const double * q, double t, const double * p, double *out)
     four_bar_phi_k(q, tr, t, p, out);
 }
 
-static void four_bar_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void four_bar_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
     (void)t;
@@ -123,6 +128,11 @@ static void four_bar_phi_q_k(const double * q, const double * tr, double t, cons
     out[24] = 1;
 }
 
+static void four_bar_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    four_bar_phi_q_k0(q, tr, t, p, out);
+}
+
 void four_bar_phi_q(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -130,7 +140,7 @@ void four_bar_phi_q(const double * q, double t, const double * p, double *out)
     four_bar_phi_q_k(q, tr, t, p, out);
 }
 
-static void four_bar_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void four_bar_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
     (void)tr;
@@ -146,6 +156,11 @@ static void four_bar_nu_k(const double * q, const double * tr, double t, const d
     out[8] = p[10];
 }
 
+static void four_bar_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    four_bar_nu_k0(q, tr, t, p, out);
+}
+
 void four_bar_nu(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -153,7 +168,7 @@ void four_bar_nu(const double * q, double t, const double * p, double *out)
     four_bar_nu_k(q, tr, t, p, out);
 }
 
-static void four_bar_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void four_bar_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)q;
     (void)t;
@@ -177,6 +192,11 @@ static void four_bar_gamma_k(const double * q, const double * tr, const double *
     out[8] = 0;
 }
 
+static void four_bar_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    four_bar_gamma_k0(q, tr, qd, t, p, out);
+}
+
 void four_bar_gamma(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[6];
@@ -184,7 +204,7 @@ void four_bar_gamma(const double * q, const double * qd, double t, const double 
     four_bar_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void four_bar_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void four_bar_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     const double e0 = p[11]*((1.0/2.0)*sin(p[10]*t) + 1);
     const double e1 = (1.0/20.0)*tr[5];
@@ -207,6 +227,11 @@ static void four_bar_applied_k(const double * q, const double * tr, const double
     out[8] = -e3*e9 + (1.0/20.0)*e4*e6*e8*tr[5] - p[12];
 }
 
+static void four_bar_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    four_bar_applied_k0(q, tr, qd, t, p, out);
+}
+
 void four_bar_applied(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[6];
@@ -214,7 +239,7 @@ void four_bar_applied(const double * q, const double * qd, double t, const doubl
     four_bar_applied_k(q, tr, qd, t, p, out);
 }
 
-static void four_bar_mass_k(const double * p, double *out)
+static void four_bar_mass_k0(const double * p, double *out)
 {
     out[0] = p[4];
     out[1] = p[4];
@@ -227,12 +252,17 @@ static void four_bar_mass_k(const double * p, double *out)
     out[8] = (1.0/12.0)*pow(p[3], 2)*p[6];
 }
 
+static void four_bar_mass_k(const double * p, double *out)
+{
+    four_bar_mass_k0(p, out);
+}
+
 void four_bar_mass(const double * p, double *out)
 {
     four_bar_mass_k(p, out);
 }
 
-static void four_bar_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void four_bar_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
 {
     (void)q;
     (void)tr;
@@ -270,6 +300,11 @@ static void four_bar_reactions_k(const double * q, const double * tr, const doub
     out[29] = -lam[8];
 }
 
+static void four_bar_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+{
+    four_bar_reactions_k0(q, tr, lam, t, p, out);
+}
+
 void four_bar_reactions(const double * q, const double * lam, double t, const double * p, double *out)
 {
     double tr[6];
@@ -277,9 +312,10 @@ void four_bar_reactions(const double * q, const double * lam, double t, const do
     four_bar_reactions_k(q, tr, lam, t, p, out);
 }
 
-/* Sparse LU in the elimination order fixed at generation time; returns 1
-   where a fixed pivot fails the threshold test for this configuration. */
-static int four_bar_sparse_factor(double *lu)
+/* Sparse LU in the elimination order fixed at generation time, in pieces of
+   bounded size; a piece returns 1 where a fixed pivot fails the threshold
+   test for this configuration. */
+static int four_bar_sparse_factor0(double *lu)
 {
     double piv, cm;
     piv = lu[24];
@@ -339,9 +375,14 @@ static int four_bar_sparse_factor(double *lu)
     return 0;
 }
 
-static void four_bar_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static int four_bar_sparse_factor(double *lu)
 {
-    memcpy(y, b, sizeof(double) * 9);
+    return four_bar_sparse_factor0(lu);
+}
+
+static void four_bar_sparse_forward0(const double *lu, double *y)
+{
+    (void)lu;
     y[0] -= lu[1] * y[8];
     y[1] -= lu[3] * y[8];
     y[2] -= lu[5] * y[8];
@@ -353,6 +394,10 @@ static void four_bar_sparse_solve(const double *lu, const double *b, double *x, 
     y[4] -= lu[14] * y[6];
     y[5] -= lu[17] * y[4];
     y[7] -= lu[22] * y[5];
+}
+
+static void four_bar_sparse_back0(const double *lu, const double *y, double *x)
+{
     x[8] = (y[7]) / lu[23];
     x[7] = (y[5] - lu[19] * x[8]) / lu[18];
     x[5] = (y[4] - lu[15] * x[8]) / lu[13];
@@ -364,7 +409,14 @@ static void four_bar_sparse_solve(const double *lu, const double *b, double *x, 
     x[2] = (y[8]) / lu[24];
 }
 
-static void four_bar_sparse_solve_t(const double *lu, const double *b, double *x)
+static void four_bar_sparse_solve(const double *lu, const double *b, double *x, double *y)
+{
+    memcpy(y, b, sizeof(double) * 9);
+    four_bar_sparse_forward0(lu, y);
+    four_bar_sparse_back0(lu, y, x);
+}
+
+static void four_bar_sparse_t_forward0(const double *lu, const double *b, double *x)
 {
     x[8] = (b[2]) / lu[24];
     x[0] = (b[0]) / lu[0];
@@ -375,6 +427,11 @@ static void four_bar_sparse_solve_t(const double *lu, const double *b, double *x
     x[4] = (b[5] - lu[7] * x[2] - lu[11] * x[3]) / lu[13];
     x[5] = (b[7]) / lu[18];
     x[7] = (b[8] - lu[21] * x[6] - lu[15] * x[4] - lu[19] * x[5]) / lu[23];
+}
+
+static void four_bar_sparse_t_back0(const double *lu, double *x)
+{
+    (void)lu;
     x[5] -= lu[22] * x[7];
     x[4] -= lu[17] * x[5];
     x[6] -= lu[14] * x[4];
@@ -386,6 +443,12 @@ static void four_bar_sparse_solve_t(const double *lu, const double *b, double *x
     x[8] -= lu[3] * x[1];
     x[8] -= lu[5] * x[2];
     x[8] -= lu[9] * x[3];
+}
+
+static void four_bar_sparse_solve_t(const double *lu, const double *b, double *x)
+{
+    four_bar_sparse_t_forward0(lu, b, x);
+    four_bar_sparse_t_back0(lu, x);
 }
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns

@@ -54,7 +54,7 @@ static void planetary_trig_step(const double *q, const double *dq, double *tr)
     }
 }
 
-static void planetary_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void planetary_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     const double e0 = p[0] + p[1];
     const double e1 = -q[5];
@@ -72,6 +72,11 @@ static void planetary_phi_k(const double * q, const double * tr, double t, const
     out[11] = -p[9]*t + q[11];
 }
 
+static void planetary_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    planetary_phi_k0(q, tr, t, p, out);
+}
+
 void planetary_phi(const double * q, double t, const double * p, double *out)
 {
     double tr[8];
@@ -79,7 +84,7 @@ void planetary_phi(const double * q, double t, const double * p, double *out)
     planetary_phi_k(q, tr, t, p, out);
 }
 
-static void planetary_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void planetary_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
     (void)t;
@@ -108,6 +113,11 @@ static void planetary_phi_q_k(const double * q, const double * tr, double t, con
     out[19] = 1;
 }
 
+static void planetary_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    planetary_phi_q_k0(q, tr, t, p, out);
+}
+
 void planetary_phi_q(const double * q, double t, const double * p, double *out)
 {
     double tr[8];
@@ -115,7 +125,7 @@ void planetary_phi_q(const double * q, double t, const double * p, double *out)
     planetary_phi_q_k(q, tr, t, p, out);
 }
 
-static void planetary_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void planetary_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
     (void)tr;
@@ -134,6 +144,11 @@ static void planetary_nu_k(const double * q, const double * tr, double t, const 
     out[11] = p[9];
 }
 
+static void planetary_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    planetary_nu_k0(q, tr, t, p, out);
+}
+
 void planetary_nu(const double * q, double t, const double * p, double *out)
 {
     double tr[8];
@@ -141,7 +156,7 @@ void planetary_nu(const double * q, double t, const double * p, double *out)
     planetary_nu_k(q, tr, t, p, out);
 }
 
-static void planetary_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void planetary_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)q;
     (void)t;
@@ -160,6 +175,11 @@ static void planetary_gamma_k(const double * q, const double * tr, const double 
     out[11] = 0;
 }
 
+static void planetary_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    planetary_gamma_k0(q, tr, qd, t, p, out);
+}
+
 void planetary_gamma(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[8];
@@ -167,7 +187,7 @@ void planetary_gamma(const double * q, const double * qd, double t, const double
     planetary_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void planetary_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void planetary_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)q;
     (void)tr;
@@ -187,6 +207,11 @@ static void planetary_applied_k(const double * q, const double * tr, const doubl
     out[11] = 0;
 }
 
+static void planetary_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    planetary_applied_k0(q, tr, qd, t, p, out);
+}
+
 void planetary_applied(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[8];
@@ -194,7 +219,7 @@ void planetary_applied(const double * q, const double * qd, double t, const doub
     planetary_applied_k(q, tr, qd, t, p, out);
 }
 
-static void planetary_mass_k(const double * p, double *out)
+static void planetary_mass_k0(const double * p, double *out)
 {
     out[0] = p[4];
     out[1] = p[4];
@@ -210,12 +235,17 @@ static void planetary_mass_k(const double * p, double *out)
     out[11] = (1.0/2.0)*pow(p[3], 2)*p[6];
 }
 
+static void planetary_mass_k(const double * p, double *out)
+{
+    planetary_mass_k0(p, out);
+}
+
 void planetary_mass(const double * p, double *out)
 {
     planetary_mass_k(p, out);
 }
 
-static void planetary_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void planetary_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
 {
     (void)q;
     (void)tr;
@@ -271,9 +301,23 @@ static void planetary_reactions_k(const double * q, const double * tr, const dou
     out[45] = 0;
     out[46] = 0;
     out[47] = -lam[10];
+}
+
+static void planetary_reactions_k1(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+{
+    (void)q;
+    (void)tr;
+    (void)t;
+    (void)p;
     out[48] = 0;
     out[49] = 0;
     out[50] = -lam[11];
+}
+
+static void planetary_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+{
+    planetary_reactions_k0(q, tr, lam, t, p, out);
+    planetary_reactions_k1(q, tr, lam, t, p, out);
 }
 
 void planetary_reactions(const double * q, const double * lam, double t, const double * p, double *out)
@@ -283,9 +327,10 @@ void planetary_reactions(const double * q, const double * lam, double t, const d
     planetary_reactions_k(q, tr, lam, t, p, out);
 }
 
-/* Sparse LU in the elimination order fixed at generation time; returns 1
-   where a fixed pivot fails the threshold test for this configuration. */
-static int planetary_sparse_factor(double *lu)
+/* Sparse LU in the elimination order fixed at generation time, in pieces of
+   bounded size; a piece returns 1 where a fixed pivot fails the threshold
+   test for this configuration. */
+static int planetary_sparse_factor0(double *lu)
 {
     double piv, cm;
     piv = lu[0];
@@ -338,14 +383,23 @@ static int planetary_sparse_factor(double *lu)
     return 0;
 }
 
-static void planetary_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static int planetary_sparse_factor(double *lu)
 {
-    memcpy(y, b, sizeof(double) * 12);
+    return planetary_sparse_factor0(lu);
+}
+
+static void planetary_sparse_forward0(const double *lu, double *y)
+{
+    (void)lu;
     y[4] -= lu[4] * y[2];
     y[5] -= lu[7] * y[3];
     y[10] -= lu[18] * y[11];
     y[6] -= lu[10] * y[10];
     y[7] -= lu[13] * y[6];
+}
+
+static void planetary_sparse_back0(const double *lu, const double *y, double *x)
+{
     x[8] = (y[7]) / lu[14];
     x[5] = (y[6] - lu[12] * x[8]) / lu[11];
     x[2] = (y[10]) / lu[17];
@@ -360,7 +414,14 @@ static void planetary_sparse_solve(const double *lu, const double *b, double *x,
     x[0] = (y[0]) / lu[0];
 }
 
-static void planetary_sparse_solve_t(const double *lu, const double *b, double *x)
+static void planetary_sparse_solve(const double *lu, const double *b, double *x, double *y)
+{
+    memcpy(y, b, sizeof(double) * 12);
+    planetary_sparse_forward0(lu, y);
+    planetary_sparse_back0(lu, y, x);
+}
+
+static void planetary_sparse_t_forward0(const double *lu, const double *b, double *x)
 {
     x[0] = (b[0]) / lu[0];
     x[1] = (b[1]) / lu[1];
@@ -374,11 +435,22 @@ static void planetary_sparse_solve_t(const double *lu, const double *b, double *
     x[10] = (b[2]) / lu[17];
     x[6] = (b[5] - lu[5] * x[4] - lu[8] * x[5]) / lu[11];
     x[7] = (b[8] - lu[12] * x[6]) / lu[14];
+}
+
+static void planetary_sparse_t_back0(const double *lu, double *x)
+{
+    (void)lu;
     x[6] -= lu[13] * x[7];
     x[10] -= lu[10] * x[6];
     x[11] -= lu[18] * x[10];
     x[3] -= lu[7] * x[5];
     x[2] -= lu[4] * x[4];
+}
+
+static void planetary_sparse_solve_t(const double *lu, const double *b, double *x)
+{
+    planetary_sparse_t_forward0(lu, b, x);
+    planetary_sparse_t_back0(lu, x);
 }
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns

@@ -52,7 +52,7 @@ static void quick_return_trig_step(const double *q, const double *dq, double *tr
     }
 }
 
-static void quick_return_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void quick_return_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     const double e0 = -q[3];
     const double e1 = (1.0/2.0)*p[2];
@@ -70,6 +70,11 @@ static void quick_return_phi_k(const double * q, const double * tr, double t, co
     out[8] = -p[12]*t + q[2];
 }
 
+static void quick_return_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    quick_return_phi_k0(q, tr, t, p, out);
+}
+
 void quick_return_phi(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -77,7 +82,7 @@ void quick_return_phi(const double * q, double t, const double * p, double *out)
     quick_return_phi_k(q, tr, t, p, out);
 }
 
-static void quick_return_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void quick_return_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)t;
     const double e0 = p[2]*tr[2];
@@ -110,6 +115,11 @@ static void quick_return_phi_q_k(const double * q, const double * tr, double t, 
     out[19] = 1;
 }
 
+static void quick_return_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    quick_return_phi_q_k0(q, tr, t, p, out);
+}
+
 void quick_return_phi_q(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -117,7 +127,7 @@ void quick_return_phi_q(const double * q, double t, const double * p, double *ou
     quick_return_phi_q_k(q, tr, t, p, out);
 }
 
-static void quick_return_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void quick_return_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
     (void)tr;
@@ -133,6 +143,11 @@ static void quick_return_nu_k(const double * q, const double * tr, double t, con
     out[8] = p[12];
 }
 
+static void quick_return_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    quick_return_nu_k0(q, tr, t, p, out);
+}
+
 void quick_return_nu(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -140,7 +155,7 @@ void quick_return_nu(const double * q, double t, const double * p, double *out)
     quick_return_nu_k(q, tr, t, p, out);
 }
 
-static void quick_return_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void quick_return_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)t;
     const double e0 = pow(qd[5], 2);
@@ -164,6 +179,11 @@ static void quick_return_gamma_k(const double * q, const double * tr, const doub
     out[8] = 0;
 }
 
+static void quick_return_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    quick_return_gamma_k0(q, tr, qd, t, p, out);
+}
+
 void quick_return_gamma(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[6];
@@ -171,7 +191,7 @@ void quick_return_gamma(const double * q, const double * qd, double t, const dou
     quick_return_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void quick_return_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void quick_return_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)q;
     (void)tr;
@@ -187,6 +207,11 @@ static void quick_return_applied_k(const double * q, const double * tr, const do
     out[8] = 0;
 }
 
+static void quick_return_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    quick_return_applied_k0(q, tr, qd, t, p, out);
+}
+
 void quick_return_applied(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[6];
@@ -194,7 +219,7 @@ void quick_return_applied(const double * q, const double * qd, double t, const d
     quick_return_applied_k(q, tr, qd, t, p, out);
 }
 
-static void quick_return_mass_k(const double * p, double *out)
+static void quick_return_mass_k0(const double * p, double *out)
 {
     out[0] = p[5];
     out[1] = p[5];
@@ -207,12 +232,17 @@ static void quick_return_mass_k(const double * p, double *out)
     out[8] = (1.0/12.0)*p[8]*(pow(p[10], 2) + pow(p[9], 2));
 }
 
+static void quick_return_mass_k(const double * p, double *out)
+{
+    quick_return_mass_k0(p, out);
+}
+
 void quick_return_mass(const double * p, double *out)
 {
     quick_return_mass_k(p, out);
 }
 
-static void quick_return_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void quick_return_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
 {
     (void)t;
     const double e0 = lam[4]*tr[2];
@@ -259,6 +289,11 @@ static void quick_return_reactions_k(const double * q, const double * tr, const 
     out[35] = -lam[8];
 }
 
+static void quick_return_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+{
+    quick_return_reactions_k0(q, tr, lam, t, p, out);
+}
+
 void quick_return_reactions(const double * q, const double * lam, double t, const double * p, double *out)
 {
     double tr[6];
@@ -266,9 +301,10 @@ void quick_return_reactions(const double * q, const double * lam, double t, cons
     quick_return_reactions_k(q, tr, lam, t, p, out);
 }
 
-/* Sparse LU in the elimination order fixed at generation time; returns 1
-   where a fixed pivot fails the threshold test for this configuration. */
-static int quick_return_sparse_factor(double *lu)
+/* Sparse LU in the elimination order fixed at generation time, in pieces of
+   bounded size; a piece returns 1 where a fixed pivot fails the threshold
+   test for this configuration. */
+static int quick_return_sparse_factor0(double *lu)
 {
     double piv, cm;
     piv = lu[0];
@@ -313,14 +349,23 @@ static int quick_return_sparse_factor(double *lu)
     return 0;
 }
 
-static void quick_return_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static int quick_return_sparse_factor(double *lu)
 {
-    memcpy(y, b, sizeof(double) * 9);
+    return quick_return_sparse_factor0(lu);
+}
+
+static void quick_return_sparse_forward0(const double *lu, double *y)
+{
+    (void)lu;
     y[4] -= lu[6] * y[0];
     y[4] -= lu[7] * y[1];
     y[4] -= lu[8] * y[8];
     y[4] -= lu[9] * y[2];
     y[4] -= lu[10] * y[3];
+}
+
+static void quick_return_sparse_back0(const double *lu, const double *y, double *x)
+{
     x[5] = (y[4]) / lu[11];
     x[4] = (y[3] - lu[5] * x[5]) / lu[4];
     x[3] = (y[2] - lu[3] * x[5]) / lu[2];
@@ -332,7 +377,14 @@ static void quick_return_sparse_solve(const double *lu, const double *b, double 
     x[0] = (y[0]) / lu[0];
 }
 
-static void quick_return_sparse_solve_t(const double *lu, const double *b, double *x)
+static void quick_return_sparse_solve(const double *lu, const double *b, double *x, double *y)
+{
+    memcpy(y, b, sizeof(double) * 9);
+    quick_return_sparse_forward0(lu, y);
+    quick_return_sparse_back0(lu, y, x);
+}
+
+static void quick_return_sparse_t_forward0(const double *lu, const double *b, double *x)
 {
     x[0] = (b[0]) / lu[0];
     x[1] = (b[1]) / lu[1];
@@ -343,11 +395,22 @@ static void quick_return_sparse_solve_t(const double *lu, const double *b, doubl
     x[2] = (b[3] - lu[12] * x[5]) / lu[2];
     x[3] = (b[4] - lu[13] * x[5]) / lu[4];
     x[4] = (b[5] - lu[14] * x[5] - lu[3] * x[2] - lu[5] * x[3]) / lu[11];
+}
+
+static void quick_return_sparse_t_back0(const double *lu, double *x)
+{
+    (void)lu;
     x[3] -= lu[10] * x[4];
     x[2] -= lu[9] * x[4];
     x[8] -= lu[8] * x[4];
     x[1] -= lu[7] * x[4];
     x[0] -= lu[6] * x[4];
+}
+
+static void quick_return_sparse_solve_t(const double *lu, const double *b, double *x)
+{
+    quick_return_sparse_t_forward0(lu, b, x);
+    quick_return_sparse_t_back0(lu, x);
 }
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns

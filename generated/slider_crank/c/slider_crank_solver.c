@@ -52,7 +52,7 @@ static void slider_crank_trig_step(const double *q, const double *dq, double *tr
     }
 }
 
-static void slider_crank_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_crank_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     const double e0 = (1.0/2.0)*p[0];
     const double e1 = e0*tr[1];
@@ -71,6 +71,11 @@ static void slider_crank_phi_k(const double * q, const double * tr, double t, co
     out[8] = -p[8]*t + q[2];
 }
 
+static void slider_crank_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    slider_crank_phi_k0(q, tr, t, p, out);
+}
+
 void slider_crank_phi(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -78,7 +83,7 @@ void slider_crank_phi(const double * q, double t, const double * p, double *out)
     slider_crank_phi_k(q, tr, t, p, out);
 }
 
-static void slider_crank_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_crank_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
     (void)t;
@@ -111,6 +116,11 @@ static void slider_crank_phi_q_k(const double * q, const double * tr, double t, 
     out[20] = 1;
 }
 
+static void slider_crank_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    slider_crank_phi_q_k0(q, tr, t, p, out);
+}
+
 void slider_crank_phi_q(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -118,7 +128,7 @@ void slider_crank_phi_q(const double * q, double t, const double * p, double *ou
     slider_crank_phi_q_k(q, tr, t, p, out);
 }
 
-static void slider_crank_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_crank_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
     (void)tr;
@@ -134,6 +144,11 @@ static void slider_crank_nu_k(const double * q, const double * tr, double t, con
     out[8] = p[8];
 }
 
+static void slider_crank_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    slider_crank_nu_k0(q, tr, t, p, out);
+}
+
 void slider_crank_nu(const double * q, double t, const double * p, double *out)
 {
     double tr[6];
@@ -141,7 +156,7 @@ void slider_crank_nu(const double * q, double t, const double * p, double *out)
     slider_crank_nu_k(q, tr, t, p, out);
 }
 
-static void slider_crank_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_crank_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)q;
     (void)t;
@@ -162,6 +177,11 @@ static void slider_crank_gamma_k(const double * q, const double * tr, const doub
     out[8] = 0;
 }
 
+static void slider_crank_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    slider_crank_gamma_k0(q, tr, qd, t, p, out);
+}
+
 void slider_crank_gamma(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[6];
@@ -169,7 +189,7 @@ void slider_crank_gamma(const double * q, const double * qd, double t, const dou
     slider_crank_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void slider_crank_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_crank_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)q;
     (void)tr;
@@ -185,6 +205,11 @@ static void slider_crank_applied_k(const double * q, const double * tr, const do
     out[8] = 0;
 }
 
+static void slider_crank_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    slider_crank_applied_k0(q, tr, qd, t, p, out);
+}
+
 void slider_crank_applied(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[6];
@@ -192,7 +217,7 @@ void slider_crank_applied(const double * q, const double * qd, double t, const d
     slider_crank_applied_k(q, tr, qd, t, p, out);
 }
 
-static void slider_crank_mass_k(const double * p, double *out)
+static void slider_crank_mass_k0(const double * p, double *out)
 {
     out[0] = p[2];
     out[1] = p[2];
@@ -205,12 +230,17 @@ static void slider_crank_mass_k(const double * p, double *out)
     out[8] = (1.0/12.0)*p[4]*(pow(p[5], 2) + pow(p[6], 2));
 }
 
+static void slider_crank_mass_k(const double * p, double *out)
+{
+    slider_crank_mass_k0(p, out);
+}
+
 void slider_crank_mass(const double * p, double *out)
 {
     slider_crank_mass_k(p, out);
 }
 
-static void slider_crank_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void slider_crank_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
 {
     (void)tr;
     (void)t;
@@ -247,6 +277,11 @@ static void slider_crank_reactions_k(const double * q, const double * tr, const 
     out[29] = -lam[8];
 }
 
+static void slider_crank_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+{
+    slider_crank_reactions_k0(q, tr, lam, t, p, out);
+}
+
 void slider_crank_reactions(const double * q, const double * lam, double t, const double * p, double *out)
 {
     double tr[6];
@@ -254,9 +289,10 @@ void slider_crank_reactions(const double * q, const double * lam, double t, cons
     slider_crank_reactions_k(q, tr, lam, t, p, out);
 }
 
-/* Sparse LU in the elimination order fixed at generation time; returns 1
-   where a fixed pivot fails the threshold test for this configuration. */
-static int slider_crank_sparse_factor(double *lu)
+/* Sparse LU in the elimination order fixed at generation time, in pieces of
+   bounded size; a piece returns 1 where a fixed pivot fails the threshold
+   test for this configuration. */
+static int slider_crank_sparse_factor0(double *lu)
 {
     double piv, cm;
     piv = lu[14];
@@ -300,14 +336,23 @@ static int slider_crank_sparse_factor(double *lu)
     return 0;
 }
 
-static void slider_crank_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static int slider_crank_sparse_factor(double *lu)
 {
-    memcpy(y, b, sizeof(double) * 9);
+    return slider_crank_sparse_factor0(lu);
+}
+
+static void slider_crank_sparse_forward0(const double *lu, double *y)
+{
+    (void)lu;
     y[5] -= lu[17] * y[6];
     y[1] -= lu[3] * y[8];
     y[3] -= lu[9] * y[8];
     y[3] -= lu[8] * y[1];
     y[5] -= lu[15] * y[3];
+}
+
+static void slider_crank_sparse_back0(const double *lu, const double *y, double *x)
+{
     x[5] = (y[5]) / lu[16];
     x[4] = (y[3] - lu[11] * x[5]) / lu[10];
     x[1] = (y[1]) / lu[2];
@@ -319,7 +364,14 @@ static void slider_crank_sparse_solve(const double *lu, const double *b, double 
     x[6] = (y[4] - lu[12] * x[3] - lu[13] * x[5]) / lu[14];
 }
 
-static void slider_crank_sparse_solve_t(const double *lu, const double *b, double *x)
+static void slider_crank_sparse_solve(const double *lu, const double *b, double *x, double *y)
+{
+    memcpy(y, b, sizeof(double) * 9);
+    slider_crank_sparse_forward0(lu, y);
+    slider_crank_sparse_back0(lu, y, x);
+}
+
+static void slider_crank_sparse_t_forward0(const double *lu, const double *b, double *x)
 {
     x[4] = (b[6]) / lu[14];
     x[2] = (b[3] - lu[12] * x[4]) / lu[6];
@@ -330,11 +382,22 @@ static void slider_crank_sparse_solve_t(const double *lu, const double *b, doubl
     x[1] = (b[1]) / lu[2];
     x[3] = (b[4]) / lu[10];
     x[5] = (b[5] - lu[13] * x[4] - lu[7] * x[2] - lu[11] * x[3]) / lu[16];
+}
+
+static void slider_crank_sparse_t_back0(const double *lu, double *x)
+{
+    (void)lu;
     x[3] -= lu[15] * x[5];
     x[1] -= lu[8] * x[3];
     x[8] -= lu[3] * x[1];
     x[8] -= lu[9] * x[3];
     x[6] -= lu[17] * x[5];
+}
+
+static void slider_crank_sparse_solve_t(const double *lu, const double *b, double *x)
+{
+    slider_crank_sparse_t_forward0(lu, b, x);
+    slider_crank_sparse_t_back0(lu, x);
 }
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns

@@ -50,7 +50,7 @@ static void slider_pendulum_trig_step(const double *q, const double *dq, double 
     }
 }
 
-static void slider_pendulum_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_pendulum_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     const double e0 = sin(p[0]);
     const double e1 = cos(p[0]);
@@ -65,6 +65,11 @@ static void slider_pendulum_phi_k(const double * q, const double * tr, double t,
     out[5] = -p[3]*sin(e2*p[4]) - q[2] + q[5] + (1.0/2.0)*3.141592653589793;
 }
 
+static void slider_pendulum_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    slider_pendulum_phi_k0(q, tr, t, p, out);
+}
+
 void slider_pendulum_phi(const double * q, double t, const double * p, double *out)
 {
     double tr[4];
@@ -72,7 +77,7 @@ void slider_pendulum_phi(const double * q, double t, const double * p, double *o
     slider_pendulum_phi_k(q, tr, t, p, out);
 }
 
-static void slider_pendulum_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_pendulum_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
     (void)t;
@@ -97,6 +102,11 @@ static void slider_pendulum_phi_q_k(const double * q, const double * tr, double 
     out[14] = 1;
 }
 
+static void slider_pendulum_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    slider_pendulum_phi_q_k0(q, tr, t, p, out);
+}
+
 void slider_pendulum_phi_q(const double * q, double t, const double * p, double *out)
 {
     double tr[4];
@@ -104,7 +114,7 @@ void slider_pendulum_phi_q(const double * q, double t, const double * p, double 
     slider_pendulum_phi_q_k(q, tr, t, p, out);
 }
 
-static void slider_pendulum_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_pendulum_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
 {
     (void)q;
     (void)tr;
@@ -118,6 +128,11 @@ static void slider_pendulum_nu_k(const double * q, const double * tr, double t, 
     out[5] = e0*p[3]*p[4]*cos(e1*p[4]);
 }
 
+static void slider_pendulum_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+{
+    slider_pendulum_nu_k0(q, tr, t, p, out);
+}
+
 void slider_pendulum_nu(const double * q, double t, const double * p, double *out)
 {
     double tr[4];
@@ -125,7 +140,7 @@ void slider_pendulum_nu(const double * q, double t, const double * p, double *ou
     slider_pendulum_nu_k(q, tr, t, p, out);
 }
 
-static void slider_pendulum_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_pendulum_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)q;
     const double e0 = pow(qd[2], 2);
@@ -141,6 +156,11 @@ static void slider_pendulum_gamma_k(const double * q, const double * tr, const d
     out[5] = -e3*p[3]*pow(p[4], 2)*sin(e2*p[4]);
 }
 
+static void slider_pendulum_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    slider_pendulum_gamma_k0(q, tr, qd, t, p, out);
+}
+
 void slider_pendulum_gamma(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[4];
@@ -148,7 +168,7 @@ void slider_pendulum_gamma(const double * q, const double * qd, double t, const 
     slider_pendulum_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void slider_pendulum_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_pendulum_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     (void)tr;
     (void)t;
@@ -161,6 +181,11 @@ static void slider_pendulum_applied_k(const double * q, const double * tr, const
     out[5] = -e0;
 }
 
+static void slider_pendulum_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+{
+    slider_pendulum_applied_k0(q, tr, qd, t, p, out);
+}
+
 void slider_pendulum_applied(const double * q, const double * qd, double t, const double * p, double *out)
 {
     double tr[4];
@@ -168,7 +193,7 @@ void slider_pendulum_applied(const double * q, const double * qd, double t, cons
     slider_pendulum_applied_k(q, tr, qd, t, p, out);
 }
 
-static void slider_pendulum_mass_k(const double * p, double *out)
+static void slider_pendulum_mass_k0(const double * p, double *out)
 {
     out[0] = p[5];
     out[1] = p[5];
@@ -178,12 +203,17 @@ static void slider_pendulum_mass_k(const double * p, double *out)
     out[5] = (1.0/12.0)*p[10]*pow(p[9], 2);
 }
 
+static void slider_pendulum_mass_k(const double * p, double *out)
+{
+    slider_pendulum_mass_k0(p, out);
+}
+
 void slider_pendulum_mass(const double * p, double *out)
 {
     slider_pendulum_mass_k(p, out);
 }
 
-static void slider_pendulum_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void slider_pendulum_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
 {
     (void)t;
     const double e0 = cos(p[0]);
@@ -229,6 +259,11 @@ static void slider_pendulum_reactions_k(const double * q, const double * tr, con
     out[29] = -lam[5];
 }
 
+static void slider_pendulum_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+{
+    slider_pendulum_reactions_k0(q, tr, lam, t, p, out);
+}
+
 void slider_pendulum_reactions(const double * q, const double * lam, double t, const double * p, double *out)
 {
     double tr[4];
@@ -236,9 +271,10 @@ void slider_pendulum_reactions(const double * q, const double * lam, double t, c
     slider_pendulum_reactions_k(q, tr, lam, t, p, out);
 }
 
-/* Sparse LU in the elimination order fixed at generation time; returns 1
-   where a fixed pivot fails the threshold test for this configuration. */
-static int slider_pendulum_sparse_factor(double *lu)
+/* Sparse LU in the elimination order fixed at generation time, in pieces of
+   bounded size; a piece returns 1 where a fixed pivot fails the threshold
+   test for this configuration. */
+static int slider_pendulum_sparse_factor0(double *lu)
 {
     double piv, cm;
     piv = lu[7];
@@ -265,10 +301,19 @@ static int slider_pendulum_sparse_factor(double *lu)
     return 0;
 }
 
-static void slider_pendulum_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static int slider_pendulum_sparse_factor(double *lu)
 {
-    memcpy(y, b, sizeof(double) * 6);
+    return slider_pendulum_sparse_factor0(lu);
+}
+
+static void slider_pendulum_sparse_forward0(const double *lu, double *y)
+{
+    (void)lu;
     y[2] -= lu[4] * y[1];
+}
+
+static void slider_pendulum_sparse_back0(const double *lu, const double *y, double *x)
+{
     x[0] = (y[2]) / lu[3];
     x[1] = (y[1] - lu[1] * x[0]) / lu[2];
     x[2] = (y[0]) / lu[0];
@@ -277,7 +322,14 @@ static void slider_pendulum_sparse_solve(const double *lu, const double *b, doub
     x[3] = (y[3] - lu[5] * x[0] - lu[6] * x[2] - lu[8] * x[5]) / lu[7];
 }
 
-static void slider_pendulum_sparse_solve_t(const double *lu, const double *b, double *x)
+static void slider_pendulum_sparse_solve(const double *lu, const double *b, double *x, double *y)
+{
+    memcpy(y, b, sizeof(double) * 6);
+    slider_pendulum_sparse_forward0(lu, y);
+    slider_pendulum_sparse_back0(lu, y, x);
+}
+
+static void slider_pendulum_sparse_t_forward0(const double *lu, const double *b, double *x)
 {
     x[3] = (b[3]) / lu[7];
     x[4] = (b[4]) / lu[11];
@@ -285,7 +337,18 @@ static void slider_pendulum_sparse_solve_t(const double *lu, const double *b, do
     x[0] = (b[2] - lu[6] * x[3] - lu[10] * x[4] - lu[13] * x[5]) / lu[0];
     x[1] = (b[1] - lu[9] * x[4]) / lu[2];
     x[2] = (b[0] - lu[5] * x[3] - lu[1] * x[1]) / lu[3];
+}
+
+static void slider_pendulum_sparse_t_back0(const double *lu, double *x)
+{
+    (void)lu;
     x[1] -= lu[4] * x[2];
+}
+
+static void slider_pendulum_sparse_solve_t(const double *lu, const double *b, double *x)
+{
+    slider_pendulum_sparse_t_forward0(lu, b, x);
+    slider_pendulum_sparse_t_back0(lu, x);
 }
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns

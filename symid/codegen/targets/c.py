@@ -8,7 +8,7 @@ from typing import Any
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
-from symid.codegen.emit import Block, above, block
+from symid.codegen.emit import Block, above, blocks, chunked
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD
@@ -53,13 +53,15 @@ def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
     """One generated function: a kernel taking the angles' sines and cosines
     precomputed (`tr`), and the public signature without them."""
     with_trig = any(a == "q" for _, a in args)
-    code: Block = block([e.xreplace(trig) for e in exprs] if with_trig else list(exprs), ccode)
+    codes: list[Block] = blocks([e.xreplace(trig) for e in exprs] if with_trig else list(exprs), ccode)
     kernel_args = args[:1] + [("const double *", "tr")] + args[1:] if with_trig else args
-    unused = [a for _, a in kernel_args if not code.uses(a)]
+
     def sig(items: list[tuple[str, str]]) -> str:
         return ", ".join([f"{ctype} {a}" for ctype, a in items] + ["double *out"])
-    return {"name": name, "signature": sig(kernel_args), "public_signature": sig(args), "unused": unused,
-            "block": code, "trig": with_trig, "call": ", ".join([a for _, a in kernel_args] + ["out"])}
+
+    chunks = [{"block": code, "unused": [a for _, a in kernel_args if not code.uses(a)]} for code in codes]
+    return {"name": name, "signature": sig(kernel_args), "public_signature": sig(args), "chunks": chunks,
+            "trig": with_trig, "call": ", ".join([a for _, a in kernel_args] + ["out"])}
 
 
 def _steps(model: CodeModel) -> list[dict[str, Any]]:
@@ -78,6 +80,24 @@ def _steps(model: CodeModel) -> list[dict[str, Any]]:
             "above": [(prev.row, slots[(prev.row, st.col)]) for prev in up.get(st.col, [])],
         })
     return out
+
+
+def _step_chunks(steps: list[dict[str, Any]]) -> dict[str, Any]:
+    """The elimination steps grouped into functions of bounded size, for each
+    of the five straight-line passes (factor; solve forward and back;
+    transposed solve forward and back)."""
+    def weight(key: str) -> list[int]:
+        return [1 + len(st[key]) + sum(len(m["updates"]) for m in st.get("mults", [])) if key == "mults"
+                else 1 + len(st[key]) for st in steps]
+
+    back = list(reversed(steps))
+    return {
+        "factor_chunks": chunked(steps, weight("mults")),
+        "forward_chunks": chunked(steps, weight("below")),
+        "back_chunks": chunked(back, [1 + len(st["right"]) for st in back]),
+        "t_forward_chunks": chunked(steps, weight("above")),
+        "t_back_chunks": chunked(back, [1 + len(st["below"]) for st in back]),
+    }
 
 
 def context(model: CodeModel) -> dict[str, Any]:
@@ -117,7 +137,7 @@ def context(model: CodeModel) -> dict[str, Any]:
         "work": len(f.jac) + model.plan.size + ng * ng + 10 * stride, "stride": stride,
         "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
-        "functions": functions, "steps": _steps(model), "threshold": repr(THRESHOLD),
+        "functions": functions, "threshold": repr(THRESHOLD), **_step_chunks(_steps(model)),
         "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "nb": ng // 3, "singular": model.plan.singular, "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
