@@ -9,4 +9,5 @@ MODULES: tuple[str, ...] = (
     "symid.commands.generate",
     "symid.commands.derive",
     "symid.commands.verify",
+    "symid.commands.bench",
 )
