@@ -1,0 +1,1 @@
+"""symid's benchmark: symid's backends against hand-written baselines (see run.py)."""
