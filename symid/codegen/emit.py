@@ -63,6 +63,29 @@ def blocks(exprs: Sequence[sp.Expr], printer: Callable[[sp.Expr], str], chunk: i
     return [block(exprs[k:k + chunk], printer, offset=k) for k in range(0, len(exprs), chunk)]
 
 
+@dataclass(frozen=True)
+class Reduced:
+    """One chunk after CSE, before printing: print it with any printer."""
+
+    temps: tuple[tuple[sp.Symbol, sp.Expr], ...]
+    outputs: tuple[sp.Expr, ...]
+    offset: int
+
+    def printed(self, printer: Callable[[sp.Expr], str]) -> Block:
+        return Block(tuple((str(s), printer(e)) for s, e in self.temps),
+                     tuple((self.offset + k, printer(e)) for k, e in enumerate(self.outputs)))
+
+
+def reduce(exprs: Sequence[sp.Expr], chunk: int = CHUNK) -> list[Reduced]:
+    """CSE consecutive chunks once, for printing in several dialects."""
+    out = []
+    for k in range(0, len(exprs), chunk):
+        temps, reduced = sp.cse(list(exprs[k:k + chunk]), symbols=sp.numbered_symbols("e", real=True),
+                                order="none")
+        out.append(Reduced(tuple(temps), tuple(reduced), k))
+    return out
+
+
 def chunked(items: Sequence[object], weights: Sequence[int], limit: int = 400) -> list[list[object]]:
     """Consecutive groups of items whose weights add up to at most `limit` (at least one item each)."""
     out: list[list[object]] = []

@@ -722,17 +722,16 @@ int excavator_instant(double t, const double *p, double tol, double *q, double *
 {
     double *r = EXCAVATOR_VEC(work, 0), *dq = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
     double *b = EXCAVATOR_VEC(work, 3), *tr = EXCAVATOR_VEC(work, 9);
-    double step = INFINITY, lim, qmag;
+    double step = INFINITY, lim, qmag, rmax;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
     excavator_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = EXCAVATOR_MAX(1.0, excavator_maxabs(q, 9));
     lim = EXCAVATOR_MAX(tol, 8.0 * EXCAVATOR_EPS * qmag);
+    excavator_phi_k(q, tr, t, p, r);
+    rmax = excavator_maxabs(r, 9);
     for (it = 0;; ++it) {
-        double rmax;
-        excavator_phi_k(q, tr, t, p, r);
-        rmax = excavator_maxabs(r, 9);
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
@@ -753,6 +752,15 @@ int excavator_instant(double t, const double *p, double tol, double *q, double *
             step = a > step || a != a ? a : step;
         }
         excavator_trig_step(q, dq, tr);
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        excavator_phi_k(q, tr, t, p, r);
+        rmax = excavator_maxabs(r, 9);
     }
     info[0] = it;
     if (!converged) return EXCAVATOR_NOT_CONVERGED;

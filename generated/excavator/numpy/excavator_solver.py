@@ -2,10 +2,15 @@
 # Do not edit: regenerate with `symid generate` instead.
 """Inverse-dynamics solver of the mechanism 'excavator' (needs only numpy).
 
-Every function but `instant` and `trajectory` is vectorized: q, qd of shape
-(NG,) or (NG, N) and t of shape () or (N,) give results with a trailing N.
+The public functions phi, phi_q_values, phi_q, nu, gamma, applied, mass, reactions and
+`outputs` are vectorized: q, qd of shape (NG,) or (NG, N) and t of shape ()
+or (N,) give results with a trailing N. `instant` solves one instant (Newton,
+then the outputs) with scalar code and a sparse LU whose pivot order was
+fixed at generation time; `trajectory` runs a whole time grid with it.
 Parameters p (size NP), in this order: L_boom, L_stick, L_bucket, H_bucket, m_boom, m_stick, m_bucket, T_cycle, w, Lc_boom, a_boom, Lc_stick, a_stick, Lc_bucket, a_bucket, F_dig, t_dig, tau_dig.
 """
+
+import math
 
 import numpy
 import numpy as np
@@ -14,6 +19,7 @@ NG = 9
 NC = 9
 NP = 18
 NR = 36
+NNZ = 35
 PARAMS = ("L_boom", "L_stick", "L_bucket", "H_bucket", "m_boom", "m_stick", "m_bucket", "T_cycle", "w", "Lc_boom", "a_boom", "Lc_stick", "a_stick", "Lc_bucket", "a_bucket", "F_dig", "t_dig", "tau_dig", )
 DEFAULT_PARAMS = np.array([5.7, 2.9, 1.5, 1.0, 1500.0, 700.0, 500.0, 8.0, 0.7853981633974483, 2.68, 0.25, 2.31, 0.65, 2.3, 0.55, 30000.0, 2.4, 1.0], dtype=float)
 PHI_Q_ROWS = np.array([0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8], dtype=np.intp)
@@ -21,7 +27,22 @@ PHI_Q_COLS = np.array([0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 
 OUTPUTS = ("q", "qdot", "qddot", "lambda", "reactions", )
 KIND = "inverse_dynamics"
 MAX_NEWTON = 50
-EPS = np.finfo(float).eps
+EPS = float(np.finfo(float).eps)
+THRESHOLD = 0.1
+SINGULAR_RCOND = 1e3 * EPS
+_FILL = [0.0] * 0
+
+
+class SolverError(RuntimeError):
+    """An instant that could not be solved.
+
+    Attributes: status ("not converged" or "singular"), t, q (the last
+    iterate), iterations.
+    """
+
+    def __init__(self, status, t, q, iterations):
+        super().__init__(f"{status} at t = {t!r}")
+        self.status, self.t, self.q, self.iterations = status, t, q, iterations
 
 
 def _stack(values, like):
@@ -32,6 +53,7 @@ def _stack(values, like):
 
 def phi(q, t, p):
     """Phi, size NC."""
+    out = [0.0] * 9
     e0 = numpy.cos(q[2])
     e1 = (1/2)*p[0]
     e2 = e0*e1
@@ -56,21 +78,60 @@ def phi(q, t, p):
     e21 = 1/2 - 1/2*numpy.cos(e19)
     e22 = 2/5 - e6
     e23 = -e13 - 1/20
-    return _stack([
-        -e2 + q[0],
-        -e4 + q[1],
-        -e2 - e7 - e8,
-        -e10 - e11 - e4,
-        -e12*e13 - e14 - e7,
-        -e10 - e16*p[2] - e17,
-        -(-p[10]*numpy.sin(e19) + p[9])**2 + (-2/5*e0 + e18*e3 + q[1] + 6/5)**2 + (e0*e18 + (2/5)*e3 + q[0] - 3/10)**2,
-        -(e21*p[12] + p[11])**2 + (-11/20*e0 - e11 + e20*e9 - 3/10*e3 + (3/20)*e5)**2 + (-3/10*e0 + e20*e5 + (11/20)*e3 - e8 - 3/20*e9)**2,
-        -(e21*p[14] + p[13])**2 + ((1/2)*e12 + e15*e23 - e17 - e22*e9 - 7/20*e5)**2 + (e12*e23 - e14 - e16 - e22*e5 + (7/20)*e9)**2,
-    ], q[0])
+    out[0] = -e2 + q[0]
+    out[1] = -e4 + q[1]
+    out[2] = -e2 - e7 - e8
+    out[3] = -e10 - e11 - e4
+    out[4] = -e12*e13 - e14 - e7
+    out[5] = -e10 - e16*p[2] - e17
+    out[6] = -(-p[10]*numpy.sin(e19) + p[9])**2 + (-2/5*e0 + e18*e3 + q[1] + 6/5)**2 + (e0*e18 + (2/5)*e3 + q[0] - 3/10)**2
+    out[7] = -(e21*p[12] + p[11])**2 + (-11/20*e0 - e11 + e20*e9 - 3/10*e3 + (3/20)*e5)**2 + (-3/10*e0 + e20*e5 + (11/20)*e3 - e8 - 3/20*e9)**2
+    out[8] = -(e21*p[14] + p[13])**2 + ((1/2)*e12 + e15*e23 - e17 - e22*e9 - 7/20*e5)**2 + (e12*e23 - e14 - e16 - e22*e5 + (7/20)*e9)**2
+    return _stack(out, q[0])
+
+
+def _phi_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 9
+    e0 = math.cos(q[2])
+    e1 = (1/2)*p[0]
+    e2 = e0*e1
+    e3 = math.sin(q[2])
+    e4 = e1*e3
+    e5 = math.cos(q[5])
+    e6 = (1/2)*p[1]
+    e7 = e5*e6
+    e8 = q[0] - q[3]
+    e9 = math.sin(q[5])
+    e10 = e6*e9
+    e11 = q[1] - q[4]
+    e12 = math.cos(q[8])
+    e13 = (1/2)*p[2]
+    e14 = q[3] - q[6]
+    e15 = math.sin(q[8])
+    e16 = (1/2)*e15
+    e17 = q[4] - q[7]
+    e18 = 23/10 - e1
+    e19 = p[8]*t
+    e20 = -e6 - 3/4
+    e21 = 1/2 - 1/2*math.cos(e19)
+    e22 = 2/5 - e6
+    e23 = -e13 - 1/20
+    out[0] = -e2 + q[0]
+    out[1] = -e4 + q[1]
+    out[2] = -e2 - e7 - e8
+    out[3] = -e10 - e11 - e4
+    out[4] = -e12*e13 - e14 - e7
+    out[5] = -e10 - e16*p[2] - e17
+    out[6] = -(-p[10]*math.sin(e19) + p[9])**2 + (-2/5*e0 + e18*e3 + q[1] + 6/5)**2 + (e0*e18 + (2/5)*e3 + q[0] - 3/10)**2
+    out[7] = -(e21*p[12] + p[11])**2 + (-11/20*e0 - e11 + e20*e9 - 3/10*e3 + (3/20)*e5)**2 + (-3/10*e0 + e20*e5 + (11/20)*e3 - e8 - 3/20*e9)**2
+    out[8] = -(e21*p[14] + p[13])**2 + ((1/2)*e12 + e15*e23 - e17 - e22*e9 - 7/20*e5)**2 + (e12*e23 - e14 - e16 - e22*e5 + (7/20)*e9)**2
+    return out
 
 
 def phi_q_values(q, t, p):
     """The stored values of Phi_q (rows PHI_Q_ROWS, columns PHI_Q_COLS)."""
+    out = [0.0] * 35
     e0 = numpy.sin(q[2])
     e1 = (1/2)*p[0]
     e2 = e0*e1
@@ -117,67 +178,174 @@ def phi_q_values(q, t, p):
     e43 = -e12 + e27 - e40 + e42 - 2*q[7]
     e44 = -1/2*e10 + e12*e34 - e37 + (7/20)*e5 - q[3] + q[6]
     e45 = e10*e34 + (1/2)*e12 - e41 - 7/20*e8 - q[4] + q[7]
-    return _stack([
-        1,
-        e2,
-        1,
-        e4,
-        -1,
-        e2,
-        1,
-        e7,
-        -1,
-        e4,
-        1,
-        e9,
-        -1,
-        e7,
-        1,
-        e10*e11,
-        -1,
-        e9,
-        1,
-        -e11*e12,
-        e13 + e16 - 3/5,
-        e17 + e19 + 12/5,
-        e16*(e18 - 2/5*e3 + q[1] + 6/5) - e19*((2/5)*e0 + e15 + q[0] - 3/10),
-        e26,
-        e31,
-        e30*e33 + e32*(e21 - e22),
-        -e26,
-        -e31,
-        e32*(-e23 + e25) + e33*(-e28 - e29),
-        e39,
-        e43,
-        -e38*e45 + e42*e44,
-        -e39,
-        -e43,
-        e44*(-e12 - e40) + e45*(-e10 + e35),
-    ], q[0])
+    out[0] = 1
+    out[1] = e2
+    out[2] = 1
+    out[3] = e4
+    out[4] = -1
+    out[5] = e2
+    out[6] = 1
+    out[7] = e7
+    out[8] = -1
+    out[9] = e4
+    out[10] = 1
+    out[11] = e9
+    out[12] = -1
+    out[13] = e7
+    out[14] = 1
+    out[15] = e10*e11
+    out[16] = -1
+    out[17] = e9
+    out[18] = 1
+    out[19] = -e11*e12
+    out[20] = e13 + e16 - 3/5
+    out[21] = e17 + e19 + 12/5
+    out[22] = e16*(e18 - 2/5*e3 + q[1] + 6/5) - e19*((2/5)*e0 + e15 + q[0] - 3/10)
+    out[23] = e26
+    out[24] = e31
+    out[25] = e30*e33 + e32*(e21 - e22)
+    out[26] = -e26
+    out[27] = -e31
+    out[28] = e32*(-e23 + e25) + e33*(-e28 - e29)
+    out[29] = e39
+    out[30] = e43
+    out[31] = -e38*e45 + e42*e44
+    out[32] = -e39
+    out[33] = -e43
+    out[34] = e44*(-e12 - e40) + e45*(-e10 + e35)
+    return _stack(out, q[0])
+
+
+def _phi_q_values_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 35
+    e0 = math.sin(q[2])
+    e1 = (1/2)*p[0]
+    e2 = e0*e1
+    e3 = math.cos(q[2])
+    e4 = -e1*e3
+    e5 = math.sin(q[5])
+    e6 = (1/2)*p[1]
+    e7 = e5*e6
+    e8 = math.cos(q[5])
+    e9 = -e6*e8
+    e10 = math.sin(q[8])
+    e11 = (1/2)*p[2]
+    e12 = math.cos(q[8])
+    e13 = 2*q[0]
+    e14 = 23/10 - e1
+    e15 = e14*e3
+    e16 = (4/5)*e0 + 2*e15
+    e17 = 2*q[1]
+    e18 = e0*e14
+    e19 = 2*e18 - 4/5*e3
+    e20 = 2*q[3]
+    e21 = (11/10)*e0
+    e22 = (3/5)*e3
+    e23 = (3/10)*e5
+    e24 = -e6 - 3/4
+    e25 = 2*e24*e8
+    e26 = e13 - e20 - e21 + e22 + e23 - e25
+    e27 = 2*q[4]
+    e28 = (3/10)*e8
+    e29 = 2*e24*e5
+    e30 = (3/5)*e0 + (11/10)*e3
+    e31 = e17 - e27 - e28 - e29 + e30
+    e32 = -3/10*e0 + e24*e5 - 11/20*e3 + (3/20)*e8 - q[1] + q[4]
+    e33 = (11/20)*e0 + e24*e8 - 3/10*e3 - 3/20*e5 - q[0] + q[3]
+    e34 = -e11 - 1/20
+    e35 = 2*e12*e34
+    e36 = 2/5 - e6
+    e37 = e36*e8
+    e38 = 2*e37 - 7/10*e5
+    e39 = e10 + e20 - e35 + e38 - 2*q[6]
+    e40 = 2*e10*e34
+    e41 = e36*e5
+    e42 = 2*e41 + (7/10)*e8
+    e43 = -e12 + e27 - e40 + e42 - 2*q[7]
+    e44 = -1/2*e10 + e12*e34 - e37 + (7/20)*e5 - q[3] + q[6]
+    e45 = e10*e34 + (1/2)*e12 - e41 - 7/20*e8 - q[4] + q[7]
+    out[0] = 1
+    out[1] = e2
+    out[2] = 1
+    out[3] = e4
+    out[4] = -1
+    out[5] = e2
+    out[6] = 1
+    out[7] = e7
+    out[8] = -1
+    out[9] = e4
+    out[10] = 1
+    out[11] = e9
+    out[12] = -1
+    out[13] = e7
+    out[14] = 1
+    out[15] = e10*e11
+    out[16] = -1
+    out[17] = e9
+    out[18] = 1
+    out[19] = -e11*e12
+    out[20] = e13 + e16 - 3/5
+    out[21] = e17 + e19 + 12/5
+    out[22] = e16*(e18 - 2/5*e3 + q[1] + 6/5) - e19*((2/5)*e0 + e15 + q[0] - 3/10)
+    out[23] = e26
+    out[24] = e31
+    out[25] = e30*e33 + e32*(e21 - e22)
+    out[26] = -e26
+    out[27] = -e31
+    out[28] = e32*(-e23 + e25) + e33*(-e28 - e29)
+    out[29] = e39
+    out[30] = e43
+    out[31] = -e38*e45 + e42*e44
+    out[32] = -e39
+    out[33] = -e43
+    out[34] = e44*(-e12 - e40) + e45*(-e10 + e35)
+    return out
 
 
 def nu(q, t, p):
     """nu = -Phi_t, size NC."""
+    out = [0.0] * 9
     e0 = p[8]*t
     e1 = numpy.sin(e0)
     e2 = numpy.cos(e0)
     e3 = 1/2 - 1/2*e2
     e4 = e1*p[8]
-    return _stack([
-        0,
-        0,
-        0,
-        0,
-        0,
-        0,
-        -2*e2*p[10]*p[8]*(-e1*p[10] + p[9]),
-        e4*p[12]*(e3*p[12] + p[11]),
-        e4*p[14]*(e3*p[14] + p[13]),
-    ], q[0])
+    out[0] = 0
+    out[1] = 0
+    out[2] = 0
+    out[3] = 0
+    out[4] = 0
+    out[5] = 0
+    out[6] = -2*e2*p[10]*p[8]*(-e1*p[10] + p[9])
+    out[7] = e4*p[12]*(e3*p[12] + p[11])
+    out[8] = e4*p[14]*(e3*p[14] + p[13])
+    return _stack(out, q[0])
+
+
+def _nu_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 9
+    e0 = p[8]*t
+    e1 = math.sin(e0)
+    e2 = math.cos(e0)
+    e3 = 1/2 - 1/2*e2
+    e4 = e1*p[8]
+    out[0] = 0
+    out[1] = 0
+    out[2] = 0
+    out[3] = 0
+    out[4] = 0
+    out[5] = 0
+    out[6] = -2*e2*p[10]*p[8]*(-e1*p[10] + p[9])
+    out[7] = e4*p[12]*(e3*p[12] + p[11])
+    out[8] = e4*p[14]*(e3*p[14] + p[13])
+    return out
 
 
 def gamma(q, qd, t, p):
     """gamma, size NC."""
+    out = [0.0] * 9
     e0 = (1/2)*p[0]
     e1 = qd[2]**2
     e2 = numpy.cos(q[2])
@@ -252,53 +420,174 @@ def gamma(q, qd, t, p):
     e71 = e17*e69
     e72 = 2*e63*e66
     e73 = e72*e9
-    return _stack([
-        -e4,
-        -e7,
-        -e12 - e4,
-        -e14 - e7,
-        -e12 - e15*e18,
-        -e14 - e15*e20,
-        2*e1*e2*e24*q[0] + 2*e1*e24*e5*q[1] + (12/5)*e1*e24*e5 + (4/5)*e1*e5*q[0] - e2*e26*qd[0] + 2*e21*e23**2*p[10]**2 + 2*e21*e27*p[10]*(-e27*p[10] + p[9]) - e24*e25 - 4*e24*e28*qd[1] + 4*e24*e5*qd[0]*qd[2] - e26*e5*qd[1] - e29 - 4/5*e3*q[1] - 24/25*e3 - 6/25*e6,
-        (9/100)*e1*e13*e2 + (3/5)*e1*e2*q[0] + (11/10)*e1*e2*q[1] + (11/10)*e1*e44*e5*e8 + (3/5)*e1*e5*q[1] + (11/10)*e1*e5*q[3] + (11/5)*e13*e2*e44*qd[2]*qd[5] + (9/100)*e13*e2*e9 - 9/50*e13*e28*qd[5] - e13*e32*qd[1] - e13*e33*q[3] + (6/5)*e13*e44*e5*qd[2]*qd[5] + 2*e13*e44*e9*q[4] + 4*e13*e44*qd[3]*qd[5] - 2*e13*e45*q[1] - 4*e13*e46*qd[0] + (33/100)*e13*e5*qd[2]*qd[5] + (3/10)*e13*e9*q[0] + (3/5)*e13*qd[4]*qd[5] - e2*e34*qd[1] - e2*e37*qd[3] + (6/5)*e2*e44*e8*qd[2]*qd[5] + (33/100)*e2*e8*qd[2]*qd[5] + (11/5)*e2*qd[0]*qd[2] + (6/5)*e2*qd[2]*qd[4] + e21*e23*p[12]*(e43*p[12] + p[11]) + (1/2)*e21*e30*p[12]**2 - e25*e49 - e25*q[3] - e29 - e3*e40 - e31*e50 - e31*q[4] - e32*e8*qd[0] - e33*e8*q[1] - e34*e5*qd[3] - e35*e36 - e35*e6 - e36*e41 - 3/5*e36*e50 - e38*e48 - e38*qd[4] - e39*e50 - e39*q[4] - e40*e42 - e41*e6 - 3/5*e42*e49 - 11/10*e42*e50 + (11/10)*e44*e5*e8*e9 + 2*e44*e8*e9*q[3] + 4*e44*e8*qd[1]*qd[5] - 2*e45*e8*q[0] - e47*e48 + (9/50)*e5*e8*qd[2]*qd[5] + (6/5)*e5*qd[0]*qd[2] + (11/5)*e5*qd[1]*qd[2] - e51 - 11/10*e6*q[0] + (3/10)*e8*e9*q[4] + (3/5)*e8*qd[3]*qd[5] + 4*qd[0]*qd[3] + 4*qd[1]*qd[4],
-        (7/10)*e13*e16*e17*e66 + 2*e13*e17*e63*qd[5]*qd[8] + (7/10)*e13*e17*e66*e9 + 4*e13*e19*e63*e66*qd[5]*qd[8] + (7/10)*e13*e19*qd[5]*qd[8] - e13*e56*q[3] + 2*e13*e63*e9*q[4] + 4*e13*e63*qd[3]*qd[5] + (7/10)*e13*e9*q[6] + (7/5)*e13*qd[4]*qd[5] + 2*e16*e17*e66*q[6] + e16*e17*q[7] + e16*e19*e63*e8 + 2*e16*e19*e66*q[7] + e16*e19*q[3] - e17*e52*qd[3] + 4*e17*e63*e66*e8*qd[5]*qd[8] - e17*e65 + 4*e17*e66*qd[4]*qd[8] + (7/10)*e17*e8*qd[5]*qd[8] + 2*e17*qd[6]*qd[8] - e18*e64 - 2*e18*e66*q[3] - e18*q[4] - e19*e57*e66 + e19*e63*e8*e9 + (7/5)*e19*e66*e8*qd[5]*qd[8] + 4*e19*e66*qd[6]*qd[8] - 4*e19*e69*qd[3] + 2*e19*qd[7]*qd[8] - e20*q[6] + e21*e23*p[14]*(e43*p[14] + p[13]) + (1/2)*e21*e30*p[14]**2 - e47*e70 - e51 - e53*e70 - e53*qd[4] - e54*e8*qd[6] - e55*e71 - e55*qd[7] - e57*q[7] - e58*e59 - e58*e60 - e59*e73 - e60*e73 - e61*e72 - 7/20*e61 - e62*e72 - 7/20*e62 + 2*e63*e8*e9*q[3] + 4*e63*e8*qd[5]*qd[7] - 4*e64*qd[5]*qd[6] - 2*e65*q[7] - 7/10*e67*e8 - 2*e67*q[4] - 2*e68*e9*q[6] - 4*e71*qd[7] + (7/10)*e8*e9*q[4] + (7/5)*e8*qd[3]*qd[5] + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2,
-    ], q[0])
+    out[0] = -e4
+    out[1] = -e7
+    out[2] = -e12 - e4
+    out[3] = -e14 - e7
+    out[4] = -e12 - e15*e18
+    out[5] = -e14 - e15*e20
+    out[6] = 2*e1*e2*e24*q[0] + 2*e1*e24*e5*q[1] + (12/5)*e1*e24*e5 + (4/5)*e1*e5*q[0] - e2*e26*qd[0] + 2*e21*e23**2*p[10]**2 + 2*e21*e27*p[10]*(-e27*p[10] + p[9]) - e24*e25 - 4*e24*e28*qd[1] + 4*e24*e5*qd[0]*qd[2] - e26*e5*qd[1] - e29 - 4/5*e3*q[1] - 24/25*e3 - 6/25*e6
+    out[7] = (9/100)*e1*e13*e2 + (3/5)*e1*e2*q[0] + (11/10)*e1*e2*q[1] + (11/10)*e1*e44*e5*e8 + (3/5)*e1*e5*q[1] + (11/10)*e1*e5*q[3] + (11/5)*e13*e2*e44*qd[2]*qd[5] + (9/100)*e13*e2*e9 - 9/50*e13*e28*qd[5] - e13*e32*qd[1] - e13*e33*q[3] + (6/5)*e13*e44*e5*qd[2]*qd[5] + 2*e13*e44*e9*q[4] + 4*e13*e44*qd[3]*qd[5] - 2*e13*e45*q[1] - 4*e13*e46*qd[0] + (33/100)*e13*e5*qd[2]*qd[5] + (3/10)*e13*e9*q[0] + (3/5)*e13*qd[4]*qd[5] - e2*e34*qd[1] - e2*e37*qd[3] + (6/5)*e2*e44*e8*qd[2]*qd[5] + (33/100)*e2*e8*qd[2]*qd[5] + (11/5)*e2*qd[0]*qd[2] + (6/5)*e2*qd[2]*qd[4] + e21*e23*p[12]*(e43*p[12] + p[11]) + (1/2)*e21*e30*p[12]**2 - e25*e49 - e25*q[3] - e29 - e3*e40 - e31*e50 - e31*q[4] - e32*e8*qd[0] - e33*e8*q[1] - e34*e5*qd[3] - e35*e36 - e35*e6 - e36*e41 - 3/5*e36*e50 - e38*e48 - e38*qd[4] - e39*e50 - e39*q[4] - e40*e42 - e41*e6 - 3/5*e42*e49 - 11/10*e42*e50 + (11/10)*e44*e5*e8*e9 + 2*e44*e8*e9*q[3] + 4*e44*e8*qd[1]*qd[5] - 2*e45*e8*q[0] - e47*e48 + (9/50)*e5*e8*qd[2]*qd[5] + (6/5)*e5*qd[0]*qd[2] + (11/5)*e5*qd[1]*qd[2] - e51 - 11/10*e6*q[0] + (3/10)*e8*e9*q[4] + (3/5)*e8*qd[3]*qd[5] + 4*qd[0]*qd[3] + 4*qd[1]*qd[4]
+    out[8] = (7/10)*e13*e16*e17*e66 + 2*e13*e17*e63*qd[5]*qd[8] + (7/10)*e13*e17*e66*e9 + 4*e13*e19*e63*e66*qd[5]*qd[8] + (7/10)*e13*e19*qd[5]*qd[8] - e13*e56*q[3] + 2*e13*e63*e9*q[4] + 4*e13*e63*qd[3]*qd[5] + (7/10)*e13*e9*q[6] + (7/5)*e13*qd[4]*qd[5] + 2*e16*e17*e66*q[6] + e16*e17*q[7] + e16*e19*e63*e8 + 2*e16*e19*e66*q[7] + e16*e19*q[3] - e17*e52*qd[3] + 4*e17*e63*e66*e8*qd[5]*qd[8] - e17*e65 + 4*e17*e66*qd[4]*qd[8] + (7/10)*e17*e8*qd[5]*qd[8] + 2*e17*qd[6]*qd[8] - e18*e64 - 2*e18*e66*q[3] - e18*q[4] - e19*e57*e66 + e19*e63*e8*e9 + (7/5)*e19*e66*e8*qd[5]*qd[8] + 4*e19*e66*qd[6]*qd[8] - 4*e19*e69*qd[3] + 2*e19*qd[7]*qd[8] - e20*q[6] + e21*e23*p[14]*(e43*p[14] + p[13]) + (1/2)*e21*e30*p[14]**2 - e47*e70 - e51 - e53*e70 - e53*qd[4] - e54*e8*qd[6] - e55*e71 - e55*qd[7] - e57*q[7] - e58*e59 - e58*e60 - e59*e73 - e60*e73 - e61*e72 - 7/20*e61 - e62*e72 - 7/20*e62 + 2*e63*e8*e9*q[3] + 4*e63*e8*qd[5]*qd[7] - 4*e64*qd[5]*qd[6] - 2*e65*q[7] - 7/10*e67*e8 - 2*e67*q[4] - 2*e68*e9*q[6] - 4*e71*qd[7] + (7/10)*e8*e9*q[4] + (7/5)*e8*qd[3]*qd[5] + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2
+    return _stack(out, q[0])
+
+
+def _gamma_s(q, qd, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 9
+    e0 = (1/2)*p[0]
+    e1 = qd[2]**2
+    e2 = math.cos(q[2])
+    e3 = e1*e2
+    e4 = e0*e3
+    e5 = math.sin(q[2])
+    e6 = e1*e5
+    e7 = e0*e6
+    e8 = math.cos(q[5])
+    e9 = qd[5]**2
+    e10 = (1/2)*p[1]
+    e11 = e10*e9
+    e12 = e11*e8
+    e13 = math.sin(q[5])
+    e14 = e11*e13
+    e15 = (1/2)*p[2]
+    e16 = qd[8]**2
+    e17 = math.cos(q[8])
+    e18 = e16*e17
+    e19 = math.sin(q[8])
+    e20 = e16*e19
+    e21 = p[8]**2
+    e22 = p[8]*t
+    e23 = math.cos(e22)
+    e24 = 23/10 - e0
+    e25 = (3/5)*e3
+    e26 = (8/5)*qd[2]
+    e27 = math.sin(e22)
+    e28 = e2*qd[2]
+    e29 = 2*qd[0]**2 + 2*qd[1]**2
+    e30 = e27**2
+    e31 = (3/5)*e6
+    e32 = (3/5)*qd[5]
+    e33 = (3/10)*e9
+    e34 = (6/5)*qd[2]
+    e35 = (9/100)*e8
+    e36 = e5*e9
+    e37 = (11/5)*qd[2]
+    e38 = e37*e5
+    e39 = (11/10)*e3
+    e40 = (33/200)*e8
+    e41 = (33/200)*e13
+    e42 = e2*e9
+    e43 = 1/2 - 1/2*e23
+    e44 = -e10 - 3/4
+    e45 = e44*e9
+    e46 = e44*qd[5]
+    e47 = 4*qd[4]
+    e48 = e46*e8
+    e49 = e44*e8
+    e50 = e13*e44
+    e51 = 2*qd[3]**2 + 2*qd[4]**2
+    e52 = 2*qd[8]
+    e53 = e19*e52
+    e54 = (7/5)*qd[5]
+    e55 = e13*e54
+    e56 = (7/10)*e9
+    e57 = e56*e8
+    e58 = (7/20)*e9
+    e59 = e17*e8
+    e60 = e13*e19
+    e61 = e18*e8
+    e62 = e13*e20
+    e63 = 2/5 - e10
+    e64 = e13*e63
+    e65 = e64*e9
+    e66 = -e15 - 1/20
+    e67 = e20*e66
+    e68 = e63*e8
+    e69 = e66*qd[8]
+    e70 = e68*qd[5]
+    e71 = e17*e69
+    e72 = 2*e63*e66
+    e73 = e72*e9
+    out[0] = -e4
+    out[1] = -e7
+    out[2] = -e12 - e4
+    out[3] = -e14 - e7
+    out[4] = -e12 - e15*e18
+    out[5] = -e14 - e15*e20
+    out[6] = 2*e1*e2*e24*q[0] + 2*e1*e24*e5*q[1] + (12/5)*e1*e24*e5 + (4/5)*e1*e5*q[0] - e2*e26*qd[0] + 2*e21*e23**2*p[10]**2 + 2*e21*e27*p[10]*(-e27*p[10] + p[9]) - e24*e25 - 4*e24*e28*qd[1] + 4*e24*e5*qd[0]*qd[2] - e26*e5*qd[1] - e29 - 4/5*e3*q[1] - 24/25*e3 - 6/25*e6
+    out[7] = (9/100)*e1*e13*e2 + (3/5)*e1*e2*q[0] + (11/10)*e1*e2*q[1] + (11/10)*e1*e44*e5*e8 + (3/5)*e1*e5*q[1] + (11/10)*e1*e5*q[3] + (11/5)*e13*e2*e44*qd[2]*qd[5] + (9/100)*e13*e2*e9 - 9/50*e13*e28*qd[5] - e13*e32*qd[1] - e13*e33*q[3] + (6/5)*e13*e44*e5*qd[2]*qd[5] + 2*e13*e44*e9*q[4] + 4*e13*e44*qd[3]*qd[5] - 2*e13*e45*q[1] - 4*e13*e46*qd[0] + (33/100)*e13*e5*qd[2]*qd[5] + (3/10)*e13*e9*q[0] + (3/5)*e13*qd[4]*qd[5] - e2*e34*qd[1] - e2*e37*qd[3] + (6/5)*e2*e44*e8*qd[2]*qd[5] + (33/100)*e2*e8*qd[2]*qd[5] + (11/5)*e2*qd[0]*qd[2] + (6/5)*e2*qd[2]*qd[4] + e21*e23*p[12]*(e43*p[12] + p[11]) + (1/2)*e21*e30*p[12]**2 - e25*e49 - e25*q[3] - e29 - e3*e40 - e31*e50 - e31*q[4] - e32*e8*qd[0] - e33*e8*q[1] - e34*e5*qd[3] - e35*e36 - e35*e6 - e36*e41 - 3/5*e36*e50 - e38*e48 - e38*qd[4] - e39*e50 - e39*q[4] - e40*e42 - e41*e6 - 3/5*e42*e49 - 11/10*e42*e50 + (11/10)*e44*e5*e8*e9 + 2*e44*e8*e9*q[3] + 4*e44*e8*qd[1]*qd[5] - 2*e45*e8*q[0] - e47*e48 + (9/50)*e5*e8*qd[2]*qd[5] + (6/5)*e5*qd[0]*qd[2] + (11/5)*e5*qd[1]*qd[2] - e51 - 11/10*e6*q[0] + (3/10)*e8*e9*q[4] + (3/5)*e8*qd[3]*qd[5] + 4*qd[0]*qd[3] + 4*qd[1]*qd[4]
+    out[8] = (7/10)*e13*e16*e17*e66 + 2*e13*e17*e63*qd[5]*qd[8] + (7/10)*e13*e17*e66*e9 + 4*e13*e19*e63*e66*qd[5]*qd[8] + (7/10)*e13*e19*qd[5]*qd[8] - e13*e56*q[3] + 2*e13*e63*e9*q[4] + 4*e13*e63*qd[3]*qd[5] + (7/10)*e13*e9*q[6] + (7/5)*e13*qd[4]*qd[5] + 2*e16*e17*e66*q[6] + e16*e17*q[7] + e16*e19*e63*e8 + 2*e16*e19*e66*q[7] + e16*e19*q[3] - e17*e52*qd[3] + 4*e17*e63*e66*e8*qd[5]*qd[8] - e17*e65 + 4*e17*e66*qd[4]*qd[8] + (7/10)*e17*e8*qd[5]*qd[8] + 2*e17*qd[6]*qd[8] - e18*e64 - 2*e18*e66*q[3] - e18*q[4] - e19*e57*e66 + e19*e63*e8*e9 + (7/5)*e19*e66*e8*qd[5]*qd[8] + 4*e19*e66*qd[6]*qd[8] - 4*e19*e69*qd[3] + 2*e19*qd[7]*qd[8] - e20*q[6] + e21*e23*p[14]*(e43*p[14] + p[13]) + (1/2)*e21*e30*p[14]**2 - e47*e70 - e51 - e53*e70 - e53*qd[4] - e54*e8*qd[6] - e55*e71 - e55*qd[7] - e57*q[7] - e58*e59 - e58*e60 - e59*e73 - e60*e73 - e61*e72 - 7/20*e61 - e62*e72 - 7/20*e62 + 2*e63*e8*e9*q[3] + 4*e63*e8*qd[5]*qd[7] - 4*e64*qd[5]*qd[6] - 2*e65*q[7] - 7/10*e67*e8 - 2*e67*q[4] - 2*e68*e9*q[6] - 4*e71*qd[7] + (7/10)*e8*e9*q[4] + (7/5)*e8*qd[3]*qd[5] + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2
+    return out
 
 
 def applied(q, qd, t, p):
     """Q^A, size NG."""
+    out = [0.0] * 9
     e0 = numpy.exp(-(-p[16] + t)**2/p[17]**2)
     e1 = e0*p[15]
-    return _stack([
-        0,
-        -981/100*p[4],
-        0,
-        0,
-        -981/100*p[5],
-        0,
-        e1,
-        (3/10)*e1 - 981/100*p[6],
-        (3/20)*e0*p[15]*p[2]*numpy.cos(q[8]) - 1/2*e1*p[2]*numpy.sin(q[8]),
-    ], q[0])
+    out[0] = 0
+    out[1] = -981/100*p[4]
+    out[2] = 0
+    out[3] = 0
+    out[4] = -981/100*p[5]
+    out[5] = 0
+    out[6] = e1
+    out[7] = (3/10)*e1 - 981/100*p[6]
+    out[8] = (3/20)*e0*p[15]*p[2]*numpy.cos(q[8]) - 1/2*e1*p[2]*numpy.sin(q[8])
+    return _stack(out, q[0])
+
+
+def _applied_s(q, qd, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 9
+    e0 = math.exp(-(-p[16] + t)**2/p[17]**2)
+    e1 = e0*p[15]
+    out[0] = 0
+    out[1] = -981/100*p[4]
+    out[2] = 0
+    out[3] = 0
+    out[4] = -981/100*p[5]
+    out[5] = 0
+    out[6] = e1
+    out[7] = (3/10)*e1 - 981/100*p[6]
+    out[8] = (3/20)*e0*p[15]*p[2]*math.cos(q[8]) - 1/2*e1*p[2]*math.sin(q[8])
+    return out
 
 
 def mass(p):
     """The diagonal of M, size NG."""
-    return _stack([
-        p[4],
-        p[4],
-        (1/12)*p[0]**2*p[4],
-        p[5],
-        p[5],
-        (1/12)*p[1]**2*p[5],
-        p[6],
-        p[6],
-        (1/12)*p[6]*(p[2]**2 + p[3]**2),
-    ], 0.0)
+    out = [0.0] * 9
+    out[0] = p[4]
+    out[1] = p[4]
+    out[2] = (1/12)*p[0]**2*p[4]
+    out[3] = p[5]
+    out[4] = p[5]
+    out[5] = (1/12)*p[1]**2*p[5]
+    out[6] = p[6]
+    out[7] = p[6]
+    out[8] = (1/12)*p[6]*(p[2]**2 + p[3]**2)
+    return _stack(out, 0.0)
+
+
+def _mass_s(p):
+    # one instant, floats in and out
+    out = [0.0] * 9
+    out[0] = p[4]
+    out[1] = p[4]
+    out[2] = (1/12)*p[0]**2*p[4]
+    out[3] = p[5]
+    out[4] = p[5]
+    out[5] = (1/12)*p[1]**2*p[5]
+    out[6] = p[6]
+    out[7] = p[6]
+    out[8] = (1/12)*p[6]*(p[2]**2 + p[3]**2)
+    return out
 
 
 def reactions(q, lam, t, p):
     """Fx, Fy, T per body role of each requested constraint, size NR."""
+    out = [0.0] * 36
     e0 = 2*lam[6]
     e1 = numpy.sin(q[2])
     e2 = (4/5)*lam[6]
@@ -321,44 +610,107 @@ def reactions(q, lam, t, p):
     e19 = e16*(2/5 - e10)
     e20 = e12*e19 + e15*lam[8] + e16*q[3] - 2*e17*e18*lam[8] - 7/10*e9*lam[8] - 2*lam[8]*q[6]
     e21 = (7/10)*e12*lam[8] - 2*e15*e17*lam[8] + e16*q[4] - e18*lam[8] + e19*e9 - 2*lam[8]*q[7]
-    return _stack([
-        lam[0],
-        lam[1],
-        0,
-        -lam[0],
-        -lam[1],
-        0,
-        lam[2],
-        lam[3],
-        0,
-        -lam[2],
-        -lam[3],
-        0,
-        lam[4],
-        lam[5],
-        0,
-        -lam[4],
-        -lam[5],
-        0,
-        e5,
-        e6,
-        0,
-        -e5,
-        -e6,
-        0,
-        -e13,
-        -e14,
-        0,
-        e13,
-        e14,
-        0,
-        -e20,
-        -e21,
-        0,
-        e20,
-        e21,
-        0,
-    ], q[0])
+    out[0] = lam[0]
+    out[1] = lam[1]
+    out[2] = 0
+    out[3] = -lam[0]
+    out[4] = -lam[1]
+    out[5] = 0
+    out[6] = lam[2]
+    out[7] = lam[3]
+    out[8] = 0
+    out[9] = -lam[2]
+    out[10] = -lam[3]
+    out[11] = 0
+    out[12] = lam[4]
+    out[13] = lam[5]
+    out[14] = 0
+    out[15] = -lam[4]
+    out[16] = -lam[5]
+    out[17] = 0
+    out[18] = e5
+    out[19] = e6
+    out[20] = 0
+    out[21] = -e5
+    out[22] = -e6
+    out[23] = 0
+    out[24] = -e13
+    out[25] = -e14
+    out[26] = 0
+    out[27] = e13
+    out[28] = e14
+    out[29] = 0
+    out[30] = -e20
+    out[31] = -e21
+    out[32] = 0
+    out[33] = e20
+    out[34] = e21
+    out[35] = 0
+    return _stack(out, q[0])
+
+
+def _reactions_s(q, lam, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 36
+    e0 = 2*lam[6]
+    e1 = math.sin(q[2])
+    e2 = (4/5)*lam[6]
+    e3 = math.cos(q[2])
+    e4 = e0*(23/10 - 1/2*p[0])
+    e5 = e0*q[0] + e1*e2 + e3*e4 - 3/5*lam[6]
+    e6 = e0*q[1] + e1*e4 - e2*e3 + (12/5)*lam[6]
+    e7 = 2*lam[7]
+    e8 = e3*lam[7]
+    e9 = math.sin(q[5])
+    e10 = (1/2)*p[1]
+    e11 = -e10 - 3/4
+    e12 = math.cos(q[5])
+    e13 = -11/10*e1*lam[7] - 2*e11*e12*lam[7] + e7*q[0] + (3/5)*e8 + (3/10)*e9*lam[7] - 2*lam[7]*q[3]
+    e14 = (3/5)*e1*lam[7] - 2*e11*e9*lam[7] - 3/10*e12*lam[7] + e7*q[1] + (11/10)*e8 - 2*lam[7]*q[4]
+    e15 = math.sin(q[8])
+    e16 = 2*lam[8]
+    e17 = -1/2*p[2] - 1/20
+    e18 = math.cos(q[8])
+    e19 = e16*(2/5 - e10)
+    e20 = e12*e19 + e15*lam[8] + e16*q[3] - 2*e17*e18*lam[8] - 7/10*e9*lam[8] - 2*lam[8]*q[6]
+    e21 = (7/10)*e12*lam[8] - 2*e15*e17*lam[8] + e16*q[4] - e18*lam[8] + e19*e9 - 2*lam[8]*q[7]
+    out[0] = lam[0]
+    out[1] = lam[1]
+    out[2] = 0
+    out[3] = -lam[0]
+    out[4] = -lam[1]
+    out[5] = 0
+    out[6] = lam[2]
+    out[7] = lam[3]
+    out[8] = 0
+    out[9] = -lam[2]
+    out[10] = -lam[3]
+    out[11] = 0
+    out[12] = lam[4]
+    out[13] = lam[5]
+    out[14] = 0
+    out[15] = -lam[4]
+    out[16] = -lam[5]
+    out[17] = 0
+    out[18] = e5
+    out[19] = e6
+    out[20] = 0
+    out[21] = -e5
+    out[22] = -e6
+    out[23] = 0
+    out[24] = -e13
+    out[25] = -e14
+    out[26] = 0
+    out[27] = e13
+    out[28] = e14
+    out[29] = 0
+    out[30] = -e20
+    out[31] = -e21
+    out[32] = 0
+    out[33] = e20
+    out[34] = e21
+    out[35] = 0
+    return out
 
 
 def phi_q(q, t, p):
@@ -369,23 +721,237 @@ def phi_q(q, t, p):
     return out
 
 
-def newton(q, t, p, tol=1e-12):
-    """Solve Phi(q, t) = 0 from the guess q (one instant). Returns (q, iterations)."""
-    q = np.array(q, dtype=float)
-    step = np.inf
+def _factor(a):
+    """The fixed-order sparse LU of Phi_q in place; False where a pivot fails the threshold test."""
+    piv = a[18]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[33])) or piv == 0.0:
+        return False
+    a[33] /= piv
+    a[30] -= a[33] * a[16]
+    a[31] -= a[33] * a[17]
+    a[34] -= a[33] * a[19]
+    piv = a[2]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[8]), abs(a[21]), abs(a[24])) or piv == 0.0:
+        return False
+    a[8] /= piv
+    a[9] -= a[8] * a[3]
+    a[21] /= piv
+    a[22] -= a[21] * a[3]
+    a[24] /= piv
+    a[25] -= a[24] * a[3]
+    piv = a[20]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[0]), abs(a[4]), abs(a[23])) or piv == 0.0:
+        return False
+    a[0] /= piv
+    a[1] -= a[0] * a[22]
+    a[4] /= piv
+    a[5] -= a[4] * a[22]
+    a[23] /= piv
+    a[25] -= a[23] * a[22]
+    piv = a[1]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[5]), abs(a[9]), abs(a[25])) or piv == 0.0:
+        return False
+    a[5] /= piv
+    a[9] /= piv
+    a[25] /= piv
+    piv = a[10]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[27]), abs(a[30])) or piv == 0.0:
+        return False
+    a[27] /= piv
+    a[28] -= a[27] * a[11]
+    a[30] /= piv
+    a[31] -= a[30] * a[11]
+    piv = a[26]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[6]), abs(a[12]), abs(a[29])) or piv == 0.0:
+        return False
+    a[6] /= piv
+    a[7] -= a[6] * a[28]
+    a[12] /= piv
+    a[13] -= a[12] * a[28]
+    a[29] /= piv
+    a[31] -= a[29] * a[28]
+    piv = a[7]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[13]), abs(a[31])) or piv == 0.0:
+        return False
+    a[13] /= piv
+    a[31] /= piv
+    piv = a[32]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[14])) or piv == 0.0:
+        return False
+    a[14] /= piv
+    a[15] -= a[14] * a[34]
+    piv = a[15]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    return True
+
+
+def _solve(a, b):
+    y = list(b)
+    y[8] -= a[33] * y[5]
+    y[3] -= a[8] * y[1]
+    y[6] -= a[21] * y[1]
+    y[7] -= a[24] * y[1]
+    y[0] -= a[0] * y[6]
+    y[2] -= a[4] * y[6]
+    y[7] -= a[23] * y[6]
+    y[2] -= a[5] * y[0]
+    y[3] -= a[9] * y[0]
+    y[7] -= a[25] * y[0]
+    y[7] -= a[27] * y[3]
+    y[8] -= a[30] * y[3]
+    y[2] -= a[6] * y[7]
+    y[4] -= a[12] * y[7]
+    y[8] -= a[29] * y[7]
+    y[4] -= a[13] * y[2]
+    y[8] -= a[31] * y[2]
+    y[4] -= a[14] * y[8]
+    x = [0.0] * NG
+    x[8] = (y[4]) / a[15]
+    x[6] = (y[8] - a[34] * x[8]) / a[32]
+    x[5] = (y[2]) / a[7]
+    x[3] = (y[7] - a[28] * x[5]) / a[26]
+    x[4] = (y[3] - a[11] * x[5]) / a[10]
+    x[2] = (y[0]) / a[1]
+    x[0] = (y[6] - a[22] * x[2]) / a[20]
+    x[1] = (y[1] - a[3] * x[2]) / a[2]
+    x[7] = (y[5] - a[16] * x[4] - a[17] * x[5] - a[19] * x[8]) / a[18]
+    return x
+
+
+def _solve_t(a, b):
+    x = [0.0] * NC
+    x[5] = (b[7]) / a[18]
+    x[1] = (b[1]) / a[2]
+    x[6] = (b[0]) / a[20]
+    x[0] = (b[2] - a[3] * x[1] - a[22] * x[6]) / a[1]
+    x[3] = (b[4] - a[16] * x[5]) / a[10]
+    x[7] = (b[3]) / a[26]
+    x[2] = (b[5] - a[17] * x[5] - a[11] * x[3] - a[28] * x[7]) / a[7]
+    x[8] = (b[6]) / a[32]
+    x[4] = (b[8] - a[19] * x[5] - a[34] * x[8]) / a[15]
+    x[8] -= a[14] * x[4]
+    x[2] -= a[13] * x[4]
+    x[2] -= a[31] * x[8]
+    x[7] -= a[6] * x[2]
+    x[7] -= a[12] * x[4]
+    x[7] -= a[29] * x[8]
+    x[3] -= a[27] * x[7]
+    x[3] -= a[30] * x[8]
+    x[0] -= a[5] * x[2]
+    x[0] -= a[9] * x[3]
+    x[0] -= a[25] * x[7]
+    x[6] -= a[0] * x[0]
+    x[6] -= a[4] * x[2]
+    x[6] -= a[23] * x[7]
+    x[1] -= a[8] * x[3]
+    x[1] -= a[21] * x[6]
+    x[1] -= a[24] * x[7]
+    x[5] -= a[33] * x[8]
+    return x
+
+
+class _Factors:
+    """Phi_q(q) factored: the fixed sparse order, or a dense fallback."""
+
+    def __init__(self, q, t, p):
+        values = _phi_q_values_s(q, t, p)
+        self.lu = values + _FILL
+        self.dense = None
+        if not _factor(self.lu):
+            jac = np.zeros((NC, NG))
+            jac[PHI_Q_ROWS, PHI_Q_COLS] = values
+            if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
+                raise ValueError("singular")
+            self.dense = jac
+
+    def solve(self, b):
+        if self.dense is None:
+            return _solve(self.lu, b)
+        return list(np.linalg.solve(self.dense, b))
+
+    def solve_t(self, b):
+        if self.dense is None:
+            return _solve_t(self.lu, b)
+        return list(np.linalg.solve(self.dense.T, b))
+
+
+def instant(t, p, q, tol=1e-12):
+    """Solve one instant from the guess q: Newton, then the compiled outputs.
+
+    Returns a dict with q and, as compiled, qd, qdd, lam, reactions and
+    iterations. Raises SolverError.
+    """
+    q = [float(v) for v in q]
+    p = [float(v) for v in p]
+    qmag = max(1.0, max(map(abs, q)))
+    lim = max(tol, 8.0 * EPS * qmag)
+    step, factors, converged = math.inf, None, False
+    r = _phi_s(q, t, p)
+    rmax = max(map(abs, r))
     for it in range(MAX_NEWTON + 1):
-        r = phi(q, t, p)
-        limit = max(tol, 8 * EPS * max(1.0, float(np.max(np.abs(q)))))
-        if not np.all(np.isfinite(r)):
+        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
             break
-        if np.max(np.abs(r)) <= limit and step <= limit:
-            return q, it
+        if rmax <= lim and step <= lim:
+            converged = True
+            break
         if it == MAX_NEWTON:
             break
-        dq = np.linalg.solve(phi_q(q, t, p), -r)
-        q = q + dq
-        step = float(np.max(np.abs(dq)))
-    raise RuntimeError(f"Newton did not converge at t = {t!r}")
+        try:
+            factors = _Factors(q, t, p)
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+        dq = factors.solve([-v for v in r])
+        q = [a + b for a, b in zip(q, dq)]
+        step = max(map(abs, dq))
+        if rmax <= lim and step <= lim:
+            # |Phi| was within tolerance where this last correction was
+            # computed, and the correction is too: Newton has converged
+            converged = True
+            it += 1
+            break
+        r = _phi_s(q, t, p)
+        rmax = max(map(abs, r))
+    if not converged:
+        raise SolverError("not converged", t, q, it)
+    if factors is None or step > 1e-14 * qmag:
+        try:
+            factors = _Factors(q, t, p)
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+    out = {"q": q, "iterations": it}
+    out["qd"] = qd = factors.solve(_nu_s(q, t, p))
+    out["qdd"] = qdd = factors.solve(_gamma_s(q, qd, t, p))
+    rhs = [a - m * b for a, m, b in zip(_applied_s(q, qd, t, p), _mass_s(p), qdd)]
+    out["lam"] = lam = factors.solve_t(rhs)
+    out["reactions"] = _reactions_s(q, lam, t, p)
+    return out
+
+
+def rows(t0, h, n, p, q0, tol=1e-12):
+    """Yield the n rows (t, then the compiled groups in contract order) of
+    the grid t0 + k h, each instant warm-started from the one before."""
+    zeros = [0.0] * NG
+    p = [float(v) for v in p]
+    q, prev = list(q0), None
+    history = []
+    for k in range(n):
+        t = t0 + k * h
+        if prev is not None:
+            q = [a + h * b + 0.5 * h * h * c for a, b, c in zip(prev["q"], prev["qd"], prev["qdd"])]
+        prev = instant(t, p, q, tol)
+        history = (history + [prev["q"]])[-3:]
+        row = [t]
+        for group in OUTPUTS:
+            row += prev.get({"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam",
+                             "reactions": "reactions"}[group], zeros)
+        yield row
+
+
+def trajectory(t0, t1, steps, p, q0, tol=1e-12):
+    """All rows of the grid t_k = t0 + k (t1 - t0) / (steps - 1), as an array."""
+    h = (t1 - t0) / (steps - 1) if steps > 1 else 0.0
+    return np.array(list(rows(t0, h, steps, p, q0, tol)))
 
 
 def outputs(q, t, p):
@@ -394,7 +960,7 @@ def outputs(q, t, p):
     jac = phi_q(q, t, p)
     if jac.ndim == 2:
         jac = jac[None]
-    cols = lambda v: np.moveaxis(np.atleast_2d(v.T).reshape(jac.shape[0], -1), 0, 0)
+    cols = lambda v: np.atleast_2d(v.T).reshape(jac.shape[0], -1)
     out = {}
     qd = np.linalg.solve(jac, cols(nu(q, t, p))[..., None])[..., 0].T.reshape(q.shape)
     qdd = np.linalg.solve(jac, cols(gamma(q, qd, t, p))[..., None])[..., 0].T.reshape(q.shape)
@@ -404,41 +970,3 @@ def outputs(q, t, p):
     out["lam"] = lam.reshape((NC,) + q.shape[1:])
     out["reactions"] = reactions(q, out["lam"], t, p)
     return out
-
-
-def trajectory(t0, t1, steps, p, q0, tol=1e-12):
-    """Rows of the results table (t, then the compiled groups in contract order)."""
-    h = (t1 - t0) / (steps - 1) if steps > 1 else 0.0
-    rows = []
-    q, history = np.array(q0, dtype=float), []
-    state = None
-    for k in range(steps):
-        t = t0 + k * h
-        if state is not None:
-            q = _predict(state, history, h)
-        q, _ = newton(q, t, p, tol)
-        out = outputs(q, t, p)
-        state = (q, out.get("qd"), out.get("qdd"))
-        history = (history + [q])[-3:]
-        rows.append(_row(t, q, out))
-    return np.array(rows)
-
-
-def _predict(state, history, h):
-    q, qd, qdd = state
-    if qd is not None:
-        return q + h * qd + 0.5 * h * h * qdd
-    if len(history) >= 3:
-        return 3 * history[-1] - 3 * history[-2] + history[-3]
-    if len(history) == 2:
-        return 2 * history[-1] - history[-2]
-    return q
-
-
-def _row(t, q, out):
-    zeros = np.zeros(NG)
-    parts = [np.array([t])]
-    for group in OUTPUTS:
-        key = {"q": None, "qdot": "qd", "qddot": "qdd", "lambda": "lam", "reactions": "reactions"}[group]
-        parts.append(q if key is None else out.get(key, zeros))
-    return np.concatenate(parts)

@@ -564,17 +564,16 @@ int four_bar_instant(double t, const double *p, double tol, double *q, double *q
 {
     double *r = FOUR_BAR_VEC(work, 0), *dq = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
     double *b = FOUR_BAR_VEC(work, 3), *tr = FOUR_BAR_VEC(work, 9);
-    double step = INFINITY, lim, qmag;
+    double step = INFINITY, lim, qmag, rmax;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
     four_bar_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = FOUR_BAR_MAX(1.0, four_bar_maxabs(q, 9));
     lim = FOUR_BAR_MAX(tol, 8.0 * FOUR_BAR_EPS * qmag);
+    four_bar_phi_k(q, tr, t, p, r);
+    rmax = four_bar_maxabs(r, 9);
     for (it = 0;; ++it) {
-        double rmax;
-        four_bar_phi_k(q, tr, t, p, r);
-        rmax = four_bar_maxabs(r, 9);
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
@@ -595,6 +594,15 @@ int four_bar_instant(double t, const double *p, double tol, double *q, double *q
             step = a > step || a != a ? a : step;
         }
         four_bar_trig_step(q, dq, tr);
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        four_bar_phi_k(q, tr, t, p, r);
+        rmax = four_bar_maxabs(r, 9);
     }
     info[0] = it;
     if (!converged) return FOUR_BAR_NOT_CONVERGED;

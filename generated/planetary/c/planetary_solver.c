@@ -566,17 +566,16 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
 {
     double *r = PLANETARY_VEC(work, 0), *dq = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
     double *b = PLANETARY_VEC(work, 3), *tr = PLANETARY_VEC(work, 9);
-    double step = INFINITY, lim, qmag;
+    double step = INFINITY, lim, qmag, rmax;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
     planetary_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = PLANETARY_MAX(1.0, planetary_maxabs(q, 12));
     lim = PLANETARY_MAX(tol, 8.0 * PLANETARY_EPS * qmag);
+    planetary_phi_k(q, tr, t, p, r);
+    rmax = planetary_maxabs(r, 12);
     for (it = 0;; ++it) {
-        double rmax;
-        planetary_phi_k(q, tr, t, p, r);
-        rmax = planetary_maxabs(r, 12);
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
@@ -597,6 +596,15 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
             step = a > step || a != a ? a : step;
         }
         planetary_trig_step(q, dq, tr);
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        planetary_phi_k(q, tr, t, p, r);
+        rmax = planetary_maxabs(r, 12);
     }
     info[0] = it;
     if (!converged) return PLANETARY_NOT_CONVERGED;

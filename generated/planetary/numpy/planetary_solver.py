@@ -2,10 +2,15 @@
 # Do not edit: regenerate with `symid generate` instead.
 """Inverse-dynamics solver of the mechanism 'planetary' (needs only numpy).
 
-Every function but `instant` and `trajectory` is vectorized: q, qd of shape
-(NG,) or (NG, N) and t of shape () or (N,) give results with a trailing N.
+The public functions phi, phi_q_values, phi_q, nu, gamma, applied, mass, reactions and
+`outputs` are vectorized: q, qd of shape (NG,) or (NG, N) and t of shape ()
+or (N,) give results with a trailing N. `instant` solves one instant (Newton,
+then the outputs) with scalar code and a sparse LU whose pivot order was
+fixed at generation time; `trajectory` runs a whole time grid with it.
 Parameters p (size NP), in this order: r_sun, r_planet, r_ring, r_pinion, m_sun, m_planet, m_pinion, m_carrier, n_in, omega, T_load.
 """
+
+import math
 
 import numpy
 import numpy as np
@@ -14,6 +19,7 @@ NG = 12
 NC = 12
 NP = 11
 NR = 51
+NNZ = 20
 PARAMS = ("r_sun", "r_planet", "r_ring", "r_pinion", "m_sun", "m_planet", "m_pinion", "m_carrier", "n_in", "omega", "T_load", )
 DEFAULT_PARAMS = np.array([0.03, 0.03, 0.09, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 31.41592653589793, 5.0], dtype=float)
 PHI_Q_ROWS = np.array([0, 1, 2, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 8, 9, 10, 10, 11], dtype=np.intp)
@@ -21,7 +27,22 @@ PHI_Q_COLS = np.array([0, 1, 3, 4, 3, 5, 6, 4, 5, 7, 2, 5, 8, 5, 8, 9, 10, 2, 11
 OUTPUTS = ("q", "qdot", "qddot", "lambda", "reactions", )
 KIND = "inverse_dynamics"
 MAX_NEWTON = 50
-EPS = np.finfo(float).eps
+EPS = float(np.finfo(float).eps)
+THRESHOLD = 0.1
+SINGULAR_RCOND = 1e3 * EPS
+_FILL = [0.0] * 0
+
+
+class SolverError(RuntimeError):
+    """An instant that could not be solved.
+
+    Attributes: status ("not converged" or "singular"), t, q (the last
+    iterate), iterations.
+    """
+
+    def __init__(self, status, t, q, iterations):
+        super().__init__(f"{status} at t = {t!r}")
+        self.status, self.t, self.q, self.iterations = status, t, q, iterations
 
 
 def _stack(values, like):
@@ -32,184 +53,366 @@ def _stack(values, like):
 
 def phi(q, t, p):
     """Phi, size NC."""
+    out = [0.0] * 12
     e0 = p[0] + p[1]
     e1 = -q[5]
-    return _stack([
-        q[0],
-        q[1],
-        q[3],
-        q[4],
-        -e0*numpy.cos(q[5]) - q[3] + q[6],
-        -e0*numpy.sin(q[5]) - q[4] + q[7],
-        e1 + p[0]*(e1 + q[2])/p[1] + q[8],
-        -p[1]*(-q[5] + q[8])/p[2] - q[5],
-        p[0] + p[3] + q[9],
-        q[10],
-        q[2] + p[3]*q[11]/p[0],
-        -p[9]*t + q[11],
-    ], q[0])
+    out[0] = q[0]
+    out[1] = q[1]
+    out[2] = q[3]
+    out[3] = q[4]
+    out[4] = -e0*numpy.cos(q[5]) - q[3] + q[6]
+    out[5] = -e0*numpy.sin(q[5]) - q[4] + q[7]
+    out[6] = e1 + p[0]*(e1 + q[2])/p[1] + q[8]
+    out[7] = -p[1]*(-q[5] + q[8])/p[2] - q[5]
+    out[8] = p[0] + p[3] + q[9]
+    out[9] = q[10]
+    out[10] = q[2] + p[3]*q[11]/p[0]
+    out[11] = -p[9]*t + q[11]
+    return _stack(out, q[0])
+
+
+def _phi_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 12
+    e0 = p[0] + p[1]
+    e1 = -q[5]
+    out[0] = q[0]
+    out[1] = q[1]
+    out[2] = q[3]
+    out[3] = q[4]
+    out[4] = -e0*math.cos(q[5]) - q[3] + q[6]
+    out[5] = -e0*math.sin(q[5]) - q[4] + q[7]
+    out[6] = e1 + p[0]*(e1 + q[2])/p[1] + q[8]
+    out[7] = -p[1]*(-q[5] + q[8])/p[2] - q[5]
+    out[8] = p[0] + p[3] + q[9]
+    out[9] = q[10]
+    out[10] = q[2] + p[3]*q[11]/p[0]
+    out[11] = -p[9]*t + q[11]
+    return out
 
 
 def phi_q_values(q, t, p):
     """The stored values of Phi_q (rows PHI_Q_ROWS, columns PHI_Q_COLS)."""
+    out = [0.0] * 20
     e0 = p[0] + p[1]
     e1 = p[0]/p[1]
     e2 = p[1]/p[2]
-    return _stack([
-        1,
-        1,
-        1,
-        1,
-        -1,
-        e0*numpy.sin(q[5]),
-        1,
-        -1,
-        -e0*numpy.cos(q[5]),
-        1,
-        e1,
-        -e1 - 1,
-        1,
-        e2 - 1,
-        -e2,
-        1,
-        1,
-        1,
-        p[3]/p[0],
-        1,
-    ], q[0])
+    out[0] = 1
+    out[1] = 1
+    out[2] = 1
+    out[3] = 1
+    out[4] = -1
+    out[5] = e0*numpy.sin(q[5])
+    out[6] = 1
+    out[7] = -1
+    out[8] = -e0*numpy.cos(q[5])
+    out[9] = 1
+    out[10] = e1
+    out[11] = -e1 - 1
+    out[12] = 1
+    out[13] = e2 - 1
+    out[14] = -e2
+    out[15] = 1
+    out[16] = 1
+    out[17] = 1
+    out[18] = p[3]/p[0]
+    out[19] = 1
+    return _stack(out, q[0])
+
+
+def _phi_q_values_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 20
+    e0 = p[0] + p[1]
+    e1 = p[0]/p[1]
+    e2 = p[1]/p[2]
+    out[0] = 1
+    out[1] = 1
+    out[2] = 1
+    out[3] = 1
+    out[4] = -1
+    out[5] = e0*math.sin(q[5])
+    out[6] = 1
+    out[7] = -1
+    out[8] = -e0*math.cos(q[5])
+    out[9] = 1
+    out[10] = e1
+    out[11] = -e1 - 1
+    out[12] = 1
+    out[13] = e2 - 1
+    out[14] = -e2
+    out[15] = 1
+    out[16] = 1
+    out[17] = 1
+    out[18] = p[3]/p[0]
+    out[19] = 1
+    return out
 
 
 def nu(q, t, p):
     """nu = -Phi_t, size NC."""
-    return _stack([
-        0,
-        0,
-        0,
-        0,
-        0,
-        0,
-        0,
-        0,
-        0,
-        0,
-        0,
-        p[9],
-    ], q[0])
+    out = [0.0] * 12
+    out[0] = 0
+    out[1] = 0
+    out[2] = 0
+    out[3] = 0
+    out[4] = 0
+    out[5] = 0
+    out[6] = 0
+    out[7] = 0
+    out[8] = 0
+    out[9] = 0
+    out[10] = 0
+    out[11] = p[9]
+    return _stack(out, q[0])
+
+
+def _nu_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 12
+    out[0] = 0
+    out[1] = 0
+    out[2] = 0
+    out[3] = 0
+    out[4] = 0
+    out[5] = 0
+    out[6] = 0
+    out[7] = 0
+    out[8] = 0
+    out[9] = 0
+    out[10] = 0
+    out[11] = p[9]
+    return out
 
 
 def gamma(q, qd, t, p):
     """gamma, size NC."""
+    out = [0.0] * 12
     e0 = qd[5]**2*(p[0] + p[1])
-    return _stack([
-        0,
-        0,
-        0,
-        0,
-        -e0*numpy.cos(q[5]),
-        -e0*numpy.sin(q[5]),
-        0,
-        0,
-        0,
-        0,
-        0,
-        0,
-    ], q[0])
+    out[0] = 0
+    out[1] = 0
+    out[2] = 0
+    out[3] = 0
+    out[4] = -e0*numpy.cos(q[5])
+    out[5] = -e0*numpy.sin(q[5])
+    out[6] = 0
+    out[7] = 0
+    out[8] = 0
+    out[9] = 0
+    out[10] = 0
+    out[11] = 0
+    return _stack(out, q[0])
+
+
+def _gamma_s(q, qd, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 12
+    e0 = qd[5]**2*(p[0] + p[1])
+    out[0] = 0
+    out[1] = 0
+    out[2] = 0
+    out[3] = 0
+    out[4] = -e0*math.cos(q[5])
+    out[5] = -e0*math.sin(q[5])
+    out[6] = 0
+    out[7] = 0
+    out[8] = 0
+    out[9] = 0
+    out[10] = 0
+    out[11] = 0
+    return out
 
 
 def applied(q, qd, t, p):
     """Q^A, size NG."""
-    return _stack([
-        0,
-        -981/100*p[4],
-        0,
-        0,
-        -981/100*p[7],
-        p[10],
-        0,
-        -981/100*p[5],
-        0,
-        0,
-        -981/100*p[6],
-        0,
-    ], q[0])
+    out = [0.0] * 12
+    out[0] = 0
+    out[1] = -981/100*p[4]
+    out[2] = 0
+    out[3] = 0
+    out[4] = -981/100*p[7]
+    out[5] = p[10]
+    out[6] = 0
+    out[7] = -981/100*p[5]
+    out[8] = 0
+    out[9] = 0
+    out[10] = -981/100*p[6]
+    out[11] = 0
+    return _stack(out, q[0])
+
+
+def _applied_s(q, qd, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 12
+    out[0] = 0
+    out[1] = -981/100*p[4]
+    out[2] = 0
+    out[3] = 0
+    out[4] = -981/100*p[7]
+    out[5] = p[10]
+    out[6] = 0
+    out[7] = -981/100*p[5]
+    out[8] = 0
+    out[9] = 0
+    out[10] = -981/100*p[6]
+    out[11] = 0
+    return out
 
 
 def mass(p):
     """The diagonal of M, size NG."""
-    return _stack([
-        p[4],
-        p[4],
-        (1/2)*p[0]**2*p[4],
-        p[7],
-        p[7],
-        (1/2)*p[7]*(p[0] + p[1])**2,
-        p[5],
-        p[5],
-        (1/2)*p[1]**2*p[5],
-        p[6],
-        p[6],
-        (1/2)*p[3]**2*p[6],
-    ], 0.0)
+    out = [0.0] * 12
+    out[0] = p[4]
+    out[1] = p[4]
+    out[2] = (1/2)*p[0]**2*p[4]
+    out[3] = p[7]
+    out[4] = p[7]
+    out[5] = (1/2)*p[7]*(p[0] + p[1])**2
+    out[6] = p[5]
+    out[7] = p[5]
+    out[8] = (1/2)*p[1]**2*p[5]
+    out[9] = p[6]
+    out[10] = p[6]
+    out[11] = (1/2)*p[3]**2*p[6]
+    return _stack(out, 0.0)
+
+
+def _mass_s(p):
+    # one instant, floats in and out
+    out = [0.0] * 12
+    out[0] = p[4]
+    out[1] = p[4]
+    out[2] = (1/2)*p[0]**2*p[4]
+    out[3] = p[7]
+    out[4] = p[7]
+    out[5] = (1/2)*p[7]*(p[0] + p[1])**2
+    out[6] = p[5]
+    out[7] = p[5]
+    out[8] = (1/2)*p[1]**2*p[5]
+    out[9] = p[6]
+    out[10] = p[6]
+    out[11] = (1/2)*p[3]**2*p[6]
+    return out
 
 
 def reactions(q, lam, t, p):
     """Fx, Fy, T per body role of each requested constraint, size NR."""
+    out = [0.0] * 51
     e0 = lam[6]*p[0]/p[1]
     e1 = lam[7]*p[1]/p[2]
     e2 = -lam[7]
-    return _stack([
-        lam[0],
-        lam[1],
-        0,
-        -lam[0],
-        -lam[1],
-        0,
-        lam[2],
-        lam[3],
-        0,
-        -lam[2],
-        -lam[3],
-        0,
-        lam[4],
-        lam[5],
-        0,
-        -lam[4],
-        -lam[5],
-        0,
-        0,
-        0,
-        -e0,
-        0,
-        0,
-        -lam[6],
-        0,
-        0,
-        e0 + lam[6],
-        0,
-        0,
-        e1,
-        0,
-        0,
-        e2,
-        0,
-        0,
-        -e1 - e2,
-        lam[8],
-        lam[9],
-        0,
-        -lam[8],
-        -lam[9],
-        0,
-        0,
-        0,
-        -lam[10]*p[3]/p[0],
-        0,
-        0,
-        -lam[10],
-        0,
-        0,
-        -lam[11],
-    ], q[0])
+    out[0] = lam[0]
+    out[1] = lam[1]
+    out[2] = 0
+    out[3] = -lam[0]
+    out[4] = -lam[1]
+    out[5] = 0
+    out[6] = lam[2]
+    out[7] = lam[3]
+    out[8] = 0
+    out[9] = -lam[2]
+    out[10] = -lam[3]
+    out[11] = 0
+    out[12] = lam[4]
+    out[13] = lam[5]
+    out[14] = 0
+    out[15] = -lam[4]
+    out[16] = -lam[5]
+    out[17] = 0
+    out[18] = 0
+    out[19] = 0
+    out[20] = -e0
+    out[21] = 0
+    out[22] = 0
+    out[23] = -lam[6]
+    out[24] = 0
+    out[25] = 0
+    out[26] = e0 + lam[6]
+    out[27] = 0
+    out[28] = 0
+    out[29] = e1
+    out[30] = 0
+    out[31] = 0
+    out[32] = e2
+    out[33] = 0
+    out[34] = 0
+    out[35] = -e1 - e2
+    out[36] = lam[8]
+    out[37] = lam[9]
+    out[38] = 0
+    out[39] = -lam[8]
+    out[40] = -lam[9]
+    out[41] = 0
+    out[42] = 0
+    out[43] = 0
+    out[44] = -lam[10]*p[3]/p[0]
+    out[45] = 0
+    out[46] = 0
+    out[47] = -lam[10]
+    out[48] = 0
+    out[49] = 0
+    out[50] = -lam[11]
+    return _stack(out, q[0])
+
+
+def _reactions_s(q, lam, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 51
+    e0 = lam[6]*p[0]/p[1]
+    e1 = lam[7]*p[1]/p[2]
+    e2 = -lam[7]
+    out[0] = lam[0]
+    out[1] = lam[1]
+    out[2] = 0
+    out[3] = -lam[0]
+    out[4] = -lam[1]
+    out[5] = 0
+    out[6] = lam[2]
+    out[7] = lam[3]
+    out[8] = 0
+    out[9] = -lam[2]
+    out[10] = -lam[3]
+    out[11] = 0
+    out[12] = lam[4]
+    out[13] = lam[5]
+    out[14] = 0
+    out[15] = -lam[4]
+    out[16] = -lam[5]
+    out[17] = 0
+    out[18] = 0
+    out[19] = 0
+    out[20] = -e0
+    out[21] = 0
+    out[22] = 0
+    out[23] = -lam[6]
+    out[24] = 0
+    out[25] = 0
+    out[26] = e0 + lam[6]
+    out[27] = 0
+    out[28] = 0
+    out[29] = e1
+    out[30] = 0
+    out[31] = 0
+    out[32] = e2
+    out[33] = 0
+    out[34] = 0
+    out[35] = -e1 - e2
+    out[36] = lam[8]
+    out[37] = lam[9]
+    out[38] = 0
+    out[39] = -lam[8]
+    out[40] = -lam[9]
+    out[41] = 0
+    out[42] = 0
+    out[43] = 0
+    out[44] = -lam[10]*p[3]/p[0]
+    out[45] = 0
+    out[46] = 0
+    out[47] = -lam[10]
+    out[48] = 0
+    out[49] = 0
+    out[50] = -lam[11]
+    return out
 
 
 def phi_q(q, t, p):
@@ -220,23 +423,199 @@ def phi_q(q, t, p):
     return out
 
 
-def newton(q, t, p, tol=1e-12):
-    """Solve Phi(q, t) = 0 from the guess q (one instant). Returns (q, iterations)."""
-    q = np.array(q, dtype=float)
-    step = np.inf
+def _factor(a):
+    """The fixed-order sparse LU of Phi_q in place; False where a pivot fails the threshold test."""
+    piv = a[0]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[1]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[2]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[4])) or piv == 0.0:
+        return False
+    a[4] /= piv
+    piv = a[3]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[7])) or piv == 0.0:
+        return False
+    a[7] /= piv
+    piv = a[6]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[9]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[15]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[16]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[19]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[18])) or piv == 0.0:
+        return False
+    a[18] /= piv
+    piv = a[17]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[10])) or piv == 0.0:
+        return False
+    a[10] /= piv
+    piv = a[11]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[13])) or piv == 0.0:
+        return False
+    a[13] /= piv
+    a[14] -= a[13] * a[12]
+    piv = a[14]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    return True
+
+
+def _solve(a, b):
+    y = list(b)
+    y[4] -= a[4] * y[2]
+    y[5] -= a[7] * y[3]
+    y[10] -= a[18] * y[11]
+    y[6] -= a[10] * y[10]
+    y[7] -= a[13] * y[6]
+    x = [0.0] * NG
+    x[8] = (y[7]) / a[14]
+    x[5] = (y[6] - a[12] * x[8]) / a[11]
+    x[2] = (y[10]) / a[17]
+    x[11] = (y[11]) / a[19]
+    x[10] = (y[9]) / a[16]
+    x[9] = (y[8]) / a[15]
+    x[7] = (y[5] - a[8] * x[5]) / a[9]
+    x[6] = (y[4] - a[5] * x[5]) / a[6]
+    x[4] = (y[3]) / a[3]
+    x[3] = (y[2]) / a[2]
+    x[1] = (y[1]) / a[1]
+    x[0] = (y[0]) / a[0]
+    return x
+
+
+def _solve_t(a, b):
+    x = [0.0] * NC
+    x[0] = (b[0]) / a[0]
+    x[1] = (b[1]) / a[1]
+    x[2] = (b[3]) / a[2]
+    x[3] = (b[4]) / a[3]
+    x[4] = (b[6]) / a[6]
+    x[5] = (b[7]) / a[9]
+    x[8] = (b[9]) / a[15]
+    x[9] = (b[10]) / a[16]
+    x[11] = (b[11]) / a[19]
+    x[10] = (b[2]) / a[17]
+    x[6] = (b[5] - a[5] * x[4] - a[8] * x[5]) / a[11]
+    x[7] = (b[8] - a[12] * x[6]) / a[14]
+    x[6] -= a[13] * x[7]
+    x[10] -= a[10] * x[6]
+    x[11] -= a[18] * x[10]
+    x[3] -= a[7] * x[5]
+    x[2] -= a[4] * x[4]
+    return x
+
+
+class _Factors:
+    """Phi_q(q) factored: the fixed sparse order, or a dense fallback."""
+
+    def __init__(self, q, t, p):
+        values = _phi_q_values_s(q, t, p)
+        self.lu = values + _FILL
+        self.dense = None
+        if not _factor(self.lu):
+            jac = np.zeros((NC, NG))
+            jac[PHI_Q_ROWS, PHI_Q_COLS] = values
+            if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
+                raise ValueError("singular")
+            self.dense = jac
+
+    def solve(self, b):
+        if self.dense is None:
+            return _solve(self.lu, b)
+        return list(np.linalg.solve(self.dense, b))
+
+    def solve_t(self, b):
+        if self.dense is None:
+            return _solve_t(self.lu, b)
+        return list(np.linalg.solve(self.dense.T, b))
+
+
+def instant(t, p, q, tol=1e-12):
+    """Solve one instant from the guess q: Newton, then the compiled outputs.
+
+    Returns a dict with q and, as compiled, qd, qdd, lam, reactions and
+    iterations. Raises SolverError.
+    """
+    q = [float(v) for v in q]
+    p = [float(v) for v in p]
+    qmag = max(1.0, max(map(abs, q)))
+    lim = max(tol, 8.0 * EPS * qmag)
+    step, factors, converged = math.inf, None, False
+    r = _phi_s(q, t, p)
+    rmax = max(map(abs, r))
     for it in range(MAX_NEWTON + 1):
-        r = phi(q, t, p)
-        limit = max(tol, 8 * EPS * max(1.0, float(np.max(np.abs(q)))))
-        if not np.all(np.isfinite(r)):
+        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
             break
-        if np.max(np.abs(r)) <= limit and step <= limit:
-            return q, it
+        if rmax <= lim and step <= lim:
+            converged = True
+            break
         if it == MAX_NEWTON:
             break
-        dq = np.linalg.solve(phi_q(q, t, p), -r)
-        q = q + dq
-        step = float(np.max(np.abs(dq)))
-    raise RuntimeError(f"Newton did not converge at t = {t!r}")
+        try:
+            factors = _Factors(q, t, p)
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+        dq = factors.solve([-v for v in r])
+        q = [a + b for a, b in zip(q, dq)]
+        step = max(map(abs, dq))
+        if rmax <= lim and step <= lim:
+            # |Phi| was within tolerance where this last correction was
+            # computed, and the correction is too: Newton has converged
+            converged = True
+            it += 1
+            break
+        r = _phi_s(q, t, p)
+        rmax = max(map(abs, r))
+    if not converged:
+        raise SolverError("not converged", t, q, it)
+    if factors is None or step > 1e-14 * qmag:
+        try:
+            factors = _Factors(q, t, p)
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+    out = {"q": q, "iterations": it}
+    out["qd"] = qd = factors.solve(_nu_s(q, t, p))
+    out["qdd"] = qdd = factors.solve(_gamma_s(q, qd, t, p))
+    rhs = [a - m * b for a, m, b in zip(_applied_s(q, qd, t, p), _mass_s(p), qdd)]
+    out["lam"] = lam = factors.solve_t(rhs)
+    out["reactions"] = _reactions_s(q, lam, t, p)
+    return out
+
+
+def rows(t0, h, n, p, q0, tol=1e-12):
+    """Yield the n rows (t, then the compiled groups in contract order) of
+    the grid t0 + k h, each instant warm-started from the one before."""
+    zeros = [0.0] * NG
+    p = [float(v) for v in p]
+    q, prev = list(q0), None
+    history = []
+    for k in range(n):
+        t = t0 + k * h
+        if prev is not None:
+            q = [a + h * b + 0.5 * h * h * c for a, b, c in zip(prev["q"], prev["qd"], prev["qdd"])]
+        prev = instant(t, p, q, tol)
+        history = (history + [prev["q"]])[-3:]
+        row = [t]
+        for group in OUTPUTS:
+            row += prev.get({"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam",
+                             "reactions": "reactions"}[group], zeros)
+        yield row
+
+
+def trajectory(t0, t1, steps, p, q0, tol=1e-12):
+    """All rows of the grid t_k = t0 + k (t1 - t0) / (steps - 1), as an array."""
+    h = (t1 - t0) / (steps - 1) if steps > 1 else 0.0
+    return np.array(list(rows(t0, h, steps, p, q0, tol)))
 
 
 def outputs(q, t, p):
@@ -245,7 +624,7 @@ def outputs(q, t, p):
     jac = phi_q(q, t, p)
     if jac.ndim == 2:
         jac = jac[None]
-    cols = lambda v: np.moveaxis(np.atleast_2d(v.T).reshape(jac.shape[0], -1), 0, 0)
+    cols = lambda v: np.atleast_2d(v.T).reshape(jac.shape[0], -1)
     out = {}
     qd = np.linalg.solve(jac, cols(nu(q, t, p))[..., None])[..., 0].T.reshape(q.shape)
     qdd = np.linalg.solve(jac, cols(gamma(q, qd, t, p))[..., None])[..., 0].T.reshape(q.shape)
@@ -255,41 +634,3 @@ def outputs(q, t, p):
     out["lam"] = lam.reshape((NC,) + q.shape[1:])
     out["reactions"] = reactions(q, out["lam"], t, p)
     return out
-
-
-def trajectory(t0, t1, steps, p, q0, tol=1e-12):
-    """Rows of the results table (t, then the compiled groups in contract order)."""
-    h = (t1 - t0) / (steps - 1) if steps > 1 else 0.0
-    rows = []
-    q, history = np.array(q0, dtype=float), []
-    state = None
-    for k in range(steps):
-        t = t0 + k * h
-        if state is not None:
-            q = _predict(state, history, h)
-        q, _ = newton(q, t, p, tol)
-        out = outputs(q, t, p)
-        state = (q, out.get("qd"), out.get("qdd"))
-        history = (history + [q])[-3:]
-        rows.append(_row(t, q, out))
-    return np.array(rows)
-
-
-def _predict(state, history, h):
-    q, qd, qdd = state
-    if qd is not None:
-        return q + h * qd + 0.5 * h * h * qdd
-    if len(history) >= 3:
-        return 3 * history[-1] - 3 * history[-2] + history[-3]
-    if len(history) == 2:
-        return 2 * history[-1] - history[-2]
-    return q
-
-
-def _row(t, q, out):
-    zeros = np.zeros(NG)
-    parts = [np.array([t])]
-    for group in OUTPUTS:
-        key = {"q": None, "qdot": "qd", "qddot": "qdd", "lambda": "lam", "reactions": "reactions"}[group]
-        parts.append(q if key is None else out.get(key, zeros))
-    return np.concatenate(parts)

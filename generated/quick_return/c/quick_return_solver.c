@@ -526,17 +526,16 @@ int quick_return_instant(double t, const double *p, double tol, double *q, doubl
 {
     double *r = QUICK_RETURN_VEC(work, 0), *dq = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
     double *b = QUICK_RETURN_VEC(work, 3), *tr = QUICK_RETURN_VEC(work, 9);
-    double step = INFINITY, lim, qmag;
+    double step = INFINITY, lim, qmag, rmax;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
     quick_return_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = QUICK_RETURN_MAX(1.0, quick_return_maxabs(q, 9));
     lim = QUICK_RETURN_MAX(tol, 8.0 * QUICK_RETURN_EPS * qmag);
+    quick_return_phi_k(q, tr, t, p, r);
+    rmax = quick_return_maxabs(r, 9);
     for (it = 0;; ++it) {
-        double rmax;
-        quick_return_phi_k(q, tr, t, p, r);
-        rmax = quick_return_maxabs(r, 9);
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
@@ -557,6 +556,15 @@ int quick_return_instant(double t, const double *p, double tol, double *q, doubl
             step = a > step || a != a ? a : step;
         }
         quick_return_trig_step(q, dq, tr);
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        quick_return_phi_k(q, tr, t, p, r);
+        rmax = quick_return_maxabs(r, 9);
     }
     info[0] = it;
     if (!converged) return QUICK_RETURN_NOT_CONVERGED;

@@ -2,10 +2,15 @@
 # Do not edit: regenerate with `symid generate` instead.
 """Inverse-dynamics solver of the mechanism 'quick_return' (needs only numpy).
 
-Every function but `instant` and `trajectory` is vectorized: q, qd of shape
-(NG,) or (NG, N) and t of shape () or (N,) give results with a trailing N.
+The public functions phi, phi_q_values, phi_q, nu, gamma, applied, mass, reactions and
+`outputs` are vectorized: q, qd of shape (NG,) or (NG, N) and t of shape ()
+or (N,) give results with a trailing N. `instant` solves one instant (Newton,
+then the outputs) with scalar code and a sparse LU whose pivot order was
+fixed at generation time; `trajectory` runs a whole time grid with it.
 Parameters p (size NP), in this order: r_crank, d_pivots, L_lever, L_link, h_ram, m_crank, R_crank, m_lever, m_ram, a_ram, b_ram, n, omega, F_cut.
 """
+
+import math
 
 import numpy
 import numpy as np
@@ -14,6 +19,7 @@ NG = 9
 NC = 9
 NP = 14
 NR = 36
+NNZ = 20
 PARAMS = ("r_crank", "d_pivots", "L_lever", "L_link", "h_ram", "m_crank", "R_crank", "m_lever", "m_ram", "a_ram", "b_ram", "n", "omega", "F_cut", )
 DEFAULT_PARAMS = np.array([0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 6.283185307179586, 500.0], dtype=float)
 PHI_Q_ROWS = np.array([0, 1, 2, 2, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 6, 7, 8], dtype=np.intp)
@@ -21,7 +27,22 @@ PHI_Q_COLS = np.array([0, 1, 3, 5, 4, 5, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 7, 8, 
 OUTPUTS = ("q", "qdot", "qddot", "lambda", "reactions", )
 KIND = "inverse_dynamics"
 MAX_NEWTON = 50
-EPS = np.finfo(float).eps
+EPS = float(np.finfo(float).eps)
+THRESHOLD = 0.1
+SINGULAR_RCOND = 1e3 * EPS
+_FILL = [0.0] * 0
+
+
+class SolverError(RuntimeError):
+    """An instant that could not be solved.
+
+    Attributes: status ("not converged" or "singular"), t, q (the last
+    iterate), iterations.
+    """
+
+    def __init__(self, status, t, q, iterations):
+        super().__init__(f"{status} at t = {t!r}")
+        self.status, self.t, self.q, self.iterations = status, t, q, iterations
 
 
 def _stack(values, like):
@@ -32,6 +53,7 @@ def _stack(values, like):
 
 def phi(q, t, p):
     """Phi, size NC."""
+    out = [0.0] * 9
     e0 = -q[3]
     e1 = numpy.cos(q[5])
     e2 = (1/2)*p[2]
@@ -39,21 +61,43 @@ def phi(q, t, p):
     e4 = numpy.sin(q[5])
     e5 = e2*e4
     e6 = -q[7]
-    return _stack([
-        q[0],
-        q[1],
-        -e0 - e3,
-        -e5 + p[1] + q[4],
-        e1*(p[0]*numpy.sin(q[2]) + q[1] - q[4]) - e4*(e0 + p[0]*numpy.cos(q[2]) + q[0]),
-        -p[3]**2 + (-e3 - q[3] + q[6])**2 + (-e5 - e6 - q[4])**2,
-        -e6 - p[4],
-        q[8],
-        -p[12]*t + q[2],
-    ], q[0])
+    out[0] = q[0]
+    out[1] = q[1]
+    out[2] = -e0 - e3
+    out[3] = -e5 + p[1] + q[4]
+    out[4] = e1*(p[0]*numpy.sin(q[2]) + q[1] - q[4]) - e4*(e0 + p[0]*numpy.cos(q[2]) + q[0])
+    out[5] = -p[3]**2 + (-e3 - q[3] + q[6])**2 + (-e5 - e6 - q[4])**2
+    out[6] = -e6 - p[4]
+    out[7] = q[8]
+    out[8] = -p[12]*t + q[2]
+    return _stack(out, q[0])
+
+
+def _phi_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 9
+    e0 = -q[3]
+    e1 = math.cos(q[5])
+    e2 = (1/2)*p[2]
+    e3 = e1*e2
+    e4 = math.sin(q[5])
+    e5 = e2*e4
+    e6 = -q[7]
+    out[0] = q[0]
+    out[1] = q[1]
+    out[2] = -e0 - e3
+    out[3] = -e5 + p[1] + q[4]
+    out[4] = e1*(p[0]*math.sin(q[2]) + q[1] - q[4]) - e4*(e0 + p[0]*math.cos(q[2]) + q[0])
+    out[5] = -p[3]**2 + (-e3 - q[3] + q[6])**2 + (-e5 - e6 - q[4])**2
+    out[6] = -e6 - p[4]
+    out[7] = q[8]
+    out[8] = -p[12]*t + q[2]
+    return out
 
 
 def phi_q_values(q, t, p):
     """The stored values of Phi_q (rows PHI_Q_ROWS, columns PHI_Q_COLS)."""
+    out = [0.0] * 20
     e0 = numpy.sin(q[5])
     e1 = e0*p[2]
     e2 = (1/2)*e1
@@ -64,47 +108,98 @@ def phi_q_values(q, t, p):
     e7 = p[0]*numpy.sin(q[2])
     e8 = e4 + 2*q[3] - 2*q[6]
     e9 = e1 + 2*q[4] - 2*q[7]
-    return _stack([
-        1,
-        1,
-        1,
-        e2,
-        1,
-        -e5,
-        -e0,
-        e3,
-        e0*e7 + e3*e6,
-        e0,
-        -e3,
-        -e0*(e7 + q[1] - q[4]) - e3*(e6 + q[0] - q[3]),
-        e8,
-        e9,
-        e0*p[2]*(-e5 - q[3] + q[6]) - e4*(-e2 - q[4] + q[7]),
-        -e8,
-        -e9,
-        1,
-        1,
-        1,
-    ], q[0])
+    out[0] = 1
+    out[1] = 1
+    out[2] = 1
+    out[3] = e2
+    out[4] = 1
+    out[5] = -e5
+    out[6] = -e0
+    out[7] = e3
+    out[8] = e0*e7 + e3*e6
+    out[9] = e0
+    out[10] = -e3
+    out[11] = -e0*(e7 + q[1] - q[4]) - e3*(e6 + q[0] - q[3])
+    out[12] = e8
+    out[13] = e9
+    out[14] = e0*p[2]*(-e5 - q[3] + q[6]) - e4*(-e2 - q[4] + q[7])
+    out[15] = -e8
+    out[16] = -e9
+    out[17] = 1
+    out[18] = 1
+    out[19] = 1
+    return _stack(out, q[0])
+
+
+def _phi_q_values_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 20
+    e0 = math.sin(q[5])
+    e1 = e0*p[2]
+    e2 = (1/2)*e1
+    e3 = math.cos(q[5])
+    e4 = e3*p[2]
+    e5 = (1/2)*e4
+    e6 = p[0]*math.cos(q[2])
+    e7 = p[0]*math.sin(q[2])
+    e8 = e4 + 2*q[3] - 2*q[6]
+    e9 = e1 + 2*q[4] - 2*q[7]
+    out[0] = 1
+    out[1] = 1
+    out[2] = 1
+    out[3] = e2
+    out[4] = 1
+    out[5] = -e5
+    out[6] = -e0
+    out[7] = e3
+    out[8] = e0*e7 + e3*e6
+    out[9] = e0
+    out[10] = -e3
+    out[11] = -e0*(e7 + q[1] - q[4]) - e3*(e6 + q[0] - q[3])
+    out[12] = e8
+    out[13] = e9
+    out[14] = e0*p[2]*(-e5 - q[3] + q[6]) - e4*(-e2 - q[4] + q[7])
+    out[15] = -e8
+    out[16] = -e9
+    out[17] = 1
+    out[18] = 1
+    out[19] = 1
+    return out
 
 
 def nu(q, t, p):
     """nu = -Phi_t, size NC."""
-    return _stack([
-        0,
-        0,
-        0,
-        0,
-        0,
-        0,
-        0,
-        0,
-        p[12],
-    ], q[0])
+    out = [0.0] * 9
+    out[0] = 0
+    out[1] = 0
+    out[2] = 0
+    out[3] = 0
+    out[4] = 0
+    out[5] = 0
+    out[6] = 0
+    out[7] = 0
+    out[8] = p[12]
+    return _stack(out, q[0])
+
+
+def _nu_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 9
+    out[0] = 0
+    out[1] = 0
+    out[2] = 0
+    out[3] = 0
+    out[4] = 0
+    out[5] = 0
+    out[6] = 0
+    out[7] = 0
+    out[8] = p[12]
+    return out
 
 
 def gamma(q, qd, t, p):
     """gamma, size NC."""
+    out = [0.0] * 9
     e0 = qd[5]**2
     e1 = numpy.cos(q[5])
     e2 = e0*e1
@@ -117,51 +212,108 @@ def gamma(q, qd, t, p):
     e9 = qd[2]**2
     e10 = p[0]*numpy.sin(q[2])
     e11 = p[0]*numpy.cos(q[2])
-    return _stack([
-        0,
-        0,
-        -e2*e3,
-        -e3*e5,
-        e1*e10*e9 + e10*e2 - e10*e7*qd[2] - e11*e4*e9 - e11*e5 + e11*e8*qd[2] + e2*q[1] - e2*q[4] - e5*q[0] + e5*q[3] + e7*qd[0] - e7*qd[3] + e8*qd[1] - e8*qd[4],
-        e0*e1*p[2]*q[3] + e0*e4*p[2]*q[4] + 2*e1*p[2]*qd[5]*qd[7] - e2*p[2]*q[6] + 2*e4*p[2]*qd[3]*qd[5] - e5*p[2]*q[7] - e7*p[2]*qd[4] - e8*p[2]*qd[6] - 2*qd[3]**2 + 4*qd[3]*qd[6] - 2*qd[4]**2 + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2,
-        0,
-        0,
-        0,
-    ], q[0])
+    out[0] = 0
+    out[1] = 0
+    out[2] = -e2*e3
+    out[3] = -e3*e5
+    out[4] = e1*e10*e9 + e10*e2 - e10*e7*qd[2] - e11*e4*e9 - e11*e5 + e11*e8*qd[2] + e2*q[1] - e2*q[4] - e5*q[0] + e5*q[3] + e7*qd[0] - e7*qd[3] + e8*qd[1] - e8*qd[4]
+    out[5] = e0*e1*p[2]*q[3] + e0*e4*p[2]*q[4] + 2*e1*p[2]*qd[5]*qd[7] - e2*p[2]*q[6] + 2*e4*p[2]*qd[3]*qd[5] - e5*p[2]*q[7] - e7*p[2]*qd[4] - e8*p[2]*qd[6] - 2*qd[3]**2 + 4*qd[3]*qd[6] - 2*qd[4]**2 + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2
+    out[6] = 0
+    out[7] = 0
+    out[8] = 0
+    return _stack(out, q[0])
+
+
+def _gamma_s(q, qd, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 9
+    e0 = qd[5]**2
+    e1 = math.cos(q[5])
+    e2 = e0*e1
+    e3 = (1/2)*p[2]
+    e4 = math.sin(q[5])
+    e5 = e0*e4
+    e6 = 2*qd[5]
+    e7 = e1*e6
+    e8 = e4*e6
+    e9 = qd[2]**2
+    e10 = p[0]*math.sin(q[2])
+    e11 = p[0]*math.cos(q[2])
+    out[0] = 0
+    out[1] = 0
+    out[2] = -e2*e3
+    out[3] = -e3*e5
+    out[4] = e1*e10*e9 + e10*e2 - e10*e7*qd[2] - e11*e4*e9 - e11*e5 + e11*e8*qd[2] + e2*q[1] - e2*q[4] - e5*q[0] + e5*q[3] + e7*qd[0] - e7*qd[3] + e8*qd[1] - e8*qd[4]
+    out[5] = e0*e1*p[2]*q[3] + e0*e4*p[2]*q[4] + 2*e1*p[2]*qd[5]*qd[7] - e2*p[2]*q[6] + 2*e4*p[2]*qd[3]*qd[5] - e5*p[2]*q[7] - e7*p[2]*qd[4] - e8*p[2]*qd[6] - 2*qd[3]**2 + 4*qd[3]*qd[6] - 2*qd[4]**2 + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2
+    out[6] = 0
+    out[7] = 0
+    out[8] = 0
+    return out
 
 
 def applied(q, qd, t, p):
     """Q^A, size NG."""
-    return _stack([
-        0,
-        -981/100*p[5],
-        0,
-        0,
-        -981/100*p[7],
-        0,
-        (1/2)*p[13]*(numpy.sin(p[12]*t) + 1),
-        -981/100*p[8],
-        0,
-    ], q[0])
+    out = [0.0] * 9
+    out[0] = 0
+    out[1] = -981/100*p[5]
+    out[2] = 0
+    out[3] = 0
+    out[4] = -981/100*p[7]
+    out[5] = 0
+    out[6] = (1/2)*p[13]*(numpy.sin(p[12]*t) + 1)
+    out[7] = -981/100*p[8]
+    out[8] = 0
+    return _stack(out, q[0])
+
+
+def _applied_s(q, qd, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 9
+    out[0] = 0
+    out[1] = -981/100*p[5]
+    out[2] = 0
+    out[3] = 0
+    out[4] = -981/100*p[7]
+    out[5] = 0
+    out[6] = (1/2)*p[13]*(math.sin(p[12]*t) + 1)
+    out[7] = -981/100*p[8]
+    out[8] = 0
+    return out
 
 
 def mass(p):
     """The diagonal of M, size NG."""
-    return _stack([
-        p[5],
-        p[5],
-        (1/2)*p[5]*p[6]**2,
-        p[7],
-        p[7],
-        (1/12)*p[2]**2*p[7],
-        p[8],
-        p[8],
-        (1/12)*p[8]*(p[10]**2 + p[9]**2),
-    ], 0.0)
+    out = [0.0] * 9
+    out[0] = p[5]
+    out[1] = p[5]
+    out[2] = (1/2)*p[5]*p[6]**2
+    out[3] = p[7]
+    out[4] = p[7]
+    out[5] = (1/12)*p[2]**2*p[7]
+    out[6] = p[8]
+    out[7] = p[8]
+    out[8] = (1/12)*p[8]*(p[10]**2 + p[9]**2)
+    return _stack(out, 0.0)
+
+
+def _mass_s(p):
+    # one instant, floats in and out
+    out = [0.0] * 9
+    out[0] = p[5]
+    out[1] = p[5]
+    out[2] = (1/2)*p[5]*p[6]**2
+    out[3] = p[7]
+    out[4] = p[7]
+    out[5] = (1/12)*p[2]**2*p[7]
+    out[6] = p[8]
+    out[7] = p[8]
+    out[8] = (1/12)*p[8]*(p[10]**2 + p[9]**2)
+    return out
 
 
 def reactions(q, lam, t, p):
     """Fx, Fy, T per body role of each requested constraint, size NR."""
+    out = [0.0] * 36
     e0 = numpy.sin(q[5])
     e1 = e0*lam[4]
     e2 = numpy.cos(q[5])
@@ -170,44 +322,93 @@ def reactions(q, lam, t, p):
     e5 = lam[5]*p[2]
     e6 = e2*e5 + e4*q[3] - 2*lam[5]*q[6]
     e7 = e0*e5 + e4*q[4] - 2*lam[5]*q[7]
-    return _stack([
-        lam[0],
-        lam[1],
-        0,
-        -lam[0],
-        -lam[1],
-        0,
-        lam[2],
-        lam[3],
-        0,
-        -lam[2],
-        -lam[3],
-        0,
-        -e1,
-        e3,
-        e1*p[0]*numpy.sin(q[2]) + e1*q[1] - e1*q[4] + e3*p[0]*numpy.cos(q[2]) + e3*q[0] - e3*q[3],
-        e1,
-        -e3,
-        0,
-        -e6,
-        -e7,
-        0,
-        e6,
-        e7,
-        0,
-        0,
-        lam[6],
-        lam[6]*q[6] + lam[7],
-        0,
-        -lam[6],
-        -lam[7],
-        0,
-        0,
-        lam[8],
-        0,
-        0,
-        -lam[8],
-    ], q[0])
+    out[0] = lam[0]
+    out[1] = lam[1]
+    out[2] = 0
+    out[3] = -lam[0]
+    out[4] = -lam[1]
+    out[5] = 0
+    out[6] = lam[2]
+    out[7] = lam[3]
+    out[8] = 0
+    out[9] = -lam[2]
+    out[10] = -lam[3]
+    out[11] = 0
+    out[12] = -e1
+    out[13] = e3
+    out[14] = e1*p[0]*numpy.sin(q[2]) + e1*q[1] - e1*q[4] + e3*p[0]*numpy.cos(q[2]) + e3*q[0] - e3*q[3]
+    out[15] = e1
+    out[16] = -e3
+    out[17] = 0
+    out[18] = -e6
+    out[19] = -e7
+    out[20] = 0
+    out[21] = e6
+    out[22] = e7
+    out[23] = 0
+    out[24] = 0
+    out[25] = lam[6]
+    out[26] = lam[6]*q[6] + lam[7]
+    out[27] = 0
+    out[28] = -lam[6]
+    out[29] = -lam[7]
+    out[30] = 0
+    out[31] = 0
+    out[32] = lam[8]
+    out[33] = 0
+    out[34] = 0
+    out[35] = -lam[8]
+    return _stack(out, q[0])
+
+
+def _reactions_s(q, lam, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 36
+    e0 = math.sin(q[5])
+    e1 = e0*lam[4]
+    e2 = math.cos(q[5])
+    e3 = e2*lam[4]
+    e4 = 2*lam[5]
+    e5 = lam[5]*p[2]
+    e6 = e2*e5 + e4*q[3] - 2*lam[5]*q[6]
+    e7 = e0*e5 + e4*q[4] - 2*lam[5]*q[7]
+    out[0] = lam[0]
+    out[1] = lam[1]
+    out[2] = 0
+    out[3] = -lam[0]
+    out[4] = -lam[1]
+    out[5] = 0
+    out[6] = lam[2]
+    out[7] = lam[3]
+    out[8] = 0
+    out[9] = -lam[2]
+    out[10] = -lam[3]
+    out[11] = 0
+    out[12] = -e1
+    out[13] = e3
+    out[14] = e1*p[0]*math.sin(q[2]) + e1*q[1] - e1*q[4] + e3*p[0]*math.cos(q[2]) + e3*q[0] - e3*q[3]
+    out[15] = e1
+    out[16] = -e3
+    out[17] = 0
+    out[18] = -e6
+    out[19] = -e7
+    out[20] = 0
+    out[21] = e6
+    out[22] = e7
+    out[23] = 0
+    out[24] = 0
+    out[25] = lam[6]
+    out[26] = lam[6]*q[6] + lam[7]
+    out[27] = 0
+    out[28] = -lam[6]
+    out[29] = -lam[7]
+    out[30] = 0
+    out[31] = 0
+    out[32] = lam[8]
+    out[33] = 0
+    out[34] = 0
+    out[35] = -lam[8]
+    return out
 
 
 def phi_q(q, t, p):
@@ -218,23 +419,185 @@ def phi_q(q, t, p):
     return out
 
 
-def newton(q, t, p, tol=1e-12):
-    """Solve Phi(q, t) = 0 from the guess q (one instant). Returns (q, iterations)."""
-    q = np.array(q, dtype=float)
-    step = np.inf
+def _factor(a):
+    """The fixed-order sparse LU of Phi_q in place; False where a pivot fails the threshold test."""
+    piv = a[0]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[6])) or piv == 0.0:
+        return False
+    a[6] /= piv
+    piv = a[1]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[7])) or piv == 0.0:
+        return False
+    a[7] /= piv
+    piv = a[15]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[17]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[18]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[19]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[8])) or piv == 0.0:
+        return False
+    a[8] /= piv
+    piv = a[2]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[9])) or piv == 0.0:
+        return False
+    a[9] /= piv
+    a[11] -= a[9] * a[3]
+    piv = a[4]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[10])) or piv == 0.0:
+        return False
+    a[10] /= piv
+    a[11] -= a[10] * a[5]
+    piv = a[11]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    return True
+
+
+def _solve(a, b):
+    y = list(b)
+    y[4] -= a[6] * y[0]
+    y[4] -= a[7] * y[1]
+    y[4] -= a[8] * y[8]
+    y[4] -= a[9] * y[2]
+    y[4] -= a[10] * y[3]
+    x = [0.0] * NG
+    x[5] = (y[4]) / a[11]
+    x[4] = (y[3] - a[5] * x[5]) / a[4]
+    x[3] = (y[2] - a[3] * x[5]) / a[2]
+    x[2] = (y[8]) / a[19]
+    x[8] = (y[7]) / a[18]
+    x[7] = (y[6]) / a[17]
+    x[6] = (y[5] - a[12] * x[3] - a[13] * x[4] - a[14] * x[5] - a[16] * x[7]) / a[15]
+    x[1] = (y[1]) / a[1]
+    x[0] = (y[0]) / a[0]
+    return x
+
+
+def _solve_t(a, b):
+    x = [0.0] * NC
+    x[0] = (b[0]) / a[0]
+    x[1] = (b[1]) / a[1]
+    x[5] = (b[6]) / a[15]
+    x[6] = (b[7] - a[16] * x[5]) / a[17]
+    x[7] = (b[8]) / a[18]
+    x[8] = (b[2]) / a[19]
+    x[2] = (b[3] - a[12] * x[5]) / a[2]
+    x[3] = (b[4] - a[13] * x[5]) / a[4]
+    x[4] = (b[5] - a[14] * x[5] - a[3] * x[2] - a[5] * x[3]) / a[11]
+    x[3] -= a[10] * x[4]
+    x[2] -= a[9] * x[4]
+    x[8] -= a[8] * x[4]
+    x[1] -= a[7] * x[4]
+    x[0] -= a[6] * x[4]
+    return x
+
+
+class _Factors:
+    """Phi_q(q) factored: the fixed sparse order, or a dense fallback."""
+
+    def __init__(self, q, t, p):
+        values = _phi_q_values_s(q, t, p)
+        self.lu = values + _FILL
+        self.dense = None
+        if not _factor(self.lu):
+            jac = np.zeros((NC, NG))
+            jac[PHI_Q_ROWS, PHI_Q_COLS] = values
+            if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
+                raise ValueError("singular")
+            self.dense = jac
+
+    def solve(self, b):
+        if self.dense is None:
+            return _solve(self.lu, b)
+        return list(np.linalg.solve(self.dense, b))
+
+    def solve_t(self, b):
+        if self.dense is None:
+            return _solve_t(self.lu, b)
+        return list(np.linalg.solve(self.dense.T, b))
+
+
+def instant(t, p, q, tol=1e-12):
+    """Solve one instant from the guess q: Newton, then the compiled outputs.
+
+    Returns a dict with q and, as compiled, qd, qdd, lam, reactions and
+    iterations. Raises SolverError.
+    """
+    q = [float(v) for v in q]
+    p = [float(v) for v in p]
+    qmag = max(1.0, max(map(abs, q)))
+    lim = max(tol, 8.0 * EPS * qmag)
+    step, factors, converged = math.inf, None, False
+    r = _phi_s(q, t, p)
+    rmax = max(map(abs, r))
     for it in range(MAX_NEWTON + 1):
-        r = phi(q, t, p)
-        limit = max(tol, 8 * EPS * max(1.0, float(np.max(np.abs(q)))))
-        if not np.all(np.isfinite(r)):
+        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
             break
-        if np.max(np.abs(r)) <= limit and step <= limit:
-            return q, it
+        if rmax <= lim and step <= lim:
+            converged = True
+            break
         if it == MAX_NEWTON:
             break
-        dq = np.linalg.solve(phi_q(q, t, p), -r)
-        q = q + dq
-        step = float(np.max(np.abs(dq)))
-    raise RuntimeError(f"Newton did not converge at t = {t!r}")
+        try:
+            factors = _Factors(q, t, p)
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+        dq = factors.solve([-v for v in r])
+        q = [a + b for a, b in zip(q, dq)]
+        step = max(map(abs, dq))
+        if rmax <= lim and step <= lim:
+            # |Phi| was within tolerance where this last correction was
+            # computed, and the correction is too: Newton has converged
+            converged = True
+            it += 1
+            break
+        r = _phi_s(q, t, p)
+        rmax = max(map(abs, r))
+    if not converged:
+        raise SolverError("not converged", t, q, it)
+    if factors is None or step > 1e-14 * qmag:
+        try:
+            factors = _Factors(q, t, p)
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+    out = {"q": q, "iterations": it}
+    out["qd"] = qd = factors.solve(_nu_s(q, t, p))
+    out["qdd"] = qdd = factors.solve(_gamma_s(q, qd, t, p))
+    rhs = [a - m * b for a, m, b in zip(_applied_s(q, qd, t, p), _mass_s(p), qdd)]
+    out["lam"] = lam = factors.solve_t(rhs)
+    out["reactions"] = _reactions_s(q, lam, t, p)
+    return out
+
+
+def rows(t0, h, n, p, q0, tol=1e-12):
+    """Yield the n rows (t, then the compiled groups in contract order) of
+    the grid t0 + k h, each instant warm-started from the one before."""
+    zeros = [0.0] * NG
+    p = [float(v) for v in p]
+    q, prev = list(q0), None
+    history = []
+    for k in range(n):
+        t = t0 + k * h
+        if prev is not None:
+            q = [a + h * b + 0.5 * h * h * c for a, b, c in zip(prev["q"], prev["qd"], prev["qdd"])]
+        prev = instant(t, p, q, tol)
+        history = (history + [prev["q"]])[-3:]
+        row = [t]
+        for group in OUTPUTS:
+            row += prev.get({"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam",
+                             "reactions": "reactions"}[group], zeros)
+        yield row
+
+
+def trajectory(t0, t1, steps, p, q0, tol=1e-12):
+    """All rows of the grid t_k = t0 + k (t1 - t0) / (steps - 1), as an array."""
+    h = (t1 - t0) / (steps - 1) if steps > 1 else 0.0
+    return np.array(list(rows(t0, h, steps, p, q0, tol)))
 
 
 def outputs(q, t, p):
@@ -243,7 +606,7 @@ def outputs(q, t, p):
     jac = phi_q(q, t, p)
     if jac.ndim == 2:
         jac = jac[None]
-    cols = lambda v: np.moveaxis(np.atleast_2d(v.T).reshape(jac.shape[0], -1), 0, 0)
+    cols = lambda v: np.atleast_2d(v.T).reshape(jac.shape[0], -1)
     out = {}
     qd = np.linalg.solve(jac, cols(nu(q, t, p))[..., None])[..., 0].T.reshape(q.shape)
     qdd = np.linalg.solve(jac, cols(gamma(q, qd, t, p))[..., None])[..., 0].T.reshape(q.shape)
@@ -253,41 +616,3 @@ def outputs(q, t, p):
     out["lam"] = lam.reshape((NC,) + q.shape[1:])
     out["reactions"] = reactions(q, out["lam"], t, p)
     return out
-
-
-def trajectory(t0, t1, steps, p, q0, tol=1e-12):
-    """Rows of the results table (t, then the compiled groups in contract order)."""
-    h = (t1 - t0) / (steps - 1) if steps > 1 else 0.0
-    rows = []
-    q, history = np.array(q0, dtype=float), []
-    state = None
-    for k in range(steps):
-        t = t0 + k * h
-        if state is not None:
-            q = _predict(state, history, h)
-        q, _ = newton(q, t, p, tol)
-        out = outputs(q, t, p)
-        state = (q, out.get("qd"), out.get("qdd"))
-        history = (history + [q])[-3:]
-        rows.append(_row(t, q, out))
-    return np.array(rows)
-
-
-def _predict(state, history, h):
-    q, qd, qdd = state
-    if qd is not None:
-        return q + h * qd + 0.5 * h * h * qdd
-    if len(history) >= 3:
-        return 3 * history[-1] - 3 * history[-2] + history[-3]
-    if len(history) == 2:
-        return 2 * history[-1] - history[-2]
-    return q
-
-
-def _row(t, q, out):
-    zeros = np.zeros(NG)
-    parts = [np.array([t])]
-    for group in OUTPUTS:
-        key = {"q": None, "qdot": "qd", "qddot": "qdd", "lambda": "lam", "reactions": "reactions"}[group]
-        parts.append(q if key is None else out.get(key, zeros))
-    return np.concatenate(parts)

@@ -513,17 +513,16 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
 {
     double *r = SLIDER_CRANK_VEC(work, 0), *dq = SLIDER_CRANK_VEC(work, 1), *y = SLIDER_CRANK_VEC(work, 2);
     double *b = SLIDER_CRANK_VEC(work, 3), *tr = SLIDER_CRANK_VEC(work, 9);
-    double step = INFINITY, lim, qmag;
+    double step = INFINITY, lim, qmag, rmax;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
     slider_crank_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_CRANK_MAX(1.0, slider_crank_maxabs(q, 9));
     lim = SLIDER_CRANK_MAX(tol, 8.0 * SLIDER_CRANK_EPS * qmag);
+    slider_crank_phi_k(q, tr, t, p, r);
+    rmax = slider_crank_maxabs(r, 9);
     for (it = 0;; ++it) {
-        double rmax;
-        slider_crank_phi_k(q, tr, t, p, r);
-        rmax = slider_crank_maxabs(r, 9);
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
@@ -544,6 +543,15 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
             step = a > step || a != a ? a : step;
         }
         slider_crank_trig_step(q, dq, tr);
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        slider_crank_phi_k(q, tr, t, p, r);
+        rmax = slider_crank_maxabs(r, 9);
     }
     info[0] = it;
     if (!converged) return SLIDER_CRANK_NOT_CONVERGED;

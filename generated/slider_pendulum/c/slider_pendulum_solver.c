@@ -464,17 +464,16 @@ int slider_pendulum_instant(double t, const double *p, double tol, double *q, do
 {
     double *r = SLIDER_PENDULUM_VEC(work, 0), *dq = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
     double *b = SLIDER_PENDULUM_VEC(work, 3), *tr = SLIDER_PENDULUM_VEC(work, 9);
-    double step = INFINITY, lim, qmag;
+    double step = INFINITY, lim, qmag, rmax;
     int it, k, dense = 0, converged = 0;
     (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
     slider_pendulum_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_PENDULUM_MAX(1.0, slider_pendulum_maxabs(q, 6));
     lim = SLIDER_PENDULUM_MAX(tol, 8.0 * SLIDER_PENDULUM_EPS * qmag);
+    slider_pendulum_phi_k(q, tr, t, p, r);
+    rmax = slider_pendulum_maxabs(r, 6);
     for (it = 0;; ++it) {
-        double rmax;
-        slider_pendulum_phi_k(q, tr, t, p, r);
-        rmax = slider_pendulum_maxabs(r, 6);
         if (!isfinite(rmax)) break;
         if (rmax <= lim && step <= lim) {
             converged = 1;
@@ -495,6 +494,15 @@ int slider_pendulum_instant(double t, const double *p, double tol, double *q, do
             step = a > step || a != a ? a : step;
         }
         slider_pendulum_trig_step(q, dq, tr);
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        slider_pendulum_phi_k(q, tr, t, p, r);
+        rmax = slider_pendulum_maxabs(r, 6);
     }
     info[0] = it;
     if (!converged) return SLIDER_PENDULUM_NOT_CONVERGED;

@@ -2,10 +2,15 @@
 # Do not edit: regenerate with `symid generate` instead.
 """Inverse-dynamics solver of the mechanism 'slider_pendulum' (needs only numpy).
 
-Every function but `instant` and `trajectory` is vectorized: q, qd of shape
-(NG,) or (NG, N) and t of shape () or (N,) give results with a trailing N.
+The public functions phi, phi_q_values, phi_q, nu, gamma, applied, mass, reactions and
+`outputs` are vectorized: q, qd of shape (NG,) or (NG, N) and t of shape ()
+or (N,) give results with a trailing N. `instant` solves one instant (Newton,
+then the outputs) with scalar code and a sparse LU whose pivot order was
+fixed at generation time; `trajectory` runs a whole time grid with it.
 Parameters p (size NP), in this order: alpha, s_amp, f_carriage, theta_amp, f_pendulum, m_carriage, a_carriage, b_carriage, h_hinge, L_pendulum, m_pendulum, k_torsion, c_torsion.
 """
+
+import math
 
 import numpy
 import numpy as np
@@ -14,6 +19,7 @@ NG = 6
 NC = 6
 NP = 13
 NR = 30
+NNZ = 15
 PARAMS = ("alpha", "s_amp", "f_carriage", "theta_amp", "f_pendulum", "m_carriage", "a_carriage", "b_carriage", "h_hinge", "L_pendulum", "m_pendulum", "k_torsion", "c_torsion", )
 DEFAULT_PARAMS = np.array([0.17453292519943295, 0.2, 1.0, 0.6, 2.0, 2.0, 0.2, 0.08, 0.04, 0.5, 1.0, 20.0, 0.5], dtype=float)
 PHI_Q_ROWS = np.array([0, 1, 1, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5], dtype=np.intp)
@@ -21,7 +27,22 @@ PHI_Q_COLS = np.array([2, 0, 1, 0, 1, 0, 2, 3, 5, 1, 2, 4, 5, 2, 5], dtype=np.in
 OUTPUTS = ("q", "qdot", "qddot", "lambda", "reactions", )
 KIND = "inverse_dynamics"
 MAX_NEWTON = 50
-EPS = np.finfo(float).eps
+EPS = float(np.finfo(float).eps)
+THRESHOLD = 0.1
+SINGULAR_RCOND = 1e3 * EPS
+_FILL = [0.0] * 0
+
+
+class SolverError(RuntimeError):
+    """An instant that could not be solved.
+
+    Attributes: status ("not converged" or "singular"), t, q (the last
+    iterate), iterations.
+    """
+
+    def __init__(self, status, t, q, iterations):
+        super().__init__(f"{status} at t = {t!r}")
+        self.status, self.t, self.q, self.iterations = status, t, q, iterations
 
 
 def _stack(values, like):
@@ -32,6 +53,7 @@ def _stack(values, like):
 
 def phi(q, t, p):
     """Phi, size NC."""
+    out = [0.0] * 6
     e0 = numpy.sin(p[0])
     e1 = numpy.sin(q[2])
     e2 = numpy.cos(p[0])
@@ -39,101 +61,203 @@ def phi(q, t, p):
     e4 = 2*numpy.pi*t
     e5 = 1/numpy.sqrt(e0**2 + e2**2)
     e6 = (1/2)*p[9]
-    return _stack([
-        -e0*(-e0*e1 + e2*e3) + e2*(e0*e3 + e1*e2),
-        -e0*q[0] + e2*q[1],
-        e0*e5*q[1] + e2*e5*q[0] - p[1]*numpy.sin(e4*p[2]),
-        -e1*p[8] - e6*numpy.cos(q[5]) - q[0] + q[3],
-        e3*p[8] - e6*numpy.sin(q[5]) - q[1] + q[4],
-        -p[3]*numpy.sin(e4*p[4]) - q[2] + q[5] + (1/2)*numpy.pi,
-    ], q[0])
+    out[0] = -e0*(-e0*e1 + e2*e3) + e2*(e0*e3 + e1*e2)
+    out[1] = -e0*q[0] + e2*q[1]
+    out[2] = e0*e5*q[1] + e2*e5*q[0] - p[1]*numpy.sin(e4*p[2])
+    out[3] = -e1*p[8] - e6*numpy.cos(q[5]) - q[0] + q[3]
+    out[4] = e3*p[8] - e6*numpy.sin(q[5]) - q[1] + q[4]
+    out[5] = -p[3]*numpy.sin(e4*p[4]) - q[2] + q[5] + (1/2)*numpy.pi
+    return _stack(out, q[0])
+
+
+def _phi_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 6
+    e0 = math.sin(p[0])
+    e1 = math.sin(q[2])
+    e2 = math.cos(p[0])
+    e3 = math.cos(q[2])
+    e4 = 2*math.pi*t
+    e5 = 1/math.sqrt(e0**2 + e2**2)
+    e6 = (1/2)*p[9]
+    out[0] = -e0*(-e0*e1 + e2*e3) + e2*(e0*e3 + e1*e2)
+    out[1] = -e0*q[0] + e2*q[1]
+    out[2] = e0*e5*q[1] + e2*e5*q[0] - p[1]*math.sin(e4*p[2])
+    out[3] = -e1*p[8] - e6*math.cos(q[5]) - q[0] + q[3]
+    out[4] = e3*p[8] - e6*math.sin(q[5]) - q[1] + q[4]
+    out[5] = -p[3]*math.sin(e4*p[4]) - q[2] + q[5] + (1/2)*math.pi
+    return out
 
 
 def phi_q_values(q, t, p):
     """The stored values of Phi_q (rows PHI_Q_ROWS, columns PHI_Q_COLS)."""
+    out = [0.0] * 15
     e0 = numpy.sin(p[0])
     e1 = numpy.sin(q[2])
     e2 = numpy.cos(p[0])
     e3 = numpy.cos(q[2])
     e4 = 1/numpy.sqrt(e0**2 + e2**2)
     e5 = (1/2)*p[9]
-    return _stack([
-        -e0*(-e0*e3 - e1*e2) + e2*(-e0*e1 + e2*e3),
-        -e0,
-        e2,
-        e2*e4,
-        e0*e4,
-        -1,
-        -e3*p[8],
-        1,
-        e5*numpy.sin(q[5]),
-        -1,
-        -e1*p[8],
-        1,
-        -e5*numpy.cos(q[5]),
-        -1,
-        1,
-    ], q[0])
+    out[0] = -e0*(-e0*e3 - e1*e2) + e2*(-e0*e1 + e2*e3)
+    out[1] = -e0
+    out[2] = e2
+    out[3] = e2*e4
+    out[4] = e0*e4
+    out[5] = -1
+    out[6] = -e3*p[8]
+    out[7] = 1
+    out[8] = e5*numpy.sin(q[5])
+    out[9] = -1
+    out[10] = -e1*p[8]
+    out[11] = 1
+    out[12] = -e5*numpy.cos(q[5])
+    out[13] = -1
+    out[14] = 1
+    return _stack(out, q[0])
+
+
+def _phi_q_values_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 15
+    e0 = math.sin(p[0])
+    e1 = math.sin(q[2])
+    e2 = math.cos(p[0])
+    e3 = math.cos(q[2])
+    e4 = 1/math.sqrt(e0**2 + e2**2)
+    e5 = (1/2)*p[9]
+    out[0] = -e0*(-e0*e3 - e1*e2) + e2*(-e0*e1 + e2*e3)
+    out[1] = -e0
+    out[2] = e2
+    out[3] = e2*e4
+    out[4] = e0*e4
+    out[5] = -1
+    out[6] = -e3*p[8]
+    out[7] = 1
+    out[8] = e5*math.sin(q[5])
+    out[9] = -1
+    out[10] = -e1*p[8]
+    out[11] = 1
+    out[12] = -e5*math.cos(q[5])
+    out[13] = -1
+    out[14] = 1
+    return out
 
 
 def nu(q, t, p):
     """nu = -Phi_t, size NC."""
+    out = [0.0] * 6
     e0 = 2*numpy.pi
     e1 = e0*t
-    return _stack([
-        0,
-        0,
-        e0*p[1]*p[2]*numpy.cos(e1*p[2]),
-        0,
-        0,
-        e0*p[3]*p[4]*numpy.cos(e1*p[4]),
-    ], q[0])
+    out[0] = 0
+    out[1] = 0
+    out[2] = e0*p[1]*p[2]*numpy.cos(e1*p[2])
+    out[3] = 0
+    out[4] = 0
+    out[5] = e0*p[3]*p[4]*numpy.cos(e1*p[4])
+    return _stack(out, q[0])
+
+
+def _nu_s(q, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 6
+    e0 = 2*math.pi
+    e1 = e0*t
+    out[0] = 0
+    out[1] = 0
+    out[2] = e0*p[1]*p[2]*math.cos(e1*p[2])
+    out[3] = 0
+    out[4] = 0
+    out[5] = e0*p[3]*p[4]*math.cos(e1*p[4])
+    return out
 
 
 def gamma(q, qd, t, p):
     """gamma, size NC."""
+    out = [0.0] * 6
     e0 = qd[2]**2
     e1 = e0*numpy.sin(q[2])
     e2 = 2*numpy.pi*t
     e3 = 4*numpy.pi**2
     e4 = (1/2)*p[9]*qd[5]**2
-    return _stack([
-        e1*numpy.sin(p[0])**2 + e1*numpy.cos(p[0])**2,
-        0,
-        -e3*p[1]*p[2]**2*numpy.sin(e2*p[2]),
-        -e1*p[8] - e4*numpy.cos(q[5]),
-        e0*p[8]*numpy.cos(q[2]) - e4*numpy.sin(q[5]),
-        -e3*p[3]*p[4]**2*numpy.sin(e2*p[4]),
-    ], q[0])
+    out[0] = e1*numpy.sin(p[0])**2 + e1*numpy.cos(p[0])**2
+    out[1] = 0
+    out[2] = -e3*p[1]*p[2]**2*numpy.sin(e2*p[2])
+    out[3] = -e1*p[8] - e4*numpy.cos(q[5])
+    out[4] = e0*p[8]*numpy.cos(q[2]) - e4*numpy.sin(q[5])
+    out[5] = -e3*p[3]*p[4]**2*numpy.sin(e2*p[4])
+    return _stack(out, q[0])
+
+
+def _gamma_s(q, qd, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 6
+    e0 = qd[2]**2
+    e1 = e0*math.sin(q[2])
+    e2 = 2*math.pi*t
+    e3 = 4*math.pi**2
+    e4 = (1/2)*p[9]*qd[5]**2
+    out[0] = e1*math.sin(p[0])**2 + e1*math.cos(p[0])**2
+    out[1] = 0
+    out[2] = -e3*p[1]*p[2]**2*math.sin(e2*p[2])
+    out[3] = -e1*p[8] - e4*math.cos(q[5])
+    out[4] = e0*p[8]*math.cos(q[2]) - e4*math.sin(q[5])
+    out[5] = -e3*p[3]*p[4]**2*math.sin(e2*p[4])
+    return out
 
 
 def applied(q, qd, t, p):
     """Q^A, size NG."""
+    out = [0.0] * 6
     e0 = p[11]*(-q[2] + q[5] + (1/2)*numpy.pi) + p[12]*(-qd[2] + qd[5])
-    return _stack([
-        0,
-        -981/100*p[5],
-        e0,
-        0,
-        -981/100*p[10],
-        -e0,
-    ], q[0])
+    out[0] = 0
+    out[1] = -981/100*p[5]
+    out[2] = e0
+    out[3] = 0
+    out[4] = -981/100*p[10]
+    out[5] = -e0
+    return _stack(out, q[0])
+
+
+def _applied_s(q, qd, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 6
+    e0 = p[11]*(-q[2] + q[5] + (1/2)*math.pi) + p[12]*(-qd[2] + qd[5])
+    out[0] = 0
+    out[1] = -981/100*p[5]
+    out[2] = e0
+    out[3] = 0
+    out[4] = -981/100*p[10]
+    out[5] = -e0
+    return out
 
 
 def mass(p):
     """The diagonal of M, size NG."""
-    return _stack([
-        p[5],
-        p[5],
-        (1/12)*p[5]*(p[6]**2 + p[7]**2),
-        p[10],
-        p[10],
-        (1/12)*p[10]*p[9]**2,
-    ], 0.0)
+    out = [0.0] * 6
+    out[0] = p[5]
+    out[1] = p[5]
+    out[2] = (1/12)*p[5]*(p[6]**2 + p[7]**2)
+    out[3] = p[10]
+    out[4] = p[10]
+    out[5] = (1/12)*p[10]*p[9]**2
+    return _stack(out, 0.0)
+
+
+def _mass_s(p):
+    # one instant, floats in and out
+    out = [0.0] * 6
+    out[0] = p[5]
+    out[1] = p[5]
+    out[2] = (1/12)*p[5]*(p[6]**2 + p[7]**2)
+    out[3] = p[10]
+    out[4] = p[10]
+    out[5] = (1/12)*p[10]*p[9]**2
+    return out
 
 
 def reactions(q, lam, t, p):
     """Fx, Fy, T per body role of each requested constraint, size NR."""
+    out = [0.0] * 30
     e0 = numpy.cos(p[0])
     e1 = e0**2
     e2 = lam[0]*numpy.cos(q[2])
@@ -145,38 +269,84 @@ def reactions(q, lam, t, p):
     e8 = lam[2]/numpy.sqrt(e1 + e4)
     e9 = e0*e8
     e10 = e3*e8
-    return _stack([
-        0,
-        0,
-        e5,
-        0,
-        0,
-        -e5,
-        -e6,
-        e7,
-        e6*q[1] + e7*q[0],
-        e6,
-        -e7,
-        0,
-        e9,
-        e10,
-        e10*q[0] - e9*q[1],
-        -e9,
-        -e10,
-        0,
-        lam[3],
-        lam[4],
-        0,
-        -lam[3],
-        -lam[4],
-        0,
-        0,
-        0,
-        lam[5],
-        0,
-        0,
-        -lam[5],
-    ], q[0])
+    out[0] = 0
+    out[1] = 0
+    out[2] = e5
+    out[3] = 0
+    out[4] = 0
+    out[5] = -e5
+    out[6] = -e6
+    out[7] = e7
+    out[8] = e6*q[1] + e7*q[0]
+    out[9] = e6
+    out[10] = -e7
+    out[11] = 0
+    out[12] = e9
+    out[13] = e10
+    out[14] = e10*q[0] - e9*q[1]
+    out[15] = -e9
+    out[16] = -e10
+    out[17] = 0
+    out[18] = lam[3]
+    out[19] = lam[4]
+    out[20] = 0
+    out[21] = -lam[3]
+    out[22] = -lam[4]
+    out[23] = 0
+    out[24] = 0
+    out[25] = 0
+    out[26] = lam[5]
+    out[27] = 0
+    out[28] = 0
+    out[29] = -lam[5]
+    return _stack(out, q[0])
+
+
+def _reactions_s(q, lam, t, p):
+    # one instant, floats in and out
+    out = [0.0] * 30
+    e0 = math.cos(p[0])
+    e1 = e0**2
+    e2 = lam[0]*math.cos(q[2])
+    e3 = math.sin(p[0])
+    e4 = e3**2
+    e5 = e1*e2 + e2*e4
+    e6 = e3*lam[1]
+    e7 = e0*lam[1]
+    e8 = lam[2]/math.sqrt(e1 + e4)
+    e9 = e0*e8
+    e10 = e3*e8
+    out[0] = 0
+    out[1] = 0
+    out[2] = e5
+    out[3] = 0
+    out[4] = 0
+    out[5] = -e5
+    out[6] = -e6
+    out[7] = e7
+    out[8] = e6*q[1] + e7*q[0]
+    out[9] = e6
+    out[10] = -e7
+    out[11] = 0
+    out[12] = e9
+    out[13] = e10
+    out[14] = e10*q[0] - e9*q[1]
+    out[15] = -e9
+    out[16] = -e10
+    out[17] = 0
+    out[18] = lam[3]
+    out[19] = lam[4]
+    out[20] = 0
+    out[21] = -lam[3]
+    out[22] = -lam[4]
+    out[23] = 0
+    out[24] = 0
+    out[25] = 0
+    out[26] = lam[5]
+    out[27] = 0
+    out[28] = 0
+    out[29] = -lam[5]
+    return out
 
 
 def phi_q(q, t, p):
@@ -187,23 +357,157 @@ def phi_q(q, t, p):
     return out
 
 
-def newton(q, t, p, tol=1e-12):
-    """Solve Phi(q, t) = 0 from the guess q (one instant). Returns (q, iterations)."""
-    q = np.array(q, dtype=float)
-    step = np.inf
+def _factor(a):
+    """The fixed-order sparse LU of Phi_q in place; False where a pivot fails the threshold test."""
+    piv = a[7]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[11]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[14]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[0]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    piv = a[2]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[4])) or piv == 0.0:
+        return False
+    a[4] /= piv
+    a[3] -= a[4] * a[1]
+    piv = a[3]
+    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
+        return False
+    return True
+
+
+def _solve(a, b):
+    y = list(b)
+    y[2] -= a[4] * y[1]
+    x = [0.0] * NG
+    x[0] = (y[2]) / a[3]
+    x[1] = (y[1] - a[1] * x[0]) / a[2]
+    x[2] = (y[0]) / a[0]
+    x[5] = (y[5] - a[13] * x[2]) / a[14]
+    x[4] = (y[4] - a[9] * x[1] - a[10] * x[2] - a[12] * x[5]) / a[11]
+    x[3] = (y[3] - a[5] * x[0] - a[6] * x[2] - a[8] * x[5]) / a[7]
+    return x
+
+
+def _solve_t(a, b):
+    x = [0.0] * NC
+    x[3] = (b[3]) / a[7]
+    x[4] = (b[4]) / a[11]
+    x[5] = (b[5] - a[8] * x[3] - a[12] * x[4]) / a[14]
+    x[0] = (b[2] - a[6] * x[3] - a[10] * x[4] - a[13] * x[5]) / a[0]
+    x[1] = (b[1] - a[9] * x[4]) / a[2]
+    x[2] = (b[0] - a[5] * x[3] - a[1] * x[1]) / a[3]
+    x[1] -= a[4] * x[2]
+    return x
+
+
+class _Factors:
+    """Phi_q(q) factored: the fixed sparse order, or a dense fallback."""
+
+    def __init__(self, q, t, p):
+        values = _phi_q_values_s(q, t, p)
+        self.lu = values + _FILL
+        self.dense = None
+        if not _factor(self.lu):
+            jac = np.zeros((NC, NG))
+            jac[PHI_Q_ROWS, PHI_Q_COLS] = values
+            if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
+                raise ValueError("singular")
+            self.dense = jac
+
+    def solve(self, b):
+        if self.dense is None:
+            return _solve(self.lu, b)
+        return list(np.linalg.solve(self.dense, b))
+
+    def solve_t(self, b):
+        if self.dense is None:
+            return _solve_t(self.lu, b)
+        return list(np.linalg.solve(self.dense.T, b))
+
+
+def instant(t, p, q, tol=1e-12):
+    """Solve one instant from the guess q: Newton, then the compiled outputs.
+
+    Returns a dict with q and, as compiled, qd, qdd, lam, reactions and
+    iterations. Raises SolverError.
+    """
+    q = [float(v) for v in q]
+    p = [float(v) for v in p]
+    qmag = max(1.0, max(map(abs, q)))
+    lim = max(tol, 8.0 * EPS * qmag)
+    step, factors, converged = math.inf, None, False
+    r = _phi_s(q, t, p)
+    rmax = max(map(abs, r))
     for it in range(MAX_NEWTON + 1):
-        r = phi(q, t, p)
-        limit = max(tol, 8 * EPS * max(1.0, float(np.max(np.abs(q)))))
-        if not np.all(np.isfinite(r)):
+        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
             break
-        if np.max(np.abs(r)) <= limit and step <= limit:
-            return q, it
+        if rmax <= lim and step <= lim:
+            converged = True
+            break
         if it == MAX_NEWTON:
             break
-        dq = np.linalg.solve(phi_q(q, t, p), -r)
-        q = q + dq
-        step = float(np.max(np.abs(dq)))
-    raise RuntimeError(f"Newton did not converge at t = {t!r}")
+        try:
+            factors = _Factors(q, t, p)
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+        dq = factors.solve([-v for v in r])
+        q = [a + b for a, b in zip(q, dq)]
+        step = max(map(abs, dq))
+        if rmax <= lim and step <= lim:
+            # |Phi| was within tolerance where this last correction was
+            # computed, and the correction is too: Newton has converged
+            converged = True
+            it += 1
+            break
+        r = _phi_s(q, t, p)
+        rmax = max(map(abs, r))
+    if not converged:
+        raise SolverError("not converged", t, q, it)
+    if factors is None or step > 1e-14 * qmag:
+        try:
+            factors = _Factors(q, t, p)
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+    out = {"q": q, "iterations": it}
+    out["qd"] = qd = factors.solve(_nu_s(q, t, p))
+    out["qdd"] = qdd = factors.solve(_gamma_s(q, qd, t, p))
+    rhs = [a - m * b for a, m, b in zip(_applied_s(q, qd, t, p), _mass_s(p), qdd)]
+    out["lam"] = lam = factors.solve_t(rhs)
+    out["reactions"] = _reactions_s(q, lam, t, p)
+    return out
+
+
+def rows(t0, h, n, p, q0, tol=1e-12):
+    """Yield the n rows (t, then the compiled groups in contract order) of
+    the grid t0 + k h, each instant warm-started from the one before."""
+    zeros = [0.0] * NG
+    p = [float(v) for v in p]
+    q, prev = list(q0), None
+    history = []
+    for k in range(n):
+        t = t0 + k * h
+        if prev is not None:
+            q = [a + h * b + 0.5 * h * h * c for a, b, c in zip(prev["q"], prev["qd"], prev["qdd"])]
+        prev = instant(t, p, q, tol)
+        history = (history + [prev["q"]])[-3:]
+        row = [t]
+        for group in OUTPUTS:
+            row += prev.get({"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam",
+                             "reactions": "reactions"}[group], zeros)
+        yield row
+
+
+def trajectory(t0, t1, steps, p, q0, tol=1e-12):
+    """All rows of the grid t_k = t0 + k (t1 - t0) / (steps - 1), as an array."""
+    h = (t1 - t0) / (steps - 1) if steps > 1 else 0.0
+    return np.array(list(rows(t0, h, steps, p, q0, tol)))
 
 
 def outputs(q, t, p):
@@ -212,7 +516,7 @@ def outputs(q, t, p):
     jac = phi_q(q, t, p)
     if jac.ndim == 2:
         jac = jac[None]
-    cols = lambda v: np.moveaxis(np.atleast_2d(v.T).reshape(jac.shape[0], -1), 0, 0)
+    cols = lambda v: np.atleast_2d(v.T).reshape(jac.shape[0], -1)
     out = {}
     qd = np.linalg.solve(jac, cols(nu(q, t, p))[..., None])[..., 0].T.reshape(q.shape)
     qdd = np.linalg.solve(jac, cols(gamma(q, qd, t, p))[..., None])[..., 0].T.reshape(q.shape)
@@ -222,41 +526,3 @@ def outputs(q, t, p):
     out["lam"] = lam.reshape((NC,) + q.shape[1:])
     out["reactions"] = reactions(q, out["lam"], t, p)
     return out
-
-
-def trajectory(t0, t1, steps, p, q0, tol=1e-12):
-    """Rows of the results table (t, then the compiled groups in contract order)."""
-    h = (t1 - t0) / (steps - 1) if steps > 1 else 0.0
-    rows = []
-    q, history = np.array(q0, dtype=float), []
-    state = None
-    for k in range(steps):
-        t = t0 + k * h
-        if state is not None:
-            q = _predict(state, history, h)
-        q, _ = newton(q, t, p, tol)
-        out = outputs(q, t, p)
-        state = (q, out.get("qd"), out.get("qdd"))
-        history = (history + [q])[-3:]
-        rows.append(_row(t, q, out))
-    return np.array(rows)
-
-
-def _predict(state, history, h):
-    q, qd, qdd = state
-    if qd is not None:
-        return q + h * qd + 0.5 * h * h * qdd
-    if len(history) >= 3:
-        return 3 * history[-1] - 3 * history[-2] + history[-3]
-    if len(history) == 2:
-        return 2 * history[-1] - history[-2]
-    return q
-
-
-def _row(t, q, out):
-    zeros = np.zeros(NG)
-    parts = [np.array([t])]
-    for group in OUTPUTS:
-        key = {"q": None, "qdot": "qd", "qddot": "qdd", "lambda": "lam", "reactions": "reactions"}[group]
-        parts.append(q if key is None else out.get(key, zeros))
-    return np.concatenate(parts)

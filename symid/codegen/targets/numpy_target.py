@@ -1,4 +1,10 @@
-"""The NumPy target: one standalone module per mechanism, importing only numpy."""
+"""The NumPy target: one standalone module per mechanism, importing only numpy.
+
+Each quantity is printed twice from one CSE: vectorized over instants (numpy
+ufuncs) and for one instant (`math` on floats, what a Newton loop calls),
+and the sparse elimination fixed at generation time is printed as
+straight-line Python for the one-instant solver.
+"""
 
 from __future__ import annotations
 
@@ -7,10 +13,12 @@ from typing import Any
 
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
+from sympy.printing.pycode import PythonCodePrinter
 
-from symid.codegen.emit import block
+from symid.codegen.emit import above, reduce
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
+from symid.codegen.sparse import THRESHOLD
 
 NAME = "numpy"
 
@@ -22,16 +30,45 @@ class Printer(NumPyPrinter):
         return repr(float(expr))
 
 
+class ScalarPrinter(PythonCodePrinter):
+    """`math` printing for one instant, floats at full precision."""
+
+    def _print_Float(self, expr: sp.Float) -> str:
+        return repr(float(expr))
+
+
 _PRINTER = Printer({"fully_qualified_modules": True})
+_SCALAR = ScalarPrinter({"fully_qualified_modules": True})
 
 
 def pycode(expr: sp.Expr) -> str:
     return _PRINTER.doprint(expr)
 
 
+def mathcode(expr: sp.Expr) -> str:
+    return _SCALAR.doprint(expr)
+
+
 def _function(name: str, args: list[str], exprs: list[sp.Expr], doc: str) -> dict[str, Any]:
-    return {"name": name, "args": args, "block": block(exprs, pycode), "doc": doc,
+    chunks = reduce(exprs)
+    return {"name": name, "args": args, "doc": doc, "size": len(exprs),
+            "vector": [c.printed(pycode) for c in chunks], "scalar": [c.printed(mathcode) for c in chunks],
             "like": "q[0]" if "q" in args else "0.0"}
+
+
+def _lu(model: CodeModel) -> dict[str, Any]:
+    plan, slots = model.plan, model.plan.slots
+    up = above(plan)
+    steps = [{
+        "row": st.row, "col": st.col, "pivot": slots[(st.row, st.col)],
+        "column": [slots[(r, st.col)] for r in st.below],
+        "mults": [{"slot": slots[(r, st.col)], "updates": [(slots[(r, c)], slots[(st.row, c)]) for c in st.right]}
+                  for r in st.below],
+        "below": [(r, slots[(r, st.col)]) for r in st.below],
+        "right": [(c, slots[(st.row, c)]) for c in st.right],
+        "above": [(prev.row, slots[(prev.row, st.col)]) for prev in up.get(st.col, [])],
+    } for st in plan.steps]
+    return {"steps": steps, "lu_size": plan.size, "singular_plan": plan.singular}
 
 
 def context(model: CodeModel) -> dict[str, Any]:
@@ -54,9 +91,9 @@ def context(model: CodeModel) -> dict[str, Any]:
     return {
         "name": f.name, "ng": f.ng, "nc": f.nc, "np_": len(f.params), "nr": len(f.reactions),
         "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
-        "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
-        "functions": functions, "outputs": o.outputs, "kind": o.kind,
-        "velocity": o.velocity, "multipliers": o.multipliers,
+        "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac], "nnz": len(f.jac),
+        "functions": functions, "outputs": o.outputs, "kind": o.kind, "threshold": repr(THRESHOLD),
+        "velocity": o.velocity, "multipliers": o.multipliers, **_lu(model),
     }
 
 
