@@ -14,7 +14,7 @@ import numpy as np
 import sympy as sp
 
 from symid.constraints import TYPES as CONSTRAINTS
-from symid.derive import DerivedConstraint, DerivedForce, derive_constraint, derive_force
+from symid.derive import DerivedConstraint, DerivedForce, derive_constraint, derive_force, signature
 from symid.elements import Family
 from symid.forces import TYPES as FORCES
 from symid.model import GROUND, Element, Mechanism
@@ -36,7 +36,9 @@ class Group:
             (constraints: f only; its derivatives are derived from it).
     """
 
-    derived: DerivedConstraint | DerivedForce
+    kind: str
+    family: str
+    variant: tuple[tuple[str, str], ...]
     members: tuple[int, ...]
     names: tuple[str, ...]
     bodies: Mapping[str, np.ndarray]
@@ -47,6 +49,18 @@ class Group:
     @property
     def size(self) -> int:
         return len(self.members)
+
+    @property
+    def derived(self) -> DerivedConstraint | DerivedForce:
+        """The family's derivation, made on first use (and cached per family):
+        laying out a mechanism whose solver is already generated derives nothing."""
+        if self.kind == "constraint":
+            return derive_constraint(self.family, self.variant)
+        return derive_force(self.family, self.variant)
+
+    @property
+    def roles(self) -> tuple[str, ...]:
+        return tuple(self.bodies)
 
 
 @dataclass(frozen=True)
@@ -103,7 +117,7 @@ def _element_functions(family: Family, element: Element) -> tuple[sp.Expr, ...]:
     return tuple(out)
 
 
-def _groups(elements: tuple[Element, ...], registry: Mapping[str, Family], derive: object,
+def _groups(elements: tuple[Element, ...], registry: Mapping[str, Family], kind: str,
             body_index: Mapping[str, int], starts: list[int]) -> tuple[Group, ...]:
     keyed: dict[tuple[str, tuple[tuple[str, str], ...]], list[int]] = {}
     for n, element in enumerate(elements):
@@ -112,16 +126,18 @@ def _groups(elements: tuple[Element, ...], registry: Mapping[str, Family], deriv
     groups = []
     for (name, variant), members in keyed.items():
         family = registry[name]
-        derived = derive(name, variant)  # type: ignore[operator]
+        constants, _ = signature(kind, name, variant)
         bodies = {role: np.array([body_index[elements[m].bodies[role]] for m in members], dtype=np.intp)
                   for role in family.roles}
         groups.append(Group(
-            derived=derived,
+            kind=kind,
+            family=name,
+            variant=variant,
             members=tuple(members),
             names=tuple(elements[m].name for m in members),
             bodies=bodies,
             rows=np.array([starts[m] for m in members], dtype=np.intp),
-            constants=tuple(_element_values(family, derived.constants, elements[m]) for m in members),
+            constants=tuple(_element_values(family, constants, elements[m]) for m in members),
             functions=tuple(_element_functions(family, elements[m]) for m in members),
         ))
     return tuple(groups)
@@ -143,8 +159,8 @@ def assemble(mech: Mechanism) -> Layout:
         ng=3 * len(mech.bodies),
         nc=row,
         row_of=row_of,
-        constraint_groups=_groups(mech.constraints, CONSTRAINTS, derive_constraint, body_index, starts),
-        force_groups=_groups(mech.forces, FORCES, derive_force, body_index, [0] * len(mech.forces)),
+        constraint_groups=_groups(mech.constraints, CONSTRAINTS, "constraint", body_index, starts),
+        force_groups=_groups(mech.forces, FORCES, "force", body_index, [0] * len(mech.forces)),
     )
 
 

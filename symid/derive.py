@@ -79,6 +79,31 @@ def reaction(jac: sp.Matrix, lam: sp.Matrix, point_key: str | None, role: str) -
     return sp.Matrix([force[0], force[1], torque])
 
 
+def signature(kind: str, name: str, options: Variant = ()) -> tuple[tuple[sp.Symbol, ...], tuple[sp.Symbol, ...]]:
+    """(constants, time functions) of a family variant, without deriving it.
+
+    Only Phi (or the loads) is built: enough to lay out a mechanism, so a run
+    whose generated solver is cached derives nothing.
+    """
+    return _signature(kind, name, tuple(options))
+
+
+@cache
+def _signature(kind: str, name: str, options: Variant) -> tuple[tuple[sp.Symbol, ...], tuple[sp.Symbol, ...]]:
+    if kind == "constraint":
+        family: Family = CONSTRAINTS[name]
+        used = sp.Matrix(family.phi(dict(options))).free_symbols  # type: ignore[attr-defined]
+    else:
+        family = FORCES[name]
+        used = set()
+        for role, load in family.loads(dict(options)).items():  # type: ignore[attr-defined]
+            used |= sp.Matrix(load).free_symbols
+            key = family.points[role]
+            if key is not None:
+                used |= set(s.point(key))
+    return constants_of(family, used), time_functions_of(family)
+
+
 @dataclass(frozen=True, eq=False)
 class DerivedConstraint:
     """Everything about one constraint family variant, on generic symbols.
