@@ -206,14 +206,24 @@ class Recorder:
         wanted = set(header if keep is None else keep)
         self.index = [k for k, c in enumerate(header) if c in wanted]
         self.columns = [header[k] for k in self.index]
-        self.rows: list[Array] = []
+        # kept values go into blocks of BLOCK rows: a million instants of a few
+        # columns cost a few tens of MB, not a Python object per row
+        self.blocks: list[Array] = []
+        self.count = 0
+
+    BLOCK = 4096
 
     def __call__(self, rows: Iterable[Array]) -> Iterator[Array]:
         for values in rows:
-            self.rows.append(np.asarray(values, dtype=float)[self.index])
+            k = self.count % self.BLOCK
+            if k == 0:
+                self.blocks.append(np.empty((self.BLOCK, len(self.index))))
+            self.blocks[-1][k] = np.asarray(values, dtype=float)[self.index]
+            self.count += 1
             yield values
 
     def results(self) -> Results:
         """What was kept, as a `Results` table."""
-        data = np.array(self.rows).reshape(len(self.rows), len(self.columns))
-        return Results(list(self.columns), data)
+        width = len(self.columns)
+        data = np.concatenate(self.blocks)[: self.count] if self.blocks else np.empty((0, width))
+        return Results(list(self.columns), data.reshape(self.count, width))
