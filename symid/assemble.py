@@ -101,7 +101,7 @@ def _element_values(family: Family, derived_constants: tuple[sp.Symbol, ...], el
     for key in family.keys:
         value = element.values.get(key.name)
         if key.kind in ("point", "vector"):
-            by_symbol.update(zip(s.point(key.name), value))  # type: ignore[arg-type]
+            by_symbol.update(zip(s.point(key.name), value))  # type: ignore[arg-type, call-overload]
         elif key.kind == "scalar" and value is not None:
             by_symbol[s.scalar(key.symbol_name())] = value  # type: ignore[assignment]
     return tuple(sp.sympify(by_symbol[c]) for c in derived_constants)
@@ -170,7 +170,7 @@ def reaction_columns(layout: Layout, names: tuple[str, ...] | None) -> list[tupl
     A constraint has Fx, Fy, T for each of its body roles: `C.Fx_i` etc.
     """
     wanted = set(names) if names is not None else None
-    out = []
+    out: list[tuple[str, str]] = []
     for c in layout.mechanism.constraints:
         if wanted is not None and c.name not in wanted:
             continue

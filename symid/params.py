@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from typing import Any, Mapping
 
 import sympy as sp
 
@@ -98,7 +98,7 @@ def _evaluate(e: sp.Basic, values: Mapping[sp.Symbol, float]) -> float:
         if base < 0 and not float(exponent).is_integer():
             raise ValueError("a negative number to a fractional power")
         return float(base**exponent) if base != 0 or exponent >= 0 else math.inf
-    func = _MATH.get(e.func)  # type: ignore[call-overload]
+    func: Any = _MATH.get(e.func)  # type: ignore[call-overload]
     if func is None:
         raise TypeError(f"cannot evaluate {e.func}")
     return float(func(*args))

@@ -45,7 +45,7 @@ def code_version() -> str:
 def key(mech: Mechanism, options: Options, target: str) -> str:
     """The cache key of one generated solver."""
     structure = dataclasses.replace(mech, parameters={n: None for n in mech.parameters}, source="",
-                                    analysis=None)
+                                    analysis=None)  # type: ignore[arg-type]
     text = repr((structure, options, target, code_version()))
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 

@@ -76,7 +76,7 @@ def plan(pattern: list[tuple[int, int]], sample: np.ndarray) -> Plan:
     for r, c in pattern:
         rows[r].add(c)
         cols[c].add(r)
-    steps = []
+    steps: list[Step] = []
     for _ in range(n):
         best = None
         for c, rset in cols.items():

@@ -34,7 +34,7 @@ def _ratio(values: dict[str, Any], where: str) -> dict[str, Any]:
         if radii[1] == 0:
             raise ValueError(f"{where} key 'radius_j': must not be zero")
         sign = 1 if values["internal"] else -1
-        values["K"] = sign * radii[0] / radii[1]
+        values["K"] = sign * radii[0] / radii[1]  # type: ignore[operator]
     for key in ("radius_i", "radius_j", "internal"):
         values.pop(key, None)
     return values
