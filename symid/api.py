@@ -26,6 +26,7 @@ from symid.model import Mechanism
 from symid.params import parameter_values, to_float
 from symid.results import Results, columns, row, write_csv
 from symid.solve import Instant, run
+from symid.stability import Notes, check_redundant, require_support
 
 
 def examples() -> list[str]:
@@ -55,6 +56,12 @@ class Study:
     layout: Layout
     evaluator: Evaluator
     values: Mapping[sp.Symbol, float]
+    notes: Notes | None = None  # the warnings of the latest run
+
+    @property
+    def warnings(self) -> list[str]:
+        """The latest run's warnings, one line each (empty before a run)."""
+        return self.notes.lines() if self.notes is not None else []
 
     @property
     def analysis(self):  # type: ignore[no-untyped-def]
@@ -69,12 +76,14 @@ class Study:
 
     def instants(self) -> Iterator[Instant]:
         """Solve instant by instant (raises AnalysisError at a failure)."""
-        return run(self.evaluator, self.analysis, self.q0())
+        self.notes = Notes(self.analysis)
+        return run(self.evaluator, self.analysis, self.q0(), self.notes)
 
     def rows(self) -> Iterator[Array]:
         """The results table row by row; a compiled backend runs its own loop."""
         own = getattr(self.evaluator, "rows", None)
         if own is not None:
+            self.notes = Notes(self.analysis)
             yield from own(self.analysis, self.q0())
             return
         for instant in self.instants():
@@ -92,7 +101,7 @@ class Study:
             error = exc
         width = len(self.columns())
         data = np.array(rows).reshape(len(rows), width)
-        return Results(self.columns(), data, error)
+        return Results(self.columns(), data, error, self.warnings)
 
     def write_csv(self, path: str | Path) -> int:
         """Stream the run to a CSV file (atomic); returns the rows written."""
@@ -123,6 +132,8 @@ def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
     if "reactions" in groups and a.kind != "kinematics":
         reactions = a.reactions if a.reactions is not None else tuple(c.name for c in mech.constraints)
     needs = Needs(velocity=a.kind != "statics", reactions=reactions)
+    require_support(backend, a, mech.source)
+    check_redundant(layout, values, backend)
     evaluator = backends.get(backend).evaluator(layout, values, needs)
     return Study(mech, layout, evaluator, values)
 

@@ -33,7 +33,9 @@ def _set_values(pairs: Sequence[str], file: str = "") -> dict[str, str]:
 
 
 def _analysis_overrides(args: argparse.Namespace) -> dict[str, object]:
-    return {"kind": args.kind, "t0": args.t0, "t1": args.t1, "steps": args.steps, "tol": args.tol}
+    return {"kind": args.kind, "t0": args.t0, "t1": args.t1, "steps": args.steps, "tol": args.tol,
+            "cond_warn": args.cond_warn, "redundant": args.redundant, "assembly_jump": args.assembly_jump,
+            "cond_column": args.cond or None}
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
@@ -52,6 +54,9 @@ def cmd_solve(args: argparse.Namespace) -> int:
     except AnalysisError as exc:
         raise AnalysisError(f"{args.file}: t = {exc.time:.17g}: {exc}; the {exc.solved} instants "
                             f"before it are in {out}", exc.time, exc.solved) from None
+    finally:
+        for warning in study.warnings:  # once per kind, with its time span
+            print(f"symid: warning: {warning}", file=sys.stderr)
     print(f"{out}: {count} instants, {len(study.columns())} columns")
     for line in summary.lines(study.mechanism, record.results()):
         print(line)
@@ -73,6 +78,9 @@ def cmd_check(args: argparse.Namespace) -> int:
     study = api.prepare(args.file, "reference", _set_values(args.set, args.file))
     report = check(study)
     print(report.text())
+    if report.singular:
+        raise AnalysisError(f"{args.file}: t = {study.analysis.t0:.17g}: Phi_q is rank-deficient (rank "
+                            f"{report.rank} < {report.ng}); dependent constraints: {', '.join(report.dependent)}")
     return 0
 
 
@@ -101,6 +109,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     solve.add_argument("--t1", type=float)
     solve.add_argument("--steps", type=int)
     solve.add_argument("--tol", type=float)
+    solve.add_argument("--cond", action="store_true", help="add the cond column (condition estimate of Phi_q)")
+    solve.add_argument("--cond-warn", type=float, metavar="X", help="warn where cond exceeds X (default 1e6)")
+    solve.add_argument("--redundant", choices=("error", "min_norm"),
+                       help="redundant constraints: refuse (default) or solve with minimum-norm multipliers")
+    solve.add_argument("--assembly-jump", choices=("error", "warn"),
+                       help="a jump to another assembly mode: stop with exit 3 (default) or warn and continue")
     solve.add_argument("--backend", default="numpy")
     solve.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                        help="override a parameter (repeatable)")

@@ -22,6 +22,12 @@ KIND_OUTPUTS: Mapping[str, tuple[str, ...]] = {
     "kinematics": ("q", "qdot", "qddot"),
     "statics": ("q", "lambda", "reactions"),
 }
+# Columns beyond the contract's groups, written after all of them (see
+# docs/analysis-options.md); never on by default.
+EXTRA_OUTPUTS = ("cond",)
+REDUNDANT_MODES = ("error", "min_norm")
+JUMP_MODES = ("error", "warn")
+DEFAULT_COND_WARN = 1e6  # forces lose about 2 log10(cond) digits: 4 of 16 left here
 
 Value = sp.Expr | tuple[sp.Expr, ...]
 
@@ -77,6 +83,19 @@ class Analysis:
     tol: float = 1e-12
     outputs: tuple[str, ...] | None = None
     reactions: tuple[str, ...] | None = None
+    # numerical stability (docs/analysis-options.md); None: not set, the default applies
+    cond_warn: float | None = None
+    redundant: str = "error"
+    assembly_jump: str = "error"
+
+    @property
+    def cond_threshold(self) -> float:
+        """The condition number above which a run warns."""
+        return DEFAULT_COND_WARN if self.cond_warn is None else self.cond_warn
+
+    def extra_outputs(self) -> tuple[str, ...]:
+        """The requested columns beyond the contract's groups (`cond`), in order."""
+        return tuple(e for e in EXTRA_OUTPUTS if e in (self.outputs or ()))
 
     def output_groups(self) -> tuple[str, ...]:
         """The output groups to write, in contract order."""

@@ -34,7 +34,7 @@ def columns(layout: Layout, analysis: Analysis) -> list[str]:
                 out += [f"{c.name}.lambda"] if rows == 1 else [f"{c.name}.lambda{k + 1}" for k in range(rows)]
         else:
             out += [col for _, col in reaction_columns(layout, analysis.reactions)]
-    return out
+    return out + list(analysis.extra_outputs())  # `cond`: after every contract group
 
 
 def row(instant: Instant, layout: Layout, analysis: Analysis) -> Array:
@@ -45,6 +45,8 @@ def row(instant: Instant, layout: Layout, analysis: Analysis) -> Array:
         value = {"q": instant.q, "qdot": instant.qd, "qddot": instant.qdd,
                  "lambda": instant.lam, "reactions": instant.reactions}[group]
         parts.append(zeros if value is None else value)
+    if analysis.extra_outputs():
+        parts.append(np.array([instant.cond]))
     return np.concatenate(parts)
 
 
@@ -55,11 +57,14 @@ class Results:
     Attributes:
         columns: the contract's column names; data: (instants, columns).
         error: the failure that ended the run early, if any.
+        warnings: one line each (ill-conditioning, redundant rows, allowed
+            assembly-mode jumps), as `symid solve` prints them.
     """
 
     columns: list[str]
     data: Array
     error: AnalysisError | None = None
+    warnings: list[str] = field(default_factory=list)
     index: dict[str, int] = field(init=False)
 
     def __post_init__(self) -> None:

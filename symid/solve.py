@@ -4,27 +4,41 @@ One loop for every backend: Newton-Raphson positions warm-started from the
 previous instant, then one factorization of `Phi_q` reused for qdot, qddot
 and (transposed) lambda. Instants are yielded one by one so that results can
 stream to a file with memory that does not grow with the run.
+
+Robustness (see `symid.stability` and docs/analysis-options.md): every
+matrix is equilibrated with scales fixed at t0; Newton takes damped steps and
+reports divergence; the condition estimate of each instant's factorization is
+kept (`Instant.cond`) and warned about; a solution that leaves the predicted
+path for another assembly mode is caught (branch tracking).
 """
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 from typing import Iterator
 
 import numpy as np
-import scipy.linalg as sla
 
 from symid.backends import Array, Evaluator
 from symid.errors import AnalysisError
 from symid.model import Analysis
+from symid.stability import EPS, SINGULAR_RCOND, Factor, Notes, Scaling, rank_of, redundancy_message
 
-EPS = np.finfo(float).eps
 MAX_NEWTON = 50
-# Below this reciprocal condition number (1-norm estimate from the LU
-# factors) Phi_q is treated as singular: the solves would have fewer than
-# ~3 correct digits left.
-SINGULAR_RCOND = 1e3 * EPS
+# Damped Newton: halve the step until the scaled residual norm decreases
+# (Armijo), down to this fraction of the full step; below it Newton diverges.
+MIN_DAMPING = 1.0 / 1024
+# Within this multiple of the stopping limit, rounding can raise the residual
+# of an exact step: take full steps there.
+NOISE = 1e3
+# Branch tracking: a Newton correction larger than JUMP_RATIO times the
+# predicted motion of the step (and than JUMP_FLOOR, scaled) is suspicious; it
+# is a jump if the continuation of the previous instant in JUMP_SUBSTEPS
+# smaller steps ends more than JUMP_SAME (scaled) away.
+JUMP_RATIO = 1.0
+JUMP_FLOOR = 1e-7
+JUMP_SUBSTEPS = 16
+JUMP_SAME = 1e-6
 
 
 @dataclass
@@ -32,6 +46,7 @@ class Instant:
     """The state at one output instant; absent quantities are None.
 
     Sizes: q, qd, qdd: (ng,); lam: (nc,); reactions: as `Evaluator.reactions`.
+    cond: 1-norm condition estimate of the equilibrated Phi_q.
     """
 
     t: float
@@ -44,101 +59,207 @@ class Instant:
     iterations: int = 0
 
 
-def _factor(ev: Evaluator, q: Array, t: float) -> tuple[tuple[Array, Array], float]:
-    """LU factors of Phi_q(q) and its 1-norm condition estimate; raise if singular."""
+def _factor(ev: Evaluator, q: Array, t: float, scaling: Scaling) -> Factor:
+    """The equilibrated factorization of Phi_q(q); raise if singular."""
     jac = ev.phi_q(q, t)
-    with warnings.catch_warnings():  # a singular matrix is reported below, in one line
-        warnings.simplefilter("ignore", sla.LinAlgWarning)
-        lu = sla.lu_factor(jac, check_finite=False)
-    anorm = np.linalg.norm(jac, 1)
-    rcond = sla.lapack.dgecon(lu[0], anorm, norm="1")[0] if anorm > 0 else 0.0
-    if not rcond > SINGULAR_RCOND:
-        names = ", ".join(_dependent(ev, jac))
-        cond = "inf" if rcond == 0 else f"{1 / rcond:.3g}"
+    factor = Factor(jac, scaling)
+    if not factor.rcond > SINGULAR_RCOND:
+        names = ", ".join(rank_of(jac, scaling, ev.layout).dependent)
+        cond = "inf" if factor.rcond == 0 else f"{factor.cond:.3g}"
         raise AnalysisError(f"Phi_q is singular (condition estimate {cond}); dependent constraints: {names}", t)
-    return lu, 1.0 / rcond
+    return factor
 
 
 def _dependent(ev: Evaluator, jac: Array) -> list[str]:
-    """Constraints whose rows combine to (nearly) zero: the left null vector's support."""
-    u, sv, _ = np.linalg.svd(jac)
-    null = np.abs(u[:, -1])
-    rows = np.flatnonzero(null > 0.05 * null.max())
-    return ev.layout.constraint_names_of_rows(rows)
+    """Constraints whose rows combine to (nearly) zero: the left null space's support."""
+    return list(rank_of(jac, Scaling.of(jac, np.zeros(jac.shape[1])), ev.layout).dependent)
 
 
-def newton(ev: Evaluator, q: Array, t: float, tol: float) -> tuple[Array, int]:
-    """Solve Phi(q, t) = 0 from the guess q.
+def _largest(ev: Evaluator, phi: Array, scaling: Scaling) -> str:
+    worst = np.argsort(-np.abs(np.nan_to_num(phi / scaling.row, nan=np.inf)))[:3]
+    return ", ".join(ev.layout.constraint_names_of_rows(worst))
 
-    Stops when max|Phi| <= tol and the last correction max|dq| <= tol, each
-    floored at a few ulps of the largest coordinate (angles grow without
-    bound over long runs and cannot be resolved finer than that).
+
+def newton(ev: Evaluator, q: Array, t: float, tol: float, scaling: Scaling | None = None,
+           max_iterations: int = MAX_NEWTON) -> tuple[Array, int]:
+    """Solve Phi(q, t) = 0 from the guess q, with damped steps.
+
+    Stops when max_i |Phi_i| / row_i <= tol and the last correction
+    max_j |dq_j| / col_j <= tol (the scaling's units). Neither can be resolved
+    finer than rounding: the first is floored at 8 ulps of the largest scaled
+    coordinate (angles grow without bound over long runs), the second at that
+    times the condition estimate of Phi_q (the step rounding alone causes).
+    Without `scaling`, one is made from Phi_q at the guess.
 
     Raises:
-        AnalysisError: no convergence in MAX_NEWTON iterations, or Phi_q singular.
+        AnalysisError: diverging (no damped step reduces |Phi|), no convergence
+            in max_iterations, or Phi_q singular.
     """
-    step = np.inf
-    for it in range(MAX_NEWTON + 1):
-        phi = ev.phi(q, t)
-        floor = 8 * EPS * max(1.0, float(np.max(np.abs(q))))
-        if not np.all(np.isfinite(phi)):
-            break
-        if np.max(np.abs(phi)) <= max(tol, floor) and step <= max(tol, floor):
+    if scaling is None:
+        scaling = Scaling.of(ev.phi_q(q, t), q)
+    phi = ev.phi(q, t)
+    res = scaling.residual(phi)
+    step, cond = np.inf, 1.0
+    for it in range(max_iterations + 1):
+        floor = 8 * EPS * max(1.0, scaling.size(q))
+        lim = max(tol, floor)
+        if not res < np.inf:
+            raise AnalysisError(f"Newton did not converge: Phi is not finite at the guess; "
+                                f"in: {_largest(ev, phi, scaling)}", t)
+        if res <= lim and step <= max(tol, floor * cond):
             return q, it
-        if it == MAX_NEWTON:
+        if it == max_iterations:
             break
-        lu, _ = _factor(ev, q, t)
-        dq = sla.lu_solve(lu, -phi, check_finite=False)
-        q = q + dq
-        step = float(np.max(np.abs(dq)))
-    worst = np.argsort(-np.abs(np.nan_to_num(phi, nan=np.inf)))[:3]
-    names = ", ".join(ev.layout.constraint_names_of_rows(worst))
+        factor = _factor(ev, q, t, scaling)
+        cond = factor.cond
+        dq = factor.solve(-phi)
+        merit = scaling.merit(phi)
+        alpha = 1.0
+        while True:
+            trial = q + alpha * dq
+            phi_trial = ev.phi(trial, t)
+            value = scaling.merit(phi_trial)
+            if value <= (1 - 1e-4 * alpha) * merit or (res <= NOISE * lim and value < np.inf):
+                break
+            alpha *= 0.5
+            if alpha < MIN_DAMPING:
+                raise AnalysisError(
+                    f"Newton did not converge: diverging, no damped step reduces |Phi| (scaled max |Phi| = "
+                    f"{res:.3g}): no position near the prediction satisfies the constraints; "
+                    f"largest residuals in: {_largest(ev, phi, scaling)}", t)
+        q, phi = trial, phi_trial
+        res = scaling.residual(phi)
+        step = alpha * scaling.size(dq)
     raise AnalysisError(
-        f"Newton did not converge in {MAX_NEWTON} iterations (max |Phi| = {np.max(np.abs(phi)):.3g}); "
-        f"largest residuals in: {names}", t)
+        f"Newton did not converge in {max_iterations} iterations (scaled max |Phi| = {res:.3g}); "
+        f"largest residuals in: {_largest(ev, phi, scaling)}", t)
 
 
-def run(ev: Evaluator, analysis: Analysis, q0: Array) -> Iterator[Instant]:
+def run(ev: Evaluator, analysis: Analysis, q0: Array, notes: Notes | None = None) -> Iterator[Instant]:
     """Solve every output instant of `analysis`, yielding them in order.
 
     Args:
         ev: the evaluator (its `needs` already say which reactions to compute).
         q0: initial guess at t0, size ng.
+        notes: collects the run's warnings (ill-conditioning, redundant rows,
+            allowed assembly-mode jumps); read `notes.lines()` after the run.
 
     Raises:
         AnalysisError: with `time` and `solved` set, at the first failure.
     """
+    notes = notes if notes is not None else Notes(analysis)
     groups = analysis.output_groups()
     statics = analysis.kind == "statics"
     want_lam = not analysis.kind == "kinematics" and ("lambda" in groups or "reactions" in groups)
     want_reactions = "reactions" in groups and analysis.kind != "kinematics"
     mass = ev.mass() if want_lam and not statics else None
-    times = analysis.times()
     history: list[Array] = []
     prev: Instant | None = None
-    for n, t in enumerate(times):
+    scaling: Scaling | None = None
+    for n, t in enumerate(_times(analysis)):
         try:
-            guess = q0 if prev is None else _predict(prev, history, t)
-            q, iterations = newton(ev, guess, t, analysis.tol)
-            lu, cond = _factor(ev, q, t)
-            out = Instant(t=t, q=q, cond=cond, iterations=iterations)
+            if prev is None or scaling is None:
+                q, iterations = newton(ev, q0, t, analysis.tol)
+                jac = ev.phi_q(q, t)
+                scaling = Scaling.of(jac, q)  # fixed for the run, from the assembled t0
+                if jac.shape[0] > jac.shape[1]:
+                    _redundant_rows(ev, jac, scaling, notes, t)
+            else:
+                guess = _predict(prev, history, t)
+                try:
+                    q, iterations = newton(ev, guess, t, analysis.tol, scaling)
+                except AnalysisError as exc:
+                    # a step too long for the predictor: continue the previous
+                    # instant in sub-steps (on the branch by construction)
+                    try:
+                        q, iterations = _continuation(ev, analysis, prev, t, scaling), 0
+                    except AnalysisError:
+                        raise exc from None
+                else:
+                    correction = scaling.size(q - guess)
+                    if correction > JUMP_FLOOR and correction > JUMP_RATIO * scaling.size(guess - prev.q):
+                        _branch(ev, analysis, prev, t, q, guess, scaling, notes, n)
+            factor = _factor(ev, q, t, scaling)
+            out = Instant(t=t, q=q, cond=factor.cond, iterations=iterations)
             if statics:
                 if want_lam:
-                    out.lam = sla.lu_solve(lu, ev.applied(q, None, t), trans=1, check_finite=False)
+                    out.lam = factor.solve_t(ev.applied(q, None, t))
             else:
-                out.qd = sla.lu_solve(lu, ev.nu(q, t), check_finite=False)
-                out.qdd = sla.lu_solve(lu, ev.gamma(q, out.qd, t), check_finite=False)
+                out.qd = factor.solve(ev.nu(q, t))
+                out.qdd = factor.solve(ev.gamma(q, out.qd, t))
                 if want_lam:
                     rhs = ev.applied(q, out.qd, t) - mass * out.qdd  # type: ignore[operator]
-                    out.lam = sla.lu_solve(lu, rhs, trans=1, check_finite=False)
+                    out.lam = factor.solve_t(rhs)
             if want_reactions and out.lam is not None:
                 out.reactions = ev.reactions(q, out.lam, t)
+            notes.cond(t, out.cond, n)
         except AnalysisError as exc:
             exc.time, exc.solved = t, n
             raise
         history = (history + [q])[-3:]
         prev = out
         yield out
+
+
+def _redundant_rows(ev: Evaluator, jac: Array, scaling: Scaling, notes: Notes, t: float) -> None:
+    """More rows than coordinates (redundant = "min_norm"): the kinematics must
+    still be determined (rank ng); name the rows whose multipliers are not unique."""
+    rank = rank_of(jac, scaling, ev.layout)
+    ng = jac.shape[1]
+    if rank.rank < ng:
+        raise AnalysisError(f"Phi_q is singular at t0 even counting the redundant rows (rank {rank.rank} "
+                            f"< {ng} coordinates); dependent constraints: {', '.join(rank.dependent)}", t)
+    notes.fixed.append(redundancy_message(ev.layout, rank))
+
+
+def _branch(ev: Evaluator, analysis: Analysis, prev: Instant, t: float, q: Array, guess: Array,
+            scaling: Scaling, notes: Notes, index: int) -> None:
+    """Newton moved much further than the step's predicted motion: continue
+    the previous instant in smaller steps; ending elsewhere is an assembly-mode
+    jump (an error, or a warning with assembly_jump = "warn")."""
+    correction = scaling.size(q - guess)
+    motion = scaling.size(guess - prev.q)
+    try:
+        other = _continuation(ev, analysis, prev, t, scaling)
+        gap = scaling.size(other - q)
+        if gap <= JUMP_SAME:
+            return  # the same solution: only the prediction was poor
+        why = f"continuing the previous instant in {JUMP_SUBSTEPS} sub-steps ends {gap:.3g} away"
+    except AnalysisError as exc:
+        gap = correction
+        why = f"and the continuation in {JUMP_SUBSTEPS} sub-steps fails ({exc}): a singular position lies between"
+    if analysis.assembly_jump == "warn":
+        notes.mark("jump", t, gap, index)
+        return
+    ratio = "" if motion == 0 else f", {correction / motion:.3g} times the predicted motion of the step"
+    raise AnalysisError(
+        f"assembly mode jump: Newton moved q by {correction:.3g} (scaled){ratio}, {why}; "
+        f"take more steps (or set assembly_jump = \"warn\" to accept jumps)", t)
+
+
+def _continuation(ev: Evaluator, analysis: Analysis, prev: Instant, t: float, scaling: Scaling) -> Array:
+    """q(t) reached from the previous instant in JUMP_SUBSTEPS steps."""
+    q, qd, qdd = prev.q, prev.qd, prev.qdd
+    h = (t - prev.t) / JUMP_SUBSTEPS
+    for k in range(1, JUMP_SUBSTEPS + 1):
+        tk = prev.t + k * h if k < JUMP_SUBSTEPS else t
+        guess = q if qd is None or qdd is None else q + h * qd + 0.5 * h * h * qdd
+        q, _ = newton(ev, guess, tk, analysis.tol, scaling)
+        if qd is not None and k < JUMP_SUBSTEPS:
+            factor = _factor(ev, q, tk, scaling)
+            qd = factor.solve(ev.nu(q, tk))
+            qdd = factor.solve(ev.gamma(q, qd, tk))
+    return q
+
+
+def _times(analysis: Analysis) -> Iterator[float]:
+    """`analysis.times()` one by one: a list of a million instants is 32 MB."""
+    if analysis.steps == 1:
+        yield analysis.t0
+        return
+    h = (analysis.t1 - analysis.t0) / (analysis.steps - 1)
+    for k in range(analysis.steps):
+        yield analysis.t0 + k * h
 
 
 def _predict(prev: Instant, history: list[Array], t: float) -> Array:

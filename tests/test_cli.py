@@ -478,11 +478,6 @@ def test_redundant_constraints_exit_3_at_t0_with_header_only(tmp_path, capsys, b
     no_temporaries(tmp_path)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "symid/check.py check(): newton() (symid/solve.py) factors Phi_q at the first iteration "
-    "and raises AnalysisError when it is singular, so the rank/dependent-constraint report "
-    "below it is never reached for a rank-deficient mechanism: `symid check` cannot report "
-    "rank < ng (and with the numpy backend it currently crashes in codegen, see the solve test)"))
 def test_check_reports_rank_deficiency_and_dependent_constraints(tmp_path, capsys):
     path = tmp_path / "mech.toml"
     path.write_text(redundant_text(), encoding="utf-8")
@@ -495,10 +490,6 @@ def test_check_reports_rank_deficiency_and_dependent_constraints(tmp_path, capsy
     assert "cylinder_guide" in text and "motor" in text
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "symid/check.py check() calls newton() first, which raises AnalysisError('Phi_q is singular') "
-    "at its first factorization; the rank and dependent-constraint code after it is unreachable "
-    "for a rank-deficient Phi_q"))
 def test_check_function_reports_rank_deficiency(tmp_path):
     from symid.check import check
     from symid import backends

@@ -181,6 +181,10 @@ class CBackend:
     """Registry entry: the compiled C solver."""
 
     name = "c"
+    # The compiled loop computes no condition estimate, factors square systems
+    # only and has no branch tracking: options asking for these are refused
+    # (symid.stability.require_support).
+    lacks = frozenset({"cond", "cond_warn", "min_norm", "assembly_jump"})
 
     def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> CEvaluator:
         from symid.codegen.model import options_for

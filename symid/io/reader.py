@@ -20,8 +20,8 @@ from symid.errors import InputError
 from symid.expr import FUNCTIONS, parse_expression
 from symid.forces import TYPES as FORCES
 from symid.model import (
-    GROUND, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, T, Analysis, Body, Element, Mechanism,
-    parameter_symbol,
+    EXTRA_OUTPUTS, GROUND, JUMP_MODES, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, REDUNDANT_MODES, T,
+    Analysis, Body, Element, Mechanism, parameter_symbol,
 )
 from symid.params import order_parameters, parameter_values, to_float
 
@@ -178,8 +178,11 @@ class _Reader:
 
     def analysis(self, table: dict[str, Any], overrides: dict[str, Any]) -> Analysis:
         where = "[analysis]"
-        fields = ("kind", "t0", "t1", "steps", "tol", "outputs", "reactions")
+        fields = ("kind", "t0", "t1", "steps", "tol", "outputs", "reactions",
+                  "cond_warn", "redundant", "assembly_jump")
         self.unknown(table, fields, where)
+        overrides = dict(overrides)
+        add_cond = overrides.pop("cond_column", None)  # `symid solve --cond`
         merged = {**table, **{k: v for k, v in overrides.items() if v is not None}}
         kind = merged.get("kind", "inverse_dynamics")
         if kind not in KINDS:
@@ -194,15 +197,28 @@ class _Reader:
         tol = self.real(merged.get("tol", 1e-12), f"{where} key 'tol'")
         if not tol > 0:
             raise self.fail(f"{where} key 'tol'", "must be positive")
-        outputs = self.names(merged.get("outputs"), f"{where} key 'outputs'", OUTPUT_GROUPS)
+        outputs = self.names(merged.get("outputs"), f"{where} key 'outputs'", OUTPUT_GROUPS + EXTRA_OUTPUTS)
+        if add_cond and "cond" not in (outputs or ()):
+            outputs = (outputs if outputs is not None else KIND_OUTPUTS[kind]) + ("cond",)
         if outputs is not None:
-            allowed = KIND_OUTPUTS[kind] + (("qdot", "qddot") if kind == "statics" else ())
+            allowed = KIND_OUTPUTS[kind] + (("qdot", "qddot") if kind == "statics" else ()) + EXTRA_OUTPUTS
             bad = [o for o in outputs if o not in allowed]
             if bad:
                 raise self.fail(f"{where} key 'outputs'", f"{bad[0]!r} is not an output of {kind}")
         reactions = self.names(merged.get("reactions"), f"{where} key 'reactions'", None)
+        cond_warn = merged.get("cond_warn")
+        if cond_warn is not None and not self.real(cond_warn, f"{where} key 'cond_warn'") >= 1:
+            raise self.fail(f"{where} key 'cond_warn'", f"must be a number >= 1, not {cond_warn!r}")
+        modes = {}
+        for key, choices in (("redundant", REDUNDANT_MODES), ("assembly_jump", JUMP_MODES)):
+            value = merged.get(key, choices[0])
+            if value not in choices:
+                raise self.fail(f"{where} key '{key}'",
+                                f"must be one of {', '.join(map(repr, choices))}, not {value!r}")
+            modes[key] = value
         return Analysis(kind=kind, t0=t0, t1=t1, steps=steps, tol=tol, outputs=outputs,
-                        reactions=reactions)
+                        reactions=reactions, cond_warn=None if cond_warn is None else float(cond_warn),
+                        **modes)
 
     def real(self, value: Any, where: str) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -334,8 +350,8 @@ class _Reader:
         if nc < ng:
             raise self.fail("[[constraint]]", f"{nc} constraint rows for {ng} coordinates: "
                             f"{ng - nc} missing (inverse dynamics needs one driver per degree of freedom)")
-        if nc > ng:
-            raise self.fail("[[constraint]]", f"{nc} constraint rows for {ng} coordinates: {nc - ng} extra")
+        # nc > ng is judged numerically (which rows are redundant) when the
+        # study is prepared: symid.stability.check_redundant
 
 
 def _kind(value: Any) -> str:
