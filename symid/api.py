@@ -23,6 +23,7 @@ from symid.backends import Array, Evaluator, Needs
 from symid.errors import AnalysisError
 from symid.io.reader import load
 from symid.model import Mechanism
+from symid.motion import check_spans
 from symid.params import parameter_values, to_float
 from symid.results import Results, columns, row, write_csv
 from symid.solve import Instant, run
@@ -122,6 +123,7 @@ def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
         mech = mechanism
         if analysis:
             mech = dataclasses.replace(mech, analysis=dataclasses.replace(mech.analysis, **analysis))
+            check_spans(mech)  # new t0, t1 must stay inside every table (the reader checked the file's)
     else:
         mech = load(mechanism, set_values, analysis)
     layout = assemble(mech)

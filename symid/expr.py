@@ -244,7 +244,11 @@ class _Parser:
                 coeff, rest = term.as_coeff_Mul()
                 if rest.has(sp.log):
                     self.check_power(rest, coeff, tok.col)
-        return self.finite(build(*args), f"{tok.text}()", tok.col)
+        try:
+            value = build(*args)
+        except ValueError as exc:  # a builder refusing its arguments (a motion law's duration)
+            raise self.fail(f"{tok.text}() at column {tok.col}: {exc}") from None
+        return self.finite(value, f"{tok.text}()", tok.col)
 
     def number(self, tok: _Token) -> sp.Expr:
         """The exact rational a decimal literal denotes, refusing what no double can hold."""

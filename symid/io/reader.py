@@ -19,10 +19,12 @@ from symid.elements import Family, Key
 from symid.errors import InputError
 from symid.expr import FUNCTIONS, parse_expression
 from symid.forces import TYPES as FORCES
+from symid.io.table import read as read_table
 from symid.model import (
     EXTRA_OUTPUTS, GROUND, JUMP_MODES, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, REDUNDANT_MODES, T,
     Analysis, Body, Element, Mechanism, parameter_symbol,
 )
+from symid.motion import LAWS, check_spans
 from symid.params import order_parameters, parameter_values, to_float
 
 MAX_FILE_BYTES = 16 * 1024 * 1024
@@ -96,7 +98,7 @@ class _Reader:
         symbols: dict[str, sp.Expr] = dict(self.params)
         if time:
             symbols["t"] = T
-        return parse_expression(value, symbols, f"{self.source}: {where}")
+        return parse_expression(value, symbols, f"{self.source}: {where}", functions=LAWS)
 
     def number(self, value: Any, where: str) -> tuple[sp.Expr, float]:
         expr = self.expr(value, where)
@@ -145,6 +147,7 @@ class _Reader:
                          source=self.source)
         self.check_reactions(mech)
         self.check_counts(mech)
+        check_spans(mech)  # a tabled function is never extrapolated
         return mech
 
     def array(self, data: Mapping[str, Any], key: str) -> list[Any]:
@@ -324,6 +327,8 @@ class _Reader:
             return self.pair(raw, where)
         if key.kind == "scalar":
             return self.number(raw, where)[0]
+        if key.kind == "function" and isinstance(raw, dict):
+            return read_table(raw, self.source, where)  # f = { table = "motion.csv", column = ... }
         if key.kind == "function":
             return self.expr(raw, where, time=True)
         if key.kind == "function2":

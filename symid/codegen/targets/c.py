@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
@@ -12,13 +12,21 @@ from symid.codegen.emit import Block, above, blocks, chunked
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD
+from symid.motion import piece_tables, tables
 
 NAME = "c"
 MAX_NEWTON = 50
 
 
 class Printer(C99CodePrinter):
-    """C99 without the POSIX constants (M_PI is not in strict C99)."""
+    """C99 without the POSIX constants (M_PI is not in strict C99); a tabled
+    function calls the generated `<prefix>_spline_<key>(t, order)`."""
+
+    _default_settings = {**C99CodePrinter._default_settings, "prefix": "symid"}
+
+    def _print_TableSpline(self, expr: sp.Expr) -> str:
+        key, order, x = expr.args
+        return f"{self._settings['prefix']}_spline_{key.name}({self._print(x)}, {int(order)})"
 
     def _print_Pi(self, expr: sp.Expr) -> str:
         return repr(float(sp.pi))
@@ -49,11 +57,11 @@ def _trig_map(ng: int) -> dict[sp.Expr, sp.Symbol]:
 
 
 def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
-              trig: dict[sp.Expr, sp.Symbol]) -> dict[str, Any]:
+              trig: dict[sp.Expr, sp.Symbol], printer: Callable[[sp.Expr], str] = ccode) -> dict[str, Any]:
     """One generated function: a kernel taking the angles' sines and cosines
     precomputed (`tr`), and the public signature without them."""
     with_trig = any(a == "q" for _, a in args)
-    codes: list[Block] = blocks([e.xreplace(trig) for e in exprs] if with_trig else list(exprs), ccode)
+    codes: list[Block] = blocks([e.xreplace(trig) for e in exprs] if with_trig else list(exprs), printer)
     kernel_args = args[:1] + [("const double *", "tr")] + args[1:] if with_trig else args
 
     def sig(items: list[tuple[str, str]]) -> str:
@@ -107,19 +115,24 @@ def context(model: CodeModel) -> dict[str, Any]:
     cq, cqd, ct, cp, clam = ("const double *", "q"), ("const double *", "qd"), ("double", "t"), \
         ("const double *", "p"), ("const double *", "lam")
     trig = _trig_map(f.ng)
+    printer = Printer({"math_macros": {}, "prefix": f.name}).doprint
+    used = f.phi + [e for _, _, e in f.jac]  # what is printed: a static function never called is an error
     functions = [
-        _function("phi", [cq, ct, cp], f.phi, trig),
-        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac], trig),
+        _function("phi", [cq, ct, cp], f.phi, trig, printer),
+        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac], trig, printer),
     ]
     if o.velocity:
-        functions += [_function("nu", [cq, ct, cp], f.nu, trig),
-                      _function("gamma", [cq, cqd, ct, cp], f.gamma, trig)]
+        functions += [_function("nu", [cq, ct, cp], f.nu, trig, printer),
+                      _function("gamma", [cq, cqd, ct, cp], f.gamma, trig, printer)]
+        used += f.nu + f.gamma
     dynamics = o.kind != "kinematics" and o.multipliers
     if dynamics:
-        functions += [_function("applied", [cq, cqd, ct, cp], f.applied, trig),
-                      _function("mass", [cp], f.mass, trig)]
+        functions += [_function("applied", [cq, cqd, ct, cp], f.applied, trig, printer),
+                      _function("mass", [cp], f.mass, trig, printer)]
+        used += f.applied
     if f.reactions:
-        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions, trig))
+        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions, trig, printer))
+        used += f.reactions
     ng, nc, nr = f.ng, f.nc, len(f.reactions)
     has = {g: int(g in o.outputs) for g in ("qdot", "qddot", "lambda", "reactions")}
     # a trajectory row: t, then each group in contract order
@@ -140,7 +153,7 @@ def context(model: CodeModel) -> dict[str, Any]:
         "functions": functions, "threshold": repr(THRESHOLD), **_step_chunks(_steps(model)),
         "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
-        "nb": ng // 3, "singular": model.plan.singular, "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
+        "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
 
 

@@ -20,6 +20,7 @@ import sympy as sp
 from symid.codegen.flat import Flat
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
+from symid.motion import Spline, TableSpline
 
 NAME = "casadi"
 # Newton steps unrolled in `<name>_instant`: from a warm start (the previous
@@ -36,6 +37,11 @@ _FUNCTIONS: dict[type, Callable[..., Any]] = {
     sp.exp: ca.exp, sp.log: ca.log, sp.Abs: ca.fabs, sp.sign: ca.sign,
     sp.floor: ca.floor, sp.ceiling: ca.ceil,
 }
+_RELATIONS: dict[type, Callable[[ca.SX, ca.SX], ca.SX]] = {
+    sp.StrictLessThan: operator.lt, sp.LessThan: operator.le, sp.StrictGreaterThan: operator.gt,
+    sp.GreaterThan: operator.ge, sp.Eq: operator.eq, sp.Ne: operator.ne,
+    sp.And: ca.logic_and, sp.Or: ca.logic_or,
+}
 
 
 class _ToSX:
@@ -49,6 +55,7 @@ class _ToSX:
     def __init__(self, symbols: Mapping[str, ca.SX]) -> None:
         self.symbols = symbols
         self.memo: dict[sp.Basic, ca.SX] = {}
+        self.pieces: dict[tuple[str, sp.Basic], ca.SX] = {}  # (table, x) -> [s, c0, c1, c2, c3]
 
     def __call__(self, e: sp.Basic) -> ca.SX:
         out = self.memo.get(e)
@@ -73,7 +80,50 @@ class _ToSX:
         if isinstance(e, (sp.Min, sp.Max)):
             pick = ca.fmin if isinstance(e, sp.Min) else ca.fmax
             return _fold(pick, [self(a) for a in e.args])
+        if isinstance(e, sp.Piecewise):  # the first true condition's value (motion laws)
+            out = ca.SX(float("nan"))
+            for value, cond in reversed(e.args):
+                out = self(value) if cond == sp.true else ca.if_else(self(cond), self(value), out)
+            return out
+        if type(e) in _RELATIONS:
+            return _fold(_RELATIONS[type(e)], [self(a) for a in e.args])
+        if isinstance(e, sp.Not):
+            return ca.logic_not(self(e.args[0]))
+        if isinstance(e, TableSpline):
+            return self._spline(e)
         raise NotImplementedError(f"casadi target: no CasADi counterpart for {type(e).__name__} in {e}")
+
+    def _spline(self, e: TableSpline) -> ca.SX:
+        """The same cubic piece as the other backends (not `ca.interpolant`, which fits
+        its own spline), found by a balanced tree of exact selections."""
+        spline, order = e.spline, e.order
+        x = self(e.args[2])
+        piece = self.pieces.get((e.args[0].name, e.args[2]))
+        if piece is None:
+            piece = self.pieces[(e.args[0].name, e.args[2])] = _piece(spline, x)
+        s, c0, c1, c2, c3 = (piece[k] for k in range(5))
+        value = {0: ((c3 * s + c2) * s + c1) * s + c0, 1: (3.0 * c3 * s + 2.0 * c2) * s + c1,
+                 2: 6.0 * c3 * s + 2.0 * c2, 3: 6.0 * c3}.get(order, ca.SX(0.0))
+        lo, hi = spline.bounds
+        return ca.if_else(ca.logic_and(x >= lo, x <= hi), value, ca.SX(float("nan")))
+
+
+def _piece(spline: Spline, x: ca.SX) -> ca.SX:
+    """[x - knot, c0, c1, c2, c3] of the piece holding x (bisection as the C code does:
+    piece a with knots[a] <= x < knots[a + 1], the end pieces extended)."""
+    rows = [ca.DM([0.0, *spline.coef[k]]) for k in range(len(spline.coef))]
+    knots = spline.knots
+
+    def select(a: int, b: int) -> tuple[ca.SX, ca.SX]:
+        if b - a == 1:
+            return ca.SX(rows[a]), ca.SX(knots[a])
+        m = a + (b - a) // 2
+        left, right = select(a, m), select(m, b)
+        below = x < knots[m]
+        return ca.if_else(below, left[0], right[0]), ca.if_else(below, left[1], right[1])
+
+    coef, knot = select(0, len(rows))
+    return ca.vertcat(x - knot, coef[1:])
 
 
 def _fold(op: Callable[[ca.SX, ca.SX], ca.SX], items: Sequence[ca.SX]) -> ca.SX:

@@ -19,6 +19,7 @@ from symid.codegen.emit import above, reduce
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD
+from symid.motion import piece_tables, tables
 
 NAME = "numpy"
 
@@ -29,12 +30,20 @@ class Printer(NumPyPrinter):
     def _print_Float(self, expr: sp.Float) -> str:
         return repr(float(expr))
 
+    def _print_TableSpline(self, expr: sp.Expr) -> str:
+        key, order, x = expr.args
+        return f"_spline(_TABLE_{key.name}, {self._print(x)}, {int(order)})"
+
 
 class ScalarPrinter(PythonCodePrinter):
     """`math` printing for one instant, floats at full precision."""
 
     def _print_Float(self, expr: sp.Float) -> str:
         return repr(float(expr))
+
+    def _print_TableSpline(self, expr: sp.Expr) -> str:
+        key, order, x = expr.args
+        return f"_spline_s(_TABLE_{key.name}, {self._print(x)}, {int(order)})"
 
 
 _PRINTER = Printer({"fully_qualified_modules": True})
@@ -94,6 +103,7 @@ def context(model: CodeModel) -> dict[str, Any]:
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac], "nnz": len(f.jac),
         "functions": functions, "outputs": o.outputs, "kind": o.kind, "threshold": repr(THRESHOLD),
         "velocity": o.velocity, "multipliers": o.multipliers, **_lu(model),
+        "splines": [piece_tables(s) for s in tables(f.phi + f.nu + f.gamma + f.applied + f.reactions)],
     }
 
 
