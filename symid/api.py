@@ -27,7 +27,7 @@ from symid.motion import check_spans
 from symid.params import parameter_values, to_float
 from symid.results import Results, columns, row, write_csv
 from symid.solve import Instant, run
-from symid.stability import Notes, check_redundant, require_support
+from symid.stability import Notes, check_redundant, require_square, require_support
 
 
 def examples() -> list[str]:
@@ -156,6 +156,7 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
 
     module = targets.get(target)
     mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
+    require_square(mech)
     return module.generate(code_model(mech), Path(out_dir))  # type: ignore[no-any-return]
 
 

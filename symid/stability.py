@@ -21,7 +21,7 @@ import scipy.linalg as sla
 from symid.assemble import Layout
 from symid.backends import Array, Evaluator
 from symid.errors import AnalysisError, InputError
-from symid.model import Analysis
+from symid.model import Analysis, Mechanism
 
 EPS = float(np.finfo(float).eps)
 # Below this reciprocal condition number (1-norm estimate of the equilibrated
@@ -170,8 +170,9 @@ def rank_of(jac: Array, scaling: Scaling, layout: Layout) -> Rank:
     rank = int(np.sum(sv > max(nc, ng) * EPS * smax))
     cond = float(smax / sv[-1]) if rank == ng and sv.size and sv[-1] > 0 else np.inf
     share = np.sum(u[:, rank:] ** 2, axis=1)
-    rows = np.flatnonzero(share > NULL_SHARE * share.max()) if share.size and share.max() > 0 else []
-    dependent = layout.constraint_names_of_rows(np.asarray(rows))
+    rows = (np.flatnonzero(share > NULL_SHARE * share.max()) if share.size and share.max() > 0
+            else np.zeros(0, dtype=int))
+    dependent = layout.constraint_names_of_rows(rows)
     order = [c.name for c in layout.mechanism.constraints]
     return Rank(rank, cond, tuple(sorted(dependent, key=order.index)))
 
@@ -205,6 +206,7 @@ class _Span:
     count: int = 0
     worst: float = 0.0
     worst_t: float = 0.0
+    last: int = -2  # index of the latest instant marked
 
     def add(self, t: float, value: float, index: int) -> None:
         self.count += 1
@@ -214,11 +216,9 @@ class _Span:
             self.intervals[-1][1:] = [t, index]
         elif len(self.intervals) < SHOWN_INTERVALS:
             self.intervals.append([t, t, index])
-        else:
-            self.more += 1 if self.last != index - 1 else 0
+        elif self.last != index - 1:
+            self.more += 1
         self.last = index
-
-    last: int = -2
 
     def where(self) -> str:
         text = " and ".join(f"[{a:.9g}, {b:.9g}]" for a, b, _ in self.intervals)
@@ -294,7 +294,7 @@ def require_support(backend_name: str, analysis: Analysis, source: str) -> None:
     """
     from symid import backends
 
-    lacks = getattr(backends.get(backend_name), "lacks", frozenset())
+    lacks: frozenset[str] = getattr(backends.get(backend_name), "lacks", frozenset())
     missing = [f for f in requested(analysis) if f in lacks]
     if not missing:
         return
@@ -306,36 +306,52 @@ def require_support(backend_name: str, analysis: Analysis, source: str) -> None:
 
 def check_redundant(layout: Layout, values: object, backend_name: str) -> None:
     """More rows than coordinates: an input error naming the dependent rows,
-    unless redundant = "min_norm" on a backend that supports it.
+    unless redundant = "min_norm" on a backend that supports it."""
+    mech = layout.mechanism
+    if layout.nc <= layout.ng:
+        return
+    if mech.analysis.redundant == "min_norm":
+        require_support(backend_name, mech.analysis, mech.source)
+        return
+    raise _redundancy_error(layout, values, "redundant = \"min_norm\" solves anyway, with minimum-norm multipliers")
 
-    The rows are analysed at the configuration assembled at t0 (least
-    squares from q0), with the reference evaluator, so every backend reports
-    the same names before anything is generated or compiled.
-    """
-    mech, nc, ng = layout.mechanism, layout.nc, layout.ng
-    if nc <= ng:
-        return
-    analysis = mech.analysis
-    if analysis.redundant == "min_norm":
-        require_support(backend_name, analysis, mech.source)
-        return
+
+def require_square(mech: Mechanism) -> None:
+    """Generated solvers factor a square Phi_q: an input error, naming the
+    dependent rows, for a mechanism with more rows than coordinates."""
+    from symid.assemble import assemble
+    from symid.params import parameter_values
+
+    layout = assemble(mech)
+    if layout.nc > layout.ng:
+        raise _redundancy_error(layout, parameter_values(mech.parameters),
+                                "generated solvers need as many rows as coordinates; symid solve "
+                                "(redundant = \"min_norm\") solves it")
+
+
+def _redundancy_error(layout: Layout, values: object, hint: str) -> InputError:
+    """The rows are analysed at the configuration assembled at t0 (least
+    squares from q0), with the reference evaluator, so every backend and
+    target reports the same names before anything is generated or compiled."""
     from symid.backends import Needs
     from symid.backends.reference import ReferenceEvaluator
     from symid.params import to_float
 
+    mech, nc, ng = layout.mechanism, layout.nc, layout.ng
+    analysis = mech.analysis
     head = f"{mech.source}: [[constraint]]: {nc} constraint rows for {ng} coordinates: {nc - ng} extra"
     ev = ReferenceEvaluator(layout, values, Needs(velocity=False))  # type: ignore[arg-type]
     q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])  # type: ignore[arg-type]
     try:
         q, _ = assemble_lstsq(ev, q0, analysis.t0, analysis.tol)
     except AnalysisError as exc:
-        raise InputError(f"{head}, and they cannot all hold at t0 ({exc})") from None
+        return InputError(f"{head}, and they cannot all hold at t0 ({exc})")
     scaling = Scaling.of(ev.phi_q(q, analysis.t0), q)
     rank = rank_of(ev.phi_q(q, analysis.t0), scaling, layout)
-    hint = ("; redundant = \"min_norm\" solves anyway, with minimum-norm multipliers"
-            if rank.rank == ng else f"; with rank {rank.rank} < {ng} a coordinate is also undriven")
-    raise InputError(f"{head}: the rows of {', '.join(rank.dependent)} are dependent at t0 "
-                     f"(rank {rank.rank}){hint}")
+    if rank.rank < ng:
+        hint = f"with rank {rank.rank} < {ng} a coordinate is also undriven"
+    return InputError(f"{head}: the rows of {', '.join(rank.dependent)} are dependent at t0 "
+                      f"(rank {rank.rank}); {hint}")
 
 
 def assemble_lstsq(ev: Evaluator, q: Array, t: float, tol: float,

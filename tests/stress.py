@@ -322,16 +322,16 @@ class Case:
 
 def solve_case(name: str, k: int, path: object, backend: str) -> Case:
     """Solve case k of a family at t = 0 from the closed-form guess."""
-    from symid import api
+    from symid import api, backends
     from symid.solve import run
     from symid.stability import requested
 
     family = FAMILIES[name]
     overrides = {n: repr(v) for n, v in family.values(k).items()}
-    study = api.prepare(path, backend, overrides)
-    lacks = getattr(__import__("symid.backends", fromlist=["get"]).get(backend), "lacks", frozenset())
-    if lacks:  # a compiled loop: no cond column
+    if "cond" in getattr(backends.get(backend), "lacks", frozenset()):  # the compiled loop
         study = api.prepare(path, backend, overrides, outputs=["q", "lambda", "reactions"])
+    else:
+        study = api.prepare(path, backend, overrides)
     values = {s.name: float(v) for s, v in study.values.items()}
     q0 = assembled(name, values)
     columns = study.columns()
