@@ -1,0 +1,328 @@
+"""Numerical stability benchmark: near-singular accuracy, units, long runs, cost.
+
+    python benchmarks/stability.py [--quick] [--instants N] [--out benchmarks/results]
+
+writes `stability.json` and `stability.png` (error against the distance to
+the singularity and against cond, every backend). Four parts:
+
+1. stress: the slider-crank with a rod of (1 + 10^-k) crank lengths (k = 1..8)
+   at 90 degrees, and a four-bar at 10^-k rad before its toggle (k = 1..15),
+   each backend's motor torque against the 40-digit reference of
+   tests/stress.py, next to cond and to the torque's own condition number
+   kappa (the error no double-precision method can avoid is about kappa eps);
+2. units: every bundled example in metres vs millimetres, and with masses
+   times 1e6, after unit conversion (tests/test_stability.py's converter);
+3. long run: the bundled slider-crank for N instants (default 1e6) streamed to
+   a CSV, crank angle past 1e4 rad, the motor torque against the 40-digit
+   closed form every N/1000 instants, and Python's allocated blocks sampled;
+4. cost: the loop before this work (git show of symid/solve.py at BASELINE)
+   against the current one, same backend and instants.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import math
+import os
+import platform
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT))
+
+import stress  # noqa: E402  (tests/stress.py: the cases and their 40-digit reference)
+from symid import api, backends, solve  # noqa: E402
+from symid.results import row, write_csv  # noqa: E402
+
+EPS = float(np.finfo(float).eps)
+BASELINE = "05875db"  # symid/solve.py before the stability work: plain Newton, unscaled LU
+KS = {"slider_crank": range(1, 9), "four_bar_toggle": range(1, 16)}
+
+
+def machine() -> dict[str, object]:
+    return {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
+            "cpu_count": os.cpu_count(), "python": platform.python_version(), "numpy": np.__version__}
+
+
+def available_backends() -> list[str]:
+    out = []
+    for name in backends.names():
+        if name == "c":
+            from symid.backends.c_backend import compiler
+            from symid.errors import InputError
+
+            try:
+                compiler()
+            except InputError:
+                continue
+        out.append(name)
+    return out
+
+
+# -- 1. stress ---------------------------------------------------------------------
+
+def stress_part(folder: Path, quick: bool) -> list[dict[str, object]]:
+    rows = []
+    for name, ks in KS.items():
+        path = folder / f"{name}.toml"
+        path.write_text(stress.FAMILIES[name].text, encoding="utf-8")
+        for backend in available_backends():
+            for k in (list(ks)[::3] if quick else ks):
+                try:
+                    case = stress.solve_case(name, k, path, backend)
+                except Exception as exc:  # a failed case is a data point, not the end of the run
+                    rows.append({"family": name, "k": k, "backend": backend, "error": None, "failure": str(exc)})
+                    print(f"stress {name:16s} k={k:2d} {backend:9s} failed: {exc}", flush=True)
+                    continue
+                rows.append({"family": name, "k": k, "distance": case.distance, "backend": backend,
+                             "cond": None if math.isnan(case.cond) else case.cond, "torque": case.torque,
+                             "reference": case.reference, "error": case.error, "kappa": case.kappa,
+                             "error_over_cond_eps": None if math.isnan(case.cond) else case.error / (case.cond * EPS),
+                             "error_over_kappa_eps": case.error / (case.kappa * EPS)})
+                print(f"stress {name:16s} k={k:2d} {backend:9s} cond={case.cond:10.3g} "
+                      f"err={case.error:9.2e} kappa*eps={case.kappa * EPS:9.2e}", flush=True)
+    # the compiled backend reports no cond: give its rows the reference's
+    conds = {(r["family"], r["k"]): r["cond"] for r in rows if r["backend"] == "reference"}
+    for r in rows:
+        if r.get("cond") is None and r.get("error") is not None:
+            r["cond_from_reference"] = conds.get((r["family"], r["k"]))
+    return rows
+
+
+# -- 2. units ----------------------------------------------------------------------
+
+def units_part(folder: Path) -> list[dict[str, object]]:
+    from test_stability import _unit_of, in_units  # the tests' converter
+
+    out = []
+    for name in api.examples():
+        text = api.example(name).read_text(encoding="utf-8")
+        base_path = folder / f"{name}_base.toml"
+        base_path.write_text(in_units(text, 1.0, 1.0), encoding="utf-8")
+        base = api.solve(base_path, "numpy", steps=201)
+        for label, u, m in (("mm", 1000.0, 1.0), ("mass_1e6", 1.0, 1e6), ("mm_and_mass_1e6", 1000.0, 1e6)):
+            path = folder / f"{name}_{label}.toml"
+            path.write_text(in_units(text, u, m), encoding="utf-8")
+            other = api.solve(path, "numpy", steps=201)
+            worst = 0.0
+            kinds: dict[str, list[int]] = {}
+            for k, column in enumerate(base.columns[1:], start=1):
+                kinds.setdefault(_unit_of(column)[0], []).append(k)
+            for kind, cols in kinds.items():
+                if kind == "other":
+                    continue
+                dim = _unit_of(base.columns[cols[0]])[1]
+                converted = other.data[:, cols] / (u ** dim[0] * m ** dim[1])
+                scale = np.max(np.abs(base.data[:, cols]))
+                if scale > 0:  # some examples have no torque columns that move
+                    worst = max(worst, float(np.max(np.abs(converted - base.data[:, cols])) / scale))
+            out.append({"example": name, "units": label, "max_relative_difference": worst})
+            print(f"units {name:16s} {label:16s} {worst:.2e}", flush=True)
+    return out
+
+
+# -- 3. long run -------------------------------------------------------------------
+
+def _torque_closed_form():
+    """The bundled slider-crank's motor torque, sympy -> mpmath (as the tests)."""
+    import sympy as sp
+
+    values = {k.name: v for k, v in api.prepare(api.example("slider_crank"), "reference").values.items()}
+    t = sp.Symbol("t")
+    r, l, w = (sp.Float(values[k], 30) for k in ("L_crank", "L_rod", "omega"))
+    m1, m2, m3 = (sp.Float(values[k], 30) for k in ("m_crank", "m_rod", "m_slider"))
+    th = w * t
+    pin = sp.Matrix([r * sp.cos(th), r * sp.sin(th)])
+    slider = sp.Matrix([r * sp.cos(th) + sp.sqrt(l**2 - r**2 * sp.sin(th) ** 2), 0])
+    rod = sp.atan2(-r * sp.sin(th), slider[0] - pin[0])
+    centres = [(m1, pin / 2), (m2, (pin + slider) / 2), (m3, slider)]
+    kinetic = sum(m * (c.diff(t).T * c.diff(t))[0] for m, c in centres) / 2
+    kinetic += (m1 * r**2 / 12 * w**2 + m2 * l**2 / 12 * rod.diff(t) ** 2) / 2
+    power = sum(-m * 9.81 * c[1].diff(t) for m, c in centres) - values["F_gas"] * sp.sin(th) * slider[0].diff(t)
+    return sp.lambdify(t, (kinetic.diff(t) - power) / w, "mpmath")
+
+
+def long_part(folder: Path, instants: int, backend: str) -> dict[str, object]:
+    import mpmath
+
+    t1 = 400.0  # 2000 revolutions at 5 rev/s: the crank ends at 12566 rad
+    study = api.prepare(api.example("slider_crank"), backend, t1=t1, steps=instants)
+    columns = study.columns()
+    k_tau, k_phi = columns.index("motor.T_j"), columns.index("crank.phi")
+    every = max(1, instants // 1000)
+    samples: list[tuple[float, float, float]] = []
+    blocks: list[int] = []
+    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+
+    def watched(rows):
+        for n, values in enumerate(rows):
+            if n % every == 0 or n == instants - 1:
+                samples.append((float(values[0]), float(values[k_phi]), float(values[k_tau])))
+                blocks.append(sys.getallocatedblocks())
+            yield values
+
+    start = time.perf_counter()
+    count = write_csv(folder / "long.csv", columns, watched(study.rows()))
+    elapsed = time.perf_counter() - start
+    size = (folder / "long.csv").stat().st_size
+    (folder / "long.csv").unlink()
+    tau = _torque_closed_form()
+    with mpmath.workdps(40):
+        reference = np.array([float(tau(mpmath.mpf(t))) for t, _, _ in samples])
+    got = np.array([s[2] for s in samples])
+    scale = float(np.max(np.abs(reference)))
+    err = np.abs(got - reference) / scale
+    phi = np.array([s[1] for s in samples])
+    tenth = max(1, len(err) // 10)
+    result = {
+        "backend": backend, "instants": count, "seconds": elapsed, "us_per_instant": 1e6 * elapsed / count,
+        "csv_bytes": size, "final_crank_angle_rad": float(phi[-1]),
+        "torque_error_first_tenth": float(np.max(err[:tenth])), "torque_error_last_tenth": float(np.max(err[-tenth:])),
+        "torque_error_max": float(np.max(err)), "angle_times_eps": float(phi[-1] * EPS),
+        "allocated_blocks_first_sample": blocks[0] if blocks else None,
+        "allocated_blocks_max": max(blocks) if blocks else None,
+        "allocated_blocks_last_sample": blocks[-1] if blocks else None,
+        "max_rss_growth_kB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0,
+        "error_samples": [[s[0], s[1], e] for s, e in zip(samples[::10], err[::10])],
+    }
+    print(f"long {backend}: {count} instants in {elapsed:.0f} s, crank at {phi[-1]:.0f} rad, "
+          f"torque error first/last tenth {result['torque_error_first_tenth']:.2e} / "
+          f"{result['torque_error_last_tenth']:.2e}, blocks {result['allocated_blocks_first_sample']} -> "
+          f"{result['allocated_blocks_max']}", flush=True)
+    return result
+
+
+# -- 4. cost -----------------------------------------------------------------------
+
+def _baseline_loop():
+    source = subprocess.run(["git", "-C", str(ROOT), "show", f"{BASELINE}:symid/solve.py"],
+                            capture_output=True, text=True, check=True).stdout
+    path = Path(tempfile.mkdtemp()) / "solve_baseline.py"
+    path.write_text(source)
+    spec = importlib.util.spec_from_file_location("solve_baseline", path)
+    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    sys.modules["solve_baseline"] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)  # type: ignore[union-attr]
+    return module.run
+
+
+def _checks_cost(study) -> float:
+    """Microseconds per instant of the work the checks add on the normal path:
+    the damped step's two merit norms per Newton iteration, the branch test's
+    two scaled sizes, the cond warning's comparison (timed on this mechanism's
+    own arrays, times its mean Newton iterations)."""
+    import timeit
+
+    from symid.stability import Notes, Scaling
+
+    instants = list(solve.run(study.evaluator, study.analysis, study.q0()))
+    iterations = float(np.mean([i.iterations for i in instants]))
+    q = instants[len(instants) // 2].q
+    scaling = Scaling.of(study.evaluator.phi_q(q, 0.0), q)
+    phi = study.evaluator.phi(q, 0.0)
+    notes = Notes(study.analysis)
+    n = 20000
+    merit = timeit.timeit(lambda: scaling.merit(phi), number=n) / n
+    size = timeit.timeit(lambda: scaling.size(q - q), number=n) / n
+    cond = timeit.timeit(lambda: notes.cond(0.0, 10.0, 0), number=n) / n
+    return 1e6 * (2 * iterations * merit + 2 * size + cond)
+
+
+def cost_part(steps: int, repeats: int) -> list[dict[str, object]]:
+    baseline = _baseline_loop()
+    out = []
+    for name in api.examples():
+        study = api.prepare(api.example(name), "numpy", steps=steps)
+        loops = {"before": baseline, "now": solve.run}
+        best = {k: math.inf for k in loops}
+        for _ in range(repeats):  # interleaved, best of: the machine is shared
+            for label, loop in loops.items():
+                start = time.perf_counter()
+                for instant in loop(study.evaluator, study.analysis, study.q0()):
+                    row(instant, study.layout, study.analysis)
+                best[label] = min(best[label], time.perf_counter() - start)
+        entry = {"example": name, "steps": steps, "us_per_instant_before": 1e6 * best["before"] / steps,
+                 "us_per_instant_now": 1e6 * best["now"] / steps, "ratio": best["now"] / best["before"],
+                 "us_per_instant_in_new_checks": _checks_cost(study)}
+        out.append(entry)
+        print(f"cost {name:16s} before {entry['us_per_instant_before']:7.1f} us  now "
+              f"{entry['us_per_instant_now']:7.1f} us  ratio {entry['ratio']:.3f}  checks "
+              f"{entry['us_per_instant_in_new_checks']:.1f} us", flush=True)
+    return out
+
+
+# -- the plot ----------------------------------------------------------------------
+
+def plot(stress_rows: list[dict[str, object]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 2, figsize=(12, 9))
+    markers = {"reference": "o", "numpy": "s", "casadi": "^", "c": "x"}
+    for col, family in enumerate(KS):
+        rows = [r for r in stress_rows if r["family"] == family and r.get("error") is not None]
+        for backend, marker in markers.items():
+            mine = [r for r in rows if r["backend"] == backend]
+            if not mine:
+                continue
+            d = [r["distance"] for r in mine]
+            err = [max(r["error"], 1e-18) for r in mine]
+            cond = [r.get("cond") or r.get("cond_from_reference") for r in mine]
+            axes[0, col].loglog(d, err, marker, label=backend, fillstyle="none")
+            axes[1, col].loglog(cond, err, marker, label=backend, fillstyle="none")
+        ref = sorted((r for r in rows if r["backend"] == "reference"), key=lambda r: r["distance"])
+        if ref:
+            d = np.array([r["distance"] for r in ref])
+            cond = np.array([r["cond"] for r in ref])
+            kappa = np.array([r["kappa"] for r in ref])
+            axes[0, col].loglog(d, kappa * EPS, "k--", label="kappa eps (intrinsic)")
+            axes[1, col].loglog(cond, cond * EPS, "g:", label="cond eps")
+            axes[1, col].loglog(cond, cond**2 * EPS, "r-.", label="cond^2 eps")
+            axes[1, col].loglog(cond, kappa * EPS, "k--", label="kappa eps (intrinsic)")
+        what = "rod - crank (crank lengths)" if family == "slider_crank" else "crank angle to the toggle (rad)"
+        axes[0, col].set(title=f"{family}: motor torque error", xlabel=what, ylabel="relative error")
+        axes[1, col].set(title=f"{family}: error against cond", xlabel="cond (equilibrated Phi_q)",
+                         ylabel="relative error")
+        for ax in axes[:, col]:
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=8)
+        axes[0, col].invert_xaxis()
+    fig.suptitle("symid: motor torque near singular positions against a 40-digit reference")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer cases, 1e4 instants, 1 repeat")
+    parser.add_argument("--instants", type=int, default=None, help="long-run instants (default 1e6)")
+    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
+    args = parser.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    instants = args.instants or (10_000 if args.quick else 1_000_000)
+    folder = Path(tempfile.mkdtemp(prefix="symid-stability-"))
+    report: dict[str, object] = {"machine": machine(), "eps": EPS, "baseline_commit": BASELINE}
+    report["stress"] = stress_rows = stress_part(folder, args.quick)
+    report["units"] = units_part(folder)
+    report["long_run"] = [long_part(folder, instants, b) for b in ("numpy", "c") if b in available_backends()]
+    report["cost"] = cost_part(201 if args.quick else 2001, 1 if args.quick else 5)
+    (out / "stability.json").write_text(json.dumps(report, indent=1) + "\n")
+    plot(stress_rows, out / "stability.png")
+    print(f"wrote {out / 'stability.json'} and {out / 'stability.png'}")
+
+
+if __name__ == "__main__":
+    main()
