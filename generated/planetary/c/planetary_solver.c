@@ -636,7 +636,7 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
     double *lam = PLANETARY_VEC(work, 7), *reac = PLANETARY_VEC(work, 8);
     long i;
     int k, status, info[2];
-    (void)qm1; (void)qm2;
+    (void)qm1; (void)qm2; (void)qd; (void)qdd;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * PLANETARY_ROW;

@@ -596,7 +596,7 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
     double *lam = QUICK_RETURN_VEC(work, 7), *reac = QUICK_RETURN_VEC(work, 8);
     long i;
     int k, status, info[2];
-    (void)qm1; (void)qm2;
+    (void)qm1; (void)qm2; (void)qd; (void)qdd;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * QUICK_RETURN_ROW;

@@ -534,7 +534,7 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
     double *lam = SLIDER_PENDULUM_VEC(work, 7), *reac = SLIDER_PENDULUM_VEC(work, 8);
     long i;
     int k, status, info[2];
-    (void)qm1; (void)qm2;
+    (void)qm1; (void)qm2; (void)qd; (void)qdd;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * SLIDER_PENDULUM_ROW;
