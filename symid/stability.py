@@ -12,16 +12,24 @@ decisions and the same `cond` (docs/analysis-options.md says how `tol` reads).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg as sla
 
 from symid.assemble import Layout
 from symid.backends import Array, Evaluator
 from symid.errors import AnalysisError, InputError
 from symid.model import Analysis, Mechanism
+
+
+@functools.cache
+def _sla():  # type: ignore[no-untyped-def]
+    """scipy.linalg, imported on first use: a run on a compiled backend never needs it."""
+    import scipy.linalg
+
+    return scipy.linalg
 
 EPS = float(np.finfo(float).eps)
 # Below this reciprocal condition number (1-norm estimate of the equilibrated
@@ -92,7 +100,16 @@ class Scaling:
         return math.sqrt(float(v @ v))
 
 
-_getrf, _getrs, _gecon = sla.lapack.dgetrf, sla.lapack.dgetrs, sla.lapack.dgecon
+def _getrf(*args, **kwargs):  # type: ignore[no-untyped-def]
+    return _sla().lapack.dgetrf(*args, **kwargs)
+
+
+def _getrs(*args, **kwargs):  # type: ignore[no-untyped-def]
+    return _sla().lapack.dgetrs(*args, **kwargs)
+
+
+def _gecon(*args, **kwargs):  # type: ignore[no-untyped-def]
+    return _sla().lapack.dgecon(*args, **kwargs)
 
 
 class Factor:
@@ -124,7 +141,7 @@ class Factor:
         else:
             a = jac * self.dc
             self.q, self.r = np.linalg.qr(a)
-            self.rcond = float(sla.lapack.dtrcon(self.r, norm="1")[0]) if ng else 1.0
+            self.rcond = float(_sla().lapack.dtrcon(self.r, norm="1")[0]) if ng else 1.0
         if not np.isfinite(self.rcond):
             self.rcond = 0.0
 
@@ -136,13 +153,13 @@ class Factor:
         """x with Phi_q x = b (size nc -> ng; least squares when nc > ng)."""
         if self.square:
             return self.dc * _getrs(self.lu, self.piv, self.dr * b)[0]
-        return self.dc * sla.solve_triangular(self.r, self.q.T @ b, check_finite=False)
+        return self.dc * _sla().solve_triangular(self.r, self.q.T @ b, check_finite=False)
 
     def solve_t(self, b: Array) -> Array:
         """lambda with Phi_q^T lambda = b (size ng -> nc; minimum norm when nc > ng)."""
         if self.square:
             return self.dr * _getrs(self.lu, self.piv, self.dc * b, trans=1)[0]
-        return self.q @ sla.solve_triangular(self.r, self.dc * b, trans="T", check_finite=False)
+        return self.q @ _sla().solve_triangular(self.r, self.dc * b, trans="T", check_finite=False)
 
 
 @dataclass(frozen=True)

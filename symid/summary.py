@@ -121,7 +121,7 @@ def needed_columns(mechanism: Mechanism, header: Sequence[str]) -> list[str]:
 def time_function(expr: sp.Expr, values: Mapping[sp.Symbol, float], t: Array, order: int = 0) -> Array:
     """An expression of t and the parameters (or its d^order/dt^order) at the instants t."""
     e = sp.diff(sp.sympify(expr), T, order).xreplace({k: sp.Float(v, 17) for k, v in values.items()})
-    return np.broadcast_to(np.asarray(sp.lambdify(T, e, "numpy")(t), dtype=float), t.shape).copy()
+    return np.broadcast_to(np.asarray(sp.lambdify(T, e, [np])(t), dtype=float), t.shape).copy()
 
 
 def effort(c: Element, table: Table, values: Mapping[sp.Symbol, float]) -> Effort | None:

@@ -53,7 +53,7 @@ def _kernel(derived: DerivedConstraint | DerivedForce, what: str, static: bool =
 def _time_function(exprs: Sequence[sp.Expr], values: Mapping[sp.Symbol, float]) -> Callable[[float], Array]:
     """t -> array of the expressions' values (parameters substituted)."""
     numeric = [sp.sympify(e).xreplace({k: sp.Float(v, 17) for k, v in values.items()}) for e in exprs]
-    fn = sp.lambdify([T], numeric, modules="numpy")
+    fn = sp.lambdify([T], numeric, modules=[np])  # a module object: no namespace scan
     count = len(numeric)
     return lambda t: np.array(fn(t), dtype=float).reshape(count)
 

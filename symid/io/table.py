@@ -17,7 +17,6 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 import sympy as sp
-from scipy.interpolate import CubicSpline, PPoly, make_smoothing_spline
 
 from symid import motion
 from symid.errors import InputError
@@ -140,8 +139,11 @@ def _check_times(t: np.ndarray, lines: list[int], fail: Callable[[str], InputErr
 def _fit(t: np.ndarray, y: np.ndarray, smoothing: float, fail: Callable[[str], InputError],
          ) -> tuple[np.ndarray, np.ndarray]:
     """(knots, coef) of the C2 cubic: coef[k] = [c0, c1, c2, c3] about knots[k]."""
+    # imported here: a run that tabulates nothing never loads scipy.interpolate
+    from scipy.interpolate import CubicSpline, PPoly, make_smoothing_spline
+
     if smoothing == 0:
-        pp: PPoly = CubicSpline(t, y, bc_type="not-a-knot")
+        pp = CubicSpline(t, y, bc_type="not-a-knot")
     else:
         pp = PPoly.from_spline(make_smoothing_spline(t, y, lam=smoothing))
     keep = np.flatnonzero(np.diff(pp.x) > 0)  # a B-spline's repeated end knots make empty pieces
