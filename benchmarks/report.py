@@ -142,7 +142,7 @@ def markdown(result: dict[str, Any]) -> str:
                   "us per instant, torque error", "",
                   "| driver | order | " + " | ".join(f"tol {t:g}" for t in cfg["tolerances"]) + " |",
                   "|---" * (len(cfg["tolerances"]) + 2) + "|"]
-        for driver in ("compiled-instant", "python-newton"):
+        for driver in ("compiled-loop", "python-newton"):
             for order in cfg["orders"]:
                 row = []
                 for tol in cfg["tolerances"]:
@@ -226,14 +226,12 @@ def plots(result: dict[str, Any], folder: Path) -> list[Path]:
         pts = sorted((r["us_per_instant"], r["error_rel"], r["tol"]) for r in sw.get("tolerance", [])
                      if r.get("backend") == "c" and r.get("error_rel") is not None and r.get("us_per_instant"))
         if pts:
-            ax.plot([p[0] for p in pts], [max(p[1], floor) for p in pts], ":", color="grey")
-            for x, y, tol in pts:
-                ax.annotate(f"{tol:g}", (x, max(y, floor)), fontsize=6, color="grey")
+            ax.plot([p[0] for p in pts], [max(p[1], floor) for p in pts], ":.", color="grey", ms=3)
     for a in order:
         ax.plot([], [], "s", color=colors[a], label=a)
     for key, mk in markers.items():
         ax.plot([], [], mk, color="black", mfc="none", label=key)
-    ax.plot([], [], ":", color="grey", label="symid-c, Newton tol sweep")
+    ax.plot([], [], ":.", color="grey", label="symid-c, Newton tol 1e-6..1e-14")
     ax.axhline(TARGETS["error"], color="red", lw=0.8, ls="--")
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -251,7 +249,7 @@ def plots(result: dict[str, Any], folder: Path) -> list[Path]:
     if sweeps:
         fig, axes = plt.subplots(len(sweeps), 3, figsize=(12, 3.6 * len(sweeps)), squeeze=False)
         for row, (key, sw) in zip(axes, sweeps.items()):
-            for driver, style in (("compiled-instant", "-"), ("python-newton", "--")):
+            for driver, style in (("compiled-loop", "-"), ("python-newton", "--")):
                 for order in result["config"]["orders"]:
                     pts = sorted((r["tol"], r["mean_iterations"], r["us_per_instant"], r["error_rel"])
                                  for r in sw["predictor"] if r["driver"] == driver and r["order"] == order

@@ -66,7 +66,9 @@ class Config:
     total_s: float = 14 * 60.0     # the whole run's budget
     reserve_s: float = 240.0       # kept for the sweeps and processes: cells not started
                                    # by total_s - reserve_s are skipped
-    sweep_mechs: tuple[str, ...] = ("slider_crank", "ladder_16")
+    # (mechanism, instants per period): the coarse slider-crank grid (3.6 degrees
+    # of crank per step) is where the predictor's order shows
+    sweep_mechs: tuple[tuple[str, int], ...] = (("slider_crank", 1001), ("slider_crank", 101), ("ladder_16", 1001))
     sweep_instants: int = 1001
     tolerances: tuple[float, ...] = TOLERANCES
     orders: tuple[int, ...] = ORDERS
@@ -76,7 +78,7 @@ class Config:
 
 
 SMOKE = Config(ladders=(1,), steps=1001, compiled_instants=40, budget_s=0.5, cap_s=50.0, total_s=50.0, reserve_s=0.0,
-               sweep_mechs=("ladder_1",), sweep_instants=15, tolerances=(1e-6, 1e-12), orders=(0, 2),
+               sweep_mechs=(("ladder_1", 1001),), sweep_instants=15, tolerances=(1e-6, 1e-12), orders=(0, 2),
                stream_instants=2001, solve_runs=1, jobs=2)
 
 
@@ -359,12 +361,15 @@ def run_cells(cfg: Config, mechs: list[dict[str, Any]], exact: dict[str, np.ndar
 def run_sweeps(cfg: Config, mechs: list[dict[str, Any]], exact: dict[str, np.ndarray], work: Path,
                log: Callable[[str], None]) -> dict[str, Any]:
     out = {}
-    for key in cfg.sweep_mechs:
-        mech = next(m for m in mechs if m["key"] == key)
-        folder = work / f"sweep-{key}"
+    for base, steps in cfg.sweep_mechs:
+        mech = dict(next(m for m in mechs if m["key"] == base), steps=steps)
+        mech["h"] = mech["t1"] / (steps - 1)
+        key = base if steps == cfg.steps else f"{base}, {steps} steps"
+        truth = exact[base] if steps == cfg.steps else exact_torque(mech)
+        folder = work / f"sweep-{base}-{steps}"
         folder.mkdir()
         cache = Path(tempfile.mkdtemp(prefix="cache-", dir=work))
-        spec = {"kind": "sweep", "mech": mech, "folder": str(folder), "instants": cfg.sweep_instants,
+        spec = {"kind": "sweep", "mech": mech, "folder": str(folder), "instants": min(cfg.sweep_instants, steps),
                 "tolerances": list(cfg.tolerances), "orders": list(cfg.orders), "budget_s": cfg.budget_s / 2}
         got = spawn(spec, 4 * cfg.cap_s, _env(cache))
         shutil.rmtree(cache, ignore_errors=True)
@@ -374,8 +379,8 @@ def run_sweeps(cfg: Config, mechs: list[dict[str, Any]], exact: dict[str, np.nda
             continue
         for row in got.result["predictor"] + got.result["tolerance"]:
             if "torque" in row:
-                row["error_rel"], row["error_instants"] = _error(np.load(row.pop("torque")), exact[key])
-        out[key] = {"status": "ok", "ng": mech["ng"], **got.result}
+                row["error_rel"], row["error_instants"] = _error(np.load(row.pop("torque")), truth)
+        out[key] = {"status": "ok", "ng": mech["ng"], "steps": steps, **got.result}
         log(f"sweep {key}: {len(got.result['predictor'])} predictor points, "
             f"{len(got.result['tolerance'])} tolerance points in {got.wall_s:.0f} s")
     return out
