@@ -108,6 +108,23 @@ def above(plan: Plan) -> dict[int, list[Step]]:
     return out
 
 
+def lu_steps(plan: Plan) -> list[dict[str, object]]:
+    """The elimination steps as factor-array slots, for every target's printer:
+    pivot, column entries for the threshold test, multipliers with their
+    updates, and the L, U and U-transposed entries the solves read."""
+    slots = plan.slots
+    up = above(plan)
+    return [{
+        "row": st.row, "col": st.col, "pivot": slots[(st.row, st.col)],
+        "column": [slots[(r, st.col)] for r in st.below],
+        "mults": [{"slot": slots[(r, st.col)], "updates": [(slots[(r, c)], slots[(st.row, c)]) for c in st.right]}
+                  for r in st.below],
+        "below": [(r, slots[(r, st.col)]) for r in st.below],
+        "right": [(c, slots[(st.row, c)]) for c in st.right],
+        "above": [(prev.row, slots[(prev.row, st.col)]) for prev in up.get(st.col, [])],
+    } for st in plan.steps]
+
+
 def sample_jacobian(flat: Flat, q: np.ndarray, t: float, p: np.ndarray) -> np.ndarray:
     """Phi_q as a dense matrix at one configuration (for the pivot choice)."""
     syms = [sp.Symbol(f"q[{k}]", real=True) for k in range(flat.ng)]

@@ -8,7 +8,7 @@ from typing import Any, Callable
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
-from symid.codegen.emit import Block, above, blocks, chunked
+from symid.codegen.emit import Block, blocks, chunked, lu_steps
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD
@@ -72,24 +72,6 @@ def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
             "trig": with_trig, "call": ", ".join([a for _, a in kernel_args] + ["out"])}
 
 
-def _steps(model: CodeModel) -> list[dict[str, Any]]:
-    plan = model.plan
-    slots = plan.slots
-    up = above(plan)
-    out = []
-    for st in plan.steps:
-        out.append({
-            "row": st.row, "col": st.col, "pivot": slots[(st.row, st.col)],
-            "column": [slots[(r, st.col)] for r in st.below],
-            "mults": [{"slot": slots[(r, st.col)],
-                       "updates": [(slots[(r, c)], slots[(st.row, c)]) for c in st.right]} for r in st.below],
-            "below": [(r, slots[(r, st.col)]) for r in st.below],
-            "right": [(c, slots[(st.row, c)]) for c in st.right],
-            "above": [(prev.row, slots[(prev.row, st.col)]) for prev in up.get(st.col, [])],
-        })
-    return out
-
-
 def _step_chunks(steps: list[dict[str, Any]]) -> dict[str, Any]:
     """The elimination steps grouped into functions of bounded size, for each
     of the five straight-line passes (factor; solve forward and back;
@@ -150,7 +132,7 @@ def context(model: CodeModel) -> dict[str, Any]:
         "work": len(f.jac) + model.plan.size + ng * ng + 10 * stride, "stride": stride,
         "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
-        "functions": functions, "threshold": repr(THRESHOLD), **_step_chunks(_steps(model)),
+        "functions": functions, "threshold": repr(THRESHOLD), **_step_chunks(lu_steps(model.plan)),
         "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",

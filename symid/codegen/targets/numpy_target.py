@@ -15,7 +15,7 @@ import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 from sympy.printing.pycode import PythonCodePrinter
 
-from symid.codegen.emit import above, reduce
+from symid.codegen.emit import lu_steps, reduce
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD
@@ -66,18 +66,8 @@ def _function(name: str, args: list[str], exprs: list[sp.Expr], doc: str) -> dic
 
 
 def _lu(model: CodeModel) -> dict[str, Any]:
-    plan, slots = model.plan, model.plan.slots
-    up = above(plan)
-    steps = [{
-        "row": st.row, "col": st.col, "pivot": slots[(st.row, st.col)],
-        "column": [slots[(r, st.col)] for r in st.below],
-        "mults": [{"slot": slots[(r, st.col)], "updates": [(slots[(r, c)], slots[(st.row, c)]) for c in st.right]}
-                  for r in st.below],
-        "below": [(r, slots[(r, st.col)]) for r in st.below],
-        "right": [(c, slots[(st.row, c)]) for c in st.right],
-        "above": [(prev.row, slots[(prev.row, st.col)]) for prev in up.get(st.col, [])],
-    } for st in plan.steps]
-    return {"steps": steps, "lu_size": plan.size, "singular_plan": plan.singular}
+    plan = model.plan
+    return {"steps": lu_steps(plan), "lu_size": plan.size, "singular_plan": plan.singular}
 
 
 def context(model: CodeModel) -> dict[str, Any]:
