@@ -31,14 +31,14 @@ static void excavator_trig(const double *q, double *tr)
     tr[5] = cos(q[8]);
 }
 
-/* Update tr after the angles moved by dq: a Newton correction is small, and
+/* Update tr after the correction q -= dq: a Newton correction is small, and
    sin(a + d), cos(a + d) by the addition formulas with d's Taylor series
    (exact to rounding for |d| < 1e-3) avoid calling sin and cos again. */
 static void excavator_trig_step(const double *q, const double *dq, double *tr)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double d = dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
         if (fabs(d) < 1e-3) {
             const double d2 = d * d;
             const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
@@ -434,7 +434,8 @@ void excavator_reactions(const double * q, const double * lam, double t, const d
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
    bounded size; a piece returns 1 where a fixed pivot fails the threshold
-   test for this configuration. */
+   test for this configuration. A pivot's slot keeps its reciprocal, so that
+   the solves multiply: a division's latency would chain every unknown. */
 static int excavator_sparse_factor0(double *lu)
 {
     double piv, cm;
@@ -442,7 +443,8 @@ static int excavator_sparse_factor0(double *lu)
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, fabs(lu[33]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[33] /= piv;
+    piv = lu[18] = 1.0 / piv;
+    lu[33] *= piv;
     lu[30] -= lu[33] * lu[16];
     lu[31] -= lu[33] * lu[17];
     lu[34] -= lu[33] * lu[19];
@@ -452,11 +454,12 @@ static int excavator_sparse_factor0(double *lu)
     cm = EXCAVATOR_MAX(cm, fabs(lu[21]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[24]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[8] /= piv;
+    piv = lu[2] = 1.0 / piv;
+    lu[8] *= piv;
     lu[9] -= lu[8] * lu[3];
-    lu[21] /= piv;
+    lu[21] *= piv;
     lu[22] -= lu[21] * lu[3];
-    lu[24] /= piv;
+    lu[24] *= piv;
     lu[25] -= lu[24] * lu[3];
     piv = lu[20];
     cm = fabs(piv);
@@ -464,11 +467,12 @@ static int excavator_sparse_factor0(double *lu)
     cm = EXCAVATOR_MAX(cm, fabs(lu[4]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[23]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[0] /= piv;
+    piv = lu[20] = 1.0 / piv;
+    lu[0] *= piv;
     lu[1] -= lu[0] * lu[22];
-    lu[4] /= piv;
+    lu[4] *= piv;
     lu[5] -= lu[4] * lu[22];
-    lu[23] /= piv;
+    lu[23] *= piv;
     lu[25] -= lu[23] * lu[22];
     piv = lu[1];
     cm = fabs(piv);
@@ -476,17 +480,19 @@ static int excavator_sparse_factor0(double *lu)
     cm = EXCAVATOR_MAX(cm, fabs(lu[9]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[25]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[5] /= piv;
-    lu[9] /= piv;
-    lu[25] /= piv;
+    piv = lu[1] = 1.0 / piv;
+    lu[5] *= piv;
+    lu[9] *= piv;
+    lu[25] *= piv;
     piv = lu[10];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, fabs(lu[27]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[30]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[27] /= piv;
+    piv = lu[10] = 1.0 / piv;
+    lu[27] *= piv;
     lu[28] -= lu[27] * lu[11];
-    lu[30] /= piv;
+    lu[30] *= piv;
     lu[31] -= lu[30] * lu[11];
     piv = lu[26];
     cm = fabs(piv);
@@ -494,28 +500,32 @@ static int excavator_sparse_factor0(double *lu)
     cm = EXCAVATOR_MAX(cm, fabs(lu[12]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[29]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[6] /= piv;
+    piv = lu[26] = 1.0 / piv;
+    lu[6] *= piv;
     lu[7] -= lu[6] * lu[28];
-    lu[12] /= piv;
+    lu[12] *= piv;
     lu[13] -= lu[12] * lu[28];
-    lu[29] /= piv;
+    lu[29] *= piv;
     lu[31] -= lu[29] * lu[28];
     piv = lu[7];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, fabs(lu[13]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[31]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[13] /= piv;
-    lu[31] /= piv;
+    piv = lu[7] = 1.0 / piv;
+    lu[13] *= piv;
+    lu[31] *= piv;
     piv = lu[32];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, fabs(lu[14]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[14] /= piv;
+    piv = lu[32] = 1.0 / piv;
+    lu[14] *= piv;
     lu[15] -= lu[14] * lu[34];
     piv = lu[15];
     cm = fabs(piv);
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[15] = 1.0 / piv;
     return 0;
 }
 
@@ -549,15 +559,15 @@ static void excavator_sparse_forward0(const double *lu, double *y)
 
 static void excavator_sparse_back0(const double *lu, const double *y, double *x)
 {
-    x[8] = (y[4]) / lu[15];
-    x[6] = (y[8] - lu[34] * x[8]) / lu[32];
-    x[5] = (y[2]) / lu[7];
-    x[3] = (y[7] - lu[28] * x[5]) / lu[26];
-    x[4] = (y[3] - lu[11] * x[5]) / lu[10];
-    x[2] = (y[0]) / lu[1];
-    x[0] = (y[6] - lu[22] * x[2]) / lu[20];
-    x[1] = (y[1] - lu[3] * x[2]) / lu[2];
-    x[7] = (y[5] - lu[16] * x[4] - lu[17] * x[5] - lu[19] * x[8]) / lu[18];
+    x[8] = (y[4]) * lu[15];
+    x[6] = (y[8] - lu[34] * x[8]) * lu[32];
+    x[5] = (y[2]) * lu[7];
+    x[3] = (y[7] - lu[28] * x[5]) * lu[26];
+    x[4] = (y[3] - lu[11] * x[5]) * lu[10];
+    x[2] = (y[0]) * lu[1];
+    x[0] = (y[6] - lu[22] * x[2]) * lu[20];
+    x[1] = (y[1] - lu[3] * x[2]) * lu[2];
+    x[7] = (y[5] - lu[16] * x[4] - lu[17] * x[5] - lu[19] * x[8]) * lu[18];
 }
 
 static void excavator_sparse_solve(const double *lu, const double *b, double *x, double *y)
@@ -569,15 +579,15 @@ static void excavator_sparse_solve(const double *lu, const double *b, double *x,
 
 static void excavator_sparse_t_forward0(const double *lu, const double *b, double *x)
 {
-    x[5] = (b[7]) / lu[18];
-    x[1] = (b[1]) / lu[2];
-    x[6] = (b[0]) / lu[20];
-    x[0] = (b[2] - lu[3] * x[1] - lu[22] * x[6]) / lu[1];
-    x[3] = (b[4] - lu[16] * x[5]) / lu[10];
-    x[7] = (b[3]) / lu[26];
-    x[2] = (b[5] - lu[17] * x[5] - lu[11] * x[3] - lu[28] * x[7]) / lu[7];
-    x[8] = (b[6]) / lu[32];
-    x[4] = (b[8] - lu[19] * x[5] - lu[34] * x[8]) / lu[15];
+    x[5] = (b[7]) * lu[18];
+    x[1] = (b[1]) * lu[2];
+    x[6] = (b[0]) * lu[20];
+    x[0] = (b[2] - lu[3] * x[1] - lu[22] * x[6]) * lu[1];
+    x[3] = (b[4] - lu[16] * x[5]) * lu[10];
+    x[7] = (b[3]) * lu[26];
+    x[2] = (b[5] - lu[17] * x[5] - lu[11] * x[3] - lu[28] * x[7]) * lu[7];
+    x[8] = (b[6]) * lu[32];
+    x[4] = (b[8] - lu[19] * x[5] - lu[34] * x[8]) * lu[15];
 }
 
 static void excavator_sparse_t_back0(const double *lu, double *x)
@@ -704,17 +714,39 @@ static void excavator_solve_t(const double *work, const int *iwork, int dense, c
     else excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, b, x);
 }
 
-/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes). */
+/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
+   Four running maxima and sums: one chain would wait on each comparison. */
 static double excavator_maxabs(const double *v, int n)
 {
-    double m = 0.0, sum = 0.0;
+    double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     int k;
-    for (k = 0; k < n; ++k) {
-        const double a = fabs(v[k]);
-        m = a > m ? a : m;
-        sum += a;
+    for (k = 0; k + 4 <= n; k += 4) {
+        const double a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
+        m0 = a0 > m0 ? a0 : m0;
+        m1 = a1 > m1 ? a1 : m1;
+        m2 = a2 > m2 ? a2 : m2;
+        m3 = a3 > m3 ? a3 : m3;
+        s0 += a0;
+        s1 += a1;
+        s2 += a2;
+        s3 += a3;
     }
-    return sum == sum ? m : sum;
+    for (; k < n; ++k) {
+        const double a = fabs(v[k]);
+        m0 = a > m0 ? a : m0;
+        s0 += a;
+    }
+    m0 = EXCAVATOR_MAX(EXCAVATOR_MAX(m0, m1), EXCAVATOR_MAX(m2, m3));
+    s0 += s1 + s2 + s3;
+    return s0 == s0 ? m0 : s0;
+}
+
+/* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabs does. */
+static double excavator_correct(double *q, const double *dq)
+{
+    int k;
+    for (k = 0; k < 9; ++k) q[k] -= dq[k];
+    return excavator_maxabs(dq, 9);
 }
 
 int excavator_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
@@ -724,7 +756,7 @@ int excavator_instant(double t, const double *p, double tol, double *q, double *
     double *b = EXCAVATOR_VEC(work, 3), *tr = EXCAVATOR_VEC(work, 9);
     double step = INFINITY, lim, qmag, rmax;
     int it, k, dense = 0, converged = 0;
-    (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
+    (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b; (void)k;
     excavator_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = EXCAVATOR_MAX(1.0, excavator_maxabs(q, 9));
@@ -743,14 +775,8 @@ int excavator_instant(double t, const double *p, double tol, double *q, double *
             info[1] = dense;
             return EXCAVATOR_SINGULAR;
         }
-        for (k = 0; k < 9; ++k) r[k] = -r[k];
         excavator_solve(work, iwork, dense, r, dq, y);
-        step = 0.0;
-        for (k = 0; k < 9; ++k) {
-            const double a = fabs(dq[k]);
-            q[k] += dq[k];
-            step = a > step || a != a ? a : step;
-        }
+        step = excavator_correct(q, dq);
         excavator_trig_step(q, dq, tr);
         if (rmax <= lim && step <= lim) {
             /* |Phi| was within tolerance where this last correction was
@@ -788,14 +814,19 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
     /* state: q, qd, qdd of the last instant, the two positions before it, count */
     double *q = state, *qd = state + 9, *qdd = state + 18;
     double *qm1 = state + 27, *qm2 = state + 36, *count = state + 45;
-    double *qn = EXCAVATOR_VEC(work, 4), *qdn = EXCAVATOR_VEC(work, 5), *qddn = EXCAVATOR_VEC(work, 6);
-    double *lam = EXCAVATOR_VEC(work, 7), *reac = EXCAVATOR_VEC(work, 8);
+    double *qn, *qdn, *qddn, *lam, *reac;
     long i;
     int k, status, info[2];
     (void)qm1; (void)qm2; (void)qd; (void)qdd;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * EXCAVATOR_ROW;
+        /* what the row holds is solved straight into it */
+        qn = row + 1;
+        qdn = row + 10;
+        qddn = row + 19;
+        lam = row + 28;
+        reac = row + 37;
         for (k = 0; k < 9; ++k) {
             qn[k] = *count > 0 ? q[k] + h * qd[k] + 0.5 * h * h * qdd[k] : q[k];
         }
@@ -809,16 +840,6 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
         memcpy(q, qn, sizeof(double) * 9);
         *count += 1.0;
         row[0] = t;
-        /* q */
-        memcpy(row + 1, q, sizeof(double) * 9);
-        /* qdot */
-        memcpy(row + 10, qd, sizeof(double) * 9);
-        /* qddot */
-        memcpy(row + 19, qdd, sizeof(double) * 9);
-        /* lambda */
-        memcpy(row + 28, lam, sizeof(double) * 9);
-        /* reactions */
-        memcpy(row + 37, reac, sizeof(double) * 36);
     }
     *solved = n;
     (void)lam; (void)reac;

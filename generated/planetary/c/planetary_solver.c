@@ -33,14 +33,14 @@ static void planetary_trig(const double *q, double *tr)
     tr[7] = cos(q[11]);
 }
 
-/* Update tr after the angles moved by dq: a Newton correction is small, and
+/* Update tr after the correction q -= dq: a Newton correction is small, and
    sin(a + d), cos(a + d) by the addition formulas with d's Taylor series
    (exact to rounding for |d| < 1e-3) avoid calling sin and cos again. */
 static void planetary_trig_step(const double *q, const double *dq, double *tr)
 {
     int b;
     for (b = 0; b < 4; ++b) {
-        const double d = dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
         if (fabs(d) < 1e-3) {
             const double d2 = d * d;
             const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
@@ -329,57 +329,70 @@ void planetary_reactions(const double * q, const double * lam, double t, const d
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
    bounded size; a piece returns 1 where a fixed pivot fails the threshold
-   test for this configuration. */
+   test for this configuration. A pivot's slot keeps its reciprocal, so that
+   the solves multiply: a division's latency would chain every unknown. */
 static int planetary_sparse_factor0(double *lu)
 {
     double piv, cm;
     piv = lu[0];
     cm = fabs(piv);
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[0] = 1.0 / piv;
     piv = lu[1];
     cm = fabs(piv);
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[1] = 1.0 / piv;
     piv = lu[2];
     cm = fabs(piv);
     cm = PLANETARY_MAX(cm, fabs(lu[4]));
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[4] /= piv;
+    piv = lu[2] = 1.0 / piv;
+    lu[4] *= piv;
     piv = lu[3];
     cm = fabs(piv);
     cm = PLANETARY_MAX(cm, fabs(lu[7]));
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[7] /= piv;
+    piv = lu[3] = 1.0 / piv;
+    lu[7] *= piv;
     piv = lu[6];
     cm = fabs(piv);
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[6] = 1.0 / piv;
     piv = lu[9];
     cm = fabs(piv);
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[9] = 1.0 / piv;
     piv = lu[15];
     cm = fabs(piv);
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[15] = 1.0 / piv;
     piv = lu[16];
     cm = fabs(piv);
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[16] = 1.0 / piv;
     piv = lu[19];
     cm = fabs(piv);
     cm = PLANETARY_MAX(cm, fabs(lu[18]));
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[18] /= piv;
+    piv = lu[19] = 1.0 / piv;
+    lu[18] *= piv;
     piv = lu[17];
     cm = fabs(piv);
     cm = PLANETARY_MAX(cm, fabs(lu[10]));
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[10] /= piv;
+    piv = lu[17] = 1.0 / piv;
+    lu[10] *= piv;
     piv = lu[11];
     cm = fabs(piv);
     cm = PLANETARY_MAX(cm, fabs(lu[13]));
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[13] /= piv;
+    piv = lu[11] = 1.0 / piv;
+    lu[13] *= piv;
     lu[14] -= lu[13] * lu[12];
     piv = lu[14];
     cm = fabs(piv);
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[14] = 1.0 / piv;
     return 0;
 }
 
@@ -400,18 +413,18 @@ static void planetary_sparse_forward0(const double *lu, double *y)
 
 static void planetary_sparse_back0(const double *lu, const double *y, double *x)
 {
-    x[8] = (y[7]) / lu[14];
-    x[5] = (y[6] - lu[12] * x[8]) / lu[11];
-    x[2] = (y[10]) / lu[17];
-    x[11] = (y[11]) / lu[19];
-    x[10] = (y[9]) / lu[16];
-    x[9] = (y[8]) / lu[15];
-    x[7] = (y[5] - lu[8] * x[5]) / lu[9];
-    x[6] = (y[4] - lu[5] * x[5]) / lu[6];
-    x[4] = (y[3]) / lu[3];
-    x[3] = (y[2]) / lu[2];
-    x[1] = (y[1]) / lu[1];
-    x[0] = (y[0]) / lu[0];
+    x[8] = (y[7]) * lu[14];
+    x[5] = (y[6] - lu[12] * x[8]) * lu[11];
+    x[2] = (y[10]) * lu[17];
+    x[11] = (y[11]) * lu[19];
+    x[10] = (y[9]) * lu[16];
+    x[9] = (y[8]) * lu[15];
+    x[7] = (y[5] - lu[8] * x[5]) * lu[9];
+    x[6] = (y[4] - lu[5] * x[5]) * lu[6];
+    x[4] = (y[3]) * lu[3];
+    x[3] = (y[2]) * lu[2];
+    x[1] = (y[1]) * lu[1];
+    x[0] = (y[0]) * lu[0];
 }
 
 static void planetary_sparse_solve(const double *lu, const double *b, double *x, double *y)
@@ -423,18 +436,18 @@ static void planetary_sparse_solve(const double *lu, const double *b, double *x,
 
 static void planetary_sparse_t_forward0(const double *lu, const double *b, double *x)
 {
-    x[0] = (b[0]) / lu[0];
-    x[1] = (b[1]) / lu[1];
-    x[2] = (b[3]) / lu[2];
-    x[3] = (b[4]) / lu[3];
-    x[4] = (b[6]) / lu[6];
-    x[5] = (b[7]) / lu[9];
-    x[8] = (b[9]) / lu[15];
-    x[9] = (b[10]) / lu[16];
-    x[11] = (b[11]) / lu[19];
-    x[10] = (b[2]) / lu[17];
-    x[6] = (b[5] - lu[5] * x[4] - lu[8] * x[5]) / lu[11];
-    x[7] = (b[8] - lu[12] * x[6]) / lu[14];
+    x[0] = (b[0]) * lu[0];
+    x[1] = (b[1]) * lu[1];
+    x[2] = (b[3]) * lu[2];
+    x[3] = (b[4]) * lu[3];
+    x[4] = (b[6]) * lu[6];
+    x[5] = (b[7]) * lu[9];
+    x[8] = (b[9]) * lu[15];
+    x[9] = (b[10]) * lu[16];
+    x[11] = (b[11]) * lu[19];
+    x[10] = (b[2]) * lu[17];
+    x[6] = (b[5] - lu[5] * x[4] - lu[8] * x[5]) * lu[11];
+    x[7] = (b[8] - lu[12] * x[6]) * lu[14];
 }
 
 static void planetary_sparse_t_back0(const double *lu, double *x)
@@ -548,17 +561,39 @@ static void planetary_solve_t(const double *work, const int *iwork, int dense, c
     else planetary_sparse_solve_t(work + PLANETARY_OFF_LU, b, x);
 }
 
-/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes). */
+/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
+   Four running maxima and sums: one chain would wait on each comparison. */
 static double planetary_maxabs(const double *v, int n)
 {
-    double m = 0.0, sum = 0.0;
+    double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     int k;
-    for (k = 0; k < n; ++k) {
-        const double a = fabs(v[k]);
-        m = a > m ? a : m;
-        sum += a;
+    for (k = 0; k + 4 <= n; k += 4) {
+        const double a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
+        m0 = a0 > m0 ? a0 : m0;
+        m1 = a1 > m1 ? a1 : m1;
+        m2 = a2 > m2 ? a2 : m2;
+        m3 = a3 > m3 ? a3 : m3;
+        s0 += a0;
+        s1 += a1;
+        s2 += a2;
+        s3 += a3;
     }
-    return sum == sum ? m : sum;
+    for (; k < n; ++k) {
+        const double a = fabs(v[k]);
+        m0 = a > m0 ? a : m0;
+        s0 += a;
+    }
+    m0 = PLANETARY_MAX(PLANETARY_MAX(m0, m1), PLANETARY_MAX(m2, m3));
+    s0 += s1 + s2 + s3;
+    return s0 == s0 ? m0 : s0;
+}
+
+/* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabs does. */
+static double planetary_correct(double *q, const double *dq)
+{
+    int k;
+    for (k = 0; k < 12; ++k) q[k] -= dq[k];
+    return planetary_maxabs(dq, 12);
 }
 
 int planetary_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
@@ -568,7 +603,7 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
     double *b = PLANETARY_VEC(work, 3), *tr = PLANETARY_VEC(work, 9);
     double step = INFINITY, lim, qmag, rmax;
     int it, k, dense = 0, converged = 0;
-    (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
+    (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b; (void)k;
     planetary_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = PLANETARY_MAX(1.0, planetary_maxabs(q, 12));
@@ -587,14 +622,8 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
             info[1] = dense;
             return PLANETARY_SINGULAR;
         }
-        for (k = 0; k < 12; ++k) r[k] = -r[k];
         planetary_solve(work, iwork, dense, r, dq, y);
-        step = 0.0;
-        for (k = 0; k < 12; ++k) {
-            const double a = fabs(dq[k]);
-            q[k] += dq[k];
-            step = a > step || a != a ? a : step;
-        }
+        step = planetary_correct(q, dq);
         planetary_trig_step(q, dq, tr);
         if (rmax <= lim && step <= lim) {
             /* |Phi| was within tolerance where this last correction was
@@ -632,14 +661,19 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
     /* state: q, qd, qdd of the last instant, the two positions before it, count */
     double *q = state, *qd = state + 12, *qdd = state + 24;
     double *qm1 = state + 36, *qm2 = state + 48, *count = state + 60;
-    double *qn = PLANETARY_VEC(work, 4), *qdn = PLANETARY_VEC(work, 5), *qddn = PLANETARY_VEC(work, 6);
-    double *lam = PLANETARY_VEC(work, 7), *reac = PLANETARY_VEC(work, 8);
+    double *qn, *qdn, *qddn, *lam, *reac;
     long i;
     int k, status, info[2];
     (void)qm1; (void)qm2; (void)qd; (void)qdd;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * PLANETARY_ROW;
+        /* what the row holds is solved straight into it */
+        qn = row + 1;
+        qdn = row + 13;
+        qddn = row + 25;
+        lam = row + 37;
+        reac = row + 49;
         for (k = 0; k < 12; ++k) {
             qn[k] = *count > 0 ? q[k] + h * qd[k] + 0.5 * h * h * qdd[k] : q[k];
         }
@@ -653,16 +687,6 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
         memcpy(q, qn, sizeof(double) * 12);
         *count += 1.0;
         row[0] = t;
-        /* q */
-        memcpy(row + 1, q, sizeof(double) * 12);
-        /* qdot */
-        memcpy(row + 13, qd, sizeof(double) * 12);
-        /* qddot */
-        memcpy(row + 25, qdd, sizeof(double) * 12);
-        /* lambda */
-        memcpy(row + 37, lam, sizeof(double) * 12);
-        /* reactions */
-        memcpy(row + 49, reac, sizeof(double) * 51);
     }
     *solved = n;
     (void)lam; (void)reac;

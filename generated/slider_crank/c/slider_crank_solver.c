@@ -31,14 +31,14 @@ static void slider_crank_trig(const double *q, double *tr)
     tr[5] = cos(q[8]);
 }
 
-/* Update tr after the angles moved by dq: a Newton correction is small, and
+/* Update tr after the correction q -= dq: a Newton correction is small, and
    sin(a + d), cos(a + d) by the addition formulas with d's Taylor series
    (exact to rounding for |d| < 1e-3) avoid calling sin and cos again. */
 static void slider_crank_trig_step(const double *q, const double *dq, double *tr)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double d = dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
         if (fabs(d) < 1e-3) {
             const double d2 = d * d;
             const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
@@ -291,48 +291,58 @@ void slider_crank_reactions(const double * q, const double * lam, double t, cons
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
    bounded size; a piece returns 1 where a fixed pivot fails the threshold
-   test for this configuration. */
+   test for this configuration. A pivot's slot keeps its reciprocal, so that
+   the solves multiply: a division's latency would chain every unknown. */
 static int slider_crank_sparse_factor0(double *lu)
 {
     double piv, cm;
     piv = lu[14];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[14] = 1.0 / piv;
     piv = lu[6];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[6] = 1.0 / piv;
     piv = lu[0];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[0] = 1.0 / piv;
     piv = lu[18];
     cm = fabs(piv);
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[17]));
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[17] /= piv;
+    piv = lu[18] = 1.0 / piv;
+    lu[17] *= piv;
     piv = lu[19];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[19] = 1.0 / piv;
     piv = lu[20];
     cm = fabs(piv);
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[3]));
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[9]));
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[3] /= piv;
-    lu[9] /= piv;
+    piv = lu[20] = 1.0 / piv;
+    lu[3] *= piv;
+    lu[9] *= piv;
     piv = lu[2];
     cm = fabs(piv);
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[8]));
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[8] /= piv;
+    piv = lu[2] = 1.0 / piv;
+    lu[8] *= piv;
     piv = lu[10];
     cm = fabs(piv);
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[15]));
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[15] /= piv;
+    piv = lu[10] = 1.0 / piv;
+    lu[15] *= piv;
     lu[16] -= lu[15] * lu[11];
     piv = lu[16];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[16] = 1.0 / piv;
     return 0;
 }
 
@@ -353,15 +363,15 @@ static void slider_crank_sparse_forward0(const double *lu, double *y)
 
 static void slider_crank_sparse_back0(const double *lu, const double *y, double *x)
 {
-    x[5] = (y[5]) / lu[16];
-    x[4] = (y[3] - lu[11] * x[5]) / lu[10];
-    x[1] = (y[1]) / lu[2];
-    x[2] = (y[8]) / lu[20];
-    x[8] = (y[7]) / lu[19];
-    x[7] = (y[6]) / lu[18];
-    x[0] = (y[0] - lu[1] * x[2]) / lu[0];
-    x[3] = (y[2] - lu[4] * x[0] - lu[5] * x[2] - lu[7] * x[5]) / lu[6];
-    x[6] = (y[4] - lu[12] * x[3] - lu[13] * x[5]) / lu[14];
+    x[5] = (y[5]) * lu[16];
+    x[4] = (y[3] - lu[11] * x[5]) * lu[10];
+    x[1] = (y[1]) * lu[2];
+    x[2] = (y[8]) * lu[20];
+    x[8] = (y[7]) * lu[19];
+    x[7] = (y[6]) * lu[18];
+    x[0] = (y[0] - lu[1] * x[2]) * lu[0];
+    x[3] = (y[2] - lu[4] * x[0] - lu[5] * x[2] - lu[7] * x[5]) * lu[6];
+    x[6] = (y[4] - lu[12] * x[3] - lu[13] * x[5]) * lu[14];
 }
 
 static void slider_crank_sparse_solve(const double *lu, const double *b, double *x, double *y)
@@ -373,15 +383,15 @@ static void slider_crank_sparse_solve(const double *lu, const double *b, double 
 
 static void slider_crank_sparse_t_forward0(const double *lu, const double *b, double *x)
 {
-    x[4] = (b[6]) / lu[14];
-    x[2] = (b[3] - lu[12] * x[4]) / lu[6];
-    x[0] = (b[0] - lu[4] * x[2]) / lu[0];
-    x[6] = (b[7]) / lu[18];
-    x[7] = (b[8]) / lu[19];
-    x[8] = (b[2] - lu[5] * x[2] - lu[1] * x[0]) / lu[20];
-    x[1] = (b[1]) / lu[2];
-    x[3] = (b[4]) / lu[10];
-    x[5] = (b[5] - lu[13] * x[4] - lu[7] * x[2] - lu[11] * x[3]) / lu[16];
+    x[4] = (b[6]) * lu[14];
+    x[2] = (b[3] - lu[12] * x[4]) * lu[6];
+    x[0] = (b[0] - lu[4] * x[2]) * lu[0];
+    x[6] = (b[7]) * lu[18];
+    x[7] = (b[8]) * lu[19];
+    x[8] = (b[2] - lu[5] * x[2] - lu[1] * x[0]) * lu[20];
+    x[1] = (b[1]) * lu[2];
+    x[3] = (b[4]) * lu[10];
+    x[5] = (b[5] - lu[13] * x[4] - lu[7] * x[2] - lu[11] * x[3]) * lu[16];
 }
 
 static void slider_crank_sparse_t_back0(const double *lu, double *x)
@@ -495,17 +505,39 @@ static void slider_crank_solve_t(const double *work, const int *iwork, int dense
     else slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, b, x);
 }
 
-/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes). */
+/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
+   Four running maxima and sums: one chain would wait on each comparison. */
 static double slider_crank_maxabs(const double *v, int n)
 {
-    double m = 0.0, sum = 0.0;
+    double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     int k;
-    for (k = 0; k < n; ++k) {
-        const double a = fabs(v[k]);
-        m = a > m ? a : m;
-        sum += a;
+    for (k = 0; k + 4 <= n; k += 4) {
+        const double a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
+        m0 = a0 > m0 ? a0 : m0;
+        m1 = a1 > m1 ? a1 : m1;
+        m2 = a2 > m2 ? a2 : m2;
+        m3 = a3 > m3 ? a3 : m3;
+        s0 += a0;
+        s1 += a1;
+        s2 += a2;
+        s3 += a3;
     }
-    return sum == sum ? m : sum;
+    for (; k < n; ++k) {
+        const double a = fabs(v[k]);
+        m0 = a > m0 ? a : m0;
+        s0 += a;
+    }
+    m0 = SLIDER_CRANK_MAX(SLIDER_CRANK_MAX(m0, m1), SLIDER_CRANK_MAX(m2, m3));
+    s0 += s1 + s2 + s3;
+    return s0 == s0 ? m0 : s0;
+}
+
+/* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabs does. */
+static double slider_crank_correct(double *q, const double *dq)
+{
+    int k;
+    for (k = 0; k < 9; ++k) q[k] -= dq[k];
+    return slider_crank_maxabs(dq, 9);
 }
 
 int slider_crank_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
@@ -515,7 +547,7 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
     double *b = SLIDER_CRANK_VEC(work, 3), *tr = SLIDER_CRANK_VEC(work, 9);
     double step = INFINITY, lim, qmag, rmax;
     int it, k, dense = 0, converged = 0;
-    (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
+    (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b; (void)k;
     slider_crank_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_CRANK_MAX(1.0, slider_crank_maxabs(q, 9));
@@ -534,14 +566,8 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
             info[1] = dense;
             return SLIDER_CRANK_SINGULAR;
         }
-        for (k = 0; k < 9; ++k) r[k] = -r[k];
         slider_crank_solve(work, iwork, dense, r, dq, y);
-        step = 0.0;
-        for (k = 0; k < 9; ++k) {
-            const double a = fabs(dq[k]);
-            q[k] += dq[k];
-            step = a > step || a != a ? a : step;
-        }
+        step = slider_crank_correct(q, dq);
         slider_crank_trig_step(q, dq, tr);
         if (rmax <= lim && step <= lim) {
             /* |Phi| was within tolerance where this last correction was
@@ -579,14 +605,19 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
     /* state: q, qd, qdd of the last instant, the two positions before it, count */
     double *q = state, *qd = state + 9, *qdd = state + 18;
     double *qm1 = state + 27, *qm2 = state + 36, *count = state + 45;
-    double *qn = SLIDER_CRANK_VEC(work, 4), *qdn = SLIDER_CRANK_VEC(work, 5), *qddn = SLIDER_CRANK_VEC(work, 6);
-    double *lam = SLIDER_CRANK_VEC(work, 7), *reac = SLIDER_CRANK_VEC(work, 8);
+    double *qn, *qdn, *qddn, *lam, *reac;
     long i;
     int k, status, info[2];
     (void)qm1; (void)qm2; (void)qd; (void)qdd;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * SLIDER_CRANK_ROW;
+        /* what the row holds is solved straight into it */
+        qn = row + 1;
+        qdn = row + 10;
+        qddn = row + 19;
+        lam = row + 28;
+        reac = row + 37;
         for (k = 0; k < 9; ++k) {
             qn[k] = *count > 0 ? q[k] + h * qd[k] + 0.5 * h * h * qdd[k] : q[k];
         }
@@ -600,16 +631,6 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
         memcpy(q, qn, sizeof(double) * 9);
         *count += 1.0;
         row[0] = t;
-        /* q */
-        memcpy(row + 1, q, sizeof(double) * 9);
-        /* qdot */
-        memcpy(row + 10, qd, sizeof(double) * 9);
-        /* qddot */
-        memcpy(row + 19, qdd, sizeof(double) * 9);
-        /* lambda */
-        memcpy(row + 28, lam, sizeof(double) * 9);
-        /* reactions */
-        memcpy(row + 37, reac, sizeof(double) * 30);
     }
     *solved = n;
     (void)lam; (void)reac;

@@ -29,14 +29,14 @@ static void slider_pendulum_trig(const double *q, double *tr)
     tr[3] = cos(q[5]);
 }
 
-/* Update tr after the angles moved by dq: a Newton correction is small, and
+/* Update tr after the correction q -= dq: a Newton correction is small, and
    sin(a + d), cos(a + d) by the addition formulas with d's Taylor series
    (exact to rounding for |d| < 1e-3) avoid calling sin and cos again. */
 static void slider_pendulum_trig_step(const double *q, const double *dq, double *tr)
 {
     int b;
     for (b = 0; b < 2; ++b) {
-        const double d = dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
         if (fabs(d) < 1e-3) {
             const double d2 = d * d;
             const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
@@ -273,31 +273,38 @@ void slider_pendulum_reactions(const double * q, const double * lam, double t, c
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
    bounded size; a piece returns 1 where a fixed pivot fails the threshold
-   test for this configuration. */
+   test for this configuration. A pivot's slot keeps its reciprocal, so that
+   the solves multiply: a division's latency would chain every unknown. */
 static int slider_pendulum_sparse_factor0(double *lu)
 {
     double piv, cm;
     piv = lu[7];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[7] = 1.0 / piv;
     piv = lu[11];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[11] = 1.0 / piv;
     piv = lu[14];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[14] = 1.0 / piv;
     piv = lu[0];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[0] = 1.0 / piv;
     piv = lu[2];
     cm = fabs(piv);
     cm = SLIDER_PENDULUM_MAX(cm, fabs(lu[4]));
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
-    lu[4] /= piv;
+    piv = lu[2] = 1.0 / piv;
+    lu[4] *= piv;
     lu[3] -= lu[4] * lu[1];
     piv = lu[3];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
+    piv = lu[3] = 1.0 / piv;
     return 0;
 }
 
@@ -314,12 +321,12 @@ static void slider_pendulum_sparse_forward0(const double *lu, double *y)
 
 static void slider_pendulum_sparse_back0(const double *lu, const double *y, double *x)
 {
-    x[0] = (y[2]) / lu[3];
-    x[1] = (y[1] - lu[1] * x[0]) / lu[2];
-    x[2] = (y[0]) / lu[0];
-    x[5] = (y[5] - lu[13] * x[2]) / lu[14];
-    x[4] = (y[4] - lu[9] * x[1] - lu[10] * x[2] - lu[12] * x[5]) / lu[11];
-    x[3] = (y[3] - lu[5] * x[0] - lu[6] * x[2] - lu[8] * x[5]) / lu[7];
+    x[0] = (y[2]) * lu[3];
+    x[1] = (y[1] - lu[1] * x[0]) * lu[2];
+    x[2] = (y[0]) * lu[0];
+    x[5] = (y[5] - lu[13] * x[2]) * lu[14];
+    x[4] = (y[4] - lu[9] * x[1] - lu[10] * x[2] - lu[12] * x[5]) * lu[11];
+    x[3] = (y[3] - lu[5] * x[0] - lu[6] * x[2] - lu[8] * x[5]) * lu[7];
 }
 
 static void slider_pendulum_sparse_solve(const double *lu, const double *b, double *x, double *y)
@@ -331,12 +338,12 @@ static void slider_pendulum_sparse_solve(const double *lu, const double *b, doub
 
 static void slider_pendulum_sparse_t_forward0(const double *lu, const double *b, double *x)
 {
-    x[3] = (b[3]) / lu[7];
-    x[4] = (b[4]) / lu[11];
-    x[5] = (b[5] - lu[8] * x[3] - lu[12] * x[4]) / lu[14];
-    x[0] = (b[2] - lu[6] * x[3] - lu[10] * x[4] - lu[13] * x[5]) / lu[0];
-    x[1] = (b[1] - lu[9] * x[4]) / lu[2];
-    x[2] = (b[0] - lu[5] * x[3] - lu[1] * x[1]) / lu[3];
+    x[3] = (b[3]) * lu[7];
+    x[4] = (b[4]) * lu[11];
+    x[5] = (b[5] - lu[8] * x[3] - lu[12] * x[4]) * lu[14];
+    x[0] = (b[2] - lu[6] * x[3] - lu[10] * x[4] - lu[13] * x[5]) * lu[0];
+    x[1] = (b[1] - lu[9] * x[4]) * lu[2];
+    x[2] = (b[0] - lu[5] * x[3] - lu[1] * x[1]) * lu[3];
 }
 
 static void slider_pendulum_sparse_t_back0(const double *lu, double *x)
@@ -446,17 +453,39 @@ static void slider_pendulum_solve_t(const double *work, const int *iwork, int de
     else slider_pendulum_sparse_solve_t(work + SLIDER_PENDULUM_OFF_LU, b, x);
 }
 
-/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes). */
+/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
+   Four running maxima and sums: one chain would wait on each comparison. */
 static double slider_pendulum_maxabs(const double *v, int n)
 {
-    double m = 0.0, sum = 0.0;
+    double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     int k;
-    for (k = 0; k < n; ++k) {
-        const double a = fabs(v[k]);
-        m = a > m ? a : m;
-        sum += a;
+    for (k = 0; k + 4 <= n; k += 4) {
+        const double a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
+        m0 = a0 > m0 ? a0 : m0;
+        m1 = a1 > m1 ? a1 : m1;
+        m2 = a2 > m2 ? a2 : m2;
+        m3 = a3 > m3 ? a3 : m3;
+        s0 += a0;
+        s1 += a1;
+        s2 += a2;
+        s3 += a3;
     }
-    return sum == sum ? m : sum;
+    for (; k < n; ++k) {
+        const double a = fabs(v[k]);
+        m0 = a > m0 ? a : m0;
+        s0 += a;
+    }
+    m0 = SLIDER_PENDULUM_MAX(SLIDER_PENDULUM_MAX(m0, m1), SLIDER_PENDULUM_MAX(m2, m3));
+    s0 += s1 + s2 + s3;
+    return s0 == s0 ? m0 : s0;
+}
+
+/* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabs does. */
+static double slider_pendulum_correct(double *q, const double *dq)
+{
+    int k;
+    for (k = 0; k < 6; ++k) q[k] -= dq[k];
+    return slider_pendulum_maxabs(dq, 6);
 }
 
 int slider_pendulum_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
@@ -466,7 +495,7 @@ int slider_pendulum_instant(double t, const double *p, double tol, double *q, do
     double *b = SLIDER_PENDULUM_VEC(work, 3), *tr = SLIDER_PENDULUM_VEC(work, 9);
     double step = INFINITY, lim, qmag, rmax;
     int it, k, dense = 0, converged = 0;
-    (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b;
+    (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b; (void)k;
     slider_pendulum_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_PENDULUM_MAX(1.0, slider_pendulum_maxabs(q, 6));
@@ -485,14 +514,8 @@ int slider_pendulum_instant(double t, const double *p, double tol, double *q, do
             info[1] = dense;
             return SLIDER_PENDULUM_SINGULAR;
         }
-        for (k = 0; k < 6; ++k) r[k] = -r[k];
         slider_pendulum_solve(work, iwork, dense, r, dq, y);
-        step = 0.0;
-        for (k = 0; k < 6; ++k) {
-            const double a = fabs(dq[k]);
-            q[k] += dq[k];
-            step = a > step || a != a ? a : step;
-        }
+        step = slider_pendulum_correct(q, dq);
         slider_pendulum_trig_step(q, dq, tr);
         if (rmax <= lim && step <= lim) {
             /* |Phi| was within tolerance where this last correction was
@@ -530,14 +553,19 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
     /* state: q, qd, qdd of the last instant, the two positions before it, count */
     double *q = state, *qd = state + 6, *qdd = state + 12;
     double *qm1 = state + 18, *qm2 = state + 24, *count = state + 30;
-    double *qn = SLIDER_PENDULUM_VEC(work, 4), *qdn = SLIDER_PENDULUM_VEC(work, 5), *qddn = SLIDER_PENDULUM_VEC(work, 6);
-    double *lam = SLIDER_PENDULUM_VEC(work, 7), *reac = SLIDER_PENDULUM_VEC(work, 8);
+    double *qn, *qdn, *qddn, *lam, *reac;
     long i;
     int k, status, info[2];
     (void)qm1; (void)qm2; (void)qd; (void)qdd;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * SLIDER_PENDULUM_ROW;
+        /* what the row holds is solved straight into it */
+        qn = row + 1;
+        qdn = row + 7;
+        qddn = row + 13;
+        lam = row + 19;
+        reac = row + 25;
         for (k = 0; k < 6; ++k) {
             qn[k] = *count > 0 ? q[k] + h * qd[k] + 0.5 * h * h * qdd[k] : q[k];
         }
@@ -551,16 +579,6 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
         memcpy(q, qn, sizeof(double) * 6);
         *count += 1.0;
         row[0] = t;
-        /* q */
-        memcpy(row + 1, q, sizeof(double) * 6);
-        /* qdot */
-        memcpy(row + 7, qd, sizeof(double) * 6);
-        /* qddot */
-        memcpy(row + 13, qdd, sizeof(double) * 6);
-        /* lambda */
-        memcpy(row + 19, lam, sizeof(double) * 6);
-        /* reactions */
-        memcpy(row + 25, reac, sizeof(double) * 30);
     }
     *solved = n;
     (void)lam; (void)reac;

@@ -126,6 +126,12 @@ def context(model: CodeModel) -> dict[str, Any]:
         row_parts.append((group, source, size, offset))
         offset += size
     stride = max(ng, nc, nr, 1)
+    # the trajectory's output vectors (variable, source, work vector): solved
+    # straight into the row where it holds the source, else into the work vector
+    placed = {source: offset for _, source, _, offset in row_parts if source}
+    outputs = [(var, placed.get(source), slot)
+               for var, source, slot in (("qn", "q", 4), ("qdn", "qd", 5), ("qddn", "qdd", 6), ("lam", "lam", 7),
+                                         ("reac", "reac", 8))]
     return {
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": offset, "lu_size": model.plan.size,
@@ -135,6 +141,7 @@ def context(model: CodeModel) -> dict[str, Any]:
         "functions": functions, "threshold": repr(THRESHOLD), **_step_chunks(lu_steps(model.plan)),
         "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
+        "outputs": outputs,
         "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
 
