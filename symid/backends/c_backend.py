@@ -65,7 +65,7 @@ def build(layout: Layout, options: Options) -> Path:
         f = model.flat
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
                 "row": len(model.row_columns), "columns": list(model.row_columns),
-                "work": c.context(model)["work"], "params": list(f.params),
+                "work": c.work_size(model), "params": list(f.params),
                 "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac]}
         (folder / "meta.json").write_text(json.dumps(meta))
 

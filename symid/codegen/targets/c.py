@@ -90,6 +90,19 @@ def _step_chunks(steps: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def _stride(model: CodeModel) -> int:
+    """Doubles per work vector: the longest of q, the rows and the reactions."""
+    f = model.flat
+    return max(f.ng, f.nc, len(f.reactions), 1)
+
+
+def work_size(model: CodeModel) -> int:
+    """Doubles of workspace a solver call needs: Phi_q's values, the sparse
+    factors, the dense fallback and ten work vectors."""
+    f = model.flat
+    return len(f.jac) + model.plan.size + f.ng * f.ng + 10 * _stride(model)
+
+
 def context(model: CodeModel) -> dict[str, Any]:
     """Everything the C templates need, expressions already printed."""
     f = model.flat
@@ -125,7 +138,7 @@ def context(model: CodeModel) -> dict[str, Any]:
         source, size = sources[group]
         row_parts.append((group, source, size, offset))
         offset += size
-    stride = max(ng, nc, nr, 1)
+    stride = _stride(model)
     # the trajectory's output vectors (variable, source, work vector): solved
     # straight into the row where it holds the source, else into the work vector
     placed = {source: offset for _, source, _, offset in row_parts if source}
@@ -135,7 +148,7 @@ def context(model: CodeModel) -> dict[str, Any]:
     return {
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": offset, "lu_size": model.plan.size,
-        "work": len(f.jac) + model.plan.size + ng * ng + 10 * stride, "stride": stride,
+        "work": work_size(model), "stride": stride,
         "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": repr(THRESHOLD), **_step_chunks(lu_steps(model.plan)),
