@@ -48,6 +48,7 @@ class Ladder:
     amp: float = 0.6        # rad
     w: float = 2 * math.pi  # rad/s: one swing per second
     t1: float = 1.0
+    x0: float = 0.0         # x of the first pivot: far from the origin, coordinates are large
 
     @property
     def ng(self) -> int:
@@ -86,8 +87,8 @@ class Ladder:
         """The exact configuration at t, size ng: rockers then couplers."""
         th = float(self.theta(t))
         c, s = math.cos(th), math.sin(th)
-        rockers = [[k * self.b + self.a / 2 * c, self.a / 2 * s, th] for k in range(self.n + 1)]
-        couplers = [[(k + 0.5) * self.b + self.a * c, self.a * s, 0.0] for k in range(self.n)]
+        rockers = [[self.x0 + k * self.b + self.a / 2 * c, self.a / 2 * s, th] for k in range(self.n + 1)]
+        couplers = [[self.x0 + (k + 0.5) * self.b + self.a * c, self.a * s, 0.0] for k in range(self.n)]
         return np.array(rockers + couplers, dtype=float).ravel()
 
 
@@ -103,18 +104,19 @@ def toml(lad: Ladder, steps: int = 1001) -> str:
         "", "[mechanism]", f'name = "{name(n)}"', f"gravity = [0.0, {-lad.g!r}]",
         "", "[parameters]",
         f"a = {lad.a!r}", f"b = {lad.b!r}", f"m_r = {lad.m_r!r}", f"m_c = {lad.m_c!r}",
-        f"theta0 = {lad.theta0!r}", f"A = {lad.amp!r}", f"w = {lad.w!r}",
+        f"theta0 = {lad.theta0!r}", f"A = {lad.amp!r}", f"w = {lad.w!r}", *([f"x0 = {lad.x0!r}"] if lad.x0 else []),
         "", "[analysis]", 'kind = "inverse_dynamics"', "t0 = 0.0", f"t1 = {lad.t1!r}", f"steps = {steps}",
     ]
+    shift = "x0 + " if lad.x0 else ""
     for k in range(n + 1):
         out += ["", "[[body]]", f'name = "rocker{k}"', 'mass = "m_r"', 'inertia = "m_r*a^2/12"',
-                f'q0 = ["{k}*b + a/2*cos(theta0)", "a/2*sin(theta0)", "theta0"]']
+                f'q0 = ["{shift}{k}*b + a/2*cos(theta0)", "a/2*sin(theta0)", "theta0"]']
     for k in range(n):
         out += ["", "[[body]]", f'name = "coupler{k}"', 'mass = "m_c"', 'inertia = "m_c*b^2/12"',
-                f'q0 = ["({k} + 0.5)*b + a*cos(theta0)", "a*sin(theta0)", 0.0]']
+                f'q0 = ["{shift}({k} + 0.5)*b + a*cos(theta0)", "a*sin(theta0)", 0.0]']
     for k in range(n + 1):
         out += ["", "[[constraint]]", f'name = "pivot{k}"', 'type = "revolute"', 'i = "ground"',
-                f'j = "rocker{k}"', f'si = ["{k}*b", 0.0]', 'sj = ["-a/2", 0.0]']
+                f'j = "rocker{k}"', f'si = ["{shift}{k}*b", 0.0]', 'sj = ["-a/2", 0.0]']
     for k in range(n):
         out += ["", "[[constraint]]", f'name = "left{k}"', 'type = "revolute"', f'i = "rocker{k}"',
                 f'j = "coupler{k}"', 'si = ["a/2", 0.0]', 'sj = ["-b/2", 0.0]',
@@ -125,11 +127,12 @@ def toml(lad: Ladder, steps: int = 1001) -> str:
     return "\n".join(out)
 
 
-def write(n: int, folder: str | Path, steps: int = 1001) -> Path:
-    """Write `ladder_<n>.toml` into folder and return its path."""
+def write(n: int, folder: str | Path, steps: int = 1001, **dims: float) -> Path:
+    """Write `ladder_<n>.toml` (dimensions: the defaults of `Ladder` unless
+    given) into folder and return its path."""
     path = Path(folder) / f"{name(n)}.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(toml(Ladder(n), steps))
+    path.write_text(toml(Ladder(n, **dims), steps))
     return path
 
 

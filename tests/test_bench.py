@@ -67,3 +67,19 @@ def test_benchmark_smoke_run_writes_every_output(tmp_path: Path) -> None:
         assert cell["us_per_instant"] > 0 and cell["peak_rss_mb"] > 0
     assert all(s["status"] == "ok" for s in result["sweeps"].values())
     assert "| approach |" in (tmp_path / "bench.md").read_text()
+
+
+@pytest.mark.parametrize("backend", ["c", "numpy", "reference", "casadi"])
+def test_a_ladder_far_from_the_origin_keeps_its_torque_to_1e_13(backend: str, tmp_path: Path) -> None:
+    # At x ~ 16384 m a coordinate's ulp is 3.6e-12: a residual summed left
+    # to right rounds there, and eight bays in series turn that into torque
+    # errors of ~1e-12 of the peak. Grouping the coordinate differences first
+    # (symid.rounding) keeps the residual exact. Pivots and lengths are exact
+    # binary numbers, so the file's mechanism is exactly a parallelogram ladder.
+    dims = {"x0": 16384.0, "a": 0.5, "b": 0.5}
+    lad = ladder.Ladder(8, **dims)
+    results = api.solve(ladder.write(8, tmp_path, steps=101, **dims), backend)
+    assert results.error is None
+    exact = lad.torque(results.t)
+    assert np.max(np.abs(results["motor.T_j"] - exact)) <= 1e-13 * np.max(np.abs(exact))
+    assert np.max(np.abs(results.data[:, 1:1 + lad.ng] - np.array([lad.q_exact(t) for t in results.t]))) <= 1e-11

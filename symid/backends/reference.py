@@ -14,6 +14,7 @@ from symid.assemble import Group, Layout
 from symid.backends import Array, Needs
 from symid.derive import DerivedConstraint, DerivedForce, total_derivative
 from symid.model import T
+from symid.rounding import grouped
 from symid.params import to_float
 
 
@@ -32,8 +33,12 @@ def _arguments(derived: DerivedConstraint | DerivedForce) -> list[sp.Symbol]:
 
 
 @cache
-def _kernel(derived: DerivedConstraint | DerivedForce, what: str, static: bool = False) -> Callable[..., list]:
-    """Lambdify one list of a family's expressions (cached per family and kind)."""
+def _kernel(derived: DerivedConstraint | DerivedForce, what: str, static: bool = False,
+            ground: str | None = None) -> Callable[..., list]:
+    """Lambdify one list of a family's expressions (cached per family, kind
+    and ground role). For members joined to ground the ground role's
+    coordinates are substituted (zeros) first, so that `grouped` sees its
+    fixed point as the trig-free offset it is."""
     if isinstance(derived, DerivedConstraint):
         exprs = {
             "phi": list(derived.phi),
@@ -47,7 +52,9 @@ def _kernel(derived: DerivedConstraint | DerivedForce, what: str, static: bool =
         exprs = [e for role in derived.roles for e in source[role]]
         if static:
             exprs = [e.subs({v: 0 for role in derived.roles for v in s.qd(role)}) for e in exprs]
-    return sp.lambdify(_arguments(derived), exprs, modules="numpy", cse=True)
+    if ground is not None:
+        exprs = [sp.sympify(e).xreplace({v: 0 for v in (*s.q(ground), *s.qd(ground))}) for e in exprs]
+    return sp.lambdify(_arguments(derived), [grouped(e) for e in exprs], modules="numpy", cse=True)
 
 
 def _time_function(exprs: Sequence[sp.Expr], values: Mapping[sp.Symbol, float]) -> Callable[[float], Array]:
@@ -61,7 +68,7 @@ def _time_function(exprs: Sequence[sp.Expr], values: Mapping[sp.Symbol, float]) 
 class _GroupData:
     """Numbers of one group: constants, time functions and index arrays."""
 
-    def __init__(self, group: Group, values: Mapping[sp.Symbol, float], nc: int, series: bool) -> None:
+    def __init__(self, group: Group, values: Mapping[sp.Symbol, float], nb: int, series: bool) -> None:
         self.group = group
         n = group.size
         self.roles = group.derived.roles
@@ -78,6 +85,30 @@ class _GroupData:
         self.functions = _time_function(exprs, values) if width else None
         self.width = width
         self.cols = {role: 3 * group.bodies[role][:, None] + np.arange(3)[None, :] for role in self.roles}
+        # members by the role that is ground (None: none is)
+        ground = [next((r for r in self.roles if group.bodies[r][m] == nb), None) for m in range(n)]
+        self.parts = [(np.array([m for m in range(n) if ground[m] == r], dtype=np.intp), r)
+                      for r in dict.fromkeys(ground)]
+
+    def evaluate(self, what: str, args: list, members: Array | None = None, static: bool = False) -> Array:
+        """A kernel's values for the members (all: None), shape (len, members):
+        each part of the members through its own ground variant."""
+        wanted = np.arange(self.group.size) if members is None else members
+        out: Array | None = None
+        for part, ground in self.parts:
+            pick = np.intersect1d(part, wanted, assume_unique=True)
+            if pick.size == 0:
+                continue
+            everything = pick.size == self.group.size
+            sub = args if everything else [a[pick] if np.ndim(a) else a for a in args]
+            vals = _stack(_kernel(self.group.derived, what, static, ground)(*sub), pick.size)
+            if pick.size == wanted.size:
+                return vals
+            if out is None:
+                out = np.empty((vals.shape[0], wanted.size))
+            out[:, np.searchsorted(wanted, pick)] = vals
+        assert out is not None
+        return out
 
     def args(self, qx: Array, qdx: Array | None, t: float, lam: Array | None = None) -> list:
         n = self.group.size
@@ -108,9 +139,9 @@ class ReferenceEvaluator:
         self.layout = layout
         self.needs = needs
         mech = layout.mechanism
-        nc, nb = layout.nc, layout.nb
-        self._cgroups = [_GroupData(g, values, nc, series=True) for g in layout.constraint_groups]
-        self._fgroups = [_GroupData(g, values, nc, series=False) for g in layout.force_groups]
+        nb = layout.nb
+        self._cgroups = [_GroupData(g, values, nb, series=True) for g in layout.constraint_groups]
+        self._fgroups = [_GroupData(g, values, nb, series=False) for g in layout.force_groups]
         masses = np.array([[to_float(b.mass, values)] * 2 + [to_float(b.inertia, values)] for b in mech.bodies])
         self._mass = masses.reshape(-1)
         gravity = np.array([to_float(g, values) for g in mech.gravity])
@@ -144,7 +175,7 @@ class ReferenceEvaluator:
         qdx = self._extend(qd) if qd is not None else None
         for g in self._cgroups:
             derived = g.group.derived
-            vals = _stack(_kernel(derived, what)(*g.args(qx, qdx, t)), g.group.size)
+            vals = g.evaluate(what, g.args(qx, qdx, t))
             rows = derived.family.rows  # type: ignore[union-attr]
             out[g.group.rows[None, :] + np.arange(rows)[:, None]] = vals
         return out
@@ -165,7 +196,7 @@ class ReferenceEvaluator:
         for g in self._cgroups:
             derived = g.group.derived
             n, rows = g.group.size, derived.family.rows  # type: ignore[union-attr]
-            vals = _stack(_kernel(derived, "phi_q")(*g.args(qx, None, t)), n).reshape(len(g.roles), rows, 3, n)
+            vals = g.evaluate("phi_q", g.args(qx, None, t)).reshape(len(g.roles), rows, 3, n)
             for r, role in enumerate(g.roles):
                 row_idx = g.group.rows[None, None, :] + np.arange(rows)[:, None, None]
                 col_idx = g.cols[role].T[None, :, :]
@@ -179,8 +210,7 @@ class ReferenceEvaluator:
         qx = self._extend(q)
         qdx = self._extend(qd) if qd is not None and self.needs.velocity else None
         for g in self._fgroups:
-            kernel = _kernel(g.group.derived, "applied", static=qdx is None)
-            vals = _stack(kernel(*g.args(qx, qdx, t)), g.group.size).reshape(len(g.roles), 3, -1)
+            vals = g.evaluate("applied", g.args(qx, qdx, t), static=qdx is None).reshape(len(g.roles), 3, -1)
             for r, role in enumerate(g.roles):
                 np.add.at(out, g.cols[role].T, vals[r])
         return out[: 3 * nb]
@@ -196,10 +226,8 @@ class ReferenceEvaluator:
                 continue
             derived = g.group.derived
             rows = derived.family.rows  # type: ignore[union-attr]
-            lam_g = lam[g.group.rows[None, members] + np.arange(rows)[:, None]]
-            args = g.args(qx, None, t)
-            picked = [a[members] if np.ndim(a) else a for a in args[: len(args) - rows]] + list(lam_g)
-            vals = _stack(_kernel(derived, "reactions")(*picked), members.size)
+            vals = g.evaluate("reactions", g.args(qx, None, t, lam[g.group.rows[None, :] + np.arange(rows)[:, None]]),
+                              members)
             out[slots[None, :] + np.arange(vals.shape[0])[:, None]] = vals
         return out
 

@@ -16,6 +16,7 @@ from symid import symbols as s
 from symid.assemble import Group, Layout
 from symid.derive import DerivedConstraint
 from symid.model import T, parameter_symbol
+from symid.rounding import grouped
 
 
 def vector(name: str, n: int) -> list[sp.Symbol]:
@@ -156,8 +157,9 @@ def build(layout: Layout, options: Options, defaults: Sequence[float]) -> Flat:
                 for c in range(3):
                     applied[3 * b + c] += derived.generalized[role][c].xreplace(sub)  # type: ignore[union-attr]
     reactions = [e for c in mech.constraints if c.name in reaction_of for e in reaction_of[c.name]]
+    g = lambda exprs: [grouped(e) for e in exprs]  # noqa: E731
     return Flat(
         name=mech.name, ng=ng, nc=nc, params=names, defaults=tuple(defaults), options=options,
-        phi=phi, jac=sorted(((r, c, e) for (r, c), e in jac.items()), key=lambda x: (x[0], x[1])),
-        nu=nu, gamma=gamma, applied=applied, mass=mass, reactions=reactions,
+        phi=g(phi), jac=sorted(((r, c, grouped(e)) for (r, c), e in jac.items()), key=lambda x: (x[0], x[1])),
+        nu=g(nu), gamma=g(gamma), applied=g(applied), mass=mass, reactions=g(reactions),
     )

@@ -60,18 +60,18 @@ static void four_bar_phi_k0(const double * q, const double * tr, double t, const
     const double e3 = (1.0/2.0)*p[2];
     const double e4 = e3*tr[3];
     const double e5 = e3*tr[2];
-    const double e6 = -q[6];
-    const double e7 = (1.0/2.0)*p[3];
-    const double e8 = e7*tr[5];
-    const double e9 = -q[7];
-    const double e10 = e7*tr[4];
+    const double e6 = (1.0/2.0)*p[3];
+    const double e7 = e6*tr[5];
+    const double e8 = -q[6];
+    const double e9 = e6*tr[4];
+    const double e10 = -q[7];
     out[0] = -e1 + q[0];
     out[1] = -e2 + q[1];
-    out[2] = -e1 - e4 - q[0] + q[3];
-    out[3] = -e2 - e5 - q[1] + q[4];
-    out[4] = -e4 - e6 + e8 - q[3];
-    out[5] = e10 - e5 - e9 - q[4];
-    out[6] = -e6 - e8 - p[0];
+    out[2] = -e1 - e4 + (-q[0] + q[3]);
+    out[3] = -e2 - e5 + (-q[1] + q[4]);
+    out[4] = -e4 + e7 + (-e8 - q[3]);
+    out[5] = -e5 + e9 + (-e10 - q[4]);
+    out[6] = -e7 + (-e8 - p[0]);
     out[7] = -e10 - e9;
     out[8] = -p[10]*t + q[2];
 }
@@ -207,14 +207,14 @@ void four_bar_gamma(const double * q, const double * qd, double t, const double 
 static void four_bar_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
 {
     const double e0 = p[11]*((1.0/2.0)*sin(p[10]*t) + 1);
-    const double e1 = (1.0/20.0)*tr[5];
-    const double e2 = e1 + q[6] - 3.0/4.0;
-    const double e3 = (1.0/20.0)*tr[4];
-    const double e4 = e3 + q[7] - 3.0/10.0;
+    const double e1 = (1.0/20.0)*tr[4];
+    const double e2 = e1 + (q[7] - 3.0/10.0);
+    const double e3 = (1.0/20.0)*tr[5];
+    const double e4 = e3 + (q[6] - 3.0/4.0);
     const double e5 = sqrt(pow(e2, 2) + pow(e4, 2));
     const double e6 = 1.0/e5;
-    const double e7 = e2*e6;
-    const double e8 = -p[13]*(e5 - p[15]) - p[14]*(e4*e6*(e1*qd[8] + qd[7]) + e7*(-e3*qd[8] + qd[6]));
+    const double e7 = e4*e6;
+    const double e8 = -p[13]*(e5 - p[15]) - p[14]*(e2*e6*(e3*qd[8] + qd[7]) + e7*(-e1*qd[8] + qd[6]));
     const double e9 = e7*e8;
     out[0] = 0;
     out[1] = -981.0/100.0*p[4];
@@ -223,8 +223,8 @@ static void four_bar_applied_k0(const double * q, const double * tr, const doubl
     out[4] = -e0 - 981.0/100.0*p[5];
     out[5] = -e0*(p[7]*tr[3] - p[8]*tr[2]);
     out[6] = e9;
-    out[7] = e4*e6*e8 - 981.0/100.0*p[6];
-    out[8] = -e3*e9 + (1.0/20.0)*e4*e6*e8*tr[5] - p[12];
+    out[7] = e2*e6*e8 - 981.0/100.0*p[6];
+    out[8] = -e1*e9 + (1.0/20.0)*e2*e6*e8*tr[5] - p[12];
 }
 
 static void four_bar_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)

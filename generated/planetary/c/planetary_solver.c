@@ -62,8 +62,8 @@ static void planetary_phi_k0(const double * q, const double * tr, double t, cons
     out[1] = q[1];
     out[2] = q[3];
     out[3] = q[4];
-    out[4] = -e0*tr[3] - q[3] + q[6];
-    out[5] = -e0*tr[2] - q[4] + q[7];
+    out[4] = -e0*tr[3] + (-q[3] + q[6]);
+    out[5] = -e0*tr[2] + (-q[4] + q[7]);
     out[6] = e1 + p[0]*(e1 + q[2])/p[1] + q[8];
     out[7] = -p[1]*(-q[5] + q[8])/p[2] - q[5];
     out[8] = p[0] + p[3] + q[9];

@@ -60,8 +60,8 @@ def phi(q, t, p):
     out[1] = q[1]
     out[2] = q[3]
     out[3] = q[4]
-    out[4] = -e0*numpy.cos(q[5]) - q[3] + q[6]
-    out[5] = -e0*numpy.sin(q[5]) - q[4] + q[7]
+    out[4] = -e0*numpy.cos(q[5]) + (-q[3] + q[6])
+    out[5] = -e0*numpy.sin(q[5]) + (-q[4] + q[7])
     out[6] = e1 + p[0]*(e1 + q[2])/p[1] + q[8]
     out[7] = -p[1]*(-q[5] + q[8])/p[2] - q[5]
     out[8] = p[0] + p[3] + q[9]
@@ -80,8 +80,8 @@ def _phi_s(q, t, p):
     out[1] = q[1]
     out[2] = q[3]
     out[3] = q[4]
-    out[4] = -e0*math.cos(q[5]) - q[3] + q[6]
-    out[5] = -e0*math.sin(q[5]) - q[4] + q[7]
+    out[4] = -e0*math.cos(q[5]) + (-q[3] + q[6])
+    out[5] = -e0*math.sin(q[5]) + (-q[4] + q[7])
     out[6] = e1 + p[0]*(e1 + q[2])/p[1] + q[8]
     out[7] = -p[1]*(-q[5] + q[8])/p[2] - q[5]
     out[8] = p[0] + p[3] + q[9]

@@ -62,10 +62,10 @@ static void slider_crank_phi_k0(const double * q, const double * tr, double t, c
     const double e5 = e3*tr[2];
     out[0] = -e1 + q[0];
     out[1] = -e2 + q[1];
-    out[2] = -e1 - e4 - q[0] + q[3];
-    out[3] = -e2 - e5 - q[1] + q[4];
-    out[4] = -e4 - q[3] + q[6];
-    out[5] = -e5 - q[4] + q[7];
+    out[2] = -e1 - e4 + (-q[0] + q[3]);
+    out[3] = -e2 - e5 + (-q[1] + q[4]);
+    out[4] = -e4 + (-q[3] + q[6]);
+    out[5] = -e5 + (-q[4] + q[7]);
     out[6] = q[7];
     out[7] = q[8];
     out[8] = -p[8]*t + q[2];

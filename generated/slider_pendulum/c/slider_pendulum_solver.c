@@ -60,9 +60,9 @@ static void slider_pendulum_phi_k0(const double * q, const double * tr, double t
     out[0] = -e0*(-e0*tr[0] + e1*tr[1]) + e1*(e0*tr[1] + e1*tr[0]);
     out[1] = -e0*q[0] + e1*q[1];
     out[2] = e0*e3*q[1] + e1*e3*q[0] - p[1]*sin(e2*p[2]);
-    out[3] = -e4*tr[3] - p[8]*tr[0] - q[0] + q[3];
-    out[4] = -e4*tr[2] + p[8]*tr[1] - q[1] + q[4];
-    out[5] = -p[3]*sin(e2*p[4]) - q[2] + q[5] + (1.0/2.0)*3.141592653589793;
+    out[3] = -e4*tr[3] - p[8]*tr[0] + (-q[0] + q[3]);
+    out[4] = -e4*tr[2] + p[8]*tr[1] + (-q[1] + q[4]);
+    out[5] = -p[3]*sin(e2*p[4]) + (-q[2] + q[5] + (1.0/2.0)*3.141592653589793);
 }
 
 static void slider_pendulum_phi_k(const double * q, const double * tr, double t, const double * p, double *out)

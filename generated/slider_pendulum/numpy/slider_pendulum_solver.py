@@ -64,9 +64,9 @@ def phi(q, t, p):
     out[0] = -e0*(-e0*e1 + e2*e3) + e2*(e0*e3 + e1*e2)
     out[1] = -e0*q[0] + e2*q[1]
     out[2] = e0*e5*q[1] + e2*e5*q[0] - p[1]*numpy.sin(e4*p[2])
-    out[3] = -e1*p[8] - e6*numpy.cos(q[5]) - q[0] + q[3]
-    out[4] = e3*p[8] - e6*numpy.sin(q[5]) - q[1] + q[4]
-    out[5] = -p[3]*numpy.sin(e4*p[4]) - q[2] + q[5] + (1/2)*numpy.pi
+    out[3] = -e1*p[8] - e6*numpy.cos(q[5]) + (-q[0] + q[3])
+    out[4] = e3*p[8] - e6*numpy.sin(q[5]) + (-q[1] + q[4])
+    out[5] = -p[3]*numpy.sin(e4*p[4]) + (-q[2] + q[5] + (1/2)*numpy.pi)
     return _stack(out, q[0])
 
 
@@ -83,9 +83,9 @@ def _phi_s(q, t, p):
     out[0] = -e0*(-e0*e1 + e2*e3) + e2*(e0*e3 + e1*e2)
     out[1] = -e0*q[0] + e2*q[1]
     out[2] = e0*e5*q[1] + e2*e5*q[0] - p[1]*math.sin(e4*p[2])
-    out[3] = -e1*p[8] - e6*math.cos(q[5]) - q[0] + q[3]
-    out[4] = e3*p[8] - e6*math.sin(q[5]) - q[1] + q[4]
-    out[5] = -p[3]*math.sin(e4*p[4]) - q[2] + q[5] + (1/2)*math.pi
+    out[3] = -e1*p[8] - e6*math.cos(q[5]) + (-q[0] + q[3])
+    out[4] = e3*p[8] - e6*math.sin(q[5]) + (-q[1] + q[4])
+    out[5] = -p[3]*math.sin(e4*p[4]) + (-q[2] + q[5] + (1/2)*math.pi)
     return out
 
 

@@ -21,6 +21,7 @@ from symid.codegen.flat import Flat
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.motion import Spline, TableSpline
+from symid.rounding import Grouped
 
 NAME = "casadi"
 # Newton steps unrolled in `<name>_instant`: from a warm start (the previous
@@ -36,6 +37,7 @@ _FUNCTIONS: dict[type, Callable[..., Any]] = {
     sp.asinh: ca.asinh, sp.acosh: ca.acosh, sp.atanh: ca.atanh,
     sp.exp: ca.exp, sp.log: ca.log, sp.Abs: ca.fabs, sp.sign: ca.sign,
     sp.floor: ca.floor, sp.ceiling: ca.ceil,
+    Grouped: lambda x: x,  # its sum is built first: the grouping holds
 }
 _RELATIONS: dict[type, Callable[[ca.SX, ca.SX], ca.SX]] = {
     sp.StrictLessThan: operator.lt, sp.LessThan: operator.le, sp.StrictGreaterThan: operator.gt,

@@ -30,6 +30,9 @@ class Printer(NumPyPrinter):
     def _print_Float(self, expr: sp.Float) -> str:
         return repr(float(expr))
 
+    def _print_Grouped(self, expr: sp.Expr) -> str:
+        return f"({self._print(expr.args[0])})"
+
     def _print_TableSpline(self, expr: sp.Expr) -> str:
         key, order, x = expr.args
         return f"_spline(_TABLE_{key.name}, {self._print(x)}, {int(order)})"
@@ -40,6 +43,9 @@ class ScalarPrinter(PythonCodePrinter):
 
     def _print_Float(self, expr: sp.Float) -> str:
         return repr(float(expr))
+
+    def _print_Grouped(self, expr: sp.Expr) -> str:
+        return f"({self._print(expr.args[0])})"
 
     def _print_TableSpline(self, expr: sp.Expr) -> str:
         key, order, x = expr.args
