@@ -596,14 +596,17 @@ static double planetary_correct(double *q, const double *dq)
     return planetary_maxabs(dq, 12);
 }
 
-int planetary_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork)
+/* Newton from the guess in q (overwritten by the solution). With reuse, the
+   first correction uses the factors the previous instant left in work (a
+   chord step: from the trajectory's predictor it converges at once), later
+   ones factor Phi_q at the iterate. Converged: |Phi| and the last correction
+   both within the tolerance's floor. On success the factors are those of q. */
+static int planetary_newton(double t, const double *p, double tol, double *q, double *tr, int *info, double *work,
+                          int *iwork, int *dense, int reuse)
 {
     double *r = PLANETARY_VEC(work, 0), *dq = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
-    double *b = PLANETARY_VEC(work, 3), *tr = PLANETARY_VEC(work, 9);
     double step = INFINITY, lim, qmag, rmax;
-    int it, k, dense = 0, converged = 0;
-    (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b; (void)k;
+    int it, converged = 0, current = 0, chord;
     planetary_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = PLANETARY_MAX(1.0, planetary_maxabs(q, 12));
@@ -617,14 +620,17 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
             break;
         }
         if (it == PLANETARY_MAX_NEWTON) break;
-        if (planetary_factorize(q, tr, t, p, work, iwork, &dense) != PLANETARY_OK) {
+        chord = reuse && it == 0;
+        if (!chord && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) {
             info[0] = it;
-            info[1] = dense;
+            info[1] = *dense;
             return PLANETARY_SINGULAR;
         }
-        planetary_solve(work, iwork, dense, r, dq, y);
+        planetary_solve(work, iwork, *dense, r, dq, y);
         step = planetary_correct(q, dq);
         planetary_trig_step(q, dq, tr);
+        /* factors of the iterate before a negligible step serve this one */
+        current = !chord && step <= 1e-14 * qmag;
         if (rmax <= lim && step <= lim) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
@@ -637,12 +643,19 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
     }
     info[0] = it;
     if (!converged) return PLANETARY_NOT_CONVERGED;
-    /* The factors are those of the last iterate but one; where the last step
-       was negligible (quadratic convergence) they serve the solution too. */
-    if (step > 1e-14 * qmag
-        && planetary_factorize(q, tr, t, p, work, iwork, &dense) != PLANETARY_OK)
-        return PLANETARY_SINGULAR;
-    info[1] = dense;
+    if (!current && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) return PLANETARY_SINGULAR;
+    info[1] = *dense;
+    return PLANETARY_OK;
+}
+
+/* The compiled outputs at a solved q, with the factors of Phi_q(q). */
+static void planetary_outputs(double t, const double *p, const double *q, const double *tr, double *qd, double *qdd,
+                            double *lam, double *reactions, double *work, const int *iwork, int dense)
+{
+    double *y = PLANETARY_VEC(work, 2), *b = PLANETARY_VEC(work, 3);
+    int k;
+    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
+    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     planetary_nu_k(q, tr, t, p, b);
     planetary_solve(work, iwork, dense, b, qd, y);
     planetary_gamma_k(q, tr, qd, t, p, b);
@@ -652,19 +665,28 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
     for (k = 0; k < 12; ++k) b[k] -= y[k] * qdd[k];
     planetary_solve_t(work, iwork, dense, b, lam);
     planetary_reactions_k(q, tr, lam, t, p, reactions);
-    return PLANETARY_OK;
+}
+
+int planetary_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
+                    double *lam, double *reactions, int *info, double *work, int *iwork)
+{
+    double *tr = PLANETARY_VEC(work, 9);
+    int dense = 0, status = planetary_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
+    if (status == PLANETARY_OK) planetary_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+    return status;
 }
 
 int planetary_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
                        double *rows, long *solved, double *work, int *iwork)
 {
-    /* state: q, qd, qdd of the last instant, the two positions before it, count */
+    /* state: q, qd, qdd of the last instant, the two accelerations (statics:
+       positions) before it, count */
     double *q = state, *qd = state + 12, *qdd = state + 24;
-    double *qm1 = state + 36, *qm2 = state + 48, *count = state + 60;
-    double *qn, *qdn, *qddn, *lam, *reac;
+    double *m1 = state + 36, *m2 = state + 48, *count = state + 60;
+    double *qn, *qdn, *qddn, *lam, *reac, *tr = PLANETARY_VEC(work, 9);
     long i;
-    int k, status, info[2];
-    (void)qm1; (void)qm2; (void)qd; (void)qdd;
+    int k, status, info[2], dense = 0;
+    (void)qd; (void)qdd;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * PLANETARY_ROW;
@@ -674,14 +696,26 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
         qddn = row + 25;
         lam = row + 37;
         reac = row + 49;
-        for (k = 0; k < 12; ++k) {
-            qn[k] = *count > 0 ? q[k] + h * qd[k] + 0.5 * h * h * qdd[k] : q[k];
-        }
-        status = planetary_instant(t, p, tol, qn, qdn, qddn, lam, reac, info, work, iwork);
+        /* Taylor to h^4 with q, qd, qdd solved and qddd, qdddd from the last
+           accelerations (error O(h^5)): one Newton correction suffices */
+        if (*count >= 3)
+            for (k = 0; k < 12; ++k)
+                qn[k] = q[k] + h * (qd[k] + h * (0.5 * qdd[k]
+                        + (7.0 * (qdd[k] - m1[k]) - 3.0 * (m1[k] - m2[k])) / 24.0));
+        else if (*count >= 1)
+            for (k = 0; k < 12; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
+        else
+            memcpy(qn, q, sizeof(double) * 12);
+        /* from the second instant of a call on, the previous instant's factors
+           (left in work) take the first correction */
+        status = planetary_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != PLANETARY_OK) {
             *solved = i;
             return status;
         }
+        planetary_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        memcpy(m2, m1, sizeof(double) * 12);
+        memcpy(m1, qdd, sizeof(double) * 12);
         memcpy(qd, qdn, sizeof(double) * 12);
         memcpy(qdd, qddn, sizeof(double) * 12);
         memcpy(q, qn, sizeof(double) * 12);

@@ -540,14 +540,17 @@ static double slider_crank_correct(double *q, const double *dq)
     return slider_crank_maxabs(dq, 9);
 }
 
-int slider_crank_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork)
+/* Newton from the guess in q (overwritten by the solution). With reuse, the
+   first correction uses the factors the previous instant left in work (a
+   chord step: from the trajectory's predictor it converges at once), later
+   ones factor Phi_q at the iterate. Converged: |Phi| and the last correction
+   both within the tolerance's floor. On success the factors are those of q. */
+static int slider_crank_newton(double t, const double *p, double tol, double *q, double *tr, int *info, double *work,
+                          int *iwork, int *dense, int reuse)
 {
     double *r = SLIDER_CRANK_VEC(work, 0), *dq = SLIDER_CRANK_VEC(work, 1), *y = SLIDER_CRANK_VEC(work, 2);
-    double *b = SLIDER_CRANK_VEC(work, 3), *tr = SLIDER_CRANK_VEC(work, 9);
     double step = INFINITY, lim, qmag, rmax;
-    int it, k, dense = 0, converged = 0;
-    (void)qd; (void)qdd; (void)lam; (void)reactions; (void)b; (void)k;
+    int it, converged = 0, current = 0, chord;
     slider_crank_trig(q, tr);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_CRANK_MAX(1.0, slider_crank_maxabs(q, 9));
@@ -561,14 +564,17 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
             break;
         }
         if (it == SLIDER_CRANK_MAX_NEWTON) break;
-        if (slider_crank_factorize(q, tr, t, p, work, iwork, &dense) != SLIDER_CRANK_OK) {
+        chord = reuse && it == 0;
+        if (!chord && slider_crank_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_OK) {
             info[0] = it;
-            info[1] = dense;
+            info[1] = *dense;
             return SLIDER_CRANK_SINGULAR;
         }
-        slider_crank_solve(work, iwork, dense, r, dq, y);
+        slider_crank_solve(work, iwork, *dense, r, dq, y);
         step = slider_crank_correct(q, dq);
         slider_crank_trig_step(q, dq, tr);
+        /* factors of the iterate before a negligible step serve this one */
+        current = !chord && step <= 1e-14 * qmag;
         if (rmax <= lim && step <= lim) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
@@ -581,12 +587,19 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
     }
     info[0] = it;
     if (!converged) return SLIDER_CRANK_NOT_CONVERGED;
-    /* The factors are those of the last iterate but one; where the last step
-       was negligible (quadratic convergence) they serve the solution too. */
-    if (step > 1e-14 * qmag
-        && slider_crank_factorize(q, tr, t, p, work, iwork, &dense) != SLIDER_CRANK_OK)
-        return SLIDER_CRANK_SINGULAR;
-    info[1] = dense;
+    if (!current && slider_crank_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_OK) return SLIDER_CRANK_SINGULAR;
+    info[1] = *dense;
+    return SLIDER_CRANK_OK;
+}
+
+/* The compiled outputs at a solved q, with the factors of Phi_q(q). */
+static void slider_crank_outputs(double t, const double *p, const double *q, const double *tr, double *qd, double *qdd,
+                            double *lam, double *reactions, double *work, const int *iwork, int dense)
+{
+    double *y = SLIDER_CRANK_VEC(work, 2), *b = SLIDER_CRANK_VEC(work, 3);
+    int k;
+    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
+    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     slider_crank_nu_k(q, tr, t, p, b);
     slider_crank_solve(work, iwork, dense, b, qd, y);
     slider_crank_gamma_k(q, tr, qd, t, p, b);
@@ -596,19 +609,28 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
     for (k = 0; k < 9; ++k) b[k] -= y[k] * qdd[k];
     slider_crank_solve_t(work, iwork, dense, b, lam);
     slider_crank_reactions_k(q, tr, lam, t, p, reactions);
-    return SLIDER_CRANK_OK;
+}
+
+int slider_crank_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
+                    double *lam, double *reactions, int *info, double *work, int *iwork)
+{
+    double *tr = SLIDER_CRANK_VEC(work, 9);
+    int dense = 0, status = slider_crank_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
+    if (status == SLIDER_CRANK_OK) slider_crank_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+    return status;
 }
 
 int slider_crank_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
                        double *rows, long *solved, double *work, int *iwork)
 {
-    /* state: q, qd, qdd of the last instant, the two positions before it, count */
+    /* state: q, qd, qdd of the last instant, the two accelerations (statics:
+       positions) before it, count */
     double *q = state, *qd = state + 9, *qdd = state + 18;
-    double *qm1 = state + 27, *qm2 = state + 36, *count = state + 45;
-    double *qn, *qdn, *qddn, *lam, *reac;
+    double *m1 = state + 27, *m2 = state + 36, *count = state + 45;
+    double *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_CRANK_VEC(work, 9);
     long i;
-    int k, status, info[2];
-    (void)qm1; (void)qm2; (void)qd; (void)qdd;
+    int k, status, info[2], dense = 0;
+    (void)qd; (void)qdd;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * SLIDER_CRANK_ROW;
@@ -618,14 +640,26 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
         qddn = row + 19;
         lam = row + 28;
         reac = row + 37;
-        for (k = 0; k < 9; ++k) {
-            qn[k] = *count > 0 ? q[k] + h * qd[k] + 0.5 * h * h * qdd[k] : q[k];
-        }
-        status = slider_crank_instant(t, p, tol, qn, qdn, qddn, lam, reac, info, work, iwork);
+        /* Taylor to h^4 with q, qd, qdd solved and qddd, qdddd from the last
+           accelerations (error O(h^5)): one Newton correction suffices */
+        if (*count >= 3)
+            for (k = 0; k < 9; ++k)
+                qn[k] = q[k] + h * (qd[k] + h * (0.5 * qdd[k]
+                        + (7.0 * (qdd[k] - m1[k]) - 3.0 * (m1[k] - m2[k])) / 24.0));
+        else if (*count >= 1)
+            for (k = 0; k < 9; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
+        else
+            memcpy(qn, q, sizeof(double) * 9);
+        /* from the second instant of a call on, the previous instant's factors
+           (left in work) take the first correction */
+        status = slider_crank_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != SLIDER_CRANK_OK) {
             *solved = i;
             return status;
         }
+        slider_crank_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        memcpy(m2, m1, sizeof(double) * 9);
+        memcpy(m1, qdd, sizeof(double) * 9);
         memcpy(qd, qdn, sizeof(double) * 9);
         memcpy(qdd, qddn, sizeof(double) * 9);
         memcpy(q, qn, sizeof(double) * 9);
