@@ -22,10 +22,13 @@
 #define INSTANT XCAT(P, _instant)
 
 static double work[WORK], q[NG], qd[NG], qdd[NG], qn[NG], qdn[NG], qddn[NG], lam[NC + 1], reac[NR + 1];
+static double m1[NG], m2[NG]; /* the two accelerations before qdd */
 static int iwork[IWORK + 1];
 
 /* n instants t0 + k h from q0; iterations[k] = Newton iterations, torque[k] =
- * reactions[index]. *ns = nanoseconds of the loop. Returns instants solved. */
+ * reactions[index]. *ns = nanoseconds of the loop. Returns instants solved.
+ * Order 4 is the generated trajectory's predictor (Taylor to h^4, qddd and
+ * qdddd from the last three accelerations; lower orders until they exist). */
 long predictor_loop(double t0, double h, long n, int order, double tol, const double *p, const double *q0,
                     int index, double *torque, int *iterations, double *ns)
 {
@@ -41,9 +44,12 @@ long predictor_loop(double t0, double h, long n, int order, double tol, const do
         for (i = 0; i < NG; ++i)
             qn[i] = (k == 0 || order == 0) ? q[i]
                   : order == 1 ? q[i] + h * qd[i]
-                  : q[i] + h * qd[i] + 0.5 * h * h * qdd[i];
+                  : order == 2 || k < 3 ? q[i] + h * qd[i] + 0.5 * h * h * qdd[i]
+                  : q[i] + h * (qd[i] + h * (0.5 * qdd[i] + (7.0 * (qdd[i] - m1[i]) - 3.0 * (m1[i] - m2[i])) / 24.0));
         if (INSTANT(t, p, tol, qn, qdn, qddn, lam, reac, info, work, iwork) != 0) break;
         memcpy(q, qn, sizeof(q));
+        memcpy(m2, m1, sizeof(m2));
+        memcpy(m1, qdd, sizeof(m1));
         memcpy(qd, qdn, sizeof(qd));
         memcpy(qdd, qddn, sizeof(qdd));
         iterations[k] = info[0];

@@ -1,9 +1,13 @@
 """What Newton's tolerance and the predictor's order cost and buy.
 
-symid's loops predict each instant's q with a 2nd-order Taylor step from the
-previous one. Here the benchmark drives Newton itself so the order can vary:
-order 0 starts from the previous q, 1 adds h qdot, 2 adds h^2/2 qddot. Two
-drivers over the same C backend of one mechanism:
+symid's Python loops predict each instant's q with a 2nd-order Taylor step
+from the previous one; the generated C trajectory goes to h^4 and takes the
+first correction with the previous instant's factors. Here the benchmark
+drives Newton itself so the order can vary: order 0 starts from the previous
+q, 1 adds h qdot, 2 adds h^2/2 qddot, 4 adds the h^3 and h^4 terms with qddd
+and qdddd from the last three accelerations (the C trajectory's predictor;
+every correction here factors Phi_q anew). Two drivers over the same C
+backend of one mechanism:
 
 - `python_newton`: the Evaluator protocol (phi, phi_q, ...) with SciPy's LU,
   Newton as in `symid.solve` (stop when max |Phi| and the last max |dq| are
@@ -42,12 +46,17 @@ def motor_reaction_index(study: api.Study, column: str = "motor.T_j") -> int:
     return cols.index(column) - first
 
 
-def _guess(order: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, h: float) -> np.ndarray:
+def _guess(order: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, h: float,
+           before: list[np.ndarray]) -> np.ndarray:
+    """The predictor; `before` holds the accelerations before qdd, latest first."""
     if order == 0:
         return q.copy()
     if order == 1:
         return q + h * qd
-    return q + h * qd + 0.5 * h * h * qdd
+    if order == 2 or len(before) < 2:
+        return q + h * qd + 0.5 * h * h * qdd
+    m1, m2 = before[0], before[1]
+    return q + h * (qd + h * (0.5 * qdd + (7.0 * (qdd - m1) - 3.0 * (m1 - m2)) / 24.0))
 
 
 def python_newton(study: api.Study, order: int, tol: float, n: int) -> dict[str, Any]:
@@ -58,10 +67,11 @@ def python_newton(study: api.Study, order: int, tol: float, n: int) -> dict[str,
     mass = ev.mass()
     q, qd, qdd = study.q0(), np.zeros(study.layout.ng), np.zeros(study.layout.ng)
     iterations, seconds, torque = [], [], []
+    before: list[np.ndarray] = []
     for k in range(n):
         tick = time.perf_counter()
         t = a.t0 + k * h
-        q = _guess(order, q, qd, qdd, h) if k else q
+        q = _guess(order, q, qd, qdd, h, before) if k else q
         step, it = np.inf, 0
         while True:
             phi = ev.phi(q, t)
@@ -76,6 +86,7 @@ def python_newton(study: api.Study, order: int, tol: float, n: int) -> dict[str,
             step = float(np.max(np.abs(dq)))
             it += 1
         lu = sla.lu_factor(ev.phi_q(q, t), check_finite=False)
+        before = [qdd, *before[:1]] if k else []
         qd = sla.lu_solve(lu, ev.nu(q, t), check_finite=False)
         qdd = sla.lu_solve(lu, ev.gamma(q, qd, t), check_finite=False)
         lam = sla.lu_solve(lu, ev.applied(q, qd, t) - mass * qdd, trans=1, check_finite=False)
