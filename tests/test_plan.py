@@ -215,3 +215,27 @@ def test_plots_take_the_normal_path(tmp_path, capsys, spy):
     solve(tmp_path, capsys)
     solve(tmp_path, capsys, "--plot")
     assert len(spy) == 2
+
+
+def test_an_output_error_on_a_planned_run_is_the_same_input_error(tmp_path, capsys, spy):
+    (tmp_path / "m.toml").write_text(SLIDER_CRANK.read_text())
+    solve(tmp_path, capsys)
+    args = ["solve", str(tmp_path / "m.toml"), "--steps", "21", "-o", str(tmp_path / "missing" / "out.csv")]
+    planned = cli.main(args), capsys.readouterr()
+    assert len(spy) == 1
+    (tmp_path / "m.toml").write_text(SLIDER_CRANK.read_text() + "\n")  # a miss: the normal path
+    normal = cli.main(args), capsys.readouterr()
+    assert len(spy) == 2
+    assert planned == normal and planned[0] == 2
+
+
+def test_summary_inputs_for_other_instants_are_evaluated_again(tmp_path, capsys, spy, monkeypatch):
+    monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
+    (tmp_path / "m.toml").write_text(SLIDER_CRANK.read_text())
+    first = solve(tmp_path, capsys)
+    (stored,) = plans(tmp_path / "cache")
+    data = json.loads(stored.read_text())
+    data["summary"][0]["t"][3] += 1e-9
+    data["summary"][0]["f"] = [0.0] * len(data["summary"][0]["f"])  # would give another line if used
+    stored.write_text(json.dumps(data))
+    assert solve(tmp_path, capsys) == first and len(spy) == 1
