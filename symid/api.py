@@ -25,7 +25,7 @@ from symid.io.reader import load
 from symid.model import Mechanism
 from symid.motion import check_spans
 from symid.params import parameter_values, to_float
-from symid.results import Results, columns, row, write_csv
+from symid.results import Results, columns, table_rows, write_csv
 from symid.solve import Instant, run
 from symid.stability import Notes, check_redundant, require_square, require_support
 
@@ -82,13 +82,8 @@ class Study:
 
     def rows(self) -> Iterator[Array]:
         """The results table row by row; a compiled backend runs its own loop."""
-        own = getattr(self.evaluator, "rows", None)
-        if own is not None:
-            self.notes = Notes(self.analysis)
-            yield from own(self.analysis, self.q0())
-            return
-        for instant in self.instants():
-            yield row(instant, self.layout, self.analysis)
+        self.notes = Notes(self.analysis)
+        yield from table_rows(self.evaluator, self.analysis, self.q0(), self.notes)
 
     def solve(self) -> Results:
         """Solve the whole run. A failure is kept in `Results.error` with the

@@ -9,9 +9,14 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 from symid.errors import EXIT_INPUT, AnalysisError, InputError, SymidError
+
+if TYPE_CHECKING:
+    from symid import plan
+    from symid.backends import Array, Evaluator
+    from symid.results import Results
 
 
 class _Parser(argparse.ArgumentParser):
@@ -38,37 +43,105 @@ def _analysis_overrides(args: argparse.Namespace) -> dict[str, object]:
             "cond_column": args.cond or None}
 
 
+def _run_options(args: argparse.Namespace) -> dict[str, object]:
+    """Every option of `solve` that changes the run (part of the run-plan key, `symid.plan`)."""
+    return {"backend": args.backend, "set": list(args.set), **_analysis_overrides(args)}
+
+
 def cmd_solve(args: argparse.Namespace) -> int:
-    from symid import api, progress, summary
-    from symid.io.npz import write_npz
-    from symid.results import write_csv
+    from symid import plan
+
+    plots = args.plot or args.plot_dir is not None
+    key = None if plots else plan.key(args.file, _run_options(args))
+    found = plan.load(key) if key is not None else None
+    if found is not None:
+        try:
+            return _solve_planned(args, *found)
+        except plan.Stale:  # its solver failed where the planned run succeeded: trust nothing of it
+            plan.discard(key)  # type: ignore[arg-type]
+    return _solve(args, key)
+
+
+def _solve(args: argparse.Namespace, key: str | None) -> int:
+    """The normal path: read, lay out, find or build the solver, solve; then keep a plan."""
+    from symid import api, plan, summary
 
     study = api.prepare(args.file, args.backend, _set_values(args.set, args.file), **_analysis_overrides(args))
     out = Path(args.output) if args.output else Path(f"{study.mechanism.name}.csv")
     plots = args.plot or args.plot_dir is not None
     header = study.columns()
-    record = summary.Recorder(header, None if plots else summary.needed_columns(study.mechanism, header))
-    write = write_npz if out.suffix.lower() == ".npz" else write_csv
-    try:
-        count = write(out, header, record(progress.bar(study.rows(), study.analysis.steps, study.mechanism.name)))
-    except AnalysisError as exc:
-        raise AnalysisError(f"{args.file}: t = {exc.time:.17g}: {exc}; the {exc.solved} instants "
-                            f"before it are in {out}", exc.time, exc.solved) from None
-    finally:
-        for warning in study.warnings:  # once per kind, with its time span
-            print(f"symid: warning: {warning}", file=sys.stderr)
-    print(f"{out}: {count} instants, {len(study.columns())} columns")
-    for line in summary.lines(study.mechanism, record.results()):
+    keep = None if plots else summary.needed_columns(study.mechanism, header)
+    results = _write_table(out, header, keep, study.rows(), study.analysis.steps, study.mechanism.name,
+                           args.file, lambda: study.warnings)
+    inputs = summary.inputs(study.mechanism, results)
+    for line in summary.lines_of(inputs, results):
         print(line)
     if plots:
         from symid import plot
 
-        written = plot.write_all(record.results(), study.mechanism, args.plot_dir or out.parent, out.stem)
+        written = plot.write_all(results, study.mechanism, args.plot_dir or out.parent, out.stem)
         for path in written.paths:
             print(path)
         for note in written.skipped:
             print(f"symid: skipped the {note}", file=sys.stderr)
+    elif key is not None and keep is not None:
+        made = plan.of(study, args.backend, header, keep, inputs)
+        if made is not None and plan.key(args.file, _run_options(args)) == key:  # inputs unchanged meanwhile
+            plan.store(key, made)
     return 0
+
+
+def _solve_planned(args: argparse.Namespace, run: plan.Plan, evaluator: Evaluator) -> int:
+    """A run with a plan: the same table, warnings and summary lines, without sympy.
+
+    Raises:
+        symid.plan.Stale: the solver failed; nothing was written or printed.
+    """
+    from symid import summary
+    from symid.stability import Notes
+
+    out = Path(args.output) if args.output else Path(f"{run.name}.csv")
+    notes = Notes(run.analysis)
+    results = _write_table(out, run.columns, run.keep, run.rows(evaluator, notes), run.analysis.steps, run.name,
+                           args.file, notes.lines)
+    try:
+        lines = summary.lines_of(run.summary, results)
+    except ValueError:  # other instants than the plan's f(t) was evaluated at: evaluate it again
+        from symid import api
+
+        mech = api.load_mechanism(args.file, _set_values(args.set, args.file), **_analysis_overrides(args))
+        lines = summary.lines(mech, results)
+    for line in lines:
+        print(line)
+    return 0
+
+
+def _write_table(out: Path, header: list[str], keep: list[str] | None, rows: Iterator[Array], steps: int,
+                 name: str, file: str, warnings: Callable[[], list[str]]) -> Results:
+    """Stream rows to the CSV (or .npz) file with a progress bar; print the
+    run's warnings and the file's line. Returns the kept columns (`keep`, None: all)."""
+    from symid import progress, summary
+    from symid.io.npz import write_npz
+    from symid.plan import Stale
+    from symid.results import write_csv
+
+    record = summary.Recorder(header, keep)
+    write = write_npz if out.suffix.lower() == ".npz" else write_csv
+    stale = False
+    try:
+        count = write(out, header, record(progress.bar(rows, steps, name)))
+    except Stale:
+        stale = True
+        raise
+    except AnalysisError as exc:
+        raise AnalysisError(f"{file}: t = {exc.time:.17g}: {exc}; the {exc.solved} instants "
+                            f"before it are in {out}", exc.time, exc.solved) from None
+    finally:
+        if not stale:
+            for warning in warnings():  # once per kind, with its time span
+                print(f"symid: warning: {warning}", file=sys.stderr)
+    print(f"{out}: {count} instants, {len(header)} columns")
+    return record.results()
 
 
 def cmd_check(args: argparse.Namespace) -> int:

@@ -7,22 +7,28 @@ import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import TYPE_CHECKING, Iterable, Iterator
 
 import numpy as np
 
-from symid.assemble import Layout, reaction_columns
+from symid.analysis import Analysis
 from symid.backends import Array
-from symid.constraints import TYPES as CONSTRAINTS
 from symid.errors import AnalysisError, InputError
-from symid.model import Analysis
-from symid.solve import Instant
+
+if TYPE_CHECKING:  # a cached run (symid.plan) writes its table without sympy
+    from symid.assemble import Layout
+    from symid.backends import Evaluator
+    from symid.solve import Instant
+    from symid.stability import Notes
 
 GROUP_SUFFIXES = {"q": ("x", "y", "phi"), "qdot": ("vx", "vy", "omega"), "qddot": ("ax", "ay", "alpha")}
 
 
 def columns(layout: Layout, analysis: Analysis) -> list[str]:
     """The CSV header: `t`, then each requested group in contract order."""
+    from symid.assemble import reaction_columns
+    from symid.constraints import TYPES as CONSTRAINTS
+
     mech = layout.mechanism
     out = ["t"]
     for group in analysis.output_groups():
@@ -37,10 +43,31 @@ def columns(layout: Layout, analysis: Analysis) -> list[str]:
     return out + list(analysis.extra_outputs())  # `cond`: after every contract group
 
 
+def table_rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes) -> Iterator[Array]:
+    """The results table row by row; a compiled backend runs its own loop.
+
+    Args:
+        q0: the initial guess at t0, size ng.
+        notes: collects the run's warnings (the Python loop's).
+    """
+    own = getattr(evaluator, "rows", None)
+    if own is not None:
+        yield from own(analysis, q0)
+        return
+    from symid.solve import run
+
+    for instant in run(evaluator, analysis, q0, notes):
+        yield _row(instant, len(q0), analysis)
+
+
 def row(instant: Instant, layout: Layout, analysis: Analysis) -> Array:
     """One CSV row (same order as `columns`)."""
+    return _row(instant, layout.ng, analysis)
+
+
+def _row(instant: Instant, ng: int, analysis: Analysis) -> Array:
     parts: list[Array] = [np.array([instant.t])]
-    zeros = np.zeros(layout.ng)
+    zeros = np.zeros(ng)
     for group in analysis.output_groups():
         value = {"q": instant.q, "qdot": instant.qd, "qddot": instant.qdd,
                  "lambda": instant.lam, "reactions": instant.reactions}[group]

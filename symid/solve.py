@@ -21,7 +21,7 @@ import numpy as np
 
 from symid.backends import Array, Evaluator
 from symid.errors import AnalysisError
-from symid.model import Analysis
+from symid.analysis import Analysis
 from symid.stability import EPS, SINGULAR_RCOND, Factor, Notes, Scaling, rank_of, redundancy_message
 
 MAX_NEWTON = 50

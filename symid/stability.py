@@ -16,12 +16,17 @@ import functools
 import math
 from dataclasses import dataclass, field
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from symid.assemble import Layout
+from symid.analysis import Analysis
 from symid.backends import Array, Evaluator
 from symid.errors import AnalysisError, InputError
-from symid.model import Analysis, Mechanism
+
+if TYPE_CHECKING:  # the Python loop runs without sympy when its solver is cached (symid.plan)
+    from symid.assemble import Layout
+    from symid.model import Mechanism
 
 
 @functools.cache

@@ -22,15 +22,17 @@ it gives the quasi-static power). Units: SI is assumed (the file has none).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable, Iterator, Mapping, Protocol, Sequence
+from typing import TYPE_CHECKING, Iterable, Iterator, Mapping, Protocol, Sequence
 
 import numpy as np
-import sympy as sp
 
 from symid.backends import Array
-from symid.model import Element, Mechanism, T
-from symid.params import parameter_values
 from symid.results import Results
+
+if TYPE_CHECKING:  # sympy only where f(t) is evaluated: a cached run (symid.plan) has it evaluated
+    import sympy as sp
+
+    from symid.model import Element, Mechanism
 
 DRIVERS = ("relative_angle_driver", "coordinate_driver", "distance_driver", "translational_driver")
 
@@ -120,42 +122,76 @@ def needed_columns(mechanism: Mechanism, header: Sequence[str]) -> list[str]:
 
 def time_function(expr: sp.Expr, values: Mapping[sp.Symbol, float], t: Array, order: int = 0) -> Array:
     """An expression of t and the parameters (or its d^order/dt^order) at the instants t."""
+    import sympy as sp
+
+    from symid.model import T
+
     e = sp.diff(sp.sympify(expr), T, order).xreplace({k: sp.Float(v, 17) for k, v in values.items()})
     return np.broadcast_to(np.asarray(sp.lambdify(T, e, [np])(t), dtype=float), t.shape).copy()
 
 
-def effort(c: Element, table: Table, values: Mapping[sp.Symbol, float]) -> Effort | None:
-    """The effort of driver `c`, or None when the table lacks its columns."""
-    source = next((col for col in _sources(c) if col in table.columns), None)
-    if source is None:
+@dataclass(frozen=True)
+class Source:
+    """How one driver's effort is read from a results table, without its f(t).
+
+    Attributes:
+        name, type, quantity, unit, rate_unit, meaning: as in `Effort`.
+        column: the table column the effort comes from (see `_sources`).
+    """
+
+    name: str
+    type: str
+    quantity: str
+    unit: str
+    rate_unit: str
+    meaning: str
+    column: str
+
+    def effort(self, t: Array, raw: Array, f: Array, fd: Array) -> Effort:
+        """The effort from the column's values `raw` and the driver's f, f' at
+        the instants t (all shape (instants,))."""
+        if self.type == "distance_driver":
+            value, rate = -2 * np.abs(f) * raw, np.sign(f) * fd
+        else:
+            value, rate = (-raw if self.column.endswith(".lambda") else raw), fd
+        return Effort(self.name, self.type, self.quantity, self.unit, self.rate_unit, self.meaning, t, value, rate)
+
+
+def source(c: Element, columns: Sequence[str]) -> Source | None:
+    """Where driver `c`'s effort is read from, or None when `columns` lack it."""
+    column = next((col for col in _sources(c) if col in columns), None)
+    if column is None:
         return None
-    t = np.asarray(table["t"], dtype=float)
-    raw = np.asarray(table[source], dtype=float)
-    from_lambda = source.endswith(".lambda")
-    f = time_function(c.values["f"], values, t)
-    fd = time_function(c.values["f"], values, t, 1)
     if c.type == "distance_driver":
-        value = -2 * np.abs(f) * raw
-        return Effort(c.name, c.type, "force", "N", "m/s",
-                      f"axial force, positive pushing {c.bodies['i']} and {c.bodies['j']} apart",
-                      t, value, np.sign(f) * fd)
-    value = -raw if from_lambda else raw
+        return Source(c.name, c.type, "force", "N", "m/s",
+                      f"axial force, positive pushing {c.bodies['i']} and {c.bodies['j']} apart", column)
     if c.type == "relative_angle_driver":
-        return Effort(c.name, c.type, "torque", "N·m", "rad/s",
-                      f"motor torque on {c.bodies['j']}, positive counter-clockwise", t, value, fd)
+        return Source(c.name, c.type, "torque", "N·m", "rad/s",
+                      f"motor torque on {c.bodies['j']}, positive counter-clockwise", column)
     if c.type == "translational_driver":
-        return Effort(c.name, c.type, "force", "N", "m/s",
-                      f"force on {c.bodies['j']} along the slide, positive towards +vi", t, value, fd)
+        return Source(c.name, c.type, "force", "N", "m/s",
+                      f"force on {c.bodies['j']} along the slide, positive towards +vi", column)
     coordinate = c.options["coordinate"]
     if coordinate == "phi":
-        return Effort(c.name, c.type, "torque", "N·m", "rad/s",
-                      f"torque on {c.bodies['i']}, positive counter-clockwise", t, value, fd)
-    return Effort(c.name, c.type, "force", "N", "m/s",
-                  f"force on {c.bodies['i']} along +{coordinate}", t, value, fd)
+        return Source(c.name, c.type, "torque", "N·m", "rad/s",
+                      f"torque on {c.bodies['i']}, positive counter-clockwise", column)
+    return Source(c.name, c.type, "force", "N", "m/s", f"force on {c.bodies['i']} along +{coordinate}", column)
+
+
+def effort(c: Element, table: Table, values: Mapping[sp.Symbol, float]) -> Effort | None:
+    """The effort of driver `c`, or None when the table lacks its columns."""
+    where = source(c, table.columns)
+    if where is None:
+        return None
+    t = np.asarray(table["t"], dtype=float)
+    raw = np.asarray(table[where.column], dtype=float)
+    return where.effort(t, raw, time_function(c.values["f"], values, t), time_function(c.values["f"], values, t, 1))
 
 
 def efforts(mechanism: Mechanism, table: Table) -> list[Effort]:
     """Every driver's effort that the table has the columns for, in file order."""
+    from symid.params import parameter_values
+
     values = parameter_values(mechanism.parameters)
     found = (effort(c, table, values) for c in drivers(mechanism))
     return [e for e in found if e is not None]
@@ -181,17 +217,75 @@ def summarize(e: Effort) -> Summary:
 def lines(mechanism: Mechanism, table: Table) -> list[str]:
     """One summary line per driver; a driver without its columns says so
     (no line at all for a table without multipliers or reactions)."""
-    if not any(c.rpartition(".")[2].startswith(("lambda", "T_", "Fx_")) for c in table.columns):
+    return lines_of(inputs(mechanism, table), table)
+
+
+@dataclass(frozen=True)
+class Input:
+    """What one driver's summary line needs beyond the table, without sympy.
+
+    Attributes:
+        source: where its effort is read (None: the table lacks it, say `missing`).
+        missing: the line for a table without the effort.
+        t, f, fd: the table's instants and f, f' there, shape (instants,)
+            (empty when `source` is None).
+    """
+
+    source: Source | None
+    missing: str
+    t: Array
+    f: Array
+    fd: Array
+
+
+def inputs(mechanism: Mechanism, table: Table) -> list[Input]:
+    """The inputs of every driver's summary line for this table (none for a
+    table without multipliers or reactions)."""
+    from symid.params import parameter_values
+
+    if not has_efforts(table.columns):
         return []  # a kinematics table: no driver has an effort, and none is missed
     values = parameter_values(mechanism.parameters)
+    t = np.asarray(table["t"], dtype=float)
+    empty = np.zeros(0)
     out = []
     for c in drivers(mechanism):
-        e = effort(c, table, values)
-        if e is None:
-            out.append(f"{c.name}: no effort (the table has none of {', '.join(_sources(c))})")
+        where = source(c, table.columns)
+        if where is None:
+            out.append(Input(None, missing(c), empty, empty, empty))
         else:
-            out.append(summarize(e).line())
+            f = c.values["f"]
+            out.append(Input(where, missing(c), t, time_function(f, values, t), time_function(f, values, t, 1)))
     return out
+
+
+def lines_of(inputs: Sequence[Input], table: Table) -> list[str]:
+    """One summary line per driver from `inputs(mechanism, table)`.
+
+    Raises:
+        ValueError: `table`'s instants are not those the inputs were made for.
+    """
+    out = []
+    for item in inputs:
+        if item.source is None:
+            out.append(item.missing)
+            continue
+        t = np.asarray(table["t"], dtype=float)
+        if not np.array_equal(t, item.t):
+            raise ValueError("the table's instants differ from those of the summary inputs")
+        raw = np.asarray(table[item.source.column], dtype=float)
+        out.append(summarize(item.source.effort(t, raw, item.f, item.fd)).line())
+    return out
+
+
+def has_efforts(columns: Sequence[str]) -> bool:
+    """Whether a table with these columns has any effort to summarize (multipliers or reactions)."""
+    return any(c.rpartition(".")[2].startswith(("lambda", "T_", "Fx_")) for c in columns)
+
+
+def missing(c: Element) -> str:
+    """The summary line of a driver whose effort the table lacks."""
+    return f"{c.name}: no effort (the table has none of {', '.join(_sources(c))})"
 
 
 class Recorder:

@@ -9,13 +9,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from importlib import import_module
-from typing import Mapping, Protocol
+from typing import TYPE_CHECKING, Mapping, Protocol
 
 import numpy as np
-import sympy as sp
 
-from symid.assemble import Layout
 from symid.errors import InputError
+
+if TYPE_CHECKING:  # a cached run (symid.plan) loads a backend without sympy
+    import sympy as sp
+
+    from symid.assemble import Layout
 
 Array = np.ndarray
 

@@ -12,17 +12,19 @@ import os
 import shutil
 import subprocess
 from pathlib import Path
-from typing import Iterator, Mapping
+from typing import TYPE_CHECKING, Iterator, Mapping
 
 import numpy as np
-import sympy as sp
 
-from symid.assemble import Layout
+from symid.analysis import Analysis
 from symid.backends import Array, Needs
-from symid.codegen.cache import cached
-from symid.codegen.flat import Options
 from symid.errors import AnalysisError, InputError
-from symid.model import Analysis
+
+if TYPE_CHECKING:  # a cached run (symid.plan) loads a built solver without sympy
+    import sympy as sp
+
+    from symid.assemble import Layout
+    from symid.codegen.flat import Options
 
 # -fno-math-errno lets sqrt compile to one instruction; results are unchanged.
 CFLAGS = ("-std=c99", "-fno-math-errno", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared")
@@ -45,6 +47,8 @@ def compiler() -> str:
 
 def build(layout: Layout, options: Options) -> Path:
     """The folder holding the compiled solver for this model, building it if needed."""
+    from symid.codegen.cache import cached
+
     mech = layout.mechanism
 
     def make(folder: Path) -> None:
@@ -81,21 +85,29 @@ def _ptr(a: Array | None) -> _P:
 
 
 class CEvaluator:
-    """The compiled solver of one mechanism, with numeric parameter values."""
+    """The compiled solver of one mechanism, with numeric parameter values.
 
-    def __init__(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs,
-                 options: Options) -> None:
-        self.layout = layout
-        folder = build(layout, options)
+    Args:
+        folder: the built solver (`build`); name: the mechanism's name.
+        params: parameter name -> value, for every parameter of the solver.
+        layout: the mechanism's layout, which names constraints in failure
+            messages; None for a cached run (`symid.plan`), which reruns
+            the whole normal path on any failure.
+    """
+
+    layout: Layout  # None only in a planned run, which never reads it (see above)
+
+    def __init__(self, folder: Path, name: str, params: Mapping[str, float], layout: Layout | None) -> None:
+        self.layout = layout  # type: ignore[assignment]
+        self.artifact = folder
         self.meta = json.loads((folder / "meta.json").read_text())
         self.lib = ctypes.CDLL(str(folder / "solver.so"))
-        name = layout.mechanism.name
         self._fn = {n: getattr(self.lib, f"{name}_{n}", None) for n in
                     ("phi", "phi_q", "nu", "gamma", "applied", "mass", "reactions", "instant", "trajectory")}
         self._fn["trajectory"].argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_long, _P, ctypes.c_double,
                                            _P, _P, ctypes.POINTER(ctypes.c_long), _P, _I]
         self._fn["instant"].argtypes = [ctypes.c_double, _P, ctypes.c_double, _P, _P, _P, _P, _P, _I, _P, _I]
-        self.p = np.array([values[sp.Symbol(n, real=True)] for n in self.meta["params"]], dtype=float)
+        self.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
         self.work = np.zeros(self.meta["work"])
         self.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
 
@@ -189,4 +201,11 @@ class CBackend:
     def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> CEvaluator:
         from symid.codegen.model import options_for
 
-        return CEvaluator(layout, values, needs, options_for(layout.mechanism))
+        folder = build(layout, options_for(layout.mechanism))
+        return CEvaluator(folder, layout.mechanism.name, {s.name: v for s, v in values.items()}, layout)
+
+    def load(self, artifact: Path, name: str, params: Mapping[str, float]) -> CEvaluator:
+        """The solver built earlier in `artifact` (a cached run, `symid.plan`)."""
+        if not (artifact / "complete").is_file():
+            raise FileNotFoundError(f"{artifact}: not a complete build")
+        return CEvaluator(artifact, name, params, None)

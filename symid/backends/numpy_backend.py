@@ -6,19 +6,23 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 from types import ModuleType
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
-import sympy as sp
 
-from symid.assemble import Layout
 from symid.backends import Array, Needs
-from symid.codegen.cache import cached
-from symid.codegen.flat import Options
+
+if TYPE_CHECKING:  # a cached run (symid.plan) loads a generated module without sympy
+    import sympy as sp
+
+    from symid.assemble import Layout
+    from symid.codegen.flat import Options
 
 
 def build(layout: Layout, options: Options) -> Path:
     """The generated module's path, generating it if needed."""
+    from symid.codegen.cache import cached
+
     mech = layout.mechanism
 
     def make(folder: Path) -> None:
@@ -40,12 +44,23 @@ def load_module(path: Path) -> ModuleType:
 
 
 class NumpyEvaluator:
-    """Evaluator protocol over a generated NumPy module."""
+    """Evaluator protocol over a generated NumPy module.
 
-    def __init__(self, layout: Layout, values: Mapping[sp.Symbol, float], options: Options) -> None:
-        self.layout = layout
-        self.module = load_module(build(layout, options))
-        self.p = np.array([values[sp.Symbol(n, real=True)] for n in self.module.PARAMS], dtype=float)
+    Args:
+        path: the generated module (`build`).
+        params: parameter name -> value, for every parameter of the module.
+        layout: the mechanism's layout, which names constraints in failure
+            messages; None for a cached run (`symid.plan`), which reruns
+            the whole normal path on any failure.
+    """
+
+    layout: Layout  # None only in a planned run, which never reads it (see above)
+
+    def __init__(self, path: Path, params: Mapping[str, float], layout: Layout | None) -> None:
+        self.layout = layout  # type: ignore[assignment]
+        self.artifact = path
+        self.module = load_module(path)
+        self.p = np.array([params[n] for n in self.module.PARAMS], dtype=float)
         self.p_list = self.p.tolist()
 
     # One instant at a time, the module's scalar (`math`) kernels are an order
@@ -82,4 +97,11 @@ class NumpyBackend:
     def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> NumpyEvaluator:
         from symid.codegen.model import options_for
 
-        return NumpyEvaluator(layout, values, options_for(layout.mechanism))
+        path = build(layout, options_for(layout.mechanism))
+        return NumpyEvaluator(path, {s.name: v for s, v in values.items()}, layout)
+
+    def load(self, artifact: Path, name: str, params: Mapping[str, float]) -> NumpyEvaluator:
+        """The module generated earlier at `artifact` (a cached run, `symid.plan`)."""
+        if not (artifact.parent / "complete").is_file():
+            raise FileNotFoundError(f"{artifact}: not a complete build")
+        return NumpyEvaluator(artifact, params, None)

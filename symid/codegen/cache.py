@@ -12,14 +12,14 @@ import hashlib
 import os
 import shutil
 import tempfile
-from functools import cache
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
-import symid
-from symid.codegen.flat import Options
-from symid.codegen.render import template_dir
-from symid.model import Mechanism
+from symid.sources import code_version
+
+if TYPE_CHECKING:  # a cached run (symid.plan) finds its solver here without sympy
+    from symid.codegen.flat import Options
+    from symid.model import Mechanism
 
 
 def cache_root() -> Path:
@@ -28,18 +28,6 @@ def cache_root() -> Path:
         return Path(os.environ["SYMID_CACHE"])
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "symid"
-
-
-@cache
-def code_version() -> str:
-    """Hash of symid's sources and templates: any change invalidates the cache."""
-    h = hashlib.sha256()
-    for root in (Path(symid.__file__).parent, template_dir()):
-        for path in sorted(root.rglob("*")):
-            if path.suffix in (".py", ".j2") and path.is_file():
-                h.update(path.relative_to(root).as_posix().encode())
-                h.update(path.read_bytes())
-    return h.hexdigest()
 
 
 def key(mech: Mechanism, options: Options, target: str) -> str:

@@ -9,19 +9,11 @@ CSE'd and printed.
 from __future__ import annotations
 
 from functools import cache
-from importlib import resources
-from pathlib import Path
 from typing import Any
 
 import jinja2
 
-
-def template_dir() -> Path:
-    """Where the templates are: the checkout's `templates/` or the packaged copy."""
-    checkout = Path(__file__).resolve().parents[2] / "templates"
-    if checkout.is_dir():
-        return checkout
-    return Path(str(resources.files("symid") / "_templates"))
+from symid.sources import template_dir
 
 
 @cache

@@ -6,13 +6,15 @@ import argparse
 import sys
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from symid.errors import InputError
-from symid.model import Mechanism
 from symid.results import Results
+
+if TYPE_CHECKING:  # registering the subcommand must not import sympy (see symid.plan)
+    from symid.model import Mechanism
 
 
 def read_csv(path: Path) -> Results:

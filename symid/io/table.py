@@ -20,6 +20,7 @@ import sympy as sp
 
 from symid import motion
 from symid.errors import InputError
+from symid.io.paths import table_path
 
 KEYS = ("table", "column", "time", "smoothing")
 MIN_ROWS = 5  # the smoothing spline's minimum; a not-a-knot cubic needs 4
@@ -55,7 +56,7 @@ def read(spec: Mapping[str, Any], source: str, where: str) -> sp.Expr:
     if time is not None and not isinstance(time, str):
         raise fail(f"table {name!r}: time must be a column name, not {time!r}")
     smoothing = _smoothing(spec.get("smoothing", 0), lambda m: fail(f"table {name!r}: key 'smoothing': {m}"))
-    path = Path(name) if Path(name).is_absolute() else Path(source).parent / name
+    path = table_path(name, source)
     text = _text(path, lambda m: fail(f"table {name!r}: {m}"))
     here = lambda m: fail(f"table {name!r}: {m}")  # noqa: E731
     t, y, lines = _columns(text, time, column, here)
