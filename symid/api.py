@@ -81,11 +81,11 @@ class Study:
         return run(self.evaluator, self.analysis, self.q0(), self.notes)
 
     def rows(self) -> Iterator[Array]:
-        """The results table row by row; a compiled backend runs its own loop."""
+        """The results table row by row; a backend with a loop of its own runs it."""
         own = getattr(self.evaluator, "rows", None)
         if own is not None:
             self.notes = Notes(self.analysis)
-            yield from own(self.analysis, self.q0())
+            yield from own(self.analysis, self.q0(), self.notes)
             return
         for instant in self.instants():
             yield row(instant, self.layout, self.analysis)
