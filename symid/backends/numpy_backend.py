@@ -109,7 +109,8 @@ class NumpyEvaluator:
         m = self.module
         stepper = Stepper(self, analysis, notes)
         first = stepper.instant(0, analysis.t0, None, [], q0)
-        yield row(first, self.layout, analysis)
+        head = row(first, self.layout, analysis)
+        yield head
         scaling = stepper.scaling
         assert scaling is not None
         pivots = [float(scaling.dr[r] * scaling.dc[c]) for r, c in zip(m.PIVOT_ROWS, m.PIVOT_COLS)]
@@ -117,11 +118,12 @@ class NumpyEvaluator:
         steps, t0 = analysis.steps, analysis.t0
         h = (analysis.t1 - t0) / (steps - 1) if steps > 1 else 0.0
         past, qd, qdd = [first.q.tolist()], _listed(first.qd), _listed(first.qdd)
+        width, fromiter = head.size, np.fromiter  # fromiter with a count: 2x faster than np.array
         k = 1
         while k < steps:
             try:
                 for values in m._rows(t0, h, k, steps, self.p_list, analysis.tol, None, past, qd, qdd, check):
-                    yield np.array(values)
+                    yield fromiter(values, float, width)
                 return
             except m.SolverError as exc:
                 k, past, qd, qdd = exc.k, exc.past, exc.qd, exc.qdd

@@ -33,7 +33,6 @@ SINGULAR_RCOND = 1e3 * EPS
 LU_SIZE = 35
 PIVOT_ROWS = (5, 1, 6, 0, 3, 7, 2, 8, 4, )
 PIVOT_COLS = (7, 1, 0, 2, 4, 3, 5, 6, 8, )
-_FILL = [0.0] * 0
 _ZEROS = [0.0] * NG
 
 
@@ -748,7 +747,88 @@ class _Dense:
 def _lu(q, t, p):
     """Phi_q(q) factored in the fixed sparse order (steps PIVOT_ROWS, PIVOT_COLS),
     or None where a pivot fails the threshold test."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23, a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34 = _phi_q_values_s(q, t, p)
+    # Phi_q's values straight into the factor's slots (as _phi_q_values_s)
+    e0 = math.sin(q[2])
+    e1 = (1/2)*p[0]
+    e2 = e0*e1
+    e3 = math.cos(q[2])
+    e4 = -e1*e3
+    e5 = math.sin(q[5])
+    e6 = (1/2)*p[1]
+    e7 = e5*e6
+    e8 = math.cos(q[5])
+    e9 = -e6*e8
+    e10 = math.sin(q[8])
+    e11 = (1/2)*p[2]
+    e12 = math.cos(q[8])
+    e13 = 2*q[0]
+    e14 = 23/10 - e1
+    e15 = e14*e3
+    e16 = (4/5)*e0 + 2*e15
+    e17 = 2*q[1]
+    e18 = e0*e14
+    e19 = 2*e18 - 4/5*e3
+    e20 = 2*q[3]
+    e21 = (11/10)*e0
+    e22 = (3/5)*e3
+    e23 = (3/10)*e5
+    e24 = -e6 - 3/4
+    e25 = 2*e24*e8
+    e26 = e13 - e20 - e21 + e22 + e23 - e25
+    e27 = 2*q[4]
+    e28 = (3/10)*e8
+    e29 = 2*e24*e5
+    e30 = (3/5)*e0 + (11/10)*e3
+    e31 = e17 - e27 - e28 - e29 + e30
+    e32 = -3/10*e0 + e24*e5 - 11/20*e3 + (3/20)*e8 - q[1] + q[4]
+    e33 = (11/20)*e0 + e24*e8 - 3/10*e3 - 3/20*e5 - q[0] + q[3]
+    e34 = -e11 - 1/20
+    e35 = 2*e12*e34
+    e36 = 2/5 - e6
+    e37 = e36*e8
+    e38 = 2*e37 - 7/10*e5
+    e39 = e10 + e20 - e35 + e38 - 2*q[6]
+    e40 = 2*e10*e34
+    e41 = e36*e5
+    e42 = 2*e41 + (7/10)*e8
+    e43 = -e12 + e27 - e40 + e42 - 2*q[7]
+    e44 = -1/2*e10 + e12*e34 - e37 + (7/20)*e5 - q[3] + q[6]
+    e45 = e10*e34 + (1/2)*e12 - e41 - 7/20*e8 - q[4] + q[7]
+    a0 = 1
+    a1 = e2
+    a2 = 1
+    a3 = e4
+    a4 = -1
+    a5 = e2
+    a6 = 1
+    a7 = e7
+    a8 = -1
+    a9 = e4
+    a10 = 1
+    a11 = e9
+    a12 = -1
+    a13 = e7
+    a14 = 1
+    a15 = e10*e11
+    a16 = -1
+    a17 = e9
+    a18 = 1
+    a19 = -e11*e12
+    a20 = e13 + e16 - 3/5
+    a21 = e17 + e19 + 12/5
+    a22 = e16*(e18 - 2/5*e3 + q[1] + 6/5) - e19*((2/5)*e0 + e15 + q[0] - 3/10)
+    a23 = e26
+    a24 = e31
+    a25 = e30*e33 + e32*(e21 - e22)
+    a26 = -e26
+    a27 = -e31
+    a28 = e32*(-e23 + e25) + e33*(-e28 - e29)
+    a29 = e39
+    a30 = e43
+    a31 = -e38*e45 + e42*e44
+    a32 = -e39
+    a33 = -e43
+    a34 = e44*(-e12 - e40) + e45*(-e10 + e35)
     u = abs(a18)
     if not (u > 0.0 and u >= THRESHOLD * abs(a33)):
         return None
@@ -942,11 +1022,17 @@ def _spread(a, s):
     return max(u0, u1, u2, u3, u4, u5, u6, u7, u8) / min(u0, u1, u2, u3, u4, u5, u6, u7, u8)
 
 
-def _moved(q, g, q1, c, floor, ratio):
+def _moved(q, g, o, c, floor, ratio):
     """Whether Newton moved q from the guess g by more than floor and ratio
-    times the predicted motion g - q1 (each max_j |.| c_j)."""
-    correction = max([abs(u - v) * w for u, v, w in zip(q, g, c)])
-    return correction > floor and correction > ratio * max([abs(u - v) * w for u, v, w in zip(g, q1, c)])
+    times the predicted motion g - o (each max_j |.| c_j)."""
+    q0, q1, q2, q3, q4, q5, q6, q7, q8 = q
+    g0, g1, g2, g3, g4, g5, g6, g7, g8 = g
+    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c
+    correction = max(abs(q0 - g0) * c0, abs(q1 - g1) * c1, abs(q2 - g2) * c2, abs(q3 - g3) * c3, abs(q4 - g4) * c4, abs(q5 - g5) * c5, abs(q6 - g6) * c6, abs(q7 - g7) * c7, abs(q8 - g8) * c8)
+    if not correction > floor:
+        return False
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    return correction > ratio * max(abs(g0 - o0) * c0, abs(g1 - o1) * c1, abs(g2 - o2) * c2, abs(g3 - o3) * c3, abs(g4 - o4) * c4, abs(g5 - o5) * c5, abs(g6 - o6) * c6, abs(g7 - o7) * c7, abs(g8 - o8) * c8)
 
 
 def _instant(t, p, q, tol, m):

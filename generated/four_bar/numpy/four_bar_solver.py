@@ -33,7 +33,6 @@ SINGULAR_RCOND = 1e3 * EPS
 LU_SIZE = 25
 PIVOT_ROWS = (8, 0, 1, 2, 3, 6, 4, 5, 7, )
 PIVOT_COLS = (2, 0, 1, 3, 4, 6, 5, 7, 8, )
-_FILL = [0.0] * 0
 _ZEROS = [0.0] * NG
 
 
@@ -450,7 +449,41 @@ class _Dense:
 def _lu(q, t, p):
     """Phi_q(q) factored in the fixed sparse order (steps PIVOT_ROWS, PIVOT_COLS),
     or None where a pivot fails the threshold test."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23, a24 = _phi_q_values_s(q, t, p)
+    # Phi_q's values straight into the factor's slots (as _phi_q_values_s)
+    e0 = (1/2)*p[1]
+    e1 = e0*math.sin(q[2])
+    e2 = -e0*math.cos(q[2])
+    e3 = (1/2)*p[2]
+    e4 = e3*math.sin(q[5])
+    e5 = -e3*math.cos(q[5])
+    e6 = (1/2)*p[3]
+    e7 = e6*math.sin(q[8])
+    e8 = e6*math.cos(q[8])
+    a0 = 1
+    a1 = e1
+    a2 = 1
+    a3 = e2
+    a4 = -1
+    a5 = e1
+    a6 = 1
+    a7 = e4
+    a8 = -1
+    a9 = e2
+    a10 = 1
+    a11 = e5
+    a12 = -1
+    a13 = e4
+    a14 = 1
+    a15 = -e7
+    a16 = -1
+    a17 = e5
+    a18 = 1
+    a19 = e8
+    a20 = 1
+    a21 = e7
+    a22 = 1
+    a23 = -e8
+    a24 = 1
     u = abs(a24)
     if not (u > 0.0 and u >= THRESHOLD * abs(a1) and u >= THRESHOLD * abs(a3) and u >= THRESHOLD * abs(a5) and u >= THRESHOLD * abs(a9)):
         return None
@@ -606,11 +639,17 @@ def _spread(a, s):
     return max(u0, u1, u2, u3, u4, u5, u6, u7, u8) / min(u0, u1, u2, u3, u4, u5, u6, u7, u8)
 
 
-def _moved(q, g, q1, c, floor, ratio):
+def _moved(q, g, o, c, floor, ratio):
     """Whether Newton moved q from the guess g by more than floor and ratio
-    times the predicted motion g - q1 (each max_j |.| c_j)."""
-    correction = max([abs(u - v) * w for u, v, w in zip(q, g, c)])
-    return correction > floor and correction > ratio * max([abs(u - v) * w for u, v, w in zip(g, q1, c)])
+    times the predicted motion g - o (each max_j |.| c_j)."""
+    q0, q1, q2, q3, q4, q5, q6, q7, q8 = q
+    g0, g1, g2, g3, g4, g5, g6, g7, g8 = g
+    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c
+    correction = max(abs(q0 - g0) * c0, abs(q1 - g1) * c1, abs(q2 - g2) * c2, abs(q3 - g3) * c3, abs(q4 - g4) * c4, abs(q5 - g5) * c5, abs(q6 - g6) * c6, abs(q7 - g7) * c7, abs(q8 - g8) * c8)
+    if not correction > floor:
+        return False
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    return correction > ratio * max(abs(g0 - o0) * c0, abs(g1 - o1) * c1, abs(g2 - o2) * c2, abs(g3 - o3) * c3, abs(g4 - o4) * c4, abs(g5 - o5) * c5, abs(g6 - o6) * c6, abs(g7 - o7) * c7, abs(g8 - o8) * c8)
 
 
 def _instant(t, p, q, tol, m):

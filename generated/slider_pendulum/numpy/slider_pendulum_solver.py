@@ -33,7 +33,6 @@ SINGULAR_RCOND = 1e3 * EPS
 LU_SIZE = 15
 PIVOT_ROWS = (3, 4, 5, 0, 1, 2, )
 PIVOT_COLS = (3, 4, 5, 2, 1, 0, )
-_FILL = [0.0] * 0
 _ZEROS = [0.0] * NG
 
 
@@ -384,7 +383,28 @@ class _Dense:
 def _lu(q, t, p):
     """Phi_q(q) factored in the fixed sparse order (steps PIVOT_ROWS, PIVOT_COLS),
     or None where a pivot fails the threshold test."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14 = _phi_q_values_s(q, t, p)
+    # Phi_q's values straight into the factor's slots (as _phi_q_values_s)
+    e0 = math.sin(p[0])
+    e1 = math.sin(q[2])
+    e2 = math.cos(p[0])
+    e3 = math.cos(q[2])
+    e4 = 1/math.sqrt(e0**2 + e2**2)
+    e5 = (1/2)*p[9]
+    a0 = -e0*(-e0*e3 - e1*e2) + e2*(-e0*e1 + e2*e3)
+    a1 = -e0
+    a2 = e2
+    a3 = e2*e4
+    a4 = e0*e4
+    a5 = -1
+    a6 = -e3*p[8]
+    a7 = 1
+    a8 = e5*math.sin(q[5])
+    a9 = -1
+    a10 = -e1*p[8]
+    a11 = 1
+    a12 = -e5*math.cos(q[5])
+    a13 = -1
+    a14 = 1
     if not abs(a7) > 0.0:
         return None
     if not abs(a11) > 0.0:
@@ -471,11 +491,17 @@ def _spread(a, s):
     return max(u0, u1, u2, u3, u4, u5) / min(u0, u1, u2, u3, u4, u5)
 
 
-def _moved(q, g, q1, c, floor, ratio):
+def _moved(q, g, o, c, floor, ratio):
     """Whether Newton moved q from the guess g by more than floor and ratio
-    times the predicted motion g - q1 (each max_j |.| c_j)."""
-    correction = max([abs(u - v) * w for u, v, w in zip(q, g, c)])
-    return correction > floor and correction > ratio * max([abs(u - v) * w for u, v, w in zip(g, q1, c)])
+    times the predicted motion g - o (each max_j |.| c_j)."""
+    q0, q1, q2, q3, q4, q5 = q
+    g0, g1, g2, g3, g4, g5 = g
+    c0, c1, c2, c3, c4, c5 = c
+    correction = max(abs(q0 - g0) * c0, abs(q1 - g1) * c1, abs(q2 - g2) * c2, abs(q3 - g3) * c3, abs(q4 - g4) * c4, abs(q5 - g5) * c5)
+    if not correction > floor:
+        return False
+    o0, o1, o2, o3, o4, o5 = o
+    return correction > ratio * max(abs(g0 - o0) * c0, abs(g1 - o1) * c1, abs(g2 - o2) * c2, abs(g3 - o3) * c3, abs(g4 - o4) * c4, abs(g5 - o5) * c5)
 
 
 def _instant(t, p, q, tol, m):

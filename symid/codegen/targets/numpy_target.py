@@ -65,21 +65,10 @@ def _function(name: str, args: list[str], exprs: list[sp.Expr], doc: str) -> dic
             "like": "q[0]" if "q" in args else "0.0"}
 
 
-def _names(prefix: str, indices: Any) -> str:
-    """`a0, a1, ...`: a target list for one unpacking (a trailing comma for one name)."""
-    names = [f"{prefix}{k}" for k in indices]
-    return ", ".join(names) + ("," if len(names) == 1 else "")
-
-
 def _lu(model: CodeModel) -> dict[str, Any]:
     plan = model.plan
-    f = model.flat
     steps = lu_steps(plan)
     return {"steps": steps, "lu_size": plan.size, "singular_plan": plan.singular,
-            "lu_unpack": _names("a", range(plan.size)), "y_unpack": _names("y", range(f.nc)),
-            "b_unpack": _names("b", range(f.ng)), "q_unpack": _names("q", range(f.ng)),
-            "x_list": _names("x", range(f.ng)), "lam_list": _names("x", range(f.nc)),
-            "u_list": _names("u", range(len(steps))),
             "pivot_rows": [st["row"] for st in steps], "pivot_cols": [st["col"] for st in steps]}
 
 
@@ -114,6 +103,7 @@ def context(model: CodeModel) -> dict[str, Any]:
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac], "nnz": len(f.jac),
         "functions": functions, "outputs": o.outputs, "kind": o.kind, "threshold": repr(THRESHOLD),
         "velocity": o.velocity, "multipliers": o.multipliers, **_lu(model), "row_items": _row_items(model),
+        "phi_q_scalar": functions[1]["scalar"],
         "splines": [piece_tables(s) for s in tables(f.phi + f.nu + f.gamma + f.applied + f.reactions)],
     }
 
