@@ -95,8 +95,7 @@ def phi(q, t, p):
 
 
 def _phi_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.cos(q[2])
     e1 = (1/2)*p[0]
     e2 = e0*e1
@@ -121,15 +120,17 @@ def _phi_s(q, t, p):
     e21 = 1/2 - 1/2*math.cos(e19)
     e22 = 2/5 - e6
     e23 = -e13 - 1/20
-    out[0] = -e2 + q[0]
-    out[1] = -e4 + q[1]
-    out[2] = -e2 - e7 - e8
-    out[3] = -e10 - e11 - e4
-    out[4] = -e12*e13 - e14 - e7
-    out[5] = -e10 - e16*p[2] - e17
-    out[6] = -(-p[10]*math.sin(e19) + p[9])**2 + (-2/5*e0 + e18*e3 + q[1] + 6/5)**2 + (e0*e18 + (2/5)*e3 + q[0] - 3/10)**2
-    out[7] = -(e21*p[12] + p[11])**2 + (-11/20*e0 - e11 + e20*e9 - 3/10*e3 + (3/20)*e5)**2 + (-3/10*e0 + e20*e5 + (11/20)*e3 - e8 - 3/20*e9)**2
-    out[8] = -(e21*p[14] + p[13])**2 + ((1/2)*e12 + e15*e23 - e17 - e22*e9 - 7/20*e5)**2 + (e12*e23 - e14 - e16 - e22*e5 + (7/20)*e9)**2
+    out = [
+        -e2 + q[0],
+        -e4 + q[1],
+        -e2 - e7 - e8,
+        -e10 - e11 - e4,
+        -e12*e13 - e14 - e7,
+        -e10 - e16*p[2] - e17,
+        -(-p[10]*math.sin(e19) + p[9])**2 + (-2/5*e0 + e18*e3 + q[1] + 6/5)**2 + (e0*e18 + (2/5)*e3 + q[0] - 3/10)**2,
+        -(e21*p[12] + p[11])**2 + (-11/20*e0 - e11 + e20*e9 - 3/10*e3 + (3/20)*e5)**2 + (-3/10*e0 + e20*e5 + (11/20)*e3 - e8 - 3/20*e9)**2,
+        -(e21*p[14] + p[13])**2 + ((1/2)*e12 + e15*e23 - e17 - e22*e9 - 7/20*e5)**2 + (e12*e23 - e14 - e16 - e22*e5 + (7/20)*e9)**2,
+    ]
     return out
 
 
@@ -221,8 +222,7 @@ def phi_q_values(q, t, p):
 
 
 def _phi_q_values_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 35
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.sin(q[2])
     e1 = (1/2)*p[0]
     e2 = e0*e1
@@ -269,41 +269,43 @@ def _phi_q_values_s(q, t, p):
     e43 = -e12 + e27 - e40 + e42 - 2*q[7]
     e44 = -1/2*e10 + e12*e34 - e37 + (7/20)*e5 - q[3] + q[6]
     e45 = e10*e34 + (1/2)*e12 - e41 - 7/20*e8 - q[4] + q[7]
-    out[0] = 1
-    out[1] = e2
-    out[2] = 1
-    out[3] = e4
-    out[4] = -1
-    out[5] = e2
-    out[6] = 1
-    out[7] = e7
-    out[8] = -1
-    out[9] = e4
-    out[10] = 1
-    out[11] = e9
-    out[12] = -1
-    out[13] = e7
-    out[14] = 1
-    out[15] = e10*e11
-    out[16] = -1
-    out[17] = e9
-    out[18] = 1
-    out[19] = -e11*e12
-    out[20] = e13 + e16 - 3/5
-    out[21] = e17 + e19 + 12/5
-    out[22] = e16*(e18 - 2/5*e3 + q[1] + 6/5) - e19*((2/5)*e0 + e15 + q[0] - 3/10)
-    out[23] = e26
-    out[24] = e31
-    out[25] = e30*e33 + e32*(e21 - e22)
-    out[26] = -e26
-    out[27] = -e31
-    out[28] = e32*(-e23 + e25) + e33*(-e28 - e29)
-    out[29] = e39
-    out[30] = e43
-    out[31] = -e38*e45 + e42*e44
-    out[32] = -e39
-    out[33] = -e43
-    out[34] = e44*(-e12 - e40) + e45*(-e10 + e35)
+    out = [
+        1,
+        e2,
+        1,
+        e4,
+        -1,
+        e2,
+        1,
+        e7,
+        -1,
+        e4,
+        1,
+        e9,
+        -1,
+        e7,
+        1,
+        e10*e11,
+        -1,
+        e9,
+        1,
+        -e11*e12,
+        e13 + e16 - 3/5,
+        e17 + e19 + 12/5,
+        e16*(e18 - 2/5*e3 + q[1] + 6/5) - e19*((2/5)*e0 + e15 + q[0] - 3/10),
+        e26,
+        e31,
+        e30*e33 + e32*(e21 - e22),
+        -e26,
+        -e31,
+        e32*(-e23 + e25) + e33*(-e28 - e29),
+        e39,
+        e43,
+        -e38*e45 + e42*e44,
+        -e39,
+        -e43,
+        e44*(-e12 - e40) + e45*(-e10 + e35),
+    ]
     return out
 
 
@@ -328,22 +330,23 @@ def nu(q, t, p):
 
 
 def _nu_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = p[8]*t
     e1 = math.sin(e0)
     e2 = math.cos(e0)
     e3 = 1/2 - 1/2*e2
     e4 = e1*p[8]
-    out[0] = 0
-    out[1] = 0
-    out[2] = 0
-    out[3] = 0
-    out[4] = 0
-    out[5] = 0
-    out[6] = -2*e2*p[10]*p[8]*(-e1*p[10] + p[9])
-    out[7] = e4*p[12]*(e3*p[12] + p[11])
-    out[8] = e4*p[14]*(e3*p[14] + p[13])
+    out = [
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        -2*e2*p[10]*p[8]*(-e1*p[10] + p[9]),
+        e4*p[12]*(e3*p[12] + p[11]),
+        e4*p[14]*(e3*p[14] + p[13]),
+    ]
     return out
 
 
@@ -437,8 +440,7 @@ def gamma(q, qd, t, p):
 
 
 def _gamma_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = (1/2)*p[0]
     e1 = qd[2]**2
     e2 = math.cos(q[2])
@@ -513,15 +515,17 @@ def _gamma_s(q, qd, t, p):
     e71 = e17*e69
     e72 = 2*e63*e66
     e73 = e72*e9
-    out[0] = -e4
-    out[1] = -e7
-    out[2] = -e12 - e4
-    out[3] = -e14 - e7
-    out[4] = -e12 - e15*e18
-    out[5] = -e14 - e15*e20
-    out[6] = 2*e1*e2*e24*q[0] + 2*e1*e24*e5*q[1] + (12/5)*e1*e24*e5 + (4/5)*e1*e5*q[0] - e2*e26*qd[0] + 2*e21*e23**2*p[10]**2 + 2*e21*e27*p[10]*(-e27*p[10] + p[9]) - e24*e25 - 4*e24*e28*qd[1] + 4*e24*e5*qd[0]*qd[2] - e26*e5*qd[1] - e29 - 4/5*e3*q[1] - 24/25*e3 - 6/25*e6
-    out[7] = (9/100)*e1*e13*e2 + (3/5)*e1*e2*q[0] + (11/10)*e1*e2*q[1] + (11/10)*e1*e44*e5*e8 + (3/5)*e1*e5*q[1] + (11/10)*e1*e5*q[3] + (11/5)*e13*e2*e44*qd[2]*qd[5] + (9/100)*e13*e2*e9 - 9/50*e13*e28*qd[5] - e13*e32*qd[1] - e13*e33*q[3] + (6/5)*e13*e44*e5*qd[2]*qd[5] + 2*e13*e44*e9*q[4] + 4*e13*e44*qd[3]*qd[5] - 2*e13*e45*q[1] - 4*e13*e46*qd[0] + (33/100)*e13*e5*qd[2]*qd[5] + (3/10)*e13*e9*q[0] + (3/5)*e13*qd[4]*qd[5] - e2*e34*qd[1] - e2*e37*qd[3] + (6/5)*e2*e44*e8*qd[2]*qd[5] + (33/100)*e2*e8*qd[2]*qd[5] + (11/5)*e2*qd[0]*qd[2] + (6/5)*e2*qd[2]*qd[4] + e21*e23*p[12]*(e43*p[12] + p[11]) + (1/2)*e21*e30*p[12]**2 - e25*e49 - e25*q[3] - e29 - e3*e40 - e31*e50 - e31*q[4] - e32*e8*qd[0] - e33*e8*q[1] - e34*e5*qd[3] - e35*e36 - e35*e6 - e36*e41 - 3/5*e36*e50 - e38*e48 - e38*qd[4] - e39*e50 - e39*q[4] - e40*e42 - e41*e6 - 3/5*e42*e49 - 11/10*e42*e50 + (11/10)*e44*e5*e8*e9 + 2*e44*e8*e9*q[3] + 4*e44*e8*qd[1]*qd[5] - 2*e45*e8*q[0] - e47*e48 + (9/50)*e5*e8*qd[2]*qd[5] + (6/5)*e5*qd[0]*qd[2] + (11/5)*e5*qd[1]*qd[2] - e51 - 11/10*e6*q[0] + (3/10)*e8*e9*q[4] + (3/5)*e8*qd[3]*qd[5] + 4*qd[0]*qd[3] + 4*qd[1]*qd[4]
-    out[8] = (7/10)*e13*e16*e17*e66 + 2*e13*e17*e63*qd[5]*qd[8] + (7/10)*e13*e17*e66*e9 + 4*e13*e19*e63*e66*qd[5]*qd[8] + (7/10)*e13*e19*qd[5]*qd[8] - e13*e56*q[3] + 2*e13*e63*e9*q[4] + 4*e13*e63*qd[3]*qd[5] + (7/10)*e13*e9*q[6] + (7/5)*e13*qd[4]*qd[5] + 2*e16*e17*e66*q[6] + e16*e17*q[7] + e16*e19*e63*e8 + 2*e16*e19*e66*q[7] + e16*e19*q[3] - e17*e52*qd[3] + 4*e17*e63*e66*e8*qd[5]*qd[8] - e17*e65 + 4*e17*e66*qd[4]*qd[8] + (7/10)*e17*e8*qd[5]*qd[8] + 2*e17*qd[6]*qd[8] - e18*e64 - 2*e18*e66*q[3] - e18*q[4] - e19*e57*e66 + e19*e63*e8*e9 + (7/5)*e19*e66*e8*qd[5]*qd[8] + 4*e19*e66*qd[6]*qd[8] - 4*e19*e69*qd[3] + 2*e19*qd[7]*qd[8] - e20*q[6] + e21*e23*p[14]*(e43*p[14] + p[13]) + (1/2)*e21*e30*p[14]**2 - e47*e70 - e51 - e53*e70 - e53*qd[4] - e54*e8*qd[6] - e55*e71 - e55*qd[7] - e57*q[7] - e58*e59 - e58*e60 - e59*e73 - e60*e73 - e61*e72 - 7/20*e61 - e62*e72 - 7/20*e62 + 2*e63*e8*e9*q[3] + 4*e63*e8*qd[5]*qd[7] - 4*e64*qd[5]*qd[6] - 2*e65*q[7] - 7/10*e67*e8 - 2*e67*q[4] - 2*e68*e9*q[6] - 4*e71*qd[7] + (7/10)*e8*e9*q[4] + (7/5)*e8*qd[3]*qd[5] + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2
+    out = [
+        -e4,
+        -e7,
+        -e12 - e4,
+        -e14 - e7,
+        -e12 - e15*e18,
+        -e14 - e15*e20,
+        2*e1*e2*e24*q[0] + 2*e1*e24*e5*q[1] + (12/5)*e1*e24*e5 + (4/5)*e1*e5*q[0] - e2*e26*qd[0] + 2*e21*e23**2*p[10]**2 + 2*e21*e27*p[10]*(-e27*p[10] + p[9]) - e24*e25 - 4*e24*e28*qd[1] + 4*e24*e5*qd[0]*qd[2] - e26*e5*qd[1] - e29 - 4/5*e3*q[1] - 24/25*e3 - 6/25*e6,
+        (9/100)*e1*e13*e2 + (3/5)*e1*e2*q[0] + (11/10)*e1*e2*q[1] + (11/10)*e1*e44*e5*e8 + (3/5)*e1*e5*q[1] + (11/10)*e1*e5*q[3] + (11/5)*e13*e2*e44*qd[2]*qd[5] + (9/100)*e13*e2*e9 - 9/50*e13*e28*qd[5] - e13*e32*qd[1] - e13*e33*q[3] + (6/5)*e13*e44*e5*qd[2]*qd[5] + 2*e13*e44*e9*q[4] + 4*e13*e44*qd[3]*qd[5] - 2*e13*e45*q[1] - 4*e13*e46*qd[0] + (33/100)*e13*e5*qd[2]*qd[5] + (3/10)*e13*e9*q[0] + (3/5)*e13*qd[4]*qd[5] - e2*e34*qd[1] - e2*e37*qd[3] + (6/5)*e2*e44*e8*qd[2]*qd[5] + (33/100)*e2*e8*qd[2]*qd[5] + (11/5)*e2*qd[0]*qd[2] + (6/5)*e2*qd[2]*qd[4] + e21*e23*p[12]*(e43*p[12] + p[11]) + (1/2)*e21*e30*p[12]**2 - e25*e49 - e25*q[3] - e29 - e3*e40 - e31*e50 - e31*q[4] - e32*e8*qd[0] - e33*e8*q[1] - e34*e5*qd[3] - e35*e36 - e35*e6 - e36*e41 - 3/5*e36*e50 - e38*e48 - e38*qd[4] - e39*e50 - e39*q[4] - e40*e42 - e41*e6 - 3/5*e42*e49 - 11/10*e42*e50 + (11/10)*e44*e5*e8*e9 + 2*e44*e8*e9*q[3] + 4*e44*e8*qd[1]*qd[5] - 2*e45*e8*q[0] - e47*e48 + (9/50)*e5*e8*qd[2]*qd[5] + (6/5)*e5*qd[0]*qd[2] + (11/5)*e5*qd[1]*qd[2] - e51 - 11/10*e6*q[0] + (3/10)*e8*e9*q[4] + (3/5)*e8*qd[3]*qd[5] + 4*qd[0]*qd[3] + 4*qd[1]*qd[4],
+        (7/10)*e13*e16*e17*e66 + 2*e13*e17*e63*qd[5]*qd[8] + (7/10)*e13*e17*e66*e9 + 4*e13*e19*e63*e66*qd[5]*qd[8] + (7/10)*e13*e19*qd[5]*qd[8] - e13*e56*q[3] + 2*e13*e63*e9*q[4] + 4*e13*e63*qd[3]*qd[5] + (7/10)*e13*e9*q[6] + (7/5)*e13*qd[4]*qd[5] + 2*e16*e17*e66*q[6] + e16*e17*q[7] + e16*e19*e63*e8 + 2*e16*e19*e66*q[7] + e16*e19*q[3] - e17*e52*qd[3] + 4*e17*e63*e66*e8*qd[5]*qd[8] - e17*e65 + 4*e17*e66*qd[4]*qd[8] + (7/10)*e17*e8*qd[5]*qd[8] + 2*e17*qd[6]*qd[8] - e18*e64 - 2*e18*e66*q[3] - e18*q[4] - e19*e57*e66 + e19*e63*e8*e9 + (7/5)*e19*e66*e8*qd[5]*qd[8] + 4*e19*e66*qd[6]*qd[8] - 4*e19*e69*qd[3] + 2*e19*qd[7]*qd[8] - e20*q[6] + e21*e23*p[14]*(e43*p[14] + p[13]) + (1/2)*e21*e30*p[14]**2 - e47*e70 - e51 - e53*e70 - e53*qd[4] - e54*e8*qd[6] - e55*e71 - e55*qd[7] - e57*q[7] - e58*e59 - e58*e60 - e59*e73 - e60*e73 - e61*e72 - 7/20*e61 - e62*e72 - 7/20*e62 + 2*e63*e8*e9*q[3] + 4*e63*e8*qd[5]*qd[7] - 4*e64*qd[5]*qd[6] - 2*e65*q[7] - 7/10*e67*e8 - 2*e67*q[4] - 2*e68*e9*q[6] - 4*e71*qd[7] + (7/10)*e8*e9*q[4] + (7/5)*e8*qd[3]*qd[5] + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2,
+    ]
     return out
 
 
@@ -543,19 +547,20 @@ def applied(q, qd, t, p):
 
 
 def _applied_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.exp(-(-p[16] + t)**2/p[17]**2)
     e1 = e0*p[15]
-    out[0] = 0
-    out[1] = -981/100*p[4]
-    out[2] = 0
-    out[3] = 0
-    out[4] = -981/100*p[5]
-    out[5] = 0
-    out[6] = e1
-    out[7] = (3/10)*e1 - 981/100*p[6]
-    out[8] = (3/20)*e0*p[15]*p[2]*math.cos(q[8]) - 1/2*e1*p[2]*math.sin(q[8])
+    out = [
+        0,
+        -981/100*p[4],
+        0,
+        0,
+        -981/100*p[5],
+        0,
+        e1,
+        (3/10)*e1 - 981/100*p[6],
+        (3/20)*e0*p[15]*p[2]*math.cos(q[8]) - 1/2*e1*p[2]*math.sin(q[8]),
+    ]
     return out
 
 
@@ -575,17 +580,18 @@ def mass(p):
 
 
 def _mass_s(p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = p[4]
-    out[1] = p[4]
-    out[2] = (1/12)*p[0]**2*p[4]
-    out[3] = p[5]
-    out[4] = p[5]
-    out[5] = (1/12)*p[1]**2*p[5]
-    out[6] = p[6]
-    out[7] = p[6]
-    out[8] = (1/12)*p[6]*(p[2]**2 + p[3]**2)
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        p[4],
+        p[4],
+        (1/12)*p[0]**2*p[4],
+        p[5],
+        p[5],
+        (1/12)*p[1]**2*p[5],
+        p[6],
+        p[6],
+        (1/12)*p[6]*(p[2]**2 + p[3]**2),
+    ]
     return out
 
 
@@ -654,8 +660,7 @@ def reactions(q, lam, t, p):
 
 
 def _reactions_s(q, lam, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 36
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = 2*lam[6]
     e1 = math.sin(q[2])
     e2 = (4/5)*lam[6]
@@ -678,42 +683,44 @@ def _reactions_s(q, lam, t, p):
     e19 = e16*(2/5 - e10)
     e20 = e12*e19 + e15*lam[8] + e16*q[3] - 2*e17*e18*lam[8] - 7/10*e9*lam[8] - 2*lam[8]*q[6]
     e21 = (7/10)*e12*lam[8] - 2*e15*e17*lam[8] + e16*q[4] - e18*lam[8] + e19*e9 - 2*lam[8]*q[7]
-    out[0] = lam[0]
-    out[1] = lam[1]
-    out[2] = 0
-    out[3] = -lam[0]
-    out[4] = -lam[1]
-    out[5] = 0
-    out[6] = lam[2]
-    out[7] = lam[3]
-    out[8] = 0
-    out[9] = -lam[2]
-    out[10] = -lam[3]
-    out[11] = 0
-    out[12] = lam[4]
-    out[13] = lam[5]
-    out[14] = 0
-    out[15] = -lam[4]
-    out[16] = -lam[5]
-    out[17] = 0
-    out[18] = e5
-    out[19] = e6
-    out[20] = 0
-    out[21] = -e5
-    out[22] = -e6
-    out[23] = 0
-    out[24] = -e13
-    out[25] = -e14
-    out[26] = 0
-    out[27] = e13
-    out[28] = e14
-    out[29] = 0
-    out[30] = -e20
-    out[31] = -e21
-    out[32] = 0
-    out[33] = e20
-    out[34] = e21
-    out[35] = 0
+    out = [
+        lam[0],
+        lam[1],
+        0,
+        -lam[0],
+        -lam[1],
+        0,
+        lam[2],
+        lam[3],
+        0,
+        -lam[2],
+        -lam[3],
+        0,
+        lam[4],
+        lam[5],
+        0,
+        -lam[4],
+        -lam[5],
+        0,
+        e5,
+        e6,
+        0,
+        -e5,
+        -e6,
+        0,
+        -e13,
+        -e14,
+        0,
+        e13,
+        e14,
+        0,
+        -e20,
+        -e21,
+        0,
+        e20,
+        e21,
+        0,
+    ]
     return out
 
 
@@ -891,10 +898,6 @@ def _lu(q, t, p):
     return [a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23, a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34]
 
 
-def _factors(q, t, p):
-    """The sparse factors of Phi_q(q), else the dense fallback; ValueError if singular."""
-    a = _lu(q, t, p)
-    return _Dense(q, t, p) if a is None else a
 
 
 def _solve(a, b):
@@ -972,6 +975,8 @@ def _newton_step(a, r, q):
     return [q0 - x0, q1 - x1, q2 - x2, q3 - x3, q4 - x4, q5 - x5, q6 - x6, q7 - x7, q8 - x8], max(abs(x0), abs(x1), abs(x2), abs(x3), abs(x4), abs(x5), abs(x6), abs(x7), abs(x8))
 
 
+
+
 def _solve_t(a, b):
     """lambda with Phi_q^T lambda = b (sizes NG -> NC)."""
     if a.__class__ is _Dense:
@@ -1008,17 +1013,73 @@ def _solve_t(a, b):
     return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
 
 
+def _lam(a, f, m, e):
+    """lambda with Phi_q^T lambda = f - m e (elementwise; sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t([u - v * w for u, v, w in zip(f, m, e)])
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23, a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34 = a
+    f0, f1, f2, f3, f4, f5, f6, f7, f8 = f
+    m0, m1, m2, m3, m4, m5, m6, m7, m8 = m
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    b0 = f0 - m0 * e0
+    b1 = f1 - m1 * e1
+    b2 = f2 - m2 * e2
+    b3 = f3 - m3 * e3
+    b4 = f4 - m4 * e4
+    b5 = f5 - m5 * e5
+    b6 = f6 - m6 * e6
+    b7 = f7 - m7 * e7
+    b8 = f8 - m8 * e8
+    x5 = (b7) / a18
+    x1 = (b1) / a2
+    x6 = (b0) / a20
+    x0 = (b2 - a3 * x1 - a22 * x6) / a1
+    x3 = (b4 - a16 * x5) / a10
+    x7 = (b3) / a26
+    x2 = (b5 - a17 * x5 - a11 * x3 - a28 * x7) / a7
+    x8 = (b6) / a32
+    x4 = (b8 - a19 * x5 - a34 * x8) / a15
+    x8 -= a14 * x4
+    x2 -= a13 * x4
+    x2 -= a31 * x8
+    x7 -= a6 * x2
+    x7 -= a12 * x4
+    x7 -= a29 * x8
+    x3 -= a27 * x7
+    x3 -= a30 * x8
+    x0 -= a5 * x2
+    x0 -= a9 * x3
+    x0 -= a25 * x7
+    x6 -= a0 * x0
+    x6 -= a4 * x2
+    x6 -= a23 * x7
+    x1 -= a8 * x3
+    x1 -= a21 * x6
+    x1 -= a24 * x7
+    x5 -= a33 * x8
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
+
+
+def _predict(o, d, e, h, hh):
+    """The Taylor guess o + h d + hh e (hh = h^2 / 2), elementwise."""
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    d0, d1, d2, d3, d4, d5, d6, d7, d8 = d
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    return [o0 + h * d0 + hh * e0, o1 + h * d1 + hh * e1, o2 + h * d2 + hh * e2, o3 + h * d3 + hh * e3, o4 + h * d4 + hh * e4, o5 + h * d5 + hh * e5, o6 + h * d6 + hh * e6, o7 + h * d7 + hh * e7, o8 + h * d8 + hh * e8]
+
+
 def _spread(a, s):
     """max / min of the pivots |u_k| s_k of sparse factors (s: a scale per step)."""
-    u0 = abs(a[18]) * s[0]
-    u1 = abs(a[2]) * s[1]
-    u2 = abs(a[20]) * s[2]
-    u3 = abs(a[1]) * s[3]
-    u4 = abs(a[10]) * s[4]
-    u5 = abs(a[26]) * s[5]
-    u6 = abs(a[7]) * s[6]
-    u7 = abs(a[32]) * s[7]
-    u8 = abs(a[15]) * s[8]
+    s0, s1, s2, s3, s4, s5, s6, s7, s8 = s
+    u0 = abs(a[18]) * s0
+    u1 = abs(a[2]) * s1
+    u2 = abs(a[20]) * s2
+    u3 = abs(a[1]) * s3
+    u4 = abs(a[10]) * s4
+    u5 = abs(a[26]) * s5
+    u6 = abs(a[7]) * s6
+    u7 = abs(a[32]) * s7
+    u8 = abs(a[15]) * s8
     return max(u0, u1, u2, u3, u4, u5, u6, u7, u8) / min(u0, u1, u2, u3, u4, u5, u6, u7, u8)
 
 
@@ -1052,7 +1113,7 @@ def _instant(t, p, q, tol, m):
         if it == MAX_NEWTON:
             raise SolverError("not converged", t, q, it)
         try:
-            a = _factors(q, t, p)
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
         except ValueError:
             raise SolverError("singular", t, q, it) from None
         q, step = _newton_step(a, r, q)
@@ -1065,12 +1126,12 @@ def _instant(t, p, q, tol, m):
         rmax = max(map(abs, r))
     if a is None or step > 1e-14 * qmag:
         try:
-            a = _factors(q, t, p)
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
         except ValueError:
             raise SolverError("singular", t, q, it) from None
     qd = _solve(a, _nu_s(q, t, p))
     qdd = _solve(a, _gamma_s(q, qd, t, p))
-    lam = _solve_t(a, [u - v * w for u, v, w in zip(_applied_s(q, qd, t, p), m, qdd)])
+    lam = _lam(a, _applied_s(q, qd, t, p), m, qdd)
     return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
 
@@ -1115,7 +1176,7 @@ def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
     for k in range(k, n):
         t = t0 + k * h
         if q1 is not None:
-            q = [u + h * v + hh * w for u, v, w in zip(q1, qd, qdd)]
+            q = _predict(q1, qd, qdd, h, hh)
         try:
             qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
             if check is not None and q1 is not None and (

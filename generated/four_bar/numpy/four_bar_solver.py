@@ -82,8 +82,7 @@ def phi(q, t, p):
 
 
 def _phi_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = (1/2)*p[1]
     e1 = e0*math.cos(q[2])
     e2 = e0*math.sin(q[2])
@@ -95,15 +94,17 @@ def _phi_s(q, t, p):
     e8 = e7*math.cos(q[8])
     e9 = -q[7]
     e10 = e7*math.sin(q[8])
-    out[0] = -e1 + q[0]
-    out[1] = -e2 + q[1]
-    out[2] = -e1 - e4 - q[0] + q[3]
-    out[3] = -e2 - e5 - q[1] + q[4]
-    out[4] = -e4 - e6 + e8 - q[3]
-    out[5] = e10 - e5 - e9 - q[4]
-    out[6] = -e6 - e8 - p[0]
-    out[7] = -e10 - e9
-    out[8] = -p[10]*t + q[2]
+    out = [
+        -e1 + q[0],
+        -e2 + q[1],
+        -e1 - e4 - q[0] + q[3],
+        -e2 - e5 - q[1] + q[4],
+        -e4 - e6 + e8 - q[3],
+        e10 - e5 - e9 - q[4],
+        -e6 - e8 - p[0],
+        -e10 - e9,
+        -p[10]*t + q[2],
+    ]
     return out
 
 
@@ -148,8 +149,7 @@ def phi_q_values(q, t, p):
 
 
 def _phi_q_values_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 25
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = (1/2)*p[1]
     e1 = e0*math.sin(q[2])
     e2 = -e0*math.cos(q[2])
@@ -159,31 +159,33 @@ def _phi_q_values_s(q, t, p):
     e6 = (1/2)*p[3]
     e7 = e6*math.sin(q[8])
     e8 = e6*math.cos(q[8])
-    out[0] = 1
-    out[1] = e1
-    out[2] = 1
-    out[3] = e2
-    out[4] = -1
-    out[5] = e1
-    out[6] = 1
-    out[7] = e4
-    out[8] = -1
-    out[9] = e2
-    out[10] = 1
-    out[11] = e5
-    out[12] = -1
-    out[13] = e4
-    out[14] = 1
-    out[15] = -e7
-    out[16] = -1
-    out[17] = e5
-    out[18] = 1
-    out[19] = e8
-    out[20] = 1
-    out[21] = e7
-    out[22] = 1
-    out[23] = -e8
-    out[24] = 1
+    out = [
+        1,
+        e1,
+        1,
+        e2,
+        -1,
+        e1,
+        1,
+        e4,
+        -1,
+        e2,
+        1,
+        e5,
+        -1,
+        e4,
+        1,
+        -e7,
+        -1,
+        e5,
+        1,
+        e8,
+        1,
+        e7,
+        1,
+        -e8,
+        1,
+    ]
     return out
 
 
@@ -203,17 +205,18 @@ def nu(q, t, p):
 
 
 def _nu_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = 0
-    out[1] = 0
-    out[2] = 0
-    out[3] = 0
-    out[4] = 0
-    out[5] = 0
-    out[6] = 0
-    out[7] = 0
-    out[8] = p[10]
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        p[10],
+    ]
     return out
 
 
@@ -242,8 +245,7 @@ def gamma(q, qd, t, p):
 
 
 def _gamma_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = (1/2)*p[1]*qd[2]**2
     e1 = e0*math.cos(q[2])
     e2 = e0*math.sin(q[2])
@@ -253,15 +255,17 @@ def _gamma_s(q, qd, t, p):
     e6 = (1/2)*p[3]*qd[8]**2
     e7 = -e6*math.cos(q[8])
     e8 = -e6*math.sin(q[8])
-    out[0] = -e1
-    out[1] = -e2
-    out[2] = -e1 - e4
-    out[3] = -e2 - e5
-    out[4] = -e4 - e7
-    out[5] = -e5 - e8
-    out[6] = e7
-    out[7] = e8
-    out[8] = 0
+    out = [
+        -e1,
+        -e2,
+        -e1 - e4,
+        -e2 - e5,
+        -e4 - e7,
+        -e5 - e8,
+        e7,
+        e8,
+        0,
+    ]
     return out
 
 
@@ -292,8 +296,7 @@ def applied(q, qd, t, p):
 
 
 def _applied_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = p[11]*((1/2)*math.sin(p[10]*t) + 1)
     e1 = math.cos(q[8])
     e2 = (1/20)*e1
@@ -305,15 +308,17 @@ def _applied_s(q, qd, t, p):
     e8 = e3*e7
     e9 = -p[13]*(e6 - p[15]) - p[14]*(e5*e7*(e2*qd[8] + qd[7]) + e8*(-e4*qd[8] + qd[6]))
     e10 = e8*e9
-    out[0] = 0
-    out[1] = -981/100*p[4]
-    out[2] = 0
-    out[3] = 0
-    out[4] = -e0 - 981/100*p[5]
-    out[5] = -e0*(p[7]*math.cos(q[5]) - p[8]*math.sin(q[5]))
-    out[6] = e10
-    out[7] = e5*e7*e9 - 981/100*p[6]
-    out[8] = (1/20)*e1*e5*e7*e9 - e10*e4 - p[12]
+    out = [
+        0,
+        -981/100*p[4],
+        0,
+        0,
+        -e0 - 981/100*p[5],
+        -e0*(p[7]*math.cos(q[5]) - p[8]*math.sin(q[5])),
+        e10,
+        e5*e7*e9 - 981/100*p[6],
+        (1/20)*e1*e5*e7*e9 - e10*e4 - p[12],
+    ]
     return out
 
 
@@ -333,17 +338,18 @@ def mass(p):
 
 
 def _mass_s(p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = p[4]
-    out[1] = p[4]
-    out[2] = (1/12)*p[1]**2*p[4]
-    out[3] = p[5]
-    out[4] = p[5]
-    out[5] = (1/12)*p[2]**2*p[5]
-    out[6] = p[6]
-    out[7] = p[6]
-    out[8] = (1/12)*p[3]**2*p[6]
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        p[4],
+        p[4],
+        (1/12)*p[1]**2*p[4],
+        p[5],
+        p[5],
+        (1/12)*p[2]**2*p[5],
+        p[6],
+        p[6],
+        (1/12)*p[3]**2*p[6],
+    ]
     return out
 
 
@@ -384,38 +390,39 @@ def reactions(q, lam, t, p):
 
 
 def _reactions_s(q, lam, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 30
-    out[0] = lam[0]
-    out[1] = lam[1]
-    out[2] = 0
-    out[3] = -lam[0]
-    out[4] = -lam[1]
-    out[5] = 0
-    out[6] = lam[2]
-    out[7] = lam[3]
-    out[8] = 0
-    out[9] = -lam[2]
-    out[10] = -lam[3]
-    out[11] = 0
-    out[12] = lam[4]
-    out[13] = lam[5]
-    out[14] = 0
-    out[15] = -lam[4]
-    out[16] = -lam[5]
-    out[17] = 0
-    out[18] = lam[6]
-    out[19] = lam[7]
-    out[20] = 0
-    out[21] = -lam[6]
-    out[22] = -lam[7]
-    out[23] = 0
-    out[24] = 0
-    out[25] = 0
-    out[26] = lam[8]
-    out[27] = 0
-    out[28] = 0
-    out[29] = -lam[8]
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        lam[0],
+        lam[1],
+        0,
+        -lam[0],
+        -lam[1],
+        0,
+        lam[2],
+        lam[3],
+        0,
+        -lam[2],
+        -lam[3],
+        0,
+        lam[4],
+        lam[5],
+        0,
+        -lam[4],
+        -lam[5],
+        0,
+        lam[6],
+        lam[7],
+        0,
+        -lam[6],
+        -lam[7],
+        0,
+        0,
+        0,
+        lam[8],
+        0,
+        0,
+        -lam[8],
+    ]
     return out
 
 
@@ -529,10 +536,6 @@ def _lu(q, t, p):
     return [a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23, a24]
 
 
-def _factors(q, t, p):
-    """The sparse factors of Phi_q(q), else the dense fallback; ValueError if singular."""
-    a = _lu(q, t, p)
-    return _Dense(q, t, p) if a is None else a
 
 
 def _solve(a, b):
@@ -596,6 +599,8 @@ def _newton_step(a, r, q):
     return [q0 - x0, q1 - x1, q2 - x2, q3 - x3, q4 - x4, q5 - x5, q6 - x6, q7 - x7, q8 - x8], max(abs(x0), abs(x1), abs(x2), abs(x3), abs(x4), abs(x5), abs(x6), abs(x7), abs(x8))
 
 
+
+
 def _solve_t(a, b):
     """lambda with Phi_q^T lambda = b (sizes NG -> NC)."""
     if a.__class__ is _Dense:
@@ -625,17 +630,66 @@ def _solve_t(a, b):
     return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
 
 
+def _lam(a, f, m, e):
+    """lambda with Phi_q^T lambda = f - m e (elementwise; sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t([u - v * w for u, v, w in zip(f, m, e)])
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23, a24 = a
+    f0, f1, f2, f3, f4, f5, f6, f7, f8 = f
+    m0, m1, m2, m3, m4, m5, m6, m7, m8 = m
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    b0 = f0 - m0 * e0
+    b1 = f1 - m1 * e1
+    b2 = f2 - m2 * e2
+    b3 = f3 - m3 * e3
+    b4 = f4 - m4 * e4
+    b5 = f5 - m5 * e5
+    b6 = f6 - m6 * e6
+    b7 = f7 - m7 * e7
+    b8 = f8 - m8 * e8
+    x8 = (b2) / a24
+    x0 = (b0) / a0
+    x1 = (b1) / a2
+    x2 = (b3) / a6
+    x3 = (b4) / a10
+    x6 = (b6) / a20
+    x4 = (b5 - a7 * x2 - a11 * x3) / a13
+    x5 = (b7) / a18
+    x7 = (b8 - a21 * x6 - a15 * x4 - a19 * x5) / a23
+    x5 -= a22 * x7
+    x4 -= a17 * x5
+    x6 -= a14 * x4
+    x3 -= a16 * x5
+    x2 -= a12 * x4
+    x1 -= a8 * x3
+    x0 -= a4 * x2
+    x8 -= a1 * x0
+    x8 -= a3 * x1
+    x8 -= a5 * x2
+    x8 -= a9 * x3
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
+
+
+def _predict(o, d, e, h, hh):
+    """The Taylor guess o + h d + hh e (hh = h^2 / 2), elementwise."""
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    d0, d1, d2, d3, d4, d5, d6, d7, d8 = d
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    return [o0 + h * d0 + hh * e0, o1 + h * d1 + hh * e1, o2 + h * d2 + hh * e2, o3 + h * d3 + hh * e3, o4 + h * d4 + hh * e4, o5 + h * d5 + hh * e5, o6 + h * d6 + hh * e6, o7 + h * d7 + hh * e7, o8 + h * d8 + hh * e8]
+
+
 def _spread(a, s):
     """max / min of the pivots |u_k| s_k of sparse factors (s: a scale per step)."""
-    u0 = abs(a[24]) * s[0]
-    u1 = abs(a[0]) * s[1]
-    u2 = abs(a[2]) * s[2]
-    u3 = abs(a[6]) * s[3]
-    u4 = abs(a[10]) * s[4]
-    u5 = abs(a[20]) * s[5]
-    u6 = abs(a[13]) * s[6]
-    u7 = abs(a[18]) * s[7]
-    u8 = abs(a[23]) * s[8]
+    s0, s1, s2, s3, s4, s5, s6, s7, s8 = s
+    u0 = abs(a[24]) * s0
+    u1 = abs(a[0]) * s1
+    u2 = abs(a[2]) * s2
+    u3 = abs(a[6]) * s3
+    u4 = abs(a[10]) * s4
+    u5 = abs(a[20]) * s5
+    u6 = abs(a[13]) * s6
+    u7 = abs(a[18]) * s7
+    u8 = abs(a[23]) * s8
     return max(u0, u1, u2, u3, u4, u5, u6, u7, u8) / min(u0, u1, u2, u3, u4, u5, u6, u7, u8)
 
 
@@ -669,7 +723,7 @@ def _instant(t, p, q, tol, m):
         if it == MAX_NEWTON:
             raise SolverError("not converged", t, q, it)
         try:
-            a = _factors(q, t, p)
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
         except ValueError:
             raise SolverError("singular", t, q, it) from None
         q, step = _newton_step(a, r, q)
@@ -682,12 +736,12 @@ def _instant(t, p, q, tol, m):
         rmax = max(map(abs, r))
     if a is None or step > 1e-14 * qmag:
         try:
-            a = _factors(q, t, p)
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
         except ValueError:
             raise SolverError("singular", t, q, it) from None
     qd = _solve(a, _nu_s(q, t, p))
     qdd = _solve(a, _gamma_s(q, qd, t, p))
-    lam = _solve_t(a, [u - v * w for u, v, w in zip(_applied_s(q, qd, t, p), m, qdd)])
+    lam = _lam(a, _applied_s(q, qd, t, p), m, qdd)
     return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
 
@@ -732,7 +786,7 @@ def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
     for k in range(k, n):
         t = t0 + k * h
         if q1 is not None:
-            q = [u + h * v + hh * w for u, v, w in zip(q1, qd, qdd)]
+            q = _predict(q1, qd, qdd, h, hh)
         try:
             qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
             if check is not None and q1 is not None and (

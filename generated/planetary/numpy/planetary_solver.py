@@ -76,22 +76,23 @@ def phi(q, t, p):
 
 
 def _phi_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 12
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = p[0] + p[1]
     e1 = -q[5]
-    out[0] = q[0]
-    out[1] = q[1]
-    out[2] = q[3]
-    out[3] = q[4]
-    out[4] = -e0*math.cos(q[5]) - q[3] + q[6]
-    out[5] = -e0*math.sin(q[5]) - q[4] + q[7]
-    out[6] = e1 + p[0]*(e1 + q[2])/p[1] + q[8]
-    out[7] = -p[1]*(-q[5] + q[8])/p[2] - q[5]
-    out[8] = p[0] + p[3] + q[9]
-    out[9] = q[10]
-    out[10] = q[2] + p[3]*q[11]/p[0]
-    out[11] = -p[9]*t + q[11]
+    out = [
+        q[0],
+        q[1],
+        q[3],
+        q[4],
+        -e0*math.cos(q[5]) - q[3] + q[6],
+        -e0*math.sin(q[5]) - q[4] + q[7],
+        e1 + p[0]*(e1 + q[2])/p[1] + q[8],
+        -p[1]*(-q[5] + q[8])/p[2] - q[5],
+        p[0] + p[3] + q[9],
+        q[10],
+        q[2] + p[3]*q[11]/p[0],
+        -p[9]*t + q[11],
+    ]
     return out
 
 
@@ -125,31 +126,32 @@ def phi_q_values(q, t, p):
 
 
 def _phi_q_values_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 20
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = p[0] + p[1]
     e1 = p[0]/p[1]
     e2 = p[1]/p[2]
-    out[0] = 1
-    out[1] = 1
-    out[2] = 1
-    out[3] = 1
-    out[4] = -1
-    out[5] = e0*math.sin(q[5])
-    out[6] = 1
-    out[7] = -1
-    out[8] = -e0*math.cos(q[5])
-    out[9] = 1
-    out[10] = e1
-    out[11] = -e1 - 1
-    out[12] = 1
-    out[13] = e2 - 1
-    out[14] = -e2
-    out[15] = 1
-    out[16] = 1
-    out[17] = 1
-    out[18] = p[3]/p[0]
-    out[19] = 1
+    out = [
+        1,
+        1,
+        1,
+        1,
+        -1,
+        e0*math.sin(q[5]),
+        1,
+        -1,
+        -e0*math.cos(q[5]),
+        1,
+        e1,
+        -e1 - 1,
+        1,
+        e2 - 1,
+        -e2,
+        1,
+        1,
+        1,
+        p[3]/p[0],
+        1,
+    ]
     return out
 
 
@@ -172,20 +174,21 @@ def nu(q, t, p):
 
 
 def _nu_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 12
-    out[0] = 0
-    out[1] = 0
-    out[2] = 0
-    out[3] = 0
-    out[4] = 0
-    out[5] = 0
-    out[6] = 0
-    out[7] = 0
-    out[8] = 0
-    out[9] = 0
-    out[10] = 0
-    out[11] = p[9]
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        p[9],
+    ]
     return out
 
 
@@ -209,21 +212,22 @@ def gamma(q, qd, t, p):
 
 
 def _gamma_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 12
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = qd[5]**2*(p[0] + p[1])
-    out[0] = 0
-    out[1] = 0
-    out[2] = 0
-    out[3] = 0
-    out[4] = -e0*math.cos(q[5])
-    out[5] = -e0*math.sin(q[5])
-    out[6] = 0
-    out[7] = 0
-    out[8] = 0
-    out[9] = 0
-    out[10] = 0
-    out[11] = 0
+    out = [
+        0,
+        0,
+        0,
+        0,
+        -e0*math.cos(q[5]),
+        -e0*math.sin(q[5]),
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+    ]
     return out
 
 
@@ -246,20 +250,21 @@ def applied(q, qd, t, p):
 
 
 def _applied_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 12
-    out[0] = 0
-    out[1] = -981/100*p[4]
-    out[2] = 0
-    out[3] = 0
-    out[4] = -981/100*p[7]
-    out[5] = p[10]
-    out[6] = 0
-    out[7] = -981/100*p[5]
-    out[8] = 0
-    out[9] = 0
-    out[10] = -981/100*p[6]
-    out[11] = 0
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        0,
+        -981/100*p[4],
+        0,
+        0,
+        -981/100*p[7],
+        p[10],
+        0,
+        -981/100*p[5],
+        0,
+        0,
+        -981/100*p[6],
+        0,
+    ]
     return out
 
 
@@ -282,20 +287,21 @@ def mass(p):
 
 
 def _mass_s(p):
-    # one instant, floats in and out
-    out = [0.0] * 12
-    out[0] = p[4]
-    out[1] = p[4]
-    out[2] = (1/2)*p[0]**2*p[4]
-    out[3] = p[7]
-    out[4] = p[7]
-    out[5] = (1/2)*p[7]*(p[0] + p[1])**2
-    out[6] = p[5]
-    out[7] = p[5]
-    out[8] = (1/2)*p[1]**2*p[5]
-    out[9] = p[6]
-    out[10] = p[6]
-    out[11] = (1/2)*p[3]**2*p[6]
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        p[4],
+        p[4],
+        (1/2)*p[0]**2*p[4],
+        p[7],
+        p[7],
+        (1/2)*p[7]*(p[0] + p[1])**2,
+        p[5],
+        p[5],
+        (1/2)*p[1]**2*p[5],
+        p[6],
+        p[6],
+        (1/2)*p[3]**2*p[6],
+    ]
     return out
 
 
@@ -360,62 +366,65 @@ def reactions(q, lam, t, p):
 
 
 def _reactions_s(q, lam, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 51
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = lam[6]*p[0]/p[1]
     e1 = lam[7]*p[1]/p[2]
     e2 = -lam[7]
-    out[0] = lam[0]
-    out[1] = lam[1]
-    out[2] = 0
-    out[3] = -lam[0]
-    out[4] = -lam[1]
-    out[5] = 0
-    out[6] = lam[2]
-    out[7] = lam[3]
-    out[8] = 0
-    out[9] = -lam[2]
-    out[10] = -lam[3]
-    out[11] = 0
-    out[12] = lam[4]
-    out[13] = lam[5]
-    out[14] = 0
-    out[15] = -lam[4]
-    out[16] = -lam[5]
-    out[17] = 0
-    out[18] = 0
-    out[19] = 0
-    out[20] = -e0
-    out[21] = 0
-    out[22] = 0
-    out[23] = -lam[6]
-    out[24] = 0
-    out[25] = 0
-    out[26] = e0 + lam[6]
-    out[27] = 0
-    out[28] = 0
-    out[29] = e1
-    out[30] = 0
-    out[31] = 0
-    out[32] = e2
-    out[33] = 0
-    out[34] = 0
-    out[35] = -e1 - e2
-    out[36] = lam[8]
-    out[37] = lam[9]
-    out[38] = 0
-    out[39] = -lam[8]
-    out[40] = -lam[9]
-    out[41] = 0
-    out[42] = 0
-    out[43] = 0
-    out[44] = -lam[10]*p[3]/p[0]
-    out[45] = 0
-    out[46] = 0
-    out[47] = -lam[10]
-    out[48] = 0
-    out[49] = 0
-    out[50] = -lam[11]
+    out = [
+        lam[0],
+        lam[1],
+        0,
+        -lam[0],
+        -lam[1],
+        0,
+        lam[2],
+        lam[3],
+        0,
+        -lam[2],
+        -lam[3],
+        0,
+        lam[4],
+        lam[5],
+        0,
+        -lam[4],
+        -lam[5],
+        0,
+        0,
+        0,
+        -e0,
+        0,
+        0,
+        -lam[6],
+        0,
+        0,
+        e0 + lam[6],
+        0,
+        0,
+        e1,
+        0,
+        0,
+        e2,
+        0,
+        0,
+        -e1 - e2,
+        lam[8],
+        lam[9],
+        0,
+        -lam[8],
+        -lam[9],
+        0,
+        0,
+        0,
+        -lam[10]*p[3]/p[0],
+        0,
+        0,
+        -lam[10],
+    ]
+    out += [
+        0,
+        0,
+        -lam[11],
+    ]
     return out
 
 
@@ -511,10 +520,6 @@ def _lu(q, t, p):
     return [a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19]
 
 
-def _factors(q, t, p):
-    """The sparse factors of Phi_q(q), else the dense fallback; ValueError if singular."""
-    a = _lu(q, t, p)
-    return _Dense(q, t, p) if a is None else a
 
 
 def _solve(a, b):
@@ -572,6 +577,8 @@ def _newton_step(a, r, q):
     return [q0 - x0, q1 - x1, q2 - x2, q3 - x3, q4 - x4, q5 - x5, q6 - x6, q7 - x7, q8 - x8, q9 - x9, q10 - x10, q11 - x11], max(abs(x0), abs(x1), abs(x2), abs(x3), abs(x4), abs(x5), abs(x6), abs(x7), abs(x8), abs(x9), abs(x10), abs(x11))
 
 
+
+
 def _solve_t(a, b):
     """lambda with Phi_q^T lambda = b (sizes NG -> NC)."""
     if a.__class__ is _Dense:
@@ -598,20 +605,69 @@ def _solve_t(a, b):
     return [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11]
 
 
+def _lam(a, f, m, e):
+    """lambda with Phi_q^T lambda = f - m e (elementwise; sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t([u - v * w for u, v, w in zip(f, m, e)])
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19 = a
+    f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11 = f
+    m0, m1, m2, m3, m4, m5, m6, m7, m8, m9, m10, m11 = m
+    e0, e1, e2, e3, e4, e5, e6, e7, e8, e9, e10, e11 = e
+    b0 = f0 - m0 * e0
+    b1 = f1 - m1 * e1
+    b2 = f2 - m2 * e2
+    b3 = f3 - m3 * e3
+    b4 = f4 - m4 * e4
+    b5 = f5 - m5 * e5
+    b6 = f6 - m6 * e6
+    b7 = f7 - m7 * e7
+    b8 = f8 - m8 * e8
+    b9 = f9 - m9 * e9
+    b10 = f10 - m10 * e10
+    b11 = f11 - m11 * e11
+    x0 = (b0) / a0
+    x1 = (b1) / a1
+    x2 = (b3) / a2
+    x3 = (b4) / a3
+    x4 = (b6) / a6
+    x5 = (b7) / a9
+    x8 = (b9) / a15
+    x9 = (b10) / a16
+    x11 = (b11) / a19
+    x10 = (b2) / a17
+    x6 = (b5 - a5 * x4 - a8 * x5) / a11
+    x7 = (b8 - a12 * x6) / a14
+    x6 -= a13 * x7
+    x10 -= a10 * x6
+    x11 -= a18 * x10
+    x3 -= a7 * x5
+    x2 -= a4 * x4
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11]
+
+
+def _predict(o, d, e, h, hh):
+    """The Taylor guess o + h d + hh e (hh = h^2 / 2), elementwise."""
+    o0, o1, o2, o3, o4, o5, o6, o7, o8, o9, o10, o11 = o
+    d0, d1, d2, d3, d4, d5, d6, d7, d8, d9, d10, d11 = d
+    e0, e1, e2, e3, e4, e5, e6, e7, e8, e9, e10, e11 = e
+    return [o0 + h * d0 + hh * e0, o1 + h * d1 + hh * e1, o2 + h * d2 + hh * e2, o3 + h * d3 + hh * e3, o4 + h * d4 + hh * e4, o5 + h * d5 + hh * e5, o6 + h * d6 + hh * e6, o7 + h * d7 + hh * e7, o8 + h * d8 + hh * e8, o9 + h * d9 + hh * e9, o10 + h * d10 + hh * e10, o11 + h * d11 + hh * e11]
+
+
 def _spread(a, s):
     """max / min of the pivots |u_k| s_k of sparse factors (s: a scale per step)."""
-    u0 = abs(a[0]) * s[0]
-    u1 = abs(a[1]) * s[1]
-    u2 = abs(a[2]) * s[2]
-    u3 = abs(a[3]) * s[3]
-    u4 = abs(a[6]) * s[4]
-    u5 = abs(a[9]) * s[5]
-    u6 = abs(a[15]) * s[6]
-    u7 = abs(a[16]) * s[7]
-    u8 = abs(a[19]) * s[8]
-    u9 = abs(a[17]) * s[9]
-    u10 = abs(a[11]) * s[10]
-    u11 = abs(a[14]) * s[11]
+    s0, s1, s2, s3, s4, s5, s6, s7, s8, s9, s10, s11 = s
+    u0 = abs(a[0]) * s0
+    u1 = abs(a[1]) * s1
+    u2 = abs(a[2]) * s2
+    u3 = abs(a[3]) * s3
+    u4 = abs(a[6]) * s4
+    u5 = abs(a[9]) * s5
+    u6 = abs(a[15]) * s6
+    u7 = abs(a[16]) * s7
+    u8 = abs(a[19]) * s8
+    u9 = abs(a[17]) * s9
+    u10 = abs(a[11]) * s10
+    u11 = abs(a[14]) * s11
     return max(u0, u1, u2, u3, u4, u5, u6, u7, u8, u9, u10, u11) / min(u0, u1, u2, u3, u4, u5, u6, u7, u8, u9, u10, u11)
 
 
@@ -645,7 +701,7 @@ def _instant(t, p, q, tol, m):
         if it == MAX_NEWTON:
             raise SolverError("not converged", t, q, it)
         try:
-            a = _factors(q, t, p)
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
         except ValueError:
             raise SolverError("singular", t, q, it) from None
         q, step = _newton_step(a, r, q)
@@ -658,12 +714,12 @@ def _instant(t, p, q, tol, m):
         rmax = max(map(abs, r))
     if a is None or step > 1e-14 * qmag:
         try:
-            a = _factors(q, t, p)
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
         except ValueError:
             raise SolverError("singular", t, q, it) from None
     qd = _solve(a, _nu_s(q, t, p))
     qdd = _solve(a, _gamma_s(q, qd, t, p))
-    lam = _solve_t(a, [u - v * w for u, v, w in zip(_applied_s(q, qd, t, p), m, qdd)])
+    lam = _lam(a, _applied_s(q, qd, t, p), m, qdd)
     return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
 
@@ -708,7 +764,7 @@ def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
     for k in range(k, n):
         t = t0 + k * h
         if q1 is not None:
-            q = [u + h * v + hh * w for u, v, w in zip(q1, qd, qdd)]
+            q = _predict(q1, qd, qdd, h, hh)
         try:
             qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
             if check is not None and q1 is not None and (

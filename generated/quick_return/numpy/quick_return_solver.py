@@ -78,8 +78,7 @@ def phi(q, t, p):
 
 
 def _phi_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = -q[3]
     e1 = math.cos(q[5])
     e2 = (1/2)*p[2]
@@ -87,15 +86,17 @@ def _phi_s(q, t, p):
     e4 = math.sin(q[5])
     e5 = e2*e4
     e6 = -q[7]
-    out[0] = q[0]
-    out[1] = q[1]
-    out[2] = -e0 - e3
-    out[3] = -e5 + p[1] + q[4]
-    out[4] = e1*(p[0]*math.sin(q[2]) + q[1] - q[4]) - e4*(e0 + p[0]*math.cos(q[2]) + q[0])
-    out[5] = -p[3]**2 + (-e3 - q[3] + q[6])**2 + (-e5 - e6 - q[4])**2
-    out[6] = -e6 - p[4]
-    out[7] = q[8]
-    out[8] = -p[12]*t + q[2]
+    out = [
+        q[0],
+        q[1],
+        -e0 - e3,
+        -e5 + p[1] + q[4],
+        e1*(p[0]*math.sin(q[2]) + q[1] - q[4]) - e4*(e0 + p[0]*math.cos(q[2]) + q[0]),
+        -p[3]**2 + (-e3 - q[3] + q[6])**2 + (-e5 - e6 - q[4])**2,
+        -e6 - p[4],
+        q[8],
+        -p[12]*t + q[2],
+    ]
     return out
 
 
@@ -136,8 +137,7 @@ def phi_q_values(q, t, p):
 
 
 def _phi_q_values_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 20
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.sin(q[5])
     e1 = e0*p[2]
     e2 = (1/2)*e1
@@ -148,26 +148,28 @@ def _phi_q_values_s(q, t, p):
     e7 = p[0]*math.sin(q[2])
     e8 = e4 + 2*q[3] - 2*q[6]
     e9 = e1 + 2*q[4] - 2*q[7]
-    out[0] = 1
-    out[1] = 1
-    out[2] = 1
-    out[3] = e2
-    out[4] = 1
-    out[5] = -e5
-    out[6] = -e0
-    out[7] = e3
-    out[8] = e0*e7 + e3*e6
-    out[9] = e0
-    out[10] = -e3
-    out[11] = -e0*(e7 + q[1] - q[4]) - e3*(e6 + q[0] - q[3])
-    out[12] = e8
-    out[13] = e9
-    out[14] = e0*p[2]*(-e5 - q[3] + q[6]) - e4*(-e2 - q[4] + q[7])
-    out[15] = -e8
-    out[16] = -e9
-    out[17] = 1
-    out[18] = 1
-    out[19] = 1
+    out = [
+        1,
+        1,
+        1,
+        e2,
+        1,
+        -e5,
+        -e0,
+        e3,
+        e0*e7 + e3*e6,
+        e0,
+        -e3,
+        -e0*(e7 + q[1] - q[4]) - e3*(e6 + q[0] - q[3]),
+        e8,
+        e9,
+        e0*p[2]*(-e5 - q[3] + q[6]) - e4*(-e2 - q[4] + q[7]),
+        -e8,
+        -e9,
+        1,
+        1,
+        1,
+    ]
     return out
 
 
@@ -187,17 +189,18 @@ def nu(q, t, p):
 
 
 def _nu_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = 0
-    out[1] = 0
-    out[2] = 0
-    out[3] = 0
-    out[4] = 0
-    out[5] = 0
-    out[6] = 0
-    out[7] = 0
-    out[8] = p[12]
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        p[12],
+    ]
     return out
 
 
@@ -229,8 +232,7 @@ def gamma(q, qd, t, p):
 
 
 def _gamma_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = qd[5]**2
     e1 = math.cos(q[5])
     e2 = e0*e1
@@ -243,15 +245,17 @@ def _gamma_s(q, qd, t, p):
     e9 = qd[2]**2
     e10 = p[0]*math.sin(q[2])
     e11 = p[0]*math.cos(q[2])
-    out[0] = 0
-    out[1] = 0
-    out[2] = -e2*e3
-    out[3] = -e3*e5
-    out[4] = e1*e10*e9 + e10*e2 - e10*e7*qd[2] - e11*e4*e9 - e11*e5 + e11*e8*qd[2] + e2*q[1] - e2*q[4] - e5*q[0] + e5*q[3] + e7*qd[0] - e7*qd[3] + e8*qd[1] - e8*qd[4]
-    out[5] = e0*e1*p[2]*q[3] + e0*e4*p[2]*q[4] + 2*e1*p[2]*qd[5]*qd[7] - e2*p[2]*q[6] + 2*e4*p[2]*qd[3]*qd[5] - e5*p[2]*q[7] - e7*p[2]*qd[4] - e8*p[2]*qd[6] - 2*qd[3]**2 + 4*qd[3]*qd[6] - 2*qd[4]**2 + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2
-    out[6] = 0
-    out[7] = 0
-    out[8] = 0
+    out = [
+        0,
+        0,
+        -e2*e3,
+        -e3*e5,
+        e1*e10*e9 + e10*e2 - e10*e7*qd[2] - e11*e4*e9 - e11*e5 + e11*e8*qd[2] + e2*q[1] - e2*q[4] - e5*q[0] + e5*q[3] + e7*qd[0] - e7*qd[3] + e8*qd[1] - e8*qd[4],
+        e0*e1*p[2]*q[3] + e0*e4*p[2]*q[4] + 2*e1*p[2]*qd[5]*qd[7] - e2*p[2]*q[6] + 2*e4*p[2]*qd[3]*qd[5] - e5*p[2]*q[7] - e7*p[2]*qd[4] - e8*p[2]*qd[6] - 2*qd[3]**2 + 4*qd[3]*qd[6] - 2*qd[4]**2 + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2,
+        0,
+        0,
+        0,
+    ]
     return out
 
 
@@ -271,17 +275,18 @@ def applied(q, qd, t, p):
 
 
 def _applied_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = 0
-    out[1] = -981/100*p[5]
-    out[2] = 0
-    out[3] = 0
-    out[4] = -981/100*p[7]
-    out[5] = 0
-    out[6] = (1/2)*p[13]*(math.sin(p[12]*t) + 1)
-    out[7] = -981/100*p[8]
-    out[8] = 0
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        0,
+        -981/100*p[5],
+        0,
+        0,
+        -981/100*p[7],
+        0,
+        (1/2)*p[13]*(math.sin(p[12]*t) + 1),
+        -981/100*p[8],
+        0,
+    ]
     return out
 
 
@@ -301,17 +306,18 @@ def mass(p):
 
 
 def _mass_s(p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = p[5]
-    out[1] = p[5]
-    out[2] = (1/2)*p[5]*p[6]**2
-    out[3] = p[7]
-    out[4] = p[7]
-    out[5] = (1/12)*p[2]**2*p[7]
-    out[6] = p[8]
-    out[7] = p[8]
-    out[8] = (1/12)*p[8]*(p[10]**2 + p[9]**2)
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        p[5],
+        p[5],
+        (1/2)*p[5]*p[6]**2,
+        p[7],
+        p[7],
+        (1/12)*p[2]**2*p[7],
+        p[8],
+        p[8],
+        (1/12)*p[8]*(p[10]**2 + p[9]**2),
+    ]
     return out
 
 
@@ -366,8 +372,7 @@ def reactions(q, lam, t, p):
 
 
 def _reactions_s(q, lam, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 36
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.sin(q[5])
     e1 = e0*lam[4]
     e2 = math.cos(q[5])
@@ -376,42 +381,44 @@ def _reactions_s(q, lam, t, p):
     e5 = lam[5]*p[2]
     e6 = e2*e5 + e4*q[3] - 2*lam[5]*q[6]
     e7 = e0*e5 + e4*q[4] - 2*lam[5]*q[7]
-    out[0] = lam[0]
-    out[1] = lam[1]
-    out[2] = 0
-    out[3] = -lam[0]
-    out[4] = -lam[1]
-    out[5] = 0
-    out[6] = lam[2]
-    out[7] = lam[3]
-    out[8] = 0
-    out[9] = -lam[2]
-    out[10] = -lam[3]
-    out[11] = 0
-    out[12] = -e1
-    out[13] = e3
-    out[14] = e1*p[0]*math.sin(q[2]) + e1*q[1] - e1*q[4] + e3*p[0]*math.cos(q[2]) + e3*q[0] - e3*q[3]
-    out[15] = e1
-    out[16] = -e3
-    out[17] = 0
-    out[18] = -e6
-    out[19] = -e7
-    out[20] = 0
-    out[21] = e6
-    out[22] = e7
-    out[23] = 0
-    out[24] = 0
-    out[25] = lam[6]
-    out[26] = lam[6]*q[6] + lam[7]
-    out[27] = 0
-    out[28] = -lam[6]
-    out[29] = -lam[7]
-    out[30] = 0
-    out[31] = 0
-    out[32] = lam[8]
-    out[33] = 0
-    out[34] = 0
-    out[35] = -lam[8]
+    out = [
+        lam[0],
+        lam[1],
+        0,
+        -lam[0],
+        -lam[1],
+        0,
+        lam[2],
+        lam[3],
+        0,
+        -lam[2],
+        -lam[3],
+        0,
+        -e1,
+        e3,
+        e1*p[0]*math.sin(q[2]) + e1*q[1] - e1*q[4] + e3*p[0]*math.cos(q[2]) + e3*q[0] - e3*q[3],
+        e1,
+        -e3,
+        0,
+        -e6,
+        -e7,
+        0,
+        e6,
+        e7,
+        0,
+        0,
+        lam[6],
+        lam[6]*q[6] + lam[7],
+        0,
+        -lam[6],
+        -lam[7],
+        0,
+        0,
+        lam[8],
+        0,
+        0,
+        -lam[8],
+    ]
     return out
 
 
@@ -509,10 +516,6 @@ def _lu(q, t, p):
     return [a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19]
 
 
-def _factors(q, t, p):
-    """The sparse factors of Phi_q(q), else the dense fallback; ValueError if singular."""
-    a = _lu(q, t, p)
-    return _Dense(q, t, p) if a is None else a
 
 
 def _solve(a, b):
@@ -564,6 +567,8 @@ def _newton_step(a, r, q):
     return [q0 - x0, q1 - x1, q2 - x2, q3 - x3, q4 - x4, q5 - x5, q6 - x6, q7 - x7, q8 - x8], max(abs(x0), abs(x1), abs(x2), abs(x3), abs(x4), abs(x5), abs(x6), abs(x7), abs(x8))
 
 
+
+
 def _solve_t(a, b):
     """lambda with Phi_q^T lambda = b (sizes NG -> NC)."""
     if a.__class__ is _Dense:
@@ -587,17 +592,60 @@ def _solve_t(a, b):
     return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
 
 
+def _lam(a, f, m, e):
+    """lambda with Phi_q^T lambda = f - m e (elementwise; sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t([u - v * w for u, v, w in zip(f, m, e)])
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19 = a
+    f0, f1, f2, f3, f4, f5, f6, f7, f8 = f
+    m0, m1, m2, m3, m4, m5, m6, m7, m8 = m
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    b0 = f0 - m0 * e0
+    b1 = f1 - m1 * e1
+    b2 = f2 - m2 * e2
+    b3 = f3 - m3 * e3
+    b4 = f4 - m4 * e4
+    b5 = f5 - m5 * e5
+    b6 = f6 - m6 * e6
+    b7 = f7 - m7 * e7
+    b8 = f8 - m8 * e8
+    x0 = (b0) / a0
+    x1 = (b1) / a1
+    x5 = (b6) / a15
+    x6 = (b7 - a16 * x5) / a17
+    x7 = (b8) / a18
+    x8 = (b2) / a19
+    x2 = (b3 - a12 * x5) / a2
+    x3 = (b4 - a13 * x5) / a4
+    x4 = (b5 - a14 * x5 - a3 * x2 - a5 * x3) / a11
+    x3 -= a10 * x4
+    x2 -= a9 * x4
+    x8 -= a8 * x4
+    x1 -= a7 * x4
+    x0 -= a6 * x4
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
+
+
+def _predict(o, d, e, h, hh):
+    """The Taylor guess o + h d + hh e (hh = h^2 / 2), elementwise."""
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    d0, d1, d2, d3, d4, d5, d6, d7, d8 = d
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    return [o0 + h * d0 + hh * e0, o1 + h * d1 + hh * e1, o2 + h * d2 + hh * e2, o3 + h * d3 + hh * e3, o4 + h * d4 + hh * e4, o5 + h * d5 + hh * e5, o6 + h * d6 + hh * e6, o7 + h * d7 + hh * e7, o8 + h * d8 + hh * e8]
+
+
 def _spread(a, s):
     """max / min of the pivots |u_k| s_k of sparse factors (s: a scale per step)."""
-    u0 = abs(a[0]) * s[0]
-    u1 = abs(a[1]) * s[1]
-    u2 = abs(a[15]) * s[2]
-    u3 = abs(a[17]) * s[3]
-    u4 = abs(a[18]) * s[4]
-    u5 = abs(a[19]) * s[5]
-    u6 = abs(a[2]) * s[6]
-    u7 = abs(a[4]) * s[7]
-    u8 = abs(a[11]) * s[8]
+    s0, s1, s2, s3, s4, s5, s6, s7, s8 = s
+    u0 = abs(a[0]) * s0
+    u1 = abs(a[1]) * s1
+    u2 = abs(a[15]) * s2
+    u3 = abs(a[17]) * s3
+    u4 = abs(a[18]) * s4
+    u5 = abs(a[19]) * s5
+    u6 = abs(a[2]) * s6
+    u7 = abs(a[4]) * s7
+    u8 = abs(a[11]) * s8
     return max(u0, u1, u2, u3, u4, u5, u6, u7, u8) / min(u0, u1, u2, u3, u4, u5, u6, u7, u8)
 
 
@@ -631,7 +679,7 @@ def _instant(t, p, q, tol, m):
         if it == MAX_NEWTON:
             raise SolverError("not converged", t, q, it)
         try:
-            a = _factors(q, t, p)
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
         except ValueError:
             raise SolverError("singular", t, q, it) from None
         q, step = _newton_step(a, r, q)
@@ -644,12 +692,12 @@ def _instant(t, p, q, tol, m):
         rmax = max(map(abs, r))
     if a is None or step > 1e-14 * qmag:
         try:
-            a = _factors(q, t, p)
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
         except ValueError:
             raise SolverError("singular", t, q, it) from None
     qd = _solve(a, _nu_s(q, t, p))
     qdd = _solve(a, _gamma_s(q, qd, t, p))
-    lam = _solve_t(a, [u - v * w for u, v, w in zip(_applied_s(q, qd, t, p), m, qdd)])
+    lam = _lam(a, _applied_s(q, qd, t, p), m, qdd)
     return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
 
@@ -694,7 +742,7 @@ def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
     for k in range(k, n):
         t = t0 + k * h
         if q1 is not None:
-            q = [u + h * v + hh * w for u, v, w in zip(q1, qd, qdd)]
+            q = _predict(q1, qd, qdd, h, hh)
         try:
             qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
             if check is not None and q1 is not None and (

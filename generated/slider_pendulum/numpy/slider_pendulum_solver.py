@@ -75,8 +75,7 @@ def phi(q, t, p):
 
 
 def _phi_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 6
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.sin(p[0])
     e1 = math.sin(q[2])
     e2 = math.cos(p[0])
@@ -84,12 +83,14 @@ def _phi_s(q, t, p):
     e4 = 2*math.pi*t
     e5 = 1/math.sqrt(e0**2 + e2**2)
     e6 = (1/2)*p[9]
-    out[0] = -e0*(-e0*e1 + e2*e3) + e2*(e0*e3 + e1*e2)
-    out[1] = -e0*q[0] + e2*q[1]
-    out[2] = e0*e5*q[1] + e2*e5*q[0] - p[1]*math.sin(e4*p[2])
-    out[3] = -e1*p[8] - e6*math.cos(q[5]) - q[0] + q[3]
-    out[4] = e3*p[8] - e6*math.sin(q[5]) - q[1] + q[4]
-    out[5] = -p[3]*math.sin(e4*p[4]) - q[2] + q[5] + (1/2)*math.pi
+    out = [
+        -e0*(-e0*e1 + e2*e3) + e2*(e0*e3 + e1*e2),
+        -e0*q[0] + e2*q[1],
+        e0*e5*q[1] + e2*e5*q[0] - p[1]*math.sin(e4*p[2]),
+        -e1*p[8] - e6*math.cos(q[5]) - q[0] + q[3],
+        e3*p[8] - e6*math.sin(q[5]) - q[1] + q[4],
+        -p[3]*math.sin(e4*p[4]) - q[2] + q[5] + (1/2)*math.pi,
+    ]
     return out
 
 
@@ -121,29 +122,30 @@ def phi_q_values(q, t, p):
 
 
 def _phi_q_values_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 15
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.sin(p[0])
     e1 = math.sin(q[2])
     e2 = math.cos(p[0])
     e3 = math.cos(q[2])
     e4 = 1/math.sqrt(e0**2 + e2**2)
     e5 = (1/2)*p[9]
-    out[0] = -e0*(-e0*e3 - e1*e2) + e2*(-e0*e1 + e2*e3)
-    out[1] = -e0
-    out[2] = e2
-    out[3] = e2*e4
-    out[4] = e0*e4
-    out[5] = -1
-    out[6] = -e3*p[8]
-    out[7] = 1
-    out[8] = e5*math.sin(q[5])
-    out[9] = -1
-    out[10] = -e1*p[8]
-    out[11] = 1
-    out[12] = -e5*math.cos(q[5])
-    out[13] = -1
-    out[14] = 1
+    out = [
+        -e0*(-e0*e3 - e1*e2) + e2*(-e0*e1 + e2*e3),
+        -e0,
+        e2,
+        e2*e4,
+        e0*e4,
+        -1,
+        -e3*p[8],
+        1,
+        e5*math.sin(q[5]),
+        -1,
+        -e1*p[8],
+        1,
+        -e5*math.cos(q[5]),
+        -1,
+        1,
+    ]
     return out
 
 
@@ -162,16 +164,17 @@ def nu(q, t, p):
 
 
 def _nu_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 6
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = 2*math.pi
     e1 = e0*t
-    out[0] = 0
-    out[1] = 0
-    out[2] = e0*p[1]*p[2]*math.cos(e1*p[2])
-    out[3] = 0
-    out[4] = 0
-    out[5] = e0*p[3]*p[4]*math.cos(e1*p[4])
+    out = [
+        0,
+        0,
+        e0*p[1]*p[2]*math.cos(e1*p[2]),
+        0,
+        0,
+        e0*p[3]*p[4]*math.cos(e1*p[4]),
+    ]
     return out
 
 
@@ -193,19 +196,20 @@ def gamma(q, qd, t, p):
 
 
 def _gamma_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 6
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = qd[2]**2
     e1 = e0*math.sin(q[2])
     e2 = 2*math.pi*t
     e3 = 4*math.pi**2
     e4 = (1/2)*p[9]*qd[5]**2
-    out[0] = e1*math.sin(p[0])**2 + e1*math.cos(p[0])**2
-    out[1] = 0
-    out[2] = -e3*p[1]*p[2]**2*math.sin(e2*p[2])
-    out[3] = -e1*p[8] - e4*math.cos(q[5])
-    out[4] = e0*p[8]*math.cos(q[2]) - e4*math.sin(q[5])
-    out[5] = -e3*p[3]*p[4]**2*math.sin(e2*p[4])
+    out = [
+        e1*math.sin(p[0])**2 + e1*math.cos(p[0])**2,
+        0,
+        -e3*p[1]*p[2]**2*math.sin(e2*p[2]),
+        -e1*p[8] - e4*math.cos(q[5]),
+        e0*p[8]*math.cos(q[2]) - e4*math.sin(q[5]),
+        -e3*p[3]*p[4]**2*math.sin(e2*p[4]),
+    ]
     return out
 
 
@@ -223,15 +227,16 @@ def applied(q, qd, t, p):
 
 
 def _applied_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 6
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = p[11]*(-q[2] + q[5] + (1/2)*math.pi) + p[12]*(-qd[2] + qd[5])
-    out[0] = 0
-    out[1] = -981/100*p[5]
-    out[2] = e0
-    out[3] = 0
-    out[4] = -981/100*p[10]
-    out[5] = -e0
+    out = [
+        0,
+        -981/100*p[5],
+        e0,
+        0,
+        -981/100*p[10],
+        -e0,
+    ]
     return out
 
 
@@ -248,14 +253,15 @@ def mass(p):
 
 
 def _mass_s(p):
-    # one instant, floats in and out
-    out = [0.0] * 6
-    out[0] = p[5]
-    out[1] = p[5]
-    out[2] = (1/12)*p[5]*(p[6]**2 + p[7]**2)
-    out[3] = p[10]
-    out[4] = p[10]
-    out[5] = (1/12)*p[10]*p[9]**2
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        p[5],
+        p[5],
+        (1/12)*p[5]*(p[6]**2 + p[7]**2),
+        p[10],
+        p[10],
+        (1/12)*p[10]*p[9]**2,
+    ]
     return out
 
 
@@ -307,8 +313,7 @@ def reactions(q, lam, t, p):
 
 
 def _reactions_s(q, lam, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 30
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.cos(p[0])
     e1 = e0**2
     e2 = lam[0]*math.cos(q[2])
@@ -320,36 +325,38 @@ def _reactions_s(q, lam, t, p):
     e8 = lam[2]/math.sqrt(e1 + e4)
     e9 = e0*e8
     e10 = e3*e8
-    out[0] = 0
-    out[1] = 0
-    out[2] = e5
-    out[3] = 0
-    out[4] = 0
-    out[5] = -e5
-    out[6] = -e6
-    out[7] = e7
-    out[8] = e6*q[1] + e7*q[0]
-    out[9] = e6
-    out[10] = -e7
-    out[11] = 0
-    out[12] = e9
-    out[13] = e10
-    out[14] = e10*q[0] - e9*q[1]
-    out[15] = -e9
-    out[16] = -e10
-    out[17] = 0
-    out[18] = lam[3]
-    out[19] = lam[4]
-    out[20] = 0
-    out[21] = -lam[3]
-    out[22] = -lam[4]
-    out[23] = 0
-    out[24] = 0
-    out[25] = 0
-    out[26] = lam[5]
-    out[27] = 0
-    out[28] = 0
-    out[29] = -lam[5]
+    out = [
+        0,
+        0,
+        e5,
+        0,
+        0,
+        -e5,
+        -e6,
+        e7,
+        e6*q[1] + e7*q[0],
+        e6,
+        -e7,
+        0,
+        e9,
+        e10,
+        e10*q[0] - e9*q[1],
+        -e9,
+        -e10,
+        0,
+        lam[3],
+        lam[4],
+        0,
+        -lam[3],
+        -lam[4],
+        0,
+        0,
+        0,
+        lam[5],
+        0,
+        0,
+        -lam[5],
+    ]
     return out
 
 
@@ -423,10 +430,6 @@ def _lu(q, t, p):
     return [a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14]
 
 
-def _factors(q, t, p):
-    """The sparse factors of Phi_q(q), else the dense fallback; ValueError if singular."""
-    a = _lu(q, t, p)
-    return _Dense(q, t, p) if a is None else a
 
 
 def _solve(a, b):
@@ -464,6 +467,8 @@ def _newton_step(a, r, q):
     return [q0 - x0, q1 - x1, q2 - x2, q3 - x3, q4 - x4, q5 - x5], max(abs(x0), abs(x1), abs(x2), abs(x3), abs(x4), abs(x5))
 
 
+
+
 def _solve_t(a, b):
     """lambda with Phi_q^T lambda = b (sizes NG -> NC)."""
     if a.__class__ is _Dense:
@@ -480,14 +485,47 @@ def _solve_t(a, b):
     return [x0, x1, x2, x3, x4, x5]
 
 
+def _lam(a, f, m, e):
+    """lambda with Phi_q^T lambda = f - m e (elementwise; sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t([u - v * w for u, v, w in zip(f, m, e)])
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14 = a
+    f0, f1, f2, f3, f4, f5 = f
+    m0, m1, m2, m3, m4, m5 = m
+    e0, e1, e2, e3, e4, e5 = e
+    b0 = f0 - m0 * e0
+    b1 = f1 - m1 * e1
+    b2 = f2 - m2 * e2
+    b3 = f3 - m3 * e3
+    b4 = f4 - m4 * e4
+    b5 = f5 - m5 * e5
+    x3 = (b3) / a7
+    x4 = (b4) / a11
+    x5 = (b5 - a8 * x3 - a12 * x4) / a14
+    x0 = (b2 - a6 * x3 - a10 * x4 - a13 * x5) / a0
+    x1 = (b1 - a9 * x4) / a2
+    x2 = (b0 - a5 * x3 - a1 * x1) / a3
+    x1 -= a4 * x2
+    return [x0, x1, x2, x3, x4, x5]
+
+
+def _predict(o, d, e, h, hh):
+    """The Taylor guess o + h d + hh e (hh = h^2 / 2), elementwise."""
+    o0, o1, o2, o3, o4, o5 = o
+    d0, d1, d2, d3, d4, d5 = d
+    e0, e1, e2, e3, e4, e5 = e
+    return [o0 + h * d0 + hh * e0, o1 + h * d1 + hh * e1, o2 + h * d2 + hh * e2, o3 + h * d3 + hh * e3, o4 + h * d4 + hh * e4, o5 + h * d5 + hh * e5]
+
+
 def _spread(a, s):
     """max / min of the pivots |u_k| s_k of sparse factors (s: a scale per step)."""
-    u0 = abs(a[7]) * s[0]
-    u1 = abs(a[11]) * s[1]
-    u2 = abs(a[14]) * s[2]
-    u3 = abs(a[0]) * s[3]
-    u4 = abs(a[2]) * s[4]
-    u5 = abs(a[3]) * s[5]
+    s0, s1, s2, s3, s4, s5 = s
+    u0 = abs(a[7]) * s0
+    u1 = abs(a[11]) * s1
+    u2 = abs(a[14]) * s2
+    u3 = abs(a[0]) * s3
+    u4 = abs(a[2]) * s4
+    u5 = abs(a[3]) * s5
     return max(u0, u1, u2, u3, u4, u5) / min(u0, u1, u2, u3, u4, u5)
 
 
@@ -521,7 +559,7 @@ def _instant(t, p, q, tol, m):
         if it == MAX_NEWTON:
             raise SolverError("not converged", t, q, it)
         try:
-            a = _factors(q, t, p)
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
         except ValueError:
             raise SolverError("singular", t, q, it) from None
         q, step = _newton_step(a, r, q)
@@ -534,12 +572,12 @@ def _instant(t, p, q, tol, m):
         rmax = max(map(abs, r))
     if a is None or step > 1e-14 * qmag:
         try:
-            a = _factors(q, t, p)
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
         except ValueError:
             raise SolverError("singular", t, q, it) from None
     qd = _solve(a, _nu_s(q, t, p))
     qdd = _solve(a, _gamma_s(q, qd, t, p))
-    lam = _solve_t(a, [u - v * w for u, v, w in zip(_applied_s(q, qd, t, p), m, qdd)])
+    lam = _lam(a, _applied_s(q, qd, t, p), m, qdd)
     return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
 
@@ -584,7 +622,7 @@ def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
     for k in range(k, n):
         t = t0 + k * h
         if q1 is not None:
-            q = [u + h * v + hh * w for u, v, w in zip(q1, qd, qdd)]
+            q = _predict(q1, qd, qdd, h, hh)
         try:
             qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
             if check is not None and q1 is not None and (
