@@ -2,7 +2,7 @@
 (cached by model hash).
 
 A run goes through the module's own loop (`_rows`: Newton, sparse LU and
-outputs in straight-line scalar code, ~5x faster than the shared Python
+outputs in straight-line scalar code, 5-8x faster than the shared Python
 loop) unless the analysis asks for what only the Python loop provides
 (`symid.stability.requested`: the cond column or warning level, minimum-norm
 multipliers, allowed assembly-mode jumps). The Python loop still solves t0
