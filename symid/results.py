@@ -52,20 +52,21 @@ def table_rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes
     """
     own = getattr(evaluator, "rows", None)
     if own is not None:
-        yield from own(analysis, q0)
+        yield from own(analysis, q0, notes)
         return
     from symid.solve import run
 
     for instant in run(evaluator, analysis, q0, notes):
-        yield _row(instant, len(q0), analysis)
+        yield instant_row(instant, len(q0), analysis)
 
 
 def row(instant: Instant, layout: Layout, analysis: Analysis) -> Array:
     """One CSV row (same order as `columns`)."""
-    return _row(instant, layout.ng, analysis)
+    return instant_row(instant, layout.ng, analysis)
 
 
-def _row(instant: Instant, ng: int, analysis: Analysis) -> Array:
+def instant_row(instant: Instant, ng: int, analysis: Analysis) -> Array:
+    """One CSV row of an instant of a mechanism with ng coordinates."""
     parts: list[Array] = [np.array([instant.t])]
     zeros = np.zeros(ng)
     for group in analysis.output_groups():

@@ -147,21 +147,49 @@ def run(ev: Evaluator, analysis: Analysis, q0: Array, notes: Notes | None = None
     Raises:
         AnalysisError: with `time` and `solved` set, at the first failure.
     """
-    notes = notes if notes is not None else Notes(analysis)
-    groups = analysis.output_groups()
-    statics = analysis.kind == "statics"
-    want_lam = not analysis.kind == "kinematics" and ("lambda" in groups or "reactions" in groups)
-    want_reactions = "reactions" in groups and analysis.kind != "kinematics"
-    mass = ev.mass() if want_lam and not statics else None
+    stepper = Stepper(ev, analysis, notes)
     history: list[Array] = []
     prev: Instant | None = None
-    scaling: Scaling | None = None
     for n, t in enumerate(_times(analysis)):
+        prev = stepper.instant(n, t, prev, history, q0)
+        history = (history + [prev.q])[-3:]
+        yield prev
+
+
+class Stepper:
+    """The Python loop's solve of one instant, and what the instants of one
+    run share: the scaling fixed at t0, the mass diagonal and the warnings.
+
+    A backend with a faster loop of its own hands it the instants it cannot
+    vouch for (a failure, a suspected branch jump, a suspected ill-conditioning).
+    """
+
+    def __init__(self, ev: Evaluator, analysis: Analysis, notes: Notes | None = None) -> None:
+        self.ev, self.analysis = ev, analysis
+        self.notes = notes if notes is not None else Notes(analysis)
+        groups = analysis.output_groups()
+        self.statics = analysis.kind == "statics"
+        self.want_lam = not analysis.kind == "kinematics" and ("lambda" in groups or "reactions" in groups)
+        self.want_reactions = "reactions" in groups and analysis.kind != "kinematics"
+        self.mass = ev.mass() if self.want_lam and not self.statics else None
+        self.scaling: Scaling | None = None  # set by the first instant
+
+    def instant(self, n: int, t: float, prev: Instant | None, history: list[Array], q0: Array) -> Instant:
+        """Solve instant n (time t) after `prev` (None: assemble from q0).
+
+        Args:
+            history: the last (up to 3) positions, oldest first (the statics predictor).
+
+        Raises:
+            AnalysisError: with `time` and `solved` (= n) set.
+        """
+        ev, analysis, notes = self.ev, self.analysis, self.notes
+        scaling = self.scaling
         try:
             if prev is None or scaling is None:
                 q, iterations = newton(ev, q0, t, analysis.tol)
                 jac = ev.phi_q(q, t)
-                scaling = Scaling.of(jac, q)  # fixed for the run, from the assembled t0
+                scaling = self.scaling = Scaling.of(jac, q)  # fixed for the run, from the assembled t0
                 if jac.shape[0] > jac.shape[1]:
                     _redundant_rows(ev, jac, scaling, notes, t)
             else:
@@ -181,24 +209,22 @@ def run(ev: Evaluator, analysis: Analysis, q0: Array, notes: Notes | None = None
                         _branch(ev, analysis, prev, t, q, guess, scaling, notes, n)
             factor = _factor(ev, q, t, scaling)
             out = Instant(t=t, q=q, cond=factor.cond, iterations=iterations)
-            if statics:
-                if want_lam:
+            if self.statics:
+                if self.want_lam:
                     out.lam = factor.solve_t(ev.applied(q, None, t))
             else:
                 out.qd = factor.solve(ev.nu(q, t))
                 out.qdd = factor.solve(ev.gamma(q, out.qd, t))
-                if want_lam:
-                    rhs = ev.applied(q, out.qd, t) - mass * out.qdd  # type: ignore[operator]
+                if self.want_lam:
+                    rhs = ev.applied(q, out.qd, t) - self.mass * out.qdd  # type: ignore[operator]
                     out.lam = factor.solve_t(rhs)
-            if want_reactions and out.lam is not None:
+            if self.want_reactions and out.lam is not None:
                 out.reactions = ev.reactions(q, out.lam, t)
             notes.cond(t, out.cond, n)
         except AnalysisError as exc:
             exc.time, exc.solved = t, n
             raise
-        history = (history + [q])[-3:]
-        prev = out
-        yield out
+        return out
 
 
 def _redundant_rows(ev: Evaluator, jac: Array, scaling: Scaling, notes: Notes, t: float) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import filecmp
+import re
 import shutil
 import subprocess
 import sys
@@ -15,7 +16,7 @@ import numpy as np
 import pytest
 
 from data_mechanisms import SINGULAR_PENDULUM, TWO_CABLES
-from symid import api
+from symid import api, solve
 from symid.cli import main
 from symid.codegen import sparse
 from symid.codegen.emit import sample_jacobian
@@ -283,10 +284,93 @@ def test_generated_c_of_every_kind_compiles_with_strict_flags(kind: str, tmp_pat
     assert result.returncode == 0, result.stderr
 
 
-@needs_cc
+@pytest.mark.parametrize("backend", GENERATED_BACKENDS)
 @pytest.mark.parametrize("kind", ("kinematics", "statics"))
-def test_c_backend_agrees_with_reference_for_every_kind(kind: str) -> None:
+def test_generated_backends_agree_with_reference_for_every_kind(kind: str, backend: str) -> None:
+    if backend == "c":
+        needs_cc(lambda: None)
     expected = api.solve(api.example("four_bar"), backend="reference", kind=kind, steps=30)
-    got = api.solve(api.example("four_bar"), backend="c", kind=kind, steps=30)
+    got = api.solve(api.example("four_bar"), backend=backend, kind=kind, steps=30)
     assert got.error is None and got.columns == expected.columns
     assert_agree(got.data, expected.data)
+
+
+# -- the numpy backend: the module's loop, the Python loop where needed -----------
+
+@pytest.fixture
+def python_instants(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The indices of the instants the Python loop solves (Stepper.instant), in call order."""
+    calls: list[int] = []
+    original = solve.Stepper.instant
+
+    def spy(self: solve.Stepper, n: int, *args: object) -> solve.Instant:
+        calls.append(n)
+        return original(self, n, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(solve.Stepper, "instant", spy)
+    return calls
+
+
+@pytest.mark.parametrize("example", api.examples())
+def test_numpy_runs_the_module_loop_when_no_stability_option_is_asked(example: str, python_instants) -> None:
+    study = api.prepare(api.example(example), "numpy", steps=60)
+    assert study.evaluator.own_loop(study.analysis)
+    results = study.solve()
+    assert results.error is None and results.data.shape[0] == 60 and results.warnings == []
+    assert python_instants == [0]  # t0 only: assembly from q0, and the run's scaling
+
+
+@pytest.mark.parametrize("option", [{"outputs": ["q", "lambda", "cond"]}, {"cond_warn": 1e4},
+                                    {"redundant": "min_norm"}, {"assembly_jump": "warn"}], ids=lambda o: next(iter(o)))
+def test_numpy_runs_the_python_loop_for_the_stability_options(option: dict, python_instants) -> None:
+    study = api.prepare(api.example("slider_crank"), "numpy", steps=20, **option)
+    assert not study.evaluator.own_loop(study.analysis)
+    results = study.solve()
+    assert results.error is None and python_instants == list(range(20))
+    assert_agree(results.data, api.solve(api.example("slider_crank"), "reference", steps=20, **option).data)
+
+
+def test_numpy_module_loop_hands_a_newton_failure_to_the_python_loop(python_instants) -> None:
+    """Rod (0.05) shorter than the crank: past 30 degrees (t = 1/60 s) no
+    position exists; the module fails there, and the Python loop reports it."""
+    text = re.sub(r"L_rod = 0\.3\b", "L_rod = 0.05", api.example("slider_crank").read_text())
+    results = api.solve(loads(text, "short_rod.toml"), "numpy")
+    error = results.error
+    assert error is not None and error.time == pytest.approx(0.017) and error.solved == 17
+    assert "Newton did not converge: diverging" in str(error) and "crank_pin" in str(error)
+    assert results.data.shape[0] == 17 and python_instants == [0, 17]
+
+
+def test_numpy_module_loop_hands_a_suspected_jump_to_the_python_loop(python_instants) -> None:
+    """Three instants over a four-bar's crank revolution: the branch check
+    fires, and the Python loop finds the jump to the crossed assembly."""
+    results = api.solve(api.example("four_bar"), "numpy", steps=3)
+    error = results.error
+    assert error is not None and "assembly mode jump" in str(error) and error.time == 0.5
+    assert results.data.shape[0] == error.solved == 2 and python_instants[-1] == 2
+
+
+def test_numpy_module_loop_hands_the_dense_fallback_instants_to_the_python_loop(python_instants) -> None:
+    mech = loads(TWO_CABLES, "two_cables.toml")
+    got = api.solve(mech, backend="numpy")
+    handed = list(python_instants)
+    assert got.error is None and handed[0] == 0 and len(handed) > 1  # some fixed pivot fails on the way
+    assert_agree(got.data, api.solve(mech, backend="reference").data)
+
+
+def test_numpy_module_loop_warns_and_fails_near_a_toggle_like_the_python_loop(python_instants) -> None:
+    """Rod = crank (1 + 1e-12): at 90 degrees (t = 0.05 s) cond is 3.9e6,
+    above the default cond_warn; just past it the solution jumps branch. The
+    pivot screen hands t = 0.05 to the Python loop, which warns; the branch
+    check hands over the next instant, which the Python loop refuses."""
+    text = re.sub(r"L_rod = 0\.3\b", "L_rod = 0.1000000000001", api.example("slider_crank").read_text())
+    mech = loads(text, "near_toggle.toml")
+    got = api.solve(mech, "numpy")
+    assert python_instants == [0, 50, 51]
+    expected = api.solve(mech, "reference")
+    assert got.warnings == expected.warnings and "ill-conditioned" in got.warnings[0]
+    assert str(got.error) == str(expected.error) and got.error.time == expected.error.time  # type: ignore[union-attr]
+    # the two loops' Newton iterates differ within tol; near the toggle that
+    # shows up to cond eps in positions and cond^2 eps in the rest
+    assert_agree(got.data[:, :10], expected.data[:, :10], rel=3.9e6 * 1e-15)
+    assert_agree(got.data, expected.data, rel=3.9e6**2 * 1e-15)

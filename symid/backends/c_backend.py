@@ -25,6 +25,7 @@ if TYPE_CHECKING:  # a cached run (symid.plan) loads a built solver without symp
 
     from symid.assemble import Layout
     from symid.codegen.flat import Options
+    from symid.stability import Notes
 
 # -fno-math-errno lets sqrt compile to one instruction; results are unchanged.
 CFLAGS = ("-std=c99", "-fno-math-errno", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared")
@@ -144,8 +145,9 @@ class CEvaluator:
         return self._call("reactions", np.ascontiguousarray(q, float), np.ascontiguousarray(lam, float),
                           float(t), size=self.meta["nr"])
 
-    def rows(self, analysis: Analysis, q0: Array) -> Iterator[Array]:
-        """Solve the whole run in C, CHUNK instants per call, yielding rows."""
+    def rows(self, analysis: Analysis, q0: Array, notes: Notes | None = None) -> Iterator[Array]:
+        """Solve the whole run in C, CHUNK instants per call, yielding rows
+        (`notes` stay empty: the compiled loop makes no warnings)."""
         ng, width = self.meta["ng"], self.meta["row"]
         state = np.zeros(5 * ng + 1)
         state[:ng] = q0

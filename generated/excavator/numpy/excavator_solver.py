@@ -30,7 +30,10 @@ MAX_NEWTON = 50
 EPS = float(np.finfo(float).eps)
 THRESHOLD = 0.1
 SINGULAR_RCOND = 1e3 * EPS
-_FILL = [0.0] * 0
+LU_SIZE = 35
+PIVOT_ROWS = (5, 1, 6, 0, 3, 7, 2, 8, 4, )
+PIVOT_COLS = (7, 1, 0, 2, 4, 3, 5, 6, 8, )
+_ZEROS = [0.0] * NG
 
 
 class SolverError(RuntimeError):
@@ -43,6 +46,7 @@ class SolverError(RuntimeError):
     def __init__(self, status, t, q, iterations):
         super().__init__(f"{status} at t = {t!r}")
         self.status, self.t, self.q, self.iterations = status, t, q, iterations
+        self.k = self.past = self.qd = self.qdd = None
 
 
 def _stack(values, like):
@@ -91,8 +95,7 @@ def phi(q, t, p):
 
 
 def _phi_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.cos(q[2])
     e1 = (1/2)*p[0]
     e2 = e0*e1
@@ -117,15 +120,17 @@ def _phi_s(q, t, p):
     e21 = 1/2 - 1/2*math.cos(e19)
     e22 = -e17 - 1/20
     e23 = 2/5 - e7
-    out[0] = -e2 + q[0]
-    out[1] = -e4 + q[1]
-    out[2] = -e2 + e5 - e8
-    out[3] = -e11 - e4 + e9
-    out[4] = e12 - e14*p[2] - e8
-    out[5] = -e11 + e15 - e16*e17
-    out[6] = -(-p[10]*math.sin(e19) + p[9])**2 + (-2/5*e0 + e18*e3 + (q[1] + 6/5))**2 + (e0*e18 + (2/5)*e3 + (q[0] - 3/10))**2
-    out[7] = -(e21*p[12] + p[11])**2 + (-11/20*e0 + e10*e20 - 3/10*e3 + (3/20)*e6 + e9)**2 + (-3/10*e0 - 3/20*e10 + e20*e6 + (11/20)*e3 + e5)**2
-    out[8] = -(e21*p[14] + p[13])**2 + ((7/20)*e10 + e12 + e13*e22 - 1/2*e16 - e23*e6)**2 + (-e10*e23 + e14 + e15 + e16*e22 - 7/20*e6)**2
+    out = [
+        -e2 + q[0],
+        -e4 + q[1],
+        -e2 + e5 - e8,
+        -e11 - e4 + e9,
+        e12 - e14*p[2] - e8,
+        -e11 + e15 - e16*e17,
+        -(-p[10]*math.sin(e19) + p[9])**2 + (-2/5*e0 + e18*e3 + (q[1] + 6/5))**2 + (e0*e18 + (2/5)*e3 + (q[0] - 3/10))**2,
+        -(e21*p[12] + p[11])**2 + (-11/20*e0 + e10*e20 - 3/10*e3 + (3/20)*e6 + e9)**2 + (-3/10*e0 - 3/20*e10 + e20*e6 + (11/20)*e3 + e5)**2,
+        -(e21*p[14] + p[13])**2 + ((7/20)*e10 + e12 + e13*e22 - 1/2*e16 - e23*e6)**2 + (-e10*e23 + e14 + e15 + e16*e22 - 7/20*e6)**2,
+    ]
     return out
 
 
@@ -232,8 +237,7 @@ def phi_q_values(q, t, p):
 
 
 def _phi_q_values_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 35
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.sin(q[2])
     e1 = (1/2)*p[0]
     e2 = e0*e1
@@ -295,41 +299,43 @@ def _phi_q_values_s(q, t, p):
     e58 = (1/2)*e12 + e50 - e54 - 7/20*e8 + (-q[4] + q[7])
     e59 = -e10 + e43
     e60 = e12 + e51
-    out[0] = 1
-    out[1] = e2
-    out[2] = 1
-    out[3] = e4
-    out[4] = -1
-    out[5] = e2
-    out[6] = 1
-    out[7] = e7
-    out[8] = -1
-    out[9] = e4
-    out[10] = 1
-    out[11] = e9
-    out[12] = -1
-    out[13] = e7
-    out[14] = 1
-    out[15] = e10*e11
-    out[16] = -1
-    out[17] = e9
-    out[18] = 1
-    out[19] = -e11*e12
-    out[20] = e16 + (e13 - 3/5)
-    out[21] = e19 + (e17 + 12/5)
-    out[22] = e16*(e18 - 2/5*e3 + (q[1] + 6/5)) - e19*((2/5)*e0 + e15 + (q[0] - 3/10))
-    out[23] = -e20 + e21 + e22 - e25 + (e27)
-    out[24] = -e28 - e30 + e35 + (e32)
-    out[25] = e35*e38 + e36*e37
-    out[26] = e36 + e39 + (-e27)
-    out[27] = -e33 - e34 + e40 + (-e32)
-    out[28] = e37*e39 - e38*e40
-    out[29] = e10 - e43 + e49 + (e44)
-    out[30] = -e12 - e51 + e56 + (e52)
-    out[31] = -e49*e58 + e56*e57
-    out[32] = e45 - e48 + e59 + (-e44)
-    out[33] = -e53 - e55 + e60 + (-e52)
-    out[34] = -e57*e60 + e58*e59
+    out = [
+        1,
+        e2,
+        1,
+        e4,
+        -1,
+        e2,
+        1,
+        e7,
+        -1,
+        e4,
+        1,
+        e9,
+        -1,
+        e7,
+        1,
+        e10*e11,
+        -1,
+        e9,
+        1,
+        -e11*e12,
+        e16 + (e13 - 3/5),
+        e19 + (e17 + 12/5),
+        e16*(e18 - 2/5*e3 + (q[1] + 6/5)) - e19*((2/5)*e0 + e15 + (q[0] - 3/10)),
+        -e20 + e21 + e22 - e25 + (e27),
+        -e28 - e30 + e35 + (e32),
+        e35*e38 + e36*e37,
+        e36 + e39 + (-e27),
+        -e33 - e34 + e40 + (-e32),
+        e37*e39 - e38*e40,
+        e10 - e43 + e49 + (e44),
+        -e12 - e51 + e56 + (e52),
+        -e49*e58 + e56*e57,
+        e45 - e48 + e59 + (-e44),
+        -e53 - e55 + e60 + (-e52),
+        -e57*e60 + e58*e59,
+    ]
     return out
 
 
@@ -354,22 +360,23 @@ def nu(q, t, p):
 
 
 def _nu_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = p[8]*t
     e1 = math.sin(e0)
     e2 = math.cos(e0)
     e3 = 1/2 - 1/2*e2
     e4 = e1*p[8]
-    out[0] = 0
-    out[1] = 0
-    out[2] = 0
-    out[3] = 0
-    out[4] = 0
-    out[5] = 0
-    out[6] = -2*e2*p[10]*p[8]*(-e1*p[10] + p[9])
-    out[7] = e4*p[12]*(e3*p[12] + p[11])
-    out[8] = e4*p[14]*(e3*p[14] + p[13])
+    out = [
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        -2*e2*p[10]*p[8]*(-e1*p[10] + p[9]),
+        e4*p[12]*(e3*p[12] + p[11]),
+        e4*p[14]*(e3*p[14] + p[13]),
+    ]
     return out
 
 
@@ -470,8 +477,7 @@ def gamma(q, qd, t, p):
 
 
 def _gamma_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = (1/2)*p[0]
     e1 = qd[2]**2
     e2 = math.cos(q[2])
@@ -553,15 +559,17 @@ def _gamma_s(q, qd, t, p):
     e78 = e17*e76
     e79 = 2*e70*e73
     e80 = e79*e9
-    out[0] = -e4
-    out[1] = -e7
-    out[2] = -e12 - e4
-    out[3] = -e14 - e7
-    out[4] = -e12 - e15*e18
-    out[5] = -e14 - e15*e20
-    out[6] = -e2*e25*qd[0] + e22**2*e24*p[10]**2 + e24*e32*(-e32 + p[9]) - e25*e5*qd[1] - e26*e27 + e26*e3*e33 - 4*e26*e30*qd[1] + e26*e35*e5*qd[2] + (4/5)*e28 + e29*e34 + (12/5)*e29 - 4/5*e3*q[1] - 24/25*e3 - 6/25*e6 + (-e36)
-    out[7] = (9/100)*e1*e13*e2 + (3/5)*e1*e2*q[0] + (11/10)*e1*e2*q[1] + (11/10)*e1*e5*e52*e8 + (3/5)*e1*e5*q[1] + (11/10)*e1*e5*q[3] + (11/5)*e13*e2*e52*qd[2]*qd[5] + (9/100)*e13*e2*e9 - 9/50*e13*e30*qd[5] - e13*e34*e53 - e13*e35*e54 - e13*e40*qd[1] - e13*e41*q[3] + (6/5)*e13*e5*e52*qd[2]*qd[5] + (33/100)*e13*e5*qd[2]*qd[5] + 2*e13*e52*e9*q[4] + 4*e13*e52*qd[3]*qd[5] + (3/10)*e13*e9*q[0] + (3/5)*e13*qd[4]*qd[5] - e2*e42*qd[1] - e2*e45*qd[3] + (6/5)*e2*e52*e8*qd[2]*qd[5] + (33/100)*e2*e8*qd[2]*qd[5] + (11/5)*e2*qd[0]*qd[2] + (6/5)*e2*qd[2]*qd[4] + e22*e23*p[12]*(e51*p[12] + p[11]) + (1/2)*e23*e38*p[12]**2 - e27*e57 - e27*q[3] - 11/10*e28 - e3*e48 - e33*e53*e8 - e39*e58 - e39*q[4] - e40*e8*qd[0] - e41*e8*q[1] - e42*e5*qd[3] - e43*e44 - e43*e6 - e44*e49 - 3/5*e44*e58 - e46*e56 - e46*qd[4] - e47*e58 - e47*q[4] - e48*e50 - e49*e6 + (11/10)*e5*e52*e8*e9 + (9/50)*e5*e8*qd[2]*qd[5] + (6/5)*e5*qd[0]*qd[2] + (11/5)*e5*qd[1]*qd[2] - 3/5*e50*e57 - 11/10*e50*e58 + 2*e52*e8*e9*q[3] + 4*e52*e8*qd[1]*qd[5] - e55*e56 + (3/10)*e8*e9*q[4] + (3/5)*e8*qd[3]*qd[5] + (-e36 - e37 + 4*qd[0]*qd[3] + 4*qd[1]*qd[4])
-    out[8] = (7/10)*e13*e16*e17*e73 + 2*e13*e17*e70*qd[5]*qd[8] + (7/10)*e13*e17*e73*e9 + 4*e13*e19*e70*e73*qd[5]*qd[8] + (7/10)*e13*e19*qd[5]*qd[8] - e13*e63*q[3] + 2*e13*e70*e9*q[4] + 4*e13*e70*qd[3]*qd[5] + (7/10)*e13*e9*q[6] + (7/5)*e13*qd[4]*qd[5] + 2*e16*e17*e73*q[6] + e16*e17*q[7] + e16*e19*e70*e8 + 2*e16*e19*e73*q[7] + e16*e19*q[3] - e17*e59*qd[3] + 4*e17*e70*e73*e8*qd[5]*qd[8] - e17*e72 + 4*e17*e73*qd[4]*qd[8] + (7/10)*e17*e8*qd[5]*qd[8] + 2*e17*qd[6]*qd[8] - e18*e71 - 2*e18*e73*q[3] - e18*q[4] - e19*e64*e73 + e19*e70*e8*e9 + (7/5)*e19*e73*e8*qd[5]*qd[8] + 4*e19*e73*qd[6]*qd[8] - 4*e19*e76*qd[3] + 2*e19*qd[7]*qd[8] - e20*q[6] + e22*e23*p[14]*(e51*p[14] + p[13]) + (1/2)*e23*e38*p[14]**2 - e55*e77 - e60*e77 - e60*qd[4] - e61*e8*qd[6] - e62*e78 - e62*qd[7] - e64*q[7] - e65*e66 - e65*e67 - e66*e80 - e67*e80 - e68*e79 - 7/20*e68 - e69*e79 - 7/20*e69 + 2*e70*e8*e9*q[3] + 4*e70*e8*qd[5]*qd[7] - 4*e71*qd[5]*qd[6] - 2*e72*q[7] - 7/10*e74*e8 - 2*e74*q[4] - 2*e75*e9*q[6] - 4*e78*qd[7] + (7/10)*e8*e9*q[4] + (7/5)*e8*qd[3]*qd[5] + (-e37 + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2)
+    out = [
+        -e4,
+        -e7,
+        -e12 - e4,
+        -e14 - e7,
+        -e12 - e15*e18,
+        -e14 - e15*e20,
+        -e2*e25*qd[0] + e22**2*e24*p[10]**2 + e24*e32*(-e32 + p[9]) - e25*e5*qd[1] - e26*e27 + e26*e3*e33 - 4*e26*e30*qd[1] + e26*e35*e5*qd[2] + (4/5)*e28 + e29*e34 + (12/5)*e29 - 4/5*e3*q[1] - 24/25*e3 - 6/25*e6 + (-e36),
+        (9/100)*e1*e13*e2 + (3/5)*e1*e2*q[0] + (11/10)*e1*e2*q[1] + (11/10)*e1*e5*e52*e8 + (3/5)*e1*e5*q[1] + (11/10)*e1*e5*q[3] + (11/5)*e13*e2*e52*qd[2]*qd[5] + (9/100)*e13*e2*e9 - 9/50*e13*e30*qd[5] - e13*e34*e53 - e13*e35*e54 - e13*e40*qd[1] - e13*e41*q[3] + (6/5)*e13*e5*e52*qd[2]*qd[5] + (33/100)*e13*e5*qd[2]*qd[5] + 2*e13*e52*e9*q[4] + 4*e13*e52*qd[3]*qd[5] + (3/10)*e13*e9*q[0] + (3/5)*e13*qd[4]*qd[5] - e2*e42*qd[1] - e2*e45*qd[3] + (6/5)*e2*e52*e8*qd[2]*qd[5] + (33/100)*e2*e8*qd[2]*qd[5] + (11/5)*e2*qd[0]*qd[2] + (6/5)*e2*qd[2]*qd[4] + e22*e23*p[12]*(e51*p[12] + p[11]) + (1/2)*e23*e38*p[12]**2 - e27*e57 - e27*q[3] - 11/10*e28 - e3*e48 - e33*e53*e8 - e39*e58 - e39*q[4] - e40*e8*qd[0] - e41*e8*q[1] - e42*e5*qd[3] - e43*e44 - e43*e6 - e44*e49 - 3/5*e44*e58 - e46*e56 - e46*qd[4] - e47*e58 - e47*q[4] - e48*e50 - e49*e6 + (11/10)*e5*e52*e8*e9 + (9/50)*e5*e8*qd[2]*qd[5] + (6/5)*e5*qd[0]*qd[2] + (11/5)*e5*qd[1]*qd[2] - 3/5*e50*e57 - 11/10*e50*e58 + 2*e52*e8*e9*q[3] + 4*e52*e8*qd[1]*qd[5] - e55*e56 + (3/10)*e8*e9*q[4] + (3/5)*e8*qd[3]*qd[5] + (-e36 - e37 + 4*qd[0]*qd[3] + 4*qd[1]*qd[4]),
+        (7/10)*e13*e16*e17*e73 + 2*e13*e17*e70*qd[5]*qd[8] + (7/10)*e13*e17*e73*e9 + 4*e13*e19*e70*e73*qd[5]*qd[8] + (7/10)*e13*e19*qd[5]*qd[8] - e13*e63*q[3] + 2*e13*e70*e9*q[4] + 4*e13*e70*qd[3]*qd[5] + (7/10)*e13*e9*q[6] + (7/5)*e13*qd[4]*qd[5] + 2*e16*e17*e73*q[6] + e16*e17*q[7] + e16*e19*e70*e8 + 2*e16*e19*e73*q[7] + e16*e19*q[3] - e17*e59*qd[3] + 4*e17*e70*e73*e8*qd[5]*qd[8] - e17*e72 + 4*e17*e73*qd[4]*qd[8] + (7/10)*e17*e8*qd[5]*qd[8] + 2*e17*qd[6]*qd[8] - e18*e71 - 2*e18*e73*q[3] - e18*q[4] - e19*e64*e73 + e19*e70*e8*e9 + (7/5)*e19*e73*e8*qd[5]*qd[8] + 4*e19*e73*qd[6]*qd[8] - 4*e19*e76*qd[3] + 2*e19*qd[7]*qd[8] - e20*q[6] + e22*e23*p[14]*(e51*p[14] + p[13]) + (1/2)*e23*e38*p[14]**2 - e55*e77 - e60*e77 - e60*qd[4] - e61*e8*qd[6] - e62*e78 - e62*qd[7] - e64*q[7] - e65*e66 - e65*e67 - e66*e80 - e67*e80 - e68*e79 - 7/20*e68 - e69*e79 - 7/20*e69 + 2*e70*e8*e9*q[3] + 4*e70*e8*qd[5]*qd[7] - 4*e71*qd[5]*qd[6] - 2*e72*q[7] - 7/10*e74*e8 - 2*e74*q[4] - 2*e75*e9*q[6] - 4*e78*qd[7] + (7/10)*e8*e9*q[4] + (7/5)*e8*qd[3]*qd[5] + (-e37 + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2),
+    ]
     return out
 
 
@@ -583,19 +591,20 @@ def applied(q, qd, t, p):
 
 
 def _applied_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.exp(-(-p[16] + t)**2/p[17]**2)
     e1 = e0*p[15]
-    out[0] = 0
-    out[1] = -981/100*p[4]
-    out[2] = 0
-    out[3] = 0
-    out[4] = -981/100*p[5]
-    out[5] = 0
-    out[6] = e1
-    out[7] = (3/10)*e1 - 981/100*p[6]
-    out[8] = (3/20)*e0*p[15]*p[2]*math.cos(q[8]) - 1/2*e1*p[2]*math.sin(q[8])
+    out = [
+        0,
+        -981/100*p[4],
+        0,
+        0,
+        -981/100*p[5],
+        0,
+        e1,
+        (3/10)*e1 - 981/100*p[6],
+        (3/20)*e0*p[15]*p[2]*math.cos(q[8]) - 1/2*e1*p[2]*math.sin(q[8]),
+    ]
     return out
 
 
@@ -615,17 +624,18 @@ def mass(p):
 
 
 def _mass_s(p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = p[4]
-    out[1] = p[4]
-    out[2] = (1/12)*p[0]**2*p[4]
-    out[3] = p[5]
-    out[4] = p[5]
-    out[5] = (1/12)*p[1]**2*p[5]
-    out[6] = p[6]
-    out[7] = p[6]
-    out[8] = (1/12)*p[6]*(p[2]**2 + p[3]**2)
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        p[4],
+        p[4],
+        (1/12)*p[0]**2*p[4],
+        p[5],
+        p[5],
+        (1/12)*p[1]**2*p[5],
+        p[6],
+        p[6],
+        (1/12)*p[6]*(p[2]**2 + p[3]**2),
+    ]
     return out
 
 
@@ -714,8 +724,7 @@ def reactions(q, lam, t, p):
 
 
 def _reactions_s(q, lam, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 36
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = 2*lam[6]
     e1 = e0*q[0] - 3/5*lam[6]
     e2 = math.sin(q[2])
@@ -758,42 +767,44 @@ def _reactions_s(q, lam, t, p):
     e39 = e12*e32
     e40 = e28*e35
     e41 = e31*q[4] - 2*lam[8]*q[7]
-    out[0] = lam[0]
-    out[1] = lam[1]
-    out[2] = 0
-    out[3] = -lam[0]
-    out[4] = -lam[1]
-    out[5] = 0
-    out[6] = lam[2]
-    out[7] = lam[3]
-    out[8] = 0
-    out[9] = -lam[2]
-    out[10] = -lam[3]
-    out[11] = 0
-    out[12] = lam[4]
-    out[13] = lam[5]
-    out[14] = 0
-    out[15] = -lam[4]
-    out[16] = -lam[5]
-    out[17] = 0
-    out[18] = e6 + (e1)
-    out[19] = -e7 + e8 + (e9)
-    out[20] = 0
-    out[21] = -e6 + (-e1)
-    out[22] = e7 - e8 + (-e9)
-    out[23] = 0
-    out[24] = -e11 - e14 + e16 + e21 + (-e22)
-    out[25] = -e23 - e24 + e25 + e26 + (-e27)
-    out[26] = 0
-    out[27] = e11 + e14 - e16 - e21 + (e22)
-    out[28] = e23 + e24 - e25 - e26 + (e27)
-    out[29] = 0
-    out[30] = -e28 + e30 - e33 + e36 + (-e37)
-    out[31] = e34 - e38 - e39 + e40 + (-e41)
-    out[32] = 0
-    out[33] = e28 - e30 + e33 - e36 + (e37)
-    out[34] = -e34 + e38 + e39 - e40 + (e41)
-    out[35] = 0
+    out = [
+        lam[0],
+        lam[1],
+        0,
+        -lam[0],
+        -lam[1],
+        0,
+        lam[2],
+        lam[3],
+        0,
+        -lam[2],
+        -lam[3],
+        0,
+        lam[4],
+        lam[5],
+        0,
+        -lam[4],
+        -lam[5],
+        0,
+        e6 + (e1),
+        -e7 + e8 + (e9),
+        0,
+        -e6 + (-e1),
+        e7 - e8 + (-e9),
+        0,
+        -e11 - e14 + e16 + e21 + (-e22),
+        -e23 - e24 + e25 + e26 + (-e27),
+        0,
+        e11 + e14 - e16 - e21 + (e22),
+        e23 + e24 - e25 - e26 + (e27),
+        0,
+        -e28 + e30 - e33 + e36 + (-e37),
+        e34 - e38 - e39 + e40 + (-e41),
+        0,
+        e28 - e30 + e33 - e36 + (e37),
+        -e34 + e38 + e39 - e40 + (e41),
+        0,
+    ]
     return out
 
 
@@ -805,159 +816,422 @@ def phi_q(q, t, p):
     return out
 
 
-def _factor(a):
-    """The fixed-order sparse LU of Phi_q in place; False where a pivot fails the threshold test."""
-    piv = a[18]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[33])) or piv == 0.0:
-        return False
-    a[33] /= piv
-    a[30] -= a[33] * a[16]
-    a[31] -= a[33] * a[17]
-    a[34] -= a[33] * a[19]
-    piv = a[2]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[8]), abs(a[21]), abs(a[24])) or piv == 0.0:
-        return False
-    a[8] /= piv
-    a[9] -= a[8] * a[3]
-    a[21] /= piv
-    a[22] -= a[21] * a[3]
-    a[24] /= piv
-    a[25] -= a[24] * a[3]
-    piv = a[20]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[0]), abs(a[4]), abs(a[23])) or piv == 0.0:
-        return False
-    a[0] /= piv
-    a[1] -= a[0] * a[22]
-    a[4] /= piv
-    a[5] -= a[4] * a[22]
-    a[23] /= piv
-    a[25] -= a[23] * a[22]
-    piv = a[1]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[5]), abs(a[9]), abs(a[25])) or piv == 0.0:
-        return False
-    a[5] /= piv
-    a[9] /= piv
-    a[25] /= piv
-    piv = a[10]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[27]), abs(a[30])) or piv == 0.0:
-        return False
-    a[27] /= piv
-    a[28] -= a[27] * a[11]
-    a[30] /= piv
-    a[31] -= a[30] * a[11]
-    piv = a[26]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[6]), abs(a[12]), abs(a[29])) or piv == 0.0:
-        return False
-    a[6] /= piv
-    a[7] -= a[6] * a[28]
-    a[12] /= piv
-    a[13] -= a[12] * a[28]
-    a[29] /= piv
-    a[31] -= a[29] * a[28]
-    piv = a[7]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[13]), abs(a[31])) or piv == 0.0:
-        return False
-    a[13] /= piv
-    a[31] /= piv
-    piv = a[32]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[14])) or piv == 0.0:
-        return False
-    a[14] /= piv
-    a[15] -= a[14] * a[34]
-    piv = a[15]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    return True
+class _Dense:
+    """Phi_q(q) as a dense matrix: the fallback where a fixed pivot fails."""
+
+    def __init__(self, q, t, p):
+        jac = np.zeros((NC, NG))
+        jac[PHI_Q_ROWS, PHI_Q_COLS] = _phi_q_values_s(q, t, p)
+        if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
+            raise ValueError("singular")
+        self.jac = jac
+
+    def solve(self, b):
+        return list(np.linalg.solve(self.jac, b))
+
+    def solve_t(self, b):
+        return list(np.linalg.solve(self.jac.T, b))
+
+
+# The factors are a list of LU_SIZE floats (or a _Dense): the solves below
+# unpack them into local variables, cheaper in CPython than indexing.
+def _lu(q, t, p):
+    """Phi_q(q) factored in the fixed sparse order (steps PIVOT_ROWS, PIVOT_COLS),
+    or None where a pivot fails the threshold test."""
+    # Phi_q's values straight into the factor's slots (as _phi_q_values_s)
+    e0 = math.sin(q[2])
+    e1 = (1/2)*p[0]
+    e2 = e0*e1
+    e3 = math.cos(q[2])
+    e4 = -e1*e3
+    e5 = math.sin(q[5])
+    e6 = (1/2)*p[1]
+    e7 = e5*e6
+    e8 = math.cos(q[5])
+    e9 = -e6*e8
+    e10 = math.sin(q[8])
+    e11 = (1/2)*p[2]
+    e12 = math.cos(q[8])
+    e13 = 2*q[0]
+    e14 = 23/10 - e1
+    e15 = e14*e3
+    e16 = (4/5)*e0 + 2*e15
+    e17 = 2*q[1]
+    e18 = e0*e14
+    e19 = 2*e18 - 4/5*e3
+    e20 = (11/10)*e0
+    e21 = (3/5)*e3
+    e22 = (3/10)*e5
+    e23 = -e6 - 3/4
+    e24 = e23*e8
+    e25 = 2*e24
+    e26 = 2*q[3]
+    e27 = e13 - e26
+    e28 = (3/10)*e8
+    e29 = e23*e5
+    e30 = 2*e29
+    e31 = 2*q[4]
+    e32 = e17 - e31
+    e33 = (3/5)*e0
+    e34 = (11/10)*e3
+    e35 = e33 + e34
+    e36 = e20 - e21
+    e37 = -3/10*e0 + e29 - 11/20*e3 + (3/20)*e8 + (-q[1] + q[4])
+    e38 = (11/20)*e0 + e24 - 3/10*e3 - 3/20*e5 + (-q[0] + q[3])
+    e39 = -e22 + e25
+    e40 = e28 + e30
+    e41 = -e11 - 1/20
+    e42 = e12*e41
+    e43 = 2*e42
+    e44 = e26 - 2*q[6]
+    e45 = (7/10)*e5
+    e46 = 2/5 - e6
+    e47 = e46*e8
+    e48 = 2*e47
+    e49 = -e45 + e48
+    e50 = e10*e41
+    e51 = 2*e50
+    e52 = e31 - 2*q[7]
+    e53 = (7/10)*e8
+    e54 = e46*e5
+    e55 = 2*e54
+    e56 = e53 + e55
+    e57 = -1/2*e10 + e42 - e47 + (7/20)*e5 + (-q[3] + q[6])
+    e58 = (1/2)*e12 + e50 - e54 - 7/20*e8 + (-q[4] + q[7])
+    e59 = -e10 + e43
+    e60 = e12 + e51
+    a0 = 1
+    a1 = e2
+    a2 = 1
+    a3 = e4
+    a4 = -1
+    a5 = e2
+    a6 = 1
+    a7 = e7
+    a8 = -1
+    a9 = e4
+    a10 = 1
+    a11 = e9
+    a12 = -1
+    a13 = e7
+    a14 = 1
+    a15 = e10*e11
+    a16 = -1
+    a17 = e9
+    a18 = 1
+    a19 = -e11*e12
+    a20 = e16 + (e13 - 3/5)
+    a21 = e19 + (e17 + 12/5)
+    a22 = e16*(e18 - 2/5*e3 + (q[1] + 6/5)) - e19*((2/5)*e0 + e15 + (q[0] - 3/10))
+    a23 = -e20 + e21 + e22 - e25 + (e27)
+    a24 = -e28 - e30 + e35 + (e32)
+    a25 = e35*e38 + e36*e37
+    a26 = e36 + e39 + (-e27)
+    a27 = -e33 - e34 + e40 + (-e32)
+    a28 = e37*e39 - e38*e40
+    a29 = e10 - e43 + e49 + (e44)
+    a30 = -e12 - e51 + e56 + (e52)
+    a31 = -e49*e58 + e56*e57
+    a32 = e45 - e48 + e59 + (-e44)
+    a33 = -e53 - e55 + e60 + (-e52)
+    a34 = -e57*e60 + e58*e59
+    u = abs(a18)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a33)):
+        return None
+    a33 /= a18
+    a30 -= a33 * a16
+    a31 -= a33 * a17
+    a34 -= a33 * a19
+    u = abs(a2)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a8) and u >= THRESHOLD * abs(a21) and u >= THRESHOLD * abs(a24)):
+        return None
+    a8 /= a2
+    a9 -= a8 * a3
+    a21 /= a2
+    a22 -= a21 * a3
+    a24 /= a2
+    a25 -= a24 * a3
+    u = abs(a20)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a0) and u >= THRESHOLD * abs(a4) and u >= THRESHOLD * abs(a23)):
+        return None
+    a0 /= a20
+    a1 -= a0 * a22
+    a4 /= a20
+    a5 -= a4 * a22
+    a23 /= a20
+    a25 -= a23 * a22
+    u = abs(a1)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a5) and u >= THRESHOLD * abs(a9) and u >= THRESHOLD * abs(a25)):
+        return None
+    a5 /= a1
+    a9 /= a1
+    a25 /= a1
+    u = abs(a10)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a27) and u >= THRESHOLD * abs(a30)):
+        return None
+    a27 /= a10
+    a28 -= a27 * a11
+    a30 /= a10
+    a31 -= a30 * a11
+    u = abs(a26)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a6) and u >= THRESHOLD * abs(a12) and u >= THRESHOLD * abs(a29)):
+        return None
+    a6 /= a26
+    a7 -= a6 * a28
+    a12 /= a26
+    a13 -= a12 * a28
+    a29 /= a26
+    a31 -= a29 * a28
+    u = abs(a7)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a13) and u >= THRESHOLD * abs(a31)):
+        return None
+    a13 /= a7
+    a31 /= a7
+    u = abs(a32)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a14)):
+        return None
+    a14 /= a32
+    a15 -= a14 * a34
+    if not abs(a15) > 0.0:
+        return None
+    return [a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23, a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34]
+
+
 
 
 def _solve(a, b):
-    y = list(b)
-    y[8] -= a[33] * y[5]
-    y[3] -= a[8] * y[1]
-    y[6] -= a[21] * y[1]
-    y[7] -= a[24] * y[1]
-    y[0] -= a[0] * y[6]
-    y[2] -= a[4] * y[6]
-    y[7] -= a[23] * y[6]
-    y[2] -= a[5] * y[0]
-    y[3] -= a[9] * y[0]
-    y[7] -= a[25] * y[0]
-    y[7] -= a[27] * y[3]
-    y[8] -= a[30] * y[3]
-    y[2] -= a[6] * y[7]
-    y[4] -= a[12] * y[7]
-    y[8] -= a[29] * y[7]
-    y[4] -= a[13] * y[2]
-    y[8] -= a[31] * y[2]
-    y[4] -= a[14] * y[8]
-    x = [0.0] * NG
-    x[8] = (y[4]) / a[15]
-    x[6] = (y[8] - a[34] * x[8]) / a[32]
-    x[5] = (y[2]) / a[7]
-    x[3] = (y[7] - a[28] * x[5]) / a[26]
-    x[4] = (y[3] - a[11] * x[5]) / a[10]
-    x[2] = (y[0]) / a[1]
-    x[0] = (y[6] - a[22] * x[2]) / a[20]
-    x[1] = (y[1] - a[3] * x[2]) / a[2]
-    x[7] = (y[5] - a[16] * x[4] - a[17] * x[5] - a[19] * x[8]) / a[18]
-    return x
+    """x with Phi_q x = b (sizes NC -> NG)."""
+    if a.__class__ is _Dense:
+        return a.solve(b)
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23, a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34 = a
+    y0, y1, y2, y3, y4, y5, y6, y7, y8 = b
+    y8 -= a33 * y5
+    y3 -= a8 * y1
+    y6 -= a21 * y1
+    y7 -= a24 * y1
+    y0 -= a0 * y6
+    y2 -= a4 * y6
+    y7 -= a23 * y6
+    y2 -= a5 * y0
+    y3 -= a9 * y0
+    y7 -= a25 * y0
+    y7 -= a27 * y3
+    y8 -= a30 * y3
+    y2 -= a6 * y7
+    y4 -= a12 * y7
+    y8 -= a29 * y7
+    y4 -= a13 * y2
+    y8 -= a31 * y2
+    y4 -= a14 * y8
+    x8 = (y4) / a15
+    x6 = (y8 - a34 * x8) / a32
+    x5 = (y2) / a7
+    x3 = (y7 - a28 * x5) / a26
+    x4 = (y3 - a11 * x5) / a10
+    x2 = (y0) / a1
+    x0 = (y6 - a22 * x2) / a20
+    x1 = (y1 - a3 * x2) / a2
+    x7 = (y5 - a16 * x4 - a17 * x5 - a19 * x8) / a18
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
+
+
+def _newton_step(a, r, q):
+    """q - dq with Phi_q dq = r, and max |dq|. Solving for r rather than -r
+    changes no bit: every operation of the solve is symmetric under negation."""
+    if a.__class__ is _Dense:
+        dq = a.solve(r)
+        return [u - v for u, v in zip(q, dq)], max(map(abs, dq))
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23, a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34 = a
+    y0, y1, y2, y3, y4, y5, y6, y7, y8 = r
+    y8 -= a33 * y5
+    y3 -= a8 * y1
+    y6 -= a21 * y1
+    y7 -= a24 * y1
+    y0 -= a0 * y6
+    y2 -= a4 * y6
+    y7 -= a23 * y6
+    y2 -= a5 * y0
+    y3 -= a9 * y0
+    y7 -= a25 * y0
+    y7 -= a27 * y3
+    y8 -= a30 * y3
+    y2 -= a6 * y7
+    y4 -= a12 * y7
+    y8 -= a29 * y7
+    y4 -= a13 * y2
+    y8 -= a31 * y2
+    y4 -= a14 * y8
+    x8 = (y4) / a15
+    x6 = (y8 - a34 * x8) / a32
+    x5 = (y2) / a7
+    x3 = (y7 - a28 * x5) / a26
+    x4 = (y3 - a11 * x5) / a10
+    x2 = (y0) / a1
+    x0 = (y6 - a22 * x2) / a20
+    x1 = (y1 - a3 * x2) / a2
+    x7 = (y5 - a16 * x4 - a17 * x5 - a19 * x8) / a18
+    q0, q1, q2, q3, q4, q5, q6, q7, q8 = q
+    return [q0 - x0, q1 - x1, q2 - x2, q3 - x3, q4 - x4, q5 - x5, q6 - x6, q7 - x7, q8 - x8], max(abs(x0), abs(x1), abs(x2), abs(x3), abs(x4), abs(x5), abs(x6), abs(x7), abs(x8))
+
+
 
 
 def _solve_t(a, b):
-    x = [0.0] * NC
-    x[5] = (b[7]) / a[18]
-    x[1] = (b[1]) / a[2]
-    x[6] = (b[0]) / a[20]
-    x[0] = (b[2] - a[3] * x[1] - a[22] * x[6]) / a[1]
-    x[3] = (b[4] - a[16] * x[5]) / a[10]
-    x[7] = (b[3]) / a[26]
-    x[2] = (b[5] - a[17] * x[5] - a[11] * x[3] - a[28] * x[7]) / a[7]
-    x[8] = (b[6]) / a[32]
-    x[4] = (b[8] - a[19] * x[5] - a[34] * x[8]) / a[15]
-    x[8] -= a[14] * x[4]
-    x[2] -= a[13] * x[4]
-    x[2] -= a[31] * x[8]
-    x[7] -= a[6] * x[2]
-    x[7] -= a[12] * x[4]
-    x[7] -= a[29] * x[8]
-    x[3] -= a[27] * x[7]
-    x[3] -= a[30] * x[8]
-    x[0] -= a[5] * x[2]
-    x[0] -= a[9] * x[3]
-    x[0] -= a[25] * x[7]
-    x[6] -= a[0] * x[0]
-    x[6] -= a[4] * x[2]
-    x[6] -= a[23] * x[7]
-    x[1] -= a[8] * x[3]
-    x[1] -= a[21] * x[6]
-    x[1] -= a[24] * x[7]
-    x[5] -= a[33] * x[8]
-    return x
+    """lambda with Phi_q^T lambda = b (sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t(b)
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23, a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34 = a
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
+    x5 = (b7) / a18
+    x1 = (b1) / a2
+    x6 = (b0) / a20
+    x0 = (b2 - a3 * x1 - a22 * x6) / a1
+    x3 = (b4 - a16 * x5) / a10
+    x7 = (b3) / a26
+    x2 = (b5 - a17 * x5 - a11 * x3 - a28 * x7) / a7
+    x8 = (b6) / a32
+    x4 = (b8 - a19 * x5 - a34 * x8) / a15
+    x8 -= a14 * x4
+    x2 -= a13 * x4
+    x2 -= a31 * x8
+    x7 -= a6 * x2
+    x7 -= a12 * x4
+    x7 -= a29 * x8
+    x3 -= a27 * x7
+    x3 -= a30 * x8
+    x0 -= a5 * x2
+    x0 -= a9 * x3
+    x0 -= a25 * x7
+    x6 -= a0 * x0
+    x6 -= a4 * x2
+    x6 -= a23 * x7
+    x1 -= a8 * x3
+    x1 -= a21 * x6
+    x1 -= a24 * x7
+    x5 -= a33 * x8
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
 
 
-class _Factors:
-    """Phi_q(q) factored: the fixed sparse order, or a dense fallback."""
+def _lam(a, f, m, e):
+    """lambda with Phi_q^T lambda = f - m e (elementwise; sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t([u - v * w for u, v, w in zip(f, m, e)])
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23, a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34 = a
+    f0, f1, f2, f3, f4, f5, f6, f7, f8 = f
+    m0, m1, m2, m3, m4, m5, m6, m7, m8 = m
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    b0 = f0 - m0 * e0
+    b1 = f1 - m1 * e1
+    b2 = f2 - m2 * e2
+    b3 = f3 - m3 * e3
+    b4 = f4 - m4 * e4
+    b5 = f5 - m5 * e5
+    b6 = f6 - m6 * e6
+    b7 = f7 - m7 * e7
+    b8 = f8 - m8 * e8
+    x5 = (b7) / a18
+    x1 = (b1) / a2
+    x6 = (b0) / a20
+    x0 = (b2 - a3 * x1 - a22 * x6) / a1
+    x3 = (b4 - a16 * x5) / a10
+    x7 = (b3) / a26
+    x2 = (b5 - a17 * x5 - a11 * x3 - a28 * x7) / a7
+    x8 = (b6) / a32
+    x4 = (b8 - a19 * x5 - a34 * x8) / a15
+    x8 -= a14 * x4
+    x2 -= a13 * x4
+    x2 -= a31 * x8
+    x7 -= a6 * x2
+    x7 -= a12 * x4
+    x7 -= a29 * x8
+    x3 -= a27 * x7
+    x3 -= a30 * x8
+    x0 -= a5 * x2
+    x0 -= a9 * x3
+    x0 -= a25 * x7
+    x6 -= a0 * x0
+    x6 -= a4 * x2
+    x6 -= a23 * x7
+    x1 -= a8 * x3
+    x1 -= a21 * x6
+    x1 -= a24 * x7
+    x5 -= a33 * x8
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
 
-    def __init__(self, q, t, p):
-        values = _phi_q_values_s(q, t, p)
-        self.lu = values + _FILL
-        self.dense = None
-        if not _factor(self.lu):
-            jac = np.zeros((NC, NG))
-            jac[PHI_Q_ROWS, PHI_Q_COLS] = values
-            if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
-                raise ValueError("singular")
-            self.dense = jac
 
-    def solve(self, b):
-        if self.dense is None:
-            return _solve(self.lu, b)
-        return list(np.linalg.solve(self.dense, b))
+def _predict(o, d, e, h, hh):
+    """The Taylor guess o + h d + hh e (hh = h^2 / 2), elementwise."""
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    d0, d1, d2, d3, d4, d5, d6, d7, d8 = d
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    return [o0 + h * d0 + hh * e0, o1 + h * d1 + hh * e1, o2 + h * d2 + hh * e2, o3 + h * d3 + hh * e3, o4 + h * d4 + hh * e4, o5 + h * d5 + hh * e5, o6 + h * d6 + hh * e6, o7 + h * d7 + hh * e7, o8 + h * d8 + hh * e8]
 
-    def solve_t(self, b):
-        if self.dense is None:
-            return _solve_t(self.lu, b)
-        return list(np.linalg.solve(self.dense.T, b))
+
+def _spread(a, s):
+    """max / min of the pivots |u_k| s_k of sparse factors (s: a scale per step)."""
+    s0, s1, s2, s3, s4, s5, s6, s7, s8 = s
+    u0 = abs(a[18]) * s0
+    u1 = abs(a[2]) * s1
+    u2 = abs(a[20]) * s2
+    u3 = abs(a[1]) * s3
+    u4 = abs(a[10]) * s4
+    u5 = abs(a[26]) * s5
+    u6 = abs(a[7]) * s6
+    u7 = abs(a[32]) * s7
+    u8 = abs(a[15]) * s8
+    return max(u0, u1, u2, u3, u4, u5, u6, u7, u8) / min(u0, u1, u2, u3, u4, u5, u6, u7, u8)
+
+
+def _moved(q, g, o, c, floor, ratio):
+    """Whether Newton moved q from the guess g by more than floor and ratio
+    times the predicted motion g - o (each max_j |.| c_j)."""
+    q0, q1, q2, q3, q4, q5, q6, q7, q8 = q
+    g0, g1, g2, g3, g4, g5, g6, g7, g8 = g
+    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c
+    correction = max(abs(q0 - g0) * c0, abs(q1 - g1) * c1, abs(q2 - g2) * c2, abs(q3 - g3) * c3, abs(q4 - g4) * c4, abs(q5 - g5) * c5, abs(q6 - g6) * c6, abs(q7 - g7) * c7, abs(q8 - g8) * c8)
+    if not correction > floor:
+        return False
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    return correction > ratio * max(abs(g0 - o0) * c0, abs(g1 - o1) * c1, abs(g2 - o2) * c2, abs(g3 - o3) * c3, abs(g4 - o4) * c4, abs(g5 - o5) * c5, abs(g6 - o6) * c6, abs(g7 - o7) * c7, abs(g8 - o8) * c8)
+
+
+def _instant(t, p, q, tol, m):
+    """Solve one instant from the guess q (floats): Newton, then the compiled
+    outputs. m: _mass_s(p) (or None). Returns (q, qd, qdd, lam, reactions,
+    iterations, factors), None where not compiled. Raises SolverError."""
+    qmag = max(1.0, max(map(abs, q)))
+    lim = max(tol, 8.0 * EPS * qmag)
+    step, a, it = math.inf, None, 0
+    r = _phi_s(q, t, p)
+    rmax = max(map(abs, r))
+    while True:
+        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
+            raise SolverError("not converged", t, q, it)
+        if rmax <= lim and step <= lim:
+            break
+        if it == MAX_NEWTON:
+            raise SolverError("not converged", t, q, it)
+        try:
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+        q, step = _newton_step(a, r, q)
+        it += 1
+        if rmax <= lim and step <= lim:
+            # |Phi| was within tolerance where this last correction was
+            # computed, and the correction is too: Newton has converged
+            break
+        r = _phi_s(q, t, p)
+        rmax = max(map(abs, r))
+    if a is None or step > 1e-14 * qmag:
+        try:
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+    qd = _solve(a, _nu_s(q, t, p))
+    qdd = _solve(a, _gamma_s(q, qd, t, p))
+    lam = _lam(a, _applied_s(q, qd, t, p), m, qdd)
+    return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
 
 def instant(t, p, q, tol=1e-12):
@@ -966,70 +1240,52 @@ def instant(t, p, q, tol=1e-12):
     Returns a dict with q and, as compiled, qd, qdd, lam, reactions and
     iterations. Raises SolverError.
     """
-    q = [float(v) for v in q]
     p = [float(v) for v in p]
-    qmag = max(1.0, max(map(abs, q)))
-    lim = max(tol, 8.0 * EPS * qmag)
-    step, factors, converged = math.inf, None, False
-    r = _phi_s(q, t, p)
-    rmax = max(map(abs, r))
-    for it in range(MAX_NEWTON + 1):
-        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
-            break
-        if rmax <= lim and step <= lim:
-            converged = True
-            break
-        if it == MAX_NEWTON:
-            break
-        try:
-            factors = _Factors(q, t, p)
-        except ValueError:
-            raise SolverError("singular", t, q, it) from None
-        dq = factors.solve([-v for v in r])
-        q = [a + b for a, b in zip(q, dq)]
-        step = max(map(abs, dq))
-        if rmax <= lim and step <= lim:
-            # |Phi| was within tolerance where this last correction was
-            # computed, and the correction is too: Newton has converged
-            converged = True
-            it += 1
-            break
-        r = _phi_s(q, t, p)
-        rmax = max(map(abs, r))
-    if not converged:
-        raise SolverError("not converged", t, q, it)
-    if factors is None or step > 1e-14 * qmag:
-        try:
-            factors = _Factors(q, t, p)
-        except ValueError:
-            raise SolverError("singular", t, q, it) from None
+    q, qd, qdd, lam, reac, it, _ = _instant(t, p, [float(v) for v in q], tol, _mass_s(p))
     out = {"q": q, "iterations": it}
-    out["qd"] = qd = factors.solve(_nu_s(q, t, p))
-    out["qdd"] = qdd = factors.solve(_gamma_s(q, qd, t, p))
-    rhs = [a - m * b for a, m, b in zip(_applied_s(q, qd, t, p), _mass_s(p), qdd)]
-    out["lam"] = lam = factors.solve_t(rhs)
-    out["reactions"] = _reactions_s(q, lam, t, p)
+    out["qd"], out["qdd"] = qd, qdd
+    out["lam"] = lam
+    out["reactions"] = reac
     return out
 
 
 def rows(t0, h, n, p, q0, tol=1e-12):
     """Yield the n rows (t, then the compiled groups in contract order) of
     the grid t0 + k h, each instant warm-started from the one before."""
-    zeros = [0.0] * NG
-    p = [float(v) for v in p]
-    q, prev = list(q0), None
-    history = []
-    for k in range(n):
+    return _rows(t0, h, 0, n, [float(v) for v in p], tol, [float(v) for v in q0], [], None, None)
+
+
+def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
+    """Rows k..n-1 of the grid t0 + k h, as lists.
+
+    past: the positions of the instants before k, latest first (up to 3;
+    empty: q is the guess of instant k); qd, qdd: the rates of the latest.
+    check: None, or (c, floor, ratio, s, spread): stop with SolverError
+    "check" at an instant that may need a closer look: one where Newton moved
+    q from the guess by more than floor and ratio times the predicted motion
+    (both max_j |.| c_j), whose pivots |u_k| s_k spread wider than spread,
+    or that needed the dense fallback. A SolverError carries k, past, qd and
+    qdd to resume from.
+    """
+    m = _mass_s(p)
+    hh = 0.5 * h * h
+    q1, q2, q3 = (list(past) + [None] * 3)[:3]
+    if check is not None:
+        c, floor, ratio, s, spread = check
+    for k in range(k, n):
         t = t0 + k * h
-        if prev is not None:
-            q = [a + h * b + 0.5 * h * h * c for a, b, c in zip(prev["q"], prev["qd"], prev["qdd"])]
-        prev = instant(t, p, q, tol)
-        history = (history + [prev["q"]])[-3:]
-        row = [t]
-        for group in OUTPUTS:
-            row += prev.get({"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam",
-                             "reactions": "reactions"}[group], zeros)
-        yield row
+        if q1 is not None:
+            q = _predict(q1, qd, qdd, h, hh)
+        try:
+            qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
+            if check is not None and q1 is not None and (
+                    a.__class__ is _Dense or _spread(a, s) > spread or _moved(qn, q, q1, c, floor, ratio)):
+                raise SolverError("check", t, qn, it)
+        except SolverError as exc:
+            exc.k, exc.past, exc.qd, exc.qdd = k, [v for v in (q1, q2, q3) if v is not None], qd, qdd
+            raise
+        yield [t, *qn, *qdn, *qddn, *lam, *reac]
+        q1, q2, q3, qd, qdd = qn, q1, q2, qdn, qddn
 
 
 def trajectory(t0, t1, steps, p, q0, tol=1e-12):

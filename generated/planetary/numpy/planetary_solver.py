@@ -30,7 +30,10 @@ MAX_NEWTON = 50
 EPS = float(np.finfo(float).eps)
 THRESHOLD = 0.1
 SINGULAR_RCOND = 1e3 * EPS
-_FILL = [0.0] * 0
+LU_SIZE = 20
+PIVOT_ROWS = (0, 1, 2, 3, 4, 5, 8, 9, 11, 10, 6, 7, )
+PIVOT_COLS = (0, 1, 3, 4, 6, 7, 9, 10, 11, 2, 5, 8, )
+_ZEROS = [0.0] * NG
 
 
 class SolverError(RuntimeError):
@@ -43,6 +46,7 @@ class SolverError(RuntimeError):
     def __init__(self, status, t, q, iterations):
         super().__init__(f"{status} at t = {t!r}")
         self.status, self.t, self.q, self.iterations = status, t, q, iterations
+        self.k = self.past = self.qd = self.qdd = None
 
 
 def _stack(values, like):
@@ -72,22 +76,23 @@ def phi(q, t, p):
 
 
 def _phi_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 12
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = p[0] + p[1]
     e1 = -q[5]
-    out[0] = q[0]
-    out[1] = q[1]
-    out[2] = q[3]
-    out[3] = q[4]
-    out[4] = -e0*math.cos(q[5]) + (-q[3] + q[6])
-    out[5] = -e0*math.sin(q[5]) + (-q[4] + q[7])
-    out[6] = e1 + p[0]*(e1 + q[2])/p[1] + q[8]
-    out[7] = -p[1]*(-q[5] + q[8])/p[2] - q[5]
-    out[8] = p[0] + p[3] + q[9]
-    out[9] = q[10]
-    out[10] = q[2] + p[3]*q[11]/p[0]
-    out[11] = -p[9]*t + q[11]
+    out = [
+        q[0],
+        q[1],
+        q[3],
+        q[4],
+        -e0*math.cos(q[5]) + (-q[3] + q[6]),
+        -e0*math.sin(q[5]) + (-q[4] + q[7]),
+        e1 + p[0]*(e1 + q[2])/p[1] + q[8],
+        -p[1]*(-q[5] + q[8])/p[2] - q[5],
+        p[0] + p[3] + q[9],
+        q[10],
+        q[2] + p[3]*q[11]/p[0],
+        -p[9]*t + q[11],
+    ]
     return out
 
 
@@ -121,31 +126,32 @@ def phi_q_values(q, t, p):
 
 
 def _phi_q_values_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 20
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = p[0] + p[1]
     e1 = p[0]/p[1]
     e2 = p[1]/p[2]
-    out[0] = 1
-    out[1] = 1
-    out[2] = 1
-    out[3] = 1
-    out[4] = -1
-    out[5] = e0*math.sin(q[5])
-    out[6] = 1
-    out[7] = -1
-    out[8] = -e0*math.cos(q[5])
-    out[9] = 1
-    out[10] = e1
-    out[11] = -e1 - 1
-    out[12] = 1
-    out[13] = e2 - 1
-    out[14] = -e2
-    out[15] = 1
-    out[16] = 1
-    out[17] = 1
-    out[18] = p[3]/p[0]
-    out[19] = 1
+    out = [
+        1,
+        1,
+        1,
+        1,
+        -1,
+        e0*math.sin(q[5]),
+        1,
+        -1,
+        -e0*math.cos(q[5]),
+        1,
+        e1,
+        -e1 - 1,
+        1,
+        e2 - 1,
+        -e2,
+        1,
+        1,
+        1,
+        p[3]/p[0],
+        1,
+    ]
     return out
 
 
@@ -168,20 +174,21 @@ def nu(q, t, p):
 
 
 def _nu_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 12
-    out[0] = 0
-    out[1] = 0
-    out[2] = 0
-    out[3] = 0
-    out[4] = 0
-    out[5] = 0
-    out[6] = 0
-    out[7] = 0
-    out[8] = 0
-    out[9] = 0
-    out[10] = 0
-    out[11] = p[9]
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        p[9],
+    ]
     return out
 
 
@@ -205,21 +212,22 @@ def gamma(q, qd, t, p):
 
 
 def _gamma_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 12
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = qd[5]**2*(p[0] + p[1])
-    out[0] = 0
-    out[1] = 0
-    out[2] = 0
-    out[3] = 0
-    out[4] = -e0*math.cos(q[5])
-    out[5] = -e0*math.sin(q[5])
-    out[6] = 0
-    out[7] = 0
-    out[8] = 0
-    out[9] = 0
-    out[10] = 0
-    out[11] = 0
+    out = [
+        0,
+        0,
+        0,
+        0,
+        -e0*math.cos(q[5]),
+        -e0*math.sin(q[5]),
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+    ]
     return out
 
 
@@ -242,20 +250,21 @@ def applied(q, qd, t, p):
 
 
 def _applied_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 12
-    out[0] = 0
-    out[1] = -981/100*p[4]
-    out[2] = 0
-    out[3] = 0
-    out[4] = -981/100*p[7]
-    out[5] = p[10]
-    out[6] = 0
-    out[7] = -981/100*p[5]
-    out[8] = 0
-    out[9] = 0
-    out[10] = -981/100*p[6]
-    out[11] = 0
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        0,
+        -981/100*p[4],
+        0,
+        0,
+        -981/100*p[7],
+        p[10],
+        0,
+        -981/100*p[5],
+        0,
+        0,
+        -981/100*p[6],
+        0,
+    ]
     return out
 
 
@@ -278,20 +287,21 @@ def mass(p):
 
 
 def _mass_s(p):
-    # one instant, floats in and out
-    out = [0.0] * 12
-    out[0] = p[4]
-    out[1] = p[4]
-    out[2] = (1/2)*p[0]**2*p[4]
-    out[3] = p[7]
-    out[4] = p[7]
-    out[5] = (1/2)*p[7]*(p[0] + p[1])**2
-    out[6] = p[5]
-    out[7] = p[5]
-    out[8] = (1/2)*p[1]**2*p[5]
-    out[9] = p[6]
-    out[10] = p[6]
-    out[11] = (1/2)*p[3]**2*p[6]
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        p[4],
+        p[4],
+        (1/2)*p[0]**2*p[4],
+        p[7],
+        p[7],
+        (1/2)*p[7]*(p[0] + p[1])**2,
+        p[5],
+        p[5],
+        (1/2)*p[1]**2*p[5],
+        p[6],
+        p[6],
+        (1/2)*p[3]**2*p[6],
+    ]
     return out
 
 
@@ -356,62 +366,65 @@ def reactions(q, lam, t, p):
 
 
 def _reactions_s(q, lam, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 51
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = lam[6]*p[0]/p[1]
     e1 = lam[7]*p[1]/p[2]
     e2 = -lam[7]
-    out[0] = lam[0]
-    out[1] = lam[1]
-    out[2] = 0
-    out[3] = -lam[0]
-    out[4] = -lam[1]
-    out[5] = 0
-    out[6] = lam[2]
-    out[7] = lam[3]
-    out[8] = 0
-    out[9] = -lam[2]
-    out[10] = -lam[3]
-    out[11] = 0
-    out[12] = lam[4]
-    out[13] = lam[5]
-    out[14] = 0
-    out[15] = -lam[4]
-    out[16] = -lam[5]
-    out[17] = 0
-    out[18] = 0
-    out[19] = 0
-    out[20] = -e0
-    out[21] = 0
-    out[22] = 0
-    out[23] = -lam[6]
-    out[24] = 0
-    out[25] = 0
-    out[26] = e0 + lam[6]
-    out[27] = 0
-    out[28] = 0
-    out[29] = e1
-    out[30] = 0
-    out[31] = 0
-    out[32] = e2
-    out[33] = 0
-    out[34] = 0
-    out[35] = -e1 - e2
-    out[36] = lam[8]
-    out[37] = lam[9]
-    out[38] = 0
-    out[39] = -lam[8]
-    out[40] = -lam[9]
-    out[41] = 0
-    out[42] = 0
-    out[43] = 0
-    out[44] = -lam[10]*p[3]/p[0]
-    out[45] = 0
-    out[46] = 0
-    out[47] = -lam[10]
-    out[48] = 0
-    out[49] = 0
-    out[50] = -lam[11]
+    out = [
+        lam[0],
+        lam[1],
+        0,
+        -lam[0],
+        -lam[1],
+        0,
+        lam[2],
+        lam[3],
+        0,
+        -lam[2],
+        -lam[3],
+        0,
+        lam[4],
+        lam[5],
+        0,
+        -lam[4],
+        -lam[5],
+        0,
+        0,
+        0,
+        -e0,
+        0,
+        0,
+        -lam[6],
+        0,
+        0,
+        e0 + lam[6],
+        0,
+        0,
+        e1,
+        0,
+        0,
+        e2,
+        0,
+        0,
+        -e1 - e2,
+        lam[8],
+        lam[9],
+        0,
+        -lam[8],
+        -lam[9],
+        0,
+        0,
+        0,
+        -lam[10]*p[3]/p[0],
+        0,
+        0,
+        -lam[10],
+    ]
+    out += [
+        0,
+        0,
+        -lam[11],
+    ]
     return out
 
 
@@ -423,121 +436,291 @@ def phi_q(q, t, p):
     return out
 
 
-def _factor(a):
-    """The fixed-order sparse LU of Phi_q in place; False where a pivot fails the threshold test."""
-    piv = a[0]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[1]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[2]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[4])) or piv == 0.0:
-        return False
-    a[4] /= piv
-    piv = a[3]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[7])) or piv == 0.0:
-        return False
-    a[7] /= piv
-    piv = a[6]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[9]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[15]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[16]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[19]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[18])) or piv == 0.0:
-        return False
-    a[18] /= piv
-    piv = a[17]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[10])) or piv == 0.0:
-        return False
-    a[10] /= piv
-    piv = a[11]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[13])) or piv == 0.0:
-        return False
-    a[13] /= piv
-    a[14] -= a[13] * a[12]
-    piv = a[14]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    return True
+class _Dense:
+    """Phi_q(q) as a dense matrix: the fallback where a fixed pivot fails."""
+
+    def __init__(self, q, t, p):
+        jac = np.zeros((NC, NG))
+        jac[PHI_Q_ROWS, PHI_Q_COLS] = _phi_q_values_s(q, t, p)
+        if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
+            raise ValueError("singular")
+        self.jac = jac
+
+    def solve(self, b):
+        return list(np.linalg.solve(self.jac, b))
+
+    def solve_t(self, b):
+        return list(np.linalg.solve(self.jac.T, b))
+
+
+# The factors are a list of LU_SIZE floats (or a _Dense): the solves below
+# unpack them into local variables, cheaper in CPython than indexing.
+def _lu(q, t, p):
+    """Phi_q(q) factored in the fixed sparse order (steps PIVOT_ROWS, PIVOT_COLS),
+    or None where a pivot fails the threshold test."""
+    # Phi_q's values straight into the factor's slots (as _phi_q_values_s)
+    e0 = p[0] + p[1]
+    e1 = p[0]/p[1]
+    e2 = p[1]/p[2]
+    a0 = 1
+    a1 = 1
+    a2 = 1
+    a3 = 1
+    a4 = -1
+    a5 = e0*math.sin(q[5])
+    a6 = 1
+    a7 = -1
+    a8 = -e0*math.cos(q[5])
+    a9 = 1
+    a10 = e1
+    a11 = -e1 - 1
+    a12 = 1
+    a13 = e2 - 1
+    a14 = -e2
+    a15 = 1
+    a16 = 1
+    a17 = 1
+    a18 = p[3]/p[0]
+    a19 = 1
+    if not abs(a0) > 0.0:
+        return None
+    if not abs(a1) > 0.0:
+        return None
+    u = abs(a2)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a4)):
+        return None
+    a4 /= a2
+    u = abs(a3)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a7)):
+        return None
+    a7 /= a3
+    if not abs(a6) > 0.0:
+        return None
+    if not abs(a9) > 0.0:
+        return None
+    if not abs(a15) > 0.0:
+        return None
+    if not abs(a16) > 0.0:
+        return None
+    u = abs(a19)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a18)):
+        return None
+    a18 /= a19
+    u = abs(a17)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a10)):
+        return None
+    a10 /= a17
+    u = abs(a11)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a13)):
+        return None
+    a13 /= a11
+    a14 -= a13 * a12
+    if not abs(a14) > 0.0:
+        return None
+    return [a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19]
+
+
 
 
 def _solve(a, b):
-    y = list(b)
-    y[4] -= a[4] * y[2]
-    y[5] -= a[7] * y[3]
-    y[10] -= a[18] * y[11]
-    y[6] -= a[10] * y[10]
-    y[7] -= a[13] * y[6]
-    x = [0.0] * NG
-    x[8] = (y[7]) / a[14]
-    x[5] = (y[6] - a[12] * x[8]) / a[11]
-    x[2] = (y[10]) / a[17]
-    x[11] = (y[11]) / a[19]
-    x[10] = (y[9]) / a[16]
-    x[9] = (y[8]) / a[15]
-    x[7] = (y[5] - a[8] * x[5]) / a[9]
-    x[6] = (y[4] - a[5] * x[5]) / a[6]
-    x[4] = (y[3]) / a[3]
-    x[3] = (y[2]) / a[2]
-    x[1] = (y[1]) / a[1]
-    x[0] = (y[0]) / a[0]
-    return x
+    """x with Phi_q x = b (sizes NC -> NG)."""
+    if a.__class__ is _Dense:
+        return a.solve(b)
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19 = a
+    y0, y1, y2, y3, y4, y5, y6, y7, y8, y9, y10, y11 = b
+    y4 -= a4 * y2
+    y5 -= a7 * y3
+    y10 -= a18 * y11
+    y6 -= a10 * y10
+    y7 -= a13 * y6
+    x8 = (y7) / a14
+    x5 = (y6 - a12 * x8) / a11
+    x2 = (y10) / a17
+    x11 = (y11) / a19
+    x10 = (y9) / a16
+    x9 = (y8) / a15
+    x7 = (y5 - a8 * x5) / a9
+    x6 = (y4 - a5 * x5) / a6
+    x4 = (y3) / a3
+    x3 = (y2) / a2
+    x1 = (y1) / a1
+    x0 = (y0) / a0
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11]
+
+
+def _newton_step(a, r, q):
+    """q - dq with Phi_q dq = r, and max |dq|. Solving for r rather than -r
+    changes no bit: every operation of the solve is symmetric under negation."""
+    if a.__class__ is _Dense:
+        dq = a.solve(r)
+        return [u - v for u, v in zip(q, dq)], max(map(abs, dq))
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19 = a
+    y0, y1, y2, y3, y4, y5, y6, y7, y8, y9, y10, y11 = r
+    y4 -= a4 * y2
+    y5 -= a7 * y3
+    y10 -= a18 * y11
+    y6 -= a10 * y10
+    y7 -= a13 * y6
+    x8 = (y7) / a14
+    x5 = (y6 - a12 * x8) / a11
+    x2 = (y10) / a17
+    x11 = (y11) / a19
+    x10 = (y9) / a16
+    x9 = (y8) / a15
+    x7 = (y5 - a8 * x5) / a9
+    x6 = (y4 - a5 * x5) / a6
+    x4 = (y3) / a3
+    x3 = (y2) / a2
+    x1 = (y1) / a1
+    x0 = (y0) / a0
+    q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11 = q
+    return [q0 - x0, q1 - x1, q2 - x2, q3 - x3, q4 - x4, q5 - x5, q6 - x6, q7 - x7, q8 - x8, q9 - x9, q10 - x10, q11 - x11], max(abs(x0), abs(x1), abs(x2), abs(x3), abs(x4), abs(x5), abs(x6), abs(x7), abs(x8), abs(x9), abs(x10), abs(x11))
+
+
 
 
 def _solve_t(a, b):
-    x = [0.0] * NC
-    x[0] = (b[0]) / a[0]
-    x[1] = (b[1]) / a[1]
-    x[2] = (b[3]) / a[2]
-    x[3] = (b[4]) / a[3]
-    x[4] = (b[6]) / a[6]
-    x[5] = (b[7]) / a[9]
-    x[8] = (b[9]) / a[15]
-    x[9] = (b[10]) / a[16]
-    x[11] = (b[11]) / a[19]
-    x[10] = (b[2]) / a[17]
-    x[6] = (b[5] - a[5] * x[4] - a[8] * x[5]) / a[11]
-    x[7] = (b[8] - a[12] * x[6]) / a[14]
-    x[6] -= a[13] * x[7]
-    x[10] -= a[10] * x[6]
-    x[11] -= a[18] * x[10]
-    x[3] -= a[7] * x[5]
-    x[2] -= a[4] * x[4]
-    return x
+    """lambda with Phi_q^T lambda = b (sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t(b)
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19 = a
+    b0, b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11 = b
+    x0 = (b0) / a0
+    x1 = (b1) / a1
+    x2 = (b3) / a2
+    x3 = (b4) / a3
+    x4 = (b6) / a6
+    x5 = (b7) / a9
+    x8 = (b9) / a15
+    x9 = (b10) / a16
+    x11 = (b11) / a19
+    x10 = (b2) / a17
+    x6 = (b5 - a5 * x4 - a8 * x5) / a11
+    x7 = (b8 - a12 * x6) / a14
+    x6 -= a13 * x7
+    x10 -= a10 * x6
+    x11 -= a18 * x10
+    x3 -= a7 * x5
+    x2 -= a4 * x4
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11]
 
 
-class _Factors:
-    """Phi_q(q) factored: the fixed sparse order, or a dense fallback."""
+def _lam(a, f, m, e):
+    """lambda with Phi_q^T lambda = f - m e (elementwise; sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t([u - v * w for u, v, w in zip(f, m, e)])
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19 = a
+    f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11 = f
+    m0, m1, m2, m3, m4, m5, m6, m7, m8, m9, m10, m11 = m
+    e0, e1, e2, e3, e4, e5, e6, e7, e8, e9, e10, e11 = e
+    b0 = f0 - m0 * e0
+    b1 = f1 - m1 * e1
+    b2 = f2 - m2 * e2
+    b3 = f3 - m3 * e3
+    b4 = f4 - m4 * e4
+    b5 = f5 - m5 * e5
+    b6 = f6 - m6 * e6
+    b7 = f7 - m7 * e7
+    b8 = f8 - m8 * e8
+    b9 = f9 - m9 * e9
+    b10 = f10 - m10 * e10
+    b11 = f11 - m11 * e11
+    x0 = (b0) / a0
+    x1 = (b1) / a1
+    x2 = (b3) / a2
+    x3 = (b4) / a3
+    x4 = (b6) / a6
+    x5 = (b7) / a9
+    x8 = (b9) / a15
+    x9 = (b10) / a16
+    x11 = (b11) / a19
+    x10 = (b2) / a17
+    x6 = (b5 - a5 * x4 - a8 * x5) / a11
+    x7 = (b8 - a12 * x6) / a14
+    x6 -= a13 * x7
+    x10 -= a10 * x6
+    x11 -= a18 * x10
+    x3 -= a7 * x5
+    x2 -= a4 * x4
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11]
 
-    def __init__(self, q, t, p):
-        values = _phi_q_values_s(q, t, p)
-        self.lu = values + _FILL
-        self.dense = None
-        if not _factor(self.lu):
-            jac = np.zeros((NC, NG))
-            jac[PHI_Q_ROWS, PHI_Q_COLS] = values
-            if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
-                raise ValueError("singular")
-            self.dense = jac
 
-    def solve(self, b):
-        if self.dense is None:
-            return _solve(self.lu, b)
-        return list(np.linalg.solve(self.dense, b))
+def _predict(o, d, e, h, hh):
+    """The Taylor guess o + h d + hh e (hh = h^2 / 2), elementwise."""
+    o0, o1, o2, o3, o4, o5, o6, o7, o8, o9, o10, o11 = o
+    d0, d1, d2, d3, d4, d5, d6, d7, d8, d9, d10, d11 = d
+    e0, e1, e2, e3, e4, e5, e6, e7, e8, e9, e10, e11 = e
+    return [o0 + h * d0 + hh * e0, o1 + h * d1 + hh * e1, o2 + h * d2 + hh * e2, o3 + h * d3 + hh * e3, o4 + h * d4 + hh * e4, o5 + h * d5 + hh * e5, o6 + h * d6 + hh * e6, o7 + h * d7 + hh * e7, o8 + h * d8 + hh * e8, o9 + h * d9 + hh * e9, o10 + h * d10 + hh * e10, o11 + h * d11 + hh * e11]
 
-    def solve_t(self, b):
-        if self.dense is None:
-            return _solve_t(self.lu, b)
-        return list(np.linalg.solve(self.dense.T, b))
+
+def _spread(a, s):
+    """max / min of the pivots |u_k| s_k of sparse factors (s: a scale per step)."""
+    s0, s1, s2, s3, s4, s5, s6, s7, s8, s9, s10, s11 = s
+    u0 = abs(a[0]) * s0
+    u1 = abs(a[1]) * s1
+    u2 = abs(a[2]) * s2
+    u3 = abs(a[3]) * s3
+    u4 = abs(a[6]) * s4
+    u5 = abs(a[9]) * s5
+    u6 = abs(a[15]) * s6
+    u7 = abs(a[16]) * s7
+    u8 = abs(a[19]) * s8
+    u9 = abs(a[17]) * s9
+    u10 = abs(a[11]) * s10
+    u11 = abs(a[14]) * s11
+    return max(u0, u1, u2, u3, u4, u5, u6, u7, u8, u9, u10, u11) / min(u0, u1, u2, u3, u4, u5, u6, u7, u8, u9, u10, u11)
+
+
+def _moved(q, g, o, c, floor, ratio):
+    """Whether Newton moved q from the guess g by more than floor and ratio
+    times the predicted motion g - o (each max_j |.| c_j)."""
+    q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11 = q
+    g0, g1, g2, g3, g4, g5, g6, g7, g8, g9, g10, g11 = g
+    c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10, c11 = c
+    correction = max(abs(q0 - g0) * c0, abs(q1 - g1) * c1, abs(q2 - g2) * c2, abs(q3 - g3) * c3, abs(q4 - g4) * c4, abs(q5 - g5) * c5, abs(q6 - g6) * c6, abs(q7 - g7) * c7, abs(q8 - g8) * c8, abs(q9 - g9) * c9, abs(q10 - g10) * c10, abs(q11 - g11) * c11)
+    if not correction > floor:
+        return False
+    o0, o1, o2, o3, o4, o5, o6, o7, o8, o9, o10, o11 = o
+    return correction > ratio * max(abs(g0 - o0) * c0, abs(g1 - o1) * c1, abs(g2 - o2) * c2, abs(g3 - o3) * c3, abs(g4 - o4) * c4, abs(g5 - o5) * c5, abs(g6 - o6) * c6, abs(g7 - o7) * c7, abs(g8 - o8) * c8, abs(g9 - o9) * c9, abs(g10 - o10) * c10, abs(g11 - o11) * c11)
+
+
+def _instant(t, p, q, tol, m):
+    """Solve one instant from the guess q (floats): Newton, then the compiled
+    outputs. m: _mass_s(p) (or None). Returns (q, qd, qdd, lam, reactions,
+    iterations, factors), None where not compiled. Raises SolverError."""
+    qmag = max(1.0, max(map(abs, q)))
+    lim = max(tol, 8.0 * EPS * qmag)
+    step, a, it = math.inf, None, 0
+    r = _phi_s(q, t, p)
+    rmax = max(map(abs, r))
+    while True:
+        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
+            raise SolverError("not converged", t, q, it)
+        if rmax <= lim and step <= lim:
+            break
+        if it == MAX_NEWTON:
+            raise SolverError("not converged", t, q, it)
+        try:
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+        q, step = _newton_step(a, r, q)
+        it += 1
+        if rmax <= lim and step <= lim:
+            # |Phi| was within tolerance where this last correction was
+            # computed, and the correction is too: Newton has converged
+            break
+        r = _phi_s(q, t, p)
+        rmax = max(map(abs, r))
+    if a is None or step > 1e-14 * qmag:
+        try:
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+    qd = _solve(a, _nu_s(q, t, p))
+    qdd = _solve(a, _gamma_s(q, qd, t, p))
+    lam = _lam(a, _applied_s(q, qd, t, p), m, qdd)
+    return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
 
 def instant(t, p, q, tol=1e-12):
@@ -546,70 +729,52 @@ def instant(t, p, q, tol=1e-12):
     Returns a dict with q and, as compiled, qd, qdd, lam, reactions and
     iterations. Raises SolverError.
     """
-    q = [float(v) for v in q]
     p = [float(v) for v in p]
-    qmag = max(1.0, max(map(abs, q)))
-    lim = max(tol, 8.0 * EPS * qmag)
-    step, factors, converged = math.inf, None, False
-    r = _phi_s(q, t, p)
-    rmax = max(map(abs, r))
-    for it in range(MAX_NEWTON + 1):
-        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
-            break
-        if rmax <= lim and step <= lim:
-            converged = True
-            break
-        if it == MAX_NEWTON:
-            break
-        try:
-            factors = _Factors(q, t, p)
-        except ValueError:
-            raise SolverError("singular", t, q, it) from None
-        dq = factors.solve([-v for v in r])
-        q = [a + b for a, b in zip(q, dq)]
-        step = max(map(abs, dq))
-        if rmax <= lim and step <= lim:
-            # |Phi| was within tolerance where this last correction was
-            # computed, and the correction is too: Newton has converged
-            converged = True
-            it += 1
-            break
-        r = _phi_s(q, t, p)
-        rmax = max(map(abs, r))
-    if not converged:
-        raise SolverError("not converged", t, q, it)
-    if factors is None or step > 1e-14 * qmag:
-        try:
-            factors = _Factors(q, t, p)
-        except ValueError:
-            raise SolverError("singular", t, q, it) from None
+    q, qd, qdd, lam, reac, it, _ = _instant(t, p, [float(v) for v in q], tol, _mass_s(p))
     out = {"q": q, "iterations": it}
-    out["qd"] = qd = factors.solve(_nu_s(q, t, p))
-    out["qdd"] = qdd = factors.solve(_gamma_s(q, qd, t, p))
-    rhs = [a - m * b for a, m, b in zip(_applied_s(q, qd, t, p), _mass_s(p), qdd)]
-    out["lam"] = lam = factors.solve_t(rhs)
-    out["reactions"] = _reactions_s(q, lam, t, p)
+    out["qd"], out["qdd"] = qd, qdd
+    out["lam"] = lam
+    out["reactions"] = reac
     return out
 
 
 def rows(t0, h, n, p, q0, tol=1e-12):
     """Yield the n rows (t, then the compiled groups in contract order) of
     the grid t0 + k h, each instant warm-started from the one before."""
-    zeros = [0.0] * NG
-    p = [float(v) for v in p]
-    q, prev = list(q0), None
-    history = []
-    for k in range(n):
+    return _rows(t0, h, 0, n, [float(v) for v in p], tol, [float(v) for v in q0], [], None, None)
+
+
+def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
+    """Rows k..n-1 of the grid t0 + k h, as lists.
+
+    past: the positions of the instants before k, latest first (up to 3;
+    empty: q is the guess of instant k); qd, qdd: the rates of the latest.
+    check: None, or (c, floor, ratio, s, spread): stop with SolverError
+    "check" at an instant that may need a closer look: one where Newton moved
+    q from the guess by more than floor and ratio times the predicted motion
+    (both max_j |.| c_j), whose pivots |u_k| s_k spread wider than spread,
+    or that needed the dense fallback. A SolverError carries k, past, qd and
+    qdd to resume from.
+    """
+    m = _mass_s(p)
+    hh = 0.5 * h * h
+    q1, q2, q3 = (list(past) + [None] * 3)[:3]
+    if check is not None:
+        c, floor, ratio, s, spread = check
+    for k in range(k, n):
         t = t0 + k * h
-        if prev is not None:
-            q = [a + h * b + 0.5 * h * h * c for a, b, c in zip(prev["q"], prev["qd"], prev["qdd"])]
-        prev = instant(t, p, q, tol)
-        history = (history + [prev["q"]])[-3:]
-        row = [t]
-        for group in OUTPUTS:
-            row += prev.get({"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam",
-                             "reactions": "reactions"}[group], zeros)
-        yield row
+        if q1 is not None:
+            q = _predict(q1, qd, qdd, h, hh)
+        try:
+            qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
+            if check is not None and q1 is not None and (
+                    a.__class__ is _Dense or _spread(a, s) > spread or _moved(qn, q, q1, c, floor, ratio)):
+                raise SolverError("check", t, qn, it)
+        except SolverError as exc:
+            exc.k, exc.past, exc.qd, exc.qdd = k, [v for v in (q1, q2, q3) if v is not None], qd, qdd
+            raise
+        yield [t, *qn, *qdn, *qddn, *lam, *reac]
+        q1, q2, q3, qd, qdd = qn, q1, q2, qdn, qddn
 
 
 def trajectory(t0, t1, steps, p, q0, tol=1e-12):

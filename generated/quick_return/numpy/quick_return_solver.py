@@ -30,7 +30,10 @@ MAX_NEWTON = 50
 EPS = float(np.finfo(float).eps)
 THRESHOLD = 0.1
 SINGULAR_RCOND = 1e3 * EPS
-_FILL = [0.0] * 0
+LU_SIZE = 20
+PIVOT_ROWS = (0, 1, 5, 6, 7, 8, 2, 3, 4, )
+PIVOT_COLS = (0, 1, 6, 7, 8, 2, 3, 4, 5, )
+_ZEROS = [0.0] * NG
 
 
 class SolverError(RuntimeError):
@@ -43,6 +46,7 @@ class SolverError(RuntimeError):
     def __init__(self, status, t, q, iterations):
         super().__init__(f"{status} at t = {t!r}")
         self.status, self.t, self.q, self.iterations = status, t, q, iterations
+        self.k = self.past = self.qd = self.qdd = None
 
 
 def _stack(values, like):
@@ -74,8 +78,7 @@ def phi(q, t, p):
 
 
 def _phi_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = -q[3]
     e1 = math.cos(q[5])
     e2 = (1/2)*p[2]
@@ -83,15 +86,17 @@ def _phi_s(q, t, p):
     e4 = math.sin(q[5])
     e5 = e2*e4
     e6 = -q[7]
-    out[0] = q[0]
-    out[1] = q[1]
-    out[2] = -e0 - e3
-    out[3] = -e5 + (p[1] + q[4])
-    out[4] = e1*(p[0]*math.sin(q[2]) + (q[1] - q[4])) - e4*(p[0]*math.cos(q[2]) + (e0 + q[0]))
-    out[5] = -p[3]**2 + (-e3 + (-q[3] + q[6]))**2 + (-e5 + (-e6 - q[4]))**2
-    out[6] = -e6 - p[4]
-    out[7] = q[8]
-    out[8] = -p[12]*t + q[2]
+    out = [
+        q[0],
+        q[1],
+        -e0 - e3,
+        -e5 + (p[1] + q[4]),
+        e1*(p[0]*math.sin(q[2]) + (q[1] - q[4])) - e4*(p[0]*math.cos(q[2]) + (e0 + q[0])),
+        -p[3]**2 + (-e3 + (-q[3] + q[6]))**2 + (-e5 + (-e6 - q[4]))**2,
+        -e6 - p[4],
+        q[8],
+        -p[12]*t + q[2],
+    ]
     return out
 
 
@@ -132,8 +137,7 @@ def phi_q_values(q, t, p):
 
 
 def _phi_q_values_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 20
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.sin(q[5])
     e1 = e0*p[2]
     e2 = (1/2)*e1
@@ -144,26 +148,28 @@ def _phi_q_values_s(q, t, p):
     e7 = p[0]*math.sin(q[2])
     e8 = 2*q[3] - 2*q[6]
     e9 = 2*q[4] - 2*q[7]
-    out[0] = 1
-    out[1] = 1
-    out[2] = 1
-    out[3] = e2
-    out[4] = 1
-    out[5] = -e5
-    out[6] = -e0
-    out[7] = e3
-    out[8] = e0*e7 + e3*e6
-    out[9] = e0
-    out[10] = -e3
-    out[11] = -e0*(e7 + (q[1] - q[4])) - e3*(e6 + (q[0] - q[3]))
-    out[12] = e4 + (e8)
-    out[13] = e1 + (e9)
-    out[14] = e0*p[2]*(-e5 + (-q[3] + q[6])) - e4*(-e2 + (-q[4] + q[7]))
-    out[15] = -e4 + (-e8)
-    out[16] = -e1 + (-e9)
-    out[17] = 1
-    out[18] = 1
-    out[19] = 1
+    out = [
+        1,
+        1,
+        1,
+        e2,
+        1,
+        -e5,
+        -e0,
+        e3,
+        e0*e7 + e3*e6,
+        e0,
+        -e3,
+        -e0*(e7 + (q[1] - q[4])) - e3*(e6 + (q[0] - q[3])),
+        e4 + (e8),
+        e1 + (e9),
+        e0*p[2]*(-e5 + (-q[3] + q[6])) - e4*(-e2 + (-q[4] + q[7])),
+        -e4 + (-e8),
+        -e1 + (-e9),
+        1,
+        1,
+        1,
+    ]
     return out
 
 
@@ -183,17 +189,18 @@ def nu(q, t, p):
 
 
 def _nu_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = 0
-    out[1] = 0
-    out[2] = 0
-    out[3] = 0
-    out[4] = 0
-    out[5] = 0
-    out[6] = 0
-    out[7] = 0
-    out[8] = p[12]
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        p[12],
+    ]
     return out
 
 
@@ -229,8 +236,7 @@ def gamma(q, qd, t, p):
 
 
 def _gamma_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = qd[5]**2
     e1 = math.cos(q[5])
     e2 = e0*e1
@@ -247,15 +253,17 @@ def _gamma_s(q, qd, t, p):
     e13 = e5*p[2]
     e14 = e7*p[2]
     e15 = e8*p[2]
-    out[0] = 0
-    out[1] = 0
-    out[2] = -e2*e3
-    out[3] = -e3*e5
-    out[4] = e1*e10*e9 + e10*e2 - e10*e7*qd[2] - e11*e4*e9 - e11*e5 + e11*e8*qd[2] + e2*q[1] - e2*q[4] - e5*q[0] + e5*q[3] + e7*qd[0] - e7*qd[3] + e8*qd[1] - e8*qd[4]
-    out[5] = e12*q[3] - e12*q[6] + e13*q[4] - e13*q[7] - e14*qd[4] + e14*qd[7] + e15*qd[3] - e15*qd[6] + (-2*qd[3]**2 + 4*qd[3]*qd[6] - 2*qd[4]**2 + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2)
-    out[6] = 0
-    out[7] = 0
-    out[8] = 0
+    out = [
+        0,
+        0,
+        -e2*e3,
+        -e3*e5,
+        e1*e10*e9 + e10*e2 - e10*e7*qd[2] - e11*e4*e9 - e11*e5 + e11*e8*qd[2] + e2*q[1] - e2*q[4] - e5*q[0] + e5*q[3] + e7*qd[0] - e7*qd[3] + e8*qd[1] - e8*qd[4],
+        e12*q[3] - e12*q[6] + e13*q[4] - e13*q[7] - e14*qd[4] + e14*qd[7] + e15*qd[3] - e15*qd[6] + (-2*qd[3]**2 + 4*qd[3]*qd[6] - 2*qd[4]**2 + 4*qd[4]*qd[7] - 2*qd[6]**2 - 2*qd[7]**2),
+        0,
+        0,
+        0,
+    ]
     return out
 
 
@@ -275,17 +283,18 @@ def applied(q, qd, t, p):
 
 
 def _applied_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = 0
-    out[1] = -981/100*p[5]
-    out[2] = 0
-    out[3] = 0
-    out[4] = -981/100*p[7]
-    out[5] = 0
-    out[6] = (1/2)*p[13]*(math.sin(p[12]*t) + 1)
-    out[7] = -981/100*p[8]
-    out[8] = 0
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        0,
+        -981/100*p[5],
+        0,
+        0,
+        -981/100*p[7],
+        0,
+        (1/2)*p[13]*(math.sin(p[12]*t) + 1),
+        -981/100*p[8],
+        0,
+    ]
     return out
 
 
@@ -305,17 +314,18 @@ def mass(p):
 
 
 def _mass_s(p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = p[5]
-    out[1] = p[5]
-    out[2] = (1/2)*p[5]*p[6]**2
-    out[3] = p[7]
-    out[4] = p[7]
-    out[5] = (1/12)*p[2]**2*p[7]
-    out[6] = p[8]
-    out[7] = p[8]
-    out[8] = (1/12)*p[8]*(p[10]**2 + p[9]**2)
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        p[5],
+        p[5],
+        (1/2)*p[5]*p[6]**2,
+        p[7],
+        p[7],
+        (1/12)*p[2]**2*p[7],
+        p[8],
+        p[8],
+        (1/12)*p[8]*(p[10]**2 + p[9]**2),
+    ]
     return out
 
 
@@ -372,8 +382,7 @@ def reactions(q, lam, t, p):
 
 
 def _reactions_s(q, lam, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 36
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.sin(q[5])
     e1 = e0*lam[4]
     e2 = math.cos(q[5])
@@ -384,42 +393,44 @@ def _reactions_s(q, lam, t, p):
     e7 = e2*e6
     e8 = e4*q[4] - 2*lam[5]*q[7]
     e9 = e0*e6
-    out[0] = lam[0]
-    out[1] = lam[1]
-    out[2] = 0
-    out[3] = -lam[0]
-    out[4] = -lam[1]
-    out[5] = 0
-    out[6] = lam[2]
-    out[7] = lam[3]
-    out[8] = 0
-    out[9] = -lam[2]
-    out[10] = -lam[3]
-    out[11] = 0
-    out[12] = -e1
-    out[13] = e3
-    out[14] = e1*p[0]*math.sin(q[2]) + e1*q[1] - e1*q[4] + e3*p[0]*math.cos(q[2]) + e3*q[0] - e3*q[3]
-    out[15] = e1
-    out[16] = -e3
-    out[17] = 0
-    out[18] = -e7 + (-e5)
-    out[19] = -e9 + (-e8)
-    out[20] = 0
-    out[21] = e7 + (e5)
-    out[22] = e9 + (e8)
-    out[23] = 0
-    out[24] = 0
-    out[25] = lam[6]
-    out[26] = lam[6]*q[6] + lam[7]
-    out[27] = 0
-    out[28] = -lam[6]
-    out[29] = -lam[7]
-    out[30] = 0
-    out[31] = 0
-    out[32] = lam[8]
-    out[33] = 0
-    out[34] = 0
-    out[35] = -lam[8]
+    out = [
+        lam[0],
+        lam[1],
+        0,
+        -lam[0],
+        -lam[1],
+        0,
+        lam[2],
+        lam[3],
+        0,
+        -lam[2],
+        -lam[3],
+        0,
+        -e1,
+        e3,
+        e1*p[0]*math.sin(q[2]) + e1*q[1] - e1*q[4] + e3*p[0]*math.cos(q[2]) + e3*q[0] - e3*q[3],
+        e1,
+        -e3,
+        0,
+        -e7 + (-e5),
+        -e9 + (-e8),
+        0,
+        e7 + (e5),
+        e9 + (e8),
+        0,
+        0,
+        lam[6],
+        lam[6]*q[6] + lam[7],
+        0,
+        -lam[6],
+        -lam[7],
+        0,
+        0,
+        lam[8],
+        0,
+        0,
+        -lam[8],
+    ]
     return out
 
 
@@ -431,107 +442,275 @@ def phi_q(q, t, p):
     return out
 
 
-def _factor(a):
-    """The fixed-order sparse LU of Phi_q in place; False where a pivot fails the threshold test."""
-    piv = a[0]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[6])) or piv == 0.0:
-        return False
-    a[6] /= piv
-    piv = a[1]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[7])) or piv == 0.0:
-        return False
-    a[7] /= piv
-    piv = a[15]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[17]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[18]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[19]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[8])) or piv == 0.0:
-        return False
-    a[8] /= piv
-    piv = a[2]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[9])) or piv == 0.0:
-        return False
-    a[9] /= piv
-    a[11] -= a[9] * a[3]
-    piv = a[4]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[10])) or piv == 0.0:
-        return False
-    a[10] /= piv
-    a[11] -= a[10] * a[5]
-    piv = a[11]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    return True
+class _Dense:
+    """Phi_q(q) as a dense matrix: the fallback where a fixed pivot fails."""
+
+    def __init__(self, q, t, p):
+        jac = np.zeros((NC, NG))
+        jac[PHI_Q_ROWS, PHI_Q_COLS] = _phi_q_values_s(q, t, p)
+        if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
+            raise ValueError("singular")
+        self.jac = jac
+
+    def solve(self, b):
+        return list(np.linalg.solve(self.jac, b))
+
+    def solve_t(self, b):
+        return list(np.linalg.solve(self.jac.T, b))
+
+
+# The factors are a list of LU_SIZE floats (or a _Dense): the solves below
+# unpack them into local variables, cheaper in CPython than indexing.
+def _lu(q, t, p):
+    """Phi_q(q) factored in the fixed sparse order (steps PIVOT_ROWS, PIVOT_COLS),
+    or None where a pivot fails the threshold test."""
+    # Phi_q's values straight into the factor's slots (as _phi_q_values_s)
+    e0 = math.sin(q[5])
+    e1 = e0*p[2]
+    e2 = (1/2)*e1
+    e3 = math.cos(q[5])
+    e4 = e3*p[2]
+    e5 = (1/2)*e4
+    e6 = p[0]*math.cos(q[2])
+    e7 = p[0]*math.sin(q[2])
+    e8 = 2*q[3] - 2*q[6]
+    e9 = 2*q[4] - 2*q[7]
+    a0 = 1
+    a1 = 1
+    a2 = 1
+    a3 = e2
+    a4 = 1
+    a5 = -e5
+    a6 = -e0
+    a7 = e3
+    a8 = e0*e7 + e3*e6
+    a9 = e0
+    a10 = -e3
+    a11 = -e0*(e7 + (q[1] - q[4])) - e3*(e6 + (q[0] - q[3]))
+    a12 = e4 + (e8)
+    a13 = e1 + (e9)
+    a14 = e0*p[2]*(-e5 + (-q[3] + q[6])) - e4*(-e2 + (-q[4] + q[7]))
+    a15 = -e4 + (-e8)
+    a16 = -e1 + (-e9)
+    a17 = 1
+    a18 = 1
+    a19 = 1
+    u = abs(a0)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a6)):
+        return None
+    a6 /= a0
+    u = abs(a1)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a7)):
+        return None
+    a7 /= a1
+    if not abs(a15) > 0.0:
+        return None
+    if not abs(a17) > 0.0:
+        return None
+    if not abs(a18) > 0.0:
+        return None
+    u = abs(a19)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a8)):
+        return None
+    a8 /= a19
+    u = abs(a2)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a9)):
+        return None
+    a9 /= a2
+    a11 -= a9 * a3
+    u = abs(a4)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a10)):
+        return None
+    a10 /= a4
+    a11 -= a10 * a5
+    if not abs(a11) > 0.0:
+        return None
+    return [a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19]
+
+
 
 
 def _solve(a, b):
-    y = list(b)
-    y[4] -= a[6] * y[0]
-    y[4] -= a[7] * y[1]
-    y[4] -= a[8] * y[8]
-    y[4] -= a[9] * y[2]
-    y[4] -= a[10] * y[3]
-    x = [0.0] * NG
-    x[5] = (y[4]) / a[11]
-    x[4] = (y[3] - a[5] * x[5]) / a[4]
-    x[3] = (y[2] - a[3] * x[5]) / a[2]
-    x[2] = (y[8]) / a[19]
-    x[8] = (y[7]) / a[18]
-    x[7] = (y[6]) / a[17]
-    x[6] = (y[5] - a[12] * x[3] - a[13] * x[4] - a[14] * x[5] - a[16] * x[7]) / a[15]
-    x[1] = (y[1]) / a[1]
-    x[0] = (y[0]) / a[0]
-    return x
+    """x with Phi_q x = b (sizes NC -> NG)."""
+    if a.__class__ is _Dense:
+        return a.solve(b)
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19 = a
+    y0, y1, y2, y3, y4, y5, y6, y7, y8 = b
+    y4 -= a6 * y0
+    y4 -= a7 * y1
+    y4 -= a8 * y8
+    y4 -= a9 * y2
+    y4 -= a10 * y3
+    x5 = (y4) / a11
+    x4 = (y3 - a5 * x5) / a4
+    x3 = (y2 - a3 * x5) / a2
+    x2 = (y8) / a19
+    x8 = (y7) / a18
+    x7 = (y6) / a17
+    x6 = (y5 - a12 * x3 - a13 * x4 - a14 * x5 - a16 * x7) / a15
+    x1 = (y1) / a1
+    x0 = (y0) / a0
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
+
+
+def _newton_step(a, r, q):
+    """q - dq with Phi_q dq = r, and max |dq|. Solving for r rather than -r
+    changes no bit: every operation of the solve is symmetric under negation."""
+    if a.__class__ is _Dense:
+        dq = a.solve(r)
+        return [u - v for u, v in zip(q, dq)], max(map(abs, dq))
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19 = a
+    y0, y1, y2, y3, y4, y5, y6, y7, y8 = r
+    y4 -= a6 * y0
+    y4 -= a7 * y1
+    y4 -= a8 * y8
+    y4 -= a9 * y2
+    y4 -= a10 * y3
+    x5 = (y4) / a11
+    x4 = (y3 - a5 * x5) / a4
+    x3 = (y2 - a3 * x5) / a2
+    x2 = (y8) / a19
+    x8 = (y7) / a18
+    x7 = (y6) / a17
+    x6 = (y5 - a12 * x3 - a13 * x4 - a14 * x5 - a16 * x7) / a15
+    x1 = (y1) / a1
+    x0 = (y0) / a0
+    q0, q1, q2, q3, q4, q5, q6, q7, q8 = q
+    return [q0 - x0, q1 - x1, q2 - x2, q3 - x3, q4 - x4, q5 - x5, q6 - x6, q7 - x7, q8 - x8], max(abs(x0), abs(x1), abs(x2), abs(x3), abs(x4), abs(x5), abs(x6), abs(x7), abs(x8))
+
+
 
 
 def _solve_t(a, b):
-    x = [0.0] * NC
-    x[0] = (b[0]) / a[0]
-    x[1] = (b[1]) / a[1]
-    x[5] = (b[6]) / a[15]
-    x[6] = (b[7] - a[16] * x[5]) / a[17]
-    x[7] = (b[8]) / a[18]
-    x[8] = (b[2]) / a[19]
-    x[2] = (b[3] - a[12] * x[5]) / a[2]
-    x[3] = (b[4] - a[13] * x[5]) / a[4]
-    x[4] = (b[5] - a[14] * x[5] - a[3] * x[2] - a[5] * x[3]) / a[11]
-    x[3] -= a[10] * x[4]
-    x[2] -= a[9] * x[4]
-    x[8] -= a[8] * x[4]
-    x[1] -= a[7] * x[4]
-    x[0] -= a[6] * x[4]
-    return x
+    """lambda with Phi_q^T lambda = b (sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t(b)
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19 = a
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
+    x0 = (b0) / a0
+    x1 = (b1) / a1
+    x5 = (b6) / a15
+    x6 = (b7 - a16 * x5) / a17
+    x7 = (b8) / a18
+    x8 = (b2) / a19
+    x2 = (b3 - a12 * x5) / a2
+    x3 = (b4 - a13 * x5) / a4
+    x4 = (b5 - a14 * x5 - a3 * x2 - a5 * x3) / a11
+    x3 -= a10 * x4
+    x2 -= a9 * x4
+    x8 -= a8 * x4
+    x1 -= a7 * x4
+    x0 -= a6 * x4
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
 
 
-class _Factors:
-    """Phi_q(q) factored: the fixed sparse order, or a dense fallback."""
+def _lam(a, f, m, e):
+    """lambda with Phi_q^T lambda = f - m e (elementwise; sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t([u - v * w for u, v, w in zip(f, m, e)])
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19 = a
+    f0, f1, f2, f3, f4, f5, f6, f7, f8 = f
+    m0, m1, m2, m3, m4, m5, m6, m7, m8 = m
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    b0 = f0 - m0 * e0
+    b1 = f1 - m1 * e1
+    b2 = f2 - m2 * e2
+    b3 = f3 - m3 * e3
+    b4 = f4 - m4 * e4
+    b5 = f5 - m5 * e5
+    b6 = f6 - m6 * e6
+    b7 = f7 - m7 * e7
+    b8 = f8 - m8 * e8
+    x0 = (b0) / a0
+    x1 = (b1) / a1
+    x5 = (b6) / a15
+    x6 = (b7 - a16 * x5) / a17
+    x7 = (b8) / a18
+    x8 = (b2) / a19
+    x2 = (b3 - a12 * x5) / a2
+    x3 = (b4 - a13 * x5) / a4
+    x4 = (b5 - a14 * x5 - a3 * x2 - a5 * x3) / a11
+    x3 -= a10 * x4
+    x2 -= a9 * x4
+    x8 -= a8 * x4
+    x1 -= a7 * x4
+    x0 -= a6 * x4
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
 
-    def __init__(self, q, t, p):
-        values = _phi_q_values_s(q, t, p)
-        self.lu = values + _FILL
-        self.dense = None
-        if not _factor(self.lu):
-            jac = np.zeros((NC, NG))
-            jac[PHI_Q_ROWS, PHI_Q_COLS] = values
-            if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
-                raise ValueError("singular")
-            self.dense = jac
 
-    def solve(self, b):
-        if self.dense is None:
-            return _solve(self.lu, b)
-        return list(np.linalg.solve(self.dense, b))
+def _predict(o, d, e, h, hh):
+    """The Taylor guess o + h d + hh e (hh = h^2 / 2), elementwise."""
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    d0, d1, d2, d3, d4, d5, d6, d7, d8 = d
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    return [o0 + h * d0 + hh * e0, o1 + h * d1 + hh * e1, o2 + h * d2 + hh * e2, o3 + h * d3 + hh * e3, o4 + h * d4 + hh * e4, o5 + h * d5 + hh * e5, o6 + h * d6 + hh * e6, o7 + h * d7 + hh * e7, o8 + h * d8 + hh * e8]
 
-    def solve_t(self, b):
-        if self.dense is None:
-            return _solve_t(self.lu, b)
-        return list(np.linalg.solve(self.dense.T, b))
+
+def _spread(a, s):
+    """max / min of the pivots |u_k| s_k of sparse factors (s: a scale per step)."""
+    s0, s1, s2, s3, s4, s5, s6, s7, s8 = s
+    u0 = abs(a[0]) * s0
+    u1 = abs(a[1]) * s1
+    u2 = abs(a[15]) * s2
+    u3 = abs(a[17]) * s3
+    u4 = abs(a[18]) * s4
+    u5 = abs(a[19]) * s5
+    u6 = abs(a[2]) * s6
+    u7 = abs(a[4]) * s7
+    u8 = abs(a[11]) * s8
+    return max(u0, u1, u2, u3, u4, u5, u6, u7, u8) / min(u0, u1, u2, u3, u4, u5, u6, u7, u8)
+
+
+def _moved(q, g, o, c, floor, ratio):
+    """Whether Newton moved q from the guess g by more than floor and ratio
+    times the predicted motion g - o (each max_j |.| c_j)."""
+    q0, q1, q2, q3, q4, q5, q6, q7, q8 = q
+    g0, g1, g2, g3, g4, g5, g6, g7, g8 = g
+    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c
+    correction = max(abs(q0 - g0) * c0, abs(q1 - g1) * c1, abs(q2 - g2) * c2, abs(q3 - g3) * c3, abs(q4 - g4) * c4, abs(q5 - g5) * c5, abs(q6 - g6) * c6, abs(q7 - g7) * c7, abs(q8 - g8) * c8)
+    if not correction > floor:
+        return False
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    return correction > ratio * max(abs(g0 - o0) * c0, abs(g1 - o1) * c1, abs(g2 - o2) * c2, abs(g3 - o3) * c3, abs(g4 - o4) * c4, abs(g5 - o5) * c5, abs(g6 - o6) * c6, abs(g7 - o7) * c7, abs(g8 - o8) * c8)
+
+
+def _instant(t, p, q, tol, m):
+    """Solve one instant from the guess q (floats): Newton, then the compiled
+    outputs. m: _mass_s(p) (or None). Returns (q, qd, qdd, lam, reactions,
+    iterations, factors), None where not compiled. Raises SolverError."""
+    qmag = max(1.0, max(map(abs, q)))
+    lim = max(tol, 8.0 * EPS * qmag)
+    step, a, it = math.inf, None, 0
+    r = _phi_s(q, t, p)
+    rmax = max(map(abs, r))
+    while True:
+        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
+            raise SolverError("not converged", t, q, it)
+        if rmax <= lim and step <= lim:
+            break
+        if it == MAX_NEWTON:
+            raise SolverError("not converged", t, q, it)
+        try:
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+        q, step = _newton_step(a, r, q)
+        it += 1
+        if rmax <= lim and step <= lim:
+            # |Phi| was within tolerance where this last correction was
+            # computed, and the correction is too: Newton has converged
+            break
+        r = _phi_s(q, t, p)
+        rmax = max(map(abs, r))
+    if a is None or step > 1e-14 * qmag:
+        try:
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+    qd = _solve(a, _nu_s(q, t, p))
+    qdd = _solve(a, _gamma_s(q, qd, t, p))
+    lam = _lam(a, _applied_s(q, qd, t, p), m, qdd)
+    return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
 
 def instant(t, p, q, tol=1e-12):
@@ -540,70 +719,52 @@ def instant(t, p, q, tol=1e-12):
     Returns a dict with q and, as compiled, qd, qdd, lam, reactions and
     iterations. Raises SolverError.
     """
-    q = [float(v) for v in q]
     p = [float(v) for v in p]
-    qmag = max(1.0, max(map(abs, q)))
-    lim = max(tol, 8.0 * EPS * qmag)
-    step, factors, converged = math.inf, None, False
-    r = _phi_s(q, t, p)
-    rmax = max(map(abs, r))
-    for it in range(MAX_NEWTON + 1):
-        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
-            break
-        if rmax <= lim and step <= lim:
-            converged = True
-            break
-        if it == MAX_NEWTON:
-            break
-        try:
-            factors = _Factors(q, t, p)
-        except ValueError:
-            raise SolverError("singular", t, q, it) from None
-        dq = factors.solve([-v for v in r])
-        q = [a + b for a, b in zip(q, dq)]
-        step = max(map(abs, dq))
-        if rmax <= lim and step <= lim:
-            # |Phi| was within tolerance where this last correction was
-            # computed, and the correction is too: Newton has converged
-            converged = True
-            it += 1
-            break
-        r = _phi_s(q, t, p)
-        rmax = max(map(abs, r))
-    if not converged:
-        raise SolverError("not converged", t, q, it)
-    if factors is None or step > 1e-14 * qmag:
-        try:
-            factors = _Factors(q, t, p)
-        except ValueError:
-            raise SolverError("singular", t, q, it) from None
+    q, qd, qdd, lam, reac, it, _ = _instant(t, p, [float(v) for v in q], tol, _mass_s(p))
     out = {"q": q, "iterations": it}
-    out["qd"] = qd = factors.solve(_nu_s(q, t, p))
-    out["qdd"] = qdd = factors.solve(_gamma_s(q, qd, t, p))
-    rhs = [a - m * b for a, m, b in zip(_applied_s(q, qd, t, p), _mass_s(p), qdd)]
-    out["lam"] = lam = factors.solve_t(rhs)
-    out["reactions"] = _reactions_s(q, lam, t, p)
+    out["qd"], out["qdd"] = qd, qdd
+    out["lam"] = lam
+    out["reactions"] = reac
     return out
 
 
 def rows(t0, h, n, p, q0, tol=1e-12):
     """Yield the n rows (t, then the compiled groups in contract order) of
     the grid t0 + k h, each instant warm-started from the one before."""
-    zeros = [0.0] * NG
-    p = [float(v) for v in p]
-    q, prev = list(q0), None
-    history = []
-    for k in range(n):
+    return _rows(t0, h, 0, n, [float(v) for v in p], tol, [float(v) for v in q0], [], None, None)
+
+
+def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
+    """Rows k..n-1 of the grid t0 + k h, as lists.
+
+    past: the positions of the instants before k, latest first (up to 3;
+    empty: q is the guess of instant k); qd, qdd: the rates of the latest.
+    check: None, or (c, floor, ratio, s, spread): stop with SolverError
+    "check" at an instant that may need a closer look: one where Newton moved
+    q from the guess by more than floor and ratio times the predicted motion
+    (both max_j |.| c_j), whose pivots |u_k| s_k spread wider than spread,
+    or that needed the dense fallback. A SolverError carries k, past, qd and
+    qdd to resume from.
+    """
+    m = _mass_s(p)
+    hh = 0.5 * h * h
+    q1, q2, q3 = (list(past) + [None] * 3)[:3]
+    if check is not None:
+        c, floor, ratio, s, spread = check
+    for k in range(k, n):
         t = t0 + k * h
-        if prev is not None:
-            q = [a + h * b + 0.5 * h * h * c for a, b, c in zip(prev["q"], prev["qd"], prev["qdd"])]
-        prev = instant(t, p, q, tol)
-        history = (history + [prev["q"]])[-3:]
-        row = [t]
-        for group in OUTPUTS:
-            row += prev.get({"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam",
-                             "reactions": "reactions"}[group], zeros)
-        yield row
+        if q1 is not None:
+            q = _predict(q1, qd, qdd, h, hh)
+        try:
+            qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
+            if check is not None and q1 is not None and (
+                    a.__class__ is _Dense or _spread(a, s) > spread or _moved(qn, q, q1, c, floor, ratio)):
+                raise SolverError("check", t, qn, it)
+        except SolverError as exc:
+            exc.k, exc.past, exc.qd, exc.qdd = k, [v for v in (q1, q2, q3) if v is not None], qd, qdd
+            raise
+        yield [t, *qn, *qdn, *qddn, *lam, *reac]
+        q1, q2, q3, qd, qdd = qn, q1, q2, qdn, qddn
 
 
 def trajectory(t0, t1, steps, p, q0, tol=1e-12):

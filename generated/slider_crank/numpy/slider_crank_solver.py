@@ -30,7 +30,10 @@ MAX_NEWTON = 50
 EPS = float(np.finfo(float).eps)
 THRESHOLD = 0.1
 SINGULAR_RCOND = 1e3 * EPS
-_FILL = [0.0] * 0
+LU_SIZE = 21
+PIVOT_ROWS = (4, 2, 0, 6, 7, 8, 1, 3, 5, )
+PIVOT_COLS = (6, 3, 0, 7, 8, 2, 1, 4, 5, )
+_ZEROS = [0.0] * NG
 
 
 class SolverError(RuntimeError):
@@ -43,6 +46,7 @@ class SolverError(RuntimeError):
     def __init__(self, status, t, q, iterations):
         super().__init__(f"{status} at t = {t!r}")
         self.status, self.t, self.q, self.iterations = status, t, q, iterations
+        self.k = self.past = self.qd = self.qdd = None
 
 
 def _stack(values, like):
@@ -73,23 +77,24 @@ def phi(q, t, p):
 
 
 def _phi_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = (1/2)*p[0]
     e1 = e0*math.cos(q[2])
     e2 = e0*math.sin(q[2])
     e3 = (1/2)*p[1]
     e4 = e3*math.cos(q[5])
     e5 = e3*math.sin(q[5])
-    out[0] = -e1 + q[0]
-    out[1] = -e2 + q[1]
-    out[2] = -e1 - e4 + (-q[0] + q[3])
-    out[3] = -e2 - e5 + (-q[1] + q[4])
-    out[4] = -e4 + (-q[3] + q[6])
-    out[5] = -e5 + (-q[4] + q[7])
-    out[6] = q[7]
-    out[7] = q[8]
-    out[8] = -p[8]*t + q[2]
+    out = [
+        -e1 + q[0],
+        -e2 + q[1],
+        -e1 - e4 + (-q[0] + q[3]),
+        -e2 - e5 + (-q[1] + q[4]),
+        -e4 + (-q[3] + q[6]),
+        -e5 + (-q[4] + q[7]),
+        q[7],
+        q[8],
+        -p[8]*t + q[2],
+    ]
     return out
 
 
@@ -127,35 +132,36 @@ def phi_q_values(q, t, p):
 
 
 def _phi_q_values_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 21
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = (1/2)*p[0]
     e1 = e0*math.sin(q[2])
     e2 = -e0*math.cos(q[2])
     e3 = (1/2)*p[1]
     e4 = e3*math.sin(q[5])
     e5 = -e3*math.cos(q[5])
-    out[0] = 1
-    out[1] = e1
-    out[2] = 1
-    out[3] = e2
-    out[4] = -1
-    out[5] = e1
-    out[6] = 1
-    out[7] = e4
-    out[8] = -1
-    out[9] = e2
-    out[10] = 1
-    out[11] = e5
-    out[12] = -1
-    out[13] = e4
-    out[14] = 1
-    out[15] = -1
-    out[16] = e5
-    out[17] = 1
-    out[18] = 1
-    out[19] = 1
-    out[20] = 1
+    out = [
+        1,
+        e1,
+        1,
+        e2,
+        -1,
+        e1,
+        1,
+        e4,
+        -1,
+        e2,
+        1,
+        e5,
+        -1,
+        e4,
+        1,
+        -1,
+        e5,
+        1,
+        1,
+        1,
+        1,
+    ]
     return out
 
 
@@ -175,17 +181,18 @@ def nu(q, t, p):
 
 
 def _nu_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = 0
-    out[1] = 0
-    out[2] = 0
-    out[3] = 0
-    out[4] = 0
-    out[5] = 0
-    out[6] = 0
-    out[7] = 0
-    out[8] = p[8]
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        p[8],
+    ]
     return out
 
 
@@ -211,23 +218,24 @@ def gamma(q, qd, t, p):
 
 
 def _gamma_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = (1/2)*p[0]*qd[2]**2
     e1 = e0*math.cos(q[2])
     e2 = e0*math.sin(q[2])
     e3 = (1/2)*p[1]*qd[5]**2
     e4 = e3*math.cos(q[5])
     e5 = e3*math.sin(q[5])
-    out[0] = -e1
-    out[1] = -e2
-    out[2] = -e1 - e4
-    out[3] = -e2 - e5
-    out[4] = -e4
-    out[5] = -e5
-    out[6] = 0
-    out[7] = 0
-    out[8] = 0
+    out = [
+        -e1,
+        -e2,
+        -e1 - e4,
+        -e2 - e5,
+        -e4,
+        -e5,
+        0,
+        0,
+        0,
+    ]
     return out
 
 
@@ -247,17 +255,18 @@ def applied(q, qd, t, p):
 
 
 def _applied_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = 0
-    out[1] = -981/100*p[2]
-    out[2] = 0
-    out[3] = 0
-    out[4] = -981/100*p[3]
-    out[5] = 0
-    out[6] = -p[9]*math.sin(p[8]*t)
-    out[7] = -981/100*p[4]
-    out[8] = 0
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        0,
+        -981/100*p[2],
+        0,
+        0,
+        -981/100*p[3],
+        0,
+        -p[9]*math.sin(p[8]*t),
+        -981/100*p[4],
+        0,
+    ]
     return out
 
 
@@ -277,17 +286,18 @@ def mass(p):
 
 
 def _mass_s(p):
-    # one instant, floats in and out
-    out = [0.0] * 9
-    out[0] = p[2]
-    out[1] = p[2]
-    out[2] = (1/12)*p[0]**2*p[2]
-    out[3] = p[3]
-    out[4] = p[3]
-    out[5] = (1/12)*p[1]**2*p[3]
-    out[6] = p[4]
-    out[7] = p[4]
-    out[8] = (1/12)*p[4]*(p[5]**2 + p[6]**2)
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        p[2],
+        p[2],
+        (1/12)*p[0]**2*p[2],
+        p[3],
+        p[3],
+        (1/12)*p[1]**2*p[3],
+        p[4],
+        p[4],
+        (1/12)*p[4]*(p[5]**2 + p[6]**2),
+    ]
     return out
 
 
@@ -328,38 +338,39 @@ def reactions(q, lam, t, p):
 
 
 def _reactions_s(q, lam, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 30
-    out[0] = lam[0]
-    out[1] = lam[1]
-    out[2] = 0
-    out[3] = -lam[0]
-    out[4] = -lam[1]
-    out[5] = 0
-    out[6] = lam[2]
-    out[7] = lam[3]
-    out[8] = 0
-    out[9] = -lam[2]
-    out[10] = -lam[3]
-    out[11] = 0
-    out[12] = lam[4]
-    out[13] = lam[5]
-    out[14] = 0
-    out[15] = -lam[4]
-    out[16] = -lam[5]
-    out[17] = 0
-    out[18] = 0
-    out[19] = lam[6]
-    out[20] = lam[6]*q[6] + lam[7]
-    out[21] = 0
-    out[22] = -lam[6]
-    out[23] = -lam[7]
-    out[24] = 0
-    out[25] = 0
-    out[26] = lam[8]
-    out[27] = 0
-    out[28] = 0
-    out[29] = -lam[8]
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        lam[0],
+        lam[1],
+        0,
+        -lam[0],
+        -lam[1],
+        0,
+        lam[2],
+        lam[3],
+        0,
+        -lam[2],
+        -lam[3],
+        0,
+        lam[4],
+        lam[5],
+        0,
+        -lam[4],
+        -lam[5],
+        0,
+        0,
+        lam[6],
+        lam[6]*q[6] + lam[7],
+        0,
+        -lam[6],
+        -lam[7],
+        0,
+        0,
+        lam[8],
+        0,
+        0,
+        -lam[8],
+    ]
     return out
 
 
@@ -371,106 +382,270 @@ def phi_q(q, t, p):
     return out
 
 
-def _factor(a):
-    """The fixed-order sparse LU of Phi_q in place; False where a pivot fails the threshold test."""
-    piv = a[14]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[6]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[0]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[18]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[17])) or piv == 0.0:
-        return False
-    a[17] /= piv
-    piv = a[19]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[20]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[3]), abs(a[9])) or piv == 0.0:
-        return False
-    a[3] /= piv
-    a[9] /= piv
-    piv = a[2]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[8])) or piv == 0.0:
-        return False
-    a[8] /= piv
-    piv = a[10]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[15])) or piv == 0.0:
-        return False
-    a[15] /= piv
-    a[16] -= a[15] * a[11]
-    piv = a[16]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    return True
+class _Dense:
+    """Phi_q(q) as a dense matrix: the fallback where a fixed pivot fails."""
+
+    def __init__(self, q, t, p):
+        jac = np.zeros((NC, NG))
+        jac[PHI_Q_ROWS, PHI_Q_COLS] = _phi_q_values_s(q, t, p)
+        if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
+            raise ValueError("singular")
+        self.jac = jac
+
+    def solve(self, b):
+        return list(np.linalg.solve(self.jac, b))
+
+    def solve_t(self, b):
+        return list(np.linalg.solve(self.jac.T, b))
+
+
+# The factors are a list of LU_SIZE floats (or a _Dense): the solves below
+# unpack them into local variables, cheaper in CPython than indexing.
+def _lu(q, t, p):
+    """Phi_q(q) factored in the fixed sparse order (steps PIVOT_ROWS, PIVOT_COLS),
+    or None where a pivot fails the threshold test."""
+    # Phi_q's values straight into the factor's slots (as _phi_q_values_s)
+    e0 = (1/2)*p[0]
+    e1 = e0*math.sin(q[2])
+    e2 = -e0*math.cos(q[2])
+    e3 = (1/2)*p[1]
+    e4 = e3*math.sin(q[5])
+    e5 = -e3*math.cos(q[5])
+    a0 = 1
+    a1 = e1
+    a2 = 1
+    a3 = e2
+    a4 = -1
+    a5 = e1
+    a6 = 1
+    a7 = e4
+    a8 = -1
+    a9 = e2
+    a10 = 1
+    a11 = e5
+    a12 = -1
+    a13 = e4
+    a14 = 1
+    a15 = -1
+    a16 = e5
+    a17 = 1
+    a18 = 1
+    a19 = 1
+    a20 = 1
+    if not abs(a14) > 0.0:
+        return None
+    if not abs(a6) > 0.0:
+        return None
+    if not abs(a0) > 0.0:
+        return None
+    u = abs(a18)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a17)):
+        return None
+    a17 /= a18
+    if not abs(a19) > 0.0:
+        return None
+    u = abs(a20)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a3) and u >= THRESHOLD * abs(a9)):
+        return None
+    a3 /= a20
+    a9 /= a20
+    u = abs(a2)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a8)):
+        return None
+    a8 /= a2
+    u = abs(a10)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a15)):
+        return None
+    a15 /= a10
+    a16 -= a15 * a11
+    if not abs(a16) > 0.0:
+        return None
+    return [a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20]
+
+
 
 
 def _solve(a, b):
-    y = list(b)
-    y[5] -= a[17] * y[6]
-    y[1] -= a[3] * y[8]
-    y[3] -= a[9] * y[8]
-    y[3] -= a[8] * y[1]
-    y[5] -= a[15] * y[3]
-    x = [0.0] * NG
-    x[5] = (y[5]) / a[16]
-    x[4] = (y[3] - a[11] * x[5]) / a[10]
-    x[1] = (y[1]) / a[2]
-    x[2] = (y[8]) / a[20]
-    x[8] = (y[7]) / a[19]
-    x[7] = (y[6]) / a[18]
-    x[0] = (y[0] - a[1] * x[2]) / a[0]
-    x[3] = (y[2] - a[4] * x[0] - a[5] * x[2] - a[7] * x[5]) / a[6]
-    x[6] = (y[4] - a[12] * x[3] - a[13] * x[5]) / a[14]
-    return x
+    """x with Phi_q x = b (sizes NC -> NG)."""
+    if a.__class__ is _Dense:
+        return a.solve(b)
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20 = a
+    y0, y1, y2, y3, y4, y5, y6, y7, y8 = b
+    y5 -= a17 * y6
+    y1 -= a3 * y8
+    y3 -= a9 * y8
+    y3 -= a8 * y1
+    y5 -= a15 * y3
+    x5 = (y5) / a16
+    x4 = (y3 - a11 * x5) / a10
+    x1 = (y1) / a2
+    x2 = (y8) / a20
+    x8 = (y7) / a19
+    x7 = (y6) / a18
+    x0 = (y0 - a1 * x2) / a0
+    x3 = (y2 - a4 * x0 - a5 * x2 - a7 * x5) / a6
+    x6 = (y4 - a12 * x3 - a13 * x5) / a14
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
+
+
+def _newton_step(a, r, q):
+    """q - dq with Phi_q dq = r, and max |dq|. Solving for r rather than -r
+    changes no bit: every operation of the solve is symmetric under negation."""
+    if a.__class__ is _Dense:
+        dq = a.solve(r)
+        return [u - v for u, v in zip(q, dq)], max(map(abs, dq))
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20 = a
+    y0, y1, y2, y3, y4, y5, y6, y7, y8 = r
+    y5 -= a17 * y6
+    y1 -= a3 * y8
+    y3 -= a9 * y8
+    y3 -= a8 * y1
+    y5 -= a15 * y3
+    x5 = (y5) / a16
+    x4 = (y3 - a11 * x5) / a10
+    x1 = (y1) / a2
+    x2 = (y8) / a20
+    x8 = (y7) / a19
+    x7 = (y6) / a18
+    x0 = (y0 - a1 * x2) / a0
+    x3 = (y2 - a4 * x0 - a5 * x2 - a7 * x5) / a6
+    x6 = (y4 - a12 * x3 - a13 * x5) / a14
+    q0, q1, q2, q3, q4, q5, q6, q7, q8 = q
+    return [q0 - x0, q1 - x1, q2 - x2, q3 - x3, q4 - x4, q5 - x5, q6 - x6, q7 - x7, q8 - x8], max(abs(x0), abs(x1), abs(x2), abs(x3), abs(x4), abs(x5), abs(x6), abs(x7), abs(x8))
+
+
 
 
 def _solve_t(a, b):
-    x = [0.0] * NC
-    x[4] = (b[6]) / a[14]
-    x[2] = (b[3] - a[12] * x[4]) / a[6]
-    x[0] = (b[0] - a[4] * x[2]) / a[0]
-    x[6] = (b[7]) / a[18]
-    x[7] = (b[8]) / a[19]
-    x[8] = (b[2] - a[5] * x[2] - a[1] * x[0]) / a[20]
-    x[1] = (b[1]) / a[2]
-    x[3] = (b[4]) / a[10]
-    x[5] = (b[5] - a[13] * x[4] - a[7] * x[2] - a[11] * x[3]) / a[16]
-    x[3] -= a[15] * x[5]
-    x[1] -= a[8] * x[3]
-    x[8] -= a[3] * x[1]
-    x[8] -= a[9] * x[3]
-    x[6] -= a[17] * x[5]
-    return x
+    """lambda with Phi_q^T lambda = b (sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t(b)
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20 = a
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
+    x4 = (b6) / a14
+    x2 = (b3 - a12 * x4) / a6
+    x0 = (b0 - a4 * x2) / a0
+    x6 = (b7) / a18
+    x7 = (b8) / a19
+    x8 = (b2 - a5 * x2 - a1 * x0) / a20
+    x1 = (b1) / a2
+    x3 = (b4) / a10
+    x5 = (b5 - a13 * x4 - a7 * x2 - a11 * x3) / a16
+    x3 -= a15 * x5
+    x1 -= a8 * x3
+    x8 -= a3 * x1
+    x8 -= a9 * x3
+    x6 -= a17 * x5
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
 
 
-class _Factors:
-    """Phi_q(q) factored: the fixed sparse order, or a dense fallback."""
+def _lam(a, f, m, e):
+    """lambda with Phi_q^T lambda = f - m e (elementwise; sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t([u - v * w for u, v, w in zip(f, m, e)])
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20 = a
+    f0, f1, f2, f3, f4, f5, f6, f7, f8 = f
+    m0, m1, m2, m3, m4, m5, m6, m7, m8 = m
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    b0 = f0 - m0 * e0
+    b1 = f1 - m1 * e1
+    b2 = f2 - m2 * e2
+    b3 = f3 - m3 * e3
+    b4 = f4 - m4 * e4
+    b5 = f5 - m5 * e5
+    b6 = f6 - m6 * e6
+    b7 = f7 - m7 * e7
+    b8 = f8 - m8 * e8
+    x4 = (b6) / a14
+    x2 = (b3 - a12 * x4) / a6
+    x0 = (b0 - a4 * x2) / a0
+    x6 = (b7) / a18
+    x7 = (b8) / a19
+    x8 = (b2 - a5 * x2 - a1 * x0) / a20
+    x1 = (b1) / a2
+    x3 = (b4) / a10
+    x5 = (b5 - a13 * x4 - a7 * x2 - a11 * x3) / a16
+    x3 -= a15 * x5
+    x1 -= a8 * x3
+    x8 -= a3 * x1
+    x8 -= a9 * x3
+    x6 -= a17 * x5
+    return [x0, x1, x2, x3, x4, x5, x6, x7, x8]
 
-    def __init__(self, q, t, p):
-        values = _phi_q_values_s(q, t, p)
-        self.lu = values + _FILL
-        self.dense = None
-        if not _factor(self.lu):
-            jac = np.zeros((NC, NG))
-            jac[PHI_Q_ROWS, PHI_Q_COLS] = values
-            if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
-                raise ValueError("singular")
-            self.dense = jac
 
-    def solve(self, b):
-        if self.dense is None:
-            return _solve(self.lu, b)
-        return list(np.linalg.solve(self.dense, b))
+def _predict(o, d, e, h, hh):
+    """The Taylor guess o + h d + hh e (hh = h^2 / 2), elementwise."""
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    d0, d1, d2, d3, d4, d5, d6, d7, d8 = d
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    return [o0 + h * d0 + hh * e0, o1 + h * d1 + hh * e1, o2 + h * d2 + hh * e2, o3 + h * d3 + hh * e3, o4 + h * d4 + hh * e4, o5 + h * d5 + hh * e5, o6 + h * d6 + hh * e6, o7 + h * d7 + hh * e7, o8 + h * d8 + hh * e8]
 
-    def solve_t(self, b):
-        if self.dense is None:
-            return _solve_t(self.lu, b)
-        return list(np.linalg.solve(self.dense.T, b))
+
+def _spread(a, s):
+    """max / min of the pivots |u_k| s_k of sparse factors (s: a scale per step)."""
+    s0, s1, s2, s3, s4, s5, s6, s7, s8 = s
+    u0 = abs(a[14]) * s0
+    u1 = abs(a[6]) * s1
+    u2 = abs(a[0]) * s2
+    u3 = abs(a[18]) * s3
+    u4 = abs(a[19]) * s4
+    u5 = abs(a[20]) * s5
+    u6 = abs(a[2]) * s6
+    u7 = abs(a[10]) * s7
+    u8 = abs(a[16]) * s8
+    return max(u0, u1, u2, u3, u4, u5, u6, u7, u8) / min(u0, u1, u2, u3, u4, u5, u6, u7, u8)
+
+
+def _moved(q, g, o, c, floor, ratio):
+    """Whether Newton moved q from the guess g by more than floor and ratio
+    times the predicted motion g - o (each max_j |.| c_j)."""
+    q0, q1, q2, q3, q4, q5, q6, q7, q8 = q
+    g0, g1, g2, g3, g4, g5, g6, g7, g8 = g
+    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c
+    correction = max(abs(q0 - g0) * c0, abs(q1 - g1) * c1, abs(q2 - g2) * c2, abs(q3 - g3) * c3, abs(q4 - g4) * c4, abs(q5 - g5) * c5, abs(q6 - g6) * c6, abs(q7 - g7) * c7, abs(q8 - g8) * c8)
+    if not correction > floor:
+        return False
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    return correction > ratio * max(abs(g0 - o0) * c0, abs(g1 - o1) * c1, abs(g2 - o2) * c2, abs(g3 - o3) * c3, abs(g4 - o4) * c4, abs(g5 - o5) * c5, abs(g6 - o6) * c6, abs(g7 - o7) * c7, abs(g8 - o8) * c8)
+
+
+def _instant(t, p, q, tol, m):
+    """Solve one instant from the guess q (floats): Newton, then the compiled
+    outputs. m: _mass_s(p) (or None). Returns (q, qd, qdd, lam, reactions,
+    iterations, factors), None where not compiled. Raises SolverError."""
+    qmag = max(1.0, max(map(abs, q)))
+    lim = max(tol, 8.0 * EPS * qmag)
+    step, a, it = math.inf, None, 0
+    r = _phi_s(q, t, p)
+    rmax = max(map(abs, r))
+    while True:
+        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
+            raise SolverError("not converged", t, q, it)
+        if rmax <= lim and step <= lim:
+            break
+        if it == MAX_NEWTON:
+            raise SolverError("not converged", t, q, it)
+        try:
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+        q, step = _newton_step(a, r, q)
+        it += 1
+        if rmax <= lim and step <= lim:
+            # |Phi| was within tolerance where this last correction was
+            # computed, and the correction is too: Newton has converged
+            break
+        r = _phi_s(q, t, p)
+        rmax = max(map(abs, r))
+    if a is None or step > 1e-14 * qmag:
+        try:
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+    qd = _solve(a, _nu_s(q, t, p))
+    qdd = _solve(a, _gamma_s(q, qd, t, p))
+    lam = _lam(a, _applied_s(q, qd, t, p), m, qdd)
+    return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
 
 def instant(t, p, q, tol=1e-12):
@@ -479,70 +654,52 @@ def instant(t, p, q, tol=1e-12):
     Returns a dict with q and, as compiled, qd, qdd, lam, reactions and
     iterations. Raises SolverError.
     """
-    q = [float(v) for v in q]
     p = [float(v) for v in p]
-    qmag = max(1.0, max(map(abs, q)))
-    lim = max(tol, 8.0 * EPS * qmag)
-    step, factors, converged = math.inf, None, False
-    r = _phi_s(q, t, p)
-    rmax = max(map(abs, r))
-    for it in range(MAX_NEWTON + 1):
-        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
-            break
-        if rmax <= lim and step <= lim:
-            converged = True
-            break
-        if it == MAX_NEWTON:
-            break
-        try:
-            factors = _Factors(q, t, p)
-        except ValueError:
-            raise SolverError("singular", t, q, it) from None
-        dq = factors.solve([-v for v in r])
-        q = [a + b for a, b in zip(q, dq)]
-        step = max(map(abs, dq))
-        if rmax <= lim and step <= lim:
-            # |Phi| was within tolerance where this last correction was
-            # computed, and the correction is too: Newton has converged
-            converged = True
-            it += 1
-            break
-        r = _phi_s(q, t, p)
-        rmax = max(map(abs, r))
-    if not converged:
-        raise SolverError("not converged", t, q, it)
-    if factors is None or step > 1e-14 * qmag:
-        try:
-            factors = _Factors(q, t, p)
-        except ValueError:
-            raise SolverError("singular", t, q, it) from None
+    q, qd, qdd, lam, reac, it, _ = _instant(t, p, [float(v) for v in q], tol, _mass_s(p))
     out = {"q": q, "iterations": it}
-    out["qd"] = qd = factors.solve(_nu_s(q, t, p))
-    out["qdd"] = qdd = factors.solve(_gamma_s(q, qd, t, p))
-    rhs = [a - m * b for a, m, b in zip(_applied_s(q, qd, t, p), _mass_s(p), qdd)]
-    out["lam"] = lam = factors.solve_t(rhs)
-    out["reactions"] = _reactions_s(q, lam, t, p)
+    out["qd"], out["qdd"] = qd, qdd
+    out["lam"] = lam
+    out["reactions"] = reac
     return out
 
 
 def rows(t0, h, n, p, q0, tol=1e-12):
     """Yield the n rows (t, then the compiled groups in contract order) of
     the grid t0 + k h, each instant warm-started from the one before."""
-    zeros = [0.0] * NG
-    p = [float(v) for v in p]
-    q, prev = list(q0), None
-    history = []
-    for k in range(n):
+    return _rows(t0, h, 0, n, [float(v) for v in p], tol, [float(v) for v in q0], [], None, None)
+
+
+def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
+    """Rows k..n-1 of the grid t0 + k h, as lists.
+
+    past: the positions of the instants before k, latest first (up to 3;
+    empty: q is the guess of instant k); qd, qdd: the rates of the latest.
+    check: None, or (c, floor, ratio, s, spread): stop with SolverError
+    "check" at an instant that may need a closer look: one where Newton moved
+    q from the guess by more than floor and ratio times the predicted motion
+    (both max_j |.| c_j), whose pivots |u_k| s_k spread wider than spread,
+    or that needed the dense fallback. A SolverError carries k, past, qd and
+    qdd to resume from.
+    """
+    m = _mass_s(p)
+    hh = 0.5 * h * h
+    q1, q2, q3 = (list(past) + [None] * 3)[:3]
+    if check is not None:
+        c, floor, ratio, s, spread = check
+    for k in range(k, n):
         t = t0 + k * h
-        if prev is not None:
-            q = [a + h * b + 0.5 * h * h * c for a, b, c in zip(prev["q"], prev["qd"], prev["qdd"])]
-        prev = instant(t, p, q, tol)
-        history = (history + [prev["q"]])[-3:]
-        row = [t]
-        for group in OUTPUTS:
-            row += prev.get({"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam",
-                             "reactions": "reactions"}[group], zeros)
-        yield row
+        if q1 is not None:
+            q = _predict(q1, qd, qdd, h, hh)
+        try:
+            qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
+            if check is not None and q1 is not None and (
+                    a.__class__ is _Dense or _spread(a, s) > spread or _moved(qn, q, q1, c, floor, ratio)):
+                raise SolverError("check", t, qn, it)
+        except SolverError as exc:
+            exc.k, exc.past, exc.qd, exc.qdd = k, [v for v in (q1, q2, q3) if v is not None], qd, qdd
+            raise
+        yield [t, *qn, *qdn, *qddn, *lam, *reac]
+        q1, q2, q3, qd, qdd = qn, q1, q2, qdn, qddn
 
 
 def trajectory(t0, t1, steps, p, q0, tol=1e-12):

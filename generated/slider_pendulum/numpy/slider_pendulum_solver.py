@@ -30,7 +30,10 @@ MAX_NEWTON = 50
 EPS = float(np.finfo(float).eps)
 THRESHOLD = 0.1
 SINGULAR_RCOND = 1e3 * EPS
-_FILL = [0.0] * 0
+LU_SIZE = 15
+PIVOT_ROWS = (3, 4, 5, 0, 1, 2, )
+PIVOT_COLS = (3, 4, 5, 2, 1, 0, )
+_ZEROS = [0.0] * NG
 
 
 class SolverError(RuntimeError):
@@ -43,6 +46,7 @@ class SolverError(RuntimeError):
     def __init__(self, status, t, q, iterations):
         super().__init__(f"{status} at t = {t!r}")
         self.status, self.t, self.q, self.iterations = status, t, q, iterations
+        self.k = self.past = self.qd = self.qdd = None
 
 
 def _stack(values, like):
@@ -71,8 +75,7 @@ def phi(q, t, p):
 
 
 def _phi_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 6
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.sin(p[0])
     e1 = math.sin(q[2])
     e2 = math.cos(p[0])
@@ -80,12 +83,14 @@ def _phi_s(q, t, p):
     e4 = 2*math.pi*t
     e5 = 1/math.sqrt(e0**2 + e2**2)
     e6 = (1/2)*p[9]
-    out[0] = -e0*(-e0*e1 + e2*e3) + e2*(e0*e3 + e1*e2)
-    out[1] = -e0*q[0] + e2*q[1]
-    out[2] = e0*e5*q[1] + e2*e5*q[0] - p[1]*math.sin(e4*p[2])
-    out[3] = -e1*p[8] - e6*math.cos(q[5]) + (-q[0] + q[3])
-    out[4] = e3*p[8] - e6*math.sin(q[5]) + (-q[1] + q[4])
-    out[5] = -p[3]*math.sin(e4*p[4]) + (-q[2] + q[5] + (1/2)*math.pi)
+    out = [
+        -e0*(-e0*e1 + e2*e3) + e2*(e0*e3 + e1*e2),
+        -e0*q[0] + e2*q[1],
+        e0*e5*q[1] + e2*e5*q[0] - p[1]*math.sin(e4*p[2]),
+        -e1*p[8] - e6*math.cos(q[5]) + (-q[0] + q[3]),
+        e3*p[8] - e6*math.sin(q[5]) + (-q[1] + q[4]),
+        -p[3]*math.sin(e4*p[4]) + (-q[2] + q[5] + (1/2)*math.pi),
+    ]
     return out
 
 
@@ -117,29 +122,30 @@ def phi_q_values(q, t, p):
 
 
 def _phi_q_values_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 15
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.sin(p[0])
     e1 = math.sin(q[2])
     e2 = math.cos(p[0])
     e3 = math.cos(q[2])
     e4 = 1/math.sqrt(e0**2 + e2**2)
     e5 = (1/2)*p[9]
-    out[0] = -e0*(-e0*e3 - e1*e2) + e2*(-e0*e1 + e2*e3)
-    out[1] = -e0
-    out[2] = e2
-    out[3] = e2*e4
-    out[4] = e0*e4
-    out[5] = -1
-    out[6] = -e3*p[8]
-    out[7] = 1
-    out[8] = e5*math.sin(q[5])
-    out[9] = -1
-    out[10] = -e1*p[8]
-    out[11] = 1
-    out[12] = -e5*math.cos(q[5])
-    out[13] = -1
-    out[14] = 1
+    out = [
+        -e0*(-e0*e3 - e1*e2) + e2*(-e0*e1 + e2*e3),
+        -e0,
+        e2,
+        e2*e4,
+        e0*e4,
+        -1,
+        -e3*p[8],
+        1,
+        e5*math.sin(q[5]),
+        -1,
+        -e1*p[8],
+        1,
+        -e5*math.cos(q[5]),
+        -1,
+        1,
+    ]
     return out
 
 
@@ -158,16 +164,17 @@ def nu(q, t, p):
 
 
 def _nu_s(q, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 6
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = 2*math.pi
     e1 = e0*t
-    out[0] = 0
-    out[1] = 0
-    out[2] = e0*p[1]*p[2]*math.cos(e1*p[2])
-    out[3] = 0
-    out[4] = 0
-    out[5] = e0*p[3]*p[4]*math.cos(e1*p[4])
+    out = [
+        0,
+        0,
+        e0*p[1]*p[2]*math.cos(e1*p[2]),
+        0,
+        0,
+        e0*p[3]*p[4]*math.cos(e1*p[4]),
+    ]
     return out
 
 
@@ -189,19 +196,20 @@ def gamma(q, qd, t, p):
 
 
 def _gamma_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 6
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = qd[2]**2
     e1 = e0*math.sin(q[2])
     e2 = 2*math.pi*t
     e3 = 4*math.pi**2
     e4 = (1/2)*p[9]*qd[5]**2
-    out[0] = e1*math.sin(p[0])**2 + e1*math.cos(p[0])**2
-    out[1] = 0
-    out[2] = -e3*p[1]*p[2]**2*math.sin(e2*p[2])
-    out[3] = -e1*p[8] - e4*math.cos(q[5])
-    out[4] = e0*p[8]*math.cos(q[2]) - e4*math.sin(q[5])
-    out[5] = -e3*p[3]*p[4]**2*math.sin(e2*p[4])
+    out = [
+        e1*math.sin(p[0])**2 + e1*math.cos(p[0])**2,
+        0,
+        -e3*p[1]*p[2]**2*math.sin(e2*p[2]),
+        -e1*p[8] - e4*math.cos(q[5]),
+        e0*p[8]*math.cos(q[2]) - e4*math.sin(q[5]),
+        -e3*p[3]*p[4]**2*math.sin(e2*p[4]),
+    ]
     return out
 
 
@@ -219,15 +227,16 @@ def applied(q, qd, t, p):
 
 
 def _applied_s(q, qd, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 6
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = p[11]*(-q[2] + q[5] + (1/2)*math.pi) + p[12]*(-qd[2] + qd[5])
-    out[0] = 0
-    out[1] = -981/100*p[5]
-    out[2] = e0
-    out[3] = 0
-    out[4] = -981/100*p[10]
-    out[5] = -e0
+    out = [
+        0,
+        -981/100*p[5],
+        e0,
+        0,
+        -981/100*p[10],
+        -e0,
+    ]
     return out
 
 
@@ -244,14 +253,15 @@ def mass(p):
 
 
 def _mass_s(p):
-    # one instant, floats in and out
-    out = [0.0] * 6
-    out[0] = p[5]
-    out[1] = p[5]
-    out[2] = (1/12)*p[5]*(p[6]**2 + p[7]**2)
-    out[3] = p[10]
-    out[4] = p[10]
-    out[5] = (1/12)*p[10]*p[9]**2
+    # one instant, floats in and out (a list display: faster than item stores)
+    out = [
+        p[5],
+        p[5],
+        (1/12)*p[5]*(p[6]**2 + p[7]**2),
+        p[10],
+        p[10],
+        (1/12)*p[10]*p[9]**2,
+    ]
     return out
 
 
@@ -303,8 +313,7 @@ def reactions(q, lam, t, p):
 
 
 def _reactions_s(q, lam, t, p):
-    # one instant, floats in and out
-    out = [0.0] * 30
+    # one instant, floats in and out (a list display: faster than item stores)
     e0 = math.cos(p[0])
     e1 = e0**2
     e2 = lam[0]*math.cos(q[2])
@@ -316,36 +325,38 @@ def _reactions_s(q, lam, t, p):
     e8 = lam[2]/math.sqrt(e1 + e4)
     e9 = e0*e8
     e10 = e3*e8
-    out[0] = 0
-    out[1] = 0
-    out[2] = e5
-    out[3] = 0
-    out[4] = 0
-    out[5] = -e5
-    out[6] = -e6
-    out[7] = e7
-    out[8] = e6*q[1] + e7*q[0]
-    out[9] = e6
-    out[10] = -e7
-    out[11] = 0
-    out[12] = e9
-    out[13] = e10
-    out[14] = e10*q[0] - e9*q[1]
-    out[15] = -e9
-    out[16] = -e10
-    out[17] = 0
-    out[18] = lam[3]
-    out[19] = lam[4]
-    out[20] = 0
-    out[21] = -lam[3]
-    out[22] = -lam[4]
-    out[23] = 0
-    out[24] = 0
-    out[25] = 0
-    out[26] = lam[5]
-    out[27] = 0
-    out[28] = 0
-    out[29] = -lam[5]
+    out = [
+        0,
+        0,
+        e5,
+        0,
+        0,
+        -e5,
+        -e6,
+        e7,
+        e6*q[1] + e7*q[0],
+        e6,
+        -e7,
+        0,
+        e9,
+        e10,
+        e10*q[0] - e9*q[1],
+        -e9,
+        -e10,
+        0,
+        lam[3],
+        lam[4],
+        0,
+        -lam[3],
+        -lam[4],
+        0,
+        0,
+        0,
+        lam[5],
+        0,
+        0,
+        -lam[5],
+    ]
     return out
 
 
@@ -357,79 +368,217 @@ def phi_q(q, t, p):
     return out
 
 
-def _factor(a):
-    """The fixed-order sparse LU of Phi_q in place; False where a pivot fails the threshold test."""
-    piv = a[7]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[11]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[14]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[0]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    piv = a[2]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0, abs(a[4])) or piv == 0.0:
-        return False
-    a[4] /= piv
-    a[3] -= a[4] * a[1]
-    piv = a[3]
-    if not abs(piv) >= THRESHOLD * max(abs(piv), 0.0) or piv == 0.0:
-        return False
-    return True
+class _Dense:
+    """Phi_q(q) as a dense matrix: the fallback where a fixed pivot fails."""
+
+    def __init__(self, q, t, p):
+        jac = np.zeros((NC, NG))
+        jac[PHI_Q_ROWS, PHI_Q_COLS] = _phi_q_values_s(q, t, p)
+        if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
+            raise ValueError("singular")
+        self.jac = jac
+
+    def solve(self, b):
+        return list(np.linalg.solve(self.jac, b))
+
+    def solve_t(self, b):
+        return list(np.linalg.solve(self.jac.T, b))
+
+
+# The factors are a list of LU_SIZE floats (or a _Dense): the solves below
+# unpack them into local variables, cheaper in CPython than indexing.
+def _lu(q, t, p):
+    """Phi_q(q) factored in the fixed sparse order (steps PIVOT_ROWS, PIVOT_COLS),
+    or None where a pivot fails the threshold test."""
+    # Phi_q's values straight into the factor's slots (as _phi_q_values_s)
+    e0 = math.sin(p[0])
+    e1 = math.sin(q[2])
+    e2 = math.cos(p[0])
+    e3 = math.cos(q[2])
+    e4 = 1/math.sqrt(e0**2 + e2**2)
+    e5 = (1/2)*p[9]
+    a0 = -e0*(-e0*e3 - e1*e2) + e2*(-e0*e1 + e2*e3)
+    a1 = -e0
+    a2 = e2
+    a3 = e2*e4
+    a4 = e0*e4
+    a5 = -1
+    a6 = -e3*p[8]
+    a7 = 1
+    a8 = e5*math.sin(q[5])
+    a9 = -1
+    a10 = -e1*p[8]
+    a11 = 1
+    a12 = -e5*math.cos(q[5])
+    a13 = -1
+    a14 = 1
+    if not abs(a7) > 0.0:
+        return None
+    if not abs(a11) > 0.0:
+        return None
+    if not abs(a14) > 0.0:
+        return None
+    if not abs(a0) > 0.0:
+        return None
+    u = abs(a2)
+    if not (u > 0.0 and u >= THRESHOLD * abs(a4)):
+        return None
+    a4 /= a2
+    a3 -= a4 * a1
+    if not abs(a3) > 0.0:
+        return None
+    return [a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14]
+
+
 
 
 def _solve(a, b):
-    y = list(b)
-    y[2] -= a[4] * y[1]
-    x = [0.0] * NG
-    x[0] = (y[2]) / a[3]
-    x[1] = (y[1] - a[1] * x[0]) / a[2]
-    x[2] = (y[0]) / a[0]
-    x[5] = (y[5] - a[13] * x[2]) / a[14]
-    x[4] = (y[4] - a[9] * x[1] - a[10] * x[2] - a[12] * x[5]) / a[11]
-    x[3] = (y[3] - a[5] * x[0] - a[6] * x[2] - a[8] * x[5]) / a[7]
-    return x
+    """x with Phi_q x = b (sizes NC -> NG)."""
+    if a.__class__ is _Dense:
+        return a.solve(b)
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14 = a
+    y0, y1, y2, y3, y4, y5 = b
+    y2 -= a4 * y1
+    x0 = (y2) / a3
+    x1 = (y1 - a1 * x0) / a2
+    x2 = (y0) / a0
+    x5 = (y5 - a13 * x2) / a14
+    x4 = (y4 - a9 * x1 - a10 * x2 - a12 * x5) / a11
+    x3 = (y3 - a5 * x0 - a6 * x2 - a8 * x5) / a7
+    return [x0, x1, x2, x3, x4, x5]
+
+
+def _newton_step(a, r, q):
+    """q - dq with Phi_q dq = r, and max |dq|. Solving for r rather than -r
+    changes no bit: every operation of the solve is symmetric under negation."""
+    if a.__class__ is _Dense:
+        dq = a.solve(r)
+        return [u - v for u, v in zip(q, dq)], max(map(abs, dq))
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14 = a
+    y0, y1, y2, y3, y4, y5 = r
+    y2 -= a4 * y1
+    x0 = (y2) / a3
+    x1 = (y1 - a1 * x0) / a2
+    x2 = (y0) / a0
+    x5 = (y5 - a13 * x2) / a14
+    x4 = (y4 - a9 * x1 - a10 * x2 - a12 * x5) / a11
+    x3 = (y3 - a5 * x0 - a6 * x2 - a8 * x5) / a7
+    q0, q1, q2, q3, q4, q5 = q
+    return [q0 - x0, q1 - x1, q2 - x2, q3 - x3, q4 - x4, q5 - x5], max(abs(x0), abs(x1), abs(x2), abs(x3), abs(x4), abs(x5))
+
+
 
 
 def _solve_t(a, b):
-    x = [0.0] * NC
-    x[3] = (b[3]) / a[7]
-    x[4] = (b[4]) / a[11]
-    x[5] = (b[5] - a[8] * x[3] - a[12] * x[4]) / a[14]
-    x[0] = (b[2] - a[6] * x[3] - a[10] * x[4] - a[13] * x[5]) / a[0]
-    x[1] = (b[1] - a[9] * x[4]) / a[2]
-    x[2] = (b[0] - a[5] * x[3] - a[1] * x[1]) / a[3]
-    x[1] -= a[4] * x[2]
-    return x
+    """lambda with Phi_q^T lambda = b (sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t(b)
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14 = a
+    b0, b1, b2, b3, b4, b5 = b
+    x3 = (b3) / a7
+    x4 = (b4) / a11
+    x5 = (b5 - a8 * x3 - a12 * x4) / a14
+    x0 = (b2 - a6 * x3 - a10 * x4 - a13 * x5) / a0
+    x1 = (b1 - a9 * x4) / a2
+    x2 = (b0 - a5 * x3 - a1 * x1) / a3
+    x1 -= a4 * x2
+    return [x0, x1, x2, x3, x4, x5]
 
 
-class _Factors:
-    """Phi_q(q) factored: the fixed sparse order, or a dense fallback."""
+def _lam(a, f, m, e):
+    """lambda with Phi_q^T lambda = f - m e (elementwise; sizes NG -> NC)."""
+    if a.__class__ is _Dense:
+        return a.solve_t([u - v * w for u, v, w in zip(f, m, e)])
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14 = a
+    f0, f1, f2, f3, f4, f5 = f
+    m0, m1, m2, m3, m4, m5 = m
+    e0, e1, e2, e3, e4, e5 = e
+    b0 = f0 - m0 * e0
+    b1 = f1 - m1 * e1
+    b2 = f2 - m2 * e2
+    b3 = f3 - m3 * e3
+    b4 = f4 - m4 * e4
+    b5 = f5 - m5 * e5
+    x3 = (b3) / a7
+    x4 = (b4) / a11
+    x5 = (b5 - a8 * x3 - a12 * x4) / a14
+    x0 = (b2 - a6 * x3 - a10 * x4 - a13 * x5) / a0
+    x1 = (b1 - a9 * x4) / a2
+    x2 = (b0 - a5 * x3 - a1 * x1) / a3
+    x1 -= a4 * x2
+    return [x0, x1, x2, x3, x4, x5]
 
-    def __init__(self, q, t, p):
-        values = _phi_q_values_s(q, t, p)
-        self.lu = values + _FILL
-        self.dense = None
-        if not _factor(self.lu):
-            jac = np.zeros((NC, NG))
-            jac[PHI_Q_ROWS, PHI_Q_COLS] = values
-            if not 1.0 / np.linalg.cond(jac, 1) > SINGULAR_RCOND:
-                raise ValueError("singular")
-            self.dense = jac
 
-    def solve(self, b):
-        if self.dense is None:
-            return _solve(self.lu, b)
-        return list(np.linalg.solve(self.dense, b))
+def _predict(o, d, e, h, hh):
+    """The Taylor guess o + h d + hh e (hh = h^2 / 2), elementwise."""
+    o0, o1, o2, o3, o4, o5 = o
+    d0, d1, d2, d3, d4, d5 = d
+    e0, e1, e2, e3, e4, e5 = e
+    return [o0 + h * d0 + hh * e0, o1 + h * d1 + hh * e1, o2 + h * d2 + hh * e2, o3 + h * d3 + hh * e3, o4 + h * d4 + hh * e4, o5 + h * d5 + hh * e5]
 
-    def solve_t(self, b):
-        if self.dense is None:
-            return _solve_t(self.lu, b)
-        return list(np.linalg.solve(self.dense.T, b))
+
+def _spread(a, s):
+    """max / min of the pivots |u_k| s_k of sparse factors (s: a scale per step)."""
+    s0, s1, s2, s3, s4, s5 = s
+    u0 = abs(a[7]) * s0
+    u1 = abs(a[11]) * s1
+    u2 = abs(a[14]) * s2
+    u3 = abs(a[0]) * s3
+    u4 = abs(a[2]) * s4
+    u5 = abs(a[3]) * s5
+    return max(u0, u1, u2, u3, u4, u5) / min(u0, u1, u2, u3, u4, u5)
+
+
+def _moved(q, g, o, c, floor, ratio):
+    """Whether Newton moved q from the guess g by more than floor and ratio
+    times the predicted motion g - o (each max_j |.| c_j)."""
+    q0, q1, q2, q3, q4, q5 = q
+    g0, g1, g2, g3, g4, g5 = g
+    c0, c1, c2, c3, c4, c5 = c
+    correction = max(abs(q0 - g0) * c0, abs(q1 - g1) * c1, abs(q2 - g2) * c2, abs(q3 - g3) * c3, abs(q4 - g4) * c4, abs(q5 - g5) * c5)
+    if not correction > floor:
+        return False
+    o0, o1, o2, o3, o4, o5 = o
+    return correction > ratio * max(abs(g0 - o0) * c0, abs(g1 - o1) * c1, abs(g2 - o2) * c2, abs(g3 - o3) * c3, abs(g4 - o4) * c4, abs(g5 - o5) * c5)
+
+
+def _instant(t, p, q, tol, m):
+    """Solve one instant from the guess q (floats): Newton, then the compiled
+    outputs. m: _mass_s(p) (or None). Returns (q, qd, qdd, lam, reactions,
+    iterations, factors), None where not compiled. Raises SolverError."""
+    qmag = max(1.0, max(map(abs, q)))
+    lim = max(tol, 8.0 * EPS * qmag)
+    step, a, it = math.inf, None, 0
+    r = _phi_s(q, t, p)
+    rmax = max(map(abs, r))
+    while True:
+        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
+            raise SolverError("not converged", t, q, it)
+        if rmax <= lim and step <= lim:
+            break
+        if it == MAX_NEWTON:
+            raise SolverError("not converged", t, q, it)
+        try:
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+        q, step = _newton_step(a, r, q)
+        it += 1
+        if rmax <= lim and step <= lim:
+            # |Phi| was within tolerance where this last correction was
+            # computed, and the correction is too: Newton has converged
+            break
+        r = _phi_s(q, t, p)
+        rmax = max(map(abs, r))
+    if a is None or step > 1e-14 * qmag:
+        try:
+            a = _lu(q, t, p) or _Dense(q, t, p)  # ValueError: singular
+        except ValueError:
+            raise SolverError("singular", t, q, it) from None
+    qd = _solve(a, _nu_s(q, t, p))
+    qdd = _solve(a, _gamma_s(q, qd, t, p))
+    lam = _lam(a, _applied_s(q, qd, t, p), m, qdd)
+    return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
 
 def instant(t, p, q, tol=1e-12):
@@ -438,70 +587,52 @@ def instant(t, p, q, tol=1e-12):
     Returns a dict with q and, as compiled, qd, qdd, lam, reactions and
     iterations. Raises SolverError.
     """
-    q = [float(v) for v in q]
     p = [float(v) for v in p]
-    qmag = max(1.0, max(map(abs, q)))
-    lim = max(tol, 8.0 * EPS * qmag)
-    step, factors, converged = math.inf, None, False
-    r = _phi_s(q, t, p)
-    rmax = max(map(abs, r))
-    for it in range(MAX_NEWTON + 1):
-        if not math.isfinite(rmax + sum(r)):  # the sum carries a NaN that max may skip
-            break
-        if rmax <= lim and step <= lim:
-            converged = True
-            break
-        if it == MAX_NEWTON:
-            break
-        try:
-            factors = _Factors(q, t, p)
-        except ValueError:
-            raise SolverError("singular", t, q, it) from None
-        dq = factors.solve([-v for v in r])
-        q = [a + b for a, b in zip(q, dq)]
-        step = max(map(abs, dq))
-        if rmax <= lim and step <= lim:
-            # |Phi| was within tolerance where this last correction was
-            # computed, and the correction is too: Newton has converged
-            converged = True
-            it += 1
-            break
-        r = _phi_s(q, t, p)
-        rmax = max(map(abs, r))
-    if not converged:
-        raise SolverError("not converged", t, q, it)
-    if factors is None or step > 1e-14 * qmag:
-        try:
-            factors = _Factors(q, t, p)
-        except ValueError:
-            raise SolverError("singular", t, q, it) from None
+    q, qd, qdd, lam, reac, it, _ = _instant(t, p, [float(v) for v in q], tol, _mass_s(p))
     out = {"q": q, "iterations": it}
-    out["qd"] = qd = factors.solve(_nu_s(q, t, p))
-    out["qdd"] = qdd = factors.solve(_gamma_s(q, qd, t, p))
-    rhs = [a - m * b for a, m, b in zip(_applied_s(q, qd, t, p), _mass_s(p), qdd)]
-    out["lam"] = lam = factors.solve_t(rhs)
-    out["reactions"] = _reactions_s(q, lam, t, p)
+    out["qd"], out["qdd"] = qd, qdd
+    out["lam"] = lam
+    out["reactions"] = reac
     return out
 
 
 def rows(t0, h, n, p, q0, tol=1e-12):
     """Yield the n rows (t, then the compiled groups in contract order) of
     the grid t0 + k h, each instant warm-started from the one before."""
-    zeros = [0.0] * NG
-    p = [float(v) for v in p]
-    q, prev = list(q0), None
-    history = []
-    for k in range(n):
+    return _rows(t0, h, 0, n, [float(v) for v in p], tol, [float(v) for v in q0], [], None, None)
+
+
+def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
+    """Rows k..n-1 of the grid t0 + k h, as lists.
+
+    past: the positions of the instants before k, latest first (up to 3;
+    empty: q is the guess of instant k); qd, qdd: the rates of the latest.
+    check: None, or (c, floor, ratio, s, spread): stop with SolverError
+    "check" at an instant that may need a closer look: one where Newton moved
+    q from the guess by more than floor and ratio times the predicted motion
+    (both max_j |.| c_j), whose pivots |u_k| s_k spread wider than spread,
+    or that needed the dense fallback. A SolverError carries k, past, qd and
+    qdd to resume from.
+    """
+    m = _mass_s(p)
+    hh = 0.5 * h * h
+    q1, q2, q3 = (list(past) + [None] * 3)[:3]
+    if check is not None:
+        c, floor, ratio, s, spread = check
+    for k in range(k, n):
         t = t0 + k * h
-        if prev is not None:
-            q = [a + h * b + 0.5 * h * h * c for a, b, c in zip(prev["q"], prev["qd"], prev["qdd"])]
-        prev = instant(t, p, q, tol)
-        history = (history + [prev["q"]])[-3:]
-        row = [t]
-        for group in OUTPUTS:
-            row += prev.get({"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam",
-                             "reactions": "reactions"}[group], zeros)
-        yield row
+        if q1 is not None:
+            q = _predict(q1, qd, qdd, h, hh)
+        try:
+            qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
+            if check is not None and q1 is not None and (
+                    a.__class__ is _Dense or _spread(a, s) > spread or _moved(qn, q, q1, c, floor, ratio)):
+                raise SolverError("check", t, qn, it)
+        except SolverError as exc:
+            exc.k, exc.past, exc.qd, exc.qdd = k, [v for v in (q1, q2, q3) if v is not None], qd, qdd
+            raise
+        yield [t, *qn, *qdn, *qddn, *lam, *reac]
+        q1, q2, q3, qd, qdd = qn, q1, q2, qdn, qddn
 
 
 def trajectory(t0, t1, steps, p, q0, tol=1e-12):

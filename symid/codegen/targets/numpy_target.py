@@ -73,7 +73,17 @@ def _function(name: str, args: list[str], exprs: list[sp.Expr], doc: str) -> dic
 
 def _lu(model: CodeModel) -> dict[str, Any]:
     plan = model.plan
-    return {"steps": lu_steps(plan), "lu_size": plan.size, "singular_plan": plan.singular}
+    steps = lu_steps(plan)
+    return {"steps": steps, "lu_size": plan.size, "singular_plan": plan.singular,
+            "pivot_rows": [st["row"] for st in steps], "pivot_cols": [st["col"] for st in steps]}
+
+
+def _row_items(model: CodeModel) -> str:
+    """The starred parts of one `rows` row after t: each group in contract order."""
+    o = model.flat.options
+    parts = {"q": "qn", "qdot": "qdn" if o.velocity else None, "qddot": "qddn" if o.velocity else None,
+             "lambda": "lam" if o.multipliers else None, "reactions": "reac" if o.multipliers else None}
+    return ", ".join(f"*{parts[g] or '_ZEROS'}" for g in o.outputs)
 
 
 def context(model: CodeModel) -> dict[str, Any]:
@@ -98,7 +108,8 @@ def context(model: CodeModel) -> dict[str, Any]:
         "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac], "nnz": len(f.jac),
         "functions": functions, "outputs": o.outputs, "kind": o.kind, "threshold": repr(THRESHOLD),
-        "velocity": o.velocity, "multipliers": o.multipliers, **_lu(model),
+        "velocity": o.velocity, "multipliers": o.multipliers, **_lu(model), "row_items": _row_items(model),
+        "phi_q_scalar": functions[1]["scalar"],
         "splines": [piece_tables(s) for s in tables(f.phi + f.nu + f.gamma + f.applied + f.reactions)],
     }
 
