@@ -22,13 +22,14 @@
 #define INSTANT XCAT(P, _instant)
 
 static double work[WORK], q[NG], qd[NG], qdd[NG], qn[NG], qdn[NG], qddn[NG], lam[NC + 1], reac[NR + 1];
-static double m1[NG], m2[NG]; /* the two accelerations before qdd */
+static double m1[NG], m2[NG], m3[NG]; /* the three accelerations before qdd */
 static int iwork[IWORK + 1];
 
 /* n instants t0 + k h from q0; iterations[k] = Newton iterations, torque[k] =
  * reactions[index]. *ns = nanoseconds of the loop. Returns instants solved.
- * Order 4 is the generated trajectory's predictor (Taylor to h^4, qddd and
- * qdddd from the last three accelerations; lower orders until they exist). */
+ * Order 5 is the generated trajectory's predictor (Taylor to h^5, the
+ * derivatives past qdd from the cubic through the last four accelerations;
+ * order 2 until they exist). */
 long predictor_loop(double t0, double h, long n, int order, double tol, const double *p, const double *q0,
                     int index, double *torque, int *iterations, double *ns)
 {
@@ -44,10 +45,11 @@ long predictor_loop(double t0, double h, long n, int order, double tol, const do
         for (i = 0; i < NG; ++i)
             qn[i] = (k == 0 || order == 0) ? q[i]
                   : order == 1 ? q[i] + h * qd[i]
-                  : order == 2 || k < 3 ? q[i] + h * qd[i] + 0.5 * h * h * qdd[i]
-                  : q[i] + h * (qd[i] + h * (0.5 * qdd[i] + (7.0 * (qdd[i] - m1[i]) - 3.0 * (m1[i] - m2[i])) / 24.0));
+                  : order == 2 || k < 4 ? q[i] + h * qd[i] + 0.5 * h * h * qdd[i]
+                  : q[i] + h * (qd[i] + h * (323.0 * qdd[i] - 264.0 * m1[i] + 159.0 * m2[i] - 38.0 * m3[i]) / 360.0);
         if (INSTANT(t, p, tol, qn, qdn, qddn, lam, reac, info, work, iwork) != 0) break;
         memcpy(q, qn, sizeof(q));
+        memcpy(m3, m2, sizeof(m3));
         memcpy(m2, m1, sizeof(m2));
         memcpy(m1, qdd, sizeof(m1));
         memcpy(qd, qdn, sizeof(qd));

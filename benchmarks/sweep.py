@@ -1,11 +1,11 @@
 """What Newton's tolerance and the predictor's order cost and buy.
 
 symid's Python loops predict each instant's q with a 2nd-order Taylor step
-from the previous one; the generated C trajectory goes to h^4 and takes the
+from the previous one; the generated C trajectory goes to h^5 and takes the
 first correction with the previous instant's factors. Here the benchmark
 drives Newton itself so the order can vary: order 0 starts from the previous
-q, 1 adds h qdot, 2 adds h^2/2 qddot, 4 adds the h^3 and h^4 terms with qddd
-and qdddd from the last three accelerations (the C trajectory's predictor;
+q, 1 adds h qdot, 2 adds h^2/2 qddot, 5 adds the h^3 to h^5 terms from the
+cubic through the last four accelerations (the C trajectory's predictor;
 every correction here factors Phi_q anew). Two drivers over the same C
 backend of one mechanism:
 
@@ -53,10 +53,10 @@ def _guess(order: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, h: float,
         return q.copy()
     if order == 1:
         return q + h * qd
-    if order == 2 or len(before) < 2:
+    if order == 2 or len(before) < 3:
         return q + h * qd + 0.5 * h * h * qdd
-    m1, m2 = before[0], before[1]
-    return q + h * (qd + h * (0.5 * qdd + (7.0 * (qdd - m1) - 3.0 * (m1 - m2)) / 24.0))
+    m1, m2, m3 = before[:3]
+    return q + h * (qd + h * (323.0 * qdd - 264.0 * m1 + 159.0 * m2 - 38.0 * m3) / 360.0)
 
 
 def python_newton(study: api.Study, order: int, tol: float, n: int) -> dict[str, Any]:
@@ -86,7 +86,7 @@ def python_newton(study: api.Study, order: int, tol: float, n: int) -> dict[str,
             step = float(np.max(np.abs(dq)))
             it += 1
         lu = sla.lu_factor(ev.phi_q(q, t), check_finite=False)
-        before = [qdd, *before[:1]] if k else []
+        before = [qdd, *before[:2]] if k else []
         qd = sla.lu_solve(lu, ev.nu(q, t), check_finite=False)
         qdd = sla.lu_solve(lu, ev.gamma(q, qd, t), check_finite=False)
         lam = sla.lu_solve(lu, ev.applied(q, qd, t) - mass * qdd, trans=1, check_finite=False)

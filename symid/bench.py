@@ -205,7 +205,7 @@ def _time_compiled(study: api.Study, run: Callable[..., Any], wanted: int, budge
                    keep: dict[str, int]) -> dict[str, Any]:
     """Runs of the whole grid through the compiled loop, CHUNK instants per call."""
     steps, ng = study.analysis.steps, study.layout.ng
-    state = np.zeros(5 * ng + 1)
+    state = np.zeros(study.evaluator.meta["state"])  # type: ignore[attr-defined]
     q0 = study.q0()
     state[:ng] = q0
     _, solved, status, _ = run(0, 1, state)  # the first instant: part of setup, as for every approach

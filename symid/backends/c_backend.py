@@ -70,7 +70,7 @@ def build(layout: Layout, options: Options) -> Path:
         f = model.flat
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
                 "row": len(model.row_columns), "columns": list(model.row_columns),
-                "work": c.work_size(model), "params": list(f.params),
+                "work": c.work_size(model), "state": c.state_size(model), "params": list(f.params),
                 "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac]}
         (folder / "meta.json").write_text(json.dumps(meta))
 
@@ -149,7 +149,7 @@ class CEvaluator:
         """Solve the whole run in C, CHUNK instants per call, yielding rows
         (`notes` stay empty: the compiled loop makes no warnings)."""
         ng, width = self.meta["ng"], self.meta["row"]
-        state = np.zeros(5 * ng + 1)
+        state = np.zeros(self.meta["state"])
         state[:ng] = q0
         times = analysis.steps
         h = (analysis.t1 - analysis.t0) / (times - 1) if times > 1 else 0.0

@@ -12,7 +12,7 @@
 #define EXCAVATOR_ROW 73          /* values per instant in a trajectory row */
 #define EXCAVATOR_WORK 511        /* doubles of workspace every solver call needs */
 #define EXCAVATOR_IWORK 9         /* ints of workspace */
-#define EXCAVATOR_STATE 46       /* doubles of trajectory state */
+#define EXCAVATOR_STATE 55       /* doubles of trajectory state */
 
 /* Status of every solver call. */
 #define EXCAVATOR_OK 0

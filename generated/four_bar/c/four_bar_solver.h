@@ -12,7 +12,7 @@
 #define FOUR_BAR_ROW 67          /* values per instant in a trajectory row */
 #define FOUR_BAR_WORK 431        /* doubles of workspace every solver call needs */
 #define FOUR_BAR_IWORK 9         /* ints of workspace */
-#define FOUR_BAR_STATE 46       /* doubles of trajectory state */
+#define FOUR_BAR_STATE 55       /* doubles of trajectory state */
 
 /* Status of every solver call. */
 #define FOUR_BAR_OK 0

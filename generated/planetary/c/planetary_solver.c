@@ -679,14 +679,15 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
 int planetary_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
                        double *rows, long *solved, double *work, int *iwork)
 {
-    /* state: q, qd, qdd of the last instant, the two accelerations (statics:
-       positions) before it, count */
+    /* state: q, qd, qdd of the last instant, the three accelerations (statics:
+       two positions) before it, count */
     double *q = state, *qd = state + 12, *qdd = state + 24;
-    double *m1 = state + 36, *m2 = state + 48, *count = state + 60;
+    double *m1 = state + 36, *m2 = state + 48, *m3 = state + 60;
+    double *count = state + 72;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = PLANETARY_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd;
+    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * PLANETARY_ROW;
@@ -696,12 +697,13 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
         qddn = row + 25;
         lam = row + 37;
         reac = row + 49;
-        /* Taylor to h^4 with q, qd, qdd solved and qddd, qdddd from the last
-           accelerations (error O(h^5)): one Newton correction suffices */
-        if (*count >= 3)
+        /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
+           from the cubic through the last four accelerations (error O(h^6);
+           exact for quintics): one Newton correction suffices */
+        if (*count >= 4)
             for (k = 0; k < 12; ++k)
-                qn[k] = q[k] + h * (qd[k] + h * (0.5 * qdd[k]
-                        + (7.0 * (qdd[k] - m1[k]) - 3.0 * (m1[k] - m2[k])) / 24.0));
+                qn[k] = q[k] + h * (qd[k] + h * (323.0 * qdd[k] - 264.0 * m1[k] + 159.0 * m2[k] - 38.0 * m3[k])
+                                                / 360.0);
         else if (*count >= 1)
             for (k = 0; k < 12; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
         else
@@ -714,6 +716,7 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
             return status;
         }
         planetary_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        memcpy(m3, m2, sizeof(double) * 12);
         memcpy(m2, m1, sizeof(double) * 12);
         memcpy(m1, qdd, sizeof(double) * 12);
         memcpy(qd, qdn, sizeof(double) * 12);

@@ -12,7 +12,7 @@
 #define PLANETARY_ROW 100          /* values per instant in a trajectory row */
 #define PLANETARY_WORK 694        /* doubles of workspace every solver call needs */
 #define PLANETARY_IWORK 12         /* ints of workspace */
-#define PLANETARY_STATE 61       /* doubles of trajectory state */
+#define PLANETARY_STATE 73       /* doubles of trajectory state */
 
 /* Status of every solver call. */
 #define PLANETARY_OK 0

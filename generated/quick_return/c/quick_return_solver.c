@@ -642,14 +642,15 @@ int quick_return_instant(double t, const double *p, double tol, double *q, doubl
 int quick_return_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
                        double *rows, long *solved, double *work, int *iwork)
 {
-    /* state: q, qd, qdd of the last instant, the two accelerations (statics:
-       positions) before it, count */
+    /* state: q, qd, qdd of the last instant, the three accelerations (statics:
+       two positions) before it, count */
     double *q = state, *qd = state + 9, *qdd = state + 18;
-    double *m1 = state + 27, *m2 = state + 36, *count = state + 45;
+    double *m1 = state + 27, *m2 = state + 36, *m3 = state + 45;
+    double *count = state + 54;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = QUICK_RETURN_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd;
+    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * QUICK_RETURN_ROW;
@@ -659,12 +660,13 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
         qddn = row + 19;
         lam = row + 28;
         reac = row + 37;
-        /* Taylor to h^4 with q, qd, qdd solved and qddd, qdddd from the last
-           accelerations (error O(h^5)): one Newton correction suffices */
-        if (*count >= 3)
+        /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
+           from the cubic through the last four accelerations (error O(h^6);
+           exact for quintics): one Newton correction suffices */
+        if (*count >= 4)
             for (k = 0; k < 9; ++k)
-                qn[k] = q[k] + h * (qd[k] + h * (0.5 * qdd[k]
-                        + (7.0 * (qdd[k] - m1[k]) - 3.0 * (m1[k] - m2[k])) / 24.0));
+                qn[k] = q[k] + h * (qd[k] + h * (323.0 * qdd[k] - 264.0 * m1[k] + 159.0 * m2[k] - 38.0 * m3[k])
+                                                / 360.0);
         else if (*count >= 1)
             for (k = 0; k < 9; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
         else
@@ -677,6 +679,7 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
             return status;
         }
         quick_return_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        memcpy(m3, m2, sizeof(double) * 9);
         memcpy(m2, m1, sizeof(double) * 9);
         memcpy(m1, qdd, sizeof(double) * 9);
         memcpy(qd, qdn, sizeof(double) * 9);

@@ -12,7 +12,7 @@
 #define QUICK_RETURN_ROW 73          /* values per instant in a trajectory row */
 #define QUICK_RETURN_WORK 481        /* doubles of workspace every solver call needs */
 #define QUICK_RETURN_IWORK 9         /* ints of workspace */
-#define QUICK_RETURN_STATE 46       /* doubles of trajectory state */
+#define QUICK_RETURN_STATE 55       /* doubles of trajectory state */
 
 /* Status of every solver call. */
 #define QUICK_RETURN_OK 0

@@ -12,7 +12,7 @@
 #define SLIDER_CRANK_ROW 67          /* values per instant in a trajectory row */
 #define SLIDER_CRANK_WORK 423        /* doubles of workspace every solver call needs */
 #define SLIDER_CRANK_IWORK 9         /* ints of workspace */
-#define SLIDER_CRANK_STATE 46       /* doubles of trajectory state */
+#define SLIDER_CRANK_STATE 55       /* doubles of trajectory state */
 
 /* Status of every solver call. */
 #define SLIDER_CRANK_OK 0

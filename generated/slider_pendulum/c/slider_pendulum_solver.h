@@ -12,7 +12,7 @@
 #define SLIDER_PENDULUM_ROW 55          /* values per instant in a trajectory row */
 #define SLIDER_PENDULUM_WORK 366        /* doubles of workspace every solver call needs */
 #define SLIDER_PENDULUM_IWORK 6         /* ints of workspace */
-#define SLIDER_PENDULUM_STATE 31       /* doubles of trajectory state */
+#define SLIDER_PENDULUM_STATE 37       /* doubles of trajectory state */
 
 /* Status of every solver call. */
 #define SLIDER_PENDULUM_OK 0

@@ -106,6 +106,12 @@ def work_size(model: CodeModel) -> int:
     return len(f.jac) + model.plan.size + f.ng * f.ng + 10 * _stride(model)
 
 
+def state_size(model: CodeModel) -> int:
+    """Doubles of trajectory state: q, qd, qdd, three earlier accelerations
+    (statics: two earlier positions) and the count of instants solved."""
+    return 6 * model.flat.ng + 1
+
+
 def context(model: CodeModel) -> dict[str, Any]:
     """Everything the C templates need, expressions already printed."""
     f = model.flat
@@ -151,7 +157,7 @@ def context(model: CodeModel) -> dict[str, Any]:
     return {
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": offset, "lu_size": model.plan.size,
-        "work": work_size(model), "stride": stride,
+        "work": work_size(model), "state": state_size(model), "stride": stride,
         "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": repr(THRESHOLD), **_step_chunks(lu_steps(model.plan)),
