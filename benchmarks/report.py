@@ -11,8 +11,9 @@ import numpy as np
 TARGETS = {
     "c_slider_crank_us": 0.5, "c_speedup": 5.0, "c_ladder64_us": 30.0, "ladder64_setup_s": 10.0,
     "ladder256_setup_s": 60.0, "numpy_slider_crank_us": 50.0, "solve_process_s": 1.0, "error": 1e-13,
-    "stream_mb": 200.0,
+    "stream_mb": 200.0, "c_ladder64_speedup": 10.0, "growth_slope": 1.15,
 }
+PYTHON_BASELINES = ("numpy-hand", "sympy-lambdify", "casadi-python")
 
 
 def _g(v: Any, digits: int = 3) -> str:
@@ -78,13 +79,28 @@ def targets(result: dict[str, Any]) -> list[dict[str, Any]]:
         other = us(base, "slider_crank")
         add(f"slider-crank: {base} time / symid-c time", other / c_sc if other and c_sc else None,
             TARGETS["c_speedup"], at_least=True)
-    add("ladder N=64 (ng 387), generated C (us per instant)", us("symid-c", "ladder_64"), TARGETS["c_ladder64_us"])
+    c64 = us("symid-c", "ladder_64")
+    add("ladder N=64 (ng 387), generated C (us per instant)", c64, TARGETS["c_ladder64_us"])
+    other = us("casadi-c", "ladder_64")
+    add("ladder N=64: casadi-c (sparse) time / symid-c time", other / c64 if other and c64 else None,
+        TARGETS["c_ladder64_speedup"], at_least=True)
+    for what, value in (("time per instant", us), ("setup", setup)):
+        points = [(c["ng"], value("symid-c", c["mechanism"])) for c in result["cells"]
+                  if c["approach"] == "symid-c" and c["mechanism"].startswith("ladder_") and c["ng"] >= 27]
+        points = [(n, v) for n, v in points if v]
+        slope = float(np.polyfit(np.log([n for n, _ in points]), np.log([v for _, v in points]), 1)[0]) \
+            if len(points) >= 2 else None
+        add(f"ladder, generated C: {what} grows as ng^slope (log-log fit, ng >= 27)", slope,
+            TARGETS["growth_slope"], note=f"{len(points)} sizes")
     add("ladder N=64 setup, generated C (s)", setup("symid-c", "ladder_64"), TARGETS["ladder64_setup_s"])
     c256 = _cell(result, "symid-c", "ladder_256")
     add("ladder N=256 setup, generated C (s)", setup("symid-c", "ladder_256"), TARGETS["ladder256_setup_s"],
         note=c256.get("note", "") if c256 and c256["status"] != "ok" else "")
-    add("slider-crank, NumPy backend (us per instant)", us("symid-numpy", "slider_crank"),
-        TARGETS["numpy_slider_crank_us"])
+    np_sc = us("symid-numpy", "slider_crank")
+    add("slider-crank, NumPy backend (us per instant)", np_sc, TARGETS["numpy_slider_crank_us"])
+    fastest = min((v for v in (us(b, "slider_crank") for b in PYTHON_BASELINES) if v), default=None)
+    add("slider-crank: fastest Python-loop baseline time / NumPy backend time",
+        fastest / np_sc if fastest and np_sc else None, 1.0, at_least=True)
     for backend, r in result.get("processes", {}).get("solve_1001", {}).items():
         add(f"`symid solve` slider-crank, 1001 instants, cached, --backend {backend} (s, whole process)",
             r["wall_s"], TARGETS["solve_process_s"])
@@ -115,7 +131,8 @@ def markdown(result: dict[str, Any]) -> str:
         f"Whole run {m['run_s'] / 60:.1f} min" + (" (smoke run: sizes and instants are tiny)" if cfg["smoke"] else ""),
         "",
         "Each cell is its own process with an empty cache. A full instant is Newton positions from the "
-        "previous instant (2nd-order predictor, tol 1e-12), velocities, accelerations, multipliers and every "
+        "previous instant (tol 1e-12; 2nd-order predictor, except symid-c: Taylor to h^5 and a first correction "
+        "on the previous instant's factors), velocities, accelerations, multipliers and every "
         f"joint's reaction. Python loops time up to {cfg['steps']} instants (one period) within "
         f"{cfg['budget_s']:g} s; compiled loops up to {cfg['compiled_instants']} instants (whole periods). A cell "
         f"past {cfg['cap_s']:g} s is stopped and larger sizes of that approach are not tried.",
