@@ -624,8 +624,9 @@ static int four_bar_newton(double t, const double *p, double tol, double *q, dou
         four_bar_solve(work, iwork, *dense, r, dq, y);
         step = four_bar_correct(q, dq);
         four_bar_trig_step(q, dq, tr);
-        /* factors of the iterate before a negligible step serve this one */
-        current = !chord && step <= 1e-14 * qmag;
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= FOUR_BAR_EPS * qmag;
         if (rmax <= lim && step <= lim) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */

@@ -629,8 +629,9 @@ static int planetary_newton(double t, const double *p, double tol, double *q, do
         planetary_solve(work, iwork, *dense, r, dq, y);
         step = planetary_correct(q, dq);
         planetary_trig_step(q, dq, tr);
-        /* factors of the iterate before a negligible step serve this one */
-        current = !chord && step <= 1e-14 * qmag;
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= PLANETARY_EPS * qmag;
         if (rmax <= lim && step <= lim) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */

@@ -592,8 +592,9 @@ static int quick_return_newton(double t, const double *p, double tol, double *q,
         quick_return_solve(work, iwork, *dense, r, dq, y);
         step = quick_return_correct(q, dq);
         quick_return_trig_step(q, dq, tr);
-        /* factors of the iterate before a negligible step serve this one */
-        current = !chord && step <= 1e-14 * qmag;
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= QUICK_RETURN_EPS * qmag;
         if (rmax <= lim && step <= lim) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
