@@ -73,17 +73,25 @@ def targets(result: dict[str, Any]) -> list[dict[str, Any]]:
         met = None if measured is None else (measured >= limit if at_least else measured <= limit)
         rows.append({"target": name, "measured": measured, "limit": limit, "met": met, "note": note})
 
+    def paired(m: str) -> tuple[float | None, str]:
+        p = result.get("paired", {}).get(m)
+        if not p or p.get("status") != "ok":
+            return None, ""
+        lo, hi = p["ratio_range"]
+        return p["ratio"], f"same process, {p['rounds']} alternated rounds, range {lo:.3g}-{hi:.3g}"
+
     c_sc = us("symid-c", "slider_crank")
     add("slider-crank full instant, generated C (us)", c_sc, TARGETS["c_slider_crank_us"])
-    for base in ("casadi-c", "casadi-python"):
-        other = us(base, "slider_crank")
-        add(f"slider-crank: {base} time / symid-c time", other / c_sc if other and c_sc else None,
-            TARGETS["c_speedup"], at_least=True)
+    ratio, note = paired("slider_crank")
+    add("slider-crank: casadi-c time / symid-c time", ratio, TARGETS["c_speedup"], at_least=True, note=note)
+    other = us("casadi-python", "slider_crank")
+    add("slider-crank: casadi-python time / symid-c time", other / c_sc if other and c_sc else None,
+        TARGETS["c_speedup"], at_least=True)
     c64 = us("symid-c", "ladder_64")
     add("ladder N=64 (ng 387), generated C (us per instant)", c64, TARGETS["c_ladder64_us"])
-    other = us("casadi-c", "ladder_64")
-    add("ladder N=64: casadi-c (sparse) time / symid-c time", other / c64 if other and c64 else None,
-        TARGETS["c_ladder64_speedup"], at_least=True)
+    ratio, note = paired("ladder_64")
+    add("ladder N=64: casadi-c (sparse) time / symid-c time", ratio, TARGETS["c_ladder64_speedup"], at_least=True,
+        note=note)
     for what, value in (("time per instant", us), ("setup", setup)):
         points = [(c["ng"], value("symid-c", c["mechanism"])) for c in result["cells"]
                   if c["approach"] == "symid-c" and c["mechanism"].startswith("ladder_") and c["ng"] >= 27]
@@ -187,6 +195,19 @@ def markdown(result: dict[str, Any]) -> str:
                     row.append(f"{_g(p['us_per_instant'])} us, {_g(p['error_rel'], 2)}, "
                                f"{_g(p['max_residual'], 2)}")
             lines.append(f"| {backend} | " + " | ".join(row) + " |")
+        lines.append("")
+    pairs = {k: p for k, p in result.get("paired", {}).items()}
+    if pairs:
+        lines += ["**symid-c against casadi-c in one process** (each round one whole grid of each, in turn; "
+                  "medians)", "", "| mechanism | rounds | symid-c us | casadi-c us | ratio (range) |",
+                  "|---|---|---|---|---|"]
+        for k, p in pairs.items():
+            if p.get("status") != "ok":
+                lines.append(f"| {k} | {p.get('status')}: {p.get('note', '')} | | | |")
+                continue
+            lo, hi = p["ratio_range"]
+            lines.append(f"| {k} (ng {p['ng']}) | {p['rounds']} | {_g(p['symid_c_us'])} | {_g(p['casadi_c_us'])} | "
+                         f"{_g(p['ratio'])} ({_g(lo)}-{_g(hi)}) |")
         lines.append("")
     rows = targets(result)
     if rows:

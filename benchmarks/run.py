@@ -75,11 +75,15 @@ class Config:
     stream_instants: int = 1_000_001
     solve_runs: int = 3
     jobs: int = 1
+    # symid-c against casadi-c in one process, whole grids alternated: the
+    # ratio targets are read from these (separate cells run minutes apart)
+    paired_mechs: tuple[str, ...] = ("slider_crank", "ladder_64")
+    paired_rounds: int = 21
 
 
 SMOKE = Config(ladders=(1,), steps=1001, compiled_instants=40, budget_s=0.5, cap_s=50.0, total_s=50.0, reserve_s=0.0,
                sweep_mechs=(("ladder_1", 1001),), sweep_instants=15, tolerances=(1e-6, 1e-12), orders=(0, 2),
-               stream_instants=2001, solve_runs=1, jobs=2)
+               stream_instants=2001, solve_runs=1, jobs=2, paired_mechs=("ladder_1",), paired_rounds=3)
 
 
 # --- mechanisms --------------------------------------------------------------------
@@ -207,11 +211,55 @@ def worker_sweep(spec: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def worker_paired(spec: dict[str, Any]) -> dict[str, Any]:
+    """symid-c's trajectory and the casadi-c loop in one process, each round
+    one whole grid of each in turn: per round, us per instant of both and
+    their ratio (casadi-c / symid-c)."""
+    from benchmarks import baselines
+    from symid import api
+    from symid.bench import CHUNK, _trajectory
+
+    mech = spec["mech"]
+    study = api.prepare(mech["file"], "c", steps=mech["steps"], t1=mech["t1"])
+    runner = _trajectory(study)
+    assert runner is not None
+    system = _system(mech)
+    casadi = baselines.APPROACHES["casadi-c"](system)
+    casadi.setup()
+    q0, h, steps = system.q0(), mech["h"], mech["steps"]
+    state = np.zeros(study.evaluator.meta["state"])  # type: ignore[attr-defined]
+    ours, theirs = [], []
+    try:
+        for _ in range(spec["rounds"]):
+            state[:] = 0.0
+            state[:study.layout.ng] = study.q0()
+            seconds, done = 0.0, 0
+            while done < steps:
+                _, solved, status, dt = runner(done, min(CHUNK, steps - done), state)
+                seconds += dt
+                done += solved
+                if status != 0:
+                    raise RuntimeError(f"symid-c stopped at instant {done}")
+            ours.append(1e6 * seconds / steps)
+            r = casadi.run(q0, h, steps, 1e-12, spec["budget_s"])
+            if r.error or len(r.torque) < steps:
+                raise RuntimeError(f"casadi-c: {r.error or 'stopped early'}")
+            theirs.append(1e6 * r.total_s / steps)
+    finally:
+        folder = getattr(casadi, "folder", None)
+        if folder is not None:
+            shutil.rmtree(folder, ignore_errors=True)
+    ratios = [b / a for a, b in zip(ours, theirs)]
+    return {"rounds": len(ours), "instants_per_round": steps, "symid_c_us": float(np.median(ours)),
+            "casadi_c_us": float(np.median(theirs)), "ratio": float(np.median(ratios)),
+            "ratio_range": [float(min(ratios)), float(max(ratios))]}
+
+
 def worker(spec: dict[str, Any]) -> dict[str, Any]:
     kind = spec["kind"]
     tick = time.perf_counter()
     fn: Callable[[dict[str, Any]], dict[str, Any]] = {
-        "symid": worker_symid, "baseline": worker_baseline, "sweep": worker_sweep}[kind]
+        "symid": worker_symid, "baseline": worker_baseline, "sweep": worker_sweep, "paired": worker_paired}[kind]
     out = fn(spec)
     out["worker_s"] = time.perf_counter() - tick
     return out
@@ -386,6 +434,21 @@ def run_sweeps(cfg: Config, mechs: list[dict[str, Any]], exact: dict[str, np.nda
     return out
 
 
+def run_paired(cfg: Config, mechs: list[dict[str, Any]], work: Path, log: Callable[[str], None]) -> dict[str, Any]:
+    out = {}
+    for key in cfg.paired_mechs:
+        mech = next((m for m in mechs if m["key"] == key), None)
+        if mech is None:
+            continue
+        cache = Path(tempfile.mkdtemp(prefix="cache-", dir=work))
+        got = spawn({"kind": "paired", "mech": mech, "rounds": cfg.paired_rounds, "budget_s": cfg.cap_s},
+                    4 * cfg.cap_s, _env(cache))
+        shutil.rmtree(cache, ignore_errors=True)
+        out[key] = {"status": got.status, "note": got.note, "ng": mech["ng"], **got.result}
+        log(f"paired {key}: {got.status} {got.note} {got.result}")
+    return out
+
+
 def _timed_process(cmd: list[str], env: dict[str, str], cap_s: float) -> tuple[float, float | None, int]:
     """(wall s, peak RSS MB, exit status) of one process, killed past cap_s."""
     wall, rss, code, _ = launch(cmd, cap_s, env, subprocess.DEVNULL, subprocess.DEVNULL)
@@ -482,12 +545,13 @@ def main(argv: list[str] | None = None) -> int:
         log(f"{info['cpu']} x {info['cpu_count']}; exact torques ready")
         cells = run_cells(cfg, mechs, exact, work, start + cfg.total_s - cfg.reserve_s, log)
         sweeps = run_sweeps(cfg, mechs, exact, work, log)
+        paired = run_paired(cfg, mechs, work, log)
         processes = {} if args.skip_processes else run_processes(cfg, work, log)
     info["load_average_end"] = os.getloadavg()
     info["run_s"] = time.time() - start
     result = {"machine": info, "config": {**cfg.__dict__, "smoke": args.smoke},
               "mechanisms": [{k: v for k, v in m.items() if k != "file"} for m in mechs],
-              "cells": cells, "sweeps": sweeps, "processes": processes}
+              "cells": cells, "sweeps": sweeps, "paired": paired, "processes": processes}
     (args.out / "bench.json").write_text(json.dumps(result, indent=1, default=float))
     (args.out / "bench.md").write_text(report.markdown(result))
     for path in report.plots(result, args.out):
