@@ -21,7 +21,7 @@ import numbers
 import re
 from fractions import Fraction
 from types import MappingProxyType
-from typing import Callable, Mapping, NamedTuple
+from typing import Callable, Mapping, NamedTuple, cast
 
 import sympy as sp
 
@@ -93,9 +93,11 @@ class _Parser:
             if m.lastgroup == "num" and (tail := _AFTER_NUMBER.match(text, m.end())):
                 bad = _show(text[pos:tail.end()])
                 raise self.fail(f"malformed number {bad} at column {pos + 1}")
-            if m.lastgroup != "space":
+            # Every alternative of _TOKEN is a named group, so a match names one.
+            kind = cast(str, m.lastgroup)
+            if kind != "space":
                 op = "^" if m.group() == "**" else m.group()  # one power operator
-                tokens.append(_Token(m.lastgroup, op, pos + 1))
+                tokens.append(_Token(kind, op, pos + 1))
             pos = m.end()
         if not tokens:
             raise self.fail("empty expression")
@@ -103,10 +105,15 @@ class _Parser:
         return tokens
 
     def accept(self, *ops: str) -> _Token | None:
-        """Consume the next token if it is one of `ops` (any token if none given)."""
+        """Consume the next token if it is one of the operators `ops`."""
         tok = self.tokens[self.pos]
-        if ops and (tok.kind != "op" or tok.text not in ops):
+        if tok.kind != "op" or tok.text not in ops:
             return None
+        return self.advance()
+
+    def advance(self) -> _Token:
+        """Consume the next token, whatever it is."""
+        tok = self.tokens[self.pos]
         self.pos += 1
         return tok
 
@@ -193,7 +200,7 @@ class _Parser:
         return value
 
     def primary(self) -> sp.Expr:
-        tok = self.accept()
+        tok = self.advance()
         if tok.kind == "num":
             return self.number(tok)
         if tok.kind == "op" and tok.text == "(":
