@@ -35,6 +35,7 @@ from typing import Any, Callable, Iterator, Sequence
 import numpy as np
 
 from symid import api
+from symid.backends.c_backend import CEvaluator
 from symid.errors import AnalysisError
 from symid.model import Mechanism
 
@@ -112,16 +113,22 @@ def _fresh_cache(cold: bool) -> Iterator[None]:
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def _trajectory(study: api.Study) -> Callable[[int, Any], tuple[np.ndarray, int, int, float]] | None:
+# (start, n, state) -> (rows, solved, status, seconds of the C call)
+_Runner = Callable[[int, int, np.ndarray], tuple[np.ndarray, int, int, float]]
+
+
+def _trajectory(study: api.Study) -> _Runner | None:
     """A runner over the compiled `<name>_trajectory`, or None for Python backends.
 
-    The runner (start, state) solves CHUNK (or fewer) instants of the grid
+    The runner (start, n, state) solves n <= CHUNK instants of the grid
     from `start` and returns (rows, solved, status, seconds of the C call).
     """
     ev = study.evaluator
-    lib, meta = getattr(ev, "lib", None), getattr(ev, "meta", None)
-    fn = getattr(lib, f"{study.mechanism.name}_trajectory", None) if lib is not None else None
-    if fn is None or meta is None:
+    if not isinstance(ev, CEvaluator):  # the only evaluator with a compiled loop
+        return None
+    meta = ev.meta
+    fn = getattr(ev.lib, f"{study.mechanism.name}_trajectory", None)
+    if fn is None:
         return None
     a = study.analysis
     dbl, ptr = ctypes.c_double, ctypes.POINTER(ctypes.c_double)
@@ -182,8 +189,11 @@ def bench(mechanism: Mechanism | str | Path, backend: str, instants: int | None 
             "steps": study.analysis.steps, "newton_tol": study.analysis.tol,
         }
         wanted = instants or study.analysis.steps
-        runner = _time_compiled if traj is not None else _time_python
-        result = runner(study, traj, wanted, budget_s, start, _columns_of(study, keep))  # type: ignore[operator]
+        columns = _columns_of(study, keep)
+        if traj is not None:
+            result = _time_compiled(study, traj, wanted, budget_s, start, columns)
+        else:
+            result = _time_python(study, None, wanted, budget_s, start, columns)
     setup = result.pop("setup_s")
     split = {k: round(v, 6) if k in phases.found else None for k, v in phases.seconds.items()}
     out.update({"setup_s": setup, "derive_s": split["derive"], "compile_s": split["compile"],
@@ -201,7 +211,7 @@ def _residual(study: api.Study, rows: np.ndarray) -> float:
     return worst
 
 
-def _time_compiled(study: api.Study, run: Callable[..., Any], wanted: int, budget_s: float, start: float,
+def _time_compiled(study: api.Study, run: _Runner, wanted: int, budget_s: float, start: float,
                    keep: dict[str, int]) -> dict[str, Any]:
     """Runs of the whole grid through the compiled loop, CHUNK instants per call."""
     steps, ng = study.analysis.steps, study.layout.ng
@@ -211,7 +221,8 @@ def _time_compiled(study: api.Study, run: Callable[..., Any], wanted: int, budge
     _, solved, status, _ = run(0, 1, state)  # the first instant: part of setup, as for every approach
     setup = time.perf_counter() - start
     per_run: list[float] = []
-    timed, residual, kept = 0, 0.0, {k: [] for k in keep}
+    timed, residual = 0, 0.0
+    kept: dict[str, list[float]] = {k: [] for k in keep}
     error = None if status == 0 else "the first instant failed"
     began = time.perf_counter()
     while error is None and timed < wanted and (not per_run or time.perf_counter() - began < budget_s):

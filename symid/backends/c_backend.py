@@ -12,7 +12,7 @@ import os
 import shutil
 import subprocess
 from pathlib import Path
-from typing import TYPE_CHECKING, Iterator, Mapping
+from typing import TYPE_CHECKING, Callable, Iterator, Mapping, TypeAlias
 
 import numpy as np
 
@@ -79,10 +79,12 @@ def build(layout: Layout, options: Options) -> Path:
 
 _P = ctypes.POINTER(ctypes.c_double)
 _I = ctypes.POINTER(ctypes.c_int)
+_DoublePtr: TypeAlias = "ctypes._Pointer[ctypes.c_double]"  # an instance of _P
 
 
-def _ptr(a: Array | None) -> _P:
-    return a.ctypes.data_as(_P) if a is not None else None  # type: ignore[return-value]
+def _ptr(a: Array | None) -> _DoublePtr | None:
+    """A pointer to a contiguous float array's data; None passes as NULL."""
+    return a.ctypes.data_as(_P) if a is not None else None
 
 
 class CEvaluator:
@@ -103,19 +105,27 @@ class CEvaluator:
         self.artifact = folder
         self.meta = json.loads((folder / "meta.json").read_text())
         self.lib = ctypes.CDLL(str(folder / "solver.so"))
-        self._fn = {n: getattr(self.lib, f"{name}_{n}", None) for n in
-                    ("phi", "phi_q", "nu", "gamma", "applied", "mass", "reactions", "instant", "trajectory")}
-        self._fn["trajectory"].argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_long, _P, ctypes.c_double,
-                                           _P, _P, ctypes.POINTER(ctypes.c_long), _P, _I]
-        self._fn["instant"].argtypes = [ctypes.c_double, _P, ctypes.c_double, _P, _P, _P, _P, _P, _I, _P, _I]
+        # The per-quantity functions of output groups left out are not compiled
+        # (solver.h.j2): None here. The two solvers are always there.
+        self._fn: dict[str, Callable[..., object] | None] = {
+            n: getattr(self.lib, f"{name}_{n}", None)
+            for n in ("phi", "phi_q", "nu", "gamma", "applied", "mass", "reactions")}
+        self._trajectory = self.lib[f"{name}_trajectory"]
+        self._trajectory.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_long, _P, ctypes.c_double,
+                                     _P, _P, ctypes.POINTER(ctypes.c_long), _P, _I]
+        self._instant = self.lib[f"{name}_instant"]
+        self._instant.argtypes = [ctypes.c_double, _P, ctypes.c_double, _P, _P, _P, _P, _P, _I, _P, _I]
         self.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
         self.work = np.zeros(self.meta["work"])
         self.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
 
-    def _call(self, name: str, *args: object, size: int) -> Array:
+    def _call(self, name: str, *args: Array | float, size: int) -> Array:
+        fn = self._fn[name]
+        if fn is None:  # the TypeError calling None raised before, with a message
+            raise TypeError(f"the compiled solver has no {name}(): its output group is not compiled in")
         out = np.zeros(size)
-        conv = [ctypes.c_double(a) if isinstance(a, float) else _ptr(a) for a in args]  # type: ignore[arg-type]
-        self._fn[name](*conv, _ptr(self.p), _ptr(out)) if name != "mass" else self._fn[name](_ptr(self.p), _ptr(out))
+        conv = [ctypes.c_double(a) if isinstance(a, float) else _ptr(a) for a in args]
+        fn(*conv, _ptr(self.p), _ptr(out)) if name != "mass" else fn(_ptr(self.p), _ptr(out))
         return out
 
     def phi(self, q: Array, t: float) -> Array:
@@ -160,10 +170,10 @@ class CEvaluator:
             n = min(CHUNK, times - start)
             t0 = analysis.t0 + start * h
             # t = t0 + (start + i) h exactly as the Python loop computes it
-            status = self._fn["trajectory"](ctypes.c_double(t0), ctypes.c_double(h), ctypes.c_long(n),
-                                            _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(state),
-                                            _ptr(buf), ctypes.byref(solved), _ptr(self.work),
-                                            self.iwork.ctypes.data_as(_I))
+            status = self._trajectory(ctypes.c_double(t0), ctypes.c_double(h), ctypes.c_long(n),
+                                      _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(state),
+                                      _ptr(buf), ctypes.byref(solved), _ptr(self.work),
+                                      self.iwork.ctypes.data_as(_I))
             for k in range(solved.value):
                 yield buf[k].copy()
             if status != 0:
@@ -180,9 +190,9 @@ class CEvaluator:
         info = np.zeros(2, dtype=np.intc)
         trial = q.copy()
         vec = [np.zeros(max(self.meta["ng"], self.meta["nc"], self.meta["nr"], 1)) for _ in range(4)]
-        self._fn["instant"](ctypes.c_double(t), _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(trial),
-                            _ptr(vec[0]), _ptr(vec[1]), _ptr(vec[2]), _ptr(vec[3]), info.ctypes.data_as(_I),
-                            _ptr(self.work), self.iwork.ctypes.data_as(_I))
+        self._instant(ctypes.c_double(t), _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(trial),
+                      _ptr(vec[0]), _ptr(vec[1]), _ptr(vec[2]), _ptr(vec[3]), info.ctypes.data_as(_I),
+                      _ptr(self.work), self.iwork.ctypes.data_as(_I))
         if status == 2:
             names = ", ".join(_dependent(self, self.phi_q(trial, t)))
             return f"{STATUS[2]} (compiled solver); dependent constraints: {names}"
