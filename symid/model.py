@@ -8,7 +8,7 @@ time functions). Numeric workspaces are built from this elsewhere.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Mapping, TypeAlias
 
 import sympy as sp
 
@@ -20,7 +20,7 @@ from symid.analysis import (  # noqa: F401 (re-exported: the model's analysis ta
 GROUND = "ground"
 T = sp.Symbol("t", real=True)
 
-Value = sp.Expr | tuple[sp.Expr, ...]
+Value: TypeAlias = sp.Expr | tuple[sp.Expr, ...]
 
 
 def parameter_symbol(name: str) -> sp.Symbol:

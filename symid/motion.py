@@ -28,6 +28,7 @@ from sympy.core.function import ArgumentIndexError
 from sympy.core.symbol import Str
 
 from symid.errors import InputError
+from symid.expr import Functions
 from symid.model import Mechanism
 
 # -- motion laws ---------------------------------------------------------
@@ -74,7 +75,7 @@ def rise_dwell_return(x: sp.Expr, x0: sp.Expr, T_rise: sp.Expr, T_dwell: sp.Expr
 
 
 # name -> (arity, builder), for `symid.expr.parse_expression(functions=...)`
-LAWS = MappingProxyType({
+LAWS: Functions = MappingProxyType({
     "cycloidal": (4, cycloidal), "harmonic": (4, harmonic), "poly345": (4, poly345),
     "rise_dwell_return": (6, rise_dwell_return),
 })
