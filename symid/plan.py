@@ -87,7 +87,7 @@ def key(file: str, options: Mapping[str, Any]) -> str | None:
         return None
     from symid.io.paths import referenced_tables
 
-    tables = []
+    tables: list[list[str | None]] = []  # [path, digest or None if unreadable]
     for table in referenced_tables(document, str(path)):
         try:
             tables.append([str(table), _digest(table.read_bytes())])

@@ -15,7 +15,7 @@ import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Literal
 
 import numpy as np
 
@@ -42,7 +42,8 @@ GEARS = ("gear", "gear_on_link")
 TIME = "time t [s]"
 
 
-def _figure(width: float, height: float, layout: str | None = "constrained") -> "Figure":
+def _figure(width: float, height: float,
+            layout: Literal["constrained", "compressed", "tight"] | None = "constrained") -> "Figure":
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -470,8 +471,8 @@ def draw(ax: "Axes", sc: Scene, k: int) -> None:
             ax.plot([a[0], b[0]], [a[1], b[1]], color="0.3", lw=3, solid_capstyle="round", zorder=6)
         ax.plot([a[0], b[0]], [a[1], b[1]], ls="none", marker="o", ms=5, mfc="white", mec="0.1", zorder=8)
     for name, pi, pj in sc.springs:
-        z = _zigzag(pi[k], pj[k], 0.02 * size)
-        ax.plot(z[:, 0], z[:, 1], color="0.15", lw=1.1, zorder=7, gid=f"spring:{name}")
+        zigzag = _zigzag(pi[k], pj[k], 0.02 * size)  # not `z`: that is a float zorder above
+        ax.plot(zigzag[:, 0], zigzag[:, 1], color="0.15", lw=1.1, zorder=7, gid=f"spring:{name}")
     for name, centre in sc.torsion:
         turn = np.linspace(0, 4 * np.pi, 120)
         r = 0.012 * size + 0.035 * size * turn / turn[-1]

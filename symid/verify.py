@@ -17,11 +17,12 @@ import random
 import tomllib
 from importlib import resources
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping, Protocol
+from typing import Any, Callable, Iterator, Mapping, Protocol, cast
 
 import sympy as sp
 
 from symid import symbols as s
+from symid.backends import Array
 from symid.constraints import TYPES as CONSTRAINTS
 from symid.derive import DerivedConstraint, derive_constraint
 from symid.elements import registry_lookup
@@ -90,8 +91,9 @@ class Outcome:
         if self.equal:
             return head + f"equal ({self.method})"
         lines = [head + f"NOT EQUAL ({self.method})"] + ([f"      claim: {self.note}"] if self.note else [])
+        difference = cast(sp.Matrix, self.difference)  # set whenever `wrong` is (compare)
         for r, c in self.wrong:
-            lines.append(f"      element [{r + 1}, {c + 1}]: derived - claimed = {sp.sstr(self.difference[r, c])}")
+            lines.append(f"      element [{r + 1}, {c + 1}]: derived - claimed = {sp.sstr(difference[r, c])}")
         if self.point is not None:
             shown = (f"{k} = {float(v):.17g}" if isinstance(v, sp.Float) else f"{k} = {v}" for k, v in self.point.items())
             lines.append("      counterexample: " + ", ".join(shown))
@@ -499,6 +501,7 @@ class MechanismSubject:
             for inst in instants:
                 point = {s.T: sp.Float(repr(inst.t), 30), **{x: sp.Rational(rng.randint(-16, 16), 8) for x in free}}
                 point.update(zip(coords, (sp.Float(repr(float(v)), 30) for v in inst.q)))
-                point.update(zip(rates, (sp.Float(repr(float(v)), 30) for v in inst.qd)))
+                qd = cast(Array, inst.qd)  # set: the study's outputs include qdot
+                point.update(zip(rates, (sp.Float(repr(float(v)), 30) for v in qd)))
                 yield point, f"numeric, {len(instants)} solved configurations"
         return {}, "consistent: configurations solved from Phi(q, t) = 0", points

@@ -54,7 +54,8 @@ def write_npz(path: str | Path, header: list[str], rows: Iterator[Array]) -> int
     try:
         with os.fdopen(fd, "wb") as out:
             # Every name but `t` holds a dot, so none collides with savez's own `file` argument.
-            np.savez(out, **{name: data[:, k] for k, name in enumerate(header)})
+            # (mypy matches the ** against savez's `allow_pickle: bool`, which no name here is.)
+            np.savez(out, **{name: data[:, k] for k, name in enumerate(header)})  # type: ignore[arg-type]
         readable(tmp)
         os.replace(tmp, path)
     except BaseException:
