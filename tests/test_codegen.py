@@ -152,6 +152,33 @@ def test_singular_configuration_returns_singular_status(tmp_path: Path) -> None:
     assert status == 2  # STRETCHED_PENDULUM_SINGULAR
 
 
+@needs_cc
+def test_rotated_sines_and_cosines_are_within_two_roundings_of_exact(tmp_path: Path) -> None:
+    """Along a trajectory the C solver rotates sin and cos from the angles it
+    last called libm at; tests/c/trig_accuracy.c checks them against long
+    double sinl/cosl over 200000 random moves of angles up to 1e3 rad."""
+    api.generate(api.example("slider_crank"), "c", tmp_path)
+    exe = tmp_path / "trig_accuracy"
+    subprocess.run(["cc", *STRICT, f"-I{tmp_path}", str(ROOT / "tests/c/trig_accuracy.c"), "-o", str(exe), "-lm"],
+                   check=True)
+    wrong, far, rotated, stepped = subprocess.run([str(exe)], check=True, capture_output=True,
+                                                  text=True).stdout.split()
+    assert int(wrong) == 0  # no base, or moved past the radius: libm's values exactly
+    assert int(far) > 10000  # both paths ran
+    # in units of 2^-53, absolute: libm's own error plus one rounding, plus one for a first-order step
+    assert float(rotated) <= 1.25
+    assert float(stepped) <= 2.0
+
+
+@pytest.mark.parametrize("example", api.examples())
+def test_c_trajectory_on_a_fine_grid_agrees_with_numpy(example: str) -> None:
+    """2001 instants: steps well inside the rotation radius, so nearly every
+    sine and cosine of the C trajectory is rotated, none called from libm
+    as the NumPy module's are."""
+    rotated = api.solve(api.example(example), backend="c", steps=2001).data
+    assert_agree(rotated, api.solve(api.example(example), backend="numpy", steps=2001).data, rel=1e-13)
+
+
 @pytest.mark.parametrize("backend", ("reference", "numpy", "c"))
 def test_singular_configuration_exits_3_naming_the_constraints(backend: str, tmp_path: Path, capsys) -> None:
     if backend == "c":

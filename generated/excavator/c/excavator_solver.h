@@ -10,7 +10,7 @@
 #define EXCAVATOR_NNZ 35          /* structural nonzeros of Phi_q */
 #define EXCAVATOR_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define EXCAVATOR_ROW 73          /* values per instant in a trajectory row */
-#define EXCAVATOR_WORK 511        /* doubles of workspace every solver call needs */
+#define EXCAVATOR_WORK 547        /* doubles of workspace every solver call needs */
 #define EXCAVATOR_IWORK 9         /* ints of workspace */
 #define EXCAVATOR_STATE 55       /* doubles of trajectory state */
 

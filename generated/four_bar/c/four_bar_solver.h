@@ -10,7 +10,7 @@
 #define FOUR_BAR_NNZ 25          /* structural nonzeros of Phi_q */
 #define FOUR_BAR_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define FOUR_BAR_ROW 67          /* values per instant in a trajectory row */
-#define FOUR_BAR_WORK 431        /* doubles of workspace every solver call needs */
+#define FOUR_BAR_WORK 461        /* doubles of workspace every solver call needs */
 #define FOUR_BAR_IWORK 9         /* ints of workspace */
 #define FOUR_BAR_STATE 55       /* doubles of trajectory state */
 

@@ -10,7 +10,7 @@
 #define PLANETARY_NNZ 20          /* structural nonzeros of Phi_q */
 #define PLANETARY_NR 51            /* reaction values (Fx, Fy, T per body role) */
 #define PLANETARY_ROW 100          /* values per instant in a trajectory row */
-#define PLANETARY_WORK 694        /* doubles of workspace every solver call needs */
+#define PLANETARY_WORK 745        /* doubles of workspace every solver call needs */
 #define PLANETARY_IWORK 12         /* ints of workspace */
 #define PLANETARY_STATE 73       /* doubles of trajectory state */
 

@@ -31,23 +31,49 @@ static void quick_return_trig(const double *q, double *tr)
     tr[5] = cos(q[8]);
 }
 
-/* Update tr after the correction q -= dq: a Newton correction is small, and
-   sin(a + d), cos(a + d) by the addition formulas with d's Taylor series
-   (exact to rounding for |d| < 1e-3) avoid calling sin and cos again. */
-static void quick_return_trig_step(const double *q, const double *dq, double *tr)
+/* Sines and cosines along a trajectory, without calling sin and cos at every
+   configuration. base[3b] is an angle of body b whose sine and cosine
+   base[3b + 1], base[3b + 2] came from sin and cos; an angle within 1/16 rad
+   of it is rotated from there by the addition formulas, with sin d and
+   cos d - 1 by their Taylor series (the first term left out is below 1e-19).
+   Every value is one rotation from a libm value, so rounding errors do not
+   accumulate from instant to instant. Farther away (or base NaN: no base
+   yet), sin and cos are called and the angle becomes the base. */
+static void quick_return_trig_near(const double *q, double *tr, double *base)
+{
+    int b;
+    for (b = 0; b < 3; ++b) {
+        const double a = q[3 * b + 2], d = a - base[3 * b];
+        if (fabs(d) <= 0.0625) {
+            const double d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
+            const double sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
+            const double cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
+            tr[2 * b] = s + (s * cm + c * sd);
+            tr[2 * b + 1] = c + (c * cm - s * sd);
+        } else {
+            base[3 * b] = a;
+            tr[2 * b] = base[3 * b + 1] = sin(a);
+            tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        }
+    }
+}
+
+/* Update tr after the correction q -= dq (dq: the change each angle took,
+   as correct leaves it). Newton's last corrections are tiny: below 2^-30
+   rad, sin(a + d) = sin a + d cos a and cos(a + d) = cos a - d sin a to
+   rounding (d^2 / 2 < 1e-18); larger ones rotate from the base as
+   trig_near does. */
+static void quick_return_trig_step(const double *q, const double *dq, double *tr, double *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
         const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
-        if (fabs(d) < 1e-3) {
-            const double d2 = d * d;
-            const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
-            const double cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0);
-            tr[2 * b] = s * cd + c * sd;
-            tr[2 * b + 1] = c * cd - s * sd;
+        if (fabs(d) < 0x1p-30) {
+            tr[2 * b] = s + c * d;
+            tr[2 * b + 1] = c - s * d;
         } else {
-            tr[2 * b] = sin(q[3 * b + 2]);
-            tr[2 * b + 1] = cos(q[3 * b + 2]);
+            quick_return_trig_near(q, tr, base);
+            return;
         }
     }
 }
@@ -310,7 +336,9 @@ void quick_return_reactions(const double * q, const double * lam, double t, cons
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
    bounded size; a piece returns 1 where a fixed pivot fails the threshold
    test for this configuration. A pivot's slot keeps its reciprocal, so that
-   the solves multiply: a division's latency would chain every unknown. */
+   the solves multiply: a division's latency would chain every unknown. The
+   solves' vectors never overlap the factors or each other: restrict lets an
+   unknown stay in a register across its updates. */
 static int quick_return_sparse_factor0(double *lu)
 {
     double piv, cm;
@@ -370,7 +398,7 @@ static int quick_return_sparse_factor(double *lu)
     return quick_return_sparse_factor0(lu);
 }
 
-static void quick_return_sparse_forward0(const double *lu, double *y)
+static void quick_return_sparse_forward0(const double *restrict lu, double *restrict y)
 {
     (void)lu;
     y[4] -= lu[6] * y[0];
@@ -380,7 +408,8 @@ static void quick_return_sparse_forward0(const double *lu, double *y)
     y[4] -= lu[10] * y[3];
 }
 
-static void quick_return_sparse_back0(const double *lu, const double *y, double *x)
+static void quick_return_sparse_back0(
+    const double *restrict lu, const double *restrict y, double *restrict x)
 {
     x[5] = (y[4]) * lu[11];
     x[4] = (y[3] - lu[5] * x[5]) * lu[4];
@@ -400,7 +429,8 @@ static void quick_return_sparse_solve(const double *lu, const double *b, double 
     quick_return_sparse_back0(lu, y, x);
 }
 
-static void quick_return_sparse_t_forward0(const double *lu, const double *b, double *x)
+static void quick_return_sparse_t_forward0(
+    const double *restrict lu, const double *restrict b, double *restrict x)
 {
     x[0] = (b[0]) * lu[0];
     x[1] = (b[1]) * lu[1];
@@ -413,7 +443,7 @@ static void quick_return_sparse_t_forward0(const double *lu, const double *b, do
     x[4] = (b[5] - lu[14] * x[5] - lu[3] * x[2] - lu[5] * x[3]) * lu[11];
 }
 
-static void quick_return_sparse_t_back0(const double *lu, double *x)
+static void quick_return_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
     (void)lu;
     x[3] -= lu[10] * x[4];
@@ -551,26 +581,40 @@ static double quick_return_maxabs(const double *v, int n)
     return s0 == s0 ? m0 : s0;
 }
 
-/* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabs does. */
-static double quick_return_correct(double *q, const double *dq)
+/* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabs does. dq is
+   left holding the change each coordinate took, old - new: far from the
+   origin that differs from dq by a rounding of q, which sin and cos of the
+   new angle must see (the subtraction is exact for steps under half the
+   coordinate, and within a rounding of the step otherwise). */
+static double quick_return_correct(double *q, double *dq)
 {
+    const double step = quick_return_maxabs(dq, 9);
     int k;
-    for (k = 0; k < 9; ++k) q[k] -= dq[k];
-    return quick_return_maxabs(dq, 9);
+    for (k = 0; k < 9; ++k) {
+        const double old = q[k];
+        q[k] = old - dq[k];
+        dq[k] = old - q[k];
+    }
+    return step;
 }
 
 /* Newton from the guess in q (overwritten by the solution). With reuse, the
    first correction uses the factors the previous instant left in work (a
    chord step: from the trajectory's predictor it converges at once), later
-   ones factor Phi_q at the iterate. Converged: |Phi| and the last correction
-   both within the tolerance's floor. On success the factors are those of q. */
+   ones factor Phi_q at the iterate, and the sines and cosines are rotated
+   from the bases the previous instant left (trig_near); without reuse, both
+   start afresh. Converged: |Phi| and the last correction both within the
+   tolerance's floor. On success the factors are those of q. */
 static int quick_return_newton(double t, const double *p, double tol, double *q, double *tr, int *info, double *work,
                           int *iwork, int *dense, int reuse)
 {
     double *r = QUICK_RETURN_VEC(work, 0), *dq = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
+    double *base = QUICK_RETURN_VEC(work, 10);
     double step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
-    quick_return_trig(q, tr);
+    if (!reuse)
+        for (it = 0; it < 3; ++it) base[3 * it] = NAN;  /* no base: sin and cos at the guess */
+    quick_return_trig_near(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = QUICK_RETURN_MAX(1.0, quick_return_maxabs(q, 9));
     lim = QUICK_RETURN_MAX(tol, 8.0 * QUICK_RETURN_EPS * qmag);
@@ -591,7 +635,7 @@ static int quick_return_newton(double t, const double *p, double tol, double *q,
         }
         quick_return_solve(work, iwork, *dense, r, dq, y);
         step = quick_return_correct(q, dq);
-        quick_return_trig_step(q, dq, tr);
+        quick_return_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
         current = !chord && step <= QUICK_RETURN_EPS * qmag;
@@ -666,14 +710,14 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
            exact for quintics): one Newton correction suffices */
         if (*count >= 4)
             for (k = 0; k < 9; ++k)
-                qn[k] = q[k] + h * (qd[k] + h * (323.0 * qdd[k] - 264.0 * m1[k] + 159.0 * m2[k] - 38.0 * m3[k])
-                                                / 360.0);
+                qn[k] = q[k] + h * (qd[k] + h * ((323.0 / 360.0) * qdd[k] - (264.0 / 360.0) * m1[k]
+                                                 + (159.0 / 360.0) * m2[k] - (38.0 / 360.0) * m3[k]));
         else if (*count >= 1)
             for (k = 0; k < 9; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
         else
             memcpy(qn, q, sizeof(double) * 9);
         /* from the second instant of a call on, the previous instant's factors
-           (left in work) take the first correction */
+           and trigonometric bases (left in work) serve this one */
         status = quick_return_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != QUICK_RETURN_OK) {
             *solved = i;

@@ -10,7 +10,7 @@
 #define QUICK_RETURN_NNZ 20          /* structural nonzeros of Phi_q */
 #define QUICK_RETURN_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define QUICK_RETURN_ROW 73          /* values per instant in a trajectory row */
-#define QUICK_RETURN_WORK 481        /* doubles of workspace every solver call needs */
+#define QUICK_RETURN_WORK 517        /* doubles of workspace every solver call needs */
 #define QUICK_RETURN_IWORK 9         /* ints of workspace */
 #define QUICK_RETURN_STATE 55       /* doubles of trajectory state */
 

@@ -10,7 +10,7 @@
 #define SLIDER_CRANK_NNZ 21          /* structural nonzeros of Phi_q */
 #define SLIDER_CRANK_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_CRANK_ROW 67          /* values per instant in a trajectory row */
-#define SLIDER_CRANK_WORK 423        /* doubles of workspace every solver call needs */
+#define SLIDER_CRANK_WORK 453        /* doubles of workspace every solver call needs */
 #define SLIDER_CRANK_IWORK 9         /* ints of workspace */
 #define SLIDER_CRANK_STATE 55       /* doubles of trajectory state */
 

@@ -10,7 +10,7 @@
 #define SLIDER_PENDULUM_NNZ 15          /* structural nonzeros of Phi_q */
 #define SLIDER_PENDULUM_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_PENDULUM_ROW 55          /* values per instant in a trajectory row */
-#define SLIDER_PENDULUM_WORK 366        /* doubles of workspace every solver call needs */
+#define SLIDER_PENDULUM_WORK 396        /* doubles of workspace every solver call needs */
 #define SLIDER_PENDULUM_IWORK 6         /* ints of workspace */
 #define SLIDER_PENDULUM_STATE 37       /* doubles of trajectory state */
 

@@ -101,9 +101,9 @@ def _stride(model: CodeModel) -> int:
 
 def work_size(model: CodeModel) -> int:
     """Doubles of workspace a solver call needs: Phi_q's values, the sparse
-    factors, the dense fallback and ten work vectors."""
+    factors, the dense fallback and eleven work vectors."""
     f = model.flat
-    return len(f.jac) + model.plan.size + f.ng * f.ng + 10 * _stride(model)
+    return len(f.jac) + model.plan.size + f.ng * f.ng + 11 * _stride(model)
 
 
 def state_size(model: CodeModel) -> int:
