@@ -152,6 +152,42 @@ def test_singular_configuration_returns_singular_status(tmp_path: Path) -> None:
     assert status == 2  # STRETCHED_PENDULUM_SINGULAR
 
 
+def _trajectory(lib: ctypes.CDLL, name: str, ctx: dict, q0: np.ndarray, p: np.ndarray, h: float,
+                n: int) -> np.ndarray:
+    """Call <name>_trajectory from t = 0 for n instants; the rows."""
+    dp = ctypes.POINTER(ctypes.c_double)
+    f = getattr(lib, f"{name}_trajectory")
+    f.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_long, dp, ctypes.c_double, dp, dp,
+                  ctypes.POINTER(ctypes.c_long), dp, ctypes.POINTER(ctypes.c_int)]
+    state, rows = np.zeros(ctx["state"]), np.zeros((n, ctx["row_width"]))
+    state[: ctx["ng"]] = q0
+    work, iwork, solved = np.zeros(ctx["work"]), np.zeros(ctx["ng"], np.intc), ctypes.c_long(0)
+    ptr = lambda a: a.ctypes.data_as(dp)  # noqa: E731
+    status = f(0.0, h, n, ptr(p), 1e-12, ptr(state), ptr(rows), ctypes.byref(solved), ptr(work),
+               iwork.ctypes.data_as(ctypes.POINTER(ctypes.c_int)))
+    assert status == 0 and solved.value == n
+    return rows
+
+
+@needs_cc
+@pytest.mark.parametrize("example", api.examples())
+def test_folded_constants_give_the_factorization_bitwise(example: str, tmp_path: Path) -> None:
+    """The known entries of Phi_q are folded into the generated LU (no
+    division by a known pivot, no test the constants decide): every row of a
+    trajectory is bitwise the one of the solver that reads them at run time."""
+    model = code_model(load(api.example(example)))
+    rows = {}
+    for fold in (True, False):
+        folder = tmp_path / str(fold)
+        c_target.generate(model, folder, fold_constants=fold)
+        lib = _compile(folder, model.name)
+        rows[fold] = _trajectory(lib, model.name, c_target.context(model, fold), np.array(model.q0),
+                                 np.array(model.flat.defaults), 1e-3, 200)
+    assert np.array_equal(rows[True], rows[False])
+    folded, full = ((tmp_path / str(f) / f"{model.name}_solver.c").read_text() for f in (True, False))
+    assert folded.count("1.0 / piv") < full.count("1.0 / piv")
+
+
 @needs_cc
 def test_rotated_sines_and_cosines_are_within_two_roundings_of_exact(tmp_path: Path) -> None:
     """Along a trajectory the C solver rotates sin and cos from the angles it

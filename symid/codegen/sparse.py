@@ -175,3 +175,103 @@ def solve_transposed(p: Plan, lu: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _above(p: Plan, st: Step) -> list[Step]:
     """Earlier steps whose U row has an entry in st.col."""
     return [prev for prev in p.steps if prev is not st and st.col in prev.right]
+
+
+# --- constants fixed at generation time ----------------------------------------------
+
+@dataclass(frozen=True)
+class Known:
+    """A factor-array value fixed at generation time (a constant entry of
+    Phi_q, such as a revolute's +-1 in x and y, and what follows from it)."""
+
+    value: float
+
+
+Coef = int | Known  # a factor-array slot read at run time, or a value known when generating
+
+
+@dataclass(frozen=True)
+class FoldedStep:
+    """One elimination step with what the constants decide already decided.
+
+    Attributes:
+        step: the step of the plan; pivot_slot: its pivot's slot.
+        pivot: the pivot's value where it is known (else None: lu[pivot_slot]).
+        test: "pass" or "fail" where the threshold test is decided by known
+            values; else (the largest known |entry| of the column, pivot
+            included, or 0.0; the column's slots read at run time).
+        scale: the multipliers computed at run time, (slot, source): lu[slot]
+            = source * (1 / pivot).
+        updates: (target, t, m, s): lu[target] = t - m * s at run time.
+        reciprocal, below, right: what the solves read: 1 / pivot, L's
+            column (row, coef) and U's row (col, coef).
+    """
+
+    step: Step
+    pivot_slot: int
+    pivot: float | None
+    test: str | tuple[float, tuple[int, ...]]
+    scale: tuple[tuple[int, Coef], ...]
+    updates: tuple[tuple[int, Coef, Coef, Coef], ...]
+    reciprocal: Coef
+    below: tuple[tuple[int, Coef], ...]
+    right: tuple[tuple[int, Coef], ...]
+
+
+def fold(p: Plan, values: list[float | None]) -> list[FoldedStep]:
+    """Run the plan at generation time on the values that are known.
+
+    values: per pattern slot, the entry of Phi_q where it is a number, else
+    None (fill starts at 0). Every operation whose operands are all known is
+    done here, in the floating-point operations of run time (the factors
+    are bitwise the same); the rest is left for run time, with the known
+    operands as numbers. A slot is final once its own step is done, so the
+    solves read each entry as it stands then.
+    """
+    val: list[float | None] = [*values, *[0.0] * (p.size - len(values))]
+    s = p.slots
+
+    def coef(k: int) -> Coef:
+        v = val[k]
+        return k if v is None else Known(v)
+
+    out = []
+    for st in p.steps:
+        ps = s[(st.row, st.col)]
+        piv = val[ps]
+        column = [s[(r, st.col)] for r in st.below]
+        known_max = max((abs(v) for v in (val[k] for k in [ps, *column]) if v is not None), default=0.0)
+        unknown = tuple(k for k in column if val[k] is None)
+        test: str | tuple[float, tuple[int, ...]]
+        if piv == 0.0:
+            test = "fail"
+        elif piv is not None and not unknown:
+            test = "pass" if abs(piv) >= THRESHOLD * known_max else "fail"
+        else:
+            test = (known_max, unknown)
+        recip = 1.0 / piv if piv is not None and piv != 0 else None
+        val[ps] = recip
+        scale: list[tuple[int, Coef]] = []
+        updates: list[tuple[int, Coef, Coef, Coef]] = []
+        for r in st.below:
+            m = s[(r, st.col)]
+            mv = val[m]
+            if recip is not None and mv is not None:
+                val[m] = mv * recip
+            else:
+                scale.append((m, coef(m)))
+                val[m] = None
+            for c in st.right:
+                t, u = s[(r, c)], s[(st.row, c)]
+                tv, mv, uv = val[t], val[m], val[u]
+                if mv == 0.0 or uv == 0.0:
+                    continue  # t - 0 u = t
+                if tv is not None and mv is not None and uv is not None:
+                    val[t] = tv - mv * uv
+                else:
+                    updates.append((t, coef(t), coef(m), coef(u)))
+                    val[t] = None
+        out.append(FoldedStep(st, ps, piv, test, tuple(scale), tuple(updates), coef(ps),
+                              tuple((r, coef(s[(r, st.col)])) for r in st.below),
+                              tuple((c, coef(s[(st.row, c)])) for c in st.right)))
+    return out

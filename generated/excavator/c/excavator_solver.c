@@ -505,46 +505,41 @@ void excavator_reactions(const double * q, const double * lam, double t, const d
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
    bounded size; a piece returns 1 where a fixed pivot fails the threshold
    test for this configuration. A pivot's slot keeps its reciprocal, so that
-   the solves multiply: a division's latency would chain every unknown. The
-   solves' vectors never overlap the factors or each other: restrict lets an
-   unknown stay in a register across its updates. */
+   the solves multiply: a division's latency would chain every unknown.
+   Values known at generation time (a revolute's +-1 in x and y, and the
+   pivots, multipliers and tests that follow from them) are numbers in the
+   code, in the same floating-point operations: the factors are bitwise those
+   of the full factorization. The solves' vectors never overlap the factors
+   or each other: restrict lets an unknown stay in a register across its
+   updates. */
 static int excavator_sparse_factor0(double *lu)
 {
-    double piv, cm;
-    piv = lu[18];
-    cm = fabs(piv);
+    double piv = 0.0, cm = 0.0;
+    (void)lu; (void)piv; (void)cm;
+    cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[33]));
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[18] = 1.0 / piv;
-    lu[33] *= piv;
-    lu[30] -= lu[33] * lu[16];
+    if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
+    lu[30] += lu[33];
     lu[31] -= lu[33] * lu[17];
     lu[34] -= lu[33] * lu[19];
-    piv = lu[2];
-    cm = fabs(piv);
-    cm = EXCAVATOR_MAX(cm, fabs(lu[8]));
+    cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[21]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[24]));
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[2] = 1.0 / piv;
-    lu[8] *= piv;
-    lu[9] -= lu[8] * lu[3];
-    lu[21] *= piv;
+    if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
+    lu[9] += lu[3];
     lu[22] -= lu[21] * lu[3];
-    lu[24] *= piv;
     lu[25] -= lu[24] * lu[3];
     piv = lu[20];
     cm = fabs(piv);
-    cm = EXCAVATOR_MAX(cm, fabs(lu[0]));
-    cm = EXCAVATOR_MAX(cm, fabs(lu[4]));
+    cm = EXCAVATOR_MAX(cm, 1.0);
     cm = EXCAVATOR_MAX(cm, fabs(lu[23]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[20] = 1.0 / piv;
-    lu[0] *= piv;
-    lu[1] -= lu[0] * lu[22];
-    lu[4] *= piv;
-    lu[5] -= lu[4] * lu[22];
+    lu[0] = 1.0 * piv;
+    lu[4] = -1.0 * piv;
     lu[23] *= piv;
+    lu[1] -= lu[0] * lu[22];
+    lu[5] -= lu[4] * lu[22];
     lu[25] -= lu[23] * lu[22];
     piv = lu[1];
     cm = fabs(piv);
@@ -556,28 +551,23 @@ static int excavator_sparse_factor0(double *lu)
     lu[5] *= piv;
     lu[9] *= piv;
     lu[25] *= piv;
-    piv = lu[10];
-    cm = fabs(piv);
+    cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[27]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[30]));
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[10] = 1.0 / piv;
-    lu[27] *= piv;
+    if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
     lu[28] -= lu[27] * lu[11];
-    lu[30] *= piv;
     lu[31] -= lu[30] * lu[11];
     piv = lu[26];
     cm = fabs(piv);
-    cm = EXCAVATOR_MAX(cm, fabs(lu[6]));
-    cm = EXCAVATOR_MAX(cm, fabs(lu[12]));
+    cm = EXCAVATOR_MAX(cm, 1.0);
     cm = EXCAVATOR_MAX(cm, fabs(lu[29]));
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[26] = 1.0 / piv;
-    lu[6] *= piv;
-    lu[7] -= lu[6] * lu[28];
-    lu[12] *= piv;
-    lu[13] -= lu[12] * lu[28];
+    lu[6] = 1.0 * piv;
+    lu[12] = -1.0 * piv;
     lu[29] *= piv;
+    lu[7] -= lu[6] * lu[28];
+    lu[13] -= lu[12] * lu[28];
     lu[31] -= lu[29] * lu[28];
     piv = lu[7];
     cm = fabs(piv);
@@ -589,10 +579,10 @@ static int excavator_sparse_factor0(double *lu)
     lu[31] *= piv;
     piv = lu[32];
     cm = fabs(piv);
-    cm = EXCAVATOR_MAX(cm, fabs(lu[14]));
+    cm = EXCAVATOR_MAX(cm, 1.0);
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[32] = 1.0 / piv;
-    lu[14] *= piv;
+    lu[14] = 1.0 * piv;
     lu[15] -= lu[14] * lu[34];
     piv = lu[15];
     cm = fabs(piv);
@@ -610,7 +600,7 @@ static void excavator_sparse_forward0(const double *restrict lu, double *restric
 {
     (void)lu;
     y[8] -= lu[33] * y[5];
-    y[3] -= lu[8] * y[1];
+    y[3] += y[1];
     y[6] -= lu[21] * y[1];
     y[7] -= lu[24] * y[1];
     y[0] -= lu[0] * y[6];
@@ -632,15 +622,16 @@ static void excavator_sparse_forward0(const double *restrict lu, double *restric
 static void excavator_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
+    (void)lu;
     x[8] = (y[4]) * lu[15];
     x[6] = (y[8] - lu[34] * x[8]) * lu[32];
     x[5] = (y[2]) * lu[7];
     x[3] = (y[7] - lu[28] * x[5]) * lu[26];
-    x[4] = (y[3] - lu[11] * x[5]) * lu[10];
+    x[4] = y[3] - lu[11] * x[5];
     x[2] = (y[0]) * lu[1];
     x[0] = (y[6] - lu[22] * x[2]) * lu[20];
-    x[1] = (y[1] - lu[3] * x[2]) * lu[2];
-    x[7] = (y[5] - lu[16] * x[4] - lu[17] * x[5] - lu[19] * x[8]) * lu[18];
+    x[1] = y[1] - lu[3] * x[2];
+    x[7] = y[5] + x[4] - lu[17] * x[5] - lu[19] * x[8];
 }
 
 static void excavator_sparse_solve(const double *lu, const double *b, double *x, double *y)
@@ -653,11 +644,12 @@ static void excavator_sparse_solve(const double *lu, const double *b, double *x,
 static void excavator_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    x[5] = (b[7]) * lu[18];
-    x[1] = (b[1]) * lu[2];
+    (void)lu;
+    x[5] = b[7];
+    x[1] = b[1];
     x[6] = (b[0]) * lu[20];
     x[0] = (b[2] - lu[3] * x[1] - lu[22] * x[6]) * lu[1];
-    x[3] = (b[4] - lu[16] * x[5]) * lu[10];
+    x[3] = b[4] + x[5];
     x[7] = (b[3]) * lu[26];
     x[2] = (b[5] - lu[17] * x[5] - lu[11] * x[3] - lu[28] * x[7]) * lu[7];
     x[8] = (b[6]) * lu[32];
@@ -681,7 +673,7 @@ static void excavator_sparse_t_back0(const double *restrict lu, double *restrict
     x[6] -= lu[0] * x[0];
     x[6] -= lu[4] * x[2];
     x[6] -= lu[23] * x[7];
-    x[1] -= lu[8] * x[3];
+    x[1] += x[3];
     x[1] -= lu[21] * x[6];
     x[1] -= lu[24] * x[7];
     x[5] -= lu[33] * x[8];

@@ -341,57 +341,26 @@ void four_bar_reactions(const double * q, const double * lam, double t, const do
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
    bounded size; a piece returns 1 where a fixed pivot fails the threshold
    test for this configuration. A pivot's slot keeps its reciprocal, so that
-   the solves multiply: a division's latency would chain every unknown. The
-   solves' vectors never overlap the factors or each other: restrict lets an
-   unknown stay in a register across its updates. */
+   the solves multiply: a division's latency would chain every unknown.
+   Values known at generation time (a revolute's +-1 in x and y, and the
+   pivots, multipliers and tests that follow from them) are numbers in the
+   code, in the same floating-point operations: the factors are bitwise those
+   of the full factorization. The solves' vectors never overlap the factors
+   or each other: restrict lets an unknown stay in a register across its
+   updates. */
 static int four_bar_sparse_factor0(double *lu)
 {
-    double piv, cm;
-    piv = lu[24];
-    cm = fabs(piv);
+    double piv = 0.0, cm = 0.0;
+    (void)lu; (void)piv; (void)cm;
+    cm = 1.0;
     cm = FOUR_BAR_MAX(cm, fabs(lu[1]));
     cm = FOUR_BAR_MAX(cm, fabs(lu[3]));
     cm = FOUR_BAR_MAX(cm, fabs(lu[5]));
     cm = FOUR_BAR_MAX(cm, fabs(lu[9]));
-    if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[24] = 1.0 / piv;
-    lu[1] *= piv;
-    lu[3] *= piv;
-    lu[5] *= piv;
-    lu[9] *= piv;
-    piv = lu[0];
-    cm = fabs(piv);
-    cm = FOUR_BAR_MAX(cm, fabs(lu[4]));
-    if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[0] = 1.0 / piv;
-    lu[4] *= piv;
-    piv = lu[2];
-    cm = fabs(piv);
-    cm = FOUR_BAR_MAX(cm, fabs(lu[8]));
-    if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[2] = 1.0 / piv;
-    lu[8] *= piv;
-    piv = lu[6];
-    cm = fabs(piv);
-    cm = FOUR_BAR_MAX(cm, fabs(lu[12]));
-    if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[6] = 1.0 / piv;
-    lu[12] *= piv;
-    lu[13] -= lu[12] * lu[7];
-    piv = lu[10];
-    cm = fabs(piv);
-    cm = FOUR_BAR_MAX(cm, fabs(lu[16]));
-    if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[10] = 1.0 / piv;
-    lu[16] *= piv;
-    lu[17] -= lu[16] * lu[11];
-    piv = lu[20];
-    cm = fabs(piv);
-    cm = FOUR_BAR_MAX(cm, fabs(lu[14]));
-    if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[20] = 1.0 / piv;
-    lu[14] *= piv;
-    lu[15] -= lu[14] * lu[21];
+    if (!(1.0 >= FOUR_BAR_THRESHOLD * cm)) return 1;
+    lu[13] += lu[7];
+    lu[17] += lu[11];
+    lu[15] -= lu[21];
     piv = lu[13];
     cm = fabs(piv);
     cm = FOUR_BAR_MAX(cm, fabs(lu[17]));
@@ -399,13 +368,7 @@ static int four_bar_sparse_factor0(double *lu)
     piv = lu[13] = 1.0 / piv;
     lu[17] *= piv;
     lu[19] -= lu[17] * lu[15];
-    piv = lu[18];
-    cm = fabs(piv);
-    cm = FOUR_BAR_MAX(cm, fabs(lu[22]));
-    if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[18] = 1.0 / piv;
-    lu[22] *= piv;
-    lu[23] -= lu[22] * lu[19];
+    lu[23] -= lu[19];
     piv = lu[23];
     cm = fabs(piv);
     if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
@@ -425,27 +388,28 @@ static void four_bar_sparse_forward0(const double *restrict lu, double *restrict
     y[1] -= lu[3] * y[8];
     y[2] -= lu[5] * y[8];
     y[3] -= lu[9] * y[8];
-    y[2] -= lu[4] * y[0];
-    y[3] -= lu[8] * y[1];
-    y[4] -= lu[12] * y[2];
-    y[5] -= lu[16] * y[3];
-    y[4] -= lu[14] * y[6];
+    y[2] += y[0];
+    y[3] += y[1];
+    y[4] += y[2];
+    y[5] += y[3];
+    y[4] -= y[6];
     y[5] -= lu[17] * y[4];
-    y[7] -= lu[22] * y[5];
+    y[7] -= y[5];
 }
 
 static void four_bar_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
+    (void)lu;
     x[8] = (y[7]) * lu[23];
-    x[7] = (y[5] - lu[19] * x[8]) * lu[18];
+    x[7] = y[5] - lu[19] * x[8];
     x[5] = (y[4] - lu[15] * x[8]) * lu[13];
-    x[6] = (y[6] - lu[21] * x[8]) * lu[20];
-    x[4] = (y[3] - lu[11] * x[5]) * lu[10];
-    x[3] = (y[2] - lu[7] * x[5]) * lu[6];
-    x[1] = (y[1]) * lu[2];
-    x[0] = (y[0]) * lu[0];
-    x[2] = (y[8]) * lu[24];
+    x[6] = y[6] - lu[21] * x[8];
+    x[4] = y[3] - lu[11] * x[5];
+    x[3] = y[2] - lu[7] * x[5];
+    x[1] = y[1];
+    x[0] = y[0];
+    x[2] = y[8];
 }
 
 static void four_bar_sparse_solve(const double *lu, const double *b, double *x, double *y)
@@ -458,27 +422,28 @@ static void four_bar_sparse_solve(const double *lu, const double *b, double *x, 
 static void four_bar_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    x[8] = (b[2]) * lu[24];
-    x[0] = (b[0]) * lu[0];
-    x[1] = (b[1]) * lu[2];
-    x[2] = (b[3]) * lu[6];
-    x[3] = (b[4]) * lu[10];
-    x[6] = (b[6]) * lu[20];
+    (void)lu;
+    x[8] = b[2];
+    x[0] = b[0];
+    x[1] = b[1];
+    x[2] = b[3];
+    x[3] = b[4];
+    x[6] = b[6];
     x[4] = (b[5] - lu[7] * x[2] - lu[11] * x[3]) * lu[13];
-    x[5] = (b[7]) * lu[18];
+    x[5] = b[7];
     x[7] = (b[8] - lu[21] * x[6] - lu[15] * x[4] - lu[19] * x[5]) * lu[23];
 }
 
 static void four_bar_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
     (void)lu;
-    x[5] -= lu[22] * x[7];
+    x[5] -= x[7];
     x[4] -= lu[17] * x[5];
-    x[6] -= lu[14] * x[4];
-    x[3] -= lu[16] * x[5];
-    x[2] -= lu[12] * x[4];
-    x[1] -= lu[8] * x[3];
-    x[0] -= lu[4] * x[2];
+    x[6] -= x[4];
+    x[3] += x[5];
+    x[2] += x[4];
+    x[1] += x[3];
+    x[0] += x[2];
     x[8] -= lu[1] * x[0];
     x[8] -= lu[3] * x[1];
     x[8] -= lu[5] * x[2];

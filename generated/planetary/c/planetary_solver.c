@@ -356,67 +356,30 @@ void planetary_reactions(const double * q, const double * lam, double t, const d
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
    bounded size; a piece returns 1 where a fixed pivot fails the threshold
    test for this configuration. A pivot's slot keeps its reciprocal, so that
-   the solves multiply: a division's latency would chain every unknown. The
-   solves' vectors never overlap the factors or each other: restrict lets an
-   unknown stay in a register across its updates. */
+   the solves multiply: a division's latency would chain every unknown.
+   Values known at generation time (a revolute's +-1 in x and y, and the
+   pivots, multipliers and tests that follow from them) are numbers in the
+   code, in the same floating-point operations: the factors are bitwise those
+   of the full factorization. The solves' vectors never overlap the factors
+   or each other: restrict lets an unknown stay in a register across its
+   updates. */
 static int planetary_sparse_factor0(double *lu)
 {
-    double piv, cm;
-    piv = lu[0];
-    cm = fabs(piv);
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[0] = 1.0 / piv;
-    piv = lu[1];
-    cm = fabs(piv);
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[1] = 1.0 / piv;
-    piv = lu[2];
-    cm = fabs(piv);
-    cm = PLANETARY_MAX(cm, fabs(lu[4]));
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[2] = 1.0 / piv;
-    lu[4] *= piv;
-    piv = lu[3];
-    cm = fabs(piv);
-    cm = PLANETARY_MAX(cm, fabs(lu[7]));
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[3] = 1.0 / piv;
-    lu[7] *= piv;
-    piv = lu[6];
-    cm = fabs(piv);
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[6] = 1.0 / piv;
-    piv = lu[9];
-    cm = fabs(piv);
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[9] = 1.0 / piv;
-    piv = lu[15];
-    cm = fabs(piv);
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[15] = 1.0 / piv;
-    piv = lu[16];
-    cm = fabs(piv);
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[16] = 1.0 / piv;
-    piv = lu[19];
-    cm = fabs(piv);
+    double piv = 0.0, cm = 0.0;
+    (void)lu; (void)piv; (void)cm;
+    cm = 1.0;
     cm = PLANETARY_MAX(cm, fabs(lu[18]));
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[19] = 1.0 / piv;
-    lu[18] *= piv;
-    piv = lu[17];
-    cm = fabs(piv);
+    if (!(1.0 >= PLANETARY_THRESHOLD * cm)) return 1;
+    cm = 1.0;
     cm = PLANETARY_MAX(cm, fabs(lu[10]));
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[17] = 1.0 / piv;
-    lu[10] *= piv;
+    if (!(1.0 >= PLANETARY_THRESHOLD * cm)) return 1;
     piv = lu[11];
     cm = fabs(piv);
     cm = PLANETARY_MAX(cm, fabs(lu[13]));
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[11] = 1.0 / piv;
     lu[13] *= piv;
-    lu[14] -= lu[13] * lu[12];
+    lu[14] -= lu[13];
     piv = lu[14];
     cm = fabs(piv);
     if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
@@ -432,8 +395,8 @@ static int planetary_sparse_factor(double *lu)
 static void planetary_sparse_forward0(const double *restrict lu, double *restrict y)
 {
     (void)lu;
-    y[4] -= lu[4] * y[2];
-    y[5] -= lu[7] * y[3];
+    y[4] += y[2];
+    y[5] += y[3];
     y[10] -= lu[18] * y[11];
     y[6] -= lu[10] * y[10];
     y[7] -= lu[13] * y[6];
@@ -442,18 +405,19 @@ static void planetary_sparse_forward0(const double *restrict lu, double *restric
 static void planetary_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
+    (void)lu;
     x[8] = (y[7]) * lu[14];
-    x[5] = (y[6] - lu[12] * x[8]) * lu[11];
-    x[2] = (y[10]) * lu[17];
-    x[11] = (y[11]) * lu[19];
-    x[10] = (y[9]) * lu[16];
-    x[9] = (y[8]) * lu[15];
-    x[7] = (y[5] - lu[8] * x[5]) * lu[9];
-    x[6] = (y[4] - lu[5] * x[5]) * lu[6];
-    x[4] = (y[3]) * lu[3];
-    x[3] = (y[2]) * lu[2];
-    x[1] = (y[1]) * lu[1];
-    x[0] = (y[0]) * lu[0];
+    x[5] = (y[6] - x[8]) * lu[11];
+    x[2] = y[10];
+    x[11] = y[11];
+    x[10] = y[9];
+    x[9] = y[8];
+    x[7] = y[5] - lu[8] * x[5];
+    x[6] = y[4] - lu[5] * x[5];
+    x[4] = y[3];
+    x[3] = y[2];
+    x[1] = y[1];
+    x[0] = y[0];
 }
 
 static void planetary_sparse_solve(const double *lu, const double *b, double *x, double *y)
@@ -466,18 +430,19 @@ static void planetary_sparse_solve(const double *lu, const double *b, double *x,
 static void planetary_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    x[0] = (b[0]) * lu[0];
-    x[1] = (b[1]) * lu[1];
-    x[2] = (b[3]) * lu[2];
-    x[3] = (b[4]) * lu[3];
-    x[4] = (b[6]) * lu[6];
-    x[5] = (b[7]) * lu[9];
-    x[8] = (b[9]) * lu[15];
-    x[9] = (b[10]) * lu[16];
-    x[11] = (b[11]) * lu[19];
-    x[10] = (b[2]) * lu[17];
+    (void)lu;
+    x[0] = b[0];
+    x[1] = b[1];
+    x[2] = b[3];
+    x[3] = b[4];
+    x[4] = b[6];
+    x[5] = b[7];
+    x[8] = b[9];
+    x[9] = b[10];
+    x[11] = b[11];
+    x[10] = b[2];
     x[6] = (b[5] - lu[5] * x[4] - lu[8] * x[5]) * lu[11];
-    x[7] = (b[8] - lu[12] * x[6]) * lu[14];
+    x[7] = (b[8] - x[6]) * lu[14];
 }
 
 static void planetary_sparse_t_back0(const double *restrict lu, double *restrict x)
@@ -486,8 +451,8 @@ static void planetary_sparse_t_back0(const double *restrict lu, double *restrict
     x[6] -= lu[13] * x[7];
     x[10] -= lu[10] * x[6];
     x[11] -= lu[18] * x[10];
-    x[3] -= lu[7] * x[5];
-    x[2] -= lu[4] * x[4];
+    x[3] += x[5];
+    x[2] += x[4];
 }
 
 static void planetary_sparse_solve_t(const double *lu, const double *b, double *x)

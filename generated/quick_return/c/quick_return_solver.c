@@ -336,55 +336,37 @@ void quick_return_reactions(const double * q, const double * lam, double t, cons
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
    bounded size; a piece returns 1 where a fixed pivot fails the threshold
    test for this configuration. A pivot's slot keeps its reciprocal, so that
-   the solves multiply: a division's latency would chain every unknown. The
-   solves' vectors never overlap the factors or each other: restrict lets an
-   unknown stay in a register across its updates. */
+   the solves multiply: a division's latency would chain every unknown.
+   Values known at generation time (a revolute's +-1 in x and y, and the
+   pivots, multipliers and tests that follow from them) are numbers in the
+   code, in the same floating-point operations: the factors are bitwise those
+   of the full factorization. The solves' vectors never overlap the factors
+   or each other: restrict lets an unknown stay in a register across its
+   updates. */
 static int quick_return_sparse_factor0(double *lu)
 {
-    double piv, cm;
-    piv = lu[0];
-    cm = fabs(piv);
+    double piv = 0.0, cm = 0.0;
+    (void)lu; (void)piv; (void)cm;
+    cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[6]));
-    if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[0] = 1.0 / piv;
-    lu[6] *= piv;
-    piv = lu[1];
-    cm = fabs(piv);
+    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
+    cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[7]));
-    if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[1] = 1.0 / piv;
-    lu[7] *= piv;
+    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
     piv = lu[15];
     cm = fabs(piv);
     if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[15] = 1.0 / piv;
-    piv = lu[17];
-    cm = fabs(piv);
-    if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[17] = 1.0 / piv;
-    piv = lu[18];
-    cm = fabs(piv);
-    if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[18] = 1.0 / piv;
-    piv = lu[19];
-    cm = fabs(piv);
+    cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[8]));
-    if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[19] = 1.0 / piv;
-    lu[8] *= piv;
-    piv = lu[2];
-    cm = fabs(piv);
+    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
+    cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[9]));
-    if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[2] = 1.0 / piv;
-    lu[9] *= piv;
+    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
     lu[11] -= lu[9] * lu[3];
-    piv = lu[4];
-    cm = fabs(piv);
+    cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[10]));
-    if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[4] = 1.0 / piv;
-    lu[10] *= piv;
+    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
     lu[11] -= lu[10] * lu[5];
     piv = lu[11];
     cm = fabs(piv);
@@ -411,15 +393,16 @@ static void quick_return_sparse_forward0(const double *restrict lu, double *rest
 static void quick_return_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
+    (void)lu;
     x[5] = (y[4]) * lu[11];
-    x[4] = (y[3] - lu[5] * x[5]) * lu[4];
-    x[3] = (y[2] - lu[3] * x[5]) * lu[2];
-    x[2] = (y[8]) * lu[19];
-    x[8] = (y[7]) * lu[18];
-    x[7] = (y[6]) * lu[17];
+    x[4] = y[3] - lu[5] * x[5];
+    x[3] = y[2] - lu[3] * x[5];
+    x[2] = y[8];
+    x[8] = y[7];
+    x[7] = y[6];
     x[6] = (y[5] - lu[12] * x[3] - lu[13] * x[4] - lu[14] * x[5] - lu[16] * x[7]) * lu[15];
-    x[1] = (y[1]) * lu[1];
-    x[0] = (y[0]) * lu[0];
+    x[1] = y[1];
+    x[0] = y[0];
 }
 
 static void quick_return_sparse_solve(const double *lu, const double *b, double *x, double *y)
@@ -432,14 +415,15 @@ static void quick_return_sparse_solve(const double *lu, const double *b, double 
 static void quick_return_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    x[0] = (b[0]) * lu[0];
-    x[1] = (b[1]) * lu[1];
+    (void)lu;
+    x[0] = b[0];
+    x[1] = b[1];
     x[5] = (b[6]) * lu[15];
-    x[6] = (b[7] - lu[16] * x[5]) * lu[17];
-    x[7] = (b[8]) * lu[18];
-    x[8] = (b[2]) * lu[19];
-    x[2] = (b[3] - lu[12] * x[5]) * lu[2];
-    x[3] = (b[4] - lu[13] * x[5]) * lu[4];
+    x[6] = b[7] - lu[16] * x[5];
+    x[7] = b[8];
+    x[8] = b[2];
+    x[2] = b[3] - lu[12] * x[5];
+    x[3] = b[4] - lu[13] * x[5];
     x[4] = (b[5] - lu[14] * x[5] - lu[3] * x[2] - lu[5] * x[3]) * lu[11];
 }
 

@@ -300,24 +300,17 @@ void slider_pendulum_reactions(const double * q, const double * lam, double t, c
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
    bounded size; a piece returns 1 where a fixed pivot fails the threshold
    test for this configuration. A pivot's slot keeps its reciprocal, so that
-   the solves multiply: a division's latency would chain every unknown. The
-   solves' vectors never overlap the factors or each other: restrict lets an
-   unknown stay in a register across its updates. */
+   the solves multiply: a division's latency would chain every unknown.
+   Values known at generation time (a revolute's +-1 in x and y, and the
+   pivots, multipliers and tests that follow from them) are numbers in the
+   code, in the same floating-point operations: the factors are bitwise those
+   of the full factorization. The solves' vectors never overlap the factors
+   or each other: restrict lets an unknown stay in a register across its
+   updates. */
 static int slider_pendulum_sparse_factor0(double *lu)
 {
-    double piv, cm;
-    piv = lu[7];
-    cm = fabs(piv);
-    if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[7] = 1.0 / piv;
-    piv = lu[11];
-    cm = fabs(piv);
-    if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[11] = 1.0 / piv;
-    piv = lu[14];
-    cm = fabs(piv);
-    if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[14] = 1.0 / piv;
+    double piv = 0.0, cm = 0.0;
+    (void)lu; (void)piv; (void)cm;
     piv = lu[0];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
@@ -350,12 +343,13 @@ static void slider_pendulum_sparse_forward0(const double *restrict lu, double *r
 static void slider_pendulum_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
+    (void)lu;
     x[0] = (y[2]) * lu[3];
     x[1] = (y[1] - lu[1] * x[0]) * lu[2];
     x[2] = (y[0]) * lu[0];
-    x[5] = (y[5] - lu[13] * x[2]) * lu[14];
-    x[4] = (y[4] - lu[9] * x[1] - lu[10] * x[2] - lu[12] * x[5]) * lu[11];
-    x[3] = (y[3] - lu[5] * x[0] - lu[6] * x[2] - lu[8] * x[5]) * lu[7];
+    x[5] = y[5] + x[2];
+    x[4] = y[4] + x[1] - lu[10] * x[2] - lu[12] * x[5];
+    x[3] = y[3] + x[0] - lu[6] * x[2] - lu[8] * x[5];
 }
 
 static void slider_pendulum_sparse_solve(const double *lu, const double *b, double *x, double *y)
@@ -368,12 +362,13 @@ static void slider_pendulum_sparse_solve(const double *lu, const double *b, doub
 static void slider_pendulum_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    x[3] = (b[3]) * lu[7];
-    x[4] = (b[4]) * lu[11];
-    x[5] = (b[5] - lu[8] * x[3] - lu[12] * x[4]) * lu[14];
-    x[0] = (b[2] - lu[6] * x[3] - lu[10] * x[4] - lu[13] * x[5]) * lu[0];
-    x[1] = (b[1] - lu[9] * x[4]) * lu[2];
-    x[2] = (b[0] - lu[5] * x[3] - lu[1] * x[1]) * lu[3];
+    (void)lu;
+    x[3] = b[3];
+    x[4] = b[4];
+    x[5] = b[5] - lu[8] * x[3] - lu[12] * x[4];
+    x[0] = (b[2] - lu[6] * x[3] - lu[10] * x[4] + x[5]) * lu[0];
+    x[1] = (b[1] + x[4]) * lu[2];
+    x[2] = (b[0] + x[3] - lu[1] * x[1]) * lu[3];
 }
 
 static void slider_pendulum_sparse_t_back0(const double *restrict lu, double *restrict x)

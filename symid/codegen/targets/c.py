@@ -8,10 +8,10 @@ from typing import Any, Callable
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
-from symid.codegen.emit import Block, blocks, chunked, lu_steps
+from symid.codegen.emit import Block, blocks, chunked
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
-from symid.codegen.sparse import THRESHOLD
+from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, fold
 from symid.motion import piece_tables, tables
 
 NAME = "c"
@@ -75,22 +75,104 @@ def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
             "trig": with_trig, "call": ", ".join([a for _, a in kernel_args] + ["out"])}
 
 
-def _step_chunks(steps: list[dict[str, Any]]) -> dict[str, Any]:
-    """The elimination steps grouped into functions of bounded size, for each
-    of the five straight-line passes (factor; solve forward and back;
-    transposed solve forward and back)."""
-    def weight(key: str) -> list[int]:
-        return [1 + len(st[key]) + sum(len(m["updates"]) for m in st.get("mults", [])) if key == "mults"
-                else 1 + len(st[key]) for st in steps]
+def _read(c: Coef) -> str:
+    return f"lu[{c}]" if isinstance(c, int) else repr(c.value)
 
-    back = list(reversed(steps))
+
+def _minus(c: Coef, var: str) -> str:
+    """' - c * var', with a known 0 or +-1 left out (the same value exactly)."""
+    if isinstance(c, Known) and c.value in (0.0, 1.0, -1.0):
+        return "" if c.value == 0.0 else f" - {var}" if c.value == 1.0 else f" + {var}"
+    return f" - {_read(c)} * {var}"
+
+
+def _times(expr: str, c: Coef) -> str:
+    """expr * c, with a known +-1 left out."""
+    if isinstance(c, Known) and c.value in (1.0, -1.0):
+        return expr if c.value == 1.0 else f"-({expr})"
+    return f"({expr}) * {_read(c)}"
+
+
+def _update(target: str, term: str) -> str:
+    """target = target + term, term as _minus prints it."""
+    return f"{target} {term[1]}= {term[3:]};" if term else ""
+
+
+def _factor_lines(st: FoldedStep, P: str) -> list[str]:
+    """The statements of one elimination step; known values are numbers."""
+    if st.test == "fail":
+        return ["return 1;  /* the known values fail the threshold test */"]
+    variable = st.pivot is None
+    lines = []
+    if st.test != "pass":
+        known_max, unknown = st.test
+        if variable:
+            lines += [f"piv = lu[{st.pivot_slot}];", "cm = fabs(piv);"]
+            lines += [f"cm = {P}_MAX(cm, {known_max!r});"] if known_max > 0 else []
+        else:
+            lines.append(f"cm = {known_max!r};")
+        lines += [f"cm = {P}_MAX(cm, fabs(lu[{k}]));" for k in unknown]
+        size = "fabs(piv)" if variable else repr(abs(st.pivot))  # type: ignore[arg-type]
+        lines.append(f"if (!({size} >= {P}_THRESHOLD * cm){' || piv == 0.0' if variable else ''}) return 1;")
+    if variable:
+        lines.append(f"piv = lu[{st.pivot_slot}] = 1.0 / piv;")
+    for m, source in st.scale:
+        if variable:
+            lines.append(f"lu[{m}] *= piv;" if isinstance(source, int) else f"lu[{m}] = {source.value!r} * piv;")
+        elif isinstance(st.reciprocal, Known) and st.reciprocal.value != 1.0:
+            lines.append(f"lu[{m}] = -lu[{m}];" if st.reciprocal.value == -1.0 else f"lu[{m}] *= {_read(st.reciprocal)};")
+    for t, tc, mc, uc in st.updates:
+        if isinstance(mc, Known) and isinstance(uc, Known):  # the product is known, the target is not
+            term = f" - {mc.value * uc.value!r}"
+        else:
+            term = _minus(mc, _read(uc)) if isinstance(uc, int) else _minus(uc, _read(mc))
+        lines.append(_update(f"lu[{t}]", term) if tc == t else f"lu[{t}] = {_read(tc)}{term};")
+    return lines
+
+
+def _step_chunks(steps: list[FoldedStep], P: str) -> dict[str, Any]:
+    """The folded elimination steps printed as statements and grouped into
+    functions of bounded size, for each of the five straight-line passes
+    (factor; solve forward and back; transposed solve forward and back)."""
+    above: dict[int, list[tuple[int, Coef]]] = {}
+    for f in steps:
+        for c, coef in f.right:
+            above.setdefault(c, []).append((f.step.row, coef))
+
+    def forward(f: FoldedStep) -> list[str]:
+        return [line for r, c in f.below if (line := _update(f"y[{r}]", _minus(c, f"y[{f.step.row}]")))]
+
+    def back(f: FoldedStep) -> list[str]:
+        terms = "".join(_minus(c, f"x[{col}]") for col, c in f.right)
+        return [f"x[{f.step.col}] = {_times(f'y[{f.step.row}]{terms}', f.reciprocal)};"]
+
+    def t_forward(f: FoldedStep) -> list[str]:
+        terms = "".join(_minus(c, f"x[{r}]") for r, c in above.get(f.step.col, []))
+        return [f"x[{f.step.row}] = {_times(f'b[{f.step.col}]{terms}', f.reciprocal)};"]
+
+    def t_back(f: FoldedStep) -> list[str]:
+        return [line for r, c in f.below if (line := _update(f"x[{f.step.row}]", _minus(c, f"x[{r}]")))]
+
+    back_order = list(reversed(steps))
+
+    def chunks(order: list[FoldedStep], lines: Callable[[FoldedStep], list[str]]) -> list[list[str]]:
+        printed = [lines(f) for f in order]
+        weights = [1 + sum(1 + line.count(" * ") for line in ls) for ls in printed]
+        return [[line for ls in group for line in ls]  # type: ignore[attr-defined]
+                for group in chunked(printed, weights)]
+
     return {
-        "factor_chunks": chunked(steps, weight("mults")),
-        "forward_chunks": chunked(steps, weight("below")),
-        "back_chunks": chunked(back, [1 + len(st["right"]) for st in back]),
-        "t_forward_chunks": chunked(steps, weight("above")),
-        "t_back_chunks": chunked(back, [1 + len(st["below"]) for st in back]),
+        "factor_chunks": chunks(steps, lambda f: _factor_lines(f, P)),
+        "forward_chunks": chunks(steps, forward),
+        "back_chunks": chunks(back_order, back),
+        "t_forward_chunks": chunks(steps, t_forward),
+        "t_back_chunks": chunks(back_order, t_back),
     }
+
+
+def _known(model: CodeModel, fold_constants: bool) -> list[float | None]:
+    """The entries of Phi_q that are numbers, per pattern slot (None: computed)."""
+    return [float(e) if fold_constants and e.is_Number else None for _, _, e in model.flat.jac]
 
 
 def _stride(model: CodeModel) -> int:
@@ -112,8 +194,10 @@ def state_size(model: CodeModel) -> int:
     return 6 * model.flat.ng + 1
 
 
-def context(model: CodeModel) -> dict[str, Any]:
-    """Everything the C templates need, expressions already printed."""
+def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
+    """Everything the C templates need, expressions already printed;
+    fold_constants=False prints the factorization with every value read at
+    run time (the same factors bitwise: for the tests)."""
     f = model.flat
     o = f.options
     cq, cqd, ct, cp, clam = ("const double *", "q"), ("const double *", "qd"), ("double", "t"), \
@@ -160,7 +244,8 @@ def context(model: CodeModel) -> dict[str, Any]:
         "work": work_size(model), "state": state_size(model), "stride": stride,
         "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
-        "functions": functions, "threshold": repr(THRESHOLD), **_step_chunks(lu_steps(model.plan)),
+        "functions": functions, "threshold": repr(THRESHOLD),
+        **_step_chunks(fold(model.plan, _known(model, fold_constants)), f.name.upper()),
         "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs": outputs,
@@ -168,10 +253,10 @@ def context(model: CodeModel) -> dict[str, Any]:
     }
 
 
-def generate(model: CodeModel, out_dir: Path) -> list[Path]:
+def generate(model: CodeModel, out_dir: Path, fold_constants: bool = True) -> list[Path]:
     """Write `<name>_solver.h`, `<name>_solver.c` and a Makefile into out_dir."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    ctx = context(model)
+    ctx = context(model, fold_constants)
     files = {
         f"{model.name}_solver.h": render("c/solver.h.j2", **ctx),
         f"{model.name}_solver.c": render("c/solver.c.j2", **ctx),
