@@ -4,13 +4,15 @@ elimination plan, handed to each target's printer."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, Sequence, TypeVar
 
 import numpy as np
 import sympy as sp
 
 from symid.codegen.flat import Flat
 from symid.codegen.sparse import Plan, Step
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -86,9 +88,9 @@ def reduce(exprs: Sequence[sp.Expr], chunk: int = CHUNK) -> list[Reduced]:
     return out
 
 
-def chunked(items: Sequence[object], weights: Sequence[int], limit: int = 400) -> list[list[object]]:
+def chunked(items: Sequence[T], weights: Sequence[int], limit: int = 400) -> list[list[T]]:
     """Consecutive groups of items whose weights add up to at most `limit` (at least one item each)."""
-    out: list[list[object]] = []
+    out: list[list[T]] = []
     total = limit
     for item, w in zip(items, weights):
         if total + w > limit:

@@ -35,10 +35,10 @@ static void excavator_trig(const double *q, double *tr)
    configuration. base[3b] is an angle of body b whose sine and cosine
    base[3b + 1], base[3b + 2] came from sin and cos; an angle within 1/16 rad
    of it is rotated from there by the addition formulas, with sin d and
-   cos d - 1 by their Taylor series (the first term left out is below 1e-19).
-   Every value is one rotation from a libm value, so rounding errors do not
-   accumulate from instant to instant. Farther away (or base NaN: no base
-   yet), sin and cos are called and the angle becomes the base. */
+   cos d - 1 by their Taylor series (the first terms left out are below
+   3e-19). Every value is one rotation from a libm value, so rounding errors
+   do not accumulate from instant to instant. Farther away (or base NaN: no
+   base yet), sin and cos are called and the angle becomes the base. */
 static void excavator_trig_near(const double *q, double *tr, double *base)
 {
     int b;

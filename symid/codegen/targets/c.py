@@ -104,15 +104,15 @@ def _factor_lines(st: FoldedStep, P: str) -> list[str]:
         return ["return 1;  /* the known values fail the threshold test */"]
     variable = st.pivot is None
     lines = []
-    if st.test != "pass":
+    if isinstance(st.test, tuple):  # decided at run time
         known_max, unknown = st.test
-        if variable:
+        if st.pivot is None:
             lines += [f"piv = lu[{st.pivot_slot}];", "cm = fabs(piv);"]
             lines += [f"cm = {P}_MAX(cm, {known_max!r});"] if known_max > 0 else []
         else:
             lines.append(f"cm = {known_max!r};")
         lines += [f"cm = {P}_MAX(cm, fabs(lu[{k}]));" for k in unknown]
-        size = "fabs(piv)" if variable else repr(abs(st.pivot))  # type: ignore[arg-type]
+        size = "fabs(piv)" if st.pivot is None else repr(abs(st.pivot))
         lines.append(f"if (!({size} >= {P}_THRESHOLD * cm){' || piv == 0.0' if variable else ''}) return 1;")
     if variable:
         lines.append(f"piv = lu[{st.pivot_slot}] = 1.0 / piv;")
@@ -158,8 +158,7 @@ def _step_chunks(steps: list[FoldedStep], P: str) -> dict[str, Any]:
     def chunks(order: list[FoldedStep], lines: Callable[[FoldedStep], list[str]]) -> list[list[str]]:
         printed = [lines(f) for f in order]
         weights = [1 + sum(1 + line.count(" * ") for line in ls) for ls in printed]
-        return [[line for ls in group for line in ls]  # type: ignore[attr-defined]
-                for group in chunked(printed, weights)]
+        return [[line for ls in group for line in ls] for group in chunked(printed, weights)]
 
     return {
         "factor_chunks": chunks(steps, lambda f: _factor_lines(f, P)),
