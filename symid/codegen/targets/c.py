@@ -11,7 +11,7 @@ from sympy.printing.c import C99CodePrinter
 from symid.codegen.emit import Block, blocks, chunked
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
-from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, fold
+from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
 from symid.motion import piece_tables, tables
 
 NAME = "c"
@@ -130,10 +130,13 @@ def _factor_lines(st: FoldedStep, P: str) -> list[str]:
     return lines
 
 
-def _step_chunks(steps: list[FoldedStep], P: str) -> dict[str, Any]:
-    """The folded elimination steps printed as statements and grouped into
-    functions of bounded size, for each of the five straight-line passes
-    (factor; solve forward and back; transposed solve forward and back)."""
+def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
+    """What templates/c/sparse_lu.j2 prints: the plan folded on the known
+    values (per pattern slot, None where computed), printed as statements and
+    grouped into functions of bounded size for each of the five straight-line
+    passes (factor; solve forward and back; transposed solve forward and
+    back). P: the upper-case prefix of the macros."""
+    steps = fold(plan, values)
     above: dict[int, list[tuple[int, Coef]]] = {}
     for f in steps:
         for c, coef in f.right:
@@ -244,7 +247,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": repr(THRESHOLD),
-        **_step_chunks(fold(model.plan, _known(model, fold_constants)), f.name.upper()),
+        **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper()),
         "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs": outputs,
