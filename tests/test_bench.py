@@ -60,7 +60,16 @@ def test_benchmark_smoke_run_writes_every_output(tmp_path: Path) -> None:
         assert (tmp_path / name).is_file(), name
     result = json.loads((tmp_path / "bench.json").read_text())
     approaches = {c["approach"] for c in result["cells"]}
-    assert {"numpy-hand", "sympy-lambdify", "casadi-python", "casadi-c", "symid-c"} <= approaches
+    assert {"numpy-hand", "sympy-lambdify", "casadi-python", "casadi-c", "symid-c", "symid-numpy",
+            "symid-reference", "symid-casadi"} <= approaches
+    # the ratio targets are read from the paired worker, the cached-solve and
+    # streaming targets from the processes: both must have run
+    assert result["paired"] and all(v["status"] == "ok" and v["ratio"] > 0 and v["rounds"] >= 3
+                                    for v in result["paired"].values()), result["paired"]
+    processes = result["processes"]
+    assert all(r["status"] == 0 and r["wall_s"] > 0 for r in processes["solve_1001"].values())
+    assert set(processes["solve_1001"]) == {"numpy", "c"}
+    assert processes["stream"]["status"] == 0 and processes["stream"]["peak_rss_mb"] > 0
     for cell in result["cells"]:
         assert cell["status"] == "ok", cell
         assert cell["error_rel"] <= 1e-10, cell
