@@ -111,9 +111,11 @@ def above(plan: Plan) -> dict[int, list[Step]]:
 
 
 def lu_steps(plan: Plan) -> list[dict[str, object]]:
-    """The elimination steps as factor-array slots, for every target's printer:
+    """The elimination steps as factor-array slots, for the NumPy printer:
     pivot, column entries for the threshold test, multipliers with their
-    updates, and the L, U and U-transposed entries the solves read."""
+    updates, and the L, U and U-transposed entries the solves read. (The C
+    printer reads the same plan through `sparse.fold`, which also knows the
+    values fixed at generation time.)"""
     slots = plan.slots
     up = above(plan)
     return [{
