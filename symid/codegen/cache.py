@@ -75,8 +75,12 @@ def root() -> Path:
     return chosen if problem is None else fall_back(chosen, problem)
 
 
-def fall_back(chosen: Path, problem: str) -> Path:
-    """Use a private temporary cache instead of `chosen` for the rest of this process."""
+def fall_back(chosen: Path, problem: str, warn: bool = True) -> Path:
+    """Use a private temporary cache instead of `chosen` for the rest of this process.
+
+    Args:
+        warn: say so now (else the caller does, once the private cache served).
+    """
     if chosen not in _fallback:
         try:
             private = Path(tempfile.mkdtemp(prefix="symid-cache-"))
@@ -84,9 +88,14 @@ def fall_back(chosen: Path, problem: str) -> Path:
             raise InputError(f"cache {chosen}: {problem}, and no temporary cache can be made "
                              f"({exc.strerror})") from None
         atexit.register(shutil.rmtree, private, True)
-        _warn(f"cache {chosen}: {problem}; using a private temporary cache for this run")
         _fallback[chosen] = private
+        if warn:
+            _warn(_falling_back(chosen, problem))
     return _fallback[chosen]
+
+
+def _falling_back(chosen: Path, problem: str) -> str:
+    return f"cache {chosen}: {problem}; using a private temporary cache for this run"
 
 
 def _warn(message: str) -> None:
@@ -163,6 +172,8 @@ def verify(folder: Path) -> str | None:
         return problem
     try:
         with open(folder / MANIFEST, "rb") as f:
+            if _distrust_owner(os.fstat(f.fileno())) is not None:
+                return "has a manifest others can write"
             manifest = json.loads(f.read())
         files = manifest["files"] if manifest.get("format") == FORMAT else None
         if not isinstance(files, dict) or not files:
@@ -215,6 +226,7 @@ def _seal(staging: Path, artifacts: Sequence[str], what: str) -> None:
             files[path.relative_to(staging).as_posix()] = hashlib.sha256(data).hexdigest()
     text = json.dumps({"format": FORMAT, "files": files}, indent=1, sort_keys=True)
     (staging / MANIFEST).write_text(text)
+    os.chmod(staging / MANIFEST, 0o644)
 
 
 def _discard(folder: Path) -> None:
@@ -246,15 +258,25 @@ def cached(mech: Mechanism, options: Options, target: str, make: Callable[[Path]
         what: names the build in errors (e.g. the compiler used).
     """
     where = root()
-    while True:
-        try:
-            return _cached(where, mech, options, target, make, artifacts, what)
-        except OSError as exc:
-            if exc.errno not in UNUSABLE:
-                raise
-            if where in _fallback.values():  # the private cache too: nowhere to build
-                raise InputError(f"cache {where}: {exc.strerror}") from None
-            where = fall_back(cache_root(), f"cannot be written ({exc.strerror})")
+    try:
+        return _cached(where, mech, options, target, make, artifacts, what)
+    except OSError as exc:
+        if exc.errno not in UNUSABLE:
+            raise
+        if where in _fallback.values():  # already the private cache: nowhere else to build
+            raise InputError(f"cache {where}: {exc.strerror}") from None
+        problem = f"cannot be written ({exc.strerror})"
+    chosen = cache_root()
+    private = fall_back(chosen, problem, warn=False)
+    try:
+        folder = _cached(private, mech, options, target, make, artifacts, what)
+    except OSError as exc:
+        if exc.errno not in UNUSABLE:
+            raise
+        raise InputError(f"cache {chosen}: {problem}, nor the private temporary cache {private} "
+                         f"({exc.strerror})") from None
+    _warn(_falling_back(chosen, problem))  # only now: one line either way
+    return folder
 
 
 def _cached(base: Path, mech: Mechanism, options: Options, target: str, make: Callable[[Path], None],
