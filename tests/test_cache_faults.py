@@ -12,6 +12,7 @@ table with the one of the undamaged cache, byte for byte.
 from __future__ import annotations
 
 import errno
+import hashlib
 import json
 import marshal
 import os
@@ -39,7 +40,8 @@ def on(backend: str, *values: object, root: bool = False) -> object:
     """One parameter set of a case on `backend`, skipped where it cannot run."""
     marks = [pytest.mark.skipif(backend == "c" and not HAS_CC, reason="no C compiler"),
              pytest.mark.skipif(root and os.geteuid() != 0, reason="chown to another user needs root")]
-    return pytest.param(backend, *values, marks=marks, id="-".join([backend, *(getattr(v, "__name__", str(v)) for v in values)]))
+    name = "-".join([backend, *(getattr(v, "__name__", str(v)) for v in values)])
+    return pytest.param(backend, *values, marks=marks, id=name)
 
 
 BACKENDS = [on(b) for b in ("c", "numpy", "casadi")]
@@ -194,7 +196,7 @@ def plant(entry: Path, backend: str, marker: Path) -> None:
             path.write_bytes(marshal.dumps(compile(code, str(py), "exec")))
     manifest = json.loads((entry / "complete").read_text())
     for name in manifest["files"]:
-        manifest["files"][name] = cache.hashlib.sha256((entry / name).read_bytes()).hexdigest()
+        manifest["files"][name] = hashlib.sha256((entry / name).read_bytes()).hexdigest()
     (entry / "complete").write_text(json.dumps(manifest))
     assert cache.verify(entry) is None  # planted well: only the folder's owner or mode betrays it
 
