@@ -183,6 +183,8 @@ def verify(folder: Path) -> str | None:
     except (OSError, ValueError, AttributeError, KeyError, TypeError):
         return "has no valid manifest"
     for name, digest in files.items():
+        if Path(name).is_absolute() or ".." in Path(name).parts:
+            return "has no valid manifest"
         path = folder / name
         try:
             fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
@@ -236,7 +238,10 @@ def _discard(folder: Path) -> None:
         folder.rename(aside)
     except OSError:  # already set aside by another run, or not ours to move
         return
-    shutil.rmtree(aside, ignore_errors=True)
+    if aside.is_dir() and not aside.is_symlink():
+        shutil.rmtree(aside, ignore_errors=True)
+    else:
+        aside.unlink(missing_ok=True)
 
 
 def staged_entry(staging: Path) -> Path:
