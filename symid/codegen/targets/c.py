@@ -8,7 +8,7 @@ from typing import Any, Callable
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
-from symid.codegen.emit import Block, blocks, chunked
+from symid.codegen.emit import Block, has_word, blocks, chunked
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
@@ -158,18 +158,32 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
 
     back_order = list(reversed(steps))
 
-    def chunks(order: list[FoldedStep], lines: Callable[[FoldedStep], list[str]]) -> list[list[str]]:
-        printed = [lines(f) for f in order]
+    def chunks(order: list[FoldedStep], lines: Callable[[FoldedStep], list[str]]) -> list[dict[str, Any]]:
+        """Functions of bounded size; steps that print nothing (every value
+        known) are left out, and a function with nothing to do is not
+        emitted. `lu`, `piv`, `cm`: whether its code reads them, so that a
+        function takes and declares only what it uses."""
+        printed = [ls for f in order if (ls := lines(f))]
         weights = [1 + sum(1 + line.count(" * ") for line in ls) for ls in printed]
-        return [[line for ls in group for line in ls] for group in chunked(printed, weights)]
+        out = []
+        for group in chunked(printed, weights):
+            body = [line for ls in group for line in ls]
+            code = "\n".join(body)
+            out.append({"lines": body, "lu": "lu[" in code, "piv": has_word(code, "piv"),
+                        "cm": has_word(code, "cm")})
+        return out
 
-    return {
+    passes = {
         "factor_chunks": chunks(steps, lambda f: _factor_lines(f, P)),
         "forward_chunks": chunks(steps, forward),
         "back_chunks": chunks(back_order, back),
         "t_forward_chunks": chunks(steps, t_forward),
         "t_back_chunks": chunks(back_order, t_back),
     }
+    # the solves' fixed entry points take lu even where every value is a number
+    passes["solve_reads_lu"] = any(ch["lu"] for k in ("forward_chunks", "back_chunks") for ch in passes[k])
+    passes["solve_t_reads_lu"] = any(ch["lu"] for k in ("t_forward_chunks", "t_back_chunks") for ch in passes[k])
+    return passes
 
 
 def _known(model: CodeModel, fold_constants: bool) -> list[float | None]:
