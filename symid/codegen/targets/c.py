@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, Callable
 
@@ -38,7 +39,39 @@ class Printer(C99CodePrinter):
         return repr(float(sp.E))
 
     def _print_Float(self, expr: sp.Float) -> str:
-        return repr(float(expr))
+        return c_double(float(expr))
+
+    def _print_Integer(self, expr: sp.Integer) -> str:
+        # an integer literal past 2^63 does not compile; past 2^53 it is not a double exactly
+        n = int(expr)
+        return str(n) if abs(n) < EXACT else c_double(_quotient(n, 1))
+
+    def _print_Rational(self, expr: sp.Rational) -> str:
+        p, q = int(expr.p), int(expr.q)
+        if abs(p) < EXACT and q < EXACT:  # both exact doubles: C divides them, correctly rounded
+            return super()._print_Rational(expr)  # type: ignore[no-any-return]
+        return c_double(_quotient(p, q))
+
+
+EXACT = 2**53  # integers below this are doubles exactly
+
+
+def _quotient(p: int, q: int) -> float:
+    """p / q correctly rounded to a double, +-inf beyond the range."""
+    try:
+        return p / q
+    except OverflowError:
+        return math.inf if p > 0 else -math.inf
+
+
+def c_double(x: float) -> str:
+    """A C99 double literal of exactly x (subnormals included; +-INFINITY, NAN
+    from <math.h>)."""
+    if math.isnan(x):
+        return "NAN"
+    if math.isinf(x):
+        return "INFINITY" if x > 0 else "(-INFINITY)"
+    return repr(x)  # shortest round-trip digits, always with '.' or an exponent: never an integer literal
 
 
 _PRINTER = Printer({"math_macros": {}})
