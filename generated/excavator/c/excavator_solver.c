@@ -514,8 +514,8 @@ void excavator_reactions(const double * q, const double * lam, double t, const d
    updates. */
 static int excavator_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[33]));
     if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
@@ -598,7 +598,6 @@ static int excavator_sparse_factor(double *lu)
 
 static void excavator_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[8] -= lu[33] * y[5];
     y[3] += y[1];
     y[6] -= lu[21] * y[1];
@@ -622,7 +621,6 @@ static void excavator_sparse_forward0(const double *restrict lu, double *restric
 static void excavator_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[8] = (y[4]) * lu[15];
     x[6] = (y[8] - lu[34] * x[8]) * lu[32];
     x[5] = (y[2]) * lu[7];
@@ -644,7 +642,6 @@ static void excavator_sparse_solve(const double *lu, const double *b, double *x,
 static void excavator_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[5] = b[7];
     x[1] = b[1];
     x[6] = (b[0]) * lu[20];
@@ -658,7 +655,6 @@ static void excavator_sparse_t_forward0(
 
 static void excavator_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[8] -= lu[14] * x[4];
     x[2] -= lu[13] * x[4];
     x[2] -= lu[31] * x[8];

@@ -350,8 +350,8 @@ void four_bar_reactions(const double * q, const double * lam, double t, const do
    updates. */
 static int four_bar_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     cm = 1.0;
     cm = FOUR_BAR_MAX(cm, fabs(lu[1]));
     cm = FOUR_BAR_MAX(cm, fabs(lu[3]));
@@ -383,7 +383,6 @@ static int four_bar_sparse_factor(double *lu)
 
 static void four_bar_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[0] -= lu[1] * y[8];
     y[1] -= lu[3] * y[8];
     y[2] -= lu[5] * y[8];
@@ -400,7 +399,6 @@ static void four_bar_sparse_forward0(const double *restrict lu, double *restrict
 static void four_bar_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[8] = (y[7]) * lu[23];
     x[7] = y[5] - lu[19] * x[8];
     x[5] = (y[4] - lu[15] * x[8]) * lu[13];
@@ -422,7 +420,6 @@ static void four_bar_sparse_solve(const double *lu, const double *b, double *x, 
 static void four_bar_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[8] = b[2];
     x[0] = b[0];
     x[1] = b[1];
@@ -436,7 +433,6 @@ static void four_bar_sparse_t_forward0(
 
 static void four_bar_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[5] -= x[7];
     x[4] -= lu[17] * x[5];
     x[6] -= x[4];

@@ -365,8 +365,8 @@ void planetary_reactions(const double * q, const double * lam, double t, const d
    updates. */
 static int planetary_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     cm = 1.0;
     cm = PLANETARY_MAX(cm, fabs(lu[18]));
     if (!(1.0 >= PLANETARY_THRESHOLD * cm)) return 1;
@@ -394,7 +394,6 @@ static int planetary_sparse_factor(double *lu)
 
 static void planetary_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[4] += y[2];
     y[5] += y[3];
     y[10] -= lu[18] * y[11];
@@ -405,7 +404,6 @@ static void planetary_sparse_forward0(const double *restrict lu, double *restric
 static void planetary_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[8] = (y[7]) * lu[14];
     x[5] = (y[6] - x[8]) * lu[11];
     x[2] = y[10];
@@ -430,7 +428,6 @@ static void planetary_sparse_solve(const double *lu, const double *b, double *x,
 static void planetary_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[0] = b[0];
     x[1] = b[1];
     x[2] = b[3];
@@ -447,7 +444,6 @@ static void planetary_sparse_t_forward0(
 
 static void planetary_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[6] -= lu[13] * x[7];
     x[10] -= lu[10] * x[6];
     x[11] -= lu[18] * x[10];

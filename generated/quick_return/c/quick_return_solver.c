@@ -345,8 +345,8 @@ void quick_return_reactions(const double * q, const double * lam, double t, cons
    updates. */
 static int quick_return_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[6]));
     if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
@@ -382,7 +382,6 @@ static int quick_return_sparse_factor(double *lu)
 
 static void quick_return_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[4] -= lu[6] * y[0];
     y[4] -= lu[7] * y[1];
     y[4] -= lu[8] * y[8];
@@ -393,7 +392,6 @@ static void quick_return_sparse_forward0(const double *restrict lu, double *rest
 static void quick_return_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[5] = (y[4]) * lu[11];
     x[4] = y[3] - lu[5] * x[5];
     x[3] = y[2] - lu[3] * x[5];
@@ -415,7 +413,6 @@ static void quick_return_sparse_solve(const double *lu, const double *b, double 
 static void quick_return_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[0] = b[0];
     x[1] = b[1];
     x[5] = (b[6]) * lu[15];
@@ -429,7 +426,6 @@ static void quick_return_sparse_t_forward0(
 
 static void quick_return_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[3] -= lu[10] * x[4];
     x[2] -= lu[9] * x[4];
     x[8] -= lu[8] * x[4];

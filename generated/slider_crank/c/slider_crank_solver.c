@@ -327,8 +327,8 @@ void slider_crank_reactions(const double * q, const double * lam, double t, cons
    updates. */
 static int slider_crank_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     cm = 1.0;
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[3]));
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[9]));
@@ -348,7 +348,6 @@ static int slider_crank_sparse_factor(double *lu)
 
 static void slider_crank_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[5] -= y[6];
     y[1] -= lu[3] * y[8];
     y[3] -= lu[9] * y[8];
@@ -359,7 +358,6 @@ static void slider_crank_sparse_forward0(const double *restrict lu, double *rest
 static void slider_crank_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[5] = (y[5]) * lu[16];
     x[4] = y[3] - lu[11] * x[5];
     x[1] = y[1];
@@ -381,7 +379,6 @@ static void slider_crank_sparse_solve(const double *lu, const double *b, double 
 static void slider_crank_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[4] = b[6];
     x[2] = b[3] + x[4];
     x[0] = b[0] + x[2];
@@ -395,7 +392,6 @@ static void slider_crank_sparse_t_forward0(
 
 static void slider_crank_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[3] += x[5];
     x[1] += x[3];
     x[8] -= lu[3] * x[1];

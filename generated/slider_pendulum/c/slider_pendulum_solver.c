@@ -309,8 +309,8 @@ void slider_pendulum_reactions(const double * q, const double * lam, double t, c
    updates. */
 static int slider_pendulum_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     piv = lu[0];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
@@ -336,14 +336,12 @@ static int slider_pendulum_sparse_factor(double *lu)
 
 static void slider_pendulum_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[2] -= lu[4] * y[1];
 }
 
 static void slider_pendulum_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[0] = (y[2]) * lu[3];
     x[1] = (y[1] - lu[1] * x[0]) * lu[2];
     x[2] = (y[0]) * lu[0];
@@ -362,7 +360,6 @@ static void slider_pendulum_sparse_solve(const double *lu, const double *b, doub
 static void slider_pendulum_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[3] = b[3];
     x[4] = b[4];
     x[5] = b[5] - lu[8] * x[3] - lu[12] * x[4];
@@ -373,7 +370,6 @@ static void slider_pendulum_sparse_t_forward0(
 
 static void slider_pendulum_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[1] -= lu[4] * x[2];
 }
 
