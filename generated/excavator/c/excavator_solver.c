@@ -884,8 +884,6 @@ static void excavator_outputs(double t, const double *p, const double *q, const 
 {
     double *y = EXCAVATOR_VEC(work, 2), *b = EXCAVATOR_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     excavator_nu_k(q, tr, t, p, b);
     excavator_solve(work, iwork, dense, b, qd, y);
     excavator_gamma_k(q, tr, qd, t, p, b);
@@ -911,13 +909,12 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 9, *qdd = state + 18;
-    double *m1 = state + 27, *m2 = state + 36, *m3 = state + 45;
+    double *q = state, *m1 = state + 27, *m2 = state + 36;
+    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
     double *count = state + 54;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = EXCAVATOR_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * EXCAVATOR_ROW;
@@ -956,6 +953,5 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return EXCAVATOR_OK;
 }

@@ -655,8 +655,6 @@ static void four_bar_outputs(double t, const double *p, const double *q, const d
 {
     double *y = FOUR_BAR_VEC(work, 2), *b = FOUR_BAR_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     four_bar_nu_k(q, tr, t, p, b);
     four_bar_solve(work, iwork, dense, b, qd, y);
     four_bar_gamma_k(q, tr, qd, t, p, b);
@@ -682,13 +680,12 @@ int four_bar_trajectory(double t0, double h, long n, const double *p, double tol
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 9, *qdd = state + 18;
-    double *m1 = state + 27, *m2 = state + 36, *m3 = state + 45;
+    double *q = state, *m1 = state + 27, *m2 = state + 36;
+    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
     double *count = state + 54;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = FOUR_BAR_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * FOUR_BAR_ROW;
@@ -727,6 +724,5 @@ int four_bar_trajectory(double t0, double h, long n, const double *p, double tol
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return FOUR_BAR_OK;
 }

@@ -660,8 +660,6 @@ static void planetary_outputs(double t, const double *p, const double *q, const 
 {
     double *y = PLANETARY_VEC(work, 2), *b = PLANETARY_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     planetary_nu_k(q, tr, t, p, b);
     planetary_solve(work, iwork, dense, b, qd, y);
     planetary_gamma_k(q, tr, qd, t, p, b);
@@ -687,13 +685,12 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 12, *qdd = state + 24;
-    double *m1 = state + 36, *m2 = state + 48, *m3 = state + 60;
+    double *q = state, *m1 = state + 36, *m2 = state + 48;
+    double *qd = state + 12, *qdd = state + 24, *m3 = state + 60;
     double *count = state + 72;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = PLANETARY_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * PLANETARY_ROW;
@@ -732,6 +729,5 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return PLANETARY_OK;
 }

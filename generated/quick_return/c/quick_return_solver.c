@@ -642,8 +642,6 @@ static void quick_return_outputs(double t, const double *p, const double *q, con
 {
     double *y = QUICK_RETURN_VEC(work, 2), *b = QUICK_RETURN_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     quick_return_nu_k(q, tr, t, p, b);
     quick_return_solve(work, iwork, dense, b, qd, y);
     quick_return_gamma_k(q, tr, qd, t, p, b);
@@ -669,13 +667,12 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 9, *qdd = state + 18;
-    double *m1 = state + 27, *m2 = state + 36, *m3 = state + 45;
+    double *q = state, *m1 = state + 27, *m2 = state + 36;
+    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
     double *count = state + 54;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = QUICK_RETURN_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * QUICK_RETURN_ROW;
@@ -714,6 +711,5 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return QUICK_RETURN_OK;
 }

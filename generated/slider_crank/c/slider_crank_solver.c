@@ -608,8 +608,6 @@ static void slider_crank_outputs(double t, const double *p, const double *q, con
 {
     double *y = SLIDER_CRANK_VEC(work, 2), *b = SLIDER_CRANK_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     slider_crank_nu_k(q, tr, t, p, b);
     slider_crank_solve(work, iwork, dense, b, qd, y);
     slider_crank_gamma_k(q, tr, qd, t, p, b);
@@ -635,13 +633,12 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 9, *qdd = state + 18;
-    double *m1 = state + 27, *m2 = state + 36, *m3 = state + 45;
+    double *q = state, *m1 = state + 27, *m2 = state + 36;
+    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
     double *count = state + 54;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_CRANK_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * SLIDER_CRANK_ROW;
@@ -680,6 +677,5 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return SLIDER_CRANK_OK;
 }

@@ -582,8 +582,6 @@ static void slider_pendulum_outputs(double t, const double *p, const double *q, 
 {
     double *y = SLIDER_PENDULUM_VEC(work, 2), *b = SLIDER_PENDULUM_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     slider_pendulum_nu_k(q, tr, t, p, b);
     slider_pendulum_solve(work, iwork, dense, b, qd, y);
     slider_pendulum_gamma_k(q, tr, qd, t, p, b);
@@ -609,13 +607,12 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 6, *qdd = state + 12;
-    double *m1 = state + 18, *m2 = state + 24, *m3 = state + 30;
+    double *q = state, *m1 = state + 18, *m2 = state + 24;
+    double *qd = state + 6, *qdd = state + 12, *m3 = state + 30;
     double *count = state + 36;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_PENDULUM_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * SLIDER_PENDULUM_ROW;
@@ -654,6 +651,5 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return SLIDER_PENDULUM_OK;
 }

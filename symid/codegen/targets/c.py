@@ -243,6 +243,22 @@ def state_size(model: CodeModel) -> int:
     return 6 * model.flat.ng + 1
 
 
+OUTPUTS_ARGS = ("t", "p", "q", "tr", "qd", "qdd", "lam", "reactions", "work", "iwork", "dense")
+
+
+def _outputs_unused(velocity: bool, multipliers: bool, nr: int) -> list[str]:
+    """The arguments of the template's `outputs` that the compiled groups
+    leave unread (its one signature serves every output set)."""
+    used = set()
+    if velocity:
+        used |= {"t", "p", "q", "tr", "qd", "qdd", "work", "iwork", "dense"}
+    if multipliers:
+        used |= {"t", "p", "q", "tr", "lam", "work", "iwork", "dense"}
+    if nr:
+        used |= {"t", "p", "q", "tr", "lam", "reactions"}
+    return [a for a in OUTPUTS_ARGS if a not in used]
+
+
 def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
     """Everything the C templates need, expressions already printed;
     fold_constants=False prints the factorization with every value read at
@@ -297,6 +313,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper()),
         "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
+        "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),
         "outputs": outputs,
         "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
