@@ -9,7 +9,7 @@ Each is assembled at q0 and runs 21 instants over t in [0, 1].
 
 from __future__ import annotations
 
-HEAD = '[mechanism]\nname = "{name}"\ngravity = [0.0, -9.81]\n\n[analysis]\nt1 = 1.0\nsteps = 21\n'
+HEAD = '[mechanism]\nname = "{name}"\ngravity = [0.0, {g}]\n\n[analysis]\nt1 = 1.0\nsteps = 21\n'
 
 
 def _body(name: str, q0: str, mass: str = "1.5", inertia: str = "0.02") -> str:
@@ -115,9 +115,9 @@ NUMBERS = (_body("bar", "0.5, 0.0, 0.0", "1e19", '"10^25/3"')
            + _force("twist", "torque", body='"bar"', T='"1e20*sin(t) + 12345678901234567890123"'))
 
 
-def text(name: str, parts: str, analysis: str = "") -> str:
+def text(name: str, parts: str, analysis: str = "", gravity: float = -9.81) -> str:
     """A whole mechanism file; `analysis` adds lines to [analysis]."""
-    return HEAD.format(name=name) + analysis + parts
+    return HEAD.format(name=name, g=gravity) + analysis + parts
 
 
 def cases() -> dict[str, str]:
@@ -134,5 +134,6 @@ def cases() -> dict[str, str]:
                                              'kind = "statics"\noutputs = ["q", "reactions"]\nreactions = ["guide"]\n')
     out["kinematics_q_only"] = text("kinematics_q_only", CONSTRAINTS["gears"], 'kind = "kinematics"\noutputs = ["q"]\n')
     out["numbers"] = text("numbers", NUMBERS)
+    out["no_loads"] = text("no_loads", CONSTRAINTS["three_coordinates"], gravity=0.0)  # applied forces all 0
     out["lambda_only"] = text("lambda_only", CONSTRAINTS["block_on_rail"], 'outputs = ["lambda"]\n')
     return out
