@@ -65,8 +65,8 @@ def assert_same_table(got: Results, expected: Results, rel: float = 1e-12) -> No
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("name", CASES)
 def test_small_mechanism_agrees_with_reference(name: str, backend: str) -> None:
-    if backend == "c":
-        needs_cc(lambda: None)
+    if backend == "c" and shutil.which("cc") is None and shutil.which("gcc") is None:
+        pytest.skip("no C compiler")
     expected = reference(name)
     assert expected.error is None and len(expected.t) == 21
     assert_same_table(api.solve(mechanism(name), backend=backend), expected)
