@@ -151,6 +151,7 @@ COMPILERS = {
     "errors": ("echo 'x.c:3:1: warning: w' >&2; echo 'x.c:7:2: error: no way' >&2; echo 'x.c:9:1: error: b' >&2;"
                " exit 1", "failed on the generated solver: x.c:7:2: error: no way"),
     "no_output": ("exit 0", "reported success but wrote no solver.so"),
+    "unbalanced": ("'cc", "the C compiler CC='cc is not a command line: No closing quotation"),
 }
 
 
@@ -205,3 +206,10 @@ def test_numbers_of_every_magnitude_print_as_c_doubles_of_their_value(tmp_path: 
     printed = subprocess.run([str(tmp_path / "n")], capture_output=True, text=True, check=True).stdout.split()
     assert [float(v) for v in printed] == [float(Fraction(int(x.p), int(x.q))) if x.is_Rational else float(x)
                                            for x in NUMBERS]
+
+
+@needs_cc
+def test_compiler_with_arguments_is_run_as_make_would(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("CC", f"{shutil.which('cc') or shutil.which('gcc')} -O0")
+    monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
+    assert_same_table(api.solve(mechanism("pendulum"), backend="c"), reference("pendulum"))

@@ -9,6 +9,7 @@ from __future__ import annotations
 import ctypes
 import json
 import os
+import shlex
 import shutil
 import subprocess
 from pathlib import Path
@@ -39,13 +40,22 @@ LARGE_SOURCE = 200_000  # bytes of generated C
 STATUS = {1: "Newton did not converge", 2: "Phi_q is singular"}
 
 
+def _words(cc: str) -> list[str]:
+    """$CC as make reads it: "ccache gcc" is a command and its argument."""
+    try:
+        return shlex.split(cc)
+    except ValueError as exc:  # an unbalanced quote
+        raise InputError(f"--backend c: the C compiler CC={cc} is not a command line: {exc}") from None
+
+
 def compiler() -> str:
     """The C compiler to use ($CC, cc, gcc or clang), or an input error naming the others."""
     from symid.backends import names
 
-    chosen = os.environ.get("CC")
+    chosen = os.environ.get("CC", "").strip()
     if chosen:  # the user's choice is used or refused, never silently replaced
-        if shutil.which(chosen) is None:
+        words = _words(chosen)
+        if not words or shutil.which(words[0]) is None:
             raise InputError(f"--backend c: the C compiler CC={chosen} was not found")
         return chosen
     for candidate in ("cc", "gcc", "clang"):
@@ -66,7 +76,7 @@ def _compile(cc: str, args: list[str], artifact: Path) -> None:
     """Run the compiler; a failure is an unusable resource (exit 2), one line
     naming the compiler and its first error line."""
     try:
-        result = subprocess.run([cc, *args], capture_output=True, text=True, errors="replace")
+        result = subprocess.run([*_words(cc), *args], capture_output=True, text=True, errors="replace")
     except OSError as exc:
         raise InputError(f"--backend c: the C compiler {cc} could not be run: {exc.strerror or exc}") from None
     if result.returncode != 0:
