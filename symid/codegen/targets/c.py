@@ -198,7 +198,7 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
         function takes and declares only what it uses."""
         printed = [ls for f in order if (ls := lines(f))]
         weights = [1 + sum(1 + line.count(" * ") for line in ls) for ls in printed]
-        out = []
+        out: list[dict[str, Any]] = []
         for group in chunked(printed, weights):
             body = [line for ls in group for line in ls]
             code = "\n".join(body)
@@ -249,7 +249,7 @@ OUTPUTS_ARGS = ("t", "p", "q", "tr", "qd", "qdd", "lam", "reactions", "work", "i
 def _outputs_unused(velocity: bool, multipliers: bool, nr: int) -> list[str]:
     """The arguments of the template's `outputs` that the compiled groups
     leave unread (its one signature serves every output set)."""
-    used = set()
+    used: set[str] = set()
     if velocity:
         used |= {"t", "p", "q", "tr", "qd", "qdd", "work", "iwork", "dense"}
     if multipliers:
