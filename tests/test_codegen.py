@@ -222,7 +222,7 @@ def _run_lu(tmp_path: Path, plan: sparse.Plan, values: list[float | None], input
     subprocess.run(["cc", *STRICT, f"-I{tmp_path}", str(ROOT / "tests/c/lu_harness.c"), "-o", str(exe), "-lm"],
                    check=True)
     out = subprocess.run([str(exe)], input=inputs, check=True, capture_output=True, text=True).stdout
-    return out, "\n".join(line for ch in chunks["factor_chunks"] for line in ch)
+    return out, "\n".join(line for ch in chunks["factor_chunks"] for line in ch["lines"])
 
 
 @needs_cc

@@ -2,6 +2,9 @@
 crank-rocker four-bars and random single closed chains of 3 to 5 links.
 Every case checks power balance and Newton-Euler on every body against the
 independent truth of tests/truth.py, and the backends against each other.
+Random kinds and output and reaction subsets of the smallest mechanisms
+(tests/small_mechanisms.py) check every backend's generated code for each
+shape against the reference.
 
 All numbers of a case are parameters, so each structure is generated (and
 compiled) once and every example only changes values.
@@ -20,6 +23,7 @@ from symid import api, backends
 from symid.backends.c_backend import compiler
 from symid.errors import InputError
 from symid.io.reader import loads
+import small_mechanisms
 from truth import Truth, newton_euler_residual
 
 SETTINGS = settings(max_examples=10, derandomize=True, deadline=None,
@@ -185,3 +189,39 @@ def test_random_closed_chains_balance_power_and_forces_on_every_backend(files, l
     for backend in BACKENDS:
         if backend != "reference":
             _agree(base, _solve(files[links], backend, values)[1])
+
+
+# -- random output shapes of the smallest mechanisms -----------------------------
+
+KIND_GROUPS = {"inverse_dynamics": ("q", "qdot", "qddot", "lambda", "reactions"),
+               "kinematics": ("q", "qdot", "qddot"),
+               "statics": ("q", "qdot", "qddot", "lambda", "reactions")}
+
+
+@st.composite
+def output_shapes(draw) -> tuple[str, dict[str, object]]:
+    """One small mechanism (each constraint type alone, tests/small_mechanisms.py)
+    with a random kind, a random nonempty set of output groups and, where
+    reactions are written, a random nonempty subset of its constraints."""
+    name = draw(st.sampled_from(sorted(small_mechanisms.CONSTRAINTS)))
+    kind = draw(st.sampled_from(sorted(KIND_GROUPS)))
+    outputs = draw(st.lists(st.sampled_from(KIND_GROUPS[kind]), min_size=1, unique=True))
+    analysis: dict[str, object] = {"kind": kind, "outputs": tuple(outputs)}
+    if "reactions" in outputs:
+        names = [c.name for c in loads(small_mechanisms.text(name, small_mechanisms.CONSTRAINTS[name])).constraints]
+        analysis["reactions"] = tuple(draw(st.lists(st.sampled_from(names), min_size=1, unique=True)))
+    return name, analysis
+
+
+@settings(max_examples=8, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(shape=output_shapes())
+def test_random_output_shapes_of_small_mechanisms_agree_on_every_backend(shape):
+    """Each shape is its own generated code (groups left out are not
+    compiled): the same header and numbers as the reference on every backend."""
+    name, analysis = shape
+    mech = loads(small_mechanisms.text(name, small_mechanisms.CONSTRAINTS[name]), f"{name}.toml")
+    base = api.solve(mech, backend="reference", **analysis)
+    assert base.error is None, base.error
+    for backend in BACKENDS:
+        if backend != "reference":
+            _agree(base, api.solve(mech, backend=backend, **analysis))

@@ -33,10 +33,10 @@ class Block:
         texts = [e for _, e in self.temps] + [e for _, e in self.outputs]
         if token is not None:
             return any(token in e for e in texts)
-        return any(_has_word(e, "t") for e in texts)
+        return any(has_word(e, "t") for e in texts)
 
 
-def _has_word(text: str, word: str) -> bool:
+def has_word(text: str, word: str) -> bool:
     import re
 
     return re.search(rf"(?<![\w\[.]){word}(?![\w\[])", text) is not None

@@ -514,8 +514,8 @@ void excavator_reactions(const double * q, const double * lam, double t, const d
    updates. */
 static int excavator_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[33]));
     if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
@@ -598,7 +598,6 @@ static int excavator_sparse_factor(double *lu)
 
 static void excavator_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[8] -= lu[33] * y[5];
     y[3] += y[1];
     y[6] -= lu[21] * y[1];
@@ -622,7 +621,6 @@ static void excavator_sparse_forward0(const double *restrict lu, double *restric
 static void excavator_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[8] = (y[4]) * lu[15];
     x[6] = (y[8] - lu[34] * x[8]) * lu[32];
     x[5] = (y[2]) * lu[7];
@@ -644,7 +642,6 @@ static void excavator_sparse_solve(const double *lu, const double *b, double *x,
 static void excavator_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[5] = b[7];
     x[1] = b[1];
     x[6] = (b[0]) * lu[20];
@@ -658,7 +655,6 @@ static void excavator_sparse_t_forward0(
 
 static void excavator_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[8] -= lu[14] * x[4];
     x[2] -= lu[13] * x[4];
     x[2] -= lu[31] * x[8];
@@ -888,8 +884,6 @@ static void excavator_outputs(double t, const double *p, const double *q, const 
 {
     double *y = EXCAVATOR_VEC(work, 2), *b = EXCAVATOR_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     excavator_nu_k(q, tr, t, p, b);
     excavator_solve(work, iwork, dense, b, qd, y);
     excavator_gamma_k(q, tr, qd, t, p, b);
@@ -915,13 +909,12 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 9, *qdd = state + 18;
-    double *m1 = state + 27, *m2 = state + 36, *m3 = state + 45;
+    double *q = state, *m1 = state + 27, *m2 = state + 36;
+    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
     double *count = state + 54;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = EXCAVATOR_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * EXCAVATOR_ROW;
@@ -960,6 +953,5 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return EXCAVATOR_OK;
 }

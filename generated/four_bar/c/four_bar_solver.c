@@ -350,8 +350,8 @@ void four_bar_reactions(const double * q, const double * lam, double t, const do
    updates. */
 static int four_bar_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     cm = 1.0;
     cm = FOUR_BAR_MAX(cm, fabs(lu[1]));
     cm = FOUR_BAR_MAX(cm, fabs(lu[3]));
@@ -383,7 +383,6 @@ static int four_bar_sparse_factor(double *lu)
 
 static void four_bar_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[0] -= lu[1] * y[8];
     y[1] -= lu[3] * y[8];
     y[2] -= lu[5] * y[8];
@@ -400,7 +399,6 @@ static void four_bar_sparse_forward0(const double *restrict lu, double *restrict
 static void four_bar_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[8] = (y[7]) * lu[23];
     x[7] = y[5] - lu[19] * x[8];
     x[5] = (y[4] - lu[15] * x[8]) * lu[13];
@@ -422,7 +420,6 @@ static void four_bar_sparse_solve(const double *lu, const double *b, double *x, 
 static void four_bar_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[8] = b[2];
     x[0] = b[0];
     x[1] = b[1];
@@ -436,7 +433,6 @@ static void four_bar_sparse_t_forward0(
 
 static void four_bar_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[5] -= x[7];
     x[4] -= lu[17] * x[5];
     x[6] -= x[4];
@@ -659,8 +655,6 @@ static void four_bar_outputs(double t, const double *p, const double *q, const d
 {
     double *y = FOUR_BAR_VEC(work, 2), *b = FOUR_BAR_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     four_bar_nu_k(q, tr, t, p, b);
     four_bar_solve(work, iwork, dense, b, qd, y);
     four_bar_gamma_k(q, tr, qd, t, p, b);
@@ -686,13 +680,12 @@ int four_bar_trajectory(double t0, double h, long n, const double *p, double tol
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 9, *qdd = state + 18;
-    double *m1 = state + 27, *m2 = state + 36, *m3 = state + 45;
+    double *q = state, *m1 = state + 27, *m2 = state + 36;
+    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
     double *count = state + 54;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = FOUR_BAR_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * FOUR_BAR_ROW;
@@ -731,6 +724,5 @@ int four_bar_trajectory(double t0, double h, long n, const double *p, double tol
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return FOUR_BAR_OK;
 }

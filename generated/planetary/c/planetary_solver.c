@@ -365,8 +365,8 @@ void planetary_reactions(const double * q, const double * lam, double t, const d
    updates. */
 static int planetary_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     cm = 1.0;
     cm = PLANETARY_MAX(cm, fabs(lu[18]));
     if (!(1.0 >= PLANETARY_THRESHOLD * cm)) return 1;
@@ -394,7 +394,6 @@ static int planetary_sparse_factor(double *lu)
 
 static void planetary_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[4] += y[2];
     y[5] += y[3];
     y[10] -= lu[18] * y[11];
@@ -405,7 +404,6 @@ static void planetary_sparse_forward0(const double *restrict lu, double *restric
 static void planetary_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[8] = (y[7]) * lu[14];
     x[5] = (y[6] - x[8]) * lu[11];
     x[2] = y[10];
@@ -430,7 +428,6 @@ static void planetary_sparse_solve(const double *lu, const double *b, double *x,
 static void planetary_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[0] = b[0];
     x[1] = b[1];
     x[2] = b[3];
@@ -447,7 +444,6 @@ static void planetary_sparse_t_forward0(
 
 static void planetary_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[6] -= lu[13] * x[7];
     x[10] -= lu[10] * x[6];
     x[11] -= lu[18] * x[10];
@@ -664,8 +660,6 @@ static void planetary_outputs(double t, const double *p, const double *q, const 
 {
     double *y = PLANETARY_VEC(work, 2), *b = PLANETARY_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     planetary_nu_k(q, tr, t, p, b);
     planetary_solve(work, iwork, dense, b, qd, y);
     planetary_gamma_k(q, tr, qd, t, p, b);
@@ -691,13 +685,12 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 12, *qdd = state + 24;
-    double *m1 = state + 36, *m2 = state + 48, *m3 = state + 60;
+    double *q = state, *m1 = state + 36, *m2 = state + 48;
+    double *qd = state + 12, *qdd = state + 24, *m3 = state + 60;
     double *count = state + 72;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = PLANETARY_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * PLANETARY_ROW;
@@ -736,6 +729,5 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return PLANETARY_OK;
 }

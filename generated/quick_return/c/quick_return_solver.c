@@ -345,8 +345,8 @@ void quick_return_reactions(const double * q, const double * lam, double t, cons
    updates. */
 static int quick_return_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[6]));
     if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
@@ -382,7 +382,6 @@ static int quick_return_sparse_factor(double *lu)
 
 static void quick_return_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[4] -= lu[6] * y[0];
     y[4] -= lu[7] * y[1];
     y[4] -= lu[8] * y[8];
@@ -393,7 +392,6 @@ static void quick_return_sparse_forward0(const double *restrict lu, double *rest
 static void quick_return_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[5] = (y[4]) * lu[11];
     x[4] = y[3] - lu[5] * x[5];
     x[3] = y[2] - lu[3] * x[5];
@@ -415,7 +413,6 @@ static void quick_return_sparse_solve(const double *lu, const double *b, double 
 static void quick_return_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[0] = b[0];
     x[1] = b[1];
     x[5] = (b[6]) * lu[15];
@@ -429,7 +426,6 @@ static void quick_return_sparse_t_forward0(
 
 static void quick_return_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[3] -= lu[10] * x[4];
     x[2] -= lu[9] * x[4];
     x[8] -= lu[8] * x[4];
@@ -646,8 +642,6 @@ static void quick_return_outputs(double t, const double *p, const double *q, con
 {
     double *y = QUICK_RETURN_VEC(work, 2), *b = QUICK_RETURN_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     quick_return_nu_k(q, tr, t, p, b);
     quick_return_solve(work, iwork, dense, b, qd, y);
     quick_return_gamma_k(q, tr, qd, t, p, b);
@@ -673,13 +667,12 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 9, *qdd = state + 18;
-    double *m1 = state + 27, *m2 = state + 36, *m3 = state + 45;
+    double *q = state, *m1 = state + 27, *m2 = state + 36;
+    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
     double *count = state + 54;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = QUICK_RETURN_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * QUICK_RETURN_ROW;
@@ -718,6 +711,5 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return QUICK_RETURN_OK;
 }

@@ -327,8 +327,8 @@ void slider_crank_reactions(const double * q, const double * lam, double t, cons
    updates. */
 static int slider_crank_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     cm = 1.0;
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[3]));
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[9]));
@@ -348,7 +348,6 @@ static int slider_crank_sparse_factor(double *lu)
 
 static void slider_crank_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[5] -= y[6];
     y[1] -= lu[3] * y[8];
     y[3] -= lu[9] * y[8];
@@ -359,7 +358,6 @@ static void slider_crank_sparse_forward0(const double *restrict lu, double *rest
 static void slider_crank_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[5] = (y[5]) * lu[16];
     x[4] = y[3] - lu[11] * x[5];
     x[1] = y[1];
@@ -381,7 +379,6 @@ static void slider_crank_sparse_solve(const double *lu, const double *b, double 
 static void slider_crank_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[4] = b[6];
     x[2] = b[3] + x[4];
     x[0] = b[0] + x[2];
@@ -395,7 +392,6 @@ static void slider_crank_sparse_t_forward0(
 
 static void slider_crank_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[3] += x[5];
     x[1] += x[3];
     x[8] -= lu[3] * x[1];
@@ -612,8 +608,6 @@ static void slider_crank_outputs(double t, const double *p, const double *q, con
 {
     double *y = SLIDER_CRANK_VEC(work, 2), *b = SLIDER_CRANK_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     slider_crank_nu_k(q, tr, t, p, b);
     slider_crank_solve(work, iwork, dense, b, qd, y);
     slider_crank_gamma_k(q, tr, qd, t, p, b);
@@ -639,13 +633,12 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 9, *qdd = state + 18;
-    double *m1 = state + 27, *m2 = state + 36, *m3 = state + 45;
+    double *q = state, *m1 = state + 27, *m2 = state + 36;
+    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
     double *count = state + 54;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_CRANK_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * SLIDER_CRANK_ROW;
@@ -684,6 +677,5 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return SLIDER_CRANK_OK;
 }

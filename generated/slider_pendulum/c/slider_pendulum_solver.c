@@ -309,8 +309,8 @@ void slider_pendulum_reactions(const double * q, const double * lam, double t, c
    updates. */
 static int slider_pendulum_sparse_factor0(double *lu)
 {
-    double piv = 0.0, cm = 0.0;
-    (void)lu; (void)piv; (void)cm;
+    double piv = 0.0;
+    double cm = 0.0;
     piv = lu[0];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
@@ -336,14 +336,12 @@ static int slider_pendulum_sparse_factor(double *lu)
 
 static void slider_pendulum_sparse_forward0(const double *restrict lu, double *restrict y)
 {
-    (void)lu;
     y[2] -= lu[4] * y[1];
 }
 
 static void slider_pendulum_sparse_back0(
     const double *restrict lu, const double *restrict y, double *restrict x)
 {
-    (void)lu;
     x[0] = (y[2]) * lu[3];
     x[1] = (y[1] - lu[1] * x[0]) * lu[2];
     x[2] = (y[0]) * lu[0];
@@ -362,7 +360,6 @@ static void slider_pendulum_sparse_solve(const double *lu, const double *b, doub
 static void slider_pendulum_sparse_t_forward0(
     const double *restrict lu, const double *restrict b, double *restrict x)
 {
-    (void)lu;
     x[3] = b[3];
     x[4] = b[4];
     x[5] = b[5] - lu[8] * x[3] - lu[12] * x[4];
@@ -373,7 +370,6 @@ static void slider_pendulum_sparse_t_forward0(
 
 static void slider_pendulum_sparse_t_back0(const double *restrict lu, double *restrict x)
 {
-    (void)lu;
     x[1] -= lu[4] * x[2];
 }
 
@@ -586,8 +582,6 @@ static void slider_pendulum_outputs(double t, const double *p, const double *q, 
 {
     double *y = SLIDER_PENDULUM_VEC(work, 2), *b = SLIDER_PENDULUM_VEC(work, 3);
     int k;
-    (void)t; (void)p; (void)q; (void)tr; (void)qd; (void)qdd; (void)lam; (void)reactions;
-    (void)y; (void)b; (void)k; (void)iwork; (void)dense;
     slider_pendulum_nu_k(q, tr, t, p, b);
     slider_pendulum_solve(work, iwork, dense, b, qd, y);
     slider_pendulum_gamma_k(q, tr, qd, t, p, b);
@@ -613,13 +607,12 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *qd = state + 6, *qdd = state + 12;
-    double *m1 = state + 18, *m2 = state + 24, *m3 = state + 30;
+    double *q = state, *m1 = state + 18, *m2 = state + 24;
+    double *qd = state + 6, *qdd = state + 12, *m3 = state + 30;
     double *count = state + 36;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_PENDULUM_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * SLIDER_PENDULUM_ROW;
@@ -658,6 +651,5 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
         row[0] = t;
     }
     *solved = n;
-    (void)lam; (void)reac;
     return SLIDER_PENDULUM_OK;
 }

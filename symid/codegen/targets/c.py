@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, Callable
 
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
-from symid.codegen.emit import Block, blocks, chunked
+from symid.codegen.emit import Block, has_word, blocks, chunked
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
@@ -38,7 +39,39 @@ class Printer(C99CodePrinter):
         return repr(float(sp.E))
 
     def _print_Float(self, expr: sp.Float) -> str:
-        return repr(float(expr))
+        return c_double(float(expr))
+
+    def _print_Integer(self, expr: sp.Integer) -> str:
+        # an integer literal past 2^63 does not compile; past 2^53 it is not a double exactly
+        n = int(expr)
+        return str(n) if abs(n) < EXACT else c_double(_quotient(n, 1))
+
+    def _print_Rational(self, expr: sp.Rational) -> str:
+        p, q = int(expr.p), int(expr.q)
+        if abs(p) < EXACT and q < EXACT:  # both exact doubles: C divides them, correctly rounded
+            return super()._print_Rational(expr)  # type: ignore[no-any-return]
+        return c_double(_quotient(p, q))
+
+
+EXACT = 2**53  # integers below this are doubles exactly
+
+
+def _quotient(p: int, q: int) -> float:
+    """p / q correctly rounded to a double, +-inf beyond the range."""
+    try:
+        return p / q
+    except OverflowError:
+        return math.inf if p > 0 else -math.inf
+
+
+def c_double(x: float) -> str:
+    """A C99 double literal of exactly x (subnormals included; +-INFINITY, NAN
+    from <math.h>)."""
+    if math.isnan(x):
+        return "NAN"
+    if math.isinf(x):
+        return "INFINITY" if x > 0 else "(-INFINITY)"
+    return repr(x)  # shortest round-trip digits, always with '.' or an exponent: never an integer literal
 
 
 _PRINTER = Printer({"math_macros": {}})
@@ -158,18 +191,32 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
 
     back_order = list(reversed(steps))
 
-    def chunks(order: list[FoldedStep], lines: Callable[[FoldedStep], list[str]]) -> list[list[str]]:
-        printed = [lines(f) for f in order]
+    def chunks(order: list[FoldedStep], lines: Callable[[FoldedStep], list[str]]) -> list[dict[str, Any]]:
+        """Functions of bounded size; steps that print nothing (every value
+        known) are left out, and a function with nothing to do is not
+        emitted. `lu`, `piv`, `cm`: whether its code reads them, so that a
+        function takes and declares only what it uses."""
+        printed = [ls for f in order if (ls := lines(f))]
         weights = [1 + sum(1 + line.count(" * ") for line in ls) for ls in printed]
-        return [[line for ls in group for line in ls] for group in chunked(printed, weights)]
+        out: list[dict[str, Any]] = []
+        for group in chunked(printed, weights):
+            body = [line for ls in group for line in ls]
+            code = "\n".join(body)
+            out.append({"lines": body, "lu": "lu[" in code, "piv": has_word(code, "piv"),
+                        "cm": has_word(code, "cm")})
+        return out
 
-    return {
+    passes = {
         "factor_chunks": chunks(steps, lambda f: _factor_lines(f, P)),
         "forward_chunks": chunks(steps, forward),
         "back_chunks": chunks(back_order, back),
         "t_forward_chunks": chunks(steps, t_forward),
         "t_back_chunks": chunks(back_order, t_back),
     }
+    # the solves' fixed entry points take lu even where every value is a number
+    passes["solve_reads_lu"] = any(ch["lu"] for k in ("forward_chunks", "back_chunks") for ch in passes[k])
+    passes["solve_t_reads_lu"] = any(ch["lu"] for k in ("t_forward_chunks", "t_back_chunks") for ch in passes[k])
+    return passes
 
 
 def _known(model: CodeModel, fold_constants: bool) -> list[float | None]:
@@ -194,6 +241,22 @@ def state_size(model: CodeModel) -> int:
     """Doubles of trajectory state: q, qd, qdd, three earlier accelerations
     (statics: two earlier positions) and the count of instants solved."""
     return 6 * model.flat.ng + 1
+
+
+OUTPUTS_ARGS = ("t", "p", "q", "tr", "qd", "qdd", "lam", "reactions", "work", "iwork", "dense")
+
+
+def _outputs_unused(velocity: bool, multipliers: bool, nr: int) -> list[str]:
+    """The arguments of the template's `outputs` that the compiled groups
+    leave unread (its one signature serves every output set)."""
+    used: set[str] = set()
+    if velocity:
+        used |= {"t", "p", "q", "tr", "qd", "qdd", "work", "iwork", "dense"}
+    if multipliers:
+        used |= {"t", "p", "q", "tr", "lam", "work", "iwork", "dense"}
+    if nr:
+        used |= {"t", "p", "q", "tr", "lam", "reactions"}
+    return [a for a in OUTPUTS_ARGS if a not in used]
 
 
 def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
@@ -250,6 +313,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper()),
         "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
+        "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),
         "outputs": outputs,
         "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
