@@ -283,7 +283,7 @@ def test_an_empty_solver_from_a_broken_compiler_is_never_cached(tmp_path: Path, 
     where = tmp_path / "cache"
     proc = symid(where, pristine.root, "--backend", "c", "-o", str(tmp_path / "out.csv"), env={"CC": str(fake)})
     assert proc.returncode == 2
-    assert proc.stderr == f"symid: C compiler {fake}: exited 0 but left solver.so empty\n"
+    assert proc.stderr == f"symid: --backend c: the C compiler {fake} reported success but left solver.so empty\n"
     assert [p.name for p in where.iterdir()] == [], "no entry, complete or not, and no staging folder left"
 
 

@@ -83,7 +83,8 @@ def _compile(cc: str, args: list[str], artifact: Path) -> None:
         said = _first_error(result.stderr) or f"exit status {result.returncode}, no message"
         raise InputError(f"--backend c: the C compiler {cc} failed on the generated solver: {said}")
     if not artifact.is_file() or artifact.stat().st_size == 0:
-        raise InputError(f"--backend c: the C compiler {cc} reported success but wrote no {artifact.name}")
+        left = f"left {artifact.name} empty" if artifact.is_file() else f"wrote no {artifact.name}"
+        raise InputError(f"--backend c: the C compiler {cc} reported success but {left}")
 
 
 def build(layout: Layout, options: Options) -> Path:
