@@ -249,7 +249,8 @@ def _run(run: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> 
         os.close(devnull)
         return EXIT_SIGNAL_BASE + signal.SIGPIPE
     except Terminated as exc:
-        print(f"symid: terminated by {signal.Signals(exc.signum).name}", file=sys.stderr)
+        said = "interrupted" if exc.signum == signal.SIGINT else f"terminated by {signal.Signals(exc.signum).name}"
+        print(f"symid: {said}", file=sys.stderr)
         return EXIT_SIGNAL_BASE + exc.signum
     except KeyboardInterrupt:
         print("symid: interrupted", file=sys.stderr)
@@ -268,14 +269,18 @@ def _raise_terminated(signum: int, frame: object) -> None:
 
 
 def _catch_signals() -> dict[int, signal.Handlers | Callable[[int, object], None] | int | None]:
-    """SIGTERM and SIGHUP raise `Terminated` (unless ignored, as under nohup);
+    """SIGTERM, SIGHUP and SIGINT raise `Terminated` (unless ignored, as under nohup);
     SIGXFSZ is ignored, so a file-size limit fails the write (EFBIG) instead of
     killing symid with its temporary file. Returns the handlers replaced."""
     previous: dict[int, signal.Handlers | Callable[[int, object], None] | int | None] = {}
-    wanted = {signal.SIGTERM: _raise_terminated, signal.SIGHUP: _raise_terminated, signal.SIGXFSZ: signal.SIG_IGN}
+    wanted = {signal.SIGTERM: _raise_terminated, signal.SIGHUP: _raise_terminated, signal.SIGXFSZ: signal.SIG_IGN,
+              signal.SIGINT: _raise_terminated}
     for signum, handler in wanted.items():
         try:
-            if signal.getsignal(signum) == signal.SIG_DFL:
+            # SIGINT too: under `python -m`, a plain KeyboardInterrupt raised inside some
+            # C call marks the interpreter to kill itself by SIGINT at exit, even when
+            # caught (seen: exit -2 after "interrupted"); a subclass does not.
+            if signal.getsignal(signum) in (signal.SIG_DFL, signal.default_int_handler):
                 previous[signum] = signal.signal(signum, handler)
         except ValueError:  # not the main thread: leave signals alone
             break

@@ -130,7 +130,8 @@ class _Reader:
     def name(self, data: Mapping[str, Any], where: str) -> str:
         name = self.require(data, "name", where)
         if not isinstance(name, str) or not IDENTIFIER.match(name):
-            raise self.fail(f"{where} key 'name'", f"{name[:MAX_NAME_LENGTH]!r} is not a name (letters, digits, _)")
+            shown = name[:MAX_NAME_LENGTH] if isinstance(name, str) else name
+            raise self.fail(f"{where} key 'name'", f"{shown!r} is not a name (letters, digits, _)")
         if len(name) > MAX_NAME_LENGTH:
             raise self.fail(f"{where} key 'name'", f"{name[:20]}... has {len(name)} characters, more than "
                             f"the {MAX_NAME_LENGTH} allowed (it becomes a file name and C identifiers)")
