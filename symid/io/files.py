@@ -85,6 +85,8 @@ def atomic_write(path: str | Path, binary: bool = False) -> Iterator[IO[Any]]:
         try:
             with open(path, mode, newline=newline) as out:
                 yield out
+        except BrokenPipeError:  # `-o /dev/stdout | head`: the reader has enough, as for stdout
+            raise
         except OSError as exc:
             raise cannot_write(path, exc) from None
         return
