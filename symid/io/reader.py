@@ -36,7 +36,7 @@ MAX_NAME_LENGTH = 64
 # Sizes that bound the memory of a run: the dense checks of Phi_q (ng x ng
 # doubles) and the sympy work grow with them; 10^4 bodies once grew to 19 GB.
 # The largest benchmark (a ladder of 256 four-bars: 513 bodies, ng 1539) peaks at 404 MB;
-# dense terms grow as ng^2, so 1000 bodies stay near 1.5 GB at most.
+# dense terms grow as ng^2, so 1000 bodies should stay near 1.5 GB (estimated, not measured).
 MAX_BODIES = 1000
 MAX_CONSTRAINTS = 4000
 MAX_FORCES = 4000
