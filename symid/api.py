@@ -18,6 +18,7 @@ import numpy as np
 import sympy as sp
 
 from symid import backends
+from symid.analysis import Analysis
 from symid.assemble import Layout, assemble
 from symid.backends import Array, Evaluator, Needs
 from symid.errors import AnalysisError
@@ -25,9 +26,27 @@ from symid.io.reader import load
 from symid.model import Mechanism
 from symid.motion import check_spans
 from symid.params import parameter_values, to_float
-from symid.results import Results, columns, table_rows, write_csv
+from symid.results import Results, check_table_size, columns, table_rows, write_csv
 from symid.solve import Instant, run
 from symid.stability import Notes, check_redundant, require_square, require_support
+
+
+# `[analysis]` keys the functions below take as keyword arguments; `cond_column`
+# is `symid solve --cond` (adds the `cond` output to a file's own list).
+ANALYSIS_KEYS = tuple(f.name for f in dataclasses.fields(Analysis))
+FILE_ONLY_KEYS = ("cond_column",)
+
+
+def _known(analysis: Mapping[str, Any], function: str, allowed: tuple[str, ...]) -> None:
+    """Refuse a keyword argument no analysis has: a typo (`stepz=3`) must not run the default.
+
+    Raises:
+        TypeError: naming the unknown keywords and the accepted ones.
+    """
+    unknown = sorted(k for k in analysis if k not in allowed)
+    if unknown:
+        raise TypeError(f"{function}() got unexpected keyword argument{'s' if len(unknown) > 1 else ''} "
+                        f"{', '.join(map(repr, unknown))} (accepted: {', '.join(allowed)})")
 
 
 def examples() -> list[str]:
@@ -88,6 +107,8 @@ class Study:
     def solve(self) -> Results:
         """Solve the whole run. A failure is kept in `Results.error` with the
         instants solved before it."""
+        width = len(self.columns())
+        check_table_size(self.analysis.steps, width, self.mechanism.source)
         rows: list[Array] = []
         error = None
         try:
@@ -95,7 +116,6 @@ class Study:
                 rows.append(values)
         except AnalysisError as exc:
             error = exc
-        width = len(self.columns())
         data = np.array(rows).reshape(len(rows), width)
         return Results(self.columns(), data, error, self.warnings)
 
@@ -114,6 +134,7 @@ def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
         set_values: parameter overrides (files only), name -> expression text.
         analysis: `[analysis]` overrides: kind, t0, t1, steps, tol, outputs, reactions.
     """
+    _known(analysis, "prepare", ANALYSIS_KEYS if isinstance(mechanism, Mechanism) else ANALYSIS_KEYS + FILE_ONLY_KEYS)
     if isinstance(mechanism, Mechanism):
         mech = mechanism
         if analysis:
@@ -138,6 +159,7 @@ def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
 def load_mechanism(path: str | Path, set_values: Mapping[str, str] | None = None,
                    **analysis: Any) -> Mechanism:
     """Read and validate a mechanism file (see `symid.io.reader.load`)."""
+    _known(analysis, "load_mechanism", ANALYSIS_KEYS + FILE_ONLY_KEYS)
     return load(path, set_values, analysis)
 
 

@@ -1,17 +1,21 @@
 """The command line: a thin layer over `symid.api`.
 
-Exit status: 0 success, 2 input error, 3 analysis failed. Errors are one
-line on stderr, never a traceback.
+Exit status: 0 success, 2 input error or unusable resource (an output that
+cannot be written: disk full, file-size limit, permissions), 3 analysis
+failed, 128 + N ended by signal N (130 SIGINT, 143 SIGTERM, 129 SIGHUP, 141 a
+closed stdout pipe). Errors are one line on stderr, never a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
-from symid.errors import EXIT_INPUT, AnalysisError, InputError, SymidError
+from symid.errors import EXIT_INPUT, EXIT_SIGNAL_BASE, AnalysisError, InputError, SymidError, Terminated
 
 if TYPE_CHECKING:
     from symid import plan
@@ -123,10 +127,11 @@ def _write_table(out: Path, header: list[str], keep: list[str] | None, rows: Ite
     from symid import progress, summary
     from symid.io.npz import write_npz
     from symid.plan import Stale
-    from symid.results import write_csv
+    from symid.results import check_table_size, write_csv
 
     record = summary.Recorder(header, keep)
     write = write_npz if out.suffix.lower() == ".npz" else write_csv
+    check_table_size(steps, len(header) if write is write_npz else len(record.columns), file)
     stale = False
     try:
         count = write(out, header, record(progress.bar(rows, steps, name)))
@@ -213,8 +218,20 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     args = parser.parse_args(argv)
     run: Callable[[argparse.Namespace], int] = args.run
+    previous = _catch_signals()
     try:
-        return run(args)
+        return _run(run, args)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _run(run: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
+    """Run a subcommand; turn every fault into one line and its exit status."""
+    try:
+        status = run(args)
+        sys.stdout.flush()  # a closed pipe is found here, not at exit where it would be printed
+        return status
     except SymidError as exc:
         message = str(exc)
         file = getattr(args, "file", None)
@@ -223,9 +240,51 @@ def main(argv: Sequence[str] | None = None) -> int:
             message = f"{file}: {where}{message}"
         print(f"symid: {message}", file=sys.stderr)
         return exc.exit_status
+    except BrokenPipeError:
+        # The reader of stdout (`| head -1`) has all it wanted: end quietly, as a
+        # program killed by SIGPIPE would, and keep Python from reporting the
+        # unflushed rest at exit.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        return EXIT_SIGNAL_BASE + signal.SIGPIPE
+    except Terminated as exc:
+        said = "interrupted" if exc.signum == signal.SIGINT else f"terminated by {signal.Signals(exc.signum).name}"
+        print(f"symid: {said}", file=sys.stderr)
+        return EXIT_SIGNAL_BASE + exc.signum
     except KeyboardInterrupt:
         print("symid: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_SIGNAL_BASE + signal.SIGINT
+    except MemoryError:
+        print("symid: out of memory", file=sys.stderr)
+        return EXIT_INPUT
+    except OSError as exc:  # a machine fault no layer below named: still one line
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"symid: {where}{exc.strerror or exc}", file=sys.stderr)
+        return EXIT_INPUT
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated(signum)
+
+
+def _catch_signals() -> dict[int, signal.Handlers | Callable[[int, object], None] | int | None]:
+    """SIGTERM, SIGHUP and SIGINT raise `Terminated` (unless ignored, as under nohup);
+    SIGXFSZ is ignored, so a file-size limit fails the write (EFBIG) instead of
+    killing symid with its temporary file. Returns the handlers replaced."""
+    previous: dict[int, signal.Handlers | Callable[[int, object], None] | int | None] = {}
+    wanted = {signal.SIGTERM: _raise_terminated, signal.SIGHUP: _raise_terminated, signal.SIGXFSZ: signal.SIG_IGN,
+              signal.SIGINT: _raise_terminated}
+    for signum, handler in wanted.items():
+        try:
+            # SIGINT too: under `python -m`, a plain KeyboardInterrupt raised inside some
+            # C call marks the interpreter to kill itself by SIGINT at exit, even when
+            # caught (seen: exit -2 after "interrupted"); a subclass does not.
+            if signal.getsignal(signum) in (signal.SIG_DFL, signal.default_int_handler):
+                previous[signum] = signal.signal(signum, handler)
+        except ValueError:  # not the main thread: leave signals alone
+            break
+    return previous
 
 
 if __name__ == "__main__":

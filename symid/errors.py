@@ -41,3 +41,19 @@ class AnalysisError(SymidError):
         super().__init__(message)
         self.time = time
         self.solved = solved
+
+
+EXIT_SIGNAL_BASE = 128  # a run ended by signal N exits 128 + N, as a shell reports it
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP arrived: raised by the command line's handler, so the
+    same cleanup as for Ctrl-C (SIGINT) runs (temporary files removed).
+
+    Attributes:
+        signum: the signal's number; the exit status is 128 + signum.
+    """
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum

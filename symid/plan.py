@@ -37,6 +37,7 @@ from symid import backends
 from symid.analysis import Analysis
 from symid.backends import Array, Evaluator
 from symid.errors import SymidError
+from symid.io.files import read_at_most
 from symid.results import table_rows
 from symid.sources import code_version
 from symid.stability import Notes
@@ -80,9 +81,9 @@ def key(file: str, options: Mapping[str, Any]) -> str | None:
     """
     path = Path(file)
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
+        data = read_at_most(path, MAX_FILE_BYTES)
+        if len(data) > MAX_FILE_BYTES:  # (a device or endless stream: the normal path says so)
             return None
-        data = path.read_bytes()
         document = tomllib.loads(data.decode("utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, RecursionError):
         return None
@@ -91,7 +92,8 @@ def key(file: str, options: Mapping[str, Any]) -> str | None:
     tables: list[list[str | None]] = []  # [path, digest or None if unreadable]
     for table in referenced_tables(document, str(path)):
         try:
-            tables.append([str(table), _digest(table.read_bytes())])
+            content = read_at_most(table, MAX_FILE_BYTES)
+            tables.append([str(table), _digest(content) if len(content) <= MAX_FILE_BYTES else None])
         except OSError:
             tables.append([str(table), None])
     inputs = [FORMAT, code_version(), os.getcwd(), file, _digest(data), tables, dict(options)]

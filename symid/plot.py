@@ -22,7 +22,7 @@ import numpy as np
 from symid.backends import Array
 from symid.constraints import TYPES as CONSTRAINTS
 from symid.forces import TYPES as FORCES
-from symid.io.npz import readable
+from symid.io.files import atomic_write, cannot_write, new_file_mode
 from symid.model import GROUND, Element, Mechanism
 from symid.params import parameter_values, to_float
 from symid.summary import Table, efforts
@@ -53,17 +53,10 @@ def _figure(width: float, height: float,
 
 
 def save(fig: "Figure", path: str | Path) -> Path:
-    """Write a figure as PNG, to a temporary name renamed at the end."""
+    """Write a figure as PNG through `symid.io.files.atomic_write`."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as out:
-            fig.savefig(out, format="png", dpi=DPI)
-        readable(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_write(path, binary=True) as out:
+        fig.savefig(out, format="png", dpi=DPI)
     return path
 
 
@@ -542,7 +535,10 @@ def write_gif(table: Table, mechanism: Mechanism, path: str | Path, frames: int 
     w, h = _panel_size(sc, 5.0)
     fig = _figure(w, h + 0.5, layout=None)  # a fixed layout: frames do not jump, nor re-solve it
     ax = fig.add_axes((0.16, 0.12, 0.8, 0.8))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".gif", dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".gif", dir=path.parent)
+    except OSError as exc:
+        raise cannot_write(path, exc) from None
     os.close(fd)
     try:
         writer = PillowWriter(fps=fps)
@@ -559,8 +555,11 @@ def write_gif(table: Table, mechanism: Mechanism, path: str | Path, frames: int 
                 draw(ax, sc, k)
                 ax.set_title(f"{mechanism.name}   t = {t[k]:.3f} s", fontsize=10)
                 writer.grab_frame()
-        readable(tmp)
+        os.chmod(tmp, new_file_mode())
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise cannot_write(path, exc) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

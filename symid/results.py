@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import functools
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Iterable, Iterator
@@ -14,12 +12,17 @@ import numpy as np
 from symid.analysis import Analysis
 from symid.backends import Array
 from symid.errors import AnalysisError, InputError
+from symid.io.files import atomic_write
 
 if TYPE_CHECKING:  # a cached run (symid.plan) writes its table without sympy
     from symid.assemble import Layout
     from symid.backends import Evaluator
     from symid.solve import Instant
     from symid.stability import Notes
+
+# What a run may hold in memory as a table (the .npz, the plots, `Study.solve`,
+# the summary's columns): 2^27 doubles, 1 GiB. The CSV itself is streamed.
+MAX_TABLE_VALUES = 2**27
 
 GROUP_SUFFIXES = {"q": ("x", "y", "phi"), "qdot": ("vx", "vy", "omega"), "qddot": ("ax", "ay", "alpha")}
 
@@ -41,6 +44,17 @@ def columns(layout: Layout, analysis: Analysis) -> list[str]:
         else:
             out += [col for _, col in reaction_columns(layout, analysis.reactions)]
     return out + list(analysis.extra_outputs())  # `cond`: after every contract group
+
+
+def check_table_size(instants: int, width: int, what: str) -> None:
+    """Refuse, before the run, a table of instants x width values too large to hold.
+
+    Raises:
+        InputError: naming the count and the limit (exit 2).
+    """
+    if instants * width > MAX_TABLE_VALUES:
+        raise InputError(f"{what}: {instants} instants x {width} columns = {instants * width} values to hold "
+                         f"in memory, more than the {MAX_TABLE_VALUES} allowed (fewer steps or outputs, or a .csv)")
 
 
 def table_rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes) -> Iterator[Array]:
@@ -129,7 +143,7 @@ def _row_format(width: int) -> str:
 
 
 def write_csv(path: str | Path, header: list[str], rows: Iterator[Array]) -> int:
-    """Write rows as they come, to a temporary name renamed at the end.
+    """Write rows as they come, through `symid.io.files.atomic_write`.
 
     If the row iterator raises `AnalysisError`, the rows already produced are
     kept (the file is completed and renamed) and the error is re-raised; on
@@ -138,33 +152,16 @@ def write_csv(path: str | Path, header: list[str], rows: Iterator[Array]) -> int
     Returns:
         the number of rows written.
     """
-    path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
     count = 0
     failure: AnalysisError | None = None
-    umask = os.umask(0)
-    os.umask(umask)
-    try:
-        os.chmod(tmp, 0o666 & ~umask)  # as an ordinary new file, not mkstemp's 0600
-        with os.fdopen(fd, "w", newline="") as out:
-            out.write(",".join(header) + "\n")
-            try:
-                for values in rows:
-                    out.write(format_row(values) + "\n")
-                    count += 1
-            except AnalysisError as exc:
-                failure = exc
+    with atomic_write(path) as out:
+        out.write(",".join(header) + "\n")
         try:
-            os.replace(tmp, path)
-        except OSError as exc:
-            raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+            for values in rows:
+                out.write(format_row(values) + "\n")
+                count += 1
+        except AnalysisError as exc:  # keep the instants before it: the file is completed
+            failure = exc
     if failure is not None:
         raise failure
     return count

@@ -28,6 +28,8 @@ from symid.derive import DerivedConstraint, derive_constraint
 from symid.elements import registry_lookup
 from symid.errors import InputError
 from symid.expr import parse_expression
+from symid.io.files import read_at_most
+from symid.io.reader import MAX_FILE_BYTES
 from symid.model import parameter_symbol
 from symid.show import mechanism_system, tidy
 
@@ -132,7 +134,10 @@ def verify(path: str | Path) -> Report:
     """Verify one claim file. Raises InputError (exit status 2) when it is malformed."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        data = read_at_most(path, MAX_FILE_BYTES)
+        if len(data) > MAX_FILE_BYTES:  # a device or endless stream is not read past the limit
+            raise InputError(f"{path}: file is longer than the {MAX_FILE_BYTES} bytes allowed")
+        text = data.decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
     return verify_text(text, str(path), path.parent)

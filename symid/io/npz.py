@@ -6,8 +6,6 @@ and has shape (instants,); the archive keeps the columns' order.
 
 from __future__ import annotations
 
-import os
-import tempfile
 import zipfile
 from pathlib import Path
 from typing import Iterator
@@ -16,18 +14,12 @@ import numpy as np
 
 from symid.backends import Array
 from symid.errors import AnalysisError, InputError
+from symid.io.files import atomic_write, check_target
 from symid.results import Results
 
 
-def readable(path: str | Path) -> None:
-    """Give a temporary file (made 0600 by mkstemp) the permissions a new file would have."""
-    mask = os.umask(0)
-    os.umask(mask)
-    os.chmod(path, 0o666 & ~mask)
-
-
 def write_npz(path: str | Path, header: list[str], rows: Iterator[Array]) -> int:
-    """Write rows as an `.npz` archive, to a temporary name renamed at the end.
+    """Write rows as an `.npz` archive through `symid.io.files.atomic_write`.
 
     The rows are gathered in memory (an archive holds whole columns). As for
     the CSV, if the row iterator raises `AnalysisError` the rows already
@@ -37,8 +29,7 @@ def write_npz(path: str | Path, header: list[str], rows: Iterator[Array]) -> int
     Returns:
         the number of rows written.
     """
-    path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
+    check_target(path)  # before the run, not after it
     gathered: list[Array] = []
     failure: AnalysisError | None = None
     try:
@@ -47,20 +38,10 @@ def write_npz(path: str | Path, header: list[str], rows: Iterator[Array]) -> int
     except AnalysisError as exc:
         failure = exc
     data = np.array(gathered).reshape(len(gathered), len(header))
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
-    try:
-        with os.fdopen(fd, "wb") as out:
-            # Every name but `t` holds a dot, so none collides with savez's own `file` argument.
-            # (mypy matches the ** against savez's `allow_pickle: bool`, which no name here is.)
-            np.savez(out, **{name: data[:, k] for k, name in enumerate(header)})  # type: ignore[arg-type]
-        readable(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_write(path, binary=True) as out:
+        # Every name but `t` holds a dot, so none collides with savez's own `file` argument.
+        # (mypy matches the ** against savez's `allow_pickle: bool`, which no name here is.)
+        np.savez(out, **{name: data[:, k] for k, name in enumerate(header)})  # type: ignore[arg-type]
     if failure is not None:
         raise failure
     return len(gathered)

@@ -19,6 +19,7 @@ from symid.elements import Family, Key
 from symid.errors import InputError
 from symid.expr import FUNCTIONS, parse_expression
 from symid.forces import TYPES as FORCES
+from symid.io.files import read_at_most
 from symid.io.table import read as read_table
 from symid.model import (
     EXTRA_OUTPUTS, GROUND, JUMP_MODES, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, REDUNDANT_MODES, T,
@@ -28,6 +29,19 @@ from symid.motion import LAWS, check_spans
 from symid.params import order_parameters, parameter_values, to_float
 
 MAX_FILE_BYTES = 16 * 1024 * 1024
+# Every name becomes part of a file name (`<name>.csv`, `<name>_solver.c`) or a C
+# identifier (`<name>_default_params`, `<body>_x`): 64 characters keep both well
+# inside the file systems' 255 bytes and what C compilers must distinguish.
+MAX_NAME_LENGTH = 64
+# Sizes that bound the memory of a run: the dense checks of Phi_q (ng x ng
+# doubles) and the sympy work grow with them; 10^4 bodies once grew to 19 GB.
+# The largest benchmark (a ladder of 256 four-bars: 513 bodies, ng 1539) peaks at 404 MB;
+# dense terms grow as ng^2, so 1000 bodies should stay near 1.5 GB (estimated, not measured).
+MAX_BODIES = 1000
+MAX_CONSTRAINTS = 4000
+MAX_FORCES = 4000
+MAX_PARAMETERS = 100_000
+MAX_STEPS = 10_000_000  # instants of one run: the summary keeps a few columns of each in memory
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 TOP_KEYS = ("mechanism", "parameters", "analysis", "body", "constraint", "force")
 RESERVED = {"t", "pi", GROUND} | set(FUNCTIONS)
@@ -44,10 +58,10 @@ def load(path: str | Path, set_values: Mapping[str, str] | None = None,
     """
     path = Path(path)
     try:
-        size = path.stat().st_size
-        if size > MAX_FILE_BYTES:
-            raise InputError(f"{path}: file is {size} bytes, more than the {MAX_FILE_BYTES} allowed")
-        text = path.read_text(encoding="utf-8")
+        data = read_at_most(path, MAX_FILE_BYTES)
+        if len(data) > MAX_FILE_BYTES:  # a device or endless stream is not read past the limit
+            raise InputError(f"{path}: file is longer than the {MAX_FILE_BYTES} bytes allowed")
+        text = data.decode("utf-8")
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
@@ -117,7 +131,11 @@ class _Reader:
     def name(self, data: Mapping[str, Any], where: str) -> str:
         name = self.require(data, "name", where)
         if not isinstance(name, str) or not IDENTIFIER.match(name):
-            raise self.fail(f"{where} key 'name'", f"{name!r} is not a name (letters, digits, _)")
+            shown = name[:MAX_NAME_LENGTH] if isinstance(name, str) else name
+            raise self.fail(f"{where} key 'name'", f"{shown!r} is not a name (letters, digits, _)")
+        if len(name) > MAX_NAME_LENGTH:
+            raise self.fail(f"{where} key 'name'", f"{name[:20]}... has {len(name)} characters, more than "
+                            f"the {MAX_NAME_LENGTH} allowed (it becomes a file name and C identifiers)")
         return name
 
     # -- sections ---------------------------------------------------------
@@ -130,6 +148,10 @@ class _Reader:
         parameters = self.parameters(self.table(data.get("parameters", {}), "[parameters]"), set_values)
         gravity = self.pair(head.get("gravity", [0, 0]), "[mechanism] key 'gravity'")
         analysis = self.analysis(self.table(data.get("analysis", {}), "[analysis]"), overrides)
+        for key, limit in (("body", MAX_BODIES), ("constraint", MAX_CONSTRAINTS), ("force", MAX_FORCES)):
+            count = len(self.array(data, key))
+            if count > limit:  # before any work on them: the memory of a run grows with the count
+                raise self.fail(f"[[{key}]]", f"{count} entries, more than the {limit} allowed")
         bodies = tuple(self.body(b, n) for n, b in enumerate(self.array(data, "body")))
         names: dict[str, str] = {}
         for b in bodies:
@@ -162,7 +184,12 @@ class _Reader:
                 known = ", ".join(table) or "none"
                 raise self.fail(f"--set {name}", f"no such parameter (parameters: {known})")
         raw = {**table, **set_values}
+        if len(raw) > MAX_PARAMETERS:
+            raise self.fail("[parameters]", f"{len(raw)} parameters, more than the {MAX_PARAMETERS} allowed")
         for name in raw:
+            if len(name) > MAX_NAME_LENGTH:
+                raise self.fail(f"[parameters] key '{name[:20]}...'", f"has {len(name)} characters, more than "
+                                f"the {MAX_NAME_LENGTH} allowed (it becomes a C identifier)")
             if not IDENTIFIER.match(name) or name in RESERVED or name.startswith("_"):
                 raise self.fail(f"[parameters] key '{name}'", "is reserved or not a valid name")
         self.params = {n: parameter_symbol(n) for n in raw}
@@ -195,6 +222,8 @@ class _Reader:
         steps = merged.get("steps", 1001)
         if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
             raise self.fail(f"{where} key 'steps'", f"must be a whole number >= 1, not {steps!r}")
+        if steps > MAX_STEPS:
+            raise self.fail(f"{where} key 'steps'", f"{steps} instants, more than the {MAX_STEPS} allowed")
         if steps > 1 and not t1 > t0:
             raise self.fail(f"{where} key 't1'", f"must be greater than t0 = {t0!r}")
         tol = self.real(merged.get("tol", 1e-12), f"{where} key 'tol'")

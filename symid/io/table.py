@@ -20,6 +20,7 @@ import sympy as sp
 
 from symid import motion
 from symid.errors import InputError
+from symid.io.files import read_at_most
 from symid.io.paths import table_path
 
 KEYS = ("table", "column", "time", "smoothing")
@@ -78,10 +79,10 @@ def _smoothing(value: Any, fail: Callable[[str], InputError]) -> float:
 
 def _text(path: Path, fail: Callable[[str], InputError]) -> str:
     try:
-        size = path.stat().st_size
-        if size > MAX_FILE_BYTES:
-            raise fail(f"file is {size} bytes, more than the {MAX_FILE_BYTES} allowed")
-        return path.read_text(encoding="utf-8")
+        data = read_at_most(path, MAX_FILE_BYTES)
+        if len(data) > MAX_FILE_BYTES:  # a device or endless stream is not read past the limit
+            raise fail(f"file is longer than the {MAX_FILE_BYTES} bytes allowed")
+        return data.decode("utf-8")
     except OSError as exc:
         raise fail(f"cannot read: {exc.strerror or exc}") from None
     except UnicodeDecodeError:

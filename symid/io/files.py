@@ -1,0 +1,109 @@
+"""Reading and writing the user's files so that no machine fault costs a traceback.
+
+Every output (CSV, .npz, plots) goes through `atomic_write`; every input a
+user names (mechanism file, motion table) through `read_at_most`, so a device
+or an endless stream (`/dev/zero`) is never read past its size limit.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any, Iterator
+
+from symid.errors import InputError
+
+
+def read_at_most(path: str | Path, limit: int) -> bytes:
+    """The file's bytes, or its first limit + 1 bytes when it is longer.
+
+    A caller compares the length with `limit`; `stat().st_size` alone would
+    let a device or a pipe (size 0) be read without end.
+
+    Raises:
+        OSError: the file cannot be opened or read.
+    """
+    with open(path, "rb") as f:
+        return f.read(limit + 1)
+
+
+def cannot_write(path: str | Path, exc: OSError) -> InputError:
+    """The one line for a failed write: the path and the system's reason (exit 2)."""
+    return InputError(f"{path}: cannot write: {exc.strerror or exc}")
+
+
+def new_file_mode() -> int:
+    """The mode an ordinary new file gets under the current umask (mkstemp makes 0600)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def check_target(path: str | Path) -> None:
+    """Refuse, before any work, an output path that is a directory or in no folder.
+
+    Raises:
+        InputError: one line naming the path.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path}: cannot write: is a directory")
+    if not path.parent.is_dir():
+        raise InputError(f"{path}: cannot write: no folder {path.parent}")
+
+
+@contextmanager
+def atomic_write(path: str | Path, binary: bool = False) -> Iterator[IO[Any]]:
+    """Open `path` for writing so that it is either complete or untouched.
+
+    A regular (or new) file is written to a temporary name in the same folder,
+    synced and renamed over `path` when the block ends without an exception;
+    on any exception, a signal turned into one included, the temporary file is
+    removed. An existing non-regular file (a character device such as
+    /dev/null, a FIFO) is written into directly and never replaced.
+
+    Raises:
+        InputError: `path` is a directory, or a write failed (disk full,
+            file-size limit, permission, read-only file system, name too
+            long): one line naming the path and the system's reason.
+    """
+    path = Path(path)
+    mode = "wb" if binary else "w"
+    newline = None if binary else ""
+    try:
+        st: os.stat_result | None = os.stat(path)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise cannot_write(path, exc) from None
+    if st is not None and stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{path}: cannot write: is a directory")
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        try:
+            with open(path, mode, newline=newline) as out:
+                yield out
+        except BrokenPipeError:  # `-o /dev/stdout | head`: the reader has enough, as for stdout
+            raise
+        except OSError as exc:
+            raise cannot_write(path, exc) from None
+        return
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise cannot_write(path, exc) from None
+    try:
+        os.chmod(tmp, new_file_mode())
+        with os.fdopen(fd, mode, newline=newline) as out:
+            yield out
+            out.flush()
+            os.fsync(out.fileno())  # the rename must not publish data still in the page cache
+        os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise cannot_write(path, exc) from None
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
