@@ -30,6 +30,10 @@ from symid.params import order_parameters, parameter_values, to_float
 MAX_FILE_BYTES = 16 * 1024 * 1024
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 TOP_KEYS = ("mechanism", "parameters", "analysis", "body", "constraint", "force")
+MECHANISM_KEYS = ("name", "gravity")
+ANALYSIS_KEYS = ("kind", "t0", "t1", "steps", "tol", "outputs", "reactions", "cond_warn", "redundant",
+                 "assembly_jump")
+BODY_KEYS = ("name", "mass", "inertia", "q0")
 RESERVED = {"t", "pi", GROUND} | set(FUNCTIONS)
 
 
@@ -125,7 +129,7 @@ class _Reader:
                   overrides: dict[str, Any]) -> Mechanism:
         self.unknown(data, TOP_KEYS, "top level")
         head = self.table(self.require(data, "mechanism", "top level"), "[mechanism]")
-        self.unknown(head, ("name", "gravity"), "[mechanism]")
+        self.unknown(head, MECHANISM_KEYS, "[mechanism]")
         name = self.name(head, "[mechanism]")
         parameters = self.parameters(self.table(data.get("parameters", {}), "[parameters]"), set_values)
         gravity = self.pair(head.get("gravity", [0, 0]), "[mechanism] key 'gravity'")
@@ -181,9 +185,7 @@ class _Reader:
 
     def analysis(self, table: dict[str, Any], overrides: dict[str, Any]) -> Analysis:
         where = "[analysis]"
-        fields = ("kind", "t0", "t1", "steps", "tol", "outputs", "reactions",
-                  "cond_warn", "redundant", "assembly_jump")
-        self.unknown(table, fields, where)
+        self.unknown(table, ANALYSIS_KEYS, where)
         overrides = dict(overrides)
         add_cond = overrides.pop("cond_column", None)  # `symid solve --cond`
         merged = {**table, **{k: v for k, v in overrides.items() if v is not None}}
@@ -246,7 +248,7 @@ class _Reader:
         data = self.table(data, where)
         name = self.name(data, where)
         where = f"body '{name}'"
-        self.unknown(data, ("name", "mass", "inertia", "q0"), where)
+        self.unknown(data, BODY_KEYS, where)
         mass, inertia = (self.inertial(data, key, where) for key in ("mass", "inertia"))
         q0 = self.pair(self.require(data, "q0", where), f"{where} key 'q0'", n=3)
         return Body(name=name, mass=mass, inertia=inertia, q0=q0)  # type: ignore[arg-type]
