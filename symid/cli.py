@@ -19,8 +19,21 @@ if TYPE_CHECKING:
     from symid.results import Results
 
 
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Defaults shown where one exists (not for "unset: the file's value"); epilogs kept as written."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default in (None, False, [], argparse.SUPPRESS) or "default" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line and exit status 2."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
 
     def error(self, message: str) -> None:  # type: ignore[override]
         print(f"{self.prog}: {message} (see --help)", file=sys.stderr)
@@ -170,38 +183,79 @@ def cmd_example(args: argparse.Namespace) -> int:
     return 0
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = _Parser(prog="symid", description="Planar multibody inverse dynamics, derived by sympy.")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+def version() -> str:
+    """The installed distribution's version (a checkout run without installing: unknown)."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as dist_version
 
-    solve = sub.add_parser("solve", help="solve a mechanism file and write the results table (CSV)")
-    solve.add_argument("file")
-    solve.add_argument("-o", "--output", help="CSV file to write (default: <name>.csv)")
-    solve.add_argument("--kind", choices=("inverse_dynamics", "kinematics", "statics"))
-    solve.add_argument("--t0", type=float)
-    solve.add_argument("--t1", type=float)
-    solve.add_argument("--steps", type=int)
-    solve.add_argument("--tol", type=float)
+    try:
+        return dist_version("symid")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+SOLVE_EPILOG = """examples:
+  symid solve "$(symid example slider_crank)" -o run.csv
+  symid solve crank.toml --t1 2 --steps 401 --set omega=12.566 --backend c
+  symid solve crank.toml --kind statics --cond --plot
+
+The file's keys, defaults and the CSV columns: symid help format.
+exit status: 0 ok, 2 bad input, 3 the analysis failed (solved instants kept)."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The whole command line: `symid` and every subcommand."""
+    parser = _Parser(prog="symid", description="Planar multibody inverse dynamics, derived by sympy.",
+                     epilog="start with: symid example slider_crank; symid help format; "
+                            "symid solve --help")
+    parser.add_argument("--version", action="version", version=f"symid {version()}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="COMMAND")
+
+    solve = sub.add_parser("solve", help="solve a mechanism file and write the results table (CSV)",
+                           description="Solve a mechanism over time and write one row per instant.",
+                           epilog=SOLVE_EPILOG)
+    solve.add_argument("file", metavar="FILE", help="the mechanism file (TOML; symid help format)")
+    solve.add_argument("-o", "--output", metavar="OUT",
+                       help="table to write, .csv or .npz (default: <name>.csv in the current folder)")
+    solve.add_argument("--kind", choices=("inverse_dynamics", "kinematics", "statics"),
+                       help="what to compute (default: the file's [analysis] kind, else inverse_dynamics)")
+    solve.add_argument("--t0", type=float, metavar="T", help="first instant (default: the file's, else 0)")
+    solve.add_argument("--t1", type=float, metavar="T", help="last instant (default: the file's, else 1)")
+    solve.add_argument("--steps", type=int, metavar="N",
+                       help="number of output instants, t0 and t1 included (default: the file's, else 1001)")
+    solve.add_argument("--tol", type=float, metavar="X",
+                       help="Newton tolerance on max |Phi| and the last correction (default: the file's, "
+                            "else 1e-12)")
     solve.add_argument("--cond", action="store_true", help="add the cond column (condition estimate of Phi_q)")
     solve.add_argument("--cond-warn", type=float, metavar="X", help="warn where cond exceeds X (default 1e6)")
     solve.add_argument("--redundant", choices=("error", "min_norm"),
                        help="redundant constraints: refuse (default) or solve with minimum-norm multipliers")
     solve.add_argument("--assembly-jump", choices=("error", "warn"),
                        help="a jump to another assembly mode: stop with exit 3 (default) or warn and continue")
-    solve.add_argument("--backend", default="numpy")
+    solve.add_argument("--backend", default="numpy", metavar="B",
+                       help="how the derived expressions are evaluated: numpy (generated NumPy), c (generated "
+                            "C, fastest), casadi, or reference (no code generation)")
     solve.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                       help="override a parameter (repeatable)")
+                       help="override a parameter (repeatable; VALUE may be an expression)")
     solve.add_argument("--plot", action="store_true", help="also write PNG plots beside the output")
     solve.add_argument("--plot-dir", metavar="DIR", help="folder for the plots (implies --plot)")
     solve.set_defaults(run=cmd_solve)
 
-    chk = sub.add_parser("check", help="validate a file; report ng, nc, rank and conditioning at q0")
-    chk.add_argument("file")
-    chk.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
+    chk = sub.add_parser("check", help="validate a file; report ng, nc, rank and conditioning at q0",
+                         description="Read and validate a mechanism file; report its sizes, the rank of "
+                                     "Phi_q and its condition at t0.",
+                         epilog='examples:\n  symid check "$(symid example four_bar)"\n'
+                                "  symid check crank.toml --set L2=0.35")
+    chk.add_argument("file", metavar="FILE", help="the mechanism file (TOML; symid help format)")
+    chk.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                     help="override a parameter (repeatable)")
     chk.set_defaults(run=cmd_check)
 
-    ex = sub.add_parser("example", help="print the path of a bundled example (no name: list them)")
-    ex.add_argument("name", nargs="?")
+    ex = sub.add_parser("example", help="print the path of a bundled example (no name: list them)",
+                        description="Print the path of a bundled example mechanism file.",
+                        epilog="examples:\n  symid example                  # list the examples\n"
+                               "  cp \"$(symid example four_bar)\" my_linkage.toml   # start your own")
+    ex.add_argument("name", nargs="?", metavar="NAME", help="an example's name; omit to list them")
     ex.set_defaults(run=cmd_example, file="example")
 
     from importlib import import_module
@@ -210,7 +264,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     for module in MODULES:
         import_module(module).register(sub)
+    return parser
 
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     run: Callable[[argparse.Namespace], int] = args.run
     try:

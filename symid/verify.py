@@ -400,7 +400,8 @@ class TypeSubject:
             raise InputError(str(exc)) from None
         for key in family.keys:
             if key.kind == "choice" and options.get(key.name) not in key.choices:
-                raise InputError(f"needs options.{key.name} = one of {', '.join(key.choices)}")
+                raise InputError(f"needs options.{key.name} = one of {', '.join(key.choices)} "
+                                 f"(in [claim]: options = {{ {key.name} = \"{key.choices[-1]}\" }})")
         self.der = derive_constraint(name, family.variant(dict(options)))
         self.label = name + "".join(f" ({k} = {v})" for k, v in options.items())
 

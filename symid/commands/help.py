@@ -10,8 +10,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                        description="Print symid's documentation, shipped with the package.",
                        epilog="examples:\n  symid help format      # the mechanism file, every key\n"
                               "  symid help revolute    # one type: keys, defaults, columns\n"
-                              "  symid help claims      # the claim-file format of symid verify",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+                              "  symid help claims      # the claim-file format of symid verify")
     p.add_argument("topic", nargs="?", metavar="TOPIC",
                    help="format, a docs page (claims, motion, symbols, analysis-options) or a constraint or "
                         "force type; omit to list them")

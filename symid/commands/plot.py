@@ -72,7 +72,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def register(sub: Any) -> None:
-    p = sub.add_parser("plot", help="plot a results table: driver efforts, joint reactions, the mechanism")
+    p = sub.add_parser("plot", help="plot a results table: driver efforts, joint reactions, the mechanism",
+                       description="Plot a results table written by symid solve.",
+                       epilog="examples:\n  symid plot run.csv --mechanism crank.toml\n"
+                              "  symid plot run.csv --mechanism crank.toml --set omega=12 --gif -o figures/")
     p.add_argument("file", metavar="RESULTS", help="a .csv (or .npz) written by symid solve")
     p.add_argument("--mechanism", metavar="FILE",
                    help="the mechanism file it was solved from: needed for efforts and the drawing")
