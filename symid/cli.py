@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 from symid.errors import EXIT_INPUT, AnalysisError, InputError, SymidError
+from symid.text import number, plural
 
 if TYPE_CHECKING:
     from symid import plan
@@ -147,8 +148,9 @@ def _write_table(out: Path, header: list[str], keep: list[str] | None, rows: Ite
         stale = True
         raise
     except AnalysisError as exc:
-        raise AnalysisError(f"{file}: t = {exc.time:.17g}: {exc}; the {exc.solved} instants "
-                            f"before it are in {out}", exc.time, exc.solved) from None
+        raise AnalysisError(f"{file}: t = {number(exc.time)}: {exc}; the {plural(exc.solved, 'instant')} "
+                            f"before it {'is' if exc.solved == 1 else 'are'} in {out}", exc.time,
+                            exc.solved) from None
     finally:
         if not stale:
             for warning in warnings():  # once per kind, with its time span
@@ -165,7 +167,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     report = check(study)
     print(report.text())
     if report.singular:
-        raise AnalysisError(f"{args.file}: t = {study.analysis.t0:.17g}: Phi_q is rank-deficient (rank "
+        raise AnalysisError(f"{args.file}: t = {number(study.analysis.t0)}: Phi_q is rank-deficient (rank "
                             f"{report.rank} < {report.ng}); dependent constraints: {', '.join(report.dependent)}")
     return 0
 
@@ -277,7 +279,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = str(exc)
         file = getattr(args, "file", None)
         if isinstance(exc, AnalysisError) and file and not message.startswith(str(file)):
-            where = f"t = {exc.time:.17g}: " if exc.time is not None else ""
+            where = f"t = {number(exc.time)}: " if exc.time is not None else ""
             message = f"{file}: {where}{message}"
         print(f"symid: {message}", file=sys.stderr)
         return exc.exit_status

@@ -226,8 +226,7 @@ class _Parser:
             raise self.fail(f"function {tok.text!r} at column {tok.col} "
                             f"must be called: {tok.text}(...)")
         allowed = sorted({n for n in self.symbols if not n.startswith("_")} | {"pi"})
-        listed = ", ".join(allowed[:10]) + (", ..." if len(allowed) > 10 else "")
-        raise self.fail(f"unknown name {_show(tok.text)} at column {tok.col} (allowed: {listed})")
+        raise self.fail(f"unknown name {_show(tok.text)} at column {tok.col} (allowed: {', '.join(allowed)})")
 
     def call(self, tok: _Token) -> sp.Expr:
         if tok.text not in self.functions:

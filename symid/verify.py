@@ -390,6 +390,24 @@ class View:
         return label, {"Phi_q": block, "Phi_r": block[:, :2], "Phi_phi": block[:, 2:]}[qty], None
 
 
+def _display_names(d: DerivedConstraint, own: Mapping[str, sp.Expr]) -> dict[str, sp.Expr]:
+    """The hand notation `symid derive TYPE` prints, as claim names (docs/symbols.md):
+    s_ix = (A_i s'_i)_x, a_ix = (A_i v'_i)_x, d = (dx, dy) = r_j + s_j - r_i - s_i, its rate (dxd, dyd)."""
+    out: dict[str, sp.Expr] = {}
+    for key in (k for k in d.family.keys if k.kind in ("point", "vector")):
+        role, letter = key.name[1], "s" if key.kind == "point" else "a"
+        gx, gy = s.A(role) * s.point(key.name)
+        out[f"{letter}_{role}x"], out[f"{letter}_{role}y"] = gx, gy
+    if "s_ix" in out and "s_jx" in out and "j" in d.roles:
+        (xi, yi, pi_), (xj, yj, pj) = s.q("i"), s.q("j")
+        (xdi, ydi, pdi), (xdj, ydj, pdj) = s.qd("i"), s.qd("j")
+        out["dx"] = xj + out["s_jx"] - xi - out["s_ix"]
+        out["dy"] = yj + out["s_jy"] - yi - out["s_iy"]
+        out["dxd"] = xdj - out["s_jy"] * pdj - xdi + out["s_iy"] * pdi
+        out["dyd"] = ydj + out["s_jx"] * pdj - ydi - out["s_ix"] * pdi
+    return out
+
+
 class TypeSubject:
     """One constraint type on the generic symbols of docs/symbols.md."""
 
@@ -408,7 +426,8 @@ class TypeSubject:
     def names(self) -> dict[str, sp.Expr]:
         d = self.der
         roles = [x for r in d.roles for x in (*s.q(r), *s.qd(r))]
-        return {"t": s.T, **{x.name: x for x in (*roles, *d.constants, *d.functions, *d.lam)}}
+        own = {x.name: x for x in (*roles, *d.constants, *d.functions, *d.lam)}
+        return {"t": s.T, **_display_names(d, own), **own}
 
     def quantity(self, qty: Any, body: Any, constraint: Any) -> tuple[str, sp.Matrix, tuple[str, ...] | None]:
         if constraint is not None:

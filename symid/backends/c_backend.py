@@ -19,6 +19,7 @@ import numpy as np
 from symid.analysis import Analysis
 from symid.backends import Array, Needs
 from symid.errors import AnalysisError, InputError
+from symid.text import plural
 
 if TYPE_CHECKING:  # a cached run (symid.plan) loads a built solver without sympy
     import sympy as sp
@@ -203,7 +204,7 @@ class CEvaluator:
             return f"{STATUS[2]} (compiled solver); dependent constraints: {names}"
         phi = np.nan_to_num(self.phi(trial, t), nan=np.inf)
         worst = self.layout.constraint_names_of_rows(np.argsort(-np.abs(phi))[:3])
-        return f"{STATUS[1]} in {info[0]} iterations (compiled solver); largest residuals in: {', '.join(worst)}"
+        return f"{STATUS[1]} in {plural(int(info[0]), 'iteration')} (compiled solver); largest residuals in: {', '.join(worst)}"
 
 
 class CBackend:
