@@ -81,9 +81,24 @@ class Study:
         return run(self.evaluator, self.analysis, self.q0(), self.notes)
 
     def rows(self) -> Iterator[Array]:
-        """The results table row by row; a compiled backend runs its own loop."""
-        self.notes = Notes(self.analysis)
-        yield from table_rows(self.evaluator, self.analysis, self.q0(), self.notes)
+        """The results table row by row; a compiled backend runs its own loop.
+
+        The run's warnings (`warnings`) include angles that look like degrees
+        and bodies assembled at t0 far from their `q0` (`symid.misreading`).
+        """
+        from symid.misreading import angle_warnings, assembly_warnings
+
+        self.notes = notes = Notes(self.analysis)
+        notes.fixed.extend(angle_warnings(self.mechanism))
+        header = self.columns()
+        q_at = [header.index(f"{b.name}.{c}") for b in self.mechanism.bodies for c in ("x", "y", "phi")
+                if f"{b.name}.{c}" in header]
+        first = True
+        for row in table_rows(self.evaluator, self.analysis, self.q0(), notes):
+            if first and len(q_at) == self.layout.ng:  # the table has q: compare t0's with the guesses
+                notes.fixed.extend(assembly_warnings(self.mechanism, self.q0(), np.asarray(row)[q_at]))
+            first = False
+            yield row
 
     def solve(self) -> Results:
         """Solve the whole run. A failure is kept in `Results.error` with the
