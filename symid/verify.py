@@ -124,8 +124,19 @@ class Report:
     def text(self) -> str:
         bad = sum(not o.equal for o in self.outcomes)
         n = len(self.outcomes)
-        verdict = f"all {n} entries hold" if not bad else f"{bad} of {n} entries {'does' if bad == 1 else 'do'} not hold"
+        verdict = (("the entry holds" if n == 1 else f"all {n} entries hold") if not bad
+                   else f"{bad} of {n} entries {'does' if bad == 1 else 'do'} not hold")
         return "\n".join([f"{self.source}: {self.subject}", *(o.text() for o in self.outcomes), verdict])
+
+    def __repr__(self) -> str:
+        bad = sum(not o.equal for o in self.outcomes)
+        return (f"Report({self.source}: {self.subject}; {len(self.outcomes)} entries, "
+                f"{'all hold' if not bad else f'{bad} do not hold'})")
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<pre>{html.escape(self.text())}</pre>"
 
 
 def verify(path: str | Path) -> Report:
