@@ -78,9 +78,12 @@ def cmd_solve(args: argparse.Namespace) -> int:
 
 def _solve(args: argparse.Namespace, key: str | None) -> int:
     """The normal path: read, lay out, find or build the solver, solve; then keep a plan."""
-    from symid import api, plan, summary
+    from symid import api, plan, progress, summary
 
-    study = api.prepare(args.file, args.backend, _set_values(args.set, args.file), **_analysis_overrides(args))
+    with progress.status(f"symid: setting up the {args.backend} backend"):  # on a terminal, past 1 s
+        progress.stage("reading and deriving")
+        study = api.prepare(args.file, args.backend, _set_values(args.set, args.file),
+                            **_analysis_overrides(args))
     out = Path(args.output) if args.output else Path(f"{study.mechanism.name}.csv")
     plots = args.plot or args.plot_dir is not None
     header = study.columns()

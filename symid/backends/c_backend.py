@@ -19,6 +19,7 @@ import numpy as np
 from symid.analysis import Analysis
 from symid.backends import Array, Needs
 from symid.errors import AnalysisError, InputError
+from symid.progress import stage
 from symid.text import plural
 
 if TYPE_CHECKING:  # a cached run (symid.plan) loads a built solver without sympy
@@ -61,12 +62,15 @@ def build(layout: Layout, options: Options) -> Path:
         from symid.codegen.targets import c
 
         cc = compiler()
+        stage("deriving")
         model = code_model(mech, options)
+        stage("generating")
         c.generate(model, folder)
         source = folder / f"{mech.name}_solver.c"
         # gcc -O2 time grows faster than the code; past LARGE_SOURCE -O1 compiles
         # ~2.5x faster for the same run time (ladder of 64: 7.6 s -> 3.0 s).
         level = "-O2" if source.stat().st_size < LARGE_SOURCE else "-O1"
+        stage("compiling")
         result = subprocess.run([cc, level, *CFLAGS, str(source), "-o", str(folder / "solver.so"), "-lm"],
                                 capture_output=True, text=True)
         if result.returncode != 0:

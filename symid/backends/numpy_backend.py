@@ -50,8 +50,12 @@ def build(layout: Layout, options: Options) -> Path:
     def make(folder: Path) -> None:
         from symid.codegen.model import code_model
         from symid.codegen.targets import numpy_target
+        from symid.progress import stage
 
-        numpy_target.generate(code_model(mech, options), folder)
+        stage("deriving")
+        model = code_model(mech, options)
+        stage("generating")
+        numpy_target.generate(model, folder)
 
     return cached(mech, options, "numpy", make) / f"{mech.name}_solver.py"
 
