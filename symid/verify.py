@@ -210,7 +210,7 @@ class _Checker:
         names = dict(subject.names())
         for name, raw in table.items():
             where = f"[define] key '{name}'"
-            if name in names or not name.isidentifier() or name.startswith("_"):
+            if (name in names and name not in DISPLAY_NAMES) or not name.isidentifier() or name.startswith("_"):
                 raise self.fail(where, "is a name of the symbol table or not a valid name")
             if isinstance(raw, list):
                 if len(raw) != 2:
@@ -401,7 +401,11 @@ class View:
         return label, {"Phi_q": block, "Phi_r": block[:, :2], "Phi_phi": block[:, 2:]}[qty], None
 
 
-def _display_names(d: DerivedConstraint, own: Mapping[str, sp.Expr]) -> dict[str, sp.Expr]:
+# derive's hand notation as claim names; a [define] of the same name replaces it
+DISPLAY_NAMES = frozenset({"dx", "dy", "dxd", "dyd"} | {f"{v}_{r}{c}" for v in "sa" for r in "ij" for c in "xy"})
+
+
+def _display_names(d: DerivedConstraint) -> dict[str, sp.Expr]:
     """The hand notation `symid derive TYPE` prints, as claim names (docs/symbols.md):
     s_ix = (A_i s'_i)_x, a_ix = (A_i v'_i)_x, d = (dx, dy) = r_j + s_j - r_i - s_i, its rate (dxd, dyd)."""
     out: dict[str, sp.Expr] = {}
@@ -410,7 +414,7 @@ def _display_names(d: DerivedConstraint, own: Mapping[str, sp.Expr]) -> dict[str
         gx, gy = s.A(role) * s.point(key.name)
         out[f"{letter}_{role}x"], out[f"{letter}_{role}y"] = gx, gy
     if "s_ix" in out and "s_jx" in out and "j" in d.roles:
-        (xi, yi, pi_), (xj, yj, pj) = s.q("i"), s.q("j")
+        (xi, yi, _), (xj, yj, _) = s.q("i"), s.q("j")
         (xdi, ydi, pdi), (xdj, ydj, pdj) = s.qd("i"), s.qd("j")
         out["dx"] = xj + out["s_jx"] - xi - out["s_ix"]
         out["dy"] = yj + out["s_jy"] - yi - out["s_iy"]
@@ -438,7 +442,7 @@ class TypeSubject:
         d = self.der
         roles = [x for r in d.roles for x in (*s.q(r), *s.qd(r))]
         own = {x.name: x for x in (*roles, *d.constants, *d.functions, *d.lam)}
-        return {"t": s.T, **_display_names(d, own), **own}
+        return {"t": s.T, **_display_names(d), **own}
 
     def quantity(self, qty: Any, body: Any, constraint: Any) -> tuple[str, sp.Matrix, tuple[str, ...] | None]:
         if constraint is not None:

@@ -98,3 +98,10 @@ def test_unknown_claim_name_lists_every_allowed_name(tmp_path: Path) -> None:
         verify(claims)
     listed = str(info.value).split("allowed: ", 1)[1]
     assert "..." not in listed and "yd_j" in listed and "dxd" in listed
+
+
+def test_a_claim_define_replaces_a_derive_name(tmp_path: Path) -> None:
+    claims = tmp_path / "own.toml"
+    claims.write_text('[claim]\ntype = "revolute_revolute"\n\n[define]\ndx = "x_j - x_i"\n\n'
+                      '[[entry]]\nquantity = "Phi"\nvalue = "dx^2 + dy^2 - L^2"\n')
+    assert [o.equal for o in verify(claims).outcomes] == [False]  # its own dx, without the points
