@@ -29,6 +29,7 @@ from symid.params import parameter_values, to_float
 from symid.results import Results, check_table_size, columns, table_rows, write_csv
 from symid.solve import Instant, run
 from symid.stability import Notes, check_redundant, require_square, require_support
+from symid.text import number, plural
 
 
 # `[analysis]` keys the functions below take as keyword arguments; `cond_column`
@@ -77,6 +78,8 @@ class Study:
     evaluator: Evaluator
     values: Mapping[sp.Symbol, float]
     notes: Notes | None = None  # the warnings of the latest run
+    backend: str = ""
+    results: Results | None = None  # the latest `solve()`, which `write_csv` writes without solving again
 
     @property
     def warnings(self) -> list[str]:
@@ -100,9 +103,24 @@ class Study:
         return run(self.evaluator, self.analysis, self.q0(), self.notes)
 
     def rows(self) -> Iterator[Array]:
-        """The results table row by row; a compiled backend runs its own loop."""
-        self.notes = Notes(self.analysis)
-        yield from table_rows(self.evaluator, self.analysis, self.q0(), self.notes)
+        """The results table row by row; a compiled backend runs its own loop.
+
+        The run's warnings (`warnings`) include angles that look like degrees
+        and bodies assembled at t0 far from their `q0` (`symid.misreading`).
+        """
+        from symid.misreading import angle_warnings, assembly_warnings
+
+        self.notes = notes = Notes(self.analysis)
+        notes.fixed.extend(angle_warnings(self.mechanism))
+        header = self.columns()
+        q_at = [header.index(f"{b.name}.{c}") for b in self.mechanism.bodies for c in ("x", "y", "phi")
+                if f"{b.name}.{c}" in header]
+        first = True
+        for row in table_rows(self.evaluator, self.analysis, self.q0(), notes):
+            if first and len(q_at) == self.layout.ng:  # the table has q: compare t0's with the guesses
+                notes.fixed.extend(assembly_warnings(self.mechanism, self.q0(), np.asarray(row)[q_at]))
+            first = False
+            yield row
 
     def solve(self) -> Results:
         """Solve the whole run. A failure is kept in `Results.error` with the
@@ -117,11 +135,37 @@ class Study:
         except AnalysisError as exc:
             error = exc
         data = np.array(rows).reshape(len(rows), width)
-        return Results(self.columns(), data, error, self.warnings)
+        self.results = Results(self.columns(), data, error, self.warnings, mechanism=self.mechanism)
+        return self.results
 
     def write_csv(self, path: str | Path) -> int:
-        """Stream the run to a CSV file (atomic); returns the rows written."""
+        """Write the run to a CSV file (atomic); returns the rows written. The
+        results of `solve()`, if it ran; else the run is streamed instant by instant."""
+        if self.results is not None:
+            return self.results.write_csv(path)
         return write_csv(path, self.columns(), self.rows())
+
+    def summary(self) -> list[str]:
+        """What this study solves, its sizes and its state, one line each."""
+        m, a = self.mechanism, self.analysis
+        lines = [f"{m.name} on {self.backend or type(self.evaluator).__name__}: "
+                 f"{plural(len(m.bodies), 'body', 'bodies')}, {plural(len(m.constraints), 'constraint')}, "
+                 f"{plural(len(m.forces), 'force')}; ng = {self.layout.ng}, nc = {self.layout.nc}",
+                 f"{a.kind}, t = {number(a.t0)} .. {number(a.t1)}, {plural(a.steps, 'instant')}, "
+                 f"{plural(len(self.columns()), 'column')}"]
+        lines.append("not solved yet (solve())" if self.results is None
+                     else f"solved: {self.results.summary()[0]}")
+        return lines
+
+    def __repr__(self) -> str:
+        return "Study(" + "; ".join(self.summary()) + ")"
+
+    def _repr_html_(self) -> str:
+        import html
+
+        first, *rest = self.summary()
+        return f"<b>Study</b> {html.escape(first)}<ul>" + "".join(
+            f"<li>{html.escape(line)}</li>" for line in rest) + "</ul>"
 
 
 def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
@@ -153,7 +197,7 @@ def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
     require_support(backend, a, mech.source)
     check_redundant(layout, values, backend)
     evaluator = backends.get(backend).evaluator(layout, values, needs)
-    return Study(mech, layout, evaluator, values)
+    return Study(mech, layout, evaluator, values, backend=backend)
 
 
 def load_mechanism(path: str | Path, set_values: Mapping[str, str] | None = None,

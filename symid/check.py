@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from symid.errors import AnalysisError
+from symid.text import plural
 from symid.solve import newton
 from symid.stability import Factor, Scaling, assemble_lstsq, rank_of
 
@@ -39,7 +40,7 @@ class CheckReport:
         return self.rank < self.ng
 
     def text(self) -> str:
-        how = (f"in {self.iterations} Newton iterations" if self.iterations
+        how = (f"in {plural(self.iterations, 'Newton iteration')}" if self.iterations
                else "by least squares (Phi_q is rank-deficient)")
         lines = [f"mechanism {self.name}: ng = {self.ng}, nc = {self.nc}",
                  f"assembled at t0 {how}",

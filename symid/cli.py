@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 from symid.errors import EXIT_INPUT, EXIT_SIGNAL_BASE, AnalysisError, InputError, SymidError, Terminated
+from symid.text import number, plural
 
 if TYPE_CHECKING:
     from symid import plan
@@ -23,8 +24,21 @@ if TYPE_CHECKING:
     from symid.results import Results
 
 
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Defaults shown where one exists (not for "unset: the file's value"); epilogs kept as written."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default in (None, False, [], argparse.SUPPRESS) or "default" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line and exit status 2."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
 
     def error(self, message: str) -> None:  # type: ignore[override]
         print(f"{self.prog}: {message} (see --help)", file=sys.stderr)
@@ -68,9 +82,12 @@ def cmd_solve(args: argparse.Namespace) -> int:
 
 def _solve(args: argparse.Namespace, key: str | None) -> int:
     """The normal path: read, lay out, find or build the solver, solve; then keep a plan."""
-    from symid import api, plan, summary
+    from symid import api, plan, progress, summary
 
-    study = api.prepare(args.file, args.backend, _set_values(args.set, args.file), **_analysis_overrides(args))
+    with progress.status(f"symid: setting up the {args.backend} backend"):  # on a terminal, past 1 s
+        progress.stage("reading and deriving")
+        study = api.prepare(args.file, args.backend, _set_values(args.set, args.file),
+                            **_analysis_overrides(args))
     out = Path(args.output) if args.output else Path(f"{study.mechanism.name}.csv")
     plots = args.plot or args.plot_dir is not None
     header = study.columns()
@@ -139,8 +156,9 @@ def _write_table(out: Path, header: list[str], keep: list[str] | None, rows: Ite
         stale = True
         raise
     except AnalysisError as exc:
-        raise AnalysisError(f"{file}: t = {exc.time:.17g}: {exc}; the {exc.solved} instants "
-                            f"before it are in {out}", exc.time, exc.solved) from None
+        raise AnalysisError(f"{file}: t = {number(exc.time)}: {exc}; the {plural(exc.solved, 'instant')} "
+                            f"before it {'is' if exc.solved == 1 else 'are'} in {out}", exc.time,
+                            exc.solved) from None
     finally:
         if not stale:
             for warning in warnings():  # once per kind, with its time span
@@ -157,7 +175,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     report = check(study)
     print(report.text())
     if report.singular:
-        raise AnalysisError(f"{args.file}: t = {study.analysis.t0:.17g}: Phi_q is rank-deficient (rank "
+        raise AnalysisError(f"{args.file}: t = {number(study.analysis.t0)}: Phi_q is rank-deficient (rank "
                             f"{report.rank} < {report.ng}); dependent constraints: {', '.join(report.dependent)}")
     return 0
 
@@ -175,38 +193,79 @@ def cmd_example(args: argparse.Namespace) -> int:
     return 0
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = _Parser(prog="symid", description="Planar multibody inverse dynamics, derived by sympy.")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+def version() -> str:
+    """The installed distribution's version (a checkout run without installing: unknown)."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as dist_version
 
-    solve = sub.add_parser("solve", help="solve a mechanism file and write the results table (CSV)")
-    solve.add_argument("file")
-    solve.add_argument("-o", "--output", help="CSV file to write (default: <name>.csv)")
-    solve.add_argument("--kind", choices=("inverse_dynamics", "kinematics", "statics"))
-    solve.add_argument("--t0", type=float)
-    solve.add_argument("--t1", type=float)
-    solve.add_argument("--steps", type=int)
-    solve.add_argument("--tol", type=float)
+    try:
+        return dist_version("symid")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+SOLVE_EPILOG = """examples:
+  symid solve "$(symid example slider_crank)" -o run.csv
+  symid solve crank.toml --t1 2 --steps 401 --set omega=12.566 --backend c
+  symid solve crank.toml --kind statics --cond --plot
+
+The file's keys, defaults and the CSV columns: symid help format.
+exit status: 0 ok, 2 bad input, 3 the analysis failed (solved instants kept)."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The whole command line: `symid` and every subcommand."""
+    parser = _Parser(prog="symid", description="Planar multibody inverse dynamics, derived by sympy.",
+                     epilog="start with: symid example slider_crank; symid help format; "
+                            "symid solve --help")
+    parser.add_argument("--version", action="version", version=f"symid {version()}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="COMMAND")
+
+    solve = sub.add_parser("solve", help="solve a mechanism file and write the results table (CSV)",
+                           description="Solve a mechanism over time and write one row per instant.",
+                           epilog=SOLVE_EPILOG)
+    solve.add_argument("file", metavar="FILE", help="the mechanism file (TOML; symid help format)")
+    solve.add_argument("-o", "--output", metavar="OUT",
+                       help="table to write, .csv or .npz (default: <name>.csv in the current folder)")
+    solve.add_argument("--kind", choices=("inverse_dynamics", "kinematics", "statics"),
+                       help="what to compute (default: the file's [analysis] kind, else inverse_dynamics)")
+    solve.add_argument("--t0", type=float, metavar="T", help="first instant (default: the file's, else 0)")
+    solve.add_argument("--t1", type=float, metavar="T", help="last instant (default: the file's, else 1)")
+    solve.add_argument("--steps", type=int, metavar="N",
+                       help="number of output instants, t0 and t1 included (default: the file's, else 1001)")
+    solve.add_argument("--tol", type=float, metavar="X",
+                       help="Newton tolerance on max |Phi| and the last correction (default: the file's, "
+                            "else 1e-12)")
     solve.add_argument("--cond", action="store_true", help="add the cond column (condition estimate of Phi_q)")
     solve.add_argument("--cond-warn", type=float, metavar="X", help="warn where cond exceeds X (default 1e6)")
     solve.add_argument("--redundant", choices=("error", "min_norm"),
                        help="redundant constraints: refuse (default) or solve with minimum-norm multipliers")
     solve.add_argument("--assembly-jump", choices=("error", "warn"),
                        help="a jump to another assembly mode: stop with exit 3 (default) or warn and continue")
-    solve.add_argument("--backend", default="numpy")
+    solve.add_argument("--backend", default="numpy", metavar="B",
+                       help="how the derived expressions are evaluated: numpy (generated NumPy), c (generated "
+                            "C, fastest), casadi, or reference (no code generation)")
     solve.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                       help="override a parameter (repeatable)")
+                       help="override a parameter (repeatable; VALUE may be an expression)")
     solve.add_argument("--plot", action="store_true", help="also write PNG plots beside the output")
     solve.add_argument("--plot-dir", metavar="DIR", help="folder for the plots (implies --plot)")
     solve.set_defaults(run=cmd_solve)
 
-    chk = sub.add_parser("check", help="validate a file; report ng, nc, rank and conditioning at q0")
-    chk.add_argument("file")
-    chk.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
+    chk = sub.add_parser("check", help="validate a file; report ng, nc, rank and conditioning at q0",
+                         description="Read and validate a mechanism file; report its sizes, the rank of "
+                                     "Phi_q and its condition at t0.",
+                         epilog='examples:\n  symid check "$(symid example four_bar)"\n'
+                                "  symid check crank.toml --set L2=0.35")
+    chk.add_argument("file", metavar="FILE", help="the mechanism file (TOML; symid help format)")
+    chk.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                     help="override a parameter (repeatable)")
     chk.set_defaults(run=cmd_check)
 
-    ex = sub.add_parser("example", help="print the path of a bundled example (no name: list them)")
-    ex.add_argument("name", nargs="?")
+    ex = sub.add_parser("example", help="print the path of a bundled example (no name: list them)",
+                        description="Print the path of a bundled example mechanism file.",
+                        epilog="examples:\n  symid example                  # list the examples\n"
+                               "  cp \"$(symid example four_bar)\" my_linkage.toml   # start your own")
+    ex.add_argument("name", nargs="?", metavar="NAME", help="an example's name; omit to list them")
     ex.set_defaults(run=cmd_example, file="example")
 
     from importlib import import_module
@@ -215,7 +274,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     for module in MODULES:
         import_module(module).register(sub)
+    return parser
 
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     run: Callable[[argparse.Namespace], int] = args.run
     previous = _catch_signals()
@@ -236,7 +299,7 @@ def _run(run: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> 
         message = str(exc)
         file = getattr(args, "file", None)
         if isinstance(exc, AnalysisError) and file and not message.startswith(str(file)):
-            where = f"t = {exc.time:.17g}: " if exc.time is not None else ""
+            where = f"t = {number(exc.time)}: " if exc.time is not None else ""
             message = f"{file}: {where}{message}"
         print(f"symid: {message}", file=sys.stderr)
         return exc.exit_status

@@ -39,6 +39,8 @@ MAX_DIGITS = 5_000  # digits of the exact integers a power may make sympy build
 _OVERFLOW = 2**1024 - 2**970
 _NONFINITE = (sp.zoo, sp.nan, sp.oo, sp.S.NegativeInfinity)
 
+MAX_LISTED = 60  # an error lists every allowed name up to this many (a message stays one readable line)
+
 FUNCTIONS: Functions = MappingProxyType({
     "sin": (1, sp.sin), "cos": (1, sp.cos), "tan": (1, sp.tan),
     "asin": (1, sp.asin), "acos": (1, sp.acos), "atan": (1, sp.atan),
@@ -226,7 +228,8 @@ class _Parser:
             raise self.fail(f"function {tok.text!r} at column {tok.col} "
                             f"must be called: {tok.text}(...)")
         allowed = sorted({n for n in self.symbols if not n.startswith("_")} | {"pi"})
-        listed = ", ".join(allowed[:10]) + (", ..." if len(allowed) > 10 else "")
+        listed = ", ".join(allowed) if len(allowed) <= MAX_LISTED else (
+            f"{len(allowed)} names: the parameters defined, t where time is allowed, pi")
         raise self.fail(f"unknown name {_show(tok.text)} at column {tok.col} (allowed: {listed})")
 
     def call(self, tok: _Token) -> sp.Expr:

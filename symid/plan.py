@@ -192,7 +192,10 @@ def discard(plan_key: str) -> None:
 def of(study: Study, backend_name: str, columns: list[str], keep: list[str], summary: list[Input]) -> Plan | None:
     """The plan of a study that ran successfully, or None when its run cannot be
     replayed without sympy (a backend without built artifacts, redundant rows
-    named in a warning, or too many instants)."""
+    named in a warning, or too many instants), or warned about its input
+    (`symid.misreading`: a replay would not read the file, so not repeat them)."""
+    if study.notes is not None and study.notes.fixed:
+        return None
     backend = backends.get(backend_name)
     artifact = getattr(study.evaluator, "artifact", None)
     if getattr(backend, "load", None) is None or artifact is None:

@@ -6,9 +6,11 @@ redrawn at most every `INTERVAL` seconds, showing the rate in instants/s.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import sys
+import threading
 import time
 from typing import Callable, Iterable, Iterator, Mapping, TextIO, TypeVar
 
@@ -97,4 +99,52 @@ def bar(items: Iterable[Item], total: int | None = None, label: str = "solve",
     finally:
         if shown:
             out.write("\r" + render(label, done, total, clock() - start, width, fill).ljust(width) + "\n")
+            out.flush()
+
+
+# -- a status line for setup (derive, generate, compile) -------------------
+
+SETUP_DELAY = 1.0  # s: a setup faster than this prints nothing
+_STAGE = ["preparing"]
+
+
+def stage(name: str) -> None:
+    """Name what setup does now ("deriving", "generating", "compiling"), for `status`."""
+    _STAGE[0] = name
+
+
+@contextlib.contextmanager
+def status(label: str, stream: TextIO | None = None, environ: Mapping[str, str] | None = None,
+           delay: float = SETUP_DELAY, interval: float = 0.2) -> Iterator[None]:
+    """While the body runs, show `label: STAGE... 3.2 s` on a terminal's stderr once
+    it has taken `delay` seconds; then one line with the total. Silent in a pipe or under CI."""
+    out = sys.stderr if stream is None else stream
+    if not enabled(out, environ):
+        yield
+        return
+    _STAGE[0] = "preparing"
+    width = max(shutil.get_terminal_size((80, 24)).columns - 1, 20)
+    start = time.monotonic()
+    done = threading.Event()
+    shown = threading.Event()
+
+    def show() -> None:
+        if done.wait(delay):
+            return
+        while True:
+            shown.set()
+            out.write("\r" + f"{label}: {_STAGE[0]}... {time.monotonic() - start:.1f} s"[:width].ljust(width))
+            out.flush()
+            if done.wait(interval):
+                return
+
+    thread = threading.Thread(target=show, name="symid-status", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+        if shown.is_set():
+            out.write("\r" + f"{label}: done in {time.monotonic() - start:.1f} s"[:width].ljust(width) + "\n")
             out.flush()

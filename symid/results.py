@@ -5,7 +5,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Iterable, Iterator
+from typing import TYPE_CHECKING, Any, Iterable, Iterator
 
 import numpy as np
 
@@ -13,6 +13,7 @@ from symid.analysis import Analysis
 from symid.backends import Array
 from symid.errors import AnalysisError, InputError
 from symid.io.files import atomic_write
+from symid.text import number, plural
 
 if TYPE_CHECKING:  # a cached run (symid.plan) writes its table without sympy
     from symid.assemble import Layout
@@ -107,7 +108,8 @@ class Results:
     data: Array
     error: AnalysisError | None = None
     warnings: list[str] = field(default_factory=list)
-    index: dict[str, int] = field(init=False)
+    index: dict[str, int] = field(init=False, repr=False)
+    mechanism: Any = field(default=None, repr=False, compare=False)  # what was solved, for peaks and plots
 
     def __post_init__(self) -> None:
         self.index = {c: k for k, c in enumerate(self.columns)}
@@ -127,8 +129,65 @@ class Results:
         """Several columns at once, shape (instants, len(prefix_columns))."""
         return self.data[:, [self.index[c] for c in prefix_columns]]
 
-    def to_csv(self, path: str | Path) -> None:
-        write_csv(path, self.columns, iter(self.data))
+    def write_csv(self, path: str | Path) -> int:
+        """Write the table this holds (no solving), atomically; returns the rows written."""
+        return write_csv(path, self.columns, iter(self.data))
+
+    to_csv = write_csv
+
+    def to_pandas(self) -> Any:
+        """The table as a `pandas.DataFrame`, one column per CSV column (pandas is optional)."""
+        try:
+            import pandas
+        except ImportError:
+            raise ImportError("Results.to_pandas() needs pandas (python3 -m pip install pandas); "
+                              "without it, Results.columns and Results.data hold the same table") from None
+        return pandas.DataFrame(self.data, columns=list(self.columns))
+
+    def plot(self, *columns: str) -> Any:
+        """A matplotlib figure: the given columns against t, or, with none given,
+        the drivers' efforts (as `symid solve --plot`) when the mechanism is known."""
+        from symid import plot
+
+        if not columns and self.mechanism is not None:
+            return plot.efforts_figure(self, self.mechanism)
+        if not columns:
+            raise ValueError("Results.plot(): name the columns to plot, e.g. results.plot('motor.T_j') "
+                             f"(columns: {', '.join(self.columns[1:])})")
+        fig = plot._figure(6.4, 3.6)
+        ax = fig.add_subplot()
+        for name in columns:
+            ax.plot(self.t, self[name], label=name)
+        ax.set_xlabel("t")
+        ax.legend()
+        return fig
+
+    def summary(self) -> list[str]:
+        """What was solved, sizes, the drivers' peaks, warnings and the error: one line each."""
+        name = getattr(self.mechanism, "name", None)
+        span = f", t = {number(self.t[0])} .. {number(self.t[-1])}" if len(self.t) else ""
+        head = f"{name + ': ' if name else ''}{plural(len(self.data), 'instant')}{span}, " \
+               f"{plural(len(self.columns), 'column')}"
+        peaks: list[str] = []
+        if self.mechanism is not None and len(self.t):
+            try:
+                from symid import summary
+
+                peaks = summary.lines(self.mechanism, self)
+            except Exception:  # a display must never fail; the table itself is intact
+                peaks = []
+        stop = [f"stopped early: {self.error}"] if self.error is not None else []
+        return [head, *peaks, *(f"warning: {w}" for w in self.warnings), *stop]
+
+    def __repr__(self) -> str:
+        return "Results(" + "; ".join(self.summary()) + ")"
+
+    def _repr_html_(self) -> str:
+        import html
+
+        lines = self.summary()
+        items = "".join(f"<li>{html.escape(line)}</li>" for line in lines[1:])
+        return f"<b>Results</b> {html.escape(lines[0])}" + (f"<ul>{items}</ul>" if items else "")
 
 
 def format_row(values: Iterable[float]) -> str:

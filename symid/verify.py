@@ -126,8 +126,19 @@ class Report:
     def text(self) -> str:
         bad = sum(not o.equal for o in self.outcomes)
         n = len(self.outcomes)
-        verdict = f"all {n} entries hold" if not bad else f"{bad} of {n} entries {'does' if bad == 1 else 'do'} not hold"
+        verdict = (("the entry holds" if n == 1 else f"all {n} entries hold") if not bad
+                   else f"{bad} of {n} entries {'does' if bad == 1 else 'do'} not hold")
         return "\n".join([f"{self.source}: {self.subject}", *(o.text() for o in self.outcomes), verdict])
+
+    def __repr__(self) -> str:
+        bad = sum(not o.equal for o in self.outcomes)
+        return (f"Report({self.source}: {self.subject}; {len(self.outcomes)} entries, "
+                f"{'all hold' if not bad else f'{bad} do not hold'})")
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<pre>{html.escape(self.text())}</pre>"
 
 
 def verify(path: str | Path) -> Report:
@@ -204,7 +215,7 @@ class _Checker:
         names = dict(subject.names())
         for name, raw in table.items():
             where = f"[define] key '{name}'"
-            if name in names or not name.isidentifier() or name.startswith("_"):
+            if (name in names and name not in DISPLAY_NAMES) or not name.isidentifier() or name.startswith("_"):
                 raise self.fail(where, "is a name of the symbol table or not a valid name")
             if isinstance(raw, list):
                 if len(raw) != 2:
@@ -395,6 +406,28 @@ class View:
         return label, {"Phi_q": block, "Phi_r": block[:, :2], "Phi_phi": block[:, 2:]}[qty], None
 
 
+# derive's hand notation as claim names; a [define] of the same name replaces it
+DISPLAY_NAMES = frozenset({"dx", "dy", "dxd", "dyd"} | {f"{v}_{r}{c}" for v in "sa" for r in "ij" for c in "xy"})
+
+
+def _display_names(d: DerivedConstraint) -> dict[str, sp.Expr]:
+    """The hand notation `symid derive TYPE` prints, as claim names (docs/symbols.md):
+    s_ix = (A_i s'_i)_x, a_ix = (A_i v'_i)_x, d = (dx, dy) = r_j + s_j - r_i - s_i, its rate (dxd, dyd)."""
+    out: dict[str, sp.Expr] = {}
+    for key in (k for k in d.family.keys if k.kind in ("point", "vector")):
+        role, letter = key.name[1], "s" if key.kind == "point" else "a"
+        gx, gy = s.A(role) * s.point(key.name)
+        out[f"{letter}_{role}x"], out[f"{letter}_{role}y"] = gx, gy
+    if "s_ix" in out and "s_jx" in out and "j" in d.roles:
+        (xi, yi, _), (xj, yj, _) = s.q("i"), s.q("j")
+        (xdi, ydi, pdi), (xdj, ydj, pdj) = s.qd("i"), s.qd("j")
+        out["dx"] = xj + out["s_jx"] - xi - out["s_ix"]
+        out["dy"] = yj + out["s_jy"] - yi - out["s_iy"]
+        out["dxd"] = xdj - out["s_jy"] * pdj - xdi + out["s_iy"] * pdi
+        out["dyd"] = ydj + out["s_jx"] * pdj - ydi - out["s_ix"] * pdi
+    return out
+
+
 class TypeSubject:
     """One constraint type on the generic symbols of docs/symbols.md."""
 
@@ -405,14 +438,16 @@ class TypeSubject:
             raise InputError(str(exc)) from None
         for key in family.keys:
             if key.kind == "choice" and options.get(key.name) not in key.choices:
-                raise InputError(f"needs options.{key.name} = one of {', '.join(key.choices)}")
+                raise InputError(f"needs options.{key.name} = one of {', '.join(key.choices)} "
+                                 f"(in [claim]: options = {{ {key.name} = \"{key.choices[-1]}\" }})")
         self.der = derive_constraint(name, family.variant(dict(options)))
         self.label = name + "".join(f" ({k} = {v})" for k, v in options.items())
 
     def names(self) -> dict[str, sp.Expr]:
         d = self.der
         roles = [x for r in d.roles for x in (*s.q(r), *s.qd(r))]
-        return {"t": s.T, **{x.name: x for x in (*roles, *d.constants, *d.functions, *d.lam)}}
+        own = {x.name: x for x in (*roles, *d.constants, *d.functions, *d.lam)}
+        return {"t": s.T, **_display_names(d), **own}
 
     def quantity(self, qty: Any, body: Any, constraint: Any) -> tuple[str, sp.Matrix, tuple[str, ...] | None]:
         if constraint is not None:

@@ -20,6 +20,8 @@ import numpy as np
 from symid.analysis import Analysis
 from symid.backends import Array, Needs
 from symid.errors import AnalysisError, InputError
+from symid.progress import stage
+from symid.text import plural
 
 if TYPE_CHECKING:  # a cached run (symid.plan) loads a built solver without sympy
     import sympy as sp
@@ -98,12 +100,15 @@ def build(layout: Layout, options: Options) -> Path:
         from symid.codegen.targets import c
 
         cc = compiler()
+        stage("deriving")
         model = code_model(mech, options)
+        stage("generating")
         c.generate(model, folder)
         source = folder / f"{mech.name}_solver.c"
         # gcc -O2 time grows faster than the code; past LARGE_SOURCE -O1 compiles
         # ~2.5x faster for the same run time (ladder of 64: 7.6 s -> 3.0 s).
         level = "-O2" if source.stat().st_size < LARGE_SOURCE else "-O1"
+        stage("compiling")
         _compile(cc, [level, *CFLAGS, str(source), "-o", str(folder / "solver.so"), "-lm"], folder / "solver.so")
         f = model.flat
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
@@ -238,7 +243,7 @@ class CEvaluator:
             return f"{STATUS[2]} (compiled solver); dependent constraints: {names}"
         phi = np.nan_to_num(self.phi(trial, t), nan=np.inf)
         worst = self.layout.constraint_names_of_rows(np.argsort(-np.abs(phi))[:3])
-        return f"{STATUS[1]} in {info[0]} iterations (compiled solver); largest residuals in: {', '.join(worst)}"
+        return f"{STATUS[1]} in {plural(int(info[0]), 'iteration')} (compiled solver); largest residuals in: {', '.join(worst)}"
 
 
 class CBackend:

@@ -51,8 +51,12 @@ def build(layout: Layout, options: Options) -> Path:
     def make(folder: Path) -> None:
         from symid.codegen.model import code_model
         from symid.codegen.targets import numpy_target
+        from symid.progress import stage
 
-        (path,) = numpy_target.generate(code_model(mech, options), folder)
+        stage("deriving")
+        model = code_model(mech, options)
+        stage("generating")
+        (path,) = numpy_target.generate(model, folder)
         if TAG is not None:  # compiled once here, checked with the entry's other files
             code = compile(path.read_bytes(), str(staged_entry(folder) / path.name), "exec")
             _code_path(path).write_bytes(marshal.dumps(code))

@@ -10,4 +10,5 @@ MODULES: tuple[str, ...] = (
     "symid.commands.derive",
     "symid.commands.verify",
     "symid.commands.bench",
+    "symid.commands.help",
 )

@@ -8,7 +8,12 @@ from pathlib import Path
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("derive", help="show Phi, the Phi_q blocks, nu, gamma and the reactions of a "
-                       "constraint type, or the assembled system of a mechanism file")
+                       "constraint type, or the assembled system of a mechanism file",
+                       description="Show a derivation the way the lecture notes write it (symbols: "
+                                   "symid help symbols).",
+                       epilog="examples:\n  symid derive revolute_revolute\n"
+                              "  symid derive coordinate_driver --option coordinate=phi --latex\n"
+                              '  symid derive "$(symid example four_bar)"')
     p.add_argument("subject", metavar="TYPE|FILE", help="a constraint type (revolute, gear, ...) or a mechanism file")
     p.add_argument("--latex", action="store_true", help="print LaTeX instead of Unicode")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
@@ -30,6 +35,12 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--option {pair}: expected KEY=VALUE")
         options[key.strip()] = value.strip()
     if args.subject in TYPES:
+        for key in TYPES[args.subject].keys:  # say how to give a variant choice on this command line
+            if key.kind == "choice" and options.get(key.name) not in key.choices:
+                given = f"not {options[key.name]!r}; " if key.name in options else ""
+                raise InputError(f"derive {args.subject}: option '{key.name}' must be one of "
+                                 f"{', '.join(key.choices)} ({given}give it as --option {key.name}="
+                                 f"{key.choices[-1]})")
         shown = derive_type(args.subject, options, expanded=args.expanded)
     elif args.subject.endswith(".toml") or Path(args.subject).is_file():
         if options or args.expanded:

@@ -52,6 +52,40 @@ def check_match(table: Results, mechanism: Mechanism, results: str, file: str) -
                              "were these results solved from it?")
 
 
+SAMPLES = 25  # rows checked against the mechanism: enough to catch other parameters, fast on any table
+
+
+def check_configurations(table: Results, mechanism: Mechanism, results: str, file: str) -> None:
+    """The tabled configurations must satisfy the mechanism's constraints, else
+    the drawing would show joints that do not meet (other `--set` values, or
+    another version of the file). Without q columns there is nothing to check."""
+    from symid import backends
+    from symid.assemble import assemble
+    from symid.params import parameter_values
+    from symid.text import number
+
+    names = [f"{b.name}.{c}" for b in mechanism.bodies for c in ("x", "y", "phi")]
+    if not all(n in table.index for n in names) or not len(table.t):
+        return
+    layout = assemble(mechanism)
+    ev = backends.get("reference").evaluator(layout, parameter_values(mechanism.parameters),
+                                             backends.Needs(velocity=False, reactions=()))
+    q_all = table.block(names)
+    worst = (0.0, 0, 0, 0.0)
+    for k in np.unique(np.linspace(0, len(table.t) - 1, SAMPLES).astype(int)):
+        phi = np.abs(np.asarray(ev.phi(q_all[k], float(table.t[k]))))
+        scale = 1e-6 * (1 + float(np.max(np.abs(q_all[k])))) ** 2  # 17-digit tables hold Phi to ~1e-12
+        if phi.size and np.max(phi) / scale > worst[0]:
+            worst = (float(np.max(phi) / scale), int(k), int(np.argmax(phi)), float(np.max(phi)))
+    if worst[0] > 1:
+        _, k, row, residual = worst
+        constraint = layout.constraint_names_of_rows([row])[0]
+        raise InputError(f"{results}: its configurations do not satisfy the constraints of {file} "
+                         f"(constraint '{constraint}' has |Phi| = {residual:.3g} at "
+                         f"t = {number(table.t[k])}): were the results solved with other parameters "
+                         f"(give the same --set NAME=VALUE) or from another version of the file?")
+
+
 def run(args: argparse.Namespace) -> int:
     from symid import plot
     from symid.cli import _set_values
@@ -62,6 +96,7 @@ def run(args: argparse.Namespace) -> int:
     if args.mechanism:
         mechanism = load(args.mechanism, _set_values(args.set))
         check_match(table, mechanism, args.file, args.mechanism)
+        check_configurations(table, mechanism, args.file, args.mechanism)
     directory = Path(args.output) if args.output else Path(args.file).parent
     written = plot.write_all(table, mechanism, directory, Path(args.file).stem, gif=args.gif)
     for path in written.paths:
@@ -72,7 +107,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def register(sub: Any) -> None:
-    p = sub.add_parser("plot", help="plot a results table: driver efforts, joint reactions, the mechanism")
+    p = sub.add_parser("plot", help="plot a results table: driver efforts, joint reactions, the mechanism",
+                       description="Plot a results table written by symid solve.",
+                       epilog="examples:\n  symid plot run.csv --mechanism crank.toml\n"
+                              "  symid plot run.csv --mechanism crank.toml --set omega=12 --gif -o figures/")
     p.add_argument("file", metavar="RESULTS", help="a .csv (or .npz) written by symid solve")
     p.add_argument("--mechanism", metavar="FILE",
                    help="the mechanism file it was solved from: needed for efforts and the drawing")

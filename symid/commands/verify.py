@@ -9,8 +9,13 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("verify", help="check hand derivations (claim files) against symid's derivation")
-    p.add_argument("files", nargs="*", metavar="CLAIMS.toml", help="claim files (format: docs/claims.md)")
+    p = sub.add_parser("verify", help="check hand derivations (claim files) against symid's derivation",
+                       description="Check hand derivations against symid's own. "
+                                   "Exit status 0: all hold, 1: some do not, 2: a malformed file.",
+                       epilog="examples:\n  symid verify homework.toml\n  symid verify --bundled\n"
+                              "The claim-file format: symid help claims (docs/claims.md).")
+    p.add_argument("files", nargs="*", metavar="CLAIMS.toml",
+                   help="claim files (format: docs/claims.md, symid help claims)")
     p.add_argument("--bundled", action="store_true",
                    help="also verify the claim files shipped with symid (the lecture notes' hand results)")
     p.set_defaults(run=run)

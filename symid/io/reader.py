@@ -27,6 +27,7 @@ from symid.model import (
 )
 from symid.motion import LAWS, check_spans
 from symid.params import order_parameters, parameter_values, to_float
+from symid.text import number, plural
 
 MAX_FILE_BYTES = 16 * 1024 * 1024
 # Every name becomes part of a file name (`<name>.csv`, `<name>_solver.c`) or a C
@@ -44,6 +45,10 @@ MAX_PARAMETERS = 100_000
 MAX_STEPS = 10_000_000  # instants of one run: the summary keeps a few columns of each in memory
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 TOP_KEYS = ("mechanism", "parameters", "analysis", "body", "constraint", "force")
+MECHANISM_KEYS = ("name", "gravity")
+ANALYSIS_KEYS = ("kind", "t0", "t1", "steps", "tol", "outputs", "reactions", "cond_warn", "redundant",
+                 "assembly_jump")
+BODY_KEYS = ("name", "mass", "inertia", "q0")
 RESERVED = {"t", "pi", GROUND} | set(FUNCTIONS)
 
 
@@ -122,8 +127,10 @@ class _Reader:
             raise self.fail(where, str(exc.args[1])) from None
 
     def pair(self, value: Any, where: str, time: bool = False, n: int = 2) -> tuple[sp.Expr, ...]:
-        if not isinstance(value, list) or len(value) != n:
+        if not isinstance(value, list):
             raise self.fail(where, f"must be a list of {n} numbers or expressions, not {_kind(value)}")
+        if len(value) != n:
+            raise self.fail(where, f"has {plural(len(value), 'value')}, {n} expected")
         if time:
             return tuple(self.expr(v, where, time=True) for v in value)
         return tuple(self.number(v, where)[0] for v in value)
@@ -143,7 +150,7 @@ class _Reader:
                   overrides: dict[str, Any]) -> Mechanism:
         self.unknown(data, TOP_KEYS, "top level")
         head = self.table(self.require(data, "mechanism", "top level"), "[mechanism]")
-        self.unknown(head, ("name", "gravity"), "[mechanism]")
+        self.unknown(head, MECHANISM_KEYS, "[mechanism]")
         name = self.name(head, "[mechanism]")
         parameters = self.parameters(self.table(data.get("parameters", {}), "[parameters]"), set_values)
         gravity = self.pair(head.get("gravity", [0, 0]), "[mechanism] key 'gravity'")
@@ -208,27 +215,31 @@ class _Reader:
 
     def analysis(self, table: dict[str, Any], overrides: dict[str, Any]) -> Analysis:
         where = "[analysis]"
-        fields = ("kind", "t0", "t1", "steps", "tol", "outputs", "reactions",
-                  "cond_warn", "redundant", "assembly_jump")
-        self.unknown(table, fields, where)
+        self.unknown(table, ANALYSIS_KEYS, where)
         overrides = dict(overrides)
         add_cond = overrides.pop("cond_column", None)  # `symid solve --cond`
-        merged = {**table, **{k: v for k, v in overrides.items() if v is not None}}
+        given = {k: v for k, v in overrides.items() if v is not None}
+        merged = {**table, **given}
+
+        def key_of(name: str) -> str:
+            """Where a value came from: the option that overrode the file's key, or the key."""
+            return f"--{name.replace('_', '-')}" if name in given else f"{where} key '{name}'"
+
         kind = merged.get("kind", "inverse_dynamics")
         if kind not in KINDS:
-            raise self.fail(f"{where} key 'kind'", f"unknown kind {kind!r} (valid: {', '.join(KINDS)})")
-        t0 = self.real(merged.get("t0", 0.0), f"{where} key 't0'")
-        t1 = self.real(merged.get("t1", 1.0), f"{where} key 't1'")
+            raise self.fail(key_of("kind"), f"unknown kind {kind!r} (valid: {', '.join(KINDS)})")
+        t0 = self.real(merged.get("t0", 0.0), key_of("t0"))
+        t1 = self.real(merged.get("t1", 1.0), key_of("t1"))
         steps = merged.get("steps", 1001)
         if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
-            raise self.fail(f"{where} key 'steps'", f"must be a whole number >= 1, not {steps!r}")
+            raise self.fail(key_of("steps"), f"must be a whole number >= 1, not {steps!r}")
         if steps > MAX_STEPS:
-            raise self.fail(f"{where} key 'steps'", f"{steps} instants, more than the {MAX_STEPS} allowed")
+            raise self.fail(key_of("steps"), f"{steps} instants, more than the {MAX_STEPS} allowed")
         if steps > 1 and not t1 > t0:
-            raise self.fail(f"{where} key 't1'", f"must be greater than t0 = {t0!r}")
-        tol = self.real(merged.get("tol", 1e-12), f"{where} key 'tol'")
+            raise self.fail(key_of("t1"), f"must be greater than t0 = {number(t0)}")
+        tol = self.real(merged.get("tol", 1e-12), key_of("tol"))
         if not tol > 0:
-            raise self.fail(f"{where} key 'tol'", "must be positive")
+            raise self.fail(key_of("tol"), f"must be positive, not {number(tol)}")
         outputs = self.names(merged.get("outputs"), f"{where} key 'outputs'", OUTPUT_GROUPS + EXTRA_OUTPUTS)
         if add_cond and "cond" not in (outputs or ()):
             outputs = (outputs if outputs is not None else KIND_OUTPUTS[kind]) + ("cond",)
@@ -239,14 +250,13 @@ class _Reader:
                 raise self.fail(f"{where} key 'outputs'", f"{bad[0]!r} is not an output of {kind}")
         reactions = self.names(merged.get("reactions"), f"{where} key 'reactions'", None)
         cond_warn = merged.get("cond_warn")
-        if cond_warn is not None and not self.real(cond_warn, f"{where} key 'cond_warn'") >= 1:
-            raise self.fail(f"{where} key 'cond_warn'", f"must be a number >= 1, not {cond_warn!r}")
+        if cond_warn is not None and not self.real(cond_warn, key_of("cond_warn")) >= 1:
+            raise self.fail(key_of("cond_warn"), f"must be a number >= 1, not {cond_warn!r}")
         modes = {}
         for key, choices in (("redundant", REDUNDANT_MODES), ("assembly_jump", JUMP_MODES)):
             value = merged.get(key, choices[0])
             if value not in choices:
-                raise self.fail(f"{where} key '{key}'",
-                                f"must be one of {', '.join(map(repr, choices))}, not {value!r}")
+                raise self.fail(key_of(key), f"must be one of {', '.join(map(repr, choices))}, not {value!r}")
             modes[key] = value
         return Analysis(kind=kind, t0=t0, t1=t1, steps=steps, tol=tol, outputs=outputs,
                         reactions=reactions, cond_warn=None if cond_warn is None else float(cond_warn),
@@ -275,7 +285,7 @@ class _Reader:
         data = self.table(data, where)
         name = self.name(data, where)
         where = f"body '{name}'"
-        self.unknown(data, ("name", "mass", "inertia", "q0"), where)
+        self.unknown(data, BODY_KEYS, where)
         mass, inertia = (self.inertial(data, key, where) for key in ("mass", "inertia"))
         q0 = self.pair(self.require(data, "q0", where), f"{where} key 'q0'", n=3)
         return Body(name=name, mass=mass, inertia=inertia, q0=q0)  # type: ignore[arg-type]
