@@ -34,7 +34,7 @@ IGNORE = shutil.ignore_patterns(".git", "__pycache__", ".pytest_cache", ".mypy_c
 
 CLI = "tests/test_cli.py"
 OUT = "tests/test_output_integrity.py"
-CSOLVER = "tests/test_c_solver_internals.py"
+CSOLVER = "tests/test_solver_internals.py"
 CODEGEN = "tests/test_codegen.py"
 
 
@@ -90,34 +90,36 @@ MUTANTS: tuple[Mutant, ...] = (
     # -- the Python solver loop -----------------------------------------------------
     Mutant("python_predictor_half_dropped", "symid/solve.py",
            "return prev.q + h * prev.qd + 0.5 * h * h * prev.qdd",
-           "return prev.q + h * prev.qd + h * h * prev.qdd", k(CSOLVER, "python")),
+           "return prev.q + h * prev.qd + h * h * prev.qdd", k(CSOLVER, "loop and python")),
     Mutant("statics_predictor_quadratic_wrong", "symid/solve.py",
            "return 3 * history[-1] - 3 * history[-2] + history[-3]",
-           "return 3 * history[-1] - 2 * history[-2] + history[-3]", k(CSOLVER, "python")),
+           "return 3 * history[-1] - 2 * history[-2] + history[-3]", k(CSOLVER, "loop and python")),
     Mutant("lambda_rhs_sign", "symid/solve.py", "rhs = ev.applied(q, out.qd, t) - self.mass * out.qdd",
-           "rhs = ev.applied(q, out.qd, t) + self.mass * out.qdd", ("tests/test_physics.py", "-k", "closed_form")),
+           "rhs = ev.applied(q, out.qd, t) + self.mass * out.qdd", ("tests/test_physics.py", "-k", "closed_form")
+           + k(OUT, "part_way_keeps_every and numpy")),
     Mutant("time_grid_off_by_one", "symid/solve.py", "h = (analysis.t1 - analysis.t0) / (analysis.steps - 1)",
-           "h = (analysis.t1 - analysis.t0) / analysis.steps", k(CLI, "one_row_per_step")),
+           "h = (analysis.t1 - analysis.t0) / analysis.steps", k(CLI, "one_row_per_step")
+           + k(OUT, "part_way_keeps_every and numpy")),
     Mutant("newton_damping_never_halves", "symid/solve.py", "            alpha *= 0.5\n",
            "            alpha *= 0.999\n", ("tests/test_stability.py", "-k", "diverg or damp")),
     # -- the compiled (C) backend's loop in Python -----------------------------------
     Mutant("c_failed_chunk_rows_dropped", "symid/backends/c_backend.py",
            "for k in range(solved.value):", "for k in range(solved.value if status == 0 else 0):",
-           k(OUT, "part_way")),
+           (f"{OUT}::test_failure_part_way_in_a_later_chunk_keeps_the_chunks_rows[c]",)),
     Mutant("c_failure_time_off_by_one", "symid/backends/c_backend.py",
            "t = analysis.t0 + (start + solved.value) * h", "t = analysis.t0 + (start + solved.value + 1) * h",
-           k(OUT, "part_way")),
+           (f"{OUT}::test_failure_part_way_keeps_every_instant_before_it_equal_to_the_reference[c]",)),
     Mutant("c_chunk_start_time_off_by_one", "symid/backends/c_backend.py",
            "t0 = analysis.t0 + start * h", "t0 = analysis.t0 + (start + 1) * h",
            k(CODEGEN, "fine_grid")),
     # -- the C template: predictor, dense fallback, outputs ---------------------------
     Mutant("c_predictor_coefficient", "templates/c/solver.c.j2", "(323.0 / 360.0) * qdd[k]",
-           "(324.0 / 360.0) * qdd[k]", k(CSOLVER, "predictor")),
+           "(324.0 / 360.0) * qdd[k]", k(CSOLVER, "c_predictor or factors_once")),
     Mutant("c_predictor_history_order", "templates/c/solver.c.j2",
            "        memcpy(m3, m2, sizeof(double) * {{ ng }});\n        memcpy(m2, m1, sizeof(double) * {{ ng }});\n"
            "        memcpy(m1, qdd,",
            "        memcpy(m2, m1, sizeof(double) * {{ ng }});\n        memcpy(m3, m2, sizeof(double) * {{ ng }});\n"
-           "        memcpy(m1, qdd,", k(CSOLVER, "predictor")),
+           "        memcpy(m1, qdd,", k(CSOLVER, "c_predictor or factors_once")),
     Mutant("c_dense_pivot_smallest", "templates/c/solver.c.j2",
            "if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;",
            "if (fabs(a[i * n + k]) < fabs(a[best * n + k])) best = i;", k(CSOLVER, "dense")),
@@ -132,7 +134,7 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant("c_mass_term_sign", "templates/c/solver.c.j2", "for (k = 0; k < {{ ng }}; ++k) b[k] -= y[k] * qdd[k];",
            "for (k = 0; k < {{ ng }}; ++k) b[k] += y[k] * qdd[k];", k(CODEGEN, "fine_grid")),
     Mutant("c_statics_predictor", "templates/c/solver.c.j2", "3.0 * q[k] - 3.0 * m1[k] + m2[k]",
-           "3.0 * q[k] - 2.0 * m1[k] + m2[k]", k(CSOLVER, "statics")),
+           "3.0 * q[k] - 2.0 * m1[k] + m2[k]", k(CSOLVER, "c_statics")),
     # -- derivation -------------------------------------------------------------------
     Mutant("reaction_force_sign", "symid/derive.py", "    force = -phi_r.T * lam\n", "    force = phi_r.T * lam\n",
            ("tests/test_derivations.py", "-k", "reference_table")),
@@ -140,12 +142,13 @@ MUTANTS: tuple[Mutant, ...] = (
            "torque = ((-bs.T * phi_r.T - phi_phi.T) * lam)[0]", ("tests/test_derivations.py", "-k", "reference_table")),
     Mutant("gamma_drops_driver_rate", "symid/derive.py", "        out += sp.diff(expr, f) * fd\n",
            "        pass\n", ("tests/test_derivations.py", "-k", "hand_expressions or numerical")),
-    Mutant("gamma_drops_qdd_chain", "symid/derive.py",
-           "out += sp.diff(expr, qc) * qdc + sp.diff(expr, qdc) * qddc", "out += sp.diff(expr, qc) * qdc",
+    Mutant("total_derivative_drops_q_chain", "symid/derive.py",
+           "out += sp.diff(expr, qc) * qdc + sp.diff(expr, qdc) * qddc", "out += sp.diff(expr, qdc) * qddc",
            ("tests/test_derivations.py", "-k", "hand_expressions or numerical")),
     Mutant("distance_length_not_squared", "symid/constraints/distance.py",
            'phi=lambda o: [(_d().T * _d())[0] - s.scalar("L") ** 2],',
-           'phi=lambda o: [(_d().T * _d())[0] - s.scalar("L")],', ("tests/test_derivations.py", "-k", "phi_q or hand")),
+           'phi=lambda o: [(_d().T * _d())[0] - s.scalar("L")],',
+           ("tests/test_verify.py", "-k", "verifies and revolute_revolute")),
     Mutant("angle_driver_offset_sign", "symid/constraints/angle.py",
            'phi=lambda o: [s.q("j")[2] - s.q("i")[2] - s.scalar("C") - s.F_SERIES[0]],',
            'phi=lambda o: [s.q("j")[2] - s.q("i")[2] + s.scalar("C") - s.F_SERIES[0]],',
@@ -164,7 +167,17 @@ MUTANTS: tuple[Mutant, ...] = (
            "if not abs(piv) >= THRESHOLD * colmax or piv == 0:", "if piv == 0:",
            k(CODEGEN, "too_small_falls_back or known_pivot")),
     Mutant("numpy_predictor_half_dropped", "templates/numpy/module.py.j2", "hh = 0.5 * h * h", "hh = h * h",
-           k(CSOLVER, "numpy")),
+           k(CSOLVER, "loop and numpy")),
+    # -- added after the first run: more of the output and loop code ----------------------
+    Mutant("csv_header_columns_shifted", "symid/results.py", "    return out + list(analysis.extra_outputs())",
+           "    return out[1:] + [\"t\"] + list(analysis.extra_outputs())", k(OUT, "subset and numpy")),
+    Mutant("c_state_not_seeded", "symid/backends/c_backend.py", "        state[:ng] = q0\n", "        pass\n",
+           (f"{OUT}::test_failure_part_way_keeps_every_instant_before_it_equal_to_the_reference[c]",)),
+    Mutant("python_history_too_short", "symid/solve.py", "history = (history + [prev.q])[-3:]",
+           "history = (history + [prev.q])[-2:]", k(CSOLVER, "python and statics")),
+    Mutant("c_chord_without_refactor", "templates/c/solver.c.j2",
+           "current = !chord && step <= {{ P }}_EPS * qmag;", "current = step <= {{ P }}_EPS * qmag || chord;",
+           k(CODEGEN, "fine_grid and slider_crank")),
 )
 
 
@@ -200,6 +213,8 @@ def run_tests(tree: Path, args: list[str], cache: Path) -> tuple[str, float, str
     for arg in args:
         if arg == "-k" or (groups and groups[-1][-1] == "-k"):
             groups[-1].append(arg)
+        elif groups and "-k" not in groups[-1] and "::" in arg and "::" in groups[-1][0]:
+            groups[-1].append(arg)  # node ids share one pytest call
         else:
             groups.append([arg])
     env = dict(os.environ, PYTHONPATH=str(tree), SYMID_CACHE=str(cache), PYTHONDONTWRITEBYTECODE="1")
