@@ -5,6 +5,8 @@ reference run."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import re
 import resource
@@ -145,8 +147,6 @@ def full_reference(tmp_path_factory) -> tuple[list[str], np.ndarray, list[str]]:
     """The bundled slider-crank's full table and summary lines, reference backend."""
     folder = tmp_path_factory.mktemp("full")
     out = folder / "full.csv"
-    import contextlib
-    import io
     stdout = io.StringIO()
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(io.StringIO()):
         assert main(["solve", str(SLIDER_CRANK), "-o", str(out), "--steps", "21", "--backend", "reference"]) == 0
@@ -179,7 +179,7 @@ def test_output_subset_rows_are_as_wide_as_the_header_and_equal_the_full_run(
     assert set(header) <= set(full_header) and header[0] == "t"
     data = np.array([line.split(",") for line in lines[1:]], dtype=float)
     want = full[:, [full_header.index(c) for c in header]]
-    scale = np.maximum(np.max(np.abs(want), axis=0), 1e-6)
+    scale = np.maximum(np.max(np.abs(want), axis=0), 1.0)  # absolute for near-zero columns
     assert np.max(np.abs(data - want) / scale) <= 1e-10
     # the summary: the same figures as the full run's wherever the driver's columns are kept
     if "motor.T_j" in header:
@@ -227,8 +227,8 @@ def test_failure_part_way_in_a_later_chunk_keeps_the_chunks_rows(tmp_path: Path,
     falls after the C solver's first chunk (1024 instants): the failing
     chunk's solved rows are kept too, as the NumPy backend keeps them."""
     available(backend)
-    if backend == "reference":
-        pytest.skip("the reference is the NumPy backend's Python loop here; 1100 instants of it are slow")
+    if backend in ("numpy", "reference"):
+        pytest.skip("numpy is the comparison (its module loop has no chunks); the reference is slow here")
     extra = ("--t1", "0.02", "--steps", "1301")
     status, _, err, out = solve_cli(tmp_path, capsys, _failing_text(), *extra, "--backend", backend)
     assert status == 3, err

@@ -21,7 +21,7 @@ import pytest
 
 from symid import api
 from symid import solve as solve_module
-from symid.codegen.model import code_model
+from symid.codegen.model import CodeModel, code_model
 from symid.codegen.targets import c as c_target
 from symid.io.reader import load
 
@@ -59,7 +59,7 @@ def _edit(text: str, old: str, new: str) -> str:
     return text.replace(old, new)
 
 
-def instrumented(model, folder: Path, harness: str = "") -> tuple[ctypes.CDLL, dict, object]:
+def instrumented(model: CodeModel, folder: Path, harness: str = "") -> tuple[ctypes.CDLL, dict, CodeModel]:
     """The generated C solver of `model`, counting factorizations and Newton
     iterations, recording each instant's prediction error, able to be forced
     onto the dense fallback; `harness` is appended (it may call the solver's
@@ -87,7 +87,7 @@ def instrumented(model, folder: Path, harness: str = "") -> tuple[ctypes.CDLL, d
 class Counted:
     """One trajectory call of an instrumented solver and what it counted."""
 
-    def __init__(self, lib: ctypes.CDLL, ctx: dict, model, h: float, n: int, dense: bool = False) -> None:
+    def __init__(self, lib: ctypes.CDLL, ctx: dict, model: CodeModel, h: float, n: int, dense: bool = False) -> None:
         ctypes.c_long.in_dll(lib, "test_factorizations").value = 0
         ctypes.c_long.in_dll(lib, "test_iterations").value = 0
         ctypes.c_int.in_dll(lib, "test_force_dense").value = int(dense)
@@ -110,7 +110,7 @@ class Counted:
 
 
 @pytest.fixture(scope="module")
-def slider_crank_c(tmp_path_factory) -> tuple[ctypes.CDLL, dict, object]:
+def slider_crank_c(tmp_path_factory) -> tuple[ctypes.CDLL, dict, CodeModel]:
     if shutil.which("cc") is None:
         pytest.skip("no C compiler")
     model = code_model(load(api.example("slider_crank")))
@@ -264,6 +264,5 @@ def test_python_and_numpy_loop_predictors_are_third_order(loop: str, kind: str, 
         late = seen[n // 2:]
         errors[h] = max(e for e, _ in late)
         iterations[h] = sum(it for _, it in late) / len(late)
-    print(loop, kind, errors, iterations, order(errors))
     assert order(errors) >= 2.7, errors
-    assert max(iterations.values()) <= 3.0, iterations
+    assert max(iterations.values()) <= 4.0, iterations  # 3.0 measured
