@@ -10,6 +10,7 @@ import csv
 import math
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tomllib
@@ -229,17 +230,20 @@ def test_kind_statics_rate_columns_asked_for_are_zero(tmp_path, capsys):
 
 
 
-def backend_params(xfail_numpy: str | None = None) -> list:
-    """numpy (the default; a strict xfail when it has a known bug) and reference."""
-    numpy = (pytest.param("numpy", marks=pytest.mark.xfail(strict=True, reason=xfail_numpy))
-             if xfail_numpy else "numpy")
-    return [numpy, "reference"]
+def backend_params(**xfail: str) -> list:
+    """Every backend (numpy, c, casadi, reference): output shapes and failures
+    must not depend on the backend. `xfail`: backend -> the known bug that
+    makes it fail (a strict xfail, so that the fix is noticed)."""
+    return [pytest.param(b, marks=pytest.mark.xfail(strict=True, reason=xfail[b])) if b in xfail else b
+            for b in ("numpy", "c", "casadi", "reference")]
 
 
 def skip_unknown_backend(backend: str) -> None:
     from symid import backends
     if backend not in backends.names():
         pytest.skip(f"no backend {backend}")
+    if backend == "c" and shutil.which(os.environ.get("CC") or "cc") is None:
+        pytest.skip("no C compiler")
 
 
 @pytest.mark.parametrize("backend", backend_params())
@@ -407,11 +411,13 @@ def _failure(err: str, path: Path) -> tuple[str, float]:
     return line, float(m.group(1))
 
 
-def test_newton_failure_part_way_exits_3_and_keeps_solved_instants(tmp_path, capsys):
+@pytest.mark.parametrize("backend", backend_params())
+def test_newton_failure_part_way_exits_3_and_keeps_solved_instants(tmp_path, capsys, backend):
     """A rod (0.05) shorter than the crank (0.1): the slider cannot follow once
     the crank pin rises above 0.05, i.e. past 30 degrees (t = 1/60 s)."""
+    skip_unknown_backend(backend)
     text = set_line(base_text(), "L_rod", "0.05")
-    status, _, err, out = solve(tmp_path, capsys, text)
+    status, _, err, out = solve(tmp_path, capsys, text, "--backend", backend)
     assert status == 3, err
     line, t_fail = _failure(err, tmp_path / "mech.toml")
     assert 0 < t_fail and t_fail == pytest.approx(1 / 60, abs=2e-3)
@@ -430,11 +436,13 @@ def test_newton_failure_part_way_exits_3_and_keeps_solved_instants(tmp_path, cap
     no_temporaries(tmp_path)
 
 
-def test_singular_configuration_part_way_exits_3(tmp_path, capsys):
+@pytest.mark.parametrize("backend", backend_params())
+def test_singular_configuration_part_way_exits_3(tmp_path, capsys, backend):
     """Rod as long as the crank: at 90 degrees (t = 0.05 s) the slider reaches
     the main bearing, the rod is square to the guide and Phi_q is singular."""
+    skip_unknown_backend(backend)
     text = set_line(base_text(), "L_rod", "0.1")
-    status, _, err, out = solve(tmp_path, capsys, text)
+    status, _, err, out = solve(tmp_path, capsys, text, "--backend", backend)
     assert status == 3, err
     line, t_fail = _failure(err, tmp_path / "mech.toml")
     assert t_fail == pytest.approx(0.05, abs=2e-3)
@@ -460,7 +468,9 @@ def redundant_text() -> str:
 
 
 
-@pytest.mark.parametrize("backend", backend_params())
+@pytest.mark.parametrize("backend", backend_params(
+    c="issue 12 point 1: the generated C of this mechanism does not compile under -Werror "
+      "(unused static function <name>_sparse_factor0): RuntimeError, exit 1"))
 def test_redundant_constraints_exit_3_at_t0_with_header_only(tmp_path, capsys, backend):
     skip_unknown_backend(backend)
     out = tmp_path / "out.csv"
@@ -501,11 +511,13 @@ def test_check_function_reports_rank_deficiency(tmp_path):
     assert {"cylinder_guide", "motor"} <= set(report.dependent)
 
 
-def test_failure_at_t0_writes_header_only(tmp_path, capsys):
+@pytest.mark.parametrize("backend", backend_params())
+def test_failure_at_t0_writes_header_only(tmp_path, capsys, backend):
     """The crank starts at 90 degrees with a rod too short to reach the guide:
     nothing can be assembled at t0."""
+    skip_unknown_backend(backend)
     text = set_line(base_text(), "L_rod", "0.05").replace('f = "omega*t"', 'f = "omega*t + pi/2"')
-    status, _, err, out = solve(tmp_path, capsys, text)
+    status, _, err, out = solve(tmp_path, capsys, text, "--backend", backend)
     assert status == 3, err
     line, t_fail = _failure(err, tmp_path / "mech.toml")
     assert t_fail == 0.0
@@ -513,11 +525,13 @@ def test_failure_at_t0_writes_header_only(tmp_path, capsys):
     no_temporaries(tmp_path)
 
 
-def test_failure_replaces_an_existing_output(tmp_path, capsys):
+@pytest.mark.parametrize("backend", backend_params())
+def test_failure_replaces_an_existing_output(tmp_path, capsys, backend):
     out = tmp_path / "out.csv"
+    skip_unknown_backend(backend)
     out.write_text("old,table\n1,2\n")
     text = set_line(base_text(), "L_rod", "0.05")
-    status, _, err, _ = solve(tmp_path, capsys, text, out=out)
+    status, _, err, _ = solve(tmp_path, capsys, text, "--backend", backend, out=out)
     assert status == 3
     assert out.read_text().splitlines()[0] == ",".join(ALL_COLUMNS)
     no_temporaries(tmp_path)
