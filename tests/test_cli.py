@@ -468,9 +468,7 @@ def redundant_text() -> str:
 
 
 
-@pytest.mark.parametrize("backend", backend_params(
-    c="issue 12 point 1: the generated C of this mechanism does not compile under -Werror "
-      "(unused static function <name>_sparse_factor0): RuntimeError, exit 1"))
+@pytest.mark.parametrize("backend", backend_params())
 def test_redundant_constraints_exit_3_at_t0_with_header_only(tmp_path, capsys, backend):
     skip_unknown_backend(backend)
     out = tmp_path / "out.csv"
