@@ -22,6 +22,7 @@ import numpy as np
 from symid.backends import Array, Evaluator
 from symid.errors import AnalysisError
 from symid.analysis import Analysis
+from symid import nonfinite
 from symid.stability import EPS, SINGULAR_RCOND, Factor, Notes, Scaling, rank_of, redundancy_message
 
 MAX_NEWTON = 50
@@ -62,6 +63,8 @@ class Instant:
 def _factor(ev: Evaluator, q: Array, t: float, scaling: Scaling) -> Factor:
     """The equilibrated factorization of Phi_q(q); raise if singular."""
     jac = ev.phi_q(q, t)
+    if not np.isfinite(jac).all():
+        raise nonfinite.error(ev.layout, "Phi_q", t, q)
     factor = Factor(jac, scaling)
     if not factor.rcond > SINGULAR_RCOND:
         names = ", ".join(rank_of(jac, scaling, ev.layout).dependent)
@@ -104,6 +107,8 @@ def newton(ev: Evaluator, q: Array, t: float, tol: float, scaling: Scaling | Non
         floor = 8 * EPS * max(1.0, scaling.size(q))
         lim = max(tol, floor)
         if not res < np.inf:
+            if np.isfinite(q).all():
+                raise nonfinite.error(ev.layout, "Phi", t, q)
             raise AnalysisError(f"Newton did not converge: Phi is not finite at the guess; "
                                 f"in: {_largest(ev, phi, scaling)}", t)
         if res <= lim and step <= max(tol, floor * cond):
@@ -183,6 +188,10 @@ class Stepper:
         Raises:
             AnalysisError: with `time` and `solved` (= n) set.
         """
+        with np.errstate(all="ignore"):  # inf and NaN are checked below, and reported
+            return self._instant(n, t, prev, history, q0)
+
+    def _instant(self, n: int, t: float, prev: Instant | None, history: list[Array], q0: Array) -> Instant:
         ev, analysis, notes = self.ev, self.analysis, self.notes
         scaling = self.scaling
         try:
@@ -220,6 +229,9 @@ class Stepper:
                     out.lam = factor.solve_t(rhs)
             if self.want_reactions and out.lam is not None:
                 out.reactions = ev.reactions(q, out.lam, t)
+            bad = nonfinite.not_finite(q=out.q, qd=out.qd, qdd=out.qdd, lam=out.lam, reactions=out.reactions)
+            if bad:
+                raise nonfinite.error(ev.layout, ", ".join(bad), t, out.q, out.qd, out.qdd)
             notes.cond(t, out.cond, n)
         except AnalysisError as exc:
             exc.time, exc.solved = t, n
