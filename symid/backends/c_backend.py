@@ -34,7 +34,8 @@ CHUNK = 1024
 # (21.7 kB rows), 1024 -> 48 instants a call: 14.1 -> 12.4 us per instant solved
 CHUNK_BYTES = 1 << 20
 LARGE_SOURCE = 200_000  # bytes of generated C
-STATUS = {1: "Newton did not converge", 2: "Phi_q is singular"}
+STATUS = {1: "Newton did not converge", 2: "Phi_q is singular", 3: "a value is not finite"}
+NONFINITE = 3
 
 
 def compiler() -> str:
@@ -198,6 +199,17 @@ class CEvaluator:
         self._instant(ctypes.c_double(t), _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(trial),
                       _ptr(vec[0]), _ptr(vec[1]), _ptr(vec[2]), _ptr(vec[3]), info.ctypes.data_as(_I),
                       _ptr(self.work), self.iwork.ctypes.data_as(_I))
+        if status == NONFINITE:
+            from symid import nonfinite
+
+            ng, nc, nr = self.meta["ng"], self.meta["nc"], self.meta["nr"]
+            qd, qdd = vec[0][:ng], vec[1][:ng]
+            if not np.isfinite(trial).all() or not np.isfinite(self.phi(trial, t)).all():
+                what, qd, qdd = "Phi", None, None
+            else:
+                what = ", ".join(nonfinite.not_finite(qd=qd, qdd=qdd, lam=vec[2][:nc], reactions=vec[3][:nr]))
+            return (f"{what or 'a value'} not finite (inf or NaN) (compiled solver); "
+                    f"{nonfinite.culprits(self.layout, trial, qd, qdd, t)}")
         if status == 2:
             names = ", ".join(_dependent(self, self.phi_q(trial, t)))
             return f"{STATUS[2]} (compiled solver); dependent constraints: {names}"

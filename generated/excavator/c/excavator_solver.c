@@ -847,7 +847,12 @@ static int excavator_newton(double t, const double *p, double tol, double *q, do
     excavator_phi_k(q, tr, t, p, r);
     rmax = excavator_maxabs(r, 9);
     for (it = 0;; ++it) {
-        if (!isfinite(rmax)) break;
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            return it == 0 ? EXCAVATOR_NONFINITE : EXCAVATOR_NOT_CONVERGED;
+        }
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
@@ -901,13 +906,27 @@ static void excavator_outputs(double t, const double *p, const double *q, const 
     excavator_reactions_k(q, tr, lam, t, p, reactions);
 }
 
+/* Whether everything an instant computed is finite (maxabs is NaN if any
+   value is): a few comparisons per value, against an instant's solve. */
+static int excavator_finite(const double *q, const double *qd, const double *qdd, const double *lam,
+                          const double *reactions)
+{
+    (void)qd; (void)qdd; (void)lam; (void)reactions;
+    return isfinite(excavator_maxabs(q, 9))
+        && isfinite(excavator_maxabs(qd, 9)) && isfinite(excavator_maxabs(qdd, 9))
+        && isfinite(excavator_maxabs(lam, 9))
+        && isfinite(excavator_maxabs(reactions, 36))
+        ;
+}
+
 int excavator_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *tr = EXCAVATOR_VEC(work, 9);
     int dense = 0, status = excavator_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status == EXCAVATOR_OK) excavator_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return status;
+    if (status != EXCAVATOR_OK) return status;
+    excavator_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+    return excavator_finite(q, qd, qdd, lam, reactions) ? EXCAVATOR_OK : EXCAVATOR_NONFINITE;
 }
 
 int excavator_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -950,6 +969,10 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
             return status;
         }
         excavator_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        if (!excavator_finite(qn, qdn, qddn, lam, reac)) {
+            *solved = i;
+            return EXCAVATOR_NONFINITE;
+        }
         memcpy(m3, m2, sizeof(double) * 9);
         memcpy(m2, m1, sizeof(double) * 9);
         memcpy(m1, qdd, sizeof(double) * 9);

@@ -18,6 +18,7 @@
 #define EXCAVATOR_OK 0
 #define EXCAVATOR_NOT_CONVERGED 1
 #define EXCAVATOR_SINGULAR 2
+#define EXCAVATOR_NONFINITE 3     /* Phi at the guess, or an output, is inf or NaN */
 
 /* Output groups compiled in (1) or left out (0). */
 #define EXCAVATOR_HAS_QDOT 1

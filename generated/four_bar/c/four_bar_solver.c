@@ -618,7 +618,12 @@ static int four_bar_newton(double t, const double *p, double tol, double *q, dou
     four_bar_phi_k(q, tr, t, p, r);
     rmax = four_bar_maxabs(r, 9);
     for (it = 0;; ++it) {
-        if (!isfinite(rmax)) break;
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            return it == 0 ? FOUR_BAR_NONFINITE : FOUR_BAR_NOT_CONVERGED;
+        }
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
@@ -672,13 +677,27 @@ static void four_bar_outputs(double t, const double *p, const double *q, const d
     four_bar_reactions_k(q, tr, lam, t, p, reactions);
 }
 
+/* Whether everything an instant computed is finite (maxabs is NaN if any
+   value is): a few comparisons per value, against an instant's solve. */
+static int four_bar_finite(const double *q, const double *qd, const double *qdd, const double *lam,
+                          const double *reactions)
+{
+    (void)qd; (void)qdd; (void)lam; (void)reactions;
+    return isfinite(four_bar_maxabs(q, 9))
+        && isfinite(four_bar_maxabs(qd, 9)) && isfinite(four_bar_maxabs(qdd, 9))
+        && isfinite(four_bar_maxabs(lam, 9))
+        && isfinite(four_bar_maxabs(reactions, 30))
+        ;
+}
+
 int four_bar_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *tr = FOUR_BAR_VEC(work, 9);
     int dense = 0, status = four_bar_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status == FOUR_BAR_OK) four_bar_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return status;
+    if (status != FOUR_BAR_OK) return status;
+    four_bar_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+    return four_bar_finite(q, qd, qdd, lam, reactions) ? FOUR_BAR_OK : FOUR_BAR_NONFINITE;
 }
 
 int four_bar_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -721,6 +740,10 @@ int four_bar_trajectory(double t0, double h, long n, const double *p, double tol
             return status;
         }
         four_bar_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        if (!four_bar_finite(qn, qdn, qddn, lam, reac)) {
+            *solved = i;
+            return FOUR_BAR_NONFINITE;
+        }
         memcpy(m3, m2, sizeof(double) * 9);
         memcpy(m2, m1, sizeof(double) * 9);
         memcpy(m1, qdd, sizeof(double) * 9);

@@ -18,6 +18,7 @@
 #define FOUR_BAR_OK 0
 #define FOUR_BAR_NOT_CONVERGED 1
 #define FOUR_BAR_SINGULAR 2
+#define FOUR_BAR_NONFINITE 3     /* Phi at the guess, or an output, is inf or NaN */
 
 /* Output groups compiled in (1) or left out (0). */
 #define FOUR_BAR_HAS_QDOT 1

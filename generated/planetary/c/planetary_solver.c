@@ -623,7 +623,12 @@ static int planetary_newton(double t, const double *p, double tol, double *q, do
     planetary_phi_k(q, tr, t, p, r);
     rmax = planetary_maxabs(r, 12);
     for (it = 0;; ++it) {
-        if (!isfinite(rmax)) break;
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            return it == 0 ? PLANETARY_NONFINITE : PLANETARY_NOT_CONVERGED;
+        }
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
@@ -677,13 +682,27 @@ static void planetary_outputs(double t, const double *p, const double *q, const 
     planetary_reactions_k(q, tr, lam, t, p, reactions);
 }
 
+/* Whether everything an instant computed is finite (maxabs is NaN if any
+   value is): a few comparisons per value, against an instant's solve. */
+static int planetary_finite(const double *q, const double *qd, const double *qdd, const double *lam,
+                          const double *reactions)
+{
+    (void)qd; (void)qdd; (void)lam; (void)reactions;
+    return isfinite(planetary_maxabs(q, 12))
+        && isfinite(planetary_maxabs(qd, 12)) && isfinite(planetary_maxabs(qdd, 12))
+        && isfinite(planetary_maxabs(lam, 12))
+        && isfinite(planetary_maxabs(reactions, 51))
+        ;
+}
+
 int planetary_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *tr = PLANETARY_VEC(work, 9);
     int dense = 0, status = planetary_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status == PLANETARY_OK) planetary_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return status;
+    if (status != PLANETARY_OK) return status;
+    planetary_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+    return planetary_finite(q, qd, qdd, lam, reactions) ? PLANETARY_OK : PLANETARY_NONFINITE;
 }
 
 int planetary_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -726,6 +745,10 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
             return status;
         }
         planetary_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        if (!planetary_finite(qn, qdn, qddn, lam, reac)) {
+            *solved = i;
+            return PLANETARY_NONFINITE;
+        }
         memcpy(m3, m2, sizeof(double) * 12);
         memcpy(m2, m1, sizeof(double) * 12);
         memcpy(m1, qdd, sizeof(double) * 12);

@@ -18,6 +18,7 @@
 #define PLANETARY_OK 0
 #define PLANETARY_NOT_CONVERGED 1
 #define PLANETARY_SINGULAR 2
+#define PLANETARY_NONFINITE 3     /* Phi at the guess, or an output, is inf or NaN */
 
 /* Output groups compiled in (1) or left out (0). */
 #define PLANETARY_HAS_QDOT 1

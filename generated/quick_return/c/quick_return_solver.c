@@ -605,7 +605,12 @@ static int quick_return_newton(double t, const double *p, double tol, double *q,
     quick_return_phi_k(q, tr, t, p, r);
     rmax = quick_return_maxabs(r, 9);
     for (it = 0;; ++it) {
-        if (!isfinite(rmax)) break;
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            return it == 0 ? QUICK_RETURN_NONFINITE : QUICK_RETURN_NOT_CONVERGED;
+        }
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
@@ -659,13 +664,27 @@ static void quick_return_outputs(double t, const double *p, const double *q, con
     quick_return_reactions_k(q, tr, lam, t, p, reactions);
 }
 
+/* Whether everything an instant computed is finite (maxabs is NaN if any
+   value is): a few comparisons per value, against an instant's solve. */
+static int quick_return_finite(const double *q, const double *qd, const double *qdd, const double *lam,
+                          const double *reactions)
+{
+    (void)qd; (void)qdd; (void)lam; (void)reactions;
+    return isfinite(quick_return_maxabs(q, 9))
+        && isfinite(quick_return_maxabs(qd, 9)) && isfinite(quick_return_maxabs(qdd, 9))
+        && isfinite(quick_return_maxabs(lam, 9))
+        && isfinite(quick_return_maxabs(reactions, 36))
+        ;
+}
+
 int quick_return_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *tr = QUICK_RETURN_VEC(work, 9);
     int dense = 0, status = quick_return_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status == QUICK_RETURN_OK) quick_return_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return status;
+    if (status != QUICK_RETURN_OK) return status;
+    quick_return_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+    return quick_return_finite(q, qd, qdd, lam, reactions) ? QUICK_RETURN_OK : QUICK_RETURN_NONFINITE;
 }
 
 int quick_return_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -708,6 +727,10 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
             return status;
         }
         quick_return_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        if (!quick_return_finite(qn, qdn, qddn, lam, reac)) {
+            *solved = i;
+            return QUICK_RETURN_NONFINITE;
+        }
         memcpy(m3, m2, sizeof(double) * 9);
         memcpy(m2, m1, sizeof(double) * 9);
         memcpy(m1, qdd, sizeof(double) * 9);

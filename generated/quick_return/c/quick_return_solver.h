@@ -18,6 +18,7 @@
 #define QUICK_RETURN_OK 0
 #define QUICK_RETURN_NOT_CONVERGED 1
 #define QUICK_RETURN_SINGULAR 2
+#define QUICK_RETURN_NONFINITE 3     /* Phi at the guess, or an output, is inf or NaN */
 
 /* Output groups compiled in (1) or left out (0). */
 #define QUICK_RETURN_HAS_QDOT 1

@@ -571,7 +571,12 @@ static int slider_crank_newton(double t, const double *p, double tol, double *q,
     slider_crank_phi_k(q, tr, t, p, r);
     rmax = slider_crank_maxabs(r, 9);
     for (it = 0;; ++it) {
-        if (!isfinite(rmax)) break;
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            return it == 0 ? SLIDER_CRANK_NONFINITE : SLIDER_CRANK_NOT_CONVERGED;
+        }
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
@@ -625,13 +630,27 @@ static void slider_crank_outputs(double t, const double *p, const double *q, con
     slider_crank_reactions_k(q, tr, lam, t, p, reactions);
 }
 
+/* Whether everything an instant computed is finite (maxabs is NaN if any
+   value is): a few comparisons per value, against an instant's solve. */
+static int slider_crank_finite(const double *q, const double *qd, const double *qdd, const double *lam,
+                          const double *reactions)
+{
+    (void)qd; (void)qdd; (void)lam; (void)reactions;
+    return isfinite(slider_crank_maxabs(q, 9))
+        && isfinite(slider_crank_maxabs(qd, 9)) && isfinite(slider_crank_maxabs(qdd, 9))
+        && isfinite(slider_crank_maxabs(lam, 9))
+        && isfinite(slider_crank_maxabs(reactions, 30))
+        ;
+}
+
 int slider_crank_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *tr = SLIDER_CRANK_VEC(work, 9);
     int dense = 0, status = slider_crank_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status == SLIDER_CRANK_OK) slider_crank_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return status;
+    if (status != SLIDER_CRANK_OK) return status;
+    slider_crank_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+    return slider_crank_finite(q, qd, qdd, lam, reactions) ? SLIDER_CRANK_OK : SLIDER_CRANK_NONFINITE;
 }
 
 int slider_crank_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -674,6 +693,10 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
             return status;
         }
         slider_crank_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        if (!slider_crank_finite(qn, qdn, qddn, lam, reac)) {
+            *solved = i;
+            return SLIDER_CRANK_NONFINITE;
+        }
         memcpy(m3, m2, sizeof(double) * 9);
         memcpy(m2, m1, sizeof(double) * 9);
         memcpy(m1, qdd, sizeof(double) * 9);

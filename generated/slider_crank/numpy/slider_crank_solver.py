@@ -39,7 +39,8 @@ _ZEROS = [0.0] * NG
 class SolverError(RuntimeError):
     """An instant that could not be solved.
 
-    Attributes: status ("not converged" or "singular"), t, q (the last
+    Attributes: status ("not converged", "singular" or "not finite": an
+    expression left its domain, or an output is inf or NaN), t, q (the last
     iterate), iterations.
     """
 
@@ -691,7 +692,14 @@ def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
         if q1 is not None:
             q = _predict(q1, qd, qdd, h, hh)
         try:
-            qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
+            try:
+                qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
+            except (ArithmeticError, ValueError):  # an expression left its domain (math raises)
+                raise SolverError("not finite", t, q, 0) from None
+            # a sum carries any inf or NaN (an overflowing sum of finite values
+            # only costs a closer look)
+            if not math.isfinite(sum(qn) + sum(qdn) + sum(qddn) + sum(lam) + sum(reac)):
+                raise SolverError("not finite", t, qn, it)
             if check is not None and q1 is not None and (
                     a.__class__ is _Dense or _spread(a, s) > spread or _moved(qn, q, q1, c, floor, ratio)):
                 raise SolverError("check", t, qn, it)

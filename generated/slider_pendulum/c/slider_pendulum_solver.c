@@ -545,7 +545,12 @@ static int slider_pendulum_newton(double t, const double *p, double tol, double 
     slider_pendulum_phi_k(q, tr, t, p, r);
     rmax = slider_pendulum_maxabs(r, 6);
     for (it = 0;; ++it) {
-        if (!isfinite(rmax)) break;
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            return it == 0 ? SLIDER_PENDULUM_NONFINITE : SLIDER_PENDULUM_NOT_CONVERGED;
+        }
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
@@ -599,13 +604,27 @@ static void slider_pendulum_outputs(double t, const double *p, const double *q, 
     slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
 }
 
+/* Whether everything an instant computed is finite (maxabs is NaN if any
+   value is): a few comparisons per value, against an instant's solve. */
+static int slider_pendulum_finite(const double *q, const double *qd, const double *qdd, const double *lam,
+                          const double *reactions)
+{
+    (void)qd; (void)qdd; (void)lam; (void)reactions;
+    return isfinite(slider_pendulum_maxabs(q, 6))
+        && isfinite(slider_pendulum_maxabs(qd, 6)) && isfinite(slider_pendulum_maxabs(qdd, 6))
+        && isfinite(slider_pendulum_maxabs(lam, 6))
+        && isfinite(slider_pendulum_maxabs(reactions, 30))
+        ;
+}
+
 int slider_pendulum_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *tr = SLIDER_PENDULUM_VEC(work, 9);
     int dense = 0, status = slider_pendulum_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status == SLIDER_PENDULUM_OK) slider_pendulum_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return status;
+    if (status != SLIDER_PENDULUM_OK) return status;
+    slider_pendulum_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+    return slider_pendulum_finite(q, qd, qdd, lam, reactions) ? SLIDER_PENDULUM_OK : SLIDER_PENDULUM_NONFINITE;
 }
 
 int slider_pendulum_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -648,6 +667,10 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
             return status;
         }
         slider_pendulum_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        if (!slider_pendulum_finite(qn, qdn, qddn, lam, reac)) {
+            *solved = i;
+            return SLIDER_PENDULUM_NONFINITE;
+        }
         memcpy(m3, m2, sizeof(double) * 6);
         memcpy(m2, m1, sizeof(double) * 6);
         memcpy(m1, qdd, sizeof(double) * 6);

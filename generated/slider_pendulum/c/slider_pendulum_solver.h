@@ -18,6 +18,7 @@
 #define SLIDER_PENDULUM_OK 0
 #define SLIDER_PENDULUM_NOT_CONVERGED 1
 #define SLIDER_PENDULUM_SINGULAR 2
+#define SLIDER_PENDULUM_NONFINITE 3     /* Phi at the guess, or an output, is inf or NaN */
 
 /* Output groups compiled in (1) or left out (0). */
 #define SLIDER_PENDULUM_HAS_QDOT 1
