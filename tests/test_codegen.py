@@ -488,8 +488,8 @@ def test_numpy_module_loop_hands_a_suspected_jump_to_the_python_loop(python_inst
     fires, and the Python loop finds the jump to the crossed assembly."""
     results = api.solve(api.example("four_bar"), "numpy", steps=3)
     error = results.error
-    assert error is not None and "assembly mode jump" in str(error) and error.time == 0.5
-    assert results.data.shape[0] == error.solved == 2 and python_instants[-1] == 2
+    assert error is not None and "assembly mode jump" in str(error) and error.time == 0.25
+    assert results.data.shape[0] == error.solved == 1 and python_instants[-1] == 1
 
 
 def test_numpy_module_loop_hands_the_dense_fallback_instants_to_the_python_loop(python_instants) -> None:
