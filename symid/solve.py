@@ -229,12 +229,12 @@ class Stepper:
                         q = _branch(ev, analysis, prev, t, q, guess, scaling, notes, n) or q
                         guess = q  # checked
             out = self._outputs(q, t, iterations)
+            notes.cond(t, out.cond, n)  # also where the check below stops the run: it says why
             if prev is not None and guess is not q and unexplained(prev.q, prev.qd, prev.qdd, out.q, out.qd,
                                                                    out.qdd, t - prev.t, scaling.inv_col):
                 turned = _branch(ev, analysis, prev, t, q, guess, scaling, notes, n, out)
                 if turned is not None:
                     out = self._outputs(turned, t, iterations)
-            notes.cond(t, out.cond, n)
         except AnalysisError as exc:
             exc.time, exc.solved = t, n
             raise

@@ -25,7 +25,7 @@ import numpy as np
 from symid.analysis import Analysis
 from symid.backends import Array, Needs
 from symid.results import instant_row
-from symid.solve import JUMP_FLOOR, JUMP_RATIO, Instant, Stepper, run
+from symid.solve import JUMP_FLOOR, JUMP_RATIO, UNEXPLAINED, Instant, Stepper, run
 from symid.stability import Notes, requested
 
 if TYPE_CHECKING:  # a cached run (symid.plan) loads a generated module without sympy
@@ -141,7 +141,8 @@ class NumpyEvaluator:
         scaling = stepper.scaling
         assert scaling is not None
         pivots = [float(scaling.dr[r] * scaling.dc[c]) for r, c in zip(m.PIVOT_ROWS, m.PIVOT_COLS)]
-        check = (scaling.inv_col.tolist(), JUMP_FLOOR, JUMP_RATIO, pivots, analysis.cond_threshold / SCREEN)
+        check = (scaling.inv_col.tolist(), JUMP_FLOOR, JUMP_RATIO, pivots, analysis.cond_threshold / SCREEN,
+                 UNEXPLAINED)
         steps, t0 = analysis.steps, analysis.t0
         h = (analysis.t1 - t0) / (steps - 1) if steps > 1 else 0.0
         past, qd, qdd = [first.q.tolist()], _listed(first.qd), _listed(first.qdd)

@@ -677,6 +677,24 @@ static int quick_return_finite(const double *q, const double *qd, const double *
         ;
 }
 
+/* Whether the motion q1 - q0 of a step h is not what the rates at both ends
+   explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
+   it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
+   the rule of symid.solve.unexplained). O(NG) a step. */
+static int quick_return_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
+                               const double *qd1, const double *qdd1, double h, const double *c)
+{
+    const double half = 0.5 * h, hh = h * h / 12.0;
+    double mismatch = 0.0, motion = 0.0;
+    int k;
+    for (k = 0; k < 9; ++k) {
+        const double d = q1[k] - q0[k];
+        mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
+        motion = QUICK_RETURN_MAX(motion, fabs(d) * c[k]);
+    }
+    return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
+}
+
 int quick_return_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
@@ -694,11 +712,11 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
        two positions) before it, count */
     double *q = state, *qd = state + 9, *qdd = state + 18;
     double *m1 = state + 27, *m2 = state + 36, *m3 = state + 45;
-    double *count = state + 54;
+    double *scale = state + 54, *count = state + 63;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = QUICK_RETURN_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
+    (void)qd; (void)qdd; (void)m3; (void)scale;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * QUICK_RETURN_ROW;
@@ -730,6 +748,10 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
         if (!quick_return_finite(qn, qdn, qddn, lam, reac)) {
             *solved = i;
             return QUICK_RETURN_NONFINITE;
+        }
+        if (*count >= 1 && quick_return_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+            *solved = i;
+            return QUICK_RETURN_UNEXPLAINED;
         }
         memcpy(m3, m2, sizeof(double) * 9);
         memcpy(m2, m1, sizeof(double) * 9);

@@ -617,6 +617,24 @@ static int slider_pendulum_finite(const double *q, const double *qd, const doubl
         ;
 }
 
+/* Whether the motion q1 - q0 of a step h is not what the rates at both ends
+   explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
+   it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
+   the rule of symid.solve.unexplained). O(NG) a step. */
+static int slider_pendulum_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
+                               const double *qd1, const double *qdd1, double h, const double *c)
+{
+    const double half = 0.5 * h, hh = h * h / 12.0;
+    double mismatch = 0.0, motion = 0.0;
+    int k;
+    for (k = 0; k < 6; ++k) {
+        const double d = q1[k] - q0[k];
+        mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
+        motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[k]);
+    }
+    return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
+}
+
 int slider_pendulum_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
@@ -634,11 +652,11 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
        two positions) before it, count */
     double *q = state, *qd = state + 6, *qdd = state + 12;
     double *m1 = state + 18, *m2 = state + 24, *m3 = state + 30;
-    double *count = state + 36;
+    double *scale = state + 36, *count = state + 42;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_PENDULUM_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
-    (void)qd; (void)qdd; (void)m3;
+    (void)qd; (void)qdd; (void)m3; (void)scale;
     for (i = 0; i < n; ++i) {
         const double t = t0 + (double)i * h;
         double *row = rows + i * SLIDER_PENDULUM_ROW;
@@ -670,6 +688,10 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
         if (!slider_pendulum_finite(qn, qdn, qddn, lam, reac)) {
             *solved = i;
             return SLIDER_PENDULUM_NONFINITE;
+        }
+        if (*count >= 1 && slider_pendulum_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+            *solved = i;
+            return SLIDER_PENDULUM_UNEXPLAINED;
         }
         memcpy(m3, m2, sizeof(double) * 6);
         memcpy(m2, m1, sizeof(double) * 6);
