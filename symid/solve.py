@@ -10,6 +10,13 @@ matrix is equilibrated with scales fixed at t0; Newton takes damped steps and
 reports divergence; the condition estimate of each instant's factorization is
 kept (`Instant.cond`) and warned about; a solution that leaves the predicted
 path for another assembly mode is caught (branch tracking).
+
+No number without a guarantee (`symid.nonfinite`, `unexplained`, `_branch`):
+an instant with an inf or NaN stops the run, naming the element; a step whose
+motion the rates at both ends do not explain is continued in sub-steps and
+is then a jump (an error), whole turns (followed), or an exactly singular
+position (an error). The C and NumPy loops check the same and hand such an
+instant to `Stepper`, so every backend reaches the same outcome.
 """
 
 from __future__ import annotations
