@@ -31,14 +31,19 @@ def not_finite(**arrays: Array | None) -> list[str]:
 def error(layout: Layout | None, what: str, t: float, q: Array | None, qd: Array | None = None,
           qdd: Array | None = None) -> AnalysisError:
     """The analysis error of an instant whose `what` is not finite."""
-    return AnalysisError(f"{what} not finite (inf or NaN); {culprits(layout, q, qd, qdd, t)}", t)
+    loads = "lambda" in what or "reactions" in what  # kinematics alone involves no force nor mass
+    return AnalysisError(f"{what} not finite (inf or NaN); {culprits(layout, q, qd, qdd, t, loads)}", t)
 
 
-def culprits(layout: Layout | None, q: Array | None, qd: Array | None, qdd: Array | None, t: float) -> str:
+def culprits(layout: Layout | None, q: Array | None, qd: Array | None, qdd: Array | None, t: float,
+             loads: bool = True) -> str:
     """Which elements evaluate to a non-finite value at (q, qd, t), as a
-    phrase: constraints (Phi, Phi_q, nu, gamma), forces (their generalized
-    force), bodies (mass, inertia, weight, or mass times qddot)."""
-    if layout is None or q is None or not np.isfinite(q).all():
+    phrase: constraints (Phi, Phi_q, nu, gamma) and, with `loads`, forces
+    (their generalized force) and bodies (mass, inertia, weight, or mass
+    times qddot)."""
+    if layout is None:  # a planned run: the normal path reruns and names them
+        return "the elements are not known here"
+    if q is None or not np.isfinite(q).all():
         return "the position itself is not finite"
     from symid.backends import Needs
     from symid.backends.reference import ReferenceEvaluator
@@ -49,7 +54,7 @@ def culprits(layout: Layout | None, q: Array | None, qd: Array | None, qdd: Arra
         ev = ReferenceEvaluator(layout, parameter_values(mech.parameters), Needs(velocity=qd is not None))
         with np.errstate(all="ignore"):
             names = ev.nonfinite_elements(q, qd if qd is not None and np.isfinite(qd).all() else None,
-                                          qdd if qdd is not None and np.isfinite(qdd).all() else None, t)
+                                          qdd if qdd is not None and np.isfinite(qdd).all() else None, t, loads)
     except (ArithmeticError, ValueError) as exc:  # the diagnosis must never hide the failure
         return f"the elements could not be evaluated again ({exc})"
     if not names:

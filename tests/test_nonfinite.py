@@ -52,7 +52,8 @@ def _domains_text() -> str:
 # `delta` rad before its toggle at t = 0.5 and back: th - delta - (t - 0.5)^2.
 def _toggle_text() -> str:
     text = stress.FOUR_BAR.replace("th = 1.0", f"th = {stress.TOGGLE!r}\ndelta = 0.0")
-    text = text.replace('f = "th + omega*t"', 'f = "th - delta - omega*(t - 0.5)^2"').replace("omega = 10.0", "omega = 1.0")
+    text = text.replace('f = "th + omega*t"', 'f = "th - delta - omega*(t - 0.5)^2"')
+    text = text.replace("omega = 10.0", "omega = 1.0")
     return text.replace("steps = 1\n", "t1 = 1.0\nsteps = 11\n").replace(', "cond"]', "]")
 
 
@@ -66,11 +67,12 @@ def files(tmp_path_factory) -> dict[str, Path]:
     return out
 
 
-def _solve(capsys, path: Path, out: Path, backend: str, *sets: str) -> tuple[int, list[str]]:
-    """(status, stderr lines) of `symid solve`, after checking that no traceback escaped."""
+def _solve(capsys, path: Path, out: Path, backend: str, *extra: str) -> tuple[int, list[str]]:
+    """(status, stderr lines) of `symid solve` with NAME=VALUE settings and
+    --flags, after checking that no traceback escaped."""
     args = ["solve", str(path), "-o", str(out), "--backend", backend]
-    for s in sets:
-        args += ["--set", s]
+    for s in extra:
+        args += [s] if s.startswith("--") else ["--set", s]
     status = main(args)
     err = capsys.readouterr().err
     assert "Traceback" not in err and "Error:" not in err, err
@@ -120,6 +122,18 @@ def test_a_domain_error_stops_at_its_time_naming_the_element_keeping_the_rows(
     assert rows.shape[0] == ROWS_BEFORE and np.isfinite(rows).all() and rows[-1, 0] < STOP
     # exp(k t) spans 270 decades over the rows: a rounding of its argument is 1e-12 of it
     _agree(rows, reference_rows[case], 1e-11 if case == "exp" else 1e-12)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_kinematics_names_only_constraints_and_ignores_force_poles(files, tmp_path, capsys, backend):
+    """Kinematics computes no force: the brake's pole does not stop it, and
+    with the driver's sqrt edge too only the driver is named."""
+    out = tmp_path / "out.csv"
+    status, err = _solve(capsys, files["domains"], out, backend, "tp=0.25", "--kind=kinematics")
+    assert status == 0, err
+    status, err = _solve(capsys, files["domains"], out, backend, "tp=0.25", "ts=0.25", "--kind=kinematics")
+    assert status == 3 and len(err) == 1, err
+    assert f"t = {STOP}: qdot, qddot not finite" in err[0] and "constraint motor; the 8 instants" in err[0], err[0]
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

@@ -234,18 +234,25 @@ class ReferenceEvaluator:
             out[slots[None, :] + np.arange(vals.shape[0])[:, None]] = vals
         return out
 
-    def nonfinite_elements(self, q: Array, qd: Array | None, qdd: Array | None, t: float) -> list[str]:
+    def nonfinite_elements(self, q: Array, qd: Array | None, qdd: Array | None, t: float,
+                           loads: bool = True) -> list[str]:
         """The elements with a non-finite value at (q, qd, t), as "kind name"
-        in file order within each kind: constraints (Phi, Phi_q, nu, gamma), forces (their
-        generalized forces), bodies (mass, inertia, weight, mass * qdd)."""
+        in file order within each kind: constraints (Phi, Phi_q, nu, gamma),
+        forces (their generalized forces), bodies (mass, inertia, weight,
+        mass * qdd); without `loads` (a kinematic quantity failed) constraints
+        only."""
         qx = self._extend(q)
         qdx = self._extend(qd) if qd is not None else None
         bad: list[str] = []
         for g in self._cgroups:
-            whats = ["phi", "phi_q"] + (["nu"] if self.needs.velocity else []) + (["gamma"] if qdx is not None else [])
+            whats = ["phi", "phi_q"] + (["nu"] if self.needs.velocity else [])
+            whats += ["gamma"] if qdx is not None else []
             for what in whats:
                 vals = g.evaluate(what, g.args(qx, qdx if what == "gamma" else None, t))
                 bad += [g.group.names[m] for m in np.flatnonzero(~np.isfinite(vals).all(axis=0))]
+        mech = self.layout.mechanism
+        if not loads:
+            return [f"constraint {c.name}" for c in mech.constraints if c.name in bad]
         for g in self._fgroups:
             vals = g.evaluate("applied", g.args(qx, qdx, t), static=qdx is None)
             bad += [g.group.names[m] for m in np.flatnonzero(~np.isfinite(vals).all(axis=0))]
@@ -253,8 +260,7 @@ class ReferenceEvaluator:
         load = np.concatenate([self._gravity, inertial], axis=1)
         if qdd is not None:
             load = np.concatenate([load, (self._mass * qdd).reshape(-1, 3)], axis=1)
-        bad += [b.name for b, ok in zip(self.layout.mechanism.bodies, np.isfinite(load).all(axis=1)) if not ok]
-        mech = self.layout.mechanism
+        bad += [b.name for b, ok in zip(mech.bodies, np.isfinite(load).all(axis=1)) if not ok]
         kinds = [*(("constraint", c.name) for c in mech.constraints), *(("force", f.name) for f in mech.forces),
                  *(("body", b.name) for b in mech.bodies)]
         return [f"{kind} {name}" for kind, name in kinds if name in bad]
