@@ -18,8 +18,7 @@ from symid.errors import AnalysisError
 if TYPE_CHECKING:
     from symid.assemble import Layout
 
-# the outputs of an instant, in the order a message lists them
-QUANTITIES = ("q", "qd", "qdd", "lam", "reactions")
+# the outputs of an instant as a message names them
 SHOWN = {"q": "q", "qd": "qdot", "qdd": "qddot", "lam": "lambda", "reactions": "reactions"}
 
 
