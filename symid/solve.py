@@ -10,6 +10,13 @@ matrix is equilibrated with scales fixed at t0; Newton takes damped steps and
 reports divergence; the condition estimate of each instant's factorization is
 kept (`Instant.cond`) and warned about; a solution that leaves the predicted
 path for another assembly mode is caught (branch tracking).
+
+No number without a guarantee (`symid.nonfinite`, `unexplained`, `_branch`):
+an instant with an inf or NaN stops the run, naming the element; a step whose
+motion the rates at both ends do not explain is continued in sub-steps and
+is then a jump (an error), whole turns (followed), or an exactly singular
+position (an error). The C and NumPy loops check the same and hand such an
+instant to `Stepper`, so every backend reaches the same outcome.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ import numpy as np
 from symid.backends import Array, Evaluator
 from symid.errors import AnalysisError
 from symid.analysis import Analysis
+from symid import nonfinite
 from symid.stability import EPS, SINGULAR_RCOND, Factor, Notes, Scaling, rank_of, redundancy_message
 
 MAX_NEWTON = 50
@@ -39,6 +47,15 @@ JUMP_RATIO = 1.0
 JUMP_FLOOR = 1e-7
 JUMP_SUBSTEPS = 16
 JUMP_SAME = 1e-6
+# The same check runs on every backend from the solved instants alone (the C
+# and NumPy loops hand the instant to this loop): the step's motion q1 - q0
+# must be what the rates at both ends explain, the cubic Hermite
+# h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 (error h^5 q^(5) / 720). A
+# mismatch above JUMP_FLOOR and UNEXPLAINED times the motion (scaled) is
+# suspicious: a multiple of 2 pi, another branch, a Newton landing far from
+# the prediction, rates that are not finite numbers' worth near a singular
+# position. Even a coarse grid of 3 rad a step leaves 0.34 of the motion.
+UNEXPLAINED = 0.5
 
 
 @dataclass
@@ -62,6 +79,8 @@ class Instant:
 def _factor(ev: Evaluator, q: Array, t: float, scaling: Scaling) -> Factor:
     """The equilibrated factorization of Phi_q(q); raise if singular."""
     jac = ev.phi_q(q, t)
+    if not np.isfinite(jac).all():
+        raise nonfinite.error(ev.layout, "Phi_q", t, q)
     factor = Factor(jac, scaling)
     if not factor.rcond > SINGULAR_RCOND:
         names = ", ".join(rank_of(jac, scaling, ev.layout).dependent)
@@ -104,6 +123,8 @@ def newton(ev: Evaluator, q: Array, t: float, tol: float, scaling: Scaling | Non
         floor = 8 * EPS * max(1.0, scaling.size(q))
         lim = max(tol, floor)
         if not res < np.inf:
+            if np.isfinite(q).all():
+                raise nonfinite.error(ev.layout, "Phi", t, q)
             raise AnalysisError(f"Newton did not converge: Phi is not finite at the guess; "
                                 f"in: {_largest(ev, phi, scaling)}", t)
         if res <= lim and step <= max(tol, floor * cond):
@@ -183,9 +204,14 @@ class Stepper:
         Raises:
             AnalysisError: with `time` and `solved` (= n) set.
         """
+        with np.errstate(all="ignore"):  # inf and NaN are checked below, and reported
+            return self._instant(n, t, prev, history, q0)
+
+    def _instant(self, n: int, t: float, prev: Instant | None, history: list[Array], q0: Array) -> Instant:
         ev, analysis, notes = self.ev, self.analysis, self.notes
         scaling = self.scaling
         try:
+            guess = None
             if prev is None or scaling is None:
                 q, iterations = newton(ev, q0, t, analysis.tol)
                 jac = ev.phi_q(q, t)
@@ -201,30 +227,59 @@ class Stepper:
                     # instant in sub-steps (on the branch by construction)
                     try:
                         q, iterations = _continuation(ev, analysis, prev, t, scaling), 0
+                        guess = q  # continued from the previous instant: on its branch
                     except AnalysisError:
                         raise exc from None
                 else:
                     correction = scaling.size(q - guess)
                     if correction > JUMP_FLOOR and correction > JUMP_RATIO * scaling.size(guess - prev.q):
-                        _branch(ev, analysis, prev, t, q, guess, scaling, notes, n)
-            factor = _factor(ev, q, t, scaling)
-            out = Instant(t=t, q=q, cond=factor.cond, iterations=iterations)
-            if self.statics:
-                if self.want_lam:
-                    out.lam = factor.solve_t(ev.applied(q, None, t))
-            else:
-                out.qd = factor.solve(ev.nu(q, t))
-                out.qdd = factor.solve(ev.gamma(q, out.qd, t))
-                if self.want_lam:
-                    rhs = ev.applied(q, out.qd, t) - self.mass * out.qdd  # type: ignore[operator]
-                    out.lam = factor.solve_t(rhs)
-            if self.want_reactions and out.lam is not None:
-                out.reactions = ev.reactions(q, out.lam, t)
-            notes.cond(t, out.cond, n)
+                        q = _branch(ev, analysis, prev, t, q, guess, scaling, notes, n) or q
+                        guess = q  # checked
+            out = self._outputs(q, t, iterations)
+            notes.cond(t, out.cond, n)  # also where the check below stops the run: it says why
+            if prev is not None and guess is not q and unexplained(prev.q, prev.qd, prev.qdd, out.q, out.qd,
+                                                                   out.qdd, t - prev.t, scaling.inv_col):
+                turned = _branch(ev, analysis, prev, t, q, guess, scaling, notes, n, out)
+                if turned is not None:
+                    out = self._outputs(turned, t, iterations)
         except AnalysisError as exc:
             exc.time, exc.solved = t, n
             raise
         return out
+
+    def _outputs(self, q: Array, t: float, iterations: int) -> Instant:
+        """The instant at the solved position q: one factorization of Phi_q for
+        the rates and multipliers; an error if any value is not finite."""
+        ev = self.ev
+        factor = _factor(ev, q, t, self.scaling)  # type: ignore[arg-type]
+        out = Instant(t=t, q=q, cond=factor.cond, iterations=iterations)
+        if self.statics:
+            if self.want_lam:
+                out.lam = factor.solve_t(ev.applied(q, None, t))
+        else:
+            out.qd = factor.solve(ev.nu(q, t))
+            out.qdd = factor.solve(ev.gamma(q, out.qd, t))
+            if self.want_lam:
+                rhs = ev.applied(q, out.qd, t) - self.mass * out.qdd  # type: ignore[operator]
+                out.lam = factor.solve_t(rhs)
+        if self.want_reactions and out.lam is not None:
+            out.reactions = ev.reactions(q, out.lam, t)
+        bad = nonfinite.not_finite(q=out.q, qd=out.qd, qdd=out.qdd, lam=out.lam, reactions=out.reactions)
+        if bad:
+            raise nonfinite.error(ev.layout, ", ".join(bad), t, out.q, out.qd, out.qdd)
+        return out
+
+
+def unexplained(q0: Array, qd0: Array | None, qdd0: Array | None, q1: Array, qd1: Array | None,
+                qdd1: Array | None, h: float, c: Array) -> bool:
+    """Whether the motion q1 - q0 of a step of length h is not what the rates
+    at both ends explain (the cubic Hermite; see UNEXPLAINED), in the scales
+    c (per coordinate). False without rates (statics)."""
+    if qd0 is None or qdd0 is None or qd1 is None or qdd1 is None:
+        return False
+    motion = q1 - q0
+    mismatch = float(np.abs((motion - 0.5 * h * (qd0 + qd1) - (h * h / 12) * (qdd0 - qdd1)) * c).max(initial=0.0))
+    return mismatch > JUMP_FLOOR and not mismatch <= UNEXPLAINED * float(np.abs(motion * c).max(initial=0.0))
 
 
 def _redundant_rows(ev: Evaluator, jac: Array, scaling: Scaling, notes: Notes, t: float) -> None:
@@ -239,37 +294,63 @@ def _redundant_rows(ev: Evaluator, jac: Array, scaling: Scaling, notes: Notes, t
 
 
 def _branch(ev: Evaluator, analysis: Analysis, prev: Instant, t: float, q: Array, guess: Array,
-            scaling: Scaling, notes: Notes, index: int) -> None:
-    """Newton moved much further than the step's predicted motion: continue
-    the previous instant in smaller steps; ending elsewhere is an assembly-mode
-    jump (an error, or a warning with assembly_jump = "warn")."""
+            scaling: Scaling, notes: Notes, index: int, out: Instant | None = None) -> Array | None:
+    """A suspicious step (Newton moved much further than the step's predicted
+    motion or, with `out`, the motion is not what the rates at both ends
+    explain: `unexplained`): continue the previous instant in smaller steps;
+    ending elsewhere is an assembly-mode jump (an error, or a warning with
+    assembly_jump = "warn"). Ending at q, the rates `out` solved at t must
+    also explain the last sub-step: if not, they are not those of a motion
+    (an exactly singular position, where they are not determined), an error.
+    Ending at q but for whole turns of some angles, the run follows the
+    angles continuously: returns that position (otherwise None)."""
     correction = scaling.size(q - guess)
     motion = scaling.size(guess - prev.q)
+    last: list = []
     try:
-        other = _continuation(ev, analysis, prev, t, scaling)
+        other = _continuation(ev, analysis, prev, t, scaling, last)
         gap = scaling.size(other - q)
-        if gap <= JUMP_SAME:
-            return  # the same solution: only the prediction was poor
         why = f"continuing the previous instant in {JUMP_SUBSTEPS} sub-steps ends {gap:.3g} away"
     except AnalysisError as exc:
-        gap = correction
+        gap = correction if out is None else scaling.size(q - prev.q)
         why = f"and the continuation in {JUMP_SUBSTEPS} sub-steps fails ({exc}): a singular position lies between"
+    else:
+        turns = np.round((other - q) / (2 * np.pi)) * (np.arange(q.size) % 3 == 2)  # angles only
+        if gap > JUMP_SAME and np.any(turns) and scaling.size(other - q - 2 * np.pi * turns) <= JUMP_SAME:
+            return q + 2 * np.pi * turns  # the same configuration: follow the angles continuously
+        if gap <= JUMP_SAME:  # the same solution: only the prediction was poor
+            if out is not None and len(last) == 4 and unexplained(*last[1:], out.q, out.qd, out.qdd, t - last[0],
+                                                                 scaling.inv_col):
+                raise AnalysisError(
+                    f"singular position: qdot and qddot solved here do not continue the motion even over the "
+                    f"last of {JUMP_SUBSTEPS} sub-steps (condition estimate {out.cond:.3g}): Phi_q is singular "
+                    f"to within rounding and the rates, multipliers and torques are not determined; take a "
+                    f"motion that avoids this position", t)
+            return None
     if analysis.assembly_jump == "warn":
         notes.mark("jump", t, gap, index)
-        return
-    ratio = "" if motion == 0 else f", {correction / motion:.3g} times the predicted motion of the step"
+        return None
+    if out is not None:
+        head = (f"the step moved q by {scaling.size(q - prev.q):.3g} (scaled), not what the rates at both "
+                f"ends explain")
+    else:
+        ratio = "" if motion == 0 else f", {correction / motion:.3g} times the predicted motion of the step"
+        head = f"Newton moved q by {correction:.3g} (scaled){ratio}"
     raise AnalysisError(
-        f"assembly mode jump: Newton moved q by {correction:.3g} (scaled){ratio}, {why}; "
-        f"take more steps (or set assembly_jump = \"warn\" to accept jumps)", t)
+        f"assembly mode jump: {head}, {why}; take more steps (or set assembly_jump = \"warn\" to accept jumps)", t)
 
 
-def _continuation(ev: Evaluator, analysis: Analysis, prev: Instant, t: float, scaling: Scaling) -> Array:
-    """q(t) reached from the previous instant in JUMP_SUBSTEPS steps."""
+def _continuation(ev: Evaluator, analysis: Analysis, prev: Instant, t: float, scaling: Scaling,
+                  last: list | None = None) -> Array:
+    """q(t) reached from the previous instant in JUMP_SUBSTEPS steps; `last`
+    receives the time, q, qd and qdd of the sub-step before t (with rates)."""
     q, qd, qdd = prev.q, prev.qd, prev.qdd
     h = (t - prev.t) / JUMP_SUBSTEPS
     for k in range(1, JUMP_SUBSTEPS + 1):
         tk = prev.t + k * h if k < JUMP_SUBSTEPS else t
         guess = q if qd is None or qdd is None else q + h * qd + 0.5 * h * h * qdd
+        if last is not None and qd is not None and k == JUMP_SUBSTEPS:
+            last[:] = [prev.t + (k - 1) * h, q, qd, qdd]
         q, _ = newton(ev, guess, tk, analysis.tol, scaling)
         if qd is not None and k < JUMP_SUBSTEPS:
             factor = _factor(ev, q, tk, scaling)

@@ -205,11 +205,15 @@ def summarize(e: Effort) -> Summary:
     k = int(np.argmax(np.abs(e.value)))
     p = int(np.argmax(np.abs(e.power)))
     span = float(e.t[-1] - e.t[0])
+    # in units of the peak: squares of efforts past 1e154 would overflow
+    peak = float(abs(e.value[k]))
+    unit = e.value / peak if 0 < peak < np.inf else e.value
     if span > 0:
-        square = e.value ** 2
+        square = unit ** 2
         rms = float(np.sqrt(np.sum((square[1:] + square[:-1]) * np.diff(e.t)) / 2 / span))
     else:
-        rms = float(np.sqrt(np.mean(e.value ** 2)))
+        rms = float(np.sqrt(np.mean(unit ** 2)))
+    rms = rms * peak if 0 < peak < np.inf else rms
     return Summary(e.name, e.quantity, e.unit, float(abs(e.value[k])), float(e.t[k]), rms,
                    float(e.power[p]), float(e.t[p]))
 

@@ -19,9 +19,8 @@ import numpy as np
 
 from symid.analysis import Analysis
 from symid.backends import Array, Needs
-from symid.errors import AnalysisError, InputError
+from symid.errors import InputError
 from symid.progress import stage
-from symid.text import plural
 
 if TYPE_CHECKING:  # a cached run (symid.plan) loads a built solver without sympy
     import sympy as sp
@@ -39,7 +38,6 @@ CHUNK = 1024
 # (21.7 kB rows), 1024 -> 48 instants a call: 14.1 -> 12.4 us per instant solved
 CHUNK_BYTES = 1 << 20
 LARGE_SOURCE = 200_000  # bytes of generated C
-STATUS = {1: "Newton did not converge", 2: "Phi_q is singular"}
 
 
 def _words(cc: str) -> list[str]:
@@ -201,18 +199,36 @@ class CEvaluator:
     def rows(self, analysis: Analysis, q0: Array, notes: Notes | None = None) -> Iterator[Array]:
         """Solve the whole run in C, up to CHUNK instants (CHUNK_BYTES of rows)
         per call, yielding rows (`notes` stay empty: the compiled loop makes
-        no warnings)."""
+        no warnings).
+
+        An instant the compiled loop cannot vouch for is solved by the Python
+        loop (`symid.solve.Stepper`, over this solver's functions), as on the
+        NumPy backend: a failure (not converged, singular, a value not finite),
+        which it then recovers or reports with the same message as every other
+        backend, and a step whose motion the rates at both ends do not explain
+        (`symid.solve.unexplained`, in the scales the Python loop fixes at t0),
+        which it continues in sub-steps and decides (a jump, whole turns
+        followed, a singular position). The compiled loop resumes after it.
+        """
+        from symid.results import instant_row
+        from symid.solve import Instant, Stepper
+        from symid.stability import Scaling
+
         ng, width = self.meta["ng"], self.meta["row"]
         chunk = max(16, min(CHUNK, CHUNK_BYTES // (8 * width)))
         state = np.zeros(self.meta["state"])
         state[:ng] = q0
+        q, qd, qdd, m1, m2, m3 = (state[k * ng:(k + 1) * ng] for k in range(6))  # views (statics: m1, m2 are q)
         times = analysis.steps
         h = (analysis.t1 - analysis.t0) / (times - 1) if times > 1 else 0.0
         buf = np.zeros((chunk, width))
         solved = ctypes.c_long(0)
+        stepper = Stepper(self, analysis, notes)
+        velocity = analysis.kind != "statics"
         start = 0
         while start < times:
-            n = min(chunk, times - start)
+            # t0 alone first: its assembled q fixes the scales of the jump check
+            n = 1 if start == 0 else min(chunk, times - start)
             t0 = analysis.t0 + start * h
             # t = t0 + (start + i) h exactly as the Python loop computes it
             status = self._trajectory(ctypes.c_double(t0), ctypes.c_double(h), ctypes.c_long(n),
@@ -221,29 +237,32 @@ class CEvaluator:
                                       self.iwork.ctypes.data_as(_I))
             for k in range(solved.value):
                 yield buf[k].copy()
-            if status != 0:
-                t = analysis.t0 + (start + solved.value) * h
-                raise AnalysisError(self._diagnose(status, state, h, t, analysis), t, start + solved.value)
+            if status != 0:  # the Python loop solves this instant, or reports why not
+                k = start + solved.value
+                count = int(state[-1])
+                if k == 0:
+                    out = stepper.instant(0, analysis.t0, None, [], q0)
+                else:
+                    if stepper.scaling is None:
+                        stepper.scaling = Scaling.of(self.phi_q(q.copy(), analysis.t0), q.copy())
+                    prev = Instant(t=analysis.t0 + (k - 1) * h, q=q.copy(), qd=qd.copy() if velocity else None,
+                                   qdd=qdd.copy() if velocity else None)
+                    history = [v.copy() for v in (m2, m1, q)[max(0, 3 - count):]] if not velocity else [q.copy()]
+                    out = stepper.instant(k, analysis.t0 + k * h, prev, history, q0)
+                yield instant_row(out, ng, analysis)
+                # the state as the compiled loop leaves it after an instant
+                if velocity:
+                    m3[:], m2[:], m1[:], qd[:], qdd[:] = m2, m1, qdd, out.qd, out.qdd
+                else:
+                    m2[:], m1[:] = m1, q
+                q[:] = out.q
+                state[-1] = count + 1
+                n = solved.value + 1
+            if start == 0 and state.size > 6 * ng + 1:
+                if stepper.scaling is None:
+                    stepper.scaling = Scaling.of(self.phi_q(q.copy(), analysis.t0), q.copy())
+                state[6 * ng:7 * ng] = stepper.scaling.inv_col
             start += n
-
-    def _diagnose(self, status: int, state: Array, h: float, t: float, analysis: Analysis) -> str:
-        """Name the constraints involved, as the Python loop does."""
-        from symid.solve import _dependent
-
-        ng = self.meta["ng"]
-        q = state[:ng] + (h * state[ng:2 * ng] + 0.5 * h * h * state[2 * ng:3 * ng] if state[-1] > 0 else 0)
-        info = np.zeros(2, dtype=np.intc)
-        trial = q.copy()
-        vec = [np.zeros(max(self.meta["ng"], self.meta["nc"], self.meta["nr"], 1)) for _ in range(4)]
-        self._instant(ctypes.c_double(t), _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(trial),
-                      _ptr(vec[0]), _ptr(vec[1]), _ptr(vec[2]), _ptr(vec[3]), info.ctypes.data_as(_I),
-                      _ptr(self.work), self.iwork.ctypes.data_as(_I))
-        if status == 2:
-            names = ", ".join(_dependent(self, self.phi_q(trial, t)))
-            return f"{STATUS[2]} (compiled solver); dependent constraints: {names}"
-        phi = np.nan_to_num(self.phi(trial, t), nan=np.inf)
-        worst = self.layout.constraint_names_of_rows(np.argsort(-np.abs(phi))[:3])
-        return f"{STATUS[1]} in {plural(int(info[0]), 'iteration')} (compiled solver); largest residuals in: {', '.join(worst)}"
 
 
 class CBackend:

@@ -26,7 +26,7 @@ import numpy as np
 from symid.analysis import Analysis
 from symid.backends import Array, Needs
 from symid.results import instant_row
-from symid.solve import JUMP_FLOOR, JUMP_RATIO, Instant, Stepper, run
+from symid.solve import JUMP_FLOOR, JUMP_RATIO, UNEXPLAINED, Instant, Stepper, run
 from symid.stability import Notes, requested
 
 if TYPE_CHECKING:  # a cached run (symid.plan) loads a generated module without sympy
@@ -113,28 +113,40 @@ class NumpyEvaluator:
 
     # One instant at a time, the module's scalar (`math`) kernels are an order
     # of magnitude faster than its vectorized ones on arrays of one column.
+    # `math` raises where an expression leaves its domain (a pole, sqrt of a
+    # negative, exp overflow): then the vectorized kernel, on numpy floats,
+    # gives the inf or NaN that the run reports (`symid.nonfinite`).
+    def _scalar(self, name: str, *args: object) -> Array:
+        try:
+            return np.array(getattr(self.module, f"_{name}_s")(*args, self.p_list))
+        except (ArithmeticError, ValueError):
+            numeric = [np.asarray(a, dtype=float) if isinstance(a, list) else
+                       (np.float64(a) if isinstance(a, float) else a) for a in args]
+            with np.errstate(all="ignore"):
+                return np.asarray(getattr(self.module, name)(*numeric, self.p), dtype=float).reshape(-1)
+
     def phi(self, q: Array, t: float) -> Array:
-        return np.array(self.module._phi_s(q.tolist(), t, self.p_list))
+        return self._scalar("phi", q.tolist(), float(t))
 
     def phi_q(self, q: Array, t: float) -> Array:
         out = np.zeros((self.module.NC, self.module.NG))
-        out[self.module.PHI_Q_ROWS, self.module.PHI_Q_COLS] = self.module._phi_q_values_s(q.tolist(), t, self.p_list)
+        out[self.module.PHI_Q_ROWS, self.module.PHI_Q_COLS] = self._scalar("phi_q_values", q.tolist(), float(t))
         return out
 
     def nu(self, q: Array, t: float) -> Array:
-        return np.array(self.module._nu_s(q.tolist(), t, self.p_list))
+        return self._scalar("nu", q.tolist(), float(t))
 
     def gamma(self, q: Array, qd: Array, t: float) -> Array:
-        return np.array(self.module._gamma_s(q.tolist(), qd.tolist(), t, self.p_list))
+        return self._scalar("gamma", q.tolist(), qd.tolist(), float(t))
 
     def applied(self, q: Array, qd: Array | None, t: float) -> Array:
-        return np.array(self.module._applied_s(q.tolist(), None if qd is None else qd.tolist(), t, self.p_list))
+        return self._scalar("applied", q.tolist(), None if qd is None else qd.tolist(), float(t))
 
     def mass(self) -> Array:
-        return np.array(self.module._mass_s(self.p_list))
+        return self._scalar("mass")
 
     def reactions(self, q: Array, lam: Array, t: float) -> Array:
-        return np.array(self.module._reactions_s(q.tolist(), lam.tolist(), t, self.p_list))
+        return self._scalar("reactions", q.tolist(), lam.tolist(), float(t))
 
     def own_loop(self, analysis: Analysis) -> bool:
         """Whether a run of `analysis` goes through the module's loop."""
@@ -155,7 +167,8 @@ class NumpyEvaluator:
         scaling = stepper.scaling
         assert scaling is not None
         pivots = [float(scaling.dr[r] * scaling.dc[c]) for r, c in zip(m.PIVOT_ROWS, m.PIVOT_COLS)]
-        check = (scaling.inv_col.tolist(), JUMP_FLOOR, JUMP_RATIO, pivots, analysis.cond_threshold / SCREEN)
+        check = (scaling.inv_col.tolist(), JUMP_FLOOR, JUMP_RATIO, pivots, analysis.cond_threshold / SCREEN,
+                 UNEXPLAINED)
         steps, t0 = analysis.steps, analysis.t0
         h = (analysis.t1 - t0) / (steps - 1) if steps > 1 else 0.0
         past, qd, qdd = [first.q.tolist()], _listed(first.qd), _listed(first.qdd)

@@ -62,7 +62,9 @@ def _time_function(exprs: Sequence[sp.Expr], values: Mapping[sp.Symbol, float]) 
     numeric = [sp.sympify(e).xreplace({k: sp.Float(v, 17) for k, v in values.items()}) for e in exprs]
     fn = sp.lambdify([T], numeric, modules=[np])  # a module object: no namespace scan
     count = len(numeric)
-    return lambda t: np.array(fn(t), dtype=float).reshape(count)
+    # a numpy t: a pole or a domain error gives inf or NaN (checked by the
+    # run), never a Python exception out of the lambdified code
+    return lambda t: np.array(fn(np.float64(t)), dtype=float).reshape(count)
 
 
 class _GroupData:
@@ -145,7 +147,8 @@ class ReferenceEvaluator:
         masses = np.array([[to_float(b.mass, values)] * 2 + [to_float(b.inertia, values)] for b in mech.bodies])
         self._mass = masses.reshape(-1)
         gravity = np.array([to_float(g, values) for g in mech.gravity])
-        self._gravity = (masses[:, :2] * gravity[None, :]).reshape(nb, 2)
+        with np.errstate(all="ignore"):  # a weight beyond the doubles: inf, reported by the run
+            self._gravity = (masses[:, :2] * gravity[None, :]).reshape(nb, 2)
         wanted = set(needs.reactions)
         self._reaction_members = [
             np.array([k for k, name in enumerate(g.group.names) if name in wanted], dtype=np.intp)
@@ -230,6 +233,37 @@ class ReferenceEvaluator:
                               members)
             out[slots[None, :] + np.arange(vals.shape[0])[:, None]] = vals
         return out
+
+    def nonfinite_elements(self, q: Array, qd: Array | None, qdd: Array | None, t: float,
+                           loads: bool = True) -> list[str]:
+        """The elements with a non-finite value at (q, qd, t), as "kind name"
+        in file order within each kind: constraints (Phi, Phi_q, nu, gamma),
+        forces (their generalized forces), bodies (mass, inertia, weight,
+        mass * qdd); without `loads` (a kinematic quantity failed) constraints
+        only."""
+        qx = self._extend(q)
+        qdx = self._extend(qd) if qd is not None else None
+        bad: list[str] = []
+        for g in self._cgroups:
+            whats = ["phi", "phi_q"] + (["nu"] if self.needs.velocity else [])
+            whats += ["gamma"] if qdx is not None else []
+            for what in whats:
+                vals = g.evaluate(what, g.args(qx, qdx if what == "gamma" else None, t))
+                bad += [g.group.names[m] for m in np.flatnonzero(~np.isfinite(vals).all(axis=0))]
+        mech = self.layout.mechanism
+        if not loads:
+            return [f"constraint {c.name}" for c in mech.constraints if c.name in bad]
+        for g in self._fgroups:
+            vals = g.evaluate("applied", g.args(qx, qdx, t), static=qdx is None)
+            bad += [g.group.names[m] for m in np.flatnonzero(~np.isfinite(vals).all(axis=0))]
+        inertial = self._mass.reshape(-1, 3)
+        load = np.concatenate([self._gravity, inertial], axis=1)
+        if qdd is not None:
+            load = np.concatenate([load, (self._mass * qdd).reshape(-1, 3)], axis=1)
+        bad += [b.name for b, ok in zip(mech.bodies, np.isfinite(load).all(axis=1)) if not ok]
+        kinds = [*(("constraint", c.name) for c in mech.constraints), *(("force", f.name) for f in mech.forces),
+                 *(("body", b.name) for b in mech.bodies)]
+        return [f"{kind} {name}" for kind, name in kinds if name in bad]
 
 
 class ReferenceBackend:

@@ -61,11 +61,14 @@ def code_model(mech: Mechanism, options: Options | None = None) -> CodeModel:
     q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
     t0 = mech.analysis.t0
     reference = ReferenceEvaluator(layout, values, Needs(velocity=False))
-    try:
-        q0, _ = newton(reference, q0, t0, mech.analysis.tol)
-    except AnalysisError:
-        pass  # the plan still needs a sample; the solver reports the failure at run time
-    sample = reference.phi_q(q0, t0)
+    # a driver's derivatives may be inf or NaN at t0 (evaluated with f): the
+    # solver reports that at run time, the plan needs only Phi_q
+    with np.errstate(all="ignore"):
+        try:
+            q0, _ = newton(reference, q0, t0, mech.analysis.tol)
+        except AnalysisError:
+            pass  # the plan still needs a sample; the solver reports the failure at run time
+        sample = reference.phi_q(q0, t0)
     plan = sparse.plan([(r, c) for r, c, _ in flat.jac], sample)
     cols = tuple(columns(layout, _analysis_like(mech, options)))
     return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0))

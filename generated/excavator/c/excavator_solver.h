@@ -12,12 +12,17 @@
 #define EXCAVATOR_ROW 73          /* values per instant in a trajectory row */
 #define EXCAVATOR_WORK 547        /* doubles of workspace every solver call needs */
 #define EXCAVATOR_IWORK 9         /* ints of workspace */
-#define EXCAVATOR_STATE 55       /* doubles of trajectory state */
+#define EXCAVATOR_STATE 64       /* doubles of trajectory state */
 
 /* Status of every solver call. */
 #define EXCAVATOR_OK 0
 #define EXCAVATOR_NOT_CONVERGED 1
 #define EXCAVATOR_SINGULAR 2
+#define EXCAVATOR_NONFINITE 3     /* Phi at the guess, or an output, is inf or NaN */
+#define EXCAVATOR_UNEXPLAINED 4   /* trajectory: the step's motion is not what the rates at both
+                                   ends explain (a jump of branch or of whole turns, or a
+                                   singular position): verify it (symid continues the previous
+                                   instant in sub-steps) */
 
 /* Output groups compiled in (1) or left out (0). */
 #define EXCAVATOR_HAS_QDOT 1
@@ -52,7 +57,9 @@ int excavator_instant(double t, const double *p, double tol, double *q, double *
 /* n instants t0 + k h, each written as a row of ROW values (t, then the
    compiled groups in contract order) into rows. state (STATE doubles) carries
    the predictor between calls: set state[0..NG-1] to the initial guess and
-   state[STATE-1] = 0 before the first call. *solved = rows written. */
+   state[STATE-1] = 0 before the first call. state[6 NG..7 NG-1]: per
+   coordinate, 1 / its scale for the jump check (zeros: no check).
+   *solved = rows written. */
 int excavator_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
                        double *rows, long *solved, double *work, int *iwork);
 

@@ -12,12 +12,17 @@
 #define FOUR_BAR_ROW 67          /* values per instant in a trajectory row */
 #define FOUR_BAR_WORK 461        /* doubles of workspace every solver call needs */
 #define FOUR_BAR_IWORK 9         /* ints of workspace */
-#define FOUR_BAR_STATE 55       /* doubles of trajectory state */
+#define FOUR_BAR_STATE 64       /* doubles of trajectory state */
 
 /* Status of every solver call. */
 #define FOUR_BAR_OK 0
 #define FOUR_BAR_NOT_CONVERGED 1
 #define FOUR_BAR_SINGULAR 2
+#define FOUR_BAR_NONFINITE 3     /* Phi at the guess, or an output, is inf or NaN */
+#define FOUR_BAR_UNEXPLAINED 4   /* trajectory: the step's motion is not what the rates at both
+                                   ends explain (a jump of branch or of whole turns, or a
+                                   singular position): verify it (symid continues the previous
+                                   instant in sub-steps) */
 
 /* Output groups compiled in (1) or left out (0). */
 #define FOUR_BAR_HAS_QDOT 1
@@ -52,7 +57,9 @@ int four_bar_instant(double t, const double *p, double tol, double *q, double *q
 /* n instants t0 + k h, each written as a row of ROW values (t, then the
    compiled groups in contract order) into rows. state (STATE doubles) carries
    the predictor between calls: set state[0..NG-1] to the initial guess and
-   state[STATE-1] = 0 before the first call. *solved = rows written. */
+   state[STATE-1] = 0 before the first call. state[6 NG..7 NG-1]: per
+   coordinate, 1 / its scale for the jump check (zeros: no check).
+   *solved = rows written. */
 int four_bar_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
                        double *rows, long *solved, double *work, int *iwork);
 

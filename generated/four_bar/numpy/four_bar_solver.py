@@ -39,7 +39,8 @@ _ZEROS = [0.0] * NG
 class SolverError(RuntimeError):
     """An instant that could not be solved.
 
-    Attributes: status ("not converged" or "singular"), t, q (the last
+    Attributes: status ("not converged", "singular" or "not finite": an
+    expression left its domain, or an output is inf or NaN), t, q (the last
     iterate), iterations.
     """
 
@@ -706,6 +707,25 @@ def _moved(q, g, o, c, floor, ratio):
     return correction > ratio * max(abs(g0 - o0) * c0, abs(g1 - o1) * c1, abs(g2 - o2) * c2, abs(g3 - o3) * c3, abs(g4 - o4) * c4, abs(g5 - o5) * c5, abs(g6 - o6) * c6, abs(g7 - o7) * c7, abs(g8 - o8) * c8)
 
 
+def _unexplained(o, d, e, q, v, w, h, c, floor, ratio):
+    """Whether the motion q - o of a step h is not what the rates at both ends
+    explain (d, e at o; v, w at q: the cubic Hermite, as symid.solve.unexplained),
+    by more than floor and ratio times the motion (each max_j |.| c_j)."""
+    o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
+    q0, q1, q2, q3, q4, q5, q6, q7, q8 = q
+    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c
+    d0, d1, d2, d3, d4, d5, d6, d7, d8 = d
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = e
+    v0, v1, v2, v3, v4, v5, v6, v7, v8 = v
+    w0, w1, w2, w3, w4, w5, w6, w7, w8 = w
+    hh = h * h / 12.0
+    h = 0.5 * h
+    mismatch = max(abs(q0 - o0 - h * (d0 + v0) - hh * (e0 - w0)) * c0, abs(q1 - o1 - h * (d1 + v1) - hh * (e1 - w1)) * c1, abs(q2 - o2 - h * (d2 + v2) - hh * (e2 - w2)) * c2, abs(q3 - o3 - h * (d3 + v3) - hh * (e3 - w3)) * c3, abs(q4 - o4 - h * (d4 + v4) - hh * (e4 - w4)) * c4, abs(q5 - o5 - h * (d5 + v5) - hh * (e5 - w5)) * c5, abs(q6 - o6 - h * (d6 + v6) - hh * (e6 - w6)) * c6, abs(q7 - o7 - h * (d7 + v7) - hh * (e7 - w7)) * c7, abs(q8 - o8 - h * (d8 + v8) - hh * (e8 - w8)) * c8)
+    if not mismatch > floor:
+        return False
+    return not mismatch <= ratio * max(abs(q0 - o0) * c0, abs(q1 - o1) * c1, abs(q2 - o2) * c2, abs(q3 - o3) * c3, abs(q4 - o4) * c4, abs(q5 - o5) * c5, abs(q6 - o6) * c6, abs(q7 - o7) * c7, abs(q8 - o8) * c8)
+
+
 def _instant(t, p, q, tol, m):
     """Solve one instant from the guess q (floats): Newton, then the compiled
     outputs. m: _mass_s(p) (or None). Returns (q, qd, qdd, lam, reactions,
@@ -771,26 +791,37 @@ def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
 
     past: the positions of the instants before k, latest first (up to 3;
     empty: q is the guess of instant k); qd, qdd: the rates of the latest.
-    check: None, or (c, floor, ratio, s, spread): stop with SolverError
-    "check" at an instant that may need a closer look: one where Newton moved
-    q from the guess by more than floor and ratio times the predicted motion
-    (both max_j |.| c_j), whose pivots |u_k| s_k spread wider than spread,
-    or that needed the dense fallback. A SolverError carries k, past, qd and
+    check: None, or (c, floor, ratio, s, spread, unexplained): stop with
+    SolverError "check" at an instant that may need a closer look: one where
+    Newton moved q from the guess by more than floor and ratio times the
+    predicted motion (both max_j |.| c_j), whose motion the rates at both
+    ends do not explain (by unexplained times the motion; see _unexplained),
+    whose pivots |u_k| s_k spread wider than spread, or that needed the
+    dense fallback. A SolverError carries k, past, qd and
     qdd to resume from.
     """
     m = _mass_s(p)
     hh = 0.5 * h * h
     q1, q2, q3 = (list(past) + [None] * 3)[:3]
     if check is not None:
-        c, floor, ratio, s, spread = check
+        c, floor, ratio, s, spread, unexplained = check
     for k in range(k, n):
         t = t0 + k * h
         if q1 is not None:
             q = _predict(q1, qd, qdd, h, hh)
         try:
-            qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
+            try:
+                qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
+            except (ArithmeticError, ValueError):  # an expression left its domain (math raises)
+                raise SolverError("not finite", t, q, 0) from None
+            # a sum carries any inf or NaN (an overflowing sum of finite values
+            # only costs a closer look)
+            if not math.isfinite(sum(qn) + sum(qdn) + sum(qddn) + sum(lam) + sum(reac)):
+                raise SolverError("not finite", t, qn, it)
             if check is not None and q1 is not None and (
-                    a.__class__ is _Dense or _spread(a, s) > spread or _moved(qn, q, q1, c, floor, ratio)):
+                    a.__class__ is _Dense or _spread(a, s) > spread or _moved(qn, q, q1, c, floor, ratio)
+                    or _unexplained(q1, qd, qdd, qn, qdn, qddn, h, c, floor, unexplained)
+                    ):
                 raise SolverError("check", t, qn, it)
         except SolverError as exc:
             exc.k, exc.past, exc.qd, exc.qdd = k, [v for v in (q1, q2, q3) if v is not None], qd, qdd

@@ -619,7 +619,12 @@ static int planetary_newton(double t, const double *p, double tol, double *q, do
     planetary_phi_k(q, tr, t, p, r);
     rmax = planetary_maxabs(r, 12);
     for (it = 0;; ++it) {
-        if (!isfinite(rmax)) break;
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            return it == 0 ? PLANETARY_NONFINITE : PLANETARY_NOT_CONVERGED;
+        }
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
@@ -671,13 +676,45 @@ static void planetary_outputs(double t, const double *p, const double *q, const 
     planetary_reactions_k(q, tr, lam, t, p, reactions);
 }
 
+/* Whether everything an instant computed is finite (maxabs is NaN if any
+   value is): a few comparisons per value, against an instant's solve. */
+static int planetary_finite(const double *q, const double *qd, const double *qdd, const double *lam,
+                          const double *reactions)
+{
+    (void)qd; (void)qdd; (void)lam; (void)reactions;
+    return isfinite(planetary_maxabs(q, 12))
+        && isfinite(planetary_maxabs(qd, 12)) && isfinite(planetary_maxabs(qdd, 12))
+        && isfinite(planetary_maxabs(lam, 12))
+        && isfinite(planetary_maxabs(reactions, 51))
+        ;
+}
+
+/* Whether the motion q1 - q0 of a step h is not what the rates at both ends
+   explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
+   it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
+   the rule of symid.solve.unexplained). O(NG) a step. */
+static int planetary_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
+                               const double *qd1, const double *qdd1, double h, const double *c)
+{
+    const double half = 0.5 * h, hh = h * h / 12.0;
+    double mismatch = 0.0, motion = 0.0;
+    int k;
+    for (k = 0; k < 12; ++k) {
+        const double d = q1[k] - q0[k];
+        mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
+        motion = PLANETARY_MAX(motion, fabs(d) * c[k]);
+    }
+    return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
+}
+
 int planetary_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *tr = PLANETARY_VEC(work, 9);
     int dense = 0, status = planetary_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status == PLANETARY_OK) planetary_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return status;
+    if (status != PLANETARY_OK) return status;
+    planetary_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+    return planetary_finite(q, qd, qdd, lam, reactions) ? PLANETARY_OK : PLANETARY_NONFINITE;
 }
 
 int planetary_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -687,7 +724,8 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
        two positions) before it, count */
     double *q = state, *m1 = state + 36, *m2 = state + 48;
     double *qd = state + 12, *qdd = state + 24, *m3 = state + 60;
-    double *count = state + 72;
+    double *scale = state + 72;
+    double *count = state + 84;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = PLANETARY_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
@@ -719,6 +757,14 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
             return status;
         }
         planetary_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        if (!planetary_finite(qn, qdn, qddn, lam, reac)) {
+            *solved = i;
+            return PLANETARY_NONFINITE;
+        }
+        if (*count >= 1 && planetary_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+            *solved = i;
+            return PLANETARY_UNEXPLAINED;
+        }
         memcpy(m3, m2, sizeof(double) * 12);
         memcpy(m2, m1, sizeof(double) * 12);
         memcpy(m1, qdd, sizeof(double) * 12);

@@ -601,7 +601,12 @@ static int quick_return_newton(double t, const double *p, double tol, double *q,
     quick_return_phi_k(q, tr, t, p, r);
     rmax = quick_return_maxabs(r, 9);
     for (it = 0;; ++it) {
-        if (!isfinite(rmax)) break;
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            return it == 0 ? QUICK_RETURN_NONFINITE : QUICK_RETURN_NOT_CONVERGED;
+        }
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
@@ -653,13 +658,45 @@ static void quick_return_outputs(double t, const double *p, const double *q, con
     quick_return_reactions_k(q, tr, lam, t, p, reactions);
 }
 
+/* Whether everything an instant computed is finite (maxabs is NaN if any
+   value is): a few comparisons per value, against an instant's solve. */
+static int quick_return_finite(const double *q, const double *qd, const double *qdd, const double *lam,
+                          const double *reactions)
+{
+    (void)qd; (void)qdd; (void)lam; (void)reactions;
+    return isfinite(quick_return_maxabs(q, 9))
+        && isfinite(quick_return_maxabs(qd, 9)) && isfinite(quick_return_maxabs(qdd, 9))
+        && isfinite(quick_return_maxabs(lam, 9))
+        && isfinite(quick_return_maxabs(reactions, 36))
+        ;
+}
+
+/* Whether the motion q1 - q0 of a step h is not what the rates at both ends
+   explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
+   it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
+   the rule of symid.solve.unexplained). O(NG) a step. */
+static int quick_return_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
+                               const double *qd1, const double *qdd1, double h, const double *c)
+{
+    const double half = 0.5 * h, hh = h * h / 12.0;
+    double mismatch = 0.0, motion = 0.0;
+    int k;
+    for (k = 0; k < 9; ++k) {
+        const double d = q1[k] - q0[k];
+        mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
+        motion = QUICK_RETURN_MAX(motion, fabs(d) * c[k]);
+    }
+    return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
+}
+
 int quick_return_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *tr = QUICK_RETURN_VEC(work, 9);
     int dense = 0, status = quick_return_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status == QUICK_RETURN_OK) quick_return_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return status;
+    if (status != QUICK_RETURN_OK) return status;
+    quick_return_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+    return quick_return_finite(q, qd, qdd, lam, reactions) ? QUICK_RETURN_OK : QUICK_RETURN_NONFINITE;
 }
 
 int quick_return_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -669,7 +706,8 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
        two positions) before it, count */
     double *q = state, *m1 = state + 27, *m2 = state + 36;
     double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
-    double *count = state + 54;
+    double *scale = state + 54;
+    double *count = state + 63;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = QUICK_RETURN_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
@@ -701,6 +739,14 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
             return status;
         }
         quick_return_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        if (!quick_return_finite(qn, qdn, qddn, lam, reac)) {
+            *solved = i;
+            return QUICK_RETURN_NONFINITE;
+        }
+        if (*count >= 1 && quick_return_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+            *solved = i;
+            return QUICK_RETURN_UNEXPLAINED;
+        }
         memcpy(m3, m2, sizeof(double) * 9);
         memcpy(m2, m1, sizeof(double) * 9);
         memcpy(m1, qdd, sizeof(double) * 9);

@@ -12,12 +12,17 @@
 #define SLIDER_CRANK_ROW 67          /* values per instant in a trajectory row */
 #define SLIDER_CRANK_WORK 453        /* doubles of workspace every solver call needs */
 #define SLIDER_CRANK_IWORK 9         /* ints of workspace */
-#define SLIDER_CRANK_STATE 55       /* doubles of trajectory state */
+#define SLIDER_CRANK_STATE 64       /* doubles of trajectory state */
 
 /* Status of every solver call. */
 #define SLIDER_CRANK_OK 0
 #define SLIDER_CRANK_NOT_CONVERGED 1
 #define SLIDER_CRANK_SINGULAR 2
+#define SLIDER_CRANK_NONFINITE 3     /* Phi at the guess, or an output, is inf or NaN */
+#define SLIDER_CRANK_UNEXPLAINED 4   /* trajectory: the step's motion is not what the rates at both
+                                   ends explain (a jump of branch or of whole turns, or a
+                                   singular position): verify it (symid continues the previous
+                                   instant in sub-steps) */
 
 /* Output groups compiled in (1) or left out (0). */
 #define SLIDER_CRANK_HAS_QDOT 1
@@ -52,7 +57,9 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
 /* n instants t0 + k h, each written as a row of ROW values (t, then the
    compiled groups in contract order) into rows. state (STATE doubles) carries
    the predictor between calls: set state[0..NG-1] to the initial guess and
-   state[STATE-1] = 0 before the first call. *solved = rows written. */
+   state[STATE-1] = 0 before the first call. state[6 NG..7 NG-1]: per
+   coordinate, 1 / its scale for the jump check (zeros: no check).
+   *solved = rows written. */
 int slider_crank_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
                        double *rows, long *solved, double *work, int *iwork);
 

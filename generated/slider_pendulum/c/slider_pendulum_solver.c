@@ -541,7 +541,12 @@ static int slider_pendulum_newton(double t, const double *p, double tol, double 
     slider_pendulum_phi_k(q, tr, t, p, r);
     rmax = slider_pendulum_maxabs(r, 6);
     for (it = 0;; ++it) {
-        if (!isfinite(rmax)) break;
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            return it == 0 ? SLIDER_PENDULUM_NONFINITE : SLIDER_PENDULUM_NOT_CONVERGED;
+        }
         if (rmax <= lim && step <= lim) {
             converged = 1;
             break;
@@ -593,13 +598,45 @@ static void slider_pendulum_outputs(double t, const double *p, const double *q, 
     slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
 }
 
+/* Whether everything an instant computed is finite (maxabs is NaN if any
+   value is): a few comparisons per value, against an instant's solve. */
+static int slider_pendulum_finite(const double *q, const double *qd, const double *qdd, const double *lam,
+                          const double *reactions)
+{
+    (void)qd; (void)qdd; (void)lam; (void)reactions;
+    return isfinite(slider_pendulum_maxabs(q, 6))
+        && isfinite(slider_pendulum_maxabs(qd, 6)) && isfinite(slider_pendulum_maxabs(qdd, 6))
+        && isfinite(slider_pendulum_maxabs(lam, 6))
+        && isfinite(slider_pendulum_maxabs(reactions, 30))
+        ;
+}
+
+/* Whether the motion q1 - q0 of a step h is not what the rates at both ends
+   explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
+   it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
+   the rule of symid.solve.unexplained). O(NG) a step. */
+static int slider_pendulum_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
+                               const double *qd1, const double *qdd1, double h, const double *c)
+{
+    const double half = 0.5 * h, hh = h * h / 12.0;
+    double mismatch = 0.0, motion = 0.0;
+    int k;
+    for (k = 0; k < 6; ++k) {
+        const double d = q1[k] - q0[k];
+        mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
+        motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[k]);
+    }
+    return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
+}
+
 int slider_pendulum_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
     double *tr = SLIDER_PENDULUM_VEC(work, 9);
     int dense = 0, status = slider_pendulum_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status == SLIDER_PENDULUM_OK) slider_pendulum_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return status;
+    if (status != SLIDER_PENDULUM_OK) return status;
+    slider_pendulum_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+    return slider_pendulum_finite(q, qd, qdd, lam, reactions) ? SLIDER_PENDULUM_OK : SLIDER_PENDULUM_NONFINITE;
 }
 
 int slider_pendulum_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -609,7 +646,8 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
        two positions) before it, count */
     double *q = state, *m1 = state + 18, *m2 = state + 24;
     double *qd = state + 6, *qdd = state + 12, *m3 = state + 30;
-    double *count = state + 36;
+    double *scale = state + 36;
+    double *count = state + 42;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_PENDULUM_VEC(work, 9);
     long i;
     int k, status, info[2], dense = 0;
@@ -641,6 +679,14 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
             return status;
         }
         slider_pendulum_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        if (!slider_pendulum_finite(qn, qdn, qddn, lam, reac)) {
+            *solved = i;
+            return SLIDER_PENDULUM_NONFINITE;
+        }
+        if (*count >= 1 && slider_pendulum_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+            *solved = i;
+            return SLIDER_PENDULUM_UNEXPLAINED;
+        }
         memcpy(m3, m2, sizeof(double) * 6);
         memcpy(m2, m1, sizeof(double) * 6);
         memcpy(m1, qdd, sizeof(double) * 6);

@@ -14,6 +14,7 @@ from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
 from symid.motion import piece_tables, tables
+from symid.solve import JUMP_FLOOR, UNEXPLAINED
 
 NAME = "c"
 MAX_NEWTON = 50
@@ -239,8 +240,9 @@ def work_size(model: CodeModel) -> int:
 
 def state_size(model: CodeModel) -> int:
     """Doubles of trajectory state: q, qd, qdd, three earlier accelerations
-    (statics: two earlier positions) and the count of instants solved."""
-    return 6 * model.flat.ng + 1
+    (statics: two earlier positions), the column scales of the jump check
+    and the count of instants solved."""
+    return 7 * model.flat.ng + 1
 
 
 OUTPUTS_ARGS = ("t", "p", "q", "tr", "qd", "qdd", "lam", "reactions", "work", "iwork", "dense")
@@ -311,7 +313,8 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": repr(THRESHOLD),
         **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper()),
-        "max_newton": MAX_NEWTON, "velocity": o.velocity, "dynamics": dynamics,
+        "max_newton": MAX_NEWTON, "jump_floor": repr(JUMP_FLOOR), "unexplained": repr(UNEXPLAINED),
+        "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),
         "outputs": outputs,

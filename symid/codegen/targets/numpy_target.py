@@ -86,6 +86,15 @@ def _row_items(model: CodeModel) -> str:
     return ", ".join(f"*{parts[g] or '_ZEROS'}" for g in o.outputs)
 
 
+def _finite_sum(model: CodeModel) -> str:
+    """The sum of everything an instant computes (q and, as compiled, qd, qdd,
+    lambda, reactions): finite exactly when they all are, barring overflow."""
+    o = model.flat.options
+    parts = ["qn"] + (["qdn", "qddn"] if o.velocity else []) + (["lam"] if o.multipliers else [])
+    parts += ["reac"] if o.multipliers and model.flat.reactions else []
+    return " + ".join(f"sum({v})" for v in parts)
+
+
 def context(model: CodeModel) -> dict[str, Any]:
     f = model.flat
     o = f.options
@@ -109,6 +118,7 @@ def context(model: CodeModel) -> dict[str, Any]:
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac], "nnz": len(f.jac),
         "functions": functions, "outputs": o.outputs, "kind": o.kind, "threshold": repr(THRESHOLD),
         "velocity": o.velocity, "multipliers": o.multipliers, **_lu(model), "row_items": _row_items(model),
+        "finite_sum": _finite_sum(model),
         "phi_q_scalar": functions[1]["scalar"],
         "splines": [piece_tables(s) for s in tables(f.phi + f.nu + f.gamma + f.applied + f.reactions)],
     }
