@@ -143,10 +143,11 @@ def _trajectory(study: api.Study) -> _Runner | None:
     solved_p = ctypes.byref(solved)
 
     def run(start: int, n: int, state: np.ndarray) -> tuple[np.ndarray, int, int, float]:
-        t0 = a.t0 + start * h
+        # the solver reads the index of the next instant from the state's count
+        assert int(state[-1]) == start, "the state must be the one this run has advanced"
         state_p = state.ctypes.data_as(ptr)
         tick = time.perf_counter()
-        status = fn(t0, h, n, p, a.tol, state_p, buf_p, solved_p, work, iwork)
+        status = fn(a.t0, h, n, p, a.tol, state_p, buf_p, solved_p, work, iwork)
         return buf, solved.value, int(status), time.perf_counter() - tick
 
     return run

@@ -43,7 +43,7 @@ def _domains_text() -> str:
     text = api.example("slider_crank").read_text(encoding="utf-8")
     text = text.replace("n = 5 ", "n = 1 ").replace("t1 = 0.2 ", "t1 = 0.5 ").replace("steps = 201", "steps = 17")
     text = text.replace("[parameters]\n", "[parameters]\ntp = 100.0\ntl = 100.0\nk = 1.0\nts = 100.0\nta = 100.0\n")
-    text = text.replace('f = "omega*t"', 'f = "omega*t + sqrt(ts - t) + asin(t/ta)"')
+    text = text.replace('f = "omega*t"', 'f = "omega*t + sqrt(ts - t) - sqrt(ts) + asin(t/ta)"')  # 0 at t0
     return text + ('\n[[force]]\nname = "brake"\ntype = "torque"\nbody = "crank"\n'
                    'T = "1/(t - tp) + log(tl - t) + exp(k*t)"\n')
 

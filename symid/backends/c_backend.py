@@ -229,9 +229,9 @@ class CEvaluator:
         while start < times:
             # t0 alone first: its assembled q fixes the scales of the jump check
             n = 1 if start == 0 else min(chunk, times - start)
-            t0 = analysis.t0 + start * h
-            # t = t0 + (start + i) h exactly as the Python loop computes it
-            status = self._trajectory(ctypes.c_double(t0), ctypes.c_double(h), ctypes.c_long(n),
+            # the solver takes each instant's index from the state's count:
+            # t = t0 + k h, exactly as the Python loop computes it
+            status = self._trajectory(ctypes.c_double(analysis.t0), ctypes.c_double(h), ctypes.c_long(n),
                                       _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(state),
                                       _ptr(buf), ctypes.byref(solved), _ptr(self.work),
                                       self.iwork.ctypes.data_as(_I))

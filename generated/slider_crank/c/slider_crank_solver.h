@@ -54,10 +54,12 @@ void slider_crank_reactions(const double *q, const double *lam, double t, const 
 int slider_crank_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork);
 
-/* n instants t0 + k h, each written as a row of ROW values (t, then the
-   compiled groups in contract order) into rows. state (STATE doubles) carries
-   the predictor between calls: set state[0..NG-1] to the initial guess and
-   state[STATE-1] = 0 before the first call. state[6 NG..7 NG-1]: per
+/* n instants t0 + k h, k = state[STATE-1] (the instants solved with this
+   state so far) onwards, each written as a row of ROW values (t, then the
+   compiled groups in contract order) into rows: pass the same t0 on every
+   call of one run. state (STATE doubles) carries the predictor between calls:
+   set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
+   first call. state[6 NG..7 NG-1]: per
    coordinate, 1 / its scale for the jump check (zeros: no check).
    *solved = rows written. */
 int slider_crank_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
