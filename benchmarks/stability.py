@@ -15,7 +15,7 @@ the singularity and against cond, every backend). Four parts:
 3. long run: the bundled slider-crank for N instants (default 1e6) streamed to
    a CSV, crank angle past 1e4 rad, the motor torque against the 40-digit
    closed form every N/1000 instants, and Python's allocated blocks sampled;
-4. cost: the loop before this work (git show of symid/solve.py at BASELINE)
+4. cost: the loop before this work (git show of symid/solve.py, as it was, at BASELINE)
    against the current one, same backend and instants.
 """
 
@@ -42,10 +42,10 @@ sys.path.insert(0, str(ROOT))
 
 import stress  # noqa: E402  (tests/stress.py: the cases and their 40-digit reference)
 from symid import api, backends, solve  # noqa: E402
-from symid.results import row, write_csv  # noqa: E402
+from symid.output.results import row, write_csv  # noqa: E402
 
 EPS = float(np.finfo(float).eps)
-BASELINE = "05875db"  # symid/solve.py before the stability work: plain Newton, unscaled LU
+BASELINE = "05875db"  # symid/solve.py (now symid/numeric/solve.py) before the stability work: plain Newton, unscaled LU
 KS = {"slider_crank": range(1, 9), "four_bar_toggle": range(1, 16)}
 
 
@@ -223,7 +223,7 @@ def _checks_cost(study) -> float:
     own arrays, times its mean Newton iterations)."""
     import timeit
 
-    from symid.stability import Notes, Scaling
+    from symid.numeric.stability import Notes, Scaling
 
     instants = list(solve.run(study.evaluator, study.analysis, study.q0()))
     iterations = float(np.mean([i.iterations for i in instants]))

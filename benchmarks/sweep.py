@@ -10,7 +10,7 @@ every correction here factors Phi_q anew). Two drivers over the same C
 backend of one mechanism:
 
 - `python_newton`: the Evaluator protocol (phi, phi_q, ...) with SciPy's LU,
-  Newton as in `symid.solve` (stop when max |Phi| and the last max |dq| are
+  Newton as in `symid.numeric.solve` (stop when max |Phi| and the last max |dq| are
   both <= max(tol, 8 eps max(1, max |q|))).
 - `compiled_loop`: the generated `<name>_instant` (Newton, qdot, qddot,
   lambda, reactions in C) called in a C loop (`predictor_loop.c`, linked

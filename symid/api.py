@@ -18,17 +18,18 @@ import numpy as np
 import sympy as sp
 
 from symid import backends
-from symid.analysis import Analysis
-from symid.assemble import Layout, assemble
+from symid.model.analysis import Analysis
+from symid.symbolic.assemble import Layout, assemble
 from symid.backends import Array, Evaluator, Needs
 from symid.errors import AnalysisError
 from symid.io.reader import load
-from symid.model import Mechanism
-from symid.motion import check_spans
-from symid.params import parameter_values, to_float
-from symid.results import Results, check_table_size, columns, table_rows, write_csv
-from symid.solve import Instant, run
-from symid.stability import Notes, check_redundant, require_square, require_support
+from symid.model.mechanism import Mechanism
+from symid.model.motion import check_spans
+from symid.model.params import parameter_values, to_float
+from symid.output.results import Results, check_table_size, columns, table_rows, write_csv
+from symid.numeric.solve import Instant, run
+from symid.backends import check_redundant, require_support
+from symid.numeric.stability import Notes, require_square
 from symid.text import number, plural
 
 
@@ -106,9 +107,9 @@ class Study:
         """The results table row by row; a compiled backend runs its own loop.
 
         The run's warnings (`warnings`) include angles that look like degrees
-        and bodies assembled at t0 far from their `q0` (`symid.misreading`).
+        and bodies assembled at t0 far from their `q0` (`symid.io.misreading`).
         """
-        from symid.misreading import angle_warnings, assembly_warnings
+        from symid.io.misreading import angle_warnings, assembly_warnings
 
         self.notes = notes = Notes(self.analysis)
         notes.fixed.extend(angle_warnings(self.mechanism))

@@ -323,8 +323,8 @@ class Case:
 def solve_case(name: str, k: int, path: object, backend: str) -> Case:
     """Solve case k of a family at t = 0 from the closed-form guess."""
     from symid import api, backends
-    from symid.solve import run
-    from symid.stability import requested
+    from symid.numeric.solve import run
+    from symid.numeric.stability import requested
 
     family = FAMILIES[name]
     overrides = {n: repr(v) for n, v in family.values(k).items()}
@@ -338,7 +338,7 @@ def solve_case(name: str, k: int, path: object, backend: str) -> Case:
     own = getattr(study.evaluator, "rows", None)
     row = next(iter(own(study.analysis, q0))) if own is not None else None
     if row is None:
-        from symid.results import row as make_row
+        from symid.output.results import row as make_row
 
         row = make_row(next(run(study.evaluator, study.analysis, q0)), study.layout, study.analysis)
     assert not requested(study.analysis) or "cond" in columns

@@ -83,7 +83,7 @@ def test_a_ladder_far_from_the_origin_keeps_its_torque_to_1e_13(backend: str, tm
     # At x ~ 16384 m a coordinate's ulp is 3.6e-12: a residual summed left
     # to right rounds there, and eight bays in series turn that into torque
     # errors of ~1e-12 of the peak. Grouping the coordinate differences first
-    # (symid.rounding) keeps the residual exact. Pivots and lengths are exact
+    # (symid.symbolic.rounding) keeps the residual exact. Pivots and lengths are exact
     # binary numbers, so the file's mechanism is exactly a parallelogram ladder.
     dims = {"x0": 16384.0, "a": 0.5, "b": 0.5}
     lad = ladder.Ladder(8, **dims)

@@ -17,7 +17,7 @@ import sympy as sp
 from symid import api, cli
 from symid.codegen.model import code_model
 from symid.codegen.targets import casadi_target
-from symid.expr import FUNCTIONS
+from symid.model.expr import FUNCTIONS
 from symid.io.reader import load
 
 EXAMPLES = api.examples()

@@ -499,7 +499,7 @@ def test_check_reports_rank_deficiency_and_dependent_constraints(tmp_path, capsy
 
 
 def test_check_function_reports_rank_deficiency(tmp_path):
-    from symid.check import check
+    from symid.tools.check import check
     from symid import backends
     backend = "reference" if "reference" in backends.names() else "numpy"
     path = tmp_path / "mech.toml"

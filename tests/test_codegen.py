@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from data_mechanisms import SINGULAR_PENDULUM, TWO_CABLES
-from symid import api, solve
+from symid import api
+from symid.numeric import solve
 from symid.cli import main
 from symid.codegen import sparse
 from symid.codegen.emit import sample_jacobian

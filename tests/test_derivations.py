@@ -1,4 +1,4 @@
-"""The sympy derivations of `symid.derive` against independent truth.
+"""The sympy derivations of `symid.symbolic.derive` against independent truth.
 
 Truth is written here by hand from `shared/reference/planar-inverse-dynamics.md`
 (hand blocks of Phi_q, hand gamma and nu, the reactions table, the applied-force
@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from symid import symbols as s
-from symid.assemble import assemble
-from symid.derive import _derive_constraint, derive_constraint, derive_force, reaction
-from symid.model import Body, Element, Mechanism
+from symid.symbolic import symbols as s
+from symid.symbolic.assemble import assemble
+from symid.symbolic.derive import _derive_constraint, derive_constraint, derive_force, reaction
+from symid.model.mechanism import Body, Element, Mechanism
 
 # -- the families ---------------------------------------------------------------
 
@@ -29,7 +29,7 @@ def vid(v: tuple[str, tuple]) -> str:
     return v[0] + "".join(f"-{val}" for _, val in v[1])
 
 
-# -- hand-written symbolic truth (own A, B, R; not symid.symbols') --------------
+# -- hand-written symbolic truth (own A, B, R; not symid.symbolic.symbols') --------------
 
 I2, Z12 = sp.eye(2), sp.zeros(1, 2)
 RH = sp.Matrix([[0, -1], [1, 0]])

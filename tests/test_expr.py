@@ -1,4 +1,4 @@
-"""Tests of the whitelist expression parser `symid.expr`."""
+"""Tests of the whitelist expression parser `symid.model.expr`."""
 
 from __future__ import annotations
 
@@ -14,8 +14,8 @@ import pytest
 import sympy as sp
 
 from symid.errors import InputError
-from symid.expr import FUNCTIONS, MAX_DEPTH, MAX_LENGTH, parse_expression
-from symid.model import T, parameter_symbol
+from symid.model.expr import FUNCTIONS, MAX_DEPTH, MAX_LENGTH, parse_expression
+from symid.model.mechanism import T, parameter_symbol
 
 A, B = parameter_symbol("a"), parameter_symbol("b")
 SYMBOLS = {"a": A, "b": B, "t": T}

@@ -25,8 +25,8 @@ import pytest
 
 from symid import api
 from symid.cli import main
-from symid.io.reader import MAX_BODIES, MAX_FILE_BYTES, MAX_NAME_LENGTH, MAX_STEPS
-from symid.results import MAX_TABLE_VALUES
+from symid.io.limits import MAX_BODIES, MAX_FILE_BYTES, MAX_NAME_LENGTH, MAX_STEPS
+from symid.output.results import MAX_TABLE_VALUES
 
 REPO = Path(__file__).resolve().parents[1]
 SLIDER_CRANK = REPO / "symid" / "examples" / "slider_crank.toml"

@@ -6,7 +6,9 @@ import argparse
 
 import pytest
 
-from symid.cli import build_parser, main
+from symid.cli import main
+
+from symid.cli.entry import build_parser
 
 
 def _subcommands() -> dict[str, argparse.ArgumentParser]:

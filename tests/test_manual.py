@@ -11,10 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from symid import manual
+from symid.tools import manual
 from symid.cli import main
-from symid.constraints import TYPES as CONSTRAINTS
-from symid.forces import TYPES as FORCES
+from symid.symbolic.constraints import TYPES as CONSTRAINTS
+from symid.symbolic.forces import TYPES as FORCES
 from symid.io.reader import ANALYSIS_KEYS, BODY_KEYS, MECHANISM_KEYS, TOP_KEYS
 
 ROOT = Path(__file__).resolve().parents[1]

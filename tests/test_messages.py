@@ -11,7 +11,7 @@ import pytest
 from symid import api
 from symid.cli import main
 from symid.text import number, plural
-from symid.verify import verify
+from symid.tools.verify import verify
 
 SLIDER_CRANK = str(api.example("slider_crank"))
 

@@ -12,7 +12,7 @@ import pytest
 from symid import api
 from symid.cli import main
 from symid.io.reader import load, loads
-from symid.misreading import angle_warnings
+from symid.io.misreading import angle_warnings
 
 SLIDER_CRANK = api.example("slider_crank")
 TEXT = SLIDER_CRANK.read_text()

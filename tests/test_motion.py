@@ -1,4 +1,4 @@
-"""Motion from data and standard motion laws (symid.motion, symid.io.table).
+"""Motion from data and standard motion laws (symid.model.motion, symid.io.table).
 
 A table sampled from a known formula must give back the formula's motor
 torque within a bound derived from the sampling step; a bad table or a run
@@ -21,10 +21,10 @@ from symid.cli import main
 from symid.codegen.cache import key
 from symid.codegen.model import options_for
 from symid.errors import InputError
-from symid.expr import parse_expression
+from symid.model.expr import parse_expression
 from symid.io.reader import load, loads
-from symid.model import T
-from symid.motion import LAWS
+from symid.model.mechanism import T
+from symid.model.motion import LAWS
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler")
 SLIDER_CRANK = api.example("slider_crank").read_text()

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from symid import api
-from symid.results import Results
-from symid.verify import bundled, verify
+from symid.output.results import Results
+from symid.tools.verify import bundled, verify
 
 
 @pytest.fixture(scope="module")

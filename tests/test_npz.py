@@ -8,7 +8,7 @@ import pytest
 from symid import api
 from symid.cli import main
 from symid.errors import AnalysisError
-from symid.io.npz import read_npz, write_npz
+from symid.output.npz import read_npz, write_npz
 
 HEADER = ["t", "crank.x", "motor.T_j"]
 

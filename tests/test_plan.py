@@ -1,4 +1,4 @@
-"""Run plans (`symid.plan`): a repeated `symid solve` skips sympy and gives
+"""Run plans (`symid.tools.plan`): a repeated `symid solve` skips sympy and gives
 the same table, messages and exit status as the normal path; any change to
 its inputs, or any doubt about the plan, takes the normal path."""
 
@@ -14,14 +14,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symid import api, cli, plan
+from symid import api
+from symid.cli import entry as cli
+
+from symid.tools import plan
 from symid.errors import AnalysisError
 
 REPO = Path(__file__).resolve().parents[1]
 SLIDER_CRANK = api.example("slider_crank")
 TABLED = 'f = { table = "motion.csv", column = "angle" }'
 # Imports a planned run must not make (the point of a plan: no derivation).
-HEAVY = ("sympy", "jinja2", "symid.model", "symid.assemble", "symid.derive", "symid.codegen.model")
+HEAVY = ("sympy", "jinja2", "symid.model", "symid.symbolic.assemble", "symid.symbolic.derive", "symid.codegen.model")
 
 
 def backends_here() -> list[str]:
@@ -149,7 +152,7 @@ def test_symid_sources_are_part_of_the_key(tmp_path, capsys, spy, monkeypatch):
 def test_code_version_follows_an_edit_of_the_sources(tmp_path):
     copy = tmp_path / "symid"
     shutil.copytree(REPO / "symid", copy, ignore=shutil.ignore_patterns("__pycache__"))
-    code = "import symid.sources as s; print(s.__file__, s.code_version())"
+    code = "import symid.codegen.sources as s; print(s.__file__, s.code_version())"
 
     def version() -> str:
         env = {**os.environ, "PYTHONPATH": str(tmp_path)}

@@ -11,7 +11,11 @@ import pytest
 import sympy as sp
 from PIL import Image
 
-from symid import api, plot, summary
+from symid import api
+
+from symid.output import plot
+
+from symid.output import summary
 from symid.cli import main
 from symid.io.reader import load
 from truth import Truth

@@ -1,4 +1,4 @@
-"""Tests of `symid.show` and `symid derive`: readable, exact, LaTeX and Jupyter.
+"""Tests of `symid.tools.show` and `symid derive`: readable, exact, LaTeX and Jupyter.
 
 Truth is the hand definitions of the notation (s_i = A_i s'_i, a_i = A_i v'_i,
 d = d_ij and its rate, written here again) and finite differences of Phi.
@@ -14,13 +14,13 @@ import pytest
 import sympy as sp
 
 from symid import api
-from symid import symbols as s
+from symid.symbolic import symbols as s
 from symid.cli import main
-from symid.constraints import TYPES
-from symid.derive import derive_constraint
+from symid.symbolic.constraints import TYPES
+from symid.symbolic.derive import derive_constraint
 from symid.errors import InputError
 from symid.io.reader import load
-from symid.show import (
+from symid.tools.show import (
     Derivation, _abbreviations, abbreviate, derive_mechanism, derive_type, display_names, latex,
     mechanism_system, pretty,
 )
@@ -188,7 +188,7 @@ def test_readme_derive_example_matches_the_derivation():
 
 
 def test_driver_symbols_become_f_of_t_and_its_derivatives_for_the_api():
-    from symid.show import with_functions
+    from symid.tools.show import with_functions
 
     f = sp.Function("f", real=True)(s.T)
     gamma = with_functions(derive_constraint("relative_angle_driver").gamma[0])

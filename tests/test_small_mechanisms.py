@@ -23,7 +23,7 @@ from symid import api
 from symid.api import Results
 from symid.cli import main
 from symid.io.reader import loads
-from symid.model import Mechanism
+from symid.model.mechanism import Mechanism
 from test_codegen import STRICT, needs_cc
 
 CASES = cases()
@@ -76,7 +76,7 @@ def test_small_mechanism_agrees_with_reference(name: str, backend: str) -> None:
 @pytest.mark.parametrize("name", CASES)
 def test_generated_c_of_small_mechanism_compiles_with_strict_flags(name: str, tmp_path: Path) -> None:
     """The source the C backend built above (from the cache: generated once)."""
-    from symid.assemble import assemble
+    from symid.symbolic.assemble import assemble
     from symid.backends.c_backend import build
     from symid.codegen.model import options_for
 

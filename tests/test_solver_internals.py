@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from symid import api
-from symid import solve as solve_module
+from symid.numeric import solve as solve_module
 from symid.codegen.model import CodeModel, code_model
 from symid.codegen.targets import c as c_target
 from symid.io.reader import load

@@ -16,8 +16,10 @@ import pytest
 import sympy as sp
 
 import stress
-from symid import api, solve, stability
-from symid.assemble import assemble
+from symid import api
+from symid.numeric import solve
+from symid.numeric import stability
+from symid.symbolic.assemble import assemble
 from symid.cli import main
 from symid.errors import AnalysisError
 from symid.io.reader import load, loads
@@ -561,8 +563,8 @@ def test_angles_past_1e4_rad_lose_only_what_the_angle_explains(slider_crank_torq
     where the angle's own rounding (1.8e-12 rad) is what they must follow."""
     import mpmath
 
-    from symid.results import Results, row, table_rows
-    from symid.stability import Notes
+    from symid.output.results import Results, row, table_rows
+    from symid.numeric.stability import Notes
 
     t0 = 1592 / 5  # 1592 turns at 5 rev/s
     study = api.prepare(SLIDER_CRANK, backend, t0=t0, t1=t0 + 0.4, steps=401)
@@ -586,7 +588,7 @@ def test_streaming_memory_does_not_grow_with_the_instants(tmp_path):
     to a CSV, peak at the same count for 10 times the instants."""
     import sys
 
-    from symid.results import write_csv
+    from symid.output.results import write_csv
 
     def sampled(rows, peak):
         for r in rows:

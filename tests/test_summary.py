@@ -7,10 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from symid import api, summary
+from symid import api
+
+from symid.output import summary
 from symid.cli import main
 from symid.io.reader import load
-from symid.results import Results
+from symid.output.results import Results
 from truth import Truth
 
 EXAMPLES = api.examples()

@@ -1,4 +1,4 @@
-"""Tests of `symid.verify` and `symid verify`: claim files against the derivation.
+"""Tests of `symid.tools.verify` and `symid verify`: claim files against the derivation.
 
 A wrong claim must be caught at the right entry with a counterexample that is
 valid on its own: the derivation (from `derive_constraint`, substituted here)
@@ -14,12 +14,12 @@ from pathlib import Path
 import pytest
 import sympy as sp
 
-from symid import symbols as s
-from symid import verify as verify_module
+from symid.symbolic import symbols as s
+from symid.tools import verify as verify_module
 from symid.cli import main
-from symid.derive import derive_constraint
+from symid.symbolic.derive import derive_constraint
 from symid.errors import InputError
-from symid.verify import Report, bundled, verify, verify_text
+from symid.tools.verify import Report, bundled, verify, verify_text
 
 CLAIMS = {p.stem: p for p in bundled()}
 REFERENCE_TABLE = {"revolute", "revolute_revolute", "parallel", "pin_in_slot",

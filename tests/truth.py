@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from symid.model import T, Mechanism
-from symid.params import parameter_values, to_float
+from symid.model.mechanism import T, Mechanism
+from symid.model.params import parameter_values, to_float
 
 # The point of each body role where a constraint's reaction acts (None: the
 # centre of mass), restated from the reference, independent of the families.

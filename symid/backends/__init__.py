@@ -7,54 +7,19 @@ that has `name` and `evaluator()`, and one line in `_REGISTRY`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from importlib import import_module
 from typing import TYPE_CHECKING, Mapping, Protocol
 
-import numpy as np
-
 from symid.errors import InputError
+from symid.numeric.evaluator import Array, Evaluator, Needs
+from symid.numeric.stability import FEATURES, redundancy_error, requested
 
-if TYPE_CHECKING:  # a cached run (symid.plan) loads a backend without sympy
+if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a backend without sympy
     import sympy as sp
 
-    from symid.assemble import Layout
+    from symid.model.analysis import Analysis
 
-Array = np.ndarray
-
-
-@dataclass(frozen=True)
-class Needs:
-    """What an analysis will ask of an evaluator, so nothing else is prepared.
-
-    Attributes:
-        velocity: False for statics: applied forces see qdot = 0 and no
-            velocity or acceleration term is compiled.
-        reactions: names of constraints whose reactions are wanted (file order).
-    """
-
-    velocity: bool = True
-    reactions: tuple[str, ...] = ()
-
-
-class Evaluator(Protocol):
-    """Numeric values of one mechanism's derived quantities at one instant.
-
-    Sizes: q, qd: (ng,); results of phi, nu, gamma: (nc,); phi_q: (nc, ng);
-    applied: (ng,); mass: (ng,) (the diagonal of M); reactions: (3 * roles,)
-    per requested constraint, concatenated in file order.
-    """
-
-    layout: Layout
-
-    def phi(self, q: Array, t: float) -> Array: ...
-    def phi_q(self, q: Array, t: float) -> Array: ...
-    def nu(self, q: Array, t: float) -> Array: ...
-    def gamma(self, q: Array, qd: Array, t: float) -> Array: ...
-    def applied(self, q: Array, qd: Array | None, t: float) -> Array: ...
-    def mass(self) -> Array: ...
-    def reactions(self, q: Array, lam: Array, t: float) -> Array: ...
-
+    from symid.symbolic.assemble import Layout
 
 class Backend(Protocol):
     name: str
@@ -81,3 +46,34 @@ def get(name: str) -> Backend:
         raise InputError(f"--backend: unknown backend {name!r} (valid: {', '.join(_REGISTRY)})")
     module, cls = _REGISTRY[name]
     return getattr(import_module(module), cls)()
+
+
+def require_support(backend_name: str, analysis: Analysis, source: str) -> None:
+    """An input error when the backend lacks a feature the analysis asks for.
+
+    A backend that runs its own loop (the compiled C solver) names what it
+    lacks in `lacks`; the backends driven by the Python loop have everything.
+    """
+    lacks: frozenset[str] = getattr(get(backend_name), "lacks", frozenset())
+    missing = [f for f in requested(analysis) if f in lacks]
+    if not missing:
+        return
+    key, what = FEATURES[missing[0]]
+    able = [n for n in names() if missing[0] not in getattr(get(n), "lacks", frozenset())]
+    raise InputError(f"{source}: [analysis] key '{key}': the {backend_name} backend does not support {what}; "
+                     f"use --backend {' or '.join(able)}")
+
+
+def check_redundant(layout: Layout, values: object, backend_name: str) -> None:
+    """More rows than coordinates: an input error naming the dependent rows,
+    unless redundant = "min_norm" on a backend that supports it."""
+    mech = layout.mechanism
+    if layout.nc <= layout.ng:
+        return
+    if mech.analysis.redundant == "min_norm":
+        require_support(backend_name, mech.analysis, mech.source)
+        return
+    raise redundancy_error(layout, values, "redundant = \"min_norm\" solves anyway, with minimum-norm multipliers")
+
+
+__all__ = ["Array", "Backend", "Evaluator", "Needs", "check_redundant", "get", "names", "require_support"]

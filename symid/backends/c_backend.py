@@ -17,17 +17,17 @@ from typing import TYPE_CHECKING, Callable, Iterator, Mapping, TypeAlias
 
 import numpy as np
 
-from symid.analysis import Analysis
+from symid.model.analysis import Analysis
 from symid.backends import Array, Needs
 from symid.errors import InputError
 from symid.progress import stage
 
-if TYPE_CHECKING:  # a cached run (symid.plan) loads a built solver without sympy
+if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a built solver without sympy
     import sympy as sp
 
-    from symid.assemble import Layout
+    from symid.symbolic.assemble import Layout
     from symid.codegen.flat import Options
-    from symid.stability import Notes
+    from symid.numeric.stability import Notes
 
 # -fno-math-errno lets sqrt compile to one instruction; results are unchanged.
 # No warning flags: a user's run never depends on what a compiler warns about
@@ -135,7 +135,7 @@ class CEvaluator:
         folder: the built solver (`build`); name: the mechanism's name.
         params: parameter name -> value, for every parameter of the solver.
         layout: the mechanism's layout, which names constraints in failure
-            messages; None for a cached run (`symid.plan`), which reruns
+            messages; None for a cached run (`symid.tools.plan`), which reruns
             the whole normal path on any failure.
     """
 
@@ -202,17 +202,17 @@ class CEvaluator:
         no warnings).
 
         An instant the compiled loop cannot vouch for is solved by the Python
-        loop (`symid.solve.Stepper`, over this solver's functions), as on the
+        loop (`symid.numeric.solve.Stepper`, over this solver's functions), as on the
         NumPy backend: a failure (not converged, singular, a value not finite),
         which it then recovers or reports with the same message as every other
         backend, and a step whose motion the rates at both ends do not explain
-        (`symid.solve.unexplained`, in the scales the Python loop fixes at t0),
+        (`symid.numeric.solve.unexplained`, in the scales the Python loop fixes at t0),
         which it continues in sub-steps and decides (a jump, whole turns
         followed, a singular position). The compiled loop resumes after it.
         """
-        from symid.results import instant_row
-        from symid.solve import Instant, Stepper
-        from symid.stability import Scaling
+        from symid.numeric.solve import instant_row
+        from symid.numeric.solve import Instant, Stepper
+        from symid.numeric.stability import Scaling
 
         ng, width = self.meta["ng"], self.meta["row"]
         chunk = max(16, min(CHUNK, CHUNK_BYTES // (8 * width)))
@@ -271,7 +271,7 @@ class CBackend:
     name = "c"
     # The compiled loop computes no condition estimate, factors square systems
     # only and has no branch tracking: options asking for these are refused
-    # (symid.stability.require_support).
+    # (symid.backends.require_support).
     lacks = frozenset({"cond", "cond_warn", "min_norm", "assembly_jump"})
 
     def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> CEvaluator:
@@ -281,7 +281,7 @@ class CBackend:
         return CEvaluator(folder, layout.mechanism.name, {s.name: v for s, v in values.items()}, layout)
 
     def load(self, artifact: Path, name: str, params: Mapping[str, float]) -> CEvaluator:
-        """The solver built earlier in `artifact` (a cached run, `symid.plan`)."""
+        """The solver built earlier in `artifact` (a cached run, `symid.tools.plan`)."""
         from symid.codegen.cache import loadable
 
         problem = loadable(artifact)

@@ -11,11 +11,11 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from symid.assemble import Layout
+from symid.symbolic.assemble import Layout
 from symid.backends import Array, Needs
 from symid.codegen.cache import cached
 from symid.codegen.flat import Options
-from symid.model import parameter_symbol
+from symid.model.mechanism import parameter_symbol
 
 
 def build(layout: Layout, options: Options) -> Path:
@@ -29,7 +29,7 @@ def build(layout: Layout, options: Options) -> Path:
     def make(folder: Path) -> None:
         from symid.codegen import flat
         from symid.codegen.targets import casadi_target
-        from symid.params import parameter_values
+        from symid.model.params import parameter_values
 
         defaults = list(parameter_values(mech.parameters).values())
         # the Python loop drives the backend: no `instant`, which costs most of the build

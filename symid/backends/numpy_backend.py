@@ -4,13 +4,13 @@
 A run goes through the module's own loop (`_rows`: Newton, sparse LU and
 outputs in straight-line scalar code, 5-8x faster than the shared Python
 loop) unless the analysis asks for what only the Python loop provides
-(`symid.stability.requested`: the cond column or warning level, minimum-norm
+(`symid.numeric.stability.requested`: the cond column or warning level, minimum-norm
 multipliers, allowed assembly-mode jumps). The Python loop still solves t0
 (assembly from a rough q0, the run's scaling) and every instant the module
 cannot vouch for: a failure, a Newton correction large enough for the branch
 check, a pivot spread that may hide a condition number near the warning
 level, or the dense fallback. Such an instant is solved, warned about or
-reported exactly as by `symid.solve.run`.
+reported exactly as by `symid.numeric.solve.run`.
 """
 
 from __future__ import annotations
@@ -23,16 +23,16 @@ from typing import TYPE_CHECKING, Iterator, Mapping
 
 import numpy as np
 
-from symid.analysis import Analysis
+from symid.model.analysis import Analysis
 from symid.backends import Array, Needs
-from symid.results import instant_row
-from symid.solve import JUMP_FLOOR, JUMP_RATIO, UNEXPLAINED, Instant, Stepper, run
-from symid.stability import Notes, requested
+from symid.numeric.solve import instant_row
+from symid.numeric.solve import JUMP_FLOOR, JUMP_RATIO, UNEXPLAINED, Instant, Stepper, run
+from symid.numeric.stability import Notes, requested
 
-if TYPE_CHECKING:  # a cached run (symid.plan) loads a generated module without sympy
+if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a generated module without sympy
     import sympy as sp
 
-    from symid.assemble import Layout
+    from symid.symbolic.assemble import Layout
     from symid.codegen.flat import Options
 
 # The module hands over instants whose scaled pivots spread more than
@@ -98,7 +98,7 @@ class NumpyEvaluator:
         path: the generated module (`build`).
         params: parameter name -> value, for every parameter of the module.
         layout: the mechanism's layout, which names constraints in failure
-            messages; None for a cached run (`symid.plan`), which reruns
+            messages; None for a cached run (`symid.tools.plan`), which reruns
             the whole normal path on any failure.
     """
 
@@ -115,7 +115,7 @@ class NumpyEvaluator:
     # of magnitude faster than its vectorized ones on arrays of one column.
     # `math` raises where an expression leaves its domain (a pole, sqrt of a
     # negative, exp overflow): then the vectorized kernel, on numpy floats,
-    # gives the inf or NaN that the run reports (`symid.nonfinite`).
+    # gives the inf or NaN that the run reports (`symid.numeric.nonfinite`).
     def _scalar(self, name: str, *args: object) -> Array:
         try:
             return np.array(getattr(self.module, f"_{name}_s")(*args, self.p_list))
@@ -208,7 +208,7 @@ class NumpyBackend:
         return NumpyEvaluator(path, {s.name: v for s, v in values.items()}, layout)
 
     def load(self, artifact: Path, name: str, params: Mapping[str, float]) -> NumpyEvaluator:
-        """The module generated earlier at `artifact` (a cached run, `symid.plan`)."""
+        """The module generated earlier at `artifact` (a cached run, `symid.tools.plan`)."""
         from symid.codegen.cache import loadable
 
         problem = loadable(artifact.parent)

@@ -37,11 +37,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
 from symid.errors import InputError
-from symid.sources import code_version
+from symid.codegen.sources import code_version
 
-if TYPE_CHECKING:  # a cached run (symid.plan) finds its solver here without sympy
+if TYPE_CHECKING:  # a cached run (symid.tools.plan) finds its solver here without sympy
     from symid.codegen.flat import Options
-    from symid.model import Mechanism
+    from symid.model.mechanism import Mechanism
 
 MANIFEST = "complete"
 FORMAT = 1

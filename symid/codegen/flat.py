@@ -12,11 +12,11 @@ from typing import Mapping, Sequence
 
 import sympy as sp
 
-from symid import symbols as s
-from symid.assemble import Group, Layout
-from symid.derive import DerivedConstraint
-from symid.model import T, parameter_symbol
-from symid.rounding import grouped
+from symid.symbolic import symbols as s
+from symid.symbolic.assemble import Group, Layout
+from symid.symbolic.derive import DerivedConstraint
+from symid.model.mechanism import T, parameter_symbol
+from symid.symbolic.rounding import grouped
 
 
 def vector(name: str, n: int) -> list[sp.Symbol]:

@@ -7,12 +7,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from symid.assemble import Layout, assemble
+from symid.symbolic.assemble import Layout, assemble
 from symid.codegen import sparse
 from symid.codegen.flat import Flat, Options, build
 from symid.errors import AnalysisError
-from symid.model import Mechanism
-from symid.params import parameter_values, to_float
+from symid.model.mechanism import Mechanism
+from symid.model.params import parameter_values, to_float
 
 
 @dataclass(frozen=True)
@@ -48,10 +48,10 @@ def options_for(mech: Mechanism) -> Options:
 
 def code_model(mech: Mechanism, options: Options | None = None) -> CodeModel:
     """Build the flat system and fix the elimination order at q(t0)."""
-    from symid.backends.reference import ReferenceEvaluator
-    from symid.backends import Needs
-    from symid.results import columns
-    from symid.solve import newton
+    from symid.numeric.reference import ReferenceEvaluator
+    from symid.numeric.evaluator import Needs
+    from symid.symbolic.columns import columns
+    from symid.numeric.solve import newton
 
     options = options or options_for(mech)
     layout = assemble(mech)

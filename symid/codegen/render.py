@@ -13,7 +13,7 @@ from typing import Any
 
 import jinja2
 
-from symid.sources import template_dir
+from symid.codegen.sources import template_dir
 
 
 @cache

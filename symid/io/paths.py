@@ -2,7 +2,7 @@
 
 A tabled function (`f = { table = "motion.csv", column = ... }`, see
 `symid.io.table`) names a CSV file relative to the mechanism file. The
-reader and the run-plan cache (`symid.plan`) resolve it by the one rule here.
+reader and the run-plan cache (`symid.tools.plan`) resolve it by the one rule here.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Read and validate a mechanism file (contract v1) into a `Mechanism`.
 
 Every problem becomes one `InputError` line naming the file and the key.
-Expressions go through the whitelist parser of `symid.expr`, never eval.
+Expressions go through the whitelist parser of `symid.model.expr`, never eval.
 """
 
 from __future__ import annotations
@@ -14,35 +14,22 @@ from typing import Any, Mapping
 
 import sympy as sp
 
-from symid.constraints import TYPES as CONSTRAINTS
-from symid.elements import Family, Key
+from symid.symbolic.constraints import TYPES as CONSTRAINTS
+from symid.model.elements import Family, Key
 from symid.errors import InputError
-from symid.expr import FUNCTIONS, parse_expression
-from symid.forces import TYPES as FORCES
+from symid.model.expr import FUNCTIONS, parse_expression
+from symid.symbolic.forces import TYPES as FORCES
 from symid.io.files import read_at_most
+from symid.io.limits import MAX_FILE_BYTES, MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS, MAX_STEPS
 from symid.io.table import read as read_table
-from symid.model import (
+from symid.model.mechanism import (
     EXTRA_OUTPUTS, GROUND, JUMP_MODES, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, REDUNDANT_MODES, T,
     Analysis, Body, Element, Mechanism, parameter_symbol,
 )
-from symid.motion import LAWS, check_spans
-from symid.params import order_parameters, parameter_values, to_float
+from symid.model.motion import LAWS, check_spans
+from symid.model.params import order_parameters, parameter_values, to_float
 from symid.text import number, plural
 
-MAX_FILE_BYTES = 16 * 1024 * 1024
-# Every name becomes part of a file name (`<name>.csv`, `<name>_solver.c`) or a C
-# identifier (`<name>_default_params`, `<body>_x`): 64 characters keep both well
-# inside the file systems' 255 bytes and what C compilers must distinguish.
-MAX_NAME_LENGTH = 64
-# Sizes that bound the memory of a run: the dense checks of Phi_q (ng x ng
-# doubles) and the sympy work grow with them; 10^4 bodies once grew to 19 GB.
-# The largest benchmark (a ladder of 256 four-bars: 513 bodies, ng 1539) peaks at 404 MB;
-# dense terms grow as ng^2, so 1000 bodies should stay near 1.5 GB (estimated, not measured).
-MAX_BODIES = 1000
-MAX_CONSTRAINTS = 4000
-MAX_FORCES = 4000
-MAX_PARAMETERS = 100_000
-MAX_STEPS = 10_000_000  # instants of one run: the summary keeps a few columns of each in memory
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 TOP_KEYS = ("mechanism", "parameters", "analysis", "body", "constraint", "force")
 MECHANISM_KEYS = ("name", "gravity")
@@ -395,7 +382,7 @@ class _Reader:
             raise self.fail("[[constraint]]", f"{nc} constraint rows for {ng} coordinates: "
                             f"{ng - nc} missing (inverse dynamics needs one driver per degree of freedom)")
         # nc > ng is judged numerically (which rows are redundant) when the
-        # study is prepared: symid.stability.check_redundant
+        # study is prepared: symid.backends.check_redundant
 
 
 def _kind(value: Any) -> str:

@@ -3,7 +3,7 @@
 The CSV is read and checked here and fitted once by a C2 cubic spline (so f'
 and f'' are defined): interpolating with not-a-knot ends, or, with
 `smoothing`, the penalized smoothing spline of scipy. The fit is registered
-in `symid.motion` and returned as the expression `TableSpline(key, 0, t)`.
+in `symid.model.motion` and returned as the expression `TableSpline(key, 0, t)`.
 Rules and messages: docs/motion.md.
 """
 
@@ -18,15 +18,15 @@ from typing import Any, Callable, Mapping
 import numpy as np
 import sympy as sp
 
-from symid import motion
+from symid.model import motion
 from symid.errors import InputError
 from symid.io.files import read_at_most
+from symid.io.limits import MAX_FILE_BYTES
 from symid.io.paths import table_path
 
 KEYS = ("table", "column", "time", "smoothing")
 MIN_ROWS = 5  # the smoothing spline's minimum; a not-a-knot cubic needs 4
 MAX_ROWS = 100_000  # every row becomes a piece of the generated code
-MAX_FILE_BYTES = 16 * 1024 * 1024
 GAP_FACTOR = 10  # a step longer than this many median steps is a gap
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 

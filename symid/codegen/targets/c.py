@@ -13,8 +13,8 @@ from symid.codegen.emit import Block, has_word, blocks, chunked
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
-from symid.motion import piece_tables, tables
-from symid.solve import JUMP_FLOOR, UNEXPLAINED
+from symid.model.motion import piece_tables, tables
+from symid.numeric.solve import JUMP_FLOOR, UNEXPLAINED
 
 NAME = "c"
 MAX_NEWTON = 50

@@ -20,8 +20,8 @@ import sympy as sp
 from symid.codegen.flat import Flat
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
-from symid.motion import Spline, TableSpline
-from symid.rounding import Grouped
+from symid.model.motion import Spline, TableSpline
+from symid.symbolic.rounding import Grouped
 
 NAME = "casadi"
 # Newton steps unrolled in `<name>_instant`: from a warm start (the previous

@@ -19,7 +19,7 @@ from symid.codegen.emit import lu_steps, reduce
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD
-from symid.motion import piece_tables, tables
+from symid.model.motion import piece_tables, tables
 
 NAME = "numpy"
 

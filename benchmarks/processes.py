@@ -1,0 +1,93 @@
+"""How the benchmark runs a worker: in its own process group, through the
+small launcher (`launch.py`) that reads the child's own peak memory, killed
+past its cap.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parent.parent
+THREADS = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+@dataclass
+class Spawned:
+    status: str          # "ok", "failed" or "stopped"
+    result: dict[str, Any]
+    wall_s: float
+    peak_rss_mb: float | None
+    note: str = ""
+
+
+LAUNCH = Path(__file__).with_name("launch.py")
+
+
+def launch(cmd: list[str], cap_s: float, env: dict[str, str], stdout: Any, stderr: Any,
+           ) -> tuple[float, float | None, int, bool]:
+    """(wall s, peak RSS MB, exit status, stopped) of one command run through
+    `launch.py` in its own process group, the group killed (by id) past cap_s."""
+    with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as f:
+        report = Path(f.name)
+    tick = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, str(LAUNCH), str(report), *cmd], stdout=stdout, stderr=stderr,
+                            env=env, cwd=ROOT, start_new_session=True)
+    stopped = threading.Event()
+
+    def stop() -> None:
+        stopped.set()
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+    timer = threading.Timer(cap_s, stop)
+    timer.start()
+    proc.wait()
+    timer.cancel()
+    wall = time.perf_counter() - tick
+    try:
+        measured = json.loads(report.read_text())
+        rss, code = measured["maxrss_mb"], measured["status"]
+    except (OSError, ValueError, KeyError):
+        rss, code = None, proc.returncode
+    report.unlink(missing_ok=True)
+    return wall, rss, code, stopped.is_set()
+
+
+def spawn(spec: dict[str, Any], cap_s: float, env: dict[str, str]) -> Spawned:
+    """Run one worker; its last stdout line is its JSON result."""
+    cmd = [sys.executable, "-m", "benchmarks.run", "--worker", json.dumps(spec)]
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        wall, rss, code, stopped = launch(cmd, cap_s, env, out, err)
+        if stopped:
+            return Spawned("stopped", {}, wall, rss, f"stopped after {cap_s:.0f} s")
+        out.seek(0)
+        err.seek(0)
+        lines = out.read().decode(errors="replace").strip().splitlines()
+        if code != 0 or not lines:
+            tail = err.read().decode(errors="replace").strip().splitlines()
+            return Spawned("failed", {}, wall, rss, tail[-1][:300] if tail else f"exit {code}")
+        return Spawned("ok", json.loads(lines[-1]), wall, rss)
+
+
+def env_for(cache: Path) -> dict[str, str]:
+    env = {**os.environ, **THREADS, "SYMID_CACHE": str(cache)}
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH", "")) if p)
+    return env
+
+
+def timed_process(cmd: list[str], env: dict[str, str], cap_s: float) -> tuple[float, float | None, int]:
+    """(wall s, peak RSS MB, exit status) of one process, killed past cap_s."""
+    wall, rss, code, _ = launch(cmd, cap_s, env, subprocess.DEVNULL, subprocess.DEVNULL)
+    return wall, rss, code

@@ -1,0 +1,14 @@
+"""Subcommands beyond solve/check/example, one module each.
+
+Each module named in MODULES has `register(sub)`, which adds its parser to
+the argparse subparsers and sets `run=` to a function (args) -> exit status.
+"""
+
+MODULES: tuple[str, ...] = (
+    "symid.cli.plot",
+    "symid.cli.generate",
+    "symid.cli.derive",
+    "symid.cli.verify",
+    "symid.cli.bench",
+    "symid.cli.help",
+)

@@ -1,0 +1,44 @@
+"""`symid generate`: write a mechanism's generated solver for one target."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("generate", help="write the generated solver of a mechanism (c, numpy, casadi)",
+                       description="Write a mechanism's generated solver, to use without symid.",
+                       epilog='examples:\n  symid generate "$(symid example slider_crank)" --target c -o sc/\n'
+                              "  symid generate --examples -o generated   # refresh the committed copies")
+    p.add_argument("file", nargs="?", help="mechanism file (omit with --examples)")
+    p.add_argument("--target", choices=("c", "numpy", "casadi"), action="append",
+                   help="target (repeatable; default with --examples: all)")
+    p.add_argument("-o", "--output", help="folder (default: <name>_<target>; with --examples: generated)")
+    p.add_argument("--examples", action="store_true",
+                   help="regenerate every bundled example into OUTPUT/<example>/<target>/")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="override a parameter's default value in the generated code (repeatable)")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from symid import api
+    from symid.cli.entry import _set_values
+    from symid.errors import InputError
+
+    if args.examples:
+        out = Path(args.output or "generated")
+        targets = tuple(args.target or ("c", "numpy", "casadi"))
+        for path in api.generate_examples(out, targets):
+            print(path)
+        return 0
+    if not args.file or not args.target:
+        raise InputError("generate: give FILE and --target c|numpy|casadi (or --examples), "
+                         "e.g. symid generate crank.toml --target c")
+    study_mech = api.load_mechanism(args.file, _set_values(args.set, args.file))
+    for target in args.target:
+        out = Path(args.output) if args.output else Path(f"{study_mech.name}_{target}")
+        for path in api.generate(study_mech, target, out):
+            print(path)
+    return 0

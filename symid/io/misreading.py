@@ -1,0 +1,75 @@
+"""Warnings for inputs that are valid but probably not what was meant.
+
+Angles are radians; a magnitude above 2 pi is legal (angles are never
+wrapped) but is far more often degrees written by habit, which silently
+gives another mechanism. And Newton assembles the mechanism at t0 from the
+`q0` guesses: a body that ends far from its guess may have been assembled in
+another mode than the one drawn.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Iterator, Mapping
+
+import numpy as np
+import sympy as sp
+
+from symid.model.mechanism import T, Mechanism
+from symid.model.params import parameter_values, to_float
+from symid.text import number
+
+TURN = 2 * math.pi
+FAR_ANGLE = 1.0  # rad: a guess is rough, but a body turned further than this is in another pose
+FAR_SHIFT = 0.5  # of the mechanism's size (the spread of the q0 positions, ground's origin included)
+
+
+def _angles(mech: Mechanism, values: Mapping[sp.Symbol, float]) -> Iterator[tuple[str, sp.Expr]]:
+    """(where, expression) of every value the file gives in radians, at t0."""
+    t0 = mech.analysis.t0
+    for b in mech.bodies:
+        yield f"body '{b.name}' key 'q0' (phi)", b.q0[2]
+    for section, elements in (("constraint", mech.constraints), ("force", mech.forces)):
+        for e in elements:
+            where = f"{section} '{e.name}' key"
+            if e.type in ("translational", "rotational_spring_damper"):
+                yield f"{where} 'theta0'", e.values["theta0"]
+            if e.type == "relative_angle_driver" or (e.type == "coordinate_driver"
+                                                      and e.options.get("coordinate") == "phi"):
+                yield f"{where} 'f' at t0 = {number(t0)}", e.values["f"].subs(T, t0)
+            if e.type == "relative_angle_driver":
+                yield f"{where} 'C'", e.values.get("C", sp.Integer(0))
+
+
+def angle_warnings(mech: Mechanism) -> list[str]:
+    """One line per angle above 2 pi in magnitude ("did you mean degrees?")."""
+    values = parameter_values(mech.parameters)
+    out = []
+    for where, expr in _angles(mech, values):
+        try:
+            value = to_float(expr, values)
+        except (ValueError, TypeError):  # a tabled f is checked where it is read
+            continue
+        if abs(value) > TURN:
+            out.append(f"{mech.source}: {where} = {number(value)} is more than 2 pi: radians expected; "
+                       f"did you mean {number(value)} degrees ({number(math.radians(value))} rad)?")
+    return out
+
+
+def assembly_warnings(mech: Mechanism, q0: np.ndarray, q: np.ndarray) -> list[str]:
+    """One line per body that Newton assembled at t0 far from its q0 guess.
+
+    Args:
+        q0: the guesses, size ng; q: the assembled coordinates at t0, size ng.
+    """
+    points = np.vstack([np.zeros(2), q0.reshape(-1, 3)[:, :2]])
+    size = max(float(np.max(np.linalg.norm(points[:, None] - points[None], axis=-1))), 1e-300)
+    out = []
+    for b, guess, got in zip(mech.bodies, q0.reshape(-1, 3), q.reshape(-1, 3)):
+        shift, turn = float(np.hypot(*(got[:2] - guess[:2]))), abs(float(got[2] - guess[2]))
+        if shift > FAR_SHIFT * size or turn > FAR_ANGLE:
+            out.append(f"{mech.source}: body '{b.name}' was assembled at t0 = {number(mech.analysis.t0)} far from "
+                       f"its q0: [{', '.join(number(v) for v in got)}] instead of "
+                       f"[{', '.join(number(v) for v in guess)}]; if that is not the intended pose, "
+                       f"give a closer q0 (angles in radians)")
+    return out

@@ -1,0 +1,124 @@
+"""What a constraint or force family declares: its keys, roles and equations.
+
+Both families (constraints in `symid.symbolic.constraints`, forces in `symid.symbolic.forces`)
+describe their file keys with `Key`; the reader validates instances against
+them and fills defaults, so no family parses files itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping
+
+import sympy as sp
+
+REQUIRED: Any = object()
+
+# Key kinds:
+#   body     a body name or "ground"; `role` says which generic body it is
+#   point    two numbers in body coordinates (generic symbols <key>x, <key>y)
+#   vector   as point
+#   scalar   a constant expression of the parameters (generic symbol `symbol`)
+#   function an expression of t and the parameters (a driver f, a load T...)
+#   function2 two such expressions (a force's global components)
+#   choice   one of `choices` (selects a variant of the equations)
+#   flag     true or false
+KINDS = ("body", "point", "vector", "scalar", "function", "function2", "choice", "flag")
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of a family's table in the mechanism file."""
+
+    name: str
+    kind: str
+    default: Any = REQUIRED
+    role: str | None = None
+    symbol: str | None = None
+    choices: tuple[str, ...] = ()
+
+    @property
+    def required(self) -> bool:
+        return self.default is REQUIRED
+
+    def symbol_name(self) -> str:
+        return self.symbol or self.name
+
+
+def body(name: str, role: str | None = None) -> Key:
+    return Key(name, "body", role=role or name)
+
+
+def scalar(name: str, symbol: str | None = None, default: Any = REQUIRED) -> Key:
+    return Key(name, "scalar", default=default, symbol=symbol)
+
+
+def point(name: str) -> Key:
+    return Key(name, "point")
+
+
+def vector(name: str) -> Key:
+    return Key(name, "vector")
+
+
+def function(name: str, default: Any = REQUIRED, symbol: str | None = None) -> Key:
+    return Key(name, "function", default=default, symbol=symbol)
+
+
+@dataclass(frozen=True)
+class Family:
+    """Common part of a constraint or force type.
+
+    Attributes:
+        name: the `type` string of the file.
+        keys: the file keys, bodies first.
+        points: role -> key of the point where its reaction or load acts
+            (None: the centre of mass).
+        resolve: optional hook turning alternative keys into the canonical
+            ones (a gear's radii into K); gets and returns key -> value and
+            raises `ValueError(key, message)` style errors via `InputError`.
+    """
+
+    name: str
+    keys: tuple[Key, ...]
+    points: Mapping[str, str | None]
+    resolve: Callable[[dict[str, Any], str], dict[str, Any]] | None = field(default=None, compare=False)
+
+    @property
+    def roles(self) -> tuple[str, ...]:
+        return tuple(k.role for k in self.keys if k.kind == "body")  # type: ignore[misc]
+
+    def variant(self, options: Mapping[str, str]) -> tuple[tuple[str, str], ...]:
+        """The hashable key of the equations' variant (a coordinate choice)."""
+        return tuple(sorted(options.items()))
+
+
+@dataclass(frozen=True)
+class ConstraintType(Family):
+    """A constraint family: `phi(options)` returns its rows on generic symbols."""
+
+    rows: int = 1
+    phi: Callable[[Mapping[str, str]], list[sp.Expr]] = field(default=lambda o: [], compare=False)
+    is_driver: bool = False
+
+
+@dataclass(frozen=True)
+class ForceType(Family):
+    """An applied-force family.
+
+    `loads(options)` returns role -> (Fx, Fy, T): the force (global components)
+    the element applies to that body at its point and the torque about it.
+    """
+
+    loads: Callable[[Mapping[str, str]], Mapping[str, tuple[sp.Expr, sp.Expr, sp.Expr]]] = field(
+        default=lambda o: {}, compare=False
+    )
+
+
+def registry_lookup(registry: Mapping[str, Any], name: str, what: str) -> Any:
+    """`registry[name]`, or a KeyError-free message listing the valid names."""
+    try:
+        return registry[name]
+    except KeyError:
+        valid = ", ".join(sorted(registry))
+        raise LookupError(f"unknown {what} '{name}' (valid: {valid})") from None

@@ -1,0 +1,87 @@
+"""The mechanism: plain immutable data, no numerics and no state.
+
+Every number of a mechanism file may be an expression of the parameters, so
+values are kept as sympy expressions over parameter symbols (and `t` for the
+time functions). Numeric workspaces are built from this elsewhere.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping, TypeAlias
+
+import sympy as sp
+
+from symid.model.analysis import (  # noqa: F401 (re-exported: the model's analysis table)
+    DEFAULT_COND_WARN, EXTRA_OUTPUTS, JUMP_MODES, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, REDUNDANT_MODES,
+    Analysis,
+)
+
+GROUND = "ground"
+T = sp.Symbol("t", real=True)
+
+Value: TypeAlias = sp.Expr | tuple[sp.Expr, ...]
+
+
+def parameter_symbol(name: str) -> sp.Symbol:
+    """The sympy symbol that stands for parameter `name` in every expression."""
+    return sp.Symbol(name, real=True)
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid body; q = [x, y, phi] of its centre of mass.
+
+    Attributes:
+        mass, inertia: expressions of the parameters (inertia about the centre of mass).
+        q0: initial guess [x, y, phi] at t0, expressions of the parameters.
+    """
+
+    name: str
+    mass: sp.Expr
+    inertia: sp.Expr
+    q0: tuple[sp.Expr, sp.Expr, sp.Expr]
+
+
+@dataclass(frozen=True)
+class Element:
+    """A constraint or an applied force, as written in the file.
+
+    Attributes:
+        name: unique name.
+        type: the constraint or force type (a registry key).
+        bodies: role -> body name ("ground" allowed), roles "i", "j", "k".
+        values: key -> expression or tuple of expressions (points, vectors,
+            scalars, time functions), defaults already filled in.
+        options: non-numeric settings that select a variant (a coordinate name).
+    """
+
+    name: str
+    type: str
+    bodies: Mapping[str, str]
+    values: Mapping[str, Value]
+    options: Mapping[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Mechanism:
+    """A whole mechanism: bodies, constraints, forces and the analysis.
+
+    Attributes:
+        parameters: name -> expression of earlier parameters, in dependency order.
+        gravity: (gx, gy) expressions of the parameters.
+        source: the file it came from, for messages ("<api>" when built in code).
+    """
+
+    name: str
+    bodies: tuple[Body, ...]
+    constraints: tuple[Element, ...]
+    forces: tuple[Element, ...] = ()
+    parameters: Mapping[str, sp.Expr] = field(default_factory=dict)
+    gravity: tuple[sp.Expr, sp.Expr] = (sp.Integer(0), sp.Integer(0))
+    analysis: Analysis = Analysis()
+    source: str = "<api>"
+
+    def body_index(self) -> dict[str, int]:
+        """Body name -> index in q (ground is not a body of q)."""
+        return {b.name: n for n, b in enumerate(self.bodies)}

@@ -1,0 +1,374 @@
+"""Numerical stability of the Python loop: equilibration, factorizations,
+rank analysis, and the warnings a run collects.
+
+Units. Lengths are in whatever unit the file uses, so raw `max |Phi|`,
+`max |dq|` and the condition number of `Phi_q` change with it. A `Scaling`
+fixed at t0 makes them unit-free: x and y columns are divided by a
+characteristic length `lref` of the mechanism (a median moment arm read off
+`Phi_q`), phi columns by 1, and each row by its norm in those units. Metres
+and millimetres then give the same scaled matrix, the same Newton stopping
+decisions and the same `cond` (docs/analysis-options.md says how `tol` reads).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from symid.model.analysis import Analysis
+from symid.numeric.evaluator import Array, Evaluator
+from symid.errors import AnalysisError, InputError
+
+if TYPE_CHECKING:  # the Python loop runs without sympy when its solver is cached (symid.tools.plan)
+    from symid.symbolic.assemble import Layout
+    from symid.model.mechanism import Mechanism
+
+
+@functools.cache
+def _sla():  # type: ignore[no-untyped-def]
+    """scipy.linalg, imported on first use: a run on a compiled backend never needs it."""
+    import scipy.linalg
+
+    return scipy.linalg
+
+EPS = float(np.finfo(float).eps)
+# Below this reciprocal condition number (1-norm estimate of the equilibrated
+# Phi_q) Phi_q is singular: solves would keep fewer than ~3 correct digits.
+SINGULAR_RCOND = 1e3 * EPS
+# A row belongs to a dependency when its squared projection on the left null
+# space exceeds this fraction of the largest one.
+NULL_SHARE = 1e-4
+
+
+def _power_of_two(x: Array) -> Array:
+    """Nearest powers of two: scaling by them is exact in floating point."""
+    return np.exp2(np.round(np.log2(x)))
+
+
+@dataclass(frozen=True)
+class Scaling:
+    """Row and column scales of Phi_q, fixed for a run.
+
+    Attributes:
+        lref: characteristic length (units of the file's lengths).
+        col: size ng, lref for x and y, 1 for phi: q / col is unit-free.
+        row: size nc, the norm of each row of Phi_q diag(col): Phi / row is unit-free.
+        dc, dr: the nearest powers of two of col and 1 / row (exact scalings).
+    """
+
+    lref: float
+    col: Array
+    row: Array
+    dc: Array = field(repr=False)
+    dr: Array = field(repr=False)
+    inv_col: Array = field(repr=False)
+    inv_row: Array = field(repr=False)
+
+    @classmethod
+    def of(cls, jac: Array, q: Array) -> "Scaling":
+        """Scales from Phi_q (nc, ng) at configuration q (ng,)."""
+        ng = jac.shape[1]
+        rot = np.zeros(ng, dtype=bool)
+        rot[2::3] = True
+        lin_part = np.abs(jac[:, ~rot]).max(axis=1, initial=0.0)
+        rot_part = np.abs(jac[:, rot]).max(axis=1, initial=0.0)
+        mixed = (lin_part > 0) & (rot_part > 0)
+        # rows with both kinds of entries (revolutes, slots, distances): the
+        # ratio is a moment arm, a length in the file's unit
+        arms = rot_part[mixed] / lin_part[mixed]
+        lref = float(np.median(arms)) if arms.size else 0.0
+        if not lref > 0:
+            lref = float(np.max(np.abs(q[~rot]), initial=0.0))
+        if not lref > 0 or not np.isfinite(lref):
+            lref = 1.0
+        col = np.where(rot, 1.0, lref)
+        row = np.abs(jac * col[None, :]).max(axis=1, initial=0.0)
+        row = np.where((row > 0) & np.isfinite(row), row, 1.0)
+        return cls(lref, col, row, _power_of_two(col), 1.0 / _power_of_two(row), 1.0 / col, 1.0 / row)
+
+    def residual(self, phi: Array) -> float:
+        """max_i |Phi_i| / row_i (NaN when Phi is not finite)."""
+        return float(np.abs(phi * self.inv_row).max(initial=0.0)) if phi.size else 0.0
+
+    def size(self, dq: Array) -> float:
+        """max_j |dq_j| / col_j."""
+        return float(np.abs(dq * self.inv_col).max(initial=0.0)) if dq.size else 0.0
+
+    def merit(self, phi: Array) -> float:
+        """The 2-norm of the scaled residual (the damped step's merit)."""
+        v = phi * self.inv_row
+        return math.sqrt(float(v @ v))
+
+
+def _getrf(*args, **kwargs):  # type: ignore[no-untyped-def]
+    return _sla().lapack.dgetrf(*args, **kwargs)
+
+
+def _getrs(*args, **kwargs):  # type: ignore[no-untyped-def]
+    return _sla().lapack.dgetrs(*args, **kwargs)
+
+
+def _gecon(*args, **kwargs):  # type: ignore[no-untyped-def]
+    return _sla().lapack.dgecon(*args, **kwargs)
+
+
+class Factor:
+    """A factorization of Phi_q (nc, ng) at one configuration, equilibrated.
+
+    Square: LU of D_r Phi_q D_c (LAPACK directly: the scipy wrappers cost more
+    than a small factorization). More rows than columns (redundant
+    constraints): thin QR of Phi_q D_c, rows unscaled so that `solve_t` gives
+    the minimum-norm multipliers of the file's own rows. D_r, D_c are the
+    scaling's powers of two, so equilibrating adds no rounding.
+
+    Attributes:
+        rcond: reciprocal 1-norm condition estimate of the equilibrated matrix.
+    """
+
+    def __init__(self, jac: Array, scaling: Scaling) -> None:
+        nc, ng = jac.shape
+        self.dc = scaling.dc
+        self.square = nc == ng
+        if self.square:
+            self.dr = scaling.dr
+            a = jac * self.dr[:, None] * self.dc
+            anorm = float(np.abs(a).sum(axis=0).max(initial=0.0))
+            self.lu, self.piv, info = _getrf(a)
+            if info != 0 or not anorm > 0 or not np.isfinite(anorm):  # an exactly zero pivot, or NaN
+                self.rcond = 0.0
+            else:
+                self.rcond = float(_gecon(self.lu, anorm, norm="1")[0])
+        else:
+            a = jac * self.dc
+            self.q, self.r = np.linalg.qr(a)
+            self.rcond = float(_sla().lapack.dtrcon(self.r, norm="1")[0]) if ng else 1.0
+        if not np.isfinite(self.rcond):
+            self.rcond = 0.0
+
+    @property
+    def cond(self) -> float:
+        return np.inf if self.rcond == 0 else 1.0 / self.rcond
+
+    def solve(self, b: Array) -> Array:
+        """x with Phi_q x = b (size nc -> ng; least squares when nc > ng)."""
+        if self.square:
+            return self.dc * _getrs(self.lu, self.piv, self.dr * b)[0]
+        return self.dc * _sla().solve_triangular(self.r, self.q.T @ b, check_finite=False)
+
+    def solve_t(self, b: Array) -> Array:
+        """lambda with Phi_q^T lambda = b (size ng -> nc; minimum norm when nc > ng)."""
+        if self.square:
+            return self.dr * _getrs(self.lu, self.piv, self.dc * b, trans=1)[0]
+        return self.q @ _sla().solve_triangular(self.r, self.dc * b, trans="T", check_finite=False)
+
+
+@dataclass(frozen=True)
+class Rank:
+    """Rank of Phi_q (SVD of the equilibrated matrix) and the rows in dependencies.
+
+    Attributes:
+        rank: numerical rank (singular values above max(nc, ng) eps s_max).
+        cond: 2-norm condition number of the equilibrated matrix (inf if rank < ng).
+        dependent: constraints with a row in the left null space (file order):
+            their multipliers are not unique.
+    """
+
+    rank: int
+    cond: float
+    dependent: tuple[str, ...]
+
+
+def rank_of(jac: Array, scaling: Scaling, layout: Layout) -> Rank:
+    """The rank analysis of Phi_q (nc, ng); cost one SVD."""
+    nc, ng = jac.shape
+    a = jac / scaling.row[:, None] * scaling.col[None, :]
+    u, sv, _ = np.linalg.svd(a)
+    smax = sv[0] if sv.size else 0.0
+    rank = int(np.sum(sv > max(nc, ng) * EPS * smax))
+    cond = float(smax / sv[-1]) if rank == ng and sv.size and sv[-1] > 0 else np.inf
+    share = np.sum(u[:, rank:] ** 2, axis=1)
+    rows = (np.flatnonzero(share > NULL_SHARE * share.max()) if share.size and share.max() > 0
+            else np.zeros(0, dtype=int))
+    dependent = layout.constraint_names_of_rows(rows)
+    order = [c.name for c in layout.mechanism.constraints]
+    return Rank(rank, cond, tuple(sorted(dependent, key=order.index)))
+
+
+def drivers_among(layout: Layout, names: tuple[str, ...]) -> list[str]:
+    """The driver constraints (motors, actuators) among `names`."""
+    kinds = {c.name: c.type for c in layout.mechanism.constraints}
+    return [n for n in names if kinds[n].endswith("driver")]
+
+
+def redundancy_message(layout: Layout, rank: Rank) -> str:
+    """The warning of a run with redundant constraints (redundant = "min_norm")."""
+    drivers = drivers_among(layout, rank.dependent)
+    tail = (f"; so are the drive forces of {', '.join(drivers)}" if drivers else
+            "; the kinematics, the drive torques and the other reactions are unique")
+    return (f"redundant constraints: the rows of {', '.join(rank.dependent)} are dependent "
+            f"(rank {rank.rank} of {layout.nc} rows); their multipliers and reactions are the "
+            f"minimum-norm ones, not unique{tail}")
+
+
+SHOWN_INTERVALS = 3
+
+
+@dataclass
+class _Span:
+    """Where one kind of warning applied: the first SHOWN_INTERVALS runs of
+    consecutive instants, how many more, the count and the worst value."""
+
+    intervals: list[list[float]] = field(default_factory=list)  # [first t, last t, last index]
+    more: int = 0
+    count: int = 0
+    worst: float = 0.0
+    worst_t: float = 0.0
+    last: int = -2  # index of the latest instant marked
+
+    def add(self, t: float, value: float, index: int) -> None:
+        self.count += 1
+        if value > self.worst or self.count == 1:
+            self.worst, self.worst_t = value, t
+        if self.intervals and self.intervals[-1][2] == index - 1:
+            self.intervals[-1][1:] = [t, index]
+        elif len(self.intervals) < SHOWN_INTERVALS:
+            self.intervals.append([t, t, index])
+        elif self.last != index - 1:
+            self.more += 1
+        self.last = index
+
+    def where(self) -> str:
+        text = " and ".join(f"[{a:.9g}, {b:.9g}]" for a, b, _ in self.intervals)
+        return f"t in {text}" + (f" and {self.more} more intervals" if self.more else "")
+
+
+@dataclass
+class Notes:
+    """Warnings of one run, one per kind, with the spans of times it covers.
+
+    Memory is constant: a few intervals per kind, never a list of instants.
+    """
+
+    analysis: Analysis
+    spans: dict[str, _Span] = field(default_factory=dict)
+    fixed: list[str] = field(default_factory=list)
+
+    def mark(self, kind: str, t: float, value: float, index: int) -> None:
+        self.spans.setdefault(kind, _Span()).add(t, value, index)
+
+    def cond(self, t: float, cond: float, index: int) -> None:
+        if cond > self.analysis.cond_threshold:
+            self.mark("cond", t, cond, index)
+
+    def lines(self) -> list[str]:
+        """The warnings, one line each (without the `symid: warning: ` prefix)."""
+        out = list(self.fixed)
+        span = self.spans.get("cond")
+        if span is not None:
+            digits = min(16, round(2 * np.log10(span.worst))) if np.isfinite(span.worst) else 16
+            out.append(f"Phi_q is ill-conditioned: cond above cond_warn = {self.analysis.cond_threshold:g} "
+                       f"at {span.count} instants, {span.where()}, worst {span.worst:.3g} at "
+                       f"t = {span.worst_t:.9g}: the mechanism is near a singular position; accelerations, "
+                       f"multipliers and torques there may have lost up to {digits} of their 16 digits "
+                       f"(positions and velocities about half as many)")
+        span = self.spans.get("jump")
+        if span is not None:
+            out.append(f"assembly mode jump at {span.count} instants, {span.where()} (allowed by "
+                       f"assembly_jump = \"warn\"): the solution switched to another assembly mode; the "
+                       f"largest jump moved q by {span.worst:.3g} (scaled) at t = {span.worst_t:.9g}")
+        return out
+
+
+# -- what each backend supports -------------------------------------------------
+
+FEATURES = {  # feature -> (the [analysis] key that asks for it, what it is)
+    "cond": ("outputs", "the cond column"),
+    "cond_warn": ("cond_warn", "the condition-number warning"),
+    "min_norm": ("redundant", "redundant constraints (minimum-norm multipliers)"),
+    "assembly_jump": ("assembly_jump", "assembly-mode jump reports (assembly_jump = \"warn\")"),
+}
+
+
+def requested(analysis: Analysis) -> list[str]:
+    """The stability features an analysis asks for beyond the defaults."""
+    out = []
+    if "cond" in analysis.extra_outputs():
+        out.append("cond")
+    if analysis.cond_warn is not None:
+        out.append("cond_warn")
+    if analysis.redundant != "error":
+        out.append("min_norm")
+    if analysis.assembly_jump != "error":
+        out.append("assembly_jump")
+    return out
+
+
+def require_square(mech: Mechanism) -> None:
+    """Generated solvers factor a square Phi_q: an input error, naming the
+    dependent rows, for a mechanism with more rows than coordinates."""
+    from symid.symbolic.assemble import assemble
+    from symid.model.params import parameter_values
+
+    layout = assemble(mech)
+    if layout.nc > layout.ng:
+        raise redundancy_error(layout, parameter_values(mech.parameters),
+                                "generated solvers need as many rows as coordinates; symid solve "
+                                "(redundant = \"min_norm\") solves it")
+
+
+def redundancy_error(layout: Layout, values: object, hint: str) -> InputError:
+    """The rows are analysed at the configuration assembled at t0 (least
+    squares from q0), with the reference evaluator, so every backend and
+    target reports the same names before anything is generated or compiled."""
+    from symid.numeric.evaluator import Needs
+    from symid.numeric.reference import ReferenceEvaluator
+    from symid.model.params import to_float
+
+    mech, nc, ng = layout.mechanism, layout.nc, layout.ng
+    analysis = mech.analysis
+    head = f"{mech.source}: [[constraint]]: {nc} constraint rows for {ng} coordinates: {nc - ng} extra"
+    ev = ReferenceEvaluator(layout, values, Needs(velocity=False))  # type: ignore[arg-type]
+    q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])  # type: ignore[arg-type]
+    try:
+        q, _ = assemble_lstsq(ev, q0, analysis.t0, analysis.tol)
+    except AnalysisError as exc:
+        return InputError(f"{head}, and they cannot all hold at t0 ({exc})")
+    scaling = Scaling.of(ev.phi_q(q, analysis.t0), q)
+    rank = rank_of(ev.phi_q(q, analysis.t0), scaling, layout)
+    if rank.rank < ng:
+        hint = f"with rank {rank.rank} < {ng} a coordinate is also undriven"
+    return InputError(f"{head}: the rows of {', '.join(rank.dependent)} are dependent at t0 "
+                      f"(rank {rank.rank}); {hint}")
+
+
+def assemble_lstsq(ev: Evaluator, q: Array, t: float, tol: float,
+                   max_iterations: int = 100) -> tuple[Array, int]:
+    """Gauss-Newton on Phi(q, t) = 0 with minimum-norm (SVD) steps: assembles
+    even where Phi_q is rank-deficient, for reports that must see such a
+    configuration (`symid check`, the redundancy analysis).
+
+    Raises:
+        AnalysisError: no configuration within tol (scaled) reached.
+    """
+    scaling = Scaling.of(ev.phi_q(q, t), q)
+    phi = ev.phi(q, t)
+    for it in range(1, max_iterations + 1):
+        floor = 8 * EPS * max(1.0, scaling.size(q))
+        res = scaling.residual(phi)
+        if not np.isfinite(res):
+            break
+        jac = ev.phi_q(q, t)
+        a = jac / scaling.row[:, None] * scaling.col[None, :]
+        dq = scaling.col * np.linalg.lstsq(a, -phi / scaling.row, rcond=1e3 * EPS)[0]
+        q = q + dq
+        phi = ev.phi(q, t)
+        if scaling.residual(phi) <= max(tol, floor) and scaling.size(dq) <= max(tol, floor):
+            return q, it
+    worst = np.argsort(-np.abs(np.nan_to_num(phi / scaling.row, nan=np.inf)))[:3]
+    names = ", ".join(ev.layout.constraint_names_of_rows(worst))
+    raise AnalysisError(f"Newton (least squares) did not assemble the mechanism; largest residuals in: {names}", t)
