@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from symid import api
-from symid.cli import entry as cli
+from symid import cli
+from symid.cli import solve as solve_command
 
 from symid.tools import plan
 from symid.errors import AnalysisError
@@ -24,7 +25,7 @@ REPO = Path(__file__).resolve().parents[1]
 SLIDER_CRANK = api.example("slider_crank")
 TABLED = 'f = { table = "motion.csv", column = "angle" }'
 # Imports a planned run must not make (the point of a plan: no derivation).
-HEAVY = ("sympy", "jinja2", "symid.model", "symid.symbolic.assemble", "symid.symbolic.derive", "symid.codegen.model")
+HEAVY = ("sympy", "jinja2", "symid.model.mechanism", "symid.symbolic.assemble", "symid.symbolic.derive", "symid.codegen.model")
 
 
 def backends_here() -> list[str]:
@@ -70,13 +71,13 @@ def test_warm_run_imports_no_sympy_and_repeats_the_cold_run(tmp_path, backend):
 def spy(monkeypatch: pytest.MonkeyPatch) -> list[str]:
     """The files of the runs that took the normal path."""
     normal: list[str] = []
-    original = cli._solve
+    original = solve_command._solve
 
     def counting(args, key):  # type: ignore[no-untyped-def]
         normal.append(args.file)
         return original(args, key)
 
-    monkeypatch.setattr(cli, "_solve", counting)
+    monkeypatch.setattr(solve_command, "_solve", counting)
     return normal
 
 

@@ -29,11 +29,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     from symid.tools.bench import bench, text
-    from symid.cli.entry import _set_values
+    from symid.cli.options import set_values
     from symid.errors import EXIT_ANALYSIS
 
     result = bench(args.file, args.backend, instants=args.instants, tol=args.tol, cold=not args.warm,
-                   budget_s=args.budget, set_values=_set_values(args.set))
+                   budget_s=args.budget, set_values=set_values(args.set))
     result.pop("kept", None)
     print(json.dumps(result, indent=1) if args.json else text(result))
     return EXIT_ANALYSIS if result.get("error") else 0

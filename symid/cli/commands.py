@@ -1,10 +1,13 @@
-"""Subcommands beyond solve/check/example, one module each.
+"""The subcommands, one module each, in the order `symid --help` lists them.
 
 Each module named in MODULES has `register(sub)`, which adds its parser to
 the argparse subparsers and sets `run=` to a function (args) -> exit status.
 """
 
 MODULES: tuple[str, ...] = (
+    "symid.cli.solve",
+    "symid.cli.check",
+    "symid.cli.example",
     "symid.cli.plot",
     "symid.cli.generate",
     "symid.cli.derive",

@@ -24,7 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def run(args: argparse.Namespace) -> int:
     from symid import api
-    from symid.cli.entry import _set_values
+    from symid.cli.options import set_values
     from symid.errors import InputError
 
     if args.examples:
@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.file or not args.target:
         raise InputError("generate: give FILE and --target c|numpy|casadi (or --examples), "
                          "e.g. symid generate crank.toml --target c")
-    study_mech = api.load_mechanism(args.file, _set_values(args.set, args.file))
+    study_mech = api.load_mechanism(args.file, set_values(args.set, args.file))
     for target in args.target:
         out = Path(args.output) if args.output else Path(f"{study_mech.name}_{target}")
         for path in api.generate(study_mech, target, out):

@@ -88,13 +88,13 @@ def check_configurations(table: Results, mechanism: Mechanism, results: str, fil
 
 def run(args: argparse.Namespace) -> int:
     from symid.output import plot
-    from symid.cli.entry import _set_values
+    from symid.cli.options import set_values
     from symid.io.reader import load
 
     table = read_results(args.file)
     mechanism = None
     if args.mechanism:
-        mechanism = load(args.mechanism, _set_values(args.set))
+        mechanism = load(args.mechanism, set_values(args.set))
         check_match(table, mechanism, args.file, args.mechanism)
         check_configurations(table, mechanism, args.file, args.mechanism)
     directory = Path(args.output) if args.output else Path(args.file).parent

@@ -1,0 +1,55 @@
+"""What the subcommands share: the argparse classes (one-line usage errors,
+defaults in the help), `--set` pairs, and the options that change a run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Sequence
+
+from symid.errors import EXIT_INPUT, InputError
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Defaults shown where one exists (not for "unset: the file's value"); epilogs kept as written."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default in (None, False, [], argparse.SUPPRESS) or "default" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line and exit status 2."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        print(f"{self.prog}: {message} (see --help)", file=sys.stderr)
+        raise SystemExit(EXIT_INPUT)
+
+
+def set_values(pairs: Sequence[str], file: str = "") -> dict[str, str]:
+    """`--set NAME=VALUE` pairs as name -> expression text (an input error names a malformed one)."""
+    out = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep or not name.strip():
+            raise InputError(f"{file + ': ' if file else ''}--set {pair}: expected NAME=VALUE")
+        out[name.strip()] = value.strip()
+    return out
+
+
+def analysis_overrides(args: argparse.Namespace) -> dict[str, object]:
+    """The `[analysis]` keys a `solve` command line overrides (None: the file's)."""
+    return {"kind": args.kind, "t0": args.t0, "t1": args.t1, "steps": args.steps, "tol": args.tol,
+            "cond_warn": args.cond_warn, "redundant": args.redundant, "assembly_jump": args.assembly_jump,
+            "cond_column": args.cond or None}
+
+
+def run_options(args: argparse.Namespace) -> dict[str, object]:
+    """Every option of `solve` that changes the run (part of the run-plan key, `symid.tools.plan`)."""
+    return {"backend": args.backend, "set": list(args.set), **analysis_overrides(args)}
