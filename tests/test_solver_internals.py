@@ -69,9 +69,10 @@ def instrumented(model: CodeModel, folder: Path, harness: str = "") -> tuple[cty
     source = folder / f"{p}_solver.c"
     text = source.read_text()
     text = _edit(text, f'#include "{p}_solver.h"\n', f'#include "{p}_solver.h"\n' + COUNTERS.format(P=P))
-    text = _edit(text, f"    *dense = 0;\n    if ({p}_sparse_factor(lu) == 0) return {P}_OK;",
+    test = f"{p}_sparse_factor(lu) == 0 && !{p}_pivots_spread(lu)"
+    text = _edit(text, f"    *dense = 0;\n    if ({test}) return {P}_OK;",
                  f"    ++test_factorizations;\n    *dense = 0;\n"
-                 f"    if (!test_force_dense && {p}_sparse_factor(lu) == 0) return {P}_OK;")
+                 f"    if (!test_force_dense && {test}) return {P}_OK;")
     call = f"        status = {p}_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);\n"
     text = _edit(text, call,
                  f"        memcpy(test_guess, qn, sizeof test_guess);\n{call}"

@@ -11,6 +11,7 @@
 #define EXCAVATOR_MAX_NEWTON 50
 #define EXCAVATOR_LU_SIZE 35
 #define EXCAVATOR_MAX(a, b) ((a) > (b) ? (a) : (b))
+#define EXCAVATOR_MIN(a, b) ((a) < (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define EXCAVATOR_OFF_LU 35
 #define EXCAVATOR_OFF_DENSE (EXCAVATOR_OFF_LU + EXCAVATOR_LU_SIZE)
@@ -746,6 +747,25 @@ static void excavator_dense_solve_t(const double *a, const int *perm, const doub
     }
 }
 
+static const int excavator_pivot_slots[6] = { 20, 1, 26, 7, 32, 15 };
+
+/* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
+   dense fallback's test): the threshold test compares a pivot with its own
+   column only, and a pivot that cancels to rounding would pass it. The slots
+   hold reciprocals, whose spread is the pivots'. */
+static int excavator_pivots_spread(const double *lu)
+{
+    double rmin = 1.0;
+    double rmax = 1.0;
+    int k;
+    for (k = 0; k < 6; ++k) {
+        double r = fabs(lu[excavator_pivot_slots[k]]);
+        rmin = EXCAVATOR_MIN(rmin, r);
+        rmax = EXCAVATOR_MAX(rmax, r);
+    }
+    return rmin <= EXCAVATOR_SINGULAR_RATIO * rmax;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -756,7 +776,7 @@ static int excavator_factorize(const double *q, const double *tr, double t, cons
     int k;
     excavator_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (excavator_sparse_factor(lu) == 0) return EXCAVATOR_OK;
+    if (excavator_sparse_factor(lu) == 0 && !excavator_pivots_spread(lu)) return EXCAVATOR_OK;
     *dense = 1;
     excavator_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 81);

@@ -11,6 +11,7 @@
 #define FOUR_BAR_MAX_NEWTON 50
 #define FOUR_BAR_LU_SIZE 25
 #define FOUR_BAR_MAX(a, b) ((a) > (b) ? (a) : (b))
+#define FOUR_BAR_MIN(a, b) ((a) < (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define FOUR_BAR_OFF_LU 25
 #define FOUR_BAR_OFF_DENSE (FOUR_BAR_OFF_LU + FOUR_BAR_LU_SIZE)
@@ -517,6 +518,25 @@ static void four_bar_dense_solve_t(const double *a, const int *perm, const doubl
     }
 }
 
+static const int four_bar_pivot_slots[2] = { 13, 23 };
+
+/* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
+   dense fallback's test): the threshold test compares a pivot with its own
+   column only, and a pivot that cancels to rounding would pass it. The slots
+   hold reciprocals, whose spread is the pivots'. */
+static int four_bar_pivots_spread(const double *lu)
+{
+    double rmin = 1.0;
+    double rmax = 1.0;
+    int k;
+    for (k = 0; k < 2; ++k) {
+        double r = fabs(lu[four_bar_pivot_slots[k]]);
+        rmin = FOUR_BAR_MIN(rmin, r);
+        rmax = FOUR_BAR_MAX(rmax, r);
+    }
+    return rmin <= FOUR_BAR_SINGULAR_RATIO * rmax;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -527,7 +547,7 @@ static int four_bar_factorize(const double *q, const double *tr, double t, const
     int k;
     four_bar_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (four_bar_sparse_factor(lu) == 0) return FOUR_BAR_OK;
+    if (four_bar_sparse_factor(lu) == 0 && !four_bar_pivots_spread(lu)) return FOUR_BAR_OK;
     *dense = 1;
     four_bar_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 81);

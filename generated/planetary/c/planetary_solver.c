@@ -11,6 +11,7 @@
 #define PLANETARY_MAX_NEWTON 50
 #define PLANETARY_LU_SIZE 20
 #define PLANETARY_MAX(a, b) ((a) > (b) ? (a) : (b))
+#define PLANETARY_MIN(a, b) ((a) < (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define PLANETARY_OFF_LU 20
 #define PLANETARY_OFF_DENSE (PLANETARY_OFF_LU + PLANETARY_LU_SIZE)
@@ -522,6 +523,25 @@ static void planetary_dense_solve_t(const double *a, const int *perm, const doub
     }
 }
 
+static const int planetary_pivot_slots[2] = { 11, 14 };
+
+/* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
+   dense fallback's test): the threshold test compares a pivot with its own
+   column only, and a pivot that cancels to rounding would pass it. The slots
+   hold reciprocals, whose spread is the pivots'. */
+static int planetary_pivots_spread(const double *lu)
+{
+    double rmin = 1.0;
+    double rmax = 1.0;
+    int k;
+    for (k = 0; k < 2; ++k) {
+        double r = fabs(lu[planetary_pivot_slots[k]]);
+        rmin = PLANETARY_MIN(rmin, r);
+        rmax = PLANETARY_MAX(rmax, r);
+    }
+    return rmin <= PLANETARY_SINGULAR_RATIO * rmax;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -532,7 +552,7 @@ static int planetary_factorize(const double *q, const double *tr, double t, cons
     int k;
     planetary_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (planetary_sparse_factor(lu) == 0) return PLANETARY_OK;
+    if (planetary_sparse_factor(lu) == 0 && !planetary_pivots_spread(lu)) return PLANETARY_OK;
     *dense = 1;
     planetary_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 144);

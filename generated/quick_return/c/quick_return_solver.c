@@ -11,6 +11,7 @@
 #define QUICK_RETURN_MAX_NEWTON 50
 #define QUICK_RETURN_LU_SIZE 20
 #define QUICK_RETURN_MAX(a, b) ((a) > (b) ? (a) : (b))
+#define QUICK_RETURN_MIN(a, b) ((a) < (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define QUICK_RETURN_OFF_LU 20
 #define QUICK_RETURN_OFF_DENSE (QUICK_RETURN_OFF_LU + QUICK_RETURN_LU_SIZE)
@@ -504,6 +505,25 @@ static void quick_return_dense_solve_t(const double *a, const int *perm, const d
     }
 }
 
+static const int quick_return_pivot_slots[2] = { 15, 11 };
+
+/* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
+   dense fallback's test): the threshold test compares a pivot with its own
+   column only, and a pivot that cancels to rounding would pass it. The slots
+   hold reciprocals, whose spread is the pivots'. */
+static int quick_return_pivots_spread(const double *lu)
+{
+    double rmin = 1.0;
+    double rmax = 1.0;
+    int k;
+    for (k = 0; k < 2; ++k) {
+        double r = fabs(lu[quick_return_pivot_slots[k]]);
+        rmin = QUICK_RETURN_MIN(rmin, r);
+        rmax = QUICK_RETURN_MAX(rmax, r);
+    }
+    return rmin <= QUICK_RETURN_SINGULAR_RATIO * rmax;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -514,7 +534,7 @@ static int quick_return_factorize(const double *q, const double *tr, double t, c
     int k;
     quick_return_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (quick_return_sparse_factor(lu) == 0) return QUICK_RETURN_OK;
+    if (quick_return_sparse_factor(lu) == 0 && !quick_return_pivots_spread(lu)) return QUICK_RETURN_OK;
     *dense = 1;
     quick_return_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 81);

@@ -11,6 +11,7 @@
 #define SLIDER_CRANK_MAX_NEWTON 50
 #define SLIDER_CRANK_LU_SIZE 21
 #define SLIDER_CRANK_MAX(a, b) ((a) > (b) ? (a) : (b))
+#define SLIDER_CRANK_MIN(a, b) ((a) < (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define SLIDER_CRANK_OFF_LU 21
 #define SLIDER_CRANK_OFF_DENSE (SLIDER_CRANK_OFF_LU + SLIDER_CRANK_LU_SIZE)
@@ -470,6 +471,25 @@ static void slider_crank_dense_solve_t(const double *a, const int *perm, const d
     }
 }
 
+static const int slider_crank_pivot_slots[1] = { 16 };
+
+/* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
+   dense fallback's test): the threshold test compares a pivot with its own
+   column only, and a pivot that cancels to rounding would pass it. The slots
+   hold reciprocals, whose spread is the pivots'. */
+static int slider_crank_pivots_spread(const double *lu)
+{
+    double rmin = 1.0;
+    double rmax = 1.0;
+    int k;
+    for (k = 0; k < 1; ++k) {
+        double r = fabs(lu[slider_crank_pivot_slots[k]]);
+        rmin = SLIDER_CRANK_MIN(rmin, r);
+        rmax = SLIDER_CRANK_MAX(rmax, r);
+    }
+    return rmin <= SLIDER_CRANK_SINGULAR_RATIO * rmax;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -480,7 +500,7 @@ static int slider_crank_factorize(const double *q, const double *tr, double t, c
     int k;
     slider_crank_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (slider_crank_sparse_factor(lu) == 0) return SLIDER_CRANK_OK;
+    if (slider_crank_sparse_factor(lu) == 0 && !slider_crank_pivots_spread(lu)) return SLIDER_CRANK_OK;
     *dense = 1;
     slider_crank_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 81);

@@ -11,6 +11,7 @@
 #define SLIDER_PENDULUM_MAX_NEWTON 50
 #define SLIDER_PENDULUM_LU_SIZE 15
 #define SLIDER_PENDULUM_MAX(a, b) ((a) > (b) ? (a) : (b))
+#define SLIDER_PENDULUM_MIN(a, b) ((a) < (b) ? (a) : (b))
 /* work layout: Phi_q values | sparse factors | dense fallback | vectors */
 #define SLIDER_PENDULUM_OFF_LU 15
 #define SLIDER_PENDULUM_OFF_DENSE (SLIDER_PENDULUM_OFF_LU + SLIDER_PENDULUM_LU_SIZE)
@@ -444,6 +445,25 @@ static void slider_pendulum_dense_solve_t(const double *a, const int *perm, cons
     }
 }
 
+static const int slider_pendulum_pivot_slots[3] = { 0, 2, 3 };
+
+/* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
+   dense fallback's test): the threshold test compares a pivot with its own
+   column only, and a pivot that cancels to rounding would pass it. The slots
+   hold reciprocals, whose spread is the pivots'. */
+static int slider_pendulum_pivots_spread(const double *lu)
+{
+    double rmin = 1.0;
+    double rmax = 1.0;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        double r = fabs(lu[slider_pendulum_pivot_slots[k]]);
+        rmin = SLIDER_PENDULUM_MIN(rmin, r);
+        rmax = SLIDER_PENDULUM_MAX(rmax, r);
+    }
+    return rmin <= SLIDER_PENDULUM_SINGULAR_RATIO * rmax;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -454,7 +474,7 @@ static int slider_pendulum_factorize(const double *q, const double *tr, double t
     int k;
     slider_pendulum_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (slider_pendulum_sparse_factor(lu) == 0) return SLIDER_PENDULUM_OK;
+    if (slider_pendulum_sparse_factor(lu) == 0 && !slider_pendulum_pivots_spread(lu)) return SLIDER_PENDULUM_OK;
     *dense = 1;
     slider_pendulum_phi_q_k(q, tr, t, p, values);
     memset(a, 0, sizeof(double) * 36);

@@ -214,6 +214,13 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
         "t_forward_chunks": chunks(steps, t_forward),
         "t_back_chunks": chunks(back_order, t_back),
     }
+    # The pivots' spread, tested as the dense fallback tests it: the threshold
+    # test compares a pivot with its own column only, so a pivot that cancels
+    # to rounding (an exactly singular configuration) would pass it. The slots
+    # keep reciprocals, whose spread is the pivots'.
+    known = [abs(1.0 / f.pivot) for f in steps if f.pivot is not None and f.pivot != 0.0]
+    passes["pivot_slots"] = [f.pivot_slot for f in steps if f.pivot is None]
+    passes["known_reciprocals"] = (repr(min(known)), repr(max(known))) if known else None
     # the solves' fixed entry points take lu even where every value is a number
     passes["solve_reads_lu"] = any(ch["lu"] for k in ("forward_chunks", "back_chunks") for ch in passes[k])
     passes["solve_t_reads_lu"] = any(ch["lu"] for k in ("t_forward_chunks", "t_back_chunks") for ch in passes[k])
