@@ -677,7 +677,7 @@ def _moved(q, g, o, c, floor, ratio):
 
 def _unexplained(o, d, e, q, v, w, h, c, floor, ratio):
     """Whether the motion q - o of a step h is not what the rates at both ends
-    explain (d, e at o; v, w at q: the cubic Hermite, as symid.solve.unexplained),
+    explain (d, e at o; v, w at q: the cubic Hermite, as symid.numeric.solve.unexplained),
     by more than floor and ratio times the motion (each max_j |.| c_j)."""
     o0, o1, o2, o3, o4, o5, o6, o7, o8 = o
     q0, q1, q2, q3, q4, q5, q6, q7, q8 = q

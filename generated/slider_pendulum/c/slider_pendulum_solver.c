@@ -634,7 +634,7 @@ static int slider_pendulum_finite(const double *q, const double *qd, const doubl
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
    explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
    it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
-   the rule of symid.solve.unexplained). O(NG) a step. */
+   the rule of symid.numeric.solve.unexplained). O(NG) a step. */
 static int slider_pendulum_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
                                const double *qd1, const double *qdd1, double h, const double *c)
 {
