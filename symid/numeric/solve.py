@@ -30,15 +30,13 @@ from symid.numeric.evaluator import Array, Evaluator
 from symid.errors import AnalysisError
 from symid.model.analysis import Analysis
 from symid.numeric import nonfinite
-from symid.numeric.stability import EPS, SINGULAR_RCOND, Factor, Notes, Scaling, rank_of, redundancy_message
+from symid.numeric.newton import RULE
+from symid.numeric.stability import SINGULAR_RCOND, Factor, Notes, Scaling, rank_of, redundancy_message
 
-MAX_NEWTON = 50
-# Damped Newton: halve the step until the scaled residual norm decreases
-# (Armijo), down to this fraction of the full step; below it Newton diverges.
-MIN_DAMPING = 1.0 / 1024
-# Within this multiple of the stopping limit, rounding can raise the residual
-# of an exact step: take full steps there.
-NOISE = 1e3
+# The Newton rule's numbers, shared with the generated loops (symid.numeric.newton).
+MAX_NEWTON = RULE.max_iterations
+MIN_DAMPING = RULE.min_damping  # damped steps below this fraction: diverging
+NOISE = RULE.noise  # within NOISE * lim, full steps (rounding may raise the residual)
 # Branch tracking: a Newton correction larger than JUMP_RATIO times the
 # predicted motion of the step (and than JUMP_FLOOR, scaled) is suspicious; it
 # is a jump if the continuation of the previous instant in JUMP_SUBSTEPS
@@ -103,12 +101,11 @@ def newton(ev: Evaluator, q: Array, t: float, tol: float, scaling: Scaling | Non
            max_iterations: int = MAX_NEWTON) -> tuple[Array, int]:
     """Solve Phi(q, t) = 0 from the guess q, with damped steps.
 
-    Stops when max_i |Phi_i| / row_i <= tol and the last correction
-    max_j |dq_j| / col_j <= tol (the scaling's units). Neither can be resolved
-    finer than rounding: the first is floored at 8 ulps of the largest scaled
-    coordinate (angles grow without bound over long runs), the second at that
-    times the condition estimate of Phi_q (the step rounding alone causes).
-    Without `scaling`, one is made from Phi_q at the guess.
+    The rule of `symid.numeric.newton` (the generated loops' too), in the
+    scaled units of `scaling`: max_i |Phi_i| / row_i and the last correction
+    max_j |dq_j| / col_j within tol, floored at RULE.floor of the largest
+    scaled coordinate (the correction at that times the condition estimate of
+    Phi_q). Without `scaling`, one is made from Phi_q at the guess.
 
     Raises:
         AnalysisError: diverging (no damped step reduces |Phi|), no convergence
@@ -120,7 +117,7 @@ def newton(ev: Evaluator, q: Array, t: float, tol: float, scaling: Scaling | Non
     res = scaling.residual(phi)
     step, cond = np.inf, 1.0
     for it in range(max_iterations + 1):
-        floor = 8 * EPS * max(1.0, scaling.size(q))
+        floor = RULE.floor(scaling.size(q))
         lim = max(tol, floor)
         if not res < np.inf:
             if np.isfinite(q).all():
@@ -140,7 +137,7 @@ def newton(ev: Evaluator, q: Array, t: float, tol: float, scaling: Scaling | Non
             trial = q + alpha * dq
             phi_trial = ev.phi(trial, t)
             value = scaling.merit(phi_trial)
-            if value <= (1 - 1e-4 * alpha) * merit or (res <= NOISE * lim and value < np.inf):
+            if value <= (1 - RULE.armijo * alpha) * merit or (res <= NOISE * lim and value < np.inf):
                 break
             alpha *= 0.5
             if alpha < MIN_DAMPING:

@@ -22,6 +22,7 @@ import numpy as np
 
 from symid.model.analysis import Analysis
 from symid.numeric.evaluator import Array, Evaluator
+from symid.numeric.newton import RULE
 from symid.errors import AnalysisError, InputError
 
 if TYPE_CHECKING:  # the Python loop runs without sympy when its solver is cached (symid.tools.plan)
@@ -358,7 +359,7 @@ def assemble_lstsq(ev: Evaluator, q: Array, t: float, tol: float,
     scaling = Scaling.of(ev.phi_q(q, t), q)
     phi = ev.phi(q, t)
     for it in range(1, max_iterations + 1):
-        floor = 8 * EPS * max(1.0, scaling.size(q))
+        floor = RULE.floor(scaling.size(q))  # the Newton rule's (symid.numeric.newton)
         res = scaling.residual(phi)
         if not np.isfinite(res):
             break

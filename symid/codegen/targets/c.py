@@ -14,10 +14,10 @@ from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
 from symid.model.motion import piece_tables, tables
+from symid.numeric.newton import RULE
 from symid.numeric.solve import JUMP_FLOOR, UNEXPLAINED
 
 NAME = "c"
-MAX_NEWTON = 50
 
 
 class Printer(C99CodePrinter):
@@ -320,7 +320,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": repr(THRESHOLD),
         **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper()),
-        "max_newton": MAX_NEWTON, "jump_floor": repr(JUMP_FLOOR), "unexplained": repr(UNEXPLAINED),
+        "max_newton": RULE.max_iterations, "floor_ulps": repr(RULE.floor_ulps), "jump_floor": repr(JUMP_FLOOR), "unexplained": repr(UNEXPLAINED),
         "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),

@@ -19,6 +19,7 @@ from symid.codegen.emit import lu_steps, reduce
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD
+from symid.numeric.newton import RULE
 from symid.model.motion import piece_tables, tables
 
 NAME = "numpy"
@@ -119,6 +120,7 @@ def context(model: CodeModel) -> dict[str, Any]:
         "functions": functions, "outputs": o.outputs, "kind": o.kind, "threshold": repr(THRESHOLD),
         "velocity": o.velocity, "multipliers": o.multipliers, **_lu(model), "row_items": _row_items(model),
         "finite_sum": _finite_sum(model),
+        "max_newton": RULE.max_iterations, "floor_ulps": repr(RULE.floor_ulps),
         "phi_q_scalar": functions[1]["scalar"],
         "splines": [piece_tables(s) for s in tables(f.phi + f.nu + f.gamma + f.applied + f.reactions)],
     }
