@@ -76,3 +76,22 @@ def test_reading_something_else_is_an_input_error(tmp_path):
     bad.write_text("not a zip")
     with pytest.raises(InputError, match="bad.npz"):
         read_npz(bad)
+
+
+def test_a_write_that_fails_midway_leaves_the_old_archive_whole(tmp_path, monkeypatch):
+    """The archive is written to a temporary name and renamed: a disk that
+    fills while numpy writes it leaves the previous archive as it was."""
+    target = tmp_path / "a.npz"
+    write_npz(target, HEADER, rows(8))
+    before = target.read_bytes()
+    savez = np.savez
+
+    def full_disk(out, **arrays):
+        savez(out, **{k: v for k, v in list(arrays.items())[:1]})  # some bytes reach the file
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(np, "savez", full_disk)
+    with pytest.raises(Exception, match="No space left on device"):
+        write_npz(target, HEADER, rows(3))
+    assert target.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["a.npz"]
