@@ -12,9 +12,10 @@ import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any, Iterator
+from typing import IO, Any, Callable, Iterator
 
 from symid.errors import InputError
+from symid.io.limits import MAX_FILE_BYTES
 
 
 def read_at_most(path: str | Path, limit: int) -> bytes:
@@ -28,6 +29,28 @@ def read_at_most(path: str | Path, limit: int) -> bytes:
     """
     with open(path, "rb") as f:
         return f.read(limit + 1)
+
+
+def read_text(path: str | Path, fail: Callable[[str], InputError] | None = None) -> str:
+    """An input file (mechanism, motion table, claims) as UTF-8 text, read
+    no further than MAX_FILE_BYTES (a device or endless stream is refused).
+
+    Raises:
+        InputError: `fail(reason)`, by default "PATH: reason".
+    """
+    def default(reason: str) -> InputError:
+        return InputError(f"{path}: {reason}")
+
+    fail = fail or default
+    try:
+        data = read_at_most(path, MAX_FILE_BYTES)
+        if len(data) > MAX_FILE_BYTES:
+            raise fail(f"file is longer than the {MAX_FILE_BYTES} bytes allowed")
+        return data.decode("utf-8")
+    except OSError as exc:
+        raise fail(f"cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise fail("not UTF-8 text") from None
 
 
 def cannot_write(path: str | Path, exc: OSError) -> InputError:

@@ -19,8 +19,8 @@ from symid.model.elements import Family, Key
 from symid.errors import InputError
 from symid.model.expr import FUNCTIONS, parse_expression
 from symid.symbolic.forces import TYPES as FORCES
-from symid.io.files import read_at_most
-from symid.io.limits import MAX_FILE_BYTES, MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS, MAX_STEPS
+from symid.io.files import read_text
+from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS, MAX_STEPS
 from symid.io.table import read as read_table
 from symid.model.mechanism import (
     EXTRA_OUTPUTS, GROUND, JUMP_MODES, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, REDUNDANT_MODES, T,
@@ -49,16 +49,7 @@ def load(path: str | Path, set_values: Mapping[str, str] | None = None,
         analysis: `[analysis]` keys overriding the file's (from the command line).
     """
     path = Path(path)
-    try:
-        data = read_at_most(path, MAX_FILE_BYTES)
-        if len(data) > MAX_FILE_BYTES:  # a device or endless stream is not read past the limit
-            raise InputError(f"{path}: file is longer than the {MAX_FILE_BYTES} bytes allowed")
-        text = data.decode("utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not UTF-8 text") from None
-    return loads(text, str(path), set_values, analysis)
+    return loads(read_text(path), str(path), set_values, analysis)
 
 
 def loads(text: str, source: str = "<string>", set_values: Mapping[str, str] | None = None,

@@ -12,7 +12,6 @@ from __future__ import annotations
 import csv
 import math
 import re
-from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import numpy as np
@@ -20,8 +19,7 @@ import sympy as sp
 
 from symid.model import motion
 from symid.errors import InputError
-from symid.io.files import read_at_most
-from symid.io.limits import MAX_FILE_BYTES
+from symid.io.files import read_text
 from symid.io.paths import table_path
 
 KEYS = ("table", "column", "time", "smoothing")
@@ -58,7 +56,7 @@ def read(spec: Mapping[str, Any], source: str, where: str) -> sp.Expr:
         raise fail(f"table {name!r}: time must be a column name, not {time!r}")
     smoothing = _smoothing(spec.get("smoothing", 0), lambda m: fail(f"table {name!r}: key 'smoothing': {m}"))
     path = table_path(name, source)
-    text = _text(path, lambda m: fail(f"table {name!r}: {m}"))
+    text = read_text(path, lambda m: fail(f"table {name!r}: {m}"))
     here = lambda m: fail(f"table {name!r}: {m}")  # noqa: E731
     t, y, lines = _columns(text, time, column, here)
     _check_times(t, lines, here)
@@ -75,18 +73,6 @@ def _smoothing(value: Any, fail: Callable[[str], InputError]) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
         raise fail(f"must be a number >= 0, not {value!r}")
     return float(value)
-
-
-def _text(path: Path, fail: Callable[[str], InputError]) -> str:
-    try:
-        data = read_at_most(path, MAX_FILE_BYTES)
-        if len(data) > MAX_FILE_BYTES:  # a device or endless stream is not read past the limit
-            raise fail(f"file is longer than the {MAX_FILE_BYTES} bytes allowed")
-        return data.decode("utf-8")
-    except OSError as exc:
-        raise fail(f"cannot read: {exc.strerror or exc}") from None
-    except UnicodeDecodeError:
-        raise fail("not UTF-8 text") from None
 
 
 def _columns(text: str, time: str | None, column: str, fail: Callable[[str], InputError],

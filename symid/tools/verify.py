@@ -21,8 +21,7 @@ from typing import Any, Mapping, Protocol, cast
 import sympy as sp
 
 from symid.errors import InputError
-from symid.io.files import read_at_most
-from symid.io.limits import MAX_FILE_BYTES
+from symid.io.files import read_text
 from symid.model.expr import parse_expression
 from symid.tools.show import tidy
 from symid.tools.subjects import MechanismSubject, Points, TypeSubject, evaluate, random_points
@@ -134,14 +133,7 @@ class Report:
 def verify(path: str | Path) -> Report:
     """Verify one claim file. Raises InputError (exit status 2) when it is malformed."""
     path = Path(path)
-    try:
-        data = read_at_most(path, MAX_FILE_BYTES)
-        if len(data) > MAX_FILE_BYTES:  # a device or endless stream is not read past the limit
-            raise InputError(f"{path}: file is longer than the {MAX_FILE_BYTES} bytes allowed")
-        text = data.decode("utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
-    return verify_text(text, str(path), path.parent)
+    return verify_text(read_text(path), str(path), path.parent)
 
 
 def verify_text(text: str, source: str = "<claims>", folder: Path | None = None) -> Report:
