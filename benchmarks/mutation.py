@@ -58,7 +58,7 @@ def k(path: str, expr: str) -> tuple[str, ...]:
 MUTANTS: tuple[Mutant, ...] = (
     # -- output: the CSV and NPZ writers, the summary --------------------------------
     Mutant("csv_written_in_place", "symid/io/files.py",
-           'fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)',
+           'fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)',
            "fd, tmp = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600), str(path)",
            k(OUT, "in_place or interrupt or target")),
     Mutant("csv_rename_skipped", "symid/io/files.py",

@@ -113,16 +113,30 @@ def atomic_write(path: str | Path, binary: bool = False) -> Iterator[IO[Any]]:
         except OSError as exc:
             raise cannot_write(path, exc) from None
         return
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    except OSError as exc:
-        raise cannot_write(path, exc) from None
-    try:
-        os.chmod(tmp, new_file_mode())
-        with os.fdopen(fd, mode, newline=newline) as out:
+    with atomic_path(path) as tmp:
+        with open(tmp, mode, newline=newline) as out:
             yield out
             out.flush()
             os.fsync(out.fileno())  # the rename must not publish data still in the page cache
+
+
+@contextmanager
+def atomic_path(path: Path, suffix: str = ".tmp") -> Iterator[Path]:
+    """A temporary name beside `path`, for a writer that needs a file name
+    (Pillow's GIF writer): renamed over `path` when the block ends, removed on
+    any exception (a signal turned into one included).
+
+    Raises:
+        InputError: the folder cannot take the file, or the rename failed.
+    """
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
+    except OSError as exc:
+        raise cannot_write(path, exc) from None
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.chmod(tmp, new_file_mode())
         os.replace(tmp, path)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)

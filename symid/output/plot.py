@@ -13,8 +13,6 @@ scripts can find a figure's data again.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Literal
@@ -22,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Callable, Literal
 import numpy as np
 
 from symid.backends import Array
-from symid.io.files import atomic_write, cannot_write, new_file_mode
+from symid.io.files import atomic_path, atomic_write
 from symid.model.mechanism import Mechanism
 from symid.output.scene import GEARS, Scene, draw, draw_paths, scene
 from symid.output.summary import Table, efforts
@@ -203,12 +201,7 @@ def write_gif(table: Table, mechanism: Mechanism, path: str | Path, frames: int 
     w, h = _panel_size(sc, 5.0)
     fig = _figure(w, h + 0.5, layout=None)  # a fixed layout: frames do not jump, nor re-solve it
     ax = fig.add_axes((0.16, 0.12, 0.8, 0.8))
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".gif", dir=path.parent)
-    except OSError as exc:
-        raise cannot_write(path, exc) from None
-    os.close(fd)
-    try:
+    with atomic_path(path, ".gif") as tmp:
         writer = PillowWriter(fps=fps)
         draw_paths(ax, sc)
         ax.set_xlabel("x [m]")
@@ -223,14 +216,6 @@ def write_gif(table: Table, mechanism: Mechanism, path: str | Path, frames: int 
                 draw(ax, sc, k)
                 ax.set_title(f"{mechanism.name}   t = {t[k]:.3f} s", fontsize=10)
                 writer.grab_frame()
-        os.chmod(tmp, new_file_mode())
-        os.replace(tmp, path)
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        raise cannot_write(path, exc) from None
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return path
 
 
