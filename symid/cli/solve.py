@@ -149,8 +149,10 @@ def _write_table(out: Path, header: list[str], keep: list[str] | None, rows: Ite
         stale = True
         raise
     except AnalysisError as exc:
-        raise AnalysisError(f"{file}: t = {number(exc.time)}: {exc}; the {plural(exc.solved, 'instant')} "
-                            f"before it {'is' if exc.solved == 1 else 'are'} in {out}", exc.time,
+        where = f"t = {number(exc.time)}: " if exc.time is not None else ""
+        solved = exc.solved or 0
+        raise AnalysisError(f"{file}: {where}{exc}; the {plural(solved, 'instant')} "
+                            f"before it {'is' if solved == 1 else 'are'} in {out}", exc.time,
                             exc.solved) from None
     finally:
         if not stale:

@@ -207,7 +207,7 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
                         "cm": has_word(code, "cm")})
         return out
 
-    passes = {
+    passes: dict[str, Any] = {
         "factor_chunks": chunks(steps, lambda f: _factor_lines(f, P)),
         "forward_chunks": chunks(steps, forward),
         "back_chunks": chunks(back_order, back),
