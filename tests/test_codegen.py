@@ -217,7 +217,7 @@ def _run_lu(tmp_path: Path, plan: sparse.Plan, values: list[float | None], input
     chunks = c_target.lu_chunks(plan, values, "T")
     text = render("c/sparse_lu.j2", p="t", P="T", ng=plan.n, multipliers=True, singular=plan.singular, **chunks)
     head = (f"#define T_N {plan.n}\n#define T_NNZ {len(values)}\n#define T_LU_SIZE {plan.size}\n"
-            "#define T_THRESHOLD 0.1\n#define T_MAX(a, b) ((a) > (b) ? (a) : (b))\n")
+            "#define T_THRESHOLD 0.1\n#define T_MAX(a, b) ((a) > (b) ? (a) : (b))\n#define T_RESTRICT restrict\n")
     (tmp_path / "lu.c").write_text(head + text)
     exe = tmp_path / "lu"
     subprocess.run(["cc", *STRICT, f"-I{tmp_path}", str(ROOT / "tests/c/lu_harness.c"), "-o", str(exe), "-lm"],

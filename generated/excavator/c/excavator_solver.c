@@ -5,6 +5,13 @@
 
 #include "excavator_solver.h"
 
+/* The source compiles as C99 and as C++ (which spells restrict __restrict). */
+#ifdef __cplusplus
+#define EXCAVATOR_RESTRICT __restrict
+#else
+#define EXCAVATOR_RESTRICT restrict
+#endif
+
 #define EXCAVATOR_EPS 2.220446049250313e-16
 #define EXCAVATOR_THRESHOLD 0.1
 #define EXCAVATOR_SINGULAR_RATIO (1e3 * EXCAVATOR_EPS)
@@ -32,14 +39,27 @@ static void excavator_trig(const double *q, double *tr)
     tr[5] = cos(q[8]);
 }
 
+/* Sines and cosines at a guess with no base yet: from sin and cos, each
+   angle becoming its body's base (see trig_near). */
+static void excavator_trig_base(const double *q, double *tr, double *base)
+{
+    int b;
+    for (b = 0; b < 3; ++b) {
+        const double a = q[3 * b + 2];
+        base[3 * b] = a;
+        tr[2 * b] = base[3 * b + 1] = sin(a);
+        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+    }
+}
+
 /* Sines and cosines along a trajectory, without calling sin and cos at every
    configuration. base[3b] is an angle of body b whose sine and cosine
    base[3b + 1], base[3b + 2] came from sin and cos; an angle within 1/16 rad
    of it is rotated from there by the addition formulas, with sin d and
    cos d - 1 by their Taylor series (the first terms left out are below
    3e-19). Every value is one rotation from a libm value, so rounding errors
-   do not accumulate from instant to instant. Farther away (or base NaN: no
-   base yet), sin and cos are called and the angle becomes the base. */
+   do not accumulate from instant to instant. Farther away, sin and cos are
+   called and the angle becomes the base. */
 static void excavator_trig_near(const double *q, double *tr, double *base)
 {
     int b;
@@ -69,7 +89,7 @@ static void excavator_trig_step(const double *q, const double *dq, double *tr, d
     int b;
     for (b = 0; b < 3; ++b) {
         const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
-        if (fabs(d) < 0x1p-30) {
+        if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
             tr[2 * b] = s + c * d;
             tr[2 * b + 1] = c - s * d;
         } else {
@@ -597,7 +617,7 @@ static int excavator_sparse_factor(double *lu)
     return excavator_sparse_factor0(lu);
 }
 
-static void excavator_sparse_forward0(const double *restrict lu, double *restrict y)
+static void excavator_sparse_forward0(const double *EXCAVATOR_RESTRICT lu, double *EXCAVATOR_RESTRICT y)
 {
     y[8] -= lu[33] * y[5];
     y[3] += y[1];
@@ -620,7 +640,7 @@ static void excavator_sparse_forward0(const double *restrict lu, double *restric
 }
 
 static void excavator_sparse_back0(
-    const double *restrict lu, const double *restrict y, double *restrict x)
+    const double *EXCAVATOR_RESTRICT lu, const double *EXCAVATOR_RESTRICT y, double *EXCAVATOR_RESTRICT x)
 {
     x[8] = (y[4]) * lu[15];
     x[6] = (y[8] - lu[34] * x[8]) * lu[32];
@@ -641,7 +661,7 @@ static void excavator_sparse_solve(const double *lu, const double *b, double *x,
 }
 
 static void excavator_sparse_t_forward0(
-    const double *restrict lu, const double *restrict b, double *restrict x)
+    const double *EXCAVATOR_RESTRICT lu, const double *EXCAVATOR_RESTRICT b, double *EXCAVATOR_RESTRICT x)
 {
     x[5] = b[7];
     x[1] = b[1];
@@ -654,7 +674,7 @@ static void excavator_sparse_t_forward0(
     x[4] = (b[8] - lu[19] * x[5] - lu[34] * x[8]) * lu[15];
 }
 
-static void excavator_sparse_t_back0(const double *restrict lu, double *restrict x)
+static void excavator_sparse_t_back0(const double *EXCAVATOR_RESTRICT lu, double *EXCAVATOR_RESTRICT x)
 {
     x[8] -= lu[14] * x[4];
     x[2] -= lu[13] * x[4];
@@ -854,9 +874,10 @@ static int excavator_newton(double t, const double *p, double tol, double *q, do
     double *base = EXCAVATOR_VEC(work, 10);
     double step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
-    if (!reuse)
-        for (it = 0; it < 3; ++it) base[3 * it] = NAN;  /* no base: sin and cos at the guess */
-    excavator_trig_near(q, tr, base);
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) excavator_trig_near(q, tr, base);
+    else excavator_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = EXCAVATOR_MAX(1.0, excavator_maxabs(q, 9));
     lim = EXCAVATOR_MAX(tol, 8.0 * EXCAVATOR_EPS * qmag);
@@ -867,6 +888,7 @@ static int excavator_newton(double t, const double *p, double tol, double *q, do
             /* at the guess: an expression of the constraints left its domain
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
+            info[1] = *dense;
             return it == 0 ? EXCAVATOR_NONFINITE : EXCAVATOR_NOT_CONVERGED;
         }
         if (rmax <= lim && step <= lim) {
@@ -897,8 +919,12 @@ static int excavator_newton(double t, const double *p, double tol, double *q, do
         rmax = excavator_maxabs(r, 9);
     }
     info[0] = it;
+    info[1] = *dense;
     if (!converged) return EXCAVATOR_NOT_CONVERGED;
-    if (!current && excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK) return EXCAVATOR_SINGULAR;
+    if (!current && excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK) {
+        info[1] = *dense;
+        return EXCAVATOR_SINGULAR;
+    }
     info[1] = *dense;
     return EXCAVATOR_OK;
 }
@@ -954,11 +980,30 @@ static int excavator_unexplained(const double *q0, const double *qd0, const doub
 int excavator_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
-    double *tr = EXCAVATOR_VEC(work, 9);
-    int dense = 0, status = excavator_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status != EXCAVATOR_OK) return status;
-    excavator_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return excavator_finite(q, qd, qdd, lam, reactions) ? EXCAVATOR_OK : EXCAVATOR_NONFINITE;
+    int dense = 0, status, counts[2] = {0, 0};
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
+        || !isfinite(tol) || tol <= 0.0) {
+        status = EXCAVATOR_BAD_ARGUMENT;
+    } else {
+        double *tr = EXCAVATOR_VEC(work, 9);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (instant never needs them) */
+        if (qd == NULL) qd = EXCAVATOR_VEC(work, 5);
+        if (qdd == NULL) qdd = EXCAVATOR_VEC(work, 6);
+        if (lam == NULL) lam = EXCAVATOR_VEC(work, 7);
+        if (reactions == NULL) reactions = EXCAVATOR_VEC(work, 8);
+        status = excavator_newton(t, p, tol, q, tr, counts, work, iwork, &dense, 0);
+        if (status == EXCAVATOR_OK) {
+            excavator_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+            if (!excavator_finite(q, qd, qdd, lam, reactions)) status = EXCAVATOR_NONFINITE;
+        }
+    }
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
 }
 
 int excavator_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -971,8 +1016,12 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
     double *scale = state + 54;
     double *count = state + 63;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = EXCAVATOR_VEC(work, 9);
-    long i;
+    long i, unused;
     int k, status, info[2], dense = 0;
+    if (solved == NULL) solved = &unused;
+    *solved = 0;
+    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+        return EXCAVATOR_BAD_ARGUMENT;
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */

@@ -5,6 +5,13 @@
 
 #include "four_bar_solver.h"
 
+/* The source compiles as C99 and as C++ (which spells restrict __restrict). */
+#ifdef __cplusplus
+#define FOUR_BAR_RESTRICT __restrict
+#else
+#define FOUR_BAR_RESTRICT restrict
+#endif
+
 #define FOUR_BAR_EPS 2.220446049250313e-16
 #define FOUR_BAR_THRESHOLD 0.1
 #define FOUR_BAR_SINGULAR_RATIO (1e3 * FOUR_BAR_EPS)
@@ -32,14 +39,27 @@ static void four_bar_trig(const double *q, double *tr)
     tr[5] = cos(q[8]);
 }
 
+/* Sines and cosines at a guess with no base yet: from sin and cos, each
+   angle becoming its body's base (see trig_near). */
+static void four_bar_trig_base(const double *q, double *tr, double *base)
+{
+    int b;
+    for (b = 0; b < 3; ++b) {
+        const double a = q[3 * b + 2];
+        base[3 * b] = a;
+        tr[2 * b] = base[3 * b + 1] = sin(a);
+        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+    }
+}
+
 /* Sines and cosines along a trajectory, without calling sin and cos at every
    configuration. base[3b] is an angle of body b whose sine and cosine
    base[3b + 1], base[3b + 2] came from sin and cos; an angle within 1/16 rad
    of it is rotated from there by the addition formulas, with sin d and
    cos d - 1 by their Taylor series (the first terms left out are below
    3e-19). Every value is one rotation from a libm value, so rounding errors
-   do not accumulate from instant to instant. Farther away (or base NaN: no
-   base yet), sin and cos are called and the angle becomes the base. */
+   do not accumulate from instant to instant. Farther away, sin and cos are
+   called and the angle becomes the base. */
 static void four_bar_trig_near(const double *q, double *tr, double *base)
 {
     int b;
@@ -69,7 +89,7 @@ static void four_bar_trig_step(const double *q, const double *dq, double *tr, do
     int b;
     for (b = 0; b < 3; ++b) {
         const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
-        if (fabs(d) < 0x1p-30) {
+        if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
             tr[2 * b] = s + c * d;
             tr[2 * b + 1] = c - s * d;
         } else {
@@ -382,7 +402,7 @@ static int four_bar_sparse_factor(double *lu)
     return four_bar_sparse_factor0(lu);
 }
 
-static void four_bar_sparse_forward0(const double *restrict lu, double *restrict y)
+static void four_bar_sparse_forward0(const double *FOUR_BAR_RESTRICT lu, double *FOUR_BAR_RESTRICT y)
 {
     y[0] -= lu[1] * y[8];
     y[1] -= lu[3] * y[8];
@@ -398,7 +418,7 @@ static void four_bar_sparse_forward0(const double *restrict lu, double *restrict
 }
 
 static void four_bar_sparse_back0(
-    const double *restrict lu, const double *restrict y, double *restrict x)
+    const double *FOUR_BAR_RESTRICT lu, const double *FOUR_BAR_RESTRICT y, double *FOUR_BAR_RESTRICT x)
 {
     x[8] = (y[7]) * lu[23];
     x[7] = y[5] - lu[19] * x[8];
@@ -419,7 +439,7 @@ static void four_bar_sparse_solve(const double *lu, const double *b, double *x, 
 }
 
 static void four_bar_sparse_t_forward0(
-    const double *restrict lu, const double *restrict b, double *restrict x)
+    const double *FOUR_BAR_RESTRICT lu, const double *FOUR_BAR_RESTRICT b, double *FOUR_BAR_RESTRICT x)
 {
     x[8] = b[2];
     x[0] = b[0];
@@ -432,7 +452,7 @@ static void four_bar_sparse_t_forward0(
     x[7] = (b[8] - lu[21] * x[6] - lu[15] * x[4] - lu[19] * x[5]) * lu[23];
 }
 
-static void four_bar_sparse_t_back0(const double *restrict lu, double *restrict x)
+static void four_bar_sparse_t_back0(const double *FOUR_BAR_RESTRICT lu, double *FOUR_BAR_RESTRICT x)
 {
     x[5] -= x[7];
     x[4] -= lu[17] * x[5];
@@ -625,9 +645,10 @@ static int four_bar_newton(double t, const double *p, double tol, double *q, dou
     double *base = FOUR_BAR_VEC(work, 10);
     double step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
-    if (!reuse)
-        for (it = 0; it < 3; ++it) base[3 * it] = NAN;  /* no base: sin and cos at the guess */
-    four_bar_trig_near(q, tr, base);
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) four_bar_trig_near(q, tr, base);
+    else four_bar_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = FOUR_BAR_MAX(1.0, four_bar_maxabs(q, 9));
     lim = FOUR_BAR_MAX(tol, 8.0 * FOUR_BAR_EPS * qmag);
@@ -638,6 +659,7 @@ static int four_bar_newton(double t, const double *p, double tol, double *q, dou
             /* at the guess: an expression of the constraints left its domain
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
+            info[1] = *dense;
             return it == 0 ? FOUR_BAR_NONFINITE : FOUR_BAR_NOT_CONVERGED;
         }
         if (rmax <= lim && step <= lim) {
@@ -668,8 +690,12 @@ static int four_bar_newton(double t, const double *p, double tol, double *q, dou
         rmax = four_bar_maxabs(r, 9);
     }
     info[0] = it;
+    info[1] = *dense;
     if (!converged) return FOUR_BAR_NOT_CONVERGED;
-    if (!current && four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK) return FOUR_BAR_SINGULAR;
+    if (!current && four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK) {
+        info[1] = *dense;
+        return FOUR_BAR_SINGULAR;
+    }
     info[1] = *dense;
     return FOUR_BAR_OK;
 }
@@ -725,11 +751,30 @@ static int four_bar_unexplained(const double *q0, const double *qd0, const doubl
 int four_bar_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
-    double *tr = FOUR_BAR_VEC(work, 9);
-    int dense = 0, status = four_bar_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status != FOUR_BAR_OK) return status;
-    four_bar_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return four_bar_finite(q, qd, qdd, lam, reactions) ? FOUR_BAR_OK : FOUR_BAR_NONFINITE;
+    int dense = 0, status, counts[2] = {0, 0};
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
+        || !isfinite(tol) || tol <= 0.0) {
+        status = FOUR_BAR_BAD_ARGUMENT;
+    } else {
+        double *tr = FOUR_BAR_VEC(work, 9);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (instant never needs them) */
+        if (qd == NULL) qd = FOUR_BAR_VEC(work, 5);
+        if (qdd == NULL) qdd = FOUR_BAR_VEC(work, 6);
+        if (lam == NULL) lam = FOUR_BAR_VEC(work, 7);
+        if (reactions == NULL) reactions = FOUR_BAR_VEC(work, 8);
+        status = four_bar_newton(t, p, tol, q, tr, counts, work, iwork, &dense, 0);
+        if (status == FOUR_BAR_OK) {
+            four_bar_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+            if (!four_bar_finite(q, qd, qdd, lam, reactions)) status = FOUR_BAR_NONFINITE;
+        }
+    }
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
 }
 
 int four_bar_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -742,8 +787,12 @@ int four_bar_trajectory(double t0, double h, long n, const double *p, double tol
     double *scale = state + 54;
     double *count = state + 63;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = FOUR_BAR_VEC(work, 9);
-    long i;
+    long i, unused;
     int k, status, info[2], dense = 0;
+    if (solved == NULL) solved = &unused;
+    *solved = 0;
+    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+        return FOUR_BAR_BAD_ARGUMENT;
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */

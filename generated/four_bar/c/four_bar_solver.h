@@ -3,6 +3,11 @@
 #ifndef FOUR_BAR_SOLVER_H
 #define FOUR_BAR_SOLVER_H
 
+/* C linkage for a C++ caller. */
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Sizes. */
 #define FOUR_BAR_NG 9            /* generalized coordinates q = [x, y, phi] per body */
 #define FOUR_BAR_NC 9            /* constraint rows */
@@ -23,6 +28,9 @@
                                    ends explain (a jump of branch or of whole turns, or a
                                    singular position): verify it (symid continues the previous
                                    instant in sub-steps) */
+#define FOUR_BAR_BAD_ARGUMENT 5  /* a scalar argument is invalid (tol not finite or <= 0, t, t0
+                                   or h not finite, n < 0) or a required pointer is NULL:
+                                   nothing was solved */
 
 /* Output groups compiled in (1) or left out (0). */
 #define FOUR_BAR_HAS_QDOT 1
@@ -48,9 +56,12 @@ void four_bar_mass(const double *p, double *out);
 void four_bar_reactions(const double *q, const double *lam, double t, const double *p, double *out);
 
 /* One instant: Newton from the guess in q (overwritten by the solution),
-   then the compiled outputs; pointers for outputs left out may be NULL.
-   info[0] = Newton iterations, info[1] = 1 if the fixed pivots were
-   rejected and the pivoting fallback was used. work: WORK doubles, iwork: IWORK ints. */
+   then the compiled outputs. qd, qdd (NG), lam (NC), reactions (NR) and info
+   are optional: any of them may be NULL (what the others need is then
+   computed in work). info, when given, is always written: info[0] = Newton
+   iterations, info[1] = 1 if the fixed pivots were rejected and the
+   pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
+   when NP is 0. work: WORK doubles, iwork: IWORK ints. */
 int four_bar_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork);
 
@@ -61,8 +72,12 @@ int four_bar_instant(double t, const double *p, double tol, double *q, double *q
    set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
    first call. state[6 NG..7 NG-1]: per
    coordinate, 1 / its scale for the jump check (zeros: no check).
-   *solved = rows written. */
+   *solved = rows written (solved may be NULL). */
 int four_bar_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
                        double *rows, long *solved, double *work, int *iwork);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -5,6 +5,13 @@
 
 #include "planetary_solver.h"
 
+/* The source compiles as C99 and as C++ (which spells restrict __restrict). */
+#ifdef __cplusplus
+#define PLANETARY_RESTRICT __restrict
+#else
+#define PLANETARY_RESTRICT restrict
+#endif
+
 #define PLANETARY_EPS 2.220446049250313e-16
 #define PLANETARY_THRESHOLD 0.1
 #define PLANETARY_SINGULAR_RATIO (1e3 * PLANETARY_EPS)
@@ -34,14 +41,27 @@ static void planetary_trig(const double *q, double *tr)
     tr[7] = cos(q[11]);
 }
 
+/* Sines and cosines at a guess with no base yet: from sin and cos, each
+   angle becoming its body's base (see trig_near). */
+static void planetary_trig_base(const double *q, double *tr, double *base)
+{
+    int b;
+    for (b = 0; b < 4; ++b) {
+        const double a = q[3 * b + 2];
+        base[3 * b] = a;
+        tr[2 * b] = base[3 * b + 1] = sin(a);
+        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+    }
+}
+
 /* Sines and cosines along a trajectory, without calling sin and cos at every
    configuration. base[3b] is an angle of body b whose sine and cosine
    base[3b + 1], base[3b + 2] came from sin and cos; an angle within 1/16 rad
    of it is rotated from there by the addition formulas, with sin d and
    cos d - 1 by their Taylor series (the first terms left out are below
    3e-19). Every value is one rotation from a libm value, so rounding errors
-   do not accumulate from instant to instant. Farther away (or base NaN: no
-   base yet), sin and cos are called and the angle becomes the base. */
+   do not accumulate from instant to instant. Farther away, sin and cos are
+   called and the angle becomes the base. */
 static void planetary_trig_near(const double *q, double *tr, double *base)
 {
     int b;
@@ -71,7 +91,7 @@ static void planetary_trig_step(const double *q, const double *dq, double *tr, d
     int b;
     for (b = 0; b < 4; ++b) {
         const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
-        if (fabs(d) < 0x1p-30) {
+        if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
             tr[2 * b] = s + c * d;
             tr[2 * b + 1] = c - s * d;
         } else {
@@ -393,7 +413,7 @@ static int planetary_sparse_factor(double *lu)
     return planetary_sparse_factor0(lu);
 }
 
-static void planetary_sparse_forward0(const double *restrict lu, double *restrict y)
+static void planetary_sparse_forward0(const double *PLANETARY_RESTRICT lu, double *PLANETARY_RESTRICT y)
 {
     y[4] += y[2];
     y[5] += y[3];
@@ -403,7 +423,7 @@ static void planetary_sparse_forward0(const double *restrict lu, double *restric
 }
 
 static void planetary_sparse_back0(
-    const double *restrict lu, const double *restrict y, double *restrict x)
+    const double *PLANETARY_RESTRICT lu, const double *PLANETARY_RESTRICT y, double *PLANETARY_RESTRICT x)
 {
     x[8] = (y[7]) * lu[14];
     x[5] = (y[6] - x[8]) * lu[11];
@@ -427,7 +447,7 @@ static void planetary_sparse_solve(const double *lu, const double *b, double *x,
 }
 
 static void planetary_sparse_t_forward0(
-    const double *restrict lu, const double *restrict b, double *restrict x)
+    const double *PLANETARY_RESTRICT lu, const double *PLANETARY_RESTRICT b, double *PLANETARY_RESTRICT x)
 {
     x[0] = b[0];
     x[1] = b[1];
@@ -443,7 +463,7 @@ static void planetary_sparse_t_forward0(
     x[7] = (b[8] - x[6]) * lu[14];
 }
 
-static void planetary_sparse_t_back0(const double *restrict lu, double *restrict x)
+static void planetary_sparse_t_back0(const double *PLANETARY_RESTRICT lu, double *PLANETARY_RESTRICT x)
 {
     x[6] -= lu[13] * x[7];
     x[10] -= lu[10] * x[6];
@@ -630,9 +650,10 @@ static int planetary_newton(double t, const double *p, double tol, double *q, do
     double *base = PLANETARY_VEC(work, 10);
     double step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
-    if (!reuse)
-        for (it = 0; it < 4; ++it) base[3 * it] = NAN;  /* no base: sin and cos at the guess */
-    planetary_trig_near(q, tr, base);
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) planetary_trig_near(q, tr, base);
+    else planetary_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = PLANETARY_MAX(1.0, planetary_maxabs(q, 12));
     lim = PLANETARY_MAX(tol, 8.0 * PLANETARY_EPS * qmag);
@@ -643,6 +664,7 @@ static int planetary_newton(double t, const double *p, double tol, double *q, do
             /* at the guess: an expression of the constraints left its domain
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
+            info[1] = *dense;
             return it == 0 ? PLANETARY_NONFINITE : PLANETARY_NOT_CONVERGED;
         }
         if (rmax <= lim && step <= lim) {
@@ -673,8 +695,12 @@ static int planetary_newton(double t, const double *p, double tol, double *q, do
         rmax = planetary_maxabs(r, 12);
     }
     info[0] = it;
+    info[1] = *dense;
     if (!converged) return PLANETARY_NOT_CONVERGED;
-    if (!current && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) return PLANETARY_SINGULAR;
+    if (!current && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) {
+        info[1] = *dense;
+        return PLANETARY_SINGULAR;
+    }
     info[1] = *dense;
     return PLANETARY_OK;
 }
@@ -730,11 +756,30 @@ static int planetary_unexplained(const double *q0, const double *qd0, const doub
 int planetary_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
-    double *tr = PLANETARY_VEC(work, 9);
-    int dense = 0, status = planetary_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status != PLANETARY_OK) return status;
-    planetary_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return planetary_finite(q, qd, qdd, lam, reactions) ? PLANETARY_OK : PLANETARY_NONFINITE;
+    int dense = 0, status, counts[2] = {0, 0};
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
+        || !isfinite(tol) || tol <= 0.0) {
+        status = PLANETARY_BAD_ARGUMENT;
+    } else {
+        double *tr = PLANETARY_VEC(work, 9);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (instant never needs them) */
+        if (qd == NULL) qd = PLANETARY_VEC(work, 5);
+        if (qdd == NULL) qdd = PLANETARY_VEC(work, 6);
+        if (lam == NULL) lam = PLANETARY_VEC(work, 7);
+        if (reactions == NULL) reactions = PLANETARY_VEC(work, 8);
+        status = planetary_newton(t, p, tol, q, tr, counts, work, iwork, &dense, 0);
+        if (status == PLANETARY_OK) {
+            planetary_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+            if (!planetary_finite(q, qd, qdd, lam, reactions)) status = PLANETARY_NONFINITE;
+        }
+    }
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
 }
 
 int planetary_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -747,8 +792,12 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
     double *scale = state + 72;
     double *count = state + 84;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = PLANETARY_VEC(work, 9);
-    long i;
+    long i, unused;
     int k, status, info[2], dense = 0;
+    if (solved == NULL) solved = &unused;
+    *solved = 0;
+    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+        return PLANETARY_BAD_ARGUMENT;
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */

@@ -5,6 +5,13 @@
 
 #include "slider_crank_solver.h"
 
+/* The source compiles as C99 and as C++ (which spells restrict __restrict). */
+#ifdef __cplusplus
+#define SLIDER_CRANK_RESTRICT __restrict
+#else
+#define SLIDER_CRANK_RESTRICT restrict
+#endif
+
 #define SLIDER_CRANK_EPS 2.220446049250313e-16
 #define SLIDER_CRANK_THRESHOLD 0.1
 #define SLIDER_CRANK_SINGULAR_RATIO (1e3 * SLIDER_CRANK_EPS)
@@ -32,14 +39,27 @@ static void slider_crank_trig(const double *q, double *tr)
     tr[5] = cos(q[8]);
 }
 
+/* Sines and cosines at a guess with no base yet: from sin and cos, each
+   angle becoming its body's base (see trig_near). */
+static void slider_crank_trig_base(const double *q, double *tr, double *base)
+{
+    int b;
+    for (b = 0; b < 3; ++b) {
+        const double a = q[3 * b + 2];
+        base[3 * b] = a;
+        tr[2 * b] = base[3 * b + 1] = sin(a);
+        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+    }
+}
+
 /* Sines and cosines along a trajectory, without calling sin and cos at every
    configuration. base[3b] is an angle of body b whose sine and cosine
    base[3b + 1], base[3b + 2] came from sin and cos; an angle within 1/16 rad
    of it is rotated from there by the addition formulas, with sin d and
    cos d - 1 by their Taylor series (the first terms left out are below
    3e-19). Every value is one rotation from a libm value, so rounding errors
-   do not accumulate from instant to instant. Farther away (or base NaN: no
-   base yet), sin and cos are called and the angle becomes the base. */
+   do not accumulate from instant to instant. Farther away, sin and cos are
+   called and the angle becomes the base. */
 static void slider_crank_trig_near(const double *q, double *tr, double *base)
 {
     int b;
@@ -69,7 +89,7 @@ static void slider_crank_trig_step(const double *q, const double *dq, double *tr
     int b;
     for (b = 0; b < 3; ++b) {
         const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
-        if (fabs(d) < 0x1p-30) {
+        if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
             tr[2 * b] = s + c * d;
             tr[2 * b + 1] = c - s * d;
         } else {
@@ -347,7 +367,7 @@ static int slider_crank_sparse_factor(double *lu)
     return slider_crank_sparse_factor0(lu);
 }
 
-static void slider_crank_sparse_forward0(const double *restrict lu, double *restrict y)
+static void slider_crank_sparse_forward0(const double *SLIDER_CRANK_RESTRICT lu, double *SLIDER_CRANK_RESTRICT y)
 {
     y[5] -= y[6];
     y[1] -= lu[3] * y[8];
@@ -357,7 +377,7 @@ static void slider_crank_sparse_forward0(const double *restrict lu, double *rest
 }
 
 static void slider_crank_sparse_back0(
-    const double *restrict lu, const double *restrict y, double *restrict x)
+    const double *SLIDER_CRANK_RESTRICT lu, const double *SLIDER_CRANK_RESTRICT y, double *SLIDER_CRANK_RESTRICT x)
 {
     x[5] = (y[5]) * lu[16];
     x[4] = y[3] - lu[11] * x[5];
@@ -378,7 +398,7 @@ static void slider_crank_sparse_solve(const double *lu, const double *b, double 
 }
 
 static void slider_crank_sparse_t_forward0(
-    const double *restrict lu, const double *restrict b, double *restrict x)
+    const double *SLIDER_CRANK_RESTRICT lu, const double *SLIDER_CRANK_RESTRICT b, double *SLIDER_CRANK_RESTRICT x)
 {
     x[4] = b[6];
     x[2] = b[3] + x[4];
@@ -391,7 +411,7 @@ static void slider_crank_sparse_t_forward0(
     x[5] = (b[5] - lu[13] * x[4] - lu[7] * x[2] - lu[11] * x[3]) * lu[16];
 }
 
-static void slider_crank_sparse_t_back0(const double *restrict lu, double *restrict x)
+static void slider_crank_sparse_t_back0(const double *SLIDER_CRANK_RESTRICT lu, double *SLIDER_CRANK_RESTRICT x)
 {
     x[3] += x[5];
     x[1] += x[3];
@@ -578,9 +598,10 @@ static int slider_crank_newton(double t, const double *p, double tol, double *q,
     double *base = SLIDER_CRANK_VEC(work, 10);
     double step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
-    if (!reuse)
-        for (it = 0; it < 3; ++it) base[3 * it] = NAN;  /* no base: sin and cos at the guess */
-    slider_crank_trig_near(q, tr, base);
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) slider_crank_trig_near(q, tr, base);
+    else slider_crank_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_CRANK_MAX(1.0, slider_crank_maxabs(q, 9));
     lim = SLIDER_CRANK_MAX(tol, 8.0 * SLIDER_CRANK_EPS * qmag);
@@ -591,6 +612,7 @@ static int slider_crank_newton(double t, const double *p, double tol, double *q,
             /* at the guess: an expression of the constraints left its domain
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
+            info[1] = *dense;
             return it == 0 ? SLIDER_CRANK_NONFINITE : SLIDER_CRANK_NOT_CONVERGED;
         }
         if (rmax <= lim && step <= lim) {
@@ -621,8 +643,12 @@ static int slider_crank_newton(double t, const double *p, double tol, double *q,
         rmax = slider_crank_maxabs(r, 9);
     }
     info[0] = it;
+    info[1] = *dense;
     if (!converged) return SLIDER_CRANK_NOT_CONVERGED;
-    if (!current && slider_crank_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_OK) return SLIDER_CRANK_SINGULAR;
+    if (!current && slider_crank_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_OK) {
+        info[1] = *dense;
+        return SLIDER_CRANK_SINGULAR;
+    }
     info[1] = *dense;
     return SLIDER_CRANK_OK;
 }
@@ -678,11 +704,30 @@ static int slider_crank_unexplained(const double *q0, const double *qd0, const d
 int slider_crank_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
-    double *tr = SLIDER_CRANK_VEC(work, 9);
-    int dense = 0, status = slider_crank_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status != SLIDER_CRANK_OK) return status;
-    slider_crank_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return slider_crank_finite(q, qd, qdd, lam, reactions) ? SLIDER_CRANK_OK : SLIDER_CRANK_NONFINITE;
+    int dense = 0, status, counts[2] = {0, 0};
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
+        || !isfinite(tol) || tol <= 0.0) {
+        status = SLIDER_CRANK_BAD_ARGUMENT;
+    } else {
+        double *tr = SLIDER_CRANK_VEC(work, 9);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (instant never needs them) */
+        if (qd == NULL) qd = SLIDER_CRANK_VEC(work, 5);
+        if (qdd == NULL) qdd = SLIDER_CRANK_VEC(work, 6);
+        if (lam == NULL) lam = SLIDER_CRANK_VEC(work, 7);
+        if (reactions == NULL) reactions = SLIDER_CRANK_VEC(work, 8);
+        status = slider_crank_newton(t, p, tol, q, tr, counts, work, iwork, &dense, 0);
+        if (status == SLIDER_CRANK_OK) {
+            slider_crank_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+            if (!slider_crank_finite(q, qd, qdd, lam, reactions)) status = SLIDER_CRANK_NONFINITE;
+        }
+    }
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
 }
 
 int slider_crank_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -695,8 +740,12 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
     double *scale = state + 54;
     double *count = state + 63;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_CRANK_VEC(work, 9);
-    long i;
+    long i, unused;
     int k, status, info[2], dense = 0;
+    if (solved == NULL) solved = &unused;
+    *solved = 0;
+    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+        return SLIDER_CRANK_BAD_ARGUMENT;
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */

@@ -5,6 +5,13 @@
 
 #include "slider_pendulum_solver.h"
 
+/* The source compiles as C99 and as C++ (which spells restrict __restrict). */
+#ifdef __cplusplus
+#define SLIDER_PENDULUM_RESTRICT __restrict
+#else
+#define SLIDER_PENDULUM_RESTRICT restrict
+#endif
+
 #define SLIDER_PENDULUM_EPS 2.220446049250313e-16
 #define SLIDER_PENDULUM_THRESHOLD 0.1
 #define SLIDER_PENDULUM_SINGULAR_RATIO (1e3 * SLIDER_PENDULUM_EPS)
@@ -30,14 +37,27 @@ static void slider_pendulum_trig(const double *q, double *tr)
     tr[3] = cos(q[5]);
 }
 
+/* Sines and cosines at a guess with no base yet: from sin and cos, each
+   angle becoming its body's base (see trig_near). */
+static void slider_pendulum_trig_base(const double *q, double *tr, double *base)
+{
+    int b;
+    for (b = 0; b < 2; ++b) {
+        const double a = q[3 * b + 2];
+        base[3 * b] = a;
+        tr[2 * b] = base[3 * b + 1] = sin(a);
+        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+    }
+}
+
 /* Sines and cosines along a trajectory, without calling sin and cos at every
    configuration. base[3b] is an angle of body b whose sine and cosine
    base[3b + 1], base[3b + 2] came from sin and cos; an angle within 1/16 rad
    of it is rotated from there by the addition formulas, with sin d and
    cos d - 1 by their Taylor series (the first terms left out are below
    3e-19). Every value is one rotation from a libm value, so rounding errors
-   do not accumulate from instant to instant. Farther away (or base NaN: no
-   base yet), sin and cos are called and the angle becomes the base. */
+   do not accumulate from instant to instant. Farther away, sin and cos are
+   called and the angle becomes the base. */
 static void slider_pendulum_trig_near(const double *q, double *tr, double *base)
 {
     int b;
@@ -67,7 +87,7 @@ static void slider_pendulum_trig_step(const double *q, const double *dq, double 
     int b;
     for (b = 0; b < 2; ++b) {
         const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
-        if (fabs(d) < 0x1p-30) {
+        if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
             tr[2 * b] = s + c * d;
             tr[2 * b + 1] = c - s * d;
         } else {
@@ -335,13 +355,13 @@ static int slider_pendulum_sparse_factor(double *lu)
     return slider_pendulum_sparse_factor0(lu);
 }
 
-static void slider_pendulum_sparse_forward0(const double *restrict lu, double *restrict y)
+static void slider_pendulum_sparse_forward0(const double *SLIDER_PENDULUM_RESTRICT lu, double *SLIDER_PENDULUM_RESTRICT y)
 {
     y[2] -= lu[4] * y[1];
 }
 
 static void slider_pendulum_sparse_back0(
-    const double *restrict lu, const double *restrict y, double *restrict x)
+    const double *SLIDER_PENDULUM_RESTRICT lu, const double *SLIDER_PENDULUM_RESTRICT y, double *SLIDER_PENDULUM_RESTRICT x)
 {
     x[0] = (y[2]) * lu[3];
     x[1] = (y[1] - lu[1] * x[0]) * lu[2];
@@ -359,7 +379,7 @@ static void slider_pendulum_sparse_solve(const double *lu, const double *b, doub
 }
 
 static void slider_pendulum_sparse_t_forward0(
-    const double *restrict lu, const double *restrict b, double *restrict x)
+    const double *SLIDER_PENDULUM_RESTRICT lu, const double *SLIDER_PENDULUM_RESTRICT b, double *SLIDER_PENDULUM_RESTRICT x)
 {
     x[3] = b[3];
     x[4] = b[4];
@@ -369,7 +389,7 @@ static void slider_pendulum_sparse_t_forward0(
     x[2] = (b[0] + x[3] - lu[1] * x[1]) * lu[3];
 }
 
-static void slider_pendulum_sparse_t_back0(const double *restrict lu, double *restrict x)
+static void slider_pendulum_sparse_t_back0(const double *SLIDER_PENDULUM_RESTRICT lu, double *SLIDER_PENDULUM_RESTRICT x)
 {
     x[1] -= lu[4] * x[2];
 }
@@ -552,9 +572,10 @@ static int slider_pendulum_newton(double t, const double *p, double tol, double 
     double *base = SLIDER_PENDULUM_VEC(work, 10);
     double step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
-    if (!reuse)
-        for (it = 0; it < 2; ++it) base[3 * it] = NAN;  /* no base: sin and cos at the guess */
-    slider_pendulum_trig_near(q, tr, base);
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) slider_pendulum_trig_near(q, tr, base);
+    else slider_pendulum_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_PENDULUM_MAX(1.0, slider_pendulum_maxabs(q, 6));
     lim = SLIDER_PENDULUM_MAX(tol, 8.0 * SLIDER_PENDULUM_EPS * qmag);
@@ -565,6 +586,7 @@ static int slider_pendulum_newton(double t, const double *p, double tol, double 
             /* at the guess: an expression of the constraints left its domain
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
+            info[1] = *dense;
             return it == 0 ? SLIDER_PENDULUM_NONFINITE : SLIDER_PENDULUM_NOT_CONVERGED;
         }
         if (rmax <= lim && step <= lim) {
@@ -595,8 +617,12 @@ static int slider_pendulum_newton(double t, const double *p, double tol, double 
         rmax = slider_pendulum_maxabs(r, 6);
     }
     info[0] = it;
+    info[1] = *dense;
     if (!converged) return SLIDER_PENDULUM_NOT_CONVERGED;
-    if (!current && slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK) return SLIDER_PENDULUM_SINGULAR;
+    if (!current && slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK) {
+        info[1] = *dense;
+        return SLIDER_PENDULUM_SINGULAR;
+    }
     info[1] = *dense;
     return SLIDER_PENDULUM_OK;
 }
@@ -652,11 +678,30 @@ static int slider_pendulum_unexplained(const double *q0, const double *qd0, cons
 int slider_pendulum_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
                     double *lam, double *reactions, int *info, double *work, int *iwork)
 {
-    double *tr = SLIDER_PENDULUM_VEC(work, 9);
-    int dense = 0, status = slider_pendulum_newton(t, p, tol, q, tr, info, work, iwork, &dense, 0);
-    if (status != SLIDER_PENDULUM_OK) return status;
-    slider_pendulum_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-    return slider_pendulum_finite(q, qd, qdd, lam, reactions) ? SLIDER_PENDULUM_OK : SLIDER_PENDULUM_NONFINITE;
+    int dense = 0, status, counts[2] = {0, 0};
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
+        || !isfinite(tol) || tol <= 0.0) {
+        status = SLIDER_PENDULUM_BAD_ARGUMENT;
+    } else {
+        double *tr = SLIDER_PENDULUM_VEC(work, 9);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (instant never needs them) */
+        if (qd == NULL) qd = SLIDER_PENDULUM_VEC(work, 5);
+        if (qdd == NULL) qdd = SLIDER_PENDULUM_VEC(work, 6);
+        if (lam == NULL) lam = SLIDER_PENDULUM_VEC(work, 7);
+        if (reactions == NULL) reactions = SLIDER_PENDULUM_VEC(work, 8);
+        status = slider_pendulum_newton(t, p, tol, q, tr, counts, work, iwork, &dense, 0);
+        if (status == SLIDER_PENDULUM_OK) {
+            slider_pendulum_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+            if (!slider_pendulum_finite(q, qd, qdd, lam, reactions)) status = SLIDER_PENDULUM_NONFINITE;
+        }
+    }
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
 }
 
 int slider_pendulum_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
@@ -669,8 +714,12 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
     double *scale = state + 36;
     double *count = state + 42;
     double *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_PENDULUM_VEC(work, 9);
-    long i;
+    long i, unused;
     int k, status, info[2], dense = 0;
+    if (solved == NULL) solved = &unused;
+    *solved = 0;
+    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+        return SLIDER_PENDULUM_BAD_ARGUMENT;
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
