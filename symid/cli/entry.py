@@ -13,7 +13,8 @@ import argparse
 import os
 import signal
 import sys
-from typing import Callable, Sequence
+from types import FrameType
+from typing import Any, Callable, Sequence
 
 from symid.cli.options import Parser
 from symid.errors import EXIT_INPUT, EXIT_SIGNAL_BASE, AnalysisError, SymidError, Terminated
@@ -98,16 +99,20 @@ def _run(run: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> 
         return EXIT_INPUT
 
 
-def _raise_terminated(signum: int, frame: object) -> None:
+# what signal.signal takes and returns
+_Handler = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
+
+
+def _raise_terminated(signum: int, frame: FrameType | None) -> None:
     raise Terminated(signum)
 
 
-def _catch_signals() -> dict[int, signal.Handlers | Callable[[int, object], None] | int | None]:
+def _catch_signals() -> dict[int, _Handler]:
     """SIGTERM, SIGHUP and SIGINT raise `Terminated` (unless ignored, as under nohup);
     SIGXFSZ is ignored, so a file-size limit fails the write (EFBIG) instead of
     killing symid with its temporary file. Returns the handlers replaced."""
-    previous: dict[int, signal.Handlers | Callable[[int, object], None] | int | None] = {}
-    wanted = {signal.SIGTERM: _raise_terminated, signal.SIGHUP: _raise_terminated, signal.SIGXFSZ: signal.SIG_IGN,
+    previous: dict[int, _Handler] = {}
+    wanted: dict[int, _Handler] = {signal.SIGTERM: _raise_terminated, signal.SIGHUP: _raise_terminated, signal.SIGXFSZ: signal.SIG_IGN,
               signal.SIGINT: _raise_terminated}
     for signum, handler in wanted.items():
         try:

@@ -36,7 +36,7 @@ def _angles(mech: Mechanism, values: Mapping[sp.Symbol, float]) -> Iterator[tupl
                 yield f"{where} 'theta0'", e.values["theta0"]
             if e.type == "relative_angle_driver" or (e.type == "coordinate_driver"
                                                       and e.options.get("coordinate") == "phi"):
-                yield f"{where} 'f' at t0 = {number(t0)}", e.values["f"].subs(T, t0)
+                yield f"{where} 'f' at t0 = {number(t0)}", sp.sympify(e.values["f"]).subs(T, t0)
             if e.type == "relative_angle_driver":
                 yield f"{where} 'C'", e.values.get("C", sp.Integer(0))
 

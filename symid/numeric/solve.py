@@ -234,7 +234,7 @@ class Stepper:
                         guess = q  # checked
             out = self._outputs(q, t, iterations)
             notes.cond(t, out.cond, n)  # also where the check below stops the run: it says why
-            if prev is not None and guess is not q and unexplained(prev.q, prev.qd, prev.qdd, out.q, out.qd,
+            if prev is not None and guess is not None and guess is not q and unexplained(prev.q, prev.qd, prev.qdd, out.q, out.qd,
                                                                    out.qdd, t - prev.t, scaling.inv_col):
                 turned = _branch(ev, analysis, prev, t, q, guess, scaling, notes, n, out)
                 if turned is not None:
@@ -316,7 +316,7 @@ def _branch(ev: Evaluator, analysis: Analysis, prev: Instant, t: float, q: Array
         if gap > JUMP_SAME and np.any(turns) and scaling.size(other - q - 2 * np.pi * turns) <= JUMP_SAME:
             return q + 2 * np.pi * turns  # the same configuration: follow the angles continuously
         if gap <= JUMP_SAME:  # the same solution: only the prediction was poor
-            if out is not None and len(last) == 4 and unexplained(*last[1:], out.q, out.qd, out.qdd, t - last[0],
+            if out is not None and len(last) == 4 and unexplained(last[1], last[2], last[3], out.q, out.qd, out.qdd, t - last[0],
                                                                  scaling.inv_col):
                 raise AnalysisError(
                     f"singular position: qdot and qddot solved here do not continue the motion even over the "

@@ -8,7 +8,7 @@ numbers, never more symbolic work. Nothing here depends on a backend.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
@@ -84,7 +84,7 @@ class Layout:
     def nb(self) -> int:
         return self.ng // 3
 
-    def constraint_names_of_rows(self, rows: np.ndarray) -> list[str]:
+    def constraint_names_of_rows(self, rows: Sequence[int] | np.ndarray) -> list[str]:
         """The constraints that own the given rows, without repeats, in row order."""
         out: list[str] = []
         for row in rows:
