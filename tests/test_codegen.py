@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from compare import assert_agree
 from data_mechanisms import SINGULAR_PENDULUM, TWO_CABLES
 from symid import api
 from symid.numeric import solve
@@ -29,16 +30,6 @@ ROOT = Path(__file__).resolve().parents[1]
 STRICT = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 GENERATED_BACKENDS = ("numpy", "c")
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler")
-
-
-def assert_agree(got: np.ndarray, expected: np.ndarray, rel: float = 1e-12) -> None:
-    """Per column, relative to the column's peak; columns that are zero up to
-    rounding are measured against the table's largest value instead."""
-    assert got.shape == expected.shape
-    col = np.max(np.abs(expected), axis=0)
-    scale = np.maximum(col, 1e-3 * np.max(col))
-    worst = np.max(np.abs(got - expected) / scale)
-    assert worst <= rel, worst
 
 
 @pytest.fixture(scope="module")

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 import stress
+from compare import assert_agree as _agree
 from symid import api
 from symid.cli import main
 
@@ -83,16 +84,6 @@ def _rows(path: Path) -> np.ndarray:
     lines = path.read_text().splitlines()
     width = len(lines[0].split(","))
     return np.array([[float(v) for v in line.split(",")] for line in lines[1:]]).reshape(len(lines) - 1, width)
-
-
-def _agree(got: np.ndarray, expected: np.ndarray, rel: float) -> None:
-    """Per column, relative to its peak; columns that are zero up to rounding
-    against the table's largest value instead (as tests/test_codegen.py)."""
-    assert got.shape == expected.shape
-    col = np.max(np.abs(expected), axis=0)
-    scale = np.maximum(col, 1e-3 * np.max(col))
-    worst = np.max(np.abs(got - expected) / scale)
-    assert worst <= rel, worst
 
 
 @pytest.fixture(scope="module")
