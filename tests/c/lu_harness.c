@@ -7,6 +7,8 @@
 #include <stdio.h>
 #include <string.h>
 
+typedef double t_real;
+
 #include "lu.c"
 
 int main(void)

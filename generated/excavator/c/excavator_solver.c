@@ -25,11 +25,11 @@
 #define EXCAVATOR_OFF_VEC (EXCAVATOR_OFF_DENSE + 81)
 #define EXCAVATOR_VEC(work, k) ((work) + EXCAVATOR_OFF_VEC + (k) * 36)
 
-const double excavator_default_params[18] = { 5.7, 2.9, 1.5, 1.0, 1500.0, 700.0, 500.0, 8.0, 0.7853981633974483, 2.68, 0.25, 2.31, 0.65, 2.3, 0.55, 30000.0, 2.4, 1.0 };
+const excavator_real excavator_default_params[18] = { 5.7, 2.9, 1.5, 1.0, 1500.0, 700.0, 500.0, 8.0, 0.7853981633974483, 2.68, 0.25, 2.31, 0.65, 2.3, 0.55, 30000.0, 2.4, 1.0 };
 const int excavator_phi_q_rows[35] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8 };
 const int excavator_phi_q_cols[35] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 8, 0, 1, 2, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 8 };
 /* Sines and cosines of the body angles, computed once per configuration. */
-static void excavator_trig(const double *q, double *tr)
+static void excavator_trig(const excavator_real *q, excavator_real *tr)
 {
     tr[0] = sin(q[2]);
     tr[1] = cos(q[2]);
@@ -41,11 +41,11 @@ static void excavator_trig(const double *q, double *tr)
 
 /* Sines and cosines at a guess with no base yet: from sin and cos, each
    angle becoming its body's base (see trig_near). */
-static void excavator_trig_base(const double *q, double *tr, double *base)
+static void excavator_trig_base(const excavator_real *q, excavator_real *tr, excavator_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double a = q[3 * b + 2];
+        const excavator_real a = q[3 * b + 2];
         base[3 * b] = a;
         tr[2 * b] = base[3 * b + 1] = sin(a);
         tr[2 * b + 1] = base[3 * b + 2] = cos(a);
@@ -60,15 +60,15 @@ static void excavator_trig_base(const double *q, double *tr, double *base)
    3e-19). Every value is one rotation from a libm value, so rounding errors
    do not accumulate from instant to instant. Farther away, sin and cos are
    called and the angle becomes the base. */
-static void excavator_trig_near(const double *q, double *tr, double *base)
+static void excavator_trig_near(const excavator_real *q, excavator_real *tr, excavator_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double a = q[3 * b + 2], d = a - base[3 * b];
+        const excavator_real a = q[3 * b + 2], d = a - base[3 * b];
         if (fabs(d) <= 0.0625) {
-            const double d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
-            const double sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const double cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
+            const excavator_real d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
+            const excavator_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
+            const excavator_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
             tr[2 * b] = s + (s * cm + c * sd);
             tr[2 * b + 1] = c + (c * cm - s * sd);
         } else {
@@ -84,11 +84,11 @@ static void excavator_trig_near(const double *q, double *tr, double *base)
    rad, sin(a + d) = sin a + d cos a and cos(a + d) = cos a - d sin a to
    rounding (d^2 / 2 < 1e-18); larger ones rotate from the base as
    trig_near does. */
-static void excavator_trig_step(const double *q, const double *dq, double *tr, double *base)
+static void excavator_trig_step(const excavator_real *q, const excavator_real *dq, excavator_real *tr, excavator_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        const excavator_real d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
             tr[2 * b] = s + c * d;
             tr[2 * b + 1] = c - s * d;
@@ -99,26 +99,26 @@ static void excavator_trig_step(const double *q, const double *dq, double *tr, d
     }
 }
 
-static void excavator_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void excavator_phi_k0(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    const double e0 = (1.0/2.0)*p[0];
-    const double e1 = e0*tr[1];
-    const double e2 = e0*tr[0];
-    const double e3 = (-q[0] + q[3]);
-    const double e4 = (1.0/2.0)*p[1];
-    const double e5 = e4*tr[3];
-    const double e6 = (-q[1] + q[4]);
-    const double e7 = e4*tr[2];
-    const double e8 = (-q[3] + q[6]);
-    const double e9 = (1.0/2.0)*tr[5];
-    const double e10 = (-q[4] + q[7]);
-    const double e11 = (1.0/2.0)*p[2];
-    const double e12 = 23.0/10.0 - e0;
-    const double e13 = p[8]*t;
-    const double e14 = -e4 - 3.0/4.0;
-    const double e15 = 1.0/2.0 - 1.0/2.0*cos(e13);
-    const double e16 = -e11 - 1.0/20.0;
-    const double e17 = 2.0/5.0 - e4;
+    const excavator_real e0 = (1.0/2.0)*p[0];
+    const excavator_real e1 = e0*tr[1];
+    const excavator_real e2 = e0*tr[0];
+    const excavator_real e3 = (-q[0] + q[3]);
+    const excavator_real e4 = (1.0/2.0)*p[1];
+    const excavator_real e5 = e4*tr[3];
+    const excavator_real e6 = (-q[1] + q[4]);
+    const excavator_real e7 = e4*tr[2];
+    const excavator_real e8 = (-q[3] + q[6]);
+    const excavator_real e9 = (1.0/2.0)*tr[5];
+    const excavator_real e10 = (-q[4] + q[7]);
+    const excavator_real e11 = (1.0/2.0)*p[2];
+    const excavator_real e12 = 23.0/10.0 - e0;
+    const excavator_real e13 = p[8]*t;
+    const excavator_real e14 = -e4 - 3.0/4.0;
+    const excavator_real e15 = 1.0/2.0 - 1.0/2.0*cos(e13);
+    const excavator_real e16 = -e11 - 1.0/20.0;
+    const excavator_real e17 = 2.0/5.0 - e4;
     out[0] = -e1 + q[0];
     out[1] = -e2 + q[1];
     out[2] = -e1 + e3 - e5;
@@ -130,76 +130,76 @@ static void excavator_phi_k0(const double * q, const double * tr, double t, cons
     out[8] = -pow(e15*p[14] + p[13], 2) + pow(e10 + e16*tr[4] - e17*tr[2] + e9 - 7.0/20.0*tr[3], 2) + pow(e16*tr[5] - e17*tr[3] + e8 + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4], 2);
 }
 
-static void excavator_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void excavator_phi_k(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     excavator_phi_k0(q, tr, t, p, out);
 }
 
-void excavator_phi(const double * q, double t, const double * p, double *out)
+void excavator_phi(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    double tr[6];
+    excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_phi_k(q, tr, t, p, out);
 }
 
-static void excavator_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void excavator_phi_q_k0(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     (void)t;
-    const double e0 = (1.0/2.0)*p[0];
-    const double e1 = e0*tr[0];
-    const double e2 = -e0*tr[1];
-    const double e3 = (1.0/2.0)*p[1];
-    const double e4 = e3*tr[2];
-    const double e5 = -e3*tr[3];
-    const double e6 = (1.0/2.0)*p[2];
-    const double e7 = 2*q[0];
-    const double e8 = 23.0/10.0 - e0;
-    const double e9 = e8*tr[1];
-    const double e10 = 2*e9 + (4.0/5.0)*tr[0];
-    const double e11 = 2*q[1];
-    const double e12 = e8*tr[0];
-    const double e13 = 2*e12 - 4.0/5.0*tr[1];
-    const double e14 = (11.0/10.0)*tr[0];
-    const double e15 = (3.0/5.0)*tr[1];
-    const double e16 = 2*q[3];
-    const double e17 = -e16 + e7;
-    const double e18 = (3.0/10.0)*tr[2];
-    const double e19 = -e3 - 3.0/4.0;
-    const double e20 = e19*tr[3];
-    const double e21 = 2*e20;
-    const double e22 = e18 - e21;
-    const double e23 = (3.0/10.0)*tr[3];
-    const double e24 = e19*tr[2];
-    const double e25 = 2*e24;
-    const double e26 = 2*q[4];
-    const double e27 = e11 - e26;
-    const double e28 = (3.0/5.0)*tr[0];
-    const double e29 = (11.0/10.0)*tr[1];
-    const double e30 = e28 + e29;
-    const double e31 = e14 - e15;
-    const double e32 = e24 - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3] + (-q[1] + q[4]);
-    const double e33 = e20 + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2] + (-q[0] + q[3]);
-    const double e34 = e23 + e25;
-    const double e35 = (7.0/10.0)*tr[2];
-    const double e36 = 2.0/5.0 - e3;
-    const double e37 = e36*tr[3];
-    const double e38 = 2*e37;
-    const double e39 = e16 - 2*q[6];
-    const double e40 = -e6 - 1.0/20.0;
-    const double e41 = e40*tr[5];
-    const double e42 = 2*e41;
-    const double e43 = -e42 + tr[4];
-    const double e44 = e40*tr[4];
-    const double e45 = 2*e44;
-    const double e46 = e26 - 2*q[7];
-    const double e47 = (7.0/10.0)*tr[3];
-    const double e48 = e36*tr[2];
-    const double e49 = 2*e48;
-    const double e50 = e47 + e49;
-    const double e51 = e35 - e38;
-    const double e52 = e44 - e48 - 7.0/20.0*tr[3] + (1.0/2.0)*tr[5] + (-q[4] + q[7]);
-    const double e53 = -e37 + e41 + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4] + (-q[3] + q[6]);
-    const double e54 = e45 + tr[5];
+    const excavator_real e0 = (1.0/2.0)*p[0];
+    const excavator_real e1 = e0*tr[0];
+    const excavator_real e2 = -e0*tr[1];
+    const excavator_real e3 = (1.0/2.0)*p[1];
+    const excavator_real e4 = e3*tr[2];
+    const excavator_real e5 = -e3*tr[3];
+    const excavator_real e6 = (1.0/2.0)*p[2];
+    const excavator_real e7 = 2*q[0];
+    const excavator_real e8 = 23.0/10.0 - e0;
+    const excavator_real e9 = e8*tr[1];
+    const excavator_real e10 = 2*e9 + (4.0/5.0)*tr[0];
+    const excavator_real e11 = 2*q[1];
+    const excavator_real e12 = e8*tr[0];
+    const excavator_real e13 = 2*e12 - 4.0/5.0*tr[1];
+    const excavator_real e14 = (11.0/10.0)*tr[0];
+    const excavator_real e15 = (3.0/5.0)*tr[1];
+    const excavator_real e16 = 2*q[3];
+    const excavator_real e17 = -e16 + e7;
+    const excavator_real e18 = (3.0/10.0)*tr[2];
+    const excavator_real e19 = -e3 - 3.0/4.0;
+    const excavator_real e20 = e19*tr[3];
+    const excavator_real e21 = 2*e20;
+    const excavator_real e22 = e18 - e21;
+    const excavator_real e23 = (3.0/10.0)*tr[3];
+    const excavator_real e24 = e19*tr[2];
+    const excavator_real e25 = 2*e24;
+    const excavator_real e26 = 2*q[4];
+    const excavator_real e27 = e11 - e26;
+    const excavator_real e28 = (3.0/5.0)*tr[0];
+    const excavator_real e29 = (11.0/10.0)*tr[1];
+    const excavator_real e30 = e28 + e29;
+    const excavator_real e31 = e14 - e15;
+    const excavator_real e32 = e24 - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3] + (-q[1] + q[4]);
+    const excavator_real e33 = e20 + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2] + (-q[0] + q[3]);
+    const excavator_real e34 = e23 + e25;
+    const excavator_real e35 = (7.0/10.0)*tr[2];
+    const excavator_real e36 = 2.0/5.0 - e3;
+    const excavator_real e37 = e36*tr[3];
+    const excavator_real e38 = 2*e37;
+    const excavator_real e39 = e16 - 2*q[6];
+    const excavator_real e40 = -e6 - 1.0/20.0;
+    const excavator_real e41 = e40*tr[5];
+    const excavator_real e42 = 2*e41;
+    const excavator_real e43 = -e42 + tr[4];
+    const excavator_real e44 = e40*tr[4];
+    const excavator_real e45 = 2*e44;
+    const excavator_real e46 = e26 - 2*q[7];
+    const excavator_real e47 = (7.0/10.0)*tr[3];
+    const excavator_real e48 = e36*tr[2];
+    const excavator_real e49 = 2*e48;
+    const excavator_real e50 = e47 + e49;
+    const excavator_real e51 = e35 - e38;
+    const excavator_real e52 = e44 - e48 - 7.0/20.0*tr[3] + (1.0/2.0)*tr[5] + (-q[4] + q[7]);
+    const excavator_real e53 = -e37 + e41 + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4] + (-q[3] + q[6]);
+    const excavator_real e54 = e45 + tr[5];
     out[0] = 1;
     out[1] = e1;
     out[2] = 1;
@@ -237,27 +237,27 @@ static void excavator_phi_q_k0(const double * q, const double * tr, double t, co
     out[34] = -e43*e52 - e53*e54;
 }
 
-static void excavator_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void excavator_phi_q_k(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     excavator_phi_q_k0(q, tr, t, p, out);
 }
 
-void excavator_phi_q(const double * q, double t, const double * p, double *out)
+void excavator_phi_q(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    double tr[6];
+    excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_phi_q_k(q, tr, t, p, out);
 }
 
-static void excavator_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void excavator_nu_k0(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     (void)q;
     (void)tr;
-    const double e0 = p[8]*t;
-    const double e1 = sin(e0);
-    const double e2 = cos(e0);
-    const double e3 = 1.0/2.0 - 1.0/2.0*e2;
-    const double e4 = e1*p[8];
+    const excavator_real e0 = p[8]*t;
+    const excavator_real e1 = sin(e0);
+    const excavator_real e2 = cos(e0);
+    const excavator_real e3 = 1.0/2.0 - 1.0/2.0*e2;
+    const excavator_real e4 = e1*p[8];
     out[0] = 0;
     out[1] = 0;
     out[2] = 0;
@@ -269,94 +269,94 @@ static void excavator_nu_k0(const double * q, const double * tr, double t, const
     out[8] = e4*p[14]*(e3*p[14] + p[13]);
 }
 
-static void excavator_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void excavator_nu_k(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     excavator_nu_k0(q, tr, t, p, out);
 }
 
-void excavator_nu(const double * q, double t, const double * p, double *out)
+void excavator_nu(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    double tr[6];
+    excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_nu_k(q, tr, t, p, out);
 }
 
-static void excavator_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void excavator_gamma_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    const double e0 = (1.0/2.0)*p[0];
-    const double e1 = pow(qd[2], 2);
-    const double e2 = e1*tr[1];
-    const double e3 = e0*e2;
-    const double e4 = e1*tr[0];
-    const double e5 = e0*e4;
-    const double e6 = pow(qd[5], 2);
-    const double e7 = (1.0/2.0)*p[1];
-    const double e8 = e6*e7;
-    const double e9 = e8*tr[3];
-    const double e10 = e8*tr[2];
-    const double e11 = (1.0/2.0)*p[2];
-    const double e12 = pow(qd[8], 2);
-    const double e13 = e12*tr[5];
-    const double e14 = e12*tr[4];
-    const double e15 = p[8]*t;
-    const double e16 = cos(e15);
-    const double e17 = pow(p[8], 2);
-    const double e18 = 2*e17;
-    const double e19 = (8.0/5.0)*qd[2];
-    const double e20 = 23.0/10.0 - e0;
-    const double e21 = (3.0/5.0)*e2;
-    const double e22 = e4*q[0];
-    const double e23 = e20*e4;
-    const double e24 = qd[2]*tr[1];
-    const double e25 = sin(e15);
-    const double e26 = e25*p[10];
-    const double e27 = 2*q[0];
-    const double e28 = 2*q[1];
-    const double e29 = 4*qd[0];
-    const double e30 = 2*pow(qd[0], 2) + 2*pow(qd[1], 2);
-    const double e31 = 2*pow(qd[3], 2) + 2*pow(qd[4], 2);
-    const double e32 = pow(e25, 2);
-    const double e33 = (3.0/5.0)*e4;
-    const double e34 = (3.0/5.0)*qd[5];
-    const double e35 = (3.0/10.0)*e6;
-    const double e36 = (6.0/5.0)*qd[2];
-    const double e37 = (9.0/100.0)*tr[3];
-    const double e38 = e6*tr[0];
-    const double e39 = (11.0/5.0)*qd[2];
-    const double e40 = e39*tr[0];
-    const double e41 = (11.0/10.0)*e2;
-    const double e42 = (33.0/200.0)*tr[2];
-    const double e43 = (33.0/200.0)*tr[3];
-    const double e44 = e6*tr[1];
-    const double e45 = 1.0/2.0 - 1.0/2.0*e16;
-    const double e46 = -e7 - 3.0/4.0;
-    const double e47 = e46*e6;
-    const double e48 = e46*qd[5];
-    const double e49 = 4*qd[4];
-    const double e50 = e48*tr[3];
-    const double e51 = e46*tr[2];
-    const double e52 = e46*tr[3];
-    const double e53 = 2*qd[8];
-    const double e54 = e53*tr[4];
-    const double e55 = (7.0/5.0)*qd[5];
-    const double e56 = e55*tr[2];
-    const double e57 = (7.0/10.0)*e6;
-    const double e58 = e57*tr[3];
-    const double e59 = (7.0/20.0)*tr[2];
-    const double e60 = e6*tr[4];
-    const double e61 = (7.0/20.0)*tr[3];
-    const double e62 = e6*tr[5];
-    const double e63 = 2.0/5.0 - e7;
-    const double e64 = e63*tr[2];
-    const double e65 = -e11 - 1.0/20.0;
-    const double e66 = e13*e65;
-    const double e67 = e14*e65;
-    const double e68 = e63*tr[3];
-    const double e69 = 2*e6;
-    const double e70 = e65*qd[8];
-    const double e71 = e68*qd[5];
-    const double e72 = e70*tr[5];
-    const double e73 = 2*e65;
+    const excavator_real e0 = (1.0/2.0)*p[0];
+    const excavator_real e1 = pow(qd[2], 2);
+    const excavator_real e2 = e1*tr[1];
+    const excavator_real e3 = e0*e2;
+    const excavator_real e4 = e1*tr[0];
+    const excavator_real e5 = e0*e4;
+    const excavator_real e6 = pow(qd[5], 2);
+    const excavator_real e7 = (1.0/2.0)*p[1];
+    const excavator_real e8 = e6*e7;
+    const excavator_real e9 = e8*tr[3];
+    const excavator_real e10 = e8*tr[2];
+    const excavator_real e11 = (1.0/2.0)*p[2];
+    const excavator_real e12 = pow(qd[8], 2);
+    const excavator_real e13 = e12*tr[5];
+    const excavator_real e14 = e12*tr[4];
+    const excavator_real e15 = p[8]*t;
+    const excavator_real e16 = cos(e15);
+    const excavator_real e17 = pow(p[8], 2);
+    const excavator_real e18 = 2*e17;
+    const excavator_real e19 = (8.0/5.0)*qd[2];
+    const excavator_real e20 = 23.0/10.0 - e0;
+    const excavator_real e21 = (3.0/5.0)*e2;
+    const excavator_real e22 = e4*q[0];
+    const excavator_real e23 = e20*e4;
+    const excavator_real e24 = qd[2]*tr[1];
+    const excavator_real e25 = sin(e15);
+    const excavator_real e26 = e25*p[10];
+    const excavator_real e27 = 2*q[0];
+    const excavator_real e28 = 2*q[1];
+    const excavator_real e29 = 4*qd[0];
+    const excavator_real e30 = 2*pow(qd[0], 2) + 2*pow(qd[1], 2);
+    const excavator_real e31 = 2*pow(qd[3], 2) + 2*pow(qd[4], 2);
+    const excavator_real e32 = pow(e25, 2);
+    const excavator_real e33 = (3.0/5.0)*e4;
+    const excavator_real e34 = (3.0/5.0)*qd[5];
+    const excavator_real e35 = (3.0/10.0)*e6;
+    const excavator_real e36 = (6.0/5.0)*qd[2];
+    const excavator_real e37 = (9.0/100.0)*tr[3];
+    const excavator_real e38 = e6*tr[0];
+    const excavator_real e39 = (11.0/5.0)*qd[2];
+    const excavator_real e40 = e39*tr[0];
+    const excavator_real e41 = (11.0/10.0)*e2;
+    const excavator_real e42 = (33.0/200.0)*tr[2];
+    const excavator_real e43 = (33.0/200.0)*tr[3];
+    const excavator_real e44 = e6*tr[1];
+    const excavator_real e45 = 1.0/2.0 - 1.0/2.0*e16;
+    const excavator_real e46 = -e7 - 3.0/4.0;
+    const excavator_real e47 = e46*e6;
+    const excavator_real e48 = e46*qd[5];
+    const excavator_real e49 = 4*qd[4];
+    const excavator_real e50 = e48*tr[3];
+    const excavator_real e51 = e46*tr[2];
+    const excavator_real e52 = e46*tr[3];
+    const excavator_real e53 = 2*qd[8];
+    const excavator_real e54 = e53*tr[4];
+    const excavator_real e55 = (7.0/5.0)*qd[5];
+    const excavator_real e56 = e55*tr[2];
+    const excavator_real e57 = (7.0/10.0)*e6;
+    const excavator_real e58 = e57*tr[3];
+    const excavator_real e59 = (7.0/20.0)*tr[2];
+    const excavator_real e60 = e6*tr[4];
+    const excavator_real e61 = (7.0/20.0)*tr[3];
+    const excavator_real e62 = e6*tr[5];
+    const excavator_real e63 = 2.0/5.0 - e7;
+    const excavator_real e64 = e63*tr[2];
+    const excavator_real e65 = -e11 - 1.0/20.0;
+    const excavator_real e66 = e13*e65;
+    const excavator_real e67 = e14*e65;
+    const excavator_real e68 = e63*tr[3];
+    const excavator_real e69 = 2*e6;
+    const excavator_real e70 = e65*qd[8];
+    const excavator_real e71 = e68*qd[5];
+    const excavator_real e72 = e70*tr[5];
+    const excavator_real e73 = 2*e65;
     out[0] = -e3;
     out[1] = -e5;
     out[2] = -e3 - e9;
@@ -368,24 +368,24 @@ static void excavator_gamma_k0(const double * q, const double * tr, const double
     out[8] = e12*e63*tr[3]*tr[4] + 2*e12*e65*q[6]*tr[5] + 2*e12*e65*q[7]*tr[4] + (7.0/10.0)*e12*e65*tr[2]*tr[5] + e12*q[3]*tr[4] + e12*q[7]*tr[5] - e13*e61 - e13*e64 - e13*q[4] - e14*e59 - e14*q[6] + e16*e17*p[14]*(e45*p[14] + p[13]) + (1.0/2.0)*e17*e32*pow(p[14], 2) - e49*e71 - e53*qd[3]*tr[5] - e54*e71 - e54*qd[4] - e55*qd[6]*tr[3] - e56*e72 - e56*qd[7] - e57*q[3]*tr[2] - e58*e65*tr[4] - e58*q[7] - e59*e60 + 2*e6*e63*q[3]*tr[3] + 2*e6*e63*q[4]*tr[2] + e6*e63*tr[3]*tr[4] + (7.0/10.0)*e6*e65*tr[2]*tr[5] + (7.0/10.0)*e6*q[4]*tr[3] + (7.0/10.0)*e6*q[6]*tr[2] - e60*e64*e73 - e61*e62 - e62*e64 - e62*e68*e73 + 4*e63*e65*qd[5]*qd[8]*tr[2]*tr[4] + 4*e63*e65*qd[5]*qd[8]*tr[3]*tr[5] + 4*e63*qd[3]*qd[5]*tr[2] + 4*e63*qd[5]*qd[7]*tr[3] + 2*e63*qd[5]*qd[8]*tr[2]*tr[5] - 2*e64*e67 - e64*e69*q[7] - 4*e64*qd[5]*qd[6] + 4*e65*qd[4]*qd[8]*tr[5] + (7.0/5.0)*e65*qd[5]*qd[8]*tr[3]*tr[4] + 4*e65*qd[6]*qd[8]*tr[4] - 2*e66*e68 - 2*e66*q[3] - 2*e67*q[4] - 7.0/10.0*e67*tr[3] - e68*e69*q[6] - 4*e70*qd[3]*tr[4] - 4*e72*qd[7] + (7.0/5.0)*qd[3]*qd[5]*tr[3] + (7.0/5.0)*qd[4]*qd[5]*tr[2] + (7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4] + (7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5] + 2*qd[6]*qd[8]*tr[5] + 2*qd[7]*qd[8]*tr[4] + (-e31 + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*pow(qd[6], 2) - 2*pow(qd[7], 2));
 }
 
-static void excavator_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void excavator_gamma_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     excavator_gamma_k0(q, tr, qd, t, p, out);
 }
 
-void excavator_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void excavator_gamma(const excavator_real * q, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    double tr[6];
+    excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void excavator_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void excavator_applied_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     (void)q;
     (void)qd;
-    const double e0 = exp(-pow(-p[16] + t, 2)/pow(p[17], 2));
-    const double e1 = e0*p[15];
+    const excavator_real e0 = exp(-pow(-p[16] + t, 2)/pow(p[17], 2));
+    const excavator_real e1 = e0*p[15];
     out[0] = 0;
     out[1] = -981.0/100.0*p[4];
     out[2] = 0;
@@ -397,19 +397,19 @@ static void excavator_applied_k0(const double * q, const double * tr, const doub
     out[8] = (3.0/20.0)*e0*p[15]*p[2]*tr[5] - 1.0/2.0*e1*p[2]*tr[4];
 }
 
-static void excavator_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void excavator_applied_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     excavator_applied_k0(q, tr, qd, t, p, out);
 }
 
-void excavator_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void excavator_applied(const excavator_real * q, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    double tr[6];
+    excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_applied_k(q, tr, qd, t, p, out);
 }
 
-static void excavator_mass_k0(const double * p, double *out)
+static void excavator_mass_k0(const excavator_real * p, excavator_real *out)
 {
     out[0] = p[4];
     out[1] = p[4];
@@ -422,57 +422,57 @@ static void excavator_mass_k0(const double * p, double *out)
     out[8] = (1.0/12.0)*p[6]*(pow(p[2], 2) + pow(p[3], 2));
 }
 
-static void excavator_mass_k(const double * p, double *out)
+static void excavator_mass_k(const excavator_real * p, excavator_real *out)
 {
     excavator_mass_k0(p, out);
 }
 
-void excavator_mass(const double * p, double *out)
+void excavator_mass(const excavator_real * p, excavator_real *out)
 {
     excavator_mass_k(p, out);
 }
 
-static void excavator_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void excavator_reactions_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * lam, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     (void)t;
-    const double e0 = 2*lam[6];
-    const double e1 = e0*q[0] - 3.0/5.0*lam[6];
-    const double e2 = (4.0/5.0)*lam[6];
-    const double e3 = e0*(23.0/10.0 - 1.0/2.0*p[0]);
-    const double e4 = e2*tr[0] + e3*tr[1];
-    const double e5 = e2*tr[1];
-    const double e6 = e3*tr[0];
-    const double e7 = e0*q[1] + (12.0/5.0)*lam[6];
-    const double e8 = lam[7]*tr[1];
-    const double e9 = (3.0/5.0)*e8;
-    const double e10 = (3.0/10.0)*lam[7];
-    const double e11 = e10*tr[2];
-    const double e12 = lam[7]*tr[0];
-    const double e13 = (11.0/10.0)*e12;
-    const double e14 = (1.0/2.0)*p[1];
-    const double e15 = 2*lam[7];
-    const double e16 = e15*(-e14 - 3.0/4.0);
-    const double e17 = e16*tr[3];
-    const double e18 = e15*q[0] - 2*lam[7]*q[3];
-    const double e19 = (11.0/10.0)*e8;
-    const double e20 = (3.0/5.0)*e12;
-    const double e21 = e10*tr[3];
-    const double e22 = e16*tr[2];
-    const double e23 = e15*q[1] - 2*lam[7]*q[4];
-    const double e24 = lam[8]*tr[4];
-    const double e25 = (7.0/10.0)*lam[8];
-    const double e26 = e25*tr[2];
-    const double e27 = 2*lam[8];
-    const double e28 = e27*(2.0/5.0 - e14);
-    const double e29 = e28*tr[3];
-    const double e30 = lam[8]*tr[5];
-    const double e31 = -p[2] - 1.0/10.0;
-    const double e32 = e30*e31;
-    const double e33 = e27*q[3] - 2*lam[8]*q[6];
-    const double e34 = e25*tr[3];
-    const double e35 = e28*tr[2];
-    const double e36 = e24*e31;
-    const double e37 = e27*q[4] - 2*lam[8]*q[7];
+    const excavator_real e0 = 2*lam[6];
+    const excavator_real e1 = e0*q[0] - 3.0/5.0*lam[6];
+    const excavator_real e2 = (4.0/5.0)*lam[6];
+    const excavator_real e3 = e0*(23.0/10.0 - 1.0/2.0*p[0]);
+    const excavator_real e4 = e2*tr[0] + e3*tr[1];
+    const excavator_real e5 = e2*tr[1];
+    const excavator_real e6 = e3*tr[0];
+    const excavator_real e7 = e0*q[1] + (12.0/5.0)*lam[6];
+    const excavator_real e8 = lam[7]*tr[1];
+    const excavator_real e9 = (3.0/5.0)*e8;
+    const excavator_real e10 = (3.0/10.0)*lam[7];
+    const excavator_real e11 = e10*tr[2];
+    const excavator_real e12 = lam[7]*tr[0];
+    const excavator_real e13 = (11.0/10.0)*e12;
+    const excavator_real e14 = (1.0/2.0)*p[1];
+    const excavator_real e15 = 2*lam[7];
+    const excavator_real e16 = e15*(-e14 - 3.0/4.0);
+    const excavator_real e17 = e16*tr[3];
+    const excavator_real e18 = e15*q[0] - 2*lam[7]*q[3];
+    const excavator_real e19 = (11.0/10.0)*e8;
+    const excavator_real e20 = (3.0/5.0)*e12;
+    const excavator_real e21 = e10*tr[3];
+    const excavator_real e22 = e16*tr[2];
+    const excavator_real e23 = e15*q[1] - 2*lam[7]*q[4];
+    const excavator_real e24 = lam[8]*tr[4];
+    const excavator_real e25 = (7.0/10.0)*lam[8];
+    const excavator_real e26 = e25*tr[2];
+    const excavator_real e27 = 2*lam[8];
+    const excavator_real e28 = e27*(2.0/5.0 - e14);
+    const excavator_real e29 = e28*tr[3];
+    const excavator_real e30 = lam[8]*tr[5];
+    const excavator_real e31 = -p[2] - 1.0/10.0;
+    const excavator_real e32 = e30*e31;
+    const excavator_real e33 = e27*q[3] - 2*lam[8]*q[6];
+    const excavator_real e34 = e25*tr[3];
+    const excavator_real e35 = e28*tr[2];
+    const excavator_real e36 = e24*e31;
+    const excavator_real e37 = e27*q[4] - 2*lam[8]*q[7];
     out[0] = lam[0];
     out[1] = lam[1];
     out[2] = 0;
@@ -511,14 +511,14 @@ static void excavator_reactions_k0(const double * q, const double * tr, const do
     out[35] = 0;
 }
 
-static void excavator_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void excavator_reactions_k(const excavator_real * q, const excavator_real * tr, const excavator_real * lam, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     excavator_reactions_k0(q, tr, lam, t, p, out);
 }
 
-void excavator_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void excavator_reactions(const excavator_real * q, const excavator_real * lam, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    double tr[6];
+    excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_reactions_k(q, tr, lam, t, p, out);
 }
@@ -533,10 +533,10 @@ void excavator_reactions(const double * q, const double * lam, double t, const d
    of the full factorization. The solves' vectors never overlap the factors
    or each other: restrict lets an unknown stay in a register across its
    updates. */
-static int excavator_sparse_factor0(double *lu)
+static int excavator_sparse_factor0(excavator_real *lu)
 {
-    double piv = 0.0;
-    double cm = 0.0;
+    excavator_real piv = 0.0;
+    excavator_real cm = 0.0;
     cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[33]));
     if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
@@ -612,12 +612,12 @@ static int excavator_sparse_factor0(double *lu)
     return 0;
 }
 
-static int excavator_sparse_factor(double *lu)
+static int excavator_sparse_factor(excavator_real *lu)
 {
     return excavator_sparse_factor0(lu);
 }
 
-static void excavator_sparse_forward0(const double *EXCAVATOR_RESTRICT lu, double *EXCAVATOR_RESTRICT y)
+static void excavator_sparse_forward0(const excavator_real *EXCAVATOR_RESTRICT lu, excavator_real *EXCAVATOR_RESTRICT y)
 {
     y[8] -= lu[33] * y[5];
     y[3] += y[1];
@@ -640,7 +640,7 @@ static void excavator_sparse_forward0(const double *EXCAVATOR_RESTRICT lu, doubl
 }
 
 static void excavator_sparse_back0(
-    const double *EXCAVATOR_RESTRICT lu, const double *EXCAVATOR_RESTRICT y, double *EXCAVATOR_RESTRICT x)
+    const excavator_real *EXCAVATOR_RESTRICT lu, const excavator_real *EXCAVATOR_RESTRICT y, excavator_real *EXCAVATOR_RESTRICT x)
 {
     x[8] = (y[4]) * lu[15];
     x[6] = (y[8] - lu[34] * x[8]) * lu[32];
@@ -653,15 +653,15 @@ static void excavator_sparse_back0(
     x[7] = y[5] + x[4] - lu[17] * x[5] - lu[19] * x[8];
 }
 
-static void excavator_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static void excavator_sparse_solve(const excavator_real *lu, const excavator_real *b, excavator_real *x, excavator_real *y)
 {
-    memcpy(y, b, sizeof(double) * 9);
+    memcpy(y, b, sizeof(excavator_real) * 9);
     excavator_sparse_forward0(lu, y);
     excavator_sparse_back0(lu, y, x);
 }
 
 static void excavator_sparse_t_forward0(
-    const double *EXCAVATOR_RESTRICT lu, const double *EXCAVATOR_RESTRICT b, double *EXCAVATOR_RESTRICT x)
+    const excavator_real *EXCAVATOR_RESTRICT lu, const excavator_real *EXCAVATOR_RESTRICT b, excavator_real *EXCAVATOR_RESTRICT x)
 {
     x[5] = b[7];
     x[1] = b[1];
@@ -674,7 +674,7 @@ static void excavator_sparse_t_forward0(
     x[4] = (b[8] - lu[19] * x[5] - lu[34] * x[8]) * lu[15];
 }
 
-static void excavator_sparse_t_back0(const double *EXCAVATOR_RESTRICT lu, double *EXCAVATOR_RESTRICT x)
+static void excavator_sparse_t_back0(const excavator_real *EXCAVATOR_RESTRICT lu, excavator_real *EXCAVATOR_RESTRICT x)
 {
     x[8] -= lu[14] * x[4];
     x[2] -= lu[13] * x[4];
@@ -696,7 +696,7 @@ static void excavator_sparse_t_back0(const double *EXCAVATOR_RESTRICT lu, double
     x[5] -= lu[33] * x[8];
 }
 
-static void excavator_sparse_solve_t(const double *lu, const double *b, double *x)
+static void excavator_sparse_solve_t(const excavator_real *lu, const excavator_real *b, excavator_real *x)
 {
     excavator_sparse_t_forward0(lu, b, x);
     excavator_sparse_t_back0(lu, x);
@@ -704,11 +704,11 @@ static void excavator_sparse_solve_t(const double *lu, const double *b, double *
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns
    EXCAVATOR_SINGULAR when the pivots span more than 1 / SINGULAR_RATIO. */
-static int excavator_dense_factor(double *a, int *perm)
+static int excavator_dense_factor(excavator_real *a, int *perm)
 {
     const int n = 9;
     int i, j, k;
-    double umax = 0.0, umin = INFINITY;
+    excavator_real umax = 0.0, umin = INFINITY;
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -716,7 +716,7 @@ static int excavator_dense_factor(double *a, int *perm)
         perm[k] = best;
         if (best != k)
             for (j = 0; j < n; ++j) {
-                double tmp = a[k * n + j];
+                excavator_real tmp = a[k * n + j];
                 a[k * n + j] = a[best * n + j];
                 a[best * n + j] = tmp;
             }
@@ -724,20 +724,20 @@ static int excavator_dense_factor(double *a, int *perm)
         umax = fmax(umax, fabs(a[k * n + k]));
         umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            double m = a[i * n + k] /= a[k * n + k];
+            excavator_real m = a[i * n + k] /= a[k * n + k];
             for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
         }
     }
     return umin <= EXCAVATOR_SINGULAR_RATIO * umax ? EXCAVATOR_SINGULAR : EXCAVATOR_OK;
 }
 
-static void excavator_dense_solve(const double *a, const int *perm, const double *b, double *x)
+static void excavator_dense_solve(const excavator_real *a, const int *perm, const excavator_real *b, excavator_real *x)
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(excavator_real) * n);
     for (i = 0; i < n; ++i) {
-        double tmp = x[perm[i]];
+        excavator_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
         for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
@@ -748,11 +748,11 @@ static void excavator_dense_solve(const double *a, const int *perm, const double
     }
 }
 
-static void excavator_dense_solve_t(const double *a, const int *perm, const double *b, double *x)
+static void excavator_dense_solve_t(const excavator_real *a, const int *perm, const excavator_real *b, excavator_real *x)
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(excavator_real) * n);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -761,7 +761,7 @@ static void excavator_dense_solve_t(const double *a, const int *perm, const doub
         for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
     }
     for (i = n - 1; i >= 0; --i) {
-        double tmp = x[perm[i]];
+        excavator_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
     }
@@ -773,13 +773,13 @@ static const int excavator_pivot_slots[6] = { 20, 1, 26, 7, 32, 15 };
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
-static int excavator_pivots_spread(const double *lu)
+static int excavator_pivots_spread(const excavator_real *lu)
 {
-    double rmin = 1.0;
-    double rmax = 1.0;
+    excavator_real rmin = 1.0;
+    excavator_real rmax = 1.0;
     int k;
     for (k = 0; k < 6; ++k) {
-        double r = fabs(lu[excavator_pivot_slots[k]]);
+        excavator_real r = fabs(lu[excavator_pivot_slots[k]]);
         rmin = EXCAVATOR_MIN(rmin, r);
         rmax = EXCAVATOR_MAX(rmax, r);
     }
@@ -789,28 +789,28 @@ static int excavator_pivots_spread(const double *lu)
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
-static int excavator_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+static int excavator_factorize(const excavator_real *q, const excavator_real *tr, excavator_real t, const excavator_real *p, excavator_real *work,
                              int *iwork, int *dense)
 {
-    double *values = work, *lu = work + EXCAVATOR_OFF_LU, *a = work + EXCAVATOR_OFF_DENSE;
+    excavator_real *values = work, *lu = work + EXCAVATOR_OFF_LU, *a = work + EXCAVATOR_OFF_DENSE;
     int k;
     excavator_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (excavator_sparse_factor(lu) == 0 && !excavator_pivots_spread(lu)) return EXCAVATOR_OK;
     *dense = 1;
     excavator_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(double) * 81);
+    memset(a, 0, sizeof(excavator_real) * 81);
     for (k = 0; k < 35; ++k) a[excavator_phi_q_rows[k] * 9 + excavator_phi_q_cols[k]] = values[k];
     return excavator_dense_factor(a, iwork);
 }
 
-static void excavator_solve(const double *work, const int *iwork, int dense, const double *b, double *x, double *y)
+static void excavator_solve(const excavator_real *work, const int *iwork, int dense, const excavator_real *b, excavator_real *x, excavator_real *y)
 {
     if (dense) excavator_dense_solve(work + EXCAVATOR_OFF_DENSE, iwork, b, x);
     else excavator_sparse_solve(work + EXCAVATOR_OFF_LU, b, x, y);
 }
 
-static void excavator_solve_t(const double *work, const int *iwork, int dense, const double *b, double *x)
+static void excavator_solve_t(const excavator_real *work, const int *iwork, int dense, const excavator_real *b, excavator_real *x)
 {
     if (dense) excavator_dense_solve_t(work + EXCAVATOR_OFF_DENSE, iwork, b, x);
     else excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, b, x);
@@ -818,12 +818,12 @@ static void excavator_solve_t(const double *work, const int *iwork, int dense, c
 
 /* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
    Four running maxima and sums: one chain would wait on each comparison. */
-static double excavator_maxabs(const double *v, int n)
+static excavator_real excavator_maxabs(const excavator_real *v, int n)
 {
-    double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    excavator_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     int k;
     for (k = 0; k + 4 <= n; k += 4) {
-        const double a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
+        const excavator_real a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
         m0 = a0 > m0 ? a0 : m0;
         m1 = a1 > m1 ? a1 : m1;
         m2 = a2 > m2 ? a2 : m2;
@@ -834,7 +834,7 @@ static double excavator_maxabs(const double *v, int n)
         s3 += a3;
     }
     for (; k < n; ++k) {
-        const double a = fabs(v[k]);
+        const excavator_real a = fabs(v[k]);
         m0 = a > m0 ? a : m0;
         s0 += a;
     }
@@ -848,12 +848,12 @@ static double excavator_maxabs(const double *v, int n)
    origin that differs from dq by a rounding of q, which sin and cos of the
    new angle must see (the subtraction is exact for steps under half the
    coordinate, and within a rounding of the step otherwise). */
-static double excavator_correct(double *q, double *dq)
+static excavator_real excavator_correct(excavator_real *q, excavator_real *dq)
 {
-    const double step = excavator_maxabs(dq, 9);
+    const excavator_real step = excavator_maxabs(dq, 9);
     int k;
     for (k = 0; k < 9; ++k) {
-        const double old = q[k];
+        const excavator_real old = q[k];
         q[k] = old - dq[k];
         dq[k] = old - q[k];
     }
@@ -867,12 +867,12 @@ static double excavator_correct(double *q, double *dq)
    from the bases the previous instant left (trig_near); without reuse, both
    start afresh. Converged: |Phi| and the last correction both within the
    tolerance's floor. On success the factors are those of q. */
-static int excavator_newton(double t, const double *p, double tol, double *q, double *tr, int *info, double *work,
+static int excavator_newton(excavator_real t, const excavator_real *p, excavator_real tol, excavator_real *q, excavator_real *tr, int *info, excavator_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    double *r = EXCAVATOR_VEC(work, 0), *dq = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
-    double *base = EXCAVATOR_VEC(work, 10);
-    double step = INFINITY, lim, qmag, rmax;
+    excavator_real *r = EXCAVATOR_VEC(work, 0), *dq = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
+    excavator_real *base = EXCAVATOR_VEC(work, 10);
+    excavator_real step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -930,10 +930,10 @@ static int excavator_newton(double t, const double *p, double tol, double *q, do
 }
 
 /* The compiled outputs at a solved q, with the factors of Phi_q(q). */
-static void excavator_outputs(double t, const double *p, const double *q, const double *tr, double *qd, double *qdd,
-                            double *lam, double *reactions, double *work, const int *iwork, int dense)
+static void excavator_outputs(excavator_real t, const excavator_real *p, const excavator_real *q, const excavator_real *tr, excavator_real *qd, excavator_real *qdd,
+                            excavator_real *lam, excavator_real *reactions, excavator_real *work, const int *iwork, int dense)
 {
-    double *y = EXCAVATOR_VEC(work, 2), *b = EXCAVATOR_VEC(work, 3);
+    excavator_real *y = EXCAVATOR_VEC(work, 2), *b = EXCAVATOR_VEC(work, 3);
     int k;
     excavator_nu_k(q, tr, t, p, b);
     excavator_solve(work, iwork, dense, b, qd, y);
@@ -948,8 +948,8 @@ static void excavator_outputs(double t, const double *p, const double *q, const 
 
 /* Whether everything an instant computed is finite (maxabs is NaN if any
    value is): a few comparisons per value, against an instant's solve. */
-static int excavator_finite(const double *q, const double *qd, const double *qdd, const double *lam,
-                          const double *reactions)
+static int excavator_finite(const excavator_real *q, const excavator_real *qd, const excavator_real *qdd, const excavator_real *lam,
+                          const excavator_real *reactions)
 {
     (void)qd; (void)qdd; (void)lam; (void)reactions;
     return isfinite(excavator_maxabs(q, 9))
@@ -963,22 +963,22 @@ static int excavator_finite(const double *q, const double *qd, const double *qdd
    explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
    it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
    the rule of symid.numeric.solve.unexplained). O(NG) a step. */
-static int excavator_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
-                               const double *qd1, const double *qdd1, double h, const double *c)
+static int excavator_unexplained(const excavator_real *q0, const excavator_real *qd0, const excavator_real *qdd0, const excavator_real *q1,
+                               const excavator_real *qd1, const excavator_real *qdd1, excavator_real h, const excavator_real *c)
 {
-    const double half = 0.5 * h, hh = h * h / 12.0;
-    double mismatch = 0.0, motion = 0.0;
+    const excavator_real half = 0.5 * h, hh = h * h / 12.0;
+    excavator_real mismatch = 0.0, motion = 0.0;
     int k;
     for (k = 0; k < 9; ++k) {
-        const double d = q1[k] - q0[k];
+        const excavator_real d = q1[k] - q0[k];
         mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
         motion = EXCAVATOR_MAX(motion, fabs(d) * c[k]);
     }
     return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
 }
 
-int excavator_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork)
+int excavator_instant(excavator_real t, const excavator_real *p, excavator_real tol, excavator_real *q, excavator_real *qd, excavator_real *qdd,
+                    excavator_real *lam, excavator_real *reactions, int *info, excavator_real *work, int *iwork)
 {
     int dense = 0, status, counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
@@ -986,7 +986,7 @@ int excavator_instant(double t, const double *p, double tol, double *q, double *
         || !isfinite(tol) || tol <= 0.0) {
         status = EXCAVATOR_BAD_ARGUMENT;
     } else {
-        double *tr = EXCAVATOR_VEC(work, 9);
+        excavator_real *tr = EXCAVATOR_VEC(work, 9);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = EXCAVATOR_VEC(work, 5);
@@ -1006,16 +1006,16 @@ int excavator_instant(double t, const double *p, double tol, double *q, double *
     return status;
 }
 
-int excavator_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
-                       double *rows, long *solved, double *work, int *iwork)
+int excavator_trajectory(excavator_real t0, excavator_real h, long n, const excavator_real *p, excavator_real tol, excavator_real *state,
+                       excavator_real *rows, long *solved, excavator_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *m1 = state + 27, *m2 = state + 36;
-    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
-    double *scale = state + 54;
-    double *count = state + 63;
-    double *qn, *qdn, *qddn, *lam, *reac, *tr = EXCAVATOR_VEC(work, 9);
+    excavator_real *q = state, *m1 = state + 27, *m2 = state + 36;
+    excavator_real *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
+    excavator_real *scale = state + 54;
+    excavator_real *count = state + 63;
+    excavator_real *qn, *qdn, *qddn, *lam, *reac, *tr = EXCAVATOR_VEC(work, 9);
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -1025,8 +1025,8 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const double t = t0 + *count * h;
-        double *row = rows + i * EXCAVATOR_ROW;
+        const excavator_real t = t0 + *count * h;
+        excavator_real *row = rows + i * EXCAVATOR_ROW;
         /* what the row holds is solved straight into it */
         qn = row + 1;
         qdn = row + 10;
@@ -1043,7 +1043,7 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
         else if (*count >= 1)
             for (k = 0; k < 9; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
         else
-            memcpy(qn, q, sizeof(double) * 9);
+            memcpy(qn, q, sizeof(excavator_real) * 9);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = excavator_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -1060,12 +1060,12 @@ int excavator_trajectory(double t0, double h, long n, const double *p, double to
             *solved = i;
             return EXCAVATOR_UNEXPLAINED;
         }
-        memcpy(m3, m2, sizeof(double) * 9);
-        memcpy(m2, m1, sizeof(double) * 9);
-        memcpy(m1, qdd, sizeof(double) * 9);
-        memcpy(qd, qdn, sizeof(double) * 9);
-        memcpy(qdd, qddn, sizeof(double) * 9);
-        memcpy(q, qn, sizeof(double) * 9);
+        memcpy(m3, m2, sizeof(excavator_real) * 9);
+        memcpy(m2, m1, sizeof(excavator_real) * 9);
+        memcpy(m1, qdd, sizeof(excavator_real) * 9);
+        memcpy(qd, qdn, sizeof(excavator_real) * 9);
+        memcpy(qdd, qddn, sizeof(excavator_real) * 9);
+        memcpy(q, qn, sizeof(excavator_real) * 9);
         *count += 1.0;
         row[0] = t;
     }

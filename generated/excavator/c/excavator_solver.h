@@ -8,6 +8,9 @@
 extern "C" {
 #endif
 
+/* The one floating type of every argument, table and workspace. */
+typedef double excavator_real;
+
 /* Sizes. */
 #define EXCAVATOR_NG 9            /* generalized coordinates q = [x, y, phi] per body */
 #define EXCAVATOR_NC 9            /* constraint rows */
@@ -15,9 +18,9 @@ extern "C" {
 #define EXCAVATOR_NNZ 35          /* structural nonzeros of Phi_q */
 #define EXCAVATOR_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define EXCAVATOR_ROW 73          /* values per instant in a trajectory row */
-#define EXCAVATOR_WORK 547        /* doubles of workspace every solver call needs */
+#define EXCAVATOR_WORK 547        /* reals of workspace every solver call needs */
 #define EXCAVATOR_IWORK 9         /* ints of workspace */
-#define EXCAVATOR_STATE 64       /* doubles of trajectory state */
+#define EXCAVATOR_STATE 64       /* reals of trajectory state */
 
 /* Status of every solver call. */
 #define EXCAVATOR_OK 0
@@ -39,7 +42,7 @@ extern "C" {
 #define EXCAVATOR_HAS_REACTIONS 1
 
 /* Parameters, in this order: L_boom, L_stick, L_bucket, H_bucket, m_boom, m_stick, m_bucket, T_cycle, w, Lc_boom, a_boom, Lc_stick, a_stick, Lc_bucket, a_bucket, F_dig, t_dig, tau_dig. */
-extern const double excavator_default_params[18];
+extern const excavator_real excavator_default_params[18];
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int excavator_phi_q_rows[35];
 extern const int excavator_phi_q_cols[35];
@@ -47,13 +50,13 @@ extern const int excavator_phi_q_cols[35];
 /* Arguments: q, qd: size NG; t: time; p: size NP; lam: size NC.
    Outputs: vectors of constraint rows: NC; phi_q: NNZ values; vectors of
    coordinates (applied forces, mass diagonal): NG; reactions: NR. */
-void excavator_phi(const double *q, double t, const double *p, double *out);
-void excavator_phi_q(const double *q, double t, const double *p, double *out);
-void excavator_nu(const double *q, double t, const double *p, double *out);
-void excavator_gamma(const double *q, const double *qd, double t, const double *p, double *out);
-void excavator_applied(const double *q, const double *qd, double t, const double *p, double *out);
-void excavator_mass(const double *p, double *out);
-void excavator_reactions(const double *q, const double *lam, double t, const double *p, double *out);
+void excavator_phi(const excavator_real *q, excavator_real t, const excavator_real *p, excavator_real *out);
+void excavator_phi_q(const excavator_real *q, excavator_real t, const excavator_real *p, excavator_real *out);
+void excavator_nu(const excavator_real *q, excavator_real t, const excavator_real *p, excavator_real *out);
+void excavator_gamma(const excavator_real *q, const excavator_real *qd, excavator_real t, const excavator_real *p, excavator_real *out);
+void excavator_applied(const excavator_real *q, const excavator_real *qd, excavator_real t, const excavator_real *p, excavator_real *out);
+void excavator_mass(const excavator_real *p, excavator_real *out);
+void excavator_reactions(const excavator_real *q, const excavator_real *lam, excavator_real t, const excavator_real *p, excavator_real *out);
 
 /* One instant: Newton from the guess in q (overwritten by the solution),
    then the compiled outputs. qd, qdd (NG), lam (NC), reactions (NR) and info
@@ -61,20 +64,20 @@ void excavator_reactions(const double *q, const double *lam, double t, const dou
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
    pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
-   when NP is 0. work: WORK doubles, iwork: IWORK ints. */
-int excavator_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork);
+   when NP is 0. work: WORK reals, iwork: IWORK ints. */
+int excavator_instant(excavator_real t, const excavator_real *p, excavator_real tol, excavator_real *q, excavator_real *qd, excavator_real *qdd,
+                    excavator_real *lam, excavator_real *reactions, int *info, excavator_real *work, int *iwork);
 
 /* n instants t0 + k h, k = state[STATE-1] (the instants solved with this
    state so far) onwards, each written as a row of ROW values (t, then the
    compiled groups in contract order) into rows: pass the same t0 on every
-   call of one run. state (STATE doubles) carries the predictor between calls:
+   call of one run. state (STATE reals) carries the predictor between calls:
    set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
    first call. state[6 NG..7 NG-1]: per
    coordinate, 1 / its scale for the jump check (zeros: no check).
    *solved = rows written (solved may be NULL). */
-int excavator_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
-                       double *rows, long *solved, double *work, int *iwork);
+int excavator_trajectory(excavator_real t0, excavator_real h, long n, const excavator_real *p, excavator_real tol, excavator_real *state,
+                       excavator_real *rows, long *solved, excavator_real *work, int *iwork);
 
 #ifdef __cplusplus
 }

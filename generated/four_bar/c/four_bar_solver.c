@@ -25,11 +25,11 @@
 #define FOUR_BAR_OFF_VEC (FOUR_BAR_OFF_DENSE + 81)
 #define FOUR_BAR_VEC(work, k) ((work) + FOUR_BAR_OFF_VEC + (k) * 30)
 
-const double four_bar_default_params[16] = { 0.4, 0.1, 0.35, 0.3, 0.3, 0.8, 0.7, 0.05, 0.1, 2.0, 12.566370614359172, 50.0, 2.0, 500.0, 5.0, 0.3 };
+const four_bar_real four_bar_default_params[16] = { 0.4, 0.1, 0.35, 0.3, 0.3, 0.8, 0.7, 0.05, 0.1, 2.0, 12.566370614359172, 50.0, 2.0, 500.0, 5.0, 0.3 };
 const int four_bar_phi_q_rows[25] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 7, 7, 8 };
 const int four_bar_phi_q_cols[25] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 8, 6, 8, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */
-static void four_bar_trig(const double *q, double *tr)
+static void four_bar_trig(const four_bar_real *q, four_bar_real *tr)
 {
     tr[0] = sin(q[2]);
     tr[1] = cos(q[2]);
@@ -41,11 +41,11 @@ static void four_bar_trig(const double *q, double *tr)
 
 /* Sines and cosines at a guess with no base yet: from sin and cos, each
    angle becoming its body's base (see trig_near). */
-static void four_bar_trig_base(const double *q, double *tr, double *base)
+static void four_bar_trig_base(const four_bar_real *q, four_bar_real *tr, four_bar_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double a = q[3 * b + 2];
+        const four_bar_real a = q[3 * b + 2];
         base[3 * b] = a;
         tr[2 * b] = base[3 * b + 1] = sin(a);
         tr[2 * b + 1] = base[3 * b + 2] = cos(a);
@@ -60,15 +60,15 @@ static void four_bar_trig_base(const double *q, double *tr, double *base)
    3e-19). Every value is one rotation from a libm value, so rounding errors
    do not accumulate from instant to instant. Farther away, sin and cos are
    called and the angle becomes the base. */
-static void four_bar_trig_near(const double *q, double *tr, double *base)
+static void four_bar_trig_near(const four_bar_real *q, four_bar_real *tr, four_bar_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double a = q[3 * b + 2], d = a - base[3 * b];
+        const four_bar_real a = q[3 * b + 2], d = a - base[3 * b];
         if (fabs(d) <= 0.0625) {
-            const double d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
-            const double sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const double cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
+            const four_bar_real d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
+            const four_bar_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
+            const four_bar_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
             tr[2 * b] = s + (s * cm + c * sd);
             tr[2 * b + 1] = c + (c * cm - s * sd);
         } else {
@@ -84,11 +84,11 @@ static void four_bar_trig_near(const double *q, double *tr, double *base)
    rad, sin(a + d) = sin a + d cos a and cos(a + d) = cos a - d sin a to
    rounding (d^2 / 2 < 1e-18); larger ones rotate from the base as
    trig_near does. */
-static void four_bar_trig_step(const double *q, const double *dq, double *tr, double *base)
+static void four_bar_trig_step(const four_bar_real *q, const four_bar_real *dq, four_bar_real *tr, four_bar_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        const four_bar_real d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
             tr[2 * b] = s + c * d;
             tr[2 * b + 1] = c - s * d;
@@ -99,19 +99,19 @@ static void four_bar_trig_step(const double *q, const double *dq, double *tr, do
     }
 }
 
-static void four_bar_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void four_bar_phi_k0(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    const double e0 = (1.0/2.0)*p[1];
-    const double e1 = e0*tr[1];
-    const double e2 = e0*tr[0];
-    const double e3 = (1.0/2.0)*p[2];
-    const double e4 = e3*tr[3];
-    const double e5 = e3*tr[2];
-    const double e6 = (1.0/2.0)*p[3];
-    const double e7 = e6*tr[5];
-    const double e8 = -q[6];
-    const double e9 = e6*tr[4];
-    const double e10 = -q[7];
+    const four_bar_real e0 = (1.0/2.0)*p[1];
+    const four_bar_real e1 = e0*tr[1];
+    const four_bar_real e2 = e0*tr[0];
+    const four_bar_real e3 = (1.0/2.0)*p[2];
+    const four_bar_real e4 = e3*tr[3];
+    const four_bar_real e5 = e3*tr[2];
+    const four_bar_real e6 = (1.0/2.0)*p[3];
+    const four_bar_real e7 = e6*tr[5];
+    const four_bar_real e8 = -q[6];
+    const four_bar_real e9 = e6*tr[4];
+    const four_bar_real e10 = -q[7];
     out[0] = -e1 + q[0];
     out[1] = -e2 + q[1];
     out[2] = -e1 - e4 + (-q[0] + q[3]);
@@ -123,31 +123,31 @@ static void four_bar_phi_k0(const double * q, const double * tr, double t, const
     out[8] = -p[10]*t + q[2];
 }
 
-static void four_bar_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void four_bar_phi_k(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
     four_bar_phi_k0(q, tr, t, p, out);
 }
 
-void four_bar_phi(const double * q, double t, const double * p, double *out)
+void four_bar_phi(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    double tr[6];
+    four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_phi_k(q, tr, t, p, out);
 }
 
-static void four_bar_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void four_bar_phi_q_k0(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
     (void)q;
     (void)t;
-    const double e0 = (1.0/2.0)*p[1];
-    const double e1 = e0*tr[0];
-    const double e2 = -e0*tr[1];
-    const double e3 = (1.0/2.0)*p[2];
-    const double e4 = e3*tr[2];
-    const double e5 = -e3*tr[3];
-    const double e6 = (1.0/2.0)*p[3];
-    const double e7 = e6*tr[4];
-    const double e8 = e6*tr[5];
+    const four_bar_real e0 = (1.0/2.0)*p[1];
+    const four_bar_real e1 = e0*tr[0];
+    const four_bar_real e2 = -e0*tr[1];
+    const four_bar_real e3 = (1.0/2.0)*p[2];
+    const four_bar_real e4 = e3*tr[2];
+    const four_bar_real e5 = -e3*tr[3];
+    const four_bar_real e6 = (1.0/2.0)*p[3];
+    const four_bar_real e7 = e6*tr[4];
+    const four_bar_real e8 = e6*tr[5];
     out[0] = 1;
     out[1] = e1;
     out[2] = 1;
@@ -175,19 +175,19 @@ static void four_bar_phi_q_k0(const double * q, const double * tr, double t, con
     out[24] = 1;
 }
 
-static void four_bar_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void four_bar_phi_q_k(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
     four_bar_phi_q_k0(q, tr, t, p, out);
 }
 
-void four_bar_phi_q(const double * q, double t, const double * p, double *out)
+void four_bar_phi_q(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    double tr[6];
+    four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_phi_q_k(q, tr, t, p, out);
 }
 
-static void four_bar_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void four_bar_nu_k0(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
     (void)q;
     (void)tr;
@@ -203,31 +203,31 @@ static void four_bar_nu_k0(const double * q, const double * tr, double t, const 
     out[8] = p[10];
 }
 
-static void four_bar_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void four_bar_nu_k(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
     four_bar_nu_k0(q, tr, t, p, out);
 }
 
-void four_bar_nu(const double * q, double t, const double * p, double *out)
+void four_bar_nu(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    double tr[6];
+    four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_nu_k(q, tr, t, p, out);
 }
 
-static void four_bar_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void four_bar_gamma_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
     (void)q;
     (void)t;
-    const double e0 = (1.0/2.0)*p[1]*pow(qd[2], 2);
-    const double e1 = e0*tr[1];
-    const double e2 = e0*tr[0];
-    const double e3 = (1.0/2.0)*p[2]*pow(qd[5], 2);
-    const double e4 = e3*tr[3];
-    const double e5 = e3*tr[2];
-    const double e6 = (1.0/2.0)*p[3]*pow(qd[8], 2);
-    const double e7 = -e6*tr[5];
-    const double e8 = -e6*tr[4];
+    const four_bar_real e0 = (1.0/2.0)*p[1]*pow(qd[2], 2);
+    const four_bar_real e1 = e0*tr[1];
+    const four_bar_real e2 = e0*tr[0];
+    const four_bar_real e3 = (1.0/2.0)*p[2]*pow(qd[5], 2);
+    const four_bar_real e4 = e3*tr[3];
+    const four_bar_real e5 = e3*tr[2];
+    const four_bar_real e6 = (1.0/2.0)*p[3]*pow(qd[8], 2);
+    const four_bar_real e7 = -e6*tr[5];
+    const four_bar_real e8 = -e6*tr[4];
     out[0] = -e1;
     out[1] = -e2;
     out[2] = -e1 - e4;
@@ -239,30 +239,30 @@ static void four_bar_gamma_k0(const double * q, const double * tr, const double 
     out[8] = 0;
 }
 
-static void four_bar_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void four_bar_gamma_k(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
     four_bar_gamma_k0(q, tr, qd, t, p, out);
 }
 
-void four_bar_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void four_bar_gamma(const four_bar_real * q, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    double tr[6];
+    four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void four_bar_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void four_bar_applied_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    const double e0 = p[11]*((1.0/2.0)*sin(p[10]*t) + 1);
-    const double e1 = (1.0/20.0)*tr[4];
-    const double e2 = e1 + (q[7] - 3.0/10.0);
-    const double e3 = (1.0/20.0)*tr[5];
-    const double e4 = e3 + (q[6] - 3.0/4.0);
-    const double e5 = sqrt(pow(e2, 2) + pow(e4, 2));
-    const double e6 = 1.0/e5;
-    const double e7 = e4*e6;
-    const double e8 = -p[13]*(e5 - p[15]) - p[14]*(e2*e6*(e3*qd[8] + qd[7]) + e7*(-e1*qd[8] + qd[6]));
-    const double e9 = e7*e8;
+    const four_bar_real e0 = p[11]*((1.0/2.0)*sin(p[10]*t) + 1);
+    const four_bar_real e1 = (1.0/20.0)*tr[4];
+    const four_bar_real e2 = e1 + (q[7] - 3.0/10.0);
+    const four_bar_real e3 = (1.0/20.0)*tr[5];
+    const four_bar_real e4 = e3 + (q[6] - 3.0/4.0);
+    const four_bar_real e5 = sqrt(pow(e2, 2) + pow(e4, 2));
+    const four_bar_real e6 = 1.0/e5;
+    const four_bar_real e7 = e4*e6;
+    const four_bar_real e8 = -p[13]*(e5 - p[15]) - p[14]*(e2*e6*(e3*qd[8] + qd[7]) + e7*(-e1*qd[8] + qd[6]));
+    const four_bar_real e9 = e7*e8;
     out[0] = 0;
     out[1] = -981.0/100.0*p[4];
     out[2] = 0;
@@ -274,19 +274,19 @@ static void four_bar_applied_k0(const double * q, const double * tr, const doubl
     out[8] = -e1*e9 + (1.0/20.0)*e2*e6*e8*tr[5] - p[12];
 }
 
-static void four_bar_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void four_bar_applied_k(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
     four_bar_applied_k0(q, tr, qd, t, p, out);
 }
 
-void four_bar_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void four_bar_applied(const four_bar_real * q, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    double tr[6];
+    four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_applied_k(q, tr, qd, t, p, out);
 }
 
-static void four_bar_mass_k0(const double * p, double *out)
+static void four_bar_mass_k0(const four_bar_real * p, four_bar_real *out)
 {
     out[0] = p[4];
     out[1] = p[4];
@@ -299,17 +299,17 @@ static void four_bar_mass_k0(const double * p, double *out)
     out[8] = (1.0/12.0)*pow(p[3], 2)*p[6];
 }
 
-static void four_bar_mass_k(const double * p, double *out)
+static void four_bar_mass_k(const four_bar_real * p, four_bar_real *out)
 {
     four_bar_mass_k0(p, out);
 }
 
-void four_bar_mass(const double * p, double *out)
+void four_bar_mass(const four_bar_real * p, four_bar_real *out)
 {
     four_bar_mass_k(p, out);
 }
 
-static void four_bar_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void four_bar_reactions_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * lam, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
     (void)q;
     (void)tr;
@@ -347,14 +347,14 @@ static void four_bar_reactions_k0(const double * q, const double * tr, const dou
     out[29] = -lam[8];
 }
 
-static void four_bar_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void four_bar_reactions_k(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * lam, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
     four_bar_reactions_k0(q, tr, lam, t, p, out);
 }
 
-void four_bar_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void four_bar_reactions(const four_bar_real * q, const four_bar_real * lam, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    double tr[6];
+    four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_reactions_k(q, tr, lam, t, p, out);
 }
@@ -369,10 +369,10 @@ void four_bar_reactions(const double * q, const double * lam, double t, const do
    of the full factorization. The solves' vectors never overlap the factors
    or each other: restrict lets an unknown stay in a register across its
    updates. */
-static int four_bar_sparse_factor0(double *lu)
+static int four_bar_sparse_factor0(four_bar_real *lu)
 {
-    double piv = 0.0;
-    double cm = 0.0;
+    four_bar_real piv = 0.0;
+    four_bar_real cm = 0.0;
     cm = 1.0;
     cm = FOUR_BAR_MAX(cm, fabs(lu[1]));
     cm = FOUR_BAR_MAX(cm, fabs(lu[3]));
@@ -397,12 +397,12 @@ static int four_bar_sparse_factor0(double *lu)
     return 0;
 }
 
-static int four_bar_sparse_factor(double *lu)
+static int four_bar_sparse_factor(four_bar_real *lu)
 {
     return four_bar_sparse_factor0(lu);
 }
 
-static void four_bar_sparse_forward0(const double *FOUR_BAR_RESTRICT lu, double *FOUR_BAR_RESTRICT y)
+static void four_bar_sparse_forward0(const four_bar_real *FOUR_BAR_RESTRICT lu, four_bar_real *FOUR_BAR_RESTRICT y)
 {
     y[0] -= lu[1] * y[8];
     y[1] -= lu[3] * y[8];
@@ -418,7 +418,7 @@ static void four_bar_sparse_forward0(const double *FOUR_BAR_RESTRICT lu, double 
 }
 
 static void four_bar_sparse_back0(
-    const double *FOUR_BAR_RESTRICT lu, const double *FOUR_BAR_RESTRICT y, double *FOUR_BAR_RESTRICT x)
+    const four_bar_real *FOUR_BAR_RESTRICT lu, const four_bar_real *FOUR_BAR_RESTRICT y, four_bar_real *FOUR_BAR_RESTRICT x)
 {
     x[8] = (y[7]) * lu[23];
     x[7] = y[5] - lu[19] * x[8];
@@ -431,15 +431,15 @@ static void four_bar_sparse_back0(
     x[2] = y[8];
 }
 
-static void four_bar_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static void four_bar_sparse_solve(const four_bar_real *lu, const four_bar_real *b, four_bar_real *x, four_bar_real *y)
 {
-    memcpy(y, b, sizeof(double) * 9);
+    memcpy(y, b, sizeof(four_bar_real) * 9);
     four_bar_sparse_forward0(lu, y);
     four_bar_sparse_back0(lu, y, x);
 }
 
 static void four_bar_sparse_t_forward0(
-    const double *FOUR_BAR_RESTRICT lu, const double *FOUR_BAR_RESTRICT b, double *FOUR_BAR_RESTRICT x)
+    const four_bar_real *FOUR_BAR_RESTRICT lu, const four_bar_real *FOUR_BAR_RESTRICT b, four_bar_real *FOUR_BAR_RESTRICT x)
 {
     x[8] = b[2];
     x[0] = b[0];
@@ -452,7 +452,7 @@ static void four_bar_sparse_t_forward0(
     x[7] = (b[8] - lu[21] * x[6] - lu[15] * x[4] - lu[19] * x[5]) * lu[23];
 }
 
-static void four_bar_sparse_t_back0(const double *FOUR_BAR_RESTRICT lu, double *FOUR_BAR_RESTRICT x)
+static void four_bar_sparse_t_back0(const four_bar_real *FOUR_BAR_RESTRICT lu, four_bar_real *FOUR_BAR_RESTRICT x)
 {
     x[5] -= x[7];
     x[4] -= lu[17] * x[5];
@@ -467,7 +467,7 @@ static void four_bar_sparse_t_back0(const double *FOUR_BAR_RESTRICT lu, double *
     x[8] -= lu[9] * x[3];
 }
 
-static void four_bar_sparse_solve_t(const double *lu, const double *b, double *x)
+static void four_bar_sparse_solve_t(const four_bar_real *lu, const four_bar_real *b, four_bar_real *x)
 {
     four_bar_sparse_t_forward0(lu, b, x);
     four_bar_sparse_t_back0(lu, x);
@@ -475,11 +475,11 @@ static void four_bar_sparse_solve_t(const double *lu, const double *b, double *x
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns
    FOUR_BAR_SINGULAR when the pivots span more than 1 / SINGULAR_RATIO. */
-static int four_bar_dense_factor(double *a, int *perm)
+static int four_bar_dense_factor(four_bar_real *a, int *perm)
 {
     const int n = 9;
     int i, j, k;
-    double umax = 0.0, umin = INFINITY;
+    four_bar_real umax = 0.0, umin = INFINITY;
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -487,7 +487,7 @@ static int four_bar_dense_factor(double *a, int *perm)
         perm[k] = best;
         if (best != k)
             for (j = 0; j < n; ++j) {
-                double tmp = a[k * n + j];
+                four_bar_real tmp = a[k * n + j];
                 a[k * n + j] = a[best * n + j];
                 a[best * n + j] = tmp;
             }
@@ -495,20 +495,20 @@ static int four_bar_dense_factor(double *a, int *perm)
         umax = fmax(umax, fabs(a[k * n + k]));
         umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            double m = a[i * n + k] /= a[k * n + k];
+            four_bar_real m = a[i * n + k] /= a[k * n + k];
             for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
         }
     }
     return umin <= FOUR_BAR_SINGULAR_RATIO * umax ? FOUR_BAR_SINGULAR : FOUR_BAR_OK;
 }
 
-static void four_bar_dense_solve(const double *a, const int *perm, const double *b, double *x)
+static void four_bar_dense_solve(const four_bar_real *a, const int *perm, const four_bar_real *b, four_bar_real *x)
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(four_bar_real) * n);
     for (i = 0; i < n; ++i) {
-        double tmp = x[perm[i]];
+        four_bar_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
         for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
@@ -519,11 +519,11 @@ static void four_bar_dense_solve(const double *a, const int *perm, const double 
     }
 }
 
-static void four_bar_dense_solve_t(const double *a, const int *perm, const double *b, double *x)
+static void four_bar_dense_solve_t(const four_bar_real *a, const int *perm, const four_bar_real *b, four_bar_real *x)
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(four_bar_real) * n);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -532,7 +532,7 @@ static void four_bar_dense_solve_t(const double *a, const int *perm, const doubl
         for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
     }
     for (i = n - 1; i >= 0; --i) {
-        double tmp = x[perm[i]];
+        four_bar_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
     }
@@ -544,13 +544,13 @@ static const int four_bar_pivot_slots[2] = { 13, 23 };
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
-static int four_bar_pivots_spread(const double *lu)
+static int four_bar_pivots_spread(const four_bar_real *lu)
 {
-    double rmin = 1.0;
-    double rmax = 1.0;
+    four_bar_real rmin = 1.0;
+    four_bar_real rmax = 1.0;
     int k;
     for (k = 0; k < 2; ++k) {
-        double r = fabs(lu[four_bar_pivot_slots[k]]);
+        four_bar_real r = fabs(lu[four_bar_pivot_slots[k]]);
         rmin = FOUR_BAR_MIN(rmin, r);
         rmax = FOUR_BAR_MAX(rmax, r);
     }
@@ -560,28 +560,28 @@ static int four_bar_pivots_spread(const double *lu)
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
-static int four_bar_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+static int four_bar_factorize(const four_bar_real *q, const four_bar_real *tr, four_bar_real t, const four_bar_real *p, four_bar_real *work,
                              int *iwork, int *dense)
 {
-    double *values = work, *lu = work + FOUR_BAR_OFF_LU, *a = work + FOUR_BAR_OFF_DENSE;
+    four_bar_real *values = work, *lu = work + FOUR_BAR_OFF_LU, *a = work + FOUR_BAR_OFF_DENSE;
     int k;
     four_bar_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (four_bar_sparse_factor(lu) == 0 && !four_bar_pivots_spread(lu)) return FOUR_BAR_OK;
     *dense = 1;
     four_bar_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(double) * 81);
+    memset(a, 0, sizeof(four_bar_real) * 81);
     for (k = 0; k < 25; ++k) a[four_bar_phi_q_rows[k] * 9 + four_bar_phi_q_cols[k]] = values[k];
     return four_bar_dense_factor(a, iwork);
 }
 
-static void four_bar_solve(const double *work, const int *iwork, int dense, const double *b, double *x, double *y)
+static void four_bar_solve(const four_bar_real *work, const int *iwork, int dense, const four_bar_real *b, four_bar_real *x, four_bar_real *y)
 {
     if (dense) four_bar_dense_solve(work + FOUR_BAR_OFF_DENSE, iwork, b, x);
     else four_bar_sparse_solve(work + FOUR_BAR_OFF_LU, b, x, y);
 }
 
-static void four_bar_solve_t(const double *work, const int *iwork, int dense, const double *b, double *x)
+static void four_bar_solve_t(const four_bar_real *work, const int *iwork, int dense, const four_bar_real *b, four_bar_real *x)
 {
     if (dense) four_bar_dense_solve_t(work + FOUR_BAR_OFF_DENSE, iwork, b, x);
     else four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, b, x);
@@ -589,12 +589,12 @@ static void four_bar_solve_t(const double *work, const int *iwork, int dense, co
 
 /* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
    Four running maxima and sums: one chain would wait on each comparison. */
-static double four_bar_maxabs(const double *v, int n)
+static four_bar_real four_bar_maxabs(const four_bar_real *v, int n)
 {
-    double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    four_bar_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     int k;
     for (k = 0; k + 4 <= n; k += 4) {
-        const double a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
+        const four_bar_real a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
         m0 = a0 > m0 ? a0 : m0;
         m1 = a1 > m1 ? a1 : m1;
         m2 = a2 > m2 ? a2 : m2;
@@ -605,7 +605,7 @@ static double four_bar_maxabs(const double *v, int n)
         s3 += a3;
     }
     for (; k < n; ++k) {
-        const double a = fabs(v[k]);
+        const four_bar_real a = fabs(v[k]);
         m0 = a > m0 ? a : m0;
         s0 += a;
     }
@@ -619,12 +619,12 @@ static double four_bar_maxabs(const double *v, int n)
    origin that differs from dq by a rounding of q, which sin and cos of the
    new angle must see (the subtraction is exact for steps under half the
    coordinate, and within a rounding of the step otherwise). */
-static double four_bar_correct(double *q, double *dq)
+static four_bar_real four_bar_correct(four_bar_real *q, four_bar_real *dq)
 {
-    const double step = four_bar_maxabs(dq, 9);
+    const four_bar_real step = four_bar_maxabs(dq, 9);
     int k;
     for (k = 0; k < 9; ++k) {
-        const double old = q[k];
+        const four_bar_real old = q[k];
         q[k] = old - dq[k];
         dq[k] = old - q[k];
     }
@@ -638,12 +638,12 @@ static double four_bar_correct(double *q, double *dq)
    from the bases the previous instant left (trig_near); without reuse, both
    start afresh. Converged: |Phi| and the last correction both within the
    tolerance's floor. On success the factors are those of q. */
-static int four_bar_newton(double t, const double *p, double tol, double *q, double *tr, int *info, double *work,
+static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_real tol, four_bar_real *q, four_bar_real *tr, int *info, four_bar_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    double *r = FOUR_BAR_VEC(work, 0), *dq = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
-    double *base = FOUR_BAR_VEC(work, 10);
-    double step = INFINITY, lim, qmag, rmax;
+    four_bar_real *r = FOUR_BAR_VEC(work, 0), *dq = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
+    four_bar_real *base = FOUR_BAR_VEC(work, 10);
+    four_bar_real step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -701,10 +701,10 @@ static int four_bar_newton(double t, const double *p, double tol, double *q, dou
 }
 
 /* The compiled outputs at a solved q, with the factors of Phi_q(q). */
-static void four_bar_outputs(double t, const double *p, const double *q, const double *tr, double *qd, double *qdd,
-                            double *lam, double *reactions, double *work, const int *iwork, int dense)
+static void four_bar_outputs(four_bar_real t, const four_bar_real *p, const four_bar_real *q, const four_bar_real *tr, four_bar_real *qd, four_bar_real *qdd,
+                            four_bar_real *lam, four_bar_real *reactions, four_bar_real *work, const int *iwork, int dense)
 {
-    double *y = FOUR_BAR_VEC(work, 2), *b = FOUR_BAR_VEC(work, 3);
+    four_bar_real *y = FOUR_BAR_VEC(work, 2), *b = FOUR_BAR_VEC(work, 3);
     int k;
     four_bar_nu_k(q, tr, t, p, b);
     four_bar_solve(work, iwork, dense, b, qd, y);
@@ -719,8 +719,8 @@ static void four_bar_outputs(double t, const double *p, const double *q, const d
 
 /* Whether everything an instant computed is finite (maxabs is NaN if any
    value is): a few comparisons per value, against an instant's solve. */
-static int four_bar_finite(const double *q, const double *qd, const double *qdd, const double *lam,
-                          const double *reactions)
+static int four_bar_finite(const four_bar_real *q, const four_bar_real *qd, const four_bar_real *qdd, const four_bar_real *lam,
+                          const four_bar_real *reactions)
 {
     (void)qd; (void)qdd; (void)lam; (void)reactions;
     return isfinite(four_bar_maxabs(q, 9))
@@ -734,22 +734,22 @@ static int four_bar_finite(const double *q, const double *qd, const double *qdd,
    explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
    it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
    the rule of symid.numeric.solve.unexplained). O(NG) a step. */
-static int four_bar_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
-                               const double *qd1, const double *qdd1, double h, const double *c)
+static int four_bar_unexplained(const four_bar_real *q0, const four_bar_real *qd0, const four_bar_real *qdd0, const four_bar_real *q1,
+                               const four_bar_real *qd1, const four_bar_real *qdd1, four_bar_real h, const four_bar_real *c)
 {
-    const double half = 0.5 * h, hh = h * h / 12.0;
-    double mismatch = 0.0, motion = 0.0;
+    const four_bar_real half = 0.5 * h, hh = h * h / 12.0;
+    four_bar_real mismatch = 0.0, motion = 0.0;
     int k;
     for (k = 0; k < 9; ++k) {
-        const double d = q1[k] - q0[k];
+        const four_bar_real d = q1[k] - q0[k];
         mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
         motion = FOUR_BAR_MAX(motion, fabs(d) * c[k]);
     }
     return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
 }
 
-int four_bar_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork)
+int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol, four_bar_real *q, four_bar_real *qd, four_bar_real *qdd,
+                    four_bar_real *lam, four_bar_real *reactions, int *info, four_bar_real *work, int *iwork)
 {
     int dense = 0, status, counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
@@ -757,7 +757,7 @@ int four_bar_instant(double t, const double *p, double tol, double *q, double *q
         || !isfinite(tol) || tol <= 0.0) {
         status = FOUR_BAR_BAD_ARGUMENT;
     } else {
-        double *tr = FOUR_BAR_VEC(work, 9);
+        four_bar_real *tr = FOUR_BAR_VEC(work, 9);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = FOUR_BAR_VEC(work, 5);
@@ -777,16 +777,16 @@ int four_bar_instant(double t, const double *p, double tol, double *q, double *q
     return status;
 }
 
-int four_bar_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
-                       double *rows, long *solved, double *work, int *iwork)
+int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_bar_real *p, four_bar_real tol, four_bar_real *state,
+                       four_bar_real *rows, long *solved, four_bar_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *m1 = state + 27, *m2 = state + 36;
-    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
-    double *scale = state + 54;
-    double *count = state + 63;
-    double *qn, *qdn, *qddn, *lam, *reac, *tr = FOUR_BAR_VEC(work, 9);
+    four_bar_real *q = state, *m1 = state + 27, *m2 = state + 36;
+    four_bar_real *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
+    four_bar_real *scale = state + 54;
+    four_bar_real *count = state + 63;
+    four_bar_real *qn, *qdn, *qddn, *lam, *reac, *tr = FOUR_BAR_VEC(work, 9);
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -796,8 +796,8 @@ int four_bar_trajectory(double t0, double h, long n, const double *p, double tol
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const double t = t0 + *count * h;
-        double *row = rows + i * FOUR_BAR_ROW;
+        const four_bar_real t = t0 + *count * h;
+        four_bar_real *row = rows + i * FOUR_BAR_ROW;
         /* what the row holds is solved straight into it */
         qn = row + 1;
         qdn = row + 10;
@@ -814,7 +814,7 @@ int four_bar_trajectory(double t0, double h, long n, const double *p, double tol
         else if (*count >= 1)
             for (k = 0; k < 9; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
         else
-            memcpy(qn, q, sizeof(double) * 9);
+            memcpy(qn, q, sizeof(four_bar_real) * 9);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = four_bar_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -831,12 +831,12 @@ int four_bar_trajectory(double t0, double h, long n, const double *p, double tol
             *solved = i;
             return FOUR_BAR_UNEXPLAINED;
         }
-        memcpy(m3, m2, sizeof(double) * 9);
-        memcpy(m2, m1, sizeof(double) * 9);
-        memcpy(m1, qdd, sizeof(double) * 9);
-        memcpy(qd, qdn, sizeof(double) * 9);
-        memcpy(qdd, qddn, sizeof(double) * 9);
-        memcpy(q, qn, sizeof(double) * 9);
+        memcpy(m3, m2, sizeof(four_bar_real) * 9);
+        memcpy(m2, m1, sizeof(four_bar_real) * 9);
+        memcpy(m1, qdd, sizeof(four_bar_real) * 9);
+        memcpy(qd, qdn, sizeof(four_bar_real) * 9);
+        memcpy(qdd, qddn, sizeof(four_bar_real) * 9);
+        memcpy(q, qn, sizeof(four_bar_real) * 9);
         *count += 1.0;
         row[0] = t;
     }

@@ -8,6 +8,9 @@
 extern "C" {
 #endif
 
+/* The one floating type of every argument, table and workspace. */
+typedef double four_bar_real;
+
 /* Sizes. */
 #define FOUR_BAR_NG 9            /* generalized coordinates q = [x, y, phi] per body */
 #define FOUR_BAR_NC 9            /* constraint rows */
@@ -15,9 +18,9 @@ extern "C" {
 #define FOUR_BAR_NNZ 25          /* structural nonzeros of Phi_q */
 #define FOUR_BAR_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define FOUR_BAR_ROW 67          /* values per instant in a trajectory row */
-#define FOUR_BAR_WORK 461        /* doubles of workspace every solver call needs */
+#define FOUR_BAR_WORK 461        /* reals of workspace every solver call needs */
 #define FOUR_BAR_IWORK 9         /* ints of workspace */
-#define FOUR_BAR_STATE 64       /* doubles of trajectory state */
+#define FOUR_BAR_STATE 64       /* reals of trajectory state */
 
 /* Status of every solver call. */
 #define FOUR_BAR_OK 0
@@ -39,7 +42,7 @@ extern "C" {
 #define FOUR_BAR_HAS_REACTIONS 1
 
 /* Parameters, in this order: L_ground, L_crank, L_coupler, L_rocker, m_crank, m_coupler, m_rocker, cp_x, cp_y, n, omega, F_tool, T_load, k_spring, c_spring, L0_spring. */
-extern const double four_bar_default_params[16];
+extern const four_bar_real four_bar_default_params[16];
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int four_bar_phi_q_rows[25];
 extern const int four_bar_phi_q_cols[25];
@@ -47,13 +50,13 @@ extern const int four_bar_phi_q_cols[25];
 /* Arguments: q, qd: size NG; t: time; p: size NP; lam: size NC.
    Outputs: vectors of constraint rows: NC; phi_q: NNZ values; vectors of
    coordinates (applied forces, mass diagonal): NG; reactions: NR. */
-void four_bar_phi(const double *q, double t, const double *p, double *out);
-void four_bar_phi_q(const double *q, double t, const double *p, double *out);
-void four_bar_nu(const double *q, double t, const double *p, double *out);
-void four_bar_gamma(const double *q, const double *qd, double t, const double *p, double *out);
-void four_bar_applied(const double *q, const double *qd, double t, const double *p, double *out);
-void four_bar_mass(const double *p, double *out);
-void four_bar_reactions(const double *q, const double *lam, double t, const double *p, double *out);
+void four_bar_phi(const four_bar_real *q, four_bar_real t, const four_bar_real *p, four_bar_real *out);
+void four_bar_phi_q(const four_bar_real *q, four_bar_real t, const four_bar_real *p, four_bar_real *out);
+void four_bar_nu(const four_bar_real *q, four_bar_real t, const four_bar_real *p, four_bar_real *out);
+void four_bar_gamma(const four_bar_real *q, const four_bar_real *qd, four_bar_real t, const four_bar_real *p, four_bar_real *out);
+void four_bar_applied(const four_bar_real *q, const four_bar_real *qd, four_bar_real t, const four_bar_real *p, four_bar_real *out);
+void four_bar_mass(const four_bar_real *p, four_bar_real *out);
+void four_bar_reactions(const four_bar_real *q, const four_bar_real *lam, four_bar_real t, const four_bar_real *p, four_bar_real *out);
 
 /* One instant: Newton from the guess in q (overwritten by the solution),
    then the compiled outputs. qd, qdd (NG), lam (NC), reactions (NR) and info
@@ -61,20 +64,20 @@ void four_bar_reactions(const double *q, const double *lam, double t, const doub
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
    pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
-   when NP is 0. work: WORK doubles, iwork: IWORK ints. */
-int four_bar_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork);
+   when NP is 0. work: WORK reals, iwork: IWORK ints. */
+int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol, four_bar_real *q, four_bar_real *qd, four_bar_real *qdd,
+                    four_bar_real *lam, four_bar_real *reactions, int *info, four_bar_real *work, int *iwork);
 
 /* n instants t0 + k h, k = state[STATE-1] (the instants solved with this
    state so far) onwards, each written as a row of ROW values (t, then the
    compiled groups in contract order) into rows: pass the same t0 on every
-   call of one run. state (STATE doubles) carries the predictor between calls:
+   call of one run. state (STATE reals) carries the predictor between calls:
    set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
    first call. state[6 NG..7 NG-1]: per
    coordinate, 1 / its scale for the jump check (zeros: no check).
    *solved = rows written (solved may be NULL). */
-int four_bar_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
-                       double *rows, long *solved, double *work, int *iwork);
+int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_bar_real *p, four_bar_real tol, four_bar_real *state,
+                       four_bar_real *rows, long *solved, four_bar_real *work, int *iwork);
 
 #ifdef __cplusplus
 }

@@ -25,11 +25,11 @@
 #define PLANETARY_OFF_VEC (PLANETARY_OFF_DENSE + 144)
 #define PLANETARY_VEC(work, k) ((work) + PLANETARY_OFF_VEC + (k) * 51)
 
-const double planetary_default_params[11] = { 0.03, 0.03, 0.09, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 31.41592653589793, 5.0 };
+const planetary_real planetary_default_params[11] = { 0.03, 0.03, 0.09, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 31.41592653589793, 5.0 };
 const int planetary_phi_q_rows[20] = { 0, 1, 2, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 8, 9, 10, 10, 11 };
 const int planetary_phi_q_cols[20] = { 0, 1, 3, 4, 3, 5, 6, 4, 5, 7, 2, 5, 8, 5, 8, 9, 10, 2, 11, 11 };
 /* Sines and cosines of the body angles, computed once per configuration. */
-static void planetary_trig(const double *q, double *tr)
+static void planetary_trig(const planetary_real *q, planetary_real *tr)
 {
     tr[0] = sin(q[2]);
     tr[1] = cos(q[2]);
@@ -43,11 +43,11 @@ static void planetary_trig(const double *q, double *tr)
 
 /* Sines and cosines at a guess with no base yet: from sin and cos, each
    angle becoming its body's base (see trig_near). */
-static void planetary_trig_base(const double *q, double *tr, double *base)
+static void planetary_trig_base(const planetary_real *q, planetary_real *tr, planetary_real *base)
 {
     int b;
     for (b = 0; b < 4; ++b) {
-        const double a = q[3 * b + 2];
+        const planetary_real a = q[3 * b + 2];
         base[3 * b] = a;
         tr[2 * b] = base[3 * b + 1] = sin(a);
         tr[2 * b + 1] = base[3 * b + 2] = cos(a);
@@ -62,15 +62,15 @@ static void planetary_trig_base(const double *q, double *tr, double *base)
    3e-19). Every value is one rotation from a libm value, so rounding errors
    do not accumulate from instant to instant. Farther away, sin and cos are
    called and the angle becomes the base. */
-static void planetary_trig_near(const double *q, double *tr, double *base)
+static void planetary_trig_near(const planetary_real *q, planetary_real *tr, planetary_real *base)
 {
     int b;
     for (b = 0; b < 4; ++b) {
-        const double a = q[3 * b + 2], d = a - base[3 * b];
+        const planetary_real a = q[3 * b + 2], d = a - base[3 * b];
         if (fabs(d) <= 0.0625) {
-            const double d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
-            const double sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const double cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
+            const planetary_real d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
+            const planetary_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
+            const planetary_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
             tr[2 * b] = s + (s * cm + c * sd);
             tr[2 * b + 1] = c + (c * cm - s * sd);
         } else {
@@ -86,11 +86,11 @@ static void planetary_trig_near(const double *q, double *tr, double *base)
    rad, sin(a + d) = sin a + d cos a and cos(a + d) = cos a - d sin a to
    rounding (d^2 / 2 < 1e-18); larger ones rotate from the base as
    trig_near does. */
-static void planetary_trig_step(const double *q, const double *dq, double *tr, double *base)
+static void planetary_trig_step(const planetary_real *q, const planetary_real *dq, planetary_real *tr, planetary_real *base)
 {
     int b;
     for (b = 0; b < 4; ++b) {
-        const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        const planetary_real d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
             tr[2 * b] = s + c * d;
             tr[2 * b + 1] = c - s * d;
@@ -101,10 +101,10 @@ static void planetary_trig_step(const double *q, const double *dq, double *tr, d
     }
 }
 
-static void planetary_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void planetary_phi_k0(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    const double e0 = p[0] + p[1];
-    const double e1 = -q[5];
+    const planetary_real e0 = p[0] + p[1];
+    const planetary_real e1 = -q[5];
     out[0] = q[0];
     out[1] = q[1];
     out[2] = q[3];
@@ -119,25 +119,25 @@ static void planetary_phi_k0(const double * q, const double * tr, double t, cons
     out[11] = -p[9]*t + q[11];
 }
 
-static void planetary_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void planetary_phi_k(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     planetary_phi_k0(q, tr, t, p, out);
 }
 
-void planetary_phi(const double * q, double t, const double * p, double *out)
+void planetary_phi(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    double tr[8];
+    planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_phi_k(q, tr, t, p, out);
 }
 
-static void planetary_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void planetary_phi_q_k0(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     (void)q;
     (void)t;
-    const double e0 = p[0] + p[1];
-    const double e1 = p[0]/p[1];
-    const double e2 = p[1]/p[2];
+    const planetary_real e0 = p[0] + p[1];
+    const planetary_real e1 = p[0]/p[1];
+    const planetary_real e2 = p[1]/p[2];
     out[0] = 1;
     out[1] = 1;
     out[2] = 1;
@@ -160,19 +160,19 @@ static void planetary_phi_q_k0(const double * q, const double * tr, double t, co
     out[19] = 1;
 }
 
-static void planetary_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void planetary_phi_q_k(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     planetary_phi_q_k0(q, tr, t, p, out);
 }
 
-void planetary_phi_q(const double * q, double t, const double * p, double *out)
+void planetary_phi_q(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    double tr[8];
+    planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_phi_q_k(q, tr, t, p, out);
 }
 
-static void planetary_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void planetary_nu_k0(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     (void)q;
     (void)tr;
@@ -191,23 +191,23 @@ static void planetary_nu_k0(const double * q, const double * tr, double t, const
     out[11] = p[9];
 }
 
-static void planetary_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void planetary_nu_k(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     planetary_nu_k0(q, tr, t, p, out);
 }
 
-void planetary_nu(const double * q, double t, const double * p, double *out)
+void planetary_nu(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    double tr[8];
+    planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_nu_k(q, tr, t, p, out);
 }
 
-static void planetary_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void planetary_gamma_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     (void)q;
     (void)t;
-    const double e0 = pow(qd[5], 2)*(p[0] + p[1]);
+    const planetary_real e0 = pow(qd[5], 2)*(p[0] + p[1]);
     out[0] = 0;
     out[1] = 0;
     out[2] = 0;
@@ -222,19 +222,19 @@ static void planetary_gamma_k0(const double * q, const double * tr, const double
     out[11] = 0;
 }
 
-static void planetary_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void planetary_gamma_k(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     planetary_gamma_k0(q, tr, qd, t, p, out);
 }
 
-void planetary_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void planetary_gamma(const planetary_real * q, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    double tr[8];
+    planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void planetary_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void planetary_applied_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     (void)q;
     (void)tr;
@@ -254,19 +254,19 @@ static void planetary_applied_k0(const double * q, const double * tr, const doub
     out[11] = 0;
 }
 
-static void planetary_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void planetary_applied_k(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     planetary_applied_k0(q, tr, qd, t, p, out);
 }
 
-void planetary_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void planetary_applied(const planetary_real * q, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    double tr[8];
+    planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_applied_k(q, tr, qd, t, p, out);
 }
 
-static void planetary_mass_k0(const double * p, double *out)
+static void planetary_mass_k0(const planetary_real * p, planetary_real *out)
 {
     out[0] = p[4];
     out[1] = p[4];
@@ -282,24 +282,24 @@ static void planetary_mass_k0(const double * p, double *out)
     out[11] = (1.0/2.0)*pow(p[3], 2)*p[6];
 }
 
-static void planetary_mass_k(const double * p, double *out)
+static void planetary_mass_k(const planetary_real * p, planetary_real *out)
 {
     planetary_mass_k0(p, out);
 }
 
-void planetary_mass(const double * p, double *out)
+void planetary_mass(const planetary_real * p, planetary_real *out)
 {
     planetary_mass_k(p, out);
 }
 
-static void planetary_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void planetary_reactions_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * lam, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     (void)q;
     (void)tr;
     (void)t;
-    const double e0 = lam[6]*p[0]/p[1];
-    const double e1 = lam[7]*p[1]/p[2];
-    const double e2 = -lam[7];
+    const planetary_real e0 = lam[6]*p[0]/p[1];
+    const planetary_real e1 = lam[7]*p[1]/p[2];
+    const planetary_real e2 = -lam[7];
     out[0] = lam[0];
     out[1] = lam[1];
     out[2] = 0;
@@ -350,7 +350,7 @@ static void planetary_reactions_k0(const double * q, const double * tr, const do
     out[47] = -lam[10];
 }
 
-static void planetary_reactions_k1(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void planetary_reactions_k1(const planetary_real * q, const planetary_real * tr, const planetary_real * lam, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     (void)q;
     (void)tr;
@@ -361,15 +361,15 @@ static void planetary_reactions_k1(const double * q, const double * tr, const do
     out[50] = -lam[11];
 }
 
-static void planetary_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void planetary_reactions_k(const planetary_real * q, const planetary_real * tr, const planetary_real * lam, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     planetary_reactions_k0(q, tr, lam, t, p, out);
     planetary_reactions_k1(q, tr, lam, t, p, out);
 }
 
-void planetary_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void planetary_reactions(const planetary_real * q, const planetary_real * lam, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    double tr[8];
+    planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_reactions_k(q, tr, lam, t, p, out);
 }
@@ -384,10 +384,10 @@ void planetary_reactions(const double * q, const double * lam, double t, const d
    of the full factorization. The solves' vectors never overlap the factors
    or each other: restrict lets an unknown stay in a register across its
    updates. */
-static int planetary_sparse_factor0(double *lu)
+static int planetary_sparse_factor0(planetary_real *lu)
 {
-    double piv = 0.0;
-    double cm = 0.0;
+    planetary_real piv = 0.0;
+    planetary_real cm = 0.0;
     cm = 1.0;
     cm = PLANETARY_MAX(cm, fabs(lu[18]));
     if (!(1.0 >= PLANETARY_THRESHOLD * cm)) return 1;
@@ -408,12 +408,12 @@ static int planetary_sparse_factor0(double *lu)
     return 0;
 }
 
-static int planetary_sparse_factor(double *lu)
+static int planetary_sparse_factor(planetary_real *lu)
 {
     return planetary_sparse_factor0(lu);
 }
 
-static void planetary_sparse_forward0(const double *PLANETARY_RESTRICT lu, double *PLANETARY_RESTRICT y)
+static void planetary_sparse_forward0(const planetary_real *PLANETARY_RESTRICT lu, planetary_real *PLANETARY_RESTRICT y)
 {
     y[4] += y[2];
     y[5] += y[3];
@@ -423,7 +423,7 @@ static void planetary_sparse_forward0(const double *PLANETARY_RESTRICT lu, doubl
 }
 
 static void planetary_sparse_back0(
-    const double *PLANETARY_RESTRICT lu, const double *PLANETARY_RESTRICT y, double *PLANETARY_RESTRICT x)
+    const planetary_real *PLANETARY_RESTRICT lu, const planetary_real *PLANETARY_RESTRICT y, planetary_real *PLANETARY_RESTRICT x)
 {
     x[8] = (y[7]) * lu[14];
     x[5] = (y[6] - x[8]) * lu[11];
@@ -439,15 +439,15 @@ static void planetary_sparse_back0(
     x[0] = y[0];
 }
 
-static void planetary_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static void planetary_sparse_solve(const planetary_real *lu, const planetary_real *b, planetary_real *x, planetary_real *y)
 {
-    memcpy(y, b, sizeof(double) * 12);
+    memcpy(y, b, sizeof(planetary_real) * 12);
     planetary_sparse_forward0(lu, y);
     planetary_sparse_back0(lu, y, x);
 }
 
 static void planetary_sparse_t_forward0(
-    const double *PLANETARY_RESTRICT lu, const double *PLANETARY_RESTRICT b, double *PLANETARY_RESTRICT x)
+    const planetary_real *PLANETARY_RESTRICT lu, const planetary_real *PLANETARY_RESTRICT b, planetary_real *PLANETARY_RESTRICT x)
 {
     x[0] = b[0];
     x[1] = b[1];
@@ -463,7 +463,7 @@ static void planetary_sparse_t_forward0(
     x[7] = (b[8] - x[6]) * lu[14];
 }
 
-static void planetary_sparse_t_back0(const double *PLANETARY_RESTRICT lu, double *PLANETARY_RESTRICT x)
+static void planetary_sparse_t_back0(const planetary_real *PLANETARY_RESTRICT lu, planetary_real *PLANETARY_RESTRICT x)
 {
     x[6] -= lu[13] * x[7];
     x[10] -= lu[10] * x[6];
@@ -472,7 +472,7 @@ static void planetary_sparse_t_back0(const double *PLANETARY_RESTRICT lu, double
     x[2] += x[4];
 }
 
-static void planetary_sparse_solve_t(const double *lu, const double *b, double *x)
+static void planetary_sparse_solve_t(const planetary_real *lu, const planetary_real *b, planetary_real *x)
 {
     planetary_sparse_t_forward0(lu, b, x);
     planetary_sparse_t_back0(lu, x);
@@ -480,11 +480,11 @@ static void planetary_sparse_solve_t(const double *lu, const double *b, double *
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns
    PLANETARY_SINGULAR when the pivots span more than 1 / SINGULAR_RATIO. */
-static int planetary_dense_factor(double *a, int *perm)
+static int planetary_dense_factor(planetary_real *a, int *perm)
 {
     const int n = 12;
     int i, j, k;
-    double umax = 0.0, umin = INFINITY;
+    planetary_real umax = 0.0, umin = INFINITY;
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -492,7 +492,7 @@ static int planetary_dense_factor(double *a, int *perm)
         perm[k] = best;
         if (best != k)
             for (j = 0; j < n; ++j) {
-                double tmp = a[k * n + j];
+                planetary_real tmp = a[k * n + j];
                 a[k * n + j] = a[best * n + j];
                 a[best * n + j] = tmp;
             }
@@ -500,20 +500,20 @@ static int planetary_dense_factor(double *a, int *perm)
         umax = fmax(umax, fabs(a[k * n + k]));
         umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            double m = a[i * n + k] /= a[k * n + k];
+            planetary_real m = a[i * n + k] /= a[k * n + k];
             for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
         }
     }
     return umin <= PLANETARY_SINGULAR_RATIO * umax ? PLANETARY_SINGULAR : PLANETARY_OK;
 }
 
-static void planetary_dense_solve(const double *a, const int *perm, const double *b, double *x)
+static void planetary_dense_solve(const planetary_real *a, const int *perm, const planetary_real *b, planetary_real *x)
 {
     const int n = 12;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(planetary_real) * n);
     for (i = 0; i < n; ++i) {
-        double tmp = x[perm[i]];
+        planetary_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
         for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
@@ -524,11 +524,11 @@ static void planetary_dense_solve(const double *a, const int *perm, const double
     }
 }
 
-static void planetary_dense_solve_t(const double *a, const int *perm, const double *b, double *x)
+static void planetary_dense_solve_t(const planetary_real *a, const int *perm, const planetary_real *b, planetary_real *x)
 {
     const int n = 12;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(planetary_real) * n);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -537,7 +537,7 @@ static void planetary_dense_solve_t(const double *a, const int *perm, const doub
         for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
     }
     for (i = n - 1; i >= 0; --i) {
-        double tmp = x[perm[i]];
+        planetary_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
     }
@@ -549,13 +549,13 @@ static const int planetary_pivot_slots[2] = { 11, 14 };
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
-static int planetary_pivots_spread(const double *lu)
+static int planetary_pivots_spread(const planetary_real *lu)
 {
-    double rmin = 1.0;
-    double rmax = 1.0;
+    planetary_real rmin = 1.0;
+    planetary_real rmax = 1.0;
     int k;
     for (k = 0; k < 2; ++k) {
-        double r = fabs(lu[planetary_pivot_slots[k]]);
+        planetary_real r = fabs(lu[planetary_pivot_slots[k]]);
         rmin = PLANETARY_MIN(rmin, r);
         rmax = PLANETARY_MAX(rmax, r);
     }
@@ -565,28 +565,28 @@ static int planetary_pivots_spread(const double *lu)
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
-static int planetary_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+static int planetary_factorize(const planetary_real *q, const planetary_real *tr, planetary_real t, const planetary_real *p, planetary_real *work,
                              int *iwork, int *dense)
 {
-    double *values = work, *lu = work + PLANETARY_OFF_LU, *a = work + PLANETARY_OFF_DENSE;
+    planetary_real *values = work, *lu = work + PLANETARY_OFF_LU, *a = work + PLANETARY_OFF_DENSE;
     int k;
     planetary_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (planetary_sparse_factor(lu) == 0 && !planetary_pivots_spread(lu)) return PLANETARY_OK;
     *dense = 1;
     planetary_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(double) * 144);
+    memset(a, 0, sizeof(planetary_real) * 144);
     for (k = 0; k < 20; ++k) a[planetary_phi_q_rows[k] * 12 + planetary_phi_q_cols[k]] = values[k];
     return planetary_dense_factor(a, iwork);
 }
 
-static void planetary_solve(const double *work, const int *iwork, int dense, const double *b, double *x, double *y)
+static void planetary_solve(const planetary_real *work, const int *iwork, int dense, const planetary_real *b, planetary_real *x, planetary_real *y)
 {
     if (dense) planetary_dense_solve(work + PLANETARY_OFF_DENSE, iwork, b, x);
     else planetary_sparse_solve(work + PLANETARY_OFF_LU, b, x, y);
 }
 
-static void planetary_solve_t(const double *work, const int *iwork, int dense, const double *b, double *x)
+static void planetary_solve_t(const planetary_real *work, const int *iwork, int dense, const planetary_real *b, planetary_real *x)
 {
     if (dense) planetary_dense_solve_t(work + PLANETARY_OFF_DENSE, iwork, b, x);
     else planetary_sparse_solve_t(work + PLANETARY_OFF_LU, b, x);
@@ -594,12 +594,12 @@ static void planetary_solve_t(const double *work, const int *iwork, int dense, c
 
 /* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
    Four running maxima and sums: one chain would wait on each comparison. */
-static double planetary_maxabs(const double *v, int n)
+static planetary_real planetary_maxabs(const planetary_real *v, int n)
 {
-    double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    planetary_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     int k;
     for (k = 0; k + 4 <= n; k += 4) {
-        const double a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
+        const planetary_real a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
         m0 = a0 > m0 ? a0 : m0;
         m1 = a1 > m1 ? a1 : m1;
         m2 = a2 > m2 ? a2 : m2;
@@ -610,7 +610,7 @@ static double planetary_maxabs(const double *v, int n)
         s3 += a3;
     }
     for (; k < n; ++k) {
-        const double a = fabs(v[k]);
+        const planetary_real a = fabs(v[k]);
         m0 = a > m0 ? a : m0;
         s0 += a;
     }
@@ -624,12 +624,12 @@ static double planetary_maxabs(const double *v, int n)
    origin that differs from dq by a rounding of q, which sin and cos of the
    new angle must see (the subtraction is exact for steps under half the
    coordinate, and within a rounding of the step otherwise). */
-static double planetary_correct(double *q, double *dq)
+static planetary_real planetary_correct(planetary_real *q, planetary_real *dq)
 {
-    const double step = planetary_maxabs(dq, 12);
+    const planetary_real step = planetary_maxabs(dq, 12);
     int k;
     for (k = 0; k < 12; ++k) {
-        const double old = q[k];
+        const planetary_real old = q[k];
         q[k] = old - dq[k];
         dq[k] = old - q[k];
     }
@@ -643,12 +643,12 @@ static double planetary_correct(double *q, double *dq)
    from the bases the previous instant left (trig_near); without reuse, both
    start afresh. Converged: |Phi| and the last correction both within the
    tolerance's floor. On success the factors are those of q. */
-static int planetary_newton(double t, const double *p, double tol, double *q, double *tr, int *info, double *work,
+static int planetary_newton(planetary_real t, const planetary_real *p, planetary_real tol, planetary_real *q, planetary_real *tr, int *info, planetary_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    double *r = PLANETARY_VEC(work, 0), *dq = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
-    double *base = PLANETARY_VEC(work, 10);
-    double step = INFINITY, lim, qmag, rmax;
+    planetary_real *r = PLANETARY_VEC(work, 0), *dq = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
+    planetary_real *base = PLANETARY_VEC(work, 10);
+    planetary_real step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -706,10 +706,10 @@ static int planetary_newton(double t, const double *p, double tol, double *q, do
 }
 
 /* The compiled outputs at a solved q, with the factors of Phi_q(q). */
-static void planetary_outputs(double t, const double *p, const double *q, const double *tr, double *qd, double *qdd,
-                            double *lam, double *reactions, double *work, const int *iwork, int dense)
+static void planetary_outputs(planetary_real t, const planetary_real *p, const planetary_real *q, const planetary_real *tr, planetary_real *qd, planetary_real *qdd,
+                            planetary_real *lam, planetary_real *reactions, planetary_real *work, const int *iwork, int dense)
 {
-    double *y = PLANETARY_VEC(work, 2), *b = PLANETARY_VEC(work, 3);
+    planetary_real *y = PLANETARY_VEC(work, 2), *b = PLANETARY_VEC(work, 3);
     int k;
     planetary_nu_k(q, tr, t, p, b);
     planetary_solve(work, iwork, dense, b, qd, y);
@@ -724,8 +724,8 @@ static void planetary_outputs(double t, const double *p, const double *q, const 
 
 /* Whether everything an instant computed is finite (maxabs is NaN if any
    value is): a few comparisons per value, against an instant's solve. */
-static int planetary_finite(const double *q, const double *qd, const double *qdd, const double *lam,
-                          const double *reactions)
+static int planetary_finite(const planetary_real *q, const planetary_real *qd, const planetary_real *qdd, const planetary_real *lam,
+                          const planetary_real *reactions)
 {
     (void)qd; (void)qdd; (void)lam; (void)reactions;
     return isfinite(planetary_maxabs(q, 12))
@@ -739,22 +739,22 @@ static int planetary_finite(const double *q, const double *qd, const double *qdd
    explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
    it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
    the rule of symid.numeric.solve.unexplained). O(NG) a step. */
-static int planetary_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
-                               const double *qd1, const double *qdd1, double h, const double *c)
+static int planetary_unexplained(const planetary_real *q0, const planetary_real *qd0, const planetary_real *qdd0, const planetary_real *q1,
+                               const planetary_real *qd1, const planetary_real *qdd1, planetary_real h, const planetary_real *c)
 {
-    const double half = 0.5 * h, hh = h * h / 12.0;
-    double mismatch = 0.0, motion = 0.0;
+    const planetary_real half = 0.5 * h, hh = h * h / 12.0;
+    planetary_real mismatch = 0.0, motion = 0.0;
     int k;
     for (k = 0; k < 12; ++k) {
-        const double d = q1[k] - q0[k];
+        const planetary_real d = q1[k] - q0[k];
         mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
         motion = PLANETARY_MAX(motion, fabs(d) * c[k]);
     }
     return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
 }
 
-int planetary_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork)
+int planetary_instant(planetary_real t, const planetary_real *p, planetary_real tol, planetary_real *q, planetary_real *qd, planetary_real *qdd,
+                    planetary_real *lam, planetary_real *reactions, int *info, planetary_real *work, int *iwork)
 {
     int dense = 0, status, counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
@@ -762,7 +762,7 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
         || !isfinite(tol) || tol <= 0.0) {
         status = PLANETARY_BAD_ARGUMENT;
     } else {
-        double *tr = PLANETARY_VEC(work, 9);
+        planetary_real *tr = PLANETARY_VEC(work, 9);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = PLANETARY_VEC(work, 5);
@@ -782,16 +782,16 @@ int planetary_instant(double t, const double *p, double tol, double *q, double *
     return status;
 }
 
-int planetary_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
-                       double *rows, long *solved, double *work, int *iwork)
+int planetary_trajectory(planetary_real t0, planetary_real h, long n, const planetary_real *p, planetary_real tol, planetary_real *state,
+                       planetary_real *rows, long *solved, planetary_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *m1 = state + 36, *m2 = state + 48;
-    double *qd = state + 12, *qdd = state + 24, *m3 = state + 60;
-    double *scale = state + 72;
-    double *count = state + 84;
-    double *qn, *qdn, *qddn, *lam, *reac, *tr = PLANETARY_VEC(work, 9);
+    planetary_real *q = state, *m1 = state + 36, *m2 = state + 48;
+    planetary_real *qd = state + 12, *qdd = state + 24, *m3 = state + 60;
+    planetary_real *scale = state + 72;
+    planetary_real *count = state + 84;
+    planetary_real *qn, *qdn, *qddn, *lam, *reac, *tr = PLANETARY_VEC(work, 9);
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -801,8 +801,8 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const double t = t0 + *count * h;
-        double *row = rows + i * PLANETARY_ROW;
+        const planetary_real t = t0 + *count * h;
+        planetary_real *row = rows + i * PLANETARY_ROW;
         /* what the row holds is solved straight into it */
         qn = row + 1;
         qdn = row + 13;
@@ -819,7 +819,7 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
         else if (*count >= 1)
             for (k = 0; k < 12; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
         else
-            memcpy(qn, q, sizeof(double) * 12);
+            memcpy(qn, q, sizeof(planetary_real) * 12);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = planetary_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -836,12 +836,12 @@ int planetary_trajectory(double t0, double h, long n, const double *p, double to
             *solved = i;
             return PLANETARY_UNEXPLAINED;
         }
-        memcpy(m3, m2, sizeof(double) * 12);
-        memcpy(m2, m1, sizeof(double) * 12);
-        memcpy(m1, qdd, sizeof(double) * 12);
-        memcpy(qd, qdn, sizeof(double) * 12);
-        memcpy(qdd, qddn, sizeof(double) * 12);
-        memcpy(q, qn, sizeof(double) * 12);
+        memcpy(m3, m2, sizeof(planetary_real) * 12);
+        memcpy(m2, m1, sizeof(planetary_real) * 12);
+        memcpy(m1, qdd, sizeof(planetary_real) * 12);
+        memcpy(qd, qdn, sizeof(planetary_real) * 12);
+        memcpy(qdd, qddn, sizeof(planetary_real) * 12);
+        memcpy(q, qn, sizeof(planetary_real) * 12);
         *count += 1.0;
         row[0] = t;
     }

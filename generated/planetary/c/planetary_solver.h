@@ -8,6 +8,9 @@
 extern "C" {
 #endif
 
+/* The one floating type of every argument, table and workspace. */
+typedef double planetary_real;
+
 /* Sizes. */
 #define PLANETARY_NG 12            /* generalized coordinates q = [x, y, phi] per body */
 #define PLANETARY_NC 12            /* constraint rows */
@@ -15,9 +18,9 @@ extern "C" {
 #define PLANETARY_NNZ 20          /* structural nonzeros of Phi_q */
 #define PLANETARY_NR 51            /* reaction values (Fx, Fy, T per body role) */
 #define PLANETARY_ROW 100          /* values per instant in a trajectory row */
-#define PLANETARY_WORK 745        /* doubles of workspace every solver call needs */
+#define PLANETARY_WORK 745        /* reals of workspace every solver call needs */
 #define PLANETARY_IWORK 12         /* ints of workspace */
-#define PLANETARY_STATE 85       /* doubles of trajectory state */
+#define PLANETARY_STATE 85       /* reals of trajectory state */
 
 /* Status of every solver call. */
 #define PLANETARY_OK 0
@@ -39,7 +42,7 @@ extern "C" {
 #define PLANETARY_HAS_REACTIONS 1
 
 /* Parameters, in this order: r_sun, r_planet, r_ring, r_pinion, m_sun, m_planet, m_pinion, m_carrier, n_in, omega, T_load. */
-extern const double planetary_default_params[11];
+extern const planetary_real planetary_default_params[11];
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int planetary_phi_q_rows[20];
 extern const int planetary_phi_q_cols[20];
@@ -47,13 +50,13 @@ extern const int planetary_phi_q_cols[20];
 /* Arguments: q, qd: size NG; t: time; p: size NP; lam: size NC.
    Outputs: vectors of constraint rows: NC; phi_q: NNZ values; vectors of
    coordinates (applied forces, mass diagonal): NG; reactions: NR. */
-void planetary_phi(const double *q, double t, const double *p, double *out);
-void planetary_phi_q(const double *q, double t, const double *p, double *out);
-void planetary_nu(const double *q, double t, const double *p, double *out);
-void planetary_gamma(const double *q, const double *qd, double t, const double *p, double *out);
-void planetary_applied(const double *q, const double *qd, double t, const double *p, double *out);
-void planetary_mass(const double *p, double *out);
-void planetary_reactions(const double *q, const double *lam, double t, const double *p, double *out);
+void planetary_phi(const planetary_real *q, planetary_real t, const planetary_real *p, planetary_real *out);
+void planetary_phi_q(const planetary_real *q, planetary_real t, const planetary_real *p, planetary_real *out);
+void planetary_nu(const planetary_real *q, planetary_real t, const planetary_real *p, planetary_real *out);
+void planetary_gamma(const planetary_real *q, const planetary_real *qd, planetary_real t, const planetary_real *p, planetary_real *out);
+void planetary_applied(const planetary_real *q, const planetary_real *qd, planetary_real t, const planetary_real *p, planetary_real *out);
+void planetary_mass(const planetary_real *p, planetary_real *out);
+void planetary_reactions(const planetary_real *q, const planetary_real *lam, planetary_real t, const planetary_real *p, planetary_real *out);
 
 /* One instant: Newton from the guess in q (overwritten by the solution),
    then the compiled outputs. qd, qdd (NG), lam (NC), reactions (NR) and info
@@ -61,20 +64,20 @@ void planetary_reactions(const double *q, const double *lam, double t, const dou
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
    pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
-   when NP is 0. work: WORK doubles, iwork: IWORK ints. */
-int planetary_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork);
+   when NP is 0. work: WORK reals, iwork: IWORK ints. */
+int planetary_instant(planetary_real t, const planetary_real *p, planetary_real tol, planetary_real *q, planetary_real *qd, planetary_real *qdd,
+                    planetary_real *lam, planetary_real *reactions, int *info, planetary_real *work, int *iwork);
 
 /* n instants t0 + k h, k = state[STATE-1] (the instants solved with this
    state so far) onwards, each written as a row of ROW values (t, then the
    compiled groups in contract order) into rows: pass the same t0 on every
-   call of one run. state (STATE doubles) carries the predictor between calls:
+   call of one run. state (STATE reals) carries the predictor between calls:
    set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
    first call. state[6 NG..7 NG-1]: per
    coordinate, 1 / its scale for the jump check (zeros: no check).
    *solved = rows written (solved may be NULL). */
-int planetary_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
-                       double *rows, long *solved, double *work, int *iwork);
+int planetary_trajectory(planetary_real t0, planetary_real h, long n, const planetary_real *p, planetary_real tol, planetary_real *state,
+                       planetary_real *rows, long *solved, planetary_real *work, int *iwork);
 
 #ifdef __cplusplus
 }

@@ -25,11 +25,11 @@
 #define QUICK_RETURN_OFF_VEC (QUICK_RETURN_OFF_DENSE + 81)
 #define QUICK_RETURN_VEC(work, k) ((work) + QUICK_RETURN_OFF_VEC + (k) * 36)
 
-const double quick_return_default_params[14] = { 0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 6.283185307179586, 500.0 };
+const quick_return_real quick_return_default_params[14] = { 0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 6.283185307179586, 500.0 };
 const int quick_return_phi_q_rows[20] = { 0, 1, 2, 2, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 6, 7, 8 };
 const int quick_return_phi_q_cols[20] = { 0, 1, 3, 5, 4, 5, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */
-static void quick_return_trig(const double *q, double *tr)
+static void quick_return_trig(const quick_return_real *q, quick_return_real *tr)
 {
     tr[0] = sin(q[2]);
     tr[1] = cos(q[2]);
@@ -41,11 +41,11 @@ static void quick_return_trig(const double *q, double *tr)
 
 /* Sines and cosines at a guess with no base yet: from sin and cos, each
    angle becoming its body's base (see trig_near). */
-static void quick_return_trig_base(const double *q, double *tr, double *base)
+static void quick_return_trig_base(const quick_return_real *q, quick_return_real *tr, quick_return_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double a = q[3 * b + 2];
+        const quick_return_real a = q[3 * b + 2];
         base[3 * b] = a;
         tr[2 * b] = base[3 * b + 1] = sin(a);
         tr[2 * b + 1] = base[3 * b + 2] = cos(a);
@@ -60,15 +60,15 @@ static void quick_return_trig_base(const double *q, double *tr, double *base)
    3e-19). Every value is one rotation from a libm value, so rounding errors
    do not accumulate from instant to instant. Farther away, sin and cos are
    called and the angle becomes the base. */
-static void quick_return_trig_near(const double *q, double *tr, double *base)
+static void quick_return_trig_near(const quick_return_real *q, quick_return_real *tr, quick_return_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double a = q[3 * b + 2], d = a - base[3 * b];
+        const quick_return_real a = q[3 * b + 2], d = a - base[3 * b];
         if (fabs(d) <= 0.0625) {
-            const double d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
-            const double sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const double cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
+            const quick_return_real d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
+            const quick_return_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
+            const quick_return_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
             tr[2 * b] = s + (s * cm + c * sd);
             tr[2 * b + 1] = c + (c * cm - s * sd);
         } else {
@@ -84,11 +84,11 @@ static void quick_return_trig_near(const double *q, double *tr, double *base)
    rad, sin(a + d) = sin a + d cos a and cos(a + d) = cos a - d sin a to
    rounding (d^2 / 2 < 1e-18); larger ones rotate from the base as
    trig_near does. */
-static void quick_return_trig_step(const double *q, const double *dq, double *tr, double *base)
+static void quick_return_trig_step(const quick_return_real *q, const quick_return_real *dq, quick_return_real *tr, quick_return_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        const quick_return_real d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
             tr[2 * b] = s + c * d;
             tr[2 * b + 1] = c - s * d;
@@ -99,13 +99,13 @@ static void quick_return_trig_step(const double *q, const double *dq, double *tr
     }
 }
 
-static void quick_return_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void quick_return_phi_k0(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    const double e0 = -q[3];
-    const double e1 = (1.0/2.0)*p[2];
-    const double e2 = e1*tr[3];
-    const double e3 = e1*tr[2];
-    const double e4 = -q[7];
+    const quick_return_real e0 = -q[3];
+    const quick_return_real e1 = (1.0/2.0)*p[2];
+    const quick_return_real e2 = e1*tr[3];
+    const quick_return_real e3 = e1*tr[2];
+    const quick_return_real e4 = -q[7];
     out[0] = q[0];
     out[1] = q[1];
     out[2] = -e0 - e2;
@@ -117,29 +117,29 @@ static void quick_return_phi_k0(const double * q, const double * tr, double t, c
     out[8] = -p[12]*t + q[2];
 }
 
-static void quick_return_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void quick_return_phi_k(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     quick_return_phi_k0(q, tr, t, p, out);
 }
 
-void quick_return_phi(const double * q, double t, const double * p, double *out)
+void quick_return_phi(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    double tr[6];
+    quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_phi_k(q, tr, t, p, out);
 }
 
-static void quick_return_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void quick_return_phi_q_k0(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     (void)t;
-    const double e0 = p[2]*tr[2];
-    const double e1 = (1.0/2.0)*e0;
-    const double e2 = p[2]*tr[3];
-    const double e3 = (1.0/2.0)*e2;
-    const double e4 = p[0]*tr[0];
-    const double e5 = p[0]*tr[1];
-    const double e6 = 2*q[3] - 2*q[6];
-    const double e7 = 2*q[4] - 2*q[7];
+    const quick_return_real e0 = p[2]*tr[2];
+    const quick_return_real e1 = (1.0/2.0)*e0;
+    const quick_return_real e2 = p[2]*tr[3];
+    const quick_return_real e3 = (1.0/2.0)*e2;
+    const quick_return_real e4 = p[0]*tr[0];
+    const quick_return_real e5 = p[0]*tr[1];
+    const quick_return_real e6 = 2*q[3] - 2*q[6];
+    const quick_return_real e7 = 2*q[4] - 2*q[7];
     out[0] = 1;
     out[1] = 1;
     out[2] = 1;
@@ -162,19 +162,19 @@ static void quick_return_phi_q_k0(const double * q, const double * tr, double t,
     out[19] = 1;
 }
 
-static void quick_return_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void quick_return_phi_q_k(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     quick_return_phi_q_k0(q, tr, t, p, out);
 }
 
-void quick_return_phi_q(const double * q, double t, const double * p, double *out)
+void quick_return_phi_q(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    double tr[6];
+    quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_phi_q_k(q, tr, t, p, out);
 }
 
-static void quick_return_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void quick_return_nu_k0(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     (void)q;
     (void)tr;
@@ -190,35 +190,35 @@ static void quick_return_nu_k0(const double * q, const double * tr, double t, co
     out[8] = p[12];
 }
 
-static void quick_return_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void quick_return_nu_k(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     quick_return_nu_k0(q, tr, t, p, out);
 }
 
-void quick_return_nu(const double * q, double t, const double * p, double *out)
+void quick_return_nu(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    double tr[6];
+    quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_nu_k(q, tr, t, p, out);
 }
 
-static void quick_return_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void quick_return_gamma_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     (void)t;
-    const double e0 = pow(qd[5], 2);
-    const double e1 = e0*tr[3];
-    const double e2 = (1.0/2.0)*p[2];
-    const double e3 = e0*tr[2];
-    const double e4 = 2*qd[5];
-    const double e5 = e4*tr[3];
-    const double e6 = e4*tr[2];
-    const double e7 = pow(qd[2], 2);
-    const double e8 = p[0]*tr[0];
-    const double e9 = p[0]*tr[1];
-    const double e10 = e1*p[2];
-    const double e11 = e3*p[2];
-    const double e12 = e5*p[2];
-    const double e13 = e6*p[2];
+    const quick_return_real e0 = pow(qd[5], 2);
+    const quick_return_real e1 = e0*tr[3];
+    const quick_return_real e2 = (1.0/2.0)*p[2];
+    const quick_return_real e3 = e0*tr[2];
+    const quick_return_real e4 = 2*qd[5];
+    const quick_return_real e5 = e4*tr[3];
+    const quick_return_real e6 = e4*tr[2];
+    const quick_return_real e7 = pow(qd[2], 2);
+    const quick_return_real e8 = p[0]*tr[0];
+    const quick_return_real e9 = p[0]*tr[1];
+    const quick_return_real e10 = e1*p[2];
+    const quick_return_real e11 = e3*p[2];
+    const quick_return_real e12 = e5*p[2];
+    const quick_return_real e13 = e6*p[2];
     out[0] = 0;
     out[1] = 0;
     out[2] = -e1*e2;
@@ -230,19 +230,19 @@ static void quick_return_gamma_k0(const double * q, const double * tr, const dou
     out[8] = 0;
 }
 
-static void quick_return_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void quick_return_gamma_k(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     quick_return_gamma_k0(q, tr, qd, t, p, out);
 }
 
-void quick_return_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void quick_return_gamma(const quick_return_real * q, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    double tr[6];
+    quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void quick_return_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void quick_return_applied_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     (void)q;
     (void)tr;
@@ -258,19 +258,19 @@ static void quick_return_applied_k0(const double * q, const double * tr, const d
     out[8] = 0;
 }
 
-static void quick_return_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void quick_return_applied_k(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     quick_return_applied_k0(q, tr, qd, t, p, out);
 }
 
-void quick_return_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void quick_return_applied(const quick_return_real * q, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    double tr[6];
+    quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_applied_k(q, tr, qd, t, p, out);
 }
 
-static void quick_return_mass_k0(const double * p, double *out)
+static void quick_return_mass_k0(const quick_return_real * p, quick_return_real *out)
 {
     out[0] = p[5];
     out[1] = p[5];
@@ -283,27 +283,27 @@ static void quick_return_mass_k0(const double * p, double *out)
     out[8] = (1.0/12.0)*p[8]*(pow(p[10], 2) + pow(p[9], 2));
 }
 
-static void quick_return_mass_k(const double * p, double *out)
+static void quick_return_mass_k(const quick_return_real * p, quick_return_real *out)
 {
     quick_return_mass_k0(p, out);
 }
 
-void quick_return_mass(const double * p, double *out)
+void quick_return_mass(const quick_return_real * p, quick_return_real *out)
 {
     quick_return_mass_k(p, out);
 }
 
-static void quick_return_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void quick_return_reactions_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * lam, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     (void)t;
-    const double e0 = lam[4]*tr[2];
-    const double e1 = lam[4]*tr[3];
-    const double e2 = 2*lam[5];
-    const double e3 = e2*q[3] - 2*lam[5]*q[6];
-    const double e4 = lam[5]*p[2];
-    const double e5 = e4*tr[3];
-    const double e6 = e2*q[4] - 2*lam[5]*q[7];
-    const double e7 = e4*tr[2];
+    const quick_return_real e0 = lam[4]*tr[2];
+    const quick_return_real e1 = lam[4]*tr[3];
+    const quick_return_real e2 = 2*lam[5];
+    const quick_return_real e3 = e2*q[3] - 2*lam[5]*q[6];
+    const quick_return_real e4 = lam[5]*p[2];
+    const quick_return_real e5 = e4*tr[3];
+    const quick_return_real e6 = e2*q[4] - 2*lam[5]*q[7];
+    const quick_return_real e7 = e4*tr[2];
     out[0] = lam[0];
     out[1] = lam[1];
     out[2] = 0;
@@ -342,14 +342,14 @@ static void quick_return_reactions_k0(const double * q, const double * tr, const
     out[35] = -lam[8];
 }
 
-static void quick_return_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void quick_return_reactions_k(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * lam, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     quick_return_reactions_k0(q, tr, lam, t, p, out);
 }
 
-void quick_return_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void quick_return_reactions(const quick_return_real * q, const quick_return_real * lam, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    double tr[6];
+    quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_reactions_k(q, tr, lam, t, p, out);
 }
@@ -364,10 +364,10 @@ void quick_return_reactions(const double * q, const double * lam, double t, cons
    of the full factorization. The solves' vectors never overlap the factors
    or each other: restrict lets an unknown stay in a register across its
    updates. */
-static int quick_return_sparse_factor0(double *lu)
+static int quick_return_sparse_factor0(quick_return_real *lu)
 {
-    double piv = 0.0;
-    double cm = 0.0;
+    quick_return_real piv = 0.0;
+    quick_return_real cm = 0.0;
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[6]));
     if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
@@ -396,12 +396,12 @@ static int quick_return_sparse_factor0(double *lu)
     return 0;
 }
 
-static int quick_return_sparse_factor(double *lu)
+static int quick_return_sparse_factor(quick_return_real *lu)
 {
     return quick_return_sparse_factor0(lu);
 }
 
-static void quick_return_sparse_forward0(const double *QUICK_RETURN_RESTRICT lu, double *QUICK_RETURN_RESTRICT y)
+static void quick_return_sparse_forward0(const quick_return_real *QUICK_RETURN_RESTRICT lu, quick_return_real *QUICK_RETURN_RESTRICT y)
 {
     y[4] -= lu[6] * y[0];
     y[4] -= lu[7] * y[1];
@@ -411,7 +411,7 @@ static void quick_return_sparse_forward0(const double *QUICK_RETURN_RESTRICT lu,
 }
 
 static void quick_return_sparse_back0(
-    const double *QUICK_RETURN_RESTRICT lu, const double *QUICK_RETURN_RESTRICT y, double *QUICK_RETURN_RESTRICT x)
+    const quick_return_real *QUICK_RETURN_RESTRICT lu, const quick_return_real *QUICK_RETURN_RESTRICT y, quick_return_real *QUICK_RETURN_RESTRICT x)
 {
     x[5] = (y[4]) * lu[11];
     x[4] = y[3] - lu[5] * x[5];
@@ -424,15 +424,15 @@ static void quick_return_sparse_back0(
     x[0] = y[0];
 }
 
-static void quick_return_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static void quick_return_sparse_solve(const quick_return_real *lu, const quick_return_real *b, quick_return_real *x, quick_return_real *y)
 {
-    memcpy(y, b, sizeof(double) * 9);
+    memcpy(y, b, sizeof(quick_return_real) * 9);
     quick_return_sparse_forward0(lu, y);
     quick_return_sparse_back0(lu, y, x);
 }
 
 static void quick_return_sparse_t_forward0(
-    const double *QUICK_RETURN_RESTRICT lu, const double *QUICK_RETURN_RESTRICT b, double *QUICK_RETURN_RESTRICT x)
+    const quick_return_real *QUICK_RETURN_RESTRICT lu, const quick_return_real *QUICK_RETURN_RESTRICT b, quick_return_real *QUICK_RETURN_RESTRICT x)
 {
     x[0] = b[0];
     x[1] = b[1];
@@ -445,7 +445,7 @@ static void quick_return_sparse_t_forward0(
     x[4] = (b[5] - lu[14] * x[5] - lu[3] * x[2] - lu[5] * x[3]) * lu[11];
 }
 
-static void quick_return_sparse_t_back0(const double *QUICK_RETURN_RESTRICT lu, double *QUICK_RETURN_RESTRICT x)
+static void quick_return_sparse_t_back0(const quick_return_real *QUICK_RETURN_RESTRICT lu, quick_return_real *QUICK_RETURN_RESTRICT x)
 {
     x[3] -= lu[10] * x[4];
     x[2] -= lu[9] * x[4];
@@ -454,7 +454,7 @@ static void quick_return_sparse_t_back0(const double *QUICK_RETURN_RESTRICT lu, 
     x[0] -= lu[6] * x[4];
 }
 
-static void quick_return_sparse_solve_t(const double *lu, const double *b, double *x)
+static void quick_return_sparse_solve_t(const quick_return_real *lu, const quick_return_real *b, quick_return_real *x)
 {
     quick_return_sparse_t_forward0(lu, b, x);
     quick_return_sparse_t_back0(lu, x);
@@ -462,11 +462,11 @@ static void quick_return_sparse_solve_t(const double *lu, const double *b, doubl
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns
    QUICK_RETURN_SINGULAR when the pivots span more than 1 / SINGULAR_RATIO. */
-static int quick_return_dense_factor(double *a, int *perm)
+static int quick_return_dense_factor(quick_return_real *a, int *perm)
 {
     const int n = 9;
     int i, j, k;
-    double umax = 0.0, umin = INFINITY;
+    quick_return_real umax = 0.0, umin = INFINITY;
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -474,7 +474,7 @@ static int quick_return_dense_factor(double *a, int *perm)
         perm[k] = best;
         if (best != k)
             for (j = 0; j < n; ++j) {
-                double tmp = a[k * n + j];
+                quick_return_real tmp = a[k * n + j];
                 a[k * n + j] = a[best * n + j];
                 a[best * n + j] = tmp;
             }
@@ -482,20 +482,20 @@ static int quick_return_dense_factor(double *a, int *perm)
         umax = fmax(umax, fabs(a[k * n + k]));
         umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            double m = a[i * n + k] /= a[k * n + k];
+            quick_return_real m = a[i * n + k] /= a[k * n + k];
             for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
         }
     }
     return umin <= QUICK_RETURN_SINGULAR_RATIO * umax ? QUICK_RETURN_SINGULAR : QUICK_RETURN_OK;
 }
 
-static void quick_return_dense_solve(const double *a, const int *perm, const double *b, double *x)
+static void quick_return_dense_solve(const quick_return_real *a, const int *perm, const quick_return_real *b, quick_return_real *x)
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(quick_return_real) * n);
     for (i = 0; i < n; ++i) {
-        double tmp = x[perm[i]];
+        quick_return_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
         for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
@@ -506,11 +506,11 @@ static void quick_return_dense_solve(const double *a, const int *perm, const dou
     }
 }
 
-static void quick_return_dense_solve_t(const double *a, const int *perm, const double *b, double *x)
+static void quick_return_dense_solve_t(const quick_return_real *a, const int *perm, const quick_return_real *b, quick_return_real *x)
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(quick_return_real) * n);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -519,7 +519,7 @@ static void quick_return_dense_solve_t(const double *a, const int *perm, const d
         for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
     }
     for (i = n - 1; i >= 0; --i) {
-        double tmp = x[perm[i]];
+        quick_return_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
     }
@@ -531,13 +531,13 @@ static const int quick_return_pivot_slots[2] = { 15, 11 };
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
-static int quick_return_pivots_spread(const double *lu)
+static int quick_return_pivots_spread(const quick_return_real *lu)
 {
-    double rmin = 1.0;
-    double rmax = 1.0;
+    quick_return_real rmin = 1.0;
+    quick_return_real rmax = 1.0;
     int k;
     for (k = 0; k < 2; ++k) {
-        double r = fabs(lu[quick_return_pivot_slots[k]]);
+        quick_return_real r = fabs(lu[quick_return_pivot_slots[k]]);
         rmin = QUICK_RETURN_MIN(rmin, r);
         rmax = QUICK_RETURN_MAX(rmax, r);
     }
@@ -547,28 +547,28 @@ static int quick_return_pivots_spread(const double *lu)
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
-static int quick_return_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+static int quick_return_factorize(const quick_return_real *q, const quick_return_real *tr, quick_return_real t, const quick_return_real *p, quick_return_real *work,
                              int *iwork, int *dense)
 {
-    double *values = work, *lu = work + QUICK_RETURN_OFF_LU, *a = work + QUICK_RETURN_OFF_DENSE;
+    quick_return_real *values = work, *lu = work + QUICK_RETURN_OFF_LU, *a = work + QUICK_RETURN_OFF_DENSE;
     int k;
     quick_return_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (quick_return_sparse_factor(lu) == 0 && !quick_return_pivots_spread(lu)) return QUICK_RETURN_OK;
     *dense = 1;
     quick_return_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(double) * 81);
+    memset(a, 0, sizeof(quick_return_real) * 81);
     for (k = 0; k < 20; ++k) a[quick_return_phi_q_rows[k] * 9 + quick_return_phi_q_cols[k]] = values[k];
     return quick_return_dense_factor(a, iwork);
 }
 
-static void quick_return_solve(const double *work, const int *iwork, int dense, const double *b, double *x, double *y)
+static void quick_return_solve(const quick_return_real *work, const int *iwork, int dense, const quick_return_real *b, quick_return_real *x, quick_return_real *y)
 {
     if (dense) quick_return_dense_solve(work + QUICK_RETURN_OFF_DENSE, iwork, b, x);
     else quick_return_sparse_solve(work + QUICK_RETURN_OFF_LU, b, x, y);
 }
 
-static void quick_return_solve_t(const double *work, const int *iwork, int dense, const double *b, double *x)
+static void quick_return_solve_t(const quick_return_real *work, const int *iwork, int dense, const quick_return_real *b, quick_return_real *x)
 {
     if (dense) quick_return_dense_solve_t(work + QUICK_RETURN_OFF_DENSE, iwork, b, x);
     else quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, b, x);
@@ -576,12 +576,12 @@ static void quick_return_solve_t(const double *work, const int *iwork, int dense
 
 /* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
    Four running maxima and sums: one chain would wait on each comparison. */
-static double quick_return_maxabs(const double *v, int n)
+static quick_return_real quick_return_maxabs(const quick_return_real *v, int n)
 {
-    double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    quick_return_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     int k;
     for (k = 0; k + 4 <= n; k += 4) {
-        const double a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
+        const quick_return_real a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
         m0 = a0 > m0 ? a0 : m0;
         m1 = a1 > m1 ? a1 : m1;
         m2 = a2 > m2 ? a2 : m2;
@@ -592,7 +592,7 @@ static double quick_return_maxabs(const double *v, int n)
         s3 += a3;
     }
     for (; k < n; ++k) {
-        const double a = fabs(v[k]);
+        const quick_return_real a = fabs(v[k]);
         m0 = a > m0 ? a : m0;
         s0 += a;
     }
@@ -606,12 +606,12 @@ static double quick_return_maxabs(const double *v, int n)
    origin that differs from dq by a rounding of q, which sin and cos of the
    new angle must see (the subtraction is exact for steps under half the
    coordinate, and within a rounding of the step otherwise). */
-static double quick_return_correct(double *q, double *dq)
+static quick_return_real quick_return_correct(quick_return_real *q, quick_return_real *dq)
 {
-    const double step = quick_return_maxabs(dq, 9);
+    const quick_return_real step = quick_return_maxabs(dq, 9);
     int k;
     for (k = 0; k < 9; ++k) {
-        const double old = q[k];
+        const quick_return_real old = q[k];
         q[k] = old - dq[k];
         dq[k] = old - q[k];
     }
@@ -625,12 +625,12 @@ static double quick_return_correct(double *q, double *dq)
    from the bases the previous instant left (trig_near); without reuse, both
    start afresh. Converged: |Phi| and the last correction both within the
    tolerance's floor. On success the factors are those of q. */
-static int quick_return_newton(double t, const double *p, double tol, double *q, double *tr, int *info, double *work,
+static int quick_return_newton(quick_return_real t, const quick_return_real *p, quick_return_real tol, quick_return_real *q, quick_return_real *tr, int *info, quick_return_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    double *r = QUICK_RETURN_VEC(work, 0), *dq = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
-    double *base = QUICK_RETURN_VEC(work, 10);
-    double step = INFINITY, lim, qmag, rmax;
+    quick_return_real *r = QUICK_RETURN_VEC(work, 0), *dq = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
+    quick_return_real *base = QUICK_RETURN_VEC(work, 10);
+    quick_return_real step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -688,10 +688,10 @@ static int quick_return_newton(double t, const double *p, double tol, double *q,
 }
 
 /* The compiled outputs at a solved q, with the factors of Phi_q(q). */
-static void quick_return_outputs(double t, const double *p, const double *q, const double *tr, double *qd, double *qdd,
-                            double *lam, double *reactions, double *work, const int *iwork, int dense)
+static void quick_return_outputs(quick_return_real t, const quick_return_real *p, const quick_return_real *q, const quick_return_real *tr, quick_return_real *qd, quick_return_real *qdd,
+                            quick_return_real *lam, quick_return_real *reactions, quick_return_real *work, const int *iwork, int dense)
 {
-    double *y = QUICK_RETURN_VEC(work, 2), *b = QUICK_RETURN_VEC(work, 3);
+    quick_return_real *y = QUICK_RETURN_VEC(work, 2), *b = QUICK_RETURN_VEC(work, 3);
     int k;
     quick_return_nu_k(q, tr, t, p, b);
     quick_return_solve(work, iwork, dense, b, qd, y);
@@ -706,8 +706,8 @@ static void quick_return_outputs(double t, const double *p, const double *q, con
 
 /* Whether everything an instant computed is finite (maxabs is NaN if any
    value is): a few comparisons per value, against an instant's solve. */
-static int quick_return_finite(const double *q, const double *qd, const double *qdd, const double *lam,
-                          const double *reactions)
+static int quick_return_finite(const quick_return_real *q, const quick_return_real *qd, const quick_return_real *qdd, const quick_return_real *lam,
+                          const quick_return_real *reactions)
 {
     (void)qd; (void)qdd; (void)lam; (void)reactions;
     return isfinite(quick_return_maxabs(q, 9))
@@ -721,22 +721,22 @@ static int quick_return_finite(const double *q, const double *qd, const double *
    explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
    it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
    the rule of symid.numeric.solve.unexplained). O(NG) a step. */
-static int quick_return_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
-                               const double *qd1, const double *qdd1, double h, const double *c)
+static int quick_return_unexplained(const quick_return_real *q0, const quick_return_real *qd0, const quick_return_real *qdd0, const quick_return_real *q1,
+                               const quick_return_real *qd1, const quick_return_real *qdd1, quick_return_real h, const quick_return_real *c)
 {
-    const double half = 0.5 * h, hh = h * h / 12.0;
-    double mismatch = 0.0, motion = 0.0;
+    const quick_return_real half = 0.5 * h, hh = h * h / 12.0;
+    quick_return_real mismatch = 0.0, motion = 0.0;
     int k;
     for (k = 0; k < 9; ++k) {
-        const double d = q1[k] - q0[k];
+        const quick_return_real d = q1[k] - q0[k];
         mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
         motion = QUICK_RETURN_MAX(motion, fabs(d) * c[k]);
     }
     return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
 }
 
-int quick_return_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork)
+int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_return_real tol, quick_return_real *q, quick_return_real *qd, quick_return_real *qdd,
+                    quick_return_real *lam, quick_return_real *reactions, int *info, quick_return_real *work, int *iwork)
 {
     int dense = 0, status, counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
@@ -744,7 +744,7 @@ int quick_return_instant(double t, const double *p, double tol, double *q, doubl
         || !isfinite(tol) || tol <= 0.0) {
         status = QUICK_RETURN_BAD_ARGUMENT;
     } else {
-        double *tr = QUICK_RETURN_VEC(work, 9);
+        quick_return_real *tr = QUICK_RETURN_VEC(work, 9);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = QUICK_RETURN_VEC(work, 5);
@@ -764,16 +764,16 @@ int quick_return_instant(double t, const double *p, double tol, double *q, doubl
     return status;
 }
 
-int quick_return_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
-                       double *rows, long *solved, double *work, int *iwork)
+int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, const quick_return_real *p, quick_return_real tol, quick_return_real *state,
+                       quick_return_real *rows, long *solved, quick_return_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *m1 = state + 27, *m2 = state + 36;
-    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
-    double *scale = state + 54;
-    double *count = state + 63;
-    double *qn, *qdn, *qddn, *lam, *reac, *tr = QUICK_RETURN_VEC(work, 9);
+    quick_return_real *q = state, *m1 = state + 27, *m2 = state + 36;
+    quick_return_real *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
+    quick_return_real *scale = state + 54;
+    quick_return_real *count = state + 63;
+    quick_return_real *qn, *qdn, *qddn, *lam, *reac, *tr = QUICK_RETURN_VEC(work, 9);
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -783,8 +783,8 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const double t = t0 + *count * h;
-        double *row = rows + i * QUICK_RETURN_ROW;
+        const quick_return_real t = t0 + *count * h;
+        quick_return_real *row = rows + i * QUICK_RETURN_ROW;
         /* what the row holds is solved straight into it */
         qn = row + 1;
         qdn = row + 10;
@@ -801,7 +801,7 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
         else if (*count >= 1)
             for (k = 0; k < 9; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
         else
-            memcpy(qn, q, sizeof(double) * 9);
+            memcpy(qn, q, sizeof(quick_return_real) * 9);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = quick_return_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -818,12 +818,12 @@ int quick_return_trajectory(double t0, double h, long n, const double *p, double
             *solved = i;
             return QUICK_RETURN_UNEXPLAINED;
         }
-        memcpy(m3, m2, sizeof(double) * 9);
-        memcpy(m2, m1, sizeof(double) * 9);
-        memcpy(m1, qdd, sizeof(double) * 9);
-        memcpy(qd, qdn, sizeof(double) * 9);
-        memcpy(qdd, qddn, sizeof(double) * 9);
-        memcpy(q, qn, sizeof(double) * 9);
+        memcpy(m3, m2, sizeof(quick_return_real) * 9);
+        memcpy(m2, m1, sizeof(quick_return_real) * 9);
+        memcpy(m1, qdd, sizeof(quick_return_real) * 9);
+        memcpy(qd, qdn, sizeof(quick_return_real) * 9);
+        memcpy(qdd, qddn, sizeof(quick_return_real) * 9);
+        memcpy(q, qn, sizeof(quick_return_real) * 9);
         *count += 1.0;
         row[0] = t;
     }

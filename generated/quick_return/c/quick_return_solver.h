@@ -8,6 +8,9 @@
 extern "C" {
 #endif
 
+/* The one floating type of every argument, table and workspace. */
+typedef double quick_return_real;
+
 /* Sizes. */
 #define QUICK_RETURN_NG 9            /* generalized coordinates q = [x, y, phi] per body */
 #define QUICK_RETURN_NC 9            /* constraint rows */
@@ -15,9 +18,9 @@ extern "C" {
 #define QUICK_RETURN_NNZ 20          /* structural nonzeros of Phi_q */
 #define QUICK_RETURN_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define QUICK_RETURN_ROW 73          /* values per instant in a trajectory row */
-#define QUICK_RETURN_WORK 517        /* doubles of workspace every solver call needs */
+#define QUICK_RETURN_WORK 517        /* reals of workspace every solver call needs */
 #define QUICK_RETURN_IWORK 9         /* ints of workspace */
-#define QUICK_RETURN_STATE 64       /* doubles of trajectory state */
+#define QUICK_RETURN_STATE 64       /* reals of trajectory state */
 
 /* Status of every solver call. */
 #define QUICK_RETURN_OK 0
@@ -39,7 +42,7 @@ extern "C" {
 #define QUICK_RETURN_HAS_REACTIONS 1
 
 /* Parameters, in this order: r_crank, d_pivots, L_lever, L_link, h_ram, m_crank, R_crank, m_lever, m_ram, a_ram, b_ram, n, omega, F_cut. */
-extern const double quick_return_default_params[14];
+extern const quick_return_real quick_return_default_params[14];
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int quick_return_phi_q_rows[20];
 extern const int quick_return_phi_q_cols[20];
@@ -47,13 +50,13 @@ extern const int quick_return_phi_q_cols[20];
 /* Arguments: q, qd: size NG; t: time; p: size NP; lam: size NC.
    Outputs: vectors of constraint rows: NC; phi_q: NNZ values; vectors of
    coordinates (applied forces, mass diagonal): NG; reactions: NR. */
-void quick_return_phi(const double *q, double t, const double *p, double *out);
-void quick_return_phi_q(const double *q, double t, const double *p, double *out);
-void quick_return_nu(const double *q, double t, const double *p, double *out);
-void quick_return_gamma(const double *q, const double *qd, double t, const double *p, double *out);
-void quick_return_applied(const double *q, const double *qd, double t, const double *p, double *out);
-void quick_return_mass(const double *p, double *out);
-void quick_return_reactions(const double *q, const double *lam, double t, const double *p, double *out);
+void quick_return_phi(const quick_return_real *q, quick_return_real t, const quick_return_real *p, quick_return_real *out);
+void quick_return_phi_q(const quick_return_real *q, quick_return_real t, const quick_return_real *p, quick_return_real *out);
+void quick_return_nu(const quick_return_real *q, quick_return_real t, const quick_return_real *p, quick_return_real *out);
+void quick_return_gamma(const quick_return_real *q, const quick_return_real *qd, quick_return_real t, const quick_return_real *p, quick_return_real *out);
+void quick_return_applied(const quick_return_real *q, const quick_return_real *qd, quick_return_real t, const quick_return_real *p, quick_return_real *out);
+void quick_return_mass(const quick_return_real *p, quick_return_real *out);
+void quick_return_reactions(const quick_return_real *q, const quick_return_real *lam, quick_return_real t, const quick_return_real *p, quick_return_real *out);
 
 /* One instant: Newton from the guess in q (overwritten by the solution),
    then the compiled outputs. qd, qdd (NG), lam (NC), reactions (NR) and info
@@ -61,20 +64,20 @@ void quick_return_reactions(const double *q, const double *lam, double t, const 
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
    pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
-   when NP is 0. work: WORK doubles, iwork: IWORK ints. */
-int quick_return_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork);
+   when NP is 0. work: WORK reals, iwork: IWORK ints. */
+int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_return_real tol, quick_return_real *q, quick_return_real *qd, quick_return_real *qdd,
+                    quick_return_real *lam, quick_return_real *reactions, int *info, quick_return_real *work, int *iwork);
 
 /* n instants t0 + k h, k = state[STATE-1] (the instants solved with this
    state so far) onwards, each written as a row of ROW values (t, then the
    compiled groups in contract order) into rows: pass the same t0 on every
-   call of one run. state (STATE doubles) carries the predictor between calls:
+   call of one run. state (STATE reals) carries the predictor between calls:
    set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
    first call. state[6 NG..7 NG-1]: per
    coordinate, 1 / its scale for the jump check (zeros: no check).
    *solved = rows written (solved may be NULL). */
-int quick_return_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
-                       double *rows, long *solved, double *work, int *iwork);
+int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, const quick_return_real *p, quick_return_real tol, quick_return_real *state,
+                       quick_return_real *rows, long *solved, quick_return_real *work, int *iwork);
 
 #ifdef __cplusplus
 }

@@ -25,11 +25,11 @@
 #define SLIDER_CRANK_OFF_VEC (SLIDER_CRANK_OFF_DENSE + 81)
 #define SLIDER_CRANK_VEC(work, k) ((work) + SLIDER_CRANK_OFF_VEC + (k) * 30)
 
-const double slider_crank_default_params[10] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 5.0, 31.41592653589793, 100.0 };
+const slider_crank_real slider_crank_default_params[10] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 5.0, 31.41592653589793, 100.0 };
 const int slider_crank_phi_q_rows[21] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 7, 8 };
 const int slider_crank_phi_q_cols[21] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 4, 5, 7, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */
-static void slider_crank_trig(const double *q, double *tr)
+static void slider_crank_trig(const slider_crank_real *q, slider_crank_real *tr)
 {
     tr[0] = sin(q[2]);
     tr[1] = cos(q[2]);
@@ -41,11 +41,11 @@ static void slider_crank_trig(const double *q, double *tr)
 
 /* Sines and cosines at a guess with no base yet: from sin and cos, each
    angle becoming its body's base (see trig_near). */
-static void slider_crank_trig_base(const double *q, double *tr, double *base)
+static void slider_crank_trig_base(const slider_crank_real *q, slider_crank_real *tr, slider_crank_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double a = q[3 * b + 2];
+        const slider_crank_real a = q[3 * b + 2];
         base[3 * b] = a;
         tr[2 * b] = base[3 * b + 1] = sin(a);
         tr[2 * b + 1] = base[3 * b + 2] = cos(a);
@@ -60,15 +60,15 @@ static void slider_crank_trig_base(const double *q, double *tr, double *base)
    3e-19). Every value is one rotation from a libm value, so rounding errors
    do not accumulate from instant to instant. Farther away, sin and cos are
    called and the angle becomes the base. */
-static void slider_crank_trig_near(const double *q, double *tr, double *base)
+static void slider_crank_trig_near(const slider_crank_real *q, slider_crank_real *tr, slider_crank_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double a = q[3 * b + 2], d = a - base[3 * b];
+        const slider_crank_real a = q[3 * b + 2], d = a - base[3 * b];
         if (fabs(d) <= 0.0625) {
-            const double d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
-            const double sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const double cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
+            const slider_crank_real d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
+            const slider_crank_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
+            const slider_crank_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
             tr[2 * b] = s + (s * cm + c * sd);
             tr[2 * b + 1] = c + (c * cm - s * sd);
         } else {
@@ -84,11 +84,11 @@ static void slider_crank_trig_near(const double *q, double *tr, double *base)
    rad, sin(a + d) = sin a + d cos a and cos(a + d) = cos a - d sin a to
    rounding (d^2 / 2 < 1e-18); larger ones rotate from the base as
    trig_near does. */
-static void slider_crank_trig_step(const double *q, const double *dq, double *tr, double *base)
+static void slider_crank_trig_step(const slider_crank_real *q, const slider_crank_real *dq, slider_crank_real *tr, slider_crank_real *base)
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        const slider_crank_real d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
             tr[2 * b] = s + c * d;
             tr[2 * b + 1] = c - s * d;
@@ -99,14 +99,14 @@ static void slider_crank_trig_step(const double *q, const double *dq, double *tr
     }
 }
 
-static void slider_crank_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_crank_phi_k0(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    const double e0 = (1.0/2.0)*p[0];
-    const double e1 = e0*tr[1];
-    const double e2 = e0*tr[0];
-    const double e3 = (1.0/2.0)*p[1];
-    const double e4 = e3*tr[3];
-    const double e5 = e3*tr[2];
+    const slider_crank_real e0 = (1.0/2.0)*p[0];
+    const slider_crank_real e1 = e0*tr[1];
+    const slider_crank_real e2 = e0*tr[0];
+    const slider_crank_real e3 = (1.0/2.0)*p[1];
+    const slider_crank_real e4 = e3*tr[3];
+    const slider_crank_real e5 = e3*tr[2];
     out[0] = -e1 + q[0];
     out[1] = -e2 + q[1];
     out[2] = -e1 - e4 + (-q[0] + q[3]);
@@ -118,28 +118,28 @@ static void slider_crank_phi_k0(const double * q, const double * tr, double t, c
     out[8] = -p[8]*t + q[2];
 }
 
-static void slider_crank_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_crank_phi_k(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     slider_crank_phi_k0(q, tr, t, p, out);
 }
 
-void slider_crank_phi(const double * q, double t, const double * p, double *out)
+void slider_crank_phi(const slider_crank_real * q, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    double tr[6];
+    slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_phi_k(q, tr, t, p, out);
 }
 
-static void slider_crank_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_crank_phi_q_k0(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     (void)q;
     (void)t;
-    const double e0 = (1.0/2.0)*p[0];
-    const double e1 = e0*tr[0];
-    const double e2 = -e0*tr[1];
-    const double e3 = (1.0/2.0)*p[1];
-    const double e4 = e3*tr[2];
-    const double e5 = -e3*tr[3];
+    const slider_crank_real e0 = (1.0/2.0)*p[0];
+    const slider_crank_real e1 = e0*tr[0];
+    const slider_crank_real e2 = -e0*tr[1];
+    const slider_crank_real e3 = (1.0/2.0)*p[1];
+    const slider_crank_real e4 = e3*tr[2];
+    const slider_crank_real e5 = -e3*tr[3];
     out[0] = 1;
     out[1] = e1;
     out[2] = 1;
@@ -163,19 +163,19 @@ static void slider_crank_phi_q_k0(const double * q, const double * tr, double t,
     out[20] = 1;
 }
 
-static void slider_crank_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_crank_phi_q_k(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     slider_crank_phi_q_k0(q, tr, t, p, out);
 }
 
-void slider_crank_phi_q(const double * q, double t, const double * p, double *out)
+void slider_crank_phi_q(const slider_crank_real * q, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    double tr[6];
+    slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_phi_q_k(q, tr, t, p, out);
 }
 
-static void slider_crank_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_crank_nu_k0(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     (void)q;
     (void)tr;
@@ -191,28 +191,28 @@ static void slider_crank_nu_k0(const double * q, const double * tr, double t, co
     out[8] = p[8];
 }
 
-static void slider_crank_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_crank_nu_k(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     slider_crank_nu_k0(q, tr, t, p, out);
 }
 
-void slider_crank_nu(const double * q, double t, const double * p, double *out)
+void slider_crank_nu(const slider_crank_real * q, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    double tr[6];
+    slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_nu_k(q, tr, t, p, out);
 }
 
-static void slider_crank_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_crank_gamma_k0(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     (void)q;
     (void)t;
-    const double e0 = (1.0/2.0)*p[0]*pow(qd[2], 2);
-    const double e1 = e0*tr[1];
-    const double e2 = e0*tr[0];
-    const double e3 = (1.0/2.0)*p[1]*pow(qd[5], 2);
-    const double e4 = e3*tr[3];
-    const double e5 = e3*tr[2];
+    const slider_crank_real e0 = (1.0/2.0)*p[0]*pow(qd[2], 2);
+    const slider_crank_real e1 = e0*tr[1];
+    const slider_crank_real e2 = e0*tr[0];
+    const slider_crank_real e3 = (1.0/2.0)*p[1]*pow(qd[5], 2);
+    const slider_crank_real e4 = e3*tr[3];
+    const slider_crank_real e5 = e3*tr[2];
     out[0] = -e1;
     out[1] = -e2;
     out[2] = -e1 - e4;
@@ -224,19 +224,19 @@ static void slider_crank_gamma_k0(const double * q, const double * tr, const dou
     out[8] = 0;
 }
 
-static void slider_crank_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_crank_gamma_k(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     slider_crank_gamma_k0(q, tr, qd, t, p, out);
 }
 
-void slider_crank_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void slider_crank_gamma(const slider_crank_real * q, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    double tr[6];
+    slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void slider_crank_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_crank_applied_k0(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     (void)q;
     (void)tr;
@@ -252,19 +252,19 @@ static void slider_crank_applied_k0(const double * q, const double * tr, const d
     out[8] = 0;
 }
 
-static void slider_crank_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_crank_applied_k(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     slider_crank_applied_k0(q, tr, qd, t, p, out);
 }
 
-void slider_crank_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void slider_crank_applied(const slider_crank_real * q, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    double tr[6];
+    slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_applied_k(q, tr, qd, t, p, out);
 }
 
-static void slider_crank_mass_k0(const double * p, double *out)
+static void slider_crank_mass_k0(const slider_crank_real * p, slider_crank_real *out)
 {
     out[0] = p[2];
     out[1] = p[2];
@@ -277,17 +277,17 @@ static void slider_crank_mass_k0(const double * p, double *out)
     out[8] = (1.0/12.0)*p[4]*(pow(p[5], 2) + pow(p[6], 2));
 }
 
-static void slider_crank_mass_k(const double * p, double *out)
+static void slider_crank_mass_k(const slider_crank_real * p, slider_crank_real *out)
 {
     slider_crank_mass_k0(p, out);
 }
 
-void slider_crank_mass(const double * p, double *out)
+void slider_crank_mass(const slider_crank_real * p, slider_crank_real *out)
 {
     slider_crank_mass_k(p, out);
 }
 
-static void slider_crank_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void slider_crank_reactions_k0(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * lam, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     (void)tr;
     (void)t;
@@ -324,14 +324,14 @@ static void slider_crank_reactions_k0(const double * q, const double * tr, const
     out[29] = -lam[8];
 }
 
-static void slider_crank_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void slider_crank_reactions_k(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * lam, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     slider_crank_reactions_k0(q, tr, lam, t, p, out);
 }
 
-void slider_crank_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void slider_crank_reactions(const slider_crank_real * q, const slider_crank_real * lam, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    double tr[6];
+    slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_reactions_k(q, tr, lam, t, p, out);
 }
@@ -346,10 +346,10 @@ void slider_crank_reactions(const double * q, const double * lam, double t, cons
    of the full factorization. The solves' vectors never overlap the factors
    or each other: restrict lets an unknown stay in a register across its
    updates. */
-static int slider_crank_sparse_factor0(double *lu)
+static int slider_crank_sparse_factor0(slider_crank_real *lu)
 {
-    double piv = 0.0;
-    double cm = 0.0;
+    slider_crank_real piv = 0.0;
+    slider_crank_real cm = 0.0;
     cm = 1.0;
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[3]));
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[9]));
@@ -362,12 +362,12 @@ static int slider_crank_sparse_factor0(double *lu)
     return 0;
 }
 
-static int slider_crank_sparse_factor(double *lu)
+static int slider_crank_sparse_factor(slider_crank_real *lu)
 {
     return slider_crank_sparse_factor0(lu);
 }
 
-static void slider_crank_sparse_forward0(const double *SLIDER_CRANK_RESTRICT lu, double *SLIDER_CRANK_RESTRICT y)
+static void slider_crank_sparse_forward0(const slider_crank_real *SLIDER_CRANK_RESTRICT lu, slider_crank_real *SLIDER_CRANK_RESTRICT y)
 {
     y[5] -= y[6];
     y[1] -= lu[3] * y[8];
@@ -377,7 +377,7 @@ static void slider_crank_sparse_forward0(const double *SLIDER_CRANK_RESTRICT lu,
 }
 
 static void slider_crank_sparse_back0(
-    const double *SLIDER_CRANK_RESTRICT lu, const double *SLIDER_CRANK_RESTRICT y, double *SLIDER_CRANK_RESTRICT x)
+    const slider_crank_real *SLIDER_CRANK_RESTRICT lu, const slider_crank_real *SLIDER_CRANK_RESTRICT y, slider_crank_real *SLIDER_CRANK_RESTRICT x)
 {
     x[5] = (y[5]) * lu[16];
     x[4] = y[3] - lu[11] * x[5];
@@ -390,15 +390,15 @@ static void slider_crank_sparse_back0(
     x[6] = y[4] + x[3] - lu[13] * x[5];
 }
 
-static void slider_crank_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static void slider_crank_sparse_solve(const slider_crank_real *lu, const slider_crank_real *b, slider_crank_real *x, slider_crank_real *y)
 {
-    memcpy(y, b, sizeof(double) * 9);
+    memcpy(y, b, sizeof(slider_crank_real) * 9);
     slider_crank_sparse_forward0(lu, y);
     slider_crank_sparse_back0(lu, y, x);
 }
 
 static void slider_crank_sparse_t_forward0(
-    const double *SLIDER_CRANK_RESTRICT lu, const double *SLIDER_CRANK_RESTRICT b, double *SLIDER_CRANK_RESTRICT x)
+    const slider_crank_real *SLIDER_CRANK_RESTRICT lu, const slider_crank_real *SLIDER_CRANK_RESTRICT b, slider_crank_real *SLIDER_CRANK_RESTRICT x)
 {
     x[4] = b[6];
     x[2] = b[3] + x[4];
@@ -411,7 +411,7 @@ static void slider_crank_sparse_t_forward0(
     x[5] = (b[5] - lu[13] * x[4] - lu[7] * x[2] - lu[11] * x[3]) * lu[16];
 }
 
-static void slider_crank_sparse_t_back0(const double *SLIDER_CRANK_RESTRICT lu, double *SLIDER_CRANK_RESTRICT x)
+static void slider_crank_sparse_t_back0(const slider_crank_real *SLIDER_CRANK_RESTRICT lu, slider_crank_real *SLIDER_CRANK_RESTRICT x)
 {
     x[3] += x[5];
     x[1] += x[3];
@@ -420,7 +420,7 @@ static void slider_crank_sparse_t_back0(const double *SLIDER_CRANK_RESTRICT lu, 
     x[6] -= x[5];
 }
 
-static void slider_crank_sparse_solve_t(const double *lu, const double *b, double *x)
+static void slider_crank_sparse_solve_t(const slider_crank_real *lu, const slider_crank_real *b, slider_crank_real *x)
 {
     slider_crank_sparse_t_forward0(lu, b, x);
     slider_crank_sparse_t_back0(lu, x);
@@ -428,11 +428,11 @@ static void slider_crank_sparse_solve_t(const double *lu, const double *b, doubl
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns
    SLIDER_CRANK_SINGULAR when the pivots span more than 1 / SINGULAR_RATIO. */
-static int slider_crank_dense_factor(double *a, int *perm)
+static int slider_crank_dense_factor(slider_crank_real *a, int *perm)
 {
     const int n = 9;
     int i, j, k;
-    double umax = 0.0, umin = INFINITY;
+    slider_crank_real umax = 0.0, umin = INFINITY;
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -440,7 +440,7 @@ static int slider_crank_dense_factor(double *a, int *perm)
         perm[k] = best;
         if (best != k)
             for (j = 0; j < n; ++j) {
-                double tmp = a[k * n + j];
+                slider_crank_real tmp = a[k * n + j];
                 a[k * n + j] = a[best * n + j];
                 a[best * n + j] = tmp;
             }
@@ -448,20 +448,20 @@ static int slider_crank_dense_factor(double *a, int *perm)
         umax = fmax(umax, fabs(a[k * n + k]));
         umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            double m = a[i * n + k] /= a[k * n + k];
+            slider_crank_real m = a[i * n + k] /= a[k * n + k];
             for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
         }
     }
     return umin <= SLIDER_CRANK_SINGULAR_RATIO * umax ? SLIDER_CRANK_SINGULAR : SLIDER_CRANK_OK;
 }
 
-static void slider_crank_dense_solve(const double *a, const int *perm, const double *b, double *x)
+static void slider_crank_dense_solve(const slider_crank_real *a, const int *perm, const slider_crank_real *b, slider_crank_real *x)
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(slider_crank_real) * n);
     for (i = 0; i < n; ++i) {
-        double tmp = x[perm[i]];
+        slider_crank_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
         for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
@@ -472,11 +472,11 @@ static void slider_crank_dense_solve(const double *a, const int *perm, const dou
     }
 }
 
-static void slider_crank_dense_solve_t(const double *a, const int *perm, const double *b, double *x)
+static void slider_crank_dense_solve_t(const slider_crank_real *a, const int *perm, const slider_crank_real *b, slider_crank_real *x)
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(slider_crank_real) * n);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -485,7 +485,7 @@ static void slider_crank_dense_solve_t(const double *a, const int *perm, const d
         for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
     }
     for (i = n - 1; i >= 0; --i) {
-        double tmp = x[perm[i]];
+        slider_crank_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
     }
@@ -497,13 +497,13 @@ static const int slider_crank_pivot_slots[1] = { 16 };
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
-static int slider_crank_pivots_spread(const double *lu)
+static int slider_crank_pivots_spread(const slider_crank_real *lu)
 {
-    double rmin = 1.0;
-    double rmax = 1.0;
+    slider_crank_real rmin = 1.0;
+    slider_crank_real rmax = 1.0;
     int k;
     for (k = 0; k < 1; ++k) {
-        double r = fabs(lu[slider_crank_pivot_slots[k]]);
+        slider_crank_real r = fabs(lu[slider_crank_pivot_slots[k]]);
         rmin = SLIDER_CRANK_MIN(rmin, r);
         rmax = SLIDER_CRANK_MAX(rmax, r);
     }
@@ -513,28 +513,28 @@ static int slider_crank_pivots_spread(const double *lu)
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
-static int slider_crank_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+static int slider_crank_factorize(const slider_crank_real *q, const slider_crank_real *tr, slider_crank_real t, const slider_crank_real *p, slider_crank_real *work,
                              int *iwork, int *dense)
 {
-    double *values = work, *lu = work + SLIDER_CRANK_OFF_LU, *a = work + SLIDER_CRANK_OFF_DENSE;
+    slider_crank_real *values = work, *lu = work + SLIDER_CRANK_OFF_LU, *a = work + SLIDER_CRANK_OFF_DENSE;
     int k;
     slider_crank_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (slider_crank_sparse_factor(lu) == 0 && !slider_crank_pivots_spread(lu)) return SLIDER_CRANK_OK;
     *dense = 1;
     slider_crank_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(double) * 81);
+    memset(a, 0, sizeof(slider_crank_real) * 81);
     for (k = 0; k < 21; ++k) a[slider_crank_phi_q_rows[k] * 9 + slider_crank_phi_q_cols[k]] = values[k];
     return slider_crank_dense_factor(a, iwork);
 }
 
-static void slider_crank_solve(const double *work, const int *iwork, int dense, const double *b, double *x, double *y)
+static void slider_crank_solve(const slider_crank_real *work, const int *iwork, int dense, const slider_crank_real *b, slider_crank_real *x, slider_crank_real *y)
 {
     if (dense) slider_crank_dense_solve(work + SLIDER_CRANK_OFF_DENSE, iwork, b, x);
     else slider_crank_sparse_solve(work + SLIDER_CRANK_OFF_LU, b, x, y);
 }
 
-static void slider_crank_solve_t(const double *work, const int *iwork, int dense, const double *b, double *x)
+static void slider_crank_solve_t(const slider_crank_real *work, const int *iwork, int dense, const slider_crank_real *b, slider_crank_real *x)
 {
     if (dense) slider_crank_dense_solve_t(work + SLIDER_CRANK_OFF_DENSE, iwork, b, x);
     else slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, b, x);
@@ -542,12 +542,12 @@ static void slider_crank_solve_t(const double *work, const int *iwork, int dense
 
 /* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
    Four running maxima and sums: one chain would wait on each comparison. */
-static double slider_crank_maxabs(const double *v, int n)
+static slider_crank_real slider_crank_maxabs(const slider_crank_real *v, int n)
 {
-    double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    slider_crank_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     int k;
     for (k = 0; k + 4 <= n; k += 4) {
-        const double a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
+        const slider_crank_real a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
         m0 = a0 > m0 ? a0 : m0;
         m1 = a1 > m1 ? a1 : m1;
         m2 = a2 > m2 ? a2 : m2;
@@ -558,7 +558,7 @@ static double slider_crank_maxabs(const double *v, int n)
         s3 += a3;
     }
     for (; k < n; ++k) {
-        const double a = fabs(v[k]);
+        const slider_crank_real a = fabs(v[k]);
         m0 = a > m0 ? a : m0;
         s0 += a;
     }
@@ -572,12 +572,12 @@ static double slider_crank_maxabs(const double *v, int n)
    origin that differs from dq by a rounding of q, which sin and cos of the
    new angle must see (the subtraction is exact for steps under half the
    coordinate, and within a rounding of the step otherwise). */
-static double slider_crank_correct(double *q, double *dq)
+static slider_crank_real slider_crank_correct(slider_crank_real *q, slider_crank_real *dq)
 {
-    const double step = slider_crank_maxabs(dq, 9);
+    const slider_crank_real step = slider_crank_maxabs(dq, 9);
     int k;
     for (k = 0; k < 9; ++k) {
-        const double old = q[k];
+        const slider_crank_real old = q[k];
         q[k] = old - dq[k];
         dq[k] = old - q[k];
     }
@@ -591,12 +591,12 @@ static double slider_crank_correct(double *q, double *dq)
    from the bases the previous instant left (trig_near); without reuse, both
    start afresh. Converged: |Phi| and the last correction both within the
    tolerance's floor. On success the factors are those of q. */
-static int slider_crank_newton(double t, const double *p, double tol, double *q, double *tr, int *info, double *work,
+static int slider_crank_newton(slider_crank_real t, const slider_crank_real *p, slider_crank_real tol, slider_crank_real *q, slider_crank_real *tr, int *info, slider_crank_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    double *r = SLIDER_CRANK_VEC(work, 0), *dq = SLIDER_CRANK_VEC(work, 1), *y = SLIDER_CRANK_VEC(work, 2);
-    double *base = SLIDER_CRANK_VEC(work, 10);
-    double step = INFINITY, lim, qmag, rmax;
+    slider_crank_real *r = SLIDER_CRANK_VEC(work, 0), *dq = SLIDER_CRANK_VEC(work, 1), *y = SLIDER_CRANK_VEC(work, 2);
+    slider_crank_real *base = SLIDER_CRANK_VEC(work, 10);
+    slider_crank_real step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -654,10 +654,10 @@ static int slider_crank_newton(double t, const double *p, double tol, double *q,
 }
 
 /* The compiled outputs at a solved q, with the factors of Phi_q(q). */
-static void slider_crank_outputs(double t, const double *p, const double *q, const double *tr, double *qd, double *qdd,
-                            double *lam, double *reactions, double *work, const int *iwork, int dense)
+static void slider_crank_outputs(slider_crank_real t, const slider_crank_real *p, const slider_crank_real *q, const slider_crank_real *tr, slider_crank_real *qd, slider_crank_real *qdd,
+                            slider_crank_real *lam, slider_crank_real *reactions, slider_crank_real *work, const int *iwork, int dense)
 {
-    double *y = SLIDER_CRANK_VEC(work, 2), *b = SLIDER_CRANK_VEC(work, 3);
+    slider_crank_real *y = SLIDER_CRANK_VEC(work, 2), *b = SLIDER_CRANK_VEC(work, 3);
     int k;
     slider_crank_nu_k(q, tr, t, p, b);
     slider_crank_solve(work, iwork, dense, b, qd, y);
@@ -672,8 +672,8 @@ static void slider_crank_outputs(double t, const double *p, const double *q, con
 
 /* Whether everything an instant computed is finite (maxabs is NaN if any
    value is): a few comparisons per value, against an instant's solve. */
-static int slider_crank_finite(const double *q, const double *qd, const double *qdd, const double *lam,
-                          const double *reactions)
+static int slider_crank_finite(const slider_crank_real *q, const slider_crank_real *qd, const slider_crank_real *qdd, const slider_crank_real *lam,
+                          const slider_crank_real *reactions)
 {
     (void)qd; (void)qdd; (void)lam; (void)reactions;
     return isfinite(slider_crank_maxabs(q, 9))
@@ -687,22 +687,22 @@ static int slider_crank_finite(const double *q, const double *qd, const double *
    explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
    it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
    the rule of symid.numeric.solve.unexplained). O(NG) a step. */
-static int slider_crank_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
-                               const double *qd1, const double *qdd1, double h, const double *c)
+static int slider_crank_unexplained(const slider_crank_real *q0, const slider_crank_real *qd0, const slider_crank_real *qdd0, const slider_crank_real *q1,
+                               const slider_crank_real *qd1, const slider_crank_real *qdd1, slider_crank_real h, const slider_crank_real *c)
 {
-    const double half = 0.5 * h, hh = h * h / 12.0;
-    double mismatch = 0.0, motion = 0.0;
+    const slider_crank_real half = 0.5 * h, hh = h * h / 12.0;
+    slider_crank_real mismatch = 0.0, motion = 0.0;
     int k;
     for (k = 0; k < 9; ++k) {
-        const double d = q1[k] - q0[k];
+        const slider_crank_real d = q1[k] - q0[k];
         mismatch = SLIDER_CRANK_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
         motion = SLIDER_CRANK_MAX(motion, fabs(d) * c[k]);
     }
     return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
 }
 
-int slider_crank_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork)
+int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider_crank_real tol, slider_crank_real *q, slider_crank_real *qd, slider_crank_real *qdd,
+                    slider_crank_real *lam, slider_crank_real *reactions, int *info, slider_crank_real *work, int *iwork)
 {
     int dense = 0, status, counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
@@ -710,7 +710,7 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
         || !isfinite(tol) || tol <= 0.0) {
         status = SLIDER_CRANK_BAD_ARGUMENT;
     } else {
-        double *tr = SLIDER_CRANK_VEC(work, 9);
+        slider_crank_real *tr = SLIDER_CRANK_VEC(work, 9);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = SLIDER_CRANK_VEC(work, 5);
@@ -730,16 +730,16 @@ int slider_crank_instant(double t, const double *p, double tol, double *q, doubl
     return status;
 }
 
-int slider_crank_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
-                       double *rows, long *solved, double *work, int *iwork)
+int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, const slider_crank_real *p, slider_crank_real tol, slider_crank_real *state,
+                       slider_crank_real *rows, long *solved, slider_crank_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *m1 = state + 27, *m2 = state + 36;
-    double *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
-    double *scale = state + 54;
-    double *count = state + 63;
-    double *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_CRANK_VEC(work, 9);
+    slider_crank_real *q = state, *m1 = state + 27, *m2 = state + 36;
+    slider_crank_real *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
+    slider_crank_real *scale = state + 54;
+    slider_crank_real *count = state + 63;
+    slider_crank_real *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_CRANK_VEC(work, 9);
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -749,8 +749,8 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const double t = t0 + *count * h;
-        double *row = rows + i * SLIDER_CRANK_ROW;
+        const slider_crank_real t = t0 + *count * h;
+        slider_crank_real *row = rows + i * SLIDER_CRANK_ROW;
         /* what the row holds is solved straight into it */
         qn = row + 1;
         qdn = row + 10;
@@ -767,7 +767,7 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
         else if (*count >= 1)
             for (k = 0; k < 9; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
         else
-            memcpy(qn, q, sizeof(double) * 9);
+            memcpy(qn, q, sizeof(slider_crank_real) * 9);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = slider_crank_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -784,12 +784,12 @@ int slider_crank_trajectory(double t0, double h, long n, const double *p, double
             *solved = i;
             return SLIDER_CRANK_UNEXPLAINED;
         }
-        memcpy(m3, m2, sizeof(double) * 9);
-        memcpy(m2, m1, sizeof(double) * 9);
-        memcpy(m1, qdd, sizeof(double) * 9);
-        memcpy(qd, qdn, sizeof(double) * 9);
-        memcpy(qdd, qddn, sizeof(double) * 9);
-        memcpy(q, qn, sizeof(double) * 9);
+        memcpy(m3, m2, sizeof(slider_crank_real) * 9);
+        memcpy(m2, m1, sizeof(slider_crank_real) * 9);
+        memcpy(m1, qdd, sizeof(slider_crank_real) * 9);
+        memcpy(qd, qdn, sizeof(slider_crank_real) * 9);
+        memcpy(qdd, qddn, sizeof(slider_crank_real) * 9);
+        memcpy(q, qn, sizeof(slider_crank_real) * 9);
         *count += 1.0;
         row[0] = t;
     }

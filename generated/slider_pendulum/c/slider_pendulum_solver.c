@@ -25,11 +25,11 @@
 #define SLIDER_PENDULUM_OFF_VEC (SLIDER_PENDULUM_OFF_DENSE + 36)
 #define SLIDER_PENDULUM_VEC(work, k) ((work) + SLIDER_PENDULUM_OFF_VEC + (k) * 30)
 
-const double slider_pendulum_default_params[13] = { 0.17453292519943295, 0.2, 1.0, 0.6, 2.0, 2.0, 0.2, 0.08, 0.04, 0.5, 1.0, 20.0, 0.5 };
+const slider_pendulum_real slider_pendulum_default_params[13] = { 0.17453292519943295, 0.2, 1.0, 0.6, 2.0, 2.0, 0.2, 0.08, 0.04, 0.5, 1.0, 20.0, 0.5 };
 const int slider_pendulum_phi_q_rows[15] = { 0, 1, 1, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5 };
 const int slider_pendulum_phi_q_cols[15] = { 2, 0, 1, 0, 1, 0, 2, 3, 5, 1, 2, 4, 5, 2, 5 };
 /* Sines and cosines of the body angles, computed once per configuration. */
-static void slider_pendulum_trig(const double *q, double *tr)
+static void slider_pendulum_trig(const slider_pendulum_real *q, slider_pendulum_real *tr)
 {
     tr[0] = sin(q[2]);
     tr[1] = cos(q[2]);
@@ -39,11 +39,11 @@ static void slider_pendulum_trig(const double *q, double *tr)
 
 /* Sines and cosines at a guess with no base yet: from sin and cos, each
    angle becoming its body's base (see trig_near). */
-static void slider_pendulum_trig_base(const double *q, double *tr, double *base)
+static void slider_pendulum_trig_base(const slider_pendulum_real *q, slider_pendulum_real *tr, slider_pendulum_real *base)
 {
     int b;
     for (b = 0; b < 2; ++b) {
-        const double a = q[3 * b + 2];
+        const slider_pendulum_real a = q[3 * b + 2];
         base[3 * b] = a;
         tr[2 * b] = base[3 * b + 1] = sin(a);
         tr[2 * b + 1] = base[3 * b + 2] = cos(a);
@@ -58,15 +58,15 @@ static void slider_pendulum_trig_base(const double *q, double *tr, double *base)
    3e-19). Every value is one rotation from a libm value, so rounding errors
    do not accumulate from instant to instant. Farther away, sin and cos are
    called and the angle becomes the base. */
-static void slider_pendulum_trig_near(const double *q, double *tr, double *base)
+static void slider_pendulum_trig_near(const slider_pendulum_real *q, slider_pendulum_real *tr, slider_pendulum_real *base)
 {
     int b;
     for (b = 0; b < 2; ++b) {
-        const double a = q[3 * b + 2], d = a - base[3 * b];
+        const slider_pendulum_real a = q[3 * b + 2], d = a - base[3 * b];
         if (fabs(d) <= 0.0625) {
-            const double d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
-            const double sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const double cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
+            const slider_pendulum_real d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
+            const slider_pendulum_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
+            const slider_pendulum_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
             tr[2 * b] = s + (s * cm + c * sd);
             tr[2 * b + 1] = c + (c * cm - s * sd);
         } else {
@@ -82,11 +82,11 @@ static void slider_pendulum_trig_near(const double *q, double *tr, double *base)
    rad, sin(a + d) = sin a + d cos a and cos(a + d) = cos a - d sin a to
    rounding (d^2 / 2 < 1e-18); larger ones rotate from the base as
    trig_near does. */
-static void slider_pendulum_trig_step(const double *q, const double *dq, double *tr, double *base)
+static void slider_pendulum_trig_step(const slider_pendulum_real *q, const slider_pendulum_real *dq, slider_pendulum_real *tr, slider_pendulum_real *base)
 {
     int b;
     for (b = 0; b < 2; ++b) {
-        const double d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+        const slider_pendulum_real d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
             tr[2 * b] = s + c * d;
             tr[2 * b + 1] = c - s * d;
@@ -97,13 +97,13 @@ static void slider_pendulum_trig_step(const double *q, const double *dq, double 
     }
 }
 
-static void slider_pendulum_phi_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_pendulum_phi_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    const double e0 = sin(p[0]);
-    const double e1 = cos(p[0]);
-    const double e2 = 2*3.141592653589793*t;
-    const double e3 = pow(pow(e0, 2) + pow(e1, 2), -1.0/2.0);
-    const double e4 = (1.0/2.0)*p[9];
+    const slider_pendulum_real e0 = sin(p[0]);
+    const slider_pendulum_real e1 = cos(p[0]);
+    const slider_pendulum_real e2 = 2*3.141592653589793*t;
+    const slider_pendulum_real e3 = pow(pow(e0, 2) + pow(e1, 2), -1.0/2.0);
+    const slider_pendulum_real e4 = (1.0/2.0)*p[9];
     out[0] = -e0*(-e0*tr[0] + e1*tr[1]) + e1*(e0*tr[1] + e1*tr[0]);
     out[1] = -e0*q[0] + e1*q[1];
     out[2] = e0*e3*q[1] + e1*e3*q[0] - p[1]*sin(e2*p[2]);
@@ -112,26 +112,26 @@ static void slider_pendulum_phi_k0(const double * q, const double * tr, double t
     out[5] = -p[3]*sin(e2*p[4]) + (-q[2] + q[5] + (1.0/2.0)*3.141592653589793);
 }
 
-static void slider_pendulum_phi_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_pendulum_phi_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     slider_pendulum_phi_k0(q, tr, t, p, out);
 }
 
-void slider_pendulum_phi(const double * q, double t, const double * p, double *out)
+void slider_pendulum_phi(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    double tr[4];
+    slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_phi_k(q, tr, t, p, out);
 }
 
-static void slider_pendulum_phi_q_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_pendulum_phi_q_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     (void)q;
     (void)t;
-    const double e0 = sin(p[0]);
-    const double e1 = cos(p[0]);
-    const double e2 = pow(pow(e0, 2) + pow(e1, 2), -1.0/2.0);
-    const double e3 = (1.0/2.0)*p[9];
+    const slider_pendulum_real e0 = sin(p[0]);
+    const slider_pendulum_real e1 = cos(p[0]);
+    const slider_pendulum_real e2 = pow(pow(e0, 2) + pow(e1, 2), -1.0/2.0);
+    const slider_pendulum_real e3 = (1.0/2.0)*p[9];
     out[0] = -e0*(-e0*tr[1] - e1*tr[0]) + e1*(-e0*tr[0] + e1*tr[1]);
     out[1] = -e0;
     out[2] = e1;
@@ -149,24 +149,24 @@ static void slider_pendulum_phi_q_k0(const double * q, const double * tr, double
     out[14] = 1;
 }
 
-static void slider_pendulum_phi_q_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_pendulum_phi_q_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     slider_pendulum_phi_q_k0(q, tr, t, p, out);
 }
 
-void slider_pendulum_phi_q(const double * q, double t, const double * p, double *out)
+void slider_pendulum_phi_q(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    double tr[4];
+    slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_phi_q_k(q, tr, t, p, out);
 }
 
-static void slider_pendulum_nu_k0(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_pendulum_nu_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     (void)q;
     (void)tr;
-    const double e0 = 2*3.141592653589793;
-    const double e1 = e0*t;
+    const slider_pendulum_real e0 = 2*3.141592653589793;
+    const slider_pendulum_real e1 = e0*t;
     out[0] = 0;
     out[1] = 0;
     out[2] = e0*p[1]*p[2]*cos(e1*p[2]);
@@ -175,26 +175,26 @@ static void slider_pendulum_nu_k0(const double * q, const double * tr, double t,
     out[5] = e0*p[3]*p[4]*cos(e1*p[4]);
 }
 
-static void slider_pendulum_nu_k(const double * q, const double * tr, double t, const double * p, double *out)
+static void slider_pendulum_nu_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     slider_pendulum_nu_k0(q, tr, t, p, out);
 }
 
-void slider_pendulum_nu(const double * q, double t, const double * p, double *out)
+void slider_pendulum_nu(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    double tr[4];
+    slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_nu_k(q, tr, t, p, out);
 }
 
-static void slider_pendulum_gamma_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_pendulum_gamma_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     (void)q;
-    const double e0 = pow(qd[2], 2);
-    const double e1 = e0*tr[0];
-    const double e2 = 2*3.141592653589793*t;
-    const double e3 = 4*pow(3.141592653589793, 2);
-    const double e4 = (1.0/2.0)*p[9]*pow(qd[5], 2);
+    const slider_pendulum_real e0 = pow(qd[2], 2);
+    const slider_pendulum_real e1 = e0*tr[0];
+    const slider_pendulum_real e2 = 2*3.141592653589793*t;
+    const slider_pendulum_real e3 = 4*pow(3.141592653589793, 2);
+    const slider_pendulum_real e4 = (1.0/2.0)*p[9]*pow(qd[5], 2);
     out[0] = e1*pow(sin(p[0]), 2) + e1*pow(cos(p[0]), 2);
     out[1] = 0;
     out[2] = -e3*p[1]*pow(p[2], 2)*sin(e2*p[2]);
@@ -203,23 +203,23 @@ static void slider_pendulum_gamma_k0(const double * q, const double * tr, const 
     out[5] = -e3*p[3]*pow(p[4], 2)*sin(e2*p[4]);
 }
 
-static void slider_pendulum_gamma_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_pendulum_gamma_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     slider_pendulum_gamma_k0(q, tr, qd, t, p, out);
 }
 
-void slider_pendulum_gamma(const double * q, const double * qd, double t, const double * p, double *out)
+void slider_pendulum_gamma(const slider_pendulum_real * q, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    double tr[4];
+    slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_gamma_k(q, tr, qd, t, p, out);
 }
 
-static void slider_pendulum_applied_k0(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_pendulum_applied_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     (void)tr;
     (void)t;
-    const double e0 = p[11]*(-q[2] + q[5] + (1.0/2.0)*3.141592653589793) + p[12]*(-qd[2] + qd[5]);
+    const slider_pendulum_real e0 = p[11]*(-q[2] + q[5] + (1.0/2.0)*3.141592653589793) + p[12]*(-qd[2] + qd[5]);
     out[0] = 0;
     out[1] = -981.0/100.0*p[5];
     out[2] = e0;
@@ -228,19 +228,19 @@ static void slider_pendulum_applied_k0(const double * q, const double * tr, cons
     out[5] = -e0;
 }
 
-static void slider_pendulum_applied_k(const double * q, const double * tr, const double * qd, double t, const double * p, double *out)
+static void slider_pendulum_applied_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     slider_pendulum_applied_k0(q, tr, qd, t, p, out);
 }
 
-void slider_pendulum_applied(const double * q, const double * qd, double t, const double * p, double *out)
+void slider_pendulum_applied(const slider_pendulum_real * q, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    double tr[4];
+    slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_applied_k(q, tr, qd, t, p, out);
 }
 
-static void slider_pendulum_mass_k0(const double * p, double *out)
+static void slider_pendulum_mass_k0(const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     out[0] = p[5];
     out[1] = p[5];
@@ -250,30 +250,30 @@ static void slider_pendulum_mass_k0(const double * p, double *out)
     out[5] = (1.0/12.0)*p[10]*pow(p[9], 2);
 }
 
-static void slider_pendulum_mass_k(const double * p, double *out)
+static void slider_pendulum_mass_k(const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     slider_pendulum_mass_k0(p, out);
 }
 
-void slider_pendulum_mass(const double * p, double *out)
+void slider_pendulum_mass(const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     slider_pendulum_mass_k(p, out);
 }
 
-static void slider_pendulum_reactions_k0(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void slider_pendulum_reactions_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * lam, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     (void)t;
-    const double e0 = cos(p[0]);
-    const double e1 = pow(e0, 2);
-    const double e2 = lam[0]*tr[1];
-    const double e3 = sin(p[0]);
-    const double e4 = pow(e3, 2);
-    const double e5 = e1*e2 + e2*e4;
-    const double e6 = e3*lam[1];
-    const double e7 = e0*lam[1];
-    const double e8 = lam[2]/sqrt(e1 + e4);
-    const double e9 = e0*e8;
-    const double e10 = e3*e8;
+    const slider_pendulum_real e0 = cos(p[0]);
+    const slider_pendulum_real e1 = pow(e0, 2);
+    const slider_pendulum_real e2 = lam[0]*tr[1];
+    const slider_pendulum_real e3 = sin(p[0]);
+    const slider_pendulum_real e4 = pow(e3, 2);
+    const slider_pendulum_real e5 = e1*e2 + e2*e4;
+    const slider_pendulum_real e6 = e3*lam[1];
+    const slider_pendulum_real e7 = e0*lam[1];
+    const slider_pendulum_real e8 = lam[2]/sqrt(e1 + e4);
+    const slider_pendulum_real e9 = e0*e8;
+    const slider_pendulum_real e10 = e3*e8;
     out[0] = 0;
     out[1] = 0;
     out[2] = e5;
@@ -306,14 +306,14 @@ static void slider_pendulum_reactions_k0(const double * q, const double * tr, co
     out[29] = -lam[5];
 }
 
-static void slider_pendulum_reactions_k(const double * q, const double * tr, const double * lam, double t, const double * p, double *out)
+static void slider_pendulum_reactions_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * lam, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     slider_pendulum_reactions_k0(q, tr, lam, t, p, out);
 }
 
-void slider_pendulum_reactions(const double * q, const double * lam, double t, const double * p, double *out)
+void slider_pendulum_reactions(const slider_pendulum_real * q, const slider_pendulum_real * lam, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    double tr[4];
+    slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_reactions_k(q, tr, lam, t, p, out);
 }
@@ -328,10 +328,10 @@ void slider_pendulum_reactions(const double * q, const double * lam, double t, c
    of the full factorization. The solves' vectors never overlap the factors
    or each other: restrict lets an unknown stay in a register across its
    updates. */
-static int slider_pendulum_sparse_factor0(double *lu)
+static int slider_pendulum_sparse_factor0(slider_pendulum_real *lu)
 {
-    double piv = 0.0;
-    double cm = 0.0;
+    slider_pendulum_real piv = 0.0;
+    slider_pendulum_real cm = 0.0;
     piv = lu[0];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
@@ -350,18 +350,18 @@ static int slider_pendulum_sparse_factor0(double *lu)
     return 0;
 }
 
-static int slider_pendulum_sparse_factor(double *lu)
+static int slider_pendulum_sparse_factor(slider_pendulum_real *lu)
 {
     return slider_pendulum_sparse_factor0(lu);
 }
 
-static void slider_pendulum_sparse_forward0(const double *SLIDER_PENDULUM_RESTRICT lu, double *SLIDER_PENDULUM_RESTRICT y)
+static void slider_pendulum_sparse_forward0(const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT lu, slider_pendulum_real *SLIDER_PENDULUM_RESTRICT y)
 {
     y[2] -= lu[4] * y[1];
 }
 
 static void slider_pendulum_sparse_back0(
-    const double *SLIDER_PENDULUM_RESTRICT lu, const double *SLIDER_PENDULUM_RESTRICT y, double *SLIDER_PENDULUM_RESTRICT x)
+    const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT lu, const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT y, slider_pendulum_real *SLIDER_PENDULUM_RESTRICT x)
 {
     x[0] = (y[2]) * lu[3];
     x[1] = (y[1] - lu[1] * x[0]) * lu[2];
@@ -371,15 +371,15 @@ static void slider_pendulum_sparse_back0(
     x[3] = y[3] + x[0] - lu[6] * x[2] - lu[8] * x[5];
 }
 
-static void slider_pendulum_sparse_solve(const double *lu, const double *b, double *x, double *y)
+static void slider_pendulum_sparse_solve(const slider_pendulum_real *lu, const slider_pendulum_real *b, slider_pendulum_real *x, slider_pendulum_real *y)
 {
-    memcpy(y, b, sizeof(double) * 6);
+    memcpy(y, b, sizeof(slider_pendulum_real) * 6);
     slider_pendulum_sparse_forward0(lu, y);
     slider_pendulum_sparse_back0(lu, y, x);
 }
 
 static void slider_pendulum_sparse_t_forward0(
-    const double *SLIDER_PENDULUM_RESTRICT lu, const double *SLIDER_PENDULUM_RESTRICT b, double *SLIDER_PENDULUM_RESTRICT x)
+    const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT lu, const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT b, slider_pendulum_real *SLIDER_PENDULUM_RESTRICT x)
 {
     x[3] = b[3];
     x[4] = b[4];
@@ -389,12 +389,12 @@ static void slider_pendulum_sparse_t_forward0(
     x[2] = (b[0] + x[3] - lu[1] * x[1]) * lu[3];
 }
 
-static void slider_pendulum_sparse_t_back0(const double *SLIDER_PENDULUM_RESTRICT lu, double *SLIDER_PENDULUM_RESTRICT x)
+static void slider_pendulum_sparse_t_back0(const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT lu, slider_pendulum_real *SLIDER_PENDULUM_RESTRICT x)
 {
     x[1] -= lu[4] * x[2];
 }
 
-static void slider_pendulum_sparse_solve_t(const double *lu, const double *b, double *x)
+static void slider_pendulum_sparse_solve_t(const slider_pendulum_real *lu, const slider_pendulum_real *b, slider_pendulum_real *x)
 {
     slider_pendulum_sparse_t_forward0(lu, b, x);
     slider_pendulum_sparse_t_back0(lu, x);
@@ -402,11 +402,11 @@ static void slider_pendulum_sparse_solve_t(const double *lu, const double *b, do
 
 /* The fallback: dense LU with partial pivoting (row-major n x n). Returns
    SLIDER_PENDULUM_SINGULAR when the pivots span more than 1 / SINGULAR_RATIO. */
-static int slider_pendulum_dense_factor(double *a, int *perm)
+static int slider_pendulum_dense_factor(slider_pendulum_real *a, int *perm)
 {
     const int n = 6;
     int i, j, k;
-    double umax = 0.0, umin = INFINITY;
+    slider_pendulum_real umax = 0.0, umin = INFINITY;
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -414,7 +414,7 @@ static int slider_pendulum_dense_factor(double *a, int *perm)
         perm[k] = best;
         if (best != k)
             for (j = 0; j < n; ++j) {
-                double tmp = a[k * n + j];
+                slider_pendulum_real tmp = a[k * n + j];
                 a[k * n + j] = a[best * n + j];
                 a[best * n + j] = tmp;
             }
@@ -422,20 +422,20 @@ static int slider_pendulum_dense_factor(double *a, int *perm)
         umax = fmax(umax, fabs(a[k * n + k]));
         umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            double m = a[i * n + k] /= a[k * n + k];
+            slider_pendulum_real m = a[i * n + k] /= a[k * n + k];
             for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
         }
     }
     return umin <= SLIDER_PENDULUM_SINGULAR_RATIO * umax ? SLIDER_PENDULUM_SINGULAR : SLIDER_PENDULUM_OK;
 }
 
-static void slider_pendulum_dense_solve(const double *a, const int *perm, const double *b, double *x)
+static void slider_pendulum_dense_solve(const slider_pendulum_real *a, const int *perm, const slider_pendulum_real *b, slider_pendulum_real *x)
 {
     const int n = 6;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(slider_pendulum_real) * n);
     for (i = 0; i < n; ++i) {
-        double tmp = x[perm[i]];
+        slider_pendulum_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
         for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
@@ -446,11 +446,11 @@ static void slider_pendulum_dense_solve(const double *a, const int *perm, const 
     }
 }
 
-static void slider_pendulum_dense_solve_t(const double *a, const int *perm, const double *b, double *x)
+static void slider_pendulum_dense_solve_t(const slider_pendulum_real *a, const int *perm, const slider_pendulum_real *b, slider_pendulum_real *x)
 {
     const int n = 6;
     int i, j;
-    memcpy(x, b, sizeof(double) * n);
+    memcpy(x, b, sizeof(slider_pendulum_real) * n);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -459,7 +459,7 @@ static void slider_pendulum_dense_solve_t(const double *a, const int *perm, cons
         for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
     }
     for (i = n - 1; i >= 0; --i) {
-        double tmp = x[perm[i]];
+        slider_pendulum_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
     }
@@ -471,13 +471,13 @@ static const int slider_pendulum_pivot_slots[3] = { 0, 2, 3 };
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
-static int slider_pendulum_pivots_spread(const double *lu)
+static int slider_pendulum_pivots_spread(const slider_pendulum_real *lu)
 {
-    double rmin = 1.0;
-    double rmax = 1.0;
+    slider_pendulum_real rmin = 1.0;
+    slider_pendulum_real rmax = 1.0;
     int k;
     for (k = 0; k < 3; ++k) {
-        double r = fabs(lu[slider_pendulum_pivot_slots[k]]);
+        slider_pendulum_real r = fabs(lu[slider_pendulum_pivot_slots[k]]);
         rmin = SLIDER_PENDULUM_MIN(rmin, r);
         rmax = SLIDER_PENDULUM_MAX(rmax, r);
     }
@@ -487,28 +487,28 @@ static int slider_pendulum_pivots_spread(const double *lu)
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
-static int slider_pendulum_factorize(const double *q, const double *tr, double t, const double *p, double *work,
+static int slider_pendulum_factorize(const slider_pendulum_real *q, const slider_pendulum_real *tr, slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real *work,
                              int *iwork, int *dense)
 {
-    double *values = work, *lu = work + SLIDER_PENDULUM_OFF_LU, *a = work + SLIDER_PENDULUM_OFF_DENSE;
+    slider_pendulum_real *values = work, *lu = work + SLIDER_PENDULUM_OFF_LU, *a = work + SLIDER_PENDULUM_OFF_DENSE;
     int k;
     slider_pendulum_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
     if (slider_pendulum_sparse_factor(lu) == 0 && !slider_pendulum_pivots_spread(lu)) return SLIDER_PENDULUM_OK;
     *dense = 1;
     slider_pendulum_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(double) * 36);
+    memset(a, 0, sizeof(slider_pendulum_real) * 36);
     for (k = 0; k < 15; ++k) a[slider_pendulum_phi_q_rows[k] * 6 + slider_pendulum_phi_q_cols[k]] = values[k];
     return slider_pendulum_dense_factor(a, iwork);
 }
 
-static void slider_pendulum_solve(const double *work, const int *iwork, int dense, const double *b, double *x, double *y)
+static void slider_pendulum_solve(const slider_pendulum_real *work, const int *iwork, int dense, const slider_pendulum_real *b, slider_pendulum_real *x, slider_pendulum_real *y)
 {
     if (dense) slider_pendulum_dense_solve(work + SLIDER_PENDULUM_OFF_DENSE, iwork, b, x);
     else slider_pendulum_sparse_solve(work + SLIDER_PENDULUM_OFF_LU, b, x, y);
 }
 
-static void slider_pendulum_solve_t(const double *work, const int *iwork, int dense, const double *b, double *x)
+static void slider_pendulum_solve_t(const slider_pendulum_real *work, const int *iwork, int dense, const slider_pendulum_real *b, slider_pendulum_real *x)
 {
     if (dense) slider_pendulum_dense_solve_t(work + SLIDER_PENDULUM_OFF_DENSE, iwork, b, x);
     else slider_pendulum_sparse_solve_t(work + SLIDER_PENDULUM_OFF_LU, b, x);
@@ -516,12 +516,12 @@ static void slider_pendulum_solve_t(const double *work, const int *iwork, int de
 
 /* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
    Four running maxima and sums: one chain would wait on each comparison. */
-static double slider_pendulum_maxabs(const double *v, int n)
+static slider_pendulum_real slider_pendulum_maxabs(const slider_pendulum_real *v, int n)
 {
-    double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    slider_pendulum_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     int k;
     for (k = 0; k + 4 <= n; k += 4) {
-        const double a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
+        const slider_pendulum_real a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
         m0 = a0 > m0 ? a0 : m0;
         m1 = a1 > m1 ? a1 : m1;
         m2 = a2 > m2 ? a2 : m2;
@@ -532,7 +532,7 @@ static double slider_pendulum_maxabs(const double *v, int n)
         s3 += a3;
     }
     for (; k < n; ++k) {
-        const double a = fabs(v[k]);
+        const slider_pendulum_real a = fabs(v[k]);
         m0 = a > m0 ? a : m0;
         s0 += a;
     }
@@ -546,12 +546,12 @@ static double slider_pendulum_maxabs(const double *v, int n)
    origin that differs from dq by a rounding of q, which sin and cos of the
    new angle must see (the subtraction is exact for steps under half the
    coordinate, and within a rounding of the step otherwise). */
-static double slider_pendulum_correct(double *q, double *dq)
+static slider_pendulum_real slider_pendulum_correct(slider_pendulum_real *q, slider_pendulum_real *dq)
 {
-    const double step = slider_pendulum_maxabs(dq, 6);
+    const slider_pendulum_real step = slider_pendulum_maxabs(dq, 6);
     int k;
     for (k = 0; k < 6; ++k) {
-        const double old = q[k];
+        const slider_pendulum_real old = q[k];
         q[k] = old - dq[k];
         dq[k] = old - q[k];
     }
@@ -565,12 +565,12 @@ static double slider_pendulum_correct(double *q, double *dq)
    from the bases the previous instant left (trig_near); without reuse, both
    start afresh. Converged: |Phi| and the last correction both within the
    tolerance's floor. On success the factors are those of q. */
-static int slider_pendulum_newton(double t, const double *p, double tol, double *q, double *tr, int *info, double *work,
+static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *q, slider_pendulum_real *tr, int *info, slider_pendulum_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    double *r = SLIDER_PENDULUM_VEC(work, 0), *dq = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
-    double *base = SLIDER_PENDULUM_VEC(work, 10);
-    double step = INFINITY, lim, qmag, rmax;
+    slider_pendulum_real *r = SLIDER_PENDULUM_VEC(work, 0), *dq = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
+    slider_pendulum_real *base = SLIDER_PENDULUM_VEC(work, 10);
+    slider_pendulum_real step = INFINITY, lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -628,10 +628,10 @@ static int slider_pendulum_newton(double t, const double *p, double tol, double 
 }
 
 /* The compiled outputs at a solved q, with the factors of Phi_q(q). */
-static void slider_pendulum_outputs(double t, const double *p, const double *q, const double *tr, double *qd, double *qdd,
-                            double *lam, double *reactions, double *work, const int *iwork, int dense)
+static void slider_pendulum_outputs(slider_pendulum_real t, const slider_pendulum_real *p, const slider_pendulum_real *q, const slider_pendulum_real *tr, slider_pendulum_real *qd, slider_pendulum_real *qdd,
+                            slider_pendulum_real *lam, slider_pendulum_real *reactions, slider_pendulum_real *work, const int *iwork, int dense)
 {
-    double *y = SLIDER_PENDULUM_VEC(work, 2), *b = SLIDER_PENDULUM_VEC(work, 3);
+    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2), *b = SLIDER_PENDULUM_VEC(work, 3);
     int k;
     slider_pendulum_nu_k(q, tr, t, p, b);
     slider_pendulum_solve(work, iwork, dense, b, qd, y);
@@ -646,8 +646,8 @@ static void slider_pendulum_outputs(double t, const double *p, const double *q, 
 
 /* Whether everything an instant computed is finite (maxabs is NaN if any
    value is): a few comparisons per value, against an instant's solve. */
-static int slider_pendulum_finite(const double *q, const double *qd, const double *qdd, const double *lam,
-                          const double *reactions)
+static int slider_pendulum_finite(const slider_pendulum_real *q, const slider_pendulum_real *qd, const slider_pendulum_real *qdd, const slider_pendulum_real *lam,
+                          const slider_pendulum_real *reactions)
 {
     (void)qd; (void)qdd; (void)lam; (void)reactions;
     return isfinite(slider_pendulum_maxabs(q, 6))
@@ -661,22 +661,22 @@ static int slider_pendulum_finite(const double *q, const double *qd, const doubl
    explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
    it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
    the rule of symid.numeric.solve.unexplained). O(NG) a step. */
-static int slider_pendulum_unexplained(const double *q0, const double *qd0, const double *qdd0, const double *q1,
-                               const double *qd1, const double *qdd1, double h, const double *c)
+static int slider_pendulum_unexplained(const slider_pendulum_real *q0, const slider_pendulum_real *qd0, const slider_pendulum_real *qdd0, const slider_pendulum_real *q1,
+                               const slider_pendulum_real *qd1, const slider_pendulum_real *qdd1, slider_pendulum_real h, const slider_pendulum_real *c)
 {
-    const double half = 0.5 * h, hh = h * h / 12.0;
-    double mismatch = 0.0, motion = 0.0;
+    const slider_pendulum_real half = 0.5 * h, hh = h * h / 12.0;
+    slider_pendulum_real mismatch = 0.0, motion = 0.0;
     int k;
     for (k = 0; k < 6; ++k) {
-        const double d = q1[k] - q0[k];
+        const slider_pendulum_real d = q1[k] - q0[k];
         mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
         motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[k]);
     }
     return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
 }
 
-int slider_pendulum_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork)
+int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *q, slider_pendulum_real *qd, slider_pendulum_real *qdd,
+                    slider_pendulum_real *lam, slider_pendulum_real *reactions, int *info, slider_pendulum_real *work, int *iwork)
 {
     int dense = 0, status, counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
@@ -684,7 +684,7 @@ int slider_pendulum_instant(double t, const double *p, double tol, double *q, do
         || !isfinite(tol) || tol <= 0.0) {
         status = SLIDER_PENDULUM_BAD_ARGUMENT;
     } else {
-        double *tr = SLIDER_PENDULUM_VEC(work, 9);
+        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = SLIDER_PENDULUM_VEC(work, 5);
@@ -704,16 +704,16 @@ int slider_pendulum_instant(double t, const double *p, double tol, double *q, do
     return status;
 }
 
-int slider_pendulum_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
-                       double *rows, long *solved, double *work, int *iwork)
+int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, long n, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *state,
+                       slider_pendulum_real *rows, long *solved, slider_pendulum_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    double *q = state, *m1 = state + 18, *m2 = state + 24;
-    double *qd = state + 6, *qdd = state + 12, *m3 = state + 30;
-    double *scale = state + 36;
-    double *count = state + 42;
-    double *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_PENDULUM_VEC(work, 9);
+    slider_pendulum_real *q = state, *m1 = state + 18, *m2 = state + 24;
+    slider_pendulum_real *qd = state + 6, *qdd = state + 12, *m3 = state + 30;
+    slider_pendulum_real *scale = state + 36;
+    slider_pendulum_real *count = state + 42;
+    slider_pendulum_real *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_PENDULUM_VEC(work, 9);
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -723,8 +723,8 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const double t = t0 + *count * h;
-        double *row = rows + i * SLIDER_PENDULUM_ROW;
+        const slider_pendulum_real t = t0 + *count * h;
+        slider_pendulum_real *row = rows + i * SLIDER_PENDULUM_ROW;
         /* what the row holds is solved straight into it */
         qn = row + 1;
         qdn = row + 7;
@@ -741,7 +741,7 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
         else if (*count >= 1)
             for (k = 0; k < 6; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
         else
-            memcpy(qn, q, sizeof(double) * 6);
+            memcpy(qn, q, sizeof(slider_pendulum_real) * 6);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = slider_pendulum_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -758,12 +758,12 @@ int slider_pendulum_trajectory(double t0, double h, long n, const double *p, dou
             *solved = i;
             return SLIDER_PENDULUM_UNEXPLAINED;
         }
-        memcpy(m3, m2, sizeof(double) * 6);
-        memcpy(m2, m1, sizeof(double) * 6);
-        memcpy(m1, qdd, sizeof(double) * 6);
-        memcpy(qd, qdn, sizeof(double) * 6);
-        memcpy(qdd, qddn, sizeof(double) * 6);
-        memcpy(q, qn, sizeof(double) * 6);
+        memcpy(m3, m2, sizeof(slider_pendulum_real) * 6);
+        memcpy(m2, m1, sizeof(slider_pendulum_real) * 6);
+        memcpy(m1, qdd, sizeof(slider_pendulum_real) * 6);
+        memcpy(qd, qdn, sizeof(slider_pendulum_real) * 6);
+        memcpy(qdd, qddn, sizeof(slider_pendulum_real) * 6);
+        memcpy(q, qn, sizeof(slider_pendulum_real) * 6);
         *count += 1.0;
         row[0] = t;
     }

@@ -8,6 +8,9 @@
 extern "C" {
 #endif
 
+/* The one floating type of every argument, table and workspace. */
+typedef double slider_pendulum_real;
+
 /* Sizes. */
 #define SLIDER_PENDULUM_NG 6            /* generalized coordinates q = [x, y, phi] per body */
 #define SLIDER_PENDULUM_NC 6            /* constraint rows */
@@ -15,9 +18,9 @@ extern "C" {
 #define SLIDER_PENDULUM_NNZ 15          /* structural nonzeros of Phi_q */
 #define SLIDER_PENDULUM_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_PENDULUM_ROW 55          /* values per instant in a trajectory row */
-#define SLIDER_PENDULUM_WORK 396        /* doubles of workspace every solver call needs */
+#define SLIDER_PENDULUM_WORK 396        /* reals of workspace every solver call needs */
 #define SLIDER_PENDULUM_IWORK 6         /* ints of workspace */
-#define SLIDER_PENDULUM_STATE 43       /* doubles of trajectory state */
+#define SLIDER_PENDULUM_STATE 43       /* reals of trajectory state */
 
 /* Status of every solver call. */
 #define SLIDER_PENDULUM_OK 0
@@ -39,7 +42,7 @@ extern "C" {
 #define SLIDER_PENDULUM_HAS_REACTIONS 1
 
 /* Parameters, in this order: alpha, s_amp, f_carriage, theta_amp, f_pendulum, m_carriage, a_carriage, b_carriage, h_hinge, L_pendulum, m_pendulum, k_torsion, c_torsion. */
-extern const double slider_pendulum_default_params[13];
+extern const slider_pendulum_real slider_pendulum_default_params[13];
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int slider_pendulum_phi_q_rows[15];
 extern const int slider_pendulum_phi_q_cols[15];
@@ -47,13 +50,13 @@ extern const int slider_pendulum_phi_q_cols[15];
 /* Arguments: q, qd: size NG; t: time; p: size NP; lam: size NC.
    Outputs: vectors of constraint rows: NC; phi_q: NNZ values; vectors of
    coordinates (applied forces, mass diagonal): NG; reactions: NR. */
-void slider_pendulum_phi(const double *q, double t, const double *p, double *out);
-void slider_pendulum_phi_q(const double *q, double t, const double *p, double *out);
-void slider_pendulum_nu(const double *q, double t, const double *p, double *out);
-void slider_pendulum_gamma(const double *q, const double *qd, double t, const double *p, double *out);
-void slider_pendulum_applied(const double *q, const double *qd, double t, const double *p, double *out);
-void slider_pendulum_mass(const double *p, double *out);
-void slider_pendulum_reactions(const double *q, const double *lam, double t, const double *p, double *out);
+void slider_pendulum_phi(const slider_pendulum_real *q, slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real *out);
+void slider_pendulum_phi_q(const slider_pendulum_real *q, slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real *out);
+void slider_pendulum_nu(const slider_pendulum_real *q, slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real *out);
+void slider_pendulum_gamma(const slider_pendulum_real *q, const slider_pendulum_real *qd, slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real *out);
+void slider_pendulum_applied(const slider_pendulum_real *q, const slider_pendulum_real *qd, slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real *out);
+void slider_pendulum_mass(const slider_pendulum_real *p, slider_pendulum_real *out);
+void slider_pendulum_reactions(const slider_pendulum_real *q, const slider_pendulum_real *lam, slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real *out);
 
 /* One instant: Newton from the guess in q (overwritten by the solution),
    then the compiled outputs. qd, qdd (NG), lam (NC), reactions (NR) and info
@@ -61,20 +64,20 @@ void slider_pendulum_reactions(const double *q, const double *lam, double t, con
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
    pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
-   when NP is 0. work: WORK doubles, iwork: IWORK ints. */
-int slider_pendulum_instant(double t, const double *p, double tol, double *q, double *qd, double *qdd,
-                    double *lam, double *reactions, int *info, double *work, int *iwork);
+   when NP is 0. work: WORK reals, iwork: IWORK ints. */
+int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *q, slider_pendulum_real *qd, slider_pendulum_real *qdd,
+                    slider_pendulum_real *lam, slider_pendulum_real *reactions, int *info, slider_pendulum_real *work, int *iwork);
 
 /* n instants t0 + k h, k = state[STATE-1] (the instants solved with this
    state so far) onwards, each written as a row of ROW values (t, then the
    compiled groups in contract order) into rows: pass the same t0 on every
-   call of one run. state (STATE doubles) carries the predictor between calls:
+   call of one run. state (STATE reals) carries the predictor between calls:
    set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
    first call. state[6 NG..7 NG-1]: per
    coordinate, 1 / its scale for the jump check (zeros: no check).
    *solved = rows written (solved may be NULL). */
-int slider_pendulum_trajectory(double t0, double h, long n, const double *p, double tol, double *state,
-                       double *rows, long *solved, double *work, int *iwork);
+int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, long n, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *state,
+                       slider_pendulum_real *rows, long *solved, slider_pendulum_real *work, int *iwork);
 
 #ifdef __cplusplus
 }

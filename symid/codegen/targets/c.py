@@ -94,15 +94,16 @@ def _trig_map(ng: int) -> dict[sp.Expr, sp.Symbol]:
 
 
 def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
-              trig: dict[sp.Expr, sp.Symbol], printer: Callable[[sp.Expr], str] = ccode) -> dict[str, Any]:
+              trig: dict[sp.Expr, sp.Symbol], printer: Callable[[sp.Expr], str] = ccode,
+              real: str = "double") -> dict[str, Any]:
     """One generated function: a kernel taking the angles' sines and cosines
     precomputed (`tr`), and the public signature without them."""
     with_trig = any(a == "q" for _, a in args)
     codes: list[Block] = blocks([e.xreplace(trig) for e in exprs] if with_trig else list(exprs), printer)
-    kernel_args = args[:1] + [("const double *", "tr")] + args[1:] if with_trig else args
+    kernel_args = args[:1] + [(f"const {real} *", "tr")] + args[1:] if with_trig else args
 
     def sig(items: list[tuple[str, str]]) -> str:
-        return ", ".join([f"{ctype} {a}" for ctype, a in items] + ["double *out"])
+        return ", ".join([f"{ctype} {a}" for ctype, a in items] + [f"{real} *out"])
 
     chunks = [{"block": code, "unused": [a for _, a in kernel_args if not code.uses(a)]} for code in codes]
     return {"name": name, "signature": sig(kernel_args), "public_signature": sig(args), "chunks": chunks,
@@ -274,26 +275,27 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
     run time (the same factors bitwise: for the tests)."""
     f = model.flat
     o = f.options
-    cq, cqd, ct, cp, clam = ("const double *", "q"), ("const double *", "qd"), ("double", "t"), \
-        ("const double *", "p"), ("const double *", "lam")
+    real = f"{f.name}_real"
+    cq, cqd, ct, cp, clam = (f"const {real} *", "q"), (f"const {real} *", "qd"), (real, "t"), \
+        (f"const {real} *", "p"), (f"const {real} *", "lam")
     trig = _trig_map(f.ng)
     printer = Printer({"math_macros": {}, "prefix": f.name}).doprint
     used = f.phi + [e for _, _, e in f.jac]  # what is printed: a static function never called is an error
     functions = [
-        _function("phi", [cq, ct, cp], f.phi, trig, printer),
-        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac], trig, printer),
+        _function("phi", [cq, ct, cp], f.phi, trig, printer, real),
+        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac], trig, printer, real),
     ]
     if o.velocity:
-        functions += [_function("nu", [cq, ct, cp], f.nu, trig, printer),
-                      _function("gamma", [cq, cqd, ct, cp], f.gamma, trig, printer)]
+        functions += [_function("nu", [cq, ct, cp], f.nu, trig, printer, real),
+                      _function("gamma", [cq, cqd, ct, cp], f.gamma, trig, printer, real)]
         used += f.nu + f.gamma
     dynamics = o.kind != "kinematics" and o.multipliers
     if dynamics:
-        functions += [_function("applied", [cq, cqd, ct, cp], f.applied, trig, printer),
-                      _function("mass", [cp], f.mass, trig, printer)]
+        functions += [_function("applied", [cq, cqd, ct, cp], f.applied, trig, printer, real),
+                      _function("mass", [cp], f.mass, trig, printer, real)]
         used += f.applied
     if f.reactions:
-        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions, trig, printer))
+        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions, trig, printer, real))
         used += f.reactions
     ng, nc, nr = f.ng, f.nc, len(f.reactions)
     has = {g: int(g in o.outputs) for g in ("qdot", "qddot", "lambda", "reactions")}
