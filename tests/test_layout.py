@@ -15,7 +15,7 @@ PACKAGE = ROOT / "symid"
 # The base modules (plain standard library: errors and exit statuses, message
 # text, the setup status line) and the package itself are beneath every layer.
 BASE = ("errors", "text", "progress")
-LAYERS = ("model", "symbolic", "io", "numeric", "codegen", "backends", "output", "api", "tools", "cli", "__main__")
+LAYERS = ("model", "symbolic", "io", "numeric", "codegen", "backends", "output", "study", "api", "tools", "cli", "__main__")
 MAX_LINES = 400
 
 

@@ -1,0 +1,56 @@
+"""The figures of a design study: one row of numbers per variant.
+
+Their names and order are the contract's (`symid sweep`): per driver D in
+file order `D.effort_peak D.effort_t_peak D.effort_rms D.power_peak`, then per
+constraint C of `[analysis] reactions` (default all) `C.force_peak`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from symid.model.mechanism import Mechanism
+
+# Why a variant's run stopped (index = code); "ok" when it ran to t1.
+STATUS = ("ok", "not_converged", "singular", "jump", "nonfinite")
+DRIVER_FIGURES = ("effort_peak", "effort_t_peak", "effort_rms", "power_peak")
+DRIVERS = ("relative_angle_driver", "coordinate_driver", "distance_driver", "translational_driver")
+
+
+def figure_names(mechanism: Mechanism) -> tuple[str, ...]:
+    """The figure columns of a study of `mechanism`, in contract order."""
+    a = mechanism.analysis
+    if a.kind == "kinematics":  # no forces solved: no efforts, no reactions
+        return ()
+    names = [f"{c.name}.{f}" for c in mechanism.constraints if c.type in DRIVERS for f in DRIVER_FIGURES]
+    chosen = a.reactions if a.reactions is not None else tuple(c.name for c in mechanism.constraints)
+    names += [f"{name}.force_peak" for name in chosen]
+    return tuple(names)
+
+
+@dataclass(frozen=True)
+class Figures:
+    """The figures of K variants.
+
+    Attributes:
+        names: figure column names, in contract order (`figure_names`).
+        values: shape (K, len(names)); a failed variant holds the figures of
+            the instants solved before it stopped (NaN when none was).
+        status: shape (K,), an index into `STATUS`.
+        t_end: shape (K,), the last instant solved (NaN when none was).
+    """
+
+    names: tuple[str, ...]
+    values: np.ndarray
+    status: np.ndarray
+    t_end: np.ndarray
+
+    def __post_init__(self) -> None:
+        k = len(self.status)
+        if self.values.shape != (k, len(self.names)) or self.t_end.shape != (k,):
+            raise ValueError(f"figures of {k} variants: values {self.values.shape}, t_end {self.t_end.shape}")
+
+    def __len__(self) -> int:
+        return len(self.status)
