@@ -63,3 +63,4 @@ def assemble(ev: ReferenceEvaluator, q: Array, t: float, tol: float) -> Array:
             alpha *= 0.5
         q, phi = trial, phi_trial
     raise AnalysisError(f"assembly did not converge in {RULE.max_iterations} iterations", t)
+

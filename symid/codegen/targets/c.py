@@ -239,11 +239,23 @@ def _stride(model: CodeModel) -> int:
     return max(f.ng, f.nc, len(f.reactions), 1)
 
 
+# Past this many coordinates the solver has no dense fallback: its NG^2
+# reals (76 MB at the ladder of 512) would dwarf the sparse factors; a
+# configuration the fixed pivots do not serve is reported singular and solved
+# by symid's own loop (templates/c/no_fallback.j2).
+DENSE_LIMIT = 400
+
+
+def dense_fallback(model: CodeModel) -> bool:
+    return model.flat.ng <= DENSE_LIMIT
+
+
 def work_size(model: CodeModel) -> int:
     """Doubles of workspace a solver call needs: Phi_q's values, the sparse
-    factors, the dense fallback and eleven work vectors."""
+    factors, the dense fallback (up to DENSE_LIMIT coordinates) and eleven
+    work vectors."""
     f = model.flat
-    return len(f.jac) + model.plan.size + f.ng * f.ng + 11 * _stride(model)
+    return len(f.jac) + model.plan.size + (f.ng * f.ng if dense_fallback(model) else 0) + 11 * _stride(model)
 
 
 def state_size(model: CodeModel) -> int:
@@ -327,6 +339,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),
         "outputs": outputs,
+        "dense_fallback": dense_fallback(model), "dense_limit": DENSE_LIMIT,
         "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
 
