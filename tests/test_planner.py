@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from symid.codegen import sparse
-from tests.planner_reference import rescanning_plan
+from planner_reference import rescanning_plan
 
 
 def _pattern(rng: np.random.Generator, n: int, density: float, diagonal: bool) -> list[tuple[int, int]]:

@@ -1,0 +1,99 @@
+"""Large mechanisms: setup that holds nothing ng x ng, a generated solver
+without the dense fallback past its size limit (failing fixed pivots go to
+symid's own loop), results as the reference gives them."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from compare import assert_agree
+from data_mechanisms import TWO_CABLES
+from symid import api
+from symid.codegen import model as code_model_module
+from symid.codegen.model import code_model
+from symid.codegen.targets import c as c_target
+from symid.io.reader import load, loads
+from symid.numeric import solve
+from symid.numeric.reference import ReferenceEvaluator
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from benchmarks import ladder  # noqa: E402
+
+needs_cc = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler")
+
+
+@pytest.fixture
+def no_dense_fallback(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """Every generated C solver is built as past the dense fallback's limit, in a cache of its own."""
+    monkeypatch.setattr(c_target, "DENSE_LIMIT", 0)
+    monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
+
+
+@needs_cc
+def test_without_dense_fallback_failing_pivots_are_solved_by_the_python_loop(no_dense_fallback: None,
+                                                                             monkeypatch: pytest.MonkeyPatch,
+                                                                             tmp_path: Path) -> None:
+    """Two cables: some fixed pivots fail on the way (the dense fallback's
+    instants); without it, those instants reach the Python loop and the run
+    still matches the reference."""
+    handed: list[int] = []
+    original = solve.Stepper.instant
+
+    def spy(self: solve.Stepper, n: int, *args: object) -> solve.Instant:
+        handed.append(n)
+        return original(self, n, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(solve.Stepper, "instant", spy)
+    mech = loads(TWO_CABLES, "two_cables.toml")
+    model = code_model(mech)
+    assert c_target.work_size(model) == len(model.flat.jac) + model.plan.size + 11 * c_target._stride(model)
+    c_target.generate(model, tmp_path / "src")
+    assert "dense_factor" not in (tmp_path / "src" / "two_cables_solver.c").read_text()
+    got = api.solve(mech, backend="c")
+    assert got.error is None and len(handed) > 1  # instants beyond t0 went to the Python loop
+    assert_agree(got.data, api.solve(mech, backend="reference").data)
+
+
+@needs_cc
+def test_ladder_without_dense_fallback_agrees_with_reference(no_dense_fallback: None, tmp_path: Path) -> None:
+    mech = load(ladder.write(6, tmp_path, steps=40))
+    got = api.solve(mech, backend="c")
+    expected = api.solve(mech, backend="reference")
+    assert got.error is None and got.columns == expected.columns
+    assert_agree(got.data, expected.data)
+
+
+def test_setup_of_a_large_ladder_allocates_nothing_ng_by_ng(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """Past DENSE_SETUP coordinates the plan is sampled entry by entry: no
+    dense Phi_q, no array of ng^2 / 4 numbers or more, and a workspace of
+    the sparse factors' size."""
+    n = 26
+    ng = ladder.Ladder(n).ng
+    assert ng > code_model_module.DENSE_SETUP and ng > 0
+    largest = [0]
+    for fn in ("zeros", "empty", "ones", "full", "eye", "identity"):
+        original = getattr(np, fn)
+
+        def tracked(*args: object, _original=original, **kwargs: object) -> np.ndarray:  # type: ignore[no-untyped-def]
+            out = _original(*args, **kwargs)
+            largest[0] = max(largest[0], out.size)
+            return out
+
+        monkeypatch.setattr(np, fn, tracked)
+
+    def dense(*args: object) -> None:
+        raise AssertionError("dense Phi_q during setup")
+
+    monkeypatch.setattr(ReferenceEvaluator, "phi_q", dense)
+    monkeypatch.setattr(c_target, "DENSE_LIMIT", code_model_module.DENSE_SETUP)
+    model = code_model(load(ladder.write(n, tmp_path)))
+    assert largest[0] < ng * ng // 4
+    assert model.plan.size < 10 * ng and not model.plan.singular
+    assert c_target.work_size(model) < 40 * ng
