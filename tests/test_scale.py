@@ -97,3 +97,18 @@ def test_setup_of_a_large_ladder_allocates_nothing_ng_by_ng(monkeypatch: pytest.
     assert largest[0] < ng * ng // 4
     assert model.plan.size < 10 * ng and not model.plan.singular
     assert c_target.work_size(model) < 40 * ng
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_scaling_from_entries_is_the_dense_scaling(seed: int) -> None:
+    from symid.numeric.sparse_scaling import scaling_of_entries
+    from symid.numeric.stability import Scaling
+
+    rng = np.random.default_rng(seed)
+    n = 30
+    jac = np.where(rng.random((n, n)) < 0.2, rng.normal(size=(n, n)) * 10.0 ** rng.integers(-3, 3, (n, n)), 0.0)
+    q = rng.normal(size=n)
+    r, c = np.nonzero(jac)
+    dense, entries = Scaling.of(jac, q), scaling_of_entries(r, c, jac[r, c], q, n)
+    for field in ("lref", "col", "row", "dc", "dr", "inv_col", "inv_row"):
+        assert np.array_equal(getattr(dense, field), getattr(entries, field)), field
