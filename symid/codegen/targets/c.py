@@ -10,6 +10,8 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
 from symid.codegen.emit import Block, has_word, blocks, chunked
+from symid.codegen.targets import c_loops
+from symid.codegen.targets.c_loops import Loops
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
@@ -95,19 +97,22 @@ def _trig_map(ng: int) -> dict[sp.Expr, sp.Symbol]:
 
 def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
               trig: dict[sp.Expr, sp.Symbol], printer: Callable[[sp.Expr], str] = ccode,
-              real: str = "double") -> dict[str, Any]:
+              real: str = "double", loops: Loops | None = None) -> dict[str, Any]:
     """One generated function: a kernel taking the angles' sines and cosines
-    precomputed (`tr`), and the public signature without them."""
+    precomputed (`tr`), and the public signature without them; with `loops`,
+    the outputs they cover are written by looped kernels (c_loops.j2)."""
     with_trig = any(a == "q" for _, a in args)
-    codes: list[Block] = blocks([e.xreplace(trig) for e in exprs] if with_trig else list(exprs), printer)
     kernel_args = args[:1] + [(f"const {real} *", "tr")] + args[1:] if with_trig else args
+    mapped = [e.xreplace(trig) for e in exprs] if with_trig else list(exprs)
+    looped = loops.kernels(name, [a for _, a in kernel_args], printer) if loops else []
+    codes: list[Block] = c_loops.remaining(mapped, loops.covered(name), printer) if looped else blocks(mapped, printer)
 
     def sig(items: list[tuple[str, str]]) -> str:
         return ", ".join([f"{ctype} {a}" for ctype, a in items] + [f"{real} *out"])
 
     chunks = [{"block": code, "unused": [a for _, a in kernel_args if not code.uses(a)]} for code in codes]
     return {"name": name, "signature": sig(kernel_args), "public_signature": sig(args), "chunks": chunks,
-            "trig": with_trig, "call": ", ".join([a for _, a in kernel_args] + ["out"])}
+            "trig": with_trig, "call": ", ".join([a for _, a in kernel_args] + ["out"]), "loops": looped}
 
 
 def _read(c: Coef) -> str:
@@ -292,22 +297,23 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         (f"const {real} *", "p"), (f"const {real} *", "lam")
     trig = _trig_map(f.ng)
     printer = Printer({"math_macros": {}, "prefix": f.name}).doprint
+    loops = c_loops.Loops.of(f, model.layout)
     used = f.phi + [e for _, _, e in f.jac]  # what is printed: a static function never called is an error
     functions = [
-        _function("phi", [cq, ct, cp], f.phi, trig, printer, real),
-        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac], trig, printer, real),
+        _function("phi", [cq, ct, cp], f.phi, trig, printer, real, loops),
+        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac], trig, printer, real, loops),
     ]
     if o.velocity:
-        functions += [_function("nu", [cq, ct, cp], f.nu, trig, printer, real),
-                      _function("gamma", [cq, cqd, ct, cp], f.gamma, trig, printer, real)]
+        functions += [_function("nu", [cq, ct, cp], f.nu, trig, printer, real, loops),
+                      _function("gamma", [cq, cqd, ct, cp], f.gamma, trig, printer, real, loops)]
         used += f.nu + f.gamma
     dynamics = o.kind != "kinematics" and o.multipliers
     if dynamics:
-        functions += [_function("applied", [cq, cqd, ct, cp], f.applied, trig, printer, real),
-                      _function("mass", [cp], f.mass, trig, printer, real)]
+        functions += [_function("applied", [cq, cqd, ct, cp], f.applied, trig, printer, real, loops),
+                      _function("mass", [cp], f.mass, trig, printer, real, loops)]
         used += f.applied
     if f.reactions:
-        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions, trig, printer, real))
+        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions, trig, printer, real, loops))
         used += f.reactions
     ng, nc, nr = f.ng, f.nc, len(f.reactions)
     has = {g: int(g in o.outputs) for g in ("qdot", "qddot", "lambda", "reactions")}
@@ -339,6 +345,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),
         "outputs": outputs,
+        "loop_tables": loops.tables if loops else [],
         "dense_fallback": dense_fallback(model), "dense_limit": DENSE_LIMIT,
         "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
