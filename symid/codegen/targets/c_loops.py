@@ -222,8 +222,9 @@ def coverage(all_tables: list[dict[str, Any]], part_list: list[Part]) -> Coverag
     return Coverage(rows, slots, reactions)
 
 
-def kernel(part: Part, fn: str, printer: Printer, args: list[str]) -> dict[str, Any]:
-    """One function's loop over a part: CSE'd once, printed once."""
+def kernel(part: Part, fn: str, printer: Printer, args: list[str], table: dict[str, Any]) -> dict[str, Any]:
+    """One function's loop over a part: CSE'd once, printed once; a slot is
+    tested only where some member lacks it."""
     items = _exprs(part, fn)
     temps, reduced = sp.cse([e for _, e in items], symbols=sp.numbered_symbols("e", real=True), order="none")
     code = Block(tuple((str(t), printer(e)) for t, e in temps),
@@ -231,21 +232,40 @@ def kernel(part: Part, fn: str, printer: Printer, args: list[str]) -> dict[str, 
     outputs = []
     for (where, _), (_, text) in zip(items, code.outputs):
         if fn == "phi_q":
-            outputs.append({"guard": f"slot[{where}] >= 0", "target": f"out[slot[{where}]]", "value": text})
+            k, n = int(where), table["nslots"]
+            gaps = any(table["slots"][m * n + k] < 0 for m in range(table["n"]))
+            outputs.append({"guard": f"slot[{where}] >= 0" if gaps else None, "target": f"out[slot[{where}]]",
+                            "value": text})
         elif fn == "reactions":
-            outputs.append({"guard": "rx >= 0", "target": f"out[{where}]", "value": text})
+            outputs.append({"guard": "rx >= 0" if min(table["reactions"]) < 0 else None, "target": f"out[{where}]",
+                            "value": text})
         else:
             outputs.append({"guard": None, "target": f"out[{where}]", "value": text})
     texts = [e for _, e in code.temps] + [o["value"] for o in outputs]
     used_c = [j for j in part.varying if any(has_word(t, f"c{j}") for t in texts)]
     basis = [printer(b) for b in part.basis]
-    texts += basis
+    terms = {j: _terms(part, part.varying.index(j)) for j in used_c}
+    texts += [basis[i] for j in used_c for i in terms[j]]
     return {"part": part.index, "temps": code.temps, "outputs": outputs, "roles": len(part.roles),
-            "varying": [(j, part.varying.index(j)) for j in used_c], "basis": basis,
+            "constants": [(j, " + ".join(_term(part, part.varying.index(j), i) for i in terms[j]) or "0.0")
+                          for j in used_c],
+            "basis": [(i, basis[i]) for i in sorted({i for j in used_c for i in terms[j]})],
             "nbasis": len(basis), "nvarying": len(part.varying),
             "unused": [a for a in args if not any(a + "[" in t or (a == "t" and has_word(t, "t")) for t in texts)
                        and a not in ("out",)],
             "rows": fn != "phi_q", "reactions": fn == "reactions"}
+
+
+def _terms(part: Part, v: int) -> list[int]:
+    """The basis entries varying constant v takes for some member."""
+    return [i for i in range(len(part.basis)) if any(m[v][i] != 0.0 for m in part.coef)]
+
+
+def _term(part: Part, v: int, i: int) -> str:
+    """C for coef * basis[i] of varying constant v at member m (a basis of 1: the number alone)."""
+    index = f"m * {len(part.varying) * len(part.basis)} + {v * len(part.basis) + i}"
+    coef = f"L_coef[{index}]"
+    return coef if part.basis[i] == 1 else f"{coef} * B{i}"
 
 
 def remaining(exprs: Sequence[sp.Expr], covered: set[int], printer: Printer) -> list[Block]:
@@ -302,5 +322,5 @@ class Loops:
     def kernels(self, fn: str, args: list[str], printer: Printer) -> list[dict[str, Any]]:
         if fn not in LOOPED:
             return []
-        return [kernel(p, fn, printer, args) for p, t in zip(self.parts, self.tables)
+        return [kernel(p, fn, printer, args, t) for p, t in zip(self.parts, self.tables)
                 if fn != "reactions" or t["reactions_used"]]
