@@ -12,6 +12,7 @@ from sympy.printing.c import C99CodePrinter
 from symid.codegen.emit import Block, has_word, blocks, chunked
 from symid.codegen.targets import c_loops
 from symid.codegen.targets.c_loops import Loops
+from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
@@ -233,6 +234,16 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
     return passes
 
 
+def _lu(model: CodeModel, fold_constants: bool) -> dict[str, Any]:
+    """The sparse LU's context: straight-line code (sparse_lu.j2), or index
+    tables (sparse_lu_tables.j2) from c_loops.LOOP_MIN coordinates, where
+    the straight-line code would grow past the cache."""
+    if model.flat.ng < c_loops.LOOP_MIN:
+        return {"lu_tables": None, **lu_chunks(model.plan, _known(model, fold_constants), model.flat.name.upper())}
+    return {"lu_tables": lu_tables(model.plan), "known_reciprocals": None,
+            "pivot_slots": [model.plan.slots[(st.row, st.col)] for st in model.plan.steps]}
+
+
 def _known(model: CodeModel, fold_constants: bool) -> list[float | None]:
     """The entries of Phi_q that are numbers, per pattern slot (None: computed)."""
     return [float(e) if fold_constants and e.is_Number else None for _, _, e in model.flat.jac]
@@ -339,7 +350,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": repr(THRESHOLD),
-        **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper()),
+        **_lu(model, fold_constants),
         "max_newton": RULE.max_iterations, "floor_ulps": repr(RULE.floor_ulps), "jump_floor": repr(JUMP_FLOOR), "unexplained": repr(UNEXPLAINED),
         "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
