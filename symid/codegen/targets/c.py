@@ -106,7 +106,8 @@ def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
     kernel_args = args[:1] + [(f"const {real} *", "tr")] + args[1:] if with_trig else args
     mapped = [e.xreplace(trig) for e in exprs] if with_trig else list(exprs)
     looped = loops.kernels(name, [a for _, a in kernel_args], printer) if loops else []
-    codes: list[Block] = c_loops.remaining(mapped, loops.covered(name), printer) if looped else blocks(mapped, printer)
+    codes: list[Block] = (c_loops.remaining(mapped, loops.covered(name), printer) if loops and looped
+                          else blocks(mapped, printer))
 
     def sig(items: list[tuple[str, str]]) -> str:
         return ", ".join([f"{ctype} {a}" for ctype, a in items] + [f"{real} *out"])
@@ -234,11 +235,16 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
     return passes
 
 
+# Coordinates from which the sparse LU loops over index tables: below it the
+# straight-line code, with the known values folded, is faster (see
+# benchmarks/scale.py).
+LU_TABLES_MIN = 200
+
+
 def _lu(model: CodeModel, fold_constants: bool) -> dict[str, Any]:
     """The sparse LU's context: straight-line code (sparse_lu.j2), or index
-    tables (sparse_lu_tables.j2) from c_loops.LOOP_MIN coordinates, where
-    the straight-line code would grow past the cache."""
-    if model.flat.ng < c_loops.LOOP_MIN:
+    tables (sparse_lu_tables.j2) from LU_TABLES_MIN coordinates."""
+    if model.flat.ng < LU_TABLES_MIN:
         return {"lu_tables": None, **lu_chunks(model.plan, _known(model, fold_constants), model.flat.name.upper())}
     return {"lu_tables": lu_tables(model.plan), "known_reciprocals": None,
             "pivot_slots": [model.plan.slots[(st.row, st.col)] for st in model.plan.steps]}

@@ -229,7 +229,7 @@ def kernel(part: Part, fn: str, printer: Printer, args: list[str], table: dict[s
     temps, reduced = sp.cse([e for _, e in items], symbols=sp.numbered_symbols("e", real=True), order="none")
     code = Block(tuple((str(t), printer(e)) for t, e in temps),
                  tuple((k, printer(e)) for k, e in enumerate(reduced)))
-    outputs = []
+    outputs: list[dict[str, str | None]] = []
     for (where, _), (_, text) in zip(items, code.outputs):
         if fn == "phi_q":
             k, n = int(where), table["nslots"]
@@ -241,7 +241,7 @@ def kernel(part: Part, fn: str, printer: Printer, args: list[str], table: dict[s
                             "value": text})
         else:
             outputs.append({"guard": None, "target": f"out[{where}]", "value": text})
-    texts = [e for _, e in code.temps] + [o["value"] for o in outputs]
+    texts = [e for _, e in code.temps] + [text for _, text in code.outputs]
     used_c = [j for j in part.varying if any(has_word(t, f"c{j}") for t in texts)]
     basis = [printer(b) for b in part.basis]
     terms = {j: _terms(part, part.varying.index(j)) for j in used_c}
@@ -250,7 +250,6 @@ def kernel(part: Part, fn: str, printer: Printer, args: list[str], table: dict[s
             "constants": [(j, " + ".join(_term(part, part.varying.index(j), i) for i in terms[j]) or "0.0")
                           for j in used_c],
             "basis": [(i, basis[i]) for i in sorted({i for j in used_c for i in terms[j]})],
-            "nbasis": len(basis), "nvarying": len(part.varying),
             "unused": [a for a in args if not any(a + "[" in t or (a == "t" and has_word(t, "t")) for t in texts)
                        and a not in ("out",)],
             "rows": fn != "phi_q", "reactions": fn == "reactions"}
