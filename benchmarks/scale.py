@@ -1,7 +1,8 @@
 """Scale: the ladder of N four-bars (ng = 6N + 3) from N = 64 to 1024, C backend.
 
-Per ladder and code form (`auto`: symid's own choice; `unrolled` / `looped`:
-forced by the looped kernels' size limit), in a fresh process and a fresh
+Per ladder and code form (`auto`: symid's own limits; `unrolled`: straight-line
+code; `looped`: family loops, straight-line LU; `compact`: family loops and
+the LU on index tables), in a fresh process and a fresh
 cache: cold setup split by stage (derive, generate, compile; see
 `symid.tools.bench`), the process's peak memory (the Python process's and,
 separately, the largest compiler process's), the generated source and
@@ -13,7 +14,7 @@ nu, gamma, applied, mass and reactions, the trajectory's usual one Newton
 correction), over the measured time.
 
     python -m benchmarks.scale                      # N = 64 128 256, auto
-    python -m benchmarks.scale --ladders 512 1024 --forms auto unrolled looped
+    python -m benchmarks.scale --ladders 512 1024 --forms auto unrolled compact
 
 Writes benchmarks/results/scale.json (--out to change) and prints a table;
 the targets of issue 17 are checked from the auto form's figures.
@@ -36,7 +37,9 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "results" / "scale.json"
-FORMS = {"auto": None, "unrolled": 10 ** 9, "looped": 0}
+# (LOOP_MIN, LU_TABLES_MIN) per code form; auto: symid's own limits
+FORMS: dict[str, tuple[int, int] | None] = {"auto": None, "unrolled": (10 ** 9, 10 ** 9), "looped": (0, 10 ** 9),
+                                            "compact": (0, 0)}
 
 # what one instant of the trajectory loop calls, per generated function
 PER_INSTANT = {"phi": 2, "phi_q": 1, "sparse_factor": 1, "sparse_forward": 3, "sparse_back": 3,
@@ -77,12 +80,12 @@ def child(n: int, form: str, instants: int, folder: Path) -> dict[str, Any]:
     """One cold setup and timing, in this (fresh) process."""
     sys.path.insert(0, str(ROOT))
     from benchmarks import ladder
-    from symid.codegen.targets import c_loops
+    from symid.codegen.targets import c, c_loops
     from symid.tools.bench import bench
 
-    limit = FORMS[form]
-    if limit is not None:
-        c_loops.LOOP_MIN = limit
+    limits = FORMS[form]
+    if limits is not None:
+        c_loops.LOOP_MIN, c.LU_TABLES_MIN = limits
     path = ladder.write(n, folder / "mech", steps=1001)
     os.environ["SYMID_CACHE"] = str(folder / "cache")
     result = bench(path, "c", instants=instants, cold=False, budget_s=20.0)
@@ -91,7 +94,7 @@ def child(n: int, form: str, instants: int, folder: Path) -> dict[str, Any]:
     flops = count_flops(source.read_text(), ladder.name(n))
     us = result.get("us_per_instant")
     result.update({
-        "n": n, "form": form, "looped": "_L0_body" in source.read_text(),
+        "n": n, "form": form, "looped": "_L0_body" in source.read_text(), "lu_tables": "_lu_update[" in source.read_text(),
         "source_kb": round(source.stat().st_size / 1024, 1),
         "text_kb": round(_text_bytes(so) / 1024, 1) if so.is_file() else None,
         "flops_per_instant": flops,

@@ -235,10 +235,12 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
     return passes
 
 
-# Coordinates from which the sparse LU loops over index tables: below it the
-# straight-line code, with the known values folded, is faster (see
-# benchmarks/scale.py).
-LU_TABLES_MIN = 200
+# Coordinates from which the sparse LU loops over index tables. Measured on
+# a loaded machine (benchmarks/scale.py): at the ladder of 64 (ng 387) the
+# straight-line code, with the known values folded, is 1.6 x faster; at the
+# ladder of 256 (ng 1539) the tables are as fast or faster (the straight-line
+# code outgrows the cache) and compile 4 x faster.
+LU_TABLES_MIN = 1000
 
 
 def _lu(model: CodeModel, fold_constants: bool) -> dict[str, Any]:
