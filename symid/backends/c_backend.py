@@ -100,7 +100,7 @@ def build(layout: Layout, options: Options) -> Path:
 
         cc = compiler()
         stage("deriving")
-        model = code_model(mech, options)
+        model = code_model(mech, options, looped=True)
         stage("generating")
         c.generate(model, folder)
         source = folder / f"{mech.name}_solver.c"

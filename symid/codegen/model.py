@@ -62,8 +62,13 @@ def _assemble_sparse(reference, q0: np.ndarray, t0: float, tol: float) -> np.nda
         return q0  # the plan still needs a sample; the solver reports the failure at run time
 
 
-def code_model(mech: Mechanism, options: Options | None = None) -> CodeModel:
-    """Build the flat system and fix the elimination order at q(t0)."""
+def code_model(mech: Mechanism, options: Options | None = None, looped: bool = False) -> CodeModel:
+    """Build the flat system and fix the elimination order at q(t0).
+
+    looped: for the C target, whose looped kernels compute the rows and
+    reactions of the members they loop over: those are not substituted
+    (`flat.build`'s `looped`; the flat system is then for that target only).
+    """
     from symid.numeric.reference import ReferenceEvaluator
     from symid.numeric.evaluator import Needs
     from symid.symbolic.columns import columns
@@ -73,7 +78,7 @@ def code_model(mech: Mechanism, options: Options | None = None) -> CodeModel:
     layout = assemble(mech)
     values = parameter_values(mech.parameters)
     defaults = [values[k] for k in values]
-    flat = build(layout, options, defaults)
+    flat = build(layout, options, defaults, _looped_members(layout, mech) if looped else frozenset())
     q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
     t0 = mech.analysis.t0
     reference = ReferenceEvaluator(layout, values, Needs(velocity=False))
@@ -94,6 +99,17 @@ def code_model(mech: Mechanism, options: Options | None = None) -> CodeModel:
             plan = sparse.plan(pattern, reference.phi_q(q0, t0))
     cols = tuple(columns(layout, _analysis_like(mech, options)))
     return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0))
+
+
+def _looped_members(layout: Layout, mech: Mechanism) -> frozenset[tuple[int, int]]:
+    """(constraint group index, member) of what the C target's kernels loop over."""
+    from symid.codegen.targets import c_loops
+
+    if layout.ng < c_loops.LOOP_MIN:
+        return frozenset()
+    index = {id(g): k for k, g in enumerate(layout.constraint_groups)}
+    return frozenset((index[id(part.group)], m) for part in c_loops.parts(layout, tuple(mech.parameters))
+                     for m in part.members)
 
 
 def _analysis_like(mech: Mechanism, options: Options):  # type: ignore[no-untyped-def]
