@@ -4,6 +4,7 @@ the numbers of one mechanism, for one set of options."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +30,7 @@ class CodeModel:
     layout: Layout
     row_columns: tuple[str, ...]
     q0: tuple[float, ...]
+    loop_parts: Any = None  # the C target's looped parts, when `looped` found them (c_loops.parts)
 
     @property
     def name(self) -> str:
@@ -78,7 +80,10 @@ def code_model(mech: Mechanism, options: Options | None = None, looped: bool = F
     layout = assemble(mech)
     values = parameter_values(mech.parameters)
     defaults = [values[k] for k in values]
-    flat = build(layout, options, defaults, _looped_members(layout, mech) if looped else frozenset())
+    parts = _loop_parts(layout, mech) if looped else None
+    index = {id(g): k for k, g in enumerate(layout.constraint_groups)}
+    flat = build(layout, options, defaults,
+                 frozenset((index[id(p.group)], m) for p in parts or [] for m in p.members))
     q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
     t0 = mech.analysis.t0
     reference = ReferenceEvaluator(layout, values, Needs(velocity=False))
@@ -98,18 +103,16 @@ def code_model(mech: Mechanism, options: Options | None = None, looped: bool = F
                 pass  # the plan still needs a sample; the solver reports the failure at run time
             plan = sparse.plan(pattern, reference.phi_q(q0, t0))
     cols = tuple(columns(layout, _analysis_like(mech, options)))
-    return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0))
+    return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0), parts)
 
 
-def _looped_members(layout: Layout, mech: Mechanism) -> frozenset[tuple[int, int]]:
-    """(constraint group index, member) of what the C target's kernels loop over."""
+def _loop_parts(layout: Layout, mech: Mechanism) -> list[Any] | None:
+    """The parts of the constraint groups the C target's kernels loop over."""
     from symid.codegen.targets import c_loops
 
     if layout.ng < c_loops.LOOP_MIN:
-        return frozenset()
-    index = {id(g): k for k, g in enumerate(layout.constraint_groups)}
-    return frozenset((index[id(part.group)], m) for part in c_loops.parts(layout, tuple(mech.parameters))
-                     for m in part.members)
+        return None
+    return c_loops.parts(layout, tuple(mech.parameters))
 
 
 def _analysis_like(mech: Mechanism, options: Options):  # type: ignore[no-untyped-def]

@@ -316,7 +316,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         (f"const {real} *", "p"), (f"const {real} *", "lam")
     trig = _trig_map(f.ng)
     printer = Printer({"math_macros": {}, "prefix": f.name}).doprint
-    loops = c_loops.Loops.of(f, model.layout)
+    loops = c_loops.Loops.of(f, model.layout, model.loop_parts)
     used = f.phi + [e for _, _, e in f.jac]  # what is printed: a static function never called is an error
     functions = [
         _function("phi", [cq, ct, cp], f.phi, trig, printer, real, loops),

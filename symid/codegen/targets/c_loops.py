@@ -290,8 +290,8 @@ LOOPED = ("phi", "phi_q", "nu", "gamma", "reactions")
 class Loops:
     """The looped parts of one mechanism, their tables and what they cover."""
 
-    def __init__(self, flat: Flat, layout: Layout) -> None:
-        self.parts = parts(layout, flat.params)
+    def __init__(self, flat: Flat, layout: Layout, found: list[Part] | None = None) -> None:
+        self.parts = found if found is not None else parts(layout, flat.params)
         wanted = set(flat.options.reactions)
         start: dict[str, int] = {}
         offset = 0
@@ -306,11 +306,12 @@ class Loops:
         self.cover = coverage(self.tables, self.parts)
 
     @classmethod
-    def of(cls, flat: Flat, layout: Layout) -> "Loops | None":
-        """The loops of a mechanism of LOOP_MIN coordinates or more (None: unrolled)."""
+    def of(cls, flat: Flat, layout: Layout, found: list[Part] | None = None) -> "Loops | None":
+        """The loops of a mechanism of LOOP_MIN coordinates or more (None:
+        unrolled); found: its parts, where the caller has them already."""
         if flat.ng < LOOP_MIN:
             return None
-        loops = cls(flat, layout)
+        loops = cls(flat, layout, found)
         return loops if loops.parts else None
 
     def covered(self, fn: str) -> set[int]:
