@@ -29,9 +29,11 @@ def build(layout: Layout, options: Options) -> Path:
     def make(folder: Path) -> None:
         from symid.codegen import flat
         from symid.codegen.targets import casadi_target
-        from symid.model.params import parameter_values
+        from symid.model.mechanism import parameter_symbol
+        from symid.model.params import base_names, parameter_values
 
-        defaults = list(parameter_values(mech.parameters).values())
+        values = parameter_values(mech.parameters)
+        defaults = [values[parameter_symbol(n)] for n in base_names(mech.parameters)]
         # the Python loop drives the backend: no `instant`, which costs most of the build
         casadi_target.write(flat.build(layout, options, defaults), folder, instant=False)
 

@@ -318,7 +318,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": offset, "lu_size": model.plan.size,
         "work": work_size(model), "state": state_size(model), "stride": stride,
-        "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
+        "params": f.params, "derived": f.derived, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": repr(THRESHOLD),
         **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper()),
