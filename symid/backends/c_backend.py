@@ -95,7 +95,7 @@ def build(layout: Layout, options: Options) -> Path:
 
     def make(folder: Path) -> None:
         from symid.codegen.model import code_model
-        from symid.codegen.targets import c
+        from symid.codegen.targets import c, c_sweep
 
         cc = compiler()
         stage("deriving")
@@ -112,7 +112,8 @@ def build(layout: Layout, options: Options) -> Path:
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
                 "row": len(model.row_columns), "columns": list(model.row_columns),
                 "work": c.work_size(model), "state": c.state_size(model), "params": list(f.params),
-                "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac]}
+                "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac],
+                "sweep_figures": c_sweep.figure_names(model), "sweep_work": c_sweep.work_size(model)}
         (folder / "meta.json").write_text(json.dumps(meta))
 
     return cached(mech, options, "c", make, ("solver.so", "meta.json"))

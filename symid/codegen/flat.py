@@ -99,6 +99,27 @@ def _time_map(group: Group, member: int, pmap: Mapping[sp.Symbol, sp.Symbol]) ->
     return dict(zip(derived.functions, functions))
 
 
+def parameter_map(parameters: Mapping[str, sp.Expr],
+                  ) -> tuple[tuple[str, ...], dict[sp.Symbol, sp.Expr], list[tuple[str, str]]]:
+    """How generated code sees the parameters: the base ones are its inputs
+    `p[k]`; a derived one is its definition over them.
+
+    Returns:
+        the base names (p's order), parameter symbol -> its expression in p,
+        and (name, definition) of every derived parameter.
+    """
+    names = base_names(parameters)
+    p = vector("p", len(names))
+    pmap: dict[sp.Symbol, sp.Expr] = {parameter_symbol(n): p[k] for k, n in enumerate(names)}
+    definitions: list[tuple[str, str]] = []
+    for name, definition in parameters.items():  # dependency order: what it uses is mapped
+        if is_derived(definition):
+            # computed from p by its definition, as one value (the reference's rounding)
+            pmap[parameter_symbol(name)] = Grouped(sp.sympify(definition).xreplace(pmap))
+            definitions.append((name, str(definition)))
+    return names, pmap, definitions
+
+
 def build(layout: Layout, options: Options, defaults: Sequence[float]) -> Flat:
     """Substitute every instance of every group into its derivation.
 
@@ -106,15 +127,7 @@ def build(layout: Layout, options: Options, defaults: Sequence[float]) -> Flat:
     """
     mech = layout.mechanism
     ng, nc, nb = layout.ng, layout.nc, layout.nb
-    names = base_names(mech.parameters)
-    p = vector("p", len(names))
-    pmap: dict[sp.Symbol, sp.Expr] = {parameter_symbol(n): p[k] for k, n in enumerate(names)}
-    definitions: list[tuple[str, str]] = []
-    for name, definition in mech.parameters.items():  # dependency order: what it uses is mapped
-        if is_derived(definition):
-            # computed from p by its definition, as one value (the reference's rounding)
-            pmap[parameter_symbol(name)] = Grouped(sp.sympify(definition).xreplace(pmap))
-            definitions.append((name, str(definition)))
+    names, pmap, definitions = parameter_map(mech.parameters)
     q, lam = vector("q", ng), vector("lam", nc)
     qd = vector("qd", ng) if options.velocity else None
     phi: list[sp.Expr] = [sp.Integer(0)] * nc

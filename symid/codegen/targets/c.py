@@ -11,6 +11,7 @@ from sympy.printing.c import C99CodePrinter
 
 from symid.codegen.emit import Block, has_word, blocks, chunked
 from symid.codegen.model import CodeModel
+from symid.codegen.targets import c_sweep
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
 from symid.model.motion import piece_tables, tables
@@ -327,6 +328,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),
         "outputs": outputs,
+        **c_sweep.context(model, printer),
         "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
 
