@@ -178,10 +178,10 @@ class _Reader:
             if not IDENTIFIER.match(name) or name in RESERVED or name.startswith("_"):
                 raise self.fail(f"[parameters] key '{name}'", "is reserved or not a valid name")
         self.params = {n: parameter_symbol(n) for n in raw}
-        for name in set_values:
-            self.base_only(name, table[name])
         exprs = {n: self.expr(v, f"[parameters] key '{n}'" if n not in set_values else f"--set {n}")
                  for n, v in raw.items()}
+        for name in set_values:  # after the values parse: their own errors come first
+            self.base_only(name, table[name])
         try:
             order = order_parameters(exprs)
         except ValueError as exc:
