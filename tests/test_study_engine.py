@@ -108,3 +108,17 @@ def test_varying_a_derived_or_unknown_parameter_is_an_input_error(name, message)
     mech = api.load_mechanism(api.example("slider_crank"), steps=3)
     with pytest.raises(InputError, match=message):
         solve_figures(mech, (name,), np.array([[1.0]]), "c")
+
+
+@pytest.mark.parametrize("backend", ["c", "numpy"])
+def test_solve_many_gives_each_variants_own_trajectory_in_bounded_chunks(backend):
+    study = api.prepare(api.example("slider_crank"), backend, steps=STEPS)
+    base = np.array([[0.3, 4.0], [0.05, 5.0], [0.4, 7.0]])
+    chunks = list(study.solve_many(base, ("L_rod", "n"), chunk=2))
+    assert [len(c) for c in chunks] == [2, 1]
+    for row, results in zip(base, [r for c in chunks for r in c]):
+        own = own_solve("slider_crank", backend, ("L_rod", "n"), row)
+        assert results.columns == own.columns and results.data.shape == own.data.shape
+        assert (results.error is None) == (own.error is None)
+        np.testing.assert_allclose(results.data, own.data, rtol=1e-12, atol=1e-12 * np.abs(own.data).max())
+        assert results.summary()[-1] == own.summary()[-1]  # the summary reads this variant's f(t)

@@ -6,6 +6,7 @@ rows. The per-quantity functions are bound too, for `check` and the tests.
 
 from __future__ import annotations
 
+import copy
 import ctypes
 import json
 import os
@@ -160,6 +161,15 @@ class CEvaluator:
         self.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
         self.work = np.zeros(self.meta["work"])
         self.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
+
+    def with_params(self, params: Mapping[str, float]) -> "CEvaluator":
+        """The same compiled solver with other parameter values (name -> value;
+        the base ones are read) and its own workspace: one solver, many variants."""
+        other = copy.copy(self)
+        other.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
+        other.work = np.zeros(self.meta["work"])
+        other.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
+        return other
 
     def _call(self, name: str, *args: Array | float, size: int) -> Array:
         fn = self._fn[name]

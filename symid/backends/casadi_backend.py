@@ -3,6 +3,7 @@ hash), driven by the shared Python loop with numpy in and out."""
 
 from __future__ import annotations
 
+import copy
 import json
 from pathlib import Path
 from typing import Mapping
@@ -61,6 +62,13 @@ class CasadiEvaluator:
                           dtype=float)
         sizes = self.manifest["sizes"]
         self.ng, self.nc = sizes["ng"], sizes["nc"]
+
+    def with_params(self, params: Mapping[str, float]) -> "CasadiEvaluator":
+        """The same functions with other parameter values (name -> value; the
+        base ones are read): one set of loaded functions, many variants."""
+        other = copy.copy(self)
+        other.p = np.array([params[par["name"]] for par in self.manifest["parameters"]], dtype=float)
+        return other
 
     def _call(self, key: str, *args: Array | float) -> Array:
         fn = self._fn.get(key)

@@ -63,6 +63,20 @@ def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, 
     return Figures(order, values, status, t_end)
 
 
+def variant_mechanism(mech: Mechanism, row: Array) -> Mechanism:
+    """`mech` with the base parameters of one variant (derived ones keep
+    their definitions), e.g. for the summary lines of its results."""
+    import dataclasses
+
+    import sympy as sp
+
+    from symid.model.params import base_names
+
+    given = dict(zip(base_names(mech.parameters), row.tolist()))
+    parameters = {n: sp.Float(given[n]) if n in given else e for n, e in mech.parameters.items()}
+    return dataclasses.replace(mech, parameters=parameters)
+
+
 def _normal_path(mech: Mechanism, full: Array, backend: str) -> Figures:
     """Each variant through its own evaluator and the normal solve loop."""
     layout = assemble(mech)
@@ -80,13 +94,19 @@ def _normal_path(mech: Mechanism, full: Array, backend: str) -> Figures:
     return Figures(measure.names, values, status, t_end)
 
 
-def trajectories(mech: Mechanism, layout: Layout, full: Array, backend: str,
+def trajectories(mech: Mechanism, layout: Layout, full: Array, backend: str, evaluator: Evaluator | None = None,
                  ) -> Iterator[tuple[Array, AnalysisError | None]]:
     """Each variant's solved table (instants, columns) and its failure (None
-    if it ran to t1), in order, one at a time."""
+    if it ran to t1), in order, one at a time.
+
+    Args:
+        full: (K, NP) base parameter vectors (`variants.base_matrix`).
+        evaluator: a solver of `mech` on `backend` already built, to reuse.
+    """
     needs = needs_of(mech)
     chosen = backends.get(backend)
     width = len(columns(layout, mech.analysis))
+    first = evaluator
     for row in full:
         try:
             values = variant_values(mech, row)
@@ -94,7 +114,11 @@ def trajectories(mech: Mechanism, layout: Layout, full: Array, backend: str,
             yield np.empty((0, width)), AnalysisError(f"parameter {exc.args[0]} {exc.args[1]}: not finite")
             continue
         q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
-        ev: Evaluator = chosen.evaluator(layout, values, needs)
+        ev: Evaluator
+        if first is None or not hasattr(first, "with_params"):  # the reference: built per variant
+            first = ev = chosen.evaluator(layout, values, needs)
+        else:  # the solver built once serves every variant: only its p changes
+            ev = first.with_params({s.name: v for s, v in values.items()})
         rows: list[Array] = []
         error = None
         try:
