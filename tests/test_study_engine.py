@@ -122,3 +122,23 @@ def test_solve_many_gives_each_variants_own_trajectory_in_bounded_chunks(backend
         assert (results.error is None) == (own.error is None)
         np.testing.assert_allclose(results.data, own.data, rtol=1e-12, atol=1e-12 * np.abs(own.data).max())
         assert results.summary()[-1] == own.summary()[-1]  # the summary reads this variant's f(t)
+
+
+def test_a_variant_the_c_loop_cannot_vouch_for_ends_as_its_own_solve_ends():
+    # a rod a hair longer than the crank passes a toggle position at a
+    # quarter turn: the compiled loop flags that step (UNEXPLAINED, 4) and
+    # symid decides it in sub-steps, as `symid solve` does
+    from symid.study import batch_c
+    from symid.study.variants import base_matrix, study_mechanism
+
+    mech = api.load_mechanism(api.example("slider_crank"), steps=STEPS)
+    base = np.array([[0.1000001], [0.3]])
+    flagged = batch_c.run(study_mechanism(mech), base_matrix(study_mechanism(mech), ("L_rod",), base), 1)
+    assert list(flagged.status) == [4, 0]
+    figures = solve_figures(mech, ("L_rod",), base, "c")
+    for k in range(2):
+        results = own_solve("slider_crank", "c", ("L_rod",), base[k])
+        want, state = own_figures(mech, results)
+        assert STATUS[figures.status[k]] == ("jump" if k == 0 else "ok") and state == ("failed" if k == 0 else "ok")
+        assert figures.t_end[k] == results.data[-1, 0]
+        assert_close(figures.values[k], want)

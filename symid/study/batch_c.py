@@ -12,6 +12,7 @@ from __future__ import annotations
 import ctypes
 import json
 import os
+import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +41,8 @@ class Batch:
     Attributes:
         names: figure names in `values`' column order; values: (K, len(names));
         status: (K,) the compiled solver's status codes (0 ok); solved: (K,)
-        instants solved; t_end: (K,) the last one's time (NaN if none).
+        instants solved; t_end: (K,) the last one's time (NaN if none);
+        solve_s, cpu_s: wall and CPU seconds of the solve phase (the C calls).
     """
 
     names: tuple[str, ...]
@@ -49,6 +51,8 @@ class Batch:
     solved: Array
     t_end: Array
     folder: Path
+    solve_s: float = 0.0
+    cpu_s: float = 0.0
 
 
 def chunks(k: int, workers: int) -> list[tuple[int, int]]:
@@ -89,11 +93,13 @@ def run(mechanism: Mechanism, full: Array, workers: int | None = None) -> Batch:
                          work.ctypes.data_as(_D), iwork.ctypes.data_as(_I)))
 
     spans = chunks(k, workers)
+    tick, cpu = time.perf_counter(), time.process_time()
     if workers == 1:
         codes = [call(span) for span in spans]
     else:
         with ThreadPoolExecutor(max_workers=workers) as pool:
             codes = list(pool.map(call, spans))
+    solve_s, cpu_s = time.perf_counter() - tick, time.process_time() - cpu
     if any(codes):  # only arguments symid checked can be refused: a bug, not an input
         raise RuntimeError(f"{mechanism.name}_sweep refused its arguments (status {max(codes)})")
-    return Batch(names, values, status, solved, t_end, folder)
+    return Batch(names, values, status, solved, t_end, folder, solve_s, cpu_s)
