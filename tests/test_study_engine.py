@@ -22,6 +22,8 @@ STEPS = 41
 GRIDS = {
     "slider_crank": (("L_rod", "n"), ((0.25, 0.4), (3.0, 5.0, 8.0))),
     "four_bar": (("L_coupler", "m_rocker"), ((0.33, 0.37), (0.5, 0.9))),
+    # hydraulic cylinders: distance drivers, whose effort is -2 |f| lambda
+    "excavator": (("a_boom", "m_bucket"), ((0.2, 0.3), (500.0,))),
 }
 
 
