@@ -97,8 +97,11 @@ def run(mechanism: Mechanism, full: Array, workers: int | None = None) -> Batch:
     if workers == 1:
         codes = [call(span) for span in spans]
     else:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
+        pool = ThreadPoolExecutor(max_workers=workers)
+        try:
             codes = list(pool.map(call, spans))
+        finally:  # on Ctrl-C, chunks not started are dropped (a running one ends within its few ms)
+            pool.shutdown(wait=True, cancel_futures=True)
     solve_s, cpu_s = time.perf_counter() - tick, time.process_time() - cpu
     if any(codes):  # only arguments symid checked can be refused: a bug, not an input
         raise RuntimeError(f"{mechanism.name}_sweep refused its arguments (status {max(codes)})")

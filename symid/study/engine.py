@@ -19,7 +19,7 @@ from symid import backends
 from symid.backends import Array, Evaluator
 from symid.errors import AnalysisError
 from symid.model.mechanism import Mechanism
-from symid.model.params import to_float
+from symid.model.params import parameter_values, to_float
 from symid.numeric.stability import Notes
 from symid.output.results import columns, table_rows
 from symid.study.figures import STATUS, Figures, figure_names
@@ -47,6 +47,8 @@ def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, 
     mech = study_mechanism(mechanism)
     full = base_matrix(mech, names, base)
     backends.require_support(backend, mech.analysis, mech.source)
+    # more rows than coordinates: the same input error as a solve's, once, at the file's values
+    backends.check_redundant(assemble(mech), parameter_values(mech.parameters), backend)
     if backend != "c":
         return _normal_path(mech, full, backend)
     from symid.study import batch_c
