@@ -12,7 +12,8 @@ from symid.codegen import sparse
 from symid.codegen.flat import Flat, Options, build
 from symid.errors import AnalysisError
 from symid.model.mechanism import Mechanism
-from symid.model.params import parameter_values, to_float
+from symid.model.mechanism import parameter_symbol
+from symid.model.params import base_names, parameter_values, to_float
 
 
 @dataclass(frozen=True)
@@ -56,7 +57,7 @@ def code_model(mech: Mechanism, options: Options | None = None) -> CodeModel:
     options = options or options_for(mech)
     layout = assemble(mech)
     values = parameter_values(mech.parameters)
-    defaults = [values[k] for k in values]
+    defaults = [values[parameter_symbol(n)] for n in base_names(mech.parameters)]
     flat = build(layout, options, defaults)
     q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
     t0 = mech.analysis.t0

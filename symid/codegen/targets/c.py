@@ -11,6 +11,7 @@ from sympy.printing.c import C99CodePrinter
 
 from symid.codegen.emit import Block, has_word, blocks, chunked
 from symid.codegen.model import CodeModel
+from symid.codegen.targets import c_sweep
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
 from symid.model.motion import piece_tables, tables
@@ -318,7 +319,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": offset, "lu_size": model.plan.size,
         "work": work_size(model), "state": state_size(model), "stride": stride,
-        "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
+        "params": f.params, "derived": f.derived, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": repr(THRESHOLD),
         **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper()),
@@ -327,6 +328,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),
         "outputs": outputs,
+        **c_sweep.context(model, printer),
         "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
 
