@@ -12,7 +12,7 @@ import dataclasses
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Any, Iterator, Mapping
+from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 import sympy as sp
@@ -138,6 +138,40 @@ class Study:
         data = np.array(rows).reshape(len(rows), width)
         self.results = Results(self.columns(), data, error, self.warnings, mechanism=self.mechanism)
         return self.results
+
+    def solve_many(self, P: Any, names: Sequence[str] | None = None, chunk: int = 64) -> Iterator[list[Results]]:
+        """Solve K variants of this study, yielding their `Results` in order,
+        `chunk` at a time: memory holds one chunk of whole trajectories, not K.
+
+        Args:
+            P: shape (K, len(names)), one variant per row.
+            names: the base parameters the columns of P set (default: every
+                base parameter, in the order of the generated code's `p`);
+                the others keep this study's values. A derived parameter is
+                refused (it follows from its definition).
+
+        A variant that fails keeps its `Results` with `error` set and the
+        instants solved before it; the next variants run on.
+        """
+        from symid.model.params import base_names
+        from symid.study.engine import trajectories, variant_mechanism
+        from symid.study.variants import base_matrix
+
+        mech = dataclasses.replace(self.mechanism, parameters={  # this study's values (--set included)
+            n: (sp.Float(self.values[sp.Symbol(n, real=True)]) if n in base_names(self.mechanism.parameters) else e)
+            for n, e in self.mechanism.parameters.items()})
+        chosen = tuple(names) if names is not None else base_names(mech.parameters)
+        full = base_matrix(mech, chosen, P)
+        header = self.columns()
+        out: list[Results] = []
+        runs = trajectories(mech, self.layout, full, self.backend or "numpy", self.evaluator)
+        for row, (data, error) in zip(full, runs):
+            out.append(Results(header, data, error, [], mechanism=variant_mechanism(mech, row)))
+            if len(out) == chunk:
+                yield out
+                out = []
+        if out:
+            yield out
 
     def write_csv(self, path: str | Path) -> int:
         """Write the run to a CSV file (atomic); returns the rows written. The

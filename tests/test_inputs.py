@@ -405,6 +405,9 @@ CASES = [
      r"bad\.toml: --set speed: no such parameter"),
     ("set_bad_expression", BASE, ["--set", "omega=2*pi*rpm"],
      r"bad\.toml: --set omega: unknown name 'rpm'"),
+    ("set_derived_parameter_names_its_definition", BASE, ["--set", "omega=3"],
+     r"bad\.toml: --set omega: 'omega' is a derived parameter \(omega = \"2\*pi\*n\" in \[parameters\]\); "
+     r"set the base parameters it is computed from \(n\)"),
     ("set_empty_value", BASE, ["--set", "omega="],
      r"bad\.toml: --set omega: empty expression"),
     ("set_negative_mass_parameter", BASE, ["--set", "m_rod=-1"],

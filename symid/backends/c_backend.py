@@ -6,6 +6,7 @@ rows. The per-quantity functions are bound too, for `check` and the tests.
 
 from __future__ import annotations
 
+import copy
 import ctypes
 import json
 import os
@@ -96,7 +97,7 @@ def build(layout: Layout, options: Options) -> Path:
 
     def make(folder: Path) -> None:
         from symid.codegen.model import code_model
-        from symid.codegen.targets import c
+        from symid.codegen.targets import c, c_sweep
 
         cc = compiler()
         stage("deriving")
@@ -113,7 +114,8 @@ def build(layout: Layout, options: Options) -> Path:
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
                 "row": len(model.row_columns), "columns": list(model.row_columns),
                 "work": c.work_size(model), "state": c.state_size(model), "params": list(f.params),
-                "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac]}
+                "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac],
+                "sweep_figures": c_sweep.figure_names(model), "sweep_work": c_sweep.work_size(model)}
         (folder / "meta.json").write_text(json.dumps(meta))
 
     return cached(mech, options, "c", make, ("solver.so", "meta.json"))
@@ -160,6 +162,15 @@ class CEvaluator:
         self.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
         self.work = np.zeros(self.meta["work"])
         self.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
+
+    def with_params(self, params: Mapping[str, float]) -> "CEvaluator":
+        """The same compiled solver with other parameter values (name -> value;
+        the base ones are read) and its own workspace: one solver, many variants."""
+        other = copy.copy(self)
+        other.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
+        other.work = np.zeros(self.meta["work"])
+        other.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
+        return other
 
     def _call(self, name: str, *args: Array | float, size: int) -> Array:
         fn = self._fn[name]

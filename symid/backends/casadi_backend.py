@@ -3,6 +3,7 @@ hash), driven by the shared Python loop with numpy in and out."""
 
 from __future__ import annotations
 
+import copy
 import json
 from pathlib import Path
 from typing import Mapping
@@ -29,9 +30,11 @@ def build(layout: Layout, options: Options) -> Path:
     def make(folder: Path) -> None:
         from symid.codegen import flat
         from symid.codegen.targets import casadi_target
-        from symid.model.params import parameter_values
+        from symid.model.mechanism import parameter_symbol
+        from symid.model.params import base_names, parameter_values
 
-        defaults = list(parameter_values(mech.parameters).values())
+        values = parameter_values(mech.parameters)
+        defaults = [values[parameter_symbol(n)] for n in base_names(mech.parameters)]
         # the Python loop drives the backend: no `instant`, which costs most of the build
         casadi_target.write(flat.build(layout, options, defaults), folder, instant=False)
 
@@ -59,6 +62,13 @@ class CasadiEvaluator:
                           dtype=float)
         sizes = self.manifest["sizes"]
         self.ng, self.nc = sizes["ng"], sizes["nc"]
+
+    def with_params(self, params: Mapping[str, float]) -> "CasadiEvaluator":
+        """The same functions with other parameter values (name -> value; the
+        base ones are read): one set of loaded functions, many variants."""
+        other = copy.copy(self)
+        other.p = np.array([params[par["name"]] for par in self.manifest["parameters"]], dtype=float)
+        return other
 
     def _call(self, key: str, *args: Array | float) -> Array:
         fn = self._fn.get(key)

@@ -15,6 +15,7 @@ reported exactly as by `symid.numeric.solve.run`.
 
 from __future__ import annotations
 
+import copy
 import marshal
 import sys
 from pathlib import Path
@@ -110,6 +111,14 @@ class NumpyEvaluator:
         self.module = load_module(path)
         self.p = np.array([params[n] for n in self.module.PARAMS], dtype=float)
         self.p_list = self.p.tolist()
+
+    def with_params(self, params: Mapping[str, float]) -> "NumpyEvaluator":
+        """The same module with other parameter values (name -> value; the
+        base ones are read): one module, many variants."""
+        other = copy.copy(self)
+        other.p = np.array([params[n] for n in self.module.PARAMS], dtype=float)
+        other.p_list = other.p.tolist()
+        return other
 
     # One instant at a time, the module's scalar (`math`) kernels are an order
     # of magnitude faster than its vectorized ones on arrays of one column.

@@ -157,7 +157,11 @@ def _distrust_owner(st: os.stat_result) -> str | None:
 
 def key(mech: Mechanism, options: Options, target: str) -> str:
     """The cache key of one generated solver."""
-    structure = dataclasses.replace(mech, parameters={n: None for n in mech.parameters}, source="",
+    from symid.model.params import is_derived  # sympy: only once a mechanism is at hand
+
+    # base parameters are run-time inputs; a derived one's definition is compiled in
+    parameters = {n: (str(e) if is_derived(e) else None) for n, e in mech.parameters.items()}
+    structure = dataclasses.replace(mech, parameters=parameters, source="",
                                     analysis=None)  # type: ignore[arg-type]
     text = repr((structure, options, target, code_version()))
     return hashlib.sha256(text.encode()).hexdigest()[:24]

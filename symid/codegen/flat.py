@@ -16,7 +16,8 @@ from symid.symbolic import symbols as s
 from symid.symbolic.assemble import Group, Layout
 from symid.symbolic.derive import DerivedConstraint
 from symid.model.mechanism import T, parameter_symbol
-from symid.symbolic.rounding import grouped
+from symid.model.params import base_names, is_derived
+from symid.symbolic.rounding import Grouped, grouped
 
 
 def vector(name: str, n: int) -> list[sp.Symbol]:
@@ -51,6 +52,9 @@ class Options:
 class Flat:
     """Every quantity of one mechanism as lists of expressions.
 
+    params, defaults: the base parameters (the inputs `p[k]`) and their
+    values; derived: (name, definition) of each derived parameter, which the
+    expressions compute from `p` (they hold no symbol of their own).
     Sizes: phi, nu, gamma: nc; jac: nnz (row, col, expr) in row-major order;
     applied, mass: ng; reactions: 3 per role of each constraint in
     `options.reactions`, concatenated in file order.
@@ -69,6 +73,7 @@ class Flat:
     applied: list[sp.Expr]
     mass: list[sp.Expr]
     reactions: list[sp.Expr]
+    derived: tuple[tuple[str, str], ...] = ()
 
 
 def _role_map(group: Group, member: int, nb: int, q: Sequence[sp.Symbol], qd: Sequence[sp.Symbol] | None,
@@ -94,6 +99,27 @@ def _time_map(group: Group, member: int, pmap: Mapping[sp.Symbol, sp.Symbol]) ->
     return dict(zip(derived.functions, functions))
 
 
+def parameter_map(parameters: Mapping[str, sp.Expr],
+                  ) -> tuple[tuple[str, ...], dict[sp.Symbol, sp.Expr], list[tuple[str, str]]]:
+    """How generated code sees the parameters: the base ones are its inputs
+    `p[k]`; a derived one is its definition over them.
+
+    Returns:
+        the base names (p's order), parameter symbol -> its expression in p,
+        and (name, definition) of every derived parameter.
+    """
+    names = base_names(parameters)
+    p = vector("p", len(names))
+    pmap: dict[sp.Symbol, sp.Expr] = {parameter_symbol(n): p[k] for k, n in enumerate(names)}
+    definitions: list[tuple[str, str]] = []
+    for name, definition in parameters.items():  # dependency order: what it uses is mapped
+        if is_derived(definition):
+            # computed from p by its definition, as one value (the reference's rounding)
+            pmap[parameter_symbol(name)] = Grouped(sp.sympify(definition).xreplace(pmap))
+            definitions.append((name, str(definition)))
+    return names, pmap, definitions
+
+
 # What a looped member's rows and reactions hold when `build` is told to leave
 # them out: a name, so that printing one by mistake cannot compile.
 LOOPED = sp.Symbol("symid_looped_output", real=True)
@@ -103,6 +129,7 @@ def build(layout: Layout, options: Options, defaults: Sequence[float],
           looped: frozenset[tuple[int, int]] = frozenset()) -> Flat:
     """Substitute every instance of every group into its derivation.
 
+    defaults: the base parameters' values, in `base_names` order.
     looped: (constraint group index, member) whose Phi, nu, gamma and
     reactions a target computes in a loop of its own (the C target's looped
     kernels): left as LOOPED, their Phi_q entries built all the same (they
@@ -110,9 +137,7 @@ def build(layout: Layout, options: Options, defaults: Sequence[float],
     """
     mech = layout.mechanism
     ng, nc, nb = layout.ng, layout.nc, layout.nb
-    names = tuple(mech.parameters)
-    p = vector("p", len(names))
-    pmap = {parameter_symbol(n): p[k] for k, n in enumerate(names)}
+    names, pmap, definitions = parameter_map(mech.parameters)
     q, lam = vector("q", ng), vector("lam", nc)
     qd = vector("qd", ng) if options.velocity else None
     phi: list[sp.Expr] = [sp.Integer(0)] * nc
@@ -177,7 +202,7 @@ def build(layout: Layout, options: Options, defaults: Sequence[float],
     reactions = [e for c in mech.constraints if c.name in reaction_of for e in reaction_of[c.name]]
     g = lambda exprs: [grouped(e) for e in exprs]  # noqa: E731
     return Flat(
-        name=mech.name, ng=ng, nc=nc, params=names, defaults=tuple(defaults), options=options,
+        name=mech.name, ng=ng, nc=nc, params=names, defaults=tuple(defaults), options=options, derived=tuple(definitions),
         phi=g(phi), jac=sorted(((r, c, grouped(e)) for (r, c), e in jac.items()), key=lambda x: (x[0], x[1])),
         nu=g(nu), gamma=g(gamma), applied=g(applied), mass=mass, reactions=g(reactions),
     )

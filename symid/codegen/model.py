@@ -13,7 +13,8 @@ from symid.codegen import sparse
 from symid.codegen.flat import Flat, Options, build
 from symid.errors import AnalysisError
 from symid.model.mechanism import Mechanism
-from symid.model.params import parameter_values, to_float
+from symid.model.mechanism import parameter_symbol
+from symid.model.params import base_names, parameter_values, to_float
 
 
 @dataclass(frozen=True)
@@ -79,8 +80,8 @@ def code_model(mech: Mechanism, options: Options | None = None, looped: bool = F
     options = options or options_for(mech)
     layout = assemble(mech)
     values = parameter_values(mech.parameters)
-    defaults = [values[k] for k in values]
-    parts = _loop_parts(layout, mech) if looped else None
+    defaults = [values[parameter_symbol(n)] for n in base_names(mech.parameters)]
+    parts = _loop_parts(layout) if looped else None
     index = {id(g): k for k, g in enumerate(layout.constraint_groups)}
     flat = build(layout, options, defaults,
                  frozenset((index[id(p.group)], m) for p in parts or [] for m in p.members))
@@ -106,13 +107,13 @@ def code_model(mech: Mechanism, options: Options | None = None, looped: bool = F
     return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0), parts)
 
 
-def _loop_parts(layout: Layout, mech: Mechanism) -> list[Any] | None:
+def _loop_parts(layout: Layout) -> list[Any] | None:
     """The parts of the constraint groups the C target's kernels loop over."""
     from symid.codegen.targets import c_loops
 
     if layout.ng < c_loops.LOOP_MIN:
         return None
-    return c_loops.parts(layout, tuple(mech.parameters))
+    return c_loops.parts(layout)
 
 
 def _analysis_like(mech: Mechanism, options: Options):  # type: ignore[no-untyped-def]

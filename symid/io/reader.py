@@ -27,7 +27,7 @@ from symid.model.mechanism import (
     Analysis, Body, Element, Mechanism, parameter_symbol,
 )
 from symid.model.motion import LAWS, check_spans
-from symid.model.params import order_parameters, parameter_values, to_float
+from symid.model.params import is_derived, order_parameters, parameter_values, to_float
 from symid.text import number, plural
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
@@ -180,6 +180,8 @@ class _Reader:
         self.params = {n: parameter_symbol(n) for n in raw}
         exprs = {n: self.expr(v, f"[parameters] key '{n}'" if n not in set_values else f"--set {n}")
                  for n, v in raw.items()}
+        for name in set_values:  # after the values parse: their own errors come first
+            self.base_only(name, table[name])
         try:
             order = order_parameters(exprs)
         except ValueError as exc:
@@ -190,6 +192,14 @@ class _Reader:
         except ValueError as exc:
             raise self.fail(f"[parameters] key '{exc.args[0]}'", str(exc.args[1])) from None
         return {n: exprs[n] for n in order}
+
+    def base_only(self, name: str, value: Any) -> None:
+        """Refuse `--set` of a derived parameter: it is recomputed from its definition."""
+        defined = self.expr(value, f"[parameters] key '{name}'")
+        if is_derived(defined):
+            uses = ", ".join(sorted(str(x) for x in defined.free_symbols))
+            raise self.fail(f"--set {name}", f"'{name}' is a derived parameter ({name} = \"{value}\" in "
+                            f"[parameters]); set the base parameters it is computed from ({uses})")
 
     def analysis(self, table: dict[str, Any], overrides: dict[str, Any]) -> Analysis:
         where = "[analysis]"

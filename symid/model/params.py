@@ -102,3 +102,18 @@ def _evaluate(e: sp.Basic, values: Mapping[sp.Symbol, float]) -> float:
     if func is None:
         raise TypeError(f"cannot evaluate {e.func}")
     return float(func(*args))
+
+
+def is_derived(expr: sp.Expr) -> bool:
+    """Whether a parameter's value is an expression of other parameters (a
+    derived parameter); a number, or an expression of numbers only, is base.
+
+    Only base parameters are inputs (`--set`, sweeps, the `p` of generated
+    code); a derived one is always recomputed from its definition.
+    """
+    return bool(sp.sympify(expr).free_symbols)
+
+
+def base_names(parameters: Mapping[str, sp.Expr]) -> tuple[str, ...]:
+    """The base parameters' names, in the mechanism's order."""
+    return tuple(n for n, e in parameters.items() if not is_derived(e))

@@ -14,6 +14,7 @@ from symid.codegen.targets import c_loops
 from symid.codegen.targets.c_loops import Loops
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
+from symid.codegen.targets import c_sweep
 from symid.codegen.render import render
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
 from symid.model.motion import piece_tables, tables
@@ -355,7 +356,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": offset, "lu_size": model.plan.size,
         "work": work_size(model), "state": state_size(model), "stride": stride,
-        "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
+        "params": f.params, "derived": f.derived, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": repr(THRESHOLD),
         **_lu(model, fold_constants),
@@ -366,6 +367,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "outputs": outputs,
         "loop_tables": loops.tables if loops else [],
         "dense_fallback": dense_fallback(model), "dense_limit": DENSE_LIMIT,
+        **c_sweep.context(model, printer),
         "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
 

@@ -20,8 +20,7 @@ from typing import Any, Callable, Sequence
 import sympy as sp
 
 from symid.codegen.emit import Block, CHUNK, has_word
-from symid.codegen.flat import Flat
-from symid.model.mechanism import parameter_symbol
+from symid.codegen.flat import Flat, parameter_map
 from symid.symbolic import symbols as s
 from symid.symbolic.assemble import Group, Layout
 from symid.symbolic.derive import DerivedConstraint
@@ -88,10 +87,10 @@ def _decompose(exprs: list[sp.Expr], basis: list[sp.Expr]) -> list[list[float]] 
     return [[row.get(k, 0.0) for k in range(len(basis))] for row in rows]
 
 
-def parts(layout: Layout, names: Sequence[str]) -> list[Part]:
+def parts(layout: Layout) -> list[Part]:
     """The loopable parts of the layout's constraint groups."""
     nb = layout.nb
-    pmap = {parameter_symbol(n): _sym(f"p[{k}]") for k, n in enumerate(names)}
+    _, pmap, _ = parameter_map(layout.mechanism.parameters)  # base parameters p[k], derived by definition
     out: list[Part] = []
     for group in layout.constraint_groups:
         derived = group.derived
@@ -109,7 +108,7 @@ def parts(layout: Layout, names: Sequence[str]) -> list[Part]:
 
 
 def _part(index: int, group: Group, members: list[int], ground: str | None,
-          pmap: dict[sp.Symbol, sp.Symbol]) -> Part | None:
+          pmap: dict[sp.Symbol, sp.Expr]) -> Part | None:
     if len(members) < MIN_MEMBERS:
         return None
     derived = group.derived
@@ -291,7 +290,7 @@ class Loops:
     """The looped parts of one mechanism, their tables and what they cover."""
 
     def __init__(self, flat: Flat, layout: Layout, found: list[Part] | None = None) -> None:
-        self.parts = found if found is not None else parts(layout, flat.params)
+        self.parts = found if found is not None else parts(layout)
         wanted = set(flat.options.reactions)
         start: dict[str, int] = {}
         offset = 0

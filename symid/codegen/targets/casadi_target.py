@@ -252,6 +252,7 @@ def manifest(flat: Flat, fns: Mapping[str, ca.Function]) -> dict[str, Any]:
         "sizes": {"ng": flat.ng, "nc": flat.nc, "np": len(flat.params), "nnz": len(flat.jac),
                   "nr": len(flat.reactions)},
         "parameters": [{"name": n, "default": float(v)} for n, v in zip(flat.params, flat.defaults)],
+        "derived": [{"name": n, "definition": d} for n, d in flat.derived],
         "phi_q_rows": [r for r, _, _ in flat.jac], "phi_q_cols": [c for _, c, _ in flat.jac],
         "newton_steps": NEWTON_STEPS if "instant" in fns else 0,
         "functions": {key: _describe(f) for key, f in fns.items()},
@@ -275,7 +276,8 @@ def write(flat: Flat, out_dir: Path, instant: bool = True) -> list[Path]:
     written.append(path)
     path = out_dir / "README.txt"
     path.write_text(render("casadi/README.txt.j2", name=flat.name, info=info,
-                           params=[(n, repr(float(v))) for n, v in zip(flat.params, flat.defaults)]))
+                           params=[(n, repr(float(v))) for n, v in zip(flat.params, flat.defaults)],
+                           derived=flat.derived))
     written.append(path)
     return written
 

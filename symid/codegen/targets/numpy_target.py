@@ -115,7 +115,7 @@ def context(model: CodeModel) -> dict[str, Any]:
                                    "Fx, Fy, T per body role of each requested constraint, size NR."))
     return {
         "name": f.name, "ng": f.ng, "nc": f.nc, "np_": len(f.params), "nr": len(f.reactions),
-        "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
+        "params": f.params, "derived": f.derived, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac], "nnz": len(f.jac),
         "functions": functions, "outputs": o.outputs, "kind": o.kind, "threshold": repr(THRESHOLD),
         "velocity": o.velocity, "multipliers": o.multipliers, **_lu(model), "row_items": _row_items(model),

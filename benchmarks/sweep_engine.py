@@ -1,0 +1,131 @@
+"""The batch engine of design studies (issue 14, point 3): how fast the
+compiled sweep solves many variants, on one and two threads.
+
+- grid: slider-crank, 25 rod lengths x 40 crank speeds = 1000 variants x 1001
+  instants, c backend (`symid.study.engine.solve_figures`), 1 and 2 threads:
+  instants per second of the solve phase (the solver already built).
+- anchor: the CasADi-generated C loop of the benchmark's slider-crank
+  (`benchmarks.casadi_baselines.CasadiC`, one Function per instant, gcc -O2),
+  1001 instants at the default parameters, one thread: its time per instant,
+  times the grid's instants (what the grid would cost that way).
+- monte carlo: N variants (normal scatter, 1 % SD, on the lengths and masses)
+  x 1001 instants on 2 threads: time and the process's peak memory; N below
+  1e5 is extrapolated linearly to 1e5 (the work is per variant).
+
+    python -m benchmarks.sweep_engine [--mc N] [--grid-steps S] [--no-casadi]
+
+Prints the figures and writes benchmarks/results/sweep_engine.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from symid import api
+from symid.study import batch_c
+from symid.study.engine import solve_figures
+from symid.study.variants import base_matrix, study_mechanism
+
+RESULTS = Path(__file__).with_name("results") / "sweep_engine.json"
+MC_TARGET = 100_000
+
+
+def _timed(mech: Any, names: tuple[str, ...], base: np.ndarray, workers: int) -> dict[str, Any]:
+    """The solve phase (the C calls, on `workers` threads) and the whole call."""
+    study = study_mechanism(mech)
+    full = base_matrix(study, names, base)
+    tick = time.perf_counter()
+    batch = batch_c.run(study, full, workers)
+    whole = time.perf_counter() - tick
+    instants = int(batch.solved.sum())
+    return {"workers": workers, "variants": len(base), "instants": instants, "solve_s": batch.solve_s,
+            "whole_call_s": whole, "instants_per_s": instants / batch.solve_s,
+            "instants_per_cpu_s": instants / batch.cpu_s, "failed": int(np.count_nonzero(batch.status))}
+
+
+def grid(steps: int) -> dict[str, Any]:
+    mech = api.load_mechanism(api.example("slider_crank"), steps=steps)
+    rods = np.linspace(0.2, 0.5, 25)
+    speeds = np.linspace(1.0, 10.0, 40)
+    base = np.array([(r, n) for r in rods for n in speeds])
+    names = ("L_rod", "n")
+    solve_figures(mech, names, base[:2], "c", workers=1)  # build (or load) the solver: not the solve phase
+    runs = [_timed(mech, names, base, w) for w in (1, 2, 1, 2)]
+    best = {w: min((r for r in runs if r["workers"] == w), key=lambda r: r["solve_s"]) for w in (1, 2)}
+    return {"steps": steps, "threads_1": best[1], "threads_2": best[2]}
+
+
+def casadi_anchor(steps: int) -> dict[str, Any]:
+    from benchmarks import systems
+    from benchmarks.casadi_baselines import CasadiC
+
+    system = systems.slider_crank()
+    approach = CasadiC(system)
+    approach.setup()
+    h = 2 * np.pi / systems.OMEGA / (steps - 1)  # one crank revolution, as the sweep's runs
+    best = float("inf")
+    for _ in range(5):
+        run = approach.run(system.q0(), h, steps, 1e-12, 60.0)
+        best = min(best, run.total_s / max(1, len(run.torque)))
+    return {"us_per_instant_1_thread": best * 1e6, "instants": steps}
+
+
+def monte_carlo(n: int, steps: int, workers: int = 2) -> dict[str, Any]:
+    mech = api.load_mechanism(api.example("slider_crank"), steps=steps)
+    names = ("L_crank", "L_rod", "m_crank", "m_rod", "m_slider")
+    nominal = np.array([0.1, 0.3, 0.5, 1.0, 0.8])
+    rng = np.random.default_rng(0)
+    base = nominal * (1 + 0.01 * rng.standard_normal((n, len(names))))
+    solve_figures(mech, names, base[:2], "c", workers=1)
+    rss_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    tick, cpu = time.perf_counter(), time.process_time()
+    figures = solve_figures(mech, names, base, "c", workers=workers)
+    seconds, cpu_s = time.perf_counter() - tick, time.process_time() - cpu
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    p99 = float(np.percentile(figures.values[:, figures.names.index("motor.effort_peak")], 99))
+    return {"variants": n, "steps": steps, "workers": workers, "seconds": seconds, "cpu_s": cpu_s,
+            "instants_per_s": n * steps / seconds, "seconds_at_1e5": seconds * MC_TARGET / n,
+            "peak_rss_mb": peak, "peak_rss_mb_before": rss_before,
+            "failed": int(np.count_nonzero(figures.status)), "p99_motor_peak_torque": p99}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.sweep_engine", description=__doc__.split("\n")[0])
+    parser.add_argument("--mc", type=int, default=MC_TARGET, help="Monte Carlo variants (default 1e5)")
+    parser.add_argument("--grid-steps", type=int, default=1001)
+    parser.add_argument("--no-casadi", action="store_true", help="leave out the CasADi C anchor")
+    args = parser.parse_args(argv)
+    out: dict[str, Any] = {"cpus": os.cpu_count(), "load_average": list(os.getloadavg())}
+    out["grid"] = g = grid(args.grid_steps)
+    for w in (1, 2):
+        r = g[f"threads_{w}"]
+        print(f"grid {r['variants']} variants x {g['steps']} instants, {w} thread(s): solve {r['solve_s']:.3f} s, "
+              f"{r['instants_per_s'] / 1e6:.2f} M instants/s ({r['instants_per_cpu_s'] / 1e6:.2f} M per CPU "
+              f"second; {r['failed']} failed)")
+    if not args.no_casadi:
+        out["casadi_c"] = c = casadi_anchor(args.grid_steps)
+        grid_s = c["us_per_instant_1_thread"] * 1e-6 * g["threads_1"]["instants"]
+        c["grid_seconds_1_thread"] = grid_s
+        c["sweep_speedup_2_threads"] = grid_s / 2 / g["threads_2"]["solve_s"]  # CasADi's loop on 2 ideal threads
+        print(f"casadi C loop: {c['us_per_instant_1_thread']:.3f} us per instant (1 thread); the grid that way "
+              f"{grid_s:.2f} s on 1 thread; sweep on 2 threads is {c['sweep_speedup_2_threads']:.1f}x its 2-thread time")
+    out["monte_carlo"] = m = monte_carlo(args.mc, 1001)
+    print(f"monte carlo {m['variants']} variants x 1001 instants, 2 threads: {m['seconds']:.2f} s "
+          f"({m['instants_per_s'] / 1e6:.2f} M instants/s; 1e5 variants: {m['seconds_at_1e5']:.1f} s), "
+          f"peak RSS {m['peak_rss_mb']:.0f} MB, P99 motor peak torque {m['p99_motor_peak_torque']:.4g} N m")
+    RESULTS.parent.mkdir(exist_ok=True)
+    RESULTS.write_text(json.dumps(out, indent=2) + "\n")
+    print(f"written {RESULTS}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,104 @@
+"""What the C target's batch entry point `<name>_sweep` needs (templates/c/sweep.j2).
+
+The sweep runs K parameter vectors through the generated trajectory loop and
+keeps, per variant, only the figures of a design study (contract v1.1,
+`symid sweep`), accumulated as the instants are solved: per driver its
+largest |effort|, that instant's time, the RMS effort (trapezoidal time
+average, as `symid.output.summary` computes it) and the largest |power|; per
+constraint with reactions, the largest |(Fx, Fy)| on any of its bodies.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import sympy as sp
+
+from symid.codegen.emit import block
+from symid.codegen.flat import parameter_map
+from symid.codegen.model import CodeModel
+from symid.model.mechanism import T
+from symid.symbolic.constraints import TYPES as CONSTRAINTS
+
+# instants solved per call of the trajectory loop inside the sweep: the rows
+# stay in the first-level cache while their figures are taken
+SWEEP_ROWS = 32
+DRIVER_FIGURES = ("effort_peak", "effort_t_peak", "effort_rms", "power_peak")
+
+
+def figure_names(model: CodeModel) -> list[str]:
+    """The sweep's figure columns, in the order the C code writes them."""
+    return [name for d in _drivers(model) for name in d["names"]] + [r["name"] for r in _reactions(model)]
+
+
+def _offset(model: CodeModel, group: str) -> int | None:
+    """Where a group's values start in a trajectory row (None: not in it)."""
+    f = model.flat
+    sizes = {"q": f.ng, "qdot": f.ng, "qddot": f.ng, "lambda": f.nc, "reactions": len(f.reactions)}
+    offset = 1
+    for g in f.options.outputs:
+        if g == group:
+            return offset
+        offset += sizes[g]
+    return None
+
+
+def _drivers(model: CodeModel) -> list[dict[str, Any]]:
+    """Drivers whose effort the row has (it needs the multipliers)."""
+    lam = _offset(model, "lambda")
+    if lam is None or model.flat.options.kind == "kinematics":
+        return []
+    mech = model.layout.mechanism
+    out = []
+    for c in mech.constraints:
+        if CONSTRAINTS[c.type].is_driver:
+            row, rows = model.layout.row_of[c.name]
+            assert rows == 1, c.name  # a driver constrains one coordinate
+            out.append({"name": c.name, "lam": lam + row, "distance": c.type == "distance_driver",
+                        "f": c.values["f"], "names": [f"{c.name}.{x}" for x in DRIVER_FIGURES]})
+    return out
+
+
+def _reactions(model: CodeModel) -> list[dict[str, Any]]:
+    """Per constraint with reactions in the row: the row offsets of (Fx, Fy) of each body role."""
+    start = _offset(model, "reactions")
+    if start is None:
+        return []
+    by_name = {c.name: c for c in model.layout.mechanism.constraints}
+    out, offset = [], start
+    for name in model.flat.options.reactions:  # file order, 3 values per role
+        roles = len(CONSTRAINTS[by_name[name].type].roles)
+        out.append({"name": f"{name}.force_peak", "pairs": [offset + 3 * k for k in range(roles)]})
+        offset += 3 * roles
+    return out
+
+
+def work_size(model: CodeModel) -> int:
+    """Reals of workspace one thread's `<name>_sweep` needs (SWEEP_WORK)."""
+    from symid.codegen.targets.c import state_size, work_size as solver_work
+
+    f = model.flat
+    return (solver_work(model) + state_size(model) + SWEEP_ROWS * len(model.row_columns) + len(f.jac) + f.nc
+            + 5 * len(_drivers(model)) + 2)
+
+
+def context(model: CodeModel, printer: Callable[[sp.Expr], str]) -> dict[str, Any]:
+    """The sweep's part of the C templates' context (keys `sweep_*`)."""
+    mech = model.layout.mechanism
+    _, pmap, _ = parameter_map(mech.parameters)
+    drivers = _drivers(model)
+    guess = [sp.sympify(v).xreplace(pmap) for b in mech.bodies for v in b.q0]
+    drive: list[sp.Expr] = []
+    for d in drivers:
+        f = sp.sympify(d["f"]).xreplace(pmap)
+        drive += [f, sp.diff(f, T)]
+    reactions = _reactions(model)
+    return {
+        "sweep_rows": SWEEP_ROWS,
+        "sweep_guess": block(guess, printer, prefix="g"),
+        "sweep_drive": block(drive, printer, prefix="d") if drive else None,
+        "sweep_drivers": [{"lam": d["lam"], "distance": d["distance"], "name": d["name"]} for d in drivers],
+        "sweep_reactions": reactions,
+        "sweep_nfig": 4 * len(drivers) + len(reactions),
+        "sweep_names": figure_names(model),
+    }

@@ -1,0 +1,134 @@
+"""The batch engine of design studies: the figures of K variants of one mechanism.
+
+`solve_figures` runs each variant (one row of base parameter values) and
+keeps its figures (`symid.study.figures`). On the C backend the variants run
+inside the generated solver's own loop (`symid.study.batch_c`), on threads;
+the few instants that loop cannot vouch for (a failure, or a step its jump
+check flags) are decided by re-running that variant through the normal solve
+path, so every variant ends with the answer `symid solve --set` gives. Other
+backends run each variant through the normal path.
+"""
+
+from __future__ import annotations
+
+from typing import Iterator, Sequence
+
+import numpy as np
+
+from symid import backends
+from symid.backends import Array, Evaluator
+from symid.errors import AnalysisError
+from symid.model.mechanism import Mechanism
+from symid.model.params import parameter_values, to_float
+from symid.numeric.stability import Notes
+from symid.output.results import columns, table_rows
+from symid.study.figures import STATUS, Figures, figure_names
+from symid.study.variants import Measure, base_matrix, needs_of, status_of, study_mechanism, variant_values
+from symid.symbolic.assemble import Layout, assemble
+
+BACKENDS = ("c", "numpy", "casadi", "reference")
+
+
+def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, backend: str = "c",
+                  workers: int | None = None) -> Figures:
+    """The figures of K variants.
+
+    Args:
+        mechanism: the mechanism; its `[analysis]` (kind, t0, t1, steps, tol,
+            reactions) applies to every variant.
+        names: the varied base parameters; every other keeps its value.
+        base: shape (K, len(names)), one variant per row.
+        backend: "c" (the batch loop, on `workers` threads, default every
+            core), "numpy", "casadi" or "reference" (one variant at a time).
+
+    Raises:
+        InputError: an unknown or derived parameter, or `base` of the wrong shape.
+    """
+    mech = study_mechanism(mechanism)
+    full = base_matrix(mech, names, base)
+    backends.require_support(backend, mech.analysis, mech.source)
+    # more rows than coordinates: the same input error as a solve's, once, at the file's values
+    backends.check_redundant(assemble(mech), parameter_values(mech.parameters), backend)
+    if backend != "c":
+        return _normal_path(mech, full, backend)
+    from symid.study import batch_c
+
+    batch = batch_c.run(mech, full, workers)
+    order = figure_names(mech)
+    values = batch.values[:, [batch.names.index(n) for n in order]] if order else np.zeros((len(full), 0))
+    status = np.zeros(len(full), dtype=np.intc)
+    t_end = batch.t_end.copy()
+    retry = np.flatnonzero(batch.status != 0)
+    if retry.size:  # rare: decided as a solve decides them
+        again = _normal_path(mech, full[retry], backend)
+        values[retry], status[retry], t_end[retry] = again.values, again.status, again.t_end
+    return Figures(order, values, status, t_end)
+
+
+def variant_mechanism(mech: Mechanism, row: Array) -> Mechanism:
+    """`mech` with the base parameters of one variant (derived ones keep
+    their definitions), e.g. for the summary lines of its results."""
+    import dataclasses
+
+    import sympy as sp
+
+    from symid.model.params import base_names
+
+    given = dict(zip(base_names(mech.parameters), row.tolist()))
+    parameters = {n: sp.Float(given[n]) if n in given else e for n, e in mech.parameters.items()}
+    return dataclasses.replace(mech, parameters=parameters)
+
+
+def _normal_path(mech: Mechanism, full: Array, backend: str) -> Figures:
+    """Each variant through its own evaluator and the normal solve loop."""
+    layout = assemble(mech)
+    header = columns(layout, mech.analysis)
+    measure = Measure(mech, header)
+    k = len(full)
+    values = np.full((k, len(measure.names)), np.nan)
+    status = np.zeros(k, dtype=np.intc)
+    t_end = np.full(k, np.nan)
+    for v, (data, error) in enumerate(trajectories(mech, layout, full, backend)):
+        status[v] = status_of(error)
+        if len(data):
+            values[v] = measure(data, variant_values(mech, full[v]))
+            t_end[v] = data[-1, 0]
+    return Figures(measure.names, values, status, t_end)
+
+
+def trajectories(mech: Mechanism, layout: Layout, full: Array, backend: str, evaluator: Evaluator | None = None,
+                 ) -> Iterator[tuple[Array, AnalysisError | None]]:
+    """Each variant's solved table (instants, columns) and its failure (None
+    if it ran to t1), in order, one at a time.
+
+    Args:
+        full: (K, NP) base parameter vectors (`variants.base_matrix`).
+        evaluator: a solver of `mech` on `backend` already built, to reuse.
+    """
+    needs = needs_of(mech)
+    chosen = backends.get(backend)
+    width = len(columns(layout, mech.analysis))
+    first = evaluator
+    for row in full:
+        try:
+            values = variant_values(mech, row)
+        except ValueError as exc:  # a derived parameter is not finite: nothing solved
+            yield np.empty((0, width)), AnalysisError(f"parameter {exc.args[0]} {exc.args[1]}: not finite")
+            continue
+        q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
+        ev: Evaluator
+        if first is None or not hasattr(first, "with_params"):  # the reference: built per variant
+            first = ev = chosen.evaluator(layout, values, needs)
+        else:  # the solver built once serves every variant: only its p changes
+            ev = first.with_params({s.name: v for s, v in values.items()})
+        rows: list[Array] = []
+        error = None
+        try:
+            for r in table_rows(ev, mech.analysis, q0, Notes(mech.analysis)):
+                rows.append(r)
+        except AnalysisError as exc:
+            error = exc
+        yield np.array(rows).reshape(len(rows), width), error
+
+
+__all__ = ["BACKENDS", "STATUS", "solve_figures", "trajectories"]

@@ -1,0 +1,146 @@
+"""The variants of a design study: base parameter vectors, their values, and
+their figures measured from a solved table (the normal solve path).
+
+A variant is one row of base parameter values; derived parameters are
+recomputed from it by their definitions, as `--set` does.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import sympy as sp
+
+from symid.backends import Array, Needs
+from symid.errors import AnalysisError, InputError
+from symid.model.mechanism import Mechanism, parameter_symbol
+from symid.model.params import base_names, is_derived, parameter_values, to_float
+from symid.output.summary import drivers, source, summarize
+from symid.study.figures import STATUS, figure_names
+from symid.symbolic.constraints import TYPES as CONSTRAINTS
+
+
+def study_mechanism(mechanism: Mechanism) -> Mechanism:
+    """The mechanism with every output group of its kind, so that the figures
+    can be read (effort needs the multipliers, force_peak the reactions);
+    the chosen reactions stay those of `[analysis] reactions`."""
+    return dataclasses.replace(mechanism, analysis=dataclasses.replace(mechanism.analysis, outputs=None))
+
+
+def base_matrix(mechanism: Mechanism, names: Sequence[str], base: Any) -> Array:
+    """The full base parameter vectors, shape (K, NP) in `base_names` order:
+    the mechanism's values, with `names` taken from `base` (K, len(names)).
+
+    Raises:
+        InputError: an unknown or derived name (naming its definition), or a
+            `base` of the wrong shape.
+    """
+    params = mechanism.parameters
+    order = base_names(params)
+    where = mechanism.source
+    for name in names:
+        if name not in params:
+            raise InputError(f"{where}: {name}: no such parameter (base parameters: {', '.join(order) or 'none'})")
+        if is_derived(params[name]):
+            uses = ", ".join(sorted(str(x) for x in params[name].free_symbols))
+            raise InputError(f"{where}: {name}: is a derived parameter ({name} = {params[name]}); "
+                             f"vary the base parameters it is computed from ({uses})")
+    if len(set(names)) != len(names):
+        raise InputError(f"{where}: a parameter is varied twice: {', '.join(names)}")
+    data = np.asarray(base, dtype=float)
+    if data.ndim != 2 or data.shape[1] != len(names):
+        raise InputError(f"{where}: the variants must have shape (K, {len(names)}), not {data.shape}")
+    values = parameter_values(params)
+    full = np.tile(np.array([values[parameter_symbol(n)] for n in order], dtype=float), (len(data), 1))
+    for k, name in enumerate(names):
+        full[:, order.index(name)] = data[:, k]
+    return full
+
+
+def variant_values(mechanism: Mechanism, row: Array) -> dict[sp.Symbol, float]:
+    """Every parameter's value (derived ones by their definitions) for one
+    full base vector `row` (`base_names` order).
+
+    Raises:
+        ValueError: (name, message) when a derived value is not finite.
+    """
+    given = dict(zip(base_names(mechanism.parameters), row.tolist()))
+    values: dict[sp.Symbol, float] = {}
+    for name, expr in mechanism.parameters.items():  # dependency order
+        sym = parameter_symbol(name)
+        values[sym] = float(given[name]) if name in given else to_float(expr, values, name)
+    return values
+
+
+def needs_of(mechanism: Mechanism) -> Needs:
+    """What the evaluators must compute for the study (as `api.prepare` asks)."""
+    a = mechanism.analysis
+    reactions: tuple[str, ...] = ()
+    if "reactions" in a.output_groups() and a.kind != "kinematics":
+        reactions = a.reactions if a.reactions is not None else tuple(c.name for c in mechanism.constraints)
+    return Needs(velocity=a.kind != "statics", reactions=reactions)
+
+
+def status_of(error: AnalysisError | None) -> int:
+    """The `STATUS` code of a run's failure (0: it ran to t1)."""
+    if error is None:
+        return 0
+    text = str(error)
+    if "assembly mode jump" in text:
+        return STATUS.index("jump")
+    if "not finite" in text and "Newton did not converge" not in text:
+        return STATUS.index("nonfinite")
+    if "singular" in text:
+        return STATUS.index("singular")
+    return STATUS.index("not_converged")
+
+
+class Measure:
+    """The figures of one solved table of a mechanism (the study's columns).
+
+    Args:
+        mechanism: the study's mechanism (`study_mechanism`); columns: the table's.
+    """
+
+    def __init__(self, mechanism: Mechanism, columns: Sequence[str]) -> None:
+        from symid.model.mechanism import T
+
+        self.names = figure_names(mechanism)
+        self.columns = list(columns)
+        index = {c: k for k, c in enumerate(columns)}
+        symbols = [parameter_symbol(n) for n in mechanism.parameters]
+        self.drivers = []
+        for c in drivers(mechanism):
+            where = source(c, columns)
+            if where is None or mechanism.analysis.kind == "kinematics":
+                continue
+            f = sp.sympify(c.values["f"])
+            fns = [sp.lambdify([T, *symbols], e, [np]) for e in (f, sp.diff(f, T))]
+            self.drivers.append((where, index[where.column], fns))
+        chosen = [n.rpartition(".")[0] for n in self.names if n.endswith(".force_peak")]
+        by_name = {c.name: c for c in mechanism.constraints}
+        self.reactions = [[(index[f"{n}.Fx_{r}"], index[f"{n}.Fy_{r}"]) for r in CONSTRAINTS[by_name[n].type].roles]
+                          for n in chosen]
+        self.symbols = symbols
+
+    def __call__(self, data: Array, values: Mapping[sp.Symbol, float]) -> Array:
+        """The figures (contract order) of a table `data` (instants, columns);
+        NaN when it has no instant."""
+        out = np.full(len(self.names), np.nan)
+        if len(data) == 0:
+            return out
+        t = data[:, 0]
+        args = [values[s] for s in self.symbols]
+        k = 0
+        for where, column, (f, fd) in self.drivers:
+            shape = np.broadcast_to(np.asarray(f(t, *args), dtype=float), t.shape)
+            rate = np.broadcast_to(np.asarray(fd(t, *args), dtype=float), t.shape)
+            s = summarize(where.effort(t, data[:, column], shape, rate))
+            out[k:k + 4] = [s.peak, s.t_peak, s.rms, abs(s.peak_power)]
+            k += 4
+        for pairs in self.reactions:
+            out[k] = max(float(np.max(np.hypot(data[:, x], data[:, y]))) for x, y in pairs)
+            k += 1
+        return out
