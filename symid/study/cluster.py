@@ -31,7 +31,7 @@ RETRIES = 3             # reruns of a task that raised (a lost worker's tasks ar
 _MEMO: dict[tuple[str, str], Mechanism] = {}  # this process's studies: (mechanism digest, backend) -> mechanism
 
 
-def connect(address: str, timeout: float = CONNECT_TIMEOUT) -> Client:
+def connect(address: str, timeout: float | None = None) -> Client:
     """A client of the scheduler at `address`.
 
     Raises:
@@ -41,6 +41,7 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT) -> Client:
         from distributed import Client
     except ImportError:
         raise InputError("--scheduler needs dask[distributed] (python3 -m pip install 'symid[sweep]')") from None
+    timeout = CONNECT_TIMEOUT if timeout is None else timeout
     try:
         return Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
@@ -101,10 +102,13 @@ def warm_workers(client: Client, mechanism: Mechanism, backend: str) -> None:
         answers = client.run(_probe(), _digest(data), data, backend, on_error="return")
     except Exception as exc:  # a worker that cannot even take the function
         raise InputError(f"--scheduler: a worker failed at setup: {type(exc).__name__}: {exc}") from None
+    info = client.scheduler_info().get("workers", {})
     for worker, answer in sorted(answers.items()):
         if answer != "ok":
             reason = str(answer).splitlines()[0] if str(answer) else ""
-            raise InputError(f"--scheduler: worker {worker} cannot import symid or build the {backend} solver: "
+            name = info.get(worker, {}).get("name", worker)
+            who = worker if str(name) == worker else f"{name} ({worker})"
+            raise InputError(f"--scheduler: worker {who} cannot import symid or build the {backend} solver: "
                              f"{type(answer).__name__}: {reason}")
 
 
@@ -129,7 +133,7 @@ def run_chunks(client: Client, mechanism: Mechanism, variants: Variants, backend
                                key=f"symid-sweep-{key[:16]}-{first}-{_digest(chunk.tobytes())[:16]}")
         futures[future] = first
     try:
-        for future in as_completed(list(futures)):
+        for future in as_completed(list(futures), loop=client.loop):
             yield futures[future], future.result()
     finally:
         for future in futures:
