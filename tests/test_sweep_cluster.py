@@ -126,30 +126,33 @@ def test_a_worker_killed_mid_sweep_loses_and_duplicates_no_variant(cluster, loca
         for count in sweep.run():
             done.append(count)
             if len(done) == 1:  # the other worker is mid-chunk or has chunks waiting
+                names = {a: w["name"] for a, w in client.scheduler_info()["workers"].items()}
+                held = [k for a, keys in client.processing().items() if names.get(a) == "w2" for k in keys]
                 victim = cluster.workers.pop("w2")
                 victim.kill()
                 victim.wait(timeout=30)
         result = sweep.table()
     finally:
         client.close()
+    assert held, "w2 held no chunk when killed: the test would not test a retry"
     assert sum(done) == len(v)
     assert result.variant.tolist() == list(range(len(v)))
     assert np.array_equal(result.data, table.data, equal_nan=True)
     cluster.add_worker("w3")  # back to two workers for any test after this one
 
 
-def test_a_worker_without_symid_is_exit_2_naming_it(tmp_path, capsys):
+def test_a_worker_without_symid_is_exit_2_naming_it(cluster, tmp_path, capsys):
     fake = tmp_path / "fake"
     (fake / "symid").mkdir(parents=True)
     (fake / "symid" / "__init__.py").write_text('raise ImportError("this symid is broken")\n')
-    c = Cluster(tmp_path)
+    broken = cluster.add_worker("broken", pythonpath=str(fake))
     try:
-        c.add_worker("broken", pythonpath=str(fake))
-        c.client(1).close()
+        cluster.client(3).close()
         status = main(["sweep", CRANK, "--steps", "3", "--grid", "n=1:2:2", "-o", str(tmp_path / "o.csv"),
-                       "--scheduler", c.address])
+                       "--scheduler", cluster.address])
     finally:
-        c.stop()
+        broken.kill()
+        broken.wait(timeout=30)
     err = capsys.readouterr().err
     assert status == 2 and err.count("\n") == 1, err
     assert "worker broken (tcp://127.0.0.1:" in err and "cannot import symid or build the c solver" in err, err

@@ -171,6 +171,13 @@ def figures_of(params: Sequence[str], values: np.ndarray, names: Sequence[str], 
 def write_all(params: Sequence[str], values: np.ndarray, names: Sequence[str], figures: np.ndarray,
               status: Sequence[str], folder: Path, stem: str, kind: str = "") -> list[Path]:
     """Write the study's PNGs as `<stem>_figures.png` (and `<stem>_scatter.png`); returns the paths."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        from symid.io.files import cannot_write
+
+        raise cannot_write(folder, exc) from None
     written = []
     for suffix, fig in figures_of(params, values, names, figures, status, stem, kind).items():
         written.append(save(fig, Path(folder) / f"{stem}_{suffix}.png"))
