@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 
 PERCENTILES = (50, 95, 99)
 COLUMNS = 3  # panels per row
-FAILED = dict(color="red", marker="x", linestyle="none", markersize=6)
+FAILED: dict[str, Any] = {"color": "red", "marker": "x", "linestyle": "none", "markersize": 6}
 
 
 def layout_of(params: Sequence[str], values: np.ndarray) -> str:
@@ -106,9 +106,7 @@ def histogram_figure(names: Sequence[str], figures: np.ndarray, ok: np.ndarray, 
         good = figures[ok, k]
         good = good[np.isfinite(good)]
         if good.size:
-            _, _, patches = ax.hist(good, bins=min(40, max(5, good.size // 5)), color="C0", alpha=0.8)
-            for patch in patches:
-                patch.set_gid(f"hist:{name}")
+            ax.hist(good, bins=min(40, max(5, good.size // 5)), color="C0", alpha=0.8, gid=f"hist:{name}")
             for p, style in zip(PERCENTILES, ("-", "--", ":")):
                 value = float(np.percentile(good, p))
                 ax.axvline(value, color="k", linestyle=style, lw=1.2, gid=f"P{p}:{name}",
@@ -141,7 +139,7 @@ def scatter_figure(params: Sequence[str], values: np.ndarray, primary: str, y: n
 
 
 def figures_of(params: Sequence[str], values: np.ndarray, names: Sequence[str], figures: np.ndarray,
-               status: Sequence[str], stem: str, kind: str = "") -> dict[str, "Figure"]:
+               status: Sequence[str] | np.ndarray, stem: str, kind: str = "") -> dict[str, "Figure"]:
     """The study's figures by file suffix ("figures", and "scatter" for a sample).
 
     Args:
@@ -169,7 +167,7 @@ def figures_of(params: Sequence[str], values: np.ndarray, names: Sequence[str], 
 
 
 def write_all(params: Sequence[str], values: np.ndarray, names: Sequence[str], figures: np.ndarray,
-              status: Sequence[str], folder: Path, stem: str, kind: str = "") -> list[Path]:
+              status: Sequence[str] | np.ndarray, folder: Path, stem: str, kind: str = "") -> list[Path]:
     """Write the study's PNGs as `<stem>_figures.png` (and `<stem>_scatter.png`); returns the paths."""
     folder = Path(folder)
     try:

@@ -168,7 +168,7 @@ def read(path: str | Path) -> SweepTable:
         raise InputError(f"{path}: not a symid sweep table (first column 'variant', a 'status' column)")
     columns = rows[0]
     at = columns.index("status")
-    numbers: dict[str, list[float]] = {c: [] for c in columns if c != "status"}
+    cells_of: dict[str, list[float]] = {c: [] for c in columns if c != "status"}
     status = []
     for line, cells in enumerate(rows[1:], 2):
         if len(cells) != len(columns):
@@ -178,8 +178,8 @@ def read(path: str | Path) -> SweepTable:
                 status.append(cell)
                 continue
             try:
-                numbers[columns[k]].append(float(cell))
+                cells_of[columns[k]].append(float(cell))
             except ValueError:
                 raise InputError(f"{path}: line {line}, column {columns[k]!r}: {cell!r} is not a number") from None
-    arrays = {c: np.array(v, dtype=float) for c, v in numbers.items()}
+    arrays = {c: np.array(v, dtype=float) for c, v in cells_of.items()}
     return _assemble(columns, arrays["variant"], arrays, status, str(path))
