@@ -243,7 +243,7 @@ def sweep(mechanism: Mechanism | str | Path, variants: Any, backend: str = "c", 
 
     Args:
         mechanism: a `Mechanism` or the path of a mechanism file.
-        variants: a `symid.study.variants.Variants` (e.g. `variants.grid(["L_rod=0.25:0.35:5"])`),
+        variants: a `symid.study.design.Variants` (e.g. `symid.study.design.grid(["L_rod=0.25:0.35:5"])`),
             or a mapping base parameter name -> K values (one variant per index).
         backend: "c" or "numpy" (also "casadi", "reference": variant by variant).
         workers: threads on this machine (None: all cores).
@@ -253,7 +253,7 @@ def sweep(mechanism: Mechanism | str | Path, variants: Any, backend: str = "c", 
         the table: `columns`, `data`, `table[column]`, `write(path)`, `to_pandas()`.
     """
     from symid.study import run
-    from symid.study.variants import Variants, check_count, check_names
+    from symid.study.design import Variants, check_count, check_names
 
     mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
     if not isinstance(variants, Variants):

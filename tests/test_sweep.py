@@ -21,7 +21,7 @@ import pytest
 from symid import api
 from symid.cli import main
 from symid.study import table as sweep_table
-from symid.study import variants as vary
+from symid.study import design as vary
 
 REPO = Path(__file__).resolve().parents[1]
 CRANK = str(api.example("slider_crank"))
@@ -220,3 +220,17 @@ def test_sigint_mid_sweep_writes_the_finished_variants_and_exits_130(tmp_path):
     grid = vary.grid(["L_rod=0.25:0.35:50", "n=4:6:50"])
     first = api.sweep(api.load_mechanism(CRANK, steps=int(STEPS)), {"L_rod": grid.values[:2, 0], "n": grid.values[:2, 1]})
     assert np.array_equal(np.array([r[5:] for r in rows[:2]], dtype=float), first.figures.values)
+
+
+def test_status_names_why_a_run_stopped():
+    from symid.errors import AnalysisError
+    from symid.study.figures import STATUS
+    from symid.study.slow import status_of
+
+    cases = {"Phi_q is singular (condition estimate 1e17); dependent constraints: a": "singular",
+             "assembly mode jump: Newton moved q by 2 (scaled)": "jump",
+             "qddot not finite (inf or NaN); in force f": "nonfinite",
+             "Newton did not converge: Phi is not finite at the guess; in: a": "not_converged",
+             "Newton did not converge in 50 iterations": "not_converged"}
+    for message, status in cases.items():
+        assert STATUS[status_of(AnalysisError(message, 0.1))] == status, message

@@ -16,7 +16,7 @@ import pytest
 
 from symid import api
 from symid.cli import main
-from symid.study import variants as vary
+from symid.study import design as vary
 from symid.study.run import Sweep
 
 distributed = pytest.importorskip("distributed")

@@ -8,7 +8,7 @@ import pytest
 
 from symid import api
 from symid.cli import main
-from symid.study import variants as vary
+from symid.study import design as vary
 
 CRANK = str(api.example("slider_crank"))
 

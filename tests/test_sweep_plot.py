@@ -8,7 +8,7 @@ import pytest
 from symid import api
 from symid.cli import main
 from symid.output import sweep_plot
-from symid.study import variants as vary
+from symid.study import design as vary
 
 PNG = b"\x89PNG\r\n\x1a\n"
 CRANK = str(api.example("slider_crank"))

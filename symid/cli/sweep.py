@@ -74,7 +74,7 @@ def _each(counts: Iterator[int]) -> Iterator[None]:
 def cmd_sweep(args: argparse.Namespace) -> int:
     from symid import api, progress
     from symid.io.files import check_target
-    from symid.study import variants as vary
+    from symid.study import design as vary
     from symid.study.run import Sweep
 
     if args.workers is not None and args.workers < 1:

@@ -19,7 +19,7 @@ import numpy as np
 from symid.errors import InputError
 from symid.model.mechanism import Mechanism
 from symid.study.figures import Figures
-from symid.study.variants import Variants
+from symid.study.design import Variants
 
 if TYPE_CHECKING:
     from distributed import Client

@@ -16,7 +16,7 @@ from symid.backends import Array
 from symid.model.mechanism import Mechanism
 from symid.study.figures import STATUS, Figures, figure_names
 from symid.study.table import SweepTable
-from symid.study.variants import Variants
+from symid.study.design import Variants
 
 if TYPE_CHECKING:
     from distributed import Client

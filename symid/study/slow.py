@@ -29,12 +29,13 @@ from symid.symbolic.assemble import assemble
 
 
 def status_of(exc: AnalysisError) -> int:
-    """Why a run stopped, as an index into `STATUS`, from the backends' shared messages."""
+    """Why a run stopped, as an index into `STATUS`, from the backends' shared messages
+    (Newton's "Phi is not finite at the guess" is a Newton failure, as in the batch engine)."""
     text = str(exc)
-    if "not finite" in text:
-        return STATUS.index("nonfinite")
     if "assembly mode jump" in text:
         return STATUS.index("jump")
+    if "not finite" in text and "Newton did not converge" not in text:
+        return STATUS.index("nonfinite")
     if "singular" in text:
         return STATUS.index("singular")
     return STATUS.index("not_converged")

@@ -1,4 +1,4 @@
-"""The variants of a design study: a grid, a table of rows, or a random sample.
+"""The design of a study: its variants as a grid, a table of rows, or a random sample.
 
 Each kind gives `Variants`: the varied base parameters and one row of their
 values per variant. Every malformed input is an `InputError` (one line, exit 2)
