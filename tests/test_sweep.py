@@ -234,3 +234,16 @@ def test_status_names_why_a_run_stopped():
              "Newton did not converge in 50 iterations": "not_converged"}
     for message, status in cases.items():
         assert STATUS[status_of(AnalysisError(message, 0.1))] == status, message
+
+
+def test_to_pandas_is_the_table_or_says_what_it_needs():
+    table = api.sweep(api.load_mechanism(CRANK, steps=3), {"n": [4.0, 5.0]}, backend="numpy")
+    try:
+        import pandas  # noqa: F401
+    except ImportError:
+        with pytest.raises(ImportError, match="needs pandas"):
+            table.to_pandas()
+        return
+    frame = table.to_pandas()
+    assert list(frame.columns) == table.columns and list(frame["status"]) == ["ok", "ok"]
+    assert frame["motor.effort_peak"].tolist() == table["motor.effort_peak"].tolist()

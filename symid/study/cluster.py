@@ -25,7 +25,8 @@ if TYPE_CHECKING:
     from distributed import Client
 
 CONNECT_TIMEOUT = 10.0  # s to reach a scheduler before giving up (exit 2)
-TASKS_PER_WORKER = 4    # chunks per worker at least: a lost worker costs a fraction of the sweep
+TASKS_PER_WORKER = 4    # chunks per worker: a lost worker costs a fraction of the sweep
+TASK_INSTANTS = 20_000_000  # at most per task: ~2 s on the batch engine, a cheap retry
 RETRIES = 3             # reruns of a task that raised (a lost worker's tasks are rerun regardless)
 
 _MEMO: dict[tuple[str, str], Mechanism] = {}  # this process's studies: (mechanism digest, backend) -> mechanism
@@ -117,14 +118,12 @@ def run_chunks(client: Client, mechanism: Mechanism, variants: Variants, backend
     """Submit every chunk and yield (first variant, figures) as each finishes."""
     from distributed import as_completed
 
-    from symid.study.run import per_chunk
-
     data = pickle.dumps(mechanism)
     key = _digest(data)
     k = len(variants)
     workers = max(1, len(client.scheduler_info().get("workers", {})))
-    per = min(per_chunk(mechanism.analysis.steps, backend), -(-k // (TASKS_PER_WORKER * workers)))
-    per = max(per, 1)
+    # few tasks (Dask's overhead is per task), but several per worker (a lost one costs little)
+    per = max(1, min(-(-k // (TASKS_PER_WORKER * workers)), TASK_INSTANTS // max(mechanism.analysis.steps, 1)))
     futures: dict[Any, int] = {}
     for first in range(0, k, per):
         chunk = variants.values[first:first + per]
