@@ -29,6 +29,12 @@ def _engine(backend: str) -> tuple[Engine, int]:
     """The function that solves a chunk of variants on `backend`, and its chunk size in instants.
 
     Every variant of every sweep goes through here: the one place the engine is chosen.
+    Today every backend solves variant by variant (`symid.study.slow`); with the
+    batch engine merged, c and numpy take it (same signature) in larger chunks:
+
+        if backend in ("c", "numpy"):
+            from symid.study.engine import solve_figures
+            return solve_figures, CHUNK_INSTANTS
     """
     from symid.study.slow import figures_by_solving
 
