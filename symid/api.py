@@ -269,3 +269,34 @@ def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "num
 def solve(mechanism: Mechanism | str | Path, backend: str = "numpy", **analysis: Any) -> Results:
     """Prepare and solve in one call; see `prepare` and `Study.solve`."""
     return prepare(mechanism, backend, **analysis).solve()
+
+
+def sweep(mechanism: Mechanism | str | Path, variants: Any, backend: str = "c", workers: int | None = None,
+          client: Any = None) -> Any:
+    """The figures of many variants of one mechanism (`symid sweep`), as a `SweepTable`.
+
+    Args:
+        mechanism: a `Mechanism` or the path of a mechanism file.
+        variants: a `symid.study.design.Variants` (e.g. `symid.study.design.grid(["L_rod=0.25:0.35:5"])`),
+            or a mapping base parameter name -> K values (one variant per index).
+        backend: "c" or "numpy" (also "casadi", "reference": variant by variant).
+        workers: threads on this machine (None: all cores).
+        client: a Dask `distributed.Client`: the chunks run on its cluster.
+
+    Returns:
+        the table: `columns`, `data`, `table[column]`, `write(path)`, `to_pandas()`.
+    """
+    from symid.study import run
+    from symid.study.design import Variants, check_count, check_names
+
+    mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
+    if not isinstance(variants, Variants):
+        names = tuple(variants)
+        columns = [np.asarray(variants[n], dtype=float).ravel() for n in names]
+        if len({len(c) for c in columns}) > 1:
+            raise ValueError(f"sweep(): the variants' columns differ in length: "
+                             f"{', '.join(f'{n} {len(c)}' for n, c in zip(names, columns))}")
+        variants = Variants("table", names, np.column_stack(columns) if columns else np.zeros((0, 0)))
+    check_names(variants.names, mech.parameters, mech.source, "sweep")
+    check_count(len(variants), "sweep")
+    return run.solve(mech, variants, backend, workers, client)
