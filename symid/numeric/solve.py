@@ -30,6 +30,7 @@ from symid.numeric.evaluator import Array, Evaluator
 from symid.errors import AnalysisError
 from symid.model.analysis import Analysis
 from symid.numeric import nonfinite
+from symid.numeric.friction import Solved
 from symid.numeric.newton import RULE
 from symid.numeric.stability import SINGULAR_RCOND, Factor, Notes, Scaling, rank_of, redundancy_message
 
@@ -72,6 +73,7 @@ class Instant:
     reactions: Array | None = None
     cond: float = float("nan")
     iterations: int = 0
+    friction: Solved | None = None  # joints with friction: their frictions (symid.numeric.friction)
 
 
 def _factor(ev: Evaluator, q: Array, t: float, scaling: Scaling) -> Factor:
@@ -190,6 +192,8 @@ class Stepper:
         self.want_lam = not analysis.kind == "kinematics" and ("lambda" in groups or "reactions" in groups)
         self.want_reactions = "reactions" in groups and analysis.kind != "kinematics"
         self.mass = ev.mass() if self.want_lam and not self.statics else None
+        # statics has no friction (every speed is zero); an evaluator carries its mechanism's
+        self.friction = getattr(ev, "friction", None) if self.want_lam and not self.statics else None
         self.scaling: Scaling | None = None  # set by the first instant
 
     def instant(self, n: int, t: float, prev: Instant | None, history: list[Array], q0: Array) -> Instant:
@@ -259,8 +263,13 @@ class Stepper:
             if self.want_lam:
                 rhs = ev.applied(q, out.qd, t) - self.mass * out.qdd  # type: ignore[operator]
                 out.lam = factor.solve_t(rhs)
+                if self.friction is not None:
+                    out.friction = self.friction.solve(q, out.qd, out.lam, factor, t, self.analysis.tol)
+                    out.lam = out.friction.lam
         if self.want_reactions and out.lam is not None:
             out.reactions = ev.reactions(q, out.lam, t)
+            if out.friction is not None:
+                out.reactions = self.friction.add_loads(q, out.friction, out.reactions, self.analysis.reactions)
         bad = nonfinite.not_finite(q=out.q, qd=out.qd, qdd=out.qdd, lam=out.lam, reactions=out.reactions)
         if bad:
             raise nonfinite.error(ev.layout, ", ".join(bad), t, out.q, out.qd, out.qdd)
@@ -389,4 +398,7 @@ def instant_row(instant: Instant, ng: int, analysis: Analysis) -> Array:
         parts.append(zeros if value is None else value)
     if analysis.extra_outputs():
         parts.append(np.array([instant.cond]))
+    if instant.friction is not None and "reactions" in analysis.output_groups():
+        # after every other column: each joint's friction and its power
+        parts.append(np.column_stack([instant.friction.friction, instant.friction.power]).reshape(-1))
     return np.concatenate(parts)
