@@ -24,7 +24,7 @@ import sympy as sp
 from symid.errors import AnalysisError
 from symid.model.friction import coulomb_arm, has_friction, inverse_arm
 from symid.model.params import to_float
-from symid.numeric.evaluator import Array
+from symid.numeric.evaluator import Array, Evaluator
 from symid.numeric.stability import Factor
 from symid.symbolic import symbols as s
 from symid.symbolic.assemble import Layout, reaction_columns
@@ -75,6 +75,10 @@ class Solved:
     @property
     def power(self) -> Array:
         return self.friction * self.speed
+
+    def columns(self) -> Array:
+        """The table's friction columns: per joint its friction and its power."""
+        return np.column_stack([self.friction, self.power]).reshape(-1)
 
 
 def joints_of(layout: Layout, values: Mapping[sp.Symbol, float]) -> tuple[Joint, ...]:
@@ -153,18 +157,13 @@ class FrictionModel:
         viscous = np.array([jt.viscous for jt in self.joints]) * speed
         # X = (Phi_q^T)^-1 G: lambda = lam0 + X f
         x = np.column_stack([factor.solve_t(self._unit_forces(jt, v, ng)) for jt, v in zip(self.joints, first)])
-        f, lam = np.zeros(nf), lam0  # the frictionless solution
-        values = first
-        for it in range(MAX_ITERATIONS + 1):
+        # from the frictionless solution, f = F(lam0): the friction its reactions give
+        f = -(coulomb * np.array([v[1] for v in first]) + viscous)
+        lam = lam0 + x @ f
+        values = [self._evaluate(jt, qx, qdx, lam) for jt in self.joints]
+        for it in range(1, MAX_ITERATIONS + 1):
             normal = np.array([v[1] for v in values])
             residual = f + coulomb * normal + viscous  # f - F(lam0 + X f)
-            size = float(np.abs(x @ residual).max(initial=0.0))  # what it moves lambda by
-            if not np.isfinite(size):
-                break
-            if size <= max(tol, 64 * np.finfo(float).eps) * max(1.0, float(np.abs(lam).max(initial=0.0))):
-                return Solved(lam=lam, friction=f, speed=speed, iterations=it)
-            if it == MAX_ITERATIONS:
-                break
             d = np.zeros((nf, nc))  # dF/dlambda, F = -(c s N + viscous speed)
             for k, (jt, v) in enumerate(zip(self.joints, values)):
                 start, rows = jt.rows
@@ -176,13 +175,20 @@ class FrictionModel:
                                     f"{', '.join(self.names)} have no unique solution", t) from None
             f = f + df
             lam = lam0 + x @ f
+            step = float(np.abs(x @ df).max(initial=0.0))  # what the step moved lambda by
+            if not np.isfinite(step):
+                break
+            # the step just taken is within tol: the iterate it reached is within rounding
+            if step <= max(tol, 64 * np.finfo(float).eps) * max(1.0, float(np.abs(lam).max(initial=0.0))):
+                return Solved(lam=lam, friction=f, speed=speed, iterations=it)
             values = [self._evaluate(jt, qx, qdx, lam) for jt in self.joints]
         raise AnalysisError(f"friction did not converge in {MAX_ITERATIONS} Newton iterations "
                             f"(joints {', '.join(self.names)})", t)
 
-    def add_loads(self, q: Array, solved: Solved, reactions: Array, names: tuple[str, ...] | None) -> Array:
+    def reactions(self, ev: Evaluator, q: Array, solved: Solved, t: float, names: tuple[str, ...] | None) -> Array:
         """The reaction columns (as `Evaluator.reactions` for the constraints
         `names`, None: all) plus each joint's friction loads: the joint's whole action."""
+        reactions = ev.reactions(q, solved.lam, t)
         start: dict[str, int] = {}
         for n, (c, _) in enumerate(reaction_columns(self.layout, names)):
             start.setdefault(c, n)

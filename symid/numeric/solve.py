@@ -192,8 +192,7 @@ class Stepper:
         self.want_lam = not analysis.kind == "kinematics" and ("lambda" in groups or "reactions" in groups)
         self.want_reactions = "reactions" in groups and analysis.kind != "kinematics"
         self.mass = ev.mass() if self.want_lam and not self.statics else None
-        # statics has no friction (every speed is zero); an evaluator carries its mechanism's
-        self.friction = getattr(ev, "friction", None) if self.want_lam and not self.statics else None
+        self.friction = getattr(ev, "friction", None) if self.want_lam and not self.statics else None  # statics: none
         self.scaling: Scaling | None = None  # set by the first instant
 
     def instant(self, n: int, t: float, prev: Instant | None, history: list[Array], q0: Array) -> Instant:
@@ -263,13 +262,12 @@ class Stepper:
             if self.want_lam:
                 rhs = ev.applied(q, out.qd, t) - self.mass * out.qdd  # type: ignore[operator]
                 out.lam = factor.solve_t(rhs)
-                if self.friction is not None:
+                if self.friction is not None:  # joint friction: lambda solved again with it
                     out.friction = self.friction.solve(q, out.qd, out.lam, factor, t, self.analysis.tol)
                     out.lam = out.friction.lam
-        if self.want_reactions and out.lam is not None:
-            out.reactions = ev.reactions(q, out.lam, t)
-            if out.friction is not None:
-                out.reactions = self.friction.add_loads(q, out.friction, out.reactions, self.analysis.reactions)
+        if self.want_reactions and out.lam is not None:  # with friction, its loads too
+            out.reactions = self.friction.reactions(ev, q, out.friction, t, self.analysis.reactions) \
+                if out.friction is not None else ev.reactions(q, out.lam, t)
         bad = nonfinite.not_finite(q=out.q, qd=out.qd, qdd=out.qdd, lam=out.lam, reactions=out.reactions)
         if bad:
             raise nonfinite.error(ev.layout, ", ".join(bad), t, out.q, out.qd, out.qdd)
@@ -391,14 +389,12 @@ def _predict(prev: Instant, history: list[Array], t: float) -> Array:
 def instant_row(instant: Instant, ng: int, analysis: Analysis) -> Array:
     """One CSV row of an instant of a mechanism with ng coordinates."""
     parts: list[Array] = [np.array([instant.t])]
-    zeros = np.zeros(ng)
     for group in analysis.output_groups():
         value = {"q": instant.q, "qdot": instant.qd, "qddot": instant.qdd,
                  "lambda": instant.lam, "reactions": instant.reactions}[group]
-        parts.append(zeros if value is None else value)
+        parts.append(np.zeros(ng) if value is None else value)
     if analysis.extra_outputs():
         parts.append(np.array([instant.cond]))
-    if instant.friction is not None and "reactions" in analysis.output_groups():
-        # after every other column: each joint's friction and its power
-        parts.append(np.column_stack([instant.friction.friction, instant.friction.power]).reshape(-1))
+    if instant.friction is not None and "reactions" in analysis.output_groups():  # after every other column
+        parts.append(instant.friction.columns())
     return np.concatenate(parts)
