@@ -267,3 +267,37 @@ def test_bad_friction_input_is_one_line_exit_2(tmp_path, capsys, content, patter
     assert content != BASE  # the edit took
     status, err, path, out = solve_bad(tmp_path, capsys, content, [])
     assert_one_line_input_error(status, err, path, out, pattern)
+
+
+def test_summary_line_gives_the_energy_friction_took_and_its_mean_power(crank):
+    """The energy is what the drive supplied beyond d/dt(T + V) - P_nc, integrated:
+    the power balance read backwards, independent of the friction columns."""
+    mech, res = crank
+    truth = Truth(mech, res)
+    drive = res["motor.lambda"] * truth.driver_phi_t("motor")
+    lost = drive - (truth.kinetic_power() - truth.load_power(truth.applied_loads()))
+    energy = float(np.sum((lost[1:] + lost[:-1]) * np.diff(res.t)) / 2)
+    (line,) = [s for s in res.summary() if s.startswith("friction:")]
+    assert f"friction: {energy:.4g} J lost over the run, mean power {energy / 0.2:.4g} W" in line
+    assert "cylinder_guide" in line and "main_bearing" in line
+
+
+def test_plot_draws_each_joints_friction_power(crank, tmp_path):
+    from symid.output import plot
+
+    mech, res = crank
+    written = plot.write_all(res, mech, tmp_path, "run")
+    assert tmp_path / "run_friction.png" in written.paths
+    fig = plot.friction_figure(res, mech)
+    lines = {ln.get_gid(): ln for ax in fig.axes for ln in ax.get_lines()}
+    for c in mech.constraints:
+        if c.friction:
+            np.testing.assert_array_equal(lines[f"friction:{c.name}"].get_ydata(), res[f"{c.name}.friction_power"])
+
+
+def test_plot_of_a_frictionless_table_has_no_friction_figure(tmp_path):
+    from symid.output import plot
+
+    mech = load(api.example("slider_crank"))
+    written = plot.write_all(api.solve(mech, backend="reference", steps=5), mech, tmp_path, "run")
+    assert not (tmp_path / "run_friction.png").exists() and not written.skipped
