@@ -273,7 +273,6 @@ class CBackend:
     # only and has no branch tracking: options asking for these are refused
     # (symid.backends.require_support).
     lacks = frozenset({"cond", "cond_warn", "min_norm", "assembly_jump"})
-    solves_friction = False  # not in the generated C yet: refused (symid.backends.friction)
 
     def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> CEvaluator:
         from symid.codegen.model import options_for
