@@ -23,10 +23,15 @@ from symid.symbolic.rounding import grouped
 from symid.numeric.friction import MAX_ITERATIONS, REST
 
 
+# Two kernels per joint: what one instant fixes (q, qd: speed, G_i, G_j, L_i,
+# L_j, 3 each, the Coulomb factor, the viscous coefficient, v_smooth), and
+# what each Newton iteration needs (lam: N and dN/dlambda, its rows).
+FIXED = 16
+
+
 def width(rows: int) -> int:
-    """Kernel values per joint: speed, N, dN/dlambda (rows), G_i, G_j, L_i, L_j
-    (3 each), then the Coulomb factor, the viscous coefficient and v_smooth."""
-    return 2 + rows + 12 + 3
+    """Values of the iteration kernel per joint: N, then dN/dlambda."""
+    return 1 + rows
 
 
 def joints(layout: Layout, options: Options) -> list[dict[str, Any]]:
@@ -55,33 +60,34 @@ def joints(layout: Layout, options: Options) -> list[dict[str, Any]]:
         sub.update({k: sp.sympify(v).xreplace(pmap) for k, v in zip(derived.constants, group.constants[m])})
         sub.update({sym: lam[r0 + k] for k, sym in enumerate(derived.lam)})
         sub[ARM_INV] = sp.sympify(inverse_arm(c.friction)).xreplace(pmap)
-        exprs = [d.speed, d.normal, *d.d_normal, *d.generalized["i"], *d.generalized["j"], *d.loads["i"],
-                 *d.loads["j"]]
-        values = [grouped(sp.sympify(e).xreplace(sub)) for e in exprs]
-        values += [sp.sympify(v).xreplace(pmap) for v in (coulomb_arm(c.type, c.friction), c.friction["viscous"],
-                                                          c.friction["v_smooth"])]
+        exprs = [d.speed, *d.generalized["i"], *d.generalized["j"], *d.loads["i"], *d.loads["j"]]
+        fixed = [grouped(sp.sympify(e).xreplace(sub)) for e in exprs]
+        fixed += [sp.sympify(v).xreplace(pmap) for v in (coulomb_arm(c.type, c.friction), c.friction["viscous"],
+                                                         c.friction["v_smooth"])]
+        normal = [grouped(sp.sympify(e).xreplace(sub)) for e in (d.normal, *d.d_normal)]
         index = mech.body_index()
-        out.append({"name": c.name, "exprs": values, "rows": rows, "row": r0,
+        out.append({"name": c.name, "fixed": fixed, "normal": normal, "rows": rows, "row": r0,
                     "i": index.get(c.bodies["i"], -1), "j": index.get(c.bodies["j"], -1),
                     "slot": slots.get(c.name, -1)})
     return out
 
 
 def context(layout: Layout, options: Options, row_width: int) -> dict[str, Any] | None:
-    """What the templates need for friction (None: none to solve). The kernel's
-    expressions are under "exprs", for the target to print as a function."""
+    """What the templates need for friction (None: none to solve). The kernels'
+    expressions are under "fixed" and "normal", for the target to print as functions."""
     if options.kind != "inverse_dynamics" or not options.multipliers:
         return None
     found = joints(layout, options)
     if not found:
         return None
-    fw = max(width(j["rows"]) for j in found)
-    exprs: list[sp.Expr] = []
+    nw = max(width(j["rows"]) for j in found)
+    normal: list[sp.Expr] = []
     for j in found:  # padded to a common width: one stride per joint
-        exprs += j["exprs"] + [sp.Integer(0)] * (fw - len(j["exprs"]))
+        normal += j["normal"] + [sp.Integer(0)] * (nw - len(j["normal"]))
     nf = len(found)
     columns = "reactions" in options.outputs
-    return {"nf": nf, "fw": fw, "exprs": exprs, "joints": found, "columns": columns,
+    return {"nf": nf, "fw": FIXED, "nw": nw, "fixed": [e for j in found for e in j["fixed"]], "normal": normal,
+            "joints": found, "columns": columns,
             "offset": row_width, "max_iterations": MAX_ITERATIONS, "rest": repr(REST),
             "row_width": row_width + (2 * nf if columns else 0)}
 
@@ -92,5 +98,5 @@ def work(layout: Layout, options: Options) -> int:
     if not found:
         return 0
     nf, nc, ng = len(found), layout.nc, layout.ng
-    fw = max(width(j["rows"]) for j in found)
-    return 1 + 8 * nf + nc + ng + nf * nc + nf * fw + nf * nf
+    nw = max(width(j["rows"]) for j in found)
+    return 1 + 8 * nf + nc + ng + nf * nc + nf * (FIXED + nw) + nf * nf

@@ -161,6 +161,7 @@ class FrictionModel:
         f = -(coulomb * np.array([v[1] for v in first]) + viscous)
         lam = lam0 + x @ f
         values = [self._evaluate(jt, qx, qdx, lam) for jt in self.joints]
+        previous = float(np.abs(x @ f).max(initial=0.0))  # the move of that start
         for it in range(1, MAX_ITERATIONS + 1):
             normal = np.array([v[1] for v in values])
             residual = f + coulomb * normal + viscous  # f - F(lam0 + X f)
@@ -178,9 +179,14 @@ class FrictionModel:
             step = float(np.abs(x @ df).max(initial=0.0))  # what the step moved lambda by
             if not np.isfinite(step):
                 break
-            # the step just taken is within tol: the iterate it reached is within rounding
-            if step <= max(tol, 64 * np.finfo(float).eps) * max(1.0, float(np.abs(lam).max(initial=0.0))):
+            # converged: the step just taken is within tol, or the steps contract
+            # (rate theta < 1/2) so that all the steps still to come, at most
+            # theta / (1 - theta) times this one, are
+            lim = max(tol, 64 * np.finfo(float).eps) * max(1.0, float(np.abs(lam).max(initial=0.0)))
+            theta = step / previous if previous > 0 else 1.0
+            if step <= lim or (theta < 0.5 and theta / (1 - theta) * step <= lim):
                 return Solved(lam=lam, friction=f, speed=speed, iterations=it)
+            previous = step
             values = [self._evaluate(jt, qx, qdx, lam) for jt in self.joints]
         raise AnalysisError(f"friction did not converge in {MAX_ITERATIONS} Newton iterations "
                             f"(joints {', '.join(self.names)})", t)

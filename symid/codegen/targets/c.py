@@ -311,8 +311,9 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
     stride = _stride(model)
     fr = friction.context(model.layout, o, offset)  # joint friction (None: none, and no code for it)
     if fr is not None:
-        functions.append(_function("friction", [cq, cqd, clam, ct, cp], fr["exprs"], trig, printer, real))
-        used += fr["exprs"]
+        functions += [_function("friction", [cq, cqd, ct, cp], fr["fixed"], trig, printer, real),
+                      _function("friction_normal", [cq, clam, ct, cp], fr["normal"], trig, printer, real)]
+        used += fr["fixed"] + fr["normal"]
     # the trajectory's output vectors (variable, source, work vector): solved
     # straight into the row where it holds the source, else into the work vector
     placed = {source: offset for _, source, _, offset in row_parts if source}
