@@ -323,3 +323,105 @@ def test_plot_of_a_frictionless_table_has_no_friction_figure(tmp_path):
     mech = load(api.example("slider_crank"))
     written = plot.write_all(api.solve(mech, backend="reference", steps=5), mech, tmp_path, "run")
     assert not (tmp_path / "run_friction.png").exists() and not written.skipped
+
+
+def _quick_return_with_friction() -> str:
+    """The bundled quick-return with friction in its pins, its slot (between
+    two moving bodies) and its ram guide."""
+    text = api.example("quick_return").read_text(encoding="utf-8")
+    text = text.replace('sj = ["r_crank", 0.0]\n', 'sj = ["r_crank", 0.0]\nfriction = { mu = 0.15, viscous = 2.0, arm = 0.05, v_smooth = 1e-3 }\n')
+    for name in ("crank_bearing", "lever_pivot"):
+        head = f'name = "{name}"\ntype = "revolute"\n'
+        text = text.replace(head, head + 'friction = { mu = 0.1, radius = 0.02, viscous = 0.01 }\n')
+    head = 'name = "ram_guide"\ntype = "translational"\n'
+    text = text.replace(head, head + "friction = { mu = 0.1, viscous = 5.0 }\n")
+    assert text.count("friction = ") == 4
+    return text
+
+
+@pytest.mark.parametrize("backend", ["reference", "c"])
+def test_slot_between_moving_bodies_balances_power_and_every_body(backend):
+    mech = loads(_quick_return_with_friction(), "quick_return.toml")
+    res = api.solve(mech, backend=backend, steps=41)
+    assert res.error is None, res.error
+    truth = Truth(mech, res)
+    drive = res["crank_motor.lambda"] * truth.driver_phi_t("crank_motor")
+    lost = _friction_power(mech, res)
+    assert np.all(lost <= 0) and np.min(res["crank_pin_in_lever_slot.friction_power"]) < -1.0
+    expected = truth.kinetic_power() - truth.load_power(truth.applied_loads()) - lost
+    assert np.max(np.abs(drive - expected)) <= 1e-8 * np.max(np.abs(expected))
+    for body, (force, moment) in newton_euler_residual(truth).items():
+        assert force < 1e-9 and moment < 1e-9, (body, force, moment)
+
+
+CARRIAGE = """
+[mechanism]
+name = "carriage"
+gravity = [0.0, -9.81]
+[analysis]
+t1 = 1.0
+steps = 41
+[[body]]
+name = "carriage"
+mass = 3.0
+inertia = 0.2
+q0 = [0.0, 0.0, 0.0]
+[[body]]
+name = "block"
+mass = 1.5
+inertia = 0.01
+q0 = [0.2, 0.1, 0.0]
+[[constraint]]
+name = "cx"
+type = "coordinate_driver"
+body = "carriage"
+coordinate = "x"
+f = "0.1*sin(2*t)"
+[[constraint]]
+name = "cy"
+type = "coordinate_driver"
+body = "carriage"
+coordinate = "y"
+f = "0.05*sin(3*t)"
+[[constraint]]
+name = "cphi"
+type = "coordinate_driver"
+body = "carriage"
+coordinate = "phi"
+f = "0.3*sin(2*t)"
+[[constraint]]
+name = "slide"
+type = "translational"
+i = "carriage"
+j = "block"
+si = [0.0, 0.1]
+vi = [1.0, 0.0]
+sj = [0.0, 0.0]
+friction = { mu = 0.2, viscous = 3.0, arm = 0.04, v_smooth = 1e-3 }
+[[constraint]]
+name = "stroke"
+type = "translational_driver"
+i = "carriage"
+j = "block"
+si = [0.0, 0.1]
+vi = [1.0, 0.0]
+sj = [0.0, 0.0]
+f = "0.2 + 0.1*sin(5*t)"
+"""
+
+
+@pytest.mark.parametrize("backend", ["reference", "c"])
+def test_slide_on_a_moving_offset_line_balances_power_and_every_body(backend):
+    """The slide's line is off the carriage's centre and the carriage turns:
+    the friction's moment on the slide body counts."""
+    mech = loads(CARRIAGE, "carriage.toml")
+    res = api.solve(mech, backend=backend)
+    assert res.error is None, res.error
+    truth = Truth(mech, res)
+    drive = sum(res[f"{d}.lambda"] * truth.driver_phi_t(d) for d in ("cx", "cy", "cphi", "stroke"))
+    lost = _friction_power(mech, res)
+    assert np.all(lost <= 0) and np.min(lost) < -0.5
+    expected = truth.kinetic_power() - truth.load_power(truth.applied_loads()) - lost
+    assert np.max(np.abs(drive - expected)) <= 1e-8 * np.max(np.abs(expected))
+    for body, (force, moment) in newton_euler_residual(truth).items():
+        assert force < 1e-9 and moment < 1e-9, (body, force, moment)
