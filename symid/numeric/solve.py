@@ -30,7 +30,7 @@ from symid.numeric.evaluator import Array, Evaluator
 from symid.errors import AnalysisError
 from symid.model.analysis import Analysis
 from symid.numeric import nonfinite
-from symid.numeric.friction import Solved
+from symid.numeric.friction import FrictionModel, Solved
 from symid.numeric.newton import RULE
 from symid.numeric.stability import SINGULAR_RCOND, Factor, Notes, Scaling, rank_of, redundancy_message
 
@@ -192,7 +192,7 @@ class Stepper:
         self.want_lam = not analysis.kind == "kinematics" and ("lambda" in groups or "reactions" in groups)
         self.want_reactions = "reactions" in groups and analysis.kind != "kinematics"
         self.mass = ev.mass() if self.want_lam and not self.statics else None
-        self.friction = getattr(ev, "friction", None) if self.want_lam and not self.statics else None  # statics: none
+        self.friction: FrictionModel | None = getattr(ev, "friction", None) if self.want_lam and not self.statics else None  # statics: none
         self.scaling: Scaling | None = None  # set by the first instant
 
     def instant(self, n: int, t: float, prev: Instant | None, history: list[Array], q0: Array) -> Instant:
@@ -266,8 +266,8 @@ class Stepper:
                     out.friction = self.friction.solve(q, out.qd, out.lam, factor, t, self.analysis.tol)
                     out.lam = out.friction.lam
         if self.want_reactions and out.lam is not None:  # with friction, its loads too
-            out.reactions = self.friction.reactions(ev, q, out.friction, t, self.analysis.reactions) \
-                if out.friction is not None else ev.reactions(q, out.lam, t)
+            out.reactions = ev.reactions(q, out.lam, t) if out.friction is None or self.friction is None \
+                else self.friction.reactions(ev, q, out.friction, t, self.analysis.reactions)
         bad = nonfinite.not_finite(q=out.q, qd=out.qd, qdd=out.qdd, lam=out.lam, reactions=out.reactions)
         if bad:
             raise nonfinite.error(ev.layout, ", ".join(bad), t, out.q, out.qd, out.qdd)
