@@ -51,7 +51,7 @@ def read(raw: Any, family: str, where: str, source: str, value_of: Number) -> di
         if key == "arm" and value == 0:
             raise InputError(f"{source}: {at}: must be positive (N adds |T| / arm)")
         out[key], values[key] = expr, value
-    if family == "revolute" and values.get("mu", 0.0) > 0 and "radius" not in raw:
+    if family == "revolute" and "mu" in raw and "radius" not in raw:
         raise InputError(f"{source}: {where} key 'friction.radius': missing: a revolute with mu needs the pin radius")
     for key, default in DEFAULTS.items():
         out.setdefault(key, sp.Float(default) if key == "v_smooth" else sp.Integer(0))

@@ -22,7 +22,7 @@ instant to `Stepper`, so every backend reaches the same outcome.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterator
+from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
@@ -30,9 +30,11 @@ from symid.numeric.evaluator import Array, Evaluator
 from symid.errors import AnalysisError
 from symid.model.analysis import Analysis
 from symid.numeric import nonfinite
-from symid.numeric.friction import FrictionModel, Solved
 from symid.numeric.newton import RULE
 from symid.numeric.stability import SINGULAR_RCOND, Factor, Notes, Scaling, rank_of, redundancy_message
+
+if TYPE_CHECKING:  # a cached run (symid.tools.plan) solves without sympy: friction's model needs it
+    from symid.numeric.friction import FrictionModel, Solved
 
 # The Newton rule's numbers, shared with the generated loops (symid.numeric.newton).
 MAX_NEWTON = RULE.max_iterations
@@ -87,11 +89,6 @@ def _factor(ev: Evaluator, q: Array, t: float, scaling: Scaling) -> Factor:
         cond = "inf" if factor.rcond == 0 else f"{factor.cond:.3g}"
         raise AnalysisError(f"Phi_q is singular (condition estimate {cond}); dependent constraints: {names}", t)
     return factor
-
-
-def _dependent(ev: Evaluator, jac: Array) -> list[str]:
-    """Constraints whose rows combine to (nearly) zero: the left null space's support."""
-    return list(rank_of(jac, Scaling.of(jac, np.zeros(jac.shape[1])), ev.layout).dependent)
 
 
 def _largest(ev: Evaluator, phi: Array, scaling: Scaling) -> str:
