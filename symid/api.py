@@ -18,10 +18,11 @@ import numpy as np
 import sympy as sp
 
 from symid import backends
+from symid.backends import friction
 from symid.model.analysis import Analysis
 from symid.symbolic.assemble import Layout, assemble
 from symid.backends import Array, Evaluator, Needs
-from symid.errors import AnalysisError
+from symid.errors import AnalysisError, InputError
 from symid.io.reader import load
 from symid.model.mechanism import Mechanism
 from symid.model.motion import check_spans
@@ -231,7 +232,9 @@ def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
     needs = Needs(velocity=a.kind != "statics", reactions=reactions)
     require_support(backend, a, mech.source)
     check_redundant(layout, values, backend)
-    evaluator = backends.get(backend).evaluator(layout, values, needs)
+    chosen = backends.get(backend)
+    friction.require(backend, chosen, mech)
+    evaluator = friction.attach(chosen.evaluator(layout, values, needs), layout, values)
     return Study(mech, layout, evaluator, values, backend=backend)
 
 
@@ -253,6 +256,11 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
     module = targets.get(target)
     mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
     require_square(mech)
+    joint = friction.first_joint(mech)
+    if joint is not None and target != "c":  # never generate a solver that silently ignores friction
+        raise InputError(f"{mech.source}: constraint '{joint}' key 'friction': --target {target}: the generated "
+                         f"{target} code does not include joint friction yet; generate --target c, or solve "
+                         f"with any backend")
     return module.generate(code_model(mech), Path(out_dir))  # type: ignore[no-any-return]
 
 
@@ -261,6 +269,8 @@ def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "num
     written = []
     for name in examples():
         mech = load(example(name))
+        if friction.first_joint(mech) is not None:  # generated code has no joint friction yet
+            continue
         for target in targets:
             written += generate(mech, target, Path(out_dir) / name / target)
     return written
