@@ -18,10 +18,11 @@ import numpy as np
 import sympy as sp
 
 from symid import backends
+from symid.backends import friction
 from symid.model.analysis import Analysis
 from symid.symbolic.assemble import Layout, assemble
 from symid.backends import Array, Evaluator, Needs
-from symid.errors import AnalysisError
+from symid.errors import AnalysisError, InputError
 from symid.io.reader import load
 from symid.model.mechanism import Mechanism
 from symid.model.motion import check_spans
@@ -231,7 +232,9 @@ def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
     needs = Needs(velocity=a.kind != "statics", reactions=reactions)
     require_support(backend, a, mech.source)
     check_redundant(layout, values, backend)
-    evaluator = backends.get(backend).evaluator(layout, values, needs)
+    chosen = backends.get(backend)
+    friction.require(backend, chosen, mech)
+    evaluator = friction.attach(chosen.evaluator(layout, values, needs), layout, values)
     return Study(mech, layout, evaluator, values, backend=backend)
 
 
@@ -253,6 +256,11 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
     module = targets.get(target)
     mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
     require_square(mech)
+    joint = friction.first_joint(mech)
+    if joint is not None and target != "c":  # never generate a solver that silently ignores friction
+        raise InputError(f"{mech.source}: constraint '{joint}' key 'friction': --target {target}: the generated "
+                         f"{target} code does not include joint friction yet; generate --target c, or solve "
+                         f"with any backend")
     return module.generate(code_model(mech, looped=target == "c"), Path(out_dir))  # type: ignore[no-any-return]
 
 
@@ -261,6 +269,8 @@ def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "num
     written = []
     for name in examples():
         mech = load(example(name))
+        if friction.first_joint(mech) is not None:  # generated code has no joint friction yet
+            continue
         for target in targets:
             written += generate(mech, target, Path(out_dir) / name / target)
     return written
@@ -269,3 +279,34 @@ def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "num
 def solve(mechanism: Mechanism | str | Path, backend: str = "numpy", **analysis: Any) -> Results:
     """Prepare and solve in one call; see `prepare` and `Study.solve`."""
     return prepare(mechanism, backend, **analysis).solve()
+
+
+def sweep(mechanism: Mechanism | str | Path, variants: Any, backend: str = "c", workers: int | None = None,
+          client: Any = None) -> Any:
+    """The figures of many variants of one mechanism (`symid sweep`), as a `SweepTable`.
+
+    Args:
+        mechanism: a `Mechanism` or the path of a mechanism file.
+        variants: a `symid.study.design.Variants` (e.g. `symid.study.design.grid(["L_rod=0.25:0.35:5"])`),
+            or a mapping base parameter name -> K values (one variant per index).
+        backend: "c" or "numpy" (also "casadi", "reference": variant by variant).
+        workers: threads on this machine (None: all cores).
+        client: a Dask `distributed.Client`: the chunks run on its cluster.
+
+    Returns:
+        the table: `columns`, `data`, `table[column]`, `write(path)`, `to_pandas()`.
+    """
+    from symid.study import run
+    from symid.study.design import Variants, check_count, check_names
+
+    mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
+    if not isinstance(variants, Variants):
+        names = tuple(variants)
+        columns = [np.asarray(variants[n], dtype=float).ravel() for n in names]
+        if len({len(c) for c in columns}) > 1:
+            raise ValueError(f"sweep(): the variants' columns differ in length: "
+                             f"{', '.join(f'{n} {len(c)}' for n, c in zip(names, columns))}")
+        variants = Variants("table", names, np.column_stack(columns) if columns else np.zeros((0, 0)))
+    check_names(variants.names, mech.parameters, mech.source, "sweep")
+    check_count(len(variants), "sweep")
+    return run.solve(mech, variants, backend, workers, client)

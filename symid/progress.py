@@ -40,17 +40,18 @@ def _clock(seconds: float) -> str:
         else f"{seconds // 60}:{seconds % 60:02d}"
 
 
-def render(label: str, done: int, total: int | None, elapsed: float, width: int, fill: str = "#") -> str:
+def render(label: str, done: int, total: int | None, elapsed: float, width: int, fill: str = "#",
+           unit: str = "instants") -> str:
     """One line of the bar, at most `width` characters.
 
     Args:
         done: instants solved; total: instants in the run (None: unknown).
-        elapsed: seconds since the start; fill: the bar's character.
+        elapsed: seconds since the start; fill: the bar's character; unit: what is counted.
     """
     rate = done / elapsed if elapsed > 0 else 0.0
-    speed = f"{rate:.4g} instants/s"
+    speed = f"{rate:.4g} {unit}/s"
     if not total:
-        return f"{label} {done} instants  {speed}  {_clock(elapsed)}"[:width]
+        return f"{label} {done} {unit}  {speed}  {_clock(elapsed)}"[:width]
     left = _clock((total - done) / rate) if rate > 0 else "?"
     head = f"{label} {100 * done // total:3d}% "
     tail = f" {done}/{total}  {speed}  {left} left"
@@ -62,7 +63,8 @@ def render(label: str, done: int, total: int | None, elapsed: float, width: int,
 
 def bar(items: Iterable[Item], total: int | None = None, label: str = "solve",
         stream: TextIO | None = None, environ: Mapping[str, str] | None = None,
-        delay: float | None = None, clock: Callable[[], float] = time.monotonic) -> Iterator[Item]:
+        delay: float | None = None, clock: Callable[[], float] = time.monotonic,
+        unit: str = "instants") -> Iterator[Item]:
     """Yield `items` unchanged, showing their progress on `stream` (default stderr).
 
     Nothing is written unless `enabled(stream)`, nor before `delay` seconds
@@ -92,13 +94,13 @@ def bar(items: Iterable[Item], total: int | None = None, label: str = "solve",
             done += 1
             now = clock()
             if now - start >= wait and now - last >= INTERVAL:
-                out.write("\r" + render(label, done, total, now - start, width, fill).ljust(width))
+                out.write("\r" + render(label, done, total, now - start, width, fill, unit).ljust(width))
                 out.flush()
                 last, shown = now, True
             yield item
     finally:
         if shown:
-            out.write("\r" + render(label, done, total, clock() - start, width, fill).ljust(width) + "\n")
+            out.write("\r" + render(label, done, total, clock() - start, width, fill, unit).ljust(width) + "\n")
             out.flush()
 
 

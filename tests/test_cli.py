@@ -382,7 +382,8 @@ def _expected_header(data: dict) -> list[str]:
         else:
             roles = ("i", "j")
         head += [f"{c['name']}.{q}_{r}" for r in roles for q in ("Fx", "Fy", "T")]
-    return head
+    # contract v1.1: joint friction after all other columns
+    return head + [f"{c['name']}.{w}" for c in constraints if "friction" in c for w in ("friction", "friction_power")]
 
 
 EXAMPLE_FILES = sorted(EXAMPLES.glob("*.toml"))

@@ -34,29 +34,37 @@ def test_newton_euler_holds_on_every_body(solved):
         assert force < 1e-9 and moment < 1e-9, (body, force, moment)
 
 
+def _friction_power(mech, results) -> np.ndarray:
+    """The power joint friction dissipates (<= 0; zero without friction), from the table."""
+    return sum((results[f"{c.name}.friction_power"] for c in mech.constraints if c.friction),
+               np.zeros(len(results.t)))
+
+
 def test_power_balance_lambda_phi_t(solved):
-    """lambda^T Phi_t = d/dt(T + V) - P_nc, i.e. dT/dt - P_applied, with Phi_t
-    of the drivers written by hand and lambda straight from the table."""
+    """lambda^T Phi_t = d/dt(T + V) - P_nc - P_friction, i.e. dT/dt - P_applied -
+    P_friction, with Phi_t of the drivers written by hand and lambda straight
+    from the table."""
     mech, results = solved
     truth = Truth(mech, results)
     drive = np.zeros(truth.n)
     for c in mech.constraints:
         if c.type.endswith("driver"):
             drive += results[f"{c.name}.lambda"] * truth.driver_phi_t(c.name)
-    expected = truth.kinetic_power() - truth.load_power(truth.applied_loads())
+    expected = truth.kinetic_power() - truth.load_power(truth.applied_loads()) - _friction_power(mech, results)
     scale = np.max(np.abs(expected)) + np.max(np.abs(drive))
     assert np.max(np.abs(drive - expected)) <= 1e-8 * scale
 
 
 def test_reactions_do_no_work_except_drivers(solved):
-    """The power of all reactions equals the drive power: joints are workless."""
+    """The power of all reactions equals the drive power: joints are workless
+    but for their friction (the reaction columns include it)."""
     mech, results = solved
     truth = Truth(mech, results)
     drive = np.zeros(truth.n)
     for c in mech.constraints:
         if c.type.endswith("driver"):
             drive += results[f"{c.name}.lambda"] * truth.driver_phi_t(c.name)
-    reactions = truth.load_power(truth.reaction_loads())
+    reactions = truth.load_power(truth.reaction_loads()) - _friction_power(mech, results)
     assert np.max(np.abs(reactions - drive)) <= 1e-8 * (np.max(np.abs(drive)) + 1e-12)
 
 

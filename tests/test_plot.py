@@ -42,7 +42,8 @@ def test_every_plot_of_every_example_is_a_png_of_plausible_size(solved, tmp_path
     mech, results = solved
     written = plot.write_all(results, mech, tmp_path, mech.name)
     assert written.skipped == []
-    assert [p.name for p in written.paths] == [f"{mech.name}_{w}.png" for w in ("efforts", "reactions", "mechanism")]
+    kinds = ("efforts", "reactions", "mechanism") + (("friction",) if any(c.friction for c in mech.constraints) else ())
+    assert [p.name for p in written.paths] == [f"{mech.name}_{w}.png" for w in kinds]
     for path in written.paths:
         assert path.read_bytes()[:8] == PNG
         assert 15_000 < path.stat().st_size < 1_500_000, path

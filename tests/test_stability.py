@@ -468,6 +468,11 @@ def in_units(text: str, u: float, m: float) -> str:
             if element["type"] == "coordinate_driver" and key == "f" and element["coordinate"] != "phi":
                 dim = _LEN
             element[key] = _scaled(element[key], dim, u, m)
+        if "friction" in element:  # contract v1.1: a pin's viscous is a torque per rad/s, a slide's a force per m/s
+            pin = element["type"] == "revolute"
+            dims = {"radius": _LEN, "arm": _LEN, "viscous": _TORQUE if pin else _MASS,
+                    "v_smooth": (0, 0) if pin else _LEN}
+            element["friction"] = {k: _scaled(v, dims.get(k, (0, 0)), u, m) for k, v in element["friction"].items()}
     return _toml(data)
 
 
@@ -477,6 +482,8 @@ def _toml(data: dict) -> str:
             return "true" if v else "false"
         if isinstance(v, list):
             return "[" + ", ".join(value(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
         return repr(v) if isinstance(v, float) else f'"{v}"' if isinstance(v, str) else str(v)
 
     out = []

@@ -38,10 +38,12 @@ def test_every_driver_of_every_example_has_an_effort(solved):
 
 def test_driver_power_is_the_rate_of_kinetic_energy_less_applied_power(solved):
     """Ideal joints do no work, so the drivers' power (effort x rate, summed)
-    is dT/dt minus the power of gravity, forces and springs."""
+    is dT/dt minus the power of gravity, forces and springs (and of joint
+    friction, which the friction columns give)."""
     mech, results = solved
     truth = Truth(mech, results)
-    expected = truth.kinetic_power() - truth.load_power(truth.applied_loads())
+    lost = sum((results[f"{c.name}.friction_power"] for c in mech.constraints if c.friction), 0.0)
+    expected = truth.kinetic_power() - truth.load_power(truth.applied_loads()) - lost
     total = sum(e.power for e in summary.efforts(mech, results))
     scale = np.max(np.abs(expected)) + np.max(np.abs(truth.load_power(truth.applied_loads())))
     assert np.max(np.abs(total - expected)) < 1e-8 * scale

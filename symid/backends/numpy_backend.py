@@ -159,7 +159,8 @@ class NumpyEvaluator:
 
     def own_loop(self, analysis: Analysis) -> bool:
         """Whether a run of `analysis` goes through the module's loop."""
-        return not requested(analysis) and self.module.NC == self.module.NG
+        # friction (symid.backends.friction) is solved by the Python loop only
+        return not requested(analysis) and self.module.NC == self.module.NG and getattr(self, "friction", None) is None
 
     def rows(self, analysis: Analysis, q0: Array, notes: Notes | None = None) -> Iterator[Array]:
         """The results table row by row (q0: the guess at t0, size ng)."""

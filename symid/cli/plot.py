@@ -86,11 +86,43 @@ def check_configurations(table: Results, mechanism: Mechanism, results: str, fil
                          f"(give the same --set NAME=VALUE) or from another version of the file?")
 
 
+def _is_sweep(path: Path) -> bool:
+    """A sweep table (`symid sweep`): Parquet, or a CSV whose header has `variant` first and a `status`."""
+    from symid.study.table import is_sweep
+
+    if path.suffix.lower() == ".parquet":
+        return True
+    if path.suffix.lower() == ".npz":
+        return False
+    try:
+        with path.open(encoding="utf-8") as f:
+            return is_sweep(f.readline().strip().split(","))
+    except (OSError, UnicodeDecodeError):
+        return False  # read_results names the fault
+
+
+def _plot_sweep(args: argparse.Namespace) -> int:
+    """The figures of a design study: contours, lines or histograms (`symid.output.sweep_plot`)."""
+    from symid.output.sweep_plot import write_all
+    from symid.study.table import read
+
+    if args.mechanism or args.gif:
+        raise InputError(f"{args.file}: a sweep table is plotted alone (no --mechanism, no --gif)")
+    table = read(args.file)
+    directory = Path(args.output) if args.output else Path(args.file).parent
+    for path in write_all(table.params, table.values, table.figures.names, table.figures.values,
+                          table["status"], directory, Path(args.file).stem, table.kind):
+        print(path)
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     from symid.output import plot
     from symid.cli.options import set_values
     from symid.io.reader import load
 
+    if _is_sweep(Path(args.file)):
+        return _plot_sweep(args)
     table = read_results(args.file)
     mechanism = None
     if args.mechanism:
@@ -107,11 +139,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def register(sub: Any) -> None:
-    p = sub.add_parser("plot", help="plot a results table: driver efforts, joint reactions, the mechanism",
+    p = sub.add_parser("plot", help="plot a results table (efforts, reactions, the mechanism) or a sweep table",
                        description="Plot a results table written by symid solve.",
                        epilog="examples:\n  symid plot run.csv --mechanism crank.toml\n"
                               "  symid plot run.csv --mechanism crank.toml --set omega=12 --gif -o figures/")
-    p.add_argument("file", metavar="RESULTS", help="a .csv (or .npz) written by symid solve")
+    p.add_argument("file", metavar="RESULTS",
+                   help="a .csv (or .npz) written by symid solve, or a .csv (.parquet) written by symid sweep")
     p.add_argument("--mechanism", metavar="FILE",
                    help="the mechanism file it was solved from: needed for efforts and the drawing")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",

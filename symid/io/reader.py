@@ -20,6 +20,7 @@ from symid.errors import InputError
 from symid.model.expr import FUNCTIONS, parse_expression
 from symid.symbolic.forces import TYPES as FORCES
 from symid.io.files import read_text
+from symid.io import friction as friction_table
 from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS, MAX_STEPS
 from symid.io.table import read as read_table
 from symid.model.mechanism import (
@@ -297,7 +298,10 @@ class _Reader:
             raise self.fail(f"{where} key 'type'",
                             f"unknown {section} type {kind!r} (valid: {', '.join(sorted(registry))})")
         family = registry[kind]
-        self.unknown(data, ("name", "type") + tuple(k.name for k in family.keys), where)
+        friction = {} if "friction" not in data or section != "constraint" else friction_table.read(
+            data["friction"], kind, where, self.source, self.number)
+        self.unknown(data, ("name", "type") + tuple(k.name for k in family.keys)
+                     + (("friction",) if section == "constraint" else ()), where)
         bodies: dict[str, str] = {}
         values: dict[str, Any] = {}
         options: dict[str, str] = {}
@@ -333,7 +337,7 @@ class _Reader:
         if all(b == GROUND for b in bodies.values()):
             raise self.fail(where, "acts on ground only")
         names[name] = section
-        return Element(name=name, type=kind, bodies=bodies, values=values, options=options)
+        return Element(name=name, type=kind, bodies=bodies, values=values, options=options, friction=friction)
 
     def finite(self, expr: sp.Expr, where: str) -> None:
         try:

@@ -54,6 +54,8 @@ class Element:
         values: key -> expression or tuple of expressions (points, vectors,
             scalars, time functions), defaults already filled in.
         options: non-numeric settings that select a variant (a coordinate name).
+        friction: the joint's friction table (`symid.model.friction`), key ->
+            expression of the parameters, defaults filled in; empty: none.
     """
 
     name: str
@@ -61,6 +63,7 @@ class Element:
     bodies: Mapping[str, str]
     values: Mapping[str, Value]
     options: Mapping[str, str] = field(default_factory=dict)
+    friction: Mapping[str, sp.Expr] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ instant to `Stepper`, so every backend reaches the same outcome.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterator
+from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
@@ -32,6 +32,9 @@ from symid.model.analysis import Analysis
 from symid.numeric import nonfinite
 from symid.numeric.newton import RULE
 from symid.numeric.stability import SINGULAR_RCOND, Factor, Notes, Scaling, rank_of, redundancy_message
+
+if TYPE_CHECKING:  # a cached run (symid.tools.plan) solves without sympy: friction's model needs it
+    from symid.numeric.friction import FrictionModel, Solved
 
 # The Newton rule's numbers, shared with the generated loops (symid.numeric.newton).
 MAX_NEWTON = RULE.max_iterations
@@ -72,6 +75,7 @@ class Instant:
     reactions: Array | None = None
     cond: float = float("nan")
     iterations: int = 0
+    friction: Solved | None = None  # joints with friction: their frictions (symid.numeric.friction)
 
 
 def _factor(ev: Evaluator, q: Array, t: float, scaling: Scaling) -> Factor:
@@ -85,11 +89,6 @@ def _factor(ev: Evaluator, q: Array, t: float, scaling: Scaling) -> Factor:
         cond = "inf" if factor.rcond == 0 else f"{factor.cond:.3g}"
         raise AnalysisError(f"Phi_q is singular (condition estimate {cond}); dependent constraints: {names}", t)
     return factor
-
-
-def _dependent(ev: Evaluator, jac: Array) -> list[str]:
-    """Constraints whose rows combine to (nearly) zero: the left null space's support."""
-    return list(rank_of(jac, Scaling.of(jac, np.zeros(jac.shape[1])), ev.layout).dependent)
 
 
 def _largest(ev: Evaluator, phi: Array, scaling: Scaling) -> str:
@@ -190,6 +189,7 @@ class Stepper:
         self.want_lam = not analysis.kind == "kinematics" and ("lambda" in groups or "reactions" in groups)
         self.want_reactions = "reactions" in groups and analysis.kind != "kinematics"
         self.mass = ev.mass() if self.want_lam and not self.statics else None
+        self.friction: FrictionModel | None = getattr(ev, "friction", None) if self.want_lam and not self.statics else None  # statics: none
         self.scaling: Scaling | None = None  # set by the first instant
 
     def instant(self, n: int, t: float, prev: Instant | None, history: list[Array], q0: Array) -> Instant:
@@ -259,8 +259,12 @@ class Stepper:
             if self.want_lam:
                 rhs = ev.applied(q, out.qd, t) - self.mass * out.qdd  # type: ignore[operator]
                 out.lam = factor.solve_t(rhs)
-        if self.want_reactions and out.lam is not None:
-            out.reactions = ev.reactions(q, out.lam, t)
+                if self.friction is not None:  # joint friction: lambda solved again with it
+                    out.friction = self.friction.solve(q, out.qd, out.lam, factor, t, self.analysis.tol)
+                    out.lam = out.friction.lam
+        if self.want_reactions and out.lam is not None:  # with friction, its loads too
+            out.reactions = ev.reactions(q, out.lam, t) if out.friction is None or self.friction is None \
+                else self.friction.reactions(ev, q, out.friction, t, self.analysis.reactions)
         bad = nonfinite.not_finite(q=out.q, qd=out.qd, qdd=out.qdd, lam=out.lam, reactions=out.reactions)
         if bad:
             raise nonfinite.error(ev.layout, ", ".join(bad), t, out.q, out.qd, out.qdd)
@@ -382,11 +386,12 @@ def _predict(prev: Instant, history: list[Array], t: float) -> Array:
 def instant_row(instant: Instant, ng: int, analysis: Analysis) -> Array:
     """One CSV row of an instant of a mechanism with ng coordinates."""
     parts: list[Array] = [np.array([instant.t])]
-    zeros = np.zeros(ng)
     for group in analysis.output_groups():
         value = {"q": instant.q, "qdot": instant.qd, "qddot": instant.qdd,
                  "lambda": instant.lam, "reactions": instant.reactions}[group]
-        parts.append(zeros if value is None else value)
+        parts.append(np.zeros(ng) if value is None else value)
     if analysis.extra_outputs():
         parts.append(np.array([instant.cond]))
+    if instant.friction is not None and "reactions" in analysis.output_groups():  # after every other column
+        parts.append(instant.friction.columns())
     return np.concatenate(parts)

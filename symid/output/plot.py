@@ -23,6 +23,8 @@ from symid.backends import Array
 from symid.io.files import atomic_path, atomic_write
 from symid.model.mechanism import Mechanism
 from symid.output.scene import GEARS, Scene, draw, draw_paths, scene
+from symid.output import friction_loss
+from symid.output.friction_plot import friction_figure
 from symid.output.summary import Table, efforts
 
 if TYPE_CHECKING:
@@ -231,8 +233,9 @@ class Written:
 
 def write_all(table: Table, mechanism: Mechanism | None, directory: str | Path, stem: str,
               gif: bool = False) -> Written:
-    """Write `<stem>_efforts.png`, `<stem>_reactions.png`, `<stem>_mechanism.png`
-    (and `<stem>_motion.gif`) in `directory`, each that the table allows."""
+    """Write `<stem>_efforts.png`, `<stem>_reactions.png`, `<stem>_mechanism.png`,
+    `<stem>_friction.png` (joint friction only) and `<stem>_motion.gif` (with
+    `gif`) in `directory`, each that the table allows."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     out = Written()
@@ -245,6 +248,8 @@ def write_all(table: Table, mechanism: Mechanism | None, directory: str | Path, 
         ("reactions plot", lambda: reactions_figure(table, mechanism)),
         ("mechanism plot", (lambda: mechanism_figure(table, mechanism)) if mechanism else None),
     ]
+    if friction_loss.columns(table.columns):  # joint friction: the power each joint's takes
+        jobs.append(("friction plot", lambda: friction_figure(table, mechanism)))
     if gif:
         jobs.append(("animation", (lambda: write_gif(table, mechanism, directory / f"{stem}_motion.gif"))
                      if mechanism else None))

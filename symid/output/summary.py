@@ -28,6 +28,7 @@ import numpy as np
 
 from symid.backends import Array
 from symid.output.results import Results
+from symid.output import friction_loss
 
 if TYPE_CHECKING:  # sympy only where f(t) is evaluated: a cached run (symid.tools.plan) has it evaluated
     import sympy as sp
@@ -117,7 +118,7 @@ def needed_columns(mechanism: Mechanism, header: Sequence[str]) -> list[str]:
     out = ["t"]
     for c in drivers(mechanism):
         out += [col for col in _sources(c) if col in present][:1]
-    return out
+    return out + friction_loss.columns(header)  # the friction line's
 
 
 def time_function(expr: sp.Expr, values: Mapping[sp.Symbol, float], t: Array, order: int = 0) -> Array:
@@ -279,7 +280,7 @@ def lines_of(inputs: Sequence[Input], table: Table) -> list[str]:
             raise ValueError("the table's instants differ from those of the summary inputs")
         raw = np.asarray(table[item.source.column], dtype=float)
         out.append(summarize(item.source.effort(t, raw, item.f, item.fd)).line())
-    return out
+    return out + friction_loss.line(table)
 
 
 def has_efforts(columns: Sequence[str]) -> bool:

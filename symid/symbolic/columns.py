@@ -31,4 +31,9 @@ def columns(layout: Layout, analysis: Analysis) -> list[str]:
                 out += [f"{c.name}.lambda"] if rows == 1 else [f"{c.name}.lambda{k + 1}" for k in range(rows)]
         else:
             out += [col for _, col in reaction_columns(layout, analysis.reactions)]
-    return out + list(analysis.extra_outputs())  # `cond`: after every contract group
+    out += list(analysis.extra_outputs())  # `cond`: after every contract group
+    if "reactions" in analysis.output_groups() and analysis.kind == "inverse_dynamics":
+        # joint friction (contract v1.1): after all other columns, in file order
+        out += [f"{c.name}.{what}" for c in mech.constraints if getattr(c, "friction", None)
+                for what in ("friction", "friction_power")]
+    return out

@@ -196,6 +196,8 @@ def of(study: Study, backend_name: str, columns: list[str], keep: list[str], sum
     (`symid.io.misreading`: a replay would not read the file, so not repeat them)."""
     if study.notes is not None and study.notes.fixed:
         return None
+    if getattr(study.evaluator, "friction", None) is not None:  # its model is lambdified from sympy
+        return None
     backend = backends.get(backend_name)
     artifact = getattr(study.evaluator, "artifact", None)
     if getattr(backend, "load", None) is None or artifact is None:

@@ -25,7 +25,7 @@
 #define EXCAVATOR_OFF_VEC (EXCAVATOR_OFF_DENSE + 81)
 #define EXCAVATOR_VEC(work, k) ((work) + EXCAVATOR_OFF_VEC + (k) * 36)
 
-const excavator_real excavator_default_params[18] = { 5.7, 2.9, 1.5, 1.0, 1500.0, 700.0, 500.0, 8.0, 0.7853981633974483, 2.68, 0.25, 2.31, 0.65, 2.3, 0.55, 30000.0, 2.4, 1.0 };
+const excavator_real excavator_default_params[17] = { 5.7, 2.9, 1.5, 1.0, 1500.0, 700.0, 500.0, 8.0, 2.68, 0.25, 2.31, 0.65, 2.3, 0.55, 30000.0, 2.4, 1.0 };
 const int excavator_phi_q_rows[35] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8 };
 const int excavator_phi_q_cols[35] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 8, 0, 1, 2, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 8 };
 /* Sines and cosines of the body angles, computed once per configuration. */
@@ -114,7 +114,7 @@ static void excavator_phi_k0(const excavator_real * q, const excavator_real * tr
     const excavator_real e10 = (-q[4] + q[7]);
     const excavator_real e11 = (1.0/2.0)*p[2];
     const excavator_real e12 = 23.0/10.0 - e0;
-    const excavator_real e13 = p[8]*t;
+    const excavator_real e13 = t*(2*3.141592653589793/p[7]);
     const excavator_real e14 = -e4 - 3.0/4.0;
     const excavator_real e15 = 1.0/2.0 - 1.0/2.0*cos(e13);
     const excavator_real e16 = -e11 - 1.0/20.0;
@@ -125,9 +125,9 @@ static void excavator_phi_k0(const excavator_real * q, const excavator_real * tr
     out[3] = -e2 + e6 - e7;
     out[4] = -e5 + e8 - e9*p[2];
     out[5] = e10 - e11*tr[4] - e7;
-    out[6] = -pow(-p[10]*sin(e13) + p[9], 2) + pow(e12*tr[0] - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0), 2) + pow(e12*tr[1] + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0), 2);
-    out[7] = -pow(e15*p[12] + p[11], 2) + pow(e14*tr[2] + e6 - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3], 2) + pow(e14*tr[3] + e3 + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2], 2);
-    out[8] = -pow(e15*p[14] + p[13], 2) + pow(e10 + e16*tr[4] - e17*tr[2] + e9 - 7.0/20.0*tr[3], 2) + pow(e16*tr[5] - e17*tr[3] + e8 + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4], 2);
+    out[6] = -pow(p[8] - p[9]*sin(e13), 2) + pow(e12*tr[0] - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0), 2) + pow(e12*tr[1] + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0), 2);
+    out[7] = -pow(e15*p[11] + p[10], 2) + pow(e14*tr[2] + e6 - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3], 2) + pow(e14*tr[3] + e3 + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2], 2);
+    out[8] = -pow(e15*p[13] + p[12], 2) + pow(e10 + e16*tr[4] - e17*tr[2] + e9 - 7.0/20.0*tr[3], 2) + pow(e16*tr[5] - e17*tr[3] + e8 + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4], 2);
 }
 
 static void excavator_phi_k(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -253,20 +253,21 @@ static void excavator_nu_k0(const excavator_real * q, const excavator_real * tr,
 {
     (void)q;
     (void)tr;
-    const excavator_real e0 = p[8]*t;
-    const excavator_real e1 = sin(e0);
-    const excavator_real e2 = cos(e0);
-    const excavator_real e3 = 1.0/2.0 - 1.0/2.0*e2;
-    const excavator_real e4 = e1*p[8];
+    const excavator_real e0 = (2*3.141592653589793/p[7]);
+    const excavator_real e1 = e0*t;
+    const excavator_real e2 = sin(e1);
+    const excavator_real e3 = cos(e1);
+    const excavator_real e4 = 1.0/2.0 - 1.0/2.0*e3;
+    const excavator_real e5 = e0*e2;
     out[0] = 0;
     out[1] = 0;
     out[2] = 0;
     out[3] = 0;
     out[4] = 0;
     out[5] = 0;
-    out[6] = -2*e2*p[10]*p[8]*(-e1*p[10] + p[9]);
-    out[7] = e4*p[12]*(e3*p[12] + p[11]);
-    out[8] = e4*p[14]*(e3*p[14] + p[13]);
+    out[6] = -2*e0*e3*p[9]*(-e2*p[9] + p[8]);
+    out[7] = e5*p[11]*(e4*p[11] + p[10]);
+    out[8] = e5*p[13]*(e4*p[13] + p[12]);
 }
 
 static void excavator_nu_k(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -298,74 +299,75 @@ static void excavator_gamma_k0(const excavator_real * q, const excavator_real * 
     const excavator_real e12 = pow(qd[8], 2);
     const excavator_real e13 = e12*tr[5];
     const excavator_real e14 = e12*tr[4];
-    const excavator_real e15 = p[8]*t;
-    const excavator_real e16 = cos(e15);
-    const excavator_real e17 = pow(p[8], 2);
-    const excavator_real e18 = 2*e17;
-    const excavator_real e19 = (8.0/5.0)*qd[2];
-    const excavator_real e20 = 23.0/10.0 - e0;
-    const excavator_real e21 = (3.0/5.0)*e2;
-    const excavator_real e22 = e4*q[0];
-    const excavator_real e23 = e20*e4;
-    const excavator_real e24 = qd[2]*tr[1];
-    const excavator_real e25 = sin(e15);
-    const excavator_real e26 = e25*p[10];
-    const excavator_real e27 = 2*q[0];
-    const excavator_real e28 = 2*q[1];
-    const excavator_real e29 = 4*qd[0];
-    const excavator_real e30 = 2*pow(qd[0], 2) + 2*pow(qd[1], 2);
-    const excavator_real e31 = 2*pow(qd[3], 2) + 2*pow(qd[4], 2);
-    const excavator_real e32 = pow(e25, 2);
-    const excavator_real e33 = (3.0/5.0)*e4;
-    const excavator_real e34 = (3.0/5.0)*qd[5];
-    const excavator_real e35 = (3.0/10.0)*e6;
-    const excavator_real e36 = (6.0/5.0)*qd[2];
-    const excavator_real e37 = (9.0/100.0)*tr[3];
-    const excavator_real e38 = e6*tr[0];
-    const excavator_real e39 = (11.0/5.0)*qd[2];
-    const excavator_real e40 = e39*tr[0];
-    const excavator_real e41 = (11.0/10.0)*e2;
-    const excavator_real e42 = (33.0/200.0)*tr[2];
-    const excavator_real e43 = (33.0/200.0)*tr[3];
-    const excavator_real e44 = e6*tr[1];
-    const excavator_real e45 = 1.0/2.0 - 1.0/2.0*e16;
-    const excavator_real e46 = -e7 - 3.0/4.0;
-    const excavator_real e47 = e46*e6;
-    const excavator_real e48 = e46*qd[5];
-    const excavator_real e49 = 4*qd[4];
-    const excavator_real e50 = e48*tr[3];
-    const excavator_real e51 = e46*tr[2];
-    const excavator_real e52 = e46*tr[3];
-    const excavator_real e53 = 2*qd[8];
-    const excavator_real e54 = e53*tr[4];
-    const excavator_real e55 = (7.0/5.0)*qd[5];
-    const excavator_real e56 = e55*tr[2];
-    const excavator_real e57 = (7.0/10.0)*e6;
-    const excavator_real e58 = e57*tr[3];
-    const excavator_real e59 = (7.0/20.0)*tr[2];
-    const excavator_real e60 = e6*tr[4];
-    const excavator_real e61 = (7.0/20.0)*tr[3];
-    const excavator_real e62 = e6*tr[5];
-    const excavator_real e63 = 2.0/5.0 - e7;
-    const excavator_real e64 = e63*tr[2];
-    const excavator_real e65 = -e11 - 1.0/20.0;
-    const excavator_real e66 = e13*e65;
-    const excavator_real e67 = e14*e65;
-    const excavator_real e68 = e63*tr[3];
-    const excavator_real e69 = 2*e6;
-    const excavator_real e70 = e65*qd[8];
-    const excavator_real e71 = e68*qd[5];
-    const excavator_real e72 = e70*tr[5];
-    const excavator_real e73 = 2*e65;
+    const excavator_real e15 = (2*3.141592653589793/p[7]);
+    const excavator_real e16 = e15*t;
+    const excavator_real e17 = cos(e16);
+    const excavator_real e18 = pow(e15, 2);
+    const excavator_real e19 = 2*e18;
+    const excavator_real e20 = (8.0/5.0)*qd[2];
+    const excavator_real e21 = 23.0/10.0 - e0;
+    const excavator_real e22 = (3.0/5.0)*e2;
+    const excavator_real e23 = e4*q[0];
+    const excavator_real e24 = e21*e4;
+    const excavator_real e25 = qd[2]*tr[1];
+    const excavator_real e26 = sin(e16);
+    const excavator_real e27 = e26*p[9];
+    const excavator_real e28 = 2*q[0];
+    const excavator_real e29 = 2*q[1];
+    const excavator_real e30 = 4*qd[0];
+    const excavator_real e31 = 2*pow(qd[0], 2) + 2*pow(qd[1], 2);
+    const excavator_real e32 = 2*pow(qd[3], 2) + 2*pow(qd[4], 2);
+    const excavator_real e33 = pow(e26, 2);
+    const excavator_real e34 = (3.0/5.0)*e4;
+    const excavator_real e35 = (3.0/5.0)*qd[5];
+    const excavator_real e36 = (3.0/10.0)*e6;
+    const excavator_real e37 = (6.0/5.0)*qd[2];
+    const excavator_real e38 = (9.0/100.0)*tr[3];
+    const excavator_real e39 = e6*tr[0];
+    const excavator_real e40 = (11.0/5.0)*qd[2];
+    const excavator_real e41 = e40*tr[0];
+    const excavator_real e42 = (11.0/10.0)*e2;
+    const excavator_real e43 = (33.0/200.0)*tr[2];
+    const excavator_real e44 = (33.0/200.0)*tr[3];
+    const excavator_real e45 = e6*tr[1];
+    const excavator_real e46 = 1.0/2.0 - 1.0/2.0*e17;
+    const excavator_real e47 = -e7 - 3.0/4.0;
+    const excavator_real e48 = e47*e6;
+    const excavator_real e49 = e47*qd[5];
+    const excavator_real e50 = 4*qd[4];
+    const excavator_real e51 = e49*tr[3];
+    const excavator_real e52 = e47*tr[2];
+    const excavator_real e53 = e47*tr[3];
+    const excavator_real e54 = 2*qd[8];
+    const excavator_real e55 = e54*tr[4];
+    const excavator_real e56 = (7.0/5.0)*qd[5];
+    const excavator_real e57 = e56*tr[2];
+    const excavator_real e58 = (7.0/10.0)*e6;
+    const excavator_real e59 = e58*tr[3];
+    const excavator_real e60 = (7.0/20.0)*tr[2];
+    const excavator_real e61 = e6*tr[4];
+    const excavator_real e62 = (7.0/20.0)*tr[3];
+    const excavator_real e63 = e6*tr[5];
+    const excavator_real e64 = 2.0/5.0 - e7;
+    const excavator_real e65 = e64*tr[2];
+    const excavator_real e66 = -e11 - 1.0/20.0;
+    const excavator_real e67 = e13*e66;
+    const excavator_real e68 = e14*e66;
+    const excavator_real e69 = e64*tr[3];
+    const excavator_real e70 = 2*e6;
+    const excavator_real e71 = e66*qd[8];
+    const excavator_real e72 = e69*qd[5];
+    const excavator_real e73 = e71*tr[5];
+    const excavator_real e74 = 2*e66;
     out[0] = -e3;
     out[1] = -e5;
     out[2] = -e3 - e9;
     out[3] = -e10 - e5;
     out[4] = -e11*e13 - e9;
     out[5] = -e10 - e11*e14;
-    out[6] = pow(e16, 2)*e18*pow(p[10], 2) + e18*e26*(-e26 + p[9]) - e19*qd[0]*tr[1] - e19*qd[1]*tr[0] + e2*e20*e27 - 4.0/5.0*e2*q[1] - 24.0/25.0*e2 - e20*e21 - 4*e20*e24*qd[1] + e20*e29*qd[2]*tr[0] + (4.0/5.0)*e22 + e23*e28 + (12.0/5.0)*e23 - 6.0/25.0*e4 + (-e30);
-    out[7] = (11.0/10.0)*e1*e46*tr[0]*tr[3] + (3.0/5.0)*e1*q[0]*tr[1] + (3.0/5.0)*e1*q[1]*tr[0] + (11.0/10.0)*e1*q[1]*tr[1] + (11.0/10.0)*e1*q[3]*tr[0] + (9.0/100.0)*e1*tr[1]*tr[2] + e16*e17*p[12]*(e45*p[12] + p[11]) + (1.0/2.0)*e17*e32*pow(p[12], 2) - e2*e43 - e21*e52 - e21*q[3] - 11.0/10.0*e22 - 9.0/50.0*e24*qd[5]*tr[2] - e27*e47*tr[3] - e28*e47*tr[2] - e29*e48*tr[2] - e33*e51 - e33*q[4] - e34*qd[0]*tr[3] - e34*qd[1]*tr[2] - e35*q[1]*tr[3] - e35*q[3]*tr[2] - e36*qd[1]*tr[1] - e36*qd[3]*tr[0] - e37*e38 - e37*e4 - e38*e42 - 3.0/5.0*e38*e51 - e39*qd[3]*tr[1] - e4*e42 - e40*e50 - e40*qd[4] - e41*e51 - e41*q[4] - e43*e44 - 11.0/10.0*e44*e51 - 3.0/5.0*e44*e52 + 2*e46*e6*q[3]*tr[3] + 2*e46*e6*q[4]*tr[2] + (11.0/10.0)*e46*e6*tr[0]*tr[3] + 4*e46*qd[1]*qd[5]*tr[3] + (6.0/5.0)*e46*qd[2]*qd[5]*tr[0]*tr[2] + (11.0/5.0)*e46*qd[2]*qd[5]*tr[1]*tr[2] + (6.0/5.0)*e46*qd[2]*qd[5]*tr[1]*tr[3] + 4*e46*qd[3]*qd[5]*tr[2] - e49*e50 + (3.0/10.0)*e6*q[0]*tr[2] + (3.0/10.0)*e6*q[4]*tr[3] + (9.0/100.0)*e6*tr[1]*tr[2] + (6.0/5.0)*qd[0]*qd[2]*tr[0] + (11.0/5.0)*qd[0]*qd[2]*tr[1] + (11.0/5.0)*qd[1]*qd[2]*tr[0] + (6.0/5.0)*qd[2]*qd[4]*tr[1] + (33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2] + (9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3] + (33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3] + (3.0/5.0)*qd[3]*qd[5]*tr[3] + (3.0/5.0)*qd[4]*qd[5]*tr[2] + (-e30 - e31 + 4*qd[0]*qd[3] + 4*qd[1]*qd[4]);
-    out[8] = e12*e63*tr[3]*tr[4] + 2*e12*e65*q[6]*tr[5] + 2*e12*e65*q[7]*tr[4] + (7.0/10.0)*e12*e65*tr[2]*tr[5] + e12*q[3]*tr[4] + e12*q[7]*tr[5] - e13*e61 - e13*e64 - e13*q[4] - e14*e59 - e14*q[6] + e16*e17*p[14]*(e45*p[14] + p[13]) + (1.0/2.0)*e17*e32*pow(p[14], 2) - e49*e71 - e53*qd[3]*tr[5] - e54*e71 - e54*qd[4] - e55*qd[6]*tr[3] - e56*e72 - e56*qd[7] - e57*q[3]*tr[2] - e58*e65*tr[4] - e58*q[7] - e59*e60 + 2*e6*e63*q[3]*tr[3] + 2*e6*e63*q[4]*tr[2] + e6*e63*tr[3]*tr[4] + (7.0/10.0)*e6*e65*tr[2]*tr[5] + (7.0/10.0)*e6*q[4]*tr[3] + (7.0/10.0)*e6*q[6]*tr[2] - e60*e64*e73 - e61*e62 - e62*e64 - e62*e68*e73 + 4*e63*e65*qd[5]*qd[8]*tr[2]*tr[4] + 4*e63*e65*qd[5]*qd[8]*tr[3]*tr[5] + 4*e63*qd[3]*qd[5]*tr[2] + 4*e63*qd[5]*qd[7]*tr[3] + 2*e63*qd[5]*qd[8]*tr[2]*tr[5] - 2*e64*e67 - e64*e69*q[7] - 4*e64*qd[5]*qd[6] + 4*e65*qd[4]*qd[8]*tr[5] + (7.0/5.0)*e65*qd[5]*qd[8]*tr[3]*tr[4] + 4*e65*qd[6]*qd[8]*tr[4] - 2*e66*e68 - 2*e66*q[3] - 2*e67*q[4] - 7.0/10.0*e67*tr[3] - e68*e69*q[6] - 4*e70*qd[3]*tr[4] - 4*e72*qd[7] + (7.0/5.0)*qd[3]*qd[5]*tr[3] + (7.0/5.0)*qd[4]*qd[5]*tr[2] + (7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4] + (7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5] + 2*qd[6]*qd[8]*tr[5] + 2*qd[7]*qd[8]*tr[4] + (-e31 + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*pow(qd[6], 2) - 2*pow(qd[7], 2));
+    out[6] = pow(e17, 2)*e19*pow(p[9], 2) + e19*e27*(-e27 + p[8]) + e2*e21*e28 - 4.0/5.0*e2*q[1] - 24.0/25.0*e2 - e20*qd[0]*tr[1] - e20*qd[1]*tr[0] - e21*e22 - 4*e21*e25*qd[1] + e21*e30*qd[2]*tr[0] + (4.0/5.0)*e23 + e24*e29 + (12.0/5.0)*e24 - 6.0/25.0*e4 + (-e31);
+    out[7] = (11.0/10.0)*e1*e47*tr[0]*tr[3] + (3.0/5.0)*e1*q[0]*tr[1] + (3.0/5.0)*e1*q[1]*tr[0] + (11.0/10.0)*e1*q[1]*tr[1] + (11.0/10.0)*e1*q[3]*tr[0] + (9.0/100.0)*e1*tr[1]*tr[2] + e17*e18*p[11]*(e46*p[11] + p[10]) + (1.0/2.0)*e18*e33*pow(p[11], 2) - e2*e44 - e22*e53 - e22*q[3] - 11.0/10.0*e23 - 9.0/50.0*e25*qd[5]*tr[2] - e28*e48*tr[3] - e29*e48*tr[2] - e30*e49*tr[2] - e34*e52 - e34*q[4] - e35*qd[0]*tr[3] - e35*qd[1]*tr[2] - e36*q[1]*tr[3] - e36*q[3]*tr[2] - e37*qd[1]*tr[1] - e37*qd[3]*tr[0] - e38*e39 - e38*e4 - e39*e43 - 3.0/5.0*e39*e52 - e4*e43 - e40*qd[3]*tr[1] - e41*e51 - e41*qd[4] - e42*e52 - e42*q[4] - e44*e45 - 11.0/10.0*e45*e52 - 3.0/5.0*e45*e53 + 2*e47*e6*q[3]*tr[3] + 2*e47*e6*q[4]*tr[2] + (11.0/10.0)*e47*e6*tr[0]*tr[3] + 4*e47*qd[1]*qd[5]*tr[3] + (6.0/5.0)*e47*qd[2]*qd[5]*tr[0]*tr[2] + (11.0/5.0)*e47*qd[2]*qd[5]*tr[1]*tr[2] + (6.0/5.0)*e47*qd[2]*qd[5]*tr[1]*tr[3] + 4*e47*qd[3]*qd[5]*tr[2] - e50*e51 + (3.0/10.0)*e6*q[0]*tr[2] + (3.0/10.0)*e6*q[4]*tr[3] + (9.0/100.0)*e6*tr[1]*tr[2] + (6.0/5.0)*qd[0]*qd[2]*tr[0] + (11.0/5.0)*qd[0]*qd[2]*tr[1] + (11.0/5.0)*qd[1]*qd[2]*tr[0] + (6.0/5.0)*qd[2]*qd[4]*tr[1] + (33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2] + (9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3] + (33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3] + (3.0/5.0)*qd[3]*qd[5]*tr[3] + (3.0/5.0)*qd[4]*qd[5]*tr[2] + (-e31 - e32 + 4*qd[0]*qd[3] + 4*qd[1]*qd[4]);
+    out[8] = e12*e64*tr[3]*tr[4] + 2*e12*e66*q[6]*tr[5] + 2*e12*e66*q[7]*tr[4] + (7.0/10.0)*e12*e66*tr[2]*tr[5] + e12*q[3]*tr[4] + e12*q[7]*tr[5] - e13*e62 - e13*e65 - e13*q[4] - e14*e60 - e14*q[6] + e17*e18*p[13]*(e46*p[13] + p[12]) + (1.0/2.0)*e18*e33*pow(p[13], 2) - e50*e72 - e54*qd[3]*tr[5] - e55*e72 - e55*qd[4] - e56*qd[6]*tr[3] - e57*e73 - e57*qd[7] - e58*q[3]*tr[2] - e59*e66*tr[4] - e59*q[7] + 2*e6*e64*q[3]*tr[3] + 2*e6*e64*q[4]*tr[2] + e6*e64*tr[3]*tr[4] + (7.0/10.0)*e6*e66*tr[2]*tr[5] + (7.0/10.0)*e6*q[4]*tr[3] + (7.0/10.0)*e6*q[6]*tr[2] - e60*e61 - e61*e65*e74 - e62*e63 - e63*e65 - e63*e69*e74 + 4*e64*e66*qd[5]*qd[8]*tr[2]*tr[4] + 4*e64*e66*qd[5]*qd[8]*tr[3]*tr[5] + 4*e64*qd[3]*qd[5]*tr[2] + 4*e64*qd[5]*qd[7]*tr[3] + 2*e64*qd[5]*qd[8]*tr[2]*tr[5] - 2*e65*e68 - e65*e70*q[7] - 4*e65*qd[5]*qd[6] + 4*e66*qd[4]*qd[8]*tr[5] + (7.0/5.0)*e66*qd[5]*qd[8]*tr[3]*tr[4] + 4*e66*qd[6]*qd[8]*tr[4] - 2*e67*e69 - 2*e67*q[3] - 2*e68*q[4] - 7.0/10.0*e68*tr[3] - e69*e70*q[6] - 4*e71*qd[3]*tr[4] - 4*e73*qd[7] + (7.0/5.0)*qd[3]*qd[5]*tr[3] + (7.0/5.0)*qd[4]*qd[5]*tr[2] + (7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4] + (7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5] + 2*qd[6]*qd[8]*tr[5] + 2*qd[7]*qd[8]*tr[4] + (-e32 + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*pow(qd[6], 2) - 2*pow(qd[7], 2));
 }
 
 static void excavator_gamma_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -384,8 +386,8 @@ static void excavator_applied_k0(const excavator_real * q, const excavator_real 
 {
     (void)q;
     (void)qd;
-    const excavator_real e0 = exp(-pow(-p[16] + t, 2)/pow(p[17], 2));
-    const excavator_real e1 = e0*p[15];
+    const excavator_real e0 = exp(-pow(-p[15] + t, 2)/pow(p[16], 2));
+    const excavator_real e1 = e0*p[14];
     out[0] = 0;
     out[1] = -981.0/100.0*p[4];
     out[2] = 0;
@@ -394,7 +396,7 @@ static void excavator_applied_k0(const excavator_real * q, const excavator_real 
     out[5] = 0;
     out[6] = e1;
     out[7] = (3.0/10.0)*e1 - 981.0/100.0*p[6];
-    out[8] = (3.0/20.0)*e0*p[15]*p[2]*tr[5] - 1.0/2.0*e1*p[2]*tr[4];
+    out[8] = (3.0/20.0)*e0*p[14]*p[2]*tr[5] - 1.0/2.0*e1*p[2]*tr[4];
 }
 
 static void excavator_applied_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -1070,5 +1072,225 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
         row[0] = t;
     }
     *solved = n;
+    return EXCAVATOR_OK;
+}
+
+/* ---- The sweep: K variants, their figures accumulated as instants are solved ---- */
+
+/* The initial guess q0 of a variant (the file's q0, from its parameters). */
+static void excavator_guess(const excavator_real *p, excavator_real *out)
+{
+    (void)p;
+    out[0] = 64087819453.0/25000000000.0;
+    out[1] = 62267612697.0/50000000000.0;
+    out[2] = 90444500277.0/200000000000.0;
+    out[3] = 632950588567.0/100000000000.0;
+    out[4] = 210054037.0/125000000.0;
+    out[5] = -59294824971.0/100000000000.0;
+    out[6] = 412664006517.0/50000000000.0;
+    out[7] = 664648313559.0/1000000000000.0;
+    out[8] = -138783036787.0/500000000000.0;
+}
+
+/* Each driver's f(t) and f'(t), in file order. */
+static void excavator_drive(excavator_real t, const excavator_real *p, excavator_real *out)
+{
+    (void)t;
+    (void)p;
+    const excavator_real d0 = (2*3.141592653589793/p[7]);
+    const excavator_real d1 = d0*t;
+    const excavator_real d2 = sin(d1);
+    const excavator_real d3 = cos(d1);
+    const excavator_real d4 = 1.0/2.0 - 1.0/2.0*d3;
+    const excavator_real d5 = (1.0/2.0)*d0*d2;
+    out[0] = -d2*p[9] + p[8];
+    out[1] = -d0*d3*p[9];
+    out[2] = d4*p[11] + p[10];
+    out[3] = d5*p[11];
+    out[4] = d4*p[13] + p[12];
+    out[5] = d5*p[13];
+}
+
+/* 1 / the column scales of the jump check at the assembled q(t0), as
+   symid.numeric.stability.Scaling.of: x and y in units of the median moment
+   arm of the rows that mix lengths and angles (else the largest |x|, |y|,
+   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+static void excavator_sweep_scales(const excavator_real *q, excavator_real t0, const excavator_real *p, excavator_real *vals,
+                                 excavator_real *arms, excavator_real *inv)
+{
+    excavator_real lin[9], rot[9], lref = 0.0, a;
+    int k, r, m = 0, i;
+    excavator_phi_q(q, t0, p, vals);
+    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (k = 0; k < 35; ++k) {
+        a = fabs(vals[k]);
+        r = excavator_phi_q_rows[k];
+        if (excavator_phi_q_cols[k] % 3 == 2) rot[r] = EXCAVATOR_MAX(rot[r], a);
+        else lin[r] = EXCAVATOR_MAX(lin[r], a);
+    }
+    for (r = 0; r < 9; ++r) {
+        if (lin[r] > 0.0 && rot[r] > 0.0) {
+            /* insertion sort: NC is small and this runs once per variant */
+            a = rot[r] / lin[r];
+            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            arms[i] = a;
+            ++m;
+        }
+    }
+    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (!(lref > 0.0)) {
+        lref = 0.0;
+        for (k = 0; k < 9; ++k)
+            if (k % 3 != 2) lref = EXCAVATOR_MAX(lref, fabs(q[k]));
+    }
+    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
+    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+}
+
+/* Take one solved row's figures; count: the variant's instants taken before.
+   A force_peak is kept squared until the end (one sqrt, not one per instant).
+   acc: per driver the last effort, the trapezoid sum of squares and the
+   plain sum of squares, then the first and the last time. */
+static void excavator_sweep_take(const excavator_real *row, const excavator_real *p, excavator_real *fig, excavator_real *acc,
+                               excavator_real *drive, long count)
+{
+    const excavator_real t = row[0];
+    excavator_real e, rate, w;
+    excavator_real m;
+    (void)p;
+    (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
+    (void)drive;
+    excavator_drive(t, p, drive);
+    /* boom_cylinder */
+    e = -2.0 * fabs(drive[0]) * row[34];
+    rate = ((drive[0] > 0.0) - (drive[0] < 0.0)) * drive[1];
+    w = fabs(e * rate);
+    if (count == 0 || fabs(e) > fig[0]) {
+        fig[0] = fabs(e);
+        fig[1] = t;
+    }
+    if (count == 0 || w > fig[3]) fig[3] = w;
+    if (count == 0) acc[1] = acc[2] = 0.0;
+    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[10]);
+    acc[2] += e * e;
+    acc[0] = e;
+    /* stick_cylinder */
+    e = -2.0 * fabs(drive[2]) * row[35];
+    rate = ((drive[2] > 0.0) - (drive[2] < 0.0)) * drive[3];
+    w = fabs(e * rate);
+    if (count == 0 || fabs(e) > fig[4]) {
+        fig[4] = fabs(e);
+        fig[5] = t;
+    }
+    if (count == 0 || w > fig[7]) fig[7] = w;
+    if (count == 0) acc[4] = acc[5] = 0.0;
+    else acc[4] += (e * e + acc[3] * acc[3]) * (t - acc[10]);
+    acc[5] += e * e;
+    acc[3] = e;
+    /* bucket_cylinder */
+    e = -2.0 * fabs(drive[4]) * row[36];
+    rate = ((drive[4] > 0.0) - (drive[4] < 0.0)) * drive[5];
+    w = fabs(e * rate);
+    if (count == 0 || fabs(e) > fig[8]) {
+        fig[8] = fabs(e);
+        fig[9] = t;
+    }
+    if (count == 0 || w > fig[11]) fig[11] = w;
+    if (count == 0) acc[7] = acc[8] = 0.0;
+    else acc[7] += (e * e + acc[6] * acc[6]) * (t - acc[10]);
+    acc[8] += e * e;
+    acc[6] = e;
+    /* boom_foot_pin.force_peak */
+    m = row[37] * row[37] + row[38] * row[38];
+    if (count == 0 || m > fig[12]) fig[12] = m;
+    m = row[40] * row[40] + row[41] * row[41];
+    if (m > fig[12]) fig[12] = m;
+    /* boom_stick_pin.force_peak */
+    m = row[43] * row[43] + row[44] * row[44];
+    if (count == 0 || m > fig[13]) fig[13] = m;
+    m = row[46] * row[46] + row[47] * row[47];
+    if (m > fig[13]) fig[13] = m;
+    /* stick_bucket_pin.force_peak */
+    m = row[49] * row[49] + row[50] * row[50];
+    if (count == 0 || m > fig[14]) fig[14] = m;
+    m = row[52] * row[52] + row[53] * row[53];
+    if (m > fig[14]) fig[14] = m;
+    /* boom_cylinder.force_peak */
+    m = row[55] * row[55] + row[56] * row[56];
+    if (count == 0 || m > fig[15]) fig[15] = m;
+    m = row[58] * row[58] + row[59] * row[59];
+    if (m > fig[15]) fig[15] = m;
+    /* stick_cylinder.force_peak */
+    m = row[61] * row[61] + row[62] * row[62];
+    if (count == 0 || m > fig[16]) fig[16] = m;
+    m = row[64] * row[64] + row[65] * row[65];
+    if (m > fig[16]) fig[16] = m;
+    /* bucket_cylinder.force_peak */
+    m = row[67] * row[67] + row[68] * row[68];
+    if (count == 0 || m > fig[17]) fig[17] = m;
+    m = row[70] * row[70] + row[71] * row[71];
+    if (m > fig[17]) fig[17] = m;
+    if (count == 0) acc[9] = t;
+    acc[10] = t;
+}
+
+/* The figures of a variant after its `count` instants (NaN if none). */
+static void excavator_sweep_finish(excavator_real *fig, const excavator_real *acc, long count)
+{
+    int k;
+    const excavator_real span = acc[10] - acc[9];
+    (void)acc;  /* no drivers: no time average */
+    if (count == 0) {
+        for (k = 0; k < 18; ++k) fig[k] = NAN;
+        return;
+    }
+    (void)k;
+    fig[12] = sqrt(fig[12]);
+    fig[13] = sqrt(fig[13]);
+    fig[14] = sqrt(fig[14]);
+    fig[15] = sqrt(fig[15]);
+    fig[16] = sqrt(fig[16]);
+    fig[17] = sqrt(fig[17]);
+    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+                                     : sqrt(acc[2] / (excavator_real)count);
+    fig[6] = span > 0.0 ? sqrt(acc[4] / 2.0 / span)
+                                     : sqrt(acc[5] / (excavator_real)count);
+    fig[10] = span > 0.0 ? sqrt(acc[7] / 2.0 / span)
+                                     : sqrt(acc[8] / (excavator_real)count);
+}
+
+int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavator_real h, long n, excavator_real tol,
+                  excavator_real *figures, int *status, excavator_real *t_end, long *solved, excavator_real *work, int *iwork)
+{
+    excavator_real *state = work + EXCAVATOR_WORK, *rows = state + EXCAVATOR_STATE;
+    excavator_real *vals = rows + 32 * EXCAVATOR_ROW, *arms = vals + 35, *drive = arms + 9;
+    excavator_real *acc = drive + 6;
+    long v, done, got, m;
+    int st;
+    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
+        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || tol <= 0.0)
+        return EXCAVATOR_BAD_ARGUMENT;
+    for (v = 0; v < k; ++v) {
+        const excavator_real *pv = p + v * EXCAVATOR_NP;
+        excavator_real *fig = figures + v * EXCAVATOR_SWEEP_FIGURES;
+        memset(state, 0, sizeof(excavator_real) * EXCAVATOR_STATE);
+        excavator_guess(pv, state);
+        done = 0;
+        st = EXCAVATOR_OK;
+        while (done < n && st == EXCAVATOR_OK) {
+            /* t0 alone first: its assembled q fixes the scales of the jump check */
+            m = done == 0 ? 1 : EXCAVATOR_MIN(32, n - done);
+            got = 0;
+            st = excavator_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
+            for (m = 0; m < got; ++m) excavator_sweep_take(rows + m * EXCAVATOR_ROW, pv, fig, acc, drive, done + m);
+            if (done == 0 && got == 1) excavator_sweep_scales(state, t0, pv, vals, arms, state + 54);
+            done += got;
+        }
+        excavator_sweep_finish(fig, acc, done);
+        status[v] = st;
+        solved[v] = done;
+        t_end[v] = done > 0 ? acc[10] : NAN;
+    }
     return EXCAVATOR_OK;
 }

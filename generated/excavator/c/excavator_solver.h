@@ -14,7 +14,7 @@ typedef double excavator_real;
 /* Sizes. */
 #define EXCAVATOR_NG 9            /* generalized coordinates q = [x, y, phi] per body */
 #define EXCAVATOR_NC 9            /* constraint rows */
-#define EXCAVATOR_NP 18            /* parameters p */
+#define EXCAVATOR_NP 17            /* parameters p */
 #define EXCAVATOR_NNZ 35          /* structural nonzeros of Phi_q */
 #define EXCAVATOR_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define EXCAVATOR_ROW 73          /* values per instant in a trajectory row */
@@ -41,8 +41,13 @@ typedef double excavator_real;
 #define EXCAVATOR_HAS_LAMBDA 1
 #define EXCAVATOR_HAS_REACTIONS 1
 
-/* Parameters, in this order: L_boom, L_stick, L_bucket, H_bucket, m_boom, m_stick, m_bucket, T_cycle, w, Lc_boom, a_boom, Lc_stick, a_stick, Lc_bucket, a_bucket, F_dig, t_dig, tau_dig. */
-extern const excavator_real excavator_default_params[18];
+/* Parameters p (size NP): the base parameters, the only inputs, in this
+   order: L_boom, L_stick, L_bucket, H_bucket, m_boom, m_stick, m_bucket, T_cycle, Lc_boom, a_boom, Lc_stick, a_stick, Lc_bucket, a_bucket, F_dig, t_dig, tau_dig.
+   Derived parameters are not in p: every function computes them from p by
+   their definitions, so changing a base parameter changes them too:
+     w = 2*pi/T_cycle
+*/
+extern const excavator_real excavator_default_params[17];
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int excavator_phi_q_rows[35];
 extern const int excavator_phi_q_cols[35];
@@ -78,6 +83,45 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
    *solved = rows written (solved may be NULL). */
 int excavator_trajectory(excavator_real t0, excavator_real h, long n, const excavator_real *p, excavator_real tol, excavator_real *state,
                        excavator_real *rows, long *solved, excavator_real *work, int *iwork);
+
+/* A design study: K parameter vectors through the trajectory loop, keeping
+   per variant only its figures, accumulated as the instants are solved
+   (contract v1.1, `symid sweep`). */
+#define EXCAVATOR_SWEEP_FIGURES 18   /* figures per variant, in this order:
+                                         boom_cylinder.effort_peak
+                                         boom_cylinder.effort_t_peak
+                                         boom_cylinder.effort_rms
+                                         boom_cylinder.power_peak
+                                         stick_cylinder.effort_peak
+                                         stick_cylinder.effort_t_peak
+                                         stick_cylinder.effort_rms
+                                         stick_cylinder.power_peak
+                                         bucket_cylinder.effort_peak
+                                         bucket_cylinder.effort_t_peak
+                                         bucket_cylinder.effort_rms
+                                         bucket_cylinder.power_peak
+                                         boom_foot_pin.force_peak
+                                         boom_stick_pin.force_peak
+                                         stick_bucket_pin.force_peak
+                                         boom_cylinder.force_peak
+                                         stick_cylinder.force_peak
+                                         bucket_cylinder.force_peak
+   (per driver: largest |effort| (torque or force), its time, RMS effort
+   (trapezoidal time average) and largest |effort x rate|; per constraint
+   with reactions: the largest |(Fx, Fy)| on any of its bodies) */
+#define EXCAVATOR_SWEEP_WORK (EXCAVATOR_WORK + EXCAVATOR_STATE + 32 * EXCAVATOR_ROW + 61)  /* reals of workspace of a sweep */
+
+/* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
+   from them (the file's initial guesses), and solves the n instants
+   t0 + j h as excavator_trajectory does, the jump check scaled as symid scales
+   it at t0. It stops at its first instant that is not OK: status[v] is that
+   status (EXCAVATOR_UNEXPLAINED included: symid then decides that instant in
+   sub-steps), solved[v] the instants solved, t_end[v] the last one's time
+   (NaN if none); figures + v SWEEP_FIGURES holds the figures of those
+   instants (NaN if none). work: SWEEP_WORK reals, iwork: IWORK ints, both
+   per calling thread. Returns BAD_ARGUMENT (nothing solved) or OK. */
+int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavator_real h, long n, excavator_real tol,
+                  excavator_real *figures, int *status, excavator_real *t_end, long *solved, excavator_real *work, int *iwork);
 
 #ifdef __cplusplus
 }

@@ -25,7 +25,7 @@
 #define FOUR_BAR_OFF_VEC (FOUR_BAR_OFF_DENSE + 81)
 #define FOUR_BAR_VEC(work, k) ((work) + FOUR_BAR_OFF_VEC + (k) * 30)
 
-const four_bar_real four_bar_default_params[16] = { 0.4, 0.1, 0.35, 0.3, 0.3, 0.8, 0.7, 0.05, 0.1, 2.0, 12.566370614359172, 50.0, 2.0, 500.0, 5.0, 0.3 };
+const four_bar_real four_bar_default_params[15] = { 0.4, 0.1, 0.35, 0.3, 0.3, 0.8, 0.7, 0.05, 0.1, 2.0, 50.0, 2.0, 500.0, 5.0, 0.3 };
 const int four_bar_phi_q_rows[25] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 7, 7, 8 };
 const int four_bar_phi_q_cols[25] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 8, 6, 8, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */
@@ -120,7 +120,7 @@ static void four_bar_phi_k0(const four_bar_real * q, const four_bar_real * tr, f
     out[5] = -e5 + e9 + (-e10 - q[4]);
     out[6] = -e7 + (-e8 - p[0]);
     out[7] = -e10 - e9;
-    out[8] = -p[10]*t + q[2];
+    out[8] = q[2] - t*(2*3.141592653589793*p[9]);
 }
 
 static void four_bar_phi_k(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -200,7 +200,7 @@ static void four_bar_nu_k0(const four_bar_real * q, const four_bar_real * tr, fo
     out[5] = 0;
     out[6] = 0;
     out[7] = 0;
-    out[8] = p[10];
+    out[8] = (2*3.141592653589793*p[9]);
 }
 
 static void four_bar_nu_k(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -253,7 +253,7 @@ void four_bar_gamma(const four_bar_real * q, const four_bar_real * qd, four_bar_
 
 static void four_bar_applied_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    const four_bar_real e0 = p[11]*((1.0/2.0)*sin(p[10]*t) + 1);
+    const four_bar_real e0 = p[10]*((1.0/2.0)*sin(t*(2*3.141592653589793*p[9])) + 1);
     const four_bar_real e1 = (1.0/20.0)*tr[4];
     const four_bar_real e2 = e1 + (q[7] - 3.0/10.0);
     const four_bar_real e3 = (1.0/20.0)*tr[5];
@@ -261,7 +261,7 @@ static void four_bar_applied_k0(const four_bar_real * q, const four_bar_real * t
     const four_bar_real e5 = sqrt(pow(e2, 2) + pow(e4, 2));
     const four_bar_real e6 = 1.0/e5;
     const four_bar_real e7 = e4*e6;
-    const four_bar_real e8 = -p[13]*(e5 - p[15]) - p[14]*(e2*e6*(e3*qd[8] + qd[7]) + e7*(-e1*qd[8] + qd[6]));
+    const four_bar_real e8 = -p[12]*(e5 - p[14]) - p[13]*(e2*e6*(e3*qd[8] + qd[7]) + e7*(-e1*qd[8] + qd[6]));
     const four_bar_real e9 = e7*e8;
     out[0] = 0;
     out[1] = -981.0/100.0*p[4];
@@ -271,7 +271,7 @@ static void four_bar_applied_k0(const four_bar_real * q, const four_bar_real * t
     out[5] = -e0*(p[7]*tr[3] - p[8]*tr[2]);
     out[6] = e9;
     out[7] = e2*e6*e8 - 981.0/100.0*p[6];
-    out[8] = -e1*e9 + (1.0/20.0)*e2*e6*e8*tr[5] - p[12];
+    out[8] = -e1*e9 + (1.0/20.0)*e2*e6*e8*tr[5] - p[11];
 }
 
 static void four_bar_applied_k(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -841,5 +841,180 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
         row[0] = t;
     }
     *solved = n;
+    return FOUR_BAR_OK;
+}
+
+/* ---- The sweep: K variants, their figures accumulated as instants are solved ---- */
+
+/* The initial guess q0 of a variant (the file's q0, from its parameters). */
+static void four_bar_guess(const four_bar_real *p, four_bar_real *out)
+{
+    (void)p;
+    out[0] = (1.0/2.0)*p[1];
+    out[1] = 0;
+    out[2] = 0;
+    out[3] = 202083333333.0/1000000000000.0;
+    out[4] = 71070375431.0/500000000000.0;
+    out[5] = 947969741383.0/1000000000000.0;
+    out[6] = 352083333333.0/1000000000000.0;
+    out[7] = 71070375431.0/500000000000.0;
+    out[8] = 189593948277.0/100000000000.0;
+}
+
+/* Each driver's f(t) and f'(t), in file order. */
+static void four_bar_drive(four_bar_real t, const four_bar_real *p, four_bar_real *out)
+{
+    (void)t;
+    (void)p;
+    const four_bar_real d0 = (2*3.141592653589793*p[9]);
+    out[0] = d0*t;
+    out[1] = d0;
+}
+
+/* 1 / the column scales of the jump check at the assembled q(t0), as
+   symid.numeric.stability.Scaling.of: x and y in units of the median moment
+   arm of the rows that mix lengths and angles (else the largest |x|, |y|,
+   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+static void four_bar_sweep_scales(const four_bar_real *q, four_bar_real t0, const four_bar_real *p, four_bar_real *vals,
+                                 four_bar_real *arms, four_bar_real *inv)
+{
+    four_bar_real lin[9], rot[9], lref = 0.0, a;
+    int k, r, m = 0, i;
+    four_bar_phi_q(q, t0, p, vals);
+    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (k = 0; k < 25; ++k) {
+        a = fabs(vals[k]);
+        r = four_bar_phi_q_rows[k];
+        if (four_bar_phi_q_cols[k] % 3 == 2) rot[r] = FOUR_BAR_MAX(rot[r], a);
+        else lin[r] = FOUR_BAR_MAX(lin[r], a);
+    }
+    for (r = 0; r < 9; ++r) {
+        if (lin[r] > 0.0 && rot[r] > 0.0) {
+            /* insertion sort: NC is small and this runs once per variant */
+            a = rot[r] / lin[r];
+            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            arms[i] = a;
+            ++m;
+        }
+    }
+    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (!(lref > 0.0)) {
+        lref = 0.0;
+        for (k = 0; k < 9; ++k)
+            if (k % 3 != 2) lref = FOUR_BAR_MAX(lref, fabs(q[k]));
+    }
+    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
+    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+}
+
+/* Take one solved row's figures; count: the variant's instants taken before.
+   A force_peak is kept squared until the end (one sqrt, not one per instant).
+   acc: per driver the last effort, the trapezoid sum of squares and the
+   plain sum of squares, then the first and the last time. */
+static void four_bar_sweep_take(const four_bar_real *row, const four_bar_real *p, four_bar_real *fig, four_bar_real *acc,
+                               four_bar_real *drive, long count)
+{
+    const four_bar_real t = row[0];
+    four_bar_real e, rate, w;
+    four_bar_real m;
+    (void)p;
+    (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
+    (void)drive;
+    four_bar_drive(t, p, drive);
+    /* crank_motor */
+    e = -row[36];
+    rate = drive[1];
+    w = fabs(e * rate);
+    if (count == 0 || fabs(e) > fig[0]) {
+        fig[0] = fabs(e);
+        fig[1] = t;
+    }
+    if (count == 0 || w > fig[3]) fig[3] = w;
+    if (count == 0) acc[1] = acc[2] = 0.0;
+    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    acc[2] += e * e;
+    acc[0] = e;
+    /* crank_pivot.force_peak */
+    m = row[37] * row[37] + row[38] * row[38];
+    if (count == 0 || m > fig[4]) fig[4] = m;
+    m = row[40] * row[40] + row[41] * row[41];
+    if (m > fig[4]) fig[4] = m;
+    /* crank_coupler_pin.force_peak */
+    m = row[43] * row[43] + row[44] * row[44];
+    if (count == 0 || m > fig[5]) fig[5] = m;
+    m = row[46] * row[46] + row[47] * row[47];
+    if (m > fig[5]) fig[5] = m;
+    /* coupler_rocker_pin.force_peak */
+    m = row[49] * row[49] + row[50] * row[50];
+    if (count == 0 || m > fig[6]) fig[6] = m;
+    m = row[52] * row[52] + row[53] * row[53];
+    if (m > fig[6]) fig[6] = m;
+    /* rocker_pivot.force_peak */
+    m = row[55] * row[55] + row[56] * row[56];
+    if (count == 0 || m > fig[7]) fig[7] = m;
+    m = row[58] * row[58] + row[59] * row[59];
+    if (m > fig[7]) fig[7] = m;
+    /* crank_motor.force_peak */
+    m = row[61] * row[61] + row[62] * row[62];
+    if (count == 0 || m > fig[8]) fig[8] = m;
+    m = row[64] * row[64] + row[65] * row[65];
+    if (m > fig[8]) fig[8] = m;
+    if (count == 0) acc[3] = t;
+    acc[4] = t;
+}
+
+/* The figures of a variant after its `count` instants (NaN if none). */
+static void four_bar_sweep_finish(four_bar_real *fig, const four_bar_real *acc, long count)
+{
+    int k;
+    const four_bar_real span = acc[4] - acc[3];
+    (void)acc;  /* no drivers: no time average */
+    if (count == 0) {
+        for (k = 0; k < 9; ++k) fig[k] = NAN;
+        return;
+    }
+    (void)k;
+    fig[4] = sqrt(fig[4]);
+    fig[5] = sqrt(fig[5]);
+    fig[6] = sqrt(fig[6]);
+    fig[7] = sqrt(fig[7]);
+    fig[8] = sqrt(fig[8]);
+    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+                                     : sqrt(acc[2] / (four_bar_real)count);
+}
+
+int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_real h, long n, four_bar_real tol,
+                  four_bar_real *figures, int *status, four_bar_real *t_end, long *solved, four_bar_real *work, int *iwork)
+{
+    four_bar_real *state = work + FOUR_BAR_WORK, *rows = state + FOUR_BAR_STATE;
+    four_bar_real *vals = rows + 32 * FOUR_BAR_ROW, *arms = vals + 25, *drive = arms + 9;
+    four_bar_real *acc = drive + 2;
+    long v, done, got, m;
+    int st;
+    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
+        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || tol <= 0.0)
+        return FOUR_BAR_BAD_ARGUMENT;
+    for (v = 0; v < k; ++v) {
+        const four_bar_real *pv = p + v * FOUR_BAR_NP;
+        four_bar_real *fig = figures + v * FOUR_BAR_SWEEP_FIGURES;
+        memset(state, 0, sizeof(four_bar_real) * FOUR_BAR_STATE);
+        four_bar_guess(pv, state);
+        done = 0;
+        st = FOUR_BAR_OK;
+        while (done < n && st == FOUR_BAR_OK) {
+            /* t0 alone first: its assembled q fixes the scales of the jump check */
+            m = done == 0 ? 1 : FOUR_BAR_MIN(32, n - done);
+            got = 0;
+            st = four_bar_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
+            for (m = 0; m < got; ++m) four_bar_sweep_take(rows + m * FOUR_BAR_ROW, pv, fig, acc, drive, done + m);
+            if (done == 0 && got == 1) four_bar_sweep_scales(state, t0, pv, vals, arms, state + 54);
+            done += got;
+        }
+        four_bar_sweep_finish(fig, acc, done);
+        status[v] = st;
+        solved[v] = done;
+        t_end[v] = done > 0 ? acc[4] : NAN;
+    }
     return FOUR_BAR_OK;
 }

@@ -14,7 +14,7 @@ typedef double four_bar_real;
 /* Sizes. */
 #define FOUR_BAR_NG 9            /* generalized coordinates q = [x, y, phi] per body */
 #define FOUR_BAR_NC 9            /* constraint rows */
-#define FOUR_BAR_NP 16            /* parameters p */
+#define FOUR_BAR_NP 15            /* parameters p */
 #define FOUR_BAR_NNZ 25          /* structural nonzeros of Phi_q */
 #define FOUR_BAR_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define FOUR_BAR_ROW 67          /* values per instant in a trajectory row */
@@ -41,8 +41,13 @@ typedef double four_bar_real;
 #define FOUR_BAR_HAS_LAMBDA 1
 #define FOUR_BAR_HAS_REACTIONS 1
 
-/* Parameters, in this order: L_ground, L_crank, L_coupler, L_rocker, m_crank, m_coupler, m_rocker, cp_x, cp_y, n, omega, F_tool, T_load, k_spring, c_spring, L0_spring. */
-extern const four_bar_real four_bar_default_params[16];
+/* Parameters p (size NP): the base parameters, the only inputs, in this
+   order: L_ground, L_crank, L_coupler, L_rocker, m_crank, m_coupler, m_rocker, cp_x, cp_y, n, F_tool, T_load, k_spring, c_spring, L0_spring.
+   Derived parameters are not in p: every function computes them from p by
+   their definitions, so changing a base parameter changes them too:
+     omega = 2*pi*n
+*/
+extern const four_bar_real four_bar_default_params[15];
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int four_bar_phi_q_rows[25];
 extern const int four_bar_phi_q_cols[25];
@@ -78,6 +83,36 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
    *solved = rows written (solved may be NULL). */
 int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_bar_real *p, four_bar_real tol, four_bar_real *state,
                        four_bar_real *rows, long *solved, four_bar_real *work, int *iwork);
+
+/* A design study: K parameter vectors through the trajectory loop, keeping
+   per variant only its figures, accumulated as the instants are solved
+   (contract v1.1, `symid sweep`). */
+#define FOUR_BAR_SWEEP_FIGURES 9   /* figures per variant, in this order:
+                                         crank_motor.effort_peak
+                                         crank_motor.effort_t_peak
+                                         crank_motor.effort_rms
+                                         crank_motor.power_peak
+                                         crank_pivot.force_peak
+                                         crank_coupler_pin.force_peak
+                                         coupler_rocker_pin.force_peak
+                                         rocker_pivot.force_peak
+                                         crank_motor.force_peak
+   (per driver: largest |effort| (torque or force), its time, RMS effort
+   (trapezoidal time average) and largest |effort x rate|; per constraint
+   with reactions: the largest |(Fx, Fy)| on any of its bodies) */
+#define FOUR_BAR_SWEEP_WORK (FOUR_BAR_WORK + FOUR_BAR_STATE + 32 * FOUR_BAR_ROW + 41)  /* reals of workspace of a sweep */
+
+/* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
+   from them (the file's initial guesses), and solves the n instants
+   t0 + j h as four_bar_trajectory does, the jump check scaled as symid scales
+   it at t0. It stops at its first instant that is not OK: status[v] is that
+   status (FOUR_BAR_UNEXPLAINED included: symid then decides that instant in
+   sub-steps), solved[v] the instants solved, t_end[v] the last one's time
+   (NaN if none); figures + v SWEEP_FIGURES holds the figures of those
+   instants (NaN if none). work: SWEEP_WORK reals, iwork: IWORK ints, both
+   per calling thread. Returns BAD_ARGUMENT (nothing solved) or OK. */
+int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_real h, long n, four_bar_real tol,
+                  four_bar_real *figures, int *status, four_bar_real *t_end, long *solved, four_bar_real *work, int *iwork);
 
 #ifdef __cplusplus
 }

@@ -7,7 +7,10 @@ The public functions phi, phi_q_values, phi_q, nu, gamma, applied, mass, reactio
 or (N,) give results with a trailing N. `instant` solves one instant (Newton,
 then the outputs) with scalar code and a sparse LU whose pivot order was
 fixed at generation time; `trajectory` runs a whole time grid with it.
-Parameters p (size NP), in this order: L_ground, L_crank, L_coupler, L_rocker, m_crank, m_coupler, m_rocker, cp_x, cp_y, n, omega, F_tool, T_load, k_spring, c_spring, L0_spring.
+Parameters p (size NP): the base parameters, the only inputs, in this order:
+L_ground, L_crank, L_coupler, L_rocker, m_crank, m_coupler, m_rocker, cp_x, cp_y, n, F_tool, T_load, k_spring, c_spring, L0_spring.
+Derived parameters are not in p: every function computes them from p by
+their definitions (omega = 2*pi*n).
 """
 
 import math
@@ -17,11 +20,11 @@ import numpy as np
 
 NG = 9
 NC = 9
-NP = 16
+NP = 15
 NR = 30
 NNZ = 25
-PARAMS = ("L_ground", "L_crank", "L_coupler", "L_rocker", "m_crank", "m_coupler", "m_rocker", "cp_x", "cp_y", "n", "omega", "F_tool", "T_load", "k_spring", "c_spring", "L0_spring", )
-DEFAULT_PARAMS = np.array([0.4, 0.1, 0.35, 0.3, 0.3, 0.8, 0.7, 0.05, 0.1, 2.0, 12.566370614359172, 50.0, 2.0, 500.0, 5.0, 0.3], dtype=float)
+PARAMS = ("L_ground", "L_crank", "L_coupler", "L_rocker", "m_crank", "m_coupler", "m_rocker", "cp_x", "cp_y", "n", "F_tool", "T_load", "k_spring", "c_spring", "L0_spring", )
+DEFAULT_PARAMS = np.array([0.4, 0.1, 0.35, 0.3, 0.3, 0.8, 0.7, 0.05, 0.1, 2.0, 50.0, 2.0, 500.0, 5.0, 0.3], dtype=float)
 PHI_Q_ROWS = np.array([0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 7, 7, 8], dtype=np.intp)
 PHI_Q_COLS = np.array([0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 8, 6, 8, 7, 8, 2], dtype=np.intp)
 OUTPUTS = ("q", "qdot", "qddot", "lambda", "reactions", )
@@ -78,7 +81,7 @@ def phi(q, t, p):
     out[5] = -e5 + e9 + (-e10 - q[4])
     out[6] = -e7 + (-e8 - p[0])
     out[7] = -e10 - e9
-    out[8] = -p[10]*t + q[2]
+    out[8] = q[2] - t*(2*numpy.pi*p[9])
     return _stack(out, q[0])
 
 
@@ -104,7 +107,7 @@ def _phi_s(q, t, p):
         -e5 + e9 + (-e10 - q[4]),
         -e7 + (-e8 - p[0]),
         -e10 - e9,
-        -p[10]*t + q[2],
+        q[2] - t*(2*math.pi*p[9]),
     ]
     return out
 
@@ -201,7 +204,7 @@ def nu(q, t, p):
     out[5] = 0
     out[6] = 0
     out[7] = 0
-    out[8] = p[10]
+    out[8] = (2*numpy.pi*p[9])
     return _stack(out, q[0])
 
 
@@ -216,7 +219,7 @@ def _nu_s(q, t, p):
         0,
         0,
         0,
-        p[10],
+        (2*math.pi*p[9]),
     ]
     return out
 
@@ -273,7 +276,7 @@ def _gamma_s(q, qd, t, p):
 def applied(q, qd, t, p):
     """Q^A, size NG."""
     out = [0.0] * 9
-    e0 = p[11]*((1/2)*numpy.sin(p[10]*t) + 1)
+    e0 = p[10]*((1/2)*numpy.sin(t*(2*numpy.pi*p[9])) + 1)
     e1 = numpy.cos(q[8])
     e2 = (1/20)*e1
     e3 = e2 + (q[6] - 3/4)
@@ -282,7 +285,7 @@ def applied(q, qd, t, p):
     e6 = numpy.sqrt(e3**2 + e5**2)
     e7 = e6**(-1.0)
     e8 = e3*e7
-    e9 = -p[13]*(e6 - p[15]) - p[14]*(e5*e7*(e2*qd[8] + qd[7]) + e8*(-e4*qd[8] + qd[6]))
+    e9 = -p[12]*(e6 - p[14]) - p[13]*(e5*e7*(e2*qd[8] + qd[7]) + e8*(-e4*qd[8] + qd[6]))
     e10 = e8*e9
     out[0] = 0
     out[1] = -981/100*p[4]
@@ -292,13 +295,13 @@ def applied(q, qd, t, p):
     out[5] = -e0*(p[7]*numpy.cos(q[5]) - p[8]*numpy.sin(q[5]))
     out[6] = e10
     out[7] = e5*e7*e9 - 981/100*p[6]
-    out[8] = (1/20)*e1*e5*e7*e9 - e10*e4 - p[12]
+    out[8] = (1/20)*e1*e5*e7*e9 - e10*e4 - p[11]
     return _stack(out, q[0])
 
 
 def _applied_s(q, qd, t, p):
     # one instant, floats in and out (a list display: faster than item stores)
-    e0 = p[11]*((1/2)*math.sin(p[10]*t) + 1)
+    e0 = p[10]*((1/2)*math.sin(t*(2*math.pi*p[9])) + 1)
     e1 = math.cos(q[8])
     e2 = (1/20)*e1
     e3 = e2 + (q[6] - 3/4)
@@ -307,7 +310,7 @@ def _applied_s(q, qd, t, p):
     e6 = math.sqrt(e3**2 + e5**2)
     e7 = 1/e6
     e8 = e3*e7
-    e9 = -p[13]*(e6 - p[15]) - p[14]*(e5*e7*(e2*qd[8] + qd[7]) + e8*(-e4*qd[8] + qd[6]))
+    e9 = -p[12]*(e6 - p[14]) - p[13]*(e5*e7*(e2*qd[8] + qd[7]) + e8*(-e4*qd[8] + qd[6]))
     e10 = e8*e9
     out = [
         0,
@@ -318,7 +321,7 @@ def _applied_s(q, qd, t, p):
         -e0*(p[7]*math.cos(q[5]) - p[8]*math.sin(q[5])),
         e10,
         e5*e7*e9 - 981/100*p[6],
-        (1/20)*e1*e5*e7*e9 - e10*e4 - p[12],
+        (1/20)*e1*e5*e7*e9 - e10*e4 - p[11],
     ]
     return out
 

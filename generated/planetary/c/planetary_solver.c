@@ -25,7 +25,7 @@
 #define PLANETARY_OFF_VEC (PLANETARY_OFF_DENSE + 144)
 #define PLANETARY_VEC(work, k) ((work) + PLANETARY_OFF_VEC + (k) * 51)
 
-const planetary_real planetary_default_params[11] = { 0.03, 0.03, 0.09, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 31.41592653589793, 5.0 };
+const planetary_real planetary_default_params[9] = { 0.03, 0.03, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 5.0 };
 const int planetary_phi_q_rows[20] = { 0, 1, 2, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 8, 9, 10, 10, 11 };
 const int planetary_phi_q_cols[20] = { 0, 1, 3, 4, 3, 5, 6, 4, 5, 7, 2, 5, 8, 5, 8, 9, 10, 2, 11, 11 };
 /* Sines and cosines of the body angles, computed once per configuration. */
@@ -112,11 +112,11 @@ static void planetary_phi_k0(const planetary_real * q, const planetary_real * tr
     out[4] = -e0*tr[3] + (-q[3] + q[6]);
     out[5] = -e0*tr[2] + (-q[4] + q[7]);
     out[6] = e1 + p[0]*(e1 + q[2])/p[1] + q[8];
-    out[7] = -p[1]*(-q[5] + q[8])/p[2] - q[5];
-    out[8] = p[0] + p[3] + q[9];
+    out[7] = -p[1]*(-q[5] + q[8])/(p[0] + 2*p[1]) - q[5];
+    out[8] = p[0] + p[2] + q[9];
     out[9] = q[10];
-    out[10] = q[2] + p[3]*q[11]/p[0];
-    out[11] = -p[9]*t + q[11];
+    out[10] = q[2] + p[2]*q[11]/p[0];
+    out[11] = q[11] - t*(2*3.141592653589793*p[7]);
 }
 
 static void planetary_phi_k(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -137,7 +137,7 @@ static void planetary_phi_q_k0(const planetary_real * q, const planetary_real * 
     (void)t;
     const planetary_real e0 = p[0] + p[1];
     const planetary_real e1 = p[0]/p[1];
-    const planetary_real e2 = p[1]/p[2];
+    const planetary_real e2 = p[1]/(p[0] + 2*p[1]);
     out[0] = 1;
     out[1] = 1;
     out[2] = 1;
@@ -156,7 +156,7 @@ static void planetary_phi_q_k0(const planetary_real * q, const planetary_real * 
     out[15] = 1;
     out[16] = 1;
     out[17] = 1;
-    out[18] = p[3]/p[0];
+    out[18] = p[2]/p[0];
     out[19] = 1;
 }
 
@@ -188,7 +188,7 @@ static void planetary_nu_k0(const planetary_real * q, const planetary_real * tr,
     out[8] = 0;
     out[9] = 0;
     out[10] = 0;
-    out[11] = p[9];
+    out[11] = (2*3.141592653589793*p[7]);
 }
 
 static void planetary_nu_k(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -241,16 +241,16 @@ static void planetary_applied_k0(const planetary_real * q, const planetary_real 
     (void)qd;
     (void)t;
     out[0] = 0;
-    out[1] = -981.0/100.0*p[4];
+    out[1] = -981.0/100.0*p[3];
     out[2] = 0;
     out[3] = 0;
-    out[4] = -981.0/100.0*p[7];
-    out[5] = p[10];
+    out[4] = -981.0/100.0*p[6];
+    out[5] = p[8];
     out[6] = 0;
-    out[7] = -981.0/100.0*p[5];
+    out[7] = -981.0/100.0*p[4];
     out[8] = 0;
     out[9] = 0;
-    out[10] = -981.0/100.0*p[6];
+    out[10] = -981.0/100.0*p[5];
     out[11] = 0;
 }
 
@@ -268,18 +268,18 @@ void planetary_applied(const planetary_real * q, const planetary_real * qd, plan
 
 static void planetary_mass_k0(const planetary_real * p, planetary_real *out)
 {
-    out[0] = p[4];
-    out[1] = p[4];
-    out[2] = (1.0/2.0)*pow(p[0], 2)*p[4];
-    out[3] = p[7];
-    out[4] = p[7];
-    out[5] = (1.0/2.0)*p[7]*pow(p[0] + p[1], 2);
-    out[6] = p[5];
-    out[7] = p[5];
-    out[8] = (1.0/2.0)*pow(p[1], 2)*p[5];
-    out[9] = p[6];
-    out[10] = p[6];
-    out[11] = (1.0/2.0)*pow(p[3], 2)*p[6];
+    out[0] = p[3];
+    out[1] = p[3];
+    out[2] = (1.0/2.0)*pow(p[0], 2)*p[3];
+    out[3] = p[6];
+    out[4] = p[6];
+    out[5] = (1.0/2.0)*p[6]*pow(p[0] + p[1], 2);
+    out[6] = p[4];
+    out[7] = p[4];
+    out[8] = (1.0/2.0)*pow(p[1], 2)*p[4];
+    out[9] = p[5];
+    out[10] = p[5];
+    out[11] = (1.0/2.0)*pow(p[2], 2)*p[5];
 }
 
 static void planetary_mass_k(const planetary_real * p, planetary_real *out)
@@ -298,7 +298,7 @@ static void planetary_reactions_k0(const planetary_real * q, const planetary_rea
     (void)tr;
     (void)t;
     const planetary_real e0 = lam[6]*p[0]/p[1];
-    const planetary_real e1 = lam[7]*p[1]/p[2];
+    const planetary_real e1 = lam[7]*p[1]/(p[0] + 2*p[1]);
     const planetary_real e2 = -lam[7];
     out[0] = lam[0];
     out[1] = lam[1];
@@ -344,7 +344,7 @@ static void planetary_reactions_k0(const planetary_real * q, const planetary_rea
     out[41] = 0;
     out[42] = 0;
     out[43] = 0;
-    out[44] = -lam[10]*p[3]/p[0];
+    out[44] = -lam[10]*p[2]/p[0];
     out[45] = 0;
     out[46] = 0;
     out[47] = -lam[10];
@@ -846,5 +846,203 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
         row[0] = t;
     }
     *solved = n;
+    return PLANETARY_OK;
+}
+
+/* ---- The sweep: K variants, their figures accumulated as instants are solved ---- */
+
+/* The initial guess q0 of a variant (the file's q0, from its parameters). */
+static void planetary_guess(const planetary_real *p, planetary_real *out)
+{
+    (void)p;
+    out[0] = 0;
+    out[1] = 0;
+    out[2] = 0;
+    out[3] = 0;
+    out[4] = 0;
+    out[5] = 0;
+    out[6] = p[0] + p[1];
+    out[7] = 0;
+    out[8] = 0;
+    out[9] = -p[0] - p[2];
+    out[10] = 0;
+    out[11] = 0;
+}
+
+/* Each driver's f(t) and f'(t), in file order. */
+static void planetary_drive(planetary_real t, const planetary_real *p, planetary_real *out)
+{
+    (void)t;
+    (void)p;
+    const planetary_real d0 = (2*3.141592653589793*p[7]);
+    out[0] = d0*t;
+    out[1] = d0;
+}
+
+/* 1 / the column scales of the jump check at the assembled q(t0), as
+   symid.numeric.stability.Scaling.of: x and y in units of the median moment
+   arm of the rows that mix lengths and angles (else the largest |x|, |y|,
+   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+static void planetary_sweep_scales(const planetary_real *q, planetary_real t0, const planetary_real *p, planetary_real *vals,
+                                 planetary_real *arms, planetary_real *inv)
+{
+    planetary_real lin[12], rot[12], lref = 0.0, a;
+    int k, r, m = 0, i;
+    planetary_phi_q(q, t0, p, vals);
+    for (r = 0; r < 12; ++r) lin[r] = rot[r] = 0.0;
+    for (k = 0; k < 20; ++k) {
+        a = fabs(vals[k]);
+        r = planetary_phi_q_rows[k];
+        if (planetary_phi_q_cols[k] % 3 == 2) rot[r] = PLANETARY_MAX(rot[r], a);
+        else lin[r] = PLANETARY_MAX(lin[r], a);
+    }
+    for (r = 0; r < 12; ++r) {
+        if (lin[r] > 0.0 && rot[r] > 0.0) {
+            /* insertion sort: NC is small and this runs once per variant */
+            a = rot[r] / lin[r];
+            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            arms[i] = a;
+            ++m;
+        }
+    }
+    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (!(lref > 0.0)) {
+        lref = 0.0;
+        for (k = 0; k < 12; ++k)
+            if (k % 3 != 2) lref = PLANETARY_MAX(lref, fabs(q[k]));
+    }
+    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
+    for (k = 0; k < 12; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+}
+
+/* Take one solved row's figures; count: the variant's instants taken before.
+   A force_peak is kept squared until the end (one sqrt, not one per instant).
+   acc: per driver the last effort, the trapezoid sum of squares and the
+   plain sum of squares, then the first and the last time. */
+static void planetary_sweep_take(const planetary_real *row, const planetary_real *p, planetary_real *fig, planetary_real *acc,
+                               planetary_real *drive, long count)
+{
+    const planetary_real t = row[0];
+    planetary_real e, rate, w;
+    planetary_real m;
+    (void)p;
+    (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
+    (void)drive;
+    planetary_drive(t, p, drive);
+    /* input_motor */
+    e = -row[48];
+    rate = drive[1];
+    w = fabs(e * rate);
+    if (count == 0 || fabs(e) > fig[0]) {
+        fig[0] = fabs(e);
+        fig[1] = t;
+    }
+    if (count == 0 || w > fig[3]) fig[3] = w;
+    if (count == 0) acc[1] = acc[2] = 0.0;
+    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    acc[2] += e * e;
+    acc[0] = e;
+    /* sun_bearing.force_peak */
+    m = row[49] * row[49] + row[50] * row[50];
+    if (count == 0 || m > fig[4]) fig[4] = m;
+    m = row[52] * row[52] + row[53] * row[53];
+    if (m > fig[4]) fig[4] = m;
+    /* carrier_bearing.force_peak */
+    m = row[55] * row[55] + row[56] * row[56];
+    if (count == 0 || m > fig[5]) fig[5] = m;
+    m = row[58] * row[58] + row[59] * row[59];
+    if (m > fig[5]) fig[5] = m;
+    /* planet_bearing.force_peak */
+    m = row[61] * row[61] + row[62] * row[62];
+    if (count == 0 || m > fig[6]) fig[6] = m;
+    m = row[64] * row[64] + row[65] * row[65];
+    if (m > fig[6]) fig[6] = m;
+    /* sun_planet_mesh.force_peak */
+    m = row[67] * row[67] + row[68] * row[68];
+    if (count == 0 || m > fig[7]) fig[7] = m;
+    m = row[70] * row[70] + row[71] * row[71];
+    if (m > fig[7]) fig[7] = m;
+    m = row[73] * row[73] + row[74] * row[74];
+    if (m > fig[7]) fig[7] = m;
+    /* planet_ring_mesh.force_peak */
+    m = row[76] * row[76] + row[77] * row[77];
+    if (count == 0 || m > fig[8]) fig[8] = m;
+    m = row[79] * row[79] + row[80] * row[80];
+    if (m > fig[8]) fig[8] = m;
+    m = row[82] * row[82] + row[83] * row[83];
+    if (m > fig[8]) fig[8] = m;
+    /* pinion_bearing.force_peak */
+    m = row[85] * row[85] + row[86] * row[86];
+    if (count == 0 || m > fig[9]) fig[9] = m;
+    m = row[88] * row[88] + row[89] * row[89];
+    if (m > fig[9]) fig[9] = m;
+    /* pinion_sun_mesh.force_peak */
+    m = row[91] * row[91] + row[92] * row[92];
+    if (count == 0 || m > fig[10]) fig[10] = m;
+    m = row[94] * row[94] + row[95] * row[95];
+    if (m > fig[10]) fig[10] = m;
+    /* input_motor.force_peak */
+    m = row[97] * row[97] + row[98] * row[98];
+    if (count == 0 || m > fig[11]) fig[11] = m;
+    if (count == 0) acc[3] = t;
+    acc[4] = t;
+}
+
+/* The figures of a variant after its `count` instants (NaN if none). */
+static void planetary_sweep_finish(planetary_real *fig, const planetary_real *acc, long count)
+{
+    int k;
+    const planetary_real span = acc[4] - acc[3];
+    (void)acc;  /* no drivers: no time average */
+    if (count == 0) {
+        for (k = 0; k < 12; ++k) fig[k] = NAN;
+        return;
+    }
+    (void)k;
+    fig[4] = sqrt(fig[4]);
+    fig[5] = sqrt(fig[5]);
+    fig[6] = sqrt(fig[6]);
+    fig[7] = sqrt(fig[7]);
+    fig[8] = sqrt(fig[8]);
+    fig[9] = sqrt(fig[9]);
+    fig[10] = sqrt(fig[10]);
+    fig[11] = sqrt(fig[11]);
+    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+                                     : sqrt(acc[2] / (planetary_real)count);
+}
+
+int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetary_real h, long n, planetary_real tol,
+                  planetary_real *figures, int *status, planetary_real *t_end, long *solved, planetary_real *work, int *iwork)
+{
+    planetary_real *state = work + PLANETARY_WORK, *rows = state + PLANETARY_STATE;
+    planetary_real *vals = rows + 32 * PLANETARY_ROW, *arms = vals + 20, *drive = arms + 12;
+    planetary_real *acc = drive + 2;
+    long v, done, got, m;
+    int st;
+    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
+        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || tol <= 0.0)
+        return PLANETARY_BAD_ARGUMENT;
+    for (v = 0; v < k; ++v) {
+        const planetary_real *pv = p + v * PLANETARY_NP;
+        planetary_real *fig = figures + v * PLANETARY_SWEEP_FIGURES;
+        memset(state, 0, sizeof(planetary_real) * PLANETARY_STATE);
+        planetary_guess(pv, state);
+        done = 0;
+        st = PLANETARY_OK;
+        while (done < n && st == PLANETARY_OK) {
+            /* t0 alone first: its assembled q fixes the scales of the jump check */
+            m = done == 0 ? 1 : PLANETARY_MIN(32, n - done);
+            got = 0;
+            st = planetary_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
+            for (m = 0; m < got; ++m) planetary_sweep_take(rows + m * PLANETARY_ROW, pv, fig, acc, drive, done + m);
+            if (done == 0 && got == 1) planetary_sweep_scales(state, t0, pv, vals, arms, state + 72);
+            done += got;
+        }
+        planetary_sweep_finish(fig, acc, done);
+        status[v] = st;
+        solved[v] = done;
+        t_end[v] = done > 0 ? acc[4] : NAN;
+    }
     return PLANETARY_OK;
 }

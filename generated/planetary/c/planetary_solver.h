@@ -14,7 +14,7 @@ typedef double planetary_real;
 /* Sizes. */
 #define PLANETARY_NG 12            /* generalized coordinates q = [x, y, phi] per body */
 #define PLANETARY_NC 12            /* constraint rows */
-#define PLANETARY_NP 11            /* parameters p */
+#define PLANETARY_NP 9            /* parameters p */
 #define PLANETARY_NNZ 20          /* structural nonzeros of Phi_q */
 #define PLANETARY_NR 51            /* reaction values (Fx, Fy, T per body role) */
 #define PLANETARY_ROW 100          /* values per instant in a trajectory row */
@@ -41,8 +41,14 @@ typedef double planetary_real;
 #define PLANETARY_HAS_LAMBDA 1
 #define PLANETARY_HAS_REACTIONS 1
 
-/* Parameters, in this order: r_sun, r_planet, r_ring, r_pinion, m_sun, m_planet, m_pinion, m_carrier, n_in, omega, T_load. */
-extern const planetary_real planetary_default_params[11];
+/* Parameters p (size NP): the base parameters, the only inputs, in this
+   order: r_sun, r_planet, r_pinion, m_sun, m_planet, m_pinion, m_carrier, n_in, T_load.
+   Derived parameters are not in p: every function computes them from p by
+   their definitions, so changing a base parameter changes them too:
+     r_ring = 2*r_planet + r_sun
+     omega = 2*pi*n_in
+*/
+extern const planetary_real planetary_default_params[9];
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int planetary_phi_q_rows[20];
 extern const int planetary_phi_q_cols[20];
@@ -78,6 +84,39 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
    *solved = rows written (solved may be NULL). */
 int planetary_trajectory(planetary_real t0, planetary_real h, long n, const planetary_real *p, planetary_real tol, planetary_real *state,
                        planetary_real *rows, long *solved, planetary_real *work, int *iwork);
+
+/* A design study: K parameter vectors through the trajectory loop, keeping
+   per variant only its figures, accumulated as the instants are solved
+   (contract v1.1, `symid sweep`). */
+#define PLANETARY_SWEEP_FIGURES 12   /* figures per variant, in this order:
+                                         input_motor.effort_peak
+                                         input_motor.effort_t_peak
+                                         input_motor.effort_rms
+                                         input_motor.power_peak
+                                         sun_bearing.force_peak
+                                         carrier_bearing.force_peak
+                                         planet_bearing.force_peak
+                                         sun_planet_mesh.force_peak
+                                         planet_ring_mesh.force_peak
+                                         pinion_bearing.force_peak
+                                         pinion_sun_mesh.force_peak
+                                         input_motor.force_peak
+   (per driver: largest |effort| (torque or force), its time, RMS effort
+   (trapezoidal time average) and largest |effort x rate|; per constraint
+   with reactions: the largest |(Fx, Fy)| on any of its bodies) */
+#define PLANETARY_SWEEP_WORK (PLANETARY_WORK + PLANETARY_STATE + 32 * PLANETARY_ROW + 39)  /* reals of workspace of a sweep */
+
+/* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
+   from them (the file's initial guesses), and solves the n instants
+   t0 + j h as planetary_trajectory does, the jump check scaled as symid scales
+   it at t0. It stops at its first instant that is not OK: status[v] is that
+   status (PLANETARY_UNEXPLAINED included: symid then decides that instant in
+   sub-steps), solved[v] the instants solved, t_end[v] the last one's time
+   (NaN if none); figures + v SWEEP_FIGURES holds the figures of those
+   instants (NaN if none). work: SWEEP_WORK reals, iwork: IWORK ints, both
+   per calling thread. Returns BAD_ARGUMENT (nothing solved) or OK. */
+int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetary_real h, long n, planetary_real tol,
+                  planetary_real *figures, int *status, planetary_real *t_end, long *solved, planetary_real *work, int *iwork);
 
 #ifdef __cplusplus
 }

@@ -7,7 +7,10 @@ The public functions phi, phi_q_values, phi_q, nu, gamma, applied, mass, reactio
 or (N,) give results with a trailing N. `instant` solves one instant (Newton,
 then the outputs) with scalar code and a sparse LU whose pivot order was
 fixed at generation time; `trajectory` runs a whole time grid with it.
-Parameters p (size NP), in this order: r_sun, r_planet, r_ring, r_pinion, m_sun, m_planet, m_pinion, m_carrier, n_in, omega, T_load.
+Parameters p (size NP): the base parameters, the only inputs, in this order:
+r_sun, r_planet, r_pinion, m_sun, m_planet, m_pinion, m_carrier, n_in, T_load.
+Derived parameters are not in p: every function computes them from p by
+their definitions (r_ring = 2*r_planet + r_sun; omega = 2*pi*n_in).
 """
 
 import math
@@ -17,11 +20,11 @@ import numpy as np
 
 NG = 12
 NC = 12
-NP = 11
+NP = 9
 NR = 51
 NNZ = 20
-PARAMS = ("r_sun", "r_planet", "r_ring", "r_pinion", "m_sun", "m_planet", "m_pinion", "m_carrier", "n_in", "omega", "T_load", )
-DEFAULT_PARAMS = np.array([0.03, 0.03, 0.09, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 31.41592653589793, 5.0], dtype=float)
+PARAMS = ("r_sun", "r_planet", "r_pinion", "m_sun", "m_planet", "m_pinion", "m_carrier", "n_in", "T_load", )
+DEFAULT_PARAMS = np.array([0.03, 0.03, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 5.0], dtype=float)
 PHI_Q_ROWS = np.array([0, 1, 2, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 8, 9, 10, 10, 11], dtype=np.intp)
 PHI_Q_COLS = np.array([0, 1, 3, 4, 3, 5, 6, 4, 5, 7, 2, 5, 8, 5, 8, 9, 10, 2, 11, 11], dtype=np.intp)
 OUTPUTS = ("q", "qdot", "qddot", "lambda", "reactions", )
@@ -68,11 +71,11 @@ def phi(q, t, p):
     out[4] = -e0*numpy.cos(q[5]) + (-q[3] + q[6])
     out[5] = -e0*numpy.sin(q[5]) + (-q[4] + q[7])
     out[6] = e1 + p[0]*(e1 + q[2])/p[1] + q[8]
-    out[7] = -p[1]*(-q[5] + q[8])/p[2] - q[5]
-    out[8] = p[0] + p[3] + q[9]
+    out[7] = -p[1]*(-q[5] + q[8])/(p[0] + 2*p[1]) - q[5]
+    out[8] = p[0] + p[2] + q[9]
     out[9] = q[10]
-    out[10] = q[2] + p[3]*q[11]/p[0]
-    out[11] = -p[9]*t + q[11]
+    out[10] = q[2] + p[2]*q[11]/p[0]
+    out[11] = q[11] - t*(2*numpy.pi*p[7])
     return _stack(out, q[0])
 
 
@@ -88,11 +91,11 @@ def _phi_s(q, t, p):
         -e0*math.cos(q[5]) + (-q[3] + q[6]),
         -e0*math.sin(q[5]) + (-q[4] + q[7]),
         e1 + p[0]*(e1 + q[2])/p[1] + q[8],
-        -p[1]*(-q[5] + q[8])/p[2] - q[5],
-        p[0] + p[3] + q[9],
+        -p[1]*(-q[5] + q[8])/(p[0] + 2*p[1]) - q[5],
+        p[0] + p[2] + q[9],
         q[10],
-        q[2] + p[3]*q[11]/p[0],
-        -p[9]*t + q[11],
+        q[2] + p[2]*q[11]/p[0],
+        q[11] - t*(2*math.pi*p[7]),
     ]
     return out
 
@@ -102,7 +105,7 @@ def phi_q_values(q, t, p):
     out = [0.0] * 20
     e0 = p[0] + p[1]
     e1 = p[0]/p[1]
-    e2 = p[1]/p[2]
+    e2 = p[1]/(p[0] + 2*p[1])
     out[0] = 1
     out[1] = 1
     out[2] = 1
@@ -121,7 +124,7 @@ def phi_q_values(q, t, p):
     out[15] = 1
     out[16] = 1
     out[17] = 1
-    out[18] = p[3]/p[0]
+    out[18] = p[2]/p[0]
     out[19] = 1
     return _stack(out, q[0])
 
@@ -130,7 +133,7 @@ def _phi_q_values_s(q, t, p):
     # one instant, floats in and out (a list display: faster than item stores)
     e0 = p[0] + p[1]
     e1 = p[0]/p[1]
-    e2 = p[1]/p[2]
+    e2 = p[1]/(p[0] + 2*p[1])
     out = [
         1,
         1,
@@ -150,7 +153,7 @@ def _phi_q_values_s(q, t, p):
         1,
         1,
         1,
-        p[3]/p[0],
+        p[2]/p[0],
         1,
     ]
     return out
@@ -170,7 +173,7 @@ def nu(q, t, p):
     out[8] = 0
     out[9] = 0
     out[10] = 0
-    out[11] = p[9]
+    out[11] = (2*numpy.pi*p[7])
     return _stack(out, q[0])
 
 
@@ -188,7 +191,7 @@ def _nu_s(q, t, p):
         0,
         0,
         0,
-        p[9],
+        (2*math.pi*p[7]),
     ]
     return out
 
@@ -236,16 +239,16 @@ def applied(q, qd, t, p):
     """Q^A, size NG."""
     out = [0.0] * 12
     out[0] = 0
-    out[1] = -981/100*p[4]
+    out[1] = -981/100*p[3]
     out[2] = 0
     out[3] = 0
-    out[4] = -981/100*p[7]
-    out[5] = p[10]
+    out[4] = -981/100*p[6]
+    out[5] = p[8]
     out[6] = 0
-    out[7] = -981/100*p[5]
+    out[7] = -981/100*p[4]
     out[8] = 0
     out[9] = 0
-    out[10] = -981/100*p[6]
+    out[10] = -981/100*p[5]
     out[11] = 0
     return _stack(out, q[0])
 
@@ -254,16 +257,16 @@ def _applied_s(q, qd, t, p):
     # one instant, floats in and out (a list display: faster than item stores)
     out = [
         0,
-        -981/100*p[4],
-        0,
-        0,
-        -981/100*p[7],
-        p[10],
-        0,
-        -981/100*p[5],
+        -981/100*p[3],
         0,
         0,
         -981/100*p[6],
+        p[8],
+        0,
+        -981/100*p[4],
+        0,
+        0,
+        -981/100*p[5],
         0,
     ]
     return out
@@ -272,36 +275,36 @@ def _applied_s(q, qd, t, p):
 def mass(p):
     """The diagonal of M, size NG."""
     out = [0.0] * 12
-    out[0] = p[4]
-    out[1] = p[4]
-    out[2] = (1/2)*p[0]**2*p[4]
-    out[3] = p[7]
-    out[4] = p[7]
-    out[5] = (1/2)*p[7]*(p[0] + p[1])**2
-    out[6] = p[5]
-    out[7] = p[5]
-    out[8] = (1/2)*p[1]**2*p[5]
-    out[9] = p[6]
-    out[10] = p[6]
-    out[11] = (1/2)*p[3]**2*p[6]
+    out[0] = p[3]
+    out[1] = p[3]
+    out[2] = (1/2)*p[0]**2*p[3]
+    out[3] = p[6]
+    out[4] = p[6]
+    out[5] = (1/2)*p[6]*(p[0] + p[1])**2
+    out[6] = p[4]
+    out[7] = p[4]
+    out[8] = (1/2)*p[1]**2*p[4]
+    out[9] = p[5]
+    out[10] = p[5]
+    out[11] = (1/2)*p[2]**2*p[5]
     return _stack(out, 0.0)
 
 
 def _mass_s(p):
     # one instant, floats in and out (a list display: faster than item stores)
     out = [
-        p[4],
-        p[4],
-        (1/2)*p[0]**2*p[4],
-        p[7],
-        p[7],
-        (1/2)*p[7]*(p[0] + p[1])**2,
-        p[5],
-        p[5],
-        (1/2)*p[1]**2*p[5],
+        p[3],
+        p[3],
+        (1/2)*p[0]**2*p[3],
         p[6],
         p[6],
-        (1/2)*p[3]**2*p[6],
+        (1/2)*p[6]*(p[0] + p[1])**2,
+        p[4],
+        p[4],
+        (1/2)*p[1]**2*p[4],
+        p[5],
+        p[5],
+        (1/2)*p[2]**2*p[5],
     ]
     return out
 
@@ -310,7 +313,7 @@ def reactions(q, lam, t, p):
     """Fx, Fy, T per body role of each requested constraint, size NR."""
     out = [0.0] * 51
     e0 = lam[6]*p[0]/p[1]
-    e1 = lam[7]*p[1]/p[2]
+    e1 = lam[7]*p[1]/(p[0] + 2*p[1])
     e2 = -lam[7]
     out[0] = lam[0]
     out[1] = lam[1]
@@ -356,7 +359,7 @@ def reactions(q, lam, t, p):
     out[41] = 0
     out[42] = 0
     out[43] = 0
-    out[44] = -lam[10]*p[3]/p[0]
+    out[44] = -lam[10]*p[2]/p[0]
     out[45] = 0
     out[46] = 0
     out[47] = -lam[10]
@@ -369,7 +372,7 @@ def reactions(q, lam, t, p):
 def _reactions_s(q, lam, t, p):
     # one instant, floats in and out (a list display: faster than item stores)
     e0 = lam[6]*p[0]/p[1]
-    e1 = lam[7]*p[1]/p[2]
+    e1 = lam[7]*p[1]/(p[0] + 2*p[1])
     e2 = -lam[7]
     out = [
         lam[0],
@@ -416,7 +419,7 @@ def _reactions_s(q, lam, t, p):
         0,
         0,
         0,
-        -lam[10]*p[3]/p[0],
+        -lam[10]*p[2]/p[0],
         0,
         0,
         -lam[10],
@@ -462,7 +465,7 @@ def _lu(q, t, p):
     # Phi_q's values straight into the factor's slots (as _phi_q_values_s)
     e0 = p[0] + p[1]
     e1 = p[0]/p[1]
-    e2 = p[1]/p[2]
+    e2 = p[1]/(p[0] + 2*p[1])
     a0 = 1
     a1 = 1
     a2 = 1
@@ -481,7 +484,7 @@ def _lu(q, t, p):
     a15 = 1
     a16 = 1
     a17 = 1
-    a18 = p[3]/p[0]
+    a18 = p[2]/p[0]
     a19 = 1
     if not abs(a0) > 0.0:
         return None

@@ -25,7 +25,7 @@
 #define QUICK_RETURN_OFF_VEC (QUICK_RETURN_OFF_DENSE + 81)
 #define QUICK_RETURN_VEC(work, k) ((work) + QUICK_RETURN_OFF_VEC + (k) * 36)
 
-const quick_return_real quick_return_default_params[14] = { 0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 6.283185307179586, 500.0 };
+const quick_return_real quick_return_default_params[13] = { 0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 500.0 };
 const int quick_return_phi_q_rows[20] = { 0, 1, 2, 2, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 6, 7, 8 };
 const int quick_return_phi_q_cols[20] = { 0, 1, 3, 5, 4, 5, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */
@@ -114,7 +114,7 @@ static void quick_return_phi_k0(const quick_return_real * q, const quick_return_
     out[5] = -pow(p[3], 2) + pow(-e2 + (-q[3] + q[6]), 2) + pow(-e3 + (-e4 - q[4]), 2);
     out[6] = -e4 - p[4];
     out[7] = q[8];
-    out[8] = -p[12]*t + q[2];
+    out[8] = q[2] - t*(2*3.141592653589793*p[11]);
 }
 
 static void quick_return_phi_k(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -187,7 +187,7 @@ static void quick_return_nu_k0(const quick_return_real * q, const quick_return_r
     out[5] = 0;
     out[6] = 0;
     out[7] = 0;
-    out[8] = p[12];
+    out[8] = (2*3.141592653589793*p[11]);
 }
 
 static void quick_return_nu_k(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -253,7 +253,7 @@ static void quick_return_applied_k0(const quick_return_real * q, const quick_ret
     out[3] = 0;
     out[4] = -981.0/100.0*p[7];
     out[5] = 0;
-    out[6] = (1.0/2.0)*p[13]*(sin(p[12]*t) + 1);
+    out[6] = (1.0/2.0)*p[12]*(sin(t*(2*3.141592653589793*p[11])) + 1);
     out[7] = -981.0/100.0*p[8];
     out[8] = 0;
 }
@@ -828,5 +828,189 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
         row[0] = t;
     }
     *solved = n;
+    return QUICK_RETURN_OK;
+}
+
+/* ---- The sweep: K variants, their figures accumulated as instants are solved ---- */
+
+/* The initial guess q0 of a variant (the file's q0, from its parameters). */
+static void quick_return_guess(const quick_return_real *p, quick_return_real *out)
+{
+    (void)p;
+    const quick_return_real g0 = p[2]/sqrt(pow(p[0], 2) + pow(p[1], 2));
+    const quick_return_real g1 = g0*p[0];
+    const quick_return_real g2 = g0*p[1];
+    out[0] = 0;
+    out[1] = 0;
+    out[2] = 0;
+    out[3] = (1.0/2.0)*g1;
+    out[4] = (1.0/2.0)*g2 - p[1];
+    out[5] = atan2(p[1], p[0]);
+    out[6] = g1 + sqrt(pow(p[3], 2) - pow(-g2 + p[1] + p[4], 2));
+    out[7] = p[4];
+    out[8] = 0;
+}
+
+/* Each driver's f(t) and f'(t), in file order. */
+static void quick_return_drive(quick_return_real t, const quick_return_real *p, quick_return_real *out)
+{
+    (void)t;
+    (void)p;
+    const quick_return_real d0 = (2*3.141592653589793*p[11]);
+    out[0] = d0*t;
+    out[1] = d0;
+}
+
+/* 1 / the column scales of the jump check at the assembled q(t0), as
+   symid.numeric.stability.Scaling.of: x and y in units of the median moment
+   arm of the rows that mix lengths and angles (else the largest |x|, |y|,
+   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+static void quick_return_sweep_scales(const quick_return_real *q, quick_return_real t0, const quick_return_real *p, quick_return_real *vals,
+                                 quick_return_real *arms, quick_return_real *inv)
+{
+    quick_return_real lin[9], rot[9], lref = 0.0, a;
+    int k, r, m = 0, i;
+    quick_return_phi_q(q, t0, p, vals);
+    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (k = 0; k < 20; ++k) {
+        a = fabs(vals[k]);
+        r = quick_return_phi_q_rows[k];
+        if (quick_return_phi_q_cols[k] % 3 == 2) rot[r] = QUICK_RETURN_MAX(rot[r], a);
+        else lin[r] = QUICK_RETURN_MAX(lin[r], a);
+    }
+    for (r = 0; r < 9; ++r) {
+        if (lin[r] > 0.0 && rot[r] > 0.0) {
+            /* insertion sort: NC is small and this runs once per variant */
+            a = rot[r] / lin[r];
+            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            arms[i] = a;
+            ++m;
+        }
+    }
+    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (!(lref > 0.0)) {
+        lref = 0.0;
+        for (k = 0; k < 9; ++k)
+            if (k % 3 != 2) lref = QUICK_RETURN_MAX(lref, fabs(q[k]));
+    }
+    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
+    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+}
+
+/* Take one solved row's figures; count: the variant's instants taken before.
+   A force_peak is kept squared until the end (one sqrt, not one per instant).
+   acc: per driver the last effort, the trapezoid sum of squares and the
+   plain sum of squares, then the first and the last time. */
+static void quick_return_sweep_take(const quick_return_real *row, const quick_return_real *p, quick_return_real *fig, quick_return_real *acc,
+                               quick_return_real *drive, long count)
+{
+    const quick_return_real t = row[0];
+    quick_return_real e, rate, w;
+    quick_return_real m;
+    (void)p;
+    (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
+    (void)drive;
+    quick_return_drive(t, p, drive);
+    /* crank_motor */
+    e = -row[36];
+    rate = drive[1];
+    w = fabs(e * rate);
+    if (count == 0 || fabs(e) > fig[0]) {
+        fig[0] = fabs(e);
+        fig[1] = t;
+    }
+    if (count == 0 || w > fig[3]) fig[3] = w;
+    if (count == 0) acc[1] = acc[2] = 0.0;
+    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    acc[2] += e * e;
+    acc[0] = e;
+    /* crank_bearing.force_peak */
+    m = row[37] * row[37] + row[38] * row[38];
+    if (count == 0 || m > fig[4]) fig[4] = m;
+    m = row[40] * row[40] + row[41] * row[41];
+    if (m > fig[4]) fig[4] = m;
+    /* lever_pivot.force_peak */
+    m = row[43] * row[43] + row[44] * row[44];
+    if (count == 0 || m > fig[5]) fig[5] = m;
+    m = row[46] * row[46] + row[47] * row[47];
+    if (m > fig[5]) fig[5] = m;
+    /* crank_pin_in_lever_slot.force_peak */
+    m = row[49] * row[49] + row[50] * row[50];
+    if (count == 0 || m > fig[6]) fig[6] = m;
+    m = row[52] * row[52] + row[53] * row[53];
+    if (m > fig[6]) fig[6] = m;
+    /* lever_ram_link.force_peak */
+    m = row[55] * row[55] + row[56] * row[56];
+    if (count == 0 || m > fig[7]) fig[7] = m;
+    m = row[58] * row[58] + row[59] * row[59];
+    if (m > fig[7]) fig[7] = m;
+    /* ram_guide.force_peak */
+    m = row[61] * row[61] + row[62] * row[62];
+    if (count == 0 || m > fig[8]) fig[8] = m;
+    m = row[64] * row[64] + row[65] * row[65];
+    if (m > fig[8]) fig[8] = m;
+    /* crank_motor.force_peak */
+    m = row[67] * row[67] + row[68] * row[68];
+    if (count == 0 || m > fig[9]) fig[9] = m;
+    m = row[70] * row[70] + row[71] * row[71];
+    if (m > fig[9]) fig[9] = m;
+    if (count == 0) acc[3] = t;
+    acc[4] = t;
+}
+
+/* The figures of a variant after its `count` instants (NaN if none). */
+static void quick_return_sweep_finish(quick_return_real *fig, const quick_return_real *acc, long count)
+{
+    int k;
+    const quick_return_real span = acc[4] - acc[3];
+    (void)acc;  /* no drivers: no time average */
+    if (count == 0) {
+        for (k = 0; k < 10; ++k) fig[k] = NAN;
+        return;
+    }
+    (void)k;
+    fig[4] = sqrt(fig[4]);
+    fig[5] = sqrt(fig[5]);
+    fig[6] = sqrt(fig[6]);
+    fig[7] = sqrt(fig[7]);
+    fig[8] = sqrt(fig[8]);
+    fig[9] = sqrt(fig[9]);
+    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+                                     : sqrt(acc[2] / (quick_return_real)count);
+}
+
+int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0, quick_return_real h, long n, quick_return_real tol,
+                  quick_return_real *figures, int *status, quick_return_real *t_end, long *solved, quick_return_real *work, int *iwork)
+{
+    quick_return_real *state = work + QUICK_RETURN_WORK, *rows = state + QUICK_RETURN_STATE;
+    quick_return_real *vals = rows + 32 * QUICK_RETURN_ROW, *arms = vals + 20, *drive = arms + 9;
+    quick_return_real *acc = drive + 2;
+    long v, done, got, m;
+    int st;
+    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
+        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || tol <= 0.0)
+        return QUICK_RETURN_BAD_ARGUMENT;
+    for (v = 0; v < k; ++v) {
+        const quick_return_real *pv = p + v * QUICK_RETURN_NP;
+        quick_return_real *fig = figures + v * QUICK_RETURN_SWEEP_FIGURES;
+        memset(state, 0, sizeof(quick_return_real) * QUICK_RETURN_STATE);
+        quick_return_guess(pv, state);
+        done = 0;
+        st = QUICK_RETURN_OK;
+        while (done < n && st == QUICK_RETURN_OK) {
+            /* t0 alone first: its assembled q fixes the scales of the jump check */
+            m = done == 0 ? 1 : QUICK_RETURN_MIN(32, n - done);
+            got = 0;
+            st = quick_return_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
+            for (m = 0; m < got; ++m) quick_return_sweep_take(rows + m * QUICK_RETURN_ROW, pv, fig, acc, drive, done + m);
+            if (done == 0 && got == 1) quick_return_sweep_scales(state, t0, pv, vals, arms, state + 54);
+            done += got;
+        }
+        quick_return_sweep_finish(fig, acc, done);
+        status[v] = st;
+        solved[v] = done;
+        t_end[v] = done > 0 ? acc[4] : NAN;
+    }
     return QUICK_RETURN_OK;
 }

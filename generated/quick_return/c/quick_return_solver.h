@@ -14,7 +14,7 @@ typedef double quick_return_real;
 /* Sizes. */
 #define QUICK_RETURN_NG 9            /* generalized coordinates q = [x, y, phi] per body */
 #define QUICK_RETURN_NC 9            /* constraint rows */
-#define QUICK_RETURN_NP 14            /* parameters p */
+#define QUICK_RETURN_NP 13            /* parameters p */
 #define QUICK_RETURN_NNZ 20          /* structural nonzeros of Phi_q */
 #define QUICK_RETURN_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define QUICK_RETURN_ROW 73          /* values per instant in a trajectory row */
@@ -41,8 +41,13 @@ typedef double quick_return_real;
 #define QUICK_RETURN_HAS_LAMBDA 1
 #define QUICK_RETURN_HAS_REACTIONS 1
 
-/* Parameters, in this order: r_crank, d_pivots, L_lever, L_link, h_ram, m_crank, R_crank, m_lever, m_ram, a_ram, b_ram, n, omega, F_cut. */
-extern const quick_return_real quick_return_default_params[14];
+/* Parameters p (size NP): the base parameters, the only inputs, in this
+   order: r_crank, d_pivots, L_lever, L_link, h_ram, m_crank, R_crank, m_lever, m_ram, a_ram, b_ram, n, F_cut.
+   Derived parameters are not in p: every function computes them from p by
+   their definitions, so changing a base parameter changes them too:
+     omega = 2*pi*n
+*/
+extern const quick_return_real quick_return_default_params[13];
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int quick_return_phi_q_rows[20];
 extern const int quick_return_phi_q_cols[20];
@@ -78,6 +83,37 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
    *solved = rows written (solved may be NULL). */
 int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, const quick_return_real *p, quick_return_real tol, quick_return_real *state,
                        quick_return_real *rows, long *solved, quick_return_real *work, int *iwork);
+
+/* A design study: K parameter vectors through the trajectory loop, keeping
+   per variant only its figures, accumulated as the instants are solved
+   (contract v1.1, `symid sweep`). */
+#define QUICK_RETURN_SWEEP_FIGURES 10   /* figures per variant, in this order:
+                                         crank_motor.effort_peak
+                                         crank_motor.effort_t_peak
+                                         crank_motor.effort_rms
+                                         crank_motor.power_peak
+                                         crank_bearing.force_peak
+                                         lever_pivot.force_peak
+                                         crank_pin_in_lever_slot.force_peak
+                                         lever_ram_link.force_peak
+                                         ram_guide.force_peak
+                                         crank_motor.force_peak
+   (per driver: largest |effort| (torque or force), its time, RMS effort
+   (trapezoidal time average) and largest |effort x rate|; per constraint
+   with reactions: the largest |(Fx, Fy)| on any of its bodies) */
+#define QUICK_RETURN_SWEEP_WORK (QUICK_RETURN_WORK + QUICK_RETURN_STATE + 32 * QUICK_RETURN_ROW + 36)  /* reals of workspace of a sweep */
+
+/* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
+   from them (the file's initial guesses), and solves the n instants
+   t0 + j h as quick_return_trajectory does, the jump check scaled as symid scales
+   it at t0. It stops at its first instant that is not OK: status[v] is that
+   status (QUICK_RETURN_UNEXPLAINED included: symid then decides that instant in
+   sub-steps), solved[v] the instants solved, t_end[v] the last one's time
+   (NaN if none); figures + v SWEEP_FIGURES holds the figures of those
+   instants (NaN if none). work: SWEEP_WORK reals, iwork: IWORK ints, both
+   per calling thread. Returns BAD_ARGUMENT (nothing solved) or OK. */
+int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0, quick_return_real h, long n, quick_return_real tol,
+                  quick_return_real *figures, int *status, quick_return_real *t_end, long *solved, quick_return_real *work, int *iwork);
 
 #ifdef __cplusplus
 }

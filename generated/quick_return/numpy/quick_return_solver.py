@@ -7,7 +7,10 @@ The public functions phi, phi_q_values, phi_q, nu, gamma, applied, mass, reactio
 or (N,) give results with a trailing N. `instant` solves one instant (Newton,
 then the outputs) with scalar code and a sparse LU whose pivot order was
 fixed at generation time; `trajectory` runs a whole time grid with it.
-Parameters p (size NP), in this order: r_crank, d_pivots, L_lever, L_link, h_ram, m_crank, R_crank, m_lever, m_ram, a_ram, b_ram, n, omega, F_cut.
+Parameters p (size NP): the base parameters, the only inputs, in this order:
+r_crank, d_pivots, L_lever, L_link, h_ram, m_crank, R_crank, m_lever, m_ram, a_ram, b_ram, n, F_cut.
+Derived parameters are not in p: every function computes them from p by
+their definitions (omega = 2*pi*n).
 """
 
 import math
@@ -17,11 +20,11 @@ import numpy as np
 
 NG = 9
 NC = 9
-NP = 14
+NP = 13
 NR = 36
 NNZ = 20
-PARAMS = ("r_crank", "d_pivots", "L_lever", "L_link", "h_ram", "m_crank", "R_crank", "m_lever", "m_ram", "a_ram", "b_ram", "n", "omega", "F_cut", )
-DEFAULT_PARAMS = np.array([0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 6.283185307179586, 500.0], dtype=float)
+PARAMS = ("r_crank", "d_pivots", "L_lever", "L_link", "h_ram", "m_crank", "R_crank", "m_lever", "m_ram", "a_ram", "b_ram", "n", "F_cut", )
+DEFAULT_PARAMS = np.array([0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 500.0], dtype=float)
 PHI_Q_ROWS = np.array([0, 1, 2, 2, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 6, 7, 8], dtype=np.intp)
 PHI_Q_COLS = np.array([0, 1, 3, 5, 4, 5, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 7, 8, 2], dtype=np.intp)
 OUTPUTS = ("q", "qdot", "qddot", "lambda", "reactions", )
@@ -74,7 +77,7 @@ def phi(q, t, p):
     out[5] = -p[3]**2 + (-e3 + (-q[3] + q[6]))**2 + (-e5 + (-e6 - q[4]))**2
     out[6] = -e6 - p[4]
     out[7] = q[8]
-    out[8] = -p[12]*t + q[2]
+    out[8] = q[2] - t*(2*numpy.pi*p[11])
     return _stack(out, q[0])
 
 
@@ -96,7 +99,7 @@ def _phi_s(q, t, p):
         -p[3]**2 + (-e3 + (-q[3] + q[6]))**2 + (-e5 + (-e6 - q[4]))**2,
         -e6 - p[4],
         q[8],
-        -p[12]*t + q[2],
+        q[2] - t*(2*math.pi*p[11]),
     ]
     return out
 
@@ -185,7 +188,7 @@ def nu(q, t, p):
     out[5] = 0
     out[6] = 0
     out[7] = 0
-    out[8] = p[12]
+    out[8] = (2*numpy.pi*p[11])
     return _stack(out, q[0])
 
 
@@ -200,7 +203,7 @@ def _nu_s(q, t, p):
         0,
         0,
         0,
-        p[12],
+        (2*math.pi*p[11]),
     ]
     return out
 
@@ -277,7 +280,7 @@ def applied(q, qd, t, p):
     out[3] = 0
     out[4] = -981/100*p[7]
     out[5] = 0
-    out[6] = (1/2)*p[13]*(numpy.sin(p[12]*t) + 1)
+    out[6] = (1/2)*p[12]*(numpy.sin(t*(2*numpy.pi*p[11])) + 1)
     out[7] = -981/100*p[8]
     out[8] = 0
     return _stack(out, q[0])
@@ -292,7 +295,7 @@ def _applied_s(q, qd, t, p):
         0,
         -981/100*p[7],
         0,
-        (1/2)*p[13]*(math.sin(p[12]*t) + 1),
+        (1/2)*p[12]*(math.sin(t*(2*math.pi*p[11])) + 1),
         -981/100*p[8],
         0,
     ]

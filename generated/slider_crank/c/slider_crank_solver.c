@@ -25,7 +25,7 @@
 #define SLIDER_CRANK_OFF_VEC (SLIDER_CRANK_OFF_DENSE + 81)
 #define SLIDER_CRANK_VEC(work, k) ((work) + SLIDER_CRANK_OFF_VEC + (k) * 30)
 
-const slider_crank_real slider_crank_default_params[10] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 5.0, 31.41592653589793, 100.0 };
+const slider_crank_real slider_crank_default_params[9] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 5.0, 100.0 };
 const int slider_crank_phi_q_rows[21] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 7, 8 };
 const int slider_crank_phi_q_cols[21] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 4, 5, 7, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */
@@ -115,7 +115,7 @@ static void slider_crank_phi_k0(const slider_crank_real * q, const slider_crank_
     out[5] = -e5 + (-q[4] + q[7]);
     out[6] = q[7];
     out[7] = q[8];
-    out[8] = -p[8]*t + q[2];
+    out[8] = q[2] - t*(2*3.141592653589793*p[7]);
 }
 
 static void slider_crank_phi_k(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -188,7 +188,7 @@ static void slider_crank_nu_k0(const slider_crank_real * q, const slider_crank_r
     out[5] = 0;
     out[6] = 0;
     out[7] = 0;
-    out[8] = p[8];
+    out[8] = (2*3.141592653589793*p[7]);
 }
 
 static void slider_crank_nu_k(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -247,7 +247,7 @@ static void slider_crank_applied_k0(const slider_crank_real * q, const slider_cr
     out[3] = 0;
     out[4] = -981.0/100.0*p[3];
     out[5] = 0;
-    out[6] = -p[9]*sin(p[8]*t);
+    out[6] = -p[8]*sin(t*(2*3.141592653589793*p[7]));
     out[7] = -981.0/100.0*p[4];
     out[8] = 0;
 }
@@ -794,5 +794,180 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
         row[0] = t;
     }
     *solved = n;
+    return SLIDER_CRANK_OK;
+}
+
+/* ---- The sweep: K variants, their figures accumulated as instants are solved ---- */
+
+/* The initial guess q0 of a variant (the file's q0, from its parameters). */
+static void slider_crank_guess(const slider_crank_real *p, slider_crank_real *out)
+{
+    (void)p;
+    out[0] = (1.0/2.0)*p[0];
+    out[1] = 0;
+    out[2] = 0;
+    out[3] = p[0] + (1.0/2.0)*p[1];
+    out[4] = 0;
+    out[5] = 0;
+    out[6] = p[0] + p[1];
+    out[7] = 0;
+    out[8] = 0;
+}
+
+/* Each driver's f(t) and f'(t), in file order. */
+static void slider_crank_drive(slider_crank_real t, const slider_crank_real *p, slider_crank_real *out)
+{
+    (void)t;
+    (void)p;
+    const slider_crank_real d0 = (2*3.141592653589793*p[7]);
+    out[0] = d0*t;
+    out[1] = d0;
+}
+
+/* 1 / the column scales of the jump check at the assembled q(t0), as
+   symid.numeric.stability.Scaling.of: x and y in units of the median moment
+   arm of the rows that mix lengths and angles (else the largest |x|, |y|,
+   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+static void slider_crank_sweep_scales(const slider_crank_real *q, slider_crank_real t0, const slider_crank_real *p, slider_crank_real *vals,
+                                 slider_crank_real *arms, slider_crank_real *inv)
+{
+    slider_crank_real lin[9], rot[9], lref = 0.0, a;
+    int k, r, m = 0, i;
+    slider_crank_phi_q(q, t0, p, vals);
+    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (k = 0; k < 21; ++k) {
+        a = fabs(vals[k]);
+        r = slider_crank_phi_q_rows[k];
+        if (slider_crank_phi_q_cols[k] % 3 == 2) rot[r] = SLIDER_CRANK_MAX(rot[r], a);
+        else lin[r] = SLIDER_CRANK_MAX(lin[r], a);
+    }
+    for (r = 0; r < 9; ++r) {
+        if (lin[r] > 0.0 && rot[r] > 0.0) {
+            /* insertion sort: NC is small and this runs once per variant */
+            a = rot[r] / lin[r];
+            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            arms[i] = a;
+            ++m;
+        }
+    }
+    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (!(lref > 0.0)) {
+        lref = 0.0;
+        for (k = 0; k < 9; ++k)
+            if (k % 3 != 2) lref = SLIDER_CRANK_MAX(lref, fabs(q[k]));
+    }
+    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
+    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+}
+
+/* Take one solved row's figures; count: the variant's instants taken before.
+   A force_peak is kept squared until the end (one sqrt, not one per instant).
+   acc: per driver the last effort, the trapezoid sum of squares and the
+   plain sum of squares, then the first and the last time. */
+static void slider_crank_sweep_take(const slider_crank_real *row, const slider_crank_real *p, slider_crank_real *fig, slider_crank_real *acc,
+                               slider_crank_real *drive, long count)
+{
+    const slider_crank_real t = row[0];
+    slider_crank_real e, rate, w;
+    slider_crank_real m;
+    (void)p;
+    (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
+    (void)drive;
+    slider_crank_drive(t, p, drive);
+    /* motor */
+    e = -row[36];
+    rate = drive[1];
+    w = fabs(e * rate);
+    if (count == 0 || fabs(e) > fig[0]) {
+        fig[0] = fabs(e);
+        fig[1] = t;
+    }
+    if (count == 0 || w > fig[3]) fig[3] = w;
+    if (count == 0) acc[1] = acc[2] = 0.0;
+    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    acc[2] += e * e;
+    acc[0] = e;
+    /* main_bearing.force_peak */
+    m = row[37] * row[37] + row[38] * row[38];
+    if (count == 0 || m > fig[4]) fig[4] = m;
+    m = row[40] * row[40] + row[41] * row[41];
+    if (m > fig[4]) fig[4] = m;
+    /* crank_pin.force_peak */
+    m = row[43] * row[43] + row[44] * row[44];
+    if (count == 0 || m > fig[5]) fig[5] = m;
+    m = row[46] * row[46] + row[47] * row[47];
+    if (m > fig[5]) fig[5] = m;
+    /* wrist_pin.force_peak */
+    m = row[49] * row[49] + row[50] * row[50];
+    if (count == 0 || m > fig[6]) fig[6] = m;
+    m = row[52] * row[52] + row[53] * row[53];
+    if (m > fig[6]) fig[6] = m;
+    /* cylinder_guide.force_peak */
+    m = row[55] * row[55] + row[56] * row[56];
+    if (count == 0 || m > fig[7]) fig[7] = m;
+    m = row[58] * row[58] + row[59] * row[59];
+    if (m > fig[7]) fig[7] = m;
+    /* motor.force_peak */
+    m = row[61] * row[61] + row[62] * row[62];
+    if (count == 0 || m > fig[8]) fig[8] = m;
+    m = row[64] * row[64] + row[65] * row[65];
+    if (m > fig[8]) fig[8] = m;
+    if (count == 0) acc[3] = t;
+    acc[4] = t;
+}
+
+/* The figures of a variant after its `count` instants (NaN if none). */
+static void slider_crank_sweep_finish(slider_crank_real *fig, const slider_crank_real *acc, long count)
+{
+    int k;
+    const slider_crank_real span = acc[4] - acc[3];
+    (void)acc;  /* no drivers: no time average */
+    if (count == 0) {
+        for (k = 0; k < 9; ++k) fig[k] = NAN;
+        return;
+    }
+    (void)k;
+    fig[4] = sqrt(fig[4]);
+    fig[5] = sqrt(fig[5]);
+    fig[6] = sqrt(fig[6]);
+    fig[7] = sqrt(fig[7]);
+    fig[8] = sqrt(fig[8]);
+    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+                                     : sqrt(acc[2] / (slider_crank_real)count);
+}
+
+int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0, slider_crank_real h, long n, slider_crank_real tol,
+                  slider_crank_real *figures, int *status, slider_crank_real *t_end, long *solved, slider_crank_real *work, int *iwork)
+{
+    slider_crank_real *state = work + SLIDER_CRANK_WORK, *rows = state + SLIDER_CRANK_STATE;
+    slider_crank_real *vals = rows + 32 * SLIDER_CRANK_ROW, *arms = vals + 21, *drive = arms + 9;
+    slider_crank_real *acc = drive + 2;
+    long v, done, got, m;
+    int st;
+    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
+        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || tol <= 0.0)
+        return SLIDER_CRANK_BAD_ARGUMENT;
+    for (v = 0; v < k; ++v) {
+        const slider_crank_real *pv = p + v * SLIDER_CRANK_NP;
+        slider_crank_real *fig = figures + v * SLIDER_CRANK_SWEEP_FIGURES;
+        memset(state, 0, sizeof(slider_crank_real) * SLIDER_CRANK_STATE);
+        slider_crank_guess(pv, state);
+        done = 0;
+        st = SLIDER_CRANK_OK;
+        while (done < n && st == SLIDER_CRANK_OK) {
+            /* t0 alone first: its assembled q fixes the scales of the jump check */
+            m = done == 0 ? 1 : SLIDER_CRANK_MIN(32, n - done);
+            got = 0;
+            st = slider_crank_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
+            for (m = 0; m < got; ++m) slider_crank_sweep_take(rows + m * SLIDER_CRANK_ROW, pv, fig, acc, drive, done + m);
+            if (done == 0 && got == 1) slider_crank_sweep_scales(state, t0, pv, vals, arms, state + 54);
+            done += got;
+        }
+        slider_crank_sweep_finish(fig, acc, done);
+        status[v] = st;
+        solved[v] = done;
+        t_end[v] = done > 0 ? acc[4] : NAN;
+    }
     return SLIDER_CRANK_OK;
 }

@@ -14,7 +14,7 @@ typedef double slider_crank_real;
 /* Sizes. */
 #define SLIDER_CRANK_NG 9            /* generalized coordinates q = [x, y, phi] per body */
 #define SLIDER_CRANK_NC 9            /* constraint rows */
-#define SLIDER_CRANK_NP 10            /* parameters p */
+#define SLIDER_CRANK_NP 9            /* parameters p */
 #define SLIDER_CRANK_NNZ 21          /* structural nonzeros of Phi_q */
 #define SLIDER_CRANK_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_CRANK_ROW 67          /* values per instant in a trajectory row */
@@ -41,8 +41,13 @@ typedef double slider_crank_real;
 #define SLIDER_CRANK_HAS_LAMBDA 1
 #define SLIDER_CRANK_HAS_REACTIONS 1
 
-/* Parameters, in this order: L_crank, L_rod, m_crank, m_rod, m_slider, a_slider, b_slider, n, omega, F_gas. */
-extern const slider_crank_real slider_crank_default_params[10];
+/* Parameters p (size NP): the base parameters, the only inputs, in this
+   order: L_crank, L_rod, m_crank, m_rod, m_slider, a_slider, b_slider, n, F_gas.
+   Derived parameters are not in p: every function computes them from p by
+   their definitions, so changing a base parameter changes them too:
+     omega = 2*pi*n
+*/
+extern const slider_crank_real slider_crank_default_params[9];
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int slider_crank_phi_q_rows[21];
 extern const int slider_crank_phi_q_cols[21];
@@ -78,6 +83,36 @@ int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider
    *solved = rows written (solved may be NULL). */
 int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, const slider_crank_real *p, slider_crank_real tol, slider_crank_real *state,
                        slider_crank_real *rows, long *solved, slider_crank_real *work, int *iwork);
+
+/* A design study: K parameter vectors through the trajectory loop, keeping
+   per variant only its figures, accumulated as the instants are solved
+   (contract v1.1, `symid sweep`). */
+#define SLIDER_CRANK_SWEEP_FIGURES 9   /* figures per variant, in this order:
+                                         motor.effort_peak
+                                         motor.effort_t_peak
+                                         motor.effort_rms
+                                         motor.power_peak
+                                         main_bearing.force_peak
+                                         crank_pin.force_peak
+                                         wrist_pin.force_peak
+                                         cylinder_guide.force_peak
+                                         motor.force_peak
+   (per driver: largest |effort| (torque or force), its time, RMS effort
+   (trapezoidal time average) and largest |effort x rate|; per constraint
+   with reactions: the largest |(Fx, Fy)| on any of its bodies) */
+#define SLIDER_CRANK_SWEEP_WORK (SLIDER_CRANK_WORK + SLIDER_CRANK_STATE + 32 * SLIDER_CRANK_ROW + 37)  /* reals of workspace of a sweep */
+
+/* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
+   from them (the file's initial guesses), and solves the n instants
+   t0 + j h as slider_crank_trajectory does, the jump check scaled as symid scales
+   it at t0. It stops at its first instant that is not OK: status[v] is that
+   status (SLIDER_CRANK_UNEXPLAINED included: symid then decides that instant in
+   sub-steps), solved[v] the instants solved, t_end[v] the last one's time
+   (NaN if none); figures + v SWEEP_FIGURES holds the figures of those
+   instants (NaN if none). work: SWEEP_WORK reals, iwork: IWORK ints, both
+   per calling thread. Returns BAD_ARGUMENT (nothing solved) or OK. */
+int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0, slider_crank_real h, long n, slider_crank_real tol,
+                  slider_crank_real *figures, int *status, slider_crank_real *t_end, long *solved, slider_crank_real *work, int *iwork);
 
 #ifdef __cplusplus
 }

@@ -7,7 +7,10 @@ The public functions phi, phi_q_values, phi_q, nu, gamma, applied, mass, reactio
 or (N,) give results with a trailing N. `instant` solves one instant (Newton,
 then the outputs) with scalar code and a sparse LU whose pivot order was
 fixed at generation time; `trajectory` runs a whole time grid with it.
-Parameters p (size NP), in this order: L_crank, L_rod, m_crank, m_rod, m_slider, a_slider, b_slider, n, omega, F_gas.
+Parameters p (size NP): the base parameters, the only inputs, in this order:
+L_crank, L_rod, m_crank, m_rod, m_slider, a_slider, b_slider, n, F_gas.
+Derived parameters are not in p: every function computes them from p by
+their definitions (omega = 2*pi*n).
 """
 
 import math
@@ -17,11 +20,11 @@ import numpy as np
 
 NG = 9
 NC = 9
-NP = 10
+NP = 9
 NR = 30
 NNZ = 21
-PARAMS = ("L_crank", "L_rod", "m_crank", "m_rod", "m_slider", "a_slider", "b_slider", "n", "omega", "F_gas", )
-DEFAULT_PARAMS = np.array([0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 5.0, 31.41592653589793, 100.0], dtype=float)
+PARAMS = ("L_crank", "L_rod", "m_crank", "m_rod", "m_slider", "a_slider", "b_slider", "n", "F_gas", )
+DEFAULT_PARAMS = np.array([0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 5.0, 100.0], dtype=float)
 PHI_Q_ROWS = np.array([0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 7, 8], dtype=np.intp)
 PHI_Q_COLS = np.array([0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 4, 5, 7, 7, 8, 2], dtype=np.intp)
 OUTPUTS = ("q", "qdot", "qddot", "lambda", "reactions", )
@@ -73,7 +76,7 @@ def phi(q, t, p):
     out[5] = -e5 + (-q[4] + q[7])
     out[6] = q[7]
     out[7] = q[8]
-    out[8] = -p[8]*t + q[2]
+    out[8] = q[2] - t*(2*numpy.pi*p[7])
     return _stack(out, q[0])
 
 
@@ -94,7 +97,7 @@ def _phi_s(q, t, p):
         -e5 + (-q[4] + q[7]),
         q[7],
         q[8],
-        -p[8]*t + q[2],
+        q[2] - t*(2*math.pi*p[7]),
     ]
     return out
 
@@ -177,7 +180,7 @@ def nu(q, t, p):
     out[5] = 0
     out[6] = 0
     out[7] = 0
-    out[8] = p[8]
+    out[8] = (2*numpy.pi*p[7])
     return _stack(out, q[0])
 
 
@@ -192,7 +195,7 @@ def _nu_s(q, t, p):
         0,
         0,
         0,
-        p[8],
+        (2*math.pi*p[7]),
     ]
     return out
 
@@ -249,7 +252,7 @@ def applied(q, qd, t, p):
     out[3] = 0
     out[4] = -981/100*p[3]
     out[5] = 0
-    out[6] = -p[9]*numpy.sin(p[8]*t)
+    out[6] = -p[8]*numpy.sin(t*(2*numpy.pi*p[7]))
     out[7] = -981/100*p[4]
     out[8] = 0
     return _stack(out, q[0])
@@ -264,7 +267,7 @@ def _applied_s(q, qd, t, p):
         0,
         -981/100*p[3],
         0,
-        -p[9]*math.sin(p[8]*t),
+        -p[8]*math.sin(t*(2*math.pi*p[7])),
         -981/100*p[4],
         0,
     ]

@@ -770,3 +770,195 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
     *solved = n;
     return SLIDER_PENDULUM_OK;
 }
+
+/* ---- The sweep: K variants, their figures accumulated as instants are solved ---- */
+
+/* The initial guess q0 of a variant (the file's q0, from its parameters). */
+static void slider_pendulum_guess(const slider_pendulum_real *p, slider_pendulum_real *out)
+{
+    (void)p;
+    out[0] = 0;
+    out[1] = 0;
+    out[2] = 0;
+    out[3] = 0;
+    out[4] = -p[8] - 1.0/2.0*p[9];
+    out[5] = -1.0/2.0*3.141592653589793;
+}
+
+/* Each driver's f(t) and f'(t), in file order. */
+static void slider_pendulum_drive(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real *out)
+{
+    (void)t;
+    (void)p;
+    const slider_pendulum_real d0 = 2*3.141592653589793;
+    const slider_pendulum_real d1 = d0*t;
+    const slider_pendulum_real d2 = d1*p[2];
+    const slider_pendulum_real d3 = d1*p[4];
+    out[0] = p[1]*sin(d2);
+    out[1] = d0*p[1]*p[2]*cos(d2);
+    out[2] = p[3]*sin(d3);
+    out[3] = d0*p[3]*p[4]*cos(d3);
+}
+
+/* 1 / the column scales of the jump check at the assembled q(t0), as
+   symid.numeric.stability.Scaling.of: x and y in units of the median moment
+   arm of the rows that mix lengths and angles (else the largest |x|, |y|,
+   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+static void slider_pendulum_sweep_scales(const slider_pendulum_real *q, slider_pendulum_real t0, const slider_pendulum_real *p, slider_pendulum_real *vals,
+                                 slider_pendulum_real *arms, slider_pendulum_real *inv)
+{
+    slider_pendulum_real lin[6], rot[6], lref = 0.0, a;
+    int k, r, m = 0, i;
+    slider_pendulum_phi_q(q, t0, p, vals);
+    for (r = 0; r < 6; ++r) lin[r] = rot[r] = 0.0;
+    for (k = 0; k < 15; ++k) {
+        a = fabs(vals[k]);
+        r = slider_pendulum_phi_q_rows[k];
+        if (slider_pendulum_phi_q_cols[k] % 3 == 2) rot[r] = SLIDER_PENDULUM_MAX(rot[r], a);
+        else lin[r] = SLIDER_PENDULUM_MAX(lin[r], a);
+    }
+    for (r = 0; r < 6; ++r) {
+        if (lin[r] > 0.0 && rot[r] > 0.0) {
+            /* insertion sort: NC is small and this runs once per variant */
+            a = rot[r] / lin[r];
+            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            arms[i] = a;
+            ++m;
+        }
+    }
+    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (!(lref > 0.0)) {
+        lref = 0.0;
+        for (k = 0; k < 6; ++k)
+            if (k % 3 != 2) lref = SLIDER_PENDULUM_MAX(lref, fabs(q[k]));
+    }
+    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
+    for (k = 0; k < 6; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+}
+
+/* Take one solved row's figures; count: the variant's instants taken before.
+   A force_peak is kept squared until the end (one sqrt, not one per instant).
+   acc: per driver the last effort, the trapezoid sum of squares and the
+   plain sum of squares, then the first and the last time. */
+static void slider_pendulum_sweep_take(const slider_pendulum_real *row, const slider_pendulum_real *p, slider_pendulum_real *fig, slider_pendulum_real *acc,
+                               slider_pendulum_real *drive, long count)
+{
+    const slider_pendulum_real t = row[0];
+    slider_pendulum_real e, rate, w;
+    slider_pendulum_real m;
+    (void)p;
+    (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
+    (void)drive;
+    slider_pendulum_drive(t, p, drive);
+    /* carriage_actuator */
+    e = -row[21];
+    rate = drive[1];
+    w = fabs(e * rate);
+    if (count == 0 || fabs(e) > fig[0]) {
+        fig[0] = fabs(e);
+        fig[1] = t;
+    }
+    if (count == 0 || w > fig[3]) fig[3] = w;
+    if (count == 0) acc[1] = acc[2] = 0.0;
+    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[7]);
+    acc[2] += e * e;
+    acc[0] = e;
+    /* pendulum_motor */
+    e = -row[24];
+    rate = drive[3];
+    w = fabs(e * rate);
+    if (count == 0 || fabs(e) > fig[4]) {
+        fig[4] = fabs(e);
+        fig[5] = t;
+    }
+    if (count == 0 || w > fig[7]) fig[7] = w;
+    if (count == 0) acc[4] = acc[5] = 0.0;
+    else acc[4] += (e * e + acc[3] * acc[3]) * (t - acc[7]);
+    acc[5] += e * e;
+    acc[3] = e;
+    /* guide_parallel.force_peak */
+    m = row[25] * row[25] + row[26] * row[26];
+    if (count == 0 || m > fig[8]) fig[8] = m;
+    m = row[28] * row[28] + row[29] * row[29];
+    if (m > fig[8]) fig[8] = m;
+    /* guide_slot.force_peak */
+    m = row[31] * row[31] + row[32] * row[32];
+    if (count == 0 || m > fig[9]) fig[9] = m;
+    m = row[34] * row[34] + row[35] * row[35];
+    if (m > fig[9]) fig[9] = m;
+    /* carriage_actuator.force_peak */
+    m = row[37] * row[37] + row[38] * row[38];
+    if (count == 0 || m > fig[10]) fig[10] = m;
+    m = row[40] * row[40] + row[41] * row[41];
+    if (m > fig[10]) fig[10] = m;
+    /* pendulum_hinge.force_peak */
+    m = row[43] * row[43] + row[44] * row[44];
+    if (count == 0 || m > fig[11]) fig[11] = m;
+    m = row[46] * row[46] + row[47] * row[47];
+    if (m > fig[11]) fig[11] = m;
+    /* pendulum_motor.force_peak */
+    m = row[49] * row[49] + row[50] * row[50];
+    if (count == 0 || m > fig[12]) fig[12] = m;
+    m = row[52] * row[52] + row[53] * row[53];
+    if (m > fig[12]) fig[12] = m;
+    if (count == 0) acc[6] = t;
+    acc[7] = t;
+}
+
+/* The figures of a variant after its `count` instants (NaN if none). */
+static void slider_pendulum_sweep_finish(slider_pendulum_real *fig, const slider_pendulum_real *acc, long count)
+{
+    int k;
+    const slider_pendulum_real span = acc[7] - acc[6];
+    (void)acc;  /* no drivers: no time average */
+    if (count == 0) {
+        for (k = 0; k < 13; ++k) fig[k] = NAN;
+        return;
+    }
+    (void)k;
+    fig[8] = sqrt(fig[8]);
+    fig[9] = sqrt(fig[9]);
+    fig[10] = sqrt(fig[10]);
+    fig[11] = sqrt(fig[11]);
+    fig[12] = sqrt(fig[12]);
+    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+                                     : sqrt(acc[2] / (slider_pendulum_real)count);
+    fig[6] = span > 0.0 ? sqrt(acc[4] / 2.0 / span)
+                                     : sqrt(acc[5] / (slider_pendulum_real)count);
+}
+
+int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum_real t0, slider_pendulum_real h, long n, slider_pendulum_real tol,
+                  slider_pendulum_real *figures, int *status, slider_pendulum_real *t_end, long *solved, slider_pendulum_real *work, int *iwork)
+{
+    slider_pendulum_real *state = work + SLIDER_PENDULUM_WORK, *rows = state + SLIDER_PENDULUM_STATE;
+    slider_pendulum_real *vals = rows + 32 * SLIDER_PENDULUM_ROW, *arms = vals + 15, *drive = arms + 6;
+    slider_pendulum_real *acc = drive + 4;
+    long v, done, got, m;
+    int st;
+    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
+        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || tol <= 0.0)
+        return SLIDER_PENDULUM_BAD_ARGUMENT;
+    for (v = 0; v < k; ++v) {
+        const slider_pendulum_real *pv = p + v * SLIDER_PENDULUM_NP;
+        slider_pendulum_real *fig = figures + v * SLIDER_PENDULUM_SWEEP_FIGURES;
+        memset(state, 0, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
+        slider_pendulum_guess(pv, state);
+        done = 0;
+        st = SLIDER_PENDULUM_OK;
+        while (done < n && st == SLIDER_PENDULUM_OK) {
+            /* t0 alone first: its assembled q fixes the scales of the jump check */
+            m = done == 0 ? 1 : SLIDER_PENDULUM_MIN(32, n - done);
+            got = 0;
+            st = slider_pendulum_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
+            for (m = 0; m < got; ++m) slider_pendulum_sweep_take(rows + m * SLIDER_PENDULUM_ROW, pv, fig, acc, drive, done + m);
+            if (done == 0 && got == 1) slider_pendulum_sweep_scales(state, t0, pv, vals, arms, state + 36);
+            done += got;
+        }
+        slider_pendulum_sweep_finish(fig, acc, done);
+        status[v] = st;
+        solved[v] = done;
+        t_end[v] = done > 0 ? acc[7] : NAN;
+    }
+    return SLIDER_PENDULUM_OK;
+}

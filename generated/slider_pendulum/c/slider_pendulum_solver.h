@@ -41,7 +41,9 @@ typedef double slider_pendulum_real;
 #define SLIDER_PENDULUM_HAS_LAMBDA 1
 #define SLIDER_PENDULUM_HAS_REACTIONS 1
 
-/* Parameters, in this order: alpha, s_amp, f_carriage, theta_amp, f_pendulum, m_carriage, a_carriage, b_carriage, h_hinge, L_pendulum, m_pendulum, k_torsion, c_torsion. */
+/* Parameters p (size NP): the base parameters, the only inputs, in this
+   order: alpha, s_amp, f_carriage, theta_amp, f_pendulum, m_carriage, a_carriage, b_carriage, h_hinge, L_pendulum, m_pendulum, k_torsion, c_torsion.
+*/
 extern const slider_pendulum_real slider_pendulum_default_params[13];
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int slider_pendulum_phi_q_rows[15];
@@ -78,6 +80,40 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
    *solved = rows written (solved may be NULL). */
 int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, long n, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *state,
                        slider_pendulum_real *rows, long *solved, slider_pendulum_real *work, int *iwork);
+
+/* A design study: K parameter vectors through the trajectory loop, keeping
+   per variant only its figures, accumulated as the instants are solved
+   (contract v1.1, `symid sweep`). */
+#define SLIDER_PENDULUM_SWEEP_FIGURES 13   /* figures per variant, in this order:
+                                         carriage_actuator.effort_peak
+                                         carriage_actuator.effort_t_peak
+                                         carriage_actuator.effort_rms
+                                         carriage_actuator.power_peak
+                                         pendulum_motor.effort_peak
+                                         pendulum_motor.effort_t_peak
+                                         pendulum_motor.effort_rms
+                                         pendulum_motor.power_peak
+                                         guide_parallel.force_peak
+                                         guide_slot.force_peak
+                                         carriage_actuator.force_peak
+                                         pendulum_hinge.force_peak
+                                         pendulum_motor.force_peak
+   (per driver: largest |effort| (torque or force), its time, RMS effort
+   (trapezoidal time average) and largest |effort x rate|; per constraint
+   with reactions: the largest |(Fx, Fy)| on any of its bodies) */
+#define SLIDER_PENDULUM_SWEEP_WORK (SLIDER_PENDULUM_WORK + SLIDER_PENDULUM_STATE + 32 * SLIDER_PENDULUM_ROW + 33)  /* reals of workspace of a sweep */
+
+/* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
+   from them (the file's initial guesses), and solves the n instants
+   t0 + j h as slider_pendulum_trajectory does, the jump check scaled as symid scales
+   it at t0. It stops at its first instant that is not OK: status[v] is that
+   status (SLIDER_PENDULUM_UNEXPLAINED included: symid then decides that instant in
+   sub-steps), solved[v] the instants solved, t_end[v] the last one's time
+   (NaN if none); figures + v SWEEP_FIGURES holds the figures of those
+   instants (NaN if none). work: SWEEP_WORK reals, iwork: IWORK ints, both
+   per calling thread. Returns BAD_ARGUMENT (nothing solved) or OK. */
+int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum_real t0, slider_pendulum_real h, long n, slider_pendulum_real tol,
+                  slider_pendulum_real *figures, int *status, slider_pendulum_real *t_end, long *solved, slider_pendulum_real *work, int *iwork);
 
 #ifdef __cplusplus
 }

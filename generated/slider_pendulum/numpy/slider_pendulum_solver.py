@@ -7,7 +7,8 @@ The public functions phi, phi_q_values, phi_q, nu, gamma, applied, mass, reactio
 or (N,) give results with a trailing N. `instant` solves one instant (Newton,
 then the outputs) with scalar code and a sparse LU whose pivot order was
 fixed at generation time; `trajectory` runs a whole time grid with it.
-Parameters p (size NP), in this order: alpha, s_amp, f_carriage, theta_amp, f_pendulum, m_carriage, a_carriage, b_carriage, h_hinge, L_pendulum, m_pendulum, k_torsion, c_torsion.
+Parameters p (size NP): the base parameters, the only inputs, in this order:
+alpha, s_amp, f_carriage, theta_amp, f_pendulum, m_carriage, a_carriage, b_carriage, h_hinge, L_pendulum, m_pendulum, k_torsion, c_torsion.
 """
 
 import math

@@ -9,6 +9,7 @@ from typing import Any, Callable
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
+from symid.codegen import friction
 from symid.codegen.emit import Block, has_word, blocks, chunked
 from symid.codegen.targets import c_loops
 from symid.codegen.targets.c_loops import Loops
@@ -280,7 +281,8 @@ def work_size(model: CodeModel) -> int:
     factors, the dense fallback (up to DENSE_LIMIT coordinates) and eleven
     work vectors."""
     f = model.flat
-    return len(f.jac) + model.plan.size + (f.ng * f.ng if dense_fallback(model) else 0) + 11 * _stride(model)
+    return (len(f.jac) + model.plan.size + (f.ng * f.ng if dense_fallback(model) else 0) + 11 * _stride(model)
+            + friction.work(model.layout, f.options))
 
 
 def state_size(model: CodeModel) -> int:
@@ -346,6 +348,11 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         row_parts.append((group, source, size, offset))
         offset += size
     stride = _stride(model)
+    fr = friction.context(model.layout, o, offset)  # joint friction (None: none, and no code for it)
+    if fr is not None:
+        functions += [_function("friction", [cq, cqd, ct, cp], fr["fixed"], trig, printer, real),
+                      _function("friction_normal", [cq, clam, ct, cp], fr["normal"], trig, printer, real)]
+        used += fr["fixed"] + fr["normal"]
     # the trajectory's output vectors (variable, source, work vector): solved
     # straight into the row where it holds the source, else into the work vector
     placed = {source: offset for _, source, _, offset in row_parts if source}
@@ -354,7 +361,7 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
                                          ("reac", "reac", 8))]
     return {
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
-        "nnz": len(f.jac), "nr": nr, "row_width": offset, "lu_size": model.plan.size,
+        "nnz": len(f.jac), "nr": nr, "row_width": fr["row_width"] if fr else offset, "friction": fr, "lu_size": model.plan.size,
         "work": work_size(model), "state": state_size(model), "stride": stride,
         "params": f.params, "derived": f.derived, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],

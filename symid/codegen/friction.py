@@ -1,0 +1,102 @@
+"""Joint friction in the generated C solver (contract v1.1): the per-joint
+expressions of `symid.symbolic.friction` substituted for each joint, and the
+numbers `templates/c/friction.j2` lays out.
+
+A mechanism without friction (or an analysis other than inverse dynamics)
+gets None here, and its generated code is exactly what it was without this.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import sympy as sp
+
+from symid.codegen.flat import Options, _role_map, vector
+from symid.model.friction import coulomb_arm, has_friction, inverse_arm
+from symid.model.mechanism import parameter_symbol
+from symid.symbolic.assemble import Layout
+from symid.symbolic.friction import ARM_INV, derive_friction
+from symid.symbolic.rounding import grouped
+
+# a joint is at rest when |speed| <= REST * max(1, max |qdot|) (symid.numeric.friction.REST)
+from symid.numeric.friction import MAX_ITERATIONS, REST
+
+
+# Two kernels per joint: what one instant fixes (q, qd: speed, G_i, G_j, L_i,
+# L_j, 3 each, the Coulomb factor, the viscous coefficient, v_smooth), and
+# what each Newton iteration needs (lam: N and dN/dlambda, its rows).
+FIXED = 16
+
+
+def width(rows: int) -> int:
+    """Values of the iteration kernel per joint: N, then dN/dlambda."""
+    return 1 + rows
+
+
+def joints(layout: Layout, options: Options) -> list[dict[str, Any]]:
+    """Per joint with friction, file order: its expressions (in q, qd, lam, p)
+    and where it sits (bodies, rows, reaction slot)."""
+    mech = layout.mechanism
+    nb = layout.nb
+    p = vector("p", len(mech.parameters))
+    pmap = {parameter_symbol(n): p[k] for k, n in enumerate(mech.parameters)}
+    q, qd, lam = vector("q", layout.ng), vector("qd", layout.ng), vector("lam", layout.nc)
+    member = {name: (g, k) for g in layout.constraint_groups for k, name in enumerate(g.names)}
+    slots, offset = {}, 0
+    for c in mech.constraints:
+        if c.name in options.reactions:
+            slots[c.name] = offset
+            offset += 3 * len(c.bodies)
+    out = []
+    for c in mech.constraints:
+        if not has_friction(c):
+            continue
+        group, m = member[c.name]
+        d = derive_friction(c.type)
+        derived = d.constraint
+        r0, rows = layout.row_of[c.name]
+        sub = _role_map(group, m, nb, q, qd)
+        sub.update({k: sp.sympify(v).xreplace(pmap) for k, v in zip(derived.constants, group.constants[m])})
+        sub.update({sym: lam[r0 + k] for k, sym in enumerate(derived.lam)})
+        sub[ARM_INV] = sp.sympify(inverse_arm(c.friction)).xreplace(pmap)
+        exprs = [d.speed, *d.generalized["i"], *d.generalized["j"], *d.loads["i"], *d.loads["j"]]
+        fixed = [grouped(sp.sympify(e).xreplace(sub)) for e in exprs]
+        fixed += [sp.sympify(v).xreplace(pmap) for v in (coulomb_arm(c.type, c.friction), c.friction["viscous"],
+                                                         c.friction["v_smooth"])]
+        normal = [grouped(sp.sympify(e).xreplace(sub)) for e in (d.normal, *d.d_normal)]
+        index = mech.body_index()
+        out.append({"name": c.name, "fixed": fixed, "normal": normal, "rows": rows, "row": r0,
+                    "i": index.get(c.bodies["i"], -1), "j": index.get(c.bodies["j"], -1),
+                    "slot": slots.get(c.name, -1)})
+    return out
+
+
+def context(layout: Layout, options: Options, row_width: int) -> dict[str, Any] | None:
+    """What the templates need for friction (None: none to solve). The kernels'
+    expressions are under "fixed" and "normal", for the target to print as functions."""
+    if options.kind != "inverse_dynamics" or not options.multipliers:
+        return None
+    found = joints(layout, options)
+    if not found:
+        return None
+    nw = max(width(j["rows"]) for j in found)
+    normal: list[sp.Expr] = []
+    for j in found:  # padded to a common width: one stride per joint
+        normal += j["normal"] + [sp.Integer(0)] * (nw - len(j["normal"]))
+    nf = len(found)
+    columns = "reactions" in options.outputs
+    return {"nf": nf, "fw": FIXED, "nw": nw, "fixed": [e for j in found for e in j["fixed"]], "normal": normal,
+            "joints": found, "columns": columns,
+            "offset": row_width, "max_iterations": MAX_ITERATIONS, "rest": repr(REST),
+            "row_width": row_width + (2 * nf if columns else 0)}
+
+
+def work(layout: Layout, options: Options) -> int:
+    """Reals of workspace friction adds (0 without friction)."""
+    found = joints(layout, options) if options.kind == "inverse_dynamics" and options.multipliers else []
+    if not found:
+        return 0
+    nf, nc, ng = len(found), layout.nc, layout.ng
+    nw = max(width(j["rows"]) for j in found)
+    return 1 + 8 * nf + nc + ng + nf * nc + nf * (FIXED + nw) + nf * nf

@@ -1,0 +1,161 @@
+"""Running a study: the variants in chunks, on this machine or a Dask cluster.
+
+A chunk is a few hundred thousand instants (a fraction of a second on the
+compiled engine), so a progress bar moves, Ctrl-C is answered promptly and
+keeps every finished chunk, and a cluster task is small enough to retry.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Sequence
+
+import numpy as np
+
+from symid.backends import Array
+from symid.model.mechanism import Mechanism
+from symid.study.figures import STATUS, Figures, figure_names
+from symid.study.table import SweepTable
+from symid.study.design import Variants
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+Engine = Callable[[Mechanism, Sequence[str], Array, str, "int | None"], Figures]
+CHUNK_INSTANTS = 500_000  # instants per chunk on the batch engine: ~0.05 s at 10 M instants/s
+
+
+def _engine(backend: str) -> tuple[Engine, int]:
+    """The function that solves a chunk of variants on `backend`, and its chunk size in instants.
+
+    Every variant of every sweep goes through here: the one place the engine is
+    chosen. c and numpy take the batch engine (`symid.study.engine`: the C
+    batch entry on threads, NumPy over variants) in chunks of many variants;
+    casadi and reference are solved variant by variant (`symid.study.slow`).
+    """
+    if backend in ("c", "numpy"):
+        from symid.study.engine import solve_figures
+        return solve_figures, CHUNK_INSTANTS
+    from symid.study.slow import figures_by_solving
+
+    def slow(mechanism: Mechanism, names: Sequence[str], base: Array, backend: str,
+             workers: int | None = None) -> Figures:
+        return figures_by_solving(mechanism, names, base, backend)
+
+    return slow, 1  # one variant per chunk: each is a whole Python solve
+
+
+def warm(mechanism: Mechanism, backend: str) -> None:
+    """Build (or load from the cache) the solver of the study's structure, once."""
+    from symid import backends
+    from symid.backends import Needs
+    from symid.model.params import parameter_values
+    from symid.study.slow import study_analysis
+    from symid.symbolic.assemble import assemble
+
+    mech = study_analysis(mechanism)
+    layout = assemble(mech)
+    values = parameter_values(mech.parameters)
+    backends.require_support(backend, mech.analysis, mech.source)
+    backends.check_redundant(layout, values, backend)
+    backends.get(backend).evaluator(layout, values, Needs(velocity=mech.analysis.kind != "statics",
+                                                          reactions=()))
+
+
+def per_chunk(steps: int, backend: str) -> int:
+    """Variants per chunk on `backend` for runs of `steps` instants."""
+    _, instants = _engine(backend)
+    return max(1, instants // max(steps, 1))
+
+
+class Sweep:
+    """One study under way: its chunks as they finish, and the table of those finished.
+
+    Args:
+        mechanism: the study's mechanism; variants: what to vary.
+        backend: "c", "numpy" (or "casadi", "reference": solved variant by variant).
+        workers: threads on this machine (None: all cores); client: a Dask
+            `distributed.Client` to run the chunks on instead.
+    """
+
+    def __init__(self, mechanism: Mechanism, variants: Variants, backend: str = "c",
+                 workers: int | None = None, client: Client | None = None) -> None:
+        self.mechanism, self.variants, self.backend = mechanism, variants, backend
+        self.workers, self.client = workers, client
+        self.parts: dict[int, Figures] = {}
+        self.setup_s = 0.0
+        self.solve_s = 0.0
+
+    def setup(self) -> None:
+        """Build or load the solver here (locally) or on every worker (cluster)."""
+        start = time.perf_counter()
+        if self.client is None:
+            warm(self.mechanism, self.backend)
+        else:
+            from symid.study import cluster
+
+            cluster.warm_workers(self.client, self.mechanism, self.backend)
+        self.setup_s = time.perf_counter() - start
+
+    def run(self) -> Iterator[int]:
+        """Solve the chunks, yielding how many variants each finished."""
+        start = time.perf_counter()
+        try:
+            if self.client is None:
+                yield from self._local()
+            else:
+                from symid.study import cluster
+
+                for first, figures in cluster.run_chunks(self.client, self.mechanism, self.variants,
+                                                         self.backend):
+                    self.parts[first] = figures
+                    yield len(figures)
+        finally:
+            self.solve_s += time.perf_counter() - start
+
+    def _local(self) -> Iterator[int]:
+        engine, _ = _engine(self.backend)
+        per = per_chunk(self.mechanism.analysis.steps, self.backend)
+        names, values = self.variants.names, self.variants.values
+        for first in range(0, len(values), per):
+            figures = engine(self.mechanism, names, values[first:first + per], self.backend, self.workers)
+            self.parts[first] = figures
+            yield len(figures)
+
+    def table(self) -> SweepTable:
+        """The variants finished so far, in variant order."""
+        names = figure_names(self.mechanism)
+        firsts = sorted(self.parts)
+        if firsts:
+            parts = [self.parts[f] for f in firsts]
+            figures = Figures(names, np.concatenate([p.values for p in parts]),
+                              np.concatenate([p.status for p in parts]), np.concatenate([p.t_end for p in parts]))
+            index = np.concatenate([np.arange(f, f + len(self.parts[f])) for f in firsts])
+        else:
+            figures = Figures(names, np.empty((0, len(names))), np.zeros(0, dtype=np.int8), np.zeros(0))
+            index = np.zeros(0, dtype=np.int64)
+        return SweepTable(self.variants.kind, self.variants.names, self.variants.values[index].reshape(
+            len(index), len(self.variants.names)), figures, index)
+
+    def instants(self) -> int:
+        """Instants solved in the finished variants (a failed one: those before it stopped)."""
+        a = self.mechanism.analysis
+        h = (a.t1 - a.t0) / (a.steps - 1) if a.steps > 1 else 1.0
+        total = 0
+        for part in self.parts.values():
+            ok = part.status == STATUS.index("ok")
+            total += int(np.count_nonzero(ok)) * a.steps
+            ends = part.t_end[~ok]
+            ends = ends[np.isfinite(ends)]
+            total += int(np.sum(np.rint((ends - a.t0) / h) + 1)) if a.steps > 1 else len(ends)
+        return total
+
+
+def solve(mechanism: Mechanism, variants: Variants, backend: str = "c", workers: int | None = None,
+          client: Any = None) -> SweepTable:
+    """Run a whole study and return its table (see `Sweep`)."""
+    sweep = Sweep(mechanism, variants, backend, workers, client)
+    sweep.setup()
+    for _ in sweep.run():
+        pass
+    return sweep.table()

@@ -1,0 +1,185 @@
+"""The results table of a design study: one row per variant, in variant order.
+
+Columns (the contract's `symid sweep`): `variant`, one per varied parameter,
+`status`, `t_end`, then the figures (`symid.study.figures.figure_names`).
+Written as CSV (17 significant digits, as the solve table) or Parquet, atomically.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from symid.errors import InputError
+from symid.io.files import atomic_path, atomic_write, read_text
+from symid.output.results import format_row
+from symid.study.figures import STATUS, Figures
+
+FORMATS = (".csv", ".parquet")
+
+
+@dataclass(frozen=True)
+class SweepTable:
+    """The results of a sweep.
+
+    Attributes:
+        kind: how the variants were made ("grid", "table", "sample"; "" unknown).
+        params: the varied parameters; values: shape (K, len(params)).
+        figures: the figures, status and t_end of each variant.
+        variant: shape (K,), each row's variant number (0, 1, ...; a partial
+            table of an interrupted cluster sweep may skip some).
+    """
+
+    kind: str
+    params: tuple[str, ...]
+    values: np.ndarray
+    figures: Figures
+    variant: np.ndarray
+
+    @property
+    def columns(self) -> list[str]:
+        """Column names in table order."""
+        return ["variant", *self.params, "status", "t_end", *self.figures.names]
+
+    @property
+    def data(self) -> np.ndarray:
+        """shape (K, len(columns)) floats; the `status` column holds the index into `STATUS`."""
+        f = self.figures
+        return np.column_stack([self.variant.astype(float), self.values, f.status.astype(float), f.t_end,
+                                f.values]).reshape(len(f), len(self.columns))
+
+    def __len__(self) -> int:
+        return len(self.variant)
+
+    def __getitem__(self, column: str) -> np.ndarray:
+        """One column; `status` as strings."""
+        if column == "status":
+            return np.array([STATUS[s] for s in self.figures.status], dtype=object)
+        try:
+            return self.data[:, self.columns.index(column)]
+        except ValueError:
+            raise KeyError(f"no column {column!r} (columns: {', '.join(self.columns)})") from None
+
+    @property
+    def failed(self) -> int:
+        """How many variants did not run to t1."""
+        return int(np.count_nonzero(self.figures.status))
+
+    def to_pandas(self) -> Any:
+        """The table as a `pandas.DataFrame` (pandas is optional)."""
+        try:
+            import pandas
+        except ImportError:
+            raise ImportError("SweepTable.to_pandas() needs pandas (python3 -m pip install pandas); "
+                              "without it, columns and data (or table[column]) hold the same table") from None
+        frame = pandas.DataFrame(self.data, columns=self.columns)
+        frame["variant"] = self.variant.astype(np.int64)
+        frame["status"] = self["status"]
+        return frame
+
+    def write(self, path: str | Path) -> Path:
+        """Write as CSV or Parquet (by suffix), atomically: complete or untouched."""
+        path = Path(path)
+        suffix = path.suffix.lower()
+        if suffix == ".parquet":
+            _write_parquet(self, path)
+        else:
+            _write_csv(self, path)
+        return path
+
+
+def _write_csv(t: SweepTable, path: Path) -> None:
+    """17 significant digits, the solve table's format; `variant` as a whole number."""
+    data = t.data
+    at = 1 + len(t.params)
+    with atomic_write(path) as out:
+        out.write(",".join(t.columns) + "\n")
+        for row in data:
+            cells = [str(int(row[0]))]
+            if at > 1:
+                cells.append(format_row(row[1:at]))
+            cells.append(STATUS[int(row[at])])
+            cells.append(format_row(row[at + 1:]))
+            out.write(",".join(cells) + "\n")
+
+
+def _write_parquet(t: SweepTable, path: Path) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    arrays: dict[str, Any] = {"variant": pa.array(t.variant.astype(np.int64))}
+    for k, name in enumerate(t.params):
+        arrays[name] = pa.array(t.values[:, k], type=pa.float64())
+    arrays["status"] = pa.array([STATUS[s] for s in t.figures.status], type=pa.string())
+    arrays["t_end"] = pa.array(t.figures.t_end, type=pa.float64())
+    for k, name in enumerate(t.figures.names):
+        arrays[name] = pa.array(t.figures.values[:, k], type=pa.float64())
+    table = pa.table(arrays, metadata={"symid.kind": t.kind})
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
+
+
+def is_sweep(columns: list[str]) -> bool:
+    """Whether a table's columns are those of a sweep (a `variant` first, a `status`)."""
+    return bool(columns) and columns[0] == "variant" and "status" in columns
+
+
+def _assemble(columns: list[str], variant: np.ndarray, numbers: dict[str, np.ndarray], status: list[str],
+              where: str, kind: str = "") -> SweepTable:
+    at = columns.index("status")
+    params = tuple(columns[1:at])
+    figures = tuple(columns[at + 2:])
+    if columns[at + 1: at + 2] != ["t_end"]:
+        raise InputError(f"{where}: not a symid sweep table (no t_end after status)")
+    bad = [s for s in status if s not in STATUS]
+    if bad:
+        raise InputError(f"{where}: status {bad[0]!r} is none of {', '.join(STATUS)}")
+    k = len(variant)
+    values = np.column_stack([numbers[p] for p in params]).reshape(k, len(params))
+    fig = Figures(figures, np.column_stack([numbers[f] for f in figures]).reshape(k, len(figures)),
+                  np.array([STATUS.index(s) for s in status], dtype=np.int8), numbers["t_end"])
+    return SweepTable(kind, params, values, fig, variant.astype(np.int64))
+
+
+def read(path: str | Path) -> SweepTable:
+    """A sweep table written by `symid sweep` (.csv or .parquet)."""
+    path = Path(path)
+    if path.suffix.lower() == ".parquet":
+        import pyarrow.parquet as pq
+
+        try:
+            table = pq.read_table(path)
+        except (OSError, ValueError) as exc:
+            raise InputError(f"{path}: not a readable Parquet file: {exc}") from None
+        columns = list(table.column_names)
+        if not is_sweep(columns):
+            raise InputError(f"{path}: not a symid sweep table (first column 'variant', a 'status' column)")
+        meta = table.schema.metadata or {}
+        numbers = {c: np.asarray(table.column(c).to_numpy(), dtype=float) for c in columns if c != "status"}
+        status = [str(s) for s in table.column("status").to_pylist()]
+        return _assemble(columns, numbers["variant"], numbers, status, str(path),
+                         meta.get(b"symid.kind", b"").decode())
+    rows = list(csv.reader(read_text(path).splitlines()))
+    if not rows or not is_sweep(rows[0]):
+        raise InputError(f"{path}: not a symid sweep table (first column 'variant', a 'status' column)")
+    columns = rows[0]
+    at = columns.index("status")
+    cells_of: dict[str, list[float]] = {c: [] for c in columns if c != "status"}
+    status = []
+    for line, cells in enumerate(rows[1:], 2):
+        if len(cells) != len(columns):
+            raise InputError(f"{path}: line {line}: {len(cells)} cells, the header has {len(columns)}")
+        for k, cell in enumerate(cells):
+            if k == at:
+                status.append(cell)
+                continue
+            try:
+                cells_of[columns[k]].append(float(cell))
+            except ValueError:
+                raise InputError(f"{path}: line {line}, column {columns[k]!r}: {cell!r} is not a number") from None
+    arrays = {c: np.array(v, dtype=float) for c, v in cells_of.items()}
+    return _assemble(columns, arrays["variant"], arrays, status, str(path))
