@@ -127,8 +127,9 @@ def fields(values: Array, out: np.ndarray | None = None) -> np.ndarray:
     v = np.ascontiguousarray(values, dtype=float).ravel()
     if out is None:
         out = np.zeros((v.size, FIELD), np.uint8)
-    for start in range(0, v.size, PIECE):
-        _fields(v[start:start + PIECE], out[start:start + PIECE, :FIELD])
+    with np.errstate(invalid="ignore", over="ignore"):  # inf and nan go to Python's % anyway
+        for start in range(0, v.size, PIECE):
+            _fields(v[start:start + PIECE], out[start:start + PIECE, :FIELD])
     return out
 
 
