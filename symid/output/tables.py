@@ -10,8 +10,11 @@ a (names, array or blocks) table by its file's suffix.
 
 from __future__ import annotations
 
+import os
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import IO, Any, Iterable, Iterator
 
 import numpy as np
 
@@ -57,22 +60,45 @@ def blocks(items: Iterable[Array], width: int, size: int = BLOCK) -> Iterator[Ar
 
 def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int:
     """The table as CSV: '%.17g' values (`symid.output.digits`), ',' between,
-    a header line of the names; returns the rows written."""
+    a header line of the names; returns the rows written.
+
+    Blocks are formatted by a second thread while the next block is solved
+    or the last one written (NumPy releases the GIL in its loops); at most
+    AHEAD blocks wait, so memory stays bounded.
+    """
     from symid.output.digits import csv_block
 
     count = 0
     failure: AnalysisError | None = None
-    with atomic_write(path, binary=True) as out:
-        out.write((",".join(header) + "\n").encode())
-        try:
-            for block in blocks(rows, len(header)):
-                out.write(csv_block(block))
-                count += len(block)
-        except AnalysisError as exc:  # keep the instants before it: the file is completed
-            failure = exc
+    pool = ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1))
+    waiting: deque[tuple[Future[bytes], int]] = deque()
+    try:
+        with atomic_write(path, binary=True) as out:
+            out.write((",".join(header) + "\n").encode())
+            try:
+                for block in blocks(rows, len(header)):
+                    waiting.append((pool.submit(csv_block, block), len(block)))
+                    while len(waiting) > AHEAD:
+                        count += _drain(waiting, out)
+            except AnalysisError as exc:  # keep the instants before it: the file is completed
+                failure = exc
+            while waiting:
+                count += _drain(waiting, out)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
     if failure is not None:
         raise failure
     return count
+
+
+AHEAD = 4  # formatted blocks in flight
+
+
+def _drain(waiting: deque[tuple[Future[bytes], int]], out: IO[bytes]) -> int:
+    """Write the oldest block's text; returns its rows."""
+    future, rows = waiting.popleft()
+    out.write(future.result())
+    return rows
 
 
 def arrow() -> Any:
