@@ -41,8 +41,7 @@ FIELD = 1 + BODY + 5  # sign, body, 'e-250'
 
 
 _POS = np.arange(BODY, dtype=np.uint8)
-_TENS = (np.arange(100) // 10).astype(np.uint8)
-_ONES = (np.arange(100) % 10).astype(np.uint8)
+
 
 
 _ASCII_0, _ASCII_DOT = np.uint8(48), np.uint8(46)
@@ -144,8 +143,8 @@ def _fields(v: Array, out: np.ndarray) -> None:
     zero = x == 0
     n[zero] = 0
     size = v.size
-    # the 17 digits as rows: a lead digit, then 8 pairs
-    digit = np.empty((18, size), np.uint8)
+    # the 17 digits as rows: a lead digit, then 8 pairs; rows 17.. are 0 bytes
+    digit = np.zeros((BODY, size), np.uint8)
     lead = n // 10**16
     digit[0] = lead
     rest = n - lead * 10**16
@@ -154,35 +153,38 @@ def _fields(v: Array, out: np.ndarray) -> None:
         q = half.astype(np.int32)
         for j in range(first + 6, first - 1, -2):
             q, r = np.divmod(q, 100)
-            digit[j], digit[j + 1] = _TENS[r], _ONES[r]
+            tens = (r * 205) >> 11  # r // 10 for r < 100, without a division
+            digit[j], digit[j + 1] = tens, r - 10 * tens
     digit[:17] += 48
-    digit[17] = 0
-    nsig = np.ones(size, np.uint8)
+    nsig = np.ones(size, np.uint8)  # trailing zeros dropped
     for j in range(1, 17):
         np.maximum(nsig, (digit[j] != 48) * np.uint8(j + 1), out=nsig)
     sci = (k < -4) | (k > 16)
+    small = ~sci & (k < 0)
+    some = np.flatnonzero(small)
+    if some.size:
+        # 0.000ddd is 0.ddd of the digits with -K zeros before them: shift them
+        zeros = -k[some]
+        sub = digit[:, some]
+        moved = np.full_like(sub, 48)
+        for z in range(1, 5):
+            group = np.flatnonzero(zeros == z)
+            moved[z:z + 17, group] = sub[:17, group]
+            moved[z + 17:, group] = 0
+        digit[:, some] = moved
+        nsig[some] += zeros.astype(np.uint8)
+        k = np.where(small, 0, k)
     whole = ~sci & (k >= 0)
-    small = ~sci & (k < 0)  # 0.000ddd: zeros before the digits
     dot = np.where(whole, k + 1, 1).astype(np.uint8)
-    zeros = np.where(small, -k, 0).astype(np.uint8)  # '0' and the zeros after the '.'
-    length = np.where(whole, np.where(nsig > k + 1, nsig + 1, k + 1),
-                      np.where(small, 1 + zeros + nsig, nsig + (nsig > 1))).astype(np.uint8)
+    length = np.where(whole, np.where(nsig > k + 1, nsig + 1, k + 1), nsig + (nsig > 1)).astype(np.uint8)
     length[zero] = 1
     body = np.empty((BODY, size), np.uint8)
     for p in range(BODY):
         # the digit at p: digit p before the '.', p - 1 after it; a blend
         # b + m * (a - b) (uint8, mod 256) is 3x faster than np.where here
-        row = _blend(p < dot, digit[min(p, 17)], digit[min(max(p - 1, 0), 17)])
+        row = _blend(p < dot, digit[p], digit[max(p - 1, 0)])
         row = _blend(dot == p, _ASCII_DOT, row)
         np.multiply(row, p < length, out=body[p])
-    some = np.flatnonzero(small)
-    if some.size:  # 0.000ddd: '0.', zeros - 1 zeros, then digit p - 1 - zeros at p
-        zeros, cut, sub = zeros[some], length[some], digit[:, some]
-        for p in range(BODY):
-            row = np.full(some.size, _ASCII_0 if p != 1 else _ASCII_DOT)
-            for z in range(1, min(p - 1, 4) + 1):
-                row = _blend(zeros == z, sub[min(p - 1 - z, 17)], row)
-            body[p, some] = row * (p < cut)
     out[:, 1:1 + BODY] = body.T
     out[:, 0] = np.signbit(v) * ord("-")
     at = np.flatnonzero(sci & sure)
