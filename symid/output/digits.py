@@ -11,8 +11,10 @@ significant digits N = round(x * 10^(16 - K)) come from a double-double
 product with 10^(16 - K) (a table exact to ~2^-106). The product is within
 1e-12 of the exact x * 10^(16 - K); a value whose fraction lies within 1e-9
 of a rounding decision (a tie, or a power of ten at the K boundary) is left
-to Python. Integer values below 1e16 are exact integers already. Zeros,
-values outside the range, inf and nan go to Python too.
+to Python. Integer values below 1e16 are exact integers already; zeros are
+'0' or '-0'; values outside the range, inf and nan go to Python too.
+The text is then put together in 8-byte words: the digits by SWAR
+arithmetic, the '.', the leading '0.000' and the sign by shifts and masks.
 """
 
 from __future__ import annotations
@@ -32,24 +34,10 @@ _SPLIT = 134217729.0  # 2^27 + 1: Veltkamp's splitter for a product without FMA
 _MARGIN = 1e-9  # far above the 1e-12 the product can be off
 _P10 = 10.0 ** np.arange(17)
 
-# A value's text is [sign][body][exponent], fixed-width fields whose unused
-# bytes are 0 and dropped at the end. The body is the 17 digits with a '.'
-# put in (and '0.000' before them for K in [-4, -1]), cut after the last
-# significant digit as %g does.
-BODY = 22  # '0.000' and 17 digits
-FIELD = 1 + BODY + 5  # sign, body, 'e-250'
-
-
-_POS = np.arange(BODY, dtype=np.uint8)
-
-
-
-_ASCII_0, _ASCII_DOT = np.uint8(48), np.uint8(46)
-
-
-def _blend(mask: Array, a: Array | np.uint8, b: Array) -> Array:
-    """np.where(mask, a, b) for uint8 rows."""
-    return b + mask * (a - b)  # type: ignore[no-any-return]
+# A value's text is [sign and body][exponent, separator] in 32 bytes whose
+# unused bytes are 0 and dropped at the end. The body is the 17 digits with
+# a '.' put in (and '0.000' before them for K in [-4, -1]), cut after the
+# last significant digit as %g does.
 
 
 def _two_prod(a: Array, b: Array) -> tuple[Array, Array]:
@@ -111,107 +99,138 @@ def _decimal(x: Array) -> tuple[Array, Array, Array]:
 
 
 PIECE = 8192  # values formatted at once: the temporaries stay in cache
+WORDS = 4  # a value's text as 8-byte words: 24 bytes of sign and body, then exponent and separator
+_ALL = np.uint64(2**64 - 1)
+_MASKS = np.array([(1 << (8 * c)) - 1 for c in range(9)], dtype=np.uint64)  # the c low bytes
+_DOTS = np.uint64(0x2E2E2E2E2E2E2E2E)
+_ZEROS = np.uint64(0x3030303030303030)
+
+
+def _swar8(x: Array) -> Array:
+    """The 8 decimal digits of x < 10^8 as bytes (values 0-9) of a uint64,
+    the most significant in the lowest byte: lanes split 4|4, 2|2, 1|1."""
+    x = x.astype(np.uint64)
+    high = x // np.uint64(10000)
+    v = high | ((x - high * np.uint64(10000)) << np.uint64(32))
+    t = ((v * np.uint64(10486)) >> np.uint64(20)) & np.uint64(0x0000007F0000007F)  # y // 100, y < 10^4
+    v = t | ((v - t * np.uint64(100)) << np.uint64(16))
+    t = ((v * np.uint64(103)) >> np.uint64(10)) & np.uint64(0x000F000F000F000F)  # z // 10, z < 100
+    return t | ((v - t * np.uint64(10)) << np.uint64(8))  # type: ignore[no-any-return]
+
+
+def _top_byte(w: Array) -> Array:
+    """Index (0-7) of the highest nonzero byte of each word (-64 for 0); the bytes
+    are digits < 16, so the double nearest w never reaches the next byte."""
+    exponent = np.frexp(w.astype(float))[1]
+    return np.where(w == 0, -64, (exponent - 1) // 8)  # type: ignore[no-any-return]
+
+
+def _shift_up(words: list[Array], nbytes: Array) -> list[Array]:
+    """The string of 3 words moved nbytes (0-7) further, 0 bytes coming in at the start."""
+    up = np.uint64(8) * nbytes.astype(np.uint64)
+    down = np.uint64(63) - up  # two steps: a shift by 64 is undefined
+    carry = [np.zeros_like(words[0]), *((w >> np.uint64(1)) >> down for w in words[:-1])]
+    return [(w << up) | c for w, c in zip(words, carry)]
+
+
+def _shift_one(words: list[Array]) -> list[Array]:
+    """The string of 3 words moved one byte further (a shift by a constant: fast)."""
+    eight, back = np.uint64(8), np.uint64(56)
+    return [words[0] << eight, (words[1] << eight) | (words[0] >> back), (words[2] << eight) | (words[1] >> back)]
 
 
 def fields(values: Array, out: np.ndarray | None = None) -> np.ndarray:
-    """Each value's '%.17g' text as a FIELD-byte row, unused bytes 0.
+    """Each value's '%.17g' text in WORDS words, unused bytes 0.
 
     Args:
         values: float64, any shape.
-        out: zeroed uint8 of shape (values.size, >= FIELD) to write into.
+        out: zeroed uint64 of shape (values.size, WORDS) to write into.
 
     Returns:
-        out, or a new array of shape (values.size, FIELD).
+        out, or a new array of shape (values.size, WORDS).
     """
     v = np.ascontiguousarray(values, dtype=float).ravel()
     if out is None:
-        out = np.zeros((v.size, FIELD), np.uint8)
+        out = np.zeros((v.size, WORDS), np.uint64)
     with np.errstate(invalid="ignore", over="ignore"):  # inf and nan go to Python's % anyway
         for start in range(0, v.size, PIECE):
-            _fields(v[start:start + PIECE], out[start:start + PIECE, :FIELD])
+            _fields(v[start:start + PIECE], out[start:start + PIECE])
     return out
 
 
 def _fields(v: Array, out: np.ndarray) -> None:
-    """`fields` of one piece, into out (zeroed, shape (v.size, FIELD)).
+    """`fields` of one piece, into out (shape (v.size, WORDS); its last word's top byte is kept).
 
-    The text is built position by position over all values (rows of shape
-    (size,)): NumPy is fast over long rows, slow over 22-byte ones.
+    The text is built in 8-byte words (little-endian: byte i of the text is
+    bits 8i..8i+7): inserting the '.' and the sign are shifts and masks.
     """
     x = np.abs(v)
     n, k, sure = _decimal(x)
     zero = x == 0
     n[zero] = 0
-    size = v.size
-    # the 17 digits as rows: a lead digit, then 8 pairs; rows 17.. are 0 bytes
-    digit = np.zeros((BODY, size), np.uint8)
+    # the 17 digits: a lead digit, then 8 and 8 (digit values, not yet ASCII)
     lead = n // 10**16
-    digit[0] = lead
     rest = n - lead * 10**16
     high = rest // 10**8
-    for half, first in ((high, 1), (rest - high * 10**8, 9)):
-        q = half.astype(np.int32)
-        for j in range(first + 6, first - 1, -2):
-            q, r = np.divmod(q, 100)
-            tens = (r * 205) >> 11  # r // 10 for r < 100, without a division
-            digit[j], digit[j + 1] = tens, r - 10 * tens
-    digit[:17] += 48
-    nsig = np.ones(size, np.uint8)  # trailing zeros dropped
-    for j in range(1, 17):
-        np.maximum(nsig, (digit[j] != 48) * np.uint8(j + 1), out=nsig)
+    first, second = _swar8(high), _swar8(rest - high * 10**8)
+    eight = np.uint64(8)
+    text = [lead.astype(np.uint64) | (first << eight), (first >> np.uint64(56)) | (second << eight),
+            second >> np.uint64(56)]
+    top = np.maximum(np.maximum(_top_byte(text[0]), 8 + _top_byte(text[1])), 16 + _top_byte(text[2]))
+    nsig = np.maximum(top + 1, 1)  # trailing zeros dropped, as %g does
+    text = [w | _ZEROS for w in text]
+    text[2] &= _MASKS[1]
     sci = (k < -4) | (k > 16)
     small = ~sci & (k < 0)
+    lead_zeros = np.where(small, -k, 0)  # 0.000ddd is 0.ddd of the digits after -K zeros
     some = np.flatnonzero(small)
     if some.size:
-        # 0.000ddd is 0.ddd of the digits with -K zeros before them: shift them
-        zeros = -k[some]
-        sub = digit[:, some]
-        moved = np.full_like(sub, 48)
-        for z in range(1, 5):
-            group = np.flatnonzero(zeros == z)
-            moved[z:z + 17, group] = sub[:17, group]
-            moved[z + 17:, group] = 0
-        digit[:, some] = moved
-        nsig[some] += zeros.astype(np.uint8)
-        k = np.where(small, 0, k)
-    whole = ~sci & (k >= 0)
-    dot = np.where(whole, k + 1, 1).astype(np.uint8)
-    length = np.where(whole, np.where(nsig > k + 1, nsig + 1, k + 1), nsig + (nsig > 1)).astype(np.uint8)
-    length[zero] = 1
-    body = np.empty((BODY, size), np.uint8)
-    for p in range(BODY):
-        # the digit at p: digit p before the '.', p - 1 after it; a blend
-        # b + m * (a - b) (uint8, mod 256) is 3x faster than np.where here
-        row = _blend(p < dot, digit[p], digit[max(p - 1, 0)])
-        row = _blend(dot == p, _ASCII_DOT, row)
-        np.multiply(row, p < length, out=body[p])
-    out[:, 1:1 + BODY] = body.T
-    out[:, 0] = np.signbit(v) * ord("-")
+        zeros = lead_zeros[some]
+        for w, word in enumerate(_shift_up([t[some] for t in text], zeros)):
+            text[w][some] = word
+        text[0][some] |= _MASKS[zeros] & _ZEROS
+    nsig = nsig + lead_zeros
+    dot = np.where(~sci & (k >= 0), k + 1, 1)
+    length = np.where(nsig > dot, nsig + 1, dot)
+    moved = _shift_one(text)
+    body = []
+    for w in range(3):
+        before = _MASKS[np.clip(dot - 8 * w, 0, 8)]  # the bytes before the '.'
+        through = _MASKS[np.clip(dot + 1 - 8 * w, 0, 8)]  # and the '.'
+        word = (text[w] & before) | (moved[w] & ~through) | ((through ^ before) & _DOTS)
+        body.append(word & _MASKS[np.clip(length - 8 * w, 0, 8)])
+    body[0] = np.where(zero, np.uint64(0x30), body[0])
+    body[1] = np.where(zero, np.uint64(0), body[1])
+    body[2] = np.where(zero, np.uint64(0), body[2])
+    negative = np.signbit(v)
+    signed = _shift_one(body)
+    signed[0] |= np.uint64(ord("-"))
+    body = [np.where(negative, a, b) for a, b in zip(signed, body)]
+    for w in range(3):
+        out[:, w] = body[w]
     at = np.flatnonzero(sci & sure)
     if at.size:
         e = k[at]
         mag = np.abs(e)
-        exp = np.zeros((at.size, 5), np.uint8)
-        exp[:, 0] = ord("e")
-        exp[:, 1] = np.where(e < 0, ord("-"), ord("+"))
         three = mag >= 100
-        exp[:, 2] = np.where(three, mag // 100 + 48, mag // 10 + 48)
-        exp[:, 3] = np.where(three, mag // 10 % 10 + 48, mag % 10 + 48)
-        exp[:, 4] = np.where(three, mag % 10 + 48, 0)
-        out[at, 1 + BODY:] = exp
+        d0 = np.where(three, mag // 100, mag // 10)
+        d1 = np.where(three, mag // 10 % 10, mag % 10)
+        d2 = np.where(three, mag % 10 + 48, 0)
+        exp = (ord("e") | (np.where(e < 0, ord("-"), ord("+")) << 8) | ((d0 + 48) << 16) | ((d1 + 48) << 24)
+               | (d2 << 32)).astype(np.uint64)
+        out[at, 3] = (out[at, 3] & ~_MASKS[7]) | exp
     for i in np.flatnonzero(~(sure | zero)):  # Python's own text: rare values and ties
-        text = ("%.17g" % float(v[i])).encode()
-        out[i] = 0
-        out[i, :len(text)] = np.frombuffer(text, np.uint8)
+        raw = ("%.17g" % float(v[i])).encode().ljust(24, b"\0")
+        out[i, :3] = np.frombuffer(raw, np.uint64)
 
 
 def csv_block(block: Array) -> bytes:
     """A block of rows (shape (rows, width)) as CSV lines, each '%.17g'
     joined by ',' and ended by a newline: `format_row` for every row, at once."""
     rows, width = block.shape
-    text = np.zeros((rows, width, FIELD + 1), np.uint8)
-    fields(block, text.reshape(rows * width, FIELD + 1))
-    text[:, :, FIELD] = ord(",")
-    text[:, -1, FIELD] = ord("\n")
-    flat = text.ravel()
+    words = np.zeros((rows, width, WORDS), np.uint64)
+    words[:, :, 3] = np.uint64(ord(",")) << np.uint64(56)
+    words[:, -1, 3] = np.uint64(ord("\n")) << np.uint64(56)
+    fields(block, words.reshape(rows * width, WORDS))
+    flat = words.view(np.uint8).ravel()
     return flat[flat != 0].tobytes()
