@@ -83,11 +83,11 @@ def test_csv_file_equals_the_row_writer_and_keeps_rows_before_a_failure(tmp_path
     assert (tmp_path / "r.csv").read_bytes() == ("t,a.x,a.y,b.x,b.y\n").encode() + per_row(data[:2000])
 
 
-def test_blocks_gathers_rows_and_passes_blocks_on_in_order() -> None:
-    rows = [np.full(3, k, float) for k in range(5)]
-    out = list(blocks([*rows[:2], np.vstack(rows[2:4]), rows[4]], 3, size=4))
-    assert [b.shape for b in out] == [(2, 3), (2, 3), (1, 3)]
-    assert np.array_equal(np.vstack(out)[:, 0], np.arange(5))
+def test_blocks_gathers_rows_and_cuts_blocks_in_order() -> None:
+    rows = [np.full(3, k, float) for k in range(9)]
+    out = list(blocks([*rows[:2], np.vstack(rows[2:8]), rows[8]], 3, size=4))
+    assert [b.shape for b in out] == [(2, 3), (4, 3), (2, 3), (1, 3)]
+    assert np.array_equal(np.vstack(out)[:, 0], np.arange(9))
 
 
 @pytest.mark.parametrize("total", [None, 10, 5000, 100_000])

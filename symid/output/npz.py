@@ -40,8 +40,11 @@ def write_npz(path: str | Path, header: list[str], rows: Iterable[Array], total:
     failure: AnalysisError | None = None
     try:
         scratch = tempfile.TemporaryFile(prefix=f".{Path(path).name}.", dir=Path(path).parent)
-    except OSError as exc:
-        raise cannot_write(path, exc) from None
+    except OSError:  # a folder that takes no new file (a FIFO's, /dev): the system's temporary folder
+        try:
+            scratch = tempfile.TemporaryFile(prefix=".symid-npz.")
+        except OSError as exc:
+            raise cannot_write(path, exc) from None
     with scratch:
         store = _Columns(scratch.fileno(), width, max(total or 0, 1))
         try:

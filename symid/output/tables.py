@@ -30,7 +30,8 @@ SUFFIXES = (".csv", ".npz", ".parquet")
 def blocks(items: Iterable[Array], width: int, size: int = BLOCK) -> Iterator[Array]:
     """2-D float blocks of `width` columns from rows, blocks, or a mix.
 
-    Rows are gathered into blocks of up to `size`; blocks pass through. An
+    Rows are gathered into blocks of up to `size`; blocks pass through (cut
+    to `size` rows, so a whole table is formatted a block at a time). An
     `AnalysisError` from `items` comes after the rows gathered before it.
     """
     pending = np.empty((size, width))
@@ -42,8 +43,9 @@ def blocks(items: Iterable[Array], width: int, size: int = BLOCK) -> Iterator[Ar
                 if count:
                     yield pending[:count].copy()
                     count = 0
-                if values.shape[0]:
-                    yield values.reshape(-1, width)
+                values = values.reshape(-1, width)
+                for start in range(0, values.shape[0], size):  # a whole table comes in blocks too
+                    yield values[start:start + size]
                 continue
             pending[count] = values
             count += 1
