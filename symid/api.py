@@ -21,7 +21,7 @@ from symid import backends
 from symid.model.analysis import Analysis
 from symid.symbolic.assemble import Layout, assemble
 from symid.backends import Array, Evaluator, Needs
-from symid.errors import AnalysisError
+from symid.errors import AnalysisError, InputError
 from symid.io.reader import load
 from symid.model.mechanism import Mechanism
 from symid.model.motion import check_spans
@@ -208,10 +208,12 @@ def load_mechanism(path: str | Path, set_values: Mapping[str, str] | None = None
     return load(path, set_values, analysis)
 
 
-def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path) -> list[Path]:
+def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path,
+             precision: str = "double") -> list[Path]:
     """Write the generated code of one target ("c", "numpy", "casadi") into out_dir.
 
     What is emitted follows the mechanism's `[analysis]`: kind, outputs and reactions.
+    precision: "double" or "single" (C only: the type of every floating value).
     """
     from symid.codegen import targets
     from symid.codegen.model import code_model
@@ -219,6 +221,10 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
     module = targets.get(target)
     mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
     require_square(mech)
+    if precision != "double":
+        if target != "c":
+            raise InputError(f"generate: precision {precision!r} applies to the c target only")
+        return module.generate(code_model(mech), Path(out_dir), precision=precision)  # type: ignore[no-any-return]
     return module.generate(code_model(mech), Path(out_dir))  # type: ignore[no-any-return]
 
 

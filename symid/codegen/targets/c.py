@@ -2,77 +2,22 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any, Callable
 
 import sympy as sp
-from sympy.printing.c import C99CodePrinter
 
 from symid.codegen.emit import Block, has_word, blocks, chunked
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
+from symid.codegen.targets.c_printer import (DOUBLE, PRECISIONS, Printer, Scalar, c_double,  # noqa: F401
+                                              printer as c_printer)
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
 from symid.model.motion import piece_tables, tables
 from symid.numeric.newton import RULE
 from symid.numeric.solve import JUMP_FLOOR, UNEXPLAINED
 
 NAME = "c"
-
-
-class Printer(C99CodePrinter):
-    """C99 without the POSIX constants (M_PI is not in strict C99); a tabled
-    function calls the generated `<prefix>_spline_<key>(t, order)`."""
-
-    _default_settings = {**C99CodePrinter._default_settings, "prefix": "symid"}
-
-    def _print_TableSpline(self, expr: sp.Expr) -> str:
-        key, order, x = expr.args
-        return f"{self._settings['prefix']}_spline_{key.name}({self._print(x)}, {int(order)})"
-
-    def _print_Grouped(self, expr: sp.Expr) -> str:
-        return f"({self._print(expr.args[0])})"
-
-    def _print_Pi(self, expr: sp.Expr) -> str:
-        return repr(float(sp.pi))
-
-    def _print_Exp1(self, expr: sp.Expr) -> str:
-        return repr(float(sp.E))
-
-    def _print_Float(self, expr: sp.Float) -> str:
-        return c_double(float(expr))
-
-    def _print_Integer(self, expr: sp.Integer) -> str:
-        # an integer literal past 2^63 does not compile; past 2^53 it is not a double exactly
-        n = int(expr)
-        return str(n) if abs(n) < EXACT else c_double(_quotient(n, 1))
-
-    def _print_Rational(self, expr: sp.Rational) -> str:
-        p, q = int(expr.p), int(expr.q)
-        if abs(p) < EXACT and q < EXACT:  # both exact doubles: C divides them, correctly rounded
-            return super()._print_Rational(expr)  # type: ignore[no-any-return]
-        return c_double(_quotient(p, q))
-
-
-EXACT = 2**53  # integers below this are doubles exactly
-
-
-def _quotient(p: int, q: int) -> float:
-    """p / q correctly rounded to a double, +-inf beyond the range."""
-    try:
-        return p / q
-    except OverflowError:
-        return math.inf if p > 0 else -math.inf
-
-
-def c_double(x: float) -> str:
-    """A C99 double literal of exactly x (subnormals included; +-INFINITY, NAN
-    from <math.h>)."""
-    if math.isnan(x):
-        return "NAN"
-    if math.isinf(x):
-        return "INFINITY" if x > 0 else "(-INFINITY)"
-    return repr(x)  # shortest round-trip digits, always with '.' or an exponent: never an integer literal
 
 
 _PRINTER = Printer({"math_macros": {}})
@@ -165,12 +110,13 @@ def _factor_lines(st: FoldedStep, P: str) -> list[str]:
     return lines
 
 
-def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
+def lu_chunks(plan: Plan, values: list[float | None], P: str, scalar: Scalar = DOUBLE) -> dict[str, Any]:
     """What templates/c/sparse_lu.j2 prints: the plan folded on the known
     values (per pattern slot, None where computed), printed as statements and
     grouped into functions of bounded size for each of the five straight-line
     passes (factor; solve forward and back; transposed solve forward and
-    back). P: the upper-case prefix of the macros."""
+    back). P: the upper-case prefix of the macros; scalar: the C type whose
+    literals and fabs are printed."""
     steps = fold(plan, values)
     above: dict[int, list[tuple[int, Coef]]] = {}
     for f in steps:
@@ -198,7 +144,7 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
         known) are left out, and a function with nothing to do is not
         emitted. `lu`, `piv`, `cm`: whether its code reads them, so that a
         function takes and declares only what it uses."""
-        printed = [ls for f in order if (ls := lines(f))]
+        printed = [[scalar.relit(line) for line in ls] for f in order if (ls := lines(f))]
         weights = [1 + sum(1 + line.count(" * ") for line in ls) for ls in printed]
         out: list[dict[str, Any]] = []
         for group in chunked(printed, weights):
@@ -221,9 +167,10 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
     # keep reciprocals, whose spread is the pivots'.
     known = [abs(1.0 / f.pivot) for f in steps if f.pivot is not None and f.pivot != 0.0]
     passes["pivot_slots"] = [f.pivot_slot for f in steps if f.pivot is None]
-    passes["known_reciprocals"] = (repr(min(known)), repr(max(known))) if known else None
+    passes["known_reciprocals"] = (scalar.lit(min(known)), scalar.lit(max(known))) if known else None
     # the solves' fixed entry points take lu even where every value is a number
     passes["solve_reads_lu"] = any(ch["lu"] for k in ("forward_chunks", "back_chunks") for ch in passes[k])
+    passes["f"] = scalar.suffix  # the suffix of the template's own literals
     passes["solve_t_reads_lu"] = any(ch["lu"] for k in ("t_forward_chunks", "t_back_chunks") for ch in passes[k])
     return passes
 
@@ -269,17 +216,19 @@ def _outputs_unused(velocity: bool, multipliers: bool, nr: int) -> list[str]:
     return [a for a in OUTPUTS_ARGS if a not in used]
 
 
-def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
+def context(model: CodeModel, fold_constants: bool = True, precision: str = "double") -> dict[str, Any]:
     """Everything the C templates need, expressions already printed;
     fold_constants=False prints the factorization with every value read at
-    run time (the same factors bitwise: for the tests)."""
+    run time (the same factors bitwise: for the tests); precision: "double"
+    or "single" (float: literals, libm functions and epsilon of float)."""
+    scalar = PRECISIONS[precision]
     f = model.flat
     o = f.options
     real = f"{f.name}_real"
     cq, cqd, ct, cp, clam = (f"const {real} *", "q"), (f"const {real} *", "qd"), (real, "t"), \
         (f"const {real} *", "p"), (f"const {real} *", "lam")
     trig = _trig_map(f.ng)
-    printer = Printer({"math_macros": {}, "prefix": f.name}).doprint
+    printer = c_printer(f.name, scalar).doprint
     used = f.phi + [e for _, _, e in f.jac]  # what is printed: a static function never called is an error
     functions = [
         _function("phi", [cq, ct, cp], f.phi, trig, printer, real),
@@ -318,23 +267,33 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": offset, "lu_size": model.plan.size,
         "work": work_size(model), "state": state_size(model), "stride": stride,
-        "params": f.params, "defaults": [repr(float(v)) for v in f.defaults],
+        "params": f.params, "defaults": [scalar.lit(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
-        "functions": functions, "threshold": repr(THRESHOLD),
-        **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper()),
-        "max_newton": RULE.max_iterations, "floor_ulps": repr(RULE.floor_ulps), "jump_floor": repr(JUMP_FLOOR), "unexplained": repr(UNEXPLAINED),
+        "functions": functions, "threshold": scalar.lit(THRESHOLD),
+        **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper(), scalar),
+        "max_newton": RULE.max_iterations, "floor_ulps": scalar.lit(RULE.floor_ulps),
+        "jump_floor": scalar.lit(JUMP_FLOOR), "unexplained": scalar.lit(UNEXPLAINED),
         "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),
         "outputs": outputs,
-        "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
+        "nb": ng // 3, "singular": model.plan.singular, "splines": [_relit_tables(piece_tables(s), scalar) for s in tables(used)],
+        "inf": scalar.lit(float("inf")), "nan": scalar.lit(float("nan")), "real": scalar.ctype, "f": scalar.suffix, "eps": scalar.eps, "precision": precision,
+        "lm": {k: scalar.fn(k) for k in ("sin", "cos", "sqrt", "fabs", "fmax", "fmin")}, "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
 
 
-def generate(model: CodeModel, out_dir: Path, fold_constants: bool = True) -> list[Path]:
-    """Write `<name>_solver.h`, `<name>_solver.c` and a Makefile into out_dir."""
+def _relit_tables(table: dict[str, Any], scalar: Scalar) -> dict[str, Any]:
+    """A spline's printed numbers as literals of the scalar type."""
+    return {**table, **{k: [scalar.relit(v) for v in table[k]] for k in ("knots", "coef")},
+            **{k: scalar.relit(table[k]) for k in ("lo", "hi")}}
+
+
+def generate(model: CodeModel, out_dir: Path, fold_constants: bool = True, precision: str = "double") -> list[Path]:
+    """Write `<name>_solver.h`, `<name>_solver.c` and a Makefile into out_dir
+    (precision: "double" or "single", the type of `<name>_real`)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    ctx = context(model, fold_constants)
+    ctx = context(model, fold_constants, precision)
     files = {
         f"{model.name}_solver.h": render("c/solver.h.j2", **ctx),
         f"{model.name}_solver.c": render("c/solver.c.j2", **ctx),
