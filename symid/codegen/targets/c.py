@@ -10,6 +10,7 @@ import sympy as sp
 from symid.codegen.emit import Block, has_word, blocks, chunked
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
+from symid.codegen.targets.c_describe import describe
 from symid.codegen.targets.c_printer import (DOUBLE, PRECISIONS, Printer, Scalar, c_double,  # noqa: F401
                                               printer as c_printer)
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
@@ -257,6 +258,8 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         row_parts.append((group, source, size, offset))
         offset += size
     stride = _stride(model)
+    lu = lu_chunks(model.plan, _known(model, fold_constants), f.name.upper(), scalar)
+    d = describe(model, offset, functions, lu)
     # the trajectory's output vectors (variable, source, work vector): solved
     # straight into the row where it holds the source, else into the work vector
     placed = {source: offset for _, source, _, offset in row_parts if source}
@@ -270,7 +273,8 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "params": f.params, "defaults": [scalar.lit(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": scalar.lit(THRESHOLD),
-        **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper(), scalar),
+        **lu, "d": d, "d_lit": {"q0": [scalar.lit(v) for v in d["q0"]],
+                                **{k: scalar.lit(float(d[k])) for k in ("t0", "t1", "tol")}},
         "max_newton": RULE.max_iterations, "floor_ulps": scalar.lit(RULE.floor_ulps),
         "jump_floor": scalar.lit(JUMP_FLOOR), "unexplained": scalar.lit(UNEXPLAINED),
         "velocity": o.velocity, "dynamics": dynamics,
