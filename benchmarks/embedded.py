@@ -37,7 +37,7 @@ from symid.codegen.targets import c as c_target
 from symid.io.reader import load
 
 ROOT = Path(__file__).resolve().parent.parent
-DRIVER = Path(__file__).resolve().parent / "embedded_driver.c"
+DRIVER = ROOT / "tests" / "c" / "rows_driver.c"
 ARM = ("-mcpu=cortex-m4", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-mthumb")
 LONG_T0 = 1e4
 GROUP_FLOOR = 1e-3

@@ -7,7 +7,8 @@ from typing import Any, Callable
 
 import sympy as sp
 
-from symid.codegen.emit import Block, has_word, blocks, chunked
+from symid.codegen.emit import CHUNK, Block, block, blocks, chunked, has_word
+from symid.codegen.hoist import hoist
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen.targets.c_describe import describe
@@ -176,6 +177,10 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str, scalar: Scalar = D
     return passes
 
 
+def _all_blocks(functions: list[dict[str, Any]], prepare: list[Block]) -> list[Block]:
+    return [ch["block"] for fn in functions for ch in fn["chunks"]] + prepare
+
+
 def _known(model: CodeModel, fold_constants: bool) -> list[float | None]:
     """The entries of Phi_q that are numbers, per pattern slot (None: computed)."""
     return [float(e) if fold_constants and e.is_Number else None for _, _, e in model.flat.jac]
@@ -188,8 +193,9 @@ def _stride(model: CodeModel) -> int:
 
 
 def work_size(model: CodeModel) -> int:
-    """Doubles of workspace a solver call needs: Phi_q's values, the sparse
-    factors, the dense fallback and eleven work vectors."""
+    """Reals of workspace a solver call needs before the prepared parameters
+    (context()["work"] adds them): Phi_q's values, the sparse factors, the
+    dense fallback and eleven work vectors."""
     f = model.flat
     return len(f.jac) + model.plan.size + f.ng * f.ng + 11 * _stride(model)
 
@@ -231,22 +237,27 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
     trig = _trig_map(f.ng)
     printer = c_printer(f.name, scalar).doprint
     used = f.phi + [e for _, _, e in f.jac]  # what is printed: a static function never called is an error
+    dynamics = o.kind != "kinematics" and o.multipliers
+    # parameter-only pieces read from p[NP + j], computed once per call by prepare
+    (phi, jac, nu, gamma, applied, mass, reactions), pieces = hoist(
+        [f.phi, [e for _, _, e in f.jac], f.nu if o.velocity else [], f.gamma if o.velocity else [],
+         f.applied if dynamics else [], f.mass if dynamics else [], f.reactions], len(f.params))
     functions = [
-        _function("phi", [cq, ct, cp], f.phi, trig, printer, real),
-        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac], trig, printer, real),
+        _function("phi", [cq, ct, cp], phi, trig, printer, real),
+        _function("phi_q", [cq, ct, cp], jac, trig, printer, real),
     ]
     if o.velocity:
-        functions += [_function("nu", [cq, ct, cp], f.nu, trig, printer, real),
-                      _function("gamma", [cq, cqd, ct, cp], f.gamma, trig, printer, real)]
+        functions += [_function("nu", [cq, ct, cp], nu, trig, printer, real),
+                      _function("gamma", [cq, cqd, ct, cp], gamma, trig, printer, real)]
         used += f.nu + f.gamma
-    dynamics = o.kind != "kinematics" and o.multipliers
     if dynamics:
-        functions += [_function("applied", [cq, cqd, ct, cp], f.applied, trig, printer, real),
-                      _function("mass", [cp], f.mass, trig, printer, real)]
+        functions += [_function("applied", [cq, cqd, ct, cp], applied, trig, printer, real),
+                      _function("mass", [cp], mass, trig, printer, real)]
         used += f.applied
     if f.reactions:
-        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions, trig, printer, real))
+        functions.append(_function("reactions", [cq, clam, ct, cp], reactions, trig, printer, real))
         used += f.reactions
+    prepare = [block(pieces[k:k + CHUNK], printer, offset=len(f.params) + k) for k in range(0, len(pieces), CHUNK)]
     ng, nc, nr = f.ng, f.nc, len(f.reactions)
     has = {g: int(g in o.outputs) for g in ("qdot", "qddot", "lambda", "reactions")}
     # a trajectory row: t, then each group in contract order
@@ -269,7 +280,9 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
     return {
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": offset, "lu_size": model.plan.size,
-        "work": work_size(model), "state": state_size(model), "stride": stride,
+        "work": work_size(model) + len(f.params) + len(pieces), "npp": len(f.params) + len(pieces),
+        "prepare": prepare, "off_prep": work_size(model),
+        "uses_powi": any(f"{f.name}_powi(" in e for b in _all_blocks(functions, prepare) for _, e in b.temps + b.outputs), "state": state_size(model), "stride": stride,
         "params": f.params, "defaults": [scalar.lit(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": scalar.lit(THRESHOLD),
@@ -296,11 +309,16 @@ def _relit_tables(table: dict[str, Any], scalar: Scalar) -> dict[str, Any]:
 def generate(model: CodeModel, out_dir: Path, fold_constants: bool = True, precision: str = "double") -> list[Path]:
     """Write `<name>_solver.h`, `<name>_solver.c` and a Makefile into out_dir
     (precision: "double" or "single", the type of `<name>_real`)."""
+    return write(context(model, fold_constants, precision), out_dir)
+
+
+def write(ctx: dict[str, Any], out_dir: Path) -> list[Path]:
+    """Render a context into out_dir (its sizes, e.g. ctx["work"], are the code's)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    ctx = context(model, fold_constants, precision)
+    name = ctx["name"]
     files = {
-        f"{model.name}_solver.h": render("c/solver.h.j2", **ctx),
-        f"{model.name}_solver.c": render("c/solver.c.j2", **ctx),
+        f"{name}_solver.h": render("c/solver.h.j2", **ctx),
+        f"{name}_solver.c": render("c/solver.c.j2", **ctx),
         "Makefile": render("c/Makefile.j2", **ctx),
     }
     written = []

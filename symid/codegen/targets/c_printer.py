@@ -118,9 +118,13 @@ class Printer(C99CodePrinter):
         base, exp = expr.args
         one = self.scalar.lit(1.0)
         b = self.parenthesize(base, 60) if not base.is_Atom else self._print(base)
-        simple = not base.has(sp.Function)  # repeating it costs no call (the compiler shares it)
-        if exp.is_Integer and 1 < abs(int(exp)) <= MAX_PRODUCT and (base.is_Atom or simple):
-            product = "*".join([b] * abs(int(exp)))
+        # repeating a base without calls costs nothing (the compiler shares it);
+        # one with calls goes through <prefix>_powi, a product loop, once
+        simple = not any(f.func.__name__ != "Grouped" for f in base.atoms(sp.Function))
+        if exp.is_Integer and 1 < abs(int(exp)) <= MAX_PRODUCT:
+            n = abs(int(exp))
+            product = "*".join([b] * n) if base.is_Atom or simple else \
+                f"{self._settings['prefix']}_powi({self._print(base)}, {n})"
             return f"({product})" if exp > 0 else f"({one}/({product}))"
         if exp == -1:
             return f"({one}/{b})"

@@ -1,8 +1,9 @@
-/* Driver of benchmarks/embedded.py, compiled with one generated solver
+/* Driver of tests/test_c_embedded.py and benchmarks/embedded.py, compiled with one generated solver
    (-DSOLVER_H="<name>_solver.h" -DP=<name> -DPU=<NAME>): "rows t0 h n q0..."
    prints a trajectory's rows (%.17g); "time t0 h n q0..." prints the
    microseconds per instant of the trajectory loop and of instants continued
-   from the last solution (the minimum over repeats: the machine is shared). */
+   from the last solution (the minimum over repeats: the machine is shared);
+   "describe" prints what the header says of the mechanism, a line each. */
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>
 #include <stdlib.h>
@@ -42,6 +43,14 @@ int main(int argc, char **argv)
     real q0[M(_NG)], t0, h, *rows;
     long n, k, i;
     int status;
+    if (argc == 2 && strcmp(argv[1], "describe") == 0) {
+        for (k = 0; k < M(_ROW); ++k) printf("%s%c", FN(_row_names)[k], k + 1 == M(_ROW) ? '\n' : ' ');
+        for (k = 0; k < M(_NP); ++k) printf("%s%c", FN(_param_names)[k], k + 1 == M(_NP) ? '\n' : ' ');
+        for (k = 0; k < M(_NG); ++k) printf("%.17g%c", (double)FN(_default_q0)[k], k + 1 == M(_NG) ? '\n' : ' ');
+        printf("%.17g %.17g %ld %.17g %d\n", (double)M(_T0), (double)M(_T1), (long)M(_STEPS), (double)M(_TOL),
+               M(_OPS_INSTANT));
+        return 0;
+    }
     if (argc != 5 + M(_NG)) return 2;
     t0 = (real)atof(argv[2]);
     h = (real)atof(argv[3]);
