@@ -51,8 +51,10 @@ class Hoisted:
 
     def walk(self, e: sp.Expr) -> sp.Expr:
         """e with its largest parameter-only pieces replaced."""
-        if e.is_Atom:
+        if e.is_Atom or not isinstance(e, sp.Expr):  # a condition, a pair: left whole
             return e
+        if isinstance(e, sp.Piecewise):  # its pieces and conditions stay together
+            return self.symbol(e) if _param_only(e) else e
         if _param_only(e):
             return self.symbol(e) if _worth(e) else e
         args = [self.walk(a) for a in e.args]
