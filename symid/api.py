@@ -258,10 +258,12 @@ def load_mechanism(path: str | Path, set_values: Mapping[str, str] | None = None
     return load(path, set_values, analysis)
 
 
-def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path) -> list[Path]:
+def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path,
+             precision: str = "double") -> list[Path]:
     """Write the generated code of one target ("c", "numpy", "casadi") into out_dir.
 
     What is emitted follows the mechanism's `[analysis]`: kind, outputs and reactions.
+    precision: "double" or "single" (C only: the type of every floating value).
     """
     from symid.codegen import targets
     from symid.codegen.model import code_model
@@ -274,6 +276,11 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
         raise InputError(f"{mech.source}: constraint '{joint}' key 'friction': --target {target}: the generated "
                          f"{target} code does not include joint friction yet; generate --target c, or solve "
                          f"with any backend")
+    if precision != "double":
+        if target != "c":
+            raise InputError(f"generate: precision {precision!r} applies to the c target only")
+        return module.generate(code_model(mech, looped=True), Path(out_dir),  # type: ignore[no-any-return]
+                               precision=precision)
     return module.generate(code_model(mech, looped=target == "c"), Path(out_dir))  # type: ignore[no-any-return]
 
 

@@ -73,7 +73,7 @@ def instrumented(model: CodeModel, folder: Path, harness: str = "") -> tuple[cty
     text = _edit(text, f"    *dense = 0;\n    if ({test}) return {P}_OK;",
                  f"    ++test_factorizations;\n    *dense = 0;\n"
                  f"    if (!test_force_dense && {test}) return {P}_OK;")
-    call = f"        status = {p}_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);\n"
+    call = f"        status = {p}_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);\n"
     text = _edit(text, call,
                  f"        memcpy(test_guess, qn, sizeof test_guess);\n{call}"
                  f"        test_iterations += info[0];\n"

@@ -103,7 +103,8 @@ def build(layout: Layout, options: Options) -> Path:
         stage("deriving")
         model = code_model(mech, options, looped=True)
         stage("generating")
-        c.generate(model, folder)
+        ctx = c.context(model)
+        c.write(ctx, folder)
         source = folder / f"{mech.name}_solver.c"
         # gcc -O2 time grows faster than the code; past LARGE_SOURCE -O1 compiles
         # ~2.5x faster for the same run time (ladder of 64: 7.6 s -> 3.0 s).
@@ -113,9 +114,9 @@ def build(layout: Layout, options: Options) -> Path:
         f = model.flat
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
                 "row": len(model.row_columns), "columns": list(model.row_columns),
-                "work": c.work_size(model), "state": c.state_size(model), "params": list(f.params),
+                "work": ctx["work"], "state": c.state_size(model), "params": list(f.params),
                 "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac],
-                "sweep_figures": c_sweep.figure_names(model), "sweep_work": c_sweep.work_size(model)}
+                "sweep_figures": c_sweep.figure_names(model), "sweep_work": ctx["sweep_work"]}
         (folder / "meta.json").write_text(json.dumps(meta))
 
     return cached(mech, options, "c", make, ("solver.so", "meta.json"))

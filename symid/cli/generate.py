@@ -17,6 +17,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("-o", "--output", help="folder (default: <name>_<target>; with --examples: generated)")
     p.add_argument("--examples", action="store_true",
                    help="regenerate every bundled example into OUTPUT/<example>/<target>/")
+    p.add_argument("--precision", choices=("double", "single"), default="double",
+                   help="C target: the floating type of every argument and table (single: float, for an FPU "
+                        "without double; see the README for its accuracy)")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="override a parameter's default value in the generated code (repeatable)")
     p.set_defaults(run=run)
@@ -27,6 +30,8 @@ def run(args: argparse.Namespace) -> int:
     from symid.cli.options import set_values
     from symid.errors import InputError
 
+    if args.precision != "double" and args.target != ["c"]:
+        raise InputError(f"generate: --precision {args.precision} applies to --target c only")
     if args.examples:
         out = Path(args.output or "generated")
         targets = tuple(args.target or ("c", "numpy", "casadi"))
@@ -39,6 +44,6 @@ def run(args: argparse.Namespace) -> int:
     study_mech = api.load_mechanism(args.file, set_values(args.set, args.file))
     for target in args.target:
         out = Path(args.output) if args.output else Path(f"{study_mech.name}_{target}")
-        for path in api.generate(study_mech, target, out):
+        for path in api.generate(study_mech, target, out, precision=args.precision):
             print(path)
     return 0

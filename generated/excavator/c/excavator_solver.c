@@ -12,7 +12,7 @@
 #define EXCAVATOR_RESTRICT restrict
 #endif
 
-#define EXCAVATOR_EPS 2.220446049250313e-16
+#define EXCAVATOR_EPS 2.220446049250313e-16  /* the machine epsilon of excavator_real */
 #define EXCAVATOR_THRESHOLD 0.1
 #define EXCAVATOR_SINGULAR_RATIO (1e3 * EXCAVATOR_EPS)
 #define EXCAVATOR_MAX_NEWTON 50
@@ -24,8 +24,87 @@
 #define EXCAVATOR_OFF_DENSE (EXCAVATOR_OFF_LU + EXCAVATOR_LU_SIZE)
 #define EXCAVATOR_OFF_VEC (EXCAVATOR_OFF_DENSE + 81)
 #define EXCAVATOR_VEC(work, k) ((work) + EXCAVATOR_OFF_VEC + (k) * 36)
+#define EXCAVATOR_OFF_PREP 547  /* the prepared parameters (NPP), after the vectors */
+#define EXCAVATOR_NPP 41
 
 const excavator_real excavator_default_params[17] = { 5.7, 2.9, 1.5, 1.0, 1500.0, 700.0, 500.0, 8.0, 2.68, 0.25, 2.31, 0.65, 2.3, 0.55, 30000.0, 2.4, 1.0 };
+const char *const excavator_row_names[EXCAVATOR_ROW] = {
+    "t",
+    "boom.x",
+    "boom.y",
+    "boom.phi",
+    "stick.x",
+    "stick.y",
+    "stick.phi",
+    "bucket.x",
+    "bucket.y",
+    "bucket.phi",
+    "boom.vx",
+    "boom.vy",
+    "boom.omega",
+    "stick.vx",
+    "stick.vy",
+    "stick.omega",
+    "bucket.vx",
+    "bucket.vy",
+    "bucket.omega",
+    "boom.ax",
+    "boom.ay",
+    "boom.alpha",
+    "stick.ax",
+    "stick.ay",
+    "stick.alpha",
+    "bucket.ax",
+    "bucket.ay",
+    "bucket.alpha",
+    "boom_foot_pin.lambda1",
+    "boom_foot_pin.lambda2",
+    "boom_stick_pin.lambda1",
+    "boom_stick_pin.lambda2",
+    "stick_bucket_pin.lambda1",
+    "stick_bucket_pin.lambda2",
+    "boom_cylinder.lambda",
+    "stick_cylinder.lambda",
+    "bucket_cylinder.lambda",
+    "boom_foot_pin.Fx_i",
+    "boom_foot_pin.Fy_i",
+    "boom_foot_pin.T_i",
+    "boom_foot_pin.Fx_j",
+    "boom_foot_pin.Fy_j",
+    "boom_foot_pin.T_j",
+    "boom_stick_pin.Fx_i",
+    "boom_stick_pin.Fy_i",
+    "boom_stick_pin.T_i",
+    "boom_stick_pin.Fx_j",
+    "boom_stick_pin.Fy_j",
+    "boom_stick_pin.T_j",
+    "stick_bucket_pin.Fx_i",
+    "stick_bucket_pin.Fy_i",
+    "stick_bucket_pin.T_i",
+    "stick_bucket_pin.Fx_j",
+    "stick_bucket_pin.Fy_j",
+    "stick_bucket_pin.T_j",
+    "boom_cylinder.Fx_i",
+    "boom_cylinder.Fy_i",
+    "boom_cylinder.T_i",
+    "boom_cylinder.Fx_j",
+    "boom_cylinder.Fy_j",
+    "boom_cylinder.T_j",
+    "stick_cylinder.Fx_i",
+    "stick_cylinder.Fy_i",
+    "stick_cylinder.T_i",
+    "stick_cylinder.Fx_j",
+    "stick_cylinder.Fy_j",
+    "stick_cylinder.T_j",
+    "bucket_cylinder.Fx_i",
+    "bucket_cylinder.Fy_i",
+    "bucket_cylinder.T_i",
+    "bucket_cylinder.Fx_j",
+    "bucket_cylinder.Fy_j",
+    "bucket_cylinder.T_j"
+};
+const char *const excavator_param_names[17] = { "L_boom", "L_stick", "L_bucket", "H_bucket", "m_boom", "m_stick", "m_bucket", "T_cycle", "Lc_boom", "a_boom", "Lc_stick", "a_stick", "Lc_bucket", "a_bucket", "F_dig", "t_dig", "tau_dig" };
+const excavator_real excavator_default_q0[EXCAVATOR_NG] = { 2.563512778123719, 1.2453522539411943, 0.452222501384828, 6.329505885671792, 1.6804322960007914, -0.5929482497096338, 8.25328013033541, 0.6646483135589328, -0.2775660735735967 };
 const int excavator_phi_q_rows[35] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8 };
 const int excavator_phi_q_cols[35] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 8, 0, 1, 2, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 8 };
 /* Sines and cosines of the body angles, computed once per configuration. */
@@ -99,6 +178,57 @@ static void excavator_trig_step(const excavator_real *q, const excavator_real *d
     }
 }
 
+/* x^n for a small n > 1 whose x holds a call (computed once, multiplied n - 1 times). */
+static excavator_real excavator_powi(excavator_real x, int n)
+{
+    excavator_real y = x;
+    while (--n > 0) y *= x;
+    return y;
+}
+
+/* The prepared parameters: p (NP values) and then every piece of the
+   expressions that reads parameters only, computed once per call of
+   instant or trajectory (or of a public evaluation) instead of at every
+   evaluation. The kernels read both from this one vector. */
+static void excavator_prepare(const excavator_real *p, excavator_real *pp)
+{
+    memcpy(pp, p, sizeof(excavator_real) * 17);
+    {
+        const excavator_real e0 = (2*3.141592653589793/p[7]);
+        const excavator_real e1 = (1.0/2.0)*p[1];
+        const excavator_real e2 = -1.0/2.0*p[2] - 1.0/20.0;
+        const excavator_real e3 = 2.0/5.0 - e1;
+        const excavator_real e4 = (p[9]*p[9]);
+        const excavator_real e5 = (e0*e0);
+        const excavator_real e6 = (p[11]*p[11]);
+        const excavator_real e7 = (p[13]*p[13]);
+        pp[17] = 23.0/10.0 - 1.0/2.0*p[0];
+        pp[18] = e0;
+        pp[19] = -e1 - 3.0/4.0;
+        pp[20] = e2;
+        pp[21] = e3;
+        pp[22] = e0*p[9];
+        pp[23] = e0*p[11];
+        pp[24] = e0*p[13];
+        pp[25] = e4;
+        pp[26] = e5;
+        pp[27] = e4*e5;
+        pp[28] = e5*p[9];
+        pp[29] = e6;
+        pp[30] = e5*e6;
+        pp[31] = e5*p[11];
+        pp[32] = e7;
+        pp[33] = e5*e7;
+        pp[34] = e5*p[13];
+        pp[35] = e2*e3;
+        pp[36] = (1.0/(p[16]*p[16]));
+        pp[37] = p[14]*p[2];
+        pp[38] = (1.0/12.0)*(p[0]*p[0])*p[4];
+        pp[39] = (1.0/12.0)*(p[1]*p[1])*p[5];
+        pp[40] = (1.0/12.0)*p[6]*((p[2]*p[2]) + (p[3]*p[3]));
+    }
+}
+
 static void excavator_phi_k0(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     const excavator_real e0 = (1.0/2.0)*p[0];
@@ -112,22 +242,18 @@ static void excavator_phi_k0(const excavator_real * q, const excavator_real * tr
     const excavator_real e8 = (-q[3] + q[6]);
     const excavator_real e9 = (1.0/2.0)*tr[5];
     const excavator_real e10 = (-q[4] + q[7]);
-    const excavator_real e11 = (1.0/2.0)*p[2];
-    const excavator_real e12 = 23.0/10.0 - e0;
-    const excavator_real e13 = t*(2*3.141592653589793/p[7]);
-    const excavator_real e14 = -e4 - 3.0/4.0;
-    const excavator_real e15 = 1.0/2.0 - 1.0/2.0*cos(e13);
-    const excavator_real e16 = -e11 - 1.0/20.0;
-    const excavator_real e17 = 2.0/5.0 - e4;
+    const excavator_real e11 = (1.0/2.0)*tr[4];
+    const excavator_real e12 = p[18]*t;
+    const excavator_real e13 = 1.0/2.0 - 1.0/2.0*cos(e12);
     out[0] = -e1 + q[0];
     out[1] = -e2 + q[1];
     out[2] = -e1 + e3 - e5;
     out[3] = -e2 + e6 - e7;
     out[4] = -e5 + e8 - e9*p[2];
-    out[5] = e10 - e11*tr[4] - e7;
-    out[6] = -pow(p[8] - p[9]*sin(e13), 2) + pow(e12*tr[0] - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0), 2) + pow(e12*tr[1] + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0), 2);
-    out[7] = -pow(e15*p[11] + p[10], 2) + pow(e14*tr[2] + e6 - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3], 2) + pow(e14*tr[3] + e3 + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2], 2);
-    out[8] = -pow(e15*p[13] + p[12], 2) + pow(e10 + e16*tr[4] - e17*tr[2] + e9 - 7.0/20.0*tr[3], 2) + pow(e16*tr[5] - e17*tr[3] + e8 + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4], 2);
+    out[5] = e10 - e11*p[2] - e7;
+    out[6] = -(excavator_powi(p[8] - p[9]*sin(e12), 2)) + ((p[17]*tr[0] - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0))*(p[17]*tr[0] - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0))) + ((p[17]*tr[1] + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0))*(p[17]*tr[1] + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0)));
+    out[7] = -((e13*p[11] + p[10])*(e13*p[11] + p[10])) + ((e3 + p[19]*tr[3] + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2])*(e3 + p[19]*tr[3] + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2])) + ((e6 + p[19]*tr[2] - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3])*(e6 + p[19]*tr[2] - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3]));
+    out[8] = -((e13*p[13] + p[12])*(e13*p[13] + p[12])) + ((e10 + e9 + p[20]*tr[4] - p[21]*tr[2] - 7.0/20.0*tr[3])*(e10 + e9 + p[20]*tr[4] - p[21]*tr[2] - 7.0/20.0*tr[3])) + ((-e11 + e8 + p[20]*tr[5] - p[21]*tr[3] + (7.0/20.0)*tr[2])*(-e11 + e8 + p[20]*tr[5] - p[21]*tr[3] + (7.0/20.0)*tr[2]));
 }
 
 static void excavator_phi_k(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -137,8 +263,11 @@ static void excavator_phi_k(const excavator_real * q, const excavator_real * tr,
 
 void excavator_phi(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
+    excavator_real prepared[41];
     excavator_real tr[6];
     excavator_trig(q, tr);
+    excavator_prepare(p, prepared);
+    p = prepared;
     excavator_phi_k(q, tr, t, p, out);
 }
 
@@ -151,55 +280,52 @@ static void excavator_phi_q_k0(const excavator_real * q, const excavator_real * 
     const excavator_real e3 = (1.0/2.0)*p[1];
     const excavator_real e4 = e3*tr[2];
     const excavator_real e5 = -e3*tr[3];
-    const excavator_real e6 = (1.0/2.0)*p[2];
-    const excavator_real e7 = 2*q[0];
-    const excavator_real e8 = 23.0/10.0 - e0;
-    const excavator_real e9 = e8*tr[1];
+    const excavator_real e6 = (1.0/2.0)*tr[4];
+    const excavator_real e7 = (1.0/2.0)*tr[5];
+    const excavator_real e8 = 2*q[0];
+    const excavator_real e9 = p[17]*tr[1];
     const excavator_real e10 = 2*e9 + (4.0/5.0)*tr[0];
     const excavator_real e11 = 2*q[1];
-    const excavator_real e12 = e8*tr[0];
+    const excavator_real e12 = p[17]*tr[0];
     const excavator_real e13 = 2*e12 - 4.0/5.0*tr[1];
     const excavator_real e14 = (11.0/10.0)*tr[0];
     const excavator_real e15 = (3.0/5.0)*tr[1];
-    const excavator_real e16 = 2*q[3];
-    const excavator_real e17 = -e16 + e7;
-    const excavator_real e18 = (3.0/10.0)*tr[2];
-    const excavator_real e19 = -e3 - 3.0/4.0;
-    const excavator_real e20 = e19*tr[3];
-    const excavator_real e21 = 2*e20;
-    const excavator_real e22 = e18 - e21;
-    const excavator_real e23 = (3.0/10.0)*tr[3];
-    const excavator_real e24 = e19*tr[2];
-    const excavator_real e25 = 2*e24;
-    const excavator_real e26 = 2*q[4];
-    const excavator_real e27 = e11 - e26;
-    const excavator_real e28 = (3.0/5.0)*tr[0];
-    const excavator_real e29 = (11.0/10.0)*tr[1];
-    const excavator_real e30 = e28 + e29;
-    const excavator_real e31 = e14 - e15;
-    const excavator_real e32 = e24 - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3] + (-q[1] + q[4]);
-    const excavator_real e33 = e20 + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2] + (-q[0] + q[3]);
-    const excavator_real e34 = e23 + e25;
-    const excavator_real e35 = (7.0/10.0)*tr[2];
-    const excavator_real e36 = 2.0/5.0 - e3;
-    const excavator_real e37 = e36*tr[3];
-    const excavator_real e38 = 2*e37;
-    const excavator_real e39 = e16 - 2*q[6];
-    const excavator_real e40 = -e6 - 1.0/20.0;
-    const excavator_real e41 = e40*tr[5];
+    const excavator_real e16 = (3.0/10.0)*tr[2];
+    const excavator_real e17 = p[19]*tr[3];
+    const excavator_real e18 = 2*e17;
+    const excavator_real e19 = 2*q[3];
+    const excavator_real e20 = -e19 + e8;
+    const excavator_real e21 = (3.0/10.0)*tr[3];
+    const excavator_real e22 = p[19]*tr[2];
+    const excavator_real e23 = 2*e22;
+    const excavator_real e24 = 2*q[4];
+    const excavator_real e25 = e11 - e24;
+    const excavator_real e26 = (3.0/5.0)*tr[0];
+    const excavator_real e27 = (11.0/10.0)*tr[1];
+    const excavator_real e28 = e26 + e27;
+    const excavator_real e29 = e14 - e15;
+    const excavator_real e30 = e22 - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3] + (-q[1] + q[4]);
+    const excavator_real e31 = e17 + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2] + (-q[0] + q[3]);
+    const excavator_real e32 = -e16 + e18;
+    const excavator_real e33 = e21 + e23;
+    const excavator_real e34 = p[20]*tr[5];
+    const excavator_real e35 = 2*e34;
+    const excavator_real e36 = e19 - 2*q[6];
+    const excavator_real e37 = (7.0/10.0)*tr[2];
+    const excavator_real e38 = p[21]*tr[3];
+    const excavator_real e39 = 2*e38;
+    const excavator_real e40 = -e37 + e39;
+    const excavator_real e41 = p[20]*tr[4];
     const excavator_real e42 = 2*e41;
-    const excavator_real e43 = -e42 + tr[4];
-    const excavator_real e44 = e40*tr[4];
-    const excavator_real e45 = 2*e44;
-    const excavator_real e46 = e26 - 2*q[7];
-    const excavator_real e47 = (7.0/10.0)*tr[3];
-    const excavator_real e48 = e36*tr[2];
-    const excavator_real e49 = 2*e48;
-    const excavator_real e50 = e47 + e49;
-    const excavator_real e51 = e35 - e38;
-    const excavator_real e52 = e44 - e48 - 7.0/20.0*tr[3] + (1.0/2.0)*tr[5] + (-q[4] + q[7]);
-    const excavator_real e53 = -e37 + e41 + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4] + (-q[3] + q[6]);
-    const excavator_real e54 = e45 + tr[5];
+    const excavator_real e43 = e24 - 2*q[7];
+    const excavator_real e44 = (7.0/10.0)*tr[3];
+    const excavator_real e45 = p[21]*tr[2];
+    const excavator_real e46 = 2*e45;
+    const excavator_real e47 = e44 + e46;
+    const excavator_real e48 = e41 - e45 + e7 - 7.0/20.0*tr[3] + (-q[4] + q[7]);
+    const excavator_real e49 = e34 - e38 - e6 + (7.0/20.0)*tr[2] + (-q[3] + q[6]);
+    const excavator_real e50 = e35 - tr[4];
+    const excavator_real e51 = e42 + tr[5];
     out[0] = 1;
     out[1] = e1;
     out[2] = 1;
@@ -215,26 +341,26 @@ static void excavator_phi_q_k0(const excavator_real * q, const excavator_real * 
     out[12] = -1;
     out[13] = e4;
     out[14] = 1;
-    out[15] = e6*tr[4];
+    out[15] = e6*p[2];
     out[16] = -1;
     out[17] = e5;
     out[18] = 1;
-    out[19] = -e6*tr[5];
-    out[20] = e10 + (e7 - 3.0/5.0);
+    out[19] = -e7*p[2];
+    out[20] = e10 + (e8 - 3.0/5.0);
     out[21] = e13 + (e11 + 12.0/5.0);
     out[22] = e10*(e12 - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0)) - e13*(e9 + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0));
-    out[23] = -e14 + e15 + e22 + (e17);
-    out[24] = -e23 - e25 + e30 + (e27);
-    out[25] = e30*e33 + e31*e32;
-    out[26] = -e18 + e21 + e31 + (-e17);
-    out[27] = -e28 - e29 + e34 + (-e27);
-    out[28] = -e22*e32 - e33*e34;
-    out[29] = -e35 + e38 + e43 + (e39);
-    out[30] = -e45 + e50 - tr[5] + (e46);
-    out[31] = e50*e53 + e51*e52;
-    out[32] = e42 + e51 - tr[4] + (-e39);
-    out[33] = -e47 - e49 + e54 + (-e46);
-    out[34] = -e43*e52 - e53*e54;
+    out[23] = -e14 + e15 + e16 - e18 + (e20);
+    out[24] = -e21 - e23 + e28 + (e25);
+    out[25] = e28*e31 + e29*e30;
+    out[26] = e29 + e32 + (-e20);
+    out[27] = -e26 - e27 + e33 + (-e25);
+    out[28] = e30*e32 - e31*e33;
+    out[29] = -e35 + e40 + tr[4] + (e36);
+    out[30] = -e42 + e47 - tr[5] + (e43);
+    out[31] = -e40*e48 + e47*e49;
+    out[32] = e37 - e39 + e50 + (-e36);
+    out[33] = -e44 - e46 + e51 + (-e43);
+    out[34] = e48*e50 - e49*e51;
 }
 
 static void excavator_phi_q_k(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -244,8 +370,11 @@ static void excavator_phi_q_k(const excavator_real * q, const excavator_real * t
 
 void excavator_phi_q(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
+    excavator_real prepared[41];
     excavator_real tr[6];
     excavator_trig(q, tr);
+    excavator_prepare(p, prepared);
+    p = prepared;
     excavator_phi_q_k(q, tr, t, p, out);
 }
 
@@ -253,21 +382,19 @@ static void excavator_nu_k0(const excavator_real * q, const excavator_real * tr,
 {
     (void)q;
     (void)tr;
-    const excavator_real e0 = (2*3.141592653589793/p[7]);
-    const excavator_real e1 = e0*t;
-    const excavator_real e2 = sin(e1);
-    const excavator_real e3 = cos(e1);
-    const excavator_real e4 = 1.0/2.0 - 1.0/2.0*e3;
-    const excavator_real e5 = e0*e2;
+    const excavator_real e0 = p[18]*t;
+    const excavator_real e1 = sin(e0);
+    const excavator_real e2 = cos(e0);
+    const excavator_real e3 = 1.0/2.0 - 1.0/2.0*e2;
     out[0] = 0;
     out[1] = 0;
     out[2] = 0;
     out[3] = 0;
     out[4] = 0;
     out[5] = 0;
-    out[6] = -2*e0*e3*p[9]*(-e2*p[9] + p[8]);
-    out[7] = e5*p[11]*(e4*p[11] + p[10]);
-    out[8] = e5*p[13]*(e4*p[13] + p[12]);
+    out[6] = -2*e2*p[22]*(-e1*p[9] + p[8]);
+    out[7] = e1*p[23]*(e3*p[11] + p[10]);
+    out[8] = e1*p[24]*(e3*p[13] + p[12]);
 }
 
 static void excavator_nu_k(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -277,97 +404,84 @@ static void excavator_nu_k(const excavator_real * q, const excavator_real * tr, 
 
 void excavator_nu(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
+    excavator_real prepared[41];
     excavator_real tr[6];
     excavator_trig(q, tr);
+    excavator_prepare(p, prepared);
+    p = prepared;
     excavator_nu_k(q, tr, t, p, out);
 }
 
 static void excavator_gamma_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    const excavator_real e0 = (1.0/2.0)*p[0];
-    const excavator_real e1 = pow(qd[2], 2);
-    const excavator_real e2 = e1*tr[1];
-    const excavator_real e3 = e0*e2;
-    const excavator_real e4 = e1*tr[0];
-    const excavator_real e5 = e0*e4;
-    const excavator_real e6 = pow(qd[5], 2);
-    const excavator_real e7 = (1.0/2.0)*p[1];
-    const excavator_real e8 = e6*e7;
-    const excavator_real e9 = e8*tr[3];
-    const excavator_real e10 = e8*tr[2];
-    const excavator_real e11 = (1.0/2.0)*p[2];
-    const excavator_real e12 = pow(qd[8], 2);
+    const excavator_real e0 = (qd[2]*qd[2]);
+    const excavator_real e1 = e0*tr[1];
+    const excavator_real e2 = (1.0/2.0)*p[0];
+    const excavator_real e3 = e1*e2;
+    const excavator_real e4 = e0*tr[0];
+    const excavator_real e5 = e2*e4;
+    const excavator_real e6 = (qd[5]*qd[5]);
+    const excavator_real e7 = e6*tr[3];
+    const excavator_real e8 = (1.0/2.0)*p[1];
+    const excavator_real e9 = e7*e8;
+    const excavator_real e10 = e6*tr[2];
+    const excavator_real e11 = e10*e8;
+    const excavator_real e12 = (qd[8]*qd[8]);
     const excavator_real e13 = e12*tr[5];
-    const excavator_real e14 = e12*tr[4];
-    const excavator_real e15 = (2*3.141592653589793/p[7]);
-    const excavator_real e16 = e15*t;
+    const excavator_real e14 = (1.0/2.0)*p[2];
+    const excavator_real e15 = e12*tr[4];
+    const excavator_real e16 = p[18]*t;
     const excavator_real e17 = cos(e16);
-    const excavator_real e18 = pow(e15, 2);
-    const excavator_real e19 = 2*e18;
-    const excavator_real e20 = (8.0/5.0)*qd[2];
-    const excavator_real e21 = 23.0/10.0 - e0;
-    const excavator_real e22 = (3.0/5.0)*e2;
-    const excavator_real e23 = e4*q[0];
-    const excavator_real e24 = e21*e4;
-    const excavator_real e25 = qd[2]*tr[1];
-    const excavator_real e26 = sin(e16);
-    const excavator_real e27 = e26*p[9];
-    const excavator_real e28 = 2*q[0];
-    const excavator_real e29 = 2*q[1];
-    const excavator_real e30 = 4*qd[0];
-    const excavator_real e31 = 2*pow(qd[0], 2) + 2*pow(qd[1], 2);
-    const excavator_real e32 = 2*pow(qd[3], 2) + 2*pow(qd[4], 2);
-    const excavator_real e33 = pow(e26, 2);
-    const excavator_real e34 = (3.0/5.0)*e4;
-    const excavator_real e35 = (3.0/5.0)*qd[5];
-    const excavator_real e36 = (3.0/10.0)*e6;
-    const excavator_real e37 = (6.0/5.0)*qd[2];
-    const excavator_real e38 = (9.0/100.0)*tr[3];
-    const excavator_real e39 = e6*tr[0];
-    const excavator_real e40 = (11.0/5.0)*qd[2];
-    const excavator_real e41 = e40*tr[0];
-    const excavator_real e42 = (11.0/10.0)*e2;
-    const excavator_real e43 = (33.0/200.0)*tr[2];
-    const excavator_real e44 = (33.0/200.0)*tr[3];
-    const excavator_real e45 = e6*tr[1];
-    const excavator_real e46 = 1.0/2.0 - 1.0/2.0*e17;
-    const excavator_real e47 = -e7 - 3.0/4.0;
-    const excavator_real e48 = e47*e6;
-    const excavator_real e49 = e47*qd[5];
-    const excavator_real e50 = 4*qd[4];
-    const excavator_real e51 = e49*tr[3];
-    const excavator_real e52 = e47*tr[2];
-    const excavator_real e53 = e47*tr[3];
-    const excavator_real e54 = 2*qd[8];
-    const excavator_real e55 = e54*tr[4];
-    const excavator_real e56 = (7.0/5.0)*qd[5];
-    const excavator_real e57 = e56*tr[2];
-    const excavator_real e58 = (7.0/10.0)*e6;
-    const excavator_real e59 = e58*tr[3];
-    const excavator_real e60 = (7.0/20.0)*tr[2];
-    const excavator_real e61 = e6*tr[4];
-    const excavator_real e62 = (7.0/20.0)*tr[3];
-    const excavator_real e63 = e6*tr[5];
-    const excavator_real e64 = 2.0/5.0 - e7;
-    const excavator_real e65 = e64*tr[2];
-    const excavator_real e66 = -e11 - 1.0/20.0;
-    const excavator_real e67 = e13*e66;
-    const excavator_real e68 = e14*e66;
-    const excavator_real e69 = e64*tr[3];
-    const excavator_real e70 = 2*e6;
-    const excavator_real e71 = e66*qd[8];
-    const excavator_real e72 = e69*qd[5];
-    const excavator_real e73 = e71*tr[5];
-    const excavator_real e74 = 2*e66;
+    const excavator_real e18 = sin(e16);
+    const excavator_real e19 = (8.0/5.0)*qd[2];
+    const excavator_real e20 = (3.0/5.0)*e1;
+    const excavator_real e21 = e4*q[0];
+    const excavator_real e22 = e4*p[17];
+    const excavator_real e23 = qd[2]*tr[1];
+    const excavator_real e24 = 2*q[0];
+    const excavator_real e25 = 2*q[1];
+    const excavator_real e26 = 4*qd[0];
+    const excavator_real e27 = 2*(qd[0]*qd[0]) + 2*(qd[1]*qd[1]);
+    const excavator_real e28 = 2*(qd[3]*qd[3]) + 2*(qd[4]*qd[4]);
+    const excavator_real e29 = (e18*e18);
+    const excavator_real e30 = 1.0/2.0 - 1.0/2.0*e17;
+    const excavator_real e31 = (3.0/5.0)*qd[5];
+    const excavator_real e32 = (6.0/5.0)*qd[2];
+    const excavator_real e33 = (11.0/5.0)*qd[2];
+    const excavator_real e34 = e33*tr[0];
+    const excavator_real e35 = (11.0/10.0)*e1;
+    const excavator_real e36 = e4*tr[2];
+    const excavator_real e37 = e10*tr[0];
+    const excavator_real e38 = e7*tr[1];
+    const excavator_real e39 = p[19]*qd[5];
+    const excavator_real e40 = 4*qd[4];
+    const excavator_real e41 = e39*tr[3];
+    const excavator_real e42 = (3.0/5.0)*p[19];
+    const excavator_real e43 = 2*qd[8];
+    const excavator_real e44 = e43*tr[4];
+    const excavator_real e45 = (7.0/5.0)*qd[5];
+    const excavator_real e46 = e45*tr[2];
+    const excavator_real e47 = (7.0/10.0)*e7;
+    const excavator_real e48 = e10*tr[4];
+    const excavator_real e49 = e15*tr[2];
+    const excavator_real e50 = e7*tr[5];
+    const excavator_real e51 = e13*tr[3];
+    const excavator_real e52 = e10*p[21];
+    const excavator_real e53 = p[21]*tr[2];
+    const excavator_real e54 = e15*p[20];
+    const excavator_real e55 = 2*p[35];
+    const excavator_real e56 = p[20]*qd[8];
+    const excavator_real e57 = e56*tr[5];
+    const excavator_real e58 = p[21]*qd[5]*tr[3];
     out[0] = -e3;
     out[1] = -e5;
     out[2] = -e3 - e9;
-    out[3] = -e10 - e5;
-    out[4] = -e11*e13 - e9;
-    out[5] = -e10 - e11*e14;
-    out[6] = pow(e17, 2)*e19*pow(p[9], 2) + e19*e27*(-e27 + p[8]) + e2*e21*e28 - 4.0/5.0*e2*q[1] - 24.0/25.0*e2 - e20*qd[0]*tr[1] - e20*qd[1]*tr[0] - e21*e22 - 4*e21*e25*qd[1] + e21*e30*qd[2]*tr[0] + (4.0/5.0)*e23 + e24*e29 + (12.0/5.0)*e24 - 6.0/25.0*e4 + (-e31);
-    out[7] = (11.0/10.0)*e1*e47*tr[0]*tr[3] + (3.0/5.0)*e1*q[0]*tr[1] + (3.0/5.0)*e1*q[1]*tr[0] + (11.0/10.0)*e1*q[1]*tr[1] + (11.0/10.0)*e1*q[3]*tr[0] + (9.0/100.0)*e1*tr[1]*tr[2] + e17*e18*p[11]*(e46*p[11] + p[10]) + (1.0/2.0)*e18*e33*pow(p[11], 2) - e2*e44 - e22*e53 - e22*q[3] - 11.0/10.0*e23 - 9.0/50.0*e25*qd[5]*tr[2] - e28*e48*tr[3] - e29*e48*tr[2] - e30*e49*tr[2] - e34*e52 - e34*q[4] - e35*qd[0]*tr[3] - e35*qd[1]*tr[2] - e36*q[1]*tr[3] - e36*q[3]*tr[2] - e37*qd[1]*tr[1] - e37*qd[3]*tr[0] - e38*e39 - e38*e4 - e39*e43 - 3.0/5.0*e39*e52 - e4*e43 - e40*qd[3]*tr[1] - e41*e51 - e41*qd[4] - e42*e52 - e42*q[4] - e44*e45 - 11.0/10.0*e45*e52 - 3.0/5.0*e45*e53 + 2*e47*e6*q[3]*tr[3] + 2*e47*e6*q[4]*tr[2] + (11.0/10.0)*e47*e6*tr[0]*tr[3] + 4*e47*qd[1]*qd[5]*tr[3] + (6.0/5.0)*e47*qd[2]*qd[5]*tr[0]*tr[2] + (11.0/5.0)*e47*qd[2]*qd[5]*tr[1]*tr[2] + (6.0/5.0)*e47*qd[2]*qd[5]*tr[1]*tr[3] + 4*e47*qd[3]*qd[5]*tr[2] - e50*e51 + (3.0/10.0)*e6*q[0]*tr[2] + (3.0/10.0)*e6*q[4]*tr[3] + (9.0/100.0)*e6*tr[1]*tr[2] + (6.0/5.0)*qd[0]*qd[2]*tr[0] + (11.0/5.0)*qd[0]*qd[2]*tr[1] + (11.0/5.0)*qd[1]*qd[2]*tr[0] + (6.0/5.0)*qd[2]*qd[4]*tr[1] + (33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2] + (9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3] + (33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3] + (3.0/5.0)*qd[3]*qd[5]*tr[3] + (3.0/5.0)*qd[4]*qd[5]*tr[2] + (-e31 - e32 + 4*qd[0]*qd[3] + 4*qd[1]*qd[4]);
-    out[8] = e12*e64*tr[3]*tr[4] + 2*e12*e66*q[6]*tr[5] + 2*e12*e66*q[7]*tr[4] + (7.0/10.0)*e12*e66*tr[2]*tr[5] + e12*q[3]*tr[4] + e12*q[7]*tr[5] - e13*e62 - e13*e65 - e13*q[4] - e14*e60 - e14*q[6] + e17*e18*p[13]*(e46*p[13] + p[12]) + (1.0/2.0)*e18*e33*pow(p[13], 2) - e50*e72 - e54*qd[3]*tr[5] - e55*e72 - e55*qd[4] - e56*qd[6]*tr[3] - e57*e73 - e57*qd[7] - e58*q[3]*tr[2] - e59*e66*tr[4] - e59*q[7] + 2*e6*e64*q[3]*tr[3] + 2*e6*e64*q[4]*tr[2] + e6*e64*tr[3]*tr[4] + (7.0/10.0)*e6*e66*tr[2]*tr[5] + (7.0/10.0)*e6*q[4]*tr[3] + (7.0/10.0)*e6*q[6]*tr[2] - e60*e61 - e61*e65*e74 - e62*e63 - e63*e65 - e63*e69*e74 + 4*e64*e66*qd[5]*qd[8]*tr[2]*tr[4] + 4*e64*e66*qd[5]*qd[8]*tr[3]*tr[5] + 4*e64*qd[3]*qd[5]*tr[2] + 4*e64*qd[5]*qd[7]*tr[3] + 2*e64*qd[5]*qd[8]*tr[2]*tr[5] - 2*e65*e68 - e65*e70*q[7] - 4*e65*qd[5]*qd[6] + 4*e66*qd[4]*qd[8]*tr[5] + (7.0/5.0)*e66*qd[5]*qd[8]*tr[3]*tr[4] + 4*e66*qd[6]*qd[8]*tr[4] - 2*e67*e69 - 2*e67*q[3] - 2*e68*q[4] - 7.0/10.0*e68*tr[3] - e69*e70*q[6] - 4*e71*qd[3]*tr[4] - 4*e73*qd[7] + (7.0/5.0)*qd[3]*qd[5]*tr[3] + (7.0/5.0)*qd[4]*qd[5]*tr[2] + (7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4] + (7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5] + 2*qd[6]*qd[8]*tr[5] + 2*qd[7]*qd[8]*tr[4] + (-e32 + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*pow(qd[6], 2) - 2*pow(qd[7], 2));
+    out[3] = -e11 - e5;
+    out[4] = -e13*e14 - e9;
+    out[5] = -e11 - e14*e15;
+    out[6] = e1*e24*p[17] - 4.0/5.0*e1*q[1] - 24.0/25.0*e1 + 2*(e17*e17)*p[27] + 2*e18*p[28]*(-e18*p[9] + p[8]) - e19*qd[0]*tr[1] - e19*qd[1]*tr[0] - e20*p[17] + (4.0/5.0)*e21 + e22*e25 + (12.0/5.0)*e22 - 4*e23*p[17]*qd[1] + e26*p[17]*qd[2]*tr[0] - 6.0/25.0*e4 + (-e27);
+    out[7] = (11.0/10.0)*e0*p[19]*tr[0]*tr[3] + (3.0/5.0)*e0*q[0]*tr[1] + (3.0/5.0)*e0*q[1]*tr[0] + (11.0/10.0)*e0*q[1]*tr[1] + (11.0/10.0)*e0*q[3]*tr[0] + (9.0/100.0)*e0*tr[1]*tr[2] - 33.0/200.0*e1*tr[3] - e10*e25*p[19] - 11.0/10.0*e10*p[19]*tr[1] - 3.0/10.0*e10*q[3] + e17*p[31]*(e30*p[11] + p[10]) - e20*p[19]*tr[3] - e20*q[3] - 11.0/10.0*e21 - 9.0/50.0*e23*qd[5]*tr[2] - e24*e7*p[19] - e26*e39*tr[2] + (1.0/2.0)*e29*p[30] - e31*qd[0]*tr[3] - e31*qd[1]*tr[2] - e32*qd[1]*tr[1] - e32*qd[3]*tr[0] - e33*qd[3]*tr[1] - e34*e41 - e34*qd[4] - e35*p[19]*tr[2] - e35*q[4] - e36*e42 - 33.0/200.0*e36 - e37*e42 - 33.0/200.0*e37 - e38*e42 - 33.0/200.0*e38 - 3.0/5.0*e4*q[4] - 9.0/100.0*e4*tr[3] - e40*e41 + 2*e6*p[19]*q[3]*tr[3] + 2*e6*p[19]*q[4]*tr[2] + (11.0/10.0)*e6*p[19]*tr[0]*tr[3] + (3.0/10.0)*e6*q[0]*tr[2] + (3.0/10.0)*e6*q[4]*tr[3] + (9.0/100.0)*e6*tr[1]*tr[2] - 3.0/10.0*e7*q[1] - 9.0/100.0*e7*tr[0] + 4*p[19]*qd[1]*qd[5]*tr[3] + (6.0/5.0)*p[19]*qd[2]*qd[5]*tr[0]*tr[2] + (11.0/5.0)*p[19]*qd[2]*qd[5]*tr[1]*tr[2] + (6.0/5.0)*p[19]*qd[2]*qd[5]*tr[1]*tr[3] + 4*p[19]*qd[3]*qd[5]*tr[2] + (6.0/5.0)*qd[0]*qd[2]*tr[0] + (11.0/5.0)*qd[0]*qd[2]*tr[1] + (11.0/5.0)*qd[1]*qd[2]*tr[0] + (6.0/5.0)*qd[2]*qd[4]*tr[1] + (33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2] + (9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3] + (33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3] + (3.0/5.0)*qd[3]*qd[5]*tr[3] + (3.0/5.0)*qd[4]*qd[5]*tr[2] + (-e27 - e28 + 4*qd[0]*qd[3] + 4*qd[1]*qd[4]);
+    out[8] = -7.0/10.0*e10*q[3] + 2*e12*p[20]*q[6]*tr[5] + 2*e12*p[20]*q[7]*tr[4] + (7.0/10.0)*e12*p[20]*tr[2]*tr[5] + e12*p[21]*tr[3]*tr[4] + e12*q[3]*tr[4] + e12*q[7]*tr[5] - e13*e53 - 2*e13*p[20]*q[3] - e13*q[4] - e15*q[6] + e17*p[34]*(e30*p[13] + p[12]) + (1.0/2.0)*e29*p[33] - e40*e58 - e43*qd[3]*tr[5] - e44*e58 - e44*qd[4] - e45*qd[6]*tr[3] - e46*e57 - e46*qd[7] - e47*p[20]*tr[4] - e47*q[7] - e48*e55 - 7.0/20.0*e48 - e49*e55 - 7.0/20.0*e49 - e50*e55 - 7.0/20.0*e50 - e51*e55 - 7.0/20.0*e51 - 2*e52*q[7] - e52*tr[5] - 4*e53*qd[5]*qd[6] - 2*e54*q[4] - 7.0/10.0*e54*tr[3] - 4*e56*qd[3]*tr[4] - 4*e57*qd[7] + (7.0/10.0)*e6*p[20]*tr[2]*tr[5] + 2*e6*p[21]*q[3]*tr[3] + 2*e6*p[21]*q[4]*tr[2] + e6*p[21]*tr[3]*tr[4] + (7.0/10.0)*e6*q[4]*tr[3] + (7.0/10.0)*e6*q[6]*tr[2] - 2*e7*p[21]*q[6] + 4*p[20]*qd[4]*qd[8]*tr[5] + (7.0/5.0)*p[20]*qd[5]*qd[8]*tr[3]*tr[4] + 4*p[20]*qd[6]*qd[8]*tr[4] + 4*p[21]*qd[3]*qd[5]*tr[2] + 4*p[21]*qd[5]*qd[7]*tr[3] + 2*p[21]*qd[5]*qd[8]*tr[2]*tr[5] + 4*p[35]*qd[5]*qd[8]*tr[2]*tr[4] + 4*p[35]*qd[5]*qd[8]*tr[3]*tr[5] + (7.0/5.0)*qd[3]*qd[5]*tr[3] + (7.0/5.0)*qd[4]*qd[5]*tr[2] + (7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4] + (7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5] + 2*qd[6]*qd[8]*tr[5] + 2*qd[7]*qd[8]*tr[4] + (-e28 + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*(qd[6]*qd[6]) - 2*(qd[7]*qd[7]));
 }
 
 static void excavator_gamma_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -377,8 +491,11 @@ static void excavator_gamma_k(const excavator_real * q, const excavator_real * t
 
 void excavator_gamma(const excavator_real * q, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
+    excavator_real prepared[41];
     excavator_real tr[6];
     excavator_trig(q, tr);
+    excavator_prepare(p, prepared);
+    p = prepared;
     excavator_gamma_k(q, tr, qd, t, p, out);
 }
 
@@ -386,7 +503,7 @@ static void excavator_applied_k0(const excavator_real * q, const excavator_real 
 {
     (void)q;
     (void)qd;
-    const excavator_real e0 = exp(-pow(-p[15] + t, 2)/pow(p[16], 2));
+    const excavator_real e0 = exp(-p[36]*((-p[15] + t)*(-p[15] + t)));
     const excavator_real e1 = e0*p[14];
     out[0] = 0;
     out[1] = -981.0/100.0*p[4];
@@ -396,7 +513,7 @@ static void excavator_applied_k0(const excavator_real * q, const excavator_real 
     out[5] = 0;
     out[6] = e1;
     out[7] = (3.0/10.0)*e1 - 981.0/100.0*p[6];
-    out[8] = (3.0/20.0)*e0*p[14]*p[2]*tr[5] - 1.0/2.0*e1*p[2]*tr[4];
+    out[8] = -1.0/2.0*e0*p[37]*tr[4] + (3.0/20.0)*e0*p[37]*tr[5];
 }
 
 static void excavator_applied_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -406,8 +523,11 @@ static void excavator_applied_k(const excavator_real * q, const excavator_real *
 
 void excavator_applied(const excavator_real * q, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
+    excavator_real prepared[41];
     excavator_real tr[6];
     excavator_trig(q, tr);
+    excavator_prepare(p, prepared);
+    p = prepared;
     excavator_applied_k(q, tr, qd, t, p, out);
 }
 
@@ -415,13 +535,13 @@ static void excavator_mass_k0(const excavator_real * p, excavator_real *out)
 {
     out[0] = p[4];
     out[1] = p[4];
-    out[2] = (1.0/12.0)*pow(p[0], 2)*p[4];
+    out[2] = p[38];
     out[3] = p[5];
     out[4] = p[5];
-    out[5] = (1.0/12.0)*pow(p[1], 2)*p[5];
+    out[5] = p[39];
     out[6] = p[6];
     out[7] = p[6];
-    out[8] = (1.0/12.0)*p[6]*(pow(p[2], 2) + pow(p[3], 2));
+    out[8] = p[40];
 }
 
 static void excavator_mass_k(const excavator_real * p, excavator_real *out)
@@ -431,6 +551,9 @@ static void excavator_mass_k(const excavator_real * p, excavator_real *out)
 
 void excavator_mass(const excavator_real * p, excavator_real *out)
 {
+    excavator_real prepared[41];
+    excavator_prepare(p, prepared);
+    p = prepared;
     excavator_mass_k(p, out);
 }
 
@@ -440,7 +563,7 @@ static void excavator_reactions_k0(const excavator_real * q, const excavator_rea
     const excavator_real e0 = 2*lam[6];
     const excavator_real e1 = e0*q[0] - 3.0/5.0*lam[6];
     const excavator_real e2 = (4.0/5.0)*lam[6];
-    const excavator_real e3 = e0*(23.0/10.0 - 1.0/2.0*p[0]);
+    const excavator_real e3 = e0*p[17];
     const excavator_real e4 = e2*tr[0] + e3*tr[1];
     const excavator_real e5 = e2*tr[1];
     const excavator_real e6 = e3*tr[0];
@@ -451,30 +574,29 @@ static void excavator_reactions_k0(const excavator_real * q, const excavator_rea
     const excavator_real e11 = e10*tr[2];
     const excavator_real e12 = lam[7]*tr[0];
     const excavator_real e13 = (11.0/10.0)*e12;
-    const excavator_real e14 = (1.0/2.0)*p[1];
-    const excavator_real e15 = 2*lam[7];
-    const excavator_real e16 = e15*(-e14 - 3.0/4.0);
-    const excavator_real e17 = e16*tr[3];
-    const excavator_real e18 = e15*q[0] - 2*lam[7]*q[3];
-    const excavator_real e19 = (11.0/10.0)*e8;
-    const excavator_real e20 = (3.0/5.0)*e12;
-    const excavator_real e21 = e10*tr[3];
-    const excavator_real e22 = e16*tr[2];
-    const excavator_real e23 = e15*q[1] - 2*lam[7]*q[4];
-    const excavator_real e24 = lam[8]*tr[4];
-    const excavator_real e25 = (7.0/10.0)*lam[8];
-    const excavator_real e26 = e25*tr[2];
-    const excavator_real e27 = 2*lam[8];
-    const excavator_real e28 = e27*(2.0/5.0 - e14);
-    const excavator_real e29 = e28*tr[3];
-    const excavator_real e30 = lam[8]*tr[5];
-    const excavator_real e31 = -p[2] - 1.0/10.0;
-    const excavator_real e32 = e30*e31;
-    const excavator_real e33 = e27*q[3] - 2*lam[8]*q[6];
-    const excavator_real e34 = e25*tr[3];
-    const excavator_real e35 = e28*tr[2];
-    const excavator_real e36 = e24*e31;
-    const excavator_real e37 = e27*q[4] - 2*lam[8]*q[7];
+    const excavator_real e14 = 2*lam[7];
+    const excavator_real e15 = e14*p[19];
+    const excavator_real e16 = e15*tr[3];
+    const excavator_real e17 = e14*q[0] - 2*lam[7]*q[3];
+    const excavator_real e18 = (11.0/10.0)*e8;
+    const excavator_real e19 = (3.0/5.0)*e12;
+    const excavator_real e20 = e10*tr[3];
+    const excavator_real e21 = e15*tr[2];
+    const excavator_real e22 = e14*q[1] - 2*lam[7]*q[4];
+    const excavator_real e23 = lam[8]*tr[4];
+    const excavator_real e24 = (7.0/10.0)*lam[8];
+    const excavator_real e25 = e24*tr[2];
+    const excavator_real e26 = 2*lam[8];
+    const excavator_real e27 = e26*p[21];
+    const excavator_real e28 = e27*tr[3];
+    const excavator_real e29 = lam[8]*tr[5];
+    const excavator_real e30 = 2*p[20];
+    const excavator_real e31 = e29*e30;
+    const excavator_real e32 = e26*q[3] - 2*lam[8]*q[6];
+    const excavator_real e33 = e24*tr[3];
+    const excavator_real e34 = e27*tr[2];
+    const excavator_real e35 = e23*e30;
+    const excavator_real e36 = e26*q[4] - 2*lam[8]*q[7];
     out[0] = lam[0];
     out[1] = lam[1];
     out[2] = 0;
@@ -499,17 +621,17 @@ static void excavator_reactions_k0(const excavator_real * q, const excavator_rea
     out[21] = -e4 + (-e1);
     out[22] = e5 - e6 + (-e7);
     out[23] = 0;
-    out[24] = -e11 + e13 + e17 - e9 + (-e18);
-    out[25] = -e19 - e20 + e21 + e22 + (-e23);
+    out[24] = -e11 + e13 + e16 - e9 + (-e17);
+    out[25] = -e18 - e19 + e20 + e21 + (-e22);
     out[26] = 0;
-    out[27] = e11 - e13 - e17 + e9 + (e18);
-    out[28] = e19 + e20 - e21 - e22 + (e23);
+    out[27] = e11 - e13 - e16 + e9 + (e17);
+    out[28] = e18 + e19 - e20 - e21 + (e22);
     out[29] = 0;
-    out[30] = -e24 + e26 - e29 + e32 + (-e33);
-    out[31] = e30 - e34 - e35 + e36 + (-e37);
+    out[30] = -e23 + e25 - e28 + e31 + (-e32);
+    out[31] = e29 - e33 - e34 + e35 + (-e36);
     out[32] = 0;
-    out[33] = e24 - e26 + e29 - e32 + (e33);
-    out[34] = -e30 + e34 + e35 - e36 + (e37);
+    out[33] = e23 - e25 + e28 - e31 + (e32);
+    out[34] = -e29 + e33 + e34 - e35 + (e36);
     out[35] = 0;
 }
 
@@ -520,8 +642,11 @@ static void excavator_reactions_k(const excavator_real * q, const excavator_real
 
 void excavator_reactions(const excavator_real * q, const excavator_real * lam, excavator_real t, const excavator_real * p, excavator_real *out)
 {
+    excavator_real prepared[41];
     excavator_real tr[6];
     excavator_trig(q, tr);
+    excavator_prepare(p, prepared);
+    p = prepared;
     excavator_reactions_k(q, tr, lam, t, p, out);
 }
 
@@ -710,7 +835,7 @@ static int excavator_dense_factor(excavator_real *a, int *perm)
 {
     const int n = 9;
     int i, j, k;
-    excavator_real umax = 0.0, umin = INFINITY;
+    excavator_real umax = 0.0, umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -737,7 +862,7 @@ static void excavator_dense_solve(const excavator_real *a, const int *perm, cons
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(excavator_real) * n);
+    memcpy(x, b, sizeof(excavator_real) * 9);
     for (i = 0; i < n; ++i) {
         excavator_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -754,7 +879,7 @@ static void excavator_dense_solve_t(const excavator_real *a, const int *perm, co
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(excavator_real) * n);
+    memcpy(x, b, sizeof(excavator_real) * 9);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -874,7 +999,7 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
 {
     excavator_real *r = EXCAVATOR_VEC(work, 0), *dq = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
     excavator_real *base = EXCAVATOR_VEC(work, 10);
-    excavator_real step = INFINITY, lim, qmag, rmax;
+    excavator_real step = ((double)INFINITY), lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -988,16 +1113,17 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
         || !isfinite(tol) || tol <= 0.0) {
         status = EXCAVATOR_BAD_ARGUMENT;
     } else {
-        excavator_real *tr = EXCAVATOR_VEC(work, 9);
+        excavator_real *tr = EXCAVATOR_VEC(work, 9), *pp = work + EXCAVATOR_OFF_PREP;
+        excavator_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = EXCAVATOR_VEC(work, 5);
         if (qdd == NULL) qdd = EXCAVATOR_VEC(work, 6);
         if (lam == NULL) lam = EXCAVATOR_VEC(work, 7);
         if (reactions == NULL) reactions = EXCAVATOR_VEC(work, 8);
-        status = excavator_newton(t, p, tol, q, tr, counts, work, iwork, &dense, 0);
+        status = excavator_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == EXCAVATOR_OK) {
-            excavator_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+            excavator_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!excavator_finite(q, qd, qdd, lam, reactions)) status = EXCAVATOR_NONFINITE;
         }
     }
@@ -1013,17 +1139,19 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    excavator_real *q = state, *m1 = state + 27, *m2 = state + 36;
-    excavator_real *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
-    excavator_real *scale = state + 54;
-    excavator_real *count = state + 63;
-    excavator_real *qn, *qdn, *qddn, *lam, *reac, *tr = EXCAVATOR_VEC(work, 9);
+    excavator_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
+    excavator_real *qd, *qdd, *m3, *scale;
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
     *solved = 0;
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return EXCAVATOR_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    q = state, m1 = state + 27, m2 = state + 36, count = state + 63;
+    qd = state + 9, qdd = state + 18, m3 = state + 45, scale = state + 54;
+    tr = EXCAVATOR_VEC(work, 9), pp = work + EXCAVATOR_OFF_PREP;
+    excavator_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -1048,12 +1176,12 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
             memcpy(qn, q, sizeof(excavator_real) * 9);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = excavator_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
+        status = excavator_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != EXCAVATOR_OK) {
             *solved = i;
             return status;
         }
-        excavator_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        excavator_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!excavator_finite(qn, qdn, qddn, lam, reac)) {
             *solved = i;
             return EXCAVATOR_NONFINITE;

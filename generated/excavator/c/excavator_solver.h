@@ -18,7 +18,7 @@ typedef double excavator_real;
 #define EXCAVATOR_NNZ 35          /* structural nonzeros of Phi_q */
 #define EXCAVATOR_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define EXCAVATOR_ROW 73          /* values per instant in a trajectory row */
-#define EXCAVATOR_WORK 547        /* reals of workspace every solver call needs */
+#define EXCAVATOR_WORK 588        /* reals of workspace every solver call needs */
 #define EXCAVATOR_IWORK 9         /* ints of workspace */
 #define EXCAVATOR_STATE 64       /* reals of trajectory state */
 
@@ -48,6 +48,120 @@ typedef double excavator_real;
      w = 2*pi/T_cycle
 */
 extern const excavator_real excavator_default_params[17];
+/* What a trajectory row holds: ROW values, t then the compiled groups in
+   contract order (the CSV header of `symid solve`); units in the comments
+   (angles in rad, the rest in the file's consistent units). */
+extern const char *const excavator_row_names[EXCAVATOR_ROW];
+/*   row[0] t (time) */
+/*   row[1] boom.x (length) */
+/*   row[2] boom.y (length) */
+/*   row[3] boom.phi (rad) */
+/*   row[4] stick.x (length) */
+/*   row[5] stick.y (length) */
+/*   row[6] stick.phi (rad) */
+/*   row[7] bucket.x (length) */
+/*   row[8] bucket.y (length) */
+/*   row[9] bucket.phi (rad) */
+/*   row[10] boom.vx (length/time) */
+/*   row[11] boom.vy (length/time) */
+/*   row[12] boom.omega (rad/time) */
+/*   row[13] stick.vx (length/time) */
+/*   row[14] stick.vy (length/time) */
+/*   row[15] stick.omega (rad/time) */
+/*   row[16] bucket.vx (length/time) */
+/*   row[17] bucket.vy (length/time) */
+/*   row[18] bucket.omega (rad/time) */
+/*   row[19] boom.ax (length/time^2) */
+/*   row[20] boom.ay (length/time^2) */
+/*   row[21] boom.alpha (rad/time^2) */
+/*   row[22] stick.ax (length/time^2) */
+/*   row[23] stick.ay (length/time^2) */
+/*   row[24] stick.alpha (rad/time^2) */
+/*   row[25] bucket.ax (length/time^2) */
+/*   row[26] bucket.ay (length/time^2) */
+/*   row[27] bucket.alpha (rad/time^2) */
+/*   row[28] boom_foot_pin.lambda1 (force or torque, per its row) */
+/*   row[29] boom_foot_pin.lambda2 (force or torque, per its row) */
+/*   row[30] boom_stick_pin.lambda1 (force or torque, per its row) */
+/*   row[31] boom_stick_pin.lambda2 (force or torque, per its row) */
+/*   row[32] stick_bucket_pin.lambda1 (force or torque, per its row) */
+/*   row[33] stick_bucket_pin.lambda2 (force or torque, per its row) */
+/*   row[34] boom_cylinder.lambda (force or torque, per its row) */
+/*   row[35] stick_cylinder.lambda (force or torque, per its row) */
+/*   row[36] bucket_cylinder.lambda (force or torque, per its row) */
+/*   row[37] boom_foot_pin.Fx_i (force) */
+/*   row[38] boom_foot_pin.Fy_i (force) */
+/*   row[39] boom_foot_pin.T_i (force*length) */
+/*   row[40] boom_foot_pin.Fx_j (force) */
+/*   row[41] boom_foot_pin.Fy_j (force) */
+/*   row[42] boom_foot_pin.T_j (force*length) */
+/*   row[43] boom_stick_pin.Fx_i (force) */
+/*   row[44] boom_stick_pin.Fy_i (force) */
+/*   row[45] boom_stick_pin.T_i (force*length) */
+/*   row[46] boom_stick_pin.Fx_j (force) */
+/*   row[47] boom_stick_pin.Fy_j (force) */
+/*   row[48] boom_stick_pin.T_j (force*length) */
+/*   row[49] stick_bucket_pin.Fx_i (force) */
+/*   row[50] stick_bucket_pin.Fy_i (force) */
+/*   row[51] stick_bucket_pin.T_i (force*length) */
+/*   row[52] stick_bucket_pin.Fx_j (force) */
+/*   row[53] stick_bucket_pin.Fy_j (force) */
+/*   row[54] stick_bucket_pin.T_j (force*length) */
+/*   row[55] boom_cylinder.Fx_i (force) */
+/*   row[56] boom_cylinder.Fy_i (force) */
+/*   row[57] boom_cylinder.T_i (force*length) */
+/*   row[58] boom_cylinder.Fx_j (force) */
+/*   row[59] boom_cylinder.Fy_j (force) */
+/*   row[60] boom_cylinder.T_j (force*length) */
+/*   row[61] stick_cylinder.Fx_i (force) */
+/*   row[62] stick_cylinder.Fy_i (force) */
+/*   row[63] stick_cylinder.T_i (force*length) */
+/*   row[64] stick_cylinder.Fx_j (force) */
+/*   row[65] stick_cylinder.Fy_j (force) */
+/*   row[66] stick_cylinder.T_j (force*length) */
+/*   row[67] bucket_cylinder.Fx_i (force) */
+/*   row[68] bucket_cylinder.Fy_i (force) */
+/*   row[69] bucket_cylinder.T_i (force*length) */
+/*   row[70] bucket_cylinder.Fx_j (force) */
+/*   row[71] bucket_cylinder.Fy_j (force) */
+/*   row[72] bucket_cylinder.T_j (force*length) */
+
+/* Parameter names, in the order of p (NP); the file's comment beside each. */
+extern const char *const excavator_param_names[17];
+/*   p[0] L_boom = 5.7  boom foot pin to boom-stick pin, m */
+/*   p[1] L_stick = 2.9  boom-stick pin to bucket pin, m */
+/*   p[2] L_bucket = 1.5  bucket pin to tooth tip, m */
+/*   p[3] H_bucket = 1.0  bucket depth (for its inertia), m */
+/*   p[4] m_boom = 1500.0  kg */
+/*   p[5] m_stick = 700.0  kg */
+/*   p[6] m_bucket = 500.0  kg (with part of the load) */
+/*   p[7] T_cycle = 8.0  dig-cycle time, s */
+/*   p[8] Lc_boom = 2.68  boom cylinder length at t0, m */
+/*   p[9] a_boom = 0.25  boom cylinder stroke amplitude, m */
+/*   p[10] Lc_stick = 2.31  stick cylinder length at t0, m */
+/*   p[11] a_stick = 0.65  stick cylinder stroke, m */
+/*   p[12] Lc_bucket = 2.3  bucket cylinder length at t0, m */
+/*   p[13] a_bucket = 0.55  bucket cylinder stroke, m */
+/*   p[14] F_dig = 30000.0  peak digging resistance at the tip, N */
+/*   p[15] t_dig = 2.4  time of the peak digging resistance, s */
+/*   p[16] tau_dig = 1.0  its duration scale (Gaussian pulse), s */
+
+/* The configuration assembled at T0 (NG: x, y, phi per body: boom, stick, bucket):
+   the first guess of a run. */
+extern const excavator_real excavator_default_q0[EXCAVATOR_NG];
+
+/* The file's time grid and tolerance: STEPS instants from T0 to T1. */
+#define EXCAVATOR_T0 0.0
+#define EXCAVATOR_T1 8.0
+#define EXCAVATOR_STEPS 201L
+#define EXCAVATOR_TOL 1e-12
+
+/* Floating operations (+ - * / and calls, counted on the emitted code) of one
+   instant of a trajectory (one chord correction, the factors at the solution
+   and the outputs; besides the angles' sines and cosines and O(NG) vector
+   work), and of each evaluation: phi 172, phi_q 180, nu 21, gamma 626, applied 27, mass 0, reactions 114, lu_factor 57, lu_forward 17, lu_back 21, lu_t_forward 21, lu_t_back 17. */
+#define EXCAVATOR_OPS_INSTANT 1521
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int excavator_phi_q_rows[35];
 extern const int excavator_phi_q_cols[35];
@@ -69,7 +183,13 @@ void excavator_reactions(const excavator_real *q, const excavator_real *lam, exc
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
    pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
-   when NP is 0. work: WORK reals, iwork: IWORK ints. */
+   when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
+   mechanism has several assembly modes (a slider-crank's piston on either
+   side, a four-bar open or crossed), a guess nearer the other mode gives
+   that mode with status OK. To stay on one mode, pass the previous
+   instant's q, or use trajectory, which predicts each instant from the last
+   (and, with the jump check's scales set, returns UNEXPLAINED when a step's
+   motion is not what its rates explain). */
 int excavator_instant(excavator_real t, const excavator_real *p, excavator_real tol, excavator_real *q, excavator_real *qd, excavator_real *qdd,
                     excavator_real *lam, excavator_real *reactions, int *info, excavator_real *work, int *iwork);
 

@@ -12,7 +12,7 @@
 #define FOUR_BAR_RESTRICT restrict
 #endif
 
-#define FOUR_BAR_EPS 2.220446049250313e-16
+#define FOUR_BAR_EPS 2.220446049250313e-16  /* the machine epsilon of four_bar_real */
 #define FOUR_BAR_THRESHOLD 0.1
 #define FOUR_BAR_SINGULAR_RATIO (1e3 * FOUR_BAR_EPS)
 #define FOUR_BAR_MAX_NEWTON 50
@@ -24,8 +24,81 @@
 #define FOUR_BAR_OFF_DENSE (FOUR_BAR_OFF_LU + FOUR_BAR_LU_SIZE)
 #define FOUR_BAR_OFF_VEC (FOUR_BAR_OFF_DENSE + 81)
 #define FOUR_BAR_VEC(work, k) ((work) + FOUR_BAR_OFF_VEC + (k) * 30)
+#define FOUR_BAR_OFF_PREP 461  /* the prepared parameters (NPP), after the vectors */
+#define FOUR_BAR_NPP 19
 
 const four_bar_real four_bar_default_params[15] = { 0.4, 0.1, 0.35, 0.3, 0.3, 0.8, 0.7, 0.05, 0.1, 2.0, 50.0, 2.0, 500.0, 5.0, 0.3 };
+const char *const four_bar_row_names[FOUR_BAR_ROW] = {
+    "t",
+    "crank.x",
+    "crank.y",
+    "crank.phi",
+    "coupler.x",
+    "coupler.y",
+    "coupler.phi",
+    "rocker.x",
+    "rocker.y",
+    "rocker.phi",
+    "crank.vx",
+    "crank.vy",
+    "crank.omega",
+    "coupler.vx",
+    "coupler.vy",
+    "coupler.omega",
+    "rocker.vx",
+    "rocker.vy",
+    "rocker.omega",
+    "crank.ax",
+    "crank.ay",
+    "crank.alpha",
+    "coupler.ax",
+    "coupler.ay",
+    "coupler.alpha",
+    "rocker.ax",
+    "rocker.ay",
+    "rocker.alpha",
+    "crank_pivot.lambda1",
+    "crank_pivot.lambda2",
+    "crank_coupler_pin.lambda1",
+    "crank_coupler_pin.lambda2",
+    "coupler_rocker_pin.lambda1",
+    "coupler_rocker_pin.lambda2",
+    "rocker_pivot.lambda1",
+    "rocker_pivot.lambda2",
+    "crank_motor.lambda",
+    "crank_pivot.Fx_i",
+    "crank_pivot.Fy_i",
+    "crank_pivot.T_i",
+    "crank_pivot.Fx_j",
+    "crank_pivot.Fy_j",
+    "crank_pivot.T_j",
+    "crank_coupler_pin.Fx_i",
+    "crank_coupler_pin.Fy_i",
+    "crank_coupler_pin.T_i",
+    "crank_coupler_pin.Fx_j",
+    "crank_coupler_pin.Fy_j",
+    "crank_coupler_pin.T_j",
+    "coupler_rocker_pin.Fx_i",
+    "coupler_rocker_pin.Fy_i",
+    "coupler_rocker_pin.T_i",
+    "coupler_rocker_pin.Fx_j",
+    "coupler_rocker_pin.Fy_j",
+    "coupler_rocker_pin.T_j",
+    "rocker_pivot.Fx_i",
+    "rocker_pivot.Fy_i",
+    "rocker_pivot.T_i",
+    "rocker_pivot.Fx_j",
+    "rocker_pivot.Fy_j",
+    "rocker_pivot.T_j",
+    "crank_motor.Fx_i",
+    "crank_motor.Fy_i",
+    "crank_motor.T_i",
+    "crank_motor.Fx_j",
+    "crank_motor.Fy_j",
+    "crank_motor.T_j"
+};
+const char *const four_bar_param_names[15] = { "L_ground", "L_crank", "L_coupler", "L_rocker", "m_crank", "m_coupler", "m_rocker", "cp_x", "cp_y", "n", "F_tool", "T_load", "k_spring", "c_spring", "L0_spring" };
+const four_bar_real four_bar_default_q0[FOUR_BAR_NG] = { 0.05, 0.0, 0.0, 0.20208333333333334, 0.1421407508617974, 0.9479697413828938, 0.3520833333333333, 0.1421407508617974, 1.8959394827657876 };
 const int four_bar_phi_q_rows[25] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 7, 7, 8 };
 const int four_bar_phi_q_cols[25] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 8, 6, 8, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */
@@ -99,6 +172,21 @@ static void four_bar_trig_step(const four_bar_real *q, const four_bar_real *dq, 
     }
 }
 
+/* The prepared parameters: p (NP values) and then every piece of the
+   expressions that reads parameters only, computed once per call of
+   instant or trajectory (or of a public evaluation) instead of at every
+   evaluation. The kernels read both from this one vector. */
+static void four_bar_prepare(const four_bar_real *p, four_bar_real *pp)
+{
+    memcpy(pp, p, sizeof(four_bar_real) * 15);
+    {
+        pp[15] = (2*3.141592653589793*p[9]);
+        pp[16] = (1.0/12.0)*(p[1]*p[1])*p[4];
+        pp[17] = (1.0/12.0)*(p[2]*p[2])*p[5];
+        pp[18] = (1.0/12.0)*(p[3]*p[3])*p[6];
+    }
+}
+
 static void four_bar_phi_k0(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
     const four_bar_real e0 = (1.0/2.0)*p[1];
@@ -120,7 +208,7 @@ static void four_bar_phi_k0(const four_bar_real * q, const four_bar_real * tr, f
     out[5] = -e5 + e9 + (-e10 - q[4]);
     out[6] = -e7 + (-e8 - p[0]);
     out[7] = -e10 - e9;
-    out[8] = q[2] - t*(2*3.141592653589793*p[9]);
+    out[8] = -p[15]*t + q[2];
 }
 
 static void four_bar_phi_k(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -130,8 +218,11 @@ static void four_bar_phi_k(const four_bar_real * q, const four_bar_real * tr, fo
 
 void four_bar_phi(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
+    four_bar_real prepared[19];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
+    four_bar_prepare(p, prepared);
+    p = prepared;
     four_bar_phi_k(q, tr, t, p, out);
 }
 
@@ -182,8 +273,11 @@ static void four_bar_phi_q_k(const four_bar_real * q, const four_bar_real * tr, 
 
 void four_bar_phi_q(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
+    four_bar_real prepared[19];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
+    four_bar_prepare(p, prepared);
+    p = prepared;
     four_bar_phi_q_k(q, tr, t, p, out);
 }
 
@@ -200,7 +294,7 @@ static void four_bar_nu_k0(const four_bar_real * q, const four_bar_real * tr, fo
     out[5] = 0;
     out[6] = 0;
     out[7] = 0;
-    out[8] = (2*3.141592653589793*p[9]);
+    out[8] = p[15];
 }
 
 static void four_bar_nu_k(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -210,8 +304,11 @@ static void four_bar_nu_k(const four_bar_real * q, const four_bar_real * tr, fou
 
 void four_bar_nu(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
+    four_bar_real prepared[19];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
+    four_bar_prepare(p, prepared);
+    p = prepared;
     four_bar_nu_k(q, tr, t, p, out);
 }
 
@@ -219,13 +316,13 @@ static void four_bar_gamma_k0(const four_bar_real * q, const four_bar_real * tr,
 {
     (void)q;
     (void)t;
-    const four_bar_real e0 = (1.0/2.0)*p[1]*pow(qd[2], 2);
+    const four_bar_real e0 = (1.0/2.0)*p[1]*(qd[2]*qd[2]);
     const four_bar_real e1 = e0*tr[1];
     const four_bar_real e2 = e0*tr[0];
-    const four_bar_real e3 = (1.0/2.0)*p[2]*pow(qd[5], 2);
+    const four_bar_real e3 = (1.0/2.0)*p[2]*(qd[5]*qd[5]);
     const four_bar_real e4 = e3*tr[3];
     const four_bar_real e5 = e3*tr[2];
-    const four_bar_real e6 = (1.0/2.0)*p[3]*pow(qd[8], 2);
+    const four_bar_real e6 = (1.0/2.0)*p[3]*(qd[8]*qd[8]);
     const four_bar_real e7 = -e6*tr[5];
     const four_bar_real e8 = -e6*tr[4];
     out[0] = -e1;
@@ -246,20 +343,23 @@ static void four_bar_gamma_k(const four_bar_real * q, const four_bar_real * tr, 
 
 void four_bar_gamma(const four_bar_real * q, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
+    four_bar_real prepared[19];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
+    four_bar_prepare(p, prepared);
+    p = prepared;
     four_bar_gamma_k(q, tr, qd, t, p, out);
 }
 
 static void four_bar_applied_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    const four_bar_real e0 = p[10]*((1.0/2.0)*sin(t*(2*3.141592653589793*p[9])) + 1);
+    const four_bar_real e0 = p[10]*((1.0/2.0)*sin(p[15]*t) + 1);
     const four_bar_real e1 = (1.0/20.0)*tr[4];
     const four_bar_real e2 = e1 + (q[7] - 3.0/10.0);
     const four_bar_real e3 = (1.0/20.0)*tr[5];
     const four_bar_real e4 = e3 + (q[6] - 3.0/4.0);
-    const four_bar_real e5 = sqrt(pow(e2, 2) + pow(e4, 2));
-    const four_bar_real e6 = 1.0/e5;
+    const four_bar_real e5 = sqrt((e2*e2) + (e4*e4));
+    const four_bar_real e6 = (1.0/e5);
     const four_bar_real e7 = e4*e6;
     const four_bar_real e8 = -p[12]*(e5 - p[14]) - p[13]*(e2*e6*(e3*qd[8] + qd[7]) + e7*(-e1*qd[8] + qd[6]));
     const four_bar_real e9 = e7*e8;
@@ -281,8 +381,11 @@ static void four_bar_applied_k(const four_bar_real * q, const four_bar_real * tr
 
 void four_bar_applied(const four_bar_real * q, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
+    four_bar_real prepared[19];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
+    four_bar_prepare(p, prepared);
+    p = prepared;
     four_bar_applied_k(q, tr, qd, t, p, out);
 }
 
@@ -290,13 +393,13 @@ static void four_bar_mass_k0(const four_bar_real * p, four_bar_real *out)
 {
     out[0] = p[4];
     out[1] = p[4];
-    out[2] = (1.0/12.0)*pow(p[1], 2)*p[4];
+    out[2] = p[16];
     out[3] = p[5];
     out[4] = p[5];
-    out[5] = (1.0/12.0)*pow(p[2], 2)*p[5];
+    out[5] = p[17];
     out[6] = p[6];
     out[7] = p[6];
-    out[8] = (1.0/12.0)*pow(p[3], 2)*p[6];
+    out[8] = p[18];
 }
 
 static void four_bar_mass_k(const four_bar_real * p, four_bar_real *out)
@@ -306,6 +409,9 @@ static void four_bar_mass_k(const four_bar_real * p, four_bar_real *out)
 
 void four_bar_mass(const four_bar_real * p, four_bar_real *out)
 {
+    four_bar_real prepared[19];
+    four_bar_prepare(p, prepared);
+    p = prepared;
     four_bar_mass_k(p, out);
 }
 
@@ -354,8 +460,11 @@ static void four_bar_reactions_k(const four_bar_real * q, const four_bar_real * 
 
 void four_bar_reactions(const four_bar_real * q, const four_bar_real * lam, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
+    four_bar_real prepared[19];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
+    four_bar_prepare(p, prepared);
+    p = prepared;
     four_bar_reactions_k(q, tr, lam, t, p, out);
 }
 
@@ -479,7 +588,7 @@ static int four_bar_dense_factor(four_bar_real *a, int *perm)
 {
     const int n = 9;
     int i, j, k;
-    four_bar_real umax = 0.0, umin = INFINITY;
+    four_bar_real umax = 0.0, umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -506,7 +615,7 @@ static void four_bar_dense_solve(const four_bar_real *a, const int *perm, const 
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(four_bar_real) * n);
+    memcpy(x, b, sizeof(four_bar_real) * 9);
     for (i = 0; i < n; ++i) {
         four_bar_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -523,7 +632,7 @@ static void four_bar_dense_solve_t(const four_bar_real *a, const int *perm, cons
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(four_bar_real) * n);
+    memcpy(x, b, sizeof(four_bar_real) * 9);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -643,7 +752,7 @@ static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_rea
 {
     four_bar_real *r = FOUR_BAR_VEC(work, 0), *dq = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
     four_bar_real *base = FOUR_BAR_VEC(work, 10);
-    four_bar_real step = INFINITY, lim, qmag, rmax;
+    four_bar_real step = ((double)INFINITY), lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -757,16 +866,17 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
         || !isfinite(tol) || tol <= 0.0) {
         status = FOUR_BAR_BAD_ARGUMENT;
     } else {
-        four_bar_real *tr = FOUR_BAR_VEC(work, 9);
+        four_bar_real *tr = FOUR_BAR_VEC(work, 9), *pp = work + FOUR_BAR_OFF_PREP;
+        four_bar_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = FOUR_BAR_VEC(work, 5);
         if (qdd == NULL) qdd = FOUR_BAR_VEC(work, 6);
         if (lam == NULL) lam = FOUR_BAR_VEC(work, 7);
         if (reactions == NULL) reactions = FOUR_BAR_VEC(work, 8);
-        status = four_bar_newton(t, p, tol, q, tr, counts, work, iwork, &dense, 0);
+        status = four_bar_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == FOUR_BAR_OK) {
-            four_bar_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+            four_bar_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!four_bar_finite(q, qd, qdd, lam, reactions)) status = FOUR_BAR_NONFINITE;
         }
     }
@@ -782,17 +892,19 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    four_bar_real *q = state, *m1 = state + 27, *m2 = state + 36;
-    four_bar_real *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
-    four_bar_real *scale = state + 54;
-    four_bar_real *count = state + 63;
-    four_bar_real *qn, *qdn, *qddn, *lam, *reac, *tr = FOUR_BAR_VEC(work, 9);
+    four_bar_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
+    four_bar_real *qd, *qdd, *m3, *scale;
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
     *solved = 0;
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return FOUR_BAR_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    q = state, m1 = state + 27, m2 = state + 36, count = state + 63;
+    qd = state + 9, qdd = state + 18, m3 = state + 45, scale = state + 54;
+    tr = FOUR_BAR_VEC(work, 9), pp = work + FOUR_BAR_OFF_PREP;
+    four_bar_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -817,12 +929,12 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
             memcpy(qn, q, sizeof(four_bar_real) * 9);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = four_bar_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
+        status = four_bar_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != FOUR_BAR_OK) {
             *solved = i;
             return status;
         }
-        four_bar_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        four_bar_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!four_bar_finite(qn, qdn, qddn, lam, reac)) {
             *solved = i;
             return FOUR_BAR_NONFINITE;

@@ -18,7 +18,7 @@ typedef double four_bar_real;
 #define FOUR_BAR_NNZ 25          /* structural nonzeros of Phi_q */
 #define FOUR_BAR_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define FOUR_BAR_ROW 67          /* values per instant in a trajectory row */
-#define FOUR_BAR_WORK 461        /* reals of workspace every solver call needs */
+#define FOUR_BAR_WORK 480        /* reals of workspace every solver call needs */
 #define FOUR_BAR_IWORK 9         /* ints of workspace */
 #define FOUR_BAR_STATE 64       /* reals of trajectory state */
 
@@ -48,6 +48,112 @@ typedef double four_bar_real;
      omega = 2*pi*n
 */
 extern const four_bar_real four_bar_default_params[15];
+/* What a trajectory row holds: ROW values, t then the compiled groups in
+   contract order (the CSV header of `symid solve`); units in the comments
+   (angles in rad, the rest in the file's consistent units). */
+extern const char *const four_bar_row_names[FOUR_BAR_ROW];
+/*   row[0] t (time) */
+/*   row[1] crank.x (length) */
+/*   row[2] crank.y (length) */
+/*   row[3] crank.phi (rad) */
+/*   row[4] coupler.x (length) */
+/*   row[5] coupler.y (length) */
+/*   row[6] coupler.phi (rad) */
+/*   row[7] rocker.x (length) */
+/*   row[8] rocker.y (length) */
+/*   row[9] rocker.phi (rad) */
+/*   row[10] crank.vx (length/time) */
+/*   row[11] crank.vy (length/time) */
+/*   row[12] crank.omega (rad/time) */
+/*   row[13] coupler.vx (length/time) */
+/*   row[14] coupler.vy (length/time) */
+/*   row[15] coupler.omega (rad/time) */
+/*   row[16] rocker.vx (length/time) */
+/*   row[17] rocker.vy (length/time) */
+/*   row[18] rocker.omega (rad/time) */
+/*   row[19] crank.ax (length/time^2) */
+/*   row[20] crank.ay (length/time^2) */
+/*   row[21] crank.alpha (rad/time^2) */
+/*   row[22] coupler.ax (length/time^2) */
+/*   row[23] coupler.ay (length/time^2) */
+/*   row[24] coupler.alpha (rad/time^2) */
+/*   row[25] rocker.ax (length/time^2) */
+/*   row[26] rocker.ay (length/time^2) */
+/*   row[27] rocker.alpha (rad/time^2) */
+/*   row[28] crank_pivot.lambda1 (force or torque, per its row) */
+/*   row[29] crank_pivot.lambda2 (force or torque, per its row) */
+/*   row[30] crank_coupler_pin.lambda1 (force or torque, per its row) */
+/*   row[31] crank_coupler_pin.lambda2 (force or torque, per its row) */
+/*   row[32] coupler_rocker_pin.lambda1 (force or torque, per its row) */
+/*   row[33] coupler_rocker_pin.lambda2 (force or torque, per its row) */
+/*   row[34] rocker_pivot.lambda1 (force or torque, per its row) */
+/*   row[35] rocker_pivot.lambda2 (force or torque, per its row) */
+/*   row[36] crank_motor.lambda (force or torque, per its row) */
+/*   row[37] crank_pivot.Fx_i (force) */
+/*   row[38] crank_pivot.Fy_i (force) */
+/*   row[39] crank_pivot.T_i (force*length) */
+/*   row[40] crank_pivot.Fx_j (force) */
+/*   row[41] crank_pivot.Fy_j (force) */
+/*   row[42] crank_pivot.T_j (force*length) */
+/*   row[43] crank_coupler_pin.Fx_i (force) */
+/*   row[44] crank_coupler_pin.Fy_i (force) */
+/*   row[45] crank_coupler_pin.T_i (force*length) */
+/*   row[46] crank_coupler_pin.Fx_j (force) */
+/*   row[47] crank_coupler_pin.Fy_j (force) */
+/*   row[48] crank_coupler_pin.T_j (force*length) */
+/*   row[49] coupler_rocker_pin.Fx_i (force) */
+/*   row[50] coupler_rocker_pin.Fy_i (force) */
+/*   row[51] coupler_rocker_pin.T_i (force*length) */
+/*   row[52] coupler_rocker_pin.Fx_j (force) */
+/*   row[53] coupler_rocker_pin.Fy_j (force) */
+/*   row[54] coupler_rocker_pin.T_j (force*length) */
+/*   row[55] rocker_pivot.Fx_i (force) */
+/*   row[56] rocker_pivot.Fy_i (force) */
+/*   row[57] rocker_pivot.T_i (force*length) */
+/*   row[58] rocker_pivot.Fx_j (force) */
+/*   row[59] rocker_pivot.Fy_j (force) */
+/*   row[60] rocker_pivot.T_j (force*length) */
+/*   row[61] crank_motor.Fx_i (force) */
+/*   row[62] crank_motor.Fy_i (force) */
+/*   row[63] crank_motor.T_i (force*length) */
+/*   row[64] crank_motor.Fx_j (force) */
+/*   row[65] crank_motor.Fy_j (force) */
+/*   row[66] crank_motor.T_j (force*length) */
+
+/* Parameter names, in the order of p (NP); the file's comment beside each. */
+extern const char *const four_bar_param_names[15];
+/*   p[0] L_ground = 0.4  distance between the two ground pivots, m */
+/*   p[1] L_crank = 0.1  m */
+/*   p[2] L_coupler = 0.35  m */
+/*   p[3] L_rocker = 0.3  m */
+/*   p[4] m_crank = 0.3  kg (bars, CM at mid-length) */
+/*   p[5] m_coupler = 0.8  kg */
+/*   p[6] m_rocker = 0.7  kg */
+/*   p[7] cp_x = 0.05  coupler point, coupler body coordinates, m */
+/*   p[8] cp_y = 0.1 */
+/*   p[9] n = 2.0  crank speed, rev/s (120 rpm) */
+/*   p[10] F_tool = 50.0  load at the coupler point, N */
+/*   p[11] T_load = 2.0  load torque on the rocker, N m */
+/*   p[12] k_spring = 500.0  return spring, N/m */
+/*   p[13] c_spring = 5.0  its damping, N s/m */
+/*   p[14] L0_spring = 0.3  its free length, m */
+
+/* The configuration assembled at T0 (NG: x, y, phi per body: crank, coupler, rocker):
+   the first guess of a run. */
+extern const four_bar_real four_bar_default_q0[FOUR_BAR_NG];
+
+/* The file's time grid and tolerance: STEPS instants from T0 to T1. */
+#define FOUR_BAR_T0 0.0
+#define FOUR_BAR_T1 0.5
+#define FOUR_BAR_STEPS 201L
+#define FOUR_BAR_TOL 1e-12
+
+/* Floating operations (+ - * / and calls, counted on the emitted code) of one
+   instant of a trajectory (one chord correction, the factors at the solution
+   and the outputs; besides the angles' sines and cosines and O(NG) vector
+   work), and of each evaluation: phi 42, phi_q 20, nu 0, gamma 30, applied 62, mass 0, reactions 9, lu_factor 15, lu_forward 5, lu_back 12, lu_t_forward 12, lu_t_back 5. */
+#define FOUR_BAR_OPS_INSTANT 288
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int four_bar_phi_q_rows[25];
 extern const int four_bar_phi_q_cols[25];
@@ -69,7 +175,13 @@ void four_bar_reactions(const four_bar_real *q, const four_bar_real *lam, four_b
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
    pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
-   when NP is 0. work: WORK reals, iwork: IWORK ints. */
+   when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
+   mechanism has several assembly modes (a slider-crank's piston on either
+   side, a four-bar open or crossed), a guess nearer the other mode gives
+   that mode with status OK. To stay on one mode, pass the previous
+   instant's q, or use trajectory, which predicts each instant from the last
+   (and, with the jump check's scales set, returns UNEXPLAINED when a step's
+   motion is not what its rates explain). */
 int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol, four_bar_real *q, four_bar_real *qd, four_bar_real *qdd,
                     four_bar_real *lam, four_bar_real *reactions, int *info, four_bar_real *work, int *iwork);
 

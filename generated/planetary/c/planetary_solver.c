@@ -12,7 +12,7 @@
 #define PLANETARY_RESTRICT restrict
 #endif
 
-#define PLANETARY_EPS 2.220446049250313e-16
+#define PLANETARY_EPS 2.220446049250313e-16  /* the machine epsilon of planetary_real */
 #define PLANETARY_THRESHOLD 0.1
 #define PLANETARY_SINGULAR_RATIO (1e3 * PLANETARY_EPS)
 #define PLANETARY_MAX_NEWTON 50
@@ -24,8 +24,114 @@
 #define PLANETARY_OFF_DENSE (PLANETARY_OFF_LU + PLANETARY_LU_SIZE)
 #define PLANETARY_OFF_VEC (PLANETARY_OFF_DENSE + 144)
 #define PLANETARY_VEC(work, k) ((work) + PLANETARY_OFF_VEC + (k) * 51)
+#define PLANETARY_OFF_PREP 745  /* the prepared parameters (NPP), after the vectors */
+#define PLANETARY_NPP 25
 
 const planetary_real planetary_default_params[9] = { 0.03, 0.03, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 5.0 };
+const char *const planetary_row_names[PLANETARY_ROW] = {
+    "t",
+    "sun.x",
+    "sun.y",
+    "sun.phi",
+    "carrier.x",
+    "carrier.y",
+    "carrier.phi",
+    "planet.x",
+    "planet.y",
+    "planet.phi",
+    "input_pinion.x",
+    "input_pinion.y",
+    "input_pinion.phi",
+    "sun.vx",
+    "sun.vy",
+    "sun.omega",
+    "carrier.vx",
+    "carrier.vy",
+    "carrier.omega",
+    "planet.vx",
+    "planet.vy",
+    "planet.omega",
+    "input_pinion.vx",
+    "input_pinion.vy",
+    "input_pinion.omega",
+    "sun.ax",
+    "sun.ay",
+    "sun.alpha",
+    "carrier.ax",
+    "carrier.ay",
+    "carrier.alpha",
+    "planet.ax",
+    "planet.ay",
+    "planet.alpha",
+    "input_pinion.ax",
+    "input_pinion.ay",
+    "input_pinion.alpha",
+    "sun_bearing.lambda1",
+    "sun_bearing.lambda2",
+    "carrier_bearing.lambda1",
+    "carrier_bearing.lambda2",
+    "planet_bearing.lambda1",
+    "planet_bearing.lambda2",
+    "sun_planet_mesh.lambda",
+    "planet_ring_mesh.lambda",
+    "pinion_bearing.lambda1",
+    "pinion_bearing.lambda2",
+    "pinion_sun_mesh.lambda",
+    "input_motor.lambda",
+    "sun_bearing.Fx_i",
+    "sun_bearing.Fy_i",
+    "sun_bearing.T_i",
+    "sun_bearing.Fx_j",
+    "sun_bearing.Fy_j",
+    "sun_bearing.T_j",
+    "carrier_bearing.Fx_i",
+    "carrier_bearing.Fy_i",
+    "carrier_bearing.T_i",
+    "carrier_bearing.Fx_j",
+    "carrier_bearing.Fy_j",
+    "carrier_bearing.T_j",
+    "planet_bearing.Fx_i",
+    "planet_bearing.Fy_i",
+    "planet_bearing.T_i",
+    "planet_bearing.Fx_j",
+    "planet_bearing.Fy_j",
+    "planet_bearing.T_j",
+    "sun_planet_mesh.Fx_i",
+    "sun_planet_mesh.Fy_i",
+    "sun_planet_mesh.T_i",
+    "sun_planet_mesh.Fx_j",
+    "sun_planet_mesh.Fy_j",
+    "sun_planet_mesh.T_j",
+    "sun_planet_mesh.Fx_k",
+    "sun_planet_mesh.Fy_k",
+    "sun_planet_mesh.T_k",
+    "planet_ring_mesh.Fx_i",
+    "planet_ring_mesh.Fy_i",
+    "planet_ring_mesh.T_i",
+    "planet_ring_mesh.Fx_j",
+    "planet_ring_mesh.Fy_j",
+    "planet_ring_mesh.T_j",
+    "planet_ring_mesh.Fx_k",
+    "planet_ring_mesh.Fy_k",
+    "planet_ring_mesh.T_k",
+    "pinion_bearing.Fx_i",
+    "pinion_bearing.Fy_i",
+    "pinion_bearing.T_i",
+    "pinion_bearing.Fx_j",
+    "pinion_bearing.Fy_j",
+    "pinion_bearing.T_j",
+    "pinion_sun_mesh.Fx_i",
+    "pinion_sun_mesh.Fy_i",
+    "pinion_sun_mesh.T_i",
+    "pinion_sun_mesh.Fx_j",
+    "pinion_sun_mesh.Fy_j",
+    "pinion_sun_mesh.T_j",
+    "input_motor.Fx_i",
+    "input_motor.Fy_i",
+    "input_motor.T_i"
+};
+const char *const planetary_param_names[9] = { "r_sun", "r_planet", "r_pinion", "m_sun", "m_planet", "m_pinion", "m_carrier", "n_in", "T_load" };
+const planetary_real planetary_default_q0[PLANETARY_NG] = { 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.06, 0.0, 0.0, -0.05, 0.0, 0.0 };
 const int planetary_phi_q_rows[20] = { 0, 1, 2, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 8, 9, 10, 10, 11 };
 const int planetary_phi_q_cols[20] = { 0, 1, 3, 4, 3, 5, 6, 4, 5, 7, 2, 5, 8, 5, 8, 9, 10, 2, 11, 11 };
 /* Sines and cosines of the body angles, computed once per configuration. */
@@ -101,22 +207,54 @@ static void planetary_trig_step(const planetary_real *q, const planetary_real *d
     }
 }
 
+/* The prepared parameters: p (NP values) and then every piece of the
+   expressions that reads parameters only, computed once per call of
+   instant or trajectory (or of a public evaluation) instead of at every
+   evaluation. The kernels read both from this one vector. */
+static void planetary_prepare(const planetary_real *p, planetary_real *pp)
+{
+    memcpy(pp, p, sizeof(planetary_real) * 9);
+    {
+        const planetary_real e0 = p[0] + p[1];
+        const planetary_real e1 = (1.0/p[1]);
+        const planetary_real e2 = e1*p[0];
+        const planetary_real e3 = (1.0/(p[0] + 2*p[1]));
+        const planetary_real e4 = e3*p[1];
+        const planetary_real e5 = (1.0/p[0]);
+        pp[9] = e0;
+        pp[10] = e1;
+        pp[11] = e2;
+        pp[12] = e3;
+        pp[13] = e4;
+        pp[14] = p[0] + p[2];
+        pp[15] = e5;
+        pp[16] = e5*p[2];
+        pp[17] = (2*3.141592653589793*p[7]);
+        pp[18] = -e2 - 1;
+        pp[19] = e4 - 1;
+        pp[20] = -e4;
+        pp[21] = (1.0/2.0)*(p[0]*p[0])*p[3];
+        pp[22] = (1.0/2.0)*(e0*e0)*p[6];
+        pp[23] = (1.0/2.0)*(p[1]*p[1])*p[4];
+        pp[24] = (1.0/2.0)*(p[2]*p[2])*p[5];
+    }
+}
+
 static void planetary_phi_k0(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    const planetary_real e0 = p[0] + p[1];
-    const planetary_real e1 = -q[5];
+    const planetary_real e0 = -q[5];
     out[0] = q[0];
     out[1] = q[1];
     out[2] = q[3];
     out[3] = q[4];
-    out[4] = -e0*tr[3] + (-q[3] + q[6]);
-    out[5] = -e0*tr[2] + (-q[4] + q[7]);
-    out[6] = e1 + p[0]*(e1 + q[2])/p[1] + q[8];
-    out[7] = -p[1]*(-q[5] + q[8])/(p[0] + 2*p[1]) - q[5];
-    out[8] = p[0] + p[2] + q[9];
+    out[4] = -p[9]*tr[3] + (-q[3] + q[6]);
+    out[5] = -p[9]*tr[2] + (-q[4] + q[7]);
+    out[6] = e0 + p[11]*(e0 + q[2]) + q[8];
+    out[7] = -p[13]*(-q[5] + q[8]) - q[5];
+    out[8] = p[14] + q[9];
     out[9] = q[10];
-    out[10] = q[2] + p[2]*q[11]/p[0];
-    out[11] = q[11] - t*(2*3.141592653589793*p[7]);
+    out[10] = p[16]*q[11] + q[2];
+    out[11] = -p[17]*t + q[11];
 }
 
 static void planetary_phi_k(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -126,8 +264,11 @@ static void planetary_phi_k(const planetary_real * q, const planetary_real * tr,
 
 void planetary_phi(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
+    planetary_real prepared[25];
     planetary_real tr[8];
     planetary_trig(q, tr);
+    planetary_prepare(p, prepared);
+    p = prepared;
     planetary_phi_k(q, tr, t, p, out);
 }
 
@@ -135,28 +276,25 @@ static void planetary_phi_q_k0(const planetary_real * q, const planetary_real * 
 {
     (void)q;
     (void)t;
-    const planetary_real e0 = p[0] + p[1];
-    const planetary_real e1 = p[0]/p[1];
-    const planetary_real e2 = p[1]/(p[0] + 2*p[1]);
     out[0] = 1;
     out[1] = 1;
     out[2] = 1;
     out[3] = 1;
     out[4] = -1;
-    out[5] = e0*tr[2];
+    out[5] = p[9]*tr[2];
     out[6] = 1;
     out[7] = -1;
-    out[8] = -e0*tr[3];
+    out[8] = -p[9]*tr[3];
     out[9] = 1;
-    out[10] = e1;
-    out[11] = -e1 - 1;
+    out[10] = p[11];
+    out[11] = p[18];
     out[12] = 1;
-    out[13] = e2 - 1;
-    out[14] = -e2;
+    out[13] = p[19];
+    out[14] = p[20];
     out[15] = 1;
     out[16] = 1;
     out[17] = 1;
-    out[18] = p[2]/p[0];
+    out[18] = p[16];
     out[19] = 1;
 }
 
@@ -167,8 +305,11 @@ static void planetary_phi_q_k(const planetary_real * q, const planetary_real * t
 
 void planetary_phi_q(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
+    planetary_real prepared[25];
     planetary_real tr[8];
     planetary_trig(q, tr);
+    planetary_prepare(p, prepared);
+    p = prepared;
     planetary_phi_q_k(q, tr, t, p, out);
 }
 
@@ -188,7 +329,7 @@ static void planetary_nu_k0(const planetary_real * q, const planetary_real * tr,
     out[8] = 0;
     out[9] = 0;
     out[10] = 0;
-    out[11] = (2*3.141592653589793*p[7]);
+    out[11] = p[17];
 }
 
 static void planetary_nu_k(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -198,8 +339,11 @@ static void planetary_nu_k(const planetary_real * q, const planetary_real * tr, 
 
 void planetary_nu(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
+    planetary_real prepared[25];
     planetary_real tr[8];
     planetary_trig(q, tr);
+    planetary_prepare(p, prepared);
+    p = prepared;
     planetary_nu_k(q, tr, t, p, out);
 }
 
@@ -207,7 +351,7 @@ static void planetary_gamma_k0(const planetary_real * q, const planetary_real * 
 {
     (void)q;
     (void)t;
-    const planetary_real e0 = pow(qd[5], 2)*(p[0] + p[1]);
+    const planetary_real e0 = p[9]*(qd[5]*qd[5]);
     out[0] = 0;
     out[1] = 0;
     out[2] = 0;
@@ -229,8 +373,11 @@ static void planetary_gamma_k(const planetary_real * q, const planetary_real * t
 
 void planetary_gamma(const planetary_real * q, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
+    planetary_real prepared[25];
     planetary_real tr[8];
     planetary_trig(q, tr);
+    planetary_prepare(p, prepared);
+    p = prepared;
     planetary_gamma_k(q, tr, qd, t, p, out);
 }
 
@@ -261,8 +408,11 @@ static void planetary_applied_k(const planetary_real * q, const planetary_real *
 
 void planetary_applied(const planetary_real * q, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
+    planetary_real prepared[25];
     planetary_real tr[8];
     planetary_trig(q, tr);
+    planetary_prepare(p, prepared);
+    p = prepared;
     planetary_applied_k(q, tr, qd, t, p, out);
 }
 
@@ -270,16 +420,16 @@ static void planetary_mass_k0(const planetary_real * p, planetary_real *out)
 {
     out[0] = p[3];
     out[1] = p[3];
-    out[2] = (1.0/2.0)*pow(p[0], 2)*p[3];
+    out[2] = p[21];
     out[3] = p[6];
     out[4] = p[6];
-    out[5] = (1.0/2.0)*p[6]*pow(p[0] + p[1], 2);
+    out[5] = p[22];
     out[6] = p[4];
     out[7] = p[4];
-    out[8] = (1.0/2.0)*pow(p[1], 2)*p[4];
+    out[8] = p[23];
     out[9] = p[5];
     out[10] = p[5];
-    out[11] = (1.0/2.0)*pow(p[2], 2)*p[5];
+    out[11] = p[24];
 }
 
 static void planetary_mass_k(const planetary_real * p, planetary_real *out)
@@ -289,6 +439,9 @@ static void planetary_mass_k(const planetary_real * p, planetary_real *out)
 
 void planetary_mass(const planetary_real * p, planetary_real *out)
 {
+    planetary_real prepared[25];
+    planetary_prepare(p, prepared);
+    p = prepared;
     planetary_mass_k(p, out);
 }
 
@@ -297,8 +450,8 @@ static void planetary_reactions_k0(const planetary_real * q, const planetary_rea
     (void)q;
     (void)tr;
     (void)t;
-    const planetary_real e0 = lam[6]*p[0]/p[1];
-    const planetary_real e1 = lam[7]*p[1]/(p[0] + 2*p[1]);
+    const planetary_real e0 = lam[6]*p[11];
+    const planetary_real e1 = lam[7]*p[13];
     const planetary_real e2 = -lam[7];
     out[0] = lam[0];
     out[1] = lam[1];
@@ -344,7 +497,7 @@ static void planetary_reactions_k0(const planetary_real * q, const planetary_rea
     out[41] = 0;
     out[42] = 0;
     out[43] = 0;
-    out[44] = -lam[10]*p[2]/p[0];
+    out[44] = -lam[10]*p[16];
     out[45] = 0;
     out[46] = 0;
     out[47] = -lam[10];
@@ -369,8 +522,11 @@ static void planetary_reactions_k(const planetary_real * q, const planetary_real
 
 void planetary_reactions(const planetary_real * q, const planetary_real * lam, planetary_real t, const planetary_real * p, planetary_real *out)
 {
+    planetary_real prepared[25];
     planetary_real tr[8];
     planetary_trig(q, tr);
+    planetary_prepare(p, prepared);
+    p = prepared;
     planetary_reactions_k(q, tr, lam, t, p, out);
 }
 
@@ -484,7 +640,7 @@ static int planetary_dense_factor(planetary_real *a, int *perm)
 {
     const int n = 12;
     int i, j, k;
-    planetary_real umax = 0.0, umin = INFINITY;
+    planetary_real umax = 0.0, umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -511,7 +667,7 @@ static void planetary_dense_solve(const planetary_real *a, const int *perm, cons
 {
     const int n = 12;
     int i, j;
-    memcpy(x, b, sizeof(planetary_real) * n);
+    memcpy(x, b, sizeof(planetary_real) * 12);
     for (i = 0; i < n; ++i) {
         planetary_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -528,7 +684,7 @@ static void planetary_dense_solve_t(const planetary_real *a, const int *perm, co
 {
     const int n = 12;
     int i, j;
-    memcpy(x, b, sizeof(planetary_real) * n);
+    memcpy(x, b, sizeof(planetary_real) * 12);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -648,7 +804,7 @@ static int planetary_newton(planetary_real t, const planetary_real *p, planetary
 {
     planetary_real *r = PLANETARY_VEC(work, 0), *dq = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
     planetary_real *base = PLANETARY_VEC(work, 10);
-    planetary_real step = INFINITY, lim, qmag, rmax;
+    planetary_real step = ((double)INFINITY), lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -762,16 +918,17 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
         || !isfinite(tol) || tol <= 0.0) {
         status = PLANETARY_BAD_ARGUMENT;
     } else {
-        planetary_real *tr = PLANETARY_VEC(work, 9);
+        planetary_real *tr = PLANETARY_VEC(work, 9), *pp = work + PLANETARY_OFF_PREP;
+        planetary_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = PLANETARY_VEC(work, 5);
         if (qdd == NULL) qdd = PLANETARY_VEC(work, 6);
         if (lam == NULL) lam = PLANETARY_VEC(work, 7);
         if (reactions == NULL) reactions = PLANETARY_VEC(work, 8);
-        status = planetary_newton(t, p, tol, q, tr, counts, work, iwork, &dense, 0);
+        status = planetary_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == PLANETARY_OK) {
-            planetary_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+            planetary_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!planetary_finite(q, qd, qdd, lam, reactions)) status = PLANETARY_NONFINITE;
         }
     }
@@ -787,17 +944,19 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    planetary_real *q = state, *m1 = state + 36, *m2 = state + 48;
-    planetary_real *qd = state + 12, *qdd = state + 24, *m3 = state + 60;
-    planetary_real *scale = state + 72;
-    planetary_real *count = state + 84;
-    planetary_real *qn, *qdn, *qddn, *lam, *reac, *tr = PLANETARY_VEC(work, 9);
+    planetary_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
+    planetary_real *qd, *qdd, *m3, *scale;
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
     *solved = 0;
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return PLANETARY_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    q = state, m1 = state + 36, m2 = state + 48, count = state + 84;
+    qd = state + 12, qdd = state + 24, m3 = state + 60, scale = state + 72;
+    tr = PLANETARY_VEC(work, 9), pp = work + PLANETARY_OFF_PREP;
+    planetary_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -822,12 +981,12 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
             memcpy(qn, q, sizeof(planetary_real) * 12);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = planetary_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
+        status = planetary_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != PLANETARY_OK) {
             *solved = i;
             return status;
         }
-        planetary_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        planetary_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!planetary_finite(qn, qdn, qddn, lam, reac)) {
             *solved = i;
             return PLANETARY_NONFINITE;

@@ -18,7 +18,7 @@ typedef double planetary_real;
 #define PLANETARY_NNZ 20          /* structural nonzeros of Phi_q */
 #define PLANETARY_NR 51            /* reaction values (Fx, Fy, T per body role) */
 #define PLANETARY_ROW 100          /* values per instant in a trajectory row */
-#define PLANETARY_WORK 745        /* reals of workspace every solver call needs */
+#define PLANETARY_WORK 770        /* reals of workspace every solver call needs */
 #define PLANETARY_IWORK 12         /* ints of workspace */
 #define PLANETARY_STATE 85       /* reals of trajectory state */
 
@@ -49,6 +49,139 @@ typedef double planetary_real;
      omega = 2*pi*n_in
 */
 extern const planetary_real planetary_default_params[9];
+/* What a trajectory row holds: ROW values, t then the compiled groups in
+   contract order (the CSV header of `symid solve`); units in the comments
+   (angles in rad, the rest in the file's consistent units). */
+extern const char *const planetary_row_names[PLANETARY_ROW];
+/*   row[0] t (time) */
+/*   row[1] sun.x (length) */
+/*   row[2] sun.y (length) */
+/*   row[3] sun.phi (rad) */
+/*   row[4] carrier.x (length) */
+/*   row[5] carrier.y (length) */
+/*   row[6] carrier.phi (rad) */
+/*   row[7] planet.x (length) */
+/*   row[8] planet.y (length) */
+/*   row[9] planet.phi (rad) */
+/*   row[10] input_pinion.x (length) */
+/*   row[11] input_pinion.y (length) */
+/*   row[12] input_pinion.phi (rad) */
+/*   row[13] sun.vx (length/time) */
+/*   row[14] sun.vy (length/time) */
+/*   row[15] sun.omega (rad/time) */
+/*   row[16] carrier.vx (length/time) */
+/*   row[17] carrier.vy (length/time) */
+/*   row[18] carrier.omega (rad/time) */
+/*   row[19] planet.vx (length/time) */
+/*   row[20] planet.vy (length/time) */
+/*   row[21] planet.omega (rad/time) */
+/*   row[22] input_pinion.vx (length/time) */
+/*   row[23] input_pinion.vy (length/time) */
+/*   row[24] input_pinion.omega (rad/time) */
+/*   row[25] sun.ax (length/time^2) */
+/*   row[26] sun.ay (length/time^2) */
+/*   row[27] sun.alpha (rad/time^2) */
+/*   row[28] carrier.ax (length/time^2) */
+/*   row[29] carrier.ay (length/time^2) */
+/*   row[30] carrier.alpha (rad/time^2) */
+/*   row[31] planet.ax (length/time^2) */
+/*   row[32] planet.ay (length/time^2) */
+/*   row[33] planet.alpha (rad/time^2) */
+/*   row[34] input_pinion.ax (length/time^2) */
+/*   row[35] input_pinion.ay (length/time^2) */
+/*   row[36] input_pinion.alpha (rad/time^2) */
+/*   row[37] sun_bearing.lambda1 (force or torque, per its row) */
+/*   row[38] sun_bearing.lambda2 (force or torque, per its row) */
+/*   row[39] carrier_bearing.lambda1 (force or torque, per its row) */
+/*   row[40] carrier_bearing.lambda2 (force or torque, per its row) */
+/*   row[41] planet_bearing.lambda1 (force or torque, per its row) */
+/*   row[42] planet_bearing.lambda2 (force or torque, per its row) */
+/*   row[43] sun_planet_mesh.lambda (force or torque, per its row) */
+/*   row[44] planet_ring_mesh.lambda (force or torque, per its row) */
+/*   row[45] pinion_bearing.lambda1 (force or torque, per its row) */
+/*   row[46] pinion_bearing.lambda2 (force or torque, per its row) */
+/*   row[47] pinion_sun_mesh.lambda (force or torque, per its row) */
+/*   row[48] input_motor.lambda (force or torque, per its row) */
+/*   row[49] sun_bearing.Fx_i (force) */
+/*   row[50] sun_bearing.Fy_i (force) */
+/*   row[51] sun_bearing.T_i (force*length) */
+/*   row[52] sun_bearing.Fx_j (force) */
+/*   row[53] sun_bearing.Fy_j (force) */
+/*   row[54] sun_bearing.T_j (force*length) */
+/*   row[55] carrier_bearing.Fx_i (force) */
+/*   row[56] carrier_bearing.Fy_i (force) */
+/*   row[57] carrier_bearing.T_i (force*length) */
+/*   row[58] carrier_bearing.Fx_j (force) */
+/*   row[59] carrier_bearing.Fy_j (force) */
+/*   row[60] carrier_bearing.T_j (force*length) */
+/*   row[61] planet_bearing.Fx_i (force) */
+/*   row[62] planet_bearing.Fy_i (force) */
+/*   row[63] planet_bearing.T_i (force*length) */
+/*   row[64] planet_bearing.Fx_j (force) */
+/*   row[65] planet_bearing.Fy_j (force) */
+/*   row[66] planet_bearing.T_j (force*length) */
+/*   row[67] sun_planet_mesh.Fx_i (force) */
+/*   row[68] sun_planet_mesh.Fy_i (force) */
+/*   row[69] sun_planet_mesh.T_i (force*length) */
+/*   row[70] sun_planet_mesh.Fx_j (force) */
+/*   row[71] sun_planet_mesh.Fy_j (force) */
+/*   row[72] sun_planet_mesh.T_j (force*length) */
+/*   row[73] sun_planet_mesh.Fx_k (force) */
+/*   row[74] sun_planet_mesh.Fy_k (force) */
+/*   row[75] sun_planet_mesh.T_k (force*length) */
+/*   row[76] planet_ring_mesh.Fx_i (force) */
+/*   row[77] planet_ring_mesh.Fy_i (force) */
+/*   row[78] planet_ring_mesh.T_i (force*length) */
+/*   row[79] planet_ring_mesh.Fx_j (force) */
+/*   row[80] planet_ring_mesh.Fy_j (force) */
+/*   row[81] planet_ring_mesh.T_j (force*length) */
+/*   row[82] planet_ring_mesh.Fx_k (force) */
+/*   row[83] planet_ring_mesh.Fy_k (force) */
+/*   row[84] planet_ring_mesh.T_k (force*length) */
+/*   row[85] pinion_bearing.Fx_i (force) */
+/*   row[86] pinion_bearing.Fy_i (force) */
+/*   row[87] pinion_bearing.T_i (force*length) */
+/*   row[88] pinion_bearing.Fx_j (force) */
+/*   row[89] pinion_bearing.Fy_j (force) */
+/*   row[90] pinion_bearing.T_j (force*length) */
+/*   row[91] pinion_sun_mesh.Fx_i (force) */
+/*   row[92] pinion_sun_mesh.Fy_i (force) */
+/*   row[93] pinion_sun_mesh.T_i (force*length) */
+/*   row[94] pinion_sun_mesh.Fx_j (force) */
+/*   row[95] pinion_sun_mesh.Fy_j (force) */
+/*   row[96] pinion_sun_mesh.T_j (force*length) */
+/*   row[97] input_motor.Fx_i (force) */
+/*   row[98] input_motor.Fy_i (force) */
+/*   row[99] input_motor.T_i (force*length) */
+
+/* Parameter names, in the order of p (NP); the file's comment beside each. */
+extern const char *const planetary_param_names[9];
+/*   p[0] r_sun = 0.03  pitch radius of the sun, m */
+/*   p[1] r_planet = 0.03  pitch radius of the planet, m */
+/*   p[2] r_pinion = 0.02  pitch radius of the input pinion, m */
+/*   p[3] m_sun = 0.45  kg (steel gear, 20 mm face width) */
+/*   p[4] m_planet = 0.45  kg */
+/*   p[5] m_pinion = 0.2  kg */
+/*   p[6] m_carrier = 1.0  kg (balanced carrier, CM on the axis) */
+/*   p[7] n_in = 5.0  input pinion speed, rev/s (300 rpm) */
+/*   p[8] T_load = 5.0  load torque on the carrier, N m */
+
+/* The configuration assembled at T0 (NG: x, y, phi per body: sun, carrier, planet, input_pinion):
+   the first guess of a run. */
+extern const planetary_real planetary_default_q0[PLANETARY_NG];
+
+/* The file's time grid and tolerance: STEPS instants from T0 to T1. */
+#define PLANETARY_T0 0.0
+#define PLANETARY_T1 1.2
+#define PLANETARY_STEPS 201L
+#define PLANETARY_TOL 1e-12
+
+/* Floating operations (+ - * / and calls, counted on the emitted code) of one
+   instant of a trajectory (one chord correction, the factors at the solution
+   and the outputs; besides the angles' sines and cosines and O(NG) vector
+   work), and of each evaluation: phi 22, phi_q 5, nu 0, gamma 6, applied 12, mass 0, reactions 20, lu_factor 13, lu_forward 3, lu_back 7, lu_t_forward 7, lu_t_back 3. */
+#define PLANETARY_OPS_INSTANT 140
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int planetary_phi_q_rows[20];
 extern const int planetary_phi_q_cols[20];
@@ -70,7 +203,13 @@ void planetary_reactions(const planetary_real *q, const planetary_real *lam, pla
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
    pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
-   when NP is 0. work: WORK reals, iwork: IWORK ints. */
+   when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
+   mechanism has several assembly modes (a slider-crank's piston on either
+   side, a four-bar open or crossed), a guess nearer the other mode gives
+   that mode with status OK. To stay on one mode, pass the previous
+   instant's q, or use trajectory, which predicts each instant from the last
+   (and, with the jump check's scales set, returns UNEXPLAINED when a step's
+   motion is not what its rates explain). */
 int planetary_instant(planetary_real t, const planetary_real *p, planetary_real tol, planetary_real *q, planetary_real *qd, planetary_real *qdd,
                     planetary_real *lam, planetary_real *reactions, int *info, planetary_real *work, int *iwork);
 

@@ -12,7 +12,7 @@
 #define QUICK_RETURN_RESTRICT restrict
 #endif
 
-#define QUICK_RETURN_EPS 2.220446049250313e-16
+#define QUICK_RETURN_EPS 2.220446049250313e-16  /* the machine epsilon of quick_return_real */
 #define QUICK_RETURN_THRESHOLD 0.1
 #define QUICK_RETURN_SINGULAR_RATIO (1e3 * QUICK_RETURN_EPS)
 #define QUICK_RETURN_MAX_NEWTON 50
@@ -24,8 +24,87 @@
 #define QUICK_RETURN_OFF_DENSE (QUICK_RETURN_OFF_LU + QUICK_RETURN_LU_SIZE)
 #define QUICK_RETURN_OFF_VEC (QUICK_RETURN_OFF_DENSE + 81)
 #define QUICK_RETURN_VEC(work, k) ((work) + QUICK_RETURN_OFF_VEC + (k) * 36)
+#define QUICK_RETURN_OFF_PREP 517  /* the prepared parameters (NPP), after the vectors */
+#define QUICK_RETURN_NPP 18
 
 const quick_return_real quick_return_default_params[13] = { 0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 500.0 };
+const char *const quick_return_row_names[QUICK_RETURN_ROW] = {
+    "t",
+    "crank.x",
+    "crank.y",
+    "crank.phi",
+    "slotted_lever.x",
+    "slotted_lever.y",
+    "slotted_lever.phi",
+    "ram.x",
+    "ram.y",
+    "ram.phi",
+    "crank.vx",
+    "crank.vy",
+    "crank.omega",
+    "slotted_lever.vx",
+    "slotted_lever.vy",
+    "slotted_lever.omega",
+    "ram.vx",
+    "ram.vy",
+    "ram.omega",
+    "crank.ax",
+    "crank.ay",
+    "crank.alpha",
+    "slotted_lever.ax",
+    "slotted_lever.ay",
+    "slotted_lever.alpha",
+    "ram.ax",
+    "ram.ay",
+    "ram.alpha",
+    "crank_bearing.lambda1",
+    "crank_bearing.lambda2",
+    "lever_pivot.lambda1",
+    "lever_pivot.lambda2",
+    "crank_pin_in_lever_slot.lambda",
+    "lever_ram_link.lambda",
+    "ram_guide.lambda1",
+    "ram_guide.lambda2",
+    "crank_motor.lambda",
+    "crank_bearing.Fx_i",
+    "crank_bearing.Fy_i",
+    "crank_bearing.T_i",
+    "crank_bearing.Fx_j",
+    "crank_bearing.Fy_j",
+    "crank_bearing.T_j",
+    "lever_pivot.Fx_i",
+    "lever_pivot.Fy_i",
+    "lever_pivot.T_i",
+    "lever_pivot.Fx_j",
+    "lever_pivot.Fy_j",
+    "lever_pivot.T_j",
+    "crank_pin_in_lever_slot.Fx_i",
+    "crank_pin_in_lever_slot.Fy_i",
+    "crank_pin_in_lever_slot.T_i",
+    "crank_pin_in_lever_slot.Fx_j",
+    "crank_pin_in_lever_slot.Fy_j",
+    "crank_pin_in_lever_slot.T_j",
+    "lever_ram_link.Fx_i",
+    "lever_ram_link.Fy_i",
+    "lever_ram_link.T_i",
+    "lever_ram_link.Fx_j",
+    "lever_ram_link.Fy_j",
+    "lever_ram_link.T_j",
+    "ram_guide.Fx_i",
+    "ram_guide.Fy_i",
+    "ram_guide.T_i",
+    "ram_guide.Fx_j",
+    "ram_guide.Fy_j",
+    "ram_guide.T_j",
+    "crank_motor.Fx_i",
+    "crank_motor.Fy_i",
+    "crank_motor.T_i",
+    "crank_motor.Fx_j",
+    "crank_motor.Fy_j",
+    "crank_motor.T_j"
+};
+const char *const quick_return_param_names[13] = { "r_crank", "d_pivots", "L_lever", "L_link", "h_ram", "m_crank", "R_crank", "m_lever", "m_ram", "a_ram", "b_ram", "n", "F_cut" };
+const quick_return_real quick_return_default_q0[QUICK_RETURN_NG] = { -1.6240867301826895e-33, 0.0, 0.0, 0.09486832980505137, -0.015395010584845882, 1.2490457723982544, 0.48815243432110883, 0.3, 0.0 };
 const int quick_return_phi_q_rows[20] = { 0, 1, 2, 2, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 6, 7, 8 };
 const int quick_return_phi_q_cols[20] = { 0, 1, 3, 5, 4, 5, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */
@@ -99,6 +178,22 @@ static void quick_return_trig_step(const quick_return_real *q, const quick_retur
     }
 }
 
+/* The prepared parameters: p (NP values) and then every piece of the
+   expressions that reads parameters only, computed once per call of
+   instant or trajectory (or of a public evaluation) instead of at every
+   evaluation. The kernels read both from this one vector. */
+static void quick_return_prepare(const quick_return_real *p, quick_return_real *pp)
+{
+    memcpy(pp, p, sizeof(quick_return_real) * 13);
+    {
+        pp[13] = -(p[3]*p[3]);
+        pp[14] = (2*3.141592653589793*p[11]);
+        pp[15] = (1.0/2.0)*p[5]*(p[6]*p[6]);
+        pp[16] = (1.0/12.0)*(p[2]*p[2])*p[7];
+        pp[17] = (1.0/12.0)*p[8]*((p[10]*p[10]) + (p[9]*p[9]));
+    }
+}
+
 static void quick_return_phi_k0(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     const quick_return_real e0 = -q[3];
@@ -111,10 +206,10 @@ static void quick_return_phi_k0(const quick_return_real * q, const quick_return_
     out[2] = -e0 - e2;
     out[3] = -e3 + (p[1] + q[4]);
     out[4] = -tr[2]*(p[0]*tr[1] + (e0 + q[0])) + tr[3]*(p[0]*tr[0] + (q[1] - q[4]));
-    out[5] = -pow(p[3], 2) + pow(-e2 + (-q[3] + q[6]), 2) + pow(-e3 + (-e4 - q[4]), 2);
+    out[5] = p[13] + ((-e2 + (-q[3] + q[6]))*(-e2 + (-q[3] + q[6]))) + ((-e3 + (-e4 - q[4]))*(-e3 + (-e4 - q[4])));
     out[6] = -e4 - p[4];
     out[7] = q[8];
-    out[8] = q[2] - t*(2*3.141592653589793*p[11]);
+    out[8] = -p[14]*t + q[2];
 }
 
 static void quick_return_phi_k(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -124,8 +219,11 @@ static void quick_return_phi_k(const quick_return_real * q, const quick_return_r
 
 void quick_return_phi(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
+    quick_return_real prepared[18];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
+    quick_return_prepare(p, prepared);
+    p = prepared;
     quick_return_phi_k(q, tr, t, p, out);
 }
 
@@ -169,8 +267,11 @@ static void quick_return_phi_q_k(const quick_return_real * q, const quick_return
 
 void quick_return_phi_q(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
+    quick_return_real prepared[18];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
+    quick_return_prepare(p, prepared);
+    p = prepared;
     quick_return_phi_q_k(q, tr, t, p, out);
 }
 
@@ -187,7 +288,7 @@ static void quick_return_nu_k0(const quick_return_real * q, const quick_return_r
     out[5] = 0;
     out[6] = 0;
     out[7] = 0;
-    out[8] = (2*3.141592653589793*p[11]);
+    out[8] = p[14];
 }
 
 static void quick_return_nu_k(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -197,22 +298,25 @@ static void quick_return_nu_k(const quick_return_real * q, const quick_return_re
 
 void quick_return_nu(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
+    quick_return_real prepared[18];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
+    quick_return_prepare(p, prepared);
+    p = prepared;
     quick_return_nu_k(q, tr, t, p, out);
 }
 
 static void quick_return_gamma_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
     (void)t;
-    const quick_return_real e0 = pow(qd[5], 2);
+    const quick_return_real e0 = (qd[5]*qd[5]);
     const quick_return_real e1 = e0*tr[3];
     const quick_return_real e2 = (1.0/2.0)*p[2];
     const quick_return_real e3 = e0*tr[2];
     const quick_return_real e4 = 2*qd[5];
     const quick_return_real e5 = e4*tr[3];
     const quick_return_real e6 = e4*tr[2];
-    const quick_return_real e7 = pow(qd[2], 2);
+    const quick_return_real e7 = (qd[2]*qd[2]);
     const quick_return_real e8 = p[0]*tr[0];
     const quick_return_real e9 = p[0]*tr[1];
     const quick_return_real e10 = e1*p[2];
@@ -224,7 +328,7 @@ static void quick_return_gamma_k0(const quick_return_real * q, const quick_retur
     out[2] = -e1*e2;
     out[3] = -e2*e3;
     out[4] = e1*e8 + e1*q[1] - e1*q[4] - e3*e9 - e3*q[0] + e3*q[3] - e5*e8*qd[2] + e5*qd[0] - e5*qd[3] + e6*e9*qd[2] + e6*qd[1] - e6*qd[4] + e7*e8*tr[3] - e7*e9*tr[2];
-    out[5] = e10*q[3] - e10*q[6] + e11*q[4] - e11*q[7] - e12*qd[4] + e12*qd[7] + e13*qd[3] - e13*qd[6] + (-2*pow(qd[3], 2) + 4*qd[3]*qd[6] - 2*pow(qd[4], 2) + 4*qd[4]*qd[7] - 2*pow(qd[6], 2) - 2*pow(qd[7], 2));
+    out[5] = e10*q[3] - e10*q[6] + e11*q[4] - e11*q[7] - e12*qd[4] + e12*qd[7] + e13*qd[3] - e13*qd[6] + (-2*(qd[3]*qd[3]) + 4*qd[3]*qd[6] - 2*(qd[4]*qd[4]) + 4*qd[4]*qd[7] - 2*(qd[6]*qd[6]) - 2*(qd[7]*qd[7]));
     out[6] = 0;
     out[7] = 0;
     out[8] = 0;
@@ -237,8 +341,11 @@ static void quick_return_gamma_k(const quick_return_real * q, const quick_return
 
 void quick_return_gamma(const quick_return_real * q, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
+    quick_return_real prepared[18];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
+    quick_return_prepare(p, prepared);
+    p = prepared;
     quick_return_gamma_k(q, tr, qd, t, p, out);
 }
 
@@ -253,7 +360,7 @@ static void quick_return_applied_k0(const quick_return_real * q, const quick_ret
     out[3] = 0;
     out[4] = -981.0/100.0*p[7];
     out[5] = 0;
-    out[6] = (1.0/2.0)*p[12]*(sin(t*(2*3.141592653589793*p[11])) + 1);
+    out[6] = (1.0/2.0)*p[12]*(sin(p[14]*t) + 1);
     out[7] = -981.0/100.0*p[8];
     out[8] = 0;
 }
@@ -265,8 +372,11 @@ static void quick_return_applied_k(const quick_return_real * q, const quick_retu
 
 void quick_return_applied(const quick_return_real * q, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
+    quick_return_real prepared[18];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
+    quick_return_prepare(p, prepared);
+    p = prepared;
     quick_return_applied_k(q, tr, qd, t, p, out);
 }
 
@@ -274,13 +384,13 @@ static void quick_return_mass_k0(const quick_return_real * p, quick_return_real 
 {
     out[0] = p[5];
     out[1] = p[5];
-    out[2] = (1.0/2.0)*p[5]*pow(p[6], 2);
+    out[2] = p[15];
     out[3] = p[7];
     out[4] = p[7];
-    out[5] = (1.0/12.0)*pow(p[2], 2)*p[7];
+    out[5] = p[16];
     out[6] = p[8];
     out[7] = p[8];
-    out[8] = (1.0/12.0)*p[8]*(pow(p[10], 2) + pow(p[9], 2));
+    out[8] = p[17];
 }
 
 static void quick_return_mass_k(const quick_return_real * p, quick_return_real *out)
@@ -290,6 +400,9 @@ static void quick_return_mass_k(const quick_return_real * p, quick_return_real *
 
 void quick_return_mass(const quick_return_real * p, quick_return_real *out)
 {
+    quick_return_real prepared[18];
+    quick_return_prepare(p, prepared);
+    p = prepared;
     quick_return_mass_k(p, out);
 }
 
@@ -349,8 +462,11 @@ static void quick_return_reactions_k(const quick_return_real * q, const quick_re
 
 void quick_return_reactions(const quick_return_real * q, const quick_return_real * lam, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
+    quick_return_real prepared[18];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
+    quick_return_prepare(p, prepared);
+    p = prepared;
     quick_return_reactions_k(q, tr, lam, t, p, out);
 }
 
@@ -466,7 +582,7 @@ static int quick_return_dense_factor(quick_return_real *a, int *perm)
 {
     const int n = 9;
     int i, j, k;
-    quick_return_real umax = 0.0, umin = INFINITY;
+    quick_return_real umax = 0.0, umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -493,7 +609,7 @@ static void quick_return_dense_solve(const quick_return_real *a, const int *perm
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(quick_return_real) * n);
+    memcpy(x, b, sizeof(quick_return_real) * 9);
     for (i = 0; i < n; ++i) {
         quick_return_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -510,7 +626,7 @@ static void quick_return_dense_solve_t(const quick_return_real *a, const int *pe
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(quick_return_real) * n);
+    memcpy(x, b, sizeof(quick_return_real) * 9);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -630,7 +746,7 @@ static int quick_return_newton(quick_return_real t, const quick_return_real *p, 
 {
     quick_return_real *r = QUICK_RETURN_VEC(work, 0), *dq = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
     quick_return_real *base = QUICK_RETURN_VEC(work, 10);
-    quick_return_real step = INFINITY, lim, qmag, rmax;
+    quick_return_real step = ((double)INFINITY), lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -744,16 +860,17 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
         || !isfinite(tol) || tol <= 0.0) {
         status = QUICK_RETURN_BAD_ARGUMENT;
     } else {
-        quick_return_real *tr = QUICK_RETURN_VEC(work, 9);
+        quick_return_real *tr = QUICK_RETURN_VEC(work, 9), *pp = work + QUICK_RETURN_OFF_PREP;
+        quick_return_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = QUICK_RETURN_VEC(work, 5);
         if (qdd == NULL) qdd = QUICK_RETURN_VEC(work, 6);
         if (lam == NULL) lam = QUICK_RETURN_VEC(work, 7);
         if (reactions == NULL) reactions = QUICK_RETURN_VEC(work, 8);
-        status = quick_return_newton(t, p, tol, q, tr, counts, work, iwork, &dense, 0);
+        status = quick_return_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == QUICK_RETURN_OK) {
-            quick_return_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+            quick_return_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!quick_return_finite(q, qd, qdd, lam, reactions)) status = QUICK_RETURN_NONFINITE;
         }
     }
@@ -769,17 +886,19 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    quick_return_real *q = state, *m1 = state + 27, *m2 = state + 36;
-    quick_return_real *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
-    quick_return_real *scale = state + 54;
-    quick_return_real *count = state + 63;
-    quick_return_real *qn, *qdn, *qddn, *lam, *reac, *tr = QUICK_RETURN_VEC(work, 9);
+    quick_return_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
+    quick_return_real *qd, *qdd, *m3, *scale;
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
     *solved = 0;
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return QUICK_RETURN_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    q = state, m1 = state + 27, m2 = state + 36, count = state + 63;
+    qd = state + 9, qdd = state + 18, m3 = state + 45, scale = state + 54;
+    tr = QUICK_RETURN_VEC(work, 9), pp = work + QUICK_RETURN_OFF_PREP;
+    quick_return_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -804,12 +923,12 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
             memcpy(qn, q, sizeof(quick_return_real) * 9);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = quick_return_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
+        status = quick_return_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != QUICK_RETURN_OK) {
             *solved = i;
             return status;
         }
-        quick_return_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        quick_return_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!quick_return_finite(qn, qdn, qddn, lam, reac)) {
             *solved = i;
             return QUICK_RETURN_NONFINITE;
@@ -837,7 +956,7 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
 static void quick_return_guess(const quick_return_real *p, quick_return_real *out)
 {
     (void)p;
-    const quick_return_real g0 = p[2]/sqrt(pow(p[0], 2) + pow(p[1], 2));
+    const quick_return_real g0 = p[2]/sqrt((p[0]*p[0]) + (p[1]*p[1]));
     const quick_return_real g1 = g0*p[0];
     const quick_return_real g2 = g0*p[1];
     out[0] = 0;
@@ -846,7 +965,7 @@ static void quick_return_guess(const quick_return_real *p, quick_return_real *ou
     out[3] = (1.0/2.0)*g1;
     out[4] = (1.0/2.0)*g2 - p[1];
     out[5] = atan2(p[1], p[0]);
-    out[6] = g1 + sqrt(pow(p[3], 2) - pow(-g2 + p[1] + p[4], 2));
+    out[6] = g1 + sqrt((p[3]*p[3]) - ((-g2 + p[1] + p[4])*(-g2 + p[1] + p[4])));
     out[7] = p[4];
     out[8] = 0;
 }

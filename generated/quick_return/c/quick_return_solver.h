@@ -18,7 +18,7 @@ typedef double quick_return_real;
 #define QUICK_RETURN_NNZ 20          /* structural nonzeros of Phi_q */
 #define QUICK_RETURN_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define QUICK_RETURN_ROW 73          /* values per instant in a trajectory row */
-#define QUICK_RETURN_WORK 517        /* reals of workspace every solver call needs */
+#define QUICK_RETURN_WORK 535        /* reals of workspace every solver call needs */
 #define QUICK_RETURN_IWORK 9         /* ints of workspace */
 #define QUICK_RETURN_STATE 64       /* reals of trajectory state */
 
@@ -48,6 +48,116 @@ typedef double quick_return_real;
      omega = 2*pi*n
 */
 extern const quick_return_real quick_return_default_params[13];
+/* What a trajectory row holds: ROW values, t then the compiled groups in
+   contract order (the CSV header of `symid solve`); units in the comments
+   (angles in rad, the rest in the file's consistent units). */
+extern const char *const quick_return_row_names[QUICK_RETURN_ROW];
+/*   row[0] t (time) */
+/*   row[1] crank.x (length) */
+/*   row[2] crank.y (length) */
+/*   row[3] crank.phi (rad) */
+/*   row[4] slotted_lever.x (length) */
+/*   row[5] slotted_lever.y (length) */
+/*   row[6] slotted_lever.phi (rad) */
+/*   row[7] ram.x (length) */
+/*   row[8] ram.y (length) */
+/*   row[9] ram.phi (rad) */
+/*   row[10] crank.vx (length/time) */
+/*   row[11] crank.vy (length/time) */
+/*   row[12] crank.omega (rad/time) */
+/*   row[13] slotted_lever.vx (length/time) */
+/*   row[14] slotted_lever.vy (length/time) */
+/*   row[15] slotted_lever.omega (rad/time) */
+/*   row[16] ram.vx (length/time) */
+/*   row[17] ram.vy (length/time) */
+/*   row[18] ram.omega (rad/time) */
+/*   row[19] crank.ax (length/time^2) */
+/*   row[20] crank.ay (length/time^2) */
+/*   row[21] crank.alpha (rad/time^2) */
+/*   row[22] slotted_lever.ax (length/time^2) */
+/*   row[23] slotted_lever.ay (length/time^2) */
+/*   row[24] slotted_lever.alpha (rad/time^2) */
+/*   row[25] ram.ax (length/time^2) */
+/*   row[26] ram.ay (length/time^2) */
+/*   row[27] ram.alpha (rad/time^2) */
+/*   row[28] crank_bearing.lambda1 (force or torque, per its row) */
+/*   row[29] crank_bearing.lambda2 (force or torque, per its row) */
+/*   row[30] lever_pivot.lambda1 (force or torque, per its row) */
+/*   row[31] lever_pivot.lambda2 (force or torque, per its row) */
+/*   row[32] crank_pin_in_lever_slot.lambda (force or torque, per its row) */
+/*   row[33] lever_ram_link.lambda (force or torque, per its row) */
+/*   row[34] ram_guide.lambda1 (force or torque, per its row) */
+/*   row[35] ram_guide.lambda2 (force or torque, per its row) */
+/*   row[36] crank_motor.lambda (force or torque, per its row) */
+/*   row[37] crank_bearing.Fx_i (force) */
+/*   row[38] crank_bearing.Fy_i (force) */
+/*   row[39] crank_bearing.T_i (force*length) */
+/*   row[40] crank_bearing.Fx_j (force) */
+/*   row[41] crank_bearing.Fy_j (force) */
+/*   row[42] crank_bearing.T_j (force*length) */
+/*   row[43] lever_pivot.Fx_i (force) */
+/*   row[44] lever_pivot.Fy_i (force) */
+/*   row[45] lever_pivot.T_i (force*length) */
+/*   row[46] lever_pivot.Fx_j (force) */
+/*   row[47] lever_pivot.Fy_j (force) */
+/*   row[48] lever_pivot.T_j (force*length) */
+/*   row[49] crank_pin_in_lever_slot.Fx_i (force) */
+/*   row[50] crank_pin_in_lever_slot.Fy_i (force) */
+/*   row[51] crank_pin_in_lever_slot.T_i (force*length) */
+/*   row[52] crank_pin_in_lever_slot.Fx_j (force) */
+/*   row[53] crank_pin_in_lever_slot.Fy_j (force) */
+/*   row[54] crank_pin_in_lever_slot.T_j (force*length) */
+/*   row[55] lever_ram_link.Fx_i (force) */
+/*   row[56] lever_ram_link.Fy_i (force) */
+/*   row[57] lever_ram_link.T_i (force*length) */
+/*   row[58] lever_ram_link.Fx_j (force) */
+/*   row[59] lever_ram_link.Fy_j (force) */
+/*   row[60] lever_ram_link.T_j (force*length) */
+/*   row[61] ram_guide.Fx_i (force) */
+/*   row[62] ram_guide.Fy_i (force) */
+/*   row[63] ram_guide.T_i (force*length) */
+/*   row[64] ram_guide.Fx_j (force) */
+/*   row[65] ram_guide.Fy_j (force) */
+/*   row[66] ram_guide.T_j (force*length) */
+/*   row[67] crank_motor.Fx_i (force) */
+/*   row[68] crank_motor.Fy_i (force) */
+/*   row[69] crank_motor.T_i (force*length) */
+/*   row[70] crank_motor.Fx_j (force) */
+/*   row[71] crank_motor.Fy_j (force) */
+/*   row[72] crank_motor.T_j (force*length) */
+
+/* Parameter names, in the order of p (NP); the file's comment beside each. */
+extern const char *const quick_return_param_names[13];
+/*   p[0] r_crank = 0.1  crank-pin radius, m */
+/*   p[1] d_pivots = 0.3  lever pivot lies this far below the crank centre, m */
+/*   p[2] L_lever = 0.6  lever, pivot to top pin, m */
+/*   p[3] L_link = 0.3  connecting link, lever top pin to ram pin, m */
+/*   p[4] h_ram = 0.3  height of the ram pin line above the crank centre, m */
+/*   p[5] m_crank = 6.0  bull-gear disc, kg (CM at its centre) */
+/*   p[6] R_crank = 0.15  its outer radius, m */
+/*   p[7] m_lever = 4.0  kg (bar, CM at mid-length) */
+/*   p[8] m_ram = 15.0  kg */
+/*   p[9] a_ram = 0.5  ram length, m */
+/*   p[10] b_ram = 0.12  ram height, m */
+/*   p[11] n = 1.0  crank speed, rev/s (60 rpm) */
+/*   p[12] F_cut = 500.0  cutting-resistance amplitude, N */
+
+/* The configuration assembled at T0 (NG: x, y, phi per body: crank, slotted_lever, ram):
+   the first guess of a run. */
+extern const quick_return_real quick_return_default_q0[QUICK_RETURN_NG];
+
+/* The file's time grid and tolerance: STEPS instants from T0 to T1. */
+#define QUICK_RETURN_T0 0.0
+#define QUICK_RETURN_T1 1.0
+#define QUICK_RETURN_STEPS 201L
+#define QUICK_RETURN_TOL 1e-12
+
+/* Floating operations (+ - * / and calls, counted on the emitted code) of one
+   instant of a trajectory (one chord correction, the factors at the solution
+   and the outputs; besides the angles' sines and cosines and O(NG) vector
+   work), and of each evaluation: phi 37, phi_q 41, nu 0, gamma 83, applied 15, mass 0, reactions 44, lu_factor 20, lu_forward 5, lu_back 14, lu_t_forward 14, lu_t_back 5. */
+#define QUICK_RETURN_OPS_INSTANT 353
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int quick_return_phi_q_rows[20];
 extern const int quick_return_phi_q_cols[20];
@@ -69,7 +179,13 @@ void quick_return_reactions(const quick_return_real *q, const quick_return_real 
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
    pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
-   when NP is 0. work: WORK reals, iwork: IWORK ints. */
+   when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
+   mechanism has several assembly modes (a slider-crank's piston on either
+   side, a four-bar open or crossed), a guess nearer the other mode gives
+   that mode with status OK. To stay on one mode, pass the previous
+   instant's q, or use trajectory, which predicts each instant from the last
+   (and, with the jump check's scales set, returns UNEXPLAINED when a step's
+   motion is not what its rates explain). */
 int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_return_real tol, quick_return_real *q, quick_return_real *qd, quick_return_real *qdd,
                     quick_return_real *lam, quick_return_real *reactions, int *info, quick_return_real *work, int *iwork);
 

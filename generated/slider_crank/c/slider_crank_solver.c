@@ -12,7 +12,7 @@
 #define SLIDER_CRANK_RESTRICT restrict
 #endif
 
-#define SLIDER_CRANK_EPS 2.220446049250313e-16
+#define SLIDER_CRANK_EPS 2.220446049250313e-16  /* the machine epsilon of slider_crank_real */
 #define SLIDER_CRANK_THRESHOLD 0.1
 #define SLIDER_CRANK_SINGULAR_RATIO (1e3 * SLIDER_CRANK_EPS)
 #define SLIDER_CRANK_MAX_NEWTON 50
@@ -24,8 +24,81 @@
 #define SLIDER_CRANK_OFF_DENSE (SLIDER_CRANK_OFF_LU + SLIDER_CRANK_LU_SIZE)
 #define SLIDER_CRANK_OFF_VEC (SLIDER_CRANK_OFF_DENSE + 81)
 #define SLIDER_CRANK_VEC(work, k) ((work) + SLIDER_CRANK_OFF_VEC + (k) * 30)
+#define SLIDER_CRANK_OFF_PREP 453  /* the prepared parameters (NPP), after the vectors */
+#define SLIDER_CRANK_NPP 13
 
 const slider_crank_real slider_crank_default_params[9] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 5.0, 100.0 };
+const char *const slider_crank_row_names[SLIDER_CRANK_ROW] = {
+    "t",
+    "crank.x",
+    "crank.y",
+    "crank.phi",
+    "connecting_rod.x",
+    "connecting_rod.y",
+    "connecting_rod.phi",
+    "slider.x",
+    "slider.y",
+    "slider.phi",
+    "crank.vx",
+    "crank.vy",
+    "crank.omega",
+    "connecting_rod.vx",
+    "connecting_rod.vy",
+    "connecting_rod.omega",
+    "slider.vx",
+    "slider.vy",
+    "slider.omega",
+    "crank.ax",
+    "crank.ay",
+    "crank.alpha",
+    "connecting_rod.ax",
+    "connecting_rod.ay",
+    "connecting_rod.alpha",
+    "slider.ax",
+    "slider.ay",
+    "slider.alpha",
+    "main_bearing.lambda1",
+    "main_bearing.lambda2",
+    "crank_pin.lambda1",
+    "crank_pin.lambda2",
+    "wrist_pin.lambda1",
+    "wrist_pin.lambda2",
+    "cylinder_guide.lambda1",
+    "cylinder_guide.lambda2",
+    "motor.lambda",
+    "main_bearing.Fx_i",
+    "main_bearing.Fy_i",
+    "main_bearing.T_i",
+    "main_bearing.Fx_j",
+    "main_bearing.Fy_j",
+    "main_bearing.T_j",
+    "crank_pin.Fx_i",
+    "crank_pin.Fy_i",
+    "crank_pin.T_i",
+    "crank_pin.Fx_j",
+    "crank_pin.Fy_j",
+    "crank_pin.T_j",
+    "wrist_pin.Fx_i",
+    "wrist_pin.Fy_i",
+    "wrist_pin.T_i",
+    "wrist_pin.Fx_j",
+    "wrist_pin.Fy_j",
+    "wrist_pin.T_j",
+    "cylinder_guide.Fx_i",
+    "cylinder_guide.Fy_i",
+    "cylinder_guide.T_i",
+    "cylinder_guide.Fx_j",
+    "cylinder_guide.Fy_j",
+    "cylinder_guide.T_j",
+    "motor.Fx_i",
+    "motor.Fy_i",
+    "motor.T_i",
+    "motor.Fx_j",
+    "motor.Fy_j",
+    "motor.T_j"
+};
+const char *const slider_crank_param_names[9] = { "L_crank", "L_rod", "m_crank", "m_rod", "m_slider", "a_slider", "b_slider", "n", "F_gas" };
+const slider_crank_real slider_crank_default_q0[SLIDER_CRANK_NG] = { 0.05, 0.0, 0.0, 0.25, 0.0, 0.0, 0.4, 0.0, 0.0 };
 const int slider_crank_phi_q_rows[21] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 7, 8 };
 const int slider_crank_phi_q_cols[21] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 4, 5, 7, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */
@@ -99,6 +172,21 @@ static void slider_crank_trig_step(const slider_crank_real *q, const slider_cran
     }
 }
 
+/* The prepared parameters: p (NP values) and then every piece of the
+   expressions that reads parameters only, computed once per call of
+   instant or trajectory (or of a public evaluation) instead of at every
+   evaluation. The kernels read both from this one vector. */
+static void slider_crank_prepare(const slider_crank_real *p, slider_crank_real *pp)
+{
+    memcpy(pp, p, sizeof(slider_crank_real) * 9);
+    {
+        pp[9] = (2*3.141592653589793*p[7]);
+        pp[10] = (1.0/12.0)*(p[0]*p[0])*p[2];
+        pp[11] = (1.0/12.0)*(p[1]*p[1])*p[3];
+        pp[12] = (1.0/12.0)*p[4]*((p[5]*p[5]) + (p[6]*p[6]));
+    }
+}
+
 static void slider_crank_phi_k0(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
     const slider_crank_real e0 = (1.0/2.0)*p[0];
@@ -115,7 +203,7 @@ static void slider_crank_phi_k0(const slider_crank_real * q, const slider_crank_
     out[5] = -e5 + (-q[4] + q[7]);
     out[6] = q[7];
     out[7] = q[8];
-    out[8] = q[2] - t*(2*3.141592653589793*p[7]);
+    out[8] = -p[9]*t + q[2];
 }
 
 static void slider_crank_phi_k(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -125,8 +213,11 @@ static void slider_crank_phi_k(const slider_crank_real * q, const slider_crank_r
 
 void slider_crank_phi(const slider_crank_real * q, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
+    slider_crank_real prepared[13];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
+    slider_crank_prepare(p, prepared);
+    p = prepared;
     slider_crank_phi_k(q, tr, t, p, out);
 }
 
@@ -170,8 +261,11 @@ static void slider_crank_phi_q_k(const slider_crank_real * q, const slider_crank
 
 void slider_crank_phi_q(const slider_crank_real * q, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
+    slider_crank_real prepared[13];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
+    slider_crank_prepare(p, prepared);
+    p = prepared;
     slider_crank_phi_q_k(q, tr, t, p, out);
 }
 
@@ -188,7 +282,7 @@ static void slider_crank_nu_k0(const slider_crank_real * q, const slider_crank_r
     out[5] = 0;
     out[6] = 0;
     out[7] = 0;
-    out[8] = (2*3.141592653589793*p[7]);
+    out[8] = p[9];
 }
 
 static void slider_crank_nu_k(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -198,8 +292,11 @@ static void slider_crank_nu_k(const slider_crank_real * q, const slider_crank_re
 
 void slider_crank_nu(const slider_crank_real * q, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
+    slider_crank_real prepared[13];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
+    slider_crank_prepare(p, prepared);
+    p = prepared;
     slider_crank_nu_k(q, tr, t, p, out);
 }
 
@@ -207,10 +304,10 @@ static void slider_crank_gamma_k0(const slider_crank_real * q, const slider_cran
 {
     (void)q;
     (void)t;
-    const slider_crank_real e0 = (1.0/2.0)*p[0]*pow(qd[2], 2);
+    const slider_crank_real e0 = (1.0/2.0)*p[0]*(qd[2]*qd[2]);
     const slider_crank_real e1 = e0*tr[1];
     const slider_crank_real e2 = e0*tr[0];
-    const slider_crank_real e3 = (1.0/2.0)*p[1]*pow(qd[5], 2);
+    const slider_crank_real e3 = (1.0/2.0)*p[1]*(qd[5]*qd[5]);
     const slider_crank_real e4 = e3*tr[3];
     const slider_crank_real e5 = e3*tr[2];
     out[0] = -e1;
@@ -231,8 +328,11 @@ static void slider_crank_gamma_k(const slider_crank_real * q, const slider_crank
 
 void slider_crank_gamma(const slider_crank_real * q, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
+    slider_crank_real prepared[13];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
+    slider_crank_prepare(p, prepared);
+    p = prepared;
     slider_crank_gamma_k(q, tr, qd, t, p, out);
 }
 
@@ -247,7 +347,7 @@ static void slider_crank_applied_k0(const slider_crank_real * q, const slider_cr
     out[3] = 0;
     out[4] = -981.0/100.0*p[3];
     out[5] = 0;
-    out[6] = -p[8]*sin(t*(2*3.141592653589793*p[7]));
+    out[6] = -p[8]*sin(p[9]*t);
     out[7] = -981.0/100.0*p[4];
     out[8] = 0;
 }
@@ -259,8 +359,11 @@ static void slider_crank_applied_k(const slider_crank_real * q, const slider_cra
 
 void slider_crank_applied(const slider_crank_real * q, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
+    slider_crank_real prepared[13];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
+    slider_crank_prepare(p, prepared);
+    p = prepared;
     slider_crank_applied_k(q, tr, qd, t, p, out);
 }
 
@@ -268,13 +371,13 @@ static void slider_crank_mass_k0(const slider_crank_real * p, slider_crank_real 
 {
     out[0] = p[2];
     out[1] = p[2];
-    out[2] = (1.0/12.0)*pow(p[0], 2)*p[2];
+    out[2] = p[10];
     out[3] = p[3];
     out[4] = p[3];
-    out[5] = (1.0/12.0)*pow(p[1], 2)*p[3];
+    out[5] = p[11];
     out[6] = p[4];
     out[7] = p[4];
-    out[8] = (1.0/12.0)*p[4]*(pow(p[5], 2) + pow(p[6], 2));
+    out[8] = p[12];
 }
 
 static void slider_crank_mass_k(const slider_crank_real * p, slider_crank_real *out)
@@ -284,6 +387,9 @@ static void slider_crank_mass_k(const slider_crank_real * p, slider_crank_real *
 
 void slider_crank_mass(const slider_crank_real * p, slider_crank_real *out)
 {
+    slider_crank_real prepared[13];
+    slider_crank_prepare(p, prepared);
+    p = prepared;
     slider_crank_mass_k(p, out);
 }
 
@@ -331,8 +437,11 @@ static void slider_crank_reactions_k(const slider_crank_real * q, const slider_c
 
 void slider_crank_reactions(const slider_crank_real * q, const slider_crank_real * lam, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
+    slider_crank_real prepared[13];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
+    slider_crank_prepare(p, prepared);
+    p = prepared;
     slider_crank_reactions_k(q, tr, lam, t, p, out);
 }
 
@@ -432,7 +541,7 @@ static int slider_crank_dense_factor(slider_crank_real *a, int *perm)
 {
     const int n = 9;
     int i, j, k;
-    slider_crank_real umax = 0.0, umin = INFINITY;
+    slider_crank_real umax = 0.0, umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -459,7 +568,7 @@ static void slider_crank_dense_solve(const slider_crank_real *a, const int *perm
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(slider_crank_real) * n);
+    memcpy(x, b, sizeof(slider_crank_real) * 9);
     for (i = 0; i < n; ++i) {
         slider_crank_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -476,7 +585,7 @@ static void slider_crank_dense_solve_t(const slider_crank_real *a, const int *pe
 {
     const int n = 9;
     int i, j;
-    memcpy(x, b, sizeof(slider_crank_real) * n);
+    memcpy(x, b, sizeof(slider_crank_real) * 9);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -596,7 +705,7 @@ static int slider_crank_newton(slider_crank_real t, const slider_crank_real *p, 
 {
     slider_crank_real *r = SLIDER_CRANK_VEC(work, 0), *dq = SLIDER_CRANK_VEC(work, 1), *y = SLIDER_CRANK_VEC(work, 2);
     slider_crank_real *base = SLIDER_CRANK_VEC(work, 10);
-    slider_crank_real step = INFINITY, lim, qmag, rmax;
+    slider_crank_real step = ((double)INFINITY), lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -710,16 +819,17 @@ int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider
         || !isfinite(tol) || tol <= 0.0) {
         status = SLIDER_CRANK_BAD_ARGUMENT;
     } else {
-        slider_crank_real *tr = SLIDER_CRANK_VEC(work, 9);
+        slider_crank_real *tr = SLIDER_CRANK_VEC(work, 9), *pp = work + SLIDER_CRANK_OFF_PREP;
+        slider_crank_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = SLIDER_CRANK_VEC(work, 5);
         if (qdd == NULL) qdd = SLIDER_CRANK_VEC(work, 6);
         if (lam == NULL) lam = SLIDER_CRANK_VEC(work, 7);
         if (reactions == NULL) reactions = SLIDER_CRANK_VEC(work, 8);
-        status = slider_crank_newton(t, p, tol, q, tr, counts, work, iwork, &dense, 0);
+        status = slider_crank_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == SLIDER_CRANK_OK) {
-            slider_crank_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+            slider_crank_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!slider_crank_finite(q, qd, qdd, lam, reactions)) status = SLIDER_CRANK_NONFINITE;
         }
     }
@@ -735,17 +845,19 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    slider_crank_real *q = state, *m1 = state + 27, *m2 = state + 36;
-    slider_crank_real *qd = state + 9, *qdd = state + 18, *m3 = state + 45;
-    slider_crank_real *scale = state + 54;
-    slider_crank_real *count = state + 63;
-    slider_crank_real *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_CRANK_VEC(work, 9);
+    slider_crank_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
+    slider_crank_real *qd, *qdd, *m3, *scale;
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
     *solved = 0;
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return SLIDER_CRANK_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    q = state, m1 = state + 27, m2 = state + 36, count = state + 63;
+    qd = state + 9, qdd = state + 18, m3 = state + 45, scale = state + 54;
+    tr = SLIDER_CRANK_VEC(work, 9), pp = work + SLIDER_CRANK_OFF_PREP;
+    slider_crank_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -770,12 +882,12 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
             memcpy(qn, q, sizeof(slider_crank_real) * 9);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = slider_crank_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
+        status = slider_crank_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != SLIDER_CRANK_OK) {
             *solved = i;
             return status;
         }
-        slider_crank_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        slider_crank_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!slider_crank_finite(qn, qdn, qddn, lam, reac)) {
             *solved = i;
             return SLIDER_CRANK_NONFINITE;

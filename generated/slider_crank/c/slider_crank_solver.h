@@ -18,7 +18,7 @@ typedef double slider_crank_real;
 #define SLIDER_CRANK_NNZ 21          /* structural nonzeros of Phi_q */
 #define SLIDER_CRANK_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_CRANK_ROW 67          /* values per instant in a trajectory row */
-#define SLIDER_CRANK_WORK 453        /* reals of workspace every solver call needs */
+#define SLIDER_CRANK_WORK 466        /* reals of workspace every solver call needs */
 #define SLIDER_CRANK_IWORK 9         /* ints of workspace */
 #define SLIDER_CRANK_STATE 64       /* reals of trajectory state */
 
@@ -48,6 +48,106 @@ typedef double slider_crank_real;
      omega = 2*pi*n
 */
 extern const slider_crank_real slider_crank_default_params[9];
+/* What a trajectory row holds: ROW values, t then the compiled groups in
+   contract order (the CSV header of `symid solve`); units in the comments
+   (angles in rad, the rest in the file's consistent units). */
+extern const char *const slider_crank_row_names[SLIDER_CRANK_ROW];
+/*   row[0] t (time) */
+/*   row[1] crank.x (length) */
+/*   row[2] crank.y (length) */
+/*   row[3] crank.phi (rad) */
+/*   row[4] connecting_rod.x (length) */
+/*   row[5] connecting_rod.y (length) */
+/*   row[6] connecting_rod.phi (rad) */
+/*   row[7] slider.x (length) */
+/*   row[8] slider.y (length) */
+/*   row[9] slider.phi (rad) */
+/*   row[10] crank.vx (length/time) */
+/*   row[11] crank.vy (length/time) */
+/*   row[12] crank.omega (rad/time) */
+/*   row[13] connecting_rod.vx (length/time) */
+/*   row[14] connecting_rod.vy (length/time) */
+/*   row[15] connecting_rod.omega (rad/time) */
+/*   row[16] slider.vx (length/time) */
+/*   row[17] slider.vy (length/time) */
+/*   row[18] slider.omega (rad/time) */
+/*   row[19] crank.ax (length/time^2) */
+/*   row[20] crank.ay (length/time^2) */
+/*   row[21] crank.alpha (rad/time^2) */
+/*   row[22] connecting_rod.ax (length/time^2) */
+/*   row[23] connecting_rod.ay (length/time^2) */
+/*   row[24] connecting_rod.alpha (rad/time^2) */
+/*   row[25] slider.ax (length/time^2) */
+/*   row[26] slider.ay (length/time^2) */
+/*   row[27] slider.alpha (rad/time^2) */
+/*   row[28] main_bearing.lambda1 (force or torque, per its row) */
+/*   row[29] main_bearing.lambda2 (force or torque, per its row) */
+/*   row[30] crank_pin.lambda1 (force or torque, per its row) */
+/*   row[31] crank_pin.lambda2 (force or torque, per its row) */
+/*   row[32] wrist_pin.lambda1 (force or torque, per its row) */
+/*   row[33] wrist_pin.lambda2 (force or torque, per its row) */
+/*   row[34] cylinder_guide.lambda1 (force or torque, per its row) */
+/*   row[35] cylinder_guide.lambda2 (force or torque, per its row) */
+/*   row[36] motor.lambda (force or torque, per its row) */
+/*   row[37] main_bearing.Fx_i (force) */
+/*   row[38] main_bearing.Fy_i (force) */
+/*   row[39] main_bearing.T_i (force*length) */
+/*   row[40] main_bearing.Fx_j (force) */
+/*   row[41] main_bearing.Fy_j (force) */
+/*   row[42] main_bearing.T_j (force*length) */
+/*   row[43] crank_pin.Fx_i (force) */
+/*   row[44] crank_pin.Fy_i (force) */
+/*   row[45] crank_pin.T_i (force*length) */
+/*   row[46] crank_pin.Fx_j (force) */
+/*   row[47] crank_pin.Fy_j (force) */
+/*   row[48] crank_pin.T_j (force*length) */
+/*   row[49] wrist_pin.Fx_i (force) */
+/*   row[50] wrist_pin.Fy_i (force) */
+/*   row[51] wrist_pin.T_i (force*length) */
+/*   row[52] wrist_pin.Fx_j (force) */
+/*   row[53] wrist_pin.Fy_j (force) */
+/*   row[54] wrist_pin.T_j (force*length) */
+/*   row[55] cylinder_guide.Fx_i (force) */
+/*   row[56] cylinder_guide.Fy_i (force) */
+/*   row[57] cylinder_guide.T_i (force*length) */
+/*   row[58] cylinder_guide.Fx_j (force) */
+/*   row[59] cylinder_guide.Fy_j (force) */
+/*   row[60] cylinder_guide.T_j (force*length) */
+/*   row[61] motor.Fx_i (force) */
+/*   row[62] motor.Fy_i (force) */
+/*   row[63] motor.T_i (force*length) */
+/*   row[64] motor.Fx_j (force) */
+/*   row[65] motor.Fy_j (force) */
+/*   row[66] motor.T_j (force*length) */
+
+/* Parameter names, in the order of p (NP); the file's comment beside each. */
+extern const char *const slider_crank_param_names[9];
+/*   p[0] L_crank = 0.1  crank radius, m */
+/*   p[1] L_rod = 0.3  connecting-rod length (pin to pin), m */
+/*   p[2] m_crank = 0.5  kg (steel bar, CM at mid-length) */
+/*   p[3] m_rod = 1.0  kg */
+/*   p[4] m_slider = 0.8  kg (piston block) */
+/*   p[5] a_slider = 0.06  piston block length along the guide, m */
+/*   p[6] b_slider = 0.04  piston block height, m */
+/*   p[7] n = 5.0  crank speed, rev/s (300 rpm) */
+/*   p[8] F_gas = 100.0  amplitude of the piston load, N */
+
+/* The configuration assembled at T0 (NG: x, y, phi per body: crank, connecting_rod, slider):
+   the first guess of a run. */
+extern const slider_crank_real slider_crank_default_q0[SLIDER_CRANK_NG];
+
+/* The file's time grid and tolerance: STEPS instants from T0 to T1. */
+#define SLIDER_CRANK_T0 0.0
+#define SLIDER_CRANK_T1 0.2
+#define SLIDER_CRANK_STEPS 201L
+#define SLIDER_CRANK_TOL 1e-12
+
+/* Floating operations (+ - * / and calls, counted on the emitted code) of one
+   instant of a trajectory (one chord correction, the factors at the solution
+   and the outputs; besides the angles' sines and cosines and O(NG) vector
+   work), and of each evaluation: phi 29, phi_q 14, nu 0, gamma 20, applied 13, mass 0, reactions 11, lu_factor 7, lu_forward 2, lu_back 13, lu_t_forward 13, lu_t_back 2. */
+#define SLIDER_CRANK_OPS_INSTANT 183
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int slider_crank_phi_q_rows[21];
 extern const int slider_crank_phi_q_cols[21];
@@ -69,7 +169,13 @@ void slider_crank_reactions(const slider_crank_real *q, const slider_crank_real 
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
    pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
-   when NP is 0. work: WORK reals, iwork: IWORK ints. */
+   when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
+   mechanism has several assembly modes (a slider-crank's piston on either
+   side, a four-bar open or crossed), a guess nearer the other mode gives
+   that mode with status OK. To stay on one mode, pass the previous
+   instant's q, or use trajectory, which predicts each instant from the last
+   (and, with the jump check's scales set, returns UNEXPLAINED when a step's
+   motion is not what its rates explain). */
 int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider_crank_real tol, slider_crank_real *q, slider_crank_real *qd, slider_crank_real *qdd,
                     slider_crank_real *lam, slider_crank_real *reactions, int *info, slider_crank_real *work, int *iwork);
 

@@ -12,7 +12,7 @@
 #define SLIDER_PENDULUM_RESTRICT restrict
 #endif
 
-#define SLIDER_PENDULUM_EPS 2.220446049250313e-16
+#define SLIDER_PENDULUM_EPS 2.220446049250313e-16  /* the machine epsilon of slider_pendulum_real */
 #define SLIDER_PENDULUM_THRESHOLD 0.1
 #define SLIDER_PENDULUM_SINGULAR_RATIO (1e3 * SLIDER_PENDULUM_EPS)
 #define SLIDER_PENDULUM_MAX_NEWTON 50
@@ -24,8 +24,69 @@
 #define SLIDER_PENDULUM_OFF_DENSE (SLIDER_PENDULUM_OFF_LU + SLIDER_PENDULUM_LU_SIZE)
 #define SLIDER_PENDULUM_OFF_VEC (SLIDER_PENDULUM_OFF_DENSE + 36)
 #define SLIDER_PENDULUM_VEC(work, k) ((work) + SLIDER_PENDULUM_OFF_VEC + (k) * 30)
+#define SLIDER_PENDULUM_OFF_PREP 396  /* the prepared parameters (NPP), after the vectors */
+#define SLIDER_PENDULUM_NPP 29
 
 const slider_pendulum_real slider_pendulum_default_params[13] = { 0.17453292519943295, 0.2, 1.0, 0.6, 2.0, 2.0, 0.2, 0.08, 0.04, 0.5, 1.0, 20.0, 0.5 };
+const char *const slider_pendulum_row_names[SLIDER_PENDULUM_ROW] = {
+    "t",
+    "carriage.x",
+    "carriage.y",
+    "carriage.phi",
+    "pendulum.x",
+    "pendulum.y",
+    "pendulum.phi",
+    "carriage.vx",
+    "carriage.vy",
+    "carriage.omega",
+    "pendulum.vx",
+    "pendulum.vy",
+    "pendulum.omega",
+    "carriage.ax",
+    "carriage.ay",
+    "carriage.alpha",
+    "pendulum.ax",
+    "pendulum.ay",
+    "pendulum.alpha",
+    "guide_parallel.lambda",
+    "guide_slot.lambda",
+    "carriage_actuator.lambda",
+    "pendulum_hinge.lambda1",
+    "pendulum_hinge.lambda2",
+    "pendulum_motor.lambda",
+    "guide_parallel.Fx_i",
+    "guide_parallel.Fy_i",
+    "guide_parallel.T_i",
+    "guide_parallel.Fx_j",
+    "guide_parallel.Fy_j",
+    "guide_parallel.T_j",
+    "guide_slot.Fx_i",
+    "guide_slot.Fy_i",
+    "guide_slot.T_i",
+    "guide_slot.Fx_j",
+    "guide_slot.Fy_j",
+    "guide_slot.T_j",
+    "carriage_actuator.Fx_i",
+    "carriage_actuator.Fy_i",
+    "carriage_actuator.T_i",
+    "carriage_actuator.Fx_j",
+    "carriage_actuator.Fy_j",
+    "carriage_actuator.T_j",
+    "pendulum_hinge.Fx_i",
+    "pendulum_hinge.Fy_i",
+    "pendulum_hinge.T_i",
+    "pendulum_hinge.Fx_j",
+    "pendulum_hinge.Fy_j",
+    "pendulum_hinge.T_j",
+    "pendulum_motor.Fx_i",
+    "pendulum_motor.Fy_i",
+    "pendulum_motor.T_i",
+    "pendulum_motor.Fx_j",
+    "pendulum_motor.Fy_j",
+    "pendulum_motor.T_j"
+};
+const char *const slider_pendulum_param_names[13] = { "alpha", "s_amp", "f_carriage", "theta_amp", "f_pendulum", "m_carriage", "a_carriage", "b_carriage", "h_hinge", "L_pendulum", "m_pendulum", "k_torsion", "c_torsion" };
+const slider_pendulum_real slider_pendulum_default_q0[SLIDER_PENDULUM_NG] = { 0.0, 0.0, 0.0, 1.5308084989341915e-17, -0.29, -1.5707963267948966 };
 const int slider_pendulum_phi_q_rows[15] = { 0, 1, 1, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5 };
 const int slider_pendulum_phi_q_cols[15] = { 2, 0, 1, 0, 1, 0, 2, 3, 5, 1, 2, 4, 5, 2, 5 };
 /* Sines and cosines of the body angles, computed once per configuration. */
@@ -97,19 +158,50 @@ static void slider_pendulum_trig_step(const slider_pendulum_real *q, const slide
     }
 }
 
+/* The prepared parameters: p (NP values) and then every piece of the
+   expressions that reads parameters only, computed once per call of
+   instant or trajectory (or of a public evaluation) instead of at every
+   evaluation. The kernels read both from this one vector. */
+static void slider_pendulum_prepare(const slider_pendulum_real *p, slider_pendulum_real *pp)
+{
+    memcpy(pp, p, sizeof(slider_pendulum_real) * 13);
+    {
+        const slider_pendulum_real e0 = cos(p[0]);
+        const slider_pendulum_real e1 = sin(p[0]);
+        const slider_pendulum_real e2 = (e0*e0);
+        const slider_pendulum_real e3 = (e1*e1);
+        const slider_pendulum_real e4 = (1.0/sqrt(e2 + e3));
+        const slider_pendulum_real e5 = (p[2]*p[2]);
+        const slider_pendulum_real e6 = (p[4]*p[4]);
+        pp[13] = e0;
+        pp[14] = e1;
+        pp[15] = e4;
+        pp[16] = e0*e4;
+        pp[17] = e1*e4;
+        pp[18] = -e1;
+        pp[19] = p[1]*p[2];
+        pp[20] = p[3]*p[4];
+        pp[21] = e2;
+        pp[22] = e3;
+        pp[23] = e5;
+        pp[24] = e5*p[1];
+        pp[25] = e6;
+        pp[26] = e6*p[3];
+        pp[27] = (1.0/12.0)*p[5]*((p[6]*p[6]) + (p[7]*p[7]));
+        pp[28] = (1.0/12.0)*p[10]*(p[9]*p[9]);
+    }
+}
+
 static void slider_pendulum_phi_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    const slider_pendulum_real e0 = sin(p[0]);
-    const slider_pendulum_real e1 = cos(p[0]);
-    const slider_pendulum_real e2 = 2*3.141592653589793*t;
-    const slider_pendulum_real e3 = pow(pow(e0, 2) + pow(e1, 2), -1.0/2.0);
-    const slider_pendulum_real e4 = (1.0/2.0)*p[9];
-    out[0] = -e0*(-e0*tr[0] + e1*tr[1]) + e1*(e0*tr[1] + e1*tr[0]);
-    out[1] = -e0*q[0] + e1*q[1];
-    out[2] = e0*e3*q[1] + e1*e3*q[0] - p[1]*sin(e2*p[2]);
-    out[3] = -e4*tr[3] - p[8]*tr[0] + (-q[0] + q[3]);
-    out[4] = -e4*tr[2] + p[8]*tr[1] + (-q[1] + q[4]);
-    out[5] = -p[3]*sin(e2*p[4]) + (-q[2] + q[5] + (1.0/2.0)*3.141592653589793);
+    const slider_pendulum_real e0 = 2*3.141592653589793*t;
+    const slider_pendulum_real e1 = (1.0/2.0)*p[9];
+    out[0] = p[13]*(p[13]*tr[0] + p[14]*tr[1]) - p[14]*(p[13]*tr[1] - p[14]*tr[0]);
+    out[1] = p[13]*q[1] - p[14]*q[0];
+    out[2] = p[16]*q[0] + p[17]*q[1] - p[1]*sin(e0*p[2]);
+    out[3] = -e1*tr[3] - p[8]*tr[0] + (-q[0] + q[3]);
+    out[4] = -e1*tr[2] + p[8]*tr[1] + (-q[1] + q[4]);
+    out[5] = -p[3]*sin(e0*p[4]) + (-q[2] + q[5] + (1.0/2.0)*3.141592653589793);
 }
 
 static void slider_pendulum_phi_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -119,8 +211,11 @@ static void slider_pendulum_phi_k(const slider_pendulum_real * q, const slider_p
 
 void slider_pendulum_phi(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
+    slider_pendulum_real prepared[29];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
+    slider_pendulum_prepare(p, prepared);
+    p = prepared;
     slider_pendulum_phi_k(q, tr, t, p, out);
 }
 
@@ -128,23 +223,20 @@ static void slider_pendulum_phi_q_k0(const slider_pendulum_real * q, const slide
 {
     (void)q;
     (void)t;
-    const slider_pendulum_real e0 = sin(p[0]);
-    const slider_pendulum_real e1 = cos(p[0]);
-    const slider_pendulum_real e2 = pow(pow(e0, 2) + pow(e1, 2), -1.0/2.0);
-    const slider_pendulum_real e3 = (1.0/2.0)*p[9];
-    out[0] = -e0*(-e0*tr[1] - e1*tr[0]) + e1*(-e0*tr[0] + e1*tr[1]);
-    out[1] = -e0;
-    out[2] = e1;
-    out[3] = e1*e2;
-    out[4] = e0*e2;
+    const slider_pendulum_real e0 = (1.0/2.0)*p[9];
+    out[0] = p[13]*(p[13]*tr[1] - p[14]*tr[0]) - p[14]*(-p[13]*tr[0] - p[14]*tr[1]);
+    out[1] = p[18];
+    out[2] = p[13];
+    out[3] = p[16];
+    out[4] = p[17];
     out[5] = -1;
     out[6] = -p[8]*tr[1];
     out[7] = 1;
-    out[8] = e3*tr[2];
+    out[8] = e0*tr[2];
     out[9] = -1;
     out[10] = -p[8]*tr[0];
     out[11] = 1;
-    out[12] = -e3*tr[3];
+    out[12] = -e0*tr[3];
     out[13] = -1;
     out[14] = 1;
 }
@@ -156,8 +248,11 @@ static void slider_pendulum_phi_q_k(const slider_pendulum_real * q, const slider
 
 void slider_pendulum_phi_q(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
+    slider_pendulum_real prepared[29];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
+    slider_pendulum_prepare(p, prepared);
+    p = prepared;
     slider_pendulum_phi_q_k(q, tr, t, p, out);
 }
 
@@ -169,10 +264,10 @@ static void slider_pendulum_nu_k0(const slider_pendulum_real * q, const slider_p
     const slider_pendulum_real e1 = e0*t;
     out[0] = 0;
     out[1] = 0;
-    out[2] = e0*p[1]*p[2]*cos(e1*p[2]);
+    out[2] = e0*p[19]*cos(e1*p[2]);
     out[3] = 0;
     out[4] = 0;
-    out[5] = e0*p[3]*p[4]*cos(e1*p[4]);
+    out[5] = e0*p[20]*cos(e1*p[4]);
 }
 
 static void slider_pendulum_nu_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -182,25 +277,28 @@ static void slider_pendulum_nu_k(const slider_pendulum_real * q, const slider_pe
 
 void slider_pendulum_nu(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
+    slider_pendulum_real prepared[29];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
+    slider_pendulum_prepare(p, prepared);
+    p = prepared;
     slider_pendulum_nu_k(q, tr, t, p, out);
 }
 
 static void slider_pendulum_gamma_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     (void)q;
-    const slider_pendulum_real e0 = pow(qd[2], 2);
+    const slider_pendulum_real e0 = (qd[2]*qd[2]);
     const slider_pendulum_real e1 = e0*tr[0];
     const slider_pendulum_real e2 = 2*3.141592653589793*t;
-    const slider_pendulum_real e3 = 4*pow(3.141592653589793, 2);
-    const slider_pendulum_real e4 = (1.0/2.0)*p[9]*pow(qd[5], 2);
-    out[0] = e1*pow(sin(p[0]), 2) + e1*pow(cos(p[0]), 2);
+    const slider_pendulum_real e3 = 4*(3.141592653589793*3.141592653589793);
+    const slider_pendulum_real e4 = (1.0/2.0)*p[9]*(qd[5]*qd[5]);
+    out[0] = e1*p[21] + e1*p[22];
     out[1] = 0;
-    out[2] = -e3*p[1]*pow(p[2], 2)*sin(e2*p[2]);
+    out[2] = -e3*p[24]*sin(e2*p[2]);
     out[3] = -e1*p[8] - e4*tr[3];
     out[4] = e0*p[8]*tr[1] - e4*tr[2];
-    out[5] = -e3*p[3]*pow(p[4], 2)*sin(e2*p[4]);
+    out[5] = -e3*p[26]*sin(e2*p[4]);
 }
 
 static void slider_pendulum_gamma_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -210,8 +308,11 @@ static void slider_pendulum_gamma_k(const slider_pendulum_real * q, const slider
 
 void slider_pendulum_gamma(const slider_pendulum_real * q, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
+    slider_pendulum_real prepared[29];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
+    slider_pendulum_prepare(p, prepared);
+    p = prepared;
     slider_pendulum_gamma_k(q, tr, qd, t, p, out);
 }
 
@@ -235,8 +336,11 @@ static void slider_pendulum_applied_k(const slider_pendulum_real * q, const slid
 
 void slider_pendulum_applied(const slider_pendulum_real * q, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
+    slider_pendulum_real prepared[29];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
+    slider_pendulum_prepare(p, prepared);
+    p = prepared;
     slider_pendulum_applied_k(q, tr, qd, t, p, out);
 }
 
@@ -244,10 +348,10 @@ static void slider_pendulum_mass_k0(const slider_pendulum_real * p, slider_pendu
 {
     out[0] = p[5];
     out[1] = p[5];
-    out[2] = (1.0/12.0)*p[5]*(pow(p[6], 2) + pow(p[7], 2));
+    out[2] = p[27];
     out[3] = p[10];
     out[4] = p[10];
-    out[5] = (1.0/12.0)*p[10]*pow(p[9], 2);
+    out[5] = p[28];
 }
 
 static void slider_pendulum_mass_k(const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -257,40 +361,38 @@ static void slider_pendulum_mass_k(const slider_pendulum_real * p, slider_pendul
 
 void slider_pendulum_mass(const slider_pendulum_real * p, slider_pendulum_real *out)
 {
+    slider_pendulum_real prepared[29];
+    slider_pendulum_prepare(p, prepared);
+    p = prepared;
     slider_pendulum_mass_k(p, out);
 }
 
 static void slider_pendulum_reactions_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * lam, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     (void)t;
-    const slider_pendulum_real e0 = cos(p[0]);
-    const slider_pendulum_real e1 = pow(e0, 2);
-    const slider_pendulum_real e2 = lam[0]*tr[1];
-    const slider_pendulum_real e3 = sin(p[0]);
-    const slider_pendulum_real e4 = pow(e3, 2);
-    const slider_pendulum_real e5 = e1*e2 + e2*e4;
-    const slider_pendulum_real e6 = e3*lam[1];
-    const slider_pendulum_real e7 = e0*lam[1];
-    const slider_pendulum_real e8 = lam[2]/sqrt(e1 + e4);
-    const slider_pendulum_real e9 = e0*e8;
-    const slider_pendulum_real e10 = e3*e8;
+    const slider_pendulum_real e0 = lam[0]*tr[1];
+    const slider_pendulum_real e1 = e0*p[21] + e0*p[22];
+    const slider_pendulum_real e2 = lam[1]*p[14];
+    const slider_pendulum_real e3 = lam[1]*p[13];
+    const slider_pendulum_real e4 = lam[2]*p[16];
+    const slider_pendulum_real e5 = lam[2]*p[17];
     out[0] = 0;
     out[1] = 0;
-    out[2] = e5;
+    out[2] = e1;
     out[3] = 0;
     out[4] = 0;
-    out[5] = -e5;
-    out[6] = -e6;
-    out[7] = e7;
-    out[8] = e6*q[1] + e7*q[0];
-    out[9] = e6;
-    out[10] = -e7;
+    out[5] = -e1;
+    out[6] = -e2;
+    out[7] = e3;
+    out[8] = e2*q[1] + e3*q[0];
+    out[9] = e2;
+    out[10] = -e3;
     out[11] = 0;
-    out[12] = e9;
-    out[13] = e10;
-    out[14] = e10*q[0] - e9*q[1];
-    out[15] = -e9;
-    out[16] = -e10;
+    out[12] = e4;
+    out[13] = e5;
+    out[14] = -e4*q[1] + lam[2]*p[17]*q[0];
+    out[15] = -e4;
+    out[16] = -e5;
     out[17] = 0;
     out[18] = lam[3];
     out[19] = lam[4];
@@ -313,8 +415,11 @@ static void slider_pendulum_reactions_k(const slider_pendulum_real * q, const sl
 
 void slider_pendulum_reactions(const slider_pendulum_real * q, const slider_pendulum_real * lam, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
+    slider_pendulum_real prepared[29];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
+    slider_pendulum_prepare(p, prepared);
+    p = prepared;
     slider_pendulum_reactions_k(q, tr, lam, t, p, out);
 }
 
@@ -406,7 +511,7 @@ static int slider_pendulum_dense_factor(slider_pendulum_real *a, int *perm)
 {
     const int n = 6;
     int i, j, k;
-    slider_pendulum_real umax = 0.0, umin = INFINITY;
+    slider_pendulum_real umax = 0.0, umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
         for (i = k + 1; i < n; ++i)
@@ -433,7 +538,7 @@ static void slider_pendulum_dense_solve(const slider_pendulum_real *a, const int
 {
     const int n = 6;
     int i, j;
-    memcpy(x, b, sizeof(slider_pendulum_real) * n);
+    memcpy(x, b, sizeof(slider_pendulum_real) * 6);
     for (i = 0; i < n; ++i) {
         slider_pendulum_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -450,7 +555,7 @@ static void slider_pendulum_dense_solve_t(const slider_pendulum_real *a, const i
 {
     const int n = 6;
     int i, j;
-    memcpy(x, b, sizeof(slider_pendulum_real) * n);
+    memcpy(x, b, sizeof(slider_pendulum_real) * 6);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
         x[i] /= a[i * n + i];
@@ -570,7 +675,7 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
 {
     slider_pendulum_real *r = SLIDER_PENDULUM_VEC(work, 0), *dq = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
     slider_pendulum_real *base = SLIDER_PENDULUM_VEC(work, 10);
-    slider_pendulum_real step = INFINITY, lim, qmag, rmax;
+    slider_pendulum_real step = ((double)INFINITY), lim, qmag, rmax;
     int it, converged = 0, current = 0, chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
@@ -684,16 +789,17 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
         || !isfinite(tol) || tol <= 0.0) {
         status = SLIDER_PENDULUM_BAD_ARGUMENT;
     } else {
-        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9);
+        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9), *pp = work + SLIDER_PENDULUM_OFF_PREP;
+        slider_pendulum_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         if (qd == NULL) qd = SLIDER_PENDULUM_VEC(work, 5);
         if (qdd == NULL) qdd = SLIDER_PENDULUM_VEC(work, 6);
         if (lam == NULL) lam = SLIDER_PENDULUM_VEC(work, 7);
         if (reactions == NULL) reactions = SLIDER_PENDULUM_VEC(work, 8);
-        status = slider_pendulum_newton(t, p, tol, q, tr, counts, work, iwork, &dense, 0);
+        status = slider_pendulum_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == SLIDER_PENDULUM_OK) {
-            slider_pendulum_outputs(t, p, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
+            slider_pendulum_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!slider_pendulum_finite(q, qd, qdd, lam, reactions)) status = SLIDER_PENDULUM_NONFINITE;
         }
     }
@@ -709,17 +815,19 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count */
-    slider_pendulum_real *q = state, *m1 = state + 18, *m2 = state + 24;
-    slider_pendulum_real *qd = state + 6, *qdd = state + 12, *m3 = state + 30;
-    slider_pendulum_real *scale = state + 36;
-    slider_pendulum_real *count = state + 42;
-    slider_pendulum_real *qn, *qdn, *qddn, *lam, *reac, *tr = SLIDER_PENDULUM_VEC(work, 9);
+    slider_pendulum_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
+    slider_pendulum_real *qd, *qdd, *m3, *scale;
     long i, unused;
     int k, status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
     *solved = 0;
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return SLIDER_PENDULUM_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    q = state, m1 = state + 18, m2 = state + 24, count = state + 42;
+    qd = state + 6, qdd = state + 12, m3 = state + 30, scale = state + 36;
+    tr = SLIDER_PENDULUM_VEC(work, 9), pp = work + SLIDER_PENDULUM_OFF_PREP;
+    slider_pendulum_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -744,12 +852,12 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
             memcpy(qn, q, sizeof(slider_pendulum_real) * 6);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = slider_pendulum_newton(t, p, tol, qn, tr, info, work, iwork, &dense, i > 0);
+        status = slider_pendulum_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != SLIDER_PENDULUM_OK) {
             *solved = i;
             return status;
         }
-        slider_pendulum_outputs(t, p, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
+        slider_pendulum_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!slider_pendulum_finite(qn, qdn, qddn, lam, reac)) {
             *solved = i;
             return SLIDER_PENDULUM_NONFINITE;

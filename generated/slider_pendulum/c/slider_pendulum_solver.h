@@ -18,7 +18,7 @@ typedef double slider_pendulum_real;
 #define SLIDER_PENDULUM_NNZ 15          /* structural nonzeros of Phi_q */
 #define SLIDER_PENDULUM_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_PENDULUM_ROW 55          /* values per instant in a trajectory row */
-#define SLIDER_PENDULUM_WORK 396        /* reals of workspace every solver call needs */
+#define SLIDER_PENDULUM_WORK 425        /* reals of workspace every solver call needs */
 #define SLIDER_PENDULUM_IWORK 6         /* ints of workspace */
 #define SLIDER_PENDULUM_STATE 43       /* reals of trajectory state */
 
@@ -45,6 +45,98 @@ typedef double slider_pendulum_real;
    order: alpha, s_amp, f_carriage, theta_amp, f_pendulum, m_carriage, a_carriage, b_carriage, h_hinge, L_pendulum, m_pendulum, k_torsion, c_torsion.
 */
 extern const slider_pendulum_real slider_pendulum_default_params[13];
+/* What a trajectory row holds: ROW values, t then the compiled groups in
+   contract order (the CSV header of `symid solve`); units in the comments
+   (angles in rad, the rest in the file's consistent units). */
+extern const char *const slider_pendulum_row_names[SLIDER_PENDULUM_ROW];
+/*   row[0] t (time) */
+/*   row[1] carriage.x (length) */
+/*   row[2] carriage.y (length) */
+/*   row[3] carriage.phi (rad) */
+/*   row[4] pendulum.x (length) */
+/*   row[5] pendulum.y (length) */
+/*   row[6] pendulum.phi (rad) */
+/*   row[7] carriage.vx (length/time) */
+/*   row[8] carriage.vy (length/time) */
+/*   row[9] carriage.omega (rad/time) */
+/*   row[10] pendulum.vx (length/time) */
+/*   row[11] pendulum.vy (length/time) */
+/*   row[12] pendulum.omega (rad/time) */
+/*   row[13] carriage.ax (length/time^2) */
+/*   row[14] carriage.ay (length/time^2) */
+/*   row[15] carriage.alpha (rad/time^2) */
+/*   row[16] pendulum.ax (length/time^2) */
+/*   row[17] pendulum.ay (length/time^2) */
+/*   row[18] pendulum.alpha (rad/time^2) */
+/*   row[19] guide_parallel.lambda (force or torque, per its row) */
+/*   row[20] guide_slot.lambda (force or torque, per its row) */
+/*   row[21] carriage_actuator.lambda (force or torque, per its row) */
+/*   row[22] pendulum_hinge.lambda1 (force or torque, per its row) */
+/*   row[23] pendulum_hinge.lambda2 (force or torque, per its row) */
+/*   row[24] pendulum_motor.lambda (force or torque, per its row) */
+/*   row[25] guide_parallel.Fx_i (force) */
+/*   row[26] guide_parallel.Fy_i (force) */
+/*   row[27] guide_parallel.T_i (force*length) */
+/*   row[28] guide_parallel.Fx_j (force) */
+/*   row[29] guide_parallel.Fy_j (force) */
+/*   row[30] guide_parallel.T_j (force*length) */
+/*   row[31] guide_slot.Fx_i (force) */
+/*   row[32] guide_slot.Fy_i (force) */
+/*   row[33] guide_slot.T_i (force*length) */
+/*   row[34] guide_slot.Fx_j (force) */
+/*   row[35] guide_slot.Fy_j (force) */
+/*   row[36] guide_slot.T_j (force*length) */
+/*   row[37] carriage_actuator.Fx_i (force) */
+/*   row[38] carriage_actuator.Fy_i (force) */
+/*   row[39] carriage_actuator.T_i (force*length) */
+/*   row[40] carriage_actuator.Fx_j (force) */
+/*   row[41] carriage_actuator.Fy_j (force) */
+/*   row[42] carriage_actuator.T_j (force*length) */
+/*   row[43] pendulum_hinge.Fx_i (force) */
+/*   row[44] pendulum_hinge.Fy_i (force) */
+/*   row[45] pendulum_hinge.T_i (force*length) */
+/*   row[46] pendulum_hinge.Fx_j (force) */
+/*   row[47] pendulum_hinge.Fy_j (force) */
+/*   row[48] pendulum_hinge.T_j (force*length) */
+/*   row[49] pendulum_motor.Fx_i (force) */
+/*   row[50] pendulum_motor.Fy_i (force) */
+/*   row[51] pendulum_motor.T_i (force*length) */
+/*   row[52] pendulum_motor.Fx_j (force) */
+/*   row[53] pendulum_motor.Fy_j (force) */
+/*   row[54] pendulum_motor.T_j (force*length) */
+
+/* Parameter names, in the order of p (NP); the file's comment beside each. */
+extern const char *const slider_pendulum_param_names[13];
+/*   p[0] alpha = 0.17453292519943295 = pi/18  guide inclination above the horizontal, rad */
+/*   p[1] s_amp = 0.2  carriage stroke amplitude along the guide, m */
+/*   p[2] f_carriage = 1.0  carriage frequency, Hz */
+/*   p[3] theta_amp = 0.6  pendulum swing amplitude about hanging, rad */
+/*   p[4] f_pendulum = 2.0  pendulum frequency, Hz */
+/*   p[5] m_carriage = 2.0  kg */
+/*   p[6] a_carriage = 0.2  carriage block length, m */
+/*   p[7] b_carriage = 0.08  carriage block height, m */
+/*   p[8] h_hinge = 0.04  hinge below the carriage's centre of mass, m */
+/*   p[9] L_pendulum = 0.5  pendulum length (uniform rod, hinge at one end), m */
+/*   p[10] m_pendulum = 1.0  kg */
+/*   p[11] k_torsion = 20.0  torsion spring, N m/rad */
+/*   p[12] c_torsion = 0.5  torsion damper, N m s/rad */
+
+/* The configuration assembled at T0 (NG: x, y, phi per body: carriage, pendulum):
+   the first guess of a run. */
+extern const slider_pendulum_real slider_pendulum_default_q0[SLIDER_PENDULUM_NG];
+
+/* The file's time grid and tolerance: STEPS instants from T0 to T1. */
+#define SLIDER_PENDULUM_T0 0.0
+#define SLIDER_PENDULUM_T1 1.0
+#define SLIDER_PENDULUM_STEPS 201L
+#define SLIDER_PENDULUM_TOL 1e-12
+
+/* Floating operations (+ - * / and calls, counted on the emitted code) of one
+   instant of a trajectory (one chord correction, the factors at the solution
+   and the outputs; besides the angles' sines and cosines and O(NG) vector
+   work), and of each evaluation: phi 44, phi_q 21, nu 10, gamma 31, applied 15, mass 0, reactions 24, lu_factor 14, lu_forward 1, lu_back 16, lu_t_forward 16, lu_t_back 1. */
+#define SLIDER_PENDULUM_OPS_INSTANT 271
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int slider_pendulum_phi_q_rows[15];
 extern const int slider_pendulum_phi_q_cols[15];
@@ -66,7 +158,13 @@ void slider_pendulum_reactions(const slider_pendulum_real *q, const slider_pendu
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
    pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
-   when NP is 0. work: WORK reals, iwork: IWORK ints. */
+   when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
+   mechanism has several assembly modes (a slider-crank's piston on either
+   side, a four-bar open or crossed), a guess nearer the other mode gives
+   that mode with status OK. To stay on one mode, pass the previous
+   instant's q, or use trajectory, which predicts each instant from the last
+   (and, with the jump check's scales set, returns UNEXPLAINED when a step's
+   motion is not what its rates explain). */
 int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *q, slider_pendulum_real *qd, slider_pendulum_real *qdd,
                     slider_pendulum_real *lam, slider_pendulum_real *reactions, int *info, slider_pendulum_real *work, int *iwork);
 

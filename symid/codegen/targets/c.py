@@ -2,82 +2,29 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any, Callable
 
 import sympy as sp
-from sympy.printing.c import C99CodePrinter
 
 from symid.codegen import friction
-from symid.codegen.emit import Block, has_word, blocks, chunked
+from symid.codegen.emit import CHUNK, Block, block, blocks, chunked, has_word
+from symid.codegen.hoist import hoist
 from symid.codegen.targets import c_loops
 from symid.codegen.targets.c_loops import Loops
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
 from symid.codegen.targets import c_sweep
 from symid.codegen.render import render
+from symid.codegen.targets.c_describe import describe
+from symid.codegen.targets.c_printer import (DOUBLE, PRECISIONS, Printer, Scalar, c_double,  # noqa: F401
+                                              printer as c_printer)
 from symid.codegen.sparse import THRESHOLD, Coef, FoldedStep, Known, Plan, fold
 from symid.model.motion import piece_tables, tables
 from symid.numeric.newton import RULE
 from symid.numeric.solve import JUMP_FLOOR, UNEXPLAINED
 
 NAME = "c"
-
-
-class Printer(C99CodePrinter):
-    """C99 without the POSIX constants (M_PI is not in strict C99); a tabled
-    function calls the generated `<prefix>_spline_<key>(t, order)`."""
-
-    _default_settings = {**C99CodePrinter._default_settings, "prefix": "symid"}
-
-    def _print_TableSpline(self, expr: sp.Expr) -> str:
-        key, order, x = expr.args
-        return f"{self._settings['prefix']}_spline_{key.name}({self._print(x)}, {int(order)})"
-
-    def _print_Grouped(self, expr: sp.Expr) -> str:
-        return f"({self._print(expr.args[0])})"
-
-    def _print_Pi(self, expr: sp.Expr) -> str:
-        return repr(float(sp.pi))
-
-    def _print_Exp1(self, expr: sp.Expr) -> str:
-        return repr(float(sp.E))
-
-    def _print_Float(self, expr: sp.Float) -> str:
-        return c_double(float(expr))
-
-    def _print_Integer(self, expr: sp.Integer) -> str:
-        # an integer literal past 2^63 does not compile; past 2^53 it is not a double exactly
-        n = int(expr)
-        return str(n) if abs(n) < EXACT else c_double(_quotient(n, 1))
-
-    def _print_Rational(self, expr: sp.Rational) -> str:
-        p, q = int(expr.p), int(expr.q)
-        if abs(p) < EXACT and q < EXACT:  # both exact doubles: C divides them, correctly rounded
-            return super()._print_Rational(expr)  # type: ignore[no-any-return]
-        return c_double(_quotient(p, q))
-
-
-EXACT = 2**53  # integers below this are doubles exactly
-
-
-def _quotient(p: int, q: int) -> float:
-    """p / q correctly rounded to a double, +-inf beyond the range."""
-    try:
-        return p / q
-    except OverflowError:
-        return math.inf if p > 0 else -math.inf
-
-
-def c_double(x: float) -> str:
-    """A C99 double literal of exactly x (subnormals included; +-INFINITY, NAN
-    from <math.h>)."""
-    if math.isnan(x):
-        return "NAN"
-    if math.isinf(x):
-        return "INFINITY" if x > 0 else "(-INFINITY)"
-    return repr(x)  # shortest round-trip digits, always with '.' or an exponent: never an integer literal
 
 
 _PRINTER = Printer({"math_macros": {}})
@@ -174,12 +121,13 @@ def _factor_lines(st: FoldedStep, P: str) -> list[str]:
     return lines
 
 
-def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
+def lu_chunks(plan: Plan, values: list[float | None], P: str, scalar: Scalar = DOUBLE) -> dict[str, Any]:
     """What templates/c/sparse_lu.j2 prints: the plan folded on the known
     values (per pattern slot, None where computed), printed as statements and
     grouped into functions of bounded size for each of the five straight-line
     passes (factor; solve forward and back; transposed solve forward and
-    back). P: the upper-case prefix of the macros."""
+    back). P: the upper-case prefix of the macros; scalar: the C type whose
+    literals and fabs are printed."""
     steps = fold(plan, values)
     above: dict[int, list[tuple[int, Coef]]] = {}
     for f in steps:
@@ -207,7 +155,7 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
         known) are left out, and a function with nothing to do is not
         emitted. `lu`, `piv`, `cm`: whether its code reads them, so that a
         function takes and declares only what it uses."""
-        printed = [ls for f in order if (ls := lines(f))]
+        printed = [[scalar.relit(line) for line in ls] for f in order if (ls := lines(f))]
         weights = [1 + sum(1 + line.count(" * ") for line in ls) for ls in printed]
         out: list[dict[str, Any]] = []
         for group in chunked(printed, weights):
@@ -230,9 +178,10 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
     # keep reciprocals, whose spread is the pivots'.
     known = [abs(1.0 / f.pivot) for f in steps if f.pivot is not None and f.pivot != 0.0]
     passes["pivot_slots"] = [f.pivot_slot for f in steps if f.pivot is None]
-    passes["known_reciprocals"] = (repr(min(known)), repr(max(known))) if known else None
+    passes["known_reciprocals"] = (scalar.lit(min(known)), scalar.lit(max(known))) if known else None
     # the solves' fixed entry points take lu even where every value is a number
     passes["solve_reads_lu"] = any(ch["lu"] for k in ("forward_chunks", "back_chunks") for ch in passes[k])
+    passes["f"] = scalar.suffix  # the suffix of the template's own literals
     passes["solve_t_reads_lu"] = any(ch["lu"] for k in ("t_forward_chunks", "t_back_chunks") for ch in passes[k])
     return passes
 
@@ -245,13 +194,17 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
 LU_TABLES_MIN = 1000
 
 
-def _lu(model: CodeModel, fold_constants: bool) -> dict[str, Any]:
+def _lu(model: CodeModel, fold_constants: bool, scalar: Scalar) -> dict[str, Any]:
     """The sparse LU's context: straight-line code (sparse_lu.j2), or index
     tables (sparse_lu_tables.j2) from LU_TABLES_MIN coordinates."""
     if model.flat.ng < LU_TABLES_MIN:
-        return {"lu_tables": None, **lu_chunks(model.plan, _known(model, fold_constants), model.flat.name.upper())}
+        return {"lu_tables": None, **lu_chunks(model.plan, _known(model, fold_constants), model.flat.name.upper(), scalar)}
     return {"lu_tables": lu_tables(model.plan), "known_reciprocals": None,
             "pivot_slots": [model.plan.slots[(st.row, st.col)] for st in model.plan.steps]}
+
+
+def _all_blocks(functions: list[dict[str, Any]], prepare: list[Block]) -> list[Block]:
+    return [ch["block"] for fn in functions for ch in fn["chunks"]] + prepare
 
 
 def _known(model: CodeModel, fold_constants: bool) -> list[float | None]:
@@ -277,9 +230,10 @@ def dense_fallback(model: CodeModel) -> bool:
 
 
 def work_size(model: CodeModel) -> int:
-    """Doubles of workspace a solver call needs: Phi_q's values, the sparse
-    factors, the dense fallback (up to DENSE_LIMIT coordinates) and eleven
-    work vectors."""
+    """Reals of workspace a solver call needs before the prepared parameters
+    (context()["work"] adds them): Phi_q's values, the sparse factors, the
+    dense fallback (up to DENSE_LIMIT coordinates), eleven work vectors and
+    the friction solve's."""
     f = model.flat
     return (len(f.jac) + model.plan.size + (f.ng * f.ng if dense_fallback(model) else 0) + 11 * _stride(model)
             + friction.work(model.layout, f.options))
@@ -308,35 +262,42 @@ def _outputs_unused(velocity: bool, multipliers: bool, nr: int) -> list[str]:
     return [a for a in OUTPUTS_ARGS if a not in used]
 
 
-def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
+def context(model: CodeModel, fold_constants: bool = True, precision: str = "double") -> dict[str, Any]:
     """Everything the C templates need, expressions already printed;
     fold_constants=False prints the factorization with every value read at
-    run time (the same factors bitwise: for the tests)."""
+    run time (the same factors bitwise: for the tests); precision: "double"
+    or "single" (float: literals, libm functions and epsilon of float)."""
+    scalar = PRECISIONS[precision]
     f = model.flat
     o = f.options
     real = f"{f.name}_real"
     cq, cqd, ct, cp, clam = (f"const {real} *", "q"), (f"const {real} *", "qd"), (real, "t"), \
         (f"const {real} *", "p"), (f"const {real} *", "lam")
     trig = _trig_map(f.ng)
-    printer = Printer({"math_macros": {}, "prefix": f.name}).doprint
+    printer = c_printer(f.name, scalar).doprint
     loops = c_loops.Loops.of(f, model.layout, model.loop_parts)
     used = f.phi + [e for _, _, e in f.jac]  # what is printed: a static function never called is an error
+    dynamics = o.kind != "kinematics" and o.multipliers
+    # parameter-only pieces read from p[NP + j], computed once per call by prepare
+    (phi, jac, nu, gamma, applied, mass, reactions), pieces = hoist(
+        [f.phi, [e for _, _, e in f.jac], f.nu if o.velocity else [], f.gamma if o.velocity else [],
+         f.applied if dynamics else [], f.mass if dynamics else [], f.reactions], len(f.params))
     functions = [
-        _function("phi", [cq, ct, cp], f.phi, trig, printer, real, loops),
-        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac], trig, printer, real, loops),
+        _function("phi", [cq, ct, cp], phi, trig, printer, real, loops),
+        _function("phi_q", [cq, ct, cp], jac, trig, printer, real, loops),
     ]
     if o.velocity:
-        functions += [_function("nu", [cq, ct, cp], f.nu, trig, printer, real, loops),
-                      _function("gamma", [cq, cqd, ct, cp], f.gamma, trig, printer, real, loops)]
+        functions += [_function("nu", [cq, ct, cp], nu, trig, printer, real, loops),
+                      _function("gamma", [cq, cqd, ct, cp], gamma, trig, printer, real, loops)]
         used += f.nu + f.gamma
-    dynamics = o.kind != "kinematics" and o.multipliers
     if dynamics:
-        functions += [_function("applied", [cq, cqd, ct, cp], f.applied, trig, printer, real, loops),
-                      _function("mass", [cp], f.mass, trig, printer, real, loops)]
+        functions += [_function("applied", [cq, cqd, ct, cp], applied, trig, printer, real, loops),
+                      _function("mass", [cp], mass, trig, printer, real, loops)]
         used += f.applied
     if f.reactions:
-        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions, trig, printer, real, loops))
+        functions.append(_function("reactions", [cq, clam, ct, cp], reactions, trig, printer, real, loops))
         used += f.reactions
+    prepare = [block(pieces[k:k + CHUNK], printer, offset=len(f.params) + k) for k in range(0, len(pieces), CHUNK)]
     ng, nc, nr = f.ng, f.nc, len(f.reactions)
     has = {g: int(g in o.outputs) for g in ("qdot", "qddot", "lambda", "reactions")}
     # a trajectory row: t, then each group in contract order
@@ -353,6 +314,8 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         functions += [_function("friction", [cq, cqd, ct, cp], fr["fixed"], trig, printer, real),
                       _function("friction_normal", [cq, clam, ct, cp], fr["normal"], trig, printer, real)]
         used += fr["fixed"] + fr["normal"]
+    lu = _lu(model, fold_constants, scalar)
+    d = describe(model, fr["row_width"] if fr else offset, functions, lu)
     # the trajectory's output vectors (variable, source, work vector): solved
     # straight into the row where it holds the source, else into the work vector
     placed = {source: offset for _, source, _, offset in row_parts if source}
@@ -361,31 +324,55 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
                                          ("reac", "reac", 8))]
     return {
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
-        "nnz": len(f.jac), "nr": nr, "row_width": fr["row_width"] if fr else offset, "friction": fr, "lu_size": model.plan.size,
-        "work": work_size(model), "state": state_size(model), "stride": stride,
-        "params": f.params, "derived": f.derived, "defaults": [repr(float(v)) for v in f.defaults],
+        "nnz": len(f.jac), "nr": nr, "row_width": fr["row_width"] if fr else offset, "friction": fr,
+        "lu_size": model.plan.size,
+        "work": work_size(model) + len(f.params) + len(pieces), "npp": len(f.params) + len(pieces),
+        "prepare": prepare, "off_prep": work_size(model),
+        "uses_powi": any(f"{f.name}_powi(" in e for b in _all_blocks(functions, prepare) for _, e in b.temps + b.outputs),
+        "state": state_size(model), "stride": stride,
+        "params": f.params, "derived": f.derived, "defaults": [scalar.lit(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
-        "functions": functions, "threshold": repr(THRESHOLD),
-        **_lu(model, fold_constants),
-        "max_newton": RULE.max_iterations, "floor_ulps": repr(RULE.floor_ulps), "jump_floor": repr(JUMP_FLOOR), "unexplained": repr(UNEXPLAINED),
+        "functions": functions, "threshold": scalar.lit(THRESHOLD),
+        **lu, "d": d, "d_lit": {"q0": [scalar.lit(v) for v in d["q0"]],
+                                **{k: scalar.lit(float(d[k])) for k in ("t0", "t1", "tol")}},
+        "max_newton": RULE.max_iterations, "floor_ulps": scalar.lit(RULE.floor_ulps),
+        "jump_floor": scalar.lit(JUMP_FLOOR), "unexplained": scalar.lit(UNEXPLAINED),
         "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),
         "outputs": outputs,
         "loop_tables": loops.tables if loops else [],
         "dense_fallback": dense_fallback(model), "dense_limit": DENSE_LIMIT,
-        **c_sweep.context(model, printer),
-        "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
+        **c_sweep.context(model, printer, work_size(model) + len(f.params) + len(pieces),
+                          fr["row_width"] if fr else offset),
+        "nb": ng // 3, "singular": model.plan.singular,
+        "splines": [_relit_tables(piece_tables(s), scalar) for s in tables(used)],
+        "inf": scalar.lit(float("inf")), "nan": scalar.lit(float("nan")), "real": scalar.ctype, "f": scalar.suffix,
+        "eps": scalar.eps, "precision": precision,
+        "lm": {k: scalar.fn(k) for k in ("sin", "cos", "sqrt", "fabs", "fmax", "fmin")},
+        "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
 
 
-def generate(model: CodeModel, out_dir: Path, fold_constants: bool = True) -> list[Path]:
-    """Write `<name>_solver.h`, `<name>_solver.c` and a Makefile into out_dir."""
+def _relit_tables(table: dict[str, Any], scalar: Scalar) -> dict[str, Any]:
+    """A spline's printed numbers as literals of the scalar type."""
+    return {**table, **{k: [scalar.relit(v) for v in table[k]] for k in ("knots", "coef")},
+            **{k: scalar.relit(table[k]) for k in ("lo", "hi")}}
+
+
+def generate(model: CodeModel, out_dir: Path, fold_constants: bool = True, precision: str = "double") -> list[Path]:
+    """Write `<name>_solver.h`, `<name>_solver.c` and a Makefile into out_dir
+    (precision: "double" or "single", the type of `<name>_real`)."""
+    return write(context(model, fold_constants, precision), out_dir)
+
+
+def write(ctx: dict[str, Any], out_dir: Path) -> list[Path]:
+    """Render a context into out_dir (its sizes, e.g. ctx["work"], are the code's)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    ctx = context(model, fold_constants)
+    name = ctx["name"]
     files = {
-        f"{model.name}_solver.h": render("c/solver.h.j2", **ctx),
-        f"{model.name}_solver.c": render("c/solver.c.j2", **ctx),
+        f"{name}_solver.h": render("c/solver.h.j2", **ctx),
+        f"{name}_solver.c": render("c/solver.c.j2", **ctx),
         "Makefile": render("c/Makefile.j2", **ctx),
     }
     written = []

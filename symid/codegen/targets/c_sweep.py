@@ -73,16 +73,17 @@ def _reactions(model: CodeModel) -> list[dict[str, Any]]:
     return out
 
 
-def work_size(model: CodeModel) -> int:
-    """Reals of workspace one thread's `<name>_sweep` needs (SWEEP_WORK)."""
-    from symid.codegen.targets.c import state_size, work_size as solver_work
+def work_size(model: CodeModel, solver_work: int, row_width: int) -> int:
+    """Reals of workspace one thread's `<name>_sweep` needs (SWEEP_WORK), from
+    the solver's own (WORK, prepared parameters included) and its row (ROW)."""
+    from symid.codegen.targets.c import state_size
 
     f = model.flat
-    return (solver_work(model) + state_size(model) + SWEEP_ROWS * len(model.row_columns) + len(f.jac) + f.nc
+    return (solver_work + state_size(model) + SWEEP_ROWS * row_width + len(f.jac) + f.nc
             + 5 * len(_drivers(model)) + 2)
 
 
-def context(model: CodeModel, printer: Callable[[sp.Expr], str]) -> dict[str, Any]:
+def context(model: CodeModel, printer: Callable[[sp.Expr], str], solver_work: int, row_width: int) -> dict[str, Any]:
     """The sweep's part of the C templates' context (keys `sweep_*`)."""
     mech = model.layout.mechanism
     _, pmap, _ = parameter_map(mech.parameters)
@@ -95,6 +96,7 @@ def context(model: CodeModel, printer: Callable[[sp.Expr], str]) -> dict[str, An
     reactions = _reactions(model)
     return {
         "sweep_rows": SWEEP_ROWS,
+        "sweep_work": work_size(model, solver_work, row_width),
         "sweep_guess": block(guess, printer, prefix="g"),
         "sweep_drive": block(drive, printer, prefix="d") if drive else None,
         "sweep_drivers": [{"lam": d["lam"], "distance": d["distance"], "name": d["name"]} for d in drivers],

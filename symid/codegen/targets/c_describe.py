@@ -1,0 +1,106 @@
+"""What the C header says about the mechanism besides the calls: the row's
+column names and units, the parameters' names (with the file's own comment,
+and whether anything reads them), the assembled q0, the file's time grid and
+the operation count of one instant, counted on the emitted code."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any, Sequence
+
+import sympy as sp
+
+from symid.codegen.model import CodeModel
+
+# the dimension of a row column, by its name's last part (angles in radians;
+# lengths, forces and time in the file's consistent units)
+_UNITS = {"t": "time", "x": "length", "y": "length", "phi": "rad", "vx": "length/time", "vy": "length/time",
+          "omega": "rad/time", "ax": "length/time^2", "ay": "length/time^2", "alpha": "rad/time^2",
+          "Fx": "force", "Fy": "force", "T": "force*length"}
+_BINARY = re.compile(r"(?<=[\w)\]])\s*[-+*/]\s*(?=[\w(.])")
+_CALL = re.compile(r"\b[a-z_]\w*\(")
+
+
+def unit(column: str) -> str:
+    """The dimension of a contract column ('crank.phi' -> rad); a multiplier's
+    is its constraint row's reaction (force, or torque for an angle row)."""
+    last = column.rsplit(".", 1)[-1].split("_")[0]
+    if last.startswith("lambda"):
+        return "force or torque, per its row"
+    return _UNITS.get(last, "")
+
+
+def ops(code: str) -> int:
+    """Floating operations of printed C: binary + - * / and function calls
+    (an index expression such as lu[3] counts nothing)."""
+    code = re.sub(r"\[[^\]]*\]", "[]", code)
+    return len(_BINARY.findall(code)) + len(_CALL.findall(code))
+
+
+def file_comments(source: str, names: Sequence[str]) -> dict[str, str]:
+    """The trailing comment of each parameter's line in the file's
+    [parameters] table ('# crank radius, m'), where the file has one."""
+    path = Path(source)
+    if not path.is_file():
+        return {}
+    out: dict[str, str] = {}
+    section = ""
+    for line in path.read_text(errors="replace").splitlines():
+        head = re.match(r"\s*\[+\s*([\w.]+)\s*\]+", line)
+        if head:
+            section = head.group(1)
+            continue
+        m = re.match(r"\s*([\w]+)\s*=[^#]*#\s*(.+?)\s*$", line)
+        if section == "parameters" and m and m.group(1) in names:
+            out[m.group(1)] = m.group(2).replace("*/", "* /")
+    return out
+
+
+def read_params(model: CodeModel) -> set[int]:
+    """Indices k of the parameters p[k] that some emitted expression reads."""
+    f = model.flat
+    exprs = [*f.phi, *(e for _, _, e in f.jac), *f.reactions]
+    if f.options.velocity:
+        exprs += [*f.nu, *f.gamma]
+    if f.options.kind != "kinematics" and f.options.multipliers:  # the template's `dynamics`
+        exprs += [*f.applied, *f.mass]
+    names = {str(s) for e in exprs for s in sp.sympify(e).free_symbols}
+    return {k for k in range(len(f.params)) if f"p[{k}]" in names}
+
+
+def c_string(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def describe(model: CodeModel, row_width: int, functions: list[dict[str, Any]], lu: dict[str, Any]) -> dict[str, Any]:
+    """The header's description (names, units, grid, q0, operation counts)."""
+    f = model.flat
+    mech = model.layout.mechanism
+    a = mech.analysis
+    columns = list(model.row_columns[:row_width])
+    comments = file_comments(mech.source, f.params)
+    read = read_params(model)
+    params = [{"name": n, "string": c_string(n), "comment": comments.get(n, ""), "read": k in read,
+               "derived": str(mech.parameters[n]) if not sp.sympify(mech.parameters[n]).is_Number else ""}
+              for k, n in enumerate(f.params)]
+    counts = {fn["name"]: sum(ops("\n".join([e for _, e in ch["block"].temps] + [e for _, e in ch["block"].outputs]))
+                              for ch in fn["chunks"]) for fn in functions}
+    # an LU on index tables (large mechanisms) has no straight-line code to count: its
+    # operations are data (its trip counts), left out of the count
+    lu_ops = {k: sum(ops("\n".join(ch["lines"])) for ch in lu.get(f"{k}_chunks", ()))
+              for k in ("factor", "forward", "back", "t_forward", "t_back")}
+    solve = lu_ops["forward"] + lu_ops["back"]
+    # the trajectory's usual instant: one chord correction (phi, a solve),
+    # phi again to test it, then the factors at the solution and the outputs
+    instant = 2 * counts.get("phi", 0) + solve + counts.get("phi_q", 0) + lu_ops["factor"]
+    if f.options.velocity:
+        instant += counts.get("nu", 0) + counts.get("gamma", 0) + 2 * solve
+    if "applied" in counts:
+        instant += counts["applied"] + counts.get("mass", 0) + lu_ops["t_forward"] + lu_ops["t_back"]
+    instant += counts.get("reactions", 0)
+    return {"columns": [{"name": c, "string": c_string(c), "unit": unit(c)} for c in columns],
+            "param_info": params, "unread": [p["name"] for p in params if not p["read"]],
+            "q0": list(model.q0), "t0": a.t0, "t1": a.t1, "steps": a.steps, "tol": a.tol,
+            "ops": {**counts, **{f"lu_{k}": v for k, v in lu_ops.items()}}, "ops_instant": instant,
+            "body_names": [b.name for b in mech.bodies]}
