@@ -3,22 +3,24 @@
 The module's public functions (phi, phi_q_values, nu, gamma, applied, mass,
 reactions) broadcast: with q of shape (NG, K) and p of shape (NP, K) they
 evaluate K variants at one instant in one call. So the K variants of a chunk
-advance together instant by instant: the module loop's predictor, Newton
-with its convergence rule (`symid.numeric.newton.RULE`, full steps, batched
-dense solves), then the rates, multipliers and reactions from one Phi_q per
-variant. Python's work per instant is a few dozen array operations for the
-whole chunk, not per variant.
+advance together instant by instant, as the module's own loop (`_rows`)
+advances one: its predictor, its Newton (full steps, the convergence rule of
+`symid.numeric.newton.RULE`), Phi_q factored in its fixed pivot order
+(`symid.study.batch_lu`, one elimination for all K), then the rates,
+multipliers and reactions. Python's work per instant is a few hundred array
+operations for the whole chunk, none per variant.
 
 t0 is assembled from q0 by the same Newton, and the scales of the checks
-are fixed there, as the Python loop (`Stepper`) does before the module's loop
-takes over; a variant whose assembly the Python loop would damp (a full step
-that does not lower the scaled residual enough) goes back. A variant is dropped
-from the vector (status RETRY) at any instant the module's loop would not
-vouch for: Newton fails, a value is not finite, Newton moved far from the
-prediction or the step's motion is not what the rates explain (the branch
-checks), or Phi_q is ill-conditioned enough that the Python loop might warn
-or call it singular. The engine re-runs such a variant through the normal
-path, so it ends exactly as `symid solve` ends.
+are fixed there, as the Python loop (`Stepper`) does before the module's
+loop takes over; a variant whose assembly the Python loop would damp (a full
+step that does not lower the scaled residual enough) goes back. A variant
+goes back (status RETRY) at any instant the module's loop hands over: Newton
+fails, a pivot fails its threshold test, the scaled pivots spread wider
+than its screen (the condition may be near the warning level), a value is
+not finite, or the branch checks (Newton moved far from the prediction; the
+step's motion is not what the rates at both ends explain). The engine
+re-runs such a variant through the normal path, so it ends exactly as
+`symid solve` ends.
 """
 
 from __future__ import annotations
@@ -38,13 +40,17 @@ from symid.numeric.newton import EPS, RULE
 from symid.numeric.solve import JUMP_FLOOR, JUMP_RATIO, UNEXPLAINED
 from symid.numeric.stability import requested
 from symid.output.results import columns
+from symid.study.batch_lu import Factors, Plan
 from symid.study.variants import Measure
 from symid.study.vector_figures import Figures, Values
 from symid.symbolic.assemble import Layout, assemble
 
-# variants advanced together: large enough that numpy's per-call cost is
-# spread thin, small enough that a chunk's stored columns stay a few MB
-MAX_CHUNK = 512
+# Variants advanced together: the work per instant is a few hundred array
+# operations whatever K is, so larger chunks run faster (1000 variants: 4x
+# the instants per second of 64), as long as a chunk's stored columns
+# (K x instants x the figures' columns) stay within BUDGET bytes.
+MAX_CHUNK = 1024
+BUDGET = 64 * 2**20
 RETRY = 1  # status of a variant the vectorized loop hands back to the normal path
 
 
@@ -74,12 +80,17 @@ def usable(mechanism: Mechanism) -> bool:
     return not requested(mechanism.analysis) and layout.nc == layout.ng
 
 
-def run(mechanism: Mechanism, full: Array, chunk: int = MAX_CHUNK) -> Batch:
+def run(mechanism: Mechanism, full: Array, chunk: int | None = None) -> Batch:
     """Solve the variants `full` (K, NP base parameters) of `mechanism` (the
-    study's, `study_mechanism`) in chunks of `chunk`, vectorized over each."""
+    study's, `study_mechanism`) in chunks of `chunk` (default: as many as
+    MAX_CHUNK and BUDGET allow), vectorized over each."""
     layout = assemble(mechanism)
-    module = load_module(build(layout, options_for(mechanism)))
+    module = load_module(build(layout, options_for(mechanism)))  # a private instance: see _stack
+    module._stack = _stack
     figures = Figures(Measure(mechanism, columns(layout, mechanism.analysis)))
+    if chunk is None:
+        per_variant = 8 * mechanism.analysis.steps * len(figures.columns)
+        chunk = max(1, min(MAX_CHUNK, BUDGET // per_variant))
     order = base_names(mechanism.parameters)
     pick = [order.index(n) for n in module.PARAMS]
     k = len(full)
@@ -88,6 +99,8 @@ def run(mechanism: Mechanism, full: Array, chunk: int = MAX_CHUNK) -> Batch:
     t_end = np.full(k, np.nan)
     solved = np.zeros(k, dtype=np.int64)
     tick = time.perf_counter()
+    if len(module.PIVOT_ROWS) < module.NG:  # no fixed pivot order: the module's loop hands over every instant
+        return Batch(figures.names, values, np.full(k, RETRY, dtype=np.intc), t_end, solved)
     for s in range(0, k, chunk):
         e = min(k, s + chunk)
         part = _Chunk(mechanism, layout, module, full[s:e], pick, figures.columns)
@@ -144,9 +157,8 @@ class _Chunk:
         p, guess = self.p[:, live], self.q[:, live]
         inv_col, inv_row, _, _ = _scales(_dense(m, guess, a.t0, p), guess)
         q, ok = _newton(m, guess.copy(), a.t0, p, a.tol, (inv_row, inv_col))
-        jac = _dense(m, q, a.t0, p)
-        self.inv_col[:, live], _, self.dr[live], self.dc[live] = _scales(jac, q)
-        out, good = self._outputs(q, a.t0, p, jac, live)
+        self.inv_col[:, live], _, self.dr[live], self.dc[live] = _scales(_dense(m, q, a.t0, p), q)
+        out, good = self._outputs(q, a.t0, p, live)
         self._keep(0, a.t0, live, ok & good, out)
 
     def _step(self, k: int, t: float, h: float, live: Array, history: list[Array]) -> list[Array]:
@@ -162,7 +174,7 @@ class _Chunk:
             guess = (3 * past[0] - 3 * past[1] + past[2] if len(past) >= 3 else
                      2 * past[0] - past[1] if len(past) == 2 else past[0])
         q, ok = _newton(m, guess.copy(), t, p, a.tol)
-        out, good = self._outputs(q, t, p, _dense(m, q, t, p), live)
+        out, good = self._outputs(q, t, p, live)
         ok &= good
         c = self.inv_col[:, live]
         ok &= ~_moved(q, guess, q1, c)
@@ -171,17 +183,19 @@ class _Chunk:
         self._keep(k, t, live, ok, out)
         return history if self.velocity else [self.q.copy()] + history[:2]  # latest first, up to 3
 
-    def _outputs(self, q: Array, t: float, p: Array, jac: Array, live: Array) -> tuple[dict[str, Array], Array]:
+    def _outputs(self, q: Array, t: float, p: Array, live: Array) -> tuple[dict[str, Array], Array]:
         """The rates, multipliers and reactions at the solved q (NG, K'), and
-        which variants the module's loop would vouch for (finite, conditioned)."""
+        which variants the module's loop would vouch for: finite, its fixed
+        pivots pass, and their scaled spread is within its screen."""
         m, a = self.m, self.mech.analysis
         out = {"q": q}
-        ok = _conditioned(jac, self.dr[live], self.dc[live], a.cond_threshold / SCREEN)
+        factors = _factor(m, q, t, p)
+        scaled = factors.pivots() * self.dr[live][:, m.PIVOT_ROWS].T * self.dc[live][:, m.PIVOT_COLS].T
+        ok = factors.ok & (scaled.max(axis=0) / scaled.min(axis=0) <= a.cond_threshold / SCREEN)
         qd = qdd = None
         if self.velocity:
-            qd, good = _solve(jac, m.nu(q, t, p))
-            qdd, fine = _solve(jac, m.gamma(q, qd, t, p))
-            ok &= good & fine
+            qd = factors.solve(m.nu(q, t, p))
+            qdd = factors.solve(m.gamma(q, qd, t, p))
             out["qdot"], out["qddot"] = qd, qdd
         if self.multipliers:
             if self.velocity:
@@ -189,9 +203,7 @@ class _Chunk:
                 rhs = m.applied(q, qd, t, p) - (mass[:, None] if mass.ndim == 1 else mass) * qdd
             else:
                 rhs = m.applied(q, None, t, p)
-            lam, good = _solve(np.swapaxes(jac, 1, 2), rhs)
-            ok &= good
-            out["lambda"] = lam
+            lam = out["lambda"] = factors.solve_t(rhs)
             if m.NR:
                 out["reactions"] = np.broadcast_to(m.reactions(q, lam, t, p), (m.NR, q.shape[1]))
         ok &= np.isfinite(sum(x.sum(axis=0) for x in out.values()))  # the module's finite_sum
@@ -220,21 +232,23 @@ def _dense(m: Any, q: Array, t: float, p: Array) -> Array:
     return out
 
 
-def _solve(a: Array, b: Array) -> tuple[Array, Array]:
-    """x (N, K) with a[k] x[:, k] = b[:, k], and which variants were not singular."""
-    n = a.shape[0]
-    b = np.broadcast_to(b, (a.shape[1], n)).T[..., None]
-    try:
-        return np.linalg.solve(a, b)[..., 0].T, np.ones(n, dtype=bool)
-    except np.linalg.LinAlgError:  # one exactly singular matrix stops the whole call: find it
-        x = np.full((n, a.shape[2]), np.nan)
-        ok = np.zeros(n, dtype=bool)
-        for v in range(n):
-            try:
-                x[v], ok[v] = np.linalg.solve(a[v], b[v])[:, 0], True
-            except np.linalg.LinAlgError:
-                pass
-        return x.T, ok
+def _stack(values: list[Any], like: Any) -> Array:
+    """The module's `_stack` (its outputs as one array of the instants'
+    shape), the same numbers without a `broadcast_to` per output: on K
+    variants that helper, not the arithmetic, was half of each call."""
+    shape = np.broadcast_shapes(np.shape(like), *[np.shape(v) for v in values])
+    out = np.empty((len(values),) + shape)
+    for k, v in enumerate(values):
+        out[k] = v
+    return out
+
+
+def _factor(m: Any, q: Array, t: float, p: Array) -> Factors:
+    """Phi_q of each variant factored in the module's pivot order."""
+    plan = m.__dict__.get("_symid_batch_plan")
+    if plan is None:  # the structure is the module's: worked out once
+        plan = m._symid_batch_plan = Plan(m.PHI_Q_ROWS, m.PHI_Q_COLS, m.PIVOT_ROWS, m.PIVOT_COLS)
+    return Factors(plan, np.broadcast_to(m.phi_q_values(q, t, p), (m.NNZ, q.shape[1])), m.THRESHOLD)
 
 
 def _newton(m: Any, q: Array, t: float, p: Array, tol: float,
@@ -264,8 +278,9 @@ def _newton(m: Any, q: Array, t: float, p: Array, tol: float,
         if it == RULE.max_iterations:
             bad |= live
             break
-        dq, ok = _solve(_dense(m, q[:, live], t, p[:, live]), r[:, live])
-        bad[live] |= ~ok
+        factors = _factor(m, q[:, live], t, p[:, live])
+        dq = factors.solve(r[:, live])
+        bad[live] |= ~factors.ok  # the module would take its dense fallback: hand it over
         if guard is not None:
             bad[live] |= ~_full_step(m, q[:, live], r[:, live], q[:, live] - dq, t, p[:, live], tol,
                                      guard[0][:, live], guard[1][:, live])
@@ -278,26 +293,6 @@ def _newton(m: Any, q: Array, t: float, p: Array, tol: float,
             r[:, again] = np.broadcast_to(m.phi(q[:, again], t, p[:, again]), (m.NC, int(again.sum())))
             rmax[again] = np.abs(r[:, again]).max(axis=0)
     return q, done & ~bad
-
-
-def _conditioned(jac: Array, dr: Array, dc: Array, limit: float) -> Array:
-    """Whether each equilibrated Phi_q's 1-norm condition number is within
-    `limit` (the module hands over pivot spreads above it; the Python loop
-    then estimates the condition, warns, or calls it singular)."""
-    a = jac * dr[:, :, None] * dc[:, None, :]
-    try:
-        inv = np.linalg.inv(a)
-        ok = np.ones(len(a), dtype=bool)
-    except np.linalg.LinAlgError:
-        inv = np.full_like(a, np.inf)
-        ok = np.zeros(len(a), dtype=bool)
-        for v in range(len(a)):
-            try:
-                inv[v], ok[v] = np.linalg.inv(a[v]), True
-            except np.linalg.LinAlgError:
-                pass
-    cond = np.abs(a).sum(axis=1).max(axis=1) * np.abs(inv).sum(axis=1).max(axis=1)
-    return ok & (cond <= limit)
 
 
 def _moved(q: Array, g: Array, o: Array, c: Array) -> Array:
