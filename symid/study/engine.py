@@ -42,7 +42,8 @@ def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, 
         names: the varied base parameters; every other keeps its value.
         base: shape (K, len(names)), one variant per row.
         backend: "c" (the batch loop, on `workers` threads, default every
-            core), "numpy", "casadi" or "reference" (one variant at a time).
+            core), "numpy" (vectorized over variants, one thread), "casadi"
+            or "reference" (one variant at a time).
 
     Raises:
         InputError: an unknown or derived parameter, or `base` of the wrong shape.
