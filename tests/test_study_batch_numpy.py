@@ -121,3 +121,47 @@ def test_the_batched_lu_in_a_fixed_pivot_order_solves_as_a_dense_solver():
     pattern[rows[1], cols[0]] = True
     r, c = np.nonzero(pattern)
     assert list(Factors(Plan(r, c, rows, cols), a[:, r, c].T, 0.1).ok) == [False] + [True] * (k - 1)
+
+
+RAIL = """
+[mechanism]
+name = "rail"
+gravity = [0.0, -9.81]
+[parameters]
+A = 0.2
+w = 3.0
+[analysis]
+t0 = 0.0
+t1 = 2.0
+steps = 21
+[[body]]
+name = "block"
+mass = 2.0
+inertia = 0.01
+q0 = [0.0, 0.0, 0.0]
+[[constraint]]
+name = "rail"
+type = "translational"
+i = "ground"
+j = "block"
+si = [0.0, 0.0]
+vi = [1.0, 0.0]
+sj = [0.0, 0.0]
+friction = { mu = 0.3, viscous = 0.7, arm = 0.1, v_smooth = 0.01 }
+[[constraint]]
+name = "push"
+type = "coordinate_driver"
+body = "block"
+coordinate = "x"
+f = "A*sin(w*t)"
+"""
+
+
+def test_joint_friction_is_left_to_the_normal_path(tmp_path):
+    # the module's loop does not solve friction (the Python loop does): the
+    # vector must not take such a study, or the friction force would be missing
+    with_friction, without = tmp_path / "rail.toml", tmp_path / "smooth_rail.toml"
+    with_friction.write_text(RAIL)
+    without.write_text("\n".join(line for line in RAIL.splitlines() if not line.startswith("friction")))
+    assert not batch_numpy.usable(study_mechanism(api.load_mechanism(with_friction)))
+    assert batch_numpy.usable(study_mechanism(api.load_mechanism(without)))

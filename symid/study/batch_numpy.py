@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from symid.backends import Array
+from symid.backends import Array, friction
 from symid.backends.numpy_backend import SCREEN, build, load_module
 from symid.codegen.model import options_for
 from symid.model.mechanism import Mechanism
@@ -75,9 +75,10 @@ class Batch:
 
 def usable(mechanism: Mechanism) -> bool:
     """Whether the module's own loop runs this analysis (`NumpyEvaluator.own_loop`):
-    a square Phi_q and no stability feature only the Python loop provides."""
+    a square Phi_q, no stability feature only the Python loop provides, and
+    no joint friction (solved by the Python loop only)."""
     layout = assemble(mechanism)
-    return not requested(mechanism.analysis) and layout.nc == layout.ng
+    return not requested(mechanism.analysis) and layout.nc == layout.ng and not friction.solved(mechanism)
 
 
 def run(mechanism: Mechanism, full: Array, chunk: int | None = None) -> Batch:
