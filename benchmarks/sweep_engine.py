@@ -8,11 +8,16 @@ compiled sweep solves many variants, on one and two threads.
   (`benchmarks.casadi_baselines.CasadiC`, one Function per instant, gcc -O2),
   1001 instants at the default parameters, one thread: its time per instant,
   times the grid's instants (what the grid would cost that way).
+- numpy: the same grid of 1000 variants at S instants (default 101) on the
+  numpy backend: the loop vectorized over variants (`symid.study.batch_numpy`,
+  what `solve_figures` runs) against the per-variant loop it replaced (each
+  variant through the generated module's own trajectory loop,
+  `engine._normal_path`), instants per second of each.
 - monte carlo: N variants (normal scatter, 1 % SD, on the lengths and masses)
   x 1001 instants on 2 threads: time and the process's peak memory; N below
   1e5 is extrapolated linearly to 1e5 (the work is per variant).
 
-    python -m benchmarks.sweep_engine [--mc N] [--grid-steps S] [--no-casadi]
+    python -m benchmarks.sweep_engine [--mc N] [--grid-steps S] [--numpy-steps S] [--no-casadi]
 
 Prints the figures and writes benchmarks/results/sweep_engine.json.
 """
@@ -63,6 +68,33 @@ def grid(steps: int) -> dict[str, Any]:
     return {"steps": steps, "threads_1": best[1], "threads_2": best[2]}
 
 
+def numpy_grid(steps: int, variants: int = 1000) -> dict[str, Any]:
+    """The grid on the numpy backend: vectorized over variants vs one variant at a time."""
+    from symid.study import batch_numpy
+    from symid.study.engine import _normal_path
+
+    mech = api.load_mechanism(api.example("slider_crank"), steps=steps)
+    study = study_mechanism(mech)
+    rods, speeds = np.linspace(0.2, 0.5, 25), np.linspace(1.0, 10.0, 40)
+    base = np.array([(r, n) for r in rods for n in speeds])[:variants]
+    full = base_matrix(study, ("L_rod", "n"), base)
+    batch_numpy.run(study, full[:2])  # build (or load) the module: not the solve phase
+    tick = time.perf_counter()
+    vector = batch_numpy.run(study, full)
+    vector_s = time.perf_counter() - tick
+    tick = time.perf_counter()
+    loop = _normal_path(study, full, "numpy")
+    loop_s = time.perf_counter() - tick
+    instants = len(base) * steps
+    kept = vector.status == 0
+    with np.errstate(invalid="ignore"):  # a figure zero by construction (the motor's reaction force): 0 / 0
+        rel = np.abs(vector.values[kept] - loop.values[kept]) / np.abs(loop.values[kept]).max(axis=0)
+    return {"variants": len(base), "steps": steps, "vectorized_s": vector_s, "per_variant_s": loop_s,
+            "vectorized_instants_per_s": instants / vector_s, "per_variant_instants_per_s": instants / loop_s,
+            "speedup": loop_s / vector_s, "handed_back": int(np.count_nonzero(~kept)),
+            "max_rel_difference": float(np.nanmax(rel, initial=0.0))}
+
+
 def casadi_anchor(steps: int) -> dict[str, Any]:
     from benchmarks import systems
     from benchmarks.casadi_baselines import CasadiC
@@ -101,6 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.sweep_engine", description=__doc__.split("\n")[0])
     parser.add_argument("--mc", type=int, default=MC_TARGET, help="Monte Carlo variants (default 1e5)")
     parser.add_argument("--grid-steps", type=int, default=1001)
+    parser.add_argument("--numpy-steps", type=int, default=101, help="instants of the numpy grid (0: leave it out)")
     parser.add_argument("--no-casadi", action="store_true", help="leave out the CasADi C anchor")
     args = parser.parse_args(argv)
     out: dict[str, Any] = {"cpus": os.cpu_count(), "load_average": list(os.getloadavg())}
@@ -117,6 +150,12 @@ def main(argv: list[str] | None = None) -> int:
         c["sweep_speedup_2_threads"] = grid_s / 2 / g["threads_2"]["solve_s"]  # CasADi's loop on 2 ideal threads
         print(f"casadi C loop: {c['us_per_instant_1_thread']:.3f} us per instant (1 thread); the grid that way "
               f"{grid_s:.2f} s on 1 thread; sweep on 2 threads is {c['sweep_speedup_2_threads']:.1f}x its 2-thread time")
+    if args.numpy_steps:
+        out["numpy"] = n = numpy_grid(args.numpy_steps)
+        print(f"numpy grid {n['variants']} variants x {n['steps']} instants: vectorized {n['vectorized_s']:.2f} s "
+              f"({n['vectorized_instants_per_s'] / 1e3:.1f} k instants/s), per-variant loop {n['per_variant_s']:.2f} s "
+              f"({n['per_variant_instants_per_s'] / 1e3:.1f} k instants/s): {n['speedup']:.1f}x; "
+              f"{n['handed_back']} handed back, figures within {n['max_rel_difference']:.1e} (relative to each's max)")
     out["monte_carlo"] = m = monte_carlo(args.mc, 1001)
     print(f"monte carlo {m['variants']} variants x 1001 instants, 2 threads: {m['seconds']:.2f} s "
           f"({m['instants_per_s'] / 1e6:.2f} M instants/s; 1e5 variants: {m['seconds_at_1e5']:.1f} s), "

@@ -3,10 +3,13 @@
 `solve_figures` runs each variant (one row of base parameter values) and
 keeps its figures (`symid.study.figures`). On the C backend the variants run
 inside the generated solver's own loop (`symid.study.batch_c`), on threads;
+on the NumPy backend all variants of a chunk advance together, vectorized
+over variants (`symid.study.batch_numpy`);
 the few instants that loop cannot vouch for (a failure, or a step its jump
 check flags) are decided by re-running that variant through the normal solve
 path, so every variant ends with the answer `symid solve --set` gives. Other
-backends run each variant through the normal path.
+backends (and NumPy runs asking for the Python loop's stability features)
+run each variant through the normal path.
 """
 
 from __future__ import annotations
@@ -39,7 +42,8 @@ def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, 
         names: the varied base parameters; every other keeps its value.
         base: shape (K, len(names)), one variant per row.
         backend: "c" (the batch loop, on `workers` threads, default every
-            core), "numpy", "casadi" or "reference" (one variant at a time).
+            core), "numpy" (vectorized over variants, one thread), "casadi"
+            or "reference" (one variant at a time).
 
     Raises:
         InputError: an unknown or derived parameter, or `base` of the wrong shape.
@@ -49,16 +53,30 @@ def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, 
     backends.require_support(backend, mech.analysis, mech.source)
     # more rows than coordinates: the same input error as a solve's, once, at the file's values
     backends.check_redundant(assemble(mech), parameter_values(mech.parameters), backend)
+    order = figure_names(mech)
+    if backend == "numpy":
+        from symid.study import batch_numpy
+
+        if not batch_numpy.usable(mech):  # the Python loop's stability features: the normal path
+            return _normal_path(mech, full, backend)
+        vector = batch_numpy.run(mech, full)
+        return _decided(mech, full, backend, order, vector.names, vector.values, vector.status, vector.t_end)
     if backend != "c":
         return _normal_path(mech, full, backend)
     from symid.study import batch_c
 
     batch = batch_c.run(mech, full, workers)
-    order = figure_names(mech)
-    values = batch.values[:, [batch.names.index(n) for n in order]] if order else np.zeros((len(full), 0))
+    return _decided(mech, full, backend, order, batch.names, batch.values, batch.status, batch.t_end)
+
+
+def _decided(mech: Mechanism, full: Array, backend: str, order: tuple[str, ...], names: Sequence[str],
+             got: Array, codes: Array, ends: Array) -> Figures:
+    """The figures of a batch loop (in its `names` order), with the variants
+    it handed back (`codes` != 0) decided through the normal path."""
+    values = got[:, [list(names).index(n) for n in order]] if order else np.zeros((len(full), 0))
     status = np.zeros(len(full), dtype=np.intc)
-    t_end = batch.t_end.copy()
-    retry = np.flatnonzero(batch.status != 0)
+    t_end = ends.copy()
+    retry = np.flatnonzero(codes != 0)
     if retry.size:  # rare: decided as a solve decides them
         again = _normal_path(mech, full[retry], backend)
         values[retry], status[retry], t_end[retry] = again.values, again.status, again.t_end
