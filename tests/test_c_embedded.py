@@ -97,7 +97,7 @@ def test_instant_solves_from_its_guess_and_the_trajectory_keeps_the_branch(solve
     it started in."""
     solver = solvers["slider_crank"]
     t = 0.05
-    theta = float(solver.p[solver.ctx["params"].index("omega")]) * t
+    theta = 2 * np.pi * float(solver.p[solver.ctx["params"].index("n")]) * t  # omega = 2 pi n, derived
     other = _slider_crank_mode(theta, -1.0)
     status, out = solver.instant(t=t, q=other + 1e-3)
     assert status == OK

@@ -1369,7 +1369,7 @@ static void excavator_sweep_finish(excavator_real *fig, const excavator_real *ac
     const excavator_real span = acc[10] - acc[9];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 18; ++k) fig[k] = NAN;
+        for (k = 0; k < 18; ++k) fig[k] = ((double)NAN);
         return;
     }
     (void)k;
@@ -1418,7 +1418,7 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
         excavator_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[10] : NAN;
+        t_end[v] = done > 0 ? acc[10] : ((double)NAN);
     }
     return EXCAVATOR_OK;
 }

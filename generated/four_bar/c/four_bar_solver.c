@@ -1082,7 +1082,7 @@ static void four_bar_sweep_finish(four_bar_real *fig, const four_bar_real *acc, 
     const four_bar_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 9; ++k) fig[k] = NAN;
+        for (k = 0; k < 9; ++k) fig[k] = ((double)NAN);
         return;
     }
     (void)k;
@@ -1126,7 +1126,7 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
         four_bar_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : NAN;
+        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
     }
     return FOUR_BAR_OK;
 }

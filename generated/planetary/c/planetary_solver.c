@@ -1154,7 +1154,7 @@ static void planetary_sweep_finish(planetary_real *fig, const planetary_real *ac
     const planetary_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 12; ++k) fig[k] = NAN;
+        for (k = 0; k < 12; ++k) fig[k] = ((double)NAN);
         return;
     }
     (void)k;
@@ -1201,7 +1201,7 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
         planetary_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : NAN;
+        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
     }
     return PLANETARY_OK;
 }

@@ -1084,7 +1084,7 @@ static void quick_return_sweep_finish(quick_return_real *fig, const quick_return
     const quick_return_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 10; ++k) fig[k] = NAN;
+        for (k = 0; k < 10; ++k) fig[k] = ((double)NAN);
         return;
     }
     (void)k;
@@ -1129,7 +1129,7 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
         quick_return_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : NAN;
+        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
     }
     return QUICK_RETURN_OK;
 }

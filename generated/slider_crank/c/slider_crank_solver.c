@@ -1035,7 +1035,7 @@ static void slider_crank_sweep_finish(slider_crank_real *fig, const slider_crank
     const slider_crank_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 9; ++k) fig[k] = NAN;
+        for (k = 0; k < 9; ++k) fig[k] = ((double)NAN);
         return;
     }
     (void)k;
@@ -1079,7 +1079,7 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
         slider_crank_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : NAN;
+        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
     }
     return SLIDER_CRANK_OK;
 }

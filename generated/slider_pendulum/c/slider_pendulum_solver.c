@@ -1020,7 +1020,7 @@ static void slider_pendulum_sweep_finish(slider_pendulum_real *fig, const slider
     const slider_pendulum_real span = acc[7] - acc[6];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 13; ++k) fig[k] = NAN;
+        for (k = 0; k < 13; ++k) fig[k] = ((double)NAN);
         return;
     }
     (void)k;
@@ -1066,7 +1066,7 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
         slider_pendulum_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[7] : NAN;
+        t_end[v] = done > 0 ? acc[7] : ((double)NAN);
     }
     return SLIDER_PENDULUM_OK;
 }

@@ -349,7 +349,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "splines": [_relit_tables(piece_tables(s), scalar) for s in tables(used)],
         "inf": scalar.lit(float("inf")), "nan": scalar.lit(float("nan")), "real": scalar.ctype, "f": scalar.suffix,
         "eps": scalar.eps, "precision": precision,
-        "lm": {k: scalar.fn(k) for k in ("sin", "cos", "sqrt", "fabs", "fmax", "fmin")},
+        "lm": {k: scalar.fn(k) for k in ("sin", "cos", "sqrt", "fabs", "fmax", "fmin", "tanh")},
         "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
 

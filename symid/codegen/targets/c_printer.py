@@ -93,6 +93,11 @@ class Printer(C99CodePrinter):
     def _print_Grouped(self, expr: sp.Expr) -> str:
         return f"({self._print(expr.args[0])})"
 
+    def _print_sign(self, expr: sp.Expr) -> str:
+        # the comparison difference is an int: say it becomes the scalar type (float: -Wconversion)
+        x = self._print(expr.args[0])
+        return f"(({self.scalar.ctype})((({x}) > 0) - (({x}) < 0)))"
+
     def _print_Pi(self, expr: sp.Expr) -> str:
         return self.scalar.lit(float(sp.pi))
 
