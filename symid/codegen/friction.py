@@ -12,9 +12,8 @@ from typing import Any
 
 import sympy as sp
 
-from symid.codegen.flat import Options, _role_map, vector
+from symid.codegen.flat import Options, _role_map, parameter_map, vector
 from symid.model.friction import coulomb_arm, has_friction, inverse_arm
-from symid.model.mechanism import parameter_symbol
 from symid.symbolic.assemble import Layout
 from symid.symbolic.friction import ARM_INV, derive_friction
 from symid.symbolic.rounding import grouped
@@ -39,8 +38,9 @@ def joints(layout: Layout, options: Options) -> list[dict[str, Any]]:
     and where it sits (bodies, rows, reaction slot)."""
     mech = layout.mechanism
     nb = layout.nb
-    p = vector("p", len(mech.parameters))
-    pmap = {parameter_symbol(n): p[k] for k, n in enumerate(mech.parameters)}
+    # p holds the base parameters only; a derived one is its definition over
+    # them (as every other generated expression sees it)
+    _, pmap, _ = parameter_map(mech.parameters)
     q, qd, lam = vector("q", layout.ng), vector("qd", layout.ng), vector("lam", layout.nc)
     member = {name: (g, k) for g in layout.constraint_groups for k, name in enumerate(g.names)}
     slots, offset = {}, 0
