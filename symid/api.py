@@ -261,7 +261,7 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
         raise InputError(f"{mech.source}: constraint '{joint}' key 'friction': --target {target}: the generated "
                          f"{target} code does not include joint friction yet; generate --target c, or solve "
                          f"with any backend")
-    return module.generate(code_model(mech), Path(out_dir))  # type: ignore[no-any-return]
+    return module.generate(code_model(mech, looped=target == "c"), Path(out_dir))  # type: ignore[no-any-return]
 
 
 def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "numpy", "casadi")) -> list[Path]:

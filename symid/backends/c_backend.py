@@ -24,6 +24,7 @@ from symid.errors import InputError
 from symid.progress import stage
 
 if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a built solver without sympy
+    from symid.numeric.stability import Scaling
     import sympy as sp
 
     from symid.symbolic.assemble import Layout
@@ -100,7 +101,7 @@ def build(layout: Layout, options: Options) -> Path:
 
         cc = compiler()
         stage("deriving")
-        model = code_model(mech, options)
+        model = code_model(mech, options, looped=True)
         stage("generating")
         c.generate(model, folder)
         source = folder / f"{mech.name}_solver.c"
@@ -190,6 +191,14 @@ class CEvaluator:
         out[self.meta["rows"], self.meta["cols"]] = values
         return out
 
+    def scaling(self, q: Array, t: float) -> Scaling:
+        """The Python loop's scales at q from Phi_q's entries (nothing nc x ng)."""
+        from symid.numeric.sparse_scaling import scaling_of_entries
+
+        values = self._call("phi_q", np.ascontiguousarray(q, float), float(t), size=self.meta["nnz"])
+        return scaling_of_entries(np.array(self.meta["rows"]), np.array(self.meta["cols"]), values, q,
+                                  self.meta["nc"])
+
     def nu(self, q: Array, t: float) -> Array:
         return self._call("nu", np.ascontiguousarray(q, float), float(t), size=self.meta["nc"])
 
@@ -224,7 +233,6 @@ class CEvaluator:
         """
         from symid.numeric.solve import instant_row
         from symid.numeric.solve import Instant, Stepper
-        from symid.numeric.stability import Scaling
 
         ng, width = self.meta["ng"], self.meta["row"]
         chunk = max(16, min(CHUNK, CHUNK_BYTES // (8 * width)))
@@ -256,7 +264,7 @@ class CEvaluator:
                     out = stepper.instant(0, analysis.t0, None, [], q0)
                 else:
                     if stepper.scaling is None:
-                        stepper.scaling = Scaling.of(self.phi_q(q.copy(), analysis.t0), q.copy())
+                        stepper.scaling = self.scaling(q.copy(), analysis.t0)
                     prev = Instant(t=analysis.t0 + (k - 1) * h, q=q.copy(), qd=qd.copy() if velocity else None,
                                    qdd=qdd.copy() if velocity else None)
                     history = [v.copy() for v in (m2, m1, q)[max(0, 3 - count):]] if not velocity else [q.copy()]
@@ -272,7 +280,7 @@ class CEvaluator:
                 n = solved.value + 1
             if start == 0 and state.size > 6 * ng + 1:
                 if stepper.scaling is None:
-                    stepper.scaling = Scaling.of(self.phi_q(q.copy(), analysis.t0), q.copy())
+                    stepper.scaling = self.scaling(q.copy(), analysis.t0)
                 state[6 * ng:7 * ng] = stepper.scaling.inv_col
             start += n
 

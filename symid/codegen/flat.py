@@ -120,10 +120,20 @@ def parameter_map(parameters: Mapping[str, sp.Expr],
     return names, pmap, definitions
 
 
-def build(layout: Layout, options: Options, defaults: Sequence[float]) -> Flat:
+# What a looped member's rows and reactions hold when `build` is told to leave
+# them out: a name, so that printing one by mistake cannot compile.
+LOOPED = sp.Symbol("symid_looped_output", real=True)
+
+
+def build(layout: Layout, options: Options, defaults: Sequence[float],
+          looped: frozenset[tuple[int, int]] = frozenset()) -> Flat:
     """Substitute every instance of every group into its derivation.
 
     defaults: the base parameters' values, in `base_names` order.
+    looped: (constraint group index, member) whose Phi, nu, gamma and
+    reactions a target computes in a loop of its own (the C target's looped
+    kernels): left as LOOPED, their Phi_q entries built all the same (they
+    make the pattern). Half of the substitution work of a long chain.
     """
     mech = layout.mechanism
     ng, nc, nb = layout.ng, layout.nc, layout.nb
@@ -136,7 +146,7 @@ def build(layout: Layout, options: Options, defaults: Sequence[float]) -> Flat:
     jac: dict[tuple[int, int], sp.Expr] = {}
     wanted = set(options.reactions)
     reaction_of: dict[str, list[sp.Expr]] = {}
-    for group in layout.constraint_groups:
+    for gi, group in enumerate(layout.constraint_groups):
         derived = group.derived
         assert isinstance(derived, DerivedConstraint)
         rows = derived.family.rows
@@ -145,7 +155,11 @@ def build(layout: Layout, options: Options, defaults: Sequence[float]) -> Flat:
             sub.update({c: sp.sympify(v).xreplace(pmap) for c, v in zip(derived.constants, group.constants[m])})
             sub.update(_time_map(group, m, pmap))
             r0 = int(group.rows[m])
+            skip = (gi, m) in looped
             for k in range(rows):
+                if skip:
+                    phi[r0 + k] = nu[r0 + k] = gamma[r0 + k] = LOOPED
+                    continue
                 phi[r0 + k] = derived.phi[k].xreplace(sub)
                 nu[r0 + k] = derived.nu[k].xreplace(sub)
                 if options.velocity:
@@ -159,7 +173,9 @@ def build(layout: Layout, options: Options, defaults: Sequence[float]) -> Flat:
                         e = derived.jac[role][k, c].xreplace(sub)
                         if e != 0:
                             jac[(r0 + k, 3 * b + c)] = e
-            if group.names[m] in wanted:
+            if group.names[m] in wanted and skip:
+                reaction_of[group.names[m]] = [LOOPED] * (3 * len(derived.roles))
+            elif group.names[m] in wanted:
                 sub.update({l: lam[r0 + k] for k, l in enumerate(derived.lam)})
                 reaction_of[group.names[m]] = [e.xreplace(sub) for role in derived.roles
                                                for e in derived.reactions[role]]

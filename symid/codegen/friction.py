@@ -38,9 +38,7 @@ def joints(layout: Layout, options: Options) -> list[dict[str, Any]]:
     and where it sits (bodies, rows, reaction slot)."""
     mech = layout.mechanism
     nb = layout.nb
-    # p holds the base parameters only; a derived one is its definition over
-    # them (as every other generated expression sees it)
-    _, pmap, _ = parameter_map(mech.parameters)
+    _, pmap, _ = parameter_map(mech.parameters)  # p holds the base parameters; derived ones by definition
     q, qd, lam = vector("q", layout.ng), vector("qd", layout.ng), vector("lam", layout.nc)
     member = {name: (g, k) for g in layout.constraint_groups for k, name in enumerate(g.names)}
     slots, offset = {}, 0

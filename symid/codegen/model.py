@@ -4,6 +4,7 @@ the numbers of one mechanism, for one set of options."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -30,6 +31,7 @@ class CodeModel:
     layout: Layout
     row_columns: tuple[str, ...]
     q0: tuple[float, ...]
+    loop_parts: Any = None  # the C target's looped parts, when `looped` found them (c_loops.parts)
 
     @property
     def name(self) -> str:
@@ -47,8 +49,29 @@ def options_for(mech: Mechanism) -> Options:
     return Options(kind=a.kind, outputs=groups, reactions=reactions)
 
 
-def code_model(mech: Mechanism, options: Options | None = None) -> CodeModel:
-    """Build the flat system and fix the elimination order at q(t0)."""
+# Past this many coordinates setup assembles with a sparse LU and samples
+# Phi_q entry by entry (nothing ng x ng); below, the dense path of the run's
+# own Newton, whose configuration (to the last bit) the committed generated
+# code of the examples was planned at.
+DENSE_SETUP = 150
+
+
+def _assemble_sparse(reference, q0: np.ndarray, t0: float, tol: float) -> np.ndarray:  # type: ignore[no-untyped-def]
+    from symid.numeric.assembly import assemble
+
+    try:
+        return assemble(reference, q0, t0, tol)
+    except AnalysisError:
+        return q0  # the plan still needs a sample; the solver reports the failure at run time
+
+
+def code_model(mech: Mechanism, options: Options | None = None, looped: bool = False) -> CodeModel:
+    """Build the flat system and fix the elimination order at q(t0).
+
+    looped: for the C target, whose looped kernels compute the rows and
+    reactions of the members they loop over: those are not substituted
+    (`flat.build`'s `looped`; the flat system is then for that target only).
+    """
     from symid.numeric.reference import ReferenceEvaluator
     from symid.numeric.evaluator import Needs
     from symid.symbolic.columns import columns
@@ -58,21 +81,39 @@ def code_model(mech: Mechanism, options: Options | None = None) -> CodeModel:
     layout = assemble(mech)
     values = parameter_values(mech.parameters)
     defaults = [values[parameter_symbol(n)] for n in base_names(mech.parameters)]
-    flat = build(layout, options, defaults)
+    parts = _loop_parts(layout) if looped else None
+    index = {id(g): k for k, g in enumerate(layout.constraint_groups)}
+    flat = build(layout, options, defaults,
+                 frozenset((index[id(p.group)], m) for p in parts or [] for m in p.members))
     q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
     t0 = mech.analysis.t0
     reference = ReferenceEvaluator(layout, values, Needs(velocity=False))
+    pattern = [(r, c) for r, c, _ in flat.jac]
     # a driver's derivatives may be inf or NaN at t0 (evaluated with f): the
     # solver reports that at run time, the plan needs only Phi_q
     with np.errstate(all="ignore"):
-        try:
-            q0, _ = newton(reference, q0, t0, mech.analysis.tol)
-        except AnalysisError:
-            pass  # the plan still needs a sample; the solver reports the failure at run time
-        sample = reference.phi_q(q0, t0)
-    plan = sparse.plan([(r, c) for r, c, _ in flat.jac], sample)
+        if layout.ng > DENSE_SETUP and layout.nc == layout.ng:
+            q0 = _assemble_sparse(reference, q0, t0, mech.analysis.tol)
+            rows, cols_, vals = reference.phi_q_entries(q0, t0)
+            entries = dict(zip(zip(rows.tolist(), cols_.tolist()), vals.tolist()))
+            plan = sparse.plan(pattern, [entries.get(rc, 0.0) for rc in pattern], layout.ng)
+        else:
+            try:
+                q0, _ = newton(reference, q0, t0, mech.analysis.tol)
+            except AnalysisError:
+                pass  # the plan still needs a sample; the solver reports the failure at run time
+            plan = sparse.plan(pattern, reference.phi_q(q0, t0))
     cols = tuple(columns(layout, _analysis_like(mech, options)))
-    return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0))
+    return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0), parts)
+
+
+def _loop_parts(layout: Layout) -> list[Any] | None:
+    """The parts of the constraint groups the C target's kernels loop over."""
+    from symid.codegen.targets import c_loops
+
+    if layout.ng < c_loops.LOOP_MIN:
+        return None
+    return c_loops.parts(layout)
 
 
 def _analysis_like(mech: Mechanism, options: Options):  # type: ignore[no-untyped-def]

@@ -206,6 +206,26 @@ class ReferenceEvaluator:
                 out[row_idx, col_idx] = vals[r]
         return out[:, :ng]
 
+    def phi_q_entries(self, q: Array, t: float) -> tuple[Array, Array, Array]:
+        """Phi_q's entries as (rows, cols, values), ground's columns left out:
+        what phi_q fills, with nothing nc x ng (large mechanisms' setup)."""
+        ng = self.layout.ng
+        qx = self._extend(q)
+        parts: list[tuple[Array, Array, Array]] = []
+        for g in self._cgroups:
+            derived = g.group.derived
+            n, rows = g.group.size, derived.family.rows  # type: ignore[union-attr]
+            vals = g.evaluate("phi_q", g.args(qx, None, t)).reshape(len(g.roles), rows, 3, n)
+            for r, role in enumerate(g.roles):
+                row_idx = np.broadcast_to(g.group.rows[None, None, :] + np.arange(rows)[:, None, None], vals[r].shape)
+                col_idx = np.broadcast_to(g.cols[role].T[None, :, :], vals[r].shape)
+                keep = col_idx < ng
+                parts.append((row_idx[keep], col_idx[keep], vals[r][keep]))
+        if not parts:
+            empty = np.zeros(0)
+            return empty.astype(np.intp), empty.astype(np.intp), empty
+        return tuple(np.concatenate([p[k] for p in parts]) for k in range(3))  # type: ignore[return-value]
+
     def applied(self, q: Array, qd: Array | None, t: float) -> Array:
         nb = self.layout.nb
         out = np.zeros(3 * (nb + 1))

@@ -11,6 +11,9 @@ from sympy.printing.c import C99CodePrinter
 
 from symid.codegen import friction
 from symid.codegen.emit import Block, has_word, blocks, chunked
+from symid.codegen.targets import c_loops
+from symid.codegen.targets.c_loops import Loops
+from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
 from symid.codegen.targets import c_sweep
 from symid.codegen.render import render
@@ -97,19 +100,23 @@ def _trig_map(ng: int) -> dict[sp.Expr, sp.Symbol]:
 
 def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
               trig: dict[sp.Expr, sp.Symbol], printer: Callable[[sp.Expr], str] = ccode,
-              real: str = "double") -> dict[str, Any]:
+              real: str = "double", loops: Loops | None = None) -> dict[str, Any]:
     """One generated function: a kernel taking the angles' sines and cosines
-    precomputed (`tr`), and the public signature without them."""
+    precomputed (`tr`), and the public signature without them; with `loops`,
+    the outputs they cover are written by looped kernels (c_loops.j2)."""
     with_trig = any(a == "q" for _, a in args)
-    codes: list[Block] = blocks([e.xreplace(trig) for e in exprs] if with_trig else list(exprs), printer)
     kernel_args = args[:1] + [(f"const {real} *", "tr")] + args[1:] if with_trig else args
+    mapped = [e.xreplace(trig) for e in exprs] if with_trig else list(exprs)
+    looped = loops.kernels(name, [a for _, a in kernel_args], printer) if loops else []
+    codes: list[Block] = (c_loops.remaining(mapped, loops.covered(name), printer) if loops and looped
+                          else blocks(mapped, printer))
 
     def sig(items: list[tuple[str, str]]) -> str:
         return ", ".join([f"{ctype} {a}" for ctype, a in items] + [f"{real} *out"])
 
     chunks = [{"block": code, "unused": [a for _, a in kernel_args if not code.uses(a)]} for code in codes]
     return {"name": name, "signature": sig(kernel_args), "public_signature": sig(args), "chunks": chunks,
-            "trig": with_trig, "call": ", ".join([a for _, a in kernel_args] + ["out"])}
+            "trig": with_trig, "call": ", ".join([a for _, a in kernel_args] + ["out"]), "loops": looped}
 
 
 def _read(c: Coef) -> str:
@@ -230,6 +237,23 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str) -> dict[str, Any]:
     return passes
 
 
+# Coordinates from which the sparse LU loops over index tables. Measured on
+# a loaded machine (benchmarks/scale.py): at the ladder of 64 (ng 387) the
+# straight-line code, with the known values folded, is 1.6 x faster; at the
+# ladder of 256 (ng 1539) the tables are as fast or faster (the straight-line
+# code outgrows the cache) and compile 4 x faster.
+LU_TABLES_MIN = 1000
+
+
+def _lu(model: CodeModel, fold_constants: bool) -> dict[str, Any]:
+    """The sparse LU's context: straight-line code (sparse_lu.j2), or index
+    tables (sparse_lu_tables.j2) from LU_TABLES_MIN coordinates."""
+    if model.flat.ng < LU_TABLES_MIN:
+        return {"lu_tables": None, **lu_chunks(model.plan, _known(model, fold_constants), model.flat.name.upper())}
+    return {"lu_tables": lu_tables(model.plan), "known_reciprocals": None,
+            "pivot_slots": [model.plan.slots[(st.row, st.col)] for st in model.plan.steps]}
+
+
 def _known(model: CodeModel, fold_constants: bool) -> list[float | None]:
     """The entries of Phi_q that are numbers, per pattern slot (None: computed)."""
     return [float(e) if fold_constants and e.is_Number else None for _, _, e in model.flat.jac]
@@ -241,11 +265,24 @@ def _stride(model: CodeModel) -> int:
     return max(f.ng, f.nc, len(f.reactions), 1)
 
 
+# Past this many coordinates the solver has no dense fallback: its NG^2
+# reals (76 MB at the ladder of 512) would dwarf the sparse factors; a
+# configuration the fixed pivots do not serve is reported singular and solved
+# by symid's own loop (templates/c/no_fallback.j2).
+DENSE_LIMIT = 400
+
+
+def dense_fallback(model: CodeModel) -> bool:
+    return model.flat.ng <= DENSE_LIMIT
+
+
 def work_size(model: CodeModel) -> int:
     """Doubles of workspace a solver call needs: Phi_q's values, the sparse
-    factors, the dense fallback and eleven work vectors."""
+    factors, the dense fallback (up to DENSE_LIMIT coordinates) and eleven
+    work vectors."""
     f = model.flat
-    return len(f.jac) + model.plan.size + f.ng * f.ng + 11 * _stride(model) + friction.work(model.layout, f.options)
+    return (len(f.jac) + model.plan.size + (f.ng * f.ng if dense_fallback(model) else 0) + 11 * _stride(model)
+            + friction.work(model.layout, f.options))
 
 
 def state_size(model: CodeModel) -> int:
@@ -282,22 +319,23 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         (f"const {real} *", "p"), (f"const {real} *", "lam")
     trig = _trig_map(f.ng)
     printer = Printer({"math_macros": {}, "prefix": f.name}).doprint
+    loops = c_loops.Loops.of(f, model.layout, model.loop_parts)
     used = f.phi + [e for _, _, e in f.jac]  # what is printed: a static function never called is an error
     functions = [
-        _function("phi", [cq, ct, cp], f.phi, trig, printer, real),
-        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac], trig, printer, real),
+        _function("phi", [cq, ct, cp], f.phi, trig, printer, real, loops),
+        _function("phi_q", [cq, ct, cp], [e for _, _, e in f.jac], trig, printer, real, loops),
     ]
     if o.velocity:
-        functions += [_function("nu", [cq, ct, cp], f.nu, trig, printer, real),
-                      _function("gamma", [cq, cqd, ct, cp], f.gamma, trig, printer, real)]
+        functions += [_function("nu", [cq, ct, cp], f.nu, trig, printer, real, loops),
+                      _function("gamma", [cq, cqd, ct, cp], f.gamma, trig, printer, real, loops)]
         used += f.nu + f.gamma
     dynamics = o.kind != "kinematics" and o.multipliers
     if dynamics:
-        functions += [_function("applied", [cq, cqd, ct, cp], f.applied, trig, printer, real),
-                      _function("mass", [cp], f.mass, trig, printer, real)]
+        functions += [_function("applied", [cq, cqd, ct, cp], f.applied, trig, printer, real, loops),
+                      _function("mass", [cp], f.mass, trig, printer, real, loops)]
         used += f.applied
     if f.reactions:
-        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions, trig, printer, real))
+        functions.append(_function("reactions", [cq, clam, ct, cp], f.reactions, trig, printer, real, loops))
         used += f.reactions
     ng, nc, nr = f.ng, f.nc, len(f.reactions)
     has = {g: int(g in o.outputs) for g in ("qdot", "qddot", "lambda", "reactions")}
@@ -328,12 +366,14 @@ def context(model: CodeModel, fold_constants: bool = True) -> dict[str, Any]:
         "params": f.params, "derived": f.derived, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
         "functions": functions, "threshold": repr(THRESHOLD),
-        **lu_chunks(model.plan, _known(model, fold_constants), f.name.upper()),
+        **_lu(model, fold_constants),
         "max_newton": RULE.max_iterations, "floor_ulps": repr(RULE.floor_ulps), "jump_floor": repr(JUMP_FLOOR), "unexplained": repr(UNEXPLAINED),
         "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),
         "outputs": outputs,
+        "loop_tables": loops.tables if loops else [],
+        "dense_fallback": dense_fallback(model), "dense_limit": DENSE_LIMIT,
         **c_sweep.context(model, printer),
         "nb": ng // 3, "singular": model.plan.singular, "splines": [piece_tables(s) for s in tables(used)], "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
