@@ -26,6 +26,23 @@ from symid.numeric.friction import MAX_ITERATIONS, REST
 # L_j, 3 each, the Coulomb factor, the viscous coefficient, v_smooth), and
 # what each Newton iteration needs (lam: N and dN/dlambda, its rows).
 FIXED = 16
+# up to this many joints with friction, the NF x NF Newton system is solved
+# by elimination written out at generation (no loops, no pivot search unless
+# a pivot is not the largest of its column); past it, by the dense solver
+UNROLLED = 4
+
+
+def _terms(exprs: list[sp.Expr], first: int, base: int) -> list[tuple[int, str]]:
+    """(index base + c, C value) of the entries exprs[first:first + 3] that are
+    not exactly zero: a number as a literal, else the kernel's value `v[...]`,
+    so that the unrolled code adds nothing for the zeros of a couple or a slide."""
+    out = []
+    for c in range(3):
+        e = sp.sympify(exprs[first + c])
+        if e.is_zero:
+            continue
+        out.append((base + c, repr(float(e)) if e.is_number else f"v[{first + c}]"))
+    return out
 
 
 def width(rows: int) -> int:
@@ -64,9 +81,14 @@ def joints(layout: Layout, options: Options) -> list[dict[str, Any]]:
                                                          c.friction["v_smooth"])]
         normal = [grouped(sp.sympify(e).xreplace(sub)) for e in (d.normal, *d.d_normal)]
         index = mech.body_index()
+        bi, bj = index.get(c.bodies["i"], -1), index.get(c.bodies["j"], -1)
+        slot = slots.get(c.name, -1)
+        # what the unrolled solve adds, per joint: G into the generalized
+        # coordinates of its moving bodies, L into its reaction columns
+        g = [*(_terms(fixed, 1, 3 * bi) if bi >= 0 else []), *(_terms(fixed, 4, 3 * bj) if bj >= 0 else [])]
+        loads = [*_terms(fixed, 7, slot), *_terms(fixed, 10, slot + 3)] if slot >= 0 else []
         out.append({"name": c.name, "fixed": fixed, "normal": normal, "rows": rows, "row": r0,
-                    "i": index.get(c.bodies["i"], -1), "j": index.get(c.bodies["j"], -1),
-                    "slot": slots.get(c.name, -1)})
+                    "i": bi, "j": bj, "slot": slot, "g": dict(g), "loads": loads})
     return out
 
 
@@ -85,7 +107,7 @@ def context(layout: Layout, options: Options, row_width: int) -> dict[str, Any] 
     nf = len(found)
     columns = "reactions" in options.outputs
     return {"nf": nf, "fw": FIXED, "nw": nw, "fixed": [e for j in found for e in j["fixed"]], "normal": normal,
-            "joints": found, "columns": columns,
+            "joints": found, "columns": columns, "unrolled": nf <= UNROLLED,
             "offset": row_width, "max_iterations": MAX_ITERATIONS, "rest": repr(REST),
             "row_width": row_width + (2 * nf if columns else 0)}
 
