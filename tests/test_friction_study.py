@@ -97,3 +97,29 @@ def test_solve_many_with_friction_parameters_gives_each_variants_own_run(backend
     loss = [float(np.abs(r["main_bearing.friction_power"]).max()) for r in runs]
     assert loss[0] == 0.0 and loss[1] > 0.0 and loss[2] > 0.0
     assert not np.allclose(runs[0]["motor.T_j"], runs[1]["motor.T_j"], rtol=1e-6)
+
+
+@pytest.mark.parametrize("unrolled", [4, 0], ids=["written_out", "dense"])
+def test_c_friction_newton_system_solved_either_way_matches_the_reference(monkeypatch, tmp_path, unrolled):
+    """The generated solve of the NF x NF Newton system, written out (NF <= 4)
+    or by the dense solver (past it), gives the reference's run to 1e-10, and
+    is the exact Newton's: at most 3 iterations on the example (issue #16's
+    target; a wrong solve still converges, but slower), every instant in the
+    compiled loop."""
+    from symid.codegen import friction as codegen_friction
+    from symid.numeric import solve
+
+    monkeypatch.setenv("SYMID_CACHE", str(tmp_path))  # the cache key does not see these: a build of its own
+    monkeypatch.setattr(codegen_friction, "UNROLLED", unrolled)
+    monkeypatch.setattr(codegen_friction, "MAX_ITERATIONS", 3)
+    handed = []
+    original = solve.Stepper.instant
+    monkeypatch.setattr(solve.Stepper, "instant", lambda self, n, *a: handed.append(n) or original(self, n, *a))
+    c = api.solve(api.example("slider_crank_friction"), backend="c", steps=21)
+    assert handed == []  # no instant failed in C and went to the Python loop
+    ref = api.solve(api.example("slider_crank_friction"), backend="reference", steps=21)
+    source = next(tmp_path.rglob("slider_crank_friction_solver.c")).read_text()
+    assert ("u33 = a[15]" in source) == (unrolled == 4)  # the written-out elimination, or none
+    assert c.columns == ref.columns
+    scale = np.abs(ref.data).max(axis=0) + 1e-300
+    assert np.max(np.abs(c.data - ref.data) / scale) <= 1e-10
