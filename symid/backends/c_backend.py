@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Callable, Iterator, Mapping, TypeAlias
 import numpy as np
 
 from symid.model.analysis import Analysis
-from symid.backends import Array, Needs, friction
+from symid.backends import Array, Needs
 from symid.errors import InputError
 from symid.progress import stage
 
@@ -170,7 +170,9 @@ class CEvaluator:
         other.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
         other.work = np.zeros(self.meta["work"])
         other.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
-        friction.rebind(other, params)
+        from symid.backends.friction import rebind  # here: a planned run imports no sympy
+
+        rebind(other, params)
         return other
 
     def _call(self, name: str, *args: Array | float, size: int) -> Array:

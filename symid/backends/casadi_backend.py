@@ -13,7 +13,7 @@ import numpy as np
 import sympy as sp
 
 from symid.symbolic.assemble import Layout
-from symid.backends import Array, Needs, friction
+from symid.backends import Array, Needs
 from symid.codegen.cache import cached
 from symid.codegen.flat import Options
 from symid.model.mechanism import parameter_symbol
@@ -68,7 +68,9 @@ class CasadiEvaluator:
         base ones are read): one set of loaded functions, many variants."""
         other = copy.copy(self)
         other.p = np.array([params[par["name"]] for par in self.manifest["parameters"]], dtype=float)
-        friction.rebind(other, params)
+        from symid.backends.friction import rebind  # here: a planned run imports no sympy
+
+        rebind(other, params)
         return other
 
     def _call(self, key: str, *args: Array | float) -> Array:

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Iterator, Mapping
 import numpy as np
 
 from symid.model.analysis import Analysis
-from symid.backends import Array, Needs, friction
+from symid.backends import Array, Needs
 from symid.numeric.solve import instant_row
 from symid.numeric.solve import JUMP_FLOOR, JUMP_RATIO, UNEXPLAINED, Instant, Stepper, run
 from symid.numeric.stability import Notes, requested
@@ -118,7 +118,9 @@ class NumpyEvaluator:
         other = copy.copy(self)
         other.p = np.array([params[n] for n in self.module.PARAMS], dtype=float)
         other.p_list = other.p.tolist()
-        friction.rebind(other, params)
+        from symid.backends.friction import rebind  # here: a planned run imports no sympy
+
+        rebind(other, params)
         return other
 
     # One instant at a time, the module's scalar (`math`) kernels are an order
