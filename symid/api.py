@@ -27,7 +27,8 @@ from symid.io.reader import load
 from symid.model.mechanism import Mechanism
 from symid.model.motion import check_spans
 from symid.model.params import parameter_values, to_float
-from symid.output.results import Results, check_table_size, columns, table_rows, write_csv
+from symid.output.results import Results, check_table_size, columns, table_blocks
+from symid.output.tables import blocks, write_table
 from symid.numeric.solve import Instant, run
 from symid.backends import check_redundant, require_support
 from symid.numeric.stability import Notes, require_square
@@ -106,6 +107,16 @@ class Study:
 
     def rows(self) -> Iterator[Array]:
         """The results table row by row; a compiled backend runs its own loop.
+        (The rows of `blocks`, one by one.)"""
+        for block in self.blocks():
+            if np.ndim(block) == 2:
+                yield from block
+            else:
+                yield block
+
+    def blocks(self) -> Iterator[Array]:
+        """The results table as rows (1-D) or blocks of rows (2-D, a compiled
+        loop's chunks), in order; the writers take both.
 
         The run's warnings (`warnings`) include angles that look like degrees
         and bodies assembled at t0 far from their `q0` (`symid.io.misreading`).
@@ -118,25 +129,27 @@ class Study:
         q_at = [header.index(f"{b.name}.{c}") for b in self.mechanism.bodies for c in ("x", "y", "phi")
                 if f"{b.name}.{c}" in header]
         first = True
-        for row in table_rows(self.evaluator, self.analysis, self.q0(), notes):
+        for item in table_blocks(self.evaluator, self.analysis, self.q0(), notes):
             if first and len(q_at) == self.layout.ng:  # the table has q: compare t0's with the guesses
-                notes.fixed.extend(assembly_warnings(self.mechanism, self.q0(), np.asarray(row)[q_at]))
+                row = np.asarray(item)
+                row = row[0] if row.ndim == 2 else row
+                notes.fixed.extend(assembly_warnings(self.mechanism, self.q0(), row[q_at]))
             first = False
-            yield row
+            yield item
 
     def solve(self) -> Results:
         """Solve the whole run. A failure is kept in `Results.error` with the
         instants solved before it."""
         width = len(self.columns())
         check_table_size(self.analysis.steps, width, self.mechanism.source)
-        rows: list[Array] = []
+        parts: list[Array] = []
         error = None
         try:
-            for values in self.rows():
-                rows.append(values)
+            for block in blocks(self.blocks(), width):
+                parts.append(block)
         except AnalysisError as exc:
             error = exc
-        data = np.array(rows).reshape(len(rows), width)
+        data = np.concatenate(parts) if parts else np.empty((0, width))
         self.results = Results(self.columns(), data, error, self.warnings, mechanism=self.mechanism)
         return self.results
 
@@ -179,7 +192,7 @@ class Study:
         results of `solve()`, if it ran; else the run is streamed instant by instant."""
         if self.results is not None:
             return self.results.write_csv(path)
-        return write_csv(path, self.columns(), self.rows())
+        return write_table(path, self.columns(), self.blocks(), self.analysis.steps)
 
     def summary(self) -> list[str]:
         """What this study solves, its sizes and its state, one line each."""

@@ -64,8 +64,11 @@ def render(label: str, done: int, total: int | None, elapsed: float, width: int,
 def bar(items: Iterable[Item], total: int | None = None, label: str = "solve",
         stream: TextIO | None = None, environ: Mapping[str, str] | None = None,
         delay: float | None = None, clock: Callable[[], float] = time.monotonic,
-        unit: str = "instants") -> Iterator[Item]:
+        unit: str = "instants", size: Callable[[Item], int] | None = None) -> Iterator[Item]:
     """Yield `items` unchanged, showing their progress on `stream` (default stderr).
+
+    `size(item)` is how many instants an item holds (default 1: a block of
+    rows counts its rows).
 
     Nothing is written unless `enabled(stream)`, nor before `delay` seconds
     (default `DELAY`).
@@ -91,7 +94,7 @@ def bar(items: Iterable[Item], total: int | None = None, label: str = "solve",
     shown = False
     try:
         for item in items:
-            done += 1
+            done += 1 if size is None else size(item)
             now = clock()
             if now - start >= wait and now - last >= INTERVAL:
                 out.write("\r" + render(label, done, total, now - start, width, fill, unit).ljust(width))

@@ -200,7 +200,7 @@ def test_a_planned_run_that_fails_reruns_the_normal_path(tmp_path, capsys, spy, 
         yield np.zeros(67)
         raise AnalysisError("Newton did not converge", 0.01, 1)
 
-    monkeypatch.setattr(plan, "table_rows", failing)
+    monkeypatch.setattr(plan, "table_blocks", failing)
     assert solve(tmp_path, capsys) == first and len(spy) == 2
     assert len(plans(tmp_path / "cache")) == 1, "the normal path stored the plan again"
 

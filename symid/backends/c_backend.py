@@ -220,9 +220,14 @@ class CEvaluator:
                           float(t), size=self.meta["nr"])
 
     def rows(self, analysis: Analysis, q0: Array, notes: Notes | None = None) -> Iterator[Array]:
+        """The rows of `blocks`, one by one."""
+        for block in self.blocks(analysis, q0, notes):
+            yield from block
+
+    def blocks(self, analysis: Analysis, q0: Array, notes: Notes | None = None) -> Iterator[Array]:
         """Solve the whole run in C, up to CHUNK instants (CHUNK_BYTES of rows)
-        per call, yielding rows (`notes` stay empty: the compiled loop makes
-        no warnings).
+        per call, yielding each call's rows as one block, shape (rows, width)
+        (`notes` stay empty: the compiled loop makes no warnings).
 
         An instant the compiled loop cannot vouch for is solved by the Python
         loop (`symid.numeric.solve.Stepper`, over this solver's functions), as on the
@@ -257,8 +262,8 @@ class CEvaluator:
                                       _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(state),
                                       _ptr(buf), ctypes.byref(solved), _ptr(self.work),
                                       self.iwork.ctypes.data_as(_I))
-            for k in range(solved.value):
-                yield buf[k].copy()
+            if solved.value:
+                yield buf[:solved.value].copy()
             if status != 0:  # the Python loop solves this instant, or reports why not
                 k = start + solved.value
                 count = int(state[-1])
@@ -271,7 +276,7 @@ class CEvaluator:
                                    qdd=qdd.copy() if velocity else None)
                     history = [v.copy() for v in (m2, m1, q)[max(0, 3 - count):]] if not velocity else [q.copy()]
                     out = stepper.instant(k, analysis.t0 + k * h, prev, history, q0)
-                yield instant_row(out, ng, analysis)
+                yield instant_row(out, ng, analysis)[None, :]
                 # the state as the compiled loop leaves it after an instant
                 if velocity:
                     m3[:], m2[:], m1[:], qd[:], qdd[:] = m2, m1, qdd, out.qd, out.qdd

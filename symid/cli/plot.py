@@ -34,12 +34,20 @@ def read_csv(path: Path) -> Results:
 
 
 def read_results(path: str | Path) -> Results:
-    """A results table from a `.csv` or `.npz` file written by `symid solve`."""
+    """A results table from a `.csv`, `.npz` or `.parquet` file written by `symid solve`."""
     path = Path(path)
     if path.suffix.lower() == ".npz":
         from symid.output.npz import read_npz
 
         return read_npz(path)
+    if path.suffix.lower() == ".parquet":
+        from symid.output.results import Results
+        from symid.output.tables import read_parquet
+
+        names, data = read_parquet(path)
+        if not names or names[0] != "t":
+            raise InputError(f"{path}: not a symid results table (first column 't')")
+        return Results(names, data)
     return read_csv(path)
 
 
@@ -144,7 +152,7 @@ def register(sub: Any) -> None:
                        epilog="examples:\n  symid plot run.csv --mechanism crank.toml\n"
                               "  symid plot run.csv --mechanism crank.toml --set omega=12 --gif -o figures/")
     p.add_argument("file", metavar="RESULTS",
-                   help="a .csv (or .npz) written by symid solve, or a .csv (.parquet) written by symid sweep")
+                   help="a .csv (or .npz, .parquet) written by symid solve, or a .csv (.parquet) written by symid sweep")
     p.add_argument("--mechanism", metavar="FILE",
                    help="the mechanism file it was solved from: needed for efforts and the drawing")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",

@@ -38,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                            epilog=SOLVE_EPILOG)
     solve.add_argument("file", metavar="FILE", help="the mechanism file (TOML; symid help format)")
     solve.add_argument("-o", "--output", metavar="OUT",
-                       help="table to write, .csv or .npz (default: <name>.csv in the current folder)")
+                       help="table to write, .csv, .npz or .parquet (default: <name>.csv in the current folder)")
     solve.add_argument("--kind", choices=("inverse_dynamics", "kinematics", "statics"),
                        help="what to compute (default: the file's [analysis] kind, else inverse_dynamics)")
     solve.add_argument("--t0", type=float, metavar="T", help="first instant (default: the file's, else 0)")
@@ -92,7 +92,7 @@ def _solve(args: argparse.Namespace, key: str | None) -> int:
     plots = args.plot or args.plot_dir is not None
     header = study.columns()
     keep = None if plots else summary.needed_columns(study.mechanism, header)
-    results = _write_table(out, header, keep, study.rows(), study.analysis.steps, study.mechanism.name,
+    results = _write_table(out, header, keep, study.blocks(), study.analysis.steps, study.mechanism.name,
                            args.file, lambda: study.warnings)
     inputs = summary.inputs(study.mechanism, results)
     _print_summary(summary.lines_of(inputs, results))
@@ -131,20 +131,25 @@ def _solve_planned(args: argparse.Namespace, run: plan.Plan, evaluator: Evaluato
 
 def _write_table(out: Path, header: list[str], keep: list[str] | None, rows: Iterator[Array], steps: int,
                  name: str, file: str, warnings: Callable[[], list[str]]) -> Results:
-    """Stream rows to the CSV (or .npz) file with a progress bar; print the
-    run's warnings and the file's line. Returns the kept columns (`keep`, None: all)."""
+    """Stream rows or blocks of rows to the CSV (.npz, .parquet) file with a
+    progress bar; print the run's warnings and the file's line. Returns the
+    kept columns (`keep`, None: all)."""
     from symid import progress
     from symid.output import summary
-    from symid.output.npz import write_npz
+    from symid.output.tables import write_table
     from symid.tools.plan import Stale
-    from symid.output.results import check_table_size, write_csv
+    from symid.output.results import check_table_size
 
     record = summary.Recorder(header, keep)
-    write = write_npz if out.suffix.lower() == ".npz" else write_csv
-    check_table_size(steps, len(header) if write is write_npz else len(record.columns), file)
+    suffix = out.suffix.lower()
+    check_table_size(steps, len(header) if suffix == ".npz" else len(record.columns), file)
+    if suffix == ".parquet":
+        from symid.output.tables import arrow
+
+        arrow()  # a missing pyarrow is said before the run, not after it
     stale = False
     try:
-        count = write(out, header, record(progress.bar(rows, steps, name)))
+        count = write_table(out, header, record(progress.bar(rows, steps, name, size=_instants)), steps)
     except Stale:
         stale = True
         raise
@@ -161,6 +166,9 @@ def _write_table(out: Path, header: list[str], keep: list[str] | None, rows: Ite
     return record.results()
 
 
+def _instants(item: Array) -> int:
+    """The instants in a row (1) or a block of rows (its length), for the progress bar."""
+    return len(item) if item.ndim == 2 else 1
 
 
 def _print_summary(lines: list[str]) -> None:

@@ -14,7 +14,6 @@ from symid.backends import Array
 from symid.numeric.solve import instant_row
 from symid.symbolic.columns import GROUP_SUFFIXES, columns
 from symid.errors import AnalysisError, InputError
-from symid.io.files import atomic_write
 from symid.text import number, plural
 
 if TYPE_CHECKING:  # a cached run (symid.tools.plan) writes its table without sympy
@@ -53,6 +52,16 @@ def table_rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes
 
     for instant in run(evaluator, analysis, q0, notes):
         yield instant_row(instant, len(q0), analysis)
+
+
+def table_blocks(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes) -> Iterator[Array]:
+    """As `table_rows`, but a compiled loop's rows come as its 2-D blocks (the
+    writers take rows and blocks alike, and format blocks at once)."""
+    own = getattr(evaluator, "blocks", None)
+    if own is not None:
+        yield from own(analysis, q0, notes)
+        return
+    yield from table_rows(evaluator, analysis, q0, notes)
 
 
 def row(instant: Instant, layout: Layout, analysis: Analysis) -> Array:
@@ -97,8 +106,11 @@ class Results:
         return self.data[:, [self.index[c] for c in prefix_columns]]
 
     def write_csv(self, path: str | Path) -> int:
-        """Write the table this holds (no solving), atomically; returns the rows written."""
-        return write_csv(path, self.columns, iter(self.data))
+        """Write the table this holds (no solving), atomically; returns the rows written.
+        A path ending in .npz or .parquet writes that format instead."""
+        from symid.output.tables import write_table
+
+        return write_table(path, self.columns, self.data)
 
     to_csv = write_csv
 
@@ -158,7 +170,8 @@ class Results:
 
 
 def format_row(values: Iterable[float]) -> str:
-    """17 significant digits: a CSV value reads back as the same double."""
+    """17 significant digits: a CSV value reads back as the same double.
+    (The writers format whole blocks to the same bytes: `symid.output.digits`.)"""
     items = values.tolist() if isinstance(values, np.ndarray) else list(values)
     return _row_format(len(items)) % tuple(items)  # one C-level format: 2x faster than a join
 
@@ -168,26 +181,17 @@ def _row_format(width: int) -> str:
     return ",".join(["%.17g"] * width)
 
 
-def write_csv(path: str | Path, header: list[str], rows: Iterator[Array]) -> int:
-    """Write rows as they come, through `symid.io.files.atomic_write`.
+def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int:
+    """Write rows (or 2-D blocks of rows) as they come, through
+    `symid.io.files.atomic_write`, each value as `format_row` writes it.
 
-    If the row iterator raises `AnalysisError`, the rows already produced are
-    kept (the file is completed and renamed) and the error is re-raised; on
-    any other error no file is left behind.
+    If the rows raise `AnalysisError`, the rows already produced are kept
+    (the file is completed and renamed) and the error is re-raised; on any
+    other error no file is left behind.
 
     Returns:
         the number of rows written.
     """
-    count = 0
-    failure: AnalysisError | None = None
-    with atomic_write(path) as out:
-        out.write(",".join(header) + "\n")
-        try:
-            for values in rows:
-                out.write(format_row(values) + "\n")
-                count += 1
-        except AnalysisError as exc:  # keep the instants before it: the file is completed
-            failure = exc
-    if failure is not None:
-        raise failure
-    return count
+    from symid.output.tables import write_csv as write
+
+    return write(path, header, rows)

@@ -294,7 +294,8 @@ def missing(c: Element) -> str:
 
 
 class Recorder:
-    """Pass a solve's rows through unchanged, keeping a copy of some columns.
+    """Pass a solve's rows (or 2-D blocks of rows) through unchanged, keeping
+    a copy of some columns.
 
     Args:
         header: the rows' column names.
@@ -308,21 +309,37 @@ class Recorder:
         # kept values go into blocks of BLOCK rows: a million instants of a few
         # columns cost a few tens of MB, not a Python object per row
         self.blocks: list[Array] = []
+        self.current = np.empty((self.BLOCK, len(self.index)))
+        self.filled = 0
         self.count = 0
 
     BLOCK = 4096
 
     def __call__(self, rows: Iterable[Array]) -> Iterator[Array]:
         for values in rows:
-            k = self.count % self.BLOCK
-            if k == 0:
-                self.blocks.append(np.empty((self.BLOCK, len(self.index))))
-            self.blocks[-1][k] = np.asarray(values, dtype=float)[self.index]
-            self.count += 1
+            data = np.asarray(values, dtype=float)
+            if data.ndim == 2:
+                self._close()
+                self.blocks.append(data[:, self.index])  # fancy indexing: a copy
+                self.count += data.shape[0]
+            else:
+                if self.filled == self.BLOCK:
+                    self._close()
+                self.current[self.filled] = data[self.index]
+                self.filled += 1
+                self.count += 1
             yield values
+
+    def _close(self) -> None:
+        """Keep the rows of the open block and start another."""
+        if self.filled:
+            self.blocks.append(self.current[:self.filled])
+            self.current = np.empty((self.BLOCK, len(self.index)))
+            self.filled = 0
 
     def results(self) -> Results:
         """What was kept, as a `Results` table."""
+        self._close()
         width = len(self.columns)
-        data = np.concatenate(self.blocks)[: self.count] if self.blocks else np.empty((0, width))
+        data = np.concatenate(self.blocks) if self.blocks else np.empty((0, width))
         return Results(list(self.columns), data.reshape(self.count, width))

@@ -39,7 +39,7 @@ from symid.backends import Array, Evaluator
 from symid.errors import SymidError
 from symid.io.files import read_at_most
 from symid.io.limits import MAX_FILE_BYTES
-from symid.output.results import table_rows
+from symid.output.results import table_blocks
 from symid.codegen.sources import code_version
 from symid.numeric.stability import Notes
 from symid.output.summary import Input, Source
@@ -128,14 +128,14 @@ class Plan:
         return load(Path(self.artifact), self.name, self.params)  # type: ignore[no-any-return]
 
     def rows(self, evaluator: Evaluator, notes: Notes) -> Iterator[Array]:
-        """The table row by row, as `Study.rows`; any failure raises `Stale`.
+        """The table as rows or blocks, as `Study.blocks`; any failure raises `Stale`.
 
         Not only `AnalysisError`: the evaluator has no layout (it names the
         constraints of a failure), so its diagnosis may fail otherwise; the
         normal path reruns and reports the failure either way.
         """
         try:
-            yield from table_rows(evaluator, self.analysis, np.array(self.q0, dtype=float), notes)
+            yield from table_blocks(evaluator, self.analysis, np.array(self.q0, dtype=float), notes)
         except Exception:  # noqa: BLE001
             raise Stale() from None
 
