@@ -8,6 +8,8 @@ and how fast its Newton converges.
    bundled slider-crank with friction in every joint (three pins and the
    guide, `slider_crank_friction.toml`) against the frictionless one
    (`slider_crank.toml`), same instants; best of R runs. Target: <= 2x.
+   With valgrind, also instructions per instant by callgrind
+   (`benchmarks.instructions`), which the machine's load does not change.
 2. iterations: the friction Newton's iterations per instant on the bundled
    example (the Python loop, the same rule as the C), its maximum. Target: <= 3.
 
@@ -26,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks import instructions
 from symid import api
 from symid.numeric.solve import run
 
@@ -59,10 +62,15 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
     plain = per_instant("slider_crank", args.instants, args.repeats)
     friction = per_instant("slider_crank_friction", args.instants, args.repeats)
     counts = iterations("slider_crank_friction")
+    ir = ({e: instructions.per_instant(e) for e in ("slider_crank", "slider_crank_friction")}
+          if instructions.available() else {})
     result: dict[str, object] = {
         "instants": args.instants, "repeats": args.repeats,
         "c_us_per_instant_frictionless": plain, "c_us_per_instant_friction": friction,
         "ratio": friction / plain, "ratio_target": 2.0,
+        **({"c_instructions_per_instant_frictionless": ir["slider_crank"],
+            "c_instructions_per_instant_friction": ir["slider_crank_friction"],
+            "instructions_ratio": ir["slider_crank_friction"] / ir["slider_crank"]} if ir else {}),
         "newton_iterations": {str(k): v for k, v in counts.items()}, "max_newton_iterations": max(counts),
         "iterations_target": 3,
         "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
@@ -70,6 +78,10 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
     }
     print(f"C, slider-crank, {args.instants} instants: frictionless {plain:.3f} us/instant, "
           f"friction in every joint {friction:.3f} us/instant: {friction / plain:.2f}x (target <= 2x)")
+    if ir:
+        print(f"callgrind: frictionless {ir['slider_crank']:.0f} instructions/instant, friction in every joint "
+              f"{ir['slider_crank_friction']:.0f}: {ir['slider_crank_friction'] / ir['slider_crank']:.2f}x "
+              f"(target <= 2x)")
     print(f"friction Newton on slider_crank_friction: max {max(counts)} iterations (target <= 3); "
           f"instants per count {counts}")
     out = Path(args.out)

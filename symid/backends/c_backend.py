@@ -171,6 +171,9 @@ class CEvaluator:
         other.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
         other.work = np.zeros(self.meta["work"])
         other.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
+        from symid.backends.friction import rebind  # here: a planned run imports no sympy
+
+        rebind(other, params)
         return other
 
     def _call(self, name: str, *args: Array | float, size: int) -> Array:

@@ -68,6 +68,9 @@ class CasadiEvaluator:
         base ones are read): one set of loaded functions, many variants."""
         other = copy.copy(self)
         other.p = np.array([params[par["name"]] for par in self.manifest["parameters"]], dtype=float)
+        from symid.backends.friction import rebind  # here: a planned run imports no sympy
+
+        rebind(other, params)
         return other
 
     def _call(self, key: str, *args: Array | float) -> Array:

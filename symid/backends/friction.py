@@ -44,3 +44,12 @@ def attach(evaluator: Evaluator, layout: Layout, values: Mapping[sp.Symbol, floa
 
         evaluator.friction = FrictionModel(layout, values)  # type: ignore[attr-defined]
     return evaluator
+
+
+def rebind(evaluator: object, params: Mapping[str, float]) -> None:
+    """Give a copy made by `with_params` (name -> value) a friction model of
+    its own parameter values: mu, radius, viscous... follow the variant, not
+    the evaluator it was copied from."""
+    model = getattr(evaluator, "friction", None)
+    if model is not None:
+        evaluator.friction = model.with_params(params)  # type: ignore[attr-defined]

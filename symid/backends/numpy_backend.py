@@ -118,6 +118,9 @@ class NumpyEvaluator:
         other = copy.copy(self)
         other.p = np.array([params[n] for n in self.module.PARAMS], dtype=float)
         other.p_list = other.p.tolist()
+        from symid.backends.friction import rebind  # here: a planned run imports no sympy
+
+        rebind(other, params)
         return other
 
     # One instant at a time, the module's scalar (`math`) kernels are an order

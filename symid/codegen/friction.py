@@ -8,7 +8,7 @@ gets None here, and its generated code is exactly what it was without this.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import sympy as sp
 
@@ -26,6 +26,23 @@ from symid.numeric.friction import MAX_ITERATIONS, REST
 # L_j, 3 each, the Coulomb factor, the viscous coefficient, v_smooth), and
 # what each Newton iteration needs (lam: N and dN/dlambda, its rows).
 FIXED = 16
+# up to this many joints with friction, the NF x NF Newton system is solved
+# by elimination written out at generation (no loops, no pivot search unless
+# a pivot is not the largest of its column); past it, by the dense solver
+UNROLLED = 4
+
+
+def _terms(exprs: list[sp.Expr], first: int, base: int, lit: Callable[[float], str] = repr) -> list[tuple[int, str]]:
+    """(index base + c, C value) of the entries exprs[first:first + 3] that are
+    not exactly zero: a number as a literal, else the kernel's value `v[...]`,
+    so that the unrolled code adds nothing for the zeros of a couple or a slide."""
+    out = []
+    for c in range(3):
+        e = sp.sympify(exprs[first + c])
+        if e.is_zero:
+            continue
+        out.append((base + c, lit(float(e)) if e.is_number else f"v[{first + c}]"))
+    return out
 
 
 def width(rows: int) -> int:
@@ -33,7 +50,7 @@ def width(rows: int) -> int:
     return 1 + rows
 
 
-def joints(layout: Layout, options: Options) -> list[dict[str, Any]]:
+def joints(layout: Layout, options: Options, lit: Callable[[float], str] = repr) -> list[dict[str, Any]]:
     """Per joint with friction, file order: its expressions (in q, qd, lam, p)
     and where it sits (bodies, rows, reaction slot)."""
     mech = layout.mechanism
@@ -64,18 +81,24 @@ def joints(layout: Layout, options: Options) -> list[dict[str, Any]]:
                                                          c.friction["v_smooth"])]
         normal = [grouped(sp.sympify(e).xreplace(sub)) for e in (d.normal, *d.d_normal)]
         index = mech.body_index()
+        bi, bj = index.get(c.bodies["i"], -1), index.get(c.bodies["j"], -1)
+        slot = slots.get(c.name, -1)
+        # what the unrolled solve adds, per joint: G into the generalized
+        # coordinates of its moving bodies, L into its reaction columns
+        g = [*(_terms(fixed, 1, 3 * bi, lit) if bi >= 0 else []), *(_terms(fixed, 4, 3 * bj, lit) if bj >= 0 else [])]
+        loads = [*_terms(fixed, 7, slot, lit), *_terms(fixed, 10, slot + 3, lit)] if slot >= 0 else []
         out.append({"name": c.name, "fixed": fixed, "normal": normal, "rows": rows, "row": r0,
-                    "i": index.get(c.bodies["i"], -1), "j": index.get(c.bodies["j"], -1),
-                    "slot": slots.get(c.name, -1)})
+                    "i": bi, "j": bj, "slot": slot, "g": dict(g), "loads": loads})
     return out
 
 
-def context(layout: Layout, options: Options, row_width: int) -> dict[str, Any] | None:
+def context(layout: Layout, options: Options, row_width: int,
+            lit: Callable[[float], str] = repr) -> dict[str, Any] | None:
     """What the templates need for friction (None: none to solve). The kernels'
     expressions are under "fixed" and "normal", for the target to print as functions."""
     if options.kind != "inverse_dynamics" or not options.multipliers:
         return None
-    found = joints(layout, options)
+    found = joints(layout, options, lit)  # literals of the generated code's scalar type
     if not found:
         return None
     nw = max(width(j["rows"]) for j in found)
@@ -85,8 +108,8 @@ def context(layout: Layout, options: Options, row_width: int) -> dict[str, Any] 
     nf = len(found)
     columns = "reactions" in options.outputs
     return {"nf": nf, "fw": FIXED, "nw": nw, "fixed": [e for j in found for e in j["fixed"]], "normal": normal,
-            "joints": found, "columns": columns,
-            "offset": row_width, "max_iterations": MAX_ITERATIONS, "rest": repr(REST),
+            "joints": found, "columns": columns, "unrolled": nf <= UNROLLED,
+            "offset": row_width, "max_iterations": MAX_ITERATIONS, "rest": lit(REST),
             "row_width": row_width + (2 * nf if columns else 0)}
 
 

@@ -23,7 +23,8 @@ import sympy as sp
 
 from symid.errors import AnalysisError
 from symid.model.friction import coulomb_arm, has_friction, inverse_arm
-from symid.model.params import to_float
+from symid.model.mechanism import parameter_symbol
+from symid.model.params import is_derived, to_float
 from symid.numeric.evaluator import Array, Evaluator
 from symid.numeric.stability import Factor
 from symid.symbolic import symbols as s
@@ -112,6 +113,18 @@ class FrictionModel:
         self.layout = layout
         self.joints = joints_of(layout, values)
         self.names = tuple(j.name for j in self.joints)
+
+    def with_params(self, params: Mapping[str, float]) -> FrictionModel:
+        """The same joints with other parameter values (name -> value, every
+        parameter, derived ones included, as the evaluators' `with_params`
+        take them; derived ones are recomputed): mu, radius, viscous, arm, v_smooth and the joints'
+        geometry follow the variant."""
+        values: dict[sp.Symbol, float] = {}
+        for name, expr in self.layout.mechanism.parameters.items():  # dependency order
+            sym = parameter_symbol(name)
+            given = name in params and not is_derived(expr)  # a derived one follows its definition
+            values[sym] = float(params[name]) if given else to_float(expr, values, name)
+        return FrictionModel(self.layout, values)
 
     def _evaluate(self, joint: Joint, qx: Array, qdx: Array, lam: Array) -> list[float]:
         i, j = joint.bodies

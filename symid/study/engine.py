@@ -19,7 +19,7 @@ from typing import Iterator, Sequence
 import numpy as np
 
 from symid import backends
-from symid.backends import Array, Evaluator
+from symid.backends import Array, Evaluator, friction
 from symid.errors import AnalysisError
 from symid.model.mechanism import Mechanism
 from symid.model.params import parameter_values, to_float
@@ -53,6 +53,8 @@ def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, 
     backends.require_support(backend, mech.analysis, mech.source)
     # more rows than coordinates: the same input error as a solve's, once, at the file's values
     backends.check_redundant(assemble(mech), parameter_values(mech.parameters), backend)
+    if backend != "c" and friction.solved(mech):  # no vectorized path solves friction: each variant alone
+        return _normal_path(mech, full, backend)
     order = figure_names(mech)
     if backend == "numpy":
         from symid.study import batch_numpy
@@ -136,7 +138,8 @@ def trajectories(mech: Mechanism, layout: Layout, full: Array, backend: str, eva
         q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
         ev: Evaluator
         if first is None or not hasattr(first, "with_params"):  # the reference: built per variant
-            first = ev = chosen.evaluator(layout, values, needs)
+            # with its friction model, which `with_params` then follows per variant
+            first = ev = friction.attach(chosen.evaluator(layout, values, needs), layout, values)
         else:  # the solver built once serves every variant: only its p changes
             ev = first.with_params({s.name: v for s, v in values.items()})
         rows: list[Array] = []

@@ -17,7 +17,7 @@ import numpy as np
 import sympy as sp
 
 from symid import backends
-from symid.backends import Array, Needs
+from symid.backends import Array, Needs, friction
 from symid.errors import AnalysisError
 from symid.model.mechanism import Mechanism
 from symid.model.params import parameter_values, to_float
@@ -67,8 +67,10 @@ def solve_variant(mechanism: Mechanism, backend: str) -> Results:
         reactions = a.reactions if a.reactions is not None else tuple(c.name for c in mechanism.constraints)
     backends.require_support(backend, a, mechanism.source)
     backends.check_redundant(layout, values, backend)
-    evaluator = backends.get(backend).evaluator(layout, values, Needs(velocity=a.kind != "statics",
-                                                                      reactions=reactions))
+    chosen = backends.get(backend)
+    friction.require(backend, chosen, mechanism)
+    evaluator = friction.attach(chosen.evaluator(layout, values, Needs(velocity=a.kind != "statics",
+                                                                       reactions=reactions)), layout, values)
     q0 = np.array([to_float(v, values) for b in mechanism.bodies for v in b.q0])
     header = columns(layout, a)
     rows: list[Array] = []

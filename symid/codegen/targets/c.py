@@ -309,7 +309,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         row_parts.append((group, source, size, offset))
         offset += size
     stride = _stride(model)
-    fr = friction.context(model.layout, o, offset)  # joint friction (None: none, and no code for it)
+    fr = friction.context(model.layout, o, offset, scalar.lit)  # joint friction (None: none, and no code for it)
     if fr is not None:
         functions += [_function("friction", [cq, cqd, ct, cp], fr["fixed"], trig, printer, real),
                       _function("friction_normal", [cq, clam, ct, cp], fr["normal"], trig, printer, real)]

@@ -1,0 +1,74 @@
+"""Instructions per instant of a generated C trajectory, by callgrind: a
+figure that does not depend on the machine's load (the wall-clock one of a
+shared machine does).
+
+The example's solver (as `symid solve --backend c` builds it) is linked with
+a small driver that runs `<name>_trajectory` over N instants in chunks of 64;
+two runs, N1 and N2 instants, and (Ir(N2) - Ir(N1)) / (N2 - N1) leaves out
+loading, building the workspace and everything else done once.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+from symid import api
+
+DRIVER = r"""
+#include <stdio.h>
+#include <stdlib.h>
+#include "NAME_solver.h"
+
+int main(int argc, char **argv)
+{
+    const long n = atol(argv[1]), chunk = 64;
+    long done = 0, solved = 0;
+    double *work = calloc(UPPER_WORK, sizeof(double)), *state = calloc(UPPER_STATE, sizeof(double));
+    double *rows = calloc(chunk * UPPER_ROW, sizeof(double));
+    int *iwork = calloc(UPPER_NG + 1, sizeof(int)), status = 0, k;
+    const double q0[] = {Q0};
+    for (k = 0; k < UPPER_NG; ++k) state[k] = q0[k];
+    while (done < n && status == 0) {
+        const long m = n - done < chunk ? n - done : chunk;
+        status = NAME_trajectory(T0, H, m, NAME_default_params, TOL, state, rows, &solved, work, iwork);
+        done += solved;
+    }
+    printf("%d %ld\n", status, done);
+    return status;
+}
+"""
+
+
+def available() -> bool:
+    """Whether valgrind and gcc are there to measure with."""
+    return shutil.which("valgrind") is not None and shutil.which("gcc") is not None
+
+
+def per_instant(example: str, first: int = 200, second: int = 2200) -> float:
+    """Instructions per instant of the example's compiled trajectory (its own
+    t0, t1 and tol, cut into `second - 1` steps so that every run is as fine)."""
+    study = api.prepare(api.example(example), backend="c")
+    folder = Path(study.evaluator.artifact)  # type: ignore[attr-defined]
+    name, a = study.mechanism.name, study.analysis
+    source = (DRIVER.replace("UPPER", name.upper()).replace("NAME", name)
+              .replace("Q0", ", ".join(repr(float(v)) for v in study.q0()))
+              .replace("T0", repr(float(a.t0))).replace("H", repr((a.t1 - a.t0) / (second - 1)))
+              .replace("TOL", repr(float(a.tol))))
+    counts = []
+    with tempfile.TemporaryDirectory() as tmp:
+        driver, exe = Path(tmp) / "driver.c", Path(tmp) / "driver"
+        driver.write_text(source, encoding="utf-8")
+        subprocess.run(["gcc", "-O2", "-std=c99", "-fno-math-errno", "-I", str(folder), str(driver),
+                        str(folder / f"{name}_solver.c"), "-o", str(exe), "-lm"], check=True)
+        for n in (first, second):
+            out = subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={tmp}/cg.out",
+                                  str(exe), str(n)], capture_output=True, text=True, check=True)
+            found = re.search(r"Collected : (\d+)", out.stderr)
+            if found is None or out.stdout.split() != ["0", str(n)]:
+                raise RuntimeError(f"callgrind run of {name} failed: {out.stdout} {out.stderr[-300:]}")
+            counts.append(int(found.group(1)))
+    return (counts[1] - counts[0]) / (second - first)
