@@ -18,6 +18,7 @@ from symid import api
 from symid.codegen.model import code_model
 from symid.codegen.targets import c as c_target
 from symid.io.reader import load, loads
+from symid.model.params import base_names
 from test_c_export import BAD_ARGUMENT, NONFINITE, OK, Solver
 from test_codegen import needs_cc
 
@@ -29,7 +30,10 @@ M4F = ["-mcpu=cortex-m4", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-mthumb"]
 # single against double over each bundled run: max |diff| / the column's peak
 # (a column below 1e-3 of its group's peak, zero but for rounding: against
 # 1e-3 of that peak), the README's bound
-SINGLE_BOUND = {"slider_crank": 2e-6}
+# Joint friction's smooth sign tanh(v / v_smooth), v_smooth = 1e-4, turns the
+# float rounding of a speed near reversal into up to 3 % of that joint's
+# friction there (README: single precision): the bound the README states for it.
+SINGLE_BOUND = {"slider_crank": 2e-6, "slider_crank_friction": 5e-2}
 SINGLE_BOUND_ANY = 1e-5
 GROUP_FLOOR = 1e-3
 
@@ -140,7 +144,9 @@ def test_single_precision_rows_within_the_readme_bound_of_double(tmp_path: Path,
     header = (tmp_path / "single" / f"{example}_solver.h").read_text()
     assert f"typedef float {example}_real;" in header
     ctx = c_target.context(model)
-    groups = np.array([0] + [k + 1 for k, (_, _, size, _) in enumerate(ctx["row_parts"]) for _ in range(size)])
+    groups_of = [0] + [k + 1 for k, (_, _, size, _) in enumerate(ctx["row_parts"]) for _ in range(size)]
+    friction = runs["double"].shape[1] - len(groups_of)  # C.friction, C.friction_power: a group of their own
+    groups = np.array(groups_of + [len(ctx["row_parts"]) + 1] * friction)
     peak = np.max(np.abs(runs["double"]), axis=0)
     scale = np.maximum(peak, GROUP_FLOOR * np.array([np.max(peak[groups == g]) for g in groups]))
     error = np.max(np.abs(runs["single"] - runs["double"]), axis=0) / scale
@@ -177,7 +183,7 @@ def test_header_names_columns_parameters_q0_and_time_grid_of_the_file(tmp_path: 
     lines = subprocess.run([str(exe), "describe"], check=True, capture_output=True, text=True).stdout.splitlines()
     truth = api.solve(api.example(example), backend="reference", steps=2)
     assert lines[0].split() == list(truth.columns)
-    assert lines[1].split() == list(mech.parameters)
+    assert lines[1].split() == list(base_names(mech.parameters))  # the inputs: base parameters only
     assert np.max(np.abs(np.array(lines[2].split(), float) - truth.data[0][1:1 + 3 * len(mech.bodies)])) <= 1e-12
     t0, t1, steps, tol, ops = lines[3].split()
     a = mech.analysis
@@ -185,12 +191,16 @@ def test_header_names_columns_parameters_q0_and_time_grid_of_the_file(tmp_path: 
     assert int(ops) > 10 * len(mech.bodies)
 
 
-def test_unread_parameters_are_listed_and_the_others_are_not() -> None:
-    """slider_crank's `n` (only `omega = 2*pi*n` is read) is the one parameter
-    nothing reads; units from the file's comments and the contract."""
+def test_unread_parameters_are_listed_and_the_others_are_not(tmp_path: Path) -> None:
+    """A parameter nothing reads is listed; slider_crank's `n`, read through its
+    derived `omega = 2*pi*n` (computed inside), is not; units from the file's
+    comments and the contract."""
+    text = api.example("slider_crank").read_text().replace("[parameters]\n", "[parameters]\nspare = 2.5\n", 1)
+    (tmp_path / "spare.toml").write_text(text)
+    assert c_target.context(code_model(load(tmp_path / "spare.toml")))["d"]["unread"] == ["spare"]
     model = code_model(load(api.example("slider_crank")))
     ctx = c_target.context(model)
-    assert ctx["d"]["unread"] == ["n"]
+    assert ctx["d"]["unread"] == []
     assert {c["name"]: c["unit"] for c in ctx["d"]["columns"]}["crank.phi"] == "rad"
     assert {c["name"]: c["unit"] for c in ctx["d"]["columns"]}["motor.T_j"] == "force*length"
     assert {p["name"]: p["comment"] for p in ctx["d"]["param_info"]}["L_crank"] == "crank radius, m"
@@ -208,7 +218,7 @@ def test_generated_c_calls_only_sin_cos_sqrt_and_what_the_file_calls(tmp_path: P
     (the inertias) are computed by prepare, not in the kernels."""
     for name in EXAMPLES:
         text = api.example(name).read_text()
-        own = set(re.findall(r"\b([a-z][a-z0-9]*)\(", text))
+        own = set(re.findall(r"\b([a-z][a-z0-9]*)\(", text)) | ({"tanh"} if "friction" in text else set())  # s(v)
         model = code_model(load(api.example(name)))
         c_target.generate(model, tmp_path / name, precision=precision)
         source = (tmp_path / name / f"{name}_solver.c").read_text()

@@ -1291,7 +1291,7 @@ static void excavator_sweep_take(const excavator_real *row, const excavator_real
     excavator_drive(t, p, drive);
     /* boom_cylinder */
     e = -2.0 * fabs(drive[0]) * row[34];
-    rate = ((drive[0] > 0.0) - (drive[0] < 0.0)) * drive[1];
+    rate = (excavator_real)((drive[0] > 0.0) - (drive[0] < 0.0)) * drive[1];
     w = fabs(e * rate);
     if (count == 0 || fabs(e) > fig[0]) {
         fig[0] = fabs(e);
@@ -1304,7 +1304,7 @@ static void excavator_sweep_take(const excavator_real *row, const excavator_real
     acc[0] = e;
     /* stick_cylinder */
     e = -2.0 * fabs(drive[2]) * row[35];
-    rate = ((drive[2] > 0.0) - (drive[2] < 0.0)) * drive[3];
+    rate = (excavator_real)((drive[2] > 0.0) - (drive[2] < 0.0)) * drive[3];
     w = fabs(e * rate);
     if (count == 0 || fabs(e) > fig[4]) {
         fig[4] = fabs(e);
@@ -1317,7 +1317,7 @@ static void excavator_sweep_take(const excavator_real *row, const excavator_real
     acc[3] = e;
     /* bucket_cylinder */
     e = -2.0 * fabs(drive[4]) * row[36];
-    rate = ((drive[4] > 0.0) - (drive[4] < 0.0)) * drive[5];
+    rate = (excavator_real)((drive[4] > 0.0) - (drive[4] < 0.0)) * drive[5];
     w = fabs(e * rate);
     if (count == 0 || fabs(e) > fig[8]) {
         fig[8] = fabs(e);
