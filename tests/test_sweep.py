@@ -229,7 +229,7 @@ def test_sigint_mid_sweep_writes_the_finished_variants_and_exits_130(tmp_path):
 def test_status_names_why_a_run_stopped():
     from symid.errors import AnalysisError
     from symid.study.figures import STATUS
-    from symid.study.slow import status_of
+    from symid.study.figures import status_of
 
     cases = {"Phi_q is singular (condition estimate 1e17); dependent constraints: a": "singular",
              "assembly mode jump: Newton moved q by 2 (scaled)": "jump",

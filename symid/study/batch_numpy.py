@@ -87,7 +87,7 @@ def run(mechanism: Mechanism, full: Array, chunk: int | None = None) -> Batch:
     MAX_CHUNK and BUDGET allow), vectorized over each."""
     layout = assemble(mechanism)
     module = load_module(build(layout, options_for(mechanism)))  # a private instance: see _stack
-    module._stack = _stack
+    setattr(module, "_stack", _stack)  # the generated module defines it: replaced in this private copy
     figures = Figures(Measure(mechanism, columns(layout, mechanism.analysis)))
     if chunk is None:
         per_variant = 8 * mechanism.analysis.steps * len(figures.columns)

@@ -25,8 +25,8 @@ from symid.model.mechanism import Mechanism
 from symid.model.params import parameter_values, to_float
 from symid.numeric.stability import Notes
 from symid.output.results import columns, table_rows
-from symid.study.figures import STATUS, Figures, figure_names
-from symid.study.variants import Measure, base_matrix, needs_of, status_of, study_mechanism, variant_values
+from symid.study.figures import STATUS, Figures, figure_names, status_of
+from symid.study.variants import Measure, base_matrix, needs_of, study_mechanism, variant_values
 from symid.symbolic.assemble import Layout, assemble
 
 BACKENDS = ("c", "numpy", "casadi", "reference")

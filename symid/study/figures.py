@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from symid.errors import AnalysisError
 from symid.model.mechanism import Mechanism
 
 # Why a variant's run stopped (index = code); "ok" when it ran to t1.
@@ -28,6 +29,22 @@ def figure_names(mechanism: Mechanism) -> tuple[str, ...]:
     chosen = a.reactions if a.reactions is not None else tuple(c.name for c in mechanism.constraints)
     names += [f"{name}.force_peak" for name in chosen]
     return tuple(names)
+
+
+def status_of(error: AnalysisError | None) -> int:
+    """The `STATUS` code of a run's failure (0: it ran to t1), from the
+    backends' shared messages (Newton's "Phi is not finite at the guess" is a
+    Newton failure)."""
+    if error is None:
+        return 0
+    text = str(error)
+    if "assembly mode jump" in text:
+        return STATUS.index("jump")
+    if "not finite" in text and "Newton did not converge" not in text:
+        return STATUS.index("nonfinite")
+    if "singular" in text:
+        return STATUS.index("singular")
+    return STATUS.index("not_converged")
 
 
 @dataclass(frozen=True)

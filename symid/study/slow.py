@@ -24,21 +24,8 @@ from symid.model.params import parameter_values, to_float
 from symid.output.results import Results, columns, table_rows
 from symid.output.summary import efforts, summarize
 from symid.numeric.stability import Notes
-from symid.study.figures import STATUS, Figures, figure_names
+from symid.study.figures import STATUS, Figures, figure_names, status_of
 from symid.symbolic.assemble import assemble
-
-
-def status_of(exc: AnalysisError) -> int:
-    """Why a run stopped, as an index into `STATUS`, from the backends' shared messages
-    (Newton's "Phi is not finite at the guess" is a Newton failure, as in the batch engine)."""
-    text = str(exc)
-    if "assembly mode jump" in text:
-        return STATUS.index("jump")
-    if "not finite" in text and "Newton did not converge" not in text:
-        return STATUS.index("nonfinite")
-    if "singular" in text:
-        return STATUS.index("singular")
-    return STATUS.index("not_converged")
 
 
 def with_values(mechanism: Mechanism, names: Sequence[str], values: Sequence[float]) -> Mechanism:

@@ -14,11 +14,11 @@ import numpy as np
 import sympy as sp
 
 from symid.backends import Array, Needs
-from symid.errors import AnalysisError, InputError
+from symid.errors import InputError
 from symid.model.mechanism import Mechanism, parameter_symbol
 from symid.model.params import base_names, is_derived, parameter_values, to_float
 from symid.output.summary import drivers, source, summarize
-from symid.study.figures import STATUS, figure_names
+from symid.study.figures import figure_names
 from symid.symbolic.constraints import TYPES as CONSTRAINTS
 
 
@@ -81,20 +81,6 @@ def needs_of(mechanism: Mechanism) -> Needs:
     if "reactions" in a.output_groups() and a.kind != "kinematics":
         reactions = a.reactions if a.reactions is not None else tuple(c.name for c in mechanism.constraints)
     return Needs(velocity=a.kind != "statics", reactions=reactions)
-
-
-def status_of(error: AnalysisError | None) -> int:
-    """The `STATUS` code of a run's failure (0: it ran to t1)."""
-    if error is None:
-        return 0
-    text = str(error)
-    if "assembly mode jump" in text:
-        return STATUS.index("jump")
-    if "not finite" in text and "Newton did not converge" not in text:
-        return STATUS.index("nonfinite")
-    if "singular" in text:
-        return STATUS.index("singular")
-    return STATUS.index("not_converged")
 
 
 class Measure:
