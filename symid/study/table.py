@@ -17,6 +17,7 @@ import numpy as np
 from symid.errors import InputError
 from symid.io.files import atomic_path, atomic_write, read_text
 from symid.output.results import format_row
+from symid.output.tables import arrow
 from symid.study.figures import STATUS, Figures
 
 FORMATS = (".csv", ".parquet")
@@ -108,8 +109,7 @@ def _write_csv(t: SweepTable, path: Path) -> None:
 
 
 def _write_parquet(t: SweepTable, path: Path) -> None:
-    import pyarrow as pa
-    import pyarrow.parquet as pq
+    pa, pq = arrow()  # without pyarrow: the solve table's one line, exit 2
 
     arrays: dict[str, Any] = {"variant": pa.array(t.variant.astype(np.int64))}
     for k, name in enumerate(t.params):
@@ -149,7 +149,7 @@ def read(path: str | Path) -> SweepTable:
     """A sweep table written by `symid sweep` (.csv or .parquet)."""
     path = Path(path)
     if path.suffix.lower() == ".parquet":
-        import pyarrow.parquet as pq
+        _, pq = arrow()
 
         try:
             table = pq.read_table(path)
