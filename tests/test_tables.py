@@ -3,7 +3,6 @@ in bounded memory, Parquet; exact round trips; partial runs kept."""
 
 from __future__ import annotations
 
-import os
 import struct
 import sys
 import tracemalloc
@@ -18,7 +17,6 @@ from hypothesis.extra import numpy as hnp
 from symid import api
 from symid.cli import main
 from symid.errors import AnalysisError
-from symid.output import formatters
 from symid.output.digits import csv_block
 from symid.output.npz import read_npz, write_npz
 from symid.output.results import format_row
@@ -83,50 +81,6 @@ def test_csv_file_equals_the_row_writer_and_keeps_rows_before_a_failure(tmp_path
     with pytest.raises(AnalysisError):
         write_csv(tmp_path / "r.csv", header, items())
     assert (tmp_path / "r.csv").read_bytes() == ("t,a.x,a.y,b.x,b.y\n").encode() + per_row(data[:2000])
-
-
-def test_csv_formatted_by_worker_processes_is_the_row_writers_text_in_order(tmp_path: Path,
-                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
-    """A table long enough for worker processes (the threshold set low):
-    blocks formatted in other processes come back in order, byte for byte."""
-    started: list[object] = []
-    original = formatters.Formatters.submit
-
-    def spy(self: formatters.Formatters, block: np.ndarray):  # type: ignore[no-untyped-def]
-        future = original(self, block)
-        started.append(self.processes)
-        return future
-
-    monkeypatch.setattr(formatters, "PROCESS_ROWS", 1500)
-    monkeypatch.setattr(formatters.Formatters, "submit", spy)
-    rng = np.random.default_rng(5)
-    data = rng.standard_normal((9000, 4)) * 10.0 ** rng.integers(-8, 8, (9000, 4))
-    write_csv(tmp_path / "r.csv", ["a", "b", "c", "d"], data)
-    assert (tmp_path / "r.csv").read_bytes() == b"a,b,c,d\n" + per_row(data)
-    assert started[0] is None and started[-1] is not None  # threads first, then processes
-
-
-_PARENT = os.getpid()
-
-
-def _dies_in_a_worker(block: np.ndarray) -> bytes:
-    """csv_block, except that a worker process running it dies."""
-    if os.getpid() != _PARENT:
-        os._exit(1)
-    return csv_block(block)
-
-
-def test_a_lost_formatting_worker_costs_a_local_formatting_not_a_row() -> None:
-    """Workers killed mid-table: every block's text still comes back, in order."""
-    rng = np.random.default_rng(6)
-    parts = [rng.standard_normal((300, 3)) for _ in range(5)]
-    pool = formatters.Formatters(_dies_in_a_worker, process_rows=0)
-    try:
-        futures = [(pool.submit(b), b) for b in parts]
-        text = b"".join(pool.result(f, b) for f, b in futures)
-    finally:
-        pool.close()
-    assert text == per_row(np.vstack(parts))
 
 
 def test_blocks_gathers_rows_and_cuts_blocks_in_order() -> None:

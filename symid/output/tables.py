@@ -10,19 +10,17 @@ a (names, array or blocks) table by its file's suffix.
 
 from __future__ import annotations
 
+import os
 from collections import deque
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any, Iterable, Iterator
+from typing import IO, Any, Iterable, Iterator
 
 import numpy as np
 
 from symid.backends import Array
 from symid.errors import AnalysisError, InputError
 from symid.io.files import atomic_write, check_target
-
-if TYPE_CHECKING:
-    from symid.output.formatters import Formatters
 
 BLOCK = 1024  # rows gathered before formatting: ~70k values, a few MB of text at most
 GROUP = 65536  # rows of one Parquet row group
@@ -66,32 +64,30 @@ def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int
     """The table as CSV: '%.17g' values (`symid.output.digits`), ',' between,
     a header line of the names; returns the rows written.
 
-    Blocks are formatted elsewhere (`symid.output.formatters`: a second
-    thread, worker processes for a long table) while the next block is
-    solved or the last one written, and written in order; at most AHEAD
-    blocks wait, so memory stays bounded.
+    Blocks are formatted by a second thread while the next block is solved
+    or the last one written (NumPy releases the GIL in its loops); at most
+    AHEAD blocks wait, so memory stays bounded.
     """
     from symid.output.digits import csv_block
-    from symid.output.formatters import Formatters
 
     count = 0
     failure: AnalysisError | None = None
-    pool = Formatters(csv_block)
-    waiting: deque[tuple[Future[bytes], Array]] = deque()
+    pool = ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1))
+    waiting: deque[tuple[Future[bytes], int]] = deque()
     try:
         with atomic_write(path, binary=True) as out:
             out.write((",".join(header) + "\n").encode())
             try:
                 for block in blocks(rows, len(header)):
-                    waiting.append((pool.submit(block), block))
+                    waiting.append((pool.submit(csv_block, block), len(block)))
                     while len(waiting) > AHEAD:
-                        count += _drain(pool, waiting, out)
+                        count += _drain(waiting, out)
             except AnalysisError as exc:  # keep the instants before it: the file is completed
                 failure = exc
             while waiting:
-                count += _drain(pool, waiting, out)
+                count += _drain(waiting, out)
     finally:
-        pool.close()
+        pool.shutdown(wait=True, cancel_futures=True)
     if failure is not None:
         raise failure
     return count
@@ -100,11 +96,11 @@ def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int
 AHEAD = 4  # formatted blocks in flight
 
 
-def _drain(pool: Formatters, waiting: deque[tuple[Future[bytes], Array]], out: IO[bytes]) -> int:
+def _drain(waiting: deque[tuple[Future[bytes], int]], out: IO[bytes]) -> int:
     """Write the oldest block's text; returns its rows."""
-    future, block = waiting.popleft()
-    out.write(pool.result(future, block))
-    return len(block)
+    future, rows = waiting.popleft()
+    out.write(future.result())
+    return rows
 
 
 def arrow() -> Any:
