@@ -68,22 +68,24 @@ def _ops(code: str) -> int:
     return total
 
 
-def _table(source: str, prefix: str, key: str) -> list[int]:
-    m = re.search(rf"{prefix}_lu_{key}\[\d+\] = {{ ([^}}]*) }}", source)
-    return [int(v) for v in m.group(1).split(", ")] if m else []
+def _macro(source: str, prefix: str, key: str) -> int:
+    m = re.search(rf"#define {prefix.upper()}_LU_{key} (\d+)", source)
+    return int(m.group(1)) if m else 0
 
 
 def _table_lu_flops(source: str, prefix: str) -> float:
     """An instant's LU operations where the LU loops over index tables (the
     loops' trip counts are in the tables, not in the code): factor once,
-    solve three times, solve transposed once."""
-    below, right, above = (_table(source, prefix, k) for k in ("below_ptr", "right_ptr", "above_ptr"))
-    nb = [b - a for a, b in zip(below, below[1:])]
-    nr = [b - a for a, b in zip(right, right[1:])]
-    na = [b - a for a, b in zip(above, above[1:])]
-    factor = sum(2 * b + 1 + b + 2 * b * r for b, r in zip(nb, nr))
-    solve = sum(2 * b + 2 * r + 1 for b, r in zip(nb, nr))
-    solve_t = sum(2 * a + 1 for a in na) + 2 * sum(nb)
+    solve three times, solve transposed once. Per step: the threshold test
+    (a max per L entry, a product), the reciprocal, L's scaling, two per
+    update; the solves: two per L entry, three per U entry (the sum of the
+    step it reads is scaled there), one scaling per step."""
+    steps, below, right, above = (_macro(source, prefix, k) for k in ("STEPS", "BELOW", "RIGHT", "ABOVE"))
+    m = re.search(rf"{prefix}_lu_update\[(\d+)\] = ", source)
+    updates = int(m.group(1)) if m and "_lu_update[1] = { 0 }" not in source else 0
+    factor = 3 * below + 2 * steps + 2 * updates
+    solve = 2 * below + 3 * right + steps
+    solve_t = 3 * above + steps + 2 * below
     return factor + 3 * solve + solve_t
 
 
