@@ -139,7 +139,8 @@ class Reduced:
         wrapped_rows: the constraint rows reduced modulo 2 pi.
         angles: indices in q of the angle coordinates reduced by whole turns.
         kept: what keeps absolute time or angles (for the header), e.g.
-            ["t (exp(...))", "q[2] (not periodic: ...)"].
+            ["t in exp(...)", "q[2] (read other than ...)"].
+        labels: each nu with the parameters' names (for comments).
     """
 
     groups: list[list[sp.Expr]]
@@ -147,11 +148,14 @@ class Reduced:
     wrapped_rows: list[int]
     angles: list[int]
     kept: list[str]
+    labels: list[str] = field(default_factory=list)
 
 
-def reduce(ng: int, phi: Sequence[sp.Expr], others: Sequence[Sequence[sp.Expr]]) -> Reduced:
+def reduce(ng: int, phi: Sequence[sp.Expr], others: Sequence[Sequence[sp.Expr]],
+           names: Sequence[str] = ()) -> Reduced:
     """Rewrite phi (the constraint rows) and the other lists read at an
-    instant (Phi_q, nu, gamma, forces, reactions, ...) with phases and wraps."""
+    instant (Phi_q, nu, gamma, forces, reactions, ...) with phases and wraps;
+    names: the parameters' (p[k] is printed so in `kept`)."""
     ph = Phases()
     angles = set(_angles(ng))
     new_phi, wrapped = [], []
@@ -168,16 +172,20 @@ def reduce(ng: int, phi: Sequence[sp.Expr], others: Sequence[Sequence[sp.Expr]])
     for g in groups:
         for e in g:
             unwrappable |= _outside_trig(e.replace(lambda x: isinstance(x, Wrap), lambda x: sp.Integer(0))) & angles
-    kept = sorted({f"t in {_short(e)}" for g in groups for e in g if e.has(T)})
-    kept += [f"{a} (read other than through sin, cos and whole turns)" for a in sorted(unwrappable, key=str)]
+    named = {sp.Symbol(f"p[{k}]", real=True): sp.Symbol(n, real=True) for k, n in enumerate(names)}
+    kept = sorted({f"t in {_short(_plain(e).xreplace(named))}" for g in groups for e in g if e.has(T)})
+    if unwrappable:
+        listed = ", ".join(str(a) for a in sorted(unwrappable, key=lambda s: int(str(s)[2:-1])))
+        kept.append(f"the angles {listed} (read other than through sin, cos and whole turns: a gear ratio, "
+                    "a spring)")
     keep = sorted(int(str(a)[2:-1]) for a in angles - unwrappable)
-    return Reduced(groups, ph.nu, wrapped, keep, kept)
+    return Reduced(groups, ph.nu, wrapped, keep, kept, [str(v.xreplace(named)) for v in ph.nu])
 
 
 def _short(e: sp.Expr) -> str:
     """The first term of e that reads t, shortened, for a comment."""
     for term in sp.preorder_traversal(e):
-        if isinstance(term, sp.Expr) and term.has(T) and not term.is_Add and term != T:
+        if isinstance(term, sp.Expr) and term.has(T) and not (term.is_Add or term.is_Mul) and term != T:
             text = str(term)
             return text if len(text) <= 60 else text[:57] + "..."
     return "t"
@@ -206,6 +214,6 @@ def context(red: Reduced | None, off_nu: int, np_: int) -> dict[str, Any]:
     """What templates/c/phase.j2 and prepare.j2 need (nothing in double: red None)."""
     if red is None:
         return {"phases": [], "wraps": False, "wrap_angles": [], "nu_lines": [], "kept": []}
-    return {"phases": [str(v) for v in red.nu], "off_nu": off_nu, "off_phase": off_nu + 2 * len(red.nu),
+    return {"phases": red.labels, "off_nu": off_nu, "off_phase": off_nu + 2 * len(red.nu),
             "wraps": bool(red.wrapped_rows or red.angles), "wrap_angles": red.angles,
             "nu_lines": nu_lines(red.nu, np_, off_nu, printer("symid", DOUBLE).doprint), "kept": red.kept}
