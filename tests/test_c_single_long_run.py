@@ -147,3 +147,53 @@ def test_reduction_wraps_angle_rows_and_keeps_gear_ratios_and_nonperiodic_time()
     dig = code_model(load(api.example("excavator"))).flat
     red = c_phase.reduce(dig.ng, dig.phi, [dig.applied], dig.params)
     assert any(k.startswith("t in exp(") for k in red.kept)
+
+
+FE_HARNESS = """#define _GNU_SOURCE
+#include <fenv.h>
+#include <stdio.h>
+
+#include "{p}_solver.h"
+
+/* A single-precision trajectory and an instant far from t = 0, the guess's
+   angles turned many times, with invalid, division-by-zero and overflow
+   trapping (SIGFPE on any); at the end no flag but inexact and underflow. */
+int main(void)
+{{
+    static {p}_real work[{P}_WORK], rows[{n} * {P}_ROW], state[{P}_STATE];
+    static int iwork[{P}_IWORK];
+    {p}_real q[{P}_NG] = {{ {q0} }};
+    long solved = 0;
+    int k, status;
+    for (k = 0; k < {P}_NG; ++k) state[k] = q[k];
+    feclearexcept(FE_ALL_EXCEPT);
+    feenableexcept(FE_INVALID | FE_DIVBYZERO | FE_OVERFLOW);
+    status = {p}_trajectory({t0}f, {h}f, {n}, {p}_default_params, 1e-6f, state, rows, &solved, work, iwork);
+    if (status != {P}_OK || solved != {n}) return 10 + status;
+    status = {p}_instant({t0}f + 0.37f, {p}_default_params, 1e-6f, q, NULL, NULL, NULL, NULL, NULL, work, iwork);
+    if (status != {P}_OK) return 20 + status;
+    if (fetestexcept(FE_ALL_EXCEPT & ~(FE_INEXACT | FE_UNDERFLOW))) return 40;
+    return 0;
+}}
+"""
+
+
+@needs_cc
+@pytest.mark.parametrize("example", ["slider_crank", "excavator"])
+def test_single_precision_run_at_t_1e4_raises_no_floating_point_exception(tmp_path: Path, example: str) -> None:
+    """The phases' float-to-long conversions and the wraps raise nothing but
+    inexact (the excavator's pulse underflows there, as exp does)."""
+    model = code_model(load(api.example(example)))
+    c_target.generate(model, tmp_path, precision="single")
+    a = load(api.example(example)).analysis
+    q0 = np.array(model.q0, dtype=float)
+    q0[2::3] += 2 * np.pi * 5e4  # turned many times: reduced on entry
+    name = model.flat.name
+    (tmp_path / "fe.c").write_text(FE_HARNESS.format(
+        p=name, P=name.upper(), n=INSTANTS, q0=", ".join(f"{float(v)!r}f" for v in q0), t0=repr(LONG_T0),
+        h=repr((a.t1 - a.t0) / (a.steps - 1))))
+    exe = tmp_path / "fe"
+    subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", f"-I{tmp_path}", str(tmp_path / "fe.c"),
+                    str(tmp_path / f"{name}_solver.c"), "-lm", "-o", str(exe)], check=True)
+    run = subprocess.run([str(exe)], capture_output=True, text=True)
+    assert run.returncode == 0, f"exit {run.returncode} (negative: killed by that signal; 40: a flag raised)"
