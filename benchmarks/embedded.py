@@ -34,7 +34,7 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -70,7 +70,7 @@ def rows(exe: Path, t0: float, h: float, n: int, q0: Any) -> np.ndarray:
     return np.loadtxt(_call(exe, "rows", t0, h, n, q0).splitlines(), ndmin=2)
 
 
-def relative_error(single: np.ndarray, double: np.ndarray, groups: list[int], angles: list[int] = (),
+def relative_error(single: np.ndarray, double: np.ndarray, groups: list[int], angles: Sequence[int] = (),
                    peak: np.ndarray | None = None) -> np.ndarray:
     """Per column: max |single - double| / the column's peak |double| (or the
     `peak` given: the bundled run's). A column whose peak is below

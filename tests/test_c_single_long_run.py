@@ -135,7 +135,8 @@ def test_single_precision_instant_at_t_1e4_gives_the_crank_angle_reduced_and_the
 def test_reduction_wraps_angle_rows_and_keeps_gear_ratios_and_nonperiodic_time() -> None:
     """The rewrite itself: a driven crank's row is compared modulo 2 pi on its
     phase and sin(omega t) reads the same phase; a gear train's rows (angles
-    times a ratio) are left as they are, and a pulse in t is listed as kept."""
+    times a ratio) and a driver on angles a spring reads are left as they
+    are (a whole turn there is another load), and a pulse in t is listed as kept."""
     crank = code_model(load(api.example("slider_crank"))).flat
     red = c_phase.reduce(crank.ng, crank.phi, [crank.applied], crank.params)
     assert len(red.nu) == 1 and red.angles == [2, 5, 8] and not red.kept
@@ -144,6 +145,9 @@ def test_reduction_wraps_angle_rows_and_keeps_gear_ratios_and_nonperiodic_time()
     gears = code_model(load(api.example("planetary"))).flat
     red = c_phase.reduce(gears.ng, gears.phi, [], gears.params)
     assert red.angles == [] and any("q[11]" in k for k in red.kept)
+    swing = code_model(load(api.example("slider_pendulum"))).flat  # a torsion spring reads its angles
+    red = c_phase.reduce(swing.ng, swing.phi, [swing.applied], swing.params)
+    assert red.wrapped_rows == [] and red.angles == [] and len(red.nu) == 2
     dig = code_model(load(api.example("excavator"))).flat
     red = c_phase.reduce(dig.ng, dig.phi, [dig.applied], dig.params)
     assert any(k.startswith("t in exp(") for k in red.kept)

@@ -105,28 +105,34 @@ class Phases:
             return f if lin is None else f.func(self.of(lin[0]) + lin[1])
         return e.replace(lambda x: isinstance(x, (sp.sin, sp.cos)) and x.args[0].has(T), swap)
 
-    def row(self, e: sp.Expr, angles: set[sp.Symbol]) -> sp.Expr | None:
-        """A constraint row periodic in its angles, wrapped, with its terms
-        linear in t read from their phases; None if the row is not such."""
+    def row(self, e: sp.Expr, coefficients: dict[sp.Symbol, int]) -> sp.Expr:
+        """A constraint row periodic in its angles (their integer
+        coefficients), wrapped, its terms linear in t read from their phases."""
         u = _plain(e)
-        outside = _outside_trig(u) & angles
-        if not outside:
-            return None
-        rest = u
-        for a in outside:
-            c = sp.diff(u, a)
-            if not c.is_Integer:
-                return None
-            rest = rest - c * a
-        rest = sp.expand(rest)
-        if _outside_trig(rest) & _coordinates(rest):
-            return None  # the row also reads a length: not an angle
+        rest = sp.expand(u - sum(c * a for a, c in coefficients.items()))
         terms = []
         for term in sp.Add.make_args(rest):
             lin = self.linear(term)
-            terms.append(self.of(lin[0]) + lin[1] if lin is not None and not lin[1].has(T) else term)
-        return Wrap(sp.Add(*[sp.diff(u, a) * a for a in sorted(outside, key=str)])
+            terms.append(self.of(lin[0]) + lin[1] if lin is not None else term)
+        return Wrap(sp.Add(*[c * a for a, c in sorted(coefficients.items(), key=lambda x: str(x[0]))])
                     + self.trig(sp.Add(*terms)))
+
+
+def _periodic(e: sp.Expr, angles: set[sp.Symbol]) -> dict[sp.Symbol, int] | None:
+    """The integer coefficients of the angles e reads other than through sin
+    and cos, if e is 2 pi-periodic in them and reads no other coordinate so
+    (an angle row: a relative angle, a driven phi); else None."""
+    u = _plain(e)
+    outside = _outside_trig(u) & angles
+    if not outside:
+        return None
+    coefficients = {a: sp.diff(u, a) for a in outside}
+    if not all(c.is_Integer for c in coefficients.values()):
+        return None  # a gear ratio: not periodic
+    rest = sp.expand(u - sum(c * a for a, c in coefficients.items()))
+    if _outside_trig(rest) & _coordinates(rest):
+        return None  # the row also reads a length: not an angle
+    return {a: int(c) for a, c in coefficients.items()}
 
 
 @dataclass(frozen=True)
@@ -158,37 +164,37 @@ def reduce(ng: int, phi: Sequence[sp.Expr], others: Sequence[Sequence[sp.Expr]],
     names: the parameters' (p[k] is printed so in `kept`)."""
     ph = Phases()
     angles = set(_angles(ng))
-    new_phi, wrapped = [], []
-    for r, e in enumerate(phi):
-        w = ph.row(e, angles)
-        if w is None:
-            new_phi.append(ph.trig(e))
-        else:
-            new_phi.append(w)
-            wrapped.append(r)
-    groups = [new_phi] + [[ph.trig(e) for e in g] for g in others]
-    # an angle read outside sin/cos anywhere but in a wrapped row keeps its turns
-    unwrappable: set[sp.Symbol] = set()
-    for g in groups:
-        for e in g:
-            unwrappable |= _outside_trig(e.replace(lambda x: isinstance(x, Wrap), lambda x: sp.Integer(0))) & angles
+    rows = {r: c for r, e in enumerate(phi) if (c := _periodic(e, angles)) is not None}
+    rest: list[list[sp.Expr]] = [[ph.trig(e) for e in g] for g in others]
+    # an angle read outside sin/cos anywhere but in a wrapped row keeps its
+    # turns, and a row reading such an angle is not wrapped (a whole turn of
+    # it would change what else reads it: a spring's torque); to a fixed point
+    while True:
+        unwrappable = {a for g in rest for e in g for a in _outside_trig(e) & angles}
+        unwrappable |= {a for r, e in enumerate(phi) if r not in rows for a in _outside_trig(_plain(e)) & angles}
+        keep = {r: c for r, c in rows.items() if not set(c) & unwrappable}
+        if keep == rows:
+            break
+        rows = keep
+    groups = [[ph.row(e, rows[r]) if r in rows else ph.trig(e) for r, e in enumerate(phi)]] + rest
+    wrapped = sorted(rows)
     named = {sp.Symbol(f"p[{k}]", real=True): sp.Symbol(n, real=True) for k, n in enumerate(names)}
     kept = sorted({f"t in {_short(_plain(e).xreplace(named))}" for g in groups for e in g if e.has(T)})
     if unwrappable:
         listed = ", ".join(str(a) for a in sorted(unwrappable, key=lambda s: int(str(s)[2:-1])))
         kept.append(f"the angles {listed} (read other than through sin, cos and whole turns: a gear ratio, "
                     "a spring)")
-    keep = sorted(int(str(a)[2:-1]) for a in angles - unwrappable)
-    return Reduced(groups, ph.nu, wrapped, keep, kept, [str(v.xreplace(named)) for v in ph.nu])
+    reduced = sorted(int(str(a)[2:-1]) for a in angles - unwrappable)
+    return Reduced(groups, ph.nu, wrapped, reduced, kept, [str(v.xreplace(named)) for v in ph.nu])
 
 
 def _short(e: sp.Expr) -> str:
     """The first term of e that reads t, shortened, for a comment."""
-    for term in sp.preorder_traversal(e):
-        if isinstance(term, sp.Expr) and term.has(T) and not (term.is_Add or term.is_Mul) and term != T:
-            text = str(term)
-            return text if len(text) <= 60 else text[:57] + "..."
-    return "t"
+    terms = [x for x in sp.preorder_traversal(e) if isinstance(x, sp.Expr) and x.has(T) and not x.is_Add and x != T]
+    # a function of t (exp(...)) rather than the product it is in, else that product
+    term = next((x for x in terms if not x.is_Mul), terms[0] if terms else T)
+    text = str(term)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def place(groups: Sequence[Sequence[sp.Expr]], offset: int, count: int) -> list[list[sp.Expr]]:
