@@ -282,7 +282,8 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
     lists = [f.phi, [e for _, _, e in f.jac], f.nu if o.velocity else [], f.gamma if o.velocity else [],
              f.applied if dynamics else [], f.mass if dynamics else [], f.reactions]
     # single precision: time as small phases, angles and angle rows by whole turns (c_phase)
-    red = c_phase.reduce(f.ng, lists[0], lists[1:], f.params) if scalar.suffix else None
+    red = (c_phase.reduce(f.ng, lists[0], lists[1:], f.params, loops.covered("phi") if loops else ())
+           if scalar.suffix else None)
     (phi, jac, nu, gamma, applied, mass, reactions), pieces = hoist(red.groups if red else lists, len(f.params))
     nph = len(red.nu) if red else 0
     off_nu = len(f.params) + len(pieces)  # prepared parameters: p | pieces | nu (hi, lo) pairs | phases

@@ -30,7 +30,7 @@ apply there, and the header says so. Double precision is not rewritten.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Collection, Sequence
 
 import sympy as sp
 
@@ -158,13 +158,14 @@ class Reduced:
 
 
 def reduce(ng: int, phi: Sequence[sp.Expr], others: Sequence[Sequence[sp.Expr]],
-           names: Sequence[str] = ()) -> Reduced:
+           names: Sequence[str] = (), fixed: Collection[int] = ()) -> Reduced:
     """Rewrite phi (the constraint rows) and the other lists read at an
     instant (Phi_q, nu, gamma, forces, reactions, ...) with phases and wraps;
-    names: the parameters' (p[k] is printed so in `kept`)."""
+    names: the parameters' (p[k] is printed so in `kept`); fixed: rows
+    printed from elsewhere as they are (c_loops' looped kernels), never wrapped."""
     ph = Phases()
     angles = set(_angles(ng))
-    rows = {r: c for r, e in enumerate(phi) if (c := _periodic(e, angles)) is not None}
+    rows = {r: c for r, e in enumerate(phi) if r not in fixed and (c := _periodic(e, angles)) is not None}
     rest: list[list[sp.Expr]] = [[ph.trig(e) for e in g] for g in others]
     # an angle read outside sin/cos anywhere but in a wrapped row keeps its
     # turns, and a row reading such an angle is not wrapped (a whole turn of
