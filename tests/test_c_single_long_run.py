@@ -36,7 +36,7 @@ def _driver(folder: Path, name: str, precision: str) -> tuple[Path, object]:
     model = code_model(load(api.example(name)))
     c_target.generate(model, folder, precision=precision)
     exe = folder / "driver"
-    subprocess.run(["cc", "-std=c99", "-O2", f"-I{folder}", f'-DSOLVER_H="{name}_solver.h"', f"-DP={name}",
+    subprocess.run(["cc", "-std=c99", "-O1", f"-I{folder}", f'-DSOLVER_H="{name}_solver.h"', f"-DP={name}",
                     f"-DPU={name.upper()}", str(DRIVER), str(folder / f"{name}_solver.c"), "-lm", "-o", str(exe)],
                    check=True)
     return exe, model
@@ -94,7 +94,7 @@ def _instant_lib(folder: Path, name: str, precision: str) -> tuple[ctypes.CDLL, 
     model = code_model(load(api.example(name)))
     c_target.generate(model, folder, precision=precision)
     lib = folder / f"lib{name}.so"
-    subprocess.run(["cc", "-std=c99", "-O2", "-fPIC", "-shared", str(folder / f"{name}_solver.c"), "-lm", "-o",
+    subprocess.run(["cc", "-std=c99", "-O1", "-fPIC", "-shared", str(folder / f"{name}_solver.c"), "-lm", "-o",
                     str(lib)], check=True)
     return ctypes.CDLL(str(lib)), model
 
@@ -198,7 +198,7 @@ def test_single_precision_run_at_t_1e4_raises_no_floating_point_exception(tmp_pa
         p=name, P=name.upper(), n=INSTANTS, q0=", ".join(f"{float(v)!r}f" for v in q0), t0=repr(LONG_T0),
         h=repr((a.t1 - a.t0) / (a.steps - 1))))
     exe = tmp_path / "fe"
-    subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", f"-I{tmp_path}", str(tmp_path / "fe.c"),
+    subprocess.run(["cc", "-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", f"-I{tmp_path}", str(tmp_path / "fe.c"),
                     str(tmp_path / f"{name}_solver.c"), "-lm", "-o", str(exe)], check=True)
     run = subprocess.run([str(exe)], capture_output=True, text=True)
     assert run.returncode == 0, f"exit {run.returncode} (negative: killed by that signal; 40: a flag raised)"
@@ -219,7 +219,7 @@ def test_single_precision_crank_turning_many_times_matches_double_through_its_re
         folder = tmp_path / precision
         c_target.generate(model, folder, precision=precision)
         exe = folder / "driver"
-        subprocess.run(["cc", "-std=c99", "-O2", f"-I{folder}", f'-DSOLVER_H="{name}_solver.h"', f"-DP={name}",
+        subprocess.run(["cc", "-std=c99", "-O1", f"-I{folder}", f'-DSOLVER_H="{name}_solver.h"', f"-DP={name}",
                         f"-DPU={name.upper()}", str(DRIVER), str(folder / f"{name}_solver.c"), "-lm", "-o", str(exe)],
                        check=True)
         runs[precision] = _rows(exe, 0.0, 0.05, 401, model.q0)
