@@ -36,6 +36,7 @@ import sympy as sp
 
 from symid.codegen.targets.c_printer import DOUBLE, printer
 from symid.model.mechanism import T
+from symid.model.motion import TableSpline
 from symid.symbolic.rounding import Grouped
 
 
@@ -191,6 +192,10 @@ def reduce(ng: int, phi: Sequence[sp.Expr], others: Sequence[Sequence[sp.Expr]],
 
 def _short(e: sp.Expr) -> str:
     """The first term of e that reads t, shortened, for a comment."""
+    if any(x.has(T) for x in e.atoms(TableSpline)):
+        return "a table"
+    if any(x.has(T) for x in e.atoms(sp.Piecewise)):
+        return "a motion law (Piecewise)"
     terms = [x for x in sp.preorder_traversal(e) if isinstance(x, sp.Expr) and x.has(T) and not x.is_Add and x != T]
     # a function of t (exp(...)) rather than the product it is in, else that product
     term = next((x for x in terms if not x.is_Mul), terms[0] if terms else T)
