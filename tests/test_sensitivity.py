@@ -191,3 +191,21 @@ def test_sensitivities_match_40_digit_central_differences(example: str) -> None:
                         err = abs(results[key][k] - exact) / scale[key]
                         worst = max(worst, (err, f"{key} at t = {t}"))
     assert worst[0] < 1e-9, worst
+
+
+@pytest.mark.parametrize("example", ["slider_crank", "four_bar"])
+def test_statics_sensitivities_match_central_differences(example: str) -> None:
+    """Statics (qdot = 0, dampers exert nothing): the same check, its own run
+    (a short one: statics predicts positions without rates)."""
+    path = api.example(example)
+    study = api.prepare(path, "numpy", steps=STEPS, kind="statics", t1=0.03)
+    names = base_names(study.mechanism.parameters)
+    fd = _stencil(study, names, REL)
+    results = api.solve(path, "reference", sensitivity=names, steps=STEPS, kind="statics", t1=0.03)
+    assert results.error is None
+    sens = [c for c in results.columns if c.startswith("d(")]
+    assert sens
+    for c in sens:
+        peak = max(np.abs(fd[c]).max(), 1e-6 * max(np.abs(results[k]).max() for k in results.columns[1:]
+                                                   if not k.startswith("d(")))
+        assert np.abs(results[c] - fd[c]).max() <= 1e-9 * peak, c
