@@ -154,7 +154,7 @@ def test_sensitivities_agree_with_casadi_automatic_differentiation(example: str,
 @pytest.mark.parametrize("example", EXAMPLES)
 def test_sensitivities_match_40_digit_central_differences(example: str) -> None:
     """Central differences (step 1e-12) of a 40-digit instant solver
-    (`high_precision`), exact to ~1e-20, at two interior instants."""
+    (`high_precision`), exact to ~1e-20, at an interior instant."""
     from high_precision import DIGITS, Instant
 
     import mpmath
@@ -175,7 +175,7 @@ def test_sensitivities_match_40_digit_central_differences(example: str) -> None:
     p0 = [mpmath.mpf(study.values[parameter_symbol(n)]) for n in hp.names]
     worst = (0.0, "")
     with mpmath.workdps(DIGITS):
-        for k in (1, 2):
+        for k in (2,):
             t = results.t[k]
             guess = results.data[k, [header.index(c) for c in groups["q"]]]
             for j, name in enumerate(hp.names):
