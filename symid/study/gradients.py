@@ -12,7 +12,9 @@ computed (`symid.study.slow.figures_of`, `symid.output.summary.summarize`):
 - `power_peak = |e(t*) v(t*)|`: `sign(p) (de v + e dv)`; the rate `v` is
   `f'(t)` of the driver's motion, which depends on parameters too (`n` moves
   `omega`), differentiated by sympy through the derived parameters' definitions.
-- `force_peak = |F(t*)|` on the body and instant of the peak: `F . dF / |F|`.
+- `force_peak = |F(t*)|` on the body and instant of the peak: `F . dF / |F|`
+  (a force that is zero throughout, a driver's pure torque: max |dF|, its
+  derivative from above, 0 when it stays zero).
 - `effort_t_peak` is an instant of a discrete grid: it has no derivative
   (NaN in every gradient column).
 """
@@ -158,8 +160,11 @@ def _force_peak_gradient(results: Results, joint: str, names: Sequence[str]) -> 
         k = int(np.argmax(size))
         if size[k] > best:  # the first role wins a tie, as max() over roles does
             best, at_role, at_k = float(size[k]), r, k
-    if best <= 0:
-        return np.full(len(names), np.nan)
+    if best <= 0:  # no force at any instant (a driver's pure torque): the derivative from above,
+        # max |dF|, which is 0 for a force that is zero whatever the parameters
+        return np.array([max(float(np.max(np.hypot(results[sensitivity_column(f"{joint}.Fx_{r}", p)],
+                                                    results[sensitivity_column(f"{joint}.Fy_{r}", p)])))
+                             for r in roles) for p in names])
     fx, fy = results[f"{joint}.Fx_{at_role}"][at_k], results[f"{joint}.Fy_{at_role}"][at_k]
     return np.array([(fx * results[sensitivity_column(f"{joint}.Fx_{at_role}", p)][at_k]
                       + fy * results[sensitivity_column(f"{joint}.Fy_{at_role}", p)][at_k]) / best
