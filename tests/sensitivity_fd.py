@@ -40,3 +40,21 @@ def solve(mechanism: Mechanism, names: Sequence[str], columns: Sequence[str], ba
     header = list(base.columns) + [sensitivity_column(c, n) for c in columns for n in names]
     data = np.column_stack([base.data] + [extra[(c, n)] for c in columns for n in names])
     return Results(header, data.reshape(len(base.t), len(header)), base.error, mechanism=mechanism)
+
+
+def solver(backend: str):
+    """Stands in for `symid.tools.sensitive.solver` (same signature) with finite differences."""
+
+    def solve_one(mechanism: Mechanism, names: Sequence[str], columns: Sequence[str]) -> Results:
+        return solve(mechanism, names, columns, backend) if names else solve_variant(mechanism, backend)
+
+    return solve_one
+
+
+def exact_available() -> bool:
+    """Whether the API computes the exact sensitivities (`api.prepare(..., sensitivity=...)`)."""
+    import inspect
+
+    from symid import api
+
+    return "sensitivity" in inspect.signature(api.prepare).parameters
