@@ -173,7 +173,7 @@ class Problem:
         key = p.tobytes()
         if key in self._cache:
             return self._cache[key]
-        variant = with_values(self.mechanism, self.names, p)
+        variant = with_values(self.mechanism, self.names, [float(v) for v in p])
         where = ", ".join(f"{n} = {v:.17g}" for n, v in zip(self.names, p))
         self.evaluations += 1
         try:
@@ -253,8 +253,9 @@ def run(problem: Problem, report: Callable[[int, float, float], None] | None = N
     def callback(u: Array) -> None:
         count[0] += 1
         value = problem.value(u, problem.objective)
-        norm = float(np.linalg.norm(problem.at(u).gradients[problem.figures.index(problem.objective)])) \
-            if exact else float("nan")
+        grads = problem.at(u).gradients
+        norm = float(np.linalg.norm(grads[problem.figures.index(problem.objective)])) if grads is not None \
+            else float("nan")
         problem.history.append((value, norm))
         if report is not None:
             report(count[0], value, norm)
