@@ -28,6 +28,7 @@ from symid.study.figures import figure_names
 from symid.study.gradients import figure_gradients, has_gradient, needed_columns
 from symid.study.slow import figures_of, study_analysis, with_values
 from symid.symbolic.assemble import assemble
+from symid.text import number
 
 # (mechanism, parameters to differentiate by, columns to differentiate) -> the run
 # with `d(C)/d(P)` columns appended (none asked: the plain run).
@@ -184,8 +185,9 @@ class Problem:
         figures = figures_of(variant, results)
         if results.error is not None:
             value = figures[self.figures.index(self.objective)]
+            when = number(results.error.time) if results.error.time is not None else "?"
             raise AnalysisError(f"the optimizer visited {where}, which does not solve: {self.objective} = "
-                                f"{value:.6g} over the instants before t = {results.error.time}: "
+                                f"{value:.6g} over the instants before t = {when}: "
                                 f"{results.error}") from None
         grads = figure_gradients(variant, results, self.names) if self.exact else None
         point = Point(p, figures, grads)
