@@ -74,3 +74,24 @@ def test_gradients_with_a_scheduler_is_refused(tmp_path, capsys):
     err = capsys.readouterr().err
     assert status == 2 and err.count("\n") == 1
     assert "--gradients runs each variant on this machine" in err
+
+
+def test_a_variant_that_fails_keeps_its_row_with_the_gradients_of_the_instants_before(tmp_path, exact):
+    """A rod shorter than the crank cannot follow it: that variant's status says
+    so, the other variant's row is whole, and the sweep goes on (exit 0)."""
+    out = tmp_path / "g.csv"
+    assert main(["sweep", CRANK, "--steps", "21", "--backend", "numpy", "--gradients", "-o", str(out),
+                 "--table", str(_variants(tmp_path))]) == 0
+    lines = out.read_text().splitlines()
+    header = lines[0].split(",")
+    rows = [line.split(",") for line in lines[1:]]
+    status = header.index("status")
+    assert rows[0][status] == "ok" and rows[1][status] in ("not_converged", "singular", "jump")
+    grad = header.index("d(motor.effort_rms)/d(L_rod)")
+    assert np.isfinite(float(rows[0][grad]))
+
+
+def _variants(tmp_path: Path) -> Path:
+    path = tmp_path / "variants.csv"
+    path.write_text("L_rod\n0.3\n0.08\n")
+    return path
