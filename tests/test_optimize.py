@@ -15,20 +15,15 @@ from symid import api
 from symid.cli import main
 from symid.study import design
 from symid.study import optimize as opt
-
-import sensitivity_fd
+from symid.tools.sensitive import solver as exact
 
 EXAMPLE = api.example("slider_crank_counterweight")
-STEPS = 21
+STEPS = 11
 VARY = ["m_cw=1:4", "beta_cw=2.5:3.8"]
 
 
 def solver():
-    if sensitivity_fd.exact_available():
-        from symid.tools.sensitive import solver as exact
-
-        return exact("numpy")
-    return sensitivity_fd.solver("numpy")
+    return exact("numpy")
 
 
 @pytest.fixture(scope="module")
@@ -78,10 +73,6 @@ def test_a_limit_on_another_figure_is_kept(optimum):
 
 @pytest.fixture()
 def cli(monkeypatch, tmp_path):
-    import symid.tools.sensitive as sensitive
-
-    if not sensitivity_fd.exact_available():
-        monkeypatch.setattr(sensitive, "solver", sensitivity_fd.solver)
     monkeypatch.chdir(tmp_path)
 
     def run(*args: str) -> int:

@@ -8,7 +8,6 @@ import csv
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from symid import api
 from symid.cli import main
@@ -17,19 +16,9 @@ from symid.study.gradients import figure_gradients, gradient_names, needed_colum
 from symid.study.slow import study_analysis, with_values
 from symid.output.results import columns
 from symid.symbolic.assemble import assemble
-
-import sensitivity_fd
+from symid.tools.sensitive import solver
 
 CRANK = str(api.example("slider_crank"))
-
-
-@pytest.fixture()
-def exact(monkeypatch):
-    import symid.tools.sensitive as sensitive
-
-    if not sensitivity_fd.exact_available():
-        monkeypatch.setattr(sensitive, "solver", sensitivity_fd.solver)
-    return sensitive
 
 
 def read(path: Path) -> tuple[list[str], np.ndarray]:
@@ -45,21 +34,21 @@ def _number(cell: str) -> float:
         return 0.0
 
 
-def test_gradient_columns_follow_the_figures_and_match_each_variant(tmp_path, exact):
+def test_gradient_columns_follow_the_figures_and_match_each_variant(tmp_path):
     out = tmp_path / "g.csv"
     plain = tmp_path / "p.csv"
     grid = ["--grid", "L_rod=0.25:0.35:2", "--grid", "m_slider=0.8:1.2:2"]
-    assert main(["sweep", CRANK, "--steps", "21", "--backend", "numpy", "--gradients", "-o", str(out), *grid]) == 0
-    assert main(["sweep", CRANK, "--steps", "21", "--backend", "numpy", "-o", str(plain), *grid]) == 0
+    assert main(["sweep", CRANK, "--steps", "11", "--backend", "numpy", "--gradients", "-o", str(out), *grid]) == 0
+    assert main(["sweep", CRANK, "--steps", "11", "--backend", "numpy", "-o", str(plain), *grid]) == 0
     header, data = read(out)
     plain_header, plain_data = read(plain)
-    mech = study_analysis(api.load_mechanism(CRANK, steps=21))
+    mech = study_analysis(api.load_mechanism(CRANK, steps=11))
     figures = list(figure_names(mech))
     names = ["L_rod", "m_slider"]
     assert header == plain_header + gradient_names(figures, names)
     nfig = len(plain_header)
     np.testing.assert_allclose(data[:, :nfig], plain_data, rtol=1e-10, atol=1e-12)
-    solve = exact.solver("numpy")
+    solve = solver("numpy")
     for row in data:
         variant = with_values(mech, names, row[1:3])
         results = solve(variant, names, needed_columns(variant, columns(assemble(variant), variant.analysis)))
@@ -76,11 +65,11 @@ def test_gradients_with_a_scheduler_is_refused(tmp_path, capsys):
     assert "--gradients runs each variant on this machine" in err
 
 
-def test_a_variant_that_fails_keeps_its_row_with_the_gradients_of_the_instants_before(tmp_path, exact):
+def test_a_variant_that_fails_keeps_its_row_with_the_gradients_of_the_instants_before(tmp_path):
     """A rod shorter than the crank cannot follow it: that variant's status says
     so, the other variant's row is whole, and the sweep goes on (exit 0)."""
     out = tmp_path / "g.csv"
-    assert main(["sweep", CRANK, "--steps", "21", "--backend", "numpy", "--gradients", "-o", str(out),
+    assert main(["sweep", CRANK, "--steps", "11", "--backend", "numpy", "--gradients", "-o", str(out),
                  "--table", str(_variants(tmp_path))]) == 0
     lines = out.read_text().splitlines()
     header = lines[0].split(",")
