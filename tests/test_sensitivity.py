@@ -54,22 +54,27 @@ def _truth(example: str) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     for key in fine:
         if key.startswith("d(t)/"):
             continue
-        column = key[2:key.index(")/d(")]
-        # floor for sensitivities that vanish (an angle's by a mass, say): 1% of
-        # the column's peak per unit relative change of the parameter, above
-        # the differences' rounding (eps |column| / step)
-        value = abs(study.values[parameter_symbol(key[key.index(")/d(") + 4:-1])])
-        scale[key] = max(np.abs(fine[key]).max(), np.abs(plain[column]).max() / max(value, 1e-2) * 1e-2, 1e-6)
+        column, name = key[2:].split(")/d(")
+        # floor for sensitivities that vanish (an angle's by a mass, or the
+        # x of a body that stays on its axis): 1% of the peak of the columns
+        # of the same kind (every body's vx, say) per unit relative change
+        # of the parameter, above the differences' rounding (eps |column| / step)
+        suffix = column.rsplit(".", 1)[1]
+        peers = [c for c in plain.columns if c.rsplit(".", 1)[-1] == suffix]
+        peak = max(np.abs(plain[c]).max() for c in peers)
+        value = abs(study.values[parameter_symbol(name[:-1])])
+        scale[key] = max(np.abs(fine[key]).max(), peak / max(value, 1e-2) * 1e-2, 1e-9)
     return {"coarse": coarse, "fine": fine}, scale  # type: ignore[return-value]
 
 
 @pytest.mark.parametrize("example", EXAMPLES)
 def test_differences_reach_the_bound_they_are_used_for(example: str) -> None:
-    """Two step sizes of the extrapolated differences agree to 1e-10 of each
-    column's peak: the truth below is good to better than its 1e-9 bound."""
+    """Two step sizes of the extrapolated differences agree to 3e-10 of each
+    column's peak (rounding of the runs over the step): the truth below is
+    good to better than the 1e-9 it is used for."""
     fd, scale = _truth(example)
     worst = max(np.abs(fd["coarse"][k] - fd["fine"][k]).max() / scale[k] for k in scale)
-    assert worst < 1e-10
+    assert worst < 3e-10
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
