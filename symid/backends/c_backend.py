@@ -116,7 +116,8 @@ def build(layout: Layout, options: Options) -> Path:
                 "row": len(model.row_columns), "columns": list(model.row_columns),
                 "work": ctx["work"], "state": c.state_size(model), "params": list(f.params),
                 "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac],
-                "sweep_figures": c_sweep.figure_names(model), "sweep_work": ctx["sweep_work"]}
+                "sweep_figures": c_sweep.figure_names(model), "sweep_work": ctx["sweep_work"],
+                "sens_width": ctx["sens"]["width"] if ctx["sens"] else 0}
         (folder / "meta.json").write_text(json.dumps(meta))
 
     return cached(mech, options, "c", make, ("solver.so", "meta.json"))
@@ -163,6 +164,19 @@ class CEvaluator:
         self.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
         self.work = np.zeros(self.meta["work"])
         self.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
+        if self.meta.get("sens_width"):
+            self._sensitivity = self.lib[f"{name}_instant_sensitivity"]
+            self._sensitivity.argtypes = [ctypes.c_double, _P, ctypes.c_double, _P, _P, _I, _P, _I]
+
+    def sensitivity_row(self, q: Array, t: float, tol: float) -> Array:
+        """The sensitivity columns at the instant the Python loop solved (q):
+        the compiled solver's own derivatives there, so that a row it hands
+        over has the same columns as its own rows."""
+        qq = np.array(q, dtype=float)
+        out = np.zeros(self.meta["sens_width"])
+        status = self._sensitivity(ctypes.c_double(t), _ptr(self.p), ctypes.c_double(tol), _ptr(qq), _ptr(out),
+                                   None, _ptr(self.work), self.iwork.ctypes.data_as(_I))
+        return out if status == 0 else np.full(out.size, np.nan)
 
     def with_params(self, params: Mapping[str, float]) -> "CEvaluator":
         """The same compiled solver with other parameter values (name -> value;
@@ -277,7 +291,10 @@ class CEvaluator:
                                    qdd=qdd.copy() if velocity else None)
                     history = [v.copy() for v in (m2, m1, q)[max(0, 3 - count):]] if not velocity else [q.copy()]
                     out = stepper.instant(k, analysis.t0 + k * h, prev, history, q0)
-                yield instant_row(out, ng, analysis)[None, :]
+                row = instant_row(out, ng, analysis)
+                if self.meta.get("sens_width"):
+                    row = np.concatenate([row, self.sensitivity_row(out.q, out.t, analysis.tol)])
+                yield row[None, :]
                 # the state as the compiled loop leaves it after an instant
                 if velocity:
                     m3[:], m2[:], m1[:], qd[:], qdd[:] = m2, m1, qdd, out.qd, out.qdd

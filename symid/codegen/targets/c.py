@@ -14,7 +14,7 @@ from symid.codegen.targets import c_loops
 from symid.codegen.targets.c_loops import Loops
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
-from symid.codegen.targets import c_sweep
+from symid.codegen.targets import c_sens, c_sweep
 from symid.codegen.render import render
 from symid.codegen.targets.c_describe import describe
 from symid.codegen.targets.c_printer import (DOUBLE, PRECISIONS, Printer, Scalar, c_double,  # noqa: F401
@@ -310,12 +310,22 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         offset += size
     stride = _stride(model)
     fr = friction.context(model.layout, o, offset, scalar.lit)  # joint friction (None: none, and no code for it)
+    # parameter sensitivities after the row's other columns (None: not asked for, and no code for them)
+    sens = c_sens.context(model, row_parts, offset, len(f.params) + len(pieces), _function, trig, printer, real)
+    if sens is not None:
+        if fr is not None:
+            raise c_sens.InputError(f"{model.layout.mechanism.source}: --sensitivity: the generated C has no "
+                                    f"sensitivities of joint friction yet; solve with --backend reference or numpy")
+        prepare += sens["prepare"]
+        used += sens["exprs"]
+        offset += sens["width"]
     if fr is not None:
         functions += [_function("friction", [cq, cqd, ct, cp], fr["fixed"], trig, printer, real),
                       _function("friction_normal", [cq, clam, ct, cp], fr["normal"], trig, printer, real)]
         used += fr["fixed"] + fr["normal"]
     lu = _lu(model, fold_constants, scalar)
     d = describe(model, fr["row_width"] if fr else offset, functions, lu)
+    npp = len(f.params) + len(pieces) + (sens["npieces"] if sens else 0)
     # the trajectory's output vectors (variable, source, work vector): solved
     # straight into the row where it holds the source, else into the work vector
     placed = {source: offset for _, source, _, offset in row_parts if source}
@@ -326,9 +336,10 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": fr["row_width"] if fr else offset, "friction": fr,
         "lu_size": model.plan.size,
-        "work": work_size(model) + len(f.params) + len(pieces), "npp": len(f.params) + len(pieces),
+        "work": work_size(model) + npp + (sens["work"] if sens else 0), "npp": npp, "sens": sens,
         "prepare": prepare, "off_prep": work_size(model),
-        "uses_powi": any(f"{f.name}_powi(" in e for b in _all_blocks(functions, prepare) for _, e in b.temps + b.outputs),
+        "uses_powi": any(f"{f.name}_powi(" in e for b in _all_blocks(functions + (sens["functions"] if sens else []),
+                                                                     prepare) for _, e in b.temps + b.outputs),
         "state": state_size(model), "stride": stride,
         "params": f.params, "derived": f.derived, "defaults": [scalar.lit(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
@@ -343,7 +354,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "outputs": outputs,
         "loop_tables": loops.tables if loops else [],
         "dense_fallback": dense_fallback(model), "dense_limit": DENSE_LIMIT,
-        **c_sweep.context(model, printer, work_size(model) + len(f.params) + len(pieces),
+        **c_sweep.context(model, printer, work_size(model) + npp + (sens["work"] if sens else 0),
                           fr["row_width"] if fr else offset),
         "nb": ng // 3, "singular": model.plan.singular,
         "splines": [_relit_tables(piece_tables(s), scalar) for s in tables(used)],
