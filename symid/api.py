@@ -259,11 +259,15 @@ def load_mechanism(path: str | Path, set_values: Mapping[str, str] | None = None
 
 
 def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path,
-             precision: str = "double") -> list[Path]:
+             precision: str = "double", sensitivity: Sequence[str] = (),
+             sensitivity_of: Sequence[str] = ()) -> list[Path]:
     """Write the generated code of one target ("c", "numpy", "casadi") into out_dir.
 
     What is emitted follows the mechanism's `[analysis]`: kind, outputs and reactions.
     precision: "double" or "single" (C only: the type of every floating value).
+    sensitivity: base parameters (C only) whose derivatives `d(COLUMN)/d(NAME)`
+    the rows end with, for the columns `sensitivity_of` (default: the
+    drivers' efforts and the reactions); empty: the code as without.
     """
     from symid.codegen import targets
     from symid.codegen.model import code_model
@@ -271,6 +275,8 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
     module = targets.get(target)
     mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
     require_square(mech)
+    if sensitivity or sensitivity_of:
+        return _generate_sensitivity(mech, target, Path(out_dir), precision, sensitivity, sensitivity_of)
     joint = friction.first_joint(mech)
     if joint is not None and target != "c":  # never generate a solver that silently ignores friction
         raise InputError(f"{mech.source}: constraint '{joint}' key 'friction': --target {target}: the generated "
@@ -282,6 +288,21 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
         return module.generate(code_model(mech, looped=True), Path(out_dir),  # type: ignore[no-any-return]
                                precision=precision)
     return module.generate(code_model(mech, looped=target == "c"), Path(out_dir))  # type: ignore[no-any-return]
+
+
+def _generate_sensitivity(mech: Mechanism, target: str, out_dir: Path, precision: str, names: Sequence[str],
+                          of: Sequence[str]) -> list[Path]:
+    """`generate` with sensitivity columns (C only)."""
+    from symid.codegen.model import code_model, options_for
+    from symid.codegen.sensitivity import check_names
+    from symid.codegen.targets import c
+
+    if target != "c":
+        raise InputError(f"generate: --sensitivity applies to --target c only (the {target} code has none yet)")
+    if not names:
+        raise InputError("generate: --sensitivity-of needs --sensitivity NAME[,NAME...]")
+    options = dataclasses.replace(options_for(mech), sensitivity=check_names(mech, names), sensitivity_of=tuple(of))
+    return c.generate(code_model(mech, options, looped=True), out_dir, precision=precision)
 
 
 def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "numpy", "casadi")) -> list[Path]:

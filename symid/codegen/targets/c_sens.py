@@ -41,8 +41,8 @@ def _sources(model: CodeModel, row_parts: list[tuple[str, str | None, int, int]]
             where[model.row_columns[offset + i]] = (group if source else "zero", i)
     missing = [c for c in of if c not in where]
     if missing:
-        raise InputError(f"--sensitivity-of: no column {missing[0]!r} in the results of "
-                         f"{model.layout.mechanism.source}")
+        raise InputError(f"{model.layout.mechanism.source}: --sensitivity-of: no column {missing[0]!r} in the "
+                         f"results (their columns are named as in the CSV header, e.g. {list(where)[0]})")
     found = [where[c] for c in of]
     last = max((STAGES.index(g) for g, _ in found if g != "zero"), default=0)
     return found, last
