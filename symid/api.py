@@ -296,12 +296,18 @@ def _generate_sensitivity(mech: Mechanism, target: str, out_dir: Path, precision
     from symid.codegen.model import code_model, options_for
     from symid.codegen.sensitivity import check_names
     from symid.codegen.targets import c
+    from symid.symbolic.columns import columns as plain_columns
 
     if target != "c":
         raise InputError(f"generate: --sensitivity applies to --target c only (the {target} code has none yet)")
     if not names:
         raise InputError("generate: --sensitivity-of needs --sensitivity NAME[,NAME...]")
     options = dataclasses.replace(options_for(mech), sensitivity=check_names(mech, names), sensitivity_of=tuple(of))
+    header = plain_columns(assemble(mech), mech.analysis)
+    missing = [c for c in of if c not in header]
+    if missing:  # before the derivation, which takes seconds
+        raise InputError(f"{mech.source}: --sensitivity-of: no column {missing[0]!r} in the results "
+                         f"(columns are named as in the CSV header, e.g. {header[1]})")
     return c.generate(code_model(mech, options, looped=True), out_dir, precision=precision)
 
 

@@ -1,0 +1,150 @@
+"""Sensitivities in generated C (issue #15): what an instant with the
+derivatives by n_p parameters costs against the plain instant.
+
+    python -m benchmarks.sensitivity [--instants N] [--repeats R] [--out benchmarks/results]
+
+For the slider-crank and the planetary gear train (12 coordinates), the
+solver `symid solve --backend c` builds, plain and with `--sensitivity` to
+n_p = 1, 2, 4 base parameters (default columns: the drivers' efforts and
+every reaction): instructions per instant by callgrind (the difference of
+two runs, so loading and setup are left out; the machine's load does not
+change it) and the best wall-clock microseconds per instant of the compiled
+trajectory called through ctypes. Target: ratio <= 1 + 0.3 n_p (one
+factorization serves every parameter).
+
+Prints the figures and writes `sensitivity.json`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import dataclasses
+import json
+import os
+import platform
+import re
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks import instructions
+from symid import api
+from symid.backends.c_backend import CEvaluator, build
+from symid.codegen.model import options_for
+from symid.model.params import parameter_values
+from symid.symbolic.assemble import assemble
+
+ROOT = Path(__file__).resolve().parent.parent
+PARAMETERS = {"slider_crank": ("L_crank", "m_rod", "n", "L_rod"),
+              "planetary": ("r_planet", "m_carrier", "n_in", "r_sun")}
+COUNTS = (0, 1, 2, 4)
+
+
+def solver(example: str, n_p: int) -> tuple[CEvaluator, object, np.ndarray]:
+    """The example's compiled solver with sensitivities to its first n_p parameters (0: plain)."""
+    mech = api.load_mechanism(api.example(example))
+    layout = assemble(mech)
+    options = options_for(mech)
+    if n_p:
+        options = dataclasses.replace(options, sensitivity=PARAMETERS[example][:n_p])
+    folder = build(layout, options)
+    values = {s.name: float(v) for s, v in parameter_values(mech.parameters).items()}
+    return CEvaluator(folder, mech.name, values, layout), mech, api.prepare(mech, backend="reference").q0()
+
+
+def instructions_per_instant(ev: CEvaluator, mech, q0: np.ndarray, first: int = 200,  # type: ignore[no-untyped-def]
+                             second: int = 2200) -> float:
+    """Callgrind instructions per instant of the trajectory (benchmarks.instructions' driver)."""
+    name, a, folder = mech.name, mech.analysis, Path(ev.artifact)
+    source = (instructions.DRIVER.replace("UPPER", name.upper()).replace("NAME", name)
+              .replace("Q0", ", ".join(repr(float(v)) for v in q0))
+              .replace("T0", repr(float(a.t0))).replace("H", repr((a.t1 - a.t0) / (second - 1)))
+              .replace("TOL", repr(float(a.tol))))
+    counts = []
+    with tempfile.TemporaryDirectory() as tmp:
+        driver, exe = Path(tmp) / "driver.c", Path(tmp) / "driver"
+        driver.write_text(source, encoding="utf-8")
+        subprocess.run(["gcc", "-O2", "-std=c99", "-fno-math-errno", "-I", str(folder), str(driver),
+                        str(folder / f"{name}_solver.c"), "-o", str(exe), "-lm"], check=True)
+        for n in (first, second):
+            out = subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={tmp}/cg.out",
+                                  str(exe), str(n)], capture_output=True, text=True, check=True)
+            found = re.search(r"Collected : (\d+)", out.stderr)
+            if found is None or out.stdout.split() != ["0", str(n)]:
+                raise RuntimeError(f"callgrind run of {name} failed: {out.stdout} {out.stderr[-300:]}")
+            counts.append(int(found.group(1)))
+    return (counts[1] - counts[0]) / (second - first)
+
+
+def microseconds_per_instant(ev: CEvaluator, mech, q0: np.ndarray, instants: int,  # type: ignore[no-untyped-def]
+                             repeats: int) -> float:
+    """Best wall-clock microseconds per instant of one trajectory call over `instants`."""
+    a = mech.analysis
+    h = (a.t1 - a.t0) / (instants - 1)
+    rows = np.zeros((instants, ev.meta["row"]))
+    solved = ctypes.c_long(0)
+    best = np.inf
+    for _ in range(repeats):
+        state = np.zeros(ev.meta["state"])
+        state[:len(q0)] = q0
+        start = time.perf_counter()
+        status = ev._trajectory(ctypes.c_double(a.t0), ctypes.c_double(h), ctypes.c_long(instants),
+                                ev.p.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), ctypes.c_double(a.tol),
+                                state.ctypes.data_as(ctypes.POINTER(ctypes.c_double)),
+                                rows.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), ctypes.byref(solved),
+                                ev.work.ctypes.data_as(ctypes.POINTER(ctypes.c_double)),
+                                ev.iwork.ctypes.data_as(ctypes.POINTER(ctypes.c_int)))
+        elapsed = time.perf_counter() - start
+        if status != 0 or solved.value != instants:
+            raise RuntimeError(f"{mech.name}: the trajectory stopped with status {status} at {solved.value}")
+        best = min(best, elapsed / instants)
+    return float(best * 1e6)
+
+
+def main(argv: list[str] | None = None) -> dict[str, object]:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--instants", type=int, default=20_001)
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--examples", default=",".join(PARAMETERS))
+    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
+    args = parser.parse_args(argv)
+    figures: dict[str, object] = {}
+    for example in args.examples.split(","):
+        rows = {}
+        for n_p in COUNTS:
+            ev, mech, q0 = solver(example, n_p)
+            rows[n_p] = {"parameters": list(PARAMETERS[example][:n_p]),
+                         "us_per_instant": microseconds_per_instant(ev, mech, q0, args.instants, args.repeats),
+                         "columns": ev.meta["sens_width"] // max(1, n_p)}
+            if instructions.available():
+                rows[n_p]["instructions_per_instant"] = instructions_per_instant(ev, mech, q0)
+        plain = rows[0]
+        for n_p in COUNTS[1:]:
+            r = rows[n_p]
+            r["target"] = 1 + 0.3 * n_p
+            r["wall_ratio"] = r["us_per_instant"] / plain["us_per_instant"]  # type: ignore[operator]
+            if "instructions_per_instant" in r:
+                r["instructions_ratio"] = r["instructions_per_instant"] / plain["instructions_per_instant"]  # type: ignore[operator]
+            print(f"{example}, n_p = {n_p} ({', '.join(r['parameters'])}; {r['columns']} columns): "  # type: ignore[arg-type]
+                  f"wall {r['wall_ratio']:.2f}x"
+                  + (f", instructions {r['instructions_per_instant']:.0f} vs {plain['instructions_per_instant']:.0f} "
+                     f"= {r['instructions_ratio']:.2f}x" if "instructions_ratio" in r else "")
+                  + f" (target <= {r['target']:.1f}x)")
+        figures[example] = {str(k): v for k, v in rows.items()}
+    result: dict[str, object] = {
+        "instants": args.instants, "repeats": args.repeats, "figures": figures,
+        "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
+                    "python": platform.python_version(), "numpy": np.__version__},
+    }
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "sensitivity.json").write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    return result
+
+
+if __name__ == "__main__":
+    main()

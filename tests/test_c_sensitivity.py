@@ -1,0 +1,186 @@
+"""Parameter sensitivities in the generated C (`--sensitivity`, issue #15):
+against central differences of the same compiled solver (independent of
+the derivation), warning-free under strict flags in double and single
+precision, and opt-in (the cache key and the plain code do not change)."""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from symid import api
+from symid.backends.c_backend import CEvaluator, build
+from symid.codegen import cache
+from symid.codegen.model import options_for
+from symid.codegen.sensitivity import default_columns
+from symid.errors import InputError
+from symid.model.params import parameter_values
+from symid.symbolic.assemble import assemble
+from symid.symbolic.columns import columns
+
+STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wconversion", "-Wdouble-promotion", "-Wshadow"]
+
+# per example: base parameters (one moves a derived parameter through its definition)
+CHOSEN = {
+    "slider_crank": ("L_crank", "m_rod", "n"),          # n moves omega = 2 pi n
+    "four_bar": ("L_coupler", "n", "k_spring"),
+    "planetary": ("r_planet", "m_carrier", "n_in"),     # r_planet moves r_ring
+    "quick_return": ("r_crank", "m_ram", "n"),
+    "excavator": ("L_stick", "m_bucket", "T_cycle"),    # T_cycle moves w
+    "slider_pendulum": ("L_pendulum", "theta_amp", "k_torsion"),
+}
+STEPS = 11
+
+
+@dataclasses.dataclass
+class Run:
+    mech: object
+    ev: CEvaluator
+    columns: list[str]
+    of: tuple[str, ...]
+    names: tuple[str, ...]
+    q0: np.ndarray
+    folder: Path
+
+    def rows(self, ev: CEvaluator | None = None) -> np.ndarray:
+        return np.vstack(list((ev or self.ev).blocks(self.mech.analysis, self.q0)))  # type: ignore[attr-defined]
+
+
+def _prepare(example: str) -> Run:
+    mech = api.load_mechanism(api.example(example))
+    mech = dataclasses.replace(mech, analysis=dataclasses.replace(mech.analysis, steps=STEPS))
+    layout = assemble(mech)
+    plain = options_for(mech)
+    header = columns(layout, mech.analysis)  # the plain table's columns
+    last = mech.bodies[-1].name
+    of = default_columns(mech, header) + (f"{last}.x", f"{last}.omega", f"{last}.alpha")
+    names = CHOSEN[example]
+    folder = build(layout, dataclasses.replace(plain, sensitivity=names, sensitivity_of=of))
+    values = {s.name: float(v) for s, v in parameter_values(mech.parameters).items()}
+    ev = CEvaluator(folder, mech.name, values, layout)
+    q0 = api.prepare(mech, backend="reference").q0()
+    return Run(mech, ev, ev.meta["columns"], of, names, q0, folder)
+
+
+@pytest.fixture(scope="module", params=sorted(CHOSEN))
+def run(request: pytest.FixtureRequest) -> Run:
+    return _prepare(request.param)
+
+
+def test_sensitivity_columns_follow_all_others_columns_outer_parameters_inner(run: Run) -> None:
+    tail = run.columns[-len(run.of) * len(run.names):]
+    assert tail == [f"d({c})/d({n})" for c in run.of for n in run.names]
+    assert all(not c.startswith("d(") for c in run.columns[:-len(tail)])
+
+
+def _central(run: Run, k: int, h: float) -> np.ndarray:
+    """(rows(p + h e_k) - rows(p - h e_k)) / 2h of the same compiled solver."""
+    params = list(run.ev.meta["params"])
+    sides = []
+    for sign in (1.0, -1.0):
+        other = run.ev.with_params({n: float(v) for n, v in zip(params, run.ev.p)})
+        other.p[k] += sign * h
+        sides.append(run.rows(other))
+    return (sides[0] - sides[1]) / (2 * h)
+
+
+def test_c_sensitivities_match_central_differences_of_the_c_solver(run: Run) -> None:
+    """d(COLUMN)/d(NAME) against central differences of the same compiled
+    solver (Richardson-extrapolated: error O(h^4)), each to 1e-7 of its
+    column's peak: a wrong or missing term (a mass derivative, a chain
+    through a derived parameter) shows here whatever the derivation did."""
+    rows = run.rows()
+    params = list(run.ev.meta["params"])
+    for name in run.names:
+        k = params.index(name)
+        h = 1e-3 * (abs(run.ev.p[k]) or 1.0)
+        fd = (4 * _central(run, k, h / 2) - _central(run, k, h)) / 3
+        mine = [run.columns.index(f"d({c})/d({name})") for c in run.of]
+        largest = np.abs(rows[:, mine]).max()  # a column zero but for rounding is held to the others' scale
+        for c, at in zip(run.of, mine):
+            col = run.columns.index(c)
+            exact = rows[:, at]
+            # a column that does not move with the parameter: 1e-7 of the column per unit of relative change
+            scale = max(np.abs(exact).max(), np.abs(rows[:, col]).max() / (abs(run.ev.p[k]) or 1.0), 1e-2 * largest)
+            assert np.abs(fd[:, col] - exact).max() <= 1e-7 * scale, (c, name, np.abs(fd[:, col] - exact).max(), scale)
+
+
+def test_instant_sensitivity_entry_point_gives_the_trajectory_row(run: Run) -> None:
+    rows = run.rows()
+    width = run.ev.meta["sens_width"]
+    ng = run.ev.meta["ng"]
+    for i in (0, STEPS // 2, STEPS - 1):
+        got = run.ev.sensitivity_row(rows[i, 1:1 + ng], float(rows[i, 0]), run.mech.analysis.tol)  # type: ignore[attr-defined]
+        np.testing.assert_allclose(got, rows[i, -width:], rtol=1e-9, atol=1e-9 * np.abs(rows[i, -width:]).max())
+
+
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
+def test_sensitivity_solver_compiles_warning_free_with_strict_flags(run: Run, tmp_path: Path, cc: str) -> None:
+    if shutil.which(cc) is None:
+        pytest.skip(f"{cc} not installed")
+    source = run.folder / f"{run.mech.name}_solver.c"  # type: ignore[attr-defined]
+    done = subprocess.run([cc, *STRICT, "-c", str(source), "-o", str(tmp_path / "s.o")], capture_output=True, text=True)
+    assert done.returncode == 0 and not done.stderr, done.stderr[:2000]
+
+
+def test_single_precision_sensitivity_solver_compiles_strict_and_follows_double(tmp_path: Path) -> None:
+    mech = api.load_mechanism(api.example("slider_crank"))
+    paths = api.generate(mech, "c", tmp_path, precision="single", sensitivity=("L_crank", "n"))
+    source = next(p for p in paths if p.suffix == ".c")
+    assert "typedef float slider_crank_real;" in (tmp_path / "slider_crank_solver.h").read_text()
+    for cc in ("gcc", "clang"):
+        done = subprocess.run([cc, *STRICT, "-c", str(source), "-o", str(tmp_path / f"{cc}.o")],
+                              capture_output=True, text=True)
+        assert done.returncode == 0 and not done.stderr, done.stderr[:2000]
+
+
+def test_cache_key_includes_the_sensitivity_set() -> None:
+    mech = api.load_mechanism(api.example("slider_crank"))
+    plain = options_for(mech)
+    keys = {cache.key(mech, o, "c") for o in (
+        plain, dataclasses.replace(plain, sensitivity=("L_crank",)),
+        dataclasses.replace(plain, sensitivity=("n",)),
+        dataclasses.replace(plain, sensitivity=("L_crank",), sensitivity_of=("motor.T_j",)))}
+    assert len(keys) == 4
+
+
+def test_default_columns_are_the_drivers_efforts_and_the_reactions() -> None:
+    mech = api.load_mechanism(api.example("slider_crank"))
+    header = ["t", "crank.x", "motor.lambda", "crank_pin.Fx_i", "motor.T_j", "slider.ax"]
+    assert default_columns(mech, header) == ("crank_pin.Fx_i", "motor.T_j")
+    # without reaction columns a driver's effort is its multiplier
+    assert default_columns(mech, ["t", "crank.x", "cylinder_guide.lambda1", "motor.lambda"]) == ("motor.lambda",)
+
+
+@pytest.mark.parametrize("names, said", [
+    ("omega", "omega is derived (omega = 2*pi*n)"),
+    ("L_crank,nope", "no parameter 'nope'"),
+    ("n,n", "named twice"),
+])
+def test_bad_sensitivity_names_are_one_line_and_exit_2(tmp_path: Path, names: str, said: str) -> None:
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "symid", "generate", str(api.example("slider_crank")), "--target",
+                           "c", "--sensitivity", names, "-o", str(tmp_path)], capture_output=True, text=True)
+    assert done.returncode == 2 and said in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+
+
+def test_sensitivity_of_other_targets_or_a_missing_column_is_an_input_error(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="--target c only"):
+        api.generate(api.example("slider_crank"), "numpy", tmp_path, sensitivity=("n",))
+    with pytest.raises(InputError, match="no column 'motor.nope'"):
+        api.generate(api.example("slider_pendulum"), "c", tmp_path, sensitivity=("k_torsion",),
+                     sensitivity_of=("motor.nope",))
+
+
+def test_trajectory_rows_end_with_the_sensitivities_through_ctypes(run: Run) -> None:
+    """The rows the c backend streams (CHUNK calls of trajectory) hold finite
+    sensitivities at every instant, none left unwritten."""
+    rows = run.rows()
+    width = run.ev.meta["sens_width"]
+    assert rows.shape == (STEPS, len(run.columns)) and np.isfinite(rows[:, -width:]).all()
