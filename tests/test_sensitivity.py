@@ -1,0 +1,136 @@
+"""Sensitivities (`symid solve --sensitivity`) against independent truth:
+Richardson-extrapolated central differences of whole runs (solved as
+variants by the batch engine), closed forms on the slider-crank from power
+balance, and CasADi's own automatic differentiation of the generated instant."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from symid import api
+from symid.model.mechanism import parameter_symbol
+from symid.model.params import base_names
+
+EXAMPLES = [e for e in api.examples() if "friction" not in e]  # friction: refused (test_sensitivity_inputs)
+BACKENDS = ("reference", "numpy", "casadi", "c")
+STEPS = 4  # t0, t1 and two instants between (not only the slider-crank's dead centres)
+REL = 2e-4  # the difference step, relative to the parameter's value
+
+
+def _stencil(study: api.Study, names: tuple[str, ...], h_scale: float) -> dict[str, np.ndarray]:
+    """d(column)/d(name) for every column and name: the five-point central
+    difference (error h^4), each variant solved from scratch."""
+    base = np.array([study.values[parameter_symbol(n)] for n in names])
+    steps = h_scale * np.maximum(np.abs(base), 1e-2)
+    offsets = (1, -1, 2, -2)
+    rows = []
+    for k in range(len(names)):
+        for o in offsets:
+            row = base.copy()
+            row[k] += o * steps[k]
+            rows.append(row)
+    runs = [r for chunk in study.solve_many(np.array(rows), names) for r in chunk]
+    out = {}
+    for k, name in enumerate(names):
+        plus, minus, plus2, minus2 = (runs[4 * k + j] for j in range(4))
+        assert all(r.error is None for r in (plus, minus, plus2, minus2)), name
+        d = (8 * (plus.data - minus.data) - (plus2.data - minus2.data)) / (12 * steps[k])
+        for c, col in enumerate(plus.columns):
+            out[f"d({col})/d({name})"] = d[:, c]
+    return out
+
+
+@functools.cache
+def _truth(example: str) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """The differences at two steps (h and h/2) and each sensitivity column's scale."""
+    study = api.prepare(api.example(example), "numpy", steps=STEPS)
+    names = base_names(study.mechanism.parameters)
+    coarse, fine = _stencil(study, names, REL), _stencil(study, names, REL / 2)
+    plain = study.solve()
+    scale = {}
+    for key in fine:
+        if key.startswith("d(t)/"):
+            continue
+        column = key[2:key.index(")/d(")]
+        # floor for sensitivities that vanish (an angle's by a mass, say): 1% of
+        # the column's peak per unit relative change of the parameter, above
+        # the differences' rounding (eps |column| / step)
+        value = abs(study.values[parameter_symbol(key[key.index(")/d(") + 4:-1])])
+        scale[key] = max(np.abs(fine[key]).max(), np.abs(plain[column]).max() / max(value, 1e-2) * 1e-2, 1e-6)
+    return {"coarse": coarse, "fine": fine}, scale  # type: ignore[return-value]
+
+
+@pytest.mark.parametrize("example", EXAMPLES)
+def test_differences_reach_the_bound_they_are_used_for(example: str) -> None:
+    """Two step sizes of the extrapolated differences agree to 1e-10 of each
+    column's peak: the truth below is good to better than its 1e-9 bound."""
+    fd, scale = _truth(example)
+    worst = max(np.abs(fd["coarse"][k] - fd["fine"][k]).max() / scale[k] for k in scale)
+    assert worst < 1e-10
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("example", EXAMPLES)
+def test_sensitivities_match_central_differences_to_1e_9_of_peak(example: str, backend: str) -> None:
+    fd, scale = _truth(example)
+    names = base_names(api.load_mechanism(api.example(example)).parameters)
+    results = api.solve(api.example(example), backend, sensitivity=names, steps=STEPS)
+    assert results.error is None
+    sens = [c for c in results.columns if c.startswith("d(")]
+    assert sens, "the default columns (efforts and reactions) are present"
+    errors = {c: np.abs(results[c] - fd["fine"][c]).max() / scale[c] for c in sens}
+    worst = max(errors, key=errors.get)  # type: ignore[arg-type]
+    assert errors[worst] < 1e-9, (worst, errors[worst])
+
+
+def test_motor_torque_by_slider_mass_and_gas_load_is_the_power_balance_closed_form() -> None:
+    """The slider moves along x, so its mass enters the motor's power only as
+    m a v: T omega = m_slider ax vx + ..., so dT/dm_slider = ax vx / omega;
+    the load -F_gas sin(omega t) on it gives dT/dF_gas = sin(omega t) vx / omega."""
+    results = api.solve(api.example("slider_crank"), "reference", sensitivity="m_slider,F_gas",
+                        sensitivity_of="motor.T_j", steps=7)
+    omega = 2 * np.pi * 5
+    ax, vx, t = results["slider.ax"], results["slider.vx"], results.t
+    by_mass = ax * vx / omega
+    by_load = np.sin(omega * t) * vx / omega
+    np.testing.assert_allclose(results["d(motor.T_j)/d(m_slider)"], by_mass, rtol=0, atol=1e-12 * np.abs(by_mass).max())
+    np.testing.assert_allclose(results["d(motor.T_j)/d(F_gas)"], by_load, rtol=0, atol=1e-12 * np.abs(by_load).max())
+
+
+def test_crank_speed_moves_omega_through_its_definition() -> None:
+    """`n` is a base parameter and `omega = 2*pi*n` derived: d(crank angle)/d(n)
+    at time t is 2 pi t (crank angle omega t)."""
+    results = api.solve(api.example("slider_crank"), "reference", sensitivity="n", sensitivity_of="crank.phi",
+                        steps=5)
+    np.testing.assert_allclose(results["d(crank.phi)/d(n)"], 2 * np.pi * results.t, rtol=1e-13, atol=1e-15)
+
+
+@pytest.mark.parametrize("example", ["slider_crank", "four_bar"])
+def test_sensitivities_agree_with_casadi_automatic_differentiation(example: str, tmp_path) -> None:
+    """CasADi differentiates its generated instant (Newton steps, solves) by AD."""
+    casadi = pytest.importorskip("casadi")
+    path = api.example(example)
+    api.generate(path, "casadi", tmp_path)
+    mech = api.load_mechanism(path)
+    instant = casadi.Function.load(str(tmp_path / f"{mech.name}_instant.casadi"))
+    names = base_names(mech.parameters)
+    results = api.solve(path, "reference", sensitivity=names, steps=STEPS)
+    study = api.prepare(path, "reference", steps=STEPS)
+    p = np.array([study.values[parameter_symbol(n)] for n in names])
+    ps = casadi.MX.sym("p", len(names))
+    ng = study.layout.ng
+    header = study.columns()
+    q_cols = [header.index(f"{b.name}.{c}") for b in mech.bodies for c in ("x", "y", "phi")]
+    r_cols = [c for c in header if c.endswith(("_i", "_j", "_k"))]
+    for k, t in enumerate(results.t):
+        guess = results.data[k, q_cols]  # converged: Newton from it is independent of p
+        out = instant(guess, t, ps)
+        jac = casadi.Function("j", [ps], [casadi.jacobian(out[4], ps)])(p).full()  # reactions
+        for r, column in enumerate(r_cols):
+            for j, name in enumerate(names):
+                ours = results[f"d({column})/d({name})"][k]
+                assert abs(ours - jac[r, j]) <= 1e-10 * max(1.0, np.abs(jac[:, j]).max()), (t, column, name)
+    assert ng == len(q_cols)
