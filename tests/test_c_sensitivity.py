@@ -14,14 +14,10 @@ import numpy as np
 import pytest
 
 from symid import api
-from symid.backends.c_backend import CEvaluator, build
+from symid.backends.c_backend import CEvaluator
 from symid.codegen import cache
 from symid.codegen.model import options_for
-from symid.codegen.sensitivity import default_columns
 from symid.errors import InputError
-from symid.model.params import parameter_values
-from symid.symbolic.assemble import assemble
-from symid.symbolic.columns import columns
 
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wconversion", "-Wdouble-promotion", "-Wshadow"]
 
@@ -52,19 +48,16 @@ class Run:
 
 
 def _prepare(example: str) -> Run:
-    mech = api.load_mechanism(api.example(example))
-    mech = dataclasses.replace(mech, analysis=dataclasses.replace(mech.analysis, steps=STEPS))
-    layout = assemble(mech)
-    plain = options_for(mech)
-    header = columns(layout, mech.analysis)  # the plain table's columns
-    last = mech.bodies[-1].name
-    of = default_columns(mech, header) + (f"{last}.x", f"{last}.omega", f"{last}.alpha")
+    """The example's c backend with sensitivities to CHOSEN (default columns
+    and some of q, qdot, qddot), as `symid solve --backend c --sensitivity` builds it."""
     names = CHOSEN[example]
-    folder = build(layout, dataclasses.replace(plain, sensitivity=names, sensitivity_of=of))
-    values = {s.name: float(v) for s, v in parameter_values(mech.parameters).items()}
-    ev = CEvaluator(folder, mech.name, values, layout)
-    q0 = api.prepare(mech, backend="reference").q0()
-    return Run(mech, ev, ev.meta["columns"], of, names, q0, folder)
+    default = api.prepare(api.example(example), backend="reference", sensitivity=names, steps=STEPS).sensitivity
+    last = api.load_mechanism(api.example(example)).bodies[-1].name
+    of = default.of + (f"{last}.x", f"{last}.omega", f"{last}.alpha")
+    study = api.prepare(api.example(example), backend="c", sensitivity=names, sensitivity_of=of, steps=STEPS)
+    ev = study.evaluator
+    assert isinstance(ev, CEvaluator) and ev.sensitivity_header == study.sensitivity.header
+    return Run(study.mechanism, ev, ev.meta["columns"], of, names, study.q0(), Path(ev.artifact))
 
 
 @pytest.fixture(scope="module", params=sorted(CHOSEN))
@@ -87,6 +80,20 @@ def _central(run: Run, k: int, h: float) -> np.ndarray:
         other.p[k] += sign * h
         sides.append(run.rows(other))
     return (sides[0] - sides[1]) / (2 * h)
+
+
+def test_c_sensitivities_equal_the_python_loops_on_the_reference_backend(run: Run) -> None:
+    """The compiled sensitivities against symid.numeric.sensitivity (the
+    Python loop's, reference backend): 1e-12 of each column's peak."""
+    ref = api.solve(api.example(run.mech.name), backend="reference", sensitivity=run.names,  # type: ignore[attr-defined]
+                    sensitivity_of=run.of, steps=STEPS)
+    assert ref.error is None and ref.columns == run.columns
+    rows = run.rows()
+    width = run.ev.meta["sens_width"]
+    mine, theirs = rows[:, -width:], ref.data[:, -width:]
+    scale = np.maximum(np.abs(theirs).max(axis=0), 1e-3 * np.abs(theirs).max())  # noise columns: the largest
+    worst = (np.abs(mine - theirs) / scale).max(axis=0)
+    assert worst.max() <= 1e-12, run.columns[-width + int(worst.argmax())]
 
 
 def test_c_sensitivities_match_central_differences_of_the_c_solver(run: Run) -> None:
@@ -149,18 +156,10 @@ def test_cache_key_includes_the_sensitivity_set() -> None:
     assert len(keys) == 4
 
 
-def test_default_columns_are_the_drivers_efforts_and_the_reactions() -> None:
-    mech = api.load_mechanism(api.example("slider_crank"))
-    header = ["t", "crank.x", "motor.lambda", "crank_pin.Fx_i", "motor.T_j", "slider.ax"]
-    assert default_columns(mech, header) == ("crank_pin.Fx_i", "motor.T_j")
-    # without reaction columns a driver's effort is its multiplier
-    assert default_columns(mech, ["t", "crank.x", "cylinder_guide.lambda1", "motor.lambda"]) == ("motor.lambda",)
-
-
 @pytest.mark.parametrize("names, said", [
-    ("omega", "omega is derived (omega = 2*pi*n)"),
-    ("L_crank,nope", "no parameter 'nope'"),
-    ("n,n", "named twice"),
+    ("omega", "'omega' is a derived parameter (omega = \"2*pi*n\""),
+    ("L_crank,nope", "--sensitivity nope: no such parameter"),
+    ("n,n", "'n' is named twice"),
 ])
 def test_bad_sensitivity_names_are_one_line_and_exit_2(tmp_path: Path, names: str, said: str) -> None:
     import sys
@@ -173,7 +172,7 @@ def test_bad_sensitivity_names_are_one_line_and_exit_2(tmp_path: Path, names: st
 def test_sensitivity_of_other_targets_or_a_missing_column_is_an_input_error(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="--target c only"):
         api.generate(api.example("slider_crank"), "numpy", tmp_path, sensitivity=("n",))
-    with pytest.raises(InputError, match="no column 'motor.nope'"):
+    with pytest.raises(InputError, match="--sensitivity-of motor.nope: no such column"):
         api.generate(api.example("slider_pendulum"), "c", tmp_path, sensitivity=("k_torsion",),
                      sensitivity_of=("motor.nope",))
 

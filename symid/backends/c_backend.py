@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import ctypes
+import dataclasses
 import json
 import os
 import shlex
@@ -168,6 +169,12 @@ class CEvaluator:
             self._sensitivity = self.lib[f"{name}_instant_sensitivity"]
             self._sensitivity.argtypes = [ctypes.c_double, _P, ctypes.c_double, _P, _P, _I, _P, _I]
 
+    @property
+    def sensitivity_header(self) -> list[str] | None:
+        """The d(COLUMN)/d(NAME) columns the compiled rows end with (None: none)."""
+        width = self.meta.get("sens_width", 0)
+        return list(self.meta["columns"][-width:]) if width else None
+
     def sensitivity_row(self, q: Array, t: float, tol: float) -> Array:
         """The sensitivity columns at the instant the Python loop solved (q):
         the compiled solver's own derivatives there, so that a row it hands
@@ -322,7 +329,10 @@ class CBackend:
     def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> CEvaluator:
         from symid.codegen.model import options_for
 
-        folder = build(layout, options_for(layout.mechanism))
+        options = options_for(layout.mechanism)
+        if needs.sensitivity:  # computed in the compiled loop, with the factors of each instant
+            options = dataclasses.replace(options, sensitivity=needs.sensitivity, sensitivity_of=needs.sensitivity_of)
+        folder = build(layout, options)
         return CEvaluator(folder, layout.mechanism.name, {s.name: v for s, v in values.items()}, layout)
 
     def load(self, artifact: Path, name: str, params: Mapping[str, float]) -> CEvaluator:

@@ -3,7 +3,6 @@ the numbers of one mechanism, for one set of options."""
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -106,11 +105,6 @@ def code_model(mech: Mechanism, options: Options | None = None, looped: bool = F
             plan = sparse.plan(pattern, reference.phi_q(q0, t0))
     cols = tuple(columns(layout, _analysis_like(mech, options)))
     if options.sensitivity:  # after all other columns, columns outer and parameters inner
-        if not options.sensitivity_of:
-            from symid.codegen.sensitivity import default_columns
-
-            options = dataclasses.replace(options, sensitivity_of=default_columns(mech, cols))
-            flat = dataclasses.replace(flat, options=options)
         cols += tuple(f"d({c})/d({n})" for c in options.sensitivity_of for n in options.sensitivity)
     return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0), parts)
 
@@ -125,6 +119,8 @@ def _loop_parts(layout: Layout) -> list[Any] | None:
 
 
 def _analysis_like(mech: Mechanism, options: Options):  # type: ignore[no-untyped-def]
+    import dataclasses
+
     return dataclasses.replace(mech.analysis, kind=options.kind, outputs=options.outputs,
                                reactions=options.reactions)
 

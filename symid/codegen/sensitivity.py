@@ -26,9 +26,7 @@ from typing import Sequence
 import sympy as sp
 
 from symid.codegen.flat import Options, parameter_map, vector
-from symid.errors import InputError
-from symid.model.mechanism import Mechanism, parameter_symbol
-from symid.model.params import base_names, is_derived
+from symid.model.mechanism import parameter_symbol
 from symid.symbolic import symbols as s
 from symid.symbolic.assemble import Group, Layout
 from symid.symbolic.sensitivity import block, parameter_chain, sensitivity_of
@@ -182,29 +180,3 @@ def tangents(layout: Layout, options: Options, names: Sequence[str]) -> Tangents
     reactions = [e for c in mech.constraints if c.name in reaction_of for e in reaction_of[c.name]]
     return Tangents(tuple(names), position, vel, acc, eom, reactions)
 
-
-def check_names(mech: Mechanism, names: Sequence[str]) -> tuple[str, ...]:
-    """The chosen parameters, or an input error naming an unknown or derived
-    one (with its definition) or a repeated one."""
-    for n in names:
-        if n not in mech.parameters:
-            known = ", ".join(base_names(mech.parameters)) or "none"
-            raise InputError(f"{mech.source}: --sensitivity: no parameter {n!r} (base parameters: {known})")
-        if is_derived(mech.parameters[n]):
-            raise InputError(f"{mech.source}: --sensitivity: {n} is derived ({n} = {mech.parameters[n]}); "
-                             f"differentiate by the base parameters it is defined from")
-    if len(set(names)) != len(names):
-        raise InputError(f"{mech.source}: --sensitivity: a parameter is named twice in {','.join(names)}")
-    return tuple(names)
-
-
-def default_columns(mech: Mechanism, header: Sequence[str]) -> tuple[str, ...]:
-    """The contract's default `--sensitivity-of`: the drivers' effort columns
-    and the reaction columns, in the table's order (a driver without reaction
-    columns gives its multiplier)."""
-    from symid.symbolic.constraints import TYPES
-
-    reactions = {c for c in header if c.split(".")[-1].split("_")[0] in ("Fx", "Fy", "T")}
-    efforts = {f"{c.name}.lambda" for c in mech.constraints if TYPES[c.type].is_driver
-               and not any(r.startswith(f"{c.name}.") for r in reactions)}
-    return tuple(c for c in header if c in reactions or c in efforts)
