@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import ctypes
-import dataclasses
 import json
 import os
 import platform
@@ -33,10 +32,7 @@ import numpy as np
 
 from benchmarks import instructions
 from symid import api
-from symid.backends.c_backend import CEvaluator, build
-from symid.codegen.model import options_for
-from symid.model.params import parameter_values
-from symid.symbolic.assemble import assemble
+from symid.backends.c_backend import CEvaluator
 
 ROOT = Path(__file__).resolve().parent.parent
 PARAMETERS = {"slider_crank": ("L_crank", "m_rod", "n", "L_rod"),
@@ -46,14 +42,9 @@ COUNTS = (0, 1, 2, 4)
 
 def solver(example: str, n_p: int) -> tuple[CEvaluator, object, np.ndarray]:
     """The example's compiled solver with sensitivities to its first n_p parameters (0: plain)."""
-    mech = api.load_mechanism(api.example(example))
-    layout = assemble(mech)
-    options = options_for(mech)
-    if n_p:
-        options = dataclasses.replace(options, sensitivity=PARAMETERS[example][:n_p])
-    folder = build(layout, options)
-    values = {s.name: float(v) for s, v in parameter_values(mech.parameters).items()}
-    return CEvaluator(folder, mech.name, values, layout), mech, api.prepare(mech, backend="reference").q0()
+    study = api.prepare(api.example(example), backend="c", sensitivity=PARAMETERS[example][:n_p] if n_p else None)
+    assert isinstance(study.evaluator, CEvaluator)
+    return study.evaluator, study.mechanism, study.q0()
 
 
 def instructions_per_instant(ev: CEvaluator, mech, q0: np.ndarray, first: int = 200,  # type: ignore[no-untyped-def]

@@ -12,10 +12,11 @@ the generated code solves, with the factors of Phi_q it already has,
     Phi_q^T slam = eom,   and evaluates the reactions' derivatives,
 
 stage by stage (each right-hand side reads the stages before it).
-Symbols are named as the code indexes them: `sq[j*NS + k]` is d q_j / d p_k
-for the k-th chosen parameter (NS of them, interleaved so that one output
-chunk holds every parameter of a row and their common factors are computed
-once); `qdd[j]` the accelerations.
+Symbols are named as the code indexes them: `sq[k*NG + j]` is d q_j / d p_k
+for the k-th chosen parameter (one vector per parameter, which the solves
+take in place); `qdd[j]` the accelerations. The parameters' right-hand
+sides are CSE'd together (a chunk of outputs holds several parameters), so
+their common factors are computed once.
 """
 
 from __future__ import annotations
@@ -29,7 +30,9 @@ from symid.codegen.flat import Options, parameter_map, vector
 from symid.model.mechanism import parameter_symbol
 from symid.symbolic import symbols as s
 from symid.symbolic.assemble import Group, Layout
-from symid.symbolic.sensitivity import block, parameter_chain, sensitivity_of
+from symid.symbolic.derive import DerivedConstraint
+from symid.symbolic.sensitivity import (ConstraintSensitivity, ForceSensitivity, block, parameter_chain,
+                                        sensitivity_of)
 
 # Stages in order; a column needs its own stage and every one before it.
 STAGES = ("q", "qdot", "qddot", "lambda", "reactions")
@@ -37,14 +40,14 @@ STAGES = ("q", "qdot", "qddot", "lambda", "reactions")
 
 @dataclass(frozen=True)
 class Tangents:
-    """Right-hand sides of the sensitivity stages, index `row * ns + k`.
+    """Right-hand sides of the sensitivity stages, index `k * size + row`.
 
     Attributes:
         names: the chosen base parameters, the inner order of the columns.
         position, velocity, acceleration: nc * ns each (what Phi_q solves).
         eom: ng * ns (what Phi_q^T solves).
-        reactions: the derivatives of `flat.reactions`, 3 per role of each
-            constraint in `options.reactions`, times ns.
+        reactions: the derivatives of `flat.reactions` (3 per role of each
+            constraint in `options.reactions`), for each parameter in turn.
     """
 
     names: tuple[str, ...]
@@ -75,7 +78,7 @@ class _Instance:
         self.dirs: dict[str, list[list[sp.Expr]]] = {}
         for name, sym in (("q", "sq"), ("qd", "sqd"), ("qdd", "sqdd")):
             self.dirs[name] = [[sp.Integer(0) if b == nb or (name != "q" and not velocity)
-                                else sp.Symbol(f"{sym}[{(3 * b + c) * ns + k}]", real=True)
+                                else sp.Symbol(f"{sym}[{k * 3 * nb + 3 * b + c}]", real=True)
                                 for b in self.bodies for c in range(3)] for k in range(ns)]
         for role, b in zip(d.roles, self.bodies):
             for c, (x, xd, xdd) in enumerate(zip(s.q(role), s.qd(role), s.qdd(role))):
@@ -109,7 +112,7 @@ def tangents(layout: Layout, options: Options, names: Sequence[str]) -> Tangents
     zero = sp.Integer(0)
     position, vel, acc = [[zero] * (nc * ns) for _ in range(3)]
     eom = [zero] * (ng * ns)
-    reaction_of: dict[str, list[sp.Expr]] = {}
+    reaction_of: dict[str, list[list[sp.Expr]]] = {}
     wanted = set(options.reactions)
 
     def mapped(rows: Sequence[Sequence[sp.Expr]]) -> list[list[sp.Expr]]:
@@ -132,51 +135,57 @@ def tangents(layout: Layout, options: Options, names: Sequence[str]) -> Tangents
 
     for group, gchain in zip(layout.constraint_groups, chain.constraint_groups):
         derived = group.derived
+        assert isinstance(derived, DerivedConstraint)
         for m in range(group.size):
             inst, ch = local(group, gchain, m)
+            cs = inst.sens
+            assert isinstance(cs, ConstraintSensitivity)
             r0 = int(group.rows[m])
             inst.sub.update({l: lam[r0 + k] for k, l in enumerate(derived.lam)})
-            inst.dirs["lam"] = [[sp.Symbol(f"slam[{(r0 + r) * ns + k}]", real=True) for r in range(len(derived.lam))]
+            inst.dirs["lam"] = [[sp.Symbol(f"slam[{k * nc + r0 + r}]", real=True) for r in range(len(derived.lam))]
                                 for k in range(ns)]
             params = ("constants", "functions")
             for k in range(ns):
-                for r, e in enumerate(inst.tangent(inst.sens.phi, params, ch, k)):
-                    position[(r0 + r) * ns + k] = -e
+                for r, e in enumerate(inst.tangent(cs.phi, params, ch, k)):
+                    position[k * nc + r0 + r] = -e
                 if velocity:
-                    for r, e in enumerate(inst.tangent(inst.sens.velocity, ("q",) + params, ch, k)):
-                        vel[(r0 + r) * ns + k] = -e
-                    for r, e in enumerate(inst.tangent(inst.sens.acceleration, ("q", "qd") + params, ch, k)):
-                        acc[(r0 + r) * ns + k] = -e
+                    for r, e in enumerate(inst.tangent(cs.velocity, ("q",) + params, ch, k)):
+                        vel[k * nc + r0 + r] = -e
+                    for r, e in enumerate(inst.tangent(cs.acceleration, ("q", "qd") + params, ch, k)):
+                        acc[k * nc + r0 + r] = -e
                 if options.multipliers:
-                    for r, e in enumerate(inst.tangent(inst.sens.eom, ("q",) + params, ch, k)):
+                    for r, e in enumerate(inst.tangent(cs.eom, ("q",) + params, ch, k)):
                         b = inst.bodies[r // 3]
                         if b != nb:
-                            eom[(3 * b + r % 3) * ns + k] -= e
+                            eom[k * ng + 3 * b + r % 3] -= e
             if group.names[m] in wanted:
-                per_k = [inst.tangent(inst.sens.reactions, ("q", "lam") + ("constants", "functions"), ch, k)
+                per_k = [inst.tangent(cs.reactions, ("q", "lam") + ("constants", "functions"), ch, k)
                          for k in range(ns)]
-                reaction_of[group.names[m]] = [per_k[k][r] for r in range(len(per_k[0])) for k in range(ns)]
+                reaction_of[group.names[m]] = per_k
     if options.multipliers:
         for group, gchain in zip(layout.force_groups, chain.force_groups):
             for m in range(group.size):
                 inst, ch = local(group, gchain, m)
+                fs = inst.sens
+                assert isinstance(fs, ForceSensitivity)
                 for k in range(ns):
-                    for r, e in enumerate(inst.tangent(inst.sens.generalized, ("q", "qd", "constants", "functions"),
+                    for r, e in enumerate(inst.tangent(fs.generalized, ("q", "qd", "constants", "functions"),
                                                        ch, k)):
                         b = inst.bodies[r // 3]
                         if b != nb:
-                            eom[(3 * b + r % 3) * ns + k] += e
+                            eom[k * ng + 3 * b + r % 3] += e
         for b, body in enumerate(mech.bodies):
             masses = [sp.sympify(body.mass).xreplace(pmap)] * 2 + [sp.sympify(body.inertia).xreplace(pmap)]
             for c in range(3):
                 j = 3 * b + c
                 for k in range(ns):
                     if c < 2:  # the weight m g is part of Q^A
-                        eom[j * ns + k] += sp.sympify(chain.weight[b][c][k]).xreplace(to_p)
+                        eom[k * ng + j] += sp.sympify(chain.weight[b][c][k]).xreplace(to_p)
                     if velocity:  # M qdd, M's own derivative and the unknown sqdd
-                        eom[j * ns + k] -= (sp.sympify(chain.mass[b][c][k]).xreplace(to_p)
+                        eom[k * ng + j] -= (sp.sympify(chain.mass[b][c][k]).xreplace(to_p)
                                             * sp.Symbol(f"qdd[{j}]", real=True)
-                                            + masses[c] * sp.Symbol(f"sqdd[{j * ns + k}]", real=True))
-    reactions = [e for c in mech.constraints if c.name in reaction_of for e in reaction_of[c.name]]
+                                            + masses[c] * sp.Symbol(f"sqdd[{k * ng + j}]", real=True))
+    reactions = [e for k in range(ns) for c in mech.constraints if c.name in reaction_of
+                 for e in reaction_of[c.name][k]]
     return Tangents(tuple(names), position, vel, acc, eom, reactions)
 

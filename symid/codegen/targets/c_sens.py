@@ -65,11 +65,15 @@ def context(model: CodeModel, row_parts: list[tuple[str, str | None, int, int]],
     if not names:
         return None
     ns, ng, nc = len(names), f.ng, f.nc
+    if not of:  # symid.output.sensitivity.choose gives the defaults
+        raise InputError(f"{model.layout.mechanism.source}: --sensitivity: no columns to differentiate")
     found, last = _sources(model, row_parts, of)
     tg = tangents(model.layout, o, names)
-    # the chosen reaction values, compactly (index into flat.reactions)
-    chosen_r = sorted({i for g, i in found if g == "reactions"})
-    reac = [tg.reactions[i * ns + k] for i in chosen_r for k in range(ns)]
+    # the chosen reactions' derivatives in the row's order (columns outer,
+    # parameters inner), so that a run of reaction columns is one copy
+    chosen_r = [i for g, i in found if g == "reactions"]
+    nrc, nr = len(chosen_r), len(f.reactions)
+    reac = [tg.reactions[k * nr + i] for i in chosen_r for k in range(ns)]
     stage_exprs = {"q": tg.position, "qdot": tg.velocity, "qddot": tg.acceleration, "lambda": tg.eom,
                    "reactions": reac}
     wanted = [st for st in STAGES[:last + 1] if o.velocity or st not in ("qdot", "qddot")]
@@ -83,16 +87,29 @@ def context(model: CodeModel, row_parts: list[tuple[str, str | None, int, int]],
             "lambda": [cv("q"), cv("qd"), cv("qdd"), cv("lam"), ct, cp, cv("sq"), cv("sqd"), cv("sqdd")],
             "reactions": [cv("q"), cv("lam"), ct, cp, cv("sq"), cv("slam")]}
     kernels = {st: make(f"s_{st}", args[st], hoisted[st], trig, printer, real) for st in wanted}
-    # S: sq | sqd | sqdd (NG NS each) | slam (NC NS) | chosen reactions | NS zeros
+    # S: sq | sqd | sqdd (NS NG each, one vector per parameter) | slam (NS NC) | chosen reactions | a zero
     base = {"q": 0, "qdot": ng * ns, "qddot": 2 * ng * ns, "lambda": 3 * ng * ns}
     base["reactions"] = base["lambda"] + nc * ns
-    base["zero"] = base["reactions"] + len(reac)
-    src = [base[g] + (chosen_r.index(i) if g == "reactions" else 0 if g == "zero" else i) * ns for g, i in found]
+    base["zero"] = base["reactions"] + nrc * ns
+    size = {"q": ng, "qdot": ng, "qddot": ng, "lambda": nc}
+    pairs = []  # (row offset, S index) of every value
+    for c, (g, i) in enumerate(found):
+        for k in range(ns):
+            src = (base[g] if g == "zero" else base[g] + chosen_r.index(i) * ns + k if g == "reactions"
+                   else base[g] + k * size[g] + i)
+            pairs.append((c * ns + k, src))
+    copies: list[list[int]] = []  # runs (row offset, S index, count)
+    for dst, src in pairs:
+        if copies and src != base["zero"] and copies[-1][1] != base["zero"] \
+                and copies[-1][0] + copies[-1][2] == dst and copies[-1][1] + copies[-1][2] == src:
+            copies[-1][2] += 1
+        else:
+            copies.append([dst, src, 1])
     prepare = [block(pieces[k:k + CHUNK], printer, offset=np_prepared + k) for k in range(0, len(pieces), CHUNK)]
-    size = base["zero"] + ns
-    rhs = ns * max(ng, nc)
+    total = base["zero"] + 1
     labels = [f"{n} (p[{f.params.index(n)}])" for n in names]
-    return {"ns": ns, "names": list(names), "labels": labels, "of": list(of), "ncol": len(of), "src": src, "size": size,
+    return {"ns": ns, "names": list(names), "labels": labels, "of": list(of), "ncol": len(of), "copies": copies,
+            "size": total, "zero": base["zero"], "base": base,
             "stages": wanted, "kernels": kernels, "prepare": prepare, "npieces": len(pieces),
-            "offset": row_offset, "width": len(of) * ns, "work": size + rhs, "columns": columns(of, names),
+            "offset": row_offset, "width": len(of) * ns, "work": total + ns * max(ng, nc), "columns": columns(of, names),
             "functions": list(kernels.values()), "exprs": [e for st in wanted for e in stage_exprs[st]]}
