@@ -87,13 +87,29 @@ def test_c_sensitivities_equal_the_python_loops_on_the_reference_backend(run: Ru
     Python loop's, reference backend): 1e-12 of each column's peak."""
     ref = api.solve(api.example(run.mech.name), backend="reference", sensitivity=run.names,  # type: ignore[attr-defined]
                     sensitivity_of=run.of, steps=STEPS)
-    assert ref.error is None and ref.columns == run.columns
-    rows = run.rows()
+    c = api.solve(api.example(run.mech.name), backend="c", sensitivity=run.names,  # type: ignore[attr-defined]
+                  sensitivity_of=run.of, steps=STEPS)  # the run's solver, through the API and its cache
+    assert ref.error is None and c.error is None and ref.columns == c.columns == run.columns
+    rows = c.data
     width = run.ev.meta["sens_width"]
     mine, theirs = rows[:, -width:], ref.data[:, -width:]
     scale = np.maximum(np.abs(theirs).max(axis=0), 1e-3 * np.abs(theirs).max())  # noise columns: the largest
     worst = (np.abs(mine - theirs) / scale).max(axis=0)
     assert worst.max() <= 1e-12, run.columns[-width + int(worst.argmax())]
+
+
+@pytest.mark.parametrize("kind, of", [("statics", None), ("kinematics", "slider.x,slider.vx,slider.ax,crank.phi")])
+def test_statics_and_kinematics_sensitivities_equal_the_reference_backends(kind: str, of: str | None) -> None:
+    """Statics (no rates, no inertia) and kinematics (no multipliers) compile
+    only their stages, and agree with the Python loop all the same."""
+    kw = {"sensitivity": "L_crank,m_rod,n", "sensitivity_of": of, "steps": STEPS, "kind": kind}
+    ref = api.solve(api.example("slider_crank"), backend="reference", **kw)  # type: ignore[arg-type]
+    c = api.solve(api.example("slider_crank"), backend="c", **kw)  # type: ignore[arg-type]
+    assert ref.error is None and c.error is None and ref.columns == c.columns
+    width = sum(col.startswith("d(") for col in c.columns)
+    mine, theirs = c.data[:, -width:], ref.data[:, -width:]
+    scale = np.maximum(np.abs(theirs).max(axis=0), 1e-3 * np.abs(theirs).max())
+    assert width > 0 and (np.abs(mine - theirs) / scale).max() <= 1e-12
 
 
 def test_c_sensitivities_match_central_differences_of_the_c_solver(run: Run) -> None:
