@@ -1,18 +1,25 @@
-"""Sensitivities in generated C (issue #15): what an instant with the
-derivatives by n_p parameters costs against the plain instant.
+"""Sensitivities benchmark (issue #15): what the d(COLUMN)/d(NAME) columns
+cost per instant, against the same run without them.
 
-    python -m benchmarks.sensitivity [--instants N] [--repeats R] [--out benchmarks/results]
+    python -m benchmarks.sensitivity [--part python|c|both] [--example slider_crank] [--instants N]
+                                     [--repeats R] [--backend numpy] [--c-examples slider_crank,planetary]
+                                     [--c-instants N] [--out benchmarks/results]
 
-For the slider-crank and the planetary gear train (12 coordinates), the
-solver `symid solve --backend c` builds, plain and with `--sensitivity` to
-n_p = 1, 2, 4 base parameters (default columns: the drivers' efforts and
-every reaction): instructions per instant by callgrind (the difference of
-two runs, so loading and setup are left out; the machine's load does not
-change it) and the best wall-clock microseconds per instant of the compiled
-trajectory called through ctypes. Target: ratio <= 1 + 0.3 n_p (one
-factorization serves every parameter).
+1. python (the shared Python loop, any backend): the ratio with / without
+   for 1, 3 and all base parameters, measured in one run so the machine's
+   load shifts both sides alike, and the fitted cost per parameter; setup
+   (the one-time sympy derivation and lambdify) reported apart.
+2. c (generated C, `--backend c`): for the slider-crank and the planetary
+   gear train (12 coordinates), the compiled solver plain and with
+   sensitivities to n_p = 1, 2, 4 base parameters (default columns: the
+   drivers' efforts and every reaction): instructions per instant by
+   callgrind (the difference of two runs, so loading and setup are left
+   out; the machine's load does not change it) and the best wall-clock
+   microseconds per instant of the compiled trajectory called through
+   ctypes. Target: ratio <= 1 + 0.3 n_p (one factorization serves every
+   parameter).
 
-Prints the figures and writes `sensitivity.json`.
+Prints the figures and writes sensitivity.json ({"python": ..., "c": ...}).
 """
 
 from __future__ import annotations
@@ -33,8 +40,49 @@ import numpy as np
 from benchmarks import instructions
 from symid import api
 from symid.backends.c_backend import CEvaluator
+from symid.model.params import base_names
+from symid.numeric.solve import run
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+def _best(fn, repeats: int) -> float:  # type: ignore[no-untyped-def]
+    best = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return float(best)
+
+
+def python_loop(args: argparse.Namespace) -> dict[str, object]:
+    """Part 1: the shared Python loop with and without the columns."""
+    path = api.example(args.example)
+    names = base_names(api.load_mechanism(path).parameters)
+    plain = api.prepare(path, args.backend, steps=args.instants)
+    base = _best(lambda: sum(1 for _ in run(plain.evaluator, plain.analysis, plain.q0())), args.repeats)
+    figures: dict[str, object] = {"example": args.example, "backend": args.backend, "instants": args.instants,
+                                  "plain_us_per_instant": base / args.instants * 1e6, "machine": platform.machine()}
+    ratios = {}
+    for count in sorted({1, min(3, len(names)), len(names)}):
+        start = time.perf_counter()
+        study = api.prepare(path, args.backend, steps=args.instants, sensitivity=names[:count])
+        list(study.rows())  # the first run derives and lambdifies: setup
+        setup = time.perf_counter() - start
+        took = _best(lambda: sum(1 for _ in study.rows()), args.repeats)  # noqa: B023
+        ratios[count] = took / base
+        figures[f"n_p={count}"] = {"ratio": took / base, "us_per_instant": took / args.instants * 1e6,
+                                   "setup_s": setup}
+        print(f"{args.example} on {args.backend}: n_p = {count}: {took / base:.2f}x the plain instant "
+              f"({took / args.instants * 1e6:.0f} us/instant; setup {setup:.1f} s)")
+    counts = np.array(sorted(ratios))
+    if len(counts) > 1:
+        slope = float(np.polyfit(counts, [ratios[c] for c in counts], 1)[0])
+        figures["per_parameter"] = slope
+        print(f"cost per parameter: {slope:.2f} plain instants (fit over n_p = {', '.join(map(str, counts))})")
+    return figures
+
+
 PARAMETERS = {"slider_crank": ("L_crank", "m_rod", "n", "L_rod"),
               "planetary": ("r_planet", "m_carrier", "n_in", "r_sun")}
 COUNTS = (0, 1, 2, 4)
@@ -96,20 +144,15 @@ def microseconds_per_instant(ev: CEvaluator, mech, q0: np.ndarray, instants: int
     return float(best * 1e6)
 
 
-def main(argv: list[str] | None = None) -> dict[str, object]:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--instants", type=int, default=20_001)
-    parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--examples", default=",".join(PARAMETERS))
-    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
-    args = parser.parse_args(argv)
+def generated_c(args: argparse.Namespace) -> dict[str, object]:
+    """Part 2: the compiled solver plain and with n_p = 1, 2, 4 parameters."""
     figures: dict[str, object] = {}
-    for example in args.examples.split(","):
+    for example in args.c_examples.split(","):
         rows = {}
         for n_p in COUNTS:
             ev, mech, q0 = solver(example, n_p)
             rows[n_p] = {"parameters": list(PARAMETERS[example][:n_p]),
-                         "us_per_instant": microseconds_per_instant(ev, mech, q0, args.instants, args.repeats),
+                         "us_per_instant": microseconds_per_instant(ev, mech, q0, args.c_instants, args.repeats),
                          "columns": ev.meta["sens_width"] // max(1, n_p)}
             if instructions.available():
                 rows[n_p]["instructions_per_instant"] = instructions_per_instant(ev, mech, q0)
@@ -126,11 +169,27 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
                      f"= {r['instructions_ratio']:.2f}x" if "instructions_ratio" in r else "")
                   + f" (target <= {r['target']:.1f}x)")
         figures[example] = {str(k): v for k, v in rows.items()}
+    return {"instants": args.c_instants, "repeats": args.repeats, "figures": figures}
+
+
+def main(argv: list[str] | None = None) -> dict[str, object]:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--part", choices=("python", "c", "both"), default="both")
+    parser.add_argument("--example", default="slider_crank", help="python part")
+    parser.add_argument("--instants", type=int, default=201, help="python part")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--backend", default="numpy", help="python part")
+    parser.add_argument("--c-examples", default=",".join(PARAMETERS))
+    parser.add_argument("--c-instants", type=int, default=20_001)
+    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
+    args = parser.parse_args(argv)
     result: dict[str, object] = {
-        "instants": args.instants, "repeats": args.repeats, "figures": figures,
         "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
-                    "python": platform.python_version(), "numpy": np.__version__},
-    }
+                    "python": platform.python_version(), "numpy": np.__version__}}
+    if args.part in ("python", "both"):
+        result["python"] = python_loop(args)
+    if args.part in ("c", "both"):
+        result["c"] = generated_c(args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "sensitivity.json").write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
