@@ -199,3 +199,26 @@ def test_trajectory_rows_end_with_the_sensitivities_through_ctypes(run: Run) -> 
     rows = run.rows()
     width = run.ev.meta["sens_width"]
     assert rows.shape == (STEPS, len(run.columns)) and np.isfinite(rows[:, -width:]).all()
+
+
+def test_an_instant_handed_to_the_python_loop_keeps_its_sensitivity_columns(run: Run) -> None:
+    """Where the compiled loop hands an instant to the Python loop (a jump
+    check, a failure), the c backend completes that row with the compiled
+    instant_sensitivity at the Python loop's q: the same columns, the same
+    values."""
+    ev = run.ev.with_params({n: float(v) for n, v in zip(run.ev.meta["params"], run.ev.p)})
+    real, calls = ev._trajectory, []
+
+    def handing_over(*args):  # type: ignore[no-untyped-def]
+        calls.append(args)
+        if len(calls) == 2:  # the second call (instant 1) stops at once, as UNEXPLAINED does
+            args[7]._obj.value = 0  # *solved = 0
+            return 4
+        return real(*args)
+
+    ev._trajectory = handing_over
+    rows, plain = run.rows(ev), run.rows()
+    width = run.ev.meta["sens_width"]
+    assert len(calls) >= 3 and rows.shape == plain.shape
+    np.testing.assert_allclose(rows[:, -width:], plain[:, -width:], rtol=0,
+                               atol=1e-12 * np.abs(plain[:, -width:]).max())
