@@ -179,6 +179,9 @@ class Study:
         A variant that fails keeps its `Results` with `error` set and the
         instants solved before it; the next variants run on.
         """
+        if self.sensitivity is not None:  # the batch engine has no sensitivities: never a header without its data
+            raise ValueError("Study.solve_many(): sensitivities are solved variant by variant; prepare each "
+                             "variant with api.prepare(..., set_values=..., sensitivity=...) and solve() it")
         from symid.model.params import base_names
         from symid.study.engine import trajectories, variant_mechanism
         from symid.study.variants import base_matrix

@@ -149,3 +149,63 @@ def test_sensitivities_agree_with_casadi_automatic_differentiation(example: str,
                 ours = results[f"d({column})/d({name})"][k]
                 assert abs(ours - jac[r, j]) <= 1e-10 * max(1.0, np.abs(jac[:, j]).max()), (t, column, name)
     assert ng == len(q_cols)
+
+
+@pytest.mark.parametrize("example", EXAMPLES)
+def test_sensitivities_match_40_digit_central_differences(example: str) -> None:
+    """Central differences (step 1e-12) of a 40-digit instant solver
+    (`high_precision`), exact to ~1e-20, at an interior instant."""
+    from high_precision import DIGITS, Instant
+
+    import mpmath
+
+    path = api.example(example)
+    mech = api.load_mechanism(path)
+    hp = Instant(mech)
+    study = api.prepare(path, "reference", steps=STEPS, sensitivity=hp.names,
+                        sensitivity_of=[c for c in api.prepare(path, "reference", steps=2).columns()[1:]])
+    results = study.solve()
+    _, scale = _truth(example)
+    header = study.columns()
+    groups = {"q": [c for c in header if _kind(c) == "q"][:study.layout.ng],
+              "qd": [c for c in header if _kind(c) == "qdot"][:study.layout.ng],
+              "qdd": [c for c in header if _kind(c) == "qddot"][:study.layout.ng],
+              "lam": [c for c in header if ".lambda" in c and not c.startswith("d(")],
+              "reactions": [c for c in header if c.endswith(("_i", "_j", "_k")) and not c.startswith("d(")]}
+    p0 = [mpmath.mpf(study.values[parameter_symbol(n)]) for n in hp.names]
+    worst = (0.0, "")
+    with mpmath.workdps(DIGITS):
+        for k in (2,):
+            t = results.t[k]
+            guess = results.data[k, [header.index(c) for c in groups["q"]]]
+            for j, name in enumerate(hp.names):
+                h = mpmath.mpf("1e-12") * max(abs(p0[j]), mpmath.mpf("1e-2"))
+                plus, minus = list(p0), list(p0)
+                plus[j] += h
+                minus[j] -= h
+                a, b = hp.solve(t, plus, guess), hp.solve(t, minus, guess)
+                for what, columns_ in groups.items():
+                    for r, column in enumerate(columns_):
+                        exact = float((a[what][r] - b[what][r]) / (2 * h))
+                        key = f"d({column})/d({name})"
+                        err = abs(results[key][k] - exact) / scale[key]
+                        worst = max(worst, (err, f"{key} at t = {t}"))
+    assert worst[0] < 1e-9, worst
+
+
+@pytest.mark.parametrize("example", ["slider_crank", "four_bar"])
+def test_statics_sensitivities_match_central_differences(example: str) -> None:
+    """Statics (qdot = 0, dampers exert nothing): the same check, its own run
+    (a short one: statics predicts positions without rates)."""
+    path = api.example(example)
+    study = api.prepare(path, "numpy", steps=STEPS, kind="statics", t1=0.03)
+    names = base_names(study.mechanism.parameters)
+    fd = _stencil(study, names, REL)
+    results = api.solve(path, "reference", sensitivity=names, steps=STEPS, kind="statics", t1=0.03)
+    assert results.error is None
+    sens = [c for c in results.columns if c.startswith("d(")]
+    assert sens
+    for c in sens:
+        peak = max(np.abs(fd[c]).max(), 1e-6 * max(np.abs(results[k]).max() for k in results.columns[1:]
+                                                   if not k.startswith("d(")))
+        assert np.abs(results[c] - fd[c]).max() <= 1e-9 * peak, c

@@ -166,7 +166,8 @@ class SensitivityEvaluator:
             return np.zeros(ng + 3) if width is None else np.zeros((ng + 3, width))
         return np.concatenate([v, np.zeros((3, *v.shape[1:]))])
 
-    def _rows(self, what: str, state: tuple, known: tuple, t: float) -> Array:
+    def _rows(self, what: str, state: tuple[Array, Array, Array, Array | None],
+              known: tuple[Array | None, Array | None, Array | None, Array | None], t: float) -> Array:
         out = np.zeros((self.layout.nc, self.np))
         for p in self._c:
             p.add_rows(out, p.chained(what, p.jacobian(what, *state, t), *known, t))
