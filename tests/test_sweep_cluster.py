@@ -89,6 +89,7 @@ def cluster(tmp_path_factory) -> Iterator[Cluster]:
 
 
 STEPS = 41
+KILL_STEPS = 100_001
 GRID = ["L_rod=0.25:0.35:4", "n=3:7:6"]
 
 
@@ -117,7 +118,11 @@ def test_cluster_table_is_the_local_table(cluster, local, tmp_path, capsys):
 
 
 def test_a_worker_killed_mid_sweep_loses_and_duplicates_no_variant(cluster, local):
-    mech, v, table = local
+    # long runs: a chunk of a few variants takes a good part of a second, so
+    # that when the first chunk is back the other worker still holds some
+    _, v, _ = local
+    mech = api.load_mechanism(CRANK, steps=KILL_STEPS)
+    table = api.sweep(mech, v, backend="c")
     client = cluster.client(2)
     try:
         sweep = Sweep(mech, v, "c", client=client)
