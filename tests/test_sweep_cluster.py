@@ -163,3 +163,21 @@ def test_a_worker_without_symid_is_exit_2_naming_it(cluster, tmp_path, capsys):
     assert "worker broken (tcp://127.0.0.1:" in err and "cannot import symid or build the c solver" in err, err
     assert "this symid is broken" in err
     assert not (tmp_path / "o.csv").exists()
+
+
+def test_the_scheduler_runs_a_sweep_without_importing_symid(cluster, local):
+    # it unpickles every task: a task function named by reference would make
+    # it import symid and sympy, seconds before the first chunk could start
+    def imported() -> list[str]:  # nested: shipped by value, not by this module's name
+        import sys
+
+        return sorted(m for m in ("symid", "sympy") if m in sys.modules)
+
+    mech, v, table = local
+    client = cluster.client(2)
+    try:
+        remote = api.sweep(mech, v, backend="c", client=client)
+        assert client.run_on_scheduler(imported) == []
+    finally:
+        client.close()
+    assert np.array_equal(remote.data, table.data, equal_nan=True)
