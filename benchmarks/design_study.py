@@ -112,10 +112,14 @@ def markdown(study: dict[str, Any] | None) -> list[str]:
 
     row("symid sweep (C batch, figures in C)", 1, t1["solve_s"])
     row("symid sweep (C batch, figures in C)", 2, t2["solve_s"])
+    row("CasADi-generated C loop", 1, c["us_per_instant_1_thread"] * 1e-6 * instants,
+        f" ({c['instants']} instants, x grid)")
     row("CasADi-generated C loop", 2, c["grid_seconds_2_ideal_threads"],
         f" (1 thread, {c['instants']} instants, x grid / 2)")
     row("CasADi Function.map(K, \"thread\", 2) from Python", 2, m["us_per_instant"] * 1e-6 * instants,
         f" (K = {m['variants']}, {m['steps']} instants, per instant x grid)")
+    lines += ["", f"One thread against one thread (the load moves a second thread's share): CasADi C loop time / "
+              f"sweep time {_g(c['us_per_instant_1_thread'] * 1e-6 * instants / t1['solve_s'])}."]
     ins = study.get("instructions")
     if ins:
         lines += ["", f"Instructions per instant (callgrind): sweep {_g(ins['sweep_instructions_per_instant'])}, "
