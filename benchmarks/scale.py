@@ -11,7 +11,13 @@ flop rate: the floating-point operations the generated code does per
 instant, counted in its source (each looped kernel's body times its trip
 count; an instant: two Phi, one Phi_q and factorization, three solves,
 nu, gamma, applied, mass and reactions, the trajectory's usual one Newton
-correction), over the measured time.
+correction), over the measured time; and the same with the instant's O(NG)
+vector work counted too (predictor, correction, checks: see
+benchmarks/scale_counts.py), with callgrind's instructions per instant (a
+figure the machine's load does not change) and flops per instruction. An
+instant of the ladder is mostly not arithmetic: its LU steps have one or two
+entries each and its rows are long, so its flop rate is far below a dense
+kernel's.
 
     python -m benchmarks.scale                      # N = 64 128 256, auto
     python -m benchmarks.scale --ladders 512 1024 --forms auto unrolled compact
@@ -62,22 +68,24 @@ def _ops(code: str) -> int:
     return total
 
 
-def _table(source: str, prefix: str, key: str) -> list[int]:
-    m = re.search(rf"{prefix}_lu_{key}\[\d+\] = {{ ([^}}]*) }}", source)
-    return [int(v) for v in m.group(1).split(", ")] if m else []
+def _macro(source: str, prefix: str, key: str) -> int:
+    m = re.search(rf"#define {prefix.upper()}_LU_{key} (\d+)", source)
+    return int(m.group(1)) if m else 0
 
 
 def _table_lu_flops(source: str, prefix: str) -> float:
     """An instant's LU operations where the LU loops over index tables (the
     loops' trip counts are in the tables, not in the code): factor once,
-    solve three times, solve transposed once."""
-    below, right, above = (_table(source, prefix, k) for k in ("below_ptr", "right_ptr", "above_ptr"))
-    nb = [b - a for a, b in zip(below, below[1:])]
-    nr = [b - a for a, b in zip(right, right[1:])]
-    na = [b - a for a, b in zip(above, above[1:])]
-    factor = sum(2 * b + 1 + b + 2 * b * r for b, r in zip(nb, nr))
-    solve = sum(2 * b + 2 * r + 1 for b, r in zip(nb, nr))
-    solve_t = sum(2 * a + 1 for a in na) + 2 * sum(nb)
+    solve three times, solve transposed once. Per step: the threshold test
+    (a max per L entry, a product), the reciprocal, L's scaling, two per
+    update; the solves: two per L entry, three per U entry (the sum of the
+    step it reads is scaled there), one scaling per step."""
+    steps, below, right, above = (_macro(source, prefix, k) for k in ("STEPS", "BELOW", "RIGHT", "ABOVE"))
+    m = re.search(rf"{prefix}_lu_update\[(\d+)\] = ", source)
+    updates = int(m.group(1)) if m and "_lu_update[1] = { 0 }" not in source else 0
+    factor = 3 * below + 2 * steps + 2 * updates
+    solve = 2 * below + 3 * right + steps
+    solve_t = 3 * above + steps + 2 * below
     return factor + 3 * solve + solve_t
 
 
@@ -100,7 +108,7 @@ def count_flops(source: str, prefix: str) -> float:
 def child(n: int, form: str, instants: int, folder: Path) -> dict[str, Any]:
     """One cold setup and timing, in this (fresh) process."""
     sys.path.insert(0, str(ROOT))
-    from benchmarks import ladder
+    from benchmarks import ladder, scale_counts
     from symid.codegen.targets import c, c_loops
     from symid.tools.bench import bench
 
@@ -119,8 +127,18 @@ def child(n: int, form: str, instants: int, folder: Path) -> dict[str, Any]:
     source = next((folder / "cache").rglob("*_solver.c"))
     so = source.with_name("solver.so")
     flops = count_flops(source.read_text(), ladder.name(n))
+    meta = json.loads((so.parent / "meta.json").read_text())
+    vector = scale_counts.vector_flops(meta["ng"], meta["nc"], meta["nr"], meta["ng"] // 3)
     us = result.get("us_per_instant")
+    instructions = None
+    if scale_counts.available():
+        instructions = scale_counts.instructions_per_instant(
+            so, ladder.name(n), meta, ladder.Ladder(n).q_exact(0.0), 0.0, 1.0 / 1000, result["newton_tol"])
     result.update({
+        "vector_flops_per_instant": vector,
+        "instructions_per_instant": round(instructions) if instructions else None,
+        "flops_per_instruction": round((flops + vector) / instructions, 3) if instructions else None,
+        "gflops_with_vector_work": round((flops + vector) / (us * 1e3), 3) if us else None,
         "n": n, "form": form, "looped": "_L0_body" in source.read_text(), "lu_tables": "_lu_update[" in source.read_text(),
         "source_kb": round(source.stat().st_size / 1024, 1),
         "text_kb": round(_text_bytes(so) / 1024, 1) if so.is_file() else None,
@@ -174,6 +192,7 @@ def targets(rows: list[dict[str, Any]]) -> dict[str, Any]:
         out[f"setup_exponent_{ns[0]}_{ns[-1]}"] = round(math.log(b["setup_s"] / a["setup_s"]) / math.log(b["ng"] / a["ng"]), 3)
     if 512 in auto:
         out["gflops_512"] = auto[512]["gflops"]
+        out["gflops_512_with_vector_work"] = auto[512].get("gflops_with_vector_work")
     return out
 
 
@@ -201,7 +220,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"ladder {n:5d} {form:8s} ng {row['ng']:5d}  setup {row['setup_s']:7.2f} s (derive "
                   f"{row['derive_s']:.2f}, generate {row['generate_s']:.2f}, compile {row['compile_s']:.2f})  "
                   f"peak {row['peak_python_mb']:.0f}/{row['peak_compiler_mb']:.0f} MB  src {row['source_kb']:.0f} KB  "
-                  f"text {row['text_kb']} KB  {row['us_per_instant']:.2f} us  {row['gflops']} GFLOP/s", flush=True)
+                  f"text {row['text_kb']} KB  {row['us_per_instant']:.2f} us  {row['gflops']} GFLOP/s "
+                  f"({row['gflops_with_vector_work']} with vector work)  {row['instructions_per_instant']} instr/instant",
+                  flush=True)
     report = {"rows": rows, "targets": targets(rows)}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1) + "\n")

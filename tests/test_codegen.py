@@ -111,11 +111,22 @@ def _instant(lib: ctypes.CDLL, name: str, ctx: dict, t: float, q: np.ndarray, p:
 
 
 @needs_cc
-def test_fixed_pivot_too_small_falls_back_and_stays_exact(tmp_path: Path) -> None:
+@pytest.mark.parametrize("fallback", ["dense", "sparse"])
+def test_fixed_pivot_too_small_falls_back_and_stays_exact(fallback: str, tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two cables: where a planned pivot fails at run time the solver
+    refactors with pivoting (dense up to DENSE_LIMIT coordinates, sparse
+    past it: the limit set to 0 here) and its multipliers are the
+    reference's."""
+    if fallback == "sparse":
+        monkeypatch.setattr(c_target, "DENSE_LIMIT", 0)
+        monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
     mech = loads(TWO_CABLES, "two_cables.toml")
     model = code_model(mech)
     ctx = c_target.context(model)
     c_target.generate(model, tmp_path)
+    source = (tmp_path / "two_cables_solver.c").read_text()
+    assert ("fb_factor" in source) == (fallback == "sparse") and ("dense_factor" in source) == (fallback == "dense")
     lib = _compile(tmp_path, "two_cables")
     reference = api.solve(mech, backend="reference")
     p = np.array(model.flat.defaults)

@@ -425,3 +425,20 @@ def test_slide_on_a_moving_offset_line_balances_power_and_every_body(backend):
     assert np.max(np.abs(drive - expected)) <= 1e-8 * np.max(np.abs(expected))
     for body, (force, moment) in newton_euler_residual(truth).items():
         assert force < 1e-9 and moment < 1e-9, (body, force, moment)
+
+
+
+@pytest.mark.parametrize("name", [n for n in api.examples() if "friction" not in n])
+def test_generated_code_of_a_frictionless_mechanism_carries_no_friction(name, tmp_path):
+    """What a mechanism does not need is skipped: without a friction table no
+    friction Newton, no tanh and no friction column reaches the generated C."""
+    text = "".join(p.read_text() for p in api.generate(api.example(name), "c", tmp_path) if p.suffix in (".c", ".h"))
+    assert "friction" not in text.lower()
+    assert "tanh" not in text
+
+
+def test_generated_code_with_friction_carries_its_newton(tmp_path):
+    """The converse of the test above, so that it cannot pass by looking at nothing."""
+    text = "".join(p.read_text() for p in api.generate(api.example("slider_crank_friction"), "c", tmp_path)
+                   if p.suffix in (".c", ".h"))
+    assert "friction" in text.lower() and "tanh" in text

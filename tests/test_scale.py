@@ -1,6 +1,6 @@
 """Large mechanisms: setup that holds nothing ng x ng, a generated solver
-without the dense fallback past its size limit (failing fixed pivots go to
-symid's own loop), results as the reference gives them."""
+with a sparse pivoting fallback past the dense one's size limit, results as
+the reference gives them."""
 
 from __future__ import annotations
 
@@ -37,12 +37,15 @@ def no_dense_fallback(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
 
 
 @needs_cc
-def test_without_dense_fallback_failing_pivots_are_solved_by_the_python_loop(no_dense_fallback: None,
-                                                                             monkeypatch: pytest.MonkeyPatch,
-                                                                             tmp_path: Path) -> None:
+def test_without_dense_fallback_failing_pivots_are_solved_by_the_sparse_fallback(no_dense_fallback: None,
+                                                                                 monkeypatch: pytest.MonkeyPatch,
+                                                                                 tmp_path: Path) -> None:
     """Two cables: some fixed pivots fail on the way (the dense fallback's
-    instants); without it, those instants reach the Python loop and the run
-    still matches the reference."""
+    instants); past the dense limit the C solver refactors them with its
+    sparse pivoting LU, in a workspace of the sparse factors' order, so no
+    instant reaches the Python loop and the run matches the reference."""
+    from symid.codegen.targets import c_fallback
+
     handed: list[int] = []
     original = solve.Stepper.instant
 
@@ -53,11 +56,15 @@ def test_without_dense_fallback_failing_pivots_are_solved_by_the_python_loop(no_
     monkeypatch.setattr(solve.Stepper, "instant", spy)
     mech = loads(TWO_CABLES, "two_cables.toml")
     model = code_model(mech)
-    assert c_target.work_size(model) == len(model.flat.jac) + model.plan.size + 11 * c_target._stride(model)
+    ng = model.flat.ng
+    assert c_target.work_size(model) == (len(model.flat.jac) + model.plan.size + c_fallback.work(model.plan, ng)
+                                         + 11 * c_target._stride(model))
+    assert c_fallback.work(model.plan, ng) < 13 * model.plan.size + 11 * ng  # linear: nothing ng x ng
     c_target.generate(model, tmp_path / "src")
-    assert "dense_factor" not in (tmp_path / "src" / "two_cables_solver.c").read_text()
+    source = (tmp_path / "src" / "two_cables_solver.c").read_text()
+    assert "dense_factor" not in source and "fb_factor" in source
     got = api.solve(mech, backend="c")
-    assert got.error is None and len(handed) > 1  # instants beyond t0 went to the Python loop
+    assert got.error is None and len(handed) <= 1  # at most t0 (symid's own start) in the Python loop
     assert_agree(got.data, api.solve(mech, backend="reference").data)
 
 
@@ -65,6 +72,8 @@ def test_setup_of_a_large_ladder_allocates_nothing_ng_by_ng(monkeypatch: pytest.
     """Past DENSE_SETUP coordinates the plan is sampled entry by entry: no
     dense Phi_q, no array of ng^2 / 4 numbers or more, and a workspace of
     the sparse factors' size."""
+    from symid.codegen.targets import c_fallback
+
     n = 26
     ng = ladder.Ladder(n).ng
     assert ng > code_model_module.DENSE_SETUP and ng > 0
@@ -87,7 +96,8 @@ def test_setup_of_a_large_ladder_allocates_nothing_ng_by_ng(monkeypatch: pytest.
     model = code_model(load(ladder.write(n, tmp_path)))
     assert largest[0] < ng * ng // 4
     assert model.plan.size < 10 * ng and not model.plan.singular
-    assert c_target.work_size(model) < 40 * ng
+    fallback = c_fallback.work(model.plan, ng)  # the sparse pivoting fallback's, linear in the factors
+    assert fallback < 13 * model.plan.size + 11 * ng and c_target.work_size(model) < 40 * ng + fallback
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -150,3 +160,26 @@ def test_looped_kernels_do_not_grow_with_the_number_of_bays(looped: None, tmp_pa
 
     small, large = loop_code(8), loop_code(16)
     assert small and small == large
+
+
+@needs_cc
+def test_sparse_fallback_alone_solves_a_looped_ladder_as_the_reference(looped: None, no_dense_fallback: None,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """A ladder of 10 (looped kernels, LU on tables, no dense fallback) with
+    the C threshold test set above 1: every fixed pivot fails it, so every
+    factorization is the sparse fallback's (partial pivoting, the plan's row
+    never preferred). No instant past t0 reaches the Python loop, so the
+    fallback's workspace sufficed, and the run matches the reference."""
+    handed: list[int] = []
+    original = solve.Stepper.instant
+
+    def spy(self: solve.Stepper, n: int, *args: object) -> solve.Instant:
+        handed.append(n)
+        return original(self, n, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(solve.Stepper, "instant", spy)
+    monkeypatch.setattr(c_target, "THRESHOLD", 2.0)
+    mech = loads(ladder.toml(ladder.Ladder(10, x0=0.3), steps=15), "ladder_10.toml")
+    got = api.solve(mech, backend="c")
+    assert got.error is None and len(handed) <= 1
+    assert_agree(got.data, api.solve(mech, backend="reference").data)

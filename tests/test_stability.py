@@ -425,12 +425,12 @@ def test_allowed_jump_continues_and_warns_once(tmp_path, capsys):
 
 
 def test_a_poor_prediction_on_the_same_branch_is_not_a_jump(monkeypatch):
-    """Five instants over the slider-pendulum's period: a correction larger than
+    """Four instants over the slider-pendulum's period: a correction larger than
     the predicted motion, but the sub-step continuation agrees."""
     calls = []
     original = solve._continuation
     monkeypatch.setattr(solve, "_continuation", lambda *a, **k: calls.append(1) or original(*a, **k))
-    results = api.solve(api.example("slider_pendulum"), "reference", steps=5)
+    results = api.solve(api.example("slider_pendulum"), "reference", steps=4)
     assert results.error is None and results.warnings == [] and calls
 
 
@@ -631,3 +631,81 @@ def test_torque_error_near_singular_positions_stays_within_the_conditioning(stre
         assert case.error <= 2 * case.cond**2 * EPS + 4 * EPS, (name, k, case)
     conds = [r[1] for r in rows]
     assert all(b > a for a, b in zip(conds, conds[1:])), "cond grows towards the singularity"
+
+
+BALANCED_CRANK = """
+[mechanism]
+name = "balanced"
+gravity = [0.0, -9.81]
+[parameters]
+e = 0.0
+[analysis]
+t1 = 0.2
+steps = 21
+[[body]]
+name = "crank"
+mass = 0.5
+inertia = 0.001
+q0 = ["e", 0.0, 0.0]
+[[body]]
+name = "rod"
+mass = 1.0
+inertia = 0.0075
+q0 = [0.25, 0.0, 0.0]
+[[body]]
+name = "slider"
+mass = 0.8
+inertia = 0.0003
+q0 = [0.4, 0.0, 0.0]
+[[constraint]]
+name = "bearing"
+type = "revolute"
+i = "ground"
+j = "crank"
+si = [0.0, 0.0]
+sj = ["-e", 0.0]
+[[constraint]]
+name = "crank_pin"
+type = "revolute"
+i = "crank"
+j = "rod"
+si = ["0.1 - e", 0.0]
+sj = [-0.15, 0.0]
+[[constraint]]
+name = "wrist"
+type = "revolute"
+i = "rod"
+j = "slider"
+si = [0.15, 0.0]
+sj = [0.0, 0.0]
+[[constraint]]
+name = "guide"
+type = "translational"
+i = "ground"
+j = "slider"
+si = [0.0, 0.0]
+vi = [1.0, 0.0]
+sj = [0.0, 0.0]
+[[constraint]]
+name = "motor"
+type = "relative_angle_driver"
+i = "ground"
+j = "crank"
+f = "10*t"
+"""
+
+
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+def test_a_pin_at_a_centre_of_mass_is_no_length_scale(backend):
+    """A crank balanced to within 1e-7 m of its bearing: that vanishing moment
+    arm once became the reference length, scaled a well-conditioned Phi_q
+    (cond 12) to 3e6 and reported the mechanism singular part-way. Its torques
+    must approach those of the exactly balanced crank continuously."""
+    exact = api.solve(loads(BALANCED_CRANK, "balanced.toml"), backend=backend)
+    near = api.solve(loads(BALANCED_CRANK.replace("e = 0.0", "e = 1e-7"), "balanced.toml"), backend=backend)
+    assert exact.error is None and near.error is None, near.error
+    assert not near.warnings, near.warnings
+    peak = np.max(np.abs(exact["motor.T_j"]))
+    assert np.max(np.abs(near["motor.T_j"] - exact["motor.T_j"])) <= 1e-5 * peak
+    jac = np.array([[1, 0, 4e-18], [0, 1, -6.7e-8], [0, 1, 0.15]])
+    assert stability.Scaling.of(jac, np.zeros(3)).lref == pytest.approx(0.15)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from symid.numeric.stability import Scaling, _power_of_two
+from symid.numeric.stability import Scaling, _power_of_two, reference_length
 
 Array = np.ndarray
 
@@ -22,8 +22,7 @@ def scaling_of_entries(rows: Array, cols: Array, values: Array, q: Array, nc: in
     np.maximum.at(lin_part, rows[~rot], mag[~rot])
     np.maximum.at(rot_part, rows[rot], mag[rot])
     mixed = (lin_part > 0) & (rot_part > 0)
-    arms = rot_part[mixed] / lin_part[mixed]
-    lref = float(np.median(arms)) if arms.size else 0.0
+    lref = reference_length(rot_part[mixed] / lin_part[mixed])
     qrot = np.arange(ng) % 3 == 2
     if not lref > 0:
         lref = float(np.max(np.abs(q[~qrot]), initial=0.0))

@@ -51,6 +51,26 @@ def _power_of_two(x: Array) -> Array:
     return np.exp2(np.round(np.log2(x)))
 
 
+ARM_FLOOR = 1e-6  # an arm below this fraction of the largest is a point at a centre, not a length
+
+
+def reference_length(arms: Array) -> float:
+    """The characteristic length of a mechanism from its moment arms (rows of
+    Phi_q with both kinds of entries: the ratio is a length in the file's unit).
+
+    The median of the arms, leaving out those that vanish against the largest:
+    a pin at a body's centre of mass has an arm of zero (or 1e-7 from rounding a
+    derived centre), which says nothing of the mechanism's size; as the median
+    it made a well-conditioned Phi_q look singular once scaled. 0 when no arm is
+    left (the caller falls back to the coordinates).
+    """
+    arms = np.asarray(arms, dtype=float)
+    arms = arms[np.isfinite(arms)]
+    if not arms.size:
+        return 0.0
+    return float(np.median(arms[arms >= ARM_FLOOR * arms.max()]))
+
+
 @dataclass(frozen=True)
 class Scaling:
     """Row and column scales of Phi_q, fixed for a run.
@@ -81,8 +101,7 @@ class Scaling:
         mixed = (lin_part > 0) & (rot_part > 0)
         # rows with both kinds of entries (revolutes, slots, distances): the
         # ratio is a moment arm, a length in the file's unit
-        arms = rot_part[mixed] / lin_part[mixed]
-        lref = float(np.median(arms)) if arms.size else 0.0
+        lref = reference_length(rot_part[mixed] / lin_part[mixed])
         if not lref > 0:
             lref = float(np.max(np.abs(q[~rot]), initial=0.0))
         if not lref > 0 or not np.isfinite(lref):

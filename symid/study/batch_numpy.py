@@ -36,6 +36,7 @@ from symid.backends.numpy_backend import SCREEN, build, load_module
 from symid.codegen.model import options_for
 from symid.model.mechanism import Mechanism
 from symid.model.params import base_names
+from symid.numeric.stability import ARM_FLOOR
 from symid.numeric.newton import EPS, RULE
 from symid.numeric.solve import JUMP_FLOOR, JUMP_RATIO, UNEXPLAINED
 from symid.numeric.stability import requested
@@ -333,6 +334,10 @@ def _scales(jac: Array, q: Array) -> tuple[Array, Array, Array, Array]:
     turn = np.abs(jac[:, :, rot]).max(axis=2, initial=0.0)
     # rows with both kinds of entries: the ratio is a moment arm; their median
     arms = np.where((lin > 0) & (turn > 0), turn / np.where(lin > 0, lin, 1.0), np.nan)
+    # as stability.reference_length: arms that vanish against the largest are left out
+    with np.errstate(invalid="ignore"):
+        largest = np.nanmax(np.where(np.isnan(arms), -np.inf, arms), axis=1, keepdims=True)
+        arms = np.where(arms >= ARM_FLOOR * largest, arms, np.nan)
     some = ~np.all(np.isnan(arms), axis=1)
     lref = np.zeros(len(jac))
     if some.any():

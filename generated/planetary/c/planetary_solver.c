@@ -19,7 +19,7 @@
 #define PLANETARY_LU_SIZE 20
 #define PLANETARY_MAX(a, b) ((a) > (b) ? (a) : (b))
 #define PLANETARY_MIN(a, b) ((a) < (b) ? (a) : (b))
-/* work layout: Phi_q values | sparse factors | dense fallback | vectors */
+/* work layout: Phi_q values | sparse factors | pivoting fallback | vectors */
 #define PLANETARY_OFF_LU 20
 #define PLANETARY_OFF_DENSE (PLANETARY_OFF_LU + PLANETARY_LU_SIZE)
 #define PLANETARY_OFF_VEC (PLANETARY_OFF_DENSE + 144)
@@ -878,16 +878,33 @@ static void planetary_outputs(planetary_real t, const planetary_real *p, const p
     planetary_reactions_k(q, tr, lam, t, p, reactions);
 }
 
-/* Whether everything an instant computed is finite (maxabs is NaN if any
-   value is): a few comparisons per value, against an instant's solve. */
+/* Whether v[0..n) are all finite: v * 0 is 0 for a finite v and NaN for an
+   infinite or NaN one, and a sum of zeros and NaNs is NaN iff one is (in any
+   order, so four sums run side by side and the compiler may pack them). */
+static int planetary_allfinite(const planetary_real *v, int n)
+{
+    planetary_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    int k;
+    for (k = 0; k + 4 <= n; k += 4) {
+        s0 += v[k] * 0.0;
+        s1 += v[k + 1] * 0.0;
+        s2 += v[k + 2] * 0.0;
+        s3 += v[k + 3] * 0.0;
+    }
+    for (; k < n; ++k) s0 += v[k] * 0.0;
+    return (s0 + s1) + (s2 + s3) == 0.0;
+}
+
+/* Whether everything an instant computed is finite (allfinite: a
+   multiply and an add per value, against an instant's solve). */
 static int planetary_finite(const planetary_real *q, const planetary_real *qd, const planetary_real *qdd, const planetary_real *lam,
                           const planetary_real *reactions)
 {
     (void)qd; (void)qdd; (void)lam; (void)reactions;
-    return isfinite(planetary_maxabs(q, 12))
-        && isfinite(planetary_maxabs(qd, 12)) && isfinite(planetary_maxabs(qdd, 12))
-        && isfinite(planetary_maxabs(lam, 12))
-        && isfinite(planetary_maxabs(reactions, 51))
+    return planetary_allfinite(q, 12)
+        && planetary_allfinite(qd, 12) && planetary_allfinite(qdd, 12)
+        && planetary_allfinite(lam, 12)
+        && planetary_allfinite(reactions, 51)
         ;
 }
 

@@ -19,7 +19,7 @@
 #define QUICK_RETURN_LU_SIZE 20
 #define QUICK_RETURN_MAX(a, b) ((a) > (b) ? (a) : (b))
 #define QUICK_RETURN_MIN(a, b) ((a) < (b) ? (a) : (b))
-/* work layout: Phi_q values | sparse factors | dense fallback | vectors */
+/* work layout: Phi_q values | sparse factors | pivoting fallback | vectors */
 #define QUICK_RETURN_OFF_LU 20
 #define QUICK_RETURN_OFF_DENSE (QUICK_RETURN_OFF_LU + QUICK_RETURN_LU_SIZE)
 #define QUICK_RETURN_OFF_VEC (QUICK_RETURN_OFF_DENSE + 81)
@@ -820,16 +820,33 @@ static void quick_return_outputs(quick_return_real t, const quick_return_real *p
     quick_return_reactions_k(q, tr, lam, t, p, reactions);
 }
 
-/* Whether everything an instant computed is finite (maxabs is NaN if any
-   value is): a few comparisons per value, against an instant's solve. */
+/* Whether v[0..n) are all finite: v * 0 is 0 for a finite v and NaN for an
+   infinite or NaN one, and a sum of zeros and NaNs is NaN iff one is (in any
+   order, so four sums run side by side and the compiler may pack them). */
+static int quick_return_allfinite(const quick_return_real *v, int n)
+{
+    quick_return_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    int k;
+    for (k = 0; k + 4 <= n; k += 4) {
+        s0 += v[k] * 0.0;
+        s1 += v[k + 1] * 0.0;
+        s2 += v[k + 2] * 0.0;
+        s3 += v[k + 3] * 0.0;
+    }
+    for (; k < n; ++k) s0 += v[k] * 0.0;
+    return (s0 + s1) + (s2 + s3) == 0.0;
+}
+
+/* Whether everything an instant computed is finite (allfinite: a
+   multiply and an add per value, against an instant's solve). */
 static int quick_return_finite(const quick_return_real *q, const quick_return_real *qd, const quick_return_real *qdd, const quick_return_real *lam,
                           const quick_return_real *reactions)
 {
     (void)qd; (void)qdd; (void)lam; (void)reactions;
-    return isfinite(quick_return_maxabs(q, 9))
-        && isfinite(quick_return_maxabs(qd, 9)) && isfinite(quick_return_maxabs(qdd, 9))
-        && isfinite(quick_return_maxabs(lam, 9))
-        && isfinite(quick_return_maxabs(reactions, 36))
+    return quick_return_allfinite(q, 9)
+        && quick_return_allfinite(qd, 9) && quick_return_allfinite(qdd, 9)
+        && quick_return_allfinite(lam, 9)
+        && quick_return_allfinite(reactions, 36)
         ;
 }
 

@@ -10,7 +10,7 @@ import sympy as sp
 from symid.codegen import friction
 from symid.codegen.emit import CHUNK, Block, block, blocks, chunked, has_word
 from symid.codegen.hoist import hoist
-from symid.codegen.targets import c_loops
+from symid.codegen.targets import c_fallback, c_loops
 from symid.codegen.targets.c_loops import Loops
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
@@ -220,8 +220,9 @@ def _stride(model: CodeModel) -> int:
 
 # Past this many coordinates the solver has no dense fallback: its NG^2
 # reals (76 MB at the ladder of 512) would dwarf the sparse factors; a
-# configuration the fixed pivots do not serve is reported singular and solved
-# by symid's own loop (templates/c/no_fallback.j2).
+# configuration the fixed pivots do not serve is factored again by a sparse
+# LU with pivoting in a workspace of bounded size (c_fallback.py,
+# templates/c/sparse_fallback.j2).
 DENSE_LIMIT = 400
 
 
@@ -232,10 +233,11 @@ def dense_fallback(model: CodeModel) -> bool:
 def work_size(model: CodeModel) -> int:
     """Reals of workspace a solver call needs before the prepared parameters
     (context()["work"] adds them): Phi_q's values, the sparse factors, the
-    dense fallback (up to DENSE_LIMIT coordinates), eleven work vectors and
-    the friction solve's."""
+    pivoting fallback (dense up to DENSE_LIMIT coordinates, sparse past
+    it), eleven work vectors and the friction solve's."""
     f = model.flat
-    return (len(f.jac) + model.plan.size + (f.ng * f.ng if dense_fallback(model) else 0) + 11 * _stride(model)
+    fallback = f.ng * f.ng if dense_fallback(model) else c_fallback.work(model.plan, f.ng)
+    return (len(f.jac) + model.plan.size + fallback + 11 * _stride(model)
             + friction.work(model.layout, f.options))
 
 
@@ -343,6 +345,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "outputs": outputs,
         "loop_tables": loops.tables if loops else [],
         "dense_fallback": dense_fallback(model), "dense_limit": DENSE_LIMIT,
+        "fb": None if dense_fallback(model) else c_fallback.context(model.plan, f.jac, ng),
         **c_sweep.context(model, printer, work_size(model) + len(f.params) + len(pieces),
                           fr["row_width"] if fr else offset),
         "nb": ng // 3, "singular": model.plan.singular,

@@ -45,4 +45,51 @@ def lu_tables(plan: Plan) -> dict[str, Any]:
         ptr, flat = _csr(lists)
         out[key] = flat or [0]  # C has no empty arrays
         out[key.split("_")[0] + "_ptr"] = ptr
+    out.update(_flat(plan, out))
+    return out
+
+
+def _flat(plan: Plan, t: dict[str, Any]) -> dict[str, Any]:
+    """Per-entry tables for loops that need no per-step bookkeeping: the
+    steps have one or two entries each, so a loop per step costs more than
+    its arithmetic. below_src: the pivot row of each L entry's step (the
+    forward solve is then one loop over L); upd_a, upd_b: the two factors
+    of each update (slots of L and U); tb_*: L's entries with the steps in
+    reverse and each step's entries in order, for the transposed back
+    solve, which subtracts in the same order as the per-step loop did."""
+    steps, bp, rp = plan.steps, t["below_ptr"], t["right_ptr"]
+    src = [st.row for k, st in enumerate(steps) for _ in range(bp[k], bp[k + 1])]
+    upd_a, upd_b = [], []
+    for k in range(len(steps)):
+        for i in range(bp[k], bp[k + 1]):
+            for j in range(rp[k], rp[k + 1]):
+                upd_a.append(t["below_slot"][i])
+                upd_b.append(t["right_slot"][j])
+    order = [i for k in reversed(range(len(steps))) for i in range(bp[k], bp[k + 1])]
+    owner = [steps[k].row for k in range(len(steps)) for _ in range(bp[k], bp[k + 1])]
+    out = {"below_src": src or [0], "upd_a": upd_a or [0], "upd_b": upd_b or [0], "n_below": len(src),
+           "tb_dst": [owner[i] for i in order] or [0], "tb_slot": [t["below_slot"][i] for i in order] or [0],
+           "tb_src": [t["below_row"][i] for i in order] or [0]}
+    out.update(_scaled(plan, t))
+    return out
+
+
+def _scaled(plan: Plan, t: dict[str, Any]) -> dict[str, Any]:
+    """Per-entry tables for the two solves that scale each step's sum by its
+    pivot (U x = y, U^T L^T x = b's first half): every step's sum is kept
+    unscaled in its pivot row, and an entry that reads an earlier sum scales
+    it there (the same product, so the same double the per-step loop kept);
+    one pass scales them all at the end. bk_*: U's entries, steps in
+    reverse; tf_*: the earlier steps' U entries of each step's column."""
+    steps, rp, ap = plan.steps, t["right_ptr"], t["above_ptr"]
+    by_col = {st.col: k for k, st in enumerate(steps)}
+    by_row = {st.row: k for k, st in enumerate(steps)}
+    bk = [(steps[k].row, t["right_slot"][j], steps[by_col[t["right_col"][j]]].row, t["piv"][by_col[t["right_col"][j]]])
+          for k in reversed(range(len(steps))) for j in range(rp[k], rp[k + 1])]
+    tf = [(steps[k].row, t["above_slot"][i], t["above_row"][i], t["piv"][by_row[t["above_row"][i]]])
+          for k in range(len(steps)) for i in range(ap[k], ap[k + 1])]
+    out: dict[str, Any] = {"n_right": len(bk), "n_above": len(tf)}
+    for prefix, entries in (("bk", bk), ("tf", tf)):
+        for n, key in enumerate(("dst", "slot", "src", "piv")):
+            out[f"{prefix}_{key}"] = [e[n] for e in entries] or [0]
     return out
