@@ -7,10 +7,17 @@ writes `embedded.json` and prints, for each example:
 - us_per_instant: the host (cc -O2 -fno-math-errno) cost of one instant in
   the trajectory loop and of `_instant` continued from the last solution,
   double and single precision (the minimum over repeats: a shared machine);
+- single_over_double: the single-precision time of each over the double's;
 - single_error: single against double precision, per row column, max |diff|
   over the bundled run divided by the column's peak (`short`), and the same
-  over one bundled run's length of instants starting at t = 1e4 s (`long`);
-  the worst column of each;
+  over one bundled run's length of instants starting at t = 1e4 s (`long`:
+  t0 a whole number of the run's periods, the guess's angles turned the
+  whole turns of as many runs); the worst column of each. Angles are
+  compared modulo 2 pi (single carries angles that keep turning reduced by
+  whole turns, see the header) against a peak of at most pi;
+- long_bound_applies: whether the single header lists nothing kept
+  absolute (`kept`: a pulse in t, angles geared by a ratio), the examples
+  the README's long-run bound is stated for;
 - arm: arm-none-eabi-gcc -mcpu=cortex-m4 -mfpu=fpv4-sp-d16 -mfloat-abi=hard
   (-O2 and -Os, single and double): text + data bytes of the object
   (arm-none-eabi-size) and the worst stack depth of `_trajectory` and
@@ -27,7 +34,7 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -63,17 +70,24 @@ def rows(exe: Path, t0: float, h: float, n: int, q0: Any) -> np.ndarray:
     return np.loadtxt(_call(exe, "rows", t0, h, n, q0).splitlines(), ndmin=2)
 
 
-def relative_error(single: np.ndarray, double: np.ndarray, groups: list[int]) -> np.ndarray:
-    """Per column: max |single - double| / the column's peak |double|. A
-    column whose peak is below GROUP_FLOOR of its output group's (q, qdot,
-    qddot, lambda, reactions: `groups` numbers them per column) is zero in
-    exact arithmetic, rounding noise in double: it is measured against
-    GROUP_FLOOR times the group's peak instead."""
-    peak = np.max(np.abs(double), axis=0)
+def relative_error(single: np.ndarray, double: np.ndarray, groups: list[int], angles: Sequence[int] = (),
+                   peak: np.ndarray | None = None) -> np.ndarray:
+    """Per column: max |single - double| / the column's peak |double| (or the
+    `peak` given: the bundled run's). A column whose peak is below
+    GROUP_FLOOR of its output group's (q, qdot, qddot, lambda, reactions:
+    `groups` numbers them per column) is zero in exact arithmetic, rounding
+    noise in double: it is measured against GROUP_FLOOR times the group's
+    peak instead. Columns in `angles` are compared modulo 2 pi, against a
+    peak of at most pi (their reduced range)."""
+    diff = single - double
+    angles = list(angles)
+    diff[:, angles] -= 2 * np.pi * np.round(diff[:, angles] / (2 * np.pi))
+    peak = np.max(np.abs(double), axis=0) if peak is None else peak.copy()
+    peak[angles] = np.minimum(peak[angles], np.pi)
     index = np.array(groups)
     group_peak = np.array([np.max(peak[index == g]) for g in index])
     scale = np.maximum(peak, GROUP_FLOOR * group_peak)
-    return np.max(np.abs(single - double), axis=0) / np.where(scale > 0, scale, 1.0)
+    return np.max(np.abs(diff), axis=0) / np.where(scale > 0, scale, 1.0)
 
 
 def long_guess(model: Any, run: np.ndarray, k: int) -> np.ndarray:
@@ -130,9 +144,15 @@ def example(name: str, quick: bool, work: Path) -> dict[str, Any]:
     for precision, exe in exes.items():
         loop, instant = (float(v) for v in _call(exe, "time", a.t0, h, n, model.q0).split())
         out["us_per_instant"][precision] = {"trajectory": loop, "instant": instant}
+    us = out["us_per_instant"]
+    out["single_over_double"] = {k: us["single"][k] / us["double"][k] for k in ("trajectory", "instant")}
+    kept = c_target.context(model, precision="single")["kept"]
+    out["long_bound_applies"], out["kept"] = not kept, kept
     out["single_error"] = {}
     columns = list(model.row_columns)
-    groups = [0] + [k + 1 for k, (_, _, size, _) in enumerate(c_target.context(model)["row_parts"]) for _ in range(size)]
+    parts = c_target.context(model)["row_parts"]
+    groups = [0] + [k + 1 for k, (_, _, size, _) in enumerate(parts) for _ in range(size)]
+    groups += [len(parts) + 1] * (len(columns) - len(groups))  # joint friction's columns: a group of their own
     short = {p: rows(exe, a.t0, h, n, model.q0) for p, exe in exes.items()}
     period = (n - 1) * h
     k = round(LONG_T0 / period)
@@ -143,7 +163,8 @@ def example(name: str, quick: bool, work: Path) -> dict[str, Any]:
         except subprocess.CalledProcessError as exc:
             out["single_error"][label] = {"t0": t0, "failed": exc.stderr.strip()}
             continue
-        err = relative_error(runs["single"], runs["double"], groups)
+        angles = [1 + j for j in range(len(model.q0)) if j % 3 == 2]
+        err = relative_error(runs["single"], runs["double"], groups, angles, np.max(np.abs(short["double"]), axis=0))
         worst = int(np.argmax(err[1:])) + 1
         out["single_error"][label] = {"t0": t0, "instants": n, "worst": float(err[worst]),
                                       "worst_column": columns[worst], "columns": dict(zip(columns, map(float, err)))}
@@ -170,7 +191,9 @@ def main(argv: list[str] | None = None) -> int:
             line = (f"{name:16s} us/instant double {us['double']['trajectory']:.2f} (instant "
                     f"{us['double']['instant']:.2f}), single {us['single']['trajectory']:.2f} (instant "
                     f"{us['single']['instant']:.2f}); single vs double: short {r['single_error']['short']['worst']:.1e}"
-                    f" ({r['single_error']['short']['worst_column']}), t=1e4 {r['single_error']['long']['worst']:.1e}")
+                    f" ({r['single_error']['short']['worst_column']}), t=1e4 {r['single_error']['long']['worst']:.1e}"
+                    f" ({r['single_error']['long']['worst_column']}{'' if r['long_bound_applies'] else ', bound n/a'})"
+                    f"; single/double instant {r['single_over_double']['instant']:.2f}")
             if isinstance(r["arm"], dict):
                 o2 = r["arm"]["single -O2"]
                 line += f"; M4F single -O2 {o2['text'] + o2['data']} B, stack {max(o2['stack'].values())} B"

@@ -83,6 +83,7 @@ class Study:
     notes: Notes | None = None  # the warnings of the latest run
     backend: str = ""
     results: Results | None = None  # the latest `solve()`, which `write_csv` writes without solving again
+    sensitivity: Any = None  # `symid.output.sensitivity.Choice`: the d(COLUMN)/d(NAME) columns, or None
 
     @property
     def warnings(self) -> list[str]:
@@ -98,7 +99,8 @@ class Study:
         return np.array([to_float(v, self.values) for b in self.mechanism.bodies for v in b.q0])
 
     def columns(self) -> list[str]:
-        return columns(self.layout, self.analysis)
+        own = columns(self.layout, self.analysis)
+        return own if self.sensitivity is None else own + self.sensitivity.header
 
     def instants(self) -> Iterator[Instant]:
         """Solve instant by instant (raises AnalysisError at a failure)."""
@@ -129,13 +131,23 @@ class Study:
         q_at = [header.index(f"{b.name}.{c}") for b in self.mechanism.bodies for c in ("x", "y", "phi")
                 if f"{b.name}.{c}" in header]
         first = True
-        for item in table_blocks(self.evaluator, self.analysis, self.q0(), notes):
+        for item in self._source(notes):
             if first and len(q_at) == self.layout.ng:  # the table has q: compare t0's with the guesses
                 row = np.asarray(item)
                 row = row[0] if row.ndim == 2 else row
                 notes.fixed.extend(assembly_warnings(self.mechanism, self.q0(), row[q_at]))
             first = False
             yield item
+
+    def _source(self, notes: Notes) -> Iterator[Array]:
+        """The table's rows or blocks: the backend's, or with sensitivities the
+        shared Python loop's (whose factorization of Phi_q they reuse)."""
+        if self.sensitivity is None:
+            return table_blocks(self.evaluator, self.analysis, self.q0(), notes)
+        from symid.output import sensitivity
+
+        sens = sensitivity.evaluator_for(self.layout, self.values, self.sensitivity, self.analysis)
+        return sensitivity.rows(self.evaluator, self.analysis, self.q0(), notes, self.sensitivity, sens)
 
     def solve(self) -> Results:
         """Solve the whole run. A failure is kept in `Results.error` with the
@@ -167,6 +179,9 @@ class Study:
         A variant that fails keeps its `Results` with `error` set and the
         instants solved before it; the next variants run on.
         """
+        if self.sensitivity is not None:  # the batch engine has no sensitivities: never a header without its data
+            raise ValueError("Study.solve_many(): sensitivities are solved variant by variant; prepare each "
+                             "variant with api.prepare(..., set_values=..., sensitivity=...) and solve() it")
         from symid.model.params import base_names
         from symid.study.engine import trajectories, variant_mechanism
         from symid.study.variants import base_matrix
@@ -218,13 +233,18 @@ class Study:
 
 
 def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
-            set_values: Mapping[str, str] | None = None, **analysis: Any) -> Study:
+            set_values: Mapping[str, str] | None = None, sensitivity: str | Sequence[str] | None = None,
+            sensitivity_of: str | Sequence[str] | None = None, **analysis: Any) -> Study:
     """Load (if a path), lay out and build the evaluator of a mechanism.
 
     Args:
         mechanism: a `Mechanism` or the path of a mechanism file.
         backend: one of `symid.backends.names()`.
         set_values: parameter overrides (files only), name -> expression text.
+        sensitivity: base parameters (a list, or "A,B"): adds the columns
+            `d(COLUMN)/d(NAME)` (`symid solve --sensitivity`).
+        sensitivity_of: the columns to differentiate (default: the drivers'
+            effort columns and the reaction columns).
         analysis: `[analysis]` overrides: kind, t0, t1, steps, tol, outputs, reactions.
     """
     _known(analysis, "prepare", ANALYSIS_KEYS if isinstance(mechanism, Mechanism) else ANALYSIS_KEYS + FILE_ONLY_KEYS)
@@ -247,8 +267,11 @@ def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
     check_redundant(layout, values, backend)
     chosen = backends.get(backend)
     friction.require(backend, chosen, mech)
+    from symid.output.sensitivity import choose
+
+    choice = choose(mech, layout, sensitivity, sensitivity_of, reactions)
     evaluator = friction.attach(chosen.evaluator(layout, values, needs), layout, values)
-    return Study(mech, layout, evaluator, values, backend=backend)
+    return Study(mech, layout, evaluator, values, backend=backend, sensitivity=choice)
 
 
 def load_mechanism(path: str | Path, set_values: Mapping[str, str] | None = None,
@@ -296,9 +319,10 @@ def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "num
     return written
 
 
-def solve(mechanism: Mechanism | str | Path, backend: str = "numpy", **analysis: Any) -> Results:
+def solve(mechanism: Mechanism | str | Path, backend: str = "numpy", sensitivity: str | Sequence[str] | None = None,
+          sensitivity_of: str | Sequence[str] | None = None, **analysis: Any) -> Results:
     """Prepare and solve in one call; see `prepare` and `Study.solve`."""
-    return prepare(mechanism, backend, **analysis).solve()
+    return prepare(mechanism, backend, sensitivity=sensitivity, sensitivity_of=sensitivity_of, **analysis).solve()
 
 
 def sweep(mechanism: Mechanism | str | Path, variants: Any, backend: str = "c", workers: int | None = None,

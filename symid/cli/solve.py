@@ -27,6 +27,7 @@ SOLVE_EPILOG = """examples:
   symid solve "$(symid example slider_crank)" -o run.csv
   symid solve crank.toml --t1 2 --steps 401 --set omega=12.566 --backend c
   symid solve crank.toml --kind statics --cond --plot
+  symid solve crank.toml --sensitivity L_crank,m_slider --sensitivity-of motor.T_j
 
 The file's keys, defaults and the CSV columns: symid help format.
 exit status: 0 ok, 2 bad input, 3 the analysis failed (solved instants kept)."""
@@ -59,6 +60,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                             "C, fastest), casadi, or reference (no code generation)")
     solve.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                        help="override a parameter (repeatable; VALUE may be an expression)")
+    solve.add_argument("--sensitivity", metavar="NAME[,NAME...]",
+                       help="add d(COLUMN)/d(NAME) columns: the exact derivative of each chosen column by these "
+                            "base parameters, after all other columns")
+    solve.add_argument("--sensitivity-of", metavar="COLUMN[,COLUMN...]",
+                       help="the columns to differentiate (default: the drivers' effort columns and the "
+                            "reaction columns)")
     solve.add_argument("--plot", action="store_true", help="also write PNG plots beside the output")
     solve.add_argument("--plot-dir", metavar="DIR", help="folder for the plots (implies --plot)")
     solve.set_defaults(run=cmd_solve)
@@ -68,7 +75,8 @@ def cmd_solve(args: argparse.Namespace) -> int:
     from symid.tools import plan
 
     plots = args.plot or args.plot_dir is not None
-    key = None if plots else plan.key(args.file, run_options(args))
+    sensitive = args.sensitivity is not None or args.sensitivity_of is not None  # a plan has no sensitivities
+    key = None if plots or sensitive else plan.key(args.file, run_options(args))
     found = plan.load(key) if key is not None else None
     if found is not None:
         try:
@@ -87,6 +95,7 @@ def _solve(args: argparse.Namespace, key: str | None) -> int:
     with progress.status(f"symid: setting up the {args.backend} backend"):  # on a terminal, past 1 s
         progress.stage("reading and deriving")
         study = api.prepare(args.file, args.backend, set_values(args.set, args.file),
+                            sensitivity=args.sensitivity, sensitivity_of=args.sensitivity_of,
                             **analysis_overrides(args))
     out = Path(args.output) if args.output else Path(f"{study.mechanism.name}.csv")
     plots = args.plot or args.plot_dir is not None

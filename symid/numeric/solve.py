@@ -76,6 +76,7 @@ class Instant:
     cond: float = float("nan")
     iterations: int = 0
     friction: Solved | None = None  # joints with friction: their frictions (symid.numeric.friction)
+    factor: Factor | None = None  # the factorization of Phi_q at q (the Python loop's): sensitivities reuse it
 
 
 def _factor(ev: Evaluator, q: Array, t: float, scaling: Scaling) -> Factor:
@@ -249,7 +250,7 @@ class Stepper:
         the rates and multipliers; an error if any value is not finite."""
         ev = self.ev
         factor = _factor(ev, q, t, self.scaling)  # type: ignore[arg-type]
-        out = Instant(t=t, q=q, cond=factor.cond, iterations=iterations)
+        out = Instant(t=t, q=q, cond=factor.cond, iterations=iterations, factor=factor)
         if self.statics:
             if self.want_lam:
                 out.lam = factor.solve_t(ev.applied(q, None, t))

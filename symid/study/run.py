@@ -130,9 +130,13 @@ class Sweep:
             self.parts[first] = figures
             yield len(figures)
 
+    def columns(self) -> tuple[str, ...]:
+        """The figure columns of each part (`GradientSweep` adds the gradients')."""
+        return figure_names(self.mechanism)
+
     def table(self) -> SweepTable:
         """The variants finished so far, in variant order."""
-        names = figure_names(self.mechanism)
+        names = self.columns()
         firsts = sorted(self.parts)
         if firsts:
             parts = [self.parts[f] for f in firsts]

@@ -10,7 +10,7 @@ import sympy as sp
 from symid.codegen import friction
 from symid.codegen.emit import CHUNK, Block, block, blocks, chunked, has_word
 from symid.codegen.hoist import hoist
-from symid.codegen.targets import c_fallback, c_loops
+from symid.codegen.targets import c_fallback, c_loops, c_phase
 from symid.codegen.targets.c_loops import Loops
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
@@ -281,9 +281,17 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
     used = f.phi + [e for _, _, e in f.jac]  # what is printed: a static function never called is an error
     dynamics = o.kind != "kinematics" and o.multipliers
     # parameter-only pieces read from p[NP + j], computed once per call by prepare
-    (phi, jac, nu, gamma, applied, mass, reactions), pieces = hoist(
-        [f.phi, [e for _, _, e in f.jac], f.nu if o.velocity else [], f.gamma if o.velocity else [],
-         f.applied if dynamics else [], f.mass if dynamics else [], f.reactions], len(f.params))
+    lists = [f.phi, [e for _, _, e in f.jac], f.nu if o.velocity else [], f.gamma if o.velocity else [],
+             f.applied if dynamics else [], f.mass if dynamics else [], f.reactions]
+    # single precision: time as small phases, angles and angle rows by whole turns (c_phase)
+    red = (c_phase.reduce(f.ng, lists[0], lists[1:], f.params, loops.covered("phi") if loops else ())
+           if scalar.suffix else None)
+    (phi, jac, nu, gamma, applied, mass, reactions), pieces = hoist(red.groups if red else lists, len(f.params))
+    nph = len(red.nu) if red else 0
+    off_nu = len(f.params) + len(pieces)  # prepared parameters: p | pieces | nu (hi, lo) pairs | phases
+    if nph:
+        phi, jac, nu, gamma, applied, mass, reactions = c_phase.place(
+            [phi, jac, nu, gamma, applied, mass, reactions], off_nu + 2 * nph, nph)
     functions = [
         _function("phi", [cq, ct, cp], phi, trig, printer, real, loops),
         _function("phi_q", [cq, ct, cp], jac, trig, printer, real, loops),
@@ -324,11 +332,13 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
     outputs = [(var, placed.get(source), slot)
                for var, source, slot in (("qn", "q", 4), ("qdn", "qd", 5), ("qddn", "qdd", 6), ("lam", "lam", 7),
                                          ("reac", "reac", 8))]
+    npp = len(f.params) + len(pieces) + 3 * nph
     return {
+        **c_phase.context(red, off_nu, len(f.params)),
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": fr["row_width"] if fr else offset, "friction": fr,
         "lu_size": model.plan.size,
-        "work": work_size(model) + len(f.params) + len(pieces), "npp": len(f.params) + len(pieces),
+        "work": work_size(model) + npp, "npp": npp,
         "prepare": prepare, "off_prep": work_size(model),
         "uses_powi": any(f"{f.name}_powi(" in e for b in _all_blocks(functions, prepare) for _, e in b.temps + b.outputs),
         "state": state_size(model), "stride": stride,
@@ -346,7 +356,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "loop_tables": loops.tables if loops else [],
         "dense_fallback": dense_fallback(model), "dense_limit": DENSE_LIMIT,
         "fb": None if dense_fallback(model) else c_fallback.context(model.plan, f.jac, ng),
-        **c_sweep.context(model, printer, work_size(model) + len(f.params) + len(pieces),
+        **c_sweep.context(model, printer, work_size(model) + npp,
                           fr["row_width"] if fr else offset),
         "nb": ng // 3, "singular": model.plan.singular,
         "splines": [_relit_tables(piece_tables(s), scalar) for s in tables(used)],

@@ -90,6 +90,9 @@ class Printer(C99CodePrinter):
         key, order, x = expr.args
         return f"{self._settings['prefix']}_spline_{key.name}({self._print(x)}, {int(order)})"
 
+    def _print_Wrap(self, expr: sp.Expr) -> str:
+        return f"{self._settings['prefix']}_wrap({self._print(expr.args[0])})"
+
     def _print_Grouped(self, expr: sp.Expr) -> str:
         return f"({self._print(expr.args[0])})"
 

@@ -1,0 +1,172 @@
+"""`--sensitivity` / `--sensitivity-of`: which columns, their names, and the rows.
+
+Contract v1.1: after all other columns, `d(COLUMN)/d(NAME)` for every chosen
+column (default: the drivers' effort columns and the reaction columns) and
+every named base parameter, columns outer, parameters inner. Every backend
+solves through the shared Python loop (`symid.numeric.solve.run`), whose
+factorization of Phi_q each instant's sensitivities reuse.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Iterator, Mapping, Sequence
+
+import numpy as np
+
+from symid.errors import InputError
+from symid.model.analysis import Analysis
+from symid.model.params import base_names, is_derived
+from symid.numeric.solve import Instant, instant_row, run
+from symid.numeric.stability import Factor, Notes, Scaling
+from symid.output.summary import drivers, source
+from symid.symbolic.columns import GROUP_SUFFIXES, columns
+
+if TYPE_CHECKING:
+    from symid.backends import Array, Evaluator
+    from symid.model.mechanism import Mechanism
+    from symid.numeric.sensitivity import Derivatives, SensitivityEvaluator
+    from symid.symbolic.assemble import Layout
+
+# The table groups a column can be differentiated in, and where each group's
+# derivatives are in `Derivatives`.
+_GROUPS = {"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam", "reactions": "reactions"}
+
+
+@dataclass(frozen=True)
+class Choice:
+    """The sensitivity columns of one run.
+
+    Attributes:
+        names: base parameters (inner order); of: the differentiated columns (outer).
+        where: per column of `of`, (attribute of `Derivatives`, row in it).
+        reactions: the constraints whose reactions the table has.
+    """
+
+    names: tuple[str, ...]
+    of: tuple[str, ...]
+    where: tuple[tuple[str, int], ...]
+    reactions: tuple[str, ...] = ()  # the constraints whose reactions the table has (file order)
+
+    @property
+    def header(self) -> list[str]:
+        return [f"d({c})/d({n})" for c in self.of for n in self.names]
+
+
+def _split(values: str | Sequence[str] | None, option: str, source_name: str) -> tuple[str, ...] | None:
+    """A list option: "A,B" or ["A", "B"]; None when not given. Empty, blank or repeated items are errors."""
+    if values is None:
+        return None
+    items = [v.strip() for v in (values.split(",") if isinstance(values, str) else
+                                 [x for v in values for x in str(v).split(",")])]
+    if not items or any(not v for v in items):
+        raise InputError(f"{source_name}: {option}: an empty name in the list {','.join(items)!r} "
+                         f"(give NAME[,NAME...])")
+    seen: set[str] = set()
+    for item in items:
+        if item in seen:
+            raise InputError(f"{source_name}: {option}: {item!r} is named twice")
+        seen.add(item)
+    return tuple(items)
+
+
+def _where(layout: Layout, analysis: Analysis, reaction_count: int) -> dict[str, tuple[str, int]]:
+    """Every column a sensitivity can be taken of -> (Derivatives attribute, row)."""
+    header = columns(layout, analysis)
+    sizes = {"q": layout.ng, "qdot": layout.ng, "qddot": layout.ng, "lambda": layout.nc,
+             "reactions": reaction_count}
+    out: dict[str, tuple[str, int]] = {}
+    at = 1
+    for group in analysis.output_groups():
+        if group not in sizes:
+            continue
+        for k in range(sizes[group]):
+            out[header[at + k]] = (_GROUPS[group], k)
+        at += sizes[group]
+    return out
+
+
+def choose(mechanism: Mechanism, layout: Layout, names: str | Sequence[str] | None,
+           of: str | Sequence[str] | None, reactions: tuple[str, ...]) -> Choice | None:
+    """Check `--sensitivity NAMES` and `--sensitivity-of COLUMNS`; None without NAMES.
+
+    Raises:
+        InputError: an empty list, a repeated name, an unknown or derived
+            parameter (naming its definition), an unknown column, a kind that
+            has none of the default columns, or joint friction.
+    """
+    where_ = mechanism.source
+    chosen = _split(names, "--sensitivity", where_)
+    wanted = _split(of, "--sensitivity-of", where_)
+    if chosen is None:
+        if wanted is not None:
+            raise InputError(f"{where_}: --sensitivity-of: needs --sensitivity NAME[,NAME...] (the parameters)")
+        return None
+    params = mechanism.parameters
+    base = base_names(params)
+    for name in chosen:
+        if name not in params:
+            raise InputError(f"{where_}: --sensitivity {name}: no such parameter (base parameters: "
+                             f"{', '.join(base) or 'none'})")
+        if is_derived(params[name]):
+            uses = ", ".join(sorted(str(x) for x in params[name].free_symbols))
+            raise InputError(f"{where_}: --sensitivity {name}: '{name}' is a derived parameter ({name} = "
+                             f"\"{params[name]}\" in [parameters]); take the sensitivity to the base parameters "
+                             f"it is computed from ({uses})")
+    joint = next((c for c in mechanism.constraints if getattr(c, "friction", None)), None)
+    analysis = mechanism.analysis
+    if joint is not None and analysis.kind == "inverse_dynamics":
+        raise InputError(f"{where_}: constraint '{joint.name}' key 'friction': --sensitivity: sensitivities "
+                         f"of runs with joint friction are not available yet; solve without --sensitivity")
+    where = _where(layout, analysis, reaction_count(reactions, mechanism))
+    if wanted is None:
+        header = columns(layout, analysis)
+        efforts = {s.column for s in (source(c, header) for c in drivers(mechanism)) if s is not None}
+        wanted = tuple(c for c in where if c in efforts or where[c][0] == "reactions")
+        if not wanted:
+            raise InputError(f"{where_}: --sensitivity: a {analysis.kind} table without lambda or reactions has "
+                             f"no effort or reaction columns to differentiate; name columns with --sensitivity-of")
+    for column in wanted:
+        if column not in where:
+            known = ", ".join(list(where)[:8]) + (", ..." if len(where) > 8 else "")
+            raise InputError(f"{where_}: --sensitivity-of {column}: no such column in this table "
+                             f"(columns: {known or 'none'})")
+    return Choice(chosen, wanted, tuple(where[c] for c in wanted), reactions)
+
+
+def values(choice: Choice, d: Derivatives) -> Array:
+    """The row's sensitivity values, in `Choice.header` order."""
+    return np.concatenate([getattr(d, attr)[row] for attr, row in choice.where]) if choice.where else np.zeros(0)
+
+
+def rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes, choice: Choice,
+         sens: SensitivityEvaluator) -> Iterator[Array]:
+    """The table rows with the sensitivity columns appended, from the Python loop."""
+    want_lam = any(attr in ("lam", "reactions") for attr, _ in choice.where)
+    want_r = any(attr == "reactions" for attr, _ in choice.where)
+    for instant in run(evaluator, analysis, q0, notes):
+        row = instant_row(instant, len(q0), analysis)
+        d = sens.instant(_factor_of(evaluator, instant), instant.t, instant.q, instant.qd, instant.qdd,
+                         instant.lam if want_lam else None, want_r)
+        yield np.concatenate([row, values(choice, d)])
+
+
+def _factor_of(evaluator: Evaluator, instant: Instant) -> Factor:
+    """The instant's factorization of Phi_q (made again if the loop kept none)."""
+    if instant.factor is not None:
+        return instant.factor
+    jac = evaluator.phi_q(instant.q, instant.t)
+    return Factor(jac, Scaling.of(jac, instant.q))
+
+
+def reaction_count(reactions: tuple[str, ...], mechanism: Mechanism) -> int:
+    """How many reaction columns the chosen constraints have."""
+    wanted = set(reactions)
+    return sum(3 * len(c.bodies) for c in mechanism.constraints if c.name in wanted)
+
+
+def evaluator_for(layout: Layout, values_: Mapping, choice: Choice, analysis: Analysis) -> SensitivityEvaluator:
+    """The sensitivity evaluator of a run (derives on first use)."""
+    from symid.numeric.sensitivity import SensitivityEvaluator
+
+    return SensitivityEvaluator(layout, values_, choice.names, analysis.kind == "statics", choice.reactions)
