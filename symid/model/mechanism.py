@@ -88,3 +88,13 @@ class Mechanism:
     def body_index(self) -> dict[str, int]:
         """Body name -> index in q (ground is not a body of q)."""
         return {b.name: n for n, b in enumerate(self.bodies)}
+
+    def reaction_starts(self, wanted: set[str]) -> tuple[dict[str, int], int]:
+        """Where each wanted constraint's reactions start in a reactions
+        vector (file order, 3 values per body of it), and the vector's size."""
+        start, offset = {}, 0
+        for c in self.constraints:
+            if c.name in wanted:
+                start[c.name] = offset
+                offset += 3 * len(c.bodies)
+        return start, offset

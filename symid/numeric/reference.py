@@ -155,13 +155,7 @@ class ReferenceEvaluator:
             for g in self._cgroups
         ]
         # output slots of each requested constraint's reaction, in file order
-        order = [c.name for c in mech.constraints if c.name in wanted]
-        width = {c.name: 3 * len(c.bodies) for c in mech.constraints}
-        start, offset = {}, 0
-        for name in order:
-            start[name] = offset
-            offset += width[name]
-        self._reaction_size = offset
+        start, self._reaction_size = mech.reaction_starts(wanted)
         self._reaction_slots = [
             np.array([start[g.group.names[k]] for k in members], dtype=np.intp)
             for g, members in zip(self._cgroups, self._reaction_members)

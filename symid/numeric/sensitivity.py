@@ -149,13 +149,7 @@ class SensitivityEvaluator:
         weight[:, :2] = np.array([[[to_float(e, values) for e in g] for g in b] for b in chain.weight]).reshape(nb, 2, -1)
         self.weight_p = weight.reshape(-1, nparams)
         wanted = set(reactions)
-        order = [c.name for c in mech.constraints if c.name in wanted]
-        width = {c.name: 3 * len(c.bodies) for c in mech.constraints}
-        start, offset = {}, 0
-        for name in order:
-            start[name] = offset
-            offset += width[name]
-        self.reaction_size = offset
+        start, self.reaction_size = mech.reaction_starts(wanted)
         self._slots = [(np.array([k for k, n in enumerate(p.data.group.names) if n in wanted], dtype=np.intp),
                         np.array([start[n] for n in p.data.group.names if n in wanted], dtype=np.intp))
                        for p in self._c]
@@ -200,7 +194,7 @@ class SensitivityEvaluator:
         out = Derivatives(q_p, qd_p, qdd_p)
         if lam is None:
             return out
-        qdpx, qddpx = self._ext(qd_p), self._ext(qdd_p)
+        qdpx = self._ext(qd_p)
         # d/dp of M qdd + Phi_q^T lam - Q^A, all but Phi_q^T lam_p
         rest = np.zeros((ng + 3, nparams))
         for p in self._c:
