@@ -2,12 +2,14 @@
 
 Per group of family instances, every residual Jacobian one instant needs
 (`symid.symbolic.sensitivity`) comes out of one fused kernel call vectorized
-over the members (`sensitivity_build.fused`), and its parameter terms (through
+over the members and a chunk of instants at once (`sensitivity_build.fused`: numpy's
+cost per operation, not the number of operations, then sets the price), and
+its parameter terms (through
 the members' constants and time functions) out of one contraction; the
 members' constants, their chain and the masses come from the structure's one
 function of the parameter values (`sensitivity_build.structure`: built once
 per mechanism structure, so a new parameter value derives and lambdifies
-nothing), their time functions and chain from one call per instant. With the
+nothing), their time functions and chain from one call per chunk. With the
 instant's factorization of Phi_q, one solve per parameter and equation
 gives q_p, qd_p, qdd_p and (transposed) lam_p for all parameters;
 the reactions' derivatives follow explicitly. Backend-independent: any
@@ -44,13 +46,21 @@ class Derivatives:
     reactions: Array | None = None
 
 
+def _pad(v: Array) -> Array:
+    """(ng, ...) -> the extended (ng + 3, ...): ground's three zero rows appended."""
+    return np.concatenate([v, np.zeros((3, *v.shape[1:]))])
+
+
 class _Part:
-    """One group: index arrays, its members' constants and their chain."""
+    """One group: index arrays, its members' constants and their chain.
+
+    Arrays over members and instants flatten them member-major: (..., n * K).
+    """
 
     def __init__(self, group: Group) -> None:
         self.group = group
         self.sens = sensitivity_of(group)
-        self.n = n = group.size
+        self.n = group.size
         roles = group.derived.roles
         # rows of the extended (ng + 3) coordinates of each role's x, y, phi, (3 roles, n): ground's are the 3 zeros
         self.idx = np.concatenate([(3 * group.bodies[r][None, :] + np.arange(3)[:, None]) for r in roles])
@@ -62,27 +72,42 @@ class _Part:
         k = len(self.sens.blocks.get("lam", ()))
         self.rows = group.rows[None, :] + np.arange(k)[:, None]  # (k, n): this group's constraint rows
         self.cf = slice(blocks["constants"].start, blocks["functions"].stop)
-        self.const = self.const_p = self.fun = self.fun_p = np.zeros(0)
+        self.nfun = len(self.sens.blocks["functions"])
+        self.const = self.const_p = np.zeros(0)  # (nconst, n), (nconst, n, np): set by the evaluator
+        self.fun = self.fun_p = np.zeros(0)  # (nfun, n, K), (nfun, n, K, np): set per chunk
+
+    def local(self, ext: Array) -> Array:
+        """The members' rows of an extended (ng + 3, K, ...) array: (3 roles, n * K, ...)."""
+        v = ext[self.idx]
+        return v.reshape(v.shape[0], v.shape[1] * v.shape[2], *v.shape[3:])
 
     def jacobians(self, whats: tuple[str, ...], qx: Array, qdx: Array, qddx: Array, lam: Array | None
                   ) -> tuple[Array, Mapping[str, slice], Array]:
-        """The stacked Jacobians `whats` (outputs, nargs, n), their row slices,
-        and their parameter terms through constants and time functions (outputs, n, np)."""
+        """The stacked Jacobians `whats` (outputs, nargs, n * K), their row
+        slices, and their parameter terms through constants and time
+        functions (outputs, n * K, np); qx etc. (ng + 3, K), lam (nc, K)."""
         kernel = fused(self.sens, whats)
-        args: list = [*qx[self.idx], *qdx[self.idx]]
+        count = qx.shape[1]
+        args: list = [*self.local(qx), *self.local(qdx)]
         if "qdd" in self.blocks:
-            args.extend(qddx[self.idx])
-        args.extend(self.const)
-        args.extend(self.fun)
+            args.extend(self.local(qddx))
+        args.extend(np.repeat(self.const, count, axis=1))
+        width = self.n * count
+        args.extend(self.fun.reshape(self.nfun, width))
         if "lam" in self.blocks:
-            args.extend(lam[self.rows] if lam is not None else np.zeros(self.rows.shape))
-        jac = kernel(args, self.n)
-        chain = np.concatenate([self.const_p, self.fun_p])
-        return jac, kernel.rows, np.einsum("oan,anp->onp", jac[:, self.cf], chain)
+            rows = self.rows.shape
+            args.extend(lam[self.rows].reshape(rows[0], width) if lam is not None else np.zeros((rows[0], width)))
+        jac = kernel(args, width)
+        chain = np.concatenate([np.repeat(self.const_p, count, axis=1), self.fun_p.reshape(self.nfun, width, self.const_p.shape[-1])])
+        return jac, kernel.rows, np.einsum("oam,amp->omp", jac[:, self.cf], chain)
 
     def times(self, jac: Array, block: str, local: Array) -> Array:
-        """J[:, block] times the block's local derivatives (args, n, np) -> (outputs, n, np)."""
-        return np.einsum("oan,anp->onp", jac[:, self.blocks[block]], local)
+        """J[:, block] times the block's local derivatives (args, n * K, np) -> (outputs, n * K, np)."""
+        return np.einsum("oam,amp->omp", jac[:, self.blocks[block]], local)
+
+    def unflat(self, vals: Array) -> Array:
+        """(outputs, n * K, np) -> (outputs, n, K, np)."""
+        return vals.reshape(vals.shape[0], self.n, vals.shape[1] // self.n, vals.shape[-1])
 
 
 class SensitivityEvaluator:
@@ -119,9 +144,6 @@ class SensitivityEvaluator:
         weight = np.zeros((nb, 3, nparams))
         weight[:, :2] = flat[at:at + 2 * nb * nparams].reshape(nb, 2, nparams)
         self.weight_p = weight.reshape(-1, nparams)
-        for p in self._c + self._f:  # no time functions: empty blocks (a timed group sets them per instant)
-            nfun = len(p.sens.blocks["functions"])
-            p.fun, p.fun_p = np.zeros((nfun, p.n)), np.zeros((nfun, p.n, nparams))
         wanted = set(reactions)
         order = [c.name for c in mech.constraints if c.name in wanted]
         width = {c.name: 3 * len(c.bodies) for c in mech.constraints}
@@ -134,92 +156,110 @@ class SensitivityEvaluator:
                         np.array([start[n] for n in p.group.names if n in wanted], dtype=np.intp))
                        for p in self._c]
 
-    def _timed(self, t: float) -> None:
-        """Every group's time functions and their chain at t."""
+    def _timed(self, ts: Array) -> None:
+        """Every group's time functions and their chain at the instants ts (K,)."""
+        count, nparams = ts.size, self.np
+        for p in self._c + self._f:  # a group without time functions: empty blocks
+            p.fun, p.fun_p = np.zeros((p.nfun, p.n, count)), np.zeros((p.nfun, p.n, count, nparams))
         if self.built.timed is None:
             return
-        flat = np.array(self.built.timed(np.float64(t), *self.args), dtype=float).reshape(-1)
-        at, nparams = 0, self.np
+        # a numpy t: a pole or a domain error gives inf or NaN, never an exception
+        vals = self.built.timed(np.asarray(ts, dtype=np.float64), *self.args)
+        flat = np.empty((len(vals), count))
+        for k, v in enumerate(vals):  # entries free of t come out scalars: the assignment broadcasts them
+            flat[k] = v
+        at = 0
         for p, (n, _, nfun) in zip(self._c + self._f, self.built.shapes):
             if not nfun:
                 continue
-            p.fun = flat[at:at + n * nfun].reshape(n, nfun).T
+            p.fun = flat[at:at + n * nfun].reshape(n, nfun, count).transpose(1, 0, 2)
             at += n * nfun
-            p.fun_p = flat[at:at + n * nfun * nparams].reshape(n, nfun, nparams).transpose(1, 0, 2)
+            p.fun_p = flat[at:at + n * nfun * nparams].reshape(n, nfun, nparams, count).transpose(1, 0, 3, 2)
             at += n * nfun * nparams
 
-    def _ext(self, v: Array | None) -> Array:
+    def _ext(self, v: Array | None, count: int) -> Array:
+        """(K, ng, ...) instants' values -> the extended (ng + 3, K, ...) (None: zeros)."""
         if v is None:
-            return np.zeros(self.layout.ng + 3)
-        return np.concatenate([v, np.zeros((3, *v.shape[1:]))])
+            return np.zeros((self.layout.ng + 3, count))
+        return _pad(np.moveaxis(v, 0, 1))
 
     def instant(self, factor: Factor, t: float, q: Array, qd: Array | None, qdd: Array | None,
                 lam: Array | None, reactions: bool = False) -> Derivatives:
-        """The derivatives at the solved instant (statics: qd, qdd None).
+        """The derivatives at one solved instant (statics: qd, qdd None); see `chunk`."""
+        rows = None if lam is None else lam[None]
+        return self.chunk([factor], np.array([t]), q[None], None if qd is None else qd[None],
+                          None if qdd is None else qdd[None], rows, reactions)[0]
+
+    def chunk(self, factors: Sequence[Factor], ts: Array, q: Array, qd: Array | None, qdd: Array | None,
+              lam: Array | None, reactions: bool = False) -> list[Derivatives]:
+        """The derivatives at K solved instants, vectorized over them.
 
         Args:
-            factor: the instant's factorization of Phi_q.
-            lam: the multipliers, or None (kinematics): then no lam_p.
+            factors: each instant's factorization of Phi_q (K).
+            ts: (K,); q, qd, qdd: (K, ng) (statics: qd, qdd None).
+            lam: (K, nc) multipliers, or None (kinematics): then no lam_p.
             reactions: whether to compute the reactions' derivatives.
         """
-        ng, nc, nparams = self.layout.ng, self.layout.nc, self.np
-        qx, qdx, qddx = self._ext(q), self._ext(qd), self._ext(qdd)
-        self._timed(t)
+        ng, nc, nparams, count = self.layout.ng, self.layout.nc, self.np, ts.size
+        qx, qdx, qddx = self._ext(q, count), self._ext(qd, count), self._ext(qdd, count)
+        lamx = None if lam is None else lam.T
+        self._timed(ts)
         whats = ("phi",) if self.statics else ("phi", "velocity", "acceleration")
         if lam is not None:
             whats += ("eom", "reactions") if reactions else ("eom",)
-        parts = [(p, *p.jacobians(whats, qx, qdx, qddx, lam)) for p in self._c]
+        parts = [(p, *p.jacobians(whats, qx, qdx, qddx, lamx)) for p in self._c]
 
         def solve(rhs: Array, transposed: bool = False) -> Array:
-            # column by column through the instant's factorization: OpenBLAS's
-            # threaded multi-right-hand-side getrs cost ~1 ms a call on a
-            # loaded machine, hundreds of times these small single solves
-            one = factor.solve_t if transposed else factor.solve
-            return np.column_stack([one(rhs[:, k]) for k in range(nparams)])
+            """(n, K, np) -> (m, K, np), instant by instant and column by column
+            through each instant's factorization: OpenBLAS's threaded
+            multi-right-hand-side getrs took ~1 ms a call on a loaded machine,
+            hundreds of times these small single solves."""
+            out = [[(f.solve_t if transposed else f.solve)(rhs[:, k, j]) for j in range(nparams)]
+                   for k, f in enumerate(factors)]
+            return np.array(out).transpose(2, 0, 1)
 
         def stage(what: str, terms: Sequence[tuple[str, Array]]) -> Array:
-            rhs = np.zeros((nc, nparams))
+            rhs = np.zeros((nc, count, nparams))
             for p, jac, rows, direct in parts:
                 vals = direct[rows[what]]
                 for block, ext in terms:
-                    vals = vals + p.times(jac[rows[what]], block, ext[p.idx])
-                rhs[p.rows] += vals
+                    vals = vals + p.times(jac[rows[what]], block, p.local(ext))
+                rhs[p.rows] += p.unflat(vals)
             return rhs
 
         q_p = -solve(stage("phi", ()))
-        qpx = self._ext(q_p)
-        if self.statics:
-            qd_p = qdd_p = np.zeros((ng, nparams))
-        else:
-            qd_p = -solve(stage("velocity", (("q", qpx),)))
-            qdd_p = -solve(stage("acceleration", (("q", qpx), ("qd", self._ext(qd_p)))))
-        out = Derivatives(q_p, qd_p, qdd_p)
-        if lam is None:
-            return out
-        # d/dp of M qdd + Phi_q^T lam - Q^A, all but Phi_q^T lam_p
-        rest = np.zeros((ng + 3, nparams))
-        for p, jac, rows, direct in parts:
-            e = rows["eom"]
-            np.add.at(rest, p.idx, direct[e] + p.times(jac[e], "q", qpx[p.idx]))
-        for p in self._f:
-            jac, _, direct = p.jacobians(("generalized",), qx, qdx, qddx, None)
-            vals = direct + p.times(jac, "q", qpx[p.idx])
-            if not self.statics:
-                vals = vals + p.times(jac, "qd", self._ext(qd_p)[p.idx])
-            np.add.at(rest, p.idx, -vals)
-        rest = rest[:ng] - self.weight_p
+        qpx = _pad(q_p)
+        qd_p = qdd_p = np.zeros((ng, count, nparams))
         if not self.statics:
-            rest += self.mass_p * qdd[:, None] + self.mass[:, None] * qdd_p  # type: ignore[index]
-        out.lam = lam_p = -solve(rest, transposed=True)
-        if reactions:
-            lpx = lam_p
-            r_p = np.empty((self.reaction_size, nparams))
-            for (p, jac, rows, direct), (members, slots) in zip(parts, self._slots):
-                if members.size == 0:
-                    continue
-                r = rows["reactions"]
-                vals = direct[r] + p.times(jac[r], "q", qpx[p.idx]) + p.times(jac[r], "lam", lpx[p.rows])
-                vals = vals[:, members]  # (outputs, chosen members, np)
-                r_p[slots[None, :] + np.arange(vals.shape[0])[:, None]] = vals
-            out.reactions = r_p
-        return out
+            qd_p = -solve(stage("velocity", (("q", qpx),)))
+            qdd_p = -solve(stage("acceleration", (("q", qpx), ("qd", _pad(qd_p)))))
+        lam_p = r_p = None
+        if lam is not None:
+            # d/dp of M qdd + Phi_q^T lam - Q^A, all but Phi_q^T lam_p: (ng + 3, K, np)
+            rest = np.zeros((ng + 3, count, nparams))
+            for p, jac, rows, direct in parts:
+                e = rows["eom"]
+                np.add.at(rest, p.idx, p.unflat(direct[e] + p.times(jac[e], "q", p.local(qpx))))
+            qdpx = _pad(qd_p)
+            for p in self._f:
+                jac, _, direct = p.jacobians(("generalized",), qx, qdx, qddx, None)
+                vals = direct + p.times(jac, "q", p.local(qpx))
+                if not self.statics:
+                    vals = vals + p.times(jac, "qd", p.local(qdpx))
+                np.add.at(rest, p.idx, -p.unflat(vals))
+            rest = rest[:ng] - self.weight_p[:, None, :]
+            if not self.statics:
+                rest += self.mass_p[:, None, :] * qdd.T[:, :, None] + self.mass[:, None, None] * qdd_p  # type: ignore[union-attr]
+            lam_p = -solve(rest, transposed=True)
+            if reactions:
+                r_p = np.empty((self.reaction_size, count, nparams))
+                lpx = lam_p
+                for (p, jac, rows, direct), (members, slots) in zip(parts, self._slots):
+                    if members.size == 0:
+                        continue
+                    r = rows["reactions"]
+                    lam_local = lpx[p.rows].reshape(p.rows.shape[0], p.n * count, nparams)
+                    vals = direct[r] + p.times(jac[r], "q", p.local(qpx)) + p.times(jac[r], "lam", lam_local)
+                    r_p[slots[None, :] + np.arange(vals.shape[0])[:, None]] = p.unflat(vals)[:, members]
+        return [Derivatives(q_p[:, k], qd_p[:, k], qdd_p[:, k], None if lam_p is None else lam_p[:, k],
+                            None if r_p is None else r_p[:, k]) for k in range(count)]

@@ -17,7 +17,8 @@ import numpy as np
 from symid.errors import InputError
 from symid.model.analysis import Analysis
 from symid.model.params import base_names, is_derived
-from symid.numeric.solve import Instant, instant_row, run
+from symid.numeric.solve import instant_row, run
+from symid.output.results import table_rows
 from symid.numeric.stability import Factor, Notes, Scaling
 from symid.output.summary import drivers, source
 from symid.symbolic.columns import GROUP_SUFFIXES, columns
@@ -30,6 +31,7 @@ if TYPE_CHECKING:
 
 # The table groups a column can be differentiated in, and where each group's
 # derivatives are in `Derivatives`.
+CHUNK = 64  # instants whose sensitivities are evaluated at once (numpy's per-call cost, shared)
 _GROUPS = {"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam", "reactions": "reactions"}
 
 
@@ -140,23 +142,78 @@ def values(choice: Choice, d: Derivatives) -> Array:
 
 
 def rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes, choice: Choice,
-         sens: SensitivityEvaluator) -> Iterator[Array]:
-    """The table rows with the sensitivity columns appended, from the Python loop."""
+         sens: SensitivityEvaluator, chunk: int = CHUNK) -> Iterator[Array]:
+    """The table rows with the sensitivity columns appended; the sensitivities
+    of `chunk` instants at a time, vectorized over them (a failure still
+    yields every instant solved before it).
+
+    A backend with its own loop (numpy's generated one, several times the
+    shared Python loop's speed) solves when its rows hold what the
+    sensitivities start from (q, and qdot, qddot, lambda where needed):
+    Phi_q is then factored again per instant. Otherwise the shared Python
+    loop, whose factorization each instant's sensitivities reuse."""
     want_lam = any(attr in ("lam", "reactions") for attr, _ in choice.where)
     want_r = any(attr == "reactions" for attr, _ in choice.where)
-    for instant in run(evaluator, analysis, q0, notes):
-        row = instant_row(instant, len(q0), analysis)
-        d = sens.instant(_factor_of(evaluator, instant), instant.t, instant.q, instant.qd, instant.qdd,
-                         instant.lam if want_lam else None, want_r)
-        yield np.concatenate([row, values(choice, d)])
+    ng = len(q0)
+    dyn = analysis.kind != "statics"
+    at = _starts(sens.layout, analysis)
+    need = ["q"] + (["qdot", "qddot"] if dyn else []) + (["lambda"] if want_lam else [])
+    own = getattr(evaluator, "rows", None) is not None and all(g in at for g in need)
+    held: list[tuple[Array, Array, Factor | None]] = []  # (row, state: t, q[, qd, qdd][, lam], factor)
+    scaling: list[Scaling] = []  # a backend's own loop: one equilibration for the run (t0's), as the loop's
+
+    def flush() -> Iterator[Array]:
+        state = np.array([h[1] for h in held])
+        ts, q = state[:, 0], state[:, 1:1 + ng]
+        qd = state[:, 1 + ng:1 + 2 * ng] if dyn else None
+        qdd = state[:, 1 + 2 * ng:1 + 3 * ng] if dyn else None
+        lam = state[:, 1 + (3 if dyn else 1) * ng:] if want_lam else None
+        factors = [f if f is not None else _factor(evaluator, q[k], ts[k], scaling) for k, (_, _, f) in enumerate(held)]
+        for (row, _, _), d in zip(held, sens.chunk(factors, ts, q, qd, qdd, lam, want_r)):
+            yield np.concatenate([row, values(choice, d)])
+        held.clear()
+
+    def state(row: Array) -> Array:
+        return np.concatenate([row[:1], *(row[at[g]:at[g] + (ng if g != "lambda" else sens.layout.nc)]
+                                          for g in need)])
+
+    source = table_rows(evaluator, analysis, q0, notes) if own else run(evaluator, analysis, q0, notes)
+    try:
+        for item in source:
+            if own:
+                held.append((item, state(item), None))
+            else:
+                parts = [np.array([item.t]), item.q] + ([item.qd, item.qdd] if dyn else [])
+                parts += [item.lam] if want_lam else []
+                held.append((instant_row(item, ng, analysis), np.concatenate(parts), item.factor))
+            if len(held) >= chunk:
+                yield from flush()
+    except Exception:  # a failed instant: the ones solved before it first
+        if held:
+            yield from flush()
+        raise
+    if held:
+        yield from flush()
 
 
-def _factor_of(evaluator: Evaluator, instant: Instant) -> Factor:
-    """The instant's factorization of Phi_q (made again if the loop kept none)."""
-    if instant.factor is not None:
-        return instant.factor
-    jac = evaluator.phi_q(instant.q, instant.t)
-    return Factor(jac, Scaling.of(jac, instant.q))
+def _starts(layout: Layout, analysis: Analysis) -> dict[str, int]:
+    """The first column of each of the table's q, qdot, qddot, lambda groups."""
+    sizes = {"q": layout.ng, "qdot": layout.ng, "qddot": layout.ng, "lambda": layout.nc}
+    out, at = {}, 1
+    for group in analysis.output_groups():
+        if group in sizes:  # reactions come last (OUTPUT_GROUPS order)
+            out[group] = at
+            at += sizes[group]
+    return out
+
+
+def _factor(evaluator: Evaluator, q: Array, t: float, scaling: list[Scaling]) -> Factor:
+    """Phi_q at a solved instant, factored (a backend's own loop keeps none)
+    with the run's scaling (made at the first instant: `scaling` keeps it)."""
+    jac = evaluator.phi_q(q, t)
+    if not scaling:
+        scaling.append(Scaling.of(jac, q))
+    return Factor(jac, scaling[0])
 
 
 def reaction_count(reactions: tuple[str, ...], mechanism: Mechanism) -> int:
