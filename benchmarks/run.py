@@ -43,6 +43,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from benchmarks.design_study import run_study
 from benchmarks.processes import ROOT, env_for, spawn, timed_process
 from benchmarks.workers import exact_torque, worker
 
@@ -78,11 +79,21 @@ class Config:
     # ratio targets are read from these (separate cells run minutes apart)
     paired_mechs: tuple[str, ...] = ("slider_crank", "ladder_64")
     paired_rounds: int = 21
+    # the design study (issue 14, benchmarks.design_study): rods x speeds variants x steps
+    # instants; CasADi's map over map_variants at map_steps; processes: callgrind, `symid sweep`, Dask
+    study_rods: int = 25
+    study_speeds: int = 40
+    study_steps: int = 1001
+    study_map_variants: int = 1000
+    study_map_steps: int = 101
+    study_processes: bool = True
 
 
 SMOKE = Config(ladders=(1,), steps=1001, compiled_instants=40, budget_s=0.5, cap_s=50.0, total_s=50.0, reserve_s=0.0,
                sweep_mechs=(("ladder_1", 1001),), sweep_instants=15, tolerances=(1e-6, 1e-12), orders=(0, 2),
-               stream_instants=2001, solve_runs=1, jobs=2, paired_mechs=("ladder_1",), paired_rounds=3)
+               stream_instants=2001, solve_runs=1, jobs=2, paired_mechs=("ladder_1",), paired_rounds=3,
+               study_rods=2, study_speeds=2, study_steps=21, study_map_variants=4, study_map_steps=21,
+               study_processes=False)
 
 
 # --- mechanisms --------------------------------------------------------------------
@@ -316,11 +327,12 @@ def main(argv: list[str] | None = None) -> int:
         sweeps = run_sweeps(cfg, mechs, exact, work, log)
         paired = run_paired(cfg, mechs, work, log)
         processes = {} if args.skip_processes else run_processes(cfg, work, log)
+        study = run_study(cfg, work, log)
     info["load_average_end"] = os.getloadavg()
     info["run_s"] = time.time() - start
     result = {"machine": info, "config": {**cfg.__dict__, "smoke": args.smoke},
               "mechanisms": [{k: v for k, v in m.items() if k != "file"} for m in mechs],
-              "cells": cells, "sweeps": sweeps, "paired": paired, "processes": processes}
+              "cells": cells, "sweeps": sweeps, "paired": paired, "processes": processes, "study": study}
     (args.out / "bench.json").write_text(json.dumps(result, indent=1, default=float))
     (args.out / "bench.md").write_text(report.markdown(result))
     for path in report.plots(result, args.out):

@@ -1,28 +1,45 @@
-"""Sensitivities benchmark (issue #15, Python path): what the d(COLUMN)/d(NAME)
-columns cost per instant on the shared Python loop, against the same loop
-without them, for 1, 3 and all base parameters.
+"""Sensitivities benchmark (issue #15): what the d(COLUMN)/d(NAME) columns
+cost per instant, against the same run without them.
 
-    python -m benchmarks.sensitivity [--example slider_crank] [--instants N] [--repeats R]
-                                     [--backend numpy] [--out benchmarks/results]
+    python -m benchmarks.sensitivity [--part python|c|both] [--example slider_crank] [--instants N]
+                                     [--repeats R] [--backend numpy] [--c-examples slider_crank,planetary]
+                                     [--c-instants N] [--out benchmarks/results]
 
-Measured in one run, so the machine's load shifts both sides alike: the ratio
-(with / without) per n_p, and the fitted cost per parameter (the issue's
-target for generated C is 1 + 0.3 n_p; this is the Python loop's figure,
-which the generated C of `csens` replaces). Setup (the one-time sympy
-derivation and lambdify) is reported apart. Prints and writes sensitivity.json.
+1. python (the shared Python loop, any backend): the ratio with / without
+   for 1, 3 and all base parameters, measured in one run so the machine's
+   load shifts both sides alike, and the fitted cost per parameter; setup
+   (the one-time sympy derivation and lambdify) reported apart.
+2. c (generated C, `--backend c`): for the slider-crank and the planetary
+   gear train (12 coordinates), the compiled solver plain and with
+   sensitivities to n_p = 1, 2, 4 base parameters (default columns: the
+   drivers' efforts and every reaction): instructions per instant by
+   callgrind (the difference of two runs, so loading and setup are left
+   out; the machine's load does not change it) and the best wall-clock
+   microseconds per instant of the compiled trajectory called through
+   ctypes. Target: ratio <= 1 + 0.3 n_p (one factorization serves every
+   parameter).
+
+Prints the figures and writes sensitivity.json ({"python": ..., "c": ...}).
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
 import json
+import os
 import platform
+import re
+import subprocess
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from benchmarks import instructions
 from symid import api
+from symid.backends.c_backend import CEvaluator
 from symid.model.params import base_names
 from symid.numeric.solve import run
 
@@ -38,14 +55,8 @@ def _best(fn, repeats: int) -> float:  # type: ignore[no-untyped-def]
     return float(best)
 
 
-def main(argv: list[str] | None = None) -> dict[str, object]:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--example", default="slider_crank")
-    parser.add_argument("--instants", type=int, default=201)
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--backend", default="numpy")
-    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
-    args = parser.parse_args(argv)
+def python_loop(args: argparse.Namespace) -> dict[str, object]:
+    """Part 1: the shared Python loop with and without the columns."""
     path = api.example(args.example)
     names = base_names(api.load_mechanism(path).parameters)
     plain = api.prepare(path, args.backend, steps=args.instants)
@@ -69,10 +80,133 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
         slope = float(np.polyfit(counts, [ratios[c] for c in counts], 1)[0])
         figures["per_parameter"] = slope
         print(f"cost per parameter: {slope:.2f} plain instants (fit over n_p = {', '.join(map(str, counts))})")
+    return figures
+
+
+PARAMETERS = {"slider_crank": ("L_crank", "m_rod", "n", "L_rod"),
+              "planetary": ("r_planet", "m_carrier", "n_in", "r_sun")}
+COUNTS = (0, 1, 2, 4)
+
+
+def solver(example: str, n_p: int) -> tuple[CEvaluator, object, np.ndarray]:
+    """The example's compiled solver with sensitivities to its first n_p parameters (0: plain)."""
+    study = api.prepare(api.example(example), backend="c", sensitivity=PARAMETERS[example][:n_p] if n_p else None)
+    assert isinstance(study.evaluator, CEvaluator)
+    return study.evaluator, study.mechanism, study.q0()
+
+
+def instructions_per_instant(ev: CEvaluator, mech, q0: np.ndarray, first: int = 200,  # type: ignore[no-untyped-def]
+                             second: int = 2200) -> float:
+    """Callgrind instructions per instant of the trajectory (benchmarks.instructions' driver)."""
+    name, a, folder = mech.name, mech.analysis, Path(ev.artifact)
+    source = (instructions.DRIVER.replace("UPPER", name.upper()).replace("NAME", name)
+              .replace("Q0", ", ".join(repr(float(v)) for v in q0))
+              .replace("T0", repr(float(a.t0))).replace("H", repr((a.t1 - a.t0) / (second - 1)))
+              .replace("TOL", repr(float(a.tol))))
+    counts = []
+    with tempfile.TemporaryDirectory() as tmp:
+        driver, exe = Path(tmp) / "driver.c", Path(tmp) / "driver"
+        driver.write_text(source, encoding="utf-8")
+        subprocess.run(["gcc", "-O2", "-std=c99", "-fno-math-errno", "-I", str(folder), str(driver),
+                        str(folder / f"{name}_solver.c"), "-o", str(exe), "-lm"], check=True)
+        for n in (first, second):
+            out = subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={tmp}/cg.out",
+                                  str(exe), str(n)], capture_output=True, text=True, check=True)
+            found = re.search(r"Collected : (\d+)", out.stderr)
+            if found is None or out.stdout.split() != ["0", str(n)]:
+                raise RuntimeError(f"callgrind run of {name} failed: {out.stdout} {out.stderr[-300:]}")
+            counts.append(int(found.group(1)))
+    return (counts[1] - counts[0]) / (second - first)
+
+
+# instants per trajectory call: the rows of a call stay in cache, as the c
+# backend keeps them (CHUNK_BYTES), so the wider rows cost their writes only
+CALL = 64
+
+
+def microseconds_per_instant(ev: CEvaluator, mech, q0: np.ndarray, instants: int,  # type: ignore[no-untyped-def]
+                             repeats: int) -> float:
+    """Best wall-clock microseconds per instant of a run of `instants`, CALL a call."""
+    a = mech.analysis
+    h = (a.t1 - a.t0) / (instants - 1)
+    rows = np.zeros((CALL, ev.meta["row"]))
+    solved = ctypes.c_long(0)
+    dbl = ctypes.POINTER(ctypes.c_double)
+    best = np.inf
+    for _ in range(repeats):
+        state = np.zeros(ev.meta["state"])
+        state[:len(q0)] = q0
+        done = 0
+        start = time.perf_counter()
+        while done < instants:
+            status = ev._trajectory(ctypes.c_double(a.t0), ctypes.c_double(h), ctypes.c_long(min(CALL, instants - done)),
+                                    ev.p.ctypes.data_as(dbl), ctypes.c_double(a.tol), state.ctypes.data_as(dbl),
+                                    rows.ctypes.data_as(dbl), ctypes.byref(solved), ev.work.ctypes.data_as(dbl),
+                                    ev.iwork.ctypes.data_as(ctypes.POINTER(ctypes.c_int)))
+            if status != 0:
+                raise RuntimeError(f"{mech.name}: the trajectory stopped with status {status} at {done + solved.value}")
+            done += solved.value
+        best = min(best, (time.perf_counter() - start) / instants)
+    return float(best * 1e6)
+
+
+def generated_c(args: argparse.Namespace) -> dict[str, object]:
+    """Part 2: the compiled solver plain and with n_p = 1, 2, 4 parameters."""
+    figures: dict[str, object] = {}
+    for example in args.c_examples.split(","):
+        rows: dict[int, dict[str, object]] = {}
+        built = {n_p: solver(example, n_p) for n_p in COUNTS}
+        for n_p, (ev, mech, q0) in built.items():
+            rows[n_p] = {"parameters": list(PARAMETERS[example][:n_p]),
+                         "columns": ev.meta["sens_width"] // max(1, n_p)}
+            if instructions.available():
+                rows[n_p]["instructions_per_instant"] = instructions_per_instant(ev, mech, q0)
+        # wall clock in rounds over every variant: a burst of load on a shared
+        # machine then slows one round of all, not all the runs of one variant
+        best = {n_p: float("inf") for n_p in built}
+        for _ in range(args.repeats):
+            for n_p, (ev, mech, q0) in built.items():
+                best[n_p] = min(best[n_p], microseconds_per_instant(ev, mech, q0, args.c_instants, 1))
+        for n_p in built:
+            rows[n_p]["us_per_instant"] = best[n_p]
+        plain = rows[0]
+        for n_p in COUNTS[1:]:
+            r = rows[n_p]
+            r["target"] = 1 + 0.3 * n_p
+            r["wall_ratio"] = r["us_per_instant"] / plain["us_per_instant"]  # type: ignore[operator]
+            if "instructions_per_instant" in r:
+                r["instructions_ratio"] = r["instructions_per_instant"] / plain["instructions_per_instant"]  # type: ignore[operator]
+            print(f"{example}, n_p = {n_p} ({', '.join(r['parameters'])}; {r['columns']} columns): "  # type: ignore[arg-type]
+                  f"wall {r['wall_ratio']:.2f}x"
+                  + (f", instructions {r['instructions_per_instant']:.0f} vs {plain['instructions_per_instant']:.0f} "
+                     f"= {r['instructions_ratio']:.2f}x" if "instructions_ratio" in r else "")
+                  + f" (target <= {r['target']:.1f}x)")
+        figures[example] = {str(k): v for k, v in rows.items()}
+    return {"instants": args.c_instants, "repeats": args.repeats, "figures": figures}
+
+
+def main(argv: list[str] | None = None) -> dict[str, object]:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--part", choices=("python", "c", "both"), default="both")
+    parser.add_argument("--example", default="slider_crank", help="python part")
+    parser.add_argument("--instants", type=int, default=201, help="python part")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--backend", default="numpy", help="python part")
+    parser.add_argument("--c-examples", default=",".join(PARAMETERS))
+    parser.add_argument("--c-instants", type=int, default=20_001)
+    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
+    args = parser.parse_args(argv)
+    result: dict[str, object] = {
+        "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
+                    "python": platform.python_version(), "numpy": np.__version__}}
+    if args.part in ("python", "both"):
+        result["python"] = python_loop(args)
+    if args.part in ("c", "both"):
+        result["c"] = generated_c(args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "sensitivity.json").write_text(json.dumps(figures, indent=1) + "\n")
-    return figures
+    (out / "sensitivity.json").write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    return result
 
 
 if __name__ == "__main__":

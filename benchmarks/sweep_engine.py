@@ -56,10 +56,10 @@ def _timed(mech: Any, names: tuple[str, ...], base: np.ndarray, workers: int) ->
             "instants_per_cpu_s": instants / batch.cpu_s, "failed": int(np.count_nonzero(batch.status))}
 
 
-def grid(steps: int) -> dict[str, Any]:
+def grid(steps: int, n_rods: int = 25, n_speeds: int = 40) -> dict[str, Any]:
     mech = api.load_mechanism(api.example("slider_crank"), steps=steps)
-    rods = np.linspace(0.2, 0.5, 25)
-    speeds = np.linspace(1.0, 10.0, 40)
+    rods = np.linspace(0.2, 0.5, n_rods)
+    speeds = np.linspace(1.0, 10.0, n_speeds)
     base = np.array([(r, n) for r in rods for n in speeds])
     names = ("L_rod", "n")
     solve_figures(mech, names, base[:2], "c", workers=1)  # build (or load) the solver: not the solve phase

@@ -164,11 +164,18 @@ def worker_paired(spec: dict[str, Any]) -> dict[str, Any]:
             "ratio_range": [float(min(ratios)), float(max(ratios))]}
 
 
+def worker_study(spec: dict[str, Any]) -> dict[str, Any]:
+    from benchmarks.design_study import worker_study as study
+
+    return study(spec)
+
+
 def worker(spec: dict[str, Any]) -> dict[str, Any]:
     kind = spec["kind"]
     tick = time.perf_counter()
     fn: Callable[[dict[str, Any]], dict[str, Any]] = {
-        "symid": worker_symid, "baseline": worker_baseline, "sweep": worker_sweep, "paired": worker_paired}[kind]
+        "symid": worker_symid, "baseline": worker_baseline, "sweep": worker_sweep, "paired": worker_paired,
+        "study": worker_study}[kind]
     out = fn(spec)
     out["worker_s"] = time.perf_counter() - tick
     return out

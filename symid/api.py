@@ -142,8 +142,8 @@ class Study:
     def _source(self, notes: Notes) -> Iterator[Array]:
         """The table's rows or blocks: the backend's, or with sensitivities the
         shared Python loop's (whose factorization of Phi_q they reuse)."""
-        if self.sensitivity is None:
-            return table_blocks(self.evaluator, self.analysis, self.q0(), notes)
+        if self.sensitivity is None or getattr(self.evaluator, "sensitivity_header", None) == self.sensitivity.header:
+            return table_blocks(self.evaluator, self.analysis, self.q0(), notes)  # a compiled loop's own
         from symid.output import sensitivity
 
         sens = sensitivity.evaluator_for(self.layout, self.values, self.sensitivity, self.analysis)
@@ -270,6 +270,8 @@ def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
     from symid.output.sensitivity import choose
 
     choice = choose(mech, layout, sensitivity, sensitivity_of, reactions)
+    if choice is not None:
+        needs = dataclasses.replace(needs, sensitivity=choice.names, sensitivity_of=choice.of)
     evaluator = friction.attach(chosen.evaluator(layout, values, needs), layout, values)
     return Study(mech, layout, evaluator, values, backend=backend, sensitivity=choice)
 
@@ -282,11 +284,15 @@ def load_mechanism(path: str | Path, set_values: Mapping[str, str] | None = None
 
 
 def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path,
-             precision: str = "double") -> list[Path]:
+             precision: str = "double", sensitivity: str | Sequence[str] | None = None,
+             sensitivity_of: str | Sequence[str] | None = None) -> list[Path]:
     """Write the generated code of one target ("c", "numpy", "casadi") into out_dir.
 
     What is emitted follows the mechanism's `[analysis]`: kind, outputs and reactions.
     precision: "double" or "single" (C only: the type of every floating value).
+    sensitivity: base parameters (C only; a list or "A,B") whose derivatives
+    `d(COLUMN)/d(NAME)` the rows end with, for the columns `sensitivity_of`
+    (default: the drivers' efforts and the reactions); None: the code as without.
     """
     from symid.codegen import targets
     from symid.codegen.model import code_model
@@ -294,6 +300,8 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
     module = targets.get(target)
     mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
     require_square(mech)
+    if sensitivity is not None or sensitivity_of is not None:
+        return _generate_sensitivity(mech, target, Path(out_dir), precision, sensitivity, sensitivity_of)
     joint = friction.first_joint(mech)
     if joint is not None and target != "c":  # never generate a solver that silently ignores friction
         raise InputError(f"{mech.source}: constraint '{joint}' key 'friction': --target {target}: the generated "
@@ -305,6 +313,23 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
         return module.generate(code_model(mech, looped=True), Path(out_dir),  # type: ignore[no-any-return]
                                precision=precision)
     return module.generate(code_model(mech, looped=target == "c"), Path(out_dir))  # type: ignore[no-any-return]
+
+
+def _generate_sensitivity(mech: Mechanism, target: str, out_dir: Path, precision: str,
+                          names: str | Sequence[str] | None, of: str | Sequence[str] | None) -> list[Path]:
+    """`generate` with sensitivity columns (C only), checked and defaulted as
+    `symid solve --sensitivity` checks them, before the derivation."""
+    from symid.codegen.model import code_model, options_for
+    from symid.codegen.targets import c
+    from symid.output.sensitivity import choose
+
+    if target != "c":
+        raise InputError(f"generate: --sensitivity applies to --target c only (the {target} code has none yet)")
+    options = options_for(mech)
+    choice = choose(mech, assemble(mech), names, of, options.reactions)
+    assert choice is not None  # names given (choose refuses --sensitivity-of alone)
+    options = dataclasses.replace(options, sensitivity=choice.names, sensitivity_of=choice.of)
+    return c.generate(code_model(mech, options, looped=True), out_dir, precision=precision)
 
 
 def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "numpy", "casadi")) -> list[Path]:

@@ -76,6 +76,12 @@ def test_benchmark_smoke_run_writes_every_output(tmp_path: Path) -> None:
         assert cell["us_per_instant"] > 0 and cell["peak_rss_mb"] > 0
     assert all(s["status"] == "ok" for s in result["sweeps"].values())
     assert "| approach |" in (tmp_path / "bench.md").read_text()
+    # the design study beside CasADi's C loop and CasADi's map from Python (issue 14)
+    study = result["study"]
+    assert study["status"] == "ok", study
+    assert study["grid"]["threads_2"]["failed"] == 0 and study["grid"]["threads_2"]["instants_per_s"] > 0
+    assert study["casadi_map"]["us_per_instant"] > 0 and study["casadi_c"]["us_per_instant_1_thread"] > 0
+    assert 'Function.map(K, "thread", 2)' in (tmp_path / "bench.md").read_text()
 
 
 @pytest.mark.parametrize("backend", ["c", "numpy", "reference", "casadi"])

@@ -89,6 +89,7 @@ def cluster(tmp_path_factory) -> Iterator[Cluster]:
 
 
 STEPS = 41
+KILL_STEPS = 100_001
 GRID = ["L_rod=0.25:0.35:4", "n=3:7:6"]
 
 
@@ -117,7 +118,11 @@ def test_cluster_table_is_the_local_table(cluster, local, tmp_path, capsys):
 
 
 def test_a_worker_killed_mid_sweep_loses_and_duplicates_no_variant(cluster, local):
-    mech, v, table = local
+    # long runs: a chunk of a few variants takes a good part of a second, so
+    # that when the first chunk is back the other worker still holds some
+    _, v, _ = local
+    mech = api.load_mechanism(CRANK, steps=KILL_STEPS)
+    table = api.sweep(mech, v, backend="c")
     client = cluster.client(2)
     try:
         sweep = Sweep(mech, v, "c", client=client)
@@ -158,3 +163,21 @@ def test_a_worker_without_symid_is_exit_2_naming_it(cluster, tmp_path, capsys):
     assert "worker broken (tcp://127.0.0.1:" in err and "cannot import symid or build the c solver" in err, err
     assert "this symid is broken" in err
     assert not (tmp_path / "o.csv").exists()
+
+
+def test_the_scheduler_runs_a_sweep_without_importing_symid(cluster, local):
+    # it unpickles every task: a task function named by reference would make
+    # it import symid and sympy, seconds before the first chunk could start
+    def imported() -> list[str]:  # nested: shipped by value, not by this module's name
+        import sys
+
+        return sorted(m for m in ("symid", "sympy") if m in sys.modules)
+
+    mech, v, table = local
+    client = cluster.client(2)
+    try:
+        remote = api.sweep(mech, v, backend="c", client=client)
+        assert client.run_on_scheduler(imported) == []
+    finally:
+        client.close()
+    assert np.array_equal(remote.data, table.data, equal_nan=True)

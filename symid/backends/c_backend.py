@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import ctypes
+import dataclasses
 import json
 import os
 import shlex
@@ -116,7 +117,8 @@ def build(layout: Layout, options: Options) -> Path:
                 "row": len(model.row_columns), "columns": list(model.row_columns),
                 "work": ctx["work"], "state": c.state_size(model), "params": list(f.params),
                 "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac],
-                "sweep_figures": c_sweep.figure_names(model), "sweep_work": ctx["sweep_work"]}
+                "sweep_figures": c_sweep.figure_names(model), "sweep_work": ctx["sweep_work"],
+                "sens_width": ctx["sens"]["width"] if ctx["sens"] else 0}
         (folder / "meta.json").write_text(json.dumps(meta))
 
     return cached(mech, options, "c", make, ("solver.so", "meta.json"))
@@ -163,6 +165,25 @@ class CEvaluator:
         self.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
         self.work = np.zeros(self.meta["work"])
         self.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
+        if self.meta.get("sens_width"):
+            self._sensitivity = self.lib[f"{name}_instant_sensitivity"]
+            self._sensitivity.argtypes = [ctypes.c_double, _P, ctypes.c_double, _P, _P, _I, _P, _I]
+
+    @property
+    def sensitivity_header(self) -> list[str] | None:
+        """The d(COLUMN)/d(NAME) columns the compiled rows end with (None: none)."""
+        width = self.meta.get("sens_width", 0)
+        return list(self.meta["columns"][-width:]) if width else None
+
+    def sensitivity_row(self, q: Array, t: float, tol: float) -> Array:
+        """The sensitivity columns at the instant the Python loop solved (q):
+        the compiled solver's own derivatives there, so that a row it hands
+        over has the same columns as its own rows."""
+        qq = np.array(q, dtype=float)
+        out = np.zeros(self.meta["sens_width"])
+        status = self._sensitivity(ctypes.c_double(t), _ptr(self.p), ctypes.c_double(tol), _ptr(qq), _ptr(out),
+                                   None, _ptr(self.work), self.iwork.ctypes.data_as(_I))
+        return out if status == 0 else np.full(out.size, np.nan)
 
     def with_params(self, params: Mapping[str, float]) -> "CEvaluator":
         """The same compiled solver with other parameter values (name -> value;
@@ -277,7 +298,10 @@ class CEvaluator:
                                    qdd=qdd.copy() if velocity else None)
                     history = [v.copy() for v in (m2, m1, q)[max(0, 3 - count):]] if not velocity else [q.copy()]
                     out = stepper.instant(k, analysis.t0 + k * h, prev, history, q0)
-                yield instant_row(out, ng, analysis)[None, :]
+                row = instant_row(out, ng, analysis)
+                if self.meta.get("sens_width"):
+                    row = np.concatenate([row, self.sensitivity_row(out.q, out.t, analysis.tol)])
+                yield row[None, :]
                 # the state as the compiled loop leaves it after an instant
                 if velocity:
                     m3[:], m2[:], m1[:], qd[:], qdd[:] = m2, m1, qdd, out.qd, out.qdd
@@ -305,7 +329,10 @@ class CBackend:
     def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> CEvaluator:
         from symid.codegen.model import options_for
 
-        folder = build(layout, options_for(layout.mechanism))
+        options = options_for(layout.mechanism)
+        if needs.sensitivity:  # computed in the compiled loop, with the factors of each instant
+            options = dataclasses.replace(options, sensitivity=needs.sensitivity, sensitivity_of=needs.sensitivity_of)
+        folder = build(layout, options)
         return CEvaluator(folder, layout.mechanism.name, {s.name: v for s, v in values.items()}, layout)
 
     def load(self, artifact: Path, name: str, params: Mapping[str, float]) -> CEvaluator:

@@ -7,6 +7,7 @@ the argparse subparsers and sets `run=` to a function (args) -> exit status.
 MODULES: tuple[str, ...] = (
     "symid.cli.solve",
     "symid.cli.sweep",
+    "symid.cli.optimize",
     "symid.cli.check",
     "symid.cli.example",
     "symid.cli.plot",

@@ -32,12 +32,26 @@ def version() -> str:
         return "unknown (not installed)"
 
 
+class _Version(argparse.Action):
+    """`--version`, looked up only when asked: importlib.metadata reads every
+    installed distribution, a tenth of a second of every command otherwise."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS,
+                 default: str = argparse.SUPPRESS, help: str = "show program's version number and exit") -> None:
+        super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        sys.stdout.write(f"symid {version()}\n")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole command line: `symid` and every subcommand."""
     parser = Parser(prog="symid", description="Planar multibody inverse dynamics, derived by sympy.",
                      epilog="start with: symid example slider_crank; symid help format; "
                             "symid solve --help")
-    parser.add_argument("--version", action="version", version=f"symid {version()}")
+    parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser, metavar="COMMAND")
 
     from importlib import import_module

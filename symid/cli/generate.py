@@ -20,6 +20,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--precision", choices=("double", "single"), default="double",
                    help="C target: the floating type of every argument and table (single: float, for an FPU "
                         "without double; see the README for its accuracy)")
+    p.add_argument("--sensitivity", metavar="NAME[,NAME...]",
+                   help="C target: end each row with the exact derivatives d(COLUMN)/d(NAME) by these base "
+                        "parameters (columns outer, parameters inner); default: none, the code as without")
+    p.add_argument("--sensitivity-of", metavar="COLUMN[,COLUMN...]",
+                   help="the columns differentiated (default: the drivers' efforts and the reaction columns)")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="override a parameter's default value in the generated code (repeatable)")
     p.set_defaults(run=run)
@@ -32,6 +37,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.precision != "double" and args.target != ["c"]:
         raise InputError(f"generate: --precision {args.precision} applies to --target c only")
+    if args.examples and (args.sensitivity is not None or args.sensitivity_of is not None):
+        raise InputError("generate: --sensitivity applies to one FILE, not to --examples")
     if args.examples:
         out = Path(args.output or "generated")
         targets = tuple(args.target or ("c", "numpy", "casadi"))
@@ -44,6 +51,8 @@ def run(args: argparse.Namespace) -> int:
     study_mech = api.load_mechanism(args.file, set_values(args.set, args.file))
     for target in args.target:
         out = Path(args.output) if args.output else Path(f"{study_mech.name}_{target}")
-        for path in api.generate(study_mech, target, out, precision=args.precision):
+        for path in api.generate(study_mech, target, out, precision=args.precision,
+                                 sensitivity=args.sensitivity, sensitivity_of=args.sensitivity_of):
             print(path)
     return 0
+

@@ -24,7 +24,9 @@ SWEEP_EPILOG = """examples:
 
 Columns: variant, the varied parameters, status, t_end, then per driver D
 D.effort_peak D.effort_t_peak D.effort_rms D.power_peak, per constraint C
-C.force_peak (symid help format, "Design studies").
+C.force_peak (symid help format, "Design studies"); with --gradients then
+d(FIGURE)/d(P) for every figure and varied parameter (figures outer), exact,
+each variant solved through the Python path with sensitivities (no batch engine).
 exit status: 0 the sweep ran (status says which variants failed), 2 bad input,
 3 no variant could be solved."""
 
@@ -61,6 +63,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="fix a parameter for every variant (repeatable)")
     p.add_argument("--plot", action="store_true", help="also write PNG plots of the study beside the table")
+    p.add_argument("--gradients", action="store_true",
+                   help="add d(FIGURE)/d(P) for every figure and varied parameter after the figures: exact, "
+                        "each variant through the Python path with sensitivities (slower than the batch engine)")
     p.set_defaults(run=cmd_sweep)
 
 
@@ -75,8 +80,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from symid import api, progress
     from symid.io.files import check_target
     from symid.study import design as vary
+    from symid.study.figures import figure_names
     from symid.study.run import Sweep
 
+    if args.gradients and args.scheduler:
+        raise InputError("--gradients runs each variant on this machine (the Python path with "
+                         "sensitivities): drop --scheduler")
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers}: must be >= 1")
     chosen = vary.of_options(args.grid, args.table, args.sample, args.normal, args.uniform, args.seed)
@@ -100,7 +109,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
             progress.stage(f"connecting to {args.scheduler}")
             client = cluster.connect(args.scheduler)
-        sweep = Sweep(mech, chosen, args.backend, args.workers, client)
+        if args.gradients:
+            sweep = _gradient_sweep(args, mech, chosen)
+        else:
+            sweep = Sweep(mech, chosen, args.backend, args.workers, client)
         progress.stage("building the solver")
         try:
             sweep.setup()
@@ -130,13 +142,22 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.plot:
         from symid.output.sweep_plot import write_all
 
-        for path in write_all(table.params, table.values, table.figures.names, table.figures.values,
-                              table["status"], out.parent, out.stem, chosen.kind):
+        shown = len(figure_names(mech))  # the figures, not their gradients
+        for path in write_all(table.params, table.values, table.figures.names[:shown],
+                              table.figures.values[:, :shown], table["status"], out.parent, out.stem, chosen.kind):
             print(path, file=sys.stderr if args.json else sys.stdout)
     if len(table) and table.failed == len(table):
         raise AnalysisError(f"{args.file}: no variant could be solved (status of the first: "
                             f"{table['status'][0]}); the table is in {out}")
     return 0
+
+
+def _gradient_sweep(args: argparse.Namespace, mech: Any, chosen: Any) -> Any:
+    """The sweep of `--gradients` (variant by variant on this machine, exact sensitivities)."""
+    from symid.study.gradient_sweep import GradientSweep
+    from symid.tools.sensitive import solver
+
+    return GradientSweep(mech, chosen, args.backend, solver(args.backend))
 
 
 def _need_pyarrow() -> None:

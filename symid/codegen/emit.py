@@ -29,10 +29,12 @@ class Block:
 
     def uses(self, name: str) -> bool:
         """Whether an argument (`q`, `qd`, `t`, `p`, `lam`) appears in the code."""
-        token = name + "[" if name != "t" else None
+        import re
+
         texts = [e for _, e in self.temps] + [e for _, e in self.outputs]
-        if token is not None:
-            return any(token in e for e in texts)
+        if name != "t":  # `q[` but not the `sq[` of another argument
+            token = re.compile(rf"(?<![\w]){re.escape(name)}\[")
+            return any(token.search(e) for e in texts)
         return any(has_word(e, "t") for e in texts)
 
 

@@ -33,11 +33,15 @@ class Options:
         kind: inverse_dynamics, kinematics or statics (statics: no velocity terms).
         outputs: the output groups, contract order.
         reactions: constraints whose reactions are emitted, file order.
+        sensitivity, sensitivity_of: `d(COLUMN)/d(NAME)` columns to add
+            (symid.codegen.targets.c_sens); empty: none, the code as without.
     """
 
     kind: str
     outputs: tuple[str, ...]
     reactions: tuple[str, ...]
+    sensitivity: tuple[str, ...] = ()  # base parameters differentiated by (C target), in column order
+    sensitivity_of: tuple[str, ...] = ()  # the columns differentiated, in order
 
     @property
     def velocity(self) -> bool:

@@ -104,6 +104,8 @@ def code_model(mech: Mechanism, options: Options | None = None, looped: bool = F
                 pass  # the plan still needs a sample; the solver reports the failure at run time
             plan = sparse.plan(pattern, reference.phi_q(q0, t0))
     cols = tuple(columns(layout, _analysis_like(mech, options)))
+    if options.sensitivity:  # after all other columns, columns outer and parameters inner
+        cols += tuple(f"d({c})/d({n})" for c in options.sensitivity_of for n in options.sensitivity)
     return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0), parts)
 
 

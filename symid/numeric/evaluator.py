@@ -25,10 +25,15 @@ class Needs:
         velocity: False for statics: applied forces see qdot = 0 and no
             velocity or acceleration term is compiled.
         reactions: names of constraints whose reactions are wanted (file order).
+        sensitivity, sensitivity_of: the run's d(COLUMN)/d(NAME) columns
+            (parameters, columns), for an evaluator whose own loop computes
+            them (the c backend's); the others leave them to the Python loop.
     """
 
     velocity: bool = True
     reactions: tuple[str, ...] = ()
+    sensitivity: tuple[str, ...] = ()
+    sensitivity_of: tuple[str, ...] = ()
 
 
 class Evaluator(Protocol):

@@ -16,6 +16,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -23,6 +24,7 @@ from symid.backends import Array
 from symid.backends.c_backend import build
 from symid.codegen.model import options_for
 from symid.model.mechanism import Mechanism
+from symid.study.memo import ByIdentity
 from symid.symbolic.assemble import assemble
 
 _D = ctypes.POINTER(ctypes.c_double)
@@ -61,9 +63,19 @@ def chunks(k: int, workers: int) -> list[tuple[int, int]]:
     return [(s, min(k, s + size)) for s in range(0, k, size)]
 
 
-def run(mechanism: Mechanism, full: Array, workers: int | None = None) -> Batch:
-    """Solve the variants `full` (K, NP base parameters) in C on `workers` threads
-    (default: every core); `mechanism` is the study's (`study_mechanism`)."""
+@dataclass(frozen=True)
+class Compiled:
+    """The loaded solver of a study: its `<name>_sweep`, meta.json and folder."""
+
+    sweep: Any
+    meta: dict[str, Any]
+    folder: Path
+
+
+_LOADED: ByIdentity[Compiled] = ByIdentity()  # per study mechanism object
+
+
+def _load(mechanism: Mechanism) -> Compiled:
     layout = assemble(mechanism)
     folder = build(layout, options_for(mechanism))
     meta = json.loads((folder / "meta.json").read_text())
@@ -72,6 +84,15 @@ def run(mechanism: Mechanism, full: Array, workers: int | None = None) -> Batch:
     sweep.argtypes = [ctypes.c_long, _D, ctypes.c_double, ctypes.c_double, ctypes.c_long, ctypes.c_double,
                       _D, _I, _D, _L, _D, _I]
     sweep.restype = ctypes.c_int
+    return Compiled(sweep, meta, folder)
+
+
+def run(mechanism: Mechanism, full: Array, workers: int | None = None) -> Batch:
+    """Solve the variants `full` (K, NP base parameters) in C on `workers` threads
+    (default: every core); `mechanism` is the study's (`study_mechanism`),
+    its solver built or loaded once per mechanism object."""
+    solver = _LOADED.get(mechanism, "c", lambda: _load(mechanism))
+    sweep, meta, folder = solver.sweep, solver.meta, solver.folder
     a = mechanism.analysis
     h = (a.t1 - a.t0) / (a.steps - 1) if a.steps > 1 else 0.0
     k = len(full)

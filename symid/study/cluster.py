@@ -74,6 +74,19 @@ def solve_chunk(key: str, data: bytes, names: Sequence[str], base: np.ndarray, b
     return engine(_memo(key, data, backend), names, base, backend, 1)
 
 
+def _task() -> Callable[[str, bytes, Sequence[str], np.ndarray, str], Figures]:
+    """`solve_chunk` as the function of a task, defined inside a function so
+    that Dask ships it by value: the scheduler unpickles each task it is
+    given, and a function named by reference makes it import symid, and with
+    it sympy (seconds before the first chunk starts)."""
+    def task(key: str, data: bytes, names: Sequence[str], base: np.ndarray, backend: str) -> Figures:
+        from symid.study.cluster import solve_chunk
+
+        return solve_chunk(key, data, names, base, backend)
+
+    return task
+
+
 def _probe() -> Callable[[str, bytes, str], str]:
     """The function each worker runs at setup; defined here, inside a function, so
     that Dask ships it by value and a worker without symid reports the ImportError."""
@@ -125,9 +138,10 @@ def run_chunks(client: Client, mechanism: Mechanism, variants: Variants, backend
     # few tasks (Dask's overhead is per task), but several per worker (a lost one costs little)
     per = max(1, min(-(-k // (TASKS_PER_WORKER * workers)), TASK_INSTANTS // max(mechanism.analysis.steps, 1)))
     futures: dict[Any, int] = {}
+    task = _task()
     for first in range(0, k, per):
         chunk = variants.values[first:first + per]
-        future = client.submit(solve_chunk, key, data, variants.names, chunk, backend,
+        future = client.submit(task, key, data, variants.names, chunk, backend,
                                pure=True, retries=RETRIES,
                                key=f"symid-sweep-{key[:16]}-{first}-{_digest(chunk.tobytes())[:16]}")
         futures[future] = first

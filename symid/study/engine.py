@@ -26,10 +26,12 @@ from symid.model.params import parameter_values, to_float
 from symid.numeric.stability import Notes
 from symid.output.results import columns, table_rows
 from symid.study.figures import STATUS, Figures, figure_names, status_of
+from symid.study.memo import ByIdentity
 from symid.study.variants import Measure, base_matrix, needs_of, study_mechanism, variant_values
 from symid.symbolic.assemble import Layout, assemble
 
 BACKENDS = ("c", "numpy", "casadi", "reference")
+_CHECKED: ByIdentity[Mechanism] = ByIdentity()  # per mechanism object and backend: its study mechanism
 
 
 def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, backend: str = "c",
@@ -48,11 +50,8 @@ def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, 
     Raises:
         InputError: an unknown or derived parameter, or `base` of the wrong shape.
     """
-    mech = study_mechanism(mechanism)
+    mech = _CHECKED.get(mechanism, backend, lambda: _checked(mechanism, backend))
     full = base_matrix(mech, names, base)
-    backends.require_support(backend, mech.analysis, mech.source)
-    # more rows than coordinates: the same input error as a solve's, once, at the file's values
-    backends.check_redundant(assemble(mech), parameter_values(mech.parameters), backend)
     if backend != "c" and friction.solved(mech):  # no vectorized path solves friction: each variant alone
         return _normal_path(mech, full, backend)
     order = figure_names(mech)
@@ -69,6 +68,19 @@ def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, 
 
     batch = batch_c.run(mech, full, workers)
     return _decided(mech, full, backend, order, batch.names, batch.values, batch.status, batch.t_end)
+
+
+def _checked(mechanism: Mechanism, backend: str) -> Mechanism:
+    """The study's mechanism (`study_mechanism`), checked for `backend`.
+
+    Raises:
+        InputError: the backend cannot solve it, or more rows than coordinates
+            (the same input error as a solve's, at the file's values).
+    """
+    mech = study_mechanism(mechanism)
+    backends.require_support(backend, mech.analysis, mech.source)
+    backends.check_redundant(assemble(mech), parameter_values(mech.parameters), backend)
+    return mech
 
 
 def _decided(mech: Mechanism, full: Array, backend: str, order: tuple[str, ...], names: Sequence[str],

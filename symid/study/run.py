@@ -47,6 +47,14 @@ def _engine(backend: str) -> tuple[Engine, int]:
 
 def warm(mechanism: Mechanism, backend: str) -> None:
     """Build (or load from the cache) the solver of the study's structure, once."""
+    if backend == "c":
+        # the batch's own solver (not the normal path's evaluator: other code
+        # options, another cache entry, which the chunks would then build
+        # inside the solve phase), kept for every chunk of this mechanism object
+        from symid.study.engine import solve_figures
+
+        solve_figures(mechanism, (), np.zeros((0, 0)), backend, 1)
+        return
     from symid import backends
     from symid.backends import Needs
     from symid.model.params import parameter_values
@@ -122,9 +130,13 @@ class Sweep:
             self.parts[first] = figures
             yield len(figures)
 
+    def columns(self) -> tuple[str, ...]:
+        """The figure columns of each part (`GradientSweep` adds the gradients')."""
+        return figure_names(self.mechanism)
+
     def table(self) -> SweepTable:
         """The variants finished so far, in variant order."""
-        names = figure_names(self.mechanism)
+        names = self.columns()
         firsts = sorted(self.parts)
         if firsts:
             parts = [self.parts[f] for f in firsts]

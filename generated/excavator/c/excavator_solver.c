@@ -948,8 +948,10 @@ static void excavator_solve_t(const excavator_real *work, const int *iwork, int 
 static excavator_real excavator_maxabs(const excavator_real *v, int n)
 {
     excavator_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+                                     an overflow of k once n is a constant */
     int k;
-    for (k = 0; k + 4 <= n; k += 4) {
+    for (k = 0; k < whole; k += 4) {
         const excavator_real a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
         m0 = a0 > m0 ? a0 : m0;
         m1 = a1 > m1 ? a1 : m1;
@@ -1079,8 +1081,10 @@ static void excavator_outputs(excavator_real t, const excavator_real *p, const e
 static int excavator_allfinite(const excavator_real *v, int n)
 {
     excavator_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+                                     an overflow of k once n is a constant */
     int k;
-    for (k = 0; k + 4 <= n; k += 4) {
+    for (k = 0; k < whole; k += 4) {
         s0 += v[k] * 0.0;
         s1 += v[k + 1] * 0.0;
         s2 += v[k + 2] * 0.0;

@@ -701,8 +701,10 @@ static void four_bar_solve_t(const four_bar_real *work, const int *iwork, int de
 static four_bar_real four_bar_maxabs(const four_bar_real *v, int n)
 {
     four_bar_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+                                     an overflow of k once n is a constant */
     int k;
-    for (k = 0; k + 4 <= n; k += 4) {
+    for (k = 0; k < whole; k += 4) {
         const four_bar_real a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
         m0 = a0 > m0 ? a0 : m0;
         m1 = a1 > m1 ? a1 : m1;
@@ -832,8 +834,10 @@ static void four_bar_outputs(four_bar_real t, const four_bar_real *p, const four
 static int four_bar_allfinite(const four_bar_real *v, int n)
 {
     four_bar_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+                                     an overflow of k once n is a constant */
     int k;
-    for (k = 0; k + 4 <= n; k += 4) {
+    for (k = 0; k < whole; k += 4) {
         s0 += v[k] * 0.0;
         s1 += v[k + 1] * 0.0;
         s2 += v[k + 2] * 0.0;

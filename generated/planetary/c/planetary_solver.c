@@ -753,8 +753,10 @@ static void planetary_solve_t(const planetary_real *work, const int *iwork, int 
 static planetary_real planetary_maxabs(const planetary_real *v, int n)
 {
     planetary_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+                                     an overflow of k once n is a constant */
     int k;
-    for (k = 0; k + 4 <= n; k += 4) {
+    for (k = 0; k < whole; k += 4) {
         const planetary_real a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
         m0 = a0 > m0 ? a0 : m0;
         m1 = a1 > m1 ? a1 : m1;
@@ -884,8 +886,10 @@ static void planetary_outputs(planetary_real t, const planetary_real *p, const p
 static int planetary_allfinite(const planetary_real *v, int n)
 {
     planetary_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+                                     an overflow of k once n is a constant */
     int k;
-    for (k = 0; k + 4 <= n; k += 4) {
+    for (k = 0; k < whole; k += 4) {
         s0 += v[k] * 0.0;
         s1 += v[k + 1] * 0.0;
         s2 += v[k + 2] * 0.0;

@@ -25,6 +25,9 @@ _CALL = re.compile(r"\b[a-z_]\w*\(")
 def unit(column: str) -> str:
     """The dimension of a contract column ('crank.phi' -> rad); a multiplier's
     is its constraint row's reaction (force, or torque for an angle row)."""
+    if column.startswith("d(") and ")/d(" in column:  # a sensitivity d(COLUMN)/d(NAME)
+        of, by = column[2:-1].split(")/d(")
+        return f"{unit(of)} per unit of {by}" if unit(of) else ""
     last = column.rsplit(".", 1)[-1].split("_")[0]
     if last.startswith("lambda"):
         return "force or torque, per its row"

@@ -1,0 +1,115 @@
+"""The C target's parameter sensitivities (opt-in: `--sensitivity NAME,...`).
+
+At each solved instant, with the factors of Phi_q the instant already has
+(one factorization serves every parameter), templates/c/sensitivity.j2
+solves the stages of `symid.codegen.sensitivity` for the NS chosen base
+parameters and writes `d(COLUMN)/d(NAME)` after the row's other columns,
+columns outer and parameters inner (the contract's order). Only the stages
+the chosen columns need are computed, and only the chosen reactions.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Sequence
+
+import sympy as sp
+
+from symid.codegen.emit import CHUNK, block
+from symid.codegen.hoist import hoist
+from symid.codegen.model import CodeModel
+from symid.codegen.sensitivity import STAGES, tangents
+from symid.errors import InputError
+
+
+def column_name(column: str, parameter: str) -> str:
+    """The contract's name of one sensitivity column."""
+    return f"d({column})/d({parameter})"
+
+
+def columns(of: Sequence[str], names: Sequence[str]) -> list[str]:
+    """The sensitivity columns, columns outer and parameters inner."""
+    return [column_name(c, n) for c in of for n in names]
+
+
+def _sources(model: CodeModel, row_parts: list[tuple[str, str | None, int, int]],
+             of: Sequence[str]) -> tuple[list[tuple[str, int]], int]:
+    """Per chosen column its stage and index in that stage's vector, and the
+    last stage needed (index into STAGES)."""
+    where = {}
+    for group, source, size, offset in row_parts:  # the plain columns come first in row_columns
+        for i in range(size):
+            where[model.row_columns[offset + i]] = (group if source else "zero", i)
+    missing = [c for c in of if c not in where]
+    if missing:
+        raise InputError(f"{model.layout.mechanism.source}: --sensitivity-of: no column {missing[0]!r} in the "
+                         f"results (their columns are named as in the CSV header, e.g. {list(where)[0]})")
+    found = [where[c] for c in of]
+    last = max((STAGES.index(g) for g, _ in found if g != "zero"), default=0)
+    return found, last
+
+
+def context(model: CodeModel, row_parts: list[tuple[str, str | None, int, int]], row_offset: int,
+            np_prepared: int, make: Callable[..., dict[str, Any]], trig: dict[sp.Expr, sp.Symbol],
+            printer: Callable[[sp.Expr], str], real: str) -> dict[str, Any] | None:
+    """What sensitivity.j2 needs, or None when no sensitivity was asked for.
+
+    Args:
+        row_parts: (group, source, size, offset) of the row (c.context).
+        row_offset: where the sensitivity columns start in the row.
+        np_prepared: the prepared parameters before these (NP + pieces).
+        make: c._function (kernels of bounded size, sines and cosines shared).
+    """
+    f = model.flat
+    o = f.options
+    names, of = o.sensitivity, o.sensitivity_of
+    if not names:
+        return None
+    ns, ng, nc = len(names), f.ng, f.nc
+    if not of:  # symid.output.sensitivity.choose gives the defaults
+        raise InputError(f"{model.layout.mechanism.source}: --sensitivity: no columns to differentiate")
+    found, last = _sources(model, row_parts, of)
+    tg = tangents(model.layout, o, names)
+    # the chosen reactions' derivatives in the row's order (columns outer,
+    # parameters inner), so that a run of reaction columns is one copy
+    chosen_r = [i for g, i in found if g == "reactions"]
+    nrc, nr = len(chosen_r), len(f.reactions)
+    reac = [tg.reactions[k * nr + i] for i in chosen_r for k in range(ns)]
+    stage_exprs = {"q": tg.position, "qdot": tg.velocity, "qddot": tg.acceleration, "lambda": tg.eom,
+                   "reactions": reac}
+    wanted = [st for st in STAGES[:last + 1] if o.velocity or st not in ("qdot", "qddot")]
+    groups, pieces = hoist([stage_exprs[st] for st in wanted], np_prepared)
+    hoisted = dict(zip(wanted, groups))
+    cv = lambda name: (f"const {real} *", name)  # noqa: E731
+    ct, cp = (real, "t"), cv("p")
+    args = {"q": [cv("q"), ct, cp],
+            "qdot": [cv("q"), cv("qd"), ct, cp, cv("sq")],
+            "qddot": [cv("q"), cv("qd"), cv("qdd"), ct, cp, cv("sq"), cv("sqd")],
+            "lambda": [cv("q"), cv("qd"), cv("qdd"), cv("lam"), ct, cp, cv("sq"), cv("sqd"), cv("sqdd")],
+            "reactions": [cv("q"), cv("lam"), ct, cp, cv("sq"), cv("slam")]}
+    kernels = {st: make(f"s_{st}", args[st], hoisted[st], trig, printer, real) for st in wanted}
+    # S: sq | sqd | sqdd (NS NG each, one vector per parameter) | slam (NS NC) | chosen reactions | a zero
+    base = {"q": 0, "qdot": ng * ns, "qddot": 2 * ng * ns, "lambda": 3 * ng * ns}
+    base["reactions"] = base["lambda"] + nc * ns
+    base["zero"] = base["reactions"] + nrc * ns
+    size = {"q": ng, "qdot": ng, "qddot": ng, "lambda": nc}
+    pairs = []  # (row offset, S index) of every value
+    for c, (g, i) in enumerate(found):
+        for k in range(ns):
+            src = (base[g] if g == "zero" else base[g] + chosen_r.index(i) * ns + k if g == "reactions"
+                   else base[g] + k * size[g] + i)
+            pairs.append((c * ns + k, src))
+    copies: list[list[int]] = []  # runs (row offset, S index, count)
+    for dst, src in pairs:
+        if copies and src != base["zero"] and copies[-1][1] != base["zero"] \
+                and copies[-1][0] + copies[-1][2] == dst and copies[-1][1] + copies[-1][2] == src:
+            copies[-1][2] += 1
+        else:
+            copies.append([dst, src, 1])
+    prepare = [block(pieces[k:k + CHUNK], printer, offset=np_prepared + k) for k in range(0, len(pieces), CHUNK)]
+    total = base["zero"] + 1
+    labels = [f"{n} (p[{f.params.index(n)}])" for n in names]
+    return {"ns": ns, "names": list(names), "labels": labels, "of": list(of), "ncol": len(of), "copies": copies,
+            "size": total, "zero": base["zero"], "base": base,
+            "stages": wanted, "kernels": kernels, "prepare": prepare, "npieces": len(pieces),
+            "offset": row_offset, "width": len(of) * ns, "work": total + ns * max(ng, nc), "columns": columns(of, names),
+            "functions": list(kernels.values()), "exprs": [e for st in wanted for e in stage_exprs[st]]}

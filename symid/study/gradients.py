@@ -1,0 +1,171 @@
+"""The derivatives of a study's figures with respect to base parameters.
+
+From one solved trajectory with the exact per-instant sensitivities of its
+columns (`d(COLUMN)/d(NAME)`, the contract's "Sensitivities"), each figure of
+`symid.study.figures.figure_names` is differentiated exactly as it is
+computed (`symid.study.slow.figures_of`, `symid.output.summary.summarize`):
+
+- `effort_rms`, the trapezoidal time average `rms^2 = sum w_k e_k^2 / span`:
+  `d rms = sum w_k e_k de_k / (span rms)` (the time grid does not move).
+- `effort_peak = |e(t*)|`: `sign(e(t*)) de(t*)` at the peak's own instant
+  (the derivative of the discrete maximum while that instant stays the peak).
+- `power_peak = |e(t*) v(t*)|`: `sign(p) (de v + e dv)`; the rate `v` is
+  `f'(t)` of the driver's motion, which depends on parameters too (`n` moves
+  `omega`), differentiated by sympy through the derived parameters' definitions.
+- `force_peak = |F(t*)|` on the body and instant of the peak: `F . dF / |F|`
+  (a force that is zero throughout, a driver's pure torque: max |dF|, its
+  derivative from above, 0 when it stays zero).
+- `effort_t_peak` is an instant of a discrete grid: it has no derivative
+  (NaN in every gradient column).
+"""
+
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+import numpy as np
+import sympy as sp
+
+from symid.backends import Array
+from symid.model.mechanism import Element, Mechanism, parameter_symbol
+from symid.model.params import is_derived, parameter_values
+from symid.output.results import Results
+from symid.output.summary import Source, drivers, source, time_function
+from symid.study.figures import figure_names
+
+NO_GRADIENT = ("effort_t_peak",)  # figures with no derivative (an instant of the grid)
+
+
+def sensitivity_column(column: str, name: str) -> str:
+    """The results column of `d(column)/d(name)` (the contract's name)."""
+    return f"d({column})/d({name})"
+
+
+def gradient_names(figures: Sequence[str], names: Sequence[str]) -> list[str]:
+    """`d(FIGURE)/d(P)` for every figure (outer) and every parameter (inner)."""
+    return [sensitivity_column(f, p) for f in figures for p in names]
+
+
+def has_gradient(figure: str) -> bool:
+    """Whether a figure has a derivative (`effort_t_peak` has none)."""
+    return figure.rsplit(".", 1)[-1] not in NO_GRADIENT
+
+
+def needed_columns(mechanism: Mechanism, header: Sequence[str]) -> list[str]:
+    """The results columns whose sensitivities the figures need: each driver's
+    effort column and the reaction forces of each `force_peak` constraint."""
+    out = []
+    for c in drivers(mechanism):
+        where = source(c, header)
+        if where is not None:
+            out.append(where.column)
+    for figure in figure_names(mechanism):
+        if figure.endswith(".force_peak"):
+            joint = figure[: -len(".force_peak")]
+            out += [col for col in header if col.startswith((f"{joint}.Fx_", f"{joint}.Fy_"))]
+    return out
+
+
+def in_base(expr: sp.Expr, parameters: Mapping[str, sp.Expr]) -> sp.Expr:
+    """`expr` with every derived parameter replaced by its definition, down to base parameters."""
+    e = sp.sympify(expr)
+    for name in reversed(list(parameters)):  # a definition only uses parameters given before it
+        if is_derived(parameters[name]):
+            e = e.xreplace({parameter_symbol(name): sp.sympify(parameters[name])})
+    return e
+
+
+class _Driver:
+    """One driver's effort e, rate v and their derivatives over the run's instants."""
+
+    def __init__(self, c: Element, where: Source, mechanism: Mechanism, results: Results,
+                 names: Sequence[str], values: Mapping[sp.Symbol, float]) -> None:
+        t = results.t
+        raw = results[where.column]
+        draw = np.column_stack([results[sensitivity_column(where.column, p)] for p in names]).reshape(len(t), -1)
+        f_expr = in_base(c.values["f"], mechanism.parameters)
+        f, fd = time_function(f_expr, values, t), time_function(f_expr, values, t, 1)
+        df = [time_function(sp.diff(f_expr, parameter_symbol(p)), values, t) for p in names]
+        dfd = [time_function(sp.diff(f_expr, parameter_symbol(p)), values, t, 1) for p in names]
+        df_, dfd_ = (np.column_stack(x).reshape(len(t), -1) for x in (df, dfd))
+        if where.type == "distance_driver":  # e = -2 |f| lambda, v = d|f|/dt = sign(f) f'
+            s = np.sign(f)[:, None]
+            self.e, self.v = -2 * np.abs(f) * raw, np.sign(f) * fd
+            self.de = -2 * s * df_ * raw[:, None] - 2 * np.abs(f)[:, None] * draw
+            self.dv = s * dfd_
+        else:
+            sign = -1.0 if where.column.endswith(".lambda") else 1.0
+            self.e, self.v, self.de, self.dv = sign * raw, fd, sign * draw, dfd_
+        self.t = t
+
+
+def _rms_gradient(t: Array, e: Array, de: Array) -> Array:
+    """d/dp of the trapezoidal RMS of `summarize`; de shape (instants, params)."""
+    span = float(t[-1] - t[0]) if len(t) else 0.0
+    if span > 0:
+        w = np.zeros(len(t))
+        h = np.diff(t)
+        w[:-1] += h / 2
+        w[1:] += h / 2
+    else:
+        w, span = np.ones(len(t)), float(len(t))
+    rms = np.sqrt(np.sum(w * e ** 2) / span)
+    if rms == 0:
+        return np.full(de.shape[1], np.nan)  # |e| has no derivative where every e is 0
+    return (w * e) @ de / (span * rms)
+
+
+def figure_gradients(mechanism: Mechanism, results: Results, names: Sequence[str]) -> Array:
+    """d(FIGURE)/d(P) of the solved run, shape (len(figure_names), len(names)).
+
+    Args:
+        mechanism: the mechanism that was solved (its parameter values: the point).
+        results: its run, with the columns `d(C)/d(P)` for C in `needed_columns`
+            and P in `names`; a failed run differentiates the figures of the
+            instants solved before it.
+        names: base parameters.
+
+    NaN where a figure has no derivative: `effort_t_peak`, a run with no
+    instant, an RMS of exactly zero.
+    """
+    figures = figure_names(mechanism)
+    at = {f: k for k, f in enumerate(figures)}
+    out = np.full((len(figures), len(names)), np.nan)
+    if not len(results.t) or not figures:
+        return out
+    values = parameter_values(mechanism.parameters)
+    for c in drivers(mechanism):
+        where = source(c, results.columns)
+        if where is None:
+            continue
+        d = _Driver(c, where, mechanism, results, names, values)
+        k = int(np.argmax(np.abs(d.e)))
+        out[at[f"{c.name}.effort_peak"]] = np.sign(d.e[k]) * d.de[k]
+        out[at[f"{c.name}.effort_rms"]] = _rms_gradient(d.t, d.e, d.de)
+        power = d.e * d.v
+        k = int(np.argmax(np.abs(power)))
+        out[at[f"{c.name}.power_peak"]] = np.sign(power[k]) * (d.de[k] * d.v[k] + d.e[k] * d.dv[k])
+    for figure in figures:
+        if figure.endswith(".force_peak"):
+            out[at[figure]] = _force_peak_gradient(results, figure[: -len(".force_peak")], names)
+    return out
+
+
+def _force_peak_gradient(results: Results, joint: str, names: Sequence[str]) -> Array:
+    """F . dF / |F| at the body and instant of the largest |(Fx, Fy)|."""
+    roles = [c[len(joint) + 4:] for c in results.columns if c.startswith(f"{joint}.Fx_")]
+    best, at_role, at_k = -1.0, "", 0
+    for r in roles:
+        size = np.hypot(results[f"{joint}.Fx_{r}"], results[f"{joint}.Fy_{r}"])
+        k = int(np.argmax(size))
+        if size[k] > best:  # the first role wins a tie, as max() over roles does
+            best, at_role, at_k = float(size[k]), r, k
+    if best <= 0:  # no force at any instant (a driver's pure torque): the derivative from above,
+        # max |dF|, which is 0 for a force that is zero whatever the parameters
+        return np.array([max(float(np.max(np.hypot(results[sensitivity_column(f"{joint}.Fx_{r}", p)],
+                                                    results[sensitivity_column(f"{joint}.Fy_{r}", p)])))
+                             for r in roles) for p in names])
+    fx, fy = results[f"{joint}.Fx_{at_role}"][at_k], results[f"{joint}.Fy_{at_role}"][at_k]
+    return np.array([(fx * results[sensitivity_column(f"{joint}.Fx_{at_role}", p)][at_k]
+                      + fy * results[sensitivity_column(f"{joint}.Fy_{at_role}", p)][at_k]) / best
+                     for p in names])
