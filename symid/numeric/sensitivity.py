@@ -26,7 +26,7 @@ import sympy as sp
 
 from symid.numeric.evaluator import Array
 from symid.numeric.sensitivity_build import Structure, fused, structure
-from symid.numeric.stability import Factor
+from symid.numeric.stability import Factor, Scaling
 from symid.symbolic.assemble import Group, Layout
 from symid.symbolic.sensitivity import sensitivity_of
 
@@ -44,6 +44,21 @@ class Derivatives:
     qdd: Array
     lam: Array | None = None
     reactions: Array | None = None
+
+
+class Stacked:
+    """Square Phi_q of K instants, equilibrated by one scaling (as `Factor`),
+    solved for all instants and parameters in one batched call."""
+
+    def __init__(self, jac: Array, scaling: Scaling) -> None:
+        self.dr, self.dc = scaling.dr[:, None, None], scaling.dc[:, None, None]
+        self.a = jac * scaling.dr[:, None] * scaling.dc  # (K, n, n)
+
+    def solve(self, rhs: Array, transposed: bool = False) -> Array:
+        """(n, K, np) -> x (n, K, np) with Phi_q x = rhs (transposed: Phi_q^T x = rhs) at each instant."""
+        left, right = (self.dc, self.dr) if transposed else (self.dr, self.dc)
+        a = self.a.transpose(0, 2, 1) if transposed else self.a
+        return right * np.linalg.solve(a, (left * rhs).transpose(1, 0, 2)).transpose(1, 0, 2)
 
 
 def _pad(v: Array) -> Array:
@@ -187,15 +202,17 @@ class SensitivityEvaluator:
                 lam: Array | None, reactions: bool = False) -> Derivatives:
         """The derivatives at one solved instant (statics: qd, qdd None); see `chunk`."""
         rows = None if lam is None else lam[None]
-        return self.chunk([factor], np.array([t]), q[None], None if qd is None else qd[None],
-                          None if qdd is None else qdd[None], rows, reactions)[0]
+        d = self.chunk([factor], np.array([t]), q[None], None if qd is None else qd[None],
+                       None if qdd is None else qdd[None], rows, reactions)
+        return Derivatives(*(None if v is None else v[:, 0] for v in (d.q, d.qd, d.qdd, d.lam, d.reactions)))
 
-    def chunk(self, factors: Sequence[Factor], ts: Array, q: Array, qd: Array | None, qdd: Array | None,
-              lam: Array | None, reactions: bool = False) -> list[Derivatives]:
-        """The derivatives at K solved instants, vectorized over them.
+    def chunk(self, factors: Sequence[Factor] | Stacked, ts: Array, q: Array, qd: Array | None, qdd: Array | None,
+              lam: Array | None, reactions: bool = False) -> Derivatives:
+        """The derivatives at K solved instants, vectorized over them: each
+        array of `Derivatives` with the instants as its middle axis (rows, K, np).
 
         Args:
-            factors: each instant's factorization of Phi_q (K).
+            factors: each instant's factorization of Phi_q (K), or their Phi_q stacked.
             ts: (K,); q, qd, qdd: (K, ng) (statics: qd, qdd None).
             lam: (K, nc) multipliers, or None (kinematics): then no lam_p.
             reactions: whether to compute the reactions' derivatives.
@@ -214,6 +231,8 @@ class SensitivityEvaluator:
             through each instant's factorization: OpenBLAS's threaded
             multi-right-hand-side getrs took ~1 ms a call on a loaded machine,
             hundreds of times these small single solves."""
+            if isinstance(factors, Stacked):
+                return factors.solve(rhs, transposed)
             out = [[(f.solve_t if transposed else f.solve)(rhs[:, k, j]) for j in range(nparams)]
                    for k, f in enumerate(factors)]
             return np.array(out).transpose(2, 0, 1)
@@ -261,5 +280,4 @@ class SensitivityEvaluator:
                     lam_local = lpx[p.rows].reshape(p.rows.shape[0], p.n * count, nparams)
                     vals = direct[r] + p.times(jac[r], "q", p.local(qpx)) + p.times(jac[r], "lam", lam_local)
                     r_p[slots[None, :] + np.arange(vals.shape[0])[:, None]] = p.unflat(vals)[:, members]
-        return [Derivatives(q_p[:, k], qd_p[:, k], qdd_p[:, k], None if lam_p is None else lam_p[:, k],
-                            None if r_p is None else r_p[:, k]) for k in range(count)]
+        return Derivatives(q_p, qd_p, qdd_p, lam_p, r_p)

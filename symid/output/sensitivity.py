@@ -26,7 +26,7 @@ from symid.symbolic.columns import GROUP_SUFFIXES, columns
 if TYPE_CHECKING:
     from symid.backends import Array, Evaluator
     from symid.model.mechanism import Mechanism
-    from symid.numeric.sensitivity import Derivatives, SensitivityEvaluator
+    from symid.numeric.sensitivity import Derivatives, SensitivityEvaluator, Stacked
     from symid.symbolic.assemble import Layout
 
 # The table groups a column can be differentiated in, and where each group's
@@ -143,9 +143,9 @@ def values(choice: Choice, d: Derivatives) -> Array:
 
 def rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes, choice: Choice,
          sens: SensitivityEvaluator, chunk: int = CHUNK) -> Iterator[Array]:
-    """The table rows with the sensitivity columns appended; the sensitivities
-    of `chunk` instants at a time, vectorized over them (a failure still
-    yields every instant solved before it).
+    """The table with the sensitivity columns appended, in blocks of `chunk`
+    rows whose sensitivities are computed at once, vectorized over the
+    instants (a failure still yields every instant solved before it).
 
     A backend with its own loop (numpy's generated one, several times the
     shared Python loop's speed) solves when its rows hold what the
@@ -168,9 +168,10 @@ def rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes, choi
         qd = state[:, 1 + ng:1 + 2 * ng] if dyn else None
         qdd = state[:, 1 + 2 * ng:1 + 3 * ng] if dyn else None
         lam = state[:, 1 + (3 if dyn else 1) * ng:] if want_lam else None
-        factors = [f if f is not None else _factor(evaluator, q[k], ts[k], scaling) for k, (_, _, f) in enumerate(held)]
-        for (row, _, _), d in zip(held, sens.chunk(factors, ts, q, qd, qdd, lam, want_r)):
-            yield np.concatenate([row, values(choice, d)])
+        factors = _factors(evaluator, [h[2] for h in held], q, ts, scaling)
+        d = sens.chunk(factors, ts, q, qd, qdd, lam, want_r)
+        table = np.array([h[0] for h in held])
+        yield np.hstack([table, *(getattr(d, attr)[row] for attr, row in choice.where)])  # one block of rows
         held.clear()
 
     def state(row: Array) -> Array:
@@ -207,13 +208,21 @@ def _starts(layout: Layout, analysis: Analysis) -> dict[str, int]:
     return out
 
 
-def _factor(evaluator: Evaluator, q: Array, t: float, scaling: list[Scaling]) -> Factor:
-    """Phi_q at a solved instant, factored (a backend's own loop keeps none)
-    with the run's scaling (made at the first instant: `scaling` keeps it)."""
-    jac = evaluator.phi_q(q, t)
+def _factors(evaluator: Evaluator, kept: list[Factor | None], q: Array, ts: Array,
+             scaling: list[Scaling]) -> list[Factor] | Stacked:
+    """The instants' factorizations of Phi_q: the loop's, or (a backend's own
+    loop keeps none) Phi_q again, under the run's one scaling (made at the
+    first instant: `scaling` keeps it), stacked when square."""
+    if all(f is not None for f in kept):
+        return kept  # type: ignore[return-value]
+    jac = np.array([evaluator.phi_q(q[k], ts[k]) for k in range(len(kept))])
     if not scaling:
-        scaling.append(Scaling.of(jac, q))
-    return Factor(jac, scaling[0])
+        scaling.append(Scaling.of(jac[0], q[0]))
+    if jac.shape[1] == jac.shape[2]:
+        from symid.numeric.sensitivity import Stacked
+
+        return Stacked(jac, scaling[0])
+    return [Factor(j, scaling[0]) for j in jac]
 
 
 def reaction_count(reactions: tuple[str, ...], mechanism: Mechanism) -> int:
