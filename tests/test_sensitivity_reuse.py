@@ -73,3 +73,17 @@ def test_a_reused_evaluator_gives_a_fresh_process_numbers() -> None:
     assert (np.abs(reused - fresh).max(axis=0) / scale).max() <= 1e-13
     # and the value moved the results: the reuse did not keep the first value's numbers
     assert not np.allclose(reused, _solve("0.1"))
+
+
+@pytest.mark.parametrize("backend", ["numpy", "reference"])  # the backend's own loop, and the shared Python loop
+def test_a_failed_run_keeps_every_instant_solved_before_it_with_its_sensitivities(backend: str) -> None:
+    """Rod = crank: Phi_q is singular at t = 0.05 s; the instants before it come
+    out (sensitivities are computed in chunks of instants: the last, partial
+    chunk must not be lost), with the same leading columns as without."""
+    mech = api.load_mechanism(CRANK, {"L_rod": "0.1"})
+    plain = api.prepare(mech, backend).solve()
+    sens = api.prepare(mech, backend, sensitivity=NAMES).solve()
+    assert plain.error is not None and sens.error is not None
+    assert sens.data.shape[0] == plain.data.shape[0] == 50
+    assert np.array_equal(sens.data[:, :plain.data.shape[1]], plain.data)
+    assert np.isfinite(sens.data).all()

@@ -88,8 +88,10 @@ class _Part:
         self.rows = group.rows[None, :] + np.arange(k)[:, None]  # (k, n): this group's constraint rows
         self.cf = slice(blocks["constants"].start, blocks["functions"].stop)
         self.nfun = len(self.sens.blocks["functions"])
-        self.const = self.const_p = np.zeros(0)  # (nconst, n), (nconst, n, np): set by the evaluator
-        self.fun = self.fun_p = np.zeros(0)  # (nfun, n, K), (nfun, n, K, np): set per chunk
+        self.const: Array = np.zeros(0)  # (nconst, n), set by the evaluator
+        self.const_p: Array = np.zeros(0)  # (nconst, n, np), set by the evaluator
+        self.fun: Array = np.zeros(0)  # (nfun, n, K), set per chunk
+        self.fun_p: Array = np.zeros(0)  # (nfun, n, K, np), set per chunk
 
     def local(self, ext: Array) -> Array:
         """The members' rows of an extended (ng + 3, K, ...) array: (3 roles, n * K, ...)."""
@@ -204,7 +206,8 @@ class SensitivityEvaluator:
         rows = None if lam is None else lam[None]
         d = self.chunk([factor], np.array([t]), q[None], None if qd is None else qd[None],
                        None if qdd is None else qdd[None], rows, reactions)
-        return Derivatives(*(None if v is None else v[:, 0] for v in (d.q, d.qd, d.qdd, d.lam, d.reactions)))
+        return Derivatives(d.q[:, 0], d.qd[:, 0], d.qdd[:, 0], None if d.lam is None else d.lam[:, 0],
+                           None if d.reactions is None else d.reactions[:, 0])
 
     def chunk(self, factors: Sequence[Factor] | Stacked, ts: Array, q: Array, qd: Array | None, qdd: Array | None,
               lam: Array | None, reactions: bool = False) -> Derivatives:
@@ -221,7 +224,7 @@ class SensitivityEvaluator:
         qx, qdx, qddx = self._ext(q, count), self._ext(qd, count), self._ext(qdd, count)
         lamx = None if lam is None else lam.T
         self._timed(ts)
-        whats = ("phi",) if self.statics else ("phi", "velocity", "acceleration")
+        whats: tuple[str, ...] = ("phi",) if self.statics else ("phi", "velocity", "acceleration")
         if lam is not None:
             whats += ("eom", "reactions") if reactions else ("eom",)
         parts = [(p, *p.jacobians(whats, qx, qdx, qddx, lamx)) for p in self._c]

@@ -178,15 +178,18 @@ def rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes, choi
         return np.concatenate([row[:1], *(row[at[g]:at[g] + (ng if g != "lambda" else sens.layout.nc)]
                                           for g in need)])
 
-    source = table_rows(evaluator, analysis, q0, notes) if own else run(evaluator, analysis, q0, notes)
+    def solved() -> Iterator[tuple[Array, Array, Factor | None]]:
+        if own:
+            for row in table_rows(evaluator, analysis, q0, notes):
+                yield row, state(row), None
+            return
+        for item in run(evaluator, analysis, q0, notes):
+            parts = [item.t, item.q, *([item.qd, item.qdd] if dyn else []), *([item.lam] if want_lam else [])]
+            yield instant_row(item, ng, analysis), np.hstack(parts), item.factor  # type: ignore[arg-type]
+
     try:
-        for item in source:
-            if own:
-                held.append((item, state(item), None))
-            else:
-                parts = [np.array([item.t]), item.q] + ([item.qd, item.qdd] if dyn else [])
-                parts += [item.lam] if want_lam else []
-                held.append((instant_row(item, ng, analysis), np.concatenate(parts), item.factor))
+        for one in solved():
+            held.append(one)
             if len(held) >= chunk:
                 yield from flush()
     except Exception:  # a failed instant: the ones solved before it first
