@@ -77,7 +77,7 @@ def figure(path: Path, outcome: opt.Outcome, steps: int) -> None:
 def main(argv: list[str] | None = None) -> dict[str, object]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=201, help="instants per run (the example's: 201)")
-    parser.add_argument("--backend", default="numpy")
+    parser.add_argument("--backend", default="c")
     parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
     parser.add_argument("--figure", help="also draw the torque before and after into this PNG")
     args = parser.parse_args(argv)

@@ -222,3 +222,49 @@ def test_an_instant_handed_to_the_python_loop_keeps_its_sensitivity_columns(run:
     assert len(calls) >= 3 and rows.shape == plain.shape
     np.testing.assert_allclose(rows[:, -width:], plain[:, -width:], rtol=0,
                                atol=1e-12 * np.abs(plain[:, -width:]).max())
+
+
+DRIVER = """
+#include <stdio.h>
+#include "{name}_solver.h"
+int main(void)
+{{
+    {name}_real p[{N}_NP > 0 ? {N}_NP : 1], out[{N}_NG], q[{N}_NG], state[{N}_STATE] = {{0}};
+    static {name}_real rows[8 * {N}_ROW], work[{N}_WORK];
+    static int iwork[{N}_IWORK > 0 ? {N}_IWORK : 1];
+    long solved = 0;
+    int k, status;
+    for (k = 0; k < {N}_NP; ++k) p[k] = {name}_default_params[k];
+    for (k = 0; k < {N}_NG; ++k) q[k] = state[k] = {name}_default_q0[k];
+    {name}_mass(p, out);
+    {name}_phi(q, 0.0{f}, p, out);
+    status = {name}_trajectory(0.0{f}, 0.01{f}, 8, p, {tol}, state, rows, &solved, work, iwork);
+    printf("%d %ld\\n", status, solved);
+    return status != 0 || solved != 8;
+}}
+"""
+
+
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_sensitivity_solver_stays_in_its_buffers_under_the_address_sanitizer(tmp_path: Path, precision: str) -> None:
+    """Every public evaluation prepares the parameters into a local vector of
+    NPP values: the sensitivities' prepared pieces (after single precision's
+    phases) must be counted in it. A merge once left them out: mass() wrote
+    past its stack vector and the c backend crashed at random; the numbers
+    alone cannot show that, the sanitizer does. Derived parameters (the
+    counterweight's centre and inertia) give the prepared pieces."""
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc not installed")
+    mech = api.load_mechanism(api.example("slider_crank_counterweight"))
+    api.generate(mech, "c", tmp_path, precision=precision, sensitivity=("m_cw", "beta_cw", "n"))
+    name = mech.name  # type: ignore[attr-defined]
+    single = precision == "single"
+    (tmp_path / "driver.c").write_text(DRIVER.format(name=name, N=name.upper(), f="f" if single else "",
+                                                     tol="1e-5f" if single else "1e-12"))
+    exe = tmp_path / "driver"
+    built = subprocess.run(["gcc", "-std=c99", "-g", "-O1", "-fsanitize=address,undefined", "-fno-omit-frame-pointer",
+                            "-fno-sanitize-recover=all", str(tmp_path / f"{name}_solver.c"), str(tmp_path / "driver.c"),
+                            "-o", str(exe), "-lm"], capture_output=True, text=True)
+    assert built.returncode == 0, built.stderr[:2000]
+    done = subprocess.run([str(exe)], capture_output=True, text=True, env={"ASAN_OPTIONS": "detect_leaks=0"})
+    assert done.returncode == 0 and "Sanitizer" not in done.stderr, (done.stdout, done.stderr[:3000])

@@ -41,7 +41,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="keep a figure below (<=) or above (>=) a value (repeatable)")
     p.add_argument("-o", "--output", metavar="OUT.toml",
                    help="the [parameters] snippet to write (default: <name>_optimized.toml in the current folder)")
-    p.add_argument("--backend", default="numpy", metavar="B", help="numpy, c, casadi or reference")
+    p.add_argument("--backend", default="c", metavar="B",
+                   help="c (default: the sensitivities in compiled code), numpy, casadi or reference")
     p.add_argument("--maxiter", type=int, default=100, metavar="N", help="SLSQP iterations at most")
     p.add_argument("--kind", choices=("inverse_dynamics", "statics"), help="what to compute (default: the file's)")
     p.add_argument("--t0", type=float, metavar="T", help="first instant (default: the file's)")

@@ -201,7 +201,8 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
     stride = _stride(model)
     fr = friction.context(model.layout, o, offset, scalar.lit)  # joint friction (None: none, and no code for it)
     # parameter sensitivities after the row's other columns (None: not asked for, and no code for them)
-    sens = c_sens.context(model, row_parts, offset, len(f.params) + len(pieces), _function, trig, printer, real)
+    # its parameter-only pieces go after the phases in the prepared vector (p | pieces | phases | these)
+    sens = c_sens.context(model, row_parts, offset, off_nu + 3 * nph, _function, trig, printer, real)
     if sens is not None:
         if fr is not None:
             raise c_sens.InputError(f"{model.layout.mechanism.source}: --sensitivity: the generated C has no "
@@ -215,14 +216,13 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         used += fr["fixed"] + fr["normal"]
     lu = _lu(model, fold_constants, scalar)
     d = describe(model, fr["row_width"] if fr else offset, functions, lu)
-    npp = len(f.params) + len(pieces) + (sens["npieces"] if sens else 0)
+    npp = off_nu + 3 * nph + (sens["npieces"] if sens else 0)  # every prepared value: NPP
     # the trajectory's output vectors (variable, source, work vector): solved
     # straight into the row where it holds the source, else into the work vector
     placed = {source: offset for _, source, _, offset in row_parts if source}
     outputs = [(var, placed.get(source), slot)
                for var, source, slot in (("qn", "q", 4), ("qdn", "qd", 5), ("qddn", "qdd", 6), ("lam", "lam", 7),
                                          ("reac", "reac", 8))]
-    npp = len(f.params) + len(pieces) + 3 * nph
     return {
         **c_phase.context(red, off_nu, len(f.params)),
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
