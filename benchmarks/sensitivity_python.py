@@ -9,8 +9,9 @@ per instant, first setup and re-parameterized setup, apart.
   (the backend's own loop, what `symid solve` runs), best of R, in rounds
   over the variants so the machine's load shifts all alike; the target is
   1 + 0.3 n_p.
-- first setup: sympy derivation and lambdify from cold caches, plus the
-  first run.
+- first setup: the sensitivity derivation and lambdify from cold caches,
+  plus the first run (n_p = 1 also pays the families' own derivation,
+  which later counts share, as one process would).
 - re-parameterized setup: another value of the first parameter (file
   reloaded, prepared, the sensitivity evaluator built): wall clock and the
   lambdify calls it made (0: the structure was reused).

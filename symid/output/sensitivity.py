@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 
 # The table groups a column can be differentiated in, and where each group's
 # derivatives are in `Derivatives`.
-CHUNK = 64  # instants whose sensitivities are evaluated at once (numpy's per-call cost, shared)
+CHUNK = 128  # instants whose sensitivities are evaluated at once (numpy's per-call cost, shared)
 _GROUPS = {"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam", "reactions": "reactions"}
 
 
