@@ -26,7 +26,7 @@ from symid.symbolic.columns import GROUP_SUFFIXES, columns
 if TYPE_CHECKING:
     from symid.backends import Array, Evaluator
     from symid.model.mechanism import Mechanism
-    from symid.numeric.sensitivity import Derivatives, SensitivityEvaluator, Stacked
+    from symid.numeric.sensitivity import SensitivityEvaluator, Stacked
     from symid.symbolic.assemble import Layout
 
 # The table groups a column can be differentiated in, and where each group's
@@ -134,11 +134,6 @@ def choose(mechanism: Mechanism, layout: Layout, names: str | Sequence[str] | No
             raise InputError(f"{where_}: --sensitivity-of {column}: no such column in this table "
                              f"(columns: {known or 'none'})")
     return Choice(chosen, wanted, tuple(where[c] for c in wanted), reactions)
-
-
-def values(choice: Choice, d: Derivatives) -> Array:
-    """The row's sensitivity values, in `Choice.header` order."""
-    return np.concatenate([getattr(d, attr)[row] for attr, row in choice.where]) if choice.where else np.zeros(0)
 
 
 def rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes, choice: Choice,
