@@ -73,7 +73,7 @@ class FusedKernel:
 
 def fused(sens: ConstraintSensitivity | ForceSensitivity, whats: tuple[str, ...]) -> FusedKernel:
     """The fused kernel of `whats` for a family variant (cached)."""
-    key = (id(sens), whats)
+    key = (sens, whats)  # by identity (eq=False), and kept alive here: never another's kernel
     if key in _KERNELS:
         return _KERNELS[key]
     matrices = [getattr(sens, w) for w in whats]
@@ -86,7 +86,7 @@ def fused(sens: ConstraintSensitivity | ForceSensitivity, whats: tuple[str, ...]
     live = np.array([k for k, e in enumerate(entries) if not e.is_number], dtype=np.intp)
     fn = _lambdify(sens.args, [entries[k] for k in live]) if live.size else None
     kernel = FusedKernel(rows, len(sens.args), template, live, fn)
-    _KERNELS[key] = kernel  # sens objects are cached for the process, so their ids are stable
+    _KERNELS[key] = kernel
     return kernel
 
 
