@@ -5,10 +5,11 @@ cost per instant, against the same run without them.
                                      [--repeats R] [--backend numpy] [--c-examples slider_crank,planetary]
                                      [--c-instants N] [--out benchmarks/results]
 
-1. python (the shared Python loop, any backend): the ratio with / without
-   for 1, 3 and all base parameters, measured in one run so the machine's
-   load shifts both sides alike, and the fitted cost per parameter; setup
-   (the one-time sympy derivation and lambdify) reported apart.
+1. python (`benchmarks.sensitivity_python`, any backend): the ratio with /
+   without for n_p = 1, 2, 4 base parameters on each --example (comma-
+   separated), measured in rounds so the machine's load shifts all alike;
+   first setup (sympy derivation and lambdify) and re-parameterized setup
+   (another value: nothing derived or lambdified again) apart.
 2. c (generated C, `--backend c`): for the slider-crank and the planetary
    gear train (12 coordinates), the compiled solver plain and with
    sensitivities to n_p = 1, 2, 4 base parameters (default columns: the
@@ -38,49 +39,17 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import instructions
+from benchmarks.sensitivity_python import python_part
 from symid import api
 from symid.backends.c_backend import CEvaluator
-from symid.model.params import base_names
-from symid.numeric.solve import run
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _best(fn, repeats: int) -> float:  # type: ignore[no-untyped-def]
-    best = np.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - start)
-    return float(best)
-
-
 def python_loop(args: argparse.Namespace) -> dict[str, object]:
-    """Part 1: the shared Python loop with and without the columns."""
-    path = api.example(args.example)
-    names = base_names(api.load_mechanism(path).parameters)
-    plain = api.prepare(path, args.backend, steps=args.instants)
-    base = _best(lambda: sum(1 for _ in run(plain.evaluator, plain.analysis, plain.q0())), args.repeats)
-    figures: dict[str, object] = {"example": args.example, "backend": args.backend, "instants": args.instants,
-                                  "plain_us_per_instant": base / args.instants * 1e6, "machine": platform.machine()}
-    ratios = {}
-    for count in sorted({1, min(3, len(names)), len(names)}):
-        start = time.perf_counter()
-        study = api.prepare(path, args.backend, steps=args.instants, sensitivity=names[:count])
-        list(study.rows())  # the first run derives and lambdifies: setup
-        setup = time.perf_counter() - start
-        took = _best(lambda: sum(1 for _ in study.rows()), args.repeats)  # noqa: B023
-        ratios[count] = took / base
-        figures[f"n_p={count}"] = {"ratio": took / base, "us_per_instant": took / args.instants * 1e6,
-                                   "setup_s": setup}
-        print(f"{args.example} on {args.backend}: n_p = {count}: {took / base:.2f}x the plain instant "
-              f"({took / args.instants * 1e6:.0f} us/instant; setup {setup:.1f} s)")
-    counts = np.array(sorted(ratios))
-    if len(counts) > 1:
-        slope = float(np.polyfit(counts, [ratios[c] for c in counts], 1)[0])
-        figures["per_parameter"] = slope
-        print(f"cost per parameter: {slope:.2f} plain instants (fit over n_p = {', '.join(map(str, counts))})")
-    return figures
+    """Part 1: the Python path (`benchmarks.sensitivity_python`): per instant,
+    first and re-parameterized setup."""
+    return python_part(args.example, args.backend, args.instants, args.repeats)
 
 
 PARAMETERS = {"slider_crank": ("L_crank", "m_rod", "n", "L_rod"),
@@ -188,7 +157,7 @@ def generated_c(args: argparse.Namespace) -> dict[str, object]:
 def main(argv: list[str] | None = None) -> dict[str, object]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--part", choices=("python", "c", "both"), default="both")
-    parser.add_argument("--example", default="slider_crank", help="python part")
+    parser.add_argument("--example", default="slider_crank,four_bar", help="python part: examples, comma-separated")
     parser.add_argument("--instants", type=int, default=201, help="python part")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--backend", default="numpy", help="python part")

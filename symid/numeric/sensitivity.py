@@ -1,38 +1,34 @@
 """Exact parameter sensitivities of a solved instant, with Phi_q already factored.
 
-The residual Jacobians of every family (`symid.symbolic.sensitivity`) are
-lambdified once and evaluated vectorized over a group's members, as the
-reference evaluator does; the chain from base parameters into the members'
-constants and time functions is evaluated once per run (constants) or per
-instant (time functions). With the instant's factorization of Phi_q, one
-solve per parameter and equation gives q_p, qd_p, qdd_p and (transposed)
-lam_p; the reactions' derivatives follow explicitly. Backend-independent:
-any backend's solved instant (q, qd, qdd, lam) goes in.
+Per group of family instances, every residual Jacobian one instant needs
+(`symid.symbolic.sensitivity`) comes out of one fused kernel call vectorized
+over the members and a chunk of instants at once (`sensitivity_build.fused`: numpy's
+cost per operation, not the number of operations, then sets the price), and
+its parameter terms (through
+the members' constants and time functions) out of one contraction; the
+members' constants, their chain and the masses come from the structure's one
+function of the parameter values (`sensitivity_build.structure`: built once
+per mechanism structure, so a new parameter value derives and lambdifies
+nothing), their time functions and chain from one call per chunk. With the
+instant's factorization of Phi_q, one solve per parameter and equation
+gives q_p, qd_p, qdd_p and (transposed) lam_p for all parameters;
+the reactions' derivatives follow explicitly. Backend-independent: any
+backend's solved instant (q, qd, qdd, lam) goes in.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
-from typing import Callable, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
 
-from symid.model.params import to_float
 from symid.numeric.evaluator import Array
-from symid.numeric.reference import _GroupData, _stack, _time_function
-from symid.numeric.stability import Factor
-from symid.symbolic.assemble import Layout
-from symid.symbolic.sensitivity import (ConstraintSensitivity, ForceSensitivity, GroupChain, parameter_chain,
-                                        sensitivity_of)
-
-
-@cache
-def _kernel(sens: ConstraintSensitivity | ForceSensitivity, what: str) -> Callable[..., list]:
-    """One Jacobian of a family, lambdified over its local arguments (cached per family)."""
-    matrix = getattr(sens, what)
-    return sp.lambdify(list(sens.args), list(matrix), modules="numpy", cse=True)
+from symid.numeric.sensitivity_build import Structure, fused, structure
+from symid.numeric.stability import Factor, Scaling
+from symid.symbolic.assemble import Group, Layout
+from symid.symbolic.sensitivity import sensitivity_of
 
 
 @dataclass
@@ -50,75 +46,85 @@ class Derivatives:
     reactions: Array | None = None
 
 
+class Stacked:
+    """Square Phi_q of K instants, equilibrated by one scaling (as `Factor`),
+    solved for all instants and parameters in one batched call."""
+
+    def __init__(self, jac: Array, scaling: Scaling) -> None:
+        self.dr, self.dc = scaling.dr[:, None, None], scaling.dc[:, None, None]
+        self.a = jac * scaling.dr[:, None] * scaling.dc  # (K, n, n)
+
+    def solve(self, rhs: Array, transposed: bool = False) -> Array:
+        """(n, K, np) -> x (n, K, np) with Phi_q x = rhs (transposed: Phi_q^T x = rhs) at each instant."""
+        left, right = (self.dc, self.dr) if transposed else (self.dr, self.dc)
+        a = self.a.transpose(0, 2, 1) if transposed else self.a
+        return right * np.linalg.solve(a, (left * rhs).transpose(1, 0, 2)).transpose(1, 0, 2)
+
+
+def _pad(v: Array) -> Array:
+    """(ng, ...) -> the extended (ng + 3, ...): ground's three zero rows appended."""
+    return np.concatenate([v, np.zeros((3, *v.shape[1:]))])
+
+
 class _Part:
-    """One group's numbers: its values (through the reference evaluator's
-    group data) and the chain of its constants and time functions."""
+    """One group: index arrays, its members' constants and their chain.
 
-    def __init__(self, data: _GroupData, chain: GroupChain, values: Mapping[sp.Symbol, float], nparams: int) -> None:
-        self.data = data
-        self.sens = sensitivity_of(data.group)
-        n = data.group.size
-        self.n, self.np = n, nparams
-        self.nconst = len(self.sens.blocks["constants"])
+    Arrays over members and instants flatten them member-major: (..., n * K).
+    """
+
+    def __init__(self, group: Group) -> None:
+        self.group = group
+        self.sens = sensitivity_of(group)
+        self.n = group.size
+        roles = group.derived.roles
+        # rows of the extended (ng + 3) coordinates of each role's x, y, phi, (3 roles, n): ground's are the 3 zeros
+        self.idx = np.concatenate([(3 * group.bodies[r][None, :] + np.arange(3)[:, None]) for r in roles])
+        blocks, at = {}, 0
+        for name, symbols in self.sens.blocks.items():
+            blocks[name] = slice(at, at + len(symbols))
+            at += len(symbols)
+        self.blocks = blocks
+        k = len(self.sens.blocks.get("lam", ()))
+        self.rows = group.rows[None, :] + np.arange(k)[:, None]  # (k, n): this group's constraint rows
+        self.cf = slice(blocks["constants"].start, blocks["functions"].stop)
         self.nfun = len(self.sens.blocks["functions"])
-        self.const_p = np.array([[[to_float(e, values) for e in c] for c in m] for m in chain.constants],
-                                dtype=float).reshape(n, self.nconst, nparams).transpose(1, 2, 0)
-        flat = [e for m in chain.functions for f in m for e in f]
-        self._fun_p = _time_function(flat, values) if flat else None
-
-    def fun_p(self, t: float) -> Array:
-        """(functions, np, members) at t."""
-        if self._fun_p is None:
-            return np.zeros((self.nfun, self.np, self.n))
-        return self._fun_p(t).reshape(self.n, self.nfun, self.np).transpose(1, 2, 0)
+        self.const: Array = np.zeros(0)  # (nconst, n), set by the evaluator
+        self.const_p: Array = np.zeros(0)  # (nconst, n, np), set by the evaluator
+        self.fun: Array = np.zeros(0)  # (nfun, n, K), set per chunk
+        self.fun_p: Array = np.zeros(0)  # (nfun, n, K, np), set per chunk
 
     def local(self, ext: Array) -> Array:
-        """A global (ng + 3, ...) array's rows of each role: (3 roles, ..., members)."""
-        return np.concatenate([np.moveaxis(ext[self.data.cols[r]], 0, -1).reshape(3, *ext.shape[1:], self.n)
-                               for r in self.data.roles])
+        """The members' rows of an extended (ng + 3, K, ...) array: (3 roles, n * K, ...)."""
+        v = ext[self.idx]
+        return v.reshape(v.shape[0], v.shape[1] * v.shape[2], *v.shape[3:])
 
-    def jacobian(self, what: str, qx: Array, qdx: Array, qddx: Array, lam: Array | None, t: float) -> Array:
-        """The Jacobian `what` at the instant, (outputs, nargs, members)."""
-        d = self.data
+    def jacobians(self, whats: tuple[str, ...], qx: Array, qdx: Array, qddx: Array, lam: Array | None
+                  ) -> tuple[Array, Mapping[str, slice], Array]:
+        """The stacked Jacobians `whats` (outputs, nargs, n * K), their row
+        slices, and their parameter terms through constants and time
+        functions (outputs, n * K, np); qx etc. (ng + 3, K), lam (nc, K)."""
+        kernel = fused(self.sens, whats)
+        count = qx.shape[1]
         args: list = [*self.local(qx), *self.local(qdx)]
-        if "qdd" in self.sens.blocks:
+        if "qdd" in self.blocks:
             args.extend(self.local(qddx))
-        args.extend(d.constants)
-        if d.functions is not None:
-            args.extend(d.functions(t).reshape(d.width, self.n))
-        if "lam" in self.sens.blocks:
-            args.extend(self.member_rows(lam) if lam is not None else np.zeros((len(self.sens.blocks["lam"]), self.n)))
-        values = _stack(_kernel(self.sens, what)(*args), self.n)
-        return values.reshape(-1, len(self.sens.args), self.n)
+        args.extend(np.repeat(self.const, count, axis=1))
+        width = self.n * count
+        args.extend(self.fun.reshape(self.nfun, width))
+        if "lam" in self.blocks:
+            rows = self.rows.shape
+            args.extend(lam[self.rows].reshape(rows[0], width) if lam is not None else np.zeros((rows[0], width)))
+        jac = kernel(args, width)
+        chain = np.concatenate([np.repeat(self.const_p, count, axis=1), self.fun_p.reshape(self.nfun, width, self.const_p.shape[-1])])
+        return jac, kernel.rows, np.einsum("oam,amp->omp", jac[:, self.cf], chain)
 
-    def member_rows(self, rows: Array) -> Array:
-        """A (nc, ...) array's rows of each member: (rows, ..., members)."""
-        k = len(self.sens.blocks["lam"])
-        picked = rows[self.data.group.rows[None, :] + np.arange(k)[:, None]]  # (k, n, ...)
-        return np.moveaxis(picked, 1, -1)
+    def times(self, jac: Array, block: str, local: Array) -> Array:
+        """J[:, block] times the block's local derivatives (args, n * K, np) -> (outputs, n * K, np)."""
+        return np.einsum("oam,amp->omp", jac[:, self.blocks[block]], local)
 
-    def chained(self, what: str, jac: Array, q_p: Array | None, qd_p: Array | None, qdd_p: Array | None,
-                lam_p: Array | None, t: float) -> Array:
-        """J times the local derivatives (None: an unknown, left out), (outputs, np, members)."""
-        zeros = np.zeros((len(self.sens.blocks["q"]), self.np, self.n))
-        parts = [zeros if q_p is None else self.local(q_p), zeros if qd_p is None else self.local(qd_p)]
-        if "qdd" in self.sens.blocks:
-            parts.append(zeros if qdd_p is None else self.local(qdd_p))
-        parts += [self.const_p, self.fun_p(t)]
-        if "lam" in self.sens.blocks:
-            k = len(self.sens.blocks["lam"])
-            parts.append(np.zeros((k, self.np, self.n)) if lam_p is None else self.member_rows(lam_p))
-        return np.einsum("oan,apn->opn", jac, np.concatenate(parts))
-
-    def add_rows(self, out: Array, vals: Array) -> None:
-        """Add (rows, np, members) into the constraint rows of `out` (nc, np)."""
-        k = vals.shape[0]
-        out[self.data.group.rows[None, :] + np.arange(k)[:, None]] += vals.transpose(0, 2, 1)
-
-    def add_columns(self, out: Array, vals: Array) -> None:
-        """Add (3 roles, np, members) into the coordinates of `out` (ng + 3, np)."""
-        for r, role in enumerate(self.data.roles):
-            np.add.at(out, self.data.cols[role], vals[3 * r:3 * r + 3].transpose(2, 0, 1))
+    def unflat(self, vals: Array) -> Array:
+        """(outputs, n * K, np) -> (outputs, n, K, np)."""
+        return vals.reshape(vals.shape[0], self.n, vals.shape[1] // self.n, vals.shape[-1])
 
 
 class SensitivityEvaluator:
@@ -136,83 +142,139 @@ class SensitivityEvaluator:
         mech = layout.mechanism
         self.layout, self.names, self.statics = layout, tuple(names), statics
         self.np = nparams = len(names)
-        chain = parameter_chain(mech, layout, names)
+        self.built: Structure = structure(mech, layout, self.names)
+        self.args = [values[s] for s in self.built.symbols]
         nb = layout.nb
-        self._c = [_Part(_GroupData(g, values, nb, series=True), ch, values, nparams)
-                   for g, ch in zip(layout.constraint_groups, chain.constraint_groups)]
-        self._f = [_Part(_GroupData(g, values, nb, series=False), ch, values, nparams)
-                   for g, ch in zip(layout.force_groups, chain.force_groups)]
-        self.mass = np.array([[to_float(b.mass, values)] * 2 + [to_float(b.inertia, values)]
-                              for b in mech.bodies]).reshape(-1)
-        self.mass_p = np.array([[[to_float(e, values) for e in c] for c in b] for b in chain.mass]).reshape(-1, nparams)
+        self._c = [_Part(g) for g in layout.constraint_groups]
+        self._f = [_Part(g) for g in layout.force_groups]
+        flat = np.array(self.built.static(*self.args), dtype=float).reshape(-1)
+        at = 0
+        for p, (n, nconst, _) in zip(self._c + self._f, self.built.shapes):
+            p.const = flat[at:at + n * nconst].reshape(n, nconst).T
+            at += n * nconst
+            p.const_p = flat[at:at + n * nconst * nparams].reshape(n, nconst, nparams).transpose(1, 0, 2)
+            at += n * nconst * nparams
+        self.mass = flat[at:at + 3 * nb]
+        at += 3 * nb
+        self.mass_p = flat[at:at + 3 * nb * nparams].reshape(3 * nb, nparams)
+        at += 3 * nb * nparams
         weight = np.zeros((nb, 3, nparams))
-        weight[:, :2] = np.array([[[to_float(e, values) for e in g] for g in b] for b in chain.weight]).reshape(nb, 2, -1)
+        weight[:, :2] = flat[at:at + 2 * nb * nparams].reshape(nb, 2, nparams)
         self.weight_p = weight.reshape(-1, nparams)
         wanted = set(reactions)
         start, self.reaction_size = mech.reaction_starts(wanted)
-        self._slots = [(np.array([k for k, n in enumerate(p.data.group.names) if n in wanted], dtype=np.intp),
-                        np.array([start[n] for n in p.data.group.names if n in wanted], dtype=np.intp))
+        self._slots = [(np.array([k for k, n in enumerate(p.group.names) if n in wanted], dtype=np.intp),
+                        np.array([start[n] for n in p.group.names if n in wanted], dtype=np.intp))
                        for p in self._c]
 
-    def _ext(self, v: Array | None, width: int | None = None) -> Array:
-        ng = self.layout.ng
-        if v is None:
-            return np.zeros(ng + 3) if width is None else np.zeros((ng + 3, width))
-        return np.concatenate([v, np.zeros((3, *v.shape[1:]))])
+    def _timed(self, ts: Array) -> None:
+        """Every group's time functions and their chain at the instants ts (K,)."""
+        count, nparams = ts.size, self.np
+        for p in self._c + self._f:  # a group without time functions: empty blocks
+            p.fun, p.fun_p = np.zeros((p.nfun, p.n, count)), np.zeros((p.nfun, p.n, count, nparams))
+        if self.built.timed is None:
+            return
+        # a numpy t: a pole or a domain error gives inf or NaN, never an exception
+        vals = self.built.timed(np.asarray(ts, dtype=np.float64), *self.args)
+        flat = np.empty((len(vals), count))
+        for k, v in enumerate(vals):  # entries free of t come out scalars: the assignment broadcasts them
+            flat[k] = v
+        at = 0
+        for p, (n, _, nfun) in zip(self._c + self._f, self.built.shapes):
+            if not nfun:
+                continue
+            p.fun = flat[at:at + n * nfun].reshape(n, nfun, count).transpose(1, 0, 2)
+            at += n * nfun
+            p.fun_p = flat[at:at + n * nfun * nparams].reshape(n, nfun, nparams, count).transpose(1, 0, 3, 2)
+            at += n * nfun * nparams
 
-    def _rows(self, what: str, state: tuple[Array, Array, Array, Array | None],
-              known: tuple[Array | None, Array | None, Array | None, Array | None], t: float) -> Array:
-        out = np.zeros((self.layout.nc, self.np))
-        for p in self._c:
-            p.add_rows(out, p.chained(what, p.jacobian(what, *state, t), *known, t))
-        return out
+    def _ext(self, v: Array | None, count: int) -> Array:
+        """(K, ng, ...) instants' values -> the extended (ng + 3, K, ...) (None: zeros)."""
+        if v is None:
+            return np.zeros((self.layout.ng + 3, count))
+        return _pad(np.moveaxis(v, 0, 1))
 
     def instant(self, factor: Factor, t: float, q: Array, qd: Array | None, qdd: Array | None,
                 lam: Array | None, reactions: bool = False) -> Derivatives:
-        """The derivatives at the solved instant (statics: qd, qdd None).
+        """The derivatives at one solved instant (statics: qd, qdd None); see `chunk`."""
+        rows = None if lam is None else lam[None]
+        d = self.chunk([factor], np.array([t]), q[None], None if qd is None else qd[None],
+                       None if qdd is None else qdd[None], rows, reactions)
+        return Derivatives(d.q[:, 0], d.qd[:, 0], d.qdd[:, 0], None if d.lam is None else d.lam[:, 0],
+                           None if d.reactions is None else d.reactions[:, 0])
+
+    def chunk(self, factors: Sequence[Factor] | Stacked, ts: Array, q: Array, qd: Array | None, qdd: Array | None,
+              lam: Array | None, reactions: bool = False) -> Derivatives:
+        """The derivatives at K solved instants, vectorized over them: each
+        array of `Derivatives` with the instants as its middle axis (rows, K, np).
 
         Args:
-            factor: the instant's factorization of Phi_q.
-            lam: the multipliers, or None (kinematics): then no lam_p.
+            factors: each instant's factorization of Phi_q (K), or their Phi_q stacked.
+            ts: (K,); q, qd, qdd: (K, ng) (statics: qd, qdd None).
+            lam: (K, nc) multipliers, or None (kinematics): then no lam_p.
             reactions: whether to compute the reactions' derivatives.
         """
-        ng, nparams = self.layout.ng, self.np
-        qx, qdx, qddx = self._ext(q), self._ext(qd), self._ext(qdd)
-        state = (qx, qdx, qddx, lam)
+        ng, nc, nparams, count = self.layout.ng, self.layout.nc, self.np, ts.size
+        qx, qdx, qddx = self._ext(q, count), self._ext(qd, count), self._ext(qdd, count)
+        lamx = None if lam is None else lam.T
+        self._timed(ts)
+        whats: tuple[str, ...] = ("phi",) if self.statics else ("phi", "velocity", "acceleration")
+        if lam is not None:
+            whats += ("eom", "reactions") if reactions else ("eom",)
+        parts = [(p, *p.jacobians(whats, qx, qdx, qddx, lamx)) for p in self._c]
 
         def solve(rhs: Array, transposed: bool = False) -> Array:
-            one = factor.solve_t if transposed else factor.solve
-            return np.column_stack([one(rhs[:, k]) for k in range(nparams)]) if nparams else rhs[:0]
+            """(n, K, np) -> (m, K, np), instant by instant and column by column
+            through each instant's factorization: OpenBLAS's threaded
+            multi-right-hand-side getrs took ~1 ms a call on a loaded machine,
+            hundreds of times these small single solves."""
+            if isinstance(factors, Stacked):
+                return factors.solve(rhs, transposed)
+            out = [[(f.solve_t if transposed else f.solve)(rhs[:, k, j]) for j in range(nparams)]
+                   for k, f in enumerate(factors)]
+            return np.array(out).transpose(2, 0, 1)
 
-        q_p = -solve(self._rows("phi", state, (None, None, None, None), t))
-        qpx = self._ext(q_p)
-        if self.statics:
-            qd_p = qdd_p = np.zeros((ng, nparams))
-        else:
-            qd_p = -solve(self._rows("velocity", state, (qpx, None, None, None), t))
-            qdd_p = -solve(self._rows("acceleration", state, (qpx, self._ext(qd_p), None, None), t))
-        out = Derivatives(q_p, qd_p, qdd_p)
-        if lam is None:
-            return out
-        qdpx = self._ext(qd_p)
-        # d/dp of M qdd + Phi_q^T lam - Q^A, all but Phi_q^T lam_p
-        rest = np.zeros((ng + 3, nparams))
-        for p in self._c:
-            p.add_columns(rest, p.chained("eom", p.jacobian("eom", *state, t), qpx, None, None, None, t))
-        for p in self._f:
-            jac = p.jacobian("generalized", qx, qdx, qddx, None, t)
-            p.add_columns(rest, -p.chained("generalized", jac, qpx, None if self.statics else qdpx, None, None, t))
-        rest = rest[:ng] - self.weight_p
+        def stage(what: str, terms: Sequence[tuple[str, Array]]) -> Array:
+            rhs = np.zeros((nc, count, nparams))
+            for p, jac, rows, direct in parts:
+                vals = direct[rows[what]]
+                for block, ext in terms:
+                    vals = vals + p.times(jac[rows[what]], block, p.local(ext))
+                rhs[p.rows] += p.unflat(vals)
+            return rhs
+
+        q_p = -solve(stage("phi", ()))
+        qpx = _pad(q_p)
+        qd_p = qdd_p = np.zeros((ng, count, nparams))
         if not self.statics:
-            rest += self.mass_p * qdd[:, None] + self.mass[:, None] * qdd_p  # type: ignore[index]
-        out.lam = lam_p = -solve(rest, transposed=True)
-        if reactions:
-            r_p = np.empty((self.reaction_size, nparams))
-            for p, (members, slots) in zip(self._c, self._slots):
-                if members.size == 0:
-                    continue
-                vals = p.chained("reactions", p.jacobian("reactions", *state, t), qpx, None, None, lam_p, t)
-                vals = vals[:, :, members]  # (outputs, np, chosen members)
-                r_p[slots[None, :] + np.arange(vals.shape[0])[:, None]] = vals.transpose(0, 2, 1)
-            out.reactions = r_p
-        return out
+            qd_p = -solve(stage("velocity", (("q", qpx),)))
+            qdd_p = -solve(stage("acceleration", (("q", qpx), ("qd", _pad(qd_p)))))
+        lam_p = r_p = None
+        if lam is not None:
+            # d/dp of M qdd + Phi_q^T lam - Q^A, all but Phi_q^T lam_p: (ng + 3, K, np)
+            rest = np.zeros((ng + 3, count, nparams))
+            for p, jac, rows, direct in parts:
+                e = rows["eom"]
+                np.add.at(rest, p.idx, p.unflat(direct[e] + p.times(jac[e], "q", p.local(qpx))))
+            qdpx = _pad(qd_p)
+            for p in self._f:
+                jac, _, direct = p.jacobians(("generalized",), qx, qdx, qddx, None)
+                vals = direct + p.times(jac, "q", p.local(qpx))
+                if not self.statics:
+                    vals = vals + p.times(jac, "qd", p.local(qdpx))
+                np.add.at(rest, p.idx, -p.unflat(vals))
+            rest = rest[:ng] - self.weight_p[:, None, :]
+            if not self.statics:
+                rest += self.mass_p[:, None, :] * qdd.T[:, :, None] + self.mass[:, None, None] * qdd_p  # type: ignore[union-attr]
+            lam_p = -solve(rest, transposed=True)
+            if reactions:
+                r_p = np.empty((self.reaction_size, count, nparams))
+                lpx = lam_p
+                for (p, jac, rows, direct), (members, slots) in zip(parts, self._slots):
+                    if members.size == 0:
+                        continue
+                    r = rows["reactions"]
+                    lam_local = lpx[p.rows].reshape(p.rows.shape[0], p.n * count, nparams)
+                    vals = direct[r] + p.times(jac[r], "q", p.local(qpx)) + p.times(jac[r], "lam", lam_local)
+                    r_p[slots[None, :] + np.arange(vals.shape[0])[:, None]] = p.unflat(vals)[:, members]
+        return Derivatives(q_p, qd_p, qdd_p, lam_p, r_p)

@@ -17,7 +17,8 @@ import numpy as np
 from symid.errors import InputError
 from symid.model.analysis import Analysis
 from symid.model.params import base_names, is_derived
-from symid.numeric.solve import Instant, instant_row, run
+from symid.numeric.solve import instant_row, run
+from symid.output.results import table_rows
 from symid.numeric.stability import Factor, Notes, Scaling
 from symid.output.summary import drivers, source
 from symid.symbolic.columns import GROUP_SUFFIXES, columns
@@ -25,11 +26,12 @@ from symid.symbolic.columns import GROUP_SUFFIXES, columns
 if TYPE_CHECKING:
     from symid.backends import Array, Evaluator
     from symid.model.mechanism import Mechanism
-    from symid.numeric.sensitivity import Derivatives, SensitivityEvaluator
+    from symid.numeric.sensitivity import SensitivityEvaluator, Stacked
     from symid.symbolic.assemble import Layout
 
 # The table groups a column can be differentiated in, and where each group's
 # derivatives are in `Derivatives`.
+CHUNK = 128  # instants whose sensitivities are evaluated at once (numpy's per-call cost, shared)
 _GROUPS = {"q": "q", "qdot": "qd", "qddot": "qdd", "lambda": "lam", "reactions": "reactions"}
 
 
@@ -134,29 +136,91 @@ def choose(mechanism: Mechanism, layout: Layout, names: str | Sequence[str] | No
     return Choice(chosen, wanted, tuple(where[c] for c in wanted), reactions)
 
 
-def values(choice: Choice, d: Derivatives) -> Array:
-    """The row's sensitivity values, in `Choice.header` order."""
-    return np.concatenate([getattr(d, attr)[row] for attr, row in choice.where]) if choice.where else np.zeros(0)
-
-
 def rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes, choice: Choice,
-         sens: SensitivityEvaluator) -> Iterator[Array]:
-    """The table rows with the sensitivity columns appended, from the Python loop."""
+         sens: SensitivityEvaluator, chunk: int = CHUNK) -> Iterator[Array]:
+    """The table with the sensitivity columns appended, in blocks of `chunk`
+    rows whose sensitivities are computed at once, vectorized over the
+    instants (a failure still yields every instant solved before it).
+
+    A backend with its own loop (numpy's generated one, several times the
+    shared Python loop's speed) solves when its rows hold what the
+    sensitivities start from (q, and qdot, qddot, lambda where needed):
+    Phi_q is then factored again per instant. Otherwise the shared Python
+    loop, whose factorization each instant's sensitivities reuse."""
     want_lam = any(attr in ("lam", "reactions") for attr, _ in choice.where)
     want_r = any(attr == "reactions" for attr, _ in choice.where)
-    for instant in run(evaluator, analysis, q0, notes):
-        row = instant_row(instant, len(q0), analysis)
-        d = sens.instant(_factor_of(evaluator, instant), instant.t, instant.q, instant.qd, instant.qdd,
-                         instant.lam if want_lam else None, want_r)
-        yield np.concatenate([row, values(choice, d)])
+    ng = len(q0)
+    dyn = analysis.kind != "statics"
+    at = _starts(sens.layout, analysis)
+    need = ["q"] + (["qdot", "qddot"] if dyn else []) + (["lambda"] if want_lam else [])
+    own = getattr(evaluator, "rows", None) is not None and all(g in at for g in need)
+    held: list[tuple[Array, Array, Factor | None]] = []  # (row, state: t, q[, qd, qdd][, lam], factor)
+    scaling: list[Scaling] = []  # a backend's own loop: one equilibration for the run (t0's), as the loop's
+
+    def flush() -> Iterator[Array]:
+        state = np.array([h[1] for h in held])
+        ts, q = state[:, 0], state[:, 1:1 + ng]
+        qd = state[:, 1 + ng:1 + 2 * ng] if dyn else None
+        qdd = state[:, 1 + 2 * ng:1 + 3 * ng] if dyn else None
+        lam = state[:, 1 + (3 if dyn else 1) * ng:] if want_lam else None
+        factors = _factors(evaluator, [h[2] for h in held], q, ts, scaling)
+        d = sens.chunk(factors, ts, q, qd, qdd, lam, want_r)
+        table = np.array([h[0] for h in held])
+        yield np.hstack([table, *(getattr(d, attr)[row] for attr, row in choice.where)])  # one block of rows
+        held.clear()
+
+    def state(row: Array) -> Array:
+        return np.concatenate([row[:1], *(row[at[g]:at[g] + (ng if g != "lambda" else sens.layout.nc)]
+                                          for g in need)])
+
+    def solved() -> Iterator[tuple[Array, Array, Factor | None]]:
+        if own:
+            for row in table_rows(evaluator, analysis, q0, notes):
+                yield row, state(row), None
+            return
+        for item in run(evaluator, analysis, q0, notes):
+            parts = [item.t, item.q, *([item.qd, item.qdd] if dyn else []), *([item.lam] if want_lam else [])]
+            yield instant_row(item, ng, analysis), np.hstack(parts), item.factor  # type: ignore[arg-type]
+
+    try:
+        for one in solved():
+            held.append(one)
+            if len(held) >= chunk:
+                yield from flush()
+    except Exception:  # a failed instant: the ones solved before it first
+        if held:
+            yield from flush()
+        raise
+    if held:
+        yield from flush()
 
 
-def _factor_of(evaluator: Evaluator, instant: Instant) -> Factor:
-    """The instant's factorization of Phi_q (made again if the loop kept none)."""
-    if instant.factor is not None:
-        return instant.factor
-    jac = evaluator.phi_q(instant.q, instant.t)
-    return Factor(jac, Scaling.of(jac, instant.q))
+def _starts(layout: Layout, analysis: Analysis) -> dict[str, int]:
+    """The first column of each of the table's q, qdot, qddot, lambda groups."""
+    sizes = {"q": layout.ng, "qdot": layout.ng, "qddot": layout.ng, "lambda": layout.nc}
+    out, at = {}, 1
+    for group in analysis.output_groups():
+        if group in sizes:  # reactions come last (OUTPUT_GROUPS order)
+            out[group] = at
+            at += sizes[group]
+    return out
+
+
+def _factors(evaluator: Evaluator, kept: list[Factor | None], q: Array, ts: Array,
+             scaling: list[Scaling]) -> list[Factor] | Stacked:
+    """The instants' factorizations of Phi_q: the loop's, or (a backend's own
+    loop keeps none) Phi_q again, under the run's one scaling (made at the
+    first instant: `scaling` keeps it), stacked when square."""
+    if all(f is not None for f in kept):
+        return kept  # type: ignore[return-value]
+    jac = np.array([evaluator.phi_q(q[k], ts[k]) for k in range(len(kept))])
+    if not scaling:
+        scaling.append(Scaling.of(jac[0], q[0]))
+    if jac.shape[1] == jac.shape[2]:
+        from symid.numeric.sensitivity import Stacked
+
+        return Stacked(jac, scaling[0])
+    return [Factor(j, scaling[0]) for j in jac]
 
 
 def reaction_count(reactions: tuple[str, ...], mechanism: Mechanism) -> int:

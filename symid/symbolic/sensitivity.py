@@ -50,7 +50,7 @@ Public functions (read by the generated-C sensitivities too):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 from typing import Mapping, Sequence
 
 import sympy as sp
@@ -84,6 +84,9 @@ def _blocks(derived: DerivedConstraint | DerivedForce) -> dict[str, tuple[sp.Sym
 class ConstraintSensitivity:
     """Jacobians of one constraint family variant's residuals by its local arguments.
 
+    Each Jacobian is derived on first use (statics needs no `velocity` nor
+    `acceleration`, kinematics no `eom` nor `reactions`), then kept.
+
     Attributes:
         derived: the family's derivation.
         blocks: block name -> its symbols (`ARG_BLOCKS` order); `args` all of them.
@@ -93,15 +96,41 @@ class ConstraintSensitivity:
 
     derived: DerivedConstraint
     blocks: Mapping[str, tuple[sp.Symbol, ...]]
-    phi: sp.Matrix
-    velocity: sp.Matrix
-    acceleration: sp.Matrix
-    eom: sp.Matrix
-    reactions: sp.Matrix
 
     @property
     def args(self) -> tuple[sp.Symbol, ...]:
         return tuple(x for b in self.blocks.values() for x in b)
+
+    @cached_property
+    def _first(self) -> list[sp.Expr]:
+        # V = Phi_q qd - nu and A = Phi_q qdd - gamma are the first and second total
+        # time derivatives of Phi: differentiated in that compact form (not the
+        # expanded gamma), sympy's diff is several times faster.
+        return [total_derivative(e, self.derived.roles) for e in self.derived.phi]
+
+    @cached_property
+    def phi(self) -> sp.Matrix:
+        return _jacobian(list(self.derived.phi), self.args)
+
+    @cached_property
+    def velocity(self) -> sp.Matrix:
+        return _jacobian(self._first, self.args)
+
+    @cached_property
+    def acceleration(self) -> sp.Matrix:
+        return _jacobian([total_derivative(e, self.derived.roles) for e in self._first], self.args)
+
+    @cached_property
+    def eom(self) -> sp.Matrix:
+        d = self.derived
+        lam = sp.Matrix(d.lam)
+        return _jacobian([e for r in d.roles for e in d.jac[r].T * lam], self.args)
+
+    @cached_property
+    def reactions(self) -> sp.Matrix:
+        d = self.derived
+        lam = sp.Matrix(d.lam)
+        return _jacobian([e for r in d.roles for e in reaction(d.jac[r], lam, d.family.points[r], r)], self.args)
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,26 +173,7 @@ def constraint_sensitivity(name: str, options: Variant = ()) -> ConstraintSensit
 @cache
 def _constraint(name: str, options: Variant) -> ConstraintSensitivity:
     d = derive_constraint(name, options)
-    blocks = _blocks(d)
-    args = [x for b in blocks.values() for x in b]
-    roles = d.roles
-    # V = Phi_q qd - nu and A = Phi_q qdd - gamma are the first and second total
-    # time derivatives of Phi: differentiated in that compact form (not the
-    # expanded gamma), sympy's diff is several times faster.
-    first = [total_derivative(e, roles) for e in d.phi]
-    second = [total_derivative(e, roles) for e in first]
-    lam = sp.Matrix(d.lam)
-    eom = [e for r in roles for e in d.jac[r].T * lam]
-    reactions = [e for r in roles for e in reaction(d.jac[r], lam, d.family.points[r], r)]
-    return ConstraintSensitivity(
-        derived=d,
-        blocks=blocks,
-        phi=_jacobian(list(d.phi), args),
-        velocity=_jacobian(first, args),
-        acceleration=_jacobian(second, args),
-        eom=_jacobian(eom, args),
-        reactions=_jacobian(reactions, args),
-    )
+    return ConstraintSensitivity(derived=d, blocks=_blocks(d))
 
 
 def force_sensitivity(name: str, options: Variant = ()) -> ForceSensitivity:
