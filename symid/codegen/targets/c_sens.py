@@ -105,10 +105,15 @@ def context(model: CodeModel, row_parts: list[tuple[str, str | None, int, int]],
             copies[-1][2] += 1
         else:
             copies.append([dst, src, 1])
+    # the chosen columns are all the chosen reactions, in order: their kernel writes straight into out
+    direct = copies == [[0, base["reactions"], nrc * ns]] and nrc > 0
+    if direct:
+        copies = []
     prepare = [block(pieces[k:k + CHUNK], printer, offset=np_prepared + k) for k in range(0, len(pieces), CHUNK)]
     total = base["zero"] + 1
     labels = [f"{n} (p[{f.params.index(n)}])" for n in names]
     return {"ns": ns, "names": list(names), "labels": labels, "of": list(of), "ncol": len(of), "copies": copies,
+            "direct": direct,
             "size": total, "zero": base["zero"], "base": base,
             "stages": wanted, "kernels": kernels, "prepare": prepare, "npieces": len(pieces),
             "offset": row_offset, "width": len(of) * ns, "work": total + ns * max(ng, nc), "columns": columns(of, names),
