@@ -8,7 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from symid.cli.options import set_values
+from symid.cli.options import add_time_grid, set_values
 from symid.errors import AnalysisError, InputError
 
 OPTIMIZE_EPILOG = """examples:
@@ -44,11 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--backend", default="c", metavar="B",
                    help="c (default: the sensitivities in compiled code), numpy, casadi or reference")
     p.add_argument("--maxiter", type=int, default=100, metavar="N", help="SLSQP iterations at most")
-    p.add_argument("--kind", choices=("inverse_dynamics", "statics"), help="what to compute (default: the file's)")
-    p.add_argument("--t0", type=float, metavar="T", help="first instant (default: the file's)")
-    p.add_argument("--t1", type=float, metavar="T", help="last instant (default: the file's)")
-    p.add_argument("--steps", type=int, metavar="N", help="instants per run (default: the file's)")
-    p.add_argument("--tol", type=float, metavar="X", help="Newton tolerance (default: the file's)")
+    add_time_grid(p, ("inverse_dynamics", "statics"), "run")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="set a parameter (repeatable; a varied one: its start)")
     p.set_defaults(run=cmd_optimize)

@@ -53,3 +53,13 @@ def analysis_overrides(args: argparse.Namespace) -> dict[str, object]:
 def run_options(args: argparse.Namespace) -> dict[str, object]:
     """Every option of `solve` that changes the run (part of the run-plan key, `symid.tools.plan`)."""
     return {"backend": args.backend, "set": list(args.set), **analysis_overrides(args)}
+
+
+def add_time_grid(p: argparse.ArgumentParser, kinds: Sequence[str], per: str) -> None:
+    """`--kind`, `--t0`, `--t1`, `--steps` and `--tol` of a study command (sweep,
+    optimize): each overrides the file's `[analysis]` key for every `per`."""
+    p.add_argument("--kind", choices=tuple(kinds), help="what to compute (default: the file's)")
+    p.add_argument("--t0", type=float, metavar="T", help="first instant (default: the file's)")
+    p.add_argument("--t1", type=float, metavar="T", help="last instant (default: the file's)")
+    p.add_argument("--steps", type=int, metavar="N", help=f"instants per {per} (default: the file's)")
+    p.add_argument("--tol", type=float, metavar="X", help="Newton tolerance (default: the file's)")

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any, Iterator
 
-from symid.cli.options import set_values
+from symid.cli.options import add_time_grid, set_values
 from symid.errors import AnalysisError, InputError
 from symid.text import plural
 
@@ -26,7 +26,7 @@ Columns: variant, the varied parameters, status, t_end, then per driver D
 D.effort_peak D.effort_t_peak D.effort_rms D.power_peak, per constraint C
 C.force_peak (symid help format, "Design studies"); with --gradients then
 d(FIGURE)/d(P) for every figure and varied parameter (figures outer), exact,
-each variant solved through the Python path with sensitivities (no batch engine).
+each variant solved on its own with its sensitivities (no batch engine).
 exit status: 0 the sweep ran (status says which variants failed), 2 bad input,
 3 no variant could be solved."""
 
@@ -54,18 +54,13 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask distributed scheduler")
     p.add_argument("--json", action="store_true",
                    help="print variants, failed, setup_s, solve_s, instants_per_s as JSON on stdout")
-    p.add_argument("--kind", choices=("inverse_dynamics", "kinematics", "statics"),
-                   help="what to compute (default: the file's)")
-    p.add_argument("--t0", type=float, metavar="T", help="first instant (default: the file's)")
-    p.add_argument("--t1", type=float, metavar="T", help="last instant (default: the file's)")
-    p.add_argument("--steps", type=int, metavar="N", help="instants per variant (default: the file's)")
-    p.add_argument("--tol", type=float, metavar="X", help="Newton tolerance (default: the file's)")
+    add_time_grid(p, ("inverse_dynamics", "kinematics", "statics"), "variant")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="fix a parameter for every variant (repeatable)")
     p.add_argument("--plot", action="store_true", help="also write PNG plots of the study beside the table")
     p.add_argument("--gradients", action="store_true",
                    help="add d(FIGURE)/d(P) for every figure and varied parameter after the figures: exact, "
-                        "each variant through the Python path with sensitivities (slower than the batch engine)")
+                        "each variant solved on its own with its sensitivities (slower than the batch engine)")
     p.set_defaults(run=cmd_sweep)
 
 
@@ -84,7 +79,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from symid.study.run import Sweep
 
     if args.gradients and args.scheduler:
-        raise InputError("--gradients runs each variant on this machine (the Python path with "
+        raise InputError("--gradients runs each variant on this machine (solved on its own with its "
                          "sensitivities): drop --scheduler")
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers}: must be >= 1")

@@ -2,8 +2,9 @@
 with respect to the varied parameters.
 
 The batch engines (compiled C, NumPy over variants) compute no sensitivities,
-so each variant runs through the Python path with the exact sensitivities of
-the columns the figures are read from (`symid.study.gradients`): slower than a
+so each variant is solved on its own (its backend's solver with sensitivities:
+compiled on c, the Python loop on numpy) with the exact sensitivities of the
+columns the figures are read from (`symid.study.gradients`): slower than a
 plain sweep, and exact. The columns follow the figures: `d(FIGURE)/d(P)` for
 every figure (outer, in figure order) and every varied parameter (inner, in
 the order given).
