@@ -148,13 +148,18 @@ def _group(writer: Any, pa: Any, schema: Any, gathered: list[Array]) -> None:
                                              for k in range(data.shape[1])], schema=schema))
 
 
-def read_parquet(path: str | Path) -> tuple[list[str], Array]:
-    """(names, data of shape (rows, names)) of a Parquet table of float columns."""
+def read_arrow(path: str | Path) -> Any:
+    """The pyarrow table of a Parquet file; one line (InputError) when it cannot be read."""
     _, pq = arrow()
     try:
-        table = pq.read_table(path)
+        return pq.read_table(path)
     except (OSError, ValueError) as exc:
         raise InputError(f"{path}: cannot read as .parquet: {exc}") from None
+
+
+def read_parquet(path: str | Path) -> tuple[list[str], Array]:
+    """(names, data of shape (rows, names)) of a Parquet table of float columns."""
+    table = read_arrow(path)
     names = list(table.column_names)
     data = np.empty((table.num_rows, len(names)))
     for k, name in enumerate(names):

@@ -17,7 +17,7 @@ import numpy as np
 from symid.errors import InputError
 from symid.io.files import atomic_path, atomic_write, read_text
 from symid.output.results import format_row
-from symid.output.tables import arrow
+from symid.output.tables import arrow, read_arrow
 from symid.study.figures import STATUS, Figures
 
 FORMATS = (".csv", ".parquet")
@@ -149,12 +149,7 @@ def read(path: str | Path) -> SweepTable:
     """A sweep table written by `symid sweep` (.csv or .parquet)."""
     path = Path(path)
     if path.suffix.lower() == ".parquet":
-        _, pq = arrow()
-
-        try:
-            table = pq.read_table(path)
-        except (OSError, ValueError) as exc:
-            raise InputError(f"{path}: not a readable Parquet file: {exc}") from None
+        table = read_arrow(path)
         columns = list(table.column_names)
         if not is_sweep(columns):
             raise InputError(f"{path}: not a symid sweep table (first column 'variant', a 'status' column)")
