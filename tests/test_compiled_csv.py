@@ -125,7 +125,7 @@ def test_compiled_formatter_writes_ordinary_values_itself(compiled, name: str) -
         values = values[np.isfinite(values) & (np.abs(values) >= 1e-13) & (np.abs(values) <= 1e250)]
     values = np.ascontiguousarray(values[:values.size // 5 * 5])
     stop = ctypes.c_long(-1)
-    out = np.empty(values.size * compiled_csv.WIDEST, np.uint8)
+    out = np.empty(values.size * compiled_csv.WIDEST + compiled_csv.ROOM, np.uint8)
     written = compiled(values.ctypes.data, 0, values.size, 5, out.ctypes.data, ctypes.byref(stop))
     assert stop.value == values.size
     assert out[:written].tobytes() == per_row(values.reshape(-1, 5))

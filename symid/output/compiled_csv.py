@@ -30,6 +30,7 @@ TEMPLATE = "c/csv_format.c.j2"
 LIBRARY = "csv_format.so"
 S0, COUNT = -260, 540  # the powers 10^s, s in [S0, S0 + COUNT), the C code may look up
 WIDEST = 25  # bytes of one value's text and its separator: "-1.2345678901234567e-308,"
+ROOM = 64  # bytes the C code may write past the text (fixed-size copies, at most 34 from a value's start)
 COMPILE_AT = 8192  # values in a block worth building the formatter for (a small table never compiles)
 
 _lock = threading.Lock()
@@ -100,7 +101,7 @@ def csv_block(block: Array, fn: Any | None = None) -> bytes:
         return numpy_block(block)
     rows, width = block.shape
     values = np.ascontiguousarray(block, dtype=float).ravel()
-    out = np.empty(values.size * WIDEST + 1, np.uint8)
+    out = np.empty(values.size * WIDEST + ROOM, np.uint8)
     at, start, stop = 0, 0, ctypes.c_long(0)
     base, data = out.ctypes.data, values.ctypes.data
     while True:
