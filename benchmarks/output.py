@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from symid import api
-from symid.output.compiled_csv import COMPILE_AT, formatter
+from symid.output.compiled_csv import BUILD_AT, formatter
 
 RESULTS = Path(__file__).parent / "results" / "output.json"
 MB = 1e6
@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         figures: dict[str, Any] = {"instants": args.instants, "columns": 67, "mechanism": "slider_crank",
                                    "backend": "c", "cpu_count": os.cpu_count(),
                                    "load_average": os.getloadavg()}
-        figures["csv_formatter"] = "compiled" if formatter(COMPILE_AT) is not None else "numpy (no C compiler)"
+        figures["csv_formatter"] = "compiled" if formatter(BUILD_AT) is not None else "numpy (no C compiler)"
         figures["solver_only_s"] = solver_only(example, args.instants)
         for suffix in ("csv", "npz", "parquet"):
             figures[suffix] = run_solve(example, args.instants, folder / f"run.{suffix}")

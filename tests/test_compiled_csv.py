@@ -20,7 +20,7 @@ from hypothesis.extra import numpy as hnp
 
 from symid.codegen import cache
 from symid.output import compiled_csv
-from symid.output.compiled_csv import COMPILE_AT, csv_block, formatter, library
+from symid.output.compiled_csv import BUILD_AT, csv_block, formatter, library
 from symid.output.results import format_row
 from symid.output.tables import write_csv
 from symid.study.figures import Figures
@@ -70,7 +70,7 @@ SIGNED = st.builds(lambda x, minus: -x if minus else x, ANY, st.booleans())
 
 @pytest.fixture(scope="module")
 def compiled() -> object:
-    fn = formatter(COMPILE_AT)
+    fn = formatter(BUILD_AT)
     if fn is None:
         pytest.skip("no C compiler")
     return fn
@@ -154,7 +154,8 @@ def test_rows_keep_their_order_width_and_separators_around_a_value_left_to_pytho
 
 
 @needs_cc
-def test_csv_file_from_many_blocks_on_all_cores_is_in_order(tmp_path: Path) -> None:
+def test_csv_file_from_many_blocks_on_all_cores_is_in_order(compiled, tmp_path: Path) -> None:
+    assert formatter(1) is not None  # built: the writer uses it for every block
     rng = np.random.default_rng(4)
     data = rng.standard_normal((9000, 9)) * 10.0 ** rng.integers(-6, 18, (9000, 9))
     data[::101, 2] = np.nan
@@ -204,15 +205,29 @@ def test_a_failing_compiler_falls_back_to_numpy_silently(fresh_library, monkeypa
     assert [p.name for p in (tmp_path / "cache").iterdir()] == []  # no half-built entry left
 
 
-def test_a_small_table_does_not_build_the_formatter(fresh_library, monkeypatch) -> None:
-    built: list[int] = []
-    monkeypatch.setattr(compiled_csv, "_make", lambda folder: built.append(1))
-    assert formatter(COMPILE_AT - 1) is None and built == []
+def test_a_small_table_uses_the_formatter_only_once_it_is_in_the_cache(fresh_library, monkeypatch,
+                                                                       tmp_path: Path) -> None:
+    """A short run never waits for gcc; once a large table built the formatter, every table uses it."""
+    monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
+    built: list[Path] = []
+    make = compiled_csv._make
+    monkeypatch.setattr(compiled_csv, "_make", lambda folder: (built.append(folder), make(folder)))
+    assert formatter(BUILD_AT - 1) is None and built == []
+    if not HAS_CC:
+        return
+    assert formatter(BUILD_AT) is not None and len(built) == 1
+    library.cache_clear()  # a later process: the cache holds it
+    assert formatter(10) is not None and len(built) == 1
 
 
+@pytest.mark.parametrize("way", ["numpy", "compiled"])
 @pytest.mark.parametrize("variants", [6, 3000])
-def test_sweep_csv_is_the_row_by_row_text(tmp_path: Path, variants: int) -> None:
-    """The sweep table (small: NumPy; large: compiled) in the text it had when written row by row."""
+def test_sweep_csv_is_the_row_by_row_text(tmp_path: Path, monkeypatch, variants: int, way: str) -> None:
+    """The sweep table, formatted by either formatter, in the text it had when written row by row."""
+    if way == "numpy":
+        monkeypatch.setattr("symid.study.table.formatter", lambda values: None)
+    elif formatter(BUILD_AT) is None:
+        pytest.skip("no C compiler")
     rng = np.random.default_rng(variants)
     values = rng.uniform(0.1, 0.5, (variants, 2))
     figures = rng.standard_normal((variants, 3)) * 10.0 ** rng.integers(-9, 9, (variants, 3))

@@ -71,7 +71,7 @@ def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int
     """
     from symid.output.compiled_csv import csv_block, formatter
 
-    count = 0
+    count = seen = 0
     failure: AnalysisError | None = None
     workers = os.cpu_count() or 1
     pool = ThreadPoolExecutor(max_workers=workers)
@@ -81,7 +81,8 @@ def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int
             out.write((",".join(header) + "\n").encode())
             try:
                 for block in blocks(rows, len(header)):
-                    waiting.append((pool.submit(csv_block, block, formatter(block.size)), len(block)))
+                    seen += block.size
+                    waiting.append((pool.submit(csv_block, block, formatter(seen)), len(block)))
                     while len(waiting) > AHEAD * workers:
                         count += _drain(waiting, out)
             except AnalysisError as exc:  # keep the instants before it: the file is completed

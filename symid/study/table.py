@@ -97,8 +97,9 @@ def _write_csv(t: SweepTable, path: Path) -> None:
     """17 significant digits, the solve table's format and formatter; `variant` as a whole number."""
     data = t.data
     at = 1 + len(t.params)
-    params = csv_block(data[:, 1:at], formatter(data[:, 1:at].size)).splitlines() if at > 1 else None
-    rest = csv_block(data[:, at + 1:], formatter(data[:, at + 1:].size)).splitlines()
+    fn = formatter(data.size)
+    params = csv_block(data[:, 1:at], fn).splitlines() if at > 1 else None
+    rest = csv_block(data[:, at + 1:], fn).splitlines()
     with atomic_write(path, binary=True) as out:
         out.write((",".join(t.columns) + "\n").encode())
         for k, row in enumerate(data):
