@@ -9,6 +9,7 @@ import math
 import shutil
 import struct
 import subprocess
+import tracemalloc
 from decimal import Decimal
 from fractions import Fraction
 from pathlib import Path
@@ -162,6 +163,22 @@ def test_csv_file_from_many_blocks_on_all_cores_is_in_order(compiled, tmp_path: 
     assert write_csv(tmp_path / "t.csv", [f"c{k}" for k in range(9)], (data[k:k + 1500] for k in range(0, 9000, 1500))) \
         == 9000
     assert (tmp_path / "t.csv").read_bytes() == b"c0,c1,c2,c3,c4,c5,c6,c7,c8\n" + per_row(data)
+
+
+@needs_cc
+def test_csv_writer_holds_a_few_blocks_not_the_table(compiled, tmp_path: Path) -> None:
+    """100 blocks of 1024 x 20 values are 16 MB of doubles and ~40 MB of text; the
+    writer's own allocations stay under 20 MB (at most AHEAD blocks per core wait:
+    ~3 MB on 2 cores)."""
+    block = np.random.default_rng(2).standard_normal((1024, 20))
+    tracemalloc.start()
+    try:
+        write_csv(tmp_path / "big.csv", [f"c{k}" for k in range(20)], (block + k for k in range(100)))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 * 2**20, f"peak {peak / 2**20:.1f} MB"
+    assert (tmp_path / "big.csv").stat().st_size > 30e6
 
 
 @needs_cc

@@ -64,16 +64,16 @@ def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int
     """The table as CSV: '%.17g' values (`symid.output.compiled_csv`), ',' between,
     a header line of the names; returns the rows written.
 
-    Blocks are formatted on every core while the next block is solved and
-    the oldest one written, in order (the compiled formatter and NumPy's
-    loops release the GIL); at most AHEAD blocks per core wait, so memory
-    stays bounded by a few blocks.
+    Blocks are formatted on every core (up to WORKERS) while the next block
+    is solved and the oldest one written, in order (the compiled formatter
+    and NumPy's loops release the GIL); at most AHEAD blocks per core wait,
+    so memory stays bounded by a few blocks (~4 MB each with their text).
     """
     from symid.output.compiled_csv import csv_block, formatter
 
     count = seen = 0
     failure: AnalysisError | None = None
-    workers = os.cpu_count() or 1
+    workers = min(WORKERS, os.cpu_count() or 1)
     pool = ThreadPoolExecutor(max_workers=workers)
     waiting: deque[tuple[Future[bytes], int]] = deque()
     try:
@@ -97,6 +97,7 @@ def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int
 
 
 AHEAD = 2  # formatted blocks in flight per core
+WORKERS = 8  # cores formatting at most: 8 format ~2 GB/s of text, more than a disk takes
 
 
 def _drain(waiting: deque[tuple[Future[bytes], int]], out: IO[bytes]) -> int:
