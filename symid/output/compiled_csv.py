@@ -5,9 +5,9 @@ rendered with its power-of-ten tables, compiled once into the solver cache
 (`symid.codegen.cache.cached_entry`: a private, checked entry, loaded only
 after its sha256 matches what was built) and called through ctypes, which
 releases the GIL, so blocks of rows format on every core at once. A value
-the C code cannot vouch for (a tie, a value next to a power of ten, a
-non-integer outside [1e-250, 1e250]) stops the call and is written with
-Python's own '%'. Without a C compiler (or when the build or the cache
+the C code cannot vouch for (rare: within 1e-9 of a rounding decision below
+~1e-13 or above 2^64, next to a power of ten, or a non-integer outside
+[1e-250, 1e250]) stops the call and is written with Python's own '%'. Without a C compiler (or when the build or the cache
 fails) `csv_block` is `symid.output.digits.csv_block`: the same bytes, slower
 (as for a small table before the formatter was ever built: `formatter`).
 """
@@ -106,8 +106,10 @@ def csv_block(block: Array, fn: Any | None = None) -> bytes:
         from symid.output.digits import csv_block as numpy_block
 
         return numpy_block(block)
-    rows, width = block.shape
+    width = block.shape[1]
     values = np.ascontiguousarray(block, dtype=float).ravel()
+    if not values.size:
+        return b""
     out = np.empty(values.size * WIDEST + ROOM, np.uint8)
     at, start, stop = 0, 0, ctypes.c_long(0)
     base, data = out.ctypes.data, values.ctypes.data
