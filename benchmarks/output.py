@@ -8,8 +8,10 @@ from wait4) are measured, and MB/s is the file's size over the whole run.
 CPU seconds (user + system) are given beside wall seconds: on a shared
 machine the wall time measures the neighbours as much as symid. The
 baseline is `numpy.savetxt(fmt='%.17g', delimiter=',')` of the same
-array (read back from the .npz), timed alone; its text must equal the
-CSV's rows byte for byte. The solver alone (the blocks of `Study.blocks`,
+array (read back from the .npz), timed alone in the same run (and its
+MB/s); its text must equal the CSV's rows byte for byte. The CSV is
+formatted by the compiled formatter (`symid.output.compiled_csv`; the
+figures say which formatter ran). The solver alone (the blocks of `Study.blocks`,
 nothing written) gives the share that is not output. Targets: the CSV run
 in at most half savetxt's time, the .npz run in <= 200 MB.
 Writes benchmarks/results/output.json.
@@ -31,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from symid import api
+from symid.output.compiled_csv import BUILD_AT, formatter
 
 RESULTS = Path(__file__).parent / "results" / "output.json"
 MB = 1e6
@@ -86,6 +89,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         figures: dict[str, Any] = {"instants": args.instants, "columns": 67, "mechanism": "slider_crank",
                                    "backend": "c", "cpu_count": os.cpu_count(),
                                    "load_average": os.getloadavg()}
+        figures["csv_formatter"] = "compiled" if formatter(BUILD_AT) is not None else "numpy (no C compiler)"
         figures["solver_only_s"] = solver_only(example, args.instants)
         for suffix in ("csv", "npz", "parquet"):
             figures[suffix] = run_solve(example, args.instants, folder / f"run.{suffix}")
@@ -99,16 +103,20 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         np.savetxt(folder / "savetxt.csv", data, fmt="%.17g", delimiter=",")
         savetxt, savetxt_cpu = time.perf_counter() - start, time.process_time() - cpu
         del data
+        savetxt_mb = (folder / "savetxt.csv").stat().st_size / MB
         same = digest(folder / "savetxt.csv", False) == digest(folder / "run.csv", True)
     figures["savetxt_s"] = savetxt
     figures["savetxt_cpu_s"] = savetxt_cpu
+    figures["savetxt_mb_per_s"] = savetxt_mb / savetxt
+    figures["load_average_end"] = os.getloadavg()
     figures["csv_cpu_over_savetxt_cpu"] = figures["csv"]["cpu_seconds"] / savetxt_cpu
     figures["csv_text_equals_savetxt"] = same
     figures["csv_over_savetxt"] = figures["csv"]["seconds"] / savetxt
     figures["targets"] = {"csv_at_most_half_savetxt": figures["csv_over_savetxt"] <= 0.5,
                           "npz_peak_at_most_200_mb": figures["npz"]["max_rss_mb"] <= 200}
-    print(f"solver alone {figures['solver_only_s']:.2f} s; numpy.savetxt {savetxt:.2f} s "
-          f"(text {'identical' if same else 'DIFFERENT'}); symid CSV / savetxt = {figures['csv_over_savetxt']:.2f} "
+    print(f"solver alone {figures['solver_only_s']:.2f} s; numpy.savetxt {savetxt:.2f} s, "
+          f"{figures['savetxt_mb_per_s']:.1f} MB/s (text {'identical' if same else 'DIFFERENT'}); "
+          f"CSV formatter: {figures['csv_formatter']}; symid CSV / savetxt = {figures['csv_over_savetxt']:.2f} "
           f"wall, {figures['csv_cpu_over_savetxt_cpu']:.2f} CPU time (load average {os.getloadavg()[0]:.1f})")
     RESULTS.parent.mkdir(exist_ok=True)
     RESULTS.write_text(json.dumps(figures, indent=2) + "\n")

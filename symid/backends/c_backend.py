@@ -90,6 +90,12 @@ def _compile(cc: str, args: list[str], artifact: Path) -> None:
         raise InputError(f"--backend c: the C compiler {cc} reported success but {left}")
 
 
+def compile_library(source: Path, artifact: Path) -> None:
+    """Compile one C file into a shared library at -O2 with `compiler()`: an input
+    error (exit 2) when there is no compiler or it fails, as for a solver."""
+    _compile(compiler(), ["-O2", *CFLAGS, str(source), "-o", str(artifact), "-lm"], artifact)
+
+
 def build(layout: Layout, options: Options) -> Path:
     """The folder holding the compiled solver for this model, building it if needed."""
     from symid.codegen.cache import cached

@@ -255,6 +255,12 @@ def staged_entry(staging: Path) -> Path:
 
 def cached(mech: Mechanism, options: Options, target: str, make: Callable[[Path], None],
            artifacts: Sequence[str] = (), what: str = "") -> Path:
+    """The verified cache folder of one generated solver (`cached_entry`, keyed by `key`)."""
+    return cached_entry(f"{target}-{mech.name}-{key(mech, options, target)}", make, artifacts,
+                        what or f"{target} solver of {mech.name}")
+
+
+def cached_entry(entry: str, make: Callable[[Path], None], artifacts: Sequence[str] = (), what: str = "") -> Path:
     """The verified cache folder of one generated artefact, made by `make(folder)` if
     absent or damaged.
 
@@ -263,12 +269,13 @@ def cached(mech: Mechanism, options: Options, target: str, make: Callable[[Path]
     half-built entry.
 
     Args:
+        entry: the folder's name in the cache (a key of what it depends on in it).
         artifacts: files `make` must leave (besides, no file may be empty).
         what: names the build in errors (e.g. the compiler used).
     """
     where = root()
     try:
-        return _cached(where, mech, options, target, make, artifacts, what)
+        return _cached(where, entry, make, artifacts, what)
     except OSError as exc:
         if exc.errno not in UNUSABLE:
             raise
@@ -278,7 +285,7 @@ def cached(mech: Mechanism, options: Options, target: str, make: Callable[[Path]
     chosen = cache_root()
     private = fall_back(chosen, problem, warn=False)
     try:
-        folder = _cached(private, mech, options, target, make, artifacts, what)
+        folder = _cached(private, entry, make, artifacts, what)
     except OSError as exc:
         if exc.errno not in UNUSABLE:
             raise
@@ -288,9 +295,8 @@ def cached(mech: Mechanism, options: Options, target: str, make: Callable[[Path]
     return folder
 
 
-def _cached(base: Path, mech: Mechanism, options: Options, target: str, make: Callable[[Path], None],
-            artifacts: Sequence[str], what: str) -> Path:
-    folder = base / f"{target}-{mech.name}-{key(mech, options, target)}"
+def _cached(base: Path, entry: str, make: Callable[[Path], None], artifacts: Sequence[str], what: str) -> Path:
+    folder = base / entry
     if os.path.lexists(folder):
         problem = verify(folder)
         if problem is None:
@@ -300,7 +306,7 @@ def _cached(base: Path, mech: Mechanism, options: Options, target: str, make: Ca
     staging = Path(tempfile.mkdtemp(prefix=folder.name + ".", dir=base))
     try:
         make(staging)
-        _seal(staging, artifacts, what or f"{target} solver of {mech.name}")
+        _seal(staging, artifacts, what or entry)
         try:
             staging.rename(folder)
         except OSError:  # built meanwhile by another process, or a damaged folder

@@ -1,5 +1,8 @@
 """'%.17g' for whole blocks of doubles at NumPy speed, byte for byte Python's text.
 
+The CSV writers use the compiled formatter (`symid.output.compiled_csv`, the
+same method in C) and this one when no C compiler is at hand.
+
 Python formats a double with `'%.17g' % x` in about a microsecond; a table of
 a million instants of 67 columns is 67 million of them. Here a block is
 formatted with array operations, and every value whose text this cannot

@@ -171,7 +171,7 @@ class Results:
 
 def format_row(values: Iterable[float]) -> str:
     """17 significant digits: a CSV value reads back as the same double.
-    (The writers format whole blocks to the same bytes: `symid.output.digits`.)"""
+    (The writers format whole blocks to the same bytes: `symid.output.compiled_csv`.)"""
     items = values.tolist() if isinstance(values, np.ndarray) else list(values)
     return _row_format(len(items)) % tuple(items)  # one C-level format: 2x faster than a join
 

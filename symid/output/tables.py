@@ -61,26 +61,29 @@ def blocks(items: Iterable[Array], width: int, size: int = BLOCK) -> Iterator[Ar
 
 
 def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int:
-    """The table as CSV: '%.17g' values (`symid.output.digits`), ',' between,
+    """The table as CSV: '%.17g' values (`symid.output.compiled_csv`), ',' between,
     a header line of the names; returns the rows written.
 
-    Blocks are formatted by a second thread while the next block is solved
-    or the last one written (NumPy releases the GIL in its loops); at most
-    AHEAD blocks wait, so memory stays bounded.
+    Blocks are formatted on every core (up to WORKERS) while the next block
+    is solved and the oldest one written, in order (the compiled formatter
+    and NumPy's loops release the GIL); at most AHEAD blocks per core wait,
+    so memory stays bounded by a few blocks (~4 MB each with their text).
     """
-    from symid.output.digits import csv_block
+    from symid.output.compiled_csv import csv_block, formatter
 
-    count = 0
+    count = seen = 0
     failure: AnalysisError | None = None
-    pool = ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1))
+    workers = min(WORKERS, os.cpu_count() or 1)
+    pool = ThreadPoolExecutor(max_workers=workers)
     waiting: deque[tuple[Future[bytes], int]] = deque()
     try:
         with atomic_write(path, binary=True) as out:
             out.write((",".join(header) + "\n").encode())
             try:
                 for block in blocks(rows, len(header)):
-                    waiting.append((pool.submit(csv_block, block), len(block)))
-                    while len(waiting) > AHEAD:
+                    seen += block.size
+                    waiting.append((pool.submit(csv_block, block, formatter(seen)), len(block)))
+                    while len(waiting) > AHEAD * workers:
                         count += _drain(waiting, out)
             except AnalysisError as exc:  # keep the instants before it: the file is completed
                 failure = exc
@@ -93,7 +96,8 @@ def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int
     return count
 
 
-AHEAD = 4  # formatted blocks in flight
+AHEAD = 2  # formatted blocks in flight per core
+WORKERS = 8  # cores formatting at most: 8 format ~2 GB/s of text, more than a disk takes
 
 
 def _drain(waiting: deque[tuple[Future[bytes], int]], out: IO[bytes]) -> int:

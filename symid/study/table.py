@@ -16,7 +16,7 @@ import numpy as np
 
 from symid.errors import InputError
 from symid.io.files import atomic_path, atomic_write, read_text
-from symid.output.results import format_row
+from symid.output.compiled_csv import csv_block, formatter
 from symid.output.tables import arrow, read_arrow
 from symid.study.figures import STATUS, Figures
 
@@ -94,18 +94,21 @@ class SweepTable:
 
 
 def _write_csv(t: SweepTable, path: Path) -> None:
-    """17 significant digits, the solve table's format; `variant` as a whole number."""
+    """17 significant digits, the solve table's format and formatter; `variant` as a whole number."""
     data = t.data
     at = 1 + len(t.params)
-    with atomic_write(path) as out:
-        out.write(",".join(t.columns) + "\n")
-        for row in data:
-            cells = [str(int(row[0]))]
-            if at > 1:
-                cells.append(format_row(row[1:at]))
-            cells.append(STATUS[int(row[at])])
-            cells.append(format_row(row[at + 1:]))
-            out.write(",".join(cells) + "\n")
+    fn = formatter(data.size)
+    params = csv_block(data[:, 1:at], fn).splitlines() if at > 1 else None
+    rest = csv_block(data[:, at + 1:], fn).splitlines()
+    with atomic_write(path, binary=True) as out:
+        out.write((",".join(t.columns) + "\n").encode())
+        for k, row in enumerate(data):
+            cells = [b"%d" % int(row[0])]
+            if params is not None:
+                cells.append(params[k])
+            cells.append(STATUS[int(row[at])].encode())
+            cells.append(rest[k])
+            out.write(b",".join(cells) + b"\n")
 
 
 def _write_parquet(t: SweepTable, path: Path) -> None:
