@@ -45,20 +45,22 @@ class Variants:
 
 
 def check_names(names: Sequence[str], parameters: Mapping[str, sp.Expr], source: str, option: str) -> None:
-    """Each name must be a base parameter of the mechanism (`symid.model.params.is_derived`).
+    """Each name must be a base parameter of the mechanism (`symid.model.params.is_derived`),
+    and varied once: the one check of every study input (sweep, optimize, the variants' matrix).
 
     Raises:
-        InputError: naming an unknown parameter (and the known base ones), or a
-            derived one and its definition.
+        InputError: naming an unknown parameter (and the known base ones), a
+            derived one and its definition, or one varied twice.
     """
-    base = list(base_names(parameters))
+    base = base_names(parameters)
     for name in names:
         if name not in parameters:
             raise InputError(f"{source}: {option}: no parameter {name!r} (base parameters: "
                              f"{', '.join(base) or 'none'})")
         if name not in base:
+            uses = ", ".join(sorted(str(x) for x in sp.sympify(parameters[name]).free_symbols))
             raise InputError(f"{source}: {option}: {name!r} is a derived parameter ({name} = "
-                             f"{parameters[name]}): vary the base parameters it is defined from")
+                             f"{parameters[name]}): vary the base parameters it is defined from ({uses})")
     seen = set()
     for name in names:
         if name in seen:
