@@ -21,8 +21,9 @@ it gives the quasi-static power). Units: SI is assumed (the file has none).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterable, Iterator, Mapping, Protocol, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Mapping, Protocol, Sequence
 
 import numpy as np
 
@@ -123,12 +124,30 @@ def needed_columns(mechanism: Mechanism, header: Sequence[str]) -> list[str]:
 
 def time_function(expr: sp.Expr, values: Mapping[sp.Symbol, float], t: Array, order: int = 0) -> Array:
     """An expression of t and the parameters (or its d^order/dt^order) at the instants t."""
+    return time_functions((expr,), values, t, order)[:, 0]
+
+
+def time_functions(exprs: Sequence[sp.Expr], values: Mapping[sp.Symbol, float], t: Array,
+                   order: int = 0) -> Array:
+    """Expressions of t and the parameters (or their d^order/dt^order) at the
+    instants t, shape (len(t), len(exprs)): one function evaluates them all."""
+    fn = _lambdified(tuple(exprs), order, tuple(values))
+    columns = [np.broadcast_to(np.asarray(v, dtype=float), t.shape) for v in fn(t, *values.values())]
+    return np.column_stack(columns).reshape(len(t), len(exprs)) if columns else np.zeros((len(t), 0))
+
+
+@functools.lru_cache(maxsize=256)
+def _lambdified(exprs: tuple[sp.Expr, ...], order: int, symbols: tuple[sp.Symbol, ...]) -> Callable[..., Any]:
+    """d^order/dt^order of `exprs` as one NumPy function of (t, *symbols)
+    returning a list: derived and lambdified once per expression, not once
+    per set of values (an optimizer or a gradient sweep asks for the same
+    drivers at every point; a lambdify costs 20 ms)."""
     import sympy as sp
 
     from symid.model.mechanism import T
 
-    e = sp.diff(sp.sympify(expr), T, order).xreplace({k: sp.Float(v, 17) for k, v in values.items()})
-    return np.broadcast_to(np.asarray(sp.lambdify(T, e, [np])(t), dtype=float), t.shape).copy()
+    return sp.lambdify([T, *symbols], [sp.diff(sp.sympify(e), T, order) for e in exprs],  # type: ignore[no-any-return]
+                       [np])
 
 
 @dataclass(frozen=True)
