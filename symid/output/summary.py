@@ -48,15 +48,14 @@ class Table(Protocol):
 
 
 @dataclass(frozen=True)
-class Effort:
-    """One driver's effort over the run.
+class Driven:
+    """What a driver's effort is (the fields `Effort` and `Source` share).
 
     Attributes:
         name, type: the driver constraint's name and type.
         quantity: "torque" or "force"; unit and rate_unit: SI units of the
             effort and of the driven quantity's rate.
         meaning: what the effort is and its positive sense, in words.
-        t, value, rate: shape (instants,); value in `unit`, rate in `rate_unit`.
     """
 
     name: str
@@ -65,6 +64,17 @@ class Effort:
     unit: str
     rate_unit: str
     meaning: str
+
+
+@dataclass(frozen=True)
+class Effort(Driven):
+    """One driver's effort over the run.
+
+    Attributes:
+        name, type, quantity, unit, rate_unit, meaning: as in `Driven`.
+        t, value, rate: shape (instants,); value in `unit`, rate in `rate_unit`.
+    """
+
     t: Array
     value: Array
     rate: Array
@@ -151,20 +161,14 @@ def _lambdified(exprs: tuple[sp.Expr, ...], order: int, symbols: tuple[sp.Symbol
 
 
 @dataclass(frozen=True)
-class Source:
+class Source(Driven):
     """How one driver's effort is read from a results table, without its f(t).
 
     Attributes:
-        name, type, quantity, unit, rate_unit, meaning: as in `Effort`.
+        name, type, quantity, unit, rate_unit, meaning: as in `Driven`.
         column: the table column the effort comes from (see `_sources`).
     """
 
-    name: str
-    type: str
-    quantity: str
-    unit: str
-    rate_unit: str
-    meaning: str
     column: str
 
     def effort(self, t: Array, raw: Array, f: Array, fd: Array) -> Effort:
