@@ -15,8 +15,10 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
+from typing import Sequence
 
 from symid import api
+from symid.model.analysis import Analysis
 
 DRIVER = r"""
 #include <stdio.h>
@@ -52,10 +54,17 @@ def per_instant(example: str, first: int = 200, second: int = 2200) -> float:
     """Instructions per instant of the example's compiled trajectory (its own
     t0, t1 and tol, cut into `second - 1` steps so that every run is as fine)."""
     study = api.prepare(api.example(example), backend="c")
-    folder = Path(study.evaluator.artifact)  # type: ignore[attr-defined]
-    name, a = study.mechanism.name, study.analysis
+    return counted(Path(study.evaluator.artifact), study.mechanism.name,  # type: ignore[attr-defined]
+                   study.analysis, study.q0(), first, second)
+
+
+def counted(folder: Path, name: str, a: Analysis, q0: Sequence[float], first: int = 200,
+            second: int = 2200) -> float:
+    """Instructions per instant of the solver `name` built in `folder` (what
+    `symid solve --backend c` leaves there), run from `q0` over `a`'s t0 to t1
+    cut into `second - 1` steps: (Ir(second) - Ir(first)) / (second - first)."""
     source = (DRIVER.replace("UPPER", name.upper()).replace("NAME", name)
-              .replace("Q0", ", ".join(repr(float(v)) for v in study.q0()))
+              .replace("Q0", ", ".join(repr(float(v)) for v in q0))
               .replace("T0", repr(float(a.t0))).replace("H", repr((a.t1 - a.t0) / (second - 1)))
               .replace("TOL", repr(float(a.tol))))
     counts = []

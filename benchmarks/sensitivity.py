@@ -30,9 +30,6 @@ import ctypes
 import json
 import os
 import platform
-import re
-import subprocess
-import tempfile
 import time
 from pathlib import Path
 
@@ -67,25 +64,7 @@ def solver(example: str, n_p: int) -> tuple[CEvaluator, object, np.ndarray]:
 def instructions_per_instant(ev: CEvaluator, mech, q0: np.ndarray, first: int = 200,  # type: ignore[no-untyped-def]
                              second: int = 2200) -> float:
     """Callgrind instructions per instant of the trajectory (benchmarks.instructions' driver)."""
-    name, a, folder = mech.name, mech.analysis, Path(ev.artifact)
-    source = (instructions.DRIVER.replace("UPPER", name.upper()).replace("NAME", name)
-              .replace("Q0", ", ".join(repr(float(v)) for v in q0))
-              .replace("T0", repr(float(a.t0))).replace("H", repr((a.t1 - a.t0) / (second - 1)))
-              .replace("TOL", repr(float(a.tol))))
-    counts = []
-    with tempfile.TemporaryDirectory() as tmp:
-        driver, exe = Path(tmp) / "driver.c", Path(tmp) / "driver"
-        driver.write_text(source, encoding="utf-8")
-        subprocess.run(["gcc", "-O2", "-std=c99", "-fno-math-errno", "-I", str(folder), str(driver),
-                        str(folder / f"{name}_solver.c"), "-o", str(exe), "-lm"], check=True)
-        for n in (first, second):
-            out = subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={tmp}/cg.out",
-                                  str(exe), str(n)], capture_output=True, text=True, check=True)
-            found = re.search(r"Collected : (\d+)", out.stderr)
-            if found is None or out.stdout.split() != ["0", str(n)]:
-                raise RuntimeError(f"callgrind run of {name} failed: {out.stdout} {out.stderr[-300:]}")
-            counts.append(int(found.group(1)))
-    return (counts[1] - counts[0]) / (second - first)
+    return instructions.counted(Path(ev.artifact), mech.name, mech.analysis, q0, first, second)
 
 
 # instants per trajectory call: the rows of a call stay in cache, as the c

@@ -5,7 +5,9 @@ parameter (so one generated solver serves every case):
 
 - `slider_crank`: crank r = 1, rod l = r (1 + eps). At a crank angle of 90
   degrees the rod is nearly square to the guide: cond grows like eps^-1/2,
-  the motor torque like eps^-3/2.
+  the motor torque like eps^-3/2. Its crank's centre of mass is e from the
+  bearing (its middle, r/2, here; tests/test_stability.py moves it onto the
+  bearing), and its q0 is the closed-form position at t = 0.
 - `four_bar_toggle`: crank 1, coupler 1.5, rocker 1, ground 2. The crank
   angle th is `toggle - delta`: at delta = 0 the coupler and the rocker are
   collinear (extended), the crank's limit position.
@@ -44,6 +46,7 @@ gravity = [0.0, -9.81]
 r = 1.0
 eps = 0.1
 l = "r*(1 + eps)"
+e = 0.5
 th = 1.5707963267948966
 omega = 10.0
 m1 = 1.0
@@ -58,19 +61,19 @@ outputs = ["q", "qdot", "qddot", "lambda", "reactions", "cond"]
 name = "crank"
 mass = "m1"
 inertia = "m1*r^2/12"
-q0 = [0.0, 0.5, 1.5]
+q0 = ["e*cos(th)", "e*sin(th)", "th"]
 
 [[body]]
 name = "rod"
 mass = "m2"
 inertia = "m2*l^2/12"
-q0 = [0.0, 0.5, -1.5]
+q0 = ["r*cos(th) + sqrt(l^2 - (r*sin(th))^2)/2", "r*sin(th)/2", "-asin(r*sin(th)/l)"]
 
 [[body]]
 name = "slider"
 mass = "m3"
 inertia = "m3/12"
-q0 = [0.0, 0.0, 0.0]
+q0 = ["r*cos(th) + sqrt(l^2 - (r*sin(th))^2)", 0.0, 0.0]
 
 [[constraint]]
 name = "bearing"
@@ -78,14 +81,14 @@ type = "revolute"
 i = "ground"
 j = "crank"
 si = [0.0, 0.0]
-sj = ["-r/2", 0.0]
+sj = ["-e", 0.0]
 
 [[constraint]]
 name = "crank_pin"
 type = "revolute"
 i = "crank"
 j = "rod"
-si = ["r/2", 0.0]
+si = ["r - e", 0.0]
 sj = ["-l/2", 0.0]
 
 [[constraint]]
@@ -216,7 +219,7 @@ def _slider_crank(theta: sp.Expr, p: Mapping[str, sp.Symbol]) -> list:
     pin = sp.Matrix([r * sp.cos(theta), r * sp.sin(theta)])
     slider = sp.Matrix([r * sp.cos(theta) + sp.sqrt(l**2 - (r * sp.sin(theta)) ** 2), 0])
     psi = sp.atan2(slider[1] - pin[1], slider[0] - pin[0])
-    return [(p["m1"], pin / 2, theta, p["m1"] * r**2 / 12),
+    return [(p["m1"], pin * p["e"] / r, theta, p["m1"] * r**2 / 12),
             (p["m2"], (pin + slider) / 2, psi, p["m2"] * l**2 / 12),
             (p["m3"], slider, sp.Integer(0), p["m3"] / 12)]
 
@@ -242,7 +245,7 @@ TOGGLE_FAMILY = Family("four_bar_toggle", FOUR_BAR,
                        lambda k: {"th": TOGGLE - 10.0**-k},
                        lambda k: 10.0**-k, _four_bar)
 FAMILIES = {f.name: f for f in (SLIDER, TOGGLE_FAMILY)}
-NAMES = {"slider_crank": ("r", "l", "th", "omega", "m1", "m2", "m3"),
+NAMES = {"slider_crank": ("r", "l", "e", "th", "omega", "m1", "m2", "m3"),
          "four_bar_toggle": ("a", "b", "c", "d", "th", "omega", "m1", "m2", "m3")}
 
 

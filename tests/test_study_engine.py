@@ -102,14 +102,16 @@ def test_one_and_two_threads_give_identical_arrays():
 
 
 @pytest.mark.parametrize("name, message", [
-    ("omega", r"omega: is a derived parameter \(omega = 2\*pi\*n\); vary the base parameters it is computed "
-              r"from \(n\)"),
-    ("rpm", r"rpm: no such parameter"),
+    ("omega", r"variants: 'omega' is a derived parameter \(omega = 2\*pi\*n\): vary the base parameters it is "
+              r"defined from \(n\)"),
+    ("rpm", r"variants: no parameter 'rpm' \(base parameters: L_crank"),
+    ("n,n", r"variants: parameter 'n' is varied twice"),
 ])
-def test_varying_a_derived_or_unknown_parameter_is_an_input_error(name, message):
+def test_varying_a_derived_unknown_or_repeated_parameter_is_an_input_error(name, message):
     mech = api.load_mechanism(api.example("slider_crank"), steps=3)
     with pytest.raises(InputError, match=message):
-        solve_figures(mech, (name,), np.array([[1.0]]), "c")
+        names = tuple(name.split(","))
+        solve_figures(mech, names, np.ones((1, len(names))), "c")
 
 
 @pytest.mark.parametrize("backend", ["c", "numpy"])

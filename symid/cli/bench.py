@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from symid.cli.options import add_file, add_set, set_values
+
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("bench", help="time a mechanism on one backend: setup, microseconds per instant, residual",
@@ -12,7 +14,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                                    "microseconds per instant and the largest residual.",
                        epilog='examples:\n  symid bench "$(symid example slider_crank)"\n'
                               "  symid bench crank.toml --backend numpy --instants 10000 --json")
-    p.add_argument("file", metavar="FILE", help="the mechanism file (TOML)")
+    add_file(p, "the mechanism file (TOML)")
     p.add_argument("--backend", default="c", help="backend to time (default: c)")
     p.add_argument("--instants", type=int, help="instants to time (default: the file's steps; more repeat the "
                                                 "file's run from q0)")
@@ -21,15 +23,13 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="stop timing after this long (default: 60)")
     p.add_argument("--warm", action="store_true", help="use the cache of generated solvers (default: an empty "
                                                        "one, so setup is timed cold)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a parameter (repeatable)")
+    add_set(p)
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from symid.tools.bench import bench, text
-    from symid.cli.options import set_values
     from symid.errors import EXIT_ANALYSIS
 
     result = bench(args.file, args.backend, instants=args.instants, tol=args.tol, cold=not args.warm,

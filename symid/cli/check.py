@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from symid.cli.options import set_values
+from symid.cli.options import add_file, add_set, set_values
 from symid.errors import AnalysisError
 from symid.text import number
 
@@ -15,9 +15,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                                      "Phi_q and its condition at t0.",
                          epilog='examples:\n  symid check "$(symid example four_bar)"\n'
                                 "  symid check crank.toml --set L2=0.35")
-    chk.add_argument("file", metavar="FILE", help="the mechanism file (TOML; symid help format)")
-    chk.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                     help="override a parameter (repeatable)")
+    add_file(chk)
+    add_set(chk)
     chk.set_defaults(run=cmd_check)
 
 

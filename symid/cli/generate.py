@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from symid.cli.options import add_set, set_values
+
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("generate", help="write the generated solver of a mechanism (c, numpy, casadi)",
@@ -25,14 +27,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                         "parameters (columns outer, parameters inner); default: none, the code as without")
     p.add_argument("--sensitivity-of", metavar="COLUMN[,COLUMN...]",
                    help="the columns differentiated (default: the drivers' efforts and the reaction columns)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a parameter's default value in the generated code (repeatable)")
+    add_set(p, "override a parameter's default value in the generated code (repeatable)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from symid import api
-    from symid.cli.options import set_values
     from symid.errors import InputError
 
     if args.precision != "double" and args.target != ["c"]:

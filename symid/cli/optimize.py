@@ -8,7 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from symid.cli.options import add_time_grid, set_values
+from symid.cli.options import add_file, add_set, add_time_grid, set_values
 from symid.errors import AnalysisError, InputError
 
 OPTIMIZE_EPILOG = """examples:
@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                                    "reaction force) over bounded base parameters, with optional bounds on "
                                    "other figures: scipy SLSQP on the exact sensitivities.",
                        epilog=OPTIMIZE_EPILOG)
-    p.add_argument("file", metavar="FILE", help="the mechanism file (TOML; symid help format)")
+    add_file(p)
     p.add_argument("--minimize", required=True, metavar="FIGURE", help="the figure to minimize, e.g. motor.effort_rms")
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LO:HI",
                    help="a base parameter and its bounds, LO < HI (repeatable; at least one)")
@@ -45,8 +45,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="c (default: the sensitivities in compiled code), numpy, casadi or reference")
     p.add_argument("--maxiter", type=int, default=100, metavar="N", help="SLSQP iterations at most")
     add_time_grid(p, ("inverse_dynamics", "statics"), "run")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="set a parameter (repeatable; a varied one: its start)")
+    add_set(p, "set a parameter (repeatable; a varied one: its start)")
     p.set_defaults(run=cmd_optimize)
 
 

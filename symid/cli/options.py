@@ -1,5 +1,6 @@
 """What the subcommands share: the argparse classes (one-line usage errors,
-defaults in the help), `--set` pairs, and the options that change a run.
+defaults in the help), the mechanism FILE and `--set` options and their
+pairs, and the options that change a run.
 """
 
 from __future__ import annotations
@@ -30,6 +31,20 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         print(f"{self.prog}: {message} (see --help)", file=sys.stderr)
         raise SystemExit(EXIT_INPUT)
+
+
+MECHANISM_HELP = "the mechanism file (TOML; symid help format)"
+
+
+def add_file(p: argparse.ArgumentParser, help: str = MECHANISM_HELP) -> None:
+    """The positional FILE: the mechanism file a command reads (`args.file`)."""
+    p.add_argument("file", metavar="FILE", help=help)
+
+
+def add_set(p: argparse.ArgumentParser, help: str = "override a parameter (repeatable)") -> None:
+    """`--set NAME=VALUE` (repeatable, `args.set`, read by `set_values`); `help`
+    says what the override means to this command."""
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help=help)
 
 
 def set_values(pairs: Sequence[str], file: str = "") -> dict[str, str]:

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from symid.cli.options import add_set, set_values
 from symid.errors import InputError
 from symid.output.results import Results
 
@@ -126,7 +127,6 @@ def _plot_sweep(args: argparse.Namespace) -> int:
 
 def run(args: argparse.Namespace) -> int:
     from symid.output import plot
-    from symid.cli.options import set_values
     from symid.io.reader import load
 
     if _is_sweep(Path(args.file)):
@@ -155,8 +155,7 @@ def register(sub: Any) -> None:
                    help="a .csv (or .npz, .parquet) written by symid solve, or a .csv (.parquet) written by symid sweep")
     p.add_argument("--mechanism", metavar="FILE",
                    help="the mechanism file it was solved from: needed for efforts and the drawing")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="the parameter overrides the results were solved with (repeatable)")
+    add_set(p, "the parameter overrides the results were solved with (repeatable)")
     p.add_argument("-o", "--output", metavar="DIR", help="folder for the images (default: beside RESULTS)")
     p.add_argument("--gif", action="store_true", help="also write an animated GIF of the motion")
     p.set_defaults(run=run)

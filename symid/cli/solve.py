@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator
 
-from symid.cli.options import analysis_overrides, run_options, set_values
+from symid.cli.options import add_file, add_set, analysis_overrides, run_options, set_values
 from symid.errors import AnalysisError
 from symid.text import number, plural
 
@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     solve = sub.add_parser("solve", help="solve a mechanism file and write the results table (CSV)",
                            description="Solve a mechanism over time and write one row per instant.",
                            epilog=SOLVE_EPILOG)
-    solve.add_argument("file", metavar="FILE", help="the mechanism file (TOML; symid help format)")
+    add_file(solve)
     solve.add_argument("-o", "--output", metavar="OUT",
                        help="table to write, .csv, .npz or .parquet (default: <name>.csv in the current folder)")
     solve.add_argument("--kind", choices=("inverse_dynamics", "kinematics", "statics"),
@@ -58,8 +58,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     solve.add_argument("--backend", default="numpy", metavar="B",
                        help="how the derived expressions are evaluated: numpy (generated NumPy), c (generated "
                             "C, fastest), casadi, or reference (no code generation)")
-    solve.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                       help="override a parameter (repeatable; VALUE may be an expression)")
+    add_set(solve, "override a parameter (repeatable; VALUE may be an expression)")
     solve.add_argument("--sensitivity", metavar="NAME[,NAME...]",
                        help="add d(COLUMN)/d(NAME) columns: the exact derivative of each chosen column by these "
                             "base parameters, after all other columns")

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any, Mapping
 
 import sympy as sp
 
-from symid.model.mechanism import parameter_symbol
+from symid.model.mechanism import Mechanism, parameter_symbol
 
 
 def order_parameters(exprs: Mapping[str, sp.Expr]) -> list[str]:
@@ -47,10 +48,22 @@ def parameter_values(exprs: Mapping[str, sp.Expr]) -> dict[sp.Symbol, float]:
     Raises:
         ValueError: (name, message) when a value is not a finite real number.
     """
+    global _last_values
+    given = dict(exprs)
+    last = _last_values
+    if last is not None and last[0] == given:  # equal expressions (mostly the same objects): equal values
+        return dict(last[1])
     values: dict[sp.Symbol, float] = {}
-    for name, expr in exprs.items():
+    for name, expr in given.items():
         values[parameter_symbol(name)] = to_float(expr, values, name)
-    return values
+    _last_values = (given, values)
+    return dict(values)
+
+
+# The latest parameter_values: the steps of one solve (the solve, its warnings,
+# its figures and their gradients) each ask again for the same variant's
+# values, 2 ms each; one entry, compared by content, is a pure function's memo.
+_last_values: tuple[dict[str, sp.Expr], dict[sp.Symbol, float]] | None = None
 
 
 _MATH = {
@@ -117,3 +130,11 @@ def is_derived(expr: sp.Expr) -> bool:
 def base_names(parameters: Mapping[str, sp.Expr]) -> tuple[str, ...]:
     """The base parameters' names, in the mechanism's order."""
     return tuple(n for n, e in parameters.items() if not is_derived(e))
+
+
+def without_values(mechanism: Mechanism) -> Mechanism:
+    """The mechanism with its base parameters' values left out (None): all that
+    its layout and its generated code depend on. Two variants that differ in
+    base parameter values only compare equal (`==`)."""
+    parameters = {n: (e if is_derived(e) else None) for n, e in mechanism.parameters.items()}
+    return dataclasses.replace(mechanism, parameters=parameters)  # type: ignore[arg-type]

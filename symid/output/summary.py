@@ -21,8 +21,9 @@ it gives the quasi-static power). Units: SI is assumed (the file has none).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterable, Iterator, Mapping, Protocol, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Mapping, Protocol, Sequence
 
 import numpy as np
 
@@ -47,15 +48,14 @@ class Table(Protocol):
 
 
 @dataclass(frozen=True)
-class Effort:
-    """One driver's effort over the run.
+class Driven:
+    """What a driver's effort is (the fields `Effort` and `Source` share).
 
     Attributes:
         name, type: the driver constraint's name and type.
         quantity: "torque" or "force"; unit and rate_unit: SI units of the
             effort and of the driven quantity's rate.
         meaning: what the effort is and its positive sense, in words.
-        t, value, rate: shape (instants,); value in `unit`, rate in `rate_unit`.
     """
 
     name: str
@@ -64,6 +64,17 @@ class Effort:
     unit: str
     rate_unit: str
     meaning: str
+
+
+@dataclass(frozen=True)
+class Effort(Driven):
+    """One driver's effort over the run.
+
+    Attributes:
+        name, type, quantity, unit, rate_unit, meaning: as in `Driven`.
+        t, value, rate: shape (instants,); value in `unit`, rate in `rate_unit`.
+    """
+
     t: Array
     value: Array
     rate: Array
@@ -123,29 +134,41 @@ def needed_columns(mechanism: Mechanism, header: Sequence[str]) -> list[str]:
 
 def time_function(expr: sp.Expr, values: Mapping[sp.Symbol, float], t: Array, order: int = 0) -> Array:
     """An expression of t and the parameters (or its d^order/dt^order) at the instants t."""
+    return time_functions((expr,), values, t, order)[:, 0]
+
+
+def time_functions(exprs: Sequence[sp.Expr], values: Mapping[sp.Symbol, float], t: Array,
+                   order: int = 0) -> Array:
+    """Expressions of t and the parameters (or their d^order/dt^order) at the
+    instants t, shape (len(t), len(exprs)): one function evaluates them all."""
+    fn = _lambdified(tuple(exprs), order, tuple(values))
+    columns = [np.broadcast_to(np.asarray(v, dtype=float), t.shape) for v in fn(t, *values.values())]
+    return np.column_stack(columns).reshape(len(t), len(exprs)) if columns else np.zeros((len(t), 0))
+
+
+@functools.lru_cache(maxsize=256)
+def _lambdified(exprs: tuple[sp.Expr, ...], order: int, symbols: tuple[sp.Symbol, ...]) -> Callable[..., Any]:
+    """d^order/dt^order of `exprs` as one NumPy function of (t, *symbols)
+    returning a list: derived and lambdified once per expression, not once
+    per set of values (an optimizer or a gradient sweep asks for the same
+    drivers at every point; a lambdify costs 20 ms)."""
     import sympy as sp
 
     from symid.model.mechanism import T
 
-    e = sp.diff(sp.sympify(expr), T, order).xreplace({k: sp.Float(v, 17) for k, v in values.items()})
-    return np.broadcast_to(np.asarray(sp.lambdify(T, e, [np])(t), dtype=float), t.shape).copy()
+    return sp.lambdify([T, *symbols], [sp.diff(sp.sympify(e), T, order) for e in exprs],  # type: ignore[no-any-return]
+                       [np])
 
 
 @dataclass(frozen=True)
-class Source:
+class Source(Driven):
     """How one driver's effort is read from a results table, without its f(t).
 
     Attributes:
-        name, type, quantity, unit, rate_unit, meaning: as in `Effort`.
+        name, type, quantity, unit, rate_unit, meaning: as in `Driven`.
         column: the table column the effort comes from (see `_sources`).
     """
 
-    name: str
-    type: str
-    quantity: str
-    unit: str
-    rate_unit: str
-    meaning: str
     column: str
 
     def effort(self, t: Array, raw: Array, f: Array, fd: Array) -> Effort:

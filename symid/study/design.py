@@ -45,20 +45,22 @@ class Variants:
 
 
 def check_names(names: Sequence[str], parameters: Mapping[str, sp.Expr], source: str, option: str) -> None:
-    """Each name must be a base parameter of the mechanism (`symid.model.params.is_derived`).
+    """Each name must be a base parameter of the mechanism (`symid.model.params.is_derived`),
+    and varied once: the one check of every study input (sweep, optimize, the variants' matrix).
 
     Raises:
-        InputError: naming an unknown parameter (and the known base ones), or a
-            derived one and its definition.
+        InputError: naming an unknown parameter (and the known base ones), a
+            derived one and its definition, or one varied twice.
     """
-    base = list(base_names(parameters))
+    base = base_names(parameters)
     for name in names:
         if name not in parameters:
             raise InputError(f"{source}: {option}: no parameter {name!r} (base parameters: "
                              f"{', '.join(base) or 'none'})")
         if name not in base:
+            uses = ", ".join(sorted(str(x) for x in sp.sympify(parameters[name]).free_symbols))
             raise InputError(f"{source}: {option}: {name!r} is a derived parameter ({name} = "
-                             f"{parameters[name]}): vary the base parameters it is defined from")
+                             f"{parameters[name]}): vary the base parameters it is defined from ({uses})")
     seen = set()
     for name in names:
         if name in seen:
@@ -73,7 +75,8 @@ def check_count(count: int, what: str) -> None:
                          "(split the study into several sweeps)")
 
 
-def _number(text: str, what: str) -> float:
+def finite_number(text: str, what: str) -> float:
+    """A finite decimal number written in an option (`what` names it in the error)."""
     if not _NUMBER.match(text) or not math.isfinite(value := float(text)):
         raise InputError(f"{what}: {text.strip()!r} is not a finite number")
     return value
@@ -86,6 +89,17 @@ def _pair(spec: str, option: str, form: str) -> tuple[str, str]:
     return name.strip(), rest
 
 
+def _two(spec: str, option: str, first: str, second: str) -> tuple[str, float, float, list[str]]:
+    """`NAME=FIRST,SECOND` of a distribution option: the name, both numbers and their texts."""
+    form = f"NAME={first},{second}"
+    name, rest = _pair(spec, option, form)
+    parts = rest.split(",")
+    if len(parts) != 2:
+        raise InputError(f"{option} {spec}: expected {form}")
+    return (name, finite_number(parts[0], f"{option} {spec}: {first}"),
+            finite_number(parts[1], f"{option} {spec}: {second}"), parts)
+
+
 def grid(specs: Sequence[str]) -> Variants:
     """`--grid NAME=LO:HI:N ...`: N equally spaced values from LO to HI (both
     included) per name; several grids form their product, the last varying fastest."""
@@ -95,8 +109,8 @@ def grid(specs: Sequence[str]) -> Variants:
         parts = rest.split(":")
         if len(parts) != 3:
             raise InputError(f"--grid {spec}: expected NAME=LO:HI:N")
-        lo = _number(parts[0], f"--grid {spec}: LO")
-        hi = _number(parts[1], f"--grid {spec}: HI")
+        lo = finite_number(parts[0], f"--grid {spec}: LO")
+        hi = finite_number(parts[1], f"--grid {spec}: HI")
         if not re.fullmatch(r"\s*[0-9]+\s*", parts[2]) or int(parts[2]) < 1:
             raise InputError(f"--grid {spec}: N must be a whole number >= 1, not {parts[2].strip()!r}")
         n = int(parts[2])
@@ -130,7 +144,7 @@ def table(path: str) -> Variants:
         for k, cell in enumerate(cells):
             if not cell.strip():
                 raise InputError(f"{path}: line {line}, column {names[k]!r}: missing value")
-            out[r, k] = _number(cell, f"{path}: line {line}, column {names[k]!r}")
+            out[r, k] = finite_number(cell, f"{path}: line {line}, column {names[k]!r}")
     if not len(out):
         raise InputError(f"--table {path}: no variants (only a header row)")
     return Variants("table", tuple(names), out)
@@ -152,23 +166,13 @@ def sample(count: int, normal: Sequence[str], uniform: Sequence[str], seed: int)
     rng = np.random.default_rng(seed)
     names, columns = [], []
     for spec in normal:
-        name, rest = _pair(spec, "--normal", "NAME=MEAN,SD")
-        parts = rest.split(",")
-        if len(parts) != 2:
-            raise InputError(f"--normal {spec}: expected NAME=MEAN,SD")
-        mean = _number(parts[0], f"--normal {spec}: MEAN")
-        sd = _number(parts[1], f"--normal {spec}: SD")
+        name, mean, sd, parts = _two(spec, "--normal", "MEAN", "SD")
         if sd <= 0:
             raise InputError(f"--normal {spec}: SD must be > 0, not {parts[1].strip()}")
         names.append(name)
         columns.append(rng.normal(mean, sd, count))
     for spec in uniform:
-        name, rest = _pair(spec, "--uniform", "NAME=LO,HI")
-        parts = rest.split(",")
-        if len(parts) != 2:
-            raise InputError(f"--uniform {spec}: expected NAME=LO,HI")
-        lo = _number(parts[0], f"--uniform {spec}: LO")
-        hi = _number(parts[1], f"--uniform {spec}: HI")
+        name, lo, hi, parts = _two(spec, "--uniform", "LO", "HI")
         if hi < lo:
             raise InputError(f"--uniform {spec}: HI {parts[1].strip()} is less than LO {parts[0].strip()}")
         names.append(name)

@@ -21,16 +21,17 @@ computed (`symid.study.slow.figures_of`, `symid.output.summary.summarize`):
 
 from __future__ import annotations
 
+import functools
 from typing import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
 
 from symid.backends import Array
-from symid.model.mechanism import Element, Mechanism, parameter_symbol
+from symid.model.mechanism import Element, Mechanism, T, parameter_symbol
 from symid.model.params import is_derived, parameter_values
 from symid.output.results import Results
-from symid.output.summary import Source, drivers, source, time_function
+from symid.output.summary import Source, drivers, source, time_function, time_functions
 from symid.study.figures import figure_names
 
 NO_GRADIENT = ("effort_t_peak",)  # figures with no derivative (an instant of the grid)
@@ -75,6 +76,17 @@ def in_base(expr: sp.Expr, parameters: Mapping[str, sp.Expr]) -> sp.Expr:
     return e
 
 
+@functools.lru_cache(maxsize=64)
+def _by_parameters(f: sp.Expr, definitions: tuple[tuple[str, sp.Expr], ...],
+                   names: tuple[str, ...]) -> tuple[sp.Expr, ...]:
+    """A driver's df/dP and d(f')/dP for P in `names` (in that order), through
+    the derived parameters' `definitions` (in order): derived once per run,
+    not per point."""
+    e = in_base(f, dict(definitions))
+    by = [sp.diff(e, parameter_symbol(p)) for p in names]
+    return tuple(by + [sp.diff(d, T) for d in by])
+
+
 class _Driver:
     """One driver's effort e, rate v and their derivatives over the run's instants."""
 
@@ -83,11 +95,10 @@ class _Driver:
         t = results.t
         raw = results[where.column]
         draw = np.column_stack([results[sensitivity_column(where.column, p)] for p in names]).reshape(len(t), -1)
-        f_expr = in_base(c.values["f"], mechanism.parameters)
-        f, fd = time_function(f_expr, values, t), time_function(f_expr, values, t, 1)
-        df = [time_function(sp.diff(f_expr, parameter_symbol(p)), values, t) for p in names]
-        dfd = [time_function(sp.diff(f_expr, parameter_symbol(p)), values, t, 1) for p in names]
-        df_, dfd_ = (np.column_stack(x).reshape(len(t), -1) for x in (df, dfd))
+        f, fd = time_function(c.values["f"], values, t), time_function(c.values["f"], values, t, 1)  # as `efforts`
+        definitions = tuple((n, e) for n, e in mechanism.parameters.items() if is_derived(e))
+        both = time_functions(_by_parameters(c.values["f"], definitions, tuple(names)), values, t)
+        df_, dfd_ = both[:, :len(names)], both[:, len(names):]
         if where.type == "distance_driver":  # e = -2 |f| lambda, v = d|f|/dt = sign(f) f'
             s = np.sign(f)[:, None]
             self.e, self.v = -2 * np.abs(f) * raw, np.sign(f) * fd

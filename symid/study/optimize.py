@@ -23,7 +23,7 @@ from symid.errors import AnalysisError, InputError
 from symid.model.mechanism import Mechanism, parameter_symbol
 from symid.model.params import parameter_values
 from symid.output.results import Results, columns
-from symid.study.design import check_names
+from symid.study.design import check_names, finite_number
 from symid.study.figures import figure_names
 from symid.study.gradients import figure_gradients, has_gradient, needed_columns
 from symid.study.slow import figures_of, study_analysis, with_values
@@ -33,7 +33,6 @@ from symid.text import number
 # (mechanism, parameters to differentiate by, columns to differentiate) -> the run
 # with `d(C)/d(P)` columns appended (none asked: the plain run).
 Solver = Callable[[Mechanism, Sequence[str], Sequence[str]], Results]
-_NUMBER = re.compile(r"\s*[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\s*\Z")
 _LIMIT = re.compile(r"\s*([^<>=\s]+)\s*(<=|>=)\s*(.+)\Z")
 
 
@@ -58,12 +57,6 @@ class Limit:
         return f"{self.figure}{self.sense}{self.value:g}"
 
 
-def _number(text: str, what: str) -> float:
-    if not _NUMBER.match(text) or not math.isfinite(value := float(text)):
-        raise InputError(f"{what}: {text.strip()!r} is not a finite number")
-    return value
-
-
 def parse_vary(specs: Sequence[str]) -> list[Bound]:
     """`--vary NAME=LO:HI ...` (at least one; LO < HI)."""
     if not specs:
@@ -74,8 +67,8 @@ def parse_vary(specs: Sequence[str]) -> list[Bound]:
         parts = rest.split(":")
         if not sep or not name.strip() or len(parts) != 2:
             raise InputError(f"--vary {spec}: expected NAME=LO:HI")
-        lo = _number(parts[0], f"--vary {spec}: LO")
-        hi = _number(parts[1], f"--vary {spec}: HI")
+        lo = finite_number(parts[0], f"--vary {spec}: LO")
+        hi = finite_number(parts[1], f"--vary {spec}: HI")
         if lo >= hi:
             raise InputError(f"--vary {spec}: LO {parts[0].strip()} must be less than HI {parts[1].strip()}")
         out.append(Bound(name.strip(), lo, hi))
@@ -89,7 +82,7 @@ def parse_limits(specs: Sequence[str]) -> list[Limit]:
         m = _LIMIT.match(spec)
         if m is None:
             raise InputError(f"--subject-to {spec}: expected FIGURE<=VALUE or FIGURE>=VALUE")
-        out.append(Limit(m.group(1), m.group(2), _number(m.group(3), f"--subject-to {spec}: VALUE")))
+        out.append(Limit(m.group(1), m.group(2), finite_number(m.group(3), f"--subject-to {spec}: VALUE")))
     return out
 
 

@@ -16,8 +16,9 @@ import sympy as sp
 from symid.backends import Array, Needs
 from symid.errors import InputError
 from symid.model.mechanism import Mechanism, parameter_symbol
-from symid.model.params import base_names, is_derived, parameter_values, to_float
+from symid.model.params import base_names, parameter_values, to_float
 from symid.output.summary import drivers, source, summarize
+from symid.study.design import check_names
 from symid.study.figures import figure_names
 from symid.symbolic.constraints import TYPES as CONSTRAINTS
 
@@ -39,19 +40,10 @@ def base_matrix(mechanism: Mechanism, names: Sequence[str], base: Any) -> Array:
     """
     params = mechanism.parameters
     order = base_names(params)
-    where = mechanism.source
-    for name in names:
-        if name not in params:
-            raise InputError(f"{where}: {name}: no such parameter (base parameters: {', '.join(order) or 'none'})")
-        if is_derived(params[name]):
-            uses = ", ".join(sorted(str(x) for x in params[name].free_symbols))
-            raise InputError(f"{where}: {name}: is a derived parameter ({name} = {params[name]}); "
-                             f"vary the base parameters it is computed from ({uses})")
-    if len(set(names)) != len(names):
-        raise InputError(f"{where}: a parameter is varied twice: {', '.join(names)}")
+    check_names(names, params, mechanism.source, "variants")
     data = np.asarray(base, dtype=float)
     if data.ndim != 2 or data.shape[1] != len(names):
-        raise InputError(f"{where}: the variants must have shape (K, {len(names)}), not {data.shape}")
+        raise InputError(f"{mechanism.source}: the variants must have shape (K, {len(names)}), not {data.shape}")
     values = parameter_values(params)
     full = np.tile(np.array([values[parameter_symbol(n)] for n in order], dtype=float), (len(data), 1))
     for k, name in enumerate(names):

@@ -25,32 +25,33 @@ from symid.model.motion import piece_tables, tables
 NAME = "numpy"
 
 
-class Printer(NumPyPrinter):
+class _Printing:
+    """What both printers print alike: every float at full precision, a
+    group in parentheses, a table's spline by `SPLINE` of the module."""
+
+    SPLINE = ""
+
+    def _print_Float(self, expr: sp.Float) -> str:
+        return repr(float(expr))
+
+    def _print_Grouped(self, expr: sp.Expr) -> str:
+        return f"({self._print(expr.args[0])})"  # type: ignore[attr-defined]
+
+    def _print_TableSpline(self, expr: sp.Expr) -> str:
+        key, order, x = expr.args
+        return f"{self.SPLINE}(_TABLE_{key.name}, {self._print(x)}, {int(order)})"  # type: ignore[attr-defined]
+
+
+class Printer(_Printing, NumPyPrinter):
     """NumPy printing with every float at full precision."""
 
-    def _print_Float(self, expr: sp.Float) -> str:
-        return repr(float(expr))
-
-    def _print_Grouped(self, expr: sp.Expr) -> str:
-        return f"({self._print(expr.args[0])})"
-
-    def _print_TableSpline(self, expr: sp.Expr) -> str:
-        key, order, x = expr.args
-        return f"_spline(_TABLE_{key.name}, {self._print(x)}, {int(order)})"
+    SPLINE = "_spline"
 
 
-class ScalarPrinter(PythonCodePrinter):
+class ScalarPrinter(_Printing, PythonCodePrinter):
     """`math` printing for one instant, floats at full precision."""
 
-    def _print_Float(self, expr: sp.Float) -> str:
-        return repr(float(expr))
-
-    def _print_Grouped(self, expr: sp.Expr) -> str:
-        return f"({self._print(expr.args[0])})"
-
-    def _print_TableSpline(self, expr: sp.Expr) -> str:
-        key, order, x = expr.args
-        return f"_spline_s(_TABLE_{key.name}, {self._print(x)}, {int(order)})"
+    SPLINE = "_spline_s"
 
 
 _PRINTER = Printer({"fully_qualified_modules": True})
