@@ -56,6 +56,7 @@ def sweep(args: list[str], env: dict[str, str], cwd: Path) -> dict[str, object]:
         raise SystemExit(f"symid sweep failed ({proc.returncode}): {stderr.strip()}")
     report = json.loads(stdout.strip().splitlines()[-1])
     report["process_s"] = wall
+    report["process_cpu_s"] = usage.ru_utime + usage.ru_stime
     report["peak_rss_mb"] = usage.ru_maxrss / 1024
     return report
 
@@ -91,23 +92,39 @@ def cluster(env: dict[str, str], cwd: Path, workers: int = 2) -> Iterator[str]:
             proc.wait()
 
 
-def worker_peaks(address: str) -> list[float]:
-    """Each worker's peak resident memory so far (MB)."""
+def _usage() -> tuple[float, float]:
     import resource
 
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime, r.ru_maxrss / 1024
+
+
+def workers_usage(address: str) -> list[tuple[float, float]]:
+    """Each worker's CPU seconds and peak resident memory (MB) so far, by name."""
     from distributed import Client
 
-    def peak() -> float:
-        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-
     with Client(address, timeout=60, set_as_default=False) as client:
-        return sorted(client.run(peak).values())
+        return [v for _, v in sorted(client.run(_usage).items())]
+
+
+def on_cluster(args: list[str], env: dict[str, str], cwd: Path, address: str) -> dict[str, object]:
+    """`sweep` with `--scheduler address`, plus the CPU seconds the workers spent on it."""
+    before = workers_usage(address)
+    report = sweep([*args, "--scheduler", address], env, cwd)
+    after = workers_usage(address)
+    report["workers_cpu_s"] = sum(a[0] - b[0] for a, b in zip(after, before))
+    report["workers_peak_rss_mb"] = [a[1] for a in after]
+    return report
 
 
 def with_cluster(env: dict[str, str], cwd: Path, run: list[str]) -> dict[str, object]:
     """The sweep on a scheduler and two workers (`--nthreads 1`) started for it."""
     with cluster(env, cwd) as address:
         return sweep([*run, "--scheduler", address], env, cwd)
+
+
+def _workers(r: dict[str, object]) -> str:
+    return f" (+ workers {r['workers_cpu_s']:.2f} s)" if "workers_cpu_s" in r else ""
 
 
 def load() -> list[float]:
@@ -149,17 +166,16 @@ def main() -> None:
     if not args.no_dask:
         with cluster(env, folder) as address:
             if not args.no_grid:
-                report["dask"] = sweep([*grid, "--scheduler", address], env, folder)
+                report["dask"] = on_cluster(grid, env, folder, address)
                 rows.append("dask")
                 for key in ("solve_s", "process_s"):
                     report[f"dask_over_local_{key[:-2]}"] = report["dask"][key] / report["cached"][key]  # type: ignore[index]
             if args.mc:
-                report["mc_dask"] = sweep([*mc, "--scheduler", address], env, folder)
+                report["mc_dask"] = on_cluster(mc, env, folder, address)
                 rows.append("mc_dask")
                 for key in ("solve_s", "process_s"):
                     report[f"mc_dask_over_local_{key[:-2]}"] = (report["mc_dask"][key]  # type: ignore[index]
                                                                 / report["mc_local"][key])  # type: ignore[index]
-            report["worker_peak_rss_mb"] = worker_peaks(address)
     report["load_average_end"] = load()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -169,7 +185,7 @@ def main() -> None:
         r = report[key]
         print(f"{key:8s} process {r['process_s']:.2f} s, setup {r['setup_s']:.2f} s, "  # type: ignore[index]
               f"solve {r['solve_s']:.3f} s, {r['instants_per_s']:.4g} instants/s, "  # type: ignore[index]
-              f"peak {r['peak_rss_mb']:.0f} MB")  # type: ignore[index]
+              f"cpu {r['process_cpu_s']:.2f} s{_workers(r)}, peak {r['peak_rss_mb']:.0f} MB")  # type: ignore[arg-type,index]
     for key in sorted(k for k in report if "_over_" in k):
         print(f"{key}: {report[key]:.2f}")
     print(f"load average {report['load_average_start']} -> {report['load_average_end']}; wrote {out / name}")

@@ -87,7 +87,8 @@ def leave(status: int) -> NoReturn:
     second (0.25 s of a 1.8 s cached sweep), after the command is done. The
     exit handlers (`atexit`: e.g. removing a private temporary cache) still
     run and the standard streams are flushed; with another thread still
-    alive, or a stream that cannot be flushed, the normal exit runs instead.
+    alive, a profiler or tracer at work, or a stream that cannot be flushed,
+    the normal exit runs instead.
     """
     import atexit
     import threading
@@ -98,8 +99,8 @@ def leave(status: int) -> NoReturn:
     except (OSError, ValueError):  # reported by the normal exit, as before
         raise SystemExit(status) from None
     atexit._run_exitfuncs()
-    if threading.active_count() > 1 or not isinstance(status, int):
-        raise SystemExit(status)
+    if threading.active_count() > 1 or not isinstance(status, int) or sys.getprofile() or sys.gettrace():
+        raise SystemExit(status)  # threads to join, or a profiler (cProfile) with results to write
     os._exit(status)
 
 
