@@ -3,7 +3,7 @@
 A cold C build is Python work from end to end (derive, sample the plan,
 print, render) before the compiler runs; on two cores the plan's sample (a
 Newton solve through the lambdified reference evaluator, with the imports it
-needs) runs beside the symbolic derivation instead of after it. The child is
+needs) runs beside the rest of the build (compiling the templates) instead of before it. The child is
 a fork: it has the parent's modules and objects already, computes one value
 and sends it back pickled through a pipe (floats exactly).
 
@@ -16,6 +16,7 @@ depends on whether a child ran.
 
 from __future__ import annotations
 
+import gc
 import os
 import pickle
 import select
@@ -109,6 +110,7 @@ def _child(compute: Callable[[], object], read: int, write: int) -> None:
     any of the parent's exit handlers or flushing its buffers."""
     code = 1
     try:
+        gc.disable()  # a collection would walk (and copy) every page shared with the parent
         os.close(read)
         for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
             signal.signal(signum, signal.SIG_DFL)  # Ctrl-C ends the child at once

@@ -84,12 +84,13 @@ def code_model(mech: Mechanism, options: Options | None = None, looped: bool = F
     values = parameter_values(mech.parameters)
     defaults = [values[parameter_symbol(n)] for n in base_names(mech.parameters)]
     q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
-    # the sample needs only the layout: it runs beside the derivation below
-    sample = Pending(lambda: _sample(layout, values, q0, mech.analysis.t0, mech.analysis.tol))
     parts = _loop_parts(layout) if looped else None
     index = {id(g): k for k, g in enumerate(layout.constraint_groups)}
     flat = build(layout, options, defaults,
                  frozenset((index[id(p.group)], m) for p in parts or [] for m in p.members))
+    # the sample (lambdify, scipy's import, Newton) runs beside the caller's
+    # `meanwhile` and the rest; forked after the derivation, which it shares
+    sample = Pending(lambda: _sample(layout, values, q0, mech.analysis.t0, mech.analysis.tol))
     if meanwhile is not None and not sample.ready():
         meanwhile(sample)
     q0, phi_q = sample.result()
