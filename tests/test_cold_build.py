@@ -121,3 +121,22 @@ def test_an_input_error_keeps_its_exit_status(tmp_path: Path) -> None:
                           timeout=300)
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "L_rod" in proc.stderr
+
+
+def test_templates_always_included_are_preloaded_before_those_included_for_some_inputs() -> None:
+    from symid.codegen.render import _includes
+
+    source = ('{% include "c/a.j2" %}\n{% if x %}{% include "c/b.j2" %}{% else %}{% include "c/c.j2" %}'
+              '{% endif %}\n{%- for k in ks %}{% include "c/d.j2" %}{% endfor %}{% include "c/e.j2" %}')
+    assert _includes(source) == (["c/a.j2", "c/e.j2"], ["c/b.j2", "c/c.j2", "c/d.j2"])
+
+
+def test_preloading_stops_once_the_wait_is_over(monkeypatch: pytest.MonkeyPatch) -> None:
+    from symid.codegen import render
+
+    loaded: list[str] = []
+    env = render._environment()
+    real = env.get_template
+    monkeypatch.setattr(env, "get_template", lambda name: loaded.append(name) or real(name))
+    render.preload(c.TEMPLATES, lambda: len(loaded) == 2)
+    assert loaded == ["c/solver.c.j2", "c/solver.h.j2"]
