@@ -17,7 +17,13 @@ instants_per_s); the report has the load average at start and end. Full size
 is the issue's grid: 25 rod lengths x 40 crank speeds x 1001 instants;
 `--quick` is 5 x 8 x 101.
 
+With `--against TREE --pairs N` instead: the cold and the cached process N
+times, alternating TREE (e.g. a checkout of main) and this one, each cold run
+in a fresh cache: a before/after comparison that a busy machine's drift
+does not bias (sweep_cli_cold.json).
+
     python -m benchmarks.sweep_cli [--quick] [--backend c] [--no-dask] [--mc 100000]
+    python -m benchmarks.sweep_cli --against /work/main --pairs 4
 """
 
 from __future__ import annotations
@@ -131,6 +137,28 @@ def load() -> list[float]:
     return [round(v, 2) for v in os.getloadavg()]
 
 
+def pairs(against: Path, n: int, grid: list[str], folder: Path) -> dict[str, object]:
+    """The cold and the cached grid, alternating the checkout `against` and this one."""
+    import statistics
+
+    runs: dict[str, list[dict[str, object]]] = {"against": [], "this": []}
+    for k in range(n):
+        for name, tree in (("against", against), ("this", ROOT)):
+            cache = folder / f"cache-{name}-{k}"
+            env = {**os.environ, "SYMID_CACHE": str(cache), "PYTHONPATH": str(tree)}
+            env.pop("CI", None)
+            runs[name].append({"cold": sweep(grid, env, folder), "cached": sweep(grid, env, folder),
+                               "load": load()[0]})
+            r = runs[name][-1]
+            print(f"{name:8s} cold {r['cold']['process_s']:.2f} s, cached "  # type: ignore[index]
+                  f"{r['cached']['process_s']:.2f} s (load {r['load']})", flush=True)  # type: ignore[index]
+    out: dict[str, object] = {"against": str(against), "this": str(ROOT), "runs": runs}
+    for name, got in runs.items():
+        for kind in ("cold", "cached"):
+            out[f"{name}_{kind}_median_s"] = statistics.median(r[kind]["process_s"] for r in got)  # type: ignore[index]
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="5 x 8 variants x 101 instants")
@@ -139,6 +167,9 @@ def main() -> None:
     parser.add_argument("--no-grid", action="store_true", help="skip the grid (cold, cached, dask)")
     parser.add_argument("--mc", type=int, default=0, metavar="N",
                         help="also the tolerance study of N sampled variants, locally and on the cluster")
+    parser.add_argument("--against", type=Path, metavar="TREE",
+                        help="compare the cold and cached grid with this checkout, alternating (see --pairs)")
+    parser.add_argument("--pairs", type=int, default=3, metavar="N", help="with --against: runs of each")
     parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
     args = parser.parse_args()
     rods, speeds, steps = (5, 8, 101) if args.quick else (25, 40, 1001)
@@ -150,6 +181,14 @@ def main() -> None:
             "--backend", args.backend, "-o", str(folder / "study.csv")]
     report: dict[str, object] = {"variants": rods * speeds, "steps": steps, "backend": args.backend,
                                  "cores": os.cpu_count(), "load_average_start": load()}
+    if args.against:
+        report.update(pairs(args.against.resolve(), args.pairs, grid, folder))
+        report["load_average_end"] = load()
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "sweep_cli_cold.json").write_text(json.dumps(report, indent=1) + "\n")
+        print(" ".join(f"{k} {v:.2f}" for k, v in report.items() if k.endswith("_median_s")))  # type: ignore[str-format]
+        return
     rows = []
     if not args.no_grid:
         report["cold"] = sweep(grid, env, folder)
