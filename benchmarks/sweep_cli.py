@@ -133,6 +133,15 @@ def _workers(r: dict[str, object]) -> str:
     return f" (+ workers {r['workers_cpu_s']:.2f} s)" if "workers_cpu_s" in r else ""
 
 
+def priority() -> str:
+    """This process's scheduling group and its nice value (Linux autogroup), as
+    measured: a busy machine's other sessions share the cores with it."""
+    try:
+        return Path("/proc/self/autogroup").read_text().strip()
+    except OSError:
+        return f"nice {os.nice(0)}"
+
+
 def load() -> list[float]:
     return [round(v, 2) for v in os.getloadavg()]
 
@@ -180,7 +189,8 @@ def main() -> None:
     grid = [crank, "--grid", f"L_rod=0.25:0.4:{rods}", "--grid", f"n=2:10:{speeds}", "--steps", str(steps),
             "--backend", args.backend, "-o", str(folder / "study.csv")]
     report: dict[str, object] = {"variants": rods * speeds, "steps": steps, "backend": args.backend,
-                                 "cores": os.cpu_count(), "load_average_start": load()}
+                                 "cores": os.cpu_count(), "load_average_start": load(),
+                                 "priority": priority()}
     if args.against:
         report.update(pairs(args.against.resolve(), args.pairs, grid, folder))
         report["load_average_end"] = load()
