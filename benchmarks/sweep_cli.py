@@ -38,14 +38,14 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Iterator
+from typing import Any, Iterator
 
 ROOT = Path(__file__).resolve().parents[1]
 # README's tolerance study: 0.2 % (crank) and 0.1 % (rod) on lengths, 2 % on masses
 TOLERANCES = ("L_crank=0.1,0.0002", "L_rod=0.3,0.0003", "m_crank=0.5,0.01", "m_rod=1,0.02", "m_slider=0.8,0.016")
 
 
-def sweep(args: list[str], env: dict[str, str], cwd: Path) -> dict[str, object]:
+def sweep(args: list[str], env: dict[str, str], cwd: Path) -> dict[str, Any]:
     """Run one `symid sweep ... --json`; its JSON report, the process wall time
     and its peak resident memory (MB)."""
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
@@ -113,7 +113,7 @@ def workers_usage(address: str) -> list[tuple[float, float]]:
         return [v for _, v in sorted(client.run(_usage).items())]
 
 
-def on_cluster(args: list[str], env: dict[str, str], cwd: Path, address: str) -> dict[str, object]:
+def on_cluster(args: list[str], env: dict[str, str], cwd: Path, address: str) -> dict[str, Any]:
     """`sweep` with `--scheduler address`, plus the CPU seconds the workers spent on it."""
     before = workers_usage(address)
     report = sweep([*args, "--scheduler", address], env, cwd)
@@ -123,13 +123,13 @@ def on_cluster(args: list[str], env: dict[str, str], cwd: Path, address: str) ->
     return report
 
 
-def with_cluster(env: dict[str, str], cwd: Path, run: list[str]) -> dict[str, object]:
+def with_cluster(env: dict[str, str], cwd: Path, run: list[str]) -> dict[str, Any]:
     """The sweep on a scheduler and two workers (`--nthreads 1`) started for it."""
     with cluster(env, cwd) as address:
         return sweep([*run, "--scheduler", address], env, cwd)
 
 
-def _workers(r: dict[str, object]) -> str:
+def _workers(r: dict[str, Any]) -> str:
     return f" (+ workers {r['workers_cpu_s']:.2f} s)" if "workers_cpu_s" in r else ""
 
 
@@ -146,11 +146,11 @@ def load() -> list[float]:
     return [round(v, 2) for v in os.getloadavg()]
 
 
-def pairs(against: Path, n: int, grid: list[str], folder: Path) -> dict[str, object]:
+def pairs(against: Path, n: int, grid: list[str], folder: Path) -> dict[str, Any]:
     """The cold and the cached grid, alternating the checkout `against` and this one."""
     import statistics
 
-    runs: dict[str, list[dict[str, object]]] = {"against": [], "this": []}
+    runs: dict[str, list[dict[str, Any]]] = {"against": [], "this": []}
     for k in range(n):
         for name, tree in (("against", against), ("this", ROOT)):
             cache = folder / f"cache-{name}-{k}"
@@ -159,12 +159,12 @@ def pairs(against: Path, n: int, grid: list[str], folder: Path) -> dict[str, obj
             runs[name].append({"cold": sweep(grid, env, folder), "cached": sweep(grid, env, folder),
                                "load": load()[0]})
             r = runs[name][-1]
-            print(f"{name:8s} cold {r['cold']['process_s']:.2f} s, cached "  # type: ignore[index]
-                  f"{r['cached']['process_s']:.2f} s (load {r['load']})", flush=True)  # type: ignore[index]
-    out: dict[str, object] = {"against": str(against), "this": str(ROOT), "runs": runs}
+            print(f"{name:8s} cold {r['cold']['process_s']:.2f} s, cached "
+                  f"{r['cached']['process_s']:.2f} s (load {r['load']})", flush=True)
+    out: dict[str, Any] = {"against": str(against), "this": str(ROOT), "runs": runs}
     for name, got in runs.items():
         for kind in ("cold", "cached"):
-            out[f"{name}_{kind}_median_s"] = statistics.median(r[kind]["process_s"] for r in got)  # type: ignore[index]
+            out[f"{name}_{kind}_median_s"] = statistics.median(r[kind]["process_s"] for r in got)
     return out
 
 
@@ -188,7 +188,7 @@ def main() -> None:
     crank = str(ROOT / "symid" / "examples" / "slider_crank.toml")
     grid = [crank, "--grid", f"L_rod=0.25:0.4:{rods}", "--grid", f"n=2:10:{speeds}", "--steps", str(steps),
             "--backend", args.backend, "-o", str(folder / "study.csv")]
-    report: dict[str, object] = {"variants": rods * speeds, "steps": steps, "backend": args.backend,
+    report: dict[str, Any] = {"variants": rods * speeds, "steps": steps, "backend": args.backend,
                                  "cores": os.cpu_count(), "load_average_start": load(),
                                  "priority": priority()}
     if args.against:
@@ -197,7 +197,7 @@ def main() -> None:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         (out / "sweep_cli_cold.json").write_text(json.dumps(report, indent=1) + "\n")
-        print(" ".join(f"{k} {v:.2f}" for k, v in report.items() if k.endswith("_median_s")))  # type: ignore[str-format]
+        print(" ".join(f"{k} {v:.2f}" for k, v in report.items() if k.endswith("_median_s")))
         return
     rows = []
     if not args.no_grid:
@@ -218,13 +218,13 @@ def main() -> None:
                 report["dask"] = on_cluster(grid, env, folder, address)
                 rows.append("dask")
                 for key in ("solve_s", "process_s"):
-                    report[f"dask_over_local_{key[:-2]}"] = report["dask"][key] / report["cached"][key]  # type: ignore[index]
+                    report[f"dask_over_local_{key[:-2]}"] = report["dask"][key] / report["cached"][key]
             if args.mc:
                 report["mc_dask"] = on_cluster(mc, env, folder, address)
                 rows.append("mc_dask")
                 for key in ("solve_s", "process_s"):
-                    report[f"mc_dask_over_local_{key[:-2]}"] = (report["mc_dask"][key]  # type: ignore[index]
-                                                                / report["mc_local"][key])  # type: ignore[index]
+                    report[f"mc_dask_over_local_{key[:-2]}"] = (report["mc_dask"][key]
+                                                                / report["mc_local"][key])
     report["load_average_end"] = load()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -232,9 +232,9 @@ def main() -> None:
     (out / name).write_text(json.dumps(report, indent=1) + "\n")
     for key in rows:
         r = report[key]
-        print(f"{key:8s} process {r['process_s']:.2f} s, setup {r['setup_s']:.2f} s, "  # type: ignore[index]
-              f"solve {r['solve_s']:.3f} s, {r['instants_per_s']:.4g} instants/s, "  # type: ignore[index]
-              f"cpu {r['process_cpu_s']:.2f} s{_workers(r)}, peak {r['peak_rss_mb']:.0f} MB")  # type: ignore[arg-type,index]
+        print(f"{key:8s} process {r['process_s']:.2f} s, setup {r['setup_s']:.2f} s, "
+              f"solve {r['solve_s']:.3f} s, {r['instants_per_s']:.4g} instants/s, "
+              f"cpu {r['process_cpu_s']:.2f} s{_workers(r)}, peak {r['peak_rss_mb']:.0f} MB")
     for key in sorted(k for k in report if "_over_" in k):
         print(f"{key}: {report[key]:.2f}")
     print(f"load average {report['load_average_start']} -> {report['load_average_end']}; wrote {out / name}")

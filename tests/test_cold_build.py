@@ -137,6 +137,22 @@ def test_preloading_stops_once_the_wait_is_over(monkeypatch: pytest.MonkeyPatch)
     loaded: list[str] = []
     env = render._environment()
     real = env.get_template
-    monkeypatch.setattr(env, "get_template", lambda name: loaded.append(name) or real(name))
+
+    def get_template(name: str):  # type: ignore[no-untyped-def]
+        loaded.append(name)
+        return real(name)
+
+    monkeypatch.setattr(env, "get_template", get_template)
     render.preload(c.TEMPLATES, lambda: len(loaded) == 2)
     assert loaded == ["c/solver.c.j2", "c/solver.h.j2"]
+
+
+def test_a_child_never_asked_for_is_ended_and_reaped() -> None:
+    import time
+
+    pending = forked.Pending(lambda: time.sleep(60))
+    pid = pending._pid
+    assert pid, "a child ran"
+    del pending  # the caller stopped before asking (an error, Ctrl-C)
+    with pytest.raises(ChildProcessError):  # killed and already reaped: no zombie left
+        os.waitpid(pid, os.WNOHANG)

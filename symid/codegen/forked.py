@@ -48,7 +48,6 @@ class Pending(Generic[V]):
         self._compute = compute
         self._pid = 0
         self._read = -1
-        self._data = b""
         if usable():
             self._start()
 
@@ -71,7 +70,9 @@ class Pending(Generic[V]):
         """Whether `result` would return without waiting for the child."""
         if self._read < 0:
             return self._pid == 0
-        return bool(select.select([self._read], [], [], 0)[0])
+        poll = select.poll()  # not select.select: it refuses descriptors past 1023
+        poll.register(self._read, select.POLLIN)
+        return bool(poll.poll(0))
 
     def result(self) -> V:
         """The value: the child's, or computed here if no child ran or it failed."""
@@ -95,6 +96,7 @@ class Pending(Generic[V]):
     def __del__(self) -> None:
         if self._pid:  # never collected: the caller stopped before asking (an error, Ctrl-C)
             _end(self._pid)
+            os.close(self._read)
 
 
 def _end(pid: int) -> None:

@@ -60,7 +60,7 @@ def preload(names: Sequence[str], until: Callable[[], bool]) -> None:
     First `names` and every template they always include, then those they
     include only for some inputs (which may be compiled for nothing)."""
     env = _environment()
-    queue, later, seen = list(names), [], set(names)
+    queue, later, seen = list(names), list[str](), set(names)
     while queue or later:
         if until():
             return
