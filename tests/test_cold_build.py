@@ -41,7 +41,7 @@ def generated(example: str, tmp: Path, monkeypatch: pytest.MonkeyPatch, fork: bo
 
     monkeypatch.setattr(forked.os, "fork", counted)
     mech = study_mechanism(api.load_mechanism(api.example(example), steps=11))
-    model = code_model(mech, options_for(mech), looped=True)
+    model = code_model(mech, options_for(mech), looped=True, meanwhile=lambda sample: None)
     c.write(c.context(model), tmp)
     return (tmp / f"{mech.name}_solver.c").read_text(), model.q0, len(forks)
 

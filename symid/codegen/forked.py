@@ -44,11 +44,12 @@ def usable() -> bool:
 class Pending(Generic[V]):
     """`compute()` under way in a child (or, if none could start, to be done by `result`)."""
 
-    def __init__(self, compute: Callable[[], V]) -> None:
+    def __init__(self, compute: Callable[[], V], fork: bool = True) -> None:
+        """fork: start a child if `usable` (False: `result` computes here, when asked)."""
         self._compute = compute
         self._pid = 0
         self._read = -1
-        if usable():
+        if fork and usable():
             self._start()
 
     def _start(self) -> None:

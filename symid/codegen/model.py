@@ -89,8 +89,10 @@ def code_model(mech: Mechanism, options: Options | None = None, looped: bool = F
     flat = build(layout, options, defaults,
                  frozenset((index[id(p.group)], m) for p in parts or [] for m in p.members))
     # the sample (lambdify, scipy's import, Newton) runs beside the caller's
-    # `meanwhile` and the rest; forked after the derivation, which it shares
-    sample = Pending(lambda: _sample(layout, values, q0, mech.analysis.t0, mech.analysis.tol))
+    # `meanwhile`, forked after the derivation, which it shares; with nothing
+    # to do meanwhile, here (a child would only add the fork's cost)
+    sample = Pending(lambda: _sample(layout, values, q0, mech.analysis.t0, mech.analysis.tol),
+                     fork=meanwhile is not None)
     if meanwhile is not None and not sample.ready():
         meanwhile(sample)
     q0, phi_q = sample.result()
