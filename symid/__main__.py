@@ -1,3 +1,3 @@
-from symid.cli import main
+from symid.cli.entry import command
 
-raise SystemExit(main())
+command()

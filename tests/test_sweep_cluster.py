@@ -181,3 +181,15 @@ def test_the_scheduler_runs_a_sweep_without_importing_symid(cluster, local):
     finally:
         client.close()
     assert np.array_equal(remote.data, table.data, equal_nan=True)
+
+
+@pytest.mark.parametrize("variants, steps, workers, expected", [
+    (1000, 1001, 2, 2),       # the grid: one task per worker (each costs a round trip)
+    (100_000, 1001, 2, 8),    # the Monte Carlo: four per worker (a lost worker costs a quarter)
+    (24, 100_001, 2, 6),      # in between: a whole number per worker
+    (3, 11, 5, 5),            # tiny: still one per worker
+])
+def test_tasks_are_a_whole_number_per_worker_and_few_for_a_short_sweep(variants, steps, workers, expected):
+    from symid.study.cluster import tasks
+
+    assert tasks(variants * steps, workers) == expected

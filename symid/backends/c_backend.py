@@ -104,11 +104,14 @@ def build(layout: Layout, options: Options) -> Path:
 
     def make(folder: Path) -> None:
         from symid.codegen.model import code_model
+        from symid.codegen.render import preload
         from symid.codegen.targets import c, c_sweep
 
         cc = compiler()
         stage("deriving")
-        model = code_model(mech, options, looped=True)
+        # the templates compile while a child process samples the plan (forked.py)
+        model = code_model(mech, options, looped=True,
+                           meanwhile=lambda sample: preload(c.TEMPLATES, sample.ready))
         stage("generating")
         ctx = c.context(model)
         c.write(ctx, folder)

@@ -4,13 +4,14 @@ the numbers of one mechanism, for one set of options."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from symid.symbolic.assemble import Layout, assemble
 from symid.codegen import sparse
 from symid.codegen.flat import Flat, Options, build
+from symid.codegen.forked import Pending
 from symid.errors import AnalysisError
 from symid.model.mechanism import Mechanism
 from symid.model.mechanism import parameter_symbol
@@ -65,48 +66,68 @@ def _assemble_sparse(reference, q0: np.ndarray, t0: float, tol: float) -> np.nda
         return q0  # the plan still needs a sample; the solver reports the failure at run time
 
 
-def code_model(mech: Mechanism, options: Options | None = None, looped: bool = False) -> CodeModel:
+def code_model(mech: Mechanism, options: Options | None = None, looped: bool = False,
+               meanwhile: Callable[[Pending[Any]], None] | None = None) -> CodeModel:
     """Build the flat system and fix the elimination order at q(t0).
 
     looped: for the C target, whose looped kernels compute the rows and
     reactions of the members they loop over: those are not substituted
     (`flat.build`'s `looped`; the flat system is then for that target only).
+    meanwhile: work of the caller's (e.g. loading its templates) to do while
+    the plan's sample is computed in a child process (`symid.codegen.forked`),
+    given the pending sample to poll (`ready`); not called without a child.
     """
-    from symid.numeric.reference import ReferenceEvaluator
-    from symid.numeric.evaluator import Needs
     from symid.symbolic.columns import columns
-    from symid.numeric.solve import newton
 
     options = options or options_for(mech)
     layout = assemble(mech)
     values = parameter_values(mech.parameters)
     defaults = [values[parameter_symbol(n)] for n in base_names(mech.parameters)]
+    q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
     parts = _loop_parts(layout) if looped else None
     index = {id(g): k for k, g in enumerate(layout.constraint_groups)}
     flat = build(layout, options, defaults,
                  frozenset((index[id(p.group)], m) for p in parts or [] for m in p.members))
-    q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
-    t0 = mech.analysis.t0
-    reference = ReferenceEvaluator(layout, values, Needs(velocity=False))
+    # the sample (lambdify, scipy's import, Newton) runs beside the caller's
+    # `meanwhile`, forked after the derivation, which it shares; with nothing
+    # to do meanwhile, here (a child would only add the fork's cost)
+    sample = Pending(lambda: _sample(layout, values, q0, mech.analysis.t0, mech.analysis.tol),
+                     fork=meanwhile is not None)
+    if meanwhile is not None and not sample.ready():
+        meanwhile(sample)
+    q0, phi_q = sample.result()
     pattern = [(r, c) for r, c, _ in flat.jac]
-    # a driver's derivatives may be inf or NaN at t0 (evaluated with f): the
-    # solver reports that at run time, the plan needs only Phi_q
-    with np.errstate(all="ignore"):
-        if layout.ng > DENSE_SETUP and layout.nc == layout.ng:
-            q0 = _assemble_sparse(reference, q0, t0, mech.analysis.tol)
-            rows, cols_, vals = reference.phi_q_entries(q0, t0)
-            entries = dict(zip(zip(rows.tolist(), cols_.tolist()), vals.tolist()))
-            plan = sparse.plan(pattern, [entries.get(rc, 0.0) for rc in pattern], layout.ng)
-        else:
-            try:
-                q0, _ = newton(reference, q0, t0, mech.analysis.tol)
-            except AnalysisError:
-                pass  # the plan still needs a sample; the solver reports the failure at run time
-            plan = sparse.plan(pattern, reference.phi_q(q0, t0))
+    if isinstance(phi_q, dict):  # entry by entry (sparse setup)
+        plan = sparse.plan(pattern, [phi_q.get(rc, 0.0) for rc in pattern], layout.ng)
+    else:
+        plan = sparse.plan(pattern, phi_q)
     cols = tuple(columns(layout, _analysis_like(mech, options)))
     if options.sensitivity:  # after all other columns, columns outer and parameters inner
         cols += tuple(f"d({c})/d({n})" for c in options.sensitivity_of for n in options.sensitivity)
     return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0), parts)
+
+
+def _sample(layout: Layout, values: dict[Any, float], q0: np.ndarray, t0: float,
+            tol: float) -> tuple[np.ndarray, np.ndarray | dict[tuple[int, int], float]]:
+    """The assembled configuration at t0 and Phi_q there (dense, or entry by
+    entry past DENSE_SETUP coordinates): what the elimination plan is fixed at."""
+    from symid.numeric.evaluator import Needs
+    from symid.numeric.reference import ReferenceEvaluator
+    from symid.numeric.solve import newton
+
+    reference = ReferenceEvaluator(layout, values, Needs(velocity=False))
+    # a driver's derivatives may be inf or NaN at t0 (evaluated with f): the
+    # solver reports that at run time, the plan needs only Phi_q
+    with np.errstate(all="ignore"):
+        if layout.ng > DENSE_SETUP and layout.nc == layout.ng:
+            q0 = _assemble_sparse(reference, q0, t0, tol)
+            rows, cols_, vals = reference.phi_q_entries(q0, t0)
+            return q0, dict(zip(zip(rows.tolist(), cols_.tolist()), vals.tolist()))
+        try:
+            q0, _ = newton(reference, q0, t0, tol)
+        except AnalysisError:
+            pass  # the plan still needs a sample; the solver reports the failure at run time
+        return q0, reference.phi_q(q0, t0)
 
 
 def _loop_parts(layout: Layout) -> list[Any] | None:

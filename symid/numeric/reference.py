@@ -54,7 +54,9 @@ def _kernel(derived: DerivedConstraint | DerivedForce, what: str, static: bool =
             exprs = [e.subs({v: 0 for role in derived.roles for v in s.qd(role)}) for e in exprs]
     if ground is not None:
         exprs = [sp.sympify(e).xreplace({v: 0 for v in (*s.q(ground), *s.qd(ground))}) for e in exprs]
-    return sp.lambdify(_arguments(derived), [grouped(e) for e in exprs], modules="numpy", cse=True)
+    # a module object: lambdify then imports nothing ("numpy" runs `from numpy import *`, which
+    # loads numpy.ma, numpy.testing, numpy.f2py...: a fifth of a second of a cold build)
+    return sp.lambdify(_arguments(derived), [grouped(e) for e in exprs], modules=[np], cse=True)
 
 
 def _time_function(exprs: Sequence[sp.Expr], values: Mapping[sp.Symbol, float]) -> Callable[[float], Array]:

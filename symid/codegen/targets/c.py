@@ -270,6 +270,9 @@ def generate(model: CodeModel, out_dir: Path, fold_constants: bool = True, preci
     return write(context(model, fold_constants, precision), out_dir)
 
 
+TEMPLATES = ("c/solver.c.j2", "c/solver.h.j2", "c/Makefile.j2")  # what `write` renders
+
+
 def write(ctx: dict[str, Any], out_dir: Path) -> list[Path]:
     """Render a context into out_dir (its sizes, e.g. ctx["work"], are the code's)."""
     out_dir.mkdir(parents=True, exist_ok=True)
