@@ -11,7 +11,9 @@ from __future__ import annotations
 from typing import Any
 
 # values written out one statement each up to this many; loops of constant
-# trip count (four lanes per pass) past it, so that a ladder's code stays small
+# trip count (four lanes per pass) past it, so that a ladder's code stays small.
+# 128 (the slider-crank's 66-value row block written out too) measured worse:
+# 1964 instructions per sweep instant against 1889, gcc 12 -O2
 STRAIGHT = 64
 
 
