@@ -78,7 +78,7 @@ def instrumented(model: CodeModel, folder: Path, harness: str = "") -> tuple[cty
                  f"        memcpy(test_guess, qn, sizeof test_guess);\n{call}"
                  f"        test_iterations += info[0];\n"
                  f"        if (test_error && status == {P}_OK)\n"
-                 f"            for (k = 0; k < {P}_NG; ++k)\n"
+                 f"            for (int k = 0; k < {P}_NG; ++k)\n"
                  f"                test_error[i] = fmax(test_error[i], fabs(test_guess[k] - qn[k]));\n")
     source.write_text(text + harness)
     subprocess.run(["cc", *FLAGS, str(source), "-o", str(folder / "s.so"), "-lm"], check=True)

@@ -15,7 +15,7 @@ from symid.codegen.targets.c_loops import Loops
 from symid.codegen.targets.c_lu import lu_chunks  # noqa: F401 (tests build chunks through c)
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
-from symid.codegen.targets import c_sens, c_sweep
+from symid.codegen.targets import c_checks, c_sens, c_sweep
 from symid.codegen.render import render
 from symid.codegen.targets.c_describe import describe
 from symid.codegen.targets.c_printer import (DOUBLE, PRECISIONS, Printer, Scalar, c_double,  # noqa: F401
@@ -243,7 +243,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),
-        "outputs": outputs,
+        "outputs": outputs, **c_checks.context(outputs, ng, nc, o.velocity, o.multipliers, nr),
         "loop_tables": loops.tables if loops else [],
         "dense_fallback": dense_fallback(model), "dense_limit": DENSE_LIMIT,
         "fb": None if dense_fallback(model) else c_fallback.context(model.plan, f.jac, ng),

@@ -1,0 +1,162 @@
+"""The trajectory's bookkeeping at sizes fixed when the C is generated
+(templates/c/checks.j2, unroll.j2): the finite check over the row's blocks
+looks at every value an instant computed, in the row or not; maxabsN is
+max |v| with NaN kept; and the written-out code with its history left in the
+rows gives the same rows and state, bit for bit, as the loop form with the
+history copied into state every instant (the form of the code before them),
+whether the run is one call or many."""
+
+from __future__ import annotations
+
+import ctypes
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from symid import api
+from symid.codegen.model import code_model
+from symid.codegen.targets import c as c_target
+
+DP = ctypes.POINTER(ctypes.c_double)
+FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared"]
+HARNESS = """
+int test_row_finite(const double *row, const double *qn, const double *qdn, const double *qddn, const double *lam,
+                    const double *reac);
+int test_row_finite(const double *row, const double *qn, const double *qdn, const double *qddn, const double *lam,
+                    const double *reac)
+{{
+    return {p}_row_finite(row, qn, qdn, qddn, lam, reac);
+}}
+{maxabs}
+"""
+MAXABS = """
+double test_maxabs{n}(const double *v);
+double test_maxabs{n}(const double *v)
+{{
+    return {p}_maxabs{n}(v);
+}}
+"""
+
+
+def _build(ctx: dict[str, Any], folder: Path) -> ctypes.CDLL:
+    """The solver of a context, with a harness reaching its static checks."""
+    c_target.write(ctx, folder)
+    p = ctx["name"]
+    source = folder / f"{p}_solver.c"
+    maxabs = "".join(MAXABS.format(p=p, n=n) for n in ctx["checks"]["maxabs"])
+    source.write_text(source.read_text() + HARNESS.format(p=p, maxabs=maxabs))
+    subprocess.run(["cc", *FLAGS, str(source), "-o", str(folder / "s.so"), "-lm"], check=True)
+    return ctypes.CDLL(str(folder / "s.so"))
+
+
+def _context(outputs: list[str] | None = None, kind: str | None = None) -> dict[str, Any]:
+    analysis: dict[str, Any] = {}
+    if outputs:
+        analysis["outputs"] = outputs
+    if kind:
+        analysis["kind"] = kind
+    return c_target.context(code_model(api.load_mechanism(api.example("slider_crank"), **analysis)))
+
+
+@pytest.fixture(autouse=True)
+def _compiler() -> None:
+    if shutil.which("cc") is None:
+        pytest.skip("no C compiler")
+
+
+@pytest.mark.parametrize("outputs", [None, ["q", "lambda"], ["q", "qddot", "reactions"]])
+@pytest.mark.parametrize("bad", [np.inf, -np.inf, np.nan])
+def test_row_finite_rejects_a_non_finite_value_in_any_checked_slot(tmp_path, outputs, bad: float) -> None:
+    ctx = _context(outputs)
+    lib = _build(ctx, tmp_path)
+    f = lib.test_row_finite
+    f.argtypes = [DP] * 6
+    f.restype = ctypes.c_int
+    ng, nc, nr = ctx["ng"], ctx["nc"], ctx["nr"]
+    sizes = {"qn": ng, "qdn": ng, "qddn": ng, "lam": nc, "reac": nr}  # every group computed (inverse dynamics)
+    rng = np.random.default_rng(14)
+    row = rng.standard_normal(ctx["row_width"]) * 1e3
+    apart = {var: rng.standard_normal(sizes[var]) for var, offset, _ in ctx["outputs"] if offset is None}
+
+    def check() -> bool:
+        ptrs = [row[offset:].ctypes.data_as(DP) if offset is not None else apart[var].ctypes.data_as(DP)
+                for var, offset, _ in ctx["outputs"]]
+        return bool(f(row.ctypes.data_as(DP), *ptrs))
+
+    assert check()
+    missed = []
+    for var, offset, _ in ctx["outputs"]:
+        held, start = (row, offset) if offset is not None else (apart[var], 0)
+        for k in range(start, start + sizes[var]):
+            kept = held[k]
+            held[k] = bad
+            if check():
+                missed.append((var, k - start))
+            held[k] = kept
+    assert missed == [], f"slots taken as finite while holding {bad}: {missed}"
+    row[0] = bad  # t is not an output the check looks at: it is written after it
+    assert check()
+    big = np.finfo(float).max  # finite values whose plain sum overflows: the exact test clears them
+    row[:] = big
+    for v in apart.values():
+        v[:] = -big
+    assert check()
+
+
+def test_maxabs_is_the_largest_magnitude_and_keeps_nan(tmp_path) -> None:
+    ctx = _context()
+    lib = _build(ctx, tmp_path)
+    rng = np.random.default_rng(3)
+    for n in ctx["checks"]["maxabs"]:
+        f = getattr(lib, f"test_maxabs{n}")
+        f.argtypes = [DP]
+        f.restype = ctypes.c_double
+        for _ in range(20):
+            v = rng.standard_normal(n) * 10.0 ** rng.integers(-5, 5)
+            assert f(v.ctypes.data_as(DP)) == np.max(np.abs(v))
+        for k in range(n):
+            for bad, want in ((np.nan, np.isnan), (-np.inf, np.isposinf)):
+                v = rng.standard_normal(n)
+                v[k] = bad
+                assert want(f(v.ctypes.data_as(DP))), (n, k, bad)
+
+
+def _run(lib: ctypes.CDLL, ctx: dict[str, Any], cuts: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and final state of one run of sum(cuts) instants, one call per cut."""
+    p = ctx["name"]
+    traj = lib[f"{p}_trajectory"]
+    traj.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_long, DP, ctypes.c_double, DP, DP,
+                     ctypes.POINTER(ctypes.c_long), DP, ctypes.POINTER(ctypes.c_int)]
+    traj.restype = ctypes.c_int
+    ng, n = ctx["ng"], sum(cuts)
+    params = np.array([float(v) for v in ctx["defaults"]])
+    state = np.zeros(ctx["state"])
+    state[:ng] = ctx["d"]["q0"]
+    state[6 * ng:7 * ng] = 1.0  # the jump check on, unit scales
+    rows = np.zeros((n, ctx["row_width"]))
+    work, iwork = np.zeros(ctx["work"]), np.zeros(ng, dtype=np.intc)
+    solved, done = ctypes.c_long(0), 0
+    h = 0.2 / (n - 1)
+    for m in cuts:
+        status = traj(0.0, h, m, params.ctypes.data_as(DP), 1e-12, state.ctypes.data_as(DP),
+                      rows[done:].ctypes.data_as(DP), ctypes.byref(solved), work.ctypes.data_as(DP),
+                      iwork.ctypes.data_as(ctypes.POINTER(ctypes.c_int)))
+        assert status == 0 and solved.value == m
+        done += m
+    return rows, state
+
+
+@pytest.mark.parametrize("kind", ["inverse_dynamics", "statics"])
+def test_written_out_code_gives_the_loop_forms_rows_and_state_bitwise(tmp_path, kind: str) -> None:
+    ctx = _context(kind=kind)
+    assert ctx["checks"]["rolling"]
+    looped = dict(ctx, checks=dict(ctx["checks"], straight=0, rolling=False, looped=True))
+    new, old = _build(ctx, tmp_path / "new"), _build(looped, tmp_path / "old")
+    for cuts in ([60], [1, 1, 2, 3, 5, 8, 40], [7] * 8 + [4]):
+        got, want = _run(new, ctx, cuts), _run(old, looped, cuts)
+        assert got[0].tobytes() == want[0].tobytes(), cuts
+        assert got[1].tobytes() == want[1].tobytes(), cuts
