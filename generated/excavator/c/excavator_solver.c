@@ -141,19 +141,46 @@ static void excavator_trig_base(const excavator_real *q, excavator_real *tr, exc
    called and the angle becomes the base. */
 static void excavator_trig_near(const excavator_real *q, excavator_real *tr, excavator_real *base)
 {
-    int b;
-    for (b = 0; b < 3; ++b) {
-        const excavator_real a = q[3 * b + 2], d = a - base[3 * b];
+    {
+        const excavator_real a = q[3 * 0 + 2], d = a - base[3 * 0];
         if (fabs(d) <= 0.0625) {
-            const excavator_real d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
+            const excavator_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
             const excavator_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
             const excavator_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * b] = s + (s * cm + c * sd);
-            tr[2 * b + 1] = c + (c * cm - s * sd);
+            tr[2 * 0] = s + (s * cm + c * sd);
+            tr[2 * 0 + 1] = c + (c * cm - s * sd);
         } else {
-            base[3 * b] = a;
-            tr[2 * b] = base[3 * b + 1] = sin(a);
-            tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+            base[3 * 0] = a;
+            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
+            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+        }
+    }
+    {
+        const excavator_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        if (fabs(d) <= 0.0625) {
+            const excavator_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
+            const excavator_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
+            const excavator_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
+            tr[2 * 1] = s + (s * cm + c * sd);
+            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+        } else {
+            base[3 * 1] = a;
+            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
+            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+        }
+    }
+    {
+        const excavator_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        if (fabs(d) <= 0.0625) {
+            const excavator_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
+            const excavator_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
+            const excavator_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
+            tr[2 * 2] = s + (s * cm + c * sd);
+            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+        } else {
+            base[3 * 2] = a;
+            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
+            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
         }
     }
 }
@@ -165,12 +192,31 @@ static void excavator_trig_near(const excavator_real *q, excavator_real *tr, exc
    trig_near does. */
 static void excavator_trig_step(const excavator_real *q, const excavator_real *dq, excavator_real *tr, excavator_real *base)
 {
-    int b;
-    for (b = 0; b < 3; ++b) {
-        const excavator_real d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+    {
+        const excavator_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * b] = s + c * d;
-            tr[2 * b + 1] = c - s * d;
+            tr[2 * 0] = s + c * d;
+            tr[2 * 0 + 1] = c - s * d;
+        } else {
+            excavator_trig_near(q, tr, base);
+            return;
+        }
+    }
+    {
+        const excavator_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
+            tr[2 * 1] = s + c * d;
+            tr[2 * 1 + 1] = c - s * d;
+        } else {
+            excavator_trig_near(q, tr, base);
+            return;
+        }
+    }
+    {
+        const excavator_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
+            tr[2 * 2] = s + c * d;
+            tr[2 * 2 + 1] = c - s * d;
         } else {
             excavator_trig_near(q, tr, base);
             return;
@@ -943,49 +989,111 @@ static void excavator_solve_t(const excavator_real *work, const int *iwork, int 
     else excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, b, x);
 }
 
-/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
-   Four running maxima and sums: one chain would wait on each comparison. */
-static excavator_real excavator_maxabs(const excavator_real *v, int n)
+
+/* Whether everything the trajectory's instant computed is finite (what
+   finite checks), over 1 block(s): the groups the row holds side by side are
+   one. First the plain sum of the values: a sum with an inf or NaN among its
+   terms is inf or NaN, so a finite sum clears them all at one add a value.
+   Else (a non-finite value, or finite ones whose sum overflowed) the exact
+   test of allfinite: v * 0 is 0 for a finite v and NaN otherwise, and a sum
+   of zeros and NaNs is NaN iff one is. */
+static int excavator_row_finite(const excavator_real *row, const excavator_real *qn, const excavator_real *qdn, const excavator_real *qddn,
+                              const excavator_real *lam, const excavator_real *reac)
 {
-    excavator_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
-                                     an overflow of k once n is a constant */
+    excavator_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
     int k;
-    for (k = 0; k < whole; k += 4) {
-        const excavator_real a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
-        m0 = a0 > m0 ? a0 : m0;
-        m1 = a1 > m1 ? a1 : m1;
-        m2 = a2 > m2 ? a2 : m2;
-        m3 = a3 > m3 ? a3 : m3;
-        s0 += a0;
-        s1 += a1;
-        s2 += a2;
-        s3 += a3;
+    (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
+    for (k = 0; k < 72; k += 4) {
+        s0 += row[1 + k + 0];
+        s1 += row[1 + k + 1];
+        s2 += row[1 + k + 2];
+        s3 += row[1 + k + 3];
     }
-    for (; k < n; ++k) {
-        const excavator_real a = fabs(v[k]);
-        m0 = a > m0 ? a : m0;
-        s0 += a;
+    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
+    s0 = s1 = s2 = s3 = 0.0;
+    for (k = 0; k < 72; k += 4) {
+        s0 += row[1 + k + 0] * 0.0;
+        s1 += row[1 + k + 1] * 0.0;
+        s2 += row[1 + k + 2] * 0.0;
+        s3 += row[1 + k + 3] * 0.0;
     }
+    return (s0 + s1) + (s2 + s3) == 0.0;
+}
+
+/* max |v_k| over 9 values, NaN if any v_k is NaN (so that a NaN residual
+   never passes). Four running maxima and sums: one chain would wait on each
+   comparison. */
+static excavator_real excavator_maxabs9(const excavator_real *v)
+{
+    excavator_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    a = fabs(v[0]);
+    m0 = a > m0 ? a : m0;
+    s0 += a;
+    a = fabs(v[1]);
+    m1 = a > m1 ? a : m1;
+    s1 += a;
+    a = fabs(v[2]);
+    m2 = a > m2 ? a : m2;
+    s2 += a;
+    a = fabs(v[3]);
+    m3 = a > m3 ? a : m3;
+    s3 += a;
+    a = fabs(v[4]);
+    m0 = a > m0 ? a : m0;
+    s0 += a;
+    a = fabs(v[5]);
+    m1 = a > m1 ? a : m1;
+    s1 += a;
+    a = fabs(v[6]);
+    m2 = a > m2 ? a : m2;
+    s2 += a;
+    a = fabs(v[7]);
+    m3 = a > m3 ? a : m3;
+    s3 += a;
+    a = fabs(v[8]);
+    m0 = a > m0 ? a : m0;
+    s0 += a;
     m0 = EXCAVATOR_MAX(EXCAVATOR_MAX(m0, m1), EXCAVATOR_MAX(m2, m3));
     s0 += s1 + s2 + s3;
     return s0 == s0 ? m0 : s0;
 }
 
-/* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabs does. dq is
+/* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
    left holding the change each coordinate took, old - new: far from the
    origin that differs from dq by a rounding of q, which sin and cos of the
    new angle must see (the subtraction is exact for steps under half the
    coordinate, and within a rounding of the step otherwise). */
 static excavator_real excavator_correct(excavator_real *q, excavator_real *dq)
 {
-    const excavator_real step = excavator_maxabs(dq, 9);
-    int k;
-    for (k = 0; k < 9; ++k) {
-        const excavator_real old = q[k];
-        q[k] = old - dq[k];
-        dq[k] = old - q[k];
-    }
+    const excavator_real step = excavator_maxabs9(dq);
+    excavator_real old;
+    old = q[0];
+    q[0] = old - dq[0];
+    dq[0] = old - q[0];
+    old = q[1];
+    q[1] = old - dq[1];
+    dq[1] = old - q[1];
+    old = q[2];
+    q[2] = old - dq[2];
+    dq[2] = old - q[2];
+    old = q[3];
+    q[3] = old - dq[3];
+    dq[3] = old - q[3];
+    old = q[4];
+    q[4] = old - dq[4];
+    dq[4] = old - q[4];
+    old = q[5];
+    q[5] = old - dq[5];
+    dq[5] = old - q[5];
+    old = q[6];
+    q[6] = old - dq[6];
+    dq[6] = old - q[6];
+    old = q[7];
+    q[7] = old - dq[7];
+    dq[7] = old - q[7];
+    old = q[8];
+    q[8] = old - dq[8];
+    dq[8] = old - q[8];
     return step;
 }
 
@@ -1008,10 +1116,10 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
     if (reuse) excavator_trig_near(q, tr, base);
     else excavator_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
-    qmag = EXCAVATOR_MAX(1.0, excavator_maxabs(q, 9));
+    qmag = EXCAVATOR_MAX(1.0, excavator_maxabs9(q));
     lim = EXCAVATOR_MAX(tol, 8.0 * EXCAVATOR_EPS * qmag);
     excavator_phi_k(q, tr, t, p, r);
-    rmax = excavator_maxabs(r, 9);
+    rmax = excavator_maxabs9(r);
     for (it = 0;; ++it) {
         if (!isfinite(rmax)) {
             /* at the guess: an expression of the constraints left its domain
@@ -1045,7 +1153,7 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
             break;
         }
         excavator_phi_k(q, tr, t, p, r);
-        rmax = excavator_maxabs(r, 9);
+        rmax = excavator_maxabs9(r);
     }
     info[0] = it;
     info[1] = *dense;
@@ -1063,14 +1171,21 @@ static void excavator_outputs(excavator_real t, const excavator_real *p, const e
                             excavator_real *lam, excavator_real *reactions, excavator_real *work, const int *iwork, int dense)
 {
     excavator_real *y = EXCAVATOR_VEC(work, 2), *b = EXCAVATOR_VEC(work, 3);
-    int k;
     excavator_nu_k(q, tr, t, p, b);
     excavator_solve(work, iwork, dense, b, qd, y);
     excavator_gamma_k(q, tr, qd, t, p, b);
     excavator_solve(work, iwork, dense, b, qdd, y);
     excavator_applied_k(q, tr, qd, t, p, b);
     excavator_mass_k(p, y);
-    for (k = 0; k < 9; ++k) b[k] -= y[k] * qdd[k];
+    b[0] -= y[0] * qdd[0];
+    b[1] -= y[1] * qdd[1];
+    b[2] -= y[2] * qdd[2];
+    b[3] -= y[3] * qdd[3];
+    b[4] -= y[4] * qdd[4];
+    b[5] -= y[5] * qdd[5];
+    b[6] -= y[6] * qdd[6];
+    b[7] -= y[7] * qdd[7];
+    b[8] -= y[8] * qdd[8];
     excavator_solve_t(work, iwork, dense, b, lam);
     excavator_reactions_k(q, tr, lam, t, p, reactions);
 }
@@ -1107,6 +1222,20 @@ static int excavator_finite(const excavator_real *q, const excavator_real *qd, c
         ;
 }
 
+/* Write the trajectory state's history from where the instants left it:
+   the rows of this call (or state itself, for instants of an earlier call).
+   Oldest first: a slot is written only after the slots copied from it. */
+static void excavator_keep(excavator_real *state, const excavator_real *q, const excavator_real *qd, const excavator_real *qdd,
+                         const excavator_real *m1, const excavator_real *m2, const excavator_real *m3)
+{
+    if (m3 != state + 45) memcpy(state + 45, m3, sizeof(excavator_real) * 9);
+    if (m2 != state + 36) memcpy(state + 36, m2, sizeof(excavator_real) * 9);
+    if (m1 != state + 27) memcpy(state + 27, m1, sizeof(excavator_real) * 9);
+    if (qdd != state + 18) memcpy(state + 18, qdd, sizeof(excavator_real) * 9);
+    if (qd != state + 9) memcpy(state + 9, qd, sizeof(excavator_real) * 9);
+    if (q != state + 0) memcpy(state + 0, q, sizeof(excavator_real) * 9);
+}
+
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
    explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
    it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
@@ -1115,14 +1244,45 @@ static int excavator_unexplained(const excavator_real *q0, const excavator_real 
                                const excavator_real *qd1, const excavator_real *qdd1, excavator_real h, const excavator_real *c)
 {
     const excavator_real half = 0.5 * h, hh = h * h / 12.0;
-    excavator_real mismatch = 0.0, motion = 0.0;
-    int k;
-    for (k = 0; k < 9; ++k) {
-        const excavator_real d = q1[k] - q0[k];
-        mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
-        motion = EXCAVATOR_MAX(motion, fabs(d) * c[k]);
-    }
-    return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
+    excavator_real mismatch = 0.0, motion = 0.0, d;
+    d = q1[0] - q0[0];
+    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    d = q1[1] - q0[1];
+    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    d = q1[2] - q0[2];
+    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    d = q1[3] - q0[3];
+    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    d = q1[4] - q0[4];
+    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    d = q1[5] - q0[5];
+    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    d = q1[6] - q0[6];
+    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    d = q1[7] - q0[7];
+    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    d = q1[8] - q0[8];
+    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
+    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    d = q1[0] - q0[0];
+    motion = EXCAVATOR_MAX(motion, fabs(d) * c[0]);
+    d = q1[1] - q0[1];
+    motion = EXCAVATOR_MAX(motion, fabs(d) * c[1]);
+    d = q1[2] - q0[2];
+    motion = EXCAVATOR_MAX(motion, fabs(d) * c[2]);
+    d = q1[3] - q0[3];
+    motion = EXCAVATOR_MAX(motion, fabs(d) * c[3]);
+    d = q1[4] - q0[4];
+    motion = EXCAVATOR_MAX(motion, fabs(d) * c[4]);
+    d = q1[5] - q0[5];
+    motion = EXCAVATOR_MAX(motion, fabs(d) * c[5]);
+    d = q1[6] - q0[6];
+    motion = EXCAVATOR_MAX(motion, fabs(d) * c[6]);
+    d = q1[7] - q0[7];
+    motion = EXCAVATOR_MAX(motion, fabs(d) * c[7]);
+    d = q1[8] - q0[8];
+    motion = EXCAVATOR_MAX(motion, fabs(d) * c[8]);
+    return !(mismatch <= 0.5 * motion);
 }
 
 int excavator_instant(excavator_real t, const excavator_real *p, excavator_real tol, excavator_real *q, excavator_real *qd, excavator_real *qdd,
@@ -1159,13 +1319,15 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
                        excavator_real *rows, long *solved, excavator_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
-       two positions) before it, count */
+       two positions) before it, count; q .. m3 point at them: in state, or,
+       once this call has solved them, where it solved them (checks.rolling) */
     excavator_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
     excavator_real *qd, *qdd, *m3, *scale;
     long i, unused;
-    int k, status, info[2], dense = 0;
+    int status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
     *solved = 0;
+    status = EXCAVATOR_OK;
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return EXCAVATOR_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
@@ -1187,41 +1349,59 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4)
-            for (k = 0; k < 9; ++k)
-                qn[k] = q[k] + h * (qd[k] + h * ((323.0 / 360.0) * qdd[k] - (264.0 / 360.0) * m1[k]
-                                                 + (159.0 / 360.0) * m2[k] - (38.0 / 360.0) * m3[k]));
-        else if (*count >= 1)
-            for (k = 0; k < 9; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
-        else
+        if (*count >= 4) {
+            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
+                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
+            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
+                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
+            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
+                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
+            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
+                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
+            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
+                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
+            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
+                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
+            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
+                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
+            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
+                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
+            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
+                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
+        } else if (*count >= 1) {
+            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
+            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
+            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
+            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
+            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
+            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
+            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
+            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
+            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
+        } else
             memcpy(qn, q, sizeof(excavator_real) * 9);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = excavator_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != EXCAVATOR_OK) {
-            *solved = i;
-            return status;
-        }
+        if (status != EXCAVATOR_OK) break;
         excavator_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!excavator_finite(qn, qdn, qddn, lam, reac)) {
-            *solved = i;
-            return EXCAVATOR_NONFINITE;
+        if (!excavator_row_finite(row, qn, qdn, qddn, lam, reac)) {
+            status = EXCAVATOR_NONFINITE;
+            break;
         }
         if (*count >= 1 && excavator_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
-            *solved = i;
-            return EXCAVATOR_UNEXPLAINED;
+            status = EXCAVATOR_UNEXPLAINED;
+            break;
         }
-        memcpy(m3, m2, sizeof(excavator_real) * 9);
-        memcpy(m2, m1, sizeof(excavator_real) * 9);
-        memcpy(m1, qdd, sizeof(excavator_real) * 9);
-        memcpy(qd, qdn, sizeof(excavator_real) * 9);
-        memcpy(qdd, qddn, sizeof(excavator_real) * 9);
-        memcpy(q, qn, sizeof(excavator_real) * 9);
+        /* the history stays where it was solved, in the rows (state is written when the call ends) */
+        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = n;
-    return EXCAVATOR_OK;
+    *solved = i;
+    excavator_keep(state, q, qd, qdd, m1, m2, m3);
+    return status;
 }
 
 /* ---- The sweep: K variants, their figures accumulated as instants are solved ---- */

@@ -121,19 +121,32 @@ static void slider_pendulum_trig_base(const slider_pendulum_real *q, slider_pend
    called and the angle becomes the base. */
 static void slider_pendulum_trig_near(const slider_pendulum_real *q, slider_pendulum_real *tr, slider_pendulum_real *base)
 {
-    int b;
-    for (b = 0; b < 2; ++b) {
-        const slider_pendulum_real a = q[3 * b + 2], d = a - base[3 * b];
+    {
+        const slider_pendulum_real a = q[3 * 0 + 2], d = a - base[3 * 0];
         if (fabs(d) <= 0.0625) {
-            const slider_pendulum_real d2 = d * d, s = base[3 * b + 1], c = base[3 * b + 2];
+            const slider_pendulum_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
             const slider_pendulum_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
             const slider_pendulum_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * b] = s + (s * cm + c * sd);
-            tr[2 * b + 1] = c + (c * cm - s * sd);
+            tr[2 * 0] = s + (s * cm + c * sd);
+            tr[2 * 0 + 1] = c + (c * cm - s * sd);
         } else {
-            base[3 * b] = a;
-            tr[2 * b] = base[3 * b + 1] = sin(a);
-            tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+            base[3 * 0] = a;
+            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
+            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+        }
+    }
+    {
+        const slider_pendulum_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        if (fabs(d) <= 0.0625) {
+            const slider_pendulum_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
+            const slider_pendulum_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
+            const slider_pendulum_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
+            tr[2 * 1] = s + (s * cm + c * sd);
+            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+        } else {
+            base[3 * 1] = a;
+            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
+            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
         }
     }
 }
@@ -145,12 +158,21 @@ static void slider_pendulum_trig_near(const slider_pendulum_real *q, slider_pend
    trig_near does. */
 static void slider_pendulum_trig_step(const slider_pendulum_real *q, const slider_pendulum_real *dq, slider_pendulum_real *tr, slider_pendulum_real *base)
 {
-    int b;
-    for (b = 0; b < 2; ++b) {
-        const slider_pendulum_real d = -dq[3 * b + 2], s = tr[2 * b], c = tr[2 * b + 1];
+    {
+        const slider_pendulum_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * b] = s + c * d;
-            tr[2 * b + 1] = c - s * d;
+            tr[2 * 0] = s + c * d;
+            tr[2 * 0 + 1] = c - s * d;
+        } else {
+            slider_pendulum_trig_near(q, tr, base);
+            return;
+        }
+    }
+    {
+        const slider_pendulum_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
+            tr[2 * 1] = s + c * d;
+            tr[2 * 1 + 1] = c - s * d;
         } else {
             slider_pendulum_trig_near(q, tr, base);
             return;
@@ -619,49 +641,188 @@ static void slider_pendulum_solve_t(const slider_pendulum_real *work, const int 
     else slider_pendulum_sparse_solve_t(work + SLIDER_PENDULUM_OFF_LU, b, x);
 }
 
-/* max |v_k|, NaN if any v_k is NaN (so that a NaN residual never passes).
-   Four running maxima and sums: one chain would wait on each comparison. */
-static slider_pendulum_real slider_pendulum_maxabs(const slider_pendulum_real *v, int n)
+
+/* Whether everything the trajectory's instant computed is finite (what
+   finite checks), over 1 block(s): the groups the row holds side by side are
+   one. First the plain sum of the values: a sum with an inf or NaN among its
+   terms is inf or NaN, so a finite sum clears them all at one add a value.
+   Else (a non-finite value, or finite ones whose sum overflowed) the exact
+   test of allfinite: v * 0 is 0 for a finite v and NaN otherwise, and a sum
+   of zeros and NaNs is NaN iff one is. */
+static int slider_pendulum_row_finite(const slider_pendulum_real *row, const slider_pendulum_real *qn, const slider_pendulum_real *qdn, const slider_pendulum_real *qddn,
+                              const slider_pendulum_real *lam, const slider_pendulum_real *reac)
 {
-    slider_pendulum_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
-                                     an overflow of k once n is a constant */
-    int k;
-    for (k = 0; k < whole; k += 4) {
-        const slider_pendulum_real a0 = fabs(v[k]), a1 = fabs(v[k + 1]), a2 = fabs(v[k + 2]), a3 = fabs(v[k + 3]);
-        m0 = a0 > m0 ? a0 : m0;
-        m1 = a1 > m1 ? a1 : m1;
-        m2 = a2 > m2 ? a2 : m2;
-        m3 = a3 > m3 ? a3 : m3;
-        s0 += a0;
-        s1 += a1;
-        s2 += a2;
-        s3 += a3;
-    }
-    for (; k < n; ++k) {
-        const slider_pendulum_real a = fabs(v[k]);
-        m0 = a > m0 ? a : m0;
-        s0 += a;
-    }
+    slider_pendulum_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
+    s0 += row[1];
+    s1 += row[2];
+    s2 += row[3];
+    s3 += row[4];
+    s0 += row[5];
+    s1 += row[6];
+    s2 += row[7];
+    s3 += row[8];
+    s0 += row[9];
+    s1 += row[10];
+    s2 += row[11];
+    s3 += row[12];
+    s0 += row[13];
+    s1 += row[14];
+    s2 += row[15];
+    s3 += row[16];
+    s0 += row[17];
+    s1 += row[18];
+    s2 += row[19];
+    s3 += row[20];
+    s0 += row[21];
+    s1 += row[22];
+    s2 += row[23];
+    s3 += row[24];
+    s0 += row[25];
+    s1 += row[26];
+    s2 += row[27];
+    s3 += row[28];
+    s0 += row[29];
+    s1 += row[30];
+    s2 += row[31];
+    s3 += row[32];
+    s0 += row[33];
+    s1 += row[34];
+    s2 += row[35];
+    s3 += row[36];
+    s0 += row[37];
+    s1 += row[38];
+    s2 += row[39];
+    s3 += row[40];
+    s0 += row[41];
+    s1 += row[42];
+    s2 += row[43];
+    s3 += row[44];
+    s0 += row[45];
+    s1 += row[46];
+    s2 += row[47];
+    s3 += row[48];
+    s0 += row[49];
+    s1 += row[50];
+    s2 += row[51];
+    s3 += row[52];
+    s0 += row[53];
+    s1 += row[54];
+    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
+    s0 = s1 = s2 = s3 = 0.0;
+    s0 += row[1] * 0.0;
+    s1 += row[2] * 0.0;
+    s2 += row[3] * 0.0;
+    s3 += row[4] * 0.0;
+    s0 += row[5] * 0.0;
+    s1 += row[6] * 0.0;
+    s2 += row[7] * 0.0;
+    s3 += row[8] * 0.0;
+    s0 += row[9] * 0.0;
+    s1 += row[10] * 0.0;
+    s2 += row[11] * 0.0;
+    s3 += row[12] * 0.0;
+    s0 += row[13] * 0.0;
+    s1 += row[14] * 0.0;
+    s2 += row[15] * 0.0;
+    s3 += row[16] * 0.0;
+    s0 += row[17] * 0.0;
+    s1 += row[18] * 0.0;
+    s2 += row[19] * 0.0;
+    s3 += row[20] * 0.0;
+    s0 += row[21] * 0.0;
+    s1 += row[22] * 0.0;
+    s2 += row[23] * 0.0;
+    s3 += row[24] * 0.0;
+    s0 += row[25] * 0.0;
+    s1 += row[26] * 0.0;
+    s2 += row[27] * 0.0;
+    s3 += row[28] * 0.0;
+    s0 += row[29] * 0.0;
+    s1 += row[30] * 0.0;
+    s2 += row[31] * 0.0;
+    s3 += row[32] * 0.0;
+    s0 += row[33] * 0.0;
+    s1 += row[34] * 0.0;
+    s2 += row[35] * 0.0;
+    s3 += row[36] * 0.0;
+    s0 += row[37] * 0.0;
+    s1 += row[38] * 0.0;
+    s2 += row[39] * 0.0;
+    s3 += row[40] * 0.0;
+    s0 += row[41] * 0.0;
+    s1 += row[42] * 0.0;
+    s2 += row[43] * 0.0;
+    s3 += row[44] * 0.0;
+    s0 += row[45] * 0.0;
+    s1 += row[46] * 0.0;
+    s2 += row[47] * 0.0;
+    s3 += row[48] * 0.0;
+    s0 += row[49] * 0.0;
+    s1 += row[50] * 0.0;
+    s2 += row[51] * 0.0;
+    s3 += row[52] * 0.0;
+    s0 += row[53] * 0.0;
+    s1 += row[54] * 0.0;
+    return (s0 + s1) + (s2 + s3) == 0.0;
+}
+
+/* max |v_k| over 6 values, NaN if any v_k is NaN (so that a NaN residual
+   never passes). Four running maxima and sums: one chain would wait on each
+   comparison. */
+static slider_pendulum_real slider_pendulum_maxabs6(const slider_pendulum_real *v)
+{
+    slider_pendulum_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    a = fabs(v[0]);
+    m0 = a > m0 ? a : m0;
+    s0 += a;
+    a = fabs(v[1]);
+    m1 = a > m1 ? a : m1;
+    s1 += a;
+    a = fabs(v[2]);
+    m2 = a > m2 ? a : m2;
+    s2 += a;
+    a = fabs(v[3]);
+    m3 = a > m3 ? a : m3;
+    s3 += a;
+    a = fabs(v[4]);
+    m0 = a > m0 ? a : m0;
+    s0 += a;
+    a = fabs(v[5]);
+    m1 = a > m1 ? a : m1;
+    s1 += a;
     m0 = SLIDER_PENDULUM_MAX(SLIDER_PENDULUM_MAX(m0, m1), SLIDER_PENDULUM_MAX(m2, m3));
     s0 += s1 + s2 + s3;
     return s0 == s0 ? m0 : s0;
 }
 
-/* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabs does. dq is
+/* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
    left holding the change each coordinate took, old - new: far from the
    origin that differs from dq by a rounding of q, which sin and cos of the
    new angle must see (the subtraction is exact for steps under half the
    coordinate, and within a rounding of the step otherwise). */
 static slider_pendulum_real slider_pendulum_correct(slider_pendulum_real *q, slider_pendulum_real *dq)
 {
-    const slider_pendulum_real step = slider_pendulum_maxabs(dq, 6);
-    int k;
-    for (k = 0; k < 6; ++k) {
-        const slider_pendulum_real old = q[k];
-        q[k] = old - dq[k];
-        dq[k] = old - q[k];
-    }
+    const slider_pendulum_real step = slider_pendulum_maxabs6(dq);
+    slider_pendulum_real old;
+    old = q[0];
+    q[0] = old - dq[0];
+    dq[0] = old - q[0];
+    old = q[1];
+    q[1] = old - dq[1];
+    dq[1] = old - q[1];
+    old = q[2];
+    q[2] = old - dq[2];
+    dq[2] = old - q[2];
+    old = q[3];
+    q[3] = old - dq[3];
+    dq[3] = old - q[3];
+    old = q[4];
+    q[4] = old - dq[4];
+    dq[4] = old - q[4];
+    old = q[5];
+    q[5] = old - dq[5];
+    dq[5] = old - q[5];
     return step;
 }
 
@@ -684,10 +845,10 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
     if (reuse) slider_pendulum_trig_near(q, tr, base);
     else slider_pendulum_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
-    qmag = SLIDER_PENDULUM_MAX(1.0, slider_pendulum_maxabs(q, 6));
+    qmag = SLIDER_PENDULUM_MAX(1.0, slider_pendulum_maxabs6(q));
     lim = SLIDER_PENDULUM_MAX(tol, 8.0 * SLIDER_PENDULUM_EPS * qmag);
     slider_pendulum_phi_k(q, tr, t, p, r);
-    rmax = slider_pendulum_maxabs(r, 6);
+    rmax = slider_pendulum_maxabs6(r);
     for (it = 0;; ++it) {
         if (!isfinite(rmax)) {
             /* at the guess: an expression of the constraints left its domain
@@ -721,7 +882,7 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
             break;
         }
         slider_pendulum_phi_k(q, tr, t, p, r);
-        rmax = slider_pendulum_maxabs(r, 6);
+        rmax = slider_pendulum_maxabs6(r);
     }
     info[0] = it;
     info[1] = *dense;
@@ -739,14 +900,18 @@ static void slider_pendulum_outputs(slider_pendulum_real t, const slider_pendulu
                             slider_pendulum_real *lam, slider_pendulum_real *reactions, slider_pendulum_real *work, const int *iwork, int dense)
 {
     slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2), *b = SLIDER_PENDULUM_VEC(work, 3);
-    int k;
     slider_pendulum_nu_k(q, tr, t, p, b);
     slider_pendulum_solve(work, iwork, dense, b, qd, y);
     slider_pendulum_gamma_k(q, tr, qd, t, p, b);
     slider_pendulum_solve(work, iwork, dense, b, qdd, y);
     slider_pendulum_applied_k(q, tr, qd, t, p, b);
     slider_pendulum_mass_k(p, y);
-    for (k = 0; k < 6; ++k) b[k] -= y[k] * qdd[k];
+    b[0] -= y[0] * qdd[0];
+    b[1] -= y[1] * qdd[1];
+    b[2] -= y[2] * qdd[2];
+    b[3] -= y[3] * qdd[3];
+    b[4] -= y[4] * qdd[4];
+    b[5] -= y[5] * qdd[5];
     slider_pendulum_solve_t(work, iwork, dense, b, lam);
     slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
 }
@@ -783,6 +948,20 @@ static int slider_pendulum_finite(const slider_pendulum_real *q, const slider_pe
         ;
 }
 
+/* Write the trajectory state's history from where the instants left it:
+   the rows of this call (or state itself, for instants of an earlier call).
+   Oldest first: a slot is written only after the slots copied from it. */
+static void slider_pendulum_keep(slider_pendulum_real *state, const slider_pendulum_real *q, const slider_pendulum_real *qd, const slider_pendulum_real *qdd,
+                         const slider_pendulum_real *m1, const slider_pendulum_real *m2, const slider_pendulum_real *m3)
+{
+    if (m3 != state + 30) memcpy(state + 30, m3, sizeof(slider_pendulum_real) * 6);
+    if (m2 != state + 24) memcpy(state + 24, m2, sizeof(slider_pendulum_real) * 6);
+    if (m1 != state + 18) memcpy(state + 18, m1, sizeof(slider_pendulum_real) * 6);
+    if (qdd != state + 12) memcpy(state + 12, qdd, sizeof(slider_pendulum_real) * 6);
+    if (qd != state + 6) memcpy(state + 6, qd, sizeof(slider_pendulum_real) * 6);
+    if (q != state + 0) memcpy(state + 0, q, sizeof(slider_pendulum_real) * 6);
+}
+
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
    explain: the cubic Hermite h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 misses
    it by more than JUMP_FLOOR and UNEXPLAINED times the motion (max_k |.| c_k;
@@ -791,14 +970,33 @@ static int slider_pendulum_unexplained(const slider_pendulum_real *q0, const sli
                                const slider_pendulum_real *qd1, const slider_pendulum_real *qdd1, slider_pendulum_real h, const slider_pendulum_real *c)
 {
     const slider_pendulum_real half = 0.5 * h, hh = h * h / 12.0;
-    slider_pendulum_real mismatch = 0.0, motion = 0.0;
-    int k;
-    for (k = 0; k < 6; ++k) {
-        const slider_pendulum_real d = q1[k] - q0[k];
-        mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[k] + qd1[k]) - hh * (qdd0[k] - qdd1[k])) * c[k]);
-        motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[k]);
-    }
-    return mismatch > 1e-07 && !(mismatch <= 0.5 * motion);
+    slider_pendulum_real mismatch = 0.0, motion = 0.0, d;
+    d = q1[0] - q0[0];
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    d = q1[1] - q0[1];
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    d = q1[2] - q0[2];
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    d = q1[3] - q0[3];
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    d = q1[4] - q0[4];
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    d = q1[5] - q0[5];
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    d = q1[0] - q0[0];
+    motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[0]);
+    d = q1[1] - q0[1];
+    motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[1]);
+    d = q1[2] - q0[2];
+    motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[2]);
+    d = q1[3] - q0[3];
+    motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[3]);
+    d = q1[4] - q0[4];
+    motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[4]);
+    d = q1[5] - q0[5];
+    motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[5]);
+    return !(mismatch <= 0.5 * motion);
 }
 
 int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *q, slider_pendulum_real *qd, slider_pendulum_real *qdd,
@@ -835,13 +1033,15 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
                        slider_pendulum_real *rows, long *solved, slider_pendulum_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
-       two positions) before it, count */
+       two positions) before it, count; q .. m3 point at them: in state, or,
+       once this call has solved them, where it solved them (checks.rolling) */
     slider_pendulum_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
     slider_pendulum_real *qd, *qdd, *m3, *scale;
     long i, unused;
-    int k, status, info[2], dense = 0;
+    int status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
     *solved = 0;
+    status = SLIDER_PENDULUM_OK;
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return SLIDER_PENDULUM_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
@@ -863,41 +1063,50 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4)
-            for (k = 0; k < 6; ++k)
-                qn[k] = q[k] + h * (qd[k] + h * ((323.0 / 360.0) * qdd[k] - (264.0 / 360.0) * m1[k]
-                                                 + (159.0 / 360.0) * m2[k] - (38.0 / 360.0) * m3[k]));
-        else if (*count >= 1)
-            for (k = 0; k < 6; ++k) qn[k] = q[k] + h * (qd[k] + 0.5 * h * qdd[k]);
-        else
+        if (*count >= 4) {
+            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
+                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
+            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
+                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
+            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
+                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
+            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
+                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
+            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
+                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
+            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
+                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
+        } else if (*count >= 1) {
+            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
+            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
+            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
+            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
+            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
+            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
+        } else
             memcpy(qn, q, sizeof(slider_pendulum_real) * 6);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = slider_pendulum_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != SLIDER_PENDULUM_OK) {
-            *solved = i;
-            return status;
-        }
+        if (status != SLIDER_PENDULUM_OK) break;
         slider_pendulum_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!slider_pendulum_finite(qn, qdn, qddn, lam, reac)) {
-            *solved = i;
-            return SLIDER_PENDULUM_NONFINITE;
+        if (!slider_pendulum_row_finite(row, qn, qdn, qddn, lam, reac)) {
+            status = SLIDER_PENDULUM_NONFINITE;
+            break;
         }
         if (*count >= 1 && slider_pendulum_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
-            *solved = i;
-            return SLIDER_PENDULUM_UNEXPLAINED;
+            status = SLIDER_PENDULUM_UNEXPLAINED;
+            break;
         }
-        memcpy(m3, m2, sizeof(slider_pendulum_real) * 6);
-        memcpy(m2, m1, sizeof(slider_pendulum_real) * 6);
-        memcpy(m1, qdd, sizeof(slider_pendulum_real) * 6);
-        memcpy(qd, qdn, sizeof(slider_pendulum_real) * 6);
-        memcpy(qdd, qddn, sizeof(slider_pendulum_real) * 6);
-        memcpy(q, qn, sizeof(slider_pendulum_real) * 6);
+        /* the history stays where it was solved, in the rows (state is written when the call ends) */
+        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = n;
-    return SLIDER_PENDULUM_OK;
+    *solved = i;
+    slider_pendulum_keep(state, q, qd, qdd, m1, m2, m3);
+    return status;
 }
 
 /* ---- The sweep: K variants, their figures accumulated as instants are solved ---- */
