@@ -83,6 +83,8 @@ def _table_lu_flops(source: str, prefix: str) -> float:
     steps, below, right, above = (_macro(source, prefix, k) for k in ("STEPS", "BELOW", "RIGHT", "ABOVE"))
     m = re.search(rf"{prefix}_lu_update\[(\d+)\] = ", source)
     updates = int(m.group(1)) if m and "_lu_update[1] = { 0 }" not in source else 0
+    if f"{prefix.upper()}_LU_UPDATES " in source:  # the same plan as runs of code (c_lu_runs)
+        updates = _macro(source, prefix, "UPDATES")
     factor = 3 * below + 2 * steps + 2 * updates
     solve = 2 * below + 3 * right + steps
     solve_t = 3 * above + steps + 2 * below
@@ -100,7 +102,7 @@ def count_flops(source: str, prefix: str) -> float:
         if loop:
             ops += (int(loop.group(1)) - 1) * _ops(loop.group(2))
         per[name] = per.get(name, 0.0) + ops
-    tabled = f"{prefix}_lu_update[" in source
+    tabled = f"{prefix}_lu_update[" in source or f"{prefix.upper()}_LU_UPDATES " in source
     return (sum(per.get(name, 0.0) * k for name, k in PER_INSTANT.items() if not (tabled and "sparse" in name))
             + (_table_lu_flops(source, prefix) if tabled else 0.0))
 
@@ -140,6 +142,7 @@ def child(n: int, form: str, instants: int, folder: Path) -> dict[str, Any]:
         "flops_per_instruction": round((flops + vector) / instructions, 3) if instructions else None,
         "gflops_with_vector_work": round((flops + vector) / (us * 1e3), 3) if us else None,
         "n": n, "form": form, "looped": "_L0_body" in source.read_text(), "lu_tables": "_lu_update[" in source.read_text(),
+        "lu_runs": "_LU_UPDATES " in source.read_text(),
         "source_kb": round(source.stat().st_size / 1024, 1),
         "text_kb": round(_text_bytes(so) / 1024, 1) if so.is_file() else None,
         "flops_per_instant": flops,

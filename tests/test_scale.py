@@ -139,7 +139,7 @@ def test_looped_kernels_agree_with_reference(looped: None, no_dense_fallback: No
     assert "phi_q 2" in "\n".join(f"{fn['name']} {len(fn['loops'])}" for fn in ctx["functions"])
     assert "reactions 2" in "\n".join(f"{fn['name']} {len(fn['loops'])}" for fn in ctx["functions"])
     source = c_target.render("c/solver.c.j2", **ctx)
-    assert "_lu_update[" in source and "symid_looped_output" not in source
+    assert "_LU_UPDATES " in source and "symid_looped_output" not in source  # the LU as runs (c_lu_runs)
     got = api.solve(mech, backend="c")
     expected = api.solve(mech, backend="reference")
     assert got.error is None and got.columns == expected.columns

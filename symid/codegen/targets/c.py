@@ -13,6 +13,7 @@ from symid.codegen.hoist import hoist
 from symid.codegen.targets import c_fallback, c_loops, c_phase
 from symid.codegen.targets.c_loops import Loops
 from symid.codegen.targets.c_lu import lu_chunks  # noqa: F401 (tests build chunks through c)
+from symid.codegen.targets.c_lu_runs import lu_runs
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
 from symid.codegen.targets import c_sens, c_sweep
@@ -78,8 +79,13 @@ def _lu(model: CodeModel, fold_constants: bool, scalar: Scalar) -> dict[str, Any
     """The sparse LU's context: straight-line code (sparse_lu.j2), or index
     tables (sparse_lu_tables.j2) from LU_TABLES_MIN coordinates."""
     if model.flat.ng < LU_TABLES_MIN:
-        return {"lu_tables": None, **lu_chunks(model.plan, _known(model, fold_constants), model.flat.name.upper(), scalar)}
-    return {"lu_tables": lu_tables(model.plan), "known_reciprocals": None,
+        return {"lu_tables": None, "lu_runs": None, **lu_chunks(model.plan, _known(model, fold_constants), model.flat.name.upper(), scalar)}
+    tables = lu_tables(model.plan)
+    o = model.flat.options
+    runs = (None if model.plan.singular else
+            lu_runs(tables, o.multipliers, scalar.fn("fabs"), model.flat.name.upper(),
+                    scalar.suffix))
+    return {"lu_tables": tables, "lu_runs": runs, "known_reciprocals": None,
             "pivot_slots": [model.plan.slots[(st.row, st.col)] for st in model.plan.steps]}
 
 
