@@ -91,17 +91,32 @@ def _table_lu_flops(source: str, prefix: str) -> float:
     return factor + 3 * solve + solve_t
 
 
+_FOR = re.compile(r"for \((\w) = 0; \1 < (\d+); \+\+\1\) \{")
+
+
+def _looped_ops(body: str) -> float:
+    """A function's operations, each statement's times the trip counts of
+    the fixed-count loops around it (a looped kernel's loop over members,
+    or its runs of members: `for (m = 0; m < 1024; ++m) {`)."""
+    total, trips = 0.0, [1]  # trips: the product of the trip counts per open brace
+    for line in body.splitlines():
+        loop = _FOR.search(line)
+        total += trips[-1] * _ops(line)
+        for ch in line:
+            if ch == "{":
+                trips.append(trips[-1] * (int(loop.group(2)) if loop else 1))
+                loop = None
+            elif ch == "}" and len(trips) > 1:
+                trips.pop()
+    return total
+
+
 def count_flops(source: str, prefix: str) -> float:
     """Floating-point operations of one instant, counted in the generated source."""
     per: dict[str, float] = {}
     for m in re.finditer(rf"^static (?:void|int) {prefix}_(\w+?)(?:_k\d+|_L\d+|\d+)?\((.*?)^}}", source,
                          re.S | re.M):
-        name, body = m.group(1), m.group(2)
-        loop = re.search(r"for \(m = 0; m < (\d+); \+\+m\) \{(.*)", body, re.S)
-        ops = _ops(body)
-        if loop:
-            ops += (int(loop.group(1)) - 1) * _ops(loop.group(2))
-        per[name] = per.get(name, 0.0) + ops
+        per[m.group(1)] = per.get(m.group(1), 0.0) + _looped_ops(m.group(2))
     tabled = f"{prefix}_lu_update[" in source or f"{prefix.upper()}_LU_UPDATES " in source
     return (sum(per.get(name, 0.0) * k for name, k in PER_INSTANT.items() if not (tabled and "sparse" in name))
             + (_table_lu_flops(source, prefix) if tabled else 0.0))

@@ -1,7 +1,8 @@
-"""The tabled sparse LU emitted as runs of straight-line code (c_lu_runs):
-the runs are found where the statements repeat with fixed strides, they
-keep every statement in its order, and the solver built from them gives
-bitwise the results of the index-table form."""
+"""The tabled sparse LU and the looped kernels emitted as runs of
+straight-line code (c_lu_runs, c_loop_runs): the runs are found where the
+statements repeat with fixed strides, they keep every statement in its
+order, and the solver built from them gives bitwise the results of the
+index-table form."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import pytest
 from symid import api
 from symid.codegen.model import code_model
 from symid.codegen.targets import c as c_target
-from symid.codegen.targets import c_loops, c_lu_runs
+from symid.codegen.targets import c_loop_runs, c_loops, c_lu_runs
 from symid.codegen.targets.c_lu_runs import Run, segments
 from symid.io.reader import loads
 
@@ -70,10 +71,12 @@ def test_a_stride_that_changes_ends_the_run() -> None:
 
 def _solve(mech_text: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, literal_max: int) -> np.ndarray:
     monkeypatch.setattr(c_lu_runs, "LITERAL_MAX", literal_max)
+    monkeypatch.setattr(c_loop_runs, "LITERAL_MAX", literal_max)
     monkeypatch.setenv("SYMID_CACHE", str(tmp_path / f"cache{literal_max}"))
     mech = loads(mech_text, "ladder_10.toml")
     source = c_target.render("c/solver.c.j2", **c_target.context(code_model(mech, looped=True)))
     assert ("_LU_UPDATES " in source) == (literal_max >= 0) and "_lu_" in source
+    assert ("_L1_body[" in source) == (literal_max < 0) and "_L1(" in source
     got = api.solve(mech, backend="c")
     assert got.error is None
     return got.data
@@ -81,9 +84,10 @@ def _solve(mech_text: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, lite
 
 @needs_cc
 def test_lu_runs_give_bitwise_the_tables_results(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    """A ladder of 10 with its LU tabled (LU_TABLES_MIN 0): the runs' solver
-    and the index tables' solver (runs refused: LITERAL_MAX -1) agree to the
-    bit in every column, multipliers and reactions included."""
+    """A ladder of 10 with its revolutes looped and its LU tabled (LOOP_MIN,
+    LU_TABLES_MIN 0): the solver with the LU and the loops as runs and the
+    one with index tables (runs refused: LITERAL_MAX -1) agree to the bit in
+    every column, multipliers and some reactions included."""
     monkeypatch.setattr(c_loops, "LOOP_MIN", 0)
     monkeypatch.setattr(c_target, "LU_TABLES_MIN", 0)
     text = ladder.toml(ladder.Ladder(10, x0=0.3), steps=30).replace(

@@ -56,7 +56,7 @@ def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
     with_trig = any(a == "q" for _, a in args)
     kernel_args = args[:1] + [(f"const {real} *", "tr")] + args[1:] if with_trig else args
     mapped = [e.xreplace(trig) for e in exprs] if with_trig else list(exprs)
-    looped = loops.kernels(name, [a for _, a in kernel_args], printer) if loops else []
+    looped = loops.kernels(name, [a for _, a in kernel_args], printer, real) if loops else []
     codes: list[Block] = (c_loops.remaining(mapped, loops.covered(name), printer) if loops and looped
                           else blocks(mapped, printer))
 
