@@ -21,7 +21,7 @@ PMAX = 64          # longest period looked for, in statements
 MIN_REPEATS = 4    # fewer periods: the statements are emitted one by one
 LITERAL_MAX = 2000  # statements outside runs past which the tables stay
 
-Op = tuple[str, tuple[int, ...]]  # (C text with {0}, {1}... for its indices, the indices)
+Op = tuple[str, tuple[float, ...]]  # (C text with {0}, {1}... for its indices, the indices)
 
 
 @dataclass(frozen=True)
@@ -29,21 +29,21 @@ class Run:
     """count periods of body; period r's indices are base + r * stride."""
 
     body: tuple[Op, ...]
-    strides: tuple[tuple[int, ...], ...]
+    strides: tuple[tuple[float, ...], ...]
     count: int
 
 
 Segment = Run | Op
 
 
-def _diff(a: Op, b: Op) -> tuple[int, ...] | None:
+def _diff(a: Op, b: Op) -> tuple[float, ...] | None:
     """b's indices minus a's, where the two are the same statement."""
     if a[0] != b[0]:
         return None
     return tuple(y - x for x, y in zip(a[1], b[1]))
 
 
-def _repeats(ops: Sequence[Op], i: int, p: int) -> tuple[int, tuple[tuple[int, ...], ...]]:
+def _repeats(ops: Sequence[Op], i: int, p: int) -> tuple[int, tuple[tuple[float, ...], ...]]:
     """How many periods of length p repeat from ops[i] with fixed strides."""
     n = len(ops)
     if i + 2 * p > n:
@@ -69,7 +69,7 @@ def segments(ops: Sequence[Op], pmax: int = PMAX, min_repeats: int = MIN_REPEATS
     out: list[Segment] = []
     i, n = 0, len(ops)
     while i < n:
-        best: tuple[int, int, tuple[tuple[int, ...], ...]] = (0, 0, ())
+        best: tuple[int, int, tuple[tuple[float, ...], ...]] = (0, 0, ())
         for p in range(1, min(pmax, (n - i) // min_repeats) + 1):
             if best[1] and p % best[1] == 0:
                 continue  # a multiple of a period found covers no more
@@ -90,7 +90,7 @@ def literal_count(segs: Sequence[Segment]) -> int:
     return sum(1 for s in segs if not isinstance(s, Run))
 
 
-def _index(base: int, stride: int) -> str:
+def _index(base: float, stride: float) -> str:
     if stride == 0:
         return str(base)
     return f"{base} + {stride} * r" if stride > 0 else f"{base} - {-stride} * r"
