@@ -2,7 +2,8 @@
 
 Per ladder and code form (`auto`: symid's own limits; `unrolled`: straight-line
 code; `looped`: family loops, straight-line LU; `compact`: family loops and
-the LU on index tables), in a fresh process and a fresh
+the LU on index tables; `before_runs`: auto with no runs, the code as it was
+before c_lu_runs and c_loop_runs), in a fresh process and a fresh
 cache: cold setup split by stage (derive, generate, compile; see
 `symid.tools.bench`), the process's peak memory (the Python process's and,
 separately, the largest compiler process's), the generated source and
@@ -45,7 +46,7 @@ ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "results" / "scale.json"
 # (LOOP_MIN, LU_TABLES_MIN) per code form; auto: symid's own limits
 FORMS: dict[str, tuple[int, int] | None] = {"auto": None, "unrolled": (10 ** 9, 10 ** 9), "looped": (0, 10 ** 9),
-                                            "compact": (0, 0)}
+                                            "compact": (0, 0), "before_runs": None}
 
 # what one instant of the trajectory loop calls, per generated function
 PER_INSTANT = {"phi": 2, "phi_q": 1, "sparse_factor": 1, "sparse_forward": 3, "sparse_back": 3,
@@ -138,6 +139,10 @@ def child(n: int, form: str, instants: int, folder: Path) -> dict[str, Any]:
     limits = FORMS[form]
     if limits is not None:
         c_loops.LOOP_MIN, c.LU_TABLES_MIN = limits
+    if form == "before_runs":  # auto, as before the runs (c_lu_runs, c_loop_runs): tables and straight-line code
+        from symid.codegen.targets import c_loop_runs, c_lu_runs
+        c_lu_runs.LITERAL_MAX = c_loop_runs.LITERAL_MAX = -1
+        c.rolled = lambda passes: None  # type: ignore[assignment]
     path = ladder.write(n, folder / "mech", steps=1001)
     os.environ["SYMID_CACHE"] = str(folder / "cache")
     result = bench(path, "c", instants=instants, cold=False, budget_s=20.0)

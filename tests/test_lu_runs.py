@@ -69,28 +69,39 @@ def test_a_stride_that_changes_ends_the_run() -> None:
     assert _expand(segs) == ops
 
 
-def _solve(mech_text: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, literal_max: int) -> np.ndarray:
+# how each form is asked for: (LU_TABLES_MIN, runs' LITERAL_MAX, the folded LU rolled), and what its source shows
+FORMS = {
+    "straight": (10 ** 9, -1, False, "_sparse_factor0("),
+    "rolled": (10 ** 9, c_lu_runs.LITERAL_MAX, True, "int r;"),
+    "tables": (0, -1, False, "_lu_update["),
+    "table runs": (0, c_lu_runs.LITERAL_MAX, False, "_LU_UPDATES "),
+}
+
+
+def _solve(mech_text: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, form: str) -> np.ndarray:
+    tables_min, literal_max, roll, shows = FORMS[form]
+    monkeypatch.setattr(c_target, "LU_TABLES_MIN", tables_min)
     monkeypatch.setattr(c_lu_runs, "LITERAL_MAX", literal_max)
     monkeypatch.setattr(c_loop_runs, "LITERAL_MAX", literal_max)
-    monkeypatch.setenv("SYMID_CACHE", str(tmp_path / f"cache{literal_max}"))
+    monkeypatch.setattr(c_target, "rolled", c_lu_runs.rolled if roll else lambda passes: None)
+    monkeypatch.setenv("SYMID_CACHE", str(tmp_path / form.replace(" ", "_")))
     mech = loads(mech_text, "ladder_10.toml")
     source = c_target.render("c/solver.c.j2", **c_target.context(code_model(mech, looped=True)))
-    assert ("_LU_UPDATES " in source) == (literal_max >= 0) and "_lu_" in source
-    assert ("_L1_body[" in source) == (literal_max < 0) and "_L1(" in source
+    assert shows in source and ("_L1_body[" in source) == (literal_max < 0)
     got = api.solve(mech, backend="c")
     assert got.error is None
     return got.data
 
 
 @needs_cc
-def test_lu_runs_give_bitwise_the_tables_results(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    """A ladder of 10 with its revolutes looped and its LU tabled (LOOP_MIN,
-    LU_TABLES_MIN 0): the solver with the LU and the loops as runs and the
-    one with index tables (runs refused: LITERAL_MAX -1) agree to the bit in
+def test_lu_and_loop_forms_give_bitwise_the_same_results(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """A ladder of 10 with its revolutes looped (LOOP_MIN 0): the folded
+    straight-line LU, the same rolled into runs, the index tables and the
+    tables as runs (loops as runs or on tables alike) agree to the bit in
     every column, multipliers and some reactions included."""
     monkeypatch.setattr(c_loops, "LOOP_MIN", 0)
-    monkeypatch.setattr(c_target, "LU_TABLES_MIN", 0)
     text = ladder.toml(ladder.Ladder(10, x0=0.3), steps=30).replace(
         'kind = "inverse_dynamics"', 'kind = "inverse_dynamics"\nreactions = ["pivot3", "left2", "motor"]')
-    runs, tables = (_solve(text, monkeypatch, tmp_path, k) for k in (c_lu_runs.LITERAL_MAX, -1))
-    assert runs.shape == tables.shape and np.array_equal(runs, tables)
+    results = {form: _solve(text, monkeypatch, tmp_path, form) for form in FORMS}
+    for form, data in results.items():
+        assert data.shape == results["straight"].shape and np.array_equal(data, results["straight"]), form

@@ -13,7 +13,7 @@ from symid.codegen.hoist import hoist
 from symid.codegen.targets import c_fallback, c_loops, c_phase
 from symid.codegen.targets.c_loops import Loops
 from symid.codegen.targets.c_lu import lu_chunks  # noqa: F401 (tests build chunks through c)
-from symid.codegen.targets.c_lu_runs import lu_runs
+from symid.codegen.targets.c_lu_runs import lu_runs, rolled
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
 from symid.codegen.targets import c_sens, c_sweep
@@ -76,15 +76,21 @@ LU_TABLES_MIN = 1000
 
 
 def _lu(model: CodeModel, fold_constants: bool, scalar: Scalar) -> dict[str, Any]:
-    """The sparse LU's context: straight-line code (sparse_lu.j2), or index
-    tables (sparse_lu_tables.j2) from LU_TABLES_MIN coordinates."""
-    if model.flat.ng < LU_TABLES_MIN:
-        return {"lu_tables": None, "lu_runs": None, **lu_chunks(model.plan, _known(model, fold_constants), model.flat.name.upper(), scalar)}
+    """The sparse LU's context: straight-line code with the known values
+    folded (sparse_lu.j2), rolled into runs where its steps repeat
+    (c_lu_runs.rolled: a chain's code does not grow with its length);
+    past LU_TABLES_MIN coordinates where it does not roll, index tables
+    (sparse_lu_tables.j2, as runs where those repeat)."""
+    P = model.flat.name.upper()
+    if model.flat.ng < LU_TABLES_MIN or not model.plan.singular:
+        passes = lu_chunks(model.plan, _known(model, fold_constants), P, scalar)
+        # a mechanism as small as the bundled examples keeps its code as it was
+        roll = None if model.plan.singular or model.flat.ng < c_loops.LOOP_MIN else rolled(passes)
+        if roll is not None or model.flat.ng < LU_TABLES_MIN:
+            return {"lu_tables": None, "lu_runs": None, **(roll or passes)}
     tables = lu_tables(model.plan)
-    o = model.flat.options
-    runs = (None if model.plan.singular else
-            lu_runs(tables, o.multipliers, scalar.fn("fabs"), model.flat.name.upper(),
-                    scalar.suffix))
+    runs = None if model.plan.singular else lu_runs(tables, model.flat.options.multipliers, scalar.fn("fabs"), P,
+                                                    scalar.suffix)
     return {"lu_tables": tables, "lu_runs": runs, "known_reciprocals": None,
             "pivot_slots": [model.plan.slots[(st.row, st.col)] for st in model.plan.steps]}
 
@@ -255,7 +261,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "fb": None if dense_fallback(model) else c_fallback.context(model.plan, f.jac, ng),
         **c_sweep.context(model, printer, work_size(model) + npp + (sens["work"] if sens else 0),
                           fr["row_width"] if fr else offset),
-        "nb": ng // 3, "singular": model.plan.singular,
+        "nb": ng // 3, "singular": model.plan.singular, "trig_loop": ng >= LU_TABLES_MIN,
         "splines": [_relit_tables(piece_tables(s), scalar) for s in tables(used)],
         "inf": scalar.lit(float("inf")), "nan": scalar.lit(float("nan")), "real": scalar.ctype, "f": scalar.suffix,
         "eps": scalar.eps, "precision": precision,

@@ -14,6 +14,7 @@ tables are used): it does not grow with the length of a periodic chain.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -162,3 +163,39 @@ def lu_runs(t: dict[str, Any], multipliers: bool, fabs: str, P: str, f: str) -> 
     out["updates"] = len(t["update"]) if t["update_ptr"][-1] else 0
     out["runs"] = sum(1 for segs in passes.values() for s in segs if isinstance(s, Run))
     return out
+
+
+_BRACKET = re.compile(r"\[(\d+)\]")
+
+
+def _step_op(lines_: list[str]) -> Op:
+    """A step's statements as one statement: its indices (the numbers in
+    brackets) taken out; any other number (a folded known value) stays in
+    its text, so a run repeats it only where it is the same."""
+    text = "\n".join(lines_).replace("{", "{{").replace("}", "}}")
+    ints = tuple(int(k) for k in _BRACKET.findall(text))
+    counter = iter(range(len(ints)))
+    return _BRACKET.sub(lambda m: f"[{{{next(counter)}}}]", text), ints
+
+
+def rolled(passes: dict[str, Any]) -> dict[str, Any] | None:
+    """The straight-line LU's passes (c_lu.lu_chunks, known values folded)
+    as one function each of runs, where the steps repeat: the same
+    statements in the same order, so bitwise the same factors and
+    solutions. None where nothing repeats or the statements outside runs
+    pass LITERAL_MAX."""
+    out = dict(passes)
+    literal, runs = 0, 0
+    for key, steps in passes["step_lines"].items():
+        segs = segments([_step_op(ls) for ls in steps])
+        literal += literal_count(segs)
+        runs += len(segs) - literal_count(segs)
+        body = lines(segs)
+        if not body:
+            out[key] = []
+            continue
+        code = "\n".join(body)
+        has_runs = any(isinstance(s, Run) for s in segs)
+        out[key] = [{"lines": (["int r;"] if has_runs else []) + body, "lu": "lu[" in code,
+                     "piv": bool(re.search(r"\bpiv\b", code)), "cm": bool(re.search(r"\bcm\b", code))}]
+    return out if runs and literal <= LITERAL_MAX else None
