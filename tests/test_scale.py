@@ -127,9 +127,10 @@ def looped(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
 
 @needs_cc
 def test_looped_kernels_agree_with_reference(looped: None, no_dense_fallback: None, tmp_path: Path) -> None:
-    """A ladder of 12 solved by C with its revolutes looped, its LU on index
-    tables and no dense fallback: every column within 1e-12 of its peak of
-    the reference's (some reactions asked: the loops skip the others)."""
+    """A ladder of 12 solved by C with its revolutes looped, its LU rolled
+    into runs (c_lu_runs; tests/test_lu_runs.py: bitwise the tables'
+    results) and no dense fallback: every column within 1e-12 of its peak
+    of the reference's (some reactions asked: the loops skip the others)."""
     reactions = 'reactions = ["pivot3", "left2", "right5", "motor"]'
     text = ladder.toml(ladder.Ladder(12, x0=0.3), steps=25).replace('kind = "inverse_dynamics"',
                                                                     'kind = "inverse_dynamics"\n' + reactions)
@@ -139,7 +140,7 @@ def test_looped_kernels_agree_with_reference(looped: None, no_dense_fallback: No
     assert "phi_q 2" in "\n".join(f"{fn['name']} {len(fn['loops'])}" for fn in ctx["functions"])
     assert "reactions 2" in "\n".join(f"{fn['name']} {len(fn['loops'])}" for fn in ctx["functions"])
     source = c_target.render("c/solver.c.j2", **ctx)
-    assert "_LU_UPDATES " in source and "symid_looped_output" not in source  # the LU as runs (c_lu_runs)
+    assert "int r;" in source and "symid_looped_output" not in source
     got = api.solve(mech, backend="c")
     expected = api.solve(mech, backend="reference")
     assert got.error is None and got.columns == expected.columns
