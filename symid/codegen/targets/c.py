@@ -71,7 +71,10 @@ def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
 # a loaded machine (benchmarks/scale.py): at the ladder of 64 (ng 387) the
 # straight-line code, with the known values folded, is 1.6 x faster; at the
 # ladder of 256 (ng 1539) the tables are as fast or faster (the straight-line
-# code outgrows the cache) and compile 4 x faster.
+# code outgrows the cache) and compile 4 x faster. The folded code rolled into
+# runs (c_lu_runs.rolled) beats both where the steps repeat (ladder of 512:
+# LU instructions per instant 781k on tables, 140k rolled), so the tables serve
+# only a large mechanism whose steps do not repeat.
 LU_TABLES_MIN = 1000
 
 

@@ -1,6 +1,9 @@
-"""The tabled LU (c_lu_tables) as runs of straight-line code: where the
-elimination repeats with a period (a chain's bays), one period's statements
-are emitted once, in a loop whose indices step by fixed strides.
+"""The LU as runs of straight-line code: where the elimination repeats with
+a period (a chain's bays), one period's statements are emitted once, in a
+loop whose indices step by fixed strides. Two sources: the folded
+straight-line code (c_lu.lu_chunks, `rolled`: a step's statements with the
+known values folded are one statement here), and the index tables
+(c_lu_tables, `lu_runs`), used where the folded code does not roll.
 
 A table-driven step loads its indices from memory (three or four per two
 flops) and pays a loop per step of one or two entries; a run's statement
