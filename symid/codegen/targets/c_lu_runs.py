@@ -187,7 +187,7 @@ def rolled(passes: dict[str, Any]) -> dict[str, Any] | None:
     statements in the same order, so bitwise the same factors and
     solutions. None where nothing repeats or the statements outside runs
     pass LITERAL_MAX."""
-    out = dict(passes)
+    out = dict(passes, rolled=True)
     literal, runs = 0, 0
     for key, steps in passes["step_lines"].items():
         segs = segments([_step_op(ls) for ls in steps])
