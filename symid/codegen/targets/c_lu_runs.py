@@ -137,7 +137,7 @@ def _factor_ops(t: dict[str, Any], fabs: str, P: str, f: str) -> list[Op]:
 def _ops(t: dict[str, Any], multipliers: bool, fabs: str, P: str, f: str) -> dict[str, list[Op]]:
     """Each pass of the tabled LU as statements, in the tables' order."""
     nb, nr, steps = t["n_below"], t["n_right"], t["steps"]
-    out = {
+    out: dict[str, list[Op]] = {
         "factor": _factor_ops(t, fabs, P, f),
         "forward": [("y[{0}] -= lu[{1}] * y[{2}];", (t["below_row"][i], t["below_slot"][i], t["below_src"][i]))
                     for i in range(nb)],
