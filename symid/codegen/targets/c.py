@@ -90,7 +90,7 @@ def _lu(model: CodeModel, fold_constants: bool, scalar: Scalar) -> dict[str, Any
         # a mechanism as small as the bundled examples keeps its code as it was
         roll = None if model.plan.singular or model.flat.ng < c_loops.LOOP_MIN else rolled(passes)
         if roll is not None or model.flat.ng < LU_TABLES_MIN:
-            return {"lu_tables": None, "lu_runs": None, "rolled": False, **(roll or passes)}
+            return {"lu_tables": None, "lu_runs": None, **(roll or passes)}
     tables = lu_tables(model.plan)
     runs = None if model.plan.singular else lu_runs(tables, model.flat.options.multipliers, scalar.fn("fabs"), P,
                                                     scalar.suffix)

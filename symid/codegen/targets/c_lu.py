@@ -119,6 +119,7 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str, scalar: Scalar = D
         "t_forward_chunks": chunks(steps, t_forward),
         "t_back_chunks": chunks(back_order, t_back),
     }
+    passes["rolled"] = False  # c_lu_runs.rolled: the passes as runs
     passes["step_lines"] = dict(zip(("factor_chunks", "forward_chunks", "back_chunks", "t_forward_chunks",
                                      "t_back_chunks"), per_step))
     # The pivots' spread, tested as the dense fallback tests it: the threshold
