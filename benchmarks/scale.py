@@ -2,7 +2,8 @@
 
 Per ladder and code form (`auto`: symid's own limits; `unrolled`: straight-line
 code; `looped`: family loops, straight-line LU; `compact`: family loops and
-the LU on index tables), in a fresh process and a fresh
+the LU on index tables; `before_runs`: auto with no runs, the code as it was
+before c_lu_runs and c_loop_runs), in a fresh process and a fresh
 cache: cold setup split by stage (derive, generate, compile; see
 `symid.tools.bench`), the process's peak memory (the Python process's and,
 separately, the largest compiler process's), the generated source and
@@ -45,7 +46,7 @@ ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "results" / "scale.json"
 # (LOOP_MIN, LU_TABLES_MIN) per code form; auto: symid's own limits
 FORMS: dict[str, tuple[int, int] | None] = {"auto": None, "unrolled": (10 ** 9, 10 ** 9), "looped": (0, 10 ** 9),
-                                            "compact": (0, 0)}
+                                            "compact": (0, 0), "before_runs": None}
 
 # what one instant of the trajectory loop calls, per generated function
 PER_INSTANT = {"phi": 2, "phi_q": 1, "sparse_factor": 1, "sparse_forward": 3, "sparse_back": 3,
@@ -83,10 +84,32 @@ def _table_lu_flops(source: str, prefix: str) -> float:
     steps, below, right, above = (_macro(source, prefix, k) for k in ("STEPS", "BELOW", "RIGHT", "ABOVE"))
     m = re.search(rf"{prefix}_lu_update\[(\d+)\] = ", source)
     updates = int(m.group(1)) if m and "_lu_update[1] = { 0 }" not in source else 0
+    if f"{prefix.upper()}_LU_UPDATES " in source:  # the same plan as runs of code (c_lu_runs)
+        updates = _macro(source, prefix, "UPDATES")
     factor = 3 * below + 2 * steps + 2 * updates
     solve = 2 * below + 3 * right + steps
     solve_t = 3 * above + steps + 2 * below
     return factor + 3 * solve + solve_t
+
+
+_FOR = re.compile(r"for \((\w) = 0; \1 < (\d+); \+\+\1\) \{")
+
+
+def _looped_ops(body: str) -> float:
+    """A function's operations, each statement's times the trip counts of
+    the fixed-count loops around it (a looped kernel's loop over members,
+    or its runs of members: `for (m = 0; m < 1024; ++m) {`)."""
+    total, trips = 0.0, [1]  # trips: the product of the trip counts per open brace
+    for line in body.splitlines():
+        loop = _FOR.search(line)
+        total += trips[-1] * _ops(line)
+        for ch in line:
+            if ch == "{":
+                trips.append(trips[-1] * (int(loop.group(2)) if loop else 1))
+                loop = None
+            elif ch == "}" and len(trips) > 1:
+                trips.pop()
+    return total
 
 
 def count_flops(source: str, prefix: str) -> float:
@@ -94,13 +117,8 @@ def count_flops(source: str, prefix: str) -> float:
     per: dict[str, float] = {}
     for m in re.finditer(rf"^static (?:void|int) {prefix}_(\w+?)(?:_k\d+|_L\d+|\d+)?\((.*?)^}}", source,
                          re.S | re.M):
-        name, body = m.group(1), m.group(2)
-        loop = re.search(r"for \(m = 0; m < (\d+); \+\+m\) \{(.*)", body, re.S)
-        ops = _ops(body)
-        if loop:
-            ops += (int(loop.group(1)) - 1) * _ops(loop.group(2))
-        per[name] = per.get(name, 0.0) + ops
-    tabled = f"{prefix}_lu_update[" in source
+        per[m.group(1)] = per.get(m.group(1), 0.0) + _looped_ops(m.group(2))
+    tabled = f"{prefix}_lu_update[" in source or f"{prefix.upper()}_LU_UPDATES " in source
     return (sum(per.get(name, 0.0) * k for name, k in PER_INSTANT.items() if not (tabled and "sparse" in name))
             + (_table_lu_flops(source, prefix) if tabled else 0.0))
 
@@ -121,6 +139,10 @@ def child(n: int, form: str, instants: int, folder: Path) -> dict[str, Any]:
     limits = FORMS[form]
     if limits is not None:
         c_loops.LOOP_MIN, c.LU_TABLES_MIN = limits
+    if form == "before_runs":  # auto, as before the runs (c_lu_runs, c_loop_runs): tables and straight-line code
+        from symid.codegen.targets import c_loop_runs, c_lu_runs
+        c_lu_runs.LITERAL_MAX = c_loop_runs.LITERAL_MAX = -1
+        c.rolled = lambda passes: None  # type: ignore[assignment]
     path = ladder.write(n, folder / "mech", steps=1001)
     os.environ["SYMID_CACHE"] = str(folder / "cache")
     result = bench(path, "c", instants=instants, cold=False, budget_s=20.0)
@@ -140,6 +162,7 @@ def child(n: int, form: str, instants: int, folder: Path) -> dict[str, Any]:
         "flops_per_instruction": round((flops + vector) / instructions, 3) if instructions else None,
         "gflops_with_vector_work": round((flops + vector) / (us * 1e3), 3) if us else None,
         "n": n, "form": form, "looped": "_L0_body" in source.read_text(), "lu_tables": "_lu_update[" in source.read_text(),
+        "lu_runs": "_LU_UPDATES " in source.read_text(),
         "source_kb": round(source.stat().st_size / 1024, 1),
         "text_kb": round(_text_bytes(so) / 1024, 1) if so.is_file() else None,
         "flops_per_instant": flops,

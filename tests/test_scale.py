@@ -127,9 +127,10 @@ def looped(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
 
 @needs_cc
 def test_looped_kernels_agree_with_reference(looped: None, no_dense_fallback: None, tmp_path: Path) -> None:
-    """A ladder of 12 solved by C with its revolutes looped, its LU on index
-    tables and no dense fallback: every column within 1e-12 of its peak of
-    the reference's (some reactions asked: the loops skip the others)."""
+    """A ladder of 12 solved by C with its revolutes looped, its LU rolled
+    into runs (c_lu_runs; tests/test_lu_runs.py: bitwise the tables'
+    results) and no dense fallback: every column within 1e-12 of its peak
+    of the reference's (some reactions asked: the loops skip the others)."""
     reactions = 'reactions = ["pivot3", "left2", "right5", "motor"]'
     text = ladder.toml(ladder.Ladder(12, x0=0.3), steps=25).replace('kind = "inverse_dynamics"',
                                                                     'kind = "inverse_dynamics"\n' + reactions)
@@ -139,7 +140,7 @@ def test_looped_kernels_agree_with_reference(looped: None, no_dense_fallback: No
     assert "phi_q 2" in "\n".join(f"{fn['name']} {len(fn['loops'])}" for fn in ctx["functions"])
     assert "reactions 2" in "\n".join(f"{fn['name']} {len(fn['loops'])}" for fn in ctx["functions"])
     source = c_target.render("c/solver.c.j2", **ctx)
-    assert "_lu_update[" in source and "symid_looped_output" not in source
+    assert "int r;" in source and "symid_looped_output" not in source
     got = api.solve(mech, backend="c")
     expected = api.solve(mech, backend="reference")
     assert got.error is None and got.columns == expected.columns
@@ -147,16 +148,19 @@ def test_looped_kernels_agree_with_reference(looped: None, no_dense_fallback: No
 
 
 def test_looped_kernels_do_not_grow_with_the_number_of_bays(looped: None, tmp_path: Path) -> None:
-    """The looped functions' code is the same for 8 and 16 bays but for trip
-    counts and table names: only the tables grow."""
+    """The looped functions' code and the LU's are the same for 8 and 16
+    bays but for numbers (trip counts, run lengths, indices) and names: only
+    the tables grow, where there are tables (the members and the LU's steps
+    repeat as runs here)."""
     import re
 
     def loop_code(n: int) -> str:
         model = code_model(load(ladder.write(n, tmp_path / str(n))))
         c_target.generate(model, tmp_path / f"src{n}")
         text = (tmp_path / f"src{n}" / f"ladder_{n}_solver.c").read_text()
-        kernels = re.findall(r"^static void ladder_\d+_\w+_L\d+\(.*?^}", text, re.S | re.M)
-        return re.sub(r"ladder_\d+|m < \d+", "X", "\n".join(kernels))
+        kernels = re.findall(r"^static (?:void|int) ladder_\d+_(?:\w+_L\d+|sparse_\w+)\(.*?^}", text, re.S | re.M)
+        assert len(kernels) > 8
+        return re.sub(r"(?i)ladder_\d+|\b\d+\b", "X", "\n".join(kernels))
 
     small, large = loop_code(8), loop_code(16)
     assert small and small == large

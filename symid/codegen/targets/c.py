@@ -13,6 +13,7 @@ from symid.codegen.hoist import hoist
 from symid.codegen.targets import c_fallback, c_loops, c_phase
 from symid.codegen.targets.c_loops import Loops
 from symid.codegen.targets.c_lu import lu_chunks  # noqa: F401 (tests build chunks through c)
+from symid.codegen.targets.c_lu_runs import lu_runs, rolled
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
 from symid.codegen.targets import c_checks, c_sens, c_sweep
@@ -55,7 +56,7 @@ def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
     with_trig = any(a == "q" for _, a in args)
     kernel_args = args[:1] + [(f"const {real} *", "tr")] + args[1:] if with_trig else args
     mapped = [e.xreplace(trig) for e in exprs] if with_trig else list(exprs)
-    looped = loops.kernels(name, [a for _, a in kernel_args], printer) if loops else []
+    looped = loops.kernels(name, [a for _, a in kernel_args], printer, real) if loops else []
     codes: list[Block] = (c_loops.remaining(mapped, loops.covered(name), printer) if loops and looped
                           else blocks(mapped, printer))
 
@@ -70,16 +71,30 @@ def _function(name: str, args: list[tuple[str, str]], exprs: list[sp.Expr],
 # a loaded machine (benchmarks/scale.py): at the ladder of 64 (ng 387) the
 # straight-line code, with the known values folded, is 1.6 x faster; at the
 # ladder of 256 (ng 1539) the tables are as fast or faster (the straight-line
-# code outgrows the cache) and compile 4 x faster.
+# code outgrows the cache) and compile 4 x faster. The folded code rolled into
+# runs (c_lu_runs.rolled) beats both where the steps repeat (ladder of 512:
+# LU instructions per instant 781k on tables, 140k rolled), so the tables serve
+# only a large mechanism whose steps do not repeat.
 LU_TABLES_MIN = 1000
 
 
 def _lu(model: CodeModel, fold_constants: bool, scalar: Scalar) -> dict[str, Any]:
-    """The sparse LU's context: straight-line code (sparse_lu.j2), or index
-    tables (sparse_lu_tables.j2) from LU_TABLES_MIN coordinates."""
-    if model.flat.ng < LU_TABLES_MIN:
-        return {"lu_tables": None, **lu_chunks(model.plan, _known(model, fold_constants), model.flat.name.upper(), scalar)}
-    return {"lu_tables": lu_tables(model.plan), "known_reciprocals": None,
+    """The sparse LU's context: straight-line code with the known values
+    folded (sparse_lu.j2), rolled into runs where its steps repeat
+    (c_lu_runs.rolled: a chain's code does not grow with its length);
+    past LU_TABLES_MIN coordinates where it does not roll, index tables
+    (sparse_lu_tables.j2, as runs where those repeat)."""
+    P = model.flat.name.upper()
+    if model.flat.ng < LU_TABLES_MIN or not model.plan.singular:
+        passes = lu_chunks(model.plan, _known(model, fold_constants), P, scalar)
+        # a mechanism as small as the bundled examples keeps its code as it was
+        roll = None if model.plan.singular or model.flat.ng < c_loops.LOOP_MIN else rolled(passes)
+        if roll is not None or model.flat.ng < LU_TABLES_MIN:
+            return {"lu_tables": None, "lu_runs": None, **(roll or passes)}
+    tables = lu_tables(model.plan)
+    runs = None if model.plan.singular else lu_runs(tables, model.flat.options.multipliers, scalar.fn("fabs"), P,
+                                                    scalar.suffix)
+    return {"lu_tables": tables, "lu_runs": runs, "known_reciprocals": None,
             "pivot_slots": [model.plan.slots[(st.row, st.col)] for st in model.plan.steps]}
 
 
@@ -249,7 +264,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "fb": None if dense_fallback(model) else c_fallback.context(model.plan, f.jac, ng),
         **c_sweep.context(model, printer, work_size(model) + npp + (sens["work"] if sens else 0),
                           fr["row_width"] if fr else offset),
-        "nb": ng // 3, "singular": model.plan.singular,
+        "nb": ng // 3, "singular": model.plan.singular, "trig_loop": ng >= LU_TABLES_MIN,
         "splines": [_relit_tables(piece_tables(s), scalar) for s in tables(used)],
         "inf": scalar.lit(float("inf")), "nan": scalar.lit(float("nan")), "real": scalar.ctype, "f": scalar.suffix,
         "eps": scalar.eps, "precision": precision,

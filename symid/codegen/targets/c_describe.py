@@ -91,7 +91,10 @@ def describe(model: CodeModel, row_width: int, functions: list[dict[str, Any]], 
                               for ch in fn["chunks"]) for fn in functions}
     # an LU on index tables (large mechanisms) has no straight-line code to count: its
     # operations are data (its trip counts), left out of the count
-    lu_ops = {k: sum(ops("\n".join(ch["lines"])) for ch in lu.get(f"{k}_chunks", ()))
+    # per step's statements where there are (a rolled pass's text has a run's once)
+    steps = lu.get("step_lines", {})
+    lu_ops = {k: sum(ops("\n".join(ls)) for ls in steps[f"{k}_chunks"]) if f"{k}_chunks" in steps
+              else sum(ops("\n".join(ch["lines"])) for ch in lu.get(f"{k}_chunks", ()))
               for k in ("factor", "forward", "back", "t_forward", "t_back")}
     solve = lu_ops["forward"] + lu_ops["back"]
     # the trajectory's usual instant: one chord correction (phi, a solve),

@@ -302,6 +302,7 @@ class Loops:
         self.tables = [tables(p, flat, layout, start) for p in self.parts]
         for t in self.tables:
             t["reactions_used"] = bool(flat.reactions) and any(r >= 0 for r in t["reactions"])
+            t["read"] = set()  # filled by kernels(): the tables a kernel kept in table form reads
         self.cover = coverage(self.tables, self.parts)
 
     @classmethod
@@ -320,8 +321,20 @@ class Loops:
             return {k for k in self.cover.reactions}
         return self.cover.rows if fn in LOOPED else set()
 
-    def kernels(self, fn: str, args: list[str], printer: Printer) -> list[dict[str, Any]]:
+    def kernels(self, fn: str, args: list[str], printer: Printer, real: str = "double") -> list[dict[str, Any]]:
+        """Each part's kernel of fn; "run": its loop as runs of members
+        with no tables read (c_loop_runs), where they repeat."""
+        from symid.codegen.targets.c_loop_runs import run_lines
+
         if fn not in LOOPED:
             return []
-        return [kernel(p, fn, printer, args, t) for p, t in zip(self.parts, self.tables)
-                if fn != "reactions" or t["reactions_used"]]
+        out = []
+        for p, t in zip(self.parts, self.tables):
+            if fn != "reactions" or t["reactions_used"]:
+                k = kernel(p, fn, printer, args, t)
+                k["run"] = run_lines(p, t, k, real)
+                if k["run"] is None:  # the tables this kernel reads (loop_tables.j2 emits no other)
+                    t["read"] |= {"body", "row" if k["rows"] else "slot"} | (
+                        {"reac"} if k["reactions"] else set()) | ({"coef"} if k["constants"] else set())
+                out.append(k)
+        return out

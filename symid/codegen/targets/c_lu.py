@@ -94,6 +94,7 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str, scalar: Scalar = D
         return [line for r, c in f.below if (line := _update(f"x[{f.step.row}]", _minus(c, f"x[{r}]")))]
 
     back_order = list(reversed(steps))
+    per_step: list[list[list[str]]] = []  # per pass, per step that prints something, its statements
 
     def chunks(order: list[FoldedStep], lines: Callable[[FoldedStep], list[str]]) -> list[dict[str, Any]]:
         """Functions of bounded size; steps that print nothing (every value
@@ -101,6 +102,7 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str, scalar: Scalar = D
         emitted. `lu`, `piv`, `cm`: whether its code reads them, so that a
         function takes and declares only what it uses."""
         printed = [[scalar.relit(line) for line in ls] for f in order if (ls := lines(f))]
+        per_step.append(printed)
         weights = [1 + sum(1 + line.count(" * ") for line in ls) for ls in printed]
         out: list[dict[str, Any]] = []
         for group in chunked(printed, weights):
@@ -117,6 +119,9 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str, scalar: Scalar = D
         "t_forward_chunks": chunks(steps, t_forward),
         "t_back_chunks": chunks(back_order, t_back),
     }
+    passes["rolled"] = False  # c_lu_runs.rolled: the passes as runs
+    passes["step_lines"] = dict(zip(("factor_chunks", "forward_chunks", "back_chunks", "t_forward_chunks",
+                                     "t_back_chunks"), per_step))
     # The pivots' spread, tested as the dense fallback tests it: the threshold
     # test compares a pivot with its own column only, so a pivot that cancels
     # to rounding (an exactly singular configuration) would pass it. The slots
