@@ -92,3 +92,11 @@ def test_an_optimizer_visiting_a_negative_mass_stops_with_exit_3(pendulum, tmp_p
     assert status == 3, err
     assert "body 'rod' key 'mass'" in err and "Traceback" not in err
     assert not out.exists()
+
+
+def test_api_sweep_refuses_a_negative_mass_too(pendulum):
+    from symid import api
+    from symid.errors import InputError
+
+    with pytest.raises(InputError, match="variant 1 .*key 'mass'"):
+        api.sweep(pendulum, {"m": [1.0, -1.0]}, backend="numpy", workers=1)
