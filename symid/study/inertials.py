@@ -64,5 +64,6 @@ def check(mechanism: Mechanism, names: Sequence[str], values: Array, option: str
     found = first_negative(mechanism, names, values)
     if found is not None:
         k, what = found
-        at = ", ".join(f"{n} = {number(float(v))}" for n, v in zip(names, np.asarray(values).reshape(-1, len(names))[k]))
+        row = np.asarray(values, dtype=float).reshape(-1, len(names))[k]
+        at = ", ".join(f"{n} = {number(float(v))}" for n, v in zip(names, row))
         raise InputError(f"{mechanism.source}: {option}: variant {k} ({at}): {what}, which must not be negative")
