@@ -366,6 +366,7 @@ def sweep(mechanism: Mechanism | str | Path, variants: Any, backend: str = "c", 
         the table: `columns`, `data`, `table[column]`, `write(path)`, `to_pandas()`.
     """
     from symid.study import run
+    from symid.study import inertials
     from symid.study.design import Variants, check_count, check_names
 
     mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
@@ -378,4 +379,5 @@ def sweep(mechanism: Mechanism | str | Path, variants: Any, backend: str = "c", 
         variants = Variants("table", names, np.column_stack(columns) if columns else np.zeros((0, 0)))
     check_names(variants.names, mech.parameters, mech.source, "sweep")
     check_count(len(variants), "sweep")
+    inertials.check(mech, variants.names, variants.values, "sweep")
     return run.solve(mech, variants, backend, workers, client)

@@ -96,11 +96,16 @@ def check_configurations(table: Results, mechanism: Mechanism, results: str, fil
 
 
 def _is_sweep(path: Path) -> bool:
-    """A sweep table (`symid sweep`): Parquet, or a CSV whose header has `variant` first and a `status`."""
+    """A sweep table (`symid sweep`): a CSV or Parquet table whose columns have `variant` first and a `status`."""
     from symid.study.table import is_sweep
 
-    if path.suffix.lower() == ".parquet":
-        return True
+    if path.suffix.lower() == ".parquet":  # `symid solve` writes Parquet too: its columns decide
+        try:
+            import pyarrow.parquet as pq
+
+            return is_sweep(list(pq.read_schema(path).names))
+        except Exception:  # noqa: BLE001 (no pyarrow, not Parquet: read_results names the fault)
+            return False
     if path.suffix.lower() == ".npz":
         return False
     try:

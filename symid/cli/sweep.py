@@ -75,6 +75,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from symid import api, progress
     from symid.io.files import check_target
     from symid.study import design as vary
+    from symid.study import inertials
     from symid.study.figures import figure_names
     from symid.study.run import Sweep
 
@@ -94,6 +95,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         mech = api.load_mechanism(args.file, fixed, **overrides)
         option = {"grid": "--grid", "table": f"--table {args.table}", "sample": "--sample"}[chosen.kind]
         vary.check_names(chosen.names, mech.parameters, args.file, option)
+        inertials.check(mech, chosen.names, chosen.values, option)  # as the reader refuses them in a file
         out = Path(args.output) if args.output else Path(f"{mech.name}_sweep.csv")
         if out.suffix.lower() == ".parquet":
             _need_pyarrow()

@@ -226,6 +226,9 @@ class _Reader:
             raise self.fail(key_of("steps"), f"{steps} instants, more than the {MAX_STEPS} allowed")
         if steps > 1 and not t1 > t0:
             raise self.fail(key_of("t1"), f"must be greater than t0 = {number(t0)}")
+        if steps > 1 and not (t1 - t0) / (steps - 1) > (ulp := math.ulp(max(abs(t0), abs(t1)))):  # else rows repeat t
+            raise self.fail(key_of("t1"), f"the {steps} instants from t0 = {number(t0)} are not distinct doubles: "
+                            f"the step is not above their spacing there, {number(ulp)}")
         tol = self.real(merged.get("tol", 1e-12), key_of("tol"))
         if not tol > 0:
             raise self.fail(key_of("tol"), f"must be positive, not {number(tol)}")

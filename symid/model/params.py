@@ -83,8 +83,11 @@ def to_float(expr: sp.Expr, values: Mapping[sp.Symbol, float], what: str = "valu
     Raises:
         ValueError: (what, message).
     """
+    expr = sp.sympify(expr)
+    if expr.is_number and expr.is_real is False:  # sympy folds log(-1) to I*pi when it reads it
+        raise ValueError(what, f"is not a real number (it is {sp.sstr(expr)})")
     try:
-        number = _evaluate(sp.sympify(expr), values)
+        number = _evaluate(expr, values)
     except (OverflowError, ZeroDivisionError):
         raise ValueError(what, "is not finite") from None
     except (ValueError, TypeError) as exc:

@@ -86,7 +86,7 @@ def _factor(ev: Evaluator, q: Array, t: float, scaling: Scaling) -> Factor:
         raise nonfinite.error(ev.layout, "Phi_q", t, q)
     factor = Factor(jac, scaling)
     if not factor.rcond > SINGULAR_RCOND:
-        names = ", ".join(rank_of(jac, scaling, ev.layout).dependent)
+        names = ", ".join(rank_of(jac, scaling, ev.layout, singular=True).dependent)
         cond = "inf" if factor.rcond == 0 else f"{factor.cond:.3g}"
         raise AnalysisError(f"Phi_q is singular (condition estimate {cond}); dependent constraints: {names}", t)
     return factor

@@ -203,13 +203,16 @@ class Rank:
     dependent: tuple[str, ...]
 
 
-def rank_of(jac: Array, scaling: Scaling, layout: Layout) -> Rank:
-    """The rank analysis of Phi_q (nc, ng); cost one SVD."""
+def rank_of(jac: Array, scaling: Scaling, layout: Layout, singular: bool = False) -> Rank:
+    """The rank analysis of Phi_q (nc, ng); cost one SVD. `singular`: the caller's
+    factorization found it singular, so the smallest singular value counts as null
+    even when just above this rank threshold (else no constraint would be named)."""
     nc, ng = jac.shape
     a = jac / scaling.row[:, None] * scaling.col[None, :]
     u, sv, _ = np.linalg.svd(a)
     smax = sv[0] if sv.size else 0.0
     rank = int(np.sum(sv > max(nc, ng) * EPS * smax))
+    rank = min(rank, min(nc, ng) - 1) if singular else rank
     cond = float(smax / sv[-1]) if rank == ng and sv.size and sv[-1] > 0 else np.inf
     share = np.sum(u[:, rank:] ** 2, axis=1)
     rows = (np.flatnonzero(share > NULL_SHARE * share.max()) if share.size and share.max() > 0

@@ -26,6 +26,7 @@ from symid.output.results import Results, columns
 from symid.study.design import check_names, finite_number
 from symid.study.figures import figure_names
 from symid.study.gradients import figure_gradients, has_gradient, needed_columns
+from symid.study.inertials import checker
 from symid.study.slow import figures_of, study_analysis, with_values
 from symid.symbolic.assemble import assemble
 from symid.text import number
@@ -150,6 +151,7 @@ class Problem:
         values = parameter_values(self.mechanism.parameters)
         self.start = np.array([values[parameter_symbol(n)] for n in self.names])
         self.figures = list(figure_names(self.mechanism))
+        self._negative = checker(self.mechanism, self.names)  # lambdified once, asked at every point
         self.columns = needed_columns(self.mechanism, columns(assemble(self.mechanism), self.mechanism.analysis))
 
     def params(self, u: Array) -> Array:
@@ -169,6 +171,10 @@ class Problem:
             return self._cache[key]
         variant = with_values(self.mechanism, self.names, [float(v) for v in p])
         where = ", ".join(f"{n} = {v:.17g}" for n, v in zip(self.names, p))
+        negative = self._negative(p.reshape(1, -1))
+        if negative is not None:  # refused in a file: never reported as an optimum
+            raise AnalysisError(f"the optimizer visited {where}, which cannot be solved: {negative[1]}, "
+                                f"which must not be negative; narrow the --vary bounds")
         self.evaluations += 1
         try:
             results = self.solver(variant, self.names if self.exact else (), self.columns if self.exact else ())

@@ -47,7 +47,7 @@ from symid.output.summary import Input, Source
 if TYPE_CHECKING:
     from symid.api import Study
 
-FORMAT = 1
+FORMAT = 2  # 2: sealed by the sha256 of its body
 # Each driver's f and f' are kept per output instant; past this many instants
 # the solve itself dominates and a plan would only be a large file.
 MAX_INSTANTS = 100_000
@@ -145,12 +145,17 @@ class Plan:
         data = {"format": FORMAT, "backend": self.backend, "artifact": self.artifact, "name": self.name,
                 "params": dict(self.params), "q0": list(self.q0), "analysis": dataclasses.asdict(self.analysis),
                 "columns": self.columns, "keep": self.keep, "summary": summary}
-        return json.dumps(data)
+        # sealed like every cache entry: a plan damaged into other valid JSON
+        # (a digit of a parameter) would otherwise give other numbers, exit 0
+        return json.dumps({**data, "sha256": _digest(json.dumps(data, sort_keys=True).encode())})
 
     @classmethod
     def from_json(cls, text: str) -> Plan:
         """Raises ValueError, KeyError or TypeError on anything unexpected."""
         data = json.loads(text)
+        recorded = data.pop("sha256", None)
+        if recorded != _digest(json.dumps(data, sort_keys=True).encode()):  # JSON floats round-trip exactly
+            raise ValueError("the plan does not match its recorded sha256 (damaged)")
         if data.get("format") != FORMAT:
             raise ValueError("another plan format")
         analysis = dict(data["analysis"])

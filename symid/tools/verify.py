@@ -87,7 +87,8 @@ class Outcome:
             lines.append(f"      element [{r + 1}, {c + 1}]: derived - claimed = {sp.sstr(difference[r, c])}")
         if self.point is not None:
             shown = (f"{k} = {float(v):.17g}" if isinstance(v, sp.Float) else f"{k} = {v}" for k, v in self.point.items())
-            lines.append("      counterexample: " + ", ".join(shown))
+            # no symbols left (a mechanism's parameters stand for their values): it fails everywhere
+            lines.append("      counterexample: " + (", ".join(shown) or "any values (the claim has no free symbols)"))
             lines.append(f"      there derived = {_nums(self.derived_at)}, claimed = {_nums(self.claimed_at)}")
         return "\n".join(lines)
 

@@ -20,6 +20,7 @@ import sympy as sp
 from symid.codegen.flat import Flat
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
+from symid.io.files import atomic_write
 from symid.model.motion import Spline, TableSpline
 from symid.symbolic.rounding import Grouped
 
@@ -267,19 +268,25 @@ def write(flat: Flat, out_dir: Path, instant: bool = True) -> list[Path]:
     for f in fns.values():
         # Function.save is deterministic (same graph, same bytes); the text holds
         # CasADi's serialization format version, never a time or a path
-        path = out_dir / f"{f.name()}.casadi"
-        f.save(str(path))
-        written.append(path)
+        # the bytes Function.save writes, but written by us: save() leaves a
+        # truncated file without an error on a full disk
+        serializer = ca.StringSerializer()
+        serializer.pack(f)
+        written.append(_write(out_dir / f"{f.name()}.casadi", serializer.encode().encode("latin-1")))
     info = manifest(flat, fns)
-    path = out_dir / "manifest.json"
-    path.write_text(json.dumps(info, indent=2) + "\n")
-    written.append(path)
-    path = out_dir / "README.txt"
-    path.write_text(render("casadi/README.txt.j2", name=flat.name, info=info,
-                           params=[(n, repr(float(v))) for n, v in zip(flat.params, flat.defaults)],
-                           derived=flat.derived))
-    written.append(path)
+    written.append(_write(out_dir / "manifest.json", (json.dumps(info, indent=2) + "\n").encode()))
+    readme = render("casadi/README.txt.j2", name=flat.name, info=info,
+                    params=[(n, repr(float(v))) for n, v in zip(flat.params, flat.defaults)],
+                    derived=flat.derived)
+    written.append(_write(out_dir / "README.txt", readme.encode()))
     return written
+
+
+def _write(path: Path, data: bytes) -> Path:
+    """Write a file whole or not at all; a fault is one line naming it (InputError)."""
+    with atomic_write(path, binary=True) as out:
+        out.write(data)
+    return path
 
 
 def generate(model: CodeModel, out_dir: Path) -> list[Path]:

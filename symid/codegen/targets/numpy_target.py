@@ -18,6 +18,7 @@ from sympy.printing.pycode import PythonCodePrinter
 from symid.codegen.emit import lu_steps, reduce
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
+from symid.io.files import atomic_write
 from symid.codegen.sparse import THRESHOLD
 from symid.numeric.newton import RULE
 from symid.model.motion import piece_tables, tables
@@ -131,5 +132,7 @@ def generate(model: CodeModel, out_dir: Path) -> list[Path]:
     """Write `<name>_solver.py` into out_dir."""
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{model.name}_solver.py"
-    path.write_text(render("numpy/module.py.j2", **context(model)))
+    text = render("numpy/module.py.j2", **context(model))
+    with atomic_write(path) as out:  # whole or not at all, a fault named in one line (disk full)
+        out.write(text)
     return [path]
