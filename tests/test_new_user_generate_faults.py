@@ -1,5 +1,5 @@
 """Found trying symid as a new user on a full disk: `symid generate --target
-numpy|casadi` left a truncated solver (CasADi's save even wrote empty files
+numpy|casadi|c` left a truncated solver (CasADi's save even wrote empty files
 without an error) and said only 'No space left on device'. Each file is now
 whole or absent, and the one line names it. The fault here is a file-size
 limit (RLIMIT_FSIZE), which fails a write as a full disk does, without root."""
@@ -31,7 +31,7 @@ def generate(out: Path, target: str, cache: Path, limit: int | None) -> subproce
                           preexec_fn=limited)
 
 
-@pytest.mark.parametrize("target", ["numpy", "casadi"])
+@pytest.mark.parametrize("target", ["numpy", "casadi", "c"])
 def test_generate_on_a_full_disk_leaves_whole_files_and_names_the_file(tmp_path, target):
     whole = generate(tmp_path / "whole", target, tmp_path / "cache", None)
     assert whole.returncode == 0, whole.stderr

@@ -22,6 +22,7 @@ from symid.codegen.targets.c_describe import describe
 from symid.codegen.targets.c_printer import (DOUBLE, PRECISIONS, Printer, Scalar, c_double,  # noqa: F401
                                               printer as c_printer)
 from symid.codegen.sparse import THRESHOLD
+from symid.io.files import atomic_write
 from symid.model.motion import piece_tables, tables
 from symid.numeric.newton import RULE
 from symid.numeric.solve import JUMP_FLOOR, UNEXPLAINED
@@ -300,6 +301,7 @@ def write(ctx: dict[str, Any], out_dir: Path) -> list[Path]:
     written = []
     for fname, text in files.items():
         path = out_dir / fname
-        path.write_text(text)
+        with atomic_write(path) as out:  # whole or not at all, a fault named in one line (disk full)
+            out.write(text)
         written.append(path)
     return written

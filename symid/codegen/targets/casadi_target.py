@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import operator
+import tempfile
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
@@ -20,6 +21,7 @@ import sympy as sp
 from symid.codegen.flat import Flat
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
+from symid.errors import InputError
 from symid.io.files import atomic_write
 from symid.model.motion import Spline, TableSpline
 from symid.symbolic.rounding import Grouped
@@ -305,10 +307,20 @@ def casadi_c(model: CodeModel, out_dir: Path) -> list[Path]:
     gen = ca.CodeGenerator(f"{base}.c", {"with_header": True})
     for f in functions(model.flat).values():
         gen.add(f)
-    gen.generate(str(out_dir) + "/")  # CasADi wants the folder with its trailing slash
+    # CasADi writes its files without reporting a failed write (a full disk
+    # leaves them short): it writes into a scratch folder beside the output,
+    # the text is checked whole (the .c holds the code `dump` returns, the .h
+    # ends with its closing) and each file is written whole or not at all
+    with tempfile.TemporaryDirectory(dir=out_dir, prefix=".casadi-") as scratch:
+        gen.generate(scratch + "/")  # CasADi wants the folder with its trailing slash
+        texts = {suffix: (Path(scratch) / f"{base}{suffix}").read_text() for suffix in (".c", ".h")}
+    if gen.dump() not in texts[".c"] or not texts[".h"].rstrip().endswith("#endif"):
+        raise InputError(f"{out_dir / base}.c: CasADi's code generation wrote an incomplete file "
+                         "(is the disk full?); nothing written")
     written = []
-    for suffix in (".c", ".h"):
+    for suffix, body in texts.items():
         path = out_dir / f"{base}{suffix}"
-        path.write_text(render("casadi/casadi_c.j2", name=model.name, body=path.read_text()))
+        with atomic_write(path) as out:
+            out.write(render("casadi/casadi_c.j2", name=model.name, body=body))
         written.append(path)
     return written
