@@ -73,6 +73,28 @@ def _reactions(model: CodeModel) -> list[dict[str, Any]]:
     return out
 
 
+# Past this many constraints with reactions, their peak forces are taken in a
+# loop over tables instead of one written-out test per body role: a chain of
+# thousands of joints otherwise gives one function of ~700 KB of branches that
+# gcc compiles in minutes (the ladder of 1024: 138 s). The same operations in
+# the same order: the figures are bitwise the same.
+PAIR_TABLE_MIN = 64
+
+
+def _pair_table(reactions: list[dict[str, Any]], first_slot: int) -> dict[str, list[int]] | None:
+    """Per body role (in `_reactions` order) its row offset, its figure's slot
+    and 1 for a constraint's first role; None below PAIR_TABLE_MIN constraints."""
+    if len(reactions) < PAIR_TABLE_MIN:
+        return None
+    table: dict[str, list[int]] = {"offset": [], "slot": [], "first": []}
+    for k, r in enumerate(reactions):
+        for i, off in enumerate(r["pairs"]):
+            table["offset"].append(off)
+            table["slot"].append(first_slot + k)
+            table["first"].append(int(i == 0))
+    return table
+
+
 def work_size(model: CodeModel, solver_work: int, row_width: int) -> int:
     """Reals of workspace one thread's `<name>_sweep` needs (SWEEP_WORK), from
     the solver's own (WORK, prepared parameters included) and its row (ROW)."""
@@ -95,6 +117,7 @@ def context(model: CodeModel, printer: Callable[[sp.Expr], str], solver_work: in
         drive += [f, sp.diff(f, T)]
     reactions = _reactions(model)
     return {
+        "sweep_pairs": _pair_table(reactions, 4 * len(drivers)),
         "sweep_rows": SWEEP_ROWS,
         "sweep_work": work_size(model, solver_work, row_width),
         "sweep_guess": block(guess, printer, prefix="g"),
