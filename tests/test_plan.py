@@ -181,6 +181,21 @@ def test_a_corrupt_plan_takes_the_normal_path(tmp_path, capsys, spy, monkeypatch
     assert json.loads(stored.read_text())["format"] == plan.FORMAT, "the normal path wrote it again"
 
 
+def test_a_plan_altered_into_valid_json_takes_the_normal_path(tmp_path, capsys, spy, monkeypatch):
+    """Found trying symid as a new user: a plan edited or damaged into other
+    valid JSON (a parameter's value changed) is checked like every other cache
+    entry, so it never gives other numbers with exit status 0."""
+    monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
+    (tmp_path / "m.toml").write_text(SLIDER_CRANK.read_text())
+    first = solve(tmp_path, capsys, "--backend", "numpy")
+    (stored,) = plans(tmp_path / "cache")
+    data = json.loads(stored.read_text())
+    data["params"]["m_slider"] *= 3.0  # a damaged digit: still a plan, other physics
+    stored.write_text(json.dumps(data))
+    assert solve(tmp_path, capsys, "--backend", "numpy") == first, "a damaged plan must not change the table"
+    assert len(spy) == 2, "the damaged plan is distrusted: the normal path ran"
+
+
 def test_a_missing_solver_takes_the_normal_path(tmp_path, capsys, spy, monkeypatch):
     monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
     (tmp_path / "m.toml").write_text(SLIDER_CRANK.read_text())
