@@ -17,7 +17,6 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import threading
-from fractions import Fraction
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -40,10 +39,9 @@ _lock = threading.Lock()
 def render() -> str:
     """The C source, its tables of 10^s = hi + lo exact to ~2^-106 as C99 hex literals."""
     from symid.codegen.render import render as render_template
+    from symid.output.digits import powers_of_ten
 
-    exact = [Fraction(10) ** s for s in range(S0, S0 + COUNT)]
-    hi = [float(e) for e in exact]
-    lo = [float(e - Fraction(h)) for e, h in zip(exact, hi)]
+    hi, lo = powers_of_ten(S0, S0 + COUNT)
     return render_template(TEMPLATE, s0=S0, count=COUNT, hi=[h.hex() for h in hi], lo=[v.hex() for v in lo])
 
 

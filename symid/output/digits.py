@@ -29,10 +29,18 @@ import numpy as np
 from symid.backends import Array
 
 _LOW, _HIGH = 1e-250, 1e250
+
+
+def powers_of_ten(start: int, stop: int) -> tuple[list[float], list[float]]:
+    """10^s = hi + lo for s in [start, stop): hi the nearest double, lo the
+    nearest double to the rest (together exact to ~2^-106)."""
+    exact = [Fraction(10) ** s for s in range(start, stop)]
+    hi = [float(e) for e in exact]
+    return hi, [float(e - Fraction(h)) for e, h in zip(exact, hi)]
+
+
 _S = np.arange(-240, 276)  # the powers 16 - K needed for K in [-251, 250]
-_EXACT = [Fraction(10) ** int(s) for s in _S]
-_P_HI = np.array([float(e) for e in _EXACT])
-_P_LO = np.array([float(e - Fraction(h)) for e, h in zip(_EXACT, _P_HI)])
+_P_HI, _P_LO = (np.array(t) for t in powers_of_ten(int(_S[0]), int(_S[-1]) + 1))
 _SPLIT = 134217729.0  # 2^27 + 1: Veltkamp's splitter for a product without FMA
 _MARGIN = 1e-9  # far above the 1e-12 the product can be off
 _P10 = 10.0 ** np.arange(17)
