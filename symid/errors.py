@@ -57,3 +57,10 @@ class Terminated(KeyboardInterrupt):
     def __init__(self, signum: int) -> None:
         super().__init__(signum)
         self.signum = signum
+
+
+def say_kept(interrupt: KeyboardInterrupt, kept: str) -> None:
+    """Attach to a Ctrl-C or signal what the interrupted command kept or
+    left untouched (`"out.csv not written"`): the command line says it on
+    the one line it prints (`symid: interrupted; out.csv not written`)."""
+    interrupt.kept = kept  # type: ignore[attr-defined]

@@ -166,8 +166,8 @@ def test_signal_mid_run_removes_the_temporary_file(tmp_path, signum):
             proc.wait()
     assert proc.returncode == 128 + signum
     line = one_line(err)
-    assert line == ("symid: interrupted" if signum == signal.SIGINT
-                    else f"symid: terminated by {signal.Signals(signum).name}")
+    said = "interrupted" if signum == signal.SIGINT else f"terminated by {signal.Signals(signum).name}"
+    assert line == f"symid: {said}; out.csv not written"
     assert list(tmp_path.iterdir()) == []
 
 

@@ -126,13 +126,12 @@ def _run(run: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> 
         os.dup2(devnull, sys.stdout.fileno())
         os.close(devnull)
         return EXIT_SIGNAL_BASE + signal.SIGPIPE
-    except Terminated as exc:
-        said = "interrupted" if exc.signum == signal.SIGINT else f"terminated by {signal.Signals(exc.signum).name}"
-        print(f"symid: {said}", file=sys.stderr)
-        return EXIT_SIGNAL_BASE + exc.signum
-    except KeyboardInterrupt:
-        print("symid: interrupted", file=sys.stderr)
-        return EXIT_SIGNAL_BASE + signal.SIGINT
+    except KeyboardInterrupt as exc:  # Ctrl-C, or a signal made `Terminated`
+        signum = exc.signum if isinstance(exc, Terminated) else signal.SIGINT
+        said = "interrupted" if signum == signal.SIGINT else f"terminated by {signal.Signals(signum).name}"
+        kept = getattr(exc, "kept", None)
+        print(f"symid: {said}{f'; {kept}' if kept else ''}", file=sys.stderr)
+        return EXIT_SIGNAL_BASE + signum
     except MemoryError:
         print("symid: out of memory", file=sys.stderr)
         return EXIT_INPUT

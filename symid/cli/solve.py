@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator
 
 from symid.cli.options import add_file, add_set, analysis_overrides, run_options, set_values
-from symid.errors import AnalysisError
+from symid.errors import AnalysisError, say_kept
 from symid.text import number, plural
 
 if TYPE_CHECKING:
@@ -160,6 +160,10 @@ def _write_table(out: Path, header: list[str], keep: list[str] | None, rows: Ite
         count = write_table(out, header, record(progress.bar(rows, steps, name, size=_instants)), steps)
     except Stale:
         stale = True
+        raise
+    except KeyboardInterrupt as exc:  # the table goes to a temporary file, removed: say so
+        if not out.exists() or out.is_file():  # a device or a FIFO got the rows written so far
+            say_kept(exc, f"{out} not written")
         raise
     except AnalysisError as exc:
         where = f"t = {number(exc.time)}: " if exc.time is not None else ""

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from symid.cli.options import add_time_grid, set_values
-from symid.errors import AnalysisError, InputError
+from symid.errors import AnalysisError, InputError, say_kept
 from symid.text import plural
 
 SWEEP_EPILOG = """examples:
@@ -119,10 +119,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     try:
         for _ in progress.bar(_each(sweep.run()), len(chosen), "sweep", unit="variants"):
             pass
-    except KeyboardInterrupt:  # Ctrl-C, SIGTERM: keep what is finished, then end as the signal says
+    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM: keep what is finished, then end as the signal says
         table = sweep.table()
         table.write(out)
-        print(f"{out}: {plural(len(table), 'variant')} finished before the interruption", file=sys.stderr)
+        say_kept(exc, f"{out} holds the {plural(len(table), 'variant')} finished before it")
         raise
     finally:
         _close(client)
