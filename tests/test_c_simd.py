@@ -1,0 +1,118 @@
+"""The SSE2 forms of the trajectory's O(NG) passes (templates/c/simd.j2):
+the predictor, the correction with its max, maxabsN, the row's finite check,
+the jump check and the mass term give the scalar code's rows, state and
+answers bit for bit (built with and without <P>_NO_SIMD from one context),
+non-finite values included; and a ladder large enough to use them by
+default is solved to its closed-form motor torque."""
+
+from __future__ import annotations
+
+import ctypes
+import platform
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from symid import api
+from symid.codegen.model import code_model
+from symid.codegen.targets import c as c_target
+from test_c_row_checks import _run
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from benchmarks import ladder  # noqa: E402
+
+DP = ctypes.POINTER(ctypes.c_double)
+FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared"]
+HARNESS = """
+double test_maxabs(const double *v);
+double test_maxabs(const double *v) {{ return {p}_maxabs{ng}(v); }}
+double test_correct(double *q, double *dq);
+double test_correct(double *q, double *dq) {{ return {p}_correct(q, dq); }}
+int test_unexplained(const double *v, double h);
+int test_unexplained(const double *v, double h)
+{{
+    return {p}_unexplained(v, v + {ng}, v + {ng2}, v + {ng3}, v + {ng4}, v + {ng5}, h, v + {ng6});
+}}
+"""
+
+pytestmark = [
+    pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler"),
+    pytest.mark.skipif(platform.machine().lower() not in ("x86_64", "amd64"), reason="SSE2 is x86-64's"),
+]
+
+
+def _context(example: str, kind: str | None = None, straight: int = 0) -> dict[str, Any]:
+    """A bundled example's C context with every O(NG) pass past `straight` values (0: all in SSE2)."""
+    analysis = {"kind": kind} if kind else {}
+    ctx = c_target.context(code_model(api.load_mechanism(api.example(example), **analysis)))
+    return dict(ctx, checks=dict(ctx["checks"], straight=straight, looped=True))
+
+
+def _build(ctx: dict[str, Any], folder: Path, simd: bool) -> ctypes.CDLL:
+    """The solver with a harness reaching its static passes; simd=False defines <P>_NO_SIMD."""
+    c_target.write(ctx, folder)
+    p, ng = ctx["name"], ctx["ng"]
+    source = folder / f"{p}_solver.c"
+    text = source.read_text()
+    assert f"#define {p.upper()}_SIMD 1" in text  # the SSE2 forms are there to be compared
+    extra = HARNESS.format(p=p, ng=ng, **{f"ng{k}": k * ng for k in range(2, 7)}) if ctx["velocity"] else ""
+    source.write_text(text + extra)
+    define = [] if simd else [f"-D{p.upper()}_NO_SIMD"]
+    subprocess.run(["cc", *FLAGS, *define, str(source), "-o", str(folder / "s.so"), "-lm"], check=True)
+    return ctypes.CDLL(str(folder / "s.so"))
+
+
+@pytest.mark.parametrize("example", ["slider_crank", "four_bar", "excavator"])
+@pytest.mark.parametrize("kind", ["inverse_dynamics", "statics"])
+def test_simd_passes_give_the_scalar_codes_rows_and_state_bitwise(tmp_path: Path, example: str, kind: str) -> None:
+    ctx = _context(example, kind)
+    simd, scalar = _build(ctx, tmp_path / "simd", True), _build(ctx, tmp_path / "scalar", False)
+    for cuts in ([60], [1, 1, 2, 3, 5, 8, 40]):
+        got, want = _run(simd, ctx, cuts), _run(scalar, ctx, cuts)
+        assert got[0].tobytes() == want[0].tobytes(), cuts
+        assert got[1].tobytes() == want[1].tobytes(), cuts
+
+
+def test_simd_checks_answer_as_the_scalar_ones_with_non_finite_values(tmp_path: Path) -> None:
+    ctx = _context("slider_crank")  # ng 9: two SSE2 pairs and a scalar tail
+    ng = ctx["ng"]
+    libs = [_build(ctx, tmp_path / name, simd) for name, simd in (("simd", True), ("scalar", False))]
+    for lib in libs:
+        lib.test_maxabs.argtypes, lib.test_maxabs.restype = [DP], ctypes.c_double
+        lib.test_correct.argtypes, lib.test_correct.restype = [DP, DP], ctypes.c_double
+        lib.test_unexplained.argtypes, lib.test_unexplained.restype = [DP, ctypes.c_double], ctypes.c_int
+    rng = np.random.default_rng(17)
+    specials = [np.nan, np.inf, -np.inf, 0.0, -0.0, 1e308]
+    for trial in range(300):
+        v = rng.standard_normal(7 * ng) * 10.0 ** rng.integers(-3, 3)
+        for _ in range(rng.integers(0, 3)):
+            v[rng.integers(7 * ng)] = specials[rng.integers(len(specials))]
+        if trial % 3 == 0:
+            v[6 * ng:] = np.abs(v[6 * ng:])  # the scales: zeros and positives, as the jump check has them
+            v[6 * ng + rng.integers(ng)] = 0.0
+        answers = []
+        for lib in libs:
+            q, dq = v[:ng].copy(), v[ng:2 * ng].copy()
+            step = lib.test_correct(q.ctypes.data_as(DP), dq.ctypes.data_as(DP))
+            answers.append((np.float64(lib.test_maxabs(v.ctypes.data_as(DP)))
+                            .tobytes() if not np.isnan(v[:ng]).any() else np.isnan(lib.test_maxabs(v.ctypes.data_as(DP))),
+                            np.float64(step).tobytes() if not np.isnan(step) else "nan",
+                            q.tobytes(), dq.tobytes(), lib.test_unexplained(v.ctypes.data_as(DP), 0.01)))
+        assert answers[0] == answers[1], (trial, v)
+
+
+def test_ladder_solved_with_simd_passes_gives_the_closed_form_torque(tmp_path: Path) -> None:
+    n = 12  # ng 75: past checks.straight, so the cache's build uses the SSE2 forms
+    lad = ladder.Ladder(n)
+    results = api.solve(ladder.write(n, tmp_path, steps=81), backend="c")
+    assert results.error is None
+    torque = results["motor.T_j"]
+    want = lad.torque(results.t)
+    assert np.max(np.abs(torque - want)) <= 1e-9 * np.max(np.abs(want))
