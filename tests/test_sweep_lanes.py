@@ -1,15 +1,16 @@
 """The compiled sweep's variants side by side in SIMD lanes (templates/c/lanes*.j2)
 give every variant the figures, status, t_end and instants solved of its own
 scalar run, bit for bit: one `<name>_sweep` call with K variants (groups of
-LANES, the remainder one by one) against K calls of one variant each (the
-scalar path). The groups are checked to have stayed in the lanes, so that
+W lanes, the remainder one by one) against K calls of one variant each (the
+scalar path), for both widths the code has (4 lanes in AVX2 where the
+processor has it, 2 in SSE2). The groups are checked to have stayed in the lanes, so that
 the equality is not the scalar path's against itself."""
 
 from __future__ import annotations
 
 import ctypes
-import itertools
 import math
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -17,23 +18,21 @@ import numpy as np
 import pytest
 
 from symid import api
-from symid.codegen.targets import c_lanes
+from symid.backends import c_backend
 from symid.study import batch_c
 from symid.study.variants import base_matrix, study_mechanism
 
-W = c_lanes.LANES
-K = 2 * W + 1  # two groups and a variant left over
 STEPS = 101  # crosses the scalar sweep's chunk boundaries (1, then 32 instants a call)
 
-# per bundled example, two base parameters and the values the grid takes
+# per bundled example, two base parameters: the first's range (5 values), the second's 2 values
 GRIDS = {
-    "slider_crank": ("L_rod", [0.25, 0.3, 0.45], "n", [2.0, 12.0]),
-    "four_bar": ("L_coupler", [0.29, 0.3, 0.31], "n", [1.0, 5.0]),
-    "quick_return": ("L_link", [0.38, 0.4, 0.42], "n", [0.5, 2.5]),
-    "excavator": ("m_boom", [300.0, 350.0, 400.0], "F_dig", [1000.0, 3000.0]),
-    "planetary": ("m_sun", [0.4, 0.5, 0.6], "n_in", [1.0, 4.0]),
-    "slider_crank_counterweight": ("m_cw", [0.5, 1.0, 1.5], "n", [0.5, 2.5]),
-    "slider_pendulum": ("L_pendulum", [0.4, 0.5, 0.6], "f_carriage", [0.5, 2.0]),
+    "slider_crank": ("L_rod", (0.25, 0.45), "n", [2.0, 12.0]),
+    "four_bar": ("L_coupler", (0.29, 0.31), "n", [1.0, 5.0]),
+    "quick_return": ("L_link", (0.38, 0.42), "n", [0.5, 2.5]),
+    "excavator": ("m_boom", (300.0, 400.0), "F_dig", [1000.0, 3000.0]),
+    "planetary": ("m_sun", (0.4, 0.6), "n_in", [1.0, 4.0]),
+    "slider_crank_counterweight": ("m_cw", (0.5, 1.5), "n", [0.5, 2.5]),
+    "slider_pendulum": ("L_pendulum", (0.4, 0.6), "f_carriage", [0.5, 2.0]),
 }
 
 PENDULUM = """
@@ -127,8 +126,8 @@ c = 0.0
 L0 = 1.0
 """
 
-INLINE = {"lane_pendulum": (PENDULUM, "L", [0.3, 0.5, 0.7], "f", [0.5, 3.0]),
-          "lane_rail": (RAIL, "a", [0.1, 0.2, 0.3], "f", [0.5, 3.0])}
+INLINE = {"lane_pendulum": (PENDULUM, "L", (0.3, 0.7), "f", [0.5, 3.0]),
+          "lane_rail": (RAIL, "a", (0.1, 0.3), "f", [0.5, 3.0])}
 
 
 def _mechanism(name: str, tmp_path: Path) -> Any:
@@ -140,23 +139,43 @@ def _mechanism(name: str, tmp_path: Path) -> Any:
     return study_mechanism(api.load_mechanism(path, steps=STEPS))
 
 
-def _grid(name: str, mech: Any) -> np.ndarray:
-    """K full base vectors: the product of the two parameters' values, first K."""
-    a, av, b, bv = GRIDS[name] if name in GRIDS else INLINE[name][1:]
-    pairs = np.array(list(itertools.product(av, bv))[:K])
+def _grid(name: str, mech: Any, k: int) -> np.ndarray:
+    """k full base vectors: the product of the two parameters' values (the first fastest), first k."""
+    a, (lo, hi), b, bv = GRIDS[name] if name in GRIDS else INLINE[name][1:]
+    pairs = np.array([(x, y) for y in bv for x in np.linspace(lo, hi, 5)][:k])
     return base_matrix(mech, (a, b), pairs)
+
+
+@pytest.fixture(params=["native", "sse2"])
+def width(request: pytest.FixtureRequest) -> str:
+    """The library as built (4 lanes with AVX2, else 2), or the two-lane code
+    forced by <NAME>_LANES_SSE2 (what a processor without AVX2 runs)."""
+    return str(request.param)
 
 
 class Sweep:
     """One compiled solver's `<name>_sweep` and `<name>_sweep_lanes`, called directly."""
 
-    def __init__(self, mech: Any) -> None:
+    def __init__(self, mech: Any, width: str = "native", tmp_path: Path | None = None) -> None:
         self.mech = mech
         self.compiled = batch_c._load(mech)
-        lanes = ctypes.CDLL(str(self.compiled.folder / "solver.so"))[f"{mech.name}_sweep_lanes"]
-        lanes.argtypes = [ctypes.POINTER(ctypes.c_long)]
-        lanes.restype = ctypes.c_long
-        self._lanes = lanes
+        library = self.compiled.folder / "solver.so"
+        if width == "sse2":  # the same source, the two-lane code whatever the processor
+            assert tmp_path is not None
+            library = tmp_path / "sse2.so"
+            source = self.compiled.folder / f"{mech.name}_solver.c"
+            subprocess.run([c_backend.compiler(), "-O2", *c_backend.CFLAGS, f"-D{mech.name.upper()}_LANES_SSE2",
+                            str(source), "-o", str(library), "-lm"], check=True)
+        lib = ctypes.CDLL(str(library))
+        self._sweep = lib[f"{mech.name}_sweep"]
+        self._sweep.argtypes = self.compiled.sweep.argtypes
+        self._sweep.restype = ctypes.c_int
+        self._lanes = lib[f"{mech.name}_sweep_lanes"]
+        self._lanes.argtypes = [ctypes.POINTER(ctypes.c_long)]
+        self._lanes.restype = ctypes.c_long
+        self.width = self.lanes()[0]
+        assert self.width > 1, "the code was generated and compiled with lanes"
+        assert width != "sse2" or self.width == 2
 
     def lanes(self) -> tuple[int, int]:
         """(variants a group, groups abandoned so far)."""
@@ -176,10 +195,10 @@ class Sweep:
         work = np.zeros(meta["sweep_work"])
         iwork = np.zeros(max(1, meta["ng"]), dtype=np.intc)
         h = (a.t1 - a.t0) / (a.steps - 1)
-        code = self.compiled.sweep(k, p.ctypes.data_as(batch_c._D), a.t0, h, a.steps, a.tol,
-                                   fig.ctypes.data_as(batch_c._D), status.ctypes.data_as(batch_c._I),
-                                   t_end.ctypes.data_as(batch_c._D), solved.ctypes.data_as(batch_c._L),
-                                   work.ctypes.data_as(batch_c._D), iwork.ctypes.data_as(batch_c._I))
+        code = self._sweep(k, p.ctypes.data_as(batch_c._D), a.t0, h, a.steps, a.tol,
+                           fig.ctypes.data_as(batch_c._D), status.ctypes.data_as(batch_c._I),
+                           t_end.ctypes.data_as(batch_c._D), solved.ctypes.data_as(batch_c._L),
+                           work.ctypes.data_as(batch_c._D), iwork.ctypes.data_as(batch_c._I))
         assert code == 0
         return fig, status, solved, t_end
 
@@ -187,8 +206,7 @@ class Sweep:
 def _assert_lanes_are_scalar(sweep: Sweep, p: np.ndarray) -> int:
     """One call with every variant equals one call per variant, bit for bit;
     returns how many groups the call abandoned."""
-    width, before = sweep.lanes()
-    assert width == W > 1, "the code was generated and compiled with lanes"
+    before = sweep.lanes()[1]
     together = sweep(p)
     abandoned = sweep.lanes()[1] - before
     alone = [sweep(p[v:v + 1]) for v in range(len(p))]
@@ -199,15 +217,16 @@ def _assert_lanes_are_scalar(sweep: Sweep, p: np.ndarray) -> int:
 
 
 @pytest.mark.parametrize("name", sorted(GRIDS) + sorted(INLINE))
-def test_a_grid_in_lanes_is_each_variant_alone_bit_for_bit(name: str, tmp_path: Path) -> None:
+def test_a_grid_in_lanes_is_each_variant_alone_bit_for_bit(name: str, width: str, tmp_path: Path) -> None:
     mech = _mechanism(name, tmp_path)
-    sweep = Sweep(mech)
-    p = _grid(name, mech)
+    sweep = Sweep(mech, width, tmp_path)
+    k = 2 * sweep.width + 1  # two groups and a variant left over
+    p = _grid(name, mech, k)
     abandoned = _assert_lanes_are_scalar(sweep, p)
     assert abandoned == 0, "every group stayed in the lanes"
     fig, status, solved, _ = sweep(p)
     assert np.all(status == 0) and np.all(solved == STEPS)
-    assert np.all(np.isfinite(fig)) and len(np.unique(fig, axis=0)) == K, "the variants differ"
+    assert np.all(np.isfinite(fig)) and len(np.unique(fig, axis=0)) == k, "the variants differ"
 
 
 def test_the_bundled_examples_without_friction_take_the_lanes() -> None:
@@ -221,37 +240,40 @@ def test_the_bundled_examples_without_friction_take_the_lanes() -> None:
     assert c.context(code_model(mech, options_for(mech), looped=True))["lanes"] is None
 
 
-def test_lanes_whose_sines_refresh_at_different_instants_are_each_alone(tmp_path: Path) -> None:
-    """Crank speeds 2 and 12 rev/s: one lane's crank turns past trig_near's
-    1/16 rad every instant (sin and cos from libm each time), the other's
-    only every few instants, so the lanes refresh apart."""
-    mech = _mechanism("slider_crank", tmp_path)
-    p = _grid("slider_crank", mech)
-    n = p[:, _index(mech, "n")]
-    h = (mech.analysis.t1 - mech.analysis.t0) / (mech.analysis.steps - 1)
-    turn = 2 * math.pi * n * h  # the crank's angle step per instant
-    assert n.max() / n.min() > 4
-    assert turn.max() > 1 / 16 > 2 * turn.min(), "some lanes refresh every instant, others not"
-    for g in range(0, K - K % W, W):  # and both kinds share a group
-        assert np.ptp(turn[g:g + W]) > 0
-    assert _assert_lanes_are_scalar(Sweep(mech), p) == 0
-
-
 def _index(mech: Any, name: str) -> int:
     from symid.study.variants import base_names
 
     return list(base_names(mech.parameters)).index(name)
 
 
-def test_a_lane_failing_mid_run_leaves_its_neighbours_their_scalar_figures(tmp_path: Path) -> None:
+def test_lanes_whose_sines_refresh_at_different_instants_are_each_alone(width: str, tmp_path: Path) -> None:
+    """Crank speeds 2 and 12 rev/s side by side: one lane's crank turns past
+    trig_near's 1/16 rad every instant (sin and cos from libm each time), the
+    other's only every few instants, so the lanes refresh apart."""
+    mech = _mechanism("slider_crank", tmp_path)
+    sweep = Sweep(mech, width, tmp_path)
+    rods = np.linspace(0.25, 0.45, sweep.width + 1)
+    p = base_matrix(mech, ("L_rod", "n"), np.array([(r, n) for r in rods for n in (2.0, 12.0)]))
+    n = p[:, _index(mech, "n")]
+    h = (mech.analysis.t1 - mech.analysis.t0) / (mech.analysis.steps - 1)
+    turn = 2 * math.pi * n * h  # the crank's angle step per instant
+    assert n.max() / n.min() > 4
+    assert turn.max() > 1 / 16 > 2 * turn.min(), "some lanes refresh every instant, others not"
+    for g in range(0, len(p) - sweep.width + 1, sweep.width):  # both kinds share every group
+        assert np.ptp(turn[g:g + sweep.width]) > 0
+    assert _assert_lanes_are_scalar(sweep, p) == 0
+
+
+def test_a_lane_failing_mid_run_leaves_its_neighbours_their_scalar_figures(width: str, tmp_path: Path) -> None:
     """A rod shorter than the crank cannot close the loop a quarter turn on:
     that variant stops mid-run (status not OK, some instants solved), its
     group is abandoned to the scalar path, and every lane, the neighbours
     included, is its own scalar run."""
     mech = _mechanism("slider_crank", tmp_path)
-    rods = [0.3, 0.07, 0.35, 0.4, 0.45]
-    p = base_matrix(mech, ("L_rod",), np.array(rods)[:, None])
-    sweep = Sweep(mech)
+    sweep = Sweep(mech, width, tmp_path)
+    rods = np.linspace(0.3, 0.45, 2 * sweep.width + 1)
+    rods[1] = 0.07
+    p = base_matrix(mech, ("L_rod",), rods[:, None])
     abandoned = _assert_lanes_are_scalar(sweep, p)
     _, status, solved, t_end = sweep(p)
     assert status[1] != 0 and 1 <= solved[1] < STEPS and np.isfinite(t_end[1])
