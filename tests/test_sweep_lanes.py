@@ -194,7 +194,7 @@ class Sweep:
         t_end = np.full(k, -1.0)
         work = np.zeros(meta["sweep_work"])
         iwork = np.zeros(max(1, meta["ng"]), dtype=np.intc)
-        h = (a.t1 - a.t0) / (a.steps - 1)
+        h = (a.t1 - a.t0) / (a.steps - 1) if a.steps > 1 else 0.0  # as batch_c.run
         code = self._sweep(k, p.ctypes.data_as(batch_c._D), a.t0, h, a.steps, a.tol,
                            fig.ctypes.data_as(batch_c._D), status.ctypes.data_as(batch_c._I),
                            t_end.ctypes.data_as(batch_c._D), solved.ctypes.data_as(batch_c._L),
