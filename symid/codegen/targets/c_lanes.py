@@ -22,9 +22,12 @@ from typing import Any
 # variants a group: four doubles fill an AVX2 register, two an SSE2 one (the
 # baseline of x86-64); the code has both and takes AVX2 where the processor
 # has it (the cache's code runs on any of its machines: no -march=native).
-# Measured (slider-crank grid, one thread, gcc 12 -O2): 2 lanes 1.8 x the
+# Measured (slider-crank grid, one thread, gcc 12): 2 lanes 1.8 x the
 # one-by-one sweep; 4 lanes in SSE2 pairs slower than 2 (32-byte vectors
-# cross calls in memory); 4 in AVX2 3.3 x.
+# cross calls in memory); 4 in AVX2 3.1 x. Each width costs compile time
+# (gcc -O1 on the lanes, slider-crank: 0.41 s without lanes, 0.80 s with
+# both widths, about 0.65 s with AVX2 alone): (4,) leaves a processor
+# without AVX2 the one-by-one sweep.
 WIDTHS = (2, 4)
 
 # libm functions of one argument, and of two, the lanes call per lane
@@ -177,7 +180,7 @@ def context(ctx: dict[str, Any]) -> dict[str, Any] | None:
     offsets = {group: offset for group, _, _, offset in ctx["row_parts"]}
     lam0, reac0 = offsets.get("lambda", 0), offsets.get("reactions", 0)
     return {
-        "functions": functions, "prepare": prepare, "guess": guess, "drive": drive, **lu,
+        "widths": WIDTHS, "functions": functions, "prepare": prepare, "guess": guess, "drive": drive, **lu,
         "used": sorted(conv.used - {"max", "min", "all", "any", "fabs"}),
         # the figures' sources: the multipliers and the reactions, indices into their own vectors
         "drivers": [{**d, "lam": d["lam"] - lam0} for d in ctx["sweep_drivers"]],
