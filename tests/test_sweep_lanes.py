@@ -19,6 +19,7 @@ import pytest
 
 from symid import api
 from symid.backends import c_backend
+from symid.codegen.render import render
 from symid.codegen.targets import c_lanes
 from symid.study import batch_c
 from symid.study.variants import base_matrix, study_mechanism
@@ -243,6 +244,19 @@ def test_the_bundled_examples_without_friction_take_the_lanes() -> None:
         assert c.context(code_model(mech, options_for(mech), looped=True))["lanes"] is not None, name
     mech = study_mechanism(api.load_mechanism(api.example("slider_crank_friction")))
     assert c.context(code_model(mech, options_for(mech), looped=True))["lanes"] is None
+
+
+def test_a_mechanism_past_the_lanes_size_keeps_the_one_by_one_sweep(monkeypatch: pytest.MonkeyPatch) -> None:
+    from symid.codegen.model import code_model, options_for
+    from symid.codegen.targets import c
+
+    mech = study_mechanism(api.load_mechanism(api.example("slider_crank")))  # 9 coordinates
+    model = code_model(mech, options_for(mech), looped=True)
+    monkeypatch.setattr(c_lanes, "MAX_NG", 8)
+    ctx = c.context(model)
+    assert ctx["lanes"] is None
+    text = render("c/solver.c.j2", **ctx)
+    assert "_Lgroup" not in text and "#define SLIDER_CRANK_LANES 1" in text
 
 
 def _index(mech: Any, name: str) -> int:

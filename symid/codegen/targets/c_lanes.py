@@ -1,7 +1,7 @@
 """The C sweep's variants side by side in SIMD lanes (templates/c/lanes.j2).
 
-`<name>_sweep` takes its variants in groups of LANES, one a lane of a GCC /
-clang vector type, in lock-step through the same operations the scalar
+`<name>_sweep` takes its variants in groups of 4 or 2 (WIDTHS), one a lane
+of a GCC / clang vector type, in lock-step through the same operations the scalar
 sweep does in the same order, so that every figure is bitwise the scalar
 one. The kernels are the scalar ones' printed statements with the lane type:
 arithmetic needs no change (the compilers allow vector-scalar operands),
@@ -10,8 +10,7 @@ value that depends on the time alone stays scalar until it is stored.
 What does not print so (a comparison or a cast inside an expression, a
 tabled function) leaves the mechanism with the scalar sweep, as do the
 forms the lanes do not cover: single precision, friction, sensitivities,
-the looped kernels of a large mechanism (c_loops.LOOP_MIN) and a
-structurally singular Phi_q.
+more than MAX_NG coordinates and a structurally singular Phi_q.
 """
 
 from __future__ import annotations
@@ -33,6 +32,14 @@ WIDTHS = (2, 4)
 # libm functions of one argument, and of two, the lanes call per lane
 UNARY = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "fabs")
 BINARY = ("atan2", "pow")
+
+# Coordinates up to which the sweep has lanes. Their code is written out per
+# width, and gcc's time on it grows faster than the mechanism: the ladder of
+# 4 bays (27 coordinates) compiles in 1.7 s against 0.8 s without lanes, the
+# ladder of 12 (75) in 3.7 s against 1.3 s; a cold build pays that before a
+# sweep of a few hundred variants gains it back. Every bundled example (at
+# most 12 coordinates) has them.
+MAX_NG = 30
 
 _CALL = re.compile(r"\b([A-Za-z_]\w*)\(")
 _ARRAY = re.compile(r"\b\w+\[")
@@ -158,7 +165,8 @@ def context(ctx: dict[str, Any]) -> dict[str, Any] | None:
     """The `lanes` key of the C templates' context (None: the scalar sweep only)."""
     if (ctx["precision"] != "double" or ctx["friction"] or ctx["sens"] or ctx["phases"] or ctx["splines"]
             or ctx["lu_tables"] or ctx["lu_runs"] or ctx["singular"] or ctx["loop_tables"] or ctx["sweep_pairs"]
-            or not ctx["velocity"] or not ctx["dynamics"] or ctx.get("rolled") or ctx.get("wrap_angles")):
+            or not ctx["velocity"] or not ctx["dynamics"] or ctx.get("rolled") or ctx.get("wrap_angles")
+            or ctx["ng"] > MAX_NG):
         return None
     p, P = ctx["p"], ctx["P"]
     conv = Converter(p, P)
