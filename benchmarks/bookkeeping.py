@@ -75,8 +75,10 @@ def _sweep_counts(folder: Path, sources: dict[str, str], k1: int, k2: int, steps
     for label, source in sources.items():
         driver, exe = folder / f"{label}.c", folder / label
         driver.write_text(source, encoding="utf-8")
-        er._run(["gcc", *er.FLAGS, "-I", str(folder), str(driver), str(folder / "slider_crank_solver.c"),
-                 "-o", str(exe), "-lm"])
+        # the scalar instant's bookkeeping: the sweep one variant at a time (its SIMD lanes,
+        # which a base without them ignores the macro of, are sweep_instructions' figure)
+        er._run(["gcc", *er.FLAGS, "-DSLIDER_CRANK_NO_LANES", "-I", str(folder), str(driver),
+                 str(folder / "slider_crank_solver.c"), "-o", str(exe), "-lm"])
         counts = []
         for k in (k1, k2):
             run = er._run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={folder}/cg.out", str(exe),

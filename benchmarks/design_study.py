@@ -122,7 +122,9 @@ def markdown(study: dict[str, Any] | None) -> list[str]:
               f"sweep time {_g(c['us_per_instant_1_thread'] * 1e-6 * instants / t1['solve_s'])}."]
     ins = study.get("instructions")
     if ins:
-        lines += ["", f"Instructions per instant (callgrind): sweep {_g(ins['sweep_instructions_per_instant'])}, "
+        scalar = ins.get("sweep_scalar_instructions_per_instant")
+        lanes = f" (variants side by side in SIMD lanes; one at a time {_g(scalar)})" if scalar else ""
+        lines += ["", f"Instructions per instant (callgrind): sweep {_g(ins['sweep_instructions_per_instant'])}{lanes}, "
                   f"plain trajectory loop {_g(ins['plain_instructions_per_instant'])} "
                   f"(ratio {_g(ins['sweep_over_plain'])})."]
     proc = study.get("processes")

@@ -3,7 +3,10 @@ compiled sweep solves many variants, on one and two threads.
 
 - grid: slider-crank, 25 rod lengths x 40 crank speeds = 1000 variants x 1001
   instants, c backend (`symid.study.engine.solve_figures`), 1 and 2 threads:
-  instants per second of the solve phase (the solver already built).
+  instants per second of the solve phase (the solver already built), and
+  how many of the sweep's groups of variants solved side by side in SIMD
+  lanes were abandoned to the one-by-one path (a lane parting from its
+  neighbours: a failure, a dense fallback, an unexplained jump).
 - anchor: the CasADi-generated C loop of the benchmark's slider-crank
   (`benchmarks.casadi_baselines.CasadiC`, one Function per instant, gcc -O2),
   1001 instants at the default parameters, one thread: its time per instant,
@@ -56,6 +59,20 @@ def _timed(mech: Any, names: tuple[str, ...], base: np.ndarray, workers: int) ->
             "instants_per_cpu_s": instants / batch.cpu_s, "failed": int(np.count_nonzero(batch.status))}
 
 
+def lanes(mech: Any) -> tuple[int, int]:
+    """(variants a group of the compiled sweep's lanes, groups abandoned so far
+    to the one-by-one path) of the study's loaded solver (`<name>_sweep_lanes`)."""
+    import ctypes
+
+    study = study_mechanism(mech)
+    folder = batch_c._load(study).folder
+    fn = ctypes.CDLL(str(folder / "solver.so"))[f"{study.name}_sweep_lanes"]  # the loaded library: its counter
+    fn.argtypes, fn.restype = [ctypes.POINTER(ctypes.c_long)], ctypes.c_long
+    abandoned = ctypes.c_long(0)
+    width = fn(ctypes.byref(abandoned))
+    return int(width), int(abandoned.value)
+
+
 def grid(steps: int, n_rods: int = 25, n_speeds: int = 40) -> dict[str, Any]:
     mech = api.load_mechanism(api.example("slider_crank"), steps=steps)
     rods = np.linspace(0.2, 0.5, n_rods)
@@ -63,9 +80,12 @@ def grid(steps: int, n_rods: int = 25, n_speeds: int = 40) -> dict[str, Any]:
     base = np.array([(r, n) for r in rods for n in speeds])
     names = ("L_rod", "n")
     solve_figures(mech, names, base[:2], "c", workers=1)  # build (or load) the solver: not the solve phase
+    width, before = lanes(mech)
     runs = [_timed(mech, names, base, w) for w in (1, 2, 1, 2)]
+    abandoned = (lanes(mech)[1] - before) / len(runs)  # per run of the grid (chunks: whole groups)
     best = {w: min((r for r in runs if r["workers"] == w), key=lambda r: r["solve_s"]) for w in (1, 2)}
-    return {"steps": steps, "threads_1": best[1], "threads_2": best[2]}
+    return {"steps": steps, "threads_1": best[1], "threads_2": best[2], "lanes": width,
+            "groups": len(base) // width, "groups_abandoned": abandoned}
 
 
 def numpy_grid(steps: int, variants: int = 1000) -> dict[str, Any]:
@@ -143,6 +163,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"grid {r['variants']} variants x {g['steps']} instants, {w} thread(s): solve {r['solve_s']:.3f} s, "
               f"{r['instants_per_s'] / 1e6:.2f} M instants/s ({r['instants_per_cpu_s'] / 1e6:.2f} M per CPU "
               f"second; {r['failed']} failed)")
+    print(f"lanes: {g['lanes']} variants a group, {g['groups_abandoned']:g} of {g['groups']} groups abandoned "
+          f"to the one-by-one path")
     if not args.no_casadi:
         out["casadi_c"] = c = casadi_anchor(args.grid_steps)
         grid_s = c["us_per_instant_1_thread"] * 1e-6 * g["threads_1"]["instants"]

@@ -2,9 +2,13 @@
 trajectory loop, by callgrind (a figure that the machine's load does not
 move): the issue-14 grid's first K variants (rod length x crank speed) of the
 slider-crank, each 1001 instants, once through `<name>_sweep` (figures
-accumulated in C) and once through `<name>_trajectory` variant by variant in
-chunks of 64 rows (what `symid solve` runs, no figures). Two sizes K1 < K2
-and (Ir(K2) - Ir(K1)) / ((K2 - K1) instants) leave out loading and setup.
+accumulated in C; its variants side by side in SIMD lanes), once through the
+same sweep compiled with `<NAME>_NO_LANES` (one variant at a time, the same
+figures bit for bit), and once through `<name>_trajectory` variant by variant
+in chunks of 64 rows (what `symid solve` runs, no figures). Two sizes K1 < K2
+(multiples of the lanes) and (Ir(K2) - Ir(K1)) / ((K2 - K1) instants) leave
+out loading and setup. A lane's instruction does the work of several
+variants: its count is not comparable with a scalar one as time is.
 
     python -m benchmarks.sweep_instructions
 """
@@ -101,13 +105,14 @@ def per_instant(k1: int = 4, k2: int = 12, steps: int = 1001) -> dict[str, Any]:
             "@PARAMS@": ", ".join(repr(float(v)) for v in full.ravel()), "@Q0@": ", ".join(map(repr, q0))}
     out: dict[str, Any] = {"variants": [k1, k2], "steps": steps}
     with tempfile.TemporaryDirectory() as tmp:
-        for label, source in (("sweep", SWEEP), ("plain", PLAIN)):
+        for label, source, flags in (("sweep", SWEEP, []), ("sweep_scalar", SWEEP, [f"-D{name.upper()}_NO_LANES"]),
+                                     ("plain", PLAIN, [])):
             for key, value in text.items():
                 source = source.replace(key, value)
             source = source.replace("UPPER", name.upper()).replace("NAME", name)
             driver, exe = Path(tmp) / f"{label}.c", Path(tmp) / label
             driver.write_text(source, encoding="utf-8")
-            subprocess.run(["gcc", "-O2", "-std=c99", "-fno-math-errno", "-I", str(folder), str(driver),
+            subprocess.run(["gcc", "-O2", "-std=c99", "-fno-math-errno", *flags, "-I", str(folder), str(driver),
                             str(folder / f"{name}_solver.c"), "-o", str(exe), "-lm"], check=True)
             counts = []
             for k in (k1, k2):
@@ -119,10 +124,12 @@ def per_instant(k1: int = 4, k2: int = 12, steps: int = 1001) -> dict[str, Any]:
                 counts.append(int(found.group(1)))
             out[f"{label}_instructions_per_instant"] = (counts[1] - counts[0]) / ((k2 - k1) * steps)
     out["sweep_over_plain"] = out["sweep_instructions_per_instant"] / out["plain_instructions_per_instant"]
+    out["lanes_over_scalar"] = out["sweep_instructions_per_instant"] / out["sweep_scalar_instructions_per_instant"]
     return out
 
 
 if __name__ == "__main__":
     got = per_instant()
-    print(f"instructions per instant: sweep {got['sweep_instructions_per_instant']:.0f}, plain trajectory loop "
-          f"{got['plain_instructions_per_instant']:.0f}, ratio {got['sweep_over_plain']:.3f}")
+    print(f"instructions per instant: sweep {got['sweep_instructions_per_instant']:.0f} (in lanes; one variant at "
+          f"a time {got['sweep_scalar_instructions_per_instant']:.0f}, ratio {got['lanes_over_scalar']:.3f}), plain "
+          f"trajectory loop {got['plain_instructions_per_instant']:.0f}, ratio {got['sweep_over_plain']:.3f}")

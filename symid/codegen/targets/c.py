@@ -16,7 +16,7 @@ from symid.codegen.targets.c_lu import lu_chunks  # noqa: F401 (tests build chun
 from symid.codegen.targets.c_lu_runs import lu_runs, rolled
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
-from symid.codegen.targets import c_checks, c_sens, c_sweep
+from symid.codegen.targets import c_checks, c_lanes, c_sens, c_sweep
 from symid.codegen.render import render
 from symid.codegen.targets.c_describe import describe
 from symid.codegen.targets.c_printer import (DOUBLE, PRECISIONS, Printer, Scalar, c_double,  # noqa: F401
@@ -239,7 +239,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
     outputs = [(var, placed.get(source), slot)
                for var, source, slot in (("qn", "q", 4), ("qdn", "qd", 5), ("qddn", "qdd", 6), ("lam", "lam", 7),
                                          ("reac", "reac", 8))]
-    return {
+    ctx = {
         **c_phase.context(red, off_nu, len(f.params)),
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
         "nnz": len(f.jac), "nr": nr, "row_width": fr["row_width"] if fr else offset, "friction": fr,
@@ -272,6 +272,8 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "lm": {k: scalar.fn(k) for k in ("sin", "cos", "sqrt", "fabs", "fmax", "fmin", "tanh")},
         "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
+    ctx["lanes"] = c_lanes.context(ctx)  # the sweep's variants side by side (None: one by one)
+    return ctx
 
 
 def _relit_tables(table: dict[str, Any], scalar: Scalar) -> dict[str, Any]:
