@@ -243,6 +243,15 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
 int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavator_real h, long n, excavator_real tol,
                   excavator_real *figures, int *status, excavator_real *t_end, long *solved, excavator_real *work, int *iwork);
 
+/* Variants solved side by side: returns how many a group takes (1: one by
+   one; 4 with AVX2, else 2, where the code was generated for it and compiled
+   by gcc or clang for x86-64 without EXCAVATOR_NO_LANES defined; defining
+   EXCAVATOR_LANES_SSE2 keeps 2 on any processor: every figure is the same bits
+   either way), and writes to abandoned (if not NULL) how many groups since
+   the library was loaded left the lanes for the one-by-one path (a variant
+   whose status or factorization parted from its neighbours'). */
+long excavator_sweep_lanes(long *abandoned);
+
 #ifdef __cplusplus
 }
 #endif

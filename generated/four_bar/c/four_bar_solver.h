@@ -226,6 +226,15 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
 int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_real h, long n, four_bar_real tol,
                   four_bar_real *figures, int *status, four_bar_real *t_end, long *solved, four_bar_real *work, int *iwork);
 
+/* Variants solved side by side: returns how many a group takes (1: one by
+   one; 4 with AVX2, else 2, where the code was generated for it and compiled
+   by gcc or clang for x86-64 without FOUR_BAR_NO_LANES defined; defining
+   FOUR_BAR_LANES_SSE2 keeps 2 on any processor: every figure is the same bits
+   either way), and writes to abandoned (if not NULL) how many groups since
+   the library was loaded left the lanes for the one-by-one path (a variant
+   whose status or factorization parted from its neighbours'). */
+long four_bar_sweep_lanes(long *abandoned);
+
 #ifdef __cplusplus
 }
 #endif

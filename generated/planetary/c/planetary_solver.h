@@ -257,6 +257,15 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
 int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetary_real h, long n, planetary_real tol,
                   planetary_real *figures, int *status, planetary_real *t_end, long *solved, planetary_real *work, int *iwork);
 
+/* Variants solved side by side: returns how many a group takes (1: one by
+   one; 4 with AVX2, else 2, where the code was generated for it and compiled
+   by gcc or clang for x86-64 without PLANETARY_NO_LANES defined; defining
+   PLANETARY_LANES_SSE2 keeps 2 on any processor: every figure is the same bits
+   either way), and writes to abandoned (if not NULL) how many groups since
+   the library was loaded left the lanes for the one-by-one path (a variant
+   whose status or factorization parted from its neighbours'). */
+long planetary_sweep_lanes(long *abandoned);
+
 #ifdef __cplusplus
 }
 #endif

@@ -231,6 +231,15 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
 int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0, quick_return_real h, long n, quick_return_real tol,
                   quick_return_real *figures, int *status, quick_return_real *t_end, long *solved, quick_return_real *work, int *iwork);
 
+/* Variants solved side by side: returns how many a group takes (1: one by
+   one; 4 with AVX2, else 2, where the code was generated for it and compiled
+   by gcc or clang for x86-64 without QUICK_RETURN_NO_LANES defined; defining
+   QUICK_RETURN_LANES_SSE2 keeps 2 on any processor: every figure is the same bits
+   either way), and writes to abandoned (if not NULL) how many groups since
+   the library was loaded left the lanes for the one-by-one path (a variant
+   whose status or factorization parted from its neighbours'). */
+long quick_return_sweep_lanes(long *abandoned);
+
 #ifdef __cplusplus
 }
 #endif

@@ -220,6 +220,15 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
 int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0, slider_crank_real h, long n, slider_crank_real tol,
                   slider_crank_real *figures, int *status, slider_crank_real *t_end, long *solved, slider_crank_real *work, int *iwork);
 
+/* Variants solved side by side: returns how many a group takes (1: one by
+   one; 4 with AVX2, else 2, where the code was generated for it and compiled
+   by gcc or clang for x86-64 without SLIDER_CRANK_NO_LANES defined; defining
+   SLIDER_CRANK_LANES_SSE2 keeps 2 on any processor: every figure is the same bits
+   either way), and writes to abandoned (if not NULL) how many groups since
+   the library was loaded left the lanes for the one-by-one path (a variant
+   whose status or factorization parted from its neighbours'). */
+long slider_crank_sweep_lanes(long *abandoned);
+
 #ifdef __cplusplus
 }
 #endif

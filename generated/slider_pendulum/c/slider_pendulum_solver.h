@@ -213,6 +213,15 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
 int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum_real t0, slider_pendulum_real h, long n, slider_pendulum_real tol,
                   slider_pendulum_real *figures, int *status, slider_pendulum_real *t_end, long *solved, slider_pendulum_real *work, int *iwork);
 
+/* Variants solved side by side: returns how many a group takes (1: one by
+   one; 4 with AVX2, else 2, where the code was generated for it and compiled
+   by gcc or clang for x86-64 without SLIDER_PENDULUM_NO_LANES defined; defining
+   SLIDER_PENDULUM_LANES_SSE2 keeps 2 on any processor: every figure is the same bits
+   either way), and writes to abandoned (if not NULL) how many groups since
+   the library was loaded left the lanes for the one-by-one path (a variant
+   whose status or factorization parted from its neighbours'). */
+long slider_pendulum_sweep_lanes(long *abandoned);
+
 #ifdef __cplusplus
 }
 #endif
