@@ -241,9 +241,9 @@ def test_the_bundled_examples_without_friction_take_the_lanes() -> None:
 
     for name in GRIDS:
         mech = study_mechanism(api.load_mechanism(api.example(name)))
-        assert c.context(code_model(mech, options_for(mech), looped=True))["lanes"] is not None, name
+        assert c.context(code_model(mech, options_for(mech), looped=True), lanes=True)["lanes"] is not None, name
     mech = study_mechanism(api.load_mechanism(api.example("slider_crank_friction")))
-    assert c.context(code_model(mech, options_for(mech), looped=True))["lanes"] is None
+    assert c.context(code_model(mech, options_for(mech), looped=True), lanes=True)["lanes"] is None
 
 
 def test_a_mechanism_past_the_lanes_size_keeps_the_one_by_one_sweep(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -253,7 +253,7 @@ def test_a_mechanism_past_the_lanes_size_keeps_the_one_by_one_sweep(monkeypatch:
     mech = study_mechanism(api.load_mechanism(api.example("slider_crank")))  # 9 coordinates
     model = code_model(mech, options_for(mech), looped=True)
     monkeypatch.setattr(c_lanes, "MAX_NG", 8)
-    ctx = c.context(model)
+    ctx = c.context(model, lanes=True)
     assert ctx["lanes"] is None
     text = render("c/solver.c.j2", **ctx)
     assert "_Lgroup" not in text and "#define SLIDER_CRANK_LANES 1" in text
@@ -311,3 +311,18 @@ def test_a_scattered_sample_in_lanes_is_each_variant_alone(width: str, tmp_path:
     rng = np.random.default_rng(0)
     base = np.array([0.1, 0.3, 0.5, 1.0, 0.8, 5.0]) * (1 + 0.05 * rng.standard_normal((8 * sweep.width, len(names))))
     assert _assert_lanes_are_scalar(sweep, base_matrix(mech, names, base)) == 0
+
+
+def test_an_exported_solver_has_the_one_by_one_sweep_only(tmp_path: Path) -> None:
+    """`symid generate --target c` writes code for a controller or a board:
+    no lanes (half its size); the cache's build, which studies run, has them."""
+    from symid.backends.c_backend import build
+    from symid.codegen.model import options_for
+    from symid.symbolic.assemble import assemble
+
+    mech = study_mechanism(api.load_mechanism(api.example("slider_crank")))
+    api.generate(api.example("slider_crank"), "c", tmp_path / "out")
+    exported = (tmp_path / "out" / "slider_crank_solver.c").read_text()
+    assert "_Lgroup" not in exported and "#define SLIDER_CRANK_LANES 1" in exported
+    built = next(build(assemble(mech), options_for(mech)).glob("*_solver.c")).read_text()
+    assert "_Lgroup" in built

@@ -113,7 +113,7 @@ def build(layout: Layout, options: Options) -> Path:
         model = code_model(mech, options, looped=True,
                            meanwhile=lambda sample: preload(c.TEMPLATES, sample.ready))
         stage("generating")
-        ctx = c.context(model)
+        ctx = c.context(model, lanes=True)  # studies run this build: their variants in SIMD lanes
         c.write(ctx, folder)
         source = folder / f"{mech.name}_solver.c"
         # gcc -O2 time grows faster than the code; past LARGE_SOURCE -O1 compiles

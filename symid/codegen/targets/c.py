@@ -160,11 +160,15 @@ def _outputs_unused(velocity: bool, multipliers: bool, nr: int) -> list[str]:
     return [a for a in OUTPUTS_ARGS if a not in used]
 
 
-def context(model: CodeModel, fold_constants: bool = True, precision: str = "double") -> dict[str, Any]:
+def context(model: CodeModel, fold_constants: bool = True, precision: str = "double",
+            lanes: bool = False) -> dict[str, Any]:
     """Everything the C templates need, expressions already printed;
     fold_constants=False prints the factorization with every value read at
     run time (the same factors bitwise: for the tests); precision: "double"
-    or "single" (float: literals, libm functions and epsilon of float)."""
+    or "single" (float: literals, libm functions and epsilon of float);
+    lanes: the sweep's variants side by side (c_lanes), for the cache's
+    build, which studies run; an exported solver (`symid generate`, for a
+    controller or a board) has the one-by-one sweep, twice less code."""
     scalar = PRECISIONS[precision]
     f = model.flat
     o = f.options
@@ -272,7 +276,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "lm": {k: scalar.fn(k) for k in ("sin", "cos", "sqrt", "fabs", "fmax", "fmin", "tanh")},
         "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
-    ctx["lanes"] = c_lanes.context(ctx)  # the sweep's variants side by side (None: one by one)
+    ctx["lanes"] = c_lanes.context(ctx) if lanes else None  # the sweep's variants side by side (None: one by one)
     return ctx
 
 
