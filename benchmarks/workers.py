@@ -126,7 +126,8 @@ def worker_paired(spec: dict[str, Any]) -> dict[str, Any]:
     their ratio (casadi-c / symid-c)."""
     from benchmarks.casadi_baselines import APPROACHES
     from symid import api
-    from symid.tools.bench import CHUNK, _trajectory
+    from symid.backends.c_backend import chunk_rows
+    from symid.tools.bench import _trajectory
 
     mech = spec["mech"]
     study = api.prepare(mech["file"], "c", steps=mech["steps"], t1=mech["t1"])
@@ -137,6 +138,7 @@ def worker_paired(spec: dict[str, Any]) -> dict[str, Any]:
     casadi.setup()
     q0, h, steps = system.q0(), mech["h"], mech["steps"]
     state = np.zeros(study.evaluator.meta["state"])  # type: ignore[attr-defined]
+    chunk = chunk_rows(study.evaluator.meta["row"])  # type: ignore[attr-defined]
     ours, theirs = [], []
     try:
         for _ in range(spec["rounds"]):
@@ -144,7 +146,7 @@ def worker_paired(spec: dict[str, Any]) -> dict[str, Any]:
             state[:study.layout.ng] = study.q0()
             seconds, done = 0.0, 0
             while done < steps:
-                _, solved, status, dt = runner(done, min(CHUNK, steps - done), state)
+                _, solved, status, dt = runner(done, min(chunk, steps - done), state)
                 seconds += dt
                 done += solved
                 if status != 0:

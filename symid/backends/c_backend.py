@@ -43,6 +43,13 @@ CHUNK_BYTES = 1 << 20
 LARGE_SOURCE = 200_000  # bytes of generated C
 
 
+def chunk_rows(width: int) -> int:
+    """Instants per call of the compiled loop for rows of `width` values: up
+    to CHUNK, and CHUNK_BYTES of rows, so that a wide row (a large mechanism's
+    reactions) is written while still in cache; at least 16."""
+    return max(16, min(CHUNK, CHUNK_BYTES // (8 * width)))
+
+
 def _words(cc: str) -> list[str]:
     """$CC as make reads it: "ccache gcc" is a command and its argument."""
     try:
@@ -273,7 +280,7 @@ class CEvaluator:
         from symid.numeric.solve import Instant, Stepper
 
         ng, width = self.meta["ng"], self.meta["row"]
-        chunk = max(16, min(CHUNK, CHUNK_BYTES // (8 * width)))
+        chunk = chunk_rows(width)
         state = np.zeros(self.meta["state"])
         state[:ng] = q0
         q, qd, qdd, m1, m2, m3 = (state[k * ng:(k + 1) * ng] for k in range(6))  # views (statics: m1, m2 are q)

@@ -35,7 +35,7 @@ from typing import Any, Callable, Iterator, Sequence
 import numpy as np
 
 from symid import api
-from symid.backends.c_backend import CEvaluator
+from symid.backends.c_backend import CEvaluator, chunk_rows
 from symid.errors import AnalysisError
 from symid.model.mechanism import Mechanism
 
@@ -48,7 +48,6 @@ PHASES: tuple[tuple[str, str, str], ...] = (
     ("symid.codegen.model", "build", "derive"),
     ("subprocess", "run", "compile"),
 )
-CHUNK = 256
 
 
 class _Phases:
@@ -120,8 +119,9 @@ _Runner = Callable[[int, int, np.ndarray], tuple[np.ndarray, int, int, float]]
 def _trajectory(study: api.Study) -> _Runner | None:
     """A runner over the compiled `<name>_trajectory`, or None for Python backends.
 
-    The runner (start, n, state) solves n <= CHUNK instants of the grid
-    from `start` and returns (rows, solved, status, seconds of the C call).
+    The runner (start, n, state) solves n <= chunk instants of the grid
+    from `start` and returns (rows, solved, status, seconds of the C call);
+    chunk: what `symid solve` asks of the loop a call (c_backend.chunk_rows).
     """
     ev = study.evaluator
     if not isinstance(ev, CEvaluator):  # the only evaluator with a compiled loop
@@ -135,7 +135,7 @@ def _trajectory(study: api.Study) -> _Runner | None:
     fn.argtypes = [dbl, dbl, ctypes.c_long, ptr, dbl, ptr, ptr, ctypes.POINTER(ctypes.c_long), ptr,
                    ctypes.POINTER(ctypes.c_int)]
     h = (a.t1 - a.t0) / (a.steps - 1) if a.steps > 1 else 0.0
-    buf = np.zeros((CHUNK, meta["row"]))
+    buf = np.zeros((chunk_rows(meta["row"]), meta["row"]))
     solved = ctypes.c_long(0)
     # pointers made once: each conversion costs about a microsecond
     p, buf_p, work, iwork = (ev.p.ctypes.data_as(ptr), buf.ctypes.data_as(ptr), ev.work.ctypes.data_as(ptr),
@@ -214,7 +214,9 @@ def _residual(study: api.Study, rows: np.ndarray) -> float:
 
 def _time_compiled(study: api.Study, run: _Runner, wanted: int, budget_s: float, start: float,
                    keep: dict[str, int]) -> dict[str, Any]:
-    """Runs of the whole grid through the compiled loop, CHUNK instants per call."""
+    """Runs of the whole grid through the compiled loop, as many instants a
+    call as `symid solve` asks (c_backend.chunk_rows: a wide row is written
+    while in cache, as in a run)."""
     steps, ng = study.analysis.steps, study.layout.ng
     state = np.zeros(study.evaluator.meta["state"])  # type: ignore[attr-defined]
     q0 = study.q0()
@@ -232,7 +234,7 @@ def _time_compiled(study: api.Study, run: _Runner, wanted: int, budget_s: float,
         n_run = min(steps, wanted - timed)
         seconds, done, first = 0.0, 0, not per_run
         while done < n_run:
-            n = min(CHUNK, n_run - done)
+            n = min(chunk_rows(study.evaluator.meta["row"]), n_run - done)  # type: ignore[attr-defined]
             rows, solved, status, dt = run(done, n, state)
             seconds += dt
             if first:
