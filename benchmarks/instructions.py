@@ -23,20 +23,20 @@ from symid.model.analysis import Analysis
 DRIVER = r"""
 #include <stdio.h>
 #include <stdlib.h>
-#include "NAME_solver.h"
+#include "@NAME@_solver.h"
 
 int main(int argc, char **argv)
 {
     const long n = atol(argv[1]), chunk = 64;
     long done = 0, solved = 0;
-    double *work = calloc(UPPER_WORK, sizeof(double)), *state = calloc(UPPER_STATE, sizeof(double));
-    double *rows = calloc(chunk * UPPER_ROW, sizeof(double));
-    int *iwork = calloc(UPPER_NG + 1, sizeof(int)), status = 0, k;
-    const double q0[] = {Q0};
-    for (k = 0; k < UPPER_NG; ++k) state[k] = q0[k];
+    double *work = calloc(@UPPER@_WORK, sizeof(double)), *state = calloc(@UPPER@_STATE, sizeof(double));
+    double *rows = calloc(chunk * @UPPER@_ROW, sizeof(double));
+    int *iwork = calloc(@UPPER@_NG + 1, sizeof(int)), status = 0, k;
+    const double q0[] = {@Q0@};
+    for (k = 0; k < @UPPER@_NG; ++k) state[k] = q0[k];
     while (done < n && status == 0) {
         const long m = n - done < chunk ? n - done : chunk;
-        status = NAME_trajectory(T0, H, m, NAME_default_params, TOL, state, rows, &solved, work, iwork);
+        status = @NAME@_trajectory(@T0@, @H@, m, @NAME@_default_params, @TOL@, state, rows, &solved, work, iwork);
         done += solved;
     }
     printf("%d %ld\n", status, done);
@@ -58,15 +58,21 @@ def per_instant(example: str, first: int = 200, second: int = 2200) -> float:
                    study.analysis, study.q0(), first, second)
 
 
+def driver_source(name: str, a: Analysis, q0: Sequence[float], second: int) -> str:
+    """DRIVER for the solver `name`, in one pass over its @KEY@ marks: a value
+    is never read again as a mark (a name such as slider_crank_counterweight
+    holds T and H, which chained replaces turned into numbers)."""
+    values = {"@UPPER@": name.upper(), "@NAME@": name, "@Q0@": ", ".join(repr(float(v)) for v in q0),
+              "@T0@": repr(float(a.t0)), "@H@": repr((a.t1 - a.t0) / (second - 1)), "@TOL@": repr(float(a.tol))}
+    return re.sub("|".join(map(re.escape, values)), lambda m: values[m.group(0)], DRIVER)
+
+
 def counted(folder: Path, name: str, a: Analysis, q0: Sequence[float], first: int = 200,
             second: int = 2200) -> float:
     """Instructions per instant of the solver `name` built in `folder` (what
     `symid solve --backend c` leaves there), run from `q0` over `a`'s t0 to t1
     cut into `second - 1` steps: (Ir(second) - Ir(first)) / (second - first)."""
-    source = (DRIVER.replace("UPPER", name.upper()).replace("NAME", name)
-              .replace("Q0", ", ".join(repr(float(v)) for v in q0))
-              .replace("T0", repr(float(a.t0))).replace("H", repr((a.t1 - a.t0) / (second - 1)))
-              .replace("TOL", repr(float(a.tol))))
+    source = driver_source(name, a, q0, second)
     counts = []
     with tempfile.TemporaryDirectory() as tmp:
         driver, exe = Path(tmp) / "driver.c", Path(tmp) / "driver"
