@@ -24,7 +24,7 @@ from symid.io import friction as friction_table
 from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS, MAX_STEPS
 from symid.io.table import read as read_table
 from symid.model.mechanism import (
-    EXTRA_OUTPUTS, GROUND, JUMP_MODES, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, REDUNDANT_MODES, T,
+    EXTRA_OUTPUTS, GROUND, INERTIALS, JUMP_MODES, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, REDUNDANT_MODES, T,
     Analysis, Body, Element, Mechanism, parameter_symbol,
 )
 from symid.model.motion import LAWS, check_spans
@@ -278,7 +278,7 @@ class _Reader:
         name = self.name(data, where)
         where = f"body '{name}'"
         self.unknown(data, BODY_KEYS, where)
-        mass, inertia = (self.inertial(data, key, where) for key in ("mass", "inertia"))
+        mass, inertia = (self.inertial(data, key, where) for key in INERTIALS)
         q0 = self.pair(self.require(data, "q0", where), f"{where} key 'q0'", n=3)
         return Body(name=name, mass=mass, inertia=inertia, q0=q0)  # type: ignore[arg-type]
 

@@ -28,6 +28,12 @@ def parameter_symbol(name: str) -> sp.Symbol:
     return sp.Symbol(name, real=True)
 
 
+# A body's keys that must not be negative (a zero mass or inertia is a body
+# without it): the file's reader refuses them, and so does a study for each
+# variant, which sets parameters without the reader (symid.study.inertials).
+INERTIALS = ("mass", "inertia")
+
+
 @dataclass(frozen=True)
 class Body:
     """A rigid body; q = [x, y, phi] of its centre of mass.

@@ -14,7 +14,7 @@ import numpy as np
 import sympy as sp
 
 from symid.errors import InputError
-from symid.model.mechanism import Mechanism, parameter_symbol
+from symid.model.mechanism import INERTIALS, Mechanism, parameter_symbol
 from symid.model.params import parameter_values
 from symid.text import number
 
@@ -31,7 +31,7 @@ def checker(mechanism: Mechanism, names: Sequence[str]) -> Callable[[Array], tup
     varied = [parameter_symbol(n) for n in names]
     tests = []  # (body, key, args, function) of each mass or inertia that a variant moves
     for body in mechanism.bodies:
-        for key in ("mass", "inertia"):
+        for key in INERTIALS:
             expr = sp.sympify(getattr(body, key)).xreplace(derived)
             if expr.free_symbols & set(varied):  # else fixed for every variant: the reader checked it
                 args = sorted(expr.free_symbols, key=str)
