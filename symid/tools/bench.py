@@ -219,6 +219,7 @@ def _time_compiled(study: api.Study, run: _Runner, wanted: int, budget_s: float,
     while in cache, as in a run)."""
     steps, ng = study.analysis.steps, study.layout.ng
     state = np.zeros(study.evaluator.meta["state"])  # type: ignore[attr-defined]
+    chunk = chunk_rows(study.evaluator.meta["row"])  # type: ignore[attr-defined]
     q0 = study.q0()
     state[:ng] = q0
     _, solved, status, _ = run(0, 1, state)  # the first instant: part of setup, as for every approach
@@ -234,7 +235,7 @@ def _time_compiled(study: api.Study, run: _Runner, wanted: int, budget_s: float,
         n_run = min(steps, wanted - timed)
         seconds, done, first = 0.0, 0, not per_run
         while done < n_run:
-            n = min(chunk_rows(study.evaluator.meta["row"]), n_run - done)  # type: ignore[attr-defined]
+            n = min(chunk, n_run - done)
             rows, solved, status, dt = run(done, n, state)
             seconds += dt
             if first:
