@@ -527,7 +527,10 @@ def test_other_units_give_the_same_results_to_1e_12(tmp_path, name, u, m):
         converted = other.data[:, cols] / (u ** dim[0] * m ** dim[1])
         scale = np.max(np.abs(base.data[:, cols]))
         assert np.max(np.abs(converted - base.data[:, cols])) <= 1e-12 * scale, (kind, name)
-    assert np.allclose(other["cond"], base["cond"], rtol=0.5)  # power-of-two scales: within a factor ~2
+    # power-of-two scales: within a factor ~2; and LAPACK's gecon is a lower-bound
+    # estimate that can land on another local maximum when the scales change (the
+    # Andrews squeezer: 14 or 33 at neighbouring instants, its exact 1-norm cond 34)
+    assert np.all(np.abs(np.log(other["cond"] / base["cond"])) <= np.log(3.0))
 
 
 @pytest.mark.parametrize("tol", [1e-12, 1e-6])
