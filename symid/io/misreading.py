@@ -3,10 +3,10 @@
 Angles are radians; a magnitude above 2 pi is legal (angles are never
 wrapped) but is far more often degrees written by habit, which silently
 gives another mechanism. A driver's angle formula is read the same way: its
-value at t0, and its rate there when that is a whole number above 2 pi rad/s
-("270*t"): a rate in rad/s above one turn a second is common, but comes
-from 2 pi n or a measured speed, not a whole number, which a rate in degrees
-per second usually is. And Newton assembles the mechanism at t0 from the
+value at t0, and its rate there when that is above 2 pi rad/s and a whole
+multiple of 15 ("270*t", "90*t", "360*t"): the steps of a rate written in
+degrees per second. A rate in rad/s above a turn a second is common, but
+comes from 2 pi n, a measured speed or a round 10, 20, 50, 100 (which pass). And Newton assembles the mechanism at t0 from the
 `q0` guesses: a body that ends far from its guess may have been assembled in
 another mode than the one drawn.
 """
@@ -58,8 +58,13 @@ def _rates(mech: Mechanism) -> Iterator[tuple[str, sp.Expr]]:
             yield f"constraint '{e.name}' key 'f': its rate at t0 = {number(t0)}", rate
 
 
-def _whole(value: float) -> bool:
-    return abs(value - round(value)) <= 1e-9 * abs(value)
+DEGREE_STEP = 15  # degrees per second as people write them: 15, 30, 45, 90, 180, 270, 360, 720
+
+
+def _in_degrees(value: float) -> bool:
+    """A rate above 2 pi whose value is a whole multiple of DEGREE_STEP."""
+    steps = value / DEGREE_STEP
+    return abs(value) > TURN and abs(steps - round(steps)) <= 1e-9 * abs(steps)
 
 
 def angle_warnings(mech: Mechanism) -> list[str]:
@@ -79,9 +84,9 @@ def angle_warnings(mech: Mechanism) -> list[str]:
             value = to_float(expr, values)
         except (ValueError, TypeError):
             continue
-        if abs(value) > TURN and _whole(value):
-            out.append(f"{mech.source}: {where} = {number(value)} rad/s is a whole number above 2 pi: radians "
-                       f"per second expected; did you mean {number(value)} degrees per second "
+        if _in_degrees(value):
+            out.append(f"{mech.source}: {where} = {number(value)} rad/s, a multiple of {DEGREE_STEP} above 2 pi: "
+                       f"radians per second expected; did you mean {number(value)} degrees per second "
                        f"({number(math.radians(value))} rad/s)?")
     return out
 
