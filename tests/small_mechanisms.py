@@ -1,9 +1,11 @@
 """The smallest mechanisms of each kind (texts of mechanism files), in one place.
 
 Every constraint type alone with the fewest bodies it needs plus drivers,
-every force type on a driven pendulum, and the analyses and output subsets
-that leave parts of the generated code empty: the cases where a generated
-solver has an unused argument, an empty kernel or an empty elimination pass.
+every force type on a driven pendulum, linkages without a time term linear
+in t, and the analyses and output subsets that leave parts of the generated
+code empty: the cases where a generated solver has an unused argument, an
+empty kernel or an empty elimination pass (or, in single precision, angles
+to wrap but no phase).
 Each is assembled at q0 and runs 21 instants over t in [0, 1].
 """
 
@@ -107,6 +109,25 @@ CONSTRAINTS = {
 }
 
 
+# linkages with no time term linear in t: single precision wraps their angles
+# (read only through sin and cos) but has no phase to compute
+LINKAGES = {
+    # a 2R arm, the second bar's centre moved along a straight line
+    "two_r_arm": (_body("upper", "0.268, 0.422, 1.004") + _body("fore", "0.9, 0.5, -0.758")
+                  + _constraint("shoulder", "revolute", i='"ground"', j='"upper"', si="[0.0, 0.0]",
+                                sj="[-0.5, 0.0]")
+                  + _constraint("elbow", "revolute", i='"upper"', j='"fore"', si="[0.5, 0.0]", sj="[-0.5, 0.0]")
+                  + _coordinate("fore", "x", "0.9 + 0.2*t") + _coordinate("fore", "y", "0.5 - 0.1*t")),
+    # a scissor: two bars pinned at their middles, one pinned to ground, the
+    # other's lower end in a slot along x; the crossing's x driven
+    "scissor_lift": (_body("arm_a", "0.348, 0.359, 0.8") + _body("arm_b", "0.348, 0.359, 2.342")
+                     + _constraint("foot", "revolute", i='"ground"', j='"arm_a"', si="[0.0, 0.0]", sj="[-0.5, 0.0]")
+                     + _constraint("cross", "revolute", i='"arm_a"', j='"arm_b"', si="[0.0, 0.0]", sj="[0.0, 0.0]")
+                     + _constraint("roller", "pin_in_slot", i='"ground"', j='"arm_b"', si="[0.0, 0.0]",
+                                   vi="[1.0, 0.0]", sj="[-0.5, 0.0]")
+                     + _coordinate("arm_a", "x", "0.35 - 0.1*t")),
+}
+
 # numbers of every magnitude in the generated code: integers past 2^63, a
 # rational whose numerator is no double, a subnormal
 NUMBERS = (_body("bar", "0.5, 0.0, 0.0", "1e19", '"10^25/3"')
@@ -122,7 +143,7 @@ def text(name: str, parts: str, analysis: str = "", gravity: float = -9.81) -> s
 
 def cases() -> dict[str, str]:
     """Every small mechanism, by a name that says what it covers."""
-    out = {name: text(name, parts) for name, parts in CONSTRAINTS.items()}
+    out = {name: text(name, parts) for name, parts in {**CONSTRAINTS, **LINKAGES}.items()}
     out.update({f"force_{kind}": text(f"force_{kind}", PENDULUM_PARTS + force) for kind, force in FORCES.items()})
     every_force = PENDULUM_PARTS + "".join(FORCES.values())
     out["forces_kinematics"] = text("forces_kinematics", every_force, 'kind = "kinematics"\n')

@@ -472,6 +472,13 @@ CASES = [
      r"bad\.toml: \[analysis\] key 'reactions': unknown constraint 'gas_load'"),
     ("reactions_not_a_list", edit("steps = 201", 'steps = 201\nreactions = "motor"'), [],
      r"bad\.toml: \[analysis\] key 'reactions': must be a list"),
+    # a direction of length 0 (was exit 3, "Phi_q is singular", or "Phi not finite" where a row divides by it)
+    ("direction_zero_vector", edit("vi = [1.0, 0.0]", "vi = [0.0, 0.0]"), [],
+     r"bad\.toml: constraint 'cylinder_guide' key 'vi': is the zero vector \[0\.0, 0\.0\]"),
+    ("direction_zero_by_its_parameters", edit("vi = [1.0, 0.0]", 'vi = ["L_crank - 0.1", "0*L_rod"]'), [],
+     r"bad\.toml: constraint 'cylinder_guide' key 'vi': is the zero vector"),
+    ("direction_zero_by_set", edit("vi = [1.0, 0.0]", 'vi = ["L_crank", 0.0]'), ["--set", "L_crank=0"],
+     r"bad\.toml: constraint 'cylinder_guide' key 'vi': is the zero vector"),
     # -- hostile expressions -------------------------------------------------
     ("injection_in_driver", edit('f = "omega*t"', f"f = {quoted(INJECTION)}"), [],
      r"bad\.toml: constraint 'motor' key 'f': "),

@@ -33,9 +33,34 @@ def test_an_angle_above_two_pi_is_warned_about_naming_its_key(old: str, new: str
     assert "radians expected; did you mean" in lines[0] and "degrees" in lines[0]
 
 
+@pytest.mark.parametrize(("f", "rate"), [("270*t", "270"), ("90*sin(t)", "90"), ("pi/2 + 360*t", "360")])
+def test_a_driver_rate_in_degrees_per_second_is_warned_about(f: str, rate: str) -> None:
+    """The theta0 rule on the driver's rate at t0: above 2 pi and a whole
+    multiple of 15 (a rate in rad/s above a turn a second is 2 pi n, measured
+    or a round 10, 20, 50, 100)."""
+    lines = angle_warnings(loads(_edited('f = "omega*t"', f'f = "{f}"'), "m.toml"))
+    assert len(lines) == 1 and f"constraint 'motor' key 'f': its rate at t0 = 0 = {rate} rad/s" in lines[0]
+    assert "did you mean" in lines[0] and f"{math.radians(float(rate)):.6f}"[:6] in lines[0]
+
+
+@pytest.mark.parametrize("f", ["omega*t", "31.4*t", "6*t", "10*t", "20*t", "100*t", "2*pi*50*t",
+                               "0.5*t^2 + 400*t^3"])
+def test_a_driver_rate_in_radians_per_second_passes(f: str) -> None:
+    assert angle_warnings(loads(_edited('f = "omega*t"', f'f = "{f}"'), "m.toml")) == []
+
+
 @pytest.mark.parametrize("name", api.examples())
 def test_bundled_examples_have_no_angle_warning(name: str) -> None:
     assert angle_warnings(load(api.example(name))) == []
+
+
+def test_a_driver_in_degrees_reaches_the_command_line_as_a_warning(tmp_path: Path, capsys) -> None:
+    path = tmp_path / "deg.toml"
+    path.write_text(_edited('f = "omega*t"', 'f = "270*t"'))
+    assert main(["solve", str(path), "--t1", "0.01", "--steps", "3", "--backend", "reference", "-o",
+                 str(tmp_path / "x.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "symid: warning:" in err and "270 rad/s, a multiple of 15 above 2 pi" in err
 
 
 def test_degrees_reach_the_command_line_as_a_warning(tmp_path: Path, capsys) -> None:

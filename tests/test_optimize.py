@@ -92,6 +92,21 @@ def test_cli_prints_iterations_and_writes_the_optimum_as_a_parameters_snippet(cl
     assert [snippet["parameters"]["m_cw"], snippet["parameters"]["beta_cw"]] == pytest.approx(optimum.p, rel=1e-9)
 
 
+def test_an_optimum_on_a_bound_is_said_to_be_there(cli, capsys, optimum):
+    """m_cw's range cut below its free optimum (an interior point, the dense
+    grid above says): the optimum holds the upper bound, and the line and the
+    snippet say so; beta_cw stays inside and says nothing."""
+    assert optimum.bound == ("", "") and "bound" not in optimum.where()
+    top = round(float(optimum.p[0]) - 0.1, 6)
+    assert cli("--minimize", "motor.effort_rms", "--vary", f"m_cw=1:{top}", "--vary", VARY[1]) == 0
+    out = capsys.readouterr().out
+    assert f"optimum: m_cw = {top:.10g} (on its upper bound), beta_cw = " in out
+    assert "beta_cw = " in out and out.count("bound") == 1
+    text = Path("slider_crank_counterweight_optimized.toml").read_text()
+    assert f"m_cw = {top!r}  # on its upper bound" in text
+    assert tomllib.loads(text)["parameters"]["m_cw"] == top
+
+
 def test_cli_exit_3_with_the_optimizers_message_when_it_does_not_converge(cli, capsys):
     status = cli("--minimize", "motor.effort_rms", "--vary", "m_cw=1:4", "--vary", "beta_cw=2.5:3.8",
                  "--maxiter", "1", "-o", "best.toml")

@@ -17,7 +17,7 @@ from symid.output import plot
 
 from symid.output import summary
 from symid.cli import main
-from symid.io.reader import load
+from symid.io.reader import load, loads
 from truth import Truth
 
 EXAMPLES = api.examples()
@@ -135,6 +135,32 @@ def test_planetary_gears_are_drawn_with_their_pitch_radii():
     sc = plot.scene(api.solve(mech), mech)
     radii = {(body, round(r, 12)) for body, _, r, _ in sc.gears}
     assert radii == {("sun", 0.03), ("planet", 0.03), ("ground", 0.09), ("input_pinion", 0.02)}
+
+
+def test_an_eccentric_gears_pitch_circle_turns_about_its_axis_not_its_centre_of_mass():
+    """The small gear pair with both centres of mass off their bearings: each
+    pitch circle is centred on its bearing's point at every instant (the
+    joint's point, from the table's q), radii 0.05 and 0.1 as in the file."""
+    from small_mechanisms import CONSTRAINTS, text
+
+    gears = (CONSTRAINTS["gears"].replace('"pinion"\nmass = 0.2\ninertia = 0.0004\nq0 = [0.0, 0.0, 0.0]',
+                                          '"pinion"\nmass = 0.2\ninertia = 0.0004\nq0 = [0.01, 0.0, 0.0]')
+             .replace('"wheel"\nmass = 0.8\ninertia = 0.009\nq0 = [0.15, 0.0, 0.0]',
+                      '"wheel"\nmass = 0.8\ninertia = 0.009\nq0 = [0.17, 0.0, 0.0]'))
+    gears = gears.replace('j = "pinion"\nsi = [0.0, 0.0]\nsj = [0.0, 0.0]', 'j = "pinion"\nsi = [0.0, 0.0]\nsj = [-0.01, 0.0]')
+    gears = gears.replace('j = "wheel"\nsi = [0.15, 0.0]\nsj = [0.0, 0.0]', 'j = "wheel"\nsi = [0.15, 0.0]\nsj = [-0.02, 0.0]')
+    assert gears.count("-0.01, 0.0]") == 1 and gears.count("-0.02, 0.0]") == 1 and "0.17" in gears
+    mech = loads(text("eccentric", gears), "eccentric.toml")
+    results = api.solve(mech)
+    truth = Truth(mech, results)
+    drawn = {body: (centre, radius) for body, centre, radius, _ in plot.scene(results, mech).gears}
+    for body, bearing, radius in (("pinion", "bearing1", 0.05), ("wheel", "bearing2", 0.1)):
+        c = next(c for c in mech.constraints if c.name == bearing)
+        axis, _ = truth.point(body, c.values["sj"])
+        com, _ = truth.point(body, (0, 0))
+        assert np.max(np.hypot(*(com - axis).T)) > 0.009  # the centre of mass is elsewhere
+        np.testing.assert_allclose(drawn[body][0], axis, atol=1e-12)
+        assert drawn[body][1] == pytest.approx(radius, rel=1e-12)
 
 
 def test_springs_are_drawn_between_their_points():

@@ -234,6 +234,40 @@ def test_redundant_rows_are_refused_naming_the_dependent_constraints(tmp_path, c
     assert not out.exists()
 
 
+def _overdriven(extra_f: str) -> str:
+    """The scotch yoke (one degree of freedom, its crank driven) with a second
+    driver on the yoke's x: consistent with the crank at t0 or not."""
+    import small_mechanisms as sm
+
+    return sm.text("yoke", sm.CONSTRAINTS["scotch_yoke"] + sm._coordinate("yoke", "x", extra_f))
+
+
+@pytest.mark.parametrize("command", ["solve", "check"])
+@pytest.mark.parametrize("extra_f, holds", [("0.1 + 0.01*t", True), ("0.3", False)], ids=["holds", "contradicts"])
+def test_a_driver_too_many_is_named_as_the_extra_one(tmp_path, capsys, command, extra_f, holds):
+    """Two drivers on a one-degree-of-freedom linkage: the message names the
+    driver whose removal leaves independent rows (drive_x: without the motor
+    the yoke's x at dead centre does not fix the crank), not the largest
+    residuals of a failed assembly nor only the dependent rows."""
+    path = write(tmp_path, _overdriven(extra_f))
+    args = ["solve", str(path), "-o", str(tmp_path / "o.csv")] if command == "solve" else ["check", str(path)]
+    status, _, err = run_cli(capsys, *args)
+    assert status == 2 and len(err) == 1, err
+    assert "7 constraint rows for 6 coordinates: 1 extra: driver drive_x is one too many (without it" in err[0]
+    assert ("the rows of crank_pin, slot, drive_x are dependent at t0" in err[0]) == holds
+    assert ("the rows cannot all hold at t0" in err[0]) == (not holds)
+
+
+def test_two_drivers_of_one_angle_name_the_later_and_the_other(tmp_path, capsys):
+    import small_mechanisms as sm
+
+    text = sm.text("two", sm.PENDULUM_PARTS + sm._constraint("drive2", "relative_angle_driver", i='"ground"',
+                                                              j='"bar"', f='"2*t"'))
+    status, _, err = run_cli(capsys, "solve", str(write(tmp_path, text)), "-o", str(tmp_path / "o.csv"))
+    assert status == 2 and len(err) == 1, err
+    assert "1 extra: driver drive2 is one too many (or drive: each alone drives" in err[0]
+
+
 @pytest.mark.parametrize("target", ["c", "numpy", "casadi"])
 @pytest.mark.parametrize("mode", ["", 'redundant = "min_norm"'], ids=["error", "min_norm"])
 def test_generated_solvers_refuse_redundant_rows(tmp_path, capsys, target, mode):

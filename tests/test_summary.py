@@ -144,3 +144,25 @@ def test_solve_prints_one_summary_line_per_driver(tmp_path, capsys):
     assert printed[0].startswith(f"{out}: 21 instants")
     assert [line.split(":")[0] for line in printed[1:]] == ["boom_cylinder", "stick_cylinder", "bucket_cylinder"]
     assert all(" N at t = " in line and " W at t = " in line for line in printed[1:])
+
+
+def test_statics_prints_no_power_and_its_time_axis_says_what_t_is(tmp_path, capsys):
+    """Statics has no speed: its lines have the effort's peak and RMS but no
+    power, on the first run and on the planned (cached) one; its plots say
+    that t only orders the equilibria. The inverse-dynamics line keeps it."""
+    from symid.output import plot
+
+    path = str(api.example("slider_crank_friction"))
+    for _ in range(2):  # the second run may take the plan (no sympy): same lines
+        assert main(["solve", path, "--kind", "statics", "--steps", "5", "-o", str(tmp_path / "s.csv")]) == 0
+        out = capsys.readouterr().out.splitlines()
+        assert out[1].startswith("motor: peak torque") and "RMS" in out[1], out
+        assert not any("power" in line for line in out[1:]), out
+    assert main(["solve", path, "--steps", "5", "-o", str(tmp_path / "d.csv")]) == 0
+    assert ", peak power " in capsys.readouterr().out
+    for kind, label in (("statics", plot.STATICS_TIME), ("inverse_dynamics", plot.TIME)):
+        mech = load(api.example("slider_crank"), analysis={"steps": 5, "kind": kind})
+        results = api.solve(mech)
+        for fig in (plot.efforts_figure(results, mech), plot.reactions_figure(results, mech)):
+            assert [ax.get_xlabel() for ax in fig.axes if ax.get_xlabel()] == [label]
+    assert "no motion" in plot.STATICS_TIME and "time" not in plot.STATICS_TIME

@@ -106,3 +106,95 @@ def test_symid_plot_refuses_a_mechanism_with_a_sweep_table(tmp_path, capsys):
     assert main(["plot", str(out), "--mechanism", CRANK]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "a sweep table is plotted alone" in err
+
+
+# a driven pendulum whose mass moves in its 16th digit over a two-parameter
+# grid: every figure is constant but for its last digit or two, and the angle
+# driver's force_peak is 0 by construction (its reaction is a pure couple)
+FLAT = """[mechanism]
+name = "flat"
+gravity = [0.0, -9.81]
+
+[parameters]
+a = 0.3
+b = 0.7
+
+[analysis]
+t1 = 1.0
+steps = 11
+
+[[body]]
+name = "bar"
+mass = "1.5 + 1e-15*a*b"
+inertia = 0.02
+q0 = [0.5, 0.0, 0.0]
+
+[[constraint]]
+name = "pin"
+type = "revolute"
+i = "ground"
+j = "bar"
+si = [0.0, 0.0]
+sj = [-0.5, 0.0]
+
+[[constraint]]
+name = "drive"
+type = "relative_angle_driver"
+i = "ground"
+j = "bar"
+f = "sin(t)"
+"""
+SHOWN = ("drive.effort_peak", "drive.effort_t_peak", "drive.effort_rms", "drive.power_peak", "pin.force_peak")
+
+
+def test_sweep_and_plot_of_a_grid_whose_figures_are_constant_but_for_the_last_digit(tmp_path):
+    """As a user runs them: `symid sweep --plot` and `symid plot` exit 0, no
+    traceback, the PNG written, a note per flat figure and for the left-out
+    force_peak of the angle driver."""
+    import subprocess
+    import sys
+
+    from symid.study.table import read
+
+    (tmp_path / "flat.toml").write_text(FLAT)
+    out = tmp_path / "flat.csv"
+    swept = subprocess.run([sys.executable, "-m", "symid", "sweep", "flat.toml", "--grid", "a=0.1:1.3:4", "--grid",
+                            "b=0.2:1.1:3", "-o", "flat.csv", "--plot"], cwd=tmp_path, capture_output=True, text=True)
+    table = read(out)
+    effort = table.figures.values[:, table.figures.names.index("drive.effort_peak")]
+    assert 0 < np.ptp(effort) <= 8 * np.spacing(effort.max())  # the case: a few ulps apart, not equal
+    (tmp_path / "again").mkdir()
+    plotted = subprocess.run([sys.executable, "-m", "symid", "plot", "flat.csv", "-o", "again"], cwd=tmp_path,
+                             capture_output=True, text=True)
+    for run, tool, folder in ((swept, "sweep: plot", tmp_path), (plotted, "plot", tmp_path / "again")):
+        assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
+        assert (folder / "flat_figures.png").read_bytes()[:8] == PNG
+        notes = run.stderr.splitlines()
+        assert f"symid {tool}: drive.force_peak is 0 at every variant" in "\n".join(notes)
+        for name in SHOWN:
+            assert any(n.startswith(f"symid {tool}: {name} is constant over the variants") for n in notes), name
+
+
+def test_flat_figure_is_one_level_and_a_zero_force_peak_is_left_out():
+    """On the drawing's data: one band holding every value, no colorbar;
+    the zero force_peak has no panel; a sample's flat figure is one bar."""
+    g = vary.grid(["a=0:1:3", "b=0:2:4"])
+    base = np.nextafter(7.3575, 8.0)
+    flat = np.where(np.arange(len(g.values)) % 2, base, np.nextafter(base, 8.0))
+    figures = np.column_stack([g.values.sum(axis=1), flat, np.zeros(len(flat))])
+    names = ("motor.effort_peak", "motor.effort_rms", "mesh.force_peak")
+    notes: list[str] = []
+    fig = sweep_plot.figures_of(g.names, g.values, names, figures, ["ok"] * len(flat), "s", notes=notes)["figures"]
+    (band,) = artists(fig, "contour:motor.effort_rms")
+    assert len(band.levels) == 2 and band.levels[0] < flat.min() and flat.max() < band.levels[1]
+    assert len(artists(fig, "contour:motor.effort_peak")[0].levels) == 12
+    assert not artists(fig, "contour:mesh.force_peak")
+    assert [ax.get_title() for ax in fig.axes if ax.get_visible() and ax.get_label() != "<colorbar>"] == list(
+        names[:2])
+    assert len(notes) == 2 and notes[0].startswith("mesh.force_peak is 0 at every variant")
+    assert notes[1].startswith("motor.effort_rms is constant over the variants")
+    s = vary.sample(50, ["a=1,0.1"], [], 4)
+    hist = sweep_plot.figures_of(s.names, s.values, names, np.column_stack([s.values[:, 0], flat[:1].repeat(50),
+                                 np.zeros(50)]), ["ok"] * 50, "s", "sample")["figures"]
+    bars = artists(hist, "hist:motor.effort_rms")
+    assert len(bars) == 1 and bars[0].get_height() == 50

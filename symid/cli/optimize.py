@@ -73,8 +73,7 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     if not outcome.success:
         raise AnalysisError(f"{args.file}: the optimizer did not converge after {outcome.iterations} iterations "
                             f"({outcome.evaluations} solves): {outcome.message}; nothing written")
-    where = ", ".join(f"{n} = {v:.10g}" for n, v in zip(outcome.names, outcome.p))
-    print(f"optimum: {where}: {args.minimize} = {outcome.value:.10g} (start {outcome.start_value:.10g}), "
+    print(f"optimum: {outcome.where()}: {args.minimize} = {outcome.value:.10g} (start {outcome.start_value:.10g}), "
           f"{outcome.iterations} iterations, {outcome.evaluations} solves")
     for lim in limits:
         print(f"  {lim.figure} = {problem.value((outcome.p - problem.lo) / problem.width, lim.figure):.10g} "

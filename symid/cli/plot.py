@@ -124,9 +124,12 @@ def _plot_sweep(args: argparse.Namespace) -> int:
         raise InputError(f"{args.file}: a sweep table is plotted alone (no --mechanism, no --gif)")
     table = read(args.file)
     directory = Path(args.output) if args.output else Path(args.file).parent
+    notes: list[str] = []
     for path in write_all(table.params, table.values, table.figures.names, table.figures.values,
-                          table["status"], directory, Path(args.file).stem, table.kind):
+                          table["status"], directory, Path(args.file).stem, table.kind, notes):
         print(path)
+    for note in notes:
+        print(f"symid plot: {note}", file=sys.stderr)
     return 0
 
 

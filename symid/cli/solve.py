@@ -103,7 +103,7 @@ def _solve(args: argparse.Namespace, key: str | None) -> int:
     results = _write_table(out, header, keep, study.blocks(), study.analysis.steps, study.mechanism.name,
                            args.file, lambda: study.warnings)
     inputs = summary.inputs(study.mechanism, results)
-    _print_summary(summary.lines_of(inputs, results))
+    _print_summary(summary.lines_of(inputs, results, study.analysis.kind == "statics"))
     if plots:
         _write_plots(results, study.mechanism, Path(args.plot_dir) if args.plot_dir else out.parent, out.stem)
     elif key is not None and keep is not None:
@@ -127,7 +127,7 @@ def _solve_planned(args: argparse.Namespace, run: plan.Plan, evaluator: Evaluato
     results = _write_table(out, run.columns, run.keep, run.rows(evaluator, notes), run.analysis.steps, run.name,
                            args.file, notes.lines)
     try:
-        lines = summary.lines_of(run.summary, results)
+        lines = summary.lines_of(run.summary, results, run.analysis.kind == "statics")
     except ValueError:  # other instants than the plan's f(t) was evaluated at: evaluate it again
         from symid import api
 

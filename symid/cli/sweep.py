@@ -140,9 +140,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         from symid.output.sweep_plot import write_all
 
         shown = len(figure_names(mech))  # the figures, not their gradients
+        notes: list[str] = []
         for path in write_all(table.params, table.values, table.figures.names[:shown],
-                              table.figures.values[:, :shown], table["status"], out.parent, out.stem, chosen.kind):
+                              table.figures.values[:, :shown], table["status"], out.parent, out.stem, chosen.kind,
+                              notes):
             print(path, file=sys.stderr if args.json else sys.stdout)
+        for note in notes:
+            print(f"symid sweep: plot: {note}", file=sys.stderr)
     if len(table) and table.failed == len(table):
         raise AnalysisError(f"{args.file}: no variant could be solved (status of the first: "
                             f"{table['status'][0]}); the table is in {out}")

@@ -2,7 +2,11 @@
 
 Angles are radians; a magnitude above 2 pi is legal (angles are never
 wrapped) but is far more often degrees written by habit, which silently
-gives another mechanism. And Newton assembles the mechanism at t0 from the
+gives another mechanism. A driver's angle formula is read the same way: its
+value at t0, and its rate there when that is above 2 pi rad/s and a whole
+multiple of 15 ("270*t", "90*t", "360*t"): the steps of a rate written in
+degrees per second. A rate in rad/s above a turn a second is common, but
+comes from 2 pi n, a measured speed or a round 10, 20, 50, 100 (which pass). And Newton assembles the mechanism at t0 from the
 `q0` guesses: a body that ends far from its guess may have been assembled in
 another mode than the one drawn.
 """
@@ -41,6 +45,28 @@ def _angles(mech: Mechanism, values: Mapping[sp.Symbol, float]) -> Iterator[tupl
                 yield f"{where} 'C'", e.values.get("C", sp.Integer(0))
 
 
+def _rates(mech: Mechanism) -> Iterator[tuple[str, sp.Expr]]:
+    """(where, df/dt at t0) of every angle driver's formula."""
+    t0 = mech.analysis.t0
+    for e in mech.constraints:
+        if e.type == "relative_angle_driver" or (e.type == "coordinate_driver"
+                                                  and e.options.get("coordinate") == "phi"):
+            try:
+                rate = sp.diff(sp.sympify(e.values["f"]), T).subs(T, t0)
+            except (TypeError, ValueError, sp.SympifyError):  # a tabled f: its values are read elsewhere
+                continue
+            yield f"constraint '{e.name}' key 'f': its rate at t0 = {number(t0)}", rate
+
+
+DEGREE_STEP = 15  # degrees per second as people write them: 15, 30, 45, 90, 180, 270, 360, 720
+
+
+def _in_degrees(value: float) -> bool:
+    """A rate above 2 pi whose value is a whole multiple of DEGREE_STEP."""
+    steps = value / DEGREE_STEP
+    return abs(value) > TURN and abs(steps - round(steps)) <= 1e-9 * abs(steps)
+
+
 def angle_warnings(mech: Mechanism) -> list[str]:
     """One line per angle above 2 pi in magnitude ("did you mean degrees?")."""
     values = parameter_values(mech.parameters)
@@ -53,6 +79,15 @@ def angle_warnings(mech: Mechanism) -> list[str]:
         if abs(value) > TURN:
             out.append(f"{mech.source}: {where} = {number(value)} is more than 2 pi: radians expected; "
                        f"did you mean {number(value)} degrees ({number(math.radians(value))} rad)?")
+    for where, expr in _rates(mech):
+        try:
+            value = to_float(expr, values)
+        except (ValueError, TypeError):
+            continue
+        if _in_degrees(value):
+            out.append(f"{mech.source}: {where} = {number(value)} rad/s, a multiple of {DEGREE_STEP} above 2 pi: "
+                       f"radians per second expected; did you mean {number(value)} degrees per second "
+                       f"({number(math.radians(value))} rad/s)?")
     return out
 
 

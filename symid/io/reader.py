@@ -357,7 +357,12 @@ class _Reader:
         return raw
 
     def value(self, key: Key, raw: Any, where: str) -> Any:
-        if key.kind in ("point", "vector"):
+        if key.kind == "vector":  # a direction: [0, 0] has none (every row reading it would be 0 = 0)
+            pair = self.pair(raw, where)
+            if all(to_float(v, self.values) == 0.0 for v in pair):
+                raise self.fail(where, f"is the zero vector {list(raw)}: a direction needs a nonzero length")
+            return pair
+        if key.kind == "point":
             return self.pair(raw, where)
         if key.kind == "scalar":
             return self.number(raw, where)[0]

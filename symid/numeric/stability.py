@@ -357,16 +357,63 @@ def redundancy_error(layout: Layout, values: object, hint: str) -> InputError:
     head = f"{mech.source}: [[constraint]]: {nc} constraint rows for {ng} coordinates: {nc - ng} extra"
     ev = ReferenceEvaluator(layout, values, Needs(velocity=False))  # type: ignore[arg-type]
     q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])  # type: ignore[arg-type]
+    extra = _extra_driver(layout, ev, q0, analysis.t0, analysis.tol)
+    if extra:
+        head = f"{head}: {extra};"
     try:
         q, _ = assemble_lstsq(ev, q0, analysis.t0, analysis.tol)
     except AnalysisError as exc:
-        return InputError(f"{head}, and they cannot all hold at t0 ({exc})")
+        return InputError(f"{head}{' the rows' if extra else ', and they'} cannot all hold at t0 ({exc})")
     scaling = Scaling.of(ev.phi_q(q, analysis.t0), q)
     rank = rank_of(ev.phi_q(q, analysis.t0), scaling, layout)
     if rank.rank < ng:
         hint = f"with rank {rank.rank} < {ng} a coordinate is also undriven"
-    return InputError(f"{head}: the rows of {', '.join(rank.dependent)} are dependent at t0 "
+    return InputError(f"{head}{'' if extra else ':'} the rows of {', '.join(rank.dependent)} are dependent at t0 "
                       f"(rank {rank.rank}); {hint}")
+
+
+class _Without:
+    """An evaluator's Phi and Phi_q without some rows (for assemble_lstsq)."""
+
+    def __init__(self, ev: Evaluator, keep: np.ndarray) -> None:
+        self.ev, self.keep, self.layout = ev, keep, ev.layout
+
+    def phi(self, q: Array, t: float) -> Array:
+        return self.ev.phi(q, t)[self.keep]
+
+    def phi_q(self, q: Array, t: float) -> Array:
+        return self.ev.phi_q(q, t)[self.keep]
+
+
+def _extra_driver(layout: Layout, ev: Evaluator, q0: Array, t0: float, tol: float) -> str:
+    """"driver D is one too many ..." when some driver, dropped, leaves rows
+    that assemble at t0 with Phi_q of full rank: D drives what the other rows
+    already fix (or contradict). The last such driver in file order is named,
+    and the others that would do as well; "" when none does (the extra rows
+    are joints: the rank analysis names them)."""
+    ng, nc = layout.ng, layout.nc
+    fits = []
+    for name in drivers_among(layout, tuple(c.name for c in layout.mechanism.constraints)):
+        start, n = layout.row_of[name]
+        if nc - n < ng:
+            continue
+        keep = np.array([r for r in range(nc) if not start <= r < start + n], dtype=int)
+        rest = _Without(ev, keep)
+        try:
+            q, _ = assemble_lstsq(rest, q0, t0, tol)  # type: ignore[arg-type]
+        except AnalysisError:
+            continue
+        jac = rest.phi_q(q, t0)
+        scaling = Scaling.of(jac, q)
+        sv = np.linalg.svd(jac / scaling.row[:, None] * scaling.col[None, :], compute_uv=False)
+        if sv.size >= ng and sv[ng - 1] > max(jac.shape) * EPS * sv[0]:  # rank_of's threshold
+            fits.append(name)
+    if not fits:
+        return ""
+    if len(fits) > 1:
+        return (f"driver {fits[-1]} is one too many (or {', '.join(fits[:-1])}: each alone drives what the "
+                "other rows leave free)")
+    return f"driver {fits[-1]} is one too many (without it the other rows drive every coordinate)"
 
 
 def assemble_lstsq(ev: Evaluator, q: Array, t: float, tol: float,

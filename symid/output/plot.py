@@ -33,6 +33,14 @@ if TYPE_CHECKING:
 DPI = 110
 PANELS = 4           # instants drawn in the mechanism figure
 TIME = "time t [s]"
+# statics solves equilibria at the positions f(t) prescribes: t orders them,
+# nothing moves in time (every speed and acceleration is zero)
+STATICS_TIME = "t [s]: the instant whose f(t) sets the drivers (statics: equilibria, no motion)"
+
+
+def time_label(mechanism: Mechanism | None) -> str:
+    """The time axis label: what t is in this analysis."""
+    return STATICS_TIME if mechanism is not None and mechanism.analysis.kind == "statics" else TIME
 
 
 def _figure(width: float, height: float,
@@ -72,7 +80,7 @@ def efforts_figure(table: Table, mechanism: Mechanism) -> "Figure":
         ax.set_title(f"{e.name} ({e.type}): {e.meaning}", fontsize=10, loc="left")
         ax.set_ylabel(f"{e.quantity} [{e.unit}]")
         ax.grid(True, alpha=0.3)
-    axes[-1].set_xlabel(TIME)
+    axes[-1].set_xlabel(time_label(mechanism))
     fig.suptitle(f"{mechanism.name}: driver efforts", fontsize=12)
     return fig
 
@@ -135,7 +143,7 @@ def reactions_figure(table: Table, mechanism: Mechanism | None = None) -> "Figur
         ax.set_ylim(bottom=0.0)
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
-    axes[-1].set_xlabel(TIME)
+    axes[-1].set_xlabel(time_label(mechanism))
     name = mechanism.name if mechanism else "results"
     fig.suptitle(f"{name}: joint reactions (magnitude, on body j)", fontsize=12)
     if any(types.get(r.name) in GEARS for r in found):

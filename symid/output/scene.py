@@ -221,18 +221,35 @@ def _slot(c: Element, geo: _Geometry) -> tuple[str, Array, Array, bool]:
     return c.name, start, end, c.bodies["i"] == GROUND
 
 
+def _axis(body: str, other: str, mechanism: Mechanism, geo: _Geometry) -> Array | None:
+    """The point of `body` where a revolute joins it to `other` (None: no such joint)."""
+    for c in mechanism.constraints:
+        if c.type == "revolute" and {c.bodies["i"], c.bodies["j"]} == {body, other}:
+            role = "i" if c.bodies["i"] == body else "j"
+            return geo.point(body, geo.num(c.values["s" + role]))
+    return None
+
+
 def _centre(body: str, carrier: str | None, mechanism: Mechanism, geo: _Geometry) -> Array | None:
-    """Centre of a gear: the body's centre of mass; for a ground gear on a
-    carrier, the carrier's pivot on the ground (or its centre of mass)."""
+    """Centre of a gear: its axis, the revolute that carries it (on the
+    carrier, else on ground, else any revolute on it); its centre of mass
+    only when no revolute holds it (a gear may be eccentric: its pitch circle
+    turns about the axis, not about the centre of mass). A ground gear on a
+    carrier is centred on the carrier's pivot on the ground (or the carrier's
+    centre of mass)."""
     if body != GROUND:
+        for other in (carrier, GROUND) if carrier is not None else (GROUND,):
+            axis = _axis(body, other, mechanism, geo)
+            if axis is not None:
+                return axis
+        for c in mechanism.constraints:
+            if c.type == "revolute" and body in c.bodies.values():
+                return _axis(body, c.bodies["j" if c.bodies["i"] == body else "i"], mechanism, geo)
         return geo.point(body, np.zeros(2))
     if carrier is None:
         return None
-    for c in mechanism.constraints:
-        if c.type == "revolute" and {c.bodies["i"], c.bodies["j"]} == {GROUND, carrier}:
-            role = "i" if c.bodies["i"] == GROUND else "j"
-            return geo.point(GROUND, geo.num(c.values["s" + role]))
-    return geo.point(carrier, np.zeros(2))
+    axis = _axis(GROUND, carrier, mechanism, geo)
+    return axis if axis is not None else geo.point(carrier, np.zeros(2))
 
 
 def _gears(c: Element, mechanism: Mechanism, geo: _Geometry) -> list[tuple[str, Array, float, Array]]:

@@ -15,8 +15,10 @@ and `f(t)` its imposed function:
 
 The power is effort x rate = `lambda Phi_t`, the power of the driver's
 reaction forces: positive when the actuator delivers energy to the mechanism.
-The rate is the derivative of `f` (exact, and defined for statics too, where
-it gives the quasi-static power). Units: SI is assumed (the file has none).
+The rate is the derivative of `f`. Statics has no speeds (every one is zero),
+so its summary lines give no power: a "peak power" there would be the
+quasi-static power of a motion that statics does not have. Units: SI is
+assumed (the file has none).
 """
 
 from __future__ import annotations
@@ -102,10 +104,11 @@ class Summary:
     peak_power: float
     t_peak_power: float
 
-    def line(self) -> str:
-        return (f"{self.name}: peak {self.quantity} {self.peak:.4g} {self.unit} at t = {self.t_peak:.4g} s, "
-                f"RMS {self.rms:.4g} {self.unit}, peak power {self.peak_power:.4g} W "
-                f"at t = {self.t_peak_power:.4g} s")
+    def line(self, power: bool = True) -> str:
+        """The summary line; without `power` (statics), no peak power."""
+        head = (f"{self.name}: peak {self.quantity} {self.peak:.4g} {self.unit} at t = {self.t_peak:.4g} s, "
+                f"RMS {self.rms:.4g} {self.unit}")
+        return head + (f", peak power {self.peak_power:.4g} W at t = {self.t_peak_power:.4g} s" if power else "")
 
 
 def drivers(mechanism: Mechanism) -> list[Element]:
@@ -245,7 +248,7 @@ def summarize(e: Effort) -> Summary:
 def lines(mechanism: Mechanism, table: Table) -> list[str]:
     """One summary line per driver; a driver without its columns says so
     (no line at all for a table without multipliers or reactions)."""
-    return lines_of(inputs(mechanism, table), table)
+    return lines_of(inputs(mechanism, table), table, mechanism.analysis.kind == "statics")
 
 
 @dataclass(frozen=True)
@@ -287,8 +290,9 @@ def inputs(mechanism: Mechanism, table: Table) -> list[Input]:
     return out
 
 
-def lines_of(inputs: Sequence[Input], table: Table) -> list[str]:
-    """One summary line per driver from `inputs(mechanism, table)`.
+def lines_of(inputs: Sequence[Input], table: Table, statics: bool = False) -> list[str]:
+    """One summary line per driver from `inputs(mechanism, table)` (statics:
+    without power, there is no speed).
 
     Raises:
         ValueError: `table`'s instants are not those the inputs were made for.
@@ -302,7 +306,7 @@ def lines_of(inputs: Sequence[Input], table: Table) -> list[str]:
         if not np.array_equal(t, item.t):
             raise ValueError("the table's instants differ from those of the summary inputs")
         raw = np.asarray(table[item.source.column], dtype=float)
-        out.append(summarize(item.source.effort(t, raw, item.f, item.fd)).line())
+        out.append(summarize(item.source.effort(t, raw, item.f, item.fd)).line(power=not statics))
     return out + friction_loss.line(table)
 
 

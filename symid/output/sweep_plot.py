@@ -6,6 +6,12 @@
   and P99 marked, and a scatter of each varied parameter against the primary
   figure (the first column: the first driver's peak effort).
 
+A figure constant over the variants but for rounding (a spread below FLAT of
+its size) is drawn as one level, with a note: contour levels and histogram
+bins cannot divide a spread of a few ulps. A force_peak that is 0 at every
+variant (a gear's, an angle driver's, a parallel constraint's reaction is a
+pure couple) is left out, with a note.
+
 Failed variants are drawn, never dropped: a red cross at their grid point or
 parameter value, a red tick under the histogram. Percentiles are of the
 variants that ran to the end. Every artist with data has a `gid`
@@ -30,6 +36,30 @@ if TYPE_CHECKING:
 PERCENTILES = (50, 95, 99)
 COLUMNS = 3  # panels per row
 FAILED: dict[str, Any] = {"color": "red", "marker": "x", "linestyle": "none", "markersize": 6}
+# A figure whose spread over the variants is at most this share of its size is
+# constant but for rounding: the backends agree to ~1e-14, so a spread this
+# small says nothing about the design, and 12 levels (or 40 bins) across a few
+# ulps are not increasing.
+FLAT = 1e-12
+
+
+def _span(values: np.ndarray) -> tuple[float, float, bool]:
+    """(lo, hi, flat) of the finite values; flat when hi - lo <= FLAT max(|lo|, |hi|)."""
+    good = values[np.isfinite(values)]
+    if not good.size:
+        return np.nan, np.nan, False
+    lo, hi = float(good.min()), float(good.max())
+    return lo, hi, hi - lo <= FLAT * max(abs(lo), abs(hi))
+
+
+def _one_level(lo: float, hi: float) -> tuple[float, float]:
+    """A band around a flat figure's values that a float can split (contour levels, histogram range)."""
+    pad = max(abs(lo), abs(hi)) * 1e-6 or 1.0
+    return lo - pad, hi + pad
+
+
+def _flat_note(name: str, lo: float, hi: float) -> str:
+    return f"{name} is constant over the variants ({lo:.10g}, spread {hi - lo:.2g}): drawn as one level"
 
 
 def layout_of(params: Sequence[str], values: np.ndarray) -> str:
@@ -57,19 +87,26 @@ def _panels(count: int, width: float = 4.2, height: float = 3.3) -> tuple["Figur
 
 
 def grid2_figure(params: Sequence[str], values: np.ndarray, names: Sequence[str], figures: np.ndarray,
-                 ok: np.ndarray, title: str) -> "Figure":
-    """A filled contour of each figure over a two-parameter grid (failed points crossed)."""
+                 ok: np.ndarray, title: str, notes: list[str] | None = None) -> "Figure":
+    """A filled contour of each figure over a two-parameter grid (failed points
+    crossed); a flat figure is one band, its value written on it (and in notes)."""
     x, y = np.unique(values[:, 0]), np.unique(values[:, 1])
     fig, axes = _panels(len(names))
     for k, (ax, name) in enumerate(zip(axes, names)):
         z = figures[:, k].reshape(len(x), len(y)).T  # rows: y, the last (fastest) parameter
         masked = np.ma.masked_invalid(np.where(ok.reshape(len(x), len(y)).T, z, np.nan))
         if masked.count() and len(x) > 1 and len(y) > 1:
-            lo, hi = float(masked.min()), float(masked.max())
-            levels = np.linspace(lo, hi if hi > lo else lo + 1, 12)
-            filled = ax.contourf(x, y, masked, levels=levels, cmap="viridis")
+            lo, hi, flat = _span(masked.compressed())
+            if flat:
+                filled = ax.contourf(x, y, masked, levels=list(_one_level(lo, hi)), cmap="viridis")
+                ax.text(0.5, 0.5, f"constant\n{lo:.10g}", transform=ax.transAxes, ha="center", va="center",
+                        fontsize=9, color="white", gid=f"constant:{name}")
+                if notes is not None:
+                    notes.append(_flat_note(name, lo, hi))
+            else:
+                filled = ax.contourf(x, y, masked, levels=np.linspace(lo, hi, 12), cmap="viridis")
+                fig.colorbar(filled, ax=ax)
             filled.set_gid(f"contour:{name}")
-            fig.colorbar(filled, ax=ax)
         bad = ~ok
         if bad.any():
             ax.plot(values[bad, 0], values[bad, 1], gid=f"failed:{name}", label="failed", **FAILED)
@@ -99,14 +136,20 @@ def grid1_figure(params: Sequence[str], values: np.ndarray, names: Sequence[str]
     return fig
 
 
-def histogram_figure(names: Sequence[str], figures: np.ndarray, ok: np.ndarray, title: str) -> "Figure":
-    """A histogram of each figure over the variants that ran to the end, P50/P95/P99 marked."""
+def histogram_figure(names: Sequence[str], figures: np.ndarray, ok: np.ndarray, title: str,
+                     notes: list[str] | None = None) -> "Figure":
+    """A histogram of each figure over the variants that ran to the end,
+    P50/P95/P99 marked; a flat figure is one bar (and a line in notes)."""
     fig, axes = _panels(len(names))
     for k, (ax, name) in enumerate(zip(axes, names)):
         good = figures[ok, k]
         good = good[np.isfinite(good)]
         if good.size:
-            ax.hist(good, bins=min(40, max(5, good.size // 5)), color="C0", alpha=0.8, gid=f"hist:{name}")
+            lo, hi, flat = _span(good)
+            if flat and notes is not None:
+                notes.append(_flat_note(name, lo, hi))
+            ax.hist(good, bins=1 if flat else min(40, max(5, good.size // 5)),
+                    range=_one_level(lo, hi) if flat else None, color="C0", alpha=0.8, gid=f"hist:{name}")
             for p, style in zip(PERCENTILES, ("-", "--", ":")):
                 value = float(np.percentile(good, p))
                 ax.axvline(value, color="k", linestyle=style, lw=1.2, gid=f"P{p}:{name}",
@@ -139,7 +182,8 @@ def scatter_figure(params: Sequence[str], values: np.ndarray, primary: str, y: n
 
 
 def figures_of(params: Sequence[str], values: np.ndarray, names: Sequence[str], figures: np.ndarray,
-               status: Sequence[str] | np.ndarray, stem: str, kind: str = "") -> dict[str, "Figure"]:
+               status: Sequence[str] | np.ndarray, stem: str, kind: str = "",
+               notes: list[str] | None = None) -> dict[str, "Figure"]:
     """The study's figures by file suffix ("figures", and "scatter" for a sample).
 
     Args:
@@ -147,6 +191,7 @@ def figures_of(params: Sequence[str], values: np.ndarray, names: Sequence[str], 
         names, figures: the figure columns, shape (K, len(names)).
         status: per variant, "ok" or why it failed.
         kind: "grid", "table", "sample" when known; else read from the values.
+        notes: where to append a line per figure left out or drawn flat.
     """
     values = np.asarray(values, dtype=float).reshape(len(status), len(params))
     figures = np.asarray(figures, dtype=float).reshape(len(status), len(names))
@@ -154,21 +199,34 @@ def figures_of(params: Sequence[str], values: np.ndarray, names: Sequence[str], 
     failed = int(np.count_nonzero(~ok))
     title = f"{stem}: {len(status)} variants" + (f", {failed} failed" if failed else "")
     shape = layout_of(params, values) if kind != "sample" else "sample"
+    keep = [k for k, name in enumerate(names) if not _no_force(name, figures[ok, k])]
+    if notes is not None:
+        notes.extend(f"{names[k]} is 0 at every variant (the reaction of a gear, an angle driver or a parallel "
+                     "constraint is a pure couple): left out" for k in range(len(names)) if k not in keep)
+    names, figures = [names[k] for k in keep], figures[:, keep]
     if not names:
         return {}
     if shape == "grid2":
-        return {"figures": grid2_figure(params, values, names, figures, ok, title)}
+        return {"figures": grid2_figure(params, values, names, figures, ok, title, notes)}
     if shape == "grid1":
         return {"figures": grid1_figure(params, values, names, figures, ok, title)}
-    out = {"figures": histogram_figure(names, figures, ok, title)}
+    out = {"figures": histogram_figure(names, figures, ok, title, notes)}
     if params:
         out["scatter"] = scatter_figure(params, values, names[0], figures[:, 0], ok, title)
     return out
 
 
+def _no_force(name: str, ran: np.ndarray) -> bool:
+    """A force_peak exactly 0 at every variant that ran: no force by construction
+    (the code writes a literal 0 for a reaction with no force rows)."""
+    return name.endswith(".force_peak") and ran.size > 0 and not np.any(ran)
+
+
 def write_all(params: Sequence[str], values: np.ndarray, names: Sequence[str], figures: np.ndarray,
-              status: Sequence[str] | np.ndarray, folder: Path, stem: str, kind: str = "") -> list[Path]:
-    """Write the study's PNGs as `<stem>_figures.png` (and `<stem>_scatter.png`); returns the paths."""
+              status: Sequence[str] | np.ndarray, folder: Path, stem: str, kind: str = "",
+              notes: list[str] | None = None) -> list[Path]:
+    """Write the study's PNGs as `<stem>_figures.png` (and `<stem>_scatter.png`);
+    returns the paths, and appends to notes what was left out or drawn flat."""
     folder = Path(folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -177,6 +235,6 @@ def write_all(params: Sequence[str], values: np.ndarray, names: Sequence[str], f
 
         raise cannot_write(folder, exc) from None
     written = []
-    for suffix, fig in figures_of(params, values, names, figures, status, stem, kind).items():
+    for suffix, fig in figures_of(params, values, names, figures, status, stem, kind, notes).items():
         written.append(save(fig, Path(folder) / f"{stem}_{suffix}.png"))
     return written

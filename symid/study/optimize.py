@@ -11,6 +11,7 @@ value at the start, so one tolerance serves every unit.
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from dataclasses import dataclass, field
@@ -206,7 +207,8 @@ class Problem:
 @dataclass(frozen=True)
 class Outcome:
     """Where the optimizer ended: parameters, objective, the start's objective,
-    success and scipy's message, iterations and solves."""
+    success and scipy's message, iterations and solves; per parameter, the
+    bound it ended on ("lower", "upper" or "": inside its range)."""
 
     names: tuple[str, ...]
     p: Array
@@ -216,6 +218,23 @@ class Outcome:
     message: str
     iterations: int
     evaluations: int
+    bound: tuple[str, ...] = ()
+
+    def where(self) -> str:
+        """"a = 0.1 (on its lower bound), b = 2.5": the optimum, a bound said where it holds one."""
+        return ", ".join(f"{n} = {v:.10g}" + (f" (on its {side} bound)" if side else "")
+                         for n, v, side in itertools.zip_longest(self.names, self.p, self.bound, fillvalue=""))
+
+
+# SLSQP puts a variable whose bound is active exactly on it (it projects onto
+# the box); an interior optimum within 1e-9 of the range of a bound is on it
+# for any design purpose
+ON_BOUND = 1e-9
+
+
+def _bounds_held(u: Array) -> tuple[str, ...]:
+    """Per scaled parameter u in [0, 1], "lower", "upper" or ""."""
+    return tuple("lower" if x <= ON_BOUND else "upper" if x >= 1 - ON_BOUND else "" for x in u)
 
 
 def run(problem: Problem, report: Callable[[int, float, float], None] | None = None, maxiter: int = 100,
@@ -265,12 +284,14 @@ def run(problem: Problem, report: Callable[[int, float, float], None] | None = N
                       constraints=constraints, callback=callback, options={"maxiter": maxiter, "ftol": ftol})
     p = problem.params(result.x)
     return Outcome(tuple(problem.names), p, problem.value(result.x, problem.objective), f0, bool(result.success),
-                   str(result.message), int(result.nit), problem.evaluations)
+                   str(result.message), int(result.nit), problem.evaluations, _bounds_held(np.clip(result.x, 0, 1)))
 
 
 def snippet(outcome: Outcome, objective: str, source: str) -> str:
     """The optimized values as a `[parameters]` TOML snippet (17 significant digits)."""
     lines = [f"# symid optimize {source}: {objective} = {outcome.value:.10g} (start {outcome.start_value:.10g})",
              "[parameters]"]
-    lines += [f"{n} = {v!r}" for n, v in zip(outcome.names, map(float, outcome.p))]
+    lines += [f"{n} = {v!r}" + (f"  # on its {side} bound" if side else "")
+              for n, v, side in itertools.zip_longest(outcome.names, map(float, outcome.p), outcome.bound,
+                                                      fillvalue="")]
     return "\n".join(lines) + "\n"

@@ -67,19 +67,27 @@ def _default(key: Any) -> str:
 
 def type_help(name: str) -> str:
     """One type's keys with defaults (from the registry), its columns, and its manual section."""
+    from symid.model.friction import FAMILIES as FRICTION
+
     section_name, family = _registries()[name]
     lines = [f"{name} ({section_name} type)", "", "keys (besides name and type):"]
-    width = max(len(k.name) for k in family.keys)
+    friction = section_name == "constraint" and name in FRICTION
+    width = max([len(k.name) for k in family.keys] + ([len("friction")] if friction else []))
     for key in family.keys:
         kind = {"function": "expression of t", "function2": "two expressions of t",
                 "choice": "one of " + ", ".join(f'"{c}"' for c in key.choices),
                 "flag": "true or false", "scalar": "number"}.get(key.kind, key.kind)
         lines.append(f"  {key.name:<{width}}  {kind}, {_default(key)}")
+    if friction:
+        lines.append(f"  {'friction':<{width}}  inline table {{ mu, radius, viscous, arm, v_smooth }}, optional "
+                     "(symid help format, \"Joint friction\")")
     if section_name == "constraint":
         lam = ["C.lambda"] if family.rows == 1 else [f"C.lambda{k + 1}" for k in range(family.rows)]
         reactions = [f"C.{c}_{role}" for role in family.roles for c in ("Fx", "Fy", "T")]
         lines += ["", f"rows: {family.rows}; multiplier columns: {' '.join(lam)}",
                   f"reaction columns: {' '.join(reactions)}  (C: the constraint's name)"]
+        if friction:
+            lines.append("with friction, after all others: C.friction C.friction_power (not in statics)")
     lines += ["", section(page("format"), name)]
     return "\n".join(lines).rstrip() + "\n"
 
