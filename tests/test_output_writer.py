@@ -156,6 +156,37 @@ def test_a_link_to_a_regular_file_is_kept_and_its_target_replaced(tmp_path, caps
     assert [p.name for p in (tmp_path / "data").iterdir()] == [target.name]  # no temporary left
 
 
+# -- a full disk, a file-size limit: exit 2, the old file as it was -------------------------
+
+TABLES = [(SWEEP, ".parquet"), (SWEEP, ".csv"), (SOLVE, ".npz"), (SOLVE, ".parquet")]
+TABLE_IDS = ["sweep-parquet", "sweep-csv", "solve-npz", "solve-parquet"]
+
+
+@pytest.mark.parametrize("command, suffix", TABLES, ids=TABLE_IDS)
+def test_a_table_over_a_file_size_limit_is_exit_2_and_the_old_one_kept(tmp_path, capsys, command, suffix):
+    (tmp_path / "warm").mkdir()  # the solver built first: the limit must hit the table, not the cache
+    assert run([*command, "-o", str(tmp_path / "warm" / f"out{suffix}")], capsys)[0] == 0
+    shutil.rmtree(tmp_path / "warm")
+    old = tmp_path / f"out{suffix}"
+    old.write_bytes(b"the previous table")
+    proc = symid([*command, "-o", old.name], tmp_path, limit=512)  # smaller than any of these tables
+    assert proc.returncode == 2, proc.stderr
+    assert one_line(proc.stderr) == f"symid: {old.name}: cannot write: {os.strerror(errno.EFBIG)}"
+    assert contents(tmp_path) == {old.name: b"the previous table"}  # and no temporary file
+
+
+@pytest.mark.parametrize("command, suffix", TABLES, ids=TABLE_IDS)
+def test_a_table_onto_a_full_disk_is_exit_2_and_the_old_one_kept(tiny_disk, capsys, command, suffix):
+    old = tiny_disk / f"out{suffix}"
+    old.write_bytes(b"the previous table")
+    free = os.statvfs(tiny_disk).f_bavail * os.statvfs(tiny_disk).f_frsize
+    (tiny_disk / "filler").write_bytes(b"\0" * free)  # nothing left
+    status, err = run([*command, "-o", str(old)], capsys)
+    assert status == 2
+    assert one_line(err) == f"symid: {old}: cannot write: {os.strerror(errno.ENOSPC)}"
+    assert sorted(contents(tiny_disk)) == ["filler", old.name] and old.read_bytes() == b"the previous table"
+
+
 # -- generate: a folder written as a whole, files it did not write kept --------------------
 
 def test_generate_refuses_to_replace_a_makefile_it_did_not_write_unless_forced(tmp_path, capsys):
