@@ -203,8 +203,9 @@ class Study:
             yield out
 
     def write_csv(self, path: str | Path) -> int:
-        """Write the run to a CSV file (atomic); returns the rows written. The
-        results of `solve()`, if it ran; else the run is streamed instant by instant."""
+        """Write the run to a CSV file (atomic; .npz or .parquet by the suffix, any
+        other refused); returns the rows written. The results of `solve()`, if it
+        ran; else the run is streamed instant by instant."""
         if self.results is not None:
             return self.results.write_csv(path)
         return write_table(path, self.columns(), self.blocks(), self.analysis.steps)
