@@ -203,8 +203,9 @@ class Study:
             yield out
 
     def write_csv(self, path: str | Path) -> int:
-        """Write the run to a CSV file (atomic); returns the rows written. The
-        results of `solve()`, if it ran; else the run is streamed instant by instant."""
+        """Write the run to a CSV file (atomic; .npz or .parquet by the suffix, any
+        other refused); returns the rows written. The results of `solve()`, if it
+        ran; else the run is streamed instant by instant."""
         if self.results is not None:
             return self.results.write_csv(path)
         return write_table(path, self.columns(), self.blocks(), self.analysis.steps)
@@ -285,7 +286,7 @@ def load_mechanism(path: str | Path, set_values: Mapping[str, str] | None = None
 
 def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path,
              precision: str = "double", sensitivity: str | Sequence[str] | None = None,
-             sensitivity_of: str | Sequence[str] | None = None) -> list[Path]:
+             sensitivity_of: str | Sequence[str] | None = None, force: bool = False) -> list[Path]:
     """Write the generated code of one target ("c", "numpy", "casadi") into out_dir.
 
     What is emitted follows the mechanism's `[analysis]`: kind, outputs and reactions.
@@ -293,15 +294,20 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
     sensitivity: base parameters (C only; a list or "A,B") whose derivatives
     `d(COLUMN)/d(NAME)` the rows end with, for the columns `sensitivity_of`
     (default: the drivers' efforts and the reactions); None: the code as without.
+    The folder is written as a whole (`symid.io.folder`): every file or, on a
+    fault, none; a file there that symid did not generate (or that changed
+    since) is refused, naming it, unless `force`.
     """
     from symid.codegen import targets
     from symid.codegen.model import code_model
+    from symid.io.folder import write_folder
 
     module = targets.get(target)
     mech = mechanism if isinstance(mechanism, Mechanism) else load(mechanism)
     require_square(mech)
     if sensitivity is not None or sensitivity_of is not None:
-        return _generate_sensitivity(mech, target, Path(out_dir), precision, sensitivity, sensitivity_of)
+        model = _sensitivity_model(mech, target, sensitivity, sensitivity_of)
+        return write_folder(out_dir, lambda folder: module.generate(model, folder, precision=precision), force)
     joint = friction.first_joint(mech)
     if joint is not None and target != "c":  # never generate a solver that silently ignores friction
         raise InputError(f"{mech.source}: constraint '{joint}' key 'friction': --target {target}: the generated "
@@ -310,17 +316,17 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
     if precision != "double":
         if target != "c":
             raise InputError(f"generate: precision {precision!r} applies to the c target only")
-        return module.generate(code_model(mech, looped=True), Path(out_dir),  # type: ignore[no-any-return]
-                               precision=precision)
-    return module.generate(code_model(mech, looped=target == "c"), Path(out_dir))  # type: ignore[no-any-return]
+        looped = code_model(mech, looped=True)
+        return write_folder(out_dir, lambda folder: module.generate(looped, folder, precision=precision), force)
+    plain = code_model(mech, looped=target == "c")
+    return write_folder(out_dir, lambda folder: module.generate(plain, folder), force)
 
 
-def _generate_sensitivity(mech: Mechanism, target: str, out_dir: Path, precision: str,
-                          names: str | Sequence[str] | None, of: str | Sequence[str] | None) -> list[Path]:
-    """`generate` with sensitivity columns (C only), checked and defaulted as
-    `symid solve --sensitivity` checks them, before the derivation."""
+def _sensitivity_model(mech: Mechanism, target: str, names: str | Sequence[str] | None,
+                       of: str | Sequence[str] | None) -> Any:
+    """The code model of `generate` with sensitivity columns (C only), checked and
+    defaulted as `symid solve --sensitivity` checks them, before the derivation."""
     from symid.codegen.model import code_model, options_for
-    from symid.codegen.targets import c
     from symid.output.sensitivity import choose
 
     if target != "c":
@@ -329,10 +335,11 @@ def _generate_sensitivity(mech: Mechanism, target: str, out_dir: Path, precision
     choice = choose(mech, assemble(mech), names, of, options.reactions)
     assert choice is not None  # names given (choose refuses --sensitivity-of alone)
     options = dataclasses.replace(options, sensitivity=choice.names, sensitivity_of=choice.of)
-    return c.generate(code_model(mech, options, looped=True), out_dir, precision=precision)
+    return code_model(mech, options, looped=True)
 
 
-def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "numpy", "casadi")) -> list[Path]:
+def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "numpy", "casadi"),
+                      force: bool = False) -> list[Path]:
     """Regenerate the committed `generated/<example>/<target>/` folders."""
     written = []
     for name in examples():
@@ -340,7 +347,7 @@ def generate_examples(out_dir: str | Path, targets: tuple[str, ...] = ("c", "num
         if friction.first_joint(mech) is not None:  # generated code has no joint friction yet
             continue
         for target in targets:
-            written += generate(mech, target, Path(out_dir) / name / target)
+            written += generate(mech, target, Path(out_dir) / name / target, force=force)
     return written
 
 

@@ -346,7 +346,7 @@ def test_generating_twice_gives_identical_bytes(tmp_path: Path) -> None:
         api.generate(api.example("quick_return"), "numpy", folder)
     match, mismatch, errors = filecmp.cmpfiles(tmp_path / "a", tmp_path / "b",
                                                [p.name for p in (tmp_path / "a").iterdir()], shallow=False)
-    assert not mismatch and not errors and len(match) == 4
+    assert not mismatch and not errors and len(match) == 5  # the 4 files and the folder's manifest
 
 
 def test_every_generated_file_names_symid_template_mechanism_and_do_not_edit(tmp_path: Path) -> None:

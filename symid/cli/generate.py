@@ -27,6 +27,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                         "parameters (columns outer, parameters inner); default: none, the code as without")
     p.add_argument("--sensitivity-of", metavar="COLUMN[,COLUMN...]",
                    help="the columns differentiated (default: the drivers' efforts and the reaction columns)")
+    p.add_argument("--force", action="store_true",
+                   help="replace files in the folder that symid did not generate (default: refuse, naming "
+                        "the first, nothing written); either way the folder is written whole or not at all")
     add_set(p, "override a parameter's default value in the generated code (repeatable)")
     p.set_defaults(run=run)
 
@@ -42,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     if args.examples:
         out = Path(args.output or "generated")
         targets = tuple(args.target or ("c", "numpy", "casadi"))
-        for path in api.generate_examples(out, targets):
+        for path in api.generate_examples(out, targets, force=args.force):
             print(path)
         return 0
     if not args.file or not args.target:
@@ -52,7 +55,8 @@ def run(args: argparse.Namespace) -> int:
     for target in args.target:
         out = Path(args.output) if args.output else Path(f"{study_mech.name}_{target}")
         for path in api.generate(study_mech, target, out, precision=args.precision,
-                                 sensitivity=args.sensitivity, sensitivity_of=args.sensitivity_of):
+                                 sensitivity=args.sensitivity, sensitivity_of=args.sensitivity_of,
+                                 force=args.force):
             print(path)
     return 0
 

@@ -51,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 def cmd_optimize(args: argparse.Namespace) -> int:
     from symid import api
-    from symid.io.files import atomic_write, check_target
+    from symid.io.files import atomic_write, check_target, output_format
     from symid.study import optimize as opt
     from symid.tools.sensitive import solver
 
@@ -63,6 +63,7 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     mech = api.load_mechanism(args.file, set_values(args.set, args.file), **overrides)
     opt.check(mech, args.minimize, bounds, limits)
     out = Path(args.output) if args.output else Path(f"{mech.name}_optimized.toml")
+    output_format(out, (".toml",), "the optimum's [parameters] snippet")
     check_target(out)
     problem = opt.Problem(mech, args.minimize, bounds, limits, solver(args.backend))
 

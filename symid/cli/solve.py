@@ -71,8 +71,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
+    from symid.io.files import output_format
+    from symid.output.tables import SUFFIXES
     from symid.tools import plan
 
+    if args.output:  # the format follows the suffix, else refused before any work
+        output_format(args.output, SUFFIXES, "a results table")
     plots = args.plot or args.plot_dir is not None
     sensitive = args.sensitivity is not None or args.sensitivity_of is not None  # a plan has no sensitivities
     key = None if plots or sensitive else plan.key(args.file, run_options(args))
@@ -144,12 +148,13 @@ def _write_table(out: Path, header: list[str], keep: list[str] | None, rows: Ite
     kept columns (`keep`, None: all)."""
     from symid import progress
     from symid.output import summary
-    from symid.output.tables import write_table
+    from symid.io.files import output_format
+    from symid.output.tables import SUFFIXES, write_table
     from symid.tools.plan import Stale
     from symid.output.results import check_table_size
 
     record = summary.Recorder(header, keep)
-    suffix = out.suffix.lower()
+    suffix = output_format(out, SUFFIXES, "a results table")
     check_table_size(steps, len(header) if suffix == ".npz" else len(record.columns), file)
     if suffix == ".parquet":
         from symid.output.tables import arrow

@@ -73,11 +73,12 @@ def _each(counts: Iterator[int]) -> Iterator[None]:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     from symid import api, progress
-    from symid.io.files import check_target
+    from symid.io.files import check_target, output_format
     from symid.study import design as vary
     from symid.study import inertials
     from symid.study.figures import figure_names
     from symid.study.run import Sweep
+    from symid.study.table import FORMATS
 
     if args.gradients and args.scheduler:
         raise InputError("--gradients runs each variant on this machine (solved on its own with its "
@@ -97,7 +98,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         vary.check_names(chosen.names, mech.parameters, args.file, option)
         inertials.check(mech, chosen.names, chosen.values, option)  # as the reader refuses them in a file
         out = Path(args.output) if args.output else Path(f"{mech.name}_sweep.csv")
-        if out.suffix.lower() == ".parquet":
+        if output_format(out, FORMATS, "a sweep table") == ".parquet":
             _need_pyarrow()
         check_target(out)
         client = None

@@ -1,18 +1,22 @@
 """Reading and writing the user's files so that no machine fault costs a traceback.
 
-Every output (CSV, .npz, plots) goes through `atomic_write`; every input a
-user names (mechanism file, motion table) through `read_at_most`, so a device
-or an endless stream (`/dev/zero`) is never read past its size limit.
+Every output of every command (tables, plots, the optimum's snippet, generated
+code) goes through `atomic_write`, its format chosen by `output_format` (the
+suffix, or refused); `symid.io.folder` writes a generated folder as a whole.
+Every input a user names (mechanism file, motion table) goes through
+`read_at_most`, so a device or an endless stream (`/dev/zero`) is never read
+past its size limit.
 """
 
 from __future__ import annotations
 
 import os
+import shutil
 import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any, Callable, Iterator
+from typing import IO, Any, Callable, Iterator, Sequence
 
 from symid.errors import InputError
 from symid.io.limits import MAX_FILE_BYTES
@@ -78,15 +82,46 @@ def check_target(path: str | Path) -> None:
         raise InputError(f"{path}: cannot write: no folder {path.parent}")
 
 
+def output_format(path: str | Path, suffixes: Sequence[str], what: str) -> str:
+    """The format of an output, by its suffix: one of `suffixes` (".csv", ...).
+
+    An existing device or FIFO (`/dev/null`, `/dev/stdout`, a named pipe)
+    whose name has none of them gets the first, the command's default: it is
+    written into, never replaced, so its name is not the user's choice of format.
+
+    Raises:
+        InputError: any other suffix (or none), one line naming it and those accepted.
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix in suffixes:
+        return suffix
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        mode = stat.S_IFREG  # absent (or unreachable: the write names that): the suffix decides
+    if not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):
+        return suffixes[0]
+    given = f"suffix {Path(path).suffix!r}" if suffix else "no suffix"
+    accepted = suffixes[0] if len(suffixes) == 1 else f"{', '.join(suffixes[:-1])} or {suffixes[-1]}"
+    raise InputError(f"{path}: {given}: {what} is written as {accepted} (the suffix chooses the format)")
+
+
+def _landing(path: Path) -> Path:
+    """Where a regular file's new bytes land: a symbolic link's target (the link is kept), else `path`."""
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
 @contextmanager
 def atomic_write(path: str | Path, binary: bool = False) -> Iterator[IO[Any]]:
     """Open `path` for writing so that it is either complete or untouched.
 
-    A regular (or new) file is written to a temporary name in the same folder,
+    A regular (or new) file is written to a temporary name in its folder,
     synced and renamed over `path` when the block ends without an exception;
     on any exception, a signal turned into one included, the temporary file is
     removed. An existing non-regular file (a character device such as
-    /dev/null, a FIFO) is written into directly and never replaced.
+    /dev/null or /dev/full, a FIFO), or a link to one, is written into
+    directly and never replaced; a link to a regular file is kept and its
+    target replaced.
 
     Raises:
         InputError: `path` is a directory, or a write failed (disk full,
@@ -123,24 +158,32 @@ def atomic_write(path: str | Path, binary: bool = False) -> Iterator[IO[Any]]:
 @contextmanager
 def atomic_path(path: Path, suffix: str = ".tmp") -> Iterator[Path]:
     """A temporary name beside `path`, for a writer that needs a file name
-    (Pillow's GIF writer): renamed over `path` when the block ends, removed on
-    any exception (a signal turned into one included).
+    (Pillow's GIF writer): renamed over `path` when the block ends (a device
+    or FIFO is written into instead, a link kept), removed on any exception
+    (a signal turned into one included).
 
     Raises:
         InputError: the folder cannot take the file, or the rename failed.
     """
+    shown, path = path, _landing(Path(path))
+    into = path.exists() and not path.is_file() and not path.is_dir()  # a device or FIFO: its folder may be /dev
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=None if into else path.parent)
     except OSError as exc:
-        raise cannot_write(path, exc) from None
+        raise cannot_write(shown, exc) from None
     os.close(fd)
     try:
         yield Path(tmp)
+        if into:
+            with open(tmp, "rb") as made, open(path, "wb") as out:
+                shutil.copyfileobj(made, out)
+            os.unlink(tmp)
+            return
         os.chmod(tmp, new_file_mode())
         os.replace(tmp, path)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
-        raise cannot_write(path, exc) from None
+        raise cannot_write(shown, exc) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

@@ -46,8 +46,8 @@ def write_npz(path: str | Path, header: list[str], rows: Iterable[Array], total:
         except OSError as exc:
             raise cannot_write(path, exc) from None
     with scratch:
-        store = _Columns(scratch.fileno(), width, max(total or 0, 1))
         try:
+            store = _Columns(scratch.fileno(), width, max(total or 0, 1))  # sized up front: EFBIG here
             try:
                 for block in blocks(rows, width):
                     store.add(block)

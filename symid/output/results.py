@@ -107,7 +107,8 @@ class Results:
 
     def write_csv(self, path: str | Path) -> int:
         """Write the table this holds (no solving), atomically; returns the rows written.
-        A path ending in .npz or .parquet writes that format instead."""
+        A path ending in .npz or .parquet writes that format instead; any other
+        suffix than .csv is refused (InputError), as `symid solve -o` refuses it."""
         from symid.output.tables import write_table
 
         return write_table(path, self.columns, self.data)

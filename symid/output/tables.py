@@ -20,7 +20,7 @@ import numpy as np
 
 from symid.backends import Array
 from symid.errors import AnalysisError, InputError
-from symid.io.files import atomic_write, check_target
+from symid.io.files import atomic_write, check_target, output_format
 
 BLOCK = 1024  # rows gathered before formatting: ~70k values, a few MB of text at most
 GROUP = 65536  # rows of one Parquet row group
@@ -173,7 +173,7 @@ def read_parquet(path: str | Path) -> tuple[list[str], Array]:
 
 def write_table(path: str | Path, names: list[str], data: Array | Iterable[Array],
                 total: int | None = None) -> int:
-    """Write a table by its suffix (.csv, .npz, .parquet), atomically.
+    """Write a table by its suffix (.csv, .npz, .parquet; any other refused), atomically.
 
     Args:
         names: the column names.
@@ -185,7 +185,7 @@ def write_table(path: str | Path, names: list[str], data: Array | Iterable[Array
     """
     from symid.output.npz import write_npz
 
-    suffix = Path(path).suffix.lower()
+    suffix = output_format(path, SUFFIXES, "a results table")
     if isinstance(data, np.ndarray):
         total = data.shape[0] if total is None else total
         data = [data.reshape(-1, len(names))]

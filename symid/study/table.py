@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from symid.errors import InputError
-from symid.io.files import atomic_path, atomic_write, read_text
+from symid.io.files import atomic_write, output_format, read_text
 from symid.output.compiled_csv import csv_block, formatter
 from symid.output.tables import arrow, read_arrow
 from symid.study.figures import STATUS, Figures
@@ -83,9 +83,9 @@ class SweepTable:
         return frame
 
     def write(self, path: str | Path) -> Path:
-        """Write as CSV or Parquet (by suffix), atomically: complete or untouched."""
+        """Write as CSV or Parquet (by suffix; any other refused), atomically: complete or untouched."""
         path = Path(path)
-        suffix = path.suffix.lower()
+        suffix = output_format(path, FORMATS, "a sweep table")
         if suffix == ".parquet":
             _write_parquet(self, path)
         else:
@@ -122,8 +122,8 @@ def _write_parquet(t: SweepTable, path: Path) -> None:
     for k, name in enumerate(t.figures.names):
         arrays[name] = pa.array(t.figures.values[:, k], type=pa.float64())
     table = pa.table(arrays, metadata={"symid.kind": t.kind})
-    with atomic_path(path) as tmp:
-        pq.write_table(table, tmp)
+    with atomic_write(path, binary=True) as out:  # a device or FIFO written into, never replaced
+        pq.write_table(table, out)
 
 
 def is_sweep(columns: list[str]) -> bool:
