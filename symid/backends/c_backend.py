@@ -343,14 +343,10 @@ class CBackend:
     lacks = frozenset({"cond", "cond_warn", "min_norm", "assembly_jump"})
 
     def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> CEvaluator:
-        from symid.backends import friction
         from symid.codegen.model import options_for
 
         options = options_for(layout.mechanism)
-        # computed in the compiled loop, with the factors of each instant; with
-        # joint friction by the shared Python code from the compiled loop's rows
-        # (the generated C has no friction sensitivities: symid.output.sensitivity.rows)
-        if needs.sensitivity and not friction.solved(layout.mechanism):
+        if needs.sensitivity:  # computed in the compiled loop, with the factors of each instant
             options = dataclasses.replace(options, sensitivity=needs.sensitivity, sensitivity_of=needs.sensitivity_of)
         folder = build(layout, options)
         return CEvaluator(folder, layout.mechanism.name, {s.name: v for s, v in values.items()}, layout)
