@@ -17,10 +17,12 @@ from typing import Mapping, Sequence
 import mpmath
 import sympy as sp
 
+from symid.model.friction import coulomb_arm, has_friction, inverse_arm
 from symid.model.mechanism import GROUND, T, Mechanism, parameter_symbol
 from symid.model.params import base_names
 from symid.symbolic import symbols as s
 from symid.symbolic.assemble import assemble
+from symid.symbolic.friction import ARM_INV, derive_friction
 
 DIGITS = 40
 
@@ -96,6 +98,37 @@ class Instant:
                         for c in range(3):
                             applied[3 * body + c] += d.generalized[role][c].xreplace(sub)
         mass = [base(e) for b in mech.bodies for e in (b.mass, b.mass, b.inertia)]
+        # joint friction (contract v1.1), inverse dynamics only: per joint its
+        # speed, N(lam), coefficients and the unit friction's generalized
+        # forces and loads, from the family's derivation (no derivative by p)
+        member = {n: (g, m) for g in layout.constraint_groups for m, n in enumerate(g.names)}
+        friction: list[sp.Expr] = []
+        self.nf = 0
+        for c in mech.constraints if mech.analysis.kind == "inverse_dynamics" else ():
+            if not has_friction(c):
+                continue
+            g, m = member[c.name]
+            d = derive_friction(c.type)
+            sub = {}
+            for role in d.constraint.roles:
+                sub.update(coords(role, g.bodies[role][m]))
+                sub.update(coords(role, g.bodies[role][m], rates=True))
+            sub.update({k: base(v) for k, v in zip(d.constraint.constants, g.constants[m])})
+            row = g.rows[m]
+            sub.update(dict(zip(d.constraint.lam, lam[row:row + len(d.constraint.lam)])))
+            sub[ARM_INV] = base(inverse_arm(c.friction))
+            gen = [sp.S(0)] * ng
+            for role in ("i", "j"):
+                body = g.bodies[role][m]
+                if body < nb:
+                    for k in range(3):
+                        gen[3 * body + k] += d.generalized[role][k].xreplace(sub)
+            loads = [e.xreplace(sub) for role in ("i", "j") for e in d.loads[role]]
+            friction += [d.speed.xreplace(sub), d.normal.xreplace(sub), base(coulomb_arm(c.type, c.friction)),
+                         base(c.friction["viscous"]), base(c.friction["v_smooth"]), *gen, *loads]
+            self.nf += 1
+            self.friction_names = getattr(self, "friction_names", []) + [c.name]
+        self.fw = 5 + ng + 6
         phi_m = sp.Matrix(phi)
         jac = phi_m.jacobian(sp.Matrix(q))
         args = [q, qd, lam, T, self.p]
@@ -103,6 +136,12 @@ class Instant:
         self._phi, self._jac, self._nu, self._gamma = fn(list(phi)), fn(jac.tolist()), fn(nu), fn(gamma)
         self._applied, self._mass = fn(applied), fn(mass)
         self._reactions = fn([e for c in mech.constraints for e in reactions[c.name]])
+        self._friction = fn(friction) if friction else None
+        self._starts = {}
+        at = 0
+        for c in mech.constraints:
+            self._starts[c.name] = at
+            at += len(reactions[c.name])
 
     def solve(self, t: float, p: Sequence, q_guess: Sequence[float]) -> dict[str, mpmath.matrix]:
         with mpmath.workdps(DIGITS):
@@ -125,5 +164,38 @@ class Instant:
             for k in range(self.ng):
                 rhs[k] -= mass[k] * qdd[k]
             lam = mpmath.lu_solve(jac.T, rhs)
+            out = {"q": mpmath.matrix(q), "qd": qd, "qdd": qdd}
+            if self._friction is None:
+                out["lam"] = lam
+                out["reactions"] = mpmath.matrix(self._reactions(q, qdl, list(lam), t, p))
+                return out
+            # with friction: Phi_q^T lam = rhs + G f(lam), by fixed-point
+            # iteration (a contraction for these friction coefficients) to 40 digits
+            fw, ng = self.fw, self.ng
+            for _ in range(400):
+                v = self._friction(q, qdl, list(lam), t, p)
+                f = []
+                total = mpmath.matrix(rhs)
+                for k in range(self.nf):
+                    speed, normal, c, visc, vs = v[k * fw:k * fw + 5]
+                    s = mpmath.tanh(speed / vs) if vs > 0 else mpmath.sign(speed)
+                    f.append(-(c * s * normal + visc * speed))
+                    for r in range(ng):
+                        total[r] += v[k * fw + 5 + r] * f[k]
+                new = mpmath.lu_solve(jac.T, total)
+                moved = mpmath.norm(new - lam, mpmath.inf)
+                lam = new
+                if moved < mpmath.mpf(10) ** (-DIGITS + 5):
+                    break
+            else:
+                raise AssertionError("the 40-digit friction iteration did not converge")
             reactions = mpmath.matrix(self._reactions(q, qdl, list(lam), t, p))
-            return {"q": mpmath.matrix(q), "qd": qd, "qdd": qdd, "lam": lam, "reactions": reactions}
+            columns = []
+            for k, name in enumerate(self.friction_names):
+                speed = v[k * fw]
+                loads = v[k * fw + 5 + ng:k * fw + fw]
+                for r in range(6):
+                    reactions[self._starts[name] + r] += loads[r] * f[k]
+                columns += [f[k], f[k] * speed]
+            out.update(lam=lam, reactions=reactions, friction=mpmath.matrix(columns))
+            return out

@@ -15,7 +15,7 @@ from symid.model.mechanism import parameter_symbol
 from symid.model.params import base_names
 from symid.symbolic.columns import GROUP_SUFFIXES
 
-EXAMPLES = [e for e in api.examples() if "friction" not in e]  # friction: refused (test_sensitivity_inputs)
+EXAMPLES = [e for e in api.examples() if "friction" not in e]  # friction: tests/test_friction_sensitivity.py
 BACKENDS = ("reference", "numpy", "casadi", "c")
 STEPS = 4  # t0, t1 and two instants between (not only the slider-crank's dead centres)
 REL = 2e-4  # the difference step, relative to the parameter's value

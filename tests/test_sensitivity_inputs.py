@@ -53,10 +53,15 @@ def test_bad_option_is_one_line_exit_2(tmp_path, capsys, case):
     assert not (tmp_path / "out.csv").exists()
 
 
-def test_joint_friction_is_refused_naming_the_key(tmp_path, capsys):
-    status, err = run(tmp_path, capsys, "--sensitivity", "n", file=FRICTION)
-    assert status == 2 and err.count("\n") == 1, err
-    assert "key 'friction'" in err and "--sensitivity" in err, err
+def test_joint_friction_has_sensitivities_after_its_columns(tmp_path, capsys):
+    """Sensitivities with joint friction (issue 26 point 3): the friction
+    columns can be differentiated too, and come before every d(...) column."""
+    status, err = run(tmp_path, capsys, "--sensitivity", "mu_pin",
+                      "--sensitivity-of", "motor.T_j,cylinder_guide.friction", file=FRICTION)
+    assert status == 0, err
+    header = (tmp_path / "out.csv").read_text().splitlines()[0].split(",")
+    assert header[-3:] == ["cylinder_guide.friction_power", "d(motor.T_j)/d(mu_pin)",
+                           "d(cylinder_guide.friction)/d(mu_pin)"]
 
 
 def test_kinematics_with_named_columns_has_sensitivities(tmp_path, capsys):

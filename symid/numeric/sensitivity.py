@@ -24,7 +24,9 @@ from typing import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from symid.model.friction import has_friction
 from symid.numeric.evaluator import Array
+from symid.numeric.friction_sensitivity import FrictionSensitivity
 from symid.numeric.sensitivity_build import Structure, fused, structure
 from symid.numeric.stability import Factor, Scaling
 from symid.symbolic.assemble import Group, Layout
@@ -44,6 +46,7 @@ class Derivatives:
     qdd: Array
     lam: Array | None = None
     reactions: Array | None = None
+    friction: Array | None = None  # (2 nf, np): per joint with friction, d(friction), d(friction_power)
 
 
 class Stacked:
@@ -163,6 +166,10 @@ class SensitivityEvaluator:
         self.weight_p = weight.reshape(-1, nparams)
         wanted = set(reactions)
         start, self.reaction_size = mech.reaction_starts(wanted)
+        self._start = start
+        # joint friction (inverse dynamics only: statics has none)
+        self.friction = None if statics or not any(has_friction(c) for c in mech.constraints) \
+            else FrictionSensitivity(layout, values, self.names)
         self._slots = [(np.array([k for k, n in enumerate(p.group.names) if n in wanted], dtype=np.intp),
                         np.array([start[n] for n in p.group.names if n in wanted], dtype=np.intp))
                        for p in self._c]
@@ -201,7 +208,8 @@ class SensitivityEvaluator:
         d = self.chunk([factor], np.array([t]), q[None], None if qd is None else qd[None],
                        None if qdd is None else qdd[None], rows, reactions)
         return Derivatives(d.q[:, 0], d.qd[:, 0], d.qdd[:, 0], None if d.lam is None else d.lam[:, 0],
-                           None if d.reactions is None else d.reactions[:, 0])
+                           None if d.reactions is None else d.reactions[:, 0],
+                           None if d.friction is None else d.friction[:, 0])
 
     def chunk(self, factors: Sequence[Factor] | Stacked, ts: Array, q: Array, qd: Array | None, qdd: Array | None,
               lam: Array | None, reactions: bool = False) -> Derivatives:
@@ -230,7 +238,7 @@ class SensitivityEvaluator:
             hundreds of times these small single solves."""
             if isinstance(factors, Stacked):
                 return factors.solve(rhs, transposed)
-            out = [[(f.solve_t if transposed else f.solve)(rhs[:, k, j]) for j in range(nparams)]
+            out = [[(f.solve_t if transposed else f.solve)(rhs[:, k, j]) for j in range(rhs.shape[2])]
                    for k, f in enumerate(factors)]
             return np.array(out).transpose(2, 0, 1)
 
@@ -249,7 +257,7 @@ class SensitivityEvaluator:
         if not self.statics:
             qd_p = -solve(stage("velocity", (("q", qpx),)))
             qdd_p = -solve(stage("acceleration", (("q", qpx), ("qd", _pad(qd_p)))))
-        lam_p = r_p = None
+        lam_p = r_p = fr_p = None
         if lam is not None:
             # d/dp of M qdd + Phi_q^T lam - Q^A, all but Phi_q^T lam_p: (ng + 3, K, np)
             rest = np.zeros((ng + 3, count, nparams))
@@ -266,7 +274,16 @@ class SensitivityEvaluator:
             rest = rest[:ng] - self.weight_p[:, None, :]
             if not self.statics:
                 rest += self.mass_p[:, None, :] * qdd.T[:, :, None] + self.mass[:, None, None] * qdd_p  # type: ignore[union-attr]
-            lam_p = -solve(rest, transposed=True)
+            fr = self.friction
+            if fr is None:
+                lam_p = -solve(rest, transposed=True)
+            else:  # the converged friction equations differentiated (symid.numeric.friction_sensitivity)
+                def const(g: int, m: int) -> tuple[Array, Array]:
+                    return self._c[g].const[:, m], self._c[g].const_p[:, m, :]
+
+                lam_p = fr.solve(qx, qdx, lamx, qpx, qdpx, const, rest,  # type: ignore[arg-type]
+                                 lambda rhs: solve(rhs, transposed=True))[0]
+                fr_p = fr.columns()
             if reactions:
                 r_p = np.empty((self.reaction_size, count, nparams))
                 lpx = lam_p
@@ -277,4 +294,6 @@ class SensitivityEvaluator:
                     lam_local = lpx[p.rows].reshape(p.rows.shape[0], p.n * count, nparams)
                     vals = direct[r] + p.times(jac[r], "q", p.local(qpx)) + p.times(jac[r], "lam", lam_local)
                     r_p[slots[None, :] + np.arange(vals.shape[0])[:, None]] = p.unflat(vals)[:, members]
-        return Derivatives(q_p, qd_p, qdd_p, lam_p, r_p)
+                if fr is not None:  # each joint's friction loads
+                    fr.reactions(r_p, self._start)
+        return Derivatives(q_p, qd_p, qdd_p, lam_p, r_p, fr_p)

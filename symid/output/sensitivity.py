@@ -16,6 +16,7 @@ import numpy as np
 
 from symid.errors import InputError
 from symid.model.analysis import Analysis
+from symid.model.friction import has_friction
 from symid.model.params import base_names, is_derived
 from symid.numeric.solve import instant_row, run
 from symid.output.results import table_rows
@@ -85,6 +86,10 @@ def _where(layout: Layout, analysis: Analysis, reaction_count: int) -> dict[str,
         for k in range(sizes[group]):
             out[header[at + k]] = (_GROUPS[group], k)
         at += sizes[group]
+    if analysis.kind == "inverse_dynamics" and "reactions" in analysis.output_groups():
+        joints = [c.name for c in layout.mechanism.constraints if has_friction(c)]  # after every other column
+        for k, name in enumerate(joints):
+            out[f"{name}.friction"], out[f"{name}.friction_power"] = ("friction", 2 * k), ("friction", 2 * k + 1)
     return out
 
 
@@ -95,7 +100,7 @@ def choose(mechanism: Mechanism, layout: Layout, names: str | Sequence[str] | No
     Raises:
         InputError: an empty list, a repeated name, an unknown or derived
             parameter (naming its definition), an unknown column, a kind that
-            has none of the default columns, or joint friction.
+            has none of the default columns.
     """
     where_ = mechanism.source
     chosen = _split(names, "--sensitivity", where_)
@@ -115,11 +120,7 @@ def choose(mechanism: Mechanism, layout: Layout, names: str | Sequence[str] | No
             raise InputError(f"{where_}: --sensitivity {name}: '{name}' is a derived parameter ({name} = "
                              f"\"{params[name]}\" in [parameters]); take the sensitivity to the base parameters "
                              f"it is computed from ({uses})")
-    joint = next((c for c in mechanism.constraints if getattr(c, "friction", None)), None)
     analysis = mechanism.analysis
-    if joint is not None and analysis.kind == "inverse_dynamics":
-        raise InputError(f"{where_}: constraint '{joint.name}' key 'friction': --sensitivity: sensitivities "
-                         f"of runs with joint friction are not available yet; solve without --sensitivity")
     where = _where(layout, analysis, reaction_count(reactions, mechanism))
     if wanted is None:
         header = columns(layout, analysis)
@@ -147,7 +148,7 @@ def rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes, choi
     sensitivities start from (q, and qdot, qddot, lambda where needed):
     Phi_q is then factored again per instant. Otherwise the shared Python
     loop, whose factorization each instant's sensitivities reuse."""
-    want_lam = any(attr in ("lam", "reactions") for attr, _ in choice.where)
+    want_lam = any(attr in ("lam", "reactions", "friction") for attr, _ in choice.where)
     want_r = any(attr == "reactions" for attr, _ in choice.where)
     ng = len(q0)
     dyn = analysis.kind != "statics"

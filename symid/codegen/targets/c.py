@@ -220,13 +220,11 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         offset += size
     stride = _stride(model)
     fr = friction.context(model.layout, o, offset, scalar.lit)  # joint friction (None: none, and no code for it)
+    offset = fr["row_width"] if fr else offset  # the friction columns come before the sensitivities
     # parameter sensitivities after the row's other columns (None: not asked for, and no code for them)
     # its parameter-only pieces go after the phases in the prepared vector (p | pieces | phases | these)
-    sens = c_sens.context(model, row_parts, offset, off_nu + 3 * nph, _function, trig, printer, real)
+    sens = c_sens.context(model, row_parts, offset, off_nu + 3 * nph, _function, trig, printer, real, fr)
     if sens is not None:
-        if fr is not None:
-            raise c_sens.InputError(f"{model.layout.mechanism.source}: --sensitivity: the generated C has no "
-                                    f"sensitivities of joint friction yet; solve with --backend reference or numpy")
         prepare += sens["prepare"]
         used += sens["exprs"]
         offset += sens["width"]
@@ -235,7 +233,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
                       _function("friction_normal", [cq, clam, ct, cp], fr["normal"], trig, printer, real)]
         used += fr["fixed"] + fr["normal"]
     lu = _lu(model, fold_constants, scalar)
-    d = describe(model, fr["row_width"] if fr else offset, functions, lu)
+    d = describe(model, offset, functions, lu)
     npp = off_nu + 3 * nph + (sens["npieces"] if sens else 0)  # every prepared value: NPP
     # the trajectory's output vectors (variable, source, work vector): solved
     # straight into the row where it holds the source, else into the work vector
@@ -246,7 +244,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
     ctx = {
         **c_phase.context(red, off_nu, len(f.params)),
         "name": f.name, "p": f.name, "P": f.name.upper(), "ng": ng, "nc": nc, "np_": len(f.params),
-        "nnz": len(f.jac), "nr": nr, "row_width": fr["row_width"] if fr else offset, "friction": fr,
+        "nnz": len(f.jac), "nr": nr, "row_width": offset, "friction": fr,
         "lu_size": model.plan.size,
         "work": work_size(model) + npp + (sens["work"] if sens else 0), "npp": npp, "sens": sens,
         "prepare": prepare, "off_prep": work_size(model),
@@ -268,7 +266,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "dense_fallback": dense_fallback(model), "dense_limit": DENSE_LIMIT,
         "fb": None if dense_fallback(model) else c_fallback.context(model.plan, f.jac, ng),
         **c_sweep.context(model, printer, work_size(model) + npp + (sens["work"] if sens else 0),
-                          fr["row_width"] if fr else offset),
+                          offset),
         "nb": ng // 3, "singular": model.plan.singular, "trig_loop": ng >= LU_TABLES_MIN,
         "splines": [_relit_tables(piece_tables(s), scalar) for s in tables(used)],
         "inf": scalar.lit(float("inf")), "nan": scalar.lit(float("nan")), "real": scalar.ctype, "f": scalar.suffix,
