@@ -755,9 +755,10 @@ def _unexplained(o, d, e, q, v, w, h, c, floor, ratio):
     return not mismatch <= ratio * max(abs(q0 - o0) * c0, abs(q1 - o1) * c1, abs(q2 - o2) * c2, abs(q3 - o3) * c3, abs(q4 - o4) * c4, abs(q5 - o5) * c5, abs(q6 - o6) * c6, abs(q7 - o7) * c7, abs(q8 - o8) * c8)
 
 
-def _instant(t, p, q, tol, m):
+def _instant(t, p, q, tol, m, mixed=None):
     """Solve one instant from the guess q (floats): Newton, then the compiled
-    outputs. m: _mass_s(p) (or None). Returns (q, qd, qdd, lam, reactions,
+    outputs. m: _mass_s(p) (or None); mixed: _mixed of the masses, if the
+    caller has it (a loop decides once). Returns (q, qd, qdd, lam, reactions,
     iterations, factors), None where not compiled. Raises SolverError."""
     qmag = max(1.0, max(map(abs, q)))
     lim = max(tol, 8.0 * EPS * qmag)
@@ -792,7 +793,7 @@ def _instant(t, p, q, tol, m):
     qdd = _solve(a, _gamma_s(q, qd, t, p))
     f = _applied_s(q, qd, t, p)
     lam = _lam(a, f, m, qdd)
-    if _mixed(m):
+    if _mixed(m) if mixed is None else mixed:
         lam = _refine_t(a, [u - v * w for u, v, w in zip(f, m, qdd)], lam, q, t, p)
     return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
@@ -833,6 +834,7 @@ def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
     qdd to resume from.
     """
     m = _mass_s(p)
+    mixed = _mixed(_mass_s(p))
     hh = 0.5 * h * h
     q1, q2, q3 = (list(past) + [None] * 3)[:3]
     if check is not None:
@@ -843,7 +845,7 @@ def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
             q = _predict(q1, qd, qdd, h, hh)
         try:
             try:
-                qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
+                qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m, mixed)
             except (ArithmeticError, ValueError):  # an expression left its domain (math raises)
                 raise SolverError("not finite", t, q, 0) from None
             # a sum carries any inf or NaN (an overflowing sum of finite values
