@@ -16,6 +16,11 @@ from typing import Sequence
 import numpy as np
 
 THRESHOLD = 0.1  # a pivot must be >= THRESHOLD * the largest entry of its column
+# The generated solvers refine lambda (one step of iterative refinement of the
+# transposed solve) where the bodies' masses span more than this: there a light
+# body's multipliers would carry a heavy one's rounding (issue 26: a 2 g part on a
+# 1 t boom, 1e-9 of its own loads); with uniform scales they are at rounding without it.
+REFINE_SPREAD = 100.0
 
 
 @dataclass(frozen=True)

@@ -36,6 +36,8 @@ class Plan:
 
     def __init__(self, jac_rows: Sequence[int], jac_cols: Sequence[int], rows: Sequence[int],
                  cols: Sequence[int]) -> None:
+        self.jac_rows = np.asarray(jac_rows, dtype=np.intp)
+        self.jac_cols = np.asarray(jac_cols, dtype=np.intp)
         self.rows = np.asarray(rows, dtype=np.intp)
         self.cols = np.asarray(cols, dtype=np.intp)
         n = self.n = len(self.rows)
@@ -72,6 +74,7 @@ class Factors:
 
     def __init__(self, plan: Plan, values: Array, threshold: float) -> None:
         self.plan = plan
+        self.values = values
         n, k = plan.n, values.shape[1]
         b = np.zeros((n, n, k))
         b[plan.at] = values
@@ -120,3 +123,15 @@ class Factors:
         out = np.empty_like(w)
         out[plan.rows] = w
         return out
+
+    def refine_t(self, rhs: Array, lam: Array, mixed: Array) -> Array:
+        """lam (N, K) after one step of iterative refinement of Phi_q^T lam =
+        rhs in the variants where `mixed` (K,) is set (the module's `_refine_t`:
+        a light body's multipliers would carry a heavy one's rounding); the
+        others as they are."""
+        if not mixed.any():
+            return lam
+        plan = self.plan
+        r = np.array(np.broadcast_to(rhs, lam.shape))
+        np.subtract.at(r, plan.jac_cols, self.values * lam[plan.jac_rows])
+        return np.where(mixed, lam + self.solve_t(r), lam)

@@ -205,7 +205,9 @@ class _Chunk:
                 rhs = m.applied(q, qd, t, p) - (mass[:, None] if mass.ndim == 1 else mass) * qdd
             else:
                 rhs = m.applied(q, None, t, p)
-            lam = out["lambda"] = factors.solve_t(rhs)
+            masses = np.broadcast_to(np.asarray(m.mass(p), dtype=float).reshape(m.NG, -1)[0::3], (m.NG // 3, q.shape[1]))
+            mixed = masses.min(axis=0) * m.REFINE_SPREAD < masses.max(axis=0)  # the module's _mixed, per variant
+            lam = out["lambda"] = factors.refine_t(rhs, factors.solve_t(rhs), mixed)
             if m.NR:
                 out["reactions"] = np.broadcast_to(m.reactions(q, lam, t, p), (m.NR, q.shape[1]))
         ok &= np.isfinite(sum(x.sum(axis=0) for x in out.values()))  # the module's finite_sum

@@ -11,6 +11,13 @@
 #else
 #define EXCAVATOR_RESTRICT restrict
 #endif
+/* Out of line where the compiler allows: a path most instants skip, whose
+   inlining would cost the others (outputs' refinement of lambda). */
+#ifdef __GNUC__
+#define EXCAVATOR_COLD __attribute__((noinline, cold))
+#else
+#define EXCAVATOR_COLD
+#endif
 
 #define EXCAVATOR_EPS 2.220446049250313e-16  /* the machine epsilon of excavator_real */
 #define EXCAVATOR_THRESHOLD 0.1
@@ -1003,6 +1010,43 @@ static void excavator_solve_t(const excavator_real *work, const int *iwork, int 
     else excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, b, x);
 }
 
+/* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
+   span more than REFINE_SPREAD (a massless body among massive ones too):
+   there the lighter bodies' multipliers need the refinement of outputs;
+   where the scales are uniform the first solve is already at rounding, and
+   the refinement's cost (a quarter of an instant) is not paid. */
+static int excavator_mixed(const excavator_real *m)
+{
+    excavator_real lo = m[0], hi = m[0];
+    lo = EXCAVATOR_MIN(lo, m[3]);
+    hi = EXCAVATOR_MAX(hi, m[3]);
+    lo = EXCAVATOR_MIN(lo, m[6]);
+    hi = EXCAVATOR_MAX(hi, m[6]);
+    return lo * 100.0 < hi;
+}
+
+/* One step of iterative refinement of lambda = Phi_q^T \ b, where the
+   masses span scales (mixed): a transposed solve is backward stable in the
+   norm of the whole b, so a light body's multipliers (a 2 g part on a boom
+   of 1e5 N) may carry the heavy ones' rounding (measured: the dense
+   fallback's partial pivoting, 1e-6 of the part's loads; the fixed sparse
+   order kept them to 1e-14 on that mechanism). The residual b - Phi_q^T
+   lambda, from Phi_q's values written again (the sparse factors overwrote
+   them), is exact to the rounding of each row's own terms, and its
+   correction through the same factors brings every multiplier to that. */
+static EXCAVATOR_COLD void excavator_refine_t(const excavator_real *q, const excavator_real *tr, excavator_real t, const excavator_real *p,
+                                        const excavator_real *b, excavator_real *lam, excavator_real *work, const int *iwork, int dense)
+{
+    excavator_real *values = work, *r = EXCAVATOR_VEC(work, 0), *d = EXCAVATOR_VEC(work, 1);
+    int k;
+    excavator_phi_q_k(q, tr, t, p, values);
+    memcpy(r, b, sizeof(excavator_real) * 9);
+    for (k = 0; k < 35; ++k) r[excavator_phi_q_cols[k]] -= values[k] * lam[excavator_phi_q_rows[k]];
+    if (dense) excavator_dense_solve_t(work + EXCAVATOR_OFF_DENSE, iwork, r, d);
+    else excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    for (k = 0; k < 9; ++k) lam[k] += d[k];
+}
+
 
 /* Whether everything the trajectory's instant computed is finite (what
    finite checks), over 1 block(s): the groups the row holds side by side are
@@ -1201,6 +1245,7 @@ static void excavator_outputs(excavator_real t, const excavator_real *p, const e
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     excavator_solve_t(work, iwork, dense, b, lam);
+    if (excavator_mixed(y)) excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     excavator_reactions_k(q, tr, lam, t, p, reactions);
 }
 

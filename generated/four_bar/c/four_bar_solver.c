@@ -11,6 +11,13 @@
 #else
 #define FOUR_BAR_RESTRICT restrict
 #endif
+/* Out of line where the compiler allows: a path most instants skip, whose
+   inlining would cost the others (outputs' refinement of lambda). */
+#ifdef __GNUC__
+#define FOUR_BAR_COLD __attribute__((noinline, cold))
+#else
+#define FOUR_BAR_COLD
+#endif
 
 #define FOUR_BAR_EPS 2.220446049250313e-16  /* the machine epsilon of four_bar_real */
 #define FOUR_BAR_THRESHOLD 0.1
@@ -756,6 +763,43 @@ static void four_bar_solve_t(const four_bar_real *work, const int *iwork, int de
     else four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, b, x);
 }
 
+/* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
+   span more than REFINE_SPREAD (a massless body among massive ones too):
+   there the lighter bodies' multipliers need the refinement of outputs;
+   where the scales are uniform the first solve is already at rounding, and
+   the refinement's cost (a quarter of an instant) is not paid. */
+static int four_bar_mixed(const four_bar_real *m)
+{
+    four_bar_real lo = m[0], hi = m[0];
+    lo = FOUR_BAR_MIN(lo, m[3]);
+    hi = FOUR_BAR_MAX(hi, m[3]);
+    lo = FOUR_BAR_MIN(lo, m[6]);
+    hi = FOUR_BAR_MAX(hi, m[6]);
+    return lo * 100.0 < hi;
+}
+
+/* One step of iterative refinement of lambda = Phi_q^T \ b, where the
+   masses span scales (mixed): a transposed solve is backward stable in the
+   norm of the whole b, so a light body's multipliers (a 2 g part on a boom
+   of 1e5 N) may carry the heavy ones' rounding (measured: the dense
+   fallback's partial pivoting, 1e-6 of the part's loads; the fixed sparse
+   order kept them to 1e-14 on that mechanism). The residual b - Phi_q^T
+   lambda, from Phi_q's values written again (the sparse factors overwrote
+   them), is exact to the rounding of each row's own terms, and its
+   correction through the same factors brings every multiplier to that. */
+static FOUR_BAR_COLD void four_bar_refine_t(const four_bar_real *q, const four_bar_real *tr, four_bar_real t, const four_bar_real *p,
+                                        const four_bar_real *b, four_bar_real *lam, four_bar_real *work, const int *iwork, int dense)
+{
+    four_bar_real *values = work, *r = FOUR_BAR_VEC(work, 0), *d = FOUR_BAR_VEC(work, 1);
+    int k;
+    four_bar_phi_q_k(q, tr, t, p, values);
+    memcpy(r, b, sizeof(four_bar_real) * 9);
+    for (k = 0; k < 25; ++k) r[four_bar_phi_q_cols[k]] -= values[k] * lam[four_bar_phi_q_rows[k]];
+    if (dense) four_bar_dense_solve_t(work + FOUR_BAR_OFF_DENSE, iwork, r, d);
+    else four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    for (k = 0; k < 9; ++k) lam[k] += d[k];
+}
+
 
 /* Whether everything the trajectory's instant computed is finite (what
    finite checks), over 1 block(s): the groups the row holds side by side are
@@ -958,6 +1002,7 @@ static void four_bar_outputs(four_bar_real t, const four_bar_real *p, const four
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     four_bar_solve_t(work, iwork, dense, b, lam);
+    if (four_bar_mixed(y)) four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     four_bar_reactions_k(q, tr, lam, t, p, reactions);
 }
 

@@ -11,6 +11,13 @@
 #else
 #define PLANETARY_RESTRICT restrict
 #endif
+/* Out of line where the compiler allows: a path most instants skip, whose
+   inlining would cost the others (outputs' refinement of lambda). */
+#ifdef __GNUC__
+#define PLANETARY_COLD __attribute__((noinline, cold))
+#else
+#define PLANETARY_COLD
+#endif
 
 #define PLANETARY_EPS 2.220446049250313e-16  /* the machine epsilon of planetary_real */
 #define PLANETARY_THRESHOLD 0.1
@@ -832,6 +839,45 @@ static void planetary_solve_t(const planetary_real *work, const int *iwork, int 
     else planetary_sparse_solve_t(work + PLANETARY_OFF_LU, b, x);
 }
 
+/* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
+   span more than REFINE_SPREAD (a massless body among massive ones too):
+   there the lighter bodies' multipliers need the refinement of outputs;
+   where the scales are uniform the first solve is already at rounding, and
+   the refinement's cost (a quarter of an instant) is not paid. */
+static int planetary_mixed(const planetary_real *m)
+{
+    planetary_real lo = m[0], hi = m[0];
+    lo = PLANETARY_MIN(lo, m[3]);
+    hi = PLANETARY_MAX(hi, m[3]);
+    lo = PLANETARY_MIN(lo, m[6]);
+    hi = PLANETARY_MAX(hi, m[6]);
+    lo = PLANETARY_MIN(lo, m[9]);
+    hi = PLANETARY_MAX(hi, m[9]);
+    return lo * 100.0 < hi;
+}
+
+/* One step of iterative refinement of lambda = Phi_q^T \ b, where the
+   masses span scales (mixed): a transposed solve is backward stable in the
+   norm of the whole b, so a light body's multipliers (a 2 g part on a boom
+   of 1e5 N) may carry the heavy ones' rounding (measured: the dense
+   fallback's partial pivoting, 1e-6 of the part's loads; the fixed sparse
+   order kept them to 1e-14 on that mechanism). The residual b - Phi_q^T
+   lambda, from Phi_q's values written again (the sparse factors overwrote
+   them), is exact to the rounding of each row's own terms, and its
+   correction through the same factors brings every multiplier to that. */
+static PLANETARY_COLD void planetary_refine_t(const planetary_real *q, const planetary_real *tr, planetary_real t, const planetary_real *p,
+                                        const planetary_real *b, planetary_real *lam, planetary_real *work, const int *iwork, int dense)
+{
+    planetary_real *values = work, *r = PLANETARY_VEC(work, 0), *d = PLANETARY_VEC(work, 1);
+    int k;
+    planetary_phi_q_k(q, tr, t, p, values);
+    memcpy(r, b, sizeof(planetary_real) * 12);
+    for (k = 0; k < 20; ++k) r[planetary_phi_q_cols[k]] -= values[k] * lam[planetary_phi_q_rows[k]];
+    if (dense) planetary_dense_solve_t(work + PLANETARY_OFF_DENSE, iwork, r, d);
+    else planetary_sparse_solve_t(work + PLANETARY_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    for (k = 0; k < 12; ++k) lam[k] += d[k];
+}
+
 
 /* Whether everything the trajectory's instant computed is finite (what
    finite checks), over 1 block(s): the groups the row holds side by side are
@@ -1057,6 +1103,7 @@ static void planetary_outputs(planetary_real t, const planetary_real *p, const p
     b[10] -= y[10] * qdd[10];
     b[11] -= y[11] * qdd[11];
     planetary_solve_t(work, iwork, dense, b, lam);
+    if (planetary_mixed(y)) planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     planetary_reactions_k(q, tr, lam, t, p, reactions);
 }
 

@@ -11,6 +11,13 @@
 #else
 #define QUICK_RETURN_RESTRICT restrict
 #endif
+/* Out of line where the compiler allows: a path most instants skip, whose
+   inlining would cost the others (outputs' refinement of lambda). */
+#ifdef __GNUC__
+#define QUICK_RETURN_COLD __attribute__((noinline, cold))
+#else
+#define QUICK_RETURN_COLD
+#endif
 
 #define QUICK_RETURN_EPS 2.220446049250313e-16  /* the machine epsilon of quick_return_real */
 #define QUICK_RETURN_THRESHOLD 0.1
@@ -750,6 +757,43 @@ static void quick_return_solve_t(const quick_return_real *work, const int *iwork
     else quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, b, x);
 }
 
+/* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
+   span more than REFINE_SPREAD (a massless body among massive ones too):
+   there the lighter bodies' multipliers need the refinement of outputs;
+   where the scales are uniform the first solve is already at rounding, and
+   the refinement's cost (a quarter of an instant) is not paid. */
+static int quick_return_mixed(const quick_return_real *m)
+{
+    quick_return_real lo = m[0], hi = m[0];
+    lo = QUICK_RETURN_MIN(lo, m[3]);
+    hi = QUICK_RETURN_MAX(hi, m[3]);
+    lo = QUICK_RETURN_MIN(lo, m[6]);
+    hi = QUICK_RETURN_MAX(hi, m[6]);
+    return lo * 100.0 < hi;
+}
+
+/* One step of iterative refinement of lambda = Phi_q^T \ b, where the
+   masses span scales (mixed): a transposed solve is backward stable in the
+   norm of the whole b, so a light body's multipliers (a 2 g part on a boom
+   of 1e5 N) may carry the heavy ones' rounding (measured: the dense
+   fallback's partial pivoting, 1e-6 of the part's loads; the fixed sparse
+   order kept them to 1e-14 on that mechanism). The residual b - Phi_q^T
+   lambda, from Phi_q's values written again (the sparse factors overwrote
+   them), is exact to the rounding of each row's own terms, and its
+   correction through the same factors brings every multiplier to that. */
+static QUICK_RETURN_COLD void quick_return_refine_t(const quick_return_real *q, const quick_return_real *tr, quick_return_real t, const quick_return_real *p,
+                                        const quick_return_real *b, quick_return_real *lam, quick_return_real *work, const int *iwork, int dense)
+{
+    quick_return_real *values = work, *r = QUICK_RETURN_VEC(work, 0), *d = QUICK_RETURN_VEC(work, 1);
+    int k;
+    quick_return_phi_q_k(q, tr, t, p, values);
+    memcpy(r, b, sizeof(quick_return_real) * 9);
+    for (k = 0; k < 20; ++k) r[quick_return_phi_q_cols[k]] -= values[k] * lam[quick_return_phi_q_rows[k]];
+    if (dense) quick_return_dense_solve_t(work + QUICK_RETURN_OFF_DENSE, iwork, r, d);
+    else quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    for (k = 0; k < 9; ++k) lam[k] += d[k];
+}
+
 
 /* Whether everything the trajectory's instant computed is finite (what
    finite checks), over 1 block(s): the groups the row holds side by side are
@@ -948,6 +992,7 @@ static void quick_return_outputs(quick_return_real t, const quick_return_real *p
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     quick_return_solve_t(work, iwork, dense, b, lam);
+    if (quick_return_mixed(y)) quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     quick_return_reactions_k(q, tr, lam, t, p, reactions);
 }
 

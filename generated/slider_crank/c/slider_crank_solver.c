@@ -11,6 +11,13 @@
 #else
 #define SLIDER_CRANK_RESTRICT restrict
 #endif
+/* Out of line where the compiler allows: a path most instants skip, whose
+   inlining would cost the others (outputs' refinement of lambda). */
+#ifdef __GNUC__
+#define SLIDER_CRANK_COLD __attribute__((noinline, cold))
+#else
+#define SLIDER_CRANK_COLD
+#endif
 
 #define SLIDER_CRANK_EPS 2.220446049250313e-16  /* the machine epsilon of slider_crank_real */
 #define SLIDER_CRANK_THRESHOLD 0.1
@@ -709,6 +716,43 @@ static void slider_crank_solve_t(const slider_crank_real *work, const int *iwork
     else slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, b, x);
 }
 
+/* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
+   span more than REFINE_SPREAD (a massless body among massive ones too):
+   there the lighter bodies' multipliers need the refinement of outputs;
+   where the scales are uniform the first solve is already at rounding, and
+   the refinement's cost (a quarter of an instant) is not paid. */
+static int slider_crank_mixed(const slider_crank_real *m)
+{
+    slider_crank_real lo = m[0], hi = m[0];
+    lo = SLIDER_CRANK_MIN(lo, m[3]);
+    hi = SLIDER_CRANK_MAX(hi, m[3]);
+    lo = SLIDER_CRANK_MIN(lo, m[6]);
+    hi = SLIDER_CRANK_MAX(hi, m[6]);
+    return lo * 100.0 < hi;
+}
+
+/* One step of iterative refinement of lambda = Phi_q^T \ b, where the
+   masses span scales (mixed): a transposed solve is backward stable in the
+   norm of the whole b, so a light body's multipliers (a 2 g part on a boom
+   of 1e5 N) may carry the heavy ones' rounding (measured: the dense
+   fallback's partial pivoting, 1e-6 of the part's loads; the fixed sparse
+   order kept them to 1e-14 on that mechanism). The residual b - Phi_q^T
+   lambda, from Phi_q's values written again (the sparse factors overwrote
+   them), is exact to the rounding of each row's own terms, and its
+   correction through the same factors brings every multiplier to that. */
+static SLIDER_CRANK_COLD void slider_crank_refine_t(const slider_crank_real *q, const slider_crank_real *tr, slider_crank_real t, const slider_crank_real *p,
+                                        const slider_crank_real *b, slider_crank_real *lam, slider_crank_real *work, const int *iwork, int dense)
+{
+    slider_crank_real *values = work, *r = SLIDER_CRANK_VEC(work, 0), *d = SLIDER_CRANK_VEC(work, 1);
+    int k;
+    slider_crank_phi_q_k(q, tr, t, p, values);
+    memcpy(r, b, sizeof(slider_crank_real) * 9);
+    for (k = 0; k < 21; ++k) r[slider_crank_phi_q_cols[k]] -= values[k] * lam[slider_crank_phi_q_rows[k]];
+    if (dense) slider_crank_dense_solve_t(work + SLIDER_CRANK_OFF_DENSE, iwork, r, d);
+    else slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    for (k = 0; k < 9; ++k) lam[k] += d[k];
+}
+
 
 /* Whether everything the trajectory's instant computed is finite (what
    finite checks), over 1 block(s): the groups the row holds side by side are
@@ -911,6 +955,7 @@ static void slider_crank_outputs(slider_crank_real t, const slider_crank_real *p
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_solve_t(work, iwork, dense, b, lam);
+    if (slider_crank_mixed(y)) slider_crank_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     slider_crank_reactions_k(q, tr, lam, t, p, reactions);
 }
 

@@ -11,6 +11,13 @@
 #else
 #define SLIDER_PENDULUM_RESTRICT restrict
 #endif
+/* Out of line where the compiler allows: a path most instants skip, whose
+   inlining would cost the others (outputs' refinement of lambda). */
+#ifdef __GNUC__
+#define SLIDER_PENDULUM_COLD __attribute__((noinline, cold))
+#else
+#define SLIDER_PENDULUM_COLD
+#endif
 
 #define SLIDER_PENDULUM_EPS 2.220446049250313e-16  /* the machine epsilon of slider_pendulum_real */
 #define SLIDER_PENDULUM_THRESHOLD 0.1
@@ -655,6 +662,41 @@ static void slider_pendulum_solve_t(const slider_pendulum_real *work, const int 
     else slider_pendulum_sparse_solve_t(work + SLIDER_PENDULUM_OFF_LU, b, x);
 }
 
+/* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
+   span more than REFINE_SPREAD (a massless body among massive ones too):
+   there the lighter bodies' multipliers need the refinement of outputs;
+   where the scales are uniform the first solve is already at rounding, and
+   the refinement's cost (a quarter of an instant) is not paid. */
+static int slider_pendulum_mixed(const slider_pendulum_real *m)
+{
+    slider_pendulum_real lo = m[0], hi = m[0];
+    lo = SLIDER_PENDULUM_MIN(lo, m[3]);
+    hi = SLIDER_PENDULUM_MAX(hi, m[3]);
+    return lo * 100.0 < hi;
+}
+
+/* One step of iterative refinement of lambda = Phi_q^T \ b, where the
+   masses span scales (mixed): a transposed solve is backward stable in the
+   norm of the whole b, so a light body's multipliers (a 2 g part on a boom
+   of 1e5 N) may carry the heavy ones' rounding (measured: the dense
+   fallback's partial pivoting, 1e-6 of the part's loads; the fixed sparse
+   order kept them to 1e-14 on that mechanism). The residual b - Phi_q^T
+   lambda, from Phi_q's values written again (the sparse factors overwrote
+   them), is exact to the rounding of each row's own terms, and its
+   correction through the same factors brings every multiplier to that. */
+static SLIDER_PENDULUM_COLD void slider_pendulum_refine_t(const slider_pendulum_real *q, const slider_pendulum_real *tr, slider_pendulum_real t, const slider_pendulum_real *p,
+                                        const slider_pendulum_real *b, slider_pendulum_real *lam, slider_pendulum_real *work, const int *iwork, int dense)
+{
+    slider_pendulum_real *values = work, *r = SLIDER_PENDULUM_VEC(work, 0), *d = SLIDER_PENDULUM_VEC(work, 1);
+    int k;
+    slider_pendulum_phi_q_k(q, tr, t, p, values);
+    memcpy(r, b, sizeof(slider_pendulum_real) * 6);
+    for (k = 0; k < 15; ++k) r[slider_pendulum_phi_q_cols[k]] -= values[k] * lam[slider_pendulum_phi_q_rows[k]];
+    if (dense) slider_pendulum_dense_solve_t(work + SLIDER_PENDULUM_OFF_DENSE, iwork, r, d);
+    else slider_pendulum_sparse_solve_t(work + SLIDER_PENDULUM_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    for (k = 0; k < 6; ++k) lam[k] += d[k];
+}
+
 
 /* Whether everything the trajectory's instant computed is finite (what
    finite checks), over 1 block(s): the groups the row holds side by side are
@@ -927,6 +969,7 @@ static void slider_pendulum_outputs(slider_pendulum_real t, const slider_pendulu
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     slider_pendulum_solve_t(work, iwork, dense, b, lam);
+    if (slider_pendulum_mixed(y)) slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
 }
 

@@ -21,7 +21,7 @@ from symid.codegen.render import render
 from symid.codegen.targets.c_describe import describe
 from symid.codegen.targets.c_printer import (DOUBLE, PRECISIONS, Printer, Scalar, c_double,  # noqa: F401
                                               printer as c_printer)
-from symid.codegen.sparse import THRESHOLD
+from symid.codegen.sparse import REFINE_SPREAD, THRESHOLD
 from symid.io.files import atomic_write
 from symid.model.motion import piece_tables, tables
 from symid.numeric.newton import RULE
@@ -253,7 +253,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "state": state_size(model), "stride": stride,
         "params": f.params, "derived": f.derived, "defaults": [scalar.lit(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac],
-        "functions": functions, "threshold": scalar.lit(THRESHOLD),
+        "functions": functions, "threshold": scalar.lit(THRESHOLD), "refine_spread": scalar.lit(REFINE_SPREAD),
         **lu, "d": d, "d_lit": {"q0": [scalar.lit(v) for v in d["q0"]],
                                 **{k: scalar.lit(float(d[k])) for k in ("t0", "t1", "tol")}},
         "max_newton": RULE.max_iterations, "floor_ulps": scalar.lit(RULE.floor_ulps),

@@ -19,7 +19,7 @@ from symid.codegen.emit import lu_steps, reduce
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.io.files import atomic_write
-from symid.codegen.sparse import THRESHOLD
+from symid.codegen.sparse import REFINE_SPREAD, THRESHOLD
 from symid.numeric.newton import RULE
 from symid.model.motion import piece_tables, tables
 
@@ -119,7 +119,7 @@ def context(model: CodeModel) -> dict[str, Any]:
         "name": f.name, "ng": f.ng, "nc": f.nc, "np_": len(f.params), "nr": len(f.reactions),
         "params": f.params, "derived": f.derived, "defaults": [repr(float(v)) for v in f.defaults],
         "jac_rows": [r for r, _, _ in f.jac], "jac_cols": [c for _, c, _ in f.jac], "nnz": len(f.jac),
-        "functions": functions, "outputs": o.outputs, "kind": o.kind, "threshold": repr(THRESHOLD),
+        "functions": functions, "outputs": o.outputs, "kind": o.kind, "threshold": repr(THRESHOLD), "refine_spread": repr(REFINE_SPREAD),
         "velocity": o.velocity, "multipliers": o.multipliers, **_lu(model), "row_items": _row_items(model),
         "finite_sum": _finite_sum(model),
         "max_newton": RULE.max_iterations, "floor_ulps": repr(RULE.floor_ulps),
