@@ -11,6 +11,13 @@
 #else
 #define ANDREWS_SQUEEZER_RESTRICT restrict
 #endif
+/* Out of line where the compiler allows: a path most instants skip, whose
+   inlining would cost the others (outputs' refinement of lambda). */
+#ifdef __GNUC__
+#define ANDREWS_SQUEEZER_COLD __attribute__((noinline, cold))
+#else
+#define ANDREWS_SQUEEZER_COLD
+#endif
 
 #define ANDREWS_SQUEEZER_EPS 2.220446049250313e-16  /* the machine epsilon of andrews_squeezer_real */
 #define ANDREWS_SQUEEZER_THRESHOLD 0.1
@@ -1236,6 +1243,51 @@ static void andrews_squeezer_solve_t(const andrews_squeezer_real *work, const in
     else andrews_squeezer_sparse_solve_t(work + ANDREWS_SQUEEZER_OFF_LU, b, x);
 }
 
+/* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
+   span more than REFINE_SPREAD (a massless body among massive ones too):
+   there the lighter bodies' multipliers need the refinement of outputs;
+   where the scales are uniform the first solve is already at rounding, and
+   the refinement's cost (a quarter of an instant) is not paid. */
+static int andrews_squeezer_mixed(const andrews_squeezer_real *m)
+{
+    andrews_squeezer_real lo = m[0], hi = m[0];
+    lo = ANDREWS_SQUEEZER_MIN(lo, m[3]);
+    hi = ANDREWS_SQUEEZER_MAX(hi, m[3]);
+    lo = ANDREWS_SQUEEZER_MIN(lo, m[6]);
+    hi = ANDREWS_SQUEEZER_MAX(hi, m[6]);
+    lo = ANDREWS_SQUEEZER_MIN(lo, m[9]);
+    hi = ANDREWS_SQUEEZER_MAX(hi, m[9]);
+    lo = ANDREWS_SQUEEZER_MIN(lo, m[12]);
+    hi = ANDREWS_SQUEEZER_MAX(hi, m[12]);
+    lo = ANDREWS_SQUEEZER_MIN(lo, m[15]);
+    hi = ANDREWS_SQUEEZER_MAX(hi, m[15]);
+    lo = ANDREWS_SQUEEZER_MIN(lo, m[18]);
+    hi = ANDREWS_SQUEEZER_MAX(hi, m[18]);
+    return lo * 100.0 < hi;
+}
+
+/* One step of iterative refinement of lambda = Phi_q^T \ b, where the
+   masses span scales (mixed): a transposed solve is backward stable in the
+   norm of the whole b, so a light body's multipliers (a 2 g part on a boom
+   of 1e5 N) may carry the heavy ones' rounding (measured: the dense
+   fallback's partial pivoting, 1e-6 of the part's loads; the fixed sparse
+   order kept them to 1e-14 on that mechanism). The residual b - Phi_q^T
+   lambda, from Phi_q's values written again (the sparse factors overwrote
+   them), is exact to the rounding of each row's own terms, and its
+   correction through the same factors brings every multiplier to that. */
+static ANDREWS_SQUEEZER_COLD void andrews_squeezer_refine_t(const andrews_squeezer_real *q, const andrews_squeezer_real *tr, andrews_squeezer_real t, const andrews_squeezer_real *p,
+                                        const andrews_squeezer_real *b, andrews_squeezer_real *lam, andrews_squeezer_real *work, const int *iwork, int dense)
+{
+    andrews_squeezer_real *values = work, *r = ANDREWS_SQUEEZER_VEC(work, 0), *d = ANDREWS_SQUEEZER_VEC(work, 1);
+    int k;
+    andrews_squeezer_phi_q_k(q, tr, t, p, values);
+    memcpy(r, b, sizeof(andrews_squeezer_real) * 21);
+    for (k = 0; k < 65; ++k) r[andrews_squeezer_phi_q_cols[k]] -= values[k] * lam[andrews_squeezer_phi_q_rows[k]];
+    if (dense) andrews_squeezer_dense_solve_t(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, r, d);
+    else andrews_squeezer_sparse_solve_t(work + ANDREWS_SQUEEZER_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    for (k = 0; k < 21; ++k) lam[k] += d[k];
+}
+
 
 /* Whether everything the trajectory's instant computed is finite (what
    finite checks), over 1 block(s): the groups the row holds side by side are
@@ -1522,6 +1574,7 @@ static void andrews_squeezer_outputs(andrews_squeezer_real t, const andrews_sque
     b[19] -= y[19] * qdd[19];
     b[20] -= y[20] * qdd[20];
     andrews_squeezer_solve_t(work, iwork, dense, b, lam);
+    if (andrews_squeezer_mixed(y)) andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     andrews_squeezer_reactions_k(q, tr, lam, t, p, reactions);
 }
 
