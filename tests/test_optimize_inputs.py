@@ -55,7 +55,7 @@ BAD = {
                                 "VALUE: 'lots' is not a finite number"),
     "start_outside_bounds": (RMS + ["--vary", "n=6:8"],
                              "--vary n=6:8: the start n = 5 (the file's value) is outside [6, 8]"),
-    "maxiter_zero": (RMS + ["--vary", "n=4:6", "--maxiter", "0"], "--maxiter 0: must be >= 1"),
+    "maxiter_zero": (RMS + ["--vary", "n=4:6", "--maxiter", "0"], "argument --maxiter: must be a whole number from 1 to"),
     "kinematics_has_no_figures": (RMS + ["--vary", "n=4:6", "--kind", "kinematics"], "invalid choice"),
 }
 

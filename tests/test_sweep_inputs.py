@@ -37,7 +37,7 @@ BAD = {
     "normal_one_number": (["--sample", "3", "--normal", "n=5"], "--normal n=5: expected NAME=MEAN,SD"),
     "uniform_hi_below_lo": (["--sample", "3", "--uniform", "n=6,5"], "--uniform n=6,5: HI 5 is less than LO 6"),
     "sample_no_distribution": (["--sample", "3"], "--sample: name the parameters to draw"),
-    "sample_zero": (["--sample", "0", "--normal", "n=5,1"], "--sample 0: N must be >= 1"),
+    "sample_zero": (["--sample", "0", "--normal", "n=5,1"], "argument --sample: must be a whole number from 1 to"),
     "normal_without_sample": (["--normal", "n=5,1"], "--normal needs --sample N"),
     "grid_and_sample": (["--grid", "n=1:2:2", "--sample", "3", "--normal", "m_rod=1,0.1"],
                         "not --grid and --sample together"),
@@ -45,7 +45,7 @@ BAD = {
     "too_many": (["--grid", "n=1:2:1001", "--grid", "m_rod=1:2:1000"],
                  f"1001000 variants, more than the {vary.MAX_VARIANTS} a sweep allows"),
     "set_and_varied": (["--grid", "n=1:2:2", "--set", "n=3"], "parameter 'n' is both fixed by --set and varied"),
-    "workers_zero": (["--grid", "n=1:2:2", "--workers", "0"], "--workers 0: must be >= 1"),
+    "workers_zero": (["--grid", "n=1:2:2", "--workers", "0"], "argument --workers: must be a whole number from 1 to"),
 }
 
 

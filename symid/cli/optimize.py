@@ -8,7 +8,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from symid.cli.options import add_file, add_set, add_time_grid, set_values
+from symid.cli.options import Number, add_file, add_set, add_time_grid, set_values
+from symid.io.limits import MAX_ITERATIONS
 from symid.errors import AnalysisError, InputError
 
 OPTIMIZE_EPILOG = """examples:
@@ -43,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="the [parameters] snippet to write (default: <name>_optimized.toml in the current folder)")
     p.add_argument("--backend", default="c", metavar="B",
                    help="c (default: the sensitivities in compiled code), numpy, casadi or reference")
-    p.add_argument("--maxiter", type=int, default=100, metavar="N", help="SLSQP iterations at most")
+    p.add_argument("--maxiter", type=Number(True, 1, MAX_ITERATIONS), default=100, metavar="N", help="SLSQP iterations at most")
     add_time_grid(p, ("inverse_dynamics", "statics"), "run")
     add_set(p, "set a parameter (repeatable; a varied one: its start)")
     p.set_defaults(run=cmd_optimize)
@@ -55,8 +56,6 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     from symid.study import optimize as opt
     from symid.tools.sensitive import solver
 
-    if args.maxiter < 1:
-        raise InputError(f"--maxiter {args.maxiter}: must be >= 1")
     bounds = opt.parse_vary(args.vary)
     limits = opt.parse_limits(args.subject_to)
     overrides = {"kind": args.kind, "t0": args.t0, "t1": args.t1, "steps": args.steps, "tol": args.tol}

@@ -13,7 +13,8 @@ import sys
 from pathlib import Path
 from typing import Any, Iterator
 
-from symid.cli.options import add_time_grid, set_values
+from symid.cli.options import Number, add_time_grid, set_values
+from symid.io.limits import MAX_SEED, MAX_VARIANTS, MAX_WORKERS
 from symid.errors import AnalysisError, InputError, say_kept
 from symid.text import plural
 
@@ -40,17 +41,17 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="N equally spaced values from LO to HI (repeatable: the product, the last fastest)")
     p.add_argument("--table", metavar="VARIANTS.csv",
                    help="one variant per row, a header row of base parameter names")
-    p.add_argument("--sample", type=int, metavar="N", help="N random variants (with --normal, --uniform)")
+    p.add_argument("--sample", type=Number(True, 1, MAX_VARIANTS), metavar="N", help="N random variants (with --normal, --uniform)")
     p.add_argument("--normal", action="append", default=[], metavar="NAME=MEAN,SD",
                    help="with --sample: draw NAME from a normal distribution (repeatable)")
     p.add_argument("--uniform", action="append", default=[], metavar="NAME=LO,HI",
                    help="with --sample: draw NAME uniformly from [LO, HI] (repeatable)")
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the sample (numpy default_rng)")
+    p.add_argument("--seed", type=Number(True, 0, MAX_SEED), default=0, metavar="S", help="seed of the sample (numpy default_rng)")
     p.add_argument("-o", "--output", metavar="OUT",
                    help="table to write, .csv or .parquet (default: <name>_sweep.csv in the current folder)")
     p.add_argument("--backend", default="c", metavar="B",
                    help="c (fastest) or numpy; casadi and reference solve variant by variant")
-    p.add_argument("--workers", type=int, metavar="K", help="threads on this machine (default: all cores)")
+    p.add_argument("--workers", type=Number(True, 1, MAX_WORKERS), metavar="K", help="threads on this machine (default: all cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask distributed scheduler")
     p.add_argument("--json", action="store_true",
                    help="print variants, failed, setup_s, solve_s, instants_per_s as JSON on stdout")
@@ -82,8 +83,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.gradients and args.scheduler:
         raise InputError("--gradients runs each variant on this machine (solved on its own with its "
                          "sensitivities): drop --scheduler")
-    if args.workers is not None and args.workers < 1:
-        raise InputError(f"--workers {args.workers}: must be >= 1")
     chosen = vary.of_options(args.grid, args.table, args.sample, args.normal, args.uniform, args.seed)
     fixed = set_values(args.set, args.file)
     both = [n for n in chosen.names if n in fixed]

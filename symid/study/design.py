@@ -19,9 +19,9 @@ import sympy as sp
 
 from symid.errors import InputError
 from symid.io.files import read_text
+from symid.io.limits import MAX_VARIANTS
 from symid.model.params import base_names
 
-MAX_VARIANTS = 1_000_000  # a results table of a million rows: tens of MB, minutes on the fast engine
 KINDS = ("grid", "table", "sample")
 _NUMBER = re.compile(r"\s*[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\s*\Z")
 
