@@ -11,6 +11,7 @@ import csv
 import itertools
 import math
 import re
+import sys
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
@@ -82,6 +83,15 @@ def finite_number(text: str, what: str) -> float:
     return value
 
 
+def check_span(lo: float, hi: float, what: str) -> None:
+    """Refuse a range whose width HI - LO is past the doubles (1e308 each side):
+    spacing, drawing or scaling in it gives inf and NaN (a grid's values, numpy's
+    uniform raises OverflowError)."""
+    if not math.isfinite(hi - lo):
+        raise InputError(f"{what}: the span HI - LO is past the largest double ({sys.float_info.max:.4g}); "
+                         "narrow the range")
+
+
 def _pair(spec: str, option: str, form: str) -> tuple[str, str]:
     name, sep, rest = spec.partition("=")
     if not sep or not name.strip():
@@ -116,6 +126,7 @@ def grid(specs: Sequence[str]) -> Variants:
         n = int(parts[2])
         if lo > hi:
             raise InputError(f"--grid {spec}: LO {parts[0].strip()} is greater than HI {parts[1].strip()}")
+        check_span(lo, hi, f"--grid {spec}")
         if n == 1 and lo != hi:
             raise InputError(f"--grid {spec}: N = 1 needs LO = HI (one value)")
         names.append(name)
@@ -169,12 +180,17 @@ def sample(count: int, normal: Sequence[str], uniform: Sequence[str], seed: int)
         name, mean, sd, parts = _two(spec, "--normal", "MEAN", "SD")
         if sd <= 0:
             raise InputError(f"--normal {spec}: SD must be > 0, not {parts[1].strip()}")
+        drawn = rng.normal(mean, sd, count)
+        if not np.isfinite(drawn).all():  # MEAN and SD near the largest double: draws past it
+            raise InputError(f"--normal {spec}: draws past the largest double ({sys.float_info.max:.4g}); "
+                             "a smaller MEAN or SD")
         names.append(name)
-        columns.append(rng.normal(mean, sd, count))
+        columns.append(drawn)
     for spec in uniform:
         name, lo, hi, parts = _two(spec, "--uniform", "LO", "HI")
         if hi < lo:
             raise InputError(f"--uniform {spec}: HI {parts[1].strip()} is less than LO {parts[0].strip()}")
+        check_span(lo, hi, f"--uniform {spec}")
         names.append(name)
         columns.append(rng.uniform(lo, hi, count))
     return Variants("sample", tuple(names), np.column_stack(columns))

@@ -23,7 +23,7 @@ from symid.errors import AnalysisError, InputError
 from symid.model.mechanism import Mechanism, parameter_symbol
 from symid.model.params import parameter_values
 from symid.output.results import Results, columns
-from symid.study.design import check_names, finite_number
+from symid.study.design import check_names, check_span, finite_number
 from symid.study.figures import figure_names
 from symid.study.gradients import figure_gradients, has_gradient, needed_columns
 from symid.study.inertials import checker
@@ -72,6 +72,7 @@ def parse_vary(specs: Sequence[str]) -> list[Bound]:
         hi = finite_number(parts[1], f"--vary {spec}: HI")
         if lo >= hi:
             raise InputError(f"--vary {spec}: LO {parts[0].strip()} must be less than HI {parts[1].strip()}")
+        check_span(lo, hi, f"--vary {spec}")  # the optimizer works on (p - LO) / (HI - LO)
         out.append(Bound(name.strip(), lo, hi))
     return out
 
