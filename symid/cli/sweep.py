@@ -78,7 +78,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from symid.study import design as vary
     from symid.study import inertials
     from symid.study.figures import figure_names
-    from symid.study.run import Sweep
+    from symid.study.run import Sweep, check_memory
 
     if args.gradients and args.scheduler:
         raise InputError("--gradients runs each variant on this machine (solved on its own with its "
@@ -95,6 +95,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         option = {"grid": "--grid", "table": f"--table {args.table}", "sample": "--sample"}[chosen.kind]
         vary.check_names(chosen.names, mech.parameters, args.file, option)
         inertials.check(mech, chosen.names, chosen.values, option)  # as the reader refuses them in a file
+        check_memory(mech, chosen, args.backend, f"{args.file}: {option}", args.gradients)
         out = Path(args.output) if args.output else Path(f"{mech.name}_sweep.csv")
         if out.suffix.lower() == ".parquet":
             _need_pyarrow()
