@@ -62,8 +62,11 @@ def _bad_values(kind: Number) -> list[str]:
 
 
 def _good_values(kind: Number) -> list[str]:
-    """Each end of the range, which must be taken."""
-    good = []
+    """An ordinary value inside the range and each end of it, which must be taken."""
+    lo = kind.lo if kind.lo is not None else -3.0
+    hi = kind.hi if kind.hi is not None else lo + 6.0
+    middle = (lo + hi) / 2 if hi - lo < 1e6 else lo + 2
+    good = [str(int(middle)) if kind.whole else repr(middle + 0.25)]
     if kind.lo is not None:
         good.append(repr(kind.lo * (1 + 1e-12) + (1e-300 if kind.lo == 0 else 0)) if kind.lo_open and not kind.whole
                     else str(int(kind.lo)) if kind.whole else repr(kind.lo))

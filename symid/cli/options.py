@@ -11,7 +11,7 @@ import sys
 from typing import Sequence
 
 from symid.errors import EXIT_INPUT, InputError
-from symid.io.limits import MAX_STEPS, MAX_TIME, MAX_TOL
+from symid.io.limits import MAX_STEPS
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
@@ -113,8 +113,9 @@ class Number:
         return value
 
     def inside(self, value: float) -> bool:
-        above = value > self.lo if self.lo_open else value >= self.lo
-        return (self.lo is None or above) and (self.hi is None or value <= self.hi)
+        if self.lo is not None and not (value > self.lo if self.lo_open else value >= self.lo):
+            return False
+        return self.hi is None or value <= self.hi
 
     def range(self) -> str:
         """What the option takes, e.g. "whole number from 1 to 10000000" or "finite number > 0 and <= 1"."""
@@ -126,7 +127,9 @@ class Number:
         return " ".join(["whole number" if self.whole else "finite number", " and ".join(bounds)]).strip()
 
 
-TIME = Number(False, -MAX_TIME, MAX_TIME)
+# the options that override an [analysis] key take what the key takes (symid.io.reader;
+# whether t1 > t0 and the grid's instants are distinct doubles is checked there, with both)
+TIME = Number(False)
 STEPS = Number(True, 1, MAX_STEPS)
-TOL = Number(False, 0.0, MAX_TOL, lo_open=True)
+TOL = Number(False, 0.0, lo_open=True)
 COND_WARN = Number(False, 1.0)  # a condition number is >= 1

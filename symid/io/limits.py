@@ -21,9 +21,8 @@ MAX_VARIANTS = 1_000_000  # a study's variants: a results table of a million row
 # What a study or a run may hold in memory as values (doubles): 2^27, 1 GiB
 # (`symid.output.results.check_table_size`, `symid.study.run.check_memory`).
 MAX_HELD_VALUES = 2**27
-# Option ranges past which a number means nothing to a run (symid.cli.options):
-MAX_TIME = 1e9  # |t0|, |t1| in s (32 years); doubles still resolve 0.2 us there
-MAX_TOL = 1.0  # a Newton tolerance of 1 (m or rad) accepts any guess of a metre-sized mechanism
+# Option ranges past which a number means nothing to a run (symid.cli.options;
+# an option that overrides a file's key takes what the key takes: --t0, --tol):
 MAX_WORKERS = 1024  # threads of one sweep
 MAX_ITERATIONS = 1_000_000  # optimizer iterations
 MAX_BENCH_INSTANTS = 10**9  # instants timed by bench (it repeats the grid; --budget ends it)
