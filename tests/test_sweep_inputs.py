@@ -52,6 +52,8 @@ BAD = {
     "no_variants": ([], "give the variants as one of --grid"),
     "too_many": (["--grid", "n=1:2:1001", "--grid", "m_rod=1:2:1000"],
                  f"1001000 variants, more than the {vary.MAX_VARIANTS} a sweep allows"),
+    "one_grid_too_many": (["--grid", "n=1:2:99999999999999999999"],
+                          f"--grid: 99999999999999999999 variants, more than the {vary.MAX_VARIANTS} a sweep"),
     "set_and_varied": (["--grid", "n=1:2:2", "--set", "n=3"], "parameter 'n' is both fixed by --set and varied"),
     "workers_zero": (["--grid", "n=1:2:2", "--workers", "0"], "argument --workers: must be a whole number from 1 to"),
 }

@@ -113,7 +113,7 @@ def _two(spec: str, option: str, first: str, second: str) -> tuple[str, float, f
 def grid(specs: Sequence[str]) -> Variants:
     """`--grid NAME=LO:HI:N ...`: N equally spaced values from LO to HI (both
     included) per name; several grids form their product, the last varying fastest."""
-    names, axes = [], []
+    names, ranges = [], []
     for spec in specs:
         name, rest = _pair(spec, "--grid", "NAME=LO:HI:N")
         parts = rest.split(":")
@@ -130,8 +130,9 @@ def grid(specs: Sequence[str]) -> Variants:
         if n == 1 and lo != hi:
             raise InputError(f"--grid {spec}: N = 1 needs LO = HI (one value)")
         names.append(name)
-        axes.append(np.linspace(lo, hi, n))
-    check_count(math.prod(len(a) for a in axes), "--grid")
+        ranges.append((lo, hi, n))
+    check_count(math.prod(n for _, _, n in ranges), "--grid")  # before any value is made: N may be 10^20
+    axes = [np.linspace(lo, hi, n) for lo, hi, n in ranges]
     rows = np.array(list(itertools.product(*axes)), dtype=float).reshape(-1, len(names))
     return Variants("grid", tuple(names), rows)
 
