@@ -46,7 +46,7 @@ def test_a_study_past_the_memory_limit_is_refused_before_work(tmp_path: Path, ca
     status = main(["sweep", CRANK, "--grid", "n=1:2:2", "--steps", "10000000", "--backend", "numpy", "-o", str(out)])
     err = capsys.readouterr().err
     assert status == 2 and err.count("\n") == 1 and "Traceback" not in err, err
-    assert "--grid: 2 variants of 10000000 instants hold about" in err and f"the {MAX_HELD_VALUES} (1 GiB)" in err
+    assert "--grid: 2 variants of 10000000 instants: about" in err and f"the {MAX_HELD_VALUES} (1 GiB)" in err
     assert not out.exists() and not list(tmp_path.iterdir())
 
 
@@ -77,8 +77,19 @@ def test_the_api_sweep_refuses_too_large_a_study_too(monkeypatch) -> None:
 
     monkeypatch.setattr(symid.io.limits, "MAX_HELD_VALUES", 1000)  # a small study past a small limit
     mech = api.load_mechanism(CRANK, steps=101)
-    with pytest.raises(api.InputError, match="2 variants of 101 instants hold about .* more than the 1000"):
+    with pytest.raises(api.InputError, match="2 variants of 101 instants: about .* more than the 1000"):
         api.sweep(mech, {"n": [1.0, 2.0]}, backend="numpy")
+
+
+def test_an_optimization_past_the_memory_limit_is_refused_before_work(tmp_path: Path, capsys) -> None:
+    """Each point holds one variant's table with its sensitivities: 10^7 instants x 67 columns x 2."""
+    out = tmp_path / "best.toml"
+    status = main(["optimize", CRANK, "--minimize", "motor.effort_rms", "--vary", "n=4:6", "--steps", "10000000",
+                   "-o", str(out)])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1, err
+    assert "--vary: 1 variant of 10000000 instants: about 13400000" in err and str(MAX_HELD_VALUES) in err, err
+    assert not out.exists()
 
 
 def test_a_grid_of_10_to_the_12_variants_names_the_count_and_the_limit(tmp_path: Path, capsys) -> None:

@@ -61,6 +61,7 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     overrides = {"kind": args.kind, "t0": args.t0, "t1": args.t1, "steps": args.steps, "tol": args.tol}
     mech = api.load_mechanism(args.file, set_values(args.set, args.file), **overrides)
     opt.check(mech, args.minimize, bounds, limits)
+    _check_memory(mech, bounds, args)
     out = Path(args.output) if args.output else Path(f"{mech.name}_optimized.toml")
     check_target(out)
     problem = opt.Problem(mech, args.minimize, bounds, limits, solver(args.backend))
@@ -82,3 +83,15 @@ def cmd_optimize(args: argparse.Namespace) -> int:
         f.write(opt.snippet(outcome, args.minimize, Path(args.file).name))
     print(out, file=sys.stderr)
     return 0
+
+
+def _check_memory(mech: object, bounds: list, args: argparse.Namespace) -> None:
+    """Each point is one variant solved with its sensitivities by every varied
+    parameter, its whole table held: refused up front past the study limit."""
+    import numpy as np
+
+    from symid.study.design import Variants
+    from symid.study.run import check_memory
+
+    point = Variants("table", tuple(b.name for b in bounds), np.zeros((1, len(bounds))))
+    check_memory(mech, point, args.backend, f"{args.file}: --vary", gradients=True)  # type: ignore[arg-type]

@@ -108,11 +108,12 @@ def check_memory(mechanism: Mechanism, variants: Variants, backend: str, what: s
     """
     from symid.errors import InputError
     from symid.io.limits import MAX_HELD_VALUES
+    from symid.text import plural
 
     total, table = held_values(mechanism, variants, backend, gradients)
     if total > MAX_HELD_VALUES:
-        raise InputError(f"{what}: {len(variants)} variants of {mechanism.analysis.steps} instants hold about "
-                         f"{total} values in memory ({table} in the table of variants, the rest for one variant's "
+        raise InputError(f"{what}: {plural(len(variants), 'variant')} of {mechanism.analysis.steps} instants: about "
+                         f"{total} values to hold in memory ({table} in the table of variants, the rest for one variant's "
                          f"instants), more than the {MAX_HELD_VALUES} (1 GiB) allowed (fewer variants, steps or "
                          "varied parameters)")
 
