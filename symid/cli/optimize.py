@@ -7,10 +7,15 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Sequence
 
 from symid.cli.options import Number, add_file, add_set, add_time_grid, set_values
 from symid.io.limits import MAX_ITERATIONS
-from symid.errors import AnalysisError, InputError
+from symid.errors import AnalysisError
+
+if TYPE_CHECKING:  # registering the subcommand imports no sympy
+    from symid.model.mechanism import Mechanism
+    from symid.study.optimize import Bound
 
 OPTIMIZE_EPILOG = """examples:
   symid optimize "$(symid example slider_crank_counterweight)" --minimize motor.effort_rms \\
@@ -85,7 +90,7 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_memory(mech: object, bounds: list, args: argparse.Namespace) -> None:
+def _check_memory(mech: Mechanism, bounds: Sequence[Bound], args: argparse.Namespace) -> None:
     """Each point is one variant solved with its sensitivities by every varied
     parameter, its whole table held: refused up front past the study limit."""
     import numpy as np
@@ -94,4 +99,4 @@ def _check_memory(mech: object, bounds: list, args: argparse.Namespace) -> None:
     from symid.study.run import check_memory
 
     point = Variants("table", tuple(b.name for b in bounds), np.zeros((1, len(bounds))))
-    check_memory(mech, point, args.backend, f"{args.file}: --vary", gradients=True)  # type: ignore[arg-type]
+    check_memory(mech, point, args.backend, f"{args.file}: --vary", gradients=True)

@@ -1,6 +1,7 @@
 """What the subcommands share: the argparse classes (one-line usage errors,
 defaults in the help), the mechanism FILE and `--set` options and their
-pairs, and the options that change a run.
+pairs, the options that change a run, and `Number`, the type of every
+numeric option (finite, in range, checked as argparse reads it).
 """
 
 from __future__ import annotations
