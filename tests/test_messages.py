@@ -45,7 +45,7 @@ def test_check_says_one_newton_iteration_in_the_singular(capsys) -> None:
 
 
 @pytest.mark.parametrize(("option", "value", "named"), [
-    ("--tol", "0", "--tol: must be positive"), ("--steps", "0", "--steps: must be a whole number"),
+    ("--tol", "0", "--tol: must be a finite number > 0"), ("--steps", "0", "--steps: must be a whole number"),
     ("--t1", "-1", "--t1: must be greater than t0 = 0")])
 def test_a_bad_command_line_value_names_the_option(option: str, value: str, named: str, tmp_path: Path,
                                                      capsys) -> None:

@@ -125,6 +125,6 @@ def test_cli_reports_a_variant_that_does_not_assemble(cli, capsys):
     err = capsys.readouterr().err
     assert status == 3, err
     assert err.count("\n") == 1 and "Traceback" not in err
-    assert "the optimizer visited L_crank = 0.34999999999999998, which does not solve: motor.effort_rms = " in err
+    assert "the optimizer visited L_crank = 0.34999999999999998 (the start), which does not solve: motor.effort_rms = " in err
     assert "over the instants before t = " in err
     assert not Path("best.toml").exists()

@@ -48,6 +48,8 @@ BAD = {
     "vary_no_equals": (RMS + ["--vary", "n"], "--vary n: expected NAME=LO:HI"),
     "vary_not_a_number": (RMS + ["--vary", "n=a:6"], "--vary n=a:6: LO: 'a' is not a finite number"),
     "vary_infinite": (RMS + ["--vary", "n=4:inf"], "HI: 'inf' is not a finite number"),
+    "vary_span_overflows": (RMS + ["--vary", "n=-1e308:1e308"],
+                            "--vary n=-1e308:1e308: the span HI - LO is past the largest double"),
     "no_vary": (RMS, "--vary: name at least one parameter to vary"),
     "subject_to_strict": (RMS + ["--vary", "n=4:6", "--subject-to", "crank_pin.force_peak<800"],
                           "--subject-to crank_pin.force_peak<800: expected FIGURE<=VALUE or FIGURE>=VALUE"),
@@ -55,7 +57,7 @@ BAD = {
                                 "VALUE: 'lots' is not a finite number"),
     "start_outside_bounds": (RMS + ["--vary", "n=6:8"],
                              "--vary n=6:8: the start n = 5 (the file's value) is outside [6, 8]"),
-    "maxiter_zero": (RMS + ["--vary", "n=4:6", "--maxiter", "0"], "--maxiter 0: must be >= 1"),
+    "maxiter_zero": (RMS + ["--vary", "n=4:6", "--maxiter", "0"], "argument --maxiter: must be a whole number from 1 to"),
     "kinematics_has_no_figures": (RMS + ["--vary", "n=4:6", "--kind", "kinematics"], "invalid choice"),
 }
 

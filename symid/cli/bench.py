@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from symid.cli.options import add_file, add_set, set_values
+from symid.cli.options import TOL, Number, add_file, add_set, set_values
+from symid.io.limits import MAX_BENCH_INSTANTS, MAX_BUDGET_S
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -16,10 +17,10 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                               "  symid bench crank.toml --backend numpy --instants 10000 --json")
     add_file(p, "the mechanism file (TOML)")
     p.add_argument("--backend", default="c", help="backend to time (default: c)")
-    p.add_argument("--instants", type=int, help="instants to time (default: the file's steps; more repeat the "
+    p.add_argument("--instants", type=Number(True, 1, MAX_BENCH_INSTANTS), help="instants to time (default: the file's steps; more repeat the "
                                                 "file's run from q0)")
-    p.add_argument("--tol", type=float, help="Newton tolerance (default: the file's)")
-    p.add_argument("--budget", type=float, default=60.0, metavar="SECONDS",
+    p.add_argument("--tol", type=TOL, help="Newton tolerance (default: the file's)")
+    p.add_argument("--budget", type=Number(False, 0.0, MAX_BUDGET_S, lo_open=True), default=60.0, metavar="SECONDS",
                    help="stop timing after this long (default: 60)")
     p.add_argument("--warm", action="store_true", help="use the cache of generated solvers (default: an empty "
                                                        "one, so setup is timed cold)")

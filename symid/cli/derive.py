@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 def run(args: argparse.Namespace) -> int:
     from symid.symbolic.constraints import TYPES
     from symid.errors import InputError
-    from symid.tools.show import derive_mechanism, derive_type
+    from symid.tools.show import check_options, derive_mechanism, derive_type
 
     options = {}
     for pair in args.option:
@@ -35,6 +35,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--option {pair}: expected KEY=VALUE")
         options[key.strip()] = value.strip()
     if args.subject in TYPES:
+        check_options(args.subject, options)
         for key in TYPES[args.subject].keys:  # say how to give a variant choice on this command line
             if key.kind == "choice" and options.get(key.name) not in key.choices:
                 given = f"not {options[key.name]!r}; " if key.name in options else ""

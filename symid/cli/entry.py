@@ -16,7 +16,7 @@ import sys
 from types import FrameType
 from typing import Any, Callable, NoReturn, Sequence
 
-from symid.cli.options import Parser
+from symid.cli.options import Parser, UsageError
 from symid.errors import EXIT_INPUT, EXIT_SIGNAL_BASE, AnalysisError, SymidError, Terminated
 from symid.text import number
 
@@ -65,7 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except UsageError as exc:  # one line said; --help and --version still end by SystemExit
+        return int(exc.code)  # type: ignore[arg-type]
     run: Callable[[argparse.Namespace], int] = args.run
     previous = _catch_signals()
     try:

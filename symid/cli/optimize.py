@@ -7,9 +7,15 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Sequence
 
-from symid.cli.options import add_file, add_set, add_time_grid, set_values
-from symid.errors import AnalysisError, InputError
+from symid.cli.options import Number, add_file, add_set, add_time_grid, set_values
+from symid.io.limits import MAX_ITERATIONS
+from symid.errors import AnalysisError
+
+if TYPE_CHECKING:  # registering the subcommand imports no sympy
+    from symid.model.mechanism import Mechanism
+    from symid.study.optimize import Bound
 
 OPTIMIZE_EPILOG = """examples:
   symid optimize "$(symid example slider_crank_counterweight)" --minimize motor.effort_rms \\
@@ -43,7 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="the [parameters] snippet to write (default: <name>_optimized.toml in the current folder)")
     p.add_argument("--backend", default="c", metavar="B",
                    help="c (default: the sensitivities in compiled code), numpy, casadi or reference")
-    p.add_argument("--maxiter", type=int, default=100, metavar="N", help="SLSQP iterations at most")
+    p.add_argument("--maxiter", type=Number(True, 1, MAX_ITERATIONS), default=100, metavar="N", help="SLSQP iterations at most")
     add_time_grid(p, ("inverse_dynamics", "statics"), "run")
     add_set(p, "set a parameter (repeatable; a varied one: its start)")
     p.set_defaults(run=cmd_optimize)
@@ -55,13 +61,12 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     from symid.study import optimize as opt
     from symid.tools.sensitive import solver
 
-    if args.maxiter < 1:
-        raise InputError(f"--maxiter {args.maxiter}: must be >= 1")
     bounds = opt.parse_vary(args.vary)
     limits = opt.parse_limits(args.subject_to)
     overrides = {"kind": args.kind, "t0": args.t0, "t1": args.t1, "steps": args.steps, "tol": args.tol}
     mech = api.load_mechanism(args.file, set_values(args.set, args.file), **overrides)
     opt.check(mech, args.minimize, bounds, limits)
+    _check_memory(mech, bounds, args)
     out = Path(args.output) if args.output else Path(f"{mech.name}_optimized.toml")
     output_format(out, (".toml",), "the optimum's [parameters] snippet")
     check_target(out)
@@ -83,3 +88,15 @@ def cmd_optimize(args: argparse.Namespace) -> int:
         f.write(opt.snippet(outcome, args.minimize, Path(args.file).name))
     print(out, file=sys.stderr)
     return 0
+
+
+def _check_memory(mech: Mechanism, bounds: Sequence[Bound], args: argparse.Namespace) -> None:
+    """Each point is one variant solved with its sensitivities by every varied
+    parameter, its whole table held: refused up front past the study limit."""
+    import numpy as np
+
+    from symid.study.design import Variants
+    from symid.study.run import check_memory
+
+    point = Variants("table", tuple(b.name for b in bounds), np.zeros((1, len(bounds))))
+    check_memory(mech, point, args.backend, f"{args.file}: --vary", gradients=True)

@@ -21,7 +21,7 @@ if TYPE_CHECKING:  # registering the subcommand must not import sympy (see symid
 def read_csv(path: Path) -> Results:
     """A results table written by `symid solve` (CSV) as a `Results`."""
     try:
-        with path.open(encoding="utf-8") as f, warnings.catch_warnings():
+        with path.open(encoding="utf-8-sig") as f, warnings.catch_warnings():  # a spreadsheet's BOM dropped
             warnings.simplefilter("ignore", UserWarning)  # no rows: a run that failed at t0
             header = f.readline().strip().split(",")
             data = np.loadtxt(f, delimiter=",", ndmin=2)
@@ -109,7 +109,7 @@ def _is_sweep(path: Path) -> bool:
     if path.suffix.lower() == ".npz":
         return False
     try:
-        with path.open(encoding="utf-8") as f:
+        with path.open(encoding="utf-8-sig") as f:
             return is_sweep(f.readline().strip().split(","))
     except (OSError, UnicodeDecodeError):
         return False  # read_results names the fault

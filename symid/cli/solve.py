@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator
 
-from symid.cli.options import add_file, add_set, analysis_overrides, run_options, set_values
+from symid.cli.options import COND_WARN, STEPS, TIME, TOL, add_file, add_set, analysis_overrides, run_options, set_values
 from symid.errors import AnalysisError, say_kept
 from symid.text import number, plural
 
@@ -42,15 +42,15 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                        help="table to write, .csv, .npz or .parquet (default: <name>.csv in the current folder)")
     solve.add_argument("--kind", choices=("inverse_dynamics", "kinematics", "statics"),
                        help="what to compute (default: the file's [analysis] kind, else inverse_dynamics)")
-    solve.add_argument("--t0", type=float, metavar="T", help="first instant (default: the file's, else 0)")
-    solve.add_argument("--t1", type=float, metavar="T", help="last instant (default: the file's, else 1)")
-    solve.add_argument("--steps", type=int, metavar="N",
+    solve.add_argument("--t0", type=TIME, metavar="T", help="first instant (default: the file's, else 0)")
+    solve.add_argument("--t1", type=TIME, metavar="T", help="last instant (default: the file's, else 1)")
+    solve.add_argument("--steps", type=STEPS, metavar="N",
                        help="number of output instants, t0 and t1 included (default: the file's, else 1001)")
-    solve.add_argument("--tol", type=float, metavar="X",
+    solve.add_argument("--tol", type=TOL, metavar="X",
                        help="Newton tolerance on max |Phi| and the last correction (default: the file's, "
                             "else 1e-12)")
     solve.add_argument("--cond", action="store_true", help="add the cond column (condition estimate of Phi_q)")
-    solve.add_argument("--cond-warn", type=float, metavar="X", help="warn where cond exceeds X (default 1e6)")
+    solve.add_argument("--cond-warn", type=COND_WARN, metavar="X", help="warn where cond exceeds X (default 1e6)")
     solve.add_argument("--redundant", choices=("error", "min_norm"),
                        help="redundant constraints: refuse (default) or solve with minimum-norm multipliers")
     solve.add_argument("--assembly-jump", choices=("error", "warn"),

@@ -13,7 +13,8 @@ import sys
 from pathlib import Path
 from typing import Any, Iterator
 
-from symid.cli.options import add_time_grid, set_values
+from symid.cli.options import Number, add_time_grid, set_values
+from symid.io.limits import MAX_SEED, MAX_VARIANTS, MAX_WORKERS
 from symid.errors import AnalysisError, InputError, say_kept
 from symid.text import plural
 
@@ -40,17 +41,17 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="N equally spaced values from LO to HI (repeatable: the product, the last fastest)")
     p.add_argument("--table", metavar="VARIANTS.csv",
                    help="one variant per row, a header row of base parameter names")
-    p.add_argument("--sample", type=int, metavar="N", help="N random variants (with --normal, --uniform)")
+    p.add_argument("--sample", type=Number(True, 1, MAX_VARIANTS), metavar="N", help="N random variants (with --normal, --uniform)")
     p.add_argument("--normal", action="append", default=[], metavar="NAME=MEAN,SD",
                    help="with --sample: draw NAME from a normal distribution (repeatable)")
     p.add_argument("--uniform", action="append", default=[], metavar="NAME=LO,HI",
                    help="with --sample: draw NAME uniformly from [LO, HI] (repeatable)")
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the sample (numpy default_rng)")
+    p.add_argument("--seed", type=Number(True, 0, MAX_SEED), default=0, metavar="S", help="seed of the sample (numpy default_rng)")
     p.add_argument("-o", "--output", metavar="OUT",
                    help="table to write, .csv or .parquet (default: <name>_sweep.csv in the current folder)")
     p.add_argument("--backend", default="c", metavar="B",
                    help="c (fastest) or numpy; casadi and reference solve variant by variant")
-    p.add_argument("--workers", type=int, metavar="K", help="threads on this machine (default: all cores)")
+    p.add_argument("--workers", type=Number(True, 1, MAX_WORKERS), metavar="K", help="threads on this machine (default: all cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask distributed scheduler")
     p.add_argument("--json", action="store_true",
                    help="print variants, failed, setup_s, solve_s, instants_per_s as JSON on stdout")
@@ -77,14 +78,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from symid.study import design as vary
     from symid.study import inertials
     from symid.study.figures import figure_names
-    from symid.study.run import Sweep
+    from symid.study.run import Sweep, check_memory
     from symid.study.table import FORMATS
 
     if args.gradients and args.scheduler:
         raise InputError("--gradients runs each variant on this machine (solved on its own with its "
                          "sensitivities): drop --scheduler")
-    if args.workers is not None and args.workers < 1:
-        raise InputError(f"--workers {args.workers}: must be >= 1")
     chosen = vary.of_options(args.grid, args.table, args.sample, args.normal, args.uniform, args.seed)
     fixed = set_values(args.set, args.file)
     both = [n for n in chosen.names if n in fixed]
@@ -97,6 +96,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         option = {"grid": "--grid", "table": f"--table {args.table}", "sample": "--sample"}[chosen.kind]
         vary.check_names(chosen.names, mech.parameters, args.file, option)
         inertials.check(mech, chosen.names, chosen.values, option)  # as the reader refuses them in a file
+        check_memory(mech, chosen, args.backend, f"{args.file}: {option}", args.gradients)
         out = Path(args.output) if args.output else Path(f"{mech.name}_sweep.csv")
         if output_format(out, FORMATS, "a sweep table") == ".parquet":
             _need_pyarrow()

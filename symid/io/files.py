@@ -36,8 +36,10 @@ def read_at_most(path: str | Path, limit: int) -> bytes:
 
 
 def read_text(path: str | Path, fail: Callable[[str], InputError] | None = None) -> str:
-    """An input file (mechanism, motion table, claims) as UTF-8 text, read
-    no further than MAX_FILE_BYTES (a device or endless stream is refused).
+    """An input file (mechanism, motion table, claims, variants) as UTF-8 text, read
+    no further than MAX_FILE_BYTES (a device or endless stream is refused). A
+    leading byte-order mark (spreadsheets write one before CSV text) is dropped:
+    it is no part of the first name.
 
     Raises:
         InputError: `fail(reason)`, by default "PATH: reason".
@@ -50,7 +52,7 @@ def read_text(path: str | Path, fail: Callable[[str], InputError] | None = None)
         data = read_at_most(path, MAX_FILE_BYTES)
         if len(data) > MAX_FILE_BYTES:
             raise fail(f"file is longer than the {MAX_FILE_BYTES} bytes allowed")
-        return data.decode("utf-8")
+        return data.decode("utf-8-sig")
     except OSError as exc:
         raise fail(f"cannot read: {exc.strerror or exc}") from None
     except UnicodeDecodeError:

@@ -17,3 +17,14 @@ MAX_CONSTRAINTS = 4000
 MAX_FORCES = 4000
 MAX_PARAMETERS = 100_000
 MAX_STEPS = 10_000_000  # instants of one run: the summary keeps a few columns of each in memory
+MAX_VARIANTS = 1_000_000  # a study's variants: a results table of a million rows, tens of MB
+# What a study or a run may hold in memory as values (doubles): 2^27, 1 GiB
+# (`symid.output.results.check_table_size`, `symid.study.run.check_memory`).
+MAX_HELD_VALUES = 2**27
+# Option ranges past which a number means nothing to a run (symid.cli.options;
+# an option that overrides a file's key takes what the key takes: --t0, --tol):
+MAX_WORKERS = 1024  # threads of one sweep
+MAX_ITERATIONS = 1_000_000  # optimizer iterations
+MAX_BENCH_INSTANTS = 10**9  # instants timed by bench (it repeats the grid; --budget ends it)
+MAX_BUDGET_S = 86_400.0  # a bench's time budget: one day
+MAX_SEED = 2**64 - 1  # a sample's seed: kept as an unsigned 64-bit number

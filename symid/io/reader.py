@@ -131,6 +131,10 @@ class _Reader:
         head = self.table(self.require(data, "mechanism", "top level"), "[mechanism]")
         self.unknown(head, MECHANISM_KEYS, "[mechanism]")
         name = self.name(head, "[mechanism]")
+        if name.startswith("_"):  # the prefix of every C identifier: `_` gave `__real`, a GCC keyword
+            raise self.fail("[mechanism] key 'name'", f"{name!r} starts with '_': it prefixes every identifier "
+                            "of the generated C, where a leading _ makes names reserved for the compiler "
+                            "(start with a letter)")
         parameters = self.parameters(self.table(data.get("parameters", {}), "[parameters]"), set_values)
         gravity = self.pair(head.get("gravity", [0, 0]), "[mechanism] key 'gravity'")
         analysis = self.analysis(self.table(data.get("analysis", {}), "[analysis]"), overrides)

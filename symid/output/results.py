@@ -14,6 +14,7 @@ from symid.backends import Array
 from symid.numeric.solve import instant_row
 from symid.symbolic.columns import GROUP_SUFFIXES, columns
 from symid.errors import AnalysisError, InputError
+from symid.io.limits import MAX_HELD_VALUES
 from symid.text import number, plural
 
 if TYPE_CHECKING:  # a cached run (symid.tools.plan) writes its table without sympy
@@ -24,7 +25,7 @@ if TYPE_CHECKING:  # a cached run (symid.tools.plan) writes its table without sy
 
 # What a run may hold in memory as a table (the .npz, the plots, `Study.solve`,
 # the summary's columns): 2^27 doubles, 1 GiB. The CSV itself is streamed.
-MAX_TABLE_VALUES = 2**27
+MAX_TABLE_VALUES = MAX_HELD_VALUES
 
 def check_table_size(instants: int, width: int, what: str) -> None:
     """Refuse, before the run, a table of instants x width values too large to hold.

@@ -11,6 +11,7 @@ import csv
 import itertools
 import math
 import re
+import sys
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
@@ -19,9 +20,9 @@ import sympy as sp
 
 from symid.errors import InputError
 from symid.io.files import read_text
+from symid.io.limits import MAX_VARIANTS
 from symid.model.params import base_names
 
-MAX_VARIANTS = 1_000_000  # a results table of a million rows: tens of MB, minutes on the fast engine
 KINDS = ("grid", "table", "sample")
 _NUMBER = re.compile(r"\s*[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\s*\Z")
 
@@ -82,6 +83,15 @@ def finite_number(text: str, what: str) -> float:
     return value
 
 
+def check_span(lo: float, hi: float, what: str) -> None:
+    """Refuse a range whose width HI - LO is past the doubles (1e308 each side):
+    spacing, drawing or scaling in it gives inf and NaN (a grid's values, numpy's
+    uniform raises OverflowError)."""
+    if not math.isfinite(hi - lo):
+        raise InputError(f"{what}: the span HI - LO is past the largest double ({sys.float_info.max:.4g}); "
+                         "narrow the range")
+
+
 def _pair(spec: str, option: str, form: str) -> tuple[str, str]:
     name, sep, rest = spec.partition("=")
     if not sep or not name.strip():
@@ -103,7 +113,7 @@ def _two(spec: str, option: str, first: str, second: str) -> tuple[str, float, f
 def grid(specs: Sequence[str]) -> Variants:
     """`--grid NAME=LO:HI:N ...`: N equally spaced values from LO to HI (both
     included) per name; several grids form their product, the last varying fastest."""
-    names, axes = [], []
+    names, ranges = [], []
     for spec in specs:
         name, rest = _pair(spec, "--grid", "NAME=LO:HI:N")
         parts = rest.split(":")
@@ -116,11 +126,13 @@ def grid(specs: Sequence[str]) -> Variants:
         n = int(parts[2])
         if lo > hi:
             raise InputError(f"--grid {spec}: LO {parts[0].strip()} is greater than HI {parts[1].strip()}")
+        check_span(lo, hi, f"--grid {spec}")
         if n == 1 and lo != hi:
             raise InputError(f"--grid {spec}: N = 1 needs LO = HI (one value)")
         names.append(name)
-        axes.append(np.linspace(lo, hi, n))
-    check_count(math.prod(len(a) for a in axes), "--grid")
+        ranges.append((lo, hi, n))
+    check_count(math.prod(n for _, _, n in ranges), "--grid")  # before any value is made: N may be 10^20
+    axes = [np.linspace(lo, hi, n) for lo, hi, n in ranges]
     rows = np.array(list(itertools.product(*axes)), dtype=float).reshape(-1, len(names))
     return Variants("grid", tuple(names), rows)
 
@@ -169,12 +181,17 @@ def sample(count: int, normal: Sequence[str], uniform: Sequence[str], seed: int)
         name, mean, sd, parts = _two(spec, "--normal", "MEAN", "SD")
         if sd <= 0:
             raise InputError(f"--normal {spec}: SD must be > 0, not {parts[1].strip()}")
+        drawn = rng.normal(mean, sd, count)
+        if not np.isfinite(drawn).all():  # MEAN and SD near the largest double: draws past it
+            raise InputError(f"--normal {spec}: draws past the largest double ({sys.float_info.max:.4g}); "
+                             "a smaller MEAN or SD")
         names.append(name)
-        columns.append(rng.normal(mean, sd, count))
+        columns.append(drawn)
     for spec in uniform:
         name, lo, hi, parts = _two(spec, "--uniform", "LO", "HI")
         if hi < lo:
             raise InputError(f"--uniform {spec}: HI {parts[1].strip()} is less than LO {parts[0].strip()}")
+        check_span(lo, hi, f"--uniform {spec}")
         names.append(name)
         columns.append(rng.uniform(lo, hi, count))
     return Variants("sample", tuple(names), np.column_stack(columns))

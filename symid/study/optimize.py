@@ -24,7 +24,7 @@ from symid.errors import AnalysisError, InputError
 from symid.model.mechanism import Mechanism, parameter_symbol
 from symid.model.params import parameter_values
 from symid.output.results import Results, columns
-from symid.study.design import check_names, finite_number
+from symid.study.design import check_names, check_span, finite_number
 from symid.study.figures import figure_names
 from symid.study.gradients import figure_gradients, has_gradient, needed_columns
 from symid.study.inertials import checker
@@ -73,6 +73,7 @@ def parse_vary(specs: Sequence[str]) -> list[Bound]:
         hi = finite_number(parts[1], f"--vary {spec}: HI")
         if lo >= hi:
             raise InputError(f"--vary {spec}: LO {parts[0].strip()} must be less than HI {parts[1].strip()}")
+        check_span(lo, hi, f"--vary {spec}")  # the optimizer works on (p - LO) / (HI - LO)
         out.append(Bound(name.strip(), lo, hi))
     return out
 
@@ -176,23 +177,48 @@ class Problem:
         if negative is not None:  # refused in a file: never reported as an optimum
             raise AnalysisError(f"the optimizer visited {where}, which cannot be solved: {negative[1]}, "
                                 f"which must not be negative; narrow the --vary bounds")
+        if np.array_equal(p, self.start):
+            where += " (the start)"
         self.evaluations += 1
-        try:
-            results = self.solver(variant, self.names if self.exact else (), self.columns if self.exact else ())
-        except ValueError as exc:  # a derived parameter not finite: the variant has no value at all
-            raise AnalysisError(f"the optimizer visited {where}, which cannot be solved: "
-                                f"{' '.join(map(str, exc.args))}") from None
-        figures = figures_of(variant, results)
-        if results.error is not None:
-            value = figures[self.figures.index(self.objective)]
-            when = number(results.error.time) if results.error.time is not None else "?"
-            raise AnalysisError(f"the optimizer visited {where}, which does not solve: {self.objective} = "
-                                f"{value:.6g} over the instants before t = {when}: "
-                                f"{results.error}") from None
-        grads = figure_gradients(variant, results, self.names) if self.exact else None
+        with np.errstate(all="ignore"):  # a value not finite is named below, once, not warned about
+            try:
+                results = self.solver(variant, self.names if self.exact else (), self.columns if self.exact else ())
+            except ValueError as exc:  # a derived parameter not finite: the variant has no value at all
+                raise AnalysisError(f"the optimizer visited {where}, which cannot be solved: "
+                                    f"{' '.join(map(str, exc.args))}") from None
+            figures = figures_of(variant, results)
+            if results.error is not None:
+                value = figures[self.figures.index(self.objective)]
+                when = number(results.error.time) if results.error.time is not None else "?"
+                raise AnalysisError(f"the optimizer visited {where}, which does not solve: {self.objective} = "
+                                    f"{value:.6g} over the instants before t = {when}: "
+                                    f"{results.error}") from None
+            grads = figure_gradients(variant, results, self.names) if self.exact else None
+        self._check_finite(where, figures, grads)
         point = Point(p, figures, grads)
         self._cache[key] = point
         return point
+
+    def _check_finite(self, where: str, figures: Array, grads: Array | None) -> None:
+        """Refuse a point where a figure SLSQP uses (the objective, each limit's) or
+        its gradient is not finite: SLSQP would go on from NaN and end with a
+        message about something else ("Inequality constraints incompatible").
+
+        Raises:
+            AnalysisError: naming the point, the figure and the parameters.
+        """
+        for figure in dict.fromkeys([self.objective, *(lim.figure for lim in self.limits)]):
+            k = self.figures.index(figure)
+            if not math.isfinite(figures[k]):
+                raise AnalysisError(f"the optimizer visited {where}: {figure} = {figures[k]} there, not a "
+                                    "number SLSQP can minimize or bound; narrow the --vary bounds")
+            if grads is None:
+                continue
+            bad = [f"{n} ({g})" for n, g in zip(self.names, grads[k]) if not math.isfinite(g)]
+            if bad:
+                raise AnalysisError(f"the optimizer visited {where}: the gradient of {figure} = {figures[k]:.6g} "
+                                    f"by {', '.join(bad)} is not finite there, so SLSQP cannot step from it; "
+                                    "start and bound the parameters where the figure is differentiable")
 
     def value(self, u: Array, figure: str) -> float:
         return float(self.at(u).figures[self.figures.index(figure)])

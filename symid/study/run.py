@@ -70,6 +70,54 @@ def warm(mechanism: Mechanism, backend: str) -> None:
                                                           reactions=()))
 
 
+def held_values(mechanism: Mechanism, variants: Variants, backend: str, gradients: bool = False) -> tuple[int, int]:
+    """What a study holds in memory at once, in values (doubles), estimated before it starts.
+
+    The table of finished variants (K rows: the varied parameters, the figures
+    (with --gradients, and their gradients by each), status and t_end), plus
+    the largest working set of one step of the engines: one variant's whole
+    table (instants x columns, with --gradients its sensitivity columns too),
+    which the normal path holds and to which every engine hands the variants it
+    cannot vouch for, or a chunk of the NumPy batch loop (`batch_numpy.BUDGET`).
+
+    Returns:
+        (the total, the table of finished variants' share).
+    """
+    from symid.output.results import columns
+    from symid.study.variants import study_mechanism
+    from symid.symbolic.assemble import assemble
+
+    mech = study_mechanism(mechanism)
+    varied = len(variants.names)
+    figures = len(figure_names(mechanism)) * (1 + varied if gradients else 1)
+    table = len(variants) * (varied + figures + 2)
+    width = len(columns(assemble(mech), mech.analysis)) * (1 + varied if gradients else 1)
+    working = mech.analysis.steps * width
+    if backend == "numpy":
+        from symid.study.batch_numpy import BUDGET
+
+        working = max(working, BUDGET // 8)
+    return table + working, table
+
+
+def check_memory(mechanism: Mechanism, variants: Variants, backend: str, what: str, gradients: bool = False) -> None:
+    """Refuse, before any work, a study that would hold more than `MAX_HELD_VALUES` values (1 GiB).
+
+    Raises:
+        InputError: naming the count of variants, the instants, the values and the limit (exit 2).
+    """
+    from symid.errors import InputError
+    from symid.io.limits import MAX_HELD_VALUES
+    from symid.text import plural
+
+    total, table = held_values(mechanism, variants, backend, gradients)
+    if total > MAX_HELD_VALUES:
+        raise InputError(f"{what}: {plural(len(variants), 'variant')} of {mechanism.analysis.steps} instants: about "
+                         f"{total} values to hold in memory ({table} in the table of variants, the rest for one variant's "
+                         f"instants), more than the {MAX_HELD_VALUES} (1 GiB) allowed (fewer variants, steps or "
+                         "varied parameters)")
+
+
 def per_chunk(steps: int, backend: str) -> int:
     """Variants per chunk on `backend` for runs of `steps` instants."""
     _, instants = _engine(backend)
@@ -165,7 +213,12 @@ class Sweep:
 
 def solve(mechanism: Mechanism, variants: Variants, backend: str = "c", workers: int | None = None,
           client: Any = None) -> SweepTable:
-    """Run a whole study and return its table (see `Sweep`)."""
+    """Run a whole study and return its table (see `Sweep`).
+
+    Raises:
+        InputError: the study would hold more than `MAX_HELD_VALUES` values (`check_memory`).
+    """
+    check_memory(mechanism, variants, backend, mechanism.source or "sweep")
     sweep = Sweep(mechanism, variants, backend, workers, client)
     sweep.setup()
     for _ in sweep.run():

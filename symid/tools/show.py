@@ -213,6 +213,22 @@ def abbreviate(expr: sp.Basic, subs: Mapping[sp.Symbol, sp.Expr]) -> sp.Basic:
     return tidy(expr.xreplace(dict(subs)))
 
 
+def check_options(name: str, options: Mapping[str, str]) -> None:
+    """Refuse an option the type has no variant choice for (it would be ignored, silently).
+
+    Raises:
+        InputError: naming the option and the type's own options (or that it has none).
+    """
+    family = CONSTRAINTS.get(name)
+    if family is None:
+        return  # derive_type names the unknown type
+    own = [key.name for key in family.keys if key.kind == "choice"]
+    for key in options:
+        if key not in own:
+            has = f"its options: {', '.join(own)}" if own else "it has no variant options"
+            raise InputError(f"derive {name}: option {key!r} does not apply to {name} ({has})")
+
+
 def derive_type(name: str, options: Mapping[str, str] | None = None, expanded: bool = False) -> Derivation:
     """Phi, the Phi_q blocks, nu, gamma and the reactions of one constraint type.
 
@@ -226,6 +242,7 @@ def derive_type(name: str, options: Mapping[str, str] | None = None, expanded: b
     except LookupError as exc:
         raise InputError(str(exc)) from None
     options = dict(options or {})
+    check_options(name, options)
     for key in family.keys:
         if key.kind == "choice" and options.get(key.name) not in key.choices:
             raise InputError(f"{name}: option '{key.name}' must be one of {', '.join(key.choices)}")

@@ -8,6 +8,7 @@ straight-line Python for the one-instant solver.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -26,14 +27,48 @@ from symid.model.motion import piece_tables, tables
 NAME = "numpy"
 
 
+EXACT = 2**53  # integers below it are doubles exactly: Python's int/int rounds them correctly
+
+
+def _literal(x: float) -> str:
+    """A Python literal of the double x ('inf' and 'nan' are no literals)."""
+    if math.isfinite(x):
+        return repr(x)
+    return "float('nan')" if math.isnan(x) else "float('inf')" if x > 0 else "(-float('inf'))"
+
+
+def _quotient(p: int, q: int) -> float:
+    """p / q correctly rounded to a double, +-inf beyond the range."""
+    try:
+        return p / q
+    except OverflowError:
+        return math.inf if p > 0 else -math.inf
+
+
 class _Printing:
     """What both printers print alike: every float at full precision, a
-    group in parentheses, a table's spline by `SPLINE` of the module."""
+    group in parentheses, a table's spline by `SPLINE` of the module.
+
+    A constant past the doubles (a mass of 1e308 times g, folded by sympy into
+    one integer) is printed as the double it rounds to, inf beyond the range,
+    as the C printer does: an integer literal that large made the module raise
+    OverflowError (int too large to convert to float) instead of the run
+    stopping at the instant, naming the body whose values are not finite."""
 
     SPLINE = ""
 
     def _print_Float(self, expr: sp.Float) -> str:
-        return repr(float(expr))
+        return _literal(float(expr))
+
+    def _print_Integer(self, expr: sp.Integer) -> str:
+        n = int(expr)
+        return str(n) if abs(n) < EXACT else _literal(_quotient(n, 1))
+
+    def _print_Rational(self, expr: sp.Rational) -> str:
+        p, q = int(expr.p), int(expr.q)
+        if abs(p) < EXACT and q < EXACT:
+            return super()._print_Rational(expr)  # type: ignore[misc]
+        return _literal(_quotient(p, q))
 
     def _print_Grouped(self, expr: sp.Expr) -> str:
         return f"({self._print(expr.args[0])})"  # type: ignore[attr-defined]
