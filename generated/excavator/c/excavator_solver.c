@@ -998,6 +998,8 @@ static int excavator_screen(const excavator_real *lu, int dense, const excavator
     wmin = EXCAVATOR_MIN(wmin, w);
     wmax = EXCAVATOR_MAX(wmax, w);
     (void)lu;
+    (void)row;
+    (void)col;
     (void)w;
     return !(wmax <= EXCAVATOR_SCREEN * wmin);
 }

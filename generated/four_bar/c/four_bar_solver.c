@@ -739,6 +739,8 @@ static int four_bar_screen(const four_bar_real *lu, int dense, const four_bar_re
     wmin = FOUR_BAR_MIN(wmin, w);
     wmax = FOUR_BAR_MAX(wmax, w);
     (void)lu;
+    (void)row;
+    (void)col;
     (void)w;
     return !(wmax <= FOUR_BAR_SCREEN * wmin);
 }

@@ -815,6 +815,8 @@ static int planetary_screen(const planetary_real *lu, int dense, const planetary
     wmin = PLANETARY_MIN(wmin, w);
     wmax = PLANETARY_MAX(wmax, w);
     (void)lu;
+    (void)row;
+    (void)col;
     (void)w;
     return !(wmax <= PLANETARY_SCREEN * wmin);
 }

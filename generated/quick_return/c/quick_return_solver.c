@@ -733,6 +733,8 @@ static int quick_return_screen(const quick_return_real *lu, int dense, const qui
     wmin = QUICK_RETURN_MIN(wmin, w);
     wmax = QUICK_RETURN_MAX(wmax, w);
     (void)lu;
+    (void)row;
+    (void)col;
     (void)w;
     return !(wmax <= QUICK_RETURN_SCREEN * wmin);
 }

@@ -689,6 +689,8 @@ static int slider_crank_screen(const slider_crank_real *lu, int dense, const sli
     wmin = SLIDER_CRANK_MIN(wmin, w);
     wmax = SLIDER_CRANK_MAX(wmax, w);
     (void)lu;
+    (void)row;
+    (void)col;
     (void)w;
     return !(wmax <= SLIDER_CRANK_SCREEN * wmin);
 }

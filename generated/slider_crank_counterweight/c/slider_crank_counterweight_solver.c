@@ -703,6 +703,8 @@ static int slider_crank_counterweight_screen(const slider_crank_counterweight_re
     wmin = SLIDER_CRANK_COUNTERWEIGHT_MIN(wmin, w);
     wmax = SLIDER_CRANK_COUNTERWEIGHT_MAX(wmax, w);
     (void)lu;
+    (void)row;
+    (void)col;
     (void)w;
     return !(wmax <= SLIDER_CRANK_COUNTERWEIGHT_SCREEN * wmin);
 }

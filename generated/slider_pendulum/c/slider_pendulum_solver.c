@@ -641,6 +641,8 @@ static int slider_pendulum_screen(const slider_pendulum_real *lu, int dense, con
     wmin = SLIDER_PENDULUM_MIN(wmin, w);
     wmax = SLIDER_PENDULUM_MAX(wmax, w);
     (void)lu;
+    (void)row;
+    (void)col;
     (void)w;
     return !(wmax <= SLIDER_PENDULUM_SCREEN * wmin);
 }
