@@ -41,18 +41,9 @@ EPS = float(np.finfo(float).eps)
 # Below this reciprocal condition number (1-norm estimate of the equilibrated
 # Phi_q) Phi_q is singular: solves would keep fewer than ~3 correct digits.
 SINGULAR_RCOND = 1e3 * EPS
-# The compiled loops (the NumPy module's and the C code's) hand over to this
-# loop an instant whose pivots, in this loop's scales, spread wider than
-# cond_warn / SCREEN: that spread is not the condition number, but on the
-# bundled examples and near the slider-crank's singular position it stays
-# within a factor 70 below it (measured: 0.7 to 64 times smaller).
-SCREEN = 1e3
-# Where that cheap test trips, the C loop estimates the condition number
-# itself (Hager's 1-norm estimate from its factors, a lower bound as
-# LAPACK's is) and hands the instant over only past cond_warn /
-# ESTIMATE_MARGIN: two lower bounds of the same condition number, in scales
-# equal to within powers of two, rarely differ by a factor 10.
-ESTIMATE_MARGIN = 100.0
+# Compiled loops hand over an instant whose scaled pivots spread past cond_warn / SCREEN; the C
+# loop first checks its own 1-norm estimate against cond_warn / ESTIMATE_MARGIN (docs/analysis-options.md).
+SCREEN, ESTIMATE_MARGIN = 1e3, 100.0
 # A row belongs to a dependency when its squared projection on the left null
 # space exceeds this fraction of the largest one.
 NULL_SHARE = 1e-4
