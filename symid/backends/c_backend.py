@@ -178,6 +178,8 @@ class CEvaluator:
                                      _P, _P, ctypes.POINTER(ctypes.c_long), _P, _I]
         self._instant = self.lib[f"{name}_instant"]
         self._instant.argtypes = [ctypes.c_double, _P, ctypes.c_double, _P, _P, _P, _P, _P, _I, _P, _I]
+        self._screen_at = self.lib[f"{name}_screen_at"]
+        self._screen_at.argtypes = [ctypes.c_double, _P, _P, _P, _I]
         self.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
         self.work = np.zeros(self.meta["work"])
         self.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
@@ -265,7 +267,7 @@ class CEvaluator:
     def blocks(self, analysis: Analysis, q0: Array, notes: Notes | None = None) -> Iterator[Array]:
         """Solve the whole run in C, up to CHUNK instants (CHUNK_BYTES of rows)
         per call, yielding each call's rows as one block, shape (rows, width)
-        (`notes` stay empty: the compiled loop makes no warnings).
+        (`notes`: the warnings of the instants the Python loop solves).
 
         An instant the compiled loop cannot vouch for is solved by the Python
         loop (`symid.numeric.solve.Stepper`, over this solver's functions), as on the
@@ -274,7 +276,12 @@ class CEvaluator:
         backend, and a step whose motion the rates at both ends do not explain
         (`symid.numeric.solve.unexplained`, in the scales the Python loop fixes at t0),
         which it continues in sub-steps and decides (a jump, whole turns
-        followed, a singular position). The compiled loop resumes after it.
+        followed, a singular position), and an instant whose pivots, in those
+        scales, spread wider than the NumPy module's screen (`_screen` in the
+        C code: the condition number may pass cond_warn), which it estimates,
+        warns about or stops at as on every backend; t0, solved before the
+        scales are known, is screened once they are (`_screen_at`). The
+        compiled loop resumes after it.
         """
         from symid.numeric.solve import instant_row
         from symid.numeric.solve import Instant, Stepper
@@ -300,6 +307,12 @@ class CEvaluator:
                                       _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(state),
                                       _ptr(buf), ctypes.byref(solved), _ptr(self.work),
                                       self.iwork.ctypes.data_as(_I))
+            if start == 0 and status == 0 and solved.value == 1:
+                stepper.scaling = self.scaling(q.copy(), analysis.t0)
+                _set_scales(state, ng, stepper.scaling)
+                if self._screen_at(ctypes.c_double(analysis.t0), _ptr(self.p), _ptr(state), _ptr(self.work),
+                                   self.iwork.ctypes.data_as(_I)) != 0:
+                    solved.value, status, state[-1] = 0, ILL_CONDITIONED, 0  # the Python loop solves t0
             if solved.value:
                 yield buf[:solved.value].copy()
             if status != 0:  # the Python loop solves this instant, or reports why not
@@ -326,19 +339,30 @@ class CEvaluator:
                 q[:] = out.q
                 state[-1] = count + 1
                 n = solved.value + 1
-            if start == 0 and state.size > 6 * ng + 1:
+            if start == 0:
                 if stepper.scaling is None:
                     stepper.scaling = self.scaling(q.copy(), analysis.t0)
-                state[6 * ng:7 * ng] = stepper.scaling.inv_col
+                _set_scales(state, ng, stepper.scaling)
             start += n
+
+
+ILL_CONDITIONED = 6  # the compiled solver's status: its conditioning screen tripped
+
+
+def _set_scales(state: Array, ng: int, scaling: Scaling) -> None:
+    """The trajectory state's scales, the Python loop's from q(t0): 1 / each
+    column's for the jump check, each row's norm for the conditioning screen."""
+    state[6 * ng:7 * ng] = scaling.inv_col
+    state[7 * ng:8 * ng] = scaling.row
 
 
 class CBackend:
     """Registry entry: the compiled C solver."""
 
     name = "c"
-    # The compiled loop computes no condition estimate, factors square systems
-    # only and has no branch tracking: options asking for these are refused
+    # The compiled loop writes no cond column and screens at the default
+    # cond_warn only (generated into its code), factors square systems only
+    # and has no branch tracking: options asking for these are refused
     # (symid.backends.require_support).
     lacks = frozenset({"cond", "cond_warn", "min_norm", "assembly_jump"})
 

@@ -28,7 +28,7 @@ from symid.model.analysis import Analysis
 from symid.backends import Array, Needs
 from symid.numeric.solve import instant_row
 from symid.numeric.solve import JUMP_FLOOR, JUMP_RATIO, UNEXPLAINED, Instant, Stepper, run
-from symid.numeric.stability import Notes, requested
+from symid.numeric.stability import SCREEN, Notes, requested  # noqa: F401 (SCREEN: batch_numpy's too)
 
 if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a generated module without sympy
     import sympy as sp
@@ -36,11 +36,6 @@ if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a generated module wi
     from symid.symbolic.assemble import Layout
     from symid.codegen.flat import Options
 
-# The module hands over instants whose scaled pivots spread more than
-# cond_warn / SCREEN: the LU's pivot spread is not the condition number, but
-# on the bundled examples and near the slider-crank's singular position it
-# stays within a factor 70 below it (measured: 0.7 to 64 times smaller).
-SCREEN = 1e3
 
 
 def build(layout: Layout, options: Options) -> Path:

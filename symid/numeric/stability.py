@@ -41,6 +41,9 @@ EPS = float(np.finfo(float).eps)
 # Below this reciprocal condition number (1-norm estimate of the equilibrated
 # Phi_q) Phi_q is singular: solves would keep fewer than ~3 correct digits.
 SINGULAR_RCOND = 1e3 * EPS
+# Compiled loops hand over an instant whose scaled pivots spread past cond_warn / SCREEN; the C
+# loop first checks its own 1-norm estimate against cond_warn / ESTIMATE_MARGIN (docs/analysis-options.md).
+SCREEN, ESTIMATE_MARGIN = 1e3, 100.0
 # A row belongs to a dependency when its squared projection on the left null
 # space exceeds this fraction of the largest one.
 NULL_SHARE = 1e-4

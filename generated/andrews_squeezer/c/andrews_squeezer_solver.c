@@ -22,6 +22,8 @@
 #define ANDREWS_SQUEEZER_EPS 2.220446049250313e-16  /* the machine epsilon of andrews_squeezer_real */
 #define ANDREWS_SQUEEZER_THRESHOLD 0.1
 #define ANDREWS_SQUEEZER_SINGULAR_RATIO (1e3 * ANDREWS_SQUEEZER_EPS)
+#define ANDREWS_SQUEEZER_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
+#define ANDREWS_SQUEEZER_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
 #define ANDREWS_SQUEEZER_MAX_NEWTON 50
 #define ANDREWS_SQUEEZER_LU_SIZE 70
 #define ANDREWS_SQUEEZER_MAX(a, b) ((a) > (b) ? (a) : (b))
@@ -1204,6 +1206,100 @@ static int andrews_squeezer_pivots_spread(const andrews_squeezer_real *lu)
     return rmin <= ANDREWS_SQUEEZER_SINGULAR_RATIO * rmax;
 }
 
+/* The conditioning screen's cheap test: 1 where the pivots of the factors
+   in lu, each in the scales of symid's Python loop (row: per constraint row
+   its norm, col: per coordinate 1 / its scale; the pivot of row r, column
+   c is u / (row[r] col[c])), spread wider than SCREEN, or where the
+   pivoting fallback (dense) factored Phi_q: there the condition number may
+   be large, and cond_estimate tells. The reciprocals the slots hold spread
+   as the pivots do. O(NG) an instant. */
+static int andrews_squeezer_screen(const andrews_squeezer_real *lu, int dense, const andrews_squeezer_real *row, const andrews_squeezer_real *col,
+                          const andrews_squeezer_real *known)
+{
+    andrews_squeezer_real wmin = known[0], wmax = known[1], w;
+    if (dense) return 1;
+    w = fabs(lu[43]) * row[14] * col[8];
+    wmin = ANDREWS_SQUEEZER_MIN(wmin, w);
+    wmax = ANDREWS_SQUEEZER_MAX(wmax, w);
+    w = fabs(lu[51]) * row[16] * col[11];
+    wmin = ANDREWS_SQUEEZER_MIN(wmin, w);
+    wmax = ANDREWS_SQUEEZER_MAX(wmax, w);
+    w = fabs(lu[66]) * row[17] * col[14];
+    wmin = ANDREWS_SQUEEZER_MIN(wmin, w);
+    wmax = ANDREWS_SQUEEZER_MAX(wmax, w);
+    w = fabs(lu[45]) * row[15] * col[5];
+    wmin = ANDREWS_SQUEEZER_MIN(wmin, w);
+    wmax = ANDREWS_SQUEEZER_MAX(wmax, w);
+    w = fabs(lu[59]) * row[18] * col[17];
+    wmin = ANDREWS_SQUEEZER_MIN(wmin, w);
+    wmax = ANDREWS_SQUEEZER_MAX(wmax, w);
+    w = fabs(lu[68]) * row[19] * col[20];
+    wmin = ANDREWS_SQUEEZER_MIN(wmin, w);
+    wmax = ANDREWS_SQUEEZER_MAX(wmax, w);
+    (void)lu;
+    (void)row;
+    (void)col;
+    (void)w;
+    return !(wmax <= ANDREWS_SQUEEZER_SCREEN * wmin);
+}
+
+/* The smallest and largest of the pivots known at generation, in the
+   screen's scales (as screen weighs them): the same at every instant of a
+   run, so computed once a call. */
+static void andrews_squeezer_screen_known(const andrews_squeezer_real *row, const andrews_squeezer_real *col, andrews_squeezer_real *known)
+{
+    andrews_squeezer_real w;
+    known[0] = ((double)INFINITY), known[1] = 0.0;
+    w = 1.0 * row[20] * col[2];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[0] * col[0];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[1] * col[1];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[4] * col[6];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[5] * col[7];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[6] * col[12];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[7] * col[13];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[10] * col[18];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[11] * col[19];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[8] * col[9];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[9] * col[10];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[12] * col[15];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[13] * col[16];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[2] * col[3];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    w = 1.0 * row[3] * col[4];
+    known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
+    known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
+    (void)row;
+    (void)col;
+    (void)w;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -1286,6 +1382,63 @@ static ANDREWS_SQUEEZER_COLD void andrews_squeezer_refine_t(const andrews_squeez
     if (dense) andrews_squeezer_dense_solve_t(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, r, d);
     else andrews_squeezer_sparse_solve_t(work + ANDREWS_SQUEEZER_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     for (k = 0; k < 21; ++k) lam[k] += d[k];
+}
+
+/* The 1-norm condition estimate of Phi_q in the screen's scales,
+   A = D_r Phi_q D_c (D_r = 1 / row, D_c = 1 / col), as LAPACK's dgecon
+   estimates it for symid's Python loop: ||A||_1 from Phi_q's values at q
+   (into work's first NNZ reals), ||A^-1||_1 by Hager's method (at most five
+   solves with the factors and their transposes, as dlacn2) and Higham's
+   alternating vector (one solve); both are lower bounds. Run only where the
+   cheap test (screen) trips. Work vectors 0 to 3 are free between Newton and
+   the outputs. */
+static andrews_squeezer_real andrews_squeezer_cond_estimate(const andrews_squeezer_real *q, const andrews_squeezer_real *tr, andrews_squeezer_real t, const andrews_squeezer_real *p,
+                                    andrews_squeezer_real *work, const int *iwork, int dense, const andrews_squeezer_real *row,
+                                    const andrews_squeezer_real *col)
+{
+    andrews_squeezer_real *vals = work, *x = ANDREWS_SQUEEZER_VEC(work, 0), *z = ANDREWS_SQUEEZER_VEC(work, 1), *y = ANDREWS_SQUEEZER_VEC(work, 2);
+    andrews_squeezer_real *b = ANDREWS_SQUEEZER_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
+    int k, it, j = 0, last = -1;
+    andrews_squeezer_phi_q_k(q, tr, t, p, vals);
+    for (k = 0; k < 21; ++k) z[k] = 0.0;
+    for (k = 0; k < 65; ++k)
+        z[andrews_squeezer_phi_q_cols[k]] += fabs(vals[k]) / (row[andrews_squeezer_phi_q_rows[k]] * col[andrews_squeezer_phi_q_cols[k]]);
+    for (k = 0; k < 21; ++k) anorm = ANDREWS_SQUEEZER_MAX(anorm, z[k]);
+    for (k = 0; k < 21; ++k) x[k] = 1.0 / 21.0;
+    for (it = 0; it < 5; ++it) {
+        /* z = A^-1 x = col (Phi_q^-1 (row x)) */
+        for (k = 0; k < 21; ++k) b[k] = row[k] * x[k];
+        andrews_squeezer_solve(work, iwork, dense, b, z, y);
+        s = 0.0;
+        for (k = 0; k < 21; ++k) {
+            z[k] *= col[k];
+            s += fabs(z[k]);
+        }
+        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
+        if (it > 0 && s <= est) break;
+        est = s;
+        /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
+        for (k = 0; k < 21; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        andrews_squeezer_solve_t(work, iwork, dense, b, z);
+        zmax = -1.0, ztx = 0.0;
+        for (k = 0; k < 21; ++k) {
+            z[k] *= row[k];
+            ztx += z[k] * x[k];
+            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+        }
+        if (it > 0 && (j == last || zmax <= ztx)) break;
+        for (k = 0; k < 21; ++k) x[k] = 0.0;
+        x[j] = 1.0;
+        last = j;
+    }
+    /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
+    for (k = 0; k < 21; ++k)
+        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (andrews_squeezer_real)k / ANDREWS_SQUEEZER_MAX(1.0, 20.0));
+    andrews_squeezer_solve(work, iwork, dense, b, z, y);
+    s = 0.0;
+    for (k = 0; k < 21; ++k) s += fabs(z[k] * col[k]);
+    est = ANDREWS_SQUEEZER_MAX(est, 2.0 * s / (3.0 * 21.0));
+    return anorm * est;
 }
 
 
@@ -1751,14 +1904,34 @@ int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_rea
     return status;
 }
 
+int andrews_squeezer_screen_at(andrews_squeezer_real t, const andrews_squeezer_real *p, const andrews_squeezer_real *state, andrews_squeezer_real *work, int *iwork)
+{
+    andrews_squeezer_real *tr, *pp, known[2];
+    int dense = 0;
+    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+        return ANDREWS_SQUEEZER_BAD_ARGUMENT;
+    if (!(state[147] > 0.0)) return ANDREWS_SQUEEZER_OK;  /* no scales: no screen */
+    tr = ANDREWS_SQUEEZER_VEC(work, 9), pp = work + ANDREWS_SQUEEZER_OFF_PREP;
+    andrews_squeezer_prepare(p, pp);
+    andrews_squeezer_trig(state, tr);
+    if (andrews_squeezer_factorize(state, tr, t, pp, work, iwork, &dense) != ANDREWS_SQUEEZER_OK)
+        return ANDREWS_SQUEEZER_ILL_CONDITIONED;
+    andrews_squeezer_screen_known(state + 147, state + 126, known);
+    if (andrews_squeezer_screen(work + ANDREWS_SQUEEZER_OFF_LU, dense, state + 147, state + 126, known)
+        && !(andrews_squeezer_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 147, state + 126)
+             <= ANDREWS_SQUEEZER_COND_SCREEN))
+        return ANDREWS_SQUEEZER_ILL_CONDITIONED;
+    return ANDREWS_SQUEEZER_OK;
+}
+
 int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real h, long n, const andrews_squeezer_real *p, andrews_squeezer_real tol, andrews_squeezer_real *state,
                        andrews_squeezer_real *rows, long *solved, andrews_squeezer_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    andrews_squeezer_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
-    andrews_squeezer_real *qd, *qdd, *m3, *scale;
+    andrews_squeezer_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
+    andrews_squeezer_real *qd, *qdd, *m3;
     long i, unused;
     int status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -1767,8 +1940,11 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return ANDREWS_SQUEEZER_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 63, m2 = state + 84, count = state + 147;
-    qd = state + 21, qdd = state + 42, m3 = state + 105, scale = state + 126;
+    q = state, m1 = state + 63, m2 = state + 84, count = state + 168;
+    scale = state + 126, rscale = state + 147;
+    if (rscale[0] > 0.0) andrews_squeezer_screen_known(rscale, scale, known);
+    else known[0] = known[1] = 0.0;  /* no screen: never read */
+    qd = state + 21, qdd = state + 42, m3 = state + 105;
     tr = ANDREWS_SQUEEZER_VEC(work, 9), pp = work + ANDREWS_SQUEEZER_OFF_PREP;
     andrews_squeezer_prepare(p, pp);
     for (i = 0; i < n; ++i) {
@@ -1856,6 +2032,11 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
            and trigonometric bases (left in work) serve this one */
         status = andrews_squeezer_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != ANDREWS_SQUEEZER_OK) break;
+        if (rscale[0] > 0.0 && andrews_squeezer_screen(work + ANDREWS_SQUEEZER_OFF_LU, dense, rscale, scale, known)
+            && !(andrews_squeezer_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= ANDREWS_SQUEEZER_COND_SCREEN)) {
+            status = ANDREWS_SQUEEZER_ILL_CONDITIONED;
+            break;
+        }
         andrews_squeezer_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!andrews_squeezer_row_finite(row, qn, qdn, qddn, lam, reac)) {
             status = ANDREWS_SQUEEZER_NONFINITE;
@@ -1920,9 +2101,10 @@ static void andrews_squeezer_drive(andrews_squeezer_real t, const andrews_squeez
 /* 1 / the column scales of the jump check at the assembled q(t0), as
    symid.numeric.stability.Scaling.of: x and y in units of the median moment
    arm of the rows that mix lengths and angles (else the largest |x|, |y|,
-   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+   else 1), angles in radians; and the rows' norms in those units, for the
+   conditioning screen (1 for a row of zeros). vals: NNZ reals, arms: NC reals. */
 static void andrews_squeezer_sweep_scales(const andrews_squeezer_real *q, andrews_squeezer_real t0, const andrews_squeezer_real *p, andrews_squeezer_real *vals,
-                                 andrews_squeezer_real *arms, andrews_squeezer_real *inv)
+                                 andrews_squeezer_real *arms, andrews_squeezer_real *inv, andrews_squeezer_real *norm)
 {
     andrews_squeezer_real lin[21], rot[21], lref = 0.0, a;
     int k, r, m = 0, i;
@@ -1951,6 +2133,10 @@ static void andrews_squeezer_sweep_scales(const andrews_squeezer_real *q, andrew
     }
     if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
     for (k = 0; k < 21; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    for (r = 0; r < 21; ++r) {
+        a = ANDREWS_SQUEEZER_MAX(lin[r] * lref, rot[r]);
+        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+    }
 }
 
 /* Take one solved row's figures; count: the variant's instants taken before.
@@ -2128,7 +2314,10 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
             got = 0;
             st = andrews_squeezer_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) andrews_squeezer_sweep_take(rows + m * ANDREWS_SQUEEZER_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) andrews_squeezer_sweep_scales(state, t0, pv, vals, arms, state + 126);
+            if (done == 0 && got == 1) {
+                andrews_squeezer_sweep_scales(state, t0, pv, vals, arms, state + 126, state + 147);
+                st = andrews_squeezer_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
+            }
             done += got;
         }
         andrews_squeezer_sweep_finish(fig, acc, done);

@@ -22,6 +22,8 @@
 #define EXCAVATOR_EPS 2.220446049250313e-16  /* the machine epsilon of excavator_real */
 #define EXCAVATOR_THRESHOLD 0.1
 #define EXCAVATOR_SINGULAR_RATIO (1e3 * EXCAVATOR_EPS)
+#define EXCAVATOR_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
+#define EXCAVATOR_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
 #define EXCAVATOR_MAX_NEWTON 50
 #define EXCAVATOR_LU_SIZE 35
 #define EXCAVATOR_MAX(a, b) ((a) > (b) ? (a) : (b))
@@ -972,6 +974,64 @@ static int excavator_pivots_spread(const excavator_real *lu)
     return rmin <= EXCAVATOR_SINGULAR_RATIO * rmax;
 }
 
+/* The conditioning screen's cheap test: 1 where the pivots of the factors
+   in lu, each in the scales of symid's Python loop (row: per constraint row
+   its norm, col: per coordinate 1 / its scale; the pivot of row r, column
+   c is u / (row[r] col[c])), spread wider than SCREEN, or where the
+   pivoting fallback (dense) factored Phi_q: there the condition number may
+   be large, and cond_estimate tells. The reciprocals the slots hold spread
+   as the pivots do. O(NG) an instant. */
+static int excavator_screen(const excavator_real *lu, int dense, const excavator_real *row, const excavator_real *col,
+                          const excavator_real *known)
+{
+    excavator_real wmin = known[0], wmax = known[1], w;
+    if (dense) return 1;
+    w = fabs(lu[20]) * row[6] * col[0];
+    wmin = EXCAVATOR_MIN(wmin, w);
+    wmax = EXCAVATOR_MAX(wmax, w);
+    w = fabs(lu[1]) * row[0] * col[2];
+    wmin = EXCAVATOR_MIN(wmin, w);
+    wmax = EXCAVATOR_MAX(wmax, w);
+    w = fabs(lu[26]) * row[7] * col[3];
+    wmin = EXCAVATOR_MIN(wmin, w);
+    wmax = EXCAVATOR_MAX(wmax, w);
+    w = fabs(lu[7]) * row[2] * col[5];
+    wmin = EXCAVATOR_MIN(wmin, w);
+    wmax = EXCAVATOR_MAX(wmax, w);
+    w = fabs(lu[32]) * row[8] * col[6];
+    wmin = EXCAVATOR_MIN(wmin, w);
+    wmax = EXCAVATOR_MAX(wmax, w);
+    w = fabs(lu[15]) * row[4] * col[8];
+    wmin = EXCAVATOR_MIN(wmin, w);
+    wmax = EXCAVATOR_MAX(wmax, w);
+    (void)lu;
+    (void)row;
+    (void)col;
+    (void)w;
+    return !(wmax <= EXCAVATOR_SCREEN * wmin);
+}
+
+/* The smallest and largest of the pivots known at generation, in the
+   screen's scales (as screen weighs them): the same at every instant of a
+   run, so computed once a call. */
+static void excavator_screen_known(const excavator_real *row, const excavator_real *col, excavator_real *known)
+{
+    excavator_real w;
+    known[0] = ((double)INFINITY), known[1] = 0.0;
+    w = 1.0 * row[5] * col[7];
+    known[0] = EXCAVATOR_MIN(known[0], w);
+    known[1] = EXCAVATOR_MAX(known[1], w);
+    w = 1.0 * row[1] * col[1];
+    known[0] = EXCAVATOR_MIN(known[0], w);
+    known[1] = EXCAVATOR_MAX(known[1], w);
+    w = 1.0 * row[3] * col[4];
+    known[0] = EXCAVATOR_MIN(known[0], w);
+    known[1] = EXCAVATOR_MAX(known[1], w);
+    (void)row;
+    (void)col;
+    (void)w;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -1045,6 +1105,63 @@ static EXCAVATOR_COLD void excavator_refine_t(const excavator_real *q, const exc
     if (dense) excavator_dense_solve_t(work + EXCAVATOR_OFF_DENSE, iwork, r, d);
     else excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     for (k = 0; k < 9; ++k) lam[k] += d[k];
+}
+
+/* The 1-norm condition estimate of Phi_q in the screen's scales,
+   A = D_r Phi_q D_c (D_r = 1 / row, D_c = 1 / col), as LAPACK's dgecon
+   estimates it for symid's Python loop: ||A||_1 from Phi_q's values at q
+   (into work's first NNZ reals), ||A^-1||_1 by Hager's method (at most five
+   solves with the factors and their transposes, as dlacn2) and Higham's
+   alternating vector (one solve); both are lower bounds. Run only where the
+   cheap test (screen) trips. Work vectors 0 to 3 are free between Newton and
+   the outputs. */
+static excavator_real excavator_cond_estimate(const excavator_real *q, const excavator_real *tr, excavator_real t, const excavator_real *p,
+                                    excavator_real *work, const int *iwork, int dense, const excavator_real *row,
+                                    const excavator_real *col)
+{
+    excavator_real *vals = work, *x = EXCAVATOR_VEC(work, 0), *z = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
+    excavator_real *b = EXCAVATOR_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
+    int k, it, j = 0, last = -1;
+    excavator_phi_q_k(q, tr, t, p, vals);
+    for (k = 0; k < 9; ++k) z[k] = 0.0;
+    for (k = 0; k < 35; ++k)
+        z[excavator_phi_q_cols[k]] += fabs(vals[k]) / (row[excavator_phi_q_rows[k]] * col[excavator_phi_q_cols[k]]);
+    for (k = 0; k < 9; ++k) anorm = EXCAVATOR_MAX(anorm, z[k]);
+    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    for (it = 0; it < 5; ++it) {
+        /* z = A^-1 x = col (Phi_q^-1 (row x)) */
+        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        excavator_solve(work, iwork, dense, b, z, y);
+        s = 0.0;
+        for (k = 0; k < 9; ++k) {
+            z[k] *= col[k];
+            s += fabs(z[k]);
+        }
+        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
+        if (it > 0 && s <= est) break;
+        est = s;
+        /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
+        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        excavator_solve_t(work, iwork, dense, b, z);
+        zmax = -1.0, ztx = 0.0;
+        for (k = 0; k < 9; ++k) {
+            z[k] *= row[k];
+            ztx += z[k] * x[k];
+            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+        }
+        if (it > 0 && (j == last || zmax <= ztx)) break;
+        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        x[j] = 1.0;
+        last = j;
+    }
+    /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
+    for (k = 0; k < 9; ++k)
+        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (excavator_real)k / EXCAVATOR_MAX(1.0, 8.0));
+    excavator_solve(work, iwork, dense, b, z, y);
+    s = 0.0;
+    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
+    est = EXCAVATOR_MAX(est, 2.0 * s / (3.0 * 9.0));
+    return anorm * est;
 }
 
 
@@ -1374,14 +1491,34 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
     return status;
 }
 
+int excavator_screen_at(excavator_real t, const excavator_real *p, const excavator_real *state, excavator_real *work, int *iwork)
+{
+    excavator_real *tr, *pp, known[2];
+    int dense = 0;
+    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+        return EXCAVATOR_BAD_ARGUMENT;
+    if (!(state[63] > 0.0)) return EXCAVATOR_OK;  /* no scales: no screen */
+    tr = EXCAVATOR_VEC(work, 9), pp = work + EXCAVATOR_OFF_PREP;
+    excavator_prepare(p, pp);
+    excavator_trig(state, tr);
+    if (excavator_factorize(state, tr, t, pp, work, iwork, &dense) != EXCAVATOR_OK)
+        return EXCAVATOR_ILL_CONDITIONED;
+    excavator_screen_known(state + 63, state + 54, known);
+    if (excavator_screen(work + EXCAVATOR_OFF_LU, dense, state + 63, state + 54, known)
+        && !(excavator_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
+             <= EXCAVATOR_COND_SCREEN))
+        return EXCAVATOR_ILL_CONDITIONED;
+    return EXCAVATOR_OK;
+}
+
 int excavator_trajectory(excavator_real t0, excavator_real h, long n, const excavator_real *p, excavator_real tol, excavator_real *state,
                        excavator_real *rows, long *solved, excavator_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    excavator_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
-    excavator_real *qd, *qdd, *m3, *scale;
+    excavator_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
+    excavator_real *qd, *qdd, *m3;
     long i, unused;
     int status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -1390,8 +1527,11 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return EXCAVATOR_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 63;
-    qd = state + 9, qdd = state + 18, m3 = state + 45, scale = state + 54;
+    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
+    scale = state + 54, rscale = state + 63;
+    if (rscale[0] > 0.0) excavator_screen_known(rscale, scale, known);
+    else known[0] = known[1] = 0.0;  /* no screen: never read */
+    qd = state + 9, qdd = state + 18, m3 = state + 45;
     tr = EXCAVATOR_VEC(work, 9), pp = work + EXCAVATOR_OFF_PREP;
     excavator_prepare(p, pp);
     for (i = 0; i < n; ++i) {
@@ -1443,6 +1583,11 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
            and trigonometric bases (left in work) serve this one */
         status = excavator_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != EXCAVATOR_OK) break;
+        if (rscale[0] > 0.0 && excavator_screen(work + EXCAVATOR_OFF_LU, dense, rscale, scale, known)
+            && !(excavator_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= EXCAVATOR_COND_SCREEN)) {
+            status = EXCAVATOR_ILL_CONDITIONED;
+            break;
+        }
         excavator_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!excavator_row_finite(row, qn, qdn, qddn, lam, reac)) {
             status = EXCAVATOR_NONFINITE;
@@ -1502,9 +1647,10 @@ static void excavator_drive(excavator_real t, const excavator_real *p, excavator
 /* 1 / the column scales of the jump check at the assembled q(t0), as
    symid.numeric.stability.Scaling.of: x and y in units of the median moment
    arm of the rows that mix lengths and angles (else the largest |x|, |y|,
-   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+   else 1), angles in radians; and the rows' norms in those units, for the
+   conditioning screen (1 for a row of zeros). vals: NNZ reals, arms: NC reals. */
 static void excavator_sweep_scales(const excavator_real *q, excavator_real t0, const excavator_real *p, excavator_real *vals,
-                                 excavator_real *arms, excavator_real *inv)
+                                 excavator_real *arms, excavator_real *inv, excavator_real *norm)
 {
     excavator_real lin[9], rot[9], lref = 0.0, a;
     int k, r, m = 0, i;
@@ -1533,6 +1679,10 @@ static void excavator_sweep_scales(const excavator_real *q, excavator_real t0, c
     }
     if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
     for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    for (r = 0; r < 9; ++r) {
+        a = EXCAVATOR_MAX(lin[r] * lref, rot[r]);
+        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+    }
 }
 
 /* Take one solved row's figures; count: the variant's instants taken before.
@@ -1710,7 +1860,10 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
             got = 0;
             st = excavator_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) excavator_sweep_take(rows + m * EXCAVATOR_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) excavator_sweep_scales(state, t0, pv, vals, arms, state + 54);
+            if (done == 0 && got == 1) {
+                excavator_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+                st = excavator_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
+            }
             done += got;
         }
         excavator_sweep_finish(fig, acc, done);

@@ -20,7 +20,7 @@ typedef double excavator_real;
 #define EXCAVATOR_ROW 73          /* values per instant in a trajectory row */
 #define EXCAVATOR_WORK 588        /* reals of workspace every solver call needs */
 #define EXCAVATOR_IWORK 9         /* ints of workspace */
-#define EXCAVATOR_STATE 64       /* reals of trajectory state */
+#define EXCAVATOR_STATE 73       /* reals of trajectory state */
 
 /* Status of every solver call. */
 #define EXCAVATOR_OK 0
@@ -34,6 +34,11 @@ typedef double excavator_real;
 #define EXCAVATOR_BAD_ARGUMENT 5  /* a scalar argument is invalid (tol not finite or <= 0, t, t0
                                    or h not finite, n < 0) or a required pointer is NULL:
                                    nothing was solved */
+#define EXCAVATOR_ILL_CONDITIONED 6  /* trajectory, screen_at, with the screen's scales set: the
+                                   pivots in those scales spread wider than SCREEN (or the
+                                   pivoting fallback factored Phi_q): the condition number
+                                   may pass symid's warning level, near a singular position:
+                                   verify it (symid estimates it, warns or stops) */
 
 /* Output groups compiled in (1) or left out (0). */
 #define EXCAVATOR_HAS_QDOT 1
@@ -199,8 +204,16 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
    call of one run. state (STATE reals) carries the predictor between calls:
    set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
    first call. state[6 NG..7 NG-1]: per
-   coordinate, 1 / its scale for the jump check (zeros: no check).
+   coordinate, 1 / its scale for the jump check (zeros: no check);
+   state[7 NG..8 NG-1]: per constraint row, its norm in those scales, for
+   the conditioning screen (zeros: no screen; symid sets both from q(t0)).
    *solved = rows written (solved may be NULL). */
+/* The conditioning screen at q = state[0..NG-1], time t, with the state's
+   scales: ILL_CONDITIONED where it trips (or Phi_q cannot be factored), OK
+   where it does not or no scales are set (symid screens t0, which the first
+   call of trajectory solves before the scales are known). */
+int excavator_screen_at(excavator_real t, const excavator_real *p, const excavator_real *state, excavator_real *work, int *iwork);
+
 int excavator_trajectory(excavator_real t0, excavator_real h, long n, const excavator_real *p, excavator_real tol, excavator_real *state,
                        excavator_real *rows, long *solved, excavator_real *work, int *iwork);
 

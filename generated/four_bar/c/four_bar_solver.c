@@ -22,6 +22,8 @@
 #define FOUR_BAR_EPS 2.220446049250313e-16  /* the machine epsilon of four_bar_real */
 #define FOUR_BAR_THRESHOLD 0.1
 #define FOUR_BAR_SINGULAR_RATIO (1e3 * FOUR_BAR_EPS)
+#define FOUR_BAR_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
+#define FOUR_BAR_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
 #define FOUR_BAR_MAX_NEWTON 50
 #define FOUR_BAR_LU_SIZE 25
 #define FOUR_BAR_MAX(a, b) ((a) > (b) ? (a) : (b))
@@ -725,6 +727,64 @@ static int four_bar_pivots_spread(const four_bar_real *lu)
     return rmin <= FOUR_BAR_SINGULAR_RATIO * rmax;
 }
 
+/* The conditioning screen's cheap test: 1 where the pivots of the factors
+   in lu, each in the scales of symid's Python loop (row: per constraint row
+   its norm, col: per coordinate 1 / its scale; the pivot of row r, column
+   c is u / (row[r] col[c])), spread wider than SCREEN, or where the
+   pivoting fallback (dense) factored Phi_q: there the condition number may
+   be large, and cond_estimate tells. The reciprocals the slots hold spread
+   as the pivots do. O(NG) an instant. */
+static int four_bar_screen(const four_bar_real *lu, int dense, const four_bar_real *row, const four_bar_real *col,
+                          const four_bar_real *known)
+{
+    four_bar_real wmin = known[0], wmax = known[1], w;
+    if (dense) return 1;
+    w = fabs(lu[13]) * row[4] * col[5];
+    wmin = FOUR_BAR_MIN(wmin, w);
+    wmax = FOUR_BAR_MAX(wmax, w);
+    w = fabs(lu[23]) * row[7] * col[8];
+    wmin = FOUR_BAR_MIN(wmin, w);
+    wmax = FOUR_BAR_MAX(wmax, w);
+    (void)lu;
+    (void)row;
+    (void)col;
+    (void)w;
+    return !(wmax <= FOUR_BAR_SCREEN * wmin);
+}
+
+/* The smallest and largest of the pivots known at generation, in the
+   screen's scales (as screen weighs them): the same at every instant of a
+   run, so computed once a call. */
+static void four_bar_screen_known(const four_bar_real *row, const four_bar_real *col, four_bar_real *known)
+{
+    four_bar_real w;
+    known[0] = ((double)INFINITY), known[1] = 0.0;
+    w = 1.0 * row[8] * col[2];
+    known[0] = FOUR_BAR_MIN(known[0], w);
+    known[1] = FOUR_BAR_MAX(known[1], w);
+    w = 1.0 * row[0] * col[0];
+    known[0] = FOUR_BAR_MIN(known[0], w);
+    known[1] = FOUR_BAR_MAX(known[1], w);
+    w = 1.0 * row[1] * col[1];
+    known[0] = FOUR_BAR_MIN(known[0], w);
+    known[1] = FOUR_BAR_MAX(known[1], w);
+    w = 1.0 * row[2] * col[3];
+    known[0] = FOUR_BAR_MIN(known[0], w);
+    known[1] = FOUR_BAR_MAX(known[1], w);
+    w = 1.0 * row[3] * col[4];
+    known[0] = FOUR_BAR_MIN(known[0], w);
+    known[1] = FOUR_BAR_MAX(known[1], w);
+    w = 1.0 * row[6] * col[6];
+    known[0] = FOUR_BAR_MIN(known[0], w);
+    known[1] = FOUR_BAR_MAX(known[1], w);
+    w = 1.0 * row[5] * col[7];
+    known[0] = FOUR_BAR_MIN(known[0], w);
+    known[1] = FOUR_BAR_MAX(known[1], w);
+    (void)row;
+    (void)col;
+    (void)w;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -798,6 +858,63 @@ static FOUR_BAR_COLD void four_bar_refine_t(const four_bar_real *q, const four_b
     if (dense) four_bar_dense_solve_t(work + FOUR_BAR_OFF_DENSE, iwork, r, d);
     else four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     for (k = 0; k < 9; ++k) lam[k] += d[k];
+}
+
+/* The 1-norm condition estimate of Phi_q in the screen's scales,
+   A = D_r Phi_q D_c (D_r = 1 / row, D_c = 1 / col), as LAPACK's dgecon
+   estimates it for symid's Python loop: ||A||_1 from Phi_q's values at q
+   (into work's first NNZ reals), ||A^-1||_1 by Hager's method (at most five
+   solves with the factors and their transposes, as dlacn2) and Higham's
+   alternating vector (one solve); both are lower bounds. Run only where the
+   cheap test (screen) trips. Work vectors 0 to 3 are free between Newton and
+   the outputs. */
+static four_bar_real four_bar_cond_estimate(const four_bar_real *q, const four_bar_real *tr, four_bar_real t, const four_bar_real *p,
+                                    four_bar_real *work, const int *iwork, int dense, const four_bar_real *row,
+                                    const four_bar_real *col)
+{
+    four_bar_real *vals = work, *x = FOUR_BAR_VEC(work, 0), *z = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
+    four_bar_real *b = FOUR_BAR_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
+    int k, it, j = 0, last = -1;
+    four_bar_phi_q_k(q, tr, t, p, vals);
+    for (k = 0; k < 9; ++k) z[k] = 0.0;
+    for (k = 0; k < 25; ++k)
+        z[four_bar_phi_q_cols[k]] += fabs(vals[k]) / (row[four_bar_phi_q_rows[k]] * col[four_bar_phi_q_cols[k]]);
+    for (k = 0; k < 9; ++k) anorm = FOUR_BAR_MAX(anorm, z[k]);
+    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    for (it = 0; it < 5; ++it) {
+        /* z = A^-1 x = col (Phi_q^-1 (row x)) */
+        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        four_bar_solve(work, iwork, dense, b, z, y);
+        s = 0.0;
+        for (k = 0; k < 9; ++k) {
+            z[k] *= col[k];
+            s += fabs(z[k]);
+        }
+        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
+        if (it > 0 && s <= est) break;
+        est = s;
+        /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
+        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        four_bar_solve_t(work, iwork, dense, b, z);
+        zmax = -1.0, ztx = 0.0;
+        for (k = 0; k < 9; ++k) {
+            z[k] *= row[k];
+            ztx += z[k] * x[k];
+            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+        }
+        if (it > 0 && (j == last || zmax <= ztx)) break;
+        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        x[j] = 1.0;
+        last = j;
+    }
+    /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
+    for (k = 0; k < 9; ++k)
+        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (four_bar_real)k / FOUR_BAR_MAX(1.0, 8.0));
+    four_bar_solve(work, iwork, dense, b, z, y);
+    s = 0.0;
+    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
+    est = FOUR_BAR_MAX(est, 2.0 * s / (3.0 * 9.0));
+    return anorm * est;
 }
 
 
@@ -1131,14 +1248,34 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
     return status;
 }
 
+int four_bar_screen_at(four_bar_real t, const four_bar_real *p, const four_bar_real *state, four_bar_real *work, int *iwork)
+{
+    four_bar_real *tr, *pp, known[2];
+    int dense = 0;
+    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+        return FOUR_BAR_BAD_ARGUMENT;
+    if (!(state[63] > 0.0)) return FOUR_BAR_OK;  /* no scales: no screen */
+    tr = FOUR_BAR_VEC(work, 9), pp = work + FOUR_BAR_OFF_PREP;
+    four_bar_prepare(p, pp);
+    four_bar_trig(state, tr);
+    if (four_bar_factorize(state, tr, t, pp, work, iwork, &dense) != FOUR_BAR_OK)
+        return FOUR_BAR_ILL_CONDITIONED;
+    four_bar_screen_known(state + 63, state + 54, known);
+    if (four_bar_screen(work + FOUR_BAR_OFF_LU, dense, state + 63, state + 54, known)
+        && !(four_bar_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
+             <= FOUR_BAR_COND_SCREEN))
+        return FOUR_BAR_ILL_CONDITIONED;
+    return FOUR_BAR_OK;
+}
+
 int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_bar_real *p, four_bar_real tol, four_bar_real *state,
                        four_bar_real *rows, long *solved, four_bar_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    four_bar_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
-    four_bar_real *qd, *qdd, *m3, *scale;
+    four_bar_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
+    four_bar_real *qd, *qdd, *m3;
     long i, unused;
     int status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -1147,8 +1284,11 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return FOUR_BAR_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 63;
-    qd = state + 9, qdd = state + 18, m3 = state + 45, scale = state + 54;
+    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
+    scale = state + 54, rscale = state + 63;
+    if (rscale[0] > 0.0) four_bar_screen_known(rscale, scale, known);
+    else known[0] = known[1] = 0.0;  /* no screen: never read */
+    qd = state + 9, qdd = state + 18, m3 = state + 45;
     tr = FOUR_BAR_VEC(work, 9), pp = work + FOUR_BAR_OFF_PREP;
     four_bar_prepare(p, pp);
     for (i = 0; i < n; ++i) {
@@ -1200,6 +1340,11 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
            and trigonometric bases (left in work) serve this one */
         status = four_bar_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != FOUR_BAR_OK) break;
+        if (rscale[0] > 0.0 && four_bar_screen(work + FOUR_BAR_OFF_LU, dense, rscale, scale, known)
+            && !(four_bar_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= FOUR_BAR_COND_SCREEN)) {
+            status = FOUR_BAR_ILL_CONDITIONED;
+            break;
+        }
         four_bar_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!four_bar_row_finite(row, qn, qdn, qddn, lam, reac)) {
             status = FOUR_BAR_NONFINITE;
@@ -1250,9 +1395,10 @@ static void four_bar_drive(four_bar_real t, const four_bar_real *p, four_bar_rea
 /* 1 / the column scales of the jump check at the assembled q(t0), as
    symid.numeric.stability.Scaling.of: x and y in units of the median moment
    arm of the rows that mix lengths and angles (else the largest |x|, |y|,
-   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+   else 1), angles in radians; and the rows' norms in those units, for the
+   conditioning screen (1 for a row of zeros). vals: NNZ reals, arms: NC reals. */
 static void four_bar_sweep_scales(const four_bar_real *q, four_bar_real t0, const four_bar_real *p, four_bar_real *vals,
-                                 four_bar_real *arms, four_bar_real *inv)
+                                 four_bar_real *arms, four_bar_real *inv, four_bar_real *norm)
 {
     four_bar_real lin[9], rot[9], lref = 0.0, a;
     int k, r, m = 0, i;
@@ -1281,6 +1427,10 @@ static void four_bar_sweep_scales(const four_bar_real *q, four_bar_real t0, cons
     }
     if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
     for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    for (r = 0; r < 9; ++r) {
+        a = FOUR_BAR_MAX(lin[r] * lref, rot[r]);
+        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+    }
 }
 
 /* Take one solved row's figures; count: the variant's instants taken before.
@@ -1422,7 +1572,10 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
             got = 0;
             st = four_bar_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) four_bar_sweep_take(rows + m * FOUR_BAR_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) four_bar_sweep_scales(state, t0, pv, vals, arms, state + 54);
+            if (done == 0 && got == 1) {
+                four_bar_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+                st = four_bar_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
+            }
             done += got;
         }
         four_bar_sweep_finish(fig, acc, done);

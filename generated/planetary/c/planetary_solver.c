@@ -22,6 +22,8 @@
 #define PLANETARY_EPS 2.220446049250313e-16  /* the machine epsilon of planetary_real */
 #define PLANETARY_THRESHOLD 0.1
 #define PLANETARY_SINGULAR_RATIO (1e3 * PLANETARY_EPS)
+#define PLANETARY_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
+#define PLANETARY_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
 #define PLANETARY_MAX_NEWTON 50
 #define PLANETARY_LU_SIZE 20
 #define PLANETARY_MAX(a, b) ((a) > (b) ? (a) : (b))
@@ -801,6 +803,73 @@ static int planetary_pivots_spread(const planetary_real *lu)
     return rmin <= PLANETARY_SINGULAR_RATIO * rmax;
 }
 
+/* The conditioning screen's cheap test: 1 where the pivots of the factors
+   in lu, each in the scales of symid's Python loop (row: per constraint row
+   its norm, col: per coordinate 1 / its scale; the pivot of row r, column
+   c is u / (row[r] col[c])), spread wider than SCREEN, or where the
+   pivoting fallback (dense) factored Phi_q: there the condition number may
+   be large, and cond_estimate tells. The reciprocals the slots hold spread
+   as the pivots do. O(NG) an instant. */
+static int planetary_screen(const planetary_real *lu, int dense, const planetary_real *row, const planetary_real *col,
+                          const planetary_real *known)
+{
+    planetary_real wmin = known[0], wmax = known[1], w;
+    if (dense) return 1;
+    w = fabs(lu[11]) * row[6] * col[5];
+    wmin = PLANETARY_MIN(wmin, w);
+    wmax = PLANETARY_MAX(wmax, w);
+    w = fabs(lu[14]) * row[7] * col[8];
+    wmin = PLANETARY_MIN(wmin, w);
+    wmax = PLANETARY_MAX(wmax, w);
+    (void)lu;
+    (void)row;
+    (void)col;
+    (void)w;
+    return !(wmax <= PLANETARY_SCREEN * wmin);
+}
+
+/* The smallest and largest of the pivots known at generation, in the
+   screen's scales (as screen weighs them): the same at every instant of a
+   run, so computed once a call. */
+static void planetary_screen_known(const planetary_real *row, const planetary_real *col, planetary_real *known)
+{
+    planetary_real w;
+    known[0] = ((double)INFINITY), known[1] = 0.0;
+    w = 1.0 * row[0] * col[0];
+    known[0] = PLANETARY_MIN(known[0], w);
+    known[1] = PLANETARY_MAX(known[1], w);
+    w = 1.0 * row[1] * col[1];
+    known[0] = PLANETARY_MIN(known[0], w);
+    known[1] = PLANETARY_MAX(known[1], w);
+    w = 1.0 * row[2] * col[3];
+    known[0] = PLANETARY_MIN(known[0], w);
+    known[1] = PLANETARY_MAX(known[1], w);
+    w = 1.0 * row[3] * col[4];
+    known[0] = PLANETARY_MIN(known[0], w);
+    known[1] = PLANETARY_MAX(known[1], w);
+    w = 1.0 * row[4] * col[6];
+    known[0] = PLANETARY_MIN(known[0], w);
+    known[1] = PLANETARY_MAX(known[1], w);
+    w = 1.0 * row[5] * col[7];
+    known[0] = PLANETARY_MIN(known[0], w);
+    known[1] = PLANETARY_MAX(known[1], w);
+    w = 1.0 * row[8] * col[9];
+    known[0] = PLANETARY_MIN(known[0], w);
+    known[1] = PLANETARY_MAX(known[1], w);
+    w = 1.0 * row[9] * col[10];
+    known[0] = PLANETARY_MIN(known[0], w);
+    known[1] = PLANETARY_MAX(known[1], w);
+    w = 1.0 * row[11] * col[11];
+    known[0] = PLANETARY_MIN(known[0], w);
+    known[1] = PLANETARY_MAX(known[1], w);
+    w = 1.0 * row[10] * col[2];
+    known[0] = PLANETARY_MIN(known[0], w);
+    known[1] = PLANETARY_MAX(known[1], w);
+    (void)row;
+    (void)col;
+    (void)w;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -876,6 +945,63 @@ static PLANETARY_COLD void planetary_refine_t(const planetary_real *q, const pla
     if (dense) planetary_dense_solve_t(work + PLANETARY_OFF_DENSE, iwork, r, d);
     else planetary_sparse_solve_t(work + PLANETARY_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     for (k = 0; k < 12; ++k) lam[k] += d[k];
+}
+
+/* The 1-norm condition estimate of Phi_q in the screen's scales,
+   A = D_r Phi_q D_c (D_r = 1 / row, D_c = 1 / col), as LAPACK's dgecon
+   estimates it for symid's Python loop: ||A||_1 from Phi_q's values at q
+   (into work's first NNZ reals), ||A^-1||_1 by Hager's method (at most five
+   solves with the factors and their transposes, as dlacn2) and Higham's
+   alternating vector (one solve); both are lower bounds. Run only where the
+   cheap test (screen) trips. Work vectors 0 to 3 are free between Newton and
+   the outputs. */
+static planetary_real planetary_cond_estimate(const planetary_real *q, const planetary_real *tr, planetary_real t, const planetary_real *p,
+                                    planetary_real *work, const int *iwork, int dense, const planetary_real *row,
+                                    const planetary_real *col)
+{
+    planetary_real *vals = work, *x = PLANETARY_VEC(work, 0), *z = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
+    planetary_real *b = PLANETARY_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
+    int k, it, j = 0, last = -1;
+    planetary_phi_q_k(q, tr, t, p, vals);
+    for (k = 0; k < 12; ++k) z[k] = 0.0;
+    for (k = 0; k < 20; ++k)
+        z[planetary_phi_q_cols[k]] += fabs(vals[k]) / (row[planetary_phi_q_rows[k]] * col[planetary_phi_q_cols[k]]);
+    for (k = 0; k < 12; ++k) anorm = PLANETARY_MAX(anorm, z[k]);
+    for (k = 0; k < 12; ++k) x[k] = 1.0 / 12.0;
+    for (it = 0; it < 5; ++it) {
+        /* z = A^-1 x = col (Phi_q^-1 (row x)) */
+        for (k = 0; k < 12; ++k) b[k] = row[k] * x[k];
+        planetary_solve(work, iwork, dense, b, z, y);
+        s = 0.0;
+        for (k = 0; k < 12; ++k) {
+            z[k] *= col[k];
+            s += fabs(z[k]);
+        }
+        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
+        if (it > 0 && s <= est) break;
+        est = s;
+        /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
+        for (k = 0; k < 12; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        planetary_solve_t(work, iwork, dense, b, z);
+        zmax = -1.0, ztx = 0.0;
+        for (k = 0; k < 12; ++k) {
+            z[k] *= row[k];
+            ztx += z[k] * x[k];
+            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+        }
+        if (it > 0 && (j == last || zmax <= ztx)) break;
+        for (k = 0; k < 12; ++k) x[k] = 0.0;
+        x[j] = 1.0;
+        last = j;
+    }
+    /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
+    for (k = 0; k < 12; ++k)
+        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (planetary_real)k / PLANETARY_MAX(1.0, 11.0));
+    planetary_solve(work, iwork, dense, b, z, y);
+    s = 0.0;
+    for (k = 0; k < 12; ++k) s += fabs(z[k] * col[k]);
+    est = PLANETARY_MAX(est, 2.0 * s / (3.0 * 12.0));
+    return anorm * est;
 }
 
 
@@ -1244,14 +1370,34 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
     return status;
 }
 
+int planetary_screen_at(planetary_real t, const planetary_real *p, const planetary_real *state, planetary_real *work, int *iwork)
+{
+    planetary_real *tr, *pp, known[2];
+    int dense = 0;
+    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+        return PLANETARY_BAD_ARGUMENT;
+    if (!(state[84] > 0.0)) return PLANETARY_OK;  /* no scales: no screen */
+    tr = PLANETARY_VEC(work, 9), pp = work + PLANETARY_OFF_PREP;
+    planetary_prepare(p, pp);
+    planetary_trig(state, tr);
+    if (planetary_factorize(state, tr, t, pp, work, iwork, &dense) != PLANETARY_OK)
+        return PLANETARY_ILL_CONDITIONED;
+    planetary_screen_known(state + 84, state + 72, known);
+    if (planetary_screen(work + PLANETARY_OFF_LU, dense, state + 84, state + 72, known)
+        && !(planetary_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 84, state + 72)
+             <= PLANETARY_COND_SCREEN))
+        return PLANETARY_ILL_CONDITIONED;
+    return PLANETARY_OK;
+}
+
 int planetary_trajectory(planetary_real t0, planetary_real h, long n, const planetary_real *p, planetary_real tol, planetary_real *state,
                        planetary_real *rows, long *solved, planetary_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    planetary_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
-    planetary_real *qd, *qdd, *m3, *scale;
+    planetary_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
+    planetary_real *qd, *qdd, *m3;
     long i, unused;
     int status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -1260,8 +1406,11 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return PLANETARY_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 36, m2 = state + 48, count = state + 84;
-    qd = state + 12, qdd = state + 24, m3 = state + 60, scale = state + 72;
+    q = state, m1 = state + 36, m2 = state + 48, count = state + 96;
+    scale = state + 72, rscale = state + 84;
+    if (rscale[0] > 0.0) planetary_screen_known(rscale, scale, known);
+    else known[0] = known[1] = 0.0;  /* no screen: never read */
+    qd = state + 12, qdd = state + 24, m3 = state + 60;
     tr = PLANETARY_VEC(work, 9), pp = work + PLANETARY_OFF_PREP;
     planetary_prepare(p, pp);
     for (i = 0; i < n; ++i) {
@@ -1322,6 +1471,11 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
            and trigonometric bases (left in work) serve this one */
         status = planetary_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != PLANETARY_OK) break;
+        if (rscale[0] > 0.0 && planetary_screen(work + PLANETARY_OFF_LU, dense, rscale, scale, known)
+            && !(planetary_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= PLANETARY_COND_SCREEN)) {
+            status = PLANETARY_ILL_CONDITIONED;
+            break;
+        }
         planetary_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!planetary_row_finite(row, qn, qdn, qddn, lam, reac)) {
             status = PLANETARY_NONFINITE;
@@ -1375,9 +1529,10 @@ static void planetary_drive(planetary_real t, const planetary_real *p, planetary
 /* 1 / the column scales of the jump check at the assembled q(t0), as
    symid.numeric.stability.Scaling.of: x and y in units of the median moment
    arm of the rows that mix lengths and angles (else the largest |x|, |y|,
-   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+   else 1), angles in radians; and the rows' norms in those units, for the
+   conditioning screen (1 for a row of zeros). vals: NNZ reals, arms: NC reals. */
 static void planetary_sweep_scales(const planetary_real *q, planetary_real t0, const planetary_real *p, planetary_real *vals,
-                                 planetary_real *arms, planetary_real *inv)
+                                 planetary_real *arms, planetary_real *inv, planetary_real *norm)
 {
     planetary_real lin[12], rot[12], lref = 0.0, a;
     int k, r, m = 0, i;
@@ -1406,6 +1561,10 @@ static void planetary_sweep_scales(const planetary_real *q, planetary_real t0, c
     }
     if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
     for (k = 0; k < 12; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    for (r = 0; r < 12; ++r) {
+        a = PLANETARY_MAX(lin[r] * lref, rot[r]);
+        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+    }
 }
 
 /* Take one solved row's figures; count: the variant's instants taken before.
@@ -1567,7 +1726,10 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
             got = 0;
             st = planetary_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) planetary_sweep_take(rows + m * PLANETARY_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) planetary_sweep_scales(state, t0, pv, vals, arms, state + 72);
+            if (done == 0 && got == 1) {
+                planetary_sweep_scales(state, t0, pv, vals, arms, state + 72, state + 84);
+                st = planetary_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
+            }
             done += got;
         }
         planetary_sweep_finish(fig, acc, done);

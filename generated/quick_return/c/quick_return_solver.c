@@ -22,6 +22,8 @@
 #define QUICK_RETURN_EPS 2.220446049250313e-16  /* the machine epsilon of quick_return_real */
 #define QUICK_RETURN_THRESHOLD 0.1
 #define QUICK_RETURN_SINGULAR_RATIO (1e3 * QUICK_RETURN_EPS)
+#define QUICK_RETURN_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
+#define QUICK_RETURN_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
 #define QUICK_RETURN_MAX_NEWTON 50
 #define QUICK_RETURN_LU_SIZE 20
 #define QUICK_RETURN_MAX(a, b) ((a) > (b) ? (a) : (b))
@@ -719,6 +721,64 @@ static int quick_return_pivots_spread(const quick_return_real *lu)
     return rmin <= QUICK_RETURN_SINGULAR_RATIO * rmax;
 }
 
+/* The conditioning screen's cheap test: 1 where the pivots of the factors
+   in lu, each in the scales of symid's Python loop (row: per constraint row
+   its norm, col: per coordinate 1 / its scale; the pivot of row r, column
+   c is u / (row[r] col[c])), spread wider than SCREEN, or where the
+   pivoting fallback (dense) factored Phi_q: there the condition number may
+   be large, and cond_estimate tells. The reciprocals the slots hold spread
+   as the pivots do. O(NG) an instant. */
+static int quick_return_screen(const quick_return_real *lu, int dense, const quick_return_real *row, const quick_return_real *col,
+                          const quick_return_real *known)
+{
+    quick_return_real wmin = known[0], wmax = known[1], w;
+    if (dense) return 1;
+    w = fabs(lu[15]) * row[5] * col[6];
+    wmin = QUICK_RETURN_MIN(wmin, w);
+    wmax = QUICK_RETURN_MAX(wmax, w);
+    w = fabs(lu[11]) * row[4] * col[5];
+    wmin = QUICK_RETURN_MIN(wmin, w);
+    wmax = QUICK_RETURN_MAX(wmax, w);
+    (void)lu;
+    (void)row;
+    (void)col;
+    (void)w;
+    return !(wmax <= QUICK_RETURN_SCREEN * wmin);
+}
+
+/* The smallest and largest of the pivots known at generation, in the
+   screen's scales (as screen weighs them): the same at every instant of a
+   run, so computed once a call. */
+static void quick_return_screen_known(const quick_return_real *row, const quick_return_real *col, quick_return_real *known)
+{
+    quick_return_real w;
+    known[0] = ((double)INFINITY), known[1] = 0.0;
+    w = 1.0 * row[0] * col[0];
+    known[0] = QUICK_RETURN_MIN(known[0], w);
+    known[1] = QUICK_RETURN_MAX(known[1], w);
+    w = 1.0 * row[1] * col[1];
+    known[0] = QUICK_RETURN_MIN(known[0], w);
+    known[1] = QUICK_RETURN_MAX(known[1], w);
+    w = 1.0 * row[6] * col[7];
+    known[0] = QUICK_RETURN_MIN(known[0], w);
+    known[1] = QUICK_RETURN_MAX(known[1], w);
+    w = 1.0 * row[7] * col[8];
+    known[0] = QUICK_RETURN_MIN(known[0], w);
+    known[1] = QUICK_RETURN_MAX(known[1], w);
+    w = 1.0 * row[8] * col[2];
+    known[0] = QUICK_RETURN_MIN(known[0], w);
+    known[1] = QUICK_RETURN_MAX(known[1], w);
+    w = 1.0 * row[2] * col[3];
+    known[0] = QUICK_RETURN_MIN(known[0], w);
+    known[1] = QUICK_RETURN_MAX(known[1], w);
+    w = 1.0 * row[3] * col[4];
+    known[0] = QUICK_RETURN_MIN(known[0], w);
+    known[1] = QUICK_RETURN_MAX(known[1], w);
+    (void)row;
+    (void)col;
+    (void)w;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -792,6 +852,63 @@ static QUICK_RETURN_COLD void quick_return_refine_t(const quick_return_real *q, 
     if (dense) quick_return_dense_solve_t(work + QUICK_RETURN_OFF_DENSE, iwork, r, d);
     else quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     for (k = 0; k < 9; ++k) lam[k] += d[k];
+}
+
+/* The 1-norm condition estimate of Phi_q in the screen's scales,
+   A = D_r Phi_q D_c (D_r = 1 / row, D_c = 1 / col), as LAPACK's dgecon
+   estimates it for symid's Python loop: ||A||_1 from Phi_q's values at q
+   (into work's first NNZ reals), ||A^-1||_1 by Hager's method (at most five
+   solves with the factors and their transposes, as dlacn2) and Higham's
+   alternating vector (one solve); both are lower bounds. Run only where the
+   cheap test (screen) trips. Work vectors 0 to 3 are free between Newton and
+   the outputs. */
+static quick_return_real quick_return_cond_estimate(const quick_return_real *q, const quick_return_real *tr, quick_return_real t, const quick_return_real *p,
+                                    quick_return_real *work, const int *iwork, int dense, const quick_return_real *row,
+                                    const quick_return_real *col)
+{
+    quick_return_real *vals = work, *x = QUICK_RETURN_VEC(work, 0), *z = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
+    quick_return_real *b = QUICK_RETURN_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
+    int k, it, j = 0, last = -1;
+    quick_return_phi_q_k(q, tr, t, p, vals);
+    for (k = 0; k < 9; ++k) z[k] = 0.0;
+    for (k = 0; k < 20; ++k)
+        z[quick_return_phi_q_cols[k]] += fabs(vals[k]) / (row[quick_return_phi_q_rows[k]] * col[quick_return_phi_q_cols[k]]);
+    for (k = 0; k < 9; ++k) anorm = QUICK_RETURN_MAX(anorm, z[k]);
+    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    for (it = 0; it < 5; ++it) {
+        /* z = A^-1 x = col (Phi_q^-1 (row x)) */
+        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        quick_return_solve(work, iwork, dense, b, z, y);
+        s = 0.0;
+        for (k = 0; k < 9; ++k) {
+            z[k] *= col[k];
+            s += fabs(z[k]);
+        }
+        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
+        if (it > 0 && s <= est) break;
+        est = s;
+        /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
+        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        quick_return_solve_t(work, iwork, dense, b, z);
+        zmax = -1.0, ztx = 0.0;
+        for (k = 0; k < 9; ++k) {
+            z[k] *= row[k];
+            ztx += z[k] * x[k];
+            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+        }
+        if (it > 0 && (j == last || zmax <= ztx)) break;
+        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        x[j] = 1.0;
+        last = j;
+    }
+    /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
+    for (k = 0; k < 9; ++k)
+        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (quick_return_real)k / QUICK_RETURN_MAX(1.0, 8.0));
+    quick_return_solve(work, iwork, dense, b, z, y);
+    s = 0.0;
+    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
+    est = QUICK_RETURN_MAX(est, 2.0 * s / (3.0 * 9.0));
+    return anorm * est;
 }
 
 
@@ -1121,14 +1238,34 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
     return status;
 }
 
+int quick_return_screen_at(quick_return_real t, const quick_return_real *p, const quick_return_real *state, quick_return_real *work, int *iwork)
+{
+    quick_return_real *tr, *pp, known[2];
+    int dense = 0;
+    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+        return QUICK_RETURN_BAD_ARGUMENT;
+    if (!(state[63] > 0.0)) return QUICK_RETURN_OK;  /* no scales: no screen */
+    tr = QUICK_RETURN_VEC(work, 9), pp = work + QUICK_RETURN_OFF_PREP;
+    quick_return_prepare(p, pp);
+    quick_return_trig(state, tr);
+    if (quick_return_factorize(state, tr, t, pp, work, iwork, &dense) != QUICK_RETURN_OK)
+        return QUICK_RETURN_ILL_CONDITIONED;
+    quick_return_screen_known(state + 63, state + 54, known);
+    if (quick_return_screen(work + QUICK_RETURN_OFF_LU, dense, state + 63, state + 54, known)
+        && !(quick_return_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
+             <= QUICK_RETURN_COND_SCREEN))
+        return QUICK_RETURN_ILL_CONDITIONED;
+    return QUICK_RETURN_OK;
+}
+
 int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, const quick_return_real *p, quick_return_real tol, quick_return_real *state,
                        quick_return_real *rows, long *solved, quick_return_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    quick_return_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
-    quick_return_real *qd, *qdd, *m3, *scale;
+    quick_return_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
+    quick_return_real *qd, *qdd, *m3;
     long i, unused;
     int status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -1137,8 +1274,11 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return QUICK_RETURN_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 63;
-    qd = state + 9, qdd = state + 18, m3 = state + 45, scale = state + 54;
+    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
+    scale = state + 54, rscale = state + 63;
+    if (rscale[0] > 0.0) quick_return_screen_known(rscale, scale, known);
+    else known[0] = known[1] = 0.0;  /* no screen: never read */
+    qd = state + 9, qdd = state + 18, m3 = state + 45;
     tr = QUICK_RETURN_VEC(work, 9), pp = work + QUICK_RETURN_OFF_PREP;
     quick_return_prepare(p, pp);
     for (i = 0; i < n; ++i) {
@@ -1190,6 +1330,11 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
            and trigonometric bases (left in work) serve this one */
         status = quick_return_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != QUICK_RETURN_OK) break;
+        if (rscale[0] > 0.0 && quick_return_screen(work + QUICK_RETURN_OFF_LU, dense, rscale, scale, known)
+            && !(quick_return_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= QUICK_RETURN_COND_SCREEN)) {
+            status = QUICK_RETURN_ILL_CONDITIONED;
+            break;
+        }
         quick_return_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!quick_return_row_finite(row, qn, qdn, qddn, lam, reac)) {
             status = QUICK_RETURN_NONFINITE;
@@ -1243,9 +1388,10 @@ static void quick_return_drive(quick_return_real t, const quick_return_real *p, 
 /* 1 / the column scales of the jump check at the assembled q(t0), as
    symid.numeric.stability.Scaling.of: x and y in units of the median moment
    arm of the rows that mix lengths and angles (else the largest |x|, |y|,
-   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+   else 1), angles in radians; and the rows' norms in those units, for the
+   conditioning screen (1 for a row of zeros). vals: NNZ reals, arms: NC reals. */
 static void quick_return_sweep_scales(const quick_return_real *q, quick_return_real t0, const quick_return_real *p, quick_return_real *vals,
-                                 quick_return_real *arms, quick_return_real *inv)
+                                 quick_return_real *arms, quick_return_real *inv, quick_return_real *norm)
 {
     quick_return_real lin[9], rot[9], lref = 0.0, a;
     int k, r, m = 0, i;
@@ -1274,6 +1420,10 @@ static void quick_return_sweep_scales(const quick_return_real *q, quick_return_r
     }
     if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
     for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    for (r = 0; r < 9; ++r) {
+        a = QUICK_RETURN_MAX(lin[r] * lref, rot[r]);
+        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+    }
 }
 
 /* Take one solved row's figures; count: the variant's instants taken before.
@@ -1421,7 +1571,10 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
             got = 0;
             st = quick_return_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) quick_return_sweep_take(rows + m * QUICK_RETURN_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) quick_return_sweep_scales(state, t0, pv, vals, arms, state + 54);
+            if (done == 0 && got == 1) {
+                quick_return_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+                st = quick_return_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
+            }
             done += got;
         }
         quick_return_sweep_finish(fig, acc, done);

@@ -22,6 +22,8 @@
 #define SLIDER_CRANK_EPS 2.220446049250313e-16  /* the machine epsilon of slider_crank_real */
 #define SLIDER_CRANK_THRESHOLD 0.1
 #define SLIDER_CRANK_SINGULAR_RATIO (1e3 * SLIDER_CRANK_EPS)
+#define SLIDER_CRANK_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
+#define SLIDER_CRANK_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
 #define SLIDER_CRANK_MAX_NEWTON 50
 #define SLIDER_CRANK_LU_SIZE 21
 #define SLIDER_CRANK_MAX(a, b) ((a) > (b) ? (a) : (b))
@@ -678,6 +680,64 @@ static int slider_crank_pivots_spread(const slider_crank_real *lu)
     return rmin <= SLIDER_CRANK_SINGULAR_RATIO * rmax;
 }
 
+/* The conditioning screen's cheap test: 1 where the pivots of the factors
+   in lu, each in the scales of symid's Python loop (row: per constraint row
+   its norm, col: per coordinate 1 / its scale; the pivot of row r, column
+   c is u / (row[r] col[c])), spread wider than SCREEN, or where the
+   pivoting fallback (dense) factored Phi_q: there the condition number may
+   be large, and cond_estimate tells. The reciprocals the slots hold spread
+   as the pivots do. O(NG) an instant. */
+static int slider_crank_screen(const slider_crank_real *lu, int dense, const slider_crank_real *row, const slider_crank_real *col,
+                          const slider_crank_real *known)
+{
+    slider_crank_real wmin = known[0], wmax = known[1], w;
+    if (dense) return 1;
+    w = fabs(lu[16]) * row[5] * col[5];
+    wmin = SLIDER_CRANK_MIN(wmin, w);
+    wmax = SLIDER_CRANK_MAX(wmax, w);
+    (void)lu;
+    (void)row;
+    (void)col;
+    (void)w;
+    return !(wmax <= SLIDER_CRANK_SCREEN * wmin);
+}
+
+/* The smallest and largest of the pivots known at generation, in the
+   screen's scales (as screen weighs them): the same at every instant of a
+   run, so computed once a call. */
+static void slider_crank_screen_known(const slider_crank_real *row, const slider_crank_real *col, slider_crank_real *known)
+{
+    slider_crank_real w;
+    known[0] = ((double)INFINITY), known[1] = 0.0;
+    w = 1.0 * row[4] * col[6];
+    known[0] = SLIDER_CRANK_MIN(known[0], w);
+    known[1] = SLIDER_CRANK_MAX(known[1], w);
+    w = 1.0 * row[2] * col[3];
+    known[0] = SLIDER_CRANK_MIN(known[0], w);
+    known[1] = SLIDER_CRANK_MAX(known[1], w);
+    w = 1.0 * row[0] * col[0];
+    known[0] = SLIDER_CRANK_MIN(known[0], w);
+    known[1] = SLIDER_CRANK_MAX(known[1], w);
+    w = 1.0 * row[6] * col[7];
+    known[0] = SLIDER_CRANK_MIN(known[0], w);
+    known[1] = SLIDER_CRANK_MAX(known[1], w);
+    w = 1.0 * row[7] * col[8];
+    known[0] = SLIDER_CRANK_MIN(known[0], w);
+    known[1] = SLIDER_CRANK_MAX(known[1], w);
+    w = 1.0 * row[8] * col[2];
+    known[0] = SLIDER_CRANK_MIN(known[0], w);
+    known[1] = SLIDER_CRANK_MAX(known[1], w);
+    w = 1.0 * row[1] * col[1];
+    known[0] = SLIDER_CRANK_MIN(known[0], w);
+    known[1] = SLIDER_CRANK_MAX(known[1], w);
+    w = 1.0 * row[3] * col[4];
+    known[0] = SLIDER_CRANK_MIN(known[0], w);
+    known[1] = SLIDER_CRANK_MAX(known[1], w);
+    (void)row;
+    (void)col;
+    (void)w;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -751,6 +811,63 @@ static SLIDER_CRANK_COLD void slider_crank_refine_t(const slider_crank_real *q, 
     if (dense) slider_crank_dense_solve_t(work + SLIDER_CRANK_OFF_DENSE, iwork, r, d);
     else slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     for (k = 0; k < 9; ++k) lam[k] += d[k];
+}
+
+/* The 1-norm condition estimate of Phi_q in the screen's scales,
+   A = D_r Phi_q D_c (D_r = 1 / row, D_c = 1 / col), as LAPACK's dgecon
+   estimates it for symid's Python loop: ||A||_1 from Phi_q's values at q
+   (into work's first NNZ reals), ||A^-1||_1 by Hager's method (at most five
+   solves with the factors and their transposes, as dlacn2) and Higham's
+   alternating vector (one solve); both are lower bounds. Run only where the
+   cheap test (screen) trips. Work vectors 0 to 3 are free between Newton and
+   the outputs. */
+static slider_crank_real slider_crank_cond_estimate(const slider_crank_real *q, const slider_crank_real *tr, slider_crank_real t, const slider_crank_real *p,
+                                    slider_crank_real *work, const int *iwork, int dense, const slider_crank_real *row,
+                                    const slider_crank_real *col)
+{
+    slider_crank_real *vals = work, *x = SLIDER_CRANK_VEC(work, 0), *z = SLIDER_CRANK_VEC(work, 1), *y = SLIDER_CRANK_VEC(work, 2);
+    slider_crank_real *b = SLIDER_CRANK_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
+    int k, it, j = 0, last = -1;
+    slider_crank_phi_q_k(q, tr, t, p, vals);
+    for (k = 0; k < 9; ++k) z[k] = 0.0;
+    for (k = 0; k < 21; ++k)
+        z[slider_crank_phi_q_cols[k]] += fabs(vals[k]) / (row[slider_crank_phi_q_rows[k]] * col[slider_crank_phi_q_cols[k]]);
+    for (k = 0; k < 9; ++k) anorm = SLIDER_CRANK_MAX(anorm, z[k]);
+    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    for (it = 0; it < 5; ++it) {
+        /* z = A^-1 x = col (Phi_q^-1 (row x)) */
+        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        slider_crank_solve(work, iwork, dense, b, z, y);
+        s = 0.0;
+        for (k = 0; k < 9; ++k) {
+            z[k] *= col[k];
+            s += fabs(z[k]);
+        }
+        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
+        if (it > 0 && s <= est) break;
+        est = s;
+        /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
+        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        slider_crank_solve_t(work, iwork, dense, b, z);
+        zmax = -1.0, ztx = 0.0;
+        for (k = 0; k < 9; ++k) {
+            z[k] *= row[k];
+            ztx += z[k] * x[k];
+            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+        }
+        if (it > 0 && (j == last || zmax <= ztx)) break;
+        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        x[j] = 1.0;
+        last = j;
+    }
+    /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
+    for (k = 0; k < 9; ++k)
+        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (slider_crank_real)k / SLIDER_CRANK_MAX(1.0, 8.0));
+    slider_crank_solve(work, iwork, dense, b, z, y);
+    s = 0.0;
+    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
+    est = SLIDER_CRANK_MAX(est, 2.0 * s / (3.0 * 9.0));
+    return anorm * est;
 }
 
 
@@ -1084,14 +1201,34 @@ int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider
     return status;
 }
 
+int slider_crank_screen_at(slider_crank_real t, const slider_crank_real *p, const slider_crank_real *state, slider_crank_real *work, int *iwork)
+{
+    slider_crank_real *tr, *pp, known[2];
+    int dense = 0;
+    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+        return SLIDER_CRANK_BAD_ARGUMENT;
+    if (!(state[63] > 0.0)) return SLIDER_CRANK_OK;  /* no scales: no screen */
+    tr = SLIDER_CRANK_VEC(work, 9), pp = work + SLIDER_CRANK_OFF_PREP;
+    slider_crank_prepare(p, pp);
+    slider_crank_trig(state, tr);
+    if (slider_crank_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_CRANK_OK)
+        return SLIDER_CRANK_ILL_CONDITIONED;
+    slider_crank_screen_known(state + 63, state + 54, known);
+    if (slider_crank_screen(work + SLIDER_CRANK_OFF_LU, dense, state + 63, state + 54, known)
+        && !(slider_crank_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
+             <= SLIDER_CRANK_COND_SCREEN))
+        return SLIDER_CRANK_ILL_CONDITIONED;
+    return SLIDER_CRANK_OK;
+}
+
 int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, const slider_crank_real *p, slider_crank_real tol, slider_crank_real *state,
                        slider_crank_real *rows, long *solved, slider_crank_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    slider_crank_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
-    slider_crank_real *qd, *qdd, *m3, *scale;
+    slider_crank_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
+    slider_crank_real *qd, *qdd, *m3;
     long i, unused;
     int status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -1100,8 +1237,11 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return SLIDER_CRANK_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 63;
-    qd = state + 9, qdd = state + 18, m3 = state + 45, scale = state + 54;
+    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
+    scale = state + 54, rscale = state + 63;
+    if (rscale[0] > 0.0) slider_crank_screen_known(rscale, scale, known);
+    else known[0] = known[1] = 0.0;  /* no screen: never read */
+    qd = state + 9, qdd = state + 18, m3 = state + 45;
     tr = SLIDER_CRANK_VEC(work, 9), pp = work + SLIDER_CRANK_OFF_PREP;
     slider_crank_prepare(p, pp);
     for (i = 0; i < n; ++i) {
@@ -1153,6 +1293,11 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
            and trigonometric bases (left in work) serve this one */
         status = slider_crank_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != SLIDER_CRANK_OK) break;
+        if (rscale[0] > 0.0 && slider_crank_screen(work + SLIDER_CRANK_OFF_LU, dense, rscale, scale, known)
+            && !(slider_crank_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= SLIDER_CRANK_COND_SCREEN)) {
+            status = SLIDER_CRANK_ILL_CONDITIONED;
+            break;
+        }
         slider_crank_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!slider_crank_row_finite(row, qn, qdn, qddn, lam, reac)) {
             status = SLIDER_CRANK_NONFINITE;
@@ -1203,9 +1348,10 @@ static void slider_crank_drive(slider_crank_real t, const slider_crank_real *p, 
 /* 1 / the column scales of the jump check at the assembled q(t0), as
    symid.numeric.stability.Scaling.of: x and y in units of the median moment
    arm of the rows that mix lengths and angles (else the largest |x|, |y|,
-   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+   else 1), angles in radians; and the rows' norms in those units, for the
+   conditioning screen (1 for a row of zeros). vals: NNZ reals, arms: NC reals. */
 static void slider_crank_sweep_scales(const slider_crank_real *q, slider_crank_real t0, const slider_crank_real *p, slider_crank_real *vals,
-                                 slider_crank_real *arms, slider_crank_real *inv)
+                                 slider_crank_real *arms, slider_crank_real *inv, slider_crank_real *norm)
 {
     slider_crank_real lin[9], rot[9], lref = 0.0, a;
     int k, r, m = 0, i;
@@ -1234,6 +1380,10 @@ static void slider_crank_sweep_scales(const slider_crank_real *q, slider_crank_r
     }
     if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
     for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    for (r = 0; r < 9; ++r) {
+        a = SLIDER_CRANK_MAX(lin[r] * lref, rot[r]);
+        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+    }
 }
 
 /* Take one solved row's figures; count: the variant's instants taken before.
@@ -1375,7 +1525,10 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
             got = 0;
             st = slider_crank_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) slider_crank_sweep_take(rows + m * SLIDER_CRANK_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) slider_crank_sweep_scales(state, t0, pv, vals, arms, state + 54);
+            if (done == 0 && got == 1) {
+                slider_crank_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+                st = slider_crank_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
+            }
             done += got;
         }
         slider_crank_sweep_finish(fig, acc, done);

@@ -20,7 +20,7 @@ typedef double slider_crank_counterweight_real;
 #define SLIDER_CRANK_COUNTERWEIGHT_ROW 67          /* values per instant in a trajectory row */
 #define SLIDER_CRANK_COUNTERWEIGHT_WORK 474        /* reals of workspace every solver call needs */
 #define SLIDER_CRANK_COUNTERWEIGHT_IWORK 9         /* ints of workspace */
-#define SLIDER_CRANK_COUNTERWEIGHT_STATE 64       /* reals of trajectory state */
+#define SLIDER_CRANK_COUNTERWEIGHT_STATE 73       /* reals of trajectory state */
 
 /* Status of every solver call. */
 #define SLIDER_CRANK_COUNTERWEIGHT_OK 0
@@ -34,6 +34,11 @@ typedef double slider_crank_counterweight_real;
 #define SLIDER_CRANK_COUNTERWEIGHT_BAD_ARGUMENT 5  /* a scalar argument is invalid (tol not finite or <= 0, t, t0
                                    or h not finite, n < 0) or a required pointer is NULL:
                                    nothing was solved */
+#define SLIDER_CRANK_COUNTERWEIGHT_ILL_CONDITIONED 6  /* trajectory, screen_at, with the screen's scales set: the
+                                   pivots in those scales spread wider than SCREEN (or the
+                                   pivoting fallback factored Phi_q): the condition number
+                                   may pass symid's warning level, near a singular position:
+                                   verify it (symid estimates it, warns or stops) */
 
 /* Output groups compiled in (1) or left out (0). */
 #define SLIDER_CRANK_COUNTERWEIGHT_HAS_QDOT 1
@@ -192,8 +197,16 @@ int slider_crank_counterweight_instant(slider_crank_counterweight_real t, const 
    call of one run. state (STATE reals) carries the predictor between calls:
    set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
    first call. state[6 NG..7 NG-1]: per
-   coordinate, 1 / its scale for the jump check (zeros: no check).
+   coordinate, 1 / its scale for the jump check (zeros: no check);
+   state[7 NG..8 NG-1]: per constraint row, its norm in those scales, for
+   the conditioning screen (zeros: no screen; symid sets both from q(t0)).
    *solved = rows written (solved may be NULL). */
+/* The conditioning screen at q = state[0..NG-1], time t, with the state's
+   scales: ILL_CONDITIONED where it trips (or Phi_q cannot be factored), OK
+   where it does not or no scales are set (symid screens t0, which the first
+   call of trajectory solves before the scales are known). */
+int slider_crank_counterweight_screen_at(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, const slider_crank_counterweight_real *state, slider_crank_counterweight_real *work, int *iwork);
+
 int slider_crank_counterweight_trajectory(slider_crank_counterweight_real t0, slider_crank_counterweight_real h, long n, const slider_crank_counterweight_real *p, slider_crank_counterweight_real tol, slider_crank_counterweight_real *state,
                        slider_crank_counterweight_real *rows, long *solved, slider_crank_counterweight_real *work, int *iwork);
 

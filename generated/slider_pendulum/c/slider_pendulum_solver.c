@@ -22,6 +22,8 @@
 #define SLIDER_PENDULUM_EPS 2.220446049250313e-16  /* the machine epsilon of slider_pendulum_real */
 #define SLIDER_PENDULUM_THRESHOLD 0.1
 #define SLIDER_PENDULUM_SINGULAR_RATIO (1e3 * SLIDER_PENDULUM_EPS)
+#define SLIDER_PENDULUM_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
+#define SLIDER_PENDULUM_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
 #define SLIDER_PENDULUM_MAX_NEWTON 50
 #define SLIDER_PENDULUM_LU_SIZE 15
 #define SLIDER_PENDULUM_MAX(a, b) ((a) > (b) ? (a) : (b))
@@ -624,6 +626,55 @@ static int slider_pendulum_pivots_spread(const slider_pendulum_real *lu)
     return rmin <= SLIDER_PENDULUM_SINGULAR_RATIO * rmax;
 }
 
+/* The conditioning screen's cheap test: 1 where the pivots of the factors
+   in lu, each in the scales of symid's Python loop (row: per constraint row
+   its norm, col: per coordinate 1 / its scale; the pivot of row r, column
+   c is u / (row[r] col[c])), spread wider than SCREEN, or where the
+   pivoting fallback (dense) factored Phi_q: there the condition number may
+   be large, and cond_estimate tells. The reciprocals the slots hold spread
+   as the pivots do. O(NG) an instant. */
+static int slider_pendulum_screen(const slider_pendulum_real *lu, int dense, const slider_pendulum_real *row, const slider_pendulum_real *col,
+                          const slider_pendulum_real *known)
+{
+    slider_pendulum_real wmin = known[0], wmax = known[1], w;
+    if (dense) return 1;
+    w = fabs(lu[0]) * row[0] * col[2];
+    wmin = SLIDER_PENDULUM_MIN(wmin, w);
+    wmax = SLIDER_PENDULUM_MAX(wmax, w);
+    w = fabs(lu[2]) * row[1] * col[1];
+    wmin = SLIDER_PENDULUM_MIN(wmin, w);
+    wmax = SLIDER_PENDULUM_MAX(wmax, w);
+    w = fabs(lu[3]) * row[2] * col[0];
+    wmin = SLIDER_PENDULUM_MIN(wmin, w);
+    wmax = SLIDER_PENDULUM_MAX(wmax, w);
+    (void)lu;
+    (void)row;
+    (void)col;
+    (void)w;
+    return !(wmax <= SLIDER_PENDULUM_SCREEN * wmin);
+}
+
+/* The smallest and largest of the pivots known at generation, in the
+   screen's scales (as screen weighs them): the same at every instant of a
+   run, so computed once a call. */
+static void slider_pendulum_screen_known(const slider_pendulum_real *row, const slider_pendulum_real *col, slider_pendulum_real *known)
+{
+    slider_pendulum_real w;
+    known[0] = ((double)INFINITY), known[1] = 0.0;
+    w = 1.0 * row[3] * col[3];
+    known[0] = SLIDER_PENDULUM_MIN(known[0], w);
+    known[1] = SLIDER_PENDULUM_MAX(known[1], w);
+    w = 1.0 * row[4] * col[4];
+    known[0] = SLIDER_PENDULUM_MIN(known[0], w);
+    known[1] = SLIDER_PENDULUM_MAX(known[1], w);
+    w = 1.0 * row[5] * col[5];
+    known[0] = SLIDER_PENDULUM_MIN(known[0], w);
+    known[1] = SLIDER_PENDULUM_MAX(known[1], w);
+    (void)row;
+    (void)col;
+    (void)w;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -695,6 +746,63 @@ static SLIDER_PENDULUM_COLD void slider_pendulum_refine_t(const slider_pendulum_
     if (dense) slider_pendulum_dense_solve_t(work + SLIDER_PENDULUM_OFF_DENSE, iwork, r, d);
     else slider_pendulum_sparse_solve_t(work + SLIDER_PENDULUM_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     for (k = 0; k < 6; ++k) lam[k] += d[k];
+}
+
+/* The 1-norm condition estimate of Phi_q in the screen's scales,
+   A = D_r Phi_q D_c (D_r = 1 / row, D_c = 1 / col), as LAPACK's dgecon
+   estimates it for symid's Python loop: ||A||_1 from Phi_q's values at q
+   (into work's first NNZ reals), ||A^-1||_1 by Hager's method (at most five
+   solves with the factors and their transposes, as dlacn2) and Higham's
+   alternating vector (one solve); both are lower bounds. Run only where the
+   cheap test (screen) trips. Work vectors 0 to 3 are free between Newton and
+   the outputs. */
+static slider_pendulum_real slider_pendulum_cond_estimate(const slider_pendulum_real *q, const slider_pendulum_real *tr, slider_pendulum_real t, const slider_pendulum_real *p,
+                                    slider_pendulum_real *work, const int *iwork, int dense, const slider_pendulum_real *row,
+                                    const slider_pendulum_real *col)
+{
+    slider_pendulum_real *vals = work, *x = SLIDER_PENDULUM_VEC(work, 0), *z = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
+    slider_pendulum_real *b = SLIDER_PENDULUM_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
+    int k, it, j = 0, last = -1;
+    slider_pendulum_phi_q_k(q, tr, t, p, vals);
+    for (k = 0; k < 6; ++k) z[k] = 0.0;
+    for (k = 0; k < 15; ++k)
+        z[slider_pendulum_phi_q_cols[k]] += fabs(vals[k]) / (row[slider_pendulum_phi_q_rows[k]] * col[slider_pendulum_phi_q_cols[k]]);
+    for (k = 0; k < 6; ++k) anorm = SLIDER_PENDULUM_MAX(anorm, z[k]);
+    for (k = 0; k < 6; ++k) x[k] = 1.0 / 6.0;
+    for (it = 0; it < 5; ++it) {
+        /* z = A^-1 x = col (Phi_q^-1 (row x)) */
+        for (k = 0; k < 6; ++k) b[k] = row[k] * x[k];
+        slider_pendulum_solve(work, iwork, dense, b, z, y);
+        s = 0.0;
+        for (k = 0; k < 6; ++k) {
+            z[k] *= col[k];
+            s += fabs(z[k]);
+        }
+        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
+        if (it > 0 && s <= est) break;
+        est = s;
+        /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
+        for (k = 0; k < 6; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        slider_pendulum_solve_t(work, iwork, dense, b, z);
+        zmax = -1.0, ztx = 0.0;
+        for (k = 0; k < 6; ++k) {
+            z[k] *= row[k];
+            ztx += z[k] * x[k];
+            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+        }
+        if (it > 0 && (j == last || zmax <= ztx)) break;
+        for (k = 0; k < 6; ++k) x[k] = 0.0;
+        x[j] = 1.0;
+        last = j;
+    }
+    /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
+    for (k = 0; k < 6; ++k)
+        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (slider_pendulum_real)k / SLIDER_PENDULUM_MAX(1.0, 5.0));
+    slider_pendulum_solve(work, iwork, dense, b, z, y);
+    s = 0.0;
+    for (k = 0; k < 6; ++k) s += fabs(z[k] * col[k]);
+    est = SLIDER_PENDULUM_MAX(est, 2.0 * s / (3.0 * 6.0));
+    return anorm * est;
 }
 
 
@@ -1086,14 +1194,34 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
     return status;
 }
 
+int slider_pendulum_screen_at(slider_pendulum_real t, const slider_pendulum_real *p, const slider_pendulum_real *state, slider_pendulum_real *work, int *iwork)
+{
+    slider_pendulum_real *tr, *pp, known[2];
+    int dense = 0;
+    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+        return SLIDER_PENDULUM_BAD_ARGUMENT;
+    if (!(state[42] > 0.0)) return SLIDER_PENDULUM_OK;  /* no scales: no screen */
+    tr = SLIDER_PENDULUM_VEC(work, 9), pp = work + SLIDER_PENDULUM_OFF_PREP;
+    slider_pendulum_prepare(p, pp);
+    slider_pendulum_trig(state, tr);
+    if (slider_pendulum_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_PENDULUM_OK)
+        return SLIDER_PENDULUM_ILL_CONDITIONED;
+    slider_pendulum_screen_known(state + 42, state + 36, known);
+    if (slider_pendulum_screen(work + SLIDER_PENDULUM_OFF_LU, dense, state + 42, state + 36, known)
+        && !(slider_pendulum_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 42, state + 36)
+             <= SLIDER_PENDULUM_COND_SCREEN))
+        return SLIDER_PENDULUM_ILL_CONDITIONED;
+    return SLIDER_PENDULUM_OK;
+}
+
 int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, long n, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *state,
                        slider_pendulum_real *rows, long *solved, slider_pendulum_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    slider_pendulum_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
-    slider_pendulum_real *qd, *qdd, *m3, *scale;
+    slider_pendulum_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
+    slider_pendulum_real *qd, *qdd, *m3;
     long i, unused;
     int status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -1102,8 +1230,11 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return SLIDER_PENDULUM_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 18, m2 = state + 24, count = state + 42;
-    qd = state + 6, qdd = state + 12, m3 = state + 30, scale = state + 36;
+    q = state, m1 = state + 18, m2 = state + 24, count = state + 48;
+    scale = state + 36, rscale = state + 42;
+    if (rscale[0] > 0.0) slider_pendulum_screen_known(rscale, scale, known);
+    else known[0] = known[1] = 0.0;  /* no screen: never read */
+    qd = state + 6, qdd = state + 12, m3 = state + 30;
     tr = SLIDER_PENDULUM_VEC(work, 9), pp = work + SLIDER_PENDULUM_OFF_PREP;
     slider_pendulum_prepare(p, pp);
     for (i = 0; i < n; ++i) {
@@ -1146,6 +1277,11 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
            and trigonometric bases (left in work) serve this one */
         status = slider_pendulum_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != SLIDER_PENDULUM_OK) break;
+        if (rscale[0] > 0.0 && slider_pendulum_screen(work + SLIDER_PENDULUM_OFF_LU, dense, rscale, scale, known)
+            && !(slider_pendulum_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= SLIDER_PENDULUM_COND_SCREEN)) {
+            status = SLIDER_PENDULUM_ILL_CONDITIONED;
+            break;
+        }
         slider_pendulum_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!slider_pendulum_row_finite(row, qn, qdn, qddn, lam, reac)) {
             status = SLIDER_PENDULUM_NONFINITE;
@@ -1198,9 +1334,10 @@ static void slider_pendulum_drive(slider_pendulum_real t, const slider_pendulum_
 /* 1 / the column scales of the jump check at the assembled q(t0), as
    symid.numeric.stability.Scaling.of: x and y in units of the median moment
    arm of the rows that mix lengths and angles (else the largest |x|, |y|,
-   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+   else 1), angles in radians; and the rows' norms in those units, for the
+   conditioning screen (1 for a row of zeros). vals: NNZ reals, arms: NC reals. */
 static void slider_pendulum_sweep_scales(const slider_pendulum_real *q, slider_pendulum_real t0, const slider_pendulum_real *p, slider_pendulum_real *vals,
-                                 slider_pendulum_real *arms, slider_pendulum_real *inv)
+                                 slider_pendulum_real *arms, slider_pendulum_real *inv, slider_pendulum_real *norm)
 {
     slider_pendulum_real lin[6], rot[6], lref = 0.0, a;
     int k, r, m = 0, i;
@@ -1229,6 +1366,10 @@ static void slider_pendulum_sweep_scales(const slider_pendulum_real *q, slider_p
     }
     if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
     for (k = 0; k < 6; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    for (r = 0; r < 6; ++r) {
+        a = SLIDER_PENDULUM_MAX(lin[r] * lref, rot[r]);
+        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+    }
 }
 
 /* Take one solved row's figures; count: the variant's instants taken before.
@@ -1385,7 +1526,10 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
             got = 0;
             st = slider_pendulum_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) slider_pendulum_sweep_take(rows + m * SLIDER_PENDULUM_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) slider_pendulum_sweep_scales(state, t0, pv, vals, arms, state + 36);
+            if (done == 0 && got == 1) {
+                slider_pendulum_sweep_scales(state, t0, pv, vals, arms, state + 36, state + 42);
+                st = slider_pendulum_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
+            }
             done += got;
         }
         slider_pendulum_sweep_finish(fig, acc, done);

@@ -20,7 +20,7 @@ typedef double slider_pendulum_real;
 #define SLIDER_PENDULUM_ROW 55          /* values per instant in a trajectory row */
 #define SLIDER_PENDULUM_WORK 425        /* reals of workspace every solver call needs */
 #define SLIDER_PENDULUM_IWORK 6         /* ints of workspace */
-#define SLIDER_PENDULUM_STATE 43       /* reals of trajectory state */
+#define SLIDER_PENDULUM_STATE 49       /* reals of trajectory state */
 
 /* Status of every solver call. */
 #define SLIDER_PENDULUM_OK 0
@@ -34,6 +34,11 @@ typedef double slider_pendulum_real;
 #define SLIDER_PENDULUM_BAD_ARGUMENT 5  /* a scalar argument is invalid (tol not finite or <= 0, t, t0
                                    or h not finite, n < 0) or a required pointer is NULL:
                                    nothing was solved */
+#define SLIDER_PENDULUM_ILL_CONDITIONED 6  /* trajectory, screen_at, with the screen's scales set: the
+                                   pivots in those scales spread wider than SCREEN (or the
+                                   pivoting fallback factored Phi_q): the condition number
+                                   may pass symid's warning level, near a singular position:
+                                   verify it (symid estimates it, warns or stops) */
 
 /* Output groups compiled in (1) or left out (0). */
 #define SLIDER_PENDULUM_HAS_QDOT 1
@@ -174,8 +179,16 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
    call of one run. state (STATE reals) carries the predictor between calls:
    set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
    first call. state[6 NG..7 NG-1]: per
-   coordinate, 1 / its scale for the jump check (zeros: no check).
+   coordinate, 1 / its scale for the jump check (zeros: no check);
+   state[7 NG..8 NG-1]: per constraint row, its norm in those scales, for
+   the conditioning screen (zeros: no screen; symid sets both from q(t0)).
    *solved = rows written (solved may be NULL). */
+/* The conditioning screen at q = state[0..NG-1], time t, with the state's
+   scales: ILL_CONDITIONED where it trips (or Phi_q cannot be factored), OK
+   where it does not or no scales are set (symid screens t0, which the first
+   call of trajectory solves before the scales are known). */
+int slider_pendulum_screen_at(slider_pendulum_real t, const slider_pendulum_real *p, const slider_pendulum_real *state, slider_pendulum_real *work, int *iwork);
+
 int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, long n, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *state,
                        slider_pendulum_real *rows, long *solved, slider_pendulum_real *work, int *iwork);
 

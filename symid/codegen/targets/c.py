@@ -26,6 +26,8 @@ from symid.io.files import atomic_write
 from symid.model.motion import piece_tables, tables
 from symid.numeric.newton import RULE
 from symid.numeric.solve import JUMP_FLOOR, UNEXPLAINED
+from symid.model.analysis import DEFAULT_COND_WARN
+from symid.numeric.stability import ESTIMATE_MARGIN, SCREEN
 
 NAME = "c"
 
@@ -95,8 +97,9 @@ def _lu(model: CodeModel, fold_constants: bool, scalar: Scalar) -> dict[str, Any
     tables = lu_tables(model.plan)
     runs = None if model.plan.singular else lu_runs(tables, model.flat.options.multipliers, scalar.fn("fabs"), P,
                                                     scalar.suffix)
-    return {"lu_tables": tables, "lu_runs": runs, "known_reciprocals": None,
-            "pivot_slots": [model.plan.slots[(st.row, st.col)] for st in model.plan.steps]}
+    slots = [model.plan.slots[(st.row, st.col)] for st in model.plan.steps]
+    return {"lu_tables": tables, "lu_runs": runs, "known_reciprocals": None, "pivot_slots": slots,
+            "screen": {"slots": [(s, st.row, st.col) for s, st in zip(slots, model.plan.steps)], "known": []}}
 
 
 def _all_blocks(functions: list[dict[str, Any]], prepare: list[Block]) -> list[Block]:
@@ -139,9 +142,10 @@ def work_size(model: CodeModel) -> int:
 
 def state_size(model: CodeModel) -> int:
     """Doubles of trajectory state: q, qd, qdd, three earlier accelerations
-    (statics: two earlier positions), the column scales of the jump check
-    and the count of instants solved."""
-    return 7 * model.flat.ng + 1
+    (statics: two earlier positions), the column scales of the jump check,
+    the row scales of the conditioning screen and the count of instants
+    solved (last)."""
+    return 8 * model.flat.ng + 1
 
 
 OUTPUTS_ARGS = ("t", "p", "q", "tr", "qd", "qdd", "lam", "reactions", "work", "iwork", "dense")
@@ -258,6 +262,8 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
                                 **{k: scalar.lit(float(d[k])) for k in ("t0", "t1", "tol")}},
         "max_newton": RULE.max_iterations, "floor_ulps": scalar.lit(RULE.floor_ulps),
         "jump_floor": scalar.lit(JUMP_FLOOR), "unexplained": scalar.lit(UNEXPLAINED),
+        "screen_ratio": scalar.lit(DEFAULT_COND_WARN / SCREEN),
+        "cond_screen": scalar.lit(DEFAULT_COND_WARN / ESTIMATE_MARGIN),
         "velocity": o.velocity, "dynamics": dynamics,
         "multipliers": o.multipliers, "has": has, "row_parts": row_parts,
         "outputs_unused": _outputs_unused(o.velocity, o.multipliers, nr),

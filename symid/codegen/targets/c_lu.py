@@ -129,6 +129,11 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str, scalar: Scalar = D
     known = [abs(1.0 / f.pivot) for f in steps if f.pivot is not None and f.pivot != 0.0]
     passes["pivot_slots"] = [f.pivot_slot for f in steps if f.pivot is None]
     passes["known_reciprocals"] = (scalar.lit(min(known)), scalar.lit(max(known))) if known else None
+    # the conditioning screen (solver.c.j2, screen): each pivot's reciprocal
+    # with its row and column, a slot where computed, a number where known
+    passes["screen"] = {"slots": [(f.pivot_slot, f.step.row, f.step.col) for f in steps if f.pivot is None],
+                        "known": [(scalar.lit(abs(1.0 / f.pivot)), f.step.row, f.step.col) for f in steps
+                                  if f.pivot is not None and f.pivot != 0.0]}
     # the solves' fixed entry points take lu even where every value is a number
     passes["solve_reads_lu"] = any(ch["lu"] for k in ("forward_chunks", "back_chunks") for ch in passes[k])
     passes["f"] = scalar.suffix  # the suffix of the template's own literals
