@@ -302,6 +302,7 @@ def test_pinion_on_a_moving_arm_couples_the_relative_turn(tmp_path):
 def test_a_signal_is_substituted_before_derivation():
     """A driver's f written through two signals is the same expression written out."""
     mech = loads(GROUND_PINION, "rack.toml")
+    assert mech.name == "rack_ground"  # not the last signal's name
     f = next(c for c in mech.constraints if c.name == "motor").values["f"]
     a, b, w = (sp.Symbol(n, real=True) for n in "abw")
     assert sp.simplify(f - (a * T**2 / 2 + b * sp.sin(w * T) - b * w * T)) == 0

@@ -160,9 +160,9 @@ class _Reader:
             names[b.name] = "body"
         if not bodies:
             raise self.fail("top level", "no [[body]]: a mechanism needs at least one body")
-        for name in self.signals:
-            if name in names:
-                raise self.fail(f"[signals] key '{name}'", f"shadows the body '{name}': give the signal another name")
+        for signal in self.signals:
+            if signal in names:
+                raise self.fail(f"[signals] key '{signal}'", f"shadows the body '{signal}': give the signal another name")
         constraints = tuple(self.element(c, n, "constraint", CONSTRAINTS, names)
                             for n, c in enumerate(self.array(data, "constraint")))
         forces = tuple(self.element(f, n, "force", FORCES, names)
