@@ -25,9 +25,9 @@
 #define RACK_LIFT_OFF_VEC (RACK_LIFT_OFF_DENSE + 36)
 #define RACK_LIFT_VEC(work, k) ((work) + RACK_LIFT_OFF_VEC + (k) * 24)
 #define RACK_LIFT_OFF_PREP 322  /* the prepared parameters (NPP), after the vectors */
-#define RACK_LIFT_NPP 15
+#define RACK_LIFT_NPP 18
 
-const rack_lift_real rack_lift_default_params[10] = { 0.04, 0.3, 0.8, 0.4, 0.8, 0.8, 6.0, 0.6, 25.0, 0.15 };
+const rack_lift_real rack_lift_default_params[8] = { 0.04, 0.25, 2.0, 0.8, 6.0, 0.6, 25.0, 0.25 };
 const char *const rack_lift_row_names[RACK_LIFT_ROW] = {
     "t",
     "pinion.x",
@@ -79,7 +79,7 @@ const char *const rack_lift_row_names[RACK_LIFT_ROW] = {
     "motor.Fy_j",
     "motor.T_j"
 };
-const char *const rack_lift_param_names[10] = { "r", "H", "T_up", "T_hold", "T_down", "m_pinion", "m_rack", "L_rack", "payload", "e_payload" };
+const char *const rack_lift_param_names[8] = { "r", "H", "T_cycle", "m_pinion", "m_rack", "L_rack", "payload", "e_payload" };
 const rack_lift_real rack_lift_default_q0[RACK_LIFT_NG] = { 0.0, 0.0, 0.0, 0.04, 0.0, 0.0 };
 const int rack_lift_phi_q_rows[11] = { 0, 1, 2, 3, 4, 4, 4, 4, 4, 4, 5 };
 const int rack_lift_phi_q_cols[11] = { 0, 1, 3, 5, 0, 1, 2, 3, 4, 5, 2 };
@@ -180,45 +180,34 @@ static void rack_lift_trig_step(const rack_lift_real *q, const rack_lift_real *d
    evaluation. The kernels read both from this one vector. */
 static void rack_lift_prepare(const rack_lift_real *p, rack_lift_real *pp)
 {
-    memcpy(pp, p, sizeof(rack_lift_real) * 10);
+    memcpy(pp, p, sizeof(rack_lift_real) * 8);
     {
-        pp[10] = (1.0/p[0]);
-        pp[11] = -981.0/100.0*p[6] - 981.0/100.0*p[8];
-        pp[12] = p[8]*p[9];
-        pp[13] = (1.0/2.0)*(p[0]*p[0])*p[5];
-        pp[14] = (1.0/12.0)*p[6]*(p[7]*p[7]);
+        const rack_lift_real e0 = (1.0/p[0]);
+        const rack_lift_real e1 = (1.0/p[2]);
+        const rack_lift_real e2 = e0*p[1];
+        const rack_lift_real e3 = (1.0/(p[2]*p[2]));
+        pp[8] = e0;
+        pp[9] = e1;
+        pp[10] = e2;
+        pp[11] = e1*e2;
+        pp[12] = e3;
+        pp[13] = e2*e3;
+        pp[14] = -981.0/100.0*p[4] - 981.0/100.0*p[6];
+        pp[15] = p[6]*p[7];
+        pp[16] = (1.0/2.0)*(p[0]*p[0])*p[3];
+        pp[17] = (1.0/12.0)*p[4]*(p[5]*p[5]);
     }
 }
 
 static void rack_lift_phi_k0(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
     const rack_lift_real e0 = -q[3];
-    const rack_lift_real e1 = p[2] + 1.0/10.0;
-    const rack_lift_real e2 = e1 + p[3];
-    const rack_lift_real e3 = -e2 + t;
-    const rack_lift_real e4 = t - 1.0/10.0;
     out[0] = q[0];
     out[1] = q[1];
     out[2] = e0 + p[0];
     out[3] = q[5];
     out[4] = -p[0]*(q[2] - q[5]) - tr[2]*(-e0 - q[0]) + tr[3]*(-q[1] + q[4]);
-    out[5] = -p[10]*(-((e2 > t) ? (
-   0
-)
-: ((t < e2 + p[4]) ? (
-   p[1]*(6*(e3*e3*e3*e3*e3)/(p[4]*p[4]*p[4]*p[4]*p[4]) - 15*(e3*e3*e3*e3)/(p[4]*p[4]*p[4]*p[4]) + 10*(e3*e3*e3)/(p[4]*p[4]*p[4]))
-)
-: (
-   p[1]
-))) + ((t < 1.0/10.0) ? (
-   0
-)
-: ((e1 > t) ? (
-   p[1]*(6*(e4*e4*e4*e4*e4)/(p[2]*p[2]*p[2]*p[2]*p[2]) - 15*(e4*e4*e4*e4)/(p[2]*p[2]*p[2]*p[2]) + 10*(e4*e4*e4)/(p[2]*p[2]*p[2]))
-)
-: (
-   p[1]
-)))) + q[2];
+    out[5] = -1.0/2.0*p[10]*(1 - cos(2*3.141592653589793*p[9]*t)) + q[2];
 }
 
 static void rack_lift_phi_k(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -228,7 +217,7 @@ static void rack_lift_phi_k(const rack_lift_real * q, const rack_lift_real * tr,
 
 void rack_lift_phi(const rack_lift_real * q, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[15];
+    rack_lift_real prepared[18];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -260,7 +249,7 @@ static void rack_lift_phi_q_k(const rack_lift_real * q, const rack_lift_real * t
 
 void rack_lift_phi_q(const rack_lift_real * q, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[15];
+    rack_lift_real prepared[18];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -272,32 +261,12 @@ static void rack_lift_nu_k0(const rack_lift_real * q, const rack_lift_real * tr,
 {
     (void)q;
     (void)tr;
-    const rack_lift_real e0 = p[2] + 1.0/10.0;
-    const rack_lift_real e1 = e0 + p[3];
-    const rack_lift_real e2 = -e1 + t;
-    const rack_lift_real e3 = t - 1.0/10.0;
     out[0] = 0;
     out[1] = 0;
     out[2] = 0;
     out[3] = 0;
     out[4] = 0;
-    out[5] = p[10]*(-((e1 > t) ? (
-   0
-)
-: ((t < e1 + p[4]) ? (
-   p[1]*(30*(e2*e2*e2*e2)/(p[4]*p[4]*p[4]*p[4]*p[4]) - 60*(e2*e2*e2)/(p[4]*p[4]*p[4]*p[4]) + 30*(e2*e2)/(p[4]*p[4]*p[4]))
-)
-: (
-   0
-))) + ((t < 1.0/10.0) ? (
-   0
-)
-: ((e0 > t) ? (
-   p[1]*(30*(e3*e3*e3*e3)/(p[2]*p[2]*p[2]*p[2]*p[2]) - 60*(e3*e3*e3)/(p[2]*p[2]*p[2]*p[2]) + 30*(e3*e3)/(p[2]*p[2]*p[2]))
-)
-: (
-   0
-))));
+    out[5] = 3.141592653589793*p[11]*sin(2*3.141592653589793*p[9]*t);
 }
 
 static void rack_lift_nu_k(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -307,7 +276,7 @@ static void rack_lift_nu_k(const rack_lift_real * q, const rack_lift_real * tr, 
 
 void rack_lift_nu(const rack_lift_real * q, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[15];
+    rack_lift_real prepared[18];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -323,34 +292,12 @@ static void rack_lift_gamma_k0(const rack_lift_real * q, const rack_lift_real * 
     const rack_lift_real e3 = 2*qd[5];
     const rack_lift_real e4 = e3*tr[3];
     const rack_lift_real e5 = e3*tr[2];
-    const rack_lift_real e6 = p[2] + 1.0/10.0;
-    const rack_lift_real e7 = e6 + p[3];
-    const rack_lift_real e8 = 10*t;
-    const rack_lift_real e9 = -e8 + 10*p[2] + 10*p[3] + 1;
-    const rack_lift_real e10 = (3.0/25.0)*p[1];
-    const rack_lift_real e11 = e8 - 1;
     out[0] = 0;
     out[1] = 0;
     out[2] = 0;
     out[3] = 0;
     out[4] = e1*q[0] - e1*q[3] - e2*q[1] + e2*q[4] - e4*qd[0] + e4*qd[3] - e5*qd[1] + e5*qd[4];
-    out[5] = p[10]*(-((e7 > t) ? (
-   0
-)
-: ((t < e7 + p[4]) ? (
-   -e10*e9*((e9*e9)/(p[4]*p[4]) + 15*e9/p[4] + 50)/(p[4]*p[4]*p[4])
-)
-: (
-   0
-))) + ((t < 1.0/10.0) ? (
-   0
-)
-: ((e6 > t) ? (
-   e10*e11*((e11*e11)/(p[2]*p[2]) - 15*e11/p[2] + 50)/(p[2]*p[2]*p[2])
-)
-: (
-   0
-))));
+    out[5] = 2*(3.141592653589793*3.141592653589793)*p[13]*cos(2*3.141592653589793*p[9]*t);
 }
 
 static void rack_lift_gamma_k(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -360,7 +307,7 @@ static void rack_lift_gamma_k(const rack_lift_real * q, const rack_lift_real * t
 
 void rack_lift_gamma(const rack_lift_real * q, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[15];
+    rack_lift_real prepared[18];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -374,11 +321,11 @@ static void rack_lift_applied_k0(const rack_lift_real * q, const rack_lift_real 
     (void)qd;
     (void)t;
     out[0] = 0;
-    out[1] = -981.0/100.0*p[5];
+    out[1] = -981.0/100.0*p[3];
     out[2] = 0;
     out[3] = 0;
-    out[4] = p[11];
-    out[5] = -981.0/100.0*p[12]*tr[3];
+    out[4] = p[14];
+    out[5] = -981.0/100.0*p[15]*tr[3];
 }
 
 static void rack_lift_applied_k(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -388,7 +335,7 @@ static void rack_lift_applied_k(const rack_lift_real * q, const rack_lift_real *
 
 void rack_lift_applied(const rack_lift_real * q, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[15];
+    rack_lift_real prepared[18];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -398,12 +345,12 @@ void rack_lift_applied(const rack_lift_real * q, const rack_lift_real * qd, rack
 
 static void rack_lift_mass_k0(const rack_lift_real * p, rack_lift_real *out)
 {
-    out[0] = p[5];
-    out[1] = p[5];
-    out[2] = p[13];
-    out[3] = p[6];
-    out[4] = p[6];
-    out[5] = p[14];
+    out[0] = p[3];
+    out[1] = p[3];
+    out[2] = p[16];
+    out[3] = p[4];
+    out[4] = p[4];
+    out[5] = p[17];
 }
 
 static void rack_lift_mass_k(const rack_lift_real * p, rack_lift_real *out)
@@ -413,7 +360,7 @@ static void rack_lift_mass_k(const rack_lift_real * p, rack_lift_real *out)
 
 void rack_lift_mass(const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[15];
+    rack_lift_real prepared[18];
     rack_lift_prepare(p, prepared);
     p = prepared;
     rack_lift_mass_k(p, out);
@@ -458,7 +405,7 @@ static void rack_lift_reactions_k(const rack_lift_real * q, const rack_lift_real
 
 void rack_lift_reactions(const rack_lift_real * q, const rack_lift_real * lam, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[15];
+    rack_lift_real prepared[18];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -1159,59 +1106,11 @@ static void rack_lift_drive(rack_lift_real t, const rack_lift_real *p, rack_lift
 {
     (void)t;
     (void)p;
-    const rack_lift_real d0 = (1.0/p[0]);
-    const rack_lift_real d1 = p[2] + 1.0/10.0;
-    const rack_lift_real d2 = d1 + p[3];
-    const rack_lift_real d3 = t < d2;
-    const rack_lift_real d4 = (1.0/(p[4]*p[4]*p[4]*p[4]));
-    const rack_lift_real d5 = -d2 + t;
-    const rack_lift_real d6 = (d5*d5*d5*d5);
-    const rack_lift_real d7 = (1.0/(p[4]*p[4]*p[4]*p[4]*p[4]));
-    const rack_lift_real d8 = (1.0/(p[4]*p[4]*p[4]));
-    const rack_lift_real d9 = (d5*d5*d5);
-    const rack_lift_real d10 = t < d2 + p[4];
-    const rack_lift_real d11 = t < 1.0/10.0;
-    const rack_lift_real d12 = (1.0/(p[2]*p[2]*p[2]*p[2]));
-    const rack_lift_real d13 = t - 1.0/10.0;
-    const rack_lift_real d14 = (d13*d13*d13*d13);
-    const rack_lift_real d15 = (1.0/(p[2]*p[2]*p[2]*p[2]*p[2]));
-    const rack_lift_real d16 = (1.0/(p[2]*p[2]*p[2]));
-    const rack_lift_real d17 = (d13*d13*d13);
-    const rack_lift_real d18 = t < d1;
-    out[0] = d0*(((d11) ? (
-   0
-)
-: ((d18) ? (
-   p[1]*(-15*d12*d14 + 6*(d13*d13*d13*d13*d13)*d15 + 10*d16*d17)
-)
-: (
-   p[1]
-))) - ((d3) ? (
-   0
-)
-: ((d10) ? (
-   p[1]*(-15*d4*d6 + 6*(d5*d5*d5*d5*d5)*d7 + 10*d8*d9)
-)
-: (
-   p[1]
-))));
-    out[1] = d0*(((d11) ? (
-   0
-)
-: ((d18) ? (
-   p[1]*(-60*d12*d17 + 30*(d13*d13)*d16 + 30*d14*d15)
-)
-: (
-   0
-))) - ((d3) ? (
-   0
-)
-: ((d10) ? (
-   p[1]*(-60*d4*d9 + 30*(d5*d5)*d8 + 30*d6*d7)
-)
-: (
-   0
-))));
+    const rack_lift_real d0 = 3.141592653589793/p[2];
+    const rack_lift_real d1 = 2*d0*t;
+    const rack_lift_real d2 = p[1]/p[0];
+    out[0] = (1.0/2.0)*d2*(1 - cos(d1));
+    out[1] = d0*d2*sin(d1);
 }
 
 /* 1 / the column scales of the jump check at the assembled q(t0), as

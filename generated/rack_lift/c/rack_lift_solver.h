@@ -14,11 +14,11 @@ typedef double rack_lift_real;
 /* Sizes. */
 #define RACK_LIFT_NG 6            /* generalized coordinates q = [x, y, phi] per body */
 #define RACK_LIFT_NC 6            /* constraint rows */
-#define RACK_LIFT_NP 10            /* parameters p */
+#define RACK_LIFT_NP 8            /* parameters p */
 #define RACK_LIFT_NNZ 11          /* structural nonzeros of Phi_q */
 #define RACK_LIFT_NR 24            /* reaction values (Fx, Fy, T per body role) */
 #define RACK_LIFT_ROW 49          /* values per instant in a trajectory row */
-#define RACK_LIFT_WORK 337        /* reals of workspace every solver call needs */
+#define RACK_LIFT_WORK 340        /* reals of workspace every solver call needs */
 #define RACK_LIFT_IWORK 6         /* ints of workspace */
 #define RACK_LIFT_STATE 43       /* reals of trajectory state */
 
@@ -42,9 +42,9 @@ typedef double rack_lift_real;
 #define RACK_LIFT_HAS_REACTIONS 1
 
 /* Parameters p (size NP): the base parameters, the only inputs, in this
-   order: r, H, T_up, T_hold, T_down, m_pinion, m_rack, L_rack, payload, e_payload.
+   order: r, H, T_cycle, m_pinion, m_rack, L_rack, payload, e_payload.
 */
-extern const rack_lift_real rack_lift_default_params[10];
+extern const rack_lift_real rack_lift_default_params[8];
 /* What a trajectory row holds: ROW values, t then the compiled groups in
    contract order (the CSV header of `symid solve`); units in the comments
    (angles in rad, the rest in the file's consistent units). */
@@ -100,17 +100,15 @@ extern const char *const rack_lift_row_names[RACK_LIFT_ROW];
 /*   row[48] motor.T_j (force*length) */
 
 /* Parameter names, in the order of p (NP); the file's comment beside each. */
-extern const char *const rack_lift_param_names[10];
+extern const char *const rack_lift_param_names[8];
 /*   p[0] r = 0.04  pinion pitch radius, m */
-/*   p[1] H = 0.3  lift height, m */
-/*   p[2] T_up = 0.8  rise time, s */
-/*   p[3] T_hold = 0.4  dwell at the top, s */
-/*   p[4] T_down = 0.8  return time, s */
-/*   p[5] m_pinion = 0.8  kg */
-/*   p[6] m_rack = 6.0  rack, platform and its guide shoes, kg */
-/*   p[7] L_rack = 0.6  rack length, m */
-/*   p[8] payload = 25.0  payload on the platform, kg */
-/*   p[9] e_payload = 0.15  the payload's centre, out from the rack's line, m */
+/*   p[1] H = 0.25  lift height, m */
+/*   p[2] T_cycle = 2.0  up and down, s */
+/*   p[3] m_pinion = 0.8  kg */
+/*   p[4] m_rack = 6.0  rack, platform and its guide shoes, kg */
+/*   p[5] L_rack = 0.6  rack length, m */
+/*   p[6] payload = 25.0  payload on the platform, kg */
+/*   p[7] e_payload = 0.25  the payload's centre, out from the rack's line, m */
 
 /* The configuration assembled at T0 (NG: x, y, phi per body: pinion, rack):
    the first guess of a run. */
@@ -118,15 +116,15 @@ extern const rack_lift_real rack_lift_default_q0[RACK_LIFT_NG];
 
 /* The file's time grid and tolerance: STEPS instants from T0 to T1. */
 #define RACK_LIFT_T0 0.0
-#define RACK_LIFT_T1 2.2
-#define RACK_LIFT_STEPS 221L
+#define RACK_LIFT_T1 2.0
+#define RACK_LIFT_STEPS 201L
 #define RACK_LIFT_TOL 1e-12
 
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 77, phi_q 10, nu 59, gamma 62, applied 7, mass 0, reactions 11, lu_factor 12, lu_forward 4, lu_back 3, lu_t_forward 3, lu_t_back 4. */
-#define RACK_LIFT_OPS_INSTANT 343
+   work), and of each evaluation: phi 20, phi_q 10, nu 6, gamma 29, applied 7, mass 0, reactions 11, lu_factor 12, lu_forward 4, lu_back 3, lu_t_forward 3, lu_t_back 4. */
+#define RACK_LIFT_OPS_INSTANT 143
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int rack_lift_phi_q_rows[11];

@@ -8,7 +8,7 @@ or (N,) give results with a trailing N. `instant` solves one instant (Newton,
 then the outputs) with scalar code and a sparse LU whose pivot order was
 fixed at generation time; `trajectory` runs a whole time grid with it.
 Parameters p (size NP): the base parameters, the only inputs, in this order:
-r, H, T_up, T_hold, T_down, m_pinion, m_rack, L_rack, payload, e_payload.
+r, H, T_cycle, m_pinion, m_rack, L_rack, payload, e_payload.
 """
 
 import math
@@ -18,11 +18,11 @@ import numpy as np
 
 NG = 6
 NC = 6
-NP = 10
+NP = 8
 NR = 24
 NNZ = 11
-PARAMS = ("r", "H", "T_up", "T_hold", "T_down", "m_pinion", "m_rack", "L_rack", "payload", "e_payload", )
-DEFAULT_PARAMS = np.array([0.04, 0.3, 0.8, 0.4, 0.8, 0.8, 6.0, 0.6, 25.0, 0.15], dtype=float)
+PARAMS = ("r", "H", "T_cycle", "m_pinion", "m_rack", "L_rack", "payload", "e_payload", )
+DEFAULT_PARAMS = np.array([0.04, 0.25, 2.0, 0.8, 6.0, 0.6, 25.0, 0.25], dtype=float)
 PHI_Q_ROWS = np.array([0, 1, 2, 3, 4, 4, 4, 4, 4, 4, 5], dtype=np.intp)
 PHI_Q_COLS = np.array([0, 1, 3, 5, 0, 1, 2, 3, 4, 5, 2], dtype=np.intp)
 OUTPUTS = ("q", "qdot", "qddot", "lambda", "reactions", )
@@ -61,33 +61,25 @@ def phi(q, t, p):
     """Phi, size NC."""
     out = [0.0] * 6
     e0 = -q[3]
-    e1 = p[2] + 1/10
-    e2 = e1 + p[3]
-    e3 = -e2 + t
-    e4 = t - 1/10
     out[0] = q[0]
     out[1] = q[1]
     out[2] = e0 + p[0]
     out[3] = q[5]
     out[4] = -p[0]*(q[2] - q[5]) - (-e0 - q[0])*numpy.sin(q[5]) + (-q[1] + q[4])*numpy.cos(q[5])
-    out[5] = q[2] - (-numpy.select([numpy.greater(e2, t),numpy.less(t, e2 + p[4]),True], [0,p[1]*(6*e3**5/p[4]**5 - 15*e3**4/p[4]**4 + 10*e3**3/p[4]**3),p[1]], default=numpy.nan) + numpy.select([numpy.less(t, 1/10),numpy.greater(e1, t),True], [0,p[1]*(6*e4**5/p[2]**5 - 15*e4**4/p[2]**4 + 10*e4**3/p[2]**3),p[1]], default=numpy.nan))/p[0]
+    out[5] = q[2] - 1/2*p[1]*(1 - numpy.cos(2*numpy.pi*t/p[2]))/p[0]
     return _stack(out, q[0])
 
 
 def _phi_s(q, t, p):
     # one instant, floats in and out (a list display: faster than item stores)
     e0 = -q[3]
-    e1 = p[2] + 1/10
-    e2 = e1 + p[3]
-    e3 = -e2 + t
-    e4 = t - 1/10
     out = [
         q[0],
         q[1],
         e0 + p[0],
         q[5],
         -p[0]*(q[2] - q[5]) - (-e0 - q[0])*math.sin(q[5]) + (-q[1] + q[4])*math.cos(q[5]),
-        q[2] - (-((0) if (e2 > t) else (p[1]*(6*e3**5/p[4]**5 - 15*e3**4/p[4]**4 + 10*e3**3/p[4]**3)) if (t < e2 + p[4]) else (p[1])) + ((0) if (t < 1/10) else (p[1]*(6*e4**5/p[2]**5 - 15*e4**4/p[2]**4 + 10*e4**3/p[2]**3)) if (e1 > t) else (p[1])))/p[0],
+        q[2] - 1/2*p[1]*(1 - math.cos(2*math.pi*t/p[2]))/p[0],
     ]
     return out
 
@@ -136,32 +128,26 @@ def _phi_q_values_s(q, t, p):
 def nu(q, t, p):
     """nu = -Phi_t, size NC."""
     out = [0.0] * 6
-    e0 = p[2] + 1/10
-    e1 = e0 + p[3]
-    e2 = -e1 + t
-    e3 = t - 1/10
+    e0 = numpy.pi/p[2]
     out[0] = 0
     out[1] = 0
     out[2] = 0
     out[3] = 0
     out[4] = 0
-    out[5] = (-numpy.select([numpy.greater(e1, t),numpy.less(t, e1 + p[4]),True], [0,p[1]*(30*e2**4/p[4]**5 - 60*e2**3/p[4]**4 + 30*e2**2/p[4]**3),0], default=numpy.nan) + numpy.select([numpy.less(t, 1/10),numpy.greater(e0, t),True], [0,p[1]*(30*e3**4/p[2]**5 - 60*e3**3/p[2]**4 + 30*e3**2/p[2]**3),0], default=numpy.nan))/p[0]
+    out[5] = e0*p[1]*numpy.sin(2*e0*t)/p[0]
     return _stack(out, q[0])
 
 
 def _nu_s(q, t, p):
     # one instant, floats in and out (a list display: faster than item stores)
-    e0 = p[2] + 1/10
-    e1 = e0 + p[3]
-    e2 = -e1 + t
-    e3 = t - 1/10
+    e0 = math.pi/p[2]
     out = [
         0,
         0,
         0,
         0,
         0,
-        (-((0) if (e1 > t) else (p[1]*(30*e2**4/p[4]**5 - 60*e2**3/p[4]**4 + 30*e2**2/p[4]**3)) if (t < e1 + p[4]) else (0)) + ((0) if (t < 1/10) else (p[1]*(30*e3**4/p[2]**5 - 60*e3**3/p[2]**4 + 30*e3**2/p[2]**3)) if (e0 > t) else (0)))/p[0],
+        e0*p[1]*math.sin(2*e0*t)/p[0],
     ]
     return out
 
@@ -177,18 +163,12 @@ def gamma(q, qd, t, p):
     e5 = 2*qd[5]
     e6 = e3*e5
     e7 = e1*e5
-    e8 = p[2] + 1/10
-    e9 = e8 + p[3]
-    e10 = 10*t
-    e11 = -e10 + 10*p[2] + 10*p[3] + 1
-    e12 = (3/25)*p[1]
-    e13 = e10 - 1
     out[0] = 0
     out[1] = 0
     out[2] = 0
     out[3] = 0
     out[4] = e2*q[0] - e2*q[3] - e4*q[1] + e4*q[4] - e6*qd[0] + e6*qd[3] - e7*qd[1] + e7*qd[4]
-    out[5] = (-numpy.select([numpy.greater(e9, t),numpy.less(t, e9 + p[4]),True], [0,-e11*e12*(e11**2/p[4]**2 + 15*e11/p[4] + 50)/p[4]**3,0], default=numpy.nan) + numpy.select([numpy.less(t, 1/10),numpy.greater(e8, t),True], [0,e12*e13*(e13**2/p[2]**2 - 15*e13/p[2] + 50)/p[2]**3,0], default=numpy.nan))/p[0]
+    out[5] = 2*numpy.pi**2*p[1]*numpy.cos(2*numpy.pi*t/p[2])/(p[0]*p[2]**2)
     return _stack(out, q[0])
 
 
@@ -202,19 +182,13 @@ def _gamma_s(q, qd, t, p):
     e5 = 2*qd[5]
     e6 = e3*e5
     e7 = e1*e5
-    e8 = p[2] + 1/10
-    e9 = e8 + p[3]
-    e10 = 10*t
-    e11 = -e10 + 10*p[2] + 10*p[3] + 1
-    e12 = (3/25)*p[1]
-    e13 = e10 - 1
     out = [
         0,
         0,
         0,
         0,
         e2*q[0] - e2*q[3] - e4*q[1] + e4*q[4] - e6*qd[0] + e6*qd[3] - e7*qd[1] + e7*qd[4],
-        (-((0) if (e9 > t) else (-e11*e12*(e11**2/p[4]**2 + 15*e11/p[4] + 50)/p[4]**3) if (t < e9 + p[4]) else (0)) + ((0) if (t < 1/10) else (e12*e13*(e13**2/p[2]**2 - 15*e13/p[2] + 50)/p[2]**3) if (e8 > t) else (0)))/p[0],
+        2*math.pi**2*p[1]*math.cos(2*math.pi*t/p[2])/(p[0]*p[2]**2),
     ]
     return out
 
@@ -222,26 +196,26 @@ def _gamma_s(q, qd, t, p):
 def applied(q, qd, t, p):
     """Q^A, size NG."""
     out = [0.0] * 6
-    e0 = (981/100)*p[8]
+    e0 = (981/100)*p[6]
     out[0] = 0
-    out[1] = -981/100*p[5]
+    out[1] = -981/100*p[3]
     out[2] = 0
     out[3] = 0
-    out[4] = -e0 - 981/100*p[6]
-    out[5] = -e0*p[9]*numpy.cos(q[5])
+    out[4] = -e0 - 981/100*p[4]
+    out[5] = -e0*p[7]*numpy.cos(q[5])
     return _stack(out, q[0])
 
 
 def _applied_s(q, qd, t, p):
     # one instant, floats in and out (a list display: faster than item stores)
-    e0 = (981/100)*p[8]
+    e0 = (981/100)*p[6]
     out = [
         0,
-        -981/100*p[5],
+        -981/100*p[3],
         0,
         0,
-        -e0 - 981/100*p[6],
-        -e0*p[9]*math.cos(q[5]),
+        -e0 - 981/100*p[4],
+        -e0*p[7]*math.cos(q[5]),
     ]
     return out
 
@@ -249,24 +223,24 @@ def _applied_s(q, qd, t, p):
 def mass(p):
     """The diagonal of M, size NG."""
     out = [0.0] * 6
-    out[0] = p[5]
-    out[1] = p[5]
-    out[2] = (1/2)*p[0]**2*p[5]
-    out[3] = p[6]
-    out[4] = p[6]
-    out[5] = (1/12)*p[6]*p[7]**2
+    out[0] = p[3]
+    out[1] = p[3]
+    out[2] = (1/2)*p[0]**2*p[3]
+    out[3] = p[4]
+    out[4] = p[4]
+    out[5] = (1/12)*p[4]*p[5]**2
     return _stack(out, 0.0)
 
 
 def _mass_s(p):
     # one instant, floats in and out (a list display: faster than item stores)
     out = [
-        p[5],
-        p[5],
-        (1/2)*p[0]**2*p[5],
-        p[6],
-        p[6],
-        (1/12)*p[6]*p[7]**2,
+        p[3],
+        p[3],
+        (1/2)*p[0]**2*p[3],
+        p[4],
+        p[4],
+        (1/12)*p[4]*p[5]**2,
     ]
     return out
 
