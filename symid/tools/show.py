@@ -241,7 +241,8 @@ def derive_type(name: str, options: Mapping[str, str] | None = None, expanded: b
     for role in der.roles:
         react = show(der.reactions[role])
         at = der.family.points[role]
-        where_at = f"at P{_SUB[role]}" if at else "at the centre of mass"
+        where_at = ("at the pitch point" if callable(at)  # a point moving on the body: the rack's only
+                    else f"at P{_SUB[role]}" if at else "at the centre of mass")
         items.append(Item(f"F_on_{role} ({where_at})", rf"F_{{\text{{on }}{role}}}", react[:2, :]))
         items.append(Item(f"T_on_{role}", rf"T_{{\text{{on }}{role}}}", react[2]))
     notes = [GEAR_NOTE] if name.startswith("gear") else []
