@@ -17,10 +17,10 @@ import sympy as sp
 from symid.symbolic.constraints import TYPES as CONSTRAINTS
 from symid.model.elements import Family, Key
 from symid.errors import InputError
-from symid.model.expr import FUNCTIONS, parse_expression
+from symid.model.expr import FUNCTIONS
 from symid.symbolic.forces import TYPES as FORCES
 from symid.io.files import read_text
-from symid.io import friction as friction_table
+from symid.io import friction as friction_table, signals
 from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS, MAX_STEPS
 from symid.io.table import read as read_table
 from symid.model.mechanism import (
@@ -38,7 +38,6 @@ ANALYSIS_KEYS = ("kind", "t0", "t1", "steps", "tol", "outputs", "reactions", "co
                  "assembly_jump")
 BODY_KEYS = ("name", "mass", "inertia", "q0")
 RESERVED = {"t", "pi", GROUND} | set(FUNCTIONS)
-BUILTINS = RESERVED | set(LAWS)  # what a signal must not shadow either
 
 
 def load(path: str | Path, set_values: Mapping[str, str] | None = None,
@@ -71,7 +70,6 @@ class _Reader:
         self.source = source
         self.params: dict[str, sp.Symbol] = {}
         self.values: dict[sp.Symbol, float] = {}
-        self.signals: dict[str, sp.Expr] = {}  # name -> its expression of t, substituted where used
 
     def fail(self, where: str, message: str) -> InputError:
         return InputError(f"{self.source}: {where}: {message}")
@@ -95,18 +93,8 @@ class _Reader:
     def expr(self, value: Any, where: str, time: bool = False) -> sp.Expr:
         if not isinstance(value, (str, int, float)) or isinstance(value, bool):
             raise self.fail(where, f"must be a number or an expression string, not {_kind(value)}")
-        symbols: dict[str, sp.Expr] = dict(self.params)
-        if time:
-            symbols["t"] = T
-            symbols.update(self.signals)
-        else:  # a placeholder, to say why a signal is refused in a constant
-            symbols.update({n: _signal(n) for n in self.signals})
-        expr = parse_expression(value, symbols, f"{self.source}: {where}", functions=LAWS)
-        used = sorted(n for n in self.signals if _signal(n) in expr.free_symbols) if not time else []
-        if used:
-            raise self.fail(where, f"uses the signal '{used[0]}', a function of t: this value is a "
-                            "constant (an expression of the parameters only)")
-        return expr
+        return signals.parse(value, {**self.params, **({"t": T} if time else {})}, self.signals, time,
+                             f"{self.source}: {where}", lambda message: self.fail(where, message))
 
     def number(self, value: Any, where: str) -> tuple[sp.Expr, float]:
         expr = self.expr(value, where)
@@ -141,11 +129,10 @@ class _Reader:
         head = self.table(self.require(data, "mechanism", "top level"), "[mechanism]")
         self.unknown(head, MECHANISM_KEYS, "[mechanism]")
         name = self.name(head, "[mechanism]")
-        signals = self.table(data.get("signals", {}), "[signals]")
-        self.signal_names(signals, data.get("parameters", {}))
-        self.signals = {n: _signal(n) for n in signals}  # known before the parameters: named if misused
+        table = self.table(data.get("signals", {}), "[signals]")
+        self.signals = signals.begin(table, data, RESERVED | set(LAWS), self.fail)  # name -> placeholder
         parameters = self.parameters(self.table(data.get("parameters", {}), "[parameters]"), set_values)
-        self.signals = self.read_signals(signals)
+        self.signals = signals.read(table, lambda v, where: self.expr(v, where, time=True), self.fail)  # -> expr
         gravity = self.pair(head.get("gravity", [0, 0]), "[mechanism] key 'gravity'")
         analysis = self.analysis(self.table(data.get("analysis", {}), "[analysis]"), overrides)
         for key, limit in (("body", MAX_BODIES), ("constraint", MAX_CONSTRAINTS), ("force", MAX_FORCES)):
@@ -160,9 +147,6 @@ class _Reader:
             names[b.name] = "body"
         if not bodies:
             raise self.fail("top level", "no [[body]]: a mechanism needs at least one body")
-        for signal in self.signals:
-            if signal in names:
-                raise self.fail(f"[signals] key '{signal}'", f"shadows the body '{signal}': give the signal another name")
         constraints = tuple(self.element(c, n, "constraint", CONSTRAINTS, names)
                             for n, c in enumerate(self.array(data, "constraint")))
         forces = tuple(self.element(f, n, "force", FORCES, names)
@@ -210,31 +194,6 @@ class _Reader:
         except ValueError as exc:
             raise self.fail(f"[parameters] key '{exc.args[0]}'", str(exc.args[1])) from None
         return {n: exprs[n] for n in order}
-
-    def signal_names(self, table: dict[str, Any], parameters: Any) -> None:
-        """Refuse a signal name that is no name or shadows a built-in or a parameter."""
-        for name in table:
-            where = f"[signals] key '{name}'"
-            if len(name) > MAX_NAME_LENGTH or not IDENTIFIER.match(name) or name.startswith("_"):
-                raise self.fail(where, "is not a valid name (letters, digits, _; not starting with _)")
-            if name in BUILTINS:
-                raise self.fail(where, f"shadows the built-in '{name}': give the signal another name")
-            if isinstance(parameters, dict) and name in parameters:
-                raise self.fail(where, f"shadows the parameter '{name}': give the signal another name")
-
-    def read_signals(self, table: dict[str, Any]) -> dict[str, sp.Expr]:
-        """The `[signals]` table: name -> expression of t, the parameters and other signals,
-        each with the signals it uses substituted (so every use is plain t and parameters)."""
-        self.signals = {n: _signal(n) for n in table}  # placeholders while they are read
-        raw = {n: self.expr(v, f"[signals] key '{n}'", time=True) for n, v in table.items()}
-        try:
-            order = order_parameters(raw, _signal)
-        except ValueError as exc:
-            raise self.fail("[signals]", f"signals defined in a cycle: {exc}") from None
-        done: dict[str, sp.Expr] = {}
-        for name in order:
-            done[name] = raw[name].xreplace({_signal(n): done[n] for n in done})
-        return {n: done[n] for n in table}
 
     def base_only(self, name: str, value: Any) -> None:
         """Refuse `--set` of a derived parameter: it is recomputed from its definition."""
@@ -399,16 +358,11 @@ class _Reader:
         return raw
 
     def value(self, key: Key, raw: Any, where: str) -> Any:
-        if key.kind in ("point", "vector"):
-            pair = self.pair(raw, where)
-            if key.rule == "nonzero" and all(to_float(v, self.values) == 0 for v in pair):
-                raise self.fail(where, "must not be the zero vector (it gives a direction)")
-            return pair
-        if key.kind == "scalar":
-            expr, number = self.number(raw, where)
-            if key.rule == "positive" and not number > 0:
-                raise self.fail(where, f"must be positive, not {number:g}")
-            return expr
+        if key.kind in ("point", "vector", "scalar"):
+            got = self.pair(raw, where) if key.kind != "scalar" else (self.number(raw, where)[0],)
+            if problem := key.broken([to_float(v, self.values) for v in got]):  # a rule: r > 0, vj not zero
+                raise self.fail(where, problem)
+            return got if key.kind != "scalar" else got[0]
         if key.kind == "function" and isinstance(raw, dict):
             return read_table(raw, self.source, where)  # f = { table = "motion.csv", column = ... }
         if key.kind == "function":
@@ -439,11 +393,6 @@ class _Reader:
                             f"{ng - nc} missing (inverse dynamics needs one driver per degree of freedom)")
         # nc > ng is judged numerically (which rows are redundant) when the
         # study is prepared: symid.backends.check_redundant
-
-
-def _signal(name: str) -> sp.Symbol:
-    """A signal's placeholder while the file is read: no file can name it (a leading _)."""
-    return sp.Symbol("_signal_" + name, real=True)
 
 
 def _kind(value: Any) -> str:

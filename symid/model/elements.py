@@ -42,6 +42,14 @@ class Key:
     def required(self) -> bool:
         return self.default is REQUIRED
 
+    def broken(self, numbers: list[float]) -> str | None:
+        """What is wrong with a value (its numbers) under the key's `rule`, or None."""
+        if self.rule == "positive" and not numbers[0] > 0:
+            return f"must be positive, not {numbers[0]:g}"
+        if self.rule == "nonzero" and not any(numbers):
+            return "must not be the zero vector (it gives a direction)"
+        return None
+
     def symbol_name(self) -> str:
         return self.symbol or self.name
 
