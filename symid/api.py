@@ -31,7 +31,8 @@ from symid.output.results import Results, check_table_size, columns, table_block
 from symid.output.tables import blocks, write_table
 from symid.numeric.solve import Instant, run
 from symid.backends import check_redundant, require_support
-from symid.numeric.stability import Notes, require_square
+from symid.numeric.redundancy import require_square
+from symid.numeric.stability import Notes
 from symid.text import number, plural
 
 

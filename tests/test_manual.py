@@ -69,7 +69,7 @@ def test_help_format_prints_the_manual(capsys) -> None:
     assert capsys.readouterr().out == MANUAL
 
 
-@pytest.mark.parametrize("name", ["revolute", "gear_on_link", "coordinate_driver", "spring_damper"])
+@pytest.mark.parametrize("name", ["revolute", "gear_on_link", "rack_and_pinion", "coordinate_driver", "spring_damper"])
 def test_help_type_lists_keys_defaults_and_columns(name: str, capsys) -> None:
     assert main(["help", name]) == 0
     out = capsys.readouterr().out

@@ -20,10 +20,8 @@ from symid.symbolic.constraints import TYPES
 from symid.symbolic.derive import derive_constraint
 from symid.errors import InputError
 from symid.io.reader import load
-from symid.tools.show import (
-    Derivation, _abbreviations, abbreviate, derive_mechanism, derive_type, display_names, latex,
-    mechanism_system, pretty,
-)
+from symid.tools.notation import display_names, latex, pretty
+from symid.tools.show import Derivation, _abbreviations, abbreviate, derive_mechanism, derive_type, mechanism_system
 
 VARIANTS = [(n, {"coordinate": "phi"} if n == "coordinate_driver" else {}) for n in sorted(TYPES)]
 

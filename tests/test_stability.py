@@ -477,7 +477,8 @@ KEY_DIMENSION = {"si": _LEN, "sj": _LEN, "s": _LEN, "length": _LEN, "L0": _LEN, 
                  "radius_j": _LEN, "F": _FORCE, "fa": _FORCE, "T": _TORQUE, "Ta": _TORQUE}
 TYPE_DIMENSION = {("spring_damper", "k"): _MASS, ("spring_damper", "c"): _MASS,
                   ("rotational_spring_damper", "k"): _TORQUE, ("rotational_spring_damper", "c"): _TORQUE,
-                  ("distance_driver", "f"): _LEN, ("translational_driver", "f"): _LEN}
+                  ("distance_driver", "f"): _LEN, ("translational_driver", "f"): _LEN,
+                  ("rack_and_pinion", "r"): _LEN, ("rack_and_pinion", "C"): _LEN}
 
 
 def _scaled(value, dim: tuple[int, int], u: float, m: float):

@@ -30,6 +30,7 @@ REACTION_POINT = {
     "coordinate_driver": {"i": None},
     "gear": {"i": None, "j": None},
     "gear_on_link": {"i": None, "j": None, "k": None},
+    "rack_and_pinion": {"i": "pitch", "j": "pitch"},  # moves on both bodies: see pitch_point
 }
 
 
@@ -132,10 +133,23 @@ class Truth:
                 if body == "ground":
                     continue
                 key = REACTION_POINT[c.type][role]
-                p, _ = self.point(body, c.values[key] if key else None)
+                if key == "pitch":
+                    p = self.pitch_point(c)
+                else:
+                    p, _ = self.point(body, c.values[key] if key else None)
                 force = np.stack([self.res[f"{c.name}.Fx_{role}"], self.res[f"{c.name}.Fy_{role}"]], 1)
                 loads.append(Load(body, p, force, self.res[f"{c.name}.T_{role}"]))
         return loads
+
+    def pitch_point(self, c) -> np.ndarray:  # type: ignore[no-untyped-def]
+        """A rack and pinion's pitch point, global (n, 2): r R^T u from the pinion's
+        axis, u the rack's unit direction; the side where a positive turn of the
+        pinion moves its teeth along +u."""
+        vx, vy = (self.num(v) for v in c.values["vj"])
+        phi = self.state(c.bodies["j"])["phi"]
+        ux = (np.cos(phi) * vx - np.sin(phi) * vy) / np.hypot(vx, vy)
+        uy = (np.sin(phi) * vx + np.cos(phi) * vy) / np.hypot(vx, vy)
+        return self.state(c.bodies["i"])["r"] + self.num(c.values["r"]) * np.stack([uy, -ux], 1)
 
     def kinetic_power(self) -> np.ndarray:
         """d/dt of the kinetic energy: sum of m v.a + J omega alpha."""

@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING, Mapping, Protocol
 
 from symid.errors import InputError
 from symid.numeric.evaluator import Array, Evaluator, Needs
-from symid.numeric.stability import FEATURES, redundancy_error, requested
+from symid.numeric.redundancy import redundancy_error
+from symid.numeric.stability import FEATURES, requested
 
 if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a backend without sympy
     import sympy as sp

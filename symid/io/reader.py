@@ -17,10 +17,10 @@ import sympy as sp
 from symid.symbolic.constraints import TYPES as CONSTRAINTS
 from symid.model.elements import Family, Key
 from symid.errors import InputError
-from symid.model.expr import FUNCTIONS, parse_expression
+from symid.model.expr import FUNCTIONS
 from symid.symbolic.forces import TYPES as FORCES
 from symid.io.files import read_text
-from symid.io import friction as friction_table
+from symid.io import friction as friction_table, signals
 from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS, MAX_STEPS
 from symid.io.table import read as read_table
 from symid.model.mechanism import (
@@ -32,7 +32,7 @@ from symid.model.params import is_derived, order_parameters, parameter_values, t
 from symid.text import number, plural
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
-TOP_KEYS = ("mechanism", "parameters", "analysis", "body", "constraint", "force")
+TOP_KEYS = ("mechanism", "parameters", "signals", "analysis", "body", "constraint", "force")
 MECHANISM_KEYS = ("name", "gravity")
 ANALYSIS_KEYS = ("kind", "t0", "t1", "steps", "tol", "outputs", "reactions", "cond_warn", "redundant",
                  "assembly_jump")
@@ -93,10 +93,8 @@ class _Reader:
     def expr(self, value: Any, where: str, time: bool = False) -> sp.Expr:
         if not isinstance(value, (str, int, float)) or isinstance(value, bool):
             raise self.fail(where, f"must be a number or an expression string, not {_kind(value)}")
-        symbols: dict[str, sp.Expr] = dict(self.params)
-        if time:
-            symbols["t"] = T
-        return parse_expression(value, symbols, f"{self.source}: {where}", functions=LAWS)
+        return signals.parse(value, self.params, self.signals, time,
+                             f"{self.source}: {where}", lambda message: self.fail(where, message))
 
     def number(self, value: Any, where: str) -> tuple[sp.Expr, float]:
         expr = self.expr(value, where)
@@ -132,15 +130,16 @@ class _Reader:
         self.unknown(head, MECHANISM_KEYS, "[mechanism]")
         name = self.name(head, "[mechanism]")
         if name.startswith("_"):  # the prefix of every C identifier: `_` gave `__real`, a GCC keyword
-            raise self.fail("[mechanism] key 'name'", f"{name!r} starts with '_': it prefixes every identifier "
-                            "of the generated C, where a leading _ makes names reserved for the compiler "
-                            "(start with a letter)")
+            raise self.fail("[mechanism] key 'name'", f"{name!r} starts with '_': it prefixes every identifier of "
+                            "the generated C, where a leading _ is reserved for the compiler (start with a letter)")
+        table = self.table(data.get("signals", {}), "[signals]")
+        self.signals = signals.begin(table, data, RESERVED | set(LAWS), self.fail)  # name -> placeholder
         parameters = self.parameters(self.table(data.get("parameters", {}), "[parameters]"), set_values)
+        self.signals = signals.read(table, lambda v, where: self.expr(v, where, time=True), self.fail)  # -> expr
         gravity = self.pair(head.get("gravity", [0, 0]), "[mechanism] key 'gravity'")
         analysis = self.analysis(self.table(data.get("analysis", {}), "[analysis]"), overrides)
         for key, limit in (("body", MAX_BODIES), ("constraint", MAX_CONSTRAINTS), ("force", MAX_FORCES)):
-            count = len(self.array(data, key))
-            if count > limit:  # before any work on them: the memory of a run grows with the count
+            if (count := len(self.array(data, key))) > limit:  # before any work: a run's memory grows with it
                 raise self.fail(f"[[{key}]]", f"{count} entries, more than the {limit} allowed")
         bodies = tuple(self.body(b, n) for n, b in enumerate(self.array(data, "body")))
         names: dict[str, str] = {}
@@ -171,8 +170,7 @@ class _Reader:
     def parameters(self, table: dict[str, Any], set_values: dict[str, str]) -> dict[str, sp.Expr]:
         for name in set_values:
             if name not in table:
-                known = ", ".join(table) or "none"
-                raise self.fail(f"--set {name}", f"no such parameter (parameters: {known})")
+                raise self.fail(f"--set {name}", f"no such parameter (parameters: {', '.join(table) or 'none'})")
         raw = {**table, **set_values}
         if len(raw) > MAX_PARAMETERS:
             raise self.fail("[parameters]", f"{len(raw)} parameters, more than the {MAX_PARAMETERS} allowed")
@@ -241,8 +239,7 @@ class _Reader:
             outputs = (outputs if outputs is not None else KIND_OUTPUTS[kind]) + ("cond",)
         if outputs is not None:
             allowed = KIND_OUTPUTS[kind] + (("qdot", "qddot") if kind == "statics" else ()) + EXTRA_OUTPUTS
-            bad = [o for o in outputs if o not in allowed]
-            if bad:
+            if bad := [o for o in outputs if o not in allowed]:
                 raise self.fail(f"{where} key 'outputs'", f"{bad[0]!r} is not an output of {kind}")
         reactions = self.names(merged.get("reactions"), f"{where} key 'reactions'", None)
         cond_warn = merged.get("cond_warn")
@@ -361,15 +358,11 @@ class _Reader:
         return raw
 
     def value(self, key: Key, raw: Any, where: str) -> Any:
-        if key.kind == "vector":  # a direction: [0, 0] has none (every row reading it would be 0 = 0)
-            pair = self.pair(raw, where)
-            if all(to_float(v, self.values) == 0.0 for v in pair):
-                raise self.fail(where, f"is the zero vector {list(raw)}: a direction needs a nonzero length")
-            return pair
-        if key.kind == "point":
-            return self.pair(raw, where)
-        if key.kind == "scalar":
-            return self.number(raw, where)[0]
+        if key.kind in ("point", "vector", "scalar"):
+            got = self.pair(raw, where) if key.kind != "scalar" else (self.number(raw, where)[0],)
+            if problem := key.broken([to_float(v, self.values) for v in got]):  # r > 0, a direction not zero
+                raise self.fail(where, problem)
+            return got if key.kind != "scalar" else got[0]
         if key.kind == "function" and isinstance(raw, dict):
             return read_table(raw, self.source, where)  # f = { table = "motion.csv", column = ... }
         if key.kind == "function":

@@ -36,10 +36,19 @@ class Key:
     role: str | None = None
     symbol: str | None = None
     choices: tuple[str, ...] = ()
+    rule: str | None = None  # "positive" (a scalar), "nonzero" (a vector): checked on reading
 
     @property
     def required(self) -> bool:
         return self.default is REQUIRED
+
+    def broken(self, numbers: list[float]) -> str | None:
+        """What is wrong with a value (its numbers) under the key's `rule`, or None."""
+        if self.rule == "positive" and not numbers[0] > 0:
+            return f"must be positive, not {numbers[0]:g}"
+        if self.kind == "vector" and not any(numbers):  # [0, 0] has no direction: its rows would read 0 = 0
+            return f"is the zero vector {numbers}: a direction needs a nonzero length"
+        return None
 
     def symbol_name(self) -> str:
         return self.symbol or self.name
@@ -49,16 +58,16 @@ def body(name: str, role: str | None = None) -> Key:
     return Key(name, "body", role=role or name)
 
 
-def scalar(name: str, symbol: str | None = None, default: Any = REQUIRED) -> Key:
-    return Key(name, "scalar", default=default, symbol=symbol)
+def scalar(name: str, symbol: str | None = None, default: Any = REQUIRED, rule: str | None = None) -> Key:
+    return Key(name, "scalar", default=default, symbol=symbol, rule=rule)
 
 
 def point(name: str) -> Key:
     return Key(name, "point")
 
 
-def vector(name: str) -> Key:
-    return Key(name, "vector")
+def vector(name: str, rule: str | None = None) -> Key:
+    return Key(name, "vector", rule=rule)
 
 
 def function(name: str, default: Any = REQUIRED, symbol: str | None = None) -> Key:
@@ -73,7 +82,9 @@ class Family:
         name: the `type` string of the file.
         keys: the file keys, bodies first.
         points: role -> key of the point where its reaction or load acts
-            (None: the centre of mass).
+            (None: the centre of mass), or a function giving that point's body
+            coordinates as an expression of q (a point that moves on the body:
+            a rack and pinion's pitch point).
         resolve: optional hook turning alternative keys into the canonical
             ones (a gear's radii into K); gets and returns key -> value and
             raises `ValueError(key, message)` style errors via `InputError`.
@@ -81,7 +92,7 @@ class Family:
 
     name: str
     keys: tuple[Key, ...]
-    points: Mapping[str, str | None]
+    points: Mapping[str, str | None | Callable[[], sp.Matrix]]
     resolve: Callable[[dict[str, Any], str], dict[str, Any]] | None = field(default=None, compare=False)
 
     @property

@@ -4,20 +4,22 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import sympy as sp
 
 from symid.model.mechanism import Mechanism, parameter_symbol
 
 
-def order_parameters(exprs: Mapping[str, sp.Expr]) -> list[str]:
-    """Names in an order where each comes after the parameters it uses.
+def order_parameters(exprs: Mapping[str, sp.Expr], symbol: Callable[[str], sp.Symbol] = parameter_symbol
+                     ) -> list[str]:
+    """Names in an order where each comes after the names it uses (`symbol(name)`
+    stands for a name in the expressions: a parameter's symbol, a signal's placeholder).
 
     Raises:
         ValueError: naming the parameters on a cycle.
     """
-    symbols = {parameter_symbol(n): n for n in exprs}
+    symbols = {symbol(n): n for n in exprs}
     deps = {n: {symbols[x] for x in e.free_symbols if x in symbols} for n, e in exprs.items()}
     done: list[str] = []
     state: dict[str, int] = {}

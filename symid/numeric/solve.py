@@ -31,7 +31,8 @@ from symid.errors import AnalysisError
 from symid.model.analysis import Analysis
 from symid.numeric import nonfinite
 from symid.numeric.newton import RULE
-from symid.numeric.stability import SINGULAR_RCOND, Factor, Notes, Scaling, rank_of, redundancy_message
+from symid.numeric.redundancy import rank_of, redundancy_message
+from symid.numeric.stability import SINGULAR_RCOND, Factor, Notes, Scaling
 
 if TYPE_CHECKING:  # a cached run (symid.tools.plan) solves without sympy: friction's model needs it
     from symid.numeric.friction import FrictionModel, Solved

@@ -1,5 +1,5 @@
-"""Numerical stability of the Python loop: equilibration, factorizations,
-rank analysis, and the warnings a run collects.
+"""Numerical stability of the Python loop: equilibration, factorizations and
+the warnings a run collects (the rank analysis: symid.numeric.redundancy).
 
 Units. Lengths are in whatever unit the file uses, so raw `max |Phi|`,
 `max |dq|` and the condition number of `Phi_q` change with it. A `Scaling`
@@ -16,18 +16,11 @@ import functools
 import math
 from dataclasses import dataclass, field
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from symid.model.analysis import Analysis
-from symid.numeric.evaluator import Array, Evaluator
-from symid.numeric.newton import RULE
-from symid.errors import AnalysisError, InputError
+from symid.numeric.evaluator import Array
 
-if TYPE_CHECKING:  # the Python loop runs without sympy when its solver is cached (symid.tools.plan)
-    from symid.symbolic.assemble import Layout
-    from symid.model.mechanism import Mechanism
 
 
 @functools.cache
@@ -203,57 +196,6 @@ class Factor:
         return self.q @ _sla().solve_triangular(self.r, self.dc * b, trans="T", check_finite=False)
 
 
-@dataclass(frozen=True)
-class Rank:
-    """Rank of Phi_q (SVD of the equilibrated matrix) and the rows in dependencies.
-
-    Attributes:
-        rank: numerical rank (singular values above max(nc, ng) eps s_max).
-        cond: 2-norm condition number of the equilibrated matrix (inf if rank < ng).
-        dependent: constraints with a row in the left null space (file order):
-            their multipliers are not unique.
-    """
-
-    rank: int
-    cond: float
-    dependent: tuple[str, ...]
-
-
-def rank_of(jac: Array, scaling: Scaling, layout: Layout, singular: bool = False) -> Rank:
-    """The rank analysis of Phi_q (nc, ng); cost one SVD. `singular`: the caller's
-    factorization found it singular, so the smallest singular value counts as null
-    even when just above this rank threshold (else no constraint would be named)."""
-    nc, ng = jac.shape
-    a = jac / scaling.row[:, None] * scaling.col[None, :]
-    u, sv, _ = np.linalg.svd(a)
-    smax = sv[0] if sv.size else 0.0
-    rank = int(np.sum(sv > max(nc, ng) * EPS * smax))
-    rank = min(rank, min(nc, ng) - 1) if singular else rank
-    cond = float(smax / sv[-1]) if rank == ng and sv.size and sv[-1] > 0 else np.inf
-    share = np.sum(u[:, rank:] ** 2, axis=1)
-    rows = (np.flatnonzero(share > NULL_SHARE * share.max()) if share.size and share.max() > 0
-            else np.zeros(0, dtype=int))
-    dependent = layout.constraint_names_of_rows(rows)
-    order = [c.name for c in layout.mechanism.constraints]
-    return Rank(rank, cond, tuple(sorted(dependent, key=order.index)))
-
-
-def drivers_among(layout: Layout, names: tuple[str, ...]) -> list[str]:
-    """The driver constraints (motors, actuators) among `names`."""
-    kinds = {c.name: c.type for c in layout.mechanism.constraints}
-    return [n for n in names if kinds[n].endswith("driver")]
-
-
-def redundancy_message(layout: Layout, rank: Rank) -> str:
-    """The warning of a run with redundant constraints (redundant = "min_norm")."""
-    drivers = drivers_among(layout, rank.dependent)
-    tail = (f"; so are the drive forces of {', '.join(drivers)}" if drivers else
-            "; the kinematics, the drive torques and the other reactions are unique")
-    return (f"redundant constraints: the rows of {', '.join(rank.dependent)} are dependent "
-            f"(rank {rank.rank} of {layout.nc} rows); their multipliers and reactions are the "
-            f"minimum-norm ones, not unique{tail}")
-
-
 SHOWN_INTERVALS = 3
 
 
@@ -345,116 +287,3 @@ def requested(analysis: Analysis) -> list[str]:
     if analysis.assembly_jump != "error":
         out.append("assembly_jump")
     return out
-
-
-def require_square(mech: Mechanism) -> None:
-    """Generated solvers factor a square Phi_q: an input error, naming the
-    dependent rows, for a mechanism with more rows than coordinates."""
-    from symid.symbolic.assemble import assemble
-    from symid.model.params import parameter_values
-
-    layout = assemble(mech)
-    if layout.nc > layout.ng:
-        raise redundancy_error(layout, parameter_values(mech.parameters),
-                                "generated solvers need as many rows as coordinates; symid solve "
-                                "(redundant = \"min_norm\") solves it")
-
-
-def redundancy_error(layout: Layout, values: object, hint: str) -> InputError:
-    """The rows are analysed at the configuration assembled at t0 (least
-    squares from q0), with the reference evaluator, so every backend and
-    target reports the same names before anything is generated or compiled."""
-    from symid.numeric.evaluator import Needs
-    from symid.numeric.reference import ReferenceEvaluator
-    from symid.model.params import to_float
-
-    mech, nc, ng = layout.mechanism, layout.nc, layout.ng
-    analysis = mech.analysis
-    head = f"{mech.source}: [[constraint]]: {nc} constraint rows for {ng} coordinates: {nc - ng} extra"
-    ev = ReferenceEvaluator(layout, values, Needs(velocity=False))  # type: ignore[arg-type]
-    q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])  # type: ignore[arg-type]
-    extra = _extra_driver(layout, ev, q0, analysis.t0, analysis.tol)
-    if extra:
-        head = f"{head}: {extra};"
-    try:
-        q, _ = assemble_lstsq(ev, q0, analysis.t0, analysis.tol)
-    except AnalysisError as exc:
-        return InputError(f"{head}{' the rows' if extra else ', and they'} cannot all hold at t0 ({exc})")
-    scaling = Scaling.of(ev.phi_q(q, analysis.t0), q)
-    rank = rank_of(ev.phi_q(q, analysis.t0), scaling, layout)
-    if rank.rank < ng:
-        hint = f"with rank {rank.rank} < {ng} a coordinate is also undriven"
-    return InputError(f"{head}{'' if extra else ':'} the rows of {', '.join(rank.dependent)} are dependent at t0 "
-                      f"(rank {rank.rank}); {hint}")
-
-
-class _Without:
-    """An evaluator's Phi and Phi_q without some rows (for assemble_lstsq)."""
-
-    def __init__(self, ev: Evaluator, keep: np.ndarray) -> None:
-        self.ev, self.keep, self.layout = ev, keep, ev.layout
-
-    def phi(self, q: Array, t: float) -> Array:
-        return self.ev.phi(q, t)[self.keep]
-
-    def phi_q(self, q: Array, t: float) -> Array:
-        return self.ev.phi_q(q, t)[self.keep]
-
-
-def _extra_driver(layout: Layout, ev: Evaluator, q0: Array, t0: float, tol: float) -> str:
-    """"driver D is one too many ..." when some driver, dropped, leaves rows
-    that assemble at t0 with Phi_q of full rank: D drives what the other rows
-    already fix (or contradict). The last such driver in file order is named,
-    and the others that would do as well; "" when none does (the extra rows
-    are joints: the rank analysis names them)."""
-    ng, nc = layout.ng, layout.nc
-    fits = []
-    for name in drivers_among(layout, tuple(c.name for c in layout.mechanism.constraints)):
-        start, n = layout.row_of[name]
-        if nc - n < ng:
-            continue
-        keep = np.array([r for r in range(nc) if not start <= r < start + n], dtype=int)
-        rest = _Without(ev, keep)
-        try:
-            q, _ = assemble_lstsq(rest, q0, t0, tol)  # type: ignore[arg-type]
-        except AnalysisError:
-            continue
-        jac = rest.phi_q(q, t0)
-        scaling = Scaling.of(jac, q)
-        sv = np.linalg.svd(jac / scaling.row[:, None] * scaling.col[None, :], compute_uv=False)
-        if sv.size >= ng and sv[ng - 1] > max(jac.shape) * EPS * sv[0]:  # rank_of's threshold
-            fits.append(name)
-    if not fits:
-        return ""
-    if len(fits) > 1:
-        return (f"driver {fits[-1]} is one too many (or {', '.join(fits[:-1])}: each alone drives what the "
-                "other rows leave free)")
-    return f"driver {fits[-1]} is one too many (without it the other rows drive every coordinate)"
-
-
-def assemble_lstsq(ev: Evaluator, q: Array, t: float, tol: float,
-                   max_iterations: int = 100) -> tuple[Array, int]:
-    """Gauss-Newton on Phi(q, t) = 0 with minimum-norm (SVD) steps: assembles
-    even where Phi_q is rank-deficient, for reports that must see such a
-    configuration (`symid check`, the redundancy analysis).
-
-    Raises:
-        AnalysisError: no configuration within tol (scaled) reached.
-    """
-    scaling = Scaling.of(ev.phi_q(q, t), q)
-    phi = ev.phi(q, t)
-    for it in range(1, max_iterations + 1):
-        floor = RULE.floor(scaling.size(q))  # the Newton rule's (symid.numeric.newton)
-        res = scaling.residual(phi)
-        if not np.isfinite(res):
-            break
-        jac = ev.phi_q(q, t)
-        a = jac / scaling.row[:, None] * scaling.col[None, :]
-        dq = scaling.col * np.linalg.lstsq(a, -phi / scaling.row, rcond=1e3 * EPS)[0]
-        q = q + dq
-        phi = ev.phi(q, t)
-        if scaling.residual(phi) <= max(tol, floor) and scaling.size(dq) <= max(tol, floor):
-            return q, it
-    worst = np.argsort(-np.abs(np.nan_to_num(phi / scaling.row, nan=np.inf)))[:3]
-    names = ", ".join(ev.layout.constraint_names_of_rows(worst))
-    raise AnalysisError(f"Newton (least squares) did not assemble the mechanism; largest residuals in: {names}", t)

@@ -101,7 +101,7 @@ def _element_points(mechanism: Mechanism, geo: _Geometry) -> list[tuple[Element,
         family = CONSTRAINTS.get(e.type) or FORCES[e.type]
         for role, body in e.bodies.items():
             key = family.points.get(role)
-            if key is not None:
+            if isinstance(key, str):  # a point that moves on the body (a pitch point) is not drawn
                 out.append((e, role, body, geo.num(e.values[key])))
     return out
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cache
-from typing import Mapping
+from typing import Callable, Mapping
 
 import sympy as sp
 
@@ -63,10 +63,13 @@ def total_derivative(expr: sp.Expr, roles: tuple[str, ...]) -> sp.Expr:
     return out
 
 
-def reaction(jac: sp.Matrix, lam: sp.Matrix, point_key: str | None, role: str) -> sp.Matrix:
+def reaction(jac: sp.Matrix, lam: sp.Matrix, point_key: str | None | Callable[[], sp.Matrix],
+             role: str) -> sp.Matrix:
     """[Fx, Fy, T] on the body in `role`: force at its point, torque about it.
 
-    F = -(Phi_r)^T lambda, T = ((B s')^T (Phi_r)^T - (Phi_phi)^T) lambda.
+    F = -(Phi_r)^T lambda, T = ((B s')^T (Phi_r)^T - (Phi_phi)^T) lambda; s'
+    is the point key's coordinates or, for a point that moves on the body,
+    the expression `point_key()` gives (the moment transfer holds for any s').
     """
     phi_r = jac[:, 0:2]
     phi_phi = jac[:, 2]
@@ -74,8 +77,10 @@ def reaction(jac: sp.Matrix, lam: sp.Matrix, point_key: str | None, role: str) -
     if point_key is None:
         torque = -(phi_phi.T * lam)[0]
     else:
-        bs = s.B(role) * s.point(point_key)
+        bs = s.B(role) * (point_key() if callable(point_key) else s.point(point_key))
         torque = ((bs.T * phi_r.T - phi_phi.T) * lam)[0]
+        if callable(point_key):  # q in the arm: cos^2 + sin^2 left to cancel (a pitch point's 0)
+            torque = sp.simplify(torque)
     return sp.Matrix([force[0], force[1], torque])
 
 

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 from symid.errors import AnalysisError
 from symid.text import plural
 from symid.numeric.solve import newton
-from symid.numeric.stability import Factor, Scaling, assemble_lstsq, rank_of
+from symid.numeric.redundancy import assemble_lstsq, rank_of
+from symid.numeric.stability import Factor, Scaling
 
 
 @dataclass(frozen=True)

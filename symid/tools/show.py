@@ -15,11 +15,9 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import Mapping
 
 import sympy as sp
-from sympy.printing.latex import LatexPrinter
-from sympy.printing.pretty.pretty import PrettyPrinter
 from sympy.printing.pretty.stringpict import prettyForm
 
 from symid.symbolic import symbols as s
@@ -29,69 +27,9 @@ from symid.model.elements import registry_lookup
 from symid.errors import InputError
 from symid.symbolic.assemble import assemble
 from symid.model.mechanism import GROUND, Mechanism
+from symid.tools.notation import SUBSCRIPT, Pretty, pretty, latex, scalar
 
-# -- names: one table for Unicode and LaTeX -------------------------------------
-
-_SUB = {"i": "\u1d62", "j": "\u2c7c", "k": "\u2096", "0": "\u2080", "1": "\u2081", "2": "\u2082"}
-_COORD = re.compile(r"(x|y|phi)(d?)_(\w+)\Z")
-_LOCAL = re.compile(r"([sv])([ijk])([xy])\Z")  # body-frame components: six, vjy
-_ABBREV = re.compile(r"_([sad]|dd)_([ijk]?)([xy])\Z")  # display-only: s_i, a_i, d, d-dot
-_FIXED = {"theta0": ("\u03b8\u2080", r"\theta_{0}"), "lambda": ("\u03bb", r"\lambda"),
-          "lambda1": ("\u03bb\u2081", r"\lambda_{1}"), "lambda2": ("\u03bb\u2082", r"\lambda_{2}"),
-          "f": ("f(t)", "f(t)"), "fd": ("f\u2032(t)", "f'(t)"), "fdd": ("f\u2033(t)", "f''(t)"),
-          "fddd": ("f\u2034(t)", "f'''(t)"), "alpha": ("\u03b1", r"\alpha")}
-_DOT = "\u0307"
 GEAR_NOTE = "gear rows relate angles only: the tooth force at the pitch point is not represented"
-
-
-def _tex_word(word: str) -> str:
-    return word if len(word) == 1 else r"\mathrm{" + word.replace("_", r"\_") + "}"
-
-
-def display_names(name: str) -> tuple[str, str] | None:
-    """(Unicode, LaTeX) of a symbol of the symbol table, None for other names."""
-    if name in _FIXED:
-        return _FIXED[name]
-    if m := _COORD.match(name):
-        base, dot, who = m.groups()
-        uni = ("\u03c6" if base == "phi" else base) + (_DOT if dot else "")
-        uni += _SUB[who] if who in "ijk" and len(who) == 1 else "_" + who
-        tex = (r"\phi" if base == "phi" else base)
-        return uni, (r"\dot{" + tex + "}" if dot else tex) + "_{" + _tex_word(who) + "}"
-    if m := _LOCAL.match(name):
-        base, role, comp = m.groups()
-        return f"{base}\u2032{_SUB[role]}{comp}", f"{base}'_{{{role}{comp}}}"
-    if m := _ABBREV.match(name):
-        base, role, comp = m.groups()
-        uni = ("d" + _DOT if base == "dd" else base) + (_SUB[role] if role else "") + comp
-        return uni, (r"\dot{d}" if base == "dd" else base) + f"_{{{role}{comp}}}"
-    return None
-
-
-class _Pretty(PrettyPrinter):
-    def _print_Symbol(self, e: sp.Symbol, bold_name: bool = False) -> prettyForm:
-        names = display_names(e.name)
-        return prettyForm(names[0]) if names else super()._print_Symbol(e, bold_name)
-
-
-class _Latex(LatexPrinter):
-    def _print_Symbol(self, e: sp.Symbol, style: str = "plain") -> str:
-        names = display_names(e.name)
-        return names[1] if names else super()._print_Symbol(e, style)
-
-
-def pretty(expr: sp.Basic) -> str:
-    """Unicode of an expression in the notation of docs/symbols.md."""
-    return _Pretty({"use_unicode": True, "wrap_line": False}).doprint(_scalar(expr))
-
-
-def latex(expr: sp.Basic) -> str:
-    """LaTeX of an expression in the notation of docs/symbols.md."""
-    return _Latex().doprint(_scalar(expr))
-
-
-def _scalar(expr: sp.Basic) -> sp.Basic:
-    return expr[0] if isinstance(expr, sp.MatrixBase) and expr.shape == (1, 1) else expr
 
 
 def with_functions(expr: sp.Basic) -> sp.Basic:
@@ -128,7 +66,7 @@ class Item:
     def render_text(self) -> str:
         if self.value is None:
             return f"{self.label}\n{self.text}"
-        form = _Pretty({"use_unicode": True})._print(_scalar(self.value))
+        form = Pretty({"use_unicode": True})._print(scalar(self.value))
         return prettyForm(*prettyForm(self.label + " = ").right(form)).render(wrap_line=False)
 
     def render_tex(self) -> str:
@@ -191,7 +129,7 @@ def _abbreviations(der: DerivedConstraint) -> tuple[dict[sp.Symbol, sp.Expr], li
         c, sn = sp.cos(s.q(role)[2]), sp.sin(s.q(role)[2])
         subs.update({bx: c * gx + sn * gy, by: -sn * gx + c * gy})
         src = "s" if name == "s" else "v"
-        where.append((f"{name}{_SUB[role]} = A{_SUB[role]} {src}\u2032{_SUB[role]}",
+        where.append((f"{name}{SUBSCRIPT[role]} = A{SUBSCRIPT[role]} {src}\u2032{SUBSCRIPT[role]}",
                       f"{name}_{{{role}}} = A_{{{role}}} {src}'_{{{role}}}"))
     if "si" in glob and "sj" in glob:
         (six, siy), (sjx, sjy) = glob["si"], glob["sj"]
@@ -251,14 +189,15 @@ def derive_type(name: str, options: Mapping[str, str] | None = None, expanded: b
     show = lambda e: abbreviate(e, subs)  # noqa: E731
     items = [Item("\u03a6", r"\Phi", show(der.phi))]
     for role in der.roles:
-        sub = _SUB[role]
+        sub = SUBSCRIPT[role]
         items.append(Item(f"\u03a6_q{sub} = [\u03a6_r{sub} | \u03a6_\u03c6{sub}]",
                           rf"\Phi_{{\mathbf{{q}}_{{{role}}}}}", show(der.jac[role])))
     items += [Item("\u03bd = -\u03a6_t", r"\nu", show(der.nu)), Item("\u03b3", r"\gamma", show(der.gamma))]
     for role in der.roles:
         react = show(der.reactions[role])
         at = der.family.points[role]
-        where_at = f"at P{_SUB[role]}" if at else "at the centre of mass"
+        where_at = ("at the pitch point" if callable(at)  # a point moving on the body: the rack's only
+                    else f"at P{SUBSCRIPT[role]}" if at else "at the centre of mass")
         items.append(Item(f"F_on_{role} ({where_at})", rf"F_{{\text{{on }}{role}}}", react[:2, :]))
         items.append(Item(f"T_on_{role}", rf"T_{{\text{{on }}{role}}}", react[2]))
     notes = [GEAR_NOTE] if name.startswith("gear") else []
