@@ -59,6 +59,34 @@ class Terminated(KeyboardInterrupt):
         self.signum = signum
 
 
+# Signals the command line's handler has seen and not yet reported. Its
+# `Terminated` is raised wherever Python happens to be, which may be a Python
+# callback inside C++ that swallows exceptions (CasADi's argument conversion
+# does, so `symid solve --backend casadi` once ran on after Ctrl-C); every long
+# loop calls `check_signal` between its steps, so a signal is answered at the
+# next instant, variant or chunk all the same.
+_PENDING: list[int] = []
+
+
+def note_signal(signum: int) -> None:
+    """Record that signal `signum` arrived (the command line's handler)."""
+    if signum not in _PENDING:
+        _PENDING.append(signum)
+
+
+def check_signal() -> None:
+    """Raise `Terminated` for a signal that arrived but was not reported yet
+    (its exception swallowed by C code); nothing when none is pending.
+    Called between the steps of every long loop: one list test."""
+    if _PENDING:
+        raise Terminated(_PENDING[0])
+
+
+def clear_signals() -> None:
+    """Forget the pending signals (the command line reported them)."""
+    _PENDING.clear()
+
+
 def say_kept(interrupt: KeyboardInterrupt, kept: str) -> None:
     """Attach to a Ctrl-C or signal what the interrupted command kept or
     left untouched (`"out.csv not written"`): the command line says it on

@@ -165,3 +165,24 @@ def test_joint_friction_is_left_to_the_normal_path(tmp_path):
     without.write_text("\n".join(line for line in RAIL.splitlines() if not line.startswith("friction")))
     assert not batch_numpy.usable(study_mechanism(api.load_mechanism(with_friction)))
     assert batch_numpy.usable(study_mechanism(api.load_mechanism(without)))
+
+
+def test_a_chunk_of_few_long_variants_takes_the_modules_own_loop(monkeypatch):
+    """A long run leaves few variants per chunk; the vectorized loop costs ~3.3 ms
+    a step whatever K (a variant of 20001 instants took 82 s), the module's own
+    loop ~0.07 ms an instant: below NUMPY_BATCH_MIN variants the chunk takes it,
+    and its figures are the C engine's (an independent loop)."""
+    from symid.study import engine
+
+    def vectorized(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise AssertionError("a chunk of one variant went through the vectorized loop")
+
+    mech = api.load_mechanism(api.example("slider_crank"), steps=2001)
+    c = solve_figures(mech, ("n",), np.array([[5.0], [6.0]]), "c")
+    monkeypatch.setattr(batch_numpy, "run", vectorized)
+    few = np.array([[5.0], [6.0]])
+    assert len(few) < engine.NUMPY_BATCH_MIN
+    figures = solve_figures(mech, ("n",), few, "numpy")
+    assert list(figures.status) == [0, 0]
+    # both solve each instant to tol 1e-12: the figures agree to rounding
+    np.testing.assert_allclose(figures.values, c.values, rtol=1e-9, atol=1e-9 * float(np.max(np.abs(c.values))))

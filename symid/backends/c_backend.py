@@ -21,7 +21,7 @@ import numpy as np
 
 from symid.model.analysis import Analysis
 from symid.backends import Array, Needs
-from symid.errors import InputError
+from symid.errors import InputError, check_signal
 from symid.progress import stage
 
 if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a built solver without sympy
@@ -307,6 +307,7 @@ class CEvaluator:
                                       _ptr(self.p), ctypes.c_double(analysis.tol), _ptr(state),
                                       _ptr(buf), ctypes.byref(solved), _ptr(self.work),
                                       self.iwork.ctypes.data_as(_I))
+            check_signal()  # between calls of at most CHUNK_BYTES of rows
             if start == 0 and status == 0 and solved.value == 1:
                 stepper.scaling = self.scaling(q.copy(), analysis.t0)
                 _set_scales(state, ng, stepper.scaling)

@@ -26,6 +26,7 @@ import numpy as np
 
 from symid.model.analysis import Analysis
 from symid.backends import Array, Needs
+from symid.errors import check_signal
 from symid.numeric.solve import instant_row
 from symid.numeric.solve import JUMP_FLOOR, JUMP_RATIO, UNEXPLAINED, Instant, Stepper, run
 from symid.numeric.stability import SCREEN, Notes, requested  # noqa: F401 (SCREEN: batch_numpy's too)
@@ -185,6 +186,7 @@ class NumpyEvaluator:
         while k < steps:
             try:
                 for values in m._rows(t0, h, k, steps, self.p_list, analysis.tol, None, past, qd, qdd, check):
+                    check_signal()  # a signal whose exception C code swallowed: not one row more
                     yield fromiter(values, float, width)
                 return
             except m.SolverError as exc:

@@ -17,7 +17,8 @@ from types import FrameType
 from typing import Any, Callable, NoReturn, Sequence
 
 from symid.cli.options import Parser, UsageError
-from symid.errors import EXIT_INPUT, EXIT_SIGNAL_BASE, AnalysisError, SymidError, Terminated
+from symid.errors import (EXIT_INPUT, EXIT_SIGNAL_BASE, AnalysisError, SymidError, Terminated, check_signal,
+                          clear_signals, note_signal)
 from symid.text import number
 
 
@@ -76,6 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
+        clear_signals()
 
 
 def command() -> NoReturn:
@@ -110,7 +112,11 @@ def leave(status: int) -> NoReturn:
 def _run(run: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
     """Run a subcommand; turn every fault into one line and its exit status."""
     try:
-        status = run(args)
+        try:
+            status = run(args)
+        except Exception:
+            check_signal()  # an error a signal caused inside C code (its exception swallowed): the signal's
+            raise
         sys.stdout.flush()  # a closed pipe is found here, not at exit where it would be printed
         return status
     except SymidError as exc:
@@ -149,6 +155,7 @@ _Handler = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
 
 
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    note_signal(signum)  # kept: C code that swallows the exception below leaves it to `check_signal`
     raise Terminated(signum)
 
 

@@ -78,6 +78,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from symid.study import design as vary
     from symid.study import inertials
     from symid.study.figures import figure_names
+    from symid.study.cluster import ClusterLost
     from symid.study.run import Sweep, check_memory
     from symid.study.table import FORMATS
 
@@ -125,6 +126,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         table.write(out)
         say_kept(exc, f"{out} holds the {plural(len(table), 'variant')} finished before it")
         raise
+    except ClusterLost as exc:  # the cluster went away mid-study: keep what is finished, exit 3
+        table = sweep.table()
+        table.write(out)
+        raise ClusterLost(f"{exc}; {out} holds the {plural(len(table), 'variant')} finished before it") from None
     finally:
         _close(client)
     table = sweep.table()

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Iterator
 import numpy as np
 
 from symid.numeric.evaluator import Array, Evaluator
-from symid.errors import AnalysisError
+from symid.errors import AnalysisError, check_signal
 from symid.model.analysis import Analysis
 from symid.numeric import nonfinite
 from symid.numeric.newton import RULE
@@ -171,6 +171,7 @@ def run(ev: Evaluator, analysis: Analysis, q0: Array, notes: Notes | None = None
     prev: Instant | None = None
     for n, t in enumerate(_times(analysis)):
         prev = stepper.instant(n, t, prev, history, q0)
+        check_signal()  # a signal whose exception C code swallowed during this instant: not yielded
         history = (history + [prev.q])[-3:]
         yield prev
 

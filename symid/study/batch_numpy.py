@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from symid.errors import check_signal
 from symid.backends import Array, friction
 from symid.backends.numpy_backend import SCREEN, build, load_module
 from symid.codegen.model import options_for
@@ -150,6 +151,7 @@ class _Chunk:
                     break
                 history = self._step(k, a.t0 + k * h, h, live, history)
                 live = live[self.status[live] == 0]
+                check_signal()
 
     def _first(self, live: Array) -> None:
         """t0: Newton from q0 as the Python loop assembles (it damps a step that

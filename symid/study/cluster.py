@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import hashlib
 import pickle
+import socket
+import time
 from typing import TYPE_CHECKING, Any, Callable, Iterator, Sequence
 
 import numpy as np
 
-from symid.errors import InputError
+from symid.errors import EXIT_ANALYSIS, InputError, SymidError, check_signal
 from symid.model.mechanism import Mechanism
 from symid.study.figures import Figures
 from symid.study.design import Variants
@@ -36,17 +38,111 @@ RETRIES = 3             # reruns of a task that raised (a lost worker's tasks ar
 _MEMO: dict[tuple[str, str], Mechanism] = {}  # this process's studies: (mechanism digest, backend) -> mechanism
 
 
-def connect(address: str, timeout: float | None = None) -> Client:
-    """A client of the scheduler at `address`.
+SCHEMES = ("tcp", "tls")  # the schemes a scheduler is reached by; an address without one is tcp://
+HANDSHAKE_TIMEOUT = 10.0  # s for the address to answer Dask's handshake and say it is a scheduler (exit 2)
+NO_WORKER_TIMEOUT = 60.0  # s a study waits with no live worker, or without its scheduler, before it ends (exit 3)
+POLL = 0.5              # s between looks at the workers and the scheduler while chunks run
+TICK = 0.02             # s between looks at the chunks' futures (a task takes 0.25 s at least)
+TLS_KEYS = ("distributed.comm.tls.ca-file", "distributed.comm.tls.client.cert")
+
+
+class ClusterLost(SymidError):
+    """The cluster went away mid-study (its scheduler, or every worker for
+    NO_WORKER_TIMEOUT): exit 3, the variants finished before it kept."""
+
+    exit_status = EXIT_ANALYSIS
+
+
+def check_address(address: str) -> str:
+    """The scheduler's address as Dask takes it, checked before any connection.
 
     Raises:
-        InputError: unreachable within `timeout` seconds, naming the address and the wait.
+        InputError: a scheme other than tcp:// or tls://, tls:// without the
+            certificates in Dask's configuration, no host, no port or one out of range.
+    """
+    where = f"--scheduler {address}"
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        scheme, rest = "tcp", address
+    if scheme.lower() not in SCHEMES:
+        raise InputError(f"{where}: the scheme {scheme}:// is not a Dask scheduler's "
+                         f"(use {' or '.join(s + '://' for s in SCHEMES)}HOST:PORT)")
+    host, colon, port = rest.rpartition(":")
+    if not colon or "/" in rest or not host.strip("[]"):
+        raise InputError(f"{where}: no {'host' if colon else 'port'} (use {scheme}://HOST:PORT, the port "
+                         f"the scheduler prints, 8786 by default)")
+    if not port.isdigit() or not 0 < int(port) < 65536:
+        raise InputError(f"{where}: port {port!r} is not a number from 1 to 65535")
+    if scheme.lower() == "tls":
+        import dask
+
+        missing = [key for key in TLS_KEYS if not dask.config.get(key, None)]
+        if missing:
+            names = ", ".join("DASK_" + k.upper().replace(".", "__").replace("-", "_") for k in missing)
+            raise InputError(f"{where}: tls:// needs certificates: {names} not set (the CA file and the "
+                             f"client's certificate, with its key in DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY "
+                             f"unless in the same file)")
+    return f"{scheme.lower()}://{rest}"
+
+
+def handshake(address: str, timeout: float = HANDSHAKE_TIMEOUT) -> None:
+    """Connect to `address` and ask who it is, all within `timeout` seconds.
+
+    A listener that accepts and never answers, one that answers something other
+    than Dask's protocol, or a Dask server that is not a scheduler (a worker)
+    is refused here, before a client waits on it.
+
+    Raises:
+        InputError: naming the address, the wait and what was wrong.
+    """
+    import asyncio
+
+    from distributed.comm import connect as open_comm
+    from distributed.security import Security
+
+    async def ask() -> Any:
+        args = Security().get_connection_args("client")
+        comm = await open_comm(address, timeout=timeout, **args)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    host, _, port = address.partition("://")[2].rpartition(":")
+    try:  # refused or unreachable: said at once, not after Dask's retries
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+    except OSError as exc:
+        reason = exc.strerror or str(exc) or type(exc).__name__
+        raise InputError(f"--scheduler {address}: no scheduler reached ({reason})") from None
+    try:
+        answer = asyncio.run(asyncio.wait_for(ask(), timeout))
+    except (asyncio.TimeoutError, TimeoutError, OSError):
+        raise InputError(f"--scheduler {address}: no answer to Dask's handshake in {timeout:g} s (is a Dask "
+                         f"scheduler listening there?)") from None
+    except Exception:  # whatever a junk listener's bytes made of Dask's reader (a MemoryError too)
+        raise InputError(f"--scheduler {address}: it answered, but not in Dask's protocol (is a Dask "
+                         f"scheduler listening there?)") from None
+    kind = answer.get("type") if isinstance(answer, dict) else None
+    if kind != "Scheduler":
+        raise InputError(f"--scheduler {address}: answered as {kind or 'something'} not a Dask scheduler")
+
+
+def connect(address: str, timeout: float | None = None) -> Client:
+    """A client of the scheduler at `address`, checked first (`check_address`,
+    then `handshake` within HANDSHAKE_TIMEOUT).
+
+    Raises:
+        InputError: a malformed address, or no scheduler there within `timeout`
+            seconds, naming the address and the wait.
     """
     try:
         from distributed import Client
     except ImportError:
         raise InputError("--scheduler needs dask[distributed] (python3 -m pip install 'symid[sweep]')") from None
+    address = check_address(address)
     timeout = CONNECT_TIMEOUT if timeout is None else timeout
+    handshake(address, min(timeout, HANDSHAKE_TIMEOUT))
     try:
         return Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
@@ -140,9 +236,11 @@ def tasks(instants: int, workers: int) -> int:
 
 def run_chunks(client: Client, mechanism: Mechanism, variants: Variants, backend: str,
                ) -> Iterator[tuple[int, Figures]]:
-    """Submit every chunk and yield (first variant, figures) as each finishes."""
-    from distributed import as_completed
+    """Submit every chunk and yield (first variant, figures) as each finishes.
 
+    Raises:
+        ClusterLost: no live worker, or no scheduler, for NO_WORKER_TIMEOUT s.
+    """
     data = pickle.dumps(mechanism)
     key = _digest(data)
     k = len(variants)
@@ -158,8 +256,54 @@ def run_chunks(client: Client, mechanism: Mechanism, variants: Variants, backend
                                key=f"symid-sweep-{key[:16]}-{first}-{_digest(chunk.tobytes())[:16]}")
         futures[future] = first
     try:
-        for future in as_completed(list(futures), loop=client.loop):
-            yield futures[future], future.result()
+        yield from _gathered(client, futures)
     finally:
         for future in futures:
             future.release()
+
+
+def _gathered(client: Client, futures: dict[Any, int]) -> Iterator[tuple[int, Figures]]:
+    """(first variant, figures) of each future as it finishes; a signal is
+    answered within POLL seconds, and a cluster without a live worker or its
+    scheduler for NO_WORKER_TIMEOUT seconds ends the study.
+
+    Raises:
+        ClusterLost: naming what went away and for how long.
+    """
+    pending = set(futures)
+    alone_since: float | None = None  # when the cluster was first seen unable to run a task
+    looked = time.monotonic()
+    while pending:
+        check_signal()
+        finished = [f for f in pending if f.status in ("finished", "error")]
+        for future in finished:
+            pending.discard(future)
+            yield futures[future], future.result()
+        if finished:
+            alone_since = None
+            continue
+        time.sleep(TICK)  # a signal interrupts it
+        now = time.monotonic()
+        if now - looked < POLL:
+            continue
+        looked = now
+        why, final = _unable(client, pending)
+        if why is None:
+            alone_since = None
+            continue
+        alone_since = now if alone_since is None else alone_since
+        if final or now - alone_since >= NO_WORKER_TIMEOUT:
+            raise ClusterLost(f"--scheduler {client.scheduler.address}: {why}; {len(pending)} of "
+                              f"{len(futures)} tasks unfinished")
+
+
+def _unable(client: Client, pending: set[Any]) -> tuple[str | None, bool]:
+    """Why the cluster cannot run the pending tasks now (None: it can), and
+    whether that is final (the tasks are gone with their scheduler)."""
+    if any(f.status == "cancelled" for f in pending):  # lost: a dead worker's result, computed again
+        return "the scheduler went away mid-study (its tasks cancelled)", True
+    if client.status != "running":
+        return f"the scheduler unreachable for {NO_WORKER_TIMEOUT:g} s", False
+    if not client.scheduler_info().get("workers"):
+        return f"no live worker for {NO_WORKER_TIMEOUT:g} s", False
+    return None, False

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator, Sequence
 import numpy as np
 
 from symid.backends import Array
+from symid.errors import check_signal
 from symid.model.mechanism import Mechanism
 from symid.study.figures import STATUS, Figures, figure_names
 from symid.study.table import SweepTable
@@ -175,6 +176,7 @@ class Sweep:
         names, values = self.variants.names, self.variants.values
         for first in range(0, len(values), per):
             figures = engine(self.mechanism, names, values[first:first + per], self.backend, self.workers)
+            check_signal()  # a signal swallowed inside the chunk: its figures are not kept
             self.parts[first] = figures
             yield len(figures)
 
