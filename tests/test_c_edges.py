@@ -292,3 +292,28 @@ def test_worst_case_instructions_stated_and_a_capped_call_stays_under_them(singl
                              capture_output=True, text=True, check=True)
         refs = int(re.search(r"refs:\s*([\d,]+)", run.stderr).group(1).replace(",", ""))
         assert 0 < refs <= bound, (name, refs, bound, run.stdout.split()[:3])
+
+
+# --- the header's parameter list is true ---
+
+
+def test_friction_parameters_are_read_and_the_header_says_so(tmp_path: Path) -> None:
+    """The bundled friction example's coefficients, pin radii and viscous
+    drags were listed as read by nothing: each set to NaN now makes an
+    instant NONFINITE (it is read), and the header lists none as unread."""
+    from test_c_export import NONFINITE, Solver
+
+    if shutil.which("cc") is None:
+        pytest.skip("no C compiler")
+    solver = Solver(api.example("slider_crank_friction").read_text(), tmp_path)
+    header = (tmp_path / f"{solver.name}_solver.h").read_text()
+    assert "read by nothing" not in header.lower()
+    for name in ("mu_pin", "mu_guide", "r_main", "r_crank_pin", "r_wrist", "c_main", "c_guide"):
+        k = solver.ctx["params"].index(name)
+        saved = solver.p.copy()
+        solver.p[k] = np.nan
+        try:
+            assert solver.instant()[0] == NONFINITE, name
+        finally:
+            solver.p = saved
+    assert solver.instant()[0] == OK
