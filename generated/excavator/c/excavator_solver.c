@@ -8,7 +8,7 @@
 /* The guards against NaN and infinity (isfinite, comparisons a NaN fails)
    need IEEE arithmetic: -ffast-math and -ffinite-math-only let the compiler
    delete them, and a NaN t or parameter would return OK. */
-#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__)
+#if defined __FAST_MATH__ || (defined __FINITE_MATH_ONLY__ && __FINITE_MATH_ONLY__)
 #error "excavator_solver.c needs IEEE floating point: its NaN guards are removed by -ffast-math / -ffinite-math-only; build it without them"
 #endif
 #if EXCAVATOR_MAX_NEWTON < 1
