@@ -10,7 +10,8 @@ extern "C" {
 
 /* The one floating type of every argument, table and workspace. Each of
    the macros below may be defined (-D, or before including this header,
-   for the .c and its callers alike) to override it: FOUR_BAR_REAL a type of
+   for the .c and its callers alike) to override the type or a setting:
+   FOUR_BAR_REAL a type of
    double's size (a typedef such as float32_t or float64_t: the code's
    literals and libm calls are double's), FOUR_BAR_MAX_NEWTON Newton's
    iteration cap per instant (a call that needs more returns NOT_CONVERGED;
@@ -183,7 +184,8 @@ extern const four_bar_real four_bar_default_q0[FOUR_BAR_NG];
    precision FPU emulates every operation and is not covered), each
    iteration 400 and the call 3000 more for calls, loops and copies.
    test_c_edges checks it under callgrind on x86-64 for every bundled
-   example, the cap reached. trajectory's instants cost no more each. */
+   example, the cap reached (instant only: a trajectory's instant adds its
+   predictor, checks and, if generated, sensitivities). */
 #define FOUR_BAR_WORST_INSTRUCTIONS (24432L + 15808L * (long)FOUR_BAR_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
