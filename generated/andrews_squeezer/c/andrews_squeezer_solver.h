@@ -8,16 +8,16 @@
 extern "C" {
 #endif
 
-/* The one floating type of every argument, table and workspace. Each of
-   the macros below may be defined (-D, or before including this header,
-   for the .c and its callers alike) to override the type or a setting:
-   ANDREWS_SQUEEZER_REAL a type of
-   double's size (a typedef such as float32_t or float64_t: the code's
-   literals and libm calls are double's), ANDREWS_SQUEEZER_MAX_NEWTON Newton's
-   iteration cap per instant (a call that needs more returns NOT_CONVERGED;
-   at least 1), ANDREWS_SQUEEZER_FLOOR_ULPS the tolerance floor: Newton stops at
-   max(tol, FLOOR_ULPS eps max(1, |q|)), eps double's epsilon, since
-   rounding keeps |Phi| and the step from going below it. */
+/* The one floating type of every argument, table and workspace. Each
+   macro below may be defined (-D, or before including this header, for
+   the .c and its callers alike) to override the type or a setting:
+   ANDREWS_SQUEEZER_REAL a type of double's size (a typedef such as float32_t or
+   float64_t: the code's literals and libm calls are double's),
+   ANDREWS_SQUEEZER_MAX_NEWTON Newton's iteration cap per instant (a call that
+   needs more returns NOT_CONVERGED; at least 1), ANDREWS_SQUEEZER_FLOOR_ULPS the
+   tolerance floor: Newton stops at max(tol, FLOOR_ULPS eps max(1, |q|)),
+   eps double's epsilon, since rounding keeps |Phi| and the step from
+   going below it. */
 #ifndef ANDREWS_SQUEEZER_MAX_NEWTON
 #define ANDREWS_SQUEEZER_MAX_NEWTON 50
 #endif
