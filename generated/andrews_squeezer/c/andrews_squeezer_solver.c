@@ -5,6 +5,18 @@
 
 #include "andrews_squeezer_solver.h"
 
+/* The guards against NaN and infinity (isfinite, comparisons a NaN fails)
+   need IEEE arithmetic: -ffast-math and -ffinite-math-only let the compiler
+   delete them, and a NaN t or parameter would return OK. */
+#if defined __FAST_MATH__ || (defined __FINITE_MATH_ONLY__ && __FINITE_MATH_ONLY__)
+#error "andrews_squeezer_solver.c needs IEEE floating point: its NaN guards are removed by -ffast-math / -ffinite-math-only; build it without them"
+#endif
+#if ANDREWS_SQUEEZER_MAX_NEWTON < 1
+#error "ANDREWS_SQUEEZER_MAX_NEWTON must be at least 1"
+#endif
+/* ANDREWS_SQUEEZER_REAL, if overridden, must name a type of double's size (a typedef of it) */
+typedef char andrews_squeezer_real_must_have_the_size_of_double[sizeof(andrews_squeezer_real) == sizeof(double) ? 1 : -1];
+
 /* The source compiles as C99 and as C++ (which spells restrict __restrict). */
 #ifdef __cplusplus
 #define ANDREWS_SQUEEZER_RESTRICT __restrict
@@ -24,7 +36,6 @@
 #define ANDREWS_SQUEEZER_SINGULAR_RATIO (1e3 * ANDREWS_SQUEEZER_EPS)
 #define ANDREWS_SQUEEZER_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
 #define ANDREWS_SQUEEZER_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
-#define ANDREWS_SQUEEZER_MAX_NEWTON 50
 #define ANDREWS_SQUEEZER_LU_SIZE 70
 #define ANDREWS_SQUEEZER_MAX(a, b) ((a) > (b) ? (a) : (b))
 #define ANDREWS_SQUEEZER_MIN(a, b) ((a) < (b) ? (a) : (b))
@@ -33,7 +44,7 @@
 #define ANDREWS_SQUEEZER_OFF_DENSE (ANDREWS_SQUEEZER_OFF_LU + ANDREWS_SQUEEZER_LU_SIZE)
 #define ANDREWS_SQUEEZER_OFF_VEC (ANDREWS_SQUEEZER_OFF_DENSE + 441)
 #define ANDREWS_SQUEEZER_VEC(work, k) ((work) + ANDREWS_SQUEEZER_OFF_VEC + (k) * 66)
-#define ANDREWS_SQUEEZER_OFF_PREP 1302  /* the prepared parameters (NPP), after the vectors */
+#define ANDREWS_SQUEEZER_OFF_PREP 1368  /* the prepared parameters (NPP), after the vectors */
 #define ANDREWS_SQUEEZER_NPP 59
 
 const andrews_squeezer_real andrews_squeezer_default_params[44] = { 0.04325, 0.00365, 0.02373, 0.00706, 0.0705, 0.00706, 0.05498, 2.194e-06, 4.41e-07, 5.255e-06, 5.667e-07, 1.169e-05, 5.667e-07, 1.912e-05, -0.06934, -0.00227, -0.03635, 0.03273, 0.014, 0.072, 0.028, 0.0115, 0.02, 0.01421, 0.007, 0.00092, 0.035, 0.01874, 0.01043, 0.018, 0.02, 0.02308, 0.00916, 0.04, 0.01228, 0.00449, 0.02, 0.04, 0.01421, 4530.0, 0.07785, -0.06171389001427645, 14222.443919954114, 10.0 };
@@ -1645,7 +1656,7 @@ static int andrews_squeezer_newton(andrews_squeezer_real t, const andrews_squeez
     else andrews_squeezer_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = ANDREWS_SQUEEZER_MAX(1.0, andrews_squeezer_maxabs21(q));
-    lim = ANDREWS_SQUEEZER_MAX(tol, 8.0 * ANDREWS_SQUEEZER_EPS * qmag);
+    lim = ANDREWS_SQUEEZER_MAX(tol, (andrews_squeezer_real)ANDREWS_SQUEEZER_FLOOR_ULPS * ANDREWS_SQUEEZER_EPS * qmag);
     andrews_squeezer_phi_k(q, tr, t, p, r);
     rmax = andrews_squeezer_maxabs21(r);
     for (it = 0;; ++it) {
@@ -1883,7 +1894,8 @@ int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_rea
         || !isfinite(tol) || tol <= 0.0) {
         status = ANDREWS_SQUEEZER_BAD_ARGUMENT;
     } else {
-        andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9), *pp = work + ANDREWS_SQUEEZER_OFF_PREP;
+        andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9), *pp = work + ANDREWS_SQUEEZER_OFF_PREP, *kept = ANDREWS_SQUEEZER_VEC(work, 11);
+        memcpy(kept, q, sizeof(andrews_squeezer_real) * 21);  /* the caller's guess, back in q if the call fails */
         andrews_squeezer_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1896,6 +1908,9 @@ int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_rea
             andrews_squeezer_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!andrews_squeezer_finite(q, qd, qdd, lam, reactions)) status = ANDREWS_SQUEEZER_NONFINITE;
         }
+        /* a failed call leaves q as it came: its last Newton iterate would
+           be a worse guess for the next call than the caller's own */
+        if (status != ANDREWS_SQUEEZER_OK) memcpy(q, kept, sizeof(andrews_squeezer_real) * 21);
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -2268,9 +2283,7 @@ long andrews_squeezer_sweep_lanes(long *abandoned)
 int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squeezer_real t0, andrews_squeezer_real h, long n, andrews_squeezer_real tol,
                   andrews_squeezer_real *figures, int *status, andrews_squeezer_real *t_end, long *solved, andrews_squeezer_real *work, int *iwork)
 {
-    andrews_squeezer_real *state = work + ANDREWS_SQUEEZER_WORK, *rows = state + ANDREWS_SQUEEZER_STATE;
-    andrews_squeezer_real *vals = rows + 32 * ANDREWS_SQUEEZER_ROW, *arms = vals + 65, *drive = arms + 21;
-    andrews_squeezer_real *acc = drive + 2;
+    andrews_squeezer_real *state, *rows, *vals, *arms, *drive, *acc;
     long v, done, got, m;
     int st;
 #if ANDREWS_SQUEEZER_LANES > 1
@@ -2282,6 +2295,10 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
         || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
         || !isfinite(tol) || tol <= 0.0)
         return ANDREWS_SQUEEZER_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    state = work + ANDREWS_SQUEEZER_WORK, rows = state + ANDREWS_SQUEEZER_STATE;
+    vals = rows + 32 * ANDREWS_SQUEEZER_ROW, arms = vals + 65, drive = arms + 21;
+    acc = drive + 2;
     for (v = 0; v < k; ++v) {
         const andrews_squeezer_real *pv = p + v * ANDREWS_SQUEEZER_NP;
         andrews_squeezer_real *fig = figures + v * ANDREWS_SQUEEZER_SWEEP_FIGURES;

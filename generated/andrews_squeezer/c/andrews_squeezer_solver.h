@@ -8,8 +8,27 @@
 extern "C" {
 #endif
 
-/* The one floating type of every argument, table and workspace. */
+/* The one floating type of every argument, table and workspace. Each
+   macro below may be defined (-D, or before including this header, for
+   the .c and its callers alike) to override the type or a setting:
+   ANDREWS_SQUEEZER_REAL a type of double's size (a typedef such as float32_t or
+   float64_t: the code's literals and libm calls are double's),
+   ANDREWS_SQUEEZER_MAX_NEWTON Newton's iteration cap per instant (a call that
+   needs more returns NOT_CONVERGED; at least 1), ANDREWS_SQUEEZER_FLOOR_ULPS the
+   tolerance floor: Newton stops at max(tol, FLOOR_ULPS eps max(1, |q|)),
+   eps double's epsilon, since rounding keeps |Phi| and the step from
+   going below it. */
+#ifndef ANDREWS_SQUEEZER_MAX_NEWTON
+#define ANDREWS_SQUEEZER_MAX_NEWTON 50
+#endif
+#ifndef ANDREWS_SQUEEZER_FLOOR_ULPS
+#define ANDREWS_SQUEEZER_FLOOR_ULPS 8.0
+#endif
+#ifdef ANDREWS_SQUEEZER_REAL
+typedef ANDREWS_SQUEEZER_REAL andrews_squeezer_real;
+#else
 typedef double andrews_squeezer_real;
+#endif
 
 /* Sizes. */
 #define ANDREWS_SQUEEZER_NG 21            /* generalized coordinates q = [x, y, phi] per body */
@@ -18,7 +37,7 @@ typedef double andrews_squeezer_real;
 #define ANDREWS_SQUEEZER_NNZ 65          /* structural nonzeros of Phi_q */
 #define ANDREWS_SQUEEZER_NR 66            /* reaction values (Fx, Fy, T per body role) */
 #define ANDREWS_SQUEEZER_ROW 151          /* values per instant in a trajectory row */
-#define ANDREWS_SQUEEZER_WORK 1361        /* reals of workspace every solver call needs */
+#define ANDREWS_SQUEEZER_WORK 1427        /* reals of workspace every solver call needs */
 #define ANDREWS_SQUEEZER_IWORK 21         /* ints of workspace */
 #define ANDREWS_SQUEEZER_STATE 169       /* reals of trajectory state */
 
@@ -272,6 +291,21 @@ extern const andrews_squeezer_real andrews_squeezer_default_q0[ANDREWS_SQUEEZER_
    work), and of each evaluation: phi 124, phi_q 76, nu 9, gamma 107, applied 27, mass 0, reactions 21, lu_factor 46, lu_forward 10, lu_back 50, lu_t_forward 50, lu_t_back 10. */
 #define ANDREWS_SQUEEZER_OPS_INSTANT 774
 
+/* Worst case of one instant call (computed at generation from the counts
+   above, not measured): Newton reaching MAX_NEWTON, every factorization
+   through the pivoting fallback (bounded by a dense LU). At most
+   11110 + 9062 MAX_NEWTON counted floating operations and
+   20 + 17 MAX_NEWTON libm calls; as instructions, at most
+   WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
+   loads, stores and indexing), each libm call 300 (the real type on its
+   own FPU, arguments in their usual range: a double build on a single-
+   precision FPU emulates every operation and is not covered), each
+   iteration 400 and the call 3000 more for calls, loops and copies.
+   test_c_edges checks it under callgrind on x86-64 for every bundled
+   example, the cap reached (instant only: a trajectory's instant adds its
+   predictor, checks and, if generated, sensitivities). */
+#define ANDREWS_SQUEEZER_WORST_INSTRUCTIONS (142320L + 114244L * (long)ANDREWS_SQUEEZER_MAX_NEWTON)
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int andrews_squeezer_phi_q_rows[65];
 extern const int andrews_squeezer_phi_q_cols[65];
@@ -292,7 +326,8 @@ void andrews_squeezer_reactions(const andrews_squeezer_real *q, const andrews_sq
    are optional: any of them may be NULL (what the others need is then
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
-   pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
+   pivoting fallback was used (both 0 on BAD_ARGUMENT). A call that fails
+   (any status but OK) leaves q as the caller passed it. p may be NULL only
    when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
    mechanism has several assembly modes (a slider-crank's piston on either
    side, a four-bar open or crossed), a guess nearer the other mode gives

@@ -5,6 +5,18 @@
 
 #include "excavator_solver.h"
 
+/* The guards against NaN and infinity (isfinite, comparisons a NaN fails)
+   need IEEE arithmetic: -ffast-math and -ffinite-math-only let the compiler
+   delete them, and a NaN t or parameter would return OK. */
+#if defined __FAST_MATH__ || (defined __FINITE_MATH_ONLY__ && __FINITE_MATH_ONLY__)
+#error "excavator_solver.c needs IEEE floating point: its NaN guards are removed by -ffast-math / -ffinite-math-only; build it without them"
+#endif
+#if EXCAVATOR_MAX_NEWTON < 1
+#error "EXCAVATOR_MAX_NEWTON must be at least 1"
+#endif
+/* EXCAVATOR_REAL, if overridden, must name a type of double's size (a typedef of it) */
+typedef char excavator_real_must_have_the_size_of_double[sizeof(excavator_real) == sizeof(double) ? 1 : -1];
+
 /* The source compiles as C99 and as C++ (which spells restrict __restrict). */
 #ifdef __cplusplus
 #define EXCAVATOR_RESTRICT __restrict
@@ -24,7 +36,6 @@
 #define EXCAVATOR_SINGULAR_RATIO (1e3 * EXCAVATOR_EPS)
 #define EXCAVATOR_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
 #define EXCAVATOR_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
-#define EXCAVATOR_MAX_NEWTON 50
 #define EXCAVATOR_LU_SIZE 35
 #define EXCAVATOR_MAX(a, b) ((a) > (b) ? (a) : (b))
 #define EXCAVATOR_MIN(a, b) ((a) < (b) ? (a) : (b))
@@ -33,7 +44,7 @@
 #define EXCAVATOR_OFF_DENSE (EXCAVATOR_OFF_LU + EXCAVATOR_LU_SIZE)
 #define EXCAVATOR_OFF_VEC (EXCAVATOR_OFF_DENSE + 81)
 #define EXCAVATOR_VEC(work, k) ((work) + EXCAVATOR_OFF_VEC + (k) * 36)
-#define EXCAVATOR_OFF_PREP 547  /* the prepared parameters (NPP), after the vectors */
+#define EXCAVATOR_OFF_PREP 583  /* the prepared parameters (NPP), after the vectors */
 #define EXCAVATOR_NPP 41
 
 const excavator_real excavator_default_params[17] = { 5.7, 2.9, 1.5, 1.0, 1500.0, 700.0, 500.0, 8.0, 2.68, 0.25, 2.31, 0.65, 2.3, 0.55, 30000.0, 2.4, 1.0 };
@@ -1292,7 +1303,7 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
     else excavator_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = EXCAVATOR_MAX(1.0, excavator_maxabs9(q));
-    lim = EXCAVATOR_MAX(tol, 8.0 * EXCAVATOR_EPS * qmag);
+    lim = EXCAVATOR_MAX(tol, (excavator_real)EXCAVATOR_FLOOR_ULPS * EXCAVATOR_EPS * qmag);
     excavator_phi_k(q, tr, t, p, r);
     rmax = excavator_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1470,7 +1481,8 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
         || !isfinite(tol) || tol <= 0.0) {
         status = EXCAVATOR_BAD_ARGUMENT;
     } else {
-        excavator_real *tr = EXCAVATOR_VEC(work, 9), *pp = work + EXCAVATOR_OFF_PREP;
+        excavator_real *tr = EXCAVATOR_VEC(work, 9), *pp = work + EXCAVATOR_OFF_PREP, *kept = EXCAVATOR_VEC(work, 11);
+        memcpy(kept, q, sizeof(excavator_real) * 9);  /* the caller's guess, back in q if the call fails */
         excavator_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1483,6 +1495,9 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
             excavator_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!excavator_finite(q, qd, qdd, lam, reactions)) status = EXCAVATOR_NONFINITE;
         }
+        /* a failed call leaves q as it came: its last Newton iterate would
+           be a worse guess for the next call than the caller's own */
+        if (status != EXCAVATOR_OK) memcpy(q, kept, sizeof(excavator_real) * 9);
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1814,9 +1829,7 @@ long excavator_sweep_lanes(long *abandoned)
 int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavator_real h, long n, excavator_real tol,
                   excavator_real *figures, int *status, excavator_real *t_end, long *solved, excavator_real *work, int *iwork)
 {
-    excavator_real *state = work + EXCAVATOR_WORK, *rows = state + EXCAVATOR_STATE;
-    excavator_real *vals = rows + 32 * EXCAVATOR_ROW, *arms = vals + 35, *drive = arms + 9;
-    excavator_real *acc = drive + 6;
+    excavator_real *state, *rows, *vals, *arms, *drive, *acc;
     long v, done, got, m;
     int st;
 #if EXCAVATOR_LANES > 1
@@ -1828,6 +1841,10 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
         || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
         || !isfinite(tol) || tol <= 0.0)
         return EXCAVATOR_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    state = work + EXCAVATOR_WORK, rows = state + EXCAVATOR_STATE;
+    vals = rows + 32 * EXCAVATOR_ROW, arms = vals + 35, drive = arms + 9;
+    acc = drive + 6;
     for (v = 0; v < k; ++v) {
         const excavator_real *pv = p + v * EXCAVATOR_NP;
         excavator_real *fig = figures + v * EXCAVATOR_SWEEP_FIGURES;

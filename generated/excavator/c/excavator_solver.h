@@ -8,8 +8,27 @@
 extern "C" {
 #endif
 
-/* The one floating type of every argument, table and workspace. */
+/* The one floating type of every argument, table and workspace. Each
+   macro below may be defined (-D, or before including this header, for
+   the .c and its callers alike) to override the type or a setting:
+   EXCAVATOR_REAL a type of double's size (a typedef such as float32_t or
+   float64_t: the code's literals and libm calls are double's),
+   EXCAVATOR_MAX_NEWTON Newton's iteration cap per instant (a call that
+   needs more returns NOT_CONVERGED; at least 1), EXCAVATOR_FLOOR_ULPS the
+   tolerance floor: Newton stops at max(tol, FLOOR_ULPS eps max(1, |q|)),
+   eps double's epsilon, since rounding keeps |Phi| and the step from
+   going below it. */
+#ifndef EXCAVATOR_MAX_NEWTON
+#define EXCAVATOR_MAX_NEWTON 50
+#endif
+#ifndef EXCAVATOR_FLOOR_ULPS
+#define EXCAVATOR_FLOOR_ULPS 8.0
+#endif
+#ifdef EXCAVATOR_REAL
+typedef EXCAVATOR_REAL excavator_real;
+#else
 typedef double excavator_real;
+#endif
 
 /* Sizes. */
 #define EXCAVATOR_NG 9            /* generalized coordinates q = [x, y, phi] per body */
@@ -18,7 +37,7 @@ typedef double excavator_real;
 #define EXCAVATOR_NNZ 35          /* structural nonzeros of Phi_q */
 #define EXCAVATOR_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define EXCAVATOR_ROW 73          /* values per instant in a trajectory row */
-#define EXCAVATOR_WORK 588        /* reals of workspace every solver call needs */
+#define EXCAVATOR_WORK 624        /* reals of workspace every solver call needs */
 #define EXCAVATOR_IWORK 9         /* ints of workspace */
 #define EXCAVATOR_STATE 73       /* reals of trajectory state */
 
@@ -167,6 +186,21 @@ extern const excavator_real excavator_default_q0[EXCAVATOR_NG];
    work), and of each evaluation: phi 172, phi_q 180, nu 21, gamma 626, applied 27, mass 0, reactions 114, lu_factor 57, lu_forward 17, lu_back 21, lu_t_forward 21, lu_t_back 17. */
 #define EXCAVATOR_OPS_INSTANT 1521
 
+/* Worst case of one instant call (computed at generation from the counts
+   above, not measured): Newton reaching MAX_NEWTON, every factorization
+   through the pivoting fallback (bounded by a dense LU). At most
+   2855 + 1647 MAX_NEWTON counted floating operations and
+   13 + 8 MAX_NEWTON libm calls; as instructions, at most
+   WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
+   loads, stores and indexing), each libm call 300 (the real type on its
+   own FPU, arguments in their usual range: a double build on a single-
+   precision FPU emulates every operation and is not covered), each
+   iteration 400 and the call 3000 more for calls, loops and copies.
+   test_c_edges checks it under callgrind on x86-64 for every bundled
+   example, the cap reached (instant only: a trajectory's instant adds its
+   predictor, checks and, if generated, sensitivities). */
+#define EXCAVATOR_WORST_INSTRUCTIONS (41160L + 22564L * (long)EXCAVATOR_MAX_NEWTON)
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int excavator_phi_q_rows[35];
 extern const int excavator_phi_q_cols[35];
@@ -187,7 +221,8 @@ void excavator_reactions(const excavator_real *q, const excavator_real *lam, exc
    are optional: any of them may be NULL (what the others need is then
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
-   pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
+   pivoting fallback was used (both 0 on BAD_ARGUMENT). A call that fails
+   (any status but OK) leaves q as the caller passed it. p may be NULL only
    when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
    mechanism has several assembly modes (a slider-crank's piston on either
    side, a four-bar open or crossed), a guess nearer the other mode gives

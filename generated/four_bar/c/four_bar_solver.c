@@ -5,6 +5,18 @@
 
 #include "four_bar_solver.h"
 
+/* The guards against NaN and infinity (isfinite, comparisons a NaN fails)
+   need IEEE arithmetic: -ffast-math and -ffinite-math-only let the compiler
+   delete them, and a NaN t or parameter would return OK. */
+#if defined __FAST_MATH__ || (defined __FINITE_MATH_ONLY__ && __FINITE_MATH_ONLY__)
+#error "four_bar_solver.c needs IEEE floating point: its NaN guards are removed by -ffast-math / -ffinite-math-only; build it without them"
+#endif
+#if FOUR_BAR_MAX_NEWTON < 1
+#error "FOUR_BAR_MAX_NEWTON must be at least 1"
+#endif
+/* FOUR_BAR_REAL, if overridden, must name a type of double's size (a typedef of it) */
+typedef char four_bar_real_must_have_the_size_of_double[sizeof(four_bar_real) == sizeof(double) ? 1 : -1];
+
 /* The source compiles as C99 and as C++ (which spells restrict __restrict). */
 #ifdef __cplusplus
 #define FOUR_BAR_RESTRICT __restrict
@@ -24,7 +36,6 @@
 #define FOUR_BAR_SINGULAR_RATIO (1e3 * FOUR_BAR_EPS)
 #define FOUR_BAR_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
 #define FOUR_BAR_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
-#define FOUR_BAR_MAX_NEWTON 50
 #define FOUR_BAR_LU_SIZE 25
 #define FOUR_BAR_MAX(a, b) ((a) > (b) ? (a) : (b))
 #define FOUR_BAR_MIN(a, b) ((a) < (b) ? (a) : (b))
@@ -33,7 +44,7 @@
 #define FOUR_BAR_OFF_DENSE (FOUR_BAR_OFF_LU + FOUR_BAR_LU_SIZE)
 #define FOUR_BAR_OFF_VEC (FOUR_BAR_OFF_DENSE + 81)
 #define FOUR_BAR_VEC(work, k) ((work) + FOUR_BAR_OFF_VEC + (k) * 30)
-#define FOUR_BAR_OFF_PREP 461  /* the prepared parameters (NPP), after the vectors */
+#define FOUR_BAR_OFF_PREP 491  /* the prepared parameters (NPP), after the vectors */
 #define FOUR_BAR_NPP 19
 
 const four_bar_real four_bar_default_params[15] = { 0.4, 0.1, 0.35, 0.3, 0.3, 0.8, 0.7, 0.05, 0.1, 2.0, 50.0, 2.0, 500.0, 5.0, 0.3 };
@@ -1049,7 +1060,7 @@ static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_rea
     else four_bar_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = FOUR_BAR_MAX(1.0, four_bar_maxabs9(q));
-    lim = FOUR_BAR_MAX(tol, 8.0 * FOUR_BAR_EPS * qmag);
+    lim = FOUR_BAR_MAX(tol, (four_bar_real)FOUR_BAR_FLOOR_ULPS * FOUR_BAR_EPS * qmag);
     four_bar_phi_k(q, tr, t, p, r);
     rmax = four_bar_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1227,7 +1238,8 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
         || !isfinite(tol) || tol <= 0.0) {
         status = FOUR_BAR_BAD_ARGUMENT;
     } else {
-        four_bar_real *tr = FOUR_BAR_VEC(work, 9), *pp = work + FOUR_BAR_OFF_PREP;
+        four_bar_real *tr = FOUR_BAR_VEC(work, 9), *pp = work + FOUR_BAR_OFF_PREP, *kept = FOUR_BAR_VEC(work, 11);
+        memcpy(kept, q, sizeof(four_bar_real) * 9);  /* the caller's guess, back in q if the call fails */
         four_bar_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1240,6 +1252,9 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
             four_bar_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!four_bar_finite(q, qd, qdd, lam, reactions)) status = FOUR_BAR_NONFINITE;
         }
+        /* a failed call leaves q as it came: its last Newton iterate would
+           be a worse guess for the next call than the caller's own */
+        if (status != FOUR_BAR_OK) memcpy(q, kept, sizeof(four_bar_real) * 9);
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1526,9 +1541,7 @@ long four_bar_sweep_lanes(long *abandoned)
 int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_real h, long n, four_bar_real tol,
                   four_bar_real *figures, int *status, four_bar_real *t_end, long *solved, four_bar_real *work, int *iwork)
 {
-    four_bar_real *state = work + FOUR_BAR_WORK, *rows = state + FOUR_BAR_STATE;
-    four_bar_real *vals = rows + 32 * FOUR_BAR_ROW, *arms = vals + 25, *drive = arms + 9;
-    four_bar_real *acc = drive + 2;
+    four_bar_real *state, *rows, *vals, *arms, *drive, *acc;
     long v, done, got, m;
     int st;
 #if FOUR_BAR_LANES > 1
@@ -1540,6 +1553,10 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
         || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
         || !isfinite(tol) || tol <= 0.0)
         return FOUR_BAR_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    state = work + FOUR_BAR_WORK, rows = state + FOUR_BAR_STATE;
+    vals = rows + 32 * FOUR_BAR_ROW, arms = vals + 25, drive = arms + 9;
+    acc = drive + 2;
     for (v = 0; v < k; ++v) {
         const four_bar_real *pv = p + v * FOUR_BAR_NP;
         four_bar_real *fig = figures + v * FOUR_BAR_SWEEP_FIGURES;

@@ -8,8 +8,27 @@
 extern "C" {
 #endif
 
-/* The one floating type of every argument, table and workspace. */
+/* The one floating type of every argument, table and workspace. Each
+   macro below may be defined (-D, or before including this header, for
+   the .c and its callers alike) to override the type or a setting:
+   FOUR_BAR_REAL a type of double's size (a typedef such as float32_t or
+   float64_t: the code's literals and libm calls are double's),
+   FOUR_BAR_MAX_NEWTON Newton's iteration cap per instant (a call that
+   needs more returns NOT_CONVERGED; at least 1), FOUR_BAR_FLOOR_ULPS the
+   tolerance floor: Newton stops at max(tol, FLOOR_ULPS eps max(1, |q|)),
+   eps double's epsilon, since rounding keeps |Phi| and the step from
+   going below it. */
+#ifndef FOUR_BAR_MAX_NEWTON
+#define FOUR_BAR_MAX_NEWTON 50
+#endif
+#ifndef FOUR_BAR_FLOOR_ULPS
+#define FOUR_BAR_FLOOR_ULPS 8.0
+#endif
+#ifdef FOUR_BAR_REAL
+typedef FOUR_BAR_REAL four_bar_real;
+#else
 typedef double four_bar_real;
+#endif
 
 /* Sizes. */
 #define FOUR_BAR_NG 9            /* generalized coordinates q = [x, y, phi] per body */
@@ -18,7 +37,7 @@ typedef double four_bar_real;
 #define FOUR_BAR_NNZ 25          /* structural nonzeros of Phi_q */
 #define FOUR_BAR_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define FOUR_BAR_ROW 67          /* values per instant in a trajectory row */
-#define FOUR_BAR_WORK 480        /* reals of workspace every solver call needs */
+#define FOUR_BAR_WORK 510        /* reals of workspace every solver call needs */
 #define FOUR_BAR_IWORK 9         /* ints of workspace */
 #define FOUR_BAR_STATE 73       /* reals of trajectory state */
 
@@ -159,6 +178,21 @@ extern const four_bar_real four_bar_default_q0[FOUR_BAR_NG];
    work), and of each evaluation: phi 42, phi_q 20, nu 0, gamma 30, applied 62, mass 0, reactions 9, lu_factor 15, lu_forward 5, lu_back 12, lu_t_forward 12, lu_t_back 5. */
 #define FOUR_BAR_OPS_INSTANT 288
 
+/* Worst case of one instant call (computed at generation from the counts
+   above, not measured): Newton reaching MAX_NEWTON, every factorization
+   through the pivoting fallback (bounded by a dense LU). At most
+   1586 + 1134 MAX_NEWTON counted floating operations and
+   8 + 6 MAX_NEWTON libm calls; as instructions, at most
+   WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
+   loads, stores and indexing), each libm call 300 (the real type on its
+   own FPU, arguments in their usual range: a double build on a single-
+   precision FPU emulates every operation and is not covered), each
+   iteration 400 and the call 3000 more for calls, loops and copies.
+   test_c_edges checks it under callgrind on x86-64 for every bundled
+   example, the cap reached (instant only: a trajectory's instant adds its
+   predictor, checks and, if generated, sensitivities). */
+#define FOUR_BAR_WORST_INSTRUCTIONS (24432L + 15808L * (long)FOUR_BAR_MAX_NEWTON)
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int four_bar_phi_q_rows[25];
 extern const int four_bar_phi_q_cols[25];
@@ -179,7 +213,8 @@ void four_bar_reactions(const four_bar_real *q, const four_bar_real *lam, four_b
    are optional: any of them may be NULL (what the others need is then
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
-   pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
+   pivoting fallback was used (both 0 on BAD_ARGUMENT). A call that fails
+   (any status but OK) leaves q as the caller passed it. p may be NULL only
    when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
    mechanism has several assembly modes (a slider-crank's piston on either
    side, a four-bar open or crossed), a guess nearer the other mode gives

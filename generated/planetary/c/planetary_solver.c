@@ -5,6 +5,18 @@
 
 #include "planetary_solver.h"
 
+/* The guards against NaN and infinity (isfinite, comparisons a NaN fails)
+   need IEEE arithmetic: -ffast-math and -ffinite-math-only let the compiler
+   delete them, and a NaN t or parameter would return OK. */
+#if defined __FAST_MATH__ || (defined __FINITE_MATH_ONLY__ && __FINITE_MATH_ONLY__)
+#error "planetary_solver.c needs IEEE floating point: its NaN guards are removed by -ffast-math / -ffinite-math-only; build it without them"
+#endif
+#if PLANETARY_MAX_NEWTON < 1
+#error "PLANETARY_MAX_NEWTON must be at least 1"
+#endif
+/* PLANETARY_REAL, if overridden, must name a type of double's size (a typedef of it) */
+typedef char planetary_real_must_have_the_size_of_double[sizeof(planetary_real) == sizeof(double) ? 1 : -1];
+
 /* The source compiles as C99 and as C++ (which spells restrict __restrict). */
 #ifdef __cplusplus
 #define PLANETARY_RESTRICT __restrict
@@ -24,7 +36,6 @@
 #define PLANETARY_SINGULAR_RATIO (1e3 * PLANETARY_EPS)
 #define PLANETARY_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
 #define PLANETARY_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
-#define PLANETARY_MAX_NEWTON 50
 #define PLANETARY_LU_SIZE 20
 #define PLANETARY_MAX(a, b) ((a) > (b) ? (a) : (b))
 #define PLANETARY_MIN(a, b) ((a) < (b) ? (a) : (b))
@@ -33,7 +44,7 @@
 #define PLANETARY_OFF_DENSE (PLANETARY_OFF_LU + PLANETARY_LU_SIZE)
 #define PLANETARY_OFF_VEC (PLANETARY_OFF_DENSE + 144)
 #define PLANETARY_VEC(work, k) ((work) + PLANETARY_OFF_VEC + (k) * 51)
-#define PLANETARY_OFF_PREP 745  /* the prepared parameters (NPP), after the vectors */
+#define PLANETARY_OFF_PREP 796  /* the prepared parameters (NPP), after the vectors */
 #define PLANETARY_NPP 25
 
 const planetary_real planetary_default_params[9] = { 0.03, 0.03, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 5.0 };
@@ -1156,7 +1167,7 @@ static int planetary_newton(planetary_real t, const planetary_real *p, planetary
     else planetary_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = PLANETARY_MAX(1.0, planetary_maxabs12(q));
-    lim = PLANETARY_MAX(tol, 8.0 * PLANETARY_EPS * qmag);
+    lim = PLANETARY_MAX(tol, (planetary_real)PLANETARY_FLOOR_ULPS * PLANETARY_EPS * qmag);
     planetary_phi_k(q, tr, t, p, r);
     rmax = planetary_maxabs12(r);
     for (it = 0;; ++it) {
@@ -1349,7 +1360,8 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
         || !isfinite(tol) || tol <= 0.0) {
         status = PLANETARY_BAD_ARGUMENT;
     } else {
-        planetary_real *tr = PLANETARY_VEC(work, 9), *pp = work + PLANETARY_OFF_PREP;
+        planetary_real *tr = PLANETARY_VEC(work, 9), *pp = work + PLANETARY_OFF_PREP, *kept = PLANETARY_VEC(work, 11);
+        memcpy(kept, q, sizeof(planetary_real) * 12);  /* the caller's guess, back in q if the call fails */
         planetary_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1362,6 +1374,9 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
             planetary_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!planetary_finite(q, qd, qdd, lam, reactions)) status = PLANETARY_NONFINITE;
         }
+        /* a failed call leaves q as it came: its last Newton iterate would
+           be a worse guess for the next call than the caller's own */
+        if (status != PLANETARY_OK) memcpy(q, kept, sizeof(planetary_real) * 12);
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1680,9 +1695,7 @@ long planetary_sweep_lanes(long *abandoned)
 int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetary_real h, long n, planetary_real tol,
                   planetary_real *figures, int *status, planetary_real *t_end, long *solved, planetary_real *work, int *iwork)
 {
-    planetary_real *state = work + PLANETARY_WORK, *rows = state + PLANETARY_STATE;
-    planetary_real *vals = rows + 32 * PLANETARY_ROW, *arms = vals + 20, *drive = arms + 12;
-    planetary_real *acc = drive + 2;
+    planetary_real *state, *rows, *vals, *arms, *drive, *acc;
     long v, done, got, m;
     int st;
 #if PLANETARY_LANES > 1
@@ -1694,6 +1707,10 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
         || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
         || !isfinite(tol) || tol <= 0.0)
         return PLANETARY_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    state = work + PLANETARY_WORK, rows = state + PLANETARY_STATE;
+    vals = rows + 32 * PLANETARY_ROW, arms = vals + 20, drive = arms + 12;
+    acc = drive + 2;
     for (v = 0; v < k; ++v) {
         const planetary_real *pv = p + v * PLANETARY_NP;
         planetary_real *fig = figures + v * PLANETARY_SWEEP_FIGURES;

@@ -8,8 +8,27 @@
 extern "C" {
 #endif
 
-/* The one floating type of every argument, table and workspace. */
+/* The one floating type of every argument, table and workspace. Each
+   macro below may be defined (-D, or before including this header, for
+   the .c and its callers alike) to override the type or a setting:
+   PLANETARY_REAL a type of double's size (a typedef such as float32_t or
+   float64_t: the code's literals and libm calls are double's),
+   PLANETARY_MAX_NEWTON Newton's iteration cap per instant (a call that
+   needs more returns NOT_CONVERGED; at least 1), PLANETARY_FLOOR_ULPS the
+   tolerance floor: Newton stops at max(tol, FLOOR_ULPS eps max(1, |q|)),
+   eps double's epsilon, since rounding keeps |Phi| and the step from
+   going below it. */
+#ifndef PLANETARY_MAX_NEWTON
+#define PLANETARY_MAX_NEWTON 50
+#endif
+#ifndef PLANETARY_FLOOR_ULPS
+#define PLANETARY_FLOOR_ULPS 8.0
+#endif
+#ifdef PLANETARY_REAL
+typedef PLANETARY_REAL planetary_real;
+#else
 typedef double planetary_real;
+#endif
 
 /* Sizes. */
 #define PLANETARY_NG 12            /* generalized coordinates q = [x, y, phi] per body */
@@ -18,7 +37,7 @@ typedef double planetary_real;
 #define PLANETARY_NNZ 20          /* structural nonzeros of Phi_q */
 #define PLANETARY_NR 51            /* reaction values (Fx, Fy, T per body role) */
 #define PLANETARY_ROW 100          /* values per instant in a trajectory row */
-#define PLANETARY_WORK 770        /* reals of workspace every solver call needs */
+#define PLANETARY_WORK 821        /* reals of workspace every solver call needs */
 #define PLANETARY_IWORK 12         /* ints of workspace */
 #define PLANETARY_STATE 97       /* reals of trajectory state */
 
@@ -187,6 +206,21 @@ extern const planetary_real planetary_default_q0[PLANETARY_NG];
    work), and of each evaluation: phi 22, phi_q 5, nu 0, gamma 6, applied 12, mass 0, reactions 20, lu_factor 13, lu_forward 3, lu_back 7, lu_t_forward 7, lu_t_back 3. */
 #define PLANETARY_OPS_INSTANT 140
 
+/* Worst case of one instant call (computed at generation from the counts
+   above, not measured): Newton reaching MAX_NEWTON, every factorization
+   through the pivoting fallback (bounded by a dense LU). At most
+   2722 + 2099 MAX_NEWTON counted floating operations and
+   8 + 8 MAX_NEWTON libm calls; as instructions, at most
+   WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
+   loads, stores and indexing), each libm call 300 (the real type on its
+   own FPU, arguments in their usual range: a double build on a single-
+   precision FPU emulates every operation and is not covered), each
+   iteration 400 and the call 3000 more for calls, loops and copies.
+   test_c_edges checks it under callgrind on x86-64 for every bundled
+   example, the cap reached (instant only: a trajectory's instant adds its
+   predictor, checks and, if generated, sensitivities). */
+#define PLANETARY_WORST_INSTRUCTIONS (38064L + 27988L * (long)PLANETARY_MAX_NEWTON)
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int planetary_phi_q_rows[20];
 extern const int planetary_phi_q_cols[20];
@@ -207,7 +241,8 @@ void planetary_reactions(const planetary_real *q, const planetary_real *lam, pla
    are optional: any of them may be NULL (what the others need is then
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
-   pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
+   pivoting fallback was used (both 0 on BAD_ARGUMENT). A call that fails
+   (any status but OK) leaves q as the caller passed it. p may be NULL only
    when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
    mechanism has several assembly modes (a slider-crank's piston on either
    side, a four-bar open or crossed), a guess nearer the other mode gives

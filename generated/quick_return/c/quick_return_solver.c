@@ -5,6 +5,18 @@
 
 #include "quick_return_solver.h"
 
+/* The guards against NaN and infinity (isfinite, comparisons a NaN fails)
+   need IEEE arithmetic: -ffast-math and -ffinite-math-only let the compiler
+   delete them, and a NaN t or parameter would return OK. */
+#if defined __FAST_MATH__ || (defined __FINITE_MATH_ONLY__ && __FINITE_MATH_ONLY__)
+#error "quick_return_solver.c needs IEEE floating point: its NaN guards are removed by -ffast-math / -ffinite-math-only; build it without them"
+#endif
+#if QUICK_RETURN_MAX_NEWTON < 1
+#error "QUICK_RETURN_MAX_NEWTON must be at least 1"
+#endif
+/* QUICK_RETURN_REAL, if overridden, must name a type of double's size (a typedef of it) */
+typedef char quick_return_real_must_have_the_size_of_double[sizeof(quick_return_real) == sizeof(double) ? 1 : -1];
+
 /* The source compiles as C99 and as C++ (which spells restrict __restrict). */
 #ifdef __cplusplus
 #define QUICK_RETURN_RESTRICT __restrict
@@ -24,7 +36,6 @@
 #define QUICK_RETURN_SINGULAR_RATIO (1e3 * QUICK_RETURN_EPS)
 #define QUICK_RETURN_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
 #define QUICK_RETURN_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
-#define QUICK_RETURN_MAX_NEWTON 50
 #define QUICK_RETURN_LU_SIZE 20
 #define QUICK_RETURN_MAX(a, b) ((a) > (b) ? (a) : (b))
 #define QUICK_RETURN_MIN(a, b) ((a) < (b) ? (a) : (b))
@@ -33,7 +44,7 @@
 #define QUICK_RETURN_OFF_DENSE (QUICK_RETURN_OFF_LU + QUICK_RETURN_LU_SIZE)
 #define QUICK_RETURN_OFF_VEC (QUICK_RETURN_OFF_DENSE + 81)
 #define QUICK_RETURN_VEC(work, k) ((work) + QUICK_RETURN_OFF_VEC + (k) * 36)
-#define QUICK_RETURN_OFF_PREP 517  /* the prepared parameters (NPP), after the vectors */
+#define QUICK_RETURN_OFF_PREP 553  /* the prepared parameters (NPP), after the vectors */
 #define QUICK_RETURN_NPP 18
 
 const quick_return_real quick_return_default_params[13] = { 0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 500.0 };
@@ -1039,7 +1050,7 @@ static int quick_return_newton(quick_return_real t, const quick_return_real *p, 
     else quick_return_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = QUICK_RETURN_MAX(1.0, quick_return_maxabs9(q));
-    lim = QUICK_RETURN_MAX(tol, 8.0 * QUICK_RETURN_EPS * qmag);
+    lim = QUICK_RETURN_MAX(tol, (quick_return_real)QUICK_RETURN_FLOOR_ULPS * QUICK_RETURN_EPS * qmag);
     quick_return_phi_k(q, tr, t, p, r);
     rmax = quick_return_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1217,7 +1228,8 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
         || !isfinite(tol) || tol <= 0.0) {
         status = QUICK_RETURN_BAD_ARGUMENT;
     } else {
-        quick_return_real *tr = QUICK_RETURN_VEC(work, 9), *pp = work + QUICK_RETURN_OFF_PREP;
+        quick_return_real *tr = QUICK_RETURN_VEC(work, 9), *pp = work + QUICK_RETURN_OFF_PREP, *kept = QUICK_RETURN_VEC(work, 11);
+        memcpy(kept, q, sizeof(quick_return_real) * 9);  /* the caller's guess, back in q if the call fails */
         quick_return_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1230,6 +1242,9 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
             quick_return_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!quick_return_finite(q, qd, qdd, lam, reactions)) status = QUICK_RETURN_NONFINITE;
         }
+        /* a failed call leaves q as it came: its last Newton iterate would
+           be a worse guess for the next call than the caller's own */
+        if (status != QUICK_RETURN_OK) memcpy(q, kept, sizeof(quick_return_real) * 9);
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1525,9 +1540,7 @@ long quick_return_sweep_lanes(long *abandoned)
 int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0, quick_return_real h, long n, quick_return_real tol,
                   quick_return_real *figures, int *status, quick_return_real *t_end, long *solved, quick_return_real *work, int *iwork)
 {
-    quick_return_real *state = work + QUICK_RETURN_WORK, *rows = state + QUICK_RETURN_STATE;
-    quick_return_real *vals = rows + 32 * QUICK_RETURN_ROW, *arms = vals + 20, *drive = arms + 9;
-    quick_return_real *acc = drive + 2;
+    quick_return_real *state, *rows, *vals, *arms, *drive, *acc;
     long v, done, got, m;
     int st;
 #if QUICK_RETURN_LANES > 1
@@ -1539,6 +1552,10 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
         || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
         || !isfinite(tol) || tol <= 0.0)
         return QUICK_RETURN_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    state = work + QUICK_RETURN_WORK, rows = state + QUICK_RETURN_STATE;
+    vals = rows + 32 * QUICK_RETURN_ROW, arms = vals + 20, drive = arms + 9;
+    acc = drive + 2;
     for (v = 0; v < k; ++v) {
         const quick_return_real *pv = p + v * QUICK_RETURN_NP;
         quick_return_real *fig = figures + v * QUICK_RETURN_SWEEP_FIGURES;

@@ -8,8 +8,27 @@
 extern "C" {
 #endif
 
-/* The one floating type of every argument, table and workspace. */
+/* The one floating type of every argument, table and workspace. Each
+   macro below may be defined (-D, or before including this header, for
+   the .c and its callers alike) to override the type or a setting:
+   QUICK_RETURN_REAL a type of double's size (a typedef such as float32_t or
+   float64_t: the code's literals and libm calls are double's),
+   QUICK_RETURN_MAX_NEWTON Newton's iteration cap per instant (a call that
+   needs more returns NOT_CONVERGED; at least 1), QUICK_RETURN_FLOOR_ULPS the
+   tolerance floor: Newton stops at max(tol, FLOOR_ULPS eps max(1, |q|)),
+   eps double's epsilon, since rounding keeps |Phi| and the step from
+   going below it. */
+#ifndef QUICK_RETURN_MAX_NEWTON
+#define QUICK_RETURN_MAX_NEWTON 50
+#endif
+#ifndef QUICK_RETURN_FLOOR_ULPS
+#define QUICK_RETURN_FLOOR_ULPS 8.0
+#endif
+#ifdef QUICK_RETURN_REAL
+typedef QUICK_RETURN_REAL quick_return_real;
+#else
 typedef double quick_return_real;
+#endif
 
 /* Sizes. */
 #define QUICK_RETURN_NG 9            /* generalized coordinates q = [x, y, phi] per body */
@@ -18,7 +37,7 @@ typedef double quick_return_real;
 #define QUICK_RETURN_NNZ 20          /* structural nonzeros of Phi_q */
 #define QUICK_RETURN_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define QUICK_RETURN_ROW 73          /* values per instant in a trajectory row */
-#define QUICK_RETURN_WORK 535        /* reals of workspace every solver call needs */
+#define QUICK_RETURN_WORK 571        /* reals of workspace every solver call needs */
 #define QUICK_RETURN_IWORK 9         /* ints of workspace */
 #define QUICK_RETURN_STATE 73       /* reals of trajectory state */
 
@@ -163,6 +182,21 @@ extern const quick_return_real quick_return_default_q0[QUICK_RETURN_NG];
    work), and of each evaluation: phi 37, phi_q 41, nu 0, gamma 83, applied 15, mass 0, reactions 44, lu_factor 20, lu_forward 5, lu_back 14, lu_t_forward 14, lu_t_back 5. */
 #define QUICK_RETURN_OPS_INSTANT 353
 
+/* Worst case of one instant call (computed at generation from the counts
+   above, not measured): Newton reaching MAX_NEWTON, every factorization
+   through the pivoting fallback (bounded by a dense LU). At most
+   1683 + 1178 MAX_NEWTON counted floating operations and
+   7 + 6 MAX_NEWTON libm calls; as instructions, at most
+   WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
+   loads, stores and indexing), each libm call 300 (the real type on its
+   own FPU, arguments in their usual range: a double build on a single-
+   precision FPU emulates every operation and is not covered), each
+   iteration 400 and the call 3000 more for calls, loops and copies.
+   test_c_edges checks it under callgrind on x86-64 for every bundled
+   example, the cap reached (instant only: a trajectory's instant adds its
+   predictor, checks and, if generated, sensitivities). */
+#define QUICK_RETURN_WORST_INSTRUCTIONS (25296L + 16336L * (long)QUICK_RETURN_MAX_NEWTON)
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int quick_return_phi_q_rows[20];
 extern const int quick_return_phi_q_cols[20];
@@ -183,7 +217,8 @@ void quick_return_reactions(const quick_return_real *q, const quick_return_real 
    are optional: any of them may be NULL (what the others need is then
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
-   pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
+   pivoting fallback was used (both 0 on BAD_ARGUMENT). A call that fails
+   (any status but OK) leaves q as the caller passed it. p may be NULL only
    when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
    mechanism has several assembly modes (a slider-crank's piston on either
    side, a four-bar open or crossed), a guess nearer the other mode gives

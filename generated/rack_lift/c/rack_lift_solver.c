@@ -5,17 +5,37 @@
 
 #include "rack_lift_solver.h"
 
+/* The guards against NaN and infinity (isfinite, comparisons a NaN fails)
+   need IEEE arithmetic: -ffast-math and -ffinite-math-only let the compiler
+   delete them, and a NaN t or parameter would return OK. */
+#if defined __FAST_MATH__ || (defined __FINITE_MATH_ONLY__ && __FINITE_MATH_ONLY__)
+#error "rack_lift_solver.c needs IEEE floating point: its NaN guards are removed by -ffast-math / -ffinite-math-only; build it without them"
+#endif
+#if RACK_LIFT_MAX_NEWTON < 1
+#error "RACK_LIFT_MAX_NEWTON must be at least 1"
+#endif
+/* RACK_LIFT_REAL, if overridden, must name a type of double's size (a typedef of it) */
+typedef char rack_lift_real_must_have_the_size_of_double[sizeof(rack_lift_real) == sizeof(double) ? 1 : -1];
+
 /* The source compiles as C99 and as C++ (which spells restrict __restrict). */
 #ifdef __cplusplus
 #define RACK_LIFT_RESTRICT __restrict
 #else
 #define RACK_LIFT_RESTRICT restrict
 #endif
+/* Out of line where the compiler allows: a path most instants skip, whose
+   inlining would cost the others (outputs' refinement of lambda). */
+#ifdef __GNUC__
+#define RACK_LIFT_COLD __attribute__((noinline, cold))
+#else
+#define RACK_LIFT_COLD
+#endif
 
 #define RACK_LIFT_EPS 2.220446049250313e-16  /* the machine epsilon of rack_lift_real */
 #define RACK_LIFT_THRESHOLD 0.1
 #define RACK_LIFT_SINGULAR_RATIO (1e3 * RACK_LIFT_EPS)
-#define RACK_LIFT_MAX_NEWTON 50
+#define RACK_LIFT_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
+#define RACK_LIFT_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
 #define RACK_LIFT_LU_SIZE 11
 #define RACK_LIFT_MAX(a, b) ((a) > (b) ? (a) : (b))
 #define RACK_LIFT_MIN(a, b) ((a) < (b) ? (a) : (b))
@@ -24,7 +44,7 @@
 #define RACK_LIFT_OFF_DENSE (RACK_LIFT_OFF_LU + RACK_LIFT_LU_SIZE)
 #define RACK_LIFT_OFF_VEC (RACK_LIFT_OFF_DENSE + 36)
 #define RACK_LIFT_VEC(work, k) ((work) + RACK_LIFT_OFF_VEC + (k) * 24)
-#define RACK_LIFT_OFF_PREP 322  /* the prepared parameters (NPP), after the vectors */
+#define RACK_LIFT_OFF_PREP 346  /* the prepared parameters (NPP), after the vectors */
 #define RACK_LIFT_NPP 18
 
 const rack_lift_real rack_lift_default_params[8] = { 0.04, 0.25, 2.0, 0.8, 6.0, 0.6, 25.0, 0.25 };
@@ -593,6 +613,55 @@ static int rack_lift_pivots_spread(const rack_lift_real *lu)
     return rmin <= RACK_LIFT_SINGULAR_RATIO * rmax;
 }
 
+/* The conditioning screen's cheap test: 1 where the pivots of the factors
+   in lu, each in the scales of symid's Python loop (row: per constraint row
+   its norm, col: per coordinate 1 / its scale; the pivot of row r, column
+   c is u / (row[r] col[c])), spread wider than SCREEN, or where the
+   pivoting fallback (dense) factored Phi_q: there the condition number may
+   be large, and cond_estimate tells. The reciprocals the slots hold spread
+   as the pivots do. O(NG) an instant. */
+static int rack_lift_screen(const rack_lift_real *lu, int dense, const rack_lift_real *row, const rack_lift_real *col,
+                          const rack_lift_real *known)
+{
+    rack_lift_real wmin = known[0], wmax = known[1], w;
+    if (dense) return 1;
+    w = fabs(lu[8]) * row[4] * col[4];
+    wmin = RACK_LIFT_MIN(wmin, w);
+    wmax = RACK_LIFT_MAX(wmax, w);
+    (void)lu;
+    (void)row;
+    (void)col;
+    (void)w;
+    return !(wmax <= RACK_LIFT_SCREEN * wmin);
+}
+
+/* The smallest and largest of the pivots known at generation, in the
+   screen's scales (as screen weighs them): the same at every instant of a
+   run, so computed once a call. */
+static void rack_lift_screen_known(const rack_lift_real *row, const rack_lift_real *col, rack_lift_real *known)
+{
+    rack_lift_real w;
+    known[0] = ((double)INFINITY), known[1] = 0.0;
+    w = 1.0 * row[0] * col[0];
+    known[0] = RACK_LIFT_MIN(known[0], w);
+    known[1] = RACK_LIFT_MAX(known[1], w);
+    w = 1.0 * row[1] * col[1];
+    known[0] = RACK_LIFT_MIN(known[0], w);
+    known[1] = RACK_LIFT_MAX(known[1], w);
+    w = 1.0 * row[2] * col[3];
+    known[0] = RACK_LIFT_MIN(known[0], w);
+    known[1] = RACK_LIFT_MAX(known[1], w);
+    w = 1.0 * row[3] * col[5];
+    known[0] = RACK_LIFT_MIN(known[0], w);
+    known[1] = RACK_LIFT_MAX(known[1], w);
+    w = 1.0 * row[5] * col[2];
+    known[0] = RACK_LIFT_MIN(known[0], w);
+    known[1] = RACK_LIFT_MAX(known[1], w);
+    (void)row;
+    (void)col;
+    (void)w;
+}
+
 /* Factor Phi_q(q): the fixed sparse order, or the dense fallback (*dense = 1).
    Phi_q's values are written straight into the factor array (its first NNZ
    slots); only a fallback evaluates them again, into the dense matrix. */
@@ -629,6 +698,98 @@ static void rack_lift_solve_t(const rack_lift_real *work, const int *iwork, int 
 {
     if (dense) rack_lift_dense_solve_t(work + RACK_LIFT_OFF_DENSE, iwork, b, x);
     else rack_lift_sparse_solve_t(work + RACK_LIFT_OFF_LU, b, x);
+}
+
+/* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
+   span more than REFINE_SPREAD (a massless body among massive ones too):
+   there the lighter bodies' multipliers need the refinement of outputs;
+   where the scales are uniform the first solve is already at rounding, and
+   the refinement's cost (a quarter of an instant) is not paid. */
+static int rack_lift_mixed(const rack_lift_real *m)
+{
+    rack_lift_real lo = m[0], hi = m[0];
+    lo = RACK_LIFT_MIN(lo, m[3]);
+    hi = RACK_LIFT_MAX(hi, m[3]);
+    return lo * 100.0 < hi;
+}
+
+/* One step of iterative refinement of lambda = Phi_q^T \ b, where the
+   masses span scales (mixed): a transposed solve is backward stable in the
+   norm of the whole b, so a light body's multipliers (a 2 g part on a boom
+   of 1e5 N) may carry the heavy ones' rounding (measured: the dense
+   fallback's partial pivoting, 1e-6 of the part's loads; the fixed sparse
+   order kept them to 1e-14 on that mechanism). The residual b - Phi_q^T
+   lambda, from Phi_q's values written again (the sparse factors overwrote
+   them), is exact to the rounding of each row's own terms, and its
+   correction through the same factors brings every multiplier to that. */
+static RACK_LIFT_COLD void rack_lift_refine_t(const rack_lift_real *q, const rack_lift_real *tr, rack_lift_real t, const rack_lift_real *p,
+                                        const rack_lift_real *b, rack_lift_real *lam, rack_lift_real *work, const int *iwork, int dense)
+{
+    rack_lift_real *values = work, *r = RACK_LIFT_VEC(work, 0), *d = RACK_LIFT_VEC(work, 1);
+    int k;
+    rack_lift_phi_q_k(q, tr, t, p, values);
+    memcpy(r, b, sizeof(rack_lift_real) * 6);
+    for (k = 0; k < 11; ++k) r[rack_lift_phi_q_cols[k]] -= values[k] * lam[rack_lift_phi_q_rows[k]];
+    if (dense) rack_lift_dense_solve_t(work + RACK_LIFT_OFF_DENSE, iwork, r, d);
+    else rack_lift_sparse_solve_t(work + RACK_LIFT_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    for (k = 0; k < 6; ++k) lam[k] += d[k];
+}
+
+/* The 1-norm condition estimate of Phi_q in the screen's scales,
+   A = D_r Phi_q D_c (D_r = 1 / row, D_c = 1 / col), as LAPACK's dgecon
+   estimates it for symid's Python loop: ||A||_1 from Phi_q's values at q
+   (into work's first NNZ reals), ||A^-1||_1 by Hager's method (at most five
+   solves with the factors and their transposes, as dlacn2) and Higham's
+   alternating vector (one solve); both are lower bounds. Run only where the
+   cheap test (screen) trips. Work vectors 0 to 3 are free between Newton and
+   the outputs. */
+static rack_lift_real rack_lift_cond_estimate(const rack_lift_real *q, const rack_lift_real *tr, rack_lift_real t, const rack_lift_real *p,
+                                    rack_lift_real *work, const int *iwork, int dense, const rack_lift_real *row,
+                                    const rack_lift_real *col)
+{
+    rack_lift_real *vals = work, *x = RACK_LIFT_VEC(work, 0), *z = RACK_LIFT_VEC(work, 1), *y = RACK_LIFT_VEC(work, 2);
+    rack_lift_real *b = RACK_LIFT_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
+    int k, it, j = 0, last = -1;
+    rack_lift_phi_q_k(q, tr, t, p, vals);
+    for (k = 0; k < 6; ++k) z[k] = 0.0;
+    for (k = 0; k < 11; ++k)
+        z[rack_lift_phi_q_cols[k]] += fabs(vals[k]) / (row[rack_lift_phi_q_rows[k]] * col[rack_lift_phi_q_cols[k]]);
+    for (k = 0; k < 6; ++k) anorm = RACK_LIFT_MAX(anorm, z[k]);
+    for (k = 0; k < 6; ++k) x[k] = 1.0 / 6.0;
+    for (it = 0; it < 5; ++it) {
+        /* z = A^-1 x = col (Phi_q^-1 (row x)) */
+        for (k = 0; k < 6; ++k) b[k] = row[k] * x[k];
+        rack_lift_solve(work, iwork, dense, b, z, y);
+        s = 0.0;
+        for (k = 0; k < 6; ++k) {
+            z[k] *= col[k];
+            s += fabs(z[k]);
+        }
+        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
+        if (it > 0 && s <= est) break;
+        est = s;
+        /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
+        for (k = 0; k < 6; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        rack_lift_solve_t(work, iwork, dense, b, z);
+        zmax = -1.0, ztx = 0.0;
+        for (k = 0; k < 6; ++k) {
+            z[k] *= row[k];
+            ztx += z[k] * x[k];
+            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+        }
+        if (it > 0 && (j == last || zmax <= ztx)) break;
+        for (k = 0; k < 6; ++k) x[k] = 0.0;
+        x[j] = 1.0;
+        last = j;
+    }
+    /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
+    for (k = 0; k < 6; ++k)
+        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (rack_lift_real)k / RACK_LIFT_MAX(1.0, 5.0));
+    rack_lift_solve(work, iwork, dense, b, z, y);
+    s = 0.0;
+    for (k = 0; k < 6; ++k) s += fabs(z[k] * col[k]);
+    est = RACK_LIFT_MAX(est, 2.0 * s / (3.0 * 6.0));
+    return anorm * est;
 }
 
 
@@ -824,7 +985,7 @@ static int rack_lift_newton(rack_lift_real t, const rack_lift_real *p, rack_lift
     else rack_lift_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = RACK_LIFT_MAX(1.0, rack_lift_maxabs6(q));
-    lim = RACK_LIFT_MAX(tol, 8.0 * RACK_LIFT_EPS * qmag);
+    lim = RACK_LIFT_MAX(tol, (rack_lift_real)RACK_LIFT_FLOOR_ULPS * RACK_LIFT_EPS * qmag);
     rack_lift_phi_k(q, tr, t, p, r);
     rmax = rack_lift_maxabs6(r);
     for (it = 0;; ++it) {
@@ -891,6 +1052,7 @@ static void rack_lift_outputs(rack_lift_real t, const rack_lift_real *p, const r
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     rack_lift_solve_t(work, iwork, dense, b, lam);
+    if (rack_lift_mixed(y)) rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     rack_lift_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -986,7 +1148,8 @@ int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real 
         || !isfinite(tol) || tol <= 0.0) {
         status = RACK_LIFT_BAD_ARGUMENT;
     } else {
-        rack_lift_real *tr = RACK_LIFT_VEC(work, 9), *pp = work + RACK_LIFT_OFF_PREP;
+        rack_lift_real *tr = RACK_LIFT_VEC(work, 9), *pp = work + RACK_LIFT_OFF_PREP, *kept = RACK_LIFT_VEC(work, 11);
+        memcpy(kept, q, sizeof(rack_lift_real) * 6);  /* the caller's guess, back in q if the call fails */
         rack_lift_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -999,6 +1162,9 @@ int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real 
             rack_lift_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!rack_lift_finite(q, qd, qdd, lam, reactions)) status = RACK_LIFT_NONFINITE;
         }
+        /* a failed call leaves q as it came: its last Newton iterate would
+           be a worse guess for the next call than the caller's own */
+        if (status != RACK_LIFT_OK) memcpy(q, kept, sizeof(rack_lift_real) * 6);
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1007,14 +1173,34 @@ int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real 
     return status;
 }
 
+int rack_lift_screen_at(rack_lift_real t, const rack_lift_real *p, const rack_lift_real *state, rack_lift_real *work, int *iwork)
+{
+    rack_lift_real *tr, *pp, known[2];
+    int dense = 0;
+    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+        return RACK_LIFT_BAD_ARGUMENT;
+    if (!(state[42] > 0.0)) return RACK_LIFT_OK;  /* no scales: no screen */
+    tr = RACK_LIFT_VEC(work, 9), pp = work + RACK_LIFT_OFF_PREP;
+    rack_lift_prepare(p, pp);
+    rack_lift_trig(state, tr);
+    if (rack_lift_factorize(state, tr, t, pp, work, iwork, &dense) != RACK_LIFT_OK)
+        return RACK_LIFT_ILL_CONDITIONED;
+    rack_lift_screen_known(state + 42, state + 36, known);
+    if (rack_lift_screen(work + RACK_LIFT_OFF_LU, dense, state + 42, state + 36, known)
+        && !(rack_lift_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 42, state + 36)
+             <= RACK_LIFT_COND_SCREEN))
+        return RACK_LIFT_ILL_CONDITIONED;
+    return RACK_LIFT_OK;
+}
+
 int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack_lift_real *p, rack_lift_real tol, rack_lift_real *state,
                        rack_lift_real *rows, long *solved, rack_lift_real *work, int *iwork)
 {
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    rack_lift_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp;
-    rack_lift_real *qd, *qdd, *m3, *scale;
+    rack_lift_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
+    rack_lift_real *qd, *qdd, *m3;
     long i, unused;
     int status, info[2], dense = 0;
     if (solved == NULL) solved = &unused;
@@ -1023,8 +1209,11 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return RACK_LIFT_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 18, m2 = state + 24, count = state + 42;
-    qd = state + 6, qdd = state + 12, m3 = state + 30, scale = state + 36;
+    q = state, m1 = state + 18, m2 = state + 24, count = state + 48;
+    scale = state + 36, rscale = state + 42;
+    if (rscale[0] > 0.0) rack_lift_screen_known(rscale, scale, known);
+    else known[0] = known[1] = 0.0;  /* no screen: never read */
+    qd = state + 6, qdd = state + 12, m3 = state + 30;
     tr = RACK_LIFT_VEC(work, 9), pp = work + RACK_LIFT_OFF_PREP;
     rack_lift_prepare(p, pp);
     for (i = 0; i < n; ++i) {
@@ -1067,6 +1256,11 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
            and trigonometric bases (left in work) serve this one */
         status = rack_lift_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != RACK_LIFT_OK) break;
+        if (rscale[0] > 0.0 && rack_lift_screen(work + RACK_LIFT_OFF_LU, dense, rscale, scale, known)
+            && !(rack_lift_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= RACK_LIFT_COND_SCREEN)) {
+            status = RACK_LIFT_ILL_CONDITIONED;
+            break;
+        }
         rack_lift_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
         if (!rack_lift_row_finite(row, qn, qdn, qddn, lam, reac)) {
             status = RACK_LIFT_NONFINITE;
@@ -1116,9 +1310,10 @@ static void rack_lift_drive(rack_lift_real t, const rack_lift_real *p, rack_lift
 /* 1 / the column scales of the jump check at the assembled q(t0), as
    symid.numeric.stability.Scaling.of: x and y in units of the median moment
    arm of the rows that mix lengths and angles (else the largest |x|, |y|,
-   else 1), angles in radians. vals: NNZ reals, arms: NC reals. */
+   else 1), angles in radians; and the rows' norms in those units, for the
+   conditioning screen (1 for a row of zeros). vals: NNZ reals, arms: NC reals. */
 static void rack_lift_sweep_scales(const rack_lift_real *q, rack_lift_real t0, const rack_lift_real *p, rack_lift_real *vals,
-                                 rack_lift_real *arms, rack_lift_real *inv)
+                                 rack_lift_real *arms, rack_lift_real *inv, rack_lift_real *norm)
 {
     rack_lift_real lin[6], rot[6], lref = 0.0, a;
     int k, r, m = 0, i;
@@ -1147,6 +1342,10 @@ static void rack_lift_sweep_scales(const rack_lift_real *q, rack_lift_real t0, c
     }
     if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
     for (k = 0; k < 6; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    for (r = 0; r < 6; ++r) {
+        a = RACK_LIFT_MAX(lin[r] * lref, rot[r]);
+        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+    }
 }
 
 /* Take one solved row's figures; count: the variant's instants taken before.
@@ -1236,9 +1435,7 @@ long rack_lift_sweep_lanes(long *abandoned)
 int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lift_real h, long n, rack_lift_real tol,
                   rack_lift_real *figures, int *status, rack_lift_real *t_end, long *solved, rack_lift_real *work, int *iwork)
 {
-    rack_lift_real *state = work + RACK_LIFT_WORK, *rows = state + RACK_LIFT_STATE;
-    rack_lift_real *vals = rows + 32 * RACK_LIFT_ROW, *arms = vals + 11, *drive = arms + 6;
-    rack_lift_real *acc = drive + 2;
+    rack_lift_real *state, *rows, *vals, *arms, *drive, *acc;
     long v, done, got, m;
     int st;
 #if RACK_LIFT_LANES > 1
@@ -1250,6 +1447,10 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
         || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
         || !isfinite(tol) || tol <= 0.0)
         return RACK_LIFT_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    state = work + RACK_LIFT_WORK, rows = state + RACK_LIFT_STATE;
+    vals = rows + 32 * RACK_LIFT_ROW, arms = vals + 11, drive = arms + 6;
+    acc = drive + 2;
     for (v = 0; v < k; ++v) {
         const rack_lift_real *pv = p + v * RACK_LIFT_NP;
         rack_lift_real *fig = figures + v * RACK_LIFT_SWEEP_FIGURES;
@@ -1282,7 +1483,10 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
             got = 0;
             st = rack_lift_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) rack_lift_sweep_take(rows + m * RACK_LIFT_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) rack_lift_sweep_scales(state, t0, pv, vals, arms, state + 36);
+            if (done == 0 && got == 1) {
+                rack_lift_sweep_scales(state, t0, pv, vals, arms, state + 36, state + 42);
+                st = rack_lift_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
+            }
             done += got;
         }
         rack_lift_sweep_finish(fig, acc, done);

@@ -8,8 +8,27 @@
 extern "C" {
 #endif
 
-/* The one floating type of every argument, table and workspace. */
+/* The one floating type of every argument, table and workspace. Each
+   macro below may be defined (-D, or before including this header, for
+   the .c and its callers alike) to override the type or a setting:
+   RACK_LIFT_REAL a type of double's size (a typedef such as float32_t or
+   float64_t: the code's literals and libm calls are double's),
+   RACK_LIFT_MAX_NEWTON Newton's iteration cap per instant (a call that
+   needs more returns NOT_CONVERGED; at least 1), RACK_LIFT_FLOOR_ULPS the
+   tolerance floor: Newton stops at max(tol, FLOOR_ULPS eps max(1, |q|)),
+   eps double's epsilon, since rounding keeps |Phi| and the step from
+   going below it. */
+#ifndef RACK_LIFT_MAX_NEWTON
+#define RACK_LIFT_MAX_NEWTON 50
+#endif
+#ifndef RACK_LIFT_FLOOR_ULPS
+#define RACK_LIFT_FLOOR_ULPS 8.0
+#endif
+#ifdef RACK_LIFT_REAL
+typedef RACK_LIFT_REAL rack_lift_real;
+#else
 typedef double rack_lift_real;
+#endif
 
 /* Sizes. */
 #define RACK_LIFT_NG 6            /* generalized coordinates q = [x, y, phi] per body */
@@ -18,9 +37,9 @@ typedef double rack_lift_real;
 #define RACK_LIFT_NNZ 11          /* structural nonzeros of Phi_q */
 #define RACK_LIFT_NR 24            /* reaction values (Fx, Fy, T per body role) */
 #define RACK_LIFT_ROW 49          /* values per instant in a trajectory row */
-#define RACK_LIFT_WORK 340        /* reals of workspace every solver call needs */
+#define RACK_LIFT_WORK 364        /* reals of workspace every solver call needs */
 #define RACK_LIFT_IWORK 6         /* ints of workspace */
-#define RACK_LIFT_STATE 43       /* reals of trajectory state */
+#define RACK_LIFT_STATE 49       /* reals of trajectory state */
 
 /* Status of every solver call. */
 #define RACK_LIFT_OK 0
@@ -34,6 +53,11 @@ typedef double rack_lift_real;
 #define RACK_LIFT_BAD_ARGUMENT 5  /* a scalar argument is invalid (tol not finite or <= 0, t, t0
                                    or h not finite, n < 0) or a required pointer is NULL:
                                    nothing was solved */
+#define RACK_LIFT_ILL_CONDITIONED 6  /* trajectory, screen_at, with the screen's scales set: the
+                                   pivots in those scales spread wider than SCREEN (or the
+                                   pivoting fallback factored Phi_q): the condition number
+                                   may pass symid's warning level, near a singular position:
+                                   verify it (symid estimates it, warns or stops) */
 
 /* Output groups compiled in (1) or left out (0). */
 #define RACK_LIFT_HAS_QDOT 1
@@ -126,6 +150,21 @@ extern const rack_lift_real rack_lift_default_q0[RACK_LIFT_NG];
    work), and of each evaluation: phi 20, phi_q 10, nu 6, gamma 29, applied 7, mass 0, reactions 11, lu_factor 12, lu_forward 4, lu_back 3, lu_t_forward 3, lu_t_back 4. */
 #define RACK_LIFT_OPS_INSTANT 143
 
+/* Worst case of one instant call (computed at generation from the counts
+   above, not measured): Newton reaching MAX_NEWTON, every factorization
+   through the pivoting fallback (bounded by a dense LU). At most
+   675 + 469 MAX_NEWTON counted floating operations and
+   7 + 5 MAX_NEWTON libm calls; as instructions, at most
+   WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
+   loads, stores and indexing), each libm call 300 (the real type on its
+   own FPU, arguments in their usual range: a double build on a single-
+   precision FPU emulates every operation and is not covered), each
+   iteration 400 and the call 3000 more for calls, loops and copies.
+   test_c_edges checks it under callgrind on x86-64 for every bundled
+   example, the cap reached (instant only: a trajectory's instant adds its
+   predictor, checks and, if generated, sensitivities). */
+#define RACK_LIFT_WORST_INSTRUCTIONS (13200L + 7528L * (long)RACK_LIFT_MAX_NEWTON)
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int rack_lift_phi_q_rows[11];
 extern const int rack_lift_phi_q_cols[11];
@@ -146,7 +185,8 @@ void rack_lift_reactions(const rack_lift_real *q, const rack_lift_real *lam, rac
    are optional: any of them may be NULL (what the others need is then
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
-   pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
+   pivoting fallback was used (both 0 on BAD_ARGUMENT). A call that fails
+   (any status but OK) leaves q as the caller passed it. p may be NULL only
    when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
    mechanism has several assembly modes (a slider-crank's piston on either
    side, a four-bar open or crossed), a guess nearer the other mode gives
@@ -163,8 +203,16 @@ int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real 
    call of one run. state (STATE reals) carries the predictor between calls:
    set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
    first call. state[6 NG..7 NG-1]: per
-   coordinate, 1 / its scale for the jump check (zeros: no check).
+   coordinate, 1 / its scale for the jump check (zeros: no check);
+   state[7 NG..8 NG-1]: per constraint row, its norm in those scales, for
+   the conditioning screen (zeros: no screen; symid sets both from q(t0)).
    *solved = rows written (solved may be NULL). */
+/* The conditioning screen at q = state[0..NG-1], time t, with the state's
+   scales: ILL_CONDITIONED where it trips (or Phi_q cannot be factored), OK
+   where it does not or no scales are set (symid screens t0, which the first
+   call of trajectory solves before the scales are known). */
+int rack_lift_screen_at(rack_lift_real t, const rack_lift_real *p, const rack_lift_real *state, rack_lift_real *work, int *iwork);
+
 int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack_lift_real *p, rack_lift_real tol, rack_lift_real *state,
                        rack_lift_real *rows, long *solved, rack_lift_real *work, int *iwork);
 

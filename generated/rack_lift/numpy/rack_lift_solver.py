@@ -31,6 +31,7 @@ MAX_NEWTON = 50
 EPS = float(np.finfo(float).eps)
 THRESHOLD = 0.1
 SINGULAR_RCOND = 1e3 * EPS
+REFINE_SPREAD = 100.0  # lambda is refined where the body masses span more (_refine_t)
 LU_SIZE = 11
 PIVOT_ROWS = (0, 1, 2, 3, 4, 5, )
 PIVOT_COLS = (0, 1, 3, 5, 4, 2, )
@@ -469,6 +470,31 @@ def _lam(a, f, m, e):
     return [x0, x1, x2, x3, x4, x5]
 
 
+
+def _mixed(m):
+    """Whether the body masses (m: the diagonal of M, three entries a body)
+    span more than REFINE_SPREAD (or a body is massless among massive ones):
+    there lambda is refined (`_refine_t`)."""
+    lo, hi = min(m[0::3]), max(m[0::3])
+    return lo * REFINE_SPREAD < hi
+
+
+def _refine_t(a, b, lam, q, t, p):
+    """lam after one step of iterative refinement of Phi_q^T lam = b: a
+    transposed solve is backward stable in the norm of the whole b, so a
+    light body's multipliers (a 2 g part on a boom of 1e5 N) may carry the
+    heavy ones' rounding (LAPACK's LU of Phi_q: 1e-9 of the part's loads; a
+    partial-pivoting LU of the unscaled Phi_q: 1e-6); the residual
+    b - Phi_q^T lam is exact to the rounding of each row's own terms, and its
+    correction through the same factors brings every multiplier to that."""
+    r = list(b)
+    for v, i, j in zip(_phi_q_values_s(q, t, p), _ROWS, _COLS):
+        r[j] -= v * lam[i]
+    return [x + y for x, y in zip(lam, _solve_t(a, r))]
+
+
+_ROWS, _COLS = PHI_Q_ROWS.tolist(), PHI_Q_COLS.tolist()
+
 def _predict(o, d, e, h, hh):
     """The Taylor guess o + h d + hh e (hh = h^2 / 2), elementwise."""
     o0, o1, o2, o3, o4, o5 = o
@@ -521,9 +547,10 @@ def _unexplained(o, d, e, q, v, w, h, c, floor, ratio):
     return not mismatch <= ratio * max(abs(q0 - o0) * c0, abs(q1 - o1) * c1, abs(q2 - o2) * c2, abs(q3 - o3) * c3, abs(q4 - o4) * c4, abs(q5 - o5) * c5)
 
 
-def _instant(t, p, q, tol, m):
+def _instant(t, p, q, tol, m, mixed=None):
     """Solve one instant from the guess q (floats): Newton, then the compiled
-    outputs. m: _mass_s(p) (or None). Returns (q, qd, qdd, lam, reactions,
+    outputs. m: _mass_s(p) (or None); mixed: _mixed of the masses, if the
+    caller has it (a loop decides once). Returns (q, qd, qdd, lam, reactions,
     iterations, factors), None where not compiled. Raises SolverError."""
     qmag = max(1.0, max(map(abs, q)))
     lim = max(tol, 8.0 * EPS * qmag)
@@ -556,7 +583,10 @@ def _instant(t, p, q, tol, m):
             raise SolverError("singular", t, q, it) from None
     qd = _solve(a, _nu_s(q, t, p))
     qdd = _solve(a, _gamma_s(q, qd, t, p))
-    lam = _lam(a, _applied_s(q, qd, t, p), m, qdd)
+    f = _applied_s(q, qd, t, p)
+    lam = _lam(a, f, m, qdd)
+    if _mixed(m) if mixed is None else mixed:
+        lam = _refine_t(a, [u - v * w for u, v, w in zip(f, m, qdd)], lam, q, t, p)
     return q, qd, qdd, lam, _reactions_s(q, lam, t, p), it, a
 
 
@@ -596,6 +626,7 @@ def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
     qdd to resume from.
     """
     m = _mass_s(p)
+    mixed = _mixed(_mass_s(p))
     hh = 0.5 * h * h
     q1, q2, q3 = (list(past) + [None] * 3)[:3]
     if check is not None:
@@ -606,7 +637,7 @@ def _rows(t0, h, k, n, p, tol, q, past, qd, qdd, check=None):
             q = _predict(q1, qd, qdd, h, hh)
         try:
             try:
-                qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m)
+                qn, qdn, qddn, lam, reac, it, a = _instant(t, p, q, tol, m, mixed)
             except (ArithmeticError, ValueError):  # an expression left its domain (math raises)
                 raise SolverError("not finite", t, q, 0) from None
             # a sum carries any inf or NaN (an overflowing sum of finite values
@@ -644,6 +675,9 @@ def outputs(q, t, p):
     out["qd"], out["qdd"] = qd, qdd
     rhs = applied(q, qd, t, p) - mass(p).reshape((NG,) + (1,) * (q.ndim - 1)) * qdd
     lam = np.linalg.solve(np.swapaxes(jac, -1, -2), cols(rhs)[..., None])[..., 0].T
+    if _mixed(np.asarray(mass(p), dtype=float).reshape(NG, -1)[:, 0]):  # one step of refinement (_refine_t)
+        r = cols(rhs) - np.einsum("nij,in->nj", jac, lam.reshape(NC, -1))
+        lam = lam + np.linalg.solve(np.swapaxes(jac, -1, -2), r[..., None])[..., 0].T
     out["lam"] = lam.reshape((NC,) + q.shape[1:])
     out["reactions"] = reactions(q, out["lam"], t, p)
     return out

@@ -5,6 +5,18 @@
 
 #include "slider_crank_solver.h"
 
+/* The guards against NaN and infinity (isfinite, comparisons a NaN fails)
+   need IEEE arithmetic: -ffast-math and -ffinite-math-only let the compiler
+   delete them, and a NaN t or parameter would return OK. */
+#if defined __FAST_MATH__ || (defined __FINITE_MATH_ONLY__ && __FINITE_MATH_ONLY__)
+#error "slider_crank_solver.c needs IEEE floating point: its NaN guards are removed by -ffast-math / -ffinite-math-only; build it without them"
+#endif
+#if SLIDER_CRANK_MAX_NEWTON < 1
+#error "SLIDER_CRANK_MAX_NEWTON must be at least 1"
+#endif
+/* SLIDER_CRANK_REAL, if overridden, must name a type of double's size (a typedef of it) */
+typedef char slider_crank_real_must_have_the_size_of_double[sizeof(slider_crank_real) == sizeof(double) ? 1 : -1];
+
 /* The source compiles as C99 and as C++ (which spells restrict __restrict). */
 #ifdef __cplusplus
 #define SLIDER_CRANK_RESTRICT __restrict
@@ -24,7 +36,6 @@
 #define SLIDER_CRANK_SINGULAR_RATIO (1e3 * SLIDER_CRANK_EPS)
 #define SLIDER_CRANK_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
 #define SLIDER_CRANK_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
-#define SLIDER_CRANK_MAX_NEWTON 50
 #define SLIDER_CRANK_LU_SIZE 21
 #define SLIDER_CRANK_MAX(a, b) ((a) > (b) ? (a) : (b))
 #define SLIDER_CRANK_MIN(a, b) ((a) < (b) ? (a) : (b))
@@ -33,7 +44,7 @@
 #define SLIDER_CRANK_OFF_DENSE (SLIDER_CRANK_OFF_LU + SLIDER_CRANK_LU_SIZE)
 #define SLIDER_CRANK_OFF_VEC (SLIDER_CRANK_OFF_DENSE + 81)
 #define SLIDER_CRANK_VEC(work, k) ((work) + SLIDER_CRANK_OFF_VEC + (k) * 30)
-#define SLIDER_CRANK_OFF_PREP 453  /* the prepared parameters (NPP), after the vectors */
+#define SLIDER_CRANK_OFF_PREP 483  /* the prepared parameters (NPP), after the vectors */
 #define SLIDER_CRANK_NPP 13
 
 const slider_crank_real slider_crank_default_params[9] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 5.0, 100.0 };
@@ -1002,7 +1013,7 @@ static int slider_crank_newton(slider_crank_real t, const slider_crank_real *p, 
     else slider_crank_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_CRANK_MAX(1.0, slider_crank_maxabs9(q));
-    lim = SLIDER_CRANK_MAX(tol, 8.0 * SLIDER_CRANK_EPS * qmag);
+    lim = SLIDER_CRANK_MAX(tol, (slider_crank_real)SLIDER_CRANK_FLOOR_ULPS * SLIDER_CRANK_EPS * qmag);
     slider_crank_phi_k(q, tr, t, p, r);
     rmax = slider_crank_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1180,7 +1191,8 @@ int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider
         || !isfinite(tol) || tol <= 0.0) {
         status = SLIDER_CRANK_BAD_ARGUMENT;
     } else {
-        slider_crank_real *tr = SLIDER_CRANK_VEC(work, 9), *pp = work + SLIDER_CRANK_OFF_PREP;
+        slider_crank_real *tr = SLIDER_CRANK_VEC(work, 9), *pp = work + SLIDER_CRANK_OFF_PREP, *kept = SLIDER_CRANK_VEC(work, 11);
+        memcpy(kept, q, sizeof(slider_crank_real) * 9);  /* the caller's guess, back in q if the call fails */
         slider_crank_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1193,6 +1205,9 @@ int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider
             slider_crank_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!slider_crank_finite(q, qd, qdd, lam, reactions)) status = SLIDER_CRANK_NONFINITE;
         }
+        /* a failed call leaves q as it came: its last Newton iterate would
+           be a worse guess for the next call than the caller's own */
+        if (status != SLIDER_CRANK_OK) memcpy(q, kept, sizeof(slider_crank_real) * 9);
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1479,9 +1494,7 @@ long slider_crank_sweep_lanes(long *abandoned)
 int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0, slider_crank_real h, long n, slider_crank_real tol,
                   slider_crank_real *figures, int *status, slider_crank_real *t_end, long *solved, slider_crank_real *work, int *iwork)
 {
-    slider_crank_real *state = work + SLIDER_CRANK_WORK, *rows = state + SLIDER_CRANK_STATE;
-    slider_crank_real *vals = rows + 32 * SLIDER_CRANK_ROW, *arms = vals + 21, *drive = arms + 9;
-    slider_crank_real *acc = drive + 2;
+    slider_crank_real *state, *rows, *vals, *arms, *drive, *acc;
     long v, done, got, m;
     int st;
 #if SLIDER_CRANK_LANES > 1
@@ -1493,6 +1506,10 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
         || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
         || !isfinite(tol) || tol <= 0.0)
         return SLIDER_CRANK_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    state = work + SLIDER_CRANK_WORK, rows = state + SLIDER_CRANK_STATE;
+    vals = rows + 32 * SLIDER_CRANK_ROW, arms = vals + 21, drive = arms + 9;
+    acc = drive + 2;
     for (v = 0; v < k; ++v) {
         const slider_crank_real *pv = p + v * SLIDER_CRANK_NP;
         slider_crank_real *fig = figures + v * SLIDER_CRANK_SWEEP_FIGURES;

@@ -5,6 +5,18 @@
 
 #include "slider_crank_counterweight_solver.h"
 
+/* The guards against NaN and infinity (isfinite, comparisons a NaN fails)
+   need IEEE arithmetic: -ffast-math and -ffinite-math-only let the compiler
+   delete them, and a NaN t or parameter would return OK. */
+#if defined __FAST_MATH__ || (defined __FINITE_MATH_ONLY__ && __FINITE_MATH_ONLY__)
+#error "slider_crank_counterweight_solver.c needs IEEE floating point: its NaN guards are removed by -ffast-math / -ffinite-math-only; build it without them"
+#endif
+#if SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON < 1
+#error "SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON must be at least 1"
+#endif
+/* SLIDER_CRANK_COUNTERWEIGHT_REAL, if overridden, must name a type of double's size (a typedef of it) */
+typedef char slider_crank_counterweight_real_must_have_the_size_of_double[sizeof(slider_crank_counterweight_real) == sizeof(double) ? 1 : -1];
+
 /* The source compiles as C99 and as C++ (which spells restrict __restrict). */
 #ifdef __cplusplus
 #define SLIDER_CRANK_COUNTERWEIGHT_RESTRICT __restrict
@@ -24,7 +36,6 @@
 #define SLIDER_CRANK_COUNTERWEIGHT_SINGULAR_RATIO (1e3 * SLIDER_CRANK_COUNTERWEIGHT_EPS)
 #define SLIDER_CRANK_COUNTERWEIGHT_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
 #define SLIDER_CRANK_COUNTERWEIGHT_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
-#define SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON 50
 #define SLIDER_CRANK_COUNTERWEIGHT_LU_SIZE 21
 #define SLIDER_CRANK_COUNTERWEIGHT_MAX(a, b) ((a) > (b) ? (a) : (b))
 #define SLIDER_CRANK_COUNTERWEIGHT_MIN(a, b) ((a) < (b) ? (a) : (b))
@@ -33,7 +44,7 @@
 #define SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE (SLIDER_CRANK_COUNTERWEIGHT_OFF_LU + SLIDER_CRANK_COUNTERWEIGHT_LU_SIZE)
 #define SLIDER_CRANK_COUNTERWEIGHT_OFF_VEC (SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE + 81)
 #define SLIDER_CRANK_COUNTERWEIGHT_VEC(work, k) ((work) + SLIDER_CRANK_COUNTERWEIGHT_OFF_VEC + (k) * 30)
-#define SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP 453  /* the prepared parameters (NPP), after the vectors */
+#define SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP 483  /* the prepared parameters (NPP), after the vectors */
 #define SLIDER_CRANK_COUNTERWEIGHT_NPP 21
 
 const slider_crank_counterweight_real slider_crank_counterweight_default_params[12] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 1.0, 5.0, 1.0, 0.1, 3.141592653589793 };
@@ -1016,7 +1027,7 @@ static int slider_crank_counterweight_newton(slider_crank_counterweight_real t, 
     else slider_crank_counterweight_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_CRANK_COUNTERWEIGHT_MAX(1.0, slider_crank_counterweight_maxabs9(q));
-    lim = SLIDER_CRANK_COUNTERWEIGHT_MAX(tol, 8.0 * SLIDER_CRANK_COUNTERWEIGHT_EPS * qmag);
+    lim = SLIDER_CRANK_COUNTERWEIGHT_MAX(tol, (slider_crank_counterweight_real)SLIDER_CRANK_COUNTERWEIGHT_FLOOR_ULPS * SLIDER_CRANK_COUNTERWEIGHT_EPS * qmag);
     slider_crank_counterweight_phi_k(q, tr, t, p, r);
     rmax = slider_crank_counterweight_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1194,7 +1205,8 @@ int slider_crank_counterweight_instant(slider_crank_counterweight_real t, const 
         || !isfinite(tol) || tol <= 0.0) {
         status = SLIDER_CRANK_COUNTERWEIGHT_BAD_ARGUMENT;
     } else {
-        slider_crank_counterweight_real *tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9), *pp = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP;
+        slider_crank_counterweight_real *tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9), *pp = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP, *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
+        memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9);  /* the caller's guess, back in q if the call fails */
         slider_crank_counterweight_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1207,6 +1219,9 @@ int slider_crank_counterweight_instant(slider_crank_counterweight_real t, const 
             slider_crank_counterweight_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!slider_crank_counterweight_finite(q, qd, qdd, lam, reactions)) status = SLIDER_CRANK_COUNTERWEIGHT_NONFINITE;
         }
+        /* a failed call leaves q as it came: its last Newton iterate would
+           be a worse guess for the next call than the caller's own */
+        if (status != SLIDER_CRANK_COUNTERWEIGHT_OK) memcpy(q, kept, sizeof(slider_crank_counterweight_real) * 9);
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1495,9 +1510,7 @@ long slider_crank_counterweight_sweep_lanes(long *abandoned)
 int slider_crank_counterweight_sweep(long k, const slider_crank_counterweight_real *p, slider_crank_counterweight_real t0, slider_crank_counterweight_real h, long n, slider_crank_counterweight_real tol,
                   slider_crank_counterweight_real *figures, int *status, slider_crank_counterweight_real *t_end, long *solved, slider_crank_counterweight_real *work, int *iwork)
 {
-    slider_crank_counterweight_real *state = work + SLIDER_CRANK_COUNTERWEIGHT_WORK, *rows = state + SLIDER_CRANK_COUNTERWEIGHT_STATE;
-    slider_crank_counterweight_real *vals = rows + 32 * SLIDER_CRANK_COUNTERWEIGHT_ROW, *arms = vals + 21, *drive = arms + 9;
-    slider_crank_counterweight_real *acc = drive + 2;
+    slider_crank_counterweight_real *state, *rows, *vals, *arms, *drive, *acc;
     long v, done, got, m;
     int st;
 #if SLIDER_CRANK_COUNTERWEIGHT_LANES > 1
@@ -1509,6 +1522,10 @@ int slider_crank_counterweight_sweep(long k, const slider_crank_counterweight_re
         || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
         || !isfinite(tol) || tol <= 0.0)
         return SLIDER_CRANK_COUNTERWEIGHT_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    state = work + SLIDER_CRANK_COUNTERWEIGHT_WORK, rows = state + SLIDER_CRANK_COUNTERWEIGHT_STATE;
+    vals = rows + 32 * SLIDER_CRANK_COUNTERWEIGHT_ROW, arms = vals + 21, drive = arms + 9;
+    acc = drive + 2;
     for (v = 0; v < k; ++v) {
         const slider_crank_counterweight_real *pv = p + v * SLIDER_CRANK_COUNTERWEIGHT_NP;
         slider_crank_counterweight_real *fig = figures + v * SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES;

@@ -8,8 +8,27 @@
 extern "C" {
 #endif
 
-/* The one floating type of every argument, table and workspace. */
+/* The one floating type of every argument, table and workspace. Each
+   macro below may be defined (-D, or before including this header, for
+   the .c and its callers alike) to override the type or a setting:
+   SLIDER_CRANK_COUNTERWEIGHT_REAL a type of double's size (a typedef such as float32_t or
+   float64_t: the code's literals and libm calls are double's),
+   SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON Newton's iteration cap per instant (a call that
+   needs more returns NOT_CONVERGED; at least 1), SLIDER_CRANK_COUNTERWEIGHT_FLOOR_ULPS the
+   tolerance floor: Newton stops at max(tol, FLOOR_ULPS eps max(1, |q|)),
+   eps double's epsilon, since rounding keeps |Phi| and the step from
+   going below it. */
+#ifndef SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON
+#define SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON 50
+#endif
+#ifndef SLIDER_CRANK_COUNTERWEIGHT_FLOOR_ULPS
+#define SLIDER_CRANK_COUNTERWEIGHT_FLOOR_ULPS 8.0
+#endif
+#ifdef SLIDER_CRANK_COUNTERWEIGHT_REAL
+typedef SLIDER_CRANK_COUNTERWEIGHT_REAL slider_crank_counterweight_real;
+#else
 typedef double slider_crank_counterweight_real;
+#endif
 
 /* Sizes. */
 #define SLIDER_CRANK_COUNTERWEIGHT_NG 9            /* generalized coordinates q = [x, y, phi] per body */
@@ -18,7 +37,7 @@ typedef double slider_crank_counterweight_real;
 #define SLIDER_CRANK_COUNTERWEIGHT_NNZ 21          /* structural nonzeros of Phi_q */
 #define SLIDER_CRANK_COUNTERWEIGHT_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_CRANK_COUNTERWEIGHT_ROW 67          /* values per instant in a trajectory row */
-#define SLIDER_CRANK_COUNTERWEIGHT_WORK 474        /* reals of workspace every solver call needs */
+#define SLIDER_CRANK_COUNTERWEIGHT_WORK 504        /* reals of workspace every solver call needs */
 #define SLIDER_CRANK_COUNTERWEIGHT_IWORK 9         /* ints of workspace */
 #define SLIDER_CRANK_COUNTERWEIGHT_STATE 73       /* reals of trajectory state */
 
@@ -160,6 +179,21 @@ extern const slider_crank_counterweight_real slider_crank_counterweight_default_
    work), and of each evaluation: phi 33, phi_q 21, nu 0, gamma 26, applied 10, mass 0, reactions 11, lu_factor 7, lu_forward 2, lu_back 13, lu_t_forward 13, lu_t_back 2. */
 #define SLIDER_CRANK_COUNTERWEIGHT_OPS_INSTANT 201
 
+/* Worst case of one instant call (computed at generation from the counts
+   above, not measured): Newton reaching MAX_NEWTON, every factorization
+   through the pivoting fallback (bounded by a dense LU). At most
+   1509 + 1117 MAX_NEWTON counted floating operations and
+   7 + 6 MAX_NEWTON libm calls; as instructions, at most
+   WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
+   loads, stores and indexing), each libm call 300 (the real type on its
+   own FPU, arguments in their usual range: a double build on a single-
+   precision FPU emulates every operation and is not covered), each
+   iteration 400 and the call 3000 more for calls, loops and copies.
+   test_c_edges checks it under callgrind on x86-64 for every bundled
+   example, the cap reached (instant only: a trajectory's instant adds its
+   predictor, checks and, if generated, sensitivities). */
+#define SLIDER_CRANK_COUNTERWEIGHT_WORST_INSTRUCTIONS (23208L + 15604L * (long)SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON)
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int slider_crank_counterweight_phi_q_rows[21];
 extern const int slider_crank_counterweight_phi_q_cols[21];
@@ -180,7 +214,8 @@ void slider_crank_counterweight_reactions(const slider_crank_counterweight_real 
    are optional: any of them may be NULL (what the others need is then
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
-   pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
+   pivoting fallback was used (both 0 on BAD_ARGUMENT). A call that fails
+   (any status but OK) leaves q as the caller passed it. p may be NULL only
    when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
    mechanism has several assembly modes (a slider-crank's piston on either
    side, a four-bar open or crossed), a guess nearer the other mode gives

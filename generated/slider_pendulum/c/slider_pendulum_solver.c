@@ -5,6 +5,18 @@
 
 #include "slider_pendulum_solver.h"
 
+/* The guards against NaN and infinity (isfinite, comparisons a NaN fails)
+   need IEEE arithmetic: -ffast-math and -ffinite-math-only let the compiler
+   delete them, and a NaN t or parameter would return OK. */
+#if defined __FAST_MATH__ || (defined __FINITE_MATH_ONLY__ && __FINITE_MATH_ONLY__)
+#error "slider_pendulum_solver.c needs IEEE floating point: its NaN guards are removed by -ffast-math / -ffinite-math-only; build it without them"
+#endif
+#if SLIDER_PENDULUM_MAX_NEWTON < 1
+#error "SLIDER_PENDULUM_MAX_NEWTON must be at least 1"
+#endif
+/* SLIDER_PENDULUM_REAL, if overridden, must name a type of double's size (a typedef of it) */
+typedef char slider_pendulum_real_must_have_the_size_of_double[sizeof(slider_pendulum_real) == sizeof(double) ? 1 : -1];
+
 /* The source compiles as C99 and as C++ (which spells restrict __restrict). */
 #ifdef __cplusplus
 #define SLIDER_PENDULUM_RESTRICT __restrict
@@ -24,7 +36,6 @@
 #define SLIDER_PENDULUM_SINGULAR_RATIO (1e3 * SLIDER_PENDULUM_EPS)
 #define SLIDER_PENDULUM_SCREEN 1000.0  /* symid's cond_warn / SCREEN (symid.numeric.stability) */
 #define SLIDER_PENDULUM_COND_SCREEN 10000.0  /* cond_warn / ESTIMATE_MARGIN: past it, symid's loop estimates */
-#define SLIDER_PENDULUM_MAX_NEWTON 50
 #define SLIDER_PENDULUM_LU_SIZE 15
 #define SLIDER_PENDULUM_MAX(a, b) ((a) > (b) ? (a) : (b))
 #define SLIDER_PENDULUM_MIN(a, b) ((a) < (b) ? (a) : (b))
@@ -33,7 +44,7 @@
 #define SLIDER_PENDULUM_OFF_DENSE (SLIDER_PENDULUM_OFF_LU + SLIDER_PENDULUM_LU_SIZE)
 #define SLIDER_PENDULUM_OFF_VEC (SLIDER_PENDULUM_OFF_DENSE + 36)
 #define SLIDER_PENDULUM_VEC(work, k) ((work) + SLIDER_PENDULUM_OFF_VEC + (k) * 30)
-#define SLIDER_PENDULUM_OFF_PREP 396  /* the prepared parameters (NPP), after the vectors */
+#define SLIDER_PENDULUM_OFF_PREP 426  /* the prepared parameters (NPP), after the vectors */
 #define SLIDER_PENDULUM_NPP 29
 
 const slider_pendulum_real slider_pendulum_default_params[13] = { 0.17453292519943295, 0.2, 1.0, 0.6, 2.0, 2.0, 0.2, 0.08, 0.04, 0.5, 1.0, 20.0, 0.5 };
@@ -1010,7 +1021,7 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
     else slider_pendulum_trig_base(q, tr, base);
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_PENDULUM_MAX(1.0, slider_pendulum_maxabs6(q));
-    lim = SLIDER_PENDULUM_MAX(tol, 8.0 * SLIDER_PENDULUM_EPS * qmag);
+    lim = SLIDER_PENDULUM_MAX(tol, (slider_pendulum_real)SLIDER_PENDULUM_FLOOR_ULPS * SLIDER_PENDULUM_EPS * qmag);
     slider_pendulum_phi_k(q, tr, t, p, r);
     rmax = slider_pendulum_maxabs6(r);
     for (it = 0;; ++it) {
@@ -1173,7 +1184,8 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
         || !isfinite(tol) || tol <= 0.0) {
         status = SLIDER_PENDULUM_BAD_ARGUMENT;
     } else {
-        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9), *pp = work + SLIDER_PENDULUM_OFF_PREP;
+        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9), *pp = work + SLIDER_PENDULUM_OFF_PREP, *kept = SLIDER_PENDULUM_VEC(work, 11);
+        memcpy(kept, q, sizeof(slider_pendulum_real) * 6);  /* the caller's guess, back in q if the call fails */
         slider_pendulum_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1186,6 +1198,9 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
             slider_pendulum_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
             if (!slider_pendulum_finite(q, qd, qdd, lam, reactions)) status = SLIDER_PENDULUM_NONFINITE;
         }
+        /* a failed call leaves q as it came: its last Newton iterate would
+           be a worse guess for the next call than the caller's own */
+        if (status != SLIDER_PENDULUM_OK) memcpy(q, kept, sizeof(slider_pendulum_real) * 6);
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1480,9 +1495,7 @@ long slider_pendulum_sweep_lanes(long *abandoned)
 int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum_real t0, slider_pendulum_real h, long n, slider_pendulum_real tol,
                   slider_pendulum_real *figures, int *status, slider_pendulum_real *t_end, long *solved, slider_pendulum_real *work, int *iwork)
 {
-    slider_pendulum_real *state = work + SLIDER_PENDULUM_WORK, *rows = state + SLIDER_PENDULUM_STATE;
-    slider_pendulum_real *vals = rows + 32 * SLIDER_PENDULUM_ROW, *arms = vals + 15, *drive = arms + 6;
-    slider_pendulum_real *acc = drive + 4;
+    slider_pendulum_real *state, *rows, *vals, *arms, *drive, *acc;
     long v, done, got, m;
     int st;
 #if SLIDER_PENDULUM_LANES > 1
@@ -1494,6 +1507,10 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
         || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
         || !isfinite(tol) || tol <= 0.0)
         return SLIDER_PENDULUM_BAD_ARGUMENT;
+    /* set after the checks: arithmetic on a NULL pointer is undefined */
+    state = work + SLIDER_PENDULUM_WORK, rows = state + SLIDER_PENDULUM_STATE;
+    vals = rows + 32 * SLIDER_PENDULUM_ROW, arms = vals + 15, drive = arms + 6;
+    acc = drive + 4;
     for (v = 0; v < k; ++v) {
         const slider_pendulum_real *pv = p + v * SLIDER_PENDULUM_NP;
         slider_pendulum_real *fig = figures + v * SLIDER_PENDULUM_SWEEP_FIGURES;

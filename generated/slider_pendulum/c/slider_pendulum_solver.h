@@ -8,8 +8,27 @@
 extern "C" {
 #endif
 
-/* The one floating type of every argument, table and workspace. */
+/* The one floating type of every argument, table and workspace. Each
+   macro below may be defined (-D, or before including this header, for
+   the .c and its callers alike) to override the type or a setting:
+   SLIDER_PENDULUM_REAL a type of double's size (a typedef such as float32_t or
+   float64_t: the code's literals and libm calls are double's),
+   SLIDER_PENDULUM_MAX_NEWTON Newton's iteration cap per instant (a call that
+   needs more returns NOT_CONVERGED; at least 1), SLIDER_PENDULUM_FLOOR_ULPS the
+   tolerance floor: Newton stops at max(tol, FLOOR_ULPS eps max(1, |q|)),
+   eps double's epsilon, since rounding keeps |Phi| and the step from
+   going below it. */
+#ifndef SLIDER_PENDULUM_MAX_NEWTON
+#define SLIDER_PENDULUM_MAX_NEWTON 50
+#endif
+#ifndef SLIDER_PENDULUM_FLOOR_ULPS
+#define SLIDER_PENDULUM_FLOOR_ULPS 8.0
+#endif
+#ifdef SLIDER_PENDULUM_REAL
+typedef SLIDER_PENDULUM_REAL slider_pendulum_real;
+#else
 typedef double slider_pendulum_real;
+#endif
 
 /* Sizes. */
 #define SLIDER_PENDULUM_NG 6            /* generalized coordinates q = [x, y, phi] per body */
@@ -18,7 +37,7 @@ typedef double slider_pendulum_real;
 #define SLIDER_PENDULUM_NNZ 15          /* structural nonzeros of Phi_q */
 #define SLIDER_PENDULUM_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_PENDULUM_ROW 55          /* values per instant in a trajectory row */
-#define SLIDER_PENDULUM_WORK 425        /* reals of workspace every solver call needs */
+#define SLIDER_PENDULUM_WORK 455        /* reals of workspace every solver call needs */
 #define SLIDER_PENDULUM_IWORK 6         /* ints of workspace */
 #define SLIDER_PENDULUM_STATE 49       /* reals of trajectory state */
 
@@ -142,6 +161,21 @@ extern const slider_pendulum_real slider_pendulum_default_q0[SLIDER_PENDULUM_NG]
    work), and of each evaluation: phi 44, phi_q 21, nu 10, gamma 31, applied 15, mass 0, reactions 24, lu_factor 14, lu_forward 1, lu_back 16, lu_t_forward 16, lu_t_back 1. */
 #define SLIDER_PENDULUM_OPS_INSTANT 271
 
+/* Worst case of one instant call (computed at generation from the counts
+   above, not measured): Newton reaching MAX_NEWTON, every factorization
+   through the pivoting fallback (bounded by a dense LU). At most
+   796 + 527 MAX_NEWTON counted floating operations and
+   10 + 6 MAX_NEWTON libm calls; as instructions, at most
+   WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
+   loads, stores and indexing), each libm call 300 (the real type on its
+   own FPU, arguments in their usual range: a double build on a single-
+   precision FPU emulates every operation and is not covered), each
+   iteration 400 and the call 3000 more for calls, loops and copies.
+   test_c_edges checks it under callgrind on x86-64 for every bundled
+   example, the cap reached (instant only: a trajectory's instant adds its
+   predictor, checks and, if generated, sensitivities). */
+#define SLIDER_PENDULUM_WORST_INSTRUCTIONS (15552L + 8524L * (long)SLIDER_PENDULUM_MAX_NEWTON)
+
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int slider_pendulum_phi_q_rows[15];
 extern const int slider_pendulum_phi_q_cols[15];
@@ -162,7 +196,8 @@ void slider_pendulum_reactions(const slider_pendulum_real *q, const slider_pendu
    are optional: any of them may be NULL (what the others need is then
    computed in work). info, when given, is always written: info[0] = Newton
    iterations, info[1] = 1 if the fixed pivots were rejected and the
-   pivoting fallback was used (both 0 on BAD_ARGUMENT). p may be NULL only
+   pivoting fallback was used (both 0 on BAD_ARGUMENT). A call that fails
+   (any status but OK) leaves q as the caller passed it. p may be NULL only
    when NP is 0. work: WORK reals, iwork: IWORK ints.   Newton converges to the configuration nearest the guess: where the
    mechanism has several assembly modes (a slider-crank's piston on either
    side, a four-bar open or crossed), a guess nearer the other mode gives

@@ -16,7 +16,7 @@ from symid.codegen.targets.c_lu import lu_chunks  # noqa: F401 (tests build chun
 from symid.codegen.targets.c_lu_runs import lu_runs, rolled
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
-from symid.codegen.targets import c_checks, c_lanes, c_sens, c_sweep
+from symid.codegen.targets import c_checks, c_describe, c_lanes, c_sens, c_sweep
 from symid.codegen.render import render
 from symid.codegen.targets.c_describe import describe
 from symid.codegen.targets.c_printer import (DOUBLE, PRECISIONS, Printer, Scalar, c_double,  # noqa: F401
@@ -133,10 +133,10 @@ def work_size(model: CodeModel) -> int:
     """Reals of workspace a solver call needs before the prepared parameters
     (context()["work"] adds them): Phi_q's values, the sparse factors, the
     pivoting fallback (dense up to DENSE_LIMIT coordinates, sparse past
-    it), eleven work vectors and the friction solve's."""
+    it), twelve work vectors and the friction solve's."""
     f = model.flat
     fallback = f.ng * f.ng if dense_fallback(model) else c_fallback.work(model.plan, f.ng)
-    return (len(f.jac) + model.plan.size + fallback + 11 * _stride(model)
+    return (len(f.jac) + model.plan.size + fallback + 12 * _stride(model)
             + friction.work(model.layout, f.options))
 
 
@@ -237,7 +237,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
                       _function("friction_normal", [cq, clam, ct, cp], fr["normal"], trig, printer, real)]
         used += fr["fixed"] + fr["normal"]
     lu = _lu(model, fold_constants, scalar)
-    d = describe(model, offset, functions, lu)
+    d = describe(model, offset, functions, lu, fr["fixed"] + fr["normal"] if fr else [])
     npp = off_nu + 3 * nph + (sens["npieces"] if sens else 0)  # every prepared value: NPP
     # the trajectory's output vectors (variable, source, work vector): solved
     # straight into the row where it holds the source, else into the work vector
@@ -270,6 +270,8 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "outputs": outputs, **c_checks.context(outputs, ng, nc, o.velocity, o.multipliers, nr),
         "loop_tables": loops.tables if loops else [],
         "dense_fallback": dense_fallback(model), "dense_limit": DENSE_LIMIT,
+        "per_op": c_describe.PER_OP, "per_libm": c_describe.PER_LIBM, "per_iteration": c_describe.PER_ITERATION,
+        "per_call": c_describe.PER_CALL,
         "fb": None if dense_fallback(model) else c_fallback.context(model.plan, f.jac, ng),
         **c_sweep.context(model, printer, work_size(model) + npp + (sens["work"] if sens else 0),
                           offset),

@@ -41,6 +41,42 @@ def ops(code: str) -> int:
     return len(_BINARY.findall(code)) + len(_CALL.findall(code))
 
 
+# The worst case's charge per counted operation (its loads, stores and index
+# arithmetic included) and per libm call (sin, cos, exp, atan2 ... of the
+# real type on its own FPU, in their usual range), and the calls' and loops'
+# overhead: assumptions of the stated worst case, which test_c_edges checks
+# under callgrind on the host for every bundled example.
+PER_OP = 12
+PER_LIBM = 300
+PER_ITERATION = 400
+PER_CALL = 3000
+_LIBM = re.compile(r"\b(?:sin|cos|tan|exp|log|atan2|atan|asin|acos|sqrt|tanh|sinh|cosh|pow)f?\(")
+
+
+def worst_case(counts: dict[str, int], calls: dict[str, int], lu_ops: dict[str, int], ng: int, nc: int,
+               nb: int, nr: int) -> dict[str, int]:
+    """A bound on one instant call's work, every Newton iteration taken (the
+    cap reached) and every factorization going through the pivoting
+    fallback (bounded by a dense LU's operations): operations and libm calls
+    outside the iterations (fixed) and per iteration (iter), and the
+    instructions they are charged (PER_OP, PER_LIBM, PER_ITERATION, PER_CALL)."""
+    dense_factor = 2 * ng ** 3 // 3 + 3 * ng * ng  # eliminations, the pivot search and row swaps
+    solve = lu_ops["forward"] + lu_ops["back"] + 2 * ng * ng  # sparse, then dense
+    factor = counts.get("phi_q", 0) * 2 + lu_ops["factor"] + dense_factor + nb  # pivots' spread
+    it = counts.get("phi", 0) + factor + solve + 12 * ng + 2 * nc  # correct, trig_step, maxabs
+    libm_it = calls.get("phi", 0) + 2 * calls.get("phi_q", 0) + 2 * nb  # a rotation past its Taylor range
+    fixed = (counts.get("phi", 0) + factor + sum(counts.get(k, 0) for k in ("nu", "gamma", "applied", "mass",
+                                                                              "reactions", "friction",
+                                                                              "friction_normal"))
+             + 3 * solve + lu_ops["t_forward"] + lu_ops["t_back"] + 6 * ng + 2 * nc + nr)
+    libm_fixed = (calls.get("phi", 0) + 2 * calls.get("phi_q", 0) + 2 * nb
+                  + sum(calls.get(k, 0) for k in ("nu", "gamma", "applied", "reactions", "friction",
+                                                  "friction_normal")))
+    return {"ops_fixed": fixed, "ops_iter": it, "libm_fixed": libm_fixed, "libm_iter": libm_it,
+            "fixed": PER_CALL + PER_OP * fixed + PER_LIBM * libm_fixed,
+            "iter": PER_ITERATION + PER_OP * it + PER_LIBM * libm_it}
+
+
 def file_comments(source: str, names: Sequence[str]) -> dict[str, str]:
     """The trailing comment of each parameter's line in the file's
     [parameters] table ('# crank radius, m'), where the file has one."""
@@ -60,10 +96,11 @@ def file_comments(source: str, names: Sequence[str]) -> dict[str, str]:
     return out
 
 
-def read_params(model: CodeModel) -> set[int]:
-    """Indices k of the parameters p[k] that some emitted expression reads."""
+def read_params(model: CodeModel, extra: Sequence[sp.Expr] = ()) -> set[int]:
+    """Indices k of the parameters p[k] that some emitted expression reads;
+    extra: the target's own kernels' (joint friction's coefficients)."""
     f = model.flat
-    exprs = [*f.phi, *(e for _, _, e in f.jac), *f.reactions]
+    exprs = [*f.phi, *(e for _, _, e in f.jac), *f.reactions, *extra]
     if f.options.velocity:
         exprs += [*f.nu, *f.gamma]
     if f.options.kind != "kinematics" and f.options.multipliers:  # the template's `dynamics`
@@ -76,14 +113,16 @@ def c_string(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def describe(model: CodeModel, row_width: int, functions: list[dict[str, Any]], lu: dict[str, Any]) -> dict[str, Any]:
-    """The header's description (names, units, grid, q0, operation counts)."""
+def describe(model: CodeModel, row_width: int, functions: list[dict[str, Any]], lu: dict[str, Any],
+             extra: Sequence[sp.Expr] = ()) -> dict[str, Any]:
+    """The header's description (names, units, grid, q0, operation counts);
+    extra: expressions of kernels beyond the flat model's (read_params)."""
     f = model.flat
     mech = model.layout.mechanism
     a = mech.analysis
     columns = list(model.row_columns[:row_width])
     comments = file_comments(mech.source, f.params)
-    read = read_params(model)
+    read = read_params(model, extra)
     params = [{"name": n, "string": c_string(n), "comment": comments.get(n, ""), "read": k in read,
                "derived": str(mech.parameters[n]) if not sp.sympify(mech.parameters[n]).is_Number else ""}
               for k, n in enumerate(f.params)]
@@ -96,6 +135,10 @@ def describe(model: CodeModel, row_width: int, functions: list[dict[str, Any]], 
     lu_ops = {k: sum(ops("\n".join(ls)) for ls in steps[f"{k}_chunks"]) if f"{k}_chunks" in steps
               else sum(ops("\n".join(ch["lines"])) for ch in lu.get(f"{k}_chunks", ()))
               for k in ("factor", "forward", "back", "t_forward", "t_back")}
+    calls = {fn["name"]: sum(len(_LIBM.findall("\n".join([e for _, e in ch["block"].temps]
+                                                          + [e for _, e in ch["block"].outputs])))
+                             for ch in fn["chunks"]) for fn in functions}
+    worst = worst_case(counts, calls, lu_ops, f.ng, len(f.phi), len(mech.bodies), len(f.reactions))
     solve = lu_ops["forward"] + lu_ops["back"]
     # the trajectory's usual instant: one chord correction (phi, a solve),
     # phi again to test it, then the factors at the solution and the outputs
@@ -108,5 +151,5 @@ def describe(model: CodeModel, row_width: int, functions: list[dict[str, Any]], 
     return {"columns": [{"name": c, "string": c_string(c), "unit": unit(c)} for c in columns],
             "param_info": params, "unread": [p["name"] for p in params if not p["read"]],
             "q0": list(model.q0), "t0": a.t0, "t1": a.t1, "steps": a.steps, "tol": a.tol,
-            "ops": {**counts, **{f"lu_{k}": v for k, v in lu_ops.items()}}, "ops_instant": instant,
+            "ops": {**counts, **{f"lu_{k}": v for k, v in lu_ops.items()}}, "ops_instant": instant, "worst": worst,
             "body_names": [b.name for b in mech.bodies]}

@@ -32,9 +32,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable, Collection, Sequence
 
+import numpy as np
 import sympy as sp
 
-from symid.codegen.targets.c_printer import DOUBLE, printer
+from symid.codegen.targets.c_printer import SINGLE, printer
 from symid.model.mechanism import T
 from symid.model.motion import TableSpline
 from symid.symbolic.rounding import Grouped
@@ -212,20 +213,79 @@ def place(groups: Sequence[Sequence[sp.Expr]], offset: int, count: int) -> list[
 
 def nu_lines(nu: Sequence[sp.Expr], np_: int, off_nu: int, printer: Callable[[sp.Expr], str]) -> list[str]:
     """The C statements of prepare that keep each nu as two floats (hi, lo),
-    computed in double from the base parameters (once per call)."""
-    names = {sp.Symbol(f"p[{k}]", real=True): sp.Symbol(f"((double)p[{k}])", real=True) for k in range(np_)}
-    lines = []
+    computed from the base parameters in float-float arithmetic (a pair of
+    floats, ~48 bits: templates/c/phase.j2's ff_ functions), once per call:
+    no double anywhere, so a single build needs no double helpers
+    (__aeabi_ddiv ...) on a target without a double FPU. printer: the
+    single-precision printer, for a piece outside + - * / and integer and
+    half powers (a function of parameters), computed in float (lo = 0)."""
+    lines: list[str] = []
+    count = [0]
+
+    def pair() -> str:
+        count[0] += 1
+        return f"ff{count[0] - 1}"
+
+    def const(x: sp.Expr) -> str:
+        v = sp.N(x, 40)
+        h = np.float32(float(v))
+        lo = np.float32(float(v - sp.Float(float(h), 40)))
+        name = pair()
+        lines.append(f"{name}[0] = {SINGLE.lit(float(h))}; {name}[1] = {SINGLE.lit(float(lo))};")
+        return name
+
+    def emit(e: sp.Expr) -> str:
+        if not e.free_symbols:
+            return const(e)
+        if e.is_Symbol:
+            name = pair()
+            lines.append(f"{name}[0] = {e.name}; {name}[1] = 0.0f;")
+            return name
+        if e.is_Add or e.is_Mul:
+            num = [a for a in e.args if not (e.is_Mul and a.is_Pow and a.exp.is_negative)]
+            den = [a.base ** -a.exp for a in e.args if e.is_Mul and a.is_Pow and a.exp.is_negative]
+            acc = emit(num[0]) if num else const(sp.Integer(1))
+            for a in num[1:]:
+                out = pair()
+                lines.append(f"{{p}}_ff_{'add' if e.is_Add else 'mul'}({acc}, {emit(a)}, {out});")
+                acc = out
+            for a in den:
+                out = pair()
+                lines.append(f"{{p}}_ff_div({acc}, {emit(a)}, {out});")
+                acc = out
+            return acc
+        if e.is_Pow and e.exp.is_Integer and int(e.exp) > 0:
+            b = emit(e.base)
+            acc = b
+            for _ in range(int(e.exp) - 1):
+                out = pair()
+                lines.append(f"{{p}}_ff_mul({acc}, {b}, {out});")
+                acc = out
+            return acc
+        if e.is_Pow and e.exp.is_Rational and e.exp < 0:
+            out = pair()
+            lines.append(f"{{p}}_ff_div({const(sp.Integer(1))}, {emit(e.base ** -e.exp)}, {out});")
+            return out
+        if e.is_Pow and e.exp == sp.Rational(1, 2):
+            out = pair()
+            lines.append(f"{{p}}_ff_sqrt({emit(e.base)}, {out});")
+            return out
+        name = pair()  # a function of parameters: float only
+        lines.append(f"{name}[0] = {printer(e)}; {name}[1] = 0.0f;")
+        return name
+
     for j, v in enumerate(nu):
-        hi, lo = off_nu + 2 * j, off_nu + 2 * j + 1
-        lines += [f"nu = {printer(v.xreplace(names))};", f"pp[{hi}] = (float)nu;",
-                  f"pp[{lo}] = (float)(nu - (double)pp[{hi}]);"]
-    return lines
+        r = emit(_plain(v))
+        lines.append(f"{{p}}_ff_norm({r}[0], {r}[1], pp + {off_nu + 2 * j});")
+    return ([f"{{p}}_real {', '.join(f'ff{k}[2]' for k in range(count[0]))};"] if count[0] else []) + lines
 
 
 def context(red: Reduced | None, off_nu: int, np_: int) -> dict[str, Any]:
     """What templates/c/phase.j2 and prepare.j2 need (nothing in double: red None)."""
     if red is None:
-        return {"phases": [], "wraps": False, "wrap_angles": [], "nu_lines": [], "kept": []}
+        return {"phases": [], "wraps": False, "wrap_angles": [], "nu_lines": [], "kept": [], "ff_ops": []}
+    lines = nu_lines(red.nu, np_, off_nu, printer("symid", SINGLE).doprint)
     return {"phases": red.labels, "off_nu": off_nu, "off_phase": off_nu + 2 * len(red.nu),
             "wraps": bool(red.wrapped_rows or red.angles), "wrap_angles": red.angles,
-            "nu_lines": nu_lines(red.nu, np_, off_nu, printer("symid", DOUBLE).doprint), "kept": red.kept}
+            "nu_lines": lines, "kept": red.kept,
+            "ff_ops": [op for op in ("add", "mul", "div", "sqrt") if any(f"_ff_{op}(" in x for x in lines)]}
