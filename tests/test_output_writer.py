@@ -293,3 +293,25 @@ def test_no_command_leaves_a_file_in_the_current_folder(tmp_path):
         assert proc.returncode == 0, (command, proc.stderr)
         assert list(here.iterdir()) == [], f"{command[0]} left {[p.name for p in here.iterdir()]}"
     assert not [p for p in out.rglob("*") if ".tmp" in p.name or p.name.startswith(".symid-generate.")]
+
+
+@pytest.mark.parametrize("command, stem", [(SOLVE, "slider_crank"), (SWEEP, "slider_crank_sweep")],
+                         ids=["solve", "sweep"])
+def test_plots_of_a_table_sent_to_a_fifo_go_to_the_current_folder_named_after_the_mechanism(tmp_path, command, stem):
+    """`-o PIPE --plot`: the pictures cannot go beside a stream (they were
+    written as /dev/null_figures.png); they go to the current folder, named
+    after the mechanism, and nothing lands beside the FIFO."""
+    (tmp_path / "pipes").mkdir()
+    fifo = tmp_path / "pipes" / "table.csv"
+    os.mkfifo(fifo)
+    (tmp_path / "run").mkdir()
+    received: list[bytes] = []
+    reader = threading.Thread(target=lambda: received.append(fifo.read_bytes()))
+    reader.start()
+    done = symid([*command, "-o", str(fifo), "--plot"], tmp_path / "run")
+    reader.join(TIMEOUT)
+    assert done.returncode == 0, done.stderr
+    assert received and received[0].startswith(b"variant," if command is SWEEP else b"t,")
+    assert sorted(p.name for p in (tmp_path / "pipes").iterdir()) == ["table.csv"], "a picture beside the FIFO"
+    pictures = sorted(p.name for p in (tmp_path / "run").iterdir())
+    assert pictures and all(name.startswith(stem + "_") and name.endswith(".png") for name in pictures), pictures

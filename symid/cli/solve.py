@@ -92,6 +92,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
 def _solve(args: argparse.Namespace, key: str | None) -> int:
     """The normal path: read, lay out, find or build the solver, solve; then keep a plan."""
     from symid import api, progress
+    from symid.io.files import beside
     from symid.tools import plan
     from symid.output import summary
 
@@ -109,7 +110,8 @@ def _solve(args: argparse.Namespace, key: str | None) -> int:
     inputs = summary.inputs(study.mechanism, results)
     _print_summary(summary.lines_of(inputs, results, study.analysis.kind == "statics"))
     if plots:
-        _write_plots(results, study.mechanism, Path(args.plot_dir) if args.plot_dir else out.parent, out.stem)
+        folder, stem = beside(out, study.mechanism.name)  # not /dev/null_figures.png
+        _write_plots(results, study.mechanism, Path(args.plot_dir) if args.plot_dir else folder, stem)
     elif key is not None and keep is not None:
         made = plan.of(study, args.backend, header, keep, inputs)
         if made is not None and plan.key(args.file, run_options(args)) == key:  # inputs unchanged meanwhile

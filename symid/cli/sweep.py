@@ -74,7 +74,7 @@ def _each(counts: Iterator[int]) -> Iterator[None]:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     from symid import api, progress
-    from symid.io.files import check_target, output_format
+    from symid.io.files import beside, check_target, output_format
     from symid.study import design as vary
     from symid.study import inertials
     from symid.study.figures import figure_names
@@ -147,9 +147,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
         shown = len(figure_names(mech))  # the figures, not their gradients
         notes: list[str] = []
+        folder, stem = beside(out, f"{mech.name}_sweep")  # not /dev/null_figures.png
         for path in write_all(table.params, table.values, table.figures.names[:shown],
-                              table.figures.values[:, :shown], table["status"], out.parent, out.stem, chosen.kind,
-                              notes):
+                              table.figures.values[:, :shown], table["status"], folder, stem, chosen.kind, notes):
             print(path, file=sys.stderr if args.json else sys.stdout)
         for note in notes:
             print(f"symid sweep: plot: {note}", file=sys.stderr)

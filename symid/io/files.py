@@ -108,6 +108,18 @@ def output_format(path: str | Path, suffixes: Sequence[str], what: str) -> str:
     raise InputError(f"{path}: {given}: {what} is written as {accepted} (the suffix chooses the format)")
 
 
+def beside(out: str | Path, name: str) -> tuple[Path, str]:
+    """The folder and stem of the pictures that go with the table `out`: its
+    folder and stem, or, when `out` is a device or FIFO (`-o /dev/null`, a named
+    pipe), the current folder and the mechanism's `name` (not /dev/null_figures.png)."""
+    out = Path(out)
+    try:
+        streamed = not stat.S_ISREG(os.stat(out).st_mode)
+    except OSError:
+        streamed = False  # absent: a file to be written there
+    return (Path("."), name) if streamed else (out.parent, out.stem)
+
+
 def _landing(path: Path) -> Path:
     """Where a regular file's new bytes land: a symbolic link's target (the link is kept), else `path`."""
     return Path(os.path.realpath(path)) if path.is_symlink() else path
