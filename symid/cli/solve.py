@@ -71,12 +71,13 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
-    from symid.io.files import output_format
+    from symid.io.files import check_target, output_format
     from symid.output.tables import SUFFIXES
     from symid.tools import plan
 
-    if args.output:  # the format follows the suffix, else refused before any work
+    if args.output:  # the format follows the suffix, and the folder takes it, else refused before any work
         output_format(args.output, SUFFIXES, "a results table")
+        check_target(args.output)
     plots = args.plot or args.plot_dir is not None
     sensitive = args.sensitivity is not None or args.sensitivity_of is not None  # a plan has no sensitivities
     key = None if plots or sensitive else plan.key(args.file, run_options(args))

@@ -72,7 +72,11 @@ def new_file_mode() -> int:
 
 
 def check_target(path: str | Path) -> None:
-    """Refuse, before any work, an output path that is a directory or in no folder.
+    """Refuse, before any work, an output path that is a directory, in no
+    folder, under a file, or in a folder this process cannot write (a
+    read-only folder or file system: the new file is made beside its name and
+    renamed over it, so the folder must take it; a device or FIFO is written
+    into and needs no such folder).
 
     Raises:
         InputError: one line naming the path.
@@ -81,7 +85,21 @@ def check_target(path: str | Path) -> None:
     if path.is_dir():
         raise InputError(f"{path}: cannot write: is a directory")
     if not path.parent.is_dir():
+        if path.parent.exists():
+            raise InputError(f"{path}: cannot write: {path.parent} is a file, not a folder")
         raise InputError(f"{path}: cannot write: no folder {path.parent}")
+    land = _landing(path)
+    if land.exists() and not land.is_file():
+        return
+    folder = land.parent
+    if folder.is_dir() and not os.access(folder, os.W_OK | os.X_OK,
+                                         effective_ids=os.access in os.supports_effective_ids):
+        try:
+            read_only = bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+        except OSError:
+            read_only = False
+        why = "is on a read-only file system" if read_only else "is not writable by this user"
+        raise InputError(f"{path}: cannot write: the folder {folder} {why}")
 
 
 def output_format(path: str | Path, suffixes: Sequence[str], what: str) -> str:
