@@ -1,10 +1,16 @@
 """Faults a new user meets on the study and export paths, tried after issue 32
 was built (its "Done when"): a limit the optimizer cannot meet is named, not
-hidden behind SLSQP's line-search message."""
+hidden behind SLSQP's line-search message; an output whose folder is a file is
+said to be one; an output in a folder this user cannot write is refused before
+any solver is generated, compiled or run, not after the study."""
 
 from __future__ import annotations
 
+import os
 import re
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -12,8 +18,10 @@ import pytest
 from symid import api
 from symid.cli import main
 
+REPO = Path(__file__).resolve().parents[1]
 CRANK = str(api.example("slider_crank"))
 STEPS = "11"
+TIMEOUT = 600
 
 
 def test_a_limit_that_cannot_be_met_is_named_with_its_value(tmp_path, capsys, monkeypatch):
@@ -47,3 +55,55 @@ def test_a_limit_that_can_be_met_still_converges(tmp_path, capsys, monkeypatch):
     captured = capsys.readouterr()
     assert status == 0, captured.err
     assert "not met" not in captured.err and Path("best.toml").is_file()
+
+
+@pytest.mark.parametrize("command", [
+    ["sweep", CRANK, "--grid", "L_rod=0.3:0.4:2", "--backend", "numpy"],
+    ["solve", CRANK],
+])
+def test_an_output_under_a_file_says_the_file_is_not_a_folder(tmp_path, capsys, command):
+    (tmp_path / "afile").write_text("")
+    out = tmp_path / "afile" / "out.csv"
+    status = main([*command, "--steps", STEPS, "-o", str(out)])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1, err
+    assert f"{tmp_path / 'afile'} is a file, not a folder" in err
+
+
+def unprivileged() -> list[str]:
+    """The prefix that runs a command without root's power to write any folder."""
+    if os.geteuid() != 0:
+        return []
+    setpriv = shutil.which("setpriv")
+    if setpriv is None:
+        pytest.skip("running as root without setpriv: a read-only folder cannot be made")
+    return [setpriv, "--inh-caps=-all", "--bounding-set=-all"]
+
+
+@pytest.mark.parametrize("command", [
+    ["solve", CRANK, "--backend", "c", "-o", "{ro}/run.csv"],
+    ["solve", CRANK, "--backend", "c", "-o", "{ro}/run.parquet"],
+    ["sweep", CRANK, "--grid", "L_rod=0.3:0.4:2", "--backend", "c", "-o", "{ro}/study.csv"],
+    ["optimize", CRANK, "--minimize", "motor.effort_rms", "--vary", "L_rod=0.25:0.5", "--backend", "c",
+     "-o", "{ro}/best.toml"],
+], ids=["solve-csv", "solve-parquet", "sweep", "optimize"])
+def test_a_read_only_output_folder_is_refused_before_any_work(tmp_path, command):
+    """A real read-only folder (mode 555, the command run without root's
+    override): exit 2 naming the folder, and the empty cache proves no solver
+    was generated or compiled (the study did not run only to be lost)."""
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    cache = tmp_path / "cache"
+    args = [a.replace("{ro}", str(ro)) for a in command]
+    ro.chmod(0o555)
+    try:
+        done = subprocess.run([*unprivileged(), sys.executable, "-m", "symid", *args, "--steps", STEPS],
+                              capture_output=True, text=True, timeout=TIMEOUT, cwd=tmp_path,
+                              env={**os.environ, "PYTHONPATH": str(REPO), "SYMID_CACHE": str(cache)})
+    finally:
+        ro.chmod(0o755)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
+    assert f"cannot write: the folder {ro} is not writable by this user" in done.stderr
+    assert not any(cache.glob("c-*")), sorted(p.name for p in cache.iterdir())
+    assert list(ro.iterdir()) == []
