@@ -107,3 +107,43 @@ def test_a_read_only_output_folder_is_refused_before_any_work(tmp_path, command)
     assert f"cannot write: the folder {ro} is not writable by this user" in done.stderr
     assert not any(cache.glob("c-*")), sorted(p.name for p in cache.iterdir())
     assert list(ro.iterdir()) == []
+
+
+def test_the_default_output_in_a_read_only_folder_is_refused_before_the_solve(tmp_path):
+    """No -o: `<name>.csv` in the current folder, read-only here; exit 2 naming
+    the folder (said only by the check before the solve, not by the writer)."""
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        done = subprocess.run([*unprivileged(), sys.executable, "-m", "symid", "solve", CRANK, "--steps", STEPS,
+                               "--backend", "numpy"], capture_output=True, text=True, timeout=TIMEOUT, cwd=ro,
+                              env={**os.environ, "PYTHONPATH": str(REPO)})
+    finally:
+        ro.chmod(0o755)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
+    assert "slider_crank.csv: cannot write: the folder . is not writable by this user" in done.stderr
+    assert list(ro.iterdir()) == []
+
+
+@pytest.mark.parametrize("table", ["results", "sweep"])
+def test_plot_into_a_file_says_it_is_a_file_not_a_folder(tmp_path, capsys, table):
+    """`symid plot -o afile` said "afile: File exists"; below a file, "Not a directory"."""
+    data = tmp_path / f"{table}.csv"
+    if table == "results":
+        assert main(["solve", CRANK, "--steps", STEPS, "--backend", "numpy", "-o", str(data)]) == 0
+        extra = ["--mechanism", CRANK]
+    else:
+        assert main(["sweep", CRANK, "--grid", "L_rod=0.3:0.4:2", "--steps", STEPS, "--backend", "numpy",
+                     "-o", str(data)]) == 0
+        extra = []
+    afile = tmp_path / "afile"
+    afile.write_text("mine")
+    capsys.readouterr()
+    for target in (afile, afile / "sub"):
+        status = main(["plot", str(data), *extra, "-o", str(target)])
+        err = capsys.readouterr().err
+        assert status == 2 and err.count("\n") == 1, err
+        assert f"{target}: cannot write: {afile} is a file, not a folder" in err
+    assert afile.read_text() == "mine"

@@ -149,13 +149,14 @@ def _write_table(out: Path, header: list[str], keep: list[str] | None, rows: Ite
     kept columns (`keep`, None: all)."""
     from symid import progress
     from symid.output import summary
-    from symid.io.files import output_format
+    from symid.io.files import check_target, output_format
     from symid.output.tables import SUFFIXES, write_table
     from symid.tools.plan import Stale
     from symid.output.results import check_table_size
 
     record = summary.Recorder(header, keep)
     suffix = output_format(out, SUFFIXES, "a results table")
+    check_target(out)  # the default <name>.csv too: before the solve, not after it
     check_table_size(steps, len(header) if suffix == ".npz" else len(record.columns), file)
     if suffix == ".parquet":
         from symid.output.tables import arrow

@@ -10,6 +10,7 @@ past its size limit.
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import stat
@@ -87,7 +88,7 @@ def check_target(path: str | Path) -> None:
     if not path.parent.is_dir():
         if path.parent.exists():
             raise InputError(f"{path}: cannot write: {path.parent} is a file, not a folder")
-        raise InputError(f"{path}: cannot write: no folder {path.parent}")
+        raise InputError(f"{path}: cannot write: no folder {path.parent} ({os.strerror(errno.ENOENT)})")
     land = _landing(path)
     if land.exists() and not land.is_file():
         return
@@ -100,6 +101,24 @@ def check_target(path: str | Path) -> None:
             read_only = False
         why = "is on a read-only file system" if read_only else "is not writable by this user"
         raise InputError(f"{path}: cannot write: the folder {folder} {why}")
+
+
+def make_folder(path: str | Path) -> Path:
+    """mkdir -p for an output folder (of plots), one line when it cannot be one.
+
+    Raises:
+        InputError: `path` or a folder above it is a file, or cannot be made
+            (permission, read-only file system): naming the path.
+    """
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        blocker = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), path)
+        raise InputError(f"{path}: cannot write: {blocker} is a file, not a folder") from None
+    except OSError as exc:
+        raise cannot_write(path, exc) from None
+    return path
 
 
 def output_format(path: str | Path, suffixes: Sequence[str], what: str) -> str:
