@@ -147,3 +147,19 @@ def test_plot_into_a_file_says_it_is_a_file_not_a_folder(tmp_path, capsys, table
         assert status == 2 and err.count("\n") == 1, err
         assert f"{target}: cannot write: {afile} is a file, not a folder" in err
     assert afile.read_text() == "mine"
+
+
+@pytest.mark.parametrize("command", [
+    ["solve", CRANK, "--set", "F_gas=1e308", "-o", "run.csv"],
+    ["sweep", CRANK, "--grid", "F_gas=1e300:1e308:2", "-o", "study.csv"],
+], ids=["solve", "sweep"])
+def test_a_power_past_the_largest_double_is_no_numpy_warning(tmp_path, command):
+    """F_gas = 1e308 N on the piston: the motor torque is ~1e307 N·m and its
+    power T*omega (omega = 10*pi rad/s) passes 1.8e308, the largest double.
+    The run says so by its value (inf), not by a NumPy RuntimeWarning naming a
+    source line on stderr (a subprocess: warnings as a user sees them)."""
+    done = subprocess.run([sys.executable, "-m", "symid", *command, "--steps", STEPS, "--backend", "numpy"],
+                          capture_output=True, text=True, timeout=TIMEOUT, cwd=tmp_path,
+                          env={**os.environ, "PYTHONPATH": str(REPO)})
+    assert done.returncode == 0, done.stderr
+    assert "Warning" not in done.stderr and ".py:" not in done.stderr, done.stderr
