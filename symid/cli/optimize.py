@@ -76,6 +76,11 @@ def cmd_optimize(args: argparse.Namespace) -> int:
         print(f"iteration {iteration}: {args.minimize} = {value:.10g}, |gradient| = {norm:.3g}", flush=True)
 
     outcome = opt.run(problem, report, maxiter=args.maxiter)
+    if not outcome.success and outcome.unmet:  # scipy's message then names its line search, not the cause
+        raise AnalysisError(f"{args.file}: the optimizer stopped after {outcome.iterations} iterations "
+                            f"({outcome.evaluations} solves) at {outcome.where()} with a limit not met: "
+                            f"{', '.join(outcome.unmet)}; the limits may not be met together within the "
+                            f"--vary bounds (SLSQP: {outcome.message}); nothing written")
     if not outcome.success:
         raise AnalysisError(f"{args.file}: the optimizer did not converge after {outcome.iterations} iterations "
                             f"({outcome.evaluations} solves): {outcome.message}; nothing written")

@@ -71,12 +71,13 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
-    from symid.io.files import output_format
+    from symid.io.files import check_target, output_format
     from symid.output.tables import SUFFIXES
     from symid.tools import plan
 
-    if args.output:  # the format follows the suffix, else refused before any work
+    if args.output:  # the format follows the suffix, and the folder takes it, else refused before any work
         output_format(args.output, SUFFIXES, "a results table")
+        check_target(args.output)
     plots = args.plot or args.plot_dir is not None
     sensitive = args.sensitivity is not None or args.sensitivity_of is not None  # a plan has no sensitivities
     key = None if plots or sensitive else plan.key(args.file, run_options(args))
@@ -150,13 +151,14 @@ def _write_table(out: Path, header: list[str], keep: list[str] | None, rows: Ite
     kept columns (`keep`, None: all)."""
     from symid import progress
     from symid.output import summary
-    from symid.io.files import output_format
+    from symid.io.files import check_target, output_format
     from symid.output.tables import SUFFIXES, write_table
     from symid.tools.plan import Stale
     from symid.output.results import check_table_size
 
     record = summary.Recorder(header, keep)
     suffix = output_format(out, SUFFIXES, "a results table")
+    check_target(out)  # the default <name>.csv too: before the solve, not after it
     check_table_size(steps, len(header) if suffix == ".npz" else len(record.columns), file)
     if suffix == ".parquet":
         from symid.output.tables import arrow

@@ -10,6 +10,7 @@ past its size limit.
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import stat
@@ -72,7 +73,11 @@ def new_file_mode() -> int:
 
 
 def check_target(path: str | Path) -> None:
-    """Refuse, before any work, an output path that is a directory or in no folder.
+    """Refuse, before any work, an output path that is a directory, in no
+    folder, under a file, or in a folder this process cannot write (a
+    read-only folder or file system: the new file is made beside its name and
+    renamed over it, so the folder must take it; a device or FIFO is written
+    into and needs no such folder).
 
     Raises:
         InputError: one line naming the path.
@@ -81,7 +86,39 @@ def check_target(path: str | Path) -> None:
     if path.is_dir():
         raise InputError(f"{path}: cannot write: is a directory")
     if not path.parent.is_dir():
-        raise InputError(f"{path}: cannot write: no folder {path.parent}")
+        if path.parent.exists():
+            raise InputError(f"{path}: cannot write: {path.parent} is a file, not a folder")
+        raise InputError(f"{path}: cannot write: no folder {path.parent} ({os.strerror(errno.ENOENT)})")
+    land = _landing(path)
+    if land.exists() and not land.is_file():
+        return
+    folder = land.parent
+    if folder.is_dir() and not os.access(folder, os.W_OK | os.X_OK,
+                                         effective_ids=os.access in os.supports_effective_ids):
+        try:
+            read_only = bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+        except OSError:
+            read_only = False
+        why = "is on a read-only file system" if read_only else "is not writable by this user"
+        raise InputError(f"{path}: cannot write: the folder {folder} {why}")
+
+
+def make_folder(path: str | Path) -> Path:
+    """mkdir -p for an output folder (of plots), one line when it cannot be one.
+
+    Raises:
+        InputError: `path` or a folder above it is a file, or cannot be made
+            (permission, read-only file system): naming the path.
+    """
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        blocker = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), path)
+        raise InputError(f"{path}: cannot write: {blocker} is a file, not a folder") from None
+    except OSError as exc:
+        raise cannot_write(path, exc) from None
+    return path
 
 
 def output_format(path: str | Path, suffixes: Sequence[str], what: str) -> str:

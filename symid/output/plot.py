@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Callable, Literal
 import numpy as np
 
 from symid.backends import Array
-from symid.io.files import atomic_path, atomic_write
+from symid.io.files import atomic_path, atomic_write, make_folder
 from symid.model.mechanism import Mechanism
 from symid.output.scene import GEARS, Scene, draw, draw_paths, scene
 from symid.output import friction_loss
@@ -244,8 +244,7 @@ def write_all(table: Table, mechanism: Mechanism | None, directory: str | Path, 
     """Write `<stem>_efforts.png`, `<stem>_reactions.png`, `<stem>_mechanism.png`,
     `<stem>_friction.png` (joint friction only) and `<stem>_motion.gif` (with
     `gif`) in `directory`, each that the table allows."""
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
+    directory = make_folder(directory)
     out = Written()
     if len(table["t"]) == 0:
         out.skipped.append("plots: the table has no instants")

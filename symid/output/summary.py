@@ -83,8 +83,11 @@ class Effort(Driven):
 
     @property
     def power(self) -> Array:
-        """Power delivered to the mechanism [W], shape (instants,)."""
-        return self.value * self.rate
+        """Power delivered to the mechanism [W], shape (instants,): +-inf where the
+        product passes the largest double (an effort near 1e307 N·m), said so
+        by the value, not by a NumPy warning on stderr."""
+        with np.errstate(over="ignore"):
+            return self.value * self.rate
 
 
 @dataclass(frozen=True)

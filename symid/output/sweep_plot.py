@@ -227,13 +227,9 @@ def write_all(params: Sequence[str], values: np.ndarray, names: Sequence[str], f
               notes: list[str] | None = None) -> list[Path]:
     """Write the study's PNGs as `<stem>_figures.png` (and `<stem>_scatter.png`);
     returns the paths, and appends to notes what was left out or drawn flat."""
-    folder = Path(folder)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        from symid.io.files import cannot_write
+    from symid.io.files import make_folder
 
-        raise cannot_write(folder, exc) from None
+    folder = make_folder(folder)
     written = []
     for suffix, fig in figures_of(params, values, names, figures, status, stem, kind, notes).items():
         written.append(save(fig, Path(folder) / f"{stem}_{suffix}.png"))

@@ -245,6 +245,7 @@ class Outcome:
     iterations: int
     evaluations: int
     bound: tuple[str, ...] = ()
+    unmet: tuple[str, ...] = ()
 
     def where(self) -> str:
         """"a = 0.1 (on its lower bound), b = 2.5": the optimum, a bound said where it holds one."""
@@ -310,7 +311,25 @@ def run(problem: Problem, report: Callable[[int, float, float], None] | None = N
                       constraints=constraints, callback=callback, options={"maxiter": maxiter, "ftol": ftol})
     p = problem.params(result.x)
     return Outcome(tuple(problem.names), p, problem.value(result.x, problem.objective), f0, bool(result.success),
-                   str(result.message), int(result.nit), problem.evaluations, _bounds_held(np.clip(result.x, 0, 1)))
+                   str(result.message), int(result.nit), problem.evaluations, _bounds_held(np.clip(result.x, 0, 1)),
+                   _unmet(problem, result.x))
+
+
+# a limit is unmet where the optimizer stopped when its figure passes the value
+# by more than this fraction of |value| (of 1 for a value 0): far above SLSQP's
+# own feasibility slack at ftol 1e-14, far below a limit that cannot be met
+UNMET = 1e-6
+
+
+def _unmet(problem: Problem, u: Array) -> tuple[str, ...]:
+    """The limits not met at scaled point u, each as "FIGURE = x (<= VALUE)"."""
+    unmet = []
+    for lim in problem.limits:
+        value = problem.value(u, lim.figure)
+        excess = value - lim.value if lim.sense == "<=" else lim.value - value
+        if not excess <= UNMET * (abs(lim.value) if lim.value != 0 else 1.0):
+            unmet.append(f"{lim.figure} = {value:.6g} ({lim.sense} {lim.value:g})")
+    return tuple(unmet)
 
 
 def snippet(outcome: Outcome, objective: str, source: str) -> str:
