@@ -163,3 +163,16 @@ def test_a_power_past_the_largest_double_is_no_numpy_warning(tmp_path, command):
                           env={**os.environ, "PYTHONPATH": str(REPO)})
     assert done.returncode == 0, done.stderr
     assert "Warning" not in done.stderr and ".py:" not in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize("plot_dir", ["afile", "afile/sub"])
+def test_a_plot_dir_that_is_a_file_is_refused_before_the_table_is_written(tmp_path, capsys, plot_dir):
+    """`--plot-dir afile` wrote the table, then failed at the pictures: now
+    refused before the run, naming the file in the way, and no table written."""
+    (tmp_path / "afile").write_text("mine\n")
+    out = tmp_path / "out.csv"
+    status = main(["solve", CRANK, "--steps", STEPS, "-o", str(out), "--plot-dir", str(tmp_path / plot_dir)])
+    err = capsys.readouterr().err
+    assert status == 2 and "Traceback" not in err and err.count("\n") == 1, err
+    assert f"{tmp_path / 'afile'} is a file, not a folder" in err, err
+    assert not out.exists() and (tmp_path / "afile").read_text() == "mine\n"
