@@ -370,6 +370,30 @@ def test_generated_folder_is_current(tmp_path: Path) -> None:
     assert not stale, f"stale generated files (run `symid generate --examples`): {stale}"
 
 
+def test_written_q0_is_free_of_the_last_bits_of_libm() -> None:
+    """default_q0 is written the same whatever noise of a few eps Newton leaves
+    (another libm or BLAS wrote 2.3e-33 where this machine wrote -1.6e-33), the
+    file's round numbers stay round, and the committed headers are written so."""
+    from symid.codegen.model import settled
+
+    exact = np.array([0.0, 0.0, 0.0, 0.25, 0.0, 0.0, 0.4, -0.05, np.pi / 2, 0.09486832980505137, 0.3, 0.9479697413828938])
+    angle = np.arange(exact.size) % 3 == 2
+    scale = np.where(angle, 1.0, 0.4)
+    rng = np.random.default_rng(27)
+    written = settled(exact)
+    assert written[:8] == (0.0, 0.0, 0.0, 0.25, 0.0, 0.0, 0.4, -0.05) and str(written[0]) == "0.0"
+    assert np.all(np.abs(np.array(written) - exact) <= 1e-13 * scale)  # far below any assembly tolerance
+    for _ in range(50):  # a few eps of the scale, either sign, in every value (and 1e-33 about a zero)
+        noisy = exact + rng.integers(-4, 5, exact.size) * np.finfo(float).eps * scale
+        noisy[exact == 0] = rng.choice([-1.6e-33, 2.3e-33, 8.2e-18, 0.0], (exact == 0).sum())
+        assert settled(noisy) == written
+    for header in (ROOT / "generated").glob("*/c/*_solver.c"):
+        found = re.search(r"_default_q0\[[^\]]*\] = \{([^}]*)\}", header.read_text())
+        assert found, header
+        values = np.array([float(v) for v in found.group(1).split(",")])
+        assert settled(values) == tuple(values), header
+
+
 @needs_cc
 def test_second_run_compiles_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
     api.prepare(api.example("slider_pendulum"), backend="c")
