@@ -32,3 +32,29 @@ def _cores_shared_by_workers() -> None:
         return
     share = max(1, (os.cpu_count() or 1) // workers)
     os.cpu_count = lambda: share  # type: ignore[assignment]  # the worker's own process only
+
+
+# The quick tier (`-m "not slow"`) runs a test parametrized over the bundled
+# examples on these only; the others (the excavator's expressions, Andrews'
+# 21 coordinates, the planetary gears, ...) are in the slow tier. Together they
+# keep a plain slider-crank, a slider in a moving slot and joint friction.
+QUICK_EXAMPLES = frozenset({"slider_crank", "quick_return", "slider_crank_friction"})
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark `slow` the bundled examples outside QUICK_EXAMPLES of a test that also
+    runs on one of them (a test on big examples only keeps its tier)."""
+    from symid import api
+
+    bundled = frozenset(api.examples())
+
+    def examples_of(item: pytest.Item) -> set[str]:
+        params = getattr(getattr(item, "callspec", None), "params", {})
+        return {v for v in params.values() if isinstance(v, str) and v in bundled}
+
+    quick_tests = {(item.path, item.originalname) for item in items  # type: ignore[attr-defined]
+                   if examples_of(item) & QUICK_EXAMPLES}
+    for item in items:
+        used = examples_of(item)
+        if used and not used & QUICK_EXAMPLES and (item.path, item.originalname) in quick_tests:  # type: ignore[attr-defined]
+            item.add_marker(pytest.mark.slow)

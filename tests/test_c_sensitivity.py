@@ -247,6 +247,7 @@ int main(void)
 """
 
 
+@pytest.mark.slow  # an instrumented build and run (~15 s alone under load)
 @pytest.mark.parametrize("precision", ["double", "single"])
 def test_sensitivity_solver_stays_in_its_buffers_under_the_address_sanitizer(tmp_path: Path, precision: str) -> None:
     """Every public evaluation prepares the parameters into a local vector of

@@ -230,6 +230,7 @@ def _run_lu(tmp_path: Path, plan: sparse.Plan, values: list[float | None], input
     return out, "\n".join(line for ch in chunks["factor_chunks"] for line in ch["lines"])
 
 
+@pytest.mark.slow  # many random matrices through two compiled LUs (38 s under load)
 @needs_cc
 def test_folded_lu_factors_and_solves_random_matrices_bitwise_like_the_full_one(tmp_path: Path) -> None:
     """30 random sparse matrices, 60% of their entries numbers: the folded

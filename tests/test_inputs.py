@@ -687,6 +687,7 @@ def test_exp_tower_parameter_ends_promptly(tmp_path):
     assert re.search(r"bad\.toml: \[parameters\] key 'F_gas': .*not finite", err)
 
 
+@pytest.mark.slow  # a child symid over 10000 parameters (14 s under load)
 def test_ten_thousand_parameters_are_read_promptly(tmp_path):
     text = with_parameters("".join(f"p{k} = {k}.25\n" for k in range(10_000)))
     text = edit('mass = "m_crank"\n', "", text=text)  # an error found after the parameters
