@@ -668,7 +668,8 @@ def stress_studies(tmp_path_factory):
     return {name: write(folder, fam.text, f"{name}.toml") for name, fam in stress.FAMILIES.items()}
 
 
-@pytest.mark.parametrize("name, ks", [("slider_crank", range(1, 9)), ("four_bar_toggle", range(1, 11, 3))])
+@pytest.mark.parametrize("name, ks", [("slider_crank", range(1, 9)),
+                                      pytest.param("four_bar_toggle", range(1, 11, 3), marks=pytest.mark.slow)])  # 34 s
 def test_torque_error_near_singular_positions_stays_within_the_conditioning(stress_studies, name, ks):
     """err <= C cond^2 eps, and <= C kappa eps with kappa the torque's own
     relative condition number (40-digit derivative w.r.t. the angle and lengths)."""
