@@ -52,9 +52,10 @@ def test_ladder_exact_configuration_is_assembled(tmp_path: Path) -> None:
         assert np.max(np.abs(study.evaluator.phi(lad.q_exact(t), t))) <= 1e-14
 
 
+@pytest.mark.slow  # the benchmark harness itself, every approach at tiny sizes
 def test_benchmark_smoke_run_writes_every_output(tmp_path: Path) -> None:
     done = subprocess.run([sys.executable, "-m", "benchmarks.run", "--smoke", "--out", str(tmp_path)],
-                          cwd=ROOT, capture_output=True, text=True, timeout=600)
+                          cwd=ROOT, capture_output=True, text=True)  # no deadline: under load it takes minutes
     assert done.returncode == 0, done.stderr[-2000:]
     for name in ("bench.json", "bench.md", "time_vs_ng.png", "time_vs_error.png", "tolerance_sweep.png"):
         assert (tmp_path / name).is_file(), name

@@ -270,6 +270,7 @@ def _compile_all(compiler: list[str], files: list[Path], cwd: Path) -> None:
             assert result.returncode == 0 and "warning" not in result.stderr, (path.name, result.stderr[:3000])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("precision", ["double", "single"])
 @pytest.mark.parametrize("cc", ["gcc", "clang"])
 def test_every_solver_compiles_warning_free_with_strict_flags(sources, tmp_path: Path, cc: str,
@@ -280,6 +281,7 @@ def test_every_solver_compiles_warning_free_with_strict_flags(sources, tmp_path:
     _compile_all([cc, *WARNINGS, "-fsyntax-only"], files, tmp_path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("precision, level", [("single", "-O2"), ("single", "-Os"), ("double", "-O2"),
                                               ("double", "-Os")])
 def test_every_solver_compiles_warning_free_for_a_cortex_m4f(sources, tmp_path: Path, precision: str,

@@ -142,6 +142,7 @@ def test_instant_sensitivity_entry_point_gives_the_trajectory_row(run: Run) -> N
         np.testing.assert_allclose(got, rows[i, -width:], rtol=1e-9, atol=1e-9 * np.abs(rows[i, -width:]).max())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cc", ["gcc", "clang"])
 def test_sensitivity_solver_compiles_warning_free_with_strict_flags(run: Run, tmp_path: Path, cc: str) -> None:
     if shutil.which(cc) is None:
@@ -151,6 +152,7 @@ def test_sensitivity_solver_compiles_warning_free_with_strict_flags(run: Run, tm
     assert done.returncode == 0 and not done.stderr, done.stderr[:2000]
 
 
+@pytest.mark.slow
 def test_single_precision_sensitivity_solver_compiles_strict_and_follows_double(tmp_path: Path) -> None:
     mech = api.load_mechanism(api.example("slider_crank"))
     paths = api.generate(mech, "c", tmp_path, precision="single", sensitivity=("L_crank", "n"))
@@ -245,6 +247,7 @@ int main(void)
 """
 
 
+@pytest.mark.slow  # an instrumented build and run (~15 s alone under load)
 @pytest.mark.parametrize("precision", ["double", "single"])
 def test_sensitivity_solver_stays_in_its_buffers_under_the_address_sanitizer(tmp_path: Path, precision: str) -> None:
     """Every public evaluation prepares the parameters into a local vector of

@@ -89,6 +89,7 @@ def test_simd_passes_give_the_scalar_codes_rows_and_state_bitwise(tmp_path: Path
             assert got[1].tobytes() == want[1].tobytes(), (form, cuts)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("clang") is None, reason="no clang")
 def test_clangs_build_of_the_simd_passes_gives_gccs_scalar_rows(tmp_path: Path) -> None:
     """The AVX passes are GCC vector extensions, whose shuffle clang spells differently."""

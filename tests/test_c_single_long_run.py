@@ -21,6 +21,8 @@ from symid.io.reader import load, loads
 from symid.model.mechanism import T
 from test_codegen import needs_cc
 
+pytestmark = pytest.mark.slow  # C builds dominate: 51 s for the file alone under load
+
 ROOT = Path(__file__).resolve().parent.parent
 DRIVER = ROOT / "tests" / "c" / "rows_driver.c"
 LONG_T0 = 1e4

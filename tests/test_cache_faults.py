@@ -29,6 +29,8 @@ import pytest
 from symid import api, cli
 from symid.codegen import cache
 
+pytestmark = pytest.mark.slow  # every fault on every backend, most in a child process with its own build (194 s under load)
+
 REPO = Path(__file__).resolve().parents[1]
 SLIDER_CRANK = api.example("slider_crank")
 ARGS = ["solve", str(SLIDER_CRANK), "--steps", "11"]

@@ -230,6 +230,7 @@ def _run_lu(tmp_path: Path, plan: sparse.Plan, values: list[float | None], input
     return out, "\n".join(line for ch in chunks["factor_chunks"] for line in ch["lines"])
 
 
+@pytest.mark.slow  # many random matrices through two compiled LUs (38 s under load)
 @needs_cc
 def test_folded_lu_factors_and_solves_random_matrices_bitwise_like_the_full_one(tmp_path: Path) -> None:
     """30 random sparse matrices, 60% of their entries numbers: the folded
@@ -368,6 +369,30 @@ def test_generated_folder_is_current(tmp_path: Path) -> None:
     assert fresh == kept, "generated/ has missing or extra files: run `symid generate --examples`"
     stale = [str(rel) for rel in fresh if (tmp_path / rel).read_bytes() != (committed / rel).read_bytes()]
     assert not stale, f"stale generated files (run `symid generate --examples`): {stale}"
+
+
+def test_written_q0_is_free_of_the_last_bits_of_libm() -> None:
+    """default_q0 is written the same whatever noise of a few eps Newton leaves
+    (another libm or BLAS wrote 2.3e-33 where this machine wrote -1.6e-33), the
+    file's round numbers stay round, and the committed headers are written so."""
+    from symid.codegen.model import settled
+
+    exact = np.array([0.0, 0.0, 0.0, 0.25, 0.0, 0.0, 0.4, -0.05, np.pi / 2, 0.09486832980505137, 0.3, 0.9479697413828938])
+    angle = np.arange(exact.size) % 3 == 2
+    scale = np.where(angle, 1.0, 0.4)
+    rng = np.random.default_rng(27)
+    written = settled(exact)
+    assert written[:8] == (0.0, 0.0, 0.0, 0.25, 0.0, 0.0, 0.4, -0.05) and str(written[0]) == "0.0"
+    assert np.all(np.abs(np.array(written) - exact) <= 1e-13 * scale)  # far below any assembly tolerance
+    for _ in range(50):  # a few eps of the scale, either sign, in every value (and 1e-33 about a zero)
+        noisy = exact + rng.integers(-4, 5, exact.size) * np.finfo(float).eps * scale
+        noisy[exact == 0] = rng.choice([-1.6e-33, 2.3e-33, 8.2e-18, 0.0], (exact == 0).sum())
+        assert settled(noisy) == written
+    for header in (ROOT / "generated").glob("*/c/*_solver.c"):
+        found = re.search(r"_default_q0\[[^\]]*\] = \{([^}]*)\}", header.read_text())
+        assert found, header
+        values = np.array([float(v) for v in found.group(1).split(",")])
+        assert settled(values) == tuple(values), header
 
 
 @needs_cc

@@ -17,7 +17,8 @@ sys.path.insert(0, str(ROOT))
 
 from benchmarks import embedded_regression as er  # noqa: E402
 
-pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc is not installed")
+pytestmark = [pytest.mark.slow,  # a benchmark's driver, built and run
+              pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc is not installed")]
 
 
 @pytest.fixture(scope="module")

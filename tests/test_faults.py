@@ -219,9 +219,9 @@ def test_endless_motion_table_is_read_only_up_to_the_limit(tmp_path, capsys):
 def test_ten_thousand_bodies_are_refused_up_front(tmp_path, capsys):
     bodies = "".join(f'[[body]]\nname = "b{k}"\nmass = 1\ninertia = 1\nq0 = [{k}, 0, 0]\n' for k in range(10_000))
     (tmp_path / "big.toml").write_text(f'[mechanism]\nname = "big"\n{bodies}')
-    start = time.perf_counter()
+    start = time.process_time()  # CPU time: refused up front, whatever the machine's load
     status, line = run_main(["solve", str(tmp_path / "big.toml"), "-o", str(tmp_path / "out.csv")], capsys)
-    assert status == 2 and time.perf_counter() - start < 30
+    assert status == 2 and time.process_time() - start < 30
     assert line.endswith(f"[[body]]: 10000 entries, more than the {MAX_BODIES} allowed"), line
 
 

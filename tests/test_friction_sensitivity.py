@@ -19,6 +19,8 @@ from symid.io.reader import loads
 from symid.model.mechanism import parameter_symbol
 from test_friction import _quick_return_with_friction
 
+pytestmark = pytest.mark.slow  # 40-digit central differences of every column (139 s under load)
+
 BACKENDS = ("numpy", "casadi", "c")
 STEPS = 4  # t0, t1 and two instants between, neither where a friction or a normal force crosses zero
 # (the slider-crank at a quarter turn: |N| has a kink there, no derivative)

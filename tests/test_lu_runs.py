@@ -93,6 +93,7 @@ def _solve(mech_text: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, form
     return got.data
 
 
+@pytest.mark.slow  # every form compiled (41 s under load)
 @needs_cc
 def test_lu_and_loop_forms_give_bitwise_the_same_results(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     """A ladder of 10 with its revolutes looped (LOOP_MIN 0): the folded

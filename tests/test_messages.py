@@ -74,6 +74,7 @@ def test_q0_errors_name_the_real_fault(q0: str, message: str, tmp_path: Path, ca
     assert message in capsys.readouterr().err
 
 
+@pytest.mark.slow  # derives and verifies a mechanism (29 s under load)
 def test_a_claim_may_use_the_names_derive_prints(tmp_path: Path, capsys) -> None:
     assert main(["derive", "revolute_revolute"]) == 0
     shown = capsys.readouterr().out

@@ -274,6 +274,7 @@ def test_generate_over_a_file_size_limit_leaves_the_old_folder_byte_for_byte(tmp
 
 # -- nothing in the current folder that nobody asked for -----------------------------------
 
+@pytest.mark.slow  # every command in turn (78 s under load)
 def test_no_command_leaves_a_file_in_the_current_folder(tmp_path):
     here = tmp_path / "here"
     here.mkdir()

@@ -86,6 +86,7 @@ def test_generated_c_of_small_mechanism_compiles_with_strict_flags(name: str, tm
     assert result.returncode == 0, result.stderr
 
 
+@pytest.mark.slow  # every small mechanism compiled and linked (33 s each under load)
 @needs_cc
 @pytest.mark.parametrize("precision", ("double", "single"))
 def test_every_small_mechanism_compiles_and_links_in_both_precisions(precision: str, tmp_path: Path) -> None:

@@ -299,9 +299,20 @@ def test_min_norm_gives_the_exact_motor_torque_and_kinematics(parallelogram):
     assert res.error is None and res.data.shape[0] == 21
     L, b, m_c, m_k, w, g = 0.2, 0.5, 0.4, 1.5, 3.0, 9.81
     theta = math.pi / 2 + w * res.t
-    assert np.allclose(res["motor.T_j"], g * np.cos(theta) * L * (1.5 * m_c + m_k), rtol=0, atol=1e-12)
+    # The run passes 0.07 rad from theta = pi (t = 0.5), where the three cranks
+    # lie flat and have a first-order mobility: Phi_q's condition number kappa
+    # rises from 26 to 336 there. The rates carry ~kappa eps and the
+    # accelerations are solved from gamma(q, qd), so they and the torque carry
+    # ~kappa^2 eps of their scale (measured at most 0.012 kappa^2 eps, 5e-13 of
+    # ay at t = 0.5): a fixed 1e-12 failed by 1.3e-12 with another LAPACK.
+    study = api.prepare(path, "reference")
+    ng = study.layout.ng
+    kappa = np.array([np.linalg.cond(study.evaluator.phi_q(row[1:1 + ng], row[0])) for row in res.data])
+    bound = kappa**2 * np.finfo(float).eps
+    torque = g * L * (1.5 * m_c + m_k)
+    assert np.all(np.abs(res["motor.T_j"] - torque * np.cos(theta)) <= bound * torque)
     assert np.allclose(res["coupler.x"], b + L * np.cos(theta), rtol=0, atol=1e-14)
-    assert np.allclose(res["coupler.ay"], -w**2 * L * np.sin(theta), rtol=0, atol=1e-12)
+    assert np.all(np.abs(res["coupler.ay"] + w**2 * L * np.sin(theta)) <= bound * w**2 * L)
     for crank in ("crank_a", "crank_b", "crank_c"):
         assert np.allclose(res[f"{crank}.phi"], theta, rtol=0, atol=1e-14)
     mech = load(path)
@@ -658,7 +669,8 @@ def stress_studies(tmp_path_factory):
     return {name: write(folder, fam.text, f"{name}.toml") for name, fam in stress.FAMILIES.items()}
 
 
-@pytest.mark.parametrize("name, ks", [("slider_crank", range(1, 9)), ("four_bar_toggle", range(1, 11, 3))])
+@pytest.mark.parametrize("name, ks", [("slider_crank", range(1, 9)),
+                                      pytest.param("four_bar_toggle", range(1, 11, 3), marks=pytest.mark.slow)])  # 34 s
 def test_torque_error_near_singular_positions_stays_within_the_conditioning(stress_studies, name, ks):
     """err <= C cond^2 eps, and <= C kappa eps with kappa the torque's own
     relative condition number (40-digit derivative w.r.t. the angle and lengths)."""

@@ -19,6 +19,8 @@ from symid.cli import main
 from symid.study import design as vary
 from symid.study.run import Sweep
 
+pytestmark = pytest.mark.slow  # starts a Dask scheduler and workers
+
 distributed = pytest.importorskip("distributed")
 
 REPO = Path(__file__).resolve().parents[1]

@@ -147,6 +147,7 @@ f = "sin(t)"
 SHOWN = ("drive.effort_peak", "drive.effort_t_peak", "drive.effort_rms", "drive.power_peak", "pin.force_peak")
 
 
+@pytest.mark.slow  # 26 s under load
 def test_sweep_and_plot_of_a_grid_whose_figures_are_constant_but_for_the_last_digit(tmp_path):
     """As a user runs them: `symid sweep --plot` and `symid plot` exit 0, no
     traceback, the PNG written, a note per flat figure and for the left-out

@@ -3,6 +3,7 @@ the numbers of one mechanism, for one set of options."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -104,7 +105,33 @@ def code_model(mech: Mechanism, options: Options | None = None, looped: bool = F
     cols = tuple(columns(layout, _analysis_like(mech, options)))
     if options.sensitivity:  # after all other columns, columns outer and parameters inner
         cols += tuple(f"d({c})/d({n})" for c in options.sensitivity_of for n in options.sensitivity)
-    return CodeModel(flat, plan, layout, cols, tuple(float(v) for v in q0), parts)
+    return CodeModel(flat, plan, layout, cols, settled(q0), parts)
+
+
+# What is written of q0 (the C header's default_q0) is q0 rounded to 13
+# decimal places below the leading digit of its scale: the mechanism's length
+# scale (the largest |x|, |y|) for positions, 1 rad for angles. Newton leaves
+# rounding noise of a few eps of the scale in the last bits, which differs with
+# libm and BLAS (-1.6e-33 here, 2.3e-33 on another machine, for a coordinate
+# that is 0; 0.25000000000000006 for 0.25): 1e-13 of the scale is far above
+# that noise and far below the assembly's tolerance, so the written numbers are
+# the same on every machine (unless one lies within the noise of a rounding
+# boundary) and the file's round numbers stay round.
+DECIMALS = 13
+
+
+def settled(q0: np.ndarray) -> tuple[float, ...]:
+    """q0 as written: each value rounded to 10^-DECIMALS of its scale's leading
+    digit (a correctly rounded decimal: noise about 0 is 0, never -0.0)."""
+    q = [float(v) for v in q0]
+    lengths = [abs(v) for k, v in enumerate(q) if k % 3 != 2 and math.isfinite(v)]
+    length = max(lengths, default=0.0)
+
+    def places(scale: float) -> int:
+        return DECIMALS - math.floor(math.log10(scale)) if scale > 0 else DECIMALS
+
+    return tuple(round(v, places(1.0 if k % 3 == 2 else length)) + 0.0 if math.isfinite(v) else v
+                 for k, v in enumerate(q))
 
 
 def _sample(layout: Layout, values: dict[Any, float], q0: np.ndarray, t0: float,

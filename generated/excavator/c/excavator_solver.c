@@ -124,7 +124,7 @@ const char *const excavator_row_names[EXCAVATOR_ROW] = {
     "bucket_cylinder.T_j"
 };
 const char *const excavator_param_names[17] = { "L_boom", "L_stick", "L_bucket", "H_bucket", "m_boom", "m_stick", "m_bucket", "T_cycle", "Lc_boom", "a_boom", "Lc_stick", "a_stick", "Lc_bucket", "a_bucket", "F_dig", "t_dig", "tau_dig" };
-const excavator_real excavator_default_q0[EXCAVATOR_NG] = { 2.563512778123719, 1.2453522539411943, 0.452222501384828, 6.329505885671792, 1.6804322960007914, -0.5929482497096338, 8.25328013033541, 0.6646483135589328, -0.2775660735735967 };
+const excavator_real excavator_default_q0[EXCAVATOR_NG] = { 2.5635127781237, 1.2453522539412, 0.4522225013848, 6.3295058856718, 1.6804322960008, -0.5929482497096, 8.2532801303354, 0.6646483135589, -0.2775660735736 };
 const int excavator_phi_q_rows[35] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8 };
 const int excavator_phi_q_cols[35] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 8, 0, 1, 2, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 8 };
 /* Sines and cosines of the body angles, computed once per configuration. */

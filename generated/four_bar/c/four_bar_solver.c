@@ -118,7 +118,7 @@ const char *const four_bar_row_names[FOUR_BAR_ROW] = {
     "crank_motor.T_j"
 };
 const char *const four_bar_param_names[15] = { "L_ground", "L_crank", "L_coupler", "L_rocker", "m_crank", "m_coupler", "m_rocker", "cp_x", "cp_y", "n", "F_tool", "T_load", "k_spring", "c_spring", "L0_spring" };
-const four_bar_real four_bar_default_q0[FOUR_BAR_NG] = { 0.05, 0.0, 0.0, 0.20208333333333334, 0.1421407508617974, 0.9479697413828938, 0.3520833333333333, 0.1421407508617974, 1.8959394827657876 };
+const four_bar_real four_bar_default_q0[FOUR_BAR_NG] = { 0.05, 0.0, 0.0, 0.20208333333333, 0.1421407508618, 0.9479697413829, 0.35208333333333, 0.1421407508618, 1.8959394827658 };
 const int four_bar_phi_q_rows[25] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 7, 7, 8 };
 const int four_bar_phi_q_cols[25] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 8, 4, 5, 7, 8, 6, 8, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */

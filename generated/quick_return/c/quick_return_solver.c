@@ -124,7 +124,7 @@ const char *const quick_return_row_names[QUICK_RETURN_ROW] = {
     "crank_motor.T_j"
 };
 const char *const quick_return_param_names[13] = { "r_crank", "d_pivots", "L_lever", "L_link", "h_ram", "m_crank", "R_crank", "m_lever", "m_ram", "a_ram", "b_ram", "n", "F_cut" };
-const quick_return_real quick_return_default_q0[QUICK_RETURN_NG] = { -1.6240867301826895e-33, 0.0, 0.0, 0.09486832980505137, -0.015395010584845882, 1.2490457723982544, 0.48815243432110883, 0.3, 0.0 };
+const quick_return_real quick_return_default_q0[QUICK_RETURN_NG] = { 0.0, 0.0, 0.0, 0.09486832980505, -0.01539501058485, 1.2490457723983, 0.48815243432111, 0.3, 0.0 };
 const int quick_return_phi_q_rows[20] = { 0, 1, 2, 2, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 6, 7, 8 };
 const int quick_return_phi_q_cols[20] = { 0, 1, 3, 5, 4, 5, 0, 1, 2, 3, 4, 5, 3, 4, 5, 6, 7, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */

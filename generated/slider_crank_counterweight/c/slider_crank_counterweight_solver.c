@@ -118,7 +118,7 @@ const char *const slider_crank_counterweight_row_names[SLIDER_CRANK_COUNTERWEIGH
     "motor.T_j"
 };
 const char *const slider_crank_counterweight_param_names[12] = { "L_crank", "L_rod", "m_crank", "m_rod", "m_slider", "a_slider", "b_slider", "n", "F_gas", "m_cw", "r_cw", "beta_cw" };
-const slider_crank_counterweight_real slider_crank_counterweight_default_q0[SLIDER_CRANK_COUNTERWEIGHT_NG] = { -0.05, 8.164311994315688e-18, 0.0, 0.25000000000000006, 0.0, 0.0, 0.4, 0.0, 0.0 };
+const slider_crank_counterweight_real slider_crank_counterweight_default_q0[SLIDER_CRANK_COUNTERWEIGHT_NG] = { -0.05, 0.0, 0.0, 0.25, 0.0, 0.0, 0.4, 0.0, 0.0 };
 const int slider_crank_counterweight_phi_q_rows[21] = { 0, 0, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 7, 8 };
 const int slider_crank_counterweight_phi_q_cols[21] = { 0, 2, 1, 2, 0, 2, 3, 5, 1, 2, 4, 5, 3, 5, 6, 4, 5, 7, 7, 8, 2 };
 /* Sines and cosines of the body angles, computed once per configuration. */

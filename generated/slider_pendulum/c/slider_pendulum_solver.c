@@ -106,7 +106,7 @@ const char *const slider_pendulum_row_names[SLIDER_PENDULUM_ROW] = {
     "pendulum_motor.T_j"
 };
 const char *const slider_pendulum_param_names[13] = { "alpha", "s_amp", "f_carriage", "theta_amp", "f_pendulum", "m_carriage", "a_carriage", "b_carriage", "h_hinge", "L_pendulum", "m_pendulum", "k_torsion", "c_torsion" };
-const slider_pendulum_real slider_pendulum_default_q0[SLIDER_PENDULUM_NG] = { 0.0, 7.586682963963683e-34, 0.0, 1.5308084989341915e-17, -0.29, -1.5707963267948966 };
+const slider_pendulum_real slider_pendulum_default_q0[SLIDER_PENDULUM_NG] = { 0.0, 0.0, 0.0, 0.0, -0.29, -1.5707963267949 };
 const int slider_pendulum_phi_q_rows[15] = { 0, 1, 1, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5 };
 const int slider_pendulum_phi_q_cols[15] = { 2, 0, 1, 0, 1, 0, 2, 3, 5, 1, 2, 4, 5, 2, 5 };
 /* Sines and cosines of the body angles, computed once per configuration. */
