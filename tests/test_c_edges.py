@@ -20,6 +20,8 @@ from symid.codegen.targets import c as c_target
 from symid.io.reader import load, loads
 from test_c_embedded import M4F, WARNINGS, _slider_crank_mode
 
+pytestmark = pytest.mark.slow  # cross-compiles for Cortex-M, runs cppcheck and callgrind on every example
+
 ROOT = Path(__file__).resolve().parent.parent
 DRIVER = ROOT / "tests" / "c" / "instant_driver.c"
 EXAMPLES = tuple(api.examples())

@@ -26,6 +26,8 @@ distributed = pytest.importorskip("distributed")
 
 from test_sweep_cluster import Cluster, free_port  # noqa: E402  (after the skip: it imports distributed)
 
+pytestmark = pytest.mark.slow  # starts Dask schedulers and workers, and listeners that never answer
+
 CRANK = str(api.example("slider_crank"))
 SWEEP = ["sweep", CRANK, "--steps", "3", "--grid", "n=4:6:3"]
 
