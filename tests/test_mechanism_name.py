@@ -29,7 +29,7 @@ def _named(tmp_path: Path, name: str) -> Path:
 def test_a_name_starting_with_underscore_is_refused_at_reading(tmp_path: Path, capsys, name: str,
                                                                 command: list[str]) -> None:
     path = _named(tmp_path, name)
-    out = tmp_path / "out"
+    out = tmp_path / ("out.csv" if command[0] == "solve" else "out")  # a table's suffix is its format
     extra = ["-o", str(out)] if command[0] != "check" else []
     status = main([command[0], str(path), *command[1:], *extra])
     err = capsys.readouterr().err

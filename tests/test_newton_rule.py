@@ -60,9 +60,11 @@ def test_both_templates_are_written_from_the_rule(tmp_path: Path, monkeypatch: p
     c_target.generate(model, tmp_path / "c")
     numpy_target.generate(model, tmp_path / "numpy")
     c = (tmp_path / "c" / "slider_crank_solver.c").read_text()
+    h = (tmp_path / "c" / "slider_crank_solver.h").read_text()  # the cap: an #ifndef default of the header
     py = (tmp_path / "numpy" / "slider_crank_solver.py").read_text()
-    assert "#define SLIDER_CRANK_MAX_NEWTON 7\n" in c
-    assert "lim = SLIDER_CRANK_MAX(tol, 16.0 * SLIDER_CRANK_EPS * qmag);" in c
+    assert "#define SLIDER_CRANK_MAX_NEWTON 7\n" in h
+    assert "#define SLIDER_CRANK_FLOOR_ULPS 16.0\n" in h  # the floor: the header's #ifndef default, read by
+    assert "lim = SLIDER_CRANK_MAX(tol, (slider_crank_real)SLIDER_CRANK_FLOOR_ULPS * SLIDER_CRANK_EPS * qmag);" in c
     assert "\nMAX_NEWTON = 7\n" in py
     assert "lim = max(tol, 16.0 * EPS * qmag)" in py
 

@@ -58,7 +58,7 @@ def test_without_dense_fallback_failing_pivots_are_solved_by_the_sparse_fallback
     model = code_model(mech)
     ng = model.flat.ng
     assert c_target.work_size(model) == (len(model.flat.jac) + model.plan.size + c_fallback.work(model.plan, ng)
-                                         + 11 * c_target._stride(model))
+                                         + 12 * c_target._stride(model))  # twelve work vectors
     assert c_fallback.work(model.plan, ng) < 13 * model.plan.size + 11 * ng  # linear: nothing ng x ng
     c_target.generate(model, tmp_path / "src")
     source = (tmp_path / "src" / "two_cables_solver.c").read_text()
@@ -97,7 +97,7 @@ def test_setup_of_a_large_ladder_allocates_nothing_ng_by_ng(monkeypatch: pytest.
     assert largest[0] < ng * ng // 4
     assert model.plan.size < 10 * ng and not model.plan.singular
     fallback = c_fallback.work(model.plan, ng)  # the sparse pivoting fallback's, linear in the factors
-    assert fallback < 13 * model.plan.size + 11 * ng and c_target.work_size(model) < 40 * ng + fallback
+    assert fallback < 13 * model.plan.size + 11 * ng and c_target.work_size(model) < 48 * ng + fallback  # 12 work vectors (stride ~ng+pad), Phi_q, LU
 
 
 @pytest.mark.parametrize("seed", range(3))

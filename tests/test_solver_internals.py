@@ -235,8 +235,8 @@ def _record_numpy_module(monkeypatch: pytest.MonkeyPatch, study) -> list[tuple[f
     module = study.evaluator.module
     instant = module._instant
 
-    def recording(t, p, q, tol, m):
-        out = instant(t, p, q, tol, m)
+    def recording(t, p, q, tol, m, mixed=None):
+        out = instant(t, p, q, tol, m, mixed)
         seen.append((max(abs(a - b) for a, b in zip(out[0], q)), out[5]))
         return out
 
