@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator
 
 from symid.cli.options import COND_WARN, STEPS, TIME, TOL, add_file, add_set, analysis_overrides, run_options, set_values
-from symid.errors import AnalysisError, InputError, say_kept
+from symid.errors import AnalysisError, say_kept
 from symid.text import number, plural
 
 if TYPE_CHECKING:
@@ -71,7 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
-    from symid.io.files import check_target, output_format
+    from symid.io.files import check_folder, check_target, output_format
     from symid.output.tables import SUFFIXES
     from symid.tools import plan
 
@@ -80,9 +80,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
         check_target(args.output)
     plots = args.plot or args.plot_dir is not None
     if args.plot_dir is not None:  # a file in the way is named before the run, not after its table
-        blocker = next((p for p in (Path(args.plot_dir), *Path(args.plot_dir).parents) if p.exists()), None)
-        if blocker is not None and not blocker.is_dir():
-            raise InputError(f"{args.plot_dir}: cannot write: {blocker} is a file, not a folder (--plot-dir)")
+        check_folder(args.plot_dir)
     sensitive = args.sensitivity is not None or args.sensitivity_of is not None  # a plan has no sensitivities
     key = None if plots or sensitive else plan.key(args.file, run_options(args))
     found = plan.load(key) if key is not None else None

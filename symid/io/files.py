@@ -86,8 +86,7 @@ def check_target(path: str | Path) -> None:
     if path.is_dir():
         raise InputError(f"{path}: cannot write: is a directory")
     if not path.parent.is_dir():
-        if path.parent.exists():
-            raise InputError(f"{path}: cannot write: {path.parent} is a file, not a folder")
+        check_folder(path.parent, path)
         raise InputError(f"{path}: cannot write: no folder {path.parent} ({os.strerror(errno.ENOENT)})")
     land = _landing(path)
     if land.exists() and not land.is_file():
@@ -103,6 +102,19 @@ def check_target(path: str | Path) -> None:
         raise InputError(f"{path}: cannot write: the folder {folder} {why}")
 
 
+def check_folder(folder: str | Path, named: str | Path | None = None) -> None:
+    """Refuse a folder that a file stands in the way of (`folder` itself or one
+    above it), before any work, naming that file and `named` (default `folder`).
+
+    Raises:
+        InputError: one line, "NAMED: cannot write: FILE is a file, not a folder".
+    """
+    folder = Path(folder)
+    blocker = next((p for p in (folder, *folder.parents) if p.exists() and not p.is_dir()), None)
+    if blocker is not None:
+        raise InputError(f"{named or folder}: cannot write: {blocker} is a file, not a folder")
+
+
 def make_folder(path: str | Path) -> Path:
     """mkdir -p for an output folder (of plots), one line when it cannot be one.
 
@@ -114,8 +126,8 @@ def make_folder(path: str | Path) -> Path:
     try:
         path.mkdir(parents=True, exist_ok=True)
     except (FileExistsError, NotADirectoryError):
-        blocker = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), path)
-        raise InputError(f"{path}: cannot write: {blocker} is a file, not a folder") from None
+        check_folder(path)
+        raise InputError(f"{path}: cannot write: {path} is a file, not a folder") from None
     except OSError as exc:
         raise cannot_write(path, exc) from None
     return path
