@@ -12,7 +12,7 @@ figure the machine's load does not move:
 
 Both versions are compiled with the same gcc flags (FLAGS of
 embedded_regression: -O2) and the same drivers, and their rows are the same
-bits (tests/test_c_row_checks.py checks the written-out forms against the
+bits (tests/c/test_c_row_checks.py checks the written-out forms against the
 loop forms; every example's rows on the c backend, in five output sets, were
 compared bit for bit with the base's when the change was made).
 

@@ -32,10 +32,10 @@ RESULTS = REPO / "benchmarks" / "results" / "mutation.json"
 TIMEOUT = 240  # seconds per mutant; a hang counts as killed (the suite noticed)
 IGNORE = shutil.ignore_patterns(".git", "__pycache__", ".pytest_cache", ".mypy_cache", "*.egg-info", "results")
 
-CLI = "tests/test_cli.py"
-OUT = "tests/test_output_integrity.py"
-CSOLVER = "tests/test_solver_internals.py"
-CODEGEN = "tests/test_codegen.py"
+CLI = "tests/cli/test_cli.py"
+OUT = "tests/output/test_output_integrity.py"
+CSOLVER = "tests/c/test_solver_internals.py"
+CODEGEN = "tests/codegen/test_codegen.py"
 
 
 @dataclass(frozen=True)
@@ -78,13 +78,13 @@ MUTANTS: tuple[Mutant, ...] = (
            "parts.append(np.zeros(0) if value is None else value)", k(CLI, "statics_rate_columns")),
     Mutant("npz_written_in_place", "symid/output/npz.py", "    with atomic_write(path, binary=True) as out:",
            "    with open(path, \"wb\") as out:",
-           ("tests/test_npz.py",)),
+           ("tests/output/test_npz.py",)),
     Mutant("summary_cylinder_sign", "symid/output/summary.py", "value, rate = -2 * np.abs(f) * raw, np.sign(f) * fd",
-           "value, rate = 2 * np.abs(f) * raw, np.sign(f) * fd", k("tests/test_summary.py", "cylinder_force")),
+           "value, rate = 2 * np.abs(f) * raw, np.sign(f) * fd", k("tests/numeric/test_summary.py", "cylinder_force")),
     Mutant("summary_rms_not_halved", "symid/output/summary.py", "* np.diff(e.t)) / 2 / span))",
-           "* np.diff(e.t)) / span))", k("tests/test_summary.py", "sine")),
+           "* np.diff(e.t)) / span))", k("tests/numeric/test_summary.py", "sine")),
     Mutant("summary_peak_power_unsigned", "symid/output/summary.py", "float(e.power[p]), float(e.t[p]))",
-           "float(abs(e.power[p])), float(e.t[p]))", k("tests/test_summary.py", "brakes")),
+           "float(abs(e.power[p])), float(e.t[p]))", k("tests/numeric/test_summary.py", "brakes")),
     # -- the reference backend's reactions subset -------------------------------------
     Mutant("reference_reactions_of_every_constraint", "symid/numeric/reference.py",
            "order = [c.name for c in mech.constraints if c.name in wanted]",
@@ -98,13 +98,13 @@ MUTANTS: tuple[Mutant, ...] = (
            "return 3 * history[-1] - 3 * history[-2] + history[-3]",
            "return 3 * history[-1] - 2 * history[-2] + history[-3]", k(CSOLVER, "loop and python")),
     Mutant("lambda_rhs_sign", "symid/numeric/solve.py", "rhs = ev.applied(q, out.qd, t) - self.mass * out.qdd",
-           "rhs = ev.applied(q, out.qd, t) + self.mass * out.qdd", ("tests/test_physics.py", "-k", "closed_form")
+           "rhs = ev.applied(q, out.qd, t) + self.mass * out.qdd", ("tests/numeric/test_physics.py", "-k", "closed_form")
            + k(OUT, "part_way_keeps_every and numpy")),
     Mutant("time_grid_off_by_one", "symid/numeric/solve.py", "h = (analysis.t1 - analysis.t0) / (analysis.steps - 1)",
            "h = (analysis.t1 - analysis.t0) / analysis.steps", k(CLI, "one_row_per_step")
            + k(OUT, "part_way_keeps_every and numpy")),
     Mutant("newton_damping_never_halves", "symid/numeric/solve.py", "            alpha *= 0.5\n",
-           "            alpha *= 0.999\n", ("tests/test_stability.py", "-k", "diverg or damp")),
+           "            alpha *= 0.999\n", ("tests/numeric/test_stability.py", "-k", "diverg or damp")),
     # -- the compiled (C) backend's loop in Python -----------------------------------
     Mutant("c_failed_chunk_rows_dropped", "symid/backends/c_backend.py",
            "for k in range(solved.value):", "for k in range(solved.value if status == 0 else 0):",
@@ -142,29 +142,29 @@ MUTANTS: tuple[Mutant, ...] = (
            "3.0 * q[k] - 2.0 * m1[k] + m2[k]", k(CSOLVER, "c_statics")),
     # -- derivation -------------------------------------------------------------------
     Mutant("reaction_force_sign", "symid/symbolic/derive.py", "    force = -phi_r.T * lam\n", "    force = phi_r.T * lam\n",
-           ("tests/test_derivations.py", "-k", "reference_table")),
+           ("tests/symbolic/test_derivations.py", "-k", "reference_table")),
     Mutant("reaction_torque_arm_sign", "symid/symbolic/derive.py", "torque = ((bs.T * phi_r.T - phi_phi.T) * lam)[0]",
-           "torque = ((-bs.T * phi_r.T - phi_phi.T) * lam)[0]", ("tests/test_derivations.py", "-k", "reference_table")),
+           "torque = ((-bs.T * phi_r.T - phi_phi.T) * lam)[0]", ("tests/symbolic/test_derivations.py", "-k", "reference_table")),
     Mutant("gamma_drops_driver_rate", "symid/symbolic/derive.py", "        out += sp.diff(expr, f) * fd\n",
-           "        pass\n", ("tests/test_derivations.py", "-k", "hand_expressions")),
+           "        pass\n", ("tests/symbolic/test_derivations.py", "-k", "hand_expressions")),
     Mutant("total_derivative_drops_q_chain", "symid/symbolic/derive.py",
            "out += sp.diff(expr, qc) * qdc + sp.diff(expr, qdc) * qddc", "out += sp.diff(expr, qdc) * qddc",
-           ("tests/test_derivations.py", "-k", "hand_expressions")),
+           ("tests/symbolic/test_derivations.py", "-k", "hand_expressions")),
     Mutant("distance_length_not_squared", "symid/symbolic/constraints/distance.py",
            'phi=lambda o: [(_d().T * _d())[0] - s.scalar("L") ** 2],',
            'phi=lambda o: [(_d().T * _d())[0] - s.scalar("L")],',
-           ("tests/test_verify.py", "-k", "verifies and revolute_revolute")),
+           ("tests/tools/test_verify.py", "-k", "verifies and revolute_revolute")),
     Mutant("angle_driver_offset_sign", "symid/symbolic/constraints/angle.py",
            'phi=lambda o: [s.q("j")[2] - s.q("i")[2] - s.scalar("C") - s.F_SERIES[0]],',
            'phi=lambda o: [s.q("j")[2] - s.q("i")[2] + s.scalar("C") - s.F_SERIES[0]],',
-           ("tests/test_derivations.py", "-k", "relative_angle_driver")),
+           ("tests/symbolic/test_derivations.py", "-k", "relative_angle_driver")),
     Mutant("gear_on_link_carrier_dropped", "symid/symbolic/constraints/gear.py",
            '(s.q("j")[2] - s.q("k")[2]) - _k() * (s.q("i")[2] - s.q("k")[2])',
-           '(s.q("j")[2] - s.q("k")[2]) - _k() * s.q("i")[2]', ("tests/test_derivations.py", "-k", "gear_on_link")),
+           '(s.q("j")[2] - s.q("k")[2]) - _k() * s.q("i")[2]', ("tests/symbolic/test_derivations.py", "-k", "gear_on_link")),
     Mutant("slot_angle_offset_sign", "symid/symbolic/constraints/slot.py",
            'phi=lambda o: [_off_line(), s.q("j")[2] - s.q("i")[2] - s.scalar("theta0")],',
            'phi=lambda o: [_off_line(), s.q("j")[2] - s.q("i")[2] + s.scalar("theta0")],',
-           ("tests/test_derivations.py", "-k", "translational and not driver")),
+           ("tests/symbolic/test_derivations.py", "-k", "translational and not driver")),
     # -- code generation --------------------------------------------------------------
     Mutant("flat_gravity_y_dropped", "symid/codegen/flat.py", "applied[3 * b + 1] += m * gy",
            "applied[3 * b + 1] += 0 * gy", k(CODEGEN, "agrees_with_reference_through_api and slider_crank and c")),

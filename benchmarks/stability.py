@@ -8,10 +8,10 @@ the singularity and against cond, every backend). Four parts:
 1. stress: the slider-crank with a rod of (1 + 10^-k) crank lengths (k = 1..8)
    at 90 degrees, and a four-bar at 10^-k rad before its toggle (k = 1..15),
    each backend's motor torque against the 40-digit reference of
-   tests/stress.py, next to cond and to the torque's own condition number
+   tests/helpers/stress.py, next to cond and to the torque's own condition number
    kappa (the error no double-precision method can avoid is about kappa eps);
 2. units: every bundled example in metres vs millimetres, and with masses
-   times 1e6, after unit conversion (tests/test_stability.py's converter);
+   times 1e6, after unit conversion (tests/numeric/test_stability.py's converter);
 3. long run: the bundled slider-crank for N instants (default 1e6) streamed to
    a CSV, crank angle past 1e4 rad, the motor torque against the 40-digit
    closed form every N/1000 instants, and Python's allocated blocks sampled;
@@ -37,10 +37,11 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "tests" / "helpers"))
+sys.path.insert(0, str(ROOT / "tests" / "numeric"))  # test_stability's converter (units_part)
 sys.path.insert(0, str(ROOT))
 
-import stress  # noqa: E402  (tests/stress.py: the cases and their 40-digit reference)
+import stress  # noqa: E402  (tests/helpers/stress.py: the cases and their 40-digit reference)
 from symid import api, backends, solve  # noqa: E402
 from symid.output.results import row, write_csv  # noqa: E402
 

@@ -4,7 +4,7 @@ Three loops solve Phi(q, t) = 0 for q at an instant: the Python loop
 (`symid.numeric.solve.newton`), the generated NumPy module (`_instant`) and
 the generated C (`_newton`). Each is written from `RULE`: the templates
 render its numbers, the Python loop reads them, so the rule cannot differ
-between backends (tests/test_newton_rule.py renders both templates from a
+between backends (tests/numeric/test_newton_rule.py renders both templates from a
 changed rule and runs all four backends where only the floor lets them
 converge).
 

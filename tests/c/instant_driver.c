@@ -1,4 +1,4 @@
-/* Driver of tests/test_c_edges.py, compiled with one generated solver
+/* Driver of tests/c/test_c_edges.py, compiled with one generated solver
    (-DSOLVER_H="<name>_solver.h" -DP=<name> -DPU=<NAME>, and any of the
    header's overrides): "t tol q0..." solves one instant with the default
    parameters from the guess q0, then, for each further "t tol" group

@@ -1,5 +1,5 @@
 /* The generated sparse LU alone, on a matrix read from stdin: built by
-   tests/test_codegen.py with lu.c, templates/c/sparse_lu.j2 rendered for a
+   tests/codegen/test_codegen.py with lu.c, templates/c/sparse_lu.j2 rendered for a
    random plan with the prefix t. Reads the pattern's NNZ values, then b (N
    values); prints "fallback" where a fixed pivot fails its test, else x with
    A x = b and z with A^T z = b, one value a line, to 17 digits. */

@@ -1,4 +1,4 @@
-/* Driver of tests/test_c_embedded.py and benchmarks/embedded.py, compiled with one generated solver
+/* Driver of tests/c/test_c_embedded.py and benchmarks/embedded.py, compiled with one generated solver
    (-DSOLVER_H="<name>_solver.h" -DP=<name> -DPU=<NAME>): "rows t0 h n q0..."
    prints a trajectory's rows (%.17g); "time t0 h n q0..." prints the
    microseconds per instant of the trajectory loop and of instants continued

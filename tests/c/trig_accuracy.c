@@ -1,5 +1,5 @@
 /* The generated solver's sines and cosines against long double sinl/cosl.
-   Built by tests/test_codegen.py with the slider-crank's solver included
+   Built by tests/codegen/test_codegen.py with the slider-crank's solver included
    (its static functions are the ones under test). Prints four figures:
    values that should be libm's and are not; configurations that moved
    farther than the rotation radius (libm again); and the worst absolute

@@ -1,0 +1,326 @@
+"""The C export's sharp edges (issue 30, point 3): no double in a single
+build, fast-math refused, no pointer arithmetic on NULL, the caller's q kept
+by a failed instant, the real type, the iteration cap and the tolerance
+floor overridable, and a stated worst-case instruction count per call."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from symid import api
+from symid.codegen.model import code_model
+from symid.codegen.targets import c as c_target
+from symid.io.reader import load, loads
+from test_c_embedded import M4F, WARNINGS, _slider_crank_mode
+
+pytestmark = pytest.mark.slow  # cross-compiles for Cortex-M, runs cppcheck and callgrind on every example
+
+ROOT = Path(__file__).resolve().parents[2]
+DRIVER = ROOT / "tests" / "c" / "instant_driver.c"
+EXAMPLES = tuple(api.examples())
+OK, NOT_CONVERGED = 0, 1
+# what a single build must not reference: the EABI's double helpers (__aeabi_dadd,
+# __aeabi_f2d ...) and libm's double functions (sin where sinf is meant)
+DOUBLE_LIBM = {"sin", "cos", "tan", "exp", "log", "sqrt", "atan2", "atan", "asin", "acos", "tanh", "sinh",
+               "cosh", "pow", "fabs", "fmax", "fmin", "floor", "ceil", "fmod", "round", "trunc"}
+
+
+def _generate(folder: Path, example: str, precision: str, text: str | None = None) -> Path:
+    model = code_model(loads(text, f"{example}.toml") if text else load(api.example(example)))
+    c_target.generate(model, folder, precision=precision)
+    return folder / f"{model.name}_solver.c"
+
+
+@pytest.fixture(scope="module")
+def singles(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("single")
+    return {name: _generate(root / name, name, "single") for name in EXAMPLES}
+
+
+def _driver(source: Path, *defines: str, cc: str = "cc") -> subprocess.CompletedProcess[str]:
+    """instant_driver.c built with the solver at `source` and -D defines (the exe beside it, named by them)."""
+    name = source.name.removesuffix("_solver.c")
+    exe = source.parent / ("drv" + "".join("_" + re.sub(r"\W", "", d) for d in defines))
+    return subprocess.run([cc, *WARNINGS, "-O2", f"-I{source.parent}", f'-DSOLVER_H="{name}_solver.h"',
+                           f"-DP={name}", f"-DPU={name.upper()}", *defines, str(DRIVER), str(source), "-lm",
+                           "-o", str(exe)], capture_output=True, text=True)
+
+
+def _calls(source: Path, *groups: tuple[float, float], q0, defines: tuple[str, ...] = ()) -> list[tuple]:  # type: ignore[no-untyped-def]
+    """Each (t, tol) an instant call, the first from q0, each next from the q
+    the one before left: per call (status, iterations, fallback, q)."""
+    built = _driver(source, *defines)
+    assert built.returncode == 0, built.stderr[:3000]
+    exe = source.parent / ("drv" + "".join("_" + re.sub(r"\W", "", d) for d in defines))
+    args = [repr(groups[0][0]), repr(groups[0][1]), *(repr(float(v)) for v in q0)]
+    for t, tol in groups[1:]:
+        args += ["--", repr(t), repr(tol)]
+    out = subprocess.run([str(exe), *args], check=True, capture_output=True, text=True).stdout.splitlines()
+    return [(int(s), int(i), int(d), np.array(q, float)) for s, i, d, *q in (line.split() for line in out)]
+
+
+# --- no double in a single build ---
+
+
+def test_single_source_names_no_double_and_builds_with_double_promotion_an_error(singles) -> None:
+    """The host gcc with -Wdouble-promotion -Werror (every implicit float to
+    double), and no `double` in the code (an explicit cast is not warned)."""
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc is not installed: the host single-precision build is not checked")
+    for name, source in singles.items():
+        code = re.sub(r"/\*.*?\*/", "", source.read_text() + source.with_suffix(".h").read_text(), flags=re.S)
+        assert not re.search(r"\bdouble\b", code), name
+        built = subprocess.run(["gcc", *WARNINGS, "-Wdouble-promotion", "-Wfloat-conversion", "-Werror", "-O2",
+                                "-c", str(source), "-o", str(source.with_suffix(".o"))], capture_output=True, text=True)
+        assert built.returncode == 0, (name, built.stderr[:2000])
+
+
+def test_every_single_build_links_for_a_cortex_m4f_without_double_helpers(singles, tmp_path: Path) -> None:
+    """Each example's single export compiled for a Cortex-M4F (single-precision
+    FPU: a double would be a call to the EABI's soft-float helpers) and linked
+    with newlib into a program calling instant, trajectory and sweep: no
+    __aeabi_d* nor double libm referenced by the object, none in the program,
+    and no double-precision instruction."""
+    for tool in ("arm-none-eabi-gcc", "arm-none-eabi-nm", "arm-none-eabi-objdump"):
+        if shutil.which(tool) is None:
+            pytest.skip(f"{tool} is not installed (.ci/run installs gcc-arm-none-eabi where apt-get may): "
+                        "the single build's double helpers are not checked")
+    specs = subprocess.run(["arm-none-eabi-gcc", "-print-file-name=nosys.specs"], capture_output=True,
+                           text=True).stdout.strip()
+    if not Path(specs).is_file():
+        pytest.skip("newlib for arm-none-eabi is not installed (.ci/run installs libnewlib-arm-none-eabi): "
+                    "the single build is not linked")
+
+    def one(item: tuple[str, Path]) -> str:
+        name, source = item
+        main = tmp_path / f"{name}_main.c"
+        main.write_text(f'#include "{name}_solver.h"\n'
+                        f"static {name}_real work[{name.upper()}_SWEEP_WORK], state[{name.upper()}_STATE], "
+                        f"rows[{name.upper()}_ROW], fig[{name.upper()}_SWEEP_FIGURES + 1], t_end[1];\n"
+                        f"static {name}_real q[{name.upper()}_NG];\n"
+                        f"static int iwork[{name.upper()}_IWORK], status[1];\n"
+                        "static long solved[1];\n"
+                        "int main(void)\n{\n"
+                        f"    int s = {name}_instant(0.1f, {name}_default_params, 1e-5f, q, 0, 0, 0, 0, 0, work, iwork);\n"
+                        f"    s += {name}_trajectory(0.0f, 1e-3f, 1, {name}_default_params, 1e-5f, state, rows, 0, "
+                        "work, iwork);\n"
+                        f"    s += {name}_sweep(1, {name}_default_params, 0.0f, 1e-3f, 2, 1e-5f, fig, status, t_end, "
+                        "solved, work, iwork);\n"
+                        "    return s;\n}\n")
+        obj, elf = tmp_path / f"{name}.o", tmp_path / f"{name}.elf"
+        flags = ["arm-none-eabi-gcc", *WARNINGS, *M4F, "-O2", f"-I{source.parent}"]
+        subprocess.run([*flags, "-c", str(source), "-o", str(obj)], check=True)
+        undefined = set(subprocess.run(["arm-none-eabi-nm", "-u", str(obj)], check=True, capture_output=True,
+                                       text=True).stdout.split()) - {"U"}
+        bad = {s for s in undefined if s.startswith(("__aeabi_d", "__aeabi_f2d", "__aeabi_l2d", "__aeabi_i2d"))
+               or s in DOUBLE_LIBM}
+        assert not bad, (name, sorted(bad))
+        linked = subprocess.run([*flags, str(main), str(source), "--specs=nosys.specs", "-lm", "-o", str(elf)],
+                                capture_output=True, text=True)
+        assert linked.returncode == 0, (name, linked.stderr[:2000])
+        symbols = subprocess.run(["arm-none-eabi-nm", str(elf)], check=True, capture_output=True, text=True).stdout
+        helpers = sorted(set(re.findall(r"\b__aeabi_(?:d\w+|f2d|i2d|ui2d|l2d)\b", symbols)))
+        assert not helpers, (name, helpers)
+        code = subprocess.run(["arm-none-eabi-objdump", "-d", str(elf)], check=True, capture_output=True,
+                              text=True).stdout
+        assert not re.search(r"\tv\w+\.f64\b", code), name
+        return name
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        assert sorted(pool.map(one, singles.items())) == sorted(EXAMPLES)
+
+
+def test_single_nu_in_float_float_keeps_the_phase_of_double(tmp_path: Path) -> None:
+    """The excavator's phase nu = 1/T, now float-float instead of double: its
+    (hi, lo) pair is 1/T to ~1e-14 (a float alone: 6e-8), checked through the
+    function that prints it against the exact quotient."""
+    from symid.codegen.targets import c_phase
+    import sympy as sp
+
+    T = sp.Symbol("p[0]", real=True)
+    for nu, p0 in ((1 / T, 3.0), (sp.sqrt(T) / (2 * sp.pi), 7.0), ((T + sp.Rational(1, 3)) * T ** 2, 0.7)):
+        lines = c_phase.nu_lines([nu], 1, 1, lambda e: sp.ccode(e))
+        src = tmp_path / "nu.c"
+        body = "\n    ".join(line.replace("{p}", "x") for line in lines)
+        phase = (ROOT / "templates" / "c" / "phase.j2").read_text()
+        fns = re.findall(r"(static void \{\{ p \}\}_(?:two_prod|ff_\w+)\(.*?\n\}\n)", phase, re.S)
+        code = "\n".join(fns).replace("{{ p }}", "x").replace("{{ lm.sqrt }}", "sqrtf")
+        src.write_text("#include <math.h>\n#include <stdio.h>\ntypedef float x_real;\n" + code +
+                       "int main(void)\n{\n    const float p[1] = {" + repr(p0) + "f};\n    float pp[3];\n    "
+                       + body + "\n    printf(\"%.17g %.17g\\n\", (double)pp[1], (double)pp[2]);\n    return 0;\n}\n")
+        exe = tmp_path / "nu"
+        subprocess.run(["cc", "-std=c99", "-O2", "-ffp-contract=off", str(src), "-lm", "-o", str(exe)], check=True)
+        hi, lo = map(float, subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split())
+        exact = sp.N(nu.subs(T, sp.Float(np.float32(p0), 30)), 30)
+        assert abs(sp.Float(hi, 30) + sp.Float(lo, 30) - exact) <= 1e-13 * abs(exact), (nu, hi, lo, exact)
+        assert np.float32(hi) == hi and abs(lo) <= abs(hi) * 2.0 ** -24  # a normalized pair of floats
+
+
+# --- fast-math refused ---
+
+
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_fast_math_build_stops_with_an_error_naming_the_nan_guards(tmp_path: Path, precision: str) -> None:
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc is not installed: the fast-math refusal is not checked")
+    source = _generate(tmp_path, "slider_crank", precision)
+    base = ["gcc", *WARNINGS, "-O2", "-c", str(source), "-o", str(tmp_path / "s.o")]
+    assert subprocess.run(base, capture_output=True).returncode == 0
+    for flag in ("-ffast-math", "-ffinite-math-only"):
+        built = subprocess.run([*base, flag], capture_output=True, text=True)
+        assert built.returncode != 0 and "needs IEEE floating point" in built.stderr, (flag, built.stderr[:500])
+        assert "NaN guards" in built.stderr
+
+
+# --- no pointer arithmetic on NULL ---
+
+
+def test_cppcheck_finds_nothing_in_any_generated_solver(singles) -> None:
+    """cppcheck --enable=warning on every example's solver in both
+    precisions: the sweep formed work + WORK before checking work for NULL."""
+    if shutil.which("cppcheck") is None:
+        pytest.skip("cppcheck is not installed (.ci/run installs it where apt-get may): the generated C is not "
+                    "checked for pointer arithmetic on NULL")
+    files = [ROOT / "generated" / n / "c" / f"{n}_solver.c" for n in EXAMPLES
+             if (ROOT / "generated" / n / "c").is_dir()] + list(singles.values())
+
+    def one(path: Path) -> str:
+        return subprocess.run(["cppcheck", "--enable=warning", "--quiet", "--error-exitcode=1", str(path)],
+                              capture_output=True, text=True).stderr
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        for path, findings in zip(files, pool.map(one, files)):
+            assert not findings.strip(), (path.name, findings[:2000])
+
+
+# --- a failed instant keeps the caller's q ---
+
+
+@pytest.mark.parametrize("precision, tol, close", [("double", 1e-12, 1e-12), ("single", 1e-5, 2e-6)])
+def test_failed_instant_leaves_the_callers_q_and_the_next_call_solves(tmp_path: Path, precision: str, tol: float,
+                                                                     close: float) -> None:
+    """A slider-crank whose rod (0.05 m) is shorter than its crank (0.1 m):
+    at crank angle pi/2 the rod cannot reach the guide (an unreachable
+    position, NOT_CONVERGED); q comes back as passed, and a call at
+    t = 0.01 s (angle 0.1 pi, reachable) from it solves to the closed form."""
+    text = api.example("slider_crank").read_text().replace("L_rod = 0.3 ", "L_rod = 0.05", 1)
+    source = _generate(tmp_path, "slider_crank", precision, text)
+    q0 = _slider_crank_mode(0.0, 1.0, 0.1, 0.05)
+    (s1, it1, _, q1), (s2, _, _, q2) = _calls(source, (0.05, tol), (0.01, tol), q0=q0)
+    assert s1 == NOT_CONVERGED and it1 == 50
+    assert np.array_equal(q1, q0.astype(np.float32 if precision == "single" else float))
+    assert s2 == OK
+    truth = _slider_crank_mode(2 * np.pi * 5 * 0.01, 1.0, 0.1, 0.05)  # omega = 2 pi n, n = 5
+    assert np.max(np.abs(q2 - truth)) <= close  # single: a few ulps of 0.3 rad
+
+
+# --- overrides: the cap, the floor, the type ---
+
+
+@pytest.mark.parametrize("precision, tol", [("double", 1e-12), ("single", 1e-5)])
+def test_max_newton_and_floor_overrides_take_effect(tmp_path: Path, precision: str, tol: float) -> None:
+    """From a guess 1e-3 off at t = 0.01 s: the default needs >= 3 Newton
+    iterations (single, to 1e-5: 2) and solves to the closed form; MAX_NEWTON=1 makes the same
+    call NOT_CONVERGED after one; a tolerance floor of 1e13 ulps (2e-3 in
+    double) accepts the first correction (error ~1e-6, quadratic from 1e-3)."""
+    source = _generate(tmp_path, "slider_crank", precision)
+    truth = _slider_crank_mode(2 * np.pi * 5 * 0.01, 1.0)
+    guess = truth + 1e-3
+    floor = "1e13" if precision == "double" else "1e4"  # 2.2e-3 and 1.2e-3: above the guess's residual
+    (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess)
+    assert status == OK and iterations >= (3 if precision == "double" else 2)  # single: 1e-5 after two
+    assert np.max(np.abs(q - truth)) <= (1e-12 if precision == "double" else 2e-6)
+    (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess, defines=("-DSLIDER_CRANK_MAX_NEWTON=1",))
+    assert (status, iterations) == (NOT_CONVERGED, 1)
+    assert np.array_equal(q, guess.astype(np.float32 if precision == "single" else float))  # kept, as failed
+    (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess,
+                                         defines=(f"-DSLIDER_CRANK_FLOOR_ULPS={floor}",))
+    error = np.max(np.abs(q - truth))
+    assert status == OK and iterations == 1 and 1e-8 < error < 1e-4, (iterations, error)
+
+
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_real_type_override_takes_a_same_size_typedef_and_refuses_another_size(tmp_path: Path,
+                                                                               precision: str) -> None:
+    source = _generate(tmp_path, "slider_crank", precision)
+    real = "double" if precision == "double" else "float"
+    (tmp_path / "mine.h").write_text(f"typedef {real} my_real;\n")
+    guess = _slider_crank_mode(0.3, 1.0) + 1e-3
+    tol = 1e-12 if precision == "double" else 1e-5
+    plain = _calls(source, (0.01, tol), q0=guess)
+    mine = _calls(source, (0.01, tol), q0=guess, defines=("-include", str(tmp_path / "mine.h"),
+                                                          "-DSLIDER_CRANK_REAL=my_real"))
+    assert plain[0][:3] == mine[0][:3] == (OK, plain[0][1], 0) and np.array_equal(plain[0][3], mine[0][3])
+    other = "float" if precision == "double" else "double"
+    built = _driver(source, f"-DSLIDER_CRANK_REAL={other}")
+    assert built.returncode != 0 and f"slider_crank_real_must_have_the_size_of_{real}" in built.stderr
+    header = source.with_suffix(".h").read_text()
+    assert "#ifdef SLIDER_CRANK_REAL\n" in header
+    for macro in ("MAX_NEWTON", "FLOOR_ULPS"):
+        assert f"#ifndef SLIDER_CRANK_{macro}\n" in header, macro
+
+
+# --- the worst case per call, stated and kept ---
+
+
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_worst_case_instructions_stated_and_a_capped_call_stays_under_them(singles, tmp_path: Path,
+                                                                          precision: str) -> None:
+    """Every example: the header states WORST_INSTRUCTIONS (fixed + per
+    iteration times the cap); a call that cannot meet its tolerance (floor 0,
+    tol 1e-30: Newton runs to the cap unless it lands on an exact zero)
+    counted by callgrind on the host stays under it."""
+    if shutil.which("valgrind") is None:
+        pytest.skip("valgrind is not installed: the stated worst case is not measured")
+    root = tmp_path
+    for name in EXAMPLES:
+        source = singles[name] if precision == "single" else _generate(root / name, name, "double")
+        header = source.with_suffix(".h").read_text()
+        m = re.search(rf"#define {name.upper()}_WORST_INSTRUCTIONS \((\d+)L \+ (\d+)L \* \(long\)"
+                      rf"{name.upper()}_MAX_NEWTON\)", header)
+        cap = int(re.search(rf"#define {name.upper()}_MAX_NEWTON (\d+)", header).group(1))
+        assert m is not None, name
+        bound = int(m.group(1)) + cap * int(m.group(2))
+        model = code_model(load(api.example(name)))
+        a = model.layout.mechanism.analysis
+        built = _driver(source, f"-D{name.upper()}_FLOOR_ULPS=0")
+        assert built.returncode == 0, built.stderr[:2000]
+        exe = source.parent / ("drv_D" + f"{name.upper()}_FLOOR_ULPS0")
+        args = [repr(a.t0 + 0.37 * (a.t1 - a.t0)), "1e-30", *(repr(float(v) + 1e-3) for v in model.q0)]
+        run = subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={root / (name + '.cg')}",
+                              f"--toggle-collect={name}_instant", str(exe), *args],
+                             capture_output=True, text=True, check=True)
+        refs = int(re.search(r"refs:\s*([\d,]+)", run.stderr).group(1).replace(",", ""))
+        assert 0 < refs <= bound, (name, refs, bound, run.stdout.split()[:3])
+
+
+# --- the header's parameter list is true ---
+
+
+def test_friction_parameters_are_read_and_the_header_says_so(tmp_path: Path) -> None:
+    """The bundled friction example's coefficients, pin radii and viscous
+    drags were listed as read by nothing: each set to NaN now makes an
+    instant NONFINITE (it is read), and the header lists none as unread."""
+    from test_c_export import NONFINITE, Solver
+
+    if shutil.which("cc") is None:
+        pytest.skip("no C compiler")
+    solver = Solver(api.example("slider_crank_friction").read_text(), tmp_path)
+    header = (tmp_path / f"{solver.name}_solver.h").read_text()
+    assert "read by nothing" not in header.lower()
+    for name in ("mu_pin", "mu_guide", "r_main", "r_crank_pin", "r_wrist", "c_main", "c_guide"):
+        k = solver.ctx["params"].index(name)
+        saved = solver.p.copy()
+        solver.p[k] = np.nan
+        try:
+            assert solver.instant()[0] == NONFINITE, name
+        finally:
+            solver.p = saved
+    assert solver.instant()[0] == OK
