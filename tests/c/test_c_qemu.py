@@ -24,7 +24,7 @@ from test_c_embedded import GROUP_FLOOR, M4F, SINGLE_BOUND, SINGLE_BOUND_ANY, WA
 
 pytestmark = pytest.mark.slow
 
-BOARD = Path(__file__).resolve().parent / "c" / "m4"
+BOARD = Path(__file__).resolve().parent / "m4"
 EXAMPLES = tuple(api.examples())
 # newlib's libm against glibc's (sin, cos, sqrt, atan2 each within an ulp or
 # two), then Newton to the file's tolerance from the same guess: agreement
