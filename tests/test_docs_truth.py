@@ -1,0 +1,264 @@
+"""The documentation is true to the code, both ways.
+
+Each constraint, force and driver type, each expression function and motion
+law, each backend and each command and option that exists is documented, and
+everything the pages document exists: the types from the reader's registries,
+the commands and options from the argparse parser, the pages from docs/ and
+the README. A failure names the missing side. The README stays a tutorial
+(at most 250 lines) whose first commands set everything up, and its first
+mechanism solves to the closed form it states.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import shlex
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from symid import api
+from symid.backends import names as backend_names
+from symid.cli import main
+from symid.cli.entry import build_parser
+from symid.model.expr import FUNCTIONS
+from symid.model.friction import FAMILIES as FRICTION
+from symid.model.motion import LAWS
+from symid.symbolic.constraints import TYPES as CONSTRAINTS
+from symid.symbolic.forces import TYPES as FORCES
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+README = ROOT / "README.md"
+MANUAL = (DOCS / "mechanism-file.md").read_text(encoding="utf-8")
+README_LINES = 250  # issue #27: a tutorial, the reference in docs/
+
+
+def pages() -> dict[str, str]:
+    """Every documentation page a user reads: docs/*.md and the README, by path."""
+    found = {str(p.relative_to(ROOT)): p.read_text(encoding="utf-8") for p in sorted(DOCS.glob("*.md"))}
+    return {**found, "README.md": README.read_text(encoding="utf-8")}
+
+
+def top_section(text: str, title: str) -> str:
+    match = re.search(rf"^## {re.escape(title)}\n(.*?)(?=^## |\Z)", text, re.M | re.S)
+    assert match, f"docs/mechanism-file.md has no section '## {title}'"
+    return match.group(1)
+
+
+def headings(section: str) -> set[str]:
+    return set(re.findall(r"^### (\w+)\s*$", section, re.M))
+
+
+def differ(existing: set[str], documented: set[str], what: str, where: str) -> list[str]:
+    """Both sides' misses, as lines naming them."""
+    return ([f"{what} '{n}' exists but {where} does not document it" for n in sorted(existing - documented)]
+            + [f"{where} documents {what} '{n}', which does not exist" for n in sorted(documented - existing)])
+
+
+# --- types -------------------------------------------------------------------------------------------------
+
+
+def test_every_constraint_type_is_documented_and_every_documented_one_exists() -> None:
+    documented = headings(top_section(MANUAL, "[[constraint]]"))
+    assert not (bad := differ(set(CONSTRAINTS), documented, "constraint type", "docs/mechanism-file.md")), bad
+
+
+def test_every_force_type_is_documented_and_every_documented_one_exists() -> None:
+    documented = headings(top_section(MANUAL, "[[force]]"))
+    assert not (bad := differ(set(FORCES), documented, "force type", "docs/mechanism-file.md")), bad
+
+
+def test_every_driver_has_its_effort_documented_and_every_documented_driver_exists() -> None:
+    """The drivers (constraints that prescribe motion) are the rows of the
+    effort table of docs/plots.md: what their effort is and its sign."""
+    drivers = {n for n, c in CONSTRAINTS.items() if c.is_driver}
+    table = (DOCS / "plots.md").read_text(encoding="utf-8").split("| driver | effort |", 1)
+    assert len(table) == 2, "docs/plots.md has no table '| driver | effort | ...'"
+    documented = set(re.findall(r"^\| `(\w+)` \|", table[1].split("\n\n", 1)[0], re.M))
+    assert not (bad := differ(drivers, documented, "driver", "docs/plots.md's effort table")), bad
+
+
+def test_friction_is_documented_on_exactly_the_types_that_take_it() -> None:
+    constraints = top_section(MANUAL, "[[constraint]]")
+    documented = {n for n in headings(constraints)
+                  if "| `friction` |" in re.split(r"^### ", constraints.split(f"### {n}\n", 1)[1], flags=re.M)[0]}
+    assert not (bad := differ(set(FRICTION), documented, "friction on", "docs/mechanism-file.md")), bad
+
+
+def test_every_type_a_page_names_exists() -> None:
+    """`type = "X"` in a page (a file's or a claim's example) names a real type."""
+    known = set(CONSTRAINTS) | set(FORCES)
+    bad = [f"{path}: type '{t}' does not exist" for path, text in pages().items()
+           for t in re.findall(r'^type = "(\w+)"', text, re.M) if t not in known]
+    assert not bad, bad
+
+
+def test_every_expression_function_and_motion_law_is_documented() -> None:
+    said = top_section(MANUAL, "Expressions")
+    functions = re.search(r"the functions `([a-z0-9 ]+)`", " ".join(said.split()))
+    assert functions, "docs/mechanism-file.md's Expressions list no functions"
+    assert not (bad := differ(set(FUNCTIONS), set(functions.group(1).split()), "function",
+                              "docs/mechanism-file.md's Expressions")), bad
+    motion = (DOCS / "motion.md").read_text(encoding="utf-8")
+    laws = set(re.findall(r"^\| `(\w+)\(", top_section(motion, "Contract additions"), re.M))
+    assert not (bad := differ(set(LAWS), laws, "motion law", "docs/motion.md")), bad
+
+
+def test_every_backend_is_documented_and_every_documented_one_exists() -> None:
+    text = (DOCS / "backends.md").read_text(encoding="utf-8")
+    documented = set(re.findall(r"^\| `(\w+)`", text, re.M))
+    assert not (bad := differ(set(backend_names()), documented, "backend", "docs/backends.md")), bad
+
+
+# --- commands and options ----------------------------------------------------------------------------------
+
+
+def subcommands() -> dict[str, argparse.ArgumentParser]:
+    parser = build_parser()
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(action.choices)
+
+
+def options(parser: argparse.ArgumentParser) -> set[str]:
+    return {o for a in parser._actions for o in a.option_strings} - {"-h", "--help"}
+
+
+def synopsis() -> dict[str, set[str]]:
+    """docs/command-line.md's synopsis: each command's options (a command may have several lines)."""
+    text = top_section((DOCS / "command-line.md").read_text(encoding="utf-8"), "Synopsis")
+    said: dict[str, set[str]] = {}
+    command = ""
+    for line in text.splitlines():
+        start = re.match(r"    symid (\S+)", line)
+        if start:
+            command = start.group(1)
+            said.setdefault(command, set())
+        elif not line.startswith("     "):
+            command = ""
+            continue
+        if command:
+            said[command] |= set(re.findall(r"(?<![\w-])(--?[a-z][a-z0-9-]*)", line.split("#", 1)[0]))
+    return said
+
+
+def test_every_command_and_option_is_in_the_synopsis_and_nothing_else() -> None:
+    commands, said = subcommands(), synopsis()
+    bad = differ(set(commands), {c for c in said if c.islower() and not c.startswith("-")}, "command",
+                 "docs/command-line.md's synopsis")
+    for name in sorted(set(commands) & set(said)):
+        documented = said[name] - {"--help"}
+        existing = options(commands[name])
+        undocumented = {a.option_strings[-1] for a in commands[name]._actions
+                        if a.option_strings and a.option_strings[-1] != "--help"
+                        and not set(a.option_strings) & documented}
+        bad += [f"symid {name} {o} exists but docs/command-line.md's synopsis does not document it"
+                for o in sorted(undocumented)]
+        bad += [f"docs/command-line.md's synopsis documents symid {name} {o}, which does not exist"
+                for o in sorted(documented - existing)]
+    top = options(build_parser())
+    bad += [f"docs/command-line.md's synopsis documents symid {o}, which does not exist"
+            for o in sorted(c for c in said if c.startswith("-") and c not in top)]
+    assert not bad, bad
+
+
+def commands_in(text: str) -> list[str]:
+    """Every `symid COMMAND ...` a page writes as code: inline spans and indented lines."""
+    text = re.sub(r"\\\n\s*", " ", text)  # a command continued on the next line
+    spans = re.findall(r"`(symid [^`]+)`", text)
+    lines = [m.split(" #", 1)[0] for m in re.findall(r"^ {4,}(?:\$ )?(symid .*)$", text, re.M)]
+    return spans + lines
+
+
+def test_every_command_and_option_the_pages_write_exists() -> None:
+    commands, top = subcommands(), options(build_parser())
+    bad = []
+    for path, text in pages().items():
+        for written in commands_in(text):
+            words = written.split()
+            name = words[1]
+            if name.startswith("-"):
+                bad += [f"{path}: `{written}`: symid has no option {name}"] if name not in top | {"--help"} else []
+                continue
+            if name.isupper() or name.endswith(":"):
+                continue  # the synopsis' placeholder (COMMAND), a message quoted (`symid sweep: argument ...`)
+            if name not in commands:
+                bad.append(f"{path}: `{written}`: symid has no command '{name}'")
+                continue
+            flags = set(re.findall(r"(?<![\w-])(--?[a-z][a-z0-9-]*)(?==|\s|$|\])", written))
+            bad += [f"{path}: `{written}`: symid {name} has no option {f}"
+                    for f in sorted(flags - options(commands[name]) - {"--help", "-h"})]
+    assert not bad, bad
+
+
+def test_every_path_a_page_names_exists() -> None:
+    """A file or folder of the repository named in a page (`symid/...`, `tests/...`,
+    `python -m benchmarks.X`) is there: a page outlives a moved file only by a test."""
+    bad = []
+    for path, text in pages().items():
+        for named in set(re.findall(r"\b((?:symid|templates|tests|benchmarks|docs|generated)/[\w./-]*\w)", text)):
+            if not (ROOT / named).exists():
+                bad.append(f"{path}: names {named}, which does not exist")
+        for module in set(re.findall(r"python3? -m (benchmarks(?:\.\w+)+)", text)):
+            if not (ROOT / (module.replace(".", "/") + ".py")).exists():
+                bad.append(f"{path}: names python -m {module}, which does not exist")
+    assert not bad, bad
+
+
+# --- the README ---------------------------------------------------------------------------------------------
+
+
+def test_readme_is_a_tutorial_of_at_most_250_lines() -> None:
+    lines = README.read_text(encoding="utf-8").count("\n")
+    assert lines <= README_LINES, f"README.md has {lines} lines, more than {README_LINES}: move reference to docs/"
+
+
+def test_readme_starts_with_the_set_up_commands_ci_runs() -> None:
+    """The first two commands: install and solve a bundled example; install and run the tests, as .ci/run does."""
+    first = re.findall(r"^    (python3 -m pip .*)$", README.read_text(encoding="utf-8"), re.M)[:2]
+    assert len(first) == 2 and "symid solve" in first[0] and "$(symid example" in first[0], first
+    install, test = first[1].split(" && ")
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    assert re.search(rf"^{re.escape(install)}", re.sub(r" -q\b", "", ci), re.M), "the README's install is not CI's"
+    assert re.search(rf"^{re.escape(test)}$", ci, re.M), "the README's test command is not what .ci/run runs"
+
+
+def first_mechanism() -> tuple[str, str]:
+    text = README.read_text(encoding="utf-8")
+    section = top_section(text, "A first mechanism")
+    toml = re.search(r"```toml\n(.*?)```", section, re.S)
+    assert toml, "the README's first mechanism has no TOML block"
+    return toml.group(1), section
+
+
+def test_readme_first_mechanism_solves_to_its_closed_form(tmp_path: Path) -> None:
+    """A rod of length L and mass m turned at constant omega about one end:
+    the motor holds its weight, T = m g (L/2) cos(omega t). The bound is
+    the 1e-12 of a column's peak that every backend is held to."""
+    text, _ = first_mechanism()
+    (tmp_path / "crank.toml").write_text(text, encoding="utf-8")
+    results = api.solve(tmp_path / "crank.toml")
+    assert results.error is None
+    m, L, g, omega = 2.0, 0.5, 9.81, 2 * math.pi
+    torque = m * g * L / 2 * np.cos(omega * results.t)
+    assert np.max(np.abs(results["motor.T_j"] - torque)) <= 1e-12 * np.max(np.abs(torque))
+    # and the sensitivities the README states at t = 0: dT/dm = g L/2, dT/dL = m g/2
+    sens = api.solve(tmp_path / "crank.toml", sensitivity=["m", "L"], sensitivity_of=["motor.T_j"], steps=2)
+    assert sens["d(motor.T_j)/d(m)"][0] == pytest.approx(g * L / 2, rel=1e-12)
+    assert sens["d(motor.T_j)/d(L)"][0] == pytest.approx(m * g / 2, rel=1e-12)
+
+
+def test_readme_first_mechanism_transcript_is_what_symid_prints(tmp_path: Path, capsys, monkeypatch) -> None:
+    text, section = first_mechanism()
+    (tmp_path / "crank.toml").write_text(text, encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    transcript = re.findall(r"^    \$ (symid .*)\n((?:    (?!\$).*\n)*)", section, re.M)
+    assert [c for c, _ in transcript] == ["symid check crank.toml", "symid solve crank.toml"]
+    for command, shown in transcript:
+        assert main(shlex.split(command)[1:]) == 0
+        out = capsys.readouterr()
+        printed = [line.rstrip() for line in (out.out + out.err).splitlines()]
+        assert printed == [line[4:] for line in shown.splitlines()], command
