@@ -1,12 +1,13 @@
 """The documentation is true to the code, both ways.
 
 Each constraint, force and driver type, each expression function and motion
-law, each backend and each command and option that exists is documented, and
-everything the pages document exists: the types from the reader's registries,
-the commands and options from the argparse parser, the pages from docs/ and
-the README. A failure names the missing side. The README stays a tutorial
-(at most 250 lines) whose first commands set everything up, and its first
-mechanism solves to the closed form it states.
+law, each backend, each command and option and each limit that exists is
+documented, and everything the pages document exists: the types from the
+reader's registries, the commands and options from the argparse parser, the
+limits from symid/io/limits.py, the pages from docs/ and the README. A
+failure names the missing side. The README stays a tutorial (at most 250
+lines) whose first commands set everything up, and its first mechanism
+solves to the closed form it states.
 """
 
 from __future__ import annotations
@@ -262,3 +263,27 @@ def test_readme_first_mechanism_transcript_is_what_symid_prints(tmp_path: Path, 
         out = capsys.readouterr()
         printed = [line.rstrip() for line in (out.out + out.err).splitlines()]
         assert printed == [line[4:] for line in shown.splitlines()], command
+
+
+def test_the_limits_page_states_the_limits_the_code_enforces() -> None:
+    """docs/command-line.md's "Limits" against symid/io/limits.py, each as the page words it."""
+    from symid.io import limits as L
+
+    def power(n: int) -> str:
+        return f"10^{round(math.log10(n))}" if n == 10 ** round(math.log10(n)) else f"{n}"
+    text = " ".join(top_section((DOCS / "command-line.md").read_text(encoding="utf-8"), "Limits").split())
+    stated = {
+        "MAX_FILE_BYTES": f"{L.MAX_FILE_BYTES // 2**20} MiB", "MAX_BODIES": f"{L.MAX_BODIES} bodies",
+        "MAX_CONSTRAINTS": f"{L.MAX_CONSTRAINTS} constraints", "MAX_FORCES": f"{L.MAX_FORCES} forces",
+        "MAX_PARAMETERS": f"{L.MAX_PARAMETERS} parameters", "MAX_STEPS": f"{power(L.MAX_STEPS)} instants",
+        "MAX_NAME_LENGTH": f"names of {L.MAX_NAME_LENGTH} characters",
+        "MAX_HELD_VALUES": f"2^{round(math.log2(L.MAX_HELD_VALUES))} values",
+        "MAX_VARIANTS": f"at most {power(L.MAX_VARIANTS)} variants", "MAX_WORKERS": f"`--workers` 1 to {L.MAX_WORKERS}",
+        "MAX_ITERATIONS": f"`--maxiter` 1 to {power(L.MAX_ITERATIONS)}",
+        "MAX_BENCH_INSTANTS": f"`bench --instants` 1 to {power(L.MAX_BENCH_INSTANTS)}",
+        "MAX_BUDGET_S": "at most a day" if L.MAX_BUDGET_S == 86_400 else f"{L.MAX_BUDGET_S}",
+        "MAX_SEED": f"from 0 to {L.MAX_SEED}",
+    }
+    bad = [f"symid/io/limits.py {name}: docs/command-line.md does not say '{said}'"
+           for name, said in stated.items() if said not in text]
+    assert not bad, bad
