@@ -287,3 +287,11 @@ def test_the_limits_page_states_the_limits_the_code_enforces() -> None:
     bad = [f"symid/io/limits.py {name}: docs/command-line.md does not say '{said}'"
            for name, said in stated.items() if said not in text]
     assert not bad, bad
+
+
+def test_readme_leads_to_every_page() -> None:
+    """Each page of docs/ is a row of the README's "Where to read on" (symid help lists them too)."""
+    table = top_section(README.read_text(encoding="utf-8"), "Where to read on")
+    linked = set(re.findall(r"\]\(docs/([\w-]+)\.md\)", table))
+    on_disk = {p.stem for p in DOCS.glob("*.md")}
+    assert not (bad := differ(on_disk, linked, "page", "the README's 'Where to read on'")), bad
