@@ -295,3 +295,34 @@ def test_readme_leads_to_every_page() -> None:
     linked = set(re.findall(r"\]\(docs/([\w-]+)\.md\)", table))
     on_disk = {p.stem for p in DOCS.glob("*.md")}
     assert not (bad := differ(on_disk, linked, "page", "the README's 'Where to read on'")), bad
+
+
+def test_c_export_page_quotes_the_committed_header() -> None:
+    """A count docs/c-export.md quotes from the slider-crank's generated header is the header's own."""
+    page = " ".join((DOCS / "c-export.md").read_text(encoding="utf-8").split())
+    header = (ROOT / "generated" / "slider_crank" / "c" / "slider_crank_solver.h").read_text(encoding="utf-8")
+    quoted = re.search(r"`_OPS_INSTANT`.*?\((\d+) for the slider-crank\)", page)
+    emitted = re.search(r"#define SLIDER_CRANK_OPS_INSTANT (\d+)", header)
+    assert quoted and emitted and quoted.group(1) == emitted.group(1), (quoted, emitted)
+
+
+def test_every_bundled_example_is_described_and_their_types_are_every_type() -> None:
+    """docs/examples.md's table and symid/examples/README.md name each bundled
+    example; the README's closing list of the types they use is every type."""
+    examples = set(api.examples())
+    table = set(re.findall(r"^\| `(\w+)` \|", (DOCS / "examples.md").read_text(encoding="utf-8"), re.M))
+    bad = differ(examples, table, "example", "docs/examples.md")
+    described = (ROOT / "symid" / "examples" / "README.md").read_text(encoding="utf-8")
+    bad += differ(examples, set(re.findall(r"^- `(\w+)\.toml`", described, re.M)), "example", "symid/examples/README.md")
+    flat = " ".join(described.split())
+    constraints = re.search(r"every constraint type \(([\w, ]+)\)", flat)
+    forces = re.search(r"every applied force \(([\w, ]+)\)", flat)
+    assert constraints and forces, "symid/examples/README.md no longer lists the types its examples use"
+    bad += differ(set(CONSTRAINTS), set(constraints.group(1).replace(",", " ").split()), "constraint type",
+                  "symid/examples/README.md's list")
+    bad += differ(set(FORCES) | {"gravity"}, set(forces.group(1).replace(",", " ").split()), "force type",
+                  "symid/examples/README.md's list")
+    mechanisms = [api.load_mechanism(api.example(n)) for n in sorted(examples)]
+    used = {e.type for m in mechanisms for e in (*m.constraints, *m.forces)}
+    bad += [f"no bundled example uses type '{t}'" for t in sorted((set(CONSTRAINTS) | set(FORCES)) - used)]
+    assert not bad, bad
