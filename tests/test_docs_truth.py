@@ -326,3 +326,28 @@ def test_every_bundled_example_is_described_and_their_types_are_every_type() -> 
     used = {e.type for m in mechanisms for e in (*m.constraints, *m.forces)}
     bad += [f"no bundled example uses type '{t}'" for t in sorted((set(CONSTRAINTS) | set(FORCES)) - used)]
     assert not bad, bad
+
+
+def test_analysis_options_page_states_newtons_numbers() -> None:
+    """The numbers docs/analysis-options.md gives for Newton and branch
+    tracking are those of symid/numeric/newton.py's RULE and solve.py."""
+    from symid.numeric import solve
+    from symid.numeric.newton import RULE
+
+    def g(x: float) -> str:
+        return f"{x:g}".replace("e-0", "e-")  # 1e-7 as the page writes it
+    text = " ".join((DOCS / "analysis-options.md").read_text(encoding="utf-8").split())
+    stated = {
+        "RULE.floor_ulps": f"floored at `{RULE.floor_ulps:g} eps max(1,",
+        "RULE.min_damping": f"down to 1/{round(1 / RULE.min_damping)} of the full step",
+        "RULE.max_iterations": f"An iteration limit of {RULE.max_iterations} applies",
+        "solve.JUMP_SUBSTEPS": f"in {solve.JUMP_SUBSTEPS} sub-steps",
+        "solve.JUMP_FLOOR": f"(and than {g(solve.JUMP_FLOOR)})",
+        "solve.JUMP_SAME": f"(by more than {g(solve.JUMP_SAME)})",
+        "solve.UNEXPLAINED": f"within {'half' if solve.UNEXPLAINED == 0.5 else solve.UNEXPLAINED} the motion",
+    }
+    bad = [f"{name}: docs/analysis-options.md does not say '{said}'" for name, said in stated.items() if said not in text]
+    c_page = " ".join((DOCS / "c-export.md").read_text(encoding="utf-8").split())
+    if f"iteration cap per instant (default {RULE.max_iterations})" not in c_page:
+        bad.append(f"RULE.max_iterations: docs/c-export.md does not give MAX_NEWTON's default {RULE.max_iterations}")
+    assert not bad, bad
