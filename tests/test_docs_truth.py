@@ -351,3 +351,16 @@ def test_analysis_options_page_states_newtons_numbers() -> None:
     if f"iteration cap per instant (default {RULE.max_iterations})" not in c_page:
         bad.append(f"RULE.max_iterations: docs/c-export.md does not give MAX_NEWTON's default {RULE.max_iterations}")
     assert not bad, bad
+
+
+def test_every_help_topic_a_page_or_message_names_exists(capsys) -> None:
+    """`symid help X` in a page, the README or symid's own text names a topic symid help has."""
+    from symid.tools import manual
+
+    sources = {**pages(), **{str(p.relative_to(ROOT)): p.read_text(encoding="utf-8")
+                             for p in sorted((ROOT / "symid").rglob("*.py"))}}
+    topics = set(manual.topics())
+    bad = [f"{path}: symid help {topic}: no such topic" for path, text in sources.items()
+           for topic in set(re.findall(r"symid help ([\w-]+)", " ".join(text.split())))
+           if topic not in topics and not topic.isupper()]
+    assert not bad, bad
