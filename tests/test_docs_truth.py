@@ -372,3 +372,26 @@ def test_no_page_calls_a_shipped_feature_unbuilt() -> None:
     unbuilt = re.compile(r"not (yet )?implemented|not yet in this version|planned for|in a future version", re.I)
     bad = [f"{path}: '{m.group(0)}'" for path, text in pages().items() for m in unbuilt.finditer(text)]
     assert not bad, bad
+
+
+def test_optimize_page_and_readme_give_what_the_command_gives(tmp_path: Path, capsys, monkeypatch) -> None:
+    """The counterweight of docs/optimize.md (and the README's '61 %'): its
+    command, read from the page and run as written, reaches the optimum, RMS
+    and counts the page states, to the digits it writes them with."""
+    page = (DOCS / "optimize.md").read_text(encoding="utf-8")
+    written = [c for c in re.findall(r"^    (symid optimize .*?)\n\n", page, re.M | re.S) if "$(symid example" in c]
+    assert written, "docs/optimize.md has no indented symid optimize command of a bundled example"
+    argv = shlex.split(written[0].replace("\\\n", " ").replace(
+        '"$(symid example slider_crank_counterweight)"', str(api.example("slider_crank_counterweight"))))
+    monkeypatch.chdir(tmp_path)
+    assert main(argv[1:]) == 0
+    out = capsys.readouterr().out
+    found = re.search(r"optimum: m_cw = (\S+), beta_cw = (\S+): motor\.effort_rms = (\S+) \(start (\S+)\), "
+                      r"(\d+) iterations, (\d+) solves", out)
+    assert found, out
+    m_cw, beta, rms, start = (float(found.group(k)) for k in range(1, 5))
+    flat = " ".join(page.split())
+    assert f"**m_cw = {m_cw:.4f} kg at beta_cw = {beta:.4f} rad**" in flat
+    assert f"RMS torque {start:.3f} N·m" in flat and f"RMS {rms:.3f} N·m ({100 * (rms / start - 1):.0f} %)" in flat
+    assert f"in {found.group(5)} iterations and {found.group(6)} solves" in flat
+    assert f"cuts the RMS motor torque by {100 * (1 - rms / start):.0f} %" in " ".join(README.read_text().split())
