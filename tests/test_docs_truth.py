@@ -15,7 +15,9 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import os
 import shlex
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -374,6 +376,8 @@ def test_no_page_calls_a_shipped_feature_unbuilt() -> None:
     assert not bad, bad
 
 
+@pytest.mark.skipif(not any(shutil.which(c) for c in (os.environ.get("CC") or "cc", "gcc", "clang")),
+                    reason="no C compiler: the command runs on the c backend")
 def test_optimize_page_and_readme_give_what_the_command_gives(tmp_path: Path, capsys, monkeypatch) -> None:
     """The counterweight of docs/optimize.md (and the README's '61 %'): its
     command, read from the page and run as written, reaches the optimum, RMS
