@@ -21,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="regenerate every bundled example into OUTPUT/<example>/<target>/")
     p.add_argument("--precision", choices=("double", "single"), default="double",
                    help="C target: the floating type of every argument and table (single: float, for an FPU "
-                        "without double; see the README for its accuracy)")
+                        "without double; its accuracy: docs/c-export.md, symid help c-export)")
     p.add_argument("--sensitivity", metavar="NAME[,NAME...]",
                    help="C target: end each row with the exact derivatives d(COLUMN)/d(NAME) by these base "
                         "parameters (columns outer, parameters inner); default: none, the code as without")

@@ -31,6 +31,11 @@ def pages() -> list[str]:
     return sorted(p.stem for p in doc_dir().glob("*.md"))
 
 
+def title(name: str) -> str:
+    """A page's first line without its `# `: what `symid help` lists it as."""
+    return page(name).split("\n", 1)[0].lstrip("# ").strip()
+
+
 def page(name: str) -> str:
     """The text of one page, by stem or alias (`format`)."""
     path = doc_dir() / f"{ALIASES.get(name, name)}.md"
@@ -101,7 +106,7 @@ def text(topic: str | None) -> str:
     if topic is None:
         return ("symid help TOPIC prints one of these:\n"
                 "  format             the mechanism file: sections, types, keys, defaults, CSV columns\n"
-                + "".join(f"  {p:<18} docs/{p}.md\n" for p in pages())
+                + "".join(f"  {p:<18} {title(p)}\n" for p in pages() if p != ALIASES["format"])
                 + "  TYPE               one constraint or force type: "
                 + ", ".join(sorted(_registries())) + "\n")
     if topic in ALIASES or topic in pages():

@@ -342,6 +342,6 @@ def derive_mechanism(mech: Mechanism | str) -> Derivation:
     rough = [c.name for c in mechanism.constraints if getattr(c, "friction", None)]
     if rough:  # it depends on the reactions, so it is in no formula above; say so, not leave it out silently
         notes.append(f"joint friction ({', '.join(rough)}) is not in Q^A: it depends on the joints' reactions "
-                     f"and is solved with them at each instant (see the README, Joint friction)")
+                     f"and is solved with them at each instant (docs/friction.md, symid help friction)")
     return Derivation(f"mechanism {mechanism.name}: ng = {sysm.ng}, nc = {sysm.nc}", tuple(items),
                       notes=tuple(notes))

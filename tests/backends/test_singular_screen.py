@@ -294,7 +294,7 @@ def test_near_a_singular_position_nothing_warns_and_backends_agree(name: str, tm
     for backend, results in tables.items():
         assert results.columns == columns
         ref, got = tables["reference"].data[:, forces], results.data[:, forces]
-        # forces keep 16 - 2 log10(cond) digits (README): with cond below a
+        # forces keep 16 - 2 log10(cond) digits (docs/analysis-options.md): with cond below a
         # few hundred that is 1e-12 of the run's largest force or better
         peak = np.abs(ref).max()
         assert np.abs(got - ref).max() <= 1e-12 * peak, (backend, np.abs(got - ref).max() / peak)

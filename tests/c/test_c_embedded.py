@@ -29,10 +29,10 @@ WARNINGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wconversio
 M4F = ["-mcpu=cortex-m4", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-mthumb"]
 # single against double over each bundled run: max |diff| / the column's peak
 # (a column below 1e-3 of its group's peak, zero but for rounding: against
-# 1e-3 of that peak), the README's bound
+# 1e-3 of that peak), docs/c-export.md's bound
 # Joint friction's smooth sign tanh(v / v_smooth), v_smooth = 1e-4, turns the
 # float rounding of a speed near reversal into up to 3 % of that joint's
-# friction there (README: single precision): the bound the README states for it.
+# friction there (docs/c-export.md: single precision): the bound the page states for it.
 SINGLE_BOUND = {"slider_crank": 2e-6, "slider_crank_friction": 5e-2}
 SINGLE_BOUND_ANY = 1e-5
 GROUP_FLOOR = 1e-3

@@ -210,7 +210,7 @@ CXX_CALLER = """#include <array>
 
 #include "slider_crank_solver.h"
 
-// The README's slider-crank from C++: each instant of one revolution
+// The slider-crank of docs/c-export.md from C++: each instant of one revolution
 // continued from the last, printing t and the motor torque.
 int main()
 {

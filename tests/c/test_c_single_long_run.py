@@ -1,6 +1,6 @@
 """Single-precision C far from t = 0 (#19: "time and driver phase kept
 small so long runs do not lose precision"): at t = 1e4 s the float results
-stay within the README's bound of double precision, angles come back
+stay within docs/c-export.md's bound of double precision, angles come back
 reduced by whole turns, and the header says what cannot be reduced."""
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ pytestmark = pytest.mark.slow  # C builds dominate: 51 s for the file alone unde
 ROOT = Path(__file__).resolve().parents[2]
 DRIVER = ROOT / "tests" / "c" / "rows_driver.c"
 LONG_T0 = 1e4
-# README (single precision): within 1e-5 of each column's peak at t = 1e4 s
+# docs/c-export.md (long runs in single precision): within 1e-5 of each column's peak at t = 1e4 s
 # where the header lists nothing as kept absolute; a column below GROUP_FLOOR
 # of its group's peak (zero but for rounding) is measured against that
 LONG_BOUND = 1e-5

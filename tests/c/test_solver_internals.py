@@ -128,7 +128,7 @@ def order(errors: dict[float, float]) -> float:
 
 @needs_cc
 def test_c_trajectory_factors_once_and_corrects_once_per_instant_on_smooth_motion(slider_crank_c) -> None:
-    """The README's promise: from the h^5 predictor one chord correction
+    """docs/c-solver.md's promise: from the h^5 predictor one chord correction
     suffices, and Phi_q is factored once, at the solution (1.000 measured
     on this grid; a wrong predictor coefficient needs a second iteration)."""
     run = Counted(*slider_crank_c, h=1e-4, n=2000)

@@ -1,7 +1,7 @@
-"""The README's bundled studies say what their own commands give: the
+"""The bundled studies of docs/studies.md (`symid help studies`) say what their own commands give: the
 slider-crank grid's peak and RMS motor torque at its corners, and the
 tolerance study's nominal peak, P50, P95, P99 and largest peak. The
-commands are read from the README and run as written (without --plot)."""
+commands are read from the page and run as written (without --plot)."""
 
 from __future__ import annotations
 
@@ -16,17 +16,17 @@ import pytest
 from symid import api
 from symid.cli import main
 
-README = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+README = (Path(__file__).resolve().parents[2] / "docs" / "studies.md").read_text(encoding="utf-8")
 CRANK = str(api.example("slider_crank"))
 
 
 def command(marker: str) -> list[str]:
-    """The README's indented `symid sweep` command whose text holds marker, as argv."""
+    """The page's indented `symid sweep` command whose text holds marker, as argv."""
     for block in re.findall(r"\n    (symid sweep .*?)\n\n", README, re.S):
         if marker in block:
             words = shlex.split(block.replace("\\\n", " ").replace('"$(symid example slider_crank)"', CRANK))
             return [w for w in words[1:] if w != "--plot"]
-    raise AssertionError(f"no README sweep command with {marker}")
+    raise AssertionError(f"no sweep command with {marker} in docs/studies.md")
 
 
 def run(tmp_path: Path, argv: list[str]) -> dict[str, np.ndarray]:
@@ -40,7 +40,7 @@ def run(tmp_path: Path, argv: list[str]) -> dict[str, np.ndarray]:
 
 
 def said(text: str) -> float:
-    """The number the README writes right after text."""
+    """The number the page writes right after text."""
     m = re.search(re.escape(text) + r"\s*([0-9.]+)", README)
     assert m, text
     return float(m.group(1))

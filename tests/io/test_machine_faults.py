@@ -1,11 +1,12 @@
 """Fault injection: every machine fault and hostile input ends in one line and a
 documented exit status, with no temporary file left and no row lost.
 
-The faults come from outside symid (README, "The command line"): a full disk
+The faults come from outside symid (docs/command-line.md, `symid help command-line`): a full disk
 (/dev/full), a file-size limit (RLIMIT_FSIZE), odd output paths (a directory,
 a device, a FIFO, a name too long), signals, a closed stdout pipe, endless
 inputs (/dev/zero), sizes that would exhaust memory, overflowing numbers.
-The Python API refuses keywords it does not know; the README's API snippet runs.
+The Python API refuses keywords it does not know; the API snippet of the
+README and of docs/python-api.md runs.
 """
 
 from __future__ import annotations
@@ -278,17 +279,19 @@ def test_unknown_keyword_raises_type_error_naming_it_and_the_accepted(call):
     assert "'stepz'" in message and "steps" in message and "t1" in message, message
 
 
-def readme_api_snippet() -> str:
-    text = (REPO / "README.md").read_text(encoding="utf-8")
-    section = text[text.index("## The Python API"):]
+def api_snippet(page: str) -> str:
+    """The first Python block of a page (the README: of its section "From Python")."""
+    text = (REPO / page).read_text(encoding="utf-8")
+    section = text[text.index("## From Python"):] if page == "README.md" else text
     return re.search(r"```python\n(.*?)```", section, re.S).group(1)  # type: ignore[union-attr]
 
 
-def test_readme_api_snippet_runs_and_names_real_attributes(tmp_path, monkeypatch):
-    snippet = readme_api_snippet()
+@pytest.mark.parametrize("page", ["README.md", "docs/python-api.md"])
+def test_api_snippet_runs_and_names_real_attributes(page, tmp_path, monkeypatch):
+    snippet = api_snippet(page)
     monkeypatch.chdir(tmp_path)
     scope: dict[str, object] = {}
-    exec(compile(snippet, "README.md", "exec"), scope)  # noqa: S102 (our own README)
+    exec(compile(snippet, page, "exec"), scope)  # noqa: S102 (our own documentation)
     results, torque = scope["results"], scope["torque"]
     assert len(torque) == len(results.t) == 200  # type: ignore[attr-defined]
     assert (tmp_path / "out.csv").read_text().count("\n") == 201

@@ -1,5 +1,5 @@
 """Found trying symid as a new user: `symid plot RESULTS.parquet` (a solve's
-Parquet table, as the README lists) is plotted as a results table, not
+Parquet table, as docs/plots.md lists) is plotted as a results table, not
 refused as a sweep table; a sweep's Parquet table is still a sweep."""
 
 from __future__ import annotations

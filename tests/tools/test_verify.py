@@ -265,8 +265,8 @@ def test_claim_file_may_name_a_mechanism_file_next_to_it(tmp_path):
     assert verify(tmp_path / "c.toml").ok
 
 
-def test_readme_verify_example_gives_the_verdicts_shown(tmp_path, capsys, monkeypatch):
-    section = (Path(__file__).parents[2] / "README.md").read_text().split("## Derive and verify", 1)[1]
+def test_derive_page_verify_example_gives_the_verdicts_shown(tmp_path, capsys, monkeypatch):
+    section = (Path(__file__).parents[2] / "docs" / "derive.md").read_text(encoding="utf-8")
     claim = section.split("```toml\n", 1)[1].split("```", 1)[0]
     shown = section.split("$ symid verify gear_homework.toml\n", 1)[1].split("$ echo", 1)[0]
     (tmp_path / "gear_homework.toml").write_text(claim)
