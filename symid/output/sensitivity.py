@@ -154,7 +154,7 @@ def rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes, choi
     dyn = analysis.kind != "statics"
     at = _starts(sens.layout, analysis)
     need = ["q"] + (["qdot", "qddot"] if dyn else []) + (["lambda"] if want_lam else [])
-    own = getattr(evaluator, "rows", None) is not None and all(g in at for g in need)
+    own = evaluator.capabilities.own_loop and all(g in at for g in need)
     held: list[tuple[Array, Array, Factor | None]] = []  # (row, state: t, q[, qd, qdd][, lam], factor)
     scaling: list[Scaling] = []  # a backend's own loop: one equilibration for the run (t0's), as the loop's
 
