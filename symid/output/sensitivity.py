@@ -226,8 +226,7 @@ def _factors(evaluator: Evaluator, kept: list[Factor | None], q: Array, ts: Arra
 
 def reaction_count(reactions: tuple[str, ...], mechanism: Mechanism) -> int:
     """How many reaction columns the chosen constraints have."""
-    wanted = set(reactions)
-    return sum(3 * len(c.bodies) for c in mechanism.constraints if c.name in wanted)
+    return mechanism.reaction_starts(set(reactions))[1]
 
 
 def evaluator_for(layout: Layout, values_: Mapping, choice: Choice, analysis: Analysis) -> SensitivityEvaluator:
