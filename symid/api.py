@@ -17,20 +17,19 @@ from typing import Any, Iterator, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from symid import backends
 from symid.backends import friction
+from symid.backends.prepare import Solver, needs_of
+from symid.backends.prepare import prepare as prepare_solver
 from symid.model.analysis import Analysis
 from symid.symbolic.assemble import Layout, assemble
-from symid.backends import Array, Evaluator, Needs
+from symid.backends import Array, Evaluator
 from symid.errors import AnalysisError, InputError
 from symid.io.reader import load
 from symid.model.mechanism import Mechanism
 from symid.model.motion import check_spans
-from symid.model.params import parameter_values, to_float
 from symid.output.results import Results, check_table_size, columns, table_blocks
 from symid.output.tables import blocks, write_table
 from symid.numeric.solve import Instant, run
-from symid.backends import check_redundant, require_support
 from symid.numeric.redundancy import require_square
 from symid.numeric.stability import Notes
 from symid.text import number, plural
@@ -74,7 +73,9 @@ class Study:
 
     Attributes:
         mechanism: the (immutable) description; layout: its rows and columns;
-        evaluator: the backend's numeric workspace; values: parameter values.
+        evaluator: the backend's numeric workspace; values: parameter values;
+        solver: all of these as built (`symid.backends.prepare`), with what
+        the backend declares it can do.
     """
 
     mechanism: Mechanism
@@ -85,6 +86,7 @@ class Study:
     backend: str = ""
     results: Results | None = None  # the latest `solve()`, which `write_csv` writes without solving again
     sensitivity: Any = None  # `symid.output.sensitivity.Choice`: the d(COLUMN)/d(NAME) columns, or None
+    solver: Solver | None = None  # None only for a Study put together by hand
 
     @property
     def warnings(self) -> list[str]:
@@ -97,7 +99,11 @@ class Study:
 
     def q0(self) -> Array:
         """The initial guess, size ng."""
-        return np.array([to_float(v, self.values) for b in self.mechanism.bodies for v in b.q0])
+        if self.solver is not None and self.solver.values is self.values:
+            return self.solver.q0()
+        from symid.model.params import initial_guess
+
+        return initial_guess(self.mechanism, self.values)
 
     def columns(self) -> list[str]:
         own = columns(self.layout, self.analysis)
@@ -143,8 +149,9 @@ class Study:
     def _source(self, notes: Notes) -> Iterator[Array]:
         """The table's rows or blocks: the backend's, or with sensitivities the
         shared Python loop's (whose factorization of Phi_q they reuse)."""
-        if self.sensitivity is None or getattr(self.evaluator, "sensitivity_header", None) == self.sensitivity.header:
-            return table_blocks(self.evaluator, self.analysis, self.q0(), notes)  # a compiled loop's own
+        if self.sensitivity is None or (self.evaluator.capabilities.sensitivities and  # a compiled loop's own
+                                        self.evaluator.sensitivity_header == self.sensitivity.header):  # type: ignore[attr-defined]
+            return table_blocks(self.evaluator, self.analysis, self.q0(), notes)
         from symid.output import sensitivity
 
         sens = sensitivity.evaluator_for(self.layout, self.values, self.sensitivity, self.analysis)
@@ -194,7 +201,7 @@ class Study:
         full = base_matrix(mech, chosen, P)
         header = self.columns()
         out: list[Results] = []
-        runs = trajectories(mech, self.layout, full, self.backend or "numpy", self.evaluator)
+        runs = trajectories(mech, self.layout, full, self.backend or "numpy", self.solver)
         for row, (data, error) in zip(full, runs):
             out.append(Results(header, data, error, [], mechanism=variant_mechanism(mech, row)))
             if len(out) == chunk:
@@ -257,25 +264,20 @@ def prepare(mechanism: Mechanism | str | Path, backend: str = "numpy",
             check_spans(mech)  # new t0, t1 must stay inside every table (the reader checked the file's)
     else:
         mech = load(mechanism, set_values, analysis)
-    layout = assemble(mech)
-    values = parameter_values(mech.parameters)
-    a = mech.analysis
-    groups = a.output_groups()
-    reactions: tuple[str, ...] = ()
-    if "reactions" in groups and a.kind != "kinematics":
-        reactions = a.reactions if a.reactions is not None else tuple(c.name for c in mech.constraints)
-    needs = Needs(velocity=a.kind != "statics", reactions=reactions)
-    require_support(backend, a, mech.source)
-    check_redundant(layout, values, backend)
-    chosen = backends.get(backend)
-    friction.require(backend, chosen, mech)
     from symid.output.sensitivity import choose
 
-    choice = choose(mech, layout, sensitivity, sensitivity_of, reactions)
+    layout = assemble(mech)
+    needs = needs_of(mech)
+    choice = None
+    if sensitivity is not None or sensitivity_of is not None:
+        from symid.backends.prepare import check
+
+        check(mech, backend, layout)  # what the backend refuses is said before the sensitivities' names
+        choice = choose(mech, layout, sensitivity, sensitivity_of, needs.reactions)
     if choice is not None:
         needs = dataclasses.replace(needs, sensitivity=choice.names, sensitivity_of=choice.of)
-    evaluator = friction.attach(chosen.evaluator(layout, values, needs), layout, values)
-    return Study(mech, layout, evaluator, values, backend=backend, sensitivity=choice)
+    solver = prepare_solver(mech, backend, needs, layout)
+    return Study(mech, layout, solver.evaluator, solver.values, backend=backend, sensitivity=choice, solver=solver)
 
 
 def load_mechanism(path: str | Path, set_values: Mapping[str, str] | None = None,

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Callable, Iterator, Mapping, TypeAlias
 import numpy as np
 
 from symid.model.analysis import Analysis
-from symid.backends import Array, Needs
+from symid.backends import Array, Capabilities, Needs
 from symid.errors import InputError, check_signal
 from symid.progress import stage
 
@@ -30,6 +30,7 @@ if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a built solver withou
 
     from symid.symbolic.assemble import Layout
     from symid.codegen.flat import Options
+    from symid.numeric.friction import FrictionModel
     from symid.numeric.stability import Notes
 
 # -fno-math-errno lets sqrt compile to one instruction; results are unchanged.
@@ -159,12 +160,25 @@ class CEvaluator:
         layout: the mechanism's layout, which names constraints in failure
             messages; None for a cached run (`symid.tools.plan`), which reruns
             the whole normal path on any failure.
+        friction: the joint friction model of the instants the Python loop
+            solves (the compiled loop solves friction itself), None without.
     """
 
+    # The compiled loop writes no cond column and screens at the default
+    # cond_warn only (generated into its code), factors square systems only
+    # and has no branch tracking: options asking for these are refused
+    # (symid.backends.require_support). Its batch entry `<name>_sweep`
+    # (symid.backends.c_batch) solves a study's variants, friction included.
+    capabilities = Capabilities(own_loop=True, blocks=True, compiled_loop=True, batch="compiled",
+                                batch_friction=True, with_params=True, sensitivities=True, loads=True,
+                                lacks=frozenset({"cond", "cond_warn", "min_norm", "assembly_jump"}))
     layout: Layout  # None only in a planned run, which never reads it (see above)
 
-    def __init__(self, folder: Path, name: str, params: Mapping[str, float], layout: Layout | None) -> None:
+    def __init__(self, folder: Path, name: str, params: Mapping[str, float], layout: Layout | None,
+                 friction: FrictionModel | None = None) -> None:
         self.layout = layout  # type: ignore[assignment]
+        self.friction = friction
+        self.name = name
         self.artifact = folder
         self.meta = json.loads((folder / "meta.json").read_text())
         self.lib = ctypes.CDLL(str(folder / "solver.so"))
@@ -210,9 +224,7 @@ class CEvaluator:
         other.p = np.array([params[n] for n in self.meta["params"]], dtype=float)
         other.work = np.zeros(self.meta["work"])
         other.iwork = np.zeros(max(1, self.meta["ng"]), dtype=np.intc)
-        from symid.backends.friction import rebind  # here: a planned run imports no sympy
-
-        rebind(other, params)
+        other.friction = self.friction.with_params(params) if self.friction is not None else None
         return other
 
     def _call(self, name: str, *args: Array | float, size: int) -> Array:
@@ -361,20 +373,17 @@ class CBackend:
     """Registry entry: the compiled C solver."""
 
     name = "c"
-    # The compiled loop writes no cond column and screens at the default
-    # cond_warn only (generated into its code), factors square systems only
-    # and has no branch tracking: options asking for these are refused
-    # (symid.backends.require_support).
-    lacks = frozenset({"cond", "cond_warn", "min_norm", "assembly_jump"})
+    capabilities = CEvaluator.capabilities
 
-    def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> CEvaluator:
+    def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs,
+                  friction: FrictionModel | None = None) -> CEvaluator:
         from symid.codegen.model import options_for
 
         options = options_for(layout.mechanism)
         if needs.sensitivity:  # computed in the compiled loop, with the factors of each instant
             options = dataclasses.replace(options, sensitivity=needs.sensitivity, sensitivity_of=needs.sensitivity_of)
         folder = build(layout, options)
-        return CEvaluator(folder, layout.mechanism.name, {s.name: v for s, v in values.items()}, layout)
+        return CEvaluator(folder, layout.mechanism.name, {s.name: v for s, v in values.items()}, layout, friction)
 
     def load(self, artifact: Path, name: str, params: Mapping[str, float]) -> CEvaluator:
         """The solver built earlier in `artifact` (a cached run, `symid.tools.plan`)."""

@@ -6,17 +6,20 @@ from __future__ import annotations
 import copy
 import json
 from pathlib import Path
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import casadi as ca
 import numpy as np
 import sympy as sp
 
 from symid.symbolic.assemble import Layout
-from symid.backends import Array, Needs
+from symid.backends import Array, Capabilities, Needs
 from symid.codegen.cache import cached
 from symid.codegen.flat import Options
 from symid.model.mechanism import parameter_symbol
+
+if TYPE_CHECKING:
+    from symid.numeric.friction import FrictionModel
 
 
 def build(layout: Layout, options: Options) -> Path:
@@ -49,10 +52,14 @@ class CasadiEvaluator:
     mass without multipliers; reactions when none are asked) are not built.
     """
 
+    # driven by the shared Python loop; one set of loaded functions serves many variants
+    capabilities = Capabilities(with_params=True)
+
     def __init__(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs,
-                 options: Options) -> None:
+                 options: Options, friction: FrictionModel | None = None) -> None:
         self.layout = layout
         self.needs = needs
+        self.friction = friction
         folder = build(layout, options)
         self.manifest = json.loads((folder / "manifest.json").read_text())
         self._fn = {key: ca.Function.load(str(folder / f["file"]))
@@ -68,9 +75,7 @@ class CasadiEvaluator:
         base ones are read): one set of loaded functions, many variants."""
         other = copy.copy(self)
         other.p = np.array([params[par["name"]] for par in self.manifest["parameters"]], dtype=float)
-        from symid.backends.friction import rebind  # here: a planned run imports no sympy
-
-        rebind(other, params)
+        other.friction = self.friction.with_params(params) if self.friction is not None else None
         return other
 
     def _call(self, key: str, *args: Array | float) -> Array:
@@ -111,8 +116,10 @@ class CasadiBackend:
     """Registry entry: the saved CasADi functions."""
 
     name = "casadi"
+    capabilities = CasadiEvaluator.capabilities
 
-    def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> CasadiEvaluator:
+    def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs,
+                  friction: FrictionModel | None = None) -> CasadiEvaluator:
         from symid.codegen.model import options_for
 
-        return CasadiEvaluator(layout, values, needs, options_for(layout.mechanism))
+        return CasadiEvaluator(layout, values, needs, options_for(layout.mechanism), friction)

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Iterator, Mapping
 import numpy as np
 
 from symid.model.analysis import Analysis
-from symid.backends import Array, Needs
+from symid.backends import Array, Capabilities, Needs
 from symid.errors import check_signal
 from symid.numeric.solve import instant_row
 from symid.numeric.solve import JUMP_FLOOR, JUMP_RATIO, UNEXPLAINED, Instant, Stepper, run
@@ -36,6 +36,7 @@ if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a generated module wi
 
     from symid.symbolic.assemble import Layout
     from symid.codegen.flat import Options
+    from symid.numeric.friction import FrictionModel
 
 
 
@@ -97,12 +98,19 @@ class NumpyEvaluator:
         layout: the mechanism's layout, which names constraints in failure
             messages; None for a cached run (`symid.tools.plan`), which reruns
             the whole normal path on any failure.
+        friction: the joint friction model, None without; the Python loop
+            solves it (the module's own loop then stands aside).
     """
 
+    # the module's own loop (rows, not blocks); its vectorized functions run a
+    # study's variants together (symid.study.batch_numpy), but not with friction
+    capabilities = Capabilities(own_loop=True, batch="vectorized", with_params=True, loads=True)
     layout: Layout  # None only in a planned run, which never reads it (see above)
 
-    def __init__(self, path: Path, params: Mapping[str, float], layout: Layout | None) -> None:
+    def __init__(self, path: Path, params: Mapping[str, float], layout: Layout | None,
+                 friction: FrictionModel | None = None) -> None:
         self.layout = layout  # type: ignore[assignment]
+        self.friction = friction
         self.artifact = path
         self.module = load_module(path)
         self.p = np.array([params[n] for n in self.module.PARAMS], dtype=float)
@@ -114,9 +122,7 @@ class NumpyEvaluator:
         other = copy.copy(self)
         other.p = np.array([params[n] for n in self.module.PARAMS], dtype=float)
         other.p_list = other.p.tolist()
-        from symid.backends.friction import rebind  # here: a planned run imports no sympy
-
-        rebind(other, params)
+        other.friction = self.friction.with_params(params) if self.friction is not None else None
         return other
 
     # One instant at a time, the module's scalar (`math`) kernels are an order
@@ -159,7 +165,7 @@ class NumpyEvaluator:
     def own_loop(self, analysis: Analysis) -> bool:
         """Whether a run of `analysis` goes through the module's loop."""
         # friction (symid.backends.friction) is solved by the Python loop only
-        return not requested(analysis) and self.module.NC == self.module.NG and getattr(self, "friction", None) is None
+        return not requested(analysis) and self.module.NC == self.module.NG and self.friction is None
 
     def rows(self, analysis: Analysis, q0: Array, notes: Notes | None = None) -> Iterator[Array]:
         """The results table row by row (q0: the guess at t0, size ng)."""
@@ -210,12 +216,14 @@ class NumpyBackend:
     """Registry entry: the generated NumPy module."""
 
     name = "numpy"
+    capabilities = NumpyEvaluator.capabilities
 
-    def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> NumpyEvaluator:
+    def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs,
+                  friction: FrictionModel | None = None) -> NumpyEvaluator:
         from symid.codegen.model import options_for
 
         path = build(layout, options_for(layout.mechanism))
-        return NumpyEvaluator(path, {s.name: v for s, v in values.items()}, layout)
+        return NumpyEvaluator(path, {s.name: v for s, v in values.items()}, layout, friction)
 
     def load(self, artifact: Path, name: str, params: Mapping[str, float]) -> NumpyEvaluator:
         """The module generated earlier at `artifact` (a cached run, `symid.tools.plan`)."""

@@ -3,13 +3,16 @@ behind the backend protocol."""
 
 from __future__ import annotations
 
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import sympy as sp
 
-from symid.numeric.evaluator import Needs
+from symid.numeric.evaluator import Capabilities, Needs
 from symid.numeric.reference import ReferenceEvaluator
 from symid.symbolic.assemble import Layout
+
+if TYPE_CHECKING:
+    from symid.numeric.friction import FrictionModel
 
 __all__ = ["ReferenceBackend", "ReferenceEvaluator"]
 
@@ -18,6 +21,8 @@ class ReferenceBackend:
     """Registry entry for `ReferenceEvaluator`."""
 
     name = "reference"
+    capabilities: Capabilities = ReferenceEvaluator.capabilities
 
-    def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> ReferenceEvaluator:
-        return ReferenceEvaluator(layout, values, needs)
+    def evaluator(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs,
+                  friction: FrictionModel | None = None) -> ReferenceEvaluator:
+        return ReferenceEvaluator(layout, values, needs, friction)

@@ -58,11 +58,7 @@ def joints(layout: Layout, options: Options, lit: Callable[[float], str] = repr)
     _, pmap, _ = parameter_map(mech.parameters)  # p holds the base parameters; derived ones by definition
     q, qd, lam = vector("q", layout.ng), vector("qd", layout.ng), vector("lam", layout.nc)
     member = {name: (g, k) for g in layout.constraint_groups for k, name in enumerate(g.names)}
-    slots, offset = {}, 0
-    for c in mech.constraints:
-        if c.name in options.reactions:
-            slots[c.name] = offset
-            offset += 3 * len(c.bodies)
+    slots, _ = mech.reaction_starts(set(options.reactions))
     out = []
     for c in mech.constraints:
         if not has_friction(c):

@@ -16,7 +16,7 @@ from symid.codegen.forked import Pending
 from symid.errors import AnalysisError
 from symid.model.mechanism import Mechanism
 from symid.model.mechanism import parameter_symbol
-from symid.model.params import base_names, parameter_values, to_float
+from symid.model.params import base_names
 
 
 @dataclass(frozen=True)
@@ -43,12 +43,9 @@ class CodeModel:
 def options_for(mech: Mechanism) -> Options:
     """The generation options the mechanism's `[analysis]` asks for."""
     a = mech.analysis
-    groups = a.output_groups()
-    reactions: tuple[str, ...] = ()
-    if "reactions" in groups and a.kind != "kinematics":
-        wanted = a.reactions if a.reactions is not None else tuple(c.name for c in mech.constraints)
-        reactions = tuple(c.name for c in mech.constraints if c.name in wanted)
-    return Options(kind=a.kind, outputs=groups, reactions=reactions)
+    wanted = mech.solved_reactions
+    reactions = tuple(c.name for c in mech.constraints if c.name in wanted)  # in file order
+    return Options(kind=a.kind, outputs=a.output_groups(), reactions=reactions)
 
 
 # Past this many coordinates setup assembles with a sparse LU and samples
@@ -82,9 +79,9 @@ def code_model(mech: Mechanism, options: Options | None = None, looped: bool = F
 
     options = options or options_for(mech)
     layout = assemble(mech)
-    values = parameter_values(mech.parameters)
+    values = layout.values
     defaults = [values[parameter_symbol(n)] for n in base_names(mech.parameters)]
-    q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
+    q0 = np.array(layout.q0)
     parts = _loop_parts(layout) if looped else None
     index = {id(g): k for k, g in enumerate(layout.constraint_groups)}
     flat = build(layout, options, defaults,

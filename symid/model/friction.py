@@ -8,9 +8,12 @@ mean is derived in `symid.symbolic.friction` and solved in `symid.numeric.fricti
 
 from __future__ import annotations
 
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import sympy as sp
+
+if TYPE_CHECKING:
+    from symid.model.mechanism import Element
 
 # the families whose joints can carry friction, and what their friction is
 FAMILIES = {"revolute": "torque", "translational": "force", "pin_in_slot": "force"}
@@ -20,9 +23,9 @@ V_SMOOTH = 1e-4
 DEFAULTS: Mapping[str, float] = {"mu": 0.0, "radius": 0.0, "viscous": 0.0, "v_smooth": V_SMOOTH}
 
 
-def has_friction(element: object) -> bool:
+def has_friction(element: Element) -> bool:
     """Whether a constraint carries a friction table."""
-    return bool(getattr(element, "friction", None))
+    return bool(element.friction)
 
 
 def coulomb_arm(family: str, friction: Mapping[str, sp.Expr]) -> sp.Expr:

@@ -95,6 +95,21 @@ class Mechanism:
         """Body name -> index in q (ground is not a body of q)."""
         return {b.name: n for n, b in enumerate(self.bodies)}
 
+    @property
+    def chosen_reactions(self) -> tuple[str, ...]:
+        """The constraints `[analysis] reactions` names (default: every one)."""
+        a = self.analysis
+        return a.reactions if a.reactions is not None else tuple(c.name for c in self.constraints)
+
+    @property
+    def solved_reactions(self) -> tuple[str, ...]:
+        """The constraints whose reactions a run computes: the chosen ones
+        when the outputs include reactions and the kind solves forces, else none."""
+        a = self.analysis
+        if "reactions" in a.output_groups() and a.kind != "kinematics":
+            return self.chosen_reactions
+        return ()
+
     def reaction_starts(self, wanted: set[str]) -> tuple[dict[str, int], int]:
         """Where each wanted constraint's reactions start in a reactions
         vector (file order, 3 values per body of it), and the vector's size."""

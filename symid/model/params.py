@@ -6,6 +6,7 @@ import dataclasses
 import math
 from typing import Any, Callable, Mapping
 
+import numpy as np
 import sympy as sp
 
 from symid.model.mechanism import Mechanism, parameter_symbol
@@ -143,3 +144,8 @@ def without_values(mechanism: Mechanism) -> Mechanism:
     base parameter values only compare equal (`==`)."""
     parameters = {n: (e if is_derived(e) else None) for n, e in mechanism.parameters.items()}
     return dataclasses.replace(mechanism, parameters=parameters)  # type: ignore[arg-type]
+
+
+def initial_guess(mechanism: Mechanism, values: Mapping[sp.Symbol, float]) -> np.ndarray:
+    """The bodies' `q0` at the parameter `values`, size ng (3 per body)."""
+    return np.array([to_float(v, values) for b in mechanism.bodies for v in b.q0])

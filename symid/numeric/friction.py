@@ -223,9 +223,3 @@ class FrictionModel:
             out[start[jt.name]:start[jt.name] + 6] += loads
         return out
 
-
-def friction_model(layout: Layout, values: Mapping[sp.Symbol, float]) -> FrictionModel | None:
-    """The friction model of a layout, None when no joint has friction."""
-    if not any(has_friction(c) for c in layout.mechanism.constraints):
-        return None
-    return FrictionModel(layout, values)

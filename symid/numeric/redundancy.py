@@ -90,13 +90,13 @@ def redundancy_error(layout: Layout, values: object, hint: str) -> InputError:
     target reports the same names before anything is generated or compiled."""
     from symid.numeric.evaluator import Needs
     from symid.numeric.reference import ReferenceEvaluator
-    from symid.model.params import to_float
+    from symid.model.params import initial_guess
 
     mech, nc, ng = layout.mechanism, layout.nc, layout.ng
     analysis = mech.analysis
     head = f"{mech.source}: [[constraint]]: {nc} constraint rows for {ng} coordinates: {nc - ng} extra"
     ev = ReferenceEvaluator(layout, values, Needs(velocity=False))  # type: ignore[arg-type]
-    q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])  # type: ignore[arg-type]
+    q0 = initial_guess(mech, values)  # type: ignore[arg-type]
     extra = _extra_driver(layout, ev, q0, analysis.t0, analysis.tol)
     if extra:
         head = f"{head}: {extra};"

@@ -4,18 +4,21 @@ evaluated vectorized over all members of a group."""
 from __future__ import annotations
 
 from functools import cache
-from typing import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 import numpy as np
 import sympy as sp
 
 from symid.symbolic import symbols as s
 from symid.symbolic.assemble import Group, Layout
-from symid.numeric.evaluator import Array, Needs
+from symid.numeric.evaluator import Array, Capabilities, Needs
 from symid.symbolic.derive import DerivedConstraint, DerivedForce, total_derivative
 from symid.model.mechanism import T
 from symid.symbolic.rounding import grouped
 from symid.model.params import to_float
+
+if TYPE_CHECKING:
+    from symid.numeric.friction import FrictionModel
 
 
 def _arguments(derived: DerivedConstraint | DerivedForce) -> list[sp.Symbol]:
@@ -137,11 +140,16 @@ def _stack(values: list, n: int) -> Array:
 
 
 class ReferenceEvaluator:
-    """Evaluator for a layout with numeric parameter values."""
+    """Evaluator for a layout with numeric parameter values (`friction`: the
+    joint friction model the Python loop solves with, None without)."""
 
-    def __init__(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs) -> None:
+    capabilities = Capabilities()  # the shared Python loop's: built per variant, no loop of its own
+
+    def __init__(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs,
+                 friction: FrictionModel | None = None) -> None:
         self.layout = layout
         self.needs = needs
+        self.friction = friction
         mech = layout.mechanism
         nb = layout.nb
         self._cgroups = [_GroupData(g, values, nb, series=True) for g in layout.constraint_groups]

@@ -192,7 +192,7 @@ class Stepper:
         self.want_lam = not analysis.kind == "kinematics" and ("lambda" in groups or "reactions" in groups)
         self.want_reactions = "reactions" in groups and analysis.kind != "kinematics"
         self.mass = ev.mass() if self.want_lam and not self.statics else None
-        self.friction: FrictionModel | None = getattr(ev, "friction", None) if self.want_lam and not self.statics else None  # statics: none
+        self.friction: FrictionModel | None = ev.friction if self.want_lam and not self.statics else None  # statics: none
         self.scaling: Scaling | None = None  # set by the first instant
 
     def instant(self, n: int, t: float, prev: Instant | None, history: list[Array], q0: Array) -> Instant:

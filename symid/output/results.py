@@ -45,9 +45,8 @@ def table_rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes
         q0: the initial guess at t0, size ng.
         notes: collects the run's warnings (the Python loop's).
     """
-    own = getattr(evaluator, "rows", None)
-    if own is not None:
-        yield from own(analysis, q0, notes)
+    if evaluator.capabilities.own_loop:
+        yield from evaluator.rows(analysis, q0, notes)  # type: ignore[attr-defined]
         return
     from symid.numeric.solve import run
 
@@ -58,9 +57,8 @@ def table_rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes
 def table_blocks(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes) -> Iterator[Array]:
     """As `table_rows`, but a compiled loop's rows come as its 2-D blocks (the
     writers take rows and blocks alike, and format blocks at once)."""
-    own = getattr(evaluator, "blocks", None)
-    if own is not None:
-        yield from own(analysis, q0, notes)
+    if evaluator.capabilities.blocks:
+        yield from evaluator.blocks(analysis, q0, notes)  # type: ignore[attr-defined]
         return
     yield from table_rows(evaluator, analysis, q0, notes)
 

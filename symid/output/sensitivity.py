@@ -154,7 +154,7 @@ def rows(evaluator: Evaluator, analysis: Analysis, q0: Array, notes: Notes, choi
     dyn = analysis.kind != "statics"
     at = _starts(sens.layout, analysis)
     need = ["q"] + (["qdot", "qddot"] if dyn else []) + (["lambda"] if want_lam else [])
-    own = getattr(evaluator, "rows", None) is not None and all(g in at for g in need)
+    own = evaluator.capabilities.own_loop and all(g in at for g in need)
     held: list[tuple[Array, Array, Factor | None]] = []  # (row, state: t, q[, qd, qdd][, lam], factor)
     scaling: list[Scaling] = []  # a backend's own loop: one equilibration for the run (t0's), as the loop's
 
@@ -226,8 +226,7 @@ def _factors(evaluator: Evaluator, kept: list[Factor | None], q: Array, ts: Arra
 
 def reaction_count(reactions: tuple[str, ...], mechanism: Mechanism) -> int:
     """How many reaction columns the chosen constraints have."""
-    wanted = set(reactions)
-    return sum(3 * len(c.bodies) for c in mechanism.constraints if c.name in wanted)
+    return mechanism.reaction_starts(set(reactions))[1]
 
 
 def evaluator_for(layout: Layout, values_: Mapping, choice: Choice, analysis: Analysis) -> SensitivityEvaluator:

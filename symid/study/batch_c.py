@@ -1,96 +1,45 @@
-"""Many variants through the compiled solver's batch entry point `<name>_sweep`.
+"""A study's variants through the compiled solver's batch entry
+(`symid.backends.c_batch`), its solver built once per mechanism object.
 
-Python's work is one ctypes call per chunk of variants: the C loop solves
-every instant and accumulates the figures. ctypes releases the GIL for the
-call, so chunks run on a pool of threads, one workspace each. A variant is
-independent of its neighbours (each starts from a fresh state), so the
-figures do not depend on how the variants are cut into chunks or threads.
+The solver comes from `symid.backends.prepare`, like every other; the batch
+entry is bound in the library its evaluator loaded, so a study loads the
+compiled solver once.
 """
 
 from __future__ import annotations
 
-import ctypes
-import json
-import os
-import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
-import numpy as np
-
-from symid.backends import Array
-from symid.backends.c_backend import build
-from symid.codegen.model import options_for
+from symid.backends import Array, Needs
+from symid.backends import c_batch
+from symid.backends.c_backend import CEvaluator
+from symid.backends.c_batch import _D, _I, _L, Batch  # noqa: F401 (_D, _I, _L: the tests call the entry as run does)
+from symid.backends.prepare import Solver, needs_of, prepare
 from symid.model.mechanism import Mechanism
 from symid.study.memo import ByIdentity
-from symid.symbolic.assemble import assemble
-
-_D = ctypes.POINTER(ctypes.c_double)
-_I = ctypes.POINTER(ctypes.c_int)
-_L = ctypes.POINTER(ctypes.c_long)
-# variants per ctypes call: small enough that the threads share the work
-# evenly and a chunk's figures stay in cache, large enough that the call
-# (a few microseconds) is nothing beside a chunk's solve (16 slider-crank
-# variants of 1001 instants: about 5 ms)
-MAX_CHUNK = 64
-# chunks per worker: while the last chunk of a call runs the other threads
-# idle, up to a chunk's time; with four a worker, `symid sweep`'s calls of
-# 499 slider-crank variants on two threads were cut into 63-variant chunks,
-# about 25 ms each in a call of about 100 ms per thread
-CHUNKS_PER_WORKER = 16
-
-
-@dataclass
-class Batch:
-    """What the C loop returned for K variants (figures in the C code's order).
-
-    Attributes:
-        names: figure names in `values`' column order; values: (K, len(names));
-        status: (K,) the compiled solver's status codes (0 ok); solved: (K,)
-        instants solved; t_end: (K,) the last one's time (NaN if none);
-        solve_s, cpu_s: wall and CPU seconds of the solve phase (the C calls).
-    """
-
-    names: tuple[str, ...]
-    values: Array
-    status: Array
-    solved: Array
-    t_end: Array
-    folder: Path
-    solve_s: float = 0.0
-    cpu_s: float = 0.0
-
-
-def chunks(k: int, workers: int) -> list[tuple[int, int]]:
-    """[start, stop) ranges covering 0..k: about CHUNKS_PER_WORKER per worker, at most MAX_CHUNK each."""
-    size = max(1, min(MAX_CHUNK, -(-k // (CHUNKS_PER_WORKER * max(1, workers)))))
-    return [(s, min(k, s + size)) for s in range(0, k, size)]
 
 
 @dataclass(frozen=True)
 class Compiled:
-    """The loaded solver of a study: its `<name>_sweep`, meta.json and folder."""
+    """The loaded solver of a study: its `<name>_sweep`, meta.json, folder and the solver itself."""
 
     sweep: Any
     meta: dict[str, Any]
     folder: Path
+    solver: Solver | None = None
 
 
 _LOADED: ByIdentity[Compiled] = ByIdentity()  # per study mechanism object
 
 
 def _load(mechanism: Mechanism) -> Compiled:
-    layout = assemble(mechanism)
-    folder = build(layout, options_for(mechanism))
-    meta = json.loads((folder / "meta.json").read_text())
-    lib = ctypes.CDLL(str(folder / "solver.so"))
-    sweep = lib[f"{mechanism.name}_sweep"]
-    sweep.argtypes = [ctypes.c_long, _D, ctypes.c_double, ctypes.c_double, ctypes.c_long, ctypes.c_double,
-                      _D, _I, _D, _L, _D, _I]
-    sweep.restype = ctypes.c_int
-    return Compiled(sweep, meta, folder)
+    needs: Needs = needs_of(mechanism)
+    solver = prepare(mechanism, "c", Needs(velocity=needs.velocity, reactions=needs.reactions, batch=True,
+                                                friction=False))
+    evaluator = cast(CEvaluator, solver.evaluator)
+    return Compiled(c_batch.entry(evaluator), evaluator.meta, evaluator.artifact, solver)
 
 
 def run(mechanism: Mechanism, full: Array, workers: int | None = None) -> Batch:
@@ -98,38 +47,4 @@ def run(mechanism: Mechanism, full: Array, workers: int | None = None) -> Batch:
     (default: every core); `mechanism` is the study's (`study_mechanism`),
     its solver built or loaded once per mechanism object."""
     solver = _LOADED.get(mechanism, "c", lambda: _load(mechanism))
-    sweep, meta, folder = solver.sweep, solver.meta, solver.folder
-    a = mechanism.analysis
-    h = (a.t1 - a.t0) / (a.steps - 1) if a.steps > 1 else 0.0
-    k = len(full)
-    p = np.ascontiguousarray(full, dtype=float)
-    names = tuple(meta["sweep_figures"])
-    values = np.full((k, len(names)), np.nan)
-    status = np.zeros(k, dtype=np.intc)
-    solved = np.zeros(k, dtype=np.dtype(ctypes.c_long))
-    t_end = np.full(k, np.nan)
-    workers = workers or os.cpu_count() or 1
-
-    def call(span: tuple[int, int]) -> int:
-        s, e = span
-        work = np.zeros(meta["sweep_work"])
-        iwork = np.zeros(max(1, meta["ng"]), dtype=np.intc)
-        return int(sweep(e - s, p[s:].ctypes.data_as(_D) if p.shape[1] else None, a.t0, h, a.steps, a.tol,
-                         values[s:].ctypes.data_as(_D), status[s:].ctypes.data_as(_I),
-                         t_end[s:].ctypes.data_as(_D), solved[s:].ctypes.data_as(_L),
-                         work.ctypes.data_as(_D), iwork.ctypes.data_as(_I)))
-
-    spans = chunks(k, workers)
-    tick, cpu = time.perf_counter(), time.process_time()
-    if workers == 1:
-        codes = [call(span) for span in spans]
-    else:
-        pool = ThreadPoolExecutor(max_workers=workers)
-        try:
-            codes = list(pool.map(call, spans))
-        finally:  # on Ctrl-C, chunks not started are dropped (a running one ends within its few ms)
-            pool.shutdown(wait=True, cancel_futures=True)
-    solve_s, cpu_s = time.perf_counter() - tick, time.process_time() - cpu
-    if any(codes):  # only arguments symid checked can be refused: a bug, not an input
-        raise RuntimeError(f"{mechanism.name}_sweep refused its arguments (status {max(codes)})")
-    return Batch(names, values, status, solved, t_end, folder, solve_s, cpu_s)
+    return c_batch.run(solver.sweep, solver.meta, solver.folder, mechanism.name, mechanism.analysis, full, workers)

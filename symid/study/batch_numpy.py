@@ -27,14 +27,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from symid.errors import check_signal
-from symid.backends import Array, friction
-from symid.backends.numpy_backend import SCREEN, build, load_module
-from symid.codegen.model import options_for
+from symid.backends import Array, Needs, friction
+from symid.backends.numpy_backend import SCREEN, NumpyEvaluator
+from symid.backends.prepare import needs_of, prepare
 from symid.model.mechanism import Mechanism
 from symid.model.params import base_names
 from symid.numeric.stability import ARM_FLOOR
@@ -87,8 +87,11 @@ def run(mechanism: Mechanism, full: Array, chunk: int | None = None) -> Batch:
     """Solve the variants `full` (K, NP base parameters) of `mechanism` (the
     study's, `study_mechanism`) in chunks of `chunk` (default: as many as
     MAX_CHUNK and BUDGET allow), vectorized over each."""
-    layout = assemble(mechanism)
-    module = load_module(build(layout, options_for(mechanism)))  # a private instance: see _stack
+    needs = needs_of(mechanism)
+    solver = prepare(mechanism, "numpy", Needs(velocity=needs.velocity, reactions=needs.reactions, batch=True,
+                                               friction=False))
+    layout = solver.layout
+    module = cast(NumpyEvaluator, solver.evaluator).module  # the evaluator's own instance: see _stack
     setattr(module, "_stack", _stack)  # the generated module defines it: replaced in this private copy
     figures = Figures(Measure(mechanism, columns(layout, mechanism.analysis)))
     if chunk is None:

@@ -19,15 +19,16 @@ from typing import Iterator, Sequence
 import numpy as np
 
 from symid import backends
-from symid.backends import Array, Evaluator, friction
+from symid.backends import Array, friction
+from symid.backends.prepare import Solver, check, prepare
 from symid.errors import AnalysisError
 from symid.model.mechanism import Mechanism
-from symid.model.params import parameter_values, to_float
+from symid.model.params import initial_guess
 from symid.numeric.stability import Notes
 from symid.output.results import columns, table_rows
 from symid.study.figures import STATUS, Figures, figure_names, status_of
 from symid.study.memo import ByIdentity
-from symid.study.variants import Measure, base_matrix, needs_of, study_mechanism, variant_values
+from symid.study.variants import Measure, base_matrix, study_mechanism, variant_values
 from symid.symbolic.assemble import Layout, assemble
 
 BACKENDS = ("c", "numpy", "casadi", "reference")
@@ -61,10 +62,11 @@ def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, 
     """
     mech = _CHECKED.get(mechanism, backend, lambda: _checked(mechanism, backend))
     full = base_matrix(mech, names, base)
-    if backend != "c" and friction.solved(mech):  # no vectorized path solves friction: each variant alone
+    able = backends.capabilities(backend)
+    if friction.solved(mech) and not able.batch_friction:  # each variant alone, through the Python loop
         return _normal_path(mech, full, backend)
     order = figure_names(mech)
-    if backend == "numpy":
+    if able.batch == "vectorized":
         from symid.study import batch_numpy
 
         if not batch_numpy.usable(mech) or len(full) < NUMPY_BATCH_MIN:
@@ -72,7 +74,7 @@ def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, 
             return _normal_path(mech, full, backend)
         vector = batch_numpy.run(mech, full)
         return _decided(mech, full, backend, order, vector.names, vector.values, vector.status, vector.t_end)
-    if backend != "c":
+    if able.batch != "compiled":
         return _normal_path(mech, full, backend)
     from symid.study import batch_c
 
@@ -88,8 +90,7 @@ def _checked(mechanism: Mechanism, backend: str) -> Mechanism:
             (the same input error as a solve's, at the file's values).
     """
     mech = study_mechanism(mechanism)
-    backends.require_support(backend, mech.analysis, mech.source)
-    backends.check_redundant(assemble(mech), parameter_values(mech.parameters), backend)
+    check(mech, backend)
     return mech
 
 
@@ -138,32 +139,29 @@ def _normal_path(mech: Mechanism, full: Array, backend: str) -> Figures:
     return Figures(measure.names, values, status, t_end)
 
 
-def trajectories(mech: Mechanism, layout: Layout, full: Array, backend: str, evaluator: Evaluator | None = None,
+def trajectories(mech: Mechanism, layout: Layout, full: Array, backend: str, solver: Solver | None = None,
                  ) -> Iterator[tuple[Array, AnalysisError | None]]:
     """Each variant's solved table (instants, columns) and its failure (None
     if it ran to t1), in order, one at a time.
 
     Args:
         full: (K, NP) base parameter vectors (`variants.base_matrix`).
-        evaluator: a solver of `mech` on `backend` already built, to reuse.
+        solver: a solver of `mech` on `backend` already built, to reuse.
     """
-    needs = needs_of(mech)
-    chosen = backends.get(backend)
     width = len(columns(layout, mech.analysis))
-    first = evaluator
+    first = solver
     for row in full:
         try:
             values = variant_values(mech, row)
         except ValueError as exc:  # a derived parameter is not finite: nothing solved
             yield np.empty((0, width)), AnalysisError(f"parameter {exc.args[0]} {exc.args[1]}: not finite")
             continue
-        q0 = np.array([to_float(v, values) for b in mech.bodies for v in b.q0])
-        ev: Evaluator
-        if first is None or not hasattr(first, "with_params"):  # the reference: built per variant
-            # with its friction model, which `with_params` then follows per variant
-            first = ev = friction.attach(chosen.evaluator(layout, values, needs), layout, values)
-        else:  # the solver built once serves every variant: only its p changes
-            ev = first.with_params({s.name: v for s, v in values.items()})
+        q0 = initial_guess(mech, values)
+        if first is None:  # built at the first variant's values, friction model included
+            first = prepare(mech, backend, layout=layout, values=values)
+            ev = first.evaluator
+        else:  # the solver built once serves every variant: its parameter values change
+            ev = first.with_values(values).evaluator  # (the reference backend builds one per variant)
         rows: list[Array] = []
         error = None
         try:

@@ -26,8 +26,7 @@ def figure_names(mechanism: Mechanism) -> tuple[str, ...]:
     if a.kind == "kinematics":  # no forces solved: no efforts, no reactions
         return ()
     names = [f"{c.name}.{f}" for c in mechanism.constraints if c.type in DRIVERS for f in DRIVER_FIGURES]
-    chosen = a.reactions if a.reactions is not None else tuple(c.name for c in mechanism.constraints)
-    names += [f"{name}.force_peak" for name in chosen]
+    names += [f"{name}.force_peak" for name in mechanism.chosen_reactions]
     return tuple(names)
 
 

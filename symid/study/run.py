@@ -30,11 +30,14 @@ def _engine(backend: str) -> tuple[Engine, int]:
     """The function that solves a chunk of variants on `backend`, and its chunk size in instants.
 
     Every variant of every sweep goes through here: the one place the engine is
-    chosen. c and numpy take the batch engine (`symid.study.engine`: the C
-    batch entry on threads, NumPy over variants) in chunks of many variants;
-    casadi and reference are solved variant by variant (`symid.study.slow`).
+    chosen. A backend with a batch path (`Capabilities.batch`: c's batch
+    entry on threads, NumPy over variants) takes the batch engine
+    (`symid.study.engine`) in chunks of many variants; the others (casadi,
+    reference) are solved variant by variant (`symid.study.slow`).
     """
-    if backend in ("c", "numpy"):
+    from symid.backends import capabilities
+
+    if capabilities(backend).batch is not None:
         from symid.study.engine import solve_figures
         return solve_figures, CHUNK_INSTANTS
     from symid.study.slow import figures_by_solving
@@ -48,7 +51,9 @@ def _engine(backend: str) -> tuple[Engine, int]:
 
 def warm(mechanism: Mechanism, backend: str) -> None:
     """Build (or load from the cache) the solver of the study's structure, once."""
-    if backend == "c":
+    from symid.backends import Needs, capabilities
+
+    if capabilities(backend).batch == "compiled":
         # the batch's own solver (not the normal path's evaluator: other code
         # options, another cache entry, which the chunks would then build
         # inside the solve phase), kept for every chunk of this mechanism object
@@ -56,19 +61,12 @@ def warm(mechanism: Mechanism, backend: str) -> None:
 
         solve_figures(mechanism, (), np.zeros((0, 0)), backend, 1)
         return
-    from symid import backends
-    from symid.backends import Needs
-    from symid.model.params import parameter_values
+    from symid.backends.prepare import prepare
     from symid.study.slow import study_analysis
-    from symid.symbolic.assemble import assemble
 
     mech = study_analysis(mechanism)
-    layout = assemble(mech)
-    values = parameter_values(mech.parameters)
-    backends.require_support(backend, mech.analysis, mech.source)
-    backends.check_redundant(layout, values, backend)
-    backends.get(backend).evaluator(layout, values, Needs(velocity=mech.analysis.kind != "statics",
-                                                          reactions=()))
+    # no friction model nor reactions: only what the cache entry is keyed by is built
+    prepare(mech, backend, Needs(velocity=mech.analysis.kind != "statics", friction=False))
 
 
 def held_values(mechanism: Mechanism, variants: Variants, backend: str, gradients: bool = False) -> tuple[int, int]:
@@ -94,7 +92,9 @@ def held_values(mechanism: Mechanism, variants: Variants, backend: str, gradient
     table = len(variants) * (varied + figures + 2)
     width = len(columns(assemble(mech), mech.analysis)) * (1 + varied if gradients else 1)
     working = mech.analysis.steps * width
-    if backend == "numpy":
+    from symid.backends import capabilities
+
+    if capabilities(backend).batch == "vectorized":
         from symid.study.batch_numpy import BUDGET
 
         working = max(working, BUDGET // 8)

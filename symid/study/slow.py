@@ -16,16 +16,14 @@ from typing import Sequence
 import numpy as np
 import sympy as sp
 
-from symid import backends
-from symid.backends import Array, Needs, friction
+from symid.backends import Array
+from symid.backends.prepare import prepare
 from symid.errors import AnalysisError
 from symid.model.mechanism import Mechanism
-from symid.model.params import parameter_values, to_float
 from symid.output.results import Results, columns, table_rows
 from symid.output.summary import efforts, summarize
 from symid.numeric.stability import Notes
 from symid.study.figures import STATUS, Figures, figure_names, status_of
-from symid.symbolic.assemble import assemble
 
 
 def with_values(mechanism: Mechanism, names: Sequence[str], values: Sequence[float]) -> Mechanism:
@@ -46,24 +44,13 @@ def study_analysis(mechanism: Mechanism) -> Mechanism:
 
 def solve_variant(mechanism: Mechanism, backend: str) -> Results:
     """One variant solved as `api.prepare(...).solve()` does (a failure kept in `Results.error`)."""
-    layout = assemble(mechanism)
-    values = parameter_values(mechanism.parameters)
+    solver = prepare(mechanism, backend)
     a = mechanism.analysis
-    reactions: tuple[str, ...] = ()
-    if "reactions" in a.output_groups():
-        reactions = a.reactions if a.reactions is not None else tuple(c.name for c in mechanism.constraints)
-    backends.require_support(backend, a, mechanism.source)
-    backends.check_redundant(layout, values, backend)
-    chosen = backends.get(backend)
-    friction.require(backend, chosen, mechanism)
-    evaluator = friction.attach(chosen.evaluator(layout, values, Needs(velocity=a.kind != "statics",
-                                                                       reactions=reactions)), layout, values)
-    q0 = np.array([to_float(v, values) for b in mechanism.bodies for v in b.q0])
-    header = columns(layout, a)
+    header = columns(solver.layout, a)
     rows: list[Array] = []
     error = None
     try:
-        for row in table_rows(evaluator, a, q0, Notes(a)):
+        for row in table_rows(solver.evaluator, a, solver.q0(), Notes(a)):
             rows.append(np.asarray(row, dtype=float))
     except AnalysisError as exc:
         error = exc

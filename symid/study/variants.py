@@ -13,7 +13,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from symid.backends import Array, Needs
+from symid.backends import Array
 from symid.errors import InputError
 from symid.model.mechanism import Mechanism, parameter_symbol
 from symid.model.params import base_names, parameter_values, to_float
@@ -64,15 +64,6 @@ def variant_values(mechanism: Mechanism, row: Array) -> dict[sp.Symbol, float]:
         sym = parameter_symbol(name)
         values[sym] = float(given[name]) if name in given else to_float(expr, values, name)
     return values
-
-
-def needs_of(mechanism: Mechanism) -> Needs:
-    """What the evaluators must compute for the study (as `api.prepare` asks)."""
-    a = mechanism.analysis
-    reactions: tuple[str, ...] = ()
-    if "reactions" in a.output_groups() and a.kind != "kinematics":
-        reactions = a.reactions if a.reactions is not None else tuple(c.name for c in mechanism.constraints)
-    return Needs(velocity=a.kind != "statics", reactions=reactions)
 
 
 class Measure:

@@ -8,6 +8,7 @@ numbers, never more symbolic work. Nothing here depends on a backend.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -83,6 +84,22 @@ class Layout:
     @property
     def nb(self) -> int:
         return self.ng // 3
+
+    @cached_property
+    def values(self) -> dict[sp.Symbol, float]:
+        """Every parameter's value (derived ones by their definitions), computed once."""
+        from symid.model.params import parameter_values
+
+        return parameter_values(self.mechanism.parameters)
+
+    @cached_property
+    def q0(self) -> np.ndarray:
+        """The initial guess at those values, size ng, computed once (read-only: copy to change it)."""
+        from symid.model.params import initial_guess
+
+        q0 = initial_guess(self.mechanism, self.values)
+        q0.flags.writeable = False
+        return q0
 
     def constraint_names_of_rows(self, rows: Sequence[int] | np.ndarray) -> list[str]:
         """The constraints that own the given rows, without repeats, in row order."""

@@ -34,6 +34,6 @@ def columns(layout: Layout, analysis: Analysis) -> list[str]:
     out += list(analysis.extra_outputs())  # `cond`: after every contract group
     if "reactions" in analysis.output_groups() and analysis.kind == "inverse_dynamics":
         # joint friction (contract v1.1): after all other columns, in file order
-        out += [f"{c.name}.{what}" for c in mech.constraints if getattr(c, "friction", None)
+        out += [f"{c.name}.{what}" for c in mech.constraints if c.friction
                 for what in ("friction", "friction_power")]
     return out

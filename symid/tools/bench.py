@@ -123,13 +123,12 @@ def _trajectory(study: api.Study) -> _Runner | None:
     from `start` and returns (rows, solved, status, seconds of the C call);
     chunk: what `symid solve` asks of the loop a call (c_backend.chunk_rows).
     """
+    if not study.evaluator.capabilities.compiled_loop:
+        return None
     ev = study.evaluator
-    if not isinstance(ev, CEvaluator):  # the only evaluator with a compiled loop
-        return None
+    assert isinstance(ev, CEvaluator)  # the only evaluator with a compiled loop
     meta = ev.meta
-    fn = getattr(ev.lib, f"{study.mechanism.name}_trajectory", None)
-    if fn is None:
-        return None
+    fn = ev.lib[f"{study.mechanism.name}_trajectory"]  # a function of its own, typed below
     a = study.analysis
     dbl, ptr = ctypes.c_double, ctypes.POINTER(ctypes.c_double)
     fn.argtypes = [dbl, dbl, ctypes.c_long, ptr, dbl, ptr, ptr, ctypes.POINTER(ctypes.c_long), ptr,

@@ -29,7 +29,7 @@ import tempfile
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Iterator, Mapping, Sequence, cast
 
 import numpy as np
 
@@ -124,8 +124,10 @@ class Plan:
 
     def evaluator(self) -> Evaluator:
         """The backend's evaluator over the built solver (raises if it is gone)."""
-        load = getattr(backends.get(self.backend), "load")
-        return load(Path(self.artifact), self.name, self.params)  # type: ignore[no-any-return]
+        backend = backends.get(self.backend)
+        if not backend.capabilities.loads:  # a plan is made only for one that loads (`of`)
+            raise ValueError(f"the {self.backend} backend loads no built solver")
+        return cast(backends.Loader, backend).load(Path(self.artifact), self.name, self.params)
 
     def rows(self, evaluator: Evaluator, notes: Notes) -> Iterator[Array]:
         """The table as rows or blocks, as `Study.blocks`; any failure raises `Stale`.
@@ -201,12 +203,11 @@ def of(study: Study, backend_name: str, columns: list[str], keep: list[str], sum
     (`symid.io.misreading`: a replay would not read the file, so not repeat them)."""
     if study.notes is not None and study.notes.fixed:
         return None
-    if getattr(study.evaluator, "friction", None) is not None:  # its model is lambdified from sympy
+    if study.evaluator.friction is not None:  # its model is lambdified from sympy
         return None
-    backend = backends.get(backend_name)
-    artifact = getattr(study.evaluator, "artifact", None)
-    if getattr(backend, "load", None) is None or artifact is None:
+    if not study.evaluator.capabilities.loads:  # nothing built to load again
         return None
+    artifact = study.evaluator.artifact  # type: ignore[attr-defined]
     if study.layout.nc != study.layout.ng or study.analysis.steps > MAX_INSTANTS:
         return None
     params = {symbol.name: float(value) for symbol, value in study.values.items()}

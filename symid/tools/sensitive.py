@@ -23,10 +23,10 @@ def solver(backend: str) -> Callable[[Mechanism, Sequence[str], Sequence[str]], 
     columns C and base parameters P it is given (none: the plain run).
 
     The study prepared for one variant serves the next ones that differ from
-    it in base parameter values only: its evaluator takes their values
-    (`with_params`), so the layout, the cache key of the generated solver
-    (which prints every expression) and its loading are done once per run,
-    not once per point (0.05 s a point on the c backend).
+    it in base parameter values only: its solver takes their values
+    (`Capabilities.with_params`), so the layout, the cache key of the generated
+    solver (which prints every expression) and its loading are done once per
+    run, not once per point (0.05 s a point on the c backend).
     """
     last: list[tuple[object, Study]] = []  # (what it was prepared for, the study): the latest only
 
@@ -38,7 +38,7 @@ def solver(backend: str) -> Callable[[Mechanism, Sequence[str], Sequence[str]], 
             study = api.prepare(mechanism, backend=backend)
         else:
             study = api.prepare(mechanism, backend=backend, sensitivity=list(names), sensitivity_of=list(columns))
-        if hasattr(study.evaluator, "with_params"):  # the reference backend is built per variant
+        if study.solver is not None and study.solver.capabilities.with_params:  # the reference: built per variant
             last[:] = [(shape, study)]
         return study.solve()
 
@@ -49,10 +49,7 @@ def _again(study: Study, mechanism: Mechanism) -> Study:
     """`study` for `mechanism`, which differs from its own in base parameter
     values only: the same solver with the variant's values, and a layout that
     names the variant (a failure's diagnosis reads its parameters)."""
-    values = parameter_values(mechanism.parameters)
-    layout = dataclasses.replace(study.layout, mechanism=mechanism)
-    evaluator = study.evaluator.with_params({s.name: v for s, v in values.items()})  # type: ignore[attr-defined]
-    if getattr(evaluator, "layout", None) is not None:  # a copy of its own (with_params)
-        evaluator.layout = layout
-    return dataclasses.replace(study, mechanism=mechanism, layout=layout, evaluator=evaluator, values=values,
-                               notes=None, results=None)
+    assert study.solver is not None  # prepared by `solver` above
+    solver = study.solver.with_values(parameter_values(mechanism.parameters), mechanism)
+    return dataclasses.replace(study, mechanism=mechanism, layout=solver.layout, evaluator=solver.evaluator,
+                               values=solver.values, notes=None, results=None, solver=solver)

@@ -339,7 +339,7 @@ def derive_mechanism(mech: Mechanism | str) -> Derivation:
     notes = []
     if any(c.type.startswith("gear") for c in mechanism.constraints):
         notes.append(GEAR_NOTE)
-    rough = [c.name for c in mechanism.constraints if getattr(c, "friction", None)]
+    rough = [c.name for c in mechanism.constraints if c.friction]
     if rough:  # it depends on the reactions, so it is in no formula above; say so, not leave it out silently
         notes.append(f"joint friction ({', '.join(rough)}) is not in Q^A: it depends on the joints' reactions "
                      f"and is solved with them at each instant (docs/friction.md, symid help friction)")

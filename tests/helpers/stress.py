@@ -331,7 +331,7 @@ def solve_case(name: str, k: int, path: object, backend: str) -> Case:
 
     family = FAMILIES[name]
     overrides = {n: repr(v) for n, v in family.values(k).items()}
-    if "cond" in getattr(backends.get(backend), "lacks", frozenset()):  # the compiled loop
+    if "cond" in backends.capabilities(backend).lacks:  # the compiled loop
         study = api.prepare(path, backend, overrides, outputs=["q", "lambda", "reactions"])
     else:
         study = api.prepare(path, backend, overrides)
