@@ -31,6 +31,7 @@ REACTION_POINT = {
     "gear": {"i": None, "j": None},
     "gear_on_link": {"i": None, "j": None, "k": None},
     "rack_and_pinion": {"i": "pitch", "j": "pitch"},  # moves on both bodies: see pitch_point
+    "expression": {"i": "si", "j": "sj"},  # the user's rows: where the file says
 }
 
 
@@ -175,7 +176,7 @@ class Truth:
         f, fd = self.fn(c.values["f"]), self.fn(c.values["f"], 1)
         if c.type == "distance_driver":
             return -2 * f * fd
-        if c.type in ("relative_angle_driver", "coordinate_driver", "translational_driver"):
+        if c.type in ("relative_angle_driver", "coordinate_driver", "translational_driver", "expression"):
             return -fd
         raise AssertionError(f"{c.type} is not a driver")
 

@@ -9,18 +9,19 @@ from __future__ import annotations
 import math
 import re
 import tomllib
+from collections import ChainMap
 from pathlib import Path
 from typing import Any, Mapping
 
 import sympy as sp
 
-from symid.symbolic.constraints import TYPES as CONSTRAINTS
+from symid.symbolic.constraints import TYPES as CONSTRAINTS, family_of
 from symid.model.elements import Family, Key
 from symid.errors import InputError
 from symid.model.expr import FUNCTIONS
 from symid.symbolic.forces import TYPES as FORCES
 from symid.io.files import read_text
-from symid.io import friction as friction_table, signals
+from symid.io import expressions, friction as friction_table, signals
 from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS, MAX_STEPS
 from symid.io.table import read as read_table
 from symid.model.mechanism import (
@@ -96,6 +97,13 @@ class _Reader:
         return signals.parse(value, self.params, self.signals, time,
                              f"{self.source}: {where}", lambda message: self.fail(where, message))
 
+    def row(self, value: Any, where: str, coordinates: Mapping[str, sp.Expr]) -> sp.Expr:
+        """An expression constraint's row: of the coordinates, t, the parameters and the signals."""
+        if not isinstance(value, (str, int, float)) or isinstance(value, bool):
+            raise self.fail(where, f"must be an expression string, not {_kind(value)}")
+        return signals.parse(value, ChainMap(coordinates, self.params), self.signals, True,  # type: ignore[arg-type]
+                             f"{self.source}: {where}", lambda message: self.fail(where, message))
+
     def number(self, value: Any, where: str) -> tuple[sp.Expr, float]:
         expr = self.expr(value, where)
         try:
@@ -158,6 +166,10 @@ class _Reader:
                          source=self.source)
         self.check_reactions(mech)
         self.check_counts(mech)
+        q0 = {b.name: b.q0 for b in bodies}
+        for c in constraints:
+            if c.type == "expression":  # its rows dependent at q0 are named, before any solve
+                expressions.check_rank(c, q0, analysis.t0, self.values, self.source)
         check_spans(mech)  # a tabled function is never extrapolated
         return mech
 
@@ -314,7 +326,11 @@ class _Reader:
             if key.name not in data:
                 if key.required:
                     raise self.fail(where, f"missing key '{key.name}'")
-                if key.kind == "flag":
+                if key.kind == "body":  # an expression constraint's j: ground
+                    bodies[key.role] = key.default  # type: ignore[index]
+                elif key.kind == "point":
+                    values[key.name] = tuple(sp.Integer(v) for v in key.default)
+                elif key.kind == "flag":
                     values[key.name] = key.default
                 elif key.default is not None:
                     values[key.name] = self.expr(key.default, kw)
@@ -322,6 +338,10 @@ class _Reader:
             raw = data[key.name]
             if key.kind == "body":
                 bodies[key.role] = self.body_name(raw, kw, names)  # type: ignore[index]
+            elif key.kind == "rows":  # an expression constraint's own rows
+                given = {r: b for r, b in bodies.items() if r != "j" or "j" in data}
+                more, options = expressions.read(raw, kw, given, self.params, self.row, self.fail)
+                values.update(more)
             else:
                 value = self.value(key, raw, kw)
                 if key.kind == "choice":
@@ -387,7 +407,7 @@ class _Reader:
 
     def check_counts(self, mech: Mechanism) -> None:
         ng = 3 * len(mech.bodies)
-        nc = sum(CONSTRAINTS[c.type].rows for c in mech.constraints)
+        nc = sum(family_of(c).rows for c in mech.constraints)
         if nc < ng:
             raise self.fail("[[constraint]]", f"{nc} constraint rows for {ng} coordinates: "
                             f"{ng - nc} missing (inverse dynamics needs one driver per degree of freedom)")

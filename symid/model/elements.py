@@ -7,7 +7,7 @@ them and fills defaults, so no family parses files itself.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping
 
 import sympy as sp
@@ -23,7 +23,8 @@ REQUIRED: Any = object()
 #   function2 two such expressions (a force's global components)
 #   choice   one of `choices` (selects a variant of the equations)
 #   flag     true or false
-KINDS = ("body", "point", "vector", "scalar", "function", "function2", "choice", "flag")
+#   rows     a list of expressions, one constraint row each (`type = "expression"`)
+KINDS = ("body", "point", "vector", "scalar", "function", "function2", "choice", "flag", "rows")
 
 
 @dataclass(frozen=True)
@@ -54,16 +55,16 @@ class Key:
         return self.symbol or self.name
 
 
-def body(name: str, role: str | None = None) -> Key:
-    return Key(name, "body", role=role or name)
+def body(name: str, role: str | None = None, default: Any = REQUIRED) -> Key:
+    return Key(name, "body", role=role or name, default=default)
 
 
 def scalar(name: str, symbol: str | None = None, default: Any = REQUIRED, rule: str | None = None) -> Key:
     return Key(name, "scalar", default=default, symbol=symbol, rule=rule)
 
 
-def point(name: str) -> Key:
-    return Key(name, "point")
+def point(name: str, default: Any = REQUIRED) -> Key:
+    return Key(name, "point", default=default)
 
 
 def vector(name: str, rule: str | None = None) -> Key:
@@ -106,11 +107,31 @@ class Family:
 
 @dataclass(frozen=True)
 class ConstraintType(Family):
-    """A constraint family: `phi(options)` returns its rows on generic symbols."""
+    """A constraint family: `phi(options)` returns its rows on generic symbols.
+
+    `shape`, for a family whose variants differ in size (the user's own
+    rows, `type = "expression"`): options -> (rows, is_driver, constants),
+    the variant's own constant symbols (beyond its keys), whose values an
+    element holds in `values["constants"]`; `at(options)` is then the family
+    with that variant's rows and driver flag. None: every variant is as declared.
+    """
 
     rows: int = 1
     phi: Callable[[Mapping[str, str]], list[sp.Expr]] = field(default=lambda o: [], compare=False)
     is_driver: bool = False
+    shape: Callable[[Mapping[str, Any]], tuple[int, bool, tuple[sp.Symbol, ...]]] | None = field(
+        default=None, compare=False)
+
+    def at(self, options: Mapping[str, Any]) -> "ConstraintType":
+        """The family as the variant of `options` has it (its rows, its driver flag)."""
+        if self.shape is None:
+            return self
+        rows, driver, _ = self.shape(options)
+        return replace(self, rows=rows, is_driver=driver)
+
+    def own_constants(self, options: Mapping[str, Any]) -> tuple[sp.Symbol, ...]:
+        """The variant's constant symbols beyond its keys' (see `shape`)."""
+        return () if self.shape is None else self.shape(options)[2]
 
 
 @dataclass(frozen=True)
