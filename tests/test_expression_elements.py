@@ -70,3 +70,79 @@ def test_four_bar_of_expressions_equals_the_built_in_four_bar(four_bars, backend
     # algebra (a revolute's torque) against the table's scale (compare.assert_agree):
     # the expression's (B s)^T Phi_r^T lambda - Phi_phi^T lambda cancels to rounding only
     assert_agree(rewritten[backend].data, builtin[backend].data, rel=1e-12)
+
+
+# A slider on ground: y and phi held by one expression constraint of two rows,
+# x driven by another. Each bad case changes one line of it.
+SLIDER = """
+[mechanism]
+name = "slider"
+
+[parameters]
+h = 0.2
+
+[signals]
+stroke = "0.1*sin(2*t)"
+
+[[body]]
+name = "block"
+mass = 1.0
+inertia = 0.01
+q0 = [0.0, 0.2, 0.0]
+
+[[constraint]]
+name = "guide"
+type = "expression"
+i = "block"
+phi = ["y_i - h", "phi_i"]
+
+[[constraint]]
+name = "drive"
+type = "expression"
+i = "block"
+phi = ["x_i - stroke"]
+"""
+
+BAD = [
+    ("unknown symbol", ('"y_i - h"', '"y_i - hh"'), r"constraint 'guide' key 'phi' row 1: unknown name 'hh'"),
+    ("coordinate of an absent j", ('"phi_i"]', '"phi_i - phi_j"]'), r"key 'phi' row 2: unknown name 'phi_j'"),
+    ("unknown body", ('i = "block"\nphi = ["y_i', 'i = "blok"\nphi = ["y_i'),
+     r"constraint 'guide' key 'i': unknown body 'blok'"),
+    ("no coordinate", ('"phi_i"]', '"h - 0.2"]'), r"key 'phi' row 2: depends on no coordinate \(x_i, y_i, phi_i\)"),
+    ("empty", ('["y_i - h", "phi_i"]', '[]'), r"constraint 'guide' key 'phi': must be a list of expressions, one per "
+     r"constraint row, not an empty list"),
+    ("dependent at q0", ('"phi_i"]', '"2*y_i - 2*h + phi_i^2"]'),
+     r"constraint 'guide' key 'phi': row 2 depends on row 1 at q0"),
+    ("state function in a row", ('"phi_i"]', '"phi_i - omega(block)"]'),
+     r"key 'phi' row 2: omega\(\) at column 9 is a state function, allowed in forces only"),
+    ("state function in a signal", ('"0.1*sin(2*t)"', '"0.1*sin(2*t) + vx(block)"'),
+     r"\[signals\] key 'stroke': vx\(\) at column 16 is a state function, allowed in forces only"),
+    ("abs in a row", ('"y_i - h"', '"abs(y_i) - h"'),
+     r"key 'phi' row 1: abs\(\) at column 1 is not differentiable at 0"),
+    ("sign in a row", ('"phi_i"]', '"phi_i*sign(x_i)"]'),
+     r"key 'phi' row 2: sign\(\) at column 7 is not differentiable at 0"),
+    ("a driver not g(q) - f(t)", ('"x_i - stroke"', '"x_i*(1 + t) - stroke"'),
+     r"constraint 'drive' key 'phi' row 1: the term .* mixes t and the coordinates"),
+    ("a driver among other rows", ('"phi_i"]', '"phi_i - 0.1*t"]'),
+     r"constraint 'guide' key 'phi': a row with t is a driver: give each driver row a constraint of its own"),
+]
+
+
+@pytest.mark.parametrize("label,change,pattern", BAD, ids=[b[0] for b in BAD])
+def test_bad_expression_input_is_one_line_exit_2_naming_file_and_key(tmp_path, capsys, label, change, pattern):
+    old, new = change
+    assert SLIDER.count(old) == 1, old
+    path = tmp_path / "bad.toml"
+    path.write_text(SLIDER.replace(old, new))
+    status = main(["check", str(path)])
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert err.startswith(f"symid: {path}: "), err
+    assert re.search(pattern, err), err
+
+
+def test_the_slider_itself_is_good(tmp_path, capsys):
+    path = tmp_path / "slider.toml"
+    path.write_text(SLIDER)
+    assert main(["check", str(path)]) == 0, capsys.readouterr().err

@@ -40,6 +40,12 @@ def coordinates(roles: Sequence[str]) -> dict[str, sp.Symbol]:
     return {f"{c}_{role}": placeholder(f"{c}_{role}") for role in roles for c in s.COORDS}
 
 
+def refuse_state(text: Any, where: str, fail: Fail, why: str) -> None:
+    """Refuse a state function `x(B)`... in text where only forces may use one (`why` says so)."""
+    if isinstance(text, str) and (m := _STATE_CALL.search(text)):
+        raise fail(where, f"{m.group(1)}() at column {m.start() + 1} is a state function, allowed in forces only: {why}")
+
+
 def read(raw: Any, where: str, bodies: Mapping[str, str], params: Mapping[str, sp.Symbol],
          parse: Callable[[Any, str, Mapping[str, sp.Expr]], sp.Expr], fail: Fail,
          ) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -59,9 +65,7 @@ def read(raw: Any, where: str, bodies: Mapping[str, str], params: Mapping[str, s
     for n, text in enumerate(raw):
         at = f"{where} row {n + 1}"
         if isinstance(text, str):
-            if m := _STATE_CALL.search(text):
-                raise fail(at, f"{m.group(1)}() at column {m.start() + 1} is a state function, allowed in forces "
-                           f"only: a constraint row is written in {', '.join(names)} directly")
+            refuse_state(text, at, fail, f"a constraint row is written in {', '.join(names)} directly")
             if m := _KINK_CALL.search(text):
                 raise fail(at, f"{m.group(1)}() at column {m.start() + 1} is not differentiable at 0, and a "
                            "constraint row is differentiated twice (Phi_q, gamma): write the row without it")

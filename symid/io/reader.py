@@ -97,6 +97,11 @@ class _Reader:
         return signals.parse(value, self.params, self.signals, time,
                              f"{self.source}: {where}", lambda message: self.fail(where, message))
 
+    def signal(self, value: Any, where: str) -> sp.Expr:
+        expressions.refuse_state(value, where, self.fail, "a signal is an expression of t and the parameters "
+                                 "(write the state in the force that uses it)")
+        return self.expr(value, where, time=True)
+
     def row(self, value: Any, where: str, coordinates: Mapping[str, sp.Expr]) -> sp.Expr:
         """An expression constraint's row: of the coordinates, t, the parameters and the signals."""
         if not isinstance(value, (str, int, float)) or isinstance(value, bool):
@@ -143,7 +148,7 @@ class _Reader:
         table = self.table(data.get("signals", {}), "[signals]")
         self.signals = signals.begin(table, data, RESERVED | set(LAWS), self.fail)  # name -> placeholder
         parameters = self.parameters(self.table(data.get("parameters", {}), "[parameters]"), set_values)
-        self.signals = signals.read(table, lambda v, where: self.expr(v, where, time=True), self.fail)  # -> expr
+        self.signals = signals.read(table, self.signal, self.fail)  # -> expr
         gravity = self.pair(head.get("gravity", [0, 0]), "[mechanism] key 'gravity'")
         analysis = self.analysis(self.table(data.get("analysis", {}), "[analysis]"), overrides)
         for key, limit in (("body", MAX_BODIES), ("constraint", MAX_CONSTRAINTS), ("force", MAX_FORCES)):
