@@ -146,3 +146,209 @@ def test_the_slider_itself_is_good(tmp_path, capsys):
     path = tmp_path / "slider.toml"
     path.write_text(SLIDER)
     assert main(["check", str(path)]) == 0, capsys.readouterr().err
+
+
+# A cart on a rail (its own expression rows) pushed along x by a driver row,
+# against a quadratic drag that reads its speed: F = -c vx |vx|.
+CART = """
+[mechanism]
+name = "cart_drag"
+
+[parameters]
+m = 2.0
+c = 0.7
+a = 3.0
+b = 0.5
+w = 4.0
+
+[[body]]
+name = "cart"
+mass = "m"
+inertia = 0.1
+q0 = [0, 0, 0]
+
+[[constraint]]
+name = "rail"
+type = "expression"
+i = "cart"
+phi = ["y_i", "phi_i"]
+
+[[constraint]]
+name = "push"
+type = "expression"
+i = "cart"
+phi = ["x_i - (a*t^2/2 + b*sin(w*t))"]
+
+[[force]]
+name = "drag"
+type = "point_force"
+body = "cart"
+s = [0, 0]
+F = ["-c*vx(cart)*abs(vx(cart))", "0"]
+
+[analysis]
+t1 = 2
+steps = 41
+"""
+CART_VALUES = {"m": 2.0, "c": 0.7, "a": 3.0, "b": 0.5, "w": 4.0}
+
+
+def cart_closed_form(t: np.ndarray) -> dict[str, np.ndarray]:
+    """x(t) = a t^2/2 + b sin(w t); the push = m xdd + c v |v| (Newton along the rail)."""
+    m, c, a, b, w = (CART_VALUES[k] for k in "mcabw")
+    v = a * t + b * w * np.cos(w * t)
+    acc = a - b * w**2 * np.sin(w * t)
+    return {"v": v, "a": acc, "push": m * acc + c * v * np.abs(v),
+            # d(push)/d(a) = m + 2 c |v| t, d(push)/d(c) = v |v|
+            "d_a": m + 2 * c * np.abs(v) * t, "d_c": v * np.abs(v)}
+
+
+@pytest.fixture(scope="module")
+def cart_runs(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cart") / "cart.toml"
+    path.write_text(CART)
+    return path, {b: api.solve(path, backend=b, sensitivity=["a", "c"]) for b in BACKENDS}
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_cart_with_quadratic_drag_needs_m_a_plus_c_v_abs_v(cart_runs, backend):
+    _, runs = cart_runs
+    res = runs[backend]
+    cf = cart_closed_form(res.t)
+    np.testing.assert_allclose(res["cart.vx"], cf["v"], rtol=0, atol=1e-12 * np.max(np.abs(cf["v"])))
+    peak = np.max(np.abs(cf["push"]))
+    # the driver's effort is -lambda (Phi = x - f(t): the force along +x)
+    np.testing.assert_allclose(-res["push.lambda"], cf["push"], rtol=0, atol=1e-12 * peak)
+    # the state force's own sensitivities, by hand: d(lambda)/dp = -d(push)/dp
+    for name in "ac":
+        want = -cf[f"d_{name}"]
+        np.testing.assert_allclose(res[f"d(push.lambda)/d({name})"], want, rtol=0,
+                                   atol=1e-12 * np.max(np.abs(want)), err_msg=name)
+
+
+def test_cart_power_balance_counts_the_drag(cart_runs):
+    from symid.io.reader import loads
+    from truth import Truth
+
+    path, runs = cart_runs
+    res = runs["reference"]
+    truth = Truth(loads(path.read_text(), str(path)), res)
+    drive = res["push.lambda"] * truth.driver_phi_t("push")  # lambda Phi_t: the driver's power
+    drag = truth.load_power(truth.applied_loads())  # -c |v|^3 from the file's expression and the speeds
+    assert np.max(np.abs(drag)) > 0.1 * np.max(np.abs(drive))  # the drag is a real share of the power
+    np.testing.assert_allclose(drive + drag, truth.kinetic_power(), rtol=0, atol=1e-11 * np.max(np.abs(drive)))
+
+
+@pytest.fixture(scope="module")
+def cam_runs():
+    path = api.example("disc_cam")
+    return path, {b: api.solve(path, backend=b) for b in BACKENDS}
+
+
+def test_cam_power_balance_and_newton_euler_on_every_body(cam_runs):
+    from symid.io.reader import loads
+    from truth import Truth, newton_euler_residual
+
+    path, runs = cam_runs
+    res = runs["reference"]
+    truth = Truth(loads(path.read_text(), str(path)), res)
+    motor = res["motor.T_j"] * res["cam.omega"]  # the driver's torque on the cam times its speed
+    applied = truth.load_power(truth.applied_loads())  # the spring and gravity, by the reference's formulas
+    np.testing.assert_allclose(motor + applied, truth.kinetic_power(), rtol=0, atol=1e-11 * np.max(np.abs(motor)))
+    # each body's F = m a and M = J alpha from the reactions of every constraint at their points
+    # (the contact's at si = sj = the centres, by the file's default)
+    for body, (force, moment) in newton_euler_residual(truth).items():
+        assert force < 1e-12 and moment < 1e-12, (body, force, moment)
+    # the follower rides the pitch curve: y = R0 + h/2 (1 - cos(pi/2 - phi)), by hand
+    R0, h = 0.05, 0.02
+    np.testing.assert_allclose(res["follower.y"], R0 + h / 2 * (1 - np.cos(np.pi / 2 - res["cam.phi"])), atol=1e-14)
+    # the contact pushes (the spring keeps it closed), along the pitch curve's normal: tilted from the
+    # line of centres by the pressure angle, tan = rho'(psi) / rho(psi) (the guide takes the side load)
+    assert np.all(res["contact.Fy_j"] > 0)
+    psi = np.pi / 2 - res["cam.phi"]
+    tilt = (h / 2 * np.sin(psi)) / (R0 + h / 2 * (1 - np.cos(psi)))
+    assert np.max(np.abs(tilt)) > 0.1  # a real pressure angle (up to 11 degrees)
+    np.testing.assert_allclose(res["contact.Fx_j"], tilt * res["contact.Fy_j"], rtol=0,
+                               atol=1e-12 * np.max(res["contact.Fy_j"]))
+
+
+@pytest.mark.parametrize("backend", BACKENDS[1:])
+def test_cam_every_backend_agrees_with_the_reference(cam_runs, backend):
+    _, runs = cam_runs
+    assert runs[backend].columns == runs["reference"].columns
+    assert_agree(runs[backend].data, runs["reference"].data, rel=1e-12)
+
+
+@pytest.mark.parametrize("example,backend", [("disc_cam", "reference"), ("disc_cam", "c"), ("cart", "reference")])
+def test_expression_sensitivities_match_40_digit_central_differences(tmp_path, example, backend):
+    """Central differences (step 1e-12 of each parameter) of a 40-digit solve of
+    the instant (tests/high_precision.py: the whole system lambdified with
+    mpmath, no symbolic parameter derivative), exact to ~1e-20; held to 1e-9
+    of each column's scale as the other sensitivity tests are."""
+    import mpmath
+    from high_precision import DIGITS, Instant
+
+    if example == "cart":
+        path = tmp_path / "cart.toml"
+        path.write_text(CART)
+    else:
+        path = api.example(example)
+    mech = api.load_mechanism(path)
+    hp = Instant(mech)
+    study = api.prepare(path, backend, steps=5, sensitivity=hp.names)
+    results = study.solve()
+    header = study.columns()
+    chosen = sorted({c[2:c.index(")/d(")] for c in header if c.startswith("d(")}, key=header.index)
+    assert chosen, header
+    q_cols = [f"{b.name}.{c}" for b in mech.bodies for c in ("x", "y", "phi")]
+    k = 2
+    t = results.t[k]
+    guess = results.data[k, [header.index(c) for c in q_cols]]
+    p0 = [mpmath.mpf(study.values[sp_symbol(n)]) for n in hp.names]
+    worst = (0.0, "")
+    with mpmath.workdps(DIGITS):
+        for j, name in enumerate(hp.names):
+            h = mpmath.mpf("1e-12") * max(abs(p0[j]), mpmath.mpf("1e-2"))
+            plus, minus = list(p0), list(p0)
+            plus[j] += h
+            minus[j] -= h
+            a, b = hp.solve(t, plus, guess), hp.solve(t, minus, guess)
+            for column in chosen:
+                what, r = _locate(mech, column)
+                exact = float((a[what][r] - b[what][r]) / (2 * h))
+                ours = results[f"d({column})/d({name})"][k]
+                scale = max(1.0, float(np.max(np.abs(results[f"d({column})/d({name})"]))))
+                worst = max(worst, (abs(ours - exact) / scale, f"d({column})/d({name})"))
+    assert worst[0] < 1e-9, worst
+
+
+def sp_symbol(name: str):  # noqa: ANN201
+    from symid.model.mechanism import parameter_symbol
+
+    return parameter_symbol(name)
+
+
+def _locate(mech, column: str) -> tuple[str, int]:  # noqa: ANN001
+    """Which of the 40-digit instant's vectors holds `column`, and where."""
+    name, _, what = column.partition(".")
+    rows = 0
+    for c in mech.constraints:
+        n = len(c.values["phi"]) if c.type == "expression" else None
+        if c.name == name and what.startswith("lambda"):
+            return "lam", rows + (int(what[6:]) - 1 if what[6:] else 0)
+        rows += n if n is not None else _rows(c.type)
+    start = 0
+    for c in mech.constraints:
+        if c.name == name:
+            role_comp = what.split("_")
+            comps = ["Fx", "Fy", "T"]
+            roles = list(c.bodies)
+            return "reactions", start + 3 * roles.index(role_comp[1]) + comps.index(role_comp[0])
+        start += 3 * len(c.bodies)
+    raise AssertionError(column)
+
+
+def _rows(kind: str) -> int:
+    from symid.symbolic.constraints import TYPES
+
+    return TYPES[kind].rows

@@ -21,7 +21,7 @@ from symid.errors import InputError
 from symid.model.expr import FUNCTIONS
 from symid.symbolic.forces import TYPES as FORCES
 from symid.io.files import read_text
-from symid.io import expressions, friction as friction_table, signals
+from symid.io import expressions, friction as friction_table, signals, state
 from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS, MAX_STEPS
 from symid.io.table import read as read_table
 from symid.model.mechanism import (
@@ -94,6 +94,15 @@ class _Reader:
     def expr(self, value: Any, where: str, time: bool = False) -> sp.Expr:
         if not isinstance(value, (str, int, float)) or isinstance(value, bool):
             raise self.fail(where, f"must be a number or an expression string, not {_kind(value)}")
+        bodies = getattr(self, "state_bodies", None)
+        if time and bodies:  # a point force's or torque's expression: it may read the state
+            got = signals.parse(value, ChainMap(self.params, state.names(bodies)), self.signals, time,  # type: ignore[arg-type]
+                                f"{self.source}: {where}", lambda message: self.fail(where, message),
+                                state.functions(bodies))
+            state.check(got, bodies, where, self.fail)
+            return got
+        if time:
+            expressions.refuse_state(value, where, self.fail, f"forces of type {' and '.join(state.TYPES)} only")
         return signals.parse(value, self.params, self.signals, time,
                              f"{self.source}: {where}", lambda message: self.fail(where, message))
 
@@ -326,6 +335,8 @@ class _Reader:
         bodies: dict[str, str] = {}
         values: dict[str, Any] = {}
         options: dict[str, str] = {}
+        readable = [n for n, what in names.items() if what == "body"]
+        self.state_bodies = readable if section == "force" and kind in state.TYPES else None
         for key in family.keys:
             kw = f"{where} key '{key.name}'"
             if key.name not in data:
@@ -353,6 +364,14 @@ class _Reader:
                     options[key.name] = value
                 else:
                     values[key.name] = value
+        self.state_bodies = None
+        if section == "force" and kind in state.TYPES:  # its terms of the state become its variant
+            timed = tuple(k.name for k in family.keys if k.kind in ("function", "function2"))
+            more, more_options, extra = state.generalize(values, timed, bodies["i"], readable,
+                                                         set(self.params.values()), where, self.fail)
+            values.update(more)
+            options.update(more_options)
+            bodies.update(extra)
         if family.resolve is not None:
             try:
                 values = family.resolve(values, where)

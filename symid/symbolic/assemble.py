@@ -98,8 +98,8 @@ def _element_values(family: Family, derived_constants: tuple[sp.Symbol, ...], el
                     ) -> tuple[sp.Expr, ...]:
     """The values of the derived constant symbols for one element."""
     by_symbol: dict[sp.Symbol, sp.Expr] = {}
-    if isinstance(family, ConstraintType):  # an expression constraint's parameters
-        by_symbol.update(zip(family.own_constants(element.options), element.values.get("constants", ())))
+    # the parameters of the user's own expressions (an expression constraint, a force of the state)
+    by_symbol.update(zip(family.own_constants(element.options), element.values.get("constants", ())))
     for key in family.keys:
         value = element.values.get(key.name)
         if key.kind in ("point", "vector"):
@@ -129,7 +129,7 @@ def _groups(elements: tuple[Element, ...], registry: Mapping[str, Family], kind:
         keyed.setdefault((element.type, variant), []).append(n)
     groups = []
     for (name, variant), members in keyed.items():
-        family = registry[name]
+        family = registry[name].at(dict(variant))  # type: ignore[attr-defined]
         constants, _ = signature(kind, name, variant)
         bodies = {role: np.array([body_index[elements[m].bodies[role]] for m in members], dtype=np.intp)
                   for role in family.roles}

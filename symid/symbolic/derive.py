@@ -36,8 +36,8 @@ def constants_of(family: Family, used: set[sp.Basic], options: Variant = ()) -> 
             out.extend(s.point(key.name))
         elif key.kind == "scalar":
             out.append(s.scalar(key.symbol_name()))
-    if isinstance(family, ConstraintType) and family.shape is not None:
-        # the user's rows: their parameters (c_k), and the reaction points though no row uses them
+    if family.shape is not None:
+        # the user's expressions: their parameters (c_k), and the reaction points though no row uses them
         out.extend(family.own_constants(dict(options)))
         used = set(used) | {x for key in family.points.values() if isinstance(key, str) for x in s.point(key)}
     return tuple(c for c in out if c in used)
@@ -104,7 +104,7 @@ def _signature(kind: str, name: str, options: Variant) -> tuple[tuple[sp.Symbol,
         family: Family = CONSTRAINTS[name].at(dict(options))
         used = sp.Matrix(family.phi(dict(options))).free_symbols  # type: ignore[attr-defined]
     else:
-        family = FORCES[name]
+        family = FORCES[name].at(dict(options))
         used = set()
         for role, load in family.loads(dict(options)).items():  # type: ignore[attr-defined]
             used |= sp.Matrix(load).free_symbols
@@ -206,7 +206,7 @@ def derive_force(name: str, options: Variant = ()) -> DerivedForce:
 
 @cache
 def _derive_force(name: str, options: Variant) -> DerivedForce:
-    family = FORCES[name]
+    family = FORCES[name].at(dict(options))
     loads = {role: sp.Matrix(v) for role, v in family.loads(dict(options)).items()}
     generalized = {}
     for role, (fx, fy, torque) in loads.items():
@@ -218,6 +218,6 @@ def _derive_force(name: str, options: Variant) -> DerivedForce:
         options=options,
         generalized=generalized,
         loads=loads,
-        constants=constants_of(family, set().union(*(m.free_symbols for m in generalized.values()))),
+        constants=constants_of(family, set().union(*(m.free_symbols for m in generalized.values())), options),
         functions=time_functions_of(family),
     )

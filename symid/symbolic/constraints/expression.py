@@ -35,11 +35,11 @@ def _rows(options: Mapping[str, Any]) -> tuple[sp.Expr, ...]:
     return tuple(options["phi"])
 
 
-def _shape(options: Mapping[str, Any]) -> tuple[int, bool, tuple[sp.Symbol, ...]]:
+def _shape(options: Mapping[str, Any]) -> tuple[int, tuple[sp.Symbol, ...]]:
     rows = _rows(options)
     used = sp.Tuple(*rows).free_symbols
     count = sum(1 for x in used if x.name.startswith(CONSTANT))
-    return len(rows), s.F_SERIES[0] in used, tuple(constant(k) for k in range(count))
+    return len(rows), tuple(constant(k) for k in range(count))
 
 
 expression = ConstraintType(
