@@ -352,3 +352,70 @@ def _rows(kind: str) -> int:
     from symid.symbolic.constraints import TYPES
 
     return TYPES[kind].rows
+
+
+# The cam's contact row differentiated by hand: with d = r_f - r_c, nn = |d|,
+# psi = atan2(d_y, d_x) - phi_c, sn = sin(psi), rho(psi) = R0 + h/2 (1 - cos psi):
+#   dPhi/dr_f = d/nn - rho'(psi) grad(atan2) = d/nn - h/2 sn (-d_y, d_x)/nn^2,  dPhi/dphi_c = rho'(psi)
+CAM_CLAIM = """
+[claim]
+mechanism = "disc_cam"
+title = "the cam's contact row, by hand"
+
+[define]
+d = ["x_follower - x_cam", "y_follower - y_cam"]
+nn = "sqrt(d_x^2 + d_y^2)"
+sn = "sin(atan2(d_y, d_x) - phi_cam)"
+
+[[entry]]
+quantity = "Phi_q"
+constraint = "contact"
+body = "follower"
+value = [["d_x/nn + h/2*sn*d_y/nn^2", "d_y/nn - h/2*sn*d_x/nn^2", 0]]
+
+[[entry]]
+quantity = "Phi_q"
+constraint = "contact"
+body = "cam"
+value = [["-d_x/nn - h/2*sn*d_y/nn^2", "-d_y/nn + h/2*sn*d_x/nn^2", "h/2*sn"]]
+"""
+
+
+def test_verify_checks_a_hand_derivation_of_an_expression_constraint(tmp_path, capsys):
+    claims = tmp_path / "cam_claims.toml"
+    claims.write_text(CAM_CLAIM)
+    assert main(["verify", str(claims)]) == 0, capsys.readouterr().out
+    # a sign slip in the hand result is caught
+    claims.write_text(CAM_CLAIM.replace('"h/2*sn"]]', '"-h/2*sn"]]'))
+    assert main(["verify", str(claims)]) == 1
+    assert "NOT EQUAL" in capsys.readouterr().out
+
+
+def test_derive_shows_an_expression_constraint_of_a_file_and_refuses_the_bare_type(capsys):
+    assert main(["derive", str(api.example("disc_cam")), "--latex"]) == 0
+    out = capsys.readouterr().out
+    assert "contact" in out and r"atan}_{2}" in out, out[:2000]  # the row as LaTeX
+    assert main(["derive", "expression"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "derive the file" in err, err
+
+
+@pytest.mark.slow  # two solvers compiled and run under callgrind
+@pytest.mark.skipif(not __import__("shutil").which("valgrind") or not __import__("shutil").which("gcc"),
+                    reason="valgrind and gcc are needed to count instructions")
+def test_four_bar_of_expressions_costs_within_1_2x_the_built_in_instant_in_c(tmp_path):
+    """Instructions per instant (callgrind: independent of the machine's load) of the
+    compiled trajectory, the four-bar as expressions against the built-in (#28, Speed)."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from benchmarks import instructions
+
+    rewritten = tmp_path / "four_bar.toml"
+    rewritten.write_text(as_expressions(api.example("four_bar").read_text()))
+    counts = {}
+    for label, path in (("built-in", api.example("four_bar")), ("expressions", rewritten)):
+        study = api.prepare(path, backend="c")
+        counts[label] = instructions.counted(Path(study.evaluator.artifact), study.mechanism.name, study.analysis,
+                                             study.q0(), 100, 600)
+    assert counts["expressions"] <= 1.2 * counts["built-in"], counts

@@ -47,7 +47,7 @@ typedef char disc_cam_real_must_have_the_size_of_double[sizeof(disc_cam_real) ==
 #define DISC_CAM_OFF_PREP 344  /* the prepared parameters (NPP), after the vectors */
 #define DISC_CAM_NPP 9
 
-const disc_cam_real disc_cam_default_params[8] = { 0.05, 0.02, 2.0, 1.5, 0.002, 0.4, 2000.0, 0.25 };
+const disc_cam_real disc_cam_default_params[8] = { 0.05, 0.02, 2.0, 1.5, 0.002, 0.4, 2000.0, 0.2 };
 const char *const disc_cam_row_names[DISC_CAM_ROW] = {
     "t",
     "cam.x",
@@ -436,14 +436,15 @@ static void disc_cam_applied_k0(const disc_cam_real * q, const disc_cam_real * t
     (void)tr;
     (void)qd;
     (void)t;
-    const disc_cam_real e0 = q[4] - 1.0/5.0;
-    const disc_cam_real e1 = sqrt((e0*e0) + (q[3]*q[3]));
-    const disc_cam_real e2 = p[6]*(e1 - p[7])/e1;
+    const disc_cam_real e0 = q[3] - 1.0/10.0;
+    const disc_cam_real e1 = q[4] - 1.0/10.0;
+    const disc_cam_real e2 = sqrt((e0*e0) + (e1*e1));
+    const disc_cam_real e3 = p[6]*(e2 - p[7])/e2;
     out[0] = 0;
     out[1] = -981.0/100.0*p[3];
     out[2] = 0;
-    out[3] = -e2*q[3];
-    out[4] = -e0*e2 - 981.0/100.0*p[5];
+    out[3] = -e0*e3;
+    out[4] = -e1*e3 - 981.0/100.0*p[5];
     out[5] = 0;
 }
 

@@ -24,7 +24,7 @@ NP = 8
 NR = 24
 NNZ = 10
 PARAMS = ("R0", "h", "n", "m_cam", "J_cam", "m_follower", "k_spring", "L0_spring", )
-DEFAULT_PARAMS = np.array([0.05, 0.02, 2.0, 1.5, 0.002, 0.4, 2000.0, 0.25], dtype=float)
+DEFAULT_PARAMS = np.array([0.05, 0.02, 2.0, 1.5, 0.002, 0.4, 2000.0, 0.2], dtype=float)
 PHI_Q_ROWS = np.array([0, 1, 2, 3, 4, 4, 4, 4, 4, 5], dtype=np.intp)
 PHI_Q_COLS = np.array([0, 1, 3, 5, 0, 1, 2, 3, 4, 2], dtype=np.intp)
 OUTPUTS = ("q", "qdot", "qddot", "lambda", "reactions", )
@@ -397,29 +397,31 @@ def _gamma_s(q, qd, t, p):
 def applied(q, qd, t, p):
     """Q^A, size NG."""
     out = [0.0] * 6
-    e0 = q[4] - 1/5
-    e1 = numpy.sqrt(e0**2 + q[3]**2)
-    e2 = p[6]*(e1 - p[7])/e1
+    e0 = q[3] - 1/10
+    e1 = q[4] - 1/10
+    e2 = numpy.sqrt(e0**2 + e1**2)
+    e3 = p[6]*(e2 - p[7])/e2
     out[0] = 0
     out[1] = -981/100*p[3]
     out[2] = 0
-    out[3] = -e2*q[3]
-    out[4] = -e0*e2 - 981/100*p[5]
+    out[3] = -e0*e3
+    out[4] = -e1*e3 - 981/100*p[5]
     out[5] = 0
     return _stack(out, q[0])
 
 
 def _applied_s(q, qd, t, p):
     # one instant, floats in and out (a list display: faster than item stores)
-    e0 = q[4] - 1/5
-    e1 = math.sqrt(e0**2 + q[3]**2)
-    e2 = p[6]*(e1 - p[7])/e1
+    e0 = q[3] - 1/10
+    e1 = q[4] - 1/10
+    e2 = math.sqrt(e0**2 + e1**2)
+    e3 = p[6]*(e2 - p[7])/e2
     out = [
         0,
         -981/100*p[3],
         0,
-        -e2*q[3],
-        -e0*e2 - 981/100*p[5],
+        -e0*e3,
+        -e1*e3 - 981/100*p[5],
         0,
     ]
     return out
