@@ -419,3 +419,17 @@ def test_four_bar_of_expressions_costs_within_1_2x_the_built_in_instant_in_c(tmp
         counts[label] = instructions.counted(Path(study.evaluator.artifact), study.mechanism.name, study.analysis,
                                              study.q0(), 100, 600)
     assert counts["expressions"] <= 1.2 * counts["built-in"], counts
+
+
+def test_help_elements_shows_the_page_with_every_symbol_and_state_function(capsys):
+    from symid.io.state import FUNCTIONS
+    from symid.symbolic import symbols as s
+    from symid.tools import manual
+
+    assert main(["help", "elements"]) == 0
+    out = capsys.readouterr().out
+    assert out.strip() == manual.page("elements").strip()
+    for role in ("i", "j"):
+        assert " ".join(f"{c}_{role}" for c in s.COORDS) in out
+    for name in FUNCTIONS:
+        assert f"{name}(B)" in out, name
