@@ -149,7 +149,8 @@ def test_the_slider_itself_is_good(tmp_path, capsys):
 
 
 # A cart on a rail (its own expression rows) pushed along x by a driver row,
-# against a quadratic drag that reads its speed: F = -c vx |vx|.
+# against a quadratic drag that reads its speed, F = -c vx |vx|, and a Coulomb
+# friction -mu sign(vx) (vx stays above 0.2 m/s: sign = 1, its derivative 0).
 CART = """
 [mechanism]
 name = "cart_drag"
@@ -157,6 +158,7 @@ name = "cart_drag"
 [parameters]
 m = 2.0
 c = 0.7
+mu = 1.5
 a = 3.0
 b = 0.5
 w = 4.0
@@ -184,30 +186,31 @@ name = "drag"
 type = "point_force"
 body = "cart"
 s = [0, 0]
-F = ["-c*vx(cart)*abs(vx(cart))", "0"]
+F = ["-c*vx(cart)*abs(vx(cart)) - mu*sign(vx(cart))", "0"]
 
 [analysis]
 t1 = 2
 steps = 41
 """
-CART_VALUES = {"m": 2.0, "c": 0.7, "a": 3.0, "b": 0.5, "w": 4.0}
+CART_VALUES = {"m": 2.0, "c": 0.7, "mu": 1.5, "a": 3.0, "b": 0.5, "w": 4.0}
 
 
 def cart_closed_form(t: np.ndarray) -> dict[str, np.ndarray]:
-    """x(t) = a t^2/2 + b sin(w t); the push = m xdd + c v |v| (Newton along the rail)."""
-    m, c, a, b, w = (CART_VALUES[k] for k in "mcabw")
+    """x(t) = a t^2/2 + b sin(w t); the push = m xdd + c v |v| + mu sign(v) (Newton along the rail)."""
+    m, c, mu, a, b, w = (CART_VALUES[k] for k in ("m", "c", "mu", "a", "b", "w"))
     v = a * t + b * w * np.cos(w * t)
     acc = a - b * w**2 * np.sin(w * t)
-    return {"v": v, "a": acc, "push": m * acc + c * v * np.abs(v),
+    assert np.all(v > 0.2)
+    return {"v": v, "a": acc, "push": m * acc + c * v * np.abs(v) + mu * np.sign(v),
             # d(push)/d(a) = m + 2 c |v| t, d(push)/d(c) = v |v|
-            "d_a": m + 2 * c * np.abs(v) * t, "d_c": v * np.abs(v)}
+            "d_a": m + 2 * c * np.abs(v) * t, "d_c": v * np.abs(v), "d_mu": np.sign(v)}
 
 
 @pytest.fixture(scope="module")
 def cart_runs(tmp_path_factory):
     path = tmp_path_factory.mktemp("cart") / "cart.toml"
     path.write_text(CART)
-    return path, {b: api.solve(path, backend=b, sensitivity=["a", "c"]) for b in BACKENDS}
+    return path, {b: api.solve(path, backend=b, sensitivity=["a", "c", "mu"]) for b in BACKENDS}
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -219,8 +222,14 @@ def test_cart_with_quadratic_drag_needs_m_a_plus_c_v_abs_v(cart_runs, backend):
     peak = np.max(np.abs(cf["push"]))
     # the driver's effort is -lambda (Phi = x - f(t): the force along +x)
     np.testing.assert_allclose(-res["push.lambda"], cf["push"], rtol=0, atol=1e-12 * peak)
+    # the summary reads the driver row's effort and power like a built-in driver's
+    from symid.output.summary import efforts
+
+    (effort,) = efforts(api.load_mechanism(cart_runs[0]), res)
+    np.testing.assert_allclose(effort.value, cf["push"], rtol=0, atol=1e-12 * peak)
+    np.testing.assert_allclose(effort.power, cf["push"] * cf["v"], rtol=0, atol=1e-12 * peak * np.max(cf["v"]))
     # the state force's own sensitivities, by hand: d(lambda)/dp = -d(push)/dp
-    for name in "ac":
+    for name in ("a", "c", "mu"):
         want = -cf[f"d_{name}"]
         np.testing.assert_allclose(res[f"d(push.lambda)/d({name})"], want, rtol=0,
                                    atol=1e-12 * np.max(np.abs(want)), err_msg=name)
@@ -234,7 +243,7 @@ def test_cart_power_balance_counts_the_drag(cart_runs):
     res = runs["reference"]
     truth = Truth(loads(path.read_text(), str(path)), res)
     drive = res["push.lambda"] * truth.driver_phi_t("push")  # lambda Phi_t: the driver's power
-    drag = truth.load_power(truth.applied_loads())  # -c |v|^3 from the file's expression and the speeds
+    drag = truth.load_power(truth.applied_loads())  # -c |v|^3 - mu |v| from the file's expression and the speeds
     assert np.max(np.abs(drag)) > 0.1 * np.max(np.abs(drive))  # the drag is a real share of the power
     np.testing.assert_allclose(drive + drag, truth.kinetic_power(), rtol=0, atol=1e-11 * np.max(np.abs(drive)))
 
