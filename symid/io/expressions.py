@@ -12,7 +12,6 @@ Whether the rows are independent is judged at q0, once the bodies are known
 from __future__ import annotations
 
 import re
-from collections import ChainMap
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np

@@ -6,7 +6,6 @@ Expressions go through the whitelist parser of `symid.model.expr`, never eval.
 
 from __future__ import annotations
 
-import math
 import re
 import tomllib
 from collections import ChainMap
@@ -21,22 +20,18 @@ from symid.errors import InputError
 from symid.model.expr import FUNCTIONS
 from symid.symbolic.forces import TYPES as FORCES
 from symid.io.files import read_text
-from symid.io import expressions, friction as friction_table, signals, state
-from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS, MAX_STEPS
+from symid.io.analysis_table import ANALYSIS_KEYS  # noqa: F401 (the file's keys, read by tests and docs)
+from symid.io import analysis_table, expressions, friction as friction_table, signals, state
+from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS
 from symid.io.table import read as read_table
-from symid.model.mechanism import (
-    EXTRA_OUTPUTS, GROUND, INERTIALS, JUMP_MODES, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, REDUNDANT_MODES, T,
-    Analysis, Body, Element, Mechanism, parameter_symbol,
-)
+from symid.model.mechanism import GROUND, INERTIALS, T, Analysis, Body, Element, Mechanism, parameter_symbol
 from symid.model.motion import LAWS, check_spans
 from symid.model.params import is_derived, order_parameters, parameter_values, to_float
-from symid.text import number, plural
+from symid.text import plural
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 TOP_KEYS = ("mechanism", "parameters", "signals", "analysis", "body", "constraint", "force")
 MECHANISM_KEYS = ("name", "gravity")
-ANALYSIS_KEYS = ("kind", "t0", "t1", "steps", "tol", "outputs", "reactions", "cond_warn", "redundant",
-                 "assembly_jump")
 BODY_KEYS = ("name", "mass", "inertia", "q0")
 RESERVED = {"t", "pi", GROUND} | set(FUNCTIONS)
 
@@ -231,73 +226,7 @@ class _Reader:
                             f"[parameters]); set the base parameters it is computed from ({uses})")
 
     def analysis(self, table: dict[str, Any], overrides: dict[str, Any]) -> Analysis:
-        where = "[analysis]"
-        self.unknown(table, ANALYSIS_KEYS, where)
-        overrides = dict(overrides)
-        add_cond = overrides.pop("cond_column", None)  # `symid solve --cond`
-        given = {k: v for k, v in overrides.items() if v is not None}
-        merged = {**table, **given}
-
-        def key_of(name: str) -> str:
-            """Where a value came from: the option that overrode the file's key, or the key."""
-            return f"--{name.replace('_', '-')}" if name in given else f"{where} key '{name}'"
-
-        kind = merged.get("kind", "inverse_dynamics")
-        if kind not in KINDS:
-            raise self.fail(key_of("kind"), f"unknown kind {kind!r} (valid: {', '.join(KINDS)})")
-        t0 = self.real(merged.get("t0", 0.0), key_of("t0"))
-        t1 = self.real(merged.get("t1", 1.0), key_of("t1"))
-        steps = merged.get("steps", 1001)
-        if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
-            raise self.fail(key_of("steps"), f"must be a whole number >= 1, not {steps!r}")
-        if steps > MAX_STEPS:
-            raise self.fail(key_of("steps"), f"{steps} instants, more than the {MAX_STEPS} allowed")
-        if steps > 1 and not t1 > t0:
-            raise self.fail(key_of("t1"), f"must be greater than t0 = {number(t0)}")
-        if steps > 1 and not (t1 - t0) / (steps - 1) > (ulp := math.ulp(max(abs(t0), abs(t1)))):  # else rows repeat t
-            raise self.fail(key_of("t1"), f"the {steps} instants from t0 = {number(t0)} are not distinct doubles: "
-                            f"the step is not above their spacing there, {number(ulp)}")
-        tol = self.real(merged.get("tol", 1e-12), key_of("tol"))
-        if not tol > 0:
-            raise self.fail(key_of("tol"), f"must be positive, not {number(tol)}")
-        outputs = self.names(merged.get("outputs"), f"{where} key 'outputs'", OUTPUT_GROUPS + EXTRA_OUTPUTS)
-        if add_cond and "cond" not in (outputs or ()):
-            outputs = (outputs if outputs is not None else KIND_OUTPUTS[kind]) + ("cond",)
-        if outputs is not None:
-            allowed = KIND_OUTPUTS[kind] + (("qdot", "qddot") if kind == "statics" else ()) + EXTRA_OUTPUTS
-            if bad := [o for o in outputs if o not in allowed]:
-                raise self.fail(f"{where} key 'outputs'", f"{bad[0]!r} is not an output of {kind}")
-        reactions = self.names(merged.get("reactions"), f"{where} key 'reactions'", None)
-        cond_warn = merged.get("cond_warn")
-        if cond_warn is not None and not self.real(cond_warn, key_of("cond_warn")) >= 1:
-            raise self.fail(key_of("cond_warn"), f"must be a number >= 1, not {cond_warn!r}")
-        modes = {}
-        for key, choices in (("redundant", REDUNDANT_MODES), ("assembly_jump", JUMP_MODES)):
-            value = merged.get(key, choices[0])
-            if value not in choices:
-                raise self.fail(key_of(key), f"must be one of {', '.join(map(repr, choices))}, not {value!r}")
-            modes[key] = value
-        return Analysis(kind=kind, t0=t0, t1=t1, steps=steps, tol=tol, outputs=outputs,
-                        reactions=reactions, cond_warn=None if cond_warn is None else float(cond_warn),
-                        **modes)
-
-    def real(self, value: Any, where: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.fail(where, f"must be a finite number, not {value!r}")
-        return float(value)
-
-    def names(self, value: Any, where: str, allowed: tuple[str, ...] | None) -> tuple[str, ...] | None:
-        if value is None:
-            return None
-        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-            raise self.fail(where, "must be a list of names")
-        if allowed is not None:
-            bad = [v for v in value if v not in allowed]
-            if bad:
-                raise self.fail(where, f"unknown output {bad[0]!r} (valid: {', '.join(allowed)})")
-        if len(set(value)) != len(value):
-            raise self.fail(where, "names a group twice")
-        return tuple(value)
+        return analysis_table.read(table, overrides, self.fail, self.unknown)
 
     def body(self, data: Any, n: int) -> Body:
         where = f"[[body]] #{n + 1}"

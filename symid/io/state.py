@@ -13,7 +13,7 @@ sensitivities treat them as any family's expressions of q and qd.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping
+from typing import Any, Callable
 
 import sympy as sp
 
