@@ -442,3 +442,21 @@ def test_help_elements_shows_the_page_with_every_symbol_and_state_function(capsy
         assert " ".join(f"{c}_{role}" for c in s.COORDS) in out
     for name in FUNCTIONS:
         assert f"{name}(B)" in out, name
+
+
+@pytest.mark.parametrize("backend", ["c", "numpy"])
+def test_sweep_of_the_cart_gives_each_variants_closed_form_effort(tmp_path, backend):
+    """A grid over the drag coefficient: each variant's peak effort of the driver row
+    is the closed form's largest m a + c v|v| + mu sign(v) at the output instants."""
+    from symid.study.design import grid
+
+    path = tmp_path / "cart.toml"
+    path.write_text(CART)
+    table = api.sweep(path, grid(["c=0.2:1.2:3"]), backend=backend, workers=1)
+    t = np.linspace(0, 2, 41)
+    for c, peak, status in zip(table["c"], table["push.effort_peak"], table["status"]):
+        values = dict(CART_VALUES, c=c)
+        v = values["a"] * t + values["b"] * values["w"] * np.cos(values["w"] * t)
+        acc = values["a"] - values["b"] * values["w"] ** 2 * np.sin(values["w"] * t)
+        want = np.max(np.abs(values["m"] * acc + c * v * np.abs(v) + values["mu"] * np.sign(v)))
+        assert status == "ok" and abs(peak - want) <= 1e-12 * want, (c, peak, want)
