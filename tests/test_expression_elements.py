@@ -460,3 +460,41 @@ def test_sweep_of_the_cart_gives_each_variants_closed_form_effort(tmp_path, back
         acc = values["a"] - values["b"] * values["w"] ** 2 * np.sin(values["w"] * t)
         want = np.max(np.abs(values["m"] * acc + c * v * np.abs(v) + values["mu"] * np.sign(v)))
         assert status == "ok" and abs(peak - want) <= 1e-12 * want, (c, peak, want)
+
+
+@pytest.fixture(scope="module")
+def braked_four_bar(tmp_path_factory):
+    """The four-bar with a torque on the rocker that reads two other bodies' state:
+    a viscous brake between rocker and coupler, scaled by the crank's speed."""
+    text = api.example("four_bar").read_text() + (
+        '\n[[force]]\nname = "brake"\ntype = "torque"\nbody = "rocker"\n'
+        'T = "-0.2*(omega(rocker) - omega(coupler))*abs(omega(crank)) + 2*sin(omega*t)"\n')
+    path = tmp_path_factory.mktemp("braked") / "four_bar.toml"
+    path.write_text(text)
+    return path, {b: api.solve(path, backend=b) for b in BACKENDS}
+
+
+def test_a_torque_reading_other_bodies_keeps_the_power_balance_and_newton_euler(braked_four_bar):
+    from symid.io.reader import loads
+    from truth import Truth, newton_euler_residual
+
+    path, runs = braked_four_bar
+    res = runs["reference"]
+    mech = loads(path.read_text(), str(path))
+    brake = next(f for f in mech.forces if f.name == "brake")
+    assert set(brake.bodies.values()) == {"rocker", "coupler", "crank"}  # its own body and the two it reads
+    truth = Truth(mech, res)
+    motor = res["crank_motor.T_j"] * res["crank.omega"]
+    loads_ = truth.applied_loads()
+    brake_power = truth.load_power([ld for ld in loads_[-1:]])  # the brake's, from the file's expression
+    assert np.max(np.abs(brake_power)) > 0.05 * np.max(np.abs(motor))
+    np.testing.assert_allclose(motor + truth.load_power(loads_), truth.kinetic_power(), rtol=0,
+                               atol=1e-11 * np.max(np.abs(motor)))
+    for body, (force, moment) in newton_euler_residual(truth).items():
+        assert force < 1e-12 and moment < 1e-12, (body, force, moment)
+
+
+@pytest.mark.parametrize("backend", BACKENDS[1:])
+def test_a_torque_reading_other_bodies_agrees_on_every_backend(braked_four_bar, backend):
+    _, runs = braked_four_bar
+    assert_agree(runs[backend].data, runs["reference"].data, rel=1e-12)
