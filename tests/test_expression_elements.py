@@ -42,12 +42,13 @@ def as_expressions(text: str) -> str:
                 f'phi = ["{xj} - ({xi})", "{yj} - ({yi})"]\nsi = {get("si")}\nsj = {get("sj")}\n')
 
     def driver(m: re.Match) -> str:
-        name, i, j, f = m.groups()
-        return f'[[constraint]]\nname = {name}\ntype = "expression"\ni = {i}\nj = {j}\nphi = ["phi_j - phi_i - ({f})"]\n'
+        name, i, j, f, c = m.groups()
+        return (f'[[constraint]]\nname = {name}\ntype = "expression"\ni = {i}\nj = {j}\n'
+                f'phi = ["phi_j - phi_i - ({c or 0}) - ({f})"]\n')
 
     out = re.sub(r'\[\[constraint\]\]\nname = "\w+"\ntype = "revolute"\n(?:.*\n)*?sj = .*\n', revolute, text)
     out = re.sub(r'\[\[constraint\]\]\nname = ("\w+")\ntype = "relative_angle_driver"\ni = (".*")\nj = (".*")\n'
-                 r'f = "(.*)"\n', driver, out)
+                 r'f = "(.*)"\n(?:C = (.*)\n)?', driver, out)
     assert "revolute" not in out and "relative_angle_driver" not in out
     return out
 
@@ -498,3 +499,26 @@ def test_a_torque_reading_other_bodies_keeps_the_power_balance_and_newton_euler(
 def test_a_torque_reading_other_bodies_agrees_on_every_backend(braked_four_bar, backend):
     _, runs = braked_four_bar
     assert_agree(runs[backend].data, runs["reference"].data, rel=1e-12)
+
+
+@pytest.mark.slow  # a 159-coordinate solver compiled
+def test_ladder_of_expressions_gives_the_closed_form_torque_through_the_looped_c_kernels(tmp_path):
+    """Past c_loops.LOOP_MIN coordinates the C target loops over each family's members
+    (an expression row shape is one family variant): the ladder of 26 parallelograms
+    written as expressions (ng = 159) against its closed-form motor torque
+    (benchmarks/ladder.py: I_eff thetaddot + G_eff cos theta)."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from benchmarks import ladder
+    from symid.codegen.targets import c_loops
+
+    lad = ladder.Ladder(26)
+    assert lad.ng >= c_loops.LOOP_MIN
+    path = tmp_path / "ladder.toml"
+    path.write_text(as_expressions(ladder.toml(lad, steps=21)))
+    res = api.solve(path, backend="c")
+    assert res.error is None, res.error
+    want = lad.torque(res.t)
+    # 1e-10 of the peak: Newton's 1e-12 on 159 coordinates, rounded through a chain of 79 pins
+    np.testing.assert_allclose(res["motor.T_j"], want, rtol=0, atol=1e-10 * np.max(np.abs(want)))
