@@ -522,3 +522,16 @@ def test_ladder_of_expressions_gives_the_closed_form_torque_through_the_looped_c
     want = lad.torque(res.t)
     # 1e-10 of the peak: Newton's 1e-12 on 159 coordinates, rounded through a chain of 79 pins
     np.testing.assert_allclose(res["motor.T_j"], want, rtol=0, atol=1e-10 * np.max(np.abs(want)))
+
+
+@pytest.mark.parametrize("backend", ["reference", "c"])
+def test_statics_reads_the_state_at_rest(braked_four_bar, tmp_path, backend):
+    """Statics evaluates forces at qdot = 0: the brake's terms of the speeds vanish, its
+    term of t stays: the same table as the four-bar with that term alone."""
+    path, _ = braked_four_bar
+    plain = tmp_path / "plain.toml"
+    plain.write_text(path.read_text().replace(
+        '"-0.2*(omega(rocker) - omega(coupler))*abs(omega(crank)) + 2*sin(omega*t)"', '"2*sin(omega*t)"'))
+    got, want = (api.solve(p, backend=backend, kind="statics", steps=21) for p in (path, plain))
+    assert got.columns == want.columns
+    assert_agree(got.data, want.data, rel=1e-12)
