@@ -535,3 +535,10 @@ def test_statics_reads_the_state_at_rest(braked_four_bar, tmp_path, backend):
     got, want = (api.solve(p, backend=backend, kind="statics", steps=21) for p in (path, plain))
     assert got.columns == want.columns
     assert_agree(got.data, want.data, rel=1e-12)
+
+
+def test_help_expression_says_its_rows_come_from_phi(capsys):
+    assert main(["help", "expression"]) == 0
+    out = capsys.readouterr().out
+    assert "rows: one per entry of phi" in out and "rows: 1;" not in out, out
+    assert re.search(r"^  j +body, default ground$", out, re.M), out
