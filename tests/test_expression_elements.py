@@ -542,3 +542,28 @@ def test_help_expression_says_its_rows_come_from_phi(capsys):
     out = capsys.readouterr().out
     assert "rows: one per entry of phi" in out and "rows: 1;" not in out, out
     assert re.search(r"^  j +body, default ground$", out, re.M), out
+
+
+BAD_FORCES = [
+    ("unknown body in a state function", ("vx(cart)*abs", "vx(kart)*abs"),
+     r"force 'drag' key 'F': unknown name 'kart'"),
+    ("a body name outside a state function", ('"0"]', '"cart"]'),
+     r"force 'drag' key 'F': the body name 'cart' is only an argument of a state function"),
+    ("a term of t and the state", ('"0"]', '"t*vy(cart)"]'),
+     r"force 'drag' key 'F': the term .* mixes t and the state: write the expression as g\(state\) \+ f\(t\)"),
+    ("a state function in another force type", ('[analysis]', '[[force]]\nname = "s"\ntype = "spring_damper"\n'
+     'i = "ground"\nj = "cart"\nsi = [0, 0]\nsj = [0, 0]\nk = 1\nc = 0\nL0 = 1\nfa = "x(cart)"\n\n[analysis]'),
+     r"force 's' key 'fa': x\(\) at column 1 is a state function, allowed in forces only"),
+]
+
+
+@pytest.mark.parametrize("label,change,pattern", BAD_FORCES, ids=[b[0] for b in BAD_FORCES])
+def test_bad_state_functions_are_one_line_exit_2(tmp_path, capsys, label, change, pattern):
+    old, new = change
+    assert CART.count(old) == 1, old
+    path = tmp_path / "bad.toml"
+    path.write_text(CART.replace(old, new))
+    status = main(["check", str(path)])
+    err = capsys.readouterr().err
+    assert status == 2 and len(err.strip().splitlines()) == 1 and err.startswith(f"symid: {path}: "), err
+    assert re.search(pattern, err), err
