@@ -34,6 +34,9 @@ def run(args: argparse.Namespace) -> int:
         if not sep:
             raise InputError(f"--option {pair}: expected KEY=VALUE")
         options[key.strip()] = value.strip()
+    if args.subject in TYPES and TYPES[args.subject].shape is not None:  # `type = "expression"`
+        raise InputError(f"derive {args.subject}: its rows are written in a mechanism file; derive the file "
+                         "(symid derive FILE) to see them, Phi_q, nu, gamma and the reactions")
     if args.subject in TYPES:
         check_options(args.subject, options)
         for key in TYPES[args.subject].keys:  # say how to give a variant choice on this command line

@@ -6,36 +6,32 @@ Expressions go through the whitelist parser of `symid.model.expr`, never eval.
 
 from __future__ import annotations
 
-import math
 import re
 import tomllib
+from collections import ChainMap
 from pathlib import Path
 from typing import Any, Mapping
 
 import sympy as sp
 
-from symid.symbolic.constraints import TYPES as CONSTRAINTS
+from symid.symbolic.constraints import TYPES as CONSTRAINTS, family_of
 from symid.model.elements import Family, Key
 from symid.errors import InputError
 from symid.model.expr import FUNCTIONS
 from symid.symbolic.forces import TYPES as FORCES
 from symid.io.files import read_text
-from symid.io import friction as friction_table, signals
-from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS, MAX_STEPS
+from symid.io.analysis_table import ANALYSIS_KEYS  # noqa: F401 (the file's keys, read by tests and docs)
+from symid.io import analysis_table, expressions, friction as friction_table, signals, state
+from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS
 from symid.io.table import read as read_table
-from symid.model.mechanism import (
-    EXTRA_OUTPUTS, GROUND, INERTIALS, JUMP_MODES, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, REDUNDANT_MODES, T,
-    Analysis, Body, Element, Mechanism, parameter_symbol,
-)
+from symid.model.mechanism import GROUND, INERTIALS, T, Analysis, Body, Element, Mechanism, parameter_symbol
 from symid.model.motion import LAWS, check_spans
 from symid.model.params import is_derived, order_parameters, parameter_values, to_float
-from symid.text import number, plural
+from symid.text import plural
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 TOP_KEYS = ("mechanism", "parameters", "signals", "analysis", "body", "constraint", "force")
 MECHANISM_KEYS = ("name", "gravity")
-ANALYSIS_KEYS = ("kind", "t0", "t1", "steps", "tol", "outputs", "reactions", "cond_warn", "redundant",
-                 "assembly_jump")
 BODY_KEYS = ("name", "mass", "inertia", "q0")
 RESERVED = {"t", "pi", GROUND} | set(FUNCTIONS)
 
@@ -93,7 +89,28 @@ class _Reader:
     def expr(self, value: Any, where: str, time: bool = False) -> sp.Expr:
         if not isinstance(value, (str, int, float)) or isinstance(value, bool):
             raise self.fail(where, f"must be a number or an expression string, not {_kind(value)}")
+        bodies = getattr(self, "state_bodies", None)
+        if time and bodies:  # a point force's or torque's expression: it may read the state
+            got = signals.parse(value, ChainMap(self.params, state.names(bodies)), self.signals, time,  # type: ignore[arg-type]
+                                f"{self.source}: {where}", lambda message: self.fail(where, message),
+                                state.functions(bodies))
+            state.check(got, bodies, where, self.fail)
+            return got
+        if time:
+            expressions.refuse_state(value, where, self.fail, f"forces of type {' and '.join(state.TYPES)} only")
         return signals.parse(value, self.params, self.signals, time,
+                             f"{self.source}: {where}", lambda message: self.fail(where, message))
+
+    def signal(self, value: Any, where: str) -> sp.Expr:
+        expressions.refuse_state(value, where, self.fail, "a signal is an expression of t and the parameters "
+                                 "(write the state in the force that uses it)")
+        return self.expr(value, where, time=True)
+
+    def row(self, value: Any, where: str, coordinates: Mapping[str, sp.Expr]) -> sp.Expr:
+        """An expression constraint's row: of the coordinates, t, the parameters and the signals."""
+        if not isinstance(value, (str, int, float)) or isinstance(value, bool):
+            raise self.fail(where, f"must be an expression string, not {_kind(value)}")
+        return signals.parse(value, ChainMap(coordinates, self.params), self.signals, True,  # type: ignore[arg-type]
                              f"{self.source}: {where}", lambda message: self.fail(where, message))
 
     def number(self, value: Any, where: str) -> tuple[sp.Expr, float]:
@@ -135,7 +152,7 @@ class _Reader:
         table = self.table(data.get("signals", {}), "[signals]")
         self.signals = signals.begin(table, data, RESERVED | set(LAWS), self.fail)  # name -> placeholder
         parameters = self.parameters(self.table(data.get("parameters", {}), "[parameters]"), set_values)
-        self.signals = signals.read(table, lambda v, where: self.expr(v, where, time=True), self.fail)  # -> expr
+        self.signals = signals.read(table, self.signal, self.fail)  # -> expr
         gravity = self.pair(head.get("gravity", [0, 0]), "[mechanism] key 'gravity'")
         analysis = self.analysis(self.table(data.get("analysis", {}), "[analysis]"), overrides)
         for key, limit in (("body", MAX_BODIES), ("constraint", MAX_CONSTRAINTS), ("force", MAX_FORCES)):
@@ -158,6 +175,10 @@ class _Reader:
                          source=self.source)
         self.check_reactions(mech)
         self.check_counts(mech)
+        q0 = {b.name: b.q0 for b in bodies}
+        for c in constraints:
+            if c.type == "expression":  # its rows dependent at q0 are named, before any solve
+                expressions.check_rank(c, q0, analysis.t0, self.values, self.source)
         check_spans(mech)  # a tabled function is never extrapolated
         return mech
 
@@ -205,73 +226,7 @@ class _Reader:
                             f"[parameters]); set the base parameters it is computed from ({uses})")
 
     def analysis(self, table: dict[str, Any], overrides: dict[str, Any]) -> Analysis:
-        where = "[analysis]"
-        self.unknown(table, ANALYSIS_KEYS, where)
-        overrides = dict(overrides)
-        add_cond = overrides.pop("cond_column", None)  # `symid solve --cond`
-        given = {k: v for k, v in overrides.items() if v is not None}
-        merged = {**table, **given}
-
-        def key_of(name: str) -> str:
-            """Where a value came from: the option that overrode the file's key, or the key."""
-            return f"--{name.replace('_', '-')}" if name in given else f"{where} key '{name}'"
-
-        kind = merged.get("kind", "inverse_dynamics")
-        if kind not in KINDS:
-            raise self.fail(key_of("kind"), f"unknown kind {kind!r} (valid: {', '.join(KINDS)})")
-        t0 = self.real(merged.get("t0", 0.0), key_of("t0"))
-        t1 = self.real(merged.get("t1", 1.0), key_of("t1"))
-        steps = merged.get("steps", 1001)
-        if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
-            raise self.fail(key_of("steps"), f"must be a whole number >= 1, not {steps!r}")
-        if steps > MAX_STEPS:
-            raise self.fail(key_of("steps"), f"{steps} instants, more than the {MAX_STEPS} allowed")
-        if steps > 1 and not t1 > t0:
-            raise self.fail(key_of("t1"), f"must be greater than t0 = {number(t0)}")
-        if steps > 1 and not (t1 - t0) / (steps - 1) > (ulp := math.ulp(max(abs(t0), abs(t1)))):  # else rows repeat t
-            raise self.fail(key_of("t1"), f"the {steps} instants from t0 = {number(t0)} are not distinct doubles: "
-                            f"the step is not above their spacing there, {number(ulp)}")
-        tol = self.real(merged.get("tol", 1e-12), key_of("tol"))
-        if not tol > 0:
-            raise self.fail(key_of("tol"), f"must be positive, not {number(tol)}")
-        outputs = self.names(merged.get("outputs"), f"{where} key 'outputs'", OUTPUT_GROUPS + EXTRA_OUTPUTS)
-        if add_cond and "cond" not in (outputs or ()):
-            outputs = (outputs if outputs is not None else KIND_OUTPUTS[kind]) + ("cond",)
-        if outputs is not None:
-            allowed = KIND_OUTPUTS[kind] + (("qdot", "qddot") if kind == "statics" else ()) + EXTRA_OUTPUTS
-            if bad := [o for o in outputs if o not in allowed]:
-                raise self.fail(f"{where} key 'outputs'", f"{bad[0]!r} is not an output of {kind}")
-        reactions = self.names(merged.get("reactions"), f"{where} key 'reactions'", None)
-        cond_warn = merged.get("cond_warn")
-        if cond_warn is not None and not self.real(cond_warn, key_of("cond_warn")) >= 1:
-            raise self.fail(key_of("cond_warn"), f"must be a number >= 1, not {cond_warn!r}")
-        modes = {}
-        for key, choices in (("redundant", REDUNDANT_MODES), ("assembly_jump", JUMP_MODES)):
-            value = merged.get(key, choices[0])
-            if value not in choices:
-                raise self.fail(key_of(key), f"must be one of {', '.join(map(repr, choices))}, not {value!r}")
-            modes[key] = value
-        return Analysis(kind=kind, t0=t0, t1=t1, steps=steps, tol=tol, outputs=outputs,
-                        reactions=reactions, cond_warn=None if cond_warn is None else float(cond_warn),
-                        **modes)
-
-    def real(self, value: Any, where: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.fail(where, f"must be a finite number, not {value!r}")
-        return float(value)
-
-    def names(self, value: Any, where: str, allowed: tuple[str, ...] | None) -> tuple[str, ...] | None:
-        if value is None:
-            return None
-        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-            raise self.fail(where, "must be a list of names")
-        if allowed is not None:
-            bad = [v for v in value if v not in allowed]
-            if bad:
-                raise self.fail(where, f"unknown output {bad[0]!r} (valid: {', '.join(allowed)})")
-        if len(set(value)) != len(value):
-            raise self.fail(where, "names a group twice")
-        return tuple(value)
+        return analysis_table.read(table, overrides, self.fail, self.unknown)
 
     def body(self, data: Any, n: int) -> Body:
         where = f"[[body]] #{n + 1}"
@@ -309,12 +264,18 @@ class _Reader:
         bodies: dict[str, str] = {}
         values: dict[str, Any] = {}
         options: dict[str, str] = {}
+        readable = [n for n, what in names.items() if what == "body"]
+        self.state_bodies = readable if section == "force" and kind in state.TYPES else None
         for key in family.keys:
             kw = f"{where} key '{key.name}'"
             if key.name not in data:
                 if key.required:
                     raise self.fail(where, f"missing key '{key.name}'")
-                if key.kind == "flag":
+                if key.kind == "body":  # an expression constraint's j: ground
+                    bodies[key.role] = key.default  # type: ignore[index]
+                elif key.kind == "point":
+                    values[key.name] = tuple(sp.Integer(v) for v in key.default)
+                elif key.kind == "flag":
                     values[key.name] = key.default
                 elif key.default is not None:
                     values[key.name] = self.expr(key.default, kw)
@@ -322,12 +283,24 @@ class _Reader:
             raw = data[key.name]
             if key.kind == "body":
                 bodies[key.role] = self.body_name(raw, kw, names)  # type: ignore[index]
+            elif key.kind == "rows":  # an expression constraint's own rows
+                given = {r: b for r, b in bodies.items() if r != "j" or "j" in data}
+                more, options = expressions.read(raw, kw, given, self.params, self.row, self.fail)
+                values.update(more)
             else:
                 value = self.value(key, raw, kw)
                 if key.kind == "choice":
                     options[key.name] = value
                 else:
                     values[key.name] = value
+        self.state_bodies = None
+        if section == "force" and kind in state.TYPES:  # its terms of the state become its variant
+            timed = tuple(k.name for k in family.keys if k.kind in ("function", "function2"))
+            more, more_options, extra = state.generalize(values, timed, bodies["i"], readable,
+                                                         set(self.params.values()), where, self.fail)
+            values.update(more)
+            options.update(more_options)
+            bodies.update(extra)
         if family.resolve is not None:
             try:
                 values = family.resolve(values, where)
@@ -387,7 +360,7 @@ class _Reader:
 
     def check_counts(self, mech: Mechanism) -> None:
         ng = 3 * len(mech.bodies)
-        nc = sum(CONSTRAINTS[c.type].rows for c in mech.constraints)
+        nc = sum(family_of(c).rows for c in mech.constraints)
         if nc < ng:
             raise self.fail("[[constraint]]", f"{nc} constraint rows for {ng} coordinates: "
                             f"{ng - nc} missing (inverse dynamics needs one driver per degree of freedom)")

@@ -68,13 +68,13 @@ def read(table: Mapping[str, Any], parse: Callable[[Any, str], sp.Expr], fail: F
 
 
 def parse(value: Any, symbols: Mapping[str, sp.Expr], signals: Mapping[str, sp.Expr], time: bool, where: str,
-          fail: Callable[[str], InputError]) -> sp.Expr:
+          fail: Callable[[str], InputError], functions: Mapping[str, Any] | None = None) -> sp.Expr:
     """An expression of the file (`parse_expression`) of `symbols`, and of t and the signals where
     time is allowed (`time`: a signal's name stands for its expression); a constant (a parameter, a mass, a point) naming one
     is refused, with the reason."""
     # a view, not a copy: a file of 10^4 parameters parses 10^4 expressions
     names = ChainMap(signals, {"t": T}, symbols) if time else ChainMap({n: placeholder(n) for n in signals}, symbols)
-    expr = parse_expression(value, names, where, functions=LAWS)
+    expr = parse_expression(value, names, where, functions={**LAWS, **functions} if functions else LAWS)
     used = [] if time else sorted(n for n in signals if placeholder(n) in expr.free_symbols)
     if used:
         raise fail(f"uses the signal '{used[0]}', a function of t: this value is a constant "

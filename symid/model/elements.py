@@ -7,12 +7,13 @@ them and fills defaults, so no family parses files itself.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping
 
 import sympy as sp
 
 REQUIRED: Any = object()
+F_DRIVER = sp.Symbol("f", real=True)  # a driver's function of time (symid.symbolic.symbols.F_SERIES[0])
 
 # Key kinds:
 #   body     a body name or "ground"; `role` says which generic body it is
@@ -23,7 +24,8 @@ REQUIRED: Any = object()
 #   function2 two such expressions (a force's global components)
 #   choice   one of `choices` (selects a variant of the equations)
 #   flag     true or false
-KINDS = ("body", "point", "vector", "scalar", "function", "function2", "choice", "flag")
+#   rows     a list of expressions, one constraint row each (`type = "expression"`)
+KINDS = ("body", "point", "vector", "scalar", "function", "function2", "choice", "flag", "rows")
 
 
 @dataclass(frozen=True)
@@ -54,16 +56,16 @@ class Key:
         return self.symbol or self.name
 
 
-def body(name: str, role: str | None = None) -> Key:
-    return Key(name, "body", role=role or name)
+def body(name: str, role: str | None = None, default: Any = REQUIRED) -> Key:
+    return Key(name, "body", role=role or name, default=default)
 
 
 def scalar(name: str, symbol: str | None = None, default: Any = REQUIRED, rule: str | None = None) -> Key:
     return Key(name, "scalar", default=default, symbol=symbol, rule=rule)
 
 
-def point(name: str) -> Key:
-    return Key(name, "point")
+def point(name: str, default: Any = REQUIRED) -> Key:
+    return Key(name, "point", default=default)
 
 
 def vector(name: str, rule: str | None = None) -> Key:
@@ -94,6 +96,15 @@ class Family:
     keys: tuple[Key, ...]
     points: Mapping[str, str | None | Callable[[], sp.Matrix]]
     resolve: Callable[[dict[str, Any], str], dict[str, Any]] | None = field(default=None, compare=False)
+    # a family whose variants differ in size (the user's own expressions): options -> (a count, the
+    # variant's own constant symbols, beyond its keys', whose values an element holds in
+    # values["constants"]). The count: a constraint's rows, a force's bodies whose state it reads.
+    shape: Callable[[Mapping[str, Any]], tuple[int, tuple[sp.Symbol, ...]]] | None = field(
+        default=None, compare=False)
+
+    def own_constants(self, options: Mapping[str, Any]) -> tuple[sp.Symbol, ...]:
+        """The variant's constant symbols beyond its keys' (see `shape`)."""
+        return () if self.shape is None else self.shape(options)[1]
 
     @property
     def roles(self) -> tuple[str, ...]:
@@ -106,11 +117,24 @@ class Family:
 
 @dataclass(frozen=True)
 class ConstraintType(Family):
-    """A constraint family: `phi(options)` returns its rows on generic symbols."""
+    """A constraint family: `phi(options)` returns its rows on generic symbols.
+
+    With a `shape` (the user's own rows, `type = "expression"`), `at(options)`
+    is the family with that variant's rows, a driver when a row has the driver
+    function f.
+    """
 
     rows: int = 1
     phi: Callable[[Mapping[str, str]], list[sp.Expr]] = field(default=lambda o: [], compare=False)
     is_driver: bool = False
+
+    def at(self, options: Mapping[str, Any]) -> "ConstraintType":
+        """The family as the variant of `options` has it (its rows, its driver flag)."""
+        if self.shape is None:
+            return self
+        rows, _ = self.shape(options)
+        driver = any(e.has(F_DRIVER) for e in self.phi(options))
+        return replace(self, rows=rows, is_driver=driver)
 
 
 @dataclass(frozen=True)
@@ -124,6 +148,15 @@ class ForceType(Family):
     loads: Callable[[Mapping[str, str]], Mapping[str, tuple[sp.Expr, sp.Expr, sp.Expr]]] = field(
         default=lambda o: {}, compare=False
     )
+
+    def at(self, options: Mapping[str, Any]) -> "ForceType":
+        """The family as the variant of `options` has it: with a `shape`, the bodies
+        whose state its expressions read as roles b1, b2, ... after its own."""
+        count = 0 if self.shape is None else self.shape(options)[0]
+        if not count:
+            return self
+        return replace(self, keys=self.keys + tuple(body(f"b{k + 1}") for k in range(count)),
+                       points={**self.points, **{f"b{k + 1}": None for k in range(count)}})
 
 
 def registry_lookup(registry: Mapping[str, Any], name: str, what: str) -> Any:

@@ -72,6 +72,15 @@ class Element:
     friction: Mapping[str, sp.Expr] = field(default_factory=dict)
 
 
+DRIVER_TYPES = ("relative_angle_driver", "coordinate_driver", "distance_driver", "translational_driver")
+
+
+def is_driver(c: Element) -> bool:
+    """A driver constraint: a built-in driver, or an expression constraint whose row has t
+    (its time part f(t) split off when read: `values["f"]`)."""
+    return c.type in DRIVER_TYPES or (c.type == "expression" and "f" in c.values)
+
+
 @dataclass(frozen=True)
 class Mechanism:
     """A whole mechanism: bodies, constraints, forces and the analysis.

@@ -116,7 +116,9 @@ class Summary:
 
 def drivers(mechanism: Mechanism) -> list[Element]:
     """The driver constraints, in file order."""
-    return [c for c in mechanism.constraints if c.type in DRIVERS]
+    from symid.model.mechanism import is_driver  # loaded already: `mechanism` is one
+
+    return [c for c in mechanism.constraints if is_driver(c)]
 
 
 def _sources(c: Element) -> list[str]:
@@ -201,6 +203,9 @@ def source(c: Element, columns: Sequence[str]) -> Source | None:
     if c.type == "translational_driver":
         return Source(c.name, c.type, "force", "N", "m/s",
                       f"force on {c.bodies['j']} along the slide, positive towards +vi", column)
+    if c.type == "expression":
+        return Source(c.name, c.type, "effort", "(J per unit of the row)", "(row units)/s",
+                      "-lambda: the generalized force driving the row's g(q) = f(t), positive along +g", column)
     coordinate = c.options["coordinate"]
     if coordinate == "phi":
         return Source(c.name, c.type, "torque", "N·m", "rad/s",

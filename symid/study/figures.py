@@ -12,12 +12,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from symid.errors import AnalysisError
-from symid.model.mechanism import Mechanism
+from symid.model.mechanism import Mechanism, is_driver
 
 # Why a variant's run stopped (index = code); "ok" when it ran to t1.
 STATUS = ("ok", "not_converged", "singular", "jump", "nonfinite")
 DRIVER_FIGURES = ("effort_peak", "effort_t_peak", "effort_rms", "power_peak")
-DRIVERS = ("relative_angle_driver", "coordinate_driver", "distance_driver", "translational_driver")
 
 
 def figure_names(mechanism: Mechanism) -> tuple[str, ...]:
@@ -25,7 +24,7 @@ def figure_names(mechanism: Mechanism) -> tuple[str, ...]:
     a = mechanism.analysis
     if a.kind == "kinematics":  # no forces solved: no efforts, no reactions
         return ()
-    names = [f"{c.name}.{f}" for c in mechanism.constraints if c.type in DRIVERS for f in DRIVER_FIGURES]
+    names = [f"{c.name}.{f}" for c in mechanism.constraints if is_driver(c) for f in DRIVER_FIGURES]
     names += [f"{name}.force_peak" for name in mechanism.chosen_reactions]
     return tuple(names)
 

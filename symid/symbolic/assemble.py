@@ -14,9 +14,9 @@ from typing import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from symid.symbolic.constraints import TYPES as CONSTRAINTS
+from symid.symbolic.constraints import TYPES as CONSTRAINTS, family_of
 from symid.symbolic.derive import DerivedConstraint, DerivedForce, derive_constraint, derive_force, signature
-from symid.model.elements import Family
+from symid.model.elements import ConstraintType, Family
 from symid.symbolic.forces import TYPES as FORCES
 from symid.model.mechanism import GROUND, Element, Mechanism
 from symid.symbolic import symbols as s
@@ -115,6 +115,8 @@ def _element_values(family: Family, derived_constants: tuple[sp.Symbol, ...], el
                     ) -> tuple[sp.Expr, ...]:
     """The values of the derived constant symbols for one element."""
     by_symbol: dict[sp.Symbol, sp.Expr] = {}
+    # the parameters of the user's own expressions (an expression constraint, a force of the state)
+    by_symbol.update(zip(family.own_constants(element.options), element.values.get("constants", ())))
     for key in family.keys:
         value = element.values.get(key.name)
         if key.kind in ("point", "vector"):
@@ -125,6 +127,8 @@ def _element_values(family: Family, derived_constants: tuple[sp.Symbol, ...], el
 
 
 def _element_functions(family: Family, element: Element) -> tuple[sp.Expr, ...]:
+    if isinstance(family, ConstraintType) and family.shape is not None:  # a driver row's f(t), split off
+        return (element.values["f"],) if "f" in element.values else ()  # type: ignore[return-value]
     out: list[sp.Expr] = []
     for key in family.keys:
         if key.kind == "function":
@@ -142,7 +146,7 @@ def _groups(elements: tuple[Element, ...], registry: Mapping[str, Family], kind:
         keyed.setdefault((element.type, variant), []).append(n)
     groups = []
     for (name, variant), members in keyed.items():
-        family = registry[name]
+        family = registry[name].at(dict(variant))  # type: ignore[attr-defined]
         constants, _ = signature(kind, name, variant)
         bodies = {role: np.array([body_index[elements[m].bodies[role]] for m in members], dtype=np.intp)
                   for role in family.roles}
@@ -167,7 +171,7 @@ def assemble(mech: Mechanism) -> Layout:
     row_of: dict[str, tuple[int, int]] = {}
     row = 0
     for c in mech.constraints:
-        rows = CONSTRAINTS[c.type].rows
+        rows = family_of(c).rows
         starts.append(row)
         row_of[c.name] = (row, rows)
         row += rows

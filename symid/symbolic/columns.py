@@ -18,7 +18,7 @@ GROUP_SUFFIXES = {"q": ("x", "y", "phi"), "qdot": ("vx", "vy", "omega"), "qddot"
 def columns(layout: Layout, analysis: Analysis) -> list[str]:
     """The CSV header: `t`, then each requested group in contract order."""
     from symid.symbolic.assemble import reaction_columns
-    from symid.symbolic.constraints import TYPES as CONSTRAINTS
+    from symid.symbolic.constraints import family_of
 
     mech = layout.mechanism
     out = ["t"]
@@ -27,7 +27,7 @@ def columns(layout: Layout, analysis: Analysis) -> list[str]:
             out += [f"{b.name}.{c}" for b in mech.bodies for c in GROUP_SUFFIXES[group]]
         elif group == "lambda":
             for c in mech.constraints:
-                rows = CONSTRAINTS[c.type].rows
+                rows = family_of(c).rows
                 out += [f"{c.name}.lambda"] if rows == 1 else [f"{c.name}.lambda{k + 1}" for k in range(rows)]
         else:
             out += [col for _, col in reaction_columns(layout, analysis.reactions)]

@@ -23,7 +23,7 @@ from symid.symbolic.forces import TYPES as FORCES
 Variant = tuple[tuple[str, str], ...]
 
 
-def constants_of(family: Family, used: set[sp.Basic]) -> tuple[sp.Symbol, ...]:
+def constants_of(family: Family, used: set[sp.Basic], options: Variant = ()) -> tuple[sp.Symbol, ...]:
     """The per-instance constant symbols the equations `used`, in key order.
 
     Points and vectors give two symbols, scalars one; keys that only feed a
@@ -36,13 +36,18 @@ def constants_of(family: Family, used: set[sp.Basic]) -> tuple[sp.Symbol, ...]:
             out.extend(s.point(key.name))
         elif key.kind == "scalar":
             out.append(s.scalar(key.symbol_name()))
+    if family.shape is not None:
+        # the user's expressions: their parameters (c_k), and the reaction points though no row uses them
+        out.extend(family.own_constants(dict(options)))
+        used = set(used) | {x for key in family.points.values() if isinstance(key, str) for x in s.point(key)}
     return tuple(c for c in out if c in used)
 
 
 def time_functions_of(family: Family) -> tuple[sp.Symbol, ...]:
     """The symbols standing for the values of the family's time functions."""
     if isinstance(family, ConstraintType):
-        return s.F_SERIES[:3] if any(k.kind == "function" for k in family.keys) else ()
+        timed = family.is_driver if family.shape is not None else any(k.kind == "function" for k in family.keys)
+        return s.F_SERIES[:3] if timed else ()
     out: list[sp.Symbol] = []
     for key in family.keys:
         if key.kind == "function":
@@ -96,17 +101,17 @@ def signature(kind: str, name: str, options: Variant = ()) -> tuple[tuple[sp.Sym
 @cache
 def _signature(kind: str, name: str, options: Variant) -> tuple[tuple[sp.Symbol, ...], tuple[sp.Symbol, ...]]:
     if kind == "constraint":
-        family: Family = CONSTRAINTS[name]
+        family: Family = CONSTRAINTS[name].at(dict(options))
         used = sp.Matrix(family.phi(dict(options))).free_symbols  # type: ignore[attr-defined]
     else:
-        family = FORCES[name]
+        family = FORCES[name].at(dict(options))
         used = set()
         for role, load in family.loads(dict(options)).items():  # type: ignore[attr-defined]
             used |= sp.Matrix(load).free_symbols
             key = family.points[role]
             if key is not None:
                 used |= set(s.point(key))
-    return constants_of(family, used), time_functions_of(family)
+    return constants_of(family, used, options), time_functions_of(family)
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,7 +148,7 @@ def derive_constraint(name: str, options: Variant = ()) -> DerivedConstraint:
 
 @cache
 def _derive_constraint(name: str, options: Variant) -> DerivedConstraint:
-    family = CONSTRAINTS[name]
+    family = CONSTRAINTS[name].at(dict(options))
     roles = family.roles
     phi = sp.Matrix(family.phi(dict(options)))
     jac = {role: phi.jacobian(sp.Matrix(s.q(role))) for role in roles}
@@ -163,7 +168,7 @@ def _derive_constraint(name: str, options: Variant) -> DerivedConstraint:
         gamma=gamma.applyfunc(_tidy),
         reactions={r: m.applyfunc(_tidy) for r, m in reactions.items()},
         lam=lam,
-        constants=constants_of(family, phi.free_symbols),
+        constants=constants_of(family, phi.free_symbols, options),
         functions=time_functions_of(family),
     )
 
@@ -201,7 +206,7 @@ def derive_force(name: str, options: Variant = ()) -> DerivedForce:
 
 @cache
 def _derive_force(name: str, options: Variant) -> DerivedForce:
-    family = FORCES[name]
+    family = FORCES[name].at(dict(options))
     loads = {role: sp.Matrix(v) for role, v in family.loads(dict(options)).items()}
     generalized = {}
     for role, (fx, fy, torque) in loads.items():
@@ -213,6 +218,6 @@ def _derive_force(name: str, options: Variant) -> DerivedForce:
         options=options,
         generalized=generalized,
         loads=loads,
-        constants=constants_of(family, set().union(*(m.free_symbols for m in generalized.values()))),
+        constants=constants_of(family, set().union(*(m.free_symbols for m in generalized.values())), options),
         functions=time_functions_of(family),
     )

@@ -8,7 +8,7 @@ added by the assembly.
 
 from __future__ import annotations
 
-from typing import Mapping
+from typing import Any, Mapping
 
 import sympy as sp
 
@@ -18,12 +18,42 @@ from symid.model.elements import ForceType, Key, body, function, point, scalar
 Load = tuple[sp.Expr, sp.Expr, sp.Expr]
 
 
-def _point_force(o: Mapping[str, str]) -> dict[str, Load]:
-    return {"i": (s.scalar("Fx"), s.scalar("Fy"), sp.Integer(0))}
+# A point force's or a torque's expressions may read the state of bodies (`vx(cart)`): the
+# reader splits each into its terms of t (the function's value, as before) and its terms of
+# the state, written here on generic symbols (options["state"]: Fx, Fy or T), the force's own
+# body as role i and every other body it reads as b1, b2, ... (symid.io.state).
+STATE_CONSTANT = "c_"
 
 
-def _torque(o: Mapping[str, str]) -> dict[str, Load]:
-    return {"i": (sp.Integer(0), sp.Integer(0), s.scalar("T"))}
+def state_roles(o: Mapping[str, Any]) -> int:
+    """How many bodies beyond its own a force's state terms read (roles b1, b2, ...)."""
+    used = {x.name for x in sp.Tuple(*o.get("state", ())).free_symbols}
+    return max((k for k in range(1, len(used) + 1) if any(f"{c}_b{k}" in used for c in ("x", "y", "phi", "xd",
+                                                                                       "yd", "phid"))), default=0)
+
+
+def _state_shape(o: Mapping[str, Any]) -> tuple[int, tuple[sp.Symbol, ...]]:
+    used = sp.Tuple(*o.get("state", ())).free_symbols
+    count = sum(1 for x in used if x.name.startswith(STATE_CONSTANT))
+    return state_roles(o), tuple(s.scalar(f"{STATE_CONSTANT}{k}") for k in range(count))
+
+
+def _readers(o: Mapping[str, Any]) -> dict[str, Load]:
+    zero = sp.Integer(0)
+    return {f"b{k + 1}": (zero, zero, zero) for k in range(state_roles(o))}
+
+
+def _point_force(o: Mapping[str, Any]) -> dict[str, Load]:
+    fx, fy = s.scalar("Fx"), s.scalar("Fy")
+    if "state" in o:
+        gx, gy = o["state"]
+        fx, fy = fx + gx, fy + gy
+    return {"i": (fx, fy, sp.Integer(0)), **_readers(o)}
+
+
+def _torque(o: Mapping[str, Any]) -> dict[str, Load]:
+    torque = s.scalar("T") + (o["state"][0] if "state" in o else 0)
+    return {"i": (sp.Integer(0), sp.Integer(0), torque), **_readers(o)}
 
 
 def _velocity(role: str, key: str) -> sp.Matrix:
@@ -56,12 +86,14 @@ point_force = ForceType(
     keys=(body("body", role="i"), point("s"), Key("F", "function2", symbol="F")),
     points={"i": "s"},
     loads=_point_force,
+    shape=_state_shape,
 )
 torque = ForceType(
     name="torque",
     keys=(body("body", role="i"), function("T")),
     points={"i": None},
     loads=_torque,
+    shape=_state_shape,
 )
 spring_damper = ForceType(
     name="spring_damper",

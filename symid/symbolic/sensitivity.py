@@ -187,7 +187,10 @@ def _force(name: str, options: Variant) -> ForceSensitivity:
     blocks = _blocks(d)
     args = [x for b in blocks.values() for x in b]
     generalized = [e for r in d.roles for e in d.generalized[r]]
-    return ForceSensitivity(derived=d, blocks=blocks, generalized=_jacobian(generalized, args))
+    jac = _jacobian(generalized, args)
+    if jac.has(sp.DiracDelta):  # sign(v)'s derivative: 0 but at the kink, where no derivative is exact
+        jac = jac.applyfunc(lambda e: e.replace(sp.DiracDelta, lambda *a: sp.Integer(0)))
+    return ForceSensitivity(derived=d, blocks=blocks, generalized=jac)
 
 
 def sensitivity_of(group: Group) -> ConstraintSensitivity | ForceSensitivity:

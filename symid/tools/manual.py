@@ -81,7 +81,8 @@ def type_help(name: str) -> str:
     for key in family.keys:
         kind = {"function": "expression of t", "function2": "two expressions of t",
                 "choice": "one of " + ", ".join(f'"{c}"' for c in key.choices),
-                "flag": "true or false", "scalar": "number"}.get(key.kind, key.kind)
+                "flag": "true or false", "scalar": "number",
+                "rows": "list of expressions, one per row"}.get(key.kind, key.kind)
         lines.append(f"  {key.name:<{width}}  {kind}, {_default(key)}")
     if friction:
         lines.append(f"  {'friction':<{width}}  inline table {{ mu, radius, viscous, arm, v_smooth }}, optional "
@@ -89,7 +90,9 @@ def type_help(name: str) -> str:
     if section_name == "constraint":
         lam = ["C.lambda"] if family.rows == 1 else [f"C.lambda{k + 1}" for k in range(family.rows)]
         reactions = [f"C.{c}_{role}" for role in family.roles for c in ("Fx", "Fy", "T")]
-        lines += ["", f"rows: {family.rows}; multiplier columns: {' '.join(lam)}",
+        rows = f"rows: {family.rows}; multiplier columns: {' '.join(lam)}" if family.shape is None else (
+            "rows: one per entry of phi; multiplier columns: C.lambda (one row) or C.lambda1 C.lambda2 ...")
+        lines += ["", rows,
                   f"reaction columns: {' '.join(reactions)}  (C: the constraint's name)"]
         if friction:
             lines.append("with friction, after all others: C.friction C.friction_power (not in statics)")

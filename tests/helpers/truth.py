@@ -31,6 +31,7 @@ REACTION_POINT = {
     "gear": {"i": None, "j": None},
     "gear_on_link": {"i": None, "j": None, "k": None},
     "rack_and_pinion": {"i": "pitch", "j": "pitch"},  # moves on both bodies: see pitch_point
+    "expression": {"i": "si", "j": "sj"},  # the user's rows: where the file says
 }
 
 
@@ -61,6 +62,18 @@ class Truth:
         """An expression of t and parameters (or its d^order/dt^order) over the run."""
         e = sp.diff(sp.sympify(expr), T, order).xreplace({k: sp.Float(v, 17) for k, v in self.values.items()})
         return np.broadcast_to(np.asarray(sp.lambdify(T, e, "numpy")(self.t), dtype=float), (self.n,))
+
+    def of_state(self, expr: sp.Expr) -> np.ndarray:
+        """An expression of t, the parameters and the state functions x(B)... as the
+        file wrote it (the reader's placeholder `_state_vx_B` is the column `B.vx`)."""
+        e = sp.sympify(expr).xreplace({k: sp.Float(v, 17) for k, v in self.values.items()})
+        states = sorted((x for x in e.free_symbols if x.name.startswith("_state_")), key=lambda x: x.name)
+        columns = []
+        for x in states:
+            function, _, body = x.name[len("_state_"):].partition("_")
+            columns.append(self.res[f"{body}.{function}"])
+        fn = sp.lambdify([T, *states], e, "numpy")
+        return np.broadcast_to(np.asarray(fn(self.t, *columns), dtype=float), (self.n,))
 
     def state(self, body: str) -> dict[str, np.ndarray]:
         """r, phi, v, omega, a, alpha of a body (ground: zeros)."""
@@ -98,11 +111,13 @@ class Truth:
             if f.type == "point_force":
                 body = f.bodies["i"]
                 p, _ = self.point(body, v["s"])
-                force = np.stack([self.fn(v["F"][0]), self.fn(v["F"][1])], 1)
+                written = v.get("written", v["F"])  # as the file has it, state functions and all
+                force = np.stack([self.of_state(written[0]), self.of_state(written[1])], 1)
                 loads.append(Load(body, p, force, np.zeros(self.n)))
             elif f.type == "torque":
                 body = f.bodies["i"]
-                loads.append(Load(body, self.state(body)["r"], np.zeros((self.n, 2)), self.fn(v["T"])))
+                torque = self.of_state(v.get("written", (v["T"],))[0])
+                loads.append(Load(body, self.state(body)["r"], np.zeros((self.n, 2)), torque))
             elif f.type == "spring_damper":
                 bi, bj = f.bodies["i"], f.bodies["j"]
                 pi, vi = self.point(bi, v["si"])
@@ -175,7 +190,7 @@ class Truth:
         f, fd = self.fn(c.values["f"]), self.fn(c.values["f"], 1)
         if c.type == "distance_driver":
             return -2 * f * fd
-        if c.type in ("relative_angle_driver", "coordinate_driver", "translational_driver"):
+        if c.type in ("relative_angle_driver", "coordinate_driver", "translational_driver", "expression"):
             return -fd
         raise AssertionError(f"{c.type} is not a driver")
 

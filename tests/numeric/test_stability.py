@@ -492,6 +492,16 @@ TYPE_DIMENSION = {("spring_damper", "k"): _MASS, ("spring_damper", "c"): _MASS,
                   ("rack_and_pinion", "r"): _LEN, ("rack_and_pinion", "C"): _LEN}
 
 
+# lengths written into expression rows by name (disc_cam's pitch curve): scaled where the rows use them
+ROW_LENGTHS = ("R0", "h")
+
+
+def _rows_scaled(rows: list[str], u: float) -> list[str]:
+    import re
+
+    return [re.sub(r"\b(" + "|".join(ROW_LENGTHS) + r")\b", lambda m: f"({m.group(1)}*{u!r})", r) for r in rows]
+
+
 def _scaled(value, dim: tuple[int, int], u: float, m: float):
     factor = u ** dim[0] * m ** dim[1]
     if dim == (0, 0):
@@ -514,7 +524,8 @@ def in_units(text: str, u: float, m: float) -> str:
             dim = TYPE_DIMENSION.get((element["type"], key), KEY_DIMENSION.get(key, (0, 0)))
             if element["type"] == "coordinate_driver" and key == "f" and element["coordinate"] != "phi":
                 dim = _LEN
-            element[key] = _scaled(element[key], dim, u, m)
+            element[key] = (_rows_scaled(element[key], u) if (element["type"], key) == ("expression", "phi")
+                            else _scaled(element[key], dim, u, m))
         if "friction" in element:  # contract v1.1: a pin's viscous is a torque per rad/s, a slide's a force per m/s
             pin = element["type"] == "revolute"
             dims = {"radius": _LEN, "arm": _LEN, "viscous": _TORQUE if pin else _MASS,

@@ -18,7 +18,7 @@ from symid.codegen.emit import block
 from symid.codegen.flat import parameter_map
 from symid.codegen.model import CodeModel
 from symid.model.mechanism import T
-from symid.symbolic.constraints import TYPES as CONSTRAINTS
+from symid.symbolic.constraints import TYPES as CONSTRAINTS, family_of
 
 # instants solved per call of the trajectory loop inside the sweep: the rows
 # stay in the first-level cache while their figures are taken
@@ -51,7 +51,7 @@ def _drivers(model: CodeModel) -> list[dict[str, Any]]:
     mech = model.layout.mechanism
     out = []
     for c in mech.constraints:
-        if CONSTRAINTS[c.type].is_driver:
+        if family_of(c).is_driver:
             row, rows = model.layout.row_of[c.name]
             assert rows == 1, c.name  # a driver constrains one coordinate
             out.append({"name": c.name, "lam": lam + row, "distance": c.type == "distance_driver",
