@@ -12,7 +12,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                               "  symid help revolute    # one type: keys, defaults, columns\n"
                               "  symid help claims      # the claim-file format of symid verify")
     p.add_argument("topic", nargs="?", metavar="TOPIC",
-                   help="format, a docs page (claims, motion, symbols, analysis-options, faults) or a constraint or "
+                   help="format, a docs page (claims, motion, symbols, analysis-options, faults, controller) or a constraint or "
                         "force type; omit to list them")
     p.set_defaults(run=run)
 
