@@ -363,12 +363,14 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
    qd_des[k] and second rate qdd_des[k] (size ND each, drivers in this
    order; each value in the units of the driver's f in the mechanism file):
      [0] motor (relative_angle_driver, constraint row 20)
-   Its effort is lam[setpoint_rows[k]] and its loads on the bodies are in
-   reactions. The other functions of time (applied forces, actuator
-   forces) are read at t, as instant reads them. Arguments and outputs as
-   instant's; qd_des and qdd_des are required; a set-point that is
-   not finite returns BAD_ARGUMENT. Fed the values the compiled law gives
-   at t, it returns instant's results at t (to rounding). */
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
 #define ANDREWS_SQUEEZER_ND 1        /* drivers */
 extern const int andrews_squeezer_setpoint_rows[ANDREWS_SQUEEZER_ND];
 int andrews_squeezer_setpoint(andrews_squeezer_real t, const andrews_squeezer_real *p, andrews_squeezer_real tol, const andrews_squeezer_real *q_des,

@@ -260,12 +260,14 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
      [0] boom_cylinder (distance_driver, constraint row 6)
      [1] stick_cylinder (distance_driver, constraint row 7)
      [2] bucket_cylinder (distance_driver, constraint row 8)
-   Its effort is lam[setpoint_rows[k]] and its loads on the bodies are in
-   reactions. The other functions of time (applied forces, actuator
-   forces) are read at t, as instant reads them. Arguments and outputs as
-   instant's; qd_des and qdd_des are required; a set-point that is
-   not finite returns BAD_ARGUMENT. Fed the values the compiled law gives
-   at t, it returns instant's results at t (to rounding). */
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
 #define EXCAVATOR_ND 3        /* drivers */
 extern const int excavator_setpoint_rows[EXCAVATOR_ND];
 int excavator_setpoint(excavator_real t, const excavator_real *p, excavator_real tol, const excavator_real *q_des,

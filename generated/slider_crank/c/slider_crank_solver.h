@@ -244,12 +244,14 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
    qd_des[k] and second rate qdd_des[k] (size ND each, drivers in this
    order; each value in the units of the driver's f in the mechanism file):
      [0] motor (relative_angle_driver, constraint row 8)
-   Its effort is lam[setpoint_rows[k]] and its loads on the bodies are in
-   reactions. The other functions of time (applied forces, actuator
-   forces) are read at t, as instant reads them. Arguments and outputs as
-   instant's; qd_des and qdd_des are required; a set-point that is
-   not finite returns BAD_ARGUMENT. Fed the values the compiled law gives
-   at t, it returns instant's results at t (to rounding). */
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
 #define SLIDER_CRANK_ND 1        /* drivers */
 extern const int slider_crank_setpoint_rows[SLIDER_CRANK_ND];
 int slider_crank_setpoint(slider_crank_real t, const slider_crank_real *p, slider_crank_real tol, const slider_crank_real *q_des,

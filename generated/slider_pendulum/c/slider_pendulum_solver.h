@@ -234,12 +234,14 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
    order; each value in the units of the driver's f in the mechanism file):
      [0] carriage_actuator (translational_driver, constraint row 2)
      [1] pendulum_motor (relative_angle_driver, constraint row 5)
-   Its effort is lam[setpoint_rows[k]] and its loads on the bodies are in
-   reactions. The other functions of time (applied forces, actuator
-   forces) are read at t, as instant reads them. Arguments and outputs as
-   instant's; qd_des and qdd_des are required; a set-point that is
-   not finite returns BAD_ARGUMENT. Fed the values the compiled law gives
-   at t, it returns instant's results at t (to rounding). */
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
 #define SLIDER_PENDULUM_ND 2        /* drivers */
 extern const int slider_pendulum_setpoint_rows[SLIDER_PENDULUM_ND];
 int slider_pendulum_setpoint(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, const slider_pendulum_real *q_des,

@@ -106,14 +106,15 @@ def context(model: CodeModel, red: c_phase.Reduced | None, make: Callable[..., d
     if not r.drivers:
         return None
     o = model.flat.options
-    phi = r.phi
+    phi, wrapped = r.phi, []
     if red is not None:
-        wrapped = set(red.wrapped_rows)
         angles = set(c_phase._angles(model.flat.ng))
         out = []
         for d, e in zip(r.drivers, phi):
-            coefficients = c_phase._periodic(e, angles) if d.row in wrapped else None
+            coefficients = c_phase._periodic(e, angles) if d.row in red.wrapped_rows else None
             out.append(c_phase.Phases().row(e, coefficients) if coefficients else e)
+            if coefficients:
+                wrapped.append(d.name)
         phi = out
     cv = lambda name: (f"const {real} *", name)  # noqa: E731
     args = [cv("q"), cv("qd"), cv("q_des"), cv("qd_des"), cv("qdd_des"), cv("p")]
@@ -124,7 +125,7 @@ def context(model: CodeModel, red: c_phase.Reduced | None, make: Callable[..., d
                     _at_rows(make("sp_gamma", args, r.gamma, trig, printer, real), where)]
     sens = _sensitivity(model, r, make, trig, printer, real) if o.sensitivity else []
     texts = [e for fn in kernels + sens for ch in fn["chunks"] for _, e in ch["block"].temps + ch["block"].outputs]
-    return {"drivers": r.drivers, "nd": len(r.drivers), "kernels": kernels, "sens_kernels": sens,
+    return {"drivers": r.drivers, "nd": len(r.drivers), "kernels": kernels, "sens_kernels": sens, "wrapped": wrapped,
             "uses_powi": any(f"{model.flat.name}_powi(" in e for e in texts)}
 
 
