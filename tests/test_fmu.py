@@ -112,7 +112,7 @@ def test_fmu_holds_sources_and_model_description_and_takes_tunable_parameters(tm
     path = _fmu("slider_crank", tmp_path)
     names = zipfile.ZipFile(path).namelist()
     assert "modelDescription.xml" in names and any(n.startswith("binaries/") for n in names)
-    assert {"sources/slider_crank_solver.c", "sources/slider_crank_solver.h", "sources/slider_crank_fmi2.c"} <= set(names)
+    assert {f"sources/slider_crank_{f}" for f in ("solver.c", "solver.h", "fmi2.c")} <= set(names)
     md = read_model_description(str(path))
     m = next(v for v in md.modelVariables if v.name == "m_slider")
     assert (m.causality, m.variability) == ("parameter", "tunable")
@@ -197,3 +197,29 @@ def test_fmu_reads_time_when_only_time_changes(tmp_path: Path) -> None:
     expected = out["lam"]
     assert np.max(np.abs(second[lam] - expected)) <= 1e-12 * np.max(np.abs(expected))
     assert np.max(np.abs(second[lam] - first[lam])) > 1e-3 * np.max(np.abs(expected))  # the load moved them
+
+
+@needs_cc
+def test_a_set_point_the_solver_refuses_is_an_fmi2_error_logged_with_time_and_status(tmp_path: Path, capfd) -> None:
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Model, fmi2Error
+    from fmpy.fmi1 import FMICallException
+
+    path = _fmu("slider_crank", tmp_path / "fmu")
+    md = read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    model = FMU2Model(guid=md.guid, unzipDirectory=extract(str(path), str(tmp_path / "unzipped")),
+                      modelIdentifier=md.modelExchange.modelIdentifier, instanceName="sc")
+    model.instantiate(loggingOn=True)  # FMPy's default logger prints each message
+    model.setupExperiment(startTime=0.0)
+    model.enterInitializationMode()
+    model.exitInitializationMode()
+    model.enterContinuousTimeMode()
+    model.setTime(0.01)
+    model.setReal([vr["motor.q_des"]], [float("nan")])
+    with pytest.raises(FMICallException) as raised:
+        model.getReal([vr["motor.lambda"]])
+    assert raised.value.status == fmi2Error
+    model.freeInstance()
+    said = capfd.readouterr().out
+    assert "t = 0.01" in said and "an input or parameter is not finite (status 5)" in said, said

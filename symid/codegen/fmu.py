@@ -22,6 +22,7 @@ and the solver's status (category logStatusError).
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import shlex
 import shutil
@@ -67,7 +68,9 @@ def _law_values(model: CodeModel, t: float) -> list[tuple[float, float, float]]:
 
 
 def _xml_number(v: float) -> str:
-    return repr(float(v))
+    """A real as modelDescription.xml writes it (finite: a law undefined at t0,
+    a table's span past it, starts at 0)."""
+    return repr(float(v)) if math.isfinite(v) else "0.0"
 
 
 def context(model: CodeModel) -> dict[str, Any]:

@@ -25,7 +25,6 @@ from symid.codegen.emit import Block
 from symid.codegen.flat import _role_map, parameter_map, vector
 from symid.codegen.model import CodeModel
 from symid.codegen.targets import c_phase
-from symid.symbolic import symbols as s
 from symid.symbolic.derive import DerivedConstraint
 from symid.symbolic.rounding import grouped
 
@@ -129,13 +128,6 @@ def context(model: CodeModel, red: c_phase.Reduced | None, make: Callable[..., d
             "uses_powi": any(f"{model.flat.name}_powi(" in e for e in texts)}
 
 
-def _plain(e: sp.Expr) -> sp.Expr:
-    """e without its `Grouped` marks (a rounding order, not a function to differentiate)."""
-    from symid.symbolic.rounding import Grouped
-
-    return sp.sympify(e).replace(Grouped, lambda a: a)
-
-
 def _sensitivity(model: CodeModel, r: Rows, make: Callable[..., dict[str, Any]], trig: dict[sp.Expr, sp.Symbol],
                  printer: Callable[[sp.Expr], str], real: str) -> list[dict[str, Any]]:
     """Kernels writing the driver rows of the sensitivity stages q, qdot and
@@ -156,14 +148,14 @@ def _sensitivity(model: CodeModel, r: Rows, make: Callable[..., dict[str, Any]],
         sq = vector("sq", ng * (k + 1))[k * ng:]
         sqd = vector("sqd", ng * (k + 1))[k * ng:]
         for d, phi, nu, gamma in zip(r.drivers, r.phi, r.nu, r.gamma):
-            e = _plain(phi)
+            e = c_phase._plain(phi)
             grad = [sp.diff(e, x) for x in q]
             where.append(k * ng + d.row)
             stages["q"].append(-sp.diff(e, pk))
             if not o.velocity:
                 continue
-            rv = sp.Add(*[g * v for g, v in zip(grad, qd) if g != 0]) - _plain(nu)
-            ra = sp.Add(*[g * a for g, a in zip(grad, qdd) if g != 0]) - _plain(gamma)
+            rv = sp.Add(*[g * v for g, v in zip(grad, qd) if g != 0]) - c_phase._plain(nu)
+            ra = sp.Add(*[g * a for g, a in zip(grad, qdd) if g != 0]) - c_phase._plain(gamma)
             stages["qdot"].append(-(sp.Add(*[sp.diff(rv, x) * s for x, s in zip(q, sq)]) + sp.diff(rv, pk)))
             stages["qddot"].append(-(sp.Add(*[sp.diff(ra, x) * s for x, s in zip(q, sq)])
                                      + sp.Add(*[sp.diff(ra, v) * s for v, s in zip(qd, sqd)]) + sp.diff(ra, pk)))
