@@ -39,9 +39,10 @@ needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler"
 class Solver:
     """A generated solver compiled into a shared library, in one precision."""
 
-    def __init__(self, source: str, folder: Path, precision: str = "double", sensitivity: str | None = None) -> None:
+    def __init__(self, source: str, folder: Path, precision: str = "double", sensitivity: str | None = None,
+                 of: str | None = None) -> None:
         self.mech = loads(source, "mech.toml")
-        model = api._sensitivity_model(self.mech, "c", sensitivity, None) if sensitivity else code_model(self.mech)
+        model = api._sensitivity_model(self.mech, "c", sensitivity, of) if sensitivity else code_model(self.mech)
         c_target.generate(model, folder, precision=precision)
         self.ctx = c_target.context(model, precision=precision)
         self.name, self.ng, self.nc, self.nr = model.name, self.ctx["ng"], self.ctx["nc"], self.ctx["nr"]
@@ -301,3 +302,25 @@ def test_setpoint_sensitivities_are_central_differences_with_the_setpoints_held(
             scale = np.max(np.abs(base)) / max(abs(solver.p[j]), 1e-2) + np.max(np.abs(fd))
             assert np.max(np.abs(got[:, k] - fd)) <= 1e-6 * scale, (name, np.max(np.abs(got[:, k] - fd)) / scale)
         assert np.max(np.abs(got[:, names.index(law_only)])) == 0.0  # read by the driver's law only
+
+
+@needs_cc
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_position_only_sensitivities_compile_strictly_and_hold_the_crank(tmp_path: Path, precision: str) -> None:
+    """Sensitivities of q columns only (no rate or multiplier stage): the
+    solver builds with -Werror (no set-point kernel, and no transposed
+    solve, left unused), and the crank's angle, a set-point, does not move
+    with the slider's mass."""
+    solver = Solver(api.example("slider_crank").read_text(), tmp_path, precision, sensitivity="m_slider,L_rod",
+                    of="crank.phi,slider.x")
+    fn = getattr(solver.lib, f"{solver.name}_setpoint_sensitivity")
+    fn.restype = ctypes.c_int
+    t = 0.013
+    sens = np.full(4, np.nan, solver.real)
+    work, iwork = np.zeros(solver.ctx["work"], solver.real), np.zeros(solver.ng, np.intc)
+    status = fn(solver.ct(t), solver._ptr(solver.p), solver.ct(1e-12 if precision == "double" else 1e-6),
+                *(solver._ptr(np.asarray(d, solver.real)) for d in laws(solver.mech, t)), solver._ptr(solver.q0.copy()),
+                solver._ptr(sens), None, solver._ptr(work), solver._ptr(iwork))
+    assert status == OK
+    assert sens[0] == 0.0 and sens[1] == 0.0  # d(crank.phi)/d(m_slider), d(crank.phi)/d(L_rod): the set-point's
+    assert sens[2] == 0.0 and abs(sens[3]) > 0.5  # the slider's position: not by mass, by the rod's length

@@ -283,7 +283,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
     # the drivers' values from the caller (c_setpoint; None: no driver)
-    ctx["setpoint"] = c_setpoint.context(model, red, _function, trig, printer, real)
+    ctx["setpoint"] = c_setpoint.context(model, red, _function, trig, printer, real, sens["stages"] if sens else ())
     ctx["uses_powi"] = ctx["uses_powi"] or bool(ctx["setpoint"] and ctx["setpoint"]["uses_powi"])
     ctx["lanes"] = c_lanes.context(ctx) if lanes else None  # the sweep's variants side by side (None: one by one)
     return ctx

@@ -17,7 +17,7 @@ actuator forces) are still read at the call's t.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import sympy as sp
 
@@ -92,7 +92,8 @@ def _at_rows(fn: dict[str, Any], where: list[int]) -> dict[str, Any]:
 
 
 def context(model: CodeModel, red: c_phase.Reduced | None, make: Callable[..., dict[str, Any]],
-            trig: dict[sp.Expr, sp.Symbol], printer: Callable[[sp.Expr], str], real: str) -> dict[str, Any] | None:
+            trig: dict[sp.Expr, sp.Symbol], printer: Callable[[sp.Expr], str], real: str,
+            stages: Sequence[str] = ()) -> dict[str, Any] | None:
     """What templates/c/setpoint.j2 and setpoint.h.j2 need; None for a
     mechanism without drivers.
 
@@ -100,6 +101,8 @@ def context(model: CodeModel, red: c_phase.Reduced | None, make: Callable[..., d
         red: single precision's reductions (c_phase.reduce), None in double:
             a driver row the compiled Phi reads modulo 2 pi is read so here too.
         make: c._function (a kernel of chunks, sines and cosines shared).
+        stages: the sensitivity stages the solver computes (c_sens), of
+            which q, qdot and qddot get set-point kernels.
     """
     r = rows(model)
     if not r.drivers:
@@ -122,14 +125,14 @@ def context(model: CodeModel, red: c_phase.Reduced | None, make: Callable[..., d
     if o.velocity:
         kernels += [_at_rows(make("sp_nu", args, r.nu, trig, printer, real), where),
                     _at_rows(make("sp_gamma", args, r.gamma, trig, printer, real), where)]
-    sens = _sensitivity(model, r, make, trig, printer, real) if o.sensitivity else []
+    sens = _sensitivity(model, r, make, trig, printer, real, stages) if o.sensitivity else []
     texts = [e for fn in kernels + sens for ch in fn["chunks"] for _, e in ch["block"].temps + ch["block"].outputs]
     return {"drivers": r.drivers, "nd": len(r.drivers), "kernels": kernels, "sens_kernels": sens, "wrapped": wrapped,
             "uses_powi": any(f"{model.flat.name}_powi(" in e for e in texts)}
 
 
 def _sensitivity(model: CodeModel, r: Rows, make: Callable[..., dict[str, Any]], trig: dict[sp.Expr, sp.Symbol],
-                 printer: Callable[[sp.Expr], str], real: str) -> list[dict[str, Any]]:
+                 printer: Callable[[sp.Expr], str], real: str, wanted: Sequence[str]) -> list[dict[str, Any]]:
     """Kernels writing the driver rows of the sensitivity stages q, qdot and
     qddot (symid.codegen.sensitivity's right-hand sides, index k NG + row for
     parameter k) with the set-points held fixed: with R the driver's row of
@@ -163,4 +166,4 @@ def _sensitivity(model: CodeModel, r: Rows, make: Callable[..., dict[str, Any]],
     cv = lambda name: (f"const {real} *", name)  # noqa: E731
     args = [cv("q"), cv("qd"), cv("qdd"), cv("q_des"), cv("qd_des"), cv("qdd_des"), cv("p"), cv("sq"), cv("sqd")]
     return [_at_rows(make(f"sp_s_{st}", args, exprs, trig, printer, real), where)
-            for st, exprs in stages.items() if exprs]
+            for st, exprs in stages.items() if exprs and st in wanted]
