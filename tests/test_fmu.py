@@ -47,7 +47,8 @@ def _column_peaks(results, columns: list[str]) -> dict[str, float]:  # type: ign
     return {c: max(v, 1e-3 * group_peak[group(c)], 1e-300) for c, v in peaks.items()}
 
 
-def _check_against_solve(example: str, folder: Path, text: str | None = None) -> None:
+def _check_against_solve(example: str, folder: Path, text: str | None = None) -> float:
+    """The FMU against symid solve; returns the worst error, of its column's peak."""
     from fmpy import read_model_description, simulate_fmu
     from fmpy.validation import validate_fmu
 
@@ -81,6 +82,7 @@ def _check_against_solve(example: str, folder: Path, text: str | None = None) ->
     # the same equations solved in C (the FMU) and by the numpy backend:
     # rounding, carried by the conditioning of the bigger mechanisms
     assert error <= 1e-12, (example, worst, error)
+    return float(error)
 
 
 @needs_cc
