@@ -312,7 +312,7 @@ def generate(mechanism: Mechanism | str | Path, target: str, out_dir: str | Path
         model = _sensitivity_model(mech, target, sensitivity, sensitivity_of)
         return write_folder(out_dir, lambda folder: module.generate(model, folder, precision=precision), force)
     joint = friction.first_joint(mech)
-    if joint is not None and target != "c":  # never generate a solver that silently ignores friction
+    if joint is not None and target not in ("c", "fmu"):  # never generate a solver that silently ignores friction
         raise InputError(f"{mech.source}: constraint '{joint}' key 'friction': --target {target}: the generated "
                          f"{target} code does not include joint friction yet; generate --target c, or solve "
                          f"with any backend")

@@ -9,13 +9,14 @@ from symid.cli.options import add_set, set_values
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("generate", help="write the generated solver of a mechanism (c, numpy, casadi)",
+    p = sub.add_parser("generate", help="write the generated solver of a mechanism (c, numpy, casadi, fmu)",
                        description="Write a mechanism's generated solver, to use without symid.",
                        epilog='examples:\n  symid generate "$(symid example slider_crank)" --target c -o sc/\n'
                               "  symid generate --examples -o generated   # refresh the committed copies")
     p.add_argument("file", nargs="?", help="mechanism file (omit with --examples)")
-    p.add_argument("--target", choices=("c", "numpy", "casadi"), action="append",
-                   help="target (repeatable; default with --examples: all)")
+    p.add_argument("--target", choices=("c", "numpy", "casadi", "fmu"), action="append",
+                   help="target (repeatable; default with --examples: c, numpy, casadi); fmu: an FMI 2.0 "
+                        "model-exchange FMU of the set-point entry, compiled with the system's C compiler")
     p.add_argument("-o", "--output", help="folder (default: <name>_<target>; with --examples: generated)")
     p.add_argument("--examples", action="store_true",
                    help="regenerate every bundled example into OUTPUT/<example>/<target>/")
@@ -49,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
             print(path)
         return 0
     if not args.file or not args.target:
-        raise InputError("generate: give FILE and --target c|numpy|casadi (or --examples), "
+        raise InputError("generate: give FILE and --target c|numpy|casadi|fmu (or --examples), "
                          "e.g. symid generate crank.toml --target c")
     study_mech = api.load_mechanism(args.file, set_values(args.set, args.file))
     for target in args.target:

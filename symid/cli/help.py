@@ -12,7 +12,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                               "  symid help revolute    # one type: keys, defaults, columns\n"
                               "  symid help claims      # the claim-file format of symid verify")
     p.add_argument("topic", nargs="?", metavar="TOPIC",
-                   help="format, a docs page (command-line, studies, c-export, ...) or a constraint or force type; "
+                   help="format, a docs page (command-line, studies, c-export, controller, ...) or a constraint or force type; "
                         "omit to list them all")
     p.set_defaults(run=run)
 

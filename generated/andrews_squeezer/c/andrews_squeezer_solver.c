@@ -2344,3 +2344,207 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
     }
     return ANDREWS_SQUEEZER_OK;
 }
+
+/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+   the caller's desired values q_des, rates qd_des and second rates qdd_des
+   (one per driver) for the drivers' laws, written over the rows the
+   compiled laws gave. */
+const int andrews_squeezer_setpoint_rows[ANDREWS_SQUEEZER_ND] = { 20 };
+
+static void andrews_squeezer_sp_phi_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, const andrews_squeezer_real * q_des, const andrews_squeezer_real * qd_des, const andrews_squeezer_real * qdd_des, const andrews_squeezer_real * p, andrews_squeezer_real *out)
+{
+    (void)tr;
+    (void)qd;
+    (void)qd_des;
+    (void)qdd_des;
+    (void)p;
+    out[20] = q[2] - q_des[0];
+}
+
+static void andrews_squeezer_sp_phi_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, const andrews_squeezer_real * q_des, const andrews_squeezer_real * qd_des, const andrews_squeezer_real * qdd_des, const andrews_squeezer_real * p, andrews_squeezer_real *out)
+{
+    andrews_squeezer_sp_phi_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void andrews_squeezer_sp_nu_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, const andrews_squeezer_real * q_des, const andrews_squeezer_real * qd_des, const andrews_squeezer_real * qdd_des, const andrews_squeezer_real * p, andrews_squeezer_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qdd_des;
+    (void)p;
+    out[20] = qd_des[0];
+}
+
+static void andrews_squeezer_sp_nu_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, const andrews_squeezer_real * q_des, const andrews_squeezer_real * qd_des, const andrews_squeezer_real * qdd_des, const andrews_squeezer_real * p, andrews_squeezer_real *out)
+{
+    andrews_squeezer_sp_nu_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void andrews_squeezer_sp_gamma_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, const andrews_squeezer_real * q_des, const andrews_squeezer_real * qd_des, const andrews_squeezer_real * qdd_des, const andrews_squeezer_real * p, andrews_squeezer_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qd_des;
+    (void)p;
+    out[20] = qdd_des[0];
+}
+
+static void andrews_squeezer_sp_gamma_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, const andrews_squeezer_real * q_des, const andrews_squeezer_real * qd_des, const andrews_squeezer_real * qdd_des, const andrews_squeezer_real * p, andrews_squeezer_real *out)
+{
+    andrews_squeezer_sp_gamma_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+/* Newton as instant's (no reuse), the driver rows from q_des. */
+static int andrews_squeezer_sp_newton(andrews_squeezer_real t, const andrews_squeezer_real *p, const andrews_squeezer_real *q_des, andrews_squeezer_real tol, andrews_squeezer_real *q, andrews_squeezer_real *tr, int *info, andrews_squeezer_real *work,
+                          int *iwork, int *dense, int reuse)
+{
+    andrews_squeezer_real *r = ANDREWS_SQUEEZER_VEC(work, 0), *dq = ANDREWS_SQUEEZER_VEC(work, 1), *y = ANDREWS_SQUEEZER_VEC(work, 2);
+    andrews_squeezer_real *base = ANDREWS_SQUEEZER_VEC(work, 10);
+    andrews_squeezer_real step = ((double)INFINITY), lim, qmag, rmax;
+    int it, converged = 0, current = 0, chord;
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) andrews_squeezer_trig_near(q, tr, base);
+    else andrews_squeezer_trig_base(q, tr, base);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = ANDREWS_SQUEEZER_MAX(1.0, andrews_squeezer_maxabs21(q));
+    lim = ANDREWS_SQUEEZER_MAX(tol, (andrews_squeezer_real)ANDREWS_SQUEEZER_FLOOR_ULPS * ANDREWS_SQUEEZER_EPS * qmag);
+    andrews_squeezer_phi_k(q, tr, t, p, r);
+    andrews_squeezer_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+    rmax = andrews_squeezer_maxabs21(r);
+    for (it = 0;; ++it) {
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            info[1] = *dense;
+            return it == 0 ? ANDREWS_SQUEEZER_NONFINITE : ANDREWS_SQUEEZER_NOT_CONVERGED;
+        }
+        if (rmax <= lim && step <= lim) {
+            converged = 1;
+            break;
+        }
+        if (it == ANDREWS_SQUEEZER_MAX_NEWTON) break;
+        chord = reuse && it == 0;
+        if (!chord && andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK) {
+            info[0] = it;
+            info[1] = *dense;
+            return ANDREWS_SQUEEZER_SINGULAR;
+        }
+        andrews_squeezer_solve_in(work, iwork, *dense, r, dq, y);  /* r is computed afresh */
+        step = andrews_squeezer_correct(q, dq);
+        andrews_squeezer_trig_step(q, dq, tr, base);
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= ANDREWS_SQUEEZER_EPS * qmag;
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        andrews_squeezer_phi_k(q, tr, t, p, r);
+        andrews_squeezer_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+        rmax = andrews_squeezer_maxabs21(r);
+    }
+    info[0] = it;
+    info[1] = *dense;
+    if (!converged) return ANDREWS_SQUEEZER_NOT_CONVERGED;
+    if (!current && andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK) {
+        info[1] = *dense;
+        return ANDREWS_SQUEEZER_SINGULAR;
+    }
+    info[1] = *dense;
+    return ANDREWS_SQUEEZER_OK;
+}
+
+/* The outputs as instant's, nu's and gamma's driver rows from the set-points. */
+static void andrews_squeezer_sp_outputs(andrews_squeezer_real t, const andrews_squeezer_real *p, const andrews_squeezer_real *q, const andrews_squeezer_real *tr, andrews_squeezer_real *qd, andrews_squeezer_real *qdd,
+                            andrews_squeezer_real *lam, andrews_squeezer_real *reactions, andrews_squeezer_real *work, const int *iwork, int dense,
+                            const andrews_squeezer_real *q_des, const andrews_squeezer_real *qd_des, const andrews_squeezer_real *qdd_des)
+{
+    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2), *b = ANDREWS_SQUEEZER_VEC(work, 3);
+    andrews_squeezer_nu_k(q, tr, t, p, b);
+    andrews_squeezer_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
+    andrews_squeezer_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
+    andrews_squeezer_gamma_k(q, tr, qd, t, p, b);
+    andrews_squeezer_sp_gamma_k(q, tr, qd, q_des, qd_des, qdd_des, p, b);
+    andrews_squeezer_solve_in(work, iwork, dense, b, qdd, y);
+    andrews_squeezer_applied_k(q, tr, qd, t, p, b);
+    andrews_squeezer_mass_k(p, y);
+    b[0] -= y[0] * qdd[0];
+    b[1] -= y[1] * qdd[1];
+    b[2] -= y[2] * qdd[2];
+    b[3] -= y[3] * qdd[3];
+    b[4] -= y[4] * qdd[4];
+    b[5] -= y[5] * qdd[5];
+    b[6] -= y[6] * qdd[6];
+    b[7] -= y[7] * qdd[7];
+    b[8] -= y[8] * qdd[8];
+    b[9] -= y[9] * qdd[9];
+    b[10] -= y[10] * qdd[10];
+    b[11] -= y[11] * qdd[11];
+    b[12] -= y[12] * qdd[12];
+    b[13] -= y[13] * qdd[13];
+    b[14] -= y[14] * qdd[14];
+    b[15] -= y[15] * qdd[15];
+    b[16] -= y[16] * qdd[16];
+    b[17] -= y[17] * qdd[17];
+    b[18] -= y[18] * qdd[18];
+    b[19] -= y[19] * qdd[19];
+    b[20] -= y[20] * qdd[20];
+    andrews_squeezer_solve_t(work, iwork, dense, b, lam);
+    if (andrews_squeezer_mixed(y)) andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    andrews_squeezer_reactions_k(q, tr, lam, t, p, reactions);
+}
+
+/* setpoint's solve, its factorization's kind in *dense (for the sensitivities). */
+static int andrews_squeezer_sp_instant(andrews_squeezer_real t, const andrews_squeezer_real *p, andrews_squeezer_real tol, const andrews_squeezer_real *q_des,
+                              const andrews_squeezer_real *qd_des, const andrews_squeezer_real *qdd_des, andrews_squeezer_real *q, andrews_squeezer_real *qd,
+                              andrews_squeezer_real *qdd, andrews_squeezer_real *lam, andrews_squeezer_real *reactions, int *counts, andrews_squeezer_real *work,
+                              int *iwork, int *dense)
+{
+    int status;
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
+        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
+        || !andrews_squeezer_allfinite(q_des, ANDREWS_SQUEEZER_ND) || !andrews_squeezer_allfinite(qd_des, ANDREWS_SQUEEZER_ND)
+        || !andrews_squeezer_allfinite(qdd_des, ANDREWS_SQUEEZER_ND)) {
+        status = ANDREWS_SQUEEZER_BAD_ARGUMENT;
+    } else {
+        andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9), *pp = work + ANDREWS_SQUEEZER_OFF_PREP, *kept = ANDREWS_SQUEEZER_VEC(work, 11);
+        memcpy(kept, q, sizeof(andrews_squeezer_real) * 21);  /* the caller's guess, back in q if the call fails */
+        andrews_squeezer_prepare(p, pp);
+        if (qd == NULL) qd = ANDREWS_SQUEEZER_VEC(work, 5);
+        if (qdd == NULL) qdd = ANDREWS_SQUEEZER_VEC(work, 6);
+        if (lam == NULL) lam = ANDREWS_SQUEEZER_VEC(work, 7);
+        if (reactions == NULL) reactions = ANDREWS_SQUEEZER_VEC(work, 8);
+        status = andrews_squeezer_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
+        if (status == ANDREWS_SQUEEZER_OK) {
+            andrews_squeezer_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (!andrews_squeezer_finite(q, qd, qdd, lam, reactions)) status = ANDREWS_SQUEEZER_NONFINITE;
+        }
+        if (status != ANDREWS_SQUEEZER_OK) memcpy(q, kept, sizeof(andrews_squeezer_real) * 21);
+    }
+    return status;
+}
+
+int andrews_squeezer_setpoint(andrews_squeezer_real t, const andrews_squeezer_real *p, andrews_squeezer_real tol, const andrews_squeezer_real *q_des,
+                     const andrews_squeezer_real *qd_des, const andrews_squeezer_real *qdd_des, andrews_squeezer_real *q, andrews_squeezer_real *qd,
+                     andrews_squeezer_real *qdd, andrews_squeezer_real *lam, andrews_squeezer_real *reactions, int *info, andrews_squeezer_real *work,
+                     int *iwork)
+{
+    int dense = 0, counts[2] = {0, 0};
+    const int status = andrews_squeezer_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
+                                          iwork, &dense);
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
+}

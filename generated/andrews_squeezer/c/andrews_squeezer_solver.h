@@ -357,6 +357,27 @@ int andrews_squeezer_screen_at(andrews_squeezer_real t, const andrews_squeezer_r
 int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real h, long n, const andrews_squeezer_real *p, andrews_squeezer_real tol, andrews_squeezer_real *state,
                        andrews_squeezer_real *rows, long *solved, andrews_squeezer_real *work, int *iwork);
 
+/* Set-points at run time: the feed-forward of a computed-torque controller.
+   setpoint solves one instant as instant does, but each driver's law f(t),
+   f'(t), f''(t) is replaced by the caller's desired value q_des[k], rate
+   qd_des[k] and second rate qdd_des[k] (size ND each, drivers in this
+   order; each value in the units of the driver's f in the mechanism file):
+     [0] motor (relative_angle_driver, constraint row 20)
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
+#define ANDREWS_SQUEEZER_ND 1        /* drivers */
+extern const int andrews_squeezer_setpoint_rows[ANDREWS_SQUEEZER_ND];
+int andrews_squeezer_setpoint(andrews_squeezer_real t, const andrews_squeezer_real *p, andrews_squeezer_real tol, const andrews_squeezer_real *q_des,
+                     const andrews_squeezer_real *qd_des, const andrews_squeezer_real *qdd_des, andrews_squeezer_real *q, andrews_squeezer_real *qd,
+                     andrews_squeezer_real *qdd, andrews_squeezer_real *lam, andrews_squeezer_real *reactions, int *info, andrews_squeezer_real *work,
+                     int *iwork);
+
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved
    (contract v1.1, `symid sweep`). */

@@ -1890,3 +1890,252 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
     }
     return EXCAVATOR_OK;
 }
+
+/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+   the caller's desired values q_des, rates qd_des and second rates qdd_des
+   (one per driver) for the drivers' laws, written over the rows the
+   compiled laws gave. */
+const int excavator_setpoint_rows[EXCAVATOR_ND] = { 6, 7, 8 };
+
+static void excavator_sp_phi_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, const excavator_real * q_des, const excavator_real * qd_des, const excavator_real * qdd_des, const excavator_real * p, excavator_real *out)
+{
+    (void)qd;
+    (void)qd_des;
+    (void)qdd_des;
+    const excavator_real e0 = 23.0/10.0 - 1.0/2.0*p[0];
+    const excavator_real e1 = (1.0/2.0)*p[1];
+    const excavator_real e2 = -e1 - 3.0/4.0;
+    const excavator_real e3 = -1.0/2.0*p[2] - 1.0/20.0;
+    const excavator_real e4 = 2.0/5.0 - e1;
+    out[6] = -(q_des[0]*q_des[0]) + ((e0*tr[0] - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0))*(e0*tr[0] - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0))) + ((e0*tr[1] + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0))*(e0*tr[1] + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0)));
+    out[7] = -(q_des[1]*q_des[1]) + ((e2*tr[2] - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3] + (-q[1] + q[4]))*(e2*tr[2] - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3] + (-q[1] + q[4]))) + ((e2*tr[3] + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2] + (-q[0] + q[3]))*(e2*tr[3] + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2] + (-q[0] + q[3])));
+    out[8] = -(q_des[2]*q_des[2]) + ((e3*tr[4] - e4*tr[2] - 7.0/20.0*tr[3] + (1.0/2.0)*tr[5] + (-q[4] + q[7]))*(e3*tr[4] - e4*tr[2] - 7.0/20.0*tr[3] + (1.0/2.0)*tr[5] + (-q[4] + q[7]))) + ((e3*tr[5] - e4*tr[3] + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4] + (-q[3] + q[6]))*(e3*tr[5] - e4*tr[3] + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4] + (-q[3] + q[6])));
+}
+
+static void excavator_sp_phi_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, const excavator_real * q_des, const excavator_real * qd_des, const excavator_real * qdd_des, const excavator_real * p, excavator_real *out)
+{
+    excavator_sp_phi_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void excavator_sp_nu_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, const excavator_real * q_des, const excavator_real * qd_des, const excavator_real * qdd_des, const excavator_real * p, excavator_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)qdd_des;
+    (void)p;
+    out[6] = 2*q_des[0]*qd_des[0];
+    out[7] = 2*q_des[1]*qd_des[1];
+    out[8] = 2*q_des[2]*qd_des[2];
+}
+
+static void excavator_sp_nu_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, const excavator_real * q_des, const excavator_real * qd_des, const excavator_real * qdd_des, const excavator_real * p, excavator_real *out)
+{
+    excavator_sp_nu_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void excavator_sp_gamma_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, const excavator_real * q_des, const excavator_real * qd_des, const excavator_real * qdd_des, const excavator_real * p, excavator_real *out)
+{
+    const excavator_real e0 = -2*(qd[0]*qd[0]) - 2*(qd[1]*qd[1]);
+    const excavator_real e1 = (qd[2]*qd[2]);
+    const excavator_real e2 = e1*tr[0];
+    const excavator_real e3 = e1*tr[1];
+    const excavator_real e4 = 23.0/10.0 - 1.0/2.0*p[0];
+    const excavator_real e5 = (3.0/5.0)*e3;
+    const excavator_real e6 = (8.0/5.0)*qd[2];
+    const excavator_real e7 = qd[2]*tr[1];
+    const excavator_real e8 = 4*qd[3];
+    const excavator_real e9 = 4*qd[4];
+    const excavator_real e10 = -2*(qd[3]*qd[3]) - 2*(qd[4]*qd[4]);
+    const excavator_real e11 = (qd[5]*qd[5]);
+    const excavator_real e12 = (3.0/5.0)*e2;
+    const excavator_real e13 = (3.0/5.0)*qd[5];
+    const excavator_real e14 = (3.0/10.0)*e11;
+    const excavator_real e15 = (6.0/5.0)*qd[2];
+    const excavator_real e16 = (9.0/100.0)*tr[3];
+    const excavator_real e17 = e11*tr[0];
+    const excavator_real e18 = (11.0/5.0)*qd[2];
+    const excavator_real e19 = e18*tr[0];
+    const excavator_real e20 = (11.0/10.0)*e3;
+    const excavator_real e21 = (33.0/200.0)*tr[2];
+    const excavator_real e22 = (33.0/200.0)*tr[3];
+    const excavator_real e23 = e11*tr[1];
+    const excavator_real e24 = (1.0/2.0)*p[1];
+    const excavator_real e25 = -e24 - 3.0/4.0;
+    const excavator_real e26 = e11*e25;
+    const excavator_real e27 = e25*qd[5];
+    const excavator_real e28 = e27*tr[3];
+    const excavator_real e29 = e25*tr[2];
+    const excavator_real e30 = e25*tr[3];
+    const excavator_real e31 = (qd[8]*qd[8]);
+    const excavator_real e32 = e31*tr[5];
+    const excavator_real e33 = e31*tr[4];
+    const excavator_real e34 = 2*qd[8];
+    const excavator_real e35 = e34*tr[4];
+    const excavator_real e36 = (7.0/5.0)*qd[5];
+    const excavator_real e37 = e36*tr[2];
+    const excavator_real e38 = (7.0/10.0)*e11;
+    const excavator_real e39 = e38*tr[3];
+    const excavator_real e40 = (7.0/20.0)*tr[2];
+    const excavator_real e41 = e11*tr[4];
+    const excavator_real e42 = (7.0/20.0)*tr[3];
+    const excavator_real e43 = e11*tr[5];
+    const excavator_real e44 = 2.0/5.0 - e24;
+    const excavator_real e45 = e44*tr[2];
+    const excavator_real e46 = -1.0/2.0*p[2] - 1.0/20.0;
+    const excavator_real e47 = e32*e46;
+    const excavator_real e48 = e33*e46;
+    const excavator_real e49 = e44*tr[3];
+    const excavator_real e50 = 2*e11;
+    const excavator_real e51 = e46*qd[8];
+    const excavator_real e52 = e49*qd[5];
+    const excavator_real e53 = e51*tr[5];
+    const excavator_real e54 = 2*e46;
+    out[6] = 2*e1*e4*q[0]*tr[1] + 2*e1*e4*q[1]*tr[0] + (12.0/5.0)*e1*e4*tr[0] + (4.0/5.0)*e1*q[0]*tr[0] - 6.0/25.0*e2 - 4.0/5.0*e3*q[1] - 24.0/25.0*e3 - e4*e5 - 4*e4*e7*qd[1] + 4*e4*qd[0]*qd[2]*tr[0] - e6*qd[0]*tr[1] - e6*qd[1]*tr[0] + (e0 + 2*q_des[0]*qdd_des[0] + 2*(qd_des[0]*qd_des[0]));
+    out[7] = (11.0/10.0)*e1*e25*tr[0]*tr[3] + (3.0/5.0)*e1*q[0]*tr[1] + (3.0/5.0)*e1*q[1]*tr[0] + (11.0/10.0)*e1*q[1]*tr[1] + (11.0/10.0)*e1*q[3]*tr[0] + (9.0/100.0)*e1*tr[1]*tr[2] + 2*e11*e25*q[3]*tr[3] + 2*e11*e25*q[4]*tr[2] + (11.0/10.0)*e11*e25*tr[0]*tr[3] + (3.0/10.0)*e11*q[0]*tr[2] + (3.0/10.0)*e11*q[4]*tr[3] + (9.0/100.0)*e11*tr[1]*tr[2] - e12*e29 - e12*q[4] - e13*qd[0]*tr[3] - e13*qd[1]*tr[2] - e14*q[1]*tr[3] - e14*q[3]*tr[2] - e15*qd[1]*tr[1] - e15*qd[3]*tr[0] - e16*e17 - e16*e2 - e17*e21 - 3.0/5.0*e17*e29 - e18*qd[3]*tr[1] - e19*e28 - e19*qd[4] - e2*e21 - 11.0/10.0*e2*q[0] - e20*e29 - e20*q[4] - e22*e23 - e22*e3 - 11.0/10.0*e23*e29 - 3.0/5.0*e23*e30 + 4*e25*qd[1]*qd[5]*tr[3] + (6.0/5.0)*e25*qd[2]*qd[5]*tr[0]*tr[2] + (11.0/5.0)*e25*qd[2]*qd[5]*tr[1]*tr[2] + (6.0/5.0)*e25*qd[2]*qd[5]*tr[1]*tr[3] + 4*e25*qd[3]*qd[5]*tr[2] - 2*e26*q[0]*tr[3] - 2*e26*q[1]*tr[2] - 4*e27*qd[0]*tr[2] - e28*e9 - e30*e5 - e5*q[3] - 9.0/50.0*e7*qd[5]*tr[2] + (6.0/5.0)*qd[0]*qd[2]*tr[0] + (11.0/5.0)*qd[0]*qd[2]*tr[1] + (11.0/5.0)*qd[1]*qd[2]*tr[0] + (6.0/5.0)*qd[2]*qd[4]*tr[1] + (33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2] + (9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3] + (33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3] + (3.0/5.0)*qd[3]*qd[5]*tr[3] + (3.0/5.0)*qd[4]*qd[5]*tr[2] + (e0 + e10 + e8*qd[0] + e9*qd[1] + 2*q_des[1]*qdd_des[1] + 2*(qd_des[1]*qd_des[1]));
+    out[8] = 2*e11*e44*q[3]*tr[3] + 2*e11*e44*q[4]*tr[2] + e11*e44*tr[3]*tr[4] + (7.0/10.0)*e11*e46*tr[2]*tr[5] + (7.0/10.0)*e11*q[4]*tr[3] + (7.0/10.0)*e11*q[6]*tr[2] + e31*e44*tr[3]*tr[4] + 2*e31*e46*q[6]*tr[5] + 2*e31*e46*q[7]*tr[4] + (7.0/10.0)*e31*e46*tr[2]*tr[5] + e31*q[3]*tr[4] + e31*q[7]*tr[5] - e32*e42 - e32*e45 - e32*q[4] - e33*e40 - e33*q[6] - e34*qd[3]*tr[5] - e35*e52 - e35*qd[4] - e36*qd[6]*tr[3] - e37*e53 - e37*qd[7] - e38*q[3]*tr[2] - e39*e46*tr[4] - e39*q[7] - e40*e41 - e41*e45*e54 - e42*e43 - e43*e45 - e43*e49*e54 + 4*e44*e46*qd[5]*qd[8]*tr[2]*tr[4] + 4*e44*e46*qd[5]*qd[8]*tr[3]*tr[5] + 4*e44*qd[3]*qd[5]*tr[2] + 4*e44*qd[5]*qd[7]*tr[3] + 2*e44*qd[5]*qd[8]*tr[2]*tr[5] - 2*e45*e48 - e45*e50*q[7] - 4*e45*qd[5]*qd[6] + 4*e46*qd[4]*qd[8]*tr[5] + (7.0/5.0)*e46*qd[5]*qd[8]*tr[3]*tr[4] + 4*e46*qd[6]*qd[8]*tr[4] - 2*e47*e49 - 2*e47*q[3] - 2*e48*q[4] - 7.0/10.0*e48*tr[3] - e49*e50*q[6] - e51*e8*tr[4] - e52*e9 - 4*e53*qd[7] + (7.0/5.0)*qd[3]*qd[5]*tr[3] + (7.0/5.0)*qd[4]*qd[5]*tr[2] + (7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4] + (7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5] + 2*qd[6]*qd[8]*tr[5] + 2*qd[7]*qd[8]*tr[4] + (e10 + e8*qd[6] + e9*qd[7] + 2*q_des[2]*qdd_des[2] - 2*(qd[6]*qd[6]) - 2*(qd[7]*qd[7]) + 2*(qd_des[2]*qd_des[2]));
+}
+
+static void excavator_sp_gamma_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, const excavator_real * q_des, const excavator_real * qd_des, const excavator_real * qdd_des, const excavator_real * p, excavator_real *out)
+{
+    excavator_sp_gamma_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+/* Newton as instant's (no reuse), the driver rows from q_des. */
+static int excavator_sp_newton(excavator_real t, const excavator_real *p, const excavator_real *q_des, excavator_real tol, excavator_real *q, excavator_real *tr, int *info, excavator_real *work,
+                          int *iwork, int *dense, int reuse)
+{
+    excavator_real *r = EXCAVATOR_VEC(work, 0), *dq = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
+    excavator_real *base = EXCAVATOR_VEC(work, 10);
+    excavator_real step = ((double)INFINITY), lim, qmag, rmax;
+    int it, converged = 0, current = 0, chord;
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) excavator_trig_near(q, tr, base);
+    else excavator_trig_base(q, tr, base);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = EXCAVATOR_MAX(1.0, excavator_maxabs9(q));
+    lim = EXCAVATOR_MAX(tol, (excavator_real)EXCAVATOR_FLOOR_ULPS * EXCAVATOR_EPS * qmag);
+    excavator_phi_k(q, tr, t, p, r);
+    excavator_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+    rmax = excavator_maxabs9(r);
+    for (it = 0;; ++it) {
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            info[1] = *dense;
+            return it == 0 ? EXCAVATOR_NONFINITE : EXCAVATOR_NOT_CONVERGED;
+        }
+        if (rmax <= lim && step <= lim) {
+            converged = 1;
+            break;
+        }
+        if (it == EXCAVATOR_MAX_NEWTON) break;
+        chord = reuse && it == 0;
+        if (!chord && excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK) {
+            info[0] = it;
+            info[1] = *dense;
+            return EXCAVATOR_SINGULAR;
+        }
+        excavator_solve_in(work, iwork, *dense, r, dq, y);  /* r is computed afresh */
+        step = excavator_correct(q, dq);
+        excavator_trig_step(q, dq, tr, base);
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= EXCAVATOR_EPS * qmag;
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        excavator_phi_k(q, tr, t, p, r);
+        excavator_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+        rmax = excavator_maxabs9(r);
+    }
+    info[0] = it;
+    info[1] = *dense;
+    if (!converged) return EXCAVATOR_NOT_CONVERGED;
+    if (!current && excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK) {
+        info[1] = *dense;
+        return EXCAVATOR_SINGULAR;
+    }
+    info[1] = *dense;
+    return EXCAVATOR_OK;
+}
+
+/* The outputs as instant's, nu's and gamma's driver rows from the set-points. */
+static void excavator_sp_outputs(excavator_real t, const excavator_real *p, const excavator_real *q, const excavator_real *tr, excavator_real *qd, excavator_real *qdd,
+                            excavator_real *lam, excavator_real *reactions, excavator_real *work, const int *iwork, int dense,
+                            const excavator_real *q_des, const excavator_real *qd_des, const excavator_real *qdd_des)
+{
+    excavator_real *y = EXCAVATOR_VEC(work, 2), *b = EXCAVATOR_VEC(work, 3);
+    excavator_nu_k(q, tr, t, p, b);
+    excavator_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
+    excavator_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
+    excavator_gamma_k(q, tr, qd, t, p, b);
+    excavator_sp_gamma_k(q, tr, qd, q_des, qd_des, qdd_des, p, b);
+    excavator_solve_in(work, iwork, dense, b, qdd, y);
+    excavator_applied_k(q, tr, qd, t, p, b);
+    excavator_mass_k(p, y);
+    b[0] -= y[0] * qdd[0];
+    b[1] -= y[1] * qdd[1];
+    b[2] -= y[2] * qdd[2];
+    b[3] -= y[3] * qdd[3];
+    b[4] -= y[4] * qdd[4];
+    b[5] -= y[5] * qdd[5];
+    b[6] -= y[6] * qdd[6];
+    b[7] -= y[7] * qdd[7];
+    b[8] -= y[8] * qdd[8];
+    excavator_solve_t(work, iwork, dense, b, lam);
+    if (excavator_mixed(y)) excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    excavator_reactions_k(q, tr, lam, t, p, reactions);
+}
+
+/* setpoint's solve, its factorization's kind in *dense (for the sensitivities). */
+static int excavator_sp_instant(excavator_real t, const excavator_real *p, excavator_real tol, const excavator_real *q_des,
+                              const excavator_real *qd_des, const excavator_real *qdd_des, excavator_real *q, excavator_real *qd,
+                              excavator_real *qdd, excavator_real *lam, excavator_real *reactions, int *counts, excavator_real *work,
+                              int *iwork, int *dense)
+{
+    int status;
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
+        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
+        || !excavator_allfinite(q_des, EXCAVATOR_ND) || !excavator_allfinite(qd_des, EXCAVATOR_ND)
+        || !excavator_allfinite(qdd_des, EXCAVATOR_ND)) {
+        status = EXCAVATOR_BAD_ARGUMENT;
+    } else {
+        excavator_real *tr = EXCAVATOR_VEC(work, 9), *pp = work + EXCAVATOR_OFF_PREP, *kept = EXCAVATOR_VEC(work, 11);
+        memcpy(kept, q, sizeof(excavator_real) * 9);  /* the caller's guess, back in q if the call fails */
+        excavator_prepare(p, pp);
+        if (qd == NULL) qd = EXCAVATOR_VEC(work, 5);
+        if (qdd == NULL) qdd = EXCAVATOR_VEC(work, 6);
+        if (lam == NULL) lam = EXCAVATOR_VEC(work, 7);
+        if (reactions == NULL) reactions = EXCAVATOR_VEC(work, 8);
+        status = excavator_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
+        if (status == EXCAVATOR_OK) {
+            excavator_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (!excavator_finite(q, qd, qdd, lam, reactions)) status = EXCAVATOR_NONFINITE;
+        }
+        if (status != EXCAVATOR_OK) memcpy(q, kept, sizeof(excavator_real) * 9);
+    }
+    return status;
+}
+
+int excavator_setpoint(excavator_real t, const excavator_real *p, excavator_real tol, const excavator_real *q_des,
+                     const excavator_real *qd_des, const excavator_real *qdd_des, excavator_real *q, excavator_real *qd,
+                     excavator_real *qdd, excavator_real *lam, excavator_real *reactions, int *info, excavator_real *work,
+                     int *iwork)
+{
+    int dense = 0, counts[2] = {0, 0};
+    const int status = excavator_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
+                                          iwork, &dense);
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
+}

@@ -252,6 +252,29 @@ int excavator_screen_at(excavator_real t, const excavator_real *p, const excavat
 int excavator_trajectory(excavator_real t0, excavator_real h, long n, const excavator_real *p, excavator_real tol, excavator_real *state,
                        excavator_real *rows, long *solved, excavator_real *work, int *iwork);
 
+/* Set-points at run time: the feed-forward of a computed-torque controller.
+   setpoint solves one instant as instant does, but each driver's law f(t),
+   f'(t), f''(t) is replaced by the caller's desired value q_des[k], rate
+   qd_des[k] and second rate qdd_des[k] (size ND each, drivers in this
+   order; each value in the units of the driver's f in the mechanism file):
+     [0] boom_cylinder (distance_driver, constraint row 6)
+     [1] stick_cylinder (distance_driver, constraint row 7)
+     [2] bucket_cylinder (distance_driver, constraint row 8)
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
+#define EXCAVATOR_ND 3        /* drivers */
+extern const int excavator_setpoint_rows[EXCAVATOR_ND];
+int excavator_setpoint(excavator_real t, const excavator_real *p, excavator_real tol, const excavator_real *q_des,
+                     const excavator_real *qd_des, const excavator_real *qdd_des, excavator_real *q, excavator_real *qd,
+                     excavator_real *qdd, excavator_real *lam, excavator_real *reactions, int *info, excavator_real *work,
+                     int *iwork);
+
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved
    (contract v1.1, `symid sweep`). */

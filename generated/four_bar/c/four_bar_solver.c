@@ -1602,3 +1602,195 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
     }
     return FOUR_BAR_OK;
 }
+
+/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+   the caller's desired values q_des, rates qd_des and second rates qdd_des
+   (one per driver) for the drivers' laws, written over the rows the
+   compiled laws gave. */
+const int four_bar_setpoint_rows[FOUR_BAR_ND] = { 8 };
+
+static void four_bar_sp_phi_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, const four_bar_real * q_des, const four_bar_real * qd_des, const four_bar_real * qdd_des, const four_bar_real * p, four_bar_real *out)
+{
+    (void)tr;
+    (void)qd;
+    (void)qd_des;
+    (void)qdd_des;
+    (void)p;
+    out[8] = q[2] - q_des[0];
+}
+
+static void four_bar_sp_phi_k(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, const four_bar_real * q_des, const four_bar_real * qd_des, const four_bar_real * qdd_des, const four_bar_real * p, four_bar_real *out)
+{
+    four_bar_sp_phi_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void four_bar_sp_nu_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, const four_bar_real * q_des, const four_bar_real * qd_des, const four_bar_real * qdd_des, const four_bar_real * p, four_bar_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qdd_des;
+    (void)p;
+    out[8] = qd_des[0];
+}
+
+static void four_bar_sp_nu_k(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, const four_bar_real * q_des, const four_bar_real * qd_des, const four_bar_real * qdd_des, const four_bar_real * p, four_bar_real *out)
+{
+    four_bar_sp_nu_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void four_bar_sp_gamma_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, const four_bar_real * q_des, const four_bar_real * qd_des, const four_bar_real * qdd_des, const four_bar_real * p, four_bar_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qd_des;
+    (void)p;
+    out[8] = qdd_des[0];
+}
+
+static void four_bar_sp_gamma_k(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, const four_bar_real * q_des, const four_bar_real * qd_des, const four_bar_real * qdd_des, const four_bar_real * p, four_bar_real *out)
+{
+    four_bar_sp_gamma_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+/* Newton as instant's (no reuse), the driver rows from q_des. */
+static int four_bar_sp_newton(four_bar_real t, const four_bar_real *p, const four_bar_real *q_des, four_bar_real tol, four_bar_real *q, four_bar_real *tr, int *info, four_bar_real *work,
+                          int *iwork, int *dense, int reuse)
+{
+    four_bar_real *r = FOUR_BAR_VEC(work, 0), *dq = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
+    four_bar_real *base = FOUR_BAR_VEC(work, 10);
+    four_bar_real step = ((double)INFINITY), lim, qmag, rmax;
+    int it, converged = 0, current = 0, chord;
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) four_bar_trig_near(q, tr, base);
+    else four_bar_trig_base(q, tr, base);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = FOUR_BAR_MAX(1.0, four_bar_maxabs9(q));
+    lim = FOUR_BAR_MAX(tol, (four_bar_real)FOUR_BAR_FLOOR_ULPS * FOUR_BAR_EPS * qmag);
+    four_bar_phi_k(q, tr, t, p, r);
+    four_bar_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+    rmax = four_bar_maxabs9(r);
+    for (it = 0;; ++it) {
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            info[1] = *dense;
+            return it == 0 ? FOUR_BAR_NONFINITE : FOUR_BAR_NOT_CONVERGED;
+        }
+        if (rmax <= lim && step <= lim) {
+            converged = 1;
+            break;
+        }
+        if (it == FOUR_BAR_MAX_NEWTON) break;
+        chord = reuse && it == 0;
+        if (!chord && four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK) {
+            info[0] = it;
+            info[1] = *dense;
+            return FOUR_BAR_SINGULAR;
+        }
+        four_bar_solve_in(work, iwork, *dense, r, dq, y);  /* r is computed afresh */
+        step = four_bar_correct(q, dq);
+        four_bar_trig_step(q, dq, tr, base);
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= FOUR_BAR_EPS * qmag;
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        four_bar_phi_k(q, tr, t, p, r);
+        four_bar_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+        rmax = four_bar_maxabs9(r);
+    }
+    info[0] = it;
+    info[1] = *dense;
+    if (!converged) return FOUR_BAR_NOT_CONVERGED;
+    if (!current && four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK) {
+        info[1] = *dense;
+        return FOUR_BAR_SINGULAR;
+    }
+    info[1] = *dense;
+    return FOUR_BAR_OK;
+}
+
+/* The outputs as instant's, nu's and gamma's driver rows from the set-points. */
+static void four_bar_sp_outputs(four_bar_real t, const four_bar_real *p, const four_bar_real *q, const four_bar_real *tr, four_bar_real *qd, four_bar_real *qdd,
+                            four_bar_real *lam, four_bar_real *reactions, four_bar_real *work, const int *iwork, int dense,
+                            const four_bar_real *q_des, const four_bar_real *qd_des, const four_bar_real *qdd_des)
+{
+    four_bar_real *y = FOUR_BAR_VEC(work, 2), *b = FOUR_BAR_VEC(work, 3);
+    four_bar_nu_k(q, tr, t, p, b);
+    four_bar_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
+    four_bar_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
+    four_bar_gamma_k(q, tr, qd, t, p, b);
+    four_bar_sp_gamma_k(q, tr, qd, q_des, qd_des, qdd_des, p, b);
+    four_bar_solve_in(work, iwork, dense, b, qdd, y);
+    four_bar_applied_k(q, tr, qd, t, p, b);
+    four_bar_mass_k(p, y);
+    b[0] -= y[0] * qdd[0];
+    b[1] -= y[1] * qdd[1];
+    b[2] -= y[2] * qdd[2];
+    b[3] -= y[3] * qdd[3];
+    b[4] -= y[4] * qdd[4];
+    b[5] -= y[5] * qdd[5];
+    b[6] -= y[6] * qdd[6];
+    b[7] -= y[7] * qdd[7];
+    b[8] -= y[8] * qdd[8];
+    four_bar_solve_t(work, iwork, dense, b, lam);
+    if (four_bar_mixed(y)) four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    four_bar_reactions_k(q, tr, lam, t, p, reactions);
+}
+
+/* setpoint's solve, its factorization's kind in *dense (for the sensitivities). */
+static int four_bar_sp_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol, const four_bar_real *q_des,
+                              const four_bar_real *qd_des, const four_bar_real *qdd_des, four_bar_real *q, four_bar_real *qd,
+                              four_bar_real *qdd, four_bar_real *lam, four_bar_real *reactions, int *counts, four_bar_real *work,
+                              int *iwork, int *dense)
+{
+    int status;
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
+        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
+        || !four_bar_allfinite(q_des, FOUR_BAR_ND) || !four_bar_allfinite(qd_des, FOUR_BAR_ND)
+        || !four_bar_allfinite(qdd_des, FOUR_BAR_ND)) {
+        status = FOUR_BAR_BAD_ARGUMENT;
+    } else {
+        four_bar_real *tr = FOUR_BAR_VEC(work, 9), *pp = work + FOUR_BAR_OFF_PREP, *kept = FOUR_BAR_VEC(work, 11);
+        memcpy(kept, q, sizeof(four_bar_real) * 9);  /* the caller's guess, back in q if the call fails */
+        four_bar_prepare(p, pp);
+        if (qd == NULL) qd = FOUR_BAR_VEC(work, 5);
+        if (qdd == NULL) qdd = FOUR_BAR_VEC(work, 6);
+        if (lam == NULL) lam = FOUR_BAR_VEC(work, 7);
+        if (reactions == NULL) reactions = FOUR_BAR_VEC(work, 8);
+        status = four_bar_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
+        if (status == FOUR_BAR_OK) {
+            four_bar_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (!four_bar_finite(q, qd, qdd, lam, reactions)) status = FOUR_BAR_NONFINITE;
+        }
+        if (status != FOUR_BAR_OK) memcpy(q, kept, sizeof(four_bar_real) * 9);
+    }
+    return status;
+}
+
+int four_bar_setpoint(four_bar_real t, const four_bar_real *p, four_bar_real tol, const four_bar_real *q_des,
+                     const four_bar_real *qd_des, const four_bar_real *qdd_des, four_bar_real *q, four_bar_real *qd,
+                     four_bar_real *qdd, four_bar_real *lam, four_bar_real *reactions, int *info, four_bar_real *work,
+                     int *iwork)
+{
+    int dense = 0, counts[2] = {0, 0};
+    const int status = four_bar_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
+                                          iwork, &dense);
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
+}

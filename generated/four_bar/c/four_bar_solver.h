@@ -244,6 +244,27 @@ int four_bar_screen_at(four_bar_real t, const four_bar_real *p, const four_bar_r
 int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_bar_real *p, four_bar_real tol, four_bar_real *state,
                        four_bar_real *rows, long *solved, four_bar_real *work, int *iwork);
 
+/* Set-points at run time: the feed-forward of a computed-torque controller.
+   setpoint solves one instant as instant does, but each driver's law f(t),
+   f'(t), f''(t) is replaced by the caller's desired value q_des[k], rate
+   qd_des[k] and second rate qdd_des[k] (size ND each, drivers in this
+   order; each value in the units of the driver's f in the mechanism file):
+     [0] crank_motor (relative_angle_driver, constraint row 8)
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
+#define FOUR_BAR_ND 1        /* drivers */
+extern const int four_bar_setpoint_rows[FOUR_BAR_ND];
+int four_bar_setpoint(four_bar_real t, const four_bar_real *p, four_bar_real tol, const four_bar_real *q_des,
+                     const four_bar_real *qd_des, const four_bar_real *qdd_des, four_bar_real *q, four_bar_real *qd,
+                     four_bar_real *qdd, four_bar_real *lam, four_bar_real *reactions, int *info, four_bar_real *work,
+                     int *iwork);
+
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved
    (contract v1.1, `symid sweep`). */

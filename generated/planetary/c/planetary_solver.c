@@ -1756,3 +1756,198 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
     }
     return PLANETARY_OK;
 }
+
+/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+   the caller's desired values q_des, rates qd_des and second rates qdd_des
+   (one per driver) for the drivers' laws, written over the rows the
+   compiled laws gave. */
+const int planetary_setpoint_rows[PLANETARY_ND] = { 11 };
+
+static void planetary_sp_phi_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, const planetary_real * q_des, const planetary_real * qd_des, const planetary_real * qdd_des, const planetary_real * p, planetary_real *out)
+{
+    (void)tr;
+    (void)qd;
+    (void)qd_des;
+    (void)qdd_des;
+    (void)p;
+    out[11] = q[11] - q_des[0];
+}
+
+static void planetary_sp_phi_k(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, const planetary_real * q_des, const planetary_real * qd_des, const planetary_real * qdd_des, const planetary_real * p, planetary_real *out)
+{
+    planetary_sp_phi_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void planetary_sp_nu_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, const planetary_real * q_des, const planetary_real * qd_des, const planetary_real * qdd_des, const planetary_real * p, planetary_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qdd_des;
+    (void)p;
+    out[11] = qd_des[0];
+}
+
+static void planetary_sp_nu_k(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, const planetary_real * q_des, const planetary_real * qd_des, const planetary_real * qdd_des, const planetary_real * p, planetary_real *out)
+{
+    planetary_sp_nu_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void planetary_sp_gamma_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, const planetary_real * q_des, const planetary_real * qd_des, const planetary_real * qdd_des, const planetary_real * p, planetary_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qd_des;
+    (void)p;
+    out[11] = qdd_des[0];
+}
+
+static void planetary_sp_gamma_k(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, const planetary_real * q_des, const planetary_real * qd_des, const planetary_real * qdd_des, const planetary_real * p, planetary_real *out)
+{
+    planetary_sp_gamma_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+/* Newton as instant's (no reuse), the driver rows from q_des. */
+static int planetary_sp_newton(planetary_real t, const planetary_real *p, const planetary_real *q_des, planetary_real tol, planetary_real *q, planetary_real *tr, int *info, planetary_real *work,
+                          int *iwork, int *dense, int reuse)
+{
+    planetary_real *r = PLANETARY_VEC(work, 0), *dq = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
+    planetary_real *base = PLANETARY_VEC(work, 10);
+    planetary_real step = ((double)INFINITY), lim, qmag, rmax;
+    int it, converged = 0, current = 0, chord;
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) planetary_trig_near(q, tr, base);
+    else planetary_trig_base(q, tr, base);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = PLANETARY_MAX(1.0, planetary_maxabs12(q));
+    lim = PLANETARY_MAX(tol, (planetary_real)PLANETARY_FLOOR_ULPS * PLANETARY_EPS * qmag);
+    planetary_phi_k(q, tr, t, p, r);
+    planetary_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+    rmax = planetary_maxabs12(r);
+    for (it = 0;; ++it) {
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            info[1] = *dense;
+            return it == 0 ? PLANETARY_NONFINITE : PLANETARY_NOT_CONVERGED;
+        }
+        if (rmax <= lim && step <= lim) {
+            converged = 1;
+            break;
+        }
+        if (it == PLANETARY_MAX_NEWTON) break;
+        chord = reuse && it == 0;
+        if (!chord && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) {
+            info[0] = it;
+            info[1] = *dense;
+            return PLANETARY_SINGULAR;
+        }
+        planetary_solve_in(work, iwork, *dense, r, dq, y);  /* r is computed afresh */
+        step = planetary_correct(q, dq);
+        planetary_trig_step(q, dq, tr, base);
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= PLANETARY_EPS * qmag;
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        planetary_phi_k(q, tr, t, p, r);
+        planetary_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+        rmax = planetary_maxabs12(r);
+    }
+    info[0] = it;
+    info[1] = *dense;
+    if (!converged) return PLANETARY_NOT_CONVERGED;
+    if (!current && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) {
+        info[1] = *dense;
+        return PLANETARY_SINGULAR;
+    }
+    info[1] = *dense;
+    return PLANETARY_OK;
+}
+
+/* The outputs as instant's, nu's and gamma's driver rows from the set-points. */
+static void planetary_sp_outputs(planetary_real t, const planetary_real *p, const planetary_real *q, const planetary_real *tr, planetary_real *qd, planetary_real *qdd,
+                            planetary_real *lam, planetary_real *reactions, planetary_real *work, const int *iwork, int dense,
+                            const planetary_real *q_des, const planetary_real *qd_des, const planetary_real *qdd_des)
+{
+    planetary_real *y = PLANETARY_VEC(work, 2), *b = PLANETARY_VEC(work, 3);
+    planetary_nu_k(q, tr, t, p, b);
+    planetary_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
+    planetary_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
+    planetary_gamma_k(q, tr, qd, t, p, b);
+    planetary_sp_gamma_k(q, tr, qd, q_des, qd_des, qdd_des, p, b);
+    planetary_solve_in(work, iwork, dense, b, qdd, y);
+    planetary_applied_k(q, tr, qd, t, p, b);
+    planetary_mass_k(p, y);
+    b[0] -= y[0] * qdd[0];
+    b[1] -= y[1] * qdd[1];
+    b[2] -= y[2] * qdd[2];
+    b[3] -= y[3] * qdd[3];
+    b[4] -= y[4] * qdd[4];
+    b[5] -= y[5] * qdd[5];
+    b[6] -= y[6] * qdd[6];
+    b[7] -= y[7] * qdd[7];
+    b[8] -= y[8] * qdd[8];
+    b[9] -= y[9] * qdd[9];
+    b[10] -= y[10] * qdd[10];
+    b[11] -= y[11] * qdd[11];
+    planetary_solve_t(work, iwork, dense, b, lam);
+    if (planetary_mixed(y)) planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    planetary_reactions_k(q, tr, lam, t, p, reactions);
+}
+
+/* setpoint's solve, its factorization's kind in *dense (for the sensitivities). */
+static int planetary_sp_instant(planetary_real t, const planetary_real *p, planetary_real tol, const planetary_real *q_des,
+                              const planetary_real *qd_des, const planetary_real *qdd_des, planetary_real *q, planetary_real *qd,
+                              planetary_real *qdd, planetary_real *lam, planetary_real *reactions, int *counts, planetary_real *work,
+                              int *iwork, int *dense)
+{
+    int status;
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
+        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
+        || !planetary_allfinite(q_des, PLANETARY_ND) || !planetary_allfinite(qd_des, PLANETARY_ND)
+        || !planetary_allfinite(qdd_des, PLANETARY_ND)) {
+        status = PLANETARY_BAD_ARGUMENT;
+    } else {
+        planetary_real *tr = PLANETARY_VEC(work, 9), *pp = work + PLANETARY_OFF_PREP, *kept = PLANETARY_VEC(work, 11);
+        memcpy(kept, q, sizeof(planetary_real) * 12);  /* the caller's guess, back in q if the call fails */
+        planetary_prepare(p, pp);
+        if (qd == NULL) qd = PLANETARY_VEC(work, 5);
+        if (qdd == NULL) qdd = PLANETARY_VEC(work, 6);
+        if (lam == NULL) lam = PLANETARY_VEC(work, 7);
+        if (reactions == NULL) reactions = PLANETARY_VEC(work, 8);
+        status = planetary_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
+        if (status == PLANETARY_OK) {
+            planetary_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (!planetary_finite(q, qd, qdd, lam, reactions)) status = PLANETARY_NONFINITE;
+        }
+        if (status != PLANETARY_OK) memcpy(q, kept, sizeof(planetary_real) * 12);
+    }
+    return status;
+}
+
+int planetary_setpoint(planetary_real t, const planetary_real *p, planetary_real tol, const planetary_real *q_des,
+                     const planetary_real *qd_des, const planetary_real *qdd_des, planetary_real *q, planetary_real *qd,
+                     planetary_real *qdd, planetary_real *lam, planetary_real *reactions, int *info, planetary_real *work,
+                     int *iwork)
+{
+    int dense = 0, counts[2] = {0, 0};
+    const int status = planetary_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
+                                          iwork, &dense);
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
+}

@@ -272,6 +272,27 @@ int planetary_screen_at(planetary_real t, const planetary_real *p, const planeta
 int planetary_trajectory(planetary_real t0, planetary_real h, long n, const planetary_real *p, planetary_real tol, planetary_real *state,
                        planetary_real *rows, long *solved, planetary_real *work, int *iwork);
 
+/* Set-points at run time: the feed-forward of a computed-torque controller.
+   setpoint solves one instant as instant does, but each driver's law f(t),
+   f'(t), f''(t) is replaced by the caller's desired value q_des[k], rate
+   qd_des[k] and second rate qdd_des[k] (size ND each, drivers in this
+   order; each value in the units of the driver's f in the mechanism file):
+     [0] input_motor (coordinate_driver, constraint row 11)
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
+#define PLANETARY_ND 1        /* drivers */
+extern const int planetary_setpoint_rows[PLANETARY_ND];
+int planetary_setpoint(planetary_real t, const planetary_real *p, planetary_real tol, const planetary_real *q_des,
+                     const planetary_real *qd_des, const planetary_real *qdd_des, planetary_real *q, planetary_real *qd,
+                     planetary_real *qdd, planetary_real *lam, planetary_real *reactions, int *info, planetary_real *work,
+                     int *iwork);
+
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved
    (contract v1.1, `symid sweep`). */

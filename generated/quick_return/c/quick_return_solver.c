@@ -1601,3 +1601,195 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
     }
     return QUICK_RETURN_OK;
 }
+
+/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+   the caller's desired values q_des, rates qd_des and second rates qdd_des
+   (one per driver) for the drivers' laws, written over the rows the
+   compiled laws gave. */
+const int quick_return_setpoint_rows[QUICK_RETURN_ND] = { 8 };
+
+static void quick_return_sp_phi_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, const quick_return_real * q_des, const quick_return_real * qd_des, const quick_return_real * qdd_des, const quick_return_real * p, quick_return_real *out)
+{
+    (void)tr;
+    (void)qd;
+    (void)qd_des;
+    (void)qdd_des;
+    (void)p;
+    out[8] = q[2] - q_des[0];
+}
+
+static void quick_return_sp_phi_k(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, const quick_return_real * q_des, const quick_return_real * qd_des, const quick_return_real * qdd_des, const quick_return_real * p, quick_return_real *out)
+{
+    quick_return_sp_phi_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void quick_return_sp_nu_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, const quick_return_real * q_des, const quick_return_real * qd_des, const quick_return_real * qdd_des, const quick_return_real * p, quick_return_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qdd_des;
+    (void)p;
+    out[8] = qd_des[0];
+}
+
+static void quick_return_sp_nu_k(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, const quick_return_real * q_des, const quick_return_real * qd_des, const quick_return_real * qdd_des, const quick_return_real * p, quick_return_real *out)
+{
+    quick_return_sp_nu_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void quick_return_sp_gamma_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, const quick_return_real * q_des, const quick_return_real * qd_des, const quick_return_real * qdd_des, const quick_return_real * p, quick_return_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qd_des;
+    (void)p;
+    out[8] = qdd_des[0];
+}
+
+static void quick_return_sp_gamma_k(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, const quick_return_real * q_des, const quick_return_real * qd_des, const quick_return_real * qdd_des, const quick_return_real * p, quick_return_real *out)
+{
+    quick_return_sp_gamma_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+/* Newton as instant's (no reuse), the driver rows from q_des. */
+static int quick_return_sp_newton(quick_return_real t, const quick_return_real *p, const quick_return_real *q_des, quick_return_real tol, quick_return_real *q, quick_return_real *tr, int *info, quick_return_real *work,
+                          int *iwork, int *dense, int reuse)
+{
+    quick_return_real *r = QUICK_RETURN_VEC(work, 0), *dq = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
+    quick_return_real *base = QUICK_RETURN_VEC(work, 10);
+    quick_return_real step = ((double)INFINITY), lim, qmag, rmax;
+    int it, converged = 0, current = 0, chord;
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) quick_return_trig_near(q, tr, base);
+    else quick_return_trig_base(q, tr, base);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = QUICK_RETURN_MAX(1.0, quick_return_maxabs9(q));
+    lim = QUICK_RETURN_MAX(tol, (quick_return_real)QUICK_RETURN_FLOOR_ULPS * QUICK_RETURN_EPS * qmag);
+    quick_return_phi_k(q, tr, t, p, r);
+    quick_return_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+    rmax = quick_return_maxabs9(r);
+    for (it = 0;; ++it) {
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            info[1] = *dense;
+            return it == 0 ? QUICK_RETURN_NONFINITE : QUICK_RETURN_NOT_CONVERGED;
+        }
+        if (rmax <= lim && step <= lim) {
+            converged = 1;
+            break;
+        }
+        if (it == QUICK_RETURN_MAX_NEWTON) break;
+        chord = reuse && it == 0;
+        if (!chord && quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK) {
+            info[0] = it;
+            info[1] = *dense;
+            return QUICK_RETURN_SINGULAR;
+        }
+        quick_return_solve_in(work, iwork, *dense, r, dq, y);  /* r is computed afresh */
+        step = quick_return_correct(q, dq);
+        quick_return_trig_step(q, dq, tr, base);
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= QUICK_RETURN_EPS * qmag;
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        quick_return_phi_k(q, tr, t, p, r);
+        quick_return_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+        rmax = quick_return_maxabs9(r);
+    }
+    info[0] = it;
+    info[1] = *dense;
+    if (!converged) return QUICK_RETURN_NOT_CONVERGED;
+    if (!current && quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK) {
+        info[1] = *dense;
+        return QUICK_RETURN_SINGULAR;
+    }
+    info[1] = *dense;
+    return QUICK_RETURN_OK;
+}
+
+/* The outputs as instant's, nu's and gamma's driver rows from the set-points. */
+static void quick_return_sp_outputs(quick_return_real t, const quick_return_real *p, const quick_return_real *q, const quick_return_real *tr, quick_return_real *qd, quick_return_real *qdd,
+                            quick_return_real *lam, quick_return_real *reactions, quick_return_real *work, const int *iwork, int dense,
+                            const quick_return_real *q_des, const quick_return_real *qd_des, const quick_return_real *qdd_des)
+{
+    quick_return_real *y = QUICK_RETURN_VEC(work, 2), *b = QUICK_RETURN_VEC(work, 3);
+    quick_return_nu_k(q, tr, t, p, b);
+    quick_return_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
+    quick_return_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
+    quick_return_gamma_k(q, tr, qd, t, p, b);
+    quick_return_sp_gamma_k(q, tr, qd, q_des, qd_des, qdd_des, p, b);
+    quick_return_solve_in(work, iwork, dense, b, qdd, y);
+    quick_return_applied_k(q, tr, qd, t, p, b);
+    quick_return_mass_k(p, y);
+    b[0] -= y[0] * qdd[0];
+    b[1] -= y[1] * qdd[1];
+    b[2] -= y[2] * qdd[2];
+    b[3] -= y[3] * qdd[3];
+    b[4] -= y[4] * qdd[4];
+    b[5] -= y[5] * qdd[5];
+    b[6] -= y[6] * qdd[6];
+    b[7] -= y[7] * qdd[7];
+    b[8] -= y[8] * qdd[8];
+    quick_return_solve_t(work, iwork, dense, b, lam);
+    if (quick_return_mixed(y)) quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    quick_return_reactions_k(q, tr, lam, t, p, reactions);
+}
+
+/* setpoint's solve, its factorization's kind in *dense (for the sensitivities). */
+static int quick_return_sp_instant(quick_return_real t, const quick_return_real *p, quick_return_real tol, const quick_return_real *q_des,
+                              const quick_return_real *qd_des, const quick_return_real *qdd_des, quick_return_real *q, quick_return_real *qd,
+                              quick_return_real *qdd, quick_return_real *lam, quick_return_real *reactions, int *counts, quick_return_real *work,
+                              int *iwork, int *dense)
+{
+    int status;
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
+        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
+        || !quick_return_allfinite(q_des, QUICK_RETURN_ND) || !quick_return_allfinite(qd_des, QUICK_RETURN_ND)
+        || !quick_return_allfinite(qdd_des, QUICK_RETURN_ND)) {
+        status = QUICK_RETURN_BAD_ARGUMENT;
+    } else {
+        quick_return_real *tr = QUICK_RETURN_VEC(work, 9), *pp = work + QUICK_RETURN_OFF_PREP, *kept = QUICK_RETURN_VEC(work, 11);
+        memcpy(kept, q, sizeof(quick_return_real) * 9);  /* the caller's guess, back in q if the call fails */
+        quick_return_prepare(p, pp);
+        if (qd == NULL) qd = QUICK_RETURN_VEC(work, 5);
+        if (qdd == NULL) qdd = QUICK_RETURN_VEC(work, 6);
+        if (lam == NULL) lam = QUICK_RETURN_VEC(work, 7);
+        if (reactions == NULL) reactions = QUICK_RETURN_VEC(work, 8);
+        status = quick_return_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
+        if (status == QUICK_RETURN_OK) {
+            quick_return_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (!quick_return_finite(q, qd, qdd, lam, reactions)) status = QUICK_RETURN_NONFINITE;
+        }
+        if (status != QUICK_RETURN_OK) memcpy(q, kept, sizeof(quick_return_real) * 9);
+    }
+    return status;
+}
+
+int quick_return_setpoint(quick_return_real t, const quick_return_real *p, quick_return_real tol, const quick_return_real *q_des,
+                     const quick_return_real *qd_des, const quick_return_real *qdd_des, quick_return_real *q, quick_return_real *qd,
+                     quick_return_real *qdd, quick_return_real *lam, quick_return_real *reactions, int *info, quick_return_real *work,
+                     int *iwork)
+{
+    int dense = 0, counts[2] = {0, 0};
+    const int status = quick_return_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
+                                          iwork, &dense);
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
+}

@@ -248,6 +248,27 @@ int quick_return_screen_at(quick_return_real t, const quick_return_real *p, cons
 int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, const quick_return_real *p, quick_return_real tol, quick_return_real *state,
                        quick_return_real *rows, long *solved, quick_return_real *work, int *iwork);
 
+/* Set-points at run time: the feed-forward of a computed-torque controller.
+   setpoint solves one instant as instant does, but each driver's law f(t),
+   f'(t), f''(t) is replaced by the caller's desired value q_des[k], rate
+   qd_des[k] and second rate qdd_des[k] (size ND each, drivers in this
+   order; each value in the units of the driver's f in the mechanism file):
+     [0] crank_motor (relative_angle_driver, constraint row 8)
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
+#define QUICK_RETURN_ND 1        /* drivers */
+extern const int quick_return_setpoint_rows[QUICK_RETURN_ND];
+int quick_return_setpoint(quick_return_real t, const quick_return_real *p, quick_return_real tol, const quick_return_real *q_des,
+                     const quick_return_real *qd_des, const quick_return_real *qdd_des, quick_return_real *q, quick_return_real *qd,
+                     quick_return_real *qdd, quick_return_real *lam, quick_return_real *reactions, int *info, quick_return_real *work,
+                     int *iwork);
+
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved
    (contract v1.1, `symid sweep`). */

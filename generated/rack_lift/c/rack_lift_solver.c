@@ -1496,3 +1496,192 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
     }
     return RACK_LIFT_OK;
 }
+
+/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+   the caller's desired values q_des, rates qd_des and second rates qdd_des
+   (one per driver) for the drivers' laws, written over the rows the
+   compiled laws gave. */
+const int rack_lift_setpoint_rows[RACK_LIFT_ND] = { 5 };
+
+static void rack_lift_sp_phi_k0(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, const rack_lift_real * q_des, const rack_lift_real * qd_des, const rack_lift_real * qdd_des, const rack_lift_real * p, rack_lift_real *out)
+{
+    (void)tr;
+    (void)qd;
+    (void)qd_des;
+    (void)qdd_des;
+    (void)p;
+    out[5] = q[2] - q_des[0];
+}
+
+static void rack_lift_sp_phi_k(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, const rack_lift_real * q_des, const rack_lift_real * qd_des, const rack_lift_real * qdd_des, const rack_lift_real * p, rack_lift_real *out)
+{
+    rack_lift_sp_phi_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void rack_lift_sp_nu_k0(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, const rack_lift_real * q_des, const rack_lift_real * qd_des, const rack_lift_real * qdd_des, const rack_lift_real * p, rack_lift_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qdd_des;
+    (void)p;
+    out[5] = qd_des[0];
+}
+
+static void rack_lift_sp_nu_k(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, const rack_lift_real * q_des, const rack_lift_real * qd_des, const rack_lift_real * qdd_des, const rack_lift_real * p, rack_lift_real *out)
+{
+    rack_lift_sp_nu_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void rack_lift_sp_gamma_k0(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, const rack_lift_real * q_des, const rack_lift_real * qd_des, const rack_lift_real * qdd_des, const rack_lift_real * p, rack_lift_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qd_des;
+    (void)p;
+    out[5] = qdd_des[0];
+}
+
+static void rack_lift_sp_gamma_k(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, const rack_lift_real * q_des, const rack_lift_real * qd_des, const rack_lift_real * qdd_des, const rack_lift_real * p, rack_lift_real *out)
+{
+    rack_lift_sp_gamma_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+/* Newton as instant's (no reuse), the driver rows from q_des. */
+static int rack_lift_sp_newton(rack_lift_real t, const rack_lift_real *p, const rack_lift_real *q_des, rack_lift_real tol, rack_lift_real *q, rack_lift_real *tr, int *info, rack_lift_real *work,
+                          int *iwork, int *dense, int reuse)
+{
+    rack_lift_real *r = RACK_LIFT_VEC(work, 0), *dq = RACK_LIFT_VEC(work, 1), *y = RACK_LIFT_VEC(work, 2);
+    rack_lift_real *base = RACK_LIFT_VEC(work, 10);
+    rack_lift_real step = ((double)INFINITY), lim, qmag, rmax;
+    int it, converged = 0, current = 0, chord;
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) rack_lift_trig_near(q, tr, base);
+    else rack_lift_trig_base(q, tr, base);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = RACK_LIFT_MAX(1.0, rack_lift_maxabs6(q));
+    lim = RACK_LIFT_MAX(tol, (rack_lift_real)RACK_LIFT_FLOOR_ULPS * RACK_LIFT_EPS * qmag);
+    rack_lift_phi_k(q, tr, t, p, r);
+    rack_lift_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+    rmax = rack_lift_maxabs6(r);
+    for (it = 0;; ++it) {
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            info[1] = *dense;
+            return it == 0 ? RACK_LIFT_NONFINITE : RACK_LIFT_NOT_CONVERGED;
+        }
+        if (rmax <= lim && step <= lim) {
+            converged = 1;
+            break;
+        }
+        if (it == RACK_LIFT_MAX_NEWTON) break;
+        chord = reuse && it == 0;
+        if (!chord && rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK) {
+            info[0] = it;
+            info[1] = *dense;
+            return RACK_LIFT_SINGULAR;
+        }
+        rack_lift_solve_in(work, iwork, *dense, r, dq, y);  /* r is computed afresh */
+        step = rack_lift_correct(q, dq);
+        rack_lift_trig_step(q, dq, tr, base);
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= RACK_LIFT_EPS * qmag;
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        rack_lift_phi_k(q, tr, t, p, r);
+        rack_lift_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+        rmax = rack_lift_maxabs6(r);
+    }
+    info[0] = it;
+    info[1] = *dense;
+    if (!converged) return RACK_LIFT_NOT_CONVERGED;
+    if (!current && rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK) {
+        info[1] = *dense;
+        return RACK_LIFT_SINGULAR;
+    }
+    info[1] = *dense;
+    return RACK_LIFT_OK;
+}
+
+/* The outputs as instant's, nu's and gamma's driver rows from the set-points. */
+static void rack_lift_sp_outputs(rack_lift_real t, const rack_lift_real *p, const rack_lift_real *q, const rack_lift_real *tr, rack_lift_real *qd, rack_lift_real *qdd,
+                            rack_lift_real *lam, rack_lift_real *reactions, rack_lift_real *work, const int *iwork, int dense,
+                            const rack_lift_real *q_des, const rack_lift_real *qd_des, const rack_lift_real *qdd_des)
+{
+    rack_lift_real *y = RACK_LIFT_VEC(work, 2), *b = RACK_LIFT_VEC(work, 3);
+    rack_lift_nu_k(q, tr, t, p, b);
+    rack_lift_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
+    rack_lift_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
+    rack_lift_gamma_k(q, tr, qd, t, p, b);
+    rack_lift_sp_gamma_k(q, tr, qd, q_des, qd_des, qdd_des, p, b);
+    rack_lift_solve_in(work, iwork, dense, b, qdd, y);
+    rack_lift_applied_k(q, tr, qd, t, p, b);
+    rack_lift_mass_k(p, y);
+    b[0] -= y[0] * qdd[0];
+    b[1] -= y[1] * qdd[1];
+    b[2] -= y[2] * qdd[2];
+    b[3] -= y[3] * qdd[3];
+    b[4] -= y[4] * qdd[4];
+    b[5] -= y[5] * qdd[5];
+    rack_lift_solve_t(work, iwork, dense, b, lam);
+    if (rack_lift_mixed(y)) rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    rack_lift_reactions_k(q, tr, lam, t, p, reactions);
+}
+
+/* setpoint's solve, its factorization's kind in *dense (for the sensitivities). */
+static int rack_lift_sp_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real tol, const rack_lift_real *q_des,
+                              const rack_lift_real *qd_des, const rack_lift_real *qdd_des, rack_lift_real *q, rack_lift_real *qd,
+                              rack_lift_real *qdd, rack_lift_real *lam, rack_lift_real *reactions, int *counts, rack_lift_real *work,
+                              int *iwork, int *dense)
+{
+    int status;
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
+        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
+        || !rack_lift_allfinite(q_des, RACK_LIFT_ND) || !rack_lift_allfinite(qd_des, RACK_LIFT_ND)
+        || !rack_lift_allfinite(qdd_des, RACK_LIFT_ND)) {
+        status = RACK_LIFT_BAD_ARGUMENT;
+    } else {
+        rack_lift_real *tr = RACK_LIFT_VEC(work, 9), *pp = work + RACK_LIFT_OFF_PREP, *kept = RACK_LIFT_VEC(work, 11);
+        memcpy(kept, q, sizeof(rack_lift_real) * 6);  /* the caller's guess, back in q if the call fails */
+        rack_lift_prepare(p, pp);
+        if (qd == NULL) qd = RACK_LIFT_VEC(work, 5);
+        if (qdd == NULL) qdd = RACK_LIFT_VEC(work, 6);
+        if (lam == NULL) lam = RACK_LIFT_VEC(work, 7);
+        if (reactions == NULL) reactions = RACK_LIFT_VEC(work, 8);
+        status = rack_lift_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
+        if (status == RACK_LIFT_OK) {
+            rack_lift_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (!rack_lift_finite(q, qd, qdd, lam, reactions)) status = RACK_LIFT_NONFINITE;
+        }
+        if (status != RACK_LIFT_OK) memcpy(q, kept, sizeof(rack_lift_real) * 6);
+    }
+    return status;
+}
+
+int rack_lift_setpoint(rack_lift_real t, const rack_lift_real *p, rack_lift_real tol, const rack_lift_real *q_des,
+                     const rack_lift_real *qd_des, const rack_lift_real *qdd_des, rack_lift_real *q, rack_lift_real *qd,
+                     rack_lift_real *qdd, rack_lift_real *lam, rack_lift_real *reactions, int *info, rack_lift_real *work,
+                     int *iwork)
+{
+    int dense = 0, counts[2] = {0, 0};
+    const int status = rack_lift_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
+                                          iwork, &dense);
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
+}

@@ -216,6 +216,27 @@ int rack_lift_screen_at(rack_lift_real t, const rack_lift_real *p, const rack_li
 int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack_lift_real *p, rack_lift_real tol, rack_lift_real *state,
                        rack_lift_real *rows, long *solved, rack_lift_real *work, int *iwork);
 
+/* Set-points at run time: the feed-forward of a computed-torque controller.
+   setpoint solves one instant as instant does, but each driver's law f(t),
+   f'(t), f''(t) is replaced by the caller's desired value q_des[k], rate
+   qd_des[k] and second rate qdd_des[k] (size ND each, drivers in this
+   order; each value in the units of the driver's f in the mechanism file):
+     [0] motor (relative_angle_driver, constraint row 5)
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
+#define RACK_LIFT_ND 1        /* drivers */
+extern const int rack_lift_setpoint_rows[RACK_LIFT_ND];
+int rack_lift_setpoint(rack_lift_real t, const rack_lift_real *p, rack_lift_real tol, const rack_lift_real *q_des,
+                     const rack_lift_real *qd_des, const rack_lift_real *qdd_des, rack_lift_real *q, rack_lift_real *qd,
+                     rack_lift_real *qdd, rack_lift_real *lam, rack_lift_real *reactions, int *info, rack_lift_real *work,
+                     int *iwork);
+
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved
    (contract v1.1, `symid sweep`). */

@@ -1555,3 +1555,195 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
     }
     return SLIDER_CRANK_OK;
 }
+
+/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+   the caller's desired values q_des, rates qd_des and second rates qdd_des
+   (one per driver) for the drivers' laws, written over the rows the
+   compiled laws gave. */
+const int slider_crank_setpoint_rows[SLIDER_CRANK_ND] = { 8 };
+
+static void slider_crank_sp_phi_k0(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, const slider_crank_real * q_des, const slider_crank_real * qd_des, const slider_crank_real * qdd_des, const slider_crank_real * p, slider_crank_real *out)
+{
+    (void)tr;
+    (void)qd;
+    (void)qd_des;
+    (void)qdd_des;
+    (void)p;
+    out[8] = q[2] - q_des[0];
+}
+
+static void slider_crank_sp_phi_k(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, const slider_crank_real * q_des, const slider_crank_real * qd_des, const slider_crank_real * qdd_des, const slider_crank_real * p, slider_crank_real *out)
+{
+    slider_crank_sp_phi_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void slider_crank_sp_nu_k0(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, const slider_crank_real * q_des, const slider_crank_real * qd_des, const slider_crank_real * qdd_des, const slider_crank_real * p, slider_crank_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qdd_des;
+    (void)p;
+    out[8] = qd_des[0];
+}
+
+static void slider_crank_sp_nu_k(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, const slider_crank_real * q_des, const slider_crank_real * qd_des, const slider_crank_real * qdd_des, const slider_crank_real * p, slider_crank_real *out)
+{
+    slider_crank_sp_nu_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void slider_crank_sp_gamma_k0(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, const slider_crank_real * q_des, const slider_crank_real * qd_des, const slider_crank_real * qdd_des, const slider_crank_real * p, slider_crank_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qd_des;
+    (void)p;
+    out[8] = qdd_des[0];
+}
+
+static void slider_crank_sp_gamma_k(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, const slider_crank_real * q_des, const slider_crank_real * qd_des, const slider_crank_real * qdd_des, const slider_crank_real * p, slider_crank_real *out)
+{
+    slider_crank_sp_gamma_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+/* Newton as instant's (no reuse), the driver rows from q_des. */
+static int slider_crank_sp_newton(slider_crank_real t, const slider_crank_real *p, const slider_crank_real *q_des, slider_crank_real tol, slider_crank_real *q, slider_crank_real *tr, int *info, slider_crank_real *work,
+                          int *iwork, int *dense, int reuse)
+{
+    slider_crank_real *r = SLIDER_CRANK_VEC(work, 0), *dq = SLIDER_CRANK_VEC(work, 1), *y = SLIDER_CRANK_VEC(work, 2);
+    slider_crank_real *base = SLIDER_CRANK_VEC(work, 10);
+    slider_crank_real step = ((double)INFINITY), lim, qmag, rmax;
+    int it, converged = 0, current = 0, chord;
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) slider_crank_trig_near(q, tr, base);
+    else slider_crank_trig_base(q, tr, base);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = SLIDER_CRANK_MAX(1.0, slider_crank_maxabs9(q));
+    lim = SLIDER_CRANK_MAX(tol, (slider_crank_real)SLIDER_CRANK_FLOOR_ULPS * SLIDER_CRANK_EPS * qmag);
+    slider_crank_phi_k(q, tr, t, p, r);
+    slider_crank_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+    rmax = slider_crank_maxabs9(r);
+    for (it = 0;; ++it) {
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            info[1] = *dense;
+            return it == 0 ? SLIDER_CRANK_NONFINITE : SLIDER_CRANK_NOT_CONVERGED;
+        }
+        if (rmax <= lim && step <= lim) {
+            converged = 1;
+            break;
+        }
+        if (it == SLIDER_CRANK_MAX_NEWTON) break;
+        chord = reuse && it == 0;
+        if (!chord && slider_crank_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_OK) {
+            info[0] = it;
+            info[1] = *dense;
+            return SLIDER_CRANK_SINGULAR;
+        }
+        slider_crank_solve_in(work, iwork, *dense, r, dq, y);  /* r is computed afresh */
+        step = slider_crank_correct(q, dq);
+        slider_crank_trig_step(q, dq, tr, base);
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= SLIDER_CRANK_EPS * qmag;
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        slider_crank_phi_k(q, tr, t, p, r);
+        slider_crank_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+        rmax = slider_crank_maxabs9(r);
+    }
+    info[0] = it;
+    info[1] = *dense;
+    if (!converged) return SLIDER_CRANK_NOT_CONVERGED;
+    if (!current && slider_crank_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_OK) {
+        info[1] = *dense;
+        return SLIDER_CRANK_SINGULAR;
+    }
+    info[1] = *dense;
+    return SLIDER_CRANK_OK;
+}
+
+/* The outputs as instant's, nu's and gamma's driver rows from the set-points. */
+static void slider_crank_sp_outputs(slider_crank_real t, const slider_crank_real *p, const slider_crank_real *q, const slider_crank_real *tr, slider_crank_real *qd, slider_crank_real *qdd,
+                            slider_crank_real *lam, slider_crank_real *reactions, slider_crank_real *work, const int *iwork, int dense,
+                            const slider_crank_real *q_des, const slider_crank_real *qd_des, const slider_crank_real *qdd_des)
+{
+    slider_crank_real *y = SLIDER_CRANK_VEC(work, 2), *b = SLIDER_CRANK_VEC(work, 3);
+    slider_crank_nu_k(q, tr, t, p, b);
+    slider_crank_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
+    slider_crank_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
+    slider_crank_gamma_k(q, tr, qd, t, p, b);
+    slider_crank_sp_gamma_k(q, tr, qd, q_des, qd_des, qdd_des, p, b);
+    slider_crank_solve_in(work, iwork, dense, b, qdd, y);
+    slider_crank_applied_k(q, tr, qd, t, p, b);
+    slider_crank_mass_k(p, y);
+    b[0] -= y[0] * qdd[0];
+    b[1] -= y[1] * qdd[1];
+    b[2] -= y[2] * qdd[2];
+    b[3] -= y[3] * qdd[3];
+    b[4] -= y[4] * qdd[4];
+    b[5] -= y[5] * qdd[5];
+    b[6] -= y[6] * qdd[6];
+    b[7] -= y[7] * qdd[7];
+    b[8] -= y[8] * qdd[8];
+    slider_crank_solve_t(work, iwork, dense, b, lam);
+    if (slider_crank_mixed(y)) slider_crank_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    slider_crank_reactions_k(q, tr, lam, t, p, reactions);
+}
+
+/* setpoint's solve, its factorization's kind in *dense (for the sensitivities). */
+static int slider_crank_sp_instant(slider_crank_real t, const slider_crank_real *p, slider_crank_real tol, const slider_crank_real *q_des,
+                              const slider_crank_real *qd_des, const slider_crank_real *qdd_des, slider_crank_real *q, slider_crank_real *qd,
+                              slider_crank_real *qdd, slider_crank_real *lam, slider_crank_real *reactions, int *counts, slider_crank_real *work,
+                              int *iwork, int *dense)
+{
+    int status;
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
+        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
+        || !slider_crank_allfinite(q_des, SLIDER_CRANK_ND) || !slider_crank_allfinite(qd_des, SLIDER_CRANK_ND)
+        || !slider_crank_allfinite(qdd_des, SLIDER_CRANK_ND)) {
+        status = SLIDER_CRANK_BAD_ARGUMENT;
+    } else {
+        slider_crank_real *tr = SLIDER_CRANK_VEC(work, 9), *pp = work + SLIDER_CRANK_OFF_PREP, *kept = SLIDER_CRANK_VEC(work, 11);
+        memcpy(kept, q, sizeof(slider_crank_real) * 9);  /* the caller's guess, back in q if the call fails */
+        slider_crank_prepare(p, pp);
+        if (qd == NULL) qd = SLIDER_CRANK_VEC(work, 5);
+        if (qdd == NULL) qdd = SLIDER_CRANK_VEC(work, 6);
+        if (lam == NULL) lam = SLIDER_CRANK_VEC(work, 7);
+        if (reactions == NULL) reactions = SLIDER_CRANK_VEC(work, 8);
+        status = slider_crank_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
+        if (status == SLIDER_CRANK_OK) {
+            slider_crank_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (!slider_crank_finite(q, qd, qdd, lam, reactions)) status = SLIDER_CRANK_NONFINITE;
+        }
+        if (status != SLIDER_CRANK_OK) memcpy(q, kept, sizeof(slider_crank_real) * 9);
+    }
+    return status;
+}
+
+int slider_crank_setpoint(slider_crank_real t, const slider_crank_real *p, slider_crank_real tol, const slider_crank_real *q_des,
+                     const slider_crank_real *qd_des, const slider_crank_real *qdd_des, slider_crank_real *q, slider_crank_real *qd,
+                     slider_crank_real *qdd, slider_crank_real *lam, slider_crank_real *reactions, int *info, slider_crank_real *work,
+                     int *iwork)
+{
+    int dense = 0, counts[2] = {0, 0};
+    const int status = slider_crank_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
+                                          iwork, &dense);
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
+}

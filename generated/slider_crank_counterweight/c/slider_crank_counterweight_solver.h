@@ -245,6 +245,27 @@ int slider_crank_counterweight_screen_at(slider_crank_counterweight_real t, cons
 int slider_crank_counterweight_trajectory(slider_crank_counterweight_real t0, slider_crank_counterweight_real h, long n, const slider_crank_counterweight_real *p, slider_crank_counterweight_real tol, slider_crank_counterweight_real *state,
                        slider_crank_counterweight_real *rows, long *solved, slider_crank_counterweight_real *work, int *iwork);
 
+/* Set-points at run time: the feed-forward of a computed-torque controller.
+   setpoint solves one instant as instant does, but each driver's law f(t),
+   f'(t), f''(t) is replaced by the caller's desired value q_des[k], rate
+   qd_des[k] and second rate qdd_des[k] (size ND each, drivers in this
+   order; each value in the units of the driver's f in the mechanism file):
+     [0] motor (relative_angle_driver, constraint row 8)
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
+#define SLIDER_CRANK_COUNTERWEIGHT_ND 1        /* drivers */
+extern const int slider_crank_counterweight_setpoint_rows[SLIDER_CRANK_COUNTERWEIGHT_ND];
+int slider_crank_counterweight_setpoint(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, slider_crank_counterweight_real tol, const slider_crank_counterweight_real *q_des,
+                     const slider_crank_counterweight_real *qd_des, const slider_crank_counterweight_real *qdd_des, slider_crank_counterweight_real *q, slider_crank_counterweight_real *qd,
+                     slider_crank_counterweight_real *qdd, slider_crank_counterweight_real *lam, slider_crank_counterweight_real *reactions, int *info, slider_crank_counterweight_real *work,
+                     int *iwork);
+
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved
    (contract v1.1, `symid sweep`). */

@@ -1556,3 +1556,197 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
     }
     return SLIDER_PENDULUM_OK;
 }
+
+/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+   the caller's desired values q_des, rates qd_des and second rates qdd_des
+   (one per driver) for the drivers' laws, written over the rows the
+   compiled laws gave. */
+const int slider_pendulum_setpoint_rows[SLIDER_PENDULUM_ND] = { 2, 5 };
+
+static void slider_pendulum_sp_phi_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, const slider_pendulum_real * q_des, const slider_pendulum_real * qd_des, const slider_pendulum_real * qdd_des, const slider_pendulum_real * p, slider_pendulum_real *out)
+{
+    (void)tr;
+    (void)qd;
+    (void)qd_des;
+    (void)qdd_des;
+    const slider_pendulum_real e0 = cos(p[0]);
+    const slider_pendulum_real e1 = sin(p[0]);
+    const slider_pendulum_real e2 = (1.0/sqrt((e0*e0) + (e1*e1)));
+    out[2] = e0*e2*q[0] + e1*e2*q[1] - q_des[0];
+    out[5] = -q[2] + q[5] - q_des[1] + (1.0/2.0)*3.141592653589793;
+}
+
+static void slider_pendulum_sp_phi_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, const slider_pendulum_real * q_des, const slider_pendulum_real * qd_des, const slider_pendulum_real * qdd_des, const slider_pendulum_real * p, slider_pendulum_real *out)
+{
+    slider_pendulum_sp_phi_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void slider_pendulum_sp_nu_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, const slider_pendulum_real * q_des, const slider_pendulum_real * qd_des, const slider_pendulum_real * qdd_des, const slider_pendulum_real * p, slider_pendulum_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qdd_des;
+    (void)p;
+    out[2] = qd_des[0];
+    out[5] = qd_des[1];
+}
+
+static void slider_pendulum_sp_nu_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, const slider_pendulum_real * q_des, const slider_pendulum_real * qd_des, const slider_pendulum_real * qdd_des, const slider_pendulum_real * p, slider_pendulum_real *out)
+{
+    slider_pendulum_sp_nu_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void slider_pendulum_sp_gamma_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, const slider_pendulum_real * q_des, const slider_pendulum_real * qd_des, const slider_pendulum_real * qdd_des, const slider_pendulum_real * p, slider_pendulum_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qd_des;
+    (void)p;
+    out[2] = qdd_des[0];
+    out[5] = qdd_des[1];
+}
+
+static void slider_pendulum_sp_gamma_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, const slider_pendulum_real * q_des, const slider_pendulum_real * qd_des, const slider_pendulum_real * qdd_des, const slider_pendulum_real * p, slider_pendulum_real *out)
+{
+    slider_pendulum_sp_gamma_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+/* Newton as instant's (no reuse), the driver rows from q_des. */
+static int slider_pendulum_sp_newton(slider_pendulum_real t, const slider_pendulum_real *p, const slider_pendulum_real *q_des, slider_pendulum_real tol, slider_pendulum_real *q, slider_pendulum_real *tr, int *info, slider_pendulum_real *work,
+                          int *iwork, int *dense, int reuse)
+{
+    slider_pendulum_real *r = SLIDER_PENDULUM_VEC(work, 0), *dq = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
+    slider_pendulum_real *base = SLIDER_PENDULUM_VEC(work, 10);
+    slider_pendulum_real step = ((double)INFINITY), lim, qmag, rmax;
+    int it, converged = 0, current = 0, chord;
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) slider_pendulum_trig_near(q, tr, base);
+    else slider_pendulum_trig_base(q, tr, base);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = SLIDER_PENDULUM_MAX(1.0, slider_pendulum_maxabs6(q));
+    lim = SLIDER_PENDULUM_MAX(tol, (slider_pendulum_real)SLIDER_PENDULUM_FLOOR_ULPS * SLIDER_PENDULUM_EPS * qmag);
+    slider_pendulum_phi_k(q, tr, t, p, r);
+    slider_pendulum_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+    rmax = slider_pendulum_maxabs6(r);
+    for (it = 0;; ++it) {
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            info[1] = *dense;
+            return it == 0 ? SLIDER_PENDULUM_NONFINITE : SLIDER_PENDULUM_NOT_CONVERGED;
+        }
+        if (rmax <= lim && step <= lim) {
+            converged = 1;
+            break;
+        }
+        if (it == SLIDER_PENDULUM_MAX_NEWTON) break;
+        chord = reuse && it == 0;
+        if (!chord && slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK) {
+            info[0] = it;
+            info[1] = *dense;
+            return SLIDER_PENDULUM_SINGULAR;
+        }
+        slider_pendulum_solve_in(work, iwork, *dense, r, dq, y);  /* r is computed afresh */
+        step = slider_pendulum_correct(q, dq);
+        slider_pendulum_trig_step(q, dq, tr, base);
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= SLIDER_PENDULUM_EPS * qmag;
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        slider_pendulum_phi_k(q, tr, t, p, r);
+        slider_pendulum_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+        rmax = slider_pendulum_maxabs6(r);
+    }
+    info[0] = it;
+    info[1] = *dense;
+    if (!converged) return SLIDER_PENDULUM_NOT_CONVERGED;
+    if (!current && slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK) {
+        info[1] = *dense;
+        return SLIDER_PENDULUM_SINGULAR;
+    }
+    info[1] = *dense;
+    return SLIDER_PENDULUM_OK;
+}
+
+/* The outputs as instant's, nu's and gamma's driver rows from the set-points. */
+static void slider_pendulum_sp_outputs(slider_pendulum_real t, const slider_pendulum_real *p, const slider_pendulum_real *q, const slider_pendulum_real *tr, slider_pendulum_real *qd, slider_pendulum_real *qdd,
+                            slider_pendulum_real *lam, slider_pendulum_real *reactions, slider_pendulum_real *work, const int *iwork, int dense,
+                            const slider_pendulum_real *q_des, const slider_pendulum_real *qd_des, const slider_pendulum_real *qdd_des)
+{
+    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2), *b = SLIDER_PENDULUM_VEC(work, 3);
+    slider_pendulum_nu_k(q, tr, t, p, b);
+    slider_pendulum_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
+    slider_pendulum_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
+    slider_pendulum_gamma_k(q, tr, qd, t, p, b);
+    slider_pendulum_sp_gamma_k(q, tr, qd, q_des, qd_des, qdd_des, p, b);
+    slider_pendulum_solve_in(work, iwork, dense, b, qdd, y);
+    slider_pendulum_applied_k(q, tr, qd, t, p, b);
+    slider_pendulum_mass_k(p, y);
+    b[0] -= y[0] * qdd[0];
+    b[1] -= y[1] * qdd[1];
+    b[2] -= y[2] * qdd[2];
+    b[3] -= y[3] * qdd[3];
+    b[4] -= y[4] * qdd[4];
+    b[5] -= y[5] * qdd[5];
+    slider_pendulum_solve_t(work, iwork, dense, b, lam);
+    if (slider_pendulum_mixed(y)) slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
+}
+
+/* setpoint's solve, its factorization's kind in *dense (for the sensitivities). */
+static int slider_pendulum_sp_instant(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, const slider_pendulum_real *q_des,
+                              const slider_pendulum_real *qd_des, const slider_pendulum_real *qdd_des, slider_pendulum_real *q, slider_pendulum_real *qd,
+                              slider_pendulum_real *qdd, slider_pendulum_real *lam, slider_pendulum_real *reactions, int *counts, slider_pendulum_real *work,
+                              int *iwork, int *dense)
+{
+    int status;
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
+        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
+        || !slider_pendulum_allfinite(q_des, SLIDER_PENDULUM_ND) || !slider_pendulum_allfinite(qd_des, SLIDER_PENDULUM_ND)
+        || !slider_pendulum_allfinite(qdd_des, SLIDER_PENDULUM_ND)) {
+        status = SLIDER_PENDULUM_BAD_ARGUMENT;
+    } else {
+        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9), *pp = work + SLIDER_PENDULUM_OFF_PREP, *kept = SLIDER_PENDULUM_VEC(work, 11);
+        memcpy(kept, q, sizeof(slider_pendulum_real) * 6);  /* the caller's guess, back in q if the call fails */
+        slider_pendulum_prepare(p, pp);
+        if (qd == NULL) qd = SLIDER_PENDULUM_VEC(work, 5);
+        if (qdd == NULL) qdd = SLIDER_PENDULUM_VEC(work, 6);
+        if (lam == NULL) lam = SLIDER_PENDULUM_VEC(work, 7);
+        if (reactions == NULL) reactions = SLIDER_PENDULUM_VEC(work, 8);
+        status = slider_pendulum_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
+        if (status == SLIDER_PENDULUM_OK) {
+            slider_pendulum_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (!slider_pendulum_finite(q, qd, qdd, lam, reactions)) status = SLIDER_PENDULUM_NONFINITE;
+        }
+        if (status != SLIDER_PENDULUM_OK) memcpy(q, kept, sizeof(slider_pendulum_real) * 6);
+    }
+    return status;
+}
+
+int slider_pendulum_setpoint(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, const slider_pendulum_real *q_des,
+                     const slider_pendulum_real *qd_des, const slider_pendulum_real *qdd_des, slider_pendulum_real *q, slider_pendulum_real *qd,
+                     slider_pendulum_real *qdd, slider_pendulum_real *lam, slider_pendulum_real *reactions, int *info, slider_pendulum_real *work,
+                     int *iwork)
+{
+    int dense = 0, counts[2] = {0, 0};
+    const int status = slider_pendulum_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
+                                          iwork, &dense);
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
+}

@@ -227,6 +227,28 @@ int slider_pendulum_screen_at(slider_pendulum_real t, const slider_pendulum_real
 int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, long n, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *state,
                        slider_pendulum_real *rows, long *solved, slider_pendulum_real *work, int *iwork);
 
+/* Set-points at run time: the feed-forward of a computed-torque controller.
+   setpoint solves one instant as instant does, but each driver's law f(t),
+   f'(t), f''(t) is replaced by the caller's desired value q_des[k], rate
+   qd_des[k] and second rate qdd_des[k] (size ND each, drivers in this
+   order; each value in the units of the driver's f in the mechanism file):
+     [0] carriage_actuator (translational_driver, constraint row 2)
+     [1] pendulum_motor (relative_angle_driver, constraint row 5)
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
+#define SLIDER_PENDULUM_ND 2        /* drivers */
+extern const int slider_pendulum_setpoint_rows[SLIDER_PENDULUM_ND];
+int slider_pendulum_setpoint(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, const slider_pendulum_real *q_des,
+                     const slider_pendulum_real *qd_des, const slider_pendulum_real *qdd_des, slider_pendulum_real *q, slider_pendulum_real *qd,
+                     slider_pendulum_real *qdd, slider_pendulum_real *lam, slider_pendulum_real *reactions, int *info, slider_pendulum_real *work,
+                     int *iwork);
+
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved
    (contract v1.1, `symid sweep`). */

@@ -1,4 +1,4 @@
-"""Code-generation targets behind one registry: c, numpy, casadi.
+"""Code-generation targets behind one registry: c, numpy, casadi, fmu.
 
 A target is a module with `NAME` and `generate(model, out_dir) -> list[Path]`.
 """
@@ -11,7 +11,7 @@ from types import ModuleType
 from symid.errors import InputError
 
 TARGETS = {"c": "symid.codegen.targets.c", "numpy": "symid.codegen.targets.numpy_target",
-           "casadi": "symid.codegen.targets.casadi_target"}
+           "casadi": "symid.codegen.targets.casadi_target", "fmu": "symid.codegen.fmu"}
 
 
 def get(name: str) -> ModuleType:

@@ -16,7 +16,7 @@ from symid.codegen.targets.c_lu import lu_chunks  # noqa: F401 (tests build chun
 from symid.codegen.targets.c_lu_runs import lu_runs, rolled
 from symid.codegen.targets.c_lu_tables import lu_tables
 from symid.codegen.model import CodeModel
-from symid.codegen.targets import c_checks, c_describe, c_lanes, c_sens, c_sweep
+from symid.codegen.targets import c_checks, c_describe, c_lanes, c_sens, c_setpoint, c_sweep
 from symid.codegen.render import render
 from symid.codegen.targets.c_describe import describe
 from symid.codegen.targets.c_printer import (DOUBLE, PRECISIONS, Printer, Scalar, c_double,  # noqa: F401
@@ -282,6 +282,9 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         "lm": {k: scalar.fn(k) for k in ("sin", "cos", "sqrt", "fabs", "fmax", "fmin", "tanh")},
         "comment_open": "/*", "comment_line": " *", "comment_close": "*/",
     }
+    # the drivers' values from the caller (c_setpoint; None: no driver)
+    ctx["setpoint"] = c_setpoint.context(model, red, _function, trig, printer, real, sens["stages"] if sens else ())
+    ctx["uses_powi"] = ctx["uses_powi"] or bool(ctx["setpoint"] and ctx["setpoint"]["uses_powi"])
     ctx["lanes"] = c_lanes.context(ctx) if lanes else None  # the sweep's variants side by side (None: one by one)
     return ctx
 

@@ -1,0 +1,326 @@
+"""The generated C solver's set-point entry (`<name>_setpoint`, issue #30 point 1).
+
+Truth: (1) fed the values the compiled law gives at t (f, f', f'' of each
+driver, evaluated here by sympy from the mechanism file, not by the C code),
+setpoint reproduces `_instant` at t on every bundled example, in double to
+1e-12 of each output group's peak and in single to the README's 1e-5 of
+peak (single precision's stated bound); (2) a computed-torque check against
+the closed form of a pendulum with set-points from no law; (3) statics and
+kinematics solvers; (4) bad set-points are refused.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from symid import api
+from symid.codegen.model import code_model
+from symid.codegen.targets import c as c_target
+from symid.io.reader import loads
+from symid.model.mechanism import T
+from symid.model.params import parameter_values
+from symid.symbolic.assemble import assemble
+from symid.symbolic.derive import DerivedConstraint
+from small_mechanisms import _body, _constraint, _coordinate, text
+
+OK, BAD_ARGUMENT = 0, 5
+needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
+
+
+class Solver:
+    """A generated solver compiled into a shared library, in one precision."""
+
+    def __init__(self, source: str, folder: Path, precision: str = "double", sensitivity: str | None = None,
+                 of: str | None = None) -> None:
+        self.mech = loads(source, "mech.toml")
+        model = api._sensitivity_model(self.mech, "c", sensitivity, of) if sensitivity else code_model(self.mech)
+        c_target.generate(model, folder, precision=precision)
+        self.ctx = c_target.context(model, precision=precision)
+        self.name, self.ng, self.nc, self.nr = model.name, self.ctx["ng"], self.ctx["nc"], self.ctx["nr"]
+        self.real = np.float64 if precision == "double" else np.float32
+        self.ct = ctypes.c_double if precision == "double" else ctypes.c_float
+        self.q0 = np.array(model.q0, dtype=self.real)
+        self.p = np.array(model.flat.defaults, dtype=self.real)
+        subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared",
+                        str(folder / f"{self.name}_solver.c"), "-o", str(folder / "s.so"), "-lm"], check=True)
+        self.lib = ctypes.CDLL(str(folder / "s.so"))
+        self.nd = self.ctx["setpoint"]["nd"]
+        self.rows = list((ctypes.c_int * self.nd).in_dll(self.lib, f"{self.name}_setpoint_rows"))
+        self.columns = model.row_columns
+        self.mech_params = list(model.flat.params)
+
+    def reaction(self, column: str) -> int:
+        """The index in reactions of a reaction column (row order: they come last)."""
+        first = next(k for k, c in enumerate(self.columns) if c.endswith(("Fx_i", "Fx_j", "Fx")))
+        return self.columns.index(column) - first
+
+    def _ptr(self, a: np.ndarray | None) -> Any:
+        return None if a is None else a.ctypes.data_as(ctypes.c_void_p)
+
+    def call(self, entry: str, t: float, q: np.ndarray, des: tuple[np.ndarray | None, ...] = (),
+             tol: float = 1e-12) -> tuple[int, dict[str, np.ndarray]]:
+        """instant or setpoint from the guess q: status and outputs."""
+        out = {"q": np.array(q, dtype=self.real), "qd": np.zeros(self.ng, self.real),
+               "qdd": np.zeros(self.ng, self.real), "lam": np.zeros(self.nc, self.real),
+               "reactions": np.zeros(max(self.nr, 1), self.real)}
+        work, iwork = np.zeros(self.ctx["work"], self.real), np.zeros(self.ng, np.intc)
+        fn = getattr(self.lib, f"{self.name}_{entry}")
+        fn.restype = ctypes.c_int
+        args = [self.ct(t), self._ptr(self.p), self.ct(tol)]
+        if entry == "setpoint":
+            args += [self._ptr(None if d is None else np.asarray(d, self.real)) for d in des]
+        args += [self._ptr(out[k]) for k in ("q", "qd", "qdd", "lam", "reactions")]
+        args += [None, self._ptr(work), self._ptr(iwork)]
+        status = fn(*args)
+        return status, out
+
+
+def laws(mech: Any, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each driver's f, f', f'' at t (drivers in constraint-row order), by
+    sympy from the file's expressions with the parameters' values."""
+    layout = assemble(mech)
+    values = parameter_values(mech.parameters)
+    found = []
+    for group in layout.constraint_groups:
+        assert isinstance(group.derived, DerivedConstraint)
+        if group.derived.functions:
+            for m in range(group.size):
+                found.append((int(group.rows[m]), sp.sympify(group.functions[m][0]).xreplace(values)))
+    found.sort(key=lambda x: x[0])
+    out = [[float(sp.diff(f, T, n).subs(T, t).evalf(30)) for _, f in found] for n in range(3)]
+    return np.array(out[0]), np.array(out[1]), np.array(out[2])
+
+
+def _instants(solver: Solver, count: int) -> list[tuple[float, np.ndarray]]:
+    """count instants of the file's grid with the solution there (by the
+    C trajectory in double), as (t, q)."""
+    a = solver.mech.analysis
+    fn = getattr(solver.lib, f"{solver.name}_trajectory")
+    fn.restype = ctypes.c_int
+    n = a.steps
+    state, rows = np.zeros(solver.ctx["state"], solver.real), np.zeros((n, solver.ctx["row_width"]), solver.real)
+    state[:solver.ng] = solver.q0
+    work, iwork, solved = np.zeros(solver.ctx["work"], solver.real), np.zeros(solver.ng, np.intc), ctypes.c_long()
+    h = (a.t1 - a.t0) / (n - 1)
+    status = fn(solver.ct(a.t0), solver.ct(h), ctypes.c_long(n), solver._ptr(solver.p), solver.ct(a.tol),
+                solver._ptr(state), solver._ptr(rows), ctypes.byref(solved), solver._ptr(work), solver._ptr(iwork))
+    assert status == OK and solved.value == n
+    picks = np.linspace(0, n - 1, count).round().astype(int)
+    return [(float(rows[k, 0]), rows[k, 1:1 + solver.ng].astype(float)) for k in picks]
+
+
+@pytest.fixture(scope="module")
+def doubles(tmp_path_factory) -> dict[str, Solver]:
+    return {}
+
+
+def _solver(cache: dict[str, Solver], tmp_path_factory, example: str, precision: str) -> Solver:
+    key = f"{example}-{precision}"
+    if key not in cache:
+        cache[key] = Solver(api.example(example).read_text(), tmp_path_factory.mktemp(key), precision)
+    return cache[key]
+
+
+# the guess's offset from the solution: Newton has work to do (a few
+# iterations), as in a controller's call from the last sample's q
+OFFSET = 1e-3
+# double: the law's value computed by sympy and by the C code differ by a
+# rounding or two of f, which the solve carries to ~1e-15 of the outputs;
+# 1e-12 leaves room for the conditioning of the bigger mechanisms
+DOUBLE_BOUND = 1e-12
+# single: the README's bound for single precision (every column within 1e-5
+# of its peak against double) applies to the set-points rounded to float too
+SINGLE_BOUND = 1e-5
+
+
+@needs_cc
+@pytest.mark.parametrize("precision", ["double", "single"])
+@pytest.mark.parametrize("example", api.examples())
+def test_setpoints_of_the_compiled_law_reproduce_instant(doubles, tmp_path_factory, example: str,
+                                                         precision: str) -> None:
+    reference = _solver(doubles, tmp_path_factory, example, "double")
+    solver = reference if precision == "double" else _solver(doubles, tmp_path_factory, example, precision)
+    bound = DOUBLE_BOUND if precision == "double" else SINGLE_BOUND
+    results: dict[str, list[np.ndarray]] = {"instant": [], "setpoint": []}
+    for t, q in _instants(reference, 7):
+        guess = q + OFFSET
+        status, inst = solver.call("instant", t, guess)
+        assert status == OK, (example, t)
+        status, sp_out = solver.call("setpoint", t, guess, laws(solver.mech, t))
+        assert status == OK, (example, t)
+        results["instant"].append(inst)
+        results["setpoint"].append(sp_out)
+    for key in ("q", "qd", "qdd", "lam", "reactions"):
+        a = np.array([r[key] for r in results["instant"]], dtype=float)
+        b = np.array([r[key] for r in results["setpoint"]], dtype=float)
+        if key == "q":  # angles reduced by whole turns in single: compare modulo 2 pi
+            a[:, 2::3] = np.angle(np.exp(1j * (a[:, 2::3] - b[:, 2::3]))) + b[:, 2::3]
+        peak = max(np.max(np.abs(a)), 1e-300)
+        assert np.max(np.abs(a - b)) <= bound * peak, (example, precision, key, np.max(np.abs(a - b)) / peak)
+
+
+# A pendulum: a bar of mass m and inertia J about its centre of mass, pinned
+# to the ground at l behind it, its angle phi driven by a coordinate driver
+# (the law in the file, sin(t), is never read by setpoint). The centre of
+# mass is at l (cos phi, sin phi); gravity g down. Moments about the pin:
+# (J + m l^2) phi'' = tau - m g l cos phi, tau the driver's torque on the bar.
+M, J, L, G = 2.5, 0.3, 0.4, 9.81
+PENDULUM = text("pendulum_ct",
+                _body("bar", f"{L}, 0.0, 0.0", mass=str(M), inertia=str(J))
+                + _constraint("pin", "revolute", i='"ground"', j='"bar"', si="[0.0, 0.0]", sj=f"[{-L}, 0.0]")
+                + _coordinate("bar", "phi", "sin(t)"),
+                gravity=-G)
+
+
+@needs_cc
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_computed_torque_of_a_pendulum_is_the_closed_form(tmp_path: Path, precision: str) -> None:
+    solver = Solver(PENDULUM, tmp_path, precision)
+    assert solver.nd == 1
+    rng = np.random.default_rng(30)
+    bound = 1e-12 if precision == "double" else 1e-5  # of the torque's scale (single: README's bound)
+    q = solver.q0.astype(float)
+    for phi, rate, accel in zip(rng.uniform(-3, 3, 12), rng.uniform(-5, 5, 12), rng.uniform(-40, 40, 12)):
+        t = float(rng.uniform(0, 10))  # read by nothing: no other function of time
+        status, out = solver.call("setpoint", t, q, (np.array([phi]), np.array([rate]), np.array([accel])))
+        assert status == OK
+        tau = (J + M * L * L) * accel + M * G * L * math.cos(phi)
+        scale = (J + M * L * L) * 40 + M * G * L
+        # the coordinate driver's reaction on the bar: [Fx, Fy, T] at its centre of mass, T = -lambda
+        reaction = out["reactions"][solver.reaction("drive_phi.T_i")]
+        lam = out["lam"][solver.rows[0]]
+        assert abs(reaction - tau) <= bound * scale, (reaction, tau)
+        assert abs(-lam - tau) <= bound * scale
+        # single reads the driver's row modulo 2 pi (the header says so): the angle to whole turns
+        assert abs(math.remainder(float(out["q"][2]) - phi, 2 * math.pi)) <= (1e-12 if precision == "double" else 1e-6)
+        assert abs(float(out["qd"][2]) - rate) <= bound * 5
+        assert abs(float(out["qdd"][2]) - accel) <= bound * 40
+        # the pin carries the rest: m a_cm = F_pin + F_drive + m g (the drive is a pure torque)
+        x, y = L * math.cos(phi), L * math.sin(phi)
+        ax = -L * math.sin(phi) * accel - x * rate ** 2
+        assert abs(float(out["qdd"][0]) - ax) <= bound * 100
+        assert abs(float(out["q"][1]) - y) <= 1e-6
+        q = out["q"]
+
+
+
+@needs_cc
+@pytest.mark.parametrize("kind", ["statics", "kinematics"])
+def test_statics_and_kinematics_setpoints_reproduce_instant(tmp_path: Path, kind: str) -> None:
+    """The analyses with no rates (statics: q_des only, qd_des and qdd_des
+    may be NULL) or no multipliers (kinematics)."""
+    solver = Solver(PENDULUM.replace("[analysis]\n", f'[analysis]\nkind = "{kind}"\n'), tmp_path)
+    for t in (0.3, 1.7):
+        f, fd, fdd = laws(solver.mech, t)
+        status, inst = solver.call("instant", t, solver.q0 + OFFSET)
+        assert status == OK
+        status, got = solver.call("setpoint", t, solver.q0 + OFFSET, (f, None, None) if kind == "statics"
+                                  else (f, fd, fdd))
+        assert status == OK
+        for key in ("q", "qd", "qdd", "lam", "reactions"):
+            peak = max(np.max(np.abs(inst[key])), 1.0)
+            assert np.max(np.abs(got[key] - inst[key])) <= DOUBLE_BOUND * peak, (kind, key)
+
+
+@needs_cc
+def test_bad_setpoints_are_refused_and_leave_q(tmp_path: Path) -> None:
+    solver = Solver(PENDULUM, tmp_path)
+    f, fd, fdd = laws(solver.mech, 0.5)
+    for des in ((f * np.nan, fd, fdd), (f, fd * np.inf, fdd), (f, fd, fdd * np.nan), (None, fd, fdd),
+                (f, None, fdd), (f, fd, None)):
+        status, out = solver.call("setpoint", 0.5, solver.q0 + OFFSET, des)
+        assert status == BAD_ARGUMENT
+        assert np.array_equal(out["q"], solver.q0 + OFFSET)
+
+
+# a pendulum whose angle driver has an offset C = phi_off (read by the
+# driver's row: its position stage) and a law amplitude (read by the law only)
+OFFSET_PENDULUM = text("offset_pendulum",
+                       '\n[parameters]\nphi_off = 0.3\namp = 0.8\nm_bar = 1.5\n'
+                       + _body("bar", "0.5, 0.0, 0.0", mass='"m_bar"')
+                       + _constraint("pin", "revolute", i='"ground"', j='"bar"', si="[0.0, 0.0]", sj="[-0.5, 0.0]")
+                       + _constraint("drive", "relative_angle_driver", i='"ground"', j='"bar"', f='"amp*sin(t)"',
+                                     C='"phi_off"'))
+SENSITIVITY_CASES = {
+    # the carriage: a translational driver along a guide inclined by alpha
+    # (read by its rows' rates), its stroke s_amp read by its law only
+    "slider_pendulum": (api.example("slider_pendulum").read_text(), ("alpha", "s_amp", "h_hinge"), "s_amp"),
+    "offset_pendulum": (OFFSET_PENDULUM, ("phi_off", "amp", "m_bar"), "amp"),
+}
+
+
+@needs_cc
+@pytest.mark.parametrize("case", SENSITIVITY_CASES)
+def test_setpoint_sensitivities_are_central_differences_with_the_setpoints_held(tmp_path: Path, case: str) -> None:
+    """setpoint_sensitivity against central differences of setpoint itself,
+    the set-points held: a parameter read by the driver's row moves the
+    results, one read by its law only has no effect."""
+    source, names, law_only = SENSITIVITY_CASES[case]
+    solver = Solver(source, tmp_path, sensitivity=",".join(names))
+    sens_ctx = solver.ctx["sens"]
+    ns, of = sens_ctx["ns"], sens_ctx["of"]
+    columns = list(solver.columns)
+    fn = getattr(solver.lib, f"{solver.name}_setpoint_sensitivity")
+    fn.restype = ctypes.c_int
+    for t, q in _instants(solver, 3)[1:]:
+        des = laws(solver.mech, t)
+        sens = np.zeros(len(of) * ns)
+        work, iwork = np.zeros(solver.ctx["work"]), np.zeros(solver.ng, np.intc)
+        guess = q + OFFSET
+        status = fn(ctypes.c_double(t), solver._ptr(solver.p), ctypes.c_double(1e-13),
+                    *(solver._ptr(d) for d in des), solver._ptr(guess), solver._ptr(sens), None,
+                    solver._ptr(work), solver._ptr(iwork))
+        assert status == OK
+        got = sens.reshape(len(of), ns)
+
+        def row(p: np.ndarray) -> np.ndarray:
+            saved, solver.p = solver.p, p
+            status, out = solver.call("setpoint", t, q, des, tol=1e-14)
+            solver.p = saved
+            assert status == OK
+            values = np.concatenate([[t], out["q"], out["qd"], out["qdd"], out["lam"], out["reactions"]])
+            return np.array([values[columns.index(c)] for c in of])
+
+        base = row(solver.p)
+        for k, name in enumerate(names):
+            j = solver.mech_params.index(name)
+            h = 1e-5 * max(1.0, abs(solver.p[j]))
+            up, down = solver.p.copy(), solver.p.copy()
+            up[j] += h
+            down[j] -= h
+            fd = (row(up) - row(down)) / (2 * h)
+            # central differences: truncation h^2 ~ 1e-10, rounding ~1e-16 / h of each column's scale
+            scale = np.max(np.abs(base)) / max(abs(solver.p[j]), 1e-2) + np.max(np.abs(fd))
+            assert np.max(np.abs(got[:, k] - fd)) <= 1e-6 * scale, (name, np.max(np.abs(got[:, k] - fd)) / scale)
+        assert np.max(np.abs(got[:, names.index(law_only)])) == 0.0  # read by the driver's law only
+
+
+@needs_cc
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_position_only_sensitivities_compile_strictly_and_hold_the_crank(tmp_path: Path, precision: str) -> None:
+    """Sensitivities of q columns only (no rate or multiplier stage): the
+    solver builds with -Werror (no set-point kernel, and no transposed
+    solve, left unused), and the crank's angle, a set-point, does not move
+    with the slider's mass."""
+    solver = Solver(api.example("slider_crank").read_text(), tmp_path, precision, sensitivity="m_slider,L_rod",
+                    of="crank.phi,slider.x")
+    fn = getattr(solver.lib, f"{solver.name}_setpoint_sensitivity")
+    fn.restype = ctypes.c_int
+    t = 0.013
+    sens = np.full(4, np.nan, solver.real)
+    work, iwork = np.zeros(solver.ctx["work"], solver.real), np.zeros(solver.ng, np.intc)
+    status = fn(solver.ct(t), solver._ptr(solver.p), solver.ct(1e-12 if precision == "double" else 1e-6),
+                *(solver._ptr(np.asarray(d, solver.real)) for d in laws(solver.mech, t)), solver._ptr(solver.q0.copy()),
+                solver._ptr(sens), None, solver._ptr(work), solver._ptr(iwork))
+    assert status == OK
+    assert sens[0] == 0.0 and sens[1] == 0.0  # d(crank.phi)/d(m_slider), d(crank.phi)/d(L_rod): the set-point's
+    assert sens[2] == 0.0 and abs(sens[3]) > 0.5  # the slider's position: not by mass, by the rod's length
