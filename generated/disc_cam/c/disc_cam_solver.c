@@ -1603,3 +1603,192 @@ int disc_cam_sweep(long k, const disc_cam_real *p, disc_cam_real t0, disc_cam_re
     }
     return DISC_CAM_OK;
 }
+
+/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+   the caller's desired values q_des, rates qd_des and second rates qdd_des
+   (one per driver) for the drivers' laws, written over the rows the
+   compiled laws gave. */
+const int disc_cam_setpoint_rows[DISC_CAM_ND] = { 5 };
+
+static void disc_cam_sp_phi_k0(const disc_cam_real * q, const disc_cam_real * tr, const disc_cam_real * qd, const disc_cam_real * q_des, const disc_cam_real * qd_des, const disc_cam_real * qdd_des, const disc_cam_real * p, disc_cam_real *out)
+{
+    (void)tr;
+    (void)qd;
+    (void)qd_des;
+    (void)qdd_des;
+    (void)p;
+    out[5] = q[2] - q_des[0];
+}
+
+static void disc_cam_sp_phi_k(const disc_cam_real * q, const disc_cam_real * tr, const disc_cam_real * qd, const disc_cam_real * q_des, const disc_cam_real * qd_des, const disc_cam_real * qdd_des, const disc_cam_real * p, disc_cam_real *out)
+{
+    disc_cam_sp_phi_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void disc_cam_sp_nu_k0(const disc_cam_real * q, const disc_cam_real * tr, const disc_cam_real * qd, const disc_cam_real * q_des, const disc_cam_real * qd_des, const disc_cam_real * qdd_des, const disc_cam_real * p, disc_cam_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qdd_des;
+    (void)p;
+    out[5] = qd_des[0];
+}
+
+static void disc_cam_sp_nu_k(const disc_cam_real * q, const disc_cam_real * tr, const disc_cam_real * qd, const disc_cam_real * q_des, const disc_cam_real * qd_des, const disc_cam_real * qdd_des, const disc_cam_real * p, disc_cam_real *out)
+{
+    disc_cam_sp_nu_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+static void disc_cam_sp_gamma_k0(const disc_cam_real * q, const disc_cam_real * tr, const disc_cam_real * qd, const disc_cam_real * q_des, const disc_cam_real * qd_des, const disc_cam_real * qdd_des, const disc_cam_real * p, disc_cam_real *out)
+{
+    (void)q;
+    (void)tr;
+    (void)qd;
+    (void)q_des;
+    (void)qd_des;
+    (void)p;
+    out[5] = qdd_des[0];
+}
+
+static void disc_cam_sp_gamma_k(const disc_cam_real * q, const disc_cam_real * tr, const disc_cam_real * qd, const disc_cam_real * q_des, const disc_cam_real * qd_des, const disc_cam_real * qdd_des, const disc_cam_real * p, disc_cam_real *out)
+{
+    disc_cam_sp_gamma_k0(q, tr, qd, q_des, qd_des, qdd_des, p, out);
+}
+
+/* Newton as instant's (no reuse), the driver rows from q_des. */
+static int disc_cam_sp_newton(disc_cam_real t, const disc_cam_real *p, const disc_cam_real *q_des, disc_cam_real tol, disc_cam_real *q, disc_cam_real *tr, int *info, disc_cam_real *work,
+                          int *iwork, int *dense, int reuse)
+{
+    disc_cam_real *r = DISC_CAM_VEC(work, 0), *dq = DISC_CAM_VEC(work, 1), *y = DISC_CAM_VEC(work, 2);
+    disc_cam_real *base = DISC_CAM_VEC(work, 10);
+    disc_cam_real step = ((double)INFINITY), lim, qmag, rmax;
+    int it, converged = 0, current = 0, chord;
+    /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
+       a NaN would raise FE_INVALID) */
+    if (reuse) disc_cam_trig_near(q, tr, base);
+    else disc_cam_trig_base(q, tr, base);
+    /* the rounding floor of the tolerance, from the guess's magnitude */
+    qmag = DISC_CAM_MAX(1.0, disc_cam_maxabs6(q));
+    lim = DISC_CAM_MAX(tol, (disc_cam_real)DISC_CAM_FLOOR_ULPS * DISC_CAM_EPS * qmag);
+    disc_cam_phi_k(q, tr, t, p, r);
+    disc_cam_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+    rmax = disc_cam_maxabs6(r);
+    for (it = 0;; ++it) {
+        if (!isfinite(rmax)) {
+            /* at the guess: an expression of the constraints left its domain
+               (the prediction is finite); later: Newton diverged */
+            info[0] = it;
+            info[1] = *dense;
+            return it == 0 ? DISC_CAM_NONFINITE : DISC_CAM_NOT_CONVERGED;
+        }
+        if (rmax <= lim && step <= lim) {
+            converged = 1;
+            break;
+        }
+        if (it == DISC_CAM_MAX_NEWTON) break;
+        chord = reuse && it == 0;
+        if (!chord && disc_cam_factorize(q, tr, t, p, work, iwork, dense) != DISC_CAM_OK) {
+            info[0] = it;
+            info[1] = *dense;
+            return DISC_CAM_SINGULAR;
+        }
+        disc_cam_solve_in(work, iwork, *dense, r, dq, y);  /* r is computed afresh */
+        step = disc_cam_correct(q, dq);
+        disc_cam_trig_step(q, dq, tr, base);
+        /* factors of the iterate before a step at rounding level serve this
+           one (a larger step, even 1e-14, would show in the outputs' last digits) */
+        current = !chord && step <= DISC_CAM_EPS * qmag;
+        if (rmax <= lim && step <= lim) {
+            /* |Phi| was within tolerance where this last correction was
+               computed, and the correction is too: converged */
+            converged = 1;
+            ++it;
+            break;
+        }
+        disc_cam_phi_k(q, tr, t, p, r);
+        disc_cam_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
+        rmax = disc_cam_maxabs6(r);
+    }
+    info[0] = it;
+    info[1] = *dense;
+    if (!converged) return DISC_CAM_NOT_CONVERGED;
+    if (!current && disc_cam_factorize(q, tr, t, p, work, iwork, dense) != DISC_CAM_OK) {
+        info[1] = *dense;
+        return DISC_CAM_SINGULAR;
+    }
+    info[1] = *dense;
+    return DISC_CAM_OK;
+}
+
+/* The outputs as instant's, nu's and gamma's driver rows from the set-points. */
+static void disc_cam_sp_outputs(disc_cam_real t, const disc_cam_real *p, const disc_cam_real *q, const disc_cam_real *tr, disc_cam_real *qd, disc_cam_real *qdd,
+                            disc_cam_real *lam, disc_cam_real *reactions, disc_cam_real *work, const int *iwork, int dense,
+                            const disc_cam_real *q_des, const disc_cam_real *qd_des, const disc_cam_real *qdd_des)
+{
+    disc_cam_real *y = DISC_CAM_VEC(work, 2), *b = DISC_CAM_VEC(work, 3);
+    disc_cam_nu_k(q, tr, t, p, b);
+    disc_cam_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
+    disc_cam_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
+    disc_cam_gamma_k(q, tr, qd, t, p, b);
+    disc_cam_sp_gamma_k(q, tr, qd, q_des, qd_des, qdd_des, p, b);
+    disc_cam_solve_in(work, iwork, dense, b, qdd, y);
+    disc_cam_applied_k(q, tr, qd, t, p, b);
+    disc_cam_mass_k(p, y);
+    b[0] -= y[0] * qdd[0];
+    b[1] -= y[1] * qdd[1];
+    b[2] -= y[2] * qdd[2];
+    b[3] -= y[3] * qdd[3];
+    b[4] -= y[4] * qdd[4];
+    b[5] -= y[5] * qdd[5];
+    disc_cam_solve_t(work, iwork, dense, b, lam);
+    if (disc_cam_mixed(y)) disc_cam_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    disc_cam_reactions_k(q, tr, lam, t, p, reactions);
+}
+
+/* setpoint's solve, its factorization's kind in *dense (for the sensitivities). */
+static int disc_cam_sp_instant(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol, const disc_cam_real *q_des,
+                              const disc_cam_real *qd_des, const disc_cam_real *qdd_des, disc_cam_real *q, disc_cam_real *qd,
+                              disc_cam_real *qdd, disc_cam_real *lam, disc_cam_real *reactions, int *counts, disc_cam_real *work,
+                              int *iwork, int *dense)
+{
+    int status;
+    /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
+    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
+        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
+        || !disc_cam_allfinite(q_des, DISC_CAM_ND) || !disc_cam_allfinite(qd_des, DISC_CAM_ND)
+        || !disc_cam_allfinite(qdd_des, DISC_CAM_ND)) {
+        status = DISC_CAM_BAD_ARGUMENT;
+    } else {
+        disc_cam_real *tr = DISC_CAM_VEC(work, 9), *pp = work + DISC_CAM_OFF_PREP, *kept = DISC_CAM_VEC(work, 11);
+        memcpy(kept, q, sizeof(disc_cam_real) * 6);  /* the caller's guess, back in q if the call fails */
+        disc_cam_prepare(p, pp);
+        if (qd == NULL) qd = DISC_CAM_VEC(work, 5);
+        if (qdd == NULL) qdd = DISC_CAM_VEC(work, 6);
+        if (lam == NULL) lam = DISC_CAM_VEC(work, 7);
+        if (reactions == NULL) reactions = DISC_CAM_VEC(work, 8);
+        status = disc_cam_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
+        if (status == DISC_CAM_OK) {
+            disc_cam_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (!disc_cam_finite(q, qd, qdd, lam, reactions)) status = DISC_CAM_NONFINITE;
+        }
+        if (status != DISC_CAM_OK) memcpy(q, kept, sizeof(disc_cam_real) * 6);
+    }
+    return status;
+}
+
+int disc_cam_setpoint(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol, const disc_cam_real *q_des,
+                     const disc_cam_real *qd_des, const disc_cam_real *qdd_des, disc_cam_real *q, disc_cam_real *qd,
+                     disc_cam_real *qdd, disc_cam_real *lam, disc_cam_real *reactions, int *info, disc_cam_real *work,
+                     int *iwork)
+{
+    int dense = 0, counts[2] = {0, 0};
+    const int status = disc_cam_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
+                                          iwork, &dense);
+    if (info != NULL) {
+        info[0] = counts[0];
+        info[1] = counts[1];
+    }
+    return status;
+}

@@ -219,6 +219,27 @@ int disc_cam_screen_at(disc_cam_real t, const disc_cam_real *p, const disc_cam_r
 int disc_cam_trajectory(disc_cam_real t0, disc_cam_real h, long n, const disc_cam_real *p, disc_cam_real tol, disc_cam_real *state,
                        disc_cam_real *rows, long *solved, disc_cam_real *work, int *iwork);
 
+/* Set-points at run time: the feed-forward of a computed-torque controller.
+   setpoint solves one instant as instant does, but each driver's law f(t),
+   f'(t), f''(t) is replaced by the caller's desired value q_des[k], rate
+   qd_des[k] and second rate qdd_des[k] (size ND each, drivers in this
+   order; each value in the units of the driver's f in the mechanism file):
+     [0] motor (relative_angle_driver, constraint row 5)
+   Driver k's effort is lam[setpoint_rows[k]]; its loads on the bodies are
+   in reactions. t is still read by the other functions of time (applied
+   and actuator forces), as instant reads them. Arguments and outputs as
+   instant's.
+   q_des, qd_des and qdd_des are required: one NULL or not finite returns
+   BAD_ARGUMENT.
+   Fed the values the compiled law gives at t, setpoint returns instant's
+   results at t (to rounding). */
+#define DISC_CAM_ND 1        /* drivers */
+extern const int disc_cam_setpoint_rows[DISC_CAM_ND];
+int disc_cam_setpoint(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol, const disc_cam_real *q_des,
+                     const disc_cam_real *qd_des, const disc_cam_real *qdd_des, disc_cam_real *q, disc_cam_real *qd,
+                     disc_cam_real *qdd, disc_cam_real *lam, disc_cam_real *reactions, int *info, disc_cam_real *work,
+                     int *iwork);
+
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved
    (contract v1.1, `symid sweep`). */
