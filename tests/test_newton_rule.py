@@ -11,7 +11,7 @@ import pytest
 
 from symid import api
 from symid.codegen.model import code_model, options_for
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
 from symid.codegen.targets import numpy_target
 from symid.errors import AnalysisError
 from symid.io.reader import loads

@@ -112,7 +112,8 @@ def build(layout: Layout, options: Options) -> Path:
     def make(folder: Path) -> None:
         from symid.codegen.model import code_model
         from symid.codegen.render import preload
-        from symid.codegen.targets import c, c_sweep
+        from symid.codegen import c
+        from symid.codegen.c import sweep as c_sweep
 
         cc = compiler()
         stage("deriving")
@@ -131,10 +132,10 @@ def build(layout: Layout, options: Options) -> Path:
         f = model.flat
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
                 "row": len(model.row_columns), "columns": list(model.row_columns),
-                "work": ctx["work"], "state": c.state_size(model), "params": list(f.params),
+                "work": ctx.work, "state": ctx.state, "params": list(f.params),
                 "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac],
-                "sweep_figures": c_sweep.figure_names(model), "sweep_work": ctx["sweep_work"],
-                "sens_width": ctx["sens"]["width"] if ctx["sens"] else 0}
+                "sweep_figures": c_sweep.figure_names(model), "sweep_work": ctx.sweep.work,
+                "sens_width": ctx.sens.width if ctx.sens else 0}
         (folder / "meta.json").write_text(json.dumps(meta))
 
     return cached(mech, options, "c", make, ("solver.so", "meta.json"))
