@@ -17,7 +17,7 @@ from symid import api
 from symid.codegen import model as code_model_module
 from symid.codegen.model import code_model
 from symid.codegen import c as c_target
-from symid.codegen.c import context as c_context
+from symid.codegen.c import compose as c_compose
 from symid.codegen.c import layout as c_layout
 from symid.codegen.c import lu as c_lu
 from symid.codegen.render import render
@@ -186,7 +186,7 @@ def test_sparse_fallback_alone_solves_a_looped_ladder_as_the_reference(looped: N
         return original(self, n, *args)  # type: ignore[arg-type]
 
     monkeypatch.setattr(solve.Stepper, "instant", spy)
-    monkeypatch.setattr(c_context, "THRESHOLD", 2.0)
+    monkeypatch.setattr(c_compose, "THRESHOLD", 2.0)
     mech = loads(ladder.toml(ladder.Ladder(10, x0=0.3), steps=15), "ladder_10.toml")
     got = api.solve(mech, backend="c")
     assert got.error is None and len(handed) <= 1

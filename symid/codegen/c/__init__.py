@@ -1,6 +1,6 @@
 """The C target: a dependency-free C99 solver (`.h`, `.c`, Makefile) per mechanism.
 
-`context` builds one typed record (`CContext`) from a code model, composed
+`context` (compose.py) builds one typed record (`CContext`) from a code model, composed
 of a section per part of the templates, each built by its module:
 
     kernels      the quantity functions (phi, phi_q, ...), CSE'd chunks
@@ -20,7 +20,7 @@ of a section per part of the templates, each built by its module:
 `write` renders it (templates/c/solver.c.j2, solver.h.j2, Makefile.j2).
 """
 
-from symid.codegen.c.context import TEMPLATES, CContext, context, generate, write
+from symid.codegen.c.compose import TEMPLATES, CContext, context, generate, write
 from symid.codegen.c.kernels import ccode
 
 NAME = "c"

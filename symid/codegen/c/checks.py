@@ -62,7 +62,7 @@ def context(outputs: list[tuple[str, int | None, int]], ng: int, nc: int, veloci
 
     Args:
         outputs: the trajectory's output vectors (variable, row offset or
-            None, work vector), as context.context builds them: qn, qdn, qddn, lam, reac.
+            None, work vector), as compose.context builds them: qn, qdn, qddn, lam, reac.
     """
     sizes = {"qn": ng, "qdn": ng if velocity else 0, "qddn": ng if velocity else 0,
              "lam": nc if multipliers else 0, "reac": nr}

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 from symid.codegen.c.kernels import Kernel
 
 if TYPE_CHECKING:
-    from symid.codegen.c.context import CContext
+    from symid.codegen.c.compose import CContext
 
 # variants a group: four doubles fill an AVX2 register, two an SSE2 one (the
 # baseline of x86-64); the code has both and takes AVX2 where the processor

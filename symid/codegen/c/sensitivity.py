@@ -140,7 +140,7 @@ def context(model: CodeModel, row_parts: list[tuple[str, str | None, int, int]],
     """What sensitivity.j2 needs, or None when no sensitivity was asked for.
 
     Args:
-        row_parts: (group, source, size, offset) of the row (context.context).
+        row_parts: (group, source, size, offset) of the row (compose.context).
         row_offset: where the sensitivity columns start in the row.
         np_prepared: the prepared parameters before these (NP + pieces).
         make: kernels.function (kernels of bounded size, sines and cosines shared).
