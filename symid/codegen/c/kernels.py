@@ -5,7 +5,7 @@ cosines computed once per configuration and shared (`tr`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 import sympy as sp
 
@@ -57,7 +57,7 @@ class Kernel:
     chunks: list[Chunk]
     trig: bool
     call: str
-    loops: list[dict]  # type: ignore[type-arg]
+    loops: list[dict[str, Any]]
 
 
 Make = Callable[..., Kernel]
