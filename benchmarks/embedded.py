@@ -40,7 +40,7 @@ import numpy as np
 
 from symid import api
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
 from symid.io.reader import load
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -146,11 +146,11 @@ def example(name: str, quick: bool, work: Path) -> dict[str, Any]:
         out["us_per_instant"][precision] = {"trajectory": loop, "instant": instant}
     us = out["us_per_instant"]
     out["single_over_double"] = {k: us["single"][k] / us["double"][k] for k in ("trajectory", "instant")}
-    kept = c_target.context(model, precision="single")["kept"]
+    kept = c_target.context(model, precision="single").phase.kept
     out["long_bound_applies"], out["kept"] = not kept, kept
     out["single_error"] = {}
     columns = list(model.row_columns)
-    parts = c_target.context(model)["row_parts"]
+    parts = c_target.context(model).row_parts
     groups = [0] + [k + 1 for k, (_, _, size, _) in enumerate(parts) for _ in range(size)]
     groups += [len(parts) + 1] * (len(columns) - len(groups))  # joint friction's columns: a group of their own
     short = {p: rows(exe, a.t0, h, n, model.q0) for p, exe in exes.items()}

@@ -127,7 +127,8 @@ def child(n: int, form: str, instants: int, folder: Path) -> dict[str, Any]:
     """One cold setup and timing, in this (fresh) process."""
     sys.path.insert(0, str(ROOT))
     from benchmarks import ladder, scale_counts
-    from symid.codegen.targets import c, c_loops
+    from symid.codegen.c import lu as c_lu
+    from symid.codegen.c import loops as c_loops
     from symid.tools.bench import bench
 
     from symid.io import reader
@@ -138,11 +139,12 @@ def child(n: int, form: str, instants: int, folder: Path) -> dict[str, Any]:
     reader.MAX_BODIES = max(reader.MAX_BODIES, 2 * n + 1)
     limits = FORMS[form]
     if limits is not None:
-        c_loops.LOOP_MIN, c.LU_TABLES_MIN = limits
+        c_loops.LOOP_MIN, c_lu.LU_TABLES_MIN = limits
     if form == "before_runs":  # auto, as before the runs (c_lu_runs, c_loop_runs): tables and straight-line code
-        from symid.codegen.targets import c_loop_runs, c_lu_runs
+        from symid.codegen.c import loop_runs as c_loop_runs
+        from symid.codegen.c import lu_runs as c_lu_runs
         c_lu_runs.LITERAL_MAX = c_loop_runs.LITERAL_MAX = -1
-        c.rolled = lambda passes: None  # type: ignore[assignment]
+        c_lu.rolled = lambda passes: None  # type: ignore[assignment]
     path = ladder.write(n, folder / "mech", steps=1001)
     os.environ["SYMID_CACHE"] = str(folder / "cache")
     result = bench(path, "c", instants=instants, cold=False, budget_s=20.0)

@@ -1,5 +1,5 @@
 """Issue 17's flop rate of the ladder: the generated code before and after
-the runs (symid/codegen/targets/c_lu_runs.py, c_loop_runs.py), per ladder,
+the runs (symid/codegen/c/lu_runs.py, loop_runs.py), per ladder,
 by benchmarks/scale.py's measurements in a fresh process each: callgrind's
 instructions per instant (a figure the machine's load does not change),
 flops per instruction, us per instant and GFLOP/s (wall clock: compare

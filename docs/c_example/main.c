@@ -15,7 +15,7 @@ int main(void)
     long solved = 0, k;
     int status, i;
 
-    for (i = 0; i < SLIDER_CRANK_NG; ++i) state[i] = q0[i]; /* initial guess; state[STATE-1] = 0 */
+    for (i = 0; i < SLIDER_CRANK_NG; ++i) state[SLIDER_CRANK_STATE_Q + i] = q0[i]; /* guess; count 0 */
     status = slider_crank_trajectory(0.0, 0.02, 11, slider_crank_default_params, 1e-12, state, rows, &solved,
                                      work, iwork);
     for (k = 0; k < solved; ++k) /* t is the first value of a row, motor.T_j the last */

@@ -38,9 +38,7 @@ if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a built solver withou
 # (the tests compile every generated solver with -Wall -Wextra -Werror -pedantic).
 CFLAGS = ("-std=c99", "-fno-math-errno", "-fPIC", "-shared")
 CHUNK = 1024
-# a chunk's rows stay in cache while Python copies them out: ladder of 64
-# (21.7 kB rows), 1024 -> 48 instants a call: 14.1 -> 12.4 us per instant solved
-CHUNK_BYTES = 1 << 20
+CHUNK_BYTES = 1 << 20  # a chunk's rows stay in cache while Python copies them out
 LARGE_SOURCE = 200_000  # bytes of generated C
 
 
@@ -113,7 +111,8 @@ def build(layout: Layout, options: Options) -> Path:
     def make(folder: Path) -> None:
         from symid.codegen.model import code_model
         from symid.codegen.render import preload
-        from symid.codegen.targets import c, c_sweep
+        from symid.codegen import c
+        from symid.codegen.c import sweep as c_sweep
 
         cc = compiler()
         stage("deriving")
@@ -132,10 +131,11 @@ def build(layout: Layout, options: Options) -> Path:
         f = model.flat
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
                 "row": len(model.row_columns), "columns": list(model.row_columns),
-                "work": ctx["work"], "state": c.state_size(model), "params": list(f.params),
+                "work": ctx.work, "state": ctx.state, "state_layout": ctx.state_layout.to_json(),
+                "params": list(f.params),
                 "rows": [r for r, _, _ in f.jac], "cols": [col for _, col, _ in f.jac],
-                "sweep_figures": c_sweep.figure_names(model), "sweep_work": ctx["sweep_work"],
-                "sens_width": ctx["sens"]["width"] if ctx["sens"] else 0}
+                "sweep_figures": c_sweep.figure_names(model), "sweep_work": ctx.sweep.work,
+                "sens_width": ctx.sens.width if ctx.sens else 0}
         (folder / "meta.json").write_text(json.dumps(meta))
 
     return cached(mech, options, "c", make, ("solver.so", "meta.json"))
@@ -300,9 +300,12 @@ class CEvaluator:
 
         ng, width = self.meta["ng"], self.meta["row"]
         chunk = chunk_rows(width)
+        at = self.meta["state_layout"]  # name -> [offset, size] (symid.codegen.c.layout)
         state = np.zeros(self.meta["state"])
-        state[:ng] = q0
-        q, qd, qdd, m1, m2, m3 = (state[k * ng:(k + 1) * ng] for k in range(6))  # views (statics: m1, m2 are q)
+        q, qd, qdd, m1, m2, m3 = (state[at[k][0]:at[k][0] + at[k][1]]  # views (statics: m1, m2 are q)
+                                  for k in ("q", "qd", "qdd", "m1", "m2", "m3"))
+        q[:] = q0
+        count_at = at["count"][0]
         times = analysis.steps
         h = (analysis.t1 - analysis.t0) / (times - 1) if times > 1 else 0.0
         buf = np.zeros((chunk, width))
@@ -322,15 +325,15 @@ class CEvaluator:
             check_signal()  # between calls of at most CHUNK_BYTES of rows
             if start == 0 and status == 0 and solved.value == 1:
                 stepper.scaling = self.scaling(q.copy(), analysis.t0)
-                _set_scales(state, ng, stepper.scaling)
+                _set_scales(state, at, stepper.scaling)
                 if self._screen_at(ctypes.c_double(analysis.t0), _ptr(self.p), _ptr(state), _ptr(self.work),
                                    self.iwork.ctypes.data_as(_I)) != 0:
-                    solved.value, status, state[-1] = 0, ILL_CONDITIONED, 0  # the Python loop solves t0
+                    solved.value, status, state[count_at] = 0, ILL_CONDITIONED, 0  # the Python loop solves t0
             if solved.value:
                 yield buf[:solved.value].copy()
             if status != 0:  # the Python loop solves this instant, or reports why not
                 k = start + solved.value
-                count = int(state[-1])
+                count = int(state[count_at])
                 if k == 0:
                     out = stepper.instant(0, analysis.t0, None, [], q0)
                 else:
@@ -350,23 +353,25 @@ class CEvaluator:
                 else:
                     m2[:], m1[:] = m1, q
                 q[:] = out.q
-                state[-1] = count + 1
+                state[count_at] = count + 1
                 n = solved.value + 1
             if start == 0:
                 if stepper.scaling is None:
                     stepper.scaling = self.scaling(q.copy(), analysis.t0)
-                _set_scales(state, ng, stepper.scaling)
+                _set_scales(state, at, stepper.scaling)
             start += n
 
 
 ILL_CONDITIONED = 6  # the compiled solver's status: its conditioning screen tripped
 
 
-def _set_scales(state: Array, ng: int, scaling: Scaling) -> None:
+def _set_scales(state: Array, at: dict[str, list[int]], scaling: Scaling) -> None:
     """The trajectory state's scales, the Python loop's from q(t0): 1 / each
-    column's for the jump check, each row's norm for the conditioning screen."""
-    state[6 * ng:7 * ng] = scaling.inv_col
-    state[7 * ng:8 * ng] = scaling.row
+    column's for the jump check, each row's norm for the conditioning screen
+    (at: the state's layout, name -> [offset, size])."""
+    (o, n), (ro, rn) = at["scale"], at["rscale"]
+    state[o:o + n] = scaling.inv_col
+    state[ro:ro + rn] = scaling.row
 
 
 class CBackend:

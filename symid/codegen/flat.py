@@ -34,7 +34,7 @@ class Options:
         outputs: the output groups, contract order.
         reactions: constraints whose reactions are emitted, file order.
         sensitivity, sensitivity_of: `d(COLUMN)/d(NAME)` columns to add
-            (symid.codegen.targets.c_sens); empty: none, the code as without.
+            (symid.codegen.c.sensitivity); empty: none, the code as without.
     """
 
     kind: str

@@ -37,7 +37,7 @@ import sympy as sp
 
 from symid.codegen.model import CodeModel
 from symid.codegen.render import render
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
 from symid.errors import InputError
 from symid.model.mechanism import T
 from symid.model.params import parameter_values
@@ -73,31 +73,32 @@ def _xml_number(v: float) -> str:
     return repr(float(v)) if math.isfinite(v) else "0.0"
 
 
-def context(model: CodeModel) -> dict[str, Any]:
-    """What the wrapper and modelDescription.xml templates need."""
+def context(model: CodeModel) -> tuple[c_target.CContext, dict[str, Any]]:
+    """The solver's context and what the wrapper and modelDescription.xml
+    templates need besides it (`fmu`)."""
     ctx = c_target.context(model)
-    sp_ctx = ctx["setpoint"]
+    sp_ctx = ctx.setpoint
     if sp_ctx is None:
         raise InputError(f"{model.layout.mechanism.source}: --target fmu: the mechanism has no driver, so no "
                          f"set-point to take as an input")
     f = model.flat
     velocity = f.options.velocity
-    starts = _law_values(model, ctx["d"]["t0"])
+    starts = _law_values(model, ctx.d.t0)
     variables: list[dict[str, Any]] = []
-    for name, value, info in zip(f.params, f.defaults, ctx["d"]["param_info"]):
+    for name, value, info in zip(f.params, f.defaults, ctx.d.param_info):
         variables.append({"name": name, "causality": "parameter", "variability": "tunable",
                           "start": _xml_number(value), "description": info.get("comment") or ""})
     kinds = (("q_des", "value"), ("qd_des", "rate"), ("qdd_des", "second rate"))[:3 if velocity else 1]
     inputs = []
-    for k, (driver, start) in enumerate(zip(sp_ctx["drivers"], starts)):
+    for k, (driver, start) in enumerate(zip(sp_ctx.drivers, starts)):
         for n, (suffix, what) in enumerate(kinds):
             inputs.append((n, k))
             variables.append({"name": f"{driver.name}.{suffix}", "causality": "input", "variability": "continuous",
                               "start": _xml_number(start[n]),
                               "description": f"set-point: the {what} of the {driver.type}'s f"})
     outputs = []  # (array, index) per output
-    units = {c["name"]: c["unit"] for c in ctx["d"]["columns"]}
-    for group, source, size, offset in ctx["row_parts"]:
+    units = {c["name"]: c["unit"] for c in ctx.d.columns}
+    for group, source, size, offset in ctx.row_parts:
         if source is None:  # statics' rates: zero, not computed
             continue
         for i in range(size):
@@ -109,20 +110,21 @@ def context(model: CodeModel) -> dict[str, Any]:
         v["vr"] = k
         v["index"] = k + 1
     first_output = len(f.params) + len(inputs)
-    return {**ctx, "fmu": {
+    return ctx, {
+
         "variables": variables, "inputs": inputs, "outputs": outputs, "first_output": first_output,
         "nin": len(inputs), "nout": len(outputs), "input_starts": [v["start"] for v in variables
                                                                   if v["causality"] == "input"],
-        "step": _xml_number((ctx["d"]["t1"] - ctx["d"]["t0"]) / max(ctx["d"]["steps"] - 1, 1)),
-        "t0": _xml_number(ctx["d"]["t0"]), "t1": _xml_number(ctx["d"]["t1"]), "tol": _xml_number(ctx["d"]["tol"]),
+        "step": _xml_number((ctx.d.t1 - ctx.d.t0) / max(ctx.d.steps - 1, 1)),
+        "t0": _xml_number(ctx.d.t0), "t1": _xml_number(ctx.d.t1), "tol": _xml_number(ctx.d.tol),
         "sources": [f"{f.name}_solver.c", f"{f.name}_fmi2.c"],
-    }}
+    }
 
 
-def _guid(ctx: dict[str, Any], solver: Path) -> str:
+def _guid(fmu: dict[str, Any], solver: Path) -> str:
     """The FMU's GUID: a hash of its variables and its solver's source, so an
     FMU whose interface or code changed does not pass for an older one."""
-    text = "\n".join(f"{v['name']}|{v['causality']}|{v.get('start', '')}" for v in ctx["fmu"]["variables"])
+    text = "\n".join(f"{v['name']}|{v['causality']}|{v.get('start', '')}" for v in fmu["variables"])
     h = hashlib.sha256((text + "\n").encode() + solver.read_bytes()).hexdigest()
     return "{%s-%s-%s-%s-%s}" % (h[:8], h[8:12], h[12:16], h[16:20], h[20:32])
 
@@ -183,7 +185,7 @@ def generate(model: CodeModel, out_dir: Path, precision: str = "double") -> list
     if sys.platform not in PLATFORMS:
         raise InputError(f"generate --target fmu: no FMI platform name for {sys.platform}")
     cc = compiler()  # before any work: no compiler is said at once
-    ctx = context(model)
+    ctx, fmu = context(model)
     name = model.name
     platform, suffix = PLATFORMS[sys.platform]
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -191,13 +193,14 @@ def generate(model: CodeModel, out_dir: Path, precision: str = "double") -> list
         root = Path(tmp) / "fmu"
         sources = root / "sources"
         c_target.write(ctx, sources)
-        ctx["fmu"]["guid"] = _guid(ctx, sources / f"{name}_solver.c")
+        fmu["guid"] = _guid(fmu, sources / f"{name}_solver.c")
+        names = {**ctx.namespace(), "fmu": fmu}
         (sources / "Makefile").unlink()  # the FMU's build is the modelDescription's SourceFiles
-        (sources / f"{name}_fmi2.c").write_text(render("fmu/fmi2.c.j2", **ctx))
-        (root / "modelDescription.xml").write_text(render("fmu/modelDescription.xml.j2", **ctx))
+        (sources / f"{name}_fmi2.c").write_text(render("fmu/fmi2.c.j2", **names))
+        (root / "modelDescription.xml").write_text(render("fmu/modelDescription.xml.j2", **names))
         binaries = root / "binaries" / platform
         binaries.mkdir(parents=True)
-        _build(cc, [sources / f for f in ctx["fmu"]["sources"]], binaries / f"{name}{suffix}")
+        _build(cc, [sources / f for f in fmu["sources"]], binaries / f"{name}{suffix}")
         target = out_dir / f"{name}.fmu"
         _zip(root, target)
     return [target]

@@ -8,6 +8,7 @@ gets None here, and its generated code is exactly what it was without this.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Callable
 
 import sympy as sp
@@ -88,10 +89,38 @@ def joints(layout: Layout, options: Options, lit: Callable[[float], str] = repr)
     return out
 
 
+@dataclass(frozen=True)
+class Friction:
+    """What templates/c/friction.j2 needs (`friction`; None: no friction to solve).
+
+    Attributes:
+        nf: joints with friction; joints: per joint its expressions and place (`joints`).
+        fw, nw: values per joint of the fixed and the iteration kernel (FIXED, `width`).
+        fixed, normal: the kernels' expressions, joints outer (the target prints them).
+        columns: whether the row has each joint's friction and friction power.
+        unrolled: whether the Newton system is solved written out (nf <= UNROLLED).
+        offset: where the friction columns start in the row; row_width: the row's width after them.
+        max_iterations, rest: the friction Newton's cap and rest threshold (printed).
+    """
+
+    nf: int
+    fw: int
+    nw: int
+    fixed: list[sp.Expr]
+    normal: list[sp.Expr]
+    joints: list[dict[str, Any]]
+    columns: bool
+    unrolled: bool
+    offset: int
+    max_iterations: int
+    rest: str
+    row_width: int
+
+
 def context(layout: Layout, options: Options, row_width: int,
-            lit: Callable[[float], str] = repr) -> dict[str, Any] | None:
+            lit: Callable[[float], str] = repr) -> Friction | None:
     """What the templates need for friction (None: none to solve). The kernels'
-    expressions are under "fixed" and "normal", for the target to print as functions."""
+    expressions are `fixed` and `normal`, for the target to print as functions."""
     if options.kind != "inverse_dynamics" or not options.multipliers:
         return None
     found = joints(layout, options, lit)  # literals of the generated code's scalar type
@@ -103,10 +132,10 @@ def context(layout: Layout, options: Options, row_width: int,
         normal += j["normal"] + [sp.Integer(0)] * (nw - len(j["normal"]))
     nf = len(found)
     columns = "reactions" in options.outputs
-    return {"nf": nf, "fw": FIXED, "nw": nw, "fixed": [e for j in found for e in j["fixed"]], "normal": normal,
-            "joints": found, "columns": columns, "unrolled": nf <= UNROLLED,
-            "offset": row_width, "max_iterations": MAX_ITERATIONS, "rest": lit(REST),
-            "row_width": row_width + (2 * nf if columns else 0)}
+    return Friction(nf=nf, fw=FIXED, nw=nw, fixed=[e for j in found for e in j["fixed"]], normal=normal,
+                    joints=found, columns=columns, unrolled=nf <= UNROLLED, offset=row_width,
+                    max_iterations=MAX_ITERATIONS, rest=lit(REST),
+                    row_width=row_width + (2 * nf if columns else 0))
 
 
 def work(layout: Layout, options: Options) -> int:

@@ -156,7 +156,7 @@ def _sample(layout: Layout, values: dict[Any, float], q0: np.ndarray, t0: float,
 
 def _loop_parts(layout: Layout) -> list[Any] | None:
     """The parts of the constraint groups the C target's kernels loop over."""
-    from symid.codegen.targets import c_loops
+    from symid.codegen.c import loops as c_loops
 
     if layout.ng < c_loops.LOOP_MIN:
         return None

@@ -136,6 +136,7 @@ def _trajectory(study: api.Study) -> _Runner | None:
     h = (a.t1 - a.t0) / (a.steps - 1) if a.steps > 1 else 0.0
     buf = np.zeros((chunk_rows(meta["row"]), meta["row"]))
     solved = ctypes.c_long(0)
+    count = meta["state_layout"]["count"][0]  # the instants the state has solved (symid.codegen.c.layout)
     # pointers made once: each conversion costs about a microsecond
     p, buf_p, work, iwork = (ev.p.ctypes.data_as(ptr), buf.ctypes.data_as(ptr), ev.work.ctypes.data_as(ptr),
                              ev.iwork.ctypes.data_as(ctypes.POINTER(ctypes.c_int)))
@@ -143,7 +144,7 @@ def _trajectory(study: api.Study) -> _Runner | None:
 
     def run(start: int, n: int, state: np.ndarray) -> tuple[np.ndarray, int, int, float]:
         # the solver reads the index of the next instant from the state's count
-        assert int(state[-1]) == start, "the state must be the one this run has advanced"
+        assert int(state[count]) == start, "the state must be the one this run has advanced"
         state_p = state.ctypes.data_as(ptr)
         tick = time.perf_counter()
         status = fn(a.t0, h, n, p, a.tol, state_p, buf_p, solved_p, work, iwork)
@@ -220,7 +221,8 @@ def _time_compiled(study: api.Study, run: _Runner, wanted: int, budget_s: float,
     state = np.zeros(study.evaluator.meta["state"])  # type: ignore[attr-defined]
     chunk = chunk_rows(study.evaluator.meta["row"])  # type: ignore[attr-defined]
     q0 = study.q0()
-    state[:ng] = q0
+    at = study.evaluator.meta["state_layout"]["q"][0]  # type: ignore[attr-defined]
+    state[at:at + ng] = q0
     _, solved, status, _ = run(0, 1, state)  # the first instant: part of setup, as for every approach
     setup = time.perf_counter() - start
     per_run: list[float] = []
@@ -230,7 +232,7 @@ def _time_compiled(study: api.Study, run: _Runner, wanted: int, budget_s: float,
     began = time.perf_counter()
     while error is None and timed < wanted and (not per_run or time.perf_counter() - began < budget_s):
         state[:] = 0.0
-        state[:ng] = q0
+        state[at:at + ng] = q0
         n_run = min(steps, wanted - timed)
         seconds, done, first = 0.0, 0, not per_run
         while done < n_run:

@@ -118,11 +118,11 @@ def test_family_has_linkages_that_wrap_angles_without_a_phase() -> None:
     """The shape the link test above needs: in single precision, angles to
     wrap and no term linear in t (else `_frac` is defined for the phases)."""
     from symid.codegen.model import code_model
-    from symid.codegen.targets import c as c_target
+    from symid.codegen import c as c_target
 
     for name in ("two_r_arm", "scissor_lift"):
         ctx = c_target.context(code_model(mechanism(name)), True, "single")
-        assert ctx["wraps"] and not ctx["phases"], name
+        assert ctx.phase.wraps and not ctx.phase.phases, name
 
 
 @needs_cc
@@ -237,7 +237,7 @@ NUMBERS = [sp.Integer(10**18), sp.Integer(981 * 10**16), sp.Integer(-2**70), sp.
 def test_numbers_of_every_magnitude_print_as_c_doubles_of_their_value(tmp_path: Path) -> None:
     """Each literal, compiled strictly and printed back by C, is the double
     nearest the exact number (0 below the subnormals, +-inf past the top)."""
-    from symid.codegen.targets.c import ccode
+    from symid.codegen.c import ccode
 
     lines = "".join(f'    printf("%.17g\\n", (double)({ccode(x)}));\n' for x in NUMBERS)
     (tmp_path / "n.c").write_text(f"#include <math.h>\n#include <stdio.h>\nint main(void)\n{{\n{lines}    return 0;\n}}\n")

@@ -16,7 +16,7 @@ import pytest
 
 from symid import api
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
 from symid.io.reader import load, loads
 from test_c_embedded import M4F, WARNINGS, _slider_crank_mode
 
@@ -141,7 +141,7 @@ def test_single_nu_in_float_float_keeps_the_phase_of_double(tmp_path: Path) -> N
     """The excavator's phase nu = 1/T, now float-float instead of double: its
     (hi, lo) pair is 1/T to ~1e-14 (a float alone: 6e-8), checked through the
     function that prints it against the exact quotient."""
-    from symid.codegen.targets import c_phase
+    from symid.codegen.c import phase as c_phase
     import sympy as sp
 
     T = sp.Symbol("p[0]", real=True)
@@ -316,7 +316,7 @@ def test_friction_parameters_are_read_and_the_header_says_so(tmp_path: Path) -> 
     header = (tmp_path / f"{solver.name}_solver.h").read_text()
     assert "read by nothing" not in header.lower()
     for name in ("mu_pin", "mu_guide", "r_main", "r_crank_pin", "r_wrist", "c_main", "c_guide"):
-        k = solver.ctx["params"].index(name)
+        k = solver.ctx.params.index(name)
         saved = solver.p.copy()
         solver.p[k] = np.nan
         try:

@@ -16,7 +16,7 @@ import pytest
 from small_mechanisms import cases
 from symid import api
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
 from symid.io.reader import load, loads
 from symid.model.params import base_names
 from test_c_export import BAD_ARGUMENT, NONFINITE, OK, Solver
@@ -62,7 +62,7 @@ def test_nonfinite_parameter_returns_nonfinite_unless_nothing_reads_it(solvers, 
     unread = re.search(r"Read by nothing in this solver.*?list\): ([^.]*)\.", header, re.S)
     unread_names = set(unread.group(1).replace("\n", " ").replace(" ", "").split(",")) if unread else set()
     nominal = solver.instant()[1]
-    for k, name in enumerate(solver.ctx["params"]):
+    for k, name in enumerate(solver.ctx.params):
         saved = solver.p.copy()
         solver.p[k] = bad
         try:
@@ -101,7 +101,7 @@ def test_instant_solves_from_its_guess_and_the_trajectory_keeps_the_branch(solve
     it started in."""
     solver = solvers["slider_crank"]
     t = 0.05
-    theta = 2 * np.pi * float(solver.p[solver.ctx["params"].index("n")]) * t  # omega = 2 pi n, derived
+    theta = 2 * np.pi * float(solver.p[solver.ctx.params.index("n")]) * t  # omega = 2 pi n, derived
     other = _slider_crank_mode(theta, -1.0)
     status, out = solver.instant(t=t, q=other + 1e-3)
     assert status == OK
@@ -144,9 +144,9 @@ def test_single_precision_rows_within_the_readme_bound_of_double(tmp_path: Path,
     header = (tmp_path / "single" / f"{example}_solver.h").read_text()
     assert f"typedef float {example}_real;" in header
     ctx = c_target.context(model)
-    groups_of = [0] + [k + 1 for k, (_, _, size, _) in enumerate(ctx["row_parts"]) for _ in range(size)]
+    groups_of = [0] + [k + 1 for k, (_, _, size, _) in enumerate(ctx.row_parts) for _ in range(size)]
     friction = runs["double"].shape[1] - len(groups_of)  # C.friction, C.friction_power: a group of their own
-    groups = np.array(groups_of + [len(ctx["row_parts"]) + 1] * friction)
+    groups = np.array(groups_of + [len(ctx.row_parts) + 1] * friction)
     peak = np.max(np.abs(runs["double"]), axis=0)
     scale = np.maximum(peak, GROUP_FLOOR * np.array([np.max(peak[groups == g]) for g in groups]))
     error = np.max(np.abs(runs["single"] - runs["double"]), axis=0) / scale
@@ -197,13 +197,13 @@ def test_unread_parameters_are_listed_and_the_others_are_not(tmp_path: Path) -> 
     comments and the contract."""
     text = api.example("slider_crank").read_text().replace("[parameters]\n", "[parameters]\nspare = 2.5\n", 1)
     (tmp_path / "spare.toml").write_text(text)
-    assert c_target.context(code_model(load(tmp_path / "spare.toml")))["d"]["unread"] == ["spare"]
+    assert c_target.context(code_model(load(tmp_path / "spare.toml"))).d.unread == ["spare"]
     model = code_model(load(api.example("slider_crank")))
     ctx = c_target.context(model)
-    assert ctx["d"]["unread"] == []
-    assert {c["name"]: c["unit"] for c in ctx["d"]["columns"]}["crank.phi"] == "rad"
-    assert {c["name"]: c["unit"] for c in ctx["d"]["columns"]}["motor.T_j"] == "force*length"
-    assert {p["name"]: p["comment"] for p in ctx["d"]["param_info"]}["L_crank"] == "crank radius, m"
+    assert ctx.d.unread == []
+    assert {c["name"]: c["unit"] for c in ctx.d.columns}["crank.phi"] == "rad"
+    assert {c["name"]: c["unit"] for c in ctx.d.columns}["motor.T_j"] == "force*length"
+    assert {p["name"]: p["comment"] for p in ctx.d.param_info}["L_crank"] == "crank radius, m"
 
 
 # --- point 5: lean code ---

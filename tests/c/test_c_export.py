@@ -15,7 +15,7 @@ import pytest
 
 from symid import api
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
 from symid.io.reader import loads
 from test_codegen import STRICT, needs_cc
 
@@ -53,10 +53,10 @@ class Solver:
                 info: np.ndarray | None = None) -> tuple[int, dict[str, np.ndarray]]:
         """<name>_instant from q0 (or q) with the pointers named in `null` (or
         "info") NULL; the status and the outputs given (q always)."""
-        sizes = {"qd": self.ctx["ng"], "qdd": self.ctx["ng"], "lam": self.ctx["nc"], "reactions": self.ctx["nr"]}
+        sizes = {"qd": self.ctx.ng, "qdd": self.ctx.ng, "lam": self.ctx.nc, "reactions": self.ctx.nr}
         out = {"q": (self.q0 if q is None else q).astype(float).copy()}
         out.update({k: np.full(n, -7.0) for k, n in sizes.items() if k not in null})
-        work, iwork = np.full(self.ctx["work"], -7.0), np.full(self.ctx["ng"], -7, np.intc)
+        work, iwork = np.full(self.ctx.work, -7.0), np.full(self.ctx.ng, -7, np.intc)
         ptr = lambda k: out[k].ctypes.data_as(DP) if k in out else None  # noqa: E731
         status = self.instant_fn(
             t, self.p.ctypes.data_as(DP), tol, ptr("q"), *(ptr(k) for k in OPTIONAL),
@@ -66,13 +66,13 @@ class Solver:
 
     def trajectory(self, t0: float, h: float, n: int, tol: float = 1e-12) -> tuple[int, int, np.ndarray]:
         """<name>_trajectory from q0: status, rows solved, the state's guess."""
-        state, rows = np.zeros(self.ctx["state"]), np.zeros((max(n, 1), self.ctx["row_width"]))
-        state[: self.ctx["ng"]] = self.q0
-        work, iwork, solved = np.zeros(self.ctx["work"]), np.zeros(self.ctx["ng"], np.intc), ctypes.c_long(-7)
+        state, rows = np.zeros(self.ctx.state), np.zeros((max(n, 1), self.ctx.row_width))
+        state[: self.ctx.ng] = self.q0
+        work, iwork, solved = np.zeros(self.ctx.work), np.zeros(self.ctx.ng, np.intc), ctypes.c_long(-7)
         status = self.trajectory_fn(
             t0, h, n, self.p.ctypes.data_as(DP), tol, state.ctypes.data_as(DP), rows.ctypes.data_as(DP),
             ctypes.byref(solved), work.ctypes.data_as(DP), iwork.ctypes.data_as(IP))
-        return status, solved.value, state[: self.ctx["ng"]]
+        return status, solved.value, state[: self.ctx.ng]
 
 
 @pytest.fixture(scope="module")
@@ -104,7 +104,7 @@ def test_q_and_lambda_only_solver_takes_null_rates_and_reactions(solvers, tmp_pa
     text = api.example("slider_crank").read_text().replace(
         'kind = "inverse_dynamics"', 'kind = "inverse_dynamics"\noutputs = ["q", "lambda"]')
     lean = Solver(text, tmp_path)
-    assert lean.ctx["has"] == {"qdot": 0, "qddot": 0, "lambda": 1, "reactions": 0}
+    assert lean.ctx.has == {"qdot": 0, "qddot": 0, "lambda": 1, "reactions": 0}
     status, got = lean.instant(null=("qd", "qdd", "reactions", "info"))
     assert status == OK
     _, full = solvers["slider_crank"].instant()
@@ -117,7 +117,7 @@ def test_q_and_lambda_only_solver_takes_null_rates_and_reactions(solvers, tmp_pa
 @pytest.mark.parametrize("example", EXAMPLES)
 def test_info_is_written_fully_on_success_and_on_failure(solvers, example: str) -> None:
     solver = solvers[example]
-    for q, tol, expected in ((None, 1e-12, OK), (np.full(solver.ctx["ng"], np.nan), 1e-12, NONFINITE),
+    for q, tol, expected in ((None, 1e-12, OK), (np.full(solver.ctx.ng, np.nan), 1e-12, NONFINITE),
                              (None, -1.0, BAD_ARGUMENT)):
         info = np.full(2, -7, np.intc)
         status, _ = solver.instant(q=q, tol=tol, info=info)

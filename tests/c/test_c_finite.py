@@ -35,7 +35,7 @@ def finite(tmp_path_factory):  # type: ignore[no-untyped-def]
     f = lib.test_finite
     f.argtypes = [DP] * 5
     f.restype = ctypes.c_int
-    sizes = (ctx["ng"], ctx["ng"], ctx["ng"], ctx["nc"], ctx["nr"])
+    sizes = (ctx.ng, ctx.ng, ctx.ng, ctx.nc, ctx.nr)
 
     def check(values: np.ndarray) -> bool:
         parts = np.split(np.ascontiguousarray(values, dtype=float), np.cumsum(sizes)[:-1])

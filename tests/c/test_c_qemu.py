@@ -18,7 +18,7 @@ import pytest
 
 from symid import api
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
 from symid.io.reader import load
 from test_c_embedded import GROUP_FLOOR, M4F, SINGLE_BOUND, SINGLE_BOUND_ANY, WARNINGS, _driver, _rows
 

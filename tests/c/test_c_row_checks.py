@@ -9,6 +9,7 @@ whether the run is one call or many."""
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import shutil
 import subprocess
 from pathlib import Path
@@ -19,7 +20,7 @@ import pytest
 
 from symid import api
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
 
 DP = ctypes.POINTER(ctypes.c_double)
 FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared"]
@@ -42,18 +43,18 @@ double test_maxabs{n}(const double *v)
 """
 
 
-def _build(ctx: dict[str, Any], folder: Path) -> ctypes.CDLL:
+def _build(ctx: c_target.CContext, folder: Path) -> ctypes.CDLL:
     """The solver of a context, with a harness reaching its static checks."""
     c_target.write(ctx, folder)
-    p = ctx["name"]
+    p = ctx.name
     source = folder / f"{p}_solver.c"
-    maxabs = "".join(MAXABS.format(p=p, n=n) for n in ctx["checks"]["maxabs"])
+    maxabs = "".join(MAXABS.format(p=p, n=n) for n in ctx.checks.maxabs)
     source.write_text(source.read_text() + HARNESS.format(p=p, maxabs=maxabs))
     subprocess.run(["cc", *FLAGS, str(source), "-o", str(folder / "s.so"), "-lm"], check=True)
     return ctypes.CDLL(str(folder / "s.so"))
 
 
-def _context(outputs: list[str] | None = None, kind: str | None = None) -> dict[str, Any]:
+def _context(outputs: list[str] | None = None, kind: str | None = None) -> c_target.CContext:
     analysis: dict[str, Any] = {}
     if outputs:
         analysis["outputs"] = outputs
@@ -76,20 +77,20 @@ def test_row_finite_rejects_a_non_finite_value_in_any_checked_slot(tmp_path, out
     f = lib.test_row_finite
     f.argtypes = [DP] * 6
     f.restype = ctypes.c_int
-    ng, nc, nr = ctx["ng"], ctx["nc"], ctx["nr"]
+    ng, nc, nr = ctx.ng, ctx.nc, ctx.nr
     sizes = {"qn": ng, "qdn": ng, "qddn": ng, "lam": nc, "reac": nr}  # every group computed (inverse dynamics)
     rng = np.random.default_rng(14)
-    row = rng.standard_normal(ctx["row_width"]) * 1e3
-    apart = {var: rng.standard_normal(sizes[var]) for var, offset, _ in ctx["outputs"] if offset is None}
+    row = rng.standard_normal(ctx.row_width) * 1e3
+    apart = {var: rng.standard_normal(sizes[var]) for var, offset, _ in ctx.outputs if offset is None}
 
     def check() -> bool:
         ptrs = [row[offset:].ctypes.data_as(DP) if offset is not None else apart[var].ctypes.data_as(DP)
-                for var, offset, _ in ctx["outputs"]]
+                for var, offset, _ in ctx.outputs]
         return bool(f(row.ctypes.data_as(DP), *ptrs))
 
     assert check()
     missed = []
-    for var, offset, _ in ctx["outputs"]:
+    for var, offset, _ in ctx.outputs:
         held, start = (row, offset) if offset is not None else (apart[var], 0)
         for k in range(start, start + sizes[var]):
             kept = held[k]
@@ -111,7 +112,7 @@ def test_maxabs_is_the_largest_magnitude_and_keeps_nan(tmp_path) -> None:
     ctx = _context()
     lib = _build(ctx, tmp_path)
     rng = np.random.default_rng(3)
-    for n in ctx["checks"]["maxabs"]:
+    for n in ctx.checks.maxabs:
         f = getattr(lib, f"test_maxabs{n}")
         f.argtypes = [DP]
         f.restype = ctypes.c_double
@@ -125,20 +126,20 @@ def test_maxabs_is_the_largest_magnitude_and_keeps_nan(tmp_path) -> None:
                 assert want(f(v.ctypes.data_as(DP))), (n, k, bad)
 
 
-def _run(lib: ctypes.CDLL, ctx: dict[str, Any], cuts: list[int]) -> tuple[np.ndarray, np.ndarray]:
+def _run(lib: ctypes.CDLL, ctx: c_target.CContext, cuts: list[int]) -> tuple[np.ndarray, np.ndarray]:
     """Rows and final state of one run of sum(cuts) instants, one call per cut."""
-    p = ctx["name"]
+    p = ctx.name
     traj = lib[f"{p}_trajectory"]
     traj.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_long, DP, ctypes.c_double, DP, DP,
                      ctypes.POINTER(ctypes.c_long), DP, ctypes.POINTER(ctypes.c_int)]
     traj.restype = ctypes.c_int
-    ng, n = ctx["ng"], sum(cuts)
-    params = np.array([float(v) for v in ctx["defaults"]])
-    state = np.zeros(ctx["state"])
-    state[:ng] = ctx["d"]["q0"]
+    ng, n = ctx.ng, sum(cuts)
+    params = np.array([float(v) for v in ctx.defaults])
+    state = np.zeros(ctx.state)
+    state[:ng] = ctx.d.q0
     state[6 * ng:7 * ng] = 1.0  # the jump check on, unit scales
-    rows = np.zeros((n, ctx["row_width"]))
-    work, iwork = np.zeros(ctx["work"]), np.zeros(ng, dtype=np.intc)
+    rows = np.zeros((n, ctx.row_width))
+    work, iwork = np.zeros(ctx.work), np.zeros(ng, dtype=np.intc)
     solved, done = ctypes.c_long(0), 0
     h = 0.2 / (n - 1)
     for m in cuts:
@@ -153,8 +154,8 @@ def _run(lib: ctypes.CDLL, ctx: dict[str, Any], cuts: list[int]) -> tuple[np.nda
 @pytest.mark.parametrize("kind", ["inverse_dynamics", "statics"])
 def test_written_out_code_gives_the_loop_forms_rows_and_state_bitwise(tmp_path, kind: str) -> None:
     ctx = _context(kind=kind)
-    assert ctx["checks"]["rolling"]
-    looped = dict(ctx, checks=dict(ctx["checks"], straight=0, rolling=False, looped=True))
+    assert ctx.checks.rolling
+    looped = dataclasses.replace(ctx, checks=dataclasses.replace(ctx.checks, straight=0, rolling=False, looped=True))
     new, old = _build(ctx, tmp_path / "new"), _build(looped, tmp_path / "old")
     for cuts in ([60], [1, 1, 2, 3, 5, 8, 40], [7] * 8 + [4]):
         got, want = _run(new, ctx, cuts), _run(old, looped, cuts)

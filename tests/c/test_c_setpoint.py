@@ -24,7 +24,7 @@ import sympy as sp
 
 from symid import api
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
 from symid.io.reader import loads
 from symid.model.mechanism import T
 from symid.model.params import parameter_values
@@ -45,7 +45,7 @@ class Solver:
         model = api._sensitivity_model(self.mech, "c", sensitivity, of) if sensitivity else code_model(self.mech)
         c_target.generate(model, folder, precision=precision)
         self.ctx = c_target.context(model, precision=precision)
-        self.name, self.ng, self.nc, self.nr = model.name, self.ctx["ng"], self.ctx["nc"], self.ctx["nr"]
+        self.name, self.ng, self.nc, self.nr = model.name, self.ctx.ng, self.ctx.nc, self.ctx.nr
         self.real = np.float64 if precision == "double" else np.float32
         self.ct = ctypes.c_double if precision == "double" else ctypes.c_float
         self.q0 = np.array(model.q0, dtype=self.real)
@@ -53,7 +53,7 @@ class Solver:
         subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared",
                         str(folder / f"{self.name}_solver.c"), "-o", str(folder / "s.so"), "-lm"], check=True)
         self.lib = ctypes.CDLL(str(folder / "s.so"))
-        self.nd = self.ctx["setpoint"]["nd"]
+        self.nd = self.ctx.setpoint.nd
         self.rows = list((ctypes.c_int * self.nd).in_dll(self.lib, f"{self.name}_setpoint_rows"))
         self.columns = model.row_columns
         self.mech_params = list(model.flat.params)
@@ -72,7 +72,7 @@ class Solver:
         out = {"q": np.array(q, dtype=self.real), "qd": np.zeros(self.ng, self.real),
                "qdd": np.zeros(self.ng, self.real), "lam": np.zeros(self.nc, self.real),
                "reactions": np.zeros(max(self.nr, 1), self.real)}
-        work, iwork = np.zeros(self.ctx["work"], self.real), np.zeros(self.ng, np.intc)
+        work, iwork = np.zeros(self.ctx.work, self.real), np.zeros(self.ng, np.intc)
         fn = getattr(self.lib, f"{self.name}_{entry}")
         fn.restype = ctypes.c_int
         args = [self.ct(t), self._ptr(self.p), self.ct(tol)]
@@ -107,9 +107,9 @@ def _instants(solver: Solver, count: int) -> list[tuple[float, np.ndarray]]:
     fn = getattr(solver.lib, f"{solver.name}_trajectory")
     fn.restype = ctypes.c_int
     n = a.steps
-    state, rows = np.zeros(solver.ctx["state"], solver.real), np.zeros((n, solver.ctx["row_width"]), solver.real)
+    state, rows = np.zeros(solver.ctx.state, solver.real), np.zeros((n, solver.ctx.row_width), solver.real)
     state[:solver.ng] = solver.q0
-    work, iwork, solved = np.zeros(solver.ctx["work"], solver.real), np.zeros(solver.ng, np.intc), ctypes.c_long()
+    work, iwork, solved = np.zeros(solver.ctx.work, solver.real), np.zeros(solver.ng, np.intc), ctypes.c_long()
     h = (a.t1 - a.t0) / (n - 1)
     status = fn(solver.ct(a.t0), solver.ct(h), ctypes.c_long(n), solver._ptr(solver.p), solver.ct(a.tol),
                 solver._ptr(state), solver._ptr(rows), ctypes.byref(solved), solver._ptr(work), solver._ptr(iwork))
@@ -266,15 +266,15 @@ def test_setpoint_sensitivities_are_central_differences_with_the_setpoints_held(
     results, one read by its law only has no effect."""
     source, names, law_only = SENSITIVITY_CASES[case]
     solver = Solver(source, tmp_path, sensitivity=",".join(names))
-    sens_ctx = solver.ctx["sens"]
-    ns, of = sens_ctx["ns"], sens_ctx["of"]
+    sens_ctx = solver.ctx.sens
+    ns, of = sens_ctx.ns, sens_ctx.of
     columns = list(solver.columns)
     fn = getattr(solver.lib, f"{solver.name}_setpoint_sensitivity")
     fn.restype = ctypes.c_int
     for t, q in _instants(solver, 3)[1:]:
         des = laws(solver.mech, t)
         sens = np.zeros(len(of) * ns)
-        work, iwork = np.zeros(solver.ctx["work"]), np.zeros(solver.ng, np.intc)
+        work, iwork = np.zeros(solver.ctx.work), np.zeros(solver.ng, np.intc)
         guess = q + OFFSET
         status = fn(ctypes.c_double(t), solver._ptr(solver.p), ctypes.c_double(1e-13),
                     *(solver._ptr(d) for d in des), solver._ptr(guess), solver._ptr(sens), None,
@@ -317,7 +317,7 @@ def test_position_only_sensitivities_compile_strictly_and_hold_the_crank(tmp_pat
     fn.restype = ctypes.c_int
     t = 0.013
     sens = np.full(4, np.nan, solver.real)
-    work, iwork = np.zeros(solver.ctx["work"], solver.real), np.zeros(solver.ng, np.intc)
+    work, iwork = np.zeros(solver.ctx.work, solver.real), np.zeros(solver.ng, np.intc)
     status = fn(solver.ct(t), solver._ptr(solver.p), solver.ct(1e-12 if precision == "double" else 1e-6),
                 *(solver._ptr(np.asarray(d, solver.real)) for d in laws(solver.mech, t)), solver._ptr(solver.q0.copy()),
                 solver._ptr(sens), None, solver._ptr(work), solver._ptr(iwork))

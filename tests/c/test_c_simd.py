@@ -9,19 +9,19 @@ enough to use them by default is solved to its closed-form motor torque."""
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import platform
 import shutil
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 
 from symid import api
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
 from test_c_row_checks import _run
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -49,26 +49,26 @@ pytestmark = [
 ]
 
 
-def _context(example: str | Path, kind: str | None = None, straight: int = 0) -> dict[str, Any]:
+def _context(example: str | Path, kind: str | None = None, straight: int = 0) -> c_target.CContext:
     """The C context of a bundled example (or a mechanism file) with every
     O(NG) pass past `straight` values (0: all in SIMD)."""
     analysis = {"kind": kind} if kind else {}
     path = example if isinstance(example, Path) else api.example(example)
     ctx = c_target.context(code_model(api.load_mechanism(path, **analysis)))
-    return dict(ctx, checks=dict(ctx["checks"], straight=straight, looped=True))
+    return dataclasses.replace(ctx, checks=dataclasses.replace(ctx.checks, straight=straight, looped=True))
 
 
 FORMS = {"avx": [], "sse2": ["NO_AVX"], "scalar": ["NO_SIMD"]}  # the macros each form defines
 
 
-def _build(ctx: dict[str, Any], folder: Path, form: str, cc: str = "cc") -> ctypes.CDLL:
+def _build(ctx: c_target.CContext, folder: Path, form: str, cc: str = "cc") -> ctypes.CDLL:
     """The solver in one of FORMS, compiled by cc, with a harness reaching its static passes."""
     c_target.write(ctx, folder)
-    p, ng = ctx["name"], ctx["ng"]
+    p, ng = ctx.name, ctx.ng
     source = folder / f"{p}_solver.c"
     text = source.read_text()
     assert f"#define {p.upper()}_SIMD 1" in text  # the SSE2 forms are there to be compared
-    extra = HARNESS.format(p=p, ng=ng, **{f"ng{k}": k * ng for k in range(2, 7)}) if ctx["velocity"] else ""
+    extra = HARNESS.format(p=p, ng=ng, **{f"ng{k}": k * ng for k in range(2, 7)}) if ctx.velocity else ""
     source.write_text(text + extra)
     define = [f"-D{p.upper()}_{m}" for m in FORMS[form]]
     subprocess.run([cc, *FLAGS, *define, str(source), "-o", str(folder / "s.so"), "-lm"], check=True)
@@ -102,7 +102,7 @@ def test_clangs_build_of_the_simd_passes_gives_gccs_scalar_rows(tmp_path: Path) 
 
 def test_simd_checks_answer_as_the_scalar_ones_with_non_finite_values(tmp_path: Path) -> None:
     ctx = _context("slider_crank")  # ng 9: two SSE2 pairs and a scalar tail
-    ng = ctx["ng"]
+    ng = ctx.ng
     libs = [_build(ctx, tmp_path / form, form) for form in FORMS]
     for lib in libs:
         lib.test_maxabs.argtypes, lib.test_maxabs.restype = [DP], ctypes.c_double

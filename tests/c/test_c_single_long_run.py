@@ -15,8 +15,8 @@ import pytest
 from small_mechanisms import cases
 from symid import api
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
-from symid.codegen.targets import c_phase
+from symid.codegen import c as c_target
+from symid.codegen.c import phase as c_phase
 from symid.io.reader import load, loads
 from symid.model.mechanism import T
 from test_codegen import needs_cc
@@ -84,7 +84,7 @@ def test_single_precision_at_t_1e4_within_1e5_of_each_columns_peak_of_double(tmp
     peak = np.max(np.abs(one), axis=0)
     peak[angles] = np.minimum(peak[angles], np.pi)
     ctx = c_target.context(model)
-    groups = np.array([0] + [g + 1 for g, (_, _, size, _) in enumerate(ctx["row_parts"]) for _ in range(size)])
+    groups = np.array([0] + [g + 1 for g, (_, _, size, _) in enumerate(ctx.row_parts) for _ in range(size)])
     scale = np.maximum(peak, GROUP_FLOOR * np.array([np.max(peak[groups == g]) for g in groups]))
     error = np.max(np.abs(diff), axis=0) / scale
     worst = int(np.argmax(error[1:])) + 1
@@ -114,16 +114,16 @@ def test_single_precision_instant_at_t_1e4_gives_the_crank_angle_reduced_and_the
     for precision, ctype in (("double", ctypes.c_double), ("single", ctypes.c_float)):
         lib, model = _instant_lib(tmp_path / precision, name, precision)
         ctx = c_target.context(model, precision=precision)
-        ng, nc = ctx["ng"], ctx["nc"]
+        ng, nc = ctx.ng, ctx.nc
         q0 = np.array(model.q0, dtype=float)
         q0[2] = 2 * np.pi * n * t + 0.3  # near the solution, whole turns included
         q = (ctype * ng)(*q0)
         lam = (ctype * nc)()
-        work, iwork = (ctype * ctx["work"])(), (ctypes.c_int * ng)()
+        work, iwork = (ctype * ctx.work)(), (ctypes.c_int * ng)()
         info = (ctypes.c_int * 2)()
         fn = getattr(lib, f"{name}_instant")
         fn.restype = ctypes.c_int
-        p = (ctype * ctx["np_"]).in_dll(lib, f"{name}_default_params")
+        p = (ctype * ctx.np_).in_dll(lib, f"{name}_default_params")
         status = fn(ctype(t), p, ctype(1e-12), q, None, None, lam, None, info, work, iwork)
         assert status == 0, (precision, status)
         out[precision] = (np.array(q[:]), np.array(lam[:]))

@@ -22,7 +22,7 @@ import pytest
 from symid import api
 from symid.numeric import solve as solve_module
 from symid.codegen.model import CodeModel, code_model
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
 from symid.io.reader import load
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
@@ -88,7 +88,7 @@ def instrumented(model: CodeModel, folder: Path, harness: str = "") -> tuple[cty
 class Counted:
     """One trajectory call of an instrumented solver and what it counted."""
 
-    def __init__(self, lib: ctypes.CDLL, ctx: dict, model: CodeModel, h: float, n: int, dense: bool = False) -> None:
+    def __init__(self, lib: ctypes.CDLL, ctx: c_target.CContext, model: CodeModel, h: float, n: int, dense: bool = False) -> None:
         ctypes.c_long.in_dll(lib, "test_factorizations").value = 0
         ctypes.c_long.in_dll(lib, "test_iterations").value = 0
         ctypes.c_int.in_dll(lib, "test_force_dense").value = int(dense)
@@ -97,10 +97,10 @@ class Counted:
         f = getattr(lib, f"{model.name}_trajectory")
         f.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_long, DP, ctypes.c_double, DP, DP,
                       ctypes.POINTER(ctypes.c_long), DP, ctypes.POINTER(ctypes.c_int)]
-        state, self.rows = np.zeros(ctx["state"]), np.zeros((n, ctx["row_width"]))
-        state[: ctx["ng"]] = model.q0
+        state, self.rows = np.zeros(ctx.state), np.zeros((n, ctx.row_width))
+        state[: ctx.ng] = model.q0
         p = np.array(model.flat.defaults, dtype=float)
-        work, iwork, solved = np.zeros(ctx["work"]), np.zeros(ctx["ng"], np.intc), ctypes.c_long(0)
+        work, iwork, solved = np.zeros(ctx.work), np.zeros(ctx.ng, np.intc), ctypes.c_long(0)
         ptr = lambda a: a.ctypes.data_as(DP)  # noqa: E731
         status = f(0.0, h, n, ptr(p), 1e-12, ptr(state), ptr(self.rows), ctypes.byref(solved), ptr(work),
                    iwork.ctypes.data_as(ctypes.POINTER(ctypes.c_int)))
@@ -183,7 +183,7 @@ def test_c_dense_fallback_factors_general_matrices_like_numpy(slider_crank_c) ->
     these): A x = b and A^T z = b agree with numpy.linalg.solve to within
     the conditioning, and a singular matrix is refused."""
     lib, ctx, _ = slider_crank_c
-    n = ctx["ng"]
+    n = ctx.ng
     f = lib.test_dense
     f.argtypes = [DP, DP, DP, DP]
     ptr = lambda a: a.ctypes.data_as(DP)  # noqa: E731

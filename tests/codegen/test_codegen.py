@@ -23,7 +23,9 @@ from symid.cli import main
 from symid.codegen import sparse
 from symid.codegen.emit import sample_jacobian
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
+from symid.codegen.c import layout as c_layout
+from symid.codegen.c import lu as c_lu
 from symid.io.reader import load, loads
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -94,20 +96,20 @@ def _compile(folder: Path, name: str) -> ctypes.CDLL:
     return ctypes.CDLL(str(folder / "s.so"))
 
 
-def _instant(lib: ctypes.CDLL, name: str, ctx: dict, t: float, q: np.ndarray, p: np.ndarray):
+def _instant(lib: ctypes.CDLL, name: str, ctx: c_target.CContext, t: float, q: np.ndarray, p: np.ndarray):
     """Call <name>_instant; returns (status, info, q, lam)."""
     dp = ctypes.POINTER(ctypes.c_double)
     ip = ctypes.POINTER(ctypes.c_int)
     f = getattr(lib, f"{name}_instant")
     f.argtypes = [ctypes.c_double, dp, ctypes.c_double, dp, dp, dp, dp, dp, ip, dp, ip]
-    size = max(ctx["ng"], ctx["nc"], ctx["nr"], 1)
+    size = max(ctx.ng, ctx.nc, ctx.nr, 1)
     q = q.astype(float).copy()
     qd, qdd, lam, reac = (np.zeros(size) for _ in range(4))
-    info, work, iwork = np.zeros(2, np.intc), np.zeros(ctx["work"]), np.zeros(ctx["ng"], np.intc)
+    info, work, iwork = np.zeros(2, np.intc), np.zeros(ctx.work), np.zeros(ctx.ng, np.intc)
     ptr = lambda a: a.ctypes.data_as(dp)  # noqa: E731
     status = f(t, ptr(p), 1e-12, ptr(q), ptr(qd), ptr(qdd), ptr(lam), ptr(reac), info.ctypes.data_as(ip),
                ptr(work), iwork.ctypes.data_as(ip))
-    return status, info, q, lam[: ctx["nc"]]
+    return status, info, q, lam[: ctx.nc]
 
 
 @needs_cc
@@ -119,7 +121,7 @@ def test_fixed_pivot_too_small_falls_back_and_stays_exact(fallback: str, tmp_pat
     past it: the limit set to 0 here) and its multipliers are the
     reference's."""
     if fallback == "sparse":
-        monkeypatch.setattr(c_target, "DENSE_LIMIT", 0)
+        monkeypatch.setattr(c_layout, "DENSE_LIMIT", 0)
         monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
     mech = loads(TWO_CABLES, "two_cables.toml")
     model = code_model(mech)
@@ -157,16 +159,16 @@ def test_singular_configuration_returns_singular_status(tmp_path: Path) -> None:
     assert status == 2  # STRETCHED_PENDULUM_SINGULAR
 
 
-def _trajectory(lib: ctypes.CDLL, name: str, ctx: dict, q0: np.ndarray, p: np.ndarray, h: float,
+def _trajectory(lib: ctypes.CDLL, name: str, ctx: c_target.CContext, q0: np.ndarray, p: np.ndarray, h: float,
                 n: int) -> np.ndarray:
     """Call <name>_trajectory from t = 0 for n instants; the rows."""
     dp = ctypes.POINTER(ctypes.c_double)
     f = getattr(lib, f"{name}_trajectory")
     f.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_long, dp, ctypes.c_double, dp, dp,
                   ctypes.POINTER(ctypes.c_long), dp, ctypes.POINTER(ctypes.c_int)]
-    state, rows = np.zeros(ctx["state"]), np.zeros((n, ctx["row_width"]))
-    state[: ctx["ng"]] = q0
-    work, iwork, solved = np.zeros(ctx["work"]), np.zeros(ctx["ng"], np.intc), ctypes.c_long(0)
+    state, rows = np.zeros(ctx.state), np.zeros((n, ctx.row_width))
+    state[: ctx.ng] = q0
+    work, iwork, solved = np.zeros(ctx.work), np.zeros(ctx.ng, np.intc), ctypes.c_long(0)
     ptr = lambda a: a.ctypes.data_as(dp)  # noqa: E731
     status = f(0.0, h, n, ptr(p), 1e-12, ptr(state), ptr(rows), ctypes.byref(solved), ptr(work),
                iwork.ctypes.data_as(ctypes.POINTER(ctypes.c_int)))
@@ -218,8 +220,9 @@ def _run_lu(tmp_path: Path, plan: sparse.Plan, values: list[float | None], input
     """Render templates/c/sparse_lu.j2 for the plan, build tests/c/lu_harness.c, run it on inputs."""
     from symid.codegen.render import render
 
-    chunks = c_target.lu_chunks(plan, values, "T")
-    text = render("c/sparse_lu.j2", p="t", P="T", ng=plan.n, multipliers=True, singular=plan.singular, **chunks)
+    chunks = c_lu.lu_chunks(plan, values, "T")
+    lu = c_lu.LU(size=plan.size, tables=None, runs=None, **chunks)
+    text = render("c/sparse_lu.j2", p="t", P="T", ng=plan.n, multipliers=True, singular=plan.singular, f="", lu=lu)
     head = (f"#define T_N {plan.n}\n#define T_NNZ {len(values)}\n#define T_LU_SIZE {plan.size}\n"
             "#define T_THRESHOLD 0.1\n#define T_MAX(a, b) ((a) > (b) ? (a) : (b))\n#define T_RESTRICT restrict\n")
     (tmp_path / "lu.c").write_text(head + text)

@@ -17,7 +17,7 @@ import pytest
 from symid import api
 from symid.codegen import forked
 from symid.codegen.model import code_model, options_for
-from symid.codegen.targets import c
+from symid.codegen import c
 from symid.model.params import parameter_values
 from symid.numeric.evaluator import Needs
 from symid.numeric.reference import ReferenceEvaluator

@@ -16,9 +16,13 @@ import pytest
 
 from symid import api
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
-from symid.codegen.targets import c_loop_runs, c_loops, c_lu_runs
-from symid.codegen.targets.c_lu_runs import Run, segments
+from symid.codegen import c as c_target
+from symid.codegen.c import loop_runs as c_loop_runs
+from symid.codegen.c import loops as c_loops
+from symid.codegen.c import lu as c_lu
+from symid.codegen.c import lu_runs as c_lu_runs
+from symid.codegen.c.lu_runs import Run, segments
+from symid.codegen.render import render
 from symid.io.reader import loads
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -80,13 +84,13 @@ FORMS = {
 
 def _solve(mech_text: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, form: str) -> np.ndarray:
     tables_min, literal_max, roll, shows = FORMS[form]
-    monkeypatch.setattr(c_target, "LU_TABLES_MIN", tables_min)
+    monkeypatch.setattr(c_lu, "LU_TABLES_MIN", tables_min)
     monkeypatch.setattr(c_lu_runs, "LITERAL_MAX", literal_max)
     monkeypatch.setattr(c_loop_runs, "LITERAL_MAX", literal_max)
-    monkeypatch.setattr(c_target, "rolled", c_lu_runs.rolled if roll else lambda passes: None)
+    monkeypatch.setattr(c_lu, "rolled", c_lu_runs.rolled if roll else lambda passes: None)
     monkeypatch.setenv("SYMID_CACHE", str(tmp_path / form.replace(" ", "_")))
     mech = loads(mech_text, "ladder_10.toml")
-    source = c_target.render("c/solver.c.j2", **c_target.context(code_model(mech, looped=True)))
+    source = render("c/solver.c.j2", **c_target.context(code_model(mech, looped=True)).namespace())
     assert shows in source and ("_L1_body[" in source) == (literal_max < 0)
     got = api.solve(mech, backend="c")
     assert got.error is None

@@ -16,7 +16,11 @@ from data_mechanisms import TWO_CABLES
 from symid import api
 from symid.codegen import model as code_model_module
 from symid.codegen.model import code_model
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
+from symid.codegen.c import compose as c_compose
+from symid.codegen.c import layout as c_layout
+from symid.codegen.c import lu as c_lu
+from symid.codegen.render import render
 from symid.io.reader import load, loads
 from symid.numeric import solve
 from symid.numeric.reference import ReferenceEvaluator
@@ -32,7 +36,7 @@ needs_cc = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc")
 @pytest.fixture
 def no_dense_fallback(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     """Every generated C solver is built as past the dense fallback's limit, in a cache of its own."""
-    monkeypatch.setattr(c_target, "DENSE_LIMIT", 0)
+    monkeypatch.setattr(c_layout, "DENSE_LIMIT", 0)
     monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
 
 
@@ -44,7 +48,7 @@ def test_without_dense_fallback_failing_pivots_are_solved_by_the_sparse_fallback
     instants); past the dense limit the C solver refactors them with its
     sparse pivoting LU, in a workspace of the sparse factors' order, so no
     instant reaches the Python loop and the run matches the reference."""
-    from symid.codegen.targets import c_fallback
+    from symid.codegen.c import fallback as c_fallback
 
     handed: list[int] = []
     original = solve.Stepper.instant
@@ -57,8 +61,8 @@ def test_without_dense_fallback_failing_pivots_are_solved_by_the_sparse_fallback
     mech = loads(TWO_CABLES, "two_cables.toml")
     model = code_model(mech)
     ng = model.flat.ng
-    assert c_target.work_size(model) == (len(model.flat.jac) + model.plan.size + c_fallback.work(model.plan, ng)
-                                         + 12 * c_target._stride(model))  # twelve work vectors
+    assert c_layout.work_size(model) == (len(model.flat.jac) + model.plan.size + c_fallback.work(model.plan, ng)
+                                         + 12 * c_layout.stride(model))  # twelve work vectors
     assert c_fallback.work(model.plan, ng) < 13 * model.plan.size + 11 * ng  # linear: nothing ng x ng
     c_target.generate(model, tmp_path / "src")
     source = (tmp_path / "src" / "two_cables_solver.c").read_text()
@@ -72,7 +76,7 @@ def test_setup_of_a_large_ladder_allocates_nothing_ng_by_ng(monkeypatch: pytest.
     """Past DENSE_SETUP coordinates the plan is sampled entry by entry: no
     dense Phi_q, no array of ng^2 / 4 numbers or more, and a workspace of
     the sparse factors' size."""
-    from symid.codegen.targets import c_fallback
+    from symid.codegen.c import fallback as c_fallback
 
     n = 26
     ng = ladder.Ladder(n).ng
@@ -92,12 +96,12 @@ def test_setup_of_a_large_ladder_allocates_nothing_ng_by_ng(monkeypatch: pytest.
         raise AssertionError("dense Phi_q during setup")
 
     monkeypatch.setattr(ReferenceEvaluator, "phi_q", dense)
-    monkeypatch.setattr(c_target, "DENSE_LIMIT", code_model_module.DENSE_SETUP)
+    monkeypatch.setattr(c_layout, "DENSE_LIMIT", code_model_module.DENSE_SETUP)
     model = code_model(load(ladder.write(n, tmp_path)))
     assert largest[0] < ng * ng // 4
     assert model.plan.size < 10 * ng and not model.plan.singular
     fallback = c_fallback.work(model.plan, ng)  # the sparse pivoting fallback's, linear in the factors
-    assert fallback < 13 * model.plan.size + 11 * ng and c_target.work_size(model) < 48 * ng + fallback  # 12 work vectors (stride ~ng+pad), Phi_q, LU
+    assert fallback < 13 * model.plan.size + 11 * ng and c_layout.work_size(model) < 48 * ng + fallback  # 12 work vectors (stride ~ng+pad), Phi_q, LU
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -118,10 +122,10 @@ def test_scaling_from_entries_is_the_dense_scaling(seed: int) -> None:
 @pytest.fixture
 def looped(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     """Every family group of MIN_MEMBERS or more is looped, in a cache of its own."""
-    from symid.codegen.targets import c_loops
+    from symid.codegen.c import loops as c_loops
 
     monkeypatch.setattr(c_loops, "LOOP_MIN", 0)
-    monkeypatch.setattr(c_target, "LU_TABLES_MIN", 0)
+    monkeypatch.setattr(c_lu, "LU_TABLES_MIN", 0)
     monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
 
 
@@ -137,9 +141,9 @@ def test_looped_kernels_agree_with_reference(looped: None, no_dense_fallback: No
     mech = loads(text, "ladder_12.toml")
     model = code_model(mech, looped=True)  # the looped members' rows and reactions are not substituted
     ctx = c_target.context(model)
-    assert "phi_q 2" in "\n".join(f"{fn['name']} {len(fn['loops'])}" for fn in ctx["functions"])
-    assert "reactions 2" in "\n".join(f"{fn['name']} {len(fn['loops'])}" for fn in ctx["functions"])
-    source = c_target.render("c/solver.c.j2", **ctx)
+    assert "phi_q 2" in "\n".join(f"{fn.name} {len(fn.loops)}" for fn in ctx.functions)
+    assert "reactions 2" in "\n".join(f"{fn.name} {len(fn.loops)}" for fn in ctx.functions)
+    source = render("c/solver.c.j2", **ctx.namespace())
     assert "int r;" in source and "symid_looped_output" not in source
     got = api.solve(mech, backend="c")
     expected = api.solve(mech, backend="reference")
@@ -182,7 +186,7 @@ def test_sparse_fallback_alone_solves_a_looped_ladder_as_the_reference(looped: N
         return original(self, n, *args)  # type: ignore[arg-type]
 
     monkeypatch.setattr(solve.Stepper, "instant", spy)
-    monkeypatch.setattr(c_target, "THRESHOLD", 2.0)
+    monkeypatch.setattr(c_compose, "THRESHOLD", 2.0)
     mech = loads(ladder.toml(ladder.Ladder(10, x0=0.3), steps=15), "ladder_10.toml")
     got = api.solve(mech, backend="c")
     assert got.error is None and len(handed) <= 1

@@ -511,7 +511,7 @@ def test_ladder_of_expressions_gives_the_closed_form_torque_through_the_looped_c
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
     from benchmarks import ladder
-    from symid.codegen.targets import c_loops
+    from symid.codegen.c import loops as c_loops
 
     lad = ladder.Ladder(26)
     assert lad.ng >= c_loops.LOOP_MIN

@@ -11,7 +11,8 @@ import pytest
 
 from symid import api
 from symid.codegen.model import code_model, options_for
-from symid.codegen.targets import c as c_target
+from symid.codegen import c as c_target
+from symid.codegen.c import compose as c_compose
 from symid.codegen.targets import numpy_target
 from symid.errors import AnalysisError
 from symid.io.reader import loads
@@ -55,7 +56,7 @@ def test_both_templates_are_written_from_the_rule(tmp_path: Path, monkeypatch: p
     study = api.prepare(mech, "reference")
     model = code_model(study.mechanism, options_for(study.mechanism))
     changed = newton.NewtonRule(max_iterations=7, floor_ulps=16.0)
-    for target in (c_target, numpy_target):
+    for target in (c_compose, numpy_target):
         monkeypatch.setattr(target, "RULE", changed)
     c_target.generate(model, tmp_path / "c")
     numpy_target.generate(model, tmp_path / "numpy")

@@ -20,7 +20,7 @@ import pytest
 from symid import api
 from symid.backends import c_backend
 from symid.codegen.render import render
-from symid.codegen.targets import c_lanes
+from symid.codegen.c import lanes as c_lanes
 from symid.study import batch_c
 from symid.study.variants import base_matrix, study_mechanism
 
@@ -237,25 +237,25 @@ def test_a_grid_in_lanes_is_each_variant_alone_bit_for_bit(name: str, width: str
 
 def test_the_bundled_examples_without_friction_take_the_lanes() -> None:
     from symid.codegen.model import code_model, options_for
-    from symid.codegen.targets import c
+    from symid.codegen import c
 
     for name in GRIDS:
         mech = study_mechanism(api.load_mechanism(api.example(name)))
-        assert c.context(code_model(mech, options_for(mech), looped=True), lanes=True)["lanes"] is not None, name
+        assert c.context(code_model(mech, options_for(mech), looped=True), lanes=True).lanes is not None, name
     mech = study_mechanism(api.load_mechanism(api.example("slider_crank_friction")))
-    assert c.context(code_model(mech, options_for(mech), looped=True), lanes=True)["lanes"] is None
+    assert c.context(code_model(mech, options_for(mech), looped=True), lanes=True).lanes is None
 
 
 def test_a_mechanism_past_the_lanes_size_keeps_the_one_by_one_sweep(monkeypatch: pytest.MonkeyPatch) -> None:
     from symid.codegen.model import code_model, options_for
-    from symid.codegen.targets import c
+    from symid.codegen import c
 
     mech = study_mechanism(api.load_mechanism(api.example("slider_crank")))  # 9 coordinates
     model = code_model(mech, options_for(mech), looped=True)
     monkeypatch.setattr(c_lanes, "MAX_NG", 8)
     ctx = c.context(model, lanes=True)
-    assert ctx["lanes"] is None
-    text = render("c/solver.c.j2", **ctx)
+    assert ctx.lanes is None
+    text = render("c/solver.c.j2", **ctx.namespace())
     assert "_Lgroup" not in text and "#define SLIDER_CRANK_LANES 1" in text
 
 

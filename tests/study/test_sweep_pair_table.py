@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from symid import api
-from symid.codegen.targets import c_sweep
+from symid.codegen.c import sweep as c_sweep
 
 
 def _sweep(name: str, monkeypatch: pytest.MonkeyPatch, cache: Path, table_min: int) -> Any:

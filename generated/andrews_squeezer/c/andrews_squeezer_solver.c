@@ -44,6 +44,19 @@ typedef char andrews_squeezer_real_must_have_the_size_of_double[sizeof(andrews_s
 #define ANDREWS_SQUEEZER_OFF_DENSE (ANDREWS_SQUEEZER_OFF_LU + ANDREWS_SQUEEZER_LU_SIZE)
 #define ANDREWS_SQUEEZER_OFF_VEC (ANDREWS_SQUEEZER_OFF_DENSE + 441)
 #define ANDREWS_SQUEEZER_VEC(work, k) ((work) + ANDREWS_SQUEEZER_OFF_VEC + (k) * 66)
+/* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
+#define ANDREWS_SQUEEZER_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
+#define ANDREWS_SQUEEZER_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
+#define ANDREWS_SQUEEZER_VEC_Y 2  /* the forward solves' intermediate */
+#define ANDREWS_SQUEEZER_VEC_B 3  /* a right-hand side */
+#define ANDREWS_SQUEEZER_VEC_QN 4  /* the instant's q, where the row does not hold it */
+#define ANDREWS_SQUEEZER_VEC_QDN 5  /* its qdot, where the row does not hold it (instant: where not asked for) */
+#define ANDREWS_SQUEEZER_VEC_QDDN 6  /* its qddot, likewise */
+#define ANDREWS_SQUEEZER_VEC_LAM 7  /* its multipliers, likewise */
+#define ANDREWS_SQUEEZER_VEC_REAC 8  /* its reactions, likewise */
+#define ANDREWS_SQUEEZER_VEC_TR 9  /* the sines and cosines of the body angles */
+#define ANDREWS_SQUEEZER_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
+#define ANDREWS_SQUEEZER_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define ANDREWS_SQUEEZER_OFF_PREP 1368  /* the prepared parameters (NPP), after the vectors */
 #define ANDREWS_SQUEEZER_NPP 59
 
@@ -2345,7 +2358,7 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
     return ANDREWS_SQUEEZER_OK;
 }
 
-/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+/* Set-points (symid/codegen/c/setpoint.py): the driver rows of Phi, nu and gamma with
    the caller's desired values q_des, rates qd_des and second rates qdd_des
    (one per driver) for the drivers' laws, written over the rows the
    compiled laws gave. */

@@ -40,6 +40,26 @@ typedef double andrews_squeezer_real;
 #define ANDREWS_SQUEEZER_WORK 1427        /* reals of workspace every solver call needs */
 #define ANDREWS_SQUEEZER_IWORK 21         /* ints of workspace */
 #define ANDREWS_SQUEEZER_STATE 169       /* reals of trajectory state */
+/* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
+   state and its size in reals. */
+#define ANDREWS_SQUEEZER_STATE_Q 0  /* q of the last instant solved (before the first call: the initial guess) */
+#define ANDREWS_SQUEEZER_STATE_Q_SIZE 21
+#define ANDREWS_SQUEEZER_STATE_QD 21  /* its qdot */
+#define ANDREWS_SQUEEZER_STATE_QD_SIZE 21
+#define ANDREWS_SQUEEZER_STATE_QDD 42  /* its qddot */
+#define ANDREWS_SQUEEZER_STATE_QDD_SIZE 21
+#define ANDREWS_SQUEEZER_STATE_M1 63  /* the acceleration one instant before (statics: the position) */
+#define ANDREWS_SQUEEZER_STATE_M1_SIZE 21
+#define ANDREWS_SQUEEZER_STATE_M2 84  /* two instants before */
+#define ANDREWS_SQUEEZER_STATE_M2_SIZE 21
+#define ANDREWS_SQUEEZER_STATE_M3 105  /* three instants before (statics: unused) */
+#define ANDREWS_SQUEEZER_STATE_M3_SIZE 21
+#define ANDREWS_SQUEEZER_STATE_SCALE 126  /* per coordinate, 1 / its scale in the jump check (0: unset) */
+#define ANDREWS_SQUEEZER_STATE_SCALE_SIZE 21
+#define ANDREWS_SQUEEZER_STATE_RSCALE 147  /* per constraint row, its norm in those scales for the conditioning screen (0: unset) */
+#define ANDREWS_SQUEEZER_STATE_RSCALE_SIZE 21
+#define ANDREWS_SQUEEZER_STATE_COUNT 168  /* instants solved with this state so far (before the first call: 0) */
+#define ANDREWS_SQUEEZER_STATE_COUNT_SIZE 1
 
 /* Status of every solver call. */
 #define ANDREWS_SQUEEZER_OK 0

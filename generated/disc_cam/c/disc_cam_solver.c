@@ -44,6 +44,19 @@ typedef char disc_cam_real_must_have_the_size_of_double[sizeof(disc_cam_real) ==
 #define DISC_CAM_OFF_DENSE (DISC_CAM_OFF_LU + DISC_CAM_LU_SIZE)
 #define DISC_CAM_OFF_VEC (DISC_CAM_OFF_DENSE + 36)
 #define DISC_CAM_VEC(work, k) ((work) + DISC_CAM_OFF_VEC + (k) * 24)
+/* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
+#define DISC_CAM_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
+#define DISC_CAM_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
+#define DISC_CAM_VEC_Y 2  /* the forward solves' intermediate */
+#define DISC_CAM_VEC_B 3  /* a right-hand side */
+#define DISC_CAM_VEC_QN 4  /* the instant's q, where the row does not hold it */
+#define DISC_CAM_VEC_QDN 5  /* its qdot, where the row does not hold it (instant: where not asked for) */
+#define DISC_CAM_VEC_QDDN 6  /* its qddot, likewise */
+#define DISC_CAM_VEC_LAM 7  /* its multipliers, likewise */
+#define DISC_CAM_VEC_REAC 8  /* its reactions, likewise */
+#define DISC_CAM_VEC_TR 9  /* the sines and cosines of the body angles */
+#define DISC_CAM_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
+#define DISC_CAM_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define DISC_CAM_OFF_PREP 344  /* the prepared parameters (NPP), after the vectors */
 #define DISC_CAM_NPP 9
 
@@ -1604,7 +1617,7 @@ int disc_cam_sweep(long k, const disc_cam_real *p, disc_cam_real t0, disc_cam_re
     return DISC_CAM_OK;
 }
 
-/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+/* Set-points (symid/codegen/c/setpoint.py): the driver rows of Phi, nu and gamma with
    the caller's desired values q_des, rates qd_des and second rates qdd_des
    (one per driver) for the drivers' laws, written over the rows the
    compiled laws gave. */

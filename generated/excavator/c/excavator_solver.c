@@ -44,6 +44,19 @@ typedef char excavator_real_must_have_the_size_of_double[sizeof(excavator_real) 
 #define EXCAVATOR_OFF_DENSE (EXCAVATOR_OFF_LU + EXCAVATOR_LU_SIZE)
 #define EXCAVATOR_OFF_VEC (EXCAVATOR_OFF_DENSE + 81)
 #define EXCAVATOR_VEC(work, k) ((work) + EXCAVATOR_OFF_VEC + (k) * 36)
+/* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
+#define EXCAVATOR_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
+#define EXCAVATOR_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
+#define EXCAVATOR_VEC_Y 2  /* the forward solves' intermediate */
+#define EXCAVATOR_VEC_B 3  /* a right-hand side */
+#define EXCAVATOR_VEC_QN 4  /* the instant's q, where the row does not hold it */
+#define EXCAVATOR_VEC_QDN 5  /* its qdot, where the row does not hold it (instant: where not asked for) */
+#define EXCAVATOR_VEC_QDDN 6  /* its qddot, likewise */
+#define EXCAVATOR_VEC_LAM 7  /* its multipliers, likewise */
+#define EXCAVATOR_VEC_REAC 8  /* its reactions, likewise */
+#define EXCAVATOR_VEC_TR 9  /* the sines and cosines of the body angles */
+#define EXCAVATOR_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
+#define EXCAVATOR_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define EXCAVATOR_OFF_PREP 583  /* the prepared parameters (NPP), after the vectors */
 #define EXCAVATOR_NPP 41
 
@@ -1891,7 +1904,7 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
     return EXCAVATOR_OK;
 }
 
-/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+/* Set-points (symid/codegen/c/setpoint.py): the driver rows of Phi, nu and gamma with
    the caller's desired values q_des, rates qd_des and second rates qdd_des
    (one per driver) for the drivers' laws, written over the rows the
    compiled laws gave. */

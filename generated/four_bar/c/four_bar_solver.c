@@ -44,6 +44,19 @@ typedef char four_bar_real_must_have_the_size_of_double[sizeof(four_bar_real) ==
 #define FOUR_BAR_OFF_DENSE (FOUR_BAR_OFF_LU + FOUR_BAR_LU_SIZE)
 #define FOUR_BAR_OFF_VEC (FOUR_BAR_OFF_DENSE + 81)
 #define FOUR_BAR_VEC(work, k) ((work) + FOUR_BAR_OFF_VEC + (k) * 30)
+/* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
+#define FOUR_BAR_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
+#define FOUR_BAR_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
+#define FOUR_BAR_VEC_Y 2  /* the forward solves' intermediate */
+#define FOUR_BAR_VEC_B 3  /* a right-hand side */
+#define FOUR_BAR_VEC_QN 4  /* the instant's q, where the row does not hold it */
+#define FOUR_BAR_VEC_QDN 5  /* its qdot, where the row does not hold it (instant: where not asked for) */
+#define FOUR_BAR_VEC_QDDN 6  /* its qddot, likewise */
+#define FOUR_BAR_VEC_LAM 7  /* its multipliers, likewise */
+#define FOUR_BAR_VEC_REAC 8  /* its reactions, likewise */
+#define FOUR_BAR_VEC_TR 9  /* the sines and cosines of the body angles */
+#define FOUR_BAR_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
+#define FOUR_BAR_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define FOUR_BAR_OFF_PREP 491  /* the prepared parameters (NPP), after the vectors */
 #define FOUR_BAR_NPP 19
 
@@ -1603,7 +1616,7 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
     return FOUR_BAR_OK;
 }
 
-/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+/* Set-points (symid/codegen/c/setpoint.py): the driver rows of Phi, nu and gamma with
    the caller's desired values q_des, rates qd_des and second rates qdd_des
    (one per driver) for the drivers' laws, written over the rows the
    compiled laws gave. */

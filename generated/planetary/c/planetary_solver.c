@@ -44,6 +44,19 @@ typedef char planetary_real_must_have_the_size_of_double[sizeof(planetary_real) 
 #define PLANETARY_OFF_DENSE (PLANETARY_OFF_LU + PLANETARY_LU_SIZE)
 #define PLANETARY_OFF_VEC (PLANETARY_OFF_DENSE + 144)
 #define PLANETARY_VEC(work, k) ((work) + PLANETARY_OFF_VEC + (k) * 51)
+/* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
+#define PLANETARY_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
+#define PLANETARY_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
+#define PLANETARY_VEC_Y 2  /* the forward solves' intermediate */
+#define PLANETARY_VEC_B 3  /* a right-hand side */
+#define PLANETARY_VEC_QN 4  /* the instant's q, where the row does not hold it */
+#define PLANETARY_VEC_QDN 5  /* its qdot, where the row does not hold it (instant: where not asked for) */
+#define PLANETARY_VEC_QDDN 6  /* its qddot, likewise */
+#define PLANETARY_VEC_LAM 7  /* its multipliers, likewise */
+#define PLANETARY_VEC_REAC 8  /* its reactions, likewise */
+#define PLANETARY_VEC_TR 9  /* the sines and cosines of the body angles */
+#define PLANETARY_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
+#define PLANETARY_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define PLANETARY_OFF_PREP 796  /* the prepared parameters (NPP), after the vectors */
 #define PLANETARY_NPP 25
 
@@ -1757,7 +1770,7 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
     return PLANETARY_OK;
 }
 
-/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+/* Set-points (symid/codegen/c/setpoint.py): the driver rows of Phi, nu and gamma with
    the caller's desired values q_des, rates qd_des and second rates qdd_des
    (one per driver) for the drivers' laws, written over the rows the
    compiled laws gave. */

@@ -40,6 +40,26 @@ typedef double planetary_real;
 #define PLANETARY_WORK 821        /* reals of workspace every solver call needs */
 #define PLANETARY_IWORK 12         /* ints of workspace */
 #define PLANETARY_STATE 97       /* reals of trajectory state */
+/* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
+   state and its size in reals. */
+#define PLANETARY_STATE_Q 0  /* q of the last instant solved (before the first call: the initial guess) */
+#define PLANETARY_STATE_Q_SIZE 12
+#define PLANETARY_STATE_QD 12  /* its qdot */
+#define PLANETARY_STATE_QD_SIZE 12
+#define PLANETARY_STATE_QDD 24  /* its qddot */
+#define PLANETARY_STATE_QDD_SIZE 12
+#define PLANETARY_STATE_M1 36  /* the acceleration one instant before (statics: the position) */
+#define PLANETARY_STATE_M1_SIZE 12
+#define PLANETARY_STATE_M2 48  /* two instants before */
+#define PLANETARY_STATE_M2_SIZE 12
+#define PLANETARY_STATE_M3 60  /* three instants before (statics: unused) */
+#define PLANETARY_STATE_M3_SIZE 12
+#define PLANETARY_STATE_SCALE 72  /* per coordinate, 1 / its scale in the jump check (0: unset) */
+#define PLANETARY_STATE_SCALE_SIZE 12
+#define PLANETARY_STATE_RSCALE 84  /* per constraint row, its norm in those scales for the conditioning screen (0: unset) */
+#define PLANETARY_STATE_RSCALE_SIZE 12
+#define PLANETARY_STATE_COUNT 96  /* instants solved with this state so far (before the first call: 0) */
+#define PLANETARY_STATE_COUNT_SIZE 1
 
 /* Status of every solver call. */
 #define PLANETARY_OK 0

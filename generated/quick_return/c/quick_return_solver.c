@@ -44,6 +44,19 @@ typedef char quick_return_real_must_have_the_size_of_double[sizeof(quick_return_
 #define QUICK_RETURN_OFF_DENSE (QUICK_RETURN_OFF_LU + QUICK_RETURN_LU_SIZE)
 #define QUICK_RETURN_OFF_VEC (QUICK_RETURN_OFF_DENSE + 81)
 #define QUICK_RETURN_VEC(work, k) ((work) + QUICK_RETURN_OFF_VEC + (k) * 36)
+/* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
+#define QUICK_RETURN_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
+#define QUICK_RETURN_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
+#define QUICK_RETURN_VEC_Y 2  /* the forward solves' intermediate */
+#define QUICK_RETURN_VEC_B 3  /* a right-hand side */
+#define QUICK_RETURN_VEC_QN 4  /* the instant's q, where the row does not hold it */
+#define QUICK_RETURN_VEC_QDN 5  /* its qdot, where the row does not hold it (instant: where not asked for) */
+#define QUICK_RETURN_VEC_QDDN 6  /* its qddot, likewise */
+#define QUICK_RETURN_VEC_LAM 7  /* its multipliers, likewise */
+#define QUICK_RETURN_VEC_REAC 8  /* its reactions, likewise */
+#define QUICK_RETURN_VEC_TR 9  /* the sines and cosines of the body angles */
+#define QUICK_RETURN_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
+#define QUICK_RETURN_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define QUICK_RETURN_OFF_PREP 553  /* the prepared parameters (NPP), after the vectors */
 #define QUICK_RETURN_NPP 18
 
@@ -1602,7 +1615,7 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
     return QUICK_RETURN_OK;
 }
 
-/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+/* Set-points (symid/codegen/c/setpoint.py): the driver rows of Phi, nu and gamma with
    the caller's desired values q_des, rates qd_des and second rates qdd_des
    (one per driver) for the drivers' laws, written over the rows the
    compiled laws gave. */

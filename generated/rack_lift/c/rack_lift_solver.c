@@ -44,6 +44,19 @@ typedef char rack_lift_real_must_have_the_size_of_double[sizeof(rack_lift_real) 
 #define RACK_LIFT_OFF_DENSE (RACK_LIFT_OFF_LU + RACK_LIFT_LU_SIZE)
 #define RACK_LIFT_OFF_VEC (RACK_LIFT_OFF_DENSE + 36)
 #define RACK_LIFT_VEC(work, k) ((work) + RACK_LIFT_OFF_VEC + (k) * 24)
+/* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
+#define RACK_LIFT_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
+#define RACK_LIFT_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
+#define RACK_LIFT_VEC_Y 2  /* the forward solves' intermediate */
+#define RACK_LIFT_VEC_B 3  /* a right-hand side */
+#define RACK_LIFT_VEC_QN 4  /* the instant's q, where the row does not hold it */
+#define RACK_LIFT_VEC_QDN 5  /* its qdot, where the row does not hold it (instant: where not asked for) */
+#define RACK_LIFT_VEC_QDDN 6  /* its qddot, likewise */
+#define RACK_LIFT_VEC_LAM 7  /* its multipliers, likewise */
+#define RACK_LIFT_VEC_REAC 8  /* its reactions, likewise */
+#define RACK_LIFT_VEC_TR 9  /* the sines and cosines of the body angles */
+#define RACK_LIFT_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
+#define RACK_LIFT_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define RACK_LIFT_OFF_PREP 346  /* the prepared parameters (NPP), after the vectors */
 #define RACK_LIFT_NPP 18
 
@@ -1497,7 +1510,7 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
     return RACK_LIFT_OK;
 }
 
-/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+/* Set-points (symid/codegen/c/setpoint.py): the driver rows of Phi, nu and gamma with
    the caller's desired values q_des, rates qd_des and second rates qdd_des
    (one per driver) for the drivers' laws, written over the rows the
    compiled laws gave. */

@@ -40,6 +40,26 @@ typedef double rack_lift_real;
 #define RACK_LIFT_WORK 364        /* reals of workspace every solver call needs */
 #define RACK_LIFT_IWORK 6         /* ints of workspace */
 #define RACK_LIFT_STATE 49       /* reals of trajectory state */
+/* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
+   state and its size in reals. */
+#define RACK_LIFT_STATE_Q 0  /* q of the last instant solved (before the first call: the initial guess) */
+#define RACK_LIFT_STATE_Q_SIZE 6
+#define RACK_LIFT_STATE_QD 6  /* its qdot */
+#define RACK_LIFT_STATE_QD_SIZE 6
+#define RACK_LIFT_STATE_QDD 12  /* its qddot */
+#define RACK_LIFT_STATE_QDD_SIZE 6
+#define RACK_LIFT_STATE_M1 18  /* the acceleration one instant before (statics: the position) */
+#define RACK_LIFT_STATE_M1_SIZE 6
+#define RACK_LIFT_STATE_M2 24  /* two instants before */
+#define RACK_LIFT_STATE_M2_SIZE 6
+#define RACK_LIFT_STATE_M3 30  /* three instants before (statics: unused) */
+#define RACK_LIFT_STATE_M3_SIZE 6
+#define RACK_LIFT_STATE_SCALE 36  /* per coordinate, 1 / its scale in the jump check (0: unset) */
+#define RACK_LIFT_STATE_SCALE_SIZE 6
+#define RACK_LIFT_STATE_RSCALE 42  /* per constraint row, its norm in those scales for the conditioning screen (0: unset) */
+#define RACK_LIFT_STATE_RSCALE_SIZE 6
+#define RACK_LIFT_STATE_COUNT 48  /* instants solved with this state so far (before the first call: 0) */
+#define RACK_LIFT_STATE_COUNT_SIZE 1
 
 /* Status of every solver call. */
 #define RACK_LIFT_OK 0

@@ -1,6 +1,7 @@
 """Code-generation targets behind one registry: c, numpy, casadi, fmu.
 
-A target is a module with `NAME` and `generate(model, out_dir) -> list[Path]`.
+A target is a module with `NAME` and `generate(model, out_dir) -> list[Path]`;
+the C target is the package `symid.codegen.c`.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from types import ModuleType
 
 from symid.errors import InputError
 
-TARGETS = {"c": "symid.codegen.targets.c", "numpy": "symid.codegen.targets.numpy_target",
+TARGETS = {"c": "symid.codegen.c", "numpy": "symid.codegen.targets.numpy_target",
            "casadi": "symid.codegen.targets.casadi_target", "fmu": "symid.codegen.fmu"}
 
 

@@ -7,10 +7,13 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Any, Sequence
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
 
 import sympy as sp
 
+from symid.codegen.c.kernels import Kernel
+from symid.codegen.c.lu import LU
 from symid.codegen.model import CodeModel
 
 # the dimension of a row column, by its name's last part (angles in radians;
@@ -113,10 +116,46 @@ def c_string(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def describe(model: CodeModel, row_width: int, functions: list[dict[str, Any]], lu: dict[str, Any],
-             extra: Sequence[sp.Expr] = ()) -> dict[str, Any]:
+@dataclass(frozen=True)
+class Description:
+    """What the header says about the mechanism (describe.h.j2, describe.c.j2: `d`).
+
+    Attributes:
+        columns: per row column its name, C string and unit.
+        param_info: per parameter its name, C string, file comment, whether
+            anything reads it, and its definition where derived.
+        unread: the parameters nothing reads.
+        q0, t0, t1, steps, tol: the assembled q0 and the file's grid; lit:
+            q0 (a list), t0, t1 and tol printed as literals of the real type.
+        ops: operations per kernel and LU pass; ops_instant: of a usual instant.
+        worst: the worst case's operations, libm calls and instructions (worst_case).
+        per_op, per_libm, per_iteration, per_call: the worst case's charges.
+    """
+
+    columns: list[dict[str, str]]
+    param_info: list[dict[str, Any]]
+    unread: list[str]
+    q0: list[float]
+    t0: float
+    t1: float
+    steps: int
+    tol: float
+    lit: dict[str, Any]
+    ops: dict[str, int]
+    ops_instant: int
+    worst: dict[str, int]
+    body_names: list[str]
+    per_op: int = PER_OP
+    per_libm: int = PER_LIBM
+    per_iteration: int = PER_ITERATION
+    per_call: int = PER_CALL
+
+
+def describe(model: CodeModel, row_width: int, functions: Sequence[Kernel], lu: LU, lit: Callable[[float], str],
+             extra: Sequence[sp.Expr] = ()) -> Description:
     """The header's description (names, units, grid, q0, operation counts);
-    extra: expressions of kernels beyond the flat model's (read_params)."""
+    lit: prints a literal of the real type; extra: expressions of kernels
+    beyond the flat model's (read_params)."""
     f = model.flat
     mech = model.layout.mechanism
     a = mech.analysis
@@ -126,18 +165,19 @@ def describe(model: CodeModel, row_width: int, functions: list[dict[str, Any]], 
     params = [{"name": n, "string": c_string(n), "comment": comments.get(n, ""), "read": k in read,
                "derived": str(mech.parameters[n]) if not sp.sympify(mech.parameters[n]).is_Number else ""}
               for k, n in enumerate(f.params)]
-    counts = {fn["name"]: sum(ops("\n".join([e for _, e in ch["block"].temps] + [e for _, e in ch["block"].outputs]))
-                              for ch in fn["chunks"]) for fn in functions}
+
+    def printed(fn: Kernel) -> list[str]:
+        return ["\n".join([e for _, e in ch.block.temps] + [e for _, e in ch.block.outputs]) for ch in fn.chunks]
+
+    counts = {fn.name: sum(ops(code) for code in printed(fn)) for fn in functions}
     # an LU on index tables (large mechanisms) has no straight-line code to count: its
     # operations are data (its trip counts), left out of the count
     # per step's statements where there are (a rolled pass's text has a run's once)
-    steps = lu.get("step_lines", {})
+    steps = lu.step_lines
     lu_ops = {k: sum(ops("\n".join(ls)) for ls in steps[f"{k}_chunks"]) if f"{k}_chunks" in steps
-              else sum(ops("\n".join(ch["lines"])) for ch in lu.get(f"{k}_chunks", ()))
+              else sum(ops("\n".join(ch["lines"])) for ch in getattr(lu, f"{k}_chunks"))
               for k in ("factor", "forward", "back", "t_forward", "t_back")}
-    calls = {fn["name"]: sum(len(_LIBM.findall("\n".join([e for _, e in ch["block"].temps]
-                                                          + [e for _, e in ch["block"].outputs])))
-                             for ch in fn["chunks"]) for fn in functions}
+    calls = {fn.name: sum(len(_LIBM.findall(code)) for code in printed(fn)) for fn in functions}
     worst = worst_case(counts, calls, lu_ops, f.ng, len(f.phi), len(mech.bodies), len(f.reactions))
     solve = lu_ops["forward"] + lu_ops["back"]
     # the trajectory's usual instant: one chord correction (phi, a solve),
@@ -148,8 +188,11 @@ def describe(model: CodeModel, row_width: int, functions: list[dict[str, Any]], 
     if "applied" in counts:
         instant += counts["applied"] + counts.get("mass", 0) + lu_ops["t_forward"] + lu_ops["t_back"]
     instant += counts.get("reactions", 0)
-    return {"columns": [{"name": c, "string": c_string(c), "unit": unit(c)} for c in columns],
-            "param_info": params, "unread": [p["name"] for p in params if not p["read"]],
-            "q0": list(model.q0), "t0": a.t0, "t1": a.t1, "steps": a.steps, "tol": a.tol,
-            "ops": {**counts, **{f"lu_{k}": v for k, v in lu_ops.items()}}, "ops_instant": instant, "worst": worst,
-            "body_names": [b.name for b in mech.bodies]}
+    q0 = list(model.q0)
+    return Description(
+        columns=[{"name": c, "string": c_string(c), "unit": unit(c)} for c in columns],
+        param_info=params, unread=[p["name"] for p in params if not p["read"]],
+        q0=q0, t0=a.t0, t1=a.t1, steps=a.steps, tol=a.tol,
+        lit={"q0": [lit(v) for v in q0], **{k: lit(float(getattr(a, k))) for k in ("t0", "t1", "tol")}},
+        ops={**counts, **{f"lu_{k}": v for k, v in lu_ops.items()}}, ops_instant=instant, worst=worst,
+        body_names=[b.name for b in mech.bodies])

@@ -13,8 +13,8 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from symid.codegen.targets.c_loops import Part, _terms
-from symid.codegen.targets.c_lu_runs import Op, Run, segments
+from symid.codegen.c.loops import Part, _terms
+from symid.codegen.c.lu_runs import Op, Run, segments
 
 PMAX = 8          # longest period looked for, in members
 LITERAL_MAX = 8   # members outside runs past which the tables stay

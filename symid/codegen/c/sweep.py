@@ -10,11 +10,13 @@ constraint with reactions, the largest |(Fx, Fy)| on any of its bodies.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Callable
 
 import sympy as sp
 
-from symid.codegen.emit import block
+from symid.codegen.c.layout import state_size
+from symid.codegen.emit import Block, block
 from symid.codegen.flat import parameter_map
 from symid.codegen.model import CodeModel
 from symid.model.mechanism import T
@@ -98,15 +100,39 @@ def _pair_table(reactions: list[dict[str, Any]], first_slot: int) -> dict[str, l
 def work_size(model: CodeModel, solver_work: int, row_width: int) -> int:
     """Reals of workspace one thread's `<name>_sweep` needs (SWEEP_WORK), from
     the solver's own (WORK, prepared parameters included) and its row (ROW)."""
-    from symid.codegen.targets.c import state_size
-
     f = model.flat
     return (solver_work + state_size(model) + SWEEP_ROWS * row_width + len(f.jac) + f.nc
             + 5 * len(_drivers(model)) + 2)
 
 
-def context(model: CodeModel, printer: Callable[[sp.Expr], str], solver_work: int, row_width: int) -> dict[str, Any]:
-    """The sweep's part of the C templates' context (keys `sweep_*`)."""
+@dataclass(frozen=True)
+class Sweep:
+    """What templates/c/sweep.j2, sweep.h.j2 and lanes.j2 need (`sweep`).
+
+    Attributes:
+        pairs: the reactions' body roles as tables (`_pair_table`), or None.
+        rows: instants per call of the trajectory loop inside the sweep.
+        work: reals of one thread's workspace (SWEEP_WORK).
+        guess: the initial guess from the parameters (temporaries g).
+        drive: each driver's f and df/dt (temporaries d), or None.
+        drivers: per driver its multiplier's row offset, distance or not, name.
+        reactions: per constraint with reactions its figure name and (Fx, Fy) offsets.
+        nfig: figures per variant; names: their columns.
+    """
+
+    pairs: dict[str, list[int]] | None
+    rows: int
+    work: int
+    guess: Block
+    drive: Block | None
+    drivers: list[dict[str, Any]]
+    reactions: list[dict[str, Any]]
+    nfig: int
+    names: list[str]
+
+
+def context(model: CodeModel, printer: Callable[[sp.Expr], str], solver_work: int, row_width: int) -> Sweep:
+    """The sweep's part of the C templates' context."""
     mech = model.layout.mechanism
     _, pmap, _ = parameter_map(mech.parameters)
     drivers = _drivers(model)
@@ -116,14 +142,14 @@ def context(model: CodeModel, printer: Callable[[sp.Expr], str], solver_work: in
         f = sp.sympify(d["f"]).xreplace(pmap)
         drive += [f, sp.diff(f, T)]
     reactions = _reactions(model)
-    return {
-        "sweep_pairs": _pair_table(reactions, 4 * len(drivers)),
-        "sweep_rows": SWEEP_ROWS,
-        "sweep_work": work_size(model, solver_work, row_width),
-        "sweep_guess": block(guess, printer, prefix="g"),
-        "sweep_drive": block(drive, printer, prefix="d") if drive else None,
-        "sweep_drivers": [{"lam": d["lam"], "distance": d["distance"], "name": d["name"]} for d in drivers],
-        "sweep_reactions": reactions,
-        "sweep_nfig": 4 * len(drivers) + len(reactions),
-        "sweep_names": figure_names(model),
-    }
+    return Sweep(
+        pairs=_pair_table(reactions, 4 * len(drivers)),
+        rows=SWEEP_ROWS,
+        work=work_size(model, solver_work, row_width),
+        guess=block(guess, printer, prefix="g"),
+        drive=block(drive, printer, prefix="d") if drive else None,
+        drivers=[{"lam": d["lam"], "distance": d["distance"], "name": d["name"]} for d in drivers],
+        reactions=reactions,
+        nfig=4 * len(drivers) + len(reactions),
+        names=figure_names(model),
+    )

@@ -35,7 +35,7 @@ from typing import Any, Callable, Collection, Sequence
 import numpy as np
 import sympy as sp
 
-from symid.codegen.targets.c_printer import SINGLE, printer
+from symid.codegen.c.printer import SINGLE, printer
 from symid.model.mechanism import T
 from symid.model.motion import TableSpline
 from symid.symbolic.rounding import Grouped
@@ -280,12 +280,36 @@ def nu_lines(nu: Sequence[sp.Expr], np_: int, off_nu: int, printer: Callable[[sp
     return ([f"{{p}}_real {', '.join(f'ff{k}[2]' for k in range(count[0]))};"] if count[0] else []) + lines
 
 
-def context(red: Reduced | None, off_nu: int, np_: int) -> dict[str, Any]:
-    """What templates/c/phase.j2 and prepare.j2 need (nothing in double: red None)."""
+@dataclass(frozen=True)
+class Phase:
+    """What templates/c/phase.j2, phase.h.j2 and prepare.j2 need (double: empty).
+
+    Attributes:
+        phases: each phase's nu with the parameters' names (comments).
+        off_nu, off_phase: where the prepared parameters hold the nu pairs
+            and the phases.
+        wraps: whether any row or angle is reduced by whole turns.
+        wrap_angles: indices in q of the angles reduced so.
+        nu_lines: prepare's statements computing the nu pairs.
+        kept: what keeps absolute time or angles (the header says so).
+        ff_ops: the float-float operations nu_lines call.
+    """
+
+    phases: list[str]
+    off_nu: int
+    off_phase: int
+    wraps: bool
+    wrap_angles: list[int]
+    nu_lines: list[str]
+    kept: list[str]
+    ff_ops: list[str]
+
+
+def context(red: Reduced | None, off_nu: int, np_: int) -> Phase:
+    """What the templates need for the phases (nothing in double: red None)."""
     if red is None:
-        return {"phases": [], "wraps": False, "wrap_angles": [], "nu_lines": [], "kept": [], "ff_ops": []}
+        return Phase([], off_nu, off_nu, False, [], [], [], [])
     lines = nu_lines(red.nu, np_, off_nu, printer("symid", SINGLE).doprint)
-    return {"phases": red.labels, "off_nu": off_nu, "off_phase": off_nu + 2 * len(red.nu),
-            "wraps": bool(red.wrapped_rows or red.angles), "wrap_angles": red.angles,
-            "nu_lines": lines, "kept": red.kept,
-            "ff_ops": [op for op in ("add", "mul", "div", "sqrt") if any(f"_ff_{op}(" in x for x in lines)]}
+    return Phase(phases=red.labels, off_nu=off_nu, off_phase=off_nu + 2 * len(red.nu),
+                 wraps=bool(red.wrapped_rows or red.angles), wrap_angles=red.angles, nu_lines=lines, kept=red.kept,
+                 ff_ops=[op for op in ("add", "mul", "div", "sqrt") if any(f"_ff_{op}(" in x for x in lines)])

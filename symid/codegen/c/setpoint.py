@@ -16,15 +16,17 @@ actuator forces) are still read at the call's t.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
 import sympy as sp
 
+from symid.codegen.c.kernels import Chunk, Kernel, Make
 from symid.codegen.emit import Block
 from symid.codegen.flat import _role_map, parameter_map, vector
 from symid.codegen.model import CodeModel
-from symid.codegen.targets import c_phase
+from symid.codegen.c import phase as c_phase
 from symid.symbolic.derive import DerivedConstraint
 from symid.symbolic.rounding import grouped
 
@@ -83,24 +85,43 @@ def rows(model: CodeModel) -> Rows:
     return Rows(drivers, phi, nu, gamma)
 
 
-def _at_rows(fn: dict[str, Any], where: list[int]) -> dict[str, Any]:
+def _at_rows(fn: Kernel, where: list[int]) -> Kernel:
     """A kernel whose k-th output is written to out[where[k]]: the driver
     rows of a vector of all NC rows."""
-    chunks = [{**ch, "block": Block(ch["block"].temps, tuple((where[k], e) for k, e in ch["block"].outputs))}
-              for ch in fn["chunks"]]
-    return {**fn, "chunks": chunks}
+    chunks = [Chunk(Block(ch.block.temps, tuple((where[k], e) for k, e in ch.block.outputs)), ch.unused)
+              for ch in fn.chunks]
+    return dataclasses.replace(fn, chunks=chunks)
 
 
-def context(model: CodeModel, red: c_phase.Reduced | None, make: Callable[..., dict[str, Any]],
+@dataclass(frozen=True)
+class Setpoint:
+    """What templates/c/setpoint.j2 and setpoint.h.j2 read.
+
+    Attributes:
+        drivers: the drivers whose rows take set-points, in the order of ND.
+        kernels: sp_phi (and sp_nu, sp_gamma) writing the driver rows.
+        sens_kernels: the sensitivity stages' driver rows, set-points held.
+        wrapped: the drivers whose row single precision reads modulo 2 pi.
+    """
+
+    drivers: list[Any]
+    nd: int
+    kernels: list[Kernel]
+    sens_kernels: list[Kernel]
+    wrapped: list[str]
+    uses_powi: bool
+
+
+def context(model: CodeModel, red: c_phase.Reduced | None, make: Make,
             trig: dict[sp.Expr, sp.Symbol], printer: Callable[[sp.Expr], str], real: str,
-            stages: Sequence[str] = ()) -> dict[str, Any] | None:
+            stages: Sequence[str] = ()) -> Setpoint | None:
     """What templates/c/setpoint.j2 and setpoint.h.j2 need; None for a
     mechanism without drivers.
 
     Args:
         red: single precision's reductions (c_phase.reduce), None in double:
             a driver row the compiled Phi reads modulo 2 pi is read so here too.
-        make: c._function (a kernel of chunks, sines and cosines shared).
+        make: kernels.function (a kernel of chunks, sines and cosines shared).
         stages: the sensitivity stages the solver computes (c_sens), of
             which q, qdot and qddot get set-point kernels.
     """
@@ -126,13 +147,13 @@ def context(model: CodeModel, red: c_phase.Reduced | None, make: Callable[..., d
         kernels += [_at_rows(make("sp_nu", args, r.nu, trig, printer, real), where),
                     _at_rows(make("sp_gamma", args, r.gamma, trig, printer, real), where)]
     sens = _sensitivity(model, r, make, trig, printer, real, stages) if o.sensitivity else []
-    texts = [e for fn in kernels + sens for ch in fn["chunks"] for _, e in ch["block"].temps + ch["block"].outputs]
-    return {"drivers": r.drivers, "nd": len(r.drivers), "kernels": kernels, "sens_kernels": sens, "wrapped": wrapped,
-            "uses_powi": any(f"{model.flat.name}_powi(" in e for e in texts)}
+    texts = [e for fn in kernels + sens for ch in fn.chunks for _, e in ch.block.temps + ch.block.outputs]
+    return Setpoint(r.drivers, len(r.drivers), kernels, sens, wrapped,
+                    any(f"{model.flat.name}_powi(" in e for e in texts))
 
 
-def _sensitivity(model: CodeModel, r: Rows, make: Callable[..., dict[str, Any]], trig: dict[sp.Expr, sp.Symbol],
-                 printer: Callable[[sp.Expr], str], real: str, wanted: Sequence[str]) -> list[dict[str, Any]]:
+def _sensitivity(model: CodeModel, r: Rows, make: Make, trig: dict[sp.Expr, sp.Symbol],
+                 printer: Callable[[sp.Expr], str], real: str, wanted: Sequence[str]) -> list[Kernel]:
     """Kernels writing the driver rows of the sensitivity stages q, qdot and
     qddot (symid.codegen.sensitivity's right-hand sides, index k NG + row for
     parameter k) with the set-points held fixed: with R the driver's row of

@@ -8,6 +8,7 @@ outgrow it reports SINGULAR, and symid's own loop solves that instant."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from symid.codegen.sparse import Plan
@@ -30,9 +31,29 @@ def work(plan: Plan, ng: int) -> int:
     return 4 * capacity(plan, ng) + 7 * ng + 2
 
 
-def context(plan: Plan, jac: list[tuple[int, int, Any]], ng: int) -> dict[str, Any]:
-    """The pattern by columns (pointers, rows, index of each value in Phi_q's
-    stored order), the column order and the preferred pivot rows."""
+@dataclass(frozen=True)
+class Fallback:
+    """What templates/c/sparse_fallback.j2 needs (`fb`).
+
+    Attributes:
+        cap: entries of L and of U the workspace has room for.
+        size: reals of the workspace (`work`).
+        ap, ai, amap: Phi_q's pattern by columns: pointers, rows and the
+            index of each value in Phi_q's stored order.
+        q: the column order; prefer: the preferred pivot rows.
+    """
+
+    cap: int
+    size: int
+    ap: list[int]
+    ai: list[int]
+    amap: list[int]
+    q: list[int]
+    prefer: list[int]
+
+
+def context(plan: Plan, jac: list[tuple[int, int, Any]], ng: int) -> Fallback:
+    """The pattern by columns, the column order and the preferred pivot rows."""
     by_col: list[list[tuple[int, int]]] = [[] for _ in range(ng)]
     for k, (r, c, _) in enumerate(jac):
         by_col[c].append((r, k))
@@ -47,5 +68,5 @@ def context(plan: Plan, jac: list[tuple[int, int, Any]], ng: int) -> dict[str, A
     seen = set(cols)
     rest = [c for c in range(ng) if c not in seen]  # a structurally singular plan stops early
     used_rows = set(rows)
-    return {"cap": capacity(plan, ng), "size": work(plan, ng), "ap": ap, "ai": ai or [0], "amap": amap or [0],
-            "q": cols + rest, "prefer": rows + [r for r in range(ng) if r not in used_rows][:len(rest)]}
+    return Fallback(cap=capacity(plan, ng), size=work(plan, ng), ap=ap, ai=ai or [0], amap=amap or [0],
+                    q=cols + rest, prefer=rows + [r for r in range(ng) if r not in used_rows][:len(rest)])

@@ -16,7 +16,13 @@ more than MAX_NG coordinates and a structurally singular Phi_q.
 from __future__ import annotations
 
 import re
-from typing import Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from symid.codegen.c.kernels import Kernel
+
+if TYPE_CHECKING:
+    from symid.codegen.c.compose import CContext
 
 # variants a group: four doubles fill an AVX2 register, two an SSE2 one (the
 # baseline of x86-64); the code has both and takes AVX2 where the processor
@@ -148,10 +154,10 @@ class Converter:
         return f"{m['lhs']} {m['op']} {rhs};"
 
 
-def _signature(p: str, fn: dict[str, Any]) -> str:
+def _signature(p: str, fn: Kernel) -> str:
     """The kernel's signature with the lane type: every array a lane array, t scalar."""
     out = []
-    for arg in fn["call"].split(", "):
+    for arg in fn.call.split(", "):
         if arg == "t":
             out.append(f"{p}_real t")
         elif arg == "out":
@@ -161,36 +167,68 @@ def _signature(p: str, fn: dict[str, Any]) -> str:
     return ", ".join(out)
 
 
-def context(ctx: dict[str, Any]) -> dict[str, Any] | None:
-    """The `lanes` key of the C templates' context (None: the scalar sweep only)."""
-    if (ctx["precision"] != "double" or ctx["friction"] or ctx["sens"] or ctx["phases"] or ctx["splines"]
-            or ctx["lu_tables"] or ctx["lu_runs"] or ctx["singular"] or ctx["loop_tables"] or ctx["sweep_pairs"]
-            or not ctx["velocity"] or not ctx["dynamics"] or ctx.get("rolled") or ctx.get("wrap_angles")
-            or ctx["ng"] > MAX_NG):
+Converted = dict[str, Any]  # a block with the lane type: "temps" (type, name, expr), "outputs" (index, expr)
+
+
+@dataclass(frozen=True)
+class Lanes:
+    """What templates/c/lanes*.j2 need (`lanes`; None: the scalar sweep only).
+
+    Attributes:
+        widths: variants per group (WIDTHS).
+        functions: per kernel its name, lane signature, call and converted chunks.
+        prepare, guess, drive: the prepared pieces', guess's and drivers' blocks, converted.
+        factor_chunks .. t_back_chunks: the straight-line LU's passes, converted.
+        used: the lane helpers of libm functions the code calls.
+        drivers, reactions: the sweep's, their offsets into the multipliers and reactions.
+    """
+
+    widths: tuple[int, ...]
+    functions: list[dict[str, Any]]
+    prepare: list[Converted]
+    guess: Converted
+    drive: Converted | None
+    factor_chunks: list[dict[str, Any]]
+    forward_chunks: list[dict[str, Any]]
+    back_chunks: list[dict[str, Any]]
+    t_forward_chunks: list[dict[str, Any]]
+    t_back_chunks: list[dict[str, Any]]
+    used: list[str]
+    drivers: list[dict[str, Any]]
+    reactions: list[dict[str, Any]]
+
+
+def context(ctx: "CContext") -> Lanes | None:
+    """The sweep's variants in lanes for a context (None: the scalar sweep only)."""
+    lu, sweep = ctx.lu, ctx.sweep
+    if (ctx.precision != "double" or ctx.friction or ctx.sens or ctx.phase.phases or ctx.splines
+            or lu.tables or lu.runs or ctx.singular or ctx.loop_tables or sweep.pairs
+            or not ctx.velocity or not ctx.dynamics or lu.rolled or ctx.phase.wrap_angles
+            or ctx.ng > MAX_NG):
         return None
-    p, P = ctx["p"], ctx["P"]
+    p, P = ctx.p, ctx.P
     conv = Converter(p, P)
     try:
         functions = []
-        for fn in ctx["functions"]:
-            if fn["loops"]:
+        for fn in ctx.functions:
+            if fn.loops:
                 return None
-            chunks = [{"unused": ch["unused"], **conv.block(ch["block"], set())} for ch in fn["chunks"]]
-            functions.append({"name": fn["name"], "signature": _signature(p, fn), "call": fn["call"],
+            chunks = [{"unused": ch.unused, **conv.block(ch.block, set())} for ch in fn.chunks]
+            functions.append({"name": fn.name, "signature": _signature(p, fn), "call": fn.call,
                               "chunks": chunks})
-        prepare = [conv.block(b, set()) for b in ctx["prepare"]]
-        guess = conv.block(ctx["sweep_guess"], set())
-        drive = conv.block(ctx["sweep_drive"], set()) if ctx["sweep_drive"] else None
-        lu = {key: [{**ch, "lines": [conv.lu_line(line) for line in ch["lines"]]} for ch in ctx[key]]
-              for key in ("factor_chunks", "forward_chunks", "back_chunks", "t_forward_chunks", "t_back_chunks")}
+        prepare = [conv.block(b, set()) for b in ctx.prepare]
+        guess = conv.block(sweep.guess, set())
+        drive = conv.block(sweep.drive, set()) if sweep.drive else None
+        passes = {key: [{**ch, "lines": [conv.lu_line(line) for line in ch["lines"]]} for ch in getattr(lu, key)]
+                  for key in ("factor_chunks", "forward_chunks", "back_chunks", "t_forward_chunks", "t_back_chunks")}
     except Unsupported:
         return None
-    offsets = {group: offset for group, _, _, offset in ctx["row_parts"]}
+    offsets = {group: offset for group, _, _, offset in ctx.row_parts}
     lam0, reac0 = offsets.get("lambda", 0), offsets.get("reactions", 0)
-    return {
-        "widths": WIDTHS, "functions": functions, "prepare": prepare, "guess": guess, "drive": drive, **lu,
-        "used": sorted(conv.used - {"max", "min", "all", "any", "fabs"}),
+    return Lanes(
+        widths=WIDTHS, functions=functions, prepare=prepare, guess=guess, drive=drive, **passes,
+        used=sorted(conv.used - {"max", "min", "all", "any", "fabs"}),
         # the figures' sources: the multipliers and the reactions, indices into their own vectors
-        "drivers": [{**d, "lam": d["lam"] - lam0} for d in ctx["sweep_drivers"]],
-        "reactions": [{**r, "pairs": [off - reac0 for off in r["pairs"]]} for r in ctx["sweep_reactions"]],
-    }
+        drivers=[{**d, "lam": d["lam"] - lam0} for d in sweep.drivers],
+        reactions=[{**r, "pairs": [off - reac0 for off in r["pairs"]]} for r in sweep.reactions],
+    )

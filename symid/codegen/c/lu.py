@@ -4,11 +4,16 @@ generation folded in."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from symid.codegen.c import loops
+from symid.codegen.c.lu_runs import lu_runs, rolled
+from symid.codegen.c.lu_tables import lu_tables
+from symid.codegen.c.printer import DOUBLE, Scalar
 from symid.codegen.emit import chunked, has_word
+from symid.codegen.model import CodeModel
 from symid.codegen.sparse import Coef, FoldedStep, Known, Plan, fold
-from symid.codegen.targets.c_printer import DOUBLE, Scalar
 
 
 def _read(c: Coef) -> str:
@@ -136,9 +141,82 @@ def lu_chunks(plan: Plan, values: list[float | None], P: str, scalar: Scalar = D
                                   if f.pivot is not None and f.pivot != 0.0]}
     # the solves' fixed entry points take lu even where every value is a number
     passes["solve_reads_lu"] = any(ch["lu"] for k in ("forward_chunks", "back_chunks") for ch in passes[k])
-    passes["f"] = scalar.suffix  # the suffix of the template's own literals
     passes["solve_t_reads_lu"] = any(ch["lu"] for k in ("t_forward_chunks", "t_back_chunks") for ch in passes[k])
     return passes
 
 
-# Coordinates from which the sparse LU loops over index tables. Measured on
+
+Chunks = list[dict[str, Any]]  # per function: "lines", and whether it reads "lu", "piv", "cm"
+
+
+@dataclass(frozen=True)
+class LU:
+    """What the templates print for the fixed sparse LU (sparse_lu.j2,
+    sparse_lu_tables.j2, sparse_lu_runs.j2, the screen in solver.c.j2).
+
+    Attributes:
+        size: reals of the sparse factors (LU_SIZE).
+        tables: index tables (lu_tables), for a large mechanism; else None.
+        runs: the tables' passes as runs (lu_runs), or None.
+        pivot_slots: the factor slots of the pivots computed at run time.
+        known_reciprocals: (min, max) of the known pivots' reciprocals, printed, or None.
+        screen: the conditioning screen's pivots: "slots" (slot, row, col)
+            and "known" (printed |1/pivot|, row, col).
+        factor_chunks .. t_back_chunks: the straight-line passes (empty with tables).
+        rolled: the passes rolled into runs (lu_runs.rolled).
+        step_lines: per pass, per step, its statements (describe's count).
+        solve_reads_lu, solve_t_reads_lu: whether the (transposed) solves read lu.
+    """
+
+    size: int
+    tables: dict[str, Any] | None
+    runs: dict[str, Any] | None
+    pivot_slots: list[int]
+    known_reciprocals: tuple[str, str] | None
+    screen: dict[str, list[tuple[Any, int, int]]]
+    factor_chunks: Chunks = field(default_factory=list)
+    forward_chunks: Chunks = field(default_factory=list)
+    back_chunks: Chunks = field(default_factory=list)
+    t_forward_chunks: Chunks = field(default_factory=list)
+    t_back_chunks: Chunks = field(default_factory=list)
+    rolled: bool = False
+    step_lines: dict[str, list[list[str]]] = field(default_factory=dict)
+    solve_reads_lu: bool = False
+    solve_t_reads_lu: bool = False
+
+
+# a loaded machine (benchmarks/scale.py): at the ladder of 64 (ng 387) the
+# straight-line code, with the known values folded, is 1.6 x faster; at the
+# ladder of 256 (ng 1539) the tables are as fast or faster (the straight-line
+# code outgrows the cache) and compile 4 x faster. The folded code rolled into
+# runs (lu_runs.rolled) beats both where the steps repeat (ladder of 512:
+# LU instructions per instant 781k on tables, 140k rolled), so the tables serve
+# only a large mechanism whose steps do not repeat.
+LU_TABLES_MIN = 1000
+
+
+def known(model: CodeModel, fold_constants: bool) -> list[float | None]:
+    """The entries of Phi_q that are numbers, per pattern slot (None: computed)."""
+    return [float(e) if fold_constants and e.is_Number else None for _, _, e in model.flat.jac]
+
+
+def context(model: CodeModel, fold_constants: bool, scalar: Scalar) -> LU:
+    """The sparse LU's context: straight-line code with the known values
+    folded (sparse_lu.j2), rolled into runs where its steps repeat
+    (lu_runs.rolled: a chain's code does not grow with its length);
+    past LU_TABLES_MIN coordinates where it does not roll, index tables
+    (sparse_lu_tables.j2, as runs where those repeat)."""
+    P = model.flat.name.upper()
+    size = model.plan.size
+    if model.flat.ng < LU_TABLES_MIN or not model.plan.singular:
+        passes = lu_chunks(model.plan, known(model, fold_constants), P, scalar)
+        # a mechanism as small as the bundled examples keeps its code as it was
+        roll = None if model.plan.singular or model.flat.ng < loops.LOOP_MIN else rolled(passes)
+        if roll is not None or model.flat.ng < LU_TABLES_MIN:
+            return LU(size=size, tables=None, runs=None, **(roll or passes))
+    tables = lu_tables(model.plan)
+    runs = None if model.plan.singular else lu_runs(tables, model.flat.options.multipliers, scalar.fn("fabs"), P,
+                                                    scalar.suffix)
+    slots = [model.plan.slots[(st.row, st.col)] for st in model.plan.steps]
+    return LU(size=size, tables=tables, runs=runs, known_reciprocals=None, pivot_slots=slots,
+              screen={"slots": [(s, st.row, st.col) for s, st in zip(slots, model.plan.steps)], "known": []})

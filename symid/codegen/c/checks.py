@@ -8,7 +8,7 @@ them so when all are asked for) they are one block, checked in one pass.
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import dataclass
 
 # values written out one statement each up to this many; loops of constant
 # trip count (four lanes per pass) past it, so that a ladder's code stays small.
@@ -37,13 +37,32 @@ def blocks(checked: list[tuple[str, int | None, int]]) -> list[tuple[str, int, i
     return out
 
 
+@dataclass(frozen=True)
+class Checks:
+    """What templates/c/checks.j2 (and simd.j2, unroll.j2) need.
+
+    Attributes:
+        blocks: (base, offset, count) of the checked values (`blocks`).
+        straight: values written out one statement each up to this many.
+        maxabs: the vector sizes whose largest |value| the code takes.
+        looped: whether a block is past `straight`.
+        rolling: whether the predictor's history stays in the rows.
+    """
+
+    blocks: list[tuple[str, int, int]]
+    straight: int
+    maxabs: list[int]
+    looped: bool
+    rolling: bool
+
+
 def context(outputs: list[tuple[str, int | None, int]], ng: int, nc: int, velocity: bool, multipliers: bool,
-            nr: int) -> dict[str, Any]:
-    """The `checks` key of the C templates' context.
+            nr: int) -> Checks:
+    """The trajectory's checks.
 
     Args:
         outputs: the trajectory's output vectors (variable, row offset or
-            None, work slot), as c.context builds them: qn, qdn, qddn, lam, reac.
+            None, work vector), as compose.context builds them: qn, qdn, qddn, lam, reac.
     """
     sizes = {"qn": ng, "qdn": ng if velocity else 0, "qddn": ng if velocity else 0,
              "lam": nc if multipliers else 0, "reac": nr}
@@ -53,5 +72,5 @@ def context(outputs: list[tuple[str, int | None, int]], ng: int, nc: int, veloci
     placed = {var for var, offset, _ in outputs if offset is not None}
     # the predictor's history can stay in the rows when they hold all of it
     rolling = {"qn", "qdn", "qddn"} <= placed if velocity else "qn" in placed
-    return {"checks": {"blocks": found, "straight": STRAIGHT, "maxabs": sorted({ng, nc} - {0}),
-                       "looped": any(n > STRAIGHT for _, _, n in found), "rolling": rolling}}
+    return Checks(blocks=found, straight=STRAIGHT, maxabs=sorted({ng, nc} - {0}),
+                  looped=any(n > STRAIGHT for _, _, n in found), rolling=rolling)

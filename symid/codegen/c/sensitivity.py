@@ -10,11 +10,14 @@ the chosen columns need are computed, and only the chosen reactions.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
 import sympy as sp
 
-from symid.codegen.emit import CHUNK, block
+from symid.codegen.c.kernels import Kernel, Make
+from symid.codegen.friction import Friction
+from symid.codegen.emit import CHUNK, Block, block
 from symid.codegen.flat import vector
 from symid.codegen.hoist import hoist
 from symid.codegen.model import CodeModel
@@ -33,15 +36,15 @@ def columns(of: Sequence[str], names: Sequence[str]) -> list[str]:
 
 
 def _sources(model: CodeModel, row_parts: list[tuple[str, str | None, int, int]],
-             of: Sequence[str], fr: dict[str, Any] | None) -> tuple[list[tuple[str, int]], int]:
+             of: Sequence[str], fr: Friction | None) -> tuple[list[tuple[str, int]], int]:
     """Per chosen column its stage and index in that stage's vector, and the
     last stage needed (index into STAGES; a friction column needs lambda's)."""
     where = {}
     for group, source, size, offset in row_parts:  # the plain columns come first in row_columns
         for i in range(size):
             where[model.row_columns[offset + i]] = (group if source else "zero", i)
-    if fr is not None and fr["columns"]:  # then each joint's friction and friction power
-        for k, joint in enumerate(fr["joints"]):
+    if fr is not None and fr.columns:  # then each joint's friction and friction power
+        for k, joint in enumerate(fr.joints):
             where[f"{joint['name']}.friction"] = ("friction", 2 * k)
             where[f"{joint['name']}.friction_power"] = ("friction", 2 * k + 1)
     missing = [c for c in of if c not in where]
@@ -66,7 +69,7 @@ def _plain(e: sp.Expr) -> sp.Expr:
     return sp.sympify(e).replace(Grouped, lambda a: a)
 
 
-def friction_tangents(model: CodeModel, fr: dict[str, Any], names: Sequence[str]) -> list[sp.Expr]:
+def friction_tangents(model: CodeModel, fr: Friction, names: Sequence[str]) -> list[sp.Expr]:
     """The derivatives (FRICTION_WIDTH per joint, joints inner, parameters
     outer) of each joint's friction pieces by the base parameters `names`,
     along the sensitivities `sq`, `sqd` already solved: the multipliers held
@@ -79,7 +82,7 @@ def friction_tangents(model: CodeModel, fr: dict[str, Any], names: Sequence[str]
         pk = sp.Symbol(f"p[{f.params.index(name)}]", real=True)
         sq = vector("sq", ng * (k + 1))[k * ng:]
         sqd = vector("sqd", ng * (k + 1))[k * ng:]
-        for joint in fr["joints"]:
+        for joint in fr.joints:
             fixed = joint["fixed"]
             for e in (fixed[0], joint["normal"][0], *fixed[1:16]):
                 e = _plain(e)
@@ -89,16 +92,58 @@ def friction_tangents(model: CodeModel, fr: dict[str, Any], names: Sequence[str]
     return out
 
 
+@dataclass(frozen=True)
+class Sensitivity:
+    """What sensitivity.j2 and sensitivity.h.j2 need (`sens`; None: not asked for).
+
+    Attributes:
+        ns, names, labels: the parameters differentiated by (labels: with their p index).
+        of, ncol, columns: the columns differentiated, and the row's sensitivity columns.
+        stages: the stages solved (symid.codegen.sensitivity.STAGES);
+            kernels: each one's; functions: every kernel, friction's included.
+        base, size, zero: the S vector's layout (per stage its start), reals, its zero.
+        copies: runs (row offset, S index, count) copied into the row; direct:
+            the chosen reactions' kernel writes straight into the row instead.
+        prepare, npieces: the parameter-only pieces (prepared after the others).
+        offset, width: where the columns start in the row and how many.
+        work: reals of workspace added.
+        exprs: every expression printed (the splines they read).
+        friction: joint friction's part (kernel, exprs, w, adds, nf), or None.
+    """
+
+    ns: int
+    names: list[str]
+    labels: list[str]
+    of: list[str]
+    ncol: int
+    copies: list[list[int]]
+    direct: bool
+    size: int
+    zero: int
+    base: dict[str, int]
+    stages: list[str]
+    kernels: dict[str, Kernel]
+    prepare: list[Block]
+    npieces: int
+    offset: int
+    width: int
+    work: int
+    columns: list[str]
+    functions: list[Kernel]
+    exprs: list[sp.Expr]
+    friction: dict[str, Any] | None
+
+
 def context(model: CodeModel, row_parts: list[tuple[str, str | None, int, int]], row_offset: int,
-            np_prepared: int, make: Callable[..., dict[str, Any]], trig: dict[sp.Expr, sp.Symbol],
-            printer: Callable[[sp.Expr], str], real: str, fr: dict[str, Any] | None = None) -> dict[str, Any] | None:
+            np_prepared: int, make: Make, trig: dict[sp.Expr, sp.Symbol],
+            printer: Callable[[sp.Expr], str], real: str, fr: Friction | None = None) -> Sensitivity | None:
     """What sensitivity.j2 needs, or None when no sensitivity was asked for.
 
     Args:
-        row_parts: (group, source, size, offset) of the row (c.context).
+        row_parts: (group, source, size, offset) of the row (compose.context).
         row_offset: where the sensitivity columns start in the row.
         np_prepared: the prepared parameters before these (NP + pieces).
-        make: c._function (kernels of bounded size, sines and cosines shared).
+        make: kernels.function (kernels of bounded size, sines and cosines shared).
         fr: the joint friction's context (symid.codegen.friction), None without friction.
     """
     f = model.flat
@@ -135,18 +180,18 @@ def context(model: CodeModel, row_parts: list[tuple[str, str | None, int, int]],
         fexprs = friction_tangents(model, fr, names)
         fargs = [cv("q"), cv("qd"), cv("lam"), ct, cp, cv("sq"), cv("sqd")]
         adds = []  # (index among the chosen reactions, joint, load 0..5): L_p f + L y added there
-        for jk, joint in enumerate(fr["joints"]):
+        for jk, joint in enumerate(fr.joints):
             for r in range(6 if joint["slot"] >= 0 else 0):
                 if joint["slot"] + r in chosen_r:
                     adds.append((chosen_r.index(joint["slot"] + r), jk, r))
         friction = {"kernel": make("s_friction", fargs, fexprs, trig, printer, real), "exprs": fexprs,
-                    "w": FRICTION_WIDTH, "adds": adds, "nf": fr["nf"]}
+                    "w": FRICTION_WIDTH, "adds": adds, "nf": fr.nf}
     # S: sq | sqd | sqdd (NS NG each, one vector per parameter) | slam (NS NC) | chosen reactions
     # | friction columns (2 NF NS) | a zero
     base = {"q": 0, "qdot": ng * ns, "qddot": 2 * ng * ns, "lambda": 3 * ng * ns}
     base["reactions"] = base["lambda"] + nc * ns
     base["friction"] = base["reactions"] + nrc * ns
-    base["zero"] = base["friction"] + (2 * fr["nf"] * ns if friction else 0)
+    base["zero"] = base["friction"] + (2 * fr.nf * ns if friction else 0)
     size = {"q": ng, "qdot": ng, "qddot": ng, "lambda": nc}
     pairs = []  # (row offset, S index) of every value
     for c, (g, i) in enumerate(found):
@@ -168,11 +213,10 @@ def context(model: CodeModel, row_parts: list[tuple[str, str | None, int, int]],
     prepare = [block(pieces[k:k + CHUNK], printer, offset=np_prepared + k) for k in range(0, len(pieces), CHUNK)]
     total = base["zero"] + 1
     labels = [f"{n} (p[{f.params.index(n)}])" for n in names]
-    return {"ns": ns, "names": list(names), "labels": labels, "of": list(of), "ncol": len(of), "copies": copies,
-            "direct": direct,
-            "size": total, "zero": base["zero"], "base": base,
-            "stages": wanted, "kernels": kernels, "prepare": prepare, "npieces": len(pieces),
-            "offset": row_offset, "width": len(of) * ns, "work": total + ns * max(ng, nc), "columns": columns(of, names),
-            "functions": list(kernels.values()) + ([friction["kernel"]] if friction else []),
-            "exprs": [e for st in wanted for e in stage_exprs[st]] + (friction["exprs"] if friction else []),
-            "friction": friction}
+    return Sensitivity(ns=ns, names=list(names), labels=labels, of=list(of), ncol=len(of), copies=copies,
+                       direct=direct, size=total, zero=base["zero"], base=base, stages=wanted, kernels=kernels,
+                       prepare=prepare, npieces=len(pieces), offset=row_offset, width=len(of) * ns,
+                       work=total + ns * max(ng, nc), columns=columns(of, names),
+                       functions=list(kernels.values()) + ([friction["kernel"]] if friction else []),
+                       exprs=[e for st in wanted for e in stage_exprs[st]] + (friction["exprs"] if friction else []),
+                       friction=friction)

@@ -324,7 +324,7 @@ class Loops:
     def kernels(self, fn: str, args: list[str], printer: Printer, real: str = "double") -> list[dict[str, Any]]:
         """Each part's kernel of fn; "run": its loop as runs of members
         with no tables read (c_loop_runs), where they repeat."""
-        from symid.codegen.targets.c_loop_runs import run_lines
+        from symid.codegen.c.loop_runs import run_lines
 
         if fn not in LOOPED:
             return []
