@@ -1,6 +1,8 @@
-"""How the benchmark runs a worker: in its own process group, through the
-small launcher (`launch.py`) that reads the child's own peak memory, killed
-past its cap.
+"""How the harness runs a process: in its own process group, through the
+small launcher (`launch.py`) that reads the child's own peak memory and CPU
+time, killed past its cap; and a worker, a function of a case called in a
+fresh interpreter (`python -m benchmarks --worker`), so that its setup is
+cold and its peak memory its own.
 """
 
 from __future__ import annotations
@@ -22,6 +24,17 @@ THREADS = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS
 
 
 @dataclass
+class Measured:
+    """One process run through `launch.py`."""
+
+    wall_s: float
+    peak_rss_mb: float | None
+    status: int
+    cpu_s: float | None
+    stopped: bool
+
+
+@dataclass
 class Spawned:
     status: str          # "ok", "failed" or "stopped"
     result: dict[str, Any]
@@ -34,14 +47,14 @@ LAUNCH = Path(__file__).with_name("launch.py")
 
 
 def launch(cmd: list[str], cap_s: float, env: dict[str, str], stdout: Any, stderr: Any,
-           ) -> tuple[float, float | None, int, bool]:
-    """(wall s, peak RSS MB, exit status, stopped) of one command run through
-    `launch.py` in its own process group, the group killed (by id) past cap_s."""
+           cwd: Path = ROOT) -> Measured:
+    """One command run through `launch.py` in its own process group, the
+    group killed (by id) past cap_s."""
     with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as f:
         report = Path(f.name)
     tick = time.perf_counter()
     proc = subprocess.Popen([sys.executable, str(LAUNCH), str(report), *cmd], stdout=stdout, stderr=stderr,
-                            env=env, cwd=ROOT, start_new_session=True)
+                            env=env, cwd=cwd, start_new_session=True)
     stopped = threading.Event()
 
     def stop() -> None:
@@ -58,19 +71,21 @@ def launch(cmd: list[str], cap_s: float, env: dict[str, str], stdout: Any, stder
     wall = time.perf_counter() - tick
     try:
         measured = json.loads(report.read_text())
-        rss, code = measured["maxrss_mb"], measured["status"]
+        rss, code, cpu = measured["maxrss_mb"], measured["status"], measured["cpu_s"]
     except (OSError, ValueError, KeyError):
-        rss, code = None, proc.returncode
+        rss, code, cpu = None, proc.returncode, None
     report.unlink(missing_ok=True)
-    return wall, rss, code, stopped.is_set()
+    return Measured(wall, rss, code, cpu, stopped.is_set())
 
 
-def spawn(spec: dict[str, Any], cap_s: float, env: dict[str, str]) -> Spawned:
-    """Run one worker; its last stdout line is its JSON result."""
-    cmd = [sys.executable, "-m", "benchmarks.run", "--worker", json.dumps(spec)]
+def spawn(call: str, spec: dict[str, Any], cap_s: float, env: dict[str, str]) -> Spawned:
+    """Run `call` ("module:function") on spec in a worker process; its last
+    stdout line is the function's JSON result."""
+    cmd = [sys.executable, "-m", "benchmarks", "--worker", json.dumps({"call": call, "spec": spec})]
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        wall, rss, code, stopped = launch(cmd, cap_s, env, out, err)
-        if stopped:
+        got = launch(cmd, cap_s, env, out, err)
+        wall, rss, code = got.wall_s, got.peak_rss_mb, got.status
+        if got.stopped:
             return Spawned("stopped", {}, wall, rss, f"stopped after {cap_s:.0f} s")
         out.seek(0)
         err.seek(0)
@@ -89,5 +104,5 @@ def env_for(cache: Path) -> dict[str, str]:
 
 def timed_process(cmd: list[str], env: dict[str, str], cap_s: float) -> tuple[float, float | None, int]:
     """(wall s, peak RSS MB, exit status) of one process, killed past cap_s."""
-    wall, rss, code, _ = launch(cmd, cap_s, env, subprocess.DEVNULL, subprocess.DEVNULL)
-    return wall, rss, code
+    got = launch(cmd, cap_s, env, subprocess.DEVNULL, subprocess.DEVNULL)
+    return got.wall_s, got.peak_rss_mb, got.status

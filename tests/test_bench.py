@@ -1,12 +1,15 @@
-"""The benchmark never rots: `symid bench`, the ladder's closed form and a
-smoke run of `benchmarks/run.py` (tiny sizes). No timing assertions."""
+"""The benchmark never rots: `symid bench`, the ladder's closed form, the
+harness (`python -m benchmarks`: its list, its errors, its JSON) and a smoke
+run (tiny sizes) of every case it registers. No timing assertions."""
 
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,6 +21,15 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from benchmarks import ladder  # noqa: E402
+from benchmarks.cases import Case, load_all  # noqa: E402
+from benchmarks.run import flat  # noqa: E402
+
+CASES = load_all()
+
+
+def harness(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
+    """`python -m benchmarks ARGS` as a user runs it (no deadline: under load a smoke run takes minutes)."""
+    return subprocess.run([sys.executable, "-m", "benchmarks", *args], cwd=cwd, capture_output=True, text=True)
 
 
 @pytest.mark.parametrize("backend", ["c", "numpy"])
@@ -52,14 +64,64 @@ def test_ladder_exact_configuration_is_assembled(tmp_path: Path) -> None:
         assert np.max(np.abs(study.evaluator.phi(lad.q_exact(t), t))) <= 1e-14
 
 
-@pytest.mark.slow  # the benchmark harness itself, every approach at tiny sizes
-def test_benchmark_smoke_run_writes_every_output(tmp_path: Path) -> None:
-    done = subprocess.run([sys.executable, "-m", "benchmarks.run", "--smoke", "--out", str(tmp_path)],
-                          cwd=ROOT, capture_output=True, text=True)  # no deadline: under load it takes minutes
+def test_list_names_every_registered_case_once() -> None:
+    done = harness("--list")
+    assert done.returncode == 0, done.stderr
+    listed = [line.split()[0] for line in done.stdout.splitlines()]
+    assert listed == sorted(CASES) and len(CASES) >= 13
+    # every case module under benchmarks/cases registers what --list shows: none is left out by an import
+    assert {"overview", "scale", "stability", "instructions", "mutation"} <= set(listed)
+
+
+def test_an_unknown_case_is_one_line_and_exit_2() -> None:
+    done = harness("no_such_case", "--smoke")
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "no_such_case" in done.stderr and "overview" in done.stderr
+
+
+def test_a_case_option_is_the_cases_own() -> None:
+    done = harness("scale", "--help")
+    assert done.returncode == 0 and "--ladders" in done.stdout
+    assert "--ladders" not in harness("friction", "--help").stdout
+
+
+def test_flat_lists_every_scalar_by_its_dotted_key() -> None:
+    figures = {"a": 1.5, "b": {"c": 2, "d": [1, {"k": 2.5}], "e": {"f": "x", "g": None}}, "h": True}
+    assert flat(figures) == [("a", 1.5), ("b.c", 2), ("b.d.0", 1), ("b.d.1.k", 2.5), ("b.e.f", "x"),
+                             ("b.e.g", None), ("h", True)]
+
+
+def _smoke(case: Case) -> Any:
+    marks = [pytest.mark.slow] if case.slow else []
+    missing = [t for t in case.tools if shutil.which(t) is None]
+    if missing:
+        marks.append(pytest.mark.skip(reason=f"needs {', '.join(missing)}"))
+    return pytest.param(case.name, marks=marks, id=case.name)
+
+
+@pytest.mark.parametrize("name", [_smoke(c) for c in CASES.values() if c.name != "overview"])
+def test_every_case_runs_in_smoke_mode_and_writes_its_json(name: str, tmp_path: Path) -> None:
+    done = harness(name, "--smoke", "--out", str(tmp_path / "out"), cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
-    for name in ("bench.json", "bench.md", "time_vs_ng.png", "time_vs_error.png", "tolerance_sweep.png"):
+    result = json.loads((tmp_path / "out" / f"{name}.json").read_text())
+    assert result["case"] == name and result["smoke"] is True
+    assert result["machine"]["cpu_count"] >= 1 and result["run_s"] > 0
+    figures = flat(result["figures"])
+    assert figures, "a case returns figures"
+    # the figures are printed, one dotted key a line
+    key, _ = figures[0]
+    assert f"{key}: " in done.stdout
+    # nothing left behind where it ran, and nothing in the committed results
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+@pytest.mark.slow  # the overview, every approach at tiny sizes
+def test_overview_smoke_run_writes_every_output(tmp_path: Path) -> None:
+    done = harness("overview", "--smoke", "--out", str(tmp_path))
+    assert done.returncode == 0, done.stderr[-2000:]
+    for name in ("overview.json", "overview.md", "time_vs_ng.png", "time_vs_error.png", "tolerance_sweep.png"):
         assert (tmp_path / name).is_file(), name
-    result = json.loads((tmp_path / "bench.json").read_text())
+    result = json.loads((tmp_path / "overview.json").read_text())["figures"]
     approaches = {c["approach"] for c in result["cells"]}
     assert {"numpy-hand", "sympy-lambdify", "casadi-python", "casadi-c", "symid-c", "symid-numpy",
             "symid-reference", "symid-casadi"} <= approaches
@@ -76,13 +138,13 @@ def test_benchmark_smoke_run_writes_every_output(tmp_path: Path) -> None:
         assert cell["error_rel"] <= 1e-10, cell
         assert cell["us_per_instant"] > 0 and cell["peak_rss_mb"] > 0
     assert all(s["status"] == "ok" for s in result["sweeps"].values())
-    assert "| approach |" in (tmp_path / "bench.md").read_text()
+    assert "| approach |" in (tmp_path / "overview.md").read_text()
     # the design study beside CasADi's C loop and CasADi's map from Python (issue 14)
     study = result["study"]
     assert study["status"] == "ok", study
     assert study["grid"]["threads_2"]["failed"] == 0 and study["grid"]["threads_2"]["instants_per_s"] > 0
     assert study["casadi_map"]["us_per_instant"] > 0 and study["casadi_c"]["us_per_instant_1_thread"] > 0
-    assert 'Function.map(K, "thread", 2)' in (tmp_path / "bench.md").read_text()
+    assert 'Function.map(K, "thread", 2)' in (tmp_path / "overview.md").read_text()
 
 
 @pytest.mark.parametrize("backend", ["c", "numpy", "reference", "casadi"])

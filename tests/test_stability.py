@@ -2,7 +2,7 @@
 singular and redundant Phi_q, damped Newton and divergence, branch tracking,
 units (equilibration), long runs, and the near-singular stress cases against
 a 40-digit reference (tests/stress.py). The long runs are in
-benchmarks/stability.py."""
+`python -m benchmarks stability` (benchmarks/cases/stability.py)."""
 
 from __future__ import annotations
 
