@@ -5,6 +5,7 @@ run (tiny sizes) of every case it registers. No timing assertions."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -27,9 +28,12 @@ from benchmarks.run import flat  # noqa: E402
 CASES = load_all()
 
 
-def harness(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
+def harness(*args: str, cwd: Path = ROOT, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
     """`python -m benchmarks ARGS` as a user runs it (no deadline: under load a smoke run takes minutes)."""
-    return subprocess.run([sys.executable, "-m", "benchmarks", *args], cwd=cwd, capture_output=True, text=True)
+    if env is not None:
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]), **env}
+    return subprocess.run([sys.executable, "-m", "benchmarks", *args], cwd=cwd, capture_output=True, text=True,
+                          env=env)
 
 
 @pytest.mark.parametrize("backend", ["c", "numpy"])
@@ -77,6 +81,20 @@ def test_an_unknown_case_is_one_line_and_exit_2() -> None:
     done = harness("no_such_case", "--smoke")
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "no_such_case" in done.stderr and "overview" in done.stderr
+
+
+def test_a_missing_program_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    done = harness("friction", "--smoke", "--out", str(tmp_path), env={"PATH": str(tmp_path)})  # no gcc there
+    assert done.returncode == 2
+    assert done.stderr == "python -m benchmarks friction: needs gcc, not installed\n"
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_run_that_fails_is_one_line_and_exit_3(tmp_path: Path) -> None:
+    done = harness("optimize", "--smoke", "--backend", "no_such_backend", "--out", str(tmp_path))
+    assert done.returncode == 3, done.stderr
+    assert done.stderr.count("\n") == 1 and done.stderr.startswith("python -m benchmarks optimize: failed: ")
+    assert "Traceback" not in done.stderr and not list(tmp_path.iterdir())
 
 
 def test_a_case_option_is_the_cases_own() -> None:
