@@ -23,7 +23,7 @@ sys.path.insert(0, str(ROOT))
 
 from benchmarks import ladder  # noqa: E402
 from benchmarks.cases import Case, load_all  # noqa: E402
-from benchmarks.run import flat  # noqa: E402
+from benchmarks.run import flat, parser_for  # noqa: E402
 
 CASES = load_all()
 
@@ -75,6 +75,19 @@ def test_list_names_every_registered_case_once() -> None:
     assert listed == sorted(CASES) and len(CASES) >= 13
     # every case module under benchmarks/cases registers what --list shows: none is left out by an import
     assert {"overview", "scale", "stability", "instructions", "mutation"} <= set(listed)
+
+
+def test_docs_describe_every_case_and_only_registered_ones() -> None:
+    import re
+
+    page = (ROOT / "docs" / "benchmarks.md").read_text(encoding="utf-8")
+    described = re.findall(r"^\| `(\w+)` \|", page, re.M)
+    assert sorted(described) == sorted(CASES)
+    for name, case in CASES.items():  # and the options each row lists are the case's own
+        row = next(line for line in page.splitlines() if line.startswith(f"| `{name}` |"))
+        options = parser_for(CASES, name).format_help().split()
+        for option in re.findall(r"`(--?[\w-]+)", row.rsplit("|", 2)[-2]):
+            assert option in options, (name, option)
 
 
 def test_an_unknown_case_is_one_line_and_exit_2() -> None:
