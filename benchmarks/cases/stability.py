@@ -14,9 +14,7 @@ singularity and against cond, every backend). Three parts:
    times 1e6, after unit conversion (tests/test_stability.py's converter);
 3. long run: the bundled slider-crank for N instants (default 1e6) streamed to
    a CSV, crank angle past 1e4 rad, the motor torque against the 40-digit
-   closed form every N/1000 instants, and Python's allocated blocks sampled;
-4. cost: the loop before this work (git show of symid/solve.py, as it was, at BASELINE)
-   against the current one, same backend and instants.
+   closed form every N/1000 instants, and Python's allocated blocks sampled.
 """
 
 from __future__ import annotations
