@@ -123,7 +123,7 @@ def test_flat_lists_every_scalar_by_its_dotted_key() -> None:
 
 
 def _smoke(case: Case) -> Any:
-    marks = [pytest.mark.slow] if case.slow else []
+    marks = [pytest.mark.slow]  # each runs a benchmark (the marker's definition), 5 s to minutes under load
     missing = [t for t in case.tools if shutil.which(t) is None]
     if missing:
         marks.append(pytest.mark.skip(reason=f"needs {', '.join(missing)}"))

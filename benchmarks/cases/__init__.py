@@ -31,7 +31,6 @@ class Case:
         report: writes extra files beside the JSON (tables, plots) from the whole result (the JSON's
             dict: figures, machine, load averages); returns their paths.
         tools: programs the case cannot run without (gcc, valgrind, ...).
-        slow: its --smoke run takes more than ~30 s alone (the tests mark it slow).
     """
 
     name: str
@@ -40,7 +39,6 @@ class Case:
     options: Callable[[argparse.ArgumentParser], None] | None = None
     report: Callable[[dict[str, Any], Path], list[Path]] | None = None
     tools: tuple[str, ...] = field(default_factory=tuple)
-    slow: bool = False
 
 
 CASES: dict[str, Case] = {}

@@ -181,8 +181,7 @@ def _options(group: Any) -> None:
 
 
 @register("embedded", "the C export per example: us per instant in double and single, single's error against "
-          "double (short and at t = 1e4 s), Cortex-M4F code size and stack", options=_options, tools=("cc",),
-          slow=True)
+          "double (short and at t = 1e4 s), Cortex-M4F code size and stack", options=_options, tools=("cc",))
 def embedded(ctx: Context) -> dict[str, Any]:
     names = (ctx.options.examples.split(",") if ctx.options.examples
              else ["slider_crank"] if ctx.smoke else api.examples())

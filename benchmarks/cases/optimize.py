@@ -88,7 +88,7 @@ def _options(group: Any) -> None:
 
 
 @register("optimize", "symid optimize on exact gradients against SciPy's finite differences: solves, time, the "
-          "same optimum", options=_options, slow=True)
+          "same optimum", options=_options)
 def optimize_case(ctx: Context) -> dict[str, Any]:
     steps = 21 if ctx.smoke else ctx.options.steps
     runs = {}

@@ -266,7 +266,7 @@ def _report(result: dict[str, Any], out: Path) -> list[Path]:
 
 @register("overview", "every backend and three baselines on the slider-crank and ladders: setup, us per instant, "
           "error, memory; sweeps, paired C ratios, solve processes, the design study", options=_options,
-          report=_report, tools=("gcc",), slow=True)
+          report=_report, tools=("gcc",))
 def overview(ctx: Context) -> dict[str, Any]:
     cfg = SMOKE if ctx.smoke else Config()
     mechs = mechanisms(cfg, ctx.work / "mechanisms")

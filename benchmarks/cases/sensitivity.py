@@ -135,7 +135,7 @@ def _options(group: Any) -> None:
 
 
 @register("sensitivity", "what the sensitivity columns cost per instant against the same run without them, on the "
-          "Python path (setup too) and in generated C", options=_options, tools=("gcc",), slow=True)
+          "Python path (setup too) and in generated C", options=_options, tools=("gcc",))
 def sensitivity(ctx: Context) -> dict[str, Any]:
     args = ctx.options
     result: dict[str, Any] = {}

@@ -251,7 +251,7 @@ def _plot(result: dict[str, Any], out: Path) -> list[Path]:
 
 
 @register("stability", "accuracy near singular positions against 40-digit references, units, a long run's error "
-          "and memory", options=_options, report=_plot, slow=True)
+          "and memory", options=_options, report=_plot)
 def stability(ctx: Context) -> dict[str, Any]:
     instants = 10_000 if ctx.smoke else ctx.options.instants  # fewer: steps of whole turns, a jump
     report: dict[str, Any] = {"eps": EPS}

@@ -143,7 +143,7 @@ def _options(group: Any) -> None:
 
 
 @register("sweep_cli", "the whole `symid sweep` process: cold, cached, on a local Dask cluster; the tolerance study",
-          options=_options, slow=True)
+          options=_options)
 def sweep_cli(ctx: Context) -> dict[str, Any]:
     args = ctx.options
     rods, speeds, steps = (2, 2, 21) if ctx.smoke else (25, 40, 1001)
