@@ -7,7 +7,7 @@ and how fast its Newton converges.
    --backend c`'s trajectory, rows streamed to Python and dropped) on the
    bundled slider-crank with friction in every joint (three pins and the
    guide, `slider_crank_friction.toml`) against the frictionless one
-   (`slider_crank.toml`), same instants; best of R runs. Target: <= 2x.
+   (`slider_crank.toml`), same instants; best of R rounds of both. Target: <= 2x.
    With valgrind, also instructions per instant by callgrind
    (`benchmarks.callgrind`), which the machine's load does not change.
 2. iterations: the friction Newton's iterations per instant on the bundled
@@ -29,15 +29,17 @@ from symid import api
 from symid.numeric.solve import run
 
 
-def per_instant(example: str, instants: int, repeats: int) -> float:
-    """Best microseconds per instant of the C backend's whole run."""
-    study = api.prepare(api.example(example), backend="c", steps=instants)
-    best = np.inf
+def per_instant(examples: tuple[str, ...], instants: int, repeats: int) -> dict[str, float]:
+    """Best microseconds per instant of the C backend's whole run, per example;
+    the examples alternate round by round, so that the machine's load shifts all alike."""
+    studies = {e: api.prepare(api.example(e), backend="c", steps=instants) for e in examples}
+    best = dict.fromkeys(examples, np.inf)
     for _ in range(repeats):
-        start = time.perf_counter()
-        count = sum(1 for _ in study.evaluator.rows(study.analysis, study.q0()))  # type: ignore[attr-defined]
-        best = min(best, (time.perf_counter() - start) / count)
-    return float(best * 1e6)
+        for e, study in studies.items():
+            start = time.perf_counter()
+            count = sum(1 for _ in study.evaluator.rows(study.analysis, study.q0()))  # type: ignore[attr-defined]
+            best[e] = min(best[e], (time.perf_counter() - start) / count)
+    return {e: float(v * 1e6) for e, v in best.items()}
 
 
 def iterations(example: str) -> dict[int, int]:
@@ -56,8 +58,8 @@ def _options(group: Any) -> None:
           "friction Newton's iterations", options=_options, tools=("gcc",))
 def friction(ctx: Context) -> dict[str, Any]:
     instants, repeats = (201, 1) if ctx.smoke else (ctx.options.instants, ctx.options.repeats)
-    plain = per_instant("slider_crank", instants, repeats)
-    with_friction = per_instant("slider_crank_friction", instants, repeats)
+    us = per_instant(("slider_crank", "slider_crank_friction"), instants, repeats)
+    plain, with_friction = us["slider_crank"], us["slider_crank_friction"]
     counts = iterations("slider_crank_friction")
     out: dict[str, Any] = {
         "instants": instants, "repeats": repeats,
