@@ -90,6 +90,17 @@ def test_docs_describe_every_case_and_only_registered_ones() -> None:
             assert option in options, (name, option)
 
 
+def test_stdout_closed_early_ends_quietly() -> None:
+    read, write = os.pipe()
+    os.close(read)  # a reader gone before the first line (`| head -0`): every write fails
+    try:
+        done = subprocess.run([sys.executable, "-m", "benchmarks", "--list"], cwd=ROOT, stdout=write,
+                              stderr=subprocess.PIPE, text=True)
+    finally:
+        os.close(write)
+    assert (done.returncode, done.stderr) == (141, "")
+
+
 def test_an_unknown_case_is_one_line_and_exit_2() -> None:
     done = harness("no_such_case", "--smoke")
     assert done.returncode == 2
