@@ -49,7 +49,8 @@ LAUNCH = Path(__file__).with_name("launch.py")
 def launch(cmd: list[str], cap_s: float, env: dict[str, str], stdout: Any, stderr: Any,
            cwd: Path = ROOT) -> Measured:
     """One command run through `launch.py` in its own process group, the
-    group killed (by id) past cap_s."""
+    group killed (by id) past cap_s, or when the harness is interrupted (its
+    own group does not get the terminal's signals)."""
     with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as f:
         report = Path(f.name)
     tick = time.perf_counter()
@@ -66,8 +67,15 @@ def launch(cmd: list[str], cap_s: float, env: dict[str, str], stdout: Any, stder
 
     timer = threading.Timer(cap_s, stop)
     timer.start()
-    proc.wait()
-    timer.cancel()
+    try:
+        proc.wait()
+    except BaseException:
+        stop()
+        proc.wait()
+        report.unlink(missing_ok=True)
+        raise
+    finally:
+        timer.cancel()
     wall = time.perf_counter() - tick
     try:
         measured = json.loads(report.read_text())

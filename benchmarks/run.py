@@ -22,6 +22,7 @@ import json
 import os
 import platform
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -37,6 +38,18 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 class Unavailable(Exception):
     """A case cannot run here (a program it needs is missing): exit status 2."""
+
+
+class Signalled(BaseException):
+    """SIGTERM or SIGHUP arrived: the run ends as Ctrl-C ends it, with 128 + N."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _signalled(signum: int, _frame: Any) -> None:
+    raise Signalled(signum)
 
 
 @dataclass
@@ -190,6 +203,9 @@ def main(argv: list[str] | None = None) -> int:
         except Unavailable as exc:
             print(f"python -m benchmarks {case.name}: {exc}", file=sys.stderr)
             return 2
+        except (KeyboardInterrupt, Signalled) as exc:  # workers are stopped on the way (processes.launch)
+            print(f"python -m benchmarks {case.name}: interrupted; nothing written", file=sys.stderr)
+            return 128 + (exc.signum if isinstance(exc, Signalled) else signal.SIGINT)
         except (RuntimeError, OSError, subprocess.CalledProcessError) as exc:  # a run that failed: said, not traced
             detail = f"{exc.cmd[0]} exited {exc.returncode}" if isinstance(exc, subprocess.CalledProcessError) else exc
             print(f"python -m benchmarks {case.name}: failed: {detail}", file=sys.stderr)
@@ -208,7 +224,10 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def entry() -> int:
-    """`main`, with stdout closed early (`| head -1`) ending quietly, as symid's own commands do (141)."""
+    """`main`, with stdout closed early (`| head -1`) ending quietly, as symid's own commands do (141),
+    and SIGTERM and SIGHUP answered as Ctrl-C is."""
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, _signalled)
     try:
         return main()
     except BrokenPipeError:

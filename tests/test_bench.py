@@ -101,6 +101,41 @@ def test_stdout_closed_early_ends_quietly() -> None:
     assert (done.returncode, done.stderr) == (141, "")
 
 
+def _with(text: str) -> list[int]:
+    """Processes whose command line holds text."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            if entry.name.isdigit() and text in (entry / "cmdline").read_bytes().decode(errors="replace"):
+                found.append(int(entry.name))
+        except OSError:  # gone meanwhile
+            pass
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/cmdline").is_file(), reason="reads /proc")
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="the scale case needs gcc")
+def test_sigterm_stops_the_workers_and_says_so_in_one_line(tmp_path: Path) -> None:
+    import signal
+    import time
+
+    env = {**os.environ, "TMPDIR": str(tmp_path),  # the scratch folder, and so each worker's spec, under tmp_path
+           "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen([sys.executable, "-m", "benchmarks", "scale", "--smoke", "--out", str(tmp_path / "out")],
+                            cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        while not [p for p in _with(str(tmp_path)) if p != proc.pid] and proc.poll() is None:
+            time.sleep(0.05)  # until its worker runs (a cold ladder's setup: seconds)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143
+    assert err == "python -m benchmarks scale: interrupted; nothing written\n"
+    assert _with(str(tmp_path)) == []  # no worker left running
+    assert list(tmp_path.iterdir()) == []  # nor its scratch folder
+
+
 def test_an_unknown_case_is_one_line_and_exit_2() -> None:
     done = harness("no_such_case", "--smoke")
     assert done.returncode == 2
