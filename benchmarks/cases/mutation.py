@@ -59,7 +59,7 @@ def k(path: str, expr: str) -> tuple[str, ...]:
 MUTANTS: tuple[Mutant, ...] = (
     # -- output: the CSV and NPZ writers, the summary --------------------------------
     Mutant("csv_written_in_place", "symid/io/files.py",
-           'fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)',
+           'fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=None if into else path.parent)',
            "fd, tmp = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600), str(path)",
            k(OUT, "in_place or interrupt or target")),
     Mutant("csv_rename_skipped", "symid/io/files.py",
@@ -75,7 +75,7 @@ MUTANTS: tuple[Mutant, ...] = (
            "            failure = exc\n            out.seek(0)\n            out.truncate(0)\n",
            k(CLI, "part_way_exits_3_and_keeps")),
     Mutant("csv_unsolved_group_not_zero", "symid/numeric/solve.py",
-           "parts.append(zeros if value is None else value)",
+           "parts.append(np.zeros(ng) if value is None else value)",
            "parts.append(np.zeros(0) if value is None else value)", k(CLI, "statics_rate_columns")),
     Mutant("npz_written_in_place", "symid/output/npz.py", "    with atomic_write(path, binary=True) as out:",
            "    with open(path, \"wb\") as out:",
@@ -175,8 +175,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant("numpy_predictor_half_dropped", "templates/numpy/module.py.j2", "hh = 0.5 * h * h", "hh = h * h",
            k(CSOLVER, "loop and numpy")),
     # -- added after the first run: more of the output and loop code ----------------------
-    Mutant("csv_header_columns_shifted", "symid/symbolic/columns.py", "    return out + list(analysis.extra_outputs())",
-           "    return out[1:] + [\"t\"] + list(analysis.extra_outputs())", k(OUT, "subset and numpy")),
+    Mutant("csv_header_columns_shifted", "symid/symbolic/columns.py", "    out += list(analysis.extra_outputs())",
+           "    out = out[1:] + [\"t\"] + list(analysis.extra_outputs())", k(OUT, "subset and numpy")),
     Mutant("c_state_not_seeded", "symid/backends/c_backend.py", "        state[:ng] = q0\n", "        pass\n",
            k(CODEGEN, "agrees_with_reference_through_api and c]")),
     Mutant("python_history_too_short", "symid/numeric/solve.py", "history = (history + [prev.q])[-3:]",
