@@ -108,7 +108,8 @@ MUTANTS: tuple[Mutant, ...] = (
            "            alpha *= 0.999\n", ("tests/test_stability.py", "-k", "diverg or damp")),
     # -- the compiled (C) backend's loop in Python -----------------------------------
     Mutant("c_failed_chunk_rows_dropped", "symid/backends/c_backend.py",
-           "for k in range(solved.value):", "for k in range(solved.value if status == 0 else 0):",
+           "            if solved.value:\n                yield buf[:solved.value].copy()",
+           "            if solved.value and status == 0:\n                yield buf[:solved.value].copy()",
            (f"{OUT}::test_failure_part_way_in_a_later_chunk_keeps_the_chunks_rows[c]",)),
     Mutant("c_failure_time_off_by_one", "symid/backends/c_backend.py",
            "out = stepper.instant(k, analysis.t0 + k * h, prev, history, q0)",
