@@ -68,11 +68,12 @@ MUTANTS: tuple[Mutant, ...] = (
            k(CLI, "success_leaves or failure_replaces")),
     Mutant("csv_15_digits", "symid/output/results.py", 'return ",".join(["%.17g"] * width)',
            'return ",".join(["%.15g"] * width)', k(CLI, "17_significant")),
-    Mutant("csv_failure_drops_rows", "symid/output/results.py",
-           "        except AnalysisError as exc:  # keep the instants before it: the file is completed\n"
-           "            failure = exc\n",
-           "        except AnalysisError as exc:  # keep the instants before it: the file is completed\n"
-           "            failure = exc\n            out.seek(0)\n            out.truncate(0)\n",
+    Mutant("csv_failure_drops_rows", "symid/output/tables.py",
+           "            except AnalysisError as exc:  # keep the instants before it: the file is completed\n"
+           "                failure = exc\n",
+           "            except AnalysisError as exc:  # keep the instants before it: the file is completed\n"
+           "                failure = exc\n                out.seek(0)\n                out.truncate(0)\n"
+           "                waiting.clear()\n",
            k(CLI, "part_way_exits_3_and_keeps")),
     Mutant("csv_unsolved_group_not_zero", "symid/numeric/solve.py",
            "parts.append(np.zeros(ng) if value is None else value)",
