@@ -72,6 +72,7 @@ def launch(cmd: list[str], cap_s: float, env: dict[str, str], stdout: Any, stder
     except BaseException:
         stop()
         proc.wait()
+        gone(proc.pid)
         report.unlink(missing_ok=True)
         raise
     finally:
@@ -84,6 +85,19 @@ def launch(cmd: list[str], cap_s: float, env: dict[str, str], stdout: Any, stder
         rss, code, cpu = None, proc.returncode, None
     report.unlink(missing_ok=True)
     return Measured(wall, rss, code, cpu, stopped.is_set())
+
+
+def gone(group: int, wait_s: float = 10.0) -> None:
+    """Wait until a killed process group has no member left: its grandchildren
+    (the worker under the launcher) are reaped by init, a moment after the
+    launcher itself; an interrupted harness ends after its workers, not before."""
+    end = time.monotonic() + wait_s
+    while time.monotonic() < end:
+        try:
+            os.killpg(group, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.01)
 
 
 def spawn(call: str, spec: dict[str, Any], cap_s: float, env: dict[str, str]) -> Spawned:
