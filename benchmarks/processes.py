@@ -7,6 +7,8 @@ cold and its peak memory its own.
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import json
 import os
 import signal
@@ -17,7 +19,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 ROOT = Path(__file__).resolve().parent.parent
 THREADS = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -44,6 +46,40 @@ class Spawned:
 
 
 LAUNCH = Path(__file__).with_name("launch.py")
+SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # what ends a run: `on_signal` answers them
+_held: list[int] | None = None  # signals that came while a child was being created
+
+
+class Signalled(BaseException):
+    """SIGTERM or SIGHUP arrived: the run ends as Ctrl-C ends it, with 128 + N."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def on_signal(signum: int, _frame: Any) -> None:
+    """The harness's handler of SIGNALS: KeyboardInterrupt or Signalled, at
+    once, or as soon as the child being created is known (`_holding`)."""
+    if _held is not None:
+        _held.append(signum)
+        return
+    raise KeyboardInterrupt if signum == signal.SIGINT else Signalled(signum)
+
+
+@contextlib.contextmanager
+def _holding() -> Iterator[None]:
+    """Hold the signals while a child is created: one raised inside Popen
+    (after the fork, before it returns) would leave a child nobody can stop."""
+    global _held
+    _held = []
+    try:
+        yield
+    finally:
+        held, _held = _held, None
+        if held:
+            on_signal(held[0], None)
+_LAUNCHES = itertools.count()  # names the launcher's report: nothing is created before the child runs
 
 
 def launch(cmd: list[str], cap_s: float, env: dict[str, str], stdout: Any, stderr: Any,
@@ -51,28 +87,32 @@ def launch(cmd: list[str], cap_s: float, env: dict[str, str], stdout: Any, stder
     """One command run through `launch.py` in its own process group, the
     group killed (by id) past cap_s, or when the harness is interrupted (its
     own group does not get the terminal's signals)."""
-    with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as f:
-        report = Path(f.name)
-    tick = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, str(LAUNCH), str(report), *cmd], stdout=stdout, stderr=stderr,
-                            env=env, cwd=cwd, start_new_session=True)
+    report = Path(tempfile.gettempdir()) / f"symid-launch-{os.getpid()}-{next(_LAUNCHES)}.json"
     stopped = threading.Event()
+    proc: subprocess.Popen[bytes] | None = None
 
     def stop() -> None:
         stopped.set()
         try:
-            os.killpg(proc.pid, signal.SIGKILL)
+            if proc is not None:
+                os.killpg(proc.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
 
     timer = threading.Timer(cap_s, stop)
-    timer.start()
+    timer.daemon = True  # never what keeps the harness alive
+    tick = time.perf_counter()
     try:
+        with _holding():
+            proc = subprocess.Popen([sys.executable, str(LAUNCH), str(report), *cmd], stdout=stdout, stderr=stderr,
+                                    env=env, cwd=cwd, start_new_session=True)
+        timer.start()
         proc.wait()
     except BaseException:
-        stop()
-        proc.wait()
-        gone(proc.pid)
+        if proc is not None:
+            stop()
+            proc.wait()
+            gone(proc.pid)
         report.unlink(missing_ok=True)
         raise
     finally:

@@ -31,25 +31,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from benchmarks.processes import ROOT, THREADS, Measured, Spawned, env_for, launch, spawn
+from benchmarks.processes import (ROOT, SIGNALS, THREADS, Measured, Signalled, Spawned, env_for, launch,
+                                  on_signal, spawn)
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
 class Unavailable(Exception):
     """A case cannot run here (a program it needs is missing): exit status 2."""
-
-
-class Signalled(BaseException):
-    """SIGTERM or SIGHUP arrived: the run ends as Ctrl-C ends it, with 128 + N."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signum)
-        self.signum = signum
-
-
-def _signalled(signum: int, _frame: Any) -> None:
-    raise Signalled(signum)
 
 
 @dataclass
@@ -226,8 +215,8 @@ def main(argv: list[str] | None = None) -> int:
 def entry() -> int:
     """`main`, with stdout closed early (`| head -1`) ending quietly, as symid's own commands do (141),
     and SIGTERM and SIGHUP answered as Ctrl-C is."""
-    for signum in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(signum, _signalled)
+    for signum in SIGNALS:
+        signal.signal(signum, on_signal)
     try:
         return main()
     except BrokenPipeError:
