@@ -183,8 +183,11 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.update(THREADS)
     out = args.out if args.out is not None else (None if args.smoke else RESULTS)
     with tempfile.TemporaryDirectory(prefix=f"symid-bench-{case.name}-") as tmp:
-        # what a case builds in this process goes to a scratch cache, unless one is set
+        # what a case builds in this process goes to a scratch cache, unless one is set;
+        # temporary files of the case and its workers go to the scratch folder, removed with it
         os.environ.setdefault("SYMID_CACHE", str(Path(tmp) / "cache"))
+        before = os.environ.get("TMPDIR"), tempfile.tempdir
+        os.environ["TMPDIR"] = tempfile.tempdir = tmp
         ctx = Context(case.name, args.smoke, args, Path(tmp), out)
         load_start = list(os.getloadavg())
         try:
@@ -199,6 +202,12 @@ def main(argv: list[str] | None = None) -> int:
             detail = f"{exc.cmd[0]} exited {exc.returncode}" if isinstance(exc, subprocess.CalledProcessError) else exc
             print(f"python -m benchmarks {case.name}: failed: {detail}", file=sys.stderr)
             return 3
+        finally:
+            tempfile.tempdir = before[1]
+            if before[0] is None:
+                os.environ.pop("TMPDIR", None)
+            else:
+                os.environ["TMPDIR"] = before[0]
     result = {"case": case.name, "smoke": args.smoke, "machine": machine(), "run_s": time.time() - ctx.started,
               "load_average_start": load_start, "load_average_end": list(os.getloadavg()), "figures": figures}
     for key, value in flat(figures):

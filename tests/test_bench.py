@@ -181,7 +181,8 @@ def _smoke(case: Case) -> Any:
 
 @pytest.mark.parametrize("name", [_smoke(c) for c in CASES.values() if c.name != "overview"])
 def test_every_case_runs_in_smoke_mode_and_writes_its_json(name: str, tmp_path: Path) -> None:
-    done = harness(name, "--smoke", "--out", str(tmp_path / "out"), cwd=tmp_path)
+    (tmp_path / "tmp").mkdir()
+    done = harness(name, "--smoke", "--out", str(tmp_path / "out"), cwd=tmp_path, env={"TMPDIR": str(tmp_path / "tmp")})
     assert done.returncode == 0, done.stderr[-2000:]
     result = json.loads((tmp_path / "out" / f"{name}.json").read_text())
     assert result["case"] == name and result["smoke"] is True
@@ -191,8 +192,9 @@ def test_every_case_runs_in_smoke_mode_and_writes_its_json(name: str, tmp_path: 
     # the figures are printed, one dotted key a line
     key, _ = figures[0]
     assert f"{key}: " in done.stdout
-    # nothing left behind where it ran, and nothing in the committed results
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    # nothing left behind where it ran, nor in the temporary folder (the harness's scratch, removed)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "tmp"]
+    assert list((tmp_path / "tmp").iterdir()) == []
 
 
 @pytest.mark.slow  # the overview, every approach at tiny sizes

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import os
 import resource
+import shutil
 import time
 from typing import Any
 
@@ -118,12 +119,15 @@ def casadi_anchor(steps: int) -> dict[str, Any]:
 
     system = systems.slider_crank()
     approach = CasadiC(system)
-    approach.setup()
-    h = 2 * np.pi / systems.OMEGA / (steps - 1)  # one crank revolution, as the sweep's runs
-    best = float("inf")
-    for _ in range(5):
-        run = approach.run(system.q0(), h, steps, 1e-12, 60.0)
-        best = min(best, run.total_s / max(1, len(run.torque)))
+    try:
+        approach.setup()
+        h = 2 * np.pi / systems.OMEGA / (steps - 1)  # one crank revolution, as the sweep's runs
+        best = float("inf")
+        for _ in range(5):
+            run = approach.run(system.q0(), h, steps, 1e-12, 60.0)
+            best = min(best, run.total_s / max(1, len(run.torque)))
+    finally:
+        shutil.rmtree(approach.folder, ignore_errors=True)
     return {"us_per_instant_1_thread": best * 1e6, "instants": steps}
 
 
