@@ -1,345 +1,237 @@
-"""The benchmark: every symid backend and three baselines on the slider-crank
-and the ladder family, in one process and one run.
+"""The benchmark harness: one command runs one case.
 
-    python -m benchmarks.run            # full run, writes benchmarks/results/
-    python -m benchmarks.run --smoke --out DIR   # tiny sizes, a few instants
+    python -m benchmarks --list                     # the cases, one line each
+    python -m benchmarks CASE [--smoke] [--out DIR] [case options]
+    python -m benchmarks CASE --help                # the case's own options
 
-Every measurement runs in its own worker process (`--worker SPEC`), so each
-setup is cold (fresh interpreter, empty SYMID_CACHE), peak memory is that
-process's alone, and a cell that passes the cap is killed (its process group,
-by id) and reported "stopped"; larger sizes of that approach are not tried.
-
-Measured per (approach, mechanism):
-- setup_s, split into derive / generate / compile (see `symid.tools.bench`); it
-  ends with the first solved instant, for every approach.
-- us_per_instant: the median; compiled loops over whole runs of the grid,
-  Python loops instant by instant, with a time budget.
-- error: max |tau - tau_exact| / max |tau_exact| of the motor torque over the
-  instants of the first period solved (exact: `ladder.Ladder.torque`,
-  `systems.slider_crank_torque`).
-- peak_rss_mb: the worker's peak resident set, read by a small launcher
-  (`launch.py`, os.wait4's ru_maxrss of its one child): the interpreter and
-  its imports included, compiler processes (gcc) not.
-
-BLAS is pinned to one thread for every approach (the generated C is single
-threaded), so the comparison is per core.
+A case (a module of `benchmarks/cases/`) measures and returns a dict of
+figures; the harness gives it a scratch folder, runs its cold measurements
+in worker processes of their own (a fresh interpreter and cache, peak memory
+read by `launch.py`), writes `<out>/<case>.json` (default
+`benchmarks/results/`; with `--smoke`, nothing unless `--out` is given) and
+prints the figures. `--smoke` runs tiny sizes: a check that the case runs,
+whose figures mean nothing. BLAS is pinned to one thread in every worker
+(the generated C is single-threaded), so comparisons are per core.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
-import math
 import os
 import platform
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
-import numpy as np
-
-from benchmarks.design_study import run_study
-from benchmarks.processes import ROOT, env_for, spawn, timed_process
-from benchmarks.workers import exact_torque, worker
+from benchmarks.processes import (ROOT, SIGNALS, THREADS, Measured, Signalled, Spawned, env_for, launch,
+                                  on_signal, spawn)
 
 RESULTS = Path(__file__).resolve().parent / "results"
-BASELINES = ("numpy-hand", "sympy-lambdify", "casadi-python", "casadi-c")
-COMPILED = ("symid-c", "casadi-c")
-TOLERANCES = (1e-6, 1e-8, 1e-10, 1e-12, 1e-14)
-ORDERS = (0, 1, 2, 5)
 
 
-@dataclass(frozen=True)
-class Config:
-    """Sizes and budgets of one run."""
-
-    ladders: tuple[int, ...] = (1, 4, 16, 64, 256)
-    steps: int = 1001              # instants per period (error over one period)
-    compiled_instants: int = 20020  # 20 periods for the compiled loops
-    budget_s: float = 10.0         # timing budget of one cell
-    cap_s: float = 90.0            # a cell past this is stopped
-    total_s: float = 14 * 60.0     # the whole run's budget
-    reserve_s: float = 240.0       # kept for the sweeps and processes: cells not started
-                                   # by total_s - reserve_s are skipped
-    # (mechanism, instants per period): the coarse slider-crank grid (3.6 degrees
-    # of crank per step) is where the predictor's order shows
-    sweep_mechs: tuple[tuple[str, int], ...] = (("slider_crank", 1001), ("slider_crank", 101), ("ladder_16", 1001))
-    sweep_instants: int = 1001
-    tolerances: tuple[float, ...] = TOLERANCES
-    orders: tuple[int, ...] = ORDERS
-    stream_instants: int = 1_000_001
-    solve_runs: int = 3
-    jobs: int = 1
-    # symid-c against casadi-c in one process, whole grids alternated: the
-    # ratio targets are read from these (separate cells run minutes apart)
-    paired_mechs: tuple[str, ...] = ("slider_crank", "ladder_64")
-    paired_rounds: int = 21
-    # the design study (issue 14, benchmarks.design_study): rods x speeds variants x steps
-    # instants; CasADi's map over map_variants at map_steps; processes: callgrind, `symid sweep`, Dask
-    study_rods: int = 25
-    study_speeds: int = 40
-    study_steps: int = 1001
-    study_map_variants: int = 1000
-    study_map_steps: int = 101
-    study_processes: bool = True
+class Unavailable(Exception):
+    """A case cannot run here (a program it needs is missing): exit status 2."""
 
 
-SMOKE = Config(ladders=(1,), steps=1001, compiled_instants=40, budget_s=0.5, cap_s=50.0, total_s=50.0, reserve_s=0.0,
-               sweep_mechs=(("ladder_1", 1001),), sweep_instants=15, tolerances=(1e-6, 1e-12), orders=(0, 2),
-               stream_instants=2001, solve_runs=1, jobs=2, paired_mechs=("ladder_1",), paired_rounds=3,
-               study_rods=2, study_speeds=2, study_steps=21, study_map_variants=4, study_map_steps=21,
-               study_processes=False)
+@dataclass
+class Context:
+    """What a case gets from the harness.
+
+    Attributes:
+        case: the case's name.
+        smoke: tiny sizes (a check that it runs).
+        options: the case's own options, parsed.
+        work: a scratch folder, removed after the run.
+        out: where the JSON and any extra files go (None: nowhere).
+    """
+
+    case: str
+    smoke: bool
+    options: argparse.Namespace
+    work: Path
+    out: Path | None
+    started: float = field(default_factory=time.time)
+
+    def log(self, message: str) -> None:
+        """One progress line, with the seconds since the run began."""
+        print(f"[{time.time() - self.started:6.0f} s] {message}", flush=True)
+
+    def env(self, cache: Path | None = None) -> dict[str, str]:
+        """The environment of a worker: this checkout first, BLAS on one
+        thread, and its own SYMID_CACHE (a fresh folder unless given)."""
+        if cache is None:
+            cache = Path(tempfile.mkdtemp(prefix="cache-", dir=self.work))
+        return env_for(cache)
+
+    def isolated(self, call: str, spec: dict[str, Any], cap_s: float, cache: Path | None = None) -> Spawned:
+        """`call` ("module:function", the function taking spec) in a worker
+        process of its own with an empty cache (or `cache`), killed past cap_s:
+        its JSON result, wall time and peak memory."""
+        fresh = cache is None
+        env = self.env(cache)
+        try:
+            return spawn(call, spec, cap_s, env)
+        finally:
+            if fresh:
+                shutil.rmtree(env["SYMID_CACHE"], ignore_errors=True)
+
+    def process(self, cmd: list[str], cap_s: float, env: dict[str, str] | None = None,
+                stdout: Any = subprocess.DEVNULL, cwd: Path | None = None) -> Measured:
+        """A command as a user runs it (through `launch.py`): wall time, peak
+        memory, CPU time and exit status; killed past cap_s."""
+        return launch(cmd, cap_s, env if env is not None else self.env(), stdout, subprocess.DEVNULL,
+                      cwd if cwd is not None else ROOT)
 
 
-# --- mechanisms --------------------------------------------------------------------
+def _version(module: str) -> str:
+    try:
+        return str(importlib.import_module(module).__version__)
+    except ImportError:
+        return "not installed"
 
-def mechanisms(cfg: Config, folder: Path) -> list[dict[str, Any]]:
-    """The run's mechanisms, smallest first: key, file, ng, grid (t1, steps, h)."""
-    from benchmarks import ladder
-    from symid import api
-
-    out = [{"key": "slider_crank", "file": str(api.example("slider_crank")), "ng": 9, "t1": 0.2}]
-    for n in cfg.ladders:
-        out.append({"key": ladder.name(n), "n": n, "file": str(ladder.write(n, folder, cfg.steps)),
-                    "ng": ladder.Ladder(n).ng, "t1": ladder.Ladder(n).t1})
-    for m in out:
-        m["steps"] = cfg.steps
-        m["h"] = m["t1"] / (cfg.steps - 1)
-    return out
-
-
-# --- workers (each in its own process) ----------------------------------------------
-
-
-# --- the parent -------------------------------------------------------------------
-
-
-def _error(torque: np.ndarray, exact: np.ndarray) -> tuple[float | None, int]:
-    n = min(len(torque), len(exact))
-    if n == 0:
-        return None, 0
-    diff = np.abs(torque[:n] - exact[:n])
-    worst = float(np.max(diff)) if np.all(np.isfinite(diff)) else math.inf
-    return worst / float(np.max(np.abs(exact))), n
-
-
-def approaches() -> list[tuple[str, str, str]]:
-    """(label, kind, backend-or-approach) of everything measured."""
-    from symid import backends
-
-    return [(f"symid-{b}", "symid", b) for b in backends.names()] + [(b, "baseline", b) for b in BASELINES]
-
-
-def run_cells(cfg: Config, mechs: list[dict[str, Any]], exact: dict[str, np.ndarray], work: Path,
-              deadline: float, log: Callable[[str], None]) -> list[dict[str, Any]]:
-    """Every approach on every mechanism, smallest first; an approach stopped
-    at one size is not tried at larger ones."""
-    stopped: dict[str, str] = {}
-    cells: list[dict[str, Any]] = []
-    jobs: list[tuple[dict[str, Any], dict[str, Any]]] = []
-    for mech in mechs:
-        for label, kind, name in approaches():
-            cell: dict[str, Any] = {"approach": label, "kind": kind, "mechanism": mech["key"], "ng": mech["ng"]}
-            cells.append(cell)
-            compiled = label in COMPILED
-            spec = {"kind": kind, "mech": mech, "backend": name, "approach": name,
-                    "instants": cfg.compiled_instants if compiled else cfg.steps,
-                    "budget_s": cfg.budget_s, "torque": str(work / f"{label}-{mech['key']}.npy")}
-            jobs.append((cell, spec))
-
-    def one(cell: dict[str, Any], spec: dict[str, Any]) -> None:
-        label = cell["approach"]
-        if label in stopped:
-            cell.update(status="stopped", note=f"not run: stopped at {stopped[label]}")
-            return
-        if time.time() > deadline:
-            cell.update(status="skipped", note="not run: the run's time budget was spent")
-            return
-        cache = Path(tempfile.mkdtemp(prefix="cache-", dir=work))
-        got = spawn(spec, cfg.cap_s, env_for(cache))
-        shutil.rmtree(cache, ignore_errors=True)
-        cell.update(got.result, status=got.status, wall_s=got.wall_s, peak_rss_mb=got.peak_rss_mb)
-        if got.note:
-            cell["note"] = got.note
-        if got.status == "stopped":
-            stopped[label] = f"{cell['mechanism']} (ng = {cell['ng']})"
-        if got.status == "ok":
-            torque = np.load(spec["torque"])
-            cell["error_rel"], cell["error_instants"] = _error(torque, exact[cell["mechanism"]])
-            if cell.get("error"):
-                cell["status"], cell["note"] = "failed", str(cell["error"])[:300]
-        log(f"{label:16s} {cell['mechanism']:13s} {cell['status']:8s} "
-            f"setup {_fmt(cell.get('setup_s'))} s, {_fmt(cell.get('us_per_instant'))} us, "
-            f"err {_fmt(cell.get('error_rel'))}, {_fmt(cell.get('peak_rss_mb'))} MB {cell.get('note', '')}")
-
-    if cfg.jobs <= 1:
-        for cell, spec in jobs:
-            one(cell, spec)
-    else:  # smoke runs only: timings from parallel workers are not comparable
-        from concurrent.futures import ThreadPoolExecutor
-
-        by_mech: dict[str, list[tuple[dict[str, Any], dict[str, Any]]]] = {}
-        for cell, spec in jobs:
-            by_mech.setdefault(cell["mechanism"], []).append((cell, spec))
-        with ThreadPoolExecutor(cfg.jobs) as pool:
-            for group in by_mech.values():
-                list(pool.map(lambda cs: one(*cs), group))
-    return cells
-
-
-def run_sweeps(cfg: Config, mechs: list[dict[str, Any]], exact: dict[str, np.ndarray], work: Path,
-               log: Callable[[str], None]) -> dict[str, Any]:
-    out = {}
-    for base, steps in cfg.sweep_mechs:
-        mech = dict(next(m for m in mechs if m["key"] == base), steps=steps)
-        mech["h"] = mech["t1"] / (steps - 1)
-        key = base if steps == cfg.steps else f"{base}, {steps} steps"
-        truth = exact[base] if steps == cfg.steps else exact_torque(mech)
-        folder = work / f"sweep-{base}-{steps}"
-        folder.mkdir()
-        cache = Path(tempfile.mkdtemp(prefix="cache-", dir=work))
-        spec = {"kind": "sweep", "mech": mech, "folder": str(folder), "instants": min(cfg.sweep_instants, steps),
-                "tolerances": list(cfg.tolerances), "orders": list(cfg.orders), "budget_s": cfg.budget_s / 2}
-        got = spawn(spec, 4 * cfg.cap_s, env_for(cache))
-        shutil.rmtree(cache, ignore_errors=True)
-        if got.status != "ok":
-            out[key] = {"status": got.status, "note": got.note}
-            log(f"sweep {key}: {got.status} {got.note}")
-            continue
-        for row in got.result["predictor"] + got.result["tolerance"]:
-            if "torque" in row:
-                row["error_rel"], row["error_instants"] = _error(np.load(row.pop("torque")), truth)
-        out[key] = {"status": "ok", "ng": mech["ng"], "steps": steps, **got.result}
-        log(f"sweep {key}: {len(got.result['predictor'])} predictor points, "
-            f"{len(got.result['tolerance'])} tolerance points in {got.wall_s:.0f} s")
-    return out
-
-
-def run_paired(cfg: Config, mechs: list[dict[str, Any]], work: Path, log: Callable[[str], None]) -> dict[str, Any]:
-    out = {}
-    for key in cfg.paired_mechs:
-        mech = next((m for m in mechs if m["key"] == key), None)
-        if mech is None:
-            continue
-        cache = Path(tempfile.mkdtemp(prefix="cache-", dir=work))
-        got = spawn({"kind": "paired", "mech": mech, "rounds": cfg.paired_rounds, "budget_s": cfg.cap_s},
-                    4 * cfg.cap_s, env_for(cache))
-        shutil.rmtree(cache, ignore_errors=True)
-        out[key] = {"status": got.status, "note": got.note, "ng": mech["ng"], **got.result}
-        log(f"paired {key}: {got.status} {got.note} {got.result}")
-    return out
-
-
-def run_processes(cfg: Config, work: Path, log: Callable[[str], None]) -> dict[str, Any]:
-    """`symid solve` as a user runs it: whole-process time when cached, and
-    the peak memory of streaming many instants to CSV."""
-    from symid import api
-
-    cache = work / "solve-cache"
-    env = env_for(cache)
-    file = str(api.example("slider_crank"))
-    csv = str(work / "solve.csv")
-    out: dict[str, Any] = {"solve_1001": {}}
-    for backend in ("numpy", "c"):
-        cmd = [sys.executable, "-m", "symid", "solve", file, "--backend", backend, "--steps", "1001", "-o", csv]
-        timed_process(cmd, env, 300)  # fills the cache
-        walls = [timed_process(cmd, env, 300) for _ in range(cfg.solve_runs)]
-        out["solve_1001"][backend] = {"wall_s": float(np.median([w for w, _, _ in walls])),
-                                      "peak_rss_mb": max((r for _, r, _ in walls if r), default=None),
-                                      "status": max(s for _, _, s in walls)}
-        log(f"symid solve slider_crank 1001 instants, {backend}, cached: {out['solve_1001'][backend]}")
-    cmd = [sys.executable, "-m", "symid", "solve", file, "--backend", "c", "--steps", str(cfg.stream_instants),
-           "-o", csv]
-    wall, rss, status = timed_process(cmd, env, 600)
-    out["stream"] = {"instants": cfg.stream_instants, "backend": "c", "output": "CSV", "wall_s": wall,
-                     "peak_rss_mb": rss, "status": status}
-    log(f"streaming {cfg.stream_instants} instants to CSV (c): {out['stream']}")
-    Path(csv).unlink(missing_ok=True)
-    return out
-
-
-# --- machine ------------------------------------------------------------------------
 
 def machine() -> dict[str, Any]:
-    import casadi
-    import scipy
-    import sympy
-
-    model = ""
+    """What the figures were measured on."""
+    model, memory = "", ""
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    mem = ""
-    try:
-        mem = Path("/proc/meminfo").read_text().splitlines()[0].split(":", 1)[1].strip()
+        model = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                      if line.startswith("model name")), "")
+        memory = Path("/proc/meminfo").read_text().splitlines()[0].split(":", 1)[1].strip()
     except (OSError, IndexError):
         pass
-    gcc = subprocess.run(["gcc", "--version"], capture_output=True, text=True).stdout.splitlines()
+    gcc = subprocess.run(["gcc", "--version"], capture_output=True, text=True) if shutil.which("gcc") else None
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT)
-    return {
-        "cpu": model or platform.processor(), "cpu_count": os.cpu_count(), "memory": mem,
-        "platform": platform.platform(), "python": platform.python_version(),
-        "numpy": np.__version__, "scipy": scipy.__version__, "sympy": sympy.__version__,
-        "casadi": casadi.__version__, "gcc": gcc[0] if gcc else "", "symid_commit": commit.stdout.strip(),
-        "load_average_start": os.getloadavg(), "blas_threads": 1,
-    }
+    return {"cpu": model or platform.processor(), "cpu_count": os.cpu_count(), "memory": memory,
+            "platform": platform.platform(), "python": platform.python_version(),
+            **{m: _version(m) for m in ("numpy", "scipy", "sympy", "casadi")},
+            "gcc": gcc.stdout.splitlines()[0] if gcc and gcc.stdout else "", "symid_commit": commit.stdout.strip(),
+            "blas_threads": 1}
 
 
-def _fmt(v: Any) -> str:
-    return "-" if v is None else f"{v:.3g}" if isinstance(v, float) else str(v)
+def flat(figures: Any, prefix: str = "") -> list[tuple[str, Any]]:
+    """(dotted key, value) of every number, string or flag in nested dicts and
+    lists (a list's items keyed by their index)."""
+    if isinstance(figures, dict):
+        return [pair for k, v in figures.items() for pair in flat(v, f"{prefix}{k}.")]
+    if isinstance(figures, (list, tuple)):
+        return [pair for k, v in enumerate(figures) for pair in flat(v, f"{prefix}{k}.")]
+    if isinstance(figures, (int, float, str, bool)) or figures is None:
+        return [(prefix[:-1], figures)]
+    return []
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--smoke", action="store_true", help="tiny sizes and a few instants (for the tests)")
-    parser.add_argument("--out", type=Path, default=RESULTS, help="folder for bench.json, bench.md and PNGs")
-    parser.add_argument("--worker", help=argparse.SUPPRESS)
-    parser.add_argument("--skip-processes", action="store_true", help="leave out the symid solve processes")
-    args = parser.parse_args(argv)
-    if args.worker:
-        print(json.dumps(worker(json.loads(args.worker))))
-        return 0
-    from benchmarks import report
+def _show(value: Any) -> str:
+    return f"{value:.4g}" if isinstance(value, float) else str(value)
 
-    cfg = SMOKE if args.smoke else Config()
-    args.out.mkdir(parents=True, exist_ok=True)
-    start = time.time()
 
-    def log(msg: str) -> None:
-        print(f"[{time.time() - start:6.0f} s] {msg}", flush=True)
-
-    with tempfile.TemporaryDirectory(prefix="symid-bench-") as tmp:
-        work = Path(tmp)
-        info = machine()
-        mechs = mechanisms(cfg, work / "mechanisms")
-        exact = {m["key"]: exact_torque(m) for m in mechs}
-        log(f"{info['cpu']} x {info['cpu_count']}; exact torques ready")
-        cells = run_cells(cfg, mechs, exact, work, start + cfg.total_s - cfg.reserve_s, log)
-        sweeps = run_sweeps(cfg, mechs, exact, work, log)
-        paired = run_paired(cfg, mechs, work, log)
-        processes = {} if args.skip_processes else run_processes(cfg, work, log)
-        study = run_study(cfg, work, log)
-    info["load_average_end"] = os.getloadavg()
-    info["run_s"] = time.time() - start
-    result = {"machine": info, "config": {**cfg.__dict__, "smoke": args.smoke},
-              "mechanisms": [{k: v for k, v in m.items() if k != "file"} for m in mechs],
-              "cells": cells, "sweeps": sweeps, "paired": paired, "processes": processes, "study": study}
-    (args.out / "bench.json").write_text(json.dumps(result, indent=1, default=float))
-    (args.out / "bench.md").write_text(report.markdown(result))
-    for path in report.plots(result, args.out):
-        log(f"wrote {path}")
-    log(f"wrote {args.out / 'bench.json'} and {args.out / 'bench.md'}")
+def worker(payload: str) -> int:
+    """The worker's side of `Context.isolated`: call and print the JSON result."""
+    request = json.loads(payload)
+    module, name = request["call"].split(":")
+    tick = time.perf_counter()
+    out = getattr(importlib.import_module(module), name)(request["spec"])
+    out["worker_s"] = time.perf_counter() - tick
+    print(json.dumps(out, default=float))
     return 0
 
 
+def parser_for(cases: dict[str, Any], name: str | None, help: bool = True) -> argparse.ArgumentParser:
+    """The harness's options, and the case's own when `name` is one."""
+    parser = argparse.ArgumentParser(prog=f"python -m benchmarks{' ' + name if name in cases else ''}",
+                                     description=__doc__.splitlines()[0], add_help=help)
+    parser.add_argument("case", nargs="?", help="the case to run (--list: every case)")
+    parser.add_argument("--list", action="store_true", help="list the cases and exit")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: a check that the case runs")
+    parser.add_argument("--out", type=Path, help="folder for CASE.json (default benchmarks/results; "
+                        "with --smoke, nothing is written unless given)")
+    parser.add_argument("--worker", help=argparse.SUPPRESS)
+    if name in cases and cases[name].options:
+        cases[name].options(parser.add_argument_group(f"options of {name}"))
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    from benchmarks.cases import load_all
+
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--worker"]:
+        return worker(argv[1])
+    cases = load_all()
+    name = parser_for(cases, None, help=False).parse_known_args(argv)[0].case
+    args = parser_for(cases, name).parse_args(argv)
+    if args.list or not args.case:
+        width = max(map(len, cases))
+        for case in cases.values():
+            print(f"{case.name:{width}s}  {case.summary}")
+        return 0
+    if args.case not in cases:
+        print(f"python -m benchmarks: no case {args.case!r}; the cases: {', '.join(cases)}", file=sys.stderr)
+        return 2
+    case = cases[args.case]
+    missing = [tool for tool in case.tools if shutil.which(tool) is None]
+    if missing:
+        print(f"python -m benchmarks {case.name}: needs {', '.join(missing)}, not installed", file=sys.stderr)
+        return 2
+    os.environ.update(THREADS)
+    out = args.out if args.out is not None else (None if args.smoke else RESULTS)
+    with tempfile.TemporaryDirectory(prefix=f"symid-bench-{case.name}-") as tmp:
+        # what a case builds in this process goes to a scratch cache, unless one is set;
+        # temporary files of the case and its workers go to the scratch folder, removed with it
+        os.environ.setdefault("SYMID_CACHE", str(Path(tmp) / "cache"))
+        before = os.environ.get("TMPDIR"), tempfile.tempdir
+        os.environ["TMPDIR"] = tempfile.tempdir = tmp
+        ctx = Context(case.name, args.smoke, args, Path(tmp), out)
+        load_start = list(os.getloadavg())
+        try:
+            figures = case.run(ctx)
+        except Unavailable as exc:
+            print(f"python -m benchmarks {case.name}: {exc}", file=sys.stderr)
+            return 2
+        except (KeyboardInterrupt, Signalled) as exc:  # workers are stopped on the way (processes.launch)
+            print(f"python -m benchmarks {case.name}: interrupted; nothing written", file=sys.stderr)
+            return 128 + (exc.signum if isinstance(exc, Signalled) else signal.SIGINT)
+        except (RuntimeError, OSError, subprocess.CalledProcessError) as exc:  # a run that failed: said, not traced
+            detail = f"{exc.cmd[0]} exited {exc.returncode}" if isinstance(exc, subprocess.CalledProcessError) else exc
+            print(f"python -m benchmarks {case.name}: failed: {detail}", file=sys.stderr)
+            return 3
+        finally:
+            tempfile.tempdir = before[1]
+            if before[0] is None:
+                os.environ.pop("TMPDIR", None)
+            else:
+                os.environ["TMPDIR"] = before[0]
+    result = {"case": case.name, "smoke": args.smoke, "machine": machine(), "run_s": time.time() - ctx.started,
+              "load_average_start": load_start, "load_average_end": list(os.getloadavg()), "figures": figures}
+    for key, value in flat(figures):
+        print(f"{key}: {_show(value)}")
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / f"{case.name}.json").write_text(json.dumps(result, indent=1, default=float) + "\n", encoding="utf-8")
+        written = case.report(result, out) if case.report else []
+        for path in [out / f"{case.name}.json", *written]:
+            ctx.log(f"wrote {path}")
+    return 0
+
+
+def entry() -> int:
+    """`main`, with stdout closed early (`| head -1`) ending quietly, as symid's own commands do (141),
+    and SIGTERM and SIGHUP answered as Ctrl-C is."""
+    for signum in SIGNALS:
+        signal.signal(signum, on_signal)
+    try:
+        return main()
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+        return 141
+
+
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(entry())

@@ -1,12 +1,16 @@
-"""The benchmark never rots: `symid bench`, the ladder's closed form and a
-smoke run of `benchmarks/run.py` (tiny sizes). No timing assertions."""
+"""The benchmark never rots: `symid bench`, the ladder's closed form, the
+harness (`python -m benchmarks`: its list, its errors, its JSON) and a smoke
+run (tiny sizes) of every case it registers. No timing assertions."""
 
 from __future__ import annotations
 
 import json
+import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,6 +22,18 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks import ladder  # noqa: E402
+from benchmarks.cases import Case, load_all  # noqa: E402
+from benchmarks.run import flat, parser_for  # noqa: E402
+
+CASES = load_all()
+
+
+def harness(*args: str, cwd: Path = ROOT, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    """`python -m benchmarks ARGS` as a user runs it (no deadline: under load a smoke run takes minutes)."""
+    if env is not None:
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]), **env}
+    return subprocess.run([sys.executable, "-m", "benchmarks", *args], cwd=cwd, capture_output=True, text=True,
+                          env=env)
 
 
 @pytest.mark.parametrize("backend", ["c", "numpy"])
@@ -52,14 +68,142 @@ def test_ladder_exact_configuration_is_assembled(tmp_path: Path) -> None:
         assert np.max(np.abs(study.evaluator.phi(lad.q_exact(t), t))) <= 1e-14
 
 
-@pytest.mark.slow  # the benchmark harness itself, every approach at tiny sizes
-def test_benchmark_smoke_run_writes_every_output(tmp_path: Path) -> None:
-    done = subprocess.run([sys.executable, "-m", "benchmarks.run", "--smoke", "--out", str(tmp_path)],
-                          cwd=ROOT, capture_output=True, text=True)  # no deadline: under load it takes minutes
+def test_list_names_every_registered_case_once() -> None:
+    done = harness("--list")
+    assert done.returncode == 0, done.stderr
+    listed = [line.split()[0] for line in done.stdout.splitlines()]
+    assert listed == sorted(CASES) and len(CASES) >= 13
+    # every case module under benchmarks/cases registers what --list shows: none is left out by an import
+    assert {"overview", "scale", "stability", "instructions", "mutation"} <= set(listed)
+
+
+def test_docs_describe_every_case_and_only_registered_ones() -> None:
+    import re
+
+    page = (ROOT / "docs" / "benchmarks.md").read_text(encoding="utf-8")
+    described = re.findall(r"^\| `(\w+)` \|", page, re.M)
+    assert sorted(described) == sorted(CASES)
+    for name, case in CASES.items():  # and the options each row lists are the case's own
+        row = next(line for line in page.splitlines() if line.startswith(f"| `{name}` |"))
+        options = parser_for(CASES, name).format_help().split()
+        for option in re.findall(r"`(--?[\w-]+)", row.rsplit("|", 2)[-2]):
+            assert option in options, (name, option)
+
+
+def test_stdout_closed_early_ends_quietly() -> None:
+    read, write = os.pipe()
+    os.close(read)  # a reader gone before the first line (`| head -0`): every write fails
+    try:
+        done = subprocess.run([sys.executable, "-m", "benchmarks", "--list"], cwd=ROOT, stdout=write,
+                              stderr=subprocess.PIPE, text=True)
+    finally:
+        os.close(write)
+    assert (done.returncode, done.stderr) == (141, "")
+
+
+def _with(text: str) -> list[int]:
+    """Processes whose command line holds text."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            if entry.name.isdigit() and text in (entry / "cmdline").read_bytes().decode(errors="replace"):
+                found.append(int(entry.name))
+        except OSError:  # gone meanwhile
+            pass
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/cmdline").is_file(), reason="reads /proc")
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="the scale case needs gcc")
+def test_sigterm_stops_the_workers_and_says_so_in_one_line(tmp_path: Path) -> None:
+    import signal
+    import time
+
+    env = {**os.environ, "TMPDIR": str(tmp_path),  # the scratch folder, and so each worker's spec, under tmp_path
+           "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen([sys.executable, "-m", "benchmarks", "scale", "--smoke", "--out", str(tmp_path / "out")],
+                            cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        while not [p for p in _with(str(tmp_path)) if p != proc.pid] and proc.poll() is None:
+            time.sleep(0.05)  # until its worker runs (a cold ladder's setup: seconds)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143
+    assert err == "python -m benchmarks scale: interrupted; nothing written\n"
+    left = {p: (Path(f"/proc/{p}/stat").read_text()[:120], Path(f"/proc/{p}/cmdline").read_bytes()[:200])
+            for p in _with(str(tmp_path)) if Path(f"/proc/{p}").exists()}
+    assert left == {}  # no worker left running
+    assert list(tmp_path.iterdir()) == []  # nor its scratch folder
+
+
+def test_an_unknown_case_is_one_line_and_exit_2() -> None:
+    done = harness("no_such_case", "--smoke")
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "no_such_case" in done.stderr and "overview" in done.stderr
+
+
+def test_a_missing_program_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    done = harness("friction", "--smoke", "--out", str(tmp_path), env={"PATH": str(tmp_path)})  # no gcc there
+    assert done.returncode == 2
+    assert done.stderr == "python -m benchmarks friction: needs gcc, not installed\n"
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_run_that_fails_is_one_line_and_exit_3(tmp_path: Path) -> None:
+    done = harness("optimize", "--smoke", "--backend", "no_such_backend", "--out", str(tmp_path))
+    assert done.returncode == 3, done.stderr
+    assert done.stderr.count("\n") == 1 and done.stderr.startswith("python -m benchmarks optimize: failed: ")
+    assert "Traceback" not in done.stderr and not list(tmp_path.iterdir())
+
+
+def test_a_case_option_is_the_cases_own() -> None:
+    assert "--ladders" in parser_for(CASES, "scale").format_help().split()
+    assert "--ladders" not in parser_for(CASES, "friction").format_help().split()
+    done = harness("scale", "--help")  # and the command line shows it
+    assert done.returncode == 0 and "--ladders" in done.stdout
+
+
+def test_flat_lists_every_scalar_by_its_dotted_key() -> None:
+    figures = {"a": 1.5, "b": {"c": 2, "d": [1, {"k": 2.5}], "e": {"f": "x", "g": None}}, "h": True}
+    assert flat(figures) == [("a", 1.5), ("b.c", 2), ("b.d.0", 1), ("b.d.1.k", 2.5), ("b.e.f", "x"),
+                             ("b.e.g", None), ("h", True)]
+
+
+def _smoke(case: Case) -> Any:
+    marks = [pytest.mark.slow]  # each runs a benchmark (the marker's definition), 5 s to minutes under load
+    missing = [t for t in case.tools if shutil.which(t) is None]
+    if missing:
+        marks.append(pytest.mark.skip(reason=f"needs {', '.join(missing)}"))
+    return pytest.param(case.name, marks=marks, id=case.name)
+
+
+@pytest.mark.parametrize("name", [_smoke(c) for c in CASES.values() if c.name != "overview"])
+def test_every_case_runs_in_smoke_mode_and_writes_its_json(name: str, tmp_path: Path) -> None:
+    (tmp_path / "tmp").mkdir()
+    done = harness(name, "--smoke", "--out", str(tmp_path / "out"), cwd=tmp_path, env={"TMPDIR": str(tmp_path / "tmp")})
     assert done.returncode == 0, done.stderr[-2000:]
-    for name in ("bench.json", "bench.md", "time_vs_ng.png", "time_vs_error.png", "tolerance_sweep.png"):
+    result = json.loads((tmp_path / "out" / f"{name}.json").read_text())
+    assert result["case"] == name and result["smoke"] is True
+    assert result["machine"]["cpu_count"] >= 1 and result["run_s"] > 0
+    figures = flat(result["figures"])
+    assert figures, "a case returns figures"
+    # the figures are printed, one dotted key a line
+    key, _ = figures[0]
+    assert f"{key}: " in done.stdout
+    # nothing left behind where it ran, nor in the temporary folder (the harness's scratch, removed)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "tmp"]
+    assert list((tmp_path / "tmp").iterdir()) == []
+
+
+@pytest.mark.slow  # the overview, every approach at tiny sizes
+def test_overview_smoke_run_writes_every_output(tmp_path: Path) -> None:
+    done = harness("overview", "--smoke", "--out", str(tmp_path))
+    assert done.returncode == 0, done.stderr[-2000:]
+    for name in ("overview.json", "overview.md", "time_vs_ng.png", "time_vs_error.png", "tolerance_sweep.png"):
         assert (tmp_path / name).is_file(), name
-    result = json.loads((tmp_path / "bench.json").read_text())
+    result = json.loads((tmp_path / "overview.json").read_text())["figures"]
     approaches = {c["approach"] for c in result["cells"]}
     assert {"numpy-hand", "sympy-lambdify", "casadi-python", "casadi-c", "symid-c", "symid-numpy",
             "symid-reference", "symid-casadi"} <= approaches
@@ -76,13 +220,13 @@ def test_benchmark_smoke_run_writes_every_output(tmp_path: Path) -> None:
         assert cell["error_rel"] <= 1e-10, cell
         assert cell["us_per_instant"] > 0 and cell["peak_rss_mb"] > 0
     assert all(s["status"] == "ok" for s in result["sweeps"].values())
-    assert "| approach |" in (tmp_path / "bench.md").read_text()
+    assert "| approach |" in (tmp_path / "overview.md").read_text()
     # the design study beside CasADi's C loop and CasADi's map from Python (issue 14)
     study = result["study"]
     assert study["status"] == "ok", study
     assert study["grid"]["threads_2"]["failed"] == 0 and study["grid"]["threads_2"]["instants_per_s"] > 0
     assert study["casadi_map"]["us_per_instant"] > 0 and study["casadi_c"]["us_per_instant_1_thread"] > 0
-    assert 'Function.map(K, "thread", 2)' in (tmp_path / "bench.md").read_text()
+    assert 'Function.map(K, "thread", 2)' in (tmp_path / "overview.md").read_text()
 
 
 @pytest.mark.parametrize("backend", ["c", "numpy", "reference", "casadi"])

@@ -1,7 +1,8 @@
-"""benchmarks.embedded_regression never rots: its driver builds against the
-committed slider-crank C solver, runs a trajectory, and its `_instant` call
-from a guess near the solution lands on the trajectory's own q (so the
-instructions it counts are those of a right solve). No timing assertions."""
+"""The instructions case's driver (benchmarks.callgrind's CALLS_DRIVER) never
+rots: it builds against the committed slider-crank C solver, runs a
+trajectory, and its `_instant` call from a guess near the solution lands on
+the trajectory's own q (so the instructions it counts are those of a right
+solve). No timing assertions."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks import embedded_regression as er  # noqa: E402
+from benchmarks import callgrind  # noqa: E402
 
 pytestmark = [pytest.mark.slow,  # a benchmark's driver, built and run
               pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc is not installed")]
@@ -26,8 +27,8 @@ def driver(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("sc")
     for f in (ROOT / "generated" / "slider_crank" / "c").iterdir():
         shutil.copy(f, folder / f.name)
-    grid = er._file_grid(ROOT / "symid" / "examples" / "slider_crank.toml")
-    return er.build(folder, "slider_crank", er.default_q0(folder, "slider_crank"), grid)
+    grid = callgrind.file_grid(ROOT / "symid" / "examples" / "slider_crank.toml")
+    return callgrind.build(folder, "slider_crank", callgrind.default_q0(folder, "slider_crank"), grid)
 
 
 def test_driver_trajectory_solves_every_instant(driver: Path) -> None:

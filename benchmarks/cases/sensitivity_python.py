@@ -1,8 +1,5 @@
-"""Sensitivities on the Python path (issue #15, part 1 of `benchmarks.sensitivity`):
-per instant, first setup and re-parameterized setup, apart.
-
-    python -m benchmarks.sensitivity_python [--examples slider_crank,four_bar] [--instants N] [--repeats R]
-                                            [--backend numpy] [--out benchmarks/results]
+"""Sensitivities on the Python path (issue #15; the python part of the
+`sensitivity` case): per instant, first setup and re-parameterized setup, apart.
 
 - per instant: the table with d(COLUMN)/d(NAME) columns (default columns)
   for n_p = 1, 2, 4 base parameters against the same table without them
@@ -15,17 +12,12 @@ per instant, first setup and re-parameterized setup, apart.
 - re-parameterized setup: another value of the first parameter (file
   reloaded, prepared, the sensitivity evaluator built): wall clock and the
   lambdify calls it made (0: the structure was reused).
-
-Prints the figures and writes sensitivity_python.json.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import platform
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -35,7 +27,6 @@ from symid.numeric import sensitivity_build
 from symid.output import sensitivity as columns
 from symid.symbolic import sensitivity as symbolic
 
-ROOT = Path(__file__).resolve().parent.parent
 COUNTS = (1, 2, 4)
 
 
@@ -91,22 +82,3 @@ def python_part(examples: str, backend: str, instants: int, repeats: int) -> dic
     """Every example's figures."""
     return {"backend": backend, "instants": instants, "machine": platform.machine(),
             "examples": {e: example_figures(e, backend, instants, repeats) for e in examples.split(",")}}
-
-
-def main(argv: list[str] | None = None) -> dict[str, object]:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--examples", default="slider_crank,four_bar")
-    parser.add_argument("--instants", type=int, default=201)
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--backend", default="numpy")
-    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
-    args = parser.parse_args(argv)
-    result = python_part(args.examples, args.backend, args.instants, args.repeats)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "sensitivity_python.json").write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
-    return result
-
-
-if __name__ == "__main__":
-    main()

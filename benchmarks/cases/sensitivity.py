@@ -1,11 +1,11 @@
 """Sensitivities benchmark (issue #15): what the d(COLUMN)/d(NAME) columns
 cost per instant, against the same run without them.
 
-    python -m benchmarks.sensitivity [--part python|c|both] [--example slider_crank] [--instants N]
+    python -m benchmarks sensitivity [--part python|c|both] [--example slider_crank] [--instants N]
                                      [--repeats R] [--backend numpy] [--c-examples slider_crank,planetary]
-                                     [--c-instants N] [--out benchmarks/results]
+                                     [--c-instants N]
 
-1. python (`benchmarks.sensitivity_python`, any backend): the ratio with /
+1. python (`sensitivity_python.py`, any backend): the ratio with /
    without for n_p = 1, 2, 4 base parameters on each --example (comma-
    separated), measured in rounds so the machine's load shifts all alike;
    first setup (sympy derivation and lambdify) and re-parameterized setup
@@ -19,35 +19,24 @@ cost per instant, against the same run without them.
    microseconds per instant of the compiled trajectory called through
    ctypes. Target: ratio <= 1 + 0.3 n_p (one factorization serves every
    parameter).
-
-Prints the figures and writes sensitivity.json ({"python": ..., "c": ...}).
 """
 
 from __future__ import annotations
 
 import argparse
 import ctypes
-import json
-import os
-import platform
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from benchmarks import instructions
-from benchmarks.sensitivity_python import python_part
+from benchmarks import callgrind
+from benchmarks.cases import register
+from benchmarks.cases.sensitivity_python import python_part
+from benchmarks.run import Context
 from symid import api
 from symid.backends.c_backend import CEvaluator
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def python_loop(args: argparse.Namespace) -> dict[str, object]:
-    """Part 1: the Python path (`benchmarks.sensitivity_python`): per instant,
-    first and re-parameterized setup."""
-    return python_part(args.example, args.backend, args.instants, args.repeats)
-
 
 PARAMETERS = {"slider_crank": ("L_crank", "m_rod", "n", "L_rod"),
               "planetary": ("r_planet", "m_carrier", "n_in", "r_sun")}
@@ -63,8 +52,8 @@ def solver(example: str, n_p: int) -> tuple[CEvaluator, object, np.ndarray]:
 
 def instructions_per_instant(ev: CEvaluator, mech, q0: np.ndarray, first: int = 200,  # type: ignore[no-untyped-def]
                              second: int = 2200) -> float:
-    """Callgrind instructions per instant of the trajectory (benchmarks.instructions' driver)."""
-    return instructions.counted(Path(ev.artifact), mech.name, mech.analysis, q0, first, second)
+    """Callgrind instructions per instant of the trajectory (benchmarks.callgrind's driver)."""
+    return callgrind.counted(Path(ev.artifact), mech.name, mech.analysis, q0, first, second)
 
 
 # instants per trajectory call: the rows of a call stay in cache, as the c
@@ -98,23 +87,25 @@ def microseconds_per_instant(ev: CEvaluator, mech, q0: np.ndarray, instants: int
     return float(best * 1e6)
 
 
-def generated_c(args: argparse.Namespace) -> dict[str, object]:
+def generated_c(args: argparse.Namespace, smoke: bool) -> dict[str, object]:
     """Part 2: the compiled solver plain and with n_p = 1, 2, 4 parameters."""
     figures: dict[str, object] = {}
-    for example in args.c_examples.split(","):
+    instants, repeats = (201, 1) if smoke else (args.c_instants, args.repeats)
+    first, second = (20, 60) if smoke else (200, 2200)
+    for example in (["slider_crank"] if smoke else args.c_examples.split(",")):
         rows: dict[int, dict[str, object]] = {}
         built = {n_p: solver(example, n_p) for n_p in COUNTS}
         for n_p, (ev, mech, q0) in built.items():
             rows[n_p] = {"parameters": list(PARAMETERS[example][:n_p]),
                          "columns": ev.meta["sens_width"] // max(1, n_p)}
-            if instructions.available():
-                rows[n_p]["instructions_per_instant"] = instructions_per_instant(ev, mech, q0)
+            if callgrind.available():
+                rows[n_p]["instructions_per_instant"] = instructions_per_instant(ev, mech, q0, first, second)
         # wall clock in rounds over every variant: a burst of load on a shared
         # machine then slows one round of all, not all the runs of one variant
         best = {n_p: float("inf") for n_p in built}
-        for _ in range(args.repeats):
+        for _ in range(repeats):
             for n_p, (ev, mech, q0) in built.items():
-                best[n_p] = min(best[n_p], microseconds_per_instant(ev, mech, q0, args.c_instants, 1))
+                best[n_p] = min(best[n_p], microseconds_per_instant(ev, mech, q0, instants, 1))
         for n_p in built:
             rows[n_p]["us_per_instant"] = best[n_p]
         plain = rows[0]
@@ -130,32 +121,27 @@ def generated_c(args: argparse.Namespace) -> dict[str, object]:
                      f"= {r['instructions_ratio']:.2f}x" if "instructions_ratio" in r else "")
                   + f" (target <= {r['target']:.1f}x)")
         figures[example] = {str(k): v for k, v in rows.items()}
-    return {"instants": args.c_instants, "repeats": args.repeats, "figures": figures}
+    return {"instants": instants, "repeats": repeats, "figures": figures}
 
 
-def main(argv: list[str] | None = None) -> dict[str, object]:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("python", "c", "both"), default="both")
-    parser.add_argument("--example", default="slider_crank,four_bar", help="python part: examples, comma-separated")
-    parser.add_argument("--instants", type=int, default=201, help="python part")
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--backend", default="numpy", help="python part")
-    parser.add_argument("--c-examples", default=",".join(PARAMETERS))
-    parser.add_argument("--c-instants", type=int, default=20_001)
-    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
-    args = parser.parse_args(argv)
-    result: dict[str, object] = {
-        "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
-                    "python": platform.python_version(), "numpy": np.__version__}}
+def _options(group: Any) -> None:
+    group.add_argument("--part", choices=("python", "c", "both"), default="both")
+    group.add_argument("--example", default="slider_crank,four_bar", help="python part: examples, comma-separated")
+    group.add_argument("--instants", type=int, default=201, help="python part")
+    group.add_argument("--repeats", type=int, default=3)
+    group.add_argument("--backend", default="numpy", help="python part")
+    group.add_argument("--c-examples", default=",".join(PARAMETERS))
+    group.add_argument("--c-instants", type=int, default=20_001)
+
+
+@register("sensitivity", "what the sensitivity columns cost per instant against the same run without them, on the "
+          "Python path (setup too) and in generated C", options=_options, tools=("gcc",))
+def sensitivity(ctx: Context) -> dict[str, Any]:
+    args = ctx.options
+    result: dict[str, Any] = {}
     if args.part in ("python", "both"):
-        result["python"] = python_loop(args)
+        result["python"] = (python_part("slider_crank", args.backend, 21, 1) if ctx.smoke
+                            else python_part(args.example, args.backend, args.instants, args.repeats))
     if args.part in ("c", "both"):
-        result["c"] = generated_c(args)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "sensitivity.json").write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+        result["c"] = generated_c(args, ctx.smoke)
     return result
-
-
-if __name__ == "__main__":
-    main()

@@ -1,6 +1,6 @@
-"""Design studies (issue 14) in the benchmark run and its report.
+"""Design studies (issue 14) in the overview and its report (not a case of its own).
 
-One worker process (`study` kind, `benchmarks.workers`) measures, on the
+One worker process (`study` kind, `overview_workers.py`) measures, on the
 slider-crank grid of rod lengths x crank speeds:
 
 - the compiled sweep's solve phase on 1 and 2 threads (`sweep_engine.grid`);
@@ -21,10 +21,7 @@ cached, and the same sweep through Dask on two local workers
 from __future__ import annotations
 
 import os
-import shutil
-import tempfile
-from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -34,7 +31,8 @@ TARGETS = {"instants_per_s": 10e6, "casadi_c_speedup": 10.0, "casadi_map_speedup
 
 def worker_study(spec: dict[str, Any]) -> dict[str, Any]:
     """The in-process figures (see the module's docstring)."""
-    from benchmarks import casadi_map, sweep_engine, sweep_instructions
+    from benchmarks import casadi_map
+    from benchmarks.cases import sweep_engine, sweep_instructions
 
     out: dict[str, Any] = {"load_average_start": list(os.getloadavg())}
     out["grid"] = g = sweep_engine.grid(spec["steps"], spec["rods"], spec["speeds"])
@@ -51,37 +49,32 @@ def worker_study(spec: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def run_study(cfg: Any, work: Path, log: Callable[[str], None]) -> dict[str, Any]:
+def run_study(cfg: Any, ctx: Any) -> dict[str, Any]:
     """The study worker, then (unless `cfg.study_processes` is off) the processes."""
-    from benchmarks.processes import env_for, spawn
-
-    cache = Path(tempfile.mkdtemp(prefix="cache-", dir=work))
     spec = {"kind": "study", "steps": cfg.study_steps, "rods": cfg.study_rods, "speeds": cfg.study_speeds,
             "map_variants": cfg.study_map_variants, "map_steps": cfg.study_map_steps,
             "instructions": cfg.study_processes}
-    got = spawn(spec, 4 * cfg.cap_s, env_for(cache))
+    got = ctx.isolated("benchmarks.cases.overview_workers:worker", spec, 4 * cfg.cap_s)
     out: dict[str, Any] = {"status": got.status, "note": got.note, **got.result}
-    log(f"design study: {got.status} {got.note}")
+    ctx.log(f"design study: {got.status} {got.note}")
     if cfg.study_processes:
-        out["processes"] = processes(cfg, env_for(cache), work)
-        log(f"design study processes: {out['processes']}")
-    shutil.rmtree(cache, ignore_errors=True)
+        out["processes"] = processes(cfg, ctx)
+        ctx.log(f"design study processes: {out['processes']}")
     return out
 
 
-def processes(cfg: Any, env: dict[str, str], work: Path) -> dict[str, Any]:
+def processes(cfg: Any, ctx: Any) -> dict[str, Any]:
     """`symid sweep` cold (an empty cache), cached, and on a local Dask cluster."""
-    from benchmarks import sweep_cli
+    from benchmarks.cases import sweep_cli
     from symid import api
 
-    cache = work / "study-cache"
-    shutil.rmtree(cache, ignore_errors=True)
-    env = {**env, "SYMID_CACHE": str(cache)}
+    work = ctx.work
+    env = ctx.env(work / "study-cache")
     run = [str(api.example("slider_crank")), "--grid", f"L_rod=0.2:0.5:{cfg.study_rods}",
            "--grid", f"n=1:10:{cfg.study_speeds}", "--steps", str(cfg.study_steps), "-o", str(work / "study.csv")]
-    out: dict[str, Any] = {"cold": sweep_cli.sweep(run, env, work), "cached": sweep_cli.sweep(run, env, work)}
+    out: dict[str, Any] = {"cold": sweep_cli.sweep(ctx, run, env), "cached": sweep_cli.sweep(ctx, run, env)}
     try:
-        out["dask"] = sweep_cli.with_cluster(env, work, run)
+        out["dask"] = sweep_cli.with_cluster(ctx, env, run)
         out["dask_over_local_solve"] = out["dask"]["solve_s"] / out["cached"]["solve_s"]
     except (SystemExit, OSError, RuntimeError) as exc:  # a cluster that does not start: recorded, not fatal
         out["dask"] = {"failed": str(exc)[:300]}

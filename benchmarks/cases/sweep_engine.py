@@ -20,29 +20,26 @@ compiled sweep solves many variants, on one and two threads.
   x 1001 instants on 2 threads: time and the process's peak memory; N below
   1e5 is extrapolated linearly to 1e5 (the work is per variant).
 
-    python -m benchmarks.sweep_engine [--mc N] [--grid-steps S] [--numpy-steps S] [--no-casadi]
-
-Prints the figures and writes benchmarks/results/sweep_engine.json.
+    python -m benchmarks sweep_engine [--mc N] [--grid-steps S] [--numpy-steps S] [--no-casadi]
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import resource
+import shutil
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from benchmarks.cases import register
+from benchmarks.run import Context
 from symid import api
 from symid.study import batch_c
 from symid.study.engine import solve_figures
 from symid.study.variants import base_matrix, study_mechanism
 
-RESULTS = Path(__file__).with_name("results") / "sweep_engine.json"
 MC_TARGET = 100_000
 
 
@@ -74,6 +71,7 @@ def lanes(mech: Any) -> tuple[int, int]:
 
 
 def grid(steps: int, n_rods: int = 25, n_speeds: int = 40) -> dict[str, Any]:
+    """The rods x speeds grid of the slider-crank on 1 and 2 threads, the best of two runs each."""
     mech = api.load_mechanism(api.example("slider_crank"), steps=steps)
     rods = np.linspace(0.2, 0.5, n_rods)
     speeds = np.linspace(1.0, 10.0, n_speeds)
@@ -121,12 +119,15 @@ def casadi_anchor(steps: int) -> dict[str, Any]:
 
     system = systems.slider_crank()
     approach = CasadiC(system)
-    approach.setup()
-    h = 2 * np.pi / systems.OMEGA / (steps - 1)  # one crank revolution, as the sweep's runs
-    best = float("inf")
-    for _ in range(5):
-        run = approach.run(system.q0(), h, steps, 1e-12, 60.0)
-        best = min(best, run.total_s / max(1, len(run.torque)))
+    try:
+        approach.setup()
+        h = 2 * np.pi / systems.OMEGA / (steps - 1)  # one crank revolution, as the sweep's runs
+        best = float("inf")
+        for _ in range(5):
+            run = approach.run(system.q0(), h, steps, 1e-12, 60.0)
+            best = min(best, run.total_s / max(1, len(run.torque)))
+    finally:
+        shutil.rmtree(approach.folder, ignore_errors=True)
     return {"us_per_instant_1_thread": best * 1e6, "instants": steps}
 
 
@@ -149,44 +150,31 @@ def monte_carlo(n: int, steps: int, workers: int = 2) -> dict[str, Any]:
             "failed": int(np.count_nonzero(figures.status)), "p99_motor_peak_torque": p99}
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.sweep_engine", description=__doc__.split("\n")[0])
-    parser.add_argument("--mc", type=int, default=MC_TARGET, help="Monte Carlo variants (default 1e5)")
-    parser.add_argument("--grid-steps", type=int, default=1001)
-    parser.add_argument("--numpy-steps", type=int, default=101, help="instants of the numpy grid (0: leave it out)")
-    parser.add_argument("--no-casadi", action="store_true", help="leave out the CasADi C anchor")
-    args = parser.parse_args(argv)
-    out: dict[str, Any] = {"cpus": os.cpu_count(), "load_average": list(os.getloadavg())}
-    out["grid"] = g = grid(args.grid_steps)
+def _options(group: Any) -> None:
+    group.add_argument("--mc", type=int, default=MC_TARGET, help="Monte Carlo variants (default 1e5)")
+    group.add_argument("--grid-steps", type=int, default=1001)
+    group.add_argument("--numpy-steps", type=int, default=101, help="instants of the numpy grid (0: leave it out)")
+    group.add_argument("--no-casadi", action="store_true", help="leave out the CasADi C anchor")
+
+
+@register("sweep_engine", "the compiled sweep's solve phase on 1 and 2 threads against CasADi's C loop; the numpy "
+          "batch against its per-variant loop; a Monte Carlo's time and memory", options=_options, tools=("gcc",))
+def sweep_engine(ctx: Context) -> dict[str, Any]:
+    args = ctx.options
+    steps = 21 if ctx.smoke else args.grid_steps
+    out: dict[str, Any] = {"cpus": os.cpu_count()}
+    out["grid"] = g = grid(steps, *((2, 4) if ctx.smoke else (25, 40)))
     for w in (1, 2):
         r = g[f"threads_{w}"]
-        print(f"grid {r['variants']} variants x {g['steps']} instants, {w} thread(s): solve {r['solve_s']:.3f} s, "
-              f"{r['instants_per_s'] / 1e6:.2f} M instants/s ({r['instants_per_cpu_s'] / 1e6:.2f} M per CPU "
-              f"second; {r['failed']} failed)")
-    print(f"lanes: {g['lanes']} variants a group, {g['groups_abandoned']:g} of {g['groups']} groups abandoned "
-          f"to the one-by-one path")
+        ctx.log(f"grid {r['variants']} variants x {g['steps']} instants, {w} thread(s): solve {r['solve_s']:.3f} s, "
+                f"{r['instants_per_s'] / 1e6:.2f} M instants/s; {r['failed']} failed")
     if not args.no_casadi:
-        out["casadi_c"] = c = casadi_anchor(args.grid_steps)
+        out["casadi_c"] = c = casadi_anchor(steps)
         grid_s = c["us_per_instant_1_thread"] * 1e-6 * g["threads_1"]["instants"]
         c["grid_seconds_1_thread"] = grid_s
         c["sweep_speedup_2_threads"] = grid_s / 2 / g["threads_2"]["solve_s"]  # CasADi's loop on 2 ideal threads
-        print(f"casadi C loop: {c['us_per_instant_1_thread']:.3f} us per instant (1 thread); the grid that way "
-              f"{grid_s:.2f} s on 1 thread; sweep on 2 threads is {c['sweep_speedup_2_threads']:.1f}x its 2-thread time")
-    if args.numpy_steps:
-        out["numpy"] = n = numpy_grid(args.numpy_steps)
-        print(f"numpy grid {n['variants']} variants x {n['steps']} instants: vectorized {n['vectorized_s']:.2f} s "
-              f"({n['vectorized_instants_per_s'] / 1e3:.1f} k instants/s), per-variant loop {n['per_variant_s']:.2f} s "
-              f"({n['per_variant_instants_per_s'] / 1e3:.1f} k instants/s): {n['speedup']:.1f}x; "
-              f"{n['handed_back']} handed back, figures within {n['max_rel_difference']:.1e} (relative to each's max)")
-    out["monte_carlo"] = m = monte_carlo(args.mc, 1001)
-    print(f"monte carlo {m['variants']} variants x 1001 instants, 2 threads: {m['seconds']:.2f} s "
-          f"({m['instants_per_s'] / 1e6:.2f} M instants/s; 1e5 variants: {m['seconds_at_1e5']:.1f} s), "
-          f"peak RSS {m['peak_rss_mb']:.0f} MB, P99 motor peak torque {m['p99_motor_peak_torque']:.4g} N m")
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps(out, indent=2) + "\n")
-    print(f"written {RESULTS}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    numpy_steps = min(args.numpy_steps, 11) if ctx.smoke else args.numpy_steps
+    if numpy_steps:
+        out["numpy"] = numpy_grid(numpy_steps, 4 if ctx.smoke else 1000)
+    out["monte_carlo"] = monte_carlo(8 if ctx.smoke else args.mc, 21 if ctx.smoke else 1001)
+    return out

@@ -6,18 +6,16 @@ selection of the tests there (`-x`, with a timeout). A mutant is *killed*
 when the selection fails (or times out), *survives* when it passes. A
 survivor names something no test watches.
 
-    python3 -m benchmarks.mutation                 # every mutant
-    python3 -m benchmarks.mutation -k c_ dense     # mutants whose name contains c_ or dense
-    python3 -m benchmarks.mutation --check         # only check that every mutant applies
+    python -m benchmarks mutation                  # every mutant
+    python -m benchmarks mutation -k c_ dense      # mutants whose name contains c_ or dense
+    python -m benchmarks mutation --smoke          # only check that every mutant applies
 
-Writes benchmarks/results/mutation.json and prints the score. CPU heavy:
-the selections are chosen so the whole run takes about 15 min on 2 loaded cores.
+CPU heavy: each mutant runs its selection of the tests (`mutation.json`'s
+`seconds` per mutant says how long).
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import shutil
 import subprocess
@@ -26,9 +24,12 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-REPO = Path(__file__).resolve().parents[1]
-RESULTS = REPO / "benchmarks" / "results" / "mutation.json"
+from benchmarks.cases import register
+from benchmarks.processes import ROOT as REPO
+from benchmarks.run import Context
+
 TIMEOUT = 240  # seconds per mutant; a hang counts as killed (the suite noticed)
 IGNORE = shutil.ignore_patterns(".git", "__pycache__", ".pytest_cache", ".mypy_cache", "*.egg-info", "results")
 
@@ -58,7 +59,7 @@ def k(path: str, expr: str) -> tuple[str, ...]:
 MUTANTS: tuple[Mutant, ...] = (
     # -- output: the CSV and NPZ writers, the summary --------------------------------
     Mutant("csv_written_in_place", "symid/io/files.py",
-           'fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)',
+           'fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=None if into else path.parent)',
            "fd, tmp = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600), str(path)",
            k(OUT, "in_place or interrupt or target")),
     Mutant("csv_rename_skipped", "symid/io/files.py",
@@ -67,14 +68,15 @@ MUTANTS: tuple[Mutant, ...] = (
            k(CLI, "success_leaves or failure_replaces")),
     Mutant("csv_15_digits", "symid/output/results.py", 'return ",".join(["%.17g"] * width)',
            'return ",".join(["%.15g"] * width)', k(CLI, "17_significant")),
-    Mutant("csv_failure_drops_rows", "symid/output/results.py",
-           "        except AnalysisError as exc:  # keep the instants before it: the file is completed\n"
-           "            failure = exc\n",
-           "        except AnalysisError as exc:  # keep the instants before it: the file is completed\n"
-           "            failure = exc\n            out.seek(0)\n            out.truncate(0)\n",
+    Mutant("csv_failure_drops_rows", "symid/output/tables.py",
+           "            except AnalysisError as exc:  # keep the instants before it: the file is completed\n"
+           "                failure = exc\n",
+           "            except AnalysisError as exc:  # keep the instants before it: the file is completed\n"
+           "                failure = exc\n                out.seek(0)\n                out.truncate(0)\n"
+           "                waiting.clear()\n",
            k(CLI, "part_way_exits_3_and_keeps")),
     Mutant("csv_unsolved_group_not_zero", "symid/numeric/solve.py",
-           "parts.append(zeros if value is None else value)",
+           "parts.append(np.zeros(ng) if value is None else value)",
            "parts.append(np.zeros(0) if value is None else value)", k(CLI, "statics_rate_columns")),
     Mutant("npz_written_in_place", "symid/output/npz.py", "    with atomic_write(path, binary=True) as out:",
            "    with open(path, \"wb\") as out:",
@@ -107,7 +109,8 @@ MUTANTS: tuple[Mutant, ...] = (
            "            alpha *= 0.999\n", ("tests/numeric/test_stability.py", "-k", "diverg or damp")),
     # -- the compiled (C) backend's loop in Python -----------------------------------
     Mutant("c_failed_chunk_rows_dropped", "symid/backends/c_backend.py",
-           "for k in range(solved.value):", "for k in range(solved.value if status == 0 else 0):",
+           "            if solved.value:\n                yield buf[:solved.value].copy()",
+           "            if solved.value and status == 0:\n                yield buf[:solved.value].copy()",
            (f"{OUT}::test_failure_part_way_in_a_later_chunk_keeps_the_chunks_rows[c]",)),
     Mutant("c_failure_time_off_by_one", "symid/backends/c_backend.py",
            "out = stepper.instant(k, analysis.t0 + k * h, prev, history, q0)",
@@ -174,8 +177,8 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant("numpy_predictor_half_dropped", "templates/numpy/module.py.j2", "hh = 0.5 * h * h", "hh = h * h",
            k(CSOLVER, "loop and numpy")),
     # -- added after the first run: more of the output and loop code ----------------------
-    Mutant("csv_header_columns_shifted", "symid/symbolic/columns.py", "    return out + list(analysis.extra_outputs())",
-           "    return out[1:] + [\"t\"] + list(analysis.extra_outputs())", k(OUT, "subset and numpy")),
+    Mutant("csv_header_columns_shifted", "symid/symbolic/columns.py", "    out += list(analysis.extra_outputs())",
+           "    out = out[1:] + [\"t\"] + list(analysis.extra_outputs())", k(OUT, "subset and numpy")),
     Mutant("c_state_not_seeded", "symid/backends/c_backend.py", "        state[:ng] = q0\n", "        pass\n",
            k(CODEGEN, "agrees_with_reference_through_api and c]")),
     Mutant("python_history_too_short", "symid/numeric/solve.py", "history = (history + [prev.q])[-3:]",
@@ -184,6 +187,13 @@ MUTANTS: tuple[Mutant, ...] = (
            "current = !chord && step <= {{ P }}_EPS * qmag;", "current = step <= {{ P }}_EPS * qmag || chord;",
            k(CODEGEN, "fine_grid and slider_crank")),
 )
+
+
+def applies(tree: Path, m: Mutant) -> bool:
+    """Whether the mutant's old text occurs exactly once in its file (the code
+    moves on: a mutant that no longer applies is stale, and reported so)."""
+    path = tree / m.file
+    return path.is_file() and path.read_text(encoding="utf-8").count(m.old) == 1
 
 
 def apply(tree: Path, m: Mutant) -> str:
@@ -242,28 +252,30 @@ def run_tests(tree: Path, args: list[str], cache: Path) -> tuple[str, float, str
     return "survived", time.monotonic() - start, last
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("-k", nargs="*", default=[], help="only mutants whose name contains one of these")
-    parser.add_argument("--check", action="store_true", help="only check that every mutant applies")
-    parser.add_argument("--baseline", action="store_true", help="first run every selection unmutated")
-    parser.add_argument("-o", type=Path, default=RESULTS)
-    args = parser.parse_args(argv)
-    chosen = [m for m in MUTANTS if not args.k or any(s in m.name for s in args.k)]
+def _options(group: Any) -> None:
+    group.add_argument("-k", nargs="*", default=[], help="only mutants whose name contains one of these")
+    group.add_argument("--baseline", action="store_true", help="first run every selection unmutated")
+
+
+@register("mutation", "plausible hand-made bugs, each against a selection of the tests: which the suite kills, "
+          "which survive (--smoke: only that every mutant applies)", options=_options)
+def mutation(ctx: Context) -> dict[str, Any]:
+    args = ctx.options
+    named = [m for m in MUTANTS if not args.k or any(s in m.name for s in args.k)]
+    stale = [m.name for m in named if not applies(REPO, m)]
+    chosen = [m for m in named if m.name not in stale]
+    if stale:
+        ctx.log(f"{len(stale)} of {len(named)} mutants no longer apply (stale): {', '.join(stale)}")
+    if ctx.smoke:
+        return {"mutants": len(named), "apply": len(chosen), "stale": stale}
     with tempfile.TemporaryDirectory(prefix="symid-mutation-") as tmp:
         tree = Path(tmp) / "repo"
         shutil.copytree(REPO, tree, ignore=IGNORE)
-        for m in chosen:  # every mutant applies to this tree, before any runs
-            (tree / m.file).write_text(apply(tree, m), encoding="utf-8")
-        if args.check:
-            print(f"{len(chosen)} mutants apply")
-            return 0
         if args.baseline:
             for m in chosen:
                 verdict, seconds, last = run_tests(tree, selection(tree, m.tests), Path(tmp) / "cache-base")
                 if verdict != "survived":
-                    print(f"baseline of {m.name}: {verdict} ({last})")
-                    return 1
+                    raise RuntimeError(f"baseline of {m.name}: {verdict} ({last})")
         records = []
         for n, m in enumerate(chosen, 1):
             original = apply(tree, m)
@@ -273,16 +285,8 @@ def main(argv: list[str] | None = None) -> int:
                 (tree / m.file).write_text(original, encoding="utf-8")
             records.append({"name": m.name, "file": m.file, "tests": list(m.tests), "verdict": verdict,
                             "seconds": round(seconds, 1), "last_line": last})
-            print(f"[{n}/{len(chosen)}] {m.name}: {verdict} ({seconds:.0f} s)", flush=True)
+            ctx.log(f"[{n}/{len(chosen)}] {m.name}: {verdict} ({seconds:.0f} s)")
     killed = sum(r["verdict"] in ("killed", "timeout") for r in records)
     survivors = [r["name"] for r in records if r["verdict"] not in ("killed", "timeout")]
-    score = {"mutants": len(records), "killed": killed, "score": round(killed / max(1, len(records)), 3),
-             "survivors": survivors, "results": records}
-    args.o.parent.mkdir(parents=True, exist_ok=True)
-    args.o.write_text(json.dumps(score, indent=1) + "\n", encoding="utf-8")
-    print(f"mutation score: {killed}/{len(records)} killed; survivors: {', '.join(survivors) or 'none'}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    return {"mutants": len(records), "killed": killed, "score": round(killed / max(1, len(records)), 3),
+            "survivors": survivors, "stale": stale, "results": records}

@@ -1,7 +1,6 @@
-"""The benchmark's workers: each measures one cell in its own process.
-
-`python -m benchmarks.run --worker SPEC` calls `worker(spec)`; it returns a
-JSON-able dict that the parent (`benchmarks.run`) collects.
+"""The overview's workers: each measures one cell in a process of its own
+(`Context.isolated` calls `worker(spec)`); each returns a JSON-able dict that
+the overview (`overview.py`) collects.
 """
 
 from __future__ import annotations
@@ -87,7 +86,7 @@ def worker_baseline(spec: dict[str, Any]) -> dict[str, Any]:
 def worker_sweep(spec: dict[str, Any]) -> dict[str, Any]:
     """Predictor order x tolerance (both drivers) and the tolerance through
     `api.prepare(tol=...)` on each symid backend; torques saved for the parent."""
-    from benchmarks import sweep
+    from benchmarks.cases import overview_predictor as sweep
     from symid import api, backends
     from symid.tools.bench import bench
 
@@ -167,17 +166,13 @@ def worker_paired(spec: dict[str, Any]) -> dict[str, Any]:
 
 
 def worker_study(spec: dict[str, Any]) -> dict[str, Any]:
-    from benchmarks.design_study import worker_study as study
+    from benchmarks.cases.design_study import worker_study as study
 
     return study(spec)
 
 
 def worker(spec: dict[str, Any]) -> dict[str, Any]:
-    kind = spec["kind"]
-    tick = time.perf_counter()
     fn: Callable[[dict[str, Any]], dict[str, Any]] = {
         "symid": worker_symid, "baseline": worker_baseline, "sweep": worker_sweep, "paired": worker_paired,
-        "study": worker_study}[kind]
-    out = fn(spec)
-    out["worker_s"] = time.perf_counter() - tick
-    return out
+        "study": worker_study}[spec["kind"]]
+    return fn(spec)

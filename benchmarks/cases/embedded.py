@@ -1,8 +1,8 @@
 """The C export as an embedded engineer sees it, per bundled example.
 
-    python -m benchmarks.embedded [--quick] [--examples a,b] [--out benchmarks/results]
+    python -m benchmarks embedded [--examples a,b]
 
-writes `embedded.json` and prints, for each example:
+For each example:
 
 - us_per_instant: the host (cc -O2 -fno-math-errno) cost of one instant in
   the trajectory loop and of `_instant` continued from the last solution,
@@ -27,12 +27,9 @@ writes `embedded.json` and prints, for each example:
 
 from __future__ import annotations
 
-import argparse
-import json
 import re
 import shutil
 import subprocess
-import tempfile
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -43,7 +40,10 @@ from symid.codegen.model import code_model
 from symid.codegen import c as c_target
 from symid.io.reader import load
 
-ROOT = Path(__file__).resolve().parent.parent
+from benchmarks.cases import register
+from benchmarks.processes import ROOT
+from benchmarks.run import Context
+
 DRIVER = ROOT / "tests" / "c" / "rows_driver.c"
 ARM = ("-mcpu=cortex-m4", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-mthumb")
 LONG_T0 = 1e4
@@ -176,34 +176,20 @@ def example(name: str, quick: bool, work: Path) -> dict[str, Any]:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="at most 64 instants a run")
-    parser.add_argument("--examples", help="comma-separated (default: every bundled example)")
-    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
-    args = parser.parse_args(argv)
-    names = args.examples.split(",") if args.examples else api.examples()
+def _options(group: Any) -> None:
+    group.add_argument("--examples", help="comma-separated (default: every bundled example)")
+
+
+@register("embedded", "the C export per example: us per instant in double and single, single's error against "
+          "double (short and at t = 1e4 s), Cortex-M4F code size and stack", options=_options, tools=("cc",))
+def embedded(ctx: Context) -> dict[str, Any]:
+    names = (ctx.options.examples.split(",") if ctx.options.examples
+             else ["slider_crank"] if ctx.smoke else api.examples())
     results: dict[str, Any] = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        for name in names:
-            r = results[name] = example(name, args.quick, Path(tmp))
-            us = r["us_per_instant"]
-            line = (f"{name:16s} us/instant double {us['double']['trajectory']:.2f} (instant "
-                    f"{us['double']['instant']:.2f}), single {us['single']['trajectory']:.2f} (instant "
-                    f"{us['single']['instant']:.2f}); single vs double: short {r['single_error']['short']['worst']:.1e}"
-                    f" ({r['single_error']['short']['worst_column']}), t=1e4 {r['single_error']['long']['worst']:.1e}"
-                    f" ({r['single_error']['long']['worst_column']}{'' if r['long_bound_applies'] else ', bound n/a'})"
-                    f"; single/double instant {r['single_over_double']['instant']:.2f}")
-            if isinstance(r["arm"], dict):
-                o2 = r["arm"]["single -O2"]
-                line += f"; M4F single -O2 {o2['text'] + o2['data']} B, stack {max(o2['stack'].values())} B"
-            print(line, flush=True)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "embedded.json").write_text(json.dumps(results, indent=1) + "\n")
-    print(f"wrote {out / 'embedded.json'}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    for name in names:
+        r = results[name] = example(name, ctx.smoke, ctx.work)
+        us = r["us_per_instant"]
+        ctx.log(f"{name:16s} us/instant double {us['double']['trajectory']:.2f}, single "
+                f"{us['single']['trajectory']:.2f}; single vs double: short {r['single_error']['short']['worst']:.1e}"
+                f" ({r['single_error']['short']['worst_column']})")
+    return results

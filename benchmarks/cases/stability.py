@@ -1,9 +1,9 @@
-"""Numerical stability benchmark: near-singular accuracy, units, long runs, cost.
+"""Numerical stability: near-singular accuracy, units, long runs.
 
-    python benchmarks/stability.py [--quick] [--instants N] [--out benchmarks/results]
+    python -m benchmarks stability [--instants N]
 
-writes `stability.json` and `stability.png` (error against the distance to
-the singularity and against cond, every backend). Four parts:
+Writes `stability.png` beside the JSON (error against the distance to the
+singularity and against cond, every backend). Three parts:
 
 1. stress: the slider-crank with a rod of (1 + 10^-k) crank lengths (k = 1..8)
    at 90 degrees, and a four-bar at 10^-k rad before its toggle (k = 1..15),
@@ -14,45 +14,37 @@ the singularity and against cond, every backend). Four parts:
    times 1e6, after unit conversion (tests/numeric/test_stability.py's converter);
 3. long run: the bundled slider-crank for N instants (default 1e6) streamed to
    a CSV, crank angle past 1e4 rad, the motor torque against the 40-digit
-   closed form every N/1000 instants, and Python's allocated blocks sampled;
-4. cost: the loop before this work (git show of symid/solve.py, as it was, at BASELINE)
-   against the current one, same backend and instants.
+   closed form every N/1000 instants, and Python's allocated blocks sampled.
 """
 
 from __future__ import annotations
 
-import argparse
-import importlib.util
-import json
 import math
-import os
-import platform
 import resource
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests" / "helpers"))
-sys.path.insert(0, str(ROOT / "tests" / "numeric"))  # test_stability's converter (units_part)
-sys.path.insert(0, str(ROOT))
-
-import stress  # noqa: E402  (tests/helpers/stress.py: the cases and their 40-digit reference)
-from symid import api, backends, solve  # noqa: E402
-from symid.output.results import row, write_csv  # noqa: E402
+from benchmarks.cases import register
+from benchmarks.processes import ROOT
+from benchmarks.run import Context
+from symid import api, backends
+from symid.output.results import write_csv
 
 EPS = float(np.finfo(float).eps)
-BASELINE = "05875db"  # symid/solve.py (now symid/numeric/solve.py) before the stability work: plain Newton, unscaled LU
 KS = {"slider_crank": range(1, 9), "four_bar_toggle": range(1, 16)}
+STEPS = 201  # instants of each units run
 
 
-def machine() -> dict[str, object]:
-    return {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
-            "cpu_count": os.cpu_count(), "python": platform.python_version(), "numpy": np.__version__}
+def _tests() -> None:
+    """tests/ on the path: its stress cases (tests/helpers/stress.py, with their 40-digit
+    reference) and unit converter (tests/numeric/test_stability.py) are the truth here."""
+    for folder in (ROOT / "tests" / "helpers", ROOT / "tests" / "numeric"):
+        if str(folder) not in sys.path:
+            sys.path.insert(0, str(folder))
 
 
 def available_backends() -> list[str]:
@@ -73,6 +65,9 @@ def available_backends() -> list[str]:
 # -- 1. stress ---------------------------------------------------------------------
 
 def stress_part(folder: Path, quick: bool) -> list[dict[str, object]]:
+    _tests()
+    import stress
+
     rows = []
     for name, ks in KS.items():
         path = folder / f"{name}.toml"
@@ -102,19 +97,20 @@ def stress_part(folder: Path, quick: bool) -> list[dict[str, object]]:
 
 # -- 2. units ----------------------------------------------------------------------
 
-def units_part(folder: Path) -> list[dict[str, object]]:
+def units_part(folder: Path, names: list[str]) -> list[dict[str, object]]:
+    _tests()
     from test_stability import _unit_of, in_units  # the tests' converter
 
     out = []
-    for name in api.examples():
+    for name in names:
         text = api.example(name).read_text(encoding="utf-8")
         base_path = folder / f"{name}_base.toml"
         base_path.write_text(in_units(text, 1.0, 1.0), encoding="utf-8")
-        base = api.solve(base_path, "numpy", steps=201)
+        base = api.solve(base_path, "numpy", steps=STEPS)
         for label, u, m in (("mm", 1000.0, 1.0), ("mass_1e6", 1.0, 1e6), ("mm_and_mass_1e6", 1000.0, 1e6)):
             path = folder / f"{name}_{label}.toml"
             path.write_text(in_units(text, u, m), encoding="utf-8")
-            other = api.solve(path, "numpy", steps=201)
+            other = api.solve(path, "numpy", steps=STEPS)
             worst = 0.0
             kinds: dict[str, list[int]] = {}
             for k, column in enumerate(base.columns[1:], start=1):
@@ -203,65 +199,6 @@ def long_part(folder: Path, instants: int, backend: str) -> dict[str, object]:
     return result
 
 
-# -- 4. cost -----------------------------------------------------------------------
-
-def _baseline_loop():
-    source = subprocess.run(["git", "-C", str(ROOT), "show", f"{BASELINE}:symid/solve.py"],
-                            capture_output=True, text=True, check=True).stdout
-    path = Path(tempfile.mkdtemp()) / "solve_baseline.py"
-    path.write_text(source)
-    spec = importlib.util.spec_from_file_location("solve_baseline", path)
-    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
-    sys.modules["solve_baseline"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)  # type: ignore[union-attr]
-    return module.run
-
-
-def _checks_cost(study) -> float:
-    """Microseconds per instant of the work the checks add on the normal path:
-    the damped step's two merit norms per Newton iteration, the branch test's
-    two scaled sizes, the cond warning's comparison (timed on this mechanism's
-    own arrays, times its mean Newton iterations)."""
-    import timeit
-
-    from symid.numeric.stability import Notes, Scaling
-
-    instants = list(solve.run(study.evaluator, study.analysis, study.q0()))
-    iterations = float(np.mean([i.iterations for i in instants]))
-    q = instants[len(instants) // 2].q
-    scaling = Scaling.of(study.evaluator.phi_q(q, 0.0), q)
-    phi = study.evaluator.phi(q, 0.0)
-    notes = Notes(study.analysis)
-    n = 20000
-    merit = timeit.timeit(lambda: scaling.merit(phi), number=n) / n
-    size = timeit.timeit(lambda: scaling.size(q - q), number=n) / n
-    cond = timeit.timeit(lambda: notes.cond(0.0, 10.0, 0), number=n) / n
-    return 1e6 * (2 * iterations * merit + 2 * size + cond)
-
-
-def cost_part(steps: int, repeats: int) -> list[dict[str, object]]:
-    baseline = _baseline_loop()
-    out = []
-    for name in api.examples():
-        study = api.prepare(api.example(name), "numpy", steps=steps)
-        loops = {"before": baseline, "now": solve.run}
-        best = {k: math.inf for k in loops}
-        for _ in range(repeats):  # interleaved, best of: the machine is shared
-            for label, loop in loops.items():
-                start = time.perf_counter()
-                for instant in loop(study.evaluator, study.analysis, study.q0()):
-                    row(instant, study.layout, study.analysis)
-                best[label] = min(best[label], time.perf_counter() - start)
-        entry = {"example": name, "steps": steps, "us_per_instant_before": 1e6 * best["before"] / steps,
-                 "us_per_instant_now": 1e6 * best["now"] / steps, "ratio": best["now"] / best["before"],
-                 "us_per_instant_in_new_checks": _checks_cost(study)}
-        out.append(entry)
-        print(f"cost {name:16s} before {entry['us_per_instant_before']:7.1f} us  now "
-              f"{entry['us_per_instant_now']:7.1f} us  ratio {entry['ratio']:.3f}  checks "
-              f"{entry['us_per_instant_in_new_checks']:.1f} us", flush=True)
-    return out
-
-
 # -- the plot ----------------------------------------------------------------------
 
 def plot(stress_rows: list[dict[str, object]], path: Path) -> None:
@@ -305,25 +242,21 @@ def plot(stress_rows: list[dict[str, object]], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer cases, 1e4 instants, 1 repeat")
-    parser.add_argument("--instants", type=int, default=None, help="long-run instants (default 1e6)")
-    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
-    args = parser.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    instants = args.instants or (10_000 if args.quick else 1_000_000)
-    folder = Path(tempfile.mkdtemp(prefix="symid-stability-"))
-    report: dict[str, object] = {"machine": machine(), "eps": EPS, "baseline_commit": BASELINE}
-    report["stress"] = stress_rows = stress_part(folder, args.quick)
-    report["units"] = units_part(folder)
-    report["long_run"] = [long_part(folder, instants, b) for b in ("numpy", "c") if b in available_backends()]
-    report["cost"] = cost_part(201 if args.quick else 2001, 1 if args.quick else 5)
-    (out / "stability.json").write_text(json.dumps(report, indent=1) + "\n")
-    plot(stress_rows, out / "stability.png")
-    print(f"wrote {out / 'stability.json'} and {out / 'stability.png'}")
+def _options(group: Any) -> None:
+    group.add_argument("--instants", type=int, default=1_000_000, help="long-run instants")
 
 
-if __name__ == "__main__":
-    main()
+def _plot(result: dict[str, Any], out: Path) -> list[Path]:
+    plot(result["figures"]["stress"], out / "stability.png")
+    return [out / "stability.png"]
+
+
+@register("stability", "accuracy near singular positions against 40-digit references, units, a long run's error "
+          "and memory", options=_options, report=_plot)
+def stability(ctx: Context) -> dict[str, Any]:
+    instants = 10_000 if ctx.smoke else ctx.options.instants  # fewer: steps of whole turns, a jump
+    report: dict[str, Any] = {"eps": EPS}
+    report["stress"] = stress_part(ctx.work, ctx.smoke)
+    report["units"] = units_part(ctx.work, ["slider_crank"] if ctx.smoke else api.examples())
+    report["long_run"] = [long_part(ctx.work, instants, b) for b in ("numpy", "c") if b in available_backends()]
+    return report

@@ -8,9 +8,8 @@ figures bit for bit), and once through `<name>_trajectory` variant by variant
 in chunks of 64 rows (what `symid solve` runs, no figures). Two sizes K1 < K2
 (multiples of the lanes) and (Ir(K2) - Ir(K1)) / ((K2 - K1) instants) leave
 out loading and setup. A lane's instruction does the work of several
-variants: its count is not comparable with a scalar one as time is.
-
-    python -m benchmarks.sweep_instructions
+variants: its count is not comparable with a scalar one as time is. Part of
+the overview's design study (`design_study.py`).
 """
 
 from __future__ import annotations
@@ -126,10 +125,3 @@ def per_instant(k1: int = 4, k2: int = 12, steps: int = 1001) -> dict[str, Any]:
     out["sweep_over_plain"] = out["sweep_instructions_per_instant"] / out["plain_instructions_per_instant"]
     out["lanes_over_scalar"] = out["sweep_instructions_per_instant"] / out["sweep_scalar_instructions_per_instant"]
     return out
-
-
-if __name__ == "__main__":
-    got = per_instant()
-    print(f"instructions per instant: sweep {got['sweep_instructions_per_instant']:.0f} (in lanes; one variant at "
-          f"a time {got['sweep_scalar_instructions_per_instant']:.0f}, ratio {got['lanes_over_scalar']:.3f}), plain "
-          f"trajectory loop {got['plain_instructions_per_instant']:.0f}, ratio {got['sweep_over_plain']:.3f}")
