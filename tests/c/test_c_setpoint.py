@@ -269,6 +269,40 @@ def test_computed_torque_of_a_pendulum_is_the_closed_form(tmp_path: Path, drive:
 
 
 
+# the pendulum driven by a row nonlinear in q, sin(phi_i) - f(t): its
+# set-point is s = sin(phi) (the pendulum's height over l), so phi = asin s,
+# phi' = s' / cos phi, phi'' = (s'' + sin(phi) phi'^2) / cos phi; the row's
+# Phi_phi = cos phi makes the torque on the bar T = -cos(phi) lambda
+SINE_PENDULUM = PENDULUM.replace(_coordinate("bar", "phi", "sin(t)"),
+                                 _constraint("drive", "expression", i='"bar"', phi='["sin(phi_i) - 0.5*sin(t)"]'))
+
+
+@needs_cc
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_computed_torque_through_a_nonlinear_expression_driver_is_the_closed_form(tmp_path: Path,
+                                                                                    precision: str) -> None:
+    """The set-points enter Phi, nu and gamma of a row whose g is not a
+    coordinate: gamma's sin(phi) phi'^2 and the effort's cos(phi) are the
+    row's, not the set-point's."""
+    solver = Solver(SINE_PENDULUM, tmp_path, precision)
+    assert solver.nd == 1
+    rng = np.random.default_rng(31)
+    bound = 1e-12 if precision == "double" else 1e-5  # as above
+    for height, rate, accel in zip(rng.uniform(-0.9, 0.9, 12), rng.uniform(-3, 3, 12), rng.uniform(-30, 30, 12)):
+        status, out = solver.call("setpoint", 0.0, solver.q0.astype(float),
+                                  (np.array([height]), np.array([rate]), np.array([accel])))
+        assert status == OK
+        phi = math.asin(height)  # Newton from phi = 0 stays on the principal branch
+        phid = rate / math.cos(phi)
+        phidd = (accel + math.sin(phi) * phid ** 2) / math.cos(phi)
+        tau = (J + M * L * L) * phidd + M * G * L * math.cos(phi)
+        scale = (J + M * L * L) * abs(phidd) + M * G * L  # the torque's terms' size at this sample
+        # phi' and phi'' to the bound of their own size (1/cos phi <= 2.3 amplifies the set-points' rounding)
+        assert abs(float(out["qd"][2]) - phid) <= bound * max(abs(phid), 1.0)
+        assert abs(float(out["qdd"][2]) - phidd) <= bound * max(abs(phidd), 1.0)
+        assert abs(out["reactions"][solver.reaction("drive.T_i")] - tau) <= bound * scale
+        assert abs(-math.cos(phi) * out["lam"][solver.rows[0]] - tau) <= bound * scale
+
 @needs_cc
 @pytest.mark.parametrize("kind", ["statics", "kinematics"])
 def test_statics_and_kinematics_setpoints_reproduce_instant(tmp_path: Path, kind: str) -> None:
