@@ -93,9 +93,9 @@ def context(model: CodeModel) -> tuple[c_target.CContext, dict[str, Any]]:
     for k, (driver, start) in enumerate(zip(sp_ctx.drivers, starts)):
         for n, (suffix, what) in enumerate(kinds):
             inputs.append((n, k))
+            law = "f of its row g(q) - f(t)" if driver.type == "expression" else f"the {driver.type}'s f"
             variables.append({"name": f"{driver.name}.{suffix}", "causality": "input", "variability": "continuous",
-                              "start": _xml_number(start[n]),
-                              "description": f"set-point: the {what} of the {driver.type}'s f"})
+                              "start": _xml_number(start[n]), "description": f"set-point: the {what} of {law}"})
     outputs = []  # (array, index) per output
     units = {c["name"]: c["unit"] for c in ctx.d.columns}
     for group, source, size, offset in ctx.row_parts:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -26,7 +27,7 @@ from symid import api
 from symid.codegen.model import code_model
 from symid.codegen import c as c_target
 from symid.io.reader import loads
-from symid.model.mechanism import T
+from symid.model.mechanism import DRIVER_TYPES, T
 from symid.model.params import parameter_values
 from symid.symbolic.assemble import assemble
 from symid.symbolic.derive import DerivedConstraint
@@ -149,6 +150,13 @@ def test_setpoints_of_the_compiled_law_reproduce_instant(doubles, tmp_path_facto
                                                          precision: str) -> None:
     reference = _solver(doubles, tmp_path_factory, example, "double")
     solver = reference if precision == "double" else _solver(doubles, tmp_path_factory, example, precision)
+    _reproduces_instant(reference, solver, example, precision)
+
+
+def _reproduces_instant(reference: Solver, solver: Solver, example: str, precision: str) -> None:
+    """setpoint fed the compiled laws (by sympy) against instant at 7 instants
+    of the file's grid (from reference's trajectory), each output group to
+    the precision's bound of its peak."""
     bound = DOUBLE_BOUND if precision == "double" else SINGLE_BOUND
     results: dict[str, list[np.ndarray]] = {"instant": [], "setpoint": []}
     for t, q in _instants(reference, 7):
@@ -168,6 +176,45 @@ def test_setpoints_of_the_compiled_law_reproduce_instant(doubles, tmp_path_facto
         assert np.max(np.abs(a - b)) <= bound * peak, (example, precision, key, np.max(np.abs(a - b)) / peak)
 
 
+def expression_drivers(source: str) -> str:
+    """A mechanism file with each relative_angle_driver written as an expression
+    driver row `phi_j - phi_i - (C) - (f)` (`phi_i - (C) - (f)` on the body
+    alone when i is the ground): the reference's Phi of the driver, the same
+    sign, so the same f and the same multiplier."""
+    def driver(m: re.Match) -> str:
+        block = m.group(0)
+        get = lambda k: (re.search(rf'^{k} = "?(.*?)"?\s*(#.*)?$', block, re.M) or [None, None])[1]  # noqa: E731
+        i, j, f, c = get("i"), get("j"), get("f"), get("C") or "0"
+        rows, bodies = ((f"phi_i - ({c}) - ({f})", f'i = "{j}"\n') if i == "ground" else
+                        (f"phi_j - phi_i - ({c}) - ({f})", f'i = "{i}"\nj = "{j}"\n'))
+        return f'[[constraint]]\nname = "{get("name")}"\ntype = "expression"\n{bodies}phi = ["{rows}"]\n\n'
+    out = re.sub(r'\[\[constraint\]\]\nname = .*\ntype = "relative_angle_driver"\n(?:.+\n)*\n', driver, source)
+    assert "relative_angle_driver" not in out and 'type = "expression"' in out
+    return out
+
+
+# the four-bar (one driver), the disc cam (its contact an expression row too)
+# and the slider pendulum (an expression driver with an offset, between the
+# carriage's translational driver's row and the rest)
+EXPRESSION_DRIVEN = ("four_bar", "disc_cam", "slider_pendulum")
+
+
+@needs_cc
+@pytest.mark.parametrize("precision", ["double", "single"])
+@pytest.mark.parametrize("example", EXPRESSION_DRIVEN)
+def test_setpoints_of_an_expression_driver_reproduce_instant(tmp_path: Path, example: str, precision: str) -> None:
+    """An expression driver row g(q) - f(t) is a driver of setpoint (its f
+    the set-point), listed in the order of its row among the others."""
+    source = expression_drivers(api.example(example).read_text())
+    reference = Solver(source, tmp_path / "double")
+    solver = reference if precision == "double" else Solver(source, tmp_path / precision, precision)
+    drivers = [c.name for c in reference.mech.constraints if c.type in DRIVER_TYPES or "f" in c.values]
+    assert any(c.type == "expression" and c.name in drivers for c in reference.mech.constraints)
+    assert [d.name for d in reference.ctx["setpoint"]["drivers"]] == drivers
+    assert reference.rows == sorted(reference.rows) and len(reference.rows) == len(drivers)
+    _reproduces_instant(reference, solver, example, precision)
+
+
 # A pendulum: a bar of mass m and inertia J about its centre of mass, pinned
 # to the ground at l behind it, its angle phi driven by a coordinate driver
 # (the law in the file, sin(t), is never read by setpoint). The centre of
@@ -179,27 +226,36 @@ PENDULUM = text("pendulum_ct",
                 + _constraint("pin", "revolute", i='"ground"', j='"bar"', si="[0.0, 0.0]", sj=f"[{-L}, 0.0]")
                 + _coordinate("bar", "phi", "sin(t)"),
                 gravity=-G)
+# the same pendulum driven by an expression row: its set-point is the f of
+# the row g(q) - f(t), here phi (sign 1) or, the row written f - phi, -phi
+EXPRESSION_DRIVES = {"phi_i - sin(t)": 1, "sin(t) - phi_i": -1}
+PENDULUMS = {"coordinate_driver": (PENDULUM, "drive_phi", 1)}
+PENDULUMS.update({row: (PENDULUM.replace(_coordinate("bar", "phi", "sin(t)"),
+                                         _constraint("drive", "expression", i='"bar"', phi=f'["{row}"]')),
+                        "drive", sign) for row, sign in EXPRESSION_DRIVES.items()})
 
 
 @needs_cc
 @pytest.mark.parametrize("precision", ["double", "single"])
-def test_computed_torque_of_a_pendulum_is_the_closed_form(tmp_path: Path, precision: str) -> None:
-    solver = Solver(PENDULUM, tmp_path, precision)
+@pytest.mark.parametrize("drive", PENDULUMS)
+def test_computed_torque_of_a_pendulum_is_the_closed_form(tmp_path: Path, drive: str, precision: str) -> None:
+    source, driver, sign = PENDULUMS[drive]
+    solver = Solver(source, tmp_path, precision)
     assert solver.nd == 1
     rng = np.random.default_rng(30)
     bound = 1e-12 if precision == "double" else 1e-5  # of the torque's scale (single: README's bound)
     q = solver.q0.astype(float)
     for phi, rate, accel in zip(rng.uniform(-3, 3, 12), rng.uniform(-5, 5, 12), rng.uniform(-40, 40, 12)):
         t = float(rng.uniform(0, 10))  # read by nothing: no other function of time
-        status, out = solver.call("setpoint", t, q, (np.array([phi]), np.array([rate]), np.array([accel])))
+        status, out = solver.call("setpoint", t, q, tuple(sign * np.array([v]) for v in (phi, rate, accel)))
         assert status == OK
         tau = (J + M * L * L) * accel + M * G * L * math.cos(phi)
         scale = (J + M * L * L) * 40 + M * G * L
-        # the coordinate driver's reaction on the bar: [Fx, Fy, T] at its centre of mass, T = -lambda
-        reaction = out["reactions"][solver.reaction("drive_phi.T_i")]
+        # the driver's reaction on the bar: [Fx, Fy, T] at its centre of mass, T = -Phi_phi lambda = -sign lambda
+        reaction = out["reactions"][solver.reaction(f"{driver}.T_i")]
         lam = out["lam"][solver.rows[0]]
         assert abs(reaction - tau) <= bound * scale, (reaction, tau)
-        assert abs(-lam - tau) <= bound * scale
+        assert abs(-sign * lam - tau) <= bound * scale
         # single reads the driver's row modulo 2 pi (the header says so): the angle to whole turns
         assert abs(math.remainder(float(out["q"][2]) - phi, 2 * math.pi)) <= (1e-12 if precision == "double" else 1e-6)
         assert abs(float(out["qd"][2]) - rate) <= bound * 5
@@ -212,6 +268,40 @@ def test_computed_torque_of_a_pendulum_is_the_closed_form(tmp_path: Path, precis
         q = out["q"]
 
 
+
+# the pendulum driven by a row nonlinear in q, sin(phi_i) - f(t): its
+# set-point is s = sin(phi) (the pendulum's height over l), so phi = asin s,
+# phi' = s' / cos phi, phi'' = (s'' + sin(phi) phi'^2) / cos phi; the row's
+# Phi_phi = cos phi makes the torque on the bar T = -cos(phi) lambda
+SINE_PENDULUM = PENDULUM.replace(_coordinate("bar", "phi", "sin(t)"),
+                                 _constraint("drive", "expression", i='"bar"', phi='["sin(phi_i) - 0.5*sin(t)"]'))
+
+
+@needs_cc
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_computed_torque_through_a_nonlinear_expression_driver_is_the_closed_form(tmp_path: Path,
+                                                                                    precision: str) -> None:
+    """The set-points enter Phi, nu and gamma of a row whose g is not a
+    coordinate: gamma's sin(phi) phi'^2 and the effort's cos(phi) are the
+    row's, not the set-point's."""
+    solver = Solver(SINE_PENDULUM, tmp_path, precision)
+    assert solver.nd == 1
+    rng = np.random.default_rng(31)
+    bound = 1e-12 if precision == "double" else 1e-5  # as above
+    for height, rate, accel in zip(rng.uniform(-0.9, 0.9, 12), rng.uniform(-3, 3, 12), rng.uniform(-30, 30, 12)):
+        status, out = solver.call("setpoint", 0.0, solver.q0.astype(float),
+                                  (np.array([height]), np.array([rate]), np.array([accel])))
+        assert status == OK
+        phi = math.asin(height)  # Newton from phi = 0 stays on the principal branch
+        phid = rate / math.cos(phi)
+        phidd = (accel + math.sin(phi) * phid ** 2) / math.cos(phi)
+        tau = (J + M * L * L) * phidd + M * G * L * math.cos(phi)
+        scale = (J + M * L * L) * abs(phidd) + M * G * L  # the torque's terms' size at this sample
+        # phi' and phi'' to the bound of their own size (1/cos phi <= 2.3 amplifies the set-points' rounding)
+        assert abs(float(out["qd"][2]) - phid) <= bound * max(abs(phid), 1.0)
+        assert abs(float(out["qdd"][2]) - phidd) <= bound * max(abs(phidd), 1.0)
+        assert abs(out["reactions"][solver.reaction("drive.T_i")] - tau) <= bound * scale
+        assert abs(-math.cos(phi) * out["lam"][solver.rows[0]] - tau) <= bound * scale
 
 @needs_cc
 @pytest.mark.parametrize("kind", ["statics", "kinematics"])
@@ -255,7 +345,13 @@ SENSITIVITY_CASES = {
     # (read by its rows' rates), its stroke s_amp read by its law only
     "slider_pendulum": (api.example("slider_pendulum").read_text(), ("alpha", "s_amp", "h_hinge"), "s_amp"),
     "offset_pendulum": (OFFSET_PENDULUM, ("phi_off", "amp", "m_bar"), "amp"),
+    # the same drive as an expression row: phi_off in g(q) (its constant c_0), amp in f(t)
+    "expression_offset_pendulum": (OFFSET_PENDULUM.replace(
+        _constraint("drive", "relative_angle_driver", i='"ground"', j='"bar"', f='"amp*sin(t)"', C='"phi_off"'),
+        _constraint("drive", "expression", i='"bar"', phi='["phi_i - phi_off - amp*sin(t)"]')),
+        ("phi_off", "amp", "m_bar"), "amp"),
 }
+assert 'type = "expression"' in SENSITIVITY_CASES["expression_offset_pendulum"][0]
 
 
 @needs_cc

@@ -19,7 +19,7 @@ import pytest
 
 from symid import api
 from symid.io.reader import load, loads
-from test_c_setpoint import PENDULUM, laws
+from test_c_setpoint import PENDULUM, expression_drivers, laws
 
 fmpy = pytest.importorskip("fmpy", reason="FMPy is the test extra's FMI importer (pip install fmpy)")
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
@@ -95,6 +95,23 @@ def test_fmu_validates_and_matches_solve_on_the_slider_crank(tmp_path: Path) -> 
 @pytest.mark.parametrize("example", [e for e in api.examples() if e != "slider_crank"])
 def test_fmu_validates_and_matches_solve_on_every_example(tmp_path: Path, example: str) -> None:
     _check_against_solve(example, tmp_path)
+
+
+@needs_cc
+@pytest.mark.parametrize("example", ["four_bar", "slider_pendulum"])
+def test_fmu_takes_an_expression_driver_as_inputs_and_matches_solve(tmp_path: Path, example: str) -> None:
+    """The examples' angle drivers written as expression rows g(q) - f(t):
+    each is a driver whose three set-points are inputs (the slider
+    pendulum's after its carriage's translational driver, by row)."""
+    from fmpy import read_model_description
+
+    text = expression_drivers(api.example(example).read_text())
+    _check_against_solve(example, tmp_path, text)
+    md = read_model_description(str(tmp_path / f"{example}.fmu"))
+    inputs = {v.name: v.description for v in md.modelVariables if v.causality == "input"}
+    motor = next(c.name for c in loads(text, "m.toml").constraints if c.type == "expression" and "f" in c.values)
+    assert list(inputs)[-3:] == [f"{motor}.{s}" for s in ("q_des", "qd_des", "qdd_des")]
+    assert inputs[f"{motor}.q_des"] == "set-point: the value of f of its row g(q) - f(t)"
 
 
 @needs_cc

@@ -4,7 +4,8 @@
 driver row reads the caller's desired value, rate and second rate instead of
 its motion law f(t), f'(t), f''(t): the feed-forward of a computed-torque
 controller. A driver is a constraint whose family has a time function (the
-relative angle, coordinate, distance and translational drivers); its rows
+relative angle, coordinate, distance and translational drivers, and an
+expression constraint whose row has t, read as g(q) - f(t)); its rows
 are derived once per family on the symbols f, fd, fdd (`symid.symbolic.derive`),
 so substituting the set-points for them gives its Phi, nu and gamma rows for
 every driver type. The rows are computed by small kernels that overwrite the
