@@ -210,7 +210,7 @@ def test_setpoints_of_an_expression_driver_reproduce_instant(tmp_path: Path, exa
     solver = reference if precision == "double" else Solver(source, tmp_path / precision, precision)
     drivers = [c.name for c in reference.mech.constraints if c.type in DRIVER_TYPES or "f" in c.values]
     assert any(c.type == "expression" and c.name in drivers for c in reference.mech.constraints)
-    assert [d.name for d in reference.ctx["setpoint"]["drivers"]] == drivers
+    assert [d.name for d in reference.ctx.setpoint.drivers] == drivers
     assert reference.rows == sorted(reference.rows) and len(reference.rows) == len(drivers)
     _reproduces_instant(reference, solver, example, precision)
 
