@@ -12,11 +12,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from symid.errors import InputError
+from symid.errors import EXIT_DOES_NOT_FIT, InputError  # noqa: F401 (the size command's status)
 from symid.sizing.bearings import Life, life
 from symid.sizing.motor import Load, Motor, Verdict, motor_of, verdict
 
-EXIT_DOES_NOT_FIT = 4
 # what a run must write for sizing: every column group (and every reaction: `for_sizing`)
 ANALYSIS = {"outputs": ["q", "qdot", "qddot", "lambda", "reactions"]}
 
