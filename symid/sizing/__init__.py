@@ -62,15 +62,19 @@ def load_of(mechanism: Any, table: Any, driver: str, values: Mapping[Any, float]
     return Load(e.t, e.value, e.rate, accel), unit, e.rate_unit
 
 
-def size(mechanism: Any, table: Any) -> Report:
+def size(mechanism: Any, table: Any, values: Mapping[Any, float] | None = None) -> Report:
     """Size the mechanism's drives and bearings from a solved run's table
-    (one solved with `ANALYSIS`: speeds and every reaction)."""
+    (one solved with `ANALYSIS`: speeds and every reaction).
+
+    Args:
+        values: every parameter's value (default: the mechanism's own).
+    """
     from symid.model.params import parameter_values
 
     if mechanism.analysis.kind != "inverse_dynamics":
         raise InputError(f"{mechanism.source}: [analysis] key 'kind': sizing needs inverse_dynamics "
                          f"(speeds and accelerations), not {mechanism.analysis.kind}")
-    values = parameter_values(mechanism.parameters)
+    values = parameter_values(mechanism.parameters) if values is None else values
     drives = []
     for d in mechanism.sizing.drives:
         load, unit, rate = load_of(mechanism, table, d.driver, values)
@@ -79,3 +83,37 @@ def size(mechanism: Any, table: Any) -> Report:
     joints = {c.name: c for c in mechanism.constraints}
     lives = tuple(life(b, joints[b.joint], table, values, mechanism.source) for b in mechanism.sizing.bearings)
     return Report(tuple(drives), lives)
+
+
+# the study figures (`symid.study.figures`): per drive on driver D, per bearing on joint C
+DRIVE_FIGURES = ("motor_rms", "motor_peak", "fits")
+BEARING_FIGURES = ("L10_h",)
+
+
+def figure_names(mechanism: Any) -> tuple[str, ...]:
+    """`D.motor_rms D.motor_peak D.fits` per drive, then `C.L10_h` per bearing
+    (none unless the run is inverse dynamics)."""
+    if mechanism.analysis.kind != "inverse_dynamics":
+        return ()
+    return tuple([f"{d.driver}.{f}" for d in mechanism.sizing.drives for f in DRIVE_FIGURES]
+                 + [f"{b.joint}.{f}" for b in mechanism.sizing.bearings for f in BEARING_FIGURES])
+
+
+def figures(mechanism: Any, table: Any, values: Mapping[Any, float] | None = None) -> list[float]:
+    """The values of `figure_names` for one solved table (`fits` 1 or 0; a
+    bearing whose joint does not turn: NaN, its life undefined)."""
+    from symid.model.params import parameter_values
+
+    values = parameter_values(mechanism.parameters) if values is None else values
+    out: list[float] = []
+    for d in mechanism.sizing.drives:
+        load, unit, rate = load_of(mechanism, table, d.driver, values)
+        v = verdict(load, motor_of(d, values), unit, rate)
+        out += [v.motor_rms, v.motor_peak, float(v.fits)]
+    joints = {c.name: c for c in mechanism.constraints}
+    for b in mechanism.sizing.bearings:
+        try:
+            out.append(life(b, joints[b.joint], table, values, mechanism.source).L10_h)
+        except InputError:
+            out.append(float("nan"))
+    return out

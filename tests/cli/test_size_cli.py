@@ -12,7 +12,7 @@ import pytest
 from symid import api
 from symid.cli import main
 
-SLIDER_CRANK = api.example("slider_crank")
+SLIDER_CRANK = api.example("slider_crank_sized")
 
 
 def _variant(tmp_path: Path, old: str, new: str, name: str = "sc.toml") -> Path:

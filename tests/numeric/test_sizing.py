@@ -191,7 +191,7 @@ def test_bundled_slider_crank_motor_from_power_balance():
     loads' power, divided by the crank speed: no multiplier used); at constant
     speed the rotor adds nothing, so the motor gives tau / (n eta) where it
     drives and tau eta / n where the load drives, at n omega."""
-    mech = sizing.for_sizing(api.load_mechanism(api.example("slider_crank"), **sizing.ANALYSIS))
+    mech = sizing.for_sizing(api.load_mechanism(api.example("slider_crank_sized"), **sizing.ANALYSIS))
     results = api.solve(mech)
     report = sizing.size(mech, results)
     truth = Truth(mech, results)
@@ -204,3 +204,55 @@ def test_bundled_slider_crank_motor_from_power_balance():
     assert v.motor_rms == pytest.approx(math.sqrt(np.trapezoid(motor ** 2, truth.t) / truth.t[-1]), rel=1e-8)
     assert v.speed_peak == pytest.approx(n * omega, rel=1e-12)
     assert report.fits and v.why == ()
+
+
+@pytest.mark.parametrize("ratio", ["ratio = 10.0", "ratio = [1.0, 100.0]"])
+def test_motor_figure_gradients_match_central_differences(ratio):
+    """d motor_rms / dA and d motor_peak / dA of the sinusoidal flywheel (A moves
+    the acceleration the rotor sees and the load torque), at a fixed ratio and
+    at the best of a range (which moves with A: first order nothing), against
+    central differences of the figures (h = 1e-5 A: truncation ~1e-10)."""
+    from symid.model.mechanism import parameter_symbol
+    from symid.model.params import parameter_values
+    from symid.output.results import columns
+    from symid.study.figures import figure_names
+    from symid.study.gradients import figure_gradients, needed_columns
+    from symid.study.slow import figures_of, solve_variant, study_analysis, with_values
+    from symid.symbolic.assemble import assemble
+    from symid.tools.sensitive import solver
+
+    # a back-driving efficiency: the side each instant is on enters the gradient
+    mech = study_analysis(loads(flywheel("A*sin(w*t)", f"{ratio}\nefficiency = 0.8\nback_efficiency = 0.7\n" + MOTOR,
+                                         steps=201), "flywheel.toml"))
+    results = solver("numpy")(mech, ["A"], needed_columns(mech, columns(assemble(mech), mech.analysis)))
+    grads = figure_gradients(mech, results, ["A"])
+    names = figure_names(mech)
+    p = parameter_values(mech.parameters)[parameter_symbol("A")]
+    h = 1e-5 * p
+    up, down = with_values(mech, ["A"], [p + h]), with_values(mech, ["A"], [p - h])
+    central = (figures_of(up, solve_variant(up, "numpy")) - figures_of(down, solve_variant(down, "numpy"))) / (2 * h)
+    for figure in ("motor.motor_rms", "motor.motor_peak"):
+        k = names.index(figure)
+        assert grads[k, 0] == pytest.approx(central[k], rel=1e-6), figure
+    assert math.isnan(grads[names.index("motor.fits"), 0]) and math.isnan(grads[names.index("pin.L10_h"), 0])
+
+
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+def test_sweep_figures_of_drives_and_bearings_are_each_variants_closed_form(backend):
+    """A sweep over A of the sinusoidal flywheel (eta = 1, n = 10): per variant
+    motor_rms (J_m n + J_L / n) A w^2 / sqrt(2), fits while it stays under the
+    continuous 0.2 N m (0.078, 0.156, 0.313), and L10_h of the pin at m g over the mean speed 2 A w / pi."""
+    from symid.study.engine import solve_figures
+
+    J_m, n, w, C = 2e-4, 10.0, 2 * math.pi, 5000.0
+    motor = "rotor_inertia = 2e-4\ncontinuous_torque = 0.2\npeak_torque = 200.0\nmax_speed = 1e4\n"
+    mech = loads(flywheel("A*sin(w*t)", f"ratio = {n}\n" + motor, steps=4001), "flywheel.toml")
+    amplitudes = np.array([[0.4], [0.8], [1.6]])
+    got = solve_figures(mech, ["A"], amplitudes, backend=backend)
+    column = {name: got.values[:, k] for k, name in enumerate(got.names)}
+    rms = (J_m * n + J_LOAD / n) * amplitudes[:, 0] * w * w / math.sqrt(2)
+    np.testing.assert_allclose(column["motor.motor_rms"], rms, rtol=1e-9)
+    np.testing.assert_array_equal(column["motor.fits"], (rms <= 0.2).astype(float))
+    assert list(column["motor.fits"]) == [1.0, 1.0, 0.0]
+    hours = (C / (M * G)) ** 3 * 1e6 * 2 * math.pi / (2 * amplitudes[:, 0] * w / math.pi) / 3600
+    np.testing.assert_allclose(column["pin.L10_h"], hours, rtol=1e-5)  # the kink of |cos|: see above

@@ -222,7 +222,7 @@ def test_solve_plot_writes_the_pngs_beside_the_table(tmp_path, capsys):
     out = tmp_path / "sc.csv"
     assert main(["solve", str(api.example("slider_crank")), "-o", str(out), "--steps", "21", "--plot"]) == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "sc.csv", "sc_efforts.png", "sc_mechanism.png", "sc_reactions.png", "sc_sizing.png"]  # it has a drive
+        "sc.csv", "sc_efforts.png", "sc_mechanism.png", "sc_reactions.png"]
     assert "motor: peak torque" in capsys.readouterr().out
 
 

@@ -19,7 +19,7 @@ def _line(fig, gid):
 
 
 def test_envelope_trajectory_rms_point_and_bearing_bars():
-    mech = sizing.for_sizing(api.load_mechanism(api.example("slider_crank"), steps=41, **sizing.ANALYSIS))
+    mech = sizing.for_sizing(api.load_mechanism(api.example("slider_crank_sized"), steps=41, **sizing.ANALYSIS))
     report = sizing.size(mech, api.solve(mech))
     fig = sizing_figure(report, mech.name)
     v = report.drives[0]
@@ -38,6 +38,6 @@ def test_envelope_trajectory_rms_point_and_bearing_bars():
 
 
 def test_size_plot_writes_one_png(tmp_path, capsys):
-    assert main(["size", str(api.example("slider_crank")), "--plot", "-o", str(tmp_path)]) == 0
-    assert [p.name for p in tmp_path.iterdir()] == ["slider_crank_sizing.png"]
-    assert (tmp_path / "slider_crank_sizing.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["size", str(api.example("slider_crank_sized")), "--plot", "-o", str(tmp_path)]) == 0
+    assert [p.name for p in tmp_path.iterdir()] == ["slider_crank_sized_sizing.png"]
+    assert (tmp_path / "slider_crank_sized_sizing.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
