@@ -28,7 +28,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def cmd_size(args: argparse.Namespace) -> int:
-    from symid import api, sizing
+    from symid import api
+    from symid.output import sizing
     from symid.errors import InputError
 
     mech = api.load_mechanism(args.file, set_values(args.set, args.file), **sizing.ANALYSIS)

@@ -3,7 +3,7 @@ bearings on revolutes (`bearing = {...}`), as plain data.
 
 Values are expressions of the parameters, as everywhere in the model: a
 study that varies a parameter varies the motor or the bearing it defines.
-Sizing itself is post-processing of a solved run (`symid.sizing`).
+Sizing itself is post-processing of a solved run (`symid.output.sizing`).
 """
 
 from __future__ import annotations

@@ -241,7 +241,7 @@ class Written:
 
 def _sizing_figure(table: Table, mechanism: Mechanism) -> "Figure":
     """The sizing picture of a table (ValueError: it lacks a column sizing reads)."""
-    from symid import sizing
+    from symid.output import sizing
     from symid.errors import InputError
     from symid.output.sizing_plot import sizing_figure
 

@@ -21,7 +21,7 @@ from symid.output.plot import _figure, save
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from symid.sizing import Report
+    from symid.output.sizing import Report
 
 
 def sizing_figure(report: Report, name: str) -> "Figure":

@@ -119,7 +119,7 @@ def _motor_gradients(out: Array, at: Mapping[str, int], c: Element, d: _Driver, 
     driver's acceleration a; the best ratio of a range moves without changing
     RMS to first order (its derivative in n is 0 there, or n sits on a bound).
     NaN when the drive's own values depend on a parameter differentiated."""
-    from symid.sizing.motor import Load, best_ratio, motor_of, split
+    from symid.output.sizing.motor import Load, best_ratio, motor_of, split
 
     drive = next(x for x in mechanism.sizing.drives if x.driver == c.name)
     definitions = dict(mechanism.parameters)

@@ -84,7 +84,7 @@ def figures_of(mechanism: Mechanism, results: Results) -> Array:
         if peaks:
             out[at[name]] = float(max(peaks))
     if mechanism.sizing and mechanism.analysis.kind == "inverse_dynamics":  # drives and bearings: last
-        from symid import sizing
+        from symid.output import sizing
 
         got = sizing.figures(mechanism, results)
         out[len(names) - len(got):] = got

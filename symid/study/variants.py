@@ -118,7 +118,7 @@ class Measure:
             out[k] = max(float(np.max(np.hypot(data[:, x], data[:, y]))) for x, y in pairs)
             k += 1
         if self.sizing is not None:  # drives and bearings: post-processing of the whole table
-            from symid import sizing
+            from symid.output import sizing
             from symid.output.results import Results
 
             got = sizing.figures(self.sizing, Results(self.columns, data), values)

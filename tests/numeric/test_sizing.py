@@ -11,9 +11,10 @@ import math
 import numpy as np
 import pytest
 
-from symid import api, sizing
+from symid import api
+from symid.output import sizing
 from symid.io.reader import loads
-from symid.sizing import motor as motors
+from symid.output.sizing import motor as motors
 from truth import Truth
 
 # A flywheel (CM on its pin: the pin carries m g and whatever acts at the

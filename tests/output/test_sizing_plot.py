@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from symid import api, sizing
+from symid import api
+from symid.output import sizing
 from symid.cli import main
 from symid.output.sizing_plot import sizing_figure
 

@@ -13,8 +13,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from symid.errors import EXIT_DOES_NOT_FIT, InputError  # noqa: F401 (the size command's status)
-from symid.sizing.bearings import Life, life
-from symid.sizing.motor import Load, Motor, Verdict, motor_of, verdict
+from symid.output.sizing.bearings import Life, life
+from symid.output.sizing.motor import Load, Motor, Verdict, motor_of, verdict
 
 # what a run must write for sizing: every column group (and every reaction: `for_sizing`)
 ANALYSIS = {"outputs": ["q", "qdot", "qddot", "lambda", "reactions"]}

@@ -25,7 +25,7 @@ from symid.backends import Array
 from symid.errors import InputError
 from symid.model.mechanism import GROUND, Element
 from symid.model.sizing import Bearing
-from symid.sizing.motor import weights
+from symid.output.sizing.motor import weights
 
 
 @dataclass(frozen=True)
