@@ -30,14 +30,17 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 def cmd_size(args: argparse.Namespace) -> int:
     from symid import api
     from symid.output import sizing
-    from symid.errors import InputError
+    from symid.errors import EXIT_DOES_NOT_FIT, InputError
 
     mech = api.load_mechanism(args.file, set_values(args.set, args.file), **sizing.ANALYSIS)
     if not mech.sizing:
         raise InputError(f"{args.file}: nothing to size: no [[drive]] and no revolute with a bearing "
                          "(symid help sizing)")
     mech = sizing.for_sizing(mech)
-    report = sizing.size(mech, api.prepare(mech, args.backend).solve())
+    results = api.prepare(mech, args.backend).solve()
+    if results.error is not None:  # a part of the cycle sizes nothing: exit 3, naming the instant
+        raise results.error
+    report = sizing.size(mech, results)
     if args.json:
         print(json.dumps(_nulls(report.json())))
     else:
@@ -46,7 +49,7 @@ def cmd_size(args: argparse.Namespace) -> int:
         from symid.output.sizing_plot import write
 
         print(f"wrote {write(report, mech.name, args.output)}", file=sys.stderr)
-    return 0 if report.fits else sizing.EXIT_DOES_NOT_FIT
+    return 0 if report.fits else EXIT_DOES_NOT_FIT
 
 
 def _nulls(data: dict[str, object]) -> dict[str, object]:

@@ -93,3 +93,11 @@ def test_a_bearing_on_a_joint_that_does_not_turn(tmp_path, capsys):
     assert main(["size", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{path}: constraint 'main_bearing' key 'bearing': the joint does not rotate" in err[0]
+
+
+def test_a_run_that_fails_exits_3_naming_the_instant(tmp_path, capsys):
+    """A rod shorter than the crank locks the mechanism part-way: nothing is sized from half a cycle."""
+    path = _variant(tmp_path, "L_rod = 0.3 ", "L_rod = 0.05 ")
+    assert main(["size", str(path)]) == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"symid: {path}: t = ")

@@ -12,7 +12,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from symid.errors import EXIT_DOES_NOT_FIT, InputError  # noqa: F401 (the size command's status)
+from symid.errors import InputError
 from symid.output.sizing.bearings import Life, life
 from symid.output.sizing.motor import Load, Motor, Verdict, motor_of, verdict
 

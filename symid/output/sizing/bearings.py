@@ -21,7 +21,6 @@ from typing import Mapping
 
 import numpy as np
 
-from symid.backends import Array
 from symid.errors import InputError
 from symid.model.mechanism import GROUND, Element
 from symid.model.sizing import Bearing
