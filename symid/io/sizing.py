@@ -90,7 +90,27 @@ def _drive(data: dict[str, Any], driver: str, where: str, value_of: Number, fail
         if w_c > w_max:
             raise fail(f"{where} key 'corner_speed'", f"{shown(w_c)} is above max_speed {shown(w_max)}: "
                        "the envelope is not monotone (the peak torque falls from corner_speed to 0 at max_speed)")
-    return Drive(driver, ratio, efficiency, back, inertia, continuous, peak, top, corner)  # type: ignore[arg-type]
+    curve = None
+    if "envelope" in data:
+        curve = _envelope(data["envelope"], f"{where} key 'envelope'", "corner_speed" in data, value_of, fail)
+    return Drive(driver, ratio, efficiency, back, inertia, continuous, peak, top, corner, curve)  # type: ignore[arg-type]
+
+
+def _envelope(raw: Any, at: str, corner: bool, value_of: Number, fail: Fail) -> tuple[tuple[sp.Expr, sp.Expr], ...]:
+    """`envelope = [[speed, torque], ...]`: at least 2 points, speeds from 0
+    increasing, torques positive and not increasing (a monotone envelope)."""
+    if corner:
+        raise fail(at, "give corner_speed or envelope, not both")
+    if not isinstance(raw, list) or len(raw) < 2 or not all(isinstance(p, list) and len(p) == 2 for p in raw):
+        raise fail(at, "must be a list of at least 2 [speed, torque] points")
+    points = [(value_of(w, at), value_of(T, at)) for w, T in raw]
+    speeds, torques = [w[1] for w, _ in points], [T[1] for _, T in points]
+    if speeds[0] < 0 or any(b <= a for a, b in zip(speeds, speeds[1:])):
+        raise fail(at, f"the speeds must start at 0 or above and increase (they are {', '.join(map(shown, speeds))})")
+    if any(T < 0 for T in torques) or any(b > a for a, b in zip(torques, torques[1:])):
+        raise fail(at, f"not monotone: the torques must not increase with speed "
+                       f"(they are {', '.join(map(shown, torques))})")
+    return tuple((w[0], T[0]) for w, T in points)
 
 
 def bearing(raw: Any, element: str, kind: str, where: str, value_of: Number, fail: Fail) -> Bearing:

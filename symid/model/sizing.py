@@ -14,7 +14,7 @@ import sympy as sp
 
 # the [[drive]] keys, in the order the docs list them
 DRIVE_KEYS = ("driver", "ratio", "efficiency", "back_efficiency", "rotor_inertia", "continuous_torque",
-              "peak_torque", "max_speed", "corner_speed")
+              "peak_torque", "max_speed", "corner_speed", "envelope")
 BEARING_KEYS = ("C", "p")
 
 
@@ -30,6 +30,8 @@ class Drive:
         continuous_torque, peak_torque: N m (N); max_speed: rad/s (m/s) at the motor.
         corner_speed: where the peak torque starts falling linearly to 0 at
             max_speed; None: the peak holds up to max_speed.
+        envelope: instead of corner_speed, the torque-speed curve as points
+            ((speed, torque), ...), speeds increasing, torques not increasing.
     """
 
     driver: str
@@ -41,6 +43,7 @@ class Drive:
     peak_torque: sp.Expr
     max_speed: sp.Expr
     corner_speed: sp.Expr | None = None
+    envelope: tuple[tuple[sp.Expr, sp.Expr], ...] | None = None
 
     @property
     def chooses_ratio(self) -> bool:

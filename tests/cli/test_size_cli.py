@@ -62,6 +62,11 @@ BAD = [  # (old text, new text, the key the line names, a phrase of it)
     ("peak_torque = 1.91", "peak_torque = 0.5", "drive 'motor' key 'peak_torque'", "not monotone"),
     ("rotor_inertia = 1.4e-5", "rotor_inertia = -1.4e-5", "drive 'motor' key 'rotor_inertia'", "must be in [0"),
     ("max_speed = 628.0", "top_speed = 628.0", "[[drive]] #1 key 'top_speed'", "unknown key"),
+    ("corner_speed = 314.0", "envelope = [[0.0, 1.91], [314.0, 1.95], [628.0, 0.0]]",
+     "drive 'motor' key 'envelope'", "not monotone"),
+    ("corner_speed = 314.0", "envelope = [[0.0, 1.91], [0.0, 1.5]]", "drive 'motor' key 'envelope'", "increase"),
+    ("corner_speed = 314.0", "corner_speed = 314.0\nenvelope = [[0.0, 1.91], [628.0, 0.0]]",
+     "drive 'motor' key 'envelope'", "not both"),
     ('name = "cylinder_guide"\ntype = "translational"', 'name = "cylinder_guide"\ntype = "translational"\n'
      'bearing = { C = 1000.0 }', "constraint 'cylinder_guide' key 'bearing'", "no rotation"),
     ("bearing = { C = 13500.0, p = 3 }", "bearing = { C = -1.0, p = 3 }", "constraint 'main_bearing' key 'bearing.C'",

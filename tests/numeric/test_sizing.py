@@ -257,3 +257,17 @@ def test_sweep_figures_of_drives_and_bearings_are_each_variants_closed_form(back
     assert list(column["motor.fits"]) == [1.0, 1.0, 0.0]
     hours = (C / (M * G)) ** 3 * 1e6 * 2 * math.pi / (2 * amplitudes[:, 0] * w / math.pi) / 3600
     np.testing.assert_allclose(column["pin.L10_h"], hours, rtol=1e-5)  # the kink of |cos|: see above
+
+
+def test_envelope_from_points_is_their_interpolation_capped_by_the_peak():
+    """Points (0, 3), (4, 2), (8, 1) under a peak of 2.5 and max_speed 9: 2.5
+    (capped) at 0, 2.25 at 3, 2 at 4, 1.5 at 6, 1 at 8, 0 past the last point."""
+    m = motors.Motor("d", (1.0, 1.0), 1.0, 1.0, 0.0, 1.0, 2.5, 9.0, None, ((0.0, 3.0), (4.0, 2.0), (8.0, 1.0)))
+    np.testing.assert_allclose(m.available(np.array([0.0, 3.0, -4.0, 6.0, 8.0, 8.5, 10.0])),
+                               [2.5, 2.25, 2.0, 1.5, 1.0, 0.0, 0.0])
+
+
+def test_envelope_points_are_read_from_the_file():
+    text = flywheel("A*sin(w*t)", MOTOR + "envelope = [[0.0, 200.0], [5000.0, \"100 + 50\"], [1e4, 0.0]]\n")
+    drive = loads(text, "flywheel.toml").sizing.drives[0]
+    assert [(float(w), float(T)) for w, T in drive.envelope] == [(0.0, 200.0), (5000.0, 150.0), (1e4, 0.0)]

@@ -53,11 +53,18 @@ class Motor:
     peak_torque: float
     max_speed: float
     corner_speed: float | None
+    envelope: tuple[tuple[float, float], ...] | None = None
 
     def available(self, speed: Array) -> Array:
         """The peak torque the motor gives at motor speeds `speed` (either sign):
-        the peak up to the corner speed, falling linearly to 0 at max_speed, 0 beyond."""
+        the peak up to the corner speed, falling linearly to 0 at max_speed, 0
+        beyond; with `envelope` points, their linear interpolation (capped by
+        the peak, 0 past the last point or max_speed)."""
         w = np.abs(np.asarray(speed, dtype=float))
+        if self.envelope is not None:
+            ws, ts = np.array(self.envelope).T
+            got = np.minimum(np.interp(w, ws, ts, right=0.0), self.peak_torque)
+            return np.where(w <= self.max_speed, got, 0.0)
         corner = self.max_speed if self.corner_speed is None else self.corner_speed
         if corner >= self.max_speed:
             return np.where(w <= self.max_speed, self.peak_torque, 0.0)
@@ -73,9 +80,10 @@ def motor_of(drive: Drive, values: Mapping[object, float]) -> Motor:
         return to_float(e, values)  # type: ignore[arg-type]
 
     corner = None if drive.corner_speed is None else v(drive.corner_speed)
+    curve = None if drive.envelope is None else tuple((v(w), v(T)) for w, T in drive.envelope)
     return Motor(drive.driver, (v(drive.ratio[0]), v(drive.ratio[1])), v(drive.efficiency),
                  v(drive.back_efficiency), v(drive.rotor_inertia), v(drive.continuous_torque),
-                 v(drive.peak_torque), v(drive.max_speed), corner)
+                 v(drive.peak_torque), v(drive.max_speed), corner, curve)
 
 
 def weights(t: Array) -> Array:
