@@ -9,6 +9,7 @@ from __future__ import annotations
 EXIT_OK = 0
 EXIT_INPUT = 2
 EXIT_ANALYSIS = 3
+EXIT_DOES_NOT_FIT = 4  # symid size: a drive does not fit its motor (not an error: a verdict)
 
 
 class SymidError(Exception):

@@ -9,6 +9,7 @@ MODULES: tuple[str, ...] = (
     "symid.cli.sweep",
     "symid.cli.optimize",
     "symid.cli.check",
+    "symid.cli.size",
     "symid.cli.example",
     "symid.cli.plot",
     "symid.cli.generate",

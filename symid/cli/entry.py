@@ -3,8 +3,8 @@
 
 Exit status: 0 success, 2 input error or unusable resource (an output that
 cannot be written: disk full, file-size limit, permissions), 3 analysis
-failed, 128 + N ended by signal N (130 SIGINT, 143 SIGTERM, 129 SIGHUP, 141 a
-closed stdout pipe). Errors are one line on stderr, never a traceback.
+failed, 4 `symid size` found a drive that does not fit, 128 + N ended by
+signal N (130 SIGINT, 143 SIGTERM, 129 SIGHUP, 141 a closed stdout pipe). Errors are one line on stderr, never a traceback.
 """
 
 from __future__ import annotations

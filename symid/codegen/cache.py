@@ -161,8 +161,8 @@ def key(mech: Mechanism, options: Options, target: str) -> str:
 
     # base parameters are run-time inputs; a derived one's definition is compiled in
     parameters = {n: (str(e) if is_derived(e) else None) for n, e in mech.parameters.items()}
-    structure = dataclasses.replace(mech, parameters=parameters, source="",
-                                    analysis=None)  # type: ignore[arg-type]
+    structure = dataclasses.replace(mech, parameters=parameters, source="", analysis=None,  # type: ignore[arg-type]
+                                    sizing=None)  # post-processing: a motor changed builds nothing
     text = repr((structure, options, target, code_version()))
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 

@@ -21,16 +21,17 @@ from symid.model.expr import FUNCTIONS
 from symid.symbolic.forces import TYPES as FORCES
 from symid.io.files import read_text
 from symid.io.analysis_table import ANALYSIS_KEYS  # noqa: F401 (the file's keys, read by tests and docs)
-from symid.io import analysis_table, expressions, friction as friction_table, signals, state
+from symid.io import analysis_table, expressions, friction as friction_table, signals, sizing, state
 from symid.io.limits import MAX_NAME_LENGTH, MAX_BODIES, MAX_CONSTRAINTS, MAX_FORCES, MAX_PARAMETERS
 from symid.io.table import read as read_table
 from symid.model.mechanism import GROUND, INERTIALS, T, Analysis, Body, Element, Mechanism, parameter_symbol
 from symid.model.motion import LAWS, check_spans
+from symid.model.sizing import Sizing
 from symid.model.params import is_derived, order_parameters, parameter_values, to_float
 from symid.text import plural
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
-TOP_KEYS = ("mechanism", "parameters", "signals", "analysis", "body", "constraint", "force")
+TOP_KEYS = ("mechanism", "parameters", "signals", "analysis", "body", "constraint", "force", "drive")
 MECHANISM_KEYS = ("name", "gravity")
 BODY_KEYS = ("name", "mass", "inertia", "q0")
 RESERVED = {"t", "pi", GROUND} | set(FUNCTIONS)
@@ -66,6 +67,7 @@ class _Reader:
         self.source = source
         self.params: dict[str, sp.Symbol] = {}
         self.values: dict[sp.Symbol, float] = {}
+        self.bearings: list[Any] = []  # the revolutes' `bearing` tables, in file order
 
     def fail(self, where: str, message: str) -> InputError:
         return InputError(f"{self.source}: {where}: {message}")
@@ -170,9 +172,10 @@ class _Reader:
                             for n, c in enumerate(self.array(data, "constraint")))
         forces = tuple(self.element(f, n, "force", FORCES, names)
                        for n, f in enumerate(self.array(data, "force")))
+        drives = sizing.drives(data.get("drive", []), constraints, self.number, self.fail)
         mech = Mechanism(name=name, bodies=bodies, constraints=constraints, forces=forces,
                          parameters=parameters, gravity=gravity, analysis=analysis,  # type: ignore[arg-type]
-                         source=self.source)
+                         source=self.source, sizing=Sizing(drives, tuple(self.bearings)))
         self.check_reactions(mech)
         self.check_counts(mech)
         q0 = {b.name: b.q0 for b in bodies}
@@ -259,8 +262,10 @@ class _Reader:
         family = registry[kind]
         friction = {} if "friction" not in data or section != "constraint" else friction_table.read(
             data["friction"], kind, where, self.source, self.number)
+        if "bearing" in data and section == "constraint":
+            self.bearings.append(sizing.bearing(data["bearing"], name, kind, where, self.number, self.fail))
         self.unknown(data, ("name", "type") + tuple(k.name for k in family.keys)
-                     + (("friction",) if section == "constraint" else ()), where)
+                     + (("friction", "bearing") if section == "constraint" else ()), where)
         bodies: dict[str, str] = {}
         values: dict[str, Any] = {}
         options: dict[str, str] = {}

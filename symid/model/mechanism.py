@@ -16,6 +16,7 @@ from symid.model.analysis import (  # noqa: F401 (re-exported: the model's analy
     DEFAULT_COND_WARN, EXTRA_OUTPUTS, JUMP_MODES, KIND_OUTPUTS, KINDS, OUTPUT_GROUPS, REDUNDANT_MODES,
     Analysis,
 )
+from symid.model.sizing import NONE as NO_SIZING, Sizing
 
 GROUND = "ground"
 T = sp.Symbol("t", real=True)
@@ -89,6 +90,7 @@ class Mechanism:
         parameters: name -> expression of earlier parameters, in dependency order.
         gravity: (gx, gy) expressions of the parameters.
         source: the file it came from, for messages ("<api>" when built in code).
+        sizing: its drives and bearings (`symid.model.sizing`), read by `symid size` only.
     """
 
     name: str
@@ -99,6 +101,7 @@ class Mechanism:
     gravity: tuple[sp.Expr, sp.Expr] = (sp.Integer(0), sp.Integer(0))
     analysis: Analysis = Analysis()
     source: str = "<api>"
+    sizing: Sizing = NO_SIZING
 
     def body_index(self) -> dict[str, int]:
         """Body name -> index in q (ground is not a body of q)."""

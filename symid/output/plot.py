@@ -239,10 +239,25 @@ class Written:
     skipped: list[str] = field(default_factory=list)
 
 
+def _sizing_figure(table: Table, mechanism: Mechanism) -> "Figure":
+    """The sizing picture of a table (ValueError: it lacks a column sizing reads)."""
+    from symid.output import sizing
+    from symid.errors import InputError
+    from symid.output.sizing_plot import sizing_figure
+
+    try:
+        return sizing_figure(sizing.size(mechanism, table), mechanism.name)
+    except KeyError as exc:
+        raise ValueError(f"{exc.args[0]} (sizing reads every output group)") from None
+    except InputError as exc:  # the run cannot be sized (a joint that does not turn): said, the rest drawn
+        raise ValueError(str(exc)) from None
+
+
 def write_all(table: Table, mechanism: Mechanism | None, directory: str | Path, stem: str,
               gif: bool = False) -> Written:
     """Write `<stem>_efforts.png`, `<stem>_reactions.png`, `<stem>_mechanism.png`,
-    `<stem>_friction.png` (joint friction only) and `<stem>_motion.gif` (with
+    `<stem>_friction.png` (joint friction only), `<stem>_sizing.png` (drives or
+    bearings in the file) and `<stem>_motion.gif` (with
     `gif`) in `directory`, each that the table allows."""
     directory = make_folder(directory)
     out = Written()
@@ -257,6 +272,8 @@ def write_all(table: Table, mechanism: Mechanism | None, directory: str | Path, 
     ]
     if friction_loss.columns(table.columns):  # joint friction: the power each joint's takes
         jobs.append(("friction plot", lambda: friction_figure(table, mechanism)))
+    if mechanism is not None and mechanism.sizing:  # drives or bearings: symid help sizing
+        jobs.append(("sizing plot", lambda: _sizing_figure(table, mechanism)))
     if gif:
         jobs.append(("animation", (lambda: write_gif(table, mechanism, directory / f"{stem}_motion.gif"))
                      if mechanism else None))

@@ -65,6 +65,8 @@ def solve_figures(mechanism: Mechanism, names: Sequence[str], base: np.ndarray, 
     able = backends.capabilities(backend)
     if friction.solved(mech) and not able.batch_friction:  # each variant alone, through the Python loop
         return _normal_path(mech, full, backend)
+    if mech.sizing and mech.analysis.kind == "inverse_dynamics":  # sizing reads each variant's whole table
+        return _normal_path(mech, full, backend)
     order = figure_names(mech)
     if able.batch == "vectorized":
         from symid.study import batch_numpy

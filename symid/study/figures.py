@@ -2,7 +2,9 @@
 
 Their names and order are the contract's (`symid sweep`): per driver D in
 file order `D.effort_peak D.effort_t_peak D.effort_rms D.power_peak`, then per
-constraint C of `[analysis] reactions` (default all) `C.force_peak`.
+constraint C of `[analysis] reactions` (default all) `C.force_peak`; a file
+with drives or bearings adds `D.motor_rms D.motor_peak D.fits` per drive and
+`C.L10_h` per bearing (`symid.output.sizing`).
 """
 
 from __future__ import annotations
@@ -26,6 +28,10 @@ def figure_names(mechanism: Mechanism) -> tuple[str, ...]:
         return ()
     names = [f"{c.name}.{f}" for c in mechanism.constraints if is_driver(c) for f in DRIVER_FIGURES]
     names += [f"{name}.force_peak" for name in mechanism.chosen_reactions]
+    if mechanism.sizing:  # drives and bearings (symid help sizing): after the contract's figures
+        from symid.output.sizing import figure_names as sizing_names
+
+        names += sizing_names(mechanism)
     return tuple(names)
 
 

@@ -34,7 +34,9 @@ from symid.output.results import Results
 from symid.output.summary import Source, drivers, source, time_function, time_functions
 from symid.study.figures import figure_names
 
-NO_GRADIENT = ("effort_t_peak",)  # figures with no derivative (an instant of the grid)
+# figures with no derivative: an instant of the grid, a verdict (1 or 0), and a
+# bearing's life (its relative rotation's sensitivity is not solved)
+NO_GRADIENT = ("effort_t_peak", "fits", "L10_h")
 
 
 def sensitivity_column(column: str, name: str) -> str:
@@ -110,6 +112,40 @@ class _Driver:
         self.t = t
 
 
+def _motor_gradients(out: Array, at: Mapping[str, int], c: Element, d: _Driver, mechanism: Mechanism,
+                     names: Sequence[str], values: Mapping[sp.Symbol, float]) -> None:
+    """d motor_rms / dP and d motor_peak / dP of the drive on driver `c`: tau = J n a + k T / n
+    (k = 1/eta or eta_b, piecewise constant) differentiated through T and the
+    driver's acceleration a; the best ratio of a range moves without changing
+    RMS to first order (its derivative in n is 0 there, or n sits on a bound).
+    NaN when the drive's own values depend on a parameter differentiated."""
+    from symid.output.sizing.motor import Load, best_ratio, motor_of, split
+
+    drive = next(x for x in mechanism.sizing.drives if x.driver == c.name)
+    definitions = dict(mechanism.parameters)
+    used = set().union(*(sp.sympify(in_base(e, definitions)).free_symbols for e in
+                         (*drive.ratio, drive.efficiency, drive.back_efficiency, drive.rotor_inertia)))
+    if used & {parameter_symbol(p) for p in names}:
+        return
+    motor = motor_of(drive, values)
+    f = c.values["f"]
+    a = time_function(f, values, d.t, 2)
+    by = _by_parameters(f, tuple((n, e) for n, e in definitions.items() if is_derived(e)), tuple(names))
+    da = time_functions(by[len(names):], values, d.t, 1)  # d(f'')/dP
+    if c.type == "distance_driver":
+        s = np.sign(time_function(f, values, d.t))
+        a, da = s * a, s[:, None] * da
+    load = Load(d.t, d.e, d.v, a)
+    n = motor.ratio[0] if motor.ratio[0] == motor.ratio[1] else best_ratio(load, motor)
+    _, through = split(load, motor)  # the load through the gearbox, its side per instant
+    k = np.where(d.e * d.v >= 0, 1 / motor.efficiency, motor.back_efficiency)  # as `split`
+    tau = motor.rotor_inertia * n * a + through / n
+    dtau = motor.rotor_inertia * n * da + k[:, None] * d.de / n
+    out[at[f"{c.name}.motor_rms"]] = _rms_gradient(d.t, tau, dtau)
+    j = int(np.argmax(np.abs(tau)))
+    out[at[f"{c.name}.motor_peak"]] = np.sign(tau[j]) * dtau[j]
+
+
 def _rms_gradient(t: Array, e: Array, de: Array) -> Array:
     """d/dp of the trapezoidal RMS of `summarize`; de shape (instants, params)."""
     span = float(t[-1] - t[0]) if len(t) else 0.0
@@ -156,6 +192,8 @@ def figure_gradients(mechanism: Mechanism, results: Results, names: Sequence[str
         power = d.e * d.v
         k = int(np.argmax(np.abs(power)))
         out[at[f"{c.name}.power_peak"]] = np.sign(power[k]) * (d.de[k] * d.v[k] + d.e[k] * d.dv[k])
+        if f"{c.name}.motor_rms" in at:
+            _motor_gradients(out, at, c, d, mechanism, names, values)
     for figure in figures:
         if figure.endswith(".force_peak"):
             out[at[figure]] = _force_peak_gradient(results, figure[: -len(".force_peak")], names)

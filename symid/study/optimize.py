@@ -103,8 +103,9 @@ def check(mechanism: Mechanism, objective: str, bounds: Sequence[Bound], limits:
         if figure not in names:
             raise InputError(f"{source}: {option}: no figure {figure!r} (figures: {', '.join(names) or 'none'})")
         if not has_gradient(figure):
-            raise InputError(f"{source}: {option}: {figure!r} is an instant of the time grid and has no "
-                             "gradient: optimize effort_peak, effort_rms, power_peak or force_peak")
+            what = "is an instant of the time grid" if figure.endswith("effort_t_peak") else "is a verdict or a life"
+            raise InputError(f"{source}: {option}: {figure!r} {what} and has no gradient: optimize effort_peak, "
+                             "effort_rms, power_peak or force_peak (a drive's motor_rms or motor_peak)")
     check_names([b.name for b in bounds], mechanism.parameters, source, "--vary")
     values = parameter_values(mechanism.parameters)
     for b in bounds:

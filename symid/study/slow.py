@@ -39,6 +39,10 @@ def study_analysis(mechanism: Mechanism) -> Mechanism:
     a = mechanism.analysis
     if a.kind == "kinematics":
         return mechanism
+    if mechanism.sizing and a.kind == "inverse_dynamics":  # a bearing's life reads the bodies' speeds
+        from symid.study.variants import study_mechanism
+
+        return study_mechanism(mechanism)
     return dataclasses.replace(mechanism, analysis=dataclasses.replace(a, outputs=("lambda", "reactions")))
 
 
@@ -79,6 +83,11 @@ def figures_of(mechanism: Mechanism, results: Results) -> Array:
         peaks = [np.max(np.hypot(results[f"{joint}.Fx_{r}"], results[f"{joint}.Fy_{r}"])) for r in roles]
         if peaks:
             out[at[name]] = float(max(peaks))
+    if mechanism.sizing and mechanism.analysis.kind == "inverse_dynamics":  # drives and bearings: last
+        from symid.output import sizing
+
+        got = sizing.figures(mechanism, results)
+        out[len(names) - len(got):] = got
     return out
 
 

@@ -27,7 +27,11 @@ def study_mechanism(mechanism: Mechanism) -> Mechanism:
     """The mechanism with every output group of its kind, so that the figures
     can be read (effort needs the multipliers, force_peak the reactions);
     the chosen reactions stay those of `[analysis] reactions`."""
-    return dataclasses.replace(mechanism, analysis=dataclasses.replace(mechanism.analysis, outputs=None))
+    reactions = mechanism.analysis.reactions
+    if reactions is not None and mechanism.sizing.bearings:  # a bearing's life reads its joint's reactions
+        reactions = reactions + tuple(b.joint for b in mechanism.sizing.bearings if b.joint not in reactions)
+    return dataclasses.replace(mechanism, analysis=dataclasses.replace(mechanism.analysis, outputs=None,
+                                                                       reactions=reactions))
 
 
 def base_matrix(mechanism: Mechanism, names: Sequence[str], base: Any) -> Array:
@@ -93,6 +97,7 @@ class Measure:
         self.reactions = [[(index[f"{n}.Fx_{r}"], index[f"{n}.Fy_{r}"]) for r in CONSTRAINTS[by_name[n].type].roles]
                           for n in chosen]
         self.symbols = symbols
+        self.sizing = mechanism if mechanism.sizing and mechanism.analysis.kind == "inverse_dynamics" else None
 
     def __call__(self, data: Array, values: Mapping[sp.Symbol, float]) -> Array:
         """The figures (contract order) of a table `data` (instants, columns);
@@ -112,4 +117,10 @@ class Measure:
         for pairs in self.reactions:
             out[k] = max(float(np.max(np.hypot(data[:, x], data[:, y]))) for x, y in pairs)
             k += 1
+        if self.sizing is not None:  # drives and bearings: post-processing of the whole table
+            from symid.output import sizing
+            from symid.output.results import Results
+
+            got = sizing.figures(self.sizing, Results(self.columns, data), values)
+            out[k:k + len(got)] = got
         return out

@@ -43,6 +43,7 @@ def test_every_plot_of_every_example_is_a_png_of_plausible_size(solved, tmp_path
     written = plot.write_all(results, mech, tmp_path, mech.name)
     assert written.skipped == []
     kinds = ("efforts", "reactions", "mechanism") + (("friction",) if any(c.friction for c in mech.constraints) else ())
+    kinds += ("sizing",) if mech.sizing else ()  # drives or bearings (slider_crank_sized)
     assert [p.name for p in written.paths] == [f"{mech.name}_{w}.png" for w in kinds]
     for path in written.paths:
         assert path.read_bytes()[:8] == PNG

@@ -22,6 +22,7 @@ from symid.tools.sensitive import solver
 CASES = {  # example: (base parameters, steps)
     "slider_crank": (("L_rod", "m_slider", "n"), 21),
     "slider_crank_counterweight": (("m_cw", "beta_cw"), 41),
+    "slider_crank_sized": (("L_rod", "n"), 21),  # the drive's motor_rms and motor_peak too
     "excavator": (("a_stick", "T_cycle"), 11),
     "slider_pendulum": (("s_amp",), 11),
 }
