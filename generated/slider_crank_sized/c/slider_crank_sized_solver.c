@@ -44,6 +44,19 @@ typedef char slider_crank_sized_real_must_have_the_size_of_double[sizeof(slider_
 #define SLIDER_CRANK_SIZED_OFF_DENSE (SLIDER_CRANK_SIZED_OFF_LU + SLIDER_CRANK_SIZED_LU_SIZE)
 #define SLIDER_CRANK_SIZED_OFF_VEC (SLIDER_CRANK_SIZED_OFF_DENSE + 81)
 #define SLIDER_CRANK_SIZED_VEC(work, k) ((work) + SLIDER_CRANK_SIZED_OFF_VEC + (k) * 30)
+/* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
+#define SLIDER_CRANK_SIZED_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
+#define SLIDER_CRANK_SIZED_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
+#define SLIDER_CRANK_SIZED_VEC_Y 2  /* the forward solves' intermediate */
+#define SLIDER_CRANK_SIZED_VEC_B 3  /* a right-hand side */
+#define SLIDER_CRANK_SIZED_VEC_QN 4  /* the instant's q, where the row does not hold it */
+#define SLIDER_CRANK_SIZED_VEC_QDN 5  /* its qdot, where the row does not hold it (instant: where not asked for) */
+#define SLIDER_CRANK_SIZED_VEC_QDDN 6  /* its qddot, likewise */
+#define SLIDER_CRANK_SIZED_VEC_LAM 7  /* its multipliers, likewise */
+#define SLIDER_CRANK_SIZED_VEC_REAC 8  /* its reactions, likewise */
+#define SLIDER_CRANK_SIZED_VEC_TR 9  /* the sines and cosines of the body angles */
+#define SLIDER_CRANK_SIZED_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
+#define SLIDER_CRANK_SIZED_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define SLIDER_CRANK_SIZED_OFF_PREP 483  /* the prepared parameters (NPP), after the vectors */
 #define SLIDER_CRANK_SIZED_NPP 13
 
@@ -1556,7 +1569,7 @@ int slider_crank_sized_sweep(long k, const slider_crank_sized_real *p, slider_cr
     return SLIDER_CRANK_SIZED_OK;
 }
 
-/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+/* Set-points (symid/codegen/c/setpoint.py): the driver rows of Phi, nu and gamma with
    the caller's desired values q_des, rates qd_des and second rates qdd_des
    (one per driver) for the drivers' laws, written over the rows the
    compiled laws gave. */

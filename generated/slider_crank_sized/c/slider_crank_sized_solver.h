@@ -40,6 +40,26 @@ typedef double slider_crank_sized_real;
 #define SLIDER_CRANK_SIZED_WORK 496        /* reals of workspace every solver call needs */
 #define SLIDER_CRANK_SIZED_IWORK 9         /* ints of workspace */
 #define SLIDER_CRANK_SIZED_STATE 73       /* reals of trajectory state */
+/* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
+   state and its size in reals. */
+#define SLIDER_CRANK_SIZED_STATE_Q 0  /* q of the last instant solved (before the first call: the initial guess) */
+#define SLIDER_CRANK_SIZED_STATE_Q_SIZE 9
+#define SLIDER_CRANK_SIZED_STATE_QD 9  /* its qdot */
+#define SLIDER_CRANK_SIZED_STATE_QD_SIZE 9
+#define SLIDER_CRANK_SIZED_STATE_QDD 18  /* its qddot */
+#define SLIDER_CRANK_SIZED_STATE_QDD_SIZE 9
+#define SLIDER_CRANK_SIZED_STATE_M1 27  /* the acceleration one instant before (statics: the position) */
+#define SLIDER_CRANK_SIZED_STATE_M1_SIZE 9
+#define SLIDER_CRANK_SIZED_STATE_M2 36  /* two instants before */
+#define SLIDER_CRANK_SIZED_STATE_M2_SIZE 9
+#define SLIDER_CRANK_SIZED_STATE_M3 45  /* three instants before (statics: unused) */
+#define SLIDER_CRANK_SIZED_STATE_M3_SIZE 9
+#define SLIDER_CRANK_SIZED_STATE_SCALE 54  /* per coordinate, 1 / its scale in the jump check (0: unset) */
+#define SLIDER_CRANK_SIZED_STATE_SCALE_SIZE 9
+#define SLIDER_CRANK_SIZED_STATE_RSCALE 63  /* per constraint row, its norm in those scales for the conditioning screen (0: unset) */
+#define SLIDER_CRANK_SIZED_STATE_RSCALE_SIZE 9
+#define SLIDER_CRANK_SIZED_STATE_COUNT 72  /* instants solved with this state so far (before the first call: 0) */
+#define SLIDER_CRANK_SIZED_STATE_COUNT_SIZE 1
 
 /* Status of every solver call. */
 #define SLIDER_CRANK_SIZED_OK 0
