@@ -18,13 +18,13 @@ import numpy as np
 import pytest
 import sympy as sp
 
+from cbuild import STRICT, needs_cc
 from small_mechanisms import cases
 from symid import api
 from symid.api import Results
 from symid.cli import main
 from symid.io.reader import loads
 from symid.model.mechanism import Mechanism
-from test_codegen import STRICT, needs_cc
 
 CASES = cases()
 BACKENDS = ("numpy", "c", "casadi")

@@ -13,20 +13,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cbuild import M4F, WARNINGS, needs_cc
+from csolver import BAD_ARGUMENT, NONFINITE, OK, Solver, slider_crank_mode
 from small_mechanisms import cases
 from symid import api
 from symid.codegen.model import code_model
 from symid.codegen.targets import c as c_target
 from symid.io.reader import load, loads
 from symid.model.params import base_names
-from test_c_export import BAD_ARGUMENT, NONFINITE, OK, Solver
-from test_codegen import needs_cc
 
 ROOT = Path(__file__).resolve().parents[2]
 DRIVER = ROOT / "tests" / "c" / "rows_driver.c"
 EXAMPLES = tuple(api.examples())
-WARNINGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wconversion", "-Wdouble-promotion", "-Wshadow"]
-M4F = ["-mcpu=cortex-m4", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-mthumb"]
 # single against double over each bundled run: max |diff| / the column's peak
 # (a column below 1e-3 of its group's peak, zero but for rounding: against
 # 1e-3 of that peak), the README's bound
@@ -84,15 +82,6 @@ def test_negative_count_returns_bad_argument_with_zero_solved(solvers) -> None:
     assert solvers["four_bar"].trajectory(0.0, 1e-3, -3)[:2] == (BAD_ARGUMENT, 0)
 
 
-def _slider_crank_mode(theta: float, sign: float, crank: float = 0.1, rod: float = 0.3) -> np.ndarray:
-    """The slider-crank at crank angle theta, closed form: the piston on the
-    +x side (sign = 1, the bundled assembly mode) or the -x side (sign = -1)."""
-    ax, ay = crank * np.cos(theta), crank * np.sin(theta)
-    bx = ax + sign * np.sqrt(rod ** 2 - ay ** 2)
-    psi = np.arctan2(-ay, bx - ax)
-    return np.array([ax / 2, ay / 2, theta, (ax + bx) / 2, ay / 2, psi, bx, 0.0, 0.0])
-
-
 @needs_cc
 def test_instant_solves_from_its_guess_and_the_trajectory_keeps_the_branch(solvers) -> None:
     """As the header documents: `_instant` converges to the assembly mode
@@ -102,15 +91,15 @@ def test_instant_solves_from_its_guess_and_the_trajectory_keeps_the_branch(solve
     solver = solvers["slider_crank"]
     t = 0.05
     theta = 2 * np.pi * float(solver.p[solver.ctx["params"].index("n")]) * t  # omega = 2 pi n, derived
-    other = _slider_crank_mode(theta, -1.0)
+    other = slider_crank_mode(theta, -1.0)
     status, out = solver.instant(t=t, q=other + 1e-3)
     assert status == OK
     assert np.max(np.abs(out["q"] - other)) <= 1e-12  # the other mode, not an error
     status, out = solver.instant(t=t)
-    assert status == OK and np.max(np.abs(out["q"] - _slider_crank_mode(theta, 1.0))) <= 1e-12
+    assert status == OK and np.max(np.abs(out["q"] - slider_crank_mode(theta, 1.0))) <= 1e-12
     status, solved, q = solver.trajectory(0.0, 1e-3, 200)
     assert (status, solved) == (OK, 200)
-    assert np.max(np.abs(q - _slider_crank_mode(theta * 199 / 50, 1.0))) <= 1e-12
+    assert np.max(np.abs(q - slider_crank_mode(theta * 199 / 50, 1.0))) <= 1e-12
     header = (solver.folder / f"{solver.name}_solver.h").read_text()
     assert "assembly mode" in header
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cbuild import needs_cc
 from small_mechanisms import cases
 from symid import api
 from symid.codegen.model import code_model
@@ -19,7 +20,6 @@ from symid.codegen.targets import c as c_target
 from symid.codegen.targets import c_phase
 from symid.io.reader import load, loads
 from symid.model.mechanism import T
-from test_codegen import needs_cc
 
 pytestmark = pytest.mark.slow  # C builds dominate: 51 s for the file alone under load
 

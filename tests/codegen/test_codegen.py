@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cbuild import STRICT, needs_cc
 from compare import assert_agree
 from data_mechanisms import SINGULAR_PENDULUM, TWO_CABLES
 from symid import api
@@ -27,11 +28,9 @@ from symid.codegen.targets import c as c_target
 from symid.io.reader import load, loads
 
 ROOT = Path(__file__).resolve().parents[2]
-STRICT = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 GENERATED_BACKENDS = ("numpy", "c")
 # generated code has no joint friction yet (it refuses it: tests/numeric/test_friction.py)
 EXAMPLES = [n for n in api.examples() if not any(c.friction for c in load(api.example(n)).constraints)]
-needs_cc = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler")
 
 
 @pytest.fixture(scope="module")

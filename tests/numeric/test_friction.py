@@ -14,11 +14,12 @@ import subprocess
 import numpy as np
 import pytest
 
+from bad_inputs import BASE, assert_one_line_input_error, solve_bad
+from data_mechanisms import quick_return_with_friction
 from symid import api
 from symid.cli import main
 from symid.io.reader import load, loads
 from symid.numeric.solve import run
-from test_inputs import BASE, assert_one_line_input_error, solve_bad
 from truth import Truth, newton_euler_residual
 
 BACKENDS = ["reference", "numpy", "casadi", "c"]
@@ -325,23 +326,9 @@ def test_plot_of_a_frictionless_table_has_no_friction_figure(tmp_path):
     assert not (tmp_path / "run_friction.png").exists() and not written.skipped
 
 
-def _quick_return_with_friction() -> str:
-    """The bundled quick-return with friction in its pins, its slot (between
-    two moving bodies) and its ram guide."""
-    text = api.example("quick_return").read_text(encoding="utf-8")
-    text = text.replace('sj = ["r_crank", 0.0]\n', 'sj = ["r_crank", 0.0]\nfriction = { mu = 0.15, viscous = 2.0, arm = 0.05, v_smooth = 1e-3 }\n')
-    for name in ("crank_bearing", "lever_pivot"):
-        head = f'name = "{name}"\ntype = "revolute"\n'
-        text = text.replace(head, head + 'friction = { mu = 0.1, radius = 0.02, viscous = 0.01 }\n')
-    head = 'name = "ram_guide"\ntype = "translational"\n'
-    text = text.replace(head, head + "friction = { mu = 0.1, viscous = 5.0 }\n")
-    assert text.count("friction = ") == 4
-    return text
-
-
 @pytest.mark.parametrize("backend", ["reference", "c"])
 def test_slot_between_moving_bodies_balances_power_and_every_body(backend):
-    mech = loads(_quick_return_with_friction(), "quick_return.toml")
+    mech = loads(quick_return_with_friction(), "quick_return.toml")
     res = api.solve(mech, backend=backend, steps=41)
     assert res.error is None, res.error
     truth = Truth(mech, res)

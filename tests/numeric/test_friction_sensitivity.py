@@ -17,7 +17,7 @@ import pytest
 from symid import api
 from symid.io.reader import loads
 from symid.model.mechanism import parameter_symbol
-from test_friction import _quick_return_with_friction
+from data_mechanisms import quick_return_with_friction
 
 pytestmark = pytest.mark.slow  # 40-digit central differences of every column (139 s under load)
 
@@ -99,7 +99,7 @@ def _mechanism(which: str):  # type: ignore[no-untyped-def]
         text = ARM.replace('viscous = 0.01 }', 'viscous = 0.01, v_smooth = 0 }')
         assert text != ARM
         return loads(text, "arm_slider.toml")
-    return loads(_quick_return_with_friction(), "quick_return.toml")
+    return loads(quick_return_with_friction(), "quick_return.toml")
 
 
 MECHANISMS = ("slider_crank_friction", "arm_slider", "arm_slider_exact_sign", "quick_return_friction")

@@ -22,7 +22,7 @@ import pytest
 from symid import api, backends
 from symid.cli import main
 from symid.output.results import write_csv
-from test_cli import SLIDER_CRANK, base_text, read_csv, set_line, with_analysis
+from cli_files import SLIDER_CRANK, base_text, read_csv, set_line, with_analysis
 
 REPO = Path(__file__).resolve().parents[2]
 BACKENDS = ("numpy", "c", "casadi", "reference")
