@@ -214,6 +214,7 @@ def output_shapes(draw) -> tuple[str, dict[str, object]]:
     return name, analysis
 
 
+@pytest.mark.slow  # each of the 8 shapes is generated and compiled anew (C and CasADi); tests/backends/test_small_mechanisms.py keeps the subsets quick
 @settings(max_examples=8, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(shape=output_shapes())
 def test_random_output_shapes_of_small_mechanisms_agree_on_every_backend(shape):
