@@ -160,6 +160,7 @@ def test_single_nu_in_float_float_keeps_the_phase_of_double(tmp_path: Path) -> N
         subprocess.run(["cc", "-std=c99", "-O2", "-ffp-contract=off", str(src), "-lm", "-o", str(exe)], check=True)
         hi, lo = map(float, subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split())
         exact = sp.N(nu.subs(T, sp.Float(np.float32(p0), 30)), 30)
+        # the docstring's ~1e-14 of a float-float pair, with a factor 10 of room
         assert abs(sp.Float(hi, 30) + sp.Float(lo, 30) - exact) <= 1e-13 * abs(exact), (nu, hi, lo, exact)
         assert np.float32(hi) == hi and abs(lo) <= abs(hi) * 2.0 ** -24  # a normalized pair of floats
 
@@ -244,6 +245,7 @@ def test_max_newton_and_floor_overrides_take_effect(tmp_path: Path, precision: s
     (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess,
                                          defines=(f"-DSLIDER_CRANK_FLOOR_ULPS={floor}",))
     error = np.max(np.abs(q - truth))
+    # the docstring's first correction, ~1e-6 (quadratic from 1e-3): above a converged error, below the guess's
     assert status == OK and iterations == 1 and 1e-8 < error < 1e-4, (iterations, error)
 
 

@@ -96,9 +96,11 @@ def test_instant_solves_from_its_guess_and_the_trajectory_keeps_the_branch(solve
     assert status == OK
     assert np.max(np.abs(out["q"] - other)) <= 1e-12  # the other mode, not an error
     status, out = solver.instant(t=t)
+    # Newton converged to tol 1e-12 on the residual: q to rounding of the closed form
     assert status == OK and np.max(np.abs(out["q"] - slider_crank_mode(theta, 1.0))) <= 1e-12
     status, solved, q = solver.trajectory(0.0, 1e-3, 200)
     assert (status, solved) == (OK, 200)
+    # Newton converged to tol 1e-12 each instant: q to rounding of the closed form
     assert np.max(np.abs(q - slider_crank_mode(theta * 199 / 50, 1.0))) <= 1e-12
     header = (solver.folder / f"{solver.name}_solver.h").read_text()
     assert "assembly mode" in header
@@ -173,6 +175,7 @@ def test_header_names_columns_parameters_q0_and_time_grid_of_the_file(tmp_path: 
     truth = api.solve(api.example(example), backend="reference", steps=2)
     assert lines[0].split() == list(truth.columns)
     assert lines[1].split() == list(base_names(mech.parameters))  # the inputs: base parameters only
+    # the header's q0 is the assembled configuration written to 17 digits: rounding of the reference's
     assert np.max(np.abs(np.array(lines[2].split(), float) - truth.data[0][1:1 + 3 * len(mech.bodies)])) <= 1e-12
     t0, t1, steps, tol, ops = lines[3].split()
     a = mech.analysis

@@ -53,6 +53,7 @@ def test_q_and_lambda_only_solver_takes_null_rates_and_reactions(solvers, tmp_pa
     assert status == OK
     _, full = solvers["slider_crank"].instant()
     scale = np.max(np.abs(full["lam"]))
+    # the same solve with fewer outputs computed: the multipliers to rounding of their peak
     assert np.max(np.abs(got["lam"] - full["lam"])) <= 1e-12 * scale
     assert np.max(np.abs(got["q"] - full["q"])) <= 1e-14
 
@@ -196,5 +197,6 @@ def test_cxx_program_compiles_the_source_and_links_the_c_object(tmp_path: Path) 
                                 capture_output=True, text=True)
         assert result.returncode == 0, result.stderr
         printed = np.loadtxt(subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.splitlines())
+        # t = t0 + k h in double on both sides, printed to 17 digits: at most an ulp of t <= 0.2
         assert np.allclose(printed[:, 0], expected.t, rtol=0, atol=1e-15)
         assert np.max(np.abs(printed[:, 1] - torque)) <= 1e-10 * np.max(np.abs(torque)), obj

@@ -153,6 +153,7 @@ def test_c_dense_fallback_factors_general_matrices_like_numpy(slider_crank_c) ->
         cond = np.linalg.cond(a)
         for got, m in ((x, a), (z, a.T)):
             want = np.linalg.solve(m, b)
+            # LU with partial pivoting: backward stable, the error at most a few eps (2.2e-16) times cond
             assert np.max(np.abs(got - want)) <= 1e-13 * cond * np.max(np.abs(want)), (got, want)
     singular = rng.normal(size=(n, n))
     singular[3] = 2.0 * singular[5]
@@ -167,6 +168,7 @@ def test_c_trajectory_forced_through_the_dense_fallback_is_the_sparse_one(slider
     sparse_run = Counted(*slider_crank_c, h=1e-3, n=200)
     dense_run = Counted(*slider_crank_c, h=1e-3, n=200, dense=True)
     scale = np.maximum(np.max(np.abs(sparse_run.rows), axis=0), 1e-3)
+    # dense and sparse pivots round differently; rows within 1e-11 of each column's scale
     assert np.max(np.abs(dense_run.rows - sparse_run.rows) / scale) <= 1e-11
     assert dense_run.factorizations == sparse_run.factorizations
 

@@ -84,6 +84,7 @@ def test_emitted_makefile_builds_a_c_program_alone(tmp_path: Path) -> None:
     expected = api.solve(api.example("slider_crank"), backend="reference", steps=11)
     assert np.array_equal(printed[:, 0], expected.t)
     torque = expected["motor.T_j"]
+    # the static library's run and the reference solve the same equations to tol 1e-12: rounding of the peak
     assert np.max(np.abs(printed[:, 1] - torque)) <= 1e-12 * np.max(np.abs(torque))
 
 
@@ -134,6 +135,7 @@ def test_fixed_pivot_too_small_falls_back_and_stays_exact(fallback: str, tmp_pat
         status, info, q, lam = _instant(lib, "two_cables", ctx, row[0], row[1:4] + 1e-3, p)
         assert status == 0
         fallbacks += info[1]
+        # the fallback's multipliers against the reference's, both to tol 1e-12: rounding of the peak
         assert np.max(np.abs(lam - row[10:13])) <= 1e-12 * np.max(np.abs(reference.data[:, 10:13]))
         pattern = [(r, c) for r, c, _ in model.flat.jac]
         jac = sample_jacobian(model.flat, row[1:4], row[0], p)
@@ -253,6 +255,7 @@ def test_folded_lu_factors_and_solves_random_matrices_bitwise_like_the_full_one(
             seen[form] += len(re.findall(pattern_re, code))
         if folded.strip() != "fallback":
             got = np.array(folded.split(), float)
+            # a residual: a backward-stable solve leaves a few n eps |A| |x|; 1e-9 of it leaves ample room
             assert np.allclose(a @ got[:n], b, rtol=0, atol=1e-9 * np.abs(a).max() * np.abs(got[:n]).max())
             assert np.allclose(a.T @ got[n:], b, rtol=0, atol=1e-9 * np.abs(a).max() * np.abs(got[n:]).max())
     assert all(seen.values()), seen
@@ -425,6 +428,7 @@ def test_sparse_plan_solves_like_dense_lu(seed: int) -> None:
     lu = sparse.factor(plan, np.array([a[r, c] for r, c in pattern]))
     assert lu is not None
     b = rng.normal(size=n)
+    # a residual of unit-scale entries: a backward-stable solve leaves ~1e-15; 1e-10 leaves ample room
     assert np.allclose(a @ sparse.solve(plan, lu, b), b, rtol=0, atol=1e-10)
     assert np.allclose(a.T @ sparse.solve_transposed(plan, lu, b), b, rtol=0, atol=1e-10)
 
@@ -442,6 +446,7 @@ def test_generated_numpy_module_needs_only_numpy(tmp_path: Path) -> None:
     )
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
     expected = api.solve(api.example("slider_crank"), backend="reference", steps=11)["motor.T_j"][-1]
+    # the generated module and the reference solve the same equations to tol 1e-12: rounding of the torque
     assert abs(float(out) - expected) <= 1e-12 * abs(expected)
 
 
