@@ -203,25 +203,28 @@ def test_unread_parameters_are_listed_and_the_others_are_not(tmp_path: Path) -> 
 ALLOWED = {"sin", "cos", "sqrt", "fabs", "fmax", "fmin", "isfinite", "memcpy", "memset"}
 
 
+# One example per test (the loop it was): the quick tier checks the quick
+# examples (tests/conftest.py), the slow tier the big ones, whose C takes the
+# longest to generate.
+@pytest.mark.parametrize("name", EXAMPLES)
 @pytest.mark.parametrize("precision", ["double", "single"])
-def test_generated_c_calls_only_sin_cos_sqrt_and_what_the_file_calls(tmp_path: Path, precision: str) -> None:
+def test_generated_c_calls_only_sin_cos_sqrt_and_what_the_file_calls(tmp_path: Path, precision: str, name: str) -> None:
     """No pow (integer powers are products, x^(-1/2) is 1/sqrt), and no libm
     call the mechanism's own expressions do not make; parameter-only pieces
     (the inertias) are computed by prepare, not in the kernels."""
-    for name in EXAMPLES:
-        text = api.example(name).read_text()
-        own = set(re.findall(r"\b([a-z][a-z0-9]*)\(", text)) | ({"tanh"} if "friction" in text else set())  # s(v)
-        model = code_model(load(api.example(name)))
-        c_target.generate(model, tmp_path / name, precision=precision)
-        source = (tmp_path / name / f"{name}_solver.c").read_text()
-        body = re.sub(r"/\*.*?\*/", "", source, flags=re.S)
-        called = set(re.findall(r"\b([a-z][a-z0-9]*)\(", body))
-        suffix = "f" if precision == "single" else ""
-        libm = {c[:-1] if suffix and c.endswith("f") and c[:-1] in ALLOWED | own else c for c in called}
-        assert not libm - ALLOWED - own - {"if", "for", "while", "switch", "return", "sizeof"}, (name, libm)
-        assert "pow(" not in body and "powf(" not in body, name
-        mass = re.search(rf"static void {name}_mass_k0\(.*?\n}}", body, re.S)
-        assert mass is not None and "*" not in mass.group(0).split("{", 1)[1], name
+    text = api.example(name).read_text()
+    own = set(re.findall(r"\b([a-z][a-z0-9]*)\(", text)) | ({"tanh"} if "friction" in text else set())  # s(v)
+    model = code_model(load(api.example(name)))
+    c_target.generate(model, tmp_path / name, precision=precision)
+    source = (tmp_path / name / f"{name}_solver.c").read_text()
+    body = re.sub(r"/\*.*?\*/", "", source, flags=re.S)
+    called = set(re.findall(r"\b([a-z][a-z0-9]*)\(", body))
+    suffix = "f" if precision == "single" else ""
+    libm = {c[:-1] if suffix and c.endswith("f") and c[:-1] in ALLOWED | own else c for c in called}
+    assert not libm - ALLOWED - own - {"if", "for", "while", "switch", "return", "sizeof"}, (name, libm)
+    assert "pow(" not in body and "powf(" not in body, name
+    mass = re.search(rf"static void {name}_mass_k0\(.*?\n}}", body, re.S)
+    assert mass is not None and "*" not in mass.group(0).split("{", 1)[1], name
 
 
 # --- point 6: strict builds ---

@@ -185,13 +185,13 @@ def test_ill_conditioning_warns_once_with_its_time_span(tmp_path, capsys):
     assert results.error is None and len(results.warnings) == 1 and "ill-conditioned" in results.warnings[0]
 
 
-def test_well_conditioned_examples_never_warn_nor_check_branches(monkeypatch):
+@pytest.mark.parametrize("name", EXAMPLES)  # one example per test: the big ones in the slow tier (tests/conftest.py)
+def test_well_conditioned_examples_never_warn_nor_check_branches(monkeypatch, name):
     """The normal path: no warning, and the branch check never re-solves an instant."""
     calls = []
     monkeypatch.setattr(solve, "_continuation", lambda *a, **k: calls.append(a[3]))
-    for name in EXAMPLES:
-        results = api.solve(api.example(name), "numpy")
-        assert results.error is None and results.warnings == [], (name, results.warnings)
+    results = api.solve(api.example(name), "numpy")
+    assert results.error is None and results.warnings == [], (name, results.warnings)
     assert calls == []
 
 
