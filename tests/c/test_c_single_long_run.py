@@ -53,7 +53,7 @@ def _turned(model, start: np.ndarray, end: np.ndarray) -> np.ndarray:  # type: i
     """Per coordinate, the whole turns an angle made from start to end (0 elsewhere)."""
     ng = len(model.q0)
     turns = np.round((end - start) / (2 * np.pi))
-    # a whole number of turns to well below the single-precision angles' error (2e-6 rad at this t)
+    # a whole number of turns: 1e-6 rad is far below a turn and above double rounding of the angles
     angle = (np.arange(ng) % 3 == 2) & (np.abs(end - start - 2 * np.pi * turns) < 1e-6)
     return np.where(angle, turns, 0.0)
 

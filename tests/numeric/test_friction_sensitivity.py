@@ -247,7 +247,7 @@ def test_sweep_gradients_with_friction_match_differences_of_the_figures(tmp_path
             exact = float(rows[4][f"d({figure})/d({name})"])
             err = abs(exact - fd) / max(abs(fd), 1e-3 * float(rows[4][figure]))
             worst = max(worst, (err, f"d({figure})/d({name})"))
-    # central differences of whole runs: truncation and the runs' tol 1e-12 noise over the step leave ~1e-7
+    # central differences of whole runs: truncation and the runs' rounding over the step; 1e-6 relative
     assert worst[0] < 1e-6, worst
 
 
