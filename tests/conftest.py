@@ -1,6 +1,6 @@
 """Shared fixtures: one private cache of generated solvers for the whole run
-(under pytest-xdist, one per worker), and thread pools sized to the worker's
-share of the cores."""
+(under pytest-xdist, shared by the workers), and thread pools sized to the
+worker's share of the cores."""
 
 from __future__ import annotations
 
@@ -11,13 +11,21 @@ import pytest
 
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
-    """Generated and compiled solvers go to a temporary cache, never the user's.
-    Under xdist each worker has its own (tmp_path_factory is per worker): a
-    solver two workers both need is built twice, never half-read."""
+    """Generated and compiled solvers go to a temporary cache, never the user's,
+    one for the whole run: under xdist the workers share it (their temporary
+    folders are popen-gwN in the run's own), so a solver two workers both need
+    is built once, not once each. Sharing is safe: the cache is content-addressed
+    and an entry is renamed into place only when complete (symid.codegen.cache),
+    so a worker finds it whole or builds it itself, never half-read."""
     if "SYMID_TEST_CACHE" in os.environ:  # reuse between local runs when asked to (shared: content-addressed)
         os.environ["SYMID_CACHE"] = os.environ["SYMID_TEST_CACHE"]
-    else:
-        os.environ["SYMID_CACHE"] = str(tmp_path_factory.mktemp("symid-cache"))
+        return
+    run = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        run = run.parent  # the run's folder, above this worker's popen-gwN
+    cache = run / "symid-cache"
+    cache.mkdir(mode=0o700, exist_ok=True)
+    os.environ["SYMID_CACHE"] = str(cache)
 
 
 @pytest.fixture(scope="session", autouse=True)

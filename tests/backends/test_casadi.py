@@ -152,6 +152,7 @@ def test_instant_reproduces_the_solved_instants(slider_crank: tuple, tmp_path: P
         if k % 7:
             continue
         out = instant(q_guess=ref.q + 1e-3, t=ref.t, p=p)
+        # the instant's Newton stops at the mechanism's tol, 1e-12 on the residual
         assert float(out["residual"]) <= 1e-12
         for key, value in (("q", ref.q), ("qd", ref.qd), ("qdd", ref.qdd), ("lam", ref.lam),
                            ("reactions", ref.reactions)):
@@ -245,4 +246,5 @@ def test_casadi_c_code_evaluates_as_the_saved_functions(slider_crank: tuple, cas
         got = _call_casadi_c(lib, fns[key], inputs)
         want = [np.array(ca.DM(v).nonzeros()) for v in fns[key].call([ca.DM(x) for x in inputs])]
         for g, w_ in zip(got, want):
+            # one expression graph run by CasADi's VM and by its own C: a few roundings apart
             assert np.max(np.abs(g - w_)) <= 1e-13 * max(1.0, np.max(np.abs(w_))), key

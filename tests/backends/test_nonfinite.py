@@ -176,5 +176,6 @@ def test_a_run_near_the_toggle_passes_continuously_and_agrees(files, near_toggle
     expected = near_toggle_reference[delta]
     angles = rows[:, 3:10:3]
     assert np.all(np.abs(np.diff(angles, axis=0)) < 0.2), "no jump of the angles"
+    # near the toggle Phi_q is nearly singular and the angles lose digits; 1e-6 rad still tells symmetric from a jump (0.2 above)
     assert np.allclose(angles, angles[::-1], rtol=0, atol=1e-6), "symmetric about the toggle"
     _agree(rows[:, :10], expected[:, :10], 1e-8)

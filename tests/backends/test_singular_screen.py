@@ -297,6 +297,7 @@ def test_near_a_singular_position_nothing_warns_and_backends_agree(name: str, tm
         # forces keep 16 - 2 log10(cond) digits (docs/analysis-options.md): with cond below a
         # few hundred that is 1e-12 of the run's largest force or better
         peak = np.abs(ref).max()
+        # (the bound the comment above derives)
         assert np.abs(got - ref).max() <= 1e-12 * peak, (backend, np.abs(got - ref).max() / peak)
 
 
@@ -322,6 +323,7 @@ def test_the_c_sweep_hands_a_screened_variant_to_the_solve(tmp_path: Path) -> No
         assert own.error is None and bool(own.warnings) == (k == 0), own.warnings
         peak = np.abs(own["drive.lambda"]).max()
         got = figures.values[k, figures.names.index("drive.effort_peak")]
+        # the sweep's figure is the peak of the same compiled solve: equal to rounding
         assert abs(got - peak) <= 1e-12 * peak, (v, got, peak)
 
 
@@ -342,4 +344,5 @@ def test_a_sweep_screens_its_variants_t0(tmp_path: Path) -> None:
     assert own.error is None and own.warnings and "t in [0, 0]" in own.warnings[0], own.warnings
     figures = solve_figures(mech, ("e",), base, "c", 1)
     peak = np.abs(own["drive.lambda"]).max()
+    # the sweep's figure is the peak of the same compiled solve: equal to rounding
     assert abs(figures.values[0, figures.names.index("drive.effort_peak")] - peak) <= 1e-12 * peak

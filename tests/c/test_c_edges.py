@@ -14,11 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cbuild import M4F, WARNINGS
+from csolver import slider_crank_mode
 from symid import api
 from symid.codegen.model import code_model
 from symid.codegen import c as c_target
 from symid.io.reader import load, loads
-from test_c_embedded import M4F, WARNINGS, _slider_crank_mode
 
 pytestmark = pytest.mark.slow  # cross-compiles for Cortex-M, runs cppcheck and callgrind on every example
 
@@ -159,6 +160,7 @@ def test_single_nu_in_float_float_keeps_the_phase_of_double(tmp_path: Path) -> N
         subprocess.run(["cc", "-std=c99", "-O2", "-ffp-contract=off", str(src), "-lm", "-o", str(exe)], check=True)
         hi, lo = map(float, subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split())
         exact = sp.N(nu.subs(T, sp.Float(np.float32(p0), 30)), 30)
+        # the docstring's ~1e-14 of a float-float pair, with a factor 10 of room
         assert abs(sp.Float(hi, 30) + sp.Float(lo, 30) - exact) <= 1e-13 * abs(exact), (nu, hi, lo, exact)
         assert np.float32(hi) == hi and abs(lo) <= abs(hi) * 2.0 ** -24  # a normalized pair of floats
 
@@ -212,12 +214,12 @@ def test_failed_instant_leaves_the_callers_q_and_the_next_call_solves(tmp_path: 
     t = 0.01 s (angle 0.1 pi, reachable) from it solves to the closed form."""
     text = api.example("slider_crank").read_text().replace("L_rod = 0.3 ", "L_rod = 0.05", 1)
     source = _generate(tmp_path, "slider_crank", precision, text)
-    q0 = _slider_crank_mode(0.0, 1.0, 0.1, 0.05)
+    q0 = slider_crank_mode(0.0, 1.0, 0.1, 0.05)
     (s1, it1, _, q1), (s2, _, _, q2) = _calls(source, (0.05, tol), (0.01, tol), q0=q0)
     assert s1 == NOT_CONVERGED and it1 == 50
     assert np.array_equal(q1, q0.astype(np.float32 if precision == "single" else float))
     assert s2 == OK
-    truth = _slider_crank_mode(2 * np.pi * 5 * 0.01, 1.0, 0.1, 0.05)  # omega = 2 pi n, n = 5
+    truth = slider_crank_mode(2 * np.pi * 5 * 0.01, 1.0, 0.1, 0.05)  # omega = 2 pi n, n = 5
     assert np.max(np.abs(q2 - truth)) <= close  # single: a few ulps of 0.3 rad
 
 
@@ -231,7 +233,7 @@ def test_max_newton_and_floor_overrides_take_effect(tmp_path: Path, precision: s
     call NOT_CONVERGED after one; a tolerance floor of 1e13 ulps (2e-3 in
     double) accepts the first correction (error ~1e-6, quadratic from 1e-3)."""
     source = _generate(tmp_path, "slider_crank", precision)
-    truth = _slider_crank_mode(2 * np.pi * 5 * 0.01, 1.0)
+    truth = slider_crank_mode(2 * np.pi * 5 * 0.01, 1.0)
     guess = truth + 1e-3
     floor = "1e13" if precision == "double" else "1e4"  # 2.2e-3 and 1.2e-3: above the guess's residual
     (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess)
@@ -243,6 +245,7 @@ def test_max_newton_and_floor_overrides_take_effect(tmp_path: Path, precision: s
     (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess,
                                          defines=(f"-DSLIDER_CRANK_FLOOR_ULPS={floor}",))
     error = np.max(np.abs(q - truth))
+    # the docstring's first correction, ~1e-6 (quadratic from 1e-3): above a converged error, below the guess's
     assert status == OK and iterations == 1 and 1e-8 < error < 1e-4, (iterations, error)
 
 
@@ -252,7 +255,7 @@ def test_real_type_override_takes_a_same_size_typedef_and_refuses_another_size(t
     source = _generate(tmp_path, "slider_crank", precision)
     real = "double" if precision == "double" else "float"
     (tmp_path / "mine.h").write_text(f"typedef {real} my_real;\n")
-    guess = _slider_crank_mode(0.3, 1.0) + 1e-3
+    guess = slider_crank_mode(0.3, 1.0) + 1e-3
     tol = 1e-12 if precision == "double" else 1e-5
     plain = _calls(source, (0.01, tol), q0=guess)
     mine = _calls(source, (0.01, tol), q0=guess, defines=("-include", str(tmp_path / "mine.h"),
@@ -308,7 +311,7 @@ def test_friction_parameters_are_read_and_the_header_says_so(tmp_path: Path) -> 
     """The bundled friction example's coefficients, pin radii and viscous
     drags were listed as read by nothing: each set to NaN now makes an
     instant NONFINITE (it is read), and the header lists none as unread."""
-    from test_c_export import NONFINITE, Solver
+    from csolver import NONFINITE, Solver
 
     if shutil.which("cc") is None:
         pytest.skip("no C compiler")

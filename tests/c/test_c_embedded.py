@@ -13,29 +13,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cbuild import GROUP_FLOOR, M4F, SINGLE_BOUND, SINGLE_BOUND_ANY, WARNINGS, needs_cc, rows_driver as _driver, driver_rows as _rows
+from csolver import BAD_ARGUMENT, NONFINITE, OK, Solver, slider_crank_mode
 from small_mechanisms import cases
 from symid import api
 from symid.codegen.model import code_model
 from symid.codegen import c as c_target
 from symid.io.reader import load, loads
 from symid.model.params import base_names
-from test_c_export import BAD_ARGUMENT, NONFINITE, OK, Solver
-from test_codegen import needs_cc
 
 ROOT = Path(__file__).resolve().parents[2]
 DRIVER = ROOT / "tests" / "c" / "rows_driver.c"
 EXAMPLES = tuple(api.examples())
-WARNINGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wconversion", "-Wdouble-promotion", "-Wshadow"]
-M4F = ["-mcpu=cortex-m4", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-mthumb"]
-# single against double over each bundled run: max |diff| / the column's peak
-# (a column below 1e-3 of its group's peak, zero but for rounding: against
-# 1e-3 of that peak), docs/c-export.md's bound
-# Joint friction's smooth sign tanh(v / v_smooth), v_smooth = 1e-4, turns the
-# float rounding of a speed near reversal into up to 3 % of that joint's
-# friction there (docs/c-export.md: single precision): the bound the page states for it.
-SINGLE_BOUND = {"slider_crank": 2e-6, "slider_crank_friction": 5e-2}
-SINGLE_BOUND_ANY = 1e-5
-GROUP_FLOOR = 1e-3
 
 
 @pytest.fixture(scope="module")
@@ -84,15 +73,6 @@ def test_negative_count_returns_bad_argument_with_zero_solved(solvers) -> None:
     assert solvers["four_bar"].trajectory(0.0, 1e-3, -3)[:2] == (BAD_ARGUMENT, 0)
 
 
-def _slider_crank_mode(theta: float, sign: float, crank: float = 0.1, rod: float = 0.3) -> np.ndarray:
-    """The slider-crank at crank angle theta, closed form: the piston on the
-    +x side (sign = 1, the bundled assembly mode) or the -x side (sign = -1)."""
-    ax, ay = crank * np.cos(theta), crank * np.sin(theta)
-    bx = ax + sign * np.sqrt(rod ** 2 - ay ** 2)
-    psi = np.arctan2(-ay, bx - ax)
-    return np.array([ax / 2, ay / 2, theta, (ax + bx) / 2, ay / 2, psi, bx, 0.0, 0.0])
-
-
 @needs_cc
 def test_instant_solves_from_its_guess_and_the_trajectory_keeps_the_branch(solvers) -> None:
     """As the header documents: `_instant` converges to the assembly mode
@@ -102,34 +82,22 @@ def test_instant_solves_from_its_guess_and_the_trajectory_keeps_the_branch(solve
     solver = solvers["slider_crank"]
     t = 0.05
     theta = 2 * np.pi * float(solver.p[solver.ctx.params.index("n")]) * t  # omega = 2 pi n, derived
-    other = _slider_crank_mode(theta, -1.0)
+    other = slider_crank_mode(theta, -1.0)
     status, out = solver.instant(t=t, q=other + 1e-3)
     assert status == OK
     assert np.max(np.abs(out["q"] - other)) <= 1e-12  # the other mode, not an error
     status, out = solver.instant(t=t)
-    assert status == OK and np.max(np.abs(out["q"] - _slider_crank_mode(theta, 1.0))) <= 1e-12
+    # Newton converged to tol 1e-12 on the residual: q to rounding of the closed form
+    assert status == OK and np.max(np.abs(out["q"] - slider_crank_mode(theta, 1.0))) <= 1e-12
     status, solved, q = solver.trajectory(0.0, 1e-3, 200)
     assert (status, solved) == (OK, 200)
-    assert np.max(np.abs(q - _slider_crank_mode(theta * 199 / 50, 1.0))) <= 1e-12
+    # Newton converged to tol 1e-12 each instant: q to rounding of the closed form
+    assert np.max(np.abs(q - slider_crank_mode(theta * 199 / 50, 1.0))) <= 1e-12
     header = (solver.folder / f"{solver.name}_solver.h").read_text()
     assert "assembly mode" in header
 
 
 # --- point 3: single precision ---
-
-
-def _driver(folder: Path, name: str, precision: str, model) -> Path:  # type: ignore[no-untyped-def]
-    c_target.generate(model, folder, precision=precision)
-    exe = folder / "driver"
-    subprocess.run(["cc", *WARNINGS, "-O2", f"-I{folder}", f'-DSOLVER_H="{name}_solver.h"', f"-DP={name}",
-                    f"-DPU={name.upper()}", "-Wno-conversion", str(DRIVER),
-                    str(folder / f"{name}_solver.c"), "-lm", "-o", str(exe)], check=True)
-    return exe
-
-
-def _rows(exe: Path, t0: float, h: float, n: int, q0) -> np.ndarray:  # type: ignore[no-untyped-def]
-    args = [str(exe), "rows", repr(t0), repr(h), str(n), *(repr(float(v)) for v in q0)]
-    return np.loadtxt(subprocess.run(args, check=True, capture_output=True, text=True).stdout.splitlines(), ndmin=2)
 
 
 @needs_cc
@@ -184,6 +152,7 @@ def test_header_names_columns_parameters_q0_and_time_grid_of_the_file(tmp_path: 
     truth = api.solve(api.example(example), backend="reference", steps=2)
     assert lines[0].split() == list(truth.columns)
     assert lines[1].split() == list(base_names(mech.parameters))  # the inputs: base parameters only
+    # the header's q0 is the assembled configuration written to 17 digits: rounding of the reference's
     assert np.max(np.abs(np.array(lines[2].split(), float) - truth.data[0][1:1 + 3 * len(mech.bodies)])) <= 1e-12
     t0, t1, steps, tol, ops = lines[3].split()
     a = mech.analysis
@@ -211,25 +180,28 @@ def test_unread_parameters_are_listed_and_the_others_are_not(tmp_path: Path) -> 
 ALLOWED = {"sin", "cos", "sqrt", "fabs", "fmax", "fmin", "isfinite", "memcpy", "memset"}
 
 
+# One example per test (the loop it was): the quick tier checks the quick
+# examples (tests/conftest.py), the slow tier the big ones, whose C takes the
+# longest to generate.
+@pytest.mark.parametrize("name", EXAMPLES)
 @pytest.mark.parametrize("precision", ["double", "single"])
-def test_generated_c_calls_only_sin_cos_sqrt_and_what_the_file_calls(tmp_path: Path, precision: str) -> None:
+def test_generated_c_calls_only_sin_cos_sqrt_and_what_the_file_calls(tmp_path: Path, precision: str, name: str) -> None:
     """No pow (integer powers are products, x^(-1/2) is 1/sqrt), and no libm
     call the mechanism's own expressions do not make; parameter-only pieces
     (the inertias) are computed by prepare, not in the kernels."""
-    for name in EXAMPLES:
-        text = api.example(name).read_text()
-        own = set(re.findall(r"\b([a-z][a-z0-9]*)\(", text)) | ({"tanh"} if "friction" in text else set())  # s(v)
-        model = code_model(load(api.example(name)))
-        c_target.generate(model, tmp_path / name, precision=precision)
-        source = (tmp_path / name / f"{name}_solver.c").read_text()
-        body = re.sub(r"/\*.*?\*/", "", source, flags=re.S)
-        called = set(re.findall(r"\b([a-z][a-z0-9]*)\(", body))
-        suffix = "f" if precision == "single" else ""
-        libm = {c[:-1] if suffix and c.endswith("f") and c[:-1] in ALLOWED | own else c for c in called}
-        assert not libm - ALLOWED - own - {"if", "for", "while", "switch", "return", "sizeof"}, (name, libm)
-        assert "pow(" not in body and "powf(" not in body, name
-        mass = re.search(rf"static void {name}_mass_k0\(.*?\n}}", body, re.S)
-        assert mass is not None and "*" not in mass.group(0).split("{", 1)[1], name
+    text = api.example(name).read_text()
+    own = set(re.findall(r"\b([a-z][a-z0-9]*)\(", text)) | ({"tanh"} if "friction" in text else set())  # s(v)
+    model = code_model(load(api.example(name)))
+    c_target.generate(model, tmp_path / name, precision=precision)
+    source = (tmp_path / name / f"{name}_solver.c").read_text()
+    body = re.sub(r"/\*.*?\*/", "", source, flags=re.S)
+    called = set(re.findall(r"\b([a-z][a-z0-9]*)\(", body))
+    suffix = "f" if precision == "single" else ""
+    libm = {c[:-1] if suffix and c.endswith("f") and c[:-1] in ALLOWED | own else c for c in called}
+    assert not libm - ALLOWED - own - {"if", "for", "while", "switch", "return", "sizeof"}, (name, libm)
+    assert "pow(" not in body and "powf(" not in body, name
+    mass = re.search(rf"static void {name}_mass_k0\(.*?\n}}", body, re.S)
+    assert mass is not None and "*" not in mass.group(0).split("{", 1)[1], name
 
 
 # --- point 6: strict builds ---

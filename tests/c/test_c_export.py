@@ -5,7 +5,6 @@ as C++17 and links from a C++ program."""
 
 from __future__ import annotations
 
-import ctypes
 import shutil
 import subprocess
 from pathlib import Path
@@ -13,66 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cbuild import STRICT, needs_cc
+from csolver import BAD_ARGUMENT, NONFINITE, OK, OPTIONAL, Solver
 from symid import api
-from symid.codegen.model import code_model
-from symid.codegen import c as c_target
-from symid.io.reader import loads
-from test_codegen import STRICT, needs_cc
 
 EXAMPLES = ("slider_crank", "four_bar")
-OPTIONAL = ("qd", "qdd", "lam", "reactions")
-OK, NONFINITE, BAD_ARGUMENT = 0, 3, 5
-DP = ctypes.POINTER(ctypes.c_double)
-IP = ctypes.POINTER(ctypes.c_int)
-
-
-class Solver:
-    """One generated C solver compiled strictly into a shared library."""
-
-    def __init__(self, text: str, folder: Path) -> None:
-        mech = loads(text, "mech.toml")
-        model = code_model(mech)
-        c_target.generate(model, folder)
-        self.name, self.folder, self.ctx = model.name, folder, c_target.context(model)
-        self.q0 = np.array(model.q0, dtype=float)
-        self.p = np.array(model.flat.defaults, dtype=float)
-        self.analysis = mech.analysis
-        subprocess.run(["cc", *STRICT, "-fPIC", "-shared", str(folder / f"{self.name}_solver.c"), "-o",
-                        str(folder / "s.so"), "-lm"], check=True)
-        self.lib = ctypes.CDLL(str(folder / "s.so"))
-        # getattr keeps the function object (and its argtypes); indexing makes a new one
-        self.instant_fn, self.trajectory_fn = getattr(self.lib, f"{self.name}_instant"), \
-            getattr(self.lib, f"{self.name}_trajectory")
-        self.instant_fn.argtypes = [ctypes.c_double, DP, ctypes.c_double, DP, DP, DP, DP, DP,
-                                                     IP, DP, IP]
-        self.trajectory_fn.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_long, DP,
-                                                        ctypes.c_double, DP, DP, ctypes.POINTER(ctypes.c_long),
-                                                        DP, IP]
-
-    def instant(self, t: float = 0.05, tol: float = 1e-12, null: tuple[str, ...] = (), q: np.ndarray | None = None,
-                info: np.ndarray | None = None) -> tuple[int, dict[str, np.ndarray]]:
-        """<name>_instant from q0 (or q) with the pointers named in `null` (or
-        "info") NULL; the status and the outputs given (q always)."""
-        sizes = {"qd": self.ctx.ng, "qdd": self.ctx.ng, "lam": self.ctx.nc, "reactions": self.ctx.nr}
-        out = {"q": (self.q0 if q is None else q).astype(float).copy()}
-        out.update({k: np.full(n, -7.0) for k, n in sizes.items() if k not in null})
-        work, iwork = np.full(self.ctx.work, -7.0), np.full(self.ctx.ng, -7, np.intc)
-        ptr = lambda k: out[k].ctypes.data_as(DP) if k in out else None  # noqa: E731
-        status = self.instant_fn(
-            t, self.p.ctypes.data_as(DP), tol, ptr("q"), *(ptr(k) for k in OPTIONAL),
-            None if "info" in null or info is None else info.ctypes.data_as(IP), work.ctypes.data_as(DP),
-            iwork.ctypes.data_as(IP))
-        return status, out
-
-    def trajectory(self, t0: float, h: float, n: int, tol: float = 1e-12) -> tuple[int, int, np.ndarray]:
-        """<name>_trajectory from q0: status, rows solved, the state's guess."""
-        state, rows = np.zeros(self.ctx.state), np.zeros((max(n, 1), self.ctx.row_width))
-        state[: self.ctx.ng] = self.q0
-        work, iwork, solved = np.zeros(self.ctx.work), np.zeros(self.ctx.ng, np.intc), ctypes.c_long(-7)
-        status = self.trajectory_fn(
-            t0, h, n, self.p.ctypes.data_as(DP), tol, state.ctypes.data_as(DP), rows.ctypes.data_as(DP),
-            ctypes.byref(solved), work.ctypes.data_as(DP), iwork.ctypes.data_as(IP))
-        return status, solved.value, state[: self.ctx.ng]
 
 
 @pytest.fixture(scope="module")
@@ -109,6 +53,7 @@ def test_q_and_lambda_only_solver_takes_null_rates_and_reactions(solvers, tmp_pa
     assert status == OK
     _, full = solvers["slider_crank"].instant()
     scale = np.max(np.abs(full["lam"]))
+    # the same solve with fewer outputs computed: the multipliers to rounding of their peak
     assert np.max(np.abs(got["lam"] - full["lam"])) <= 1e-12 * scale
     assert np.max(np.abs(got["q"] - full["q"])) <= 1e-14
 
@@ -252,5 +197,6 @@ def test_cxx_program_compiles_the_source_and_links_the_c_object(tmp_path: Path) 
                                 capture_output=True, text=True)
         assert result.returncode == 0, result.stderr
         printed = np.loadtxt(subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.splitlines())
+        # t = t0 + k h in double on both sides, printed to 17 digits: at most an ulp of t <= 0.2
         assert np.allclose(printed[:, 0], expected.t, rtol=0, atol=1e-15)
         assert np.max(np.abs(printed[:, 1] - torque)) <= 1e-10 * np.max(np.abs(torque)), obj

@@ -15,7 +15,7 @@ import pytest
 from symid import api
 from symid.codegen.model import code_model
 from symid.io.reader import load
-from test_solver_internals import DP, instrumented
+from csolver import DP, instrumented
 
 HARNESS = """
 int test_finite(const double *q, const double *qd, const double *qdd, const double *lam, const double *reac);

@@ -4,7 +4,7 @@ bundled example's trajectory over its file's grid, in double (each double
 operation in software) within 1e-12 of each column's peak of the host's
 double build, and in single within the bound the C export's documentation
 states for single precision (1e-5 of each column's peak, the slider-crank
-2e-6, joint friction's columns 5e-2: tests/c/test_c_embedded.py holds them). Skipped, naming what is missing, where QEMU or the cross
+2e-6, joint friction's columns 5e-2: tests/helpers/cbuild.py holds them). Skipped, naming what is missing, where QEMU or the cross
 compiler is not installed (.ci/run installs both where apt-get may)."""
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from symid import api
 from symid.codegen.model import code_model
 from symid.codegen import c as c_target
 from symid.io.reader import load
-from test_c_embedded import GROUP_FLOOR, M4F, SINGLE_BOUND, SINGLE_BOUND_ANY, WARNINGS, _driver, _rows
+from cbuild import GROUP_FLOOR, M4F, SINGLE_BOUND, SINGLE_BOUND_ANY, WARNINGS, driver_rows as _rows, rows_driver as _driver
 
 pytestmark = pytest.mark.slow
 

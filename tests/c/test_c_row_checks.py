@@ -18,11 +18,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from csolver import DP, run_in_cuts
 from symid import api
 from symid.codegen.model import code_model
 from symid.codegen import c as c_target
 
-DP = ctypes.POINTER(ctypes.c_double)
 FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared"]
 HARNESS = """
 int test_row_finite(const double *row, const double *qn, const double *qdn, const double *qddn, const double *lam,
@@ -126,31 +126,6 @@ def test_maxabs_is_the_largest_magnitude_and_keeps_nan(tmp_path) -> None:
                 assert want(f(v.ctypes.data_as(DP))), (n, k, bad)
 
 
-def _run(lib: ctypes.CDLL, ctx: c_target.CContext, cuts: list[int]) -> tuple[np.ndarray, np.ndarray]:
-    """Rows and final state of one run of sum(cuts) instants, one call per cut."""
-    p = ctx.name
-    traj = lib[f"{p}_trajectory"]
-    traj.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_long, DP, ctypes.c_double, DP, DP,
-                     ctypes.POINTER(ctypes.c_long), DP, ctypes.POINTER(ctypes.c_int)]
-    traj.restype = ctypes.c_int
-    ng, n = ctx.ng, sum(cuts)
-    params = np.array([float(v) for v in ctx.defaults])
-    state = np.zeros(ctx.state)
-    state[:ng] = ctx.d.q0
-    state[6 * ng:7 * ng] = 1.0  # the jump check on, unit scales
-    rows = np.zeros((n, ctx.row_width))
-    work, iwork = np.zeros(ctx.work), np.zeros(ng, dtype=np.intc)
-    solved, done = ctypes.c_long(0), 0
-    h = 0.2 / (n - 1)
-    for m in cuts:
-        status = traj(0.0, h, m, params.ctypes.data_as(DP), 1e-12, state.ctypes.data_as(DP),
-                      rows[done:].ctypes.data_as(DP), ctypes.byref(solved), work.ctypes.data_as(DP),
-                      iwork.ctypes.data_as(ctypes.POINTER(ctypes.c_int)))
-        assert status == 0 and solved.value == m
-        done += m
-    return rows, state
-
-
 @pytest.mark.parametrize("kind", ["inverse_dynamics", "statics"])
 def test_written_out_code_gives_the_loop_forms_rows_and_state_bitwise(tmp_path, kind: str) -> None:
     ctx = _context(kind=kind)
@@ -158,6 +133,6 @@ def test_written_out_code_gives_the_loop_forms_rows_and_state_bitwise(tmp_path, 
     looped = dataclasses.replace(ctx, checks=dataclasses.replace(ctx.checks, straight=0, rolling=False, looped=True))
     new, old = _build(ctx, tmp_path / "new"), _build(looped, tmp_path / "old")
     for cuts in ([60], [1, 1, 2, 3, 5, 8, 40], [7] * 8 + [4]):
-        got, want = _run(new, ctx, cuts), _run(old, looped, cuts)
+        got, want = run_in_cuts(new, ctx, cuts), run_in_cuts(old, looped, cuts)
         assert got[0].tobytes() == want[0].tobytes(), cuts
         assert got[1].tobytes() == want[1].tobytes(), cuts

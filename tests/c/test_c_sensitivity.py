@@ -95,6 +95,7 @@ def test_c_sensitivities_equal_the_python_loops_on_the_reference_backend(run: Ru
     mine, theirs = rows[:, -width:], ref.data[:, -width:]
     scale = np.maximum(np.abs(theirs).max(axis=0), 1e-3 * np.abs(theirs).max())  # noise columns: the largest
     worst = (np.abs(mine - theirs) / scale).max(axis=0)
+    # the C and the reference evaluate the same sensitivity formulas at the same q: rounding of each column's scale
     assert worst.max() <= 1e-12, run.columns[-width + int(worst.argmax())]
 
 
@@ -109,6 +110,7 @@ def test_statics_and_kinematics_sensitivities_equal_the_reference_backends(kind:
     width = sum(col.startswith("d(") for col in c.columns)
     mine, theirs = c.data[:, -width:], ref.data[:, -width:]
     scale = np.maximum(np.abs(theirs).max(axis=0), 1e-3 * np.abs(theirs).max())
+    # the C and the reference evaluate the same sensitivity formulas at the same q: rounding of each column's scale
     assert width > 0 and (np.abs(mine - theirs) / scale).max() <= 1e-12
 
 
@@ -130,6 +132,7 @@ def test_c_sensitivities_match_central_differences_of_the_c_solver(run: Run) -> 
             exact = rows[:, at]
             # a column that does not move with the parameter: 1e-7 of the column per unit of relative change
             scale = max(np.abs(exact).max(), np.abs(rows[:, col]).max() / (abs(run.ev.p[k]) or 1.0), 1e-2 * largest)
+            # central differences of the compiled solver: truncation and rounding over the step, within 1e-7 of the scale
             assert np.abs(fd[:, col] - exact).max() <= 1e-7 * scale, (c, name, np.abs(fd[:, col] - exact).max(), scale)
 
 
@@ -139,6 +142,7 @@ def test_instant_sensitivity_entry_point_gives_the_trajectory_row(run: Run) -> N
     ng = run.ev.meta["ng"]
     for i in (0, STEPS // 2, STEPS - 1):
         got = run.ev.sensitivity_row(rows[i, 1:1 + ng], float(rows[i, 0]), run.mech.analysis.tol)  # type: ignore[attr-defined]
+        # one instant re-solved from its own q to tol 1e-12: the same derivatives to that solve's rounding, 1e-9 with room
         np.testing.assert_allclose(got, rows[i, -width:], rtol=1e-9, atol=1e-9 * np.abs(rows[i, -width:]).max())
 
 
@@ -222,6 +226,7 @@ def test_an_instant_handed_to_the_python_loop_keeps_its_sensitivity_columns(run:
     rows, plain = run.rows(ev), run.rows()
     width = run.ev.meta["sens_width"]
     assert len(calls) >= 3 and rows.shape == plain.shape
+    # the run handed over between calls is the same arithmetic: rounding of the peak
     np.testing.assert_allclose(rows[:, -width:], plain[:, -width:], rtol=0,
                                atol=1e-12 * np.abs(plain[:, -width:]).max())
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cbuild import needs_cc
 from small_mechanisms import cases
 from symid import api
 from symid.codegen.model import code_model
@@ -19,7 +20,6 @@ from symid.codegen import c as c_target
 from symid.codegen.c import phase as c_phase
 from symid.io.reader import load, loads
 from symid.model.mechanism import T
-from test_codegen import needs_cc
 
 pytestmark = pytest.mark.slow  # C builds dominate: 51 s for the file alone under load
 
@@ -53,6 +53,7 @@ def _turned(model, start: np.ndarray, end: np.ndarray) -> np.ndarray:  # type: i
     """Per coordinate, the whole turns an angle made from start to end (0 elsewhere)."""
     ng = len(model.q0)
     turns = np.round((end - start) / (2 * np.pi))
+    # a whole number of turns: 1e-6 rad is far below a turn and above double rounding of the angles
     angle = (np.arange(ng) % 3 == 2) & (np.abs(end - start - 2 * np.pi * turns) < 1e-6)
     return np.where(angle, turns, 0.0)
 
@@ -132,6 +133,7 @@ def test_single_precision_instant_at_t_1e4_gives_the_crank_angle_reduced_and_the
     assert abs(q32[2]) <= np.pi + 1e-6 and abs(q32[2] - crank) <= 2e-6
     torque = out["double"][1][-1]  # the motor's multiplier: the driver is the last row
     scale = max(np.max(np.abs(out["double"][1])), 1.0)
+    # single against double: float's 6e-8 times the condition of the multipliers, bound 1e-5 of the peak
     assert abs(lam32[-1] - torque) <= 1e-5 * scale, (lam32[-1], torque)
 
 

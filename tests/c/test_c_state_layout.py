@@ -22,7 +22,7 @@ from symid.codegen import c as c_target
 from symid.codegen.c.layout import STATE_PARTS, VECTORS, state_layout, vectors
 from symid.codegen.model import code_model, options_for
 from symid.symbolic.assemble import assemble
-from test_codegen import STRICT, needs_cc
+from cbuild import STRICT, needs_cc
 
 GENERATED = Path(__file__).resolve().parents[2] / "generated"
 DP = ctypes.POINTER(ctypes.c_double)

@@ -19,7 +19,7 @@ import pytest
 
 from symid import api
 from symid.io.reader import load, loads
-from test_c_setpoint import PENDULUM, expression_drivers, laws
+from setpoints import PENDULUM, expression_drivers, laws
 
 fmpy = pytest.importorskip("fmpy", reason="FMPy is the test extra's FMI importer (pip install fmpy)")
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
@@ -186,7 +186,7 @@ def test_fmu_reads_time_when_only_time_changes(tmp_path: Path) -> None:
     set-points held at those of t1)."""
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Model
-    from test_c_setpoint import Solver
+    from setpoints import Solver
 
     path = _fmu("four_bar", tmp_path / "fmu")
     md = read_model_description(str(path))

@@ -6,7 +6,6 @@ See /work/shared/reference/mechanism-file.md ("contract v1").
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 import re
@@ -18,13 +17,11 @@ from pathlib import Path
 
 import pytest
 
+from cli_files import EXAMPLES, SLIDER_CRANK, base_text, read_csv, set_line, with_analysis
 from symid import api
 from symid.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
-EXAMPLES = REPO / "symid" / "examples"
-SLIDER_CRANK = EXAMPLES / "slider_crank.toml"
-
 # Rows of each constraint type (planar-inverse-dynamics.md); every other type has 1.
 ROWS = {"revolute": 2, "translational": 2}
 
@@ -60,10 +57,6 @@ ALL_COLUMNS = (["t"] + q_columns() + qdot_columns() + qddot_columns() + lambda_c
                + reaction_columns())
 
 
-def base_text() -> str:
-    return SLIDER_CRANK.read_text(encoding="utf-8")
-
-
 def edited(*pairs: str) -> str:
     """The bundled slider-crank with each `old` (occurring once) replaced by `new`."""
     text = base_text()
@@ -71,24 +64,6 @@ def edited(*pairs: str) -> str:
         assert text.count(old) == 1, f"{old!r} occurs {text.count(old)} times in {SLIDER_CRANK}"
         text = text.replace(old, new)
     return text
-
-
-def set_line(text: str, key: str, value: str) -> str:
-    """Set `key = ...` (a line of its own, once in the file) to `value`, keeping comments."""
-    pattern = re.compile(rf"^{re.escape(key)}\s*=\s*[^#\n]*", re.M)
-    assert len(pattern.findall(text)) == 1, f"{key} is not set exactly once"
-    return pattern.sub(f"{key} = {value} ", text)
-
-
-def with_analysis(text: str, lines: str) -> str:
-    assert text.count("[analysis]\n") == 1
-    return text.replace("[analysis]\n", "[analysis]\n" + lines + "\n")
-
-
-def read_csv(path: Path) -> tuple[list[str], list[list[str]]]:
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    return rows[0], rows[1:]
 
 
 def column(header: list[str], rows: list[list[str]], name: str) -> list[float]:

@@ -32,6 +32,7 @@ def test_changing_a_base_parameter_in_p_changes_the_derived_one_as_set_does(back
         study.evaluator.p_list = p.tolist()
     changed = study.solve().data
     truth = api.prepare(SLIDER_CRANK, "reference", set_values={"n": "7"}, steps=STEPS).solve().data
+    # the derived parameter recomputed in the solver against the file's: rounding of a tol 1e-12 solve
     assert scaled_error(changed, truth) < 1e-12
     assert scaled_error(default, truth) > 1e-3  # a stale omega would have left the motion at n = 5
 

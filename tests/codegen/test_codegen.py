@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cbuild import STRICT, needs_cc
 from compare import assert_agree
 from data_mechanisms import SINGULAR_PENDULUM, TWO_CABLES
 from symid import api
@@ -29,16 +30,23 @@ from symid.codegen.c import lu as c_lu
 from symid.io.reader import load, loads
 
 ROOT = Path(__file__).resolve().parents[2]
-STRICT = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic"]
 GENERATED_BACKENDS = ("numpy", "c")
 # generated code has no joint friction yet (it refuses it: tests/numeric/test_friction.py)
 EXAMPLES = [n for n in api.examples() if not any(c.friction for c in load(api.example(n)).constraints)]
-needs_cc = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler")
+
+
+class _Solved(dict):
+    """Each example's reference table, solved when a test first asks for it
+    (the quick tier asks for its few examples only, not every one)."""
+
+    def __missing__(self, name: str) -> np.ndarray:
+        self[name] = api.solve(api.example(name), backend="reference", steps=60).data
+        return self[name]
 
 
 @pytest.fixture(scope="module")
 def reference() -> dict[str, np.ndarray]:
-    return {name: api.solve(api.example(name), backend="reference", steps=60).data for name in EXAMPLES}
+    return _Solved()
 
 
 @pytest.mark.parametrize("backend", GENERATED_BACKENDS)
@@ -87,6 +95,7 @@ def test_emitted_makefile_builds_a_c_program_alone(tmp_path: Path) -> None:
     expected = api.solve(api.example("slider_crank"), backend="reference", steps=11)
     assert np.array_equal(printed[:, 0], expected.t)
     torque = expected["motor.T_j"]
+    # the static library's run and the reference solve the same equations to tol 1e-12: rounding of the peak
     assert np.max(np.abs(printed[:, 1] - torque)) <= 1e-12 * np.max(np.abs(torque))
 
 
@@ -137,6 +146,7 @@ def test_fixed_pivot_too_small_falls_back_and_stays_exact(fallback: str, tmp_pat
         status, info, q, lam = _instant(lib, "two_cables", ctx, row[0], row[1:4] + 1e-3, p)
         assert status == 0
         fallbacks += info[1]
+        # the fallback's multipliers against the reference's, both to tol 1e-12: rounding of the peak
         assert np.max(np.abs(lam - row[10:13])) <= 1e-12 * np.max(np.abs(reference.data[:, 10:13]))
         pattern = [(r, c) for r, c, _ in model.flat.jac]
         jac = sample_jacobian(model.flat, row[1:4], row[0], p)
@@ -257,6 +267,7 @@ def test_folded_lu_factors_and_solves_random_matrices_bitwise_like_the_full_one(
             seen[form] += len(re.findall(pattern_re, code))
         if folded.strip() != "fallback":
             got = np.array(folded.split(), float)
+            # a residual: a backward-stable solve leaves a few n eps |A| |x|; 1e-9 of it leaves ample room
             assert np.allclose(a @ got[:n], b, rtol=0, atol=1e-9 * np.abs(a).max() * np.abs(got[:n]).max())
             assert np.allclose(a.T @ got[n:], b, rtol=0, atol=1e-9 * np.abs(a).max() * np.abs(got[n:]).max())
     assert all(seen.values()), seen
@@ -429,6 +440,7 @@ def test_sparse_plan_solves_like_dense_lu(seed: int) -> None:
     lu = sparse.factor(plan, np.array([a[r, c] for r, c in pattern]))
     assert lu is not None
     b = rng.normal(size=n)
+    # a residual of unit-scale entries: a backward-stable solve leaves ~1e-15; 1e-10 leaves ample room
     assert np.allclose(a @ sparse.solve(plan, lu, b), b, rtol=0, atol=1e-10)
     assert np.allclose(a.T @ sparse.solve_transposed(plan, lu, b), b, rtol=0, atol=1e-10)
 
@@ -446,6 +458,7 @@ def test_generated_numpy_module_needs_only_numpy(tmp_path: Path) -> None:
     )
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
     expected = api.solve(api.example("slider_crank"), backend="reference", steps=11)["motor.T_j"][-1]
+    # the generated module and the reference solve the same equations to tol 1e-12: rounding of the torque
     assert abs(float(out) - expected) <= 1e-12 * abs(expected)
 
 

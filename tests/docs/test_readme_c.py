@@ -46,4 +46,5 @@ def test_c_export_page_snippet_builds_with_its_commands_and_prints_the_motor_tor
     expected = api.solve(api.example("slider_crank"), backend="reference", steps=11)
     assert np.array_equal(printed[:, 0], expected.t)
     torque = expected["motor.T_j"]
+    # the README's program and the reference solve the same equations to tol 1e-12: rounding of the peak
     assert np.max(np.abs(printed[:, 1] - torque)) <= 1e-12 * np.max(np.abs(torque))

@@ -1,5 +1,7 @@
 """Small mechanisms written for particular tests (texts of mechanism files)."""
 
+from symid import api
+
 # A load held by two cables from (-1, 2) and (1, 3), driven so that it moves
 # along y = 0 from x = 0.5 to x = -1.5. At t0 the plan pivots the x column on
 # the left cable's row; where the load passes x = -1 that cable is vertical,
@@ -77,3 +79,17 @@ body = "rod"
 coordinate = "x"
 f = "1 - t^2"
 """
+
+
+def quick_return_with_friction() -> str:
+    """The bundled quick-return with friction in its pins, its slot (between
+    two moving bodies) and its ram guide."""
+    text = api.example("quick_return").read_text(encoding="utf-8")
+    text = text.replace('sj = ["r_crank", 0.0]\n', 'sj = ["r_crank", 0.0]\nfriction = { mu = 0.15, viscous = 2.0, arm = 0.05, v_smooth = 1e-3 }\n')
+    for name in ("crank_bearing", "lever_pivot"):
+        head = f'name = "{name}"\ntype = "revolute"\n'
+        text = text.replace(head, head + 'friction = { mu = 0.1, radius = 0.02, viscous = 0.01 }\n')
+    head = 'name = "ram_guide"\ntype = "translational"\n'
+    text = text.replace(head, head + "friction = { mu = 0.1, viscous = 5.0 }\n")
+    assert text.count("friction = ") == 4
+    return text

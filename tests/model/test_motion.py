@@ -141,6 +141,7 @@ def test_time_column_by_name_and_extra_columns(tmp_path) -> None:
     mech.write_text(motor(TABLED % ', time = "time"'))
     res = api.solve(mech, backend="reference", steps=11)
     assert res.error is None
+    # the instants fall on the table's samples: the sampled formula to rounding and the Newton tol, 1e-8 rad with room
     assert np.allclose(res["crank.phi"], formula(res.t), rtol=0, atol=1e-8)
 
 
@@ -326,6 +327,7 @@ def hand(name: str, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def test_motion_law_values_and_derivatives_match_the_textbook(name) -> None:
     expr = law(f"{name}(t, {X0}, {DUR}, {H})")
     for order, expected in enumerate(hand(name, POINTS)):
+        # the law's closed form evaluated two ways in double: rounding, relative to values of order 1
         assert np.allclose(values(expr, POINTS, order), expected, rtol=1e-13, atol=1e-12), order
 
 
@@ -350,6 +352,7 @@ def test_rise_dwell_return() -> None:
     t = np.array([0.0, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.5])
     u_rise, u_ret = np.clip((t - 0.1) / 0.2, 0, 1), np.clip((t - 0.6) / 0.4, 0, 1)
     p = lambda u: 10 * u**3 - 15 * u**4 + 6 * u**5  # noqa: E731
+    # the same polynomial in double: rounding of values of order 1
     assert np.allclose(values(expr, t), 1.5 * (p(u_rise) - p(u_ret)), rtol=0, atol=1e-14)
 
 
@@ -386,12 +389,14 @@ def test_cycloidal_driver_agrees_on_every_backend(cycloidal_mechanism, backend) 
     got = api.solve(cycloidal_mechanism, backend=backend).data
     col = np.max(np.abs(reference), axis=0)
     scale = np.maximum(col, 1e-3 * np.max(col))
+    # every backend solves the same equations to tol 1e-12: rounding of each column's scale
     assert np.max(np.abs(got - reference) / scale) <= 1e-12
 
 
 def test_cycloidal_driver_is_the_law(cycloidal_mechanism) -> None:
     res = api.solve(cycloidal_mechanism, backend="reference")
     s, v, a = hand_at(res.t, 0.05, 0.1, 0.5)
+    # Newton to tol 1e-12, then rates and accelerations from linear solves: each derivative loses about one digit (1e-10, 1e-9, 1e-7 with room)
     assert np.allclose(res["crank.phi"], OMEGA * res.t + s, rtol=0, atol=1e-10)
     assert np.allclose(res["crank.omega"], OMEGA + v, rtol=0, atol=1e-9)
     assert np.allclose(res["crank.alpha"], a, rtol=0, atol=1e-7)
@@ -412,4 +417,5 @@ def test_tabled_driver_agrees_on_every_backend(tmp_path, backend) -> None:
     got = api.solve(path, backend=backend).data
     col = np.max(np.abs(reference), axis=0)
     scale = np.maximum(col, 1e-3 * np.max(col))
+    # every backend solves the same equations to tol 1e-12: rounding of each column's scale
     assert np.max(np.abs(got - reference) / scale) <= 1e-12

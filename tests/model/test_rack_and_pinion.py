@@ -133,6 +133,7 @@ def test_driven_pinion_gives_the_closed_form_motion_torque_and_tooth_force(groun
     # the drivers' derivatives of the signal come out right (omega, alpha by hand)
     for col, want in (("pinion.phi", cf["theta"]), ("pinion.omega", cf["omega"]),
                       ("pinion.alpha", cf["alpha"])):
+        # the closed forms against a tol 1e-12 solve: rounding relative to each peak (this block)
         np.testing.assert_allclose(res[col], want, rtol=0, atol=1e-12 * np.max(np.abs(want)), err_msg=col)
     # positive turn drives the rack along +vj by r (phi_i - phi_j), from the foot of the axis
     start = 0.05 * np.array([np.sin(BETA), -np.cos(BETA)])
@@ -162,6 +163,7 @@ def test_ground_pinion_power_balance_and_newton_euler(ground_runs):
     # the drive's power goes into kinetic energy and the work against the load and gravity
     np.testing.assert_allclose(motor + applied, kinetic, atol=1e-11 * scale)
     for body, (force, moment) in newton_euler_residual(truth).items():
+        # Newton-Euler of a tol 1e-12 solve: rounding of loads of order 1 N
         assert force < 1e-12 and moment < 1e-12, (body, force, moment)
 
 
@@ -279,6 +281,7 @@ def test_pinion_on_a_moving_arm_couples_the_relative_turn(tmp_path):
     # acceleration of the point (s, -R) of the turning frame, by hand
     acc = ((dds - s * dpsi**2 + R * ddpsi)[:, None] * e1
            + (2 * ds * dpsi + s * ddpsi + R * dpsi**2)[:, None] * e2)
+    # the closed forms against a tol 1e-12 solve: rounding relative to each peak (this block)
     np.testing.assert_allclose(np.stack([res["rack.ax"], res["rack.ay"]], 1), acc,
                                atol=1e-12 * np.max(np.abs(acc)))
     pos = s[:, None] * e1 - R * e2
@@ -290,8 +293,10 @@ def test_pinion_on_a_moving_arm_couples_the_relative_turn(tmp_path):
                                atol=1e-12 * np.max(np.abs(tooth)))
     truth = Truth(loads(ARM, str(path)), res)
     for body, (force, moment) in newton_euler_residual(truth).items():
+        # Newton-Euler of a tol 1e-12 solve: rounding of loads of order 1 N
         assert force < 1e-12 and moment < 1e-12, (body, force, moment)
     drive = res["swing.T_j"] * res["arm.omega"] + res["motor.T_j"] * (res["pinion.omega"] - res["arm.omega"])
+    # the power balance sums products of rates and loads: one digit more of rounding than each
     np.testing.assert_allclose(drive, truth.kinetic_power(), atol=1e-11 * np.max(np.abs(drive)))
     for b in BACKENDS[1:]:
         assert_agree(runs[b].data, res.data, rel=1e-12)

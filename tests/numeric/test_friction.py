@@ -14,11 +14,12 @@ import subprocess
 import numpy as np
 import pytest
 
+from bad_inputs import BASE, assert_one_line_input_error, solve_bad
+from data_mechanisms import quick_return_with_friction
 from symid import api
 from symid.cli import main
 from symid.io.reader import load, loads
 from symid.numeric.solve import run
-from test_inputs import BASE, assert_one_line_input_error, solve_bad
 from truth import Truth, newton_euler_residual
 
 BACKENDS = ["reference", "numpy", "casadi", "c"]
@@ -108,11 +109,13 @@ def test_block_on_rail_matches_coulomb_viscous_closed_form(backend):
     v, a = 0.2 * 3 * np.cos(3 * t), -0.2 * 9 * np.sin(3 * t)
     normal = M * G + 0.05 * 4.0 / 0.1
     friction = -(MU * normal * np.tanh(v / VS) + VISC * v)
+    # closed forms against a tol 1e-12 solve; tanh(v / v_smooth) is steep near reversal and amplifies q's rounding (1e-10 with room)
     np.testing.assert_allclose(res["rail.friction"], friction, rtol=1e-10, atol=1e-10)
     np.testing.assert_allclose(res["rail.friction_power"], friction * v, rtol=1e-10, atol=1e-10)
     np.testing.assert_allclose(res["push.Fx_i"], M * a - 4.0 - friction, rtol=1e-10, atol=1e-9)
     # the reaction columns are the joint's whole action: normal force and friction
     np.testing.assert_allclose(res["rail.Fx_j"], friction, rtol=1e-10, atol=1e-10)
+    # the normal load needs no friction: rounding of M g
     np.testing.assert_allclose(res["rail.Fy_j"], M * G, rtol=1e-12)
 
 
@@ -129,6 +132,7 @@ def test_bar_on_pin_motor_torque_matches_closed_form(backend):
                            np.cos(phi) * alpha - np.sin(phi) * w ** 2], 1)
     pin = M * np.linalg.norm(acm - np.array([0.0, -G]), axis=1)
     friction = -(MU * 0.01 * pin * np.tanh(w / VS) + VISC * w)
+    # closed forms against a tol 1e-12 solve; tanh(w / v_smooth) is steep near reversal and amplifies the rounding (1e-10 with room)
     np.testing.assert_allclose(np.hypot(res["pin.Fx_j"], res["pin.Fy_j"]), pin, rtol=1e-10)
     np.testing.assert_allclose(res["pin.friction"], friction, rtol=1e-10, atol=1e-12)
     j_o = M * 0.4 ** 2 / 12 + M * half ** 2
@@ -156,12 +160,14 @@ def test_power_balance_counts_the_friction_dissipation(crank):
     lost = _friction_power(mech, res)
     assert np.all(lost <= 0) and np.max(-lost) > 1.0  # it dissipates, and not negligibly
     expected = truth.kinetic_power() - truth.load_power(truth.applied_loads()) - lost
+    # the power balance takes finite-precision rates and loads; smoothed friction near reversal costs digits (1e-8 of the peak)
     assert np.max(np.abs(drive - expected)) <= 1e-8 * np.max(np.abs(expected))
 
 
 def test_newton_euler_holds_with_the_friction_loads(crank):
     mech, res = crank
     for body, (force, moment) in newton_euler_residual(Truth(mech, res)).items():
+        # Newton-Euler with friction loads whose smoothed sign amplifies rounding near reversal: 1e-9 N
         assert force < 1e-9 and moment < 1e-9, (body, force, moment)
 
 
@@ -175,7 +181,9 @@ def test_friction_approaches_frictionless_as_mu_goes_to_zero():
         mech = load(api.example("slider_crank_friction"), sets, {"steps": 21})
         gaps.append(api.solve(mech, backend="reference")["motor.T_j"] - plain)
     size = np.max(np.abs(plain))
+    # linear in mu: at mu scaled by 1e-4 the gap is measurable (> 1e-7) and small (< 1e-3)
     assert 1e-7 * size < np.max(np.abs(gaps[0])) < 1e-3 * size
+    # linear in mu: doubling mu doubles the gap, to its second-order term (1e-3)
     np.testing.assert_allclose(gaps[1], 2 * gaps[0], rtol=1e-3, atol=1e-9 * size)
 
 
@@ -201,6 +209,7 @@ def test_exact_sign_away_from_rest_is_the_sign():
     text = RAIL.replace(f"v_smooth = {VS}", "v_smooth = 0").replace('"A*sin(w*t)"', '"t^2 + t"')
     res = api.solve(loads(text, "rail.toml"), backend="reference")
     normal = M * G + 0.05 * 4.0 / 0.1
+    # with v_smooth = 0 the friction is a closed form of the solved state: rounding
     np.testing.assert_allclose(res["rail.friction"], -(MU * normal + VISC * (2 * res.t + 1)), rtol=1e-12)
 
 
@@ -236,6 +245,7 @@ def test_c_solves_friction_in_its_own_loop(monkeypatch):
     ref = api.solve(api.example("slider_crank_friction"), backend="reference", steps=41)
     assert c.columns == ref.columns
     scale = np.abs(ref.data).max(axis=0) + 1e-300  # per column
+    # the C and the reference solve the same equations to tol 1e-12; smoothed friction near reversal costs digits (1e-10 per column)
     assert np.max(np.abs(c.data - ref.data) / scale) <= 1e-10
 
 
@@ -325,23 +335,9 @@ def test_plot_of_a_frictionless_table_has_no_friction_figure(tmp_path):
     assert not (tmp_path / "run_friction.png").exists() and not written.skipped
 
 
-def _quick_return_with_friction() -> str:
-    """The bundled quick-return with friction in its pins, its slot (between
-    two moving bodies) and its ram guide."""
-    text = api.example("quick_return").read_text(encoding="utf-8")
-    text = text.replace('sj = ["r_crank", 0.0]\n', 'sj = ["r_crank", 0.0]\nfriction = { mu = 0.15, viscous = 2.0, arm = 0.05, v_smooth = 1e-3 }\n')
-    for name in ("crank_bearing", "lever_pivot"):
-        head = f'name = "{name}"\ntype = "revolute"\n'
-        text = text.replace(head, head + 'friction = { mu = 0.1, radius = 0.02, viscous = 0.01 }\n')
-    head = 'name = "ram_guide"\ntype = "translational"\n'
-    text = text.replace(head, head + "friction = { mu = 0.1, viscous = 5.0 }\n")
-    assert text.count("friction = ") == 4
-    return text
-
-
 @pytest.mark.parametrize("backend", ["reference", "c"])
 def test_slot_between_moving_bodies_balances_power_and_every_body(backend):
-    mech = loads(_quick_return_with_friction(), "quick_return.toml")
+    mech = loads(quick_return_with_friction(), "quick_return.toml")
     res = api.solve(mech, backend=backend, steps=41)
     assert res.error is None, res.error
     truth = Truth(mech, res)
@@ -349,8 +345,10 @@ def test_slot_between_moving_bodies_balances_power_and_every_body(backend):
     lost = _friction_power(mech, res)
     assert np.all(lost <= 0) and np.min(res["crank_pin_in_lever_slot.friction_power"]) < -1.0
     expected = truth.kinetic_power() - truth.load_power(truth.applied_loads()) - lost
+    # the power balance takes finite-precision rates and loads; smoothed friction near reversal costs digits (1e-8 of the peak)
     assert np.max(np.abs(drive - expected)) <= 1e-8 * np.max(np.abs(expected))
     for body, (force, moment) in newton_euler_residual(truth).items():
+        # Newton-Euler with friction loads whose smoothed sign amplifies rounding near reversal: 1e-9 N
         assert force < 1e-9 and moment < 1e-9, (body, force, moment)
 
 
@@ -422,8 +420,10 @@ def test_slide_on_a_moving_offset_line_balances_power_and_every_body(backend):
     lost = _friction_power(mech, res)
     assert np.all(lost <= 0) and np.min(lost) < -0.5
     expected = truth.kinetic_power() - truth.load_power(truth.applied_loads()) - lost
+    # the power balance takes finite-precision rates and loads; smoothed friction near reversal costs digits (1e-8 of the peak)
     assert np.max(np.abs(drive - expected)) <= 1e-8 * np.max(np.abs(expected))
     for body, (force, moment) in newton_euler_residual(truth).items():
+        # Newton-Euler with friction loads whose smoothed sign amplifies rounding near reversal: 1e-9 N
         assert force < 1e-9 and moment < 1e-9, (body, force, moment)
 
 

@@ -17,7 +17,7 @@ import pytest
 from symid import api
 from symid.io.reader import loads
 from symid.model.mechanism import parameter_symbol
-from test_friction import _quick_return_with_friction
+from data_mechanisms import quick_return_with_friction
 
 pytestmark = pytest.mark.slow  # 40-digit central differences of every column (139 s under load)
 
@@ -99,7 +99,7 @@ def _mechanism(which: str):  # type: ignore[no-untyped-def]
         text = ARM.replace('viscous = 0.01 }', 'viscous = 0.01, v_smooth = 0 }')
         assert text != ARM
         return loads(text, "arm_slider.toml")
-    return loads(_quick_return_with_friction(), "quick_return.toml")
+    return loads(quick_return_with_friction(), "quick_return.toml")
 
 
 MECHANISMS = ("slider_crank_friction", "arm_slider", "arm_slider_exact_sign", "quick_return_friction")
@@ -187,6 +187,7 @@ def test_every_sensitivity_column_matches_40_digit_central_differences(which: st
         for key, exact in truth.items():
             err = abs(results[key][k] - exact) / _scale(results, key)
             worst = max(worst, (err, f"{key} at t = {results.t[k]}"))
+    # against the 40-digit instant: the double solve's rounding, amplified by the steep smoothed sign
     assert worst[0] < 1e-11, worst
 
 
@@ -199,6 +200,7 @@ def test_backends_agree_with_the_reference_to_1e_12_of_each_columns_peak(which: 
     for key in (c for c in ref.columns if c.startswith("d(")):
         err = float(np.abs(other[key] - ref[key]).max()) / _scale(ref, key)
         worst = max(worst, (err, key))
+    # two backends evaluating the same sensitivity formulas at the same q: rounding of each column's scale
     assert worst[0] < 1e-12, worst
 
 
@@ -245,6 +247,7 @@ def test_sweep_gradients_with_friction_match_differences_of_the_figures(tmp_path
             exact = float(rows[4][f"d({figure})/d({name})"])
             err = abs(exact - fd) / max(abs(fd), 1e-3 * float(rows[4][figure]))
             worst = max(worst, (err, f"d({figure})/d({name})"))
+    # central differences of whole runs: truncation and the runs' rounding over the step; 1e-6 relative
     assert worst[0] < 1e-6, worst
 
 
@@ -264,4 +267,5 @@ def test_compiled_instant_sensitivity_with_friction_equals_the_loops_row() -> No
     for k in (1, 2):
         row = ev.sensitivity_row(ref.data[k, 1:1 + ng], float(ref.t[k]), study.analysis.tol)
         err = max(abs(row[m] - ref[c][k]) / _scale(ref, c) for m, c in enumerate(header))
+        # one instant re-evaluated at the table's own q: the same arithmetic, rounding
         assert err < 1e-12, (k, err)

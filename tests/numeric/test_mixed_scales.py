@@ -266,7 +266,7 @@ def _compiled_instants(mech: Mechanism, backend: str):  # type: ignore[no-untype
             from pathlib import Path
 
             from symid.codegen.model import code_model
-            from test_solver_internals import instrumented
+            from csolver import instrumented
 
             lib, _, _ = instrumented(code_model(mech), Path(tempfile.mkdtemp(prefix="symid-dense-")))
             ctypes.c_int.in_dll(lib, "test_force_dense").value = 1

@@ -81,10 +81,12 @@ def test_the_rounding_floor_lets_every_backend_converge_far_from_the_origin(back
     results = api.solve(loads(FAR, "far.toml"), backend=backend)
     assert results.error is None, results.error
     phi = np.sin(results.t)
+    # the pendulum's angle against sin t: the run's tol and the floor of the rule, with room
     assert np.max(np.abs(results["bar.phi"] - phi)) < 1e-8
     # the motor holds the bar against gravity: T = -m g l cos(phi) + I_pin phi''
     alpha = -np.sin(results.t)
     torque = 1.0 * 9.81 * 0.5 * np.cos(phi) + (0.1 + 1.0 * 0.25) * alpha
+    # the torque from accelerations one linear solve past q: a few digits fewer than the angle
     assert np.max(np.abs(results["drive.T_j"] - torque)) < 1e-6 * np.max(np.abs(torque))
 
 

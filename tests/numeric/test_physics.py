@@ -31,6 +31,7 @@ def test_every_example_solves_every_instant(solved):
 def test_newton_euler_holds_on_every_body(solved):
     mech, results = solved
     for body, (force, moment) in newton_euler_residual(Truth(mech, results)).items():
+        # Newton-Euler of a tol 1e-12 solve: loads of order 10-1000 N keep 1e-9 N with room
         assert force < 1e-9 and moment < 1e-9, (body, force, moment)
 
 
@@ -52,6 +53,7 @@ def test_power_balance_lambda_phi_t(solved):
             drive += results[f"{c.name}.lambda"] * truth.driver_phi_t(c.name)
     expected = truth.kinetic_power() - truth.load_power(truth.applied_loads()) - _friction_power(mech, results)
     scale = np.max(np.abs(expected)) + np.max(np.abs(drive))
+    # the power balance sums products of rates and loads: 1e-8 of the largest power
     assert np.max(np.abs(drive - expected)) <= 1e-8 * scale
 
 
@@ -65,6 +67,7 @@ def test_reactions_do_no_work_except_drivers(solved):
         if c.type.endswith("driver"):
             drive += results[f"{c.name}.lambda"] * truth.driver_phi_t(c.name)
     reactions = truth.load_power(truth.reaction_loads()) - _friction_power(mech, results)
+    # the power balance sums products of rates and loads: 1e-8 of the largest power (1e-12: no zero division)
     assert np.max(np.abs(reactions - drive)) <= 1e-8 * (np.max(np.abs(drive)) + 1e-12)
 
 
@@ -81,10 +84,12 @@ def test_velocities_and_accelerations_match_finite_differences(solved):
         for pos, vel in (("x", "vx"), ("y", "vy"), ("phi", "omega")):
             fd = _central(results[f"{b.name}.{pos}"], h)
             exact = results[f"{b.name}.{vel}"][3:-3]
+            # 6th-order central differences of the table: truncation O(h^6) and rounding / h, within 1e-5 of the peak
             assert np.max(np.abs(fd - exact)) <= 1e-5 * (np.max(np.abs(exact)) + 1e-3), (b.name, pos)
         for vel, acc in (("vx", "ax"), ("vy", "ay"), ("omega", "alpha")):
             fd = _central(results[f"{b.name}.{vel}"], h)
             exact = results[f"{b.name}.{acc}"][3:-3]
+            # 6th-order central differences of the table: truncation O(h^6) and rounding / h, within 1e-5 of the peak
             assert np.max(np.abs(fd - exact)) <= 1e-5 * (np.max(np.abs(exact)) + 1e-3), (b.name, vel)
 
 
@@ -110,6 +115,7 @@ def test_slider_crank_motor_torque_equals_closed_form():
     tau = (kinetic.diff(t) - gravity_power - gas_power) / w
     expected = sp.lambdify(t, tau, "numpy")(truth.t)
     got = truth.res["motor.T_j"]
+    # the closed form of the torque against a tol 1e-12 solve: rounding of the peak, with room
     assert np.max(np.abs(got - expected)) <= 1e-10 * np.max(np.abs(expected))
     # and the motor's reaction on ground is the opposite torque
     assert np.allclose(truth.res["motor.T_i"], -got, rtol=0, atol=1e-12 * np.max(np.abs(got)))
@@ -129,4 +135,5 @@ def test_statics_lambda_balances_gravity_only():
     x_slider_d = -r * np.sin(th) - r**2 * np.sin(th) * np.cos(th) / np.sqrt(l**2 - (r * np.sin(th)) ** 2)
     gas = -p["F_gas"] * np.sin(th) * x_slider_d
     tau = 9.81 * (p["m_crank"] * dy_crank + p["m_rod"] * dy_rod) - gas
+    # the static torque by virtual work against a tol 1e-12 solve: rounding of the peak, with room
     assert np.allclose(res["motor.T_j"], tau, rtol=0, atol=1e-10 * np.max(np.abs(tau)))

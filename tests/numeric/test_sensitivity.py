@@ -105,6 +105,7 @@ def test_sensitivities_match_central_differences_to_1e_9_of_peak(example: str, b
     assert sens, "the default columns (efforts and reactions) are present"
     errors = {c: np.abs(results[c] - fd["fine"][c]).max() / scale[c] for c in sens}
     worst = max(errors, key=errors.get)  # type: ignore[arg-type]
+    # the differences themselves hold to 2e-9 of the scale (test above): 1e-9, as the docstring there says
     assert errors[worst] < 1e-9, (worst, errors[worst])
 
 
@@ -118,6 +119,7 @@ def test_motor_torque_by_slider_mass_and_gas_load_is_the_power_balance_closed_fo
     ax, vx, t = results["slider.ax"], results["slider.vx"], results.t
     by_mass = ax * vx / omega
     by_load = np.sin(omega * t) * vx / omega
+    # closed forms against a tol 1e-12 solve: rounding of the peak (both)
     np.testing.assert_allclose(results["d(motor.T_j)/d(m_slider)"], by_mass, rtol=0, atol=1e-12 * np.abs(by_mass).max())
     np.testing.assert_allclose(results["d(motor.T_j)/d(F_gas)"], by_load, rtol=0, atol=1e-12 * np.abs(by_load).max())
 
@@ -127,6 +129,7 @@ def test_crank_speed_moves_omega_through_its_definition() -> None:
     at time t is 2 pi t (crank angle omega t)."""
     results = api.solve(api.example("slider_crank"), "reference", sensitivity="n", sensitivity_of="crank.phi",
                         steps=5)
+    # d(phi)/dn = 2 pi t exactly; rounding of values up to 1.3
     np.testing.assert_allclose(results["d(crank.phi)/d(n)"], 2 * np.pi * results.t, rtol=1e-13, atol=1e-15)
 
 
@@ -154,6 +157,7 @@ def test_sensitivities_agree_with_casadi_automatic_differentiation(example: str,
         for r, column in enumerate(r_cols):
             for j, name in enumerate(names):
                 ours = results[f"d({column})/d({name})"][k]
+                # the exact Jacobian against the solver's: the same quantity to rounding of the column's peak
                 assert abs(ours - jac[r, j]) <= 1e-10 * max(1.0, np.abs(jac[:, j]).max()), (t, column, name)
     assert ng == len(q_cols)
 
@@ -197,6 +201,7 @@ def test_sensitivities_match_40_digit_central_differences(example: str) -> None:
                         key = f"d({column})/d({name})"
                         err = abs(results[key][k] - exact) / scale[key]
                         worst = max(worst, (err, f"{key} at t = {t}"))
+    # against the 40-digit instant: rounding of the double solve, relative to the column's scale
     assert worst[0] < 1e-9, worst
 
 
@@ -215,4 +220,5 @@ def test_statics_sensitivities_match_central_differences(example: str) -> None:
     for c in sens:
         peak = max(np.abs(fd[c]).max(), 1e-6 * max(np.abs(results[k]).max() for k in results.columns[1:]
                                                    if not k.startswith("d(")))
+        # central differences of whole runs (see the fd step above): 1e-9 of the peak
         assert np.abs(results[c] - fd[c]).max() <= 1e-9 * peak, c

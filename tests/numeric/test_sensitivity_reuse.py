@@ -70,6 +70,7 @@ def test_a_reused_evaluator_gives_a_fresh_process_numbers() -> None:
     fresh = np.array(json.loads(out.stdout))
     assert reused.shape == fresh.shape
     scale = np.maximum(np.abs(fresh).max(axis=0), 1e-300)
+    # the same evaluator with new values: the same arithmetic, rounding
     assert (np.abs(reused - fresh).max(axis=0) / scale).max() <= 1e-13
     # and the value moved the results: the reuse did not keep the first value's numbers
     assert not np.allclose(reused, _solve("0.1"))

@@ -146,6 +146,7 @@ def test_cond_column_is_the_same_on_every_python_loop_backend(backend):
     base = api.prepare(SLIDER_CRANK, "reference", steps=11, outputs=["q", "cond"]).solve()
     other = api.prepare(SLIDER_CRANK, backend, steps=11, outputs=["q", "cond"]).solve()
     assert other.columns == ["t"] + [c for c in base.columns[1:]] and other.columns[-1] == "cond"
+    # cond from the same matrices on another backend: the estimate's rounding, relative
     assert np.allclose(other["cond"], base["cond"], rtol=1e-9, atol=0)
 
 
@@ -184,13 +185,13 @@ def test_ill_conditioning_warns_once_with_its_time_span(tmp_path, capsys):
     assert results.error is None and len(results.warnings) == 1 and "ill-conditioned" in results.warnings[0]
 
 
-def test_well_conditioned_examples_never_warn_nor_check_branches(monkeypatch):
+@pytest.mark.parametrize("name", EXAMPLES)  # one example per test: the big ones in the slow tier (tests/conftest.py)
+def test_well_conditioned_examples_never_warn_nor_check_branches(monkeypatch, name):
     """The normal path: no warning, and the branch check never re-solves an instant."""
     calls = []
     monkeypatch.setattr(solve, "_continuation", lambda *a, **k: calls.append(a[3]))
-    for name in EXAMPLES:
-        results = api.solve(api.example(name), "numpy")
-        assert results.error is None and results.warnings == [], (name, results.warnings)
+    results = api.solve(api.example(name), "numpy")
+    assert results.error is None and results.warnings == [], (name, results.warnings)
     assert calls == []
 
 
@@ -311,12 +312,14 @@ def test_min_norm_gives_the_exact_motor_torque_and_kinematics(parallelogram):
     bound = kappa**2 * np.finfo(float).eps
     torque = g * L * (1.5 * m_c + m_k)
     assert np.all(np.abs(res["motor.T_j"] - torque * np.cos(theta)) <= bound * torque)
+    # the parallel cranks' closed form in coordinates of order 1: rounding
     assert np.allclose(res["coupler.x"], b + L * np.cos(theta), rtol=0, atol=1e-14)
     assert np.all(np.abs(res["coupler.ay"] + w**2 * L * np.sin(theta)) <= bound * w**2 * L)
     for crank in ("crank_a", "crank_b", "crank_c"):
         assert np.allclose(res[f"{crank}.phi"], theta, rtol=0, atol=1e-14)
     mech = load(path)
     for body, (force, moment) in newton_euler_residual(Truth(mech, res)).items():
+        # Newton-Euler of a tol 1e-12 solve: rounding of loads of order 1 N
         assert force < 1e-12 and moment < 1e-12, body
 
 
@@ -329,6 +332,7 @@ def test_min_norm_multipliers_have_no_self_stress_component(parallelogram):
         jac = study.evaluator.phi_q(instant.q, instant.t)
         u, sv, _ = np.linalg.svd(jac)
         null = u[:, -1]
+        # the multipliers have no component along the redundant direction: zero to rounding of |lam|
         assert abs(null @ lam) <= 1e-12 * np.linalg.norm(lam)
         assert abs(null[study.layout.row_of["motor"][0]]) < 1e-12  # the motor's row is not in it
 
@@ -348,6 +352,7 @@ def test_min_norm_agrees_on_every_python_loop_backend(parallelogram, backend):
     base, other = results["reference"], results[backend]
     assert other.error is None
     scale = np.maximum(np.abs(base.data).max(axis=0), 1e-2 * np.abs(base.data).max())
+    # the same run with equilibration: rounding of each column's scale
     assert np.max(np.abs(other.data - base.data) / scale) < 1e-10
 
 
@@ -414,6 +419,7 @@ def test_damped_newton_converges_where_the_full_step_diverges():
         assert abs(x_new - 2) > abs(x - 2)
         x = x_new
     q, iterations = solve.newton(ev, np.array([3.5, 0.0, 0.0]), 0.0, 1e-12)
+    # damped Newton to tol 1e-12: q to the tolerance
     assert abs(q[0] - 2) < 1e-12 and iterations < 20
 
 
@@ -442,6 +448,7 @@ def test_a_step_too_long_for_the_predictor_is_recovered_by_sub_steps():
     coarse = api.solve(api.example("excavator"), "reference", steps=3, assembly_jump="warn")
     fine = api.solve(api.example("excavator"), "reference", steps=201)
     assert coarse.data.shape[0] == 3
+    # the coarse step's instant is the fine run's: both to tol 1e-12, 1e-9 in q of order 1
     assert np.allclose(coarse.data[1, :40], fine.data[100, :40], rtol=0, atol=1e-9)
 
 
@@ -583,6 +590,7 @@ def test_other_units_give_the_same_results_to_1e_12(tmp_path, name, u, m):
         dim = _unit_of(base.columns[cols[0]])[1]
         converted = other.data[:, cols] / (u ** dim[0] * m ** dim[1])
         scale = np.max(np.abs(base.data[:, cols]))
+        # units converted back: rounding of the conversion factors, relative to the peak
         assert np.max(np.abs(converted - base.data[:, cols])) <= 1e-12 * scale, (kind, name)
     # power-of-two scales: within a factor ~2; and LAPACK's gecon is a lower-bound
     # estimate that can land on another local maximum when the scales change (the
@@ -718,6 +726,7 @@ def test_a_pin_at_a_centre_of_mass_is_no_length_scale(backend):
     assert exact.error is None and near.error is None, near.error
     assert not near.warnings, near.warnings
     peak = np.max(np.abs(exact["motor.T_j"]))
+    # the crank 1e-7 m off balance: the torque moves by that arm times the loads, below 1e-5 of the peak
     assert np.max(np.abs(near["motor.T_j"] - exact["motor.T_j"])) <= 1e-5 * peak
     jac = np.array([[1, 0, 4e-18], [0, 1, -6.7e-8], [0, 1, 0.15]])
     assert stability.Scaling.of(jac, np.zeros(3)).lref == pytest.approx(0.15)

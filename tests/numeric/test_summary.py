@@ -46,6 +46,7 @@ def test_driver_power_is_the_rate_of_kinetic_energy_less_applied_power(solved):
     expected = truth.kinetic_power() - truth.load_power(truth.applied_loads()) - lost
     total = sum(e.power for e in summary.efforts(mech, results))
     scale = np.max(np.abs(expected)) + np.max(np.abs(truth.load_power(truth.applied_loads())))
+    # the power balance sums products of rates and loads: 1e-8 of the largest power
     assert np.max(np.abs(total - expected)) < 1e-8 * scale
 
 
@@ -55,6 +56,7 @@ def test_motor_torque_is_the_T_j_column_and_its_power_uses_the_relative_speed():
     (motor,) = summary.efforts(mech, results)
     assert (motor.quantity, motor.unit) == ("torque", "N·m")
     np.testing.assert_array_equal(motor.value, results["motor.T_j"])
+    # the product of two tabled columns, computed the same way: rounding
     np.testing.assert_allclose(motor.power, results["motor.T_j"] * results["crank.omega"], rtol=1e-9, atol=1e-9)
 
 
@@ -68,6 +70,7 @@ def test_cylinder_force_is_the_reaction_on_j_along_the_cylinder_pushing_apart():
         pj, _ = truth.point(c.bodies["j"], c.values["sj"])
         u = (pj - pi) / np.linalg.norm(pj - pi, axis=1)[:, None]
         on_j = np.stack([results[f"{e.name}.Fx_j"], results[f"{e.name}.Fy_j"]], 1)
+        # the force along the actuator from its reactions: rounding relative (1e-9), 1e-6 N absolute where it crosses zero
         np.testing.assert_allclose(e.value, np.sum(on_j * u, 1), rtol=1e-9, atol=1e-6)
     # Holding the boom up against gravity, the boom cylinder pushes at t0.
     assert summary.efforts(mech, results)[0].value[0] > 0
@@ -79,6 +82,7 @@ def test_slide_force_is_the_reaction_on_j_along_the_slide_direction():
     e = next(e for e in summary.efforts(mech, results) if e.type == "translational_driver")
     alpha = 10 * np.pi / 180  # the guide's inclination in the file
     on_j = np.stack([results[f"{e.name}.Fx_j"], results[f"{e.name}.Fy_j"]], 1)
+    # the force along the guide from its reactions: rounding
     np.testing.assert_allclose(e.value, on_j @ [np.cos(alpha), np.sin(alpha)], rtol=1e-9, atol=1e-9)
 
 

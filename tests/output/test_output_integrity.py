@@ -22,7 +22,7 @@ import pytest
 from symid import api, backends
 from symid.cli import main
 from symid.output.results import write_csv
-from test_cli import SLIDER_CRANK, base_text, read_csv, set_line, with_analysis
+from cli_files import SLIDER_CRANK, base_text, read_csv, set_line, with_analysis
 
 REPO = Path(__file__).resolve().parents[2]
 BACKENDS = ("numpy", "c", "casadi", "reference")
@@ -52,6 +52,7 @@ def assert_same_rows(got: np.ndarray, want: np.ndarray) -> None:
     # columns that are zero up to rounding (the crank's alpha): absolute, in SI units
     scale = np.maximum(np.max(np.abs(want), axis=0), 1.0)
     diff = np.abs(got - want) / scale
+    # (the docstring: to rounding, but the last three instants near the singular position, 1e-3)
     assert np.max(diff[:-3]) <= 1e-9
     assert np.max(diff) <= 1e-3
 
@@ -180,6 +181,7 @@ def test_output_subset_rows_are_as_wide_as_the_header_and_equal_the_full_run(
     data = np.array([line.split(",") for line in lines[1:]], dtype=float)
     want = full[:, [full_header.index(c) for c in header]]
     scale = np.maximum(np.max(np.abs(want), axis=0), 1.0)  # absolute for near-zero columns
+    # every output subset solves the same equations to tol 1e-12: rounding, 1 as the floor of near-zero columns
     assert np.max(np.abs(data - want) / scale) <= 1e-10
     # the summary: the same figures as the full run's wherever the driver's columns are kept
     if "motor.T_j" in header:

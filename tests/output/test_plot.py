@@ -78,6 +78,7 @@ def test_reaction_lines_are_the_force_magnitudes_of_every_joint(solved):
         magnitude = np.hypot(results[f"{c.name}.Fx_{role}"], results[f"{c.name}.Fy_{role}"])
         line = drawn.pop(f"force:{c.name}", None)
         if line is None:  # left out only when the force is zero throughout
+            # a force left out of the plot is zero to rounding of the run's values
             assert np.max(magnitude) <= 1e-9 * max(np.max(np.abs(results.data[:, 1:])), 1.0), c.name
         else:
             np.testing.assert_array_equal(line.get_ydata(), magnitude)
@@ -98,6 +99,7 @@ def test_pins_are_drawn_at_the_joint_points_of_each_instant(solved):
             if c.type in ("revolute", "pin_in_slot"):
                 (pin,) = [ln for ln in ax.lines if ln.get_gid() == f"pin:{c.name}"]
                 p, _ = truth.point(c.bodies["j"], c.values["sj"])
+                # the drawn point is the truth's formula of the same coordinates: rounding of lengths of order 0.1 m
                 np.testing.assert_allclose([pin.get_xdata()[0], pin.get_ydata()[0]], p[k], atol=1e-12)
 
 
@@ -107,6 +109,7 @@ def test_the_slider_crank_paths_are_the_crank_circle_and_the_guide_line():
     sc = plot.scene(results, mech)
     assert set(sc.outlines) == {"crank", "connecting_rod", "slider"} and sc.anchors == [(0.0, 0.0)]
     radii = [np.hypot(*path.T) for _, path in sc.paths]
+    # geometry of lengths of order 0.1 m: rounding
     circle = [r for r in radii if np.allclose(r, 0.1, atol=1e-12)]
     assert len(circle) == 1  # the crank pin, drawn once though it is on two bodies
     line = [path for _, path in sc.paths if np.allclose(path[:, 1], 0.0, atol=1e-12)]
@@ -160,6 +163,7 @@ def test_an_eccentric_gears_pitch_circle_turns_about_its_axis_not_its_centre_of_
         axis, _ = truth.point(body, c.values["sj"])
         com, _ = truth.point(body, (0, 0))
         assert np.max(np.hypot(*(com - axis).T)) > 0.009  # the centre of mass is elsewhere
+        # geometry of lengths of order 0.1 m: rounding
         np.testing.assert_allclose(drawn[body][0], axis, atol=1e-12)
         assert drawn[body][1] == pytest.approx(radius, rel=1e-12)
 
@@ -173,6 +177,7 @@ def test_springs_are_drawn_between_their_points():
     rocker_end, _ = truth.point("rocker", (sp.Float(0.05), sp.Integer(0)))
     ends = np.array([[spring.get_xdata()[0], spring.get_ydata()[0]], [spring.get_xdata()[-1], spring.get_ydata()[-1]]])
     k = int(spring.axes.get_gid().split(":")[1])
+    # geometry of lengths of order 0.1 m: rounding
     np.testing.assert_allclose(ends, [[0.75, 0.30], rocker_end[k]], atol=1e-12)
 
 

@@ -24,7 +24,7 @@ from symid.study import cluster as cluster_module
 
 distributed = pytest.importorskip("distributed")
 
-from test_sweep_cluster import Cluster, free_port  # noqa: E402  (after the skip: it imports distributed)
+from cluster import Cluster, free_port  # noqa: E402  (after the skip: it imports distributed)
 
 pytestmark = pytest.mark.slow  # starts Dask schedulers and workers, and listeners that never answer
 

@@ -69,6 +69,7 @@ def test_sweep_figures_with_friction_equal_each_variants_own_solve(tmp_path, cap
         assert row["status"] == "ok", row
         expected = own_figures(tmp_path, capsys, backend, {"mu_pin": row["mu_pin"], "L_rod": row["L_rod"]})
         for name in FIGURES:
+            # the figure from the sweep and from its own solve: the same arithmetic up to summation order (1e-12 relative; atol: zero figures)
             np.testing.assert_allclose(float(row[name]), expected[name], rtol=1e-12, atol=1e-300, err_msg=name)
     # the friction coefficient reaches the sweep: mu_pin = 0.1 takes more than mu_pin = 0
     peaks = [float(r["main_bearing.force_peak"]) for r in rows]
@@ -92,10 +93,12 @@ def test_solve_many_with_friction_parameters_gives_each_variants_own_run(backend
                           set_values={n: repr(float(v)) for n, v in zip(NAMES, row)}).solve()
         assert results.error is None and own.error is None
         assert results.columns == own.columns
+        # a variant and its own solve: the same arithmetic, rounding
         np.testing.assert_allclose(results.data, own.data, rtol=1e-12, atol=1e-12 * np.abs(own.data).max())
     # without friction (every coefficient 0) no joint loses power; with it they do
     loss = [float(np.abs(r["main_bearing.friction_power"]).max()) for r in runs]
     assert loss[0] == 0.0 and loss[1] > 0.0 and loss[2] > 0.0
+    # the friction changes the torque by far more than 1e-6: they differ
     assert not np.allclose(runs[0]["motor.T_j"], runs[1]["motor.T_j"], rtol=1e-6)
 
 
@@ -122,4 +125,5 @@ def test_c_friction_newton_system_solved_either_way_matches_the_reference(monkey
     assert ("u33 = a[15]" in source) == (unrolled == 4)  # the written-out elimination, or none
     assert c.columns == ref.columns
     scale = np.abs(ref.data).max(axis=0) + 1e-300
+    # the C and the reference solve the same equations to tol 1e-12; smoothed friction near reversal costs digits (1e-10 per column)
     assert np.max(np.abs(c.data - ref.data) / scale) <= 1e-10

@@ -124,6 +124,7 @@ def test_solve_many_gives_each_variants_own_trajectory_in_bounded_chunks(backend
         own = own_solve("slider_crank", backend, ("L_rod", "n"), row)
         assert results.columns == own.columns and results.data.shape == own.data.shape
         assert (results.error is None) == (own.error is None)
+        # a variant and its own solve: the same arithmetic, rounding
         np.testing.assert_allclose(results.data, own.data, rtol=1e-12, atol=1e-12 * np.abs(own.data).max())
         assert results.summary()[-1] == own.summary()[-1]  # the summary reads this variant's f(t)
 

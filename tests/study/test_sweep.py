@@ -79,6 +79,7 @@ def assert_rows_match_solves(tmp_path, capsys, path: Path, params: list[str], ba
         assert (cells["status"] == "ok") == (status == "ok"), row
         assert float(cells["t_end"]) == t_end
         for name in FIGURES:
+            # the figure from the sweep and from its own table: rounding (atol: zero figures)
             np.testing.assert_allclose(float(cells[name]), expected[name], rtol=1e-12, atol=1e-300, err_msg=name)
 
 
@@ -126,6 +127,7 @@ def test_a_failed_variant_keeps_its_row_and_the_figures_before(tmp_path, capsys)
     assert solved == "failed" and 0 < t_end < 0.2
     cells = dict(zip(header, rows[1]))
     assert float(cells["t_end"]) == t_end
+    # the figure from the sweep and from its own table: rounding
     np.testing.assert_allclose(float(cells["motor.effort_peak"]), expected["motor.effort_peak"], rtol=1e-12)
 
 

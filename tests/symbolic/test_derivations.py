@@ -214,6 +214,7 @@ def test_gamma_and_nu_match_numerical_derivatives_of_phi(variant, seed):
         phi_q_qd = sum(jac[r](vals) @ np.array([motion[qc](t, 1) for qc in s.q(r)]) for r in der.roles)
         phi_q_qdd = sum(jac[r](vals) @ np.array([motion[qc](t, 2) for qc in s.q(r)]) for r in der.roles)
         d1, d2 = central(phi_at, t, 1e-3, 1), central(phi_at, t, 1e-3, 2)
+        # central differences with h = 1e-3: truncation O(h^2) ~1e-6 (both)
         np.testing.assert_allclose(d1, phi_q_qd - nu(vals).ravel(), rtol=1e-6, atol=1e-6)
         np.testing.assert_allclose(d2, phi_q_qdd - gamma(vals).ravel(), rtol=1e-6, atol=1e-6)
 
@@ -315,11 +316,13 @@ def test_reactions_reduce_to_reference_table_at_consistent_configurations(varian
         np.testing.assert_allclose(phi(vals).ravel(), 0, atol=1e-12)  # the builder is consistent
         got = {r: react[r](vals).ravel() for r in der.roles}
         if expected is None:  # revolute
+            # lambdified expressions at the same point: rounding (this block)
             np.testing.assert_allclose(got["i"][:2], -got["j"][:2], atol=1e-12)
             np.testing.assert_allclose([got["i"][2], got["j"][2]], 0, atol=1e-12)
             continue
         want = expected(lam)
         for role in der.roles:
+            # lambdified expressions at the same point: rounding
             np.testing.assert_allclose(got[role], want.get(role, np.zeros(3)), atol=1e-12, err_msg=role)
 
 

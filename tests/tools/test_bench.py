@@ -45,6 +45,7 @@ def test_symid_bench_json_has_the_documented_keys(backend: str, capsys: pytest.C
         assert key in result
     assert result["instants"] == 12
     assert result["us_per_instant"] > 0 and result["setup_s"] > 0
+    # the constraint residual after Newton to tol 1e-12, for lengths of order 1 (1e-10 with room)
     assert result["max_residual"] <= 1e-10
     assert result["error"] is None
 
@@ -57,6 +58,7 @@ def test_ladder_motor_torque_matches_its_closed_form(n: int, tmp_path: Path) -> 
     assert results.error is None
     assert len(results.columns) > 1 and results.data.shape[0] == 201
     exact = lad.torque(results.t)
+    # the ladder's closed-form torque against a tol 1e-12 solve: rounding grows with the chain, 1e-10 leaves room
     assert np.max(np.abs(results["motor.T_j"] - exact)) <= 1e-10 * np.max(np.abs(exact))
     assert api.prepare(path).layout.ng == lad.ng == 6 * n + 3
 
@@ -65,6 +67,7 @@ def test_ladder_exact_configuration_is_assembled(tmp_path: Path) -> None:
     lad = ladder.Ladder(3)
     study = api.prepare(ladder.write(3, tmp_path, steps=11), "reference")
     for t in (0.0, 0.3, 0.77):
+        # the ladder's exact q satisfies Phi: rounding of coordinates of order 1
         assert np.max(np.abs(study.evaluator.phi(lad.q_exact(t), t))) <= 1e-14
 
 
@@ -217,6 +220,7 @@ def test_overview_smoke_run_writes_every_output(tmp_path: Path) -> None:
     assert processes["stream"]["status"] == 0 and processes["stream"]["peak_rss_mb"] > 0
     for cell in result["cells"]:
         assert cell["status"] == "ok", cell
+        # each cell's error against the closed form: the bound of the ladder tests
         assert cell["error_rel"] <= 1e-10, cell
         assert cell["us_per_instant"] > 0 and cell["peak_rss_mb"] > 0
     assert all(s["status"] == "ok" for s in result["sweeps"].values())
@@ -241,5 +245,6 @@ def test_a_ladder_far_from_the_origin_keeps_its_torque_to_1e_13(backend: str, tm
     results = api.solve(ladder.write(8, tmp_path, steps=101, **dims), backend)
     assert results.error is None
     exact = lad.torque(results.t)
+    # far from the origin the solver keeps relative precision: 1e-13 of the peak, the point of this test
     assert np.max(np.abs(results["motor.T_j"] - exact)) <= 1e-13 * np.max(np.abs(exact))
     assert np.max(np.abs(results.data[:, 1:1 + lad.ng] - np.array([lad.q_exact(t) for t in results.t]))) <= 1e-11

@@ -42,4 +42,5 @@ def test_driver_instant_from_a_near_guess_lands_on_the_trajectory(driver: Path) 
                                               text=True, check=True).stdout.split()
     assert (status, done) == ("0", "3")
     assert 1 <= int(iters) <= 4  # a guess 1e-6 off: a few Newton steps, not a fresh assembly
+    # the instant's distance from the trajectory's q: the Newton tol, with room
     assert float(far) < 1e-9

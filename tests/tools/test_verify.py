@@ -83,6 +83,7 @@ def test_wrong_sign_is_caught_with_a_valid_counterexample():
     d_y = (s.global_point("j", "sj") - s.global_point("i", "si"))[1]
     claimed = sp.Matrix([derived[0], -2 * d_y * s.lam(1)[0]])
     d_at, c_at = at(derived, bad.point), at(claimed, bad.point)
+    # the claim differs from the derivation (1e-6) in one entry and agrees exactly, to rounding, in the other
     assert abs(d_at[1] - c_at[1]) > 1e-6 and abs(d_at[0] - c_at[0]) < 1e-20
     assert [float(v) for v in d_at] == pytest.approx(bad.derived_at)
     assert [float(v) for v in c_at] == pytest.approx(bad.claimed_at)
@@ -136,6 +137,7 @@ def test_pin_in_slot_counterexample_puts_the_pin_ahead_on_the_slot():
     bad = report.outcomes[only_failure(report) - 1]
     d = s.global_point("j", "sj") - s.global_point("i", "si")
     a = s.A("i") * s.vector("vi")
+    # Phi of the chosen point is zero: rounding of a 30-digit evaluation
     assert abs(at(derive_constraint("pin_in_slot").phi[0], bad.point)[0]) < 1e-20
     assert at(a.dot(d), bad.point)[0] > 0
 
