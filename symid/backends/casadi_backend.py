@@ -53,7 +53,7 @@ class CasadiEvaluator:
     """
 
     # driven by the shared Python loop; one set of loaded functions serves many variants
-    capabilities = Capabilities(with_params=True)
+    capabilities = Capabilities(with_params=True, setup_kb=110.0)
 
     def __init__(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs,
                  options: Options, friction: FrictionModel | None = None) -> None:

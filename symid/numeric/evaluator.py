@@ -69,6 +69,9 @@ class Capabilities:
             (`load(artifact, name, params)`, `artifact`: a planned run).
         lacks: the `[analysis]` features it cannot provide
             (`symid.numeric.stability.FEATURES` keys).
+        setup_kb: the memory its setup holds per coordinate, kB (measured:
+            `symid.backends.footprint`); the default is the generated
+            Python module's.
     """
 
     own_loop: bool = False
@@ -81,6 +84,7 @@ class Capabilities:
     solves_friction: bool = True
     loads: bool = False
     lacks: frozenset[str] = frozenset()
+    setup_kb: float = 160.0
 
 
 class Evaluator(Protocol):
