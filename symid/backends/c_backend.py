@@ -245,6 +245,13 @@ class CEvaluator:
         out[self.meta["rows"], self.meta["cols"]] = values
         return out
 
+    def phi_q_sparse(self, q: Array, t: float):  # type: ignore[no-untyped-def]
+        from scipy import sparse
+
+        values = self._call("phi_q", np.ascontiguousarray(q, float), float(t), size=self.meta["nnz"])
+        return sparse.csc_matrix((values, (self.meta["rows"], self.meta["cols"])),
+                                 shape=(self.meta["nc"], self.meta["ng"]))
+
     def scaling(self, q: Array, t: float) -> Scaling:
         """The Python loop's scales at q from Phi_q's entries (nothing nc x ng)."""
         from symid.numeric.sparse_scaling import scaling_of_entries

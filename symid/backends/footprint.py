@@ -13,8 +13,9 @@ checked at 1024 for C:
   code held in memory, the compiler's or CasADi's own work on it;
 - the dense checks: Phi_q as an nc x ng matrix of doubles, in
   `DENSE_COPIES` copies at once (the matrix, its equilibrated copy, the LU
-  factors, the temporaries of the scaling), wherever the Python loop or the
-  rank analysis of redundant rows factors it (`dense_checks`).
+  factors, the temporaries of the scaling), wherever the rank analysis of
+  redundant rows, or the Python loop of a small mechanism, factors it
+  (`dense_checks`; from `SPARSE_MIN` coordinates on the loop is sparse).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from typing import TYPE_CHECKING
 
 from symid import backends
 from symid.errors import InputError
-from symid.numeric.stability import requested
+from symid.numeric.stability import SPARSE_MIN
 
 if TYPE_CHECKING:
     from symid.symbolic.assemble import Layout
@@ -66,17 +67,12 @@ class Footprint:
 def dense_checks(layout: Layout, backend: str) -> str:
     """What factors Phi_q densely in this run ("" when nothing does): the
     rank analysis of more rows than coordinates (the redundancy report, on
-    every backend), and the Python loop (assembly at t0, the condition
-    estimate) on a backend without a compiled loop of its own, or for a
-    stability feature only the Python loop provides (the compiled loop lacks
-    it: the run is refused, or the Python loop runs it)."""
-    analysis = layout.mechanism.analysis
+    every backend), and the Python loop of a backend without a compiled loop
+    below `SPARSE_MIN` coordinates (from there on it factors Phi_q sparse)."""
     if layout.nc > layout.ng:
         return "the rank analysis of the redundant rows"
-    if not backends.capabilities(backend).compiled_loop:
+    if layout.ng < SPARSE_MIN and not backends.capabilities(backend).compiled_loop:
         return "the Python loop's factorizations of Phi_q"
-    if requested(analysis):
-        return f"the Python loop's {requested(analysis)[0]}"
     return ""
 
 

@@ -7,7 +7,7 @@ registry that builds evaluators is `symid.backends`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, Protocol
+from typing import Any, TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 
@@ -103,6 +103,10 @@ class Evaluator(Protocol):
 
     def phi(self, q: Array, t: float) -> Array: ...
     def phi_q(self, q: Array, t: float) -> Array: ...
+    def phi_q_sparse(self, q: Array, t: float) -> Any:
+        """Phi_q as a scipy CSC matrix (nc, ng), nothing nc x ng: the Python
+        loop's from `symid.numeric.stability.SPARSE_MIN` coordinates on."""
+        ...
     def nu(self, q: Array, t: float) -> Array: ...
     def gamma(self, q: Array, qd: Array, t: float) -> Array: ...
     def applied(self, q: Array, qd: Array | None, t: float) -> Array: ...

@@ -13,7 +13,7 @@ import numpy as np
 from symid.errors import AnalysisError, InputError
 from symid.numeric.evaluator import Array, Evaluator
 from symid.numeric.newton import RULE
-from symid.numeric.stability import EPS, NULL_SHARE, Scaling
+from symid.numeric.stability import EPS, NULL_SHARE, Scaling, is_sparse
 
 if TYPE_CHECKING:
     from symid.model.mechanism import Mechanism
@@ -40,6 +40,8 @@ def rank_of(jac: Array, scaling: Scaling, layout: Layout, singular: bool = False
     """The rank analysis of Phi_q (nc, ng); cost one SVD. `singular`: the caller's
     factorization found it singular, so the smallest singular value counts as null
     even when just above this rank threshold (else no constraint would be named)."""
+    if is_sparse(jac):  # the Python loop's sparse Phi_q: this analysis is dense (footprint counts it)
+        jac = jac.toarray()  # type: ignore[attr-defined]
     nc, ng = jac.shape
     a = jac / scaling.row[:, None] * scaling.col[None, :]
     u, sv, _ = np.linalg.svd(a)

@@ -15,6 +15,7 @@ from benchmarks import ladder
 from symid import api, backends
 from symid.backends import footprint
 from symid.cli import main
+from symid.numeric.stability import SPARSE_MIN
 from symid.symbolic.assemble import assemble
 
 EXAMPLES = Path(api.example("four_bar")).parent
@@ -32,9 +33,14 @@ def test_the_dense_part_is_five_copies_of_phi_q_where_the_python_loop_factors_it
     for backend in ("numpy", "casadi", "reference"):
         assert footprint.estimate(layout, backend).dense_mb == pytest.approx(dense, rel=1e-15), backend
     assert footprint.estimate(layout, "c").dense_mb == 0 and not footprint.dense_checks(layout, "c")
-    # a stability feature only the Python loop has makes the c run dense too
-    cond = assemble(api.load_mechanism(EXAMPLES / "four_bar.toml", outputs=["cond"]))
-    assert footprint.estimate(cond, "c").dense_mb == pytest.approx(dense, rel=1e-15)
+
+
+def test_the_python_loop_of_a_large_mechanism_counts_nothing_dense(tmp_path: Path) -> None:
+    """From SPARSE_MIN coordinates on the loop factors Phi_q sparse (tests/numeric/test_sparse_checks.py)."""
+    layout = assemble(api.load_mechanism(ladder.write(100, tmp_path, steps=11)))  # ng 603
+    assert layout.ng >= SPARSE_MIN
+    for backend in backends.names():
+        assert footprint.estimate(layout, backend).dense_mb == 0, backend
 
 
 def test_the_setup_grows_linearly_with_the_coordinates(tmp_path: Path) -> None:
