@@ -38,11 +38,12 @@ DEFAULT_LIMIT_MB = 2048
 LIMIT_VARIABLE = "SYMID_MEMORY_LIMIT"
 BASE_MB = 100.0  # measured: 98 MiB for the C bench of the ladder of 64, its setup's share subtracted
 # Each backend's setup per coordinate is its `Capabilities.setup_kb`, a slope
-# fitted to peak MiB at ng 387 and 1539 (the dense part subtracted, rounded up):
-# numpy 186 -> 428 (140 kB; 160 declared, the default, reference's too), casadi
-# 131 -> 330 (100 kB: its functions' expression graphs; 110 declared), c 99 -> 107,
-# and 175 at ng 6147 (15 kB; gcc's peak counts when larger than Python's: it
-# compiles a loop per constraint family, not per row).
+# fitted to peak MiB of `symid bench` on the ladder at ng 387, 1539 and 6147
+# (rounded up): numpy 186, 428, 1396 (215 kB: sympy's printing of the module and
+# the module itself; 220 declared, the default, the reference backend's too),
+# casadi 131, 330 at ng 1539 (100 kB: its functions' expression graphs; 110
+# declared), c 99, 107, 175 (15 kB; gcc's peak counts when larger than Python's:
+# it compiles a loop per constraint family, not per row).
 DENSE_COPIES = 5
 
 

@@ -84,7 +84,7 @@ class Capabilities:
     solves_friction: bool = True
     loads: bool = False
     lacks: frozenset[str] = frozenset()
-    setup_kb: float = 160.0
+    setup_kb: float = 220.0
 
 
 class Evaluator(Protocol):

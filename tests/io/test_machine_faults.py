@@ -218,7 +218,7 @@ def test_endless_motion_table_is_read_only_up_to_the_limit(tmp_path, capsys):
 
 
 def test_six_thousand_bodies_on_numpy_are_refused_up_front(tmp_path, capsys, monkeypatch):
-    """6000 driven pendulums on numpy: its setup of 160 kB per coordinate (2.9 GiB),
+    """6000 driven pendulums on numpy: its setup of 220 kB per coordinate (3.9 GiB),
     refused by the memory estimate before anything is derived or cached."""
     monkeypatch.delenv("SYMID_MEMORY_LIMIT", raising=False)
     monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
