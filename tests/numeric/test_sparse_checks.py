@@ -86,3 +86,24 @@ def test_the_python_loop_of_a_large_mechanism_holds_nothing_nc_by_ng(path: Path,
         cond = np.linalg.cond(a, 1)
         assert cond / 3 <= res["cond"][k] <= cond * (1 + 1e-6), (k, res["cond"][k], cond)
     assert backends.capabilities(backend).compiled_loop is False
+
+
+def test_symid_check_of_a_large_mechanism_gives_the_dense_rank_and_condition(path: Path, monkeypatch) -> None:
+    """Rank and 2-norm condition number of the equilibrated Phi_q by Lanczos on
+    the sparse matrix and its LU, against numpy's SVD of the dense one."""
+    from symid.tools.check import check
+
+    study = api.prepare(path, "numpy")
+
+    def dense(*_: object) -> None:
+        raise AssertionError("a dense Phi_q was built")
+    monkeypatch.setattr(type(study.evaluator), "phi_q", dense)
+    report = check(study)
+    monkeypatch.undo()
+    assert report.rank == report.ng == 6 * N + 3 and report.dependent == ()
+    q0 = ladder.Ladder(N).q_exact(0.0)
+    jac = prepare(api.load_mechanism(path), "reference").evaluator.phi_q(q0, 0.0)
+    scaling = Scaling.of(jac, q0)
+    exact = np.linalg.cond(jac / scaling.row[:, None] * scaling.col[None, :], 2)
+    # ARPACK's default tolerance is machine precision on converged Ritz values: 1e-8 leaves room
+    assert report.cond == pytest.approx(exact, rel=1e-8)
