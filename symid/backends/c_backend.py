@@ -171,7 +171,7 @@ class CEvaluator:
     # (symid.backends.c_batch) solves a study's variants, friction included.
     capabilities = Capabilities(own_loop=True, blocks=True, compiled_loop=True, batch="compiled",
                                 batch_friction=True, with_params=True, sensitivities=True, loads=True,
-                                lacks=frozenset({"cond", "cond_warn", "min_norm", "assembly_jump"}), setup_kb=15.0)
+                                lacks=frozenset({"cond", "cond_warn", "min_norm", "assembly_jump"}), setup_kb=18.0)
     layout: Layout  # None only in a planned run, which never reads it (see above)
 
     def __init__(self, folder: Path, name: str, params: Mapping[str, float], layout: Layout | None,

@@ -42,8 +42,8 @@ BASE_MB = 100.0  # measured: 98 MiB for the C bench of the ladder of 64, its set
 # (rounded up): numpy 186, 428, 1396 (215 kB: sympy's printing of the module and
 # the module itself; 220 declared, the default, the reference backend's too),
 # casadi 131, 330 at ng 1539 (100 kB: its functions' expression graphs; 110
-# declared), c 99, 107, 175 (15 kB; gcc's peak counts when larger than Python's:
-# it compiles a loop per constraint family, not per row).
+# declared), c 99, 106, 176 and 299 at ng 12291 (17 kB; 18 declared; gcc's peak
+# counts when larger than Python's: it compiles a loop per constraint family).
 DENSE_COPIES = 5
 
 
