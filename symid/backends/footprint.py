@@ -5,8 +5,8 @@ on the C backend (its setup is linear) and dense on the Python loop's.
 
 The estimate is a sum of three parts, each fitted to peak resident sizes
 measured with `/usr/bin/time -v symid bench` on the ladder of
-`benchmarks/ladder.py` (64 and 256 four-bars, ng 387 and 1539), and
-checked at 1024 for C:
+`benchmarks/ladder.py` (64, 256 and 1024 four-bars, ng 387 to 6147; 2048
+for C):
 
 - the process: Python, numpy, sympy and symid imported (`BASE_MB`);
 - the setup per coordinate (`PER_COORDINATE_KB`): deriving, the generated
