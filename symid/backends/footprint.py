@@ -1,7 +1,7 @@
 """What a run will hold in memory, estimated before any work, and the limit
 it is refused against (exit 2, naming the resource, the estimate and the
 limit): the file's counts say little, since a chain of 2049 bodies is cheap
-on the C backend (its setup is linear) and dense on the Python loop's.
+on the C backend (its setup is linear) and 1.4 GiB on numpy (its module).
 
 The estimate is a sum of three parts, each fitted to peak resident sizes
 measured with `/usr/bin/time -v symid bench` on the ladder of
@@ -9,7 +9,7 @@ measured with `/usr/bin/time -v symid bench` on the ladder of
 for C):
 
 - the process: Python, numpy, sympy and symid imported (`BASE_MB`);
-- the setup per coordinate (`PER_COORDINATE_KB`): deriving, the generated
+- the setup per coordinate (`Capabilities.setup_kb`): deriving, the generated
   code held in memory, the compiler's or CasADi's own work on it;
 - the dense checks: Phi_q as an nc x ng matrix of doubles, in
   `DENSE_COPIES` copies at once (the matrix, its equilibrated copy, the LU
