@@ -171,7 +171,7 @@ class CEvaluator:
     # (symid.backends.c_batch) solves a study's variants, friction included.
     capabilities = Capabilities(own_loop=True, blocks=True, compiled_loop=True, batch="compiled",
                                 batch_friction=True, with_params=True, sensitivities=True, loads=True,
-                                lacks=frozenset({"cond", "cond_warn", "min_norm", "assembly_jump"}))
+                                lacks=frozenset({"cond", "cond_warn", "min_norm", "assembly_jump"}), setup_kb=18.0)
     layout: Layout  # None only in a planned run, which never reads it (see above)
 
     def __init__(self, folder: Path, name: str, params: Mapping[str, float], layout: Layout | None,
@@ -244,6 +244,13 @@ class CEvaluator:
         out = np.zeros((self.meta["nc"], self.meta["ng"]))
         out[self.meta["rows"], self.meta["cols"]] = values
         return out
+
+    def phi_q_sparse(self, q: Array, t: float):  # type: ignore[no-untyped-def]
+        from scipy import sparse
+
+        values = self._call("phi_q", np.ascontiguousarray(q, float), float(t), size=self.meta["nnz"])
+        return sparse.csc_matrix((values, (self.meta["rows"], self.meta["cols"])),
+                                 shape=(self.meta["nc"], self.meta["ng"]))
 
     def scaling(self, q: Array, t: float) -> Scaling:
         """The Python loop's scales at q from Phi_q's entries (nothing nc x ng)."""

@@ -53,7 +53,7 @@ class CasadiEvaluator:
     """
 
     # driven by the shared Python loop; one set of loaded functions serves many variants
-    capabilities = Capabilities(with_params=True)
+    capabilities = Capabilities(with_params=True, setup_kb=110.0)
 
     def __init__(self, layout: Layout, values: Mapping[sp.Symbol, float], needs: Needs,
                  options: Options, friction: FrictionModel | None = None) -> None:
@@ -90,6 +90,13 @@ class CasadiEvaluator:
 
     def phi_q(self, q: Array, t: float) -> Array:
         return np.asarray(self._fn["phi_q"](q, t, self.p).full())
+
+    def phi_q_sparse(self, q: Array, t: float):  # type: ignore[no-untyped-def]
+        from scipy import sparse
+
+        jac = self._fn["phi_q"](q, t, self.p)  # a CasADi DM: its own sparsity, nothing nc x ng
+        rows, cols = jac.sparsity().get_triplet()
+        return sparse.csc_matrix((np.array(jac.nonzeros(), dtype=float), (rows, cols)), shape=(self.nc, self.ng))
 
     def nu(self, q: Array, t: float) -> Array:
         return self._call("nu", q, t)

@@ -147,6 +147,13 @@ class NumpyEvaluator:
         out[self.module.PHI_Q_ROWS, self.module.PHI_Q_COLS] = self._scalar("phi_q_values", q.tolist(), float(t))
         return out
 
+    def phi_q_sparse(self, q: Array, t: float):  # type: ignore[no-untyped-def]
+        from scipy import sparse
+
+        m = self.module
+        values = self._scalar("phi_q_values", q.tolist(), float(t))
+        return sparse.csc_matrix((values, (m.PHI_Q_ROWS, m.PHI_Q_COLS)), shape=(m.NC, m.NG))
+
     def nu(self, q: Array, t: float) -> Array:
         return self._scalar("nu", q.tolist(), float(t))
 

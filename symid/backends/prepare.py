@@ -93,14 +93,17 @@ def check(mechanism: Mechanism, backend: str, layout: Layout | None = None) -> B
     its engine).
 
     Raises:
-        InputError: an unknown backend, a feature of `[analysis]` it lacks, more
+        InputError: an unknown backend, a feature of `[analysis]` it lacks, a
+            run whose memory estimate is above the limit (`footprint`), more
             rows than coordinates (naming the dependent rows), or friction it
             does not solve; each the one line the command line gives.
     """
+    from symid.backends import footprint
     from symid.symbolic.assemble import assemble
 
     layout = layout if layout is not None else assemble(mechanism)
     backends.require_support(backend, mechanism.analysis, mechanism.source)
+    footprint.require_within(layout, backend)  # before the rank analysis: it may be the dense part
     backends.check_redundant(layout, layout.values, backend)
     chosen = backends.get(backend)
     friction.require(backend, mechanism)

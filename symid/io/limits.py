@@ -8,13 +8,16 @@ MAX_FILE_BYTES = 16 * 1024 * 1024
 # identifier (`<name>_default_params`, `<body>_x`): 64 characters keep both well
 # inside the file systems' 255 bytes and what C compilers must distinguish.
 MAX_NAME_LENGTH = 64
-# Sizes that bound the memory of a run: the dense checks of Phi_q (ng x ng
-# doubles) and the sympy work grow with them; 10^4 bodies once grew to 19 GB.
-# The largest benchmark (a ladder of 256 four-bars: 513 bodies, ng 1539) peaks at 404 MB;
-# dense terms grow as ng^2, so 1000 bodies should stay near 1.5 GB (estimated, not measured).
-MAX_BODIES = 1000
-MAX_CONSTRAINTS = 4000
-MAX_FORCES = 4000
+# A run's memory is estimated from what it will use, per backend and analysis,
+# and refused above SYMID_MEMORY_LIMIT (symid.backends.footprint): the ladder of
+# 2048 four-bars (4097 bodies) is cheap on the C backend, and the Python loop's
+# dense checks of 1000 bodies are not. These counts bound only what is done before
+# any estimate can be: the reader's own objects (about 13 kB per body measured,
+# 26 MB for the 4097 of that ladder, its sympy symbols included), so 20000 bodies
+# read within about 0.3 GB and a few seconds.
+MAX_BODIES = 20_000
+MAX_CONSTRAINTS = 80_000
+MAX_FORCES = 80_000
 MAX_PARAMETERS = 100_000
 MAX_STEPS = 10_000_000  # instants of one run: the summary keeps a few columns of each in memory
 MAX_VARIANTS = 1_000_000  # a study's variants: a results table of a million rows, tens of MB

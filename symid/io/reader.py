@@ -158,7 +158,7 @@ class _Reader:
         gravity = self.pair(head.get("gravity", [0, 0]), "[mechanism] key 'gravity'")
         analysis = self.analysis(self.table(data.get("analysis", {}), "[analysis]"), overrides)
         for key, limit in (("body", MAX_BODIES), ("constraint", MAX_CONSTRAINTS), ("force", MAX_FORCES)):
-            if (count := len(self.array(data, key))) > limit:  # before any work: a run's memory grows with it
+            if (count := len(self.array(data, key))) > limit:  # what the reader holds before any estimate
                 raise self.fail(f"[[{key}]]", f"{count} entries, more than the {limit} allowed")
         bodies = tuple(self.body(b, n) for n, b in enumerate(self.array(data, "body")))
         names: dict[str, str] = {}

@@ -7,7 +7,7 @@ registry that builds evaluators is `symid.backends`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, Protocol
+from typing import Any, TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 
@@ -69,6 +69,9 @@ class Capabilities:
             (`load(artifact, name, params)`, `artifact`: a planned run).
         lacks: the `[analysis]` features it cannot provide
             (`symid.numeric.stability.FEATURES` keys).
+        setup_kb: the memory its setup holds per coordinate, kB (measured:
+            `symid.backends.footprint`); the default is the generated
+            Python module's.
     """
 
     own_loop: bool = False
@@ -81,6 +84,7 @@ class Capabilities:
     solves_friction: bool = True
     loads: bool = False
     lacks: frozenset[str] = frozenset()
+    setup_kb: float = 220.0
 
 
 class Evaluator(Protocol):
@@ -99,6 +103,10 @@ class Evaluator(Protocol):
 
     def phi(self, q: Array, t: float) -> Array: ...
     def phi_q(self, q: Array, t: float) -> Array: ...
+    def phi_q_sparse(self, q: Array, t: float) -> Any:
+        """Phi_q as a scipy CSC matrix (nc, ng), nothing nc x ng: the Python
+        loop's from `symid.numeric.stability.SPARSE_MIN` coordinates on."""
+        ...
     def nu(self, q: Array, t: float) -> Array: ...
     def gamma(self, q: Array, qd: Array, t: float) -> Array: ...
     def applied(self, q: Array, qd: Array | None, t: float) -> Array: ...

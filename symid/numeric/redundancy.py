@@ -13,7 +13,7 @@ import numpy as np
 from symid.errors import AnalysisError, InputError
 from symid.numeric.evaluator import Array, Evaluator
 from symid.numeric.newton import RULE
-from symid.numeric.stability import EPS, NULL_SHARE, Scaling
+from symid.numeric.stability import EPS, NULL_SHARE, Scaling, is_sparse
 
 if TYPE_CHECKING:
     from symid.model.mechanism import Mechanism
@@ -40,6 +40,11 @@ def rank_of(jac: Array, scaling: Scaling, layout: Layout, singular: bool = False
     """The rank analysis of Phi_q (nc, ng); cost one SVD. `singular`: the caller's
     factorization found it singular, so the smallest singular value counts as null
     even when just above this rank threshold (else no constraint would be named)."""
+    if is_sparse(jac):  # the Python loop's sparse Phi_q (large mechanisms)
+        full = None if singular else _full_rank_sparse(jac, scaling)
+        if full is not None:
+            return full
+        jac = jac.toarray()  # type: ignore[attr-defined]  # rows to name, or redundant ones: dense (footprint)
     nc, ng = jac.shape
     a = jac / scaling.row[:, None] * scaling.col[None, :]
     u, sv, _ = np.linalg.svd(a)
@@ -53,6 +58,32 @@ def rank_of(jac: Array, scaling: Scaling, layout: Layout, singular: bool = False
     dependent = layout.constraint_names_of_rows(rows)
     order = [c.name for c in layout.mechanism.constraints]
     return Rank(rank, cond, tuple(sorted(dependent, key=order.index)))
+
+
+def _full_rank_sparse(jac: object, scaling: Scaling) -> Rank | None:
+    """`rank_of` of a square sparse Phi_q that SuperLU finds regular, without
+    anything nc x ng: the extreme singular values of the equilibrated matrix by
+    Lanczos (ARPACK), s_max on it and 1 / s_min on its inverse through the LU's
+    solves. None when it is not square or is singular (the dense analysis names
+    the rows)."""
+    from scipy.sparse import diags
+    from scipy.sparse.linalg import LinearOperator, splu, svds
+
+    from symid.numeric.stability import SINGULAR_RCOND, Factor
+
+    nc, ng = jac.shape  # type: ignore[attr-defined]
+    if nc != ng or ng < 3:
+        return None
+    factor = Factor(jac, scaling)  # type: ignore[arg-type]
+    if factor.splu is None or not factor.rcond > SINGULAR_RCOND:
+        return None
+    a = (diags(1.0 / scaling.row) @ jac @ diags(scaling.col)).tocsc()  # type: ignore[operator]
+    lu = splu(a)
+    inverse = LinearOperator((ng, ng), matvec=lu.solve, rmatvec=lambda b: lu.solve(b, trans="T"), dtype=float)
+    rng = np.random.default_rng(0)  # ARPACK's start vector: the same figures every run
+    smax = float(svds(a, k=1, return_singular_vectors=False, v0=rng.standard_normal(ng))[0])
+    inv_max = float(svds(inverse, k=1, return_singular_vectors=False, v0=rng.standard_normal(ng))[0])
+    return Rank(ng, smax * inv_max, ())
 
 
 def drivers_among(layout: Layout, names: tuple[str, ...]) -> list[str]:

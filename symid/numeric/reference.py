@@ -210,6 +210,12 @@ class ReferenceEvaluator:
                 out[row_idx, col_idx] = vals[r]
         return out[:, :ng]
 
+    def phi_q_sparse(self, q: Array, t: float):  # type: ignore[no-untyped-def]
+        from scipy import sparse
+
+        rows, cols, values = self.phi_q_entries(q, t)
+        return sparse.csc_matrix((values, (rows, cols)), shape=(self.layout.nc, self.layout.ng))
+
     def phi_q_entries(self, q: Array, t: float) -> tuple[Array, Array, Array]:
         """Phi_q's entries as (rows, cols, values), ground's columns left out:
         what phi_q fills, with nothing nc x ng (large mechanisms' setup)."""

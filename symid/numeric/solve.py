@@ -32,7 +32,7 @@ from symid.model.analysis import Analysis
 from symid.numeric import nonfinite
 from symid.numeric.newton import RULE
 from symid.numeric.redundancy import rank_of, redundancy_message
-from symid.numeric.stability import SINGULAR_RCOND, Factor, Notes, Scaling
+from symid.numeric.stability import SINGULAR_RCOND, SPARSE_MIN, Factor, Notes, Scaling, is_sparse
 
 if TYPE_CHECKING:  # a cached run (symid.tools.plan) solves without sympy: friction's model needs it
     from symid.numeric.friction import FrictionModel, Solved
@@ -80,10 +80,16 @@ class Instant:
     factor: Factor | None = None  # the factorization of Phi_q at q (the Python loop's): sensitivities reuse it
 
 
+def jacobian(ev: Evaluator, q: Array, t: float):  # type: ignore[no-untyped-def]
+    """Phi_q(q, t) as the Python loop takes it: dense below SPARSE_MIN
+    coordinates, a scipy CSC matrix from there on (nothing nc x ng)."""
+    return ev.phi_q_sparse(q, t) if ev.layout.ng >= SPARSE_MIN else ev.phi_q(q, t)
+
+
 def _factor(ev: Evaluator, q: Array, t: float, scaling: Scaling) -> Factor:
     """The equilibrated factorization of Phi_q(q); raise if singular."""
-    jac = ev.phi_q(q, t)
-    if not np.isfinite(jac).all():
+    jac = jacobian(ev, q, t)
+    if not np.isfinite(jac.data if is_sparse(jac) else jac).all():
         raise nonfinite.error(ev.layout, "Phi_q", t, q)
     factor = Factor(jac, scaling)
     if not factor.rcond > SINGULAR_RCOND:
@@ -113,7 +119,7 @@ def newton(ev: Evaluator, q: Array, t: float, tol: float, scaling: Scaling | Non
             in max_iterations, or Phi_q singular.
     """
     if scaling is None:
-        scaling = Scaling.of(ev.phi_q(q, t), q)
+        scaling = Scaling.of(jacobian(ev, q, t), q)
     phi = ev.phi(q, t)
     res = scaling.residual(phi)
     step, cond = np.inf, 1.0
@@ -214,7 +220,7 @@ class Stepper:
             guess = None
             if prev is None or scaling is None:
                 q, iterations = newton(ev, q0, t, analysis.tol)
-                jac = ev.phi_q(q, t)
+                jac = jacobian(ev, q, t)
                 scaling = self.scaling = Scaling.of(jac, q)  # fixed for the run, from the assembled t0
                 if jac.shape[0] > jac.shape[1]:
                     _redundant_rows(ev, jac, scaling, notes, t)

@@ -37,6 +37,10 @@ SINGULAR_RCOND = 1e3 * EPS
 # Compiled loops hand over an instant whose scaled pivots spread past cond_warn / SCREEN; the C
 # loop first checks its own 1-norm estimate against cond_warn / ESTIMATE_MARGIN (docs/analysis-options.md).
 SCREEN, ESTIMATE_MARGIN = 1e3, 100.0
+# From this many coordinates on the Python loop takes Phi_q as a sparse matrix
+# (`Evaluator.phi_q_sparse`) and factors it with SuperLU: a dense one of the
+# ladder of 1024 four-bars (ng 6147) is 302 MB a copy, and its LU 25 s.
+SPARSE_MIN = 600
 # A row belongs to a dependency when its squared projection on the left null
 # space exceeds this fraction of the largest one.
 NULL_SHARE = 1e-4
@@ -88,7 +92,12 @@ class Scaling:
 
     @classmethod
     def of(cls, jac: Array, q: Array) -> "Scaling":
-        """Scales from Phi_q (nc, ng) at configuration q (ng,)."""
+        """Scales from Phi_q (nc, ng; dense, or scipy sparse) at configuration q (ng,)."""
+        if is_sparse(jac):
+            from symid.numeric.sparse_scaling import scaling_of_entries
+
+            coo = jac.tocoo()
+            return scaling_of_entries(coo.row, coo.col, coo.data, q, jac.shape[0])
         ng = jac.shape[1]
         rot = np.zeros(ng, dtype=bool)
         rot[2::3] = True
@@ -121,6 +130,11 @@ class Scaling:
         return math.sqrt(float(v @ v))
 
 
+def is_sparse(jac: object) -> bool:
+    """Whether jac is a scipy sparse matrix (scipy imported only if one could be)."""
+    return not isinstance(jac, np.ndarray) and hasattr(jac, "tocsc")
+
+
 def _getrf(*args, **kwargs):  # type: ignore[no-untyped-def]
     return _sla().lapack.dgetrf(*args, **kwargs)
 
@@ -148,10 +162,16 @@ class Factor:
 
     def __init__(self, jac: Array, scaling: Scaling) -> None:
         nc, ng = jac.shape
-        self.jac = jac
         self.dc = scaling.dc
         self.square = nc == ng
-        if self.square:
+        self.splu = None
+        if is_sparse(jac) and not self.square:  # redundant rows: the thin QR below, dense
+            jac = jac.toarray()  # type: ignore[attr-defined]
+        self.jac = jac
+        if is_sparse(jac):
+            self.dr = scaling.dr
+            self._sparse_lu(jac, scaling)
+        elif self.square:
             self.dr = scaling.dr
             a = jac * self.dr[:, None] * self.dc
             anorm = float(np.abs(a).sum(axis=0).max(initial=0.0))
@@ -167,12 +187,38 @@ class Factor:
         if not np.isfinite(self.rcond):
             self.rcond = 0.0
 
+    def _sparse_lu(self, jac: object, scaling: Scaling) -> None:
+        """SuperLU of D_r Phi_q D_c and LAPACK's rcond estimate, sparse: the
+        1-norm of the inverse by Higham's estimator (scipy's onenormest, what
+        gecon estimates too) on solves with the factors."""
+        from scipy import sparse
+        from scipy.sparse.linalg import LinearOperator, onenormest, splu
+
+        a = (sparse.diags(self.dr) @ jac @ sparse.diags(self.dc)).tocsc()  # type: ignore[operator]
+        anorm = float(np.asarray(abs(a).sum(axis=0)).max(initial=0.0)) if a.nnz else 0.0
+        self.rcond = 0.0
+        if not anorm > 0 or not np.isfinite(anorm):
+            return
+        try:
+            lu = splu(a)
+        except RuntimeError:  # "Factor is exactly singular"
+            return
+        n = a.shape[0]
+        inverse = LinearOperator((n, n), matvec=lu.solve, rmatvec=lambda b: lu.solve(b, trans="T"),
+                                 dtype=float)
+        with np.errstate(all="ignore"):
+            inorm = float(onenormest(inverse)) if n > 1 else float(abs(lu.solve(np.ones(1)))[0])
+        self.splu = lu
+        self.rcond = 1.0 / (anorm * inorm) if inorm > 0 and np.isfinite(inorm) else 0.0
+
     @property
     def cond(self) -> float:
         return np.inf if self.rcond == 0 else 1.0 / self.rcond
 
     def solve(self, b: Array) -> Array:
         """x with Phi_q x = b (size nc -> ng; least squares when nc > ng)."""
+        if self.splu is not None:
+            return self.dc * self.splu.solve(self.dr * b)
         if self.square:
             return self.dc * _getrs(self.lu, self.piv, self.dr * b)[0]
         return self.dc * _sla().solve_triangular(self.r, self.q.T @ b, check_finite=False)
@@ -191,6 +237,8 @@ class Factor:
         return lam + self._solve_t(b - self.jac.T @ lam)
 
     def _solve_t(self, b: Array) -> Array:
+        if self.splu is not None:
+            return self.dr * self.splu.solve(self.dc * b, trans="T")
         if self.square:
             return self.dr * _getrs(self.lu, self.piv, self.dc * b, trans=1)[0]
         return self.q @ _sla().solve_triangular(self.r, self.dc * b, trans="T", check_finite=False)

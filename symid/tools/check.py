@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from symid.errors import AnalysisError
 from symid.text import plural
-from symid.numeric.solve import newton
+from symid.numeric.solve import jacobian, newton
 from symid.numeric.redundancy import assemble_lstsq, rank_of
 from symid.numeric.stability import Factor, Scaling
 
@@ -75,7 +75,7 @@ def check(study) -> CheckReport:  # type: ignore[no-untyped-def]
     except AnalysisError:
         q, _ = assemble_lstsq(ev, study.q0(), t0, analysis.tol)
         iterations = 0
-    jac = ev.phi_q(q, t0)
+    jac = jacobian(ev, q, t0)  # sparse from SPARSE_MIN coordinates on
     scaling = Scaling.of(jac, q)
     rank = rank_of(jac, scaling, study.layout)
     layout = study.layout

@@ -269,6 +269,7 @@ def test_readme_first_mechanism_transcript_is_what_symid_prints(tmp_path: Path, 
 
 def test_the_limits_page_states_the_limits_the_code_enforces() -> None:
     """docs/command-line.md's "Limits" against symid/io/limits.py, each as the page words it."""
+    from symid.backends import footprint
     from symid.io import limits as L
 
     def power(n: int) -> str:
@@ -285,6 +286,8 @@ def test_the_limits_page_states_the_limits_the_code_enforces() -> None:
         "MAX_BENCH_INSTANTS": f"`bench --instants` 1 to {power(L.MAX_BENCH_INSTANTS)}",
         "MAX_BUDGET_S": "at most a day" if L.MAX_BUDGET_S == 86_400 else f"{L.MAX_BUDGET_S}",
         "MAX_SEED": f"from 0 to {L.MAX_SEED}",
+        "footprint.DEFAULT_LIMIT_MB": f"above {footprint.DEFAULT_LIMIT_MB} MiB", "footprint.LIMIT_VARIABLE":
+            f"`{footprint.LIMIT_VARIABLE}` sets the limit", "footprint.DENSE_COPIES": f"{footprint.DENSE_COPIES} copies",
     }
     bad = [f"symid/io/limits.py {name}: docs/command-line.md does not say '{said}'"
            for name, said in stated.items() if said not in text]
