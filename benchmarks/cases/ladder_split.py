@@ -98,11 +98,6 @@ def measure(n: int, reps: int, instants: int) -> dict[str, Any]:
     """The split of ladder n's instant (us per instant per part)."""
     from symid import api
     from symid.backends import c_backend
-    from symid.io import reader
-
-    # Raises a product limit, which a benchmark should not (issue #31 makes the
-    # limit the C setup's own): the reader's 1000 bodies, below the ladder of 512's.
-    reader.MAX_BODIES = max(reader.MAX_BODIES, 2 * n + 1)
     with tempfile.TemporaryDirectory(prefix="symid-split-") as tmp:
         folder = Path(tmp)
         study = api.prepare(ladder.write(n, folder, steps=1001), backend="c")

@@ -130,17 +130,12 @@ def child(n: int, form: str, instants: int, folder: Path) -> dict[str, Any]:
     from benchmarks.cases import scale_counts
     from symid.codegen.c import loops as c_loops
     from symid.codegen.c import lu as c_lu
-    from symid.io import reader
     from symid.tools.bench import bench
 
-    # Raises a product limit, which a benchmark should not (issue #31 makes
-    # the limit the C setup's own): the file reader's limit (1000 bodies,
-    # symid.io.limits) is set by the Python backends' dense checks; the C
-    # setup measured here has none, and the ladder of 1024 has 2049 bodies.
-    reader.MAX_BODIES = max(reader.MAX_BODIES, 2 * n + 1)
-    # The code forms other than auto patch the generator's thresholds: a form
-    # the product offers no user is measured only this way (issue #31 asks the
-    # benchmark to run what users run; the limit above is the part it fixes).
+    # No limit is raised: the memory estimate (symid.backends.footprint) lets
+    # the C setup take every ladder here, as `symid bench` does. The code forms
+    # other than auto patch the generator's thresholds: a form the product
+    # offers no user is measured only this way (the default, auto, patches nothing).
     limits = FORMS[form]
     if limits is not None:
         c_loops.LOOP_MIN, c_lu.LU_TABLES_MIN = limits

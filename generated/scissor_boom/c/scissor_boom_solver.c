@@ -44,6 +44,19 @@ typedef char scissor_boom_real_must_have_the_size_of_double[sizeof(scissor_boom_
 #define SCISSOR_BOOM_OFF_DENSE (SCISSOR_BOOM_OFF_LU + SCISSOR_BOOM_LU_SIZE)
 #define SCISSOR_BOOM_OFF_VEC (SCISSOR_BOOM_OFF_DENSE + 2304)
 #define SCISSOR_BOOM_VEC(work, k) ((work) + SCISSOR_BOOM_OFF_VEC + (k) * 150)
+/* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
+#define SCISSOR_BOOM_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
+#define SCISSOR_BOOM_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
+#define SCISSOR_BOOM_VEC_Y 2  /* the forward solves' intermediate */
+#define SCISSOR_BOOM_VEC_B 3  /* a right-hand side */
+#define SCISSOR_BOOM_VEC_QN 4  /* the instant's q, where the row does not hold it */
+#define SCISSOR_BOOM_VEC_QDN 5  /* its qdot, where the row does not hold it (instant: where not asked for) */
+#define SCISSOR_BOOM_VEC_QDDN 6  /* its qddot, likewise */
+#define SCISSOR_BOOM_VEC_LAM 7  /* its multipliers, likewise */
+#define SCISSOR_BOOM_VEC_REAC 8  /* its reactions, likewise */
+#define SCISSOR_BOOM_VEC_TR 9  /* the sines and cosines of the body angles */
+#define SCISSOR_BOOM_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
+#define SCISSOR_BOOM_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define SCISSOR_BOOM_OFF_PREP 4456  /* the prepared parameters (NPP), after the vectors */
 #define SCISSOR_BOOM_NPP 16
 
@@ -4116,7 +4129,7 @@ int scissor_boom_sweep(long k, const scissor_boom_real *p, scissor_boom_real t0,
     return SCISSOR_BOOM_OK;
 }
 
-/* Set-points (c_setpoint.py): the driver rows of Phi, nu and gamma with
+/* Set-points (symid/codegen/c/setpoint.py): the driver rows of Phi, nu and gamma with
    the caller's desired values q_des, rates qd_des and second rates qdd_des
    (one per driver) for the drivers' laws, written over the rows the
    compiled laws gave. */

@@ -40,6 +40,26 @@ typedef double scissor_boom_real;
 #define SCISSOR_BOOM_WORK 4472        /* reals of workspace every solver call needs */
 #define SCISSOR_BOOM_IWORK 48         /* ints of workspace */
 #define SCISSOR_BOOM_STATE 385       /* reals of trajectory state */
+/* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
+   state and its size in reals. */
+#define SCISSOR_BOOM_STATE_Q 0  /* q of the last instant solved (before the first call: the initial guess) */
+#define SCISSOR_BOOM_STATE_Q_SIZE 48
+#define SCISSOR_BOOM_STATE_QD 48  /* its qdot */
+#define SCISSOR_BOOM_STATE_QD_SIZE 48
+#define SCISSOR_BOOM_STATE_QDD 96  /* its qddot */
+#define SCISSOR_BOOM_STATE_QDD_SIZE 48
+#define SCISSOR_BOOM_STATE_M1 144  /* the acceleration one instant before (statics: the position) */
+#define SCISSOR_BOOM_STATE_M1_SIZE 48
+#define SCISSOR_BOOM_STATE_M2 192  /* two instants before */
+#define SCISSOR_BOOM_STATE_M2_SIZE 48
+#define SCISSOR_BOOM_STATE_M3 240  /* three instants before (statics: unused) */
+#define SCISSOR_BOOM_STATE_M3_SIZE 48
+#define SCISSOR_BOOM_STATE_SCALE 288  /* per coordinate, 1 / its scale in the jump check (0: unset) */
+#define SCISSOR_BOOM_STATE_SCALE_SIZE 48
+#define SCISSOR_BOOM_STATE_RSCALE 336  /* per constraint row, its norm in those scales for the conditioning screen (0: unset) */
+#define SCISSOR_BOOM_STATE_RSCALE_SIZE 48
+#define SCISSOR_BOOM_STATE_COUNT 384  /* instants solved with this state so far (before the first call: 0) */
+#define SCISSOR_BOOM_STATE_COUNT_SIZE 1
 
 /* Status of every solver call. */
 #define SCISSOR_BOOM_OK 0
