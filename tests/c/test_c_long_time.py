@@ -1,0 +1,198 @@
+"""Time that does not run out (#30, point 2): single-precision C at t = 1e6 s
+through the split-time instant (`_instant_at(whole, frac)`) and through
+`_trajectory` from t0 = 1e6, within docs/c-export.md's 1e-5 of each column's
+peak of double; the trajectory's count exact past 2^24 instants (two reals:
+the rest and the multiples of 2^24); double's `_instant_at` is its
+`_instant` at whole + frac, bit for bit."""
+
+from __future__ import annotations
+
+import ctypes
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from symid import api
+from symid.codegen import c as c_target
+from symid.codegen.c.layout import COUNT_CARRY
+from symid.codegen.model import code_model
+from symid.io.reader import load
+from test_c_single_long_run import GROUP_FLOOR, LONG_BOUND, _driver, _rows, _turned
+from test_codegen import needs_cc
+
+pytestmark = pytest.mark.slow  # two to four C builds per test
+
+NAME = "slider_crank"  # its crank turns at n = 5 rev/s: the phase is 2 pi frac(5 t)
+WHOLE = 1_000_000  # t = 1e6 s: a float's ulp there is 1/16 s, 62 ticks of 1 ms
+REAL = {"double": ctypes.c_double, "single": ctypes.c_float}
+
+
+def _lib(folder: Path, precision: str):  # type: ignore[no-untyped-def]
+    model = code_model(load(api.example(NAME)))
+    c_target.generate(model, folder, precision=precision)
+    lib = folder / f"lib{NAME}.so"
+    subprocess.run(["cc", "-std=c99", "-O1", "-fPIC", "-shared", str(folder / f"{NAME}_solver.c"), "-lm", "-o",
+                    str(lib)], check=True)
+    return ctypes.CDLL(str(lib)), model, c_target.context(model, precision=precision)
+
+
+def _bundled(model) -> tuple[np.ndarray, float, float]:  # type: ignore[no-untyped-def]
+    """The bundled run in double through the C rows driver, its h and period."""
+    a = load(api.example(NAME)).analysis
+    h = (a.t1 - a.t0) / (a.steps - 1)
+    return a, h, (a.steps - 1) * h
+
+
+def _scale(ctx, one: np.ndarray, angles: list[int]) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """Per column its peak over the bundled run (angles at most pi, their
+    reduced range; a column below GROUP_FLOOR of its group's peak, zero but
+    for rounding, against that), as test_c_single_long_run measures."""
+    peak = np.max(np.abs(one), axis=0)
+    peak[angles] = np.minimum(peak[angles], np.pi)
+    groups = np.array([0] + [g + 1 for g, (_, _, size, _) in enumerate(ctx.row_parts) for _ in range(size)])
+    return np.maximum(peak, GROUP_FLOOR * np.array([np.max(peak[groups == g]) for g in groups]))
+
+
+def _error(single: np.ndarray, double: np.ndarray, scale: np.ndarray, angles: list[int]) -> np.ndarray:
+    diff = single - double
+    diff[..., angles] -= 2 * np.pi * np.round(diff[..., angles] / (2 * np.pi))  # angles modulo 2 pi
+    return np.max(np.abs(np.atleast_2d(diff)), axis=0) / scale
+
+
+def _instant(lib, ctx, precision: str, args: tuple, q0: np.ndarray, entry: str = "instant") -> tuple[int, np.ndarray]:  # type: ignore[no-untyped-def]
+    """One call of `entry` (instant or instant_at, its time arguments in
+    args): status and the row (t = 0, q, qd, qdd, lam, reactions)."""
+    real = REAL[precision]
+    ng, nc, nr = ctx.ng, ctx.nc, len(code_model(load(api.example(NAME))).flat.reactions)
+    q, qd, qdd = (real * ng)(*q0), (real * ng)(), (real * ng)()
+    lam, reac = (real * nc)(), (real * max(nr, 1))()
+    work, iwork, info = (real * ctx.work)(), (ctypes.c_int * ng)(), (ctypes.c_int * 2)()
+    fn = getattr(lib, f"{NAME}_{entry}")
+    fn.restype = ctypes.c_int
+    p = (real * ctx.np_).in_dll(lib, f"{NAME}_default_params")
+    status = fn(*args, p, real(1e-12), q, qd, qdd, lam, reac, info, work, iwork)
+    return status, np.concatenate([[0.0], q[:], qd[:], qdd[:], lam[:], reac[:nr]])
+
+
+@needs_cc
+def test_single_instant_at_t_1e6_within_1e5_of_each_columns_peak_of_double(tmp_path: Path) -> None:
+    """_instant_at(1000000, frac) in single against double's _instant at
+    1e6 + frac (exact in double) over a period's fractions, every output
+    column within 1e-5 of its peak (angles modulo 2 pi); single's _instant at
+    the float nearest 1e6 + frac cannot (its t is off by up to 1/32 s)."""
+    exe, model = _driver(tmp_path / "rows", NAME, "double")
+    a, h, period = _bundled(model)
+    one = _rows(exe, a.t0, h, a.steps, model.q0)
+    ng = len(model.q0)
+    turns = _turned(model, one[0, 1:1 + ng], one[-1, 1:1 + ng])
+    libs = {p: _lib(tmp_path / p, p) for p in ("double", "single")}
+    ctx = libs["single"][2]
+    angles = [1 + j for j in range(ng) if j % 3 == 2]
+    scale = _scale(ctx, one, angles)
+    width = 1 + 3 * ng + ctx.nc + len(model.flat.reactions)
+    assert width == one.shape[1]  # the instant's outputs are the row's columns
+    worst, naive = np.zeros(width), np.zeros(width)
+    # fractions across the period at 1e6 s and past 2^24 s (whole seconds past
+    # a float's count, 2^24 + 33222784: the whole split in two); any whole is
+    # a whole number of the crank's periods
+    for whole, k in [(WHOLE, k) for k in range(0, 185, 13)] + [(3 * COUNT_CARRY + 12345, k) for k in (0, 70, 140)]:
+        frac = 0.0123 + k * h
+        # the bundled run's q nearest frac: single's guess as a float caller
+        # keeps it (angles reduced: a float has no digits left for an angle of
+        # 1e7 turns), double's with the whole turns it needs
+        guess = one[round(frac / h), 1:1 + ng]
+        turned = guess + 2 * np.pi * turns * round(whole / period)
+        sd, double = _instant(libs["double"][0], libs["double"][2], "double", (ctypes.c_double(whole + frac),), turned)
+        ss, single = _instant(libs["single"][0], ctx, "single", (ctypes.c_long(whole), ctypes.c_float(frac)), guess,
+                              "instant_at")
+        assert sd == 0 and ss == 0, (whole, frac, sd, ss)
+        worst = np.maximum(worst, _error(single, double, scale, angles))
+        sn, flat = _instant(libs["single"][0], ctx, "single", (ctypes.c_float(whole + frac),), guess)
+        if sn == 0 and whole == WHOLE:
+            naive = np.maximum(naive, _error(flat, double, scale, angles))
+    col = int(np.argmax(worst))
+    print(f"instant_at: worst {worst[col]:.2e} of peak ({model.row_columns[col]}); float t: {naive.max():.2e}")
+    assert worst[col] <= LONG_BOUND, (col, worst[col])
+    assert worst.max() > 1e-9  # single is single
+    assert naive.max() > 100 * LONG_BOUND  # the float time alone is not enough: the split is what holds
+
+
+@needs_cc
+def test_single_trajectory_from_t0_1e6_within_1e5_of_each_columns_peak_of_double(tmp_path: Path) -> None:
+    """_trajectory from t0 = 1e6 s (a whole number of periods) in single
+    against double, 40 instants of the bundled h, per column within 1e-5 of
+    its peak; single's t is the float nearest double's."""
+    exes = {p: _driver(tmp_path / p, NAME, p) for p in ("double", "single")}
+    model = exes["double"][1]
+    a, h, period = _bundled(model)
+    one = _rows(exes["double"][0], a.t0, h, a.steps, model.q0)
+    ng = len(model.q0)
+    turns = _turned(model, one[0, 1:1 + ng], one[-1, 1:1 + ng])
+    t0 = float(WHOLE)
+    h = float(np.float32(h))  # the h single is given, so that both solve the same instants
+    turned = np.array(model.q0) + 2 * np.pi * turns * round(t0 / period)  # double needs the whole turns
+    double = _rows(exes["double"][0], t0, h, 40, turned)
+    single = _rows(exes["single"][0], t0, h, 40, model.q0)  # a float caller's guess: angles reduced
+    angles = [1 + j for j in range(ng) if j % 3 == 2]
+    ctx = c_target.context(model)
+    error = _error(single, double, _scale(ctx, one, angles), angles)
+    worst = int(np.argmax(error[1:])) + 1
+    print(f"trajectory from 1e6: worst {error[worst]:.2e} of peak ({model.row_columns[worst]})")
+    assert error[worst] <= LONG_BOUND, (model.row_columns[worst], error[worst])
+    assert np.array_equal(single[:, 0], double[:, 0].astype(np.float32).astype(float))
+
+
+def _trajectory(lib, ctx, precision: str, t0: float, h: float, n: int, state: np.ndarray) -> tuple[int, np.ndarray]:  # type: ignore[no-untyped-def]
+    real = REAL[precision]
+    fn = getattr(lib, f"{NAME}_trajectory")
+    fn.restype = ctypes.c_int
+    s = (real * ctx.state)(*state)
+    rows = (real * (n * ctx.row_width))()
+    work, iwork, solved = (real * ctx.work)(), (ctypes.c_int * ctx.ng)(), ctypes.c_long(0)
+    p = (real * ctx.np_).in_dll(lib, f"{NAME}_default_params")
+    status = fn(real(t0), real(h), ctypes.c_long(n), p, real(1e-12), s, rows, ctypes.byref(solved), work, iwork)
+    assert solved.value == n, (precision, status, solved.value)
+    state[:] = s[:]
+    return status, np.array(rows[:]).reshape(n, ctx.row_width)
+
+
+@needs_cc
+def test_trajectory_count_past_2_to_24_advances_t_every_instant_as_double_does(tmp_path: Path) -> None:
+    """The state's count set to 2^24 - 2 and 5 instants solved: in single
+    each t is the float nearest t0 + k h with k = 2^24 - 2 .. 2^24 + 2 (t0 =
+    -2^24 h, so t = -2h .. 2h: a float holds each exactly), t advances every
+    instant and equals double's, and the count comes back as 2^24 + 3 split
+    into its rest (3) and its multiples of 2^24 (one)."""
+    h = 2.0 ** -10  # a float holds it exactly; 2^24 h = 16384 s, 81920 periods of the crank
+    t0 = -COUNT_CARRY * h
+    k0 = COUNT_CARRY - 2
+    rows, states = {}, {}
+    for precision in ("double", "single"):
+        lib, model, ctx = _lib(tmp_path / precision, precision)
+        at = ctx.state_layout
+        state = np.zeros(ctx.state)
+        state[:ctx.ng] = model.q0  # t0 + k0 h is a whole number of periods less 2h: q0 is a near guess
+        state[at.at("count")] = k0
+        status, rows[precision] = _trajectory(lib, ctx, precision, t0, h, 5, state)
+        assert status == 0, (precision, status)
+        states[precision] = state[at.at("count"):at.at("count") + at["count"].size]
+    t = rows["single"][:, 0]
+    assert np.array_equal(t, (np.arange(k0, k0 + 5) - COUNT_CARRY) * h)  # exact: -2h .. 2h
+    assert np.all(np.diff(t) > 0)
+    assert np.array_equal(t, rows["double"][:, 0])
+    assert list(states["single"]) == [3.0, COUNT_CARRY] and list(states["double"]) == [k0 + 5, 0.0]
+    # the rest of the row: single's precision of double's (the crank angle's driver row, phases included)
+    assert np.max(np.abs(rows["single"][:, 3] - rows["double"][:, 3])) < 1e-5
+
+
+@needs_cc
+def test_double_instant_at_is_instant_at_whole_plus_frac_bit_for_bit(tmp_path: Path) -> None:
+    """In double, _instant_at(w, f) is _instant(w + f): the same bits."""
+    lib, model, ctx = _lib(tmp_path, "double")
+    for whole, frac in ((0, 0.0123), (3, -0.25), (WHOLE, 0.0421)):
+        guess = np.array(model.q0) + np.array([0, 0, 2 * np.pi * 5 * (whole + frac)] + [0] * (ctx.ng - 3))
+        a = _instant(lib, ctx, "double", (ctypes.c_long(whole), ctypes.c_double(frac)), guess, "instant_at")
+        b = _instant(lib, ctx, "double", (ctypes.c_double(whole + frac),), guess)
+        assert a[0] == b[0] == 0 and np.array_equal(a[1], b[1])
