@@ -196,3 +196,63 @@ def test_double_instant_at_is_instant_at_whole_plus_frac_bit_for_bit(tmp_path: P
         a = _instant(lib, ctx, "double", (ctypes.c_long(whole), ctypes.c_double(frac)), guess, "instant_at")
         b = _instant(lib, ctx, "double", (ctypes.c_double(whole + frac),), guess)
         assert a[0] == b[0] == 0 and np.array_equal(a[1], b[1])
+
+
+PHASE_HARNESS = r"""
+#include SOLVER_C
+#include <stdio.h>
+#include <stdlib.h>
+/* argv: nh nl, then t0 kh kl h quadruples: per quadruple phase_at and time */
+int main(int argc, char **argv)
+{
+    const float nh = strtof(argv[1], NULL), nl = strtof(argv[2], NULL);
+    int i;
+    for (i = 3; i + 3 < argc; i += 4) {
+        const float t0 = strtof(argv[i], NULL), kh = strtof(argv[i + 1], NULL), kl = strtof(argv[i + 2], NULL),
+                    h = strtof(argv[i + 3], NULL);
+        printf("%.9g %.9g\n", slider_crank_phase_at(nh, nl, t0, kh, kl, h), slider_crank_time(t0, kh, kl, h));
+    }
+    return 0;
+}
+"""
+
+
+@needs_cc
+def test_phase_at_and_time_against_exact_fractions(tmp_path: Path) -> None:
+    """The single build's _phase_at and _time against exact rational
+    arithmetic, for a speed a float does not hold (nu = nh + nl, nh = 5.3f,
+    nl = 1.2345e-7f, as prepare keeps 1/T_cycle: nu kh h is not whole turns,
+    nl t is turns past 2^24 s) at times up to 2^30
+    instants of 1 ms and 5e7 s: the phase within 1e-6 rad of 2 pi frac((nh +
+    nl) t) (about eight roundings of terms below half a turn, 2e-7 rad each
+    at most, and the float result's own), t the float nearest t0 + (kh + kl) h."""
+    from fractions import Fraction
+
+    model = code_model(load(api.example(NAME)))
+    c_target.generate(model, tmp_path, precision="single")
+    src = tmp_path / "harness.c"
+    src.write_text(PHASE_HARNESS)
+    exe = tmp_path / "harness"
+    subprocess.run(["cc", "-std=c99", "-O1", f'-DSOLVER_C="{tmp_path / f"{NAME}_solver.c"}"',
+                    str(src), "-lm", "-o", str(exe)], check=True)
+    f32 = lambda x: float(np.float32(x))  # noqa: E731
+    cases = [(f32(1e6), 0.0, 0.0, f32(1e-3)), (0.0, 0.0, 12345.0, f32(1e-3)),
+             (f32(1e6), float(COUNT_CARRY), 3.0, f32(1e-3)), (f32(-3.7), float(63 * COUNT_CARRY), 16777215.0, f32(1e-3)),
+             (f32(0.0823), float(2 * COUNT_CARRY), 16777215.0, 1.0), (f32(0.7), float(3 * COUNT_CARRY), 12345.0, 1.0),
+             (f32(-0.2), float(-5 * COUNT_CARRY), -777.0, 1.0)]
+    nh, nl = f32(5.3), f32(1.2345e-7)
+    out = subprocess.run([str(exe), repr(nh), repr(nl), *(repr(v) for c in cases for v in c)], check=True, capture_output=True,
+                         text=True).stdout.splitlines()
+    assert len(out) == len(cases)
+    nu = Fraction(nh) + Fraction(nl)
+    worst = 0.0
+    for (t0, kh, kl, h), line in zip(cases, out):
+        phase, t = (float(v) for v in line.split())
+        exact_t = Fraction(t0) + (Fraction(kh) + Fraction(kl)) * Fraction(h)
+        assert f32(t) == f32(float(exact_t)), (t0, kh, kl, h, t, float(exact_t))  # %.9g names a float
+        turns = nu * exact_t
+        want = float(2 * np.pi * float(turns - round(turns)))
+        err = abs((phase - want + np.pi) % (2 * np.pi) - np.pi)
+        worst = max(worst, err)
+        assert err <= 1e-6, (t0, kh, kl, h, phase, want)
+    print(f"phase_at: worst {worst:.2e} rad")
