@@ -61,7 +61,8 @@ def _error(single: np.ndarray, double: np.ndarray, scale: np.ndarray, angles: li
     return np.max(np.abs(np.atleast_2d(diff)), axis=0) / scale
 
 
-def _instant(lib, ctx, precision: str, args: tuple, q0: np.ndarray, entry: str = "instant") -> tuple[int, np.ndarray]:  # type: ignore[no-untyped-def]
+def _instant(lib, ctx, precision: str, args: tuple,  # type: ignore[no-untyped-def]
+             q0: np.ndarray, entry: str = "instant", n: float | None = None) -> tuple[int, np.ndarray]:
     """One call of `entry` (instant or instant_at, its time arguments in
     args): status and the row (t = 0, q, qd, qdd, lam, reactions)."""
     real = REAL[precision]
@@ -71,7 +72,9 @@ def _instant(lib, ctx, precision: str, args: tuple, q0: np.ndarray, entry: str =
     work, iwork, info = (real * ctx.work)(), (ctypes.c_int * ng)(), (ctypes.c_int * 2)()
     fn = getattr(lib, f"{NAME}_{entry}")
     fn.restype = ctypes.c_int
-    p = (real * ctx.np_).in_dll(lib, f"{NAME}_default_params")
+    p = (real * ctx.np_)(*(real * ctx.np_).in_dll(lib, f"{NAME}_default_params")[:])
+    if n is not None:
+        p[7] = n  # the crank's speed, rev/s
     status = fn(*args, p, real(1e-12), q, qd, qdd, lam, reac, info, work, iwork)
     return status, np.concatenate([[0.0], q[:], qd[:], qdd[:], lam[:], reac[:nr]])
 
@@ -112,6 +115,24 @@ def test_single_instant_at_t_1e6_within_1e5_of_each_columns_peak_of_double(tmp_p
         sn, flat = _instant(libs["single"][0], ctx, "single", (ctypes.c_float(whole + frac),), guess)
         if sn == 0 and whole == WHOLE:
             naive = np.maximum(naive, _error(flat, double, scale, angles))
+    # n = 5.3 and 0.1 rev/s: whole seconds are not whole turns, and at 0.1
+    # (below 1/2, its float has more than 24 bits of fraction) neither are
+    # whole multiples of 2^24 s: both parts of whole reach the phase (the
+    # guess from the bundled run at the same crank angle; the peaks of
+    # n = 5 scaled by (n / 5)^2 past q where that is larger)
+    for n, whole, frac in ((5.3, WHOLE + 7, 0.0123), (5.3, 3 * COUNT_CARRY + 12345, 0.0823),
+                           (0.1, 3 * COUNT_CARRY + 12345, 0.0823), (0.1, WHOLE + 3, 0.5)):
+        n = float(np.float32(n))
+        turns_t = n * (whole + frac)
+        guess = one[round((turns_t % 1) / 5 / h) % (a.steps - 1), 1:1 + ng]
+        turned = guess + 2 * np.pi * turns * np.floor(turns_t)
+        sd, double = _instant(libs["double"][0], libs["double"][2], "double", (ctypes.c_double(whole + frac),), turned,
+                              n=n)
+        ss, single = _instant(libs["single"][0], ctx, "single", (ctypes.c_long(whole), ctypes.c_float(frac)), guess,
+                              "instant_at", n=n)
+        assert sd == 0 and ss == 0, (whole, frac, sd, ss)
+        scaled = scale * np.where(np.arange(width) > ng, max(1.0, (n / 5) ** 2), 1)
+        worst = np.maximum(worst, _error(single, double, scaled, angles))
     col = int(np.argmax(worst))
     print(f"instant_at: worst {worst[col]:.2e} of peak ({model.row_columns[col]}); float t: {naive.max():.2e}")
     assert worst[col] <= LONG_BOUND, (col, worst[col])
@@ -144,7 +165,8 @@ def test_single_trajectory_from_t0_1e6_within_1e5_of_each_columns_peak_of_double
     assert np.array_equal(single[:, 0], double[:, 0].astype(np.float32).astype(float))
 
 
-def _trajectory(lib, ctx, precision: str, t0: float, h: float, n: int, state: np.ndarray) -> tuple[int, np.ndarray]:  # type: ignore[no-untyped-def]
+def _trajectory(lib, ctx, precision: str, t0: float, h: float, n: int,  # type: ignore[no-untyped-def]
+                state: np.ndarray) -> tuple[int, np.ndarray]:
     real = REAL[precision]
     fn = getattr(lib, f"{NAME}_trajectory")
     fn.restype = ctypes.c_int
@@ -237,12 +259,13 @@ def test_phase_at_and_time_against_exact_fractions(tmp_path: Path) -> None:
                     str(src), "-lm", "-o", str(exe)], check=True)
     f32 = lambda x: float(np.float32(x))  # noqa: E731
     cases = [(f32(1e6), 0.0, 0.0, f32(1e-3)), (0.0, 0.0, 12345.0, f32(1e-3)),
-             (f32(1e6), float(COUNT_CARRY), 3.0, f32(1e-3)), (f32(-3.7), float(63 * COUNT_CARRY), 16777215.0, f32(1e-3)),
+             (f32(1e6), float(COUNT_CARRY), 3.0, f32(1e-3)),
+             (f32(-3.7), float(63 * COUNT_CARRY), 16777215.0, f32(1e-3)),
              (f32(0.0823), float(2 * COUNT_CARRY), 16777215.0, 1.0), (f32(0.7), float(3 * COUNT_CARRY), 12345.0, 1.0),
              (f32(-0.2), float(-5 * COUNT_CARRY), -777.0, 1.0)]
     nh, nl = f32(5.3), f32(1.2345e-7)
-    out = subprocess.run([str(exe), repr(nh), repr(nl), *(repr(v) for c in cases for v in c)], check=True, capture_output=True,
-                         text=True).stdout.splitlines()
+    out = subprocess.run([str(exe), repr(nh), repr(nl), *(repr(v) for c in cases for v in c)], check=True,
+                         capture_output=True, text=True).stdout.splitlines()
     assert len(out) == len(cases)
     nu = Fraction(nh) + Fraction(nl)
     worst = 0.0
@@ -256,3 +279,23 @@ def test_phase_at_and_time_against_exact_fractions(tmp_path: Path) -> None:
         worst = max(worst, err)
         assert err <= 1e-6, (t0, kh, kl, h, phase, want)
     print(f"phase_at: worst {worst:.2e} rad")
+
+
+@needs_cc
+def test_single_instant_at_fails_as_instant_does_and_leaves_q(tmp_path: Path) -> None:
+    """_instant_at's failures are _instant's: a NaN fraction and a whole past
+    2^47 seconds (where its high part is no longer exact) are BAD_ARGUMENT,
+    (5), and a rod too short to reach (no solution) fails with q as it was passed."""
+    lib, model, ctx = _lib(tmp_path, "single")
+    real = ctypes.c_float
+    fn = getattr(lib, f"{NAME}_instant_at")
+    fn.restype = ctypes.c_int
+    ok = (real * ctx.np_).in_dll(lib, f"{NAME}_default_params")
+    short = (real * ctx.np_)(*ok[:])
+    short[1] = 0.05  # L_rod below L_crank (0.1): the rod cannot follow the crank round
+    for whole, frac, p, want in ((WHOLE, float("nan"), ok, 5), (1 << 47, 0.1, ok, 5), (WHOLE, 0.05, short, None)):
+        q0 = np.array(model.q0, dtype=np.float32) + np.float32(0.01)
+        q, work, iwork = (real * ctx.ng)(*q0), (real * ctx.work)(), (ctypes.c_int * ctx.ng)()
+        status = fn(ctypes.c_long(whole), real(frac), p, real(1e-6), q, None, None, None, None, None, work, iwork)
+        assert status != 0 and (want is None or status == want), (whole, frac, status)
+        assert np.array_equal(np.array(q[:], dtype=np.float32), q0)  # q restored
