@@ -1932,6 +1932,13 @@ int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_rea
     return status;
 }
 
+int andrews_squeezer_instant_at(long whole, andrews_squeezer_real frac, const andrews_squeezer_real *p, andrews_squeezer_real tol, andrews_squeezer_real *q,
+                       andrews_squeezer_real *qd, andrews_squeezer_real *qdd, andrews_squeezer_real *lam, andrews_squeezer_real *reactions, int *info,
+                       andrews_squeezer_real *work, int *iwork)
+{
+    return andrews_squeezer_instant((andrews_squeezer_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int andrews_squeezer_screen_at(andrews_squeezer_real t, const andrews_squeezer_real *p, const andrews_squeezer_real *state, andrews_squeezer_real *work, int *iwork)
 {
     andrews_squeezer_real *tr, *pp, known[2];

@@ -1295,6 +1295,13 @@ int disc_cam_instant(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol,
     return status;
 }
 
+int disc_cam_instant_at(long whole, disc_cam_real frac, const disc_cam_real *p, disc_cam_real tol, disc_cam_real *q,
+                       disc_cam_real *qd, disc_cam_real *qdd, disc_cam_real *lam, disc_cam_real *reactions, int *info,
+                       disc_cam_real *work, int *iwork)
+{
+    return disc_cam_instant((disc_cam_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int disc_cam_screen_at(disc_cam_real t, const disc_cam_real *p, const disc_cam_real *state, disc_cam_real *work, int *iwork)
 {
     disc_cam_real *tr, *pp, known[2];

@@ -1519,6 +1519,13 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
     return status;
 }
 
+int excavator_instant_at(long whole, excavator_real frac, const excavator_real *p, excavator_real tol, excavator_real *q,
+                       excavator_real *qd, excavator_real *qdd, excavator_real *lam, excavator_real *reactions, int *info,
+                       excavator_real *work, int *iwork)
+{
+    return excavator_instant((excavator_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int excavator_screen_at(excavator_real t, const excavator_real *p, const excavator_real *state, excavator_real *work, int *iwork)
 {
     excavator_real *tr, *pp, known[2];

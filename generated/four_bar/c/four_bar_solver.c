@@ -1276,6 +1276,13 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
     return status;
 }
 
+int four_bar_instant_at(long whole, four_bar_real frac, const four_bar_real *p, four_bar_real tol, four_bar_real *q,
+                       four_bar_real *qd, four_bar_real *qdd, four_bar_real *lam, four_bar_real *reactions, int *info,
+                       four_bar_real *work, int *iwork)
+{
+    return four_bar_instant((four_bar_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int four_bar_screen_at(four_bar_real t, const four_bar_real *p, const four_bar_real *state, four_bar_real *work, int *iwork)
 {
     four_bar_real *tr, *pp, known[2];

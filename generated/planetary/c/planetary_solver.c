@@ -1398,6 +1398,13 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
     return status;
 }
 
+int planetary_instant_at(long whole, planetary_real frac, const planetary_real *p, planetary_real tol, planetary_real *q,
+                       planetary_real *qd, planetary_real *qdd, planetary_real *lam, planetary_real *reactions, int *info,
+                       planetary_real *work, int *iwork)
+{
+    return planetary_instant((planetary_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int planetary_screen_at(planetary_real t, const planetary_real *p, const planetary_real *state, planetary_real *work, int *iwork)
 {
     planetary_real *tr, *pp, known[2];

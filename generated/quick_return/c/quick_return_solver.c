@@ -1266,6 +1266,13 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
     return status;
 }
 
+int quick_return_instant_at(long whole, quick_return_real frac, const quick_return_real *p, quick_return_real tol, quick_return_real *q,
+                       quick_return_real *qd, quick_return_real *qdd, quick_return_real *lam, quick_return_real *reactions, int *info,
+                       quick_return_real *work, int *iwork)
+{
+    return quick_return_instant((quick_return_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int quick_return_screen_at(quick_return_real t, const quick_return_real *p, const quick_return_real *state, quick_return_real *work, int *iwork)
 {
     quick_return_real *tr, *pp, known[2];

@@ -1186,6 +1186,13 @@ int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real 
     return status;
 }
 
+int rack_lift_instant_at(long whole, rack_lift_real frac, const rack_lift_real *p, rack_lift_real tol, rack_lift_real *q,
+                       rack_lift_real *qd, rack_lift_real *qdd, rack_lift_real *lam, rack_lift_real *reactions, int *info,
+                       rack_lift_real *work, int *iwork)
+{
+    return rack_lift_instant((rack_lift_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int rack_lift_screen_at(rack_lift_real t, const rack_lift_real *p, const rack_lift_real *state, rack_lift_real *work, int *iwork)
 {
     rack_lift_real *tr, *pp, known[2];

@@ -1229,6 +1229,13 @@ int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider
     return status;
 }
 
+int slider_crank_instant_at(long whole, slider_crank_real frac, const slider_crank_real *p, slider_crank_real tol, slider_crank_real *q,
+                       slider_crank_real *qd, slider_crank_real *qdd, slider_crank_real *lam, slider_crank_real *reactions, int *info,
+                       slider_crank_real *work, int *iwork)
+{
+    return slider_crank_instant((slider_crank_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int slider_crank_screen_at(slider_crank_real t, const slider_crank_real *p, const slider_crank_real *state, slider_crank_real *work, int *iwork)
 {
     slider_crank_real *tr, *pp, known[2];

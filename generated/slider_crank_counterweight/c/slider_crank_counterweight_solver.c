@@ -1243,6 +1243,13 @@ int slider_crank_counterweight_instant(slider_crank_counterweight_real t, const 
     return status;
 }
 
+int slider_crank_counterweight_instant_at(long whole, slider_crank_counterweight_real frac, const slider_crank_counterweight_real *p, slider_crank_counterweight_real tol, slider_crank_counterweight_real *q,
+                       slider_crank_counterweight_real *qd, slider_crank_counterweight_real *qdd, slider_crank_counterweight_real *lam, slider_crank_counterweight_real *reactions, int *info,
+                       slider_crank_counterweight_real *work, int *iwork)
+{
+    return slider_crank_counterweight_instant((slider_crank_counterweight_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int slider_crank_counterweight_screen_at(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, const slider_crank_counterweight_real *state, slider_crank_counterweight_real *work, int *iwork)
 {
     slider_crank_counterweight_real *tr, *pp, known[2];

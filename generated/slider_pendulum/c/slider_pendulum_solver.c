@@ -1222,6 +1222,13 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
     return status;
 }
 
+int slider_pendulum_instant_at(long whole, slider_pendulum_real frac, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *q,
+                       slider_pendulum_real *qd, slider_pendulum_real *qdd, slider_pendulum_real *lam, slider_pendulum_real *reactions, int *info,
+                       slider_pendulum_real *work, int *iwork)
+{
+    return slider_pendulum_instant((slider_pendulum_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int slider_pendulum_screen_at(slider_pendulum_real t, const slider_pendulum_real *p, const slider_pendulum_real *state, slider_pendulum_real *work, int *iwork)
 {
     slider_pendulum_real *tr, *pp, known[2];

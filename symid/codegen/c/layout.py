@@ -78,11 +78,21 @@ STATE_PARTS = (
 )
 
 
+# The count of instants solved is two reals, each a whole number: the rest
+# and the whole multiples of COUNT_CARRY (2^24, where a float stops counting
+# by ones). Single precision carries the rest into the second once it
+# reaches COUNT_CARRY, so both stay exact (past 2^24 instants, 4.6 h at
+# 1 kHz, a single real would stop advancing); double keeps the whole count
+# in the first (exact to 2^53) and the second at 0. The count is their sum.
+COUNT_CARRY = 1 << 24
+
+
 def state_layout(ng: int) -> Vector:
     """The trajectory state: eight vectors of NG reals, then the count of
-    instants solved (a real, last)."""
+    instants solved (two reals, last: the rest, the multiples of 2^24)."""
     return Vector.of(tuple((name, ng, about) for name, about in STATE_PARTS)
-                     + (("count", 1, "instants solved with this state so far (before the first call: 0)"),))
+                     + (("count", 2, "instants solved with this state so far, as the sum of its two reals: "
+                         "below 2^24 and whole multiples of 2^24 (before the first call: 0, 0)"),))
 
 
 # The work vectors (each STRIDE reals, after the Phi_q values, the factors
