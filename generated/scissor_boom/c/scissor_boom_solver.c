@@ -3498,6 +3498,13 @@ int scissor_boom_instant(scissor_boom_real t, const scissor_boom_real *p, scisso
     return status;
 }
 
+int scissor_boom_instant_at(long whole, scissor_boom_real frac, const scissor_boom_real *p, scissor_boom_real tol, scissor_boom_real *q,
+                       scissor_boom_real *qd, scissor_boom_real *qdd, scissor_boom_real *lam, scissor_boom_real *reactions, int *info,
+                       scissor_boom_real *work, int *iwork)
+{
+    return scissor_boom_instant((scissor_boom_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int scissor_boom_screen_at(scissor_boom_real t, const scissor_boom_real *p, const scissor_boom_real *state, scissor_boom_real *work, int *iwork)
 {
     scissor_boom_real *tr, *pp, known[2];

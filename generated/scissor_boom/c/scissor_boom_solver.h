@@ -39,7 +39,7 @@ typedef double scissor_boom_real;
 #define SCISSOR_BOOM_ROW 343          /* values per instant in a trajectory row */
 #define SCISSOR_BOOM_WORK 4472        /* reals of workspace every solver call needs */
 #define SCISSOR_BOOM_IWORK 48         /* ints of workspace */
-#define SCISSOR_BOOM_STATE 385       /* reals of trajectory state */
+#define SCISSOR_BOOM_STATE 386       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
    state and its size in reals. */
 #define SCISSOR_BOOM_STATE_Q 0  /* q of the last instant solved (before the first call: the initial guess) */
@@ -58,8 +58,8 @@ typedef double scissor_boom_real;
 #define SCISSOR_BOOM_STATE_SCALE_SIZE 48
 #define SCISSOR_BOOM_STATE_RSCALE 336  /* per constraint row, its norm in those scales for the conditioning screen (0: unset) */
 #define SCISSOR_BOOM_STATE_RSCALE_SIZE 48
-#define SCISSOR_BOOM_STATE_COUNT 384  /* instants solved with this state so far (before the first call: 0) */
-#define SCISSOR_BOOM_STATE_COUNT_SIZE 1
+#define SCISSOR_BOOM_STATE_COUNT 384  /* instants solved with this state so far, as the sum of its two reals: below 2^24 and whole multiples of 2^24 (before the first call: 0, 0) */
+#define SCISSOR_BOOM_STATE_COUNT_SIZE 2
 
 /* Status of every solver call. */
 #define SCISSOR_BOOM_OK 0
@@ -510,12 +510,23 @@ void scissor_boom_reactions(const scissor_boom_real *q, const scissor_boom_real 
 int scissor_boom_instant(scissor_boom_real t, const scissor_boom_real *p, scissor_boom_real tol, scissor_boom_real *q, scissor_boom_real *qd, scissor_boom_real *qdd,
                     scissor_boom_real *lam, scissor_boom_real *reactions, int *info, scissor_boom_real *work, int *iwork);
 
-/* n instants t0 + k h, k = state[STATE-1] (the instants solved with this
-   state so far) onwards, each written as a row of ROW values (t, then the
+/* instant at the split time t = whole + frac (seconds): same outputs,
+   status and failure (q restored) as instant. Split rather than ticks
+   (k, h): a controller's clock is often seconds and a fraction, and a tick
+   count is whole + frac with whole = k / f, frac = (k % f) h for a rate of
+   f ticks a second. In double, t = whole + frac rounded once. */
+int scissor_boom_instant_at(long whole, scissor_boom_real frac, const scissor_boom_real *p, scissor_boom_real tol, scissor_boom_real *q,
+                       scissor_boom_real *qd, scissor_boom_real *qdd, scissor_boom_real *lam, scissor_boom_real *reactions, int *info,
+                       scissor_boom_real *work, int *iwork);
+
+/* n instants t0 + k h, k = state[STATE_COUNT] + state[STATE_COUNT + 1]
+   (the instants solved with this state so far: the rest and the whole
+   multiples of 2^24, so that single precision keeps counting exactly past
+   2^24 instants, 4.6 h at 1 kHz; double keeps all in the first) onwards, each written as a row of ROW values (t, then the
    compiled groups in contract order) into rows: pass the same t0 on every
    call of one run. state (STATE reals) carries the predictor between calls:
-   set state[0..NG-1] to the initial guess and state[STATE-1] = 0 before the
-   first call. state[6 NG..7 NG-1]: per
+   set state[0..NG-1] to the initial guess and both reals of the count to 0
+   before the first call. state[6 NG..7 NG-1]: per
    coordinate, 1 / its scale for the jump check (zeros: no check);
    state[7 NG..8 NG-1]: per constraint row, its norm in those scales, for
    the conditioning screen (zeros: no screen; symid sets both from q(t0)).

@@ -1229,6 +1229,13 @@ int slider_crank_sized_instant(slider_crank_sized_real t, const slider_crank_siz
     return status;
 }
 
+int slider_crank_sized_instant_at(long whole, slider_crank_sized_real frac, const slider_crank_sized_real *p, slider_crank_sized_real tol, slider_crank_sized_real *q,
+                       slider_crank_sized_real *qd, slider_crank_sized_real *qdd, slider_crank_sized_real *lam, slider_crank_sized_real *reactions, int *info,
+                       slider_crank_sized_real *work, int *iwork)
+{
+    return slider_crank_sized_instant((slider_crank_sized_real)whole + frac, p, tol, q, qd, qdd, lam, reactions, info, work, iwork);
+}
+
 int slider_crank_sized_screen_at(slider_crank_sized_real t, const slider_crank_sized_real *p, const slider_crank_sized_real *state, slider_crank_sized_real *work, int *iwork)
 {
     slider_crank_sized_real *tr, *pp, known[2];
