@@ -32,7 +32,7 @@ from symid.model.analysis import Analysis
 from symid.numeric import nonfinite
 from symid.numeric.newton import RULE
 from symid.numeric.redundancy import rank_of, redundancy_message
-from symid.numeric.stability import SINGULAR_RCOND, SPARSE_MIN, Factor, Notes, Scaling, is_sparse
+from symid.numeric.stability import SINGULAR_RCOND, Factor, Notes, Scaling, is_sparse, jacobian
 
 if TYPE_CHECKING:  # a cached run (symid.tools.plan) solves without sympy: friction's model needs it
     from symid.numeric.friction import FrictionModel, Solved
@@ -78,12 +78,6 @@ class Instant:
     iterations: int = 0
     friction: Solved | None = None  # joints with friction: their frictions (symid.numeric.friction)
     factor: Factor | None = None  # the factorization of Phi_q at q (the Python loop's): sensitivities reuse it
-
-
-def jacobian(ev: Evaluator, q: Array, t: float):  # type: ignore[no-untyped-def]
-    """Phi_q(q, t) as the Python loop takes it: dense below SPARSE_MIN
-    coordinates, a scipy CSC matrix from there on (nothing nc x ng)."""
-    return ev.phi_q_sparse(q, t) if ev.layout.ng >= SPARSE_MIN else ev.phi_q(q, t)
 
 
 def _factor(ev: Evaluator, q: Array, t: float, scaling: Scaling) -> Factor:

@@ -335,3 +335,13 @@ def requested(analysis: Analysis) -> list[str]:
     if analysis.assembly_jump != "error":
         out.append("assembly_jump")
     return out
+
+
+def jacobian(ev, q, t):  # type: ignore[no-untyped-def]
+    """Phi_q(q, t) as the Python loop takes it (ev: an evaluator): dense below
+    SPARSE_MIN coordinates, a scipy CSC matrix from there on (nothing nc x ng).
+    An evaluator loaded for a planned run has no layout: dense, as the run
+    that made the plan (symid.tools.plan) took it below SPARSE_MIN."""
+    if ev.layout is not None and ev.layout.ng >= SPARSE_MIN:
+        return ev.phi_q_sparse(q, t)
+    return ev.phi_q(q, t)

@@ -1,0 +1,68 @@
+"""The system C compiler, as the C backend (and `symid solve`'s compiled
+CSV formatter) runs it: found from $CC, cc, gcc or clang, its failures one
+line naming the compiler and its first error (exit 2)."""
+
+from __future__ import annotations
+
+import os
+import shlex
+import shutil
+import subprocess
+from pathlib import Path
+
+from symid.errors import InputError
+
+CFLAGS = ("-std=c99", "-fno-math-errno", "-fPIC", "-shared")
+
+
+def _words(cc: str) -> list[str]:
+    """$CC as make reads it: "ccache gcc" is a command and its argument."""
+    try:
+        return shlex.split(cc)
+    except ValueError as exc:  # an unbalanced quote
+        raise InputError(f"--backend c: the C compiler CC={cc} is not a command line: {exc}") from None
+
+
+def compiler() -> str:
+    """The C compiler to use ($CC, cc, gcc or clang), or an input error naming the others."""
+    from symid.backends import names
+
+    chosen = os.environ.get("CC", "").strip()
+    if chosen:  # the user's choice is used or refused, never silently replaced
+        words = _words(chosen)
+        if not words or shutil.which(words[0]) is None:
+            raise InputError(f"--backend c: the C compiler CC={chosen} was not found")
+        return chosen
+    for candidate in ("cc", "gcc", "clang"):
+        if shutil.which(candidate):
+            return candidate
+    others = ", ".join(n for n in names() if n != "c")
+    raise InputError(f"--backend c: no C compiler found (set CC, or install cc/gcc/clang); "
+                     f"other backends: {others}")
+
+
+def _first_error(stderr: str) -> str:
+    """The line of a compiler's output that says what went wrong first."""
+    lines = [line.strip() for line in stderr.splitlines() if line.strip()]
+    return next((line for line in lines if "error" in line.lower()), lines[0] if lines else "")
+
+
+def _compile(cc: str, args: list[str], artifact: Path) -> None:
+    """Run the compiler; a failure is an unusable resource (exit 2), one line
+    naming the compiler and its first error line."""
+    try:
+        result = subprocess.run([*_words(cc), *args], capture_output=True, text=True, errors="replace")
+    except OSError as exc:
+        raise InputError(f"--backend c: the C compiler {cc} could not be run: {exc.strerror or exc}") from None
+    if result.returncode != 0:
+        said = _first_error(result.stderr) or f"exit status {result.returncode}, no message"
+        raise InputError(f"--backend c: the C compiler {cc} failed on the generated solver: {said}")
+    if not artifact.is_file() or artifact.stat().st_size == 0:
+        left = f"left {artifact.name} empty" if artifact.is_file() else f"wrote no {artifact.name}"
+        raise InputError(f"--backend c: the C compiler {cc} reported success but {left}")
+
+
+def compile_library(source: Path, artifact: Path) -> None:
+    """Compile one C file into a shared library at -O2 with `compiler()`: an input
+    error (exit 2) when there is no compiler or it fails, as for a solver."""
+    _compile(compiler(), ["-O2", *CFLAGS, str(source), "-o", str(artifact), "-lm"], artifact)
