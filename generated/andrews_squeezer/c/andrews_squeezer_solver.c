@@ -474,27 +474,27 @@ static void andrews_squeezer_phi_k0(const andrews_squeezer_real * q, const andre
     const andrews_squeezer_real e13 = -q[19];
     const andrews_squeezer_real e14 = p[49]*tr[3];
     const andrews_squeezer_real e15 = p[49]*tr[2];
-    out[0] = -p[25]*tr[1] + q[0];
-    out[1] = -p[25]*tr[0] + q[1];
-    out[2] = p[21]*tr[3] - p[44]*tr[1] + (-e0 - q[0]);
-    out[3] = p[21]*tr[2] - p[44]*tr[0] + (-e1 - q[1]);
-    out[4] = -e3 - p[28]*tr[4] + (-e2 - p[16]);
-    out[5] = -e4 + p[28]*tr[5] + (-e5 - p[17]);
-    out[6] = -e6 - p[31]*tr[9] + (-p[14] + q[12]);
-    out[7] = e7 - p[31]*tr[8] + (-e8 - p[15]);
-    out[8] = e6 - p[45]*tr[6] - p[46]*tr[9] + (-e9 - q[12]);
-    out[9] = -e7 + p[45]*tr[7] - p[46]*tr[8] + (e8 + q[10]);
-    out[10] = -e11 - p[35]*tr[12] + (-e10 - p[14]);
-    out[11] = -e12 + p[35]*tr[13] + (-e13 - p[15]);
-    out[12] = e11 + p[47]*tr[12] + p[48]*tr[11] + (e10 + q[15]);
-    out[13] = e12 - p[47]*tr[13] + p[48]*tr[10] + (e13 + q[16]);
-    out[14] = e14 + e3 + p[50]*tr[4] + (e2 + q[3]);
-    out[15] = e15 + e4 - p[50]*tr[5] + (e5 + q[4]);
-    out[16] = e14 - p[23]*tr[6] + (e9 + q[3]);
-    out[17] = e15 + p[23]*tr[7] + (-e1 - q[10]);
-    out[18] = e14 - p[38]*tr[11] + (-e0 - q[15]);
-    out[19] = e15 - p[38]*tr[10] + (-e1 - q[16]);
-    out[20] = -p[41] - p[51]*t - p[56]*(log(1 + exp(-2*p[55]*t)) - log(2)) + q[2];
+    out[0] = (-p[25]*tr[1]) + q[0];
+    out[1] = (-p[25]*tr[0]) + q[1];
+    out[2] = (p[21]*tr[3]) - (p[44]*tr[1]) + (-e0 - q[0]);
+    out[3] = (p[21]*tr[2]) - (p[44]*tr[0]) + (-e1 - q[1]);
+    out[4] = -e3 - (p[28]*tr[4]) + (-e2 - p[16]);
+    out[5] = -e4 + (p[28]*tr[5]) + (-e5 - p[17]);
+    out[6] = -e6 - (p[31]*tr[9]) + (-p[14] + q[12]);
+    out[7] = e7 - (p[31]*tr[8]) + (-e8 - p[15]);
+    out[8] = e6 - (p[45]*tr[6]) - (p[46]*tr[9]) + (-e9 - q[12]);
+    out[9] = -e7 + (p[45]*tr[7]) - (p[46]*tr[8]) + (e8 + q[10]);
+    out[10] = -e11 - (p[35]*tr[12]) + (-e10 - p[14]);
+    out[11] = -e12 + (p[35]*tr[13]) + (-e13 - p[15]);
+    out[12] = e11 + (p[47]*tr[12]) + (p[48]*tr[11]) + (e10 + q[15]);
+    out[13] = e12 - (p[47]*tr[13]) + (p[48]*tr[10]) + (e13 + q[16]);
+    out[14] = e14 + e3 + (p[50]*tr[4]) + (e2 + q[3]);
+    out[15] = e15 + e4 - (p[50]*tr[5]) + (e5 + q[4]);
+    out[16] = e14 - (p[23]*tr[6]) + (e9 + q[3]);
+    out[17] = e15 + (p[23]*tr[7]) + (-e1 - q[10]);
+    out[18] = e14 - (p[38]*tr[11]) + (-e0 - q[15]);
+    out[19] = e15 - (p[38]*tr[10]) + (-e1 - q[16]);
+    out[20] = -p[41] - (p[51]*t) - (p[56]*(log(1 + exp(-2*p[55]*t)) - log(2))) + q[2];
 }
 
 static void andrews_squeezer_phi_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -535,41 +535,41 @@ static void andrews_squeezer_phi_q_k0(const andrews_squeezer_real * q, const and
     out[10] = 1;
     out[11] = p[21]*tr[3];
     out[12] = 1;
-    out[13] = e0 - p[28]*tr[5];
+    out[13] = e0 - (p[28]*tr[5]);
     out[14] = 1;
-    out[15] = -e1 - p[28]*tr[4];
+    out[15] = -e1 - (p[28]*tr[4]);
     out[16] = 1;
-    out[17] = -e2 + p[31]*tr[8];
+    out[17] = -e2 + (p[31]*tr[8]);
     out[18] = 1;
-    out[19] = -e3 - p[31]*tr[9];
+    out[19] = -e3 - (p[31]*tr[9]);
     out[20] = 1;
     out[21] = -p[45]*tr[7];
     out[22] = -1;
-    out[23] = e2 + p[46]*tr[8];
+    out[23] = e2 + (p[46]*tr[8]);
     out[24] = 1;
     out[25] = -p[45]*tr[6];
     out[26] = -1;
-    out[27] = e3 - p[46]*tr[9];
+    out[27] = e3 - (p[46]*tr[9]);
     out[28] = 1;
-    out[29] = e4 - p[35]*tr[13];
+    out[29] = e4 - (p[35]*tr[13]);
     out[30] = 1;
-    out[31] = -e5 - p[35]*tr[12];
+    out[31] = -e5 - (p[35]*tr[12]);
     out[32] = 1;
     out[33] = -p[48]*tr[10];
     out[34] = -1;
-    out[35] = -e4 + p[47]*tr[13];
+    out[35] = -e4 + (p[47]*tr[13]);
     out[36] = 1;
     out[37] = p[48]*tr[11];
     out[38] = -1;
-    out[39] = e5 + p[47]*tr[12];
+    out[39] = e5 + (p[47]*tr[12]);
     out[40] = 1;
     out[41] = -p[49]*tr[2];
     out[42] = -1;
-    out[43] = -e0 + p[50]*tr[5];
+    out[43] = -e0 + (p[50]*tr[5]);
     out[44] = 1;
     out[45] = p[49]*tr[3];
     out[46] = -1;
-    out[47] = e1 + p[50]*tr[4];
+    out[47] = e1 + (p[50]*tr[4]);
 }
 
 static void andrews_squeezer_phi_q_k1(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -638,7 +638,7 @@ static void andrews_squeezer_nu_k0(const andrews_squeezer_real * q, const andrew
     out[17] = 0;
     out[18] = 0;
     out[19] = 0;
-    out[20] = -2*e0*p[51]/(e0 + 1) + p[51];
+    out[20] = (-2*e0*p[51]/(e0 + 1)) + p[51];
 }
 
 static void andrews_squeezer_nu_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -691,24 +691,24 @@ static void andrews_squeezer_gamma_k0(const andrews_squeezer_real * q, const and
     const andrews_squeezer_real e29 = e28/(e28 + 1);
     out[0] = -e1*tr[1];
     out[1] = -e1*tr[0];
-    out[2] = e3*tr[3] - e4*tr[1];
-    out[3] = e3*tr[2] - e4*tr[0];
-    out[4] = -e7 - e8*p[28];
-    out[5] = e5*p[28]*tr[5] - e9;
-    out[6] = -e11*p[31] - e13;
-    out[7] = -e12*p[31] + e14;
-    out[8] = -e11*p[46] + e13 - e15*p[45]*tr[6];
-    out[9] = -e12*p[46] - e14 + e15*p[45]*tr[7];
-    out[10] = -e18 - e19*p[35];
-    out[11] = e16*p[35]*tr[13] - e20;
-    out[12] = e18 + e19*p[47] + e22*tr[11];
-    out[13] = -e17*p[47] + e20 + e22*tr[10];
-    out[14] = e23*tr[3] + e7 + e8*p[50];
-    out[15] = e24 - e6*p[50] + e9;
-    out[16] = -e25*tr[6] - e26;
-    out[17] = e24 + e25*tr[7];
-    out[18] = -e26 - e27*tr[11];
-    out[19] = e2*p[49]*tr[2] - e27*tr[10];
+    out[2] = (e3*tr[3]) - (e4*tr[1]);
+    out[3] = (e3*tr[2]) - (e4*tr[0]);
+    out[4] = -e7 - (e8*p[28]);
+    out[5] = (e5*p[28]*tr[5]) - e9;
+    out[6] = (-e11*p[31]) - e13;
+    out[7] = (-e12*p[31]) + e14;
+    out[8] = (-e11*p[46]) + e13 - (e15*p[45]*tr[6]);
+    out[9] = (-e12*p[46]) - e14 + (e15*p[45]*tr[7]);
+    out[10] = -e18 - (e19*p[35]);
+    out[11] = (e16*p[35]*tr[13]) - e20;
+    out[12] = e18 + (e19*p[47]) + (e22*tr[11]);
+    out[13] = (-e17*p[47]) + e20 + (e22*tr[10]);
+    out[14] = (e23*tr[3]) + e7 + (e8*p[50]);
+    out[15] = e24 - (e6*p[50]) + e9;
+    out[16] = (-e25*tr[6]) - e26;
+    out[17] = e24 + (e25*tr[7]);
+    out[18] = -e26 - (e27*tr[11]);
+    out[19] = (e2*p[49]*tr[2]) - (e27*tr[10]);
     out[20] = 4*e29*p[42]*(1 - e29);
 }
 
@@ -732,8 +732,8 @@ static void andrews_squeezer_applied_k0(const andrews_squeezer_real * q, const a
     (void)qd;
     (void)t;
     const andrews_squeezer_real e0 = p[57]*tr[4];
-    const andrews_squeezer_real e1 = -e0 + p[58]*tr[5] + (-p[18] + q[6]);
-    const andrews_squeezer_real e2 = p[57]*tr[5] + p[58]*tr[4];
+    const andrews_squeezer_real e1 = -e0 + (p[58]*tr[5]) + (-p[18] + q[6]);
+    const andrews_squeezer_real e2 = (p[57]*tr[5]) + (p[58]*tr[4]);
     const andrews_squeezer_real e3 = e2 + (-p[19] + q[7]);
     const andrews_squeezer_real e4 = sqrt((e1*e1) + (e3*e3));
     const andrews_squeezer_real e5 = p[39]*(e4 - p[40])/e4;
@@ -747,7 +747,7 @@ static void andrews_squeezer_applied_k0(const andrews_squeezer_real * q, const a
     out[5] = 0;
     out[6] = -e6;
     out[7] = -e7;
-    out[8] = e2*e6 - e7*(-e0 + p[58]*tr[5]);
+    out[8] = (e2*e6) - (e7*(-e0 + (p[58]*tr[5])));
     out[9] = 0;
     out[10] = 0;
     out[11] = 0;
@@ -2109,8 +2109,8 @@ static void andrews_squeezer_drive(andrews_squeezer_real t, const andrews_squeez
     const andrews_squeezer_real d0 = (2*3.141592653589793*p[43]);
     const andrews_squeezer_real d1 = exp(-2*p[42]*t/d0);
     const andrews_squeezer_real d2 = d1 + 1;
-    out[0] = (d0*d0)*(log(d2) - log(2))/p[42] + d0*t + p[41];
-    out[1] = -2*d0*d1/d2 + d0;
+    out[0] = ((d0*d0)*(log(d2) - log(2))/p[42]) + (d0*t) + p[41];
+    out[1] = (-2*d0*d1/d2) + d0;
 }
 
 /* 1 / the column scales of the jump check at the assembled q(t0), as

@@ -274,7 +274,7 @@ static void four_bar_phi_k0(const four_bar_real * q, const four_bar_real * tr, f
     out[5] = -e5 + e9 + (-e10 - q[4]);
     out[6] = -e7 + (-e8 - p[0]);
     out[7] = -e10 - e9;
-    out[8] = -p[15]*t + q[2];
+    out[8] = (-p[15]*t) + q[2];
 }
 
 static void four_bar_phi_k(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -419,25 +419,25 @@ void four_bar_gamma(const four_bar_real * q, const four_bar_real * qd, four_bar_
 
 static void four_bar_applied_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    const four_bar_real e0 = p[10]*((1.0/2.0)*sin(p[15]*t) + 1);
+    const four_bar_real e0 = p[10]*(((1.0/2.0)*sin(p[15]*t)) + 1);
     const four_bar_real e1 = (1.0/20.0)*tr[4];
-    const four_bar_real e2 = e1 + (q[7] - 3.0/10.0);
+    const four_bar_real e2 = e1 + (q[7] - (3.0/10.0));
     const four_bar_real e3 = (1.0/20.0)*tr[5];
-    const four_bar_real e4 = e3 + (q[6] - 3.0/4.0);
+    const four_bar_real e4 = e3 + (q[6] - (3.0/4.0));
     const four_bar_real e5 = sqrt((e2*e2) + (e4*e4));
     const four_bar_real e6 = (1.0/e5);
     const four_bar_real e7 = e4*e6;
-    const four_bar_real e8 = -p[12]*(e5 - p[14]) - p[13]*(e2*e6*(e3*qd[8] + qd[7]) + e7*(-e1*qd[8] + qd[6]));
+    const four_bar_real e8 = (-p[12]*(e5 - p[14])) - (p[13]*((e2*e6*((e3*qd[8]) + qd[7])) + (e7*((-e1*qd[8]) + qd[6]))));
     const four_bar_real e9 = e7*e8;
     out[0] = 0;
     out[1] = -981.0/100.0*p[4];
     out[2] = 0;
     out[3] = 0;
-    out[4] = -e0 - 981.0/100.0*p[5];
-    out[5] = -e0*(p[7]*tr[3] - p[8]*tr[2]);
+    out[4] = -e0 - (981.0/100.0*p[5]);
+    out[5] = -e0*((p[7]*tr[3]) - (p[8]*tr[2]));
     out[6] = e9;
-    out[7] = e2*e6*e8 - 981.0/100.0*p[6];
-    out[8] = -e1*e9 + (1.0/20.0)*e2*e6*e8*tr[5] - p[11];
+    out[7] = (e2*e6*e8) - (981.0/100.0*p[6]);
+    out[8] = (-e1*e9) + ((1.0/20.0)*e2*e6*e8*tr[5]) - p[11];
 }
 
 static void four_bar_applied_k(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)

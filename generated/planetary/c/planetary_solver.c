@@ -308,7 +308,7 @@ static void planetary_prepare(const planetary_real *p, planetary_real *pp)
         const planetary_real e0 = p[0] + p[1];
         const planetary_real e1 = (1.0/p[1]);
         const planetary_real e2 = e1*p[0];
-        const planetary_real e3 = (1.0/(p[0] + 2*p[1]));
+        const planetary_real e3 = (1.0/(p[0] + (2*p[1])));
         const planetary_real e4 = e3*p[1];
         const planetary_real e5 = (1.0/p[0]);
         pp[9] = e0;
@@ -337,14 +337,14 @@ static void planetary_phi_k0(const planetary_real * q, const planetary_real * tr
     out[1] = q[1];
     out[2] = q[3];
     out[3] = q[4];
-    out[4] = -p[9]*tr[3] + (-q[3] + q[6]);
-    out[5] = -p[9]*tr[2] + (-q[4] + q[7]);
-    out[6] = e0 + p[11]*(e0 + q[2]) + q[8];
-    out[7] = -p[13]*(-q[5] + q[8]) - q[5];
+    out[4] = (-p[9]*tr[3]) + (-q[3] + q[6]);
+    out[5] = (-p[9]*tr[2]) + (-q[4] + q[7]);
+    out[6] = e0 + (p[11]*(e0 + q[2])) + q[8];
+    out[7] = (-p[13]*(-q[5] + q[8])) - q[5];
     out[8] = p[14] + q[9];
     out[9] = q[10];
-    out[10] = p[16]*q[11] + q[2];
-    out[11] = -p[17]*t + q[11];
+    out[10] = (p[16]*q[11]) + q[2];
+    out[11] = (-p[17]*t) + q[11];
 }
 
 static void planetary_phi_k(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)

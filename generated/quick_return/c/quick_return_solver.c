@@ -271,11 +271,11 @@ static void quick_return_phi_k0(const quick_return_real * q, const quick_return_
     out[1] = q[1];
     out[2] = -e0 - e2;
     out[3] = -e3 + (p[1] + q[4]);
-    out[4] = -tr[2]*(p[0]*tr[1] + (e0 + q[0])) + tr[3]*(p[0]*tr[0] + (q[1] - q[4]));
+    out[4] = (-tr[2]*((p[0]*tr[1]) + (e0 + q[0]))) + (tr[3]*((p[0]*tr[0]) + (q[1] - q[4])));
     out[5] = p[13] + ((-e2 + (-q[3] + q[6]))*(-e2 + (-q[3] + q[6]))) + ((-e3 + (-e4 - q[4]))*(-e3 + (-e4 - q[4])));
     out[6] = -e4 - p[4];
     out[7] = q[8];
-    out[8] = -p[14]*t + q[2];
+    out[8] = (-p[14]*t) + q[2];
 }
 
 static void quick_return_phi_k(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -302,8 +302,8 @@ static void quick_return_phi_q_k0(const quick_return_real * q, const quick_retur
     const quick_return_real e3 = (1.0/2.0)*e2;
     const quick_return_real e4 = p[0]*tr[0];
     const quick_return_real e5 = p[0]*tr[1];
-    const quick_return_real e6 = 2*q[3] - 2*q[6];
-    const quick_return_real e7 = 2*q[4] - 2*q[7];
+    const quick_return_real e6 = (2*q[3]) - (2*q[6]);
+    const quick_return_real e7 = (2*q[4]) - (2*q[7]);
     out[0] = 1;
     out[1] = 1;
     out[2] = 1;
@@ -312,13 +312,13 @@ static void quick_return_phi_q_k0(const quick_return_real * q, const quick_retur
     out[5] = -e3;
     out[6] = -tr[2];
     out[7] = tr[3];
-    out[8] = e4*tr[2] + e5*tr[3];
+    out[8] = (e4*tr[2]) + (e5*tr[3]);
     out[9] = tr[2];
     out[10] = -tr[3];
-    out[11] = -tr[2]*(e4 + (q[1] - q[4])) - tr[3]*(e5 + (q[0] - q[3]));
+    out[11] = (-tr[2]*(e4 + (q[1] - q[4]))) - (tr[3]*(e5 + (q[0] - q[3])));
     out[12] = e2 + (e6);
     out[13] = e0 + (e7);
-    out[14] = e0*(-e3 + (-q[3] + q[6])) - e2*(-e1 + (-q[4] + q[7]));
+    out[14] = (e0*(-e3 + (-q[3] + q[6]))) - (e2*(-e1 + (-q[4] + q[7])));
     out[15] = -e2 + (-e6);
     out[16] = -e0 + (-e7);
     out[17] = 1;
@@ -393,8 +393,8 @@ static void quick_return_gamma_k0(const quick_return_real * q, const quick_retur
     out[1] = 0;
     out[2] = -e1*e2;
     out[3] = -e2*e3;
-    out[4] = e1*e8 + e1*q[1] - e1*q[4] - e3*e9 - e3*q[0] + e3*q[3] - e5*e8*qd[2] + e5*qd[0] - e5*qd[3] + e6*e9*qd[2] + e6*qd[1] - e6*qd[4] + e7*e8*tr[3] - e7*e9*tr[2];
-    out[5] = e10*q[3] - e10*q[6] + e11*q[4] - e11*q[7] - e12*qd[4] + e12*qd[7] + e13*qd[3] - e13*qd[6] + (-2*(qd[3]*qd[3]) + 4*qd[3]*qd[6] - 2*(qd[4]*qd[4]) + 4*qd[4]*qd[7] - 2*(qd[6]*qd[6]) - 2*(qd[7]*qd[7]));
+    out[4] = (e1*e8) + (e1*q[1]) - (e1*q[4]) - (e3*e9) - (e3*q[0]) + (e3*q[3]) - (e5*e8*qd[2]) + (e5*qd[0]) - (e5*qd[3]) + (e6*e9*qd[2]) + (e6*qd[1]) - (e6*qd[4]) + (e7*e8*tr[3]) - (e7*e9*tr[2]);
+    out[5] = (e10*q[3]) - (e10*q[6]) + (e11*q[4]) - (e11*q[7]) - (e12*qd[4]) + (e12*qd[7]) + (e13*qd[3]) - (e13*qd[6]) + ((-2*(qd[3]*qd[3])) + (4*qd[3]*qd[6]) - (2*(qd[4]*qd[4])) + (4*qd[4]*qd[7]) - (2*(qd[6]*qd[6])) - (2*(qd[7]*qd[7])));
     out[6] = 0;
     out[7] = 0;
     out[8] = 0;
@@ -478,10 +478,10 @@ static void quick_return_reactions_k0(const quick_return_real * q, const quick_r
     const quick_return_real e0 = lam[4]*tr[2];
     const quick_return_real e1 = lam[4]*tr[3];
     const quick_return_real e2 = 2*lam[5];
-    const quick_return_real e3 = e2*q[3] - 2*lam[5]*q[6];
+    const quick_return_real e3 = (e2*q[3]) - (2*lam[5]*q[6]);
     const quick_return_real e4 = lam[5]*p[2];
     const quick_return_real e5 = e4*tr[3];
-    const quick_return_real e6 = e2*q[4] - 2*lam[5]*q[7];
+    const quick_return_real e6 = (e2*q[4]) - (2*lam[5]*q[7]);
     const quick_return_real e7 = e4*tr[2];
     out[0] = lam[0];
     out[1] = lam[1];
@@ -497,7 +497,7 @@ static void quick_return_reactions_k0(const quick_return_real * q, const quick_r
     out[11] = 0;
     out[12] = -e0;
     out[13] = e1;
-    out[14] = e0*p[0]*tr[0] + e0*q[1] - e0*q[4] + e1*p[0]*tr[1] + e1*q[0] - e1*q[3];
+    out[14] = (e0*p[0]*tr[0]) + (e0*q[1]) - (e0*q[4]) + (e1*p[0]*tr[1]) + (e1*q[0]) - (e1*q[3]);
     out[15] = e0;
     out[16] = -e1;
     out[17] = 0;
@@ -509,7 +509,7 @@ static void quick_return_reactions_k0(const quick_return_real * q, const quick_r
     out[23] = 0;
     out[24] = 0;
     out[25] = lam[6];
-    out[26] = lam[6]*q[6] + lam[7];
+    out[26] = (lam[6]*q[6]) + lam[7];
     out[27] = 0;
     out[28] = -lam[6];
     out[29] = -lam[7];
@@ -1383,7 +1383,7 @@ static void quick_return_guess(const quick_return_real *p, quick_return_real *ou
     out[1] = 0;
     out[2] = 0;
     out[3] = (1.0/2.0)*g1;
-    out[4] = (1.0/2.0)*g2 - p[1];
+    out[4] = ((1.0/2.0)*g2) - p[1];
     out[5] = atan2(p[1], p[0]);
     out[6] = g1 + sqrt((p[3]*p[3]) - ((-g2 + p[1] + p[4])*(-g2 + p[1] + p[4])));
     out[7] = p[4];

@@ -212,7 +212,7 @@ static void rack_lift_prepare(const rack_lift_real *p, rack_lift_real *pp)
         pp[11] = e1*e2;
         pp[12] = e3;
         pp[13] = e2*e3;
-        pp[14] = -981.0/100.0*p[4] - 981.0/100.0*p[6];
+        pp[14] = (-981.0/100.0*p[4]) - (981.0/100.0*p[6]);
         pp[15] = p[6]*p[7];
         pp[16] = (1.0/2.0)*(p[0]*p[0])*p[3];
         pp[17] = (1.0/12.0)*p[4]*(p[5]*p[5]);
@@ -226,8 +226,8 @@ static void rack_lift_phi_k0(const rack_lift_real * q, const rack_lift_real * tr
     out[1] = q[1];
     out[2] = e0 + p[0];
     out[3] = q[5];
-    out[4] = -p[0]*(q[2] - q[5]) - tr[2]*(-e0 - q[0]) + tr[3]*(-q[1] + q[4]);
-    out[5] = -1.0/2.0*p[10]*(1 - cos(2*3.141592653589793*p[9]*t)) + q[2];
+    out[4] = (-p[0]*(q[2] - q[5])) - (tr[2]*(-e0 - q[0])) + (tr[3]*(-q[1] + q[4]));
+    out[5] = (-1.0/2.0*p[10]*(1 - cos(2*3.141592653589793*p[9]*t))) + q[2];
 }
 
 static void rack_lift_phi_k(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -258,7 +258,7 @@ static void rack_lift_phi_q_k0(const rack_lift_real * q, const rack_lift_real * 
     out[6] = e0;
     out[7] = -tr[2];
     out[8] = tr[3];
-    out[9] = -e0 - tr[2]*(-q[1] + q[4]) - tr[3]*(-q[0] + q[3]);
+    out[9] = -e0 - (tr[2]*(-q[1] + q[4])) - (tr[3]*(-q[0] + q[3]));
     out[10] = 1;
 }
 
@@ -316,7 +316,7 @@ static void rack_lift_gamma_k0(const rack_lift_real * q, const rack_lift_real * 
     out[1] = 0;
     out[2] = 0;
     out[3] = 0;
-    out[4] = e1*q[0] - e1*q[3] - e2*q[1] + e2*q[4] - e4*qd[0] + e4*qd[3] - e5*qd[1] + e5*qd[4];
+    out[4] = (e1*q[0]) - (e1*q[3]) - (e2*q[1]) + (e2*q[4]) - (e4*qd[0]) + (e4*qd[3]) - (e5*qd[1]) + (e5*qd[4]);
     out[5] = 2*(3.141592653589793*3.141592653589793)*p[13]*cos(2*3.141592653589793*p[9]*t);
 }
 
@@ -400,7 +400,7 @@ static void rack_lift_reactions_k0(const rack_lift_real * q, const rack_lift_rea
     out[5] = 0;
     out[6] = -lam[2];
     out[7] = 0;
-    out[8] = lam[2]*q[4] + lam[3];
+    out[8] = (lam[2]*q[4]) + lam[3];
     out[9] = lam[2];
     out[10] = 0;
     out[11] = -lam[3];

@@ -269,7 +269,7 @@ static void slider_crank_phi_k0(const slider_crank_real * q, const slider_crank_
     out[5] = -e5 + (-q[4] + q[7]);
     out[6] = q[7];
     out[7] = q[8];
-    out[8] = -p[9]*t + q[2];
+    out[8] = (-p[9]*t) + q[2];
 }
 
 static void slider_crank_phi_k(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -484,7 +484,7 @@ static void slider_crank_reactions_k0(const slider_crank_real * q, const slider_
     out[17] = 0;
     out[18] = 0;
     out[19] = lam[6];
-    out[20] = lam[6]*q[6] + lam[7];
+    out[20] = (lam[6]*q[6]) + lam[7];
     out[21] = 0;
     out[22] = -lam[6];
     out[23] = -lam[7];
@@ -1342,7 +1342,7 @@ static void slider_crank_guess(const slider_crank_real *p, slider_crank_real *ou
     out[0] = (1.0/2.0)*p[0];
     out[1] = 0;
     out[2] = 0;
-    out[3] = p[0] + (1.0/2.0)*p[1];
+    out[3] = p[0] + ((1.0/2.0)*p[1]);
     out[4] = 0;
     out[5] = 0;
     out[6] = p[0] + p[1];

@@ -252,7 +252,7 @@ static void slider_crank_counterweight_prepare(const slider_crank_counterweight_
         const slider_crank_counterweight_real e3 = (e1*e2*p[9]);
         const slider_crank_counterweight_real e4 = (1.0/2.0)*p[0];
         const slider_crank_counterweight_real e5 = p[10]*cos(p[11]);
-        const slider_crank_counterweight_real e6 = (e1*(e4*p[2] + e5*p[9]));
+        const slider_crank_counterweight_real e6 = (e1*((e4*p[2]) + (e5*p[9])));
         const slider_crank_counterweight_real e7 = -e6;
         pp[12] = e3;
         pp[13] = e6;
@@ -260,7 +260,7 @@ static void slider_crank_counterweight_prepare(const slider_crank_counterweight_
         pp[15] = (2*3.141592653589793*p[7]);
         pp[16] = -981.0/100.0*e0;
         pp[17] = e0;
-        pp[18] = ((1.0/12.0)*(p[0]*p[0])*p[2] + p[2]*((e3*e3) + ((e4 + e7)*(e4 + e7))) + p[9]*(((e2 - e3)*(e2 - e3)) + ((e5 + e7)*(e5 + e7))));
+        pp[18] = (((1.0/12.0)*(p[0]*p[0])*p[2]) + (p[2]*((e3*e3) + ((e4 + e7)*(e4 + e7)))) + (p[9]*(((e2 - e3)*(e2 - e3)) + ((e5 + e7)*(e5 + e7)))));
         pp[19] = (1.0/12.0)*(p[1]*p[1])*p[3];
         pp[20] = (1.0/12.0)*p[4]*((p[5]*p[5]) + (p[6]*p[6]));
     }
@@ -273,15 +273,15 @@ static void slider_crank_counterweight_phi_k0(const slider_crank_counterweight_r
     const slider_crank_counterweight_real e2 = (1.0/2.0)*p[1];
     const slider_crank_counterweight_real e3 = e2*tr[3];
     const slider_crank_counterweight_real e4 = e2*tr[2];
-    out[0] = e0 - p[13]*tr[1] + q[0];
-    out[1] = -e1 - p[13]*tr[0] + q[1];
-    out[2] = -e0 - e3 - p[14]*tr[1] + (-q[0] + q[3]);
-    out[3] = e1 - e4 - p[14]*tr[0] + (-q[1] + q[4]);
+    out[0] = e0 - (p[13]*tr[1]) + q[0];
+    out[1] = -e1 - (p[13]*tr[0]) + q[1];
+    out[2] = -e0 - e3 - (p[14]*tr[1]) + (-q[0] + q[3]);
+    out[3] = e1 - e4 - (p[14]*tr[0]) + (-q[1] + q[4]);
     out[4] = -e3 + (-q[3] + q[6]);
     out[5] = -e4 + (-q[4] + q[7]);
     out[6] = q[7];
     out[7] = q[8];
-    out[8] = -p[15]*t + q[2];
+    out[8] = (-p[15]*t) + q[2];
 }
 
 static void slider_crank_counterweight_phi_k(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -309,15 +309,15 @@ static void slider_crank_counterweight_phi_q_k0(const slider_crank_counterweight
     const slider_crank_counterweight_real e3 = e2*tr[2];
     const slider_crank_counterweight_real e4 = -e2*tr[3];
     out[0] = 1;
-    out[1] = e0 + p[13]*tr[0];
+    out[1] = e0 + (p[13]*tr[0]);
     out[2] = 1;
-    out[3] = e1 - p[13]*tr[1];
+    out[3] = e1 - (p[13]*tr[1]);
     out[4] = -1;
-    out[5] = -e0 + p[14]*tr[0];
+    out[5] = -e0 + (p[14]*tr[0]);
     out[6] = 1;
     out[7] = e3;
     out[8] = -1;
-    out[9] = -e1 - p[14]*tr[1];
+    out[9] = -e1 - (p[14]*tr[1]);
     out[10] = 1;
     out[11] = e4;
     out[12] = -1;
@@ -390,10 +390,10 @@ static void slider_crank_counterweight_gamma_k0(const slider_crank_counterweight
     const slider_crank_counterweight_real e6 = (1.0/2.0)*p[1]*(qd[5]*qd[5]);
     const slider_crank_counterweight_real e7 = e6*tr[3];
     const slider_crank_counterweight_real e8 = e6*tr[2];
-    out[0] = e2 - e3*tr[1];
-    out[1] = -e3*tr[0] - e4;
-    out[2] = -e2 - e5*tr[1] - e7;
-    out[3] = e4 - e5*tr[0] - e8;
+    out[0] = e2 - (e3*tr[1]);
+    out[1] = (-e3*tr[0]) - e4;
+    out[2] = -e2 - (e5*tr[1]) - e7;
+    out[3] = e4 - (e5*tr[0]) - e8;
     out[4] = -e7;
     out[5] = -e8;
     out[6] = 0;
@@ -427,7 +427,7 @@ static void slider_crank_counterweight_applied_k0(const slider_crank_counterweig
     out[3] = -981.0/100.0*p[3];
     out[4] = 0;
     out[5] = 0;
-    out[6] = -981.0/100.0*p[4] - p[8]*sin(p[15]*t);
+    out[6] = (-981.0/100.0*p[4]) - (p[8]*sin(p[15]*t));
     out[7] = 0;
     out[8] = 0;
 }
@@ -498,7 +498,7 @@ static void slider_crank_counterweight_reactions_k0(const slider_crank_counterwe
     out[17] = 0;
     out[18] = 0;
     out[19] = lam[6];
-    out[20] = lam[6]*q[6] + lam[7];
+    out[20] = (lam[6]*q[6]) + lam[7];
     out[21] = 0;
     out[22] = -lam[6];
     out[23] = -lam[7];
@@ -1355,10 +1355,10 @@ static void slider_crank_counterweight_guess(const slider_crank_counterweight_re
     (void)p;
     const slider_crank_counterweight_real g0 = (1.0/(p[2] + p[9]));
     const slider_crank_counterweight_real g1 = p[10]*p[9];
-    out[0] = (g0*(g1*cos(p[11]) + (1.0/2.0)*p[0]*p[2]));
+    out[0] = (g0*((g1*cos(p[11])) + ((1.0/2.0)*p[0]*p[2])));
     out[1] = (g0*g1*sin(p[11]));
     out[2] = 0;
-    out[3] = p[0] + (1.0/2.0)*p[1];
+    out[3] = p[0] + ((1.0/2.0)*p[1]);
     out[4] = 0;
     out[5] = 0;
     out[6] = p[0] + p[1];

@@ -238,12 +238,12 @@ static void slider_pendulum_phi_k0(const slider_pendulum_real * q, const slider_
 {
     const slider_pendulum_real e0 = 2*3.141592653589793*t;
     const slider_pendulum_real e1 = (1.0/2.0)*p[9];
-    out[0] = p[13]*(p[13]*tr[0] + p[14]*tr[1]) - p[14]*(p[13]*tr[1] - p[14]*tr[0]);
-    out[1] = p[13]*q[1] - p[14]*q[0];
-    out[2] = p[16]*q[0] + p[17]*q[1] - p[1]*sin(e0*p[2]);
-    out[3] = -e1*tr[3] - p[8]*tr[0] + (-q[0] + q[3]);
-    out[4] = -e1*tr[2] + p[8]*tr[1] + (-q[1] + q[4]);
-    out[5] = -p[3]*sin(e0*p[4]) + (-q[2] + q[5] + (1.0/2.0)*3.141592653589793);
+    out[0] = (p[13]*((p[13]*tr[0]) + (p[14]*tr[1]))) - (p[14]*((p[13]*tr[1]) - (p[14]*tr[0])));
+    out[1] = (p[13]*q[1]) - (p[14]*q[0]);
+    out[2] = (p[16]*q[0]) + (p[17]*q[1]) - (p[1]*sin(e0*p[2]));
+    out[3] = (-e1*tr[3]) - (p[8]*tr[0]) + (-q[0] + q[3]);
+    out[4] = (-e1*tr[2]) + (p[8]*tr[1]) + (-q[1] + q[4]);
+    out[5] = (-p[3]*sin(e0*p[4])) + (-q[2] + q[5] + ((1.0/2.0)*3.141592653589793));
 }
 
 static void slider_pendulum_phi_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -266,7 +266,7 @@ static void slider_pendulum_phi_q_k0(const slider_pendulum_real * q, const slide
     (void)q;
     (void)t;
     const slider_pendulum_real e0 = (1.0/2.0)*p[9];
-    out[0] = p[13]*(p[13]*tr[1] - p[14]*tr[0]) - p[14]*(-p[13]*tr[0] - p[14]*tr[1]);
+    out[0] = (p[13]*((p[13]*tr[1]) - (p[14]*tr[0]))) - (p[14]*((-p[13]*tr[0]) - (p[14]*tr[1])));
     out[1] = p[18];
     out[2] = p[13];
     out[3] = p[16];
@@ -335,11 +335,11 @@ static void slider_pendulum_gamma_k0(const slider_pendulum_real * q, const slide
     const slider_pendulum_real e2 = 2*3.141592653589793*t;
     const slider_pendulum_real e3 = 4*(3.141592653589793*3.141592653589793);
     const slider_pendulum_real e4 = (1.0/2.0)*p[9]*(qd[5]*qd[5]);
-    out[0] = e1*p[21] + e1*p[22];
+    out[0] = (e1*p[21]) + (e1*p[22]);
     out[1] = 0;
     out[2] = -e3*p[24]*sin(e2*p[2]);
-    out[3] = -e1*p[8] - e4*tr[3];
-    out[4] = e0*p[8]*tr[1] - e4*tr[2];
+    out[3] = (-e1*p[8]) - (e4*tr[3]);
+    out[4] = (e0*p[8]*tr[1]) - (e4*tr[2]);
     out[5] = -e3*p[26]*sin(e2*p[4]);
 }
 
@@ -362,7 +362,7 @@ static void slider_pendulum_applied_k0(const slider_pendulum_real * q, const sli
 {
     (void)tr;
     (void)t;
-    const slider_pendulum_real e0 = p[11]*(-q[2] + q[5] + (1.0/2.0)*3.141592653589793) + p[12]*(-qd[2] + qd[5]);
+    const slider_pendulum_real e0 = (p[11]*(-q[2] + q[5] + ((1.0/2.0)*3.141592653589793))) + (p[12]*(-qd[2] + qd[5]));
     out[0] = 0;
     out[1] = -981.0/100.0*p[5];
     out[2] = e0;
@@ -413,7 +413,7 @@ static void slider_pendulum_reactions_k0(const slider_pendulum_real * q, const s
 {
     (void)t;
     const slider_pendulum_real e0 = lam[0]*tr[1];
-    const slider_pendulum_real e1 = e0*p[21] + e0*p[22];
+    const slider_pendulum_real e1 = (e0*p[21]) + (e0*p[22]);
     const slider_pendulum_real e2 = lam[1]*p[14];
     const slider_pendulum_real e3 = lam[1]*p[13];
     const slider_pendulum_real e4 = lam[2]*p[16];
@@ -426,13 +426,13 @@ static void slider_pendulum_reactions_k0(const slider_pendulum_real * q, const s
     out[5] = -e1;
     out[6] = -e2;
     out[7] = e3;
-    out[8] = e2*q[1] + e3*q[0];
+    out[8] = (e2*q[1]) + (e3*q[0]);
     out[9] = e2;
     out[10] = -e3;
     out[11] = 0;
     out[12] = e4;
     out[13] = e5;
-    out[14] = -e4*q[1] + lam[2]*p[17]*q[0];
+    out[14] = (-e4*q[1]) + (lam[2]*p[17]*q[0]);
     out[15] = -e4;
     out[16] = -e5;
     out[17] = 0;
@@ -1327,7 +1327,7 @@ static void slider_pendulum_guess(const slider_pendulum_real *p, slider_pendulum
     out[1] = 0;
     out[2] = 0;
     out[3] = 0;
-    out[4] = -p[8] - 1.0/2.0*p[9];
+    out[4] = -p[8] - (1.0/2.0*p[9]);
     out[5] = -1.0/2.0*3.141592653589793;
 }
 
