@@ -43,7 +43,7 @@ typedef char andrews_squeezer_real_must_have_the_size_of_double[sizeof(andrews_s
 #define ANDREWS_SQUEEZER_OFF_LU 65
 #define ANDREWS_SQUEEZER_OFF_DENSE (ANDREWS_SQUEEZER_OFF_LU + ANDREWS_SQUEEZER_LU_SIZE)
 #define ANDREWS_SQUEEZER_OFF_VEC (ANDREWS_SQUEEZER_OFF_DENSE + 441)
-#define ANDREWS_SQUEEZER_VEC(work, k) ((work) + ANDREWS_SQUEEZER_OFF_VEC + (k) * 66)
+#define ANDREWS_SQUEEZER_VEC(work, k) (((work) + ANDREWS_SQUEEZER_OFF_VEC) + ((k) * 66))
 #define ANDREWS_SQUEEZER_OFF_PREP 1368  /* the prepared parameters (NPP), after the vectors */
 #define ANDREWS_SQUEEZER_NPP 59
 
@@ -230,10 +230,12 @@ static void andrews_squeezer_trig_base(const andrews_squeezer_real *q, andrews_s
 {
     int b;
     for (b = 0; b < 7; ++b) {
-        const andrews_squeezer_real a = q[3 * b + 2];
+        const andrews_squeezer_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -248,101 +250,136 @@ static void andrews_squeezer_trig_base(const andrews_squeezer_real *q, andrews_s
 static void andrews_squeezer_trig_near(const andrews_squeezer_real *q, andrews_squeezer_real *tr, andrews_squeezer_real *base)
 {
     {
-        const andrews_squeezer_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const andrews_squeezer_real a = q[2];
+        const andrews_squeezer_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[1];
+            const andrews_squeezer_real c = base[2];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const andrews_squeezer_real a = q[5];
+        const andrews_squeezer_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[4];
+            const andrews_squeezer_real c = base[5];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const andrews_squeezer_real a = q[8];
+        const andrews_squeezer_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[7];
+            const andrews_squeezer_real c = base[8];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 3 + 2], d = a - base[3 * 3];
+        const andrews_squeezer_real a = q[11];
+        const andrews_squeezer_real d = a - base[9];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 3 + 1], c = base[3 * 3 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 3] = s + (s * cm + c * sd);
-            tr[2 * 3 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[10];
+            const andrews_squeezer_real c = base[11];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[6] = s + ((s * cm) + (c * sd));
+            tr[7] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 3] = a;
-            tr[2 * 3] = base[3 * 3 + 1] = sin(a);
-            tr[2 * 3 + 1] = base[3 * 3 + 2] = cos(a);
+            base[9] = a;
+            base[10] = sin(a);
+            tr[6] = base[10];
+            base[11] = cos(a);
+            tr[7] = base[11];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 4 + 2], d = a - base[3 * 4];
+        const andrews_squeezer_real a = q[14];
+        const andrews_squeezer_real d = a - base[12];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 4 + 1], c = base[3 * 4 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 4] = s + (s * cm + c * sd);
-            tr[2 * 4 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[13];
+            const andrews_squeezer_real c = base[14];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[8] = s + ((s * cm) + (c * sd));
+            tr[9] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 4] = a;
-            tr[2 * 4] = base[3 * 4 + 1] = sin(a);
-            tr[2 * 4 + 1] = base[3 * 4 + 2] = cos(a);
+            base[12] = a;
+            base[13] = sin(a);
+            tr[8] = base[13];
+            base[14] = cos(a);
+            tr[9] = base[14];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 5 + 2], d = a - base[3 * 5];
+        const andrews_squeezer_real a = q[17];
+        const andrews_squeezer_real d = a - base[15];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 5 + 1], c = base[3 * 5 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 5] = s + (s * cm + c * sd);
-            tr[2 * 5 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[16];
+            const andrews_squeezer_real c = base[17];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[10] = s + ((s * cm) + (c * sd));
+            tr[11] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 5] = a;
-            tr[2 * 5] = base[3 * 5 + 1] = sin(a);
-            tr[2 * 5 + 1] = base[3 * 5 + 2] = cos(a);
+            base[15] = a;
+            base[16] = sin(a);
+            tr[10] = base[16];
+            base[17] = cos(a);
+            tr[11] = base[17];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 6 + 2], d = a - base[3 * 6];
+        const andrews_squeezer_real a = q[20];
+        const andrews_squeezer_real d = a - base[18];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 6 + 1], c = base[3 * 6 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 6] = s + (s * cm + c * sd);
-            tr[2 * 6 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[19];
+            const andrews_squeezer_real c = base[20];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[12] = s + ((s * cm) + (c * sd));
+            tr[13] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 6] = a;
-            tr[2 * 6] = base[3 * 6 + 1] = sin(a);
-            tr[2 * 6 + 1] = base[3 * 6 + 2] = cos(a);
+            base[18] = a;
+            base[19] = sin(a);
+            tr[12] = base[19];
+            base[20] = cos(a);
+            tr[13] = base[20];
         }
     }
 }
@@ -355,70 +392,84 @@ static void andrews_squeezer_trig_near(const andrews_squeezer_real *q, andrews_s
 static void andrews_squeezer_trig_step(const andrews_squeezer_real *q, const andrews_squeezer_real *dq, andrews_squeezer_real *tr, andrews_squeezer_real *base)
 {
     {
-        const andrews_squeezer_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const andrews_squeezer_real d = -dq[2];
+        const andrews_squeezer_real s = tr[0];
+        const andrews_squeezer_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const andrews_squeezer_real d = -dq[5];
+        const andrews_squeezer_real s = tr[2];
+        const andrews_squeezer_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const andrews_squeezer_real d = -dq[8];
+        const andrews_squeezer_real s = tr[4];
+        const andrews_squeezer_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 3 + 2], s = tr[2 * 3], c = tr[2 * 3 + 1];
+        const andrews_squeezer_real d = -dq[11];
+        const andrews_squeezer_real s = tr[6];
+        const andrews_squeezer_real c = tr[7];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 3] = s + c * d;
-            tr[2 * 3 + 1] = c - s * d;
+            tr[6] = s + (c * d);
+            tr[7] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 4 + 2], s = tr[2 * 4], c = tr[2 * 4 + 1];
+        const andrews_squeezer_real d = -dq[14];
+        const andrews_squeezer_real s = tr[8];
+        const andrews_squeezer_real c = tr[9];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 4] = s + c * d;
-            tr[2 * 4 + 1] = c - s * d;
+            tr[8] = s + (c * d);
+            tr[9] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 5 + 2], s = tr[2 * 5], c = tr[2 * 5 + 1];
+        const andrews_squeezer_real d = -dq[17];
+        const andrews_squeezer_real s = tr[10];
+        const andrews_squeezer_real c = tr[11];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 5] = s + c * d;
-            tr[2 * 5 + 1] = c - s * d;
+            tr[10] = s + (c * d);
+            tr[11] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 6 + 2], s = tr[2 * 6], c = tr[2 * 6 + 1];
+        const andrews_squeezer_real d = -dq[20];
+        const andrews_squeezer_real s = tr[12];
+        const andrews_squeezer_real c = tr[13];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 6] = s + c * d;
-            tr[2 * 6 + 1] = c - s * d;
+            tr[12] = s + (c * d);
+            tr[13] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
@@ -1138,58 +1189,81 @@ static void andrews_squeezer_sparse_solve_t(const andrews_squeezer_real *lu, con
 static int andrews_squeezer_dense_factor(andrews_squeezer_real *a, int *perm)
 {
     const int n = 21;
-    int i, j, k;
-    andrews_squeezer_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    andrews_squeezer_real umax = 0.0;
+    andrews_squeezer_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                andrews_squeezer_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return ANDREWS_SQUEEZER_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            andrews_squeezer_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                andrews_squeezer_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return ANDREWS_SQUEEZER_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            andrews_squeezer_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= ANDREWS_SQUEEZER_SINGULAR_RATIO * umax ? ANDREWS_SQUEEZER_SINGULAR : ANDREWS_SQUEEZER_OK;
+    return (umin <= (ANDREWS_SQUEEZER_SINGULAR_RATIO * umax)) ? ANDREWS_SQUEEZER_SINGULAR : ANDREWS_SQUEEZER_OK;
 }
 
 static void andrews_squeezer_dense_solve(const andrews_squeezer_real *a, const int *perm, const andrews_squeezer_real *b, andrews_squeezer_real *x)
 {
     const int n = 21;
-    int i, j;
-    memcpy(x, b, sizeof(andrews_squeezer_real) * 21);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(andrews_squeezer_real) * 21u);
     for (i = 0; i < n; ++i) {
         andrews_squeezer_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void andrews_squeezer_dense_solve_t(const andrews_squeezer_real *a, const int *perm, const andrews_squeezer_real *b, andrews_squeezer_real *x)
 {
     const int n = 21;
-    int i, j;
-    memcpy(x, b, sizeof(andrews_squeezer_real) * 21);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(andrews_squeezer_real) * 21u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         andrews_squeezer_real tmp = x[perm[i]];
@@ -1214,7 +1288,7 @@ static int andrews_squeezer_pivots_spread(const andrews_squeezer_real *lu)
         rmin = ANDREWS_SQUEEZER_MIN(rmin, r);
         rmax = ANDREWS_SQUEEZER_MAX(rmax, r);
     }
-    return rmin <= ANDREWS_SQUEEZER_SINGULAR_RATIO * rmax;
+    return (rmin <= (ANDREWS_SQUEEZER_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -1227,8 +1301,12 @@ static int andrews_squeezer_pivots_spread(const andrews_squeezer_real *lu)
 static int andrews_squeezer_screen(const andrews_squeezer_real *lu, int dense, const andrews_squeezer_real *row, const andrews_squeezer_real *col,
                           const andrews_squeezer_real *known)
 {
-    andrews_squeezer_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    andrews_squeezer_real wmin = known[0];
+    andrews_squeezer_real wmax = known[1];
+    andrews_squeezer_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[43]) * row[14] * col[8];
     wmin = ANDREWS_SQUEEZER_MIN(wmin, w);
     wmax = ANDREWS_SQUEEZER_MAX(wmax, w);
@@ -1251,7 +1329,7 @@ static int andrews_squeezer_screen(const andrews_squeezer_real *lu, int dense, c
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= ANDREWS_SQUEEZER_SCREEN * wmin);
+    return (wmax <= (ANDREWS_SQUEEZER_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -1260,7 +1338,8 @@ static int andrews_squeezer_screen(const andrews_squeezer_real *lu, int dense, c
 static void andrews_squeezer_screen_known(const andrews_squeezer_real *row, const andrews_squeezer_real *col, andrews_squeezer_real *known)
 {
     andrews_squeezer_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[20] * col[2];
     known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
     known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
@@ -1317,37 +1396,52 @@ static void andrews_squeezer_screen_known(const andrews_squeezer_real *row, cons
 static int andrews_squeezer_factorize(const andrews_squeezer_real *q, const andrews_squeezer_real *tr, andrews_squeezer_real t, const andrews_squeezer_real *p, andrews_squeezer_real *work,
                              int *iwork, int *dense)
 {
-    andrews_squeezer_real *values = work, *lu = work + ANDREWS_SQUEEZER_OFF_LU, *a = work + ANDREWS_SQUEEZER_OFF_DENSE;
+    andrews_squeezer_real *values = work;
+    andrews_squeezer_real *lu = work + ANDREWS_SQUEEZER_OFF_LU;
+    andrews_squeezer_real *a = work + ANDREWS_SQUEEZER_OFF_DENSE;
     int k;
     andrews_squeezer_phi_q_k(q, tr, t, p, lu);
     memset(lu + 65, 0, sizeof(andrews_squeezer_real) * (ANDREWS_SQUEEZER_LU_SIZE - 65));
     *dense = 0;
-    if (andrews_squeezer_sparse_factor(lu) == 0 && !andrews_squeezer_pivots_spread(lu)) return ANDREWS_SQUEEZER_OK;
+    if ((andrews_squeezer_sparse_factor(lu) == 0) && (andrews_squeezer_pivots_spread(lu) == 0)) {
+        return ANDREWS_SQUEEZER_OK;
+    }
     *dense = 1;
     andrews_squeezer_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(andrews_squeezer_real) * 441);
-    for (k = 0; k < 65; ++k) a[andrews_squeezer_phi_q_rows[k] * 21 + andrews_squeezer_phi_q_cols[k]] = values[k];
+    memset(a, 0, sizeof(andrews_squeezer_real) * 441u);
+    for (k = 0; k < 65; ++k) {
+        a[(andrews_squeezer_phi_q_rows[k] * 21) + andrews_squeezer_phi_q_cols[k]] = values[k];
+    }
     return andrews_squeezer_dense_factor(a, iwork);
 }
 
 static void andrews_squeezer_solve(const andrews_squeezer_real *work, const int *iwork, int dense, const andrews_squeezer_real *b, andrews_squeezer_real *x, andrews_squeezer_real *y)
 {
-    if (dense) andrews_squeezer_dense_solve(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, b, x);
-    else andrews_squeezer_sparse_solve(work + ANDREWS_SQUEEZER_OFF_LU, b, x, y);
+    if (dense != 0) {
+        andrews_squeezer_dense_solve(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, b, x);
+    } else {
+        andrews_squeezer_sparse_solve(work + ANDREWS_SQUEEZER_OFF_LU, b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void andrews_squeezer_solve_in(const andrews_squeezer_real *work, const int *iwork, int dense, andrews_squeezer_real *b, andrews_squeezer_real *x, andrews_squeezer_real *y)
 {
-    if (dense) andrews_squeezer_solve(work, iwork, dense, b, x, y);
-    else andrews_squeezer_sparse_solve_in(work + ANDREWS_SQUEEZER_OFF_LU, b, x);
+    if (dense != 0) {
+        andrews_squeezer_solve(work, iwork, dense, b, x, y);
+    } else {
+        andrews_squeezer_sparse_solve_in(work + ANDREWS_SQUEEZER_OFF_LU, b, x);
+    }
 }
 
 static void andrews_squeezer_solve_t(const andrews_squeezer_real *work, const int *iwork, int dense, const andrews_squeezer_real *b, andrews_squeezer_real *x)
 {
-    if (dense) andrews_squeezer_dense_solve_t(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, b, x);
-    else andrews_squeezer_sparse_solve_t(work + ANDREWS_SQUEEZER_OFF_LU, b, x);
+    if (dense != 0) {
+        andrews_squeezer_dense_solve_t(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, b, x);
+    } else {
+        andrews_squeezer_sparse_solve_t(work + ANDREWS_SQUEEZER_OFF_LU, b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -1357,7 +1451,8 @@ static void andrews_squeezer_solve_t(const andrews_squeezer_real *work, const in
    the refinement's cost (a quarter of an instant) is not paid. */
 static int andrews_squeezer_mixed(const andrews_squeezer_real *m)
 {
-    andrews_squeezer_real lo = m[0], hi = m[0];
+    andrews_squeezer_real lo = m[0];
+    andrews_squeezer_real hi = m[0];
     lo = ANDREWS_SQUEEZER_MIN(lo, m[3]);
     hi = ANDREWS_SQUEEZER_MAX(hi, m[3]);
     lo = ANDREWS_SQUEEZER_MIN(lo, m[6]);
@@ -1370,7 +1465,7 @@ static int andrews_squeezer_mixed(const andrews_squeezer_real *m)
     hi = ANDREWS_SQUEEZER_MAX(hi, m[15]);
     lo = ANDREWS_SQUEEZER_MIN(lo, m[18]);
     hi = ANDREWS_SQUEEZER_MAX(hi, m[18]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1385,14 +1480,23 @@ static int andrews_squeezer_mixed(const andrews_squeezer_real *m)
 static ANDREWS_SQUEEZER_COLD void andrews_squeezer_refine_t(const andrews_squeezer_real *q, const andrews_squeezer_real *tr, andrews_squeezer_real t, const andrews_squeezer_real *p,
                                         const andrews_squeezer_real *b, andrews_squeezer_real *lam, andrews_squeezer_real *work, const int *iwork, int dense)
 {
-    andrews_squeezer_real *values = work, *r = ANDREWS_SQUEEZER_VEC(work, 0), *d = ANDREWS_SQUEEZER_VEC(work, 1);
+    andrews_squeezer_real *values = work;
+    andrews_squeezer_real *r = ANDREWS_SQUEEZER_VEC(work, 0);
+    andrews_squeezer_real *d = ANDREWS_SQUEEZER_VEC(work, 1);
     int k;
     andrews_squeezer_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(andrews_squeezer_real) * 21);
-    for (k = 0; k < 65; ++k) r[andrews_squeezer_phi_q_cols[k]] -= values[k] * lam[andrews_squeezer_phi_q_rows[k]];
-    if (dense) andrews_squeezer_dense_solve_t(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, r, d);
-    else andrews_squeezer_sparse_solve_t(work + ANDREWS_SQUEEZER_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 21; ++k) lam[k] += d[k];
+    memcpy(r, b, sizeof(andrews_squeezer_real) * 21u);
+    for (k = 0; k < 65; ++k) {
+        r[andrews_squeezer_phi_q_cols[k]] -= values[k] * lam[andrews_squeezer_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        andrews_squeezer_dense_solve_t(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, r, d);
+    } else {
+        andrews_squeezer_sparse_solve_t(work + ANDREWS_SQUEEZER_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 21; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,

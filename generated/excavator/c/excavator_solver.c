@@ -43,7 +43,7 @@ typedef char excavator_real_must_have_the_size_of_double[sizeof(excavator_real) 
 #define EXCAVATOR_OFF_LU 35
 #define EXCAVATOR_OFF_DENSE (EXCAVATOR_OFF_LU + EXCAVATOR_LU_SIZE)
 #define EXCAVATOR_OFF_VEC (EXCAVATOR_OFF_DENSE + 81)
-#define EXCAVATOR_VEC(work, k) ((work) + EXCAVATOR_OFF_VEC + (k) * 36)
+#define EXCAVATOR_VEC(work, k) (((work) + EXCAVATOR_OFF_VEC) + ((k) * 36))
 #define EXCAVATOR_OFF_PREP 583  /* the prepared parameters (NPP), after the vectors */
 #define EXCAVATOR_NPP 41
 
@@ -144,10 +144,12 @@ static void excavator_trig_base(const excavator_real *q, excavator_real *tr, exc
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const excavator_real a = q[3 * b + 2];
+        const excavator_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -162,45 +164,60 @@ static void excavator_trig_base(const excavator_real *q, excavator_real *tr, exc
 static void excavator_trig_near(const excavator_real *q, excavator_real *tr, excavator_real *base)
 {
     {
-        const excavator_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const excavator_real a = q[2];
+        const excavator_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const excavator_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const excavator_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const excavator_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const excavator_real d2 = d * d;
+            const excavator_real s = base[1];
+            const excavator_real c = base[2];
+            const excavator_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const excavator_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const excavator_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const excavator_real a = q[5];
+        const excavator_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const excavator_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const excavator_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const excavator_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const excavator_real d2 = d * d;
+            const excavator_real s = base[4];
+            const excavator_real c = base[5];
+            const excavator_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const excavator_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const excavator_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const excavator_real a = q[8];
+        const excavator_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const excavator_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const excavator_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const excavator_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const excavator_real d2 = d * d;
+            const excavator_real s = base[7];
+            const excavator_real c = base[8];
+            const excavator_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const excavator_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
 }
@@ -213,30 +230,36 @@ static void excavator_trig_near(const excavator_real *q, excavator_real *tr, exc
 static void excavator_trig_step(const excavator_real *q, const excavator_real *dq, excavator_real *tr, excavator_real *base)
 {
     {
-        const excavator_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const excavator_real d = -dq[2];
+        const excavator_real s = tr[0];
+        const excavator_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             excavator_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const excavator_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const excavator_real d = -dq[5];
+        const excavator_real s = tr[2];
+        const excavator_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             excavator_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const excavator_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const excavator_real d = -dq[8];
+        const excavator_real s = tr[4];
+        const excavator_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             excavator_trig_near(q, tr, base);
             return;
@@ -906,58 +929,81 @@ static void excavator_sparse_solve_t(const excavator_real *lu, const excavator_r
 static int excavator_dense_factor(excavator_real *a, int *perm)
 {
     const int n = 9;
-    int i, j, k;
-    excavator_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    excavator_real umax = 0.0;
+    excavator_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                excavator_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return EXCAVATOR_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            excavator_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                excavator_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return EXCAVATOR_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            excavator_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= EXCAVATOR_SINGULAR_RATIO * umax ? EXCAVATOR_SINGULAR : EXCAVATOR_OK;
+    return (umin <= (EXCAVATOR_SINGULAR_RATIO * umax)) ? EXCAVATOR_SINGULAR : EXCAVATOR_OK;
 }
 
 static void excavator_dense_solve(const excavator_real *a, const int *perm, const excavator_real *b, excavator_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(excavator_real) * 9);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(excavator_real) * 9u);
     for (i = 0; i < n; ++i) {
         excavator_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void excavator_dense_solve_t(const excavator_real *a, const int *perm, const excavator_real *b, excavator_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(excavator_real) * 9);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(excavator_real) * 9u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         excavator_real tmp = x[perm[i]];
@@ -982,7 +1028,7 @@ static int excavator_pivots_spread(const excavator_real *lu)
         rmin = EXCAVATOR_MIN(rmin, r);
         rmax = EXCAVATOR_MAX(rmax, r);
     }
-    return rmin <= EXCAVATOR_SINGULAR_RATIO * rmax;
+    return (rmin <= (EXCAVATOR_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -995,8 +1041,12 @@ static int excavator_pivots_spread(const excavator_real *lu)
 static int excavator_screen(const excavator_real *lu, int dense, const excavator_real *row, const excavator_real *col,
                           const excavator_real *known)
 {
-    excavator_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    excavator_real wmin = known[0];
+    excavator_real wmax = known[1];
+    excavator_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[20]) * row[6] * col[0];
     wmin = EXCAVATOR_MIN(wmin, w);
     wmax = EXCAVATOR_MAX(wmax, w);
@@ -1019,7 +1069,7 @@ static int excavator_screen(const excavator_real *lu, int dense, const excavator
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= EXCAVATOR_SCREEN * wmin);
+    return (wmax <= (EXCAVATOR_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -1028,7 +1078,8 @@ static int excavator_screen(const excavator_real *lu, int dense, const excavator
 static void excavator_screen_known(const excavator_real *row, const excavator_real *col, excavator_real *known)
 {
     excavator_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[5] * col[7];
     known[0] = EXCAVATOR_MIN(known[0], w);
     known[1] = EXCAVATOR_MAX(known[1], w);
@@ -1049,36 +1100,51 @@ static void excavator_screen_known(const excavator_real *row, const excavator_re
 static int excavator_factorize(const excavator_real *q, const excavator_real *tr, excavator_real t, const excavator_real *p, excavator_real *work,
                              int *iwork, int *dense)
 {
-    excavator_real *values = work, *lu = work + EXCAVATOR_OFF_LU, *a = work + EXCAVATOR_OFF_DENSE;
+    excavator_real *values = work;
+    excavator_real *lu = work + EXCAVATOR_OFF_LU;
+    excavator_real *a = work + EXCAVATOR_OFF_DENSE;
     int k;
     excavator_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (excavator_sparse_factor(lu) == 0 && !excavator_pivots_spread(lu)) return EXCAVATOR_OK;
+    if ((excavator_sparse_factor(lu) == 0) && (excavator_pivots_spread(lu) == 0)) {
+        return EXCAVATOR_OK;
+    }
     *dense = 1;
     excavator_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(excavator_real) * 81);
-    for (k = 0; k < 35; ++k) a[excavator_phi_q_rows[k] * 9 + excavator_phi_q_cols[k]] = values[k];
+    memset(a, 0, sizeof(excavator_real) * 81u);
+    for (k = 0; k < 35; ++k) {
+        a[(excavator_phi_q_rows[k] * 9) + excavator_phi_q_cols[k]] = values[k];
+    }
     return excavator_dense_factor(a, iwork);
 }
 
 static void excavator_solve(const excavator_real *work, const int *iwork, int dense, const excavator_real *b, excavator_real *x, excavator_real *y)
 {
-    if (dense) excavator_dense_solve(work + EXCAVATOR_OFF_DENSE, iwork, b, x);
-    else excavator_sparse_solve(work + EXCAVATOR_OFF_LU, b, x, y);
+    if (dense != 0) {
+        excavator_dense_solve(work + EXCAVATOR_OFF_DENSE, iwork, b, x);
+    } else {
+        excavator_sparse_solve(work + EXCAVATOR_OFF_LU, b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void excavator_solve_in(const excavator_real *work, const int *iwork, int dense, excavator_real *b, excavator_real *x, excavator_real *y)
 {
-    if (dense) excavator_solve(work, iwork, dense, b, x, y);
-    else excavator_sparse_solve_in(work + EXCAVATOR_OFF_LU, b, x);
+    if (dense != 0) {
+        excavator_solve(work, iwork, dense, b, x, y);
+    } else {
+        excavator_sparse_solve_in(work + EXCAVATOR_OFF_LU, b, x);
+    }
 }
 
 static void excavator_solve_t(const excavator_real *work, const int *iwork, int dense, const excavator_real *b, excavator_real *x)
 {
-    if (dense) excavator_dense_solve_t(work + EXCAVATOR_OFF_DENSE, iwork, b, x);
-    else excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, b, x);
+    if (dense != 0) {
+        excavator_dense_solve_t(work + EXCAVATOR_OFF_DENSE, iwork, b, x);
+    } else {
+        excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -1088,12 +1154,13 @@ static void excavator_solve_t(const excavator_real *work, const int *iwork, int 
    the refinement's cost (a quarter of an instant) is not paid. */
 static int excavator_mixed(const excavator_real *m)
 {
-    excavator_real lo = m[0], hi = m[0];
+    excavator_real lo = m[0];
+    excavator_real hi = m[0];
     lo = EXCAVATOR_MIN(lo, m[3]);
     hi = EXCAVATOR_MAX(hi, m[3]);
     lo = EXCAVATOR_MIN(lo, m[6]);
     hi = EXCAVATOR_MAX(hi, m[6]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1108,14 +1175,23 @@ static int excavator_mixed(const excavator_real *m)
 static EXCAVATOR_COLD void excavator_refine_t(const excavator_real *q, const excavator_real *tr, excavator_real t, const excavator_real *p,
                                         const excavator_real *b, excavator_real *lam, excavator_real *work, const int *iwork, int dense)
 {
-    excavator_real *values = work, *r = EXCAVATOR_VEC(work, 0), *d = EXCAVATOR_VEC(work, 1);
+    excavator_real *values = work;
+    excavator_real *r = EXCAVATOR_VEC(work, 0);
+    excavator_real *d = EXCAVATOR_VEC(work, 1);
     int k;
     excavator_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(excavator_real) * 9);
-    for (k = 0; k < 35; ++k) r[excavator_phi_q_cols[k]] -= values[k] * lam[excavator_phi_q_rows[k]];
-    if (dense) excavator_dense_solve_t(work + EXCAVATOR_OFF_DENSE, iwork, r, d);
-    else excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 9; ++k) lam[k] += d[k];
+    memcpy(r, b, sizeof(excavator_real) * 9u);
+    for (k = 0; k < 35; ++k) {
+        r[excavator_phi_q_cols[k]] -= values[k] * lam[excavator_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        excavator_dense_solve_t(work + EXCAVATOR_OFF_DENSE, iwork, r, d);
+    } else {
+        excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 9; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,

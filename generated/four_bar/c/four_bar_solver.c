@@ -43,7 +43,7 @@ typedef char four_bar_real_must_have_the_size_of_double[sizeof(four_bar_real) ==
 #define FOUR_BAR_OFF_LU 25
 #define FOUR_BAR_OFF_DENSE (FOUR_BAR_OFF_LU + FOUR_BAR_LU_SIZE)
 #define FOUR_BAR_OFF_VEC (FOUR_BAR_OFF_DENSE + 81)
-#define FOUR_BAR_VEC(work, k) ((work) + FOUR_BAR_OFF_VEC + (k) * 30)
+#define FOUR_BAR_VEC(work, k) (((work) + FOUR_BAR_OFF_VEC) + ((k) * 30))
 #define FOUR_BAR_OFF_PREP 491  /* the prepared parameters (NPP), after the vectors */
 #define FOUR_BAR_NPP 19
 
@@ -138,10 +138,12 @@ static void four_bar_trig_base(const four_bar_real *q, four_bar_real *tr, four_b
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const four_bar_real a = q[3 * b + 2];
+        const four_bar_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -156,45 +158,60 @@ static void four_bar_trig_base(const four_bar_real *q, four_bar_real *tr, four_b
 static void four_bar_trig_near(const four_bar_real *q, four_bar_real *tr, four_bar_real *base)
 {
     {
-        const four_bar_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const four_bar_real a = q[2];
+        const four_bar_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const four_bar_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const four_bar_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const four_bar_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const four_bar_real d2 = d * d;
+            const four_bar_real s = base[1];
+            const four_bar_real c = base[2];
+            const four_bar_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const four_bar_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const four_bar_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const four_bar_real a = q[5];
+        const four_bar_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const four_bar_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const four_bar_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const four_bar_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const four_bar_real d2 = d * d;
+            const four_bar_real s = base[4];
+            const four_bar_real c = base[5];
+            const four_bar_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const four_bar_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const four_bar_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const four_bar_real a = q[8];
+        const four_bar_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const four_bar_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const four_bar_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const four_bar_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const four_bar_real d2 = d * d;
+            const four_bar_real s = base[7];
+            const four_bar_real c = base[8];
+            const four_bar_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const four_bar_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
 }
@@ -207,30 +224,36 @@ static void four_bar_trig_near(const four_bar_real *q, four_bar_real *tr, four_b
 static void four_bar_trig_step(const four_bar_real *q, const four_bar_real *dq, four_bar_real *tr, four_bar_real *base)
 {
     {
-        const four_bar_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const four_bar_real d = -dq[2];
+        const four_bar_real s = tr[0];
+        const four_bar_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             four_bar_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const four_bar_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const four_bar_real d = -dq[5];
+        const four_bar_real s = tr[2];
+        const four_bar_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             four_bar_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const four_bar_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const four_bar_real d = -dq[8];
+        const four_bar_real s = tr[4];
+        const four_bar_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             four_bar_trig_near(q, tr, base);
             return;
@@ -659,58 +682,81 @@ static void four_bar_sparse_solve_t(const four_bar_real *lu, const four_bar_real
 static int four_bar_dense_factor(four_bar_real *a, int *perm)
 {
     const int n = 9;
-    int i, j, k;
-    four_bar_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    four_bar_real umax = 0.0;
+    four_bar_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                four_bar_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return FOUR_BAR_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            four_bar_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                four_bar_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return FOUR_BAR_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            four_bar_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= FOUR_BAR_SINGULAR_RATIO * umax ? FOUR_BAR_SINGULAR : FOUR_BAR_OK;
+    return (umin <= (FOUR_BAR_SINGULAR_RATIO * umax)) ? FOUR_BAR_SINGULAR : FOUR_BAR_OK;
 }
 
 static void four_bar_dense_solve(const four_bar_real *a, const int *perm, const four_bar_real *b, four_bar_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(four_bar_real) * 9);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(four_bar_real) * 9u);
     for (i = 0; i < n; ++i) {
         four_bar_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void four_bar_dense_solve_t(const four_bar_real *a, const int *perm, const four_bar_real *b, four_bar_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(four_bar_real) * 9);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(four_bar_real) * 9u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         four_bar_real tmp = x[perm[i]];
@@ -735,7 +781,7 @@ static int four_bar_pivots_spread(const four_bar_real *lu)
         rmin = FOUR_BAR_MIN(rmin, r);
         rmax = FOUR_BAR_MAX(rmax, r);
     }
-    return rmin <= FOUR_BAR_SINGULAR_RATIO * rmax;
+    return (rmin <= (FOUR_BAR_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -748,8 +794,12 @@ static int four_bar_pivots_spread(const four_bar_real *lu)
 static int four_bar_screen(const four_bar_real *lu, int dense, const four_bar_real *row, const four_bar_real *col,
                           const four_bar_real *known)
 {
-    four_bar_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    four_bar_real wmin = known[0];
+    four_bar_real wmax = known[1];
+    four_bar_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[13]) * row[4] * col[5];
     wmin = FOUR_BAR_MIN(wmin, w);
     wmax = FOUR_BAR_MAX(wmax, w);
@@ -760,7 +810,7 @@ static int four_bar_screen(const four_bar_real *lu, int dense, const four_bar_re
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= FOUR_BAR_SCREEN * wmin);
+    return (wmax <= (FOUR_BAR_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -769,7 +819,8 @@ static int four_bar_screen(const four_bar_real *lu, int dense, const four_bar_re
 static void four_bar_screen_known(const four_bar_real *row, const four_bar_real *col, four_bar_real *known)
 {
     four_bar_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[8] * col[2];
     known[0] = FOUR_BAR_MIN(known[0], w);
     known[1] = FOUR_BAR_MAX(known[1], w);
@@ -802,36 +853,51 @@ static void four_bar_screen_known(const four_bar_real *row, const four_bar_real 
 static int four_bar_factorize(const four_bar_real *q, const four_bar_real *tr, four_bar_real t, const four_bar_real *p, four_bar_real *work,
                              int *iwork, int *dense)
 {
-    four_bar_real *values = work, *lu = work + FOUR_BAR_OFF_LU, *a = work + FOUR_BAR_OFF_DENSE;
+    four_bar_real *values = work;
+    four_bar_real *lu = work + FOUR_BAR_OFF_LU;
+    four_bar_real *a = work + FOUR_BAR_OFF_DENSE;
     int k;
     four_bar_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (four_bar_sparse_factor(lu) == 0 && !four_bar_pivots_spread(lu)) return FOUR_BAR_OK;
+    if ((four_bar_sparse_factor(lu) == 0) && (four_bar_pivots_spread(lu) == 0)) {
+        return FOUR_BAR_OK;
+    }
     *dense = 1;
     four_bar_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(four_bar_real) * 81);
-    for (k = 0; k < 25; ++k) a[four_bar_phi_q_rows[k] * 9 + four_bar_phi_q_cols[k]] = values[k];
+    memset(a, 0, sizeof(four_bar_real) * 81u);
+    for (k = 0; k < 25; ++k) {
+        a[(four_bar_phi_q_rows[k] * 9) + four_bar_phi_q_cols[k]] = values[k];
+    }
     return four_bar_dense_factor(a, iwork);
 }
 
 static void four_bar_solve(const four_bar_real *work, const int *iwork, int dense, const four_bar_real *b, four_bar_real *x, four_bar_real *y)
 {
-    if (dense) four_bar_dense_solve(work + FOUR_BAR_OFF_DENSE, iwork, b, x);
-    else four_bar_sparse_solve(work + FOUR_BAR_OFF_LU, b, x, y);
+    if (dense != 0) {
+        four_bar_dense_solve(work + FOUR_BAR_OFF_DENSE, iwork, b, x);
+    } else {
+        four_bar_sparse_solve(work + FOUR_BAR_OFF_LU, b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void four_bar_solve_in(const four_bar_real *work, const int *iwork, int dense, four_bar_real *b, four_bar_real *x, four_bar_real *y)
 {
-    if (dense) four_bar_solve(work, iwork, dense, b, x, y);
-    else four_bar_sparse_solve_in(work + FOUR_BAR_OFF_LU, b, x);
+    if (dense != 0) {
+        four_bar_solve(work, iwork, dense, b, x, y);
+    } else {
+        four_bar_sparse_solve_in(work + FOUR_BAR_OFF_LU, b, x);
+    }
 }
 
 static void four_bar_solve_t(const four_bar_real *work, const int *iwork, int dense, const four_bar_real *b, four_bar_real *x)
 {
-    if (dense) four_bar_dense_solve_t(work + FOUR_BAR_OFF_DENSE, iwork, b, x);
-    else four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, b, x);
+    if (dense != 0) {
+        four_bar_dense_solve_t(work + FOUR_BAR_OFF_DENSE, iwork, b, x);
+    } else {
+        four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -841,12 +907,13 @@ static void four_bar_solve_t(const four_bar_real *work, const int *iwork, int de
    the refinement's cost (a quarter of an instant) is not paid. */
 static int four_bar_mixed(const four_bar_real *m)
 {
-    four_bar_real lo = m[0], hi = m[0];
+    four_bar_real lo = m[0];
+    four_bar_real hi = m[0];
     lo = FOUR_BAR_MIN(lo, m[3]);
     hi = FOUR_BAR_MAX(hi, m[3]);
     lo = FOUR_BAR_MIN(lo, m[6]);
     hi = FOUR_BAR_MAX(hi, m[6]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -861,14 +928,23 @@ static int four_bar_mixed(const four_bar_real *m)
 static FOUR_BAR_COLD void four_bar_refine_t(const four_bar_real *q, const four_bar_real *tr, four_bar_real t, const four_bar_real *p,
                                         const four_bar_real *b, four_bar_real *lam, four_bar_real *work, const int *iwork, int dense)
 {
-    four_bar_real *values = work, *r = FOUR_BAR_VEC(work, 0), *d = FOUR_BAR_VEC(work, 1);
+    four_bar_real *values = work;
+    four_bar_real *r = FOUR_BAR_VEC(work, 0);
+    four_bar_real *d = FOUR_BAR_VEC(work, 1);
     int k;
     four_bar_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(four_bar_real) * 9);
-    for (k = 0; k < 25; ++k) r[four_bar_phi_q_cols[k]] -= values[k] * lam[four_bar_phi_q_rows[k]];
-    if (dense) four_bar_dense_solve_t(work + FOUR_BAR_OFF_DENSE, iwork, r, d);
-    else four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 9; ++k) lam[k] += d[k];
+    memcpy(r, b, sizeof(four_bar_real) * 9u);
+    for (k = 0; k < 25; ++k) {
+        r[four_bar_phi_q_cols[k]] -= values[k] * lam[four_bar_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        four_bar_dense_solve_t(work + FOUR_BAR_OFF_DENSE, iwork, r, d);
+    } else {
+        four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 9; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,

@@ -43,7 +43,7 @@ typedef char planetary_real_must_have_the_size_of_double[sizeof(planetary_real) 
 #define PLANETARY_OFF_LU 20
 #define PLANETARY_OFF_DENSE (PLANETARY_OFF_LU + PLANETARY_LU_SIZE)
 #define PLANETARY_OFF_VEC (PLANETARY_OFF_DENSE + 144)
-#define PLANETARY_VEC(work, k) ((work) + PLANETARY_OFF_VEC + (k) * 51)
+#define PLANETARY_VEC(work, k) (((work) + PLANETARY_OFF_VEC) + ((k) * 51))
 #define PLANETARY_OFF_PREP 796  /* the prepared parameters (NPP), after the vectors */
 #define PLANETARY_NPP 25
 
@@ -173,10 +173,12 @@ static void planetary_trig_base(const planetary_real *q, planetary_real *tr, pla
 {
     int b;
     for (b = 0; b < 4; ++b) {
-        const planetary_real a = q[3 * b + 2];
+        const planetary_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -191,59 +193,79 @@ static void planetary_trig_base(const planetary_real *q, planetary_real *tr, pla
 static void planetary_trig_near(const planetary_real *q, planetary_real *tr, planetary_real *base)
 {
     {
-        const planetary_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const planetary_real a = q[2];
+        const planetary_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const planetary_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const planetary_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const planetary_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const planetary_real d2 = d * d;
+            const planetary_real s = base[1];
+            const planetary_real c = base[2];
+            const planetary_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const planetary_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const planetary_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const planetary_real a = q[5];
+        const planetary_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const planetary_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const planetary_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const planetary_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const planetary_real d2 = d * d;
+            const planetary_real s = base[4];
+            const planetary_real c = base[5];
+            const planetary_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const planetary_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const planetary_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const planetary_real a = q[8];
+        const planetary_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const planetary_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const planetary_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const planetary_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const planetary_real d2 = d * d;
+            const planetary_real s = base[7];
+            const planetary_real c = base[8];
+            const planetary_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const planetary_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
     {
-        const planetary_real a = q[3 * 3 + 2], d = a - base[3 * 3];
+        const planetary_real a = q[11];
+        const planetary_real d = a - base[9];
         if (fabs(d) <= 0.0625) {
-            const planetary_real d2 = d * d, s = base[3 * 3 + 1], c = base[3 * 3 + 2];
-            const planetary_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const planetary_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 3] = s + (s * cm + c * sd);
-            tr[2 * 3 + 1] = c + (c * cm - s * sd);
+            const planetary_real d2 = d * d;
+            const planetary_real s = base[10];
+            const planetary_real c = base[11];
+            const planetary_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const planetary_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[6] = s + ((s * cm) + (c * sd));
+            tr[7] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 3] = a;
-            tr[2 * 3] = base[3 * 3 + 1] = sin(a);
-            tr[2 * 3 + 1] = base[3 * 3 + 2] = cos(a);
+            base[9] = a;
+            base[10] = sin(a);
+            tr[6] = base[10];
+            base[11] = cos(a);
+            tr[7] = base[11];
         }
     }
 }
@@ -256,40 +278,48 @@ static void planetary_trig_near(const planetary_real *q, planetary_real *tr, pla
 static void planetary_trig_step(const planetary_real *q, const planetary_real *dq, planetary_real *tr, planetary_real *base)
 {
     {
-        const planetary_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const planetary_real d = -dq[2];
+        const planetary_real s = tr[0];
+        const planetary_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             planetary_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const planetary_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const planetary_real d = -dq[5];
+        const planetary_real s = tr[2];
+        const planetary_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             planetary_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const planetary_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const planetary_real d = -dq[8];
+        const planetary_real s = tr[4];
+        const planetary_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             planetary_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const planetary_real d = -dq[3 * 3 + 2], s = tr[2 * 3], c = tr[2 * 3 + 1];
+        const planetary_real d = -dq[11];
+        const planetary_real s = tr[6];
+        const planetary_real c = tr[7];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 3] = s + c * d;
-            tr[2 * 3 + 1] = c - s * d;
+            tr[6] = s + (c * d);
+            tr[7] = c - (s * d);
         } else {
             planetary_trig_near(q, tr, base);
             return;
@@ -735,58 +765,81 @@ static void planetary_sparse_solve_t(const planetary_real *lu, const planetary_r
 static int planetary_dense_factor(planetary_real *a, int *perm)
 {
     const int n = 12;
-    int i, j, k;
-    planetary_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    planetary_real umax = 0.0;
+    planetary_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                planetary_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return PLANETARY_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            planetary_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                planetary_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return PLANETARY_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            planetary_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= PLANETARY_SINGULAR_RATIO * umax ? PLANETARY_SINGULAR : PLANETARY_OK;
+    return (umin <= (PLANETARY_SINGULAR_RATIO * umax)) ? PLANETARY_SINGULAR : PLANETARY_OK;
 }
 
 static void planetary_dense_solve(const planetary_real *a, const int *perm, const planetary_real *b, planetary_real *x)
 {
     const int n = 12;
-    int i, j;
-    memcpy(x, b, sizeof(planetary_real) * 12);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(planetary_real) * 12u);
     for (i = 0; i < n; ++i) {
         planetary_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void planetary_dense_solve_t(const planetary_real *a, const int *perm, const planetary_real *b, planetary_real *x)
 {
     const int n = 12;
-    int i, j;
-    memcpy(x, b, sizeof(planetary_real) * 12);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(planetary_real) * 12u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         planetary_real tmp = x[perm[i]];
@@ -811,7 +864,7 @@ static int planetary_pivots_spread(const planetary_real *lu)
         rmin = PLANETARY_MIN(rmin, r);
         rmax = PLANETARY_MAX(rmax, r);
     }
-    return rmin <= PLANETARY_SINGULAR_RATIO * rmax;
+    return (rmin <= (PLANETARY_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -824,8 +877,12 @@ static int planetary_pivots_spread(const planetary_real *lu)
 static int planetary_screen(const planetary_real *lu, int dense, const planetary_real *row, const planetary_real *col,
                           const planetary_real *known)
 {
-    planetary_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    planetary_real wmin = known[0];
+    planetary_real wmax = known[1];
+    planetary_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[11]) * row[6] * col[5];
     wmin = PLANETARY_MIN(wmin, w);
     wmax = PLANETARY_MAX(wmax, w);
@@ -836,7 +893,7 @@ static int planetary_screen(const planetary_real *lu, int dense, const planetary
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= PLANETARY_SCREEN * wmin);
+    return (wmax <= (PLANETARY_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -845,7 +902,8 @@ static int planetary_screen(const planetary_real *lu, int dense, const planetary
 static void planetary_screen_known(const planetary_real *row, const planetary_real *col, planetary_real *known)
 {
     planetary_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[0] * col[0];
     known[0] = PLANETARY_MIN(known[0], w);
     known[1] = PLANETARY_MAX(known[1], w);
@@ -887,36 +945,51 @@ static void planetary_screen_known(const planetary_real *row, const planetary_re
 static int planetary_factorize(const planetary_real *q, const planetary_real *tr, planetary_real t, const planetary_real *p, planetary_real *work,
                              int *iwork, int *dense)
 {
-    planetary_real *values = work, *lu = work + PLANETARY_OFF_LU, *a = work + PLANETARY_OFF_DENSE;
+    planetary_real *values = work;
+    planetary_real *lu = work + PLANETARY_OFF_LU;
+    planetary_real *a = work + PLANETARY_OFF_DENSE;
     int k;
     planetary_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (planetary_sparse_factor(lu) == 0 && !planetary_pivots_spread(lu)) return PLANETARY_OK;
+    if ((planetary_sparse_factor(lu) == 0) && (planetary_pivots_spread(lu) == 0)) {
+        return PLANETARY_OK;
+    }
     *dense = 1;
     planetary_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(planetary_real) * 144);
-    for (k = 0; k < 20; ++k) a[planetary_phi_q_rows[k] * 12 + planetary_phi_q_cols[k]] = values[k];
+    memset(a, 0, sizeof(planetary_real) * 144u);
+    for (k = 0; k < 20; ++k) {
+        a[(planetary_phi_q_rows[k] * 12) + planetary_phi_q_cols[k]] = values[k];
+    }
     return planetary_dense_factor(a, iwork);
 }
 
 static void planetary_solve(const planetary_real *work, const int *iwork, int dense, const planetary_real *b, planetary_real *x, planetary_real *y)
 {
-    if (dense) planetary_dense_solve(work + PLANETARY_OFF_DENSE, iwork, b, x);
-    else planetary_sparse_solve(work + PLANETARY_OFF_LU, b, x, y);
+    if (dense != 0) {
+        planetary_dense_solve(work + PLANETARY_OFF_DENSE, iwork, b, x);
+    } else {
+        planetary_sparse_solve(work + PLANETARY_OFF_LU, b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void planetary_solve_in(const planetary_real *work, const int *iwork, int dense, planetary_real *b, planetary_real *x, planetary_real *y)
 {
-    if (dense) planetary_solve(work, iwork, dense, b, x, y);
-    else planetary_sparse_solve_in(work + PLANETARY_OFF_LU, b, x);
+    if (dense != 0) {
+        planetary_solve(work, iwork, dense, b, x, y);
+    } else {
+        planetary_sparse_solve_in(work + PLANETARY_OFF_LU, b, x);
+    }
 }
 
 static void planetary_solve_t(const planetary_real *work, const int *iwork, int dense, const planetary_real *b, planetary_real *x)
 {
-    if (dense) planetary_dense_solve_t(work + PLANETARY_OFF_DENSE, iwork, b, x);
-    else planetary_sparse_solve_t(work + PLANETARY_OFF_LU, b, x);
+    if (dense != 0) {
+        planetary_dense_solve_t(work + PLANETARY_OFF_DENSE, iwork, b, x);
+    } else {
+        planetary_sparse_solve_t(work + PLANETARY_OFF_LU, b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -926,14 +999,15 @@ static void planetary_solve_t(const planetary_real *work, const int *iwork, int 
    the refinement's cost (a quarter of an instant) is not paid. */
 static int planetary_mixed(const planetary_real *m)
 {
-    planetary_real lo = m[0], hi = m[0];
+    planetary_real lo = m[0];
+    planetary_real hi = m[0];
     lo = PLANETARY_MIN(lo, m[3]);
     hi = PLANETARY_MAX(hi, m[3]);
     lo = PLANETARY_MIN(lo, m[6]);
     hi = PLANETARY_MAX(hi, m[6]);
     lo = PLANETARY_MIN(lo, m[9]);
     hi = PLANETARY_MAX(hi, m[9]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -948,14 +1022,23 @@ static int planetary_mixed(const planetary_real *m)
 static PLANETARY_COLD void planetary_refine_t(const planetary_real *q, const planetary_real *tr, planetary_real t, const planetary_real *p,
                                         const planetary_real *b, planetary_real *lam, planetary_real *work, const int *iwork, int dense)
 {
-    planetary_real *values = work, *r = PLANETARY_VEC(work, 0), *d = PLANETARY_VEC(work, 1);
+    planetary_real *values = work;
+    planetary_real *r = PLANETARY_VEC(work, 0);
+    planetary_real *d = PLANETARY_VEC(work, 1);
     int k;
     planetary_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(planetary_real) * 12);
-    for (k = 0; k < 20; ++k) r[planetary_phi_q_cols[k]] -= values[k] * lam[planetary_phi_q_rows[k]];
-    if (dense) planetary_dense_solve_t(work + PLANETARY_OFF_DENSE, iwork, r, d);
-    else planetary_sparse_solve_t(work + PLANETARY_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 12; ++k) lam[k] += d[k];
+    memcpy(r, b, sizeof(planetary_real) * 12u);
+    for (k = 0; k < 20; ++k) {
+        r[planetary_phi_q_cols[k]] -= values[k] * lam[planetary_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        planetary_dense_solve_t(work + PLANETARY_OFF_DENSE, iwork, r, d);
+    } else {
+        planetary_sparse_solve_t(work + PLANETARY_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 12; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,

@@ -43,7 +43,7 @@ typedef char quick_return_real_must_have_the_size_of_double[sizeof(quick_return_
 #define QUICK_RETURN_OFF_LU 20
 #define QUICK_RETURN_OFF_DENSE (QUICK_RETURN_OFF_LU + QUICK_RETURN_LU_SIZE)
 #define QUICK_RETURN_OFF_VEC (QUICK_RETURN_OFF_DENSE + 81)
-#define QUICK_RETURN_VEC(work, k) ((work) + QUICK_RETURN_OFF_VEC + (k) * 36)
+#define QUICK_RETURN_VEC(work, k) (((work) + QUICK_RETURN_OFF_VEC) + ((k) * 36))
 #define QUICK_RETURN_OFF_PREP 553  /* the prepared parameters (NPP), after the vectors */
 #define QUICK_RETURN_NPP 18
 
@@ -144,10 +144,12 @@ static void quick_return_trig_base(const quick_return_real *q, quick_return_real
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const quick_return_real a = q[3 * b + 2];
+        const quick_return_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -162,45 +164,60 @@ static void quick_return_trig_base(const quick_return_real *q, quick_return_real
 static void quick_return_trig_near(const quick_return_real *q, quick_return_real *tr, quick_return_real *base)
 {
     {
-        const quick_return_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const quick_return_real a = q[2];
+        const quick_return_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const quick_return_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const quick_return_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const quick_return_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const quick_return_real d2 = d * d;
+            const quick_return_real s = base[1];
+            const quick_return_real c = base[2];
+            const quick_return_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const quick_return_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const quick_return_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const quick_return_real a = q[5];
+        const quick_return_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const quick_return_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const quick_return_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const quick_return_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const quick_return_real d2 = d * d;
+            const quick_return_real s = base[4];
+            const quick_return_real c = base[5];
+            const quick_return_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const quick_return_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const quick_return_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const quick_return_real a = q[8];
+        const quick_return_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const quick_return_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const quick_return_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const quick_return_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const quick_return_real d2 = d * d;
+            const quick_return_real s = base[7];
+            const quick_return_real c = base[8];
+            const quick_return_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const quick_return_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
 }
@@ -213,30 +230,36 @@ static void quick_return_trig_near(const quick_return_real *q, quick_return_real
 static void quick_return_trig_step(const quick_return_real *q, const quick_return_real *dq, quick_return_real *tr, quick_return_real *base)
 {
     {
-        const quick_return_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const quick_return_real d = -dq[2];
+        const quick_return_real s = tr[0];
+        const quick_return_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             quick_return_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const quick_return_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const quick_return_real d = -dq[5];
+        const quick_return_real s = tr[2];
+        const quick_return_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             quick_return_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const quick_return_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const quick_return_real d = -dq[8];
+        const quick_return_real s = tr[4];
+        const quick_return_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             quick_return_trig_near(q, tr, base);
             return;
@@ -653,58 +676,81 @@ static void quick_return_sparse_solve_t(const quick_return_real *lu, const quick
 static int quick_return_dense_factor(quick_return_real *a, int *perm)
 {
     const int n = 9;
-    int i, j, k;
-    quick_return_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    quick_return_real umax = 0.0;
+    quick_return_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                quick_return_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return QUICK_RETURN_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            quick_return_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                quick_return_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return QUICK_RETURN_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            quick_return_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= QUICK_RETURN_SINGULAR_RATIO * umax ? QUICK_RETURN_SINGULAR : QUICK_RETURN_OK;
+    return (umin <= (QUICK_RETURN_SINGULAR_RATIO * umax)) ? QUICK_RETURN_SINGULAR : QUICK_RETURN_OK;
 }
 
 static void quick_return_dense_solve(const quick_return_real *a, const int *perm, const quick_return_real *b, quick_return_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(quick_return_real) * 9);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(quick_return_real) * 9u);
     for (i = 0; i < n; ++i) {
         quick_return_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void quick_return_dense_solve_t(const quick_return_real *a, const int *perm, const quick_return_real *b, quick_return_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(quick_return_real) * 9);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(quick_return_real) * 9u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         quick_return_real tmp = x[perm[i]];
@@ -729,7 +775,7 @@ static int quick_return_pivots_spread(const quick_return_real *lu)
         rmin = QUICK_RETURN_MIN(rmin, r);
         rmax = QUICK_RETURN_MAX(rmax, r);
     }
-    return rmin <= QUICK_RETURN_SINGULAR_RATIO * rmax;
+    return (rmin <= (QUICK_RETURN_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -742,8 +788,12 @@ static int quick_return_pivots_spread(const quick_return_real *lu)
 static int quick_return_screen(const quick_return_real *lu, int dense, const quick_return_real *row, const quick_return_real *col,
                           const quick_return_real *known)
 {
-    quick_return_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    quick_return_real wmin = known[0];
+    quick_return_real wmax = known[1];
+    quick_return_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[15]) * row[5] * col[6];
     wmin = QUICK_RETURN_MIN(wmin, w);
     wmax = QUICK_RETURN_MAX(wmax, w);
@@ -754,7 +804,7 @@ static int quick_return_screen(const quick_return_real *lu, int dense, const qui
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= QUICK_RETURN_SCREEN * wmin);
+    return (wmax <= (QUICK_RETURN_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -763,7 +813,8 @@ static int quick_return_screen(const quick_return_real *lu, int dense, const qui
 static void quick_return_screen_known(const quick_return_real *row, const quick_return_real *col, quick_return_real *known)
 {
     quick_return_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[0] * col[0];
     known[0] = QUICK_RETURN_MIN(known[0], w);
     known[1] = QUICK_RETURN_MAX(known[1], w);
@@ -796,36 +847,51 @@ static void quick_return_screen_known(const quick_return_real *row, const quick_
 static int quick_return_factorize(const quick_return_real *q, const quick_return_real *tr, quick_return_real t, const quick_return_real *p, quick_return_real *work,
                              int *iwork, int *dense)
 {
-    quick_return_real *values = work, *lu = work + QUICK_RETURN_OFF_LU, *a = work + QUICK_RETURN_OFF_DENSE;
+    quick_return_real *values = work;
+    quick_return_real *lu = work + QUICK_RETURN_OFF_LU;
+    quick_return_real *a = work + QUICK_RETURN_OFF_DENSE;
     int k;
     quick_return_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (quick_return_sparse_factor(lu) == 0 && !quick_return_pivots_spread(lu)) return QUICK_RETURN_OK;
+    if ((quick_return_sparse_factor(lu) == 0) && (quick_return_pivots_spread(lu) == 0)) {
+        return QUICK_RETURN_OK;
+    }
     *dense = 1;
     quick_return_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(quick_return_real) * 81);
-    for (k = 0; k < 20; ++k) a[quick_return_phi_q_rows[k] * 9 + quick_return_phi_q_cols[k]] = values[k];
+    memset(a, 0, sizeof(quick_return_real) * 81u);
+    for (k = 0; k < 20; ++k) {
+        a[(quick_return_phi_q_rows[k] * 9) + quick_return_phi_q_cols[k]] = values[k];
+    }
     return quick_return_dense_factor(a, iwork);
 }
 
 static void quick_return_solve(const quick_return_real *work, const int *iwork, int dense, const quick_return_real *b, quick_return_real *x, quick_return_real *y)
 {
-    if (dense) quick_return_dense_solve(work + QUICK_RETURN_OFF_DENSE, iwork, b, x);
-    else quick_return_sparse_solve(work + QUICK_RETURN_OFF_LU, b, x, y);
+    if (dense != 0) {
+        quick_return_dense_solve(work + QUICK_RETURN_OFF_DENSE, iwork, b, x);
+    } else {
+        quick_return_sparse_solve(work + QUICK_RETURN_OFF_LU, b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void quick_return_solve_in(const quick_return_real *work, const int *iwork, int dense, quick_return_real *b, quick_return_real *x, quick_return_real *y)
 {
-    if (dense) quick_return_solve(work, iwork, dense, b, x, y);
-    else quick_return_sparse_solve_in(work + QUICK_RETURN_OFF_LU, b, x);
+    if (dense != 0) {
+        quick_return_solve(work, iwork, dense, b, x, y);
+    } else {
+        quick_return_sparse_solve_in(work + QUICK_RETURN_OFF_LU, b, x);
+    }
 }
 
 static void quick_return_solve_t(const quick_return_real *work, const int *iwork, int dense, const quick_return_real *b, quick_return_real *x)
 {
-    if (dense) quick_return_dense_solve_t(work + QUICK_RETURN_OFF_DENSE, iwork, b, x);
-    else quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, b, x);
+    if (dense != 0) {
+        quick_return_dense_solve_t(work + QUICK_RETURN_OFF_DENSE, iwork, b, x);
+    } else {
+        quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -835,12 +901,13 @@ static void quick_return_solve_t(const quick_return_real *work, const int *iwork
    the refinement's cost (a quarter of an instant) is not paid. */
 static int quick_return_mixed(const quick_return_real *m)
 {
-    quick_return_real lo = m[0], hi = m[0];
+    quick_return_real lo = m[0];
+    quick_return_real hi = m[0];
     lo = QUICK_RETURN_MIN(lo, m[3]);
     hi = QUICK_RETURN_MAX(hi, m[3]);
     lo = QUICK_RETURN_MIN(lo, m[6]);
     hi = QUICK_RETURN_MAX(hi, m[6]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -855,14 +922,23 @@ static int quick_return_mixed(const quick_return_real *m)
 static QUICK_RETURN_COLD void quick_return_refine_t(const quick_return_real *q, const quick_return_real *tr, quick_return_real t, const quick_return_real *p,
                                         const quick_return_real *b, quick_return_real *lam, quick_return_real *work, const int *iwork, int dense)
 {
-    quick_return_real *values = work, *r = QUICK_RETURN_VEC(work, 0), *d = QUICK_RETURN_VEC(work, 1);
+    quick_return_real *values = work;
+    quick_return_real *r = QUICK_RETURN_VEC(work, 0);
+    quick_return_real *d = QUICK_RETURN_VEC(work, 1);
     int k;
     quick_return_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(quick_return_real) * 9);
-    for (k = 0; k < 20; ++k) r[quick_return_phi_q_cols[k]] -= values[k] * lam[quick_return_phi_q_rows[k]];
-    if (dense) quick_return_dense_solve_t(work + QUICK_RETURN_OFF_DENSE, iwork, r, d);
-    else quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 9; ++k) lam[k] += d[k];
+    memcpy(r, b, sizeof(quick_return_real) * 9u);
+    for (k = 0; k < 20; ++k) {
+        r[quick_return_phi_q_cols[k]] -= values[k] * lam[quick_return_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        quick_return_dense_solve_t(work + QUICK_RETURN_OFF_DENSE, iwork, r, d);
+    } else {
+        quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 9; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,

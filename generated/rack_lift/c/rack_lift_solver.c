@@ -43,7 +43,7 @@ typedef char rack_lift_real_must_have_the_size_of_double[sizeof(rack_lift_real) 
 #define RACK_LIFT_OFF_LU 11
 #define RACK_LIFT_OFF_DENSE (RACK_LIFT_OFF_LU + RACK_LIFT_LU_SIZE)
 #define RACK_LIFT_OFF_VEC (RACK_LIFT_OFF_DENSE + 36)
-#define RACK_LIFT_VEC(work, k) ((work) + RACK_LIFT_OFF_VEC + (k) * 24)
+#define RACK_LIFT_VEC(work, k) (((work) + RACK_LIFT_OFF_VEC) + ((k) * 24))
 #define RACK_LIFT_OFF_PREP 346  /* the prepared parameters (NPP), after the vectors */
 #define RACK_LIFT_NPP 18
 
@@ -118,10 +118,12 @@ static void rack_lift_trig_base(const rack_lift_real *q, rack_lift_real *tr, rac
 {
     int b;
     for (b = 0; b < 2; ++b) {
-        const rack_lift_real a = q[3 * b + 2];
+        const rack_lift_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -136,31 +138,41 @@ static void rack_lift_trig_base(const rack_lift_real *q, rack_lift_real *tr, rac
 static void rack_lift_trig_near(const rack_lift_real *q, rack_lift_real *tr, rack_lift_real *base)
 {
     {
-        const rack_lift_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const rack_lift_real a = q[2];
+        const rack_lift_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const rack_lift_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const rack_lift_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const rack_lift_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const rack_lift_real d2 = d * d;
+            const rack_lift_real s = base[1];
+            const rack_lift_real c = base[2];
+            const rack_lift_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const rack_lift_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const rack_lift_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const rack_lift_real a = q[5];
+        const rack_lift_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const rack_lift_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const rack_lift_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const rack_lift_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const rack_lift_real d2 = d * d;
+            const rack_lift_real s = base[4];
+            const rack_lift_real c = base[5];
+            const rack_lift_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const rack_lift_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
 }
@@ -173,20 +185,24 @@ static void rack_lift_trig_near(const rack_lift_real *q, rack_lift_real *tr, rac
 static void rack_lift_trig_step(const rack_lift_real *q, const rack_lift_real *dq, rack_lift_real *tr, rack_lift_real *base)
 {
     {
-        const rack_lift_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const rack_lift_real d = -dq[2];
+        const rack_lift_real s = tr[0];
+        const rack_lift_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             rack_lift_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const rack_lift_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const rack_lift_real d = -dq[5];
+        const rack_lift_real s = tr[2];
+        const rack_lift_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             rack_lift_trig_near(q, tr, base);
             return;
@@ -534,58 +550,81 @@ static void rack_lift_sparse_solve_t(const rack_lift_real *lu, const rack_lift_r
 static int rack_lift_dense_factor(rack_lift_real *a, int *perm)
 {
     const int n = 6;
-    int i, j, k;
-    rack_lift_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    rack_lift_real umax = 0.0;
+    rack_lift_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                rack_lift_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return RACK_LIFT_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            rack_lift_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                rack_lift_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return RACK_LIFT_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            rack_lift_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= RACK_LIFT_SINGULAR_RATIO * umax ? RACK_LIFT_SINGULAR : RACK_LIFT_OK;
+    return (umin <= (RACK_LIFT_SINGULAR_RATIO * umax)) ? RACK_LIFT_SINGULAR : RACK_LIFT_OK;
 }
 
 static void rack_lift_dense_solve(const rack_lift_real *a, const int *perm, const rack_lift_real *b, rack_lift_real *x)
 {
     const int n = 6;
-    int i, j;
-    memcpy(x, b, sizeof(rack_lift_real) * 6);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(rack_lift_real) * 6u);
     for (i = 0; i < n; ++i) {
         rack_lift_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void rack_lift_dense_solve_t(const rack_lift_real *a, const int *perm, const rack_lift_real *b, rack_lift_real *x)
 {
     const int n = 6;
-    int i, j;
-    memcpy(x, b, sizeof(rack_lift_real) * 6);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(rack_lift_real) * 6u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         rack_lift_real tmp = x[perm[i]];
@@ -610,7 +649,7 @@ static int rack_lift_pivots_spread(const rack_lift_real *lu)
         rmin = RACK_LIFT_MIN(rmin, r);
         rmax = RACK_LIFT_MAX(rmax, r);
     }
-    return rmin <= RACK_LIFT_SINGULAR_RATIO * rmax;
+    return (rmin <= (RACK_LIFT_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -623,8 +662,12 @@ static int rack_lift_pivots_spread(const rack_lift_real *lu)
 static int rack_lift_screen(const rack_lift_real *lu, int dense, const rack_lift_real *row, const rack_lift_real *col,
                           const rack_lift_real *known)
 {
-    rack_lift_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    rack_lift_real wmin = known[0];
+    rack_lift_real wmax = known[1];
+    rack_lift_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[8]) * row[4] * col[4];
     wmin = RACK_LIFT_MIN(wmin, w);
     wmax = RACK_LIFT_MAX(wmax, w);
@@ -632,7 +675,7 @@ static int rack_lift_screen(const rack_lift_real *lu, int dense, const rack_lift
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= RACK_LIFT_SCREEN * wmin);
+    return (wmax <= (RACK_LIFT_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -641,7 +684,8 @@ static int rack_lift_screen(const rack_lift_real *lu, int dense, const rack_lift
 static void rack_lift_screen_known(const rack_lift_real *row, const rack_lift_real *col, rack_lift_real *known)
 {
     rack_lift_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[0] * col[0];
     known[0] = RACK_LIFT_MIN(known[0], w);
     known[1] = RACK_LIFT_MAX(known[1], w);
@@ -668,36 +712,51 @@ static void rack_lift_screen_known(const rack_lift_real *row, const rack_lift_re
 static int rack_lift_factorize(const rack_lift_real *q, const rack_lift_real *tr, rack_lift_real t, const rack_lift_real *p, rack_lift_real *work,
                              int *iwork, int *dense)
 {
-    rack_lift_real *values = work, *lu = work + RACK_LIFT_OFF_LU, *a = work + RACK_LIFT_OFF_DENSE;
+    rack_lift_real *values = work;
+    rack_lift_real *lu = work + RACK_LIFT_OFF_LU;
+    rack_lift_real *a = work + RACK_LIFT_OFF_DENSE;
     int k;
     rack_lift_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (rack_lift_sparse_factor(lu) == 0 && !rack_lift_pivots_spread(lu)) return RACK_LIFT_OK;
+    if ((rack_lift_sparse_factor(lu) == 0) && (rack_lift_pivots_spread(lu) == 0)) {
+        return RACK_LIFT_OK;
+    }
     *dense = 1;
     rack_lift_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(rack_lift_real) * 36);
-    for (k = 0; k < 11; ++k) a[rack_lift_phi_q_rows[k] * 6 + rack_lift_phi_q_cols[k]] = values[k];
+    memset(a, 0, sizeof(rack_lift_real) * 36u);
+    for (k = 0; k < 11; ++k) {
+        a[(rack_lift_phi_q_rows[k] * 6) + rack_lift_phi_q_cols[k]] = values[k];
+    }
     return rack_lift_dense_factor(a, iwork);
 }
 
 static void rack_lift_solve(const rack_lift_real *work, const int *iwork, int dense, const rack_lift_real *b, rack_lift_real *x, rack_lift_real *y)
 {
-    if (dense) rack_lift_dense_solve(work + RACK_LIFT_OFF_DENSE, iwork, b, x);
-    else rack_lift_sparse_solve(work + RACK_LIFT_OFF_LU, b, x, y);
+    if (dense != 0) {
+        rack_lift_dense_solve(work + RACK_LIFT_OFF_DENSE, iwork, b, x);
+    } else {
+        rack_lift_sparse_solve(work + RACK_LIFT_OFF_LU, b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void rack_lift_solve_in(const rack_lift_real *work, const int *iwork, int dense, rack_lift_real *b, rack_lift_real *x, rack_lift_real *y)
 {
-    if (dense) rack_lift_solve(work, iwork, dense, b, x, y);
-    else rack_lift_sparse_solve_in(work + RACK_LIFT_OFF_LU, b, x);
+    if (dense != 0) {
+        rack_lift_solve(work, iwork, dense, b, x, y);
+    } else {
+        rack_lift_sparse_solve_in(work + RACK_LIFT_OFF_LU, b, x);
+    }
 }
 
 static void rack_lift_solve_t(const rack_lift_real *work, const int *iwork, int dense, const rack_lift_real *b, rack_lift_real *x)
 {
-    if (dense) rack_lift_dense_solve_t(work + RACK_LIFT_OFF_DENSE, iwork, b, x);
-    else rack_lift_sparse_solve_t(work + RACK_LIFT_OFF_LU, b, x);
+    if (dense != 0) {
+        rack_lift_dense_solve_t(work + RACK_LIFT_OFF_DENSE, iwork, b, x);
+    } else {
+        rack_lift_sparse_solve_t(work + RACK_LIFT_OFF_LU, b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -707,10 +766,11 @@ static void rack_lift_solve_t(const rack_lift_real *work, const int *iwork, int 
    the refinement's cost (a quarter of an instant) is not paid. */
 static int rack_lift_mixed(const rack_lift_real *m)
 {
-    rack_lift_real lo = m[0], hi = m[0];
+    rack_lift_real lo = m[0];
+    rack_lift_real hi = m[0];
     lo = RACK_LIFT_MIN(lo, m[3]);
     hi = RACK_LIFT_MAX(hi, m[3]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -725,14 +785,23 @@ static int rack_lift_mixed(const rack_lift_real *m)
 static RACK_LIFT_COLD void rack_lift_refine_t(const rack_lift_real *q, const rack_lift_real *tr, rack_lift_real t, const rack_lift_real *p,
                                         const rack_lift_real *b, rack_lift_real *lam, rack_lift_real *work, const int *iwork, int dense)
 {
-    rack_lift_real *values = work, *r = RACK_LIFT_VEC(work, 0), *d = RACK_LIFT_VEC(work, 1);
+    rack_lift_real *values = work;
+    rack_lift_real *r = RACK_LIFT_VEC(work, 0);
+    rack_lift_real *d = RACK_LIFT_VEC(work, 1);
     int k;
     rack_lift_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(rack_lift_real) * 6);
-    for (k = 0; k < 11; ++k) r[rack_lift_phi_q_cols[k]] -= values[k] * lam[rack_lift_phi_q_rows[k]];
-    if (dense) rack_lift_dense_solve_t(work + RACK_LIFT_OFF_DENSE, iwork, r, d);
-    else rack_lift_sparse_solve_t(work + RACK_LIFT_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 6; ++k) lam[k] += d[k];
+    memcpy(r, b, sizeof(rack_lift_real) * 6u);
+    for (k = 0; k < 11; ++k) {
+        r[rack_lift_phi_q_cols[k]] -= values[k] * lam[rack_lift_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        rack_lift_dense_solve_t(work + RACK_LIFT_OFF_DENSE, iwork, r, d);
+    } else {
+        rack_lift_sparse_solve_t(work + RACK_LIFT_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 6; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,

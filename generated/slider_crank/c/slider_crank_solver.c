@@ -43,7 +43,7 @@ typedef char slider_crank_real_must_have_the_size_of_double[sizeof(slider_crank_
 #define SLIDER_CRANK_OFF_LU 21
 #define SLIDER_CRANK_OFF_DENSE (SLIDER_CRANK_OFF_LU + SLIDER_CRANK_LU_SIZE)
 #define SLIDER_CRANK_OFF_VEC (SLIDER_CRANK_OFF_DENSE + 81)
-#define SLIDER_CRANK_VEC(work, k) ((work) + SLIDER_CRANK_OFF_VEC + (k) * 30)
+#define SLIDER_CRANK_VEC(work, k) (((work) + SLIDER_CRANK_OFF_VEC) + ((k) * 30))
 #define SLIDER_CRANK_OFF_PREP 483  /* the prepared parameters (NPP), after the vectors */
 #define SLIDER_CRANK_NPP 13
 
@@ -138,10 +138,12 @@ static void slider_crank_trig_base(const slider_crank_real *q, slider_crank_real
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const slider_crank_real a = q[3 * b + 2];
+        const slider_crank_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -156,45 +158,60 @@ static void slider_crank_trig_base(const slider_crank_real *q, slider_crank_real
 static void slider_crank_trig_near(const slider_crank_real *q, slider_crank_real *tr, slider_crank_real *base)
 {
     {
-        const slider_crank_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const slider_crank_real a = q[2];
+        const slider_crank_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const slider_crank_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const slider_crank_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const slider_crank_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const slider_crank_real d2 = d * d;
+            const slider_crank_real s = base[1];
+            const slider_crank_real c = base[2];
+            const slider_crank_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const slider_crank_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const slider_crank_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const slider_crank_real a = q[5];
+        const slider_crank_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const slider_crank_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const slider_crank_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const slider_crank_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const slider_crank_real d2 = d * d;
+            const slider_crank_real s = base[4];
+            const slider_crank_real c = base[5];
+            const slider_crank_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const slider_crank_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const slider_crank_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const slider_crank_real a = q[8];
+        const slider_crank_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const slider_crank_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const slider_crank_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const slider_crank_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const slider_crank_real d2 = d * d;
+            const slider_crank_real s = base[7];
+            const slider_crank_real c = base[8];
+            const slider_crank_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const slider_crank_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
 }
@@ -207,30 +224,36 @@ static void slider_crank_trig_near(const slider_crank_real *q, slider_crank_real
 static void slider_crank_trig_step(const slider_crank_real *q, const slider_crank_real *dq, slider_crank_real *tr, slider_crank_real *base)
 {
     {
-        const slider_crank_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const slider_crank_real d = -dq[2];
+        const slider_crank_real s = tr[0];
+        const slider_crank_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             slider_crank_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const slider_crank_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const slider_crank_real d = -dq[5];
+        const slider_crank_real s = tr[2];
+        const slider_crank_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             slider_crank_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const slider_crank_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const slider_crank_real d = -dq[8];
+        const slider_crank_real s = tr[4];
+        const slider_crank_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             slider_crank_trig_near(q, tr, base);
             return;
@@ -612,58 +635,81 @@ static void slider_crank_sparse_solve_t(const slider_crank_real *lu, const slide
 static int slider_crank_dense_factor(slider_crank_real *a, int *perm)
 {
     const int n = 9;
-    int i, j, k;
-    slider_crank_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    slider_crank_real umax = 0.0;
+    slider_crank_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                slider_crank_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return SLIDER_CRANK_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            slider_crank_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                slider_crank_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return SLIDER_CRANK_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            slider_crank_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= SLIDER_CRANK_SINGULAR_RATIO * umax ? SLIDER_CRANK_SINGULAR : SLIDER_CRANK_OK;
+    return (umin <= (SLIDER_CRANK_SINGULAR_RATIO * umax)) ? SLIDER_CRANK_SINGULAR : SLIDER_CRANK_OK;
 }
 
 static void slider_crank_dense_solve(const slider_crank_real *a, const int *perm, const slider_crank_real *b, slider_crank_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(slider_crank_real) * 9);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(slider_crank_real) * 9u);
     for (i = 0; i < n; ++i) {
         slider_crank_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void slider_crank_dense_solve_t(const slider_crank_real *a, const int *perm, const slider_crank_real *b, slider_crank_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(slider_crank_real) * 9);
+    int i;
+    int j;
+    memcpy(x, b, sizeof(slider_crank_real) * 9u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         slider_crank_real tmp = x[perm[i]];
@@ -688,7 +734,7 @@ static int slider_crank_pivots_spread(const slider_crank_real *lu)
         rmin = SLIDER_CRANK_MIN(rmin, r);
         rmax = SLIDER_CRANK_MAX(rmax, r);
     }
-    return rmin <= SLIDER_CRANK_SINGULAR_RATIO * rmax;
+    return (rmin <= (SLIDER_CRANK_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -701,8 +747,12 @@ static int slider_crank_pivots_spread(const slider_crank_real *lu)
 static int slider_crank_screen(const slider_crank_real *lu, int dense, const slider_crank_real *row, const slider_crank_real *col,
                           const slider_crank_real *known)
 {
-    slider_crank_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    slider_crank_real wmin = known[0];
+    slider_crank_real wmax = known[1];
+    slider_crank_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[16]) * row[5] * col[5];
     wmin = SLIDER_CRANK_MIN(wmin, w);
     wmax = SLIDER_CRANK_MAX(wmax, w);
@@ -710,7 +760,7 @@ static int slider_crank_screen(const slider_crank_real *lu, int dense, const sli
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= SLIDER_CRANK_SCREEN * wmin);
+    return (wmax <= (SLIDER_CRANK_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -719,7 +769,8 @@ static int slider_crank_screen(const slider_crank_real *lu, int dense, const sli
 static void slider_crank_screen_known(const slider_crank_real *row, const slider_crank_real *col, slider_crank_real *known)
 {
     slider_crank_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[4] * col[6];
     known[0] = SLIDER_CRANK_MIN(known[0], w);
     known[1] = SLIDER_CRANK_MAX(known[1], w);
@@ -755,36 +806,51 @@ static void slider_crank_screen_known(const slider_crank_real *row, const slider
 static int slider_crank_factorize(const slider_crank_real *q, const slider_crank_real *tr, slider_crank_real t, const slider_crank_real *p, slider_crank_real *work,
                              int *iwork, int *dense)
 {
-    slider_crank_real *values = work, *lu = work + SLIDER_CRANK_OFF_LU, *a = work + SLIDER_CRANK_OFF_DENSE;
+    slider_crank_real *values = work;
+    slider_crank_real *lu = work + SLIDER_CRANK_OFF_LU;
+    slider_crank_real *a = work + SLIDER_CRANK_OFF_DENSE;
     int k;
     slider_crank_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (slider_crank_sparse_factor(lu) == 0 && !slider_crank_pivots_spread(lu)) return SLIDER_CRANK_OK;
+    if ((slider_crank_sparse_factor(lu) == 0) && (slider_crank_pivots_spread(lu) == 0)) {
+        return SLIDER_CRANK_OK;
+    }
     *dense = 1;
     slider_crank_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(slider_crank_real) * 81);
-    for (k = 0; k < 21; ++k) a[slider_crank_phi_q_rows[k] * 9 + slider_crank_phi_q_cols[k]] = values[k];
+    memset(a, 0, sizeof(slider_crank_real) * 81u);
+    for (k = 0; k < 21; ++k) {
+        a[(slider_crank_phi_q_rows[k] * 9) + slider_crank_phi_q_cols[k]] = values[k];
+    }
     return slider_crank_dense_factor(a, iwork);
 }
 
 static void slider_crank_solve(const slider_crank_real *work, const int *iwork, int dense, const slider_crank_real *b, slider_crank_real *x, slider_crank_real *y)
 {
-    if (dense) slider_crank_dense_solve(work + SLIDER_CRANK_OFF_DENSE, iwork, b, x);
-    else slider_crank_sparse_solve(work + SLIDER_CRANK_OFF_LU, b, x, y);
+    if (dense != 0) {
+        slider_crank_dense_solve(work + SLIDER_CRANK_OFF_DENSE, iwork, b, x);
+    } else {
+        slider_crank_sparse_solve(work + SLIDER_CRANK_OFF_LU, b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void slider_crank_solve_in(const slider_crank_real *work, const int *iwork, int dense, slider_crank_real *b, slider_crank_real *x, slider_crank_real *y)
 {
-    if (dense) slider_crank_solve(work, iwork, dense, b, x, y);
-    else slider_crank_sparse_solve_in(work + SLIDER_CRANK_OFF_LU, b, x);
+    if (dense != 0) {
+        slider_crank_solve(work, iwork, dense, b, x, y);
+    } else {
+        slider_crank_sparse_solve_in(work + SLIDER_CRANK_OFF_LU, b, x);
+    }
 }
 
 static void slider_crank_solve_t(const slider_crank_real *work, const int *iwork, int dense, const slider_crank_real *b, slider_crank_real *x)
 {
-    if (dense) slider_crank_dense_solve_t(work + SLIDER_CRANK_OFF_DENSE, iwork, b, x);
-    else slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, b, x);
+    if (dense != 0) {
+        slider_crank_dense_solve_t(work + SLIDER_CRANK_OFF_DENSE, iwork, b, x);
+    } else {
+        slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -794,12 +860,13 @@ static void slider_crank_solve_t(const slider_crank_real *work, const int *iwork
    the refinement's cost (a quarter of an instant) is not paid. */
 static int slider_crank_mixed(const slider_crank_real *m)
 {
-    slider_crank_real lo = m[0], hi = m[0];
+    slider_crank_real lo = m[0];
+    slider_crank_real hi = m[0];
     lo = SLIDER_CRANK_MIN(lo, m[3]);
     hi = SLIDER_CRANK_MAX(hi, m[3]);
     lo = SLIDER_CRANK_MIN(lo, m[6]);
     hi = SLIDER_CRANK_MAX(hi, m[6]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -814,14 +881,23 @@ static int slider_crank_mixed(const slider_crank_real *m)
 static SLIDER_CRANK_COLD void slider_crank_refine_t(const slider_crank_real *q, const slider_crank_real *tr, slider_crank_real t, const slider_crank_real *p,
                                         const slider_crank_real *b, slider_crank_real *lam, slider_crank_real *work, const int *iwork, int dense)
 {
-    slider_crank_real *values = work, *r = SLIDER_CRANK_VEC(work, 0), *d = SLIDER_CRANK_VEC(work, 1);
+    slider_crank_real *values = work;
+    slider_crank_real *r = SLIDER_CRANK_VEC(work, 0);
+    slider_crank_real *d = SLIDER_CRANK_VEC(work, 1);
     int k;
     slider_crank_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(slider_crank_real) * 9);
-    for (k = 0; k < 21; ++k) r[slider_crank_phi_q_cols[k]] -= values[k] * lam[slider_crank_phi_q_rows[k]];
-    if (dense) slider_crank_dense_solve_t(work + SLIDER_CRANK_OFF_DENSE, iwork, r, d);
-    else slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 9; ++k) lam[k] += d[k];
+    memcpy(r, b, sizeof(slider_crank_real) * 9u);
+    for (k = 0; k < 21; ++k) {
+        r[slider_crank_phi_q_cols[k]] -= values[k] * lam[slider_crank_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        slider_crank_dense_solve_t(work + SLIDER_CRANK_OFF_DENSE, iwork, r, d);
+    } else {
+        slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 9; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,
