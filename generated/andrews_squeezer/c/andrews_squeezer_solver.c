@@ -1511,48 +1511,85 @@ static andrews_squeezer_real andrews_squeezer_cond_estimate(const andrews_squeez
                                     andrews_squeezer_real *work, const int *iwork, int dense, const andrews_squeezer_real *row,
                                     const andrews_squeezer_real *col)
 {
-    andrews_squeezer_real *vals = work, *x = ANDREWS_SQUEEZER_VEC(work, 0), *z = ANDREWS_SQUEEZER_VEC(work, 1), *y = ANDREWS_SQUEEZER_VEC(work, 2);
-    andrews_squeezer_real *b = ANDREWS_SQUEEZER_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    andrews_squeezer_real *vals = work;
+    andrews_squeezer_real *x = ANDREWS_SQUEEZER_VEC(work, 0);
+    andrews_squeezer_real *z = ANDREWS_SQUEEZER_VEC(work, 1);
+    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2);
+    andrews_squeezer_real *b = ANDREWS_SQUEEZER_VEC(work, 3);
+    andrews_squeezer_real anorm = 0.0;
+    andrews_squeezer_real est = 0.0;
+    andrews_squeezer_real s;
+    andrews_squeezer_real zmax;
+    andrews_squeezer_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     andrews_squeezer_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 21; ++k) z[k] = 0.0;
-    for (k = 0; k < 65; ++k)
+    for (k = 0; k < 21; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 65; ++k) {
         z[andrews_squeezer_phi_q_cols[k]] += fabs(vals[k]) / (row[andrews_squeezer_phi_q_rows[k]] * col[andrews_squeezer_phi_q_cols[k]]);
-    for (k = 0; k < 21; ++k) anorm = ANDREWS_SQUEEZER_MAX(anorm, z[k]);
-    for (k = 0; k < 21; ++k) x[k] = 1.0 / 21.0;
+    }
+    for (k = 0; k < 21; ++k) {
+        anorm = ANDREWS_SQUEEZER_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 21; ++k) {
+        x[k] = 1.0 / 21.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 21; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 21; ++k) {
+            b[k] = row[k] * x[k];
+        }
         andrews_squeezer_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 21; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 21; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 21; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         andrews_squeezer_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 21; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 21; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 21; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 21; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (andrews_squeezer_real)k / ANDREWS_SQUEEZER_MAX(1.0, 20.0));
+    for (k = 0; k < 21; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((andrews_squeezer_real)k / ANDREWS_SQUEEZER_MAX(1.0, 20.0)));
+    }
     andrews_squeezer_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 21; ++k) s += fabs(z[k] * col[k]);
-    est = ANDREWS_SQUEEZER_MAX(est, 2.0 * s / (3.0 * 21.0));
+    for (k = 0; k < 21; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = ANDREWS_SQUEEZER_MAX(est, (2.0 * s) / (3.0 * 21.0));
     return anorm * est;
 }
 
@@ -1750,17 +1787,28 @@ static andrews_squeezer_real andrews_squeezer_correct(andrews_squeezer_real *q, 
 static int andrews_squeezer_newton(andrews_squeezer_real t, const andrews_squeezer_real *p, andrews_squeezer_real tol, andrews_squeezer_real *q, andrews_squeezer_real *tr, int *info, andrews_squeezer_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    andrews_squeezer_real *r = ANDREWS_SQUEEZER_VEC(work, 0), *dq = ANDREWS_SQUEEZER_VEC(work, 1), *y = ANDREWS_SQUEEZER_VEC(work, 2);
+    andrews_squeezer_real *r = ANDREWS_SQUEEZER_VEC(work, 0);
+    andrews_squeezer_real *dq = ANDREWS_SQUEEZER_VEC(work, 1);
+    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2);
     andrews_squeezer_real *base = ANDREWS_SQUEEZER_VEC(work, 10);
-    andrews_squeezer_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    andrews_squeezer_real step = ((double)INFINITY);
+    andrews_squeezer_real lim;
+    andrews_squeezer_real qmag;
+    andrews_squeezer_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) andrews_squeezer_trig_near(q, tr, base);
-    else andrews_squeezer_trig_base(q, tr, base);
+    if (reuse != 0) {
+        andrews_squeezer_trig_near(q, tr, base);
+    } else {
+        andrews_squeezer_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = ANDREWS_SQUEEZER_MAX(1.0, andrews_squeezer_maxabs21(q));
-    lim = ANDREWS_SQUEEZER_MAX(tol, (andrews_squeezer_real)ANDREWS_SQUEEZER_FLOOR_ULPS * ANDREWS_SQUEEZER_EPS * qmag);
+    lim = ANDREWS_SQUEEZER_MAX(tol, ((andrews_squeezer_real)ANDREWS_SQUEEZER_FLOOR_ULPS * ANDREWS_SQUEEZER_EPS) * qmag);
     andrews_squeezer_phi_k(q, tr, t, p, r);
     rmax = andrews_squeezer_maxabs21(r);
     for (it = 0;; ++it) {
@@ -1769,15 +1817,17 @@ static int andrews_squeezer_newton(andrews_squeezer_real t, const andrews_squeez
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? ANDREWS_SQUEEZER_NONFINITE : ANDREWS_SQUEEZER_NOT_CONVERGED;
+            return (it == 0) ? ANDREWS_SQUEEZER_NONFINITE : ANDREWS_SQUEEZER_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == ANDREWS_SQUEEZER_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK) {
+        if (it == ANDREWS_SQUEEZER_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK)) {
             info[0] = it;
             info[1] = *dense;
             return ANDREWS_SQUEEZER_SINGULAR;
@@ -1787,8 +1837,8 @@ static int andrews_squeezer_newton(andrews_squeezer_real t, const andrews_squeez
         andrews_squeezer_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= ANDREWS_SQUEEZER_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (ANDREWS_SQUEEZER_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1800,8 +1850,10 @@ static int andrews_squeezer_newton(andrews_squeezer_real t, const andrews_squeez
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return ANDREWS_SQUEEZER_NOT_CONVERGED;
-    if (!current && andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK) {
+    if (converged == 0) {
+        return ANDREWS_SQUEEZER_NOT_CONVERGED;
+    }
+    if ((current == 0) && (andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK)) {
         info[1] = *dense;
         return ANDREWS_SQUEEZER_SINGULAR;
     }
@@ -1813,7 +1865,8 @@ static int andrews_squeezer_newton(andrews_squeezer_real t, const andrews_squeez
 static void andrews_squeezer_outputs(andrews_squeezer_real t, const andrews_squeezer_real *p, const andrews_squeezer_real *q, const andrews_squeezer_real *tr, andrews_squeezer_real *qd, andrews_squeezer_real *qdd,
                             andrews_squeezer_real *lam, andrews_squeezer_real *reactions, andrews_squeezer_real *work, const int *iwork, int dense)
 {
-    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2), *b = ANDREWS_SQUEEZER_VEC(work, 3);
+    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2);
+    andrews_squeezer_real *b = ANDREWS_SQUEEZER_VEC(work, 3);
     andrews_squeezer_nu_k(q, tr, t, p, b);
     andrews_squeezer_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     andrews_squeezer_gamma_k(q, tr, qd, t, p, b);
@@ -1842,7 +1895,9 @@ static void andrews_squeezer_outputs(andrews_squeezer_real t, const andrews_sque
     b[19] -= y[19] * qdd[19];
     b[20] -= y[20] * qdd[20];
     andrews_squeezer_solve_t(work, iwork, dense, b, lam);
-    if (andrews_squeezer_mixed(y)) andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (andrews_squeezer_mixed(y) != 0) {
+        andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     andrews_squeezer_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1884,12 +1939,24 @@ static int andrews_squeezer_finite(const andrews_squeezer_real *q, const andrews
 static void andrews_squeezer_keep(andrews_squeezer_real *state, const andrews_squeezer_real *q, const andrews_squeezer_real *qd, const andrews_squeezer_real *qdd,
                          const andrews_squeezer_real *m1, const andrews_squeezer_real *m2, const andrews_squeezer_real *m3)
 {
-    if (m3 != state + 105) memcpy(state + 105, m3, sizeof(andrews_squeezer_real) * 21);
-    if (m2 != state + 84) memcpy(state + 84, m2, sizeof(andrews_squeezer_real) * 21);
-    if (m1 != state + 63) memcpy(state + 63, m1, sizeof(andrews_squeezer_real) * 21);
-    if (qdd != state + 42) memcpy(state + 42, qdd, sizeof(andrews_squeezer_real) * 21);
-    if (qd != state + 21) memcpy(state + 21, qd, sizeof(andrews_squeezer_real) * 21);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(andrews_squeezer_real) * 21);
+    if (m3 != state + 105) {
+        memcpy(state + 105, m3, sizeof(andrews_squeezer_real) * 21u);
+    }
+    if (m2 != state + 84) {
+        memcpy(state + 84, m2, sizeof(andrews_squeezer_real) * 21u);
+    }
+    if (m1 != state + 63) {
+        memcpy(state + 63, m1, sizeof(andrews_squeezer_real) * 21u);
+    }
+    if (qdd != state + 42) {
+        memcpy(state + 42, qdd, sizeof(andrews_squeezer_real) * 21u);
+    }
+    if (qd != state + 21) {
+        memcpy(state + 21, qd, sizeof(andrews_squeezer_real) * 21u);
+    }
+    if (q != state) {
+        memcpy(state, q, sizeof(andrews_squeezer_real) * 21u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1899,51 +1966,56 @@ static void andrews_squeezer_keep(andrews_squeezer_real *state, const andrews_sq
 static int andrews_squeezer_unexplained(const andrews_squeezer_real *q0, const andrews_squeezer_real *qd0, const andrews_squeezer_real *qdd0, const andrews_squeezer_real *q1,
                                const andrews_squeezer_real *qd1, const andrews_squeezer_real *qdd1, andrews_squeezer_real h, const andrews_squeezer_real *c)
 {
-    const andrews_squeezer_real half = 0.5 * h, hh = h * h / 12.0;
-    andrews_squeezer_real mismatch = 0.0, motion = 0.0, d;
+    const andrews_squeezer_real half = 0.5 * h;
+    const andrews_squeezer_real hh = (h * h) / 12.0;
+    andrews_squeezer_real mismatch = 0.0;
+    andrews_squeezer_real motion = 0.0;
+    andrews_squeezer_real d;
     d = q1[0] - q0[0];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
     d = q1[9] - q0[9];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[9] + qd1[9]) - hh * (qdd0[9] - qdd1[9])) * c[9]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[9] + qd1[9]))) - (hh * (qdd0[9] - qdd1[9]))) * c[9]);
     d = q1[10] - q0[10];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[10] + qd1[10]) - hh * (qdd0[10] - qdd1[10])) * c[10]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[10] + qd1[10]))) - (hh * (qdd0[10] - qdd1[10]))) * c[10]);
     d = q1[11] - q0[11];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[11] + qd1[11]) - hh * (qdd0[11] - qdd1[11])) * c[11]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[11] + qd1[11]))) - (hh * (qdd0[11] - qdd1[11]))) * c[11]);
     d = q1[12] - q0[12];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[12] + qd1[12]) - hh * (qdd0[12] - qdd1[12])) * c[12]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[12] + qd1[12]))) - (hh * (qdd0[12] - qdd1[12]))) * c[12]);
     d = q1[13] - q0[13];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[13] + qd1[13]) - hh * (qdd0[13] - qdd1[13])) * c[13]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[13] + qd1[13]))) - (hh * (qdd0[13] - qdd1[13]))) * c[13]);
     d = q1[14] - q0[14];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[14] + qd1[14]) - hh * (qdd0[14] - qdd1[14])) * c[14]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[14] + qd1[14]))) - (hh * (qdd0[14] - qdd1[14]))) * c[14]);
     d = q1[15] - q0[15];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[15] + qd1[15]) - hh * (qdd0[15] - qdd1[15])) * c[15]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[15] + qd1[15]))) - (hh * (qdd0[15] - qdd1[15]))) * c[15]);
     d = q1[16] - q0[16];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[16] + qd1[16]) - hh * (qdd0[16] - qdd1[16])) * c[16]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[16] + qd1[16]))) - (hh * (qdd0[16] - qdd1[16]))) * c[16]);
     d = q1[17] - q0[17];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[17] + qd1[17]) - hh * (qdd0[17] - qdd1[17])) * c[17]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[17] + qd1[17]))) - (hh * (qdd0[17] - qdd1[17]))) * c[17]);
     d = q1[18] - q0[18];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[18] + qd1[18]) - hh * (qdd0[18] - qdd1[18])) * c[18]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[18] + qd1[18]))) - (hh * (qdd0[18] - qdd1[18]))) * c[18]);
     d = q1[19] - q0[19];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[19] + qd1[19]) - hh * (qdd0[19] - qdd1[19])) * c[19]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[19] + qd1[19]))) - (hh * (qdd0[19] - qdd1[19]))) * c[19]);
     d = q1[20] - q0[20];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[20] + qd1[20]) - hh * (qdd0[20] - qdd1[20])) * c[20]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[20] + qd1[20]))) - (hh * (qdd0[20] - qdd1[20]))) * c[20]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = ANDREWS_SQUEEZER_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1986,35 +2058,43 @@ static int andrews_squeezer_unexplained(const andrews_squeezer_real *q0, const a
     motion = ANDREWS_SQUEEZER_MAX(motion, fabs(d) * c[19]);
     d = q1[20] - q0[20];
     motion = ANDREWS_SQUEEZER_MAX(motion, fabs(d) * c[20]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_real *p, andrews_squeezer_real tol, andrews_squeezer_real *q, andrews_squeezer_real *qd, andrews_squeezer_real *qdd,
                     andrews_squeezer_real *lam, andrews_squeezer_real *reactions, int *info, andrews_squeezer_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = ANDREWS_SQUEEZER_BAD_ARGUMENT;
     } else {
-        andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9), *pp = work + ANDREWS_SQUEEZER_OFF_PREP, *kept = ANDREWS_SQUEEZER_VEC(work, 11);
-        memcpy(kept, q, sizeof(andrews_squeezer_real) * 21);  /* the caller's guess, back in q if the call fails */
+        andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9);
+        andrews_squeezer_real *pp = work + ANDREWS_SQUEEZER_OFF_PREP;
+        andrews_squeezer_real *kept = ANDREWS_SQUEEZER_VEC(work, 11);
+        memcpy(kept, q, sizeof(andrews_squeezer_real) * 21u);  /* the caller's guess, back in q if the call fails */
         andrews_squeezer_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = ANDREWS_SQUEEZER_VEC(work, 5);
-        if (qdd == NULL) qdd = ANDREWS_SQUEEZER_VEC(work, 6);
-        if (lam == NULL) lam = ANDREWS_SQUEEZER_VEC(work, 7);
-        if (reactions == NULL) reactions = ANDREWS_SQUEEZER_VEC(work, 8);
+        andrews_squeezer_real *qd_out = (qd != NULL) ? qd : ANDREWS_SQUEEZER_VEC(work, 5);
+        andrews_squeezer_real *qdd_out = (qdd != NULL) ? qdd : ANDREWS_SQUEEZER_VEC(work, 6);
+        andrews_squeezer_real *lam_out = (lam != NULL) ? lam : ANDREWS_SQUEEZER_VEC(work, 7);
+        andrews_squeezer_real *reactions_out = (reactions != NULL) ? reactions : ANDREWS_SQUEEZER_VEC(work, 8);
         status = andrews_squeezer_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == ANDREWS_SQUEEZER_OK) {
-            andrews_squeezer_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!andrews_squeezer_finite(q, qd, qdd, lam, reactions)) status = ANDREWS_SQUEEZER_NONFINITE;
+            andrews_squeezer_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (andrews_squeezer_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = ANDREWS_SQUEEZER_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != ANDREWS_SQUEEZER_OK) memcpy(q, kept, sizeof(andrews_squeezer_real) * 21);
+        if (status != ANDREWS_SQUEEZER_OK) {
+            memcpy(q, kept, sizeof(andrews_squeezer_real) * 21u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -2025,21 +2105,29 @@ int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_rea
 
 int andrews_squeezer_screen_at(andrews_squeezer_real t, const andrews_squeezer_real *p, const andrews_squeezer_real *state, andrews_squeezer_real *work, int *iwork)
 {
-    andrews_squeezer_real *tr, *pp, known[2];
+    andrews_squeezer_real *tr;
+    andrews_squeezer_real *pp;
+    andrews_squeezer_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return ANDREWS_SQUEEZER_BAD_ARGUMENT;
-    if (!(state[147] > 0.0)) return ANDREWS_SQUEEZER_OK;  /* no scales: no screen */
-    tr = ANDREWS_SQUEEZER_VEC(work, 9), pp = work + ANDREWS_SQUEEZER_OFF_PREP;
+    }
+    if (!(state[147] > 0.0)) {
+        return ANDREWS_SQUEEZER_OK;  /* no scales: no screen */
+    }
+    tr = ANDREWS_SQUEEZER_VEC(work, 9);
+    pp = work + ANDREWS_SQUEEZER_OFF_PREP;
     andrews_squeezer_prepare(p, pp);
     andrews_squeezer_trig(state, tr);
-    if (andrews_squeezer_factorize(state, tr, t, pp, work, iwork, &dense) != ANDREWS_SQUEEZER_OK)
+    if (andrews_squeezer_factorize(state, tr, t, pp, work, iwork, &dense) != ANDREWS_SQUEEZER_OK) {
         return ANDREWS_SQUEEZER_ILL_CONDITIONED;
-    andrews_squeezer_screen_known(state + 147, state + 126, known);
-    if (andrews_squeezer_screen(work + ANDREWS_SQUEEZER_OFF_LU, dense, state + 147, state + 126, known)
-        && !(andrews_squeezer_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 147, state + 126)
-             <= ANDREWS_SQUEEZER_COND_SCREEN))
+    }
+    andrews_squeezer_screen_known(&state[147], &state[126], known);
+    if ((andrews_squeezer_screen(work + ANDREWS_SQUEEZER_OFF_LU, dense, &state[147], &state[126], known) != 0)
+        && !(andrews_squeezer_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[147], &state[126])
+             <= ANDREWS_SQUEEZER_COND_SCREEN)) {
         return ANDREWS_SQUEEZER_ILL_CONDITIONED;
+    }
     return ANDREWS_SQUEEZER_OK;
 }
 

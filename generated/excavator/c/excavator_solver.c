@@ -1206,48 +1206,85 @@ static excavator_real excavator_cond_estimate(const excavator_real *q, const exc
                                     excavator_real *work, const int *iwork, int dense, const excavator_real *row,
                                     const excavator_real *col)
 {
-    excavator_real *vals = work, *x = EXCAVATOR_VEC(work, 0), *z = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
-    excavator_real *b = EXCAVATOR_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    excavator_real *vals = work;
+    excavator_real *x = EXCAVATOR_VEC(work, 0);
+    excavator_real *z = EXCAVATOR_VEC(work, 1);
+    excavator_real *y = EXCAVATOR_VEC(work, 2);
+    excavator_real *b = EXCAVATOR_VEC(work, 3);
+    excavator_real anorm = 0.0;
+    excavator_real est = 0.0;
+    excavator_real s;
+    excavator_real zmax;
+    excavator_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     excavator_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 9; ++k) z[k] = 0.0;
-    for (k = 0; k < 35; ++k)
+    for (k = 0; k < 9; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 35; ++k) {
         z[excavator_phi_q_cols[k]] += fabs(vals[k]) / (row[excavator_phi_q_rows[k]] * col[excavator_phi_q_cols[k]]);
-    for (k = 0; k < 9; ++k) anorm = EXCAVATOR_MAX(anorm, z[k]);
-    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        anorm = EXCAVATOR_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 9; ++k) {
+        x[k] = 1.0 / 9.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = row[k] * x[k];
+        }
         excavator_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         excavator_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 9; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 9; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (excavator_real)k / EXCAVATOR_MAX(1.0, 8.0));
+    for (k = 0; k < 9; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((excavator_real)k / EXCAVATOR_MAX(1.0, 8.0)));
+    }
     excavator_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
-    est = EXCAVATOR_MAX(est, 2.0 * s / (3.0 * 9.0));
+    for (k = 0; k < 9; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = EXCAVATOR_MAX(est, (2.0 * s) / (3.0 * 9.0));
     return anorm * est;
 }
 
@@ -1369,17 +1406,28 @@ static excavator_real excavator_correct(excavator_real *q, excavator_real *dq)
 static int excavator_newton(excavator_real t, const excavator_real *p, excavator_real tol, excavator_real *q, excavator_real *tr, int *info, excavator_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    excavator_real *r = EXCAVATOR_VEC(work, 0), *dq = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
+    excavator_real *r = EXCAVATOR_VEC(work, 0);
+    excavator_real *dq = EXCAVATOR_VEC(work, 1);
+    excavator_real *y = EXCAVATOR_VEC(work, 2);
     excavator_real *base = EXCAVATOR_VEC(work, 10);
-    excavator_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    excavator_real step = ((double)INFINITY);
+    excavator_real lim;
+    excavator_real qmag;
+    excavator_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) excavator_trig_near(q, tr, base);
-    else excavator_trig_base(q, tr, base);
+    if (reuse != 0) {
+        excavator_trig_near(q, tr, base);
+    } else {
+        excavator_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = EXCAVATOR_MAX(1.0, excavator_maxabs9(q));
-    lim = EXCAVATOR_MAX(tol, (excavator_real)EXCAVATOR_FLOOR_ULPS * EXCAVATOR_EPS * qmag);
+    lim = EXCAVATOR_MAX(tol, ((excavator_real)EXCAVATOR_FLOOR_ULPS * EXCAVATOR_EPS) * qmag);
     excavator_phi_k(q, tr, t, p, r);
     rmax = excavator_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1388,15 +1436,17 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? EXCAVATOR_NONFINITE : EXCAVATOR_NOT_CONVERGED;
+            return (it == 0) ? EXCAVATOR_NONFINITE : EXCAVATOR_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == EXCAVATOR_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK) {
+        if (it == EXCAVATOR_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK)) {
             info[0] = it;
             info[1] = *dense;
             return EXCAVATOR_SINGULAR;
@@ -1406,8 +1456,8 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
         excavator_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= EXCAVATOR_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (EXCAVATOR_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1419,8 +1469,10 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return EXCAVATOR_NOT_CONVERGED;
-    if (!current && excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK) {
+    if (converged == 0) {
+        return EXCAVATOR_NOT_CONVERGED;
+    }
+    if ((current == 0) && (excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK)) {
         info[1] = *dense;
         return EXCAVATOR_SINGULAR;
     }
@@ -1432,7 +1484,8 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
 static void excavator_outputs(excavator_real t, const excavator_real *p, const excavator_real *q, const excavator_real *tr, excavator_real *qd, excavator_real *qdd,
                             excavator_real *lam, excavator_real *reactions, excavator_real *work, const int *iwork, int dense)
 {
-    excavator_real *y = EXCAVATOR_VEC(work, 2), *b = EXCAVATOR_VEC(work, 3);
+    excavator_real *y = EXCAVATOR_VEC(work, 2);
+    excavator_real *b = EXCAVATOR_VEC(work, 3);
     excavator_nu_k(q, tr, t, p, b);
     excavator_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     excavator_gamma_k(q, tr, qd, t, p, b);
@@ -1449,7 +1502,9 @@ static void excavator_outputs(excavator_real t, const excavator_real *p, const e
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     excavator_solve_t(work, iwork, dense, b, lam);
-    if (excavator_mixed(y)) excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (excavator_mixed(y) != 0) {
+        excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     excavator_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1491,12 +1546,24 @@ static int excavator_finite(const excavator_real *q, const excavator_real *qd, c
 static void excavator_keep(excavator_real *state, const excavator_real *q, const excavator_real *qd, const excavator_real *qdd,
                          const excavator_real *m1, const excavator_real *m2, const excavator_real *m3)
 {
-    if (m3 != state + 45) memcpy(state + 45, m3, sizeof(excavator_real) * 9);
-    if (m2 != state + 36) memcpy(state + 36, m2, sizeof(excavator_real) * 9);
-    if (m1 != state + 27) memcpy(state + 27, m1, sizeof(excavator_real) * 9);
-    if (qdd != state + 18) memcpy(state + 18, qdd, sizeof(excavator_real) * 9);
-    if (qd != state + 9) memcpy(state + 9, qd, sizeof(excavator_real) * 9);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(excavator_real) * 9);
+    if (m3 != state + 45) {
+        memcpy(state + 45, m3, sizeof(excavator_real) * 9u);
+    }
+    if (m2 != state + 36) {
+        memcpy(state + 36, m2, sizeof(excavator_real) * 9u);
+    }
+    if (m1 != state + 27) {
+        memcpy(state + 27, m1, sizeof(excavator_real) * 9u);
+    }
+    if (qdd != state + 18) {
+        memcpy(state + 18, qdd, sizeof(excavator_real) * 9u);
+    }
+    if (qd != state + 9) {
+        memcpy(state + 9, qd, sizeof(excavator_real) * 9u);
+    }
+    if (q != state) {
+        memcpy(state, q, sizeof(excavator_real) * 9u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1506,27 +1573,32 @@ static void excavator_keep(excavator_real *state, const excavator_real *q, const
 static int excavator_unexplained(const excavator_real *q0, const excavator_real *qd0, const excavator_real *qdd0, const excavator_real *q1,
                                const excavator_real *qd1, const excavator_real *qdd1, excavator_real h, const excavator_real *c)
 {
-    const excavator_real half = 0.5 * h, hh = h * h / 12.0;
-    excavator_real mismatch = 0.0, motion = 0.0, d;
+    const excavator_real half = 0.5 * h;
+    const excavator_real hh = (h * h) / 12.0;
+    excavator_real mismatch = 0.0;
+    excavator_real motion = 0.0;
+    excavator_real d;
     d = q1[0] - q0[0];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = EXCAVATOR_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1545,35 +1617,43 @@ static int excavator_unexplained(const excavator_real *q0, const excavator_real 
     motion = EXCAVATOR_MAX(motion, fabs(d) * c[7]);
     d = q1[8] - q0[8];
     motion = EXCAVATOR_MAX(motion, fabs(d) * c[8]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int excavator_instant(excavator_real t, const excavator_real *p, excavator_real tol, excavator_real *q, excavator_real *qd, excavator_real *qdd,
                     excavator_real *lam, excavator_real *reactions, int *info, excavator_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = EXCAVATOR_BAD_ARGUMENT;
     } else {
-        excavator_real *tr = EXCAVATOR_VEC(work, 9), *pp = work + EXCAVATOR_OFF_PREP, *kept = EXCAVATOR_VEC(work, 11);
-        memcpy(kept, q, sizeof(excavator_real) * 9);  /* the caller's guess, back in q if the call fails */
+        excavator_real *tr = EXCAVATOR_VEC(work, 9);
+        excavator_real *pp = work + EXCAVATOR_OFF_PREP;
+        excavator_real *kept = EXCAVATOR_VEC(work, 11);
+        memcpy(kept, q, sizeof(excavator_real) * 9u);  /* the caller's guess, back in q if the call fails */
         excavator_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = EXCAVATOR_VEC(work, 5);
-        if (qdd == NULL) qdd = EXCAVATOR_VEC(work, 6);
-        if (lam == NULL) lam = EXCAVATOR_VEC(work, 7);
-        if (reactions == NULL) reactions = EXCAVATOR_VEC(work, 8);
+        excavator_real *qd_out = (qd != NULL) ? qd : EXCAVATOR_VEC(work, 5);
+        excavator_real *qdd_out = (qdd != NULL) ? qdd : EXCAVATOR_VEC(work, 6);
+        excavator_real *lam_out = (lam != NULL) ? lam : EXCAVATOR_VEC(work, 7);
+        excavator_real *reactions_out = (reactions != NULL) ? reactions : EXCAVATOR_VEC(work, 8);
         status = excavator_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == EXCAVATOR_OK) {
-            excavator_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!excavator_finite(q, qd, qdd, lam, reactions)) status = EXCAVATOR_NONFINITE;
+            excavator_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (excavator_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = EXCAVATOR_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != EXCAVATOR_OK) memcpy(q, kept, sizeof(excavator_real) * 9);
+        if (status != EXCAVATOR_OK) {
+            memcpy(q, kept, sizeof(excavator_real) * 9u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1584,21 +1664,29 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
 
 int excavator_screen_at(excavator_real t, const excavator_real *p, const excavator_real *state, excavator_real *work, int *iwork)
 {
-    excavator_real *tr, *pp, known[2];
+    excavator_real *tr;
+    excavator_real *pp;
+    excavator_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return EXCAVATOR_BAD_ARGUMENT;
-    if (!(state[63] > 0.0)) return EXCAVATOR_OK;  /* no scales: no screen */
-    tr = EXCAVATOR_VEC(work, 9), pp = work + EXCAVATOR_OFF_PREP;
+    }
+    if (!(state[63] > 0.0)) {
+        return EXCAVATOR_OK;  /* no scales: no screen */
+    }
+    tr = EXCAVATOR_VEC(work, 9);
+    pp = work + EXCAVATOR_OFF_PREP;
     excavator_prepare(p, pp);
     excavator_trig(state, tr);
-    if (excavator_factorize(state, tr, t, pp, work, iwork, &dense) != EXCAVATOR_OK)
+    if (excavator_factorize(state, tr, t, pp, work, iwork, &dense) != EXCAVATOR_OK) {
         return EXCAVATOR_ILL_CONDITIONED;
-    excavator_screen_known(state + 63, state + 54, known);
-    if (excavator_screen(work + EXCAVATOR_OFF_LU, dense, state + 63, state + 54, known)
-        && !(excavator_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
-             <= EXCAVATOR_COND_SCREEN))
+    }
+    excavator_screen_known(&state[63], &state[54], known);
+    if ((excavator_screen(work + EXCAVATOR_OFF_LU, dense, &state[63], &state[54], known) != 0)
+        && !(excavator_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
+             <= EXCAVATOR_COND_SCREEN)) {
         return EXCAVATOR_ILL_CONDITIONED;
+    }
     return EXCAVATOR_OK;
 }
 

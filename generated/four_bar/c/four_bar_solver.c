@@ -959,48 +959,85 @@ static four_bar_real four_bar_cond_estimate(const four_bar_real *q, const four_b
                                     four_bar_real *work, const int *iwork, int dense, const four_bar_real *row,
                                     const four_bar_real *col)
 {
-    four_bar_real *vals = work, *x = FOUR_BAR_VEC(work, 0), *z = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
-    four_bar_real *b = FOUR_BAR_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    four_bar_real *vals = work;
+    four_bar_real *x = FOUR_BAR_VEC(work, 0);
+    four_bar_real *z = FOUR_BAR_VEC(work, 1);
+    four_bar_real *y = FOUR_BAR_VEC(work, 2);
+    four_bar_real *b = FOUR_BAR_VEC(work, 3);
+    four_bar_real anorm = 0.0;
+    four_bar_real est = 0.0;
+    four_bar_real s;
+    four_bar_real zmax;
+    four_bar_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     four_bar_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 9; ++k) z[k] = 0.0;
-    for (k = 0; k < 25; ++k)
+    for (k = 0; k < 9; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 25; ++k) {
         z[four_bar_phi_q_cols[k]] += fabs(vals[k]) / (row[four_bar_phi_q_rows[k]] * col[four_bar_phi_q_cols[k]]);
-    for (k = 0; k < 9; ++k) anorm = FOUR_BAR_MAX(anorm, z[k]);
-    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        anorm = FOUR_BAR_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 9; ++k) {
+        x[k] = 1.0 / 9.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = row[k] * x[k];
+        }
         four_bar_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         four_bar_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 9; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 9; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (four_bar_real)k / FOUR_BAR_MAX(1.0, 8.0));
+    for (k = 0; k < 9; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((four_bar_real)k / FOUR_BAR_MAX(1.0, 8.0)));
+    }
     four_bar_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
-    est = FOUR_BAR_MAX(est, 2.0 * s / (3.0 * 9.0));
+    for (k = 0; k < 9; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = FOUR_BAR_MAX(est, (2.0 * s) / (3.0 * 9.0));
     return anorm * est;
 }
 
@@ -1126,17 +1163,28 @@ static four_bar_real four_bar_correct(four_bar_real *q, four_bar_real *dq)
 static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_real tol, four_bar_real *q, four_bar_real *tr, int *info, four_bar_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    four_bar_real *r = FOUR_BAR_VEC(work, 0), *dq = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
+    four_bar_real *r = FOUR_BAR_VEC(work, 0);
+    four_bar_real *dq = FOUR_BAR_VEC(work, 1);
+    four_bar_real *y = FOUR_BAR_VEC(work, 2);
     four_bar_real *base = FOUR_BAR_VEC(work, 10);
-    four_bar_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    four_bar_real step = ((double)INFINITY);
+    four_bar_real lim;
+    four_bar_real qmag;
+    four_bar_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) four_bar_trig_near(q, tr, base);
-    else four_bar_trig_base(q, tr, base);
+    if (reuse != 0) {
+        four_bar_trig_near(q, tr, base);
+    } else {
+        four_bar_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = FOUR_BAR_MAX(1.0, four_bar_maxabs9(q));
-    lim = FOUR_BAR_MAX(tol, (four_bar_real)FOUR_BAR_FLOOR_ULPS * FOUR_BAR_EPS * qmag);
+    lim = FOUR_BAR_MAX(tol, ((four_bar_real)FOUR_BAR_FLOOR_ULPS * FOUR_BAR_EPS) * qmag);
     four_bar_phi_k(q, tr, t, p, r);
     rmax = four_bar_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1145,15 +1193,17 @@ static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_rea
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? FOUR_BAR_NONFINITE : FOUR_BAR_NOT_CONVERGED;
+            return (it == 0) ? FOUR_BAR_NONFINITE : FOUR_BAR_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == FOUR_BAR_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK) {
+        if (it == FOUR_BAR_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK)) {
             info[0] = it;
             info[1] = *dense;
             return FOUR_BAR_SINGULAR;
@@ -1163,8 +1213,8 @@ static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_rea
         four_bar_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= FOUR_BAR_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (FOUR_BAR_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1176,8 +1226,10 @@ static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_rea
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return FOUR_BAR_NOT_CONVERGED;
-    if (!current && four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK) {
+    if (converged == 0) {
+        return FOUR_BAR_NOT_CONVERGED;
+    }
+    if ((current == 0) && (four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK)) {
         info[1] = *dense;
         return FOUR_BAR_SINGULAR;
     }
@@ -1189,7 +1241,8 @@ static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_rea
 static void four_bar_outputs(four_bar_real t, const four_bar_real *p, const four_bar_real *q, const four_bar_real *tr, four_bar_real *qd, four_bar_real *qdd,
                             four_bar_real *lam, four_bar_real *reactions, four_bar_real *work, const int *iwork, int dense)
 {
-    four_bar_real *y = FOUR_BAR_VEC(work, 2), *b = FOUR_BAR_VEC(work, 3);
+    four_bar_real *y = FOUR_BAR_VEC(work, 2);
+    four_bar_real *b = FOUR_BAR_VEC(work, 3);
     four_bar_nu_k(q, tr, t, p, b);
     four_bar_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     four_bar_gamma_k(q, tr, qd, t, p, b);
@@ -1206,7 +1259,9 @@ static void four_bar_outputs(four_bar_real t, const four_bar_real *p, const four
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     four_bar_solve_t(work, iwork, dense, b, lam);
-    if (four_bar_mixed(y)) four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (four_bar_mixed(y) != 0) {
+        four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     four_bar_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1248,12 +1303,24 @@ static int four_bar_finite(const four_bar_real *q, const four_bar_real *qd, cons
 static void four_bar_keep(four_bar_real *state, const four_bar_real *q, const four_bar_real *qd, const four_bar_real *qdd,
                          const four_bar_real *m1, const four_bar_real *m2, const four_bar_real *m3)
 {
-    if (m3 != state + 45) memcpy(state + 45, m3, sizeof(four_bar_real) * 9);
-    if (m2 != state + 36) memcpy(state + 36, m2, sizeof(four_bar_real) * 9);
-    if (m1 != state + 27) memcpy(state + 27, m1, sizeof(four_bar_real) * 9);
-    if (qdd != state + 18) memcpy(state + 18, qdd, sizeof(four_bar_real) * 9);
-    if (qd != state + 9) memcpy(state + 9, qd, sizeof(four_bar_real) * 9);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(four_bar_real) * 9);
+    if (m3 != state + 45) {
+        memcpy(state + 45, m3, sizeof(four_bar_real) * 9u);
+    }
+    if (m2 != state + 36) {
+        memcpy(state + 36, m2, sizeof(four_bar_real) * 9u);
+    }
+    if (m1 != state + 27) {
+        memcpy(state + 27, m1, sizeof(four_bar_real) * 9u);
+    }
+    if (qdd != state + 18) {
+        memcpy(state + 18, qdd, sizeof(four_bar_real) * 9u);
+    }
+    if (qd != state + 9) {
+        memcpy(state + 9, qd, sizeof(four_bar_real) * 9u);
+    }
+    if (q != state) {
+        memcpy(state, q, sizeof(four_bar_real) * 9u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1263,27 +1330,32 @@ static void four_bar_keep(four_bar_real *state, const four_bar_real *q, const fo
 static int four_bar_unexplained(const four_bar_real *q0, const four_bar_real *qd0, const four_bar_real *qdd0, const four_bar_real *q1,
                                const four_bar_real *qd1, const four_bar_real *qdd1, four_bar_real h, const four_bar_real *c)
 {
-    const four_bar_real half = 0.5 * h, hh = h * h / 12.0;
-    four_bar_real mismatch = 0.0, motion = 0.0, d;
+    const four_bar_real half = 0.5 * h;
+    const four_bar_real hh = (h * h) / 12.0;
+    four_bar_real mismatch = 0.0;
+    four_bar_real motion = 0.0;
+    four_bar_real d;
     d = q1[0] - q0[0];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = FOUR_BAR_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1302,35 +1374,43 @@ static int four_bar_unexplained(const four_bar_real *q0, const four_bar_real *qd
     motion = FOUR_BAR_MAX(motion, fabs(d) * c[7]);
     d = q1[8] - q0[8];
     motion = FOUR_BAR_MAX(motion, fabs(d) * c[8]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol, four_bar_real *q, four_bar_real *qd, four_bar_real *qdd,
                     four_bar_real *lam, four_bar_real *reactions, int *info, four_bar_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = FOUR_BAR_BAD_ARGUMENT;
     } else {
-        four_bar_real *tr = FOUR_BAR_VEC(work, 9), *pp = work + FOUR_BAR_OFF_PREP, *kept = FOUR_BAR_VEC(work, 11);
-        memcpy(kept, q, sizeof(four_bar_real) * 9);  /* the caller's guess, back in q if the call fails */
+        four_bar_real *tr = FOUR_BAR_VEC(work, 9);
+        four_bar_real *pp = work + FOUR_BAR_OFF_PREP;
+        four_bar_real *kept = FOUR_BAR_VEC(work, 11);
+        memcpy(kept, q, sizeof(four_bar_real) * 9u);  /* the caller's guess, back in q if the call fails */
         four_bar_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = FOUR_BAR_VEC(work, 5);
-        if (qdd == NULL) qdd = FOUR_BAR_VEC(work, 6);
-        if (lam == NULL) lam = FOUR_BAR_VEC(work, 7);
-        if (reactions == NULL) reactions = FOUR_BAR_VEC(work, 8);
+        four_bar_real *qd_out = (qd != NULL) ? qd : FOUR_BAR_VEC(work, 5);
+        four_bar_real *qdd_out = (qdd != NULL) ? qdd : FOUR_BAR_VEC(work, 6);
+        four_bar_real *lam_out = (lam != NULL) ? lam : FOUR_BAR_VEC(work, 7);
+        four_bar_real *reactions_out = (reactions != NULL) ? reactions : FOUR_BAR_VEC(work, 8);
         status = four_bar_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == FOUR_BAR_OK) {
-            four_bar_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!four_bar_finite(q, qd, qdd, lam, reactions)) status = FOUR_BAR_NONFINITE;
+            four_bar_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (four_bar_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = FOUR_BAR_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != FOUR_BAR_OK) memcpy(q, kept, sizeof(four_bar_real) * 9);
+        if (status != FOUR_BAR_OK) {
+            memcpy(q, kept, sizeof(four_bar_real) * 9u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1341,21 +1421,29 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
 
 int four_bar_screen_at(four_bar_real t, const four_bar_real *p, const four_bar_real *state, four_bar_real *work, int *iwork)
 {
-    four_bar_real *tr, *pp, known[2];
+    four_bar_real *tr;
+    four_bar_real *pp;
+    four_bar_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return FOUR_BAR_BAD_ARGUMENT;
-    if (!(state[63] > 0.0)) return FOUR_BAR_OK;  /* no scales: no screen */
-    tr = FOUR_BAR_VEC(work, 9), pp = work + FOUR_BAR_OFF_PREP;
+    }
+    if (!(state[63] > 0.0)) {
+        return FOUR_BAR_OK;  /* no scales: no screen */
+    }
+    tr = FOUR_BAR_VEC(work, 9);
+    pp = work + FOUR_BAR_OFF_PREP;
     four_bar_prepare(p, pp);
     four_bar_trig(state, tr);
-    if (four_bar_factorize(state, tr, t, pp, work, iwork, &dense) != FOUR_BAR_OK)
+    if (four_bar_factorize(state, tr, t, pp, work, iwork, &dense) != FOUR_BAR_OK) {
         return FOUR_BAR_ILL_CONDITIONED;
-    four_bar_screen_known(state + 63, state + 54, known);
-    if (four_bar_screen(work + FOUR_BAR_OFF_LU, dense, state + 63, state + 54, known)
-        && !(four_bar_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
-             <= FOUR_BAR_COND_SCREEN))
+    }
+    four_bar_screen_known(&state[63], &state[54], known);
+    if ((four_bar_screen(work + FOUR_BAR_OFF_LU, dense, &state[63], &state[54], known) != 0)
+        && !(four_bar_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
+             <= FOUR_BAR_COND_SCREEN)) {
         return FOUR_BAR_ILL_CONDITIONED;
+    }
     return FOUR_BAR_OK;
 }
 

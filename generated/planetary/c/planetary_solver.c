@@ -1053,48 +1053,85 @@ static planetary_real planetary_cond_estimate(const planetary_real *q, const pla
                                     planetary_real *work, const int *iwork, int dense, const planetary_real *row,
                                     const planetary_real *col)
 {
-    planetary_real *vals = work, *x = PLANETARY_VEC(work, 0), *z = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
-    planetary_real *b = PLANETARY_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    planetary_real *vals = work;
+    planetary_real *x = PLANETARY_VEC(work, 0);
+    planetary_real *z = PLANETARY_VEC(work, 1);
+    planetary_real *y = PLANETARY_VEC(work, 2);
+    planetary_real *b = PLANETARY_VEC(work, 3);
+    planetary_real anorm = 0.0;
+    planetary_real est = 0.0;
+    planetary_real s;
+    planetary_real zmax;
+    planetary_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     planetary_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 12; ++k) z[k] = 0.0;
-    for (k = 0; k < 20; ++k)
+    for (k = 0; k < 12; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 20; ++k) {
         z[planetary_phi_q_cols[k]] += fabs(vals[k]) / (row[planetary_phi_q_rows[k]] * col[planetary_phi_q_cols[k]]);
-    for (k = 0; k < 12; ++k) anorm = PLANETARY_MAX(anorm, z[k]);
-    for (k = 0; k < 12; ++k) x[k] = 1.0 / 12.0;
+    }
+    for (k = 0; k < 12; ++k) {
+        anorm = PLANETARY_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 12; ++k) {
+        x[k] = 1.0 / 12.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 12; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 12; ++k) {
+            b[k] = row[k] * x[k];
+        }
         planetary_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 12; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 12; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 12; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         planetary_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 12; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 12; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 12; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 12; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (planetary_real)k / PLANETARY_MAX(1.0, 11.0));
+    for (k = 0; k < 12; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((planetary_real)k / PLANETARY_MAX(1.0, 11.0)));
+    }
     planetary_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 12; ++k) s += fabs(z[k] * col[k]);
-    est = PLANETARY_MAX(est, 2.0 * s / (3.0 * 12.0));
+    for (k = 0; k < 12; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = PLANETARY_MAX(est, (2.0 * s) / (3.0 * 12.0));
     return anorm * est;
 }
 
@@ -1240,17 +1277,28 @@ static planetary_real planetary_correct(planetary_real *q, planetary_real *dq)
 static int planetary_newton(planetary_real t, const planetary_real *p, planetary_real tol, planetary_real *q, planetary_real *tr, int *info, planetary_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    planetary_real *r = PLANETARY_VEC(work, 0), *dq = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
+    planetary_real *r = PLANETARY_VEC(work, 0);
+    planetary_real *dq = PLANETARY_VEC(work, 1);
+    planetary_real *y = PLANETARY_VEC(work, 2);
     planetary_real *base = PLANETARY_VEC(work, 10);
-    planetary_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    planetary_real step = ((double)INFINITY);
+    planetary_real lim;
+    planetary_real qmag;
+    planetary_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) planetary_trig_near(q, tr, base);
-    else planetary_trig_base(q, tr, base);
+    if (reuse != 0) {
+        planetary_trig_near(q, tr, base);
+    } else {
+        planetary_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = PLANETARY_MAX(1.0, planetary_maxabs12(q));
-    lim = PLANETARY_MAX(tol, (planetary_real)PLANETARY_FLOOR_ULPS * PLANETARY_EPS * qmag);
+    lim = PLANETARY_MAX(tol, ((planetary_real)PLANETARY_FLOOR_ULPS * PLANETARY_EPS) * qmag);
     planetary_phi_k(q, tr, t, p, r);
     rmax = planetary_maxabs12(r);
     for (it = 0;; ++it) {
@@ -1259,15 +1307,17 @@ static int planetary_newton(planetary_real t, const planetary_real *p, planetary
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? PLANETARY_NONFINITE : PLANETARY_NOT_CONVERGED;
+            return (it == 0) ? PLANETARY_NONFINITE : PLANETARY_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == PLANETARY_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) {
+        if (it == PLANETARY_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK)) {
             info[0] = it;
             info[1] = *dense;
             return PLANETARY_SINGULAR;
@@ -1277,8 +1327,8 @@ static int planetary_newton(planetary_real t, const planetary_real *p, planetary
         planetary_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= PLANETARY_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (PLANETARY_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1290,8 +1340,10 @@ static int planetary_newton(planetary_real t, const planetary_real *p, planetary
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return PLANETARY_NOT_CONVERGED;
-    if (!current && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) {
+    if (converged == 0) {
+        return PLANETARY_NOT_CONVERGED;
+    }
+    if ((current == 0) && (planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK)) {
         info[1] = *dense;
         return PLANETARY_SINGULAR;
     }
@@ -1303,7 +1355,8 @@ static int planetary_newton(planetary_real t, const planetary_real *p, planetary
 static void planetary_outputs(planetary_real t, const planetary_real *p, const planetary_real *q, const planetary_real *tr, planetary_real *qd, planetary_real *qdd,
                             planetary_real *lam, planetary_real *reactions, planetary_real *work, const int *iwork, int dense)
 {
-    planetary_real *y = PLANETARY_VEC(work, 2), *b = PLANETARY_VEC(work, 3);
+    planetary_real *y = PLANETARY_VEC(work, 2);
+    planetary_real *b = PLANETARY_VEC(work, 3);
     planetary_nu_k(q, tr, t, p, b);
     planetary_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     planetary_gamma_k(q, tr, qd, t, p, b);
@@ -1323,7 +1376,9 @@ static void planetary_outputs(planetary_real t, const planetary_real *p, const p
     b[10] -= y[10] * qdd[10];
     b[11] -= y[11] * qdd[11];
     planetary_solve_t(work, iwork, dense, b, lam);
-    if (planetary_mixed(y)) planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (planetary_mixed(y) != 0) {
+        planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     planetary_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1365,12 +1420,24 @@ static int planetary_finite(const planetary_real *q, const planetary_real *qd, c
 static void planetary_keep(planetary_real *state, const planetary_real *q, const planetary_real *qd, const planetary_real *qdd,
                          const planetary_real *m1, const planetary_real *m2, const planetary_real *m3)
 {
-    if (m3 != state + 60) memcpy(state + 60, m3, sizeof(planetary_real) * 12);
-    if (m2 != state + 48) memcpy(state + 48, m2, sizeof(planetary_real) * 12);
-    if (m1 != state + 36) memcpy(state + 36, m1, sizeof(planetary_real) * 12);
-    if (qdd != state + 24) memcpy(state + 24, qdd, sizeof(planetary_real) * 12);
-    if (qd != state + 12) memcpy(state + 12, qd, sizeof(planetary_real) * 12);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(planetary_real) * 12);
+    if (m3 != state + 60) {
+        memcpy(state + 60, m3, sizeof(planetary_real) * 12u);
+    }
+    if (m2 != state + 48) {
+        memcpy(state + 48, m2, sizeof(planetary_real) * 12u);
+    }
+    if (m1 != state + 36) {
+        memcpy(state + 36, m1, sizeof(planetary_real) * 12u);
+    }
+    if (qdd != state + 24) {
+        memcpy(state + 24, qdd, sizeof(planetary_real) * 12u);
+    }
+    if (qd != state + 12) {
+        memcpy(state + 12, qd, sizeof(planetary_real) * 12u);
+    }
+    if (q != state) {
+        memcpy(state, q, sizeof(planetary_real) * 12u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1380,33 +1447,38 @@ static void planetary_keep(planetary_real *state, const planetary_real *q, const
 static int planetary_unexplained(const planetary_real *q0, const planetary_real *qd0, const planetary_real *qdd0, const planetary_real *q1,
                                const planetary_real *qd1, const planetary_real *qdd1, planetary_real h, const planetary_real *c)
 {
-    const planetary_real half = 0.5 * h, hh = h * h / 12.0;
-    planetary_real mismatch = 0.0, motion = 0.0, d;
+    const planetary_real half = 0.5 * h;
+    const planetary_real hh = (h * h) / 12.0;
+    planetary_real mismatch = 0.0;
+    planetary_real motion = 0.0;
+    planetary_real d;
     d = q1[0] - q0[0];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
     d = q1[9] - q0[9];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[9] + qd1[9]) - hh * (qdd0[9] - qdd1[9])) * c[9]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[9] + qd1[9]))) - (hh * (qdd0[9] - qdd1[9]))) * c[9]);
     d = q1[10] - q0[10];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[10] + qd1[10]) - hh * (qdd0[10] - qdd1[10])) * c[10]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[10] + qd1[10]))) - (hh * (qdd0[10] - qdd1[10]))) * c[10]);
     d = q1[11] - q0[11];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[11] + qd1[11]) - hh * (qdd0[11] - qdd1[11])) * c[11]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[11] + qd1[11]))) - (hh * (qdd0[11] - qdd1[11]))) * c[11]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = PLANETARY_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1431,35 +1503,43 @@ static int planetary_unexplained(const planetary_real *q0, const planetary_real 
     motion = PLANETARY_MAX(motion, fabs(d) * c[10]);
     d = q1[11] - q0[11];
     motion = PLANETARY_MAX(motion, fabs(d) * c[11]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int planetary_instant(planetary_real t, const planetary_real *p, planetary_real tol, planetary_real *q, planetary_real *qd, planetary_real *qdd,
                     planetary_real *lam, planetary_real *reactions, int *info, planetary_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = PLANETARY_BAD_ARGUMENT;
     } else {
-        planetary_real *tr = PLANETARY_VEC(work, 9), *pp = work + PLANETARY_OFF_PREP, *kept = PLANETARY_VEC(work, 11);
-        memcpy(kept, q, sizeof(planetary_real) * 12);  /* the caller's guess, back in q if the call fails */
+        planetary_real *tr = PLANETARY_VEC(work, 9);
+        planetary_real *pp = work + PLANETARY_OFF_PREP;
+        planetary_real *kept = PLANETARY_VEC(work, 11);
+        memcpy(kept, q, sizeof(planetary_real) * 12u);  /* the caller's guess, back in q if the call fails */
         planetary_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = PLANETARY_VEC(work, 5);
-        if (qdd == NULL) qdd = PLANETARY_VEC(work, 6);
-        if (lam == NULL) lam = PLANETARY_VEC(work, 7);
-        if (reactions == NULL) reactions = PLANETARY_VEC(work, 8);
+        planetary_real *qd_out = (qd != NULL) ? qd : PLANETARY_VEC(work, 5);
+        planetary_real *qdd_out = (qdd != NULL) ? qdd : PLANETARY_VEC(work, 6);
+        planetary_real *lam_out = (lam != NULL) ? lam : PLANETARY_VEC(work, 7);
+        planetary_real *reactions_out = (reactions != NULL) ? reactions : PLANETARY_VEC(work, 8);
         status = planetary_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == PLANETARY_OK) {
-            planetary_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!planetary_finite(q, qd, qdd, lam, reactions)) status = PLANETARY_NONFINITE;
+            planetary_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (planetary_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = PLANETARY_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != PLANETARY_OK) memcpy(q, kept, sizeof(planetary_real) * 12);
+        if (status != PLANETARY_OK) {
+            memcpy(q, kept, sizeof(planetary_real) * 12u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1470,21 +1550,29 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
 
 int planetary_screen_at(planetary_real t, const planetary_real *p, const planetary_real *state, planetary_real *work, int *iwork)
 {
-    planetary_real *tr, *pp, known[2];
+    planetary_real *tr;
+    planetary_real *pp;
+    planetary_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return PLANETARY_BAD_ARGUMENT;
-    if (!(state[84] > 0.0)) return PLANETARY_OK;  /* no scales: no screen */
-    tr = PLANETARY_VEC(work, 9), pp = work + PLANETARY_OFF_PREP;
+    }
+    if (!(state[84] > 0.0)) {
+        return PLANETARY_OK;  /* no scales: no screen */
+    }
+    tr = PLANETARY_VEC(work, 9);
+    pp = work + PLANETARY_OFF_PREP;
     planetary_prepare(p, pp);
     planetary_trig(state, tr);
-    if (planetary_factorize(state, tr, t, pp, work, iwork, &dense) != PLANETARY_OK)
+    if (planetary_factorize(state, tr, t, pp, work, iwork, &dense) != PLANETARY_OK) {
         return PLANETARY_ILL_CONDITIONED;
-    planetary_screen_known(state + 84, state + 72, known);
-    if (planetary_screen(work + PLANETARY_OFF_LU, dense, state + 84, state + 72, known)
-        && !(planetary_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 84, state + 72)
-             <= PLANETARY_COND_SCREEN))
+    }
+    planetary_screen_known(&state[84], &state[72], known);
+    if ((planetary_screen(work + PLANETARY_OFF_LU, dense, &state[84], &state[72], known) != 0)
+        && !(planetary_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[84], &state[72])
+             <= PLANETARY_COND_SCREEN)) {
         return PLANETARY_ILL_CONDITIONED;
+    }
     return PLANETARY_OK;
 }
 

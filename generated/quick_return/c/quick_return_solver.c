@@ -953,48 +953,85 @@ static quick_return_real quick_return_cond_estimate(const quick_return_real *q, 
                                     quick_return_real *work, const int *iwork, int dense, const quick_return_real *row,
                                     const quick_return_real *col)
 {
-    quick_return_real *vals = work, *x = QUICK_RETURN_VEC(work, 0), *z = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
-    quick_return_real *b = QUICK_RETURN_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    quick_return_real *vals = work;
+    quick_return_real *x = QUICK_RETURN_VEC(work, 0);
+    quick_return_real *z = QUICK_RETURN_VEC(work, 1);
+    quick_return_real *y = QUICK_RETURN_VEC(work, 2);
+    quick_return_real *b = QUICK_RETURN_VEC(work, 3);
+    quick_return_real anorm = 0.0;
+    quick_return_real est = 0.0;
+    quick_return_real s;
+    quick_return_real zmax;
+    quick_return_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     quick_return_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 9; ++k) z[k] = 0.0;
-    for (k = 0; k < 20; ++k)
+    for (k = 0; k < 9; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 20; ++k) {
         z[quick_return_phi_q_cols[k]] += fabs(vals[k]) / (row[quick_return_phi_q_rows[k]] * col[quick_return_phi_q_cols[k]]);
-    for (k = 0; k < 9; ++k) anorm = QUICK_RETURN_MAX(anorm, z[k]);
-    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        anorm = QUICK_RETURN_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 9; ++k) {
+        x[k] = 1.0 / 9.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = row[k] * x[k];
+        }
         quick_return_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         quick_return_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 9; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 9; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (quick_return_real)k / QUICK_RETURN_MAX(1.0, 8.0));
+    for (k = 0; k < 9; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((quick_return_real)k / QUICK_RETURN_MAX(1.0, 8.0)));
+    }
     quick_return_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
-    est = QUICK_RETURN_MAX(est, 2.0 * s / (3.0 * 9.0));
+    for (k = 0; k < 9; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = QUICK_RETURN_MAX(est, (2.0 * s) / (3.0 * 9.0));
     return anorm * est;
 }
 
@@ -1116,17 +1153,28 @@ static quick_return_real quick_return_correct(quick_return_real *q, quick_return
 static int quick_return_newton(quick_return_real t, const quick_return_real *p, quick_return_real tol, quick_return_real *q, quick_return_real *tr, int *info, quick_return_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    quick_return_real *r = QUICK_RETURN_VEC(work, 0), *dq = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
+    quick_return_real *r = QUICK_RETURN_VEC(work, 0);
+    quick_return_real *dq = QUICK_RETURN_VEC(work, 1);
+    quick_return_real *y = QUICK_RETURN_VEC(work, 2);
     quick_return_real *base = QUICK_RETURN_VEC(work, 10);
-    quick_return_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    quick_return_real step = ((double)INFINITY);
+    quick_return_real lim;
+    quick_return_real qmag;
+    quick_return_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) quick_return_trig_near(q, tr, base);
-    else quick_return_trig_base(q, tr, base);
+    if (reuse != 0) {
+        quick_return_trig_near(q, tr, base);
+    } else {
+        quick_return_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = QUICK_RETURN_MAX(1.0, quick_return_maxabs9(q));
-    lim = QUICK_RETURN_MAX(tol, (quick_return_real)QUICK_RETURN_FLOOR_ULPS * QUICK_RETURN_EPS * qmag);
+    lim = QUICK_RETURN_MAX(tol, ((quick_return_real)QUICK_RETURN_FLOOR_ULPS * QUICK_RETURN_EPS) * qmag);
     quick_return_phi_k(q, tr, t, p, r);
     rmax = quick_return_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1135,15 +1183,17 @@ static int quick_return_newton(quick_return_real t, const quick_return_real *p, 
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? QUICK_RETURN_NONFINITE : QUICK_RETURN_NOT_CONVERGED;
+            return (it == 0) ? QUICK_RETURN_NONFINITE : QUICK_RETURN_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == QUICK_RETURN_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK) {
+        if (it == QUICK_RETURN_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK)) {
             info[0] = it;
             info[1] = *dense;
             return QUICK_RETURN_SINGULAR;
@@ -1153,8 +1203,8 @@ static int quick_return_newton(quick_return_real t, const quick_return_real *p, 
         quick_return_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= QUICK_RETURN_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (QUICK_RETURN_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1166,8 +1216,10 @@ static int quick_return_newton(quick_return_real t, const quick_return_real *p, 
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return QUICK_RETURN_NOT_CONVERGED;
-    if (!current && quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK) {
+    if (converged == 0) {
+        return QUICK_RETURN_NOT_CONVERGED;
+    }
+    if ((current == 0) && (quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK)) {
         info[1] = *dense;
         return QUICK_RETURN_SINGULAR;
     }
@@ -1179,7 +1231,8 @@ static int quick_return_newton(quick_return_real t, const quick_return_real *p, 
 static void quick_return_outputs(quick_return_real t, const quick_return_real *p, const quick_return_real *q, const quick_return_real *tr, quick_return_real *qd, quick_return_real *qdd,
                             quick_return_real *lam, quick_return_real *reactions, quick_return_real *work, const int *iwork, int dense)
 {
-    quick_return_real *y = QUICK_RETURN_VEC(work, 2), *b = QUICK_RETURN_VEC(work, 3);
+    quick_return_real *y = QUICK_RETURN_VEC(work, 2);
+    quick_return_real *b = QUICK_RETURN_VEC(work, 3);
     quick_return_nu_k(q, tr, t, p, b);
     quick_return_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     quick_return_gamma_k(q, tr, qd, t, p, b);
@@ -1196,7 +1249,9 @@ static void quick_return_outputs(quick_return_real t, const quick_return_real *p
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     quick_return_solve_t(work, iwork, dense, b, lam);
-    if (quick_return_mixed(y)) quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (quick_return_mixed(y) != 0) {
+        quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     quick_return_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1238,12 +1293,24 @@ static int quick_return_finite(const quick_return_real *q, const quick_return_re
 static void quick_return_keep(quick_return_real *state, const quick_return_real *q, const quick_return_real *qd, const quick_return_real *qdd,
                          const quick_return_real *m1, const quick_return_real *m2, const quick_return_real *m3)
 {
-    if (m3 != state + 45) memcpy(state + 45, m3, sizeof(quick_return_real) * 9);
-    if (m2 != state + 36) memcpy(state + 36, m2, sizeof(quick_return_real) * 9);
-    if (m1 != state + 27) memcpy(state + 27, m1, sizeof(quick_return_real) * 9);
-    if (qdd != state + 18) memcpy(state + 18, qdd, sizeof(quick_return_real) * 9);
-    if (qd != state + 9) memcpy(state + 9, qd, sizeof(quick_return_real) * 9);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(quick_return_real) * 9);
+    if (m3 != state + 45) {
+        memcpy(state + 45, m3, sizeof(quick_return_real) * 9u);
+    }
+    if (m2 != state + 36) {
+        memcpy(state + 36, m2, sizeof(quick_return_real) * 9u);
+    }
+    if (m1 != state + 27) {
+        memcpy(state + 27, m1, sizeof(quick_return_real) * 9u);
+    }
+    if (qdd != state + 18) {
+        memcpy(state + 18, qdd, sizeof(quick_return_real) * 9u);
+    }
+    if (qd != state + 9) {
+        memcpy(state + 9, qd, sizeof(quick_return_real) * 9u);
+    }
+    if (q != state) {
+        memcpy(state, q, sizeof(quick_return_real) * 9u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1253,27 +1320,32 @@ static void quick_return_keep(quick_return_real *state, const quick_return_real 
 static int quick_return_unexplained(const quick_return_real *q0, const quick_return_real *qd0, const quick_return_real *qdd0, const quick_return_real *q1,
                                const quick_return_real *qd1, const quick_return_real *qdd1, quick_return_real h, const quick_return_real *c)
 {
-    const quick_return_real half = 0.5 * h, hh = h * h / 12.0;
-    quick_return_real mismatch = 0.0, motion = 0.0, d;
+    const quick_return_real half = 0.5 * h;
+    const quick_return_real hh = (h * h) / 12.0;
+    quick_return_real mismatch = 0.0;
+    quick_return_real motion = 0.0;
+    quick_return_real d;
     d = q1[0] - q0[0];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = QUICK_RETURN_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1292,35 +1364,43 @@ static int quick_return_unexplained(const quick_return_real *q0, const quick_ret
     motion = QUICK_RETURN_MAX(motion, fabs(d) * c[7]);
     d = q1[8] - q0[8];
     motion = QUICK_RETURN_MAX(motion, fabs(d) * c[8]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_return_real tol, quick_return_real *q, quick_return_real *qd, quick_return_real *qdd,
                     quick_return_real *lam, quick_return_real *reactions, int *info, quick_return_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = QUICK_RETURN_BAD_ARGUMENT;
     } else {
-        quick_return_real *tr = QUICK_RETURN_VEC(work, 9), *pp = work + QUICK_RETURN_OFF_PREP, *kept = QUICK_RETURN_VEC(work, 11);
-        memcpy(kept, q, sizeof(quick_return_real) * 9);  /* the caller's guess, back in q if the call fails */
+        quick_return_real *tr = QUICK_RETURN_VEC(work, 9);
+        quick_return_real *pp = work + QUICK_RETURN_OFF_PREP;
+        quick_return_real *kept = QUICK_RETURN_VEC(work, 11);
+        memcpy(kept, q, sizeof(quick_return_real) * 9u);  /* the caller's guess, back in q if the call fails */
         quick_return_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = QUICK_RETURN_VEC(work, 5);
-        if (qdd == NULL) qdd = QUICK_RETURN_VEC(work, 6);
-        if (lam == NULL) lam = QUICK_RETURN_VEC(work, 7);
-        if (reactions == NULL) reactions = QUICK_RETURN_VEC(work, 8);
+        quick_return_real *qd_out = (qd != NULL) ? qd : QUICK_RETURN_VEC(work, 5);
+        quick_return_real *qdd_out = (qdd != NULL) ? qdd : QUICK_RETURN_VEC(work, 6);
+        quick_return_real *lam_out = (lam != NULL) ? lam : QUICK_RETURN_VEC(work, 7);
+        quick_return_real *reactions_out = (reactions != NULL) ? reactions : QUICK_RETURN_VEC(work, 8);
         status = quick_return_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == QUICK_RETURN_OK) {
-            quick_return_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!quick_return_finite(q, qd, qdd, lam, reactions)) status = QUICK_RETURN_NONFINITE;
+            quick_return_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (quick_return_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = QUICK_RETURN_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != QUICK_RETURN_OK) memcpy(q, kept, sizeof(quick_return_real) * 9);
+        if (status != QUICK_RETURN_OK) {
+            memcpy(q, kept, sizeof(quick_return_real) * 9u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1331,21 +1411,29 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
 
 int quick_return_screen_at(quick_return_real t, const quick_return_real *p, const quick_return_real *state, quick_return_real *work, int *iwork)
 {
-    quick_return_real *tr, *pp, known[2];
+    quick_return_real *tr;
+    quick_return_real *pp;
+    quick_return_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return QUICK_RETURN_BAD_ARGUMENT;
-    if (!(state[63] > 0.0)) return QUICK_RETURN_OK;  /* no scales: no screen */
-    tr = QUICK_RETURN_VEC(work, 9), pp = work + QUICK_RETURN_OFF_PREP;
+    }
+    if (!(state[63] > 0.0)) {
+        return QUICK_RETURN_OK;  /* no scales: no screen */
+    }
+    tr = QUICK_RETURN_VEC(work, 9);
+    pp = work + QUICK_RETURN_OFF_PREP;
     quick_return_prepare(p, pp);
     quick_return_trig(state, tr);
-    if (quick_return_factorize(state, tr, t, pp, work, iwork, &dense) != QUICK_RETURN_OK)
+    if (quick_return_factorize(state, tr, t, pp, work, iwork, &dense) != QUICK_RETURN_OK) {
         return QUICK_RETURN_ILL_CONDITIONED;
-    quick_return_screen_known(state + 63, state + 54, known);
-    if (quick_return_screen(work + QUICK_RETURN_OFF_LU, dense, state + 63, state + 54, known)
-        && !(quick_return_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
-             <= QUICK_RETURN_COND_SCREEN))
+    }
+    quick_return_screen_known(&state[63], &state[54], known);
+    if ((quick_return_screen(work + QUICK_RETURN_OFF_LU, dense, &state[63], &state[54], known) != 0)
+        && !(quick_return_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
+             <= QUICK_RETURN_COND_SCREEN)) {
         return QUICK_RETURN_ILL_CONDITIONED;
+    }
     return QUICK_RETURN_OK;
 }
 

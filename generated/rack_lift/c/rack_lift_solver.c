@@ -816,48 +816,85 @@ static rack_lift_real rack_lift_cond_estimate(const rack_lift_real *q, const rac
                                     rack_lift_real *work, const int *iwork, int dense, const rack_lift_real *row,
                                     const rack_lift_real *col)
 {
-    rack_lift_real *vals = work, *x = RACK_LIFT_VEC(work, 0), *z = RACK_LIFT_VEC(work, 1), *y = RACK_LIFT_VEC(work, 2);
-    rack_lift_real *b = RACK_LIFT_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    rack_lift_real *vals = work;
+    rack_lift_real *x = RACK_LIFT_VEC(work, 0);
+    rack_lift_real *z = RACK_LIFT_VEC(work, 1);
+    rack_lift_real *y = RACK_LIFT_VEC(work, 2);
+    rack_lift_real *b = RACK_LIFT_VEC(work, 3);
+    rack_lift_real anorm = 0.0;
+    rack_lift_real est = 0.0;
+    rack_lift_real s;
+    rack_lift_real zmax;
+    rack_lift_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     rack_lift_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 6; ++k) z[k] = 0.0;
-    for (k = 0; k < 11; ++k)
+    for (k = 0; k < 6; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 11; ++k) {
         z[rack_lift_phi_q_cols[k]] += fabs(vals[k]) / (row[rack_lift_phi_q_rows[k]] * col[rack_lift_phi_q_cols[k]]);
-    for (k = 0; k < 6; ++k) anorm = RACK_LIFT_MAX(anorm, z[k]);
-    for (k = 0; k < 6; ++k) x[k] = 1.0 / 6.0;
+    }
+    for (k = 0; k < 6; ++k) {
+        anorm = RACK_LIFT_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 6; ++k) {
+        x[k] = 1.0 / 6.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 6; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 6; ++k) {
+            b[k] = row[k] * x[k];
+        }
         rack_lift_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 6; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 6; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 6; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         rack_lift_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 6; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 6; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 6; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 6; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (rack_lift_real)k / RACK_LIFT_MAX(1.0, 5.0));
+    for (k = 0; k < 6; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((rack_lift_real)k / RACK_LIFT_MAX(1.0, 5.0)));
+    }
     rack_lift_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 6; ++k) s += fabs(z[k] * col[k]);
-    est = RACK_LIFT_MAX(est, 2.0 * s / (3.0 * 6.0));
+    for (k = 0; k < 6; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = RACK_LIFT_MAX(est, (2.0 * s) / (3.0 * 6.0));
     return anorm * est;
 }
 
@@ -1044,17 +1081,28 @@ static rack_lift_real rack_lift_correct(rack_lift_real *q, rack_lift_real *dq)
 static int rack_lift_newton(rack_lift_real t, const rack_lift_real *p, rack_lift_real tol, rack_lift_real *q, rack_lift_real *tr, int *info, rack_lift_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    rack_lift_real *r = RACK_LIFT_VEC(work, 0), *dq = RACK_LIFT_VEC(work, 1), *y = RACK_LIFT_VEC(work, 2);
+    rack_lift_real *r = RACK_LIFT_VEC(work, 0);
+    rack_lift_real *dq = RACK_LIFT_VEC(work, 1);
+    rack_lift_real *y = RACK_LIFT_VEC(work, 2);
     rack_lift_real *base = RACK_LIFT_VEC(work, 10);
-    rack_lift_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    rack_lift_real step = ((double)INFINITY);
+    rack_lift_real lim;
+    rack_lift_real qmag;
+    rack_lift_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) rack_lift_trig_near(q, tr, base);
-    else rack_lift_trig_base(q, tr, base);
+    if (reuse != 0) {
+        rack_lift_trig_near(q, tr, base);
+    } else {
+        rack_lift_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = RACK_LIFT_MAX(1.0, rack_lift_maxabs6(q));
-    lim = RACK_LIFT_MAX(tol, (rack_lift_real)RACK_LIFT_FLOOR_ULPS * RACK_LIFT_EPS * qmag);
+    lim = RACK_LIFT_MAX(tol, ((rack_lift_real)RACK_LIFT_FLOOR_ULPS * RACK_LIFT_EPS) * qmag);
     rack_lift_phi_k(q, tr, t, p, r);
     rmax = rack_lift_maxabs6(r);
     for (it = 0;; ++it) {
@@ -1063,15 +1111,17 @@ static int rack_lift_newton(rack_lift_real t, const rack_lift_real *p, rack_lift
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? RACK_LIFT_NONFINITE : RACK_LIFT_NOT_CONVERGED;
+            return (it == 0) ? RACK_LIFT_NONFINITE : RACK_LIFT_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == RACK_LIFT_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK) {
+        if (it == RACK_LIFT_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK)) {
             info[0] = it;
             info[1] = *dense;
             return RACK_LIFT_SINGULAR;
@@ -1081,8 +1131,8 @@ static int rack_lift_newton(rack_lift_real t, const rack_lift_real *p, rack_lift
         rack_lift_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= RACK_LIFT_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (RACK_LIFT_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1094,8 +1144,10 @@ static int rack_lift_newton(rack_lift_real t, const rack_lift_real *p, rack_lift
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return RACK_LIFT_NOT_CONVERGED;
-    if (!current && rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK) {
+    if (converged == 0) {
+        return RACK_LIFT_NOT_CONVERGED;
+    }
+    if ((current == 0) && (rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK)) {
         info[1] = *dense;
         return RACK_LIFT_SINGULAR;
     }
@@ -1107,7 +1159,8 @@ static int rack_lift_newton(rack_lift_real t, const rack_lift_real *p, rack_lift
 static void rack_lift_outputs(rack_lift_real t, const rack_lift_real *p, const rack_lift_real *q, const rack_lift_real *tr, rack_lift_real *qd, rack_lift_real *qdd,
                             rack_lift_real *lam, rack_lift_real *reactions, rack_lift_real *work, const int *iwork, int dense)
 {
-    rack_lift_real *y = RACK_LIFT_VEC(work, 2), *b = RACK_LIFT_VEC(work, 3);
+    rack_lift_real *y = RACK_LIFT_VEC(work, 2);
+    rack_lift_real *b = RACK_LIFT_VEC(work, 3);
     rack_lift_nu_k(q, tr, t, p, b);
     rack_lift_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     rack_lift_gamma_k(q, tr, qd, t, p, b);
@@ -1121,7 +1174,9 @@ static void rack_lift_outputs(rack_lift_real t, const rack_lift_real *p, const r
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     rack_lift_solve_t(work, iwork, dense, b, lam);
-    if (rack_lift_mixed(y)) rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (rack_lift_mixed(y) != 0) {
+        rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     rack_lift_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1163,12 +1218,24 @@ static int rack_lift_finite(const rack_lift_real *q, const rack_lift_real *qd, c
 static void rack_lift_keep(rack_lift_real *state, const rack_lift_real *q, const rack_lift_real *qd, const rack_lift_real *qdd,
                          const rack_lift_real *m1, const rack_lift_real *m2, const rack_lift_real *m3)
 {
-    if (m3 != state + 30) memcpy(state + 30, m3, sizeof(rack_lift_real) * 6);
-    if (m2 != state + 24) memcpy(state + 24, m2, sizeof(rack_lift_real) * 6);
-    if (m1 != state + 18) memcpy(state + 18, m1, sizeof(rack_lift_real) * 6);
-    if (qdd != state + 12) memcpy(state + 12, qdd, sizeof(rack_lift_real) * 6);
-    if (qd != state + 6) memcpy(state + 6, qd, sizeof(rack_lift_real) * 6);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(rack_lift_real) * 6);
+    if (m3 != state + 30) {
+        memcpy(state + 30, m3, sizeof(rack_lift_real) * 6u);
+    }
+    if (m2 != state + 24) {
+        memcpy(state + 24, m2, sizeof(rack_lift_real) * 6u);
+    }
+    if (m1 != state + 18) {
+        memcpy(state + 18, m1, sizeof(rack_lift_real) * 6u);
+    }
+    if (qdd != state + 12) {
+        memcpy(state + 12, qdd, sizeof(rack_lift_real) * 6u);
+    }
+    if (qd != state + 6) {
+        memcpy(state + 6, qd, sizeof(rack_lift_real) * 6u);
+    }
+    if (q != state) {
+        memcpy(state, q, sizeof(rack_lift_real) * 6u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1178,21 +1245,26 @@ static void rack_lift_keep(rack_lift_real *state, const rack_lift_real *q, const
 static int rack_lift_unexplained(const rack_lift_real *q0, const rack_lift_real *qd0, const rack_lift_real *qdd0, const rack_lift_real *q1,
                                const rack_lift_real *qd1, const rack_lift_real *qdd1, rack_lift_real h, const rack_lift_real *c)
 {
-    const rack_lift_real half = 0.5 * h, hh = h * h / 12.0;
-    rack_lift_real mismatch = 0.0, motion = 0.0, d;
+    const rack_lift_real half = 0.5 * h;
+    const rack_lift_real hh = (h * h) / 12.0;
+    rack_lift_real mismatch = 0.0;
+    rack_lift_real motion = 0.0;
+    rack_lift_real d;
     d = q1[0] - q0[0];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = RACK_LIFT_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1205,35 +1277,43 @@ static int rack_lift_unexplained(const rack_lift_real *q0, const rack_lift_real 
     motion = RACK_LIFT_MAX(motion, fabs(d) * c[4]);
     d = q1[5] - q0[5];
     motion = RACK_LIFT_MAX(motion, fabs(d) * c[5]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real tol, rack_lift_real *q, rack_lift_real *qd, rack_lift_real *qdd,
                     rack_lift_real *lam, rack_lift_real *reactions, int *info, rack_lift_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = RACK_LIFT_BAD_ARGUMENT;
     } else {
-        rack_lift_real *tr = RACK_LIFT_VEC(work, 9), *pp = work + RACK_LIFT_OFF_PREP, *kept = RACK_LIFT_VEC(work, 11);
-        memcpy(kept, q, sizeof(rack_lift_real) * 6);  /* the caller's guess, back in q if the call fails */
+        rack_lift_real *tr = RACK_LIFT_VEC(work, 9);
+        rack_lift_real *pp = work + RACK_LIFT_OFF_PREP;
+        rack_lift_real *kept = RACK_LIFT_VEC(work, 11);
+        memcpy(kept, q, sizeof(rack_lift_real) * 6u);  /* the caller's guess, back in q if the call fails */
         rack_lift_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = RACK_LIFT_VEC(work, 5);
-        if (qdd == NULL) qdd = RACK_LIFT_VEC(work, 6);
-        if (lam == NULL) lam = RACK_LIFT_VEC(work, 7);
-        if (reactions == NULL) reactions = RACK_LIFT_VEC(work, 8);
+        rack_lift_real *qd_out = (qd != NULL) ? qd : RACK_LIFT_VEC(work, 5);
+        rack_lift_real *qdd_out = (qdd != NULL) ? qdd : RACK_LIFT_VEC(work, 6);
+        rack_lift_real *lam_out = (lam != NULL) ? lam : RACK_LIFT_VEC(work, 7);
+        rack_lift_real *reactions_out = (reactions != NULL) ? reactions : RACK_LIFT_VEC(work, 8);
         status = rack_lift_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == RACK_LIFT_OK) {
-            rack_lift_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!rack_lift_finite(q, qd, qdd, lam, reactions)) status = RACK_LIFT_NONFINITE;
+            rack_lift_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (rack_lift_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = RACK_LIFT_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != RACK_LIFT_OK) memcpy(q, kept, sizeof(rack_lift_real) * 6);
+        if (status != RACK_LIFT_OK) {
+            memcpy(q, kept, sizeof(rack_lift_real) * 6u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1244,21 +1324,29 @@ int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real 
 
 int rack_lift_screen_at(rack_lift_real t, const rack_lift_real *p, const rack_lift_real *state, rack_lift_real *work, int *iwork)
 {
-    rack_lift_real *tr, *pp, known[2];
+    rack_lift_real *tr;
+    rack_lift_real *pp;
+    rack_lift_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return RACK_LIFT_BAD_ARGUMENT;
-    if (!(state[42] > 0.0)) return RACK_LIFT_OK;  /* no scales: no screen */
-    tr = RACK_LIFT_VEC(work, 9), pp = work + RACK_LIFT_OFF_PREP;
+    }
+    if (!(state[42] > 0.0)) {
+        return RACK_LIFT_OK;  /* no scales: no screen */
+    }
+    tr = RACK_LIFT_VEC(work, 9);
+    pp = work + RACK_LIFT_OFF_PREP;
     rack_lift_prepare(p, pp);
     rack_lift_trig(state, tr);
-    if (rack_lift_factorize(state, tr, t, pp, work, iwork, &dense) != RACK_LIFT_OK)
+    if (rack_lift_factorize(state, tr, t, pp, work, iwork, &dense) != RACK_LIFT_OK) {
         return RACK_LIFT_ILL_CONDITIONED;
-    rack_lift_screen_known(state + 42, state + 36, known);
-    if (rack_lift_screen(work + RACK_LIFT_OFF_LU, dense, state + 42, state + 36, known)
-        && !(rack_lift_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 42, state + 36)
-             <= RACK_LIFT_COND_SCREEN))
+    }
+    rack_lift_screen_known(&state[42], &state[36], known);
+    if ((rack_lift_screen(work + RACK_LIFT_OFF_LU, dense, &state[42], &state[36], known) != 0)
+        && !(rack_lift_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[42], &state[36])
+             <= RACK_LIFT_COND_SCREEN)) {
         return RACK_LIFT_ILL_CONDITIONED;
+    }
     return RACK_LIFT_OK;
 }
 

@@ -926,48 +926,85 @@ static slider_crank_counterweight_real slider_crank_counterweight_cond_estimate(
                                     slider_crank_counterweight_real *work, const int *iwork, int dense, const slider_crank_counterweight_real *row,
                                     const slider_crank_counterweight_real *col)
 {
-    slider_crank_counterweight_real *vals = work, *x = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0), *z = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1), *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
-    slider_crank_counterweight_real *b = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    slider_crank_counterweight_real *vals = work;
+    slider_crank_counterweight_real *x = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0);
+    slider_crank_counterweight_real *z = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1);
+    slider_crank_counterweight_real *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
+    slider_crank_counterweight_real *b = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 3);
+    slider_crank_counterweight_real anorm = 0.0;
+    slider_crank_counterweight_real est = 0.0;
+    slider_crank_counterweight_real s;
+    slider_crank_counterweight_real zmax;
+    slider_crank_counterweight_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     slider_crank_counterweight_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 9; ++k) z[k] = 0.0;
-    for (k = 0; k < 21; ++k)
+    for (k = 0; k < 9; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 21; ++k) {
         z[slider_crank_counterweight_phi_q_cols[k]] += fabs(vals[k]) / (row[slider_crank_counterweight_phi_q_rows[k]] * col[slider_crank_counterweight_phi_q_cols[k]]);
-    for (k = 0; k < 9; ++k) anorm = SLIDER_CRANK_COUNTERWEIGHT_MAX(anorm, z[k]);
-    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        anorm = SLIDER_CRANK_COUNTERWEIGHT_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 9; ++k) {
+        x[k] = 1.0 / 9.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = row[k] * x[k];
+        }
         slider_crank_counterweight_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         slider_crank_counterweight_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 9; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 9; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (slider_crank_counterweight_real)k / SLIDER_CRANK_COUNTERWEIGHT_MAX(1.0, 8.0));
+    for (k = 0; k < 9; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((slider_crank_counterweight_real)k / SLIDER_CRANK_COUNTERWEIGHT_MAX(1.0, 8.0)));
+    }
     slider_crank_counterweight_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
-    est = SLIDER_CRANK_COUNTERWEIGHT_MAX(est, 2.0 * s / (3.0 * 9.0));
+    for (k = 0; k < 9; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = SLIDER_CRANK_COUNTERWEIGHT_MAX(est, (2.0 * s) / (3.0 * 9.0));
     return anorm * est;
 }
 
@@ -1093,17 +1130,28 @@ static slider_crank_counterweight_real slider_crank_counterweight_correct(slider
 static int slider_crank_counterweight_newton(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, slider_crank_counterweight_real tol, slider_crank_counterweight_real *q, slider_crank_counterweight_real *tr, int *info, slider_crank_counterweight_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    slider_crank_counterweight_real *r = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0), *dq = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1), *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
+    slider_crank_counterweight_real *r = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0);
+    slider_crank_counterweight_real *dq = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1);
+    slider_crank_counterweight_real *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
     slider_crank_counterweight_real *base = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 10);
-    slider_crank_counterweight_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    slider_crank_counterweight_real step = ((double)INFINITY);
+    slider_crank_counterweight_real lim;
+    slider_crank_counterweight_real qmag;
+    slider_crank_counterweight_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) slider_crank_counterweight_trig_near(q, tr, base);
-    else slider_crank_counterweight_trig_base(q, tr, base);
+    if (reuse != 0) {
+        slider_crank_counterweight_trig_near(q, tr, base);
+    } else {
+        slider_crank_counterweight_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_CRANK_COUNTERWEIGHT_MAX(1.0, slider_crank_counterweight_maxabs9(q));
-    lim = SLIDER_CRANK_COUNTERWEIGHT_MAX(tol, (slider_crank_counterweight_real)SLIDER_CRANK_COUNTERWEIGHT_FLOOR_ULPS * SLIDER_CRANK_COUNTERWEIGHT_EPS * qmag);
+    lim = SLIDER_CRANK_COUNTERWEIGHT_MAX(tol, ((slider_crank_counterweight_real)SLIDER_CRANK_COUNTERWEIGHT_FLOOR_ULPS * SLIDER_CRANK_COUNTERWEIGHT_EPS) * qmag);
     slider_crank_counterweight_phi_k(q, tr, t, p, r);
     rmax = slider_crank_counterweight_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1112,15 +1160,17 @@ static int slider_crank_counterweight_newton(slider_crank_counterweight_real t, 
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? SLIDER_CRANK_COUNTERWEIGHT_NONFINITE : SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
+            return (it == 0) ? SLIDER_CRANK_COUNTERWEIGHT_NONFINITE : SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK) {
+        if (it == SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK)) {
             info[0] = it;
             info[1] = *dense;
             return SLIDER_CRANK_COUNTERWEIGHT_SINGULAR;
@@ -1130,8 +1180,8 @@ static int slider_crank_counterweight_newton(slider_crank_counterweight_real t, 
         slider_crank_counterweight_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= SLIDER_CRANK_COUNTERWEIGHT_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (SLIDER_CRANK_COUNTERWEIGHT_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1143,8 +1193,10 @@ static int slider_crank_counterweight_newton(slider_crank_counterweight_real t, 
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
-    if (!current && slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK) {
+    if (converged == 0) {
+        return SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
+    }
+    if ((current == 0) && (slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK)) {
         info[1] = *dense;
         return SLIDER_CRANK_COUNTERWEIGHT_SINGULAR;
     }
@@ -1156,7 +1208,8 @@ static int slider_crank_counterweight_newton(slider_crank_counterweight_real t, 
 static void slider_crank_counterweight_outputs(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, const slider_crank_counterweight_real *q, const slider_crank_counterweight_real *tr, slider_crank_counterweight_real *qd, slider_crank_counterweight_real *qdd,
                             slider_crank_counterweight_real *lam, slider_crank_counterweight_real *reactions, slider_crank_counterweight_real *work, const int *iwork, int dense)
 {
-    slider_crank_counterweight_real *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2), *b = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 3);
+    slider_crank_counterweight_real *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
+    slider_crank_counterweight_real *b = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 3);
     slider_crank_counterweight_nu_k(q, tr, t, p, b);
     slider_crank_counterweight_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     slider_crank_counterweight_gamma_k(q, tr, qd, t, p, b);
@@ -1173,7 +1226,9 @@ static void slider_crank_counterweight_outputs(slider_crank_counterweight_real t
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_counterweight_solve_t(work, iwork, dense, b, lam);
-    if (slider_crank_counterweight_mixed(y)) slider_crank_counterweight_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (slider_crank_counterweight_mixed(y) != 0) {
+        slider_crank_counterweight_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     slider_crank_counterweight_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1215,12 +1270,24 @@ static int slider_crank_counterweight_finite(const slider_crank_counterweight_re
 static void slider_crank_counterweight_keep(slider_crank_counterweight_real *state, const slider_crank_counterweight_real *q, const slider_crank_counterweight_real *qd, const slider_crank_counterweight_real *qdd,
                          const slider_crank_counterweight_real *m1, const slider_crank_counterweight_real *m2, const slider_crank_counterweight_real *m3)
 {
-    if (m3 != state + 45) memcpy(state + 45, m3, sizeof(slider_crank_counterweight_real) * 9);
-    if (m2 != state + 36) memcpy(state + 36, m2, sizeof(slider_crank_counterweight_real) * 9);
-    if (m1 != state + 27) memcpy(state + 27, m1, sizeof(slider_crank_counterweight_real) * 9);
-    if (qdd != state + 18) memcpy(state + 18, qdd, sizeof(slider_crank_counterweight_real) * 9);
-    if (qd != state + 9) memcpy(state + 9, qd, sizeof(slider_crank_counterweight_real) * 9);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(slider_crank_counterweight_real) * 9);
+    if (m3 != state + 45) {
+        memcpy(state + 45, m3, sizeof(slider_crank_counterweight_real) * 9u);
+    }
+    if (m2 != state + 36) {
+        memcpy(state + 36, m2, sizeof(slider_crank_counterweight_real) * 9u);
+    }
+    if (m1 != state + 27) {
+        memcpy(state + 27, m1, sizeof(slider_crank_counterweight_real) * 9u);
+    }
+    if (qdd != state + 18) {
+        memcpy(state + 18, qdd, sizeof(slider_crank_counterweight_real) * 9u);
+    }
+    if (qd != state + 9) {
+        memcpy(state + 9, qd, sizeof(slider_crank_counterweight_real) * 9u);
+    }
+    if (q != state) {
+        memcpy(state, q, sizeof(slider_crank_counterweight_real) * 9u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1230,27 +1297,32 @@ static void slider_crank_counterweight_keep(slider_crank_counterweight_real *sta
 static int slider_crank_counterweight_unexplained(const slider_crank_counterweight_real *q0, const slider_crank_counterweight_real *qd0, const slider_crank_counterweight_real *qdd0, const slider_crank_counterweight_real *q1,
                                const slider_crank_counterweight_real *qd1, const slider_crank_counterweight_real *qdd1, slider_crank_counterweight_real h, const slider_crank_counterweight_real *c)
 {
-    const slider_crank_counterweight_real half = 0.5 * h, hh = h * h / 12.0;
-    slider_crank_counterweight_real mismatch = 0.0, motion = 0.0, d;
+    const slider_crank_counterweight_real half = 0.5 * h;
+    const slider_crank_counterweight_real hh = (h * h) / 12.0;
+    slider_crank_counterweight_real mismatch = 0.0;
+    slider_crank_counterweight_real motion = 0.0;
+    slider_crank_counterweight_real d;
     d = q1[0] - q0[0];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = SLIDER_CRANK_COUNTERWEIGHT_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1269,35 +1341,43 @@ static int slider_crank_counterweight_unexplained(const slider_crank_counterweig
     motion = SLIDER_CRANK_COUNTERWEIGHT_MAX(motion, fabs(d) * c[7]);
     d = q1[8] - q0[8];
     motion = SLIDER_CRANK_COUNTERWEIGHT_MAX(motion, fabs(d) * c[8]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int slider_crank_counterweight_instant(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, slider_crank_counterweight_real tol, slider_crank_counterweight_real *q, slider_crank_counterweight_real *qd, slider_crank_counterweight_real *qdd,
                     slider_crank_counterweight_real *lam, slider_crank_counterweight_real *reactions, int *info, slider_crank_counterweight_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = SLIDER_CRANK_COUNTERWEIGHT_BAD_ARGUMENT;
     } else {
-        slider_crank_counterweight_real *tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9), *pp = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP, *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
-        memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9);  /* the caller's guess, back in q if the call fails */
+        slider_crank_counterweight_real *tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9);
+        slider_crank_counterweight_real *pp = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP;
+        slider_crank_counterweight_real *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
+        memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_counterweight_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 5);
-        if (qdd == NULL) qdd = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 6);
-        if (lam == NULL) lam = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 7);
-        if (reactions == NULL) reactions = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 8);
+        slider_crank_counterweight_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 5);
+        slider_crank_counterweight_real *qdd_out = (qdd != NULL) ? qdd : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 6);
+        slider_crank_counterweight_real *lam_out = (lam != NULL) ? lam : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 7);
+        slider_crank_counterweight_real *reactions_out = (reactions != NULL) ? reactions : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 8);
         status = slider_crank_counterweight_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == SLIDER_CRANK_COUNTERWEIGHT_OK) {
-            slider_crank_counterweight_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!slider_crank_counterweight_finite(q, qd, qdd, lam, reactions)) status = SLIDER_CRANK_COUNTERWEIGHT_NONFINITE;
+            slider_crank_counterweight_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (slider_crank_counterweight_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = SLIDER_CRANK_COUNTERWEIGHT_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != SLIDER_CRANK_COUNTERWEIGHT_OK) memcpy(q, kept, sizeof(slider_crank_counterweight_real) * 9);
+        if (status != SLIDER_CRANK_COUNTERWEIGHT_OK) {
+            memcpy(q, kept, sizeof(slider_crank_counterweight_real) * 9u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1308,21 +1388,29 @@ int slider_crank_counterweight_instant(slider_crank_counterweight_real t, const 
 
 int slider_crank_counterweight_screen_at(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, const slider_crank_counterweight_real *state, slider_crank_counterweight_real *work, int *iwork)
 {
-    slider_crank_counterweight_real *tr, *pp, known[2];
+    slider_crank_counterweight_real *tr;
+    slider_crank_counterweight_real *pp;
+    slider_crank_counterweight_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return SLIDER_CRANK_COUNTERWEIGHT_BAD_ARGUMENT;
-    if (!(state[63] > 0.0)) return SLIDER_CRANK_COUNTERWEIGHT_OK;  /* no scales: no screen */
-    tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9), pp = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP;
+    }
+    if (!(state[63] > 0.0)) {
+        return SLIDER_CRANK_COUNTERWEIGHT_OK;  /* no scales: no screen */
+    }
+    tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9);
+    pp = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP;
     slider_crank_counterweight_prepare(p, pp);
     slider_crank_counterweight_trig(state, tr);
-    if (slider_crank_counterweight_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_CRANK_COUNTERWEIGHT_OK)
+    if (slider_crank_counterweight_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_CRANK_COUNTERWEIGHT_OK) {
         return SLIDER_CRANK_COUNTERWEIGHT_ILL_CONDITIONED;
-    slider_crank_counterweight_screen_known(state + 63, state + 54, known);
-    if (slider_crank_counterweight_screen(work + SLIDER_CRANK_COUNTERWEIGHT_OFF_LU, dense, state + 63, state + 54, known)
-        && !(slider_crank_counterweight_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
-             <= SLIDER_CRANK_COUNTERWEIGHT_COND_SCREEN))
+    }
+    slider_crank_counterweight_screen_known(&state[63], &state[54], known);
+    if ((slider_crank_counterweight_screen(work + SLIDER_CRANK_COUNTERWEIGHT_OFF_LU, dense, &state[63], &state[54], known) != 0)
+        && !(slider_crank_counterweight_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
+             <= SLIDER_CRANK_COUNTERWEIGHT_COND_SCREEN)) {
         return SLIDER_CRANK_COUNTERWEIGHT_ILL_CONDITIONED;
+    }
     return SLIDER_CRANK_COUNTERWEIGHT_OK;
 }
 

@@ -840,48 +840,85 @@ static slider_pendulum_real slider_pendulum_cond_estimate(const slider_pendulum_
                                     slider_pendulum_real *work, const int *iwork, int dense, const slider_pendulum_real *row,
                                     const slider_pendulum_real *col)
 {
-    slider_pendulum_real *vals = work, *x = SLIDER_PENDULUM_VEC(work, 0), *z = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
-    slider_pendulum_real *b = SLIDER_PENDULUM_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    slider_pendulum_real *vals = work;
+    slider_pendulum_real *x = SLIDER_PENDULUM_VEC(work, 0);
+    slider_pendulum_real *z = SLIDER_PENDULUM_VEC(work, 1);
+    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2);
+    slider_pendulum_real *b = SLIDER_PENDULUM_VEC(work, 3);
+    slider_pendulum_real anorm = 0.0;
+    slider_pendulum_real est = 0.0;
+    slider_pendulum_real s;
+    slider_pendulum_real zmax;
+    slider_pendulum_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     slider_pendulum_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 6; ++k) z[k] = 0.0;
-    for (k = 0; k < 15; ++k)
+    for (k = 0; k < 6; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 15; ++k) {
         z[slider_pendulum_phi_q_cols[k]] += fabs(vals[k]) / (row[slider_pendulum_phi_q_rows[k]] * col[slider_pendulum_phi_q_cols[k]]);
-    for (k = 0; k < 6; ++k) anorm = SLIDER_PENDULUM_MAX(anorm, z[k]);
-    for (k = 0; k < 6; ++k) x[k] = 1.0 / 6.0;
+    }
+    for (k = 0; k < 6; ++k) {
+        anorm = SLIDER_PENDULUM_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 6; ++k) {
+        x[k] = 1.0 / 6.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 6; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 6; ++k) {
+            b[k] = row[k] * x[k];
+        }
         slider_pendulum_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 6; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 6; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 6; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         slider_pendulum_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 6; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 6; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 6; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 6; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (slider_pendulum_real)k / SLIDER_PENDULUM_MAX(1.0, 5.0));
+    for (k = 0; k < 6; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((slider_pendulum_real)k / SLIDER_PENDULUM_MAX(1.0, 5.0)));
+    }
     slider_pendulum_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 6; ++k) s += fabs(z[k] * col[k]);
-    est = SLIDER_PENDULUM_MAX(est, 2.0 * s / (3.0 * 6.0));
+    for (k = 0; k < 6; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = SLIDER_PENDULUM_MAX(est, (2.0 * s) / (3.0 * 6.0));
     return anorm * est;
 }
 
@@ -1080,17 +1117,28 @@ static slider_pendulum_real slider_pendulum_correct(slider_pendulum_real *q, sli
 static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *q, slider_pendulum_real *tr, int *info, slider_pendulum_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    slider_pendulum_real *r = SLIDER_PENDULUM_VEC(work, 0), *dq = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
+    slider_pendulum_real *r = SLIDER_PENDULUM_VEC(work, 0);
+    slider_pendulum_real *dq = SLIDER_PENDULUM_VEC(work, 1);
+    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2);
     slider_pendulum_real *base = SLIDER_PENDULUM_VEC(work, 10);
-    slider_pendulum_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    slider_pendulum_real step = ((double)INFINITY);
+    slider_pendulum_real lim;
+    slider_pendulum_real qmag;
+    slider_pendulum_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) slider_pendulum_trig_near(q, tr, base);
-    else slider_pendulum_trig_base(q, tr, base);
+    if (reuse != 0) {
+        slider_pendulum_trig_near(q, tr, base);
+    } else {
+        slider_pendulum_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_PENDULUM_MAX(1.0, slider_pendulum_maxabs6(q));
-    lim = SLIDER_PENDULUM_MAX(tol, (slider_pendulum_real)SLIDER_PENDULUM_FLOOR_ULPS * SLIDER_PENDULUM_EPS * qmag);
+    lim = SLIDER_PENDULUM_MAX(tol, ((slider_pendulum_real)SLIDER_PENDULUM_FLOOR_ULPS * SLIDER_PENDULUM_EPS) * qmag);
     slider_pendulum_phi_k(q, tr, t, p, r);
     rmax = slider_pendulum_maxabs6(r);
     for (it = 0;; ++it) {
@@ -1099,15 +1147,17 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? SLIDER_PENDULUM_NONFINITE : SLIDER_PENDULUM_NOT_CONVERGED;
+            return (it == 0) ? SLIDER_PENDULUM_NONFINITE : SLIDER_PENDULUM_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == SLIDER_PENDULUM_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK) {
+        if (it == SLIDER_PENDULUM_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK)) {
             info[0] = it;
             info[1] = *dense;
             return SLIDER_PENDULUM_SINGULAR;
@@ -1117,8 +1167,8 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
         slider_pendulum_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= SLIDER_PENDULUM_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (SLIDER_PENDULUM_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1130,8 +1180,10 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return SLIDER_PENDULUM_NOT_CONVERGED;
-    if (!current && slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK) {
+    if (converged == 0) {
+        return SLIDER_PENDULUM_NOT_CONVERGED;
+    }
+    if ((current == 0) && (slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK)) {
         info[1] = *dense;
         return SLIDER_PENDULUM_SINGULAR;
     }
@@ -1143,7 +1195,8 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
 static void slider_pendulum_outputs(slider_pendulum_real t, const slider_pendulum_real *p, const slider_pendulum_real *q, const slider_pendulum_real *tr, slider_pendulum_real *qd, slider_pendulum_real *qdd,
                             slider_pendulum_real *lam, slider_pendulum_real *reactions, slider_pendulum_real *work, const int *iwork, int dense)
 {
-    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2), *b = SLIDER_PENDULUM_VEC(work, 3);
+    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2);
+    slider_pendulum_real *b = SLIDER_PENDULUM_VEC(work, 3);
     slider_pendulum_nu_k(q, tr, t, p, b);
     slider_pendulum_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     slider_pendulum_gamma_k(q, tr, qd, t, p, b);
@@ -1157,7 +1210,9 @@ static void slider_pendulum_outputs(slider_pendulum_real t, const slider_pendulu
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     slider_pendulum_solve_t(work, iwork, dense, b, lam);
-    if (slider_pendulum_mixed(y)) slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (slider_pendulum_mixed(y) != 0) {
+        slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1199,12 +1254,24 @@ static int slider_pendulum_finite(const slider_pendulum_real *q, const slider_pe
 static void slider_pendulum_keep(slider_pendulum_real *state, const slider_pendulum_real *q, const slider_pendulum_real *qd, const slider_pendulum_real *qdd,
                          const slider_pendulum_real *m1, const slider_pendulum_real *m2, const slider_pendulum_real *m3)
 {
-    if (m3 != state + 30) memcpy(state + 30, m3, sizeof(slider_pendulum_real) * 6);
-    if (m2 != state + 24) memcpy(state + 24, m2, sizeof(slider_pendulum_real) * 6);
-    if (m1 != state + 18) memcpy(state + 18, m1, sizeof(slider_pendulum_real) * 6);
-    if (qdd != state + 12) memcpy(state + 12, qdd, sizeof(slider_pendulum_real) * 6);
-    if (qd != state + 6) memcpy(state + 6, qd, sizeof(slider_pendulum_real) * 6);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(slider_pendulum_real) * 6);
+    if (m3 != state + 30) {
+        memcpy(state + 30, m3, sizeof(slider_pendulum_real) * 6u);
+    }
+    if (m2 != state + 24) {
+        memcpy(state + 24, m2, sizeof(slider_pendulum_real) * 6u);
+    }
+    if (m1 != state + 18) {
+        memcpy(state + 18, m1, sizeof(slider_pendulum_real) * 6u);
+    }
+    if (qdd != state + 12) {
+        memcpy(state + 12, qdd, sizeof(slider_pendulum_real) * 6u);
+    }
+    if (qd != state + 6) {
+        memcpy(state + 6, qd, sizeof(slider_pendulum_real) * 6u);
+    }
+    if (q != state) {
+        memcpy(state, q, sizeof(slider_pendulum_real) * 6u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1214,21 +1281,26 @@ static void slider_pendulum_keep(slider_pendulum_real *state, const slider_pendu
 static int slider_pendulum_unexplained(const slider_pendulum_real *q0, const slider_pendulum_real *qd0, const slider_pendulum_real *qdd0, const slider_pendulum_real *q1,
                                const slider_pendulum_real *qd1, const slider_pendulum_real *qdd1, slider_pendulum_real h, const slider_pendulum_real *c)
 {
-    const slider_pendulum_real half = 0.5 * h, hh = h * h / 12.0;
-    slider_pendulum_real mismatch = 0.0, motion = 0.0, d;
+    const slider_pendulum_real half = 0.5 * h;
+    const slider_pendulum_real hh = (h * h) / 12.0;
+    slider_pendulum_real mismatch = 0.0;
+    slider_pendulum_real motion = 0.0;
+    slider_pendulum_real d;
     d = q1[0] - q0[0];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1241,35 +1313,43 @@ static int slider_pendulum_unexplained(const slider_pendulum_real *q0, const sli
     motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[4]);
     d = q1[5] - q0[5];
     motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[5]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *q, slider_pendulum_real *qd, slider_pendulum_real *qdd,
                     slider_pendulum_real *lam, slider_pendulum_real *reactions, int *info, slider_pendulum_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = SLIDER_PENDULUM_BAD_ARGUMENT;
     } else {
-        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9), *pp = work + SLIDER_PENDULUM_OFF_PREP, *kept = SLIDER_PENDULUM_VEC(work, 11);
-        memcpy(kept, q, sizeof(slider_pendulum_real) * 6);  /* the caller's guess, back in q if the call fails */
+        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9);
+        slider_pendulum_real *pp = work + SLIDER_PENDULUM_OFF_PREP;
+        slider_pendulum_real *kept = SLIDER_PENDULUM_VEC(work, 11);
+        memcpy(kept, q, sizeof(slider_pendulum_real) * 6u);  /* the caller's guess, back in q if the call fails */
         slider_pendulum_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = SLIDER_PENDULUM_VEC(work, 5);
-        if (qdd == NULL) qdd = SLIDER_PENDULUM_VEC(work, 6);
-        if (lam == NULL) lam = SLIDER_PENDULUM_VEC(work, 7);
-        if (reactions == NULL) reactions = SLIDER_PENDULUM_VEC(work, 8);
+        slider_pendulum_real *qd_out = (qd != NULL) ? qd : SLIDER_PENDULUM_VEC(work, 5);
+        slider_pendulum_real *qdd_out = (qdd != NULL) ? qdd : SLIDER_PENDULUM_VEC(work, 6);
+        slider_pendulum_real *lam_out = (lam != NULL) ? lam : SLIDER_PENDULUM_VEC(work, 7);
+        slider_pendulum_real *reactions_out = (reactions != NULL) ? reactions : SLIDER_PENDULUM_VEC(work, 8);
         status = slider_pendulum_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == SLIDER_PENDULUM_OK) {
-            slider_pendulum_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!slider_pendulum_finite(q, qd, qdd, lam, reactions)) status = SLIDER_PENDULUM_NONFINITE;
+            slider_pendulum_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (slider_pendulum_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = SLIDER_PENDULUM_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != SLIDER_PENDULUM_OK) memcpy(q, kept, sizeof(slider_pendulum_real) * 6);
+        if (status != SLIDER_PENDULUM_OK) {
+            memcpy(q, kept, sizeof(slider_pendulum_real) * 6u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1280,21 +1360,29 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
 
 int slider_pendulum_screen_at(slider_pendulum_real t, const slider_pendulum_real *p, const slider_pendulum_real *state, slider_pendulum_real *work, int *iwork)
 {
-    slider_pendulum_real *tr, *pp, known[2];
+    slider_pendulum_real *tr;
+    slider_pendulum_real *pp;
+    slider_pendulum_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return SLIDER_PENDULUM_BAD_ARGUMENT;
-    if (!(state[42] > 0.0)) return SLIDER_PENDULUM_OK;  /* no scales: no screen */
-    tr = SLIDER_PENDULUM_VEC(work, 9), pp = work + SLIDER_PENDULUM_OFF_PREP;
+    }
+    if (!(state[42] > 0.0)) {
+        return SLIDER_PENDULUM_OK;  /* no scales: no screen */
+    }
+    tr = SLIDER_PENDULUM_VEC(work, 9);
+    pp = work + SLIDER_PENDULUM_OFF_PREP;
     slider_pendulum_prepare(p, pp);
     slider_pendulum_trig(state, tr);
-    if (slider_pendulum_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_PENDULUM_OK)
+    if (slider_pendulum_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_PENDULUM_OK) {
         return SLIDER_PENDULUM_ILL_CONDITIONED;
-    slider_pendulum_screen_known(state + 42, state + 36, known);
-    if (slider_pendulum_screen(work + SLIDER_PENDULUM_OFF_LU, dense, state + 42, state + 36, known)
-        && !(slider_pendulum_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 42, state + 36)
-             <= SLIDER_PENDULUM_COND_SCREEN))
+    }
+    slider_pendulum_screen_known(&state[42], &state[36], known);
+    if ((slider_pendulum_screen(work + SLIDER_PENDULUM_OFF_LU, dense, &state[42], &state[36], known) != 0)
+        && !(slider_pendulum_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[42], &state[36])
+             <= SLIDER_PENDULUM_COND_SCREEN)) {
         return SLIDER_PENDULUM_ILL_CONDITIONED;
+    }
     return SLIDER_PENDULUM_OK;
 }
 
