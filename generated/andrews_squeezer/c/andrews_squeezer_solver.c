@@ -43,7 +43,7 @@ typedef char andrews_squeezer_real_must_have_the_size_of_double[sizeof(andrews_s
 #define ANDREWS_SQUEEZER_OFF_LU 65
 #define ANDREWS_SQUEEZER_OFF_DENSE (ANDREWS_SQUEEZER_OFF_LU + ANDREWS_SQUEEZER_LU_SIZE)
 #define ANDREWS_SQUEEZER_OFF_VEC (ANDREWS_SQUEEZER_OFF_DENSE + 441)
-#define ANDREWS_SQUEEZER_VEC(work, k) (((work) + ANDREWS_SQUEEZER_OFF_VEC) + ((k) * 66))
+#define ANDREWS_SQUEEZER_VEC(work, k) (&(work)[ANDREWS_SQUEEZER_OFF_VEC + ((k) * 66)])
 #define ANDREWS_SQUEEZER_OFF_PREP 1368  /* the prepared parameters (NPP), after the vectors */
 #define ANDREWS_SQUEEZER_NPP 59
 
@@ -483,7 +483,7 @@ static void andrews_squeezer_trig_step(const andrews_squeezer_real *q, const and
    evaluation. The kernels read both from this one vector. */
 static void andrews_squeezer_prepare(const andrews_squeezer_real *p, andrews_squeezer_real *pp)
 {
-    memcpy(pp, p, sizeof(andrews_squeezer_real) * 44);
+    (void)memcpy(pp, p, sizeof(andrews_squeezer_real) * 44u);
     {
         const andrews_squeezer_real e0 = (2*3.141592653589793*p[43]);
         const andrews_squeezer_real e1 = (1.0/p[42]);
@@ -1118,7 +1118,7 @@ static void andrews_squeezer_sparse_solve_in(const andrews_squeezer_real *lu, an
 
 static void andrews_squeezer_sparse_solve(const andrews_squeezer_real *lu, const andrews_squeezer_real *b, andrews_squeezer_real *x, andrews_squeezer_real *y)
 {
-    memcpy(y, b, sizeof(andrews_squeezer_real) * 21);
+    (void)memcpy(y, b, sizeof(andrews_squeezer_real) * 21u);
     andrews_squeezer_sparse_solve_in(lu, y, x);
 }
 
@@ -1231,7 +1231,7 @@ static void andrews_squeezer_dense_solve(const andrews_squeezer_real *a, const i
     const int n = 21;
     int i;
     int j;
-    memcpy(x, b, sizeof(andrews_squeezer_real) * 21u);
+    (void)memcpy(x, b, sizeof(andrews_squeezer_real) * 21u);
     for (i = 0; i < n; ++i) {
         andrews_squeezer_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -1253,7 +1253,7 @@ static void andrews_squeezer_dense_solve_t(const andrews_squeezer_real *a, const
     const int n = 21;
     int i;
     int j;
-    memcpy(x, b, sizeof(andrews_squeezer_real) * 21u);
+    (void)memcpy(x, b, sizeof(andrews_squeezer_real) * 21u);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) {
             x[i] -= a[(j * n) + i] * x[j];
@@ -1401,14 +1401,14 @@ static int andrews_squeezer_factorize(const andrews_squeezer_real *q, const andr
     andrews_squeezer_real *a = work + ANDREWS_SQUEEZER_OFF_DENSE;
     int k;
     andrews_squeezer_phi_q_k(q, tr, t, p, lu);
-    memset(lu + 65, 0, sizeof(andrews_squeezer_real) * (ANDREWS_SQUEEZER_LU_SIZE - 65));
+    (void)memset(lu + 65, 0, sizeof(andrews_squeezer_real) * (ANDREWS_SQUEEZER_LU_SIZE - 65));
     *dense = 0;
     if ((andrews_squeezer_sparse_factor(lu) == 0) && (andrews_squeezer_pivots_spread(lu) == 0)) {
         return ANDREWS_SQUEEZER_OK;
     }
     *dense = 1;
     andrews_squeezer_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(andrews_squeezer_real) * 441u);
+    (void)memset(a, 0, sizeof(andrews_squeezer_real) * 441u);
     for (k = 0; k < 65; ++k) {
         a[(andrews_squeezer_phi_q_rows[k] * 21) + andrews_squeezer_phi_q_cols[k]] = values[k];
     }
@@ -1485,7 +1485,7 @@ static ANDREWS_SQUEEZER_COLD void andrews_squeezer_refine_t(const andrews_squeez
     andrews_squeezer_real *d = ANDREWS_SQUEEZER_VEC(work, 1);
     int k;
     andrews_squeezer_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(andrews_squeezer_real) * 21u);
+    (void)memcpy(r, b, sizeof(andrews_squeezer_real) * 21u);
     for (k = 0; k < 65; ++k) {
         r[andrews_squeezer_phi_q_cols[k]] -= values[k] * lam[andrews_squeezer_phi_q_rows[k]];
     }
@@ -1940,22 +1940,22 @@ static void andrews_squeezer_keep(andrews_squeezer_real *state, const andrews_sq
                          const andrews_squeezer_real *m1, const andrews_squeezer_real *m2, const andrews_squeezer_real *m3)
 {
     if (m3 != state + 105) {
-        memcpy(state + 105, m3, sizeof(andrews_squeezer_real) * 21u);
+        (void)memcpy(state + 105, m3, sizeof(andrews_squeezer_real) * 21u);
     }
     if (m2 != state + 84) {
-        memcpy(state + 84, m2, sizeof(andrews_squeezer_real) * 21u);
+        (void)memcpy(state + 84, m2, sizeof(andrews_squeezer_real) * 21u);
     }
     if (m1 != state + 63) {
-        memcpy(state + 63, m1, sizeof(andrews_squeezer_real) * 21u);
+        (void)memcpy(state + 63, m1, sizeof(andrews_squeezer_real) * 21u);
     }
     if (qdd != state + 42) {
-        memcpy(state + 42, qdd, sizeof(andrews_squeezer_real) * 21u);
+        (void)memcpy(state + 42, qdd, sizeof(andrews_squeezer_real) * 21u);
     }
     if (qd != state + 21) {
-        memcpy(state + 21, qd, sizeof(andrews_squeezer_real) * 21u);
+        (void)memcpy(state + 21, qd, sizeof(andrews_squeezer_real) * 21u);
     }
     if (q != state) {
-        memcpy(state, q, sizeof(andrews_squeezer_real) * 21u);
+        (void)memcpy(state, q, sizeof(andrews_squeezer_real) * 21u);
     }
 }
 
@@ -2075,7 +2075,7 @@ int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_rea
         andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9);
         andrews_squeezer_real *pp = work + ANDREWS_SQUEEZER_OFF_PREP;
         andrews_squeezer_real *kept = ANDREWS_SQUEEZER_VEC(work, 11);
-        memcpy(kept, q, sizeof(andrews_squeezer_real) * 21u);  /* the caller's guess, back in q if the call fails */
+        (void)memcpy(kept, q, sizeof(andrews_squeezer_real) * 21u);  /* the caller's guess, back in q if the call fails */
         andrews_squeezer_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -2093,7 +2093,7 @@ int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_rea
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
         if (status != ANDREWS_SQUEEZER_OK) {
-            memcpy(q, kept, sizeof(andrews_squeezer_real) * 21u);
+            (void)memcpy(q, kept, sizeof(andrews_squeezer_real) * 21u);
         }
     }
     if (info != NULL) {
@@ -2234,7 +2234,7 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
             qn[19] = q[19] + h * (qd[19] + 0.5 * h * qdd[19]);
             qn[20] = q[20] + h * (qd[20] + 0.5 * h * qdd[20]);
         } else
-            memcpy(qn, q, sizeof(andrews_squeezer_real) * 21);
+            (void)memcpy(qn, q, sizeof(andrews_squeezer_real) * 21u);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = andrews_squeezer_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -2505,14 +2505,14 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const andrews_squeezer_real *s = snap + (v - first) * ANDREWS_SQUEEZER_SNAP;
-            memcpy(state, s, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_STATE);
-            memcpy(fig, s + ANDREWS_SQUEEZER_STATE, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_SWEEP_FIGURES);
-            memcpy(acc, s + ANDREWS_SQUEEZER_STATE + ANDREWS_SQUEEZER_SWEEP_FIGURES, sizeof(andrews_squeezer_real) * 5);
+            (void)memcpy(state, s, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_STATE);
+            (void)memcpy(fig, s + ANDREWS_SQUEEZER_STATE, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_SWEEP_FIGURES);
+            (void)memcpy(acc, s + ANDREWS_SQUEEZER_STATE + ANDREWS_SQUEEZER_SWEEP_FIGURES, sizeof(andrews_squeezer_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_STATE);
+            (void)memset(state, 0, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_STATE);
             andrews_squeezer_guess(pv, state);
             done = 0;
         }

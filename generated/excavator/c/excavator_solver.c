@@ -43,7 +43,7 @@ typedef char excavator_real_must_have_the_size_of_double[sizeof(excavator_real) 
 #define EXCAVATOR_OFF_LU 35
 #define EXCAVATOR_OFF_DENSE (EXCAVATOR_OFF_LU + EXCAVATOR_LU_SIZE)
 #define EXCAVATOR_OFF_VEC (EXCAVATOR_OFF_DENSE + 81)
-#define EXCAVATOR_VEC(work, k) (((work) + EXCAVATOR_OFF_VEC) + ((k) * 36))
+#define EXCAVATOR_VEC(work, k) (&(work)[EXCAVATOR_OFF_VEC + ((k) * 36)])
 #define EXCAVATOR_OFF_PREP 583  /* the prepared parameters (NPP), after the vectors */
 #define EXCAVATOR_NPP 41
 
@@ -281,7 +281,7 @@ static excavator_real excavator_powi(excavator_real x, int n)
    evaluation. The kernels read both from this one vector. */
 static void excavator_prepare(const excavator_real *p, excavator_real *pp)
 {
-    memcpy(pp, p, sizeof(excavator_real) * 17);
+    (void)memcpy(pp, p, sizeof(excavator_real) * 17u);
     {
         const excavator_real e0 = (2*3.141592653589793/p[7]);
         const excavator_real e1 = (1.0/2.0)*p[1];
@@ -878,7 +878,7 @@ static void excavator_sparse_solve_in(const excavator_real *lu, excavator_real *
 
 static void excavator_sparse_solve(const excavator_real *lu, const excavator_real *b, excavator_real *x, excavator_real *y)
 {
-    memcpy(y, b, sizeof(excavator_real) * 9);
+    (void)memcpy(y, b, sizeof(excavator_real) * 9u);
     excavator_sparse_solve_in(lu, y, x);
 }
 
@@ -971,7 +971,7 @@ static void excavator_dense_solve(const excavator_real *a, const int *perm, cons
     const int n = 9;
     int i;
     int j;
-    memcpy(x, b, sizeof(excavator_real) * 9u);
+    (void)memcpy(x, b, sizeof(excavator_real) * 9u);
     for (i = 0; i < n; ++i) {
         excavator_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -993,7 +993,7 @@ static void excavator_dense_solve_t(const excavator_real *a, const int *perm, co
     const int n = 9;
     int i;
     int j;
-    memcpy(x, b, sizeof(excavator_real) * 9u);
+    (void)memcpy(x, b, sizeof(excavator_real) * 9u);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) {
             x[i] -= a[(j * n) + i] * x[j];
@@ -1111,7 +1111,7 @@ static int excavator_factorize(const excavator_real *q, const excavator_real *tr
     }
     *dense = 1;
     excavator_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(excavator_real) * 81u);
+    (void)memset(a, 0, sizeof(excavator_real) * 81u);
     for (k = 0; k < 35; ++k) {
         a[(excavator_phi_q_rows[k] * 9) + excavator_phi_q_cols[k]] = values[k];
     }
@@ -1180,7 +1180,7 @@ static EXCAVATOR_COLD void excavator_refine_t(const excavator_real *q, const exc
     excavator_real *d = EXCAVATOR_VEC(work, 1);
     int k;
     excavator_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(excavator_real) * 9u);
+    (void)memcpy(r, b, sizeof(excavator_real) * 9u);
     for (k = 0; k < 35; ++k) {
         r[excavator_phi_q_cols[k]] -= values[k] * lam[excavator_phi_q_rows[k]];
     }
@@ -1547,22 +1547,22 @@ static void excavator_keep(excavator_real *state, const excavator_real *q, const
                          const excavator_real *m1, const excavator_real *m2, const excavator_real *m3)
 {
     if (m3 != state + 45) {
-        memcpy(state + 45, m3, sizeof(excavator_real) * 9u);
+        (void)memcpy(state + 45, m3, sizeof(excavator_real) * 9u);
     }
     if (m2 != state + 36) {
-        memcpy(state + 36, m2, sizeof(excavator_real) * 9u);
+        (void)memcpy(state + 36, m2, sizeof(excavator_real) * 9u);
     }
     if (m1 != state + 27) {
-        memcpy(state + 27, m1, sizeof(excavator_real) * 9u);
+        (void)memcpy(state + 27, m1, sizeof(excavator_real) * 9u);
     }
     if (qdd != state + 18) {
-        memcpy(state + 18, qdd, sizeof(excavator_real) * 9u);
+        (void)memcpy(state + 18, qdd, sizeof(excavator_real) * 9u);
     }
     if (qd != state + 9) {
-        memcpy(state + 9, qd, sizeof(excavator_real) * 9u);
+        (void)memcpy(state + 9, qd, sizeof(excavator_real) * 9u);
     }
     if (q != state) {
-        memcpy(state, q, sizeof(excavator_real) * 9u);
+        (void)memcpy(state, q, sizeof(excavator_real) * 9u);
     }
 }
 
@@ -1634,7 +1634,7 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
         excavator_real *tr = EXCAVATOR_VEC(work, 9);
         excavator_real *pp = work + EXCAVATOR_OFF_PREP;
         excavator_real *kept = EXCAVATOR_VEC(work, 11);
-        memcpy(kept, q, sizeof(excavator_real) * 9u);  /* the caller's guess, back in q if the call fails */
+        (void)memcpy(kept, q, sizeof(excavator_real) * 9u);  /* the caller's guess, back in q if the call fails */
         excavator_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1652,7 +1652,7 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
         if (status != EXCAVATOR_OK) {
-            memcpy(q, kept, sizeof(excavator_real) * 9u);
+            (void)memcpy(q, kept, sizeof(excavator_real) * 9u);
         }
     }
     if (info != NULL) {
@@ -1757,7 +1757,7 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
             qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
             qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
         } else
-            memcpy(qn, q, sizeof(excavator_real) * 9);
+            (void)memcpy(qn, q, sizeof(excavator_real) * 9u);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = excavator_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -2023,14 +2023,14 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const excavator_real *s = snap + (v - first) * EXCAVATOR_SNAP;
-            memcpy(state, s, sizeof(excavator_real) * EXCAVATOR_STATE);
-            memcpy(fig, s + EXCAVATOR_STATE, sizeof(excavator_real) * EXCAVATOR_SWEEP_FIGURES);
-            memcpy(acc, s + EXCAVATOR_STATE + EXCAVATOR_SWEEP_FIGURES, sizeof(excavator_real) * 11);
+            (void)memcpy(state, s, sizeof(excavator_real) * EXCAVATOR_STATE);
+            (void)memcpy(fig, s + EXCAVATOR_STATE, sizeof(excavator_real) * EXCAVATOR_SWEEP_FIGURES);
+            (void)memcpy(acc, s + EXCAVATOR_STATE + EXCAVATOR_SWEEP_FIGURES, sizeof(excavator_real) * 11u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(excavator_real) * EXCAVATOR_STATE);
+            (void)memset(state, 0, sizeof(excavator_real) * EXCAVATOR_STATE);
             excavator_guess(pv, state);
             done = 0;
         }

@@ -43,7 +43,7 @@ typedef char four_bar_real_must_have_the_size_of_double[sizeof(four_bar_real) ==
 #define FOUR_BAR_OFF_LU 25
 #define FOUR_BAR_OFF_DENSE (FOUR_BAR_OFF_LU + FOUR_BAR_LU_SIZE)
 #define FOUR_BAR_OFF_VEC (FOUR_BAR_OFF_DENSE + 81)
-#define FOUR_BAR_VEC(work, k) (((work) + FOUR_BAR_OFF_VEC) + ((k) * 30))
+#define FOUR_BAR_VEC(work, k) (&(work)[FOUR_BAR_OFF_VEC + ((k) * 30)])
 #define FOUR_BAR_OFF_PREP 491  /* the prepared parameters (NPP), after the vectors */
 #define FOUR_BAR_NPP 19
 
@@ -267,7 +267,7 @@ static void four_bar_trig_step(const four_bar_real *q, const four_bar_real *dq, 
    evaluation. The kernels read both from this one vector. */
 static void four_bar_prepare(const four_bar_real *p, four_bar_real *pp)
 {
-    memcpy(pp, p, sizeof(four_bar_real) * 15);
+    (void)memcpy(pp, p, sizeof(four_bar_real) * 15u);
     {
         pp[15] = (2*3.141592653589793*p[9]);
         pp[16] = (1.0/12.0)*(p[1]*p[1])*p[4];
@@ -638,7 +638,7 @@ static void four_bar_sparse_solve_in(const four_bar_real *lu, four_bar_real *y, 
 
 static void four_bar_sparse_solve(const four_bar_real *lu, const four_bar_real *b, four_bar_real *x, four_bar_real *y)
 {
-    memcpy(y, b, sizeof(four_bar_real) * 9);
+    (void)memcpy(y, b, sizeof(four_bar_real) * 9u);
     four_bar_sparse_solve_in(lu, y, x);
 }
 
@@ -724,7 +724,7 @@ static void four_bar_dense_solve(const four_bar_real *a, const int *perm, const 
     const int n = 9;
     int i;
     int j;
-    memcpy(x, b, sizeof(four_bar_real) * 9u);
+    (void)memcpy(x, b, sizeof(four_bar_real) * 9u);
     for (i = 0; i < n; ++i) {
         four_bar_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -746,7 +746,7 @@ static void four_bar_dense_solve_t(const four_bar_real *a, const int *perm, cons
     const int n = 9;
     int i;
     int j;
-    memcpy(x, b, sizeof(four_bar_real) * 9u);
+    (void)memcpy(x, b, sizeof(four_bar_real) * 9u);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) {
             x[i] -= a[(j * n) + i] * x[j];
@@ -864,7 +864,7 @@ static int four_bar_factorize(const four_bar_real *q, const four_bar_real *tr, f
     }
     *dense = 1;
     four_bar_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(four_bar_real) * 81u);
+    (void)memset(a, 0, sizeof(four_bar_real) * 81u);
     for (k = 0; k < 25; ++k) {
         a[(four_bar_phi_q_rows[k] * 9) + four_bar_phi_q_cols[k]] = values[k];
     }
@@ -933,7 +933,7 @@ static FOUR_BAR_COLD void four_bar_refine_t(const four_bar_real *q, const four_b
     four_bar_real *d = FOUR_BAR_VEC(work, 1);
     int k;
     four_bar_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(four_bar_real) * 9u);
+    (void)memcpy(r, b, sizeof(four_bar_real) * 9u);
     for (k = 0; k < 25; ++k) {
         r[four_bar_phi_q_cols[k]] -= values[k] * lam[four_bar_phi_q_rows[k]];
     }
@@ -1304,22 +1304,22 @@ static void four_bar_keep(four_bar_real *state, const four_bar_real *q, const fo
                          const four_bar_real *m1, const four_bar_real *m2, const four_bar_real *m3)
 {
     if (m3 != state + 45) {
-        memcpy(state + 45, m3, sizeof(four_bar_real) * 9u);
+        (void)memcpy(state + 45, m3, sizeof(four_bar_real) * 9u);
     }
     if (m2 != state + 36) {
-        memcpy(state + 36, m2, sizeof(four_bar_real) * 9u);
+        (void)memcpy(state + 36, m2, sizeof(four_bar_real) * 9u);
     }
     if (m1 != state + 27) {
-        memcpy(state + 27, m1, sizeof(four_bar_real) * 9u);
+        (void)memcpy(state + 27, m1, sizeof(four_bar_real) * 9u);
     }
     if (qdd != state + 18) {
-        memcpy(state + 18, qdd, sizeof(four_bar_real) * 9u);
+        (void)memcpy(state + 18, qdd, sizeof(four_bar_real) * 9u);
     }
     if (qd != state + 9) {
-        memcpy(state + 9, qd, sizeof(four_bar_real) * 9u);
+        (void)memcpy(state + 9, qd, sizeof(four_bar_real) * 9u);
     }
     if (q != state) {
-        memcpy(state, q, sizeof(four_bar_real) * 9u);
+        (void)memcpy(state, q, sizeof(four_bar_real) * 9u);
     }
 }
 
@@ -1391,7 +1391,7 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
         four_bar_real *tr = FOUR_BAR_VEC(work, 9);
         four_bar_real *pp = work + FOUR_BAR_OFF_PREP;
         four_bar_real *kept = FOUR_BAR_VEC(work, 11);
-        memcpy(kept, q, sizeof(four_bar_real) * 9u);  /* the caller's guess, back in q if the call fails */
+        (void)memcpy(kept, q, sizeof(four_bar_real) * 9u);  /* the caller's guess, back in q if the call fails */
         four_bar_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1409,7 +1409,7 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
         if (status != FOUR_BAR_OK) {
-            memcpy(q, kept, sizeof(four_bar_real) * 9u);
+            (void)memcpy(q, kept, sizeof(four_bar_real) * 9u);
         }
     }
     if (info != NULL) {
@@ -1514,7 +1514,7 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
             qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
             qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
         } else
-            memcpy(qn, q, sizeof(four_bar_real) * 9);
+            (void)memcpy(qn, q, sizeof(four_bar_real) * 9u);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = four_bar_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -1735,14 +1735,14 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const four_bar_real *s = snap + (v - first) * FOUR_BAR_SNAP;
-            memcpy(state, s, sizeof(four_bar_real) * FOUR_BAR_STATE);
-            memcpy(fig, s + FOUR_BAR_STATE, sizeof(four_bar_real) * FOUR_BAR_SWEEP_FIGURES);
-            memcpy(acc, s + FOUR_BAR_STATE + FOUR_BAR_SWEEP_FIGURES, sizeof(four_bar_real) * 5);
+            (void)memcpy(state, s, sizeof(four_bar_real) * FOUR_BAR_STATE);
+            (void)memcpy(fig, s + FOUR_BAR_STATE, sizeof(four_bar_real) * FOUR_BAR_SWEEP_FIGURES);
+            (void)memcpy(acc, s + FOUR_BAR_STATE + FOUR_BAR_SWEEP_FIGURES, sizeof(four_bar_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(four_bar_real) * FOUR_BAR_STATE);
+            (void)memset(state, 0, sizeof(four_bar_real) * FOUR_BAR_STATE);
             four_bar_guess(pv, state);
             done = 0;
         }

@@ -43,7 +43,7 @@ typedef char planetary_real_must_have_the_size_of_double[sizeof(planetary_real) 
 #define PLANETARY_OFF_LU 20
 #define PLANETARY_OFF_DENSE (PLANETARY_OFF_LU + PLANETARY_LU_SIZE)
 #define PLANETARY_OFF_VEC (PLANETARY_OFF_DENSE + 144)
-#define PLANETARY_VEC(work, k) (((work) + PLANETARY_OFF_VEC) + ((k) * 51))
+#define PLANETARY_VEC(work, k) (&(work)[PLANETARY_OFF_VEC + ((k) * 51)])
 #define PLANETARY_OFF_PREP 796  /* the prepared parameters (NPP), after the vectors */
 #define PLANETARY_NPP 25
 
@@ -333,7 +333,7 @@ static void planetary_trig_step(const planetary_real *q, const planetary_real *d
    evaluation. The kernels read both from this one vector. */
 static void planetary_prepare(const planetary_real *p, planetary_real *pp)
 {
-    memcpy(pp, p, sizeof(planetary_real) * 9);
+    (void)memcpy(pp, p, sizeof(planetary_real) * 9u);
     {
         const planetary_real e0 = p[0] + p[1];
         const planetary_real e1 = (1.0/p[1]);
@@ -724,7 +724,7 @@ static void planetary_sparse_solve_in(const planetary_real *lu, planetary_real *
 
 static void planetary_sparse_solve(const planetary_real *lu, const planetary_real *b, planetary_real *x, planetary_real *y)
 {
-    memcpy(y, b, sizeof(planetary_real) * 12);
+    (void)memcpy(y, b, sizeof(planetary_real) * 12u);
     planetary_sparse_solve_in(lu, y, x);
 }
 
@@ -807,7 +807,7 @@ static void planetary_dense_solve(const planetary_real *a, const int *perm, cons
     const int n = 12;
     int i;
     int j;
-    memcpy(x, b, sizeof(planetary_real) * 12u);
+    (void)memcpy(x, b, sizeof(planetary_real) * 12u);
     for (i = 0; i < n; ++i) {
         planetary_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -829,7 +829,7 @@ static void planetary_dense_solve_t(const planetary_real *a, const int *perm, co
     const int n = 12;
     int i;
     int j;
-    memcpy(x, b, sizeof(planetary_real) * 12u);
+    (void)memcpy(x, b, sizeof(planetary_real) * 12u);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) {
             x[i] -= a[(j * n) + i] * x[j];
@@ -956,7 +956,7 @@ static int planetary_factorize(const planetary_real *q, const planetary_real *tr
     }
     *dense = 1;
     planetary_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(planetary_real) * 144u);
+    (void)memset(a, 0, sizeof(planetary_real) * 144u);
     for (k = 0; k < 20; ++k) {
         a[(planetary_phi_q_rows[k] * 12) + planetary_phi_q_cols[k]] = values[k];
     }
@@ -1027,7 +1027,7 @@ static PLANETARY_COLD void planetary_refine_t(const planetary_real *q, const pla
     planetary_real *d = PLANETARY_VEC(work, 1);
     int k;
     planetary_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(planetary_real) * 12u);
+    (void)memcpy(r, b, sizeof(planetary_real) * 12u);
     for (k = 0; k < 20; ++k) {
         r[planetary_phi_q_cols[k]] -= values[k] * lam[planetary_phi_q_rows[k]];
     }
@@ -1421,22 +1421,22 @@ static void planetary_keep(planetary_real *state, const planetary_real *q, const
                          const planetary_real *m1, const planetary_real *m2, const planetary_real *m3)
 {
     if (m3 != state + 60) {
-        memcpy(state + 60, m3, sizeof(planetary_real) * 12u);
+        (void)memcpy(state + 60, m3, sizeof(planetary_real) * 12u);
     }
     if (m2 != state + 48) {
-        memcpy(state + 48, m2, sizeof(planetary_real) * 12u);
+        (void)memcpy(state + 48, m2, sizeof(planetary_real) * 12u);
     }
     if (m1 != state + 36) {
-        memcpy(state + 36, m1, sizeof(planetary_real) * 12u);
+        (void)memcpy(state + 36, m1, sizeof(planetary_real) * 12u);
     }
     if (qdd != state + 24) {
-        memcpy(state + 24, qdd, sizeof(planetary_real) * 12u);
+        (void)memcpy(state + 24, qdd, sizeof(planetary_real) * 12u);
     }
     if (qd != state + 12) {
-        memcpy(state + 12, qd, sizeof(planetary_real) * 12u);
+        (void)memcpy(state + 12, qd, sizeof(planetary_real) * 12u);
     }
     if (q != state) {
-        memcpy(state, q, sizeof(planetary_real) * 12u);
+        (void)memcpy(state, q, sizeof(planetary_real) * 12u);
     }
 }
 
@@ -1520,7 +1520,7 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
         planetary_real *tr = PLANETARY_VEC(work, 9);
         planetary_real *pp = work + PLANETARY_OFF_PREP;
         planetary_real *kept = PLANETARY_VEC(work, 11);
-        memcpy(kept, q, sizeof(planetary_real) * 12u);  /* the caller's guess, back in q if the call fails */
+        (void)memcpy(kept, q, sizeof(planetary_real) * 12u);  /* the caller's guess, back in q if the call fails */
         planetary_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1538,7 +1538,7 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
         if (status != PLANETARY_OK) {
-            memcpy(q, kept, sizeof(planetary_real) * 12u);
+            (void)memcpy(q, kept, sizeof(planetary_real) * 12u);
         }
     }
     if (info != NULL) {
@@ -1652,7 +1652,7 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
             qn[10] = q[10] + h * (qd[10] + 0.5 * h * qdd[10]);
             qn[11] = q[11] + h * (qd[11] + 0.5 * h * qdd[11]);
         } else
-            memcpy(qn, q, sizeof(planetary_real) * 12);
+            (void)memcpy(qn, q, sizeof(planetary_real) * 12u);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = planetary_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -1896,14 +1896,14 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const planetary_real *s = snap + (v - first) * PLANETARY_SNAP;
-            memcpy(state, s, sizeof(planetary_real) * PLANETARY_STATE);
-            memcpy(fig, s + PLANETARY_STATE, sizeof(planetary_real) * PLANETARY_SWEEP_FIGURES);
-            memcpy(acc, s + PLANETARY_STATE + PLANETARY_SWEEP_FIGURES, sizeof(planetary_real) * 5);
+            (void)memcpy(state, s, sizeof(planetary_real) * PLANETARY_STATE);
+            (void)memcpy(fig, s + PLANETARY_STATE, sizeof(planetary_real) * PLANETARY_SWEEP_FIGURES);
+            (void)memcpy(acc, s + PLANETARY_STATE + PLANETARY_SWEEP_FIGURES, sizeof(planetary_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(planetary_real) * PLANETARY_STATE);
+            (void)memset(state, 0, sizeof(planetary_real) * PLANETARY_STATE);
             planetary_guess(pv, state);
             done = 0;
         }

@@ -43,7 +43,7 @@ typedef char quick_return_real_must_have_the_size_of_double[sizeof(quick_return_
 #define QUICK_RETURN_OFF_LU 20
 #define QUICK_RETURN_OFF_DENSE (QUICK_RETURN_OFF_LU + QUICK_RETURN_LU_SIZE)
 #define QUICK_RETURN_OFF_VEC (QUICK_RETURN_OFF_DENSE + 81)
-#define QUICK_RETURN_VEC(work, k) (((work) + QUICK_RETURN_OFF_VEC) + ((k) * 36))
+#define QUICK_RETURN_VEC(work, k) (&(work)[QUICK_RETURN_OFF_VEC + ((k) * 36)])
 #define QUICK_RETURN_OFF_PREP 553  /* the prepared parameters (NPP), after the vectors */
 #define QUICK_RETURN_NPP 18
 
@@ -273,7 +273,7 @@ static void quick_return_trig_step(const quick_return_real *q, const quick_retur
    evaluation. The kernels read both from this one vector. */
 static void quick_return_prepare(const quick_return_real *p, quick_return_real *pp)
 {
-    memcpy(pp, p, sizeof(quick_return_real) * 13);
+    (void)memcpy(pp, p, sizeof(quick_return_real) * 13u);
     {
         pp[13] = -(p[3]*p[3]);
         pp[14] = (2*3.141592653589793*p[11]);
@@ -638,7 +638,7 @@ static void quick_return_sparse_solve_in(const quick_return_real *lu, quick_retu
 
 static void quick_return_sparse_solve(const quick_return_real *lu, const quick_return_real *b, quick_return_real *x, quick_return_real *y)
 {
-    memcpy(y, b, sizeof(quick_return_real) * 9);
+    (void)memcpy(y, b, sizeof(quick_return_real) * 9u);
     quick_return_sparse_solve_in(lu, y, x);
 }
 
@@ -718,7 +718,7 @@ static void quick_return_dense_solve(const quick_return_real *a, const int *perm
     const int n = 9;
     int i;
     int j;
-    memcpy(x, b, sizeof(quick_return_real) * 9u);
+    (void)memcpy(x, b, sizeof(quick_return_real) * 9u);
     for (i = 0; i < n; ++i) {
         quick_return_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -740,7 +740,7 @@ static void quick_return_dense_solve_t(const quick_return_real *a, const int *pe
     const int n = 9;
     int i;
     int j;
-    memcpy(x, b, sizeof(quick_return_real) * 9u);
+    (void)memcpy(x, b, sizeof(quick_return_real) * 9u);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) {
             x[i] -= a[(j * n) + i] * x[j];
@@ -858,7 +858,7 @@ static int quick_return_factorize(const quick_return_real *q, const quick_return
     }
     *dense = 1;
     quick_return_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(quick_return_real) * 81u);
+    (void)memset(a, 0, sizeof(quick_return_real) * 81u);
     for (k = 0; k < 20; ++k) {
         a[(quick_return_phi_q_rows[k] * 9) + quick_return_phi_q_cols[k]] = values[k];
     }
@@ -927,7 +927,7 @@ static QUICK_RETURN_COLD void quick_return_refine_t(const quick_return_real *q, 
     quick_return_real *d = QUICK_RETURN_VEC(work, 1);
     int k;
     quick_return_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(quick_return_real) * 9u);
+    (void)memcpy(r, b, sizeof(quick_return_real) * 9u);
     for (k = 0; k < 20; ++k) {
         r[quick_return_phi_q_cols[k]] -= values[k] * lam[quick_return_phi_q_rows[k]];
     }
@@ -1294,22 +1294,22 @@ static void quick_return_keep(quick_return_real *state, const quick_return_real 
                          const quick_return_real *m1, const quick_return_real *m2, const quick_return_real *m3)
 {
     if (m3 != state + 45) {
-        memcpy(state + 45, m3, sizeof(quick_return_real) * 9u);
+        (void)memcpy(state + 45, m3, sizeof(quick_return_real) * 9u);
     }
     if (m2 != state + 36) {
-        memcpy(state + 36, m2, sizeof(quick_return_real) * 9u);
+        (void)memcpy(state + 36, m2, sizeof(quick_return_real) * 9u);
     }
     if (m1 != state + 27) {
-        memcpy(state + 27, m1, sizeof(quick_return_real) * 9u);
+        (void)memcpy(state + 27, m1, sizeof(quick_return_real) * 9u);
     }
     if (qdd != state + 18) {
-        memcpy(state + 18, qdd, sizeof(quick_return_real) * 9u);
+        (void)memcpy(state + 18, qdd, sizeof(quick_return_real) * 9u);
     }
     if (qd != state + 9) {
-        memcpy(state + 9, qd, sizeof(quick_return_real) * 9u);
+        (void)memcpy(state + 9, qd, sizeof(quick_return_real) * 9u);
     }
     if (q != state) {
-        memcpy(state, q, sizeof(quick_return_real) * 9u);
+        (void)memcpy(state, q, sizeof(quick_return_real) * 9u);
     }
 }
 
@@ -1381,7 +1381,7 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
         quick_return_real *tr = QUICK_RETURN_VEC(work, 9);
         quick_return_real *pp = work + QUICK_RETURN_OFF_PREP;
         quick_return_real *kept = QUICK_RETURN_VEC(work, 11);
-        memcpy(kept, q, sizeof(quick_return_real) * 9u);  /* the caller's guess, back in q if the call fails */
+        (void)memcpy(kept, q, sizeof(quick_return_real) * 9u);  /* the caller's guess, back in q if the call fails */
         quick_return_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1399,7 +1399,7 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
         if (status != QUICK_RETURN_OK) {
-            memcpy(q, kept, sizeof(quick_return_real) * 9u);
+            (void)memcpy(q, kept, sizeof(quick_return_real) * 9u);
         }
     }
     if (info != NULL) {
@@ -1504,7 +1504,7 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
             qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
             qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
         } else
-            memcpy(qn, q, sizeof(quick_return_real) * 9);
+            (void)memcpy(qn, q, sizeof(quick_return_real) * 9u);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = quick_return_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -1734,14 +1734,14 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const quick_return_real *s = snap + (v - first) * QUICK_RETURN_SNAP;
-            memcpy(state, s, sizeof(quick_return_real) * QUICK_RETURN_STATE);
-            memcpy(fig, s + QUICK_RETURN_STATE, sizeof(quick_return_real) * QUICK_RETURN_SWEEP_FIGURES);
-            memcpy(acc, s + QUICK_RETURN_STATE + QUICK_RETURN_SWEEP_FIGURES, sizeof(quick_return_real) * 5);
+            (void)memcpy(state, s, sizeof(quick_return_real) * QUICK_RETURN_STATE);
+            (void)memcpy(fig, s + QUICK_RETURN_STATE, sizeof(quick_return_real) * QUICK_RETURN_SWEEP_FIGURES);
+            (void)memcpy(acc, s + QUICK_RETURN_STATE + QUICK_RETURN_SWEEP_FIGURES, sizeof(quick_return_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(quick_return_real) * QUICK_RETURN_STATE);
+            (void)memset(state, 0, sizeof(quick_return_real) * QUICK_RETURN_STATE);
             quick_return_guess(pv, state);
             done = 0;
         }

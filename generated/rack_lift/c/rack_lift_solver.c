@@ -43,7 +43,7 @@ typedef char rack_lift_real_must_have_the_size_of_double[sizeof(rack_lift_real) 
 #define RACK_LIFT_OFF_LU 11
 #define RACK_LIFT_OFF_DENSE (RACK_LIFT_OFF_LU + RACK_LIFT_LU_SIZE)
 #define RACK_LIFT_OFF_VEC (RACK_LIFT_OFF_DENSE + 36)
-#define RACK_LIFT_VEC(work, k) (((work) + RACK_LIFT_OFF_VEC) + ((k) * 24))
+#define RACK_LIFT_VEC(work, k) (&(work)[RACK_LIFT_OFF_VEC + ((k) * 24)])
 #define RACK_LIFT_OFF_PREP 346  /* the prepared parameters (NPP), after the vectors */
 #define RACK_LIFT_NPP 18
 
@@ -216,7 +216,7 @@ static void rack_lift_trig_step(const rack_lift_real *q, const rack_lift_real *d
    evaluation. The kernels read both from this one vector. */
 static void rack_lift_prepare(const rack_lift_real *p, rack_lift_real *pp)
 {
-    memcpy(pp, p, sizeof(rack_lift_real) * 8);
+    (void)memcpy(pp, p, sizeof(rack_lift_real) * 8u);
     {
         const rack_lift_real e0 = (1.0/p[0]);
         const rack_lift_real e1 = (1.0/p[2]);
@@ -516,7 +516,7 @@ static void rack_lift_sparse_solve_in(const rack_lift_real *lu, rack_lift_real *
 
 static void rack_lift_sparse_solve(const rack_lift_real *lu, const rack_lift_real *b, rack_lift_real *x, rack_lift_real *y)
 {
-    memcpy(y, b, sizeof(rack_lift_real) * 6);
+    (void)memcpy(y, b, sizeof(rack_lift_real) * 6u);
     rack_lift_sparse_solve_in(lu, y, x);
 }
 
@@ -592,7 +592,7 @@ static void rack_lift_dense_solve(const rack_lift_real *a, const int *perm, cons
     const int n = 6;
     int i;
     int j;
-    memcpy(x, b, sizeof(rack_lift_real) * 6u);
+    (void)memcpy(x, b, sizeof(rack_lift_real) * 6u);
     for (i = 0; i < n; ++i) {
         rack_lift_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -614,7 +614,7 @@ static void rack_lift_dense_solve_t(const rack_lift_real *a, const int *perm, co
     const int n = 6;
     int i;
     int j;
-    memcpy(x, b, sizeof(rack_lift_real) * 6u);
+    (void)memcpy(x, b, sizeof(rack_lift_real) * 6u);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) {
             x[i] -= a[(j * n) + i] * x[j];
@@ -723,7 +723,7 @@ static int rack_lift_factorize(const rack_lift_real *q, const rack_lift_real *tr
     }
     *dense = 1;
     rack_lift_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(rack_lift_real) * 36u);
+    (void)memset(a, 0, sizeof(rack_lift_real) * 36u);
     for (k = 0; k < 11; ++k) {
         a[(rack_lift_phi_q_rows[k] * 6) + rack_lift_phi_q_cols[k]] = values[k];
     }
@@ -790,7 +790,7 @@ static RACK_LIFT_COLD void rack_lift_refine_t(const rack_lift_real *q, const rac
     rack_lift_real *d = RACK_LIFT_VEC(work, 1);
     int k;
     rack_lift_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(rack_lift_real) * 6u);
+    (void)memcpy(r, b, sizeof(rack_lift_real) * 6u);
     for (k = 0; k < 11; ++k) {
         r[rack_lift_phi_q_cols[k]] -= values[k] * lam[rack_lift_phi_q_rows[k]];
     }
@@ -1219,22 +1219,22 @@ static void rack_lift_keep(rack_lift_real *state, const rack_lift_real *q, const
                          const rack_lift_real *m1, const rack_lift_real *m2, const rack_lift_real *m3)
 {
     if (m3 != state + 30) {
-        memcpy(state + 30, m3, sizeof(rack_lift_real) * 6u);
+        (void)memcpy(state + 30, m3, sizeof(rack_lift_real) * 6u);
     }
     if (m2 != state + 24) {
-        memcpy(state + 24, m2, sizeof(rack_lift_real) * 6u);
+        (void)memcpy(state + 24, m2, sizeof(rack_lift_real) * 6u);
     }
     if (m1 != state + 18) {
-        memcpy(state + 18, m1, sizeof(rack_lift_real) * 6u);
+        (void)memcpy(state + 18, m1, sizeof(rack_lift_real) * 6u);
     }
     if (qdd != state + 12) {
-        memcpy(state + 12, qdd, sizeof(rack_lift_real) * 6u);
+        (void)memcpy(state + 12, qdd, sizeof(rack_lift_real) * 6u);
     }
     if (qd != state + 6) {
-        memcpy(state + 6, qd, sizeof(rack_lift_real) * 6u);
+        (void)memcpy(state + 6, qd, sizeof(rack_lift_real) * 6u);
     }
     if (q != state) {
-        memcpy(state, q, sizeof(rack_lift_real) * 6u);
+        (void)memcpy(state, q, sizeof(rack_lift_real) * 6u);
     }
 }
 
@@ -1294,7 +1294,7 @@ int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real 
         rack_lift_real *tr = RACK_LIFT_VEC(work, 9);
         rack_lift_real *pp = work + RACK_LIFT_OFF_PREP;
         rack_lift_real *kept = RACK_LIFT_VEC(work, 11);
-        memcpy(kept, q, sizeof(rack_lift_real) * 6u);  /* the caller's guess, back in q if the call fails */
+        (void)memcpy(kept, q, sizeof(rack_lift_real) * 6u);  /* the caller's guess, back in q if the call fails */
         rack_lift_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1312,7 +1312,7 @@ int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real 
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
         if (status != RACK_LIFT_OK) {
-            memcpy(q, kept, sizeof(rack_lift_real) * 6u);
+            (void)memcpy(q, kept, sizeof(rack_lift_real) * 6u);
         }
     }
     if (info != NULL) {
@@ -1408,7 +1408,7 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
             qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
             qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
         } else
-            memcpy(qn, q, sizeof(rack_lift_real) * 6);
+            (void)memcpy(qn, q, sizeof(rack_lift_real) * 6u);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = rack_lift_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -1622,14 +1622,14 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const rack_lift_real *s = snap + (v - first) * RACK_LIFT_SNAP;
-            memcpy(state, s, sizeof(rack_lift_real) * RACK_LIFT_STATE);
-            memcpy(fig, s + RACK_LIFT_STATE, sizeof(rack_lift_real) * RACK_LIFT_SWEEP_FIGURES);
-            memcpy(acc, s + RACK_LIFT_STATE + RACK_LIFT_SWEEP_FIGURES, sizeof(rack_lift_real) * 5);
+            (void)memcpy(state, s, sizeof(rack_lift_real) * RACK_LIFT_STATE);
+            (void)memcpy(fig, s + RACK_LIFT_STATE, sizeof(rack_lift_real) * RACK_LIFT_SWEEP_FIGURES);
+            (void)memcpy(acc, s + RACK_LIFT_STATE + RACK_LIFT_SWEEP_FIGURES, sizeof(rack_lift_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(rack_lift_real) * RACK_LIFT_STATE);
+            (void)memset(state, 0, sizeof(rack_lift_real) * RACK_LIFT_STATE);
             rack_lift_guess(pv, state);
             done = 0;
         }

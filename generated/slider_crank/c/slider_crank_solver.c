@@ -43,7 +43,7 @@ typedef char slider_crank_real_must_have_the_size_of_double[sizeof(slider_crank_
 #define SLIDER_CRANK_OFF_LU 21
 #define SLIDER_CRANK_OFF_DENSE (SLIDER_CRANK_OFF_LU + SLIDER_CRANK_LU_SIZE)
 #define SLIDER_CRANK_OFF_VEC (SLIDER_CRANK_OFF_DENSE + 81)
-#define SLIDER_CRANK_VEC(work, k) (((work) + SLIDER_CRANK_OFF_VEC) + ((k) * 30))
+#define SLIDER_CRANK_VEC(work, k) (&(work)[SLIDER_CRANK_OFF_VEC + ((k) * 30)])
 #define SLIDER_CRANK_OFF_PREP 483  /* the prepared parameters (NPP), after the vectors */
 #define SLIDER_CRANK_NPP 13
 
@@ -267,7 +267,7 @@ static void slider_crank_trig_step(const slider_crank_real *q, const slider_cran
    evaluation. The kernels read both from this one vector. */
 static void slider_crank_prepare(const slider_crank_real *p, slider_crank_real *pp)
 {
-    memcpy(pp, p, sizeof(slider_crank_real) * 9);
+    (void)memcpy(pp, p, sizeof(slider_crank_real) * 9u);
     {
         pp[9] = (2*3.141592653589793*p[7]);
         pp[10] = (1.0/12.0)*(p[0]*p[0])*p[2];
@@ -597,7 +597,7 @@ static void slider_crank_sparse_solve_in(const slider_crank_real *lu, slider_cra
 
 static void slider_crank_sparse_solve(const slider_crank_real *lu, const slider_crank_real *b, slider_crank_real *x, slider_crank_real *y)
 {
-    memcpy(y, b, sizeof(slider_crank_real) * 9);
+    (void)memcpy(y, b, sizeof(slider_crank_real) * 9u);
     slider_crank_sparse_solve_in(lu, y, x);
 }
 
@@ -677,7 +677,7 @@ static void slider_crank_dense_solve(const slider_crank_real *a, const int *perm
     const int n = 9;
     int i;
     int j;
-    memcpy(x, b, sizeof(slider_crank_real) * 9u);
+    (void)memcpy(x, b, sizeof(slider_crank_real) * 9u);
     for (i = 0; i < n; ++i) {
         slider_crank_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -699,7 +699,7 @@ static void slider_crank_dense_solve_t(const slider_crank_real *a, const int *pe
     const int n = 9;
     int i;
     int j;
-    memcpy(x, b, sizeof(slider_crank_real) * 9u);
+    (void)memcpy(x, b, sizeof(slider_crank_real) * 9u);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) {
             x[i] -= a[(j * n) + i] * x[j];
@@ -817,7 +817,7 @@ static int slider_crank_factorize(const slider_crank_real *q, const slider_crank
     }
     *dense = 1;
     slider_crank_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(slider_crank_real) * 81u);
+    (void)memset(a, 0, sizeof(slider_crank_real) * 81u);
     for (k = 0; k < 21; ++k) {
         a[(slider_crank_phi_q_rows[k] * 9) + slider_crank_phi_q_cols[k]] = values[k];
     }
@@ -886,7 +886,7 @@ static SLIDER_CRANK_COLD void slider_crank_refine_t(const slider_crank_real *q, 
     slider_crank_real *d = SLIDER_CRANK_VEC(work, 1);
     int k;
     slider_crank_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(slider_crank_real) * 9u);
+    (void)memcpy(r, b, sizeof(slider_crank_real) * 9u);
     for (k = 0; k < 21; ++k) {
         r[slider_crank_phi_q_cols[k]] -= values[k] * lam[slider_crank_phi_q_rows[k]];
     }
@@ -1257,22 +1257,22 @@ static void slider_crank_keep(slider_crank_real *state, const slider_crank_real 
                          const slider_crank_real *m1, const slider_crank_real *m2, const slider_crank_real *m3)
 {
     if (m3 != state + 45) {
-        memcpy(state + 45, m3, sizeof(slider_crank_real) * 9u);
+        (void)memcpy(state + 45, m3, sizeof(slider_crank_real) * 9u);
     }
     if (m2 != state + 36) {
-        memcpy(state + 36, m2, sizeof(slider_crank_real) * 9u);
+        (void)memcpy(state + 36, m2, sizeof(slider_crank_real) * 9u);
     }
     if (m1 != state + 27) {
-        memcpy(state + 27, m1, sizeof(slider_crank_real) * 9u);
+        (void)memcpy(state + 27, m1, sizeof(slider_crank_real) * 9u);
     }
     if (qdd != state + 18) {
-        memcpy(state + 18, qdd, sizeof(slider_crank_real) * 9u);
+        (void)memcpy(state + 18, qdd, sizeof(slider_crank_real) * 9u);
     }
     if (qd != state + 9) {
-        memcpy(state + 9, qd, sizeof(slider_crank_real) * 9u);
+        (void)memcpy(state + 9, qd, sizeof(slider_crank_real) * 9u);
     }
     if (q != state) {
-        memcpy(state, q, sizeof(slider_crank_real) * 9u);
+        (void)memcpy(state, q, sizeof(slider_crank_real) * 9u);
     }
 }
 
@@ -1344,7 +1344,7 @@ int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider
         slider_crank_real *tr = SLIDER_CRANK_VEC(work, 9);
         slider_crank_real *pp = work + SLIDER_CRANK_OFF_PREP;
         slider_crank_real *kept = SLIDER_CRANK_VEC(work, 11);
-        memcpy(kept, q, sizeof(slider_crank_real) * 9u);  /* the caller's guess, back in q if the call fails */
+        (void)memcpy(kept, q, sizeof(slider_crank_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1362,7 +1362,7 @@ int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
         if (status != SLIDER_CRANK_OK) {
-            memcpy(q, kept, sizeof(slider_crank_real) * 9u);
+            (void)memcpy(q, kept, sizeof(slider_crank_real) * 9u);
         }
     }
     if (info != NULL) {
@@ -1467,7 +1467,7 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
             qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
             qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
         } else
-            memcpy(qn, q, sizeof(slider_crank_real) * 9);
+            (void)memcpy(qn, q, sizeof(slider_crank_real) * 9u);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = slider_crank_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -1688,14 +1688,14 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const slider_crank_real *s = snap + (v - first) * SLIDER_CRANK_SNAP;
-            memcpy(state, s, sizeof(slider_crank_real) * SLIDER_CRANK_STATE);
-            memcpy(fig, s + SLIDER_CRANK_STATE, sizeof(slider_crank_real) * SLIDER_CRANK_SWEEP_FIGURES);
-            memcpy(acc, s + SLIDER_CRANK_STATE + SLIDER_CRANK_SWEEP_FIGURES, sizeof(slider_crank_real) * 5);
+            (void)memcpy(state, s, sizeof(slider_crank_real) * SLIDER_CRANK_STATE);
+            (void)memcpy(fig, s + SLIDER_CRANK_STATE, sizeof(slider_crank_real) * SLIDER_CRANK_SWEEP_FIGURES);
+            (void)memcpy(acc, s + SLIDER_CRANK_STATE + SLIDER_CRANK_SWEEP_FIGURES, sizeof(slider_crank_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(slider_crank_real) * SLIDER_CRANK_STATE);
+            (void)memset(state, 0, sizeof(slider_crank_real) * SLIDER_CRANK_STATE);
             slider_crank_guess(pv, state);
             done = 0;
         }

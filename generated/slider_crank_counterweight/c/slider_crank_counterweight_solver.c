@@ -43,7 +43,7 @@ typedef char slider_crank_counterweight_real_must_have_the_size_of_double[sizeof
 #define SLIDER_CRANK_COUNTERWEIGHT_OFF_LU 21
 #define SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE (SLIDER_CRANK_COUNTERWEIGHT_OFF_LU + SLIDER_CRANK_COUNTERWEIGHT_LU_SIZE)
 #define SLIDER_CRANK_COUNTERWEIGHT_OFF_VEC (SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE + 81)
-#define SLIDER_CRANK_COUNTERWEIGHT_VEC(work, k) (((work) + SLIDER_CRANK_COUNTERWEIGHT_OFF_VEC) + ((k) * 30))
+#define SLIDER_CRANK_COUNTERWEIGHT_VEC(work, k) (&(work)[SLIDER_CRANK_COUNTERWEIGHT_OFF_VEC + ((k) * 30)])
 #define SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP 483  /* the prepared parameters (NPP), after the vectors */
 #define SLIDER_CRANK_COUNTERWEIGHT_NPP 21
 
@@ -267,7 +267,7 @@ static void slider_crank_counterweight_trig_step(const slider_crank_counterweigh
    evaluation. The kernels read both from this one vector. */
 static void slider_crank_counterweight_prepare(const slider_crank_counterweight_real *p, slider_crank_counterweight_real *pp)
 {
-    memcpy(pp, p, sizeof(slider_crank_counterweight_real) * 12);
+    (void)memcpy(pp, p, sizeof(slider_crank_counterweight_real) * 12u);
     {
         const slider_crank_counterweight_real e0 = (p[2] + p[9]);
         const slider_crank_counterweight_real e1 = (1.0/e0);
@@ -611,7 +611,7 @@ static void slider_crank_counterweight_sparse_solve_in(const slider_crank_counte
 
 static void slider_crank_counterweight_sparse_solve(const slider_crank_counterweight_real *lu, const slider_crank_counterweight_real *b, slider_crank_counterweight_real *x, slider_crank_counterweight_real *y)
 {
-    memcpy(y, b, sizeof(slider_crank_counterweight_real) * 9);
+    (void)memcpy(y, b, sizeof(slider_crank_counterweight_real) * 9u);
     slider_crank_counterweight_sparse_solve_in(lu, y, x);
 }
 
@@ -691,7 +691,7 @@ static void slider_crank_counterweight_dense_solve(const slider_crank_counterwei
     const int n = 9;
     int i;
     int j;
-    memcpy(x, b, sizeof(slider_crank_counterweight_real) * 9u);
+    (void)memcpy(x, b, sizeof(slider_crank_counterweight_real) * 9u);
     for (i = 0; i < n; ++i) {
         slider_crank_counterweight_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -713,7 +713,7 @@ static void slider_crank_counterweight_dense_solve_t(const slider_crank_counterw
     const int n = 9;
     int i;
     int j;
-    memcpy(x, b, sizeof(slider_crank_counterweight_real) * 9u);
+    (void)memcpy(x, b, sizeof(slider_crank_counterweight_real) * 9u);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) {
             x[i] -= a[(j * n) + i] * x[j];
@@ -831,7 +831,7 @@ static int slider_crank_counterweight_factorize(const slider_crank_counterweight
     }
     *dense = 1;
     slider_crank_counterweight_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(slider_crank_counterweight_real) * 81u);
+    (void)memset(a, 0, sizeof(slider_crank_counterweight_real) * 81u);
     for (k = 0; k < 21; ++k) {
         a[(slider_crank_counterweight_phi_q_rows[k] * 9) + slider_crank_counterweight_phi_q_cols[k]] = values[k];
     }
@@ -900,7 +900,7 @@ static SLIDER_CRANK_COUNTERWEIGHT_COLD void slider_crank_counterweight_refine_t(
     slider_crank_counterweight_real *d = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1);
     int k;
     slider_crank_counterweight_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(slider_crank_counterweight_real) * 9u);
+    (void)memcpy(r, b, sizeof(slider_crank_counterweight_real) * 9u);
     for (k = 0; k < 21; ++k) {
         r[slider_crank_counterweight_phi_q_cols[k]] -= values[k] * lam[slider_crank_counterweight_phi_q_rows[k]];
     }
@@ -1271,22 +1271,22 @@ static void slider_crank_counterweight_keep(slider_crank_counterweight_real *sta
                          const slider_crank_counterweight_real *m1, const slider_crank_counterweight_real *m2, const slider_crank_counterweight_real *m3)
 {
     if (m3 != state + 45) {
-        memcpy(state + 45, m3, sizeof(slider_crank_counterweight_real) * 9u);
+        (void)memcpy(state + 45, m3, sizeof(slider_crank_counterweight_real) * 9u);
     }
     if (m2 != state + 36) {
-        memcpy(state + 36, m2, sizeof(slider_crank_counterweight_real) * 9u);
+        (void)memcpy(state + 36, m2, sizeof(slider_crank_counterweight_real) * 9u);
     }
     if (m1 != state + 27) {
-        memcpy(state + 27, m1, sizeof(slider_crank_counterweight_real) * 9u);
+        (void)memcpy(state + 27, m1, sizeof(slider_crank_counterweight_real) * 9u);
     }
     if (qdd != state + 18) {
-        memcpy(state + 18, qdd, sizeof(slider_crank_counterweight_real) * 9u);
+        (void)memcpy(state + 18, qdd, sizeof(slider_crank_counterweight_real) * 9u);
     }
     if (qd != state + 9) {
-        memcpy(state + 9, qd, sizeof(slider_crank_counterweight_real) * 9u);
+        (void)memcpy(state + 9, qd, sizeof(slider_crank_counterweight_real) * 9u);
     }
     if (q != state) {
-        memcpy(state, q, sizeof(slider_crank_counterweight_real) * 9u);
+        (void)memcpy(state, q, sizeof(slider_crank_counterweight_real) * 9u);
     }
 }
 
@@ -1358,7 +1358,7 @@ int slider_crank_counterweight_instant(slider_crank_counterweight_real t, const 
         slider_crank_counterweight_real *tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9);
         slider_crank_counterweight_real *pp = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP;
         slider_crank_counterweight_real *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
-        memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9u);  /* the caller's guess, back in q if the call fails */
+        (void)memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_counterweight_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1376,7 +1376,7 @@ int slider_crank_counterweight_instant(slider_crank_counterweight_real t, const 
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
         if (status != SLIDER_CRANK_COUNTERWEIGHT_OK) {
-            memcpy(q, kept, sizeof(slider_crank_counterweight_real) * 9u);
+            (void)memcpy(q, kept, sizeof(slider_crank_counterweight_real) * 9u);
         }
     }
     if (info != NULL) {
@@ -1481,7 +1481,7 @@ int slider_crank_counterweight_trajectory(slider_crank_counterweight_real t0, sl
             qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
             qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
         } else
-            memcpy(qn, q, sizeof(slider_crank_counterweight_real) * 9);
+            (void)memcpy(qn, q, sizeof(slider_crank_counterweight_real) * 9u);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = slider_crank_counterweight_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -1704,14 +1704,14 @@ int slider_crank_counterweight_sweep(long k, const slider_crank_counterweight_re
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const slider_crank_counterweight_real *s = snap + (v - first) * SLIDER_CRANK_COUNTERWEIGHT_SNAP;
-            memcpy(state, s, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_STATE);
-            memcpy(fig, s + SLIDER_CRANK_COUNTERWEIGHT_STATE, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES);
-            memcpy(acc, s + SLIDER_CRANK_COUNTERWEIGHT_STATE + SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES, sizeof(slider_crank_counterweight_real) * 5);
+            (void)memcpy(state, s, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_STATE);
+            (void)memcpy(fig, s + SLIDER_CRANK_COUNTERWEIGHT_STATE, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES);
+            (void)memcpy(acc, s + SLIDER_CRANK_COUNTERWEIGHT_STATE + SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES, sizeof(slider_crank_counterweight_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_STATE);
+            (void)memset(state, 0, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_STATE);
             slider_crank_counterweight_guess(pv, state);
             done = 0;
         }

@@ -43,7 +43,7 @@ typedef char slider_pendulum_real_must_have_the_size_of_double[sizeof(slider_pen
 #define SLIDER_PENDULUM_OFF_LU 15
 #define SLIDER_PENDULUM_OFF_DENSE (SLIDER_PENDULUM_OFF_LU + SLIDER_PENDULUM_LU_SIZE)
 #define SLIDER_PENDULUM_OFF_VEC (SLIDER_PENDULUM_OFF_DENSE + 36)
-#define SLIDER_PENDULUM_VEC(work, k) (((work) + SLIDER_PENDULUM_OFF_VEC) + ((k) * 30))
+#define SLIDER_PENDULUM_VEC(work, k) (&(work)[SLIDER_PENDULUM_OFF_VEC + ((k) * 30)])
 #define SLIDER_PENDULUM_OFF_PREP 426  /* the prepared parameters (NPP), after the vectors */
 #define SLIDER_PENDULUM_NPP 29
 
@@ -222,7 +222,7 @@ static void slider_pendulum_trig_step(const slider_pendulum_real *q, const slide
    evaluation. The kernels read both from this one vector. */
 static void slider_pendulum_prepare(const slider_pendulum_real *p, slider_pendulum_real *pp)
 {
-    memcpy(pp, p, sizeof(slider_pendulum_real) * 13);
+    (void)memcpy(pp, p, sizeof(slider_pendulum_real) * 13u);
     {
         const slider_pendulum_real e0 = cos(p[0]);
         const slider_pendulum_real e1 = sin(p[0]);
@@ -543,7 +543,7 @@ static void slider_pendulum_sparse_solve_in(const slider_pendulum_real *lu, slid
 
 static void slider_pendulum_sparse_solve(const slider_pendulum_real *lu, const slider_pendulum_real *b, slider_pendulum_real *x, slider_pendulum_real *y)
 {
-    memcpy(y, b, sizeof(slider_pendulum_real) * 6);
+    (void)memcpy(y, b, sizeof(slider_pendulum_real) * 6u);
     slider_pendulum_sparse_solve_in(lu, y, x);
 }
 
@@ -616,7 +616,7 @@ static void slider_pendulum_dense_solve(const slider_pendulum_real *a, const int
     const int n = 6;
     int i;
     int j;
-    memcpy(x, b, sizeof(slider_pendulum_real) * 6u);
+    (void)memcpy(x, b, sizeof(slider_pendulum_real) * 6u);
     for (i = 0; i < n; ++i) {
         slider_pendulum_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
@@ -638,7 +638,7 @@ static void slider_pendulum_dense_solve_t(const slider_pendulum_real *a, const i
     const int n = 6;
     int i;
     int j;
-    memcpy(x, b, sizeof(slider_pendulum_real) * 6u);
+    (void)memcpy(x, b, sizeof(slider_pendulum_real) * 6u);
     for (i = 0; i < n; ++i) {
         for (j = 0; j < i; ++j) {
             x[i] -= a[(j * n) + i] * x[j];
@@ -747,7 +747,7 @@ static int slider_pendulum_factorize(const slider_pendulum_real *q, const slider
     }
     *dense = 1;
     slider_pendulum_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(slider_pendulum_real) * 36u);
+    (void)memset(a, 0, sizeof(slider_pendulum_real) * 36u);
     for (k = 0; k < 15; ++k) {
         a[(slider_pendulum_phi_q_rows[k] * 6) + slider_pendulum_phi_q_cols[k]] = values[k];
     }
@@ -814,7 +814,7 @@ static SLIDER_PENDULUM_COLD void slider_pendulum_refine_t(const slider_pendulum_
     slider_pendulum_real *d = SLIDER_PENDULUM_VEC(work, 1);
     int k;
     slider_pendulum_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(slider_pendulum_real) * 6u);
+    (void)memcpy(r, b, sizeof(slider_pendulum_real) * 6u);
     for (k = 0; k < 15; ++k) {
         r[slider_pendulum_phi_q_cols[k]] -= values[k] * lam[slider_pendulum_phi_q_rows[k]];
     }
@@ -1255,22 +1255,22 @@ static void slider_pendulum_keep(slider_pendulum_real *state, const slider_pendu
                          const slider_pendulum_real *m1, const slider_pendulum_real *m2, const slider_pendulum_real *m3)
 {
     if (m3 != state + 30) {
-        memcpy(state + 30, m3, sizeof(slider_pendulum_real) * 6u);
+        (void)memcpy(state + 30, m3, sizeof(slider_pendulum_real) * 6u);
     }
     if (m2 != state + 24) {
-        memcpy(state + 24, m2, sizeof(slider_pendulum_real) * 6u);
+        (void)memcpy(state + 24, m2, sizeof(slider_pendulum_real) * 6u);
     }
     if (m1 != state + 18) {
-        memcpy(state + 18, m1, sizeof(slider_pendulum_real) * 6u);
+        (void)memcpy(state + 18, m1, sizeof(slider_pendulum_real) * 6u);
     }
     if (qdd != state + 12) {
-        memcpy(state + 12, qdd, sizeof(slider_pendulum_real) * 6u);
+        (void)memcpy(state + 12, qdd, sizeof(slider_pendulum_real) * 6u);
     }
     if (qd != state + 6) {
-        memcpy(state + 6, qd, sizeof(slider_pendulum_real) * 6u);
+        (void)memcpy(state + 6, qd, sizeof(slider_pendulum_real) * 6u);
     }
     if (q != state) {
-        memcpy(state, q, sizeof(slider_pendulum_real) * 6u);
+        (void)memcpy(state, q, sizeof(slider_pendulum_real) * 6u);
     }
 }
 
@@ -1330,7 +1330,7 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
         slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9);
         slider_pendulum_real *pp = work + SLIDER_PENDULUM_OFF_PREP;
         slider_pendulum_real *kept = SLIDER_PENDULUM_VEC(work, 11);
-        memcpy(kept, q, sizeof(slider_pendulum_real) * 6u);  /* the caller's guess, back in q if the call fails */
+        (void)memcpy(kept, q, sizeof(slider_pendulum_real) * 6u);  /* the caller's guess, back in q if the call fails */
         slider_pendulum_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
@@ -1348,7 +1348,7 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
         if (status != SLIDER_PENDULUM_OK) {
-            memcpy(q, kept, sizeof(slider_pendulum_real) * 6u);
+            (void)memcpy(q, kept, sizeof(slider_pendulum_real) * 6u);
         }
     }
     if (info != NULL) {
@@ -1444,7 +1444,7 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
             qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
             qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
         } else
-            memcpy(qn, q, sizeof(slider_pendulum_real) * 6);
+            (void)memcpy(qn, q, sizeof(slider_pendulum_real) * 6u);
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
         status = slider_pendulum_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
@@ -1682,14 +1682,14 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const slider_pendulum_real *s = snap + (v - first) * SLIDER_PENDULUM_SNAP;
-            memcpy(state, s, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
-            memcpy(fig, s + SLIDER_PENDULUM_STATE, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_SWEEP_FIGURES);
-            memcpy(acc, s + SLIDER_PENDULUM_STATE + SLIDER_PENDULUM_SWEEP_FIGURES, sizeof(slider_pendulum_real) * 8);
+            (void)memcpy(state, s, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
+            (void)memcpy(fig, s + SLIDER_PENDULUM_STATE, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_SWEEP_FIGURES);
+            (void)memcpy(acc, s + SLIDER_PENDULUM_STATE + SLIDER_PENDULUM_SWEEP_FIGURES, sizeof(slider_pendulum_real) * 8u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
+            (void)memset(state, 0, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
             slider_pendulum_guess(pv, state);
             done = 0;
         }
