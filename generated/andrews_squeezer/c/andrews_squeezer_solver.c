@@ -1397,11 +1397,11 @@ static int andrews_squeezer_factorize(const andrews_squeezer_real *q, const andr
                              int *iwork, int *dense)
 {
     andrews_squeezer_real *values = work;
-    andrews_squeezer_real *lu = work + ANDREWS_SQUEEZER_OFF_LU;
-    andrews_squeezer_real *a = work + ANDREWS_SQUEEZER_OFF_DENSE;
+    andrews_squeezer_real *lu = &work[ANDREWS_SQUEEZER_OFF_LU];
+    andrews_squeezer_real *a = &work[ANDREWS_SQUEEZER_OFF_DENSE];
     int k;
     andrews_squeezer_phi_q_k(q, tr, t, p, lu);
-    (void)memset(lu + 65, 0, sizeof(andrews_squeezer_real) * (ANDREWS_SQUEEZER_LU_SIZE - 65));
+    (void)memset(&lu[65], 0, sizeof(andrews_squeezer_real) * (ANDREWS_SQUEEZER_LU_SIZE - 65));
     *dense = 0;
     if ((andrews_squeezer_sparse_factor(lu) == 0) && (andrews_squeezer_pivots_spread(lu) == 0)) {
         return ANDREWS_SQUEEZER_OK;
@@ -1418,9 +1418,9 @@ static int andrews_squeezer_factorize(const andrews_squeezer_real *q, const andr
 static void andrews_squeezer_solve(const andrews_squeezer_real *work, const int *iwork, int dense, const andrews_squeezer_real *b, andrews_squeezer_real *x, andrews_squeezer_real *y)
 {
     if (dense != 0) {
-        andrews_squeezer_dense_solve(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, b, x);
+        andrews_squeezer_dense_solve(&work[ANDREWS_SQUEEZER_OFF_DENSE], iwork, b, x);
     } else {
-        andrews_squeezer_sparse_solve(work + ANDREWS_SQUEEZER_OFF_LU, b, x, y);
+        andrews_squeezer_sparse_solve(&work[ANDREWS_SQUEEZER_OFF_LU], b, x, y);
     }
 }
 
@@ -1431,16 +1431,16 @@ static void andrews_squeezer_solve_in(const andrews_squeezer_real *work, const i
     if (dense != 0) {
         andrews_squeezer_solve(work, iwork, dense, b, x, y);
     } else {
-        andrews_squeezer_sparse_solve_in(work + ANDREWS_SQUEEZER_OFF_LU, b, x);
+        andrews_squeezer_sparse_solve_in(&work[ANDREWS_SQUEEZER_OFF_LU], b, x);
     }
 }
 
 static void andrews_squeezer_solve_t(const andrews_squeezer_real *work, const int *iwork, int dense, const andrews_squeezer_real *b, andrews_squeezer_real *x)
 {
     if (dense != 0) {
-        andrews_squeezer_dense_solve_t(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, b, x);
+        andrews_squeezer_dense_solve_t(&work[ANDREWS_SQUEEZER_OFF_DENSE], iwork, b, x);
     } else {
-        andrews_squeezer_sparse_solve_t(work + ANDREWS_SQUEEZER_OFF_LU, b, x);
+        andrews_squeezer_sparse_solve_t(&work[ANDREWS_SQUEEZER_OFF_LU], b, x);
     }
 }
 
@@ -1490,9 +1490,9 @@ static ANDREWS_SQUEEZER_COLD void andrews_squeezer_refine_t(const andrews_squeez
         r[andrews_squeezer_phi_q_cols[k]] -= values[k] * lam[andrews_squeezer_phi_q_rows[k]];
     }
     if (dense != 0) {
-        andrews_squeezer_dense_solve_t(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, r, d);
+        andrews_squeezer_dense_solve_t(&work[ANDREWS_SQUEEZER_OFF_DENSE], iwork, r, d);
     } else {
-        andrews_squeezer_sparse_solve_t(work + ANDREWS_SQUEEZER_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+        andrews_squeezer_sparse_solve_t(&work[ANDREWS_SQUEEZER_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     }
     for (k = 0; k < 21; ++k) {
         lam[k] += d[k];
@@ -2073,7 +2073,7 @@ int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_rea
         status = ANDREWS_SQUEEZER_BAD_ARGUMENT;
     } else {
         andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9);
-        andrews_squeezer_real *pp = work + ANDREWS_SQUEEZER_OFF_PREP;
+        andrews_squeezer_real *pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
         andrews_squeezer_real *kept = ANDREWS_SQUEEZER_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(andrews_squeezer_real) * 21u);  /* the caller's guess, back in q if the call fails */
         andrews_squeezer_prepare(p, pp);
@@ -2116,14 +2116,14 @@ int andrews_squeezer_screen_at(andrews_squeezer_real t, const andrews_squeezer_r
         return ANDREWS_SQUEEZER_OK;  /* no scales: no screen */
     }
     tr = ANDREWS_SQUEEZER_VEC(work, 9);
-    pp = work + ANDREWS_SQUEEZER_OFF_PREP;
+    pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
     andrews_squeezer_prepare(p, pp);
     andrews_squeezer_trig(state, tr);
     if (andrews_squeezer_factorize(state, tr, t, pp, work, iwork, &dense) != ANDREWS_SQUEEZER_OK) {
         return ANDREWS_SQUEEZER_ILL_CONDITIONED;
     }
     andrews_squeezer_screen_known(&state[147], &state[126], known);
-    if ((andrews_squeezer_screen(work + ANDREWS_SQUEEZER_OFF_LU, dense, &state[147], &state[126], known) != 0)
+    if ((andrews_squeezer_screen(&work[ANDREWS_SQUEEZER_OFF_LU], dense, &state[147], &state[126], known) != 0)
         && !(andrews_squeezer_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[147], &state[126])
              <= ANDREWS_SQUEEZER_COND_SCREEN)) {
         return ANDREWS_SQUEEZER_ILL_CONDITIONED;
@@ -2147,12 +2147,12 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return ANDREWS_SQUEEZER_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 63, m2 = state + 84, count = state + 168;
-    scale = state + 126, rscale = state + 147;
+    q = state, m1 = &state[63], m2 = &state[84], count = &state[168];
+    scale = &state[126], rscale = &state[147];
     if (rscale[0] > 0.0) andrews_squeezer_screen_known(rscale, scale, known);
     else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 21, qdd = state + 42, m3 = state + 105;
-    tr = ANDREWS_SQUEEZER_VEC(work, 9), pp = work + ANDREWS_SQUEEZER_OFF_PREP;
+    qd = &state[21], qdd = &state[42], m3 = &state[105];
+    tr = ANDREWS_SQUEEZER_VEC(work, 9), pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
     andrews_squeezer_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
@@ -2160,11 +2160,11 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
         const andrews_squeezer_real t = t0 + *count * h;
         andrews_squeezer_real *row = rows + i * ANDREWS_SQUEEZER_ROW;
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 22;
-        qddn = row + 43;
-        lam = row + 64;
-        reac = row + 85;
+        qn = &row[1];
+        qdn = &row[22];
+        qddn = &row[43];
+        lam = &row[64];
+        reac = &row[85];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
@@ -2239,7 +2239,7 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
            and trigonometric bases (left in work) serve this one */
         status = andrews_squeezer_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != ANDREWS_SQUEEZER_OK) break;
-        if (rscale[0] > 0.0 && andrews_squeezer_screen(work + ANDREWS_SQUEEZER_OFF_LU, dense, rscale, scale, known)
+        if (rscale[0] > 0.0 && andrews_squeezer_screen(&work[ANDREWS_SQUEEZER_OFF_LU], dense, rscale, scale, known)
             && !(andrews_squeezer_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= ANDREWS_SQUEEZER_COND_SCREEN)) {
             status = ANDREWS_SQUEEZER_ILL_CONDITIONED;
             break;
@@ -2488,9 +2488,9 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
         || !isfinite(tol) || tol <= 0.0)
         return ANDREWS_SQUEEZER_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + ANDREWS_SQUEEZER_WORK, rows = state + ANDREWS_SQUEEZER_STATE;
-    vals = rows + 32 * ANDREWS_SQUEEZER_ROW, arms = vals + 65, drive = arms + 21;
-    acc = drive + 2;
+    state = work + ANDREWS_SQUEEZER_WORK, rows = &state[ANDREWS_SQUEEZER_STATE];
+    vals = &rows[32 * ANDREWS_SQUEEZER_ROW], arms = &vals[65], drive = &arms[21];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const andrews_squeezer_real *pv = p + v * ANDREWS_SQUEEZER_NP;
         andrews_squeezer_real *fig = figures + v * ANDREWS_SQUEEZER_SWEEP_FIGURES;
@@ -2506,8 +2506,8 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const andrews_squeezer_real *s = snap + (v - first) * ANDREWS_SQUEEZER_SNAP;
             (void)memcpy(state, s, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_STATE);
-            (void)memcpy(fig, s + ANDREWS_SQUEEZER_STATE, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_SWEEP_FIGURES);
-            (void)memcpy(acc, s + ANDREWS_SQUEEZER_STATE + ANDREWS_SQUEEZER_SWEEP_FIGURES, sizeof(andrews_squeezer_real) * 5u);
+            (void)memcpy(fig, &s[ANDREWS_SQUEEZER_STATE], sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[ANDREWS_SQUEEZER_STATE + ANDREWS_SQUEEZER_SWEEP_FIGURES], sizeof(andrews_squeezer_real) * 5u);
             done = at;
         } else
 #endif
@@ -2524,7 +2524,7 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
             st = andrews_squeezer_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) andrews_squeezer_sweep_take(rows + m * ANDREWS_SQUEEZER_ROW, pv, fig, acc, drive, done + m);
             if (done == 0 && got == 1) {
-                andrews_squeezer_sweep_scales(state, t0, pv, vals, arms, state + 126, state + 147);
+                andrews_squeezer_sweep_scales(state, t0, pv, vals, arms, &state[126], &state[147]);
                 st = andrews_squeezer_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;

@@ -1101,8 +1101,8 @@ static int excavator_factorize(const excavator_real *q, const excavator_real *tr
                              int *iwork, int *dense)
 {
     excavator_real *values = work;
-    excavator_real *lu = work + EXCAVATOR_OFF_LU;
-    excavator_real *a = work + EXCAVATOR_OFF_DENSE;
+    excavator_real *lu = &work[EXCAVATOR_OFF_LU];
+    excavator_real *a = &work[EXCAVATOR_OFF_DENSE];
     int k;
     excavator_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
@@ -1121,9 +1121,9 @@ static int excavator_factorize(const excavator_real *q, const excavator_real *tr
 static void excavator_solve(const excavator_real *work, const int *iwork, int dense, const excavator_real *b, excavator_real *x, excavator_real *y)
 {
     if (dense != 0) {
-        excavator_dense_solve(work + EXCAVATOR_OFF_DENSE, iwork, b, x);
+        excavator_dense_solve(&work[EXCAVATOR_OFF_DENSE], iwork, b, x);
     } else {
-        excavator_sparse_solve(work + EXCAVATOR_OFF_LU, b, x, y);
+        excavator_sparse_solve(&work[EXCAVATOR_OFF_LU], b, x, y);
     }
 }
 
@@ -1134,16 +1134,16 @@ static void excavator_solve_in(const excavator_real *work, const int *iwork, int
     if (dense != 0) {
         excavator_solve(work, iwork, dense, b, x, y);
     } else {
-        excavator_sparse_solve_in(work + EXCAVATOR_OFF_LU, b, x);
+        excavator_sparse_solve_in(&work[EXCAVATOR_OFF_LU], b, x);
     }
 }
 
 static void excavator_solve_t(const excavator_real *work, const int *iwork, int dense, const excavator_real *b, excavator_real *x)
 {
     if (dense != 0) {
-        excavator_dense_solve_t(work + EXCAVATOR_OFF_DENSE, iwork, b, x);
+        excavator_dense_solve_t(&work[EXCAVATOR_OFF_DENSE], iwork, b, x);
     } else {
-        excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, b, x);
+        excavator_sparse_solve_t(&work[EXCAVATOR_OFF_LU], b, x);
     }
 }
 
@@ -1185,9 +1185,9 @@ static EXCAVATOR_COLD void excavator_refine_t(const excavator_real *q, const exc
         r[excavator_phi_q_cols[k]] -= values[k] * lam[excavator_phi_q_rows[k]];
     }
     if (dense != 0) {
-        excavator_dense_solve_t(work + EXCAVATOR_OFF_DENSE, iwork, r, d);
+        excavator_dense_solve_t(&work[EXCAVATOR_OFF_DENSE], iwork, r, d);
     } else {
-        excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+        excavator_sparse_solve_t(&work[EXCAVATOR_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     }
     for (k = 0; k < 9; ++k) {
         lam[k] += d[k];
@@ -1632,7 +1632,7 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
         status = EXCAVATOR_BAD_ARGUMENT;
     } else {
         excavator_real *tr = EXCAVATOR_VEC(work, 9);
-        excavator_real *pp = work + EXCAVATOR_OFF_PREP;
+        excavator_real *pp = &work[EXCAVATOR_OFF_PREP];
         excavator_real *kept = EXCAVATOR_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(excavator_real) * 9u);  /* the caller's guess, back in q if the call fails */
         excavator_prepare(p, pp);
@@ -1675,14 +1675,14 @@ int excavator_screen_at(excavator_real t, const excavator_real *p, const excavat
         return EXCAVATOR_OK;  /* no scales: no screen */
     }
     tr = EXCAVATOR_VEC(work, 9);
-    pp = work + EXCAVATOR_OFF_PREP;
+    pp = &work[EXCAVATOR_OFF_PREP];
     excavator_prepare(p, pp);
     excavator_trig(state, tr);
     if (excavator_factorize(state, tr, t, pp, work, iwork, &dense) != EXCAVATOR_OK) {
         return EXCAVATOR_ILL_CONDITIONED;
     }
     excavator_screen_known(&state[63], &state[54], known);
-    if ((excavator_screen(work + EXCAVATOR_OFF_LU, dense, &state[63], &state[54], known) != 0)
+    if ((excavator_screen(&work[EXCAVATOR_OFF_LU], dense, &state[63], &state[54], known) != 0)
         && !(excavator_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
              <= EXCAVATOR_COND_SCREEN)) {
         return EXCAVATOR_ILL_CONDITIONED;
@@ -1706,12 +1706,12 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return EXCAVATOR_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
-    scale = state + 54, rscale = state + 63;
+    q = state, m1 = &state[27], m2 = &state[36], count = &state[72];
+    scale = &state[54], rscale = &state[63];
     if (rscale[0] > 0.0) excavator_screen_known(rscale, scale, known);
     else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 9, qdd = state + 18, m3 = state + 45;
-    tr = EXCAVATOR_VEC(work, 9), pp = work + EXCAVATOR_OFF_PREP;
+    qd = &state[9], qdd = &state[18], m3 = &state[45];
+    tr = EXCAVATOR_VEC(work, 9), pp = &work[EXCAVATOR_OFF_PREP];
     excavator_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
@@ -1719,11 +1719,11 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
         const excavator_real t = t0 + *count * h;
         excavator_real *row = rows + i * EXCAVATOR_ROW;
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 10;
-        qddn = row + 19;
-        lam = row + 28;
-        reac = row + 37;
+        qn = &row[1];
+        qdn = &row[10];
+        qddn = &row[19];
+        lam = &row[28];
+        reac = &row[37];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
@@ -1762,7 +1762,7 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
            and trigonometric bases (left in work) serve this one */
         status = excavator_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != EXCAVATOR_OK) break;
-        if (rscale[0] > 0.0 && excavator_screen(work + EXCAVATOR_OFF_LU, dense, rscale, scale, known)
+        if (rscale[0] > 0.0 && excavator_screen(&work[EXCAVATOR_OFF_LU], dense, rscale, scale, known)
             && !(excavator_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= EXCAVATOR_COND_SCREEN)) {
             status = EXCAVATOR_ILL_CONDITIONED;
             break;
@@ -2006,9 +2006,9 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
         || !isfinite(tol) || tol <= 0.0)
         return EXCAVATOR_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + EXCAVATOR_WORK, rows = state + EXCAVATOR_STATE;
-    vals = rows + 32 * EXCAVATOR_ROW, arms = vals + 35, drive = arms + 9;
-    acc = drive + 6;
+    state = work + EXCAVATOR_WORK, rows = &state[EXCAVATOR_STATE];
+    vals = &rows[32 * EXCAVATOR_ROW], arms = &vals[35], drive = &arms[9];
+    acc = &drive[6];
     for (v = 0; v < k; ++v) {
         const excavator_real *pv = p + v * EXCAVATOR_NP;
         excavator_real *fig = figures + v * EXCAVATOR_SWEEP_FIGURES;
@@ -2024,8 +2024,8 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const excavator_real *s = snap + (v - first) * EXCAVATOR_SNAP;
             (void)memcpy(state, s, sizeof(excavator_real) * EXCAVATOR_STATE);
-            (void)memcpy(fig, s + EXCAVATOR_STATE, sizeof(excavator_real) * EXCAVATOR_SWEEP_FIGURES);
-            (void)memcpy(acc, s + EXCAVATOR_STATE + EXCAVATOR_SWEEP_FIGURES, sizeof(excavator_real) * 11u);
+            (void)memcpy(fig, &s[EXCAVATOR_STATE], sizeof(excavator_real) * EXCAVATOR_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[EXCAVATOR_STATE + EXCAVATOR_SWEEP_FIGURES], sizeof(excavator_real) * 11u);
             done = at;
         } else
 #endif
@@ -2042,7 +2042,7 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
             st = excavator_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) excavator_sweep_take(rows + m * EXCAVATOR_ROW, pv, fig, acc, drive, done + m);
             if (done == 0 && got == 1) {
-                excavator_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+                excavator_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = excavator_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;

@@ -854,8 +854,8 @@ static int four_bar_factorize(const four_bar_real *q, const four_bar_real *tr, f
                              int *iwork, int *dense)
 {
     four_bar_real *values = work;
-    four_bar_real *lu = work + FOUR_BAR_OFF_LU;
-    four_bar_real *a = work + FOUR_BAR_OFF_DENSE;
+    four_bar_real *lu = &work[FOUR_BAR_OFF_LU];
+    four_bar_real *a = &work[FOUR_BAR_OFF_DENSE];
     int k;
     four_bar_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
@@ -874,9 +874,9 @@ static int four_bar_factorize(const four_bar_real *q, const four_bar_real *tr, f
 static void four_bar_solve(const four_bar_real *work, const int *iwork, int dense, const four_bar_real *b, four_bar_real *x, four_bar_real *y)
 {
     if (dense != 0) {
-        four_bar_dense_solve(work + FOUR_BAR_OFF_DENSE, iwork, b, x);
+        four_bar_dense_solve(&work[FOUR_BAR_OFF_DENSE], iwork, b, x);
     } else {
-        four_bar_sparse_solve(work + FOUR_BAR_OFF_LU, b, x, y);
+        four_bar_sparse_solve(&work[FOUR_BAR_OFF_LU], b, x, y);
     }
 }
 
@@ -887,16 +887,16 @@ static void four_bar_solve_in(const four_bar_real *work, const int *iwork, int d
     if (dense != 0) {
         four_bar_solve(work, iwork, dense, b, x, y);
     } else {
-        four_bar_sparse_solve_in(work + FOUR_BAR_OFF_LU, b, x);
+        four_bar_sparse_solve_in(&work[FOUR_BAR_OFF_LU], b, x);
     }
 }
 
 static void four_bar_solve_t(const four_bar_real *work, const int *iwork, int dense, const four_bar_real *b, four_bar_real *x)
 {
     if (dense != 0) {
-        four_bar_dense_solve_t(work + FOUR_BAR_OFF_DENSE, iwork, b, x);
+        four_bar_dense_solve_t(&work[FOUR_BAR_OFF_DENSE], iwork, b, x);
     } else {
-        four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, b, x);
+        four_bar_sparse_solve_t(&work[FOUR_BAR_OFF_LU], b, x);
     }
 }
 
@@ -938,9 +938,9 @@ static FOUR_BAR_COLD void four_bar_refine_t(const four_bar_real *q, const four_b
         r[four_bar_phi_q_cols[k]] -= values[k] * lam[four_bar_phi_q_rows[k]];
     }
     if (dense != 0) {
-        four_bar_dense_solve_t(work + FOUR_BAR_OFF_DENSE, iwork, r, d);
+        four_bar_dense_solve_t(&work[FOUR_BAR_OFF_DENSE], iwork, r, d);
     } else {
-        four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+        four_bar_sparse_solve_t(&work[FOUR_BAR_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     }
     for (k = 0; k < 9; ++k) {
         lam[k] += d[k];
@@ -1389,7 +1389,7 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
         status = FOUR_BAR_BAD_ARGUMENT;
     } else {
         four_bar_real *tr = FOUR_BAR_VEC(work, 9);
-        four_bar_real *pp = work + FOUR_BAR_OFF_PREP;
+        four_bar_real *pp = &work[FOUR_BAR_OFF_PREP];
         four_bar_real *kept = FOUR_BAR_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(four_bar_real) * 9u);  /* the caller's guess, back in q if the call fails */
         four_bar_prepare(p, pp);
@@ -1432,14 +1432,14 @@ int four_bar_screen_at(four_bar_real t, const four_bar_real *p, const four_bar_r
         return FOUR_BAR_OK;  /* no scales: no screen */
     }
     tr = FOUR_BAR_VEC(work, 9);
-    pp = work + FOUR_BAR_OFF_PREP;
+    pp = &work[FOUR_BAR_OFF_PREP];
     four_bar_prepare(p, pp);
     four_bar_trig(state, tr);
     if (four_bar_factorize(state, tr, t, pp, work, iwork, &dense) != FOUR_BAR_OK) {
         return FOUR_BAR_ILL_CONDITIONED;
     }
     four_bar_screen_known(&state[63], &state[54], known);
-    if ((four_bar_screen(work + FOUR_BAR_OFF_LU, dense, &state[63], &state[54], known) != 0)
+    if ((four_bar_screen(&work[FOUR_BAR_OFF_LU], dense, &state[63], &state[54], known) != 0)
         && !(four_bar_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
              <= FOUR_BAR_COND_SCREEN)) {
         return FOUR_BAR_ILL_CONDITIONED;
@@ -1463,12 +1463,12 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return FOUR_BAR_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
-    scale = state + 54, rscale = state + 63;
+    q = state, m1 = &state[27], m2 = &state[36], count = &state[72];
+    scale = &state[54], rscale = &state[63];
     if (rscale[0] > 0.0) four_bar_screen_known(rscale, scale, known);
     else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 9, qdd = state + 18, m3 = state + 45;
-    tr = FOUR_BAR_VEC(work, 9), pp = work + FOUR_BAR_OFF_PREP;
+    qd = &state[9], qdd = &state[18], m3 = &state[45];
+    tr = FOUR_BAR_VEC(work, 9), pp = &work[FOUR_BAR_OFF_PREP];
     four_bar_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
@@ -1476,11 +1476,11 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
         const four_bar_real t = t0 + *count * h;
         four_bar_real *row = rows + i * FOUR_BAR_ROW;
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 10;
-        qddn = row + 19;
-        lam = row + 28;
-        reac = row + 37;
+        qn = &row[1];
+        qdn = &row[10];
+        qddn = &row[19];
+        lam = &row[28];
+        reac = &row[37];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
@@ -1519,7 +1519,7 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
            and trigonometric bases (left in work) serve this one */
         status = four_bar_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != FOUR_BAR_OK) break;
-        if (rscale[0] > 0.0 && four_bar_screen(work + FOUR_BAR_OFF_LU, dense, rscale, scale, known)
+        if (rscale[0] > 0.0 && four_bar_screen(&work[FOUR_BAR_OFF_LU], dense, rscale, scale, known)
             && !(four_bar_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= FOUR_BAR_COND_SCREEN)) {
             status = FOUR_BAR_ILL_CONDITIONED;
             break;
@@ -1718,9 +1718,9 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
         || !isfinite(tol) || tol <= 0.0)
         return FOUR_BAR_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + FOUR_BAR_WORK, rows = state + FOUR_BAR_STATE;
-    vals = rows + 32 * FOUR_BAR_ROW, arms = vals + 25, drive = arms + 9;
-    acc = drive + 2;
+    state = work + FOUR_BAR_WORK, rows = &state[FOUR_BAR_STATE];
+    vals = &rows[32 * FOUR_BAR_ROW], arms = &vals[25], drive = &arms[9];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const four_bar_real *pv = p + v * FOUR_BAR_NP;
         four_bar_real *fig = figures + v * FOUR_BAR_SWEEP_FIGURES;
@@ -1736,8 +1736,8 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const four_bar_real *s = snap + (v - first) * FOUR_BAR_SNAP;
             (void)memcpy(state, s, sizeof(four_bar_real) * FOUR_BAR_STATE);
-            (void)memcpy(fig, s + FOUR_BAR_STATE, sizeof(four_bar_real) * FOUR_BAR_SWEEP_FIGURES);
-            (void)memcpy(acc, s + FOUR_BAR_STATE + FOUR_BAR_SWEEP_FIGURES, sizeof(four_bar_real) * 5u);
+            (void)memcpy(fig, &s[FOUR_BAR_STATE], sizeof(four_bar_real) * FOUR_BAR_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[FOUR_BAR_STATE + FOUR_BAR_SWEEP_FIGURES], sizeof(four_bar_real) * 5u);
             done = at;
         } else
 #endif
@@ -1754,7 +1754,7 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
             st = four_bar_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) four_bar_sweep_take(rows + m * FOUR_BAR_ROW, pv, fig, acc, drive, done + m);
             if (done == 0 && got == 1) {
-                four_bar_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+                four_bar_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = four_bar_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;

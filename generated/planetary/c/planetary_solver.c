@@ -946,8 +946,8 @@ static int planetary_factorize(const planetary_real *q, const planetary_real *tr
                              int *iwork, int *dense)
 {
     planetary_real *values = work;
-    planetary_real *lu = work + PLANETARY_OFF_LU;
-    planetary_real *a = work + PLANETARY_OFF_DENSE;
+    planetary_real *lu = &work[PLANETARY_OFF_LU];
+    planetary_real *a = &work[PLANETARY_OFF_DENSE];
     int k;
     planetary_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
@@ -966,9 +966,9 @@ static int planetary_factorize(const planetary_real *q, const planetary_real *tr
 static void planetary_solve(const planetary_real *work, const int *iwork, int dense, const planetary_real *b, planetary_real *x, planetary_real *y)
 {
     if (dense != 0) {
-        planetary_dense_solve(work + PLANETARY_OFF_DENSE, iwork, b, x);
+        planetary_dense_solve(&work[PLANETARY_OFF_DENSE], iwork, b, x);
     } else {
-        planetary_sparse_solve(work + PLANETARY_OFF_LU, b, x, y);
+        planetary_sparse_solve(&work[PLANETARY_OFF_LU], b, x, y);
     }
 }
 
@@ -979,16 +979,16 @@ static void planetary_solve_in(const planetary_real *work, const int *iwork, int
     if (dense != 0) {
         planetary_solve(work, iwork, dense, b, x, y);
     } else {
-        planetary_sparse_solve_in(work + PLANETARY_OFF_LU, b, x);
+        planetary_sparse_solve_in(&work[PLANETARY_OFF_LU], b, x);
     }
 }
 
 static void planetary_solve_t(const planetary_real *work, const int *iwork, int dense, const planetary_real *b, planetary_real *x)
 {
     if (dense != 0) {
-        planetary_dense_solve_t(work + PLANETARY_OFF_DENSE, iwork, b, x);
+        planetary_dense_solve_t(&work[PLANETARY_OFF_DENSE], iwork, b, x);
     } else {
-        planetary_sparse_solve_t(work + PLANETARY_OFF_LU, b, x);
+        planetary_sparse_solve_t(&work[PLANETARY_OFF_LU], b, x);
     }
 }
 
@@ -1032,9 +1032,9 @@ static PLANETARY_COLD void planetary_refine_t(const planetary_real *q, const pla
         r[planetary_phi_q_cols[k]] -= values[k] * lam[planetary_phi_q_rows[k]];
     }
     if (dense != 0) {
-        planetary_dense_solve_t(work + PLANETARY_OFF_DENSE, iwork, r, d);
+        planetary_dense_solve_t(&work[PLANETARY_OFF_DENSE], iwork, r, d);
     } else {
-        planetary_sparse_solve_t(work + PLANETARY_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+        planetary_sparse_solve_t(&work[PLANETARY_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     }
     for (k = 0; k < 12; ++k) {
         lam[k] += d[k];
@@ -1518,7 +1518,7 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
         status = PLANETARY_BAD_ARGUMENT;
     } else {
         planetary_real *tr = PLANETARY_VEC(work, 9);
-        planetary_real *pp = work + PLANETARY_OFF_PREP;
+        planetary_real *pp = &work[PLANETARY_OFF_PREP];
         planetary_real *kept = PLANETARY_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(planetary_real) * 12u);  /* the caller's guess, back in q if the call fails */
         planetary_prepare(p, pp);
@@ -1561,14 +1561,14 @@ int planetary_screen_at(planetary_real t, const planetary_real *p, const planeta
         return PLANETARY_OK;  /* no scales: no screen */
     }
     tr = PLANETARY_VEC(work, 9);
-    pp = work + PLANETARY_OFF_PREP;
+    pp = &work[PLANETARY_OFF_PREP];
     planetary_prepare(p, pp);
     planetary_trig(state, tr);
     if (planetary_factorize(state, tr, t, pp, work, iwork, &dense) != PLANETARY_OK) {
         return PLANETARY_ILL_CONDITIONED;
     }
     planetary_screen_known(&state[84], &state[72], known);
-    if ((planetary_screen(work + PLANETARY_OFF_LU, dense, &state[84], &state[72], known) != 0)
+    if ((planetary_screen(&work[PLANETARY_OFF_LU], dense, &state[84], &state[72], known) != 0)
         && !(planetary_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[84], &state[72])
              <= PLANETARY_COND_SCREEN)) {
         return PLANETARY_ILL_CONDITIONED;
@@ -1592,12 +1592,12 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return PLANETARY_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 36, m2 = state + 48, count = state + 96;
-    scale = state + 72, rscale = state + 84;
+    q = state, m1 = &state[36], m2 = &state[48], count = &state[96];
+    scale = &state[72], rscale = &state[84];
     if (rscale[0] > 0.0) planetary_screen_known(rscale, scale, known);
     else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 12, qdd = state + 24, m3 = state + 60;
-    tr = PLANETARY_VEC(work, 9), pp = work + PLANETARY_OFF_PREP;
+    qd = &state[12], qdd = &state[24], m3 = &state[60];
+    tr = PLANETARY_VEC(work, 9), pp = &work[PLANETARY_OFF_PREP];
     planetary_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
@@ -1605,11 +1605,11 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
         const planetary_real t = t0 + *count * h;
         planetary_real *row = rows + i * PLANETARY_ROW;
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 13;
-        qddn = row + 25;
-        lam = row + 37;
-        reac = row + 49;
+        qn = &row[1];
+        qdn = &row[13];
+        qddn = &row[25];
+        lam = &row[37];
+        reac = &row[49];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
@@ -1657,7 +1657,7 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
            and trigonometric bases (left in work) serve this one */
         status = planetary_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != PLANETARY_OK) break;
-        if (rscale[0] > 0.0 && planetary_screen(work + PLANETARY_OFF_LU, dense, rscale, scale, known)
+        if (rscale[0] > 0.0 && planetary_screen(&work[PLANETARY_OFF_LU], dense, rscale, scale, known)
             && !(planetary_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= PLANETARY_COND_SCREEN)) {
             status = PLANETARY_ILL_CONDITIONED;
             break;
@@ -1879,9 +1879,9 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
         || !isfinite(tol) || tol <= 0.0)
         return PLANETARY_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + PLANETARY_WORK, rows = state + PLANETARY_STATE;
-    vals = rows + 32 * PLANETARY_ROW, arms = vals + 20, drive = arms + 12;
-    acc = drive + 2;
+    state = work + PLANETARY_WORK, rows = &state[PLANETARY_STATE];
+    vals = &rows[32 * PLANETARY_ROW], arms = &vals[20], drive = &arms[12];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const planetary_real *pv = p + v * PLANETARY_NP;
         planetary_real *fig = figures + v * PLANETARY_SWEEP_FIGURES;
@@ -1897,8 +1897,8 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const planetary_real *s = snap + (v - first) * PLANETARY_SNAP;
             (void)memcpy(state, s, sizeof(planetary_real) * PLANETARY_STATE);
-            (void)memcpy(fig, s + PLANETARY_STATE, sizeof(planetary_real) * PLANETARY_SWEEP_FIGURES);
-            (void)memcpy(acc, s + PLANETARY_STATE + PLANETARY_SWEEP_FIGURES, sizeof(planetary_real) * 5u);
+            (void)memcpy(fig, &s[PLANETARY_STATE], sizeof(planetary_real) * PLANETARY_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[PLANETARY_STATE + PLANETARY_SWEEP_FIGURES], sizeof(planetary_real) * 5u);
             done = at;
         } else
 #endif
@@ -1915,7 +1915,7 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
             st = planetary_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) planetary_sweep_take(rows + m * PLANETARY_ROW, pv, fig, acc, drive, done + m);
             if (done == 0 && got == 1) {
-                planetary_sweep_scales(state, t0, pv, vals, arms, state + 72, state + 84);
+                planetary_sweep_scales(state, t0, pv, vals, arms, &state[72], &state[84]);
                 st = planetary_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;

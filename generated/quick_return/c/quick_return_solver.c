@@ -848,8 +848,8 @@ static int quick_return_factorize(const quick_return_real *q, const quick_return
                              int *iwork, int *dense)
 {
     quick_return_real *values = work;
-    quick_return_real *lu = work + QUICK_RETURN_OFF_LU;
-    quick_return_real *a = work + QUICK_RETURN_OFF_DENSE;
+    quick_return_real *lu = &work[QUICK_RETURN_OFF_LU];
+    quick_return_real *a = &work[QUICK_RETURN_OFF_DENSE];
     int k;
     quick_return_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
@@ -868,9 +868,9 @@ static int quick_return_factorize(const quick_return_real *q, const quick_return
 static void quick_return_solve(const quick_return_real *work, const int *iwork, int dense, const quick_return_real *b, quick_return_real *x, quick_return_real *y)
 {
     if (dense != 0) {
-        quick_return_dense_solve(work + QUICK_RETURN_OFF_DENSE, iwork, b, x);
+        quick_return_dense_solve(&work[QUICK_RETURN_OFF_DENSE], iwork, b, x);
     } else {
-        quick_return_sparse_solve(work + QUICK_RETURN_OFF_LU, b, x, y);
+        quick_return_sparse_solve(&work[QUICK_RETURN_OFF_LU], b, x, y);
     }
 }
 
@@ -881,16 +881,16 @@ static void quick_return_solve_in(const quick_return_real *work, const int *iwor
     if (dense != 0) {
         quick_return_solve(work, iwork, dense, b, x, y);
     } else {
-        quick_return_sparse_solve_in(work + QUICK_RETURN_OFF_LU, b, x);
+        quick_return_sparse_solve_in(&work[QUICK_RETURN_OFF_LU], b, x);
     }
 }
 
 static void quick_return_solve_t(const quick_return_real *work, const int *iwork, int dense, const quick_return_real *b, quick_return_real *x)
 {
     if (dense != 0) {
-        quick_return_dense_solve_t(work + QUICK_RETURN_OFF_DENSE, iwork, b, x);
+        quick_return_dense_solve_t(&work[QUICK_RETURN_OFF_DENSE], iwork, b, x);
     } else {
-        quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, b, x);
+        quick_return_sparse_solve_t(&work[QUICK_RETURN_OFF_LU], b, x);
     }
 }
 
@@ -932,9 +932,9 @@ static QUICK_RETURN_COLD void quick_return_refine_t(const quick_return_real *q, 
         r[quick_return_phi_q_cols[k]] -= values[k] * lam[quick_return_phi_q_rows[k]];
     }
     if (dense != 0) {
-        quick_return_dense_solve_t(work + QUICK_RETURN_OFF_DENSE, iwork, r, d);
+        quick_return_dense_solve_t(&work[QUICK_RETURN_OFF_DENSE], iwork, r, d);
     } else {
-        quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+        quick_return_sparse_solve_t(&work[QUICK_RETURN_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     }
     for (k = 0; k < 9; ++k) {
         lam[k] += d[k];
@@ -1379,7 +1379,7 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
         status = QUICK_RETURN_BAD_ARGUMENT;
     } else {
         quick_return_real *tr = QUICK_RETURN_VEC(work, 9);
-        quick_return_real *pp = work + QUICK_RETURN_OFF_PREP;
+        quick_return_real *pp = &work[QUICK_RETURN_OFF_PREP];
         quick_return_real *kept = QUICK_RETURN_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(quick_return_real) * 9u);  /* the caller's guess, back in q if the call fails */
         quick_return_prepare(p, pp);
@@ -1422,14 +1422,14 @@ int quick_return_screen_at(quick_return_real t, const quick_return_real *p, cons
         return QUICK_RETURN_OK;  /* no scales: no screen */
     }
     tr = QUICK_RETURN_VEC(work, 9);
-    pp = work + QUICK_RETURN_OFF_PREP;
+    pp = &work[QUICK_RETURN_OFF_PREP];
     quick_return_prepare(p, pp);
     quick_return_trig(state, tr);
     if (quick_return_factorize(state, tr, t, pp, work, iwork, &dense) != QUICK_RETURN_OK) {
         return QUICK_RETURN_ILL_CONDITIONED;
     }
     quick_return_screen_known(&state[63], &state[54], known);
-    if ((quick_return_screen(work + QUICK_RETURN_OFF_LU, dense, &state[63], &state[54], known) != 0)
+    if ((quick_return_screen(&work[QUICK_RETURN_OFF_LU], dense, &state[63], &state[54], known) != 0)
         && !(quick_return_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
              <= QUICK_RETURN_COND_SCREEN)) {
         return QUICK_RETURN_ILL_CONDITIONED;
@@ -1453,12 +1453,12 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return QUICK_RETURN_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
-    scale = state + 54, rscale = state + 63;
+    q = state, m1 = &state[27], m2 = &state[36], count = &state[72];
+    scale = &state[54], rscale = &state[63];
     if (rscale[0] > 0.0) quick_return_screen_known(rscale, scale, known);
     else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 9, qdd = state + 18, m3 = state + 45;
-    tr = QUICK_RETURN_VEC(work, 9), pp = work + QUICK_RETURN_OFF_PREP;
+    qd = &state[9], qdd = &state[18], m3 = &state[45];
+    tr = QUICK_RETURN_VEC(work, 9), pp = &work[QUICK_RETURN_OFF_PREP];
     quick_return_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
@@ -1466,11 +1466,11 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
         const quick_return_real t = t0 + *count * h;
         quick_return_real *row = rows + i * QUICK_RETURN_ROW;
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 10;
-        qddn = row + 19;
-        lam = row + 28;
-        reac = row + 37;
+        qn = &row[1];
+        qdn = &row[10];
+        qddn = &row[19];
+        lam = &row[28];
+        reac = &row[37];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
@@ -1509,7 +1509,7 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
            and trigonometric bases (left in work) serve this one */
         status = quick_return_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != QUICK_RETURN_OK) break;
-        if (rscale[0] > 0.0 && quick_return_screen(work + QUICK_RETURN_OFF_LU, dense, rscale, scale, known)
+        if (rscale[0] > 0.0 && quick_return_screen(&work[QUICK_RETURN_OFF_LU], dense, rscale, scale, known)
             && !(quick_return_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= QUICK_RETURN_COND_SCREEN)) {
             status = QUICK_RETURN_ILL_CONDITIONED;
             break;
@@ -1717,9 +1717,9 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
         || !isfinite(tol) || tol <= 0.0)
         return QUICK_RETURN_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + QUICK_RETURN_WORK, rows = state + QUICK_RETURN_STATE;
-    vals = rows + 32 * QUICK_RETURN_ROW, arms = vals + 20, drive = arms + 9;
-    acc = drive + 2;
+    state = work + QUICK_RETURN_WORK, rows = &state[QUICK_RETURN_STATE];
+    vals = &rows[32 * QUICK_RETURN_ROW], arms = &vals[20], drive = &arms[9];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const quick_return_real *pv = p + v * QUICK_RETURN_NP;
         quick_return_real *fig = figures + v * QUICK_RETURN_SWEEP_FIGURES;
@@ -1735,8 +1735,8 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const quick_return_real *s = snap + (v - first) * QUICK_RETURN_SNAP;
             (void)memcpy(state, s, sizeof(quick_return_real) * QUICK_RETURN_STATE);
-            (void)memcpy(fig, s + QUICK_RETURN_STATE, sizeof(quick_return_real) * QUICK_RETURN_SWEEP_FIGURES);
-            (void)memcpy(acc, s + QUICK_RETURN_STATE + QUICK_RETURN_SWEEP_FIGURES, sizeof(quick_return_real) * 5u);
+            (void)memcpy(fig, &s[QUICK_RETURN_STATE], sizeof(quick_return_real) * QUICK_RETURN_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[QUICK_RETURN_STATE + QUICK_RETURN_SWEEP_FIGURES], sizeof(quick_return_real) * 5u);
             done = at;
         } else
 #endif
@@ -1753,7 +1753,7 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
             st = quick_return_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) quick_return_sweep_take(rows + m * QUICK_RETURN_ROW, pv, fig, acc, drive, done + m);
             if (done == 0 && got == 1) {
-                quick_return_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+                quick_return_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = quick_return_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;

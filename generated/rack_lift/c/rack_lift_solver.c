@@ -713,8 +713,8 @@ static int rack_lift_factorize(const rack_lift_real *q, const rack_lift_real *tr
                              int *iwork, int *dense)
 {
     rack_lift_real *values = work;
-    rack_lift_real *lu = work + RACK_LIFT_OFF_LU;
-    rack_lift_real *a = work + RACK_LIFT_OFF_DENSE;
+    rack_lift_real *lu = &work[RACK_LIFT_OFF_LU];
+    rack_lift_real *a = &work[RACK_LIFT_OFF_DENSE];
     int k;
     rack_lift_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
@@ -733,9 +733,9 @@ static int rack_lift_factorize(const rack_lift_real *q, const rack_lift_real *tr
 static void rack_lift_solve(const rack_lift_real *work, const int *iwork, int dense, const rack_lift_real *b, rack_lift_real *x, rack_lift_real *y)
 {
     if (dense != 0) {
-        rack_lift_dense_solve(work + RACK_LIFT_OFF_DENSE, iwork, b, x);
+        rack_lift_dense_solve(&work[RACK_LIFT_OFF_DENSE], iwork, b, x);
     } else {
-        rack_lift_sparse_solve(work + RACK_LIFT_OFF_LU, b, x, y);
+        rack_lift_sparse_solve(&work[RACK_LIFT_OFF_LU], b, x, y);
     }
 }
 
@@ -746,16 +746,16 @@ static void rack_lift_solve_in(const rack_lift_real *work, const int *iwork, int
     if (dense != 0) {
         rack_lift_solve(work, iwork, dense, b, x, y);
     } else {
-        rack_lift_sparse_solve_in(work + RACK_LIFT_OFF_LU, b, x);
+        rack_lift_sparse_solve_in(&work[RACK_LIFT_OFF_LU], b, x);
     }
 }
 
 static void rack_lift_solve_t(const rack_lift_real *work, const int *iwork, int dense, const rack_lift_real *b, rack_lift_real *x)
 {
     if (dense != 0) {
-        rack_lift_dense_solve_t(work + RACK_LIFT_OFF_DENSE, iwork, b, x);
+        rack_lift_dense_solve_t(&work[RACK_LIFT_OFF_DENSE], iwork, b, x);
     } else {
-        rack_lift_sparse_solve_t(work + RACK_LIFT_OFF_LU, b, x);
+        rack_lift_sparse_solve_t(&work[RACK_LIFT_OFF_LU], b, x);
     }
 }
 
@@ -795,9 +795,9 @@ static RACK_LIFT_COLD void rack_lift_refine_t(const rack_lift_real *q, const rac
         r[rack_lift_phi_q_cols[k]] -= values[k] * lam[rack_lift_phi_q_rows[k]];
     }
     if (dense != 0) {
-        rack_lift_dense_solve_t(work + RACK_LIFT_OFF_DENSE, iwork, r, d);
+        rack_lift_dense_solve_t(&work[RACK_LIFT_OFF_DENSE], iwork, r, d);
     } else {
-        rack_lift_sparse_solve_t(work + RACK_LIFT_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+        rack_lift_sparse_solve_t(&work[RACK_LIFT_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     }
     for (k = 0; k < 6; ++k) {
         lam[k] += d[k];
@@ -1292,7 +1292,7 @@ int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real 
         status = RACK_LIFT_BAD_ARGUMENT;
     } else {
         rack_lift_real *tr = RACK_LIFT_VEC(work, 9);
-        rack_lift_real *pp = work + RACK_LIFT_OFF_PREP;
+        rack_lift_real *pp = &work[RACK_LIFT_OFF_PREP];
         rack_lift_real *kept = RACK_LIFT_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(rack_lift_real) * 6u);  /* the caller's guess, back in q if the call fails */
         rack_lift_prepare(p, pp);
@@ -1335,14 +1335,14 @@ int rack_lift_screen_at(rack_lift_real t, const rack_lift_real *p, const rack_li
         return RACK_LIFT_OK;  /* no scales: no screen */
     }
     tr = RACK_LIFT_VEC(work, 9);
-    pp = work + RACK_LIFT_OFF_PREP;
+    pp = &work[RACK_LIFT_OFF_PREP];
     rack_lift_prepare(p, pp);
     rack_lift_trig(state, tr);
     if (rack_lift_factorize(state, tr, t, pp, work, iwork, &dense) != RACK_LIFT_OK) {
         return RACK_LIFT_ILL_CONDITIONED;
     }
     rack_lift_screen_known(&state[42], &state[36], known);
-    if ((rack_lift_screen(work + RACK_LIFT_OFF_LU, dense, &state[42], &state[36], known) != 0)
+    if ((rack_lift_screen(&work[RACK_LIFT_OFF_LU], dense, &state[42], &state[36], known) != 0)
         && !(rack_lift_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[42], &state[36])
              <= RACK_LIFT_COND_SCREEN)) {
         return RACK_LIFT_ILL_CONDITIONED;
@@ -1366,12 +1366,12 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return RACK_LIFT_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 18, m2 = state + 24, count = state + 48;
-    scale = state + 36, rscale = state + 42;
+    q = state, m1 = &state[18], m2 = &state[24], count = &state[48];
+    scale = &state[36], rscale = &state[42];
     if (rscale[0] > 0.0) rack_lift_screen_known(rscale, scale, known);
     else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 6, qdd = state + 12, m3 = state + 30;
-    tr = RACK_LIFT_VEC(work, 9), pp = work + RACK_LIFT_OFF_PREP;
+    qd = &state[6], qdd = &state[12], m3 = &state[30];
+    tr = RACK_LIFT_VEC(work, 9), pp = &work[RACK_LIFT_OFF_PREP];
     rack_lift_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
@@ -1379,11 +1379,11 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
         const rack_lift_real t = t0 + *count * h;
         rack_lift_real *row = rows + i * RACK_LIFT_ROW;
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 7;
-        qddn = row + 13;
-        lam = row + 19;
-        reac = row + 25;
+        qn = &row[1];
+        qdn = &row[7];
+        qddn = &row[13];
+        lam = &row[19];
+        reac = &row[25];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
@@ -1413,7 +1413,7 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
            and trigonometric bases (left in work) serve this one */
         status = rack_lift_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != RACK_LIFT_OK) break;
-        if (rscale[0] > 0.0 && rack_lift_screen(work + RACK_LIFT_OFF_LU, dense, rscale, scale, known)
+        if (rscale[0] > 0.0 && rack_lift_screen(&work[RACK_LIFT_OFF_LU], dense, rscale, scale, known)
             && !(rack_lift_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= RACK_LIFT_COND_SCREEN)) {
             status = RACK_LIFT_ILL_CONDITIONED;
             break;
@@ -1605,9 +1605,9 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
         || !isfinite(tol) || tol <= 0.0)
         return RACK_LIFT_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + RACK_LIFT_WORK, rows = state + RACK_LIFT_STATE;
-    vals = rows + 32 * RACK_LIFT_ROW, arms = vals + 11, drive = arms + 6;
-    acc = drive + 2;
+    state = work + RACK_LIFT_WORK, rows = &state[RACK_LIFT_STATE];
+    vals = &rows[32 * RACK_LIFT_ROW], arms = &vals[11], drive = &arms[6];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const rack_lift_real *pv = p + v * RACK_LIFT_NP;
         rack_lift_real *fig = figures + v * RACK_LIFT_SWEEP_FIGURES;
@@ -1623,8 +1623,8 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const rack_lift_real *s = snap + (v - first) * RACK_LIFT_SNAP;
             (void)memcpy(state, s, sizeof(rack_lift_real) * RACK_LIFT_STATE);
-            (void)memcpy(fig, s + RACK_LIFT_STATE, sizeof(rack_lift_real) * RACK_LIFT_SWEEP_FIGURES);
-            (void)memcpy(acc, s + RACK_LIFT_STATE + RACK_LIFT_SWEEP_FIGURES, sizeof(rack_lift_real) * 5u);
+            (void)memcpy(fig, &s[RACK_LIFT_STATE], sizeof(rack_lift_real) * RACK_LIFT_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[RACK_LIFT_STATE + RACK_LIFT_SWEEP_FIGURES], sizeof(rack_lift_real) * 5u);
             done = at;
         } else
 #endif
@@ -1641,7 +1641,7 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
             st = rack_lift_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) rack_lift_sweep_take(rows + m * RACK_LIFT_ROW, pv, fig, acc, drive, done + m);
             if (done == 0 && got == 1) {
-                rack_lift_sweep_scales(state, t0, pv, vals, arms, state + 36, state + 42);
+                rack_lift_sweep_scales(state, t0, pv, vals, arms, &state[36], &state[42]);
                 st = rack_lift_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;

@@ -807,8 +807,8 @@ static int slider_crank_factorize(const slider_crank_real *q, const slider_crank
                              int *iwork, int *dense)
 {
     slider_crank_real *values = work;
-    slider_crank_real *lu = work + SLIDER_CRANK_OFF_LU;
-    slider_crank_real *a = work + SLIDER_CRANK_OFF_DENSE;
+    slider_crank_real *lu = &work[SLIDER_CRANK_OFF_LU];
+    slider_crank_real *a = &work[SLIDER_CRANK_OFF_DENSE];
     int k;
     slider_crank_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
@@ -827,9 +827,9 @@ static int slider_crank_factorize(const slider_crank_real *q, const slider_crank
 static void slider_crank_solve(const slider_crank_real *work, const int *iwork, int dense, const slider_crank_real *b, slider_crank_real *x, slider_crank_real *y)
 {
     if (dense != 0) {
-        slider_crank_dense_solve(work + SLIDER_CRANK_OFF_DENSE, iwork, b, x);
+        slider_crank_dense_solve(&work[SLIDER_CRANK_OFF_DENSE], iwork, b, x);
     } else {
-        slider_crank_sparse_solve(work + SLIDER_CRANK_OFF_LU, b, x, y);
+        slider_crank_sparse_solve(&work[SLIDER_CRANK_OFF_LU], b, x, y);
     }
 }
 
@@ -840,16 +840,16 @@ static void slider_crank_solve_in(const slider_crank_real *work, const int *iwor
     if (dense != 0) {
         slider_crank_solve(work, iwork, dense, b, x, y);
     } else {
-        slider_crank_sparse_solve_in(work + SLIDER_CRANK_OFF_LU, b, x);
+        slider_crank_sparse_solve_in(&work[SLIDER_CRANK_OFF_LU], b, x);
     }
 }
 
 static void slider_crank_solve_t(const slider_crank_real *work, const int *iwork, int dense, const slider_crank_real *b, slider_crank_real *x)
 {
     if (dense != 0) {
-        slider_crank_dense_solve_t(work + SLIDER_CRANK_OFF_DENSE, iwork, b, x);
+        slider_crank_dense_solve_t(&work[SLIDER_CRANK_OFF_DENSE], iwork, b, x);
     } else {
-        slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, b, x);
+        slider_crank_sparse_solve_t(&work[SLIDER_CRANK_OFF_LU], b, x);
     }
 }
 
@@ -891,9 +891,9 @@ static SLIDER_CRANK_COLD void slider_crank_refine_t(const slider_crank_real *q, 
         r[slider_crank_phi_q_cols[k]] -= values[k] * lam[slider_crank_phi_q_rows[k]];
     }
     if (dense != 0) {
-        slider_crank_dense_solve_t(work + SLIDER_CRANK_OFF_DENSE, iwork, r, d);
+        slider_crank_dense_solve_t(&work[SLIDER_CRANK_OFF_DENSE], iwork, r, d);
     } else {
-        slider_crank_sparse_solve_t(work + SLIDER_CRANK_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+        slider_crank_sparse_solve_t(&work[SLIDER_CRANK_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     }
     for (k = 0; k < 9; ++k) {
         lam[k] += d[k];
@@ -1342,7 +1342,7 @@ int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider
         status = SLIDER_CRANK_BAD_ARGUMENT;
     } else {
         slider_crank_real *tr = SLIDER_CRANK_VEC(work, 9);
-        slider_crank_real *pp = work + SLIDER_CRANK_OFF_PREP;
+        slider_crank_real *pp = &work[SLIDER_CRANK_OFF_PREP];
         slider_crank_real *kept = SLIDER_CRANK_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_crank_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_prepare(p, pp);
@@ -1385,14 +1385,14 @@ int slider_crank_screen_at(slider_crank_real t, const slider_crank_real *p, cons
         return SLIDER_CRANK_OK;  /* no scales: no screen */
     }
     tr = SLIDER_CRANK_VEC(work, 9);
-    pp = work + SLIDER_CRANK_OFF_PREP;
+    pp = &work[SLIDER_CRANK_OFF_PREP];
     slider_crank_prepare(p, pp);
     slider_crank_trig(state, tr);
     if (slider_crank_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_CRANK_OK) {
         return SLIDER_CRANK_ILL_CONDITIONED;
     }
     slider_crank_screen_known(&state[63], &state[54], known);
-    if ((slider_crank_screen(work + SLIDER_CRANK_OFF_LU, dense, &state[63], &state[54], known) != 0)
+    if ((slider_crank_screen(&work[SLIDER_CRANK_OFF_LU], dense, &state[63], &state[54], known) != 0)
         && !(slider_crank_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
              <= SLIDER_CRANK_COND_SCREEN)) {
         return SLIDER_CRANK_ILL_CONDITIONED;
@@ -1416,12 +1416,12 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return SLIDER_CRANK_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
-    scale = state + 54, rscale = state + 63;
+    q = state, m1 = &state[27], m2 = &state[36], count = &state[72];
+    scale = &state[54], rscale = &state[63];
     if (rscale[0] > 0.0) slider_crank_screen_known(rscale, scale, known);
     else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 9, qdd = state + 18, m3 = state + 45;
-    tr = SLIDER_CRANK_VEC(work, 9), pp = work + SLIDER_CRANK_OFF_PREP;
+    qd = &state[9], qdd = &state[18], m3 = &state[45];
+    tr = SLIDER_CRANK_VEC(work, 9), pp = &work[SLIDER_CRANK_OFF_PREP];
     slider_crank_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
@@ -1429,11 +1429,11 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
         const slider_crank_real t = t0 + *count * h;
         slider_crank_real *row = rows + i * SLIDER_CRANK_ROW;
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 10;
-        qddn = row + 19;
-        lam = row + 28;
-        reac = row + 37;
+        qn = &row[1];
+        qdn = &row[10];
+        qddn = &row[19];
+        lam = &row[28];
+        reac = &row[37];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
@@ -1472,7 +1472,7 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
            and trigonometric bases (left in work) serve this one */
         status = slider_crank_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != SLIDER_CRANK_OK) break;
-        if (rscale[0] > 0.0 && slider_crank_screen(work + SLIDER_CRANK_OFF_LU, dense, rscale, scale, known)
+        if (rscale[0] > 0.0 && slider_crank_screen(&work[SLIDER_CRANK_OFF_LU], dense, rscale, scale, known)
             && !(slider_crank_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= SLIDER_CRANK_COND_SCREEN)) {
             status = SLIDER_CRANK_ILL_CONDITIONED;
             break;
@@ -1671,9 +1671,9 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
         || !isfinite(tol) || tol <= 0.0)
         return SLIDER_CRANK_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + SLIDER_CRANK_WORK, rows = state + SLIDER_CRANK_STATE;
-    vals = rows + 32 * SLIDER_CRANK_ROW, arms = vals + 21, drive = arms + 9;
-    acc = drive + 2;
+    state = work + SLIDER_CRANK_WORK, rows = &state[SLIDER_CRANK_STATE];
+    vals = &rows[32 * SLIDER_CRANK_ROW], arms = &vals[21], drive = &arms[9];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const slider_crank_real *pv = p + v * SLIDER_CRANK_NP;
         slider_crank_real *fig = figures + v * SLIDER_CRANK_SWEEP_FIGURES;
@@ -1689,8 +1689,8 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const slider_crank_real *s = snap + (v - first) * SLIDER_CRANK_SNAP;
             (void)memcpy(state, s, sizeof(slider_crank_real) * SLIDER_CRANK_STATE);
-            (void)memcpy(fig, s + SLIDER_CRANK_STATE, sizeof(slider_crank_real) * SLIDER_CRANK_SWEEP_FIGURES);
-            (void)memcpy(acc, s + SLIDER_CRANK_STATE + SLIDER_CRANK_SWEEP_FIGURES, sizeof(slider_crank_real) * 5u);
+            (void)memcpy(fig, &s[SLIDER_CRANK_STATE], sizeof(slider_crank_real) * SLIDER_CRANK_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[SLIDER_CRANK_STATE + SLIDER_CRANK_SWEEP_FIGURES], sizeof(slider_crank_real) * 5u);
             done = at;
         } else
 #endif
@@ -1707,7 +1707,7 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
             st = slider_crank_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) slider_crank_sweep_take(rows + m * SLIDER_CRANK_ROW, pv, fig, acc, drive, done + m);
             if (done == 0 && got == 1) {
-                slider_crank_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+                slider_crank_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = slider_crank_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;

@@ -737,8 +737,8 @@ static int slider_pendulum_factorize(const slider_pendulum_real *q, const slider
                              int *iwork, int *dense)
 {
     slider_pendulum_real *values = work;
-    slider_pendulum_real *lu = work + SLIDER_PENDULUM_OFF_LU;
-    slider_pendulum_real *a = work + SLIDER_PENDULUM_OFF_DENSE;
+    slider_pendulum_real *lu = &work[SLIDER_PENDULUM_OFF_LU];
+    slider_pendulum_real *a = &work[SLIDER_PENDULUM_OFF_DENSE];
     int k;
     slider_pendulum_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
@@ -757,9 +757,9 @@ static int slider_pendulum_factorize(const slider_pendulum_real *q, const slider
 static void slider_pendulum_solve(const slider_pendulum_real *work, const int *iwork, int dense, const slider_pendulum_real *b, slider_pendulum_real *x, slider_pendulum_real *y)
 {
     if (dense != 0) {
-        slider_pendulum_dense_solve(work + SLIDER_PENDULUM_OFF_DENSE, iwork, b, x);
+        slider_pendulum_dense_solve(&work[SLIDER_PENDULUM_OFF_DENSE], iwork, b, x);
     } else {
-        slider_pendulum_sparse_solve(work + SLIDER_PENDULUM_OFF_LU, b, x, y);
+        slider_pendulum_sparse_solve(&work[SLIDER_PENDULUM_OFF_LU], b, x, y);
     }
 }
 
@@ -770,16 +770,16 @@ static void slider_pendulum_solve_in(const slider_pendulum_real *work, const int
     if (dense != 0) {
         slider_pendulum_solve(work, iwork, dense, b, x, y);
     } else {
-        slider_pendulum_sparse_solve_in(work + SLIDER_PENDULUM_OFF_LU, b, x);
+        slider_pendulum_sparse_solve_in(&work[SLIDER_PENDULUM_OFF_LU], b, x);
     }
 }
 
 static void slider_pendulum_solve_t(const slider_pendulum_real *work, const int *iwork, int dense, const slider_pendulum_real *b, slider_pendulum_real *x)
 {
     if (dense != 0) {
-        slider_pendulum_dense_solve_t(work + SLIDER_PENDULUM_OFF_DENSE, iwork, b, x);
+        slider_pendulum_dense_solve_t(&work[SLIDER_PENDULUM_OFF_DENSE], iwork, b, x);
     } else {
-        slider_pendulum_sparse_solve_t(work + SLIDER_PENDULUM_OFF_LU, b, x);
+        slider_pendulum_sparse_solve_t(&work[SLIDER_PENDULUM_OFF_LU], b, x);
     }
 }
 
@@ -819,9 +819,9 @@ static SLIDER_PENDULUM_COLD void slider_pendulum_refine_t(const slider_pendulum_
         r[slider_pendulum_phi_q_cols[k]] -= values[k] * lam[slider_pendulum_phi_q_rows[k]];
     }
     if (dense != 0) {
-        slider_pendulum_dense_solve_t(work + SLIDER_PENDULUM_OFF_DENSE, iwork, r, d);
+        slider_pendulum_dense_solve_t(&work[SLIDER_PENDULUM_OFF_DENSE], iwork, r, d);
     } else {
-        slider_pendulum_sparse_solve_t(work + SLIDER_PENDULUM_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+        slider_pendulum_sparse_solve_t(&work[SLIDER_PENDULUM_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
     }
     for (k = 0; k < 6; ++k) {
         lam[k] += d[k];
@@ -1328,7 +1328,7 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
         status = SLIDER_PENDULUM_BAD_ARGUMENT;
     } else {
         slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9);
-        slider_pendulum_real *pp = work + SLIDER_PENDULUM_OFF_PREP;
+        slider_pendulum_real *pp = &work[SLIDER_PENDULUM_OFF_PREP];
         slider_pendulum_real *kept = SLIDER_PENDULUM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_pendulum_real) * 6u);  /* the caller's guess, back in q if the call fails */
         slider_pendulum_prepare(p, pp);
@@ -1371,14 +1371,14 @@ int slider_pendulum_screen_at(slider_pendulum_real t, const slider_pendulum_real
         return SLIDER_PENDULUM_OK;  /* no scales: no screen */
     }
     tr = SLIDER_PENDULUM_VEC(work, 9);
-    pp = work + SLIDER_PENDULUM_OFF_PREP;
+    pp = &work[SLIDER_PENDULUM_OFF_PREP];
     slider_pendulum_prepare(p, pp);
     slider_pendulum_trig(state, tr);
     if (slider_pendulum_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_PENDULUM_OK) {
         return SLIDER_PENDULUM_ILL_CONDITIONED;
     }
     slider_pendulum_screen_known(&state[42], &state[36], known);
-    if ((slider_pendulum_screen(work + SLIDER_PENDULUM_OFF_LU, dense, &state[42], &state[36], known) != 0)
+    if ((slider_pendulum_screen(&work[SLIDER_PENDULUM_OFF_LU], dense, &state[42], &state[36], known) != 0)
         && !(slider_pendulum_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[42], &state[36])
              <= SLIDER_PENDULUM_COND_SCREEN)) {
         return SLIDER_PENDULUM_ILL_CONDITIONED;
@@ -1402,12 +1402,12 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
     if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
         return SLIDER_PENDULUM_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 18, m2 = state + 24, count = state + 48;
-    scale = state + 36, rscale = state + 42;
+    q = state, m1 = &state[18], m2 = &state[24], count = &state[48];
+    scale = &state[36], rscale = &state[42];
     if (rscale[0] > 0.0) slider_pendulum_screen_known(rscale, scale, known);
     else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 6, qdd = state + 12, m3 = state + 30;
-    tr = SLIDER_PENDULUM_VEC(work, 9), pp = work + SLIDER_PENDULUM_OFF_PREP;
+    qd = &state[6], qdd = &state[12], m3 = &state[30];
+    tr = SLIDER_PENDULUM_VEC(work, 9), pp = &work[SLIDER_PENDULUM_OFF_PREP];
     slider_pendulum_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
@@ -1415,11 +1415,11 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
         const slider_pendulum_real t = t0 + *count * h;
         slider_pendulum_real *row = rows + i * SLIDER_PENDULUM_ROW;
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 7;
-        qddn = row + 13;
-        lam = row + 19;
-        reac = row + 25;
+        qn = &row[1];
+        qdn = &row[7];
+        qddn = &row[13];
+        lam = &row[19];
+        reac = &row[25];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
@@ -1449,7 +1449,7 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
            and trigonometric bases (left in work) serve this one */
         status = slider_pendulum_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
         if (status != SLIDER_PENDULUM_OK) break;
-        if (rscale[0] > 0.0 && slider_pendulum_screen(work + SLIDER_PENDULUM_OFF_LU, dense, rscale, scale, known)
+        if (rscale[0] > 0.0 && slider_pendulum_screen(&work[SLIDER_PENDULUM_OFF_LU], dense, rscale, scale, known)
             && !(slider_pendulum_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= SLIDER_PENDULUM_COND_SCREEN)) {
             status = SLIDER_PENDULUM_ILL_CONDITIONED;
             break;
@@ -1665,9 +1665,9 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
         || !isfinite(tol) || tol <= 0.0)
         return SLIDER_PENDULUM_BAD_ARGUMENT;
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + SLIDER_PENDULUM_WORK, rows = state + SLIDER_PENDULUM_STATE;
-    vals = rows + 32 * SLIDER_PENDULUM_ROW, arms = vals + 15, drive = arms + 6;
-    acc = drive + 4;
+    state = work + SLIDER_PENDULUM_WORK, rows = &state[SLIDER_PENDULUM_STATE];
+    vals = &rows[32 * SLIDER_PENDULUM_ROW], arms = &vals[15], drive = &arms[6];
+    acc = &drive[4];
     for (v = 0; v < k; ++v) {
         const slider_pendulum_real *pv = p + v * SLIDER_PENDULUM_NP;
         slider_pendulum_real *fig = figures + v * SLIDER_PENDULUM_SWEEP_FIGURES;
@@ -1683,8 +1683,8 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const slider_pendulum_real *s = snap + (v - first) * SLIDER_PENDULUM_SNAP;
             (void)memcpy(state, s, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
-            (void)memcpy(fig, s + SLIDER_PENDULUM_STATE, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_SWEEP_FIGURES);
-            (void)memcpy(acc, s + SLIDER_PENDULUM_STATE + SLIDER_PENDULUM_SWEEP_FIGURES, sizeof(slider_pendulum_real) * 8u);
+            (void)memcpy(fig, &s[SLIDER_PENDULUM_STATE], sizeof(slider_pendulum_real) * SLIDER_PENDULUM_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[SLIDER_PENDULUM_STATE + SLIDER_PENDULUM_SWEEP_FIGURES], sizeof(slider_pendulum_real) * 8u);
             done = at;
         } else
 #endif
@@ -1701,7 +1701,7 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
             st = slider_pendulum_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
             for (m = 0; m < got; ++m) slider_pendulum_sweep_take(rows + m * SLIDER_PENDULUM_ROW, pv, fig, acc, drive, done + m);
             if (done == 0 && got == 1) {
-                slider_pendulum_sweep_scales(state, t0, pv, vals, arms, state + 36, state + 42);
+                slider_pendulum_sweep_scales(state, t0, pv, vals, arms, &state[36], &state[42]);
                 st = slider_pendulum_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;
