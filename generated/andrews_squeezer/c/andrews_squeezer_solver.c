@@ -1939,20 +1939,20 @@ static int andrews_squeezer_finite(const andrews_squeezer_real *q, const andrews
 static void andrews_squeezer_keep(andrews_squeezer_real *state, const andrews_squeezer_real *q, const andrews_squeezer_real *qd, const andrews_squeezer_real *qdd,
                          const andrews_squeezer_real *m1, const andrews_squeezer_real *m2, const andrews_squeezer_real *m3)
 {
-    if (m3 != state + 105) {
-        (void)memcpy(state + 105, m3, sizeof(andrews_squeezer_real) * 21u);
+    if (m3 != &state[105]) {
+        (void)memcpy(&state[105], m3, sizeof(andrews_squeezer_real) * 21u);
     }
-    if (m2 != state + 84) {
-        (void)memcpy(state + 84, m2, sizeof(andrews_squeezer_real) * 21u);
+    if (m2 != &state[84]) {
+        (void)memcpy(&state[84], m2, sizeof(andrews_squeezer_real) * 21u);
     }
-    if (m1 != state + 63) {
-        (void)memcpy(state + 63, m1, sizeof(andrews_squeezer_real) * 21u);
+    if (m1 != &state[63]) {
+        (void)memcpy(&state[63], m1, sizeof(andrews_squeezer_real) * 21u);
     }
-    if (qdd != state + 42) {
-        (void)memcpy(state + 42, qdd, sizeof(andrews_squeezer_real) * 21u);
+    if (qdd != &state[42]) {
+        (void)memcpy(&state[42], qdd, sizeof(andrews_squeezer_real) * 21u);
     }
-    if (qd != state + 21) {
-        (void)memcpy(state + 21, qd, sizeof(andrews_squeezer_real) * 21u);
+    if (qd != &state[21]) {
+        (void)memcpy(&state[21], qd, sizeof(andrews_squeezer_real) * 21u);
     }
     if (q != state) {
         (void)memcpy(state, q, sizeof(andrews_squeezer_real) * 21u);
@@ -2137,28 +2137,58 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    andrews_squeezer_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    andrews_squeezer_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    andrews_squeezer_real *q;
+    andrews_squeezer_real *m1;
+    andrews_squeezer_real *m2;
+    andrews_squeezer_real *count;
+    andrews_squeezer_real *qn;
+    andrews_squeezer_real *qdn;
+    andrews_squeezer_real *qddn;
+    andrews_squeezer_real *lam;
+    andrews_squeezer_real *reac;
+    andrews_squeezer_real *tr;
+    andrews_squeezer_real *pp;
+    andrews_squeezer_real *scale;
+    andrews_squeezer_real *rscale;
+    andrews_squeezer_real *qd;
+    andrews_squeezer_real *qdd;
+    andrews_squeezer_real *m3;
+    andrews_squeezer_real known[2];
+    long i;
+    long unused;
+    long *done = (solved != NULL) ? solved : &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    *done = 0;
     status = ANDREWS_SQUEEZER_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return ANDREWS_SQUEEZER_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = &state[63], m2 = &state[84], count = &state[168];
-    scale = &state[126], rscale = &state[147];
-    if (rscale[0] > 0.0) andrews_squeezer_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = &state[21], qdd = &state[42], m3 = &state[105];
-    tr = ANDREWS_SQUEEZER_VEC(work, 9), pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
+    q = state;
+    m1 = &state[63];
+    m2 = &state[84];
+    count = &state[168];
+    scale = &state[126];
+    rscale = &state[147];
+    if (rscale[0] > 0.0) {
+        andrews_squeezer_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[21];
+    qdd = &state[42];
+    m3 = &state[105];
+    tr = ANDREWS_SQUEEZER_VEC(work, 9);
+    pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
     andrews_squeezer_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const andrews_squeezer_real t = t0 + *count * h;
-        andrews_squeezer_real *row = rows + i * ANDREWS_SQUEEZER_ROW;
+        const andrews_squeezer_real t = t0 + (*count * h);
+        andrews_squeezer_real *row = &rows[i * ANDREWS_SQUEEZER_ROW];
         /* what the row holds is solved straight into it */
         qn = &row[1];
         qdn = &row[22];
@@ -2168,98 +2198,105 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
-                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
-            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
-                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
-            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
-                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
-            qn[9] = q[9] + h * (qd[9] + h * ((323.0 / 360.0) * qdd[9] - (264.0 / 360.0) * m1[9]
-                                                 + (159.0 / 360.0) * m2[9] - (38.0 / 360.0) * m3[9]));
-            qn[10] = q[10] + h * (qd[10] + h * ((323.0 / 360.0) * qdd[10] - (264.0 / 360.0) * m1[10]
-                                                 + (159.0 / 360.0) * m2[10] - (38.0 / 360.0) * m3[10]));
-            qn[11] = q[11] + h * (qd[11] + h * ((323.0 / 360.0) * qdd[11] - (264.0 / 360.0) * m1[11]
-                                                 + (159.0 / 360.0) * m2[11] - (38.0 / 360.0) * m3[11]));
-            qn[12] = q[12] + h * (qd[12] + h * ((323.0 / 360.0) * qdd[12] - (264.0 / 360.0) * m1[12]
-                                                 + (159.0 / 360.0) * m2[12] - (38.0 / 360.0) * m3[12]));
-            qn[13] = q[13] + h * (qd[13] + h * ((323.0 / 360.0) * qdd[13] - (264.0 / 360.0) * m1[13]
-                                                 + (159.0 / 360.0) * m2[13] - (38.0 / 360.0) * m3[13]));
-            qn[14] = q[14] + h * (qd[14] + h * ((323.0 / 360.0) * qdd[14] - (264.0 / 360.0) * m1[14]
-                                                 + (159.0 / 360.0) * m2[14] - (38.0 / 360.0) * m3[14]));
-            qn[15] = q[15] + h * (qd[15] + h * ((323.0 / 360.0) * qdd[15] - (264.0 / 360.0) * m1[15]
-                                                 + (159.0 / 360.0) * m2[15] - (38.0 / 360.0) * m3[15]));
-            qn[16] = q[16] + h * (qd[16] + h * ((323.0 / 360.0) * qdd[16] - (264.0 / 360.0) * m1[16]
-                                                 + (159.0 / 360.0) * m2[16] - (38.0 / 360.0) * m3[16]));
-            qn[17] = q[17] + h * (qd[17] + h * ((323.0 / 360.0) * qdd[17] - (264.0 / 360.0) * m1[17]
-                                                 + (159.0 / 360.0) * m2[17] - (38.0 / 360.0) * m3[17]));
-            qn[18] = q[18] + h * (qd[18] + h * ((323.0 / 360.0) * qdd[18] - (264.0 / 360.0) * m1[18]
-                                                 + (159.0 / 360.0) * m2[18] - (38.0 / 360.0) * m3[18]));
-            qn[19] = q[19] + h * (qd[19] + h * ((323.0 / 360.0) * qdd[19] - (264.0 / 360.0) * m1[19]
-                                                 + (159.0 / 360.0) * m2[19] - (38.0 / 360.0) * m3[19]));
-            qn[20] = q[20] + h * (qd[20] + h * ((323.0 / 360.0) * qdd[20] - (264.0 / 360.0) * m1[20]
-                                                 + (159.0 / 360.0) * m2[20] - (38.0 / 360.0) * m3[20]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
-            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
-            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
-            qn[9] = q[9] + h * (qd[9] + 0.5 * h * qdd[9]);
-            qn[10] = q[10] + h * (qd[10] + 0.5 * h * qdd[10]);
-            qn[11] = q[11] + h * (qd[11] + 0.5 * h * qdd[11]);
-            qn[12] = q[12] + h * (qd[12] + 0.5 * h * qdd[12]);
-            qn[13] = q[13] + h * (qd[13] + 0.5 * h * qdd[13]);
-            qn[14] = q[14] + h * (qd[14] + 0.5 * h * qdd[14]);
-            qn[15] = q[15] + h * (qd[15] + 0.5 * h * qdd[15]);
-            qn[16] = q[16] + h * (qd[16] + 0.5 * h * qdd[16]);
-            qn[17] = q[17] + h * (qd[17] + 0.5 * h * qdd[17]);
-            qn[18] = q[18] + h * (qd[18] + 0.5 * h * qdd[18]);
-            qn[19] = q[19] + h * (qd[19] + 0.5 * h * qdd[19]);
-            qn[20] = q[20] + h * (qd[20] + 0.5 * h * qdd[20]);
-        } else
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+            qn[6] = q[6] + (h * (qd[6] + (h * (((((323.0 / 360.0) * qdd[6]) - ((264.0 / 360.0) * m1[6]))
+                                                 + ((159.0 / 360.0) * m2[6])) - ((38.0 / 360.0) * m3[6])))));
+            qn[7] = q[7] + (h * (qd[7] + (h * (((((323.0 / 360.0) * qdd[7]) - ((264.0 / 360.0) * m1[7]))
+                                                 + ((159.0 / 360.0) * m2[7])) - ((38.0 / 360.0) * m3[7])))));
+            qn[8] = q[8] + (h * (qd[8] + (h * (((((323.0 / 360.0) * qdd[8]) - ((264.0 / 360.0) * m1[8]))
+                                                 + ((159.0 / 360.0) * m2[8])) - ((38.0 / 360.0) * m3[8])))));
+            qn[9] = q[9] + (h * (qd[9] + (h * (((((323.0 / 360.0) * qdd[9]) - ((264.0 / 360.0) * m1[9]))
+                                                 + ((159.0 / 360.0) * m2[9])) - ((38.0 / 360.0) * m3[9])))));
+            qn[10] = q[10] + (h * (qd[10] + (h * (((((323.0 / 360.0) * qdd[10]) - ((264.0 / 360.0) * m1[10]))
+                                                 + ((159.0 / 360.0) * m2[10])) - ((38.0 / 360.0) * m3[10])))));
+            qn[11] = q[11] + (h * (qd[11] + (h * (((((323.0 / 360.0) * qdd[11]) - ((264.0 / 360.0) * m1[11]))
+                                                 + ((159.0 / 360.0) * m2[11])) - ((38.0 / 360.0) * m3[11])))));
+            qn[12] = q[12] + (h * (qd[12] + (h * (((((323.0 / 360.0) * qdd[12]) - ((264.0 / 360.0) * m1[12]))
+                                                 + ((159.0 / 360.0) * m2[12])) - ((38.0 / 360.0) * m3[12])))));
+            qn[13] = q[13] + (h * (qd[13] + (h * (((((323.0 / 360.0) * qdd[13]) - ((264.0 / 360.0) * m1[13]))
+                                                 + ((159.0 / 360.0) * m2[13])) - ((38.0 / 360.0) * m3[13])))));
+            qn[14] = q[14] + (h * (qd[14] + (h * (((((323.0 / 360.0) * qdd[14]) - ((264.0 / 360.0) * m1[14]))
+                                                 + ((159.0 / 360.0) * m2[14])) - ((38.0 / 360.0) * m3[14])))));
+            qn[15] = q[15] + (h * (qd[15] + (h * (((((323.0 / 360.0) * qdd[15]) - ((264.0 / 360.0) * m1[15]))
+                                                 + ((159.0 / 360.0) * m2[15])) - ((38.0 / 360.0) * m3[15])))));
+            qn[16] = q[16] + (h * (qd[16] + (h * (((((323.0 / 360.0) * qdd[16]) - ((264.0 / 360.0) * m1[16]))
+                                                 + ((159.0 / 360.0) * m2[16])) - ((38.0 / 360.0) * m3[16])))));
+            qn[17] = q[17] + (h * (qd[17] + (h * (((((323.0 / 360.0) * qdd[17]) - ((264.0 / 360.0) * m1[17]))
+                                                 + ((159.0 / 360.0) * m2[17])) - ((38.0 / 360.0) * m3[17])))));
+            qn[18] = q[18] + (h * (qd[18] + (h * (((((323.0 / 360.0) * qdd[18]) - ((264.0 / 360.0) * m1[18]))
+                                                 + ((159.0 / 360.0) * m2[18])) - ((38.0 / 360.0) * m3[18])))));
+            qn[19] = q[19] + (h * (qd[19] + (h * (((((323.0 / 360.0) * qdd[19]) - ((264.0 / 360.0) * m1[19]))
+                                                 + ((159.0 / 360.0) * m2[19])) - ((38.0 / 360.0) * m3[19])))));
+            qn[20] = q[20] + (h * (qd[20] + (h * (((((323.0 / 360.0) * qdd[20]) - ((264.0 / 360.0) * m1[20]))
+                                                 + ((159.0 / 360.0) * m2[20])) - ((38.0 / 360.0) * m3[20])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+            qn[6] = q[6] + (h * (qd[6] + ((0.5 * h) * qdd[6])));
+            qn[7] = q[7] + (h * (qd[7] + ((0.5 * h) * qdd[7])));
+            qn[8] = q[8] + (h * (qd[8] + ((0.5 * h) * qdd[8])));
+            qn[9] = q[9] + (h * (qd[9] + ((0.5 * h) * qdd[9])));
+            qn[10] = q[10] + (h * (qd[10] + ((0.5 * h) * qdd[10])));
+            qn[11] = q[11] + (h * (qd[11] + ((0.5 * h) * qdd[11])));
+            qn[12] = q[12] + (h * (qd[12] + ((0.5 * h) * qdd[12])));
+            qn[13] = q[13] + (h * (qd[13] + ((0.5 * h) * qdd[13])));
+            qn[14] = q[14] + (h * (qd[14] + ((0.5 * h) * qdd[14])));
+            qn[15] = q[15] + (h * (qd[15] + ((0.5 * h) * qdd[15])));
+            qn[16] = q[16] + (h * (qd[16] + ((0.5 * h) * qdd[16])));
+            qn[17] = q[17] + (h * (qd[17] + ((0.5 * h) * qdd[17])));
+            qn[18] = q[18] + (h * (qd[18] + ((0.5 * h) * qdd[18])));
+            qn[19] = q[19] + (h * (qd[19] + ((0.5 * h) * qdd[19])));
+            qn[20] = q[20] + (h * (qd[20] + ((0.5 * h) * qdd[20])));
+        } else {
             (void)memcpy(qn, q, sizeof(andrews_squeezer_real) * 21u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = andrews_squeezer_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != ANDREWS_SQUEEZER_OK) break;
-        if (rscale[0] > 0.0 && andrews_squeezer_screen(&work[ANDREWS_SQUEEZER_OFF_LU], dense, rscale, scale, known)
+        status = andrews_squeezer_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != ANDREWS_SQUEEZER_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (andrews_squeezer_screen(&work[ANDREWS_SQUEEZER_OFF_LU], dense, rscale, scale, known) != 0)
             && !(andrews_squeezer_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= ANDREWS_SQUEEZER_COND_SCREEN)) {
             status = ANDREWS_SQUEEZER_ILL_CONDITIONED;
             break;
         }
         andrews_squeezer_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!andrews_squeezer_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (andrews_squeezer_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = ANDREWS_SQUEEZER_NONFINITE;
             break;
         }
-        if (*count >= 1 && andrews_squeezer_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (andrews_squeezer_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = ANDREWS_SQUEEZER_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     andrews_squeezer_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }

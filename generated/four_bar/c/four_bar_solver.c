@@ -1303,20 +1303,20 @@ static int four_bar_finite(const four_bar_real *q, const four_bar_real *qd, cons
 static void four_bar_keep(four_bar_real *state, const four_bar_real *q, const four_bar_real *qd, const four_bar_real *qdd,
                          const four_bar_real *m1, const four_bar_real *m2, const four_bar_real *m3)
 {
-    if (m3 != state + 45) {
-        (void)memcpy(state + 45, m3, sizeof(four_bar_real) * 9u);
+    if (m3 != &state[45]) {
+        (void)memcpy(&state[45], m3, sizeof(four_bar_real) * 9u);
     }
-    if (m2 != state + 36) {
-        (void)memcpy(state + 36, m2, sizeof(four_bar_real) * 9u);
+    if (m2 != &state[36]) {
+        (void)memcpy(&state[36], m2, sizeof(four_bar_real) * 9u);
     }
-    if (m1 != state + 27) {
-        (void)memcpy(state + 27, m1, sizeof(four_bar_real) * 9u);
+    if (m1 != &state[27]) {
+        (void)memcpy(&state[27], m1, sizeof(four_bar_real) * 9u);
     }
-    if (qdd != state + 18) {
-        (void)memcpy(state + 18, qdd, sizeof(four_bar_real) * 9u);
+    if (qdd != &state[18]) {
+        (void)memcpy(&state[18], qdd, sizeof(four_bar_real) * 9u);
     }
-    if (qd != state + 9) {
-        (void)memcpy(state + 9, qd, sizeof(four_bar_real) * 9u);
+    if (qd != &state[9]) {
+        (void)memcpy(&state[9], qd, sizeof(four_bar_real) * 9u);
     }
     if (q != state) {
         (void)memcpy(state, q, sizeof(four_bar_real) * 9u);
@@ -1453,28 +1453,58 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    four_bar_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    four_bar_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    four_bar_real *q;
+    four_bar_real *m1;
+    four_bar_real *m2;
+    four_bar_real *count;
+    four_bar_real *qn;
+    four_bar_real *qdn;
+    four_bar_real *qddn;
+    four_bar_real *lam;
+    four_bar_real *reac;
+    four_bar_real *tr;
+    four_bar_real *pp;
+    four_bar_real *scale;
+    four_bar_real *rscale;
+    four_bar_real *qd;
+    four_bar_real *qdd;
+    four_bar_real *m3;
+    four_bar_real known[2];
+    long i;
+    long unused;
+    long *done = (solved != NULL) ? solved : &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    *done = 0;
     status = FOUR_BAR_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return FOUR_BAR_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = &state[27], m2 = &state[36], count = &state[72];
-    scale = &state[54], rscale = &state[63];
-    if (rscale[0] > 0.0) four_bar_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = &state[9], qdd = &state[18], m3 = &state[45];
-    tr = FOUR_BAR_VEC(work, 9), pp = &work[FOUR_BAR_OFF_PREP];
+    q = state;
+    m1 = &state[27];
+    m2 = &state[36];
+    count = &state[72];
+    scale = &state[54];
+    rscale = &state[63];
+    if (rscale[0] > 0.0) {
+        four_bar_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[9];
+    qdd = &state[18];
+    m3 = &state[45];
+    tr = FOUR_BAR_VEC(work, 9);
+    pp = &work[FOUR_BAR_OFF_PREP];
     four_bar_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const four_bar_real t = t0 + *count * h;
-        four_bar_real *row = rows + i * FOUR_BAR_ROW;
+        const four_bar_real t = t0 + (*count * h);
+        four_bar_real *row = &rows[i * FOUR_BAR_ROW];
         /* what the row holds is solved straight into it */
         qn = &row[1];
         qdn = &row[10];
@@ -1484,62 +1514,69 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
-                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
-            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
-                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
-            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
-                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
-            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
-            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
-        } else
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+            qn[6] = q[6] + (h * (qd[6] + (h * (((((323.0 / 360.0) * qdd[6]) - ((264.0 / 360.0) * m1[6]))
+                                                 + ((159.0 / 360.0) * m2[6])) - ((38.0 / 360.0) * m3[6])))));
+            qn[7] = q[7] + (h * (qd[7] + (h * (((((323.0 / 360.0) * qdd[7]) - ((264.0 / 360.0) * m1[7]))
+                                                 + ((159.0 / 360.0) * m2[7])) - ((38.0 / 360.0) * m3[7])))));
+            qn[8] = q[8] + (h * (qd[8] + (h * (((((323.0 / 360.0) * qdd[8]) - ((264.0 / 360.0) * m1[8]))
+                                                 + ((159.0 / 360.0) * m2[8])) - ((38.0 / 360.0) * m3[8])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+            qn[6] = q[6] + (h * (qd[6] + ((0.5 * h) * qdd[6])));
+            qn[7] = q[7] + (h * (qd[7] + ((0.5 * h) * qdd[7])));
+            qn[8] = q[8] + (h * (qd[8] + ((0.5 * h) * qdd[8])));
+        } else {
             (void)memcpy(qn, q, sizeof(four_bar_real) * 9u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = four_bar_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != FOUR_BAR_OK) break;
-        if (rscale[0] > 0.0 && four_bar_screen(&work[FOUR_BAR_OFF_LU], dense, rscale, scale, known)
+        status = four_bar_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != FOUR_BAR_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (four_bar_screen(&work[FOUR_BAR_OFF_LU], dense, rscale, scale, known) != 0)
             && !(four_bar_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= FOUR_BAR_COND_SCREEN)) {
             status = FOUR_BAR_ILL_CONDITIONED;
             break;
         }
         four_bar_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!four_bar_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (four_bar_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = FOUR_BAR_NONFINITE;
             break;
         }
-        if (*count >= 1 && four_bar_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (four_bar_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = FOUR_BAR_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     four_bar_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }

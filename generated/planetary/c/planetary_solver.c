@@ -1420,20 +1420,20 @@ static int planetary_finite(const planetary_real *q, const planetary_real *qd, c
 static void planetary_keep(planetary_real *state, const planetary_real *q, const planetary_real *qd, const planetary_real *qdd,
                          const planetary_real *m1, const planetary_real *m2, const planetary_real *m3)
 {
-    if (m3 != state + 60) {
-        (void)memcpy(state + 60, m3, sizeof(planetary_real) * 12u);
+    if (m3 != &state[60]) {
+        (void)memcpy(&state[60], m3, sizeof(planetary_real) * 12u);
     }
-    if (m2 != state + 48) {
-        (void)memcpy(state + 48, m2, sizeof(planetary_real) * 12u);
+    if (m2 != &state[48]) {
+        (void)memcpy(&state[48], m2, sizeof(planetary_real) * 12u);
     }
-    if (m1 != state + 36) {
-        (void)memcpy(state + 36, m1, sizeof(planetary_real) * 12u);
+    if (m1 != &state[36]) {
+        (void)memcpy(&state[36], m1, sizeof(planetary_real) * 12u);
     }
-    if (qdd != state + 24) {
-        (void)memcpy(state + 24, qdd, sizeof(planetary_real) * 12u);
+    if (qdd != &state[24]) {
+        (void)memcpy(&state[24], qdd, sizeof(planetary_real) * 12u);
     }
-    if (qd != state + 12) {
-        (void)memcpy(state + 12, qd, sizeof(planetary_real) * 12u);
+    if (qd != &state[12]) {
+        (void)memcpy(&state[12], qd, sizeof(planetary_real) * 12u);
     }
     if (q != state) {
         (void)memcpy(state, q, sizeof(planetary_real) * 12u);
@@ -1582,28 +1582,58 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    planetary_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    planetary_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    planetary_real *q;
+    planetary_real *m1;
+    planetary_real *m2;
+    planetary_real *count;
+    planetary_real *qn;
+    planetary_real *qdn;
+    planetary_real *qddn;
+    planetary_real *lam;
+    planetary_real *reac;
+    planetary_real *tr;
+    planetary_real *pp;
+    planetary_real *scale;
+    planetary_real *rscale;
+    planetary_real *qd;
+    planetary_real *qdd;
+    planetary_real *m3;
+    planetary_real known[2];
+    long i;
+    long unused;
+    long *done = (solved != NULL) ? solved : &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    *done = 0;
     status = PLANETARY_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return PLANETARY_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = &state[36], m2 = &state[48], count = &state[96];
-    scale = &state[72], rscale = &state[84];
-    if (rscale[0] > 0.0) planetary_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = &state[12], qdd = &state[24], m3 = &state[60];
-    tr = PLANETARY_VEC(work, 9), pp = &work[PLANETARY_OFF_PREP];
+    q = state;
+    m1 = &state[36];
+    m2 = &state[48];
+    count = &state[96];
+    scale = &state[72];
+    rscale = &state[84];
+    if (rscale[0] > 0.0) {
+        planetary_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[12];
+    qdd = &state[24];
+    m3 = &state[60];
+    tr = PLANETARY_VEC(work, 9);
+    pp = &work[PLANETARY_OFF_PREP];
     planetary_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const planetary_real t = t0 + *count * h;
-        planetary_real *row = rows + i * PLANETARY_ROW;
+        const planetary_real t = t0 + (*count * h);
+        planetary_real *row = &rows[i * PLANETARY_ROW];
         /* what the row holds is solved straight into it */
         qn = &row[1];
         qdn = &row[13];
@@ -1613,71 +1643,78 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
-                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
-            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
-                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
-            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
-                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
-            qn[9] = q[9] + h * (qd[9] + h * ((323.0 / 360.0) * qdd[9] - (264.0 / 360.0) * m1[9]
-                                                 + (159.0 / 360.0) * m2[9] - (38.0 / 360.0) * m3[9]));
-            qn[10] = q[10] + h * (qd[10] + h * ((323.0 / 360.0) * qdd[10] - (264.0 / 360.0) * m1[10]
-                                                 + (159.0 / 360.0) * m2[10] - (38.0 / 360.0) * m3[10]));
-            qn[11] = q[11] + h * (qd[11] + h * ((323.0 / 360.0) * qdd[11] - (264.0 / 360.0) * m1[11]
-                                                 + (159.0 / 360.0) * m2[11] - (38.0 / 360.0) * m3[11]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
-            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
-            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
-            qn[9] = q[9] + h * (qd[9] + 0.5 * h * qdd[9]);
-            qn[10] = q[10] + h * (qd[10] + 0.5 * h * qdd[10]);
-            qn[11] = q[11] + h * (qd[11] + 0.5 * h * qdd[11]);
-        } else
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+            qn[6] = q[6] + (h * (qd[6] + (h * (((((323.0 / 360.0) * qdd[6]) - ((264.0 / 360.0) * m1[6]))
+                                                 + ((159.0 / 360.0) * m2[6])) - ((38.0 / 360.0) * m3[6])))));
+            qn[7] = q[7] + (h * (qd[7] + (h * (((((323.0 / 360.0) * qdd[7]) - ((264.0 / 360.0) * m1[7]))
+                                                 + ((159.0 / 360.0) * m2[7])) - ((38.0 / 360.0) * m3[7])))));
+            qn[8] = q[8] + (h * (qd[8] + (h * (((((323.0 / 360.0) * qdd[8]) - ((264.0 / 360.0) * m1[8]))
+                                                 + ((159.0 / 360.0) * m2[8])) - ((38.0 / 360.0) * m3[8])))));
+            qn[9] = q[9] + (h * (qd[9] + (h * (((((323.0 / 360.0) * qdd[9]) - ((264.0 / 360.0) * m1[9]))
+                                                 + ((159.0 / 360.0) * m2[9])) - ((38.0 / 360.0) * m3[9])))));
+            qn[10] = q[10] + (h * (qd[10] + (h * (((((323.0 / 360.0) * qdd[10]) - ((264.0 / 360.0) * m1[10]))
+                                                 + ((159.0 / 360.0) * m2[10])) - ((38.0 / 360.0) * m3[10])))));
+            qn[11] = q[11] + (h * (qd[11] + (h * (((((323.0 / 360.0) * qdd[11]) - ((264.0 / 360.0) * m1[11]))
+                                                 + ((159.0 / 360.0) * m2[11])) - ((38.0 / 360.0) * m3[11])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+            qn[6] = q[6] + (h * (qd[6] + ((0.5 * h) * qdd[6])));
+            qn[7] = q[7] + (h * (qd[7] + ((0.5 * h) * qdd[7])));
+            qn[8] = q[8] + (h * (qd[8] + ((0.5 * h) * qdd[8])));
+            qn[9] = q[9] + (h * (qd[9] + ((0.5 * h) * qdd[9])));
+            qn[10] = q[10] + (h * (qd[10] + ((0.5 * h) * qdd[10])));
+            qn[11] = q[11] + (h * (qd[11] + ((0.5 * h) * qdd[11])));
+        } else {
             (void)memcpy(qn, q, sizeof(planetary_real) * 12u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = planetary_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != PLANETARY_OK) break;
-        if (rscale[0] > 0.0 && planetary_screen(&work[PLANETARY_OFF_LU], dense, rscale, scale, known)
+        status = planetary_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != PLANETARY_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (planetary_screen(&work[PLANETARY_OFF_LU], dense, rscale, scale, known) != 0)
             && !(planetary_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= PLANETARY_COND_SCREEN)) {
             status = PLANETARY_ILL_CONDITIONED;
             break;
         }
         planetary_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!planetary_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (planetary_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = PLANETARY_NONFINITE;
             break;
         }
-        if (*count >= 1 && planetary_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (planetary_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = PLANETARY_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     planetary_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }

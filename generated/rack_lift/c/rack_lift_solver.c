@@ -1218,20 +1218,20 @@ static int rack_lift_finite(const rack_lift_real *q, const rack_lift_real *qd, c
 static void rack_lift_keep(rack_lift_real *state, const rack_lift_real *q, const rack_lift_real *qd, const rack_lift_real *qdd,
                          const rack_lift_real *m1, const rack_lift_real *m2, const rack_lift_real *m3)
 {
-    if (m3 != state + 30) {
-        (void)memcpy(state + 30, m3, sizeof(rack_lift_real) * 6u);
+    if (m3 != &state[30]) {
+        (void)memcpy(&state[30], m3, sizeof(rack_lift_real) * 6u);
     }
-    if (m2 != state + 24) {
-        (void)memcpy(state + 24, m2, sizeof(rack_lift_real) * 6u);
+    if (m2 != &state[24]) {
+        (void)memcpy(&state[24], m2, sizeof(rack_lift_real) * 6u);
     }
-    if (m1 != state + 18) {
-        (void)memcpy(state + 18, m1, sizeof(rack_lift_real) * 6u);
+    if (m1 != &state[18]) {
+        (void)memcpy(&state[18], m1, sizeof(rack_lift_real) * 6u);
     }
-    if (qdd != state + 12) {
-        (void)memcpy(state + 12, qdd, sizeof(rack_lift_real) * 6u);
+    if (qdd != &state[12]) {
+        (void)memcpy(&state[12], qdd, sizeof(rack_lift_real) * 6u);
     }
-    if (qd != state + 6) {
-        (void)memcpy(state + 6, qd, sizeof(rack_lift_real) * 6u);
+    if (qd != &state[6]) {
+        (void)memcpy(&state[6], qd, sizeof(rack_lift_real) * 6u);
     }
     if (q != state) {
         (void)memcpy(state, q, sizeof(rack_lift_real) * 6u);
@@ -1356,28 +1356,58 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    rack_lift_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    rack_lift_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    rack_lift_real *q;
+    rack_lift_real *m1;
+    rack_lift_real *m2;
+    rack_lift_real *count;
+    rack_lift_real *qn;
+    rack_lift_real *qdn;
+    rack_lift_real *qddn;
+    rack_lift_real *lam;
+    rack_lift_real *reac;
+    rack_lift_real *tr;
+    rack_lift_real *pp;
+    rack_lift_real *scale;
+    rack_lift_real *rscale;
+    rack_lift_real *qd;
+    rack_lift_real *qdd;
+    rack_lift_real *m3;
+    rack_lift_real known[2];
+    long i;
+    long unused;
+    long *done = (solved != NULL) ? solved : &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    *done = 0;
     status = RACK_LIFT_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return RACK_LIFT_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = &state[18], m2 = &state[24], count = &state[48];
-    scale = &state[36], rscale = &state[42];
-    if (rscale[0] > 0.0) rack_lift_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = &state[6], qdd = &state[12], m3 = &state[30];
-    tr = RACK_LIFT_VEC(work, 9), pp = &work[RACK_LIFT_OFF_PREP];
+    q = state;
+    m1 = &state[18];
+    m2 = &state[24];
+    count = &state[48];
+    scale = &state[36];
+    rscale = &state[42];
+    if (rscale[0] > 0.0) {
+        rack_lift_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[6];
+    qdd = &state[12];
+    m3 = &state[30];
+    tr = RACK_LIFT_VEC(work, 9);
+    pp = &work[RACK_LIFT_OFF_PREP];
     rack_lift_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const rack_lift_real t = t0 + *count * h;
-        rack_lift_real *row = rows + i * RACK_LIFT_ROW;
+        const rack_lift_real t = t0 + (*count * h);
+        rack_lift_real *row = &rows[i * RACK_LIFT_ROW];
         /* what the row holds is solved straight into it */
         qn = &row[1];
         qdn = &row[7];
@@ -1387,53 +1417,60 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-        } else
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+        } else {
             (void)memcpy(qn, q, sizeof(rack_lift_real) * 6u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = rack_lift_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != RACK_LIFT_OK) break;
-        if (rscale[0] > 0.0 && rack_lift_screen(&work[RACK_LIFT_OFF_LU], dense, rscale, scale, known)
+        status = rack_lift_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != RACK_LIFT_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (rack_lift_screen(&work[RACK_LIFT_OFF_LU], dense, rscale, scale, known) != 0)
             && !(rack_lift_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= RACK_LIFT_COND_SCREEN)) {
             status = RACK_LIFT_ILL_CONDITIONED;
             break;
         }
         rack_lift_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!rack_lift_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (rack_lift_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = RACK_LIFT_NONFINITE;
             break;
         }
-        if (*count >= 1 && rack_lift_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (rack_lift_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = RACK_LIFT_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     rack_lift_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }

@@ -1256,20 +1256,20 @@ static int slider_crank_finite(const slider_crank_real *q, const slider_crank_re
 static void slider_crank_keep(slider_crank_real *state, const slider_crank_real *q, const slider_crank_real *qd, const slider_crank_real *qdd,
                          const slider_crank_real *m1, const slider_crank_real *m2, const slider_crank_real *m3)
 {
-    if (m3 != state + 45) {
-        (void)memcpy(state + 45, m3, sizeof(slider_crank_real) * 9u);
+    if (m3 != &state[45]) {
+        (void)memcpy(&state[45], m3, sizeof(slider_crank_real) * 9u);
     }
-    if (m2 != state + 36) {
-        (void)memcpy(state + 36, m2, sizeof(slider_crank_real) * 9u);
+    if (m2 != &state[36]) {
+        (void)memcpy(&state[36], m2, sizeof(slider_crank_real) * 9u);
     }
-    if (m1 != state + 27) {
-        (void)memcpy(state + 27, m1, sizeof(slider_crank_real) * 9u);
+    if (m1 != &state[27]) {
+        (void)memcpy(&state[27], m1, sizeof(slider_crank_real) * 9u);
     }
-    if (qdd != state + 18) {
-        (void)memcpy(state + 18, qdd, sizeof(slider_crank_real) * 9u);
+    if (qdd != &state[18]) {
+        (void)memcpy(&state[18], qdd, sizeof(slider_crank_real) * 9u);
     }
-    if (qd != state + 9) {
-        (void)memcpy(state + 9, qd, sizeof(slider_crank_real) * 9u);
+    if (qd != &state[9]) {
+        (void)memcpy(&state[9], qd, sizeof(slider_crank_real) * 9u);
     }
     if (q != state) {
         (void)memcpy(state, q, sizeof(slider_crank_real) * 9u);
@@ -1406,28 +1406,58 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    slider_crank_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    slider_crank_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    slider_crank_real *q;
+    slider_crank_real *m1;
+    slider_crank_real *m2;
+    slider_crank_real *count;
+    slider_crank_real *qn;
+    slider_crank_real *qdn;
+    slider_crank_real *qddn;
+    slider_crank_real *lam;
+    slider_crank_real *reac;
+    slider_crank_real *tr;
+    slider_crank_real *pp;
+    slider_crank_real *scale;
+    slider_crank_real *rscale;
+    slider_crank_real *qd;
+    slider_crank_real *qdd;
+    slider_crank_real *m3;
+    slider_crank_real known[2];
+    long i;
+    long unused;
+    long *done = (solved != NULL) ? solved : &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    *done = 0;
     status = SLIDER_CRANK_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return SLIDER_CRANK_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = &state[27], m2 = &state[36], count = &state[72];
-    scale = &state[54], rscale = &state[63];
-    if (rscale[0] > 0.0) slider_crank_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = &state[9], qdd = &state[18], m3 = &state[45];
-    tr = SLIDER_CRANK_VEC(work, 9), pp = &work[SLIDER_CRANK_OFF_PREP];
+    q = state;
+    m1 = &state[27];
+    m2 = &state[36];
+    count = &state[72];
+    scale = &state[54];
+    rscale = &state[63];
+    if (rscale[0] > 0.0) {
+        slider_crank_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[9];
+    qdd = &state[18];
+    m3 = &state[45];
+    tr = SLIDER_CRANK_VEC(work, 9);
+    pp = &work[SLIDER_CRANK_OFF_PREP];
     slider_crank_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const slider_crank_real t = t0 + *count * h;
-        slider_crank_real *row = rows + i * SLIDER_CRANK_ROW;
+        const slider_crank_real t = t0 + (*count * h);
+        slider_crank_real *row = &rows[i * SLIDER_CRANK_ROW];
         /* what the row holds is solved straight into it */
         qn = &row[1];
         qdn = &row[10];
@@ -1437,62 +1467,69 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
-                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
-            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
-                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
-            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
-                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
-            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
-            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
-        } else
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+            qn[6] = q[6] + (h * (qd[6] + (h * (((((323.0 / 360.0) * qdd[6]) - ((264.0 / 360.0) * m1[6]))
+                                                 + ((159.0 / 360.0) * m2[6])) - ((38.0 / 360.0) * m3[6])))));
+            qn[7] = q[7] + (h * (qd[7] + (h * (((((323.0 / 360.0) * qdd[7]) - ((264.0 / 360.0) * m1[7]))
+                                                 + ((159.0 / 360.0) * m2[7])) - ((38.0 / 360.0) * m3[7])))));
+            qn[8] = q[8] + (h * (qd[8] + (h * (((((323.0 / 360.0) * qdd[8]) - ((264.0 / 360.0) * m1[8]))
+                                                 + ((159.0 / 360.0) * m2[8])) - ((38.0 / 360.0) * m3[8])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+            qn[6] = q[6] + (h * (qd[6] + ((0.5 * h) * qdd[6])));
+            qn[7] = q[7] + (h * (qd[7] + ((0.5 * h) * qdd[7])));
+            qn[8] = q[8] + (h * (qd[8] + ((0.5 * h) * qdd[8])));
+        } else {
             (void)memcpy(qn, q, sizeof(slider_crank_real) * 9u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = slider_crank_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != SLIDER_CRANK_OK) break;
-        if (rscale[0] > 0.0 && slider_crank_screen(&work[SLIDER_CRANK_OFF_LU], dense, rscale, scale, known)
+        status = slider_crank_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != SLIDER_CRANK_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (slider_crank_screen(&work[SLIDER_CRANK_OFF_LU], dense, rscale, scale, known) != 0)
             && !(slider_crank_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= SLIDER_CRANK_COND_SCREEN)) {
             status = SLIDER_CRANK_ILL_CONDITIONED;
             break;
         }
         slider_crank_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!slider_crank_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (slider_crank_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = SLIDER_CRANK_NONFINITE;
             break;
         }
-        if (*count >= 1 && slider_crank_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (slider_crank_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = SLIDER_CRANK_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     slider_crank_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }
