@@ -1604,28 +1604,36 @@ static andrews_squeezer_real andrews_squeezer_cond_estimate(const andrews_squeez
 static int andrews_squeezer_row_finite(const andrews_squeezer_real *row, const andrews_squeezer_real *qn, const andrews_squeezer_real *qdn, const andrews_squeezer_real *qddn,
                               const andrews_squeezer_real *lam, const andrews_squeezer_real *reac)
 {
-    andrews_squeezer_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    andrews_squeezer_real s0 = 0.0;
+    andrews_squeezer_real s1 = 0.0;
+    andrews_squeezer_real s2 = 0.0;
+    andrews_squeezer_real s3 = 0.0;
     int k;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     for (k = 0; k < 148; k += 4) {
-        s0 += row[1 + k + 0];
+        s0 += row[1 + k];
         s1 += row[1 + k + 1];
         s2 += row[1 + k + 2];
         s3 += row[1 + k + 3];
     }
     s0 += row[149];
     s1 += row[150];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     for (k = 0; k < 148; k += 4) {
-        s0 += row[1 + k + 0] * 0.0;
+        s0 += row[1 + k] * 0.0;
         s1 += row[1 + k + 1] * 0.0;
         s2 += row[1 + k + 2] * 0.0;
         s3 += row[1 + k + 3] * 0.0;
     }
     s0 += row[149] * 0.0;
     s1 += row[150] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 21 values, NaN if any v_k is NaN (so that a NaN residual
@@ -1633,73 +1641,81 @@ static int andrews_squeezer_row_finite(const andrews_squeezer_real *row, const a
    comparison. */
 static andrews_squeezer_real andrews_squeezer_maxabs21(const andrews_squeezer_real *v)
 {
-    andrews_squeezer_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    andrews_squeezer_real m0 = 0.0;
+    andrews_squeezer_real m1 = 0.0;
+    andrews_squeezer_real m2 = 0.0;
+    andrews_squeezer_real m3 = 0.0;
+    andrews_squeezer_real s0 = 0.0;
+    andrews_squeezer_real s1 = 0.0;
+    andrews_squeezer_real s2 = 0.0;
+    andrews_squeezer_real s3 = 0.0;
+    andrews_squeezer_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[6]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[7]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[8]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[9]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[10]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[11]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[12]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[13]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[14]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[15]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[16]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[17]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[18]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[19]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[20]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     m0 = ANDREWS_SQUEEZER_MAX(ANDREWS_SQUEEZER_MAX(m0, m1), ANDREWS_SQUEEZER_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is

@@ -1052,28 +1052,36 @@ static four_bar_real four_bar_cond_estimate(const four_bar_real *q, const four_b
 static int four_bar_row_finite(const four_bar_real *row, const four_bar_real *qn, const four_bar_real *qdn, const four_bar_real *qddn,
                               const four_bar_real *lam, const four_bar_real *reac)
 {
-    four_bar_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    four_bar_real s0 = 0.0;
+    four_bar_real s1 = 0.0;
+    four_bar_real s2 = 0.0;
+    four_bar_real s3 = 0.0;
     int k;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     for (k = 0; k < 64; k += 4) {
-        s0 += row[1 + k + 0];
+        s0 += row[1 + k];
         s1 += row[1 + k + 1];
         s2 += row[1 + k + 2];
         s3 += row[1 + k + 3];
     }
     s0 += row[65];
     s1 += row[66];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     for (k = 0; k < 64; k += 4) {
-        s0 += row[1 + k + 0] * 0.0;
+        s0 += row[1 + k] * 0.0;
         s1 += row[1 + k + 1] * 0.0;
         s2 += row[1 + k + 2] * 0.0;
         s3 += row[1 + k + 3] * 0.0;
     }
     s0 += row[65] * 0.0;
     s1 += row[66] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 9 values, NaN if any v_k is NaN (so that a NaN residual
@@ -1081,37 +1089,45 @@ static int four_bar_row_finite(const four_bar_real *row, const four_bar_real *qn
    comparison. */
 static four_bar_real four_bar_maxabs9(const four_bar_real *v)
 {
-    four_bar_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    four_bar_real m0 = 0.0;
+    four_bar_real m1 = 0.0;
+    four_bar_real m2 = 0.0;
+    four_bar_real m3 = 0.0;
+    four_bar_real s0 = 0.0;
+    four_bar_real s1 = 0.0;
+    four_bar_real s2 = 0.0;
+    four_bar_real s3 = 0.0;
+    four_bar_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[6]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[7]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[8]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     m0 = FOUR_BAR_MAX(FOUR_BAR_MAX(m0, m1), FOUR_BAR_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is

@@ -1146,11 +1146,14 @@ static planetary_real planetary_cond_estimate(const planetary_real *q, const pla
 static int planetary_row_finite(const planetary_real *row, const planetary_real *qn, const planetary_real *qdn, const planetary_real *qddn,
                               const planetary_real *lam, const planetary_real *reac)
 {
-    planetary_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    planetary_real s0 = 0.0;
+    planetary_real s1 = 0.0;
+    planetary_real s2 = 0.0;
+    planetary_real s3 = 0.0;
     int k;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     for (k = 0; k < 96; k += 4) {
-        s0 += row[1 + k + 0];
+        s0 += row[1 + k];
         s1 += row[1 + k + 1];
         s2 += row[1 + k + 2];
         s3 += row[1 + k + 3];
@@ -1158,10 +1161,15 @@ static int planetary_row_finite(const planetary_real *row, const planetary_real 
     s0 += row[97];
     s1 += row[98];
     s2 += row[99];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     for (k = 0; k < 96; k += 4) {
-        s0 += row[1 + k + 0] * 0.0;
+        s0 += row[1 + k] * 0.0;
         s1 += row[1 + k + 1] * 0.0;
         s2 += row[1 + k + 2] * 0.0;
         s3 += row[1 + k + 3] * 0.0;
@@ -1169,7 +1177,7 @@ static int planetary_row_finite(const planetary_real *row, const planetary_real 
     s0 += row[97] * 0.0;
     s1 += row[98] * 0.0;
     s2 += row[99] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 12 values, NaN if any v_k is NaN (so that a NaN residual
@@ -1177,46 +1185,54 @@ static int planetary_row_finite(const planetary_real *row, const planetary_real 
    comparison. */
 static planetary_real planetary_maxabs12(const planetary_real *v)
 {
-    planetary_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    planetary_real m0 = 0.0;
+    planetary_real m1 = 0.0;
+    planetary_real m2 = 0.0;
+    planetary_real m3 = 0.0;
+    planetary_real s0 = 0.0;
+    planetary_real s1 = 0.0;
+    planetary_real s2 = 0.0;
+    planetary_real s3 = 0.0;
+    planetary_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[6]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[7]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[8]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[9]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[10]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[11]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     m0 = PLANETARY_MAX(PLANETARY_MAX(m0, m1), PLANETARY_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is

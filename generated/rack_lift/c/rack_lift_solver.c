@@ -909,7 +909,10 @@ static rack_lift_real rack_lift_cond_estimate(const rack_lift_real *q, const rac
 static int rack_lift_row_finite(const rack_lift_real *row, const rack_lift_real *qn, const rack_lift_real *qdn, const rack_lift_real *qddn,
                               const rack_lift_real *lam, const rack_lift_real *reac)
 {
-    rack_lift_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    rack_lift_real s0 = 0.0;
+    rack_lift_real s1 = 0.0;
+    rack_lift_real s2 = 0.0;
+    rack_lift_real s3 = 0.0;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     s0 += row[1];
     s1 += row[2];
@@ -959,8 +962,13 @@ static int rack_lift_row_finite(const rack_lift_real *row, const rack_lift_real 
     s1 += row[46];
     s2 += row[47];
     s3 += row[48];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     s0 += row[1] * 0.0;
     s1 += row[2] * 0.0;
     s2 += row[3] * 0.0;
@@ -1009,7 +1017,7 @@ static int rack_lift_row_finite(const rack_lift_real *row, const rack_lift_real 
     s1 += row[46] * 0.0;
     s2 += row[47] * 0.0;
     s3 += row[48] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 6 values, NaN if any v_k is NaN (so that a NaN residual
@@ -1017,28 +1025,36 @@ static int rack_lift_row_finite(const rack_lift_real *row, const rack_lift_real 
    comparison. */
 static rack_lift_real rack_lift_maxabs6(const rack_lift_real *v)
 {
-    rack_lift_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    rack_lift_real m0 = 0.0;
+    rack_lift_real m1 = 0.0;
+    rack_lift_real m2 = 0.0;
+    rack_lift_real m3 = 0.0;
+    rack_lift_real s0 = 0.0;
+    rack_lift_real s1 = 0.0;
+    rack_lift_real s2 = 0.0;
+    rack_lift_real s3 = 0.0;
+    rack_lift_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     m0 = RACK_LIFT_MAX(RACK_LIFT_MAX(m0, m1), RACK_LIFT_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is

@@ -1019,28 +1019,36 @@ static slider_crank_counterweight_real slider_crank_counterweight_cond_estimate(
 static int slider_crank_counterweight_row_finite(const slider_crank_counterweight_real *row, const slider_crank_counterweight_real *qn, const slider_crank_counterweight_real *qdn, const slider_crank_counterweight_real *qddn,
                               const slider_crank_counterweight_real *lam, const slider_crank_counterweight_real *reac)
 {
-    slider_crank_counterweight_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    slider_crank_counterweight_real s0 = 0.0;
+    slider_crank_counterweight_real s1 = 0.0;
+    slider_crank_counterweight_real s2 = 0.0;
+    slider_crank_counterweight_real s3 = 0.0;
     int k;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     for (k = 0; k < 64; k += 4) {
-        s0 += row[1 + k + 0];
+        s0 += row[1 + k];
         s1 += row[1 + k + 1];
         s2 += row[1 + k + 2];
         s3 += row[1 + k + 3];
     }
     s0 += row[65];
     s1 += row[66];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     for (k = 0; k < 64; k += 4) {
-        s0 += row[1 + k + 0] * 0.0;
+        s0 += row[1 + k] * 0.0;
         s1 += row[1 + k + 1] * 0.0;
         s2 += row[1 + k + 2] * 0.0;
         s3 += row[1 + k + 3] * 0.0;
     }
     s0 += row[65] * 0.0;
     s1 += row[66] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 9 values, NaN if any v_k is NaN (so that a NaN residual
@@ -1048,37 +1056,45 @@ static int slider_crank_counterweight_row_finite(const slider_crank_counterweigh
    comparison. */
 static slider_crank_counterweight_real slider_crank_counterweight_maxabs9(const slider_crank_counterweight_real *v)
 {
-    slider_crank_counterweight_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    slider_crank_counterweight_real m0 = 0.0;
+    slider_crank_counterweight_real m1 = 0.0;
+    slider_crank_counterweight_real m2 = 0.0;
+    slider_crank_counterweight_real m3 = 0.0;
+    slider_crank_counterweight_real s0 = 0.0;
+    slider_crank_counterweight_real s1 = 0.0;
+    slider_crank_counterweight_real s2 = 0.0;
+    slider_crank_counterweight_real s3 = 0.0;
+    slider_crank_counterweight_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[6]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[7]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[8]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     m0 = SLIDER_CRANK_COUNTERWEIGHT_MAX(SLIDER_CRANK_COUNTERWEIGHT_MAX(m0, m1), SLIDER_CRANK_COUNTERWEIGHT_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is

@@ -933,7 +933,10 @@ static slider_pendulum_real slider_pendulum_cond_estimate(const slider_pendulum_
 static int slider_pendulum_row_finite(const slider_pendulum_real *row, const slider_pendulum_real *qn, const slider_pendulum_real *qdn, const slider_pendulum_real *qddn,
                               const slider_pendulum_real *lam, const slider_pendulum_real *reac)
 {
-    slider_pendulum_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    slider_pendulum_real s0 = 0.0;
+    slider_pendulum_real s1 = 0.0;
+    slider_pendulum_real s2 = 0.0;
+    slider_pendulum_real s3 = 0.0;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     s0 += row[1];
     s1 += row[2];
@@ -989,8 +992,13 @@ static int slider_pendulum_row_finite(const slider_pendulum_real *row, const sli
     s3 += row[52];
     s0 += row[53];
     s1 += row[54];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     s0 += row[1] * 0.0;
     s1 += row[2] * 0.0;
     s2 += row[3] * 0.0;
@@ -1045,7 +1053,7 @@ static int slider_pendulum_row_finite(const slider_pendulum_real *row, const sli
     s3 += row[52] * 0.0;
     s0 += row[53] * 0.0;
     s1 += row[54] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 6 values, NaN if any v_k is NaN (so that a NaN residual
@@ -1053,28 +1061,36 @@ static int slider_pendulum_row_finite(const slider_pendulum_real *row, const sli
    comparison. */
 static slider_pendulum_real slider_pendulum_maxabs6(const slider_pendulum_real *v)
 {
-    slider_pendulum_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    slider_pendulum_real m0 = 0.0;
+    slider_pendulum_real m1 = 0.0;
+    slider_pendulum_real m2 = 0.0;
+    slider_pendulum_real m3 = 0.0;
+    slider_pendulum_real s0 = 0.0;
+    slider_pendulum_real s1 = 0.0;
+    slider_pendulum_real s2 = 0.0;
+    slider_pendulum_real s3 = 0.0;
+    slider_pendulum_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     m0 = SLIDER_PENDULUM_MAX(SLIDER_PENDULUM_MAX(m0, m1), SLIDER_PENDULUM_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
