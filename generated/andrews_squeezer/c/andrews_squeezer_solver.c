@@ -2417,71 +2417,123 @@ static void andrews_squeezer_sweep_take(const andrews_squeezer_real *row, const 
     e = -row[84];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* O.force_peak */
-    m = row[85] * row[85] + row[86] * row[86];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[88] * row[88] + row[89] * row[89];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[85] * row[85]) + (row[86] * row[86]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[88] * row[88]) + (row[89] * row[89]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* P.force_peak */
-    m = row[91] * row[91] + row[92] * row[92];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[94] * row[94] + row[95] * row[95];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[91] * row[91]) + (row[92] * row[92]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[94] * row[94]) + (row[95] * row[95]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* B.force_peak */
-    m = row[97] * row[97] + row[98] * row[98];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[100] * row[100] + row[101] * row[101];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[97] * row[97]) + (row[98] * row[98]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[100] * row[100]) + (row[101] * row[101]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* A_5.force_peak */
-    m = row[103] * row[103] + row[104] * row[104];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[106] * row[106] + row[107] * row[107];
-    if (m > fig[7]) fig[7] = m;
+    m = (row[103] * row[103]) + (row[104] * row[104]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[106] * row[106]) + (row[107] * row[107]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
     /* F.force_peak */
-    m = row[109] * row[109] + row[110] * row[110];
-    if (count == 0 || m > fig[8]) fig[8] = m;
-    m = row[112] * row[112] + row[113] * row[113];
-    if (m > fig[8]) fig[8] = m;
+    m = (row[109] * row[109]) + (row[110] * row[110]);
+    if ((count == 0) || (m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[112] * row[112]) + (row[113] * row[113]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
     /* A_7.force_peak */
-    m = row[115] * row[115] + row[116] * row[116];
-    if (count == 0 || m > fig[9]) fig[9] = m;
-    m = row[118] * row[118] + row[119] * row[119];
-    if (m > fig[9]) fig[9] = m;
+    m = (row[115] * row[115]) + (row[116] * row[116]);
+    if ((count == 0) || (m > fig[9])) {
+        fig[9] = m;
+    }
+    m = (row[118] * row[118]) + (row[119] * row[119]);
+    if ((m > fig[9])) {
+        fig[9] = m;
+    }
     /* G.force_peak */
-    m = row[121] * row[121] + row[122] * row[122];
-    if (count == 0 || m > fig[10]) fig[10] = m;
-    m = row[124] * row[124] + row[125] * row[125];
-    if (m > fig[10]) fig[10] = m;
+    m = (row[121] * row[121]) + (row[122] * row[122]);
+    if ((count == 0) || (m > fig[10])) {
+        fig[10] = m;
+    }
+    m = (row[124] * row[124]) + (row[125] * row[125]);
+    if ((m > fig[10])) {
+        fig[10] = m;
+    }
     /* E_3.force_peak */
-    m = row[127] * row[127] + row[128] * row[128];
-    if (count == 0 || m > fig[11]) fig[11] = m;
-    m = row[130] * row[130] + row[131] * row[131];
-    if (m > fig[11]) fig[11] = m;
+    m = (row[127] * row[127]) + (row[128] * row[128]);
+    if ((count == 0) || (m > fig[11])) {
+        fig[11] = m;
+    }
+    m = (row[130] * row[130]) + (row[131] * row[131]);
+    if ((m > fig[11])) {
+        fig[11] = m;
+    }
     /* E_4.force_peak */
-    m = row[133] * row[133] + row[134] * row[134];
-    if (count == 0 || m > fig[12]) fig[12] = m;
-    m = row[136] * row[136] + row[137] * row[137];
-    if (m > fig[12]) fig[12] = m;
+    m = (row[133] * row[133]) + (row[134] * row[134]);
+    if ((count == 0) || (m > fig[12])) {
+        fig[12] = m;
+    }
+    m = (row[136] * row[136]) + (row[137] * row[137]);
+    if ((m > fig[12])) {
+        fig[12] = m;
+    }
     /* E_6.force_peak */
-    m = row[139] * row[139] + row[140] * row[140];
-    if (count == 0 || m > fig[13]) fig[13] = m;
-    m = row[142] * row[142] + row[143] * row[143];
-    if (m > fig[13]) fig[13] = m;
+    m = (row[139] * row[139]) + (row[140] * row[140]);
+    if ((count == 0) || (m > fig[13])) {
+        fig[13] = m;
+    }
+    m = (row[142] * row[142]) + (row[143] * row[143]);
+    if ((m > fig[13])) {
+        fig[13] = m;
+    }
     /* motor.force_peak */
-    m = row[145] * row[145] + row[146] * row[146];
-    if (count == 0 || m > fig[14]) fig[14] = m;
-    m = row[148] * row[148] + row[149] * row[149];
-    if (m > fig[14]) fig[14] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[145] * row[145]) + (row[146] * row[146]);
+    if ((count == 0) || (m > fig[14])) {
+        fig[14] = m;
+    }
+    m = (row[148] * row[148]) + (row[149] * row[149]);
+    if ((m > fig[14])) {
+        fig[14] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 

@@ -1932,75 +1932,119 @@ static void excavator_sweep_take(const excavator_real *row, const excavator_real
     (void)drive;
     excavator_drive(t, p, drive);
     /* boom_cylinder */
-    e = -2.0 * fabs(drive[0]) * row[34];
+    e = (-2.0 * fabs(drive[0])) * row[34];
     rate = (excavator_real)((drive[0] > 0.0) - (drive[0] < 0.0)) * drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[10]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[10]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* stick_cylinder */
-    e = -2.0 * fabs(drive[2]) * row[35];
+    e = (-2.0 * fabs(drive[2])) * row[35];
     rate = (excavator_real)((drive[2] > 0.0) - (drive[2] < 0.0)) * drive[3];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[4]) {
+    if ((count == 0) || (fabs(e) > fig[4])) {
         fig[4] = fabs(e);
         fig[5] = t;
     }
-    if (count == 0 || w > fig[7]) fig[7] = w;
-    if (count == 0) acc[4] = acc[5] = 0.0;
-    else acc[4] += (e * e + acc[3] * acc[3]) * (t - acc[10]);
+    if ((count == 0) || (w > fig[7])) {
+        fig[7] = w;
+    }
+    if (count == 0) {
+        acc[5] = 0.0;
+        acc[4] = 0.0;
+    } else {
+        acc[4] += ((e * e) + (acc[3] * acc[3])) * (t - acc[10]);
+    }
     acc[5] += e * e;
     acc[3] = e;
     /* bucket_cylinder */
-    e = -2.0 * fabs(drive[4]) * row[36];
+    e = (-2.0 * fabs(drive[4])) * row[36];
     rate = (excavator_real)((drive[4] > 0.0) - (drive[4] < 0.0)) * drive[5];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[8]) {
+    if ((count == 0) || (fabs(e) > fig[8])) {
         fig[8] = fabs(e);
         fig[9] = t;
     }
-    if (count == 0 || w > fig[11]) fig[11] = w;
-    if (count == 0) acc[7] = acc[8] = 0.0;
-    else acc[7] += (e * e + acc[6] * acc[6]) * (t - acc[10]);
+    if ((count == 0) || (w > fig[11])) {
+        fig[11] = w;
+    }
+    if (count == 0) {
+        acc[8] = 0.0;
+        acc[7] = 0.0;
+    } else {
+        acc[7] += ((e * e) + (acc[6] * acc[6])) * (t - acc[10]);
+    }
     acc[8] += e * e;
     acc[6] = e;
     /* boom_foot_pin.force_peak */
-    m = row[37] * row[37] + row[38] * row[38];
-    if (count == 0 || m > fig[12]) fig[12] = m;
-    m = row[40] * row[40] + row[41] * row[41];
-    if (m > fig[12]) fig[12] = m;
+    m = (row[37] * row[37]) + (row[38] * row[38]);
+    if ((count == 0) || (m > fig[12])) {
+        fig[12] = m;
+    }
+    m = (row[40] * row[40]) + (row[41] * row[41]);
+    if ((m > fig[12])) {
+        fig[12] = m;
+    }
     /* boom_stick_pin.force_peak */
-    m = row[43] * row[43] + row[44] * row[44];
-    if (count == 0 || m > fig[13]) fig[13] = m;
-    m = row[46] * row[46] + row[47] * row[47];
-    if (m > fig[13]) fig[13] = m;
+    m = (row[43] * row[43]) + (row[44] * row[44]);
+    if ((count == 0) || (m > fig[13])) {
+        fig[13] = m;
+    }
+    m = (row[46] * row[46]) + (row[47] * row[47]);
+    if ((m > fig[13])) {
+        fig[13] = m;
+    }
     /* stick_bucket_pin.force_peak */
-    m = row[49] * row[49] + row[50] * row[50];
-    if (count == 0 || m > fig[14]) fig[14] = m;
-    m = row[52] * row[52] + row[53] * row[53];
-    if (m > fig[14]) fig[14] = m;
+    m = (row[49] * row[49]) + (row[50] * row[50]);
+    if ((count == 0) || (m > fig[14])) {
+        fig[14] = m;
+    }
+    m = (row[52] * row[52]) + (row[53] * row[53]);
+    if ((m > fig[14])) {
+        fig[14] = m;
+    }
     /* boom_cylinder.force_peak */
-    m = row[55] * row[55] + row[56] * row[56];
-    if (count == 0 || m > fig[15]) fig[15] = m;
-    m = row[58] * row[58] + row[59] * row[59];
-    if (m > fig[15]) fig[15] = m;
+    m = (row[55] * row[55]) + (row[56] * row[56]);
+    if ((count == 0) || (m > fig[15])) {
+        fig[15] = m;
+    }
+    m = (row[58] * row[58]) + (row[59] * row[59]);
+    if ((m > fig[15])) {
+        fig[15] = m;
+    }
     /* stick_cylinder.force_peak */
-    m = row[61] * row[61] + row[62] * row[62];
-    if (count == 0 || m > fig[16]) fig[16] = m;
-    m = row[64] * row[64] + row[65] * row[65];
-    if (m > fig[16]) fig[16] = m;
+    m = (row[61] * row[61]) + (row[62] * row[62]);
+    if ((count == 0) || (m > fig[16])) {
+        fig[16] = m;
+    }
+    m = (row[64] * row[64]) + (row[65] * row[65]);
+    if ((m > fig[16])) {
+        fig[16] = m;
+    }
     /* bucket_cylinder.force_peak */
-    m = row[67] * row[67] + row[68] * row[68];
-    if (count == 0 || m > fig[17]) fig[17] = m;
-    m = row[70] * row[70] + row[71] * row[71];
-    if (m > fig[17]) fig[17] = m;
-    if (count == 0) acc[9] = t;
+    m = (row[67] * row[67]) + (row[68] * row[68]);
+    if ((count == 0) || (m > fig[17])) {
+        fig[17] = m;
+    }
+    m = (row[70] * row[70]) + (row[71] * row[71]);
+    if ((m > fig[17])) {
+        fig[17] = m;
+    }
+    if (count == 0) {
+        acc[9] = t;
+    }
     acc[10] = t;
 }
 

@@ -1824,58 +1824,100 @@ static void planetary_sweep_take(const planetary_real *row, const planetary_real
     e = -row[48];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* sun_bearing.force_peak */
-    m = row[49] * row[49] + row[50] * row[50];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[52] * row[52] + row[53] * row[53];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[49] * row[49]) + (row[50] * row[50]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[52] * row[52]) + (row[53] * row[53]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* carrier_bearing.force_peak */
-    m = row[55] * row[55] + row[56] * row[56];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[58] * row[58] + row[59] * row[59];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[55] * row[55]) + (row[56] * row[56]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[58] * row[58]) + (row[59] * row[59]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* planet_bearing.force_peak */
-    m = row[61] * row[61] + row[62] * row[62];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[64] * row[64] + row[65] * row[65];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[61] * row[61]) + (row[62] * row[62]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[64] * row[64]) + (row[65] * row[65]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* sun_planet_mesh.force_peak */
-    m = row[67] * row[67] + row[68] * row[68];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[70] * row[70] + row[71] * row[71];
-    if (m > fig[7]) fig[7] = m;
-    m = row[73] * row[73] + row[74] * row[74];
-    if (m > fig[7]) fig[7] = m;
+    m = (row[67] * row[67]) + (row[68] * row[68]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[70] * row[70]) + (row[71] * row[71]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[73] * row[73]) + (row[74] * row[74]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
     /* planet_ring_mesh.force_peak */
-    m = row[76] * row[76] + row[77] * row[77];
-    if (count == 0 || m > fig[8]) fig[8] = m;
-    m = row[79] * row[79] + row[80] * row[80];
-    if (m > fig[8]) fig[8] = m;
-    m = row[82] * row[82] + row[83] * row[83];
-    if (m > fig[8]) fig[8] = m;
+    m = (row[76] * row[76]) + (row[77] * row[77]);
+    if ((count == 0) || (m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[79] * row[79]) + (row[80] * row[80]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[82] * row[82]) + (row[83] * row[83]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
     /* pinion_bearing.force_peak */
-    m = row[85] * row[85] + row[86] * row[86];
-    if (count == 0 || m > fig[9]) fig[9] = m;
-    m = row[88] * row[88] + row[89] * row[89];
-    if (m > fig[9]) fig[9] = m;
+    m = (row[85] * row[85]) + (row[86] * row[86]);
+    if ((count == 0) || (m > fig[9])) {
+        fig[9] = m;
+    }
+    m = (row[88] * row[88]) + (row[89] * row[89]);
+    if ((m > fig[9])) {
+        fig[9] = m;
+    }
     /* pinion_sun_mesh.force_peak */
-    m = row[91] * row[91] + row[92] * row[92];
-    if (count == 0 || m > fig[10]) fig[10] = m;
-    m = row[94] * row[94] + row[95] * row[95];
-    if (m > fig[10]) fig[10] = m;
+    m = (row[91] * row[91]) + (row[92] * row[92]);
+    if ((count == 0) || (m > fig[10])) {
+        fig[10] = m;
+    }
+    m = (row[94] * row[94]) + (row[95] * row[95]);
+    if ((m > fig[10])) {
+        fig[10] = m;
+    }
     /* input_motor.force_peak */
-    m = row[97] * row[97] + row[98] * row[98];
-    if (count == 0 || m > fig[11]) fig[11] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[97] * row[97]) + (row[98] * row[98]);
+    if ((count == 0) || (m > fig[11])) {
+        fig[11] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 

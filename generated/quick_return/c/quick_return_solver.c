@@ -1676,46 +1676,78 @@ static void quick_return_sweep_take(const quick_return_real *row, const quick_re
     e = -row[36];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* crank_bearing.force_peak */
-    m = row[37] * row[37] + row[38] * row[38];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[40] * row[40] + row[41] * row[41];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[37] * row[37]) + (row[38] * row[38]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[40] * row[40]) + (row[41] * row[41]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* lever_pivot.force_peak */
-    m = row[43] * row[43] + row[44] * row[44];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[46] * row[46] + row[47] * row[47];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[43] * row[43]) + (row[44] * row[44]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[46] * row[46]) + (row[47] * row[47]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* crank_pin_in_lever_slot.force_peak */
-    m = row[49] * row[49] + row[50] * row[50];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[52] * row[52] + row[53] * row[53];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[49] * row[49]) + (row[50] * row[50]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[52] * row[52]) + (row[53] * row[53]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* lever_ram_link.force_peak */
-    m = row[55] * row[55] + row[56] * row[56];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[58] * row[58] + row[59] * row[59];
-    if (m > fig[7]) fig[7] = m;
+    m = (row[55] * row[55]) + (row[56] * row[56]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[58] * row[58]) + (row[59] * row[59]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
     /* ram_guide.force_peak */
-    m = row[61] * row[61] + row[62] * row[62];
-    if (count == 0 || m > fig[8]) fig[8] = m;
-    m = row[64] * row[64] + row[65] * row[65];
-    if (m > fig[8]) fig[8] = m;
+    m = (row[61] * row[61]) + (row[62] * row[62]);
+    if ((count == 0) || (m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[64] * row[64]) + (row[65] * row[65]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
     /* crank_motor.force_peak */
-    m = row[67] * row[67] + row[68] * row[68];
-    if (count == 0 || m > fig[9]) fig[9] = m;
-    m = row[70] * row[70] + row[71] * row[71];
-    if (m > fig[9]) fig[9] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[67] * row[67]) + (row[68] * row[68]);
+    if ((count == 0) || (m > fig[9])) {
+        fig[9] = m;
+    }
+    m = (row[70] * row[70]) + (row[71] * row[71]);
+    if ((m > fig[9])) {
+        fig[9] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 

@@ -1576,36 +1576,60 @@ static void rack_lift_sweep_take(const rack_lift_real *row, const rack_lift_real
     e = -row[24];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* axle.force_peak */
-    m = row[25] * row[25] + row[26] * row[26];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[28] * row[28] + row[29] * row[29];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[25] * row[25]) + (row[26] * row[26]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[28] * row[28]) + (row[29] * row[29]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* guide.force_peak */
-    m = row[31] * row[31] + row[32] * row[32];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[34] * row[34] + row[35] * row[35];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[31] * row[31]) + (row[32] * row[32]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[34] * row[34]) + (row[35] * row[35]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* mesh.force_peak */
-    m = row[37] * row[37] + row[38] * row[38];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[40] * row[40] + row[41] * row[41];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[37] * row[37]) + (row[38] * row[38]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[40] * row[40]) + (row[41] * row[41]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* motor.force_peak */
-    m = row[43] * row[43] + row[44] * row[44];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[46] * row[46] + row[47] * row[47];
-    if (m > fig[7]) fig[7] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[43] * row[43]) + (row[44] * row[44]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[46] * row[46]) + (row[47] * row[47]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 

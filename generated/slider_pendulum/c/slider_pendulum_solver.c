@@ -1615,54 +1615,88 @@ static void slider_pendulum_sweep_take(const slider_pendulum_real *row, const sl
     e = -row[21];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[7]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[7]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* pendulum_motor */
     e = -row[24];
     rate = drive[3];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[4]) {
+    if ((count == 0) || (fabs(e) > fig[4])) {
         fig[4] = fabs(e);
         fig[5] = t;
     }
-    if (count == 0 || w > fig[7]) fig[7] = w;
-    if (count == 0) acc[4] = acc[5] = 0.0;
-    else acc[4] += (e * e + acc[3] * acc[3]) * (t - acc[7]);
+    if ((count == 0) || (w > fig[7])) {
+        fig[7] = w;
+    }
+    if (count == 0) {
+        acc[5] = 0.0;
+        acc[4] = 0.0;
+    } else {
+        acc[4] += ((e * e) + (acc[3] * acc[3])) * (t - acc[7]);
+    }
     acc[5] += e * e;
     acc[3] = e;
     /* guide_parallel.force_peak */
-    m = row[25] * row[25] + row[26] * row[26];
-    if (count == 0 || m > fig[8]) fig[8] = m;
-    m = row[28] * row[28] + row[29] * row[29];
-    if (m > fig[8]) fig[8] = m;
+    m = (row[25] * row[25]) + (row[26] * row[26]);
+    if ((count == 0) || (m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[28] * row[28]) + (row[29] * row[29]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
     /* guide_slot.force_peak */
-    m = row[31] * row[31] + row[32] * row[32];
-    if (count == 0 || m > fig[9]) fig[9] = m;
-    m = row[34] * row[34] + row[35] * row[35];
-    if (m > fig[9]) fig[9] = m;
+    m = (row[31] * row[31]) + (row[32] * row[32]);
+    if ((count == 0) || (m > fig[9])) {
+        fig[9] = m;
+    }
+    m = (row[34] * row[34]) + (row[35] * row[35]);
+    if ((m > fig[9])) {
+        fig[9] = m;
+    }
     /* carriage_actuator.force_peak */
-    m = row[37] * row[37] + row[38] * row[38];
-    if (count == 0 || m > fig[10]) fig[10] = m;
-    m = row[40] * row[40] + row[41] * row[41];
-    if (m > fig[10]) fig[10] = m;
+    m = (row[37] * row[37]) + (row[38] * row[38]);
+    if ((count == 0) || (m > fig[10])) {
+        fig[10] = m;
+    }
+    m = (row[40] * row[40]) + (row[41] * row[41]);
+    if ((m > fig[10])) {
+        fig[10] = m;
+    }
     /* pendulum_hinge.force_peak */
-    m = row[43] * row[43] + row[44] * row[44];
-    if (count == 0 || m > fig[11]) fig[11] = m;
-    m = row[46] * row[46] + row[47] * row[47];
-    if (m > fig[11]) fig[11] = m;
+    m = (row[43] * row[43]) + (row[44] * row[44]);
+    if ((count == 0) || (m > fig[11])) {
+        fig[11] = m;
+    }
+    m = (row[46] * row[46]) + (row[47] * row[47]);
+    if ((m > fig[11])) {
+        fig[11] = m;
+    }
     /* pendulum_motor.force_peak */
-    m = row[49] * row[49] + row[50] * row[50];
-    if (count == 0 || m > fig[12]) fig[12] = m;
-    m = row[52] * row[52] + row[53] * row[53];
-    if (m > fig[12]) fig[12] = m;
-    if (count == 0) acc[6] = t;
+    m = (row[49] * row[49]) + (row[50] * row[50]);
+    if ((count == 0) || (m > fig[12])) {
+        fig[12] = m;
+    }
+    m = (row[52] * row[52]) + (row[53] * row[53]);
+    if ((m > fig[12])) {
+        fig[12] = m;
+    }
+    if (count == 0) {
+        acc[6] = t;
+    }
     acc[7] = t;
 }
 
