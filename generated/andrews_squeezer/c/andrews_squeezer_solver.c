@@ -1005,11 +1005,11 @@ static int andrews_squeezer_sparse_factor0(andrews_squeezer_real *lu)
     piv = lu[43] = 1.0 / piv;
     lu[47] *= piv;
     lu[69] = 0.0 - lu[47];
-    lu[45] -= lu[47] * lu[41];
+    lu[45] -= (lu[47] * lu[41]);
     cm = 1.0;
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[69]));
     if (!(1.0 >= ANDREWS_SQUEEZER_THRESHOLD * cm)) return 1;
-    lu[45] -= lu[69] * lu[7];
+    lu[45] -= (lu[69] * lu[7]);
     lu[49] -= lu[7];
     lu[57] -= lu[7];
     piv = lu[51];
@@ -1018,8 +1018,8 @@ static int andrews_squeezer_sparse_factor0(andrews_squeezer_real *lu)
     if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[51] = 1.0 / piv;
     lu[55] *= piv;
-    lu[53] -= lu[55] * lu[49];
-    lu[66] -= lu[55] * lu[65];
+    lu[53] -= (lu[55] * lu[49]);
+    lu[66] -= (lu[55] * lu[65]);
     piv = lu[66];
     cm = fabs(piv);
     if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
@@ -1040,7 +1040,7 @@ static int andrews_squeezer_sparse_factor0(andrews_squeezer_real *lu)
     if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[59] = 1.0 / piv;
     lu[63] *= piv;
-    lu[68] -= lu[63] * lu[67];
+    lu[68] -= (lu[63] * lu[67]);
     piv = lu[68];
     cm = fabs(piv);
     if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
@@ -1055,10 +1055,10 @@ static int andrews_squeezer_sparse_factor(andrews_squeezer_real *lu)
 
 static void andrews_squeezer_sparse_forward0(const andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT lu, andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT y)
 {
-    y[0] -= lu[1] * y[20];
-    y[1] -= lu[3] * y[20];
-    y[2] -= lu[5] * y[20];
-    y[3] -= lu[9] * y[20];
+    y[0] -= (lu[1] * y[20]);
+    y[1] -= (lu[3] * y[20]);
+    y[2] -= (lu[5] * y[20]);
+    y[3] -= (lu[9] * y[20]);
     y[2] += y[0];
     y[3] += y[1];
     y[14] += y[4];
@@ -1071,39 +1071,39 @@ static void andrews_squeezer_sparse_forward0(const andrews_squeezer_real *ANDREW
     y[17] += y[9];
     y[18] += y[12];
     y[19] += y[13];
-    y[15] -= lu[47] * y[14];
-    y[15] -= lu[69] * y[2];
+    y[15] -= (lu[47] * y[14]);
+    y[15] -= (lu[69] * y[2]);
     y[16] -= y[2];
     y[18] -= y[2];
-    y[17] -= lu[55] * y[16];
+    y[17] -= (lu[55] * y[16]);
     y[15] -= y[3];
     y[19] -= y[3];
-    y[18] -= lu[57] * y[15];
-    y[19] -= lu[61] * y[15];
-    y[19] -= lu[63] * y[18];
+    y[18] -= (lu[57] * y[15]);
+    y[19] -= (lu[61] * y[15]);
+    y[19] -= (lu[63] * y[18]);
 }
 
 static void andrews_squeezer_sparse_back0(
     const andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT lu, const andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT y, andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT x)
 {
     x[20] = (y[19]) * lu[68];
-    x[17] = (y[18] - lu[67] * x[20]) * lu[59];
+    x[17] = (y[18] - (lu[67] * x[20])) * lu[59];
     x[5] = (y[15]) * lu[45];
-    x[4] = y[3] - lu[11] * x[5];
-    x[14] = (y[17] - x[4] - lu[53] * x[5]) * lu[66];
-    x[11] = (y[16] - lu[49] * x[5] - lu[65] * x[14]) * lu[51];
-    x[3] = y[2] - lu[7] * x[5];
-    x[8] = (y[14] - x[3] - lu[41] * x[5]) * lu[43];
-    x[16] = y[13] - lu[37] * x[17] - lu[39] * x[20];
-    x[15] = y[12] - lu[33] * x[17] - lu[35] * x[20];
-    x[10] = y[9] - lu[25] * x[11] - lu[27] * x[14];
-    x[9] = y[8] - lu[21] * x[11] - lu[23] * x[14];
-    x[19] = y[11] - lu[31] * x[20];
-    x[18] = y[10] - lu[29] * x[20];
-    x[13] = y[7] - lu[19] * x[14];
-    x[12] = y[6] - lu[17] * x[14];
-    x[7] = y[5] - lu[15] * x[8];
-    x[6] = y[4] - lu[13] * x[8];
+    x[4] = y[3] - (lu[11] * x[5]);
+    x[14] = (y[17] - x[4] - (lu[53] * x[5])) * lu[66];
+    x[11] = (y[16] - (lu[49] * x[5]) - (lu[65] * x[14])) * lu[51];
+    x[3] = y[2] - (lu[7] * x[5]);
+    x[8] = (y[14] - x[3] - (lu[41] * x[5])) * lu[43];
+    x[16] = y[13] - (lu[37] * x[17]) - (lu[39] * x[20]);
+    x[15] = y[12] - (lu[33] * x[17]) - (lu[35] * x[20]);
+    x[10] = y[9] - (lu[25] * x[11]) - (lu[27] * x[14]);
+    x[9] = y[8] - (lu[21] * x[11]) - (lu[23] * x[14]);
+    x[19] = y[11] - (lu[31] * x[20]);
+    x[18] = y[10] - (lu[29] * x[20]);
+    x[13] = y[7] - (lu[19] * x[14]);
+    x[12] = y[6] - (lu[17] * x[14]);
+    x[7] = y[5] - (lu[15] * x[8]);
+    x[6] = y[4] - (lu[13] * x[8]);
     x[1] = y[1];
     x[0] = y[0];
     x[2] = y[20];
@@ -1138,28 +1138,28 @@ static void andrews_squeezer_sparse_t_forward0(
     x[9] = b[10];
     x[12] = b[15];
     x[13] = b[16];
-    x[14] = (b[8] - lu[13] * x[4] - lu[15] * x[5]) * lu[43];
+    x[14] = (b[8] - (lu[13] * x[4]) - (lu[15] * x[5])) * lu[43];
     x[2] = b[3] - x[14];
-    x[16] = (b[11] - lu[21] * x[8] - lu[25] * x[9]) * lu[51];
-    x[17] = (b[14] - lu[17] * x[6] - lu[19] * x[7] - lu[23] * x[8] - lu[27] * x[9] - lu[65] * x[16]) * lu[66];
+    x[16] = (b[11] - (lu[21] * x[8]) - (lu[25] * x[9])) * lu[51];
+    x[17] = (b[14] - (lu[17] * x[6]) - (lu[19] * x[7]) - (lu[23] * x[8]) - (lu[27] * x[9]) - (lu[65] * x[16])) * lu[66];
     x[3] = b[4] - x[17];
-    x[15] = (b[5] - lu[41] * x[14] - lu[7] * x[2] - lu[49] * x[16] - lu[53] * x[17] - lu[11] * x[3]) * lu[45];
-    x[18] = (b[17] - lu[33] * x[12] - lu[37] * x[13]) * lu[59];
-    x[19] = (b[20] - lu[29] * x[10] - lu[31] * x[11] - lu[35] * x[12] - lu[39] * x[13] - lu[67] * x[18]) * lu[68];
+    x[15] = (b[5] - (lu[41] * x[14]) - (lu[7] * x[2]) - (lu[49] * x[16]) - (lu[53] * x[17]) - (lu[11] * x[3])) * lu[45];
+    x[18] = (b[17] - (lu[33] * x[12]) - (lu[37] * x[13])) * lu[59];
+    x[19] = (b[20] - (lu[29] * x[10]) - (lu[31] * x[11]) - (lu[35] * x[12]) - (lu[39] * x[13]) - (lu[67] * x[18])) * lu[68];
 }
 
 static void andrews_squeezer_sparse_t_back0(const andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT lu, andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT x)
 {
-    x[18] -= lu[63] * x[19];
-    x[15] -= lu[57] * x[18];
-    x[15] -= lu[61] * x[19];
+    x[18] -= (lu[63] * x[19]);
+    x[15] -= (lu[57] * x[18]);
+    x[15] -= (lu[61] * x[19]);
     x[3] -= x[15];
     x[3] -= x[19];
-    x[16] -= lu[55] * x[17];
-    x[2] -= lu[69] * x[15];
+    x[16] -= (lu[55] * x[17]);
+    x[2] -= (lu[69] * x[15]);
     x[2] -= x[16];
     x[2] -= x[18];
-    x[14] -= lu[47] * x[15];
+    x[14] -= (lu[47] * x[15]);
     x[13] += x[19];
     x[12] += x[18];
     x[9] += x[17];
@@ -1172,10 +1172,10 @@ static void andrews_squeezer_sparse_t_back0(const andrews_squeezer_real *ANDREWS
     x[4] += x[14];
     x[1] += x[3];
     x[0] += x[2];
-    x[20] -= lu[1] * x[0];
-    x[20] -= lu[3] * x[1];
-    x[20] -= lu[5] * x[2];
-    x[20] -= lu[9] * x[3];
+    x[20] -= (lu[1] * x[0]);
+    x[20] -= (lu[3] * x[1]);
+    x[20] -= (lu[5] * x[2]);
+    x[20] -= (lu[9] * x[3]);
 }
 
 static void andrews_squeezer_sparse_solve_t(const andrews_squeezer_real *lu, const andrews_squeezer_real *b, andrews_squeezer_real *x)

@@ -757,15 +757,15 @@ static int excavator_sparse_factor0(excavator_real *lu)
     cm = EXCAVATOR_MAX(cm, fabs(lu[33]));
     if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
     lu[30] += lu[33];
-    lu[31] -= lu[33] * lu[17];
-    lu[34] -= lu[33] * lu[19];
+    lu[31] -= (lu[33] * lu[17]);
+    lu[34] -= (lu[33] * lu[19]);
     cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[21]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[24]));
     if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
     lu[9] += lu[3];
-    lu[22] -= lu[21] * lu[3];
-    lu[25] -= lu[24] * lu[3];
+    lu[22] -= (lu[21] * lu[3]);
+    lu[25] -= (lu[24] * lu[3]);
     piv = lu[20];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, 1.0);
@@ -775,9 +775,9 @@ static int excavator_sparse_factor0(excavator_real *lu)
     lu[0] = 1.0 * piv;
     lu[4] = -1.0 * piv;
     lu[23] *= piv;
-    lu[1] -= lu[0] * lu[22];
-    lu[5] -= lu[4] * lu[22];
-    lu[25] -= lu[23] * lu[22];
+    lu[1] -= (lu[0] * lu[22]);
+    lu[5] -= (lu[4] * lu[22]);
+    lu[25] -= (lu[23] * lu[22]);
     piv = lu[1];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, fabs(lu[5]));
@@ -792,8 +792,8 @@ static int excavator_sparse_factor0(excavator_real *lu)
     cm = EXCAVATOR_MAX(cm, fabs(lu[27]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[30]));
     if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
-    lu[28] -= lu[27] * lu[11];
-    lu[31] -= lu[30] * lu[11];
+    lu[28] -= (lu[27] * lu[11]);
+    lu[31] -= (lu[30] * lu[11]);
     piv = lu[26];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, 1.0);
@@ -803,9 +803,9 @@ static int excavator_sparse_factor0(excavator_real *lu)
     lu[6] = 1.0 * piv;
     lu[12] = -1.0 * piv;
     lu[29] *= piv;
-    lu[7] -= lu[6] * lu[28];
-    lu[13] -= lu[12] * lu[28];
-    lu[31] -= lu[29] * lu[28];
+    lu[7] -= (lu[6] * lu[28]);
+    lu[13] -= (lu[12] * lu[28]);
+    lu[31] -= (lu[29] * lu[28]);
     piv = lu[7];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, fabs(lu[13]));
@@ -820,7 +820,7 @@ static int excavator_sparse_factor0(excavator_real *lu)
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[32] = 1.0 / piv;
     lu[14] = 1.0 * piv;
-    lu[15] -= lu[14] * lu[34];
+    lu[15] -= (lu[14] * lu[34]);
     piv = lu[15];
     cm = fabs(piv);
     if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
@@ -835,38 +835,38 @@ static int excavator_sparse_factor(excavator_real *lu)
 
 static void excavator_sparse_forward0(const excavator_real *EXCAVATOR_RESTRICT lu, excavator_real *EXCAVATOR_RESTRICT y)
 {
-    y[8] -= lu[33] * y[5];
+    y[8] -= (lu[33] * y[5]);
     y[3] += y[1];
-    y[6] -= lu[21] * y[1];
-    y[7] -= lu[24] * y[1];
-    y[0] -= lu[0] * y[6];
-    y[2] -= lu[4] * y[6];
-    y[7] -= lu[23] * y[6];
-    y[2] -= lu[5] * y[0];
-    y[3] -= lu[9] * y[0];
-    y[7] -= lu[25] * y[0];
-    y[7] -= lu[27] * y[3];
-    y[8] -= lu[30] * y[3];
-    y[2] -= lu[6] * y[7];
-    y[4] -= lu[12] * y[7];
-    y[8] -= lu[29] * y[7];
-    y[4] -= lu[13] * y[2];
-    y[8] -= lu[31] * y[2];
-    y[4] -= lu[14] * y[8];
+    y[6] -= (lu[21] * y[1]);
+    y[7] -= (lu[24] * y[1]);
+    y[0] -= (lu[0] * y[6]);
+    y[2] -= (lu[4] * y[6]);
+    y[7] -= (lu[23] * y[6]);
+    y[2] -= (lu[5] * y[0]);
+    y[3] -= (lu[9] * y[0]);
+    y[7] -= (lu[25] * y[0]);
+    y[7] -= (lu[27] * y[3]);
+    y[8] -= (lu[30] * y[3]);
+    y[2] -= (lu[6] * y[7]);
+    y[4] -= (lu[12] * y[7]);
+    y[8] -= (lu[29] * y[7]);
+    y[4] -= (lu[13] * y[2]);
+    y[8] -= (lu[31] * y[2]);
+    y[4] -= (lu[14] * y[8]);
 }
 
 static void excavator_sparse_back0(
     const excavator_real *EXCAVATOR_RESTRICT lu, const excavator_real *EXCAVATOR_RESTRICT y, excavator_real *EXCAVATOR_RESTRICT x)
 {
     x[8] = (y[4]) * lu[15];
-    x[6] = (y[8] - lu[34] * x[8]) * lu[32];
+    x[6] = (y[8] - (lu[34] * x[8])) * lu[32];
     x[5] = (y[2]) * lu[7];
-    x[3] = (y[7] - lu[28] * x[5]) * lu[26];
-    x[4] = y[3] - lu[11] * x[5];
+    x[3] = (y[7] - (lu[28] * x[5])) * lu[26];
+    x[4] = y[3] - (lu[11] * x[5]);
     x[2] = (y[0]) * lu[1];
-    x[0] = (y[6] - lu[22] * x[2]) * lu[20];
-    x[1] = y[1] - lu[3] * x[2];
-    x[7] = y[5] + x[4] - lu[17] * x[5] - lu[19] * x[8];
+    x[0] = (y[6] - (lu[22] * x[2])) * lu[20];
+    x[1] = y[1] - (lu[3] * x[2]);
+    x[7] = y[5] + x[4] - (lu[17] * x[5]) - (lu[19] * x[8]);
 }
 
 /* The solve in place: y holds b on entry and is overwritten (solve_in). */
@@ -888,34 +888,34 @@ static void excavator_sparse_t_forward0(
     x[5] = b[7];
     x[1] = b[1];
     x[6] = (b[0]) * lu[20];
-    x[0] = (b[2] - lu[3] * x[1] - lu[22] * x[6]) * lu[1];
+    x[0] = (b[2] - (lu[3] * x[1]) - (lu[22] * x[6])) * lu[1];
     x[3] = b[4] + x[5];
     x[7] = (b[3]) * lu[26];
-    x[2] = (b[5] - lu[17] * x[5] - lu[11] * x[3] - lu[28] * x[7]) * lu[7];
+    x[2] = (b[5] - (lu[17] * x[5]) - (lu[11] * x[3]) - (lu[28] * x[7])) * lu[7];
     x[8] = (b[6]) * lu[32];
-    x[4] = (b[8] - lu[19] * x[5] - lu[34] * x[8]) * lu[15];
+    x[4] = (b[8] - (lu[19] * x[5]) - (lu[34] * x[8])) * lu[15];
 }
 
 static void excavator_sparse_t_back0(const excavator_real *EXCAVATOR_RESTRICT lu, excavator_real *EXCAVATOR_RESTRICT x)
 {
-    x[8] -= lu[14] * x[4];
-    x[2] -= lu[13] * x[4];
-    x[2] -= lu[31] * x[8];
-    x[7] -= lu[6] * x[2];
-    x[7] -= lu[12] * x[4];
-    x[7] -= lu[29] * x[8];
-    x[3] -= lu[27] * x[7];
-    x[3] -= lu[30] * x[8];
-    x[0] -= lu[5] * x[2];
-    x[0] -= lu[9] * x[3];
-    x[0] -= lu[25] * x[7];
-    x[6] -= lu[0] * x[0];
-    x[6] -= lu[4] * x[2];
-    x[6] -= lu[23] * x[7];
+    x[8] -= (lu[14] * x[4]);
+    x[2] -= (lu[13] * x[4]);
+    x[2] -= (lu[31] * x[8]);
+    x[7] -= (lu[6] * x[2]);
+    x[7] -= (lu[12] * x[4]);
+    x[7] -= (lu[29] * x[8]);
+    x[3] -= (lu[27] * x[7]);
+    x[3] -= (lu[30] * x[8]);
+    x[0] -= (lu[5] * x[2]);
+    x[0] -= (lu[9] * x[3]);
+    x[0] -= (lu[25] * x[7]);
+    x[6] -= (lu[0] * x[0]);
+    x[6] -= (lu[4] * x[2]);
+    x[6] -= (lu[23] * x[7]);
     x[1] += x[3];
-    x[1] -= lu[21] * x[6];
-    x[1] -= lu[24] * x[7];
-    x[5] -= lu[33] * x[8];
+    x[1] -= (lu[21] * x[6]);
+    x[1] -= (lu[24] * x[7]);
+    x[5] -= (lu[33] * x[8]);
 }
 
 static void excavator_sparse_solve_t(const excavator_real *lu, const excavator_real *b, excavator_real *x)

@@ -586,7 +586,7 @@ static int four_bar_sparse_factor0(four_bar_real *lu)
     if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[13] = 1.0 / piv;
     lu[17] *= piv;
-    lu[19] -= lu[17] * lu[15];
+    lu[19] -= (lu[17] * lu[15]);
     lu[23] -= lu[19];
     piv = lu[23];
     cm = fabs(piv);
@@ -602,16 +602,16 @@ static int four_bar_sparse_factor(four_bar_real *lu)
 
 static void four_bar_sparse_forward0(const four_bar_real *FOUR_BAR_RESTRICT lu, four_bar_real *FOUR_BAR_RESTRICT y)
 {
-    y[0] -= lu[1] * y[8];
-    y[1] -= lu[3] * y[8];
-    y[2] -= lu[5] * y[8];
-    y[3] -= lu[9] * y[8];
+    y[0] -= (lu[1] * y[8]);
+    y[1] -= (lu[3] * y[8]);
+    y[2] -= (lu[5] * y[8]);
+    y[3] -= (lu[9] * y[8]);
     y[2] += y[0];
     y[3] += y[1];
     y[4] += y[2];
     y[5] += y[3];
     y[4] -= y[6];
-    y[5] -= lu[17] * y[4];
+    y[5] -= (lu[17] * y[4]);
     y[7] -= y[5];
 }
 
@@ -619,11 +619,11 @@ static void four_bar_sparse_back0(
     const four_bar_real *FOUR_BAR_RESTRICT lu, const four_bar_real *FOUR_BAR_RESTRICT y, four_bar_real *FOUR_BAR_RESTRICT x)
 {
     x[8] = (y[7]) * lu[23];
-    x[7] = y[5] - lu[19] * x[8];
-    x[5] = (y[4] - lu[15] * x[8]) * lu[13];
-    x[6] = y[6] - lu[21] * x[8];
-    x[4] = y[3] - lu[11] * x[5];
-    x[3] = y[2] - lu[7] * x[5];
+    x[7] = y[5] - (lu[19] * x[8]);
+    x[5] = (y[4] - (lu[15] * x[8])) * lu[13];
+    x[6] = y[6] - (lu[21] * x[8]);
+    x[4] = y[3] - (lu[11] * x[5]);
+    x[3] = y[2] - (lu[7] * x[5]);
     x[1] = y[1];
     x[0] = y[0];
     x[2] = y[8];
@@ -651,24 +651,24 @@ static void four_bar_sparse_t_forward0(
     x[2] = b[3];
     x[3] = b[4];
     x[6] = b[6];
-    x[4] = (b[5] - lu[7] * x[2] - lu[11] * x[3]) * lu[13];
+    x[4] = (b[5] - (lu[7] * x[2]) - (lu[11] * x[3])) * lu[13];
     x[5] = b[7];
-    x[7] = (b[8] - lu[21] * x[6] - lu[15] * x[4] - lu[19] * x[5]) * lu[23];
+    x[7] = (b[8] - (lu[21] * x[6]) - (lu[15] * x[4]) - (lu[19] * x[5])) * lu[23];
 }
 
 static void four_bar_sparse_t_back0(const four_bar_real *FOUR_BAR_RESTRICT lu, four_bar_real *FOUR_BAR_RESTRICT x)
 {
     x[5] -= x[7];
-    x[4] -= lu[17] * x[5];
+    x[4] -= (lu[17] * x[5]);
     x[6] -= x[4];
     x[3] += x[5];
     x[2] += x[4];
     x[1] += x[3];
     x[0] += x[2];
-    x[8] -= lu[1] * x[0];
-    x[8] -= lu[3] * x[1];
-    x[8] -= lu[5] * x[2];
-    x[8] -= lu[9] * x[3];
+    x[8] -= (lu[1] * x[0]);
+    x[8] -= (lu[3] * x[1]);
+    x[8] -= (lu[5] * x[2]);
+    x[8] -= (lu[9] * x[3]);
 }
 
 static void four_bar_sparse_solve_t(const four_bar_real *lu, const four_bar_real *b, four_bar_real *x)

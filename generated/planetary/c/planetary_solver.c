@@ -693,9 +693,9 @@ static void planetary_sparse_forward0(const planetary_real *PLANETARY_RESTRICT l
 {
     y[4] += y[2];
     y[5] += y[3];
-    y[10] -= lu[18] * y[11];
-    y[6] -= lu[10] * y[10];
-    y[7] -= lu[13] * y[6];
+    y[10] -= (lu[18] * y[11]);
+    y[6] -= (lu[10] * y[10]);
+    y[7] -= (lu[13] * y[6]);
 }
 
 static void planetary_sparse_back0(
@@ -707,8 +707,8 @@ static void planetary_sparse_back0(
     x[11] = y[11];
     x[10] = y[9];
     x[9] = y[8];
-    x[7] = y[5] - lu[8] * x[5];
-    x[6] = y[4] - lu[5] * x[5];
+    x[7] = y[5] - (lu[8] * x[5]);
+    x[6] = y[4] - (lu[5] * x[5]);
     x[4] = y[3];
     x[3] = y[2];
     x[1] = y[1];
@@ -741,15 +741,15 @@ static void planetary_sparse_t_forward0(
     x[9] = b[10];
     x[11] = b[11];
     x[10] = b[2];
-    x[6] = (b[5] - lu[5] * x[4] - lu[8] * x[5]) * lu[11];
+    x[6] = (b[5] - (lu[5] * x[4]) - (lu[8] * x[5])) * lu[11];
     x[7] = (b[8] - x[6]) * lu[14];
 }
 
 static void planetary_sparse_t_back0(const planetary_real *PLANETARY_RESTRICT lu, planetary_real *PLANETARY_RESTRICT x)
 {
-    x[6] -= lu[13] * x[7];
-    x[10] -= lu[10] * x[6];
-    x[11] -= lu[18] * x[10];
+    x[6] -= (lu[13] * x[7]);
+    x[10] -= (lu[10] * x[6]);
+    x[11] -= (lu[18] * x[10]);
     x[3] += x[5];
     x[2] += x[4];
 }

@@ -589,11 +589,11 @@ static int quick_return_sparse_factor0(quick_return_real *lu)
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[9]));
     if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
-    lu[11] -= lu[9] * lu[3];
+    lu[11] -= (lu[9] * lu[3]);
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[10]));
     if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
-    lu[11] -= lu[10] * lu[5];
+    lu[11] -= (lu[10] * lu[5]);
     piv = lu[11];
     cm = fabs(piv);
     if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
@@ -608,23 +608,23 @@ static int quick_return_sparse_factor(quick_return_real *lu)
 
 static void quick_return_sparse_forward0(const quick_return_real *QUICK_RETURN_RESTRICT lu, quick_return_real *QUICK_RETURN_RESTRICT y)
 {
-    y[4] -= lu[6] * y[0];
-    y[4] -= lu[7] * y[1];
-    y[4] -= lu[8] * y[8];
-    y[4] -= lu[9] * y[2];
-    y[4] -= lu[10] * y[3];
+    y[4] -= (lu[6] * y[0]);
+    y[4] -= (lu[7] * y[1]);
+    y[4] -= (lu[8] * y[8]);
+    y[4] -= (lu[9] * y[2]);
+    y[4] -= (lu[10] * y[3]);
 }
 
 static void quick_return_sparse_back0(
     const quick_return_real *QUICK_RETURN_RESTRICT lu, const quick_return_real *QUICK_RETURN_RESTRICT y, quick_return_real *QUICK_RETURN_RESTRICT x)
 {
     x[5] = (y[4]) * lu[11];
-    x[4] = y[3] - lu[5] * x[5];
-    x[3] = y[2] - lu[3] * x[5];
+    x[4] = y[3] - (lu[5] * x[5]);
+    x[3] = y[2] - (lu[3] * x[5]);
     x[2] = y[8];
     x[8] = y[7];
     x[7] = y[6];
-    x[6] = (y[5] - lu[12] * x[3] - lu[13] * x[4] - lu[14] * x[5] - lu[16] * x[7]) * lu[15];
+    x[6] = (y[5] - (lu[12] * x[3]) - (lu[13] * x[4]) - (lu[14] * x[5]) - (lu[16] * x[7])) * lu[15];
     x[1] = y[1];
     x[0] = y[0];
 }
@@ -648,21 +648,21 @@ static void quick_return_sparse_t_forward0(
     x[0] = b[0];
     x[1] = b[1];
     x[5] = (b[6]) * lu[15];
-    x[6] = b[7] - lu[16] * x[5];
+    x[6] = b[7] - (lu[16] * x[5]);
     x[7] = b[8];
     x[8] = b[2];
-    x[2] = b[3] - lu[12] * x[5];
-    x[3] = b[4] - lu[13] * x[5];
-    x[4] = (b[5] - lu[14] * x[5] - lu[3] * x[2] - lu[5] * x[3]) * lu[11];
+    x[2] = b[3] - (lu[12] * x[5]);
+    x[3] = b[4] - (lu[13] * x[5]);
+    x[4] = (b[5] - (lu[14] * x[5]) - (lu[3] * x[2]) - (lu[5] * x[3])) * lu[11];
 }
 
 static void quick_return_sparse_t_back0(const quick_return_real *QUICK_RETURN_RESTRICT lu, quick_return_real *QUICK_RETURN_RESTRICT x)
 {
-    x[3] -= lu[10] * x[4];
-    x[2] -= lu[9] * x[4];
-    x[8] -= lu[8] * x[4];
-    x[1] -= lu[7] * x[4];
-    x[0] -= lu[6] * x[4];
+    x[3] -= (lu[10] * x[4]);
+    x[2] -= (lu[9] * x[4]);
+    x[8] -= (lu[8] * x[4]);
+    x[1] -= (lu[7] * x[4]);
+    x[0] -= (lu[6] * x[4]);
 }
 
 static void quick_return_sparse_solve_t(const quick_return_real *lu, const quick_return_real *b, quick_return_real *x)

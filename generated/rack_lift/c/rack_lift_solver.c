@@ -490,17 +490,17 @@ static int rack_lift_sparse_factor(rack_lift_real *lu)
 
 static void rack_lift_sparse_forward0(const rack_lift_real *RACK_LIFT_RESTRICT lu, rack_lift_real *RACK_LIFT_RESTRICT y)
 {
-    y[4] -= lu[4] * y[0];
-    y[4] -= lu[5] * y[1];
-    y[4] -= lu[7] * y[2];
-    y[4] -= lu[9] * y[3];
+    y[4] -= (lu[4] * y[0]);
+    y[4] -= (lu[5] * y[1]);
+    y[4] -= (lu[7] * y[2]);
+    y[4] -= (lu[9] * y[3]);
 }
 
 static void rack_lift_sparse_back0(
     const rack_lift_real *RACK_LIFT_RESTRICT lu, const rack_lift_real *RACK_LIFT_RESTRICT y, rack_lift_real *RACK_LIFT_RESTRICT x)
 {
     x[2] = y[5];
-    x[4] = (y[4] - lu[6] * x[2]) * lu[8];
+    x[4] = (y[4] - (lu[6] * x[2])) * lu[8];
     x[5] = y[3];
     x[3] = -(y[2]);
     x[1] = y[1];
@@ -528,15 +528,15 @@ static void rack_lift_sparse_t_forward0(
     x[2] = -(b[3]);
     x[3] = b[5];
     x[4] = (b[4]) * lu[8];
-    x[5] = b[2] - lu[6] * x[4];
+    x[5] = b[2] - (lu[6] * x[4]);
 }
 
 static void rack_lift_sparse_t_back0(const rack_lift_real *RACK_LIFT_RESTRICT lu, rack_lift_real *RACK_LIFT_RESTRICT x)
 {
-    x[3] -= lu[9] * x[4];
-    x[2] -= lu[7] * x[4];
-    x[1] -= lu[5] * x[4];
-    x[0] -= lu[4] * x[4];
+    x[3] -= (lu[9] * x[4]);
+    x[2] -= (lu[7] * x[4]);
+    x[1] -= (lu[5] * x[4]);
+    x[0] -= (lu[4] * x[4]);
 }
 
 static void rack_lift_sparse_solve_t(const rack_lift_real *lu, const rack_lift_real *b, rack_lift_real *x)

@@ -568,8 +568,8 @@ static int slider_crank_sparse_factor(slider_crank_real *lu)
 static void slider_crank_sparse_forward0(const slider_crank_real *SLIDER_CRANK_RESTRICT lu, slider_crank_real *SLIDER_CRANK_RESTRICT y)
 {
     y[5] -= y[6];
-    y[1] -= lu[3] * y[8];
-    y[3] -= lu[9] * y[8];
+    y[1] -= (lu[3] * y[8]);
+    y[3] -= (lu[9] * y[8]);
     y[3] += y[1];
     y[5] += y[3];
 }
@@ -578,14 +578,14 @@ static void slider_crank_sparse_back0(
     const slider_crank_real *SLIDER_CRANK_RESTRICT lu, const slider_crank_real *SLIDER_CRANK_RESTRICT y, slider_crank_real *SLIDER_CRANK_RESTRICT x)
 {
     x[5] = (y[5]) * lu[16];
-    x[4] = y[3] - lu[11] * x[5];
+    x[4] = y[3] - (lu[11] * x[5]);
     x[1] = y[1];
     x[2] = y[8];
     x[8] = y[7];
     x[7] = y[6];
-    x[0] = y[0] - lu[1] * x[2];
-    x[3] = y[2] + x[0] - lu[5] * x[2] - lu[7] * x[5];
-    x[6] = y[4] + x[3] - lu[13] * x[5];
+    x[0] = y[0] - (lu[1] * x[2]);
+    x[3] = y[2] + x[0] - (lu[5] * x[2]) - (lu[7] * x[5]);
+    x[6] = y[4] + x[3] - (lu[13] * x[5]);
 }
 
 /* The solve in place: y holds b on entry and is overwritten (solve_in). */
@@ -609,18 +609,18 @@ static void slider_crank_sparse_t_forward0(
     x[0] = b[0] + x[2];
     x[6] = b[7];
     x[7] = b[8];
-    x[8] = b[2] - lu[5] * x[2] - lu[1] * x[0];
+    x[8] = b[2] - (lu[5] * x[2]) - (lu[1] * x[0]);
     x[1] = b[1];
     x[3] = b[4];
-    x[5] = (b[5] - lu[13] * x[4] - lu[7] * x[2] - lu[11] * x[3]) * lu[16];
+    x[5] = (b[5] - (lu[13] * x[4]) - (lu[7] * x[2]) - (lu[11] * x[3])) * lu[16];
 }
 
 static void slider_crank_sparse_t_back0(const slider_crank_real *SLIDER_CRANK_RESTRICT lu, slider_crank_real *SLIDER_CRANK_RESTRICT x)
 {
     x[3] += x[5];
     x[1] += x[3];
-    x[8] -= lu[3] * x[1];
-    x[8] -= lu[9] * x[3];
+    x[8] -= (lu[3] * x[1]);
+    x[8] -= (lu[9] * x[3]);
     x[6] -= x[5];
 }
 

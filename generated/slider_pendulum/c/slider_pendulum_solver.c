@@ -505,7 +505,7 @@ static int slider_pendulum_sparse_factor0(slider_pendulum_real *lu)
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
     piv = lu[2] = 1.0 / piv;
     lu[4] *= piv;
-    lu[3] -= lu[4] * lu[1];
+    lu[3] -= (lu[4] * lu[1]);
     piv = lu[3];
     cm = fabs(piv);
     if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
@@ -520,18 +520,18 @@ static int slider_pendulum_sparse_factor(slider_pendulum_real *lu)
 
 static void slider_pendulum_sparse_forward0(const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT lu, slider_pendulum_real *SLIDER_PENDULUM_RESTRICT y)
 {
-    y[2] -= lu[4] * y[1];
+    y[2] -= (lu[4] * y[1]);
 }
 
 static void slider_pendulum_sparse_back0(
     const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT lu, const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT y, slider_pendulum_real *SLIDER_PENDULUM_RESTRICT x)
 {
     x[0] = (y[2]) * lu[3];
-    x[1] = (y[1] - lu[1] * x[0]) * lu[2];
+    x[1] = (y[1] - (lu[1] * x[0])) * lu[2];
     x[2] = (y[0]) * lu[0];
     x[5] = y[5] + x[2];
-    x[4] = y[4] + x[1] - lu[10] * x[2] - lu[12] * x[5];
-    x[3] = y[3] + x[0] - lu[6] * x[2] - lu[8] * x[5];
+    x[4] = y[4] + x[1] - (lu[10] * x[2]) - (lu[12] * x[5]);
+    x[3] = y[3] + x[0] - (lu[6] * x[2]) - (lu[8] * x[5]);
 }
 
 /* The solve in place: y holds b on entry and is overwritten (solve_in). */
@@ -552,15 +552,15 @@ static void slider_pendulum_sparse_t_forward0(
 {
     x[3] = b[3];
     x[4] = b[4];
-    x[5] = b[5] - lu[8] * x[3] - lu[12] * x[4];
-    x[0] = (b[2] - lu[6] * x[3] - lu[10] * x[4] + x[5]) * lu[0];
+    x[5] = b[5] - (lu[8] * x[3]) - (lu[12] * x[4]);
+    x[0] = (b[2] - (lu[6] * x[3]) - (lu[10] * x[4]) + x[5]) * lu[0];
     x[1] = (b[1] + x[4]) * lu[2];
-    x[2] = (b[0] + x[3] - lu[1] * x[1]) * lu[3];
+    x[2] = (b[0] + x[3] - (lu[1] * x[1])) * lu[3];
 }
 
 static void slider_pendulum_sparse_t_back0(const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT lu, slider_pendulum_real *SLIDER_PENDULUM_RESTRICT x)
 {
-    x[1] -= lu[4] * x[2];
+    x[1] -= (lu[4] * x[2]);
 }
 
 static void slider_pendulum_sparse_solve_t(const slider_pendulum_real *lu, const slider_pendulum_real *b, slider_pendulum_real *x)

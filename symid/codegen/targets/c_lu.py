@@ -19,7 +19,7 @@ def _minus(c: Coef, var: str) -> str:
     """' - c * var', with a known 0 or +-1 left out (the same value exactly)."""
     if isinstance(c, Known) and c.value in (0.0, 1.0, -1.0):
         return "" if c.value == 0.0 else f" - {var}" if c.value == 1.0 else f" + {var}"
-    return f" - {_read(c)} * {var}"
+    return f" - ({_read(c)} * {var})"  # the product in parentheses: MISRA C:2012 12.1
 
 
 def _times(expr: str, c: Coef) -> str:
