@@ -1922,8 +1922,11 @@ static void andrews_squeezer_outputs(andrews_squeezer_real t, const andrews_sque
    order, so four sums run side by side and the compiler may pack them). */
 static int andrews_squeezer_allfinite(const andrews_squeezer_real *v, int n)
 {
-    andrews_squeezer_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    andrews_squeezer_real s0 = 0.0;
+    andrews_squeezer_real s1 = 0.0;
+    andrews_squeezer_real s2 = 0.0;
+    andrews_squeezer_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1932,8 +1935,11 @@ static int andrews_squeezer_allfinite(const andrews_squeezer_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -2366,36 +2372,59 @@ static void andrews_squeezer_drive(andrews_squeezer_real t, const andrews_squeez
 static void andrews_squeezer_sweep_scales(const andrews_squeezer_real *q, andrews_squeezer_real t0, const andrews_squeezer_real *p, andrews_squeezer_real *vals,
                                  andrews_squeezer_real *arms, andrews_squeezer_real *inv, andrews_squeezer_real *norm)
 {
-    andrews_squeezer_real lin[21], rot[21], lref = 0.0, a;
-    int k, r, m = 0, i;
+    andrews_squeezer_real lin[21];
+    andrews_squeezer_real rot[21];
+    andrews_squeezer_real lref = 0.0;
+    andrews_squeezer_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     andrews_squeezer_phi_q(q, t0, p, vals);
-    for (r = 0; r < 21; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 21; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 65; ++k) {
         a = fabs(vals[k]);
         r = andrews_squeezer_phi_q_rows[k];
-        if (andrews_squeezer_phi_q_cols[k] % 3 == 2) rot[r] = ANDREWS_SQUEEZER_MAX(rot[r], a);
-        else lin[r] = ANDREWS_SQUEEZER_MAX(lin[r], a);
+        if ((andrews_squeezer_phi_q_cols[k] % 3) == 2) {
+            rot[r] = ANDREWS_SQUEEZER_MAX(rot[r], a);
+        } else {
+            lin[r] = ANDREWS_SQUEEZER_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 21; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+                arms[i] = arms[i - 1];
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 21; ++k)
-            if (k % 3 != 2) lref = ANDREWS_SQUEEZER_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 21; ++k) {
+            if ((k % 3) != 2) {
+                lref = ANDREWS_SQUEEZER_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 21; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 21; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 21; ++r) {
         a = ANDREWS_SQUEEZER_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -2559,7 +2588,7 @@ static void andrews_squeezer_sweep_finish(andrews_squeezer_real *fig, const andr
     fig[12] = sqrt(fig[12]);
     fig[13] = sqrt(fig[13]);
     fig[14] = sqrt(fig[14]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (andrews_squeezer_real)count);
 }
 
@@ -2588,17 +2617,18 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     andrews_squeezer_real snap[ANDREWS_SQUEEZER_LANES * ANDREWS_SQUEEZER_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return ANDREWS_SQUEEZER_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
     state = work + ANDREWS_SQUEEZER_WORK, rows = &state[ANDREWS_SQUEEZER_STATE];
     vals = &rows[32 * ANDREWS_SQUEEZER_ROW], arms = &vals[65], drive = &arms[21];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const andrews_squeezer_real *pv = p + v * ANDREWS_SQUEEZER_NP;
-        andrews_squeezer_real *fig = figures + v * ANDREWS_SQUEEZER_SWEEP_FIGURES;
+        const andrews_squeezer_real *pv = &p[v * ANDREWS_SQUEEZER_NP];
+        andrews_squeezer_real *fig = &figures[v * ANDREWS_SQUEEZER_SWEEP_FIGURES];
 #if ANDREWS_SQUEEZER_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (andrews_squeezer_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -2622,13 +2652,15 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
             done = 0;
         }
         st = ANDREWS_SQUEEZER_OK;
-        while (done < n && st == ANDREWS_SQUEEZER_OK) {
+        while ((done < n) && (st == ANDREWS_SQUEEZER_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : ANDREWS_SQUEEZER_MIN(32, n - done);
+            m = (done == 0) ? 1 : ANDREWS_SQUEEZER_MIN(32, n - done);
             got = 0;
             st = andrews_squeezer_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) andrews_squeezer_sweep_take(rows + m * ANDREWS_SQUEEZER_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
+            for (m = 0; m < got; ++m) {
+                andrews_squeezer_sweep_take(&rows[m * ANDREWS_SQUEEZER_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
                 andrews_squeezer_sweep_scales(state, t0, pv, vals, arms, &state[126], &state[147]);
                 st = andrews_squeezer_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
@@ -2637,7 +2669,7 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
         andrews_squeezer_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return ANDREWS_SQUEEZER_OK;
 }

@@ -1529,8 +1529,11 @@ static void excavator_outputs(excavator_real t, const excavator_real *p, const e
    order, so four sums run side by side and the compiler may pack them). */
 static int excavator_allfinite(const excavator_real *v, int n)
 {
-    excavator_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    excavator_real s0 = 0.0;
+    excavator_real s1 = 0.0;
+    excavator_real s2 = 0.0;
+    excavator_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1539,8 +1542,11 @@ static int excavator_allfinite(const excavator_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1884,36 +1890,59 @@ static void excavator_drive(excavator_real t, const excavator_real *p, excavator
 static void excavator_sweep_scales(const excavator_real *q, excavator_real t0, const excavator_real *p, excavator_real *vals,
                                  excavator_real *arms, excavator_real *inv, excavator_real *norm)
 {
-    excavator_real lin[9], rot[9], lref = 0.0, a;
-    int k, r, m = 0, i;
+    excavator_real lin[9];
+    excavator_real rot[9];
+    excavator_real lref = 0.0;
+    excavator_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     excavator_phi_q(q, t0, p, vals);
-    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 9; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 35; ++k) {
         a = fabs(vals[k]);
         r = excavator_phi_q_rows[k];
-        if (excavator_phi_q_cols[k] % 3 == 2) rot[r] = EXCAVATOR_MAX(rot[r], a);
-        else lin[r] = EXCAVATOR_MAX(lin[r], a);
+        if ((excavator_phi_q_cols[k] % 3) == 2) {
+            rot[r] = EXCAVATOR_MAX(rot[r], a);
+        } else {
+            lin[r] = EXCAVATOR_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 9; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+                arms[i] = arms[i - 1];
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 9; ++k)
-            if (k % 3 != 2) lref = EXCAVATOR_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 9; ++k) {
+            if ((k % 3) != 2) {
+                lref = EXCAVATOR_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 9; ++r) {
         a = EXCAVATOR_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -2065,11 +2094,11 @@ static void excavator_sweep_finish(excavator_real *fig, const excavator_real *ac
     fig[15] = sqrt(fig[15]);
     fig[16] = sqrt(fig[16]);
     fig[17] = sqrt(fig[17]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (excavator_real)count);
-    fig[6] = span > 0.0 ? sqrt(acc[4] / 2.0 / span)
+    fig[6] = (span > 0.0) ? sqrt((acc[4] / 2.0) / span)
                                      : sqrt(acc[5] / (excavator_real)count);
-    fig[10] = span > 0.0 ? sqrt(acc[7] / 2.0 / span)
+    fig[10] = (span > 0.0) ? sqrt((acc[7] / 2.0) / span)
                                      : sqrt(acc[8] / (excavator_real)count);
 }
 
@@ -2098,17 +2127,18 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     excavator_real snap[EXCAVATOR_LANES * EXCAVATOR_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return EXCAVATOR_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
     state = work + EXCAVATOR_WORK, rows = &state[EXCAVATOR_STATE];
     vals = &rows[32 * EXCAVATOR_ROW], arms = &vals[35], drive = &arms[9];
     acc = &drive[6];
     for (v = 0; v < k; ++v) {
-        const excavator_real *pv = p + v * EXCAVATOR_NP;
-        excavator_real *fig = figures + v * EXCAVATOR_SWEEP_FIGURES;
+        const excavator_real *pv = &p[v * EXCAVATOR_NP];
+        excavator_real *fig = &figures[v * EXCAVATOR_SWEEP_FIGURES];
 #if EXCAVATOR_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (excavator_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -2132,13 +2162,15 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
             done = 0;
         }
         st = EXCAVATOR_OK;
-        while (done < n && st == EXCAVATOR_OK) {
+        while ((done < n) && (st == EXCAVATOR_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : EXCAVATOR_MIN(32, n - done);
+            m = (done == 0) ? 1 : EXCAVATOR_MIN(32, n - done);
             got = 0;
             st = excavator_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) excavator_sweep_take(rows + m * EXCAVATOR_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
+            for (m = 0; m < got; ++m) {
+                excavator_sweep_take(&rows[m * EXCAVATOR_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
                 excavator_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = excavator_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
@@ -2147,7 +2179,7 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
         excavator_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[10] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[10] : ((double)NAN);
     }
     return EXCAVATOR_OK;
 }

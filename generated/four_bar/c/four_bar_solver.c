@@ -1286,8 +1286,11 @@ static void four_bar_outputs(four_bar_real t, const four_bar_real *p, const four
    order, so four sums run side by side and the compiler may pack them). */
 static int four_bar_allfinite(const four_bar_real *v, int n)
 {
-    four_bar_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    four_bar_real s0 = 0.0;
+    four_bar_real s1 = 0.0;
+    four_bar_real s2 = 0.0;
+    four_bar_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1296,8 +1299,11 @@ static int four_bar_allfinite(const four_bar_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1632,36 +1638,59 @@ static void four_bar_drive(four_bar_real t, const four_bar_real *p, four_bar_rea
 static void four_bar_sweep_scales(const four_bar_real *q, four_bar_real t0, const four_bar_real *p, four_bar_real *vals,
                                  four_bar_real *arms, four_bar_real *inv, four_bar_real *norm)
 {
-    four_bar_real lin[9], rot[9], lref = 0.0, a;
-    int k, r, m = 0, i;
+    four_bar_real lin[9];
+    four_bar_real rot[9];
+    four_bar_real lref = 0.0;
+    four_bar_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     four_bar_phi_q(q, t0, p, vals);
-    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 9; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 25; ++k) {
         a = fabs(vals[k]);
         r = four_bar_phi_q_rows[k];
-        if (four_bar_phi_q_cols[k] % 3 == 2) rot[r] = FOUR_BAR_MAX(rot[r], a);
-        else lin[r] = FOUR_BAR_MAX(lin[r], a);
+        if ((four_bar_phi_q_cols[k] % 3) == 2) {
+            rot[r] = FOUR_BAR_MAX(rot[r], a);
+        } else {
+            lin[r] = FOUR_BAR_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 9; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+                arms[i] = arms[i - 1];
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 9; ++k)
-            if (k % 3 != 2) lref = FOUR_BAR_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 9; ++k) {
+            if ((k % 3) != 2) {
+                lref = FOUR_BAR_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 9; ++r) {
         a = FOUR_BAR_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1765,7 +1794,7 @@ static void four_bar_sweep_finish(four_bar_real *fig, const four_bar_real *acc, 
     fig[6] = sqrt(fig[6]);
     fig[7] = sqrt(fig[7]);
     fig[8] = sqrt(fig[8]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (four_bar_real)count);
 }
 
@@ -1794,17 +1823,18 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     four_bar_real snap[FOUR_BAR_LANES * FOUR_BAR_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return FOUR_BAR_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
     state = work + FOUR_BAR_WORK, rows = &state[FOUR_BAR_STATE];
     vals = &rows[32 * FOUR_BAR_ROW], arms = &vals[25], drive = &arms[9];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const four_bar_real *pv = p + v * FOUR_BAR_NP;
-        four_bar_real *fig = figures + v * FOUR_BAR_SWEEP_FIGURES;
+        const four_bar_real *pv = &p[v * FOUR_BAR_NP];
+        four_bar_real *fig = &figures[v * FOUR_BAR_SWEEP_FIGURES];
 #if FOUR_BAR_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (four_bar_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1828,13 +1858,15 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
             done = 0;
         }
         st = FOUR_BAR_OK;
-        while (done < n && st == FOUR_BAR_OK) {
+        while ((done < n) && (st == FOUR_BAR_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : FOUR_BAR_MIN(32, n - done);
+            m = (done == 0) ? 1 : FOUR_BAR_MIN(32, n - done);
             got = 0;
             st = four_bar_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) four_bar_sweep_take(rows + m * FOUR_BAR_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
+            for (m = 0; m < got; ++m) {
+                four_bar_sweep_take(&rows[m * FOUR_BAR_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
                 four_bar_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = four_bar_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
@@ -1843,7 +1875,7 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
         four_bar_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return FOUR_BAR_OK;
 }

@@ -1403,8 +1403,11 @@ static void planetary_outputs(planetary_real t, const planetary_real *p, const p
    order, so four sums run side by side and the compiler may pack them). */
 static int planetary_allfinite(const planetary_real *v, int n)
 {
-    planetary_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    planetary_real s0 = 0.0;
+    planetary_real s1 = 0.0;
+    planetary_real s2 = 0.0;
+    planetary_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1413,8 +1416,11 @@ static int planetary_allfinite(const planetary_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1773,36 +1779,59 @@ static void planetary_drive(planetary_real t, const planetary_real *p, planetary
 static void planetary_sweep_scales(const planetary_real *q, planetary_real t0, const planetary_real *p, planetary_real *vals,
                                  planetary_real *arms, planetary_real *inv, planetary_real *norm)
 {
-    planetary_real lin[12], rot[12], lref = 0.0, a;
-    int k, r, m = 0, i;
+    planetary_real lin[12];
+    planetary_real rot[12];
+    planetary_real lref = 0.0;
+    planetary_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     planetary_phi_q(q, t0, p, vals);
-    for (r = 0; r < 12; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 12; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 20; ++k) {
         a = fabs(vals[k]);
         r = planetary_phi_q_rows[k];
-        if (planetary_phi_q_cols[k] % 3 == 2) rot[r] = PLANETARY_MAX(rot[r], a);
-        else lin[r] = PLANETARY_MAX(lin[r], a);
+        if ((planetary_phi_q_cols[k] % 3) == 2) {
+            rot[r] = PLANETARY_MAX(rot[r], a);
+        } else {
+            lin[r] = PLANETARY_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 12; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+                arms[i] = arms[i - 1];
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 12; ++k)
-            if (k % 3 != 2) lref = PLANETARY_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 12; ++k) {
+            if ((k % 3) != 2) {
+                lref = PLANETARY_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 12; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 12; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 12; ++r) {
         a = PLANETARY_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1940,7 +1969,7 @@ static void planetary_sweep_finish(planetary_real *fig, const planetary_real *ac
     fig[9] = sqrt(fig[9]);
     fig[10] = sqrt(fig[10]);
     fig[11] = sqrt(fig[11]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (planetary_real)count);
 }
 
@@ -1969,17 +1998,18 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     planetary_real snap[PLANETARY_LANES * PLANETARY_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return PLANETARY_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
     state = work + PLANETARY_WORK, rows = &state[PLANETARY_STATE];
     vals = &rows[32 * PLANETARY_ROW], arms = &vals[20], drive = &arms[12];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const planetary_real *pv = p + v * PLANETARY_NP;
-        planetary_real *fig = figures + v * PLANETARY_SWEEP_FIGURES;
+        const planetary_real *pv = &p[v * PLANETARY_NP];
+        planetary_real *fig = &figures[v * PLANETARY_SWEEP_FIGURES];
 #if PLANETARY_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (planetary_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -2003,13 +2033,15 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
             done = 0;
         }
         st = PLANETARY_OK;
-        while (done < n && st == PLANETARY_OK) {
+        while ((done < n) && (st == PLANETARY_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : PLANETARY_MIN(32, n - done);
+            m = (done == 0) ? 1 : PLANETARY_MIN(32, n - done);
             got = 0;
             st = planetary_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) planetary_sweep_take(rows + m * PLANETARY_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
+            for (m = 0; m < got; ++m) {
+                planetary_sweep_take(&rows[m * PLANETARY_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
                 planetary_sweep_scales(state, t0, pv, vals, arms, &state[72], &state[84]);
                 st = planetary_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
@@ -2018,7 +2050,7 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
         planetary_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return PLANETARY_OK;
 }

@@ -1276,8 +1276,11 @@ static void quick_return_outputs(quick_return_real t, const quick_return_real *p
    order, so four sums run side by side and the compiler may pack them). */
 static int quick_return_allfinite(const quick_return_real *v, int n)
 {
-    quick_return_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    quick_return_real s0 = 0.0;
+    quick_return_real s1 = 0.0;
+    quick_return_real s2 = 0.0;
+    quick_return_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1286,8 +1289,11 @@ static int quick_return_allfinite(const quick_return_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1625,36 +1631,59 @@ static void quick_return_drive(quick_return_real t, const quick_return_real *p, 
 static void quick_return_sweep_scales(const quick_return_real *q, quick_return_real t0, const quick_return_real *p, quick_return_real *vals,
                                  quick_return_real *arms, quick_return_real *inv, quick_return_real *norm)
 {
-    quick_return_real lin[9], rot[9], lref = 0.0, a;
-    int k, r, m = 0, i;
+    quick_return_real lin[9];
+    quick_return_real rot[9];
+    quick_return_real lref = 0.0;
+    quick_return_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     quick_return_phi_q(q, t0, p, vals);
-    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 9; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 20; ++k) {
         a = fabs(vals[k]);
         r = quick_return_phi_q_rows[k];
-        if (quick_return_phi_q_cols[k] % 3 == 2) rot[r] = QUICK_RETURN_MAX(rot[r], a);
-        else lin[r] = QUICK_RETURN_MAX(lin[r], a);
+        if ((quick_return_phi_q_cols[k] % 3) == 2) {
+            rot[r] = QUICK_RETURN_MAX(rot[r], a);
+        } else {
+            lin[r] = QUICK_RETURN_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 9; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+                arms[i] = arms[i - 1];
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 9; ++k)
-            if (k % 3 != 2) lref = QUICK_RETURN_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 9; ++k) {
+            if ((k % 3) != 2) {
+                lref = QUICK_RETURN_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 9; ++r) {
         a = QUICK_RETURN_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1768,7 +1797,7 @@ static void quick_return_sweep_finish(quick_return_real *fig, const quick_return
     fig[7] = sqrt(fig[7]);
     fig[8] = sqrt(fig[8]);
     fig[9] = sqrt(fig[9]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (quick_return_real)count);
 }
 
@@ -1797,17 +1826,18 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     quick_return_real snap[QUICK_RETURN_LANES * QUICK_RETURN_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return QUICK_RETURN_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
     state = work + QUICK_RETURN_WORK, rows = &state[QUICK_RETURN_STATE];
     vals = &rows[32 * QUICK_RETURN_ROW], arms = &vals[20], drive = &arms[9];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const quick_return_real *pv = p + v * QUICK_RETURN_NP;
-        quick_return_real *fig = figures + v * QUICK_RETURN_SWEEP_FIGURES;
+        const quick_return_real *pv = &p[v * QUICK_RETURN_NP];
+        quick_return_real *fig = &figures[v * QUICK_RETURN_SWEEP_FIGURES];
 #if QUICK_RETURN_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (quick_return_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1831,13 +1861,15 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
             done = 0;
         }
         st = QUICK_RETURN_OK;
-        while (done < n && st == QUICK_RETURN_OK) {
+        while ((done < n) && (st == QUICK_RETURN_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : QUICK_RETURN_MIN(32, n - done);
+            m = (done == 0) ? 1 : QUICK_RETURN_MIN(32, n - done);
             got = 0;
             st = quick_return_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) quick_return_sweep_take(rows + m * QUICK_RETURN_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
+            for (m = 0; m < got; ++m) {
+                quick_return_sweep_take(&rows[m * QUICK_RETURN_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
                 quick_return_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = quick_return_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
@@ -1846,7 +1878,7 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
         quick_return_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return QUICK_RETURN_OK;
 }

@@ -1201,8 +1201,11 @@ static void rack_lift_outputs(rack_lift_real t, const rack_lift_real *p, const r
    order, so four sums run side by side and the compiler may pack them). */
 static int rack_lift_allfinite(const rack_lift_real *v, int n)
 {
-    rack_lift_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    rack_lift_real s0 = 0.0;
+    rack_lift_real s1 = 0.0;
+    rack_lift_real s2 = 0.0;
+    rack_lift_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1211,8 +1214,11 @@ static int rack_lift_allfinite(const rack_lift_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1525,36 +1531,59 @@ static void rack_lift_drive(rack_lift_real t, const rack_lift_real *p, rack_lift
 static void rack_lift_sweep_scales(const rack_lift_real *q, rack_lift_real t0, const rack_lift_real *p, rack_lift_real *vals,
                                  rack_lift_real *arms, rack_lift_real *inv, rack_lift_real *norm)
 {
-    rack_lift_real lin[6], rot[6], lref = 0.0, a;
-    int k, r, m = 0, i;
+    rack_lift_real lin[6];
+    rack_lift_real rot[6];
+    rack_lift_real lref = 0.0;
+    rack_lift_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     rack_lift_phi_q(q, t0, p, vals);
-    for (r = 0; r < 6; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 6; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 11; ++k) {
         a = fabs(vals[k]);
         r = rack_lift_phi_q_rows[k];
-        if (rack_lift_phi_q_cols[k] % 3 == 2) rot[r] = RACK_LIFT_MAX(rot[r], a);
-        else lin[r] = RACK_LIFT_MAX(lin[r], a);
+        if ((rack_lift_phi_q_cols[k] % 3) == 2) {
+            rot[r] = RACK_LIFT_MAX(rot[r], a);
+        } else {
+            lin[r] = RACK_LIFT_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 6; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+                arms[i] = arms[i - 1];
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 6; ++k)
-            if (k % 3 != 2) lref = RACK_LIFT_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 6; ++k) {
+            if ((k % 3) != 2) {
+                lref = RACK_LIFT_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 6; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 6; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 6; ++r) {
         a = RACK_LIFT_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1648,7 +1677,7 @@ static void rack_lift_sweep_finish(rack_lift_real *fig, const rack_lift_real *ac
     fig[5] = sqrt(fig[5]);
     fig[6] = sqrt(fig[6]);
     fig[7] = sqrt(fig[7]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (rack_lift_real)count);
 }
 
@@ -1677,17 +1706,18 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     rack_lift_real snap[RACK_LIFT_LANES * RACK_LIFT_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return RACK_LIFT_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
     state = work + RACK_LIFT_WORK, rows = &state[RACK_LIFT_STATE];
     vals = &rows[32 * RACK_LIFT_ROW], arms = &vals[11], drive = &arms[6];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const rack_lift_real *pv = p + v * RACK_LIFT_NP;
-        rack_lift_real *fig = figures + v * RACK_LIFT_SWEEP_FIGURES;
+        const rack_lift_real *pv = &p[v * RACK_LIFT_NP];
+        rack_lift_real *fig = &figures[v * RACK_LIFT_SWEEP_FIGURES];
 #if RACK_LIFT_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (rack_lift_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1711,13 +1741,15 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
             done = 0;
         }
         st = RACK_LIFT_OK;
-        while (done < n && st == RACK_LIFT_OK) {
+        while ((done < n) && (st == RACK_LIFT_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : RACK_LIFT_MIN(32, n - done);
+            m = (done == 0) ? 1 : RACK_LIFT_MIN(32, n - done);
             got = 0;
             st = rack_lift_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) rack_lift_sweep_take(rows + m * RACK_LIFT_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
+            for (m = 0; m < got; ++m) {
+                rack_lift_sweep_take(&rows[m * RACK_LIFT_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
                 rack_lift_sweep_scales(state, t0, pv, vals, arms, &state[36], &state[42]);
                 st = rack_lift_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
@@ -1726,7 +1758,7 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
         rack_lift_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return RACK_LIFT_OK;
 }

@@ -1239,8 +1239,11 @@ static void slider_crank_outputs(slider_crank_real t, const slider_crank_real *p
    order, so four sums run side by side and the compiler may pack them). */
 static int slider_crank_allfinite(const slider_crank_real *v, int n)
 {
-    slider_crank_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    slider_crank_real s0 = 0.0;
+    slider_crank_real s1 = 0.0;
+    slider_crank_real s2 = 0.0;
+    slider_crank_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1249,8 +1252,11 @@ static int slider_crank_allfinite(const slider_crank_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1585,36 +1591,59 @@ static void slider_crank_drive(slider_crank_real t, const slider_crank_real *p, 
 static void slider_crank_sweep_scales(const slider_crank_real *q, slider_crank_real t0, const slider_crank_real *p, slider_crank_real *vals,
                                  slider_crank_real *arms, slider_crank_real *inv, slider_crank_real *norm)
 {
-    slider_crank_real lin[9], rot[9], lref = 0.0, a;
-    int k, r, m = 0, i;
+    slider_crank_real lin[9];
+    slider_crank_real rot[9];
+    slider_crank_real lref = 0.0;
+    slider_crank_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     slider_crank_phi_q(q, t0, p, vals);
-    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 9; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 21; ++k) {
         a = fabs(vals[k]);
         r = slider_crank_phi_q_rows[k];
-        if (slider_crank_phi_q_cols[k] % 3 == 2) rot[r] = SLIDER_CRANK_MAX(rot[r], a);
-        else lin[r] = SLIDER_CRANK_MAX(lin[r], a);
+        if ((slider_crank_phi_q_cols[k] % 3) == 2) {
+            rot[r] = SLIDER_CRANK_MAX(rot[r], a);
+        } else {
+            lin[r] = SLIDER_CRANK_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 9; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+                arms[i] = arms[i - 1];
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 9; ++k)
-            if (k % 3 != 2) lref = SLIDER_CRANK_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 9; ++k) {
+            if ((k % 3) != 2) {
+                lref = SLIDER_CRANK_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 9; ++r) {
         a = SLIDER_CRANK_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1718,7 +1747,7 @@ static void slider_crank_sweep_finish(slider_crank_real *fig, const slider_crank
     fig[6] = sqrt(fig[6]);
     fig[7] = sqrt(fig[7]);
     fig[8] = sqrt(fig[8]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (slider_crank_real)count);
 }
 
@@ -1747,17 +1776,18 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     slider_crank_real snap[SLIDER_CRANK_LANES * SLIDER_CRANK_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return SLIDER_CRANK_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
     state = work + SLIDER_CRANK_WORK, rows = &state[SLIDER_CRANK_STATE];
     vals = &rows[32 * SLIDER_CRANK_ROW], arms = &vals[21], drive = &arms[9];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const slider_crank_real *pv = p + v * SLIDER_CRANK_NP;
-        slider_crank_real *fig = figures + v * SLIDER_CRANK_SWEEP_FIGURES;
+        const slider_crank_real *pv = &p[v * SLIDER_CRANK_NP];
+        slider_crank_real *fig = &figures[v * SLIDER_CRANK_SWEEP_FIGURES];
 #if SLIDER_CRANK_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (slider_crank_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1781,13 +1811,15 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
             done = 0;
         }
         st = SLIDER_CRANK_OK;
-        while (done < n && st == SLIDER_CRANK_OK) {
+        while ((done < n) && (st == SLIDER_CRANK_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : SLIDER_CRANK_MIN(32, n - done);
+            m = (done == 0) ? 1 : SLIDER_CRANK_MIN(32, n - done);
             got = 0;
             st = slider_crank_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) slider_crank_sweep_take(rows + m * SLIDER_CRANK_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
+            for (m = 0; m < got; ++m) {
+                slider_crank_sweep_take(&rows[m * SLIDER_CRANK_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
                 slider_crank_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = slider_crank_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
@@ -1796,7 +1828,7 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
         slider_crank_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return SLIDER_CRANK_OK;
 }
