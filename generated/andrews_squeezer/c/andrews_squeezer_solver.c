@@ -485,7 +485,7 @@ static void andrews_squeezer_prepare(const andrews_squeezer_real *p, andrews_squ
 {
     (void)memcpy(pp, p, sizeof(andrews_squeezer_real) * 44u);
     {
-        const andrews_squeezer_real e0 = (2*3.141592653589793*p[43]);
+        const andrews_squeezer_real e0 = (2.0*3.141592653589793*p[43]);
         const andrews_squeezer_real e1 = (1.0/p[42]);
         const andrews_squeezer_real e2 = (e0*e0);
         const andrews_squeezer_real e3 = (1.0/e0);
@@ -545,7 +545,7 @@ static void andrews_squeezer_phi_k0(const andrews_squeezer_real * q, const andre
     out[17] = e15 + (p[23]*tr[7]) + (-e1 - q[10]);
     out[18] = e14 - (p[38]*tr[11]) + (-e0 - q[15]);
     out[19] = e15 - (p[38]*tr[10]) + (-e1 - q[16]);
-    out[20] = -p[41] - (p[51]*t) - (p[56]*(log(1 + exp(-2*p[55]*t)) - log(2))) + q[2];
+    out[20] = -p[41] - (p[51]*t) - (p[56]*(log(1.0 + exp(-2.0*p[55]*t)) - log(2.0))) + q[2];
 }
 
 static void andrews_squeezer_phi_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -573,53 +573,53 @@ static void andrews_squeezer_phi_q_k0(const andrews_squeezer_real * q, const and
     const andrews_squeezer_real e3 = p[32]*tr[8];
     const andrews_squeezer_real e4 = p[34]*tr[12];
     const andrews_squeezer_real e5 = p[34]*tr[13];
-    out[0] = 1;
+    out[0] = 1.0;
     out[1] = p[25]*tr[0];
-    out[2] = 1;
+    out[2] = 1.0;
     out[3] = -p[25]*tr[1];
-    out[4] = -1;
+    out[4] = -1.0;
     out[5] = p[44]*tr[0];
-    out[6] = 1;
+    out[6] = 1.0;
     out[7] = -p[21]*tr[2];
-    out[8] = -1;
+    out[8] = -1.0;
     out[9] = -p[44]*tr[1];
-    out[10] = 1;
+    out[10] = 1.0;
     out[11] = p[21]*tr[3];
-    out[12] = 1;
+    out[12] = 1.0;
     out[13] = e0 - (p[28]*tr[5]);
-    out[14] = 1;
+    out[14] = 1.0;
     out[15] = -e1 - (p[28]*tr[4]);
-    out[16] = 1;
+    out[16] = 1.0;
     out[17] = -e2 + (p[31]*tr[8]);
-    out[18] = 1;
+    out[18] = 1.0;
     out[19] = -e3 - (p[31]*tr[9]);
-    out[20] = 1;
+    out[20] = 1.0;
     out[21] = -p[45]*tr[7];
-    out[22] = -1;
+    out[22] = -1.0;
     out[23] = e2 + (p[46]*tr[8]);
-    out[24] = 1;
+    out[24] = 1.0;
     out[25] = -p[45]*tr[6];
-    out[26] = -1;
+    out[26] = -1.0;
     out[27] = e3 - (p[46]*tr[9]);
-    out[28] = 1;
+    out[28] = 1.0;
     out[29] = e4 - (p[35]*tr[13]);
-    out[30] = 1;
+    out[30] = 1.0;
     out[31] = -e5 - (p[35]*tr[12]);
-    out[32] = 1;
+    out[32] = 1.0;
     out[33] = -p[48]*tr[10];
-    out[34] = -1;
+    out[34] = -1.0;
     out[35] = -e4 + (p[47]*tr[13]);
-    out[36] = 1;
+    out[36] = 1.0;
     out[37] = p[48]*tr[11];
-    out[38] = -1;
+    out[38] = -1.0;
     out[39] = e5 + (p[47]*tr[12]);
-    out[40] = 1;
+    out[40] = 1.0;
     out[41] = -p[49]*tr[2];
-    out[42] = -1;
+    out[42] = -1.0;
     out[43] = -e0 + (p[50]*tr[5]);
-    out[44] = 1;
+    out[44] = 1.0;
     out[45] = p[49]*tr[3];
-    out[46] = -1;
+    out[46] = -1.0;
     out[47] = e1 + (p[50]*tr[4]);
 }
 
@@ -629,23 +629,23 @@ static void andrews_squeezer_phi_q_k1(const andrews_squeezer_real * q, const and
     (void)t;
     const andrews_squeezer_real e0 = -p[49]*tr[2];
     const andrews_squeezer_real e1 = p[49]*tr[3];
-    out[48] = 1;
+    out[48] = 1.0;
     out[49] = e0;
-    out[50] = -1;
+    out[50] = -1.0;
     out[51] = -p[23]*tr[7];
-    out[52] = 1;
+    out[52] = 1.0;
     out[53] = e1;
-    out[54] = -1;
+    out[54] = -1.0;
     out[55] = -p[23]*tr[6];
-    out[56] = 1;
+    out[56] = 1.0;
     out[57] = e0;
-    out[58] = -1;
+    out[58] = -1.0;
     out[59] = p[38]*tr[10];
-    out[60] = 1;
+    out[60] = 1.0;
     out[61] = e1;
-    out[62] = -1;
+    out[62] = -1.0;
     out[63] = -p[38]*tr[11];
-    out[64] = 1;
+    out[64] = 1.0;
 }
 
 static void andrews_squeezer_phi_q_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -668,28 +668,28 @@ static void andrews_squeezer_nu_k0(const andrews_squeezer_real * q, const andrew
 {
     (void)q;
     (void)tr;
-    const andrews_squeezer_real e0 = exp(-2*p[55]*t);
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
-    out[9] = 0;
-    out[10] = 0;
-    out[11] = 0;
-    out[12] = 0;
-    out[13] = 0;
-    out[14] = 0;
-    out[15] = 0;
-    out[16] = 0;
-    out[17] = 0;
-    out[18] = 0;
-    out[19] = 0;
-    out[20] = (-2*e0*p[51]/(e0 + 1)) + p[51];
+    const andrews_squeezer_real e0 = exp(-2.0*p[55]*t);
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
+    out[9] = 0.0;
+    out[10] = 0.0;
+    out[11] = 0.0;
+    out[12] = 0.0;
+    out[13] = 0.0;
+    out[14] = 0.0;
+    out[15] = 0.0;
+    out[16] = 0.0;
+    out[17] = 0.0;
+    out[18] = 0.0;
+    out[19] = 0.0;
+    out[20] = (-2.0*e0*p[51]/(e0 + 1.0)) + p[51];
 }
 
 static void andrews_squeezer_nu_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -738,8 +738,8 @@ static void andrews_squeezer_gamma_k0(const andrews_squeezer_real * q, const and
     const andrews_squeezer_real e25 = e15*p[23];
     const andrews_squeezer_real e26 = -e2*p[49]*tr[3];
     const andrews_squeezer_real e27 = e21*p[38];
-    const andrews_squeezer_real e28 = exp(-2*p[55]*t);
-    const andrews_squeezer_real e29 = e28/(e28 + 1);
+    const andrews_squeezer_real e28 = exp(-2.0*p[55]*t);
+    const andrews_squeezer_real e29 = e28/(e28 + 1.0);
     out[0] = -e1*tr[1];
     out[1] = -e1*tr[0];
     out[2] = (e3*tr[3]) - (e4*tr[1]);
@@ -760,7 +760,7 @@ static void andrews_squeezer_gamma_k0(const andrews_squeezer_real * q, const and
     out[17] = e24 + (e25*tr[7]);
     out[18] = -e26 - (e27*tr[11]);
     out[19] = (e2*p[49]*tr[2]) - (e27*tr[10]);
-    out[20] = 4*e29*p[42]*(1 - e29);
+    out[20] = 4.0*e29*p[42]*(1.0 - e29);
 }
 
 static void andrews_squeezer_gamma_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -790,27 +790,27 @@ static void andrews_squeezer_applied_k0(const andrews_squeezer_real * q, const a
     const andrews_squeezer_real e5 = p[39]*(e4 - p[40])/e4;
     const andrews_squeezer_real e6 = e1*e5;
     const andrews_squeezer_real e7 = e3*e5;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
     out[6] = -e6;
     out[7] = -e7;
     out[8] = (e2*e6) - (e7*(-e0 + (p[58]*tr[5])));
-    out[9] = 0;
-    out[10] = 0;
-    out[11] = 0;
-    out[12] = 0;
-    out[13] = 0;
-    out[14] = 0;
-    out[15] = 0;
-    out[16] = 0;
-    out[17] = 0;
-    out[18] = 0;
-    out[19] = 0;
-    out[20] = 0;
+    out[9] = 0.0;
+    out[10] = 0.0;
+    out[11] = 0.0;
+    out[12] = 0.0;
+    out[13] = 0.0;
+    out[14] = 0.0;
+    out[15] = 0.0;
+    out[16] = 0.0;
+    out[17] = 0.0;
+    out[18] = 0.0;
+    out[19] = 0.0;
+    out[20] = 0.0;
 }
 
 static void andrews_squeezer_applied_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -874,52 +874,52 @@ static void andrews_squeezer_reactions_k0(const andrews_squeezer_real * q, const
     (void)p;
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = lam[4];
     out[13] = lam[5];
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = -lam[4];
     out[16] = -lam[5];
-    out[17] = 0;
+    out[17] = 0.0;
     out[18] = lam[6];
     out[19] = lam[7];
-    out[20] = 0;
+    out[20] = 0.0;
     out[21] = -lam[6];
     out[22] = -lam[7];
-    out[23] = 0;
+    out[23] = 0.0;
     out[24] = lam[8];
     out[25] = lam[9];
-    out[26] = 0;
+    out[26] = 0.0;
     out[27] = -lam[8];
     out[28] = -lam[9];
-    out[29] = 0;
+    out[29] = 0.0;
     out[30] = lam[10];
     out[31] = lam[11];
-    out[32] = 0;
+    out[32] = 0.0;
     out[33] = -lam[10];
     out[34] = -lam[11];
-    out[35] = 0;
+    out[35] = 0.0;
     out[36] = lam[12];
     out[37] = lam[13];
-    out[38] = 0;
+    out[38] = 0.0;
     out[39] = -lam[12];
     out[40] = -lam[13];
-    out[41] = 0;
+    out[41] = 0.0;
     out[42] = lam[14];
     out[43] = lam[15];
-    out[44] = 0;
+    out[44] = 0.0;
     out[45] = -lam[14];
     out[46] = -lam[15];
-    out[47] = 0;
+    out[47] = 0.0;
 }
 
 static void andrews_squeezer_reactions_k1(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * lam, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -930,21 +930,21 @@ static void andrews_squeezer_reactions_k1(const andrews_squeezer_real * q, const
     (void)p;
     out[48] = lam[16];
     out[49] = lam[17];
-    out[50] = 0;
+    out[50] = 0.0;
     out[51] = -lam[16];
     out[52] = -lam[17];
-    out[53] = 0;
+    out[53] = 0.0;
     out[54] = lam[18];
     out[55] = lam[19];
-    out[56] = 0;
+    out[56] = 0.0;
     out[57] = -lam[18];
     out[58] = -lam[19];
-    out[59] = 0;
-    out[60] = 0;
-    out[61] = 0;
+    out[59] = 0.0;
+    out[60] = 0.0;
+    out[61] = 0.0;
     out[62] = lam[20];
-    out[63] = 0;
-    out[64] = 0;
+    out[63] = 0.0;
+    out[64] = 0.0;
     out[65] = -lam[20];
 }
 
@@ -983,7 +983,7 @@ static int andrews_squeezer_sparse_factor0(andrews_squeezer_real *lu)
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[3]));
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[5]));
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[9]));
-    if (!(1.0 >= ANDREWS_SQUEEZER_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (ANDREWS_SQUEEZER_THRESHOLD * cm))) { return 1; }
     lu[43] += lu[13];
     lu[47] += lu[15];
     lu[23] += lu[17];
@@ -1001,28 +1001,28 @@ static int andrews_squeezer_sparse_factor0(andrews_squeezer_real *lu)
     piv = lu[43];
     cm = fabs(piv);
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[47]));
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[43] = 1.0 / piv;
     lu[47] *= piv;
     lu[69] = 0.0 - lu[47];
     lu[45] -= (lu[47] * lu[41]);
     cm = 1.0;
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[69]));
-    if (!(1.0 >= ANDREWS_SQUEEZER_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (ANDREWS_SQUEEZER_THRESHOLD * cm))) { return 1; }
     lu[45] -= (lu[69] * lu[7]);
     lu[49] -= lu[7];
     lu[57] -= lu[7];
     piv = lu[51];
     cm = fabs(piv);
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[55]));
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[51] = 1.0 / piv;
     lu[55] *= piv;
     lu[53] -= (lu[55] * lu[49]);
     lu[66] -= (lu[55] * lu[65]);
     piv = lu[66];
     cm = fabs(piv);
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[66] = 1.0 / piv;
     lu[45] -= lu[11];
     lu[61] -= lu[11];
@@ -1030,20 +1030,20 @@ static int andrews_squeezer_sparse_factor0(andrews_squeezer_real *lu)
     cm = fabs(piv);
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[57]));
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[61]));
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[45] = 1.0 / piv;
     lu[57] *= piv;
     lu[61] *= piv;
     piv = lu[59];
     cm = fabs(piv);
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[63]));
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[59] = 1.0 / piv;
     lu[63] *= piv;
     lu[68] -= (lu[63] * lu[67]);
     piv = lu[68];
     cm = fabs(piv);
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[68] = 1.0 / piv;
     return 0;
 }
@@ -2357,11 +2357,11 @@ static void andrews_squeezer_drive(andrews_squeezer_real t, const andrews_squeez
 {
     (void)t;
     (void)p;
-    const andrews_squeezer_real d0 = (2*3.141592653589793*p[43]);
-    const andrews_squeezer_real d1 = exp(-2*p[42]*t/d0);
-    const andrews_squeezer_real d2 = d1 + 1;
-    out[0] = ((d0*d0)*(log(d2) - log(2))/p[42]) + (d0*t) + p[41];
-    out[1] = (-2*d0*d1/d2) + d0;
+    const andrews_squeezer_real d0 = (2.0*3.141592653589793*p[43]);
+    const andrews_squeezer_real d1 = exp(-2.0*p[42]*t/d0);
+    const andrews_squeezer_real d2 = d1 + 1.0;
+    out[0] = ((d0*d0)*(log(d2) - log(2.0))/p[42]) + (d0*t) + p[41];
+    out[1] = (-2.0*d0*d1/d2) + d0;
 }
 
 /* 1 / the column scales of the jump check at the assembled q(t0), as

@@ -283,7 +283,7 @@ static void excavator_prepare(const excavator_real *p, excavator_real *pp)
 {
     (void)memcpy(pp, p, sizeof(excavator_real) * 17u);
     {
-        const excavator_real e0 = (2*3.141592653589793/p[7]);
+        const excavator_real e0 = (2.0*3.141592653589793/p[7]);
         const excavator_real e1 = (1.0/2.0)*p[1];
         const excavator_real e2 = (-1.0/2.0*p[2]) - (1.0/20.0);
         const excavator_real e3 = (2.0/5.0) - e1;
@@ -371,23 +371,23 @@ static void excavator_phi_q_k0(const excavator_real * q, const excavator_real * 
     const excavator_real e5 = -e3*tr[3];
     const excavator_real e6 = (1.0/2.0)*tr[4];
     const excavator_real e7 = (1.0/2.0)*tr[5];
-    const excavator_real e8 = 2*q[0];
+    const excavator_real e8 = 2.0*q[0];
     const excavator_real e9 = p[17]*tr[1];
-    const excavator_real e10 = (2*e9) + ((4.0/5.0)*tr[0]);
-    const excavator_real e11 = 2*q[1];
+    const excavator_real e10 = (2.0*e9) + ((4.0/5.0)*tr[0]);
+    const excavator_real e11 = 2.0*q[1];
     const excavator_real e12 = p[17]*tr[0];
-    const excavator_real e13 = (2*e12) - (4.0/5.0*tr[1]);
+    const excavator_real e13 = (2.0*e12) - (4.0/5.0*tr[1]);
     const excavator_real e14 = (11.0/10.0)*tr[0];
     const excavator_real e15 = (3.0/5.0)*tr[1];
     const excavator_real e16 = (3.0/10.0)*tr[2];
     const excavator_real e17 = p[19]*tr[3];
-    const excavator_real e18 = 2*e17;
-    const excavator_real e19 = 2*q[3];
+    const excavator_real e18 = 2.0*e17;
+    const excavator_real e19 = 2.0*q[3];
     const excavator_real e20 = -e19 + e8;
     const excavator_real e21 = (3.0/10.0)*tr[3];
     const excavator_real e22 = p[19]*tr[2];
-    const excavator_real e23 = 2*e22;
-    const excavator_real e24 = 2*q[4];
+    const excavator_real e23 = 2.0*e22;
+    const excavator_real e24 = 2.0*q[4];
     const excavator_real e25 = e11 - e24;
     const excavator_real e26 = (3.0/5.0)*tr[0];
     const excavator_real e27 = (11.0/10.0)*tr[1];
@@ -398,42 +398,42 @@ static void excavator_phi_q_k0(const excavator_real * q, const excavator_real * 
     const excavator_real e32 = -e16 + e18;
     const excavator_real e33 = e21 + e23;
     const excavator_real e34 = p[20]*tr[5];
-    const excavator_real e35 = 2*e34;
-    const excavator_real e36 = e19 - (2*q[6]);
+    const excavator_real e35 = 2.0*e34;
+    const excavator_real e36 = e19 - (2.0*q[6]);
     const excavator_real e37 = (7.0/10.0)*tr[2];
     const excavator_real e38 = p[21]*tr[3];
-    const excavator_real e39 = 2*e38;
+    const excavator_real e39 = 2.0*e38;
     const excavator_real e40 = -e37 + e39;
     const excavator_real e41 = p[20]*tr[4];
-    const excavator_real e42 = 2*e41;
-    const excavator_real e43 = e24 - (2*q[7]);
+    const excavator_real e42 = 2.0*e41;
+    const excavator_real e43 = e24 - (2.0*q[7]);
     const excavator_real e44 = (7.0/10.0)*tr[3];
     const excavator_real e45 = p[21]*tr[2];
-    const excavator_real e46 = 2*e45;
+    const excavator_real e46 = 2.0*e45;
     const excavator_real e47 = e44 + e46;
     const excavator_real e48 = e41 - e45 + e7 - (7.0/20.0*tr[3]) + (-q[4] + q[7]);
     const excavator_real e49 = e34 - e38 - e6 + ((7.0/20.0)*tr[2]) + (-q[3] + q[6]);
     const excavator_real e50 = e35 - tr[4];
     const excavator_real e51 = e42 + tr[5];
-    out[0] = 1;
+    out[0] = 1.0;
     out[1] = e1;
-    out[2] = 1;
+    out[2] = 1.0;
     out[3] = e2;
-    out[4] = -1;
+    out[4] = -1.0;
     out[5] = e1;
-    out[6] = 1;
+    out[6] = 1.0;
     out[7] = e4;
-    out[8] = -1;
+    out[8] = -1.0;
     out[9] = e2;
-    out[10] = 1;
+    out[10] = 1.0;
     out[11] = e5;
-    out[12] = -1;
+    out[12] = -1.0;
     out[13] = e4;
-    out[14] = 1;
+    out[14] = 1.0;
     out[15] = e6*p[2];
-    out[16] = -1;
+    out[16] = -1.0;
     out[17] = e5;
-    out[18] = 1;
+    out[18] = 1.0;
     out[19] = -e7*p[2];
     out[20] = e10 + (e8 - (3.0/5.0));
     out[21] = e13 + (e11 + (12.0/5.0));
@@ -475,13 +475,13 @@ static void excavator_nu_k0(const excavator_real * q, const excavator_real * tr,
     const excavator_real e1 = sin(e0);
     const excavator_real e2 = cos(e0);
     const excavator_real e3 = (1.0/2.0) - (1.0/2.0*e2);
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = -2*e2*p[22]*((-e1*p[9]) + p[8]);
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = -2.0*e2*p[22]*((-e1*p[9]) + p[8]);
     out[7] = e1*p[23]*((e3*p[11]) + p[10]);
     out[8] = e1*p[24]*((e3*p[13]) + p[12]);
 }
@@ -527,11 +527,11 @@ static void excavator_gamma_k0(const excavator_real * q, const excavator_real * 
     const excavator_real e21 = e4*q[0];
     const excavator_real e22 = e4*p[17];
     const excavator_real e23 = qd[2]*tr[1];
-    const excavator_real e24 = 2*q[0];
-    const excavator_real e25 = 2*q[1];
-    const excavator_real e26 = 4*qd[0];
-    const excavator_real e27 = (2*(qd[0]*qd[0])) + (2*(qd[1]*qd[1]));
-    const excavator_real e28 = (2*(qd[3]*qd[3])) + (2*(qd[4]*qd[4]));
+    const excavator_real e24 = 2.0*q[0];
+    const excavator_real e25 = 2.0*q[1];
+    const excavator_real e26 = 4.0*qd[0];
+    const excavator_real e27 = (2.0*(qd[0]*qd[0])) + (2.0*(qd[1]*qd[1]));
+    const excavator_real e28 = (2.0*(qd[3]*qd[3])) + (2.0*(qd[4]*qd[4]));
     const excavator_real e29 = (e18*e18);
     const excavator_real e30 = (1.0/2.0) - (1.0/2.0*e17);
     const excavator_real e31 = (3.0/5.0)*qd[5];
@@ -543,10 +543,10 @@ static void excavator_gamma_k0(const excavator_real * q, const excavator_real * 
     const excavator_real e37 = e10*tr[0];
     const excavator_real e38 = e7*tr[1];
     const excavator_real e39 = p[19]*qd[5];
-    const excavator_real e40 = 4*qd[4];
+    const excavator_real e40 = 4.0*qd[4];
     const excavator_real e41 = e39*tr[3];
     const excavator_real e42 = (3.0/5.0)*p[19];
-    const excavator_real e43 = 2*qd[8];
+    const excavator_real e43 = 2.0*qd[8];
     const excavator_real e44 = e43*tr[4];
     const excavator_real e45 = (7.0/5.0)*qd[5];
     const excavator_real e46 = e45*tr[2];
@@ -558,7 +558,7 @@ static void excavator_gamma_k0(const excavator_real * q, const excavator_real * 
     const excavator_real e52 = e10*p[21];
     const excavator_real e53 = p[21]*tr[2];
     const excavator_real e54 = e15*p[20];
-    const excavator_real e55 = 2*p[35];
+    const excavator_real e55 = 2.0*p[35];
     const excavator_real e56 = p[20]*qd[8];
     const excavator_real e57 = e56*tr[5];
     const excavator_real e58 = p[21]*qd[5]*tr[3];
@@ -568,9 +568,9 @@ static void excavator_gamma_k0(const excavator_real * q, const excavator_real * 
     out[3] = -e11 - e5;
     out[4] = (-e13*e14) - e9;
     out[5] = -e11 - (e14*e15);
-    out[6] = (e1*e24*p[17]) - (4.0/5.0*e1*q[1]) - (24.0/25.0*e1) + (2*(e17*e17)*p[27]) + (2*e18*p[28]*((-e18*p[9]) + p[8])) - (e19*qd[0]*tr[1]) - (e19*qd[1]*tr[0]) - (e20*p[17]) + ((4.0/5.0)*e21) + (e22*e25) + ((12.0/5.0)*e22) - (4*e23*p[17]*qd[1]) + (e26*p[17]*qd[2]*tr[0]) - (6.0/25.0*e4) + (-e27);
-    out[7] = ((11.0/10.0)*e0*p[19]*tr[0]*tr[3]) + ((3.0/5.0)*e0*q[0]*tr[1]) + ((3.0/5.0)*e0*q[1]*tr[0]) + ((11.0/10.0)*e0*q[1]*tr[1]) + ((11.0/10.0)*e0*q[3]*tr[0]) + ((9.0/100.0)*e0*tr[1]*tr[2]) - (33.0/200.0*e1*tr[3]) - (e10*e25*p[19]) - (11.0/10.0*e10*p[19]*tr[1]) - (3.0/10.0*e10*q[3]) + (e17*p[31]*((e30*p[11]) + p[10])) - (e20*p[19]*tr[3]) - (e20*q[3]) - (11.0/10.0*e21) - (9.0/50.0*e23*qd[5]*tr[2]) - (e24*e7*p[19]) - (e26*e39*tr[2]) + ((1.0/2.0)*e29*p[30]) - (e31*qd[0]*tr[3]) - (e31*qd[1]*tr[2]) - (e32*qd[1]*tr[1]) - (e32*qd[3]*tr[0]) - (e33*qd[3]*tr[1]) - (e34*e41) - (e34*qd[4]) - (e35*p[19]*tr[2]) - (e35*q[4]) - (e36*e42) - (33.0/200.0*e36) - (e37*e42) - (33.0/200.0*e37) - (e38*e42) - (33.0/200.0*e38) - (3.0/5.0*e4*q[4]) - (9.0/100.0*e4*tr[3]) - (e40*e41) + (2*e6*p[19]*q[3]*tr[3]) + (2*e6*p[19]*q[4]*tr[2]) + ((11.0/10.0)*e6*p[19]*tr[0]*tr[3]) + ((3.0/10.0)*e6*q[0]*tr[2]) + ((3.0/10.0)*e6*q[4]*tr[3]) + ((9.0/100.0)*e6*tr[1]*tr[2]) - (3.0/10.0*e7*q[1]) - (9.0/100.0*e7*tr[0]) + (4*p[19]*qd[1]*qd[5]*tr[3]) + ((6.0/5.0)*p[19]*qd[2]*qd[5]*tr[0]*tr[2]) + ((11.0/5.0)*p[19]*qd[2]*qd[5]*tr[1]*tr[2]) + ((6.0/5.0)*p[19]*qd[2]*qd[5]*tr[1]*tr[3]) + (4*p[19]*qd[3]*qd[5]*tr[2]) + ((6.0/5.0)*qd[0]*qd[2]*tr[0]) + ((11.0/5.0)*qd[0]*qd[2]*tr[1]) + ((11.0/5.0)*qd[1]*qd[2]*tr[0]) + ((6.0/5.0)*qd[2]*qd[4]*tr[1]) + ((33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2]) + ((9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3]) + ((33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3]) + ((3.0/5.0)*qd[3]*qd[5]*tr[3]) + ((3.0/5.0)*qd[4]*qd[5]*tr[2]) + (-e27 - e28 + (4*qd[0]*qd[3]) + (4*qd[1]*qd[4]));
-    out[8] = (-7.0/10.0*e10*q[3]) + (2*e12*p[20]*q[6]*tr[5]) + (2*e12*p[20]*q[7]*tr[4]) + ((7.0/10.0)*e12*p[20]*tr[2]*tr[5]) + (e12*p[21]*tr[3]*tr[4]) + (e12*q[3]*tr[4]) + (e12*q[7]*tr[5]) - (e13*e53) - (2*e13*p[20]*q[3]) - (e13*q[4]) - (e15*q[6]) + (e17*p[34]*((e30*p[13]) + p[12])) + ((1.0/2.0)*e29*p[33]) - (e40*e58) - (e43*qd[3]*tr[5]) - (e44*e58) - (e44*qd[4]) - (e45*qd[6]*tr[3]) - (e46*e57) - (e46*qd[7]) - (e47*p[20]*tr[4]) - (e47*q[7]) - (e48*e55) - (7.0/20.0*e48) - (e49*e55) - (7.0/20.0*e49) - (e50*e55) - (7.0/20.0*e50) - (e51*e55) - (7.0/20.0*e51) - (2*e52*q[7]) - (e52*tr[5]) - (4*e53*qd[5]*qd[6]) - (2*e54*q[4]) - (7.0/10.0*e54*tr[3]) - (4*e56*qd[3]*tr[4]) - (4*e57*qd[7]) + ((7.0/10.0)*e6*p[20]*tr[2]*tr[5]) + (2*e6*p[21]*q[3]*tr[3]) + (2*e6*p[21]*q[4]*tr[2]) + (e6*p[21]*tr[3]*tr[4]) + ((7.0/10.0)*e6*q[4]*tr[3]) + ((7.0/10.0)*e6*q[6]*tr[2]) - (2*e7*p[21]*q[6]) + (4*p[20]*qd[4]*qd[8]*tr[5]) + ((7.0/5.0)*p[20]*qd[5]*qd[8]*tr[3]*tr[4]) + (4*p[20]*qd[6]*qd[8]*tr[4]) + (4*p[21]*qd[3]*qd[5]*tr[2]) + (4*p[21]*qd[5]*qd[7]*tr[3]) + (2*p[21]*qd[5]*qd[8]*tr[2]*tr[5]) + (4*p[35]*qd[5]*qd[8]*tr[2]*tr[4]) + (4*p[35]*qd[5]*qd[8]*tr[3]*tr[5]) + ((7.0/5.0)*qd[3]*qd[5]*tr[3]) + ((7.0/5.0)*qd[4]*qd[5]*tr[2]) + ((7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4]) + ((7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5]) + (2*qd[6]*qd[8]*tr[5]) + (2*qd[7]*qd[8]*tr[4]) + (-e28 + (4*qd[3]*qd[6]) + (4*qd[4]*qd[7]) - (2*(qd[6]*qd[6])) - (2*(qd[7]*qd[7])));
+    out[6] = (e1*e24*p[17]) - (4.0/5.0*e1*q[1]) - (24.0/25.0*e1) + (2.0*(e17*e17)*p[27]) + (2.0*e18*p[28]*((-e18*p[9]) + p[8])) - (e19*qd[0]*tr[1]) - (e19*qd[1]*tr[0]) - (e20*p[17]) + ((4.0/5.0)*e21) + (e22*e25) + ((12.0/5.0)*e22) - (4.0*e23*p[17]*qd[1]) + (e26*p[17]*qd[2]*tr[0]) - (6.0/25.0*e4) + (-e27);
+    out[7] = ((11.0/10.0)*e0*p[19]*tr[0]*tr[3]) + ((3.0/5.0)*e0*q[0]*tr[1]) + ((3.0/5.0)*e0*q[1]*tr[0]) + ((11.0/10.0)*e0*q[1]*tr[1]) + ((11.0/10.0)*e0*q[3]*tr[0]) + ((9.0/100.0)*e0*tr[1]*tr[2]) - (33.0/200.0*e1*tr[3]) - (e10*e25*p[19]) - (11.0/10.0*e10*p[19]*tr[1]) - (3.0/10.0*e10*q[3]) + (e17*p[31]*((e30*p[11]) + p[10])) - (e20*p[19]*tr[3]) - (e20*q[3]) - (11.0/10.0*e21) - (9.0/50.0*e23*qd[5]*tr[2]) - (e24*e7*p[19]) - (e26*e39*tr[2]) + ((1.0/2.0)*e29*p[30]) - (e31*qd[0]*tr[3]) - (e31*qd[1]*tr[2]) - (e32*qd[1]*tr[1]) - (e32*qd[3]*tr[0]) - (e33*qd[3]*tr[1]) - (e34*e41) - (e34*qd[4]) - (e35*p[19]*tr[2]) - (e35*q[4]) - (e36*e42) - (33.0/200.0*e36) - (e37*e42) - (33.0/200.0*e37) - (e38*e42) - (33.0/200.0*e38) - (3.0/5.0*e4*q[4]) - (9.0/100.0*e4*tr[3]) - (e40*e41) + (2.0*e6*p[19]*q[3]*tr[3]) + (2.0*e6*p[19]*q[4]*tr[2]) + ((11.0/10.0)*e6*p[19]*tr[0]*tr[3]) + ((3.0/10.0)*e6*q[0]*tr[2]) + ((3.0/10.0)*e6*q[4]*tr[3]) + ((9.0/100.0)*e6*tr[1]*tr[2]) - (3.0/10.0*e7*q[1]) - (9.0/100.0*e7*tr[0]) + (4.0*p[19]*qd[1]*qd[5]*tr[3]) + ((6.0/5.0)*p[19]*qd[2]*qd[5]*tr[0]*tr[2]) + ((11.0/5.0)*p[19]*qd[2]*qd[5]*tr[1]*tr[2]) + ((6.0/5.0)*p[19]*qd[2]*qd[5]*tr[1]*tr[3]) + (4.0*p[19]*qd[3]*qd[5]*tr[2]) + ((6.0/5.0)*qd[0]*qd[2]*tr[0]) + ((11.0/5.0)*qd[0]*qd[2]*tr[1]) + ((11.0/5.0)*qd[1]*qd[2]*tr[0]) + ((6.0/5.0)*qd[2]*qd[4]*tr[1]) + ((33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2]) + ((9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3]) + ((33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3]) + ((3.0/5.0)*qd[3]*qd[5]*tr[3]) + ((3.0/5.0)*qd[4]*qd[5]*tr[2]) + (-e27 - e28 + (4.0*qd[0]*qd[3]) + (4.0*qd[1]*qd[4]));
+    out[8] = (-7.0/10.0*e10*q[3]) + (2.0*e12*p[20]*q[6]*tr[5]) + (2.0*e12*p[20]*q[7]*tr[4]) + ((7.0/10.0)*e12*p[20]*tr[2]*tr[5]) + (e12*p[21]*tr[3]*tr[4]) + (e12*q[3]*tr[4]) + (e12*q[7]*tr[5]) - (e13*e53) - (2.0*e13*p[20]*q[3]) - (e13*q[4]) - (e15*q[6]) + (e17*p[34]*((e30*p[13]) + p[12])) + ((1.0/2.0)*e29*p[33]) - (e40*e58) - (e43*qd[3]*tr[5]) - (e44*e58) - (e44*qd[4]) - (e45*qd[6]*tr[3]) - (e46*e57) - (e46*qd[7]) - (e47*p[20]*tr[4]) - (e47*q[7]) - (e48*e55) - (7.0/20.0*e48) - (e49*e55) - (7.0/20.0*e49) - (e50*e55) - (7.0/20.0*e50) - (e51*e55) - (7.0/20.0*e51) - (2.0*e52*q[7]) - (e52*tr[5]) - (4.0*e53*qd[5]*qd[6]) - (2.0*e54*q[4]) - (7.0/10.0*e54*tr[3]) - (4.0*e56*qd[3]*tr[4]) - (4.0*e57*qd[7]) + ((7.0/10.0)*e6*p[20]*tr[2]*tr[5]) + (2.0*e6*p[21]*q[3]*tr[3]) + (2.0*e6*p[21]*q[4]*tr[2]) + (e6*p[21]*tr[3]*tr[4]) + ((7.0/10.0)*e6*q[4]*tr[3]) + ((7.0/10.0)*e6*q[6]*tr[2]) - (2.0*e7*p[21]*q[6]) + (4.0*p[20]*qd[4]*qd[8]*tr[5]) + ((7.0/5.0)*p[20]*qd[5]*qd[8]*tr[3]*tr[4]) + (4.0*p[20]*qd[6]*qd[8]*tr[4]) + (4.0*p[21]*qd[3]*qd[5]*tr[2]) + (4.0*p[21]*qd[5]*qd[7]*tr[3]) + (2.0*p[21]*qd[5]*qd[8]*tr[2]*tr[5]) + (4.0*p[35]*qd[5]*qd[8]*tr[2]*tr[4]) + (4.0*p[35]*qd[5]*qd[8]*tr[3]*tr[5]) + ((7.0/5.0)*qd[3]*qd[5]*tr[3]) + ((7.0/5.0)*qd[4]*qd[5]*tr[2]) + ((7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4]) + ((7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5]) + (2.0*qd[6]*qd[8]*tr[5]) + (2.0*qd[7]*qd[8]*tr[4]) + (-e28 + (4.0*qd[3]*qd[6]) + (4.0*qd[4]*qd[7]) - (2.0*(qd[6]*qd[6])) - (2.0*(qd[7]*qd[7])));
 }
 
 static void excavator_gamma_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -594,12 +594,12 @@ static void excavator_applied_k0(const excavator_real * q, const excavator_real 
     (void)qd;
     const excavator_real e0 = exp(-p[36]*((-p[15] + t)*(-p[15] + t)));
     const excavator_real e1 = e0*p[14];
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[4];
-    out[2] = 0;
-    out[3] = 0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = -981.0/100.0*p[5];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = e1;
     out[7] = ((3.0/10.0)*e1) - (981.0/100.0*p[6]);
     out[8] = (-1.0/2.0*e0*p[37]*tr[4]) + ((3.0/20.0)*e0*p[37]*tr[5]);
@@ -649,7 +649,7 @@ void excavator_mass(const excavator_real * p, excavator_real *out)
 static void excavator_reactions_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * lam, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     (void)t;
-    const excavator_real e0 = 2*lam[6];
+    const excavator_real e0 = 2.0*lam[6];
     const excavator_real e1 = (e0*q[0]) - (3.0/5.0*lam[6]);
     const excavator_real e2 = (4.0/5.0)*lam[6];
     const excavator_real e3 = e0*p[17];
@@ -663,65 +663,65 @@ static void excavator_reactions_k0(const excavator_real * q, const excavator_rea
     const excavator_real e11 = e10*tr[2];
     const excavator_real e12 = lam[7]*tr[0];
     const excavator_real e13 = (11.0/10.0)*e12;
-    const excavator_real e14 = 2*lam[7];
+    const excavator_real e14 = 2.0*lam[7];
     const excavator_real e15 = e14*p[19];
     const excavator_real e16 = e15*tr[3];
-    const excavator_real e17 = (e14*q[0]) - (2*lam[7]*q[3]);
+    const excavator_real e17 = (e14*q[0]) - (2.0*lam[7]*q[3]);
     const excavator_real e18 = (11.0/10.0)*e8;
     const excavator_real e19 = (3.0/5.0)*e12;
     const excavator_real e20 = e10*tr[3];
     const excavator_real e21 = e15*tr[2];
-    const excavator_real e22 = (e14*q[1]) - (2*lam[7]*q[4]);
+    const excavator_real e22 = (e14*q[1]) - (2.0*lam[7]*q[4]);
     const excavator_real e23 = lam[8]*tr[4];
     const excavator_real e24 = (7.0/10.0)*lam[8];
     const excavator_real e25 = e24*tr[2];
-    const excavator_real e26 = 2*lam[8];
+    const excavator_real e26 = 2.0*lam[8];
     const excavator_real e27 = e26*p[21];
     const excavator_real e28 = e27*tr[3];
     const excavator_real e29 = lam[8]*tr[5];
-    const excavator_real e30 = 2*p[20];
+    const excavator_real e30 = 2.0*p[20];
     const excavator_real e31 = e29*e30;
-    const excavator_real e32 = (e26*q[3]) - (2*lam[8]*q[6]);
+    const excavator_real e32 = (e26*q[3]) - (2.0*lam[8]*q[6]);
     const excavator_real e33 = e24*tr[3];
     const excavator_real e34 = e27*tr[2];
     const excavator_real e35 = e23*e30;
-    const excavator_real e36 = (e26*q[4]) - (2*lam[8]*q[7]);
+    const excavator_real e36 = (e26*q[4]) - (2.0*lam[8]*q[7]);
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = lam[4];
     out[13] = lam[5];
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = -lam[4];
     out[16] = -lam[5];
-    out[17] = 0;
+    out[17] = 0.0;
     out[18] = e4 + (e1);
     out[19] = -e5 + e6 + (e7);
-    out[20] = 0;
+    out[20] = 0.0;
     out[21] = -e4 + (-e1);
     out[22] = e5 - e6 + (-e7);
-    out[23] = 0;
+    out[23] = 0.0;
     out[24] = -e11 + e13 + e16 - e9 + (-e17);
     out[25] = -e18 - e19 + e20 + e21 + (-e22);
-    out[26] = 0;
+    out[26] = 0.0;
     out[27] = e11 - e13 - e16 + e9 + (e17);
     out[28] = e18 + e19 - e20 - e21 + (e22);
-    out[29] = 0;
+    out[29] = 0.0;
     out[30] = -e23 + e25 - e28 + e31 + (-e32);
     out[31] = e29 - e33 - e34 + e35 + (-e36);
-    out[32] = 0;
+    out[32] = 0.0;
     out[33] = e23 - e25 + e28 - e31 + (e32);
     out[34] = -e29 + e33 + e34 - e35 + (e36);
-    out[35] = 0;
+    out[35] = 0.0;
 }
 
 static void excavator_reactions_k(const excavator_real * q, const excavator_real * tr, const excavator_real * lam, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -755,14 +755,14 @@ static int excavator_sparse_factor0(excavator_real *lu)
     excavator_real cm = 0.0;
     cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[33]));
-    if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (EXCAVATOR_THRESHOLD * cm))) { return 1; }
     lu[30] += lu[33];
     lu[31] -= (lu[33] * lu[17]);
     lu[34] -= (lu[33] * lu[19]);
     cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[21]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[24]));
-    if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (EXCAVATOR_THRESHOLD * cm))) { return 1; }
     lu[9] += lu[3];
     lu[22] -= (lu[21] * lu[3]);
     lu[25] -= (lu[24] * lu[3]);
@@ -770,7 +770,7 @@ static int excavator_sparse_factor0(excavator_real *lu)
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, 1.0);
     cm = EXCAVATOR_MAX(cm, fabs(lu[23]));
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[20] = 1.0 / piv;
     lu[0] = 1.0 * piv;
     lu[4] = -1.0 * piv;
@@ -783,7 +783,7 @@ static int excavator_sparse_factor0(excavator_real *lu)
     cm = EXCAVATOR_MAX(cm, fabs(lu[5]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[9]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[25]));
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[1] = 1.0 / piv;
     lu[5] *= piv;
     lu[9] *= piv;
@@ -791,14 +791,14 @@ static int excavator_sparse_factor0(excavator_real *lu)
     cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[27]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[30]));
-    if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (EXCAVATOR_THRESHOLD * cm))) { return 1; }
     lu[28] -= (lu[27] * lu[11]);
     lu[31] -= (lu[30] * lu[11]);
     piv = lu[26];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, 1.0);
     cm = EXCAVATOR_MAX(cm, fabs(lu[29]));
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[26] = 1.0 / piv;
     lu[6] = 1.0 * piv;
     lu[12] = -1.0 * piv;
@@ -810,20 +810,20 @@ static int excavator_sparse_factor0(excavator_real *lu)
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, fabs(lu[13]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[31]));
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[7] = 1.0 / piv;
     lu[13] *= piv;
     lu[31] *= piv;
     piv = lu[32];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, 1.0);
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[32] = 1.0 / piv;
     lu[14] = 1.0 * piv;
     lu[15] -= (lu[14] * lu[34]);
     piv = lu[15];
     cm = fabs(piv);
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[15] = 1.0 / piv;
     return 0;
 }
@@ -1868,7 +1868,7 @@ static void excavator_drive(excavator_real t, const excavator_real *p, excavator
 {
     (void)t;
     (void)p;
-    const excavator_real d0 = (2*3.141592653589793/p[7]);
+    const excavator_real d0 = (2.0*3.141592653589793/p[7]);
     const excavator_real d1 = d0*t;
     const excavator_real d2 = sin(d1);
     const excavator_real d3 = cos(d1);

@@ -269,7 +269,7 @@ static void four_bar_prepare(const four_bar_real *p, four_bar_real *pp)
 {
     (void)memcpy(pp, p, sizeof(four_bar_real) * 15u);
     {
-        pp[15] = (2*3.141592653589793*p[9]);
+        pp[15] = (2.0*3.141592653589793*p[9]);
         pp[16] = (1.0/12.0)*(p[1]*p[1])*p[4];
         pp[17] = (1.0/12.0)*(p[2]*p[2])*p[5];
         pp[18] = (1.0/12.0)*(p[3]*p[3])*p[6];
@@ -328,31 +328,31 @@ static void four_bar_phi_q_k0(const four_bar_real * q, const four_bar_real * tr,
     const four_bar_real e6 = (1.0/2.0)*p[3];
     const four_bar_real e7 = e6*tr[4];
     const four_bar_real e8 = e6*tr[5];
-    out[0] = 1;
+    out[0] = 1.0;
     out[1] = e1;
-    out[2] = 1;
+    out[2] = 1.0;
     out[3] = e2;
-    out[4] = -1;
+    out[4] = -1.0;
     out[5] = e1;
-    out[6] = 1;
+    out[6] = 1.0;
     out[7] = e4;
-    out[8] = -1;
+    out[8] = -1.0;
     out[9] = e2;
-    out[10] = 1;
+    out[10] = 1.0;
     out[11] = e5;
-    out[12] = -1;
+    out[12] = -1.0;
     out[13] = e4;
-    out[14] = 1;
+    out[14] = 1.0;
     out[15] = -e7;
-    out[16] = -1;
+    out[16] = -1.0;
     out[17] = e5;
-    out[18] = 1;
+    out[18] = 1.0;
     out[19] = e8;
-    out[20] = 1;
+    out[20] = 1.0;
     out[21] = e7;
-    out[22] = 1;
+    out[22] = 1.0;
     out[23] = -e8;
-    out[24] = 1;
+    out[24] = 1.0;
 }
 
 static void four_bar_phi_q_k(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -375,14 +375,14 @@ static void four_bar_nu_k0(const four_bar_real * q, const four_bar_real * tr, fo
     (void)q;
     (void)tr;
     (void)t;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
     out[8] = p[15];
 }
 
@@ -422,7 +422,7 @@ static void four_bar_gamma_k0(const four_bar_real * q, const four_bar_real * tr,
     out[5] = -e5 - e8;
     out[6] = e7;
     out[7] = e8;
-    out[8] = 0;
+    out[8] = 0.0;
 }
 
 static void four_bar_gamma_k(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -442,7 +442,7 @@ void four_bar_gamma(const four_bar_real * q, const four_bar_real * qd, four_bar_
 
 static void four_bar_applied_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    const four_bar_real e0 = p[10]*(((1.0/2.0)*sin(p[15]*t)) + 1);
+    const four_bar_real e0 = p[10]*(((1.0/2.0)*sin(p[15]*t)) + 1.0);
     const four_bar_real e1 = (1.0/20.0)*tr[4];
     const four_bar_real e2 = e1 + (q[7] - (3.0/10.0));
     const four_bar_real e3 = (1.0/20.0)*tr[5];
@@ -452,10 +452,10 @@ static void four_bar_applied_k0(const four_bar_real * q, const four_bar_real * t
     const four_bar_real e7 = e4*e6;
     const four_bar_real e8 = (-p[12]*(e5 - p[14])) - (p[13]*((e2*e6*((e3*qd[8]) + qd[7])) + (e7*((-e1*qd[8]) + qd[6]))));
     const four_bar_real e9 = e7*e8;
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[4];
-    out[2] = 0;
-    out[3] = 0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = -e0 - (981.0/100.0*p[5]);
     out[5] = -e0*((p[7]*tr[3]) - (p[8]*tr[2]));
     out[6] = e9;
@@ -512,33 +512,33 @@ static void four_bar_reactions_k0(const four_bar_real * q, const four_bar_real *
     (void)p;
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = lam[4];
     out[13] = lam[5];
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = -lam[4];
     out[16] = -lam[5];
-    out[17] = 0;
+    out[17] = 0.0;
     out[18] = lam[6];
     out[19] = lam[7];
-    out[20] = 0;
+    out[20] = 0.0;
     out[21] = -lam[6];
     out[22] = -lam[7];
-    out[23] = 0;
-    out[24] = 0;
-    out[25] = 0;
+    out[23] = 0.0;
+    out[24] = 0.0;
+    out[25] = 0.0;
     out[26] = lam[8];
-    out[27] = 0;
-    out[28] = 0;
+    out[27] = 0.0;
+    out[28] = 0.0;
     out[29] = -lam[8];
 }
 
@@ -576,21 +576,21 @@ static int four_bar_sparse_factor0(four_bar_real *lu)
     cm = FOUR_BAR_MAX(cm, fabs(lu[3]));
     cm = FOUR_BAR_MAX(cm, fabs(lu[5]));
     cm = FOUR_BAR_MAX(cm, fabs(lu[9]));
-    if (!(1.0 >= FOUR_BAR_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (FOUR_BAR_THRESHOLD * cm))) { return 1; }
     lu[13] += lu[7];
     lu[17] += lu[11];
     lu[15] -= lu[21];
     piv = lu[13];
     cm = fabs(piv);
     cm = FOUR_BAR_MAX(cm, fabs(lu[17]));
-    if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (FOUR_BAR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[13] = 1.0 / piv;
     lu[17] *= piv;
     lu[19] -= (lu[17] * lu[15]);
     lu[23] -= lu[19];
     piv = lu[23];
     cm = fabs(piv);
-    if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (FOUR_BAR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[23] = 1.0 / piv;
     return 0;
 }
@@ -1610,8 +1610,8 @@ static void four_bar_guess(const four_bar_real *p, four_bar_real *out)
 {
     (void)p;
     out[0] = (1.0/2.0)*p[1];
-    out[1] = 0;
-    out[2] = 0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = 202083333333.0/1000000000000.0;
     out[4] = 71070375431.0/500000000000.0;
     out[5] = 947969741383.0/1000000000000.0;
@@ -1625,7 +1625,7 @@ static void four_bar_drive(four_bar_real t, const four_bar_real *p, four_bar_rea
 {
     (void)t;
     (void)p;
-    const four_bar_real d0 = (2*3.141592653589793*p[9]);
+    const four_bar_real d0 = (2.0*3.141592653589793*p[9]);
     out[0] = d0*t;
     out[1] = d0;
 }

@@ -338,7 +338,7 @@ static void planetary_prepare(const planetary_real *p, planetary_real *pp)
         const planetary_real e0 = p[0] + p[1];
         const planetary_real e1 = (1.0/p[1]);
         const planetary_real e2 = e1*p[0];
-        const planetary_real e3 = (1.0/(p[0] + (2*p[1])));
+        const planetary_real e3 = (1.0/(p[0] + (2.0*p[1])));
         const planetary_real e4 = e3*p[1];
         const planetary_real e5 = (1.0/p[0]);
         pp[9] = e0;
@@ -349,9 +349,9 @@ static void planetary_prepare(const planetary_real *p, planetary_real *pp)
         pp[14] = p[0] + p[2];
         pp[15] = e5;
         pp[16] = e5*p[2];
-        pp[17] = (2*3.141592653589793*p[7]);
-        pp[18] = -e2 - 1;
-        pp[19] = e4 - 1;
+        pp[17] = (2.0*3.141592653589793*p[7]);
+        pp[18] = -e2 - 1.0;
+        pp[19] = e4 - 1.0;
         pp[20] = -e4;
         pp[21] = (1.0/2.0)*(p[0]*p[0])*p[3];
         pp[22] = (1.0/2.0)*(e0*e0)*p[6];
@@ -396,26 +396,26 @@ static void planetary_phi_q_k0(const planetary_real * q, const planetary_real * 
 {
     (void)q;
     (void)t;
-    out[0] = 1;
-    out[1] = 1;
-    out[2] = 1;
-    out[3] = 1;
-    out[4] = -1;
+    out[0] = 1.0;
+    out[1] = 1.0;
+    out[2] = 1.0;
+    out[3] = 1.0;
+    out[4] = -1.0;
     out[5] = p[9]*tr[2];
-    out[6] = 1;
-    out[7] = -1;
+    out[6] = 1.0;
+    out[7] = -1.0;
     out[8] = -p[9]*tr[3];
-    out[9] = 1;
+    out[9] = 1.0;
     out[10] = p[11];
     out[11] = p[18];
-    out[12] = 1;
+    out[12] = 1.0;
     out[13] = p[19];
     out[14] = p[20];
-    out[15] = 1;
-    out[16] = 1;
-    out[17] = 1;
+    out[15] = 1.0;
+    out[16] = 1.0;
+    out[17] = 1.0;
     out[18] = p[16];
-    out[19] = 1;
+    out[19] = 1.0;
 }
 
 static void planetary_phi_q_k(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -438,17 +438,17 @@ static void planetary_nu_k0(const planetary_real * q, const planetary_real * tr,
     (void)q;
     (void)tr;
     (void)t;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
-    out[9] = 0;
-    out[10] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
+    out[9] = 0.0;
+    out[10] = 0.0;
     out[11] = p[17];
 }
 
@@ -472,18 +472,18 @@ static void planetary_gamma_k0(const planetary_real * q, const planetary_real * 
     (void)q;
     (void)t;
     const planetary_real e0 = p[9]*(qd[5]*qd[5]);
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = -e0*tr[3];
     out[5] = -e0*tr[2];
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
-    out[9] = 0;
-    out[10] = 0;
-    out[11] = 0;
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
+    out[9] = 0.0;
+    out[10] = 0.0;
+    out[11] = 0.0;
 }
 
 static void planetary_gamma_k(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -507,18 +507,18 @@ static void planetary_applied_k0(const planetary_real * q, const planetary_real 
     (void)tr;
     (void)qd;
     (void)t;
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[3];
-    out[2] = 0;
-    out[3] = 0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = -981.0/100.0*p[6];
     out[5] = p[8];
-    out[6] = 0;
+    out[6] = 0.0;
     out[7] = -981.0/100.0*p[4];
-    out[8] = 0;
-    out[9] = 0;
+    out[8] = 0.0;
+    out[9] = 0.0;
     out[10] = -981.0/100.0*p[5];
-    out[11] = 0;
+    out[11] = 0.0;
 }
 
 static void planetary_applied_k(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -575,51 +575,51 @@ static void planetary_reactions_k0(const planetary_real * q, const planetary_rea
     const planetary_real e2 = -lam[7];
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = lam[4];
     out[13] = lam[5];
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = -lam[4];
     out[16] = -lam[5];
-    out[17] = 0;
-    out[18] = 0;
-    out[19] = 0;
+    out[17] = 0.0;
+    out[18] = 0.0;
+    out[19] = 0.0;
     out[20] = -e0;
-    out[21] = 0;
-    out[22] = 0;
+    out[21] = 0.0;
+    out[22] = 0.0;
     out[23] = -lam[6];
-    out[24] = 0;
-    out[25] = 0;
+    out[24] = 0.0;
+    out[25] = 0.0;
     out[26] = e0 + lam[6];
-    out[27] = 0;
-    out[28] = 0;
+    out[27] = 0.0;
+    out[28] = 0.0;
     out[29] = e1;
-    out[30] = 0;
-    out[31] = 0;
+    out[30] = 0.0;
+    out[31] = 0.0;
     out[32] = e2;
-    out[33] = 0;
-    out[34] = 0;
+    out[33] = 0.0;
+    out[34] = 0.0;
     out[35] = -e1 - e2;
     out[36] = lam[8];
     out[37] = lam[9];
-    out[38] = 0;
+    out[38] = 0.0;
     out[39] = -lam[8];
     out[40] = -lam[9];
-    out[41] = 0;
-    out[42] = 0;
-    out[43] = 0;
+    out[41] = 0.0;
+    out[42] = 0.0;
+    out[43] = 0.0;
     out[44] = -lam[10]*p[16];
-    out[45] = 0;
-    out[46] = 0;
+    out[45] = 0.0;
+    out[46] = 0.0;
     out[47] = -lam[10];
 }
 
@@ -629,8 +629,8 @@ static void planetary_reactions_k1(const planetary_real * q, const planetary_rea
     (void)tr;
     (void)t;
     (void)p;
-    out[48] = 0;
-    out[49] = 0;
+    out[48] = 0.0;
+    out[49] = 0.0;
     out[50] = -lam[11];
 }
 
@@ -666,20 +666,20 @@ static int planetary_sparse_factor0(planetary_real *lu)
     planetary_real cm = 0.0;
     cm = 1.0;
     cm = PLANETARY_MAX(cm, fabs(lu[18]));
-    if (!(1.0 >= PLANETARY_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (PLANETARY_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = PLANETARY_MAX(cm, fabs(lu[10]));
-    if (!(1.0 >= PLANETARY_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (PLANETARY_THRESHOLD * cm))) { return 1; }
     piv = lu[11];
     cm = fabs(piv);
     cm = PLANETARY_MAX(cm, fabs(lu[13]));
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (PLANETARY_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[11] = 1.0 / piv;
     lu[13] *= piv;
     lu[14] -= lu[13];
     piv = lu[14];
     cm = fabs(piv);
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (PLANETARY_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[14] = 1.0 / piv;
     return 0;
 }
@@ -1747,18 +1747,18 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
 static void planetary_guess(const planetary_real *p, planetary_real *out)
 {
     (void)p;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
     out[6] = p[0] + p[1];
-    out[7] = 0;
-    out[8] = 0;
+    out[7] = 0.0;
+    out[8] = 0.0;
     out[9] = -p[0] - p[2];
-    out[10] = 0;
-    out[11] = 0;
+    out[10] = 0.0;
+    out[11] = 0.0;
 }
 
 /* Each driver's f(t) and f'(t), in file order. */
@@ -1766,7 +1766,7 @@ static void planetary_drive(planetary_real t, const planetary_real *p, planetary
 {
     (void)t;
     (void)p;
-    const planetary_real d0 = (2*3.141592653589793*p[7]);
+    const planetary_real d0 = (2.0*3.141592653589793*p[7]);
     out[0] = d0*t;
     out[1] = d0;
 }

@@ -276,7 +276,7 @@ static void quick_return_prepare(const quick_return_real *p, quick_return_real *
     (void)memcpy(pp, p, sizeof(quick_return_real) * 13u);
     {
         pp[13] = -(p[3]*p[3]);
-        pp[14] = (2*3.141592653589793*p[11]);
+        pp[14] = (2.0*3.141592653589793*p[11]);
         pp[15] = (1.0/2.0)*p[5]*(p[6]*p[6]);
         pp[16] = (1.0/12.0)*(p[2]*p[2])*p[7];
         pp[17] = (1.0/12.0)*p[8]*((p[10]*p[10]) + (p[9]*p[9]));
@@ -325,13 +325,13 @@ static void quick_return_phi_q_k0(const quick_return_real * q, const quick_retur
     const quick_return_real e3 = (1.0/2.0)*e2;
     const quick_return_real e4 = p[0]*tr[0];
     const quick_return_real e5 = p[0]*tr[1];
-    const quick_return_real e6 = (2*q[3]) - (2*q[6]);
-    const quick_return_real e7 = (2*q[4]) - (2*q[7]);
-    out[0] = 1;
-    out[1] = 1;
-    out[2] = 1;
+    const quick_return_real e6 = (2.0*q[3]) - (2.0*q[6]);
+    const quick_return_real e7 = (2.0*q[4]) - (2.0*q[7]);
+    out[0] = 1.0;
+    out[1] = 1.0;
+    out[2] = 1.0;
     out[3] = e1;
-    out[4] = 1;
+    out[4] = 1.0;
     out[5] = -e3;
     out[6] = -tr[2];
     out[7] = tr[3];
@@ -344,9 +344,9 @@ static void quick_return_phi_q_k0(const quick_return_real * q, const quick_retur
     out[14] = (e0*(-e3 + (-q[3] + q[6]))) - (e2*(-e1 + (-q[4] + q[7])));
     out[15] = -e2 + (-e6);
     out[16] = -e0 + (-e7);
-    out[17] = 1;
-    out[18] = 1;
-    out[19] = 1;
+    out[17] = 1.0;
+    out[18] = 1.0;
+    out[19] = 1.0;
 }
 
 static void quick_return_phi_q_k(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -369,14 +369,14 @@ static void quick_return_nu_k0(const quick_return_real * q, const quick_return_r
     (void)q;
     (void)tr;
     (void)t;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
     out[8] = p[14];
 }
 
@@ -402,7 +402,7 @@ static void quick_return_gamma_k0(const quick_return_real * q, const quick_retur
     const quick_return_real e1 = e0*tr[3];
     const quick_return_real e2 = (1.0/2.0)*p[2];
     const quick_return_real e3 = e0*tr[2];
-    const quick_return_real e4 = 2*qd[5];
+    const quick_return_real e4 = 2.0*qd[5];
     const quick_return_real e5 = e4*tr[3];
     const quick_return_real e6 = e4*tr[2];
     const quick_return_real e7 = (qd[2]*qd[2]);
@@ -412,15 +412,15 @@ static void quick_return_gamma_k0(const quick_return_real * q, const quick_retur
     const quick_return_real e11 = e3*p[2];
     const quick_return_real e12 = e5*p[2];
     const quick_return_real e13 = e6*p[2];
-    out[0] = 0;
-    out[1] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
     out[2] = -e1*e2;
     out[3] = -e2*e3;
     out[4] = (e1*e8) + (e1*q[1]) - (e1*q[4]) - (e3*e9) - (e3*q[0]) + (e3*q[3]) - (e5*e8*qd[2]) + (e5*qd[0]) - (e5*qd[3]) + (e6*e9*qd[2]) + (e6*qd[1]) - (e6*qd[4]) + (e7*e8*tr[3]) - (e7*e9*tr[2]);
-    out[5] = (e10*q[3]) - (e10*q[6]) + (e11*q[4]) - (e11*q[7]) - (e12*qd[4]) + (e12*qd[7]) + (e13*qd[3]) - (e13*qd[6]) + ((-2*(qd[3]*qd[3])) + (4*qd[3]*qd[6]) - (2*(qd[4]*qd[4])) + (4*qd[4]*qd[7]) - (2*(qd[6]*qd[6])) - (2*(qd[7]*qd[7])));
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
+    out[5] = (e10*q[3]) - (e10*q[6]) + (e11*q[4]) - (e11*q[7]) - (e12*qd[4]) + (e12*qd[7]) + (e13*qd[3]) - (e13*qd[6]) + ((-2.0*(qd[3]*qd[3])) + (4.0*qd[3]*qd[6]) - (2.0*(qd[4]*qd[4])) + (4.0*qd[4]*qd[7]) - (2.0*(qd[6]*qd[6])) - (2.0*(qd[7]*qd[7])));
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
 }
 
 static void quick_return_gamma_k(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -443,15 +443,15 @@ static void quick_return_applied_k0(const quick_return_real * q, const quick_ret
     (void)q;
     (void)tr;
     (void)qd;
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[5];
-    out[2] = 0;
-    out[3] = 0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = -981.0/100.0*p[7];
-    out[5] = 0;
-    out[6] = (1.0/2.0)*p[12]*(sin(p[14]*t) + 1);
+    out[5] = 0.0;
+    out[6] = (1.0/2.0)*p[12]*(sin(p[14]*t) + 1.0);
     out[7] = -981.0/100.0*p[8];
-    out[8] = 0;
+    out[8] = 0.0;
 }
 
 static void quick_return_applied_k(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -500,47 +500,47 @@ static void quick_return_reactions_k0(const quick_return_real * q, const quick_r
     (void)t;
     const quick_return_real e0 = lam[4]*tr[2];
     const quick_return_real e1 = lam[4]*tr[3];
-    const quick_return_real e2 = 2*lam[5];
-    const quick_return_real e3 = (e2*q[3]) - (2*lam[5]*q[6]);
+    const quick_return_real e2 = 2.0*lam[5];
+    const quick_return_real e3 = (e2*q[3]) - (2.0*lam[5]*q[6]);
     const quick_return_real e4 = lam[5]*p[2];
     const quick_return_real e5 = e4*tr[3];
-    const quick_return_real e6 = (e2*q[4]) - (2*lam[5]*q[7]);
+    const quick_return_real e6 = (e2*q[4]) - (2.0*lam[5]*q[7]);
     const quick_return_real e7 = e4*tr[2];
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = -e0;
     out[13] = e1;
     out[14] = (e0*p[0]*tr[0]) + (e0*q[1]) - (e0*q[4]) + (e1*p[0]*tr[1]) + (e1*q[0]) - (e1*q[3]);
     out[15] = e0;
     out[16] = -e1;
-    out[17] = 0;
+    out[17] = 0.0;
     out[18] = -e5 + (-e3);
     out[19] = -e7 + (-e6);
-    out[20] = 0;
+    out[20] = 0.0;
     out[21] = e5 + (e3);
     out[22] = e7 + (e6);
-    out[23] = 0;
-    out[24] = 0;
+    out[23] = 0.0;
+    out[24] = 0.0;
     out[25] = lam[6];
     out[26] = (lam[6]*q[6]) + lam[7];
-    out[27] = 0;
+    out[27] = 0.0;
     out[28] = -lam[6];
     out[29] = -lam[7];
-    out[30] = 0;
-    out[31] = 0;
+    out[30] = 0.0;
+    out[31] = 0.0;
     out[32] = lam[8];
-    out[33] = 0;
-    out[34] = 0;
+    out[33] = 0.0;
+    out[34] = 0.0;
     out[35] = -lam[8];
 }
 
@@ -575,28 +575,28 @@ static int quick_return_sparse_factor0(quick_return_real *lu)
     quick_return_real cm = 0.0;
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[6]));
-    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (QUICK_RETURN_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[7]));
-    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (QUICK_RETURN_THRESHOLD * cm))) { return 1; }
     piv = lu[15];
     cm = fabs(piv);
-    if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (QUICK_RETURN_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[15] = 1.0 / piv;
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[8]));
-    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (QUICK_RETURN_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[9]));
-    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (QUICK_RETURN_THRESHOLD * cm))) { return 1; }
     lu[11] -= (lu[9] * lu[3]);
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[10]));
-    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (QUICK_RETURN_THRESHOLD * cm))) { return 1; }
     lu[11] -= (lu[10] * lu[5]);
     piv = lu[11];
     cm = fabs(piv);
-    if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (QUICK_RETURN_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[11] = 1.0 / piv;
     return 0;
 }
@@ -1602,15 +1602,15 @@ static void quick_return_guess(const quick_return_real *p, quick_return_real *ou
     const quick_return_real g0 = p[2]/sqrt((p[0]*p[0]) + (p[1]*p[1]));
     const quick_return_real g1 = g0*p[0];
     const quick_return_real g2 = g0*p[1];
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = (1.0/2.0)*g1;
     out[4] = ((1.0/2.0)*g2) - p[1];
     out[5] = atan2(p[1], p[0]);
     out[6] = g1 + sqrt((p[3]*p[3]) - ((-g2 + p[1] + p[4])*(-g2 + p[1] + p[4])));
     out[7] = p[4];
-    out[8] = 0;
+    out[8] = 0.0;
 }
 
 /* Each driver's f(t) and f'(t), in file order. */
@@ -1618,7 +1618,7 @@ static void quick_return_drive(quick_return_real t, const quick_return_real *p, 
 {
     (void)t;
     (void)p;
-    const quick_return_real d0 = (2*3.141592653589793*p[11]);
+    const quick_return_real d0 = (2.0*3.141592653589793*p[11]);
     out[0] = d0*t;
     out[1] = d0;
 }

@@ -243,7 +243,7 @@ static void rack_lift_phi_k0(const rack_lift_real * q, const rack_lift_real * tr
     out[2] = e0 + p[0];
     out[3] = q[5];
     out[4] = (-p[0]*(q[2] - q[5])) - (tr[2]*(-e0 - q[0])) + (tr[3]*(-q[1] + q[4]));
-    out[5] = (-1.0/2.0*p[10]*(1 - cos(2*3.141592653589793*p[9]*t))) + q[2];
+    out[5] = (-1.0/2.0*p[10]*(1.0 - cos(2.0*3.141592653589793*p[9]*t))) + q[2];
 }
 
 static void rack_lift_phi_k(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -265,17 +265,17 @@ static void rack_lift_phi_q_k0(const rack_lift_real * q, const rack_lift_real * 
 {
     (void)t;
     const rack_lift_real e0 = -p[0];
-    out[0] = 1;
-    out[1] = 1;
-    out[2] = -1;
-    out[3] = 1;
+    out[0] = 1.0;
+    out[1] = 1.0;
+    out[2] = -1.0;
+    out[3] = 1.0;
     out[4] = tr[2];
     out[5] = -tr[3];
     out[6] = e0;
     out[7] = -tr[2];
     out[8] = tr[3];
     out[9] = -e0 - (tr[2]*(-q[1] + q[4])) - (tr[3]*(-q[0] + q[3]));
-    out[10] = 1;
+    out[10] = 1.0;
 }
 
 static void rack_lift_phi_q_k(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -297,12 +297,12 @@ static void rack_lift_nu_k0(const rack_lift_real * q, const rack_lift_real * tr,
 {
     (void)q;
     (void)tr;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 3.141592653589793*p[11]*sin(2*3.141592653589793*p[9]*t);
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 3.141592653589793*p[11]*sin(2.0*3.141592653589793*p[9]*t);
 }
 
 static void rack_lift_nu_k(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -325,15 +325,15 @@ static void rack_lift_gamma_k0(const rack_lift_real * q, const rack_lift_real * 
     const rack_lift_real e0 = (qd[5]*qd[5]);
     const rack_lift_real e1 = e0*tr[2];
     const rack_lift_real e2 = e0*tr[3];
-    const rack_lift_real e3 = 2*qd[5];
+    const rack_lift_real e3 = 2.0*qd[5];
     const rack_lift_real e4 = e3*tr[3];
     const rack_lift_real e5 = e3*tr[2];
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = (e1*q[0]) - (e1*q[3]) - (e2*q[1]) + (e2*q[4]) - (e4*qd[0]) + (e4*qd[3]) - (e5*qd[1]) + (e5*qd[4]);
-    out[5] = 2*(3.141592653589793*3.141592653589793)*p[13]*cos(2*3.141592653589793*p[9]*t);
+    out[5] = 2.0*(3.141592653589793*3.141592653589793)*p[13]*cos(2.0*3.141592653589793*p[9]*t);
 }
 
 static void rack_lift_gamma_k(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -356,10 +356,10 @@ static void rack_lift_applied_k0(const rack_lift_real * q, const rack_lift_real 
     (void)q;
     (void)qd;
     (void)t;
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[3];
-    out[2] = 0;
-    out[3] = 0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = p[14];
     out[5] = -981.0/100.0*p[15]*tr[3];
 }
@@ -410,27 +410,27 @@ static void rack_lift_reactions_k0(const rack_lift_real * q, const rack_lift_rea
     const rack_lift_real e1 = lam[4]*tr[3];
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = -lam[2];
-    out[7] = 0;
+    out[7] = 0.0;
     out[8] = (lam[2]*q[4]) + lam[3];
     out[9] = lam[2];
-    out[10] = 0;
+    out[10] = 0.0;
     out[11] = -lam[3];
     out[12] = -e0;
     out[13] = e1;
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = e0;
     out[16] = -e1;
-    out[17] = 0;
-    out[18] = 0;
-    out[19] = 0;
+    out[17] = 0.0;
+    out[18] = 0.0;
+    out[19] = 0.0;
     out[20] = lam[5];
-    out[21] = 0;
-    out[22] = 0;
+    out[21] = 0.0;
+    out[22] = 0.0;
     out[23] = -lam[5];
 }
 
@@ -465,20 +465,20 @@ static int rack_lift_sparse_factor0(rack_lift_real *lu)
     rack_lift_real cm = 0.0;
     cm = 1.0;
     cm = RACK_LIFT_MAX(cm, fabs(lu[4]));
-    if (!(1.0 >= RACK_LIFT_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (RACK_LIFT_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = RACK_LIFT_MAX(cm, fabs(lu[5]));
-    if (!(1.0 >= RACK_LIFT_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (RACK_LIFT_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = RACK_LIFT_MAX(cm, fabs(lu[7]));
-    if (!(1.0 >= RACK_LIFT_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (RACK_LIFT_THRESHOLD * cm))) { return 1; }
     lu[7] = -lu[7];
     cm = 1.0;
     cm = RACK_LIFT_MAX(cm, fabs(lu[9]));
-    if (!(1.0 >= RACK_LIFT_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (RACK_LIFT_THRESHOLD * cm))) { return 1; }
     piv = lu[8];
     cm = fabs(piv);
-    if (!(fabs(piv) >= RACK_LIFT_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (RACK_LIFT_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[8] = 1.0 / piv;
     return 0;
 }
@@ -1503,12 +1503,12 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
 static void rack_lift_guess(const rack_lift_real *p, rack_lift_real *out)
 {
     (void)p;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = p[0];
-    out[4] = 0;
-    out[5] = 0;
+    out[4] = 0.0;
+    out[5] = 0.0;
 }
 
 /* Each driver's f(t) and f'(t), in file order. */
@@ -1517,9 +1517,9 @@ static void rack_lift_drive(rack_lift_real t, const rack_lift_real *p, rack_lift
     (void)t;
     (void)p;
     const rack_lift_real d0 = 3.141592653589793/p[2];
-    const rack_lift_real d1 = 2*d0*t;
+    const rack_lift_real d1 = 2.0*d0*t;
     const rack_lift_real d2 = p[1]/p[0];
-    out[0] = (1.0/2.0)*d2*(1 - cos(d1));
+    out[0] = (1.0/2.0)*d2*(1.0 - cos(d1));
     out[1] = d0*d2*sin(d1);
 }
 

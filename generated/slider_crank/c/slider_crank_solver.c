@@ -269,7 +269,7 @@ static void slider_crank_prepare(const slider_crank_real *p, slider_crank_real *
 {
     (void)memcpy(pp, p, sizeof(slider_crank_real) * 9u);
     {
-        pp[9] = (2*3.141592653589793*p[7]);
+        pp[9] = (2.0*3.141592653589793*p[7]);
         pp[10] = (1.0/12.0)*(p[0]*p[0])*p[2];
         pp[11] = (1.0/12.0)*(p[1]*p[1])*p[3];
         pp[12] = (1.0/12.0)*p[4]*((p[5]*p[5]) + (p[6]*p[6]));
@@ -320,27 +320,27 @@ static void slider_crank_phi_q_k0(const slider_crank_real * q, const slider_cran
     const slider_crank_real e3 = (1.0/2.0)*p[1];
     const slider_crank_real e4 = e3*tr[2];
     const slider_crank_real e5 = -e3*tr[3];
-    out[0] = 1;
+    out[0] = 1.0;
     out[1] = e1;
-    out[2] = 1;
+    out[2] = 1.0;
     out[3] = e2;
-    out[4] = -1;
+    out[4] = -1.0;
     out[5] = e1;
-    out[6] = 1;
+    out[6] = 1.0;
     out[7] = e4;
-    out[8] = -1;
+    out[8] = -1.0;
     out[9] = e2;
-    out[10] = 1;
+    out[10] = 1.0;
     out[11] = e5;
-    out[12] = -1;
+    out[12] = -1.0;
     out[13] = e4;
-    out[14] = 1;
-    out[15] = -1;
+    out[14] = 1.0;
+    out[15] = -1.0;
     out[16] = e5;
-    out[17] = 1;
-    out[18] = 1;
-    out[19] = 1;
-    out[20] = 1;
+    out[17] = 1.0;
+    out[18] = 1.0;
+    out[19] = 1.0;
+    out[20] = 1.0;
 }
 
 static void slider_crank_phi_q_k(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -363,14 +363,14 @@ static void slider_crank_nu_k0(const slider_crank_real * q, const slider_crank_r
     (void)q;
     (void)tr;
     (void)t;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
     out[8] = p[9];
 }
 
@@ -405,9 +405,9 @@ static void slider_crank_gamma_k0(const slider_crank_real * q, const slider_cran
     out[3] = -e2 - e5;
     out[4] = -e4;
     out[5] = -e5;
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
 }
 
 static void slider_crank_gamma_k(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -430,15 +430,15 @@ static void slider_crank_applied_k0(const slider_crank_real * q, const slider_cr
     (void)q;
     (void)tr;
     (void)qd;
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[2];
-    out[2] = 0;
-    out[3] = 0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = -981.0/100.0*p[3];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = -p[8]*sin(p[9]*t);
     out[7] = -981.0/100.0*p[4];
-    out[8] = 0;
+    out[8] = 0.0;
 }
 
 static void slider_crank_applied_k(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -489,33 +489,33 @@ static void slider_crank_reactions_k0(const slider_crank_real * q, const slider_
     (void)p;
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = lam[4];
     out[13] = lam[5];
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = -lam[4];
     out[16] = -lam[5];
-    out[17] = 0;
-    out[18] = 0;
+    out[17] = 0.0;
+    out[18] = 0.0;
     out[19] = lam[6];
     out[20] = (lam[6]*q[6]) + lam[7];
-    out[21] = 0;
+    out[21] = 0.0;
     out[22] = -lam[6];
     out[23] = -lam[7];
-    out[24] = 0;
-    out[25] = 0;
+    out[24] = 0.0;
+    out[25] = 0.0;
     out[26] = lam[8];
-    out[27] = 0;
-    out[28] = 0;
+    out[27] = 0.0;
+    out[28] = 0.0;
     out[29] = -lam[8];
 }
 
@@ -551,11 +551,11 @@ static int slider_crank_sparse_factor0(slider_crank_real *lu)
     cm = 1.0;
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[3]));
     cm = SLIDER_CRANK_MAX(cm, fabs(lu[9]));
-    if (!(1.0 >= SLIDER_CRANK_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (SLIDER_CRANK_THRESHOLD * cm))) { return 1; }
     lu[16] += lu[11];
     piv = lu[16];
     cm = fabs(piv);
-    if (!(fabs(piv) >= SLIDER_CRANK_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (SLIDER_CRANK_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[16] = 1.0 / piv;
     return 0;
 }
@@ -1563,14 +1563,14 @@ static void slider_crank_guess(const slider_crank_real *p, slider_crank_real *ou
 {
     (void)p;
     out[0] = (1.0/2.0)*p[0];
-    out[1] = 0;
-    out[2] = 0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = p[0] + ((1.0/2.0)*p[1]);
-    out[4] = 0;
-    out[5] = 0;
+    out[4] = 0.0;
+    out[5] = 0.0;
     out[6] = p[0] + p[1];
-    out[7] = 0;
-    out[8] = 0;
+    out[7] = 0.0;
+    out[8] = 0.0;
 }
 
 /* Each driver's f(t) and f'(t), in file order. */
@@ -1578,7 +1578,7 @@ static void slider_crank_drive(slider_crank_real t, const slider_crank_real *p, 
 {
     (void)t;
     (void)p;
-    const slider_crank_real d0 = (2*3.141592653589793*p[7]);
+    const slider_crank_real d0 = (2.0*3.141592653589793*p[7]);
     out[0] = d0*t;
     out[1] = d0;
 }

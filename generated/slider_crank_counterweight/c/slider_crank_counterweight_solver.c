@@ -280,7 +280,7 @@ static void slider_crank_counterweight_prepare(const slider_crank_counterweight_
         pp[12] = e3;
         pp[13] = e6;
         pp[14] = e7 + p[0];
-        pp[15] = (2*3.141592653589793*p[7]);
+        pp[15] = (2.0*3.141592653589793*p[7]);
         pp[16] = -981.0/100.0*e0;
         pp[17] = e0;
         pp[18] = (((1.0/12.0)*(p[0]*p[0])*p[2]) + (p[2]*((e3*e3) + ((e4 + e7)*(e4 + e7)))) + (p[9]*(((e2 - e3)*(e2 - e3)) + ((e5 + e7)*(e5 + e7)))));
@@ -331,27 +331,27 @@ static void slider_crank_counterweight_phi_q_k0(const slider_crank_counterweight
     const slider_crank_counterweight_real e2 = (1.0/2.0)*p[1];
     const slider_crank_counterweight_real e3 = e2*tr[2];
     const slider_crank_counterweight_real e4 = -e2*tr[3];
-    out[0] = 1;
+    out[0] = 1.0;
     out[1] = e0 + (p[13]*tr[0]);
-    out[2] = 1;
+    out[2] = 1.0;
     out[3] = e1 - (p[13]*tr[1]);
-    out[4] = -1;
+    out[4] = -1.0;
     out[5] = -e0 + (p[14]*tr[0]);
-    out[6] = 1;
+    out[6] = 1.0;
     out[7] = e3;
-    out[8] = -1;
+    out[8] = -1.0;
     out[9] = -e1 - (p[14]*tr[1]);
-    out[10] = 1;
+    out[10] = 1.0;
     out[11] = e4;
-    out[12] = -1;
+    out[12] = -1.0;
     out[13] = e3;
-    out[14] = 1;
-    out[15] = -1;
+    out[14] = 1.0;
+    out[15] = -1.0;
     out[16] = e4;
-    out[17] = 1;
-    out[18] = 1;
-    out[19] = 1;
-    out[20] = 1;
+    out[17] = 1.0;
+    out[18] = 1.0;
+    out[19] = 1.0;
+    out[20] = 1.0;
 }
 
 static void slider_crank_counterweight_phi_q_k(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -374,14 +374,14 @@ static void slider_crank_counterweight_nu_k0(const slider_crank_counterweight_re
     (void)q;
     (void)tr;
     (void)t;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
     out[8] = p[15];
 }
 
@@ -419,9 +419,9 @@ static void slider_crank_counterweight_gamma_k0(const slider_crank_counterweight
     out[3] = e4 - (e5*tr[0]) - e8;
     out[4] = -e7;
     out[5] = -e8;
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
 }
 
 static void slider_crank_counterweight_gamma_k(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -445,14 +445,14 @@ static void slider_crank_counterweight_applied_k0(const slider_crank_counterweig
     (void)tr;
     (void)qd;
     out[0] = p[16];
-    out[1] = 0;
-    out[2] = 0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = -981.0/100.0*p[3];
-    out[4] = 0;
-    out[5] = 0;
+    out[4] = 0.0;
+    out[5] = 0.0;
     out[6] = (-981.0/100.0*p[4]) - (p[8]*sin(p[15]*t));
-    out[7] = 0;
-    out[8] = 0;
+    out[7] = 0.0;
+    out[8] = 0.0;
 }
 
 static void slider_crank_counterweight_applied_k(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -503,33 +503,33 @@ static void slider_crank_counterweight_reactions_k0(const slider_crank_counterwe
     (void)p;
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = lam[4];
     out[13] = lam[5];
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = -lam[4];
     out[16] = -lam[5];
-    out[17] = 0;
-    out[18] = 0;
+    out[17] = 0.0;
+    out[18] = 0.0;
     out[19] = lam[6];
     out[20] = (lam[6]*q[6]) + lam[7];
-    out[21] = 0;
+    out[21] = 0.0;
     out[22] = -lam[6];
     out[23] = -lam[7];
-    out[24] = 0;
-    out[25] = 0;
+    out[24] = 0.0;
+    out[25] = 0.0;
     out[26] = lam[8];
-    out[27] = 0;
-    out[28] = 0;
+    out[27] = 0.0;
+    out[28] = 0.0;
     out[29] = -lam[8];
 }
 
@@ -565,11 +565,11 @@ static int slider_crank_counterweight_sparse_factor0(slider_crank_counterweight_
     cm = 1.0;
     cm = SLIDER_CRANK_COUNTERWEIGHT_MAX(cm, fabs(lu[3]));
     cm = SLIDER_CRANK_COUNTERWEIGHT_MAX(cm, fabs(lu[9]));
-    if (!(1.0 >= SLIDER_CRANK_COUNTERWEIGHT_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (SLIDER_CRANK_COUNTERWEIGHT_THRESHOLD * cm))) { return 1; }
     lu[16] += lu[11];
     piv = lu[16];
     cm = fabs(piv);
-    if (!(fabs(piv) >= SLIDER_CRANK_COUNTERWEIGHT_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (SLIDER_CRANK_COUNTERWEIGHT_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[16] = 1.0 / piv;
     return 0;
 }
@@ -1580,13 +1580,13 @@ static void slider_crank_counterweight_guess(const slider_crank_counterweight_re
     const slider_crank_counterweight_real g1 = p[10]*p[9];
     out[0] = (g0*((g1*cos(p[11])) + ((1.0/2.0)*p[0]*p[2])));
     out[1] = (g0*g1*sin(p[11]));
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = p[0] + ((1.0/2.0)*p[1]);
-    out[4] = 0;
-    out[5] = 0;
+    out[4] = 0.0;
+    out[5] = 0.0;
     out[6] = p[0] + p[1];
-    out[7] = 0;
-    out[8] = 0;
+    out[7] = 0.0;
+    out[8] = 0.0;
 }
 
 /* Each driver's f(t) and f'(t), in file order. */
@@ -1594,7 +1594,7 @@ static void slider_crank_counterweight_drive(slider_crank_counterweight_real t, 
 {
     (void)t;
     (void)p;
-    const slider_crank_counterweight_real d0 = (2*3.141592653589793*p[7]);
+    const slider_crank_counterweight_real d0 = (2.0*3.141592653589793*p[7]);
     out[0] = d0*t;
     out[1] = d0;
 }

@@ -252,7 +252,7 @@ static void slider_pendulum_prepare(const slider_pendulum_real *p, slider_pendul
 
 static void slider_pendulum_phi_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    const slider_pendulum_real e0 = 2*3.141592653589793*t;
+    const slider_pendulum_real e0 = 2.0*3.141592653589793*t;
     const slider_pendulum_real e1 = (1.0/2.0)*p[9];
     out[0] = (p[13]*((p[13]*tr[0]) + (p[14]*tr[1]))) - (p[14]*((p[13]*tr[1]) - (p[14]*tr[0])));
     out[1] = (p[13]*q[1]) - (p[14]*q[0]);
@@ -287,16 +287,16 @@ static void slider_pendulum_phi_q_k0(const slider_pendulum_real * q, const slide
     out[2] = p[13];
     out[3] = p[16];
     out[4] = p[17];
-    out[5] = -1;
+    out[5] = -1.0;
     out[6] = -p[8]*tr[1];
-    out[7] = 1;
+    out[7] = 1.0;
     out[8] = e0*tr[2];
-    out[9] = -1;
+    out[9] = -1.0;
     out[10] = -p[8]*tr[0];
-    out[11] = 1;
+    out[11] = 1.0;
     out[12] = -e0*tr[3];
-    out[13] = -1;
-    out[14] = 1;
+    out[13] = -1.0;
+    out[14] = 1.0;
 }
 
 static void slider_pendulum_phi_q_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -318,13 +318,13 @@ static void slider_pendulum_nu_k0(const slider_pendulum_real * q, const slider_p
 {
     (void)q;
     (void)tr;
-    const slider_pendulum_real e0 = 2*3.141592653589793;
+    const slider_pendulum_real e0 = 2.0*3.141592653589793;
     const slider_pendulum_real e1 = e0*t;
-    out[0] = 0;
-    out[1] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
     out[2] = e0*p[19]*cos(e1*p[2]);
-    out[3] = 0;
-    out[4] = 0;
+    out[3] = 0.0;
+    out[4] = 0.0;
     out[5] = e0*p[20]*cos(e1*p[4]);
 }
 
@@ -348,11 +348,11 @@ static void slider_pendulum_gamma_k0(const slider_pendulum_real * q, const slide
     (void)q;
     const slider_pendulum_real e0 = (qd[2]*qd[2]);
     const slider_pendulum_real e1 = e0*tr[0];
-    const slider_pendulum_real e2 = 2*3.141592653589793*t;
-    const slider_pendulum_real e3 = 4*(3.141592653589793*3.141592653589793);
+    const slider_pendulum_real e2 = 2.0*3.141592653589793*t;
+    const slider_pendulum_real e3 = 4.0*(3.141592653589793*3.141592653589793);
     const slider_pendulum_real e4 = (1.0/2.0)*p[9]*(qd[5]*qd[5]);
     out[0] = (e1*p[21]) + (e1*p[22]);
-    out[1] = 0;
+    out[1] = 0.0;
     out[2] = -e3*p[24]*sin(e2*p[2]);
     out[3] = (-e1*p[8]) - (e4*tr[3]);
     out[4] = (e0*p[8]*tr[1]) - (e4*tr[2]);
@@ -379,10 +379,10 @@ static void slider_pendulum_applied_k0(const slider_pendulum_real * q, const sli
     (void)tr;
     (void)t;
     const slider_pendulum_real e0 = (p[11]*(-q[2] + q[5] + ((1.0/2.0)*3.141592653589793))) + (p[12]*(-qd[2] + qd[5]));
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[5];
     out[2] = e0;
-    out[3] = 0;
+    out[3] = 0.0;
     out[4] = -981.0/100.0*p[10];
     out[5] = -e0;
 }
@@ -434,35 +434,35 @@ static void slider_pendulum_reactions_k0(const slider_pendulum_real * q, const s
     const slider_pendulum_real e3 = lam[1]*p[13];
     const slider_pendulum_real e4 = lam[2]*p[16];
     const slider_pendulum_real e5 = lam[2]*p[17];
-    out[0] = 0;
-    out[1] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
     out[2] = e1;
-    out[3] = 0;
-    out[4] = 0;
+    out[3] = 0.0;
+    out[4] = 0.0;
     out[5] = -e1;
     out[6] = -e2;
     out[7] = e3;
     out[8] = (e2*q[1]) + (e3*q[0]);
     out[9] = e2;
     out[10] = -e3;
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = e4;
     out[13] = e5;
     out[14] = (-e4*q[1]) + (lam[2]*p[17]*q[0]);
     out[15] = -e4;
     out[16] = -e5;
-    out[17] = 0;
+    out[17] = 0.0;
     out[18] = lam[3];
     out[19] = lam[4];
-    out[20] = 0;
+    out[20] = 0.0;
     out[21] = -lam[3];
     out[22] = -lam[4];
-    out[23] = 0;
-    out[24] = 0;
-    out[25] = 0;
+    out[23] = 0.0;
+    out[24] = 0.0;
+    out[25] = 0.0;
     out[26] = lam[5];
-    out[27] = 0;
-    out[28] = 0;
+    out[27] = 0.0;
+    out[28] = 0.0;
     out[29] = -lam[5];
 }
 
@@ -497,18 +497,18 @@ static int slider_pendulum_sparse_factor0(slider_pendulum_real *lu)
     slider_pendulum_real cm = 0.0;
     piv = lu[0];
     cm = fabs(piv);
-    if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (SLIDER_PENDULUM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[0] = 1.0 / piv;
     piv = lu[2];
     cm = fabs(piv);
     cm = SLIDER_PENDULUM_MAX(cm, fabs(lu[4]));
-    if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (SLIDER_PENDULUM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[2] = 1.0 / piv;
     lu[4] *= piv;
     lu[3] -= (lu[4] * lu[1]);
     piv = lu[3];
     cm = fabs(piv);
-    if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
+    if (!(fabs(piv) >= (SLIDER_PENDULUM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
     piv = lu[3] = 1.0 / piv;
     return 0;
 }
@@ -1539,10 +1539,10 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
 static void slider_pendulum_guess(const slider_pendulum_real *p, slider_pendulum_real *out)
 {
     (void)p;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = -p[8] - (1.0/2.0*p[9]);
     out[5] = -1.0/2.0*3.141592653589793;
 }
@@ -1552,7 +1552,7 @@ static void slider_pendulum_drive(slider_pendulum_real t, const slider_pendulum_
 {
     (void)t;
     (void)p;
-    const slider_pendulum_real d0 = 2*3.141592653589793;
+    const slider_pendulum_real d0 = 2.0*3.141592653589793;
     const slider_pendulum_real d1 = d0*t;
     const slider_pendulum_real d2 = d1*p[2];
     const slider_pendulum_real d3 = d1*p[4];

@@ -49,7 +49,7 @@ def _factor_lines(st: FoldedStep, P: str) -> list[str]:
             lines.append(f"cm = {known_max!r};")
         lines += [f"cm = {P}_MAX(cm, fabs(lu[{k}]));" for k in unknown]
         size = "fabs(piv)" if st.pivot is None else repr(abs(st.pivot))
-        lines.append(f"if (!({size} >= {P}_THRESHOLD * cm){' || piv == 0.0' if variable else ''}) return 1;")
+        lines.append(f"if (!({size} >= ({P}_THRESHOLD * cm)){' || (piv == 0.0)' if variable else ''}) {{ return 1; }}")
     if variable:
         lines.append(f"piv = lu[{st.pivot_slot}] = 1.0 / piv;")
     for m, source in st.scale:

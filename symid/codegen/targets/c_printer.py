@@ -118,8 +118,8 @@ class Printer(C99CodePrinter):
 
     def _print_Integer(self, expr: sp.Integer) -> str:
         # an integer literal past 2^63 does not compile; past `exact` it is not a value of the type
-        n = int(expr)
-        return str(n) if abs(n) < self.scalar.exact else self.scalar.lit(_quotient(n, 1))
+        n = int(expr)  # a floating literal: every value printed is of the real type (MISRA C:2012 10.3, 10.4)
+        return self.scalar.lit(float(n)) if abs(n) < self.scalar.exact else self.scalar.lit(_quotient(n, 1))
 
     def _print_Rational(self, expr: sp.Rational) -> str:
         p, q = int(expr.p), int(expr.q)
