@@ -559,8 +559,7 @@ void andrews_squeezer_phi(const andrews_squeezer_real * q, andrews_squeezer_real
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_phi_k(q, tr, t, p, out);
+    andrews_squeezer_phi_k(q, tr, t, prepared, out);
 }
 
 static void andrews_squeezer_phi_q_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -660,8 +659,7 @@ void andrews_squeezer_phi_q(const andrews_squeezer_real * q, andrews_squeezer_re
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_phi_q_k(q, tr, t, p, out);
+    andrews_squeezer_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void andrews_squeezer_nu_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -703,8 +701,7 @@ void andrews_squeezer_nu(const andrews_squeezer_real * q, andrews_squeezer_real 
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_nu_k(q, tr, t, p, out);
+    andrews_squeezer_nu_k(q, tr, t, prepared, out);
 }
 
 static void andrews_squeezer_gamma_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -774,8 +771,7 @@ void andrews_squeezer_gamma(const andrews_squeezer_real * q, const andrews_squee
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_gamma_k(q, tr, qd, t, p, out);
+    andrews_squeezer_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void andrews_squeezer_applied_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -824,8 +820,7 @@ void andrews_squeezer_applied(const andrews_squeezer_real * q, const andrews_squ
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_applied_k(q, tr, qd, t, p, out);
+    andrews_squeezer_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void andrews_squeezer_mass_k0(const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -862,8 +857,7 @@ void andrews_squeezer_mass(const andrews_squeezer_real * p, andrews_squeezer_rea
 {
     andrews_squeezer_real prepared[59];
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_mass_k(p, out);
+    andrews_squeezer_mass_k(prepared, out);
 }
 
 static void andrews_squeezer_reactions_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * lam, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -960,8 +954,7 @@ void andrews_squeezer_reactions(const andrews_squeezer_real * q, const andrews_s
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_reactions_k(q, tr, lam, t, p, out);
+    andrews_squeezer_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -1002,7 +995,8 @@ static int andrews_squeezer_sparse_factor0(andrews_squeezer_real *lu)
     cm = fabs(piv);
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[47]));
     if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[43] = 1.0 / piv;
+    lu[43] = 1.0 / piv;
+    piv = lu[43];
     lu[47] *= piv;
     lu[69] = 0.0 - lu[47];
     lu[45] -= (lu[47] * lu[41]);
@@ -1016,14 +1010,16 @@ static int andrews_squeezer_sparse_factor0(andrews_squeezer_real *lu)
     cm = fabs(piv);
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[55]));
     if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[51] = 1.0 / piv;
+    lu[51] = 1.0 / piv;
+    piv = lu[51];
     lu[55] *= piv;
     lu[53] -= (lu[55] * lu[49]);
     lu[66] -= (lu[55] * lu[65]);
     piv = lu[66];
     cm = fabs(piv);
     if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[66] = 1.0 / piv;
+    lu[66] = 1.0 / piv;
+    piv = lu[66];
     lu[45] -= lu[11];
     lu[61] -= lu[11];
     piv = lu[45];
@@ -1031,20 +1027,23 @@ static int andrews_squeezer_sparse_factor0(andrews_squeezer_real *lu)
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[57]));
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[61]));
     if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[45] = 1.0 / piv;
+    lu[45] = 1.0 / piv;
+    piv = lu[45];
     lu[57] *= piv;
     lu[61] *= piv;
     piv = lu[59];
     cm = fabs(piv);
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[63]));
     if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[59] = 1.0 / piv;
+    lu[59] = 1.0 / piv;
+    piv = lu[59];
     lu[63] *= piv;
     lu[68] -= (lu[63] * lu[67]);
     piv = lu[68];
     cm = fabs(piv);
     if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[68] = 1.0 / piv;
+    lu[68] = 1.0 / piv;
+    piv = lu[68];
     return 0;
 }
 
@@ -2436,7 +2435,9 @@ static void andrews_squeezer_sweep_take(const andrews_squeezer_real *row, const 
                                andrews_squeezer_real *drive, long count)
 {
     const andrews_squeezer_real t = row[0];
-    andrews_squeezer_real e, rate, w;
+    andrews_squeezer_real e;
+    andrews_squeezer_real rate;
+    andrews_squeezer_real w;
     andrews_squeezer_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -2573,7 +2574,9 @@ static void andrews_squeezer_sweep_finish(andrews_squeezer_real *fig, const andr
     const andrews_squeezer_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 15; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 15; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -2598,10 +2601,14 @@ static void andrews_squeezer_sweep_finish(andrews_squeezer_real *fig, const andr
 long andrews_squeezer_sweep_lanes(long *abandoned)
 {
 #if ANDREWS_SQUEEZER_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&andrews_squeezer_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&andrews_squeezer_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return andrews_squeezer_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -2609,8 +2616,16 @@ long andrews_squeezer_sweep_lanes(long *abandoned)
 int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squeezer_real t0, andrews_squeezer_real h, long n, andrews_squeezer_real tol,
                   andrews_squeezer_real *figures, int *status, andrews_squeezer_real *t_end, long *solved, andrews_squeezer_real *work, int *iwork)
 {
-    andrews_squeezer_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    andrews_squeezer_real *state;
+    andrews_squeezer_real *rows;
+    andrews_squeezer_real *vals;
+    andrews_squeezer_real *arms;
+    andrews_squeezer_real *drive;
+    andrews_squeezer_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if ANDREWS_SQUEEZER_LANES > 1
     const long lanes = andrews_squeezer_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
@@ -2623,8 +2638,11 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
         return ANDREWS_SQUEEZER_BAD_ARGUMENT;
     }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + ANDREWS_SQUEEZER_WORK, rows = &state[ANDREWS_SQUEEZER_STATE];
-    vals = &rows[32 * ANDREWS_SQUEEZER_ROW], arms = &vals[65], drive = &arms[21];
+    state = &work[ANDREWS_SQUEEZER_WORK];
+    rows = &state[ANDREWS_SQUEEZER_STATE];
+    vals = &rows[32 * ANDREWS_SQUEEZER_ROW];
+    arms = &vals[65];
+    drive = &arms[21];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const andrews_squeezer_real *pv = &p[v * ANDREWS_SQUEEZER_NP];

@@ -356,8 +356,7 @@ void excavator_phi(const excavator_real * q, excavator_real t, const excavator_r
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_phi_k(q, tr, t, p, out);
+    excavator_phi_k(q, tr, t, prepared, out);
 }
 
 static void excavator_phi_q_k0(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -463,8 +462,7 @@ void excavator_phi_q(const excavator_real * q, excavator_real t, const excavator
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_phi_q_k(q, tr, t, p, out);
+    excavator_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void excavator_nu_k0(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -497,8 +495,7 @@ void excavator_nu(const excavator_real * q, excavator_real t, const excavator_re
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_nu_k(q, tr, t, p, out);
+    excavator_nu_k(q, tr, t, prepared, out);
 }
 
 static void excavator_gamma_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -584,8 +581,7 @@ void excavator_gamma(const excavator_real * q, const excavator_real * qd, excava
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_gamma_k(q, tr, qd, t, p, out);
+    excavator_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void excavator_applied_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -616,8 +612,7 @@ void excavator_applied(const excavator_real * q, const excavator_real * qd, exca
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_applied_k(q, tr, qd, t, p, out);
+    excavator_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void excavator_mass_k0(const excavator_real * p, excavator_real *out)
@@ -642,8 +637,7 @@ void excavator_mass(const excavator_real * p, excavator_real *out)
 {
     excavator_real prepared[41];
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_mass_k(p, out);
+    excavator_mass_k(prepared, out);
 }
 
 static void excavator_reactions_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * lam, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -735,8 +729,7 @@ void excavator_reactions(const excavator_real * q, const excavator_real * lam, e
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_reactions_k(q, tr, lam, t, p, out);
+    excavator_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -771,7 +764,8 @@ static int excavator_sparse_factor0(excavator_real *lu)
     cm = EXCAVATOR_MAX(cm, 1.0);
     cm = EXCAVATOR_MAX(cm, fabs(lu[23]));
     if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[20] = 1.0 / piv;
+    lu[20] = 1.0 / piv;
+    piv = lu[20];
     lu[0] = 1.0 * piv;
     lu[4] = -1.0 * piv;
     lu[23] *= piv;
@@ -784,7 +778,8 @@ static int excavator_sparse_factor0(excavator_real *lu)
     cm = EXCAVATOR_MAX(cm, fabs(lu[9]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[25]));
     if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[1] = 1.0 / piv;
+    lu[1] = 1.0 / piv;
+    piv = lu[1];
     lu[5] *= piv;
     lu[9] *= piv;
     lu[25] *= piv;
@@ -799,7 +794,8 @@ static int excavator_sparse_factor0(excavator_real *lu)
     cm = EXCAVATOR_MAX(cm, 1.0);
     cm = EXCAVATOR_MAX(cm, fabs(lu[29]));
     if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[26] = 1.0 / piv;
+    lu[26] = 1.0 / piv;
+    piv = lu[26];
     lu[6] = 1.0 * piv;
     lu[12] = -1.0 * piv;
     lu[29] *= piv;
@@ -811,20 +807,23 @@ static int excavator_sparse_factor0(excavator_real *lu)
     cm = EXCAVATOR_MAX(cm, fabs(lu[13]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[31]));
     if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[7] = 1.0 / piv;
+    lu[7] = 1.0 / piv;
+    piv = lu[7];
     lu[13] *= piv;
     lu[31] *= piv;
     piv = lu[32];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, 1.0);
     if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[32] = 1.0 / piv;
+    lu[32] = 1.0 / piv;
+    piv = lu[32];
     lu[14] = 1.0 * piv;
     lu[15] -= (lu[14] * lu[34]);
     piv = lu[15];
     cm = fabs(piv);
     if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[15] = 1.0 / piv;
+    lu[15] = 1.0 / piv;
+    piv = lu[15];
     return 0;
 }
 
@@ -1954,7 +1953,9 @@ static void excavator_sweep_take(const excavator_real *row, const excavator_real
                                excavator_real *drive, long count)
 {
     const excavator_real t = row[0];
-    excavator_real e, rate, w;
+    excavator_real e;
+    excavator_real rate;
+    excavator_real w;
     excavator_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -2084,7 +2085,9 @@ static void excavator_sweep_finish(excavator_real *fig, const excavator_real *ac
     const excavator_real span = acc[10] - acc[9];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 18; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 18; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -2108,10 +2111,14 @@ static void excavator_sweep_finish(excavator_real *fig, const excavator_real *ac
 long excavator_sweep_lanes(long *abandoned)
 {
 #if EXCAVATOR_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&excavator_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&excavator_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return excavator_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -2119,8 +2126,16 @@ long excavator_sweep_lanes(long *abandoned)
 int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavator_real h, long n, excavator_real tol,
                   excavator_real *figures, int *status, excavator_real *t_end, long *solved, excavator_real *work, int *iwork)
 {
-    excavator_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    excavator_real *state;
+    excavator_real *rows;
+    excavator_real *vals;
+    excavator_real *arms;
+    excavator_real *drive;
+    excavator_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if EXCAVATOR_LANES > 1
     const long lanes = excavator_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
@@ -2133,8 +2148,11 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
         return EXCAVATOR_BAD_ARGUMENT;
     }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + EXCAVATOR_WORK, rows = &state[EXCAVATOR_STATE];
-    vals = &rows[32 * EXCAVATOR_ROW], arms = &vals[35], drive = &arms[9];
+    state = &work[EXCAVATOR_WORK];
+    rows = &state[EXCAVATOR_STATE];
+    vals = &rows[32 * EXCAVATOR_ROW];
+    arms = &vals[35];
+    drive = &arms[9];
     acc = &drive[6];
     for (v = 0; v < k; ++v) {
         const excavator_real *pv = &p[v * EXCAVATOR_NP];

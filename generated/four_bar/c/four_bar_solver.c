@@ -311,8 +311,7 @@ void four_bar_phi(const four_bar_real * q, four_bar_real t, const four_bar_real 
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_phi_k(q, tr, t, p, out);
+    four_bar_phi_k(q, tr, t, prepared, out);
 }
 
 static void four_bar_phi_q_k0(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -366,8 +365,7 @@ void four_bar_phi_q(const four_bar_real * q, four_bar_real t, const four_bar_rea
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_phi_q_k(q, tr, t, p, out);
+    four_bar_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void four_bar_nu_k0(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -397,8 +395,7 @@ void four_bar_nu(const four_bar_real * q, four_bar_real t, const four_bar_real *
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_nu_k(q, tr, t, p, out);
+    four_bar_nu_k(q, tr, t, prepared, out);
 }
 
 static void four_bar_gamma_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -436,8 +433,7 @@ void four_bar_gamma(const four_bar_real * q, const four_bar_real * qd, four_bar_
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_gamma_k(q, tr, qd, t, p, out);
+    four_bar_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void four_bar_applied_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -474,8 +470,7 @@ void four_bar_applied(const four_bar_real * q, const four_bar_real * qd, four_ba
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_applied_k(q, tr, qd, t, p, out);
+    four_bar_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void four_bar_mass_k0(const four_bar_real * p, four_bar_real *out)
@@ -500,8 +495,7 @@ void four_bar_mass(const four_bar_real * p, four_bar_real *out)
 {
     four_bar_real prepared[19];
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_mass_k(p, out);
+    four_bar_mass_k(prepared, out);
 }
 
 static void four_bar_reactions_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * lam, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -553,8 +547,7 @@ void four_bar_reactions(const four_bar_real * q, const four_bar_real * lam, four
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_reactions_k(q, tr, lam, t, p, out);
+    four_bar_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -584,14 +577,16 @@ static int four_bar_sparse_factor0(four_bar_real *lu)
     cm = fabs(piv);
     cm = FOUR_BAR_MAX(cm, fabs(lu[17]));
     if (!(fabs(piv) >= (FOUR_BAR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[13] = 1.0 / piv;
+    lu[13] = 1.0 / piv;
+    piv = lu[13];
     lu[17] *= piv;
     lu[19] -= (lu[17] * lu[15]);
     lu[23] -= lu[19];
     piv = lu[23];
     cm = fabs(piv);
     if (!(fabs(piv) >= (FOUR_BAR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[23] = 1.0 / piv;
+    lu[23] = 1.0 / piv;
+    piv = lu[23];
     return 0;
 }
 
@@ -1702,7 +1697,9 @@ static void four_bar_sweep_take(const four_bar_real *row, const four_bar_real *p
                                four_bar_real *drive, long count)
 {
     const four_bar_real t = row[0];
-    four_bar_real e, rate, w;
+    four_bar_real e;
+    four_bar_real rate;
+    four_bar_real w;
     four_bar_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1785,7 +1782,9 @@ static void four_bar_sweep_finish(four_bar_real *fig, const four_bar_real *acc, 
     const four_bar_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 9; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 9; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1804,10 +1803,14 @@ static void four_bar_sweep_finish(four_bar_real *fig, const four_bar_real *acc, 
 long four_bar_sweep_lanes(long *abandoned)
 {
 #if FOUR_BAR_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&four_bar_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&four_bar_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return four_bar_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1815,8 +1818,16 @@ long four_bar_sweep_lanes(long *abandoned)
 int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_real h, long n, four_bar_real tol,
                   four_bar_real *figures, int *status, four_bar_real *t_end, long *solved, four_bar_real *work, int *iwork)
 {
-    four_bar_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    four_bar_real *state;
+    four_bar_real *rows;
+    four_bar_real *vals;
+    four_bar_real *arms;
+    four_bar_real *drive;
+    four_bar_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if FOUR_BAR_LANES > 1
     const long lanes = four_bar_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
@@ -1829,8 +1840,11 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
         return FOUR_BAR_BAD_ARGUMENT;
     }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + FOUR_BAR_WORK, rows = &state[FOUR_BAR_STATE];
-    vals = &rows[32 * FOUR_BAR_ROW], arms = &vals[25], drive = &arms[9];
+    state = &work[FOUR_BAR_WORK];
+    rows = &state[FOUR_BAR_STATE];
+    vals = &rows[32 * FOUR_BAR_ROW];
+    arms = &vals[25];
+    drive = &arms[9];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const four_bar_real *pv = &p[v * FOUR_BAR_NP];

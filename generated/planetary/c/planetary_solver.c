@@ -388,8 +388,7 @@ void planetary_phi(const planetary_real * q, planetary_real t, const planetary_r
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_phi_k(q, tr, t, p, out);
+    planetary_phi_k(q, tr, t, prepared, out);
 }
 
 static void planetary_phi_q_k0(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -429,8 +428,7 @@ void planetary_phi_q(const planetary_real * q, planetary_real t, const planetary
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_phi_q_k(q, tr, t, p, out);
+    planetary_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void planetary_nu_k0(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -463,8 +461,7 @@ void planetary_nu(const planetary_real * q, planetary_real t, const planetary_re
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_nu_k(q, tr, t, p, out);
+    planetary_nu_k(q, tr, t, prepared, out);
 }
 
 static void planetary_gamma_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -497,8 +494,7 @@ void planetary_gamma(const planetary_real * q, const planetary_real * qd, planet
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_gamma_k(q, tr, qd, t, p, out);
+    planetary_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void planetary_applied_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -532,8 +528,7 @@ void planetary_applied(const planetary_real * q, const planetary_real * qd, plan
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_applied_k(q, tr, qd, t, p, out);
+    planetary_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void planetary_mass_k0(const planetary_real * p, planetary_real *out)
@@ -561,8 +556,7 @@ void planetary_mass(const planetary_real * p, planetary_real *out)
 {
     planetary_real prepared[25];
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_mass_k(p, out);
+    planetary_mass_k(prepared, out);
 }
 
 static void planetary_reactions_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * lam, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -646,8 +640,7 @@ void planetary_reactions(const planetary_real * q, const planetary_real * lam, p
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_reactions_k(q, tr, lam, t, p, out);
+    planetary_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -674,13 +667,15 @@ static int planetary_sparse_factor0(planetary_real *lu)
     cm = fabs(piv);
     cm = PLANETARY_MAX(cm, fabs(lu[13]));
     if (!(fabs(piv) >= (PLANETARY_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[11] = 1.0 / piv;
+    lu[11] = 1.0 / piv;
+    piv = lu[11];
     lu[13] *= piv;
     lu[14] -= lu[13];
     piv = lu[14];
     cm = fabs(piv);
     if (!(fabs(piv) >= (PLANETARY_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[14] = 1.0 / piv;
+    lu[14] = 1.0 / piv;
+    piv = lu[14];
     return 0;
 }
 
@@ -1843,7 +1838,9 @@ static void planetary_sweep_take(const planetary_real *row, const planetary_real
                                planetary_real *drive, long count)
 {
     const planetary_real t = row[0];
-    planetary_real e, rate, w;
+    planetary_real e;
+    planetary_real rate;
+    planetary_real w;
     planetary_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1957,7 +1954,9 @@ static void planetary_sweep_finish(planetary_real *fig, const planetary_real *ac
     const planetary_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 12; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 12; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1979,10 +1978,14 @@ static void planetary_sweep_finish(planetary_real *fig, const planetary_real *ac
 long planetary_sweep_lanes(long *abandoned)
 {
 #if PLANETARY_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&planetary_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&planetary_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return planetary_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1990,8 +1993,16 @@ long planetary_sweep_lanes(long *abandoned)
 int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetary_real h, long n, planetary_real tol,
                   planetary_real *figures, int *status, planetary_real *t_end, long *solved, planetary_real *work, int *iwork)
 {
-    planetary_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    planetary_real *state;
+    planetary_real *rows;
+    planetary_real *vals;
+    planetary_real *arms;
+    planetary_real *drive;
+    planetary_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if PLANETARY_LANES > 1
     const long lanes = planetary_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
@@ -2004,8 +2015,11 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
         return PLANETARY_BAD_ARGUMENT;
     }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + PLANETARY_WORK, rows = &state[PLANETARY_STATE];
-    vals = &rows[32 * PLANETARY_ROW], arms = &vals[20], drive = &arms[12];
+    state = &work[PLANETARY_WORK];
+    rows = &state[PLANETARY_STATE];
+    vals = &rows[32 * PLANETARY_ROW];
+    arms = &vals[20];
+    drive = &arms[12];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const planetary_real *pv = &p[v * PLANETARY_NP];

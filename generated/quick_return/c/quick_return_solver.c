@@ -312,8 +312,7 @@ void quick_return_phi(const quick_return_real * q, quick_return_real t, const qu
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_phi_k(q, tr, t, p, out);
+    quick_return_phi_k(q, tr, t, prepared, out);
 }
 
 static void quick_return_phi_q_k0(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -360,8 +359,7 @@ void quick_return_phi_q(const quick_return_real * q, quick_return_real t, const 
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_phi_q_k(q, tr, t, p, out);
+    quick_return_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void quick_return_nu_k0(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -391,8 +389,7 @@ void quick_return_nu(const quick_return_real * q, quick_return_real t, const qui
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_nu_k(q, tr, t, p, out);
+    quick_return_nu_k(q, tr, t, prepared, out);
 }
 
 static void quick_return_gamma_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -434,8 +431,7 @@ void quick_return_gamma(const quick_return_real * q, const quick_return_real * q
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_gamma_k(q, tr, qd, t, p, out);
+    quick_return_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void quick_return_applied_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -465,8 +461,7 @@ void quick_return_applied(const quick_return_real * q, const quick_return_real *
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_applied_k(q, tr, qd, t, p, out);
+    quick_return_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void quick_return_mass_k0(const quick_return_real * p, quick_return_real *out)
@@ -491,8 +486,7 @@ void quick_return_mass(const quick_return_real * p, quick_return_real *out)
 {
     quick_return_real prepared[18];
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_mass_k(p, out);
+    quick_return_mass_k(prepared, out);
 }
 
 static void quick_return_reactions_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * lam, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -555,8 +549,7 @@ void quick_return_reactions(const quick_return_real * q, const quick_return_real
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_reactions_k(q, tr, lam, t, p, out);
+    quick_return_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -582,7 +575,8 @@ static int quick_return_sparse_factor0(quick_return_real *lu)
     piv = lu[15];
     cm = fabs(piv);
     if (!(fabs(piv) >= (QUICK_RETURN_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[15] = 1.0 / piv;
+    lu[15] = 1.0 / piv;
+    piv = lu[15];
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[8]));
     if (!(1.0 >= (QUICK_RETURN_THRESHOLD * cm))) { return 1; }
@@ -597,7 +591,8 @@ static int quick_return_sparse_factor0(quick_return_real *lu)
     piv = lu[11];
     cm = fabs(piv);
     if (!(fabs(piv) >= (QUICK_RETURN_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[11] = 1.0 / piv;
+    lu[11] = 1.0 / piv;
+    piv = lu[11];
     return 0;
 }
 
@@ -1695,7 +1690,9 @@ static void quick_return_sweep_take(const quick_return_real *row, const quick_re
                                quick_return_real *drive, long count)
 {
     const quick_return_real t = row[0];
-    quick_return_real e, rate, w;
+    quick_return_real e;
+    quick_return_real rate;
+    quick_return_real w;
     quick_return_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1787,7 +1784,9 @@ static void quick_return_sweep_finish(quick_return_real *fig, const quick_return
     const quick_return_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 10; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 10; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1807,10 +1806,14 @@ static void quick_return_sweep_finish(quick_return_real *fig, const quick_return
 long quick_return_sweep_lanes(long *abandoned)
 {
 #if QUICK_RETURN_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&quick_return_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&quick_return_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return quick_return_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1818,8 +1821,16 @@ long quick_return_sweep_lanes(long *abandoned)
 int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0, quick_return_real h, long n, quick_return_real tol,
                   quick_return_real *figures, int *status, quick_return_real *t_end, long *solved, quick_return_real *work, int *iwork)
 {
-    quick_return_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    quick_return_real *state;
+    quick_return_real *rows;
+    quick_return_real *vals;
+    quick_return_real *arms;
+    quick_return_real *drive;
+    quick_return_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if QUICK_RETURN_LANES > 1
     const long lanes = quick_return_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
@@ -1832,8 +1843,11 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
         return QUICK_RETURN_BAD_ARGUMENT;
     }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + QUICK_RETURN_WORK, rows = &state[QUICK_RETURN_STATE];
-    vals = &rows[32 * QUICK_RETURN_ROW], arms = &vals[20], drive = &arms[9];
+    state = &work[QUICK_RETURN_WORK];
+    rows = &state[QUICK_RETURN_STATE];
+    vals = &rows[32 * QUICK_RETURN_ROW];
+    arms = &vals[20];
+    drive = &arms[9];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const quick_return_real *pv = &p[v * QUICK_RETURN_NP];

@@ -257,8 +257,7 @@ void rack_lift_phi(const rack_lift_real * q, rack_lift_real t, const rack_lift_r
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_phi_k(q, tr, t, p, out);
+    rack_lift_phi_k(q, tr, t, prepared, out);
 }
 
 static void rack_lift_phi_q_k0(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -289,8 +288,7 @@ void rack_lift_phi_q(const rack_lift_real * q, rack_lift_real t, const rack_lift
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_phi_q_k(q, tr, t, p, out);
+    rack_lift_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void rack_lift_nu_k0(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -316,8 +314,7 @@ void rack_lift_nu(const rack_lift_real * q, rack_lift_real t, const rack_lift_re
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_nu_k(q, tr, t, p, out);
+    rack_lift_nu_k(q, tr, t, prepared, out);
 }
 
 static void rack_lift_gamma_k0(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -347,8 +344,7 @@ void rack_lift_gamma(const rack_lift_real * q, const rack_lift_real * qd, rack_l
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_gamma_k(q, tr, qd, t, p, out);
+    rack_lift_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void rack_lift_applied_k0(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -375,8 +371,7 @@ void rack_lift_applied(const rack_lift_real * q, const rack_lift_real * qd, rack
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_applied_k(q, tr, qd, t, p, out);
+    rack_lift_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void rack_lift_mass_k0(const rack_lift_real * p, rack_lift_real *out)
@@ -398,8 +393,7 @@ void rack_lift_mass(const rack_lift_real * p, rack_lift_real *out)
 {
     rack_lift_real prepared[18];
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_mass_k(p, out);
+    rack_lift_mass_k(prepared, out);
 }
 
 static void rack_lift_reactions_k0(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * lam, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -445,8 +439,7 @@ void rack_lift_reactions(const rack_lift_real * q, const rack_lift_real * lam, r
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_reactions_k(q, tr, lam, t, p, out);
+    rack_lift_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -479,7 +472,8 @@ static int rack_lift_sparse_factor0(rack_lift_real *lu)
     piv = lu[8];
     cm = fabs(piv);
     if (!(fabs(piv) >= (RACK_LIFT_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[8] = 1.0 / piv;
+    lu[8] = 1.0 / piv;
+    piv = lu[8];
     return 0;
 }
 
@@ -1595,7 +1589,9 @@ static void rack_lift_sweep_take(const rack_lift_real *row, const rack_lift_real
                                rack_lift_real *drive, long count)
 {
     const rack_lift_real t = row[0];
-    rack_lift_real e, rate, w;
+    rack_lift_real e;
+    rack_lift_real rate;
+    rack_lift_real w;
     rack_lift_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1669,7 +1665,9 @@ static void rack_lift_sweep_finish(rack_lift_real *fig, const rack_lift_real *ac
     const rack_lift_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 8; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 8; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1687,10 +1685,14 @@ static void rack_lift_sweep_finish(rack_lift_real *fig, const rack_lift_real *ac
 long rack_lift_sweep_lanes(long *abandoned)
 {
 #if RACK_LIFT_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&rack_lift_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&rack_lift_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return rack_lift_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1698,8 +1700,16 @@ long rack_lift_sweep_lanes(long *abandoned)
 int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lift_real h, long n, rack_lift_real tol,
                   rack_lift_real *figures, int *status, rack_lift_real *t_end, long *solved, rack_lift_real *work, int *iwork)
 {
-    rack_lift_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    rack_lift_real *state;
+    rack_lift_real *rows;
+    rack_lift_real *vals;
+    rack_lift_real *arms;
+    rack_lift_real *drive;
+    rack_lift_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if RACK_LIFT_LANES > 1
     const long lanes = rack_lift_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
@@ -1712,8 +1722,11 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
         return RACK_LIFT_BAD_ARGUMENT;
     }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + RACK_LIFT_WORK, rows = &state[RACK_LIFT_STATE];
-    vals = &rows[32 * RACK_LIFT_ROW], arms = &vals[11], drive = &arms[6];
+    state = &work[RACK_LIFT_WORK];
+    rows = &state[RACK_LIFT_STATE];
+    vals = &rows[32 * RACK_LIFT_ROW];
+    arms = &vals[11];
+    drive = &arms[6];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const rack_lift_real *pv = &p[v * RACK_LIFT_NP];

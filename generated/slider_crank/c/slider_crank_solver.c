@@ -306,8 +306,7 @@ void slider_crank_phi(const slider_crank_real * q, slider_crank_real t, const sl
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
-    p = prepared;
-    slider_crank_phi_k(q, tr, t, p, out);
+    slider_crank_phi_k(q, tr, t, prepared, out);
 }
 
 static void slider_crank_phi_q_k0(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -354,8 +353,7 @@ void slider_crank_phi_q(const slider_crank_real * q, slider_crank_real t, const 
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
-    p = prepared;
-    slider_crank_phi_q_k(q, tr, t, p, out);
+    slider_crank_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void slider_crank_nu_k0(const slider_crank_real * q, const slider_crank_real * tr, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -385,8 +383,7 @@ void slider_crank_nu(const slider_crank_real * q, slider_crank_real t, const sli
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
-    p = prepared;
-    slider_crank_nu_k(q, tr, t, p, out);
+    slider_crank_nu_k(q, tr, t, prepared, out);
 }
 
 static void slider_crank_gamma_k0(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -421,8 +418,7 @@ void slider_crank_gamma(const slider_crank_real * q, const slider_crank_real * q
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
-    p = prepared;
-    slider_crank_gamma_k(q, tr, qd, t, p, out);
+    slider_crank_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void slider_crank_applied_k0(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -452,8 +448,7 @@ void slider_crank_applied(const slider_crank_real * q, const slider_crank_real *
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
-    p = prepared;
-    slider_crank_applied_k(q, tr, qd, t, p, out);
+    slider_crank_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void slider_crank_mass_k0(const slider_crank_real * p, slider_crank_real *out)
@@ -478,8 +473,7 @@ void slider_crank_mass(const slider_crank_real * p, slider_crank_real *out)
 {
     slider_crank_real prepared[13];
     slider_crank_prepare(p, prepared);
-    p = prepared;
-    slider_crank_mass_k(p, out);
+    slider_crank_mass_k(prepared, out);
 }
 
 static void slider_crank_reactions_k0(const slider_crank_real * q, const slider_crank_real * tr, const slider_crank_real * lam, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
@@ -530,8 +524,7 @@ void slider_crank_reactions(const slider_crank_real * q, const slider_crank_real
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
-    p = prepared;
-    slider_crank_reactions_k(q, tr, lam, t, p, out);
+    slider_crank_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -556,7 +549,8 @@ static int slider_crank_sparse_factor0(slider_crank_real *lu)
     piv = lu[16];
     cm = fabs(piv);
     if (!(fabs(piv) >= (SLIDER_CRANK_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[16] = 1.0 / piv;
+    lu[16] = 1.0 / piv;
+    piv = lu[16];
     return 0;
 }
 
@@ -1655,7 +1649,9 @@ static void slider_crank_sweep_take(const slider_crank_real *row, const slider_c
                                slider_crank_real *drive, long count)
 {
     const slider_crank_real t = row[0];
-    slider_crank_real e, rate, w;
+    slider_crank_real e;
+    slider_crank_real rate;
+    slider_crank_real w;
     slider_crank_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1738,7 +1734,9 @@ static void slider_crank_sweep_finish(slider_crank_real *fig, const slider_crank
     const slider_crank_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 9; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 9; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1757,10 +1755,14 @@ static void slider_crank_sweep_finish(slider_crank_real *fig, const slider_crank
 long slider_crank_sweep_lanes(long *abandoned)
 {
 #if SLIDER_CRANK_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&slider_crank_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&slider_crank_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return slider_crank_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1768,8 +1770,16 @@ long slider_crank_sweep_lanes(long *abandoned)
 int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0, slider_crank_real h, long n, slider_crank_real tol,
                   slider_crank_real *figures, int *status, slider_crank_real *t_end, long *solved, slider_crank_real *work, int *iwork)
 {
-    slider_crank_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    slider_crank_real *state;
+    slider_crank_real *rows;
+    slider_crank_real *vals;
+    slider_crank_real *arms;
+    slider_crank_real *drive;
+    slider_crank_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if SLIDER_CRANK_LANES > 1
     const long lanes = slider_crank_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
@@ -1782,8 +1792,11 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
         return SLIDER_CRANK_BAD_ARGUMENT;
     }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + SLIDER_CRANK_WORK, rows = &state[SLIDER_CRANK_STATE];
-    vals = &rows[32 * SLIDER_CRANK_ROW], arms = &vals[21], drive = &arms[9];
+    state = &work[SLIDER_CRANK_WORK];
+    rows = &state[SLIDER_CRANK_STATE];
+    vals = &rows[32 * SLIDER_CRANK_ROW];
+    arms = &vals[21];
+    drive = &arms[9];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const slider_crank_real *pv = &p[v * SLIDER_CRANK_NP];

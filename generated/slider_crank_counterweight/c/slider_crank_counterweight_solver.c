@@ -318,8 +318,7 @@ void slider_crank_counterweight_phi(const slider_crank_counterweight_real * q, s
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_phi_k(q, tr, t, p, out);
+    slider_crank_counterweight_phi_k(q, tr, t, prepared, out);
 }
 
 static void slider_crank_counterweight_phi_q_k0(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -365,8 +364,7 @@ void slider_crank_counterweight_phi_q(const slider_crank_counterweight_real * q,
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_phi_q_k(q, tr, t, p, out);
+    slider_crank_counterweight_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void slider_crank_counterweight_nu_k0(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -396,8 +394,7 @@ void slider_crank_counterweight_nu(const slider_crank_counterweight_real * q, sl
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_nu_k(q, tr, t, p, out);
+    slider_crank_counterweight_nu_k(q, tr, t, prepared, out);
 }
 
 static void slider_crank_counterweight_gamma_k0(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -435,8 +432,7 @@ void slider_crank_counterweight_gamma(const slider_crank_counterweight_real * q,
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_gamma_k(q, tr, qd, t, p, out);
+    slider_crank_counterweight_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void slider_crank_counterweight_applied_k0(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -466,8 +462,7 @@ void slider_crank_counterweight_applied(const slider_crank_counterweight_real * 
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_applied_k(q, tr, qd, t, p, out);
+    slider_crank_counterweight_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void slider_crank_counterweight_mass_k0(const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -492,8 +487,7 @@ void slider_crank_counterweight_mass(const slider_crank_counterweight_real * p, 
 {
     slider_crank_counterweight_real prepared[21];
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_mass_k(p, out);
+    slider_crank_counterweight_mass_k(prepared, out);
 }
 
 static void slider_crank_counterweight_reactions_k0(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, const slider_crank_counterweight_real * lam, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -544,8 +538,7 @@ void slider_crank_counterweight_reactions(const slider_crank_counterweight_real 
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_reactions_k(q, tr, lam, t, p, out);
+    slider_crank_counterweight_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -570,7 +563,8 @@ static int slider_crank_counterweight_sparse_factor0(slider_crank_counterweight_
     piv = lu[16];
     cm = fabs(piv);
     if (!(fabs(piv) >= (SLIDER_CRANK_COUNTERWEIGHT_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[16] = 1.0 / piv;
+    lu[16] = 1.0 / piv;
+    piv = lu[16];
     return 0;
 }
 
@@ -1671,7 +1665,9 @@ static void slider_crank_counterweight_sweep_take(const slider_crank_counterweig
                                slider_crank_counterweight_real *drive, long count)
 {
     const slider_crank_counterweight_real t = row[0];
-    slider_crank_counterweight_real e, rate, w;
+    slider_crank_counterweight_real e;
+    slider_crank_counterweight_real rate;
+    slider_crank_counterweight_real w;
     slider_crank_counterweight_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1754,7 +1750,9 @@ static void slider_crank_counterweight_sweep_finish(slider_crank_counterweight_r
     const slider_crank_counterweight_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 9; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 9; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1773,10 +1771,14 @@ static void slider_crank_counterweight_sweep_finish(slider_crank_counterweight_r
 long slider_crank_counterweight_sweep_lanes(long *abandoned)
 {
 #if SLIDER_CRANK_COUNTERWEIGHT_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&slider_crank_counterweight_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&slider_crank_counterweight_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return slider_crank_counterweight_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1784,8 +1786,16 @@ long slider_crank_counterweight_sweep_lanes(long *abandoned)
 int slider_crank_counterweight_sweep(long k, const slider_crank_counterweight_real *p, slider_crank_counterweight_real t0, slider_crank_counterweight_real h, long n, slider_crank_counterweight_real tol,
                   slider_crank_counterweight_real *figures, int *status, slider_crank_counterweight_real *t_end, long *solved, slider_crank_counterweight_real *work, int *iwork)
 {
-    slider_crank_counterweight_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    slider_crank_counterweight_real *state;
+    slider_crank_counterweight_real *rows;
+    slider_crank_counterweight_real *vals;
+    slider_crank_counterweight_real *arms;
+    slider_crank_counterweight_real *drive;
+    slider_crank_counterweight_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if SLIDER_CRANK_COUNTERWEIGHT_LANES > 1
     const long lanes = slider_crank_counterweight_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
@@ -1798,8 +1808,11 @@ int slider_crank_counterweight_sweep(long k, const slider_crank_counterweight_re
         return SLIDER_CRANK_COUNTERWEIGHT_BAD_ARGUMENT;
     }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + SLIDER_CRANK_COUNTERWEIGHT_WORK, rows = &state[SLIDER_CRANK_COUNTERWEIGHT_STATE];
-    vals = &rows[32 * SLIDER_CRANK_COUNTERWEIGHT_ROW], arms = &vals[21], drive = &arms[9];
+    state = &work[SLIDER_CRANK_COUNTERWEIGHT_WORK];
+    rows = &state[SLIDER_CRANK_COUNTERWEIGHT_STATE];
+    vals = &rows[32 * SLIDER_CRANK_COUNTERWEIGHT_ROW];
+    arms = &vals[21];
+    drive = &arms[9];
     acc = &drive[2];
     for (v = 0; v < k; ++v) {
         const slider_crank_counterweight_real *pv = &p[v * SLIDER_CRANK_COUNTERWEIGHT_NP];

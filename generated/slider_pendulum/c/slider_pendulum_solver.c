@@ -273,8 +273,7 @@ void slider_pendulum_phi(const slider_pendulum_real * q, slider_pendulum_real t,
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_phi_k(q, tr, t, p, out);
+    slider_pendulum_phi_k(q, tr, t, prepared, out);
 }
 
 static void slider_pendulum_phi_q_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -310,8 +309,7 @@ void slider_pendulum_phi_q(const slider_pendulum_real * q, slider_pendulum_real 
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_phi_q_k(q, tr, t, p, out);
+    slider_pendulum_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void slider_pendulum_nu_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -339,8 +337,7 @@ void slider_pendulum_nu(const slider_pendulum_real * q, slider_pendulum_real t, 
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_nu_k(q, tr, t, p, out);
+    slider_pendulum_nu_k(q, tr, t, prepared, out);
 }
 
 static void slider_pendulum_gamma_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -370,8 +367,7 @@ void slider_pendulum_gamma(const slider_pendulum_real * q, const slider_pendulum
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_gamma_k(q, tr, qd, t, p, out);
+    slider_pendulum_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void slider_pendulum_applied_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -398,8 +394,7 @@ void slider_pendulum_applied(const slider_pendulum_real * q, const slider_pendul
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_applied_k(q, tr, qd, t, p, out);
+    slider_pendulum_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void slider_pendulum_mass_k0(const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -421,8 +416,7 @@ void slider_pendulum_mass(const slider_pendulum_real * p, slider_pendulum_real *
 {
     slider_pendulum_real prepared[29];
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_mass_k(p, out);
+    slider_pendulum_mass_k(prepared, out);
 }
 
 static void slider_pendulum_reactions_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * lam, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -477,8 +471,7 @@ void slider_pendulum_reactions(const slider_pendulum_real * q, const slider_pend
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_reactions_k(q, tr, lam, t, p, out);
+    slider_pendulum_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -498,18 +491,21 @@ static int slider_pendulum_sparse_factor0(slider_pendulum_real *lu)
     piv = lu[0];
     cm = fabs(piv);
     if (!(fabs(piv) >= (SLIDER_PENDULUM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[0] = 1.0 / piv;
+    lu[0] = 1.0 / piv;
+    piv = lu[0];
     piv = lu[2];
     cm = fabs(piv);
     cm = SLIDER_PENDULUM_MAX(cm, fabs(lu[4]));
     if (!(fabs(piv) >= (SLIDER_PENDULUM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[2] = 1.0 / piv;
+    lu[2] = 1.0 / piv;
+    piv = lu[2];
     lu[4] *= piv;
     lu[3] -= (lu[4] * lu[1]);
     piv = lu[3];
     cm = fabs(piv);
     if (!(fabs(piv) >= (SLIDER_PENDULUM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
-    piv = lu[3] = 1.0 / piv;
+    lu[3] = 1.0 / piv;
+    piv = lu[3];
     return 0;
 }
 
@@ -1634,7 +1630,9 @@ static void slider_pendulum_sweep_take(const slider_pendulum_real *row, const sl
                                slider_pendulum_real *drive, long count)
 {
     const slider_pendulum_real t = row[0];
-    slider_pendulum_real e, rate, w;
+    slider_pendulum_real e;
+    slider_pendulum_real rate;
+    slider_pendulum_real w;
     slider_pendulum_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1736,7 +1734,9 @@ static void slider_pendulum_sweep_finish(slider_pendulum_real *fig, const slider
     const slider_pendulum_real span = acc[7] - acc[6];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 13; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 13; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1757,10 +1757,14 @@ static void slider_pendulum_sweep_finish(slider_pendulum_real *fig, const slider
 long slider_pendulum_sweep_lanes(long *abandoned)
 {
 #if SLIDER_PENDULUM_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&slider_pendulum_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&slider_pendulum_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return slider_pendulum_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1768,8 +1772,16 @@ long slider_pendulum_sweep_lanes(long *abandoned)
 int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum_real t0, slider_pendulum_real h, long n, slider_pendulum_real tol,
                   slider_pendulum_real *figures, int *status, slider_pendulum_real *t_end, long *solved, slider_pendulum_real *work, int *iwork)
 {
-    slider_pendulum_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    slider_pendulum_real *state;
+    slider_pendulum_real *rows;
+    slider_pendulum_real *vals;
+    slider_pendulum_real *arms;
+    slider_pendulum_real *drive;
+    slider_pendulum_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if SLIDER_PENDULUM_LANES > 1
     const long lanes = slider_pendulum_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
@@ -1782,8 +1794,11 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
         return SLIDER_PENDULUM_BAD_ARGUMENT;
     }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + SLIDER_PENDULUM_WORK, rows = &state[SLIDER_PENDULUM_STATE];
-    vals = &rows[32 * SLIDER_PENDULUM_ROW], arms = &vals[15], drive = &arms[6];
+    state = &work[SLIDER_PENDULUM_WORK];
+    rows = &state[SLIDER_PENDULUM_STATE];
+    vals = &rows[32 * SLIDER_PENDULUM_ROW];
+    arms = &vals[15];
+    drive = &arms[6];
     acc = &drive[4];
     for (v = 0; v < k; ++v) {
         const slider_pendulum_real *pv = &p[v * SLIDER_PENDULUM_NP];

@@ -51,7 +51,7 @@ def _factor_lines(st: FoldedStep, P: str) -> list[str]:
         size = "fabs(piv)" if st.pivot is None else repr(abs(st.pivot))
         lines.append(f"if (!({size} >= ({P}_THRESHOLD * cm)){' || (piv == 0.0)' if variable else ''}) {{ return 1; }}")
     if variable:
-        lines.append(f"piv = lu[{st.pivot_slot}] = 1.0 / piv;")
+        lines += [f"lu[{st.pivot_slot}] = 1.0 / piv;", f"piv = lu[{st.pivot_slot}];"]  # no assignment in an expression (13.4)
     for m, source in st.scale:
         if variable:
             lines.append(f"lu[{m}] *= piv;" if isinstance(source, int) else f"lu[{m}] = {source.value!r} * piv;")
