@@ -1271,14 +1271,13 @@ static void andrews_squeezer_dense_solve_t(const andrews_squeezer_real *a, const
     }
 }
 
-static const int andrews_squeezer_pivot_slots[6] = { 43, 51, 66, 45, 59, 68 };
-
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
 static int andrews_squeezer_pivots_spread(const andrews_squeezer_real *lu)
 {
+    static const int andrews_squeezer_pivot_slots[6] = { 43, 51, 66, 45, 59, 68 };
     andrews_squeezer_real rmin = 1.0;
     andrews_squeezer_real rmax = 1.0;
     int k;
@@ -1400,7 +1399,7 @@ static int andrews_squeezer_factorize(const andrews_squeezer_real *q, const andr
     andrews_squeezer_real *a = &work[ANDREWS_SQUEEZER_OFF_DENSE];
     int k;
     andrews_squeezer_phi_q_k(q, tr, t, p, lu);
-    (void)memset(&lu[65], 0, sizeof(andrews_squeezer_real) * (ANDREWS_SQUEEZER_LU_SIZE - 65));
+    (void)memset(&lu[65], 0, sizeof(andrews_squeezer_real) * ((size_t)ANDREWS_SQUEEZER_LU_SIZE - 65u));
     *dense = 0;
     if ((andrews_squeezer_sparse_factor(lu) == 0) && (andrews_squeezer_pivots_spread(lu) == 0)) {
         return ANDREWS_SQUEEZER_OK;
@@ -2397,8 +2396,10 @@ static void andrews_squeezer_sweep_scales(const andrews_squeezer_real *q, andrew
         if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
                 arms[i] = arms[i - 1];
+                --i;
             }
             arms[i] = a;
             ++m;
@@ -2665,7 +2666,7 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
         } else
 #endif
         {
-            (void)memset(state, 0, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_STATE);
+            (void)memset(state, 0, sizeof(andrews_squeezer_real) * (size_t)ANDREWS_SQUEEZER_STATE);
             andrews_squeezer_guess(pv, state);
             done = 0;
         }

@@ -271,7 +271,10 @@ static void excavator_trig_step(const excavator_real *q, const excavator_real *d
 static excavator_real excavator_powi(excavator_real x, int n)
 {
     excavator_real y = x;
-    while (--n > 0) y *= x;
+    int k;
+    for (k = 1; k < n; ++k) {
+        y *= x;
+    }
     return y;
 }
 
@@ -1011,14 +1014,13 @@ static void excavator_dense_solve_t(const excavator_real *a, const int *perm, co
     }
 }
 
-static const int excavator_pivot_slots[6] = { 20, 1, 26, 7, 32, 15 };
-
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
 static int excavator_pivots_spread(const excavator_real *lu)
 {
+    static const int excavator_pivot_slots[6] = { 20, 1, 26, 7, 32, 15 };
     excavator_real rmin = 1.0;
     excavator_real rmax = 1.0;
     int k;
@@ -1915,8 +1917,10 @@ static void excavator_sweep_scales(const excavator_real *q, excavator_real t0, c
         if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
                 arms[i] = arms[i - 1];
+                --i;
             }
             arms[i] = a;
             ++m;
@@ -2175,7 +2179,7 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
         } else
 #endif
         {
-            (void)memset(state, 0, sizeof(excavator_real) * EXCAVATOR_STATE);
+            (void)memset(state, 0, sizeof(excavator_real) * (size_t)EXCAVATOR_STATE);
             excavator_guess(pv, state);
             done = 0;
         }

@@ -760,14 +760,13 @@ static void four_bar_dense_solve_t(const four_bar_real *a, const int *perm, cons
     }
 }
 
-static const int four_bar_pivot_slots[2] = { 13, 23 };
-
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
 static int four_bar_pivots_spread(const four_bar_real *lu)
 {
+    static const int four_bar_pivot_slots[2] = { 13, 23 };
     four_bar_real rmin = 1.0;
     four_bar_real rmax = 1.0;
     int k;
@@ -1659,8 +1658,10 @@ static void four_bar_sweep_scales(const four_bar_real *q, four_bar_real t0, cons
         if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
                 arms[i] = arms[i - 1];
+                --i;
             }
             arms[i] = a;
             ++m;
@@ -1867,7 +1868,7 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
         } else
 #endif
         {
-            (void)memset(state, 0, sizeof(four_bar_real) * FOUR_BAR_STATE);
+            (void)memset(state, 0, sizeof(four_bar_real) * (size_t)FOUR_BAR_STATE);
             four_bar_guess(pv, state);
             done = 0;
         }

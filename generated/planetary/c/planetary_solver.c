@@ -843,14 +843,13 @@ static void planetary_dense_solve_t(const planetary_real *a, const int *perm, co
     }
 }
 
-static const int planetary_pivot_slots[2] = { 11, 14 };
-
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
 static int planetary_pivots_spread(const planetary_real *lu)
 {
+    static const int planetary_pivot_slots[2] = { 11, 14 };
     planetary_real rmin = 1.0;
     planetary_real rmax = 1.0;
     int k;
@@ -1800,8 +1799,10 @@ static void planetary_sweep_scales(const planetary_real *q, planetary_real t0, c
         if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
                 arms[i] = arms[i - 1];
+                --i;
             }
             arms[i] = a;
             ++m;
@@ -2042,7 +2043,7 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
         } else
 #endif
         {
-            (void)memset(state, 0, sizeof(planetary_real) * PLANETARY_STATE);
+            (void)memset(state, 0, sizeof(planetary_real) * (size_t)PLANETARY_STATE);
             planetary_guess(pv, state);
             done = 0;
         }

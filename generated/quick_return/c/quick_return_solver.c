@@ -754,14 +754,13 @@ static void quick_return_dense_solve_t(const quick_return_real *a, const int *pe
     }
 }
 
-static const int quick_return_pivot_slots[2] = { 15, 11 };
-
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
 static int quick_return_pivots_spread(const quick_return_real *lu)
 {
+    static const int quick_return_pivot_slots[2] = { 15, 11 };
     quick_return_real rmin = 1.0;
     quick_return_real rmax = 1.0;
     int k;
@@ -1652,8 +1651,10 @@ static void quick_return_sweep_scales(const quick_return_real *q, quick_return_r
         if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
                 arms[i] = arms[i - 1];
+                --i;
             }
             arms[i] = a;
             ++m;
@@ -1870,7 +1871,7 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
         } else
 #endif
         {
-            (void)memset(state, 0, sizeof(quick_return_real) * QUICK_RETURN_STATE);
+            (void)memset(state, 0, sizeof(quick_return_real) * (size_t)QUICK_RETURN_STATE);
             quick_return_guess(pv, state);
             done = 0;
         }

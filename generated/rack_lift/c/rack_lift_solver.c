@@ -627,14 +627,13 @@ static void rack_lift_dense_solve_t(const rack_lift_real *a, const int *perm, co
     }
 }
 
-static const int rack_lift_pivot_slots[1] = { 8 };
-
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
 static int rack_lift_pivots_spread(const rack_lift_real *lu)
 {
+    static const int rack_lift_pivot_slots[1] = { 8 };
     rack_lift_real rmin = 1.0;
     rack_lift_real rmax = 1.0;
     int k;
@@ -1551,8 +1550,10 @@ static void rack_lift_sweep_scales(const rack_lift_real *q, rack_lift_real t0, c
         if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
                 arms[i] = arms[i - 1];
+                --i;
             }
             arms[i] = a;
             ++m;
@@ -1749,7 +1750,7 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
         } else
 #endif
         {
-            (void)memset(state, 0, sizeof(rack_lift_real) * RACK_LIFT_STATE);
+            (void)memset(state, 0, sizeof(rack_lift_real) * (size_t)RACK_LIFT_STATE);
             rack_lift_guess(pv, state);
             done = 0;
         }

@@ -712,14 +712,13 @@ static void slider_crank_dense_solve_t(const slider_crank_real *a, const int *pe
     }
 }
 
-static const int slider_crank_pivot_slots[1] = { 16 };
-
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
 static int slider_crank_pivots_spread(const slider_crank_real *lu)
 {
+    static const int slider_crank_pivot_slots[1] = { 16 };
     slider_crank_real rmin = 1.0;
     slider_crank_real rmax = 1.0;
     int k;
@@ -1611,8 +1610,10 @@ static void slider_crank_sweep_scales(const slider_crank_real *q, slider_crank_r
         if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
                 arms[i] = arms[i - 1];
+                --i;
             }
             arms[i] = a;
             ++m;
@@ -1819,7 +1820,7 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
         } else
 #endif
         {
-            (void)memset(state, 0, sizeof(slider_crank_real) * SLIDER_CRANK_STATE);
+            (void)memset(state, 0, sizeof(slider_crank_real) * (size_t)SLIDER_CRANK_STATE);
             slider_crank_guess(pv, state);
             done = 0;
         }

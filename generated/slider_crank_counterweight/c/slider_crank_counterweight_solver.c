@@ -726,14 +726,13 @@ static void slider_crank_counterweight_dense_solve_t(const slider_crank_counterw
     }
 }
 
-static const int slider_crank_counterweight_pivot_slots[1] = { 16 };
-
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
 static int slider_crank_counterweight_pivots_spread(const slider_crank_counterweight_real *lu)
 {
+    static const int slider_crank_counterweight_pivot_slots[1] = { 16 };
     slider_crank_counterweight_real rmin = 1.0;
     slider_crank_counterweight_real rmax = 1.0;
     int k;
@@ -1627,8 +1626,10 @@ static void slider_crank_counterweight_sweep_scales(const slider_crank_counterwe
         if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
                 arms[i] = arms[i - 1];
+                --i;
             }
             arms[i] = a;
             ++m;
@@ -1835,7 +1836,7 @@ int slider_crank_counterweight_sweep(long k, const slider_crank_counterweight_re
         } else
 #endif
         {
-            (void)memset(state, 0, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_STATE);
+            (void)memset(state, 0, sizeof(slider_crank_counterweight_real) * (size_t)SLIDER_CRANK_COUNTERWEIGHT_STATE);
             slider_crank_counterweight_guess(pv, state);
             done = 0;
         }

@@ -653,14 +653,13 @@ static void slider_pendulum_dense_solve_t(const slider_pendulum_real *a, const i
     }
 }
 
-static const int slider_pendulum_pivot_slots[3] = { 0, 2, 3 };
-
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
    column only, and a pivot that cancels to rounding would pass it. The slots
    hold reciprocals, whose spread is the pivots'. */
 static int slider_pendulum_pivots_spread(const slider_pendulum_real *lu)
 {
+    static const int slider_pendulum_pivot_slots[3] = { 0, 2, 3 };
     slider_pendulum_real rmin = 1.0;
     slider_pendulum_real rmax = 1.0;
     int k;
@@ -1592,8 +1591,10 @@ static void slider_pendulum_sweep_scales(const slider_pendulum_real *q, slider_p
         if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; (i > 0) && (arms[i - 1] > a); --i) {
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
                 arms[i] = arms[i - 1];
+                --i;
             }
             arms[i] = a;
             ++m;
@@ -1821,7 +1822,7 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
         } else
 #endif
         {
-            (void)memset(state, 0, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
+            (void)memset(state, 0, sizeof(slider_pendulum_real) * (size_t)SLIDER_PENDULUM_STATE);
             slider_pendulum_guess(pv, state);
             done = 0;
         }
