@@ -1738,10 +1738,13 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
     excavator_real known[2];
     long i;
     long unused;
-    long *done = (solved != NULL) ? solved : &unused;
+    long *done = &unused;
     int status;
     int info[2];
     int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
     *done = 0;
     status = EXCAVATOR_OK;
     if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {

@@ -1478,10 +1478,13 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
     quick_return_real known[2];
     long i;
     long unused;
-    long *done = (solved != NULL) ? solved : &unused;
+    long *done = &unused;
     int status;
     int info[2];
     int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
     *done = 0;
     status = QUICK_RETURN_OK;
     if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {

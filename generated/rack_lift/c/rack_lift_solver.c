@@ -1390,10 +1390,13 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
     rack_lift_real known[2];
     long i;
     long unused;
-    long *done = (solved != NULL) ? solved : &unused;
+    long *done = &unused;
     int status;
     int info[2];
     int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
     *done = 0;
     status = RACK_LIFT_OK;
     if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {

@@ -1440,10 +1440,13 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
     slider_crank_real known[2];
     long i;
     long unused;
-    long *done = (solved != NULL) ? solved : &unused;
+    long *done = &unused;
     int status;
     int info[2];
     int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
     *done = 0;
     status = SLIDER_CRANK_OK;
     if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {

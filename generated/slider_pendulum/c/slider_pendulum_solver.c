@@ -1428,10 +1428,13 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
     slider_pendulum_real known[2];
     long i;
     long unused;
-    long *done = (solved != NULL) ? solved : &unused;
+    long *done = &unused;
     int status;
     int info[2];
     int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
     *done = 0;
     status = SLIDER_PENDULUM_OK;
     if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
