@@ -2893,25 +2893,34 @@ static int andrews_squeezer_sp_instant(andrews_squeezer_real t, const andrews_sq
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !andrews_squeezer_allfinite(q_des, ANDREWS_SQUEEZER_ND) || !andrews_squeezer_allfinite(qd_des, ANDREWS_SQUEEZER_ND)
-        || !andrews_squeezer_allfinite(qdd_des, ANDREWS_SQUEEZER_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (andrews_squeezer_allfinite(q_des, ANDREWS_SQUEEZER_ND) == 0) || (andrews_squeezer_allfinite(qd_des, ANDREWS_SQUEEZER_ND) == 0)
+        || (andrews_squeezer_allfinite(qdd_des, ANDREWS_SQUEEZER_ND) == 0)) {
         status = ANDREWS_SQUEEZER_BAD_ARGUMENT;
     } else {
-        andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9), *pp = work + ANDREWS_SQUEEZER_OFF_PREP, *kept = ANDREWS_SQUEEZER_VEC(work, 11);
-        memcpy(kept, q, sizeof(andrews_squeezer_real) * 21);  /* the caller's guess, back in q if the call fails */
+        andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9);
+        andrews_squeezer_real *pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
+        andrews_squeezer_real *kept = ANDREWS_SQUEEZER_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(andrews_squeezer_real) * 21u);  /* the caller's guess, back in q if the call fails */
         andrews_squeezer_prepare(p, pp);
-        if (qd == NULL) qd = ANDREWS_SQUEEZER_VEC(work, 5);
-        if (qdd == NULL) qdd = ANDREWS_SQUEEZER_VEC(work, 6);
-        if (lam == NULL) lam = ANDREWS_SQUEEZER_VEC(work, 7);
-        if (reactions == NULL) reactions = ANDREWS_SQUEEZER_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        andrews_squeezer_real *qd_out = (qd != NULL) ? qd : ANDREWS_SQUEEZER_VEC(work, 5);
+        andrews_squeezer_real *qdd_out = (qdd != NULL) ? qdd : ANDREWS_SQUEEZER_VEC(work, 6);
+        andrews_squeezer_real *lam_out = (lam != NULL) ? lam : ANDREWS_SQUEEZER_VEC(work, 7);
+        andrews_squeezer_real *reactions_out = (reactions != NULL) ? reactions : ANDREWS_SQUEEZER_VEC(work, 8);
         status = andrews_squeezer_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == ANDREWS_SQUEEZER_OK) {
-            andrews_squeezer_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!andrews_squeezer_finite(q, qd, qdd, lam, reactions)) status = ANDREWS_SQUEEZER_NONFINITE;
+            andrews_squeezer_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (andrews_squeezer_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = ANDREWS_SQUEEZER_NONFINITE;
+            }
         }
-        if (status != ANDREWS_SQUEEZER_OK) memcpy(q, kept, sizeof(andrews_squeezer_real) * 21);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != ANDREWS_SQUEEZER_OK) {
+            (void)memcpy(q, kept, sizeof(andrews_squeezer_real) * 21u);
+        }
     }
     return status;
 }
@@ -2921,7 +2930,8 @@ int andrews_squeezer_setpoint(andrews_squeezer_real t, const andrews_squeezer_re
                      andrews_squeezer_real *qdd, andrews_squeezer_real *lam, andrews_squeezer_real *reactions, int *info, andrews_squeezer_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = andrews_squeezer_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -2069,25 +2069,34 @@ static int disc_cam_sp_instant(disc_cam_real t, const disc_cam_real *p, disc_cam
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !disc_cam_allfinite(q_des, DISC_CAM_ND) || !disc_cam_allfinite(qd_des, DISC_CAM_ND)
-        || !disc_cam_allfinite(qdd_des, DISC_CAM_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (disc_cam_allfinite(q_des, DISC_CAM_ND) == 0) || (disc_cam_allfinite(qd_des, DISC_CAM_ND) == 0)
+        || (disc_cam_allfinite(qdd_des, DISC_CAM_ND) == 0)) {
         status = DISC_CAM_BAD_ARGUMENT;
     } else {
-        disc_cam_real *tr = DISC_CAM_VEC(work, 9), *pp = work + DISC_CAM_OFF_PREP, *kept = DISC_CAM_VEC(work, 11);
-        memcpy(kept, q, sizeof(disc_cam_real) * 6);  /* the caller's guess, back in q if the call fails */
+        disc_cam_real *tr = DISC_CAM_VEC(work, 9);
+        disc_cam_real *pp = &work[DISC_CAM_OFF_PREP];
+        disc_cam_real *kept = DISC_CAM_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(disc_cam_real) * 6u);  /* the caller's guess, back in q if the call fails */
         disc_cam_prepare(p, pp);
-        if (qd == NULL) qd = DISC_CAM_VEC(work, 5);
-        if (qdd == NULL) qdd = DISC_CAM_VEC(work, 6);
-        if (lam == NULL) lam = DISC_CAM_VEC(work, 7);
-        if (reactions == NULL) reactions = DISC_CAM_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        disc_cam_real *qd_out = (qd != NULL) ? qd : DISC_CAM_VEC(work, 5);
+        disc_cam_real *qdd_out = (qdd != NULL) ? qdd : DISC_CAM_VEC(work, 6);
+        disc_cam_real *lam_out = (lam != NULL) ? lam : DISC_CAM_VEC(work, 7);
+        disc_cam_real *reactions_out = (reactions != NULL) ? reactions : DISC_CAM_VEC(work, 8);
         status = disc_cam_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == DISC_CAM_OK) {
-            disc_cam_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!disc_cam_finite(q, qd, qdd, lam, reactions)) status = DISC_CAM_NONFINITE;
+            disc_cam_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (disc_cam_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = DISC_CAM_NONFINITE;
+            }
         }
-        if (status != DISC_CAM_OK) memcpy(q, kept, sizeof(disc_cam_real) * 6);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != DISC_CAM_OK) {
+            (void)memcpy(q, kept, sizeof(disc_cam_real) * 6u);
+        }
     }
     return status;
 }
@@ -2097,7 +2106,8 @@ int disc_cam_setpoint(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol
                      disc_cam_real *qdd, disc_cam_real *lam, disc_cam_real *reactions, int *info, disc_cam_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = disc_cam_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -2451,25 +2451,34 @@ static int excavator_sp_instant(excavator_real t, const excavator_real *p, excav
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !excavator_allfinite(q_des, EXCAVATOR_ND) || !excavator_allfinite(qd_des, EXCAVATOR_ND)
-        || !excavator_allfinite(qdd_des, EXCAVATOR_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (excavator_allfinite(q_des, EXCAVATOR_ND) == 0) || (excavator_allfinite(qd_des, EXCAVATOR_ND) == 0)
+        || (excavator_allfinite(qdd_des, EXCAVATOR_ND) == 0)) {
         status = EXCAVATOR_BAD_ARGUMENT;
     } else {
-        excavator_real *tr = EXCAVATOR_VEC(work, 9), *pp = work + EXCAVATOR_OFF_PREP, *kept = EXCAVATOR_VEC(work, 11);
-        memcpy(kept, q, sizeof(excavator_real) * 9);  /* the caller's guess, back in q if the call fails */
+        excavator_real *tr = EXCAVATOR_VEC(work, 9);
+        excavator_real *pp = &work[EXCAVATOR_OFF_PREP];
+        excavator_real *kept = EXCAVATOR_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(excavator_real) * 9u);  /* the caller's guess, back in q if the call fails */
         excavator_prepare(p, pp);
-        if (qd == NULL) qd = EXCAVATOR_VEC(work, 5);
-        if (qdd == NULL) qdd = EXCAVATOR_VEC(work, 6);
-        if (lam == NULL) lam = EXCAVATOR_VEC(work, 7);
-        if (reactions == NULL) reactions = EXCAVATOR_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        excavator_real *qd_out = (qd != NULL) ? qd : EXCAVATOR_VEC(work, 5);
+        excavator_real *qdd_out = (qdd != NULL) ? qdd : EXCAVATOR_VEC(work, 6);
+        excavator_real *lam_out = (lam != NULL) ? lam : EXCAVATOR_VEC(work, 7);
+        excavator_real *reactions_out = (reactions != NULL) ? reactions : EXCAVATOR_VEC(work, 8);
         status = excavator_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == EXCAVATOR_OK) {
-            excavator_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!excavator_finite(q, qd, qdd, lam, reactions)) status = EXCAVATOR_NONFINITE;
+            excavator_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (excavator_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = EXCAVATOR_NONFINITE;
+            }
         }
-        if (status != EXCAVATOR_OK) memcpy(q, kept, sizeof(excavator_real) * 9);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != EXCAVATOR_OK) {
+            (void)memcpy(q, kept, sizeof(excavator_real) * 9u);
+        }
     }
     return status;
 }
@@ -2479,7 +2488,8 @@ int excavator_setpoint(excavator_real t, const excavator_real *p, excavator_real
                      excavator_real *qdd, excavator_real *lam, excavator_real *reactions, int *info, excavator_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = excavator_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -2083,25 +2083,34 @@ static int four_bar_sp_instant(four_bar_real t, const four_bar_real *p, four_bar
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !four_bar_allfinite(q_des, FOUR_BAR_ND) || !four_bar_allfinite(qd_des, FOUR_BAR_ND)
-        || !four_bar_allfinite(qdd_des, FOUR_BAR_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (four_bar_allfinite(q_des, FOUR_BAR_ND) == 0) || (four_bar_allfinite(qd_des, FOUR_BAR_ND) == 0)
+        || (four_bar_allfinite(qdd_des, FOUR_BAR_ND) == 0)) {
         status = FOUR_BAR_BAD_ARGUMENT;
     } else {
-        four_bar_real *tr = FOUR_BAR_VEC(work, 9), *pp = work + FOUR_BAR_OFF_PREP, *kept = FOUR_BAR_VEC(work, 11);
-        memcpy(kept, q, sizeof(four_bar_real) * 9);  /* the caller's guess, back in q if the call fails */
+        four_bar_real *tr = FOUR_BAR_VEC(work, 9);
+        four_bar_real *pp = &work[FOUR_BAR_OFF_PREP];
+        four_bar_real *kept = FOUR_BAR_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(four_bar_real) * 9u);  /* the caller's guess, back in q if the call fails */
         four_bar_prepare(p, pp);
-        if (qd == NULL) qd = FOUR_BAR_VEC(work, 5);
-        if (qdd == NULL) qdd = FOUR_BAR_VEC(work, 6);
-        if (lam == NULL) lam = FOUR_BAR_VEC(work, 7);
-        if (reactions == NULL) reactions = FOUR_BAR_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        four_bar_real *qd_out = (qd != NULL) ? qd : FOUR_BAR_VEC(work, 5);
+        four_bar_real *qdd_out = (qdd != NULL) ? qdd : FOUR_BAR_VEC(work, 6);
+        four_bar_real *lam_out = (lam != NULL) ? lam : FOUR_BAR_VEC(work, 7);
+        four_bar_real *reactions_out = (reactions != NULL) ? reactions : FOUR_BAR_VEC(work, 8);
         status = four_bar_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == FOUR_BAR_OK) {
-            four_bar_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!four_bar_finite(q, qd, qdd, lam, reactions)) status = FOUR_BAR_NONFINITE;
+            four_bar_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (four_bar_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = FOUR_BAR_NONFINITE;
+            }
         }
-        if (status != FOUR_BAR_OK) memcpy(q, kept, sizeof(four_bar_real) * 9);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != FOUR_BAR_OK) {
+            (void)memcpy(q, kept, sizeof(four_bar_real) * 9u);
+        }
     }
     return status;
 }
@@ -2111,7 +2120,8 @@ int four_bar_setpoint(four_bar_real t, const four_bar_real *p, four_bar_real tol
                      four_bar_real *qdd, four_bar_real *lam, four_bar_real *reactions, int *info, four_bar_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = four_bar_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

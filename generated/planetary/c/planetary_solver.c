@@ -2261,25 +2261,34 @@ static int planetary_sp_instant(planetary_real t, const planetary_real *p, plane
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !planetary_allfinite(q_des, PLANETARY_ND) || !planetary_allfinite(qd_des, PLANETARY_ND)
-        || !planetary_allfinite(qdd_des, PLANETARY_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (planetary_allfinite(q_des, PLANETARY_ND) == 0) || (planetary_allfinite(qd_des, PLANETARY_ND) == 0)
+        || (planetary_allfinite(qdd_des, PLANETARY_ND) == 0)) {
         status = PLANETARY_BAD_ARGUMENT;
     } else {
-        planetary_real *tr = PLANETARY_VEC(work, 9), *pp = work + PLANETARY_OFF_PREP, *kept = PLANETARY_VEC(work, 11);
-        memcpy(kept, q, sizeof(planetary_real) * 12);  /* the caller's guess, back in q if the call fails */
+        planetary_real *tr = PLANETARY_VEC(work, 9);
+        planetary_real *pp = &work[PLANETARY_OFF_PREP];
+        planetary_real *kept = PLANETARY_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(planetary_real) * 12u);  /* the caller's guess, back in q if the call fails */
         planetary_prepare(p, pp);
-        if (qd == NULL) qd = PLANETARY_VEC(work, 5);
-        if (qdd == NULL) qdd = PLANETARY_VEC(work, 6);
-        if (lam == NULL) lam = PLANETARY_VEC(work, 7);
-        if (reactions == NULL) reactions = PLANETARY_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        planetary_real *qd_out = (qd != NULL) ? qd : PLANETARY_VEC(work, 5);
+        planetary_real *qdd_out = (qdd != NULL) ? qdd : PLANETARY_VEC(work, 6);
+        planetary_real *lam_out = (lam != NULL) ? lam : PLANETARY_VEC(work, 7);
+        planetary_real *reactions_out = (reactions != NULL) ? reactions : PLANETARY_VEC(work, 8);
         status = planetary_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == PLANETARY_OK) {
-            planetary_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!planetary_finite(q, qd, qdd, lam, reactions)) status = PLANETARY_NONFINITE;
+            planetary_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (planetary_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = PLANETARY_NONFINITE;
+            }
         }
-        if (status != PLANETARY_OK) memcpy(q, kept, sizeof(planetary_real) * 12);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != PLANETARY_OK) {
+            (void)memcpy(q, kept, sizeof(planetary_real) * 12u);
+        }
     }
     return status;
 }
@@ -2289,7 +2298,8 @@ int planetary_setpoint(planetary_real t, const planetary_real *p, planetary_real
                      planetary_real *qdd, planetary_real *lam, planetary_real *reactions, int *info, planetary_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = planetary_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -2086,25 +2086,34 @@ static int quick_return_sp_instant(quick_return_real t, const quick_return_real 
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !quick_return_allfinite(q_des, QUICK_RETURN_ND) || !quick_return_allfinite(qd_des, QUICK_RETURN_ND)
-        || !quick_return_allfinite(qdd_des, QUICK_RETURN_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (quick_return_allfinite(q_des, QUICK_RETURN_ND) == 0) || (quick_return_allfinite(qd_des, QUICK_RETURN_ND) == 0)
+        || (quick_return_allfinite(qdd_des, QUICK_RETURN_ND) == 0)) {
         status = QUICK_RETURN_BAD_ARGUMENT;
     } else {
-        quick_return_real *tr = QUICK_RETURN_VEC(work, 9), *pp = work + QUICK_RETURN_OFF_PREP, *kept = QUICK_RETURN_VEC(work, 11);
-        memcpy(kept, q, sizeof(quick_return_real) * 9);  /* the caller's guess, back in q if the call fails */
+        quick_return_real *tr = QUICK_RETURN_VEC(work, 9);
+        quick_return_real *pp = &work[QUICK_RETURN_OFF_PREP];
+        quick_return_real *kept = QUICK_RETURN_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(quick_return_real) * 9u);  /* the caller's guess, back in q if the call fails */
         quick_return_prepare(p, pp);
-        if (qd == NULL) qd = QUICK_RETURN_VEC(work, 5);
-        if (qdd == NULL) qdd = QUICK_RETURN_VEC(work, 6);
-        if (lam == NULL) lam = QUICK_RETURN_VEC(work, 7);
-        if (reactions == NULL) reactions = QUICK_RETURN_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        quick_return_real *qd_out = (qd != NULL) ? qd : QUICK_RETURN_VEC(work, 5);
+        quick_return_real *qdd_out = (qdd != NULL) ? qdd : QUICK_RETURN_VEC(work, 6);
+        quick_return_real *lam_out = (lam != NULL) ? lam : QUICK_RETURN_VEC(work, 7);
+        quick_return_real *reactions_out = (reactions != NULL) ? reactions : QUICK_RETURN_VEC(work, 8);
         status = quick_return_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == QUICK_RETURN_OK) {
-            quick_return_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!quick_return_finite(q, qd, qdd, lam, reactions)) status = QUICK_RETURN_NONFINITE;
+            quick_return_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (quick_return_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = QUICK_RETURN_NONFINITE;
+            }
         }
-        if (status != QUICK_RETURN_OK) memcpy(q, kept, sizeof(quick_return_real) * 9);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != QUICK_RETURN_OK) {
+            (void)memcpy(q, kept, sizeof(quick_return_real) * 9u);
+        }
     }
     return status;
 }
@@ -2114,7 +2123,8 @@ int quick_return_setpoint(quick_return_real t, const quick_return_real *p, quick
                      quick_return_real *qdd, quick_return_real *lam, quick_return_real *reactions, int *info, quick_return_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = quick_return_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -1962,25 +1962,34 @@ static int rack_lift_sp_instant(rack_lift_real t, const rack_lift_real *p, rack_
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !rack_lift_allfinite(q_des, RACK_LIFT_ND) || !rack_lift_allfinite(qd_des, RACK_LIFT_ND)
-        || !rack_lift_allfinite(qdd_des, RACK_LIFT_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (rack_lift_allfinite(q_des, RACK_LIFT_ND) == 0) || (rack_lift_allfinite(qd_des, RACK_LIFT_ND) == 0)
+        || (rack_lift_allfinite(qdd_des, RACK_LIFT_ND) == 0)) {
         status = RACK_LIFT_BAD_ARGUMENT;
     } else {
-        rack_lift_real *tr = RACK_LIFT_VEC(work, 9), *pp = work + RACK_LIFT_OFF_PREP, *kept = RACK_LIFT_VEC(work, 11);
-        memcpy(kept, q, sizeof(rack_lift_real) * 6);  /* the caller's guess, back in q if the call fails */
+        rack_lift_real *tr = RACK_LIFT_VEC(work, 9);
+        rack_lift_real *pp = &work[RACK_LIFT_OFF_PREP];
+        rack_lift_real *kept = RACK_LIFT_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(rack_lift_real) * 6u);  /* the caller's guess, back in q if the call fails */
         rack_lift_prepare(p, pp);
-        if (qd == NULL) qd = RACK_LIFT_VEC(work, 5);
-        if (qdd == NULL) qdd = RACK_LIFT_VEC(work, 6);
-        if (lam == NULL) lam = RACK_LIFT_VEC(work, 7);
-        if (reactions == NULL) reactions = RACK_LIFT_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        rack_lift_real *qd_out = (qd != NULL) ? qd : RACK_LIFT_VEC(work, 5);
+        rack_lift_real *qdd_out = (qdd != NULL) ? qdd : RACK_LIFT_VEC(work, 6);
+        rack_lift_real *lam_out = (lam != NULL) ? lam : RACK_LIFT_VEC(work, 7);
+        rack_lift_real *reactions_out = (reactions != NULL) ? reactions : RACK_LIFT_VEC(work, 8);
         status = rack_lift_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == RACK_LIFT_OK) {
-            rack_lift_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!rack_lift_finite(q, qd, qdd, lam, reactions)) status = RACK_LIFT_NONFINITE;
+            rack_lift_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (rack_lift_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = RACK_LIFT_NONFINITE;
+            }
         }
-        if (status != RACK_LIFT_OK) memcpy(q, kept, sizeof(rack_lift_real) * 6);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != RACK_LIFT_OK) {
+            (void)memcpy(q, kept, sizeof(rack_lift_real) * 6u);
+        }
     }
     return status;
 }
@@ -1990,7 +1999,8 @@ int rack_lift_setpoint(rack_lift_real t, const rack_lift_real *p, rack_lift_real
                      rack_lift_real *qdd, rack_lift_real *lam, rack_lift_real *reactions, int *info, rack_lift_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = rack_lift_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -2035,25 +2035,34 @@ static int slider_crank_sp_instant(slider_crank_real t, const slider_crank_real 
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !slider_crank_allfinite(q_des, SLIDER_CRANK_ND) || !slider_crank_allfinite(qd_des, SLIDER_CRANK_ND)
-        || !slider_crank_allfinite(qdd_des, SLIDER_CRANK_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (slider_crank_allfinite(q_des, SLIDER_CRANK_ND) == 0) || (slider_crank_allfinite(qd_des, SLIDER_CRANK_ND) == 0)
+        || (slider_crank_allfinite(qdd_des, SLIDER_CRANK_ND) == 0)) {
         status = SLIDER_CRANK_BAD_ARGUMENT;
     } else {
-        slider_crank_real *tr = SLIDER_CRANK_VEC(work, 9), *pp = work + SLIDER_CRANK_OFF_PREP, *kept = SLIDER_CRANK_VEC(work, 11);
-        memcpy(kept, q, sizeof(slider_crank_real) * 9);  /* the caller's guess, back in q if the call fails */
+        slider_crank_real *tr = SLIDER_CRANK_VEC(work, 9);
+        slider_crank_real *pp = &work[SLIDER_CRANK_OFF_PREP];
+        slider_crank_real *kept = SLIDER_CRANK_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(slider_crank_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_prepare(p, pp);
-        if (qd == NULL) qd = SLIDER_CRANK_VEC(work, 5);
-        if (qdd == NULL) qdd = SLIDER_CRANK_VEC(work, 6);
-        if (lam == NULL) lam = SLIDER_CRANK_VEC(work, 7);
-        if (reactions == NULL) reactions = SLIDER_CRANK_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        slider_crank_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_VEC(work, 5);
+        slider_crank_real *qdd_out = (qdd != NULL) ? qdd : SLIDER_CRANK_VEC(work, 6);
+        slider_crank_real *lam_out = (lam != NULL) ? lam : SLIDER_CRANK_VEC(work, 7);
+        slider_crank_real *reactions_out = (reactions != NULL) ? reactions : SLIDER_CRANK_VEC(work, 8);
         status = slider_crank_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == SLIDER_CRANK_OK) {
-            slider_crank_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!slider_crank_finite(q, qd, qdd, lam, reactions)) status = SLIDER_CRANK_NONFINITE;
+            slider_crank_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (slider_crank_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = SLIDER_CRANK_NONFINITE;
+            }
         }
-        if (status != SLIDER_CRANK_OK) memcpy(q, kept, sizeof(slider_crank_real) * 9);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != SLIDER_CRANK_OK) {
+            (void)memcpy(q, kept, sizeof(slider_crank_real) * 9u);
+        }
     }
     return status;
 }
@@ -2063,7 +2072,8 @@ int slider_crank_setpoint(slider_crank_real t, const slider_crank_real *p, slide
                      slider_crank_real *qdd, slider_crank_real *lam, slider_crank_real *reactions, int *info, slider_crank_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = slider_crank_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -2039,25 +2039,34 @@ static int slider_pendulum_sp_instant(slider_pendulum_real t, const slider_pendu
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !slider_pendulum_allfinite(q_des, SLIDER_PENDULUM_ND) || !slider_pendulum_allfinite(qd_des, SLIDER_PENDULUM_ND)
-        || !slider_pendulum_allfinite(qdd_des, SLIDER_PENDULUM_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (slider_pendulum_allfinite(q_des, SLIDER_PENDULUM_ND) == 0) || (slider_pendulum_allfinite(qd_des, SLIDER_PENDULUM_ND) == 0)
+        || (slider_pendulum_allfinite(qdd_des, SLIDER_PENDULUM_ND) == 0)) {
         status = SLIDER_PENDULUM_BAD_ARGUMENT;
     } else {
-        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9), *pp = work + SLIDER_PENDULUM_OFF_PREP, *kept = SLIDER_PENDULUM_VEC(work, 11);
-        memcpy(kept, q, sizeof(slider_pendulum_real) * 6);  /* the caller's guess, back in q if the call fails */
+        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9);
+        slider_pendulum_real *pp = &work[SLIDER_PENDULUM_OFF_PREP];
+        slider_pendulum_real *kept = SLIDER_PENDULUM_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(slider_pendulum_real) * 6u);  /* the caller's guess, back in q if the call fails */
         slider_pendulum_prepare(p, pp);
-        if (qd == NULL) qd = SLIDER_PENDULUM_VEC(work, 5);
-        if (qdd == NULL) qdd = SLIDER_PENDULUM_VEC(work, 6);
-        if (lam == NULL) lam = SLIDER_PENDULUM_VEC(work, 7);
-        if (reactions == NULL) reactions = SLIDER_PENDULUM_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        slider_pendulum_real *qd_out = (qd != NULL) ? qd : SLIDER_PENDULUM_VEC(work, 5);
+        slider_pendulum_real *qdd_out = (qdd != NULL) ? qdd : SLIDER_PENDULUM_VEC(work, 6);
+        slider_pendulum_real *lam_out = (lam != NULL) ? lam : SLIDER_PENDULUM_VEC(work, 7);
+        slider_pendulum_real *reactions_out = (reactions != NULL) ? reactions : SLIDER_PENDULUM_VEC(work, 8);
         status = slider_pendulum_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == SLIDER_PENDULUM_OK) {
-            slider_pendulum_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!slider_pendulum_finite(q, qd, qdd, lam, reactions)) status = SLIDER_PENDULUM_NONFINITE;
+            slider_pendulum_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (slider_pendulum_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = SLIDER_PENDULUM_NONFINITE;
+            }
         }
-        if (status != SLIDER_PENDULUM_OK) memcpy(q, kept, sizeof(slider_pendulum_real) * 6);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != SLIDER_PENDULUM_OK) {
+            (void)memcpy(q, kept, sizeof(slider_pendulum_real) * 6u);
+        }
     }
     return status;
 }
@@ -2067,7 +2076,8 @@ int slider_pendulum_setpoint(slider_pendulum_real t, const slider_pendulum_real 
                      slider_pendulum_real *qdd, slider_pendulum_real *lam, slider_pendulum_real *reactions, int *info, slider_pendulum_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = slider_pendulum_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {
