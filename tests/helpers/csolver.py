@@ -106,11 +106,11 @@ def instrumented(model: CodeModel, folder: Path, harness: str = "") -> tuple[cty
     source = folder / f"{p}_solver.c"
     text = source.read_text()
     text = _edit(text, f'#include "{p}_solver.h"\n', f'#include "{p}_solver.h"\n' + COUNTERS.format(P=P))
-    test = f"{p}_sparse_factor(lu) == 0 && !{p}_pivots_spread(lu)"
-    text = _edit(text, f"    *dense = 0;\n    if ({test}) return {P}_OK;",
+    test = f"({p}_sparse_factor(lu) == 0) && ({p}_pivots_spread(lu) == 0)"
+    text = _edit(text, f"    *dense = 0;\n    if ({test}) {{",
                  f"    ++test_factorizations;\n    *dense = 0;\n"
-                 f"    if (!test_force_dense && {test}) return {P}_OK;")
-    call = f"        status = {p}_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);\n"
+                 f"    if (!test_force_dense && {test}) {{")
+    call = f"        status = {p}_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);\n"
     text = _edit(text, call,
                  f"        memcpy(test_guess, qn, sizeof test_guess);\n{call}"
                  f"        test_iterations += info[0];\n"

@@ -43,7 +43,7 @@ typedef char andrews_squeezer_real_must_have_the_size_of_double[sizeof(andrews_s
 #define ANDREWS_SQUEEZER_OFF_LU 65
 #define ANDREWS_SQUEEZER_OFF_DENSE (ANDREWS_SQUEEZER_OFF_LU + ANDREWS_SQUEEZER_LU_SIZE)
 #define ANDREWS_SQUEEZER_OFF_VEC (ANDREWS_SQUEEZER_OFF_DENSE + 441)
-#define ANDREWS_SQUEEZER_VEC(work, k) ((work) + ANDREWS_SQUEEZER_OFF_VEC + (k) * 66)
+#define ANDREWS_SQUEEZER_VEC(work, k) (&(work)[ANDREWS_SQUEEZER_OFF_VEC + ((k) * 66)])
 /* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
 #define ANDREWS_SQUEEZER_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
 #define ANDREWS_SQUEEZER_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
@@ -243,10 +243,12 @@ static void andrews_squeezer_trig_base(const andrews_squeezer_real *q, andrews_s
 {
     int b;
     for (b = 0; b < 7; ++b) {
-        const andrews_squeezer_real a = q[3 * b + 2];
+        const andrews_squeezer_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -261,101 +263,136 @@ static void andrews_squeezer_trig_base(const andrews_squeezer_real *q, andrews_s
 static void andrews_squeezer_trig_near(const andrews_squeezer_real *q, andrews_squeezer_real *tr, andrews_squeezer_real *base)
 {
     {
-        const andrews_squeezer_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const andrews_squeezer_real a = q[2];
+        const andrews_squeezer_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[1];
+            const andrews_squeezer_real c = base[2];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const andrews_squeezer_real a = q[5];
+        const andrews_squeezer_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[4];
+            const andrews_squeezer_real c = base[5];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const andrews_squeezer_real a = q[8];
+        const andrews_squeezer_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[7];
+            const andrews_squeezer_real c = base[8];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 3 + 2], d = a - base[3 * 3];
+        const andrews_squeezer_real a = q[11];
+        const andrews_squeezer_real d = a - base[9];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 3 + 1], c = base[3 * 3 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 3] = s + (s * cm + c * sd);
-            tr[2 * 3 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[10];
+            const andrews_squeezer_real c = base[11];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[6] = s + ((s * cm) + (c * sd));
+            tr[7] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 3] = a;
-            tr[2 * 3] = base[3 * 3 + 1] = sin(a);
-            tr[2 * 3 + 1] = base[3 * 3 + 2] = cos(a);
+            base[9] = a;
+            base[10] = sin(a);
+            tr[6] = base[10];
+            base[11] = cos(a);
+            tr[7] = base[11];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 4 + 2], d = a - base[3 * 4];
+        const andrews_squeezer_real a = q[14];
+        const andrews_squeezer_real d = a - base[12];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 4 + 1], c = base[3 * 4 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 4] = s + (s * cm + c * sd);
-            tr[2 * 4 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[13];
+            const andrews_squeezer_real c = base[14];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[8] = s + ((s * cm) + (c * sd));
+            tr[9] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 4] = a;
-            tr[2 * 4] = base[3 * 4 + 1] = sin(a);
-            tr[2 * 4 + 1] = base[3 * 4 + 2] = cos(a);
+            base[12] = a;
+            base[13] = sin(a);
+            tr[8] = base[13];
+            base[14] = cos(a);
+            tr[9] = base[14];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 5 + 2], d = a - base[3 * 5];
+        const andrews_squeezer_real a = q[17];
+        const andrews_squeezer_real d = a - base[15];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 5 + 1], c = base[3 * 5 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 5] = s + (s * cm + c * sd);
-            tr[2 * 5 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[16];
+            const andrews_squeezer_real c = base[17];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[10] = s + ((s * cm) + (c * sd));
+            tr[11] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 5] = a;
-            tr[2 * 5] = base[3 * 5 + 1] = sin(a);
-            tr[2 * 5 + 1] = base[3 * 5 + 2] = cos(a);
+            base[15] = a;
+            base[16] = sin(a);
+            tr[10] = base[16];
+            base[17] = cos(a);
+            tr[11] = base[17];
         }
     }
     {
-        const andrews_squeezer_real a = q[3 * 6 + 2], d = a - base[3 * 6];
+        const andrews_squeezer_real a = q[20];
+        const andrews_squeezer_real d = a - base[18];
         if (fabs(d) <= 0.0625) {
-            const andrews_squeezer_real d2 = d * d, s = base[3 * 6 + 1], c = base[3 * 6 + 2];
-            const andrews_squeezer_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const andrews_squeezer_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 6] = s + (s * cm + c * sd);
-            tr[2 * 6 + 1] = c + (c * cm - s * sd);
+            const andrews_squeezer_real d2 = d * d;
+            const andrews_squeezer_real s = base[19];
+            const andrews_squeezer_real c = base[20];
+            const andrews_squeezer_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const andrews_squeezer_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[12] = s + ((s * cm) + (c * sd));
+            tr[13] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 6] = a;
-            tr[2 * 6] = base[3 * 6 + 1] = sin(a);
-            tr[2 * 6 + 1] = base[3 * 6 + 2] = cos(a);
+            base[18] = a;
+            base[19] = sin(a);
+            tr[12] = base[19];
+            base[20] = cos(a);
+            tr[13] = base[20];
         }
     }
 }
@@ -368,70 +405,84 @@ static void andrews_squeezer_trig_near(const andrews_squeezer_real *q, andrews_s
 static void andrews_squeezer_trig_step(const andrews_squeezer_real *q, const andrews_squeezer_real *dq, andrews_squeezer_real *tr, andrews_squeezer_real *base)
 {
     {
-        const andrews_squeezer_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const andrews_squeezer_real d = -dq[2];
+        const andrews_squeezer_real s = tr[0];
+        const andrews_squeezer_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const andrews_squeezer_real d = -dq[5];
+        const andrews_squeezer_real s = tr[2];
+        const andrews_squeezer_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const andrews_squeezer_real d = -dq[8];
+        const andrews_squeezer_real s = tr[4];
+        const andrews_squeezer_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 3 + 2], s = tr[2 * 3], c = tr[2 * 3 + 1];
+        const andrews_squeezer_real d = -dq[11];
+        const andrews_squeezer_real s = tr[6];
+        const andrews_squeezer_real c = tr[7];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 3] = s + c * d;
-            tr[2 * 3 + 1] = c - s * d;
+            tr[6] = s + (c * d);
+            tr[7] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 4 + 2], s = tr[2 * 4], c = tr[2 * 4 + 1];
+        const andrews_squeezer_real d = -dq[14];
+        const andrews_squeezer_real s = tr[8];
+        const andrews_squeezer_real c = tr[9];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 4] = s + c * d;
-            tr[2 * 4 + 1] = c - s * d;
+            tr[8] = s + (c * d);
+            tr[9] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 5 + 2], s = tr[2 * 5], c = tr[2 * 5 + 1];
+        const andrews_squeezer_real d = -dq[17];
+        const andrews_squeezer_real s = tr[10];
+        const andrews_squeezer_real c = tr[11];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 5] = s + c * d;
-            tr[2 * 5 + 1] = c - s * d;
+            tr[10] = s + (c * d);
+            tr[11] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const andrews_squeezer_real d = -dq[3 * 6 + 2], s = tr[2 * 6], c = tr[2 * 6 + 1];
+        const andrews_squeezer_real d = -dq[20];
+        const andrews_squeezer_real s = tr[12];
+        const andrews_squeezer_real c = tr[13];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 6] = s + c * d;
-            tr[2 * 6 + 1] = c - s * d;
+            tr[12] = s + (c * d);
+            tr[13] = c - (s * d);
         } else {
             andrews_squeezer_trig_near(q, tr, base);
             return;
@@ -445,9 +496,9 @@ static void andrews_squeezer_trig_step(const andrews_squeezer_real *q, const and
    evaluation. The kernels read both from this one vector. */
 static void andrews_squeezer_prepare(const andrews_squeezer_real *p, andrews_squeezer_real *pp)
 {
-    memcpy(pp, p, sizeof(andrews_squeezer_real) * 44);
+    (void)memcpy(pp, p, sizeof(andrews_squeezer_real) * 44u);
     {
-        const andrews_squeezer_real e0 = (2*3.141592653589793*p[43]);
+        const andrews_squeezer_real e0 = (2.0*3.141592653589793*p[43]);
         const andrews_squeezer_real e1 = (1.0/p[42]);
         const andrews_squeezer_real e2 = (e0*e0);
         const andrews_squeezer_real e3 = (1.0/e0);
@@ -487,27 +538,27 @@ static void andrews_squeezer_phi_k0(const andrews_squeezer_real * q, const andre
     const andrews_squeezer_real e13 = -q[19];
     const andrews_squeezer_real e14 = p[49]*tr[3];
     const andrews_squeezer_real e15 = p[49]*tr[2];
-    out[0] = -p[25]*tr[1] + q[0];
-    out[1] = -p[25]*tr[0] + q[1];
-    out[2] = p[21]*tr[3] - p[44]*tr[1] + (-e0 - q[0]);
-    out[3] = p[21]*tr[2] - p[44]*tr[0] + (-e1 - q[1]);
-    out[4] = -e3 - p[28]*tr[4] + (-e2 - p[16]);
-    out[5] = -e4 + p[28]*tr[5] + (-e5 - p[17]);
-    out[6] = -e6 - p[31]*tr[9] + (-p[14] + q[12]);
-    out[7] = e7 - p[31]*tr[8] + (-e8 - p[15]);
-    out[8] = e6 - p[45]*tr[6] - p[46]*tr[9] + (-e9 - q[12]);
-    out[9] = -e7 + p[45]*tr[7] - p[46]*tr[8] + (e8 + q[10]);
-    out[10] = -e11 - p[35]*tr[12] + (-e10 - p[14]);
-    out[11] = -e12 + p[35]*tr[13] + (-e13 - p[15]);
-    out[12] = e11 + p[47]*tr[12] + p[48]*tr[11] + (e10 + q[15]);
-    out[13] = e12 - p[47]*tr[13] + p[48]*tr[10] + (e13 + q[16]);
-    out[14] = e14 + e3 + p[50]*tr[4] + (e2 + q[3]);
-    out[15] = e15 + e4 - p[50]*tr[5] + (e5 + q[4]);
-    out[16] = e14 - p[23]*tr[6] + (e9 + q[3]);
-    out[17] = e15 + p[23]*tr[7] + (-e1 - q[10]);
-    out[18] = e14 - p[38]*tr[11] + (-e0 - q[15]);
-    out[19] = e15 - p[38]*tr[10] + (-e1 - q[16]);
-    out[20] = -p[41] - p[51]*t - p[56]*(log(1 + exp(-2*p[55]*t)) - log(2)) + q[2];
+    out[0] = (-p[25]*tr[1]) + q[0];
+    out[1] = (-p[25]*tr[0]) + q[1];
+    out[2] = (p[21]*tr[3]) - (p[44]*tr[1]) + (-e0 - q[0]);
+    out[3] = (p[21]*tr[2]) - (p[44]*tr[0]) + (-e1 - q[1]);
+    out[4] = -e3 - (p[28]*tr[4]) + (-e2 - p[16]);
+    out[5] = -e4 + (p[28]*tr[5]) + (-e5 - p[17]);
+    out[6] = -e6 - (p[31]*tr[9]) + (-p[14] + q[12]);
+    out[7] = e7 - (p[31]*tr[8]) + (-e8 - p[15]);
+    out[8] = e6 - (p[45]*tr[6]) - (p[46]*tr[9]) + (-e9 - q[12]);
+    out[9] = -e7 + (p[45]*tr[7]) - (p[46]*tr[8]) + (e8 + q[10]);
+    out[10] = -e11 - (p[35]*tr[12]) + (-e10 - p[14]);
+    out[11] = -e12 + (p[35]*tr[13]) + (-e13 - p[15]);
+    out[12] = e11 + (p[47]*tr[12]) + (p[48]*tr[11]) + (e10 + q[15]);
+    out[13] = e12 - (p[47]*tr[13]) + (p[48]*tr[10]) + (e13 + q[16]);
+    out[14] = e14 + e3 + (p[50]*tr[4]) + (e2 + q[3]);
+    out[15] = e15 + e4 - (p[50]*tr[5]) + (e5 + q[4]);
+    out[16] = e14 - (p[23]*tr[6]) + (e9 + q[3]);
+    out[17] = e15 + (p[23]*tr[7]) + (-e1 - q[10]);
+    out[18] = e14 - (p[38]*tr[11]) + (-e0 - q[15]);
+    out[19] = e15 - (p[38]*tr[10]) + (-e1 - q[16]);
+    out[20] = -p[41] - (p[51]*t) - (p[56]*(log(1.0 + exp(-2.0*p[55]*t)) - log(2.0))) + q[2];
 }
 
 static void andrews_squeezer_phi_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -521,8 +572,7 @@ void andrews_squeezer_phi(const andrews_squeezer_real * q, andrews_squeezer_real
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_phi_k(q, tr, t, p, out);
+    andrews_squeezer_phi_k(q, tr, t, prepared, out);
 }
 
 static void andrews_squeezer_phi_q_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -535,54 +585,54 @@ static void andrews_squeezer_phi_q_k0(const andrews_squeezer_real * q, const and
     const andrews_squeezer_real e3 = p[32]*tr[8];
     const andrews_squeezer_real e4 = p[34]*tr[12];
     const andrews_squeezer_real e5 = p[34]*tr[13];
-    out[0] = 1;
+    out[0] = 1.0;
     out[1] = p[25]*tr[0];
-    out[2] = 1;
+    out[2] = 1.0;
     out[3] = -p[25]*tr[1];
-    out[4] = -1;
+    out[4] = -1.0;
     out[5] = p[44]*tr[0];
-    out[6] = 1;
+    out[6] = 1.0;
     out[7] = -p[21]*tr[2];
-    out[8] = -1;
+    out[8] = -1.0;
     out[9] = -p[44]*tr[1];
-    out[10] = 1;
+    out[10] = 1.0;
     out[11] = p[21]*tr[3];
-    out[12] = 1;
-    out[13] = e0 - p[28]*tr[5];
-    out[14] = 1;
-    out[15] = -e1 - p[28]*tr[4];
-    out[16] = 1;
-    out[17] = -e2 + p[31]*tr[8];
-    out[18] = 1;
-    out[19] = -e3 - p[31]*tr[9];
-    out[20] = 1;
+    out[12] = 1.0;
+    out[13] = e0 - (p[28]*tr[5]);
+    out[14] = 1.0;
+    out[15] = -e1 - (p[28]*tr[4]);
+    out[16] = 1.0;
+    out[17] = -e2 + (p[31]*tr[8]);
+    out[18] = 1.0;
+    out[19] = -e3 - (p[31]*tr[9]);
+    out[20] = 1.0;
     out[21] = -p[45]*tr[7];
-    out[22] = -1;
-    out[23] = e2 + p[46]*tr[8];
-    out[24] = 1;
+    out[22] = -1.0;
+    out[23] = e2 + (p[46]*tr[8]);
+    out[24] = 1.0;
     out[25] = -p[45]*tr[6];
-    out[26] = -1;
-    out[27] = e3 - p[46]*tr[9];
-    out[28] = 1;
-    out[29] = e4 - p[35]*tr[13];
-    out[30] = 1;
-    out[31] = -e5 - p[35]*tr[12];
-    out[32] = 1;
+    out[26] = -1.0;
+    out[27] = e3 - (p[46]*tr[9]);
+    out[28] = 1.0;
+    out[29] = e4 - (p[35]*tr[13]);
+    out[30] = 1.0;
+    out[31] = -e5 - (p[35]*tr[12]);
+    out[32] = 1.0;
     out[33] = -p[48]*tr[10];
-    out[34] = -1;
-    out[35] = -e4 + p[47]*tr[13];
-    out[36] = 1;
+    out[34] = -1.0;
+    out[35] = -e4 + (p[47]*tr[13]);
+    out[36] = 1.0;
     out[37] = p[48]*tr[11];
-    out[38] = -1;
-    out[39] = e5 + p[47]*tr[12];
-    out[40] = 1;
+    out[38] = -1.0;
+    out[39] = e5 + (p[47]*tr[12]);
+    out[40] = 1.0;
     out[41] = -p[49]*tr[2];
-    out[42] = -1;
-    out[43] = -e0 + p[50]*tr[5];
-    out[44] = 1;
+    out[42] = -1.0;
+    out[43] = -e0 + (p[50]*tr[5]);
+    out[44] = 1.0;
     out[45] = p[49]*tr[3];
-    out[46] = -1;
-    out[47] = e1 + p[50]*tr[4];
+    out[46] = -1.0;
+    out[47] = e1 + (p[50]*tr[4]);
 }
 
 static void andrews_squeezer_phi_q_k1(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -591,23 +641,23 @@ static void andrews_squeezer_phi_q_k1(const andrews_squeezer_real * q, const and
     (void)t;
     const andrews_squeezer_real e0 = -p[49]*tr[2];
     const andrews_squeezer_real e1 = p[49]*tr[3];
-    out[48] = 1;
+    out[48] = 1.0;
     out[49] = e0;
-    out[50] = -1;
+    out[50] = -1.0;
     out[51] = -p[23]*tr[7];
-    out[52] = 1;
+    out[52] = 1.0;
     out[53] = e1;
-    out[54] = -1;
+    out[54] = -1.0;
     out[55] = -p[23]*tr[6];
-    out[56] = 1;
+    out[56] = 1.0;
     out[57] = e0;
-    out[58] = -1;
+    out[58] = -1.0;
     out[59] = p[38]*tr[10];
-    out[60] = 1;
+    out[60] = 1.0;
     out[61] = e1;
-    out[62] = -1;
+    out[62] = -1.0;
     out[63] = -p[38]*tr[11];
-    out[64] = 1;
+    out[64] = 1.0;
 }
 
 static void andrews_squeezer_phi_q_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -622,36 +672,35 @@ void andrews_squeezer_phi_q(const andrews_squeezer_real * q, andrews_squeezer_re
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_phi_q_k(q, tr, t, p, out);
+    andrews_squeezer_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void andrews_squeezer_nu_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
     (void)q;
     (void)tr;
-    const andrews_squeezer_real e0 = exp(-2*p[55]*t);
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
-    out[9] = 0;
-    out[10] = 0;
-    out[11] = 0;
-    out[12] = 0;
-    out[13] = 0;
-    out[14] = 0;
-    out[15] = 0;
-    out[16] = 0;
-    out[17] = 0;
-    out[18] = 0;
-    out[19] = 0;
-    out[20] = -2*e0*p[51]/(e0 + 1) + p[51];
+    const andrews_squeezer_real e0 = exp(-2.0*p[55]*t);
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
+    out[9] = 0.0;
+    out[10] = 0.0;
+    out[11] = 0.0;
+    out[12] = 0.0;
+    out[13] = 0.0;
+    out[14] = 0.0;
+    out[15] = 0.0;
+    out[16] = 0.0;
+    out[17] = 0.0;
+    out[18] = 0.0;
+    out[19] = 0.0;
+    out[20] = (-2.0*e0*p[51]/(e0 + 1.0)) + p[51];
 }
 
 static void andrews_squeezer_nu_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -665,8 +714,7 @@ void andrews_squeezer_nu(const andrews_squeezer_real * q, andrews_squeezer_real 
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_nu_k(q, tr, t, p, out);
+    andrews_squeezer_nu_k(q, tr, t, prepared, out);
 }
 
 static void andrews_squeezer_gamma_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -700,29 +748,29 @@ static void andrews_squeezer_gamma_k0(const andrews_squeezer_real * q, const and
     const andrews_squeezer_real e25 = e15*p[23];
     const andrews_squeezer_real e26 = -e2*p[49]*tr[3];
     const andrews_squeezer_real e27 = e21*p[38];
-    const andrews_squeezer_real e28 = exp(-2*p[55]*t);
-    const andrews_squeezer_real e29 = e28/(e28 + 1);
+    const andrews_squeezer_real e28 = exp(-2.0*p[55]*t);
+    const andrews_squeezer_real e29 = e28/(e28 + 1.0);
     out[0] = -e1*tr[1];
     out[1] = -e1*tr[0];
-    out[2] = e3*tr[3] - e4*tr[1];
-    out[3] = e3*tr[2] - e4*tr[0];
-    out[4] = -e7 - e8*p[28];
-    out[5] = e5*p[28]*tr[5] - e9;
-    out[6] = -e11*p[31] - e13;
-    out[7] = -e12*p[31] + e14;
-    out[8] = -e11*p[46] + e13 - e15*p[45]*tr[6];
-    out[9] = -e12*p[46] - e14 + e15*p[45]*tr[7];
-    out[10] = -e18 - e19*p[35];
-    out[11] = e16*p[35]*tr[13] - e20;
-    out[12] = e18 + e19*p[47] + e22*tr[11];
-    out[13] = -e17*p[47] + e20 + e22*tr[10];
-    out[14] = e23*tr[3] + e7 + e8*p[50];
-    out[15] = e24 - e6*p[50] + e9;
-    out[16] = -e25*tr[6] - e26;
-    out[17] = e24 + e25*tr[7];
-    out[18] = -e26 - e27*tr[11];
-    out[19] = e2*p[49]*tr[2] - e27*tr[10];
-    out[20] = 4*e29*p[42]*(1 - e29);
+    out[2] = (e3*tr[3]) - (e4*tr[1]);
+    out[3] = (e3*tr[2]) - (e4*tr[0]);
+    out[4] = -e7 - (e8*p[28]);
+    out[5] = (e5*p[28]*tr[5]) - e9;
+    out[6] = (-e11*p[31]) - e13;
+    out[7] = (-e12*p[31]) + e14;
+    out[8] = (-e11*p[46]) + e13 - (e15*p[45]*tr[6]);
+    out[9] = (-e12*p[46]) - e14 + (e15*p[45]*tr[7]);
+    out[10] = -e18 - (e19*p[35]);
+    out[11] = (e16*p[35]*tr[13]) - e20;
+    out[12] = e18 + (e19*p[47]) + (e22*tr[11]);
+    out[13] = (-e17*p[47]) + e20 + (e22*tr[10]);
+    out[14] = (e23*tr[3]) + e7 + (e8*p[50]);
+    out[15] = e24 - (e6*p[50]) + e9;
+    out[16] = (-e25*tr[6]) - e26;
+    out[17] = e24 + (e25*tr[7]);
+    out[18] = -e26 - (e27*tr[11]);
+    out[19] = (e2*p[49]*tr[2]) - (e27*tr[10]);
+    out[20] = 4.0*e29*p[42]*(1.0 - e29);
 }
 
 static void andrews_squeezer_gamma_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -736,8 +784,7 @@ void andrews_squeezer_gamma(const andrews_squeezer_real * q, const andrews_squee
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_gamma_k(q, tr, qd, t, p, out);
+    andrews_squeezer_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void andrews_squeezer_applied_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -745,34 +792,34 @@ static void andrews_squeezer_applied_k0(const andrews_squeezer_real * q, const a
     (void)qd;
     (void)t;
     const andrews_squeezer_real e0 = p[57]*tr[4];
-    const andrews_squeezer_real e1 = -e0 + p[58]*tr[5] + (-p[18] + q[6]);
-    const andrews_squeezer_real e2 = p[57]*tr[5] + p[58]*tr[4];
+    const andrews_squeezer_real e1 = -e0 + (p[58]*tr[5]) + (-p[18] + q[6]);
+    const andrews_squeezer_real e2 = (p[57]*tr[5]) + (p[58]*tr[4]);
     const andrews_squeezer_real e3 = e2 + (-p[19] + q[7]);
     const andrews_squeezer_real e4 = sqrt((e1*e1) + (e3*e3));
     const andrews_squeezer_real e5 = p[39]*(e4 - p[40])/e4;
     const andrews_squeezer_real e6 = e1*e5;
     const andrews_squeezer_real e7 = e3*e5;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
     out[6] = -e6;
     out[7] = -e7;
-    out[8] = e2*e6 - e7*(-e0 + p[58]*tr[5]);
-    out[9] = 0;
-    out[10] = 0;
-    out[11] = 0;
-    out[12] = 0;
-    out[13] = 0;
-    out[14] = 0;
-    out[15] = 0;
-    out[16] = 0;
-    out[17] = 0;
-    out[18] = 0;
-    out[19] = 0;
-    out[20] = 0;
+    out[8] = (e2*e6) - (e7*(-e0 + (p[58]*tr[5])));
+    out[9] = 0.0;
+    out[10] = 0.0;
+    out[11] = 0.0;
+    out[12] = 0.0;
+    out[13] = 0.0;
+    out[14] = 0.0;
+    out[15] = 0.0;
+    out[16] = 0.0;
+    out[17] = 0.0;
+    out[18] = 0.0;
+    out[19] = 0.0;
+    out[20] = 0.0;
 }
 
 static void andrews_squeezer_applied_k(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -786,8 +833,7 @@ void andrews_squeezer_applied(const andrews_squeezer_real * q, const andrews_squ
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_applied_k(q, tr, qd, t, p, out);
+    andrews_squeezer_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void andrews_squeezer_mass_k0(const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -824,8 +870,7 @@ void andrews_squeezer_mass(const andrews_squeezer_real * p, andrews_squeezer_rea
 {
     andrews_squeezer_real prepared[59];
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_mass_k(p, out);
+    andrews_squeezer_mass_k(prepared, out);
 }
 
 static void andrews_squeezer_reactions_k0(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * lam, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -836,52 +881,52 @@ static void andrews_squeezer_reactions_k0(const andrews_squeezer_real * q, const
     (void)p;
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = lam[4];
     out[13] = lam[5];
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = -lam[4];
     out[16] = -lam[5];
-    out[17] = 0;
+    out[17] = 0.0;
     out[18] = lam[6];
     out[19] = lam[7];
-    out[20] = 0;
+    out[20] = 0.0;
     out[21] = -lam[6];
     out[22] = -lam[7];
-    out[23] = 0;
+    out[23] = 0.0;
     out[24] = lam[8];
     out[25] = lam[9];
-    out[26] = 0;
+    out[26] = 0.0;
     out[27] = -lam[8];
     out[28] = -lam[9];
-    out[29] = 0;
+    out[29] = 0.0;
     out[30] = lam[10];
     out[31] = lam[11];
-    out[32] = 0;
+    out[32] = 0.0;
     out[33] = -lam[10];
     out[34] = -lam[11];
-    out[35] = 0;
+    out[35] = 0.0;
     out[36] = lam[12];
     out[37] = lam[13];
-    out[38] = 0;
+    out[38] = 0.0;
     out[39] = -lam[12];
     out[40] = -lam[13];
-    out[41] = 0;
+    out[41] = 0.0;
     out[42] = lam[14];
     out[43] = lam[15];
-    out[44] = 0;
+    out[44] = 0.0;
     out[45] = -lam[14];
     out[46] = -lam[15];
-    out[47] = 0;
+    out[47] = 0.0;
 }
 
 static void andrews_squeezer_reactions_k1(const andrews_squeezer_real * q, const andrews_squeezer_real * tr, const andrews_squeezer_real * lam, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
@@ -892,21 +937,21 @@ static void andrews_squeezer_reactions_k1(const andrews_squeezer_real * q, const
     (void)p;
     out[48] = lam[16];
     out[49] = lam[17];
-    out[50] = 0;
+    out[50] = 0.0;
     out[51] = -lam[16];
     out[52] = -lam[17];
-    out[53] = 0;
+    out[53] = 0.0;
     out[54] = lam[18];
     out[55] = lam[19];
-    out[56] = 0;
+    out[56] = 0.0;
     out[57] = -lam[18];
     out[58] = -lam[19];
-    out[59] = 0;
-    out[60] = 0;
-    out[61] = 0;
+    out[59] = 0.0;
+    out[60] = 0.0;
+    out[61] = 0.0;
     out[62] = lam[20];
-    out[63] = 0;
-    out[64] = 0;
+    out[63] = 0.0;
+    out[64] = 0.0;
     out[65] = -lam[20];
 }
 
@@ -922,8 +967,7 @@ void andrews_squeezer_reactions(const andrews_squeezer_real * q, const andrews_s
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
-    p = prepared;
-    andrews_squeezer_reactions_k(q, tr, lam, t, p, out);
+    andrews_squeezer_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -945,7 +989,7 @@ static int andrews_squeezer_sparse_factor0(andrews_squeezer_real *lu)
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[3]));
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[5]));
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[9]));
-    if (!(1.0 >= ANDREWS_SQUEEZER_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (ANDREWS_SQUEEZER_THRESHOLD * cm))) { return 1; }
     lu[43] += lu[13];
     lu[47] += lu[15];
     lu[23] += lu[17];
@@ -963,50 +1007,56 @@ static int andrews_squeezer_sparse_factor0(andrews_squeezer_real *lu)
     piv = lu[43];
     cm = fabs(piv);
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[47]));
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[43] = 1.0 / piv;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[43] = 1.0 / piv;
+    piv = lu[43];
     lu[47] *= piv;
     lu[69] = 0.0 - lu[47];
-    lu[45] -= lu[47] * lu[41];
+    lu[45] -= (lu[47] * lu[41]);
     cm = 1.0;
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[69]));
-    if (!(1.0 >= ANDREWS_SQUEEZER_THRESHOLD * cm)) return 1;
-    lu[45] -= lu[69] * lu[7];
+    if (!(1.0 >= (ANDREWS_SQUEEZER_THRESHOLD * cm))) { return 1; }
+    lu[45] -= (lu[69] * lu[7]);
     lu[49] -= lu[7];
     lu[57] -= lu[7];
     piv = lu[51];
     cm = fabs(piv);
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[55]));
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[51] = 1.0 / piv;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[51] = 1.0 / piv;
+    piv = lu[51];
     lu[55] *= piv;
-    lu[53] -= lu[55] * lu[49];
-    lu[66] -= lu[55] * lu[65];
+    lu[53] -= (lu[55] * lu[49]);
+    lu[66] -= (lu[55] * lu[65]);
     piv = lu[66];
     cm = fabs(piv);
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[66] = 1.0 / piv;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[66] = 1.0 / piv;
+    piv = lu[66];
     lu[45] -= lu[11];
     lu[61] -= lu[11];
     piv = lu[45];
     cm = fabs(piv);
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[57]));
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[61]));
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[45] = 1.0 / piv;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[45] = 1.0 / piv;
+    piv = lu[45];
     lu[57] *= piv;
     lu[61] *= piv;
     piv = lu[59];
     cm = fabs(piv);
     cm = ANDREWS_SQUEEZER_MAX(cm, fabs(lu[63]));
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[59] = 1.0 / piv;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[59] = 1.0 / piv;
+    piv = lu[59];
     lu[63] *= piv;
-    lu[68] -= lu[63] * lu[67];
+    lu[68] -= (lu[63] * lu[67]);
     piv = lu[68];
     cm = fabs(piv);
-    if (!(fabs(piv) >= ANDREWS_SQUEEZER_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[68] = 1.0 / piv;
+    if (!(fabs(piv) >= (ANDREWS_SQUEEZER_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[68] = 1.0 / piv;
+    piv = lu[68];
     return 0;
 }
 
@@ -1017,10 +1067,10 @@ static int andrews_squeezer_sparse_factor(andrews_squeezer_real *lu)
 
 static void andrews_squeezer_sparse_forward0(const andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT lu, andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT y)
 {
-    y[0] -= lu[1] * y[20];
-    y[1] -= lu[3] * y[20];
-    y[2] -= lu[5] * y[20];
-    y[3] -= lu[9] * y[20];
+    y[0] -= (lu[1] * y[20]);
+    y[1] -= (lu[3] * y[20]);
+    y[2] -= (lu[5] * y[20]);
+    y[3] -= (lu[9] * y[20]);
     y[2] += y[0];
     y[3] += y[1];
     y[14] += y[4];
@@ -1033,39 +1083,39 @@ static void andrews_squeezer_sparse_forward0(const andrews_squeezer_real *ANDREW
     y[17] += y[9];
     y[18] += y[12];
     y[19] += y[13];
-    y[15] -= lu[47] * y[14];
-    y[15] -= lu[69] * y[2];
+    y[15] -= (lu[47] * y[14]);
+    y[15] -= (lu[69] * y[2]);
     y[16] -= y[2];
     y[18] -= y[2];
-    y[17] -= lu[55] * y[16];
+    y[17] -= (lu[55] * y[16]);
     y[15] -= y[3];
     y[19] -= y[3];
-    y[18] -= lu[57] * y[15];
-    y[19] -= lu[61] * y[15];
-    y[19] -= lu[63] * y[18];
+    y[18] -= (lu[57] * y[15]);
+    y[19] -= (lu[61] * y[15]);
+    y[19] -= (lu[63] * y[18]);
 }
 
 static void andrews_squeezer_sparse_back0(
     const andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT lu, const andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT y, andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT x)
 {
     x[20] = (y[19]) * lu[68];
-    x[17] = (y[18] - lu[67] * x[20]) * lu[59];
+    x[17] = (y[18] - (lu[67] * x[20])) * lu[59];
     x[5] = (y[15]) * lu[45];
-    x[4] = y[3] - lu[11] * x[5];
-    x[14] = (y[17] - x[4] - lu[53] * x[5]) * lu[66];
-    x[11] = (y[16] - lu[49] * x[5] - lu[65] * x[14]) * lu[51];
-    x[3] = y[2] - lu[7] * x[5];
-    x[8] = (y[14] - x[3] - lu[41] * x[5]) * lu[43];
-    x[16] = y[13] - lu[37] * x[17] - lu[39] * x[20];
-    x[15] = y[12] - lu[33] * x[17] - lu[35] * x[20];
-    x[10] = y[9] - lu[25] * x[11] - lu[27] * x[14];
-    x[9] = y[8] - lu[21] * x[11] - lu[23] * x[14];
-    x[19] = y[11] - lu[31] * x[20];
-    x[18] = y[10] - lu[29] * x[20];
-    x[13] = y[7] - lu[19] * x[14];
-    x[12] = y[6] - lu[17] * x[14];
-    x[7] = y[5] - lu[15] * x[8];
-    x[6] = y[4] - lu[13] * x[8];
+    x[4] = y[3] - (lu[11] * x[5]);
+    x[14] = (y[17] - x[4] - (lu[53] * x[5])) * lu[66];
+    x[11] = (y[16] - (lu[49] * x[5]) - (lu[65] * x[14])) * lu[51];
+    x[3] = y[2] - (lu[7] * x[5]);
+    x[8] = (y[14] - x[3] - (lu[41] * x[5])) * lu[43];
+    x[16] = y[13] - (lu[37] * x[17]) - (lu[39] * x[20]);
+    x[15] = y[12] - (lu[33] * x[17]) - (lu[35] * x[20]);
+    x[10] = y[9] - (lu[25] * x[11]) - (lu[27] * x[14]);
+    x[9] = y[8] - (lu[21] * x[11]) - (lu[23] * x[14]);
+    x[19] = y[11] - (lu[31] * x[20]);
+    x[18] = y[10] - (lu[29] * x[20]);
+    x[13] = y[7] - (lu[19] * x[14]);
+    x[12] = y[6] - (lu[17] * x[14]);
+    x[7] = y[5] - (lu[15] * x[8]);
+    x[6] = y[4] - (lu[13] * x[8]);
     x[1] = y[1];
     x[0] = y[0];
     x[2] = y[20];
@@ -1080,7 +1130,7 @@ static void andrews_squeezer_sparse_solve_in(const andrews_squeezer_real *lu, an
 
 static void andrews_squeezer_sparse_solve(const andrews_squeezer_real *lu, const andrews_squeezer_real *b, andrews_squeezer_real *x, andrews_squeezer_real *y)
 {
-    memcpy(y, b, sizeof(andrews_squeezer_real) * 21);
+    (void)memcpy(y, b, sizeof(andrews_squeezer_real) * 21u);
     andrews_squeezer_sparse_solve_in(lu, y, x);
 }
 
@@ -1100,28 +1150,28 @@ static void andrews_squeezer_sparse_t_forward0(
     x[9] = b[10];
     x[12] = b[15];
     x[13] = b[16];
-    x[14] = (b[8] - lu[13] * x[4] - lu[15] * x[5]) * lu[43];
+    x[14] = (b[8] - (lu[13] * x[4]) - (lu[15] * x[5])) * lu[43];
     x[2] = b[3] - x[14];
-    x[16] = (b[11] - lu[21] * x[8] - lu[25] * x[9]) * lu[51];
-    x[17] = (b[14] - lu[17] * x[6] - lu[19] * x[7] - lu[23] * x[8] - lu[27] * x[9] - lu[65] * x[16]) * lu[66];
+    x[16] = (b[11] - (lu[21] * x[8]) - (lu[25] * x[9])) * lu[51];
+    x[17] = (b[14] - (lu[17] * x[6]) - (lu[19] * x[7]) - (lu[23] * x[8]) - (lu[27] * x[9]) - (lu[65] * x[16])) * lu[66];
     x[3] = b[4] - x[17];
-    x[15] = (b[5] - lu[41] * x[14] - lu[7] * x[2] - lu[49] * x[16] - lu[53] * x[17] - lu[11] * x[3]) * lu[45];
-    x[18] = (b[17] - lu[33] * x[12] - lu[37] * x[13]) * lu[59];
-    x[19] = (b[20] - lu[29] * x[10] - lu[31] * x[11] - lu[35] * x[12] - lu[39] * x[13] - lu[67] * x[18]) * lu[68];
+    x[15] = (b[5] - (lu[41] * x[14]) - (lu[7] * x[2]) - (lu[49] * x[16]) - (lu[53] * x[17]) - (lu[11] * x[3])) * lu[45];
+    x[18] = (b[17] - (lu[33] * x[12]) - (lu[37] * x[13])) * lu[59];
+    x[19] = (b[20] - (lu[29] * x[10]) - (lu[31] * x[11]) - (lu[35] * x[12]) - (lu[39] * x[13]) - (lu[67] * x[18])) * lu[68];
 }
 
 static void andrews_squeezer_sparse_t_back0(const andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT lu, andrews_squeezer_real *ANDREWS_SQUEEZER_RESTRICT x)
 {
-    x[18] -= lu[63] * x[19];
-    x[15] -= lu[57] * x[18];
-    x[15] -= lu[61] * x[19];
+    x[18] -= (lu[63] * x[19]);
+    x[15] -= (lu[57] * x[18]);
+    x[15] -= (lu[61] * x[19]);
     x[3] -= x[15];
     x[3] -= x[19];
-    x[16] -= lu[55] * x[17];
-    x[2] -= lu[69] * x[15];
+    x[16] -= (lu[55] * x[17]);
+    x[2] -= (lu[69] * x[15]);
     x[2] -= x[16];
     x[2] -= x[18];
-    x[14] -= lu[47] * x[15];
+    x[14] -= (lu[47] * x[15]);
     x[13] += x[19];
     x[12] += x[18];
     x[9] += x[17];
@@ -1134,10 +1184,10 @@ static void andrews_squeezer_sparse_t_back0(const andrews_squeezer_real *ANDREWS
     x[4] += x[14];
     x[1] += x[3];
     x[0] += x[2];
-    x[20] -= lu[1] * x[0];
-    x[20] -= lu[3] * x[1];
-    x[20] -= lu[5] * x[2];
-    x[20] -= lu[9] * x[3];
+    x[20] -= (lu[1] * x[0]);
+    x[20] -= (lu[3] * x[1]);
+    x[20] -= (lu[5] * x[2]);
+    x[20] -= (lu[9] * x[3]);
 }
 
 static void andrews_squeezer_sparse_solve_t(const andrews_squeezer_real *lu, const andrews_squeezer_real *b, andrews_squeezer_real *x)
@@ -1151,58 +1201,81 @@ static void andrews_squeezer_sparse_solve_t(const andrews_squeezer_real *lu, con
 static int andrews_squeezer_dense_factor(andrews_squeezer_real *a, int *perm)
 {
     const int n = 21;
-    int i, j, k;
-    andrews_squeezer_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    andrews_squeezer_real umax = 0.0;
+    andrews_squeezer_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                andrews_squeezer_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return ANDREWS_SQUEEZER_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            andrews_squeezer_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                andrews_squeezer_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return ANDREWS_SQUEEZER_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            andrews_squeezer_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= ANDREWS_SQUEEZER_SINGULAR_RATIO * umax ? ANDREWS_SQUEEZER_SINGULAR : ANDREWS_SQUEEZER_OK;
+    return (umin <= (ANDREWS_SQUEEZER_SINGULAR_RATIO * umax)) ? ANDREWS_SQUEEZER_SINGULAR : ANDREWS_SQUEEZER_OK;
 }
 
 static void andrews_squeezer_dense_solve(const andrews_squeezer_real *a, const int *perm, const andrews_squeezer_real *b, andrews_squeezer_real *x)
 {
     const int n = 21;
-    int i, j;
-    memcpy(x, b, sizeof(andrews_squeezer_real) * 21);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(andrews_squeezer_real) * 21u);
     for (i = 0; i < n; ++i) {
         andrews_squeezer_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void andrews_squeezer_dense_solve_t(const andrews_squeezer_real *a, const int *perm, const andrews_squeezer_real *b, andrews_squeezer_real *x)
 {
     const int n = 21;
-    int i, j;
-    memcpy(x, b, sizeof(andrews_squeezer_real) * 21);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(andrews_squeezer_real) * 21u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         andrews_squeezer_real tmp = x[perm[i]];
@@ -1210,8 +1283,6 @@ static void andrews_squeezer_dense_solve_t(const andrews_squeezer_real *a, const
         x[i] = tmp;
     }
 }
-
-static const int andrews_squeezer_pivot_slots[6] = { 43, 51, 66, 45, 59, 68 };
 
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
@@ -1219,6 +1290,7 @@ static const int andrews_squeezer_pivot_slots[6] = { 43, 51, 66, 45, 59, 68 };
    hold reciprocals, whose spread is the pivots'. */
 static int andrews_squeezer_pivots_spread(const andrews_squeezer_real *lu)
 {
+    static const int andrews_squeezer_pivot_slots[6] = { 43, 51, 66, 45, 59, 68 };
     andrews_squeezer_real rmin = 1.0;
     andrews_squeezer_real rmax = 1.0;
     int k;
@@ -1227,7 +1299,7 @@ static int andrews_squeezer_pivots_spread(const andrews_squeezer_real *lu)
         rmin = ANDREWS_SQUEEZER_MIN(rmin, r);
         rmax = ANDREWS_SQUEEZER_MAX(rmax, r);
     }
-    return rmin <= ANDREWS_SQUEEZER_SINGULAR_RATIO * rmax;
+    return (rmin <= (ANDREWS_SQUEEZER_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -1240,8 +1312,12 @@ static int andrews_squeezer_pivots_spread(const andrews_squeezer_real *lu)
 static int andrews_squeezer_screen(const andrews_squeezer_real *lu, int dense, const andrews_squeezer_real *row, const andrews_squeezer_real *col,
                           const andrews_squeezer_real *known)
 {
-    andrews_squeezer_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    andrews_squeezer_real wmin = known[0];
+    andrews_squeezer_real wmax = known[1];
+    andrews_squeezer_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[43]) * row[14] * col[8];
     wmin = ANDREWS_SQUEEZER_MIN(wmin, w);
     wmax = ANDREWS_SQUEEZER_MAX(wmax, w);
@@ -1264,7 +1340,7 @@ static int andrews_squeezer_screen(const andrews_squeezer_real *lu, int dense, c
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= ANDREWS_SQUEEZER_SCREEN * wmin);
+    return (wmax <= (ANDREWS_SQUEEZER_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -1273,7 +1349,8 @@ static int andrews_squeezer_screen(const andrews_squeezer_real *lu, int dense, c
 static void andrews_squeezer_screen_known(const andrews_squeezer_real *row, const andrews_squeezer_real *col, andrews_squeezer_real *known)
 {
     andrews_squeezer_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[20] * col[2];
     known[0] = ANDREWS_SQUEEZER_MIN(known[0], w);
     known[1] = ANDREWS_SQUEEZER_MAX(known[1], w);
@@ -1330,37 +1407,52 @@ static void andrews_squeezer_screen_known(const andrews_squeezer_real *row, cons
 static int andrews_squeezer_factorize(const andrews_squeezer_real *q, const andrews_squeezer_real *tr, andrews_squeezer_real t, const andrews_squeezer_real *p, andrews_squeezer_real *work,
                              int *iwork, int *dense)
 {
-    andrews_squeezer_real *values = work, *lu = work + ANDREWS_SQUEEZER_OFF_LU, *a = work + ANDREWS_SQUEEZER_OFF_DENSE;
+    andrews_squeezer_real *values = work;
+    andrews_squeezer_real *lu = &work[ANDREWS_SQUEEZER_OFF_LU];
+    andrews_squeezer_real *a = &work[ANDREWS_SQUEEZER_OFF_DENSE];
     int k;
     andrews_squeezer_phi_q_k(q, tr, t, p, lu);
-    memset(lu + 65, 0, sizeof(andrews_squeezer_real) * (ANDREWS_SQUEEZER_LU_SIZE - 65));
+    (void)memset(&lu[65], 0, sizeof(andrews_squeezer_real) * ((size_t)ANDREWS_SQUEEZER_LU_SIZE - 65u));
     *dense = 0;
-    if (andrews_squeezer_sparse_factor(lu) == 0 && !andrews_squeezer_pivots_spread(lu)) return ANDREWS_SQUEEZER_OK;
+    if ((andrews_squeezer_sparse_factor(lu) == 0) && (andrews_squeezer_pivots_spread(lu) == 0)) {
+        return ANDREWS_SQUEEZER_OK;
+    }
     *dense = 1;
     andrews_squeezer_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(andrews_squeezer_real) * 441);
-    for (k = 0; k < 65; ++k) a[andrews_squeezer_phi_q_rows[k] * 21 + andrews_squeezer_phi_q_cols[k]] = values[k];
+    (void)memset(a, 0, sizeof(andrews_squeezer_real) * 441u);
+    for (k = 0; k < 65; ++k) {
+        a[(andrews_squeezer_phi_q_rows[k] * 21) + andrews_squeezer_phi_q_cols[k]] = values[k];
+    }
     return andrews_squeezer_dense_factor(a, iwork);
 }
 
 static void andrews_squeezer_solve(const andrews_squeezer_real *work, const int *iwork, int dense, const andrews_squeezer_real *b, andrews_squeezer_real *x, andrews_squeezer_real *y)
 {
-    if (dense) andrews_squeezer_dense_solve(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, b, x);
-    else andrews_squeezer_sparse_solve(work + ANDREWS_SQUEEZER_OFF_LU, b, x, y);
+    if (dense != 0) {
+        andrews_squeezer_dense_solve(&work[ANDREWS_SQUEEZER_OFF_DENSE], iwork, b, x);
+    } else {
+        andrews_squeezer_sparse_solve(&work[ANDREWS_SQUEEZER_OFF_LU], b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void andrews_squeezer_solve_in(const andrews_squeezer_real *work, const int *iwork, int dense, andrews_squeezer_real *b, andrews_squeezer_real *x, andrews_squeezer_real *y)
 {
-    if (dense) andrews_squeezer_solve(work, iwork, dense, b, x, y);
-    else andrews_squeezer_sparse_solve_in(work + ANDREWS_SQUEEZER_OFF_LU, b, x);
+    if (dense != 0) {
+        andrews_squeezer_solve(work, iwork, dense, b, x, y);
+    } else {
+        andrews_squeezer_sparse_solve_in(&work[ANDREWS_SQUEEZER_OFF_LU], b, x);
+    }
 }
 
 static void andrews_squeezer_solve_t(const andrews_squeezer_real *work, const int *iwork, int dense, const andrews_squeezer_real *b, andrews_squeezer_real *x)
 {
-    if (dense) andrews_squeezer_dense_solve_t(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, b, x);
-    else andrews_squeezer_sparse_solve_t(work + ANDREWS_SQUEEZER_OFF_LU, b, x);
+    if (dense != 0) {
+        andrews_squeezer_dense_solve_t(&work[ANDREWS_SQUEEZER_OFF_DENSE], iwork, b, x);
+    } else {
+        andrews_squeezer_sparse_solve_t(&work[ANDREWS_SQUEEZER_OFF_LU], b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -1370,7 +1462,8 @@ static void andrews_squeezer_solve_t(const andrews_squeezer_real *work, const in
    the refinement's cost (a quarter of an instant) is not paid. */
 static int andrews_squeezer_mixed(const andrews_squeezer_real *m)
 {
-    andrews_squeezer_real lo = m[0], hi = m[0];
+    andrews_squeezer_real lo = m[0];
+    andrews_squeezer_real hi = m[0];
     lo = ANDREWS_SQUEEZER_MIN(lo, m[3]);
     hi = ANDREWS_SQUEEZER_MAX(hi, m[3]);
     lo = ANDREWS_SQUEEZER_MIN(lo, m[6]);
@@ -1383,7 +1476,7 @@ static int andrews_squeezer_mixed(const andrews_squeezer_real *m)
     hi = ANDREWS_SQUEEZER_MAX(hi, m[15]);
     lo = ANDREWS_SQUEEZER_MIN(lo, m[18]);
     hi = ANDREWS_SQUEEZER_MAX(hi, m[18]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1398,14 +1491,23 @@ static int andrews_squeezer_mixed(const andrews_squeezer_real *m)
 static ANDREWS_SQUEEZER_COLD void andrews_squeezer_refine_t(const andrews_squeezer_real *q, const andrews_squeezer_real *tr, andrews_squeezer_real t, const andrews_squeezer_real *p,
                                         const andrews_squeezer_real *b, andrews_squeezer_real *lam, andrews_squeezer_real *work, const int *iwork, int dense)
 {
-    andrews_squeezer_real *values = work, *r = ANDREWS_SQUEEZER_VEC(work, 0), *d = ANDREWS_SQUEEZER_VEC(work, 1);
+    andrews_squeezer_real *values = work;
+    andrews_squeezer_real *r = ANDREWS_SQUEEZER_VEC(work, 0);
+    andrews_squeezer_real *d = ANDREWS_SQUEEZER_VEC(work, 1);
     int k;
     andrews_squeezer_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(andrews_squeezer_real) * 21);
-    for (k = 0; k < 65; ++k) r[andrews_squeezer_phi_q_cols[k]] -= values[k] * lam[andrews_squeezer_phi_q_rows[k]];
-    if (dense) andrews_squeezer_dense_solve_t(work + ANDREWS_SQUEEZER_OFF_DENSE, iwork, r, d);
-    else andrews_squeezer_sparse_solve_t(work + ANDREWS_SQUEEZER_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 21; ++k) lam[k] += d[k];
+    (void)memcpy(r, b, sizeof(andrews_squeezer_real) * 21u);
+    for (k = 0; k < 65; ++k) {
+        r[andrews_squeezer_phi_q_cols[k]] -= values[k] * lam[andrews_squeezer_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        andrews_squeezer_dense_solve_t(&work[ANDREWS_SQUEEZER_OFF_DENSE], iwork, r, d);
+    } else {
+        andrews_squeezer_sparse_solve_t(&work[ANDREWS_SQUEEZER_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 21; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,
@@ -1420,48 +1522,85 @@ static andrews_squeezer_real andrews_squeezer_cond_estimate(const andrews_squeez
                                     andrews_squeezer_real *work, const int *iwork, int dense, const andrews_squeezer_real *row,
                                     const andrews_squeezer_real *col)
 {
-    andrews_squeezer_real *vals = work, *x = ANDREWS_SQUEEZER_VEC(work, 0), *z = ANDREWS_SQUEEZER_VEC(work, 1), *y = ANDREWS_SQUEEZER_VEC(work, 2);
-    andrews_squeezer_real *b = ANDREWS_SQUEEZER_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    andrews_squeezer_real *vals = work;
+    andrews_squeezer_real *x = ANDREWS_SQUEEZER_VEC(work, 0);
+    andrews_squeezer_real *z = ANDREWS_SQUEEZER_VEC(work, 1);
+    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2);
+    andrews_squeezer_real *b = ANDREWS_SQUEEZER_VEC(work, 3);
+    andrews_squeezer_real anorm = 0.0;
+    andrews_squeezer_real est = 0.0;
+    andrews_squeezer_real s;
+    andrews_squeezer_real zmax;
+    andrews_squeezer_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     andrews_squeezer_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 21; ++k) z[k] = 0.0;
-    for (k = 0; k < 65; ++k)
+    for (k = 0; k < 21; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 65; ++k) {
         z[andrews_squeezer_phi_q_cols[k]] += fabs(vals[k]) / (row[andrews_squeezer_phi_q_rows[k]] * col[andrews_squeezer_phi_q_cols[k]]);
-    for (k = 0; k < 21; ++k) anorm = ANDREWS_SQUEEZER_MAX(anorm, z[k]);
-    for (k = 0; k < 21; ++k) x[k] = 1.0 / 21.0;
+    }
+    for (k = 0; k < 21; ++k) {
+        anorm = ANDREWS_SQUEEZER_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 21; ++k) {
+        x[k] = 1.0 / 21.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 21; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 21; ++k) {
+            b[k] = row[k] * x[k];
+        }
         andrews_squeezer_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 21; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 21; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 21; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         andrews_squeezer_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 21; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 21; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 21; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 21; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (andrews_squeezer_real)k / ANDREWS_SQUEEZER_MAX(1.0, 20.0));
+    for (k = 0; k < 21; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((andrews_squeezer_real)k / ANDREWS_SQUEEZER_MAX(1.0, 20.0)));
+    }
     andrews_squeezer_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 21; ++k) s += fabs(z[k] * col[k]);
-    est = ANDREWS_SQUEEZER_MAX(est, 2.0 * s / (3.0 * 21.0));
+    for (k = 0; k < 21; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = ANDREWS_SQUEEZER_MAX(est, (2.0 * s) / (3.0 * 21.0));
     return anorm * est;
 }
 
@@ -1476,28 +1615,36 @@ static andrews_squeezer_real andrews_squeezer_cond_estimate(const andrews_squeez
 static int andrews_squeezer_row_finite(const andrews_squeezer_real *row, const andrews_squeezer_real *qn, const andrews_squeezer_real *qdn, const andrews_squeezer_real *qddn,
                               const andrews_squeezer_real *lam, const andrews_squeezer_real *reac)
 {
-    andrews_squeezer_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    andrews_squeezer_real s0 = 0.0;
+    andrews_squeezer_real s1 = 0.0;
+    andrews_squeezer_real s2 = 0.0;
+    andrews_squeezer_real s3 = 0.0;
     int k;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     for (k = 0; k < 148; k += 4) {
-        s0 += row[1 + k + 0];
+        s0 += row[1 + k];
         s1 += row[1 + k + 1];
         s2 += row[1 + k + 2];
         s3 += row[1 + k + 3];
     }
     s0 += row[149];
     s1 += row[150];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     for (k = 0; k < 148; k += 4) {
-        s0 += row[1 + k + 0] * 0.0;
+        s0 += row[1 + k] * 0.0;
         s1 += row[1 + k + 1] * 0.0;
         s2 += row[1 + k + 2] * 0.0;
         s3 += row[1 + k + 3] * 0.0;
     }
     s0 += row[149] * 0.0;
     s1 += row[150] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 21 values, NaN if any v_k is NaN (so that a NaN residual
@@ -1505,73 +1652,81 @@ static int andrews_squeezer_row_finite(const andrews_squeezer_real *row, const a
    comparison. */
 static andrews_squeezer_real andrews_squeezer_maxabs21(const andrews_squeezer_real *v)
 {
-    andrews_squeezer_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    andrews_squeezer_real m0 = 0.0;
+    andrews_squeezer_real m1 = 0.0;
+    andrews_squeezer_real m2 = 0.0;
+    andrews_squeezer_real m3 = 0.0;
+    andrews_squeezer_real s0 = 0.0;
+    andrews_squeezer_real s1 = 0.0;
+    andrews_squeezer_real s2 = 0.0;
+    andrews_squeezer_real s3 = 0.0;
+    andrews_squeezer_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[6]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[7]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[8]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[9]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[10]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[11]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[12]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[13]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[14]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[15]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[16]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[17]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[18]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[19]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[20]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     m0 = ANDREWS_SQUEEZER_MAX(ANDREWS_SQUEEZER_MAX(m0, m1), ANDREWS_SQUEEZER_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
@@ -1659,17 +1814,28 @@ static andrews_squeezer_real andrews_squeezer_correct(andrews_squeezer_real *q, 
 static int andrews_squeezer_newton(andrews_squeezer_real t, const andrews_squeezer_real *p, andrews_squeezer_real tol, andrews_squeezer_real *q, andrews_squeezer_real *tr, int *info, andrews_squeezer_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    andrews_squeezer_real *r = ANDREWS_SQUEEZER_VEC(work, 0), *dq = ANDREWS_SQUEEZER_VEC(work, 1), *y = ANDREWS_SQUEEZER_VEC(work, 2);
+    andrews_squeezer_real *r = ANDREWS_SQUEEZER_VEC(work, 0);
+    andrews_squeezer_real *dq = ANDREWS_SQUEEZER_VEC(work, 1);
+    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2);
     andrews_squeezer_real *base = ANDREWS_SQUEEZER_VEC(work, 10);
-    andrews_squeezer_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    andrews_squeezer_real step = ((double)INFINITY);
+    andrews_squeezer_real lim;
+    andrews_squeezer_real qmag;
+    andrews_squeezer_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) andrews_squeezer_trig_near(q, tr, base);
-    else andrews_squeezer_trig_base(q, tr, base);
+    if (reuse != 0) {
+        andrews_squeezer_trig_near(q, tr, base);
+    } else {
+        andrews_squeezer_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = ANDREWS_SQUEEZER_MAX(1.0, andrews_squeezer_maxabs21(q));
-    lim = ANDREWS_SQUEEZER_MAX(tol, (andrews_squeezer_real)ANDREWS_SQUEEZER_FLOOR_ULPS * ANDREWS_SQUEEZER_EPS * qmag);
+    lim = ANDREWS_SQUEEZER_MAX(tol, ((andrews_squeezer_real)ANDREWS_SQUEEZER_FLOOR_ULPS * ANDREWS_SQUEEZER_EPS) * qmag);
     andrews_squeezer_phi_k(q, tr, t, p, r);
     rmax = andrews_squeezer_maxabs21(r);
     for (it = 0;; ++it) {
@@ -1678,15 +1844,17 @@ static int andrews_squeezer_newton(andrews_squeezer_real t, const andrews_squeez
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? ANDREWS_SQUEEZER_NONFINITE : ANDREWS_SQUEEZER_NOT_CONVERGED;
+            return (it == 0) ? ANDREWS_SQUEEZER_NONFINITE : ANDREWS_SQUEEZER_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == ANDREWS_SQUEEZER_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK) {
+        if (it == ANDREWS_SQUEEZER_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK)) {
             info[0] = it;
             info[1] = *dense;
             return ANDREWS_SQUEEZER_SINGULAR;
@@ -1696,8 +1864,8 @@ static int andrews_squeezer_newton(andrews_squeezer_real t, const andrews_squeez
         andrews_squeezer_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= ANDREWS_SQUEEZER_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (ANDREWS_SQUEEZER_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1709,8 +1877,10 @@ static int andrews_squeezer_newton(andrews_squeezer_real t, const andrews_squeez
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return ANDREWS_SQUEEZER_NOT_CONVERGED;
-    if (!current && andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK) {
+    if (converged == 0) {
+        return ANDREWS_SQUEEZER_NOT_CONVERGED;
+    }
+    if ((current == 0) && (andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK)) {
         info[1] = *dense;
         return ANDREWS_SQUEEZER_SINGULAR;
     }
@@ -1722,7 +1892,8 @@ static int andrews_squeezer_newton(andrews_squeezer_real t, const andrews_squeez
 static void andrews_squeezer_outputs(andrews_squeezer_real t, const andrews_squeezer_real *p, const andrews_squeezer_real *q, const andrews_squeezer_real *tr, andrews_squeezer_real *qd, andrews_squeezer_real *qdd,
                             andrews_squeezer_real *lam, andrews_squeezer_real *reactions, andrews_squeezer_real *work, const int *iwork, int dense)
 {
-    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2), *b = ANDREWS_SQUEEZER_VEC(work, 3);
+    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2);
+    andrews_squeezer_real *b = ANDREWS_SQUEEZER_VEC(work, 3);
     andrews_squeezer_nu_k(q, tr, t, p, b);
     andrews_squeezer_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     andrews_squeezer_gamma_k(q, tr, qd, t, p, b);
@@ -1751,7 +1922,9 @@ static void andrews_squeezer_outputs(andrews_squeezer_real t, const andrews_sque
     b[19] -= y[19] * qdd[19];
     b[20] -= y[20] * qdd[20];
     andrews_squeezer_solve_t(work, iwork, dense, b, lam);
-    if (andrews_squeezer_mixed(y)) andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (andrews_squeezer_mixed(y) != 0) {
+        andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     andrews_squeezer_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1760,8 +1933,11 @@ static void andrews_squeezer_outputs(andrews_squeezer_real t, const andrews_sque
    order, so four sums run side by side and the compiler may pack them). */
 static int andrews_squeezer_allfinite(const andrews_squeezer_real *v, int n)
 {
-    andrews_squeezer_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    andrews_squeezer_real s0 = 0.0;
+    andrews_squeezer_real s1 = 0.0;
+    andrews_squeezer_real s2 = 0.0;
+    andrews_squeezer_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1770,8 +1946,11 @@ static int andrews_squeezer_allfinite(const andrews_squeezer_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1793,12 +1972,24 @@ static int andrews_squeezer_finite(const andrews_squeezer_real *q, const andrews
 static void andrews_squeezer_keep(andrews_squeezer_real *state, const andrews_squeezer_real *q, const andrews_squeezer_real *qd, const andrews_squeezer_real *qdd,
                          const andrews_squeezer_real *m1, const andrews_squeezer_real *m2, const andrews_squeezer_real *m3)
 {
-    if (m3 != state + 105) memcpy(state + 105, m3, sizeof(andrews_squeezer_real) * 21);
-    if (m2 != state + 84) memcpy(state + 84, m2, sizeof(andrews_squeezer_real) * 21);
-    if (m1 != state + 63) memcpy(state + 63, m1, sizeof(andrews_squeezer_real) * 21);
-    if (qdd != state + 42) memcpy(state + 42, qdd, sizeof(andrews_squeezer_real) * 21);
-    if (qd != state + 21) memcpy(state + 21, qd, sizeof(andrews_squeezer_real) * 21);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(andrews_squeezer_real) * 21);
+    if (m3 != &state[105]) {
+        (void)memcpy(&state[105], m3, sizeof(andrews_squeezer_real) * 21u);
+    }
+    if (m2 != &state[84]) {
+        (void)memcpy(&state[84], m2, sizeof(andrews_squeezer_real) * 21u);
+    }
+    if (m1 != &state[63]) {
+        (void)memcpy(&state[63], m1, sizeof(andrews_squeezer_real) * 21u);
+    }
+    if (qdd != &state[42]) {
+        (void)memcpy(&state[42], qdd, sizeof(andrews_squeezer_real) * 21u);
+    }
+    if (qd != &state[21]) {
+        (void)memcpy(&state[21], qd, sizeof(andrews_squeezer_real) * 21u);
+    }
+    if (q != state) {
+        (void)memcpy(state, q, sizeof(andrews_squeezer_real) * 21u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1808,51 +1999,56 @@ static void andrews_squeezer_keep(andrews_squeezer_real *state, const andrews_sq
 static int andrews_squeezer_unexplained(const andrews_squeezer_real *q0, const andrews_squeezer_real *qd0, const andrews_squeezer_real *qdd0, const andrews_squeezer_real *q1,
                                const andrews_squeezer_real *qd1, const andrews_squeezer_real *qdd1, andrews_squeezer_real h, const andrews_squeezer_real *c)
 {
-    const andrews_squeezer_real half = 0.5 * h, hh = h * h / 12.0;
-    andrews_squeezer_real mismatch = 0.0, motion = 0.0, d;
+    const andrews_squeezer_real half = 0.5 * h;
+    const andrews_squeezer_real hh = (h * h) / 12.0;
+    andrews_squeezer_real mismatch = 0.0;
+    andrews_squeezer_real motion = 0.0;
+    andrews_squeezer_real d;
     d = q1[0] - q0[0];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
     d = q1[9] - q0[9];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[9] + qd1[9]) - hh * (qdd0[9] - qdd1[9])) * c[9]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[9] + qd1[9]))) - (hh * (qdd0[9] - qdd1[9]))) * c[9]);
     d = q1[10] - q0[10];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[10] + qd1[10]) - hh * (qdd0[10] - qdd1[10])) * c[10]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[10] + qd1[10]))) - (hh * (qdd0[10] - qdd1[10]))) * c[10]);
     d = q1[11] - q0[11];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[11] + qd1[11]) - hh * (qdd0[11] - qdd1[11])) * c[11]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[11] + qd1[11]))) - (hh * (qdd0[11] - qdd1[11]))) * c[11]);
     d = q1[12] - q0[12];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[12] + qd1[12]) - hh * (qdd0[12] - qdd1[12])) * c[12]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[12] + qd1[12]))) - (hh * (qdd0[12] - qdd1[12]))) * c[12]);
     d = q1[13] - q0[13];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[13] + qd1[13]) - hh * (qdd0[13] - qdd1[13])) * c[13]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[13] + qd1[13]))) - (hh * (qdd0[13] - qdd1[13]))) * c[13]);
     d = q1[14] - q0[14];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[14] + qd1[14]) - hh * (qdd0[14] - qdd1[14])) * c[14]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[14] + qd1[14]))) - (hh * (qdd0[14] - qdd1[14]))) * c[14]);
     d = q1[15] - q0[15];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[15] + qd1[15]) - hh * (qdd0[15] - qdd1[15])) * c[15]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[15] + qd1[15]))) - (hh * (qdd0[15] - qdd1[15]))) * c[15]);
     d = q1[16] - q0[16];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[16] + qd1[16]) - hh * (qdd0[16] - qdd1[16])) * c[16]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[16] + qd1[16]))) - (hh * (qdd0[16] - qdd1[16]))) * c[16]);
     d = q1[17] - q0[17];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[17] + qd1[17]) - hh * (qdd0[17] - qdd1[17])) * c[17]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[17] + qd1[17]))) - (hh * (qdd0[17] - qdd1[17]))) * c[17]);
     d = q1[18] - q0[18];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[18] + qd1[18]) - hh * (qdd0[18] - qdd1[18])) * c[18]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[18] + qd1[18]))) - (hh * (qdd0[18] - qdd1[18]))) * c[18]);
     d = q1[19] - q0[19];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[19] + qd1[19]) - hh * (qdd0[19] - qdd1[19])) * c[19]);
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[19] + qd1[19]))) - (hh * (qdd0[19] - qdd1[19]))) * c[19]);
     d = q1[20] - q0[20];
-    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs(d - half * (qd0[20] + qd1[20]) - hh * (qdd0[20] - qdd1[20])) * c[20]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = ANDREWS_SQUEEZER_MAX(mismatch, fabs((d - (half * (qd0[20] + qd1[20]))) - (hh * (qdd0[20] - qdd1[20]))) * c[20]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = ANDREWS_SQUEEZER_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1895,35 +2091,43 @@ static int andrews_squeezer_unexplained(const andrews_squeezer_real *q0, const a
     motion = ANDREWS_SQUEEZER_MAX(motion, fabs(d) * c[19]);
     d = q1[20] - q0[20];
     motion = ANDREWS_SQUEEZER_MAX(motion, fabs(d) * c[20]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_real *p, andrews_squeezer_real tol, andrews_squeezer_real *q, andrews_squeezer_real *qd, andrews_squeezer_real *qdd,
                     andrews_squeezer_real *lam, andrews_squeezer_real *reactions, int *info, andrews_squeezer_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = ANDREWS_SQUEEZER_BAD_ARGUMENT;
     } else {
-        andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9), *pp = work + ANDREWS_SQUEEZER_OFF_PREP, *kept = ANDREWS_SQUEEZER_VEC(work, 11);
-        memcpy(kept, q, sizeof(andrews_squeezer_real) * 21);  /* the caller's guess, back in q if the call fails */
+        andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9);
+        andrews_squeezer_real *pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
+        andrews_squeezer_real *kept = ANDREWS_SQUEEZER_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(andrews_squeezer_real) * 21u);  /* the caller's guess, back in q if the call fails */
         andrews_squeezer_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = ANDREWS_SQUEEZER_VEC(work, 5);
-        if (qdd == NULL) qdd = ANDREWS_SQUEEZER_VEC(work, 6);
-        if (lam == NULL) lam = ANDREWS_SQUEEZER_VEC(work, 7);
-        if (reactions == NULL) reactions = ANDREWS_SQUEEZER_VEC(work, 8);
+        andrews_squeezer_real *qd_out = (qd != NULL) ? qd : ANDREWS_SQUEEZER_VEC(work, 5);
+        andrews_squeezer_real *qdd_out = (qdd != NULL) ? qdd : ANDREWS_SQUEEZER_VEC(work, 6);
+        andrews_squeezer_real *lam_out = (lam != NULL) ? lam : ANDREWS_SQUEEZER_VEC(work, 7);
+        andrews_squeezer_real *reactions_out = (reactions != NULL) ? reactions : ANDREWS_SQUEEZER_VEC(work, 8);
         status = andrews_squeezer_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == ANDREWS_SQUEEZER_OK) {
-            andrews_squeezer_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!andrews_squeezer_finite(q, qd, qdd, lam, reactions)) status = ANDREWS_SQUEEZER_NONFINITE;
+            andrews_squeezer_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (andrews_squeezer_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = ANDREWS_SQUEEZER_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != ANDREWS_SQUEEZER_OK) memcpy(q, kept, sizeof(andrews_squeezer_real) * 21);
+        if (status != ANDREWS_SQUEEZER_OK) {
+            (void)memcpy(q, kept, sizeof(andrews_squeezer_real) * 21u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1941,21 +2145,29 @@ int andrews_squeezer_instant_at(long whole, andrews_squeezer_real frac, const an
 
 int andrews_squeezer_screen_at(andrews_squeezer_real t, const andrews_squeezer_real *p, const andrews_squeezer_real *state, andrews_squeezer_real *work, int *iwork)
 {
-    andrews_squeezer_real *tr, *pp, known[2];
+    andrews_squeezer_real *tr;
+    andrews_squeezer_real *pp;
+    andrews_squeezer_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return ANDREWS_SQUEEZER_BAD_ARGUMENT;
-    if (!(state[147] > 0.0)) return ANDREWS_SQUEEZER_OK;  /* no scales: no screen */
-    tr = ANDREWS_SQUEEZER_VEC(work, 9), pp = work + ANDREWS_SQUEEZER_OFF_PREP;
+    }
+    if (!(state[147] > 0.0)) {
+        return ANDREWS_SQUEEZER_OK;  /* no scales: no screen */
+    }
+    tr = ANDREWS_SQUEEZER_VEC(work, 9);
+    pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
     andrews_squeezer_prepare(p, pp);
     andrews_squeezer_trig(state, tr);
-    if (andrews_squeezer_factorize(state, tr, t, pp, work, iwork, &dense) != ANDREWS_SQUEEZER_OK)
+    if (andrews_squeezer_factorize(state, tr, t, pp, work, iwork, &dense) != ANDREWS_SQUEEZER_OK) {
         return ANDREWS_SQUEEZER_ILL_CONDITIONED;
-    andrews_squeezer_screen_known(state + 147, state + 126, known);
-    if (andrews_squeezer_screen(work + ANDREWS_SQUEEZER_OFF_LU, dense, state + 147, state + 126, known)
-        && !(andrews_squeezer_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 147, state + 126)
-             <= ANDREWS_SQUEEZER_COND_SCREEN))
+    }
+    andrews_squeezer_screen_known(&state[147], &state[126], known);
+    if ((andrews_squeezer_screen(&work[ANDREWS_SQUEEZER_OFF_LU], dense, &state[147], &state[126], known) != 0)
+        && !(andrews_squeezer_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[147], &state[126])
+             <= ANDREWS_SQUEEZER_COND_SCREEN)) {
         return ANDREWS_SQUEEZER_ILL_CONDITIONED;
+    }
     return ANDREWS_SQUEEZER_OK;
 }
 
@@ -1965,129 +2177,169 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    andrews_squeezer_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    andrews_squeezer_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    andrews_squeezer_real *q;
+    andrews_squeezer_real *m1;
+    andrews_squeezer_real *m2;
+    andrews_squeezer_real *count;
+    andrews_squeezer_real *qn;
+    andrews_squeezer_real *qdn;
+    andrews_squeezer_real *qddn;
+    andrews_squeezer_real *lam;
+    andrews_squeezer_real *reac;
+    andrews_squeezer_real *tr;
+    andrews_squeezer_real *pp;
+    andrews_squeezer_real *scale;
+    andrews_squeezer_real *rscale;
+    andrews_squeezer_real *qd;
+    andrews_squeezer_real *qdd;
+    andrews_squeezer_real *m3;
+    andrews_squeezer_real known[2];
+    long i;
+    long unused;
+    long *done = &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
+    *done = 0;
     status = ANDREWS_SQUEEZER_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return ANDREWS_SQUEEZER_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 63, m2 = state + 84, count = state + 168;
-    scale = state + 126, rscale = state + 147;
-    if (rscale[0] > 0.0) andrews_squeezer_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 21, qdd = state + 42, m3 = state + 105;
-    tr = ANDREWS_SQUEEZER_VEC(work, 9), pp = work + ANDREWS_SQUEEZER_OFF_PREP;
+    q = state;
+    m1 = &state[63];
+    m2 = &state[84];
+    count = &state[168];
+    scale = &state[126];
+    rscale = &state[147];
+    if (rscale[0] > 0.0) {
+        andrews_squeezer_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[21];
+    qdd = &state[42];
+    m3 = &state[105];
+    tr = ANDREWS_SQUEEZER_VEC(work, 9);
+    pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
     andrews_squeezer_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const andrews_squeezer_real t = t0 + *count * h;
-        andrews_squeezer_real *row = rows + i * ANDREWS_SQUEEZER_ROW;
+        const andrews_squeezer_real t = t0 + (*count * h);
+        andrews_squeezer_real *row = &rows[i * ANDREWS_SQUEEZER_ROW];
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 22;
-        qddn = row + 43;
-        lam = row + 64;
-        reac = row + 85;
+        qn = &row[1];
+        qdn = &row[22];
+        qddn = &row[43];
+        lam = &row[64];
+        reac = &row[85];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
-                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
-            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
-                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
-            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
-                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
-            qn[9] = q[9] + h * (qd[9] + h * ((323.0 / 360.0) * qdd[9] - (264.0 / 360.0) * m1[9]
-                                                 + (159.0 / 360.0) * m2[9] - (38.0 / 360.0) * m3[9]));
-            qn[10] = q[10] + h * (qd[10] + h * ((323.0 / 360.0) * qdd[10] - (264.0 / 360.0) * m1[10]
-                                                 + (159.0 / 360.0) * m2[10] - (38.0 / 360.0) * m3[10]));
-            qn[11] = q[11] + h * (qd[11] + h * ((323.0 / 360.0) * qdd[11] - (264.0 / 360.0) * m1[11]
-                                                 + (159.0 / 360.0) * m2[11] - (38.0 / 360.0) * m3[11]));
-            qn[12] = q[12] + h * (qd[12] + h * ((323.0 / 360.0) * qdd[12] - (264.0 / 360.0) * m1[12]
-                                                 + (159.0 / 360.0) * m2[12] - (38.0 / 360.0) * m3[12]));
-            qn[13] = q[13] + h * (qd[13] + h * ((323.0 / 360.0) * qdd[13] - (264.0 / 360.0) * m1[13]
-                                                 + (159.0 / 360.0) * m2[13] - (38.0 / 360.0) * m3[13]));
-            qn[14] = q[14] + h * (qd[14] + h * ((323.0 / 360.0) * qdd[14] - (264.0 / 360.0) * m1[14]
-                                                 + (159.0 / 360.0) * m2[14] - (38.0 / 360.0) * m3[14]));
-            qn[15] = q[15] + h * (qd[15] + h * ((323.0 / 360.0) * qdd[15] - (264.0 / 360.0) * m1[15]
-                                                 + (159.0 / 360.0) * m2[15] - (38.0 / 360.0) * m3[15]));
-            qn[16] = q[16] + h * (qd[16] + h * ((323.0 / 360.0) * qdd[16] - (264.0 / 360.0) * m1[16]
-                                                 + (159.0 / 360.0) * m2[16] - (38.0 / 360.0) * m3[16]));
-            qn[17] = q[17] + h * (qd[17] + h * ((323.0 / 360.0) * qdd[17] - (264.0 / 360.0) * m1[17]
-                                                 + (159.0 / 360.0) * m2[17] - (38.0 / 360.0) * m3[17]));
-            qn[18] = q[18] + h * (qd[18] + h * ((323.0 / 360.0) * qdd[18] - (264.0 / 360.0) * m1[18]
-                                                 + (159.0 / 360.0) * m2[18] - (38.0 / 360.0) * m3[18]));
-            qn[19] = q[19] + h * (qd[19] + h * ((323.0 / 360.0) * qdd[19] - (264.0 / 360.0) * m1[19]
-                                                 + (159.0 / 360.0) * m2[19] - (38.0 / 360.0) * m3[19]));
-            qn[20] = q[20] + h * (qd[20] + h * ((323.0 / 360.0) * qdd[20] - (264.0 / 360.0) * m1[20]
-                                                 + (159.0 / 360.0) * m2[20] - (38.0 / 360.0) * m3[20]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
-            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
-            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
-            qn[9] = q[9] + h * (qd[9] + 0.5 * h * qdd[9]);
-            qn[10] = q[10] + h * (qd[10] + 0.5 * h * qdd[10]);
-            qn[11] = q[11] + h * (qd[11] + 0.5 * h * qdd[11]);
-            qn[12] = q[12] + h * (qd[12] + 0.5 * h * qdd[12]);
-            qn[13] = q[13] + h * (qd[13] + 0.5 * h * qdd[13]);
-            qn[14] = q[14] + h * (qd[14] + 0.5 * h * qdd[14]);
-            qn[15] = q[15] + h * (qd[15] + 0.5 * h * qdd[15]);
-            qn[16] = q[16] + h * (qd[16] + 0.5 * h * qdd[16]);
-            qn[17] = q[17] + h * (qd[17] + 0.5 * h * qdd[17]);
-            qn[18] = q[18] + h * (qd[18] + 0.5 * h * qdd[18]);
-            qn[19] = q[19] + h * (qd[19] + 0.5 * h * qdd[19]);
-            qn[20] = q[20] + h * (qd[20] + 0.5 * h * qdd[20]);
-        } else
-            memcpy(qn, q, sizeof(andrews_squeezer_real) * 21);
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+            qn[6] = q[6] + (h * (qd[6] + (h * (((((323.0 / 360.0) * qdd[6]) - ((264.0 / 360.0) * m1[6]))
+                                                 + ((159.0 / 360.0) * m2[6])) - ((38.0 / 360.0) * m3[6])))));
+            qn[7] = q[7] + (h * (qd[7] + (h * (((((323.0 / 360.0) * qdd[7]) - ((264.0 / 360.0) * m1[7]))
+                                                 + ((159.0 / 360.0) * m2[7])) - ((38.0 / 360.0) * m3[7])))));
+            qn[8] = q[8] + (h * (qd[8] + (h * (((((323.0 / 360.0) * qdd[8]) - ((264.0 / 360.0) * m1[8]))
+                                                 + ((159.0 / 360.0) * m2[8])) - ((38.0 / 360.0) * m3[8])))));
+            qn[9] = q[9] + (h * (qd[9] + (h * (((((323.0 / 360.0) * qdd[9]) - ((264.0 / 360.0) * m1[9]))
+                                                 + ((159.0 / 360.0) * m2[9])) - ((38.0 / 360.0) * m3[9])))));
+            qn[10] = q[10] + (h * (qd[10] + (h * (((((323.0 / 360.0) * qdd[10]) - ((264.0 / 360.0) * m1[10]))
+                                                 + ((159.0 / 360.0) * m2[10])) - ((38.0 / 360.0) * m3[10])))));
+            qn[11] = q[11] + (h * (qd[11] + (h * (((((323.0 / 360.0) * qdd[11]) - ((264.0 / 360.0) * m1[11]))
+                                                 + ((159.0 / 360.0) * m2[11])) - ((38.0 / 360.0) * m3[11])))));
+            qn[12] = q[12] + (h * (qd[12] + (h * (((((323.0 / 360.0) * qdd[12]) - ((264.0 / 360.0) * m1[12]))
+                                                 + ((159.0 / 360.0) * m2[12])) - ((38.0 / 360.0) * m3[12])))));
+            qn[13] = q[13] + (h * (qd[13] + (h * (((((323.0 / 360.0) * qdd[13]) - ((264.0 / 360.0) * m1[13]))
+                                                 + ((159.0 / 360.0) * m2[13])) - ((38.0 / 360.0) * m3[13])))));
+            qn[14] = q[14] + (h * (qd[14] + (h * (((((323.0 / 360.0) * qdd[14]) - ((264.0 / 360.0) * m1[14]))
+                                                 + ((159.0 / 360.0) * m2[14])) - ((38.0 / 360.0) * m3[14])))));
+            qn[15] = q[15] + (h * (qd[15] + (h * (((((323.0 / 360.0) * qdd[15]) - ((264.0 / 360.0) * m1[15]))
+                                                 + ((159.0 / 360.0) * m2[15])) - ((38.0 / 360.0) * m3[15])))));
+            qn[16] = q[16] + (h * (qd[16] + (h * (((((323.0 / 360.0) * qdd[16]) - ((264.0 / 360.0) * m1[16]))
+                                                 + ((159.0 / 360.0) * m2[16])) - ((38.0 / 360.0) * m3[16])))));
+            qn[17] = q[17] + (h * (qd[17] + (h * (((((323.0 / 360.0) * qdd[17]) - ((264.0 / 360.0) * m1[17]))
+                                                 + ((159.0 / 360.0) * m2[17])) - ((38.0 / 360.0) * m3[17])))));
+            qn[18] = q[18] + (h * (qd[18] + (h * (((((323.0 / 360.0) * qdd[18]) - ((264.0 / 360.0) * m1[18]))
+                                                 + ((159.0 / 360.0) * m2[18])) - ((38.0 / 360.0) * m3[18])))));
+            qn[19] = q[19] + (h * (qd[19] + (h * (((((323.0 / 360.0) * qdd[19]) - ((264.0 / 360.0) * m1[19]))
+                                                 + ((159.0 / 360.0) * m2[19])) - ((38.0 / 360.0) * m3[19])))));
+            qn[20] = q[20] + (h * (qd[20] + (h * (((((323.0 / 360.0) * qdd[20]) - ((264.0 / 360.0) * m1[20]))
+                                                 + ((159.0 / 360.0) * m2[20])) - ((38.0 / 360.0) * m3[20])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+            qn[6] = q[6] + (h * (qd[6] + ((0.5 * h) * qdd[6])));
+            qn[7] = q[7] + (h * (qd[7] + ((0.5 * h) * qdd[7])));
+            qn[8] = q[8] + (h * (qd[8] + ((0.5 * h) * qdd[8])));
+            qn[9] = q[9] + (h * (qd[9] + ((0.5 * h) * qdd[9])));
+            qn[10] = q[10] + (h * (qd[10] + ((0.5 * h) * qdd[10])));
+            qn[11] = q[11] + (h * (qd[11] + ((0.5 * h) * qdd[11])));
+            qn[12] = q[12] + (h * (qd[12] + ((0.5 * h) * qdd[12])));
+            qn[13] = q[13] + (h * (qd[13] + ((0.5 * h) * qdd[13])));
+            qn[14] = q[14] + (h * (qd[14] + ((0.5 * h) * qdd[14])));
+            qn[15] = q[15] + (h * (qd[15] + ((0.5 * h) * qdd[15])));
+            qn[16] = q[16] + (h * (qd[16] + ((0.5 * h) * qdd[16])));
+            qn[17] = q[17] + (h * (qd[17] + ((0.5 * h) * qdd[17])));
+            qn[18] = q[18] + (h * (qd[18] + ((0.5 * h) * qdd[18])));
+            qn[19] = q[19] + (h * (qd[19] + ((0.5 * h) * qdd[19])));
+            qn[20] = q[20] + (h * (qd[20] + ((0.5 * h) * qdd[20])));
+        } else {
+            (void)memcpy(qn, q, sizeof(andrews_squeezer_real) * 21u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = andrews_squeezer_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != ANDREWS_SQUEEZER_OK) break;
-        if (rscale[0] > 0.0 && andrews_squeezer_screen(work + ANDREWS_SQUEEZER_OFF_LU, dense, rscale, scale, known)
+        status = andrews_squeezer_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != ANDREWS_SQUEEZER_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (andrews_squeezer_screen(&work[ANDREWS_SQUEEZER_OFF_LU], dense, rscale, scale, known) != 0)
             && !(andrews_squeezer_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= ANDREWS_SQUEEZER_COND_SCREEN)) {
             status = ANDREWS_SQUEEZER_ILL_CONDITIONED;
             break;
         }
         andrews_squeezer_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!andrews_squeezer_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (andrews_squeezer_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = ANDREWS_SQUEEZER_NONFINITE;
             break;
         }
-        if (*count >= 1 && andrews_squeezer_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (andrews_squeezer_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = ANDREWS_SQUEEZER_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     andrews_squeezer_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }
@@ -2126,11 +2378,11 @@ static void andrews_squeezer_drive(andrews_squeezer_real t, const andrews_squeez
 {
     (void)t;
     (void)p;
-    const andrews_squeezer_real d0 = (2*3.141592653589793*p[43]);
-    const andrews_squeezer_real d1 = exp(-2*p[42]*t/d0);
-    const andrews_squeezer_real d2 = d1 + 1;
-    out[0] = (d0*d0)*(log(d2) - log(2))/p[42] + d0*t + p[41];
-    out[1] = -2*d0*d1/d2 + d0;
+    const andrews_squeezer_real d0 = (2.0*3.141592653589793*p[43]);
+    const andrews_squeezer_real d1 = exp(-2.0*p[42]*t/d0);
+    const andrews_squeezer_real d2 = d1 + 1.0;
+    out[0] = ((d0*d0)*(log(d2) - log(2.0))/p[42]) + (d0*t) + p[41];
+    out[1] = (-2.0*d0*d1/d2) + d0;
 }
 
 /* 1 / the column scales of the jump check at the assembled q(t0), as
@@ -2141,36 +2393,61 @@ static void andrews_squeezer_drive(andrews_squeezer_real t, const andrews_squeez
 static void andrews_squeezer_sweep_scales(const andrews_squeezer_real *q, andrews_squeezer_real t0, const andrews_squeezer_real *p, andrews_squeezer_real *vals,
                                  andrews_squeezer_real *arms, andrews_squeezer_real *inv, andrews_squeezer_real *norm)
 {
-    andrews_squeezer_real lin[21], rot[21], lref = 0.0, a;
-    int k, r, m = 0, i;
+    andrews_squeezer_real lin[21];
+    andrews_squeezer_real rot[21];
+    andrews_squeezer_real lref = 0.0;
+    andrews_squeezer_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     andrews_squeezer_phi_q(q, t0, p, vals);
-    for (r = 0; r < 21; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 21; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 65; ++k) {
         a = fabs(vals[k]);
         r = andrews_squeezer_phi_q_rows[k];
-        if (andrews_squeezer_phi_q_cols[k] % 3 == 2) rot[r] = ANDREWS_SQUEEZER_MAX(rot[r], a);
-        else lin[r] = ANDREWS_SQUEEZER_MAX(lin[r], a);
+        if ((andrews_squeezer_phi_q_cols[k] % 3) == 2) {
+            rot[r] = ANDREWS_SQUEEZER_MAX(rot[r], a);
+        } else {
+            lin[r] = ANDREWS_SQUEEZER_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 21; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
+                arms[i] = arms[i - 1];
+                --i;
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 21; ++k)
-            if (k % 3 != 2) lref = ANDREWS_SQUEEZER_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 21; ++k) {
+            if ((k % 3) != 2) {
+                lref = ANDREWS_SQUEEZER_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 21; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 21; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 21; ++r) {
         a = ANDREWS_SQUEEZER_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -2182,7 +2459,9 @@ static void andrews_squeezer_sweep_take(const andrews_squeezer_real *row, const 
                                andrews_squeezer_real *drive, long count)
 {
     const andrews_squeezer_real t = row[0];
-    andrews_squeezer_real e, rate, w;
+    andrews_squeezer_real e;
+    andrews_squeezer_real rate;
+    andrews_squeezer_real w;
     andrews_squeezer_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -2192,71 +2471,123 @@ static void andrews_squeezer_sweep_take(const andrews_squeezer_real *row, const 
     e = -row[84];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* O.force_peak */
-    m = row[85] * row[85] + row[86] * row[86];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[88] * row[88] + row[89] * row[89];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[85] * row[85]) + (row[86] * row[86]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[88] * row[88]) + (row[89] * row[89]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* P.force_peak */
-    m = row[91] * row[91] + row[92] * row[92];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[94] * row[94] + row[95] * row[95];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[91] * row[91]) + (row[92] * row[92]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[94] * row[94]) + (row[95] * row[95]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* B.force_peak */
-    m = row[97] * row[97] + row[98] * row[98];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[100] * row[100] + row[101] * row[101];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[97] * row[97]) + (row[98] * row[98]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[100] * row[100]) + (row[101] * row[101]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* A_5.force_peak */
-    m = row[103] * row[103] + row[104] * row[104];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[106] * row[106] + row[107] * row[107];
-    if (m > fig[7]) fig[7] = m;
+    m = (row[103] * row[103]) + (row[104] * row[104]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[106] * row[106]) + (row[107] * row[107]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
     /* F.force_peak */
-    m = row[109] * row[109] + row[110] * row[110];
-    if (count == 0 || m > fig[8]) fig[8] = m;
-    m = row[112] * row[112] + row[113] * row[113];
-    if (m > fig[8]) fig[8] = m;
+    m = (row[109] * row[109]) + (row[110] * row[110]);
+    if ((count == 0) || (m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[112] * row[112]) + (row[113] * row[113]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
     /* A_7.force_peak */
-    m = row[115] * row[115] + row[116] * row[116];
-    if (count == 0 || m > fig[9]) fig[9] = m;
-    m = row[118] * row[118] + row[119] * row[119];
-    if (m > fig[9]) fig[9] = m;
+    m = (row[115] * row[115]) + (row[116] * row[116]);
+    if ((count == 0) || (m > fig[9])) {
+        fig[9] = m;
+    }
+    m = (row[118] * row[118]) + (row[119] * row[119]);
+    if ((m > fig[9])) {
+        fig[9] = m;
+    }
     /* G.force_peak */
-    m = row[121] * row[121] + row[122] * row[122];
-    if (count == 0 || m > fig[10]) fig[10] = m;
-    m = row[124] * row[124] + row[125] * row[125];
-    if (m > fig[10]) fig[10] = m;
+    m = (row[121] * row[121]) + (row[122] * row[122]);
+    if ((count == 0) || (m > fig[10])) {
+        fig[10] = m;
+    }
+    m = (row[124] * row[124]) + (row[125] * row[125]);
+    if ((m > fig[10])) {
+        fig[10] = m;
+    }
     /* E_3.force_peak */
-    m = row[127] * row[127] + row[128] * row[128];
-    if (count == 0 || m > fig[11]) fig[11] = m;
-    m = row[130] * row[130] + row[131] * row[131];
-    if (m > fig[11]) fig[11] = m;
+    m = (row[127] * row[127]) + (row[128] * row[128]);
+    if ((count == 0) || (m > fig[11])) {
+        fig[11] = m;
+    }
+    m = (row[130] * row[130]) + (row[131] * row[131]);
+    if ((m > fig[11])) {
+        fig[11] = m;
+    }
     /* E_4.force_peak */
-    m = row[133] * row[133] + row[134] * row[134];
-    if (count == 0 || m > fig[12]) fig[12] = m;
-    m = row[136] * row[136] + row[137] * row[137];
-    if (m > fig[12]) fig[12] = m;
+    m = (row[133] * row[133]) + (row[134] * row[134]);
+    if ((count == 0) || (m > fig[12])) {
+        fig[12] = m;
+    }
+    m = (row[136] * row[136]) + (row[137] * row[137]);
+    if ((m > fig[12])) {
+        fig[12] = m;
+    }
     /* E_6.force_peak */
-    m = row[139] * row[139] + row[140] * row[140];
-    if (count == 0 || m > fig[13]) fig[13] = m;
-    m = row[142] * row[142] + row[143] * row[143];
-    if (m > fig[13]) fig[13] = m;
+    m = (row[139] * row[139]) + (row[140] * row[140]);
+    if ((count == 0) || (m > fig[13])) {
+        fig[13] = m;
+    }
+    m = (row[142] * row[142]) + (row[143] * row[143]);
+    if ((m > fig[13])) {
+        fig[13] = m;
+    }
     /* motor.force_peak */
-    m = row[145] * row[145] + row[146] * row[146];
-    if (count == 0 || m > fig[14]) fig[14] = m;
-    m = row[148] * row[148] + row[149] * row[149];
-    if (m > fig[14]) fig[14] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[145] * row[145]) + (row[146] * row[146]);
+    if ((count == 0) || (m > fig[14])) {
+        fig[14] = m;
+    }
+    m = (row[148] * row[148]) + (row[149] * row[149]);
+    if ((m > fig[14])) {
+        fig[14] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 
@@ -2267,7 +2598,9 @@ static void andrews_squeezer_sweep_finish(andrews_squeezer_real *fig, const andr
     const andrews_squeezer_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 15; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 15; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -2282,7 +2615,7 @@ static void andrews_squeezer_sweep_finish(andrews_squeezer_real *fig, const andr
     fig[12] = sqrt(fig[12]);
     fig[13] = sqrt(fig[13]);
     fig[14] = sqrt(fig[14]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (andrews_squeezer_real)count);
 }
 
@@ -2292,10 +2625,14 @@ static void andrews_squeezer_sweep_finish(andrews_squeezer_real *fig, const andr
 long andrews_squeezer_sweep_lanes(long *abandoned)
 {
 #if ANDREWS_SQUEEZER_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&andrews_squeezer_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&andrews_squeezer_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return andrews_squeezer_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -2303,25 +2640,37 @@ long andrews_squeezer_sweep_lanes(long *abandoned)
 int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squeezer_real t0, andrews_squeezer_real h, long n, andrews_squeezer_real tol,
                   andrews_squeezer_real *figures, int *status, andrews_squeezer_real *t_end, long *solved, andrews_squeezer_real *work, int *iwork)
 {
-    andrews_squeezer_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    andrews_squeezer_real *state;
+    andrews_squeezer_real *rows;
+    andrews_squeezer_real *vals;
+    andrews_squeezer_real *arms;
+    andrews_squeezer_real *drive;
+    andrews_squeezer_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if ANDREWS_SQUEEZER_LANES > 1
     const long lanes = andrews_squeezer_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     andrews_squeezer_real snap[ANDREWS_SQUEEZER_LANES * ANDREWS_SQUEEZER_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return ANDREWS_SQUEEZER_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + ANDREWS_SQUEEZER_WORK, rows = state + ANDREWS_SQUEEZER_STATE;
-    vals = rows + 32 * ANDREWS_SQUEEZER_ROW, arms = vals + 65, drive = arms + 21;
-    acc = drive + 2;
+    state = &work[ANDREWS_SQUEEZER_WORK];
+    rows = &state[ANDREWS_SQUEEZER_STATE];
+    vals = &rows[32 * ANDREWS_SQUEEZER_ROW];
+    arms = &vals[65];
+    drive = &arms[21];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const andrews_squeezer_real *pv = p + v * ANDREWS_SQUEEZER_NP;
-        andrews_squeezer_real *fig = figures + v * ANDREWS_SQUEEZER_SWEEP_FIGURES;
+        const andrews_squeezer_real *pv = &p[v * ANDREWS_SQUEEZER_NP];
+        andrews_squeezer_real *fig = &figures[v * ANDREWS_SQUEEZER_SWEEP_FIGURES];
 #if ANDREWS_SQUEEZER_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (andrews_squeezer_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -2333,26 +2682,28 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const andrews_squeezer_real *s = snap + (v - first) * ANDREWS_SQUEEZER_SNAP;
-            memcpy(state, s, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_STATE);
-            memcpy(fig, s + ANDREWS_SQUEEZER_STATE, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_SWEEP_FIGURES);
-            memcpy(acc, s + ANDREWS_SQUEEZER_STATE + ANDREWS_SQUEEZER_SWEEP_FIGURES, sizeof(andrews_squeezer_real) * 5);
+            (void)memcpy(state, s, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_STATE);
+            (void)memcpy(fig, &s[ANDREWS_SQUEEZER_STATE], sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[ANDREWS_SQUEEZER_STATE + ANDREWS_SQUEEZER_SWEEP_FIGURES], sizeof(andrews_squeezer_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_STATE);
+            (void)memset(state, 0, sizeof(andrews_squeezer_real) * (size_t)ANDREWS_SQUEEZER_STATE);
             andrews_squeezer_guess(pv, state);
             done = 0;
         }
         st = ANDREWS_SQUEEZER_OK;
-        while (done < n && st == ANDREWS_SQUEEZER_OK) {
+        while ((done < n) && (st == ANDREWS_SQUEEZER_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : ANDREWS_SQUEEZER_MIN(32, n - done);
+            m = (done == 0) ? 1 : ANDREWS_SQUEEZER_MIN(32, n - done);
             got = 0;
             st = andrews_squeezer_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) andrews_squeezer_sweep_take(rows + m * ANDREWS_SQUEEZER_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
-                andrews_squeezer_sweep_scales(state, t0, pv, vals, arms, state + 126, state + 147);
+            for (m = 0; m < got; ++m) {
+                andrews_squeezer_sweep_take(&rows[m * ANDREWS_SQUEEZER_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
+                andrews_squeezer_sweep_scales(state, t0, pv, vals, arms, &state[126], &state[147]);
                 st = andrews_squeezer_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;
@@ -2360,7 +2711,7 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
         andrews_squeezer_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return ANDREWS_SQUEEZER_OK;
 }
@@ -2422,17 +2773,28 @@ static void andrews_squeezer_sp_gamma_k(const andrews_squeezer_real * q, const a
 static int andrews_squeezer_sp_newton(andrews_squeezer_real t, const andrews_squeezer_real *p, const andrews_squeezer_real *q_des, andrews_squeezer_real tol, andrews_squeezer_real *q, andrews_squeezer_real *tr, int *info, andrews_squeezer_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    andrews_squeezer_real *r = ANDREWS_SQUEEZER_VEC(work, 0), *dq = ANDREWS_SQUEEZER_VEC(work, 1), *y = ANDREWS_SQUEEZER_VEC(work, 2);
+    andrews_squeezer_real *r = ANDREWS_SQUEEZER_VEC(work, 0);
+    andrews_squeezer_real *dq = ANDREWS_SQUEEZER_VEC(work, 1);
+    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2);
     andrews_squeezer_real *base = ANDREWS_SQUEEZER_VEC(work, 10);
-    andrews_squeezer_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    andrews_squeezer_real step = ((double)INFINITY);
+    andrews_squeezer_real lim;
+    andrews_squeezer_real qmag;
+    andrews_squeezer_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) andrews_squeezer_trig_near(q, tr, base);
-    else andrews_squeezer_trig_base(q, tr, base);
+    if (reuse != 0) {
+        andrews_squeezer_trig_near(q, tr, base);
+    } else {
+        andrews_squeezer_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = ANDREWS_SQUEEZER_MAX(1.0, andrews_squeezer_maxabs21(q));
-    lim = ANDREWS_SQUEEZER_MAX(tol, (andrews_squeezer_real)ANDREWS_SQUEEZER_FLOOR_ULPS * ANDREWS_SQUEEZER_EPS * qmag);
+    lim = ANDREWS_SQUEEZER_MAX(tol, ((andrews_squeezer_real)ANDREWS_SQUEEZER_FLOOR_ULPS * ANDREWS_SQUEEZER_EPS) * qmag);
     andrews_squeezer_phi_k(q, tr, t, p, r);
     andrews_squeezer_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
     rmax = andrews_squeezer_maxabs21(r);
@@ -2442,15 +2804,17 @@ static int andrews_squeezer_sp_newton(andrews_squeezer_real t, const andrews_squ
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? ANDREWS_SQUEEZER_NONFINITE : ANDREWS_SQUEEZER_NOT_CONVERGED;
+            return (it == 0) ? ANDREWS_SQUEEZER_NONFINITE : ANDREWS_SQUEEZER_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == ANDREWS_SQUEEZER_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK) {
+        if (it == ANDREWS_SQUEEZER_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK)) {
             info[0] = it;
             info[1] = *dense;
             return ANDREWS_SQUEEZER_SINGULAR;
@@ -2460,8 +2824,8 @@ static int andrews_squeezer_sp_newton(andrews_squeezer_real t, const andrews_squ
         andrews_squeezer_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= ANDREWS_SQUEEZER_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (ANDREWS_SQUEEZER_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -2474,8 +2838,10 @@ static int andrews_squeezer_sp_newton(andrews_squeezer_real t, const andrews_squ
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return ANDREWS_SQUEEZER_NOT_CONVERGED;
-    if (!current && andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK) {
+    if (converged == 0) {
+        return ANDREWS_SQUEEZER_NOT_CONVERGED;
+    }
+    if ((current == 0) && (andrews_squeezer_factorize(q, tr, t, p, work, iwork, dense) != ANDREWS_SQUEEZER_OK)) {
         info[1] = *dense;
         return ANDREWS_SQUEEZER_SINGULAR;
     }
@@ -2488,7 +2854,8 @@ static void andrews_squeezer_sp_outputs(andrews_squeezer_real t, const andrews_s
                             andrews_squeezer_real *lam, andrews_squeezer_real *reactions, andrews_squeezer_real *work, const int *iwork, int dense,
                             const andrews_squeezer_real *q_des, const andrews_squeezer_real *qd_des, const andrews_squeezer_real *qdd_des)
 {
-    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2), *b = ANDREWS_SQUEEZER_VEC(work, 3);
+    andrews_squeezer_real *y = ANDREWS_SQUEEZER_VEC(work, 2);
+    andrews_squeezer_real *b = ANDREWS_SQUEEZER_VEC(work, 3);
     andrews_squeezer_nu_k(q, tr, t, p, b);
     andrews_squeezer_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
     andrews_squeezer_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
@@ -2519,7 +2886,9 @@ static void andrews_squeezer_sp_outputs(andrews_squeezer_real t, const andrews_s
     b[19] -= y[19] * qdd[19];
     b[20] -= y[20] * qdd[20];
     andrews_squeezer_solve_t(work, iwork, dense, b, lam);
-    if (andrews_squeezer_mixed(y)) andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (andrews_squeezer_mixed(y) != 0) {
+        andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     andrews_squeezer_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -2531,25 +2900,34 @@ static int andrews_squeezer_sp_instant(andrews_squeezer_real t, const andrews_sq
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !andrews_squeezer_allfinite(q_des, ANDREWS_SQUEEZER_ND) || !andrews_squeezer_allfinite(qd_des, ANDREWS_SQUEEZER_ND)
-        || !andrews_squeezer_allfinite(qdd_des, ANDREWS_SQUEEZER_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (andrews_squeezer_allfinite(q_des, ANDREWS_SQUEEZER_ND) == 0) || (andrews_squeezer_allfinite(qd_des, ANDREWS_SQUEEZER_ND) == 0)
+        || (andrews_squeezer_allfinite(qdd_des, ANDREWS_SQUEEZER_ND) == 0)) {
         status = ANDREWS_SQUEEZER_BAD_ARGUMENT;
     } else {
-        andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9), *pp = work + ANDREWS_SQUEEZER_OFF_PREP, *kept = ANDREWS_SQUEEZER_VEC(work, 11);
-        memcpy(kept, q, sizeof(andrews_squeezer_real) * 21);  /* the caller's guess, back in q if the call fails */
+        andrews_squeezer_real *tr = ANDREWS_SQUEEZER_VEC(work, 9);
+        andrews_squeezer_real *pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
+        andrews_squeezer_real *kept = ANDREWS_SQUEEZER_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(andrews_squeezer_real) * 21u);  /* the caller's guess, back in q if the call fails */
         andrews_squeezer_prepare(p, pp);
-        if (qd == NULL) qd = ANDREWS_SQUEEZER_VEC(work, 5);
-        if (qdd == NULL) qdd = ANDREWS_SQUEEZER_VEC(work, 6);
-        if (lam == NULL) lam = ANDREWS_SQUEEZER_VEC(work, 7);
-        if (reactions == NULL) reactions = ANDREWS_SQUEEZER_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        andrews_squeezer_real *qd_out = (qd != NULL) ? qd : ANDREWS_SQUEEZER_VEC(work, 5);
+        andrews_squeezer_real *qdd_out = (qdd != NULL) ? qdd : ANDREWS_SQUEEZER_VEC(work, 6);
+        andrews_squeezer_real *lam_out = (lam != NULL) ? lam : ANDREWS_SQUEEZER_VEC(work, 7);
+        andrews_squeezer_real *reactions_out = (reactions != NULL) ? reactions : ANDREWS_SQUEEZER_VEC(work, 8);
         status = andrews_squeezer_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == ANDREWS_SQUEEZER_OK) {
-            andrews_squeezer_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!andrews_squeezer_finite(q, qd, qdd, lam, reactions)) status = ANDREWS_SQUEEZER_NONFINITE;
+            andrews_squeezer_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (andrews_squeezer_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = ANDREWS_SQUEEZER_NONFINITE;
+            }
         }
-        if (status != ANDREWS_SQUEEZER_OK) memcpy(q, kept, sizeof(andrews_squeezer_real) * 21);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != ANDREWS_SQUEEZER_OK) {
+            (void)memcpy(q, kept, sizeof(andrews_squeezer_real) * 21u);
+        }
     }
     return status;
 }
@@ -2559,7 +2937,8 @@ int andrews_squeezer_setpoint(andrews_squeezer_real t, const andrews_squeezer_re
                      andrews_squeezer_real *qdd, andrews_squeezer_real *lam, andrews_squeezer_real *reactions, int *info, andrews_squeezer_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = andrews_squeezer_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -308,13 +308,13 @@ extern const andrews_squeezer_real andrews_squeezer_default_q0[ANDREWS_SQUEEZER_
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 124, phi_q 76, nu 9, gamma 107, applied 27, mass 0, reactions 21, lu_factor 46, lu_forward 10, lu_back 50, lu_t_forward 50, lu_t_back 10. */
-#define ANDREWS_SQUEEZER_OPS_INSTANT 774
+   work), and of each evaluation: phi 122, phi_q 76, nu 8, gamma 101, applied 27, mass 0, reactions 21, lu_factor 46, lu_forward 10, lu_back 50, lu_t_forward 50, lu_t_back 10. */
+#define ANDREWS_SQUEEZER_OPS_INSTANT 763
 
 /* Worst case of one instant call (computed at generation from the counts
    above, not measured): Newton reaching MAX_NEWTON, every factorization
    through the pivoting fallback (bounded by a dense LU). At most
-   11110 + 9062 MAX_NEWTON counted floating operations and
+   11101 + 9060 MAX_NEWTON counted floating operations and
    20 + 17 MAX_NEWTON libm calls; as instructions, at most
    WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
    loads, stores and indexing), each libm call 300 (the real type on its
@@ -324,7 +324,7 @@ extern const andrews_squeezer_real andrews_squeezer_default_q0[ANDREWS_SQUEEZER_
    test_c_edges checks it under callgrind on x86-64 for every bundled
    example, the cap reached (instant only: a trajectory's instant adds its
    predictor, checks and, if generated, sensitivities). */
-#define ANDREWS_SQUEEZER_WORST_INSTRUCTIONS (142320L + 114244L * (long)ANDREWS_SQUEEZER_MAX_NEWTON)
+#define ANDREWS_SQUEEZER_WORST_INSTRUCTIONS (142212L + 114220L * (long)ANDREWS_SQUEEZER_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int andrews_squeezer_phi_q_rows[65];

@@ -43,7 +43,7 @@ typedef char disc_cam_real_must_have_the_size_of_double[sizeof(disc_cam_real) ==
 #define DISC_CAM_OFF_LU 10
 #define DISC_CAM_OFF_DENSE (DISC_CAM_OFF_LU + DISC_CAM_LU_SIZE)
 #define DISC_CAM_OFF_VEC (DISC_CAM_OFF_DENSE + 36)
-#define DISC_CAM_VEC(work, k) ((work) + DISC_CAM_OFF_VEC + (k) * 24)
+#define DISC_CAM_VEC(work, k) (&(work)[DISC_CAM_OFF_VEC + ((k) * 24)])
 /* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
 #define DISC_CAM_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
 #define DISC_CAM_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
@@ -131,10 +131,12 @@ static void disc_cam_trig_base(const disc_cam_real *q, disc_cam_real *tr, disc_c
 {
     int b;
     for (b = 0; b < 2; ++b) {
-        const disc_cam_real a = q[3 * b + 2];
+        const disc_cam_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -149,31 +151,41 @@ static void disc_cam_trig_base(const disc_cam_real *q, disc_cam_real *tr, disc_c
 static void disc_cam_trig_near(const disc_cam_real *q, disc_cam_real *tr, disc_cam_real *base)
 {
     {
-        const disc_cam_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const disc_cam_real a = q[2];
+        const disc_cam_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const disc_cam_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const disc_cam_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const disc_cam_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const disc_cam_real d2 = d * d;
+            const disc_cam_real s = base[1];
+            const disc_cam_real c = base[2];
+            const disc_cam_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const disc_cam_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const disc_cam_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const disc_cam_real a = q[5];
+        const disc_cam_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const disc_cam_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const disc_cam_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const disc_cam_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const disc_cam_real d2 = d * d;
+            const disc_cam_real s = base[4];
+            const disc_cam_real c = base[5];
+            const disc_cam_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const disc_cam_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
 }
@@ -186,20 +198,24 @@ static void disc_cam_trig_near(const disc_cam_real *q, disc_cam_real *tr, disc_c
 static void disc_cam_trig_step(const disc_cam_real *q, const disc_cam_real *dq, disc_cam_real *tr, disc_cam_real *base)
 {
     {
-        const disc_cam_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const disc_cam_real d = -dq[2];
+        const disc_cam_real s = tr[0];
+        const disc_cam_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             disc_cam_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const disc_cam_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const disc_cam_real d = -dq[5];
+        const disc_cam_real s = tr[2];
+        const disc_cam_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             disc_cam_trig_near(q, tr, base);
             return;
@@ -213,9 +229,9 @@ static void disc_cam_trig_step(const disc_cam_real *q, const disc_cam_real *dq, 
    evaluation. The kernels read both from this one vector. */
 static void disc_cam_prepare(const disc_cam_real *p, disc_cam_real *pp)
 {
-    memcpy(pp, p, sizeof(disc_cam_real) * 8);
+    (void)memcpy(pp, p, sizeof(disc_cam_real) * 8u);
     {
-        pp[8] = (2*3.141592653589793*p[2]);
+        pp[8] = (2.0*3.141592653589793*p[2]);
     }
 }
 
@@ -229,8 +245,8 @@ static void disc_cam_phi_k0(const disc_cam_real * q, const disc_cam_real * tr, d
     out[1] = q[1];
     out[2] = e0;
     out[3] = q[5];
-    out[4] = -1.0/2.0*p[1]*(1 - cos(q[2] - atan2(e2, e1))) + (-p[0] + sqrt((e1*e1) + (e2*e2)));
-    out[5] = -p[8]*t + q[2];
+    out[4] = (-1.0/2.0*p[1]*(1.0 - cos(q[2] - atan2(e2, e1)))) + (-p[0] + sqrt((e1*e1) + (e2*e2)));
+    out[5] = (-p[8]*t) + q[2];
 }
 
 static void disc_cam_phi_k(const disc_cam_real * q, const disc_cam_real * tr, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
@@ -244,8 +260,7 @@ void disc_cam_phi(const disc_cam_real * q, disc_cam_real t, const disc_cam_real 
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
-    p = prepared;
-    disc_cam_phi_k(q, tr, t, p, out);
+    disc_cam_phi_k(q, tr, t, prepared, out);
 }
 
 static void disc_cam_phi_q_k0(const disc_cam_real * q, const disc_cam_real * tr, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
@@ -262,16 +277,16 @@ static void disc_cam_phi_q_k0(const disc_cam_real * q, const disc_cam_real * tr,
     const disc_cam_real e7 = e6/e4;
     const disc_cam_real e8 = e2*e7;
     const disc_cam_real e9 = e1*e7;
-    out[0] = 1;
-    out[1] = 1;
-    out[2] = -1;
-    out[3] = 1;
-    out[4] = e0*e5 - e8;
-    out[5] = e2*e5 - e9;
+    out[0] = 1.0;
+    out[1] = 1.0;
+    out[2] = -1.0;
+    out[3] = 1.0;
+    out[4] = (e0*e5) - e8;
+    out[5] = (e2*e5) - e9;
     out[6] = -e6;
-    out[7] = e1*e5 + e8;
-    out[8] = e3*e5 + e9;
-    out[9] = 1;
+    out[7] = (e1*e5) + e8;
+    out[8] = (e3*e5) + e9;
+    out[9] = 1.0;
 }
 
 static void disc_cam_phi_q_k(const disc_cam_real * q, const disc_cam_real * tr, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
@@ -285,8 +300,7 @@ void disc_cam_phi_q(const disc_cam_real * q, disc_cam_real t, const disc_cam_rea
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
-    p = prepared;
-    disc_cam_phi_q_k(q, tr, t, p, out);
+    disc_cam_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void disc_cam_nu_k0(const disc_cam_real * q, const disc_cam_real * tr, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
@@ -294,11 +308,11 @@ static void disc_cam_nu_k0(const disc_cam_real * q, const disc_cam_real * tr, di
     (void)q;
     (void)tr;
     (void)t;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
     out[5] = p[8];
 }
 
@@ -313,8 +327,7 @@ void disc_cam_nu(const disc_cam_real * q, disc_cam_real t, const disc_cam_real *
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
-    p = prepared;
-    disc_cam_nu_k(q, tr, t, p, out);
+    disc_cam_nu_k(q, tr, t, prepared, out);
 }
 
 static void disc_cam_gamma_k0(const disc_cam_real * q, const disc_cam_real * tr, const disc_cam_real * qd, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
@@ -325,18 +338,18 @@ static void disc_cam_gamma_k0(const disc_cam_real * q, const disc_cam_real * tr,
     const disc_cam_real e1 = p[1]*cos(e0);
     const disc_cam_real e2 = (qd[1]*qd[1]);
     const disc_cam_real e3 = (q[0]*q[0]);
-    const disc_cam_real e4 = 8*q[0];
-    const disc_cam_real e5 = 8*q[1];
+    const disc_cam_real e4 = 8.0*q[0];
+    const disc_cam_real e5 = 8.0*q[1];
     const disc_cam_real e6 = (q[1]*q[1]);
-    const disc_cam_real e7 = 4*e3;
+    const disc_cam_real e7 = 4.0*e3;
     const disc_cam_real e8 = (q[4]*q[4]);
     const disc_cam_real e9 = (q[3]*q[3]);
-    const disc_cam_real e10 = 4*e9;
+    const disc_cam_real e10 = 4.0*e9;
     const disc_cam_real e11 = e4*q[3];
     const disc_cam_real e12 = e5*q[4];
     const disc_cam_real e13 = q[0]*q[3];
     const disc_cam_real e14 = q[1]*q[4];
-    const disc_cam_real e15 = (1.0/(e10*e6 + e10*e8 - e11*e6 - e11*e8 - e12*e3 - e12*e9 + 16*e13*e14 + 12*e3*e9 - e4*(q[3]*q[3]*q[3]) - e5*(q[4]*q[4]*q[4]) + e6*e7 + 12*e6*e8 + e7*e8 + 2*(q[0]*q[0]*q[0]*q[0]) - 8*(q[0]*q[0]*q[0])*q[3] + 2*(q[1]*q[1]*q[1]*q[1]) - 8*(q[1]*q[1]*q[1])*q[4] + 2*(q[3]*q[3]*q[3]*q[3]) + 2*(q[4]*q[4]*q[4]*q[4])));
+    const disc_cam_real e15 = (1.0/((e10*e6) + (e10*e8) - (e11*e6) - (e11*e8) - (e12*e3) - (e12*e9) + (16.0*e13*e14) + (12.0*e3*e9) - (e4*(q[3]*q[3]*q[3])) - (e5*(q[4]*q[4]*q[4])) + (e6*e7) + (12.0*e6*e8) + (e7*e8) + (2.0*(q[0]*q[0]*q[0]*q[0])) - (8.0*(q[0]*q[0]*q[0])*q[3]) + (2.0*(q[1]*q[1]*q[1]*q[1])) - (8.0*(q[1]*q[1]*q[1])*q[4]) + (2.0*(q[3]*q[3]*q[3]*q[3])) + (2.0*(q[4]*q[4]*q[4]*q[4]))));
     const disc_cam_real e16 = e1*e15;
     const disc_cam_real e17 = e16*e3;
     const disc_cam_real e18 = (qd[4]*qd[4]);
@@ -346,33 +359,33 @@ static void disc_cam_gamma_k0(const disc_cam_real * q, const disc_cam_real * tr,
     const disc_cam_real e22 = e16*e9;
     const disc_cam_real e23 = e16*e8;
     const disc_cam_real e24 = q[0]*q[1];
-    const disc_cam_real e25 = 2*e24;
+    const disc_cam_real e25 = 2.0*e24;
     const disc_cam_real e26 = e15*p[1]*sin(e0);
     const disc_cam_real e27 = e25*e26;
-    const disc_cam_real e28 = 2*e13;
+    const disc_cam_real e28 = 2.0*e13;
     const disc_cam_real e29 = e16*e28;
-    const disc_cam_real e30 = 2*q[0];
+    const disc_cam_real e30 = 2.0*q[0];
     const disc_cam_real e31 = e26*q[4];
     const disc_cam_real e32 = e30*e31;
-    const disc_cam_real e33 = 2*e3;
-    const disc_cam_real e34 = 2*e6;
-    const disc_cam_real e35 = 2*e9;
-    const disc_cam_real e36 = 2*e8;
-    const disc_cam_real e37 = 4*e13;
-    const disc_cam_real e38 = 4*e14;
+    const disc_cam_real e33 = 2.0*e3;
+    const disc_cam_real e34 = 2.0*e6;
+    const disc_cam_real e35 = 2.0*e9;
+    const disc_cam_real e36 = 2.0*e8;
+    const disc_cam_real e37 = 4.0*e13;
+    const disc_cam_real e38 = 4.0*e14;
     const disc_cam_real e39 = e1*qd[2]/(e33 + e34 + e35 + e36 - e37 - e38);
     const disc_cam_real e40 = e30*e39;
     const disc_cam_real e41 = e2*q[3];
-    const disc_cam_real e42 = 2*q[1];
+    const disc_cam_real e42 = 2.0*q[1];
     const disc_cam_real e43 = e26*e42;
     const disc_cam_real e44 = e43*q[3];
-    const disc_cam_real e45 = 2*e14;
+    const disc_cam_real e45 = 2.0*e14;
     const disc_cam_real e46 = e16*e45;
     const disc_cam_real e47 = e39*e42;
-    const disc_cam_real e48 = 2*q[3];
+    const disc_cam_real e48 = 2.0*q[3];
     const disc_cam_real e49 = e31*e48;
     const disc_cam_real e50 = e39*e48;
-    const disc_cam_real e51 = 2*q[4];
+    const disc_cam_real e51 = 2.0*q[4];
     const disc_cam_real e52 = e39*e51;
     const disc_cam_real e53 = qd[0]*qd[1];
     const disc_cam_real e54 = e26*e53;
@@ -386,9 +399,9 @@ static void disc_cam_gamma_k0(const disc_cam_real * q, const disc_cam_real * tr,
     const disc_cam_real e62 = e16*e61;
     const disc_cam_real e63 = qd[3]*qd[4];
     const disc_cam_real e64 = e26*e63;
-    const disc_cam_real e65 = 4*e26;
+    const disc_cam_real e65 = 4.0*e26;
     const disc_cam_real e66 = e24*e65;
-    const disc_cam_real e67 = 4*e31;
+    const disc_cam_real e67 = 4.0*e31;
     const disc_cam_real e68 = e67*q[0];
     const disc_cam_real e69 = e55*q[3];
     const disc_cam_real e70 = e65*q[1];
@@ -404,29 +417,29 @@ static void disc_cam_gamma_k0(const disc_cam_real * q, const disc_cam_real * tr,
     const disc_cam_real e80 = e48*q[4];
     const disc_cam_real e81 = sqrt(-e28 + e3 - e45 + e6 + e8 + e9);
     const disc_cam_real e82 = (1.0/e81);
-    const disc_cam_real e83 = (1.0/(-e28*e81 + e3*e81 - e45*e81 + e6*e81 + e8*e81 + e81*e9));
+    const disc_cam_real e83 = (1.0/((-e28*e81) + (e3*e81) - (e45*e81) + (e6*e81) + (e8*e81) + (e81*e9)));
     const disc_cam_real e84 = e3*e83;
     const disc_cam_real e85 = e6*e83;
     const disc_cam_real e86 = e83*e9;
     const disc_cam_real e87 = e8*e83;
-    const disc_cam_real e88 = 2*e82;
+    const disc_cam_real e88 = 2.0*e82;
     const disc_cam_real e89 = e28*e83;
     const disc_cam_real e90 = e45*e83;
     const disc_cam_real e91 = e55*e83;
     const disc_cam_real e92 = e61*e83;
-    const disc_cam_real e93 = 2*e83;
+    const disc_cam_real e93 = 2.0*e83;
     const disc_cam_real e94 = e24*e93;
     const disc_cam_real e95 = e93*q[4];
     const disc_cam_real e96 = e95*q[0];
     const disc_cam_real e97 = e93*q[1];
     const disc_cam_real e98 = e97*q[3];
     const disc_cam_real e99 = e95*q[3];
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = (1.0/2.0)*e1*(qd[2]*qd[2]) + e16*e53*e74 + e17*e18 + e17*e2 + e18*e22 + e18*e27 - e18*e29 - e18*e32 - e18*e44 + e18*e49 + e19*e20 + e19*e23 - e19*e27 + e19*e32 + e19*e44 - e19*e46 - e19*e49 + e2*e22 + e2*e27 - e2*e29 - e2*e32 + e20*e21 + e21*e23 - e21*e27 + e21*e32 + e21*e44 - e21*e46 - e21*e49 + 2*e31*e41 + e33*e54 - e33*e58 - e33*e60 - e33*e62 + e33*e64 - e34*e54 - e34*e56 + e34*e58 + e34*e60 - e34*e64 + e35*e54 - e35*e58 - e35*e60 - e35*e62 + e35*e64 - e36*e54 - e36*e56 + e36*e58 + e36*e60 - e36*e64 - e37*e54 + e37*e58 + e37*e60 + e37*e62 - e37*e64 + e38*e54 + e38*e56 - e38*e58 - e38*e60 + e38*e64 - e40*qd[1] + e40*qd[4] - e41*e43 + e42*e78 + e47*qd[0] - e47*qd[3] + e50*qd[1] - e50*qd[4] - e51*e78 - e52*qd[0] + e52*qd[3] - e53*e72 + e55*e66 - e55*e68 + e57*e72 + e59*e72 - e61*e66 + e61*e68 - e63*e72 + e67*e69 - e67*e71 - e69*e70 + e70*e71 - e73*e74 - e73*e76 + e73*e80 - e74*e75 + e74*e79 - e75*e76 + e75*e80 + e76*e79 - e79*e80 + (-e18*e82 + e18*e85 + e18*e87 - e18*e90 - e19*e82 + e19*e84 + e19*e86 - e19*e89 - e2*e82 + e2*e85 + e2*e87 - e2*e90 - e21*e82 + e21*e84 + e21*e86 - e21*e89 - e33*e91 - e34*e92 - e35*e91 - e36*e92 + e37*e91 + e38*e92 + e53*e94 - e53*e96 + e55*e88 - e57*e94 + e57*e96 + e57*e98 - e57*e99 - e59*e94 + e59*e96 + e59*e98 - e59*e99 + e61*e88 + e63*e94 - e63*e96 - e63*e98 + e63*e99 + e77*e95 - e77*e97);
-    out[5] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = ((1.0/2.0)*e1*(qd[2]*qd[2])) + (e16*e53*e74) + (e17*e18) + (e17*e2) + (e18*e22) + (e18*e27) - (e18*e29) - (e18*e32) - (e18*e44) + (e18*e49) + (e19*e20) + (e19*e23) - (e19*e27) + (e19*e32) + (e19*e44) - (e19*e46) - (e19*e49) + (e2*e22) + (e2*e27) - (e2*e29) - (e2*e32) + (e20*e21) + (e21*e23) - (e21*e27) + (e21*e32) + (e21*e44) - (e21*e46) - (e21*e49) + (2.0*e31*e41) + (e33*e54) - (e33*e58) - (e33*e60) - (e33*e62) + (e33*e64) - (e34*e54) - (e34*e56) + (e34*e58) + (e34*e60) - (e34*e64) + (e35*e54) - (e35*e58) - (e35*e60) - (e35*e62) + (e35*e64) - (e36*e54) - (e36*e56) + (e36*e58) + (e36*e60) - (e36*e64) - (e37*e54) + (e37*e58) + (e37*e60) + (e37*e62) - (e37*e64) + (e38*e54) + (e38*e56) - (e38*e58) - (e38*e60) + (e38*e64) - (e40*qd[1]) + (e40*qd[4]) - (e41*e43) + (e42*e78) + (e47*qd[0]) - (e47*qd[3]) + (e50*qd[1]) - (e50*qd[4]) - (e51*e78) - (e52*qd[0]) + (e52*qd[3]) - (e53*e72) + (e55*e66) - (e55*e68) + (e57*e72) + (e59*e72) - (e61*e66) + (e61*e68) - (e63*e72) + (e67*e69) - (e67*e71) - (e69*e70) + (e70*e71) - (e73*e74) - (e73*e76) + (e73*e80) - (e74*e75) + (e74*e79) - (e75*e76) + (e75*e80) + (e76*e79) - (e79*e80) + ((-e18*e82) + (e18*e85) + (e18*e87) - (e18*e90) - (e19*e82) + (e19*e84) + (e19*e86) - (e19*e89) - (e2*e82) + (e2*e85) + (e2*e87) - (e2*e90) - (e21*e82) + (e21*e84) + (e21*e86) - (e21*e89) - (e33*e91) - (e34*e92) - (e35*e91) - (e36*e92) + (e37*e91) + (e38*e92) + (e53*e94) - (e53*e96) + (e55*e88) - (e57*e94) + (e57*e96) + (e57*e98) - (e57*e99) - (e59*e94) + (e59*e96) + (e59*e98) - (e59*e99) + (e61*e88) + (e63*e94) - (e63*e96) - (e63*e98) + (e63*e99) + (e77*e95) - (e77*e97));
+    out[5] = 0.0;
 }
 
 static void disc_cam_gamma_k(const disc_cam_real * q, const disc_cam_real * tr, const disc_cam_real * qd, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
@@ -440,8 +453,7 @@ void disc_cam_gamma(const disc_cam_real * q, const disc_cam_real * qd, disc_cam_
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
-    p = prepared;
-    disc_cam_gamma_k(q, tr, qd, t, p, out);
+    disc_cam_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void disc_cam_applied_k0(const disc_cam_real * q, const disc_cam_real * tr, const disc_cam_real * qd, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
@@ -449,16 +461,16 @@ static void disc_cam_applied_k0(const disc_cam_real * q, const disc_cam_real * t
     (void)tr;
     (void)qd;
     (void)t;
-    const disc_cam_real e0 = q[3] - 1.0/10.0;
-    const disc_cam_real e1 = q[4] - 1.0/10.0;
+    const disc_cam_real e0 = q[3] - (1.0/10.0);
+    const disc_cam_real e1 = q[4] - (1.0/10.0);
     const disc_cam_real e2 = sqrt((e0*e0) + (e1*e1));
     const disc_cam_real e3 = p[6]*(e2 - p[7])/e2;
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[3];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -e0*e3;
-    out[4] = -e1*e3 - 981.0/100.0*p[5];
-    out[5] = 0;
+    out[4] = (-e1*e3) - (981.0/100.0*p[5]);
+    out[5] = 0.0;
 }
 
 static void disc_cam_applied_k(const disc_cam_real * q, const disc_cam_real * tr, const disc_cam_real * qd, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
@@ -472,8 +484,7 @@ void disc_cam_applied(const disc_cam_real * q, const disc_cam_real * qd, disc_ca
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
-    p = prepared;
-    disc_cam_applied_k(q, tr, qd, t, p, out);
+    disc_cam_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void disc_cam_mass_k0(const disc_cam_real * p, disc_cam_real *out)
@@ -495,8 +506,7 @@ void disc_cam_mass(const disc_cam_real * p, disc_cam_real *out)
 {
     disc_cam_real prepared[9];
     disc_cam_prepare(p, prepared);
-    p = prepared;
-    disc_cam_mass_k(p, out);
+    disc_cam_mass_k(prepared, out);
 }
 
 static void disc_cam_reactions_k0(const disc_cam_real * q, const disc_cam_real * tr, const disc_cam_real * lam, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
@@ -510,38 +520,38 @@ static void disc_cam_reactions_k0(const disc_cam_real * q, const disc_cam_real *
     const disc_cam_real e4 = q[0]*q[3];
     const disc_cam_real e5 = q[1]*q[4];
     const disc_cam_real e6 = lam[4]*p[1]*sin(q[2] - atan2(-q[1] + q[4], -q[0] + q[3]));
-    const disc_cam_real e7 = e6/(2*e0 + 2*e1 + 2*e2 + 2*e3 - 4*e4 - 4*e5);
+    const disc_cam_real e7 = e6/((2.0*e0) + (2.0*e1) + (2.0*e2) + (2.0*e3) - (4.0*e4) - (4.0*e5));
     const disc_cam_real e8 = e7*q[1];
     const disc_cam_real e9 = e7*q[4];
-    const disc_cam_real e10 = (1.0/sqrt(e0 + e1 + e2 + e3 - 2*e4 - 2*e5));
+    const disc_cam_real e10 = (1.0/sqrt(e0 + e1 + e2 + e3 - (2.0*e4) - (2.0*e5)));
     const disc_cam_real e11 = e10*lam[4];
-    const disc_cam_real e12 = -e10*lam[4]*q[3] + e11*q[0];
+    const disc_cam_real e12 = (-e10*lam[4]*q[3]) + (e11*q[0]);
     const disc_cam_real e13 = e7*q[3];
     const disc_cam_real e14 = e7*q[0];
-    const disc_cam_real e15 = -e10*lam[4]*q[4] + e11*q[1];
+    const disc_cam_real e15 = (-e10*lam[4]*q[4]) + (e11*q[1]);
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = -lam[2];
-    out[7] = 0;
-    out[8] = lam[2]*q[4] + lam[3];
+    out[7] = 0.0;
+    out[8] = (lam[2]*q[4]) + lam[3];
     out[9] = lam[2];
-    out[10] = 0;
+    out[10] = 0.0;
     out[11] = -lam[3];
     out[12] = e8 - e9 + (-e12);
     out[13] = e13 - e14 + (-e15);
     out[14] = (1.0/2.0)*e6;
     out[15] = -e8 + e9 + (e12);
     out[16] = -e13 + e14 + (e15);
-    out[17] = 0;
-    out[18] = 0;
-    out[19] = 0;
+    out[17] = 0.0;
+    out[18] = 0.0;
+    out[19] = 0.0;
     out[20] = lam[5];
-    out[21] = 0;
-    out[22] = 0;
+    out[21] = 0.0;
+    out[22] = 0.0;
     out[23] = -lam[5];
 }
 
@@ -556,8 +566,7 @@ void disc_cam_reactions(const disc_cam_real * q, const disc_cam_real * lam, disc
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
-    p = prepared;
-    disc_cam_reactions_k(q, tr, lam, t, p, out);
+    disc_cam_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -576,18 +585,19 @@ static int disc_cam_sparse_factor0(disc_cam_real *lu)
     disc_cam_real cm = 0.0;
     cm = 1.0;
     cm = DISC_CAM_MAX(cm, fabs(lu[4]));
-    if (!(1.0 >= DISC_CAM_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (DISC_CAM_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = DISC_CAM_MAX(cm, fabs(lu[5]));
-    if (!(1.0 >= DISC_CAM_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (DISC_CAM_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = DISC_CAM_MAX(cm, fabs(lu[7]));
-    if (!(1.0 >= DISC_CAM_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (DISC_CAM_THRESHOLD * cm))) { return 1; }
     lu[7] = -lu[7];
     piv = lu[8];
     cm = fabs(piv);
-    if (!(fabs(piv) >= DISC_CAM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[8] = 1.0 / piv;
+    if (!(fabs(piv) >= (DISC_CAM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[8] = 1.0 / piv;
+    piv = lu[8];
     return 0;
 }
 
@@ -598,16 +608,16 @@ static int disc_cam_sparse_factor(disc_cam_real *lu)
 
 static void disc_cam_sparse_forward0(const disc_cam_real *DISC_CAM_RESTRICT lu, disc_cam_real *DISC_CAM_RESTRICT y)
 {
-    y[4] -= lu[4] * y[0];
-    y[4] -= lu[5] * y[1];
-    y[4] -= lu[7] * y[2];
+    y[4] -= (lu[4] * y[0]);
+    y[4] -= (lu[5] * y[1]);
+    y[4] -= (lu[7] * y[2]);
 }
 
 static void disc_cam_sparse_back0(
     const disc_cam_real *DISC_CAM_RESTRICT lu, const disc_cam_real *DISC_CAM_RESTRICT y, disc_cam_real *DISC_CAM_RESTRICT x)
 {
     x[2] = y[5];
-    x[4] = (y[4] - lu[6] * x[2]) * lu[8];
+    x[4] = (y[4] - (lu[6] * x[2])) * lu[8];
     x[5] = y[3];
     x[3] = -(y[2]);
     x[1] = y[1];
@@ -623,7 +633,7 @@ static void disc_cam_sparse_solve_in(const disc_cam_real *lu, disc_cam_real *y, 
 
 static void disc_cam_sparse_solve(const disc_cam_real *lu, const disc_cam_real *b, disc_cam_real *x, disc_cam_real *y)
 {
-    memcpy(y, b, sizeof(disc_cam_real) * 6);
+    (void)memcpy(y, b, sizeof(disc_cam_real) * 6u);
     disc_cam_sparse_solve_in(lu, y, x);
 }
 
@@ -635,14 +645,14 @@ static void disc_cam_sparse_t_forward0(
     x[2] = -(b[3]);
     x[3] = b[5];
     x[4] = (b[4]) * lu[8];
-    x[5] = b[2] - lu[6] * x[4];
+    x[5] = b[2] - (lu[6] * x[4]);
 }
 
 static void disc_cam_sparse_t_back0(const disc_cam_real *DISC_CAM_RESTRICT lu, disc_cam_real *DISC_CAM_RESTRICT x)
 {
-    x[2] -= lu[7] * x[4];
-    x[1] -= lu[5] * x[4];
-    x[0] -= lu[4] * x[4];
+    x[2] -= (lu[7] * x[4]);
+    x[1] -= (lu[5] * x[4]);
+    x[0] -= (lu[4] * x[4]);
 }
 
 static void disc_cam_sparse_solve_t(const disc_cam_real *lu, const disc_cam_real *b, disc_cam_real *x)
@@ -656,58 +666,81 @@ static void disc_cam_sparse_solve_t(const disc_cam_real *lu, const disc_cam_real
 static int disc_cam_dense_factor(disc_cam_real *a, int *perm)
 {
     const int n = 6;
-    int i, j, k;
-    disc_cam_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    disc_cam_real umax = 0.0;
+    disc_cam_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                disc_cam_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return DISC_CAM_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            disc_cam_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                disc_cam_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return DISC_CAM_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            disc_cam_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= DISC_CAM_SINGULAR_RATIO * umax ? DISC_CAM_SINGULAR : DISC_CAM_OK;
+    return (umin <= (DISC_CAM_SINGULAR_RATIO * umax)) ? DISC_CAM_SINGULAR : DISC_CAM_OK;
 }
 
 static void disc_cam_dense_solve(const disc_cam_real *a, const int *perm, const disc_cam_real *b, disc_cam_real *x)
 {
     const int n = 6;
-    int i, j;
-    memcpy(x, b, sizeof(disc_cam_real) * 6);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(disc_cam_real) * 6u);
     for (i = 0; i < n; ++i) {
         disc_cam_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void disc_cam_dense_solve_t(const disc_cam_real *a, const int *perm, const disc_cam_real *b, disc_cam_real *x)
 {
     const int n = 6;
-    int i, j;
-    memcpy(x, b, sizeof(disc_cam_real) * 6);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(disc_cam_real) * 6u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         disc_cam_real tmp = x[perm[i]];
@@ -715,8 +748,6 @@ static void disc_cam_dense_solve_t(const disc_cam_real *a, const int *perm, cons
         x[i] = tmp;
     }
 }
-
-static const int disc_cam_pivot_slots[1] = { 8 };
 
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
@@ -724,6 +755,7 @@ static const int disc_cam_pivot_slots[1] = { 8 };
    hold reciprocals, whose spread is the pivots'. */
 static int disc_cam_pivots_spread(const disc_cam_real *lu)
 {
+    static const int disc_cam_pivot_slots[1] = { 8 };
     disc_cam_real rmin = 1.0;
     disc_cam_real rmax = 1.0;
     int k;
@@ -732,7 +764,7 @@ static int disc_cam_pivots_spread(const disc_cam_real *lu)
         rmin = DISC_CAM_MIN(rmin, r);
         rmax = DISC_CAM_MAX(rmax, r);
     }
-    return rmin <= DISC_CAM_SINGULAR_RATIO * rmax;
+    return (rmin <= (DISC_CAM_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -745,8 +777,12 @@ static int disc_cam_pivots_spread(const disc_cam_real *lu)
 static int disc_cam_screen(const disc_cam_real *lu, int dense, const disc_cam_real *row, const disc_cam_real *col,
                           const disc_cam_real *known)
 {
-    disc_cam_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    disc_cam_real wmin = known[0];
+    disc_cam_real wmax = known[1];
+    disc_cam_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[8]) * row[4] * col[4];
     wmin = DISC_CAM_MIN(wmin, w);
     wmax = DISC_CAM_MAX(wmax, w);
@@ -754,7 +790,7 @@ static int disc_cam_screen(const disc_cam_real *lu, int dense, const disc_cam_re
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= DISC_CAM_SCREEN * wmin);
+    return (wmax <= (DISC_CAM_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -763,7 +799,8 @@ static int disc_cam_screen(const disc_cam_real *lu, int dense, const disc_cam_re
 static void disc_cam_screen_known(const disc_cam_real *row, const disc_cam_real *col, disc_cam_real *known)
 {
     disc_cam_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[0] * col[0];
     known[0] = DISC_CAM_MIN(known[0], w);
     known[1] = DISC_CAM_MAX(known[1], w);
@@ -790,36 +827,51 @@ static void disc_cam_screen_known(const disc_cam_real *row, const disc_cam_real 
 static int disc_cam_factorize(const disc_cam_real *q, const disc_cam_real *tr, disc_cam_real t, const disc_cam_real *p, disc_cam_real *work,
                              int *iwork, int *dense)
 {
-    disc_cam_real *values = work, *lu = work + DISC_CAM_OFF_LU, *a = work + DISC_CAM_OFF_DENSE;
+    disc_cam_real *values = work;
+    disc_cam_real *lu = &work[DISC_CAM_OFF_LU];
+    disc_cam_real *a = &work[DISC_CAM_OFF_DENSE];
     int k;
     disc_cam_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (disc_cam_sparse_factor(lu) == 0 && !disc_cam_pivots_spread(lu)) return DISC_CAM_OK;
+    if ((disc_cam_sparse_factor(lu) == 0) && (disc_cam_pivots_spread(lu) == 0)) {
+        return DISC_CAM_OK;
+    }
     *dense = 1;
     disc_cam_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(disc_cam_real) * 36);
-    for (k = 0; k < 10; ++k) a[disc_cam_phi_q_rows[k] * 6 + disc_cam_phi_q_cols[k]] = values[k];
+    (void)memset(a, 0, sizeof(disc_cam_real) * 36u);
+    for (k = 0; k < 10; ++k) {
+        a[(disc_cam_phi_q_rows[k] * 6) + disc_cam_phi_q_cols[k]] = values[k];
+    }
     return disc_cam_dense_factor(a, iwork);
 }
 
 static void disc_cam_solve(const disc_cam_real *work, const int *iwork, int dense, const disc_cam_real *b, disc_cam_real *x, disc_cam_real *y)
 {
-    if (dense) disc_cam_dense_solve(work + DISC_CAM_OFF_DENSE, iwork, b, x);
-    else disc_cam_sparse_solve(work + DISC_CAM_OFF_LU, b, x, y);
+    if (dense != 0) {
+        disc_cam_dense_solve(&work[DISC_CAM_OFF_DENSE], iwork, b, x);
+    } else {
+        disc_cam_sparse_solve(&work[DISC_CAM_OFF_LU], b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void disc_cam_solve_in(const disc_cam_real *work, const int *iwork, int dense, disc_cam_real *b, disc_cam_real *x, disc_cam_real *y)
 {
-    if (dense) disc_cam_solve(work, iwork, dense, b, x, y);
-    else disc_cam_sparse_solve_in(work + DISC_CAM_OFF_LU, b, x);
+    if (dense != 0) {
+        disc_cam_solve(work, iwork, dense, b, x, y);
+    } else {
+        disc_cam_sparse_solve_in(&work[DISC_CAM_OFF_LU], b, x);
+    }
 }
 
 static void disc_cam_solve_t(const disc_cam_real *work, const int *iwork, int dense, const disc_cam_real *b, disc_cam_real *x)
 {
-    if (dense) disc_cam_dense_solve_t(work + DISC_CAM_OFF_DENSE, iwork, b, x);
-    else disc_cam_sparse_solve_t(work + DISC_CAM_OFF_LU, b, x);
+    if (dense != 0) {
+        disc_cam_dense_solve_t(&work[DISC_CAM_OFF_DENSE], iwork, b, x);
+    } else {
+        disc_cam_sparse_solve_t(&work[DISC_CAM_OFF_LU], b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -829,10 +881,11 @@ static void disc_cam_solve_t(const disc_cam_real *work, const int *iwork, int de
    the refinement's cost (a quarter of an instant) is not paid. */
 static int disc_cam_mixed(const disc_cam_real *m)
 {
-    disc_cam_real lo = m[0], hi = m[0];
+    disc_cam_real lo = m[0];
+    disc_cam_real hi = m[0];
     lo = DISC_CAM_MIN(lo, m[3]);
     hi = DISC_CAM_MAX(hi, m[3]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -847,14 +900,23 @@ static int disc_cam_mixed(const disc_cam_real *m)
 static DISC_CAM_COLD void disc_cam_refine_t(const disc_cam_real *q, const disc_cam_real *tr, disc_cam_real t, const disc_cam_real *p,
                                         const disc_cam_real *b, disc_cam_real *lam, disc_cam_real *work, const int *iwork, int dense)
 {
-    disc_cam_real *values = work, *r = DISC_CAM_VEC(work, 0), *d = DISC_CAM_VEC(work, 1);
+    disc_cam_real *values = work;
+    disc_cam_real *r = DISC_CAM_VEC(work, 0);
+    disc_cam_real *d = DISC_CAM_VEC(work, 1);
     int k;
     disc_cam_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(disc_cam_real) * 6);
-    for (k = 0; k < 10; ++k) r[disc_cam_phi_q_cols[k]] -= values[k] * lam[disc_cam_phi_q_rows[k]];
-    if (dense) disc_cam_dense_solve_t(work + DISC_CAM_OFF_DENSE, iwork, r, d);
-    else disc_cam_sparse_solve_t(work + DISC_CAM_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 6; ++k) lam[k] += d[k];
+    (void)memcpy(r, b, sizeof(disc_cam_real) * 6u);
+    for (k = 0; k < 10; ++k) {
+        r[disc_cam_phi_q_cols[k]] -= values[k] * lam[disc_cam_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        disc_cam_dense_solve_t(&work[DISC_CAM_OFF_DENSE], iwork, r, d);
+    } else {
+        disc_cam_sparse_solve_t(&work[DISC_CAM_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 6; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,
@@ -869,48 +931,85 @@ static disc_cam_real disc_cam_cond_estimate(const disc_cam_real *q, const disc_c
                                     disc_cam_real *work, const int *iwork, int dense, const disc_cam_real *row,
                                     const disc_cam_real *col)
 {
-    disc_cam_real *vals = work, *x = DISC_CAM_VEC(work, 0), *z = DISC_CAM_VEC(work, 1), *y = DISC_CAM_VEC(work, 2);
-    disc_cam_real *b = DISC_CAM_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    disc_cam_real *vals = work;
+    disc_cam_real *x = DISC_CAM_VEC(work, 0);
+    disc_cam_real *z = DISC_CAM_VEC(work, 1);
+    disc_cam_real *y = DISC_CAM_VEC(work, 2);
+    disc_cam_real *b = DISC_CAM_VEC(work, 3);
+    disc_cam_real anorm = 0.0;
+    disc_cam_real est = 0.0;
+    disc_cam_real s;
+    disc_cam_real zmax;
+    disc_cam_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     disc_cam_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 6; ++k) z[k] = 0.0;
-    for (k = 0; k < 10; ++k)
+    for (k = 0; k < 6; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 10; ++k) {
         z[disc_cam_phi_q_cols[k]] += fabs(vals[k]) / (row[disc_cam_phi_q_rows[k]] * col[disc_cam_phi_q_cols[k]]);
-    for (k = 0; k < 6; ++k) anorm = DISC_CAM_MAX(anorm, z[k]);
-    for (k = 0; k < 6; ++k) x[k] = 1.0 / 6.0;
+    }
+    for (k = 0; k < 6; ++k) {
+        anorm = DISC_CAM_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 6; ++k) {
+        x[k] = 1.0 / 6.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 6; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 6; ++k) {
+            b[k] = row[k] * x[k];
+        }
         disc_cam_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 6; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 6; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 6; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         disc_cam_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 6; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 6; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 6; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 6; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (disc_cam_real)k / DISC_CAM_MAX(1.0, 5.0));
+    for (k = 0; k < 6; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((disc_cam_real)k / DISC_CAM_MAX(1.0, 5.0)));
+    }
     disc_cam_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 6; ++k) s += fabs(z[k] * col[k]);
-    est = DISC_CAM_MAX(est, 2.0 * s / (3.0 * 6.0));
+    for (k = 0; k < 6; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = DISC_CAM_MAX(est, (2.0 * s) / (3.0 * 6.0));
     return anorm * est;
 }
 
@@ -925,7 +1024,10 @@ static disc_cam_real disc_cam_cond_estimate(const disc_cam_real *q, const disc_c
 static int disc_cam_row_finite(const disc_cam_real *row, const disc_cam_real *qn, const disc_cam_real *qdn, const disc_cam_real *qddn,
                               const disc_cam_real *lam, const disc_cam_real *reac)
 {
-    disc_cam_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    disc_cam_real s0 = 0.0;
+    disc_cam_real s1 = 0.0;
+    disc_cam_real s2 = 0.0;
+    disc_cam_real s3 = 0.0;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     s0 += row[1];
     s1 += row[2];
@@ -975,8 +1077,13 @@ static int disc_cam_row_finite(const disc_cam_real *row, const disc_cam_real *qn
     s1 += row[46];
     s2 += row[47];
     s3 += row[48];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     s0 += row[1] * 0.0;
     s1 += row[2] * 0.0;
     s2 += row[3] * 0.0;
@@ -1025,7 +1132,7 @@ static int disc_cam_row_finite(const disc_cam_real *row, const disc_cam_real *qn
     s1 += row[46] * 0.0;
     s2 += row[47] * 0.0;
     s3 += row[48] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 6 values, NaN if any v_k is NaN (so that a NaN residual
@@ -1033,28 +1140,36 @@ static int disc_cam_row_finite(const disc_cam_real *row, const disc_cam_real *qn
    comparison. */
 static disc_cam_real disc_cam_maxabs6(const disc_cam_real *v)
 {
-    disc_cam_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    disc_cam_real m0 = 0.0;
+    disc_cam_real m1 = 0.0;
+    disc_cam_real m2 = 0.0;
+    disc_cam_real m3 = 0.0;
+    disc_cam_real s0 = 0.0;
+    disc_cam_real s1 = 0.0;
+    disc_cam_real s2 = 0.0;
+    disc_cam_real s3 = 0.0;
+    disc_cam_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     m0 = DISC_CAM_MAX(DISC_CAM_MAX(m0, m1), DISC_CAM_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
@@ -1097,17 +1212,28 @@ static disc_cam_real disc_cam_correct(disc_cam_real *q, disc_cam_real *dq)
 static int disc_cam_newton(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol, disc_cam_real *q, disc_cam_real *tr, int *info, disc_cam_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    disc_cam_real *r = DISC_CAM_VEC(work, 0), *dq = DISC_CAM_VEC(work, 1), *y = DISC_CAM_VEC(work, 2);
+    disc_cam_real *r = DISC_CAM_VEC(work, 0);
+    disc_cam_real *dq = DISC_CAM_VEC(work, 1);
+    disc_cam_real *y = DISC_CAM_VEC(work, 2);
     disc_cam_real *base = DISC_CAM_VEC(work, 10);
-    disc_cam_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    disc_cam_real step = ((double)INFINITY);
+    disc_cam_real lim;
+    disc_cam_real qmag;
+    disc_cam_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) disc_cam_trig_near(q, tr, base);
-    else disc_cam_trig_base(q, tr, base);
+    if (reuse != 0) {
+        disc_cam_trig_near(q, tr, base);
+    } else {
+        disc_cam_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = DISC_CAM_MAX(1.0, disc_cam_maxabs6(q));
-    lim = DISC_CAM_MAX(tol, (disc_cam_real)DISC_CAM_FLOOR_ULPS * DISC_CAM_EPS * qmag);
+    lim = DISC_CAM_MAX(tol, ((disc_cam_real)DISC_CAM_FLOOR_ULPS * DISC_CAM_EPS) * qmag);
     disc_cam_phi_k(q, tr, t, p, r);
     rmax = disc_cam_maxabs6(r);
     for (it = 0;; ++it) {
@@ -1116,15 +1242,17 @@ static int disc_cam_newton(disc_cam_real t, const disc_cam_real *p, disc_cam_rea
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? DISC_CAM_NONFINITE : DISC_CAM_NOT_CONVERGED;
+            return (it == 0) ? DISC_CAM_NONFINITE : DISC_CAM_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == DISC_CAM_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && disc_cam_factorize(q, tr, t, p, work, iwork, dense) != DISC_CAM_OK) {
+        if (it == DISC_CAM_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (disc_cam_factorize(q, tr, t, p, work, iwork, dense) != DISC_CAM_OK)) {
             info[0] = it;
             info[1] = *dense;
             return DISC_CAM_SINGULAR;
@@ -1134,8 +1262,8 @@ static int disc_cam_newton(disc_cam_real t, const disc_cam_real *p, disc_cam_rea
         disc_cam_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= DISC_CAM_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (DISC_CAM_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1147,8 +1275,10 @@ static int disc_cam_newton(disc_cam_real t, const disc_cam_real *p, disc_cam_rea
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return DISC_CAM_NOT_CONVERGED;
-    if (!current && disc_cam_factorize(q, tr, t, p, work, iwork, dense) != DISC_CAM_OK) {
+    if (converged == 0) {
+        return DISC_CAM_NOT_CONVERGED;
+    }
+    if ((current == 0) && (disc_cam_factorize(q, tr, t, p, work, iwork, dense) != DISC_CAM_OK)) {
         info[1] = *dense;
         return DISC_CAM_SINGULAR;
     }
@@ -1160,7 +1290,8 @@ static int disc_cam_newton(disc_cam_real t, const disc_cam_real *p, disc_cam_rea
 static void disc_cam_outputs(disc_cam_real t, const disc_cam_real *p, const disc_cam_real *q, const disc_cam_real *tr, disc_cam_real *qd, disc_cam_real *qdd,
                             disc_cam_real *lam, disc_cam_real *reactions, disc_cam_real *work, const int *iwork, int dense)
 {
-    disc_cam_real *y = DISC_CAM_VEC(work, 2), *b = DISC_CAM_VEC(work, 3);
+    disc_cam_real *y = DISC_CAM_VEC(work, 2);
+    disc_cam_real *b = DISC_CAM_VEC(work, 3);
     disc_cam_nu_k(q, tr, t, p, b);
     disc_cam_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     disc_cam_gamma_k(q, tr, qd, t, p, b);
@@ -1174,7 +1305,9 @@ static void disc_cam_outputs(disc_cam_real t, const disc_cam_real *p, const disc
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     disc_cam_solve_t(work, iwork, dense, b, lam);
-    if (disc_cam_mixed(y)) disc_cam_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (disc_cam_mixed(y) != 0) {
+        disc_cam_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     disc_cam_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1183,8 +1316,11 @@ static void disc_cam_outputs(disc_cam_real t, const disc_cam_real *p, const disc
    order, so four sums run side by side and the compiler may pack them). */
 static int disc_cam_allfinite(const disc_cam_real *v, int n)
 {
-    disc_cam_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    disc_cam_real s0 = 0.0;
+    disc_cam_real s1 = 0.0;
+    disc_cam_real s2 = 0.0;
+    disc_cam_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1193,8 +1329,11 @@ static int disc_cam_allfinite(const disc_cam_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1216,12 +1355,24 @@ static int disc_cam_finite(const disc_cam_real *q, const disc_cam_real *qd, cons
 static void disc_cam_keep(disc_cam_real *state, const disc_cam_real *q, const disc_cam_real *qd, const disc_cam_real *qdd,
                          const disc_cam_real *m1, const disc_cam_real *m2, const disc_cam_real *m3)
 {
-    if (m3 != state + 30) memcpy(state + 30, m3, sizeof(disc_cam_real) * 6);
-    if (m2 != state + 24) memcpy(state + 24, m2, sizeof(disc_cam_real) * 6);
-    if (m1 != state + 18) memcpy(state + 18, m1, sizeof(disc_cam_real) * 6);
-    if (qdd != state + 12) memcpy(state + 12, qdd, sizeof(disc_cam_real) * 6);
-    if (qd != state + 6) memcpy(state + 6, qd, sizeof(disc_cam_real) * 6);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(disc_cam_real) * 6);
+    if (m3 != &state[30]) {
+        (void)memcpy(&state[30], m3, sizeof(disc_cam_real) * 6u);
+    }
+    if (m2 != &state[24]) {
+        (void)memcpy(&state[24], m2, sizeof(disc_cam_real) * 6u);
+    }
+    if (m1 != &state[18]) {
+        (void)memcpy(&state[18], m1, sizeof(disc_cam_real) * 6u);
+    }
+    if (qdd != &state[12]) {
+        (void)memcpy(&state[12], qdd, sizeof(disc_cam_real) * 6u);
+    }
+    if (qd != &state[6]) {
+        (void)memcpy(&state[6], qd, sizeof(disc_cam_real) * 6u);
+    }
+    if (q != state) {
+        (void)memcpy(state, q, sizeof(disc_cam_real) * 6u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1231,21 +1382,26 @@ static void disc_cam_keep(disc_cam_real *state, const disc_cam_real *q, const di
 static int disc_cam_unexplained(const disc_cam_real *q0, const disc_cam_real *qd0, const disc_cam_real *qdd0, const disc_cam_real *q1,
                                const disc_cam_real *qd1, const disc_cam_real *qdd1, disc_cam_real h, const disc_cam_real *c)
 {
-    const disc_cam_real half = 0.5 * h, hh = h * h / 12.0;
-    disc_cam_real mismatch = 0.0, motion = 0.0, d;
+    const disc_cam_real half = 0.5 * h;
+    const disc_cam_real hh = (h * h) / 12.0;
+    disc_cam_real mismatch = 0.0;
+    disc_cam_real motion = 0.0;
+    disc_cam_real d;
     d = q1[0] - q0[0];
-    mismatch = DISC_CAM_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = DISC_CAM_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = DISC_CAM_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = DISC_CAM_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = DISC_CAM_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = DISC_CAM_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = DISC_CAM_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = DISC_CAM_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = DISC_CAM_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = DISC_CAM_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = DISC_CAM_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = DISC_CAM_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = DISC_CAM_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1258,35 +1414,43 @@ static int disc_cam_unexplained(const disc_cam_real *q0, const disc_cam_real *qd
     motion = DISC_CAM_MAX(motion, fabs(d) * c[4]);
     d = q1[5] - q0[5];
     motion = DISC_CAM_MAX(motion, fabs(d) * c[5]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int disc_cam_instant(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol, disc_cam_real *q, disc_cam_real *qd, disc_cam_real *qdd,
                     disc_cam_real *lam, disc_cam_real *reactions, int *info, disc_cam_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = DISC_CAM_BAD_ARGUMENT;
     } else {
-        disc_cam_real *tr = DISC_CAM_VEC(work, 9), *pp = work + DISC_CAM_OFF_PREP, *kept = DISC_CAM_VEC(work, 11);
-        memcpy(kept, q, sizeof(disc_cam_real) * 6);  /* the caller's guess, back in q if the call fails */
+        disc_cam_real *tr = DISC_CAM_VEC(work, 9);
+        disc_cam_real *pp = &work[DISC_CAM_OFF_PREP];
+        disc_cam_real *kept = DISC_CAM_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(disc_cam_real) * 6u);  /* the caller's guess, back in q if the call fails */
         disc_cam_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = DISC_CAM_VEC(work, 5);
-        if (qdd == NULL) qdd = DISC_CAM_VEC(work, 6);
-        if (lam == NULL) lam = DISC_CAM_VEC(work, 7);
-        if (reactions == NULL) reactions = DISC_CAM_VEC(work, 8);
+        disc_cam_real *qd_out = (qd != NULL) ? qd : DISC_CAM_VEC(work, 5);
+        disc_cam_real *qdd_out = (qdd != NULL) ? qdd : DISC_CAM_VEC(work, 6);
+        disc_cam_real *lam_out = (lam != NULL) ? lam : DISC_CAM_VEC(work, 7);
+        disc_cam_real *reactions_out = (reactions != NULL) ? reactions : DISC_CAM_VEC(work, 8);
         status = disc_cam_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == DISC_CAM_OK) {
-            disc_cam_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!disc_cam_finite(q, qd, qdd, lam, reactions)) status = DISC_CAM_NONFINITE;
+            disc_cam_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (disc_cam_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = DISC_CAM_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != DISC_CAM_OK) memcpy(q, kept, sizeof(disc_cam_real) * 6);
+        if (status != DISC_CAM_OK) {
+            (void)memcpy(q, kept, sizeof(disc_cam_real) * 6u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1304,21 +1468,29 @@ int disc_cam_instant_at(long whole, disc_cam_real frac, const disc_cam_real *p, 
 
 int disc_cam_screen_at(disc_cam_real t, const disc_cam_real *p, const disc_cam_real *state, disc_cam_real *work, int *iwork)
 {
-    disc_cam_real *tr, *pp, known[2];
+    disc_cam_real *tr;
+    disc_cam_real *pp;
+    disc_cam_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return DISC_CAM_BAD_ARGUMENT;
-    if (!(state[42] > 0.0)) return DISC_CAM_OK;  /* no scales: no screen */
-    tr = DISC_CAM_VEC(work, 9), pp = work + DISC_CAM_OFF_PREP;
+    }
+    if (!(state[42] > 0.0)) {
+        return DISC_CAM_OK;  /* no scales: no screen */
+    }
+    tr = DISC_CAM_VEC(work, 9);
+    pp = &work[DISC_CAM_OFF_PREP];
     disc_cam_prepare(p, pp);
     disc_cam_trig(state, tr);
-    if (disc_cam_factorize(state, tr, t, pp, work, iwork, &dense) != DISC_CAM_OK)
+    if (disc_cam_factorize(state, tr, t, pp, work, iwork, &dense) != DISC_CAM_OK) {
         return DISC_CAM_ILL_CONDITIONED;
-    disc_cam_screen_known(state + 42, state + 36, known);
-    if (disc_cam_screen(work + DISC_CAM_OFF_LU, dense, state + 42, state + 36, known)
-        && !(disc_cam_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 42, state + 36)
-             <= DISC_CAM_COND_SCREEN))
+    }
+    disc_cam_screen_known(&state[42], &state[36], known);
+    if ((disc_cam_screen(&work[DISC_CAM_OFF_LU], dense, &state[42], &state[36], known) != 0)
+        && !(disc_cam_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[42], &state[36])
+             <= DISC_CAM_COND_SCREEN)) {
         return DISC_CAM_ILL_CONDITIONED;
+    }
     return DISC_CAM_OK;
 }
 
@@ -1328,84 +1500,124 @@ int disc_cam_trajectory(disc_cam_real t0, disc_cam_real h, long n, const disc_ca
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    disc_cam_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    disc_cam_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    disc_cam_real *q;
+    disc_cam_real *m1;
+    disc_cam_real *m2;
+    disc_cam_real *count;
+    disc_cam_real *qn;
+    disc_cam_real *qdn;
+    disc_cam_real *qddn;
+    disc_cam_real *lam;
+    disc_cam_real *reac;
+    disc_cam_real *tr;
+    disc_cam_real *pp;
+    disc_cam_real *scale;
+    disc_cam_real *rscale;
+    disc_cam_real *qd;
+    disc_cam_real *qdd;
+    disc_cam_real *m3;
+    disc_cam_real known[2];
+    long i;
+    long unused;
+    long *done = &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
+    *done = 0;
     status = DISC_CAM_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return DISC_CAM_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 18, m2 = state + 24, count = state + 48;
-    scale = state + 36, rscale = state + 42;
-    if (rscale[0] > 0.0) disc_cam_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 6, qdd = state + 12, m3 = state + 30;
-    tr = DISC_CAM_VEC(work, 9), pp = work + DISC_CAM_OFF_PREP;
+    q = state;
+    m1 = &state[18];
+    m2 = &state[24];
+    count = &state[48];
+    scale = &state[36];
+    rscale = &state[42];
+    if (rscale[0] > 0.0) {
+        disc_cam_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[6];
+    qdd = &state[12];
+    m3 = &state[30];
+    tr = DISC_CAM_VEC(work, 9);
+    pp = &work[DISC_CAM_OFF_PREP];
     disc_cam_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const disc_cam_real t = t0 + *count * h;
-        disc_cam_real *row = rows + i * DISC_CAM_ROW;
+        const disc_cam_real t = t0 + (*count * h);
+        disc_cam_real *row = &rows[i * DISC_CAM_ROW];
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 7;
-        qddn = row + 13;
-        lam = row + 19;
-        reac = row + 25;
+        qn = &row[1];
+        qdn = &row[7];
+        qddn = &row[13];
+        lam = &row[19];
+        reac = &row[25];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-        } else
-            memcpy(qn, q, sizeof(disc_cam_real) * 6);
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+        } else {
+            (void)memcpy(qn, q, sizeof(disc_cam_real) * 6u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = disc_cam_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != DISC_CAM_OK) break;
-        if (rscale[0] > 0.0 && disc_cam_screen(work + DISC_CAM_OFF_LU, dense, rscale, scale, known)
+        status = disc_cam_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != DISC_CAM_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (disc_cam_screen(&work[DISC_CAM_OFF_LU], dense, rscale, scale, known) != 0)
             && !(disc_cam_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= DISC_CAM_COND_SCREEN)) {
             status = DISC_CAM_ILL_CONDITIONED;
             break;
         }
         disc_cam_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!disc_cam_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (disc_cam_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = DISC_CAM_NONFINITE;
             break;
         }
-        if (*count >= 1 && disc_cam_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (disc_cam_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = DISC_CAM_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     disc_cam_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }
@@ -1416,12 +1628,12 @@ int disc_cam_trajectory(disc_cam_real t0, disc_cam_real h, long n, const disc_ca
 static void disc_cam_guess(const disc_cam_real *p, disc_cam_real *out)
 {
     (void)p;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = p[0] + (1.0/2.0)*p[1];
-    out[5] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = p[0] + ((1.0/2.0)*p[1]);
+    out[5] = 0.0;
 }
 
 /* Each driver's f(t) and f'(t), in file order. */
@@ -1429,7 +1641,7 @@ static void disc_cam_drive(disc_cam_real t, const disc_cam_real *p, disc_cam_rea
 {
     (void)t;
     (void)p;
-    const disc_cam_real d0 = (2*3.141592653589793*p[2]);
+    const disc_cam_real d0 = (2.0*3.141592653589793*p[2]);
     out[0] = d0*t;
     out[1] = d0;
 }
@@ -1442,36 +1654,61 @@ static void disc_cam_drive(disc_cam_real t, const disc_cam_real *p, disc_cam_rea
 static void disc_cam_sweep_scales(const disc_cam_real *q, disc_cam_real t0, const disc_cam_real *p, disc_cam_real *vals,
                                  disc_cam_real *arms, disc_cam_real *inv, disc_cam_real *norm)
 {
-    disc_cam_real lin[6], rot[6], lref = 0.0, a;
-    int k, r, m = 0, i;
+    disc_cam_real lin[6];
+    disc_cam_real rot[6];
+    disc_cam_real lref = 0.0;
+    disc_cam_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     disc_cam_phi_q(q, t0, p, vals);
-    for (r = 0; r < 6; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 6; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 10; ++k) {
         a = fabs(vals[k]);
         r = disc_cam_phi_q_rows[k];
-        if (disc_cam_phi_q_cols[k] % 3 == 2) rot[r] = DISC_CAM_MAX(rot[r], a);
-        else lin[r] = DISC_CAM_MAX(lin[r], a);
+        if ((disc_cam_phi_q_cols[k] % 3) == 2) {
+            rot[r] = DISC_CAM_MAX(rot[r], a);
+        } else {
+            lin[r] = DISC_CAM_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 6; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
+                arms[i] = arms[i - 1];
+                --i;
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 6; ++k)
-            if (k % 3 != 2) lref = DISC_CAM_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 6; ++k) {
+            if ((k % 3) != 2) {
+                lref = DISC_CAM_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 6; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 6; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 6; ++r) {
         a = DISC_CAM_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1483,7 +1720,9 @@ static void disc_cam_sweep_take(const disc_cam_real *row, const disc_cam_real *p
                                disc_cam_real *drive, long count)
 {
     const disc_cam_real t = row[0];
-    disc_cam_real e, rate, w;
+    disc_cam_real e;
+    disc_cam_real rate;
+    disc_cam_real w;
     disc_cam_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1493,36 +1732,60 @@ static void disc_cam_sweep_take(const disc_cam_real *row, const disc_cam_real *p
     e = -row[24];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* pivot.force_peak */
-    m = row[25] * row[25] + row[26] * row[26];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[28] * row[28] + row[29] * row[29];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[25] * row[25]) + (row[26] * row[26]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[28] * row[28]) + (row[29] * row[29]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* guide.force_peak */
-    m = row[31] * row[31] + row[32] * row[32];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[34] * row[34] + row[35] * row[35];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[31] * row[31]) + (row[32] * row[32]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[34] * row[34]) + (row[35] * row[35]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* contact.force_peak */
-    m = row[37] * row[37] + row[38] * row[38];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[40] * row[40] + row[41] * row[41];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[37] * row[37]) + (row[38] * row[38]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[40] * row[40]) + (row[41] * row[41]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* motor.force_peak */
-    m = row[43] * row[43] + row[44] * row[44];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[46] * row[46] + row[47] * row[47];
-    if (m > fig[7]) fig[7] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[43] * row[43]) + (row[44] * row[44]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[46] * row[46]) + (row[47] * row[47]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 
@@ -1533,7 +1796,9 @@ static void disc_cam_sweep_finish(disc_cam_real *fig, const disc_cam_real *acc, 
     const disc_cam_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 8; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 8; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1541,7 +1806,7 @@ static void disc_cam_sweep_finish(disc_cam_real *fig, const disc_cam_real *acc, 
     fig[5] = sqrt(fig[5]);
     fig[6] = sqrt(fig[6]);
     fig[7] = sqrt(fig[7]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (disc_cam_real)count);
 }
 
@@ -1551,10 +1816,14 @@ static void disc_cam_sweep_finish(disc_cam_real *fig, const disc_cam_real *acc, 
 long disc_cam_sweep_lanes(long *abandoned)
 {
 #if DISC_CAM_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&disc_cam_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&disc_cam_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return disc_cam_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1562,25 +1831,37 @@ long disc_cam_sweep_lanes(long *abandoned)
 int disc_cam_sweep(long k, const disc_cam_real *p, disc_cam_real t0, disc_cam_real h, long n, disc_cam_real tol,
                   disc_cam_real *figures, int *status, disc_cam_real *t_end, long *solved, disc_cam_real *work, int *iwork)
 {
-    disc_cam_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    disc_cam_real *state;
+    disc_cam_real *rows;
+    disc_cam_real *vals;
+    disc_cam_real *arms;
+    disc_cam_real *drive;
+    disc_cam_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if DISC_CAM_LANES > 1
     const long lanes = disc_cam_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     disc_cam_real snap[DISC_CAM_LANES * DISC_CAM_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return DISC_CAM_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + DISC_CAM_WORK, rows = state + DISC_CAM_STATE;
-    vals = rows + 32 * DISC_CAM_ROW, arms = vals + 10, drive = arms + 6;
-    acc = drive + 2;
+    state = &work[DISC_CAM_WORK];
+    rows = &state[DISC_CAM_STATE];
+    vals = &rows[32 * DISC_CAM_ROW];
+    arms = &vals[10];
+    drive = &arms[6];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const disc_cam_real *pv = p + v * DISC_CAM_NP;
-        disc_cam_real *fig = figures + v * DISC_CAM_SWEEP_FIGURES;
+        const disc_cam_real *pv = &p[v * DISC_CAM_NP];
+        disc_cam_real *fig = &figures[v * DISC_CAM_SWEEP_FIGURES];
 #if DISC_CAM_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (disc_cam_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1592,26 +1873,28 @@ int disc_cam_sweep(long k, const disc_cam_real *p, disc_cam_real t0, disc_cam_re
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const disc_cam_real *s = snap + (v - first) * DISC_CAM_SNAP;
-            memcpy(state, s, sizeof(disc_cam_real) * DISC_CAM_STATE);
-            memcpy(fig, s + DISC_CAM_STATE, sizeof(disc_cam_real) * DISC_CAM_SWEEP_FIGURES);
-            memcpy(acc, s + DISC_CAM_STATE + DISC_CAM_SWEEP_FIGURES, sizeof(disc_cam_real) * 5);
+            (void)memcpy(state, s, sizeof(disc_cam_real) * DISC_CAM_STATE);
+            (void)memcpy(fig, &s[DISC_CAM_STATE], sizeof(disc_cam_real) * DISC_CAM_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[DISC_CAM_STATE + DISC_CAM_SWEEP_FIGURES], sizeof(disc_cam_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(disc_cam_real) * DISC_CAM_STATE);
+            (void)memset(state, 0, sizeof(disc_cam_real) * (size_t)DISC_CAM_STATE);
             disc_cam_guess(pv, state);
             done = 0;
         }
         st = DISC_CAM_OK;
-        while (done < n && st == DISC_CAM_OK) {
+        while ((done < n) && (st == DISC_CAM_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : DISC_CAM_MIN(32, n - done);
+            m = (done == 0) ? 1 : DISC_CAM_MIN(32, n - done);
             got = 0;
             st = disc_cam_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) disc_cam_sweep_take(rows + m * DISC_CAM_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
-                disc_cam_sweep_scales(state, t0, pv, vals, arms, state + 36, state + 42);
+            for (m = 0; m < got; ++m) {
+                disc_cam_sweep_take(&rows[m * DISC_CAM_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
+                disc_cam_sweep_scales(state, t0, pv, vals, arms, &state[36], &state[42]);
                 st = disc_cam_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;
@@ -1619,7 +1902,7 @@ int disc_cam_sweep(long k, const disc_cam_real *p, disc_cam_real t0, disc_cam_re
         disc_cam_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return DISC_CAM_OK;
 }
@@ -1681,17 +1964,28 @@ static void disc_cam_sp_gamma_k(const disc_cam_real * q, const disc_cam_real * t
 static int disc_cam_sp_newton(disc_cam_real t, const disc_cam_real *p, const disc_cam_real *q_des, disc_cam_real tol, disc_cam_real *q, disc_cam_real *tr, int *info, disc_cam_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    disc_cam_real *r = DISC_CAM_VEC(work, 0), *dq = DISC_CAM_VEC(work, 1), *y = DISC_CAM_VEC(work, 2);
+    disc_cam_real *r = DISC_CAM_VEC(work, 0);
+    disc_cam_real *dq = DISC_CAM_VEC(work, 1);
+    disc_cam_real *y = DISC_CAM_VEC(work, 2);
     disc_cam_real *base = DISC_CAM_VEC(work, 10);
-    disc_cam_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    disc_cam_real step = ((double)INFINITY);
+    disc_cam_real lim;
+    disc_cam_real qmag;
+    disc_cam_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) disc_cam_trig_near(q, tr, base);
-    else disc_cam_trig_base(q, tr, base);
+    if (reuse != 0) {
+        disc_cam_trig_near(q, tr, base);
+    } else {
+        disc_cam_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = DISC_CAM_MAX(1.0, disc_cam_maxabs6(q));
-    lim = DISC_CAM_MAX(tol, (disc_cam_real)DISC_CAM_FLOOR_ULPS * DISC_CAM_EPS * qmag);
+    lim = DISC_CAM_MAX(tol, ((disc_cam_real)DISC_CAM_FLOOR_ULPS * DISC_CAM_EPS) * qmag);
     disc_cam_phi_k(q, tr, t, p, r);
     disc_cam_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
     rmax = disc_cam_maxabs6(r);
@@ -1701,15 +1995,17 @@ static int disc_cam_sp_newton(disc_cam_real t, const disc_cam_real *p, const dis
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? DISC_CAM_NONFINITE : DISC_CAM_NOT_CONVERGED;
+            return (it == 0) ? DISC_CAM_NONFINITE : DISC_CAM_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == DISC_CAM_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && disc_cam_factorize(q, tr, t, p, work, iwork, dense) != DISC_CAM_OK) {
+        if (it == DISC_CAM_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (disc_cam_factorize(q, tr, t, p, work, iwork, dense) != DISC_CAM_OK)) {
             info[0] = it;
             info[1] = *dense;
             return DISC_CAM_SINGULAR;
@@ -1719,8 +2015,8 @@ static int disc_cam_sp_newton(disc_cam_real t, const disc_cam_real *p, const dis
         disc_cam_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= DISC_CAM_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (DISC_CAM_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1733,8 +2029,10 @@ static int disc_cam_sp_newton(disc_cam_real t, const disc_cam_real *p, const dis
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return DISC_CAM_NOT_CONVERGED;
-    if (!current && disc_cam_factorize(q, tr, t, p, work, iwork, dense) != DISC_CAM_OK) {
+    if (converged == 0) {
+        return DISC_CAM_NOT_CONVERGED;
+    }
+    if ((current == 0) && (disc_cam_factorize(q, tr, t, p, work, iwork, dense) != DISC_CAM_OK)) {
         info[1] = *dense;
         return DISC_CAM_SINGULAR;
     }
@@ -1747,7 +2045,8 @@ static void disc_cam_sp_outputs(disc_cam_real t, const disc_cam_real *p, const d
                             disc_cam_real *lam, disc_cam_real *reactions, disc_cam_real *work, const int *iwork, int dense,
                             const disc_cam_real *q_des, const disc_cam_real *qd_des, const disc_cam_real *qdd_des)
 {
-    disc_cam_real *y = DISC_CAM_VEC(work, 2), *b = DISC_CAM_VEC(work, 3);
+    disc_cam_real *y = DISC_CAM_VEC(work, 2);
+    disc_cam_real *b = DISC_CAM_VEC(work, 3);
     disc_cam_nu_k(q, tr, t, p, b);
     disc_cam_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
     disc_cam_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
@@ -1763,7 +2062,9 @@ static void disc_cam_sp_outputs(disc_cam_real t, const disc_cam_real *p, const d
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     disc_cam_solve_t(work, iwork, dense, b, lam);
-    if (disc_cam_mixed(y)) disc_cam_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (disc_cam_mixed(y) != 0) {
+        disc_cam_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     disc_cam_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1775,25 +2076,34 @@ static int disc_cam_sp_instant(disc_cam_real t, const disc_cam_real *p, disc_cam
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !disc_cam_allfinite(q_des, DISC_CAM_ND) || !disc_cam_allfinite(qd_des, DISC_CAM_ND)
-        || !disc_cam_allfinite(qdd_des, DISC_CAM_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (disc_cam_allfinite(q_des, DISC_CAM_ND) == 0) || (disc_cam_allfinite(qd_des, DISC_CAM_ND) == 0)
+        || (disc_cam_allfinite(qdd_des, DISC_CAM_ND) == 0)) {
         status = DISC_CAM_BAD_ARGUMENT;
     } else {
-        disc_cam_real *tr = DISC_CAM_VEC(work, 9), *pp = work + DISC_CAM_OFF_PREP, *kept = DISC_CAM_VEC(work, 11);
-        memcpy(kept, q, sizeof(disc_cam_real) * 6);  /* the caller's guess, back in q if the call fails */
+        disc_cam_real *tr = DISC_CAM_VEC(work, 9);
+        disc_cam_real *pp = &work[DISC_CAM_OFF_PREP];
+        disc_cam_real *kept = DISC_CAM_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(disc_cam_real) * 6u);  /* the caller's guess, back in q if the call fails */
         disc_cam_prepare(p, pp);
-        if (qd == NULL) qd = DISC_CAM_VEC(work, 5);
-        if (qdd == NULL) qdd = DISC_CAM_VEC(work, 6);
-        if (lam == NULL) lam = DISC_CAM_VEC(work, 7);
-        if (reactions == NULL) reactions = DISC_CAM_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        disc_cam_real *qd_out = (qd != NULL) ? qd : DISC_CAM_VEC(work, 5);
+        disc_cam_real *qdd_out = (qdd != NULL) ? qdd : DISC_CAM_VEC(work, 6);
+        disc_cam_real *lam_out = (lam != NULL) ? lam : DISC_CAM_VEC(work, 7);
+        disc_cam_real *reactions_out = (reactions != NULL) ? reactions : DISC_CAM_VEC(work, 8);
         status = disc_cam_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == DISC_CAM_OK) {
-            disc_cam_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!disc_cam_finite(q, qd, qdd, lam, reactions)) status = DISC_CAM_NONFINITE;
+            disc_cam_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (disc_cam_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = DISC_CAM_NONFINITE;
+            }
         }
-        if (status != DISC_CAM_OK) memcpy(q, kept, sizeof(disc_cam_real) * 6);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != DISC_CAM_OK) {
+            (void)memcpy(q, kept, sizeof(disc_cam_real) * 6u);
+        }
     }
     return status;
 }
@@ -1803,7 +2113,8 @@ int disc_cam_setpoint(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol
                      disc_cam_real *qdd, disc_cam_real *lam, disc_cam_real *reactions, int *info, disc_cam_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = disc_cam_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -170,13 +170,13 @@ extern const disc_cam_real disc_cam_default_q0[DISC_CAM_NG];
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 21, phi_q 28, nu 0, gamma 456, applied 21, mass 1, reactions 68, lu_factor 10, lu_forward 3, lu_back 3, lu_t_forward 3, lu_t_back 3. */
-#define DISC_CAM_OPS_INSTANT 650
+   work), and of each evaluation: phi 19, phi_q 28, nu 0, gamma 456, applied 20, mass 1, reactions 66, lu_factor 10, lu_forward 3, lu_back 3, lu_t_forward 3, lu_t_back 3. */
+#define DISC_CAM_OPS_INSTANT 643
 
 /* Worst case of one instant call (computed at generation from the counts
    above, not measured): Newton reaching MAX_NEWTON, every factorization
    through the pivoting fallback (bounded by a dense LU). At most
-   1199 + 503 MAX_NEWTON counted floating operations and
+   1194 + 501 MAX_NEWTON counted floating operations and
    21 + 13 MAX_NEWTON libm calls; as instructions, at most
    WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
    loads, stores and indexing), each libm call 300 (the real type on its
@@ -186,7 +186,7 @@ extern const disc_cam_real disc_cam_default_q0[DISC_CAM_NG];
    test_c_edges checks it under callgrind on x86-64 for every bundled
    example, the cap reached (instant only: a trajectory's instant adds its
    predictor, checks and, if generated, sensitivities). */
-#define DISC_CAM_WORST_INSTRUCTIONS (23688L + 10336L * (long)DISC_CAM_MAX_NEWTON)
+#define DISC_CAM_WORST_INSTRUCTIONS (23628L + 10312L * (long)DISC_CAM_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int disc_cam_phi_q_rows[10];

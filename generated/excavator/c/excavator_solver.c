@@ -43,7 +43,7 @@ typedef char excavator_real_must_have_the_size_of_double[sizeof(excavator_real) 
 #define EXCAVATOR_OFF_LU 35
 #define EXCAVATOR_OFF_DENSE (EXCAVATOR_OFF_LU + EXCAVATOR_LU_SIZE)
 #define EXCAVATOR_OFF_VEC (EXCAVATOR_OFF_DENSE + 81)
-#define EXCAVATOR_VEC(work, k) ((work) + EXCAVATOR_OFF_VEC + (k) * 36)
+#define EXCAVATOR_VEC(work, k) (&(work)[EXCAVATOR_OFF_VEC + ((k) * 36)])
 /* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
 #define EXCAVATOR_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
 #define EXCAVATOR_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
@@ -157,10 +157,12 @@ static void excavator_trig_base(const excavator_real *q, excavator_real *tr, exc
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const excavator_real a = q[3 * b + 2];
+        const excavator_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -175,45 +177,60 @@ static void excavator_trig_base(const excavator_real *q, excavator_real *tr, exc
 static void excavator_trig_near(const excavator_real *q, excavator_real *tr, excavator_real *base)
 {
     {
-        const excavator_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const excavator_real a = q[2];
+        const excavator_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const excavator_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const excavator_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const excavator_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const excavator_real d2 = d * d;
+            const excavator_real s = base[1];
+            const excavator_real c = base[2];
+            const excavator_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const excavator_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const excavator_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const excavator_real a = q[5];
+        const excavator_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const excavator_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const excavator_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const excavator_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const excavator_real d2 = d * d;
+            const excavator_real s = base[4];
+            const excavator_real c = base[5];
+            const excavator_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const excavator_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const excavator_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const excavator_real a = q[8];
+        const excavator_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const excavator_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const excavator_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const excavator_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const excavator_real d2 = d * d;
+            const excavator_real s = base[7];
+            const excavator_real c = base[8];
+            const excavator_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const excavator_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
 }
@@ -226,30 +243,36 @@ static void excavator_trig_near(const excavator_real *q, excavator_real *tr, exc
 static void excavator_trig_step(const excavator_real *q, const excavator_real *dq, excavator_real *tr, excavator_real *base)
 {
     {
-        const excavator_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const excavator_real d = -dq[2];
+        const excavator_real s = tr[0];
+        const excavator_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             excavator_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const excavator_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const excavator_real d = -dq[5];
+        const excavator_real s = tr[2];
+        const excavator_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             excavator_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const excavator_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const excavator_real d = -dq[8];
+        const excavator_real s = tr[4];
+        const excavator_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             excavator_trig_near(q, tr, base);
             return;
@@ -261,7 +284,10 @@ static void excavator_trig_step(const excavator_real *q, const excavator_real *d
 static excavator_real excavator_powi(excavator_real x, int n)
 {
     excavator_real y = x;
-    while (--n > 0) y *= x;
+    int k;
+    for (k = 1; k < n; ++k) {
+        y *= x;
+    }
     return y;
 }
 
@@ -271,19 +297,19 @@ static excavator_real excavator_powi(excavator_real x, int n)
    evaluation. The kernels read both from this one vector. */
 static void excavator_prepare(const excavator_real *p, excavator_real *pp)
 {
-    memcpy(pp, p, sizeof(excavator_real) * 17);
+    (void)memcpy(pp, p, sizeof(excavator_real) * 17u);
     {
-        const excavator_real e0 = (2*3.141592653589793/p[7]);
+        const excavator_real e0 = (2.0*3.141592653589793/p[7]);
         const excavator_real e1 = (1.0/2.0)*p[1];
-        const excavator_real e2 = -1.0/2.0*p[2] - 1.0/20.0;
-        const excavator_real e3 = 2.0/5.0 - e1;
+        const excavator_real e2 = (-1.0/2.0*p[2]) - (1.0/20.0);
+        const excavator_real e3 = (2.0/5.0) - e1;
         const excavator_real e4 = (p[9]*p[9]);
         const excavator_real e5 = (e0*e0);
         const excavator_real e6 = (p[11]*p[11]);
         const excavator_real e7 = (p[13]*p[13]);
-        pp[17] = 23.0/10.0 - 1.0/2.0*p[0];
+        pp[17] = (23.0/10.0) - (1.0/2.0*p[0]);
         pp[18] = e0;
-        pp[19] = -e1 - 3.0/4.0;
+        pp[19] = -e1 - (3.0/4.0);
         pp[20] = e2;
         pp[21] = e3;
         pp[22] = e0*p[9];
@@ -323,16 +349,16 @@ static void excavator_phi_k0(const excavator_real * q, const excavator_real * tr
     const excavator_real e10 = (-q[4] + q[7]);
     const excavator_real e11 = (1.0/2.0)*tr[4];
     const excavator_real e12 = p[18]*t;
-    const excavator_real e13 = 1.0/2.0 - 1.0/2.0*cos(e12);
+    const excavator_real e13 = (1.0/2.0) - (1.0/2.0*cos(e12));
     out[0] = -e1 + q[0];
     out[1] = -e2 + q[1];
     out[2] = -e1 + e3 - e5;
     out[3] = -e2 + e6 - e7;
-    out[4] = -e5 + e8 - e9*p[2];
-    out[5] = e10 - e11*p[2] - e7;
-    out[6] = -(excavator_powi(p[8] - p[9]*sin(e12), 2)) + ((p[17]*tr[0] - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0))*(p[17]*tr[0] - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0))) + ((p[17]*tr[1] + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0))*(p[17]*tr[1] + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0)));
-    out[7] = -((e13*p[11] + p[10])*(e13*p[11] + p[10])) + ((e3 + p[19]*tr[3] + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2])*(e3 + p[19]*tr[3] + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2])) + ((e6 + p[19]*tr[2] - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3])*(e6 + p[19]*tr[2] - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3]));
-    out[8] = -((e13*p[13] + p[12])*(e13*p[13] + p[12])) + ((e10 + e9 + p[20]*tr[4] - p[21]*tr[2] - 7.0/20.0*tr[3])*(e10 + e9 + p[20]*tr[4] - p[21]*tr[2] - 7.0/20.0*tr[3])) + ((-e11 + e8 + p[20]*tr[5] - p[21]*tr[3] + (7.0/20.0)*tr[2])*(-e11 + e8 + p[20]*tr[5] - p[21]*tr[3] + (7.0/20.0)*tr[2]));
+    out[4] = -e5 + e8 - (e9*p[2]);
+    out[5] = e10 - (e11*p[2]) - e7;
+    out[6] = -(excavator_powi(p[8] - (p[9]*sin(e12)), 2)) + (((p[17]*tr[0]) - (2.0/5.0*tr[1]) + (q[1] + (6.0/5.0)))*((p[17]*tr[0]) - (2.0/5.0*tr[1]) + (q[1] + (6.0/5.0)))) + (((p[17]*tr[1]) + ((2.0/5.0)*tr[0]) + (q[0] - (3.0/10.0)))*((p[17]*tr[1]) + ((2.0/5.0)*tr[0]) + (q[0] - (3.0/10.0))));
+    out[7] = -(((e13*p[11]) + p[10])*((e13*p[11]) + p[10])) + ((e3 + (p[19]*tr[3]) + ((11.0/20.0)*tr[0]) - (3.0/10.0*tr[1]) - (3.0/20.0*tr[2]))*(e3 + (p[19]*tr[3]) + ((11.0/20.0)*tr[0]) - (3.0/10.0*tr[1]) - (3.0/20.0*tr[2]))) + ((e6 + (p[19]*tr[2]) - (3.0/10.0*tr[0]) - (11.0/20.0*tr[1]) + ((3.0/20.0)*tr[3]))*(e6 + (p[19]*tr[2]) - (3.0/10.0*tr[0]) - (11.0/20.0*tr[1]) + ((3.0/20.0)*tr[3])));
+    out[8] = -(((e13*p[13]) + p[12])*((e13*p[13]) + p[12])) + ((e10 + e9 + (p[20]*tr[4]) - (p[21]*tr[2]) - (7.0/20.0*tr[3]))*(e10 + e9 + (p[20]*tr[4]) - (p[21]*tr[2]) - (7.0/20.0*tr[3]))) + ((-e11 + e8 + (p[20]*tr[5]) - (p[21]*tr[3]) + ((7.0/20.0)*tr[2]))*(-e11 + e8 + (p[20]*tr[5]) - (p[21]*tr[3]) + ((7.0/20.0)*tr[2])));
 }
 
 static void excavator_phi_k(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -346,8 +372,7 @@ void excavator_phi(const excavator_real * q, excavator_real t, const excavator_r
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_phi_k(q, tr, t, p, out);
+    excavator_phi_k(q, tr, t, prepared, out);
 }
 
 static void excavator_phi_q_k0(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -361,85 +386,85 @@ static void excavator_phi_q_k0(const excavator_real * q, const excavator_real * 
     const excavator_real e5 = -e3*tr[3];
     const excavator_real e6 = (1.0/2.0)*tr[4];
     const excavator_real e7 = (1.0/2.0)*tr[5];
-    const excavator_real e8 = 2*q[0];
+    const excavator_real e8 = 2.0*q[0];
     const excavator_real e9 = p[17]*tr[1];
-    const excavator_real e10 = 2*e9 + (4.0/5.0)*tr[0];
-    const excavator_real e11 = 2*q[1];
+    const excavator_real e10 = (2.0*e9) + ((4.0/5.0)*tr[0]);
+    const excavator_real e11 = 2.0*q[1];
     const excavator_real e12 = p[17]*tr[0];
-    const excavator_real e13 = 2*e12 - 4.0/5.0*tr[1];
+    const excavator_real e13 = (2.0*e12) - (4.0/5.0*tr[1]);
     const excavator_real e14 = (11.0/10.0)*tr[0];
     const excavator_real e15 = (3.0/5.0)*tr[1];
     const excavator_real e16 = (3.0/10.0)*tr[2];
     const excavator_real e17 = p[19]*tr[3];
-    const excavator_real e18 = 2*e17;
-    const excavator_real e19 = 2*q[3];
+    const excavator_real e18 = 2.0*e17;
+    const excavator_real e19 = 2.0*q[3];
     const excavator_real e20 = -e19 + e8;
     const excavator_real e21 = (3.0/10.0)*tr[3];
     const excavator_real e22 = p[19]*tr[2];
-    const excavator_real e23 = 2*e22;
-    const excavator_real e24 = 2*q[4];
+    const excavator_real e23 = 2.0*e22;
+    const excavator_real e24 = 2.0*q[4];
     const excavator_real e25 = e11 - e24;
     const excavator_real e26 = (3.0/5.0)*tr[0];
     const excavator_real e27 = (11.0/10.0)*tr[1];
     const excavator_real e28 = e26 + e27;
     const excavator_real e29 = e14 - e15;
-    const excavator_real e30 = e22 - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3] + (-q[1] + q[4]);
-    const excavator_real e31 = e17 + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2] + (-q[0] + q[3]);
+    const excavator_real e30 = e22 - (3.0/10.0*tr[0]) - (11.0/20.0*tr[1]) + ((3.0/20.0)*tr[3]) + (-q[1] + q[4]);
+    const excavator_real e31 = e17 + ((11.0/20.0)*tr[0]) - (3.0/10.0*tr[1]) - (3.0/20.0*tr[2]) + (-q[0] + q[3]);
     const excavator_real e32 = -e16 + e18;
     const excavator_real e33 = e21 + e23;
     const excavator_real e34 = p[20]*tr[5];
-    const excavator_real e35 = 2*e34;
-    const excavator_real e36 = e19 - 2*q[6];
+    const excavator_real e35 = 2.0*e34;
+    const excavator_real e36 = e19 - (2.0*q[6]);
     const excavator_real e37 = (7.0/10.0)*tr[2];
     const excavator_real e38 = p[21]*tr[3];
-    const excavator_real e39 = 2*e38;
+    const excavator_real e39 = 2.0*e38;
     const excavator_real e40 = -e37 + e39;
     const excavator_real e41 = p[20]*tr[4];
-    const excavator_real e42 = 2*e41;
-    const excavator_real e43 = e24 - 2*q[7];
+    const excavator_real e42 = 2.0*e41;
+    const excavator_real e43 = e24 - (2.0*q[7]);
     const excavator_real e44 = (7.0/10.0)*tr[3];
     const excavator_real e45 = p[21]*tr[2];
-    const excavator_real e46 = 2*e45;
+    const excavator_real e46 = 2.0*e45;
     const excavator_real e47 = e44 + e46;
-    const excavator_real e48 = e41 - e45 + e7 - 7.0/20.0*tr[3] + (-q[4] + q[7]);
-    const excavator_real e49 = e34 - e38 - e6 + (7.0/20.0)*tr[2] + (-q[3] + q[6]);
+    const excavator_real e48 = e41 - e45 + e7 - (7.0/20.0*tr[3]) + (-q[4] + q[7]);
+    const excavator_real e49 = e34 - e38 - e6 + ((7.0/20.0)*tr[2]) + (-q[3] + q[6]);
     const excavator_real e50 = e35 - tr[4];
     const excavator_real e51 = e42 + tr[5];
-    out[0] = 1;
+    out[0] = 1.0;
     out[1] = e1;
-    out[2] = 1;
+    out[2] = 1.0;
     out[3] = e2;
-    out[4] = -1;
+    out[4] = -1.0;
     out[5] = e1;
-    out[6] = 1;
+    out[6] = 1.0;
     out[7] = e4;
-    out[8] = -1;
+    out[8] = -1.0;
     out[9] = e2;
-    out[10] = 1;
+    out[10] = 1.0;
     out[11] = e5;
-    out[12] = -1;
+    out[12] = -1.0;
     out[13] = e4;
-    out[14] = 1;
+    out[14] = 1.0;
     out[15] = e6*p[2];
-    out[16] = -1;
+    out[16] = -1.0;
     out[17] = e5;
-    out[18] = 1;
+    out[18] = 1.0;
     out[19] = -e7*p[2];
-    out[20] = e10 + (e8 - 3.0/5.0);
-    out[21] = e13 + (e11 + 12.0/5.0);
-    out[22] = e10*(e12 - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0)) - e13*(e9 + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0));
+    out[20] = e10 + (e8 - (3.0/5.0));
+    out[21] = e13 + (e11 + (12.0/5.0));
+    out[22] = (e10*(e12 - (2.0/5.0*tr[1]) + (q[1] + (6.0/5.0)))) - (e13*(e9 + ((2.0/5.0)*tr[0]) + (q[0] - (3.0/10.0))));
     out[23] = -e14 + e15 + e16 - e18 + (e20);
     out[24] = -e21 - e23 + e28 + (e25);
-    out[25] = e28*e31 + e29*e30;
+    out[25] = (e28*e31) + (e29*e30);
     out[26] = e29 + e32 + (-e20);
     out[27] = -e26 - e27 + e33 + (-e25);
-    out[28] = e30*e32 - e31*e33;
+    out[28] = (e30*e32) - (e31*e33);
     out[29] = -e35 + e40 + tr[4] + (e36);
     out[30] = -e42 + e47 - tr[5] + (e43);
-    out[31] = -e40*e48 + e47*e49;
+    out[31] = (-e40*e48) + (e47*e49);
     out[32] = e37 - e39 + e50 + (-e36);
     out[33] = -e44 - e46 + e51 + (-e43);
-    out[34] = e48*e50 - e49*e51;
+    out[34] = (e48*e50) - (e49*e51);
 }
 
 static void excavator_phi_q_k(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -453,8 +478,7 @@ void excavator_phi_q(const excavator_real * q, excavator_real t, const excavator
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_phi_q_k(q, tr, t, p, out);
+    excavator_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void excavator_nu_k0(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -464,16 +488,16 @@ static void excavator_nu_k0(const excavator_real * q, const excavator_real * tr,
     const excavator_real e0 = p[18]*t;
     const excavator_real e1 = sin(e0);
     const excavator_real e2 = cos(e0);
-    const excavator_real e3 = 1.0/2.0 - 1.0/2.0*e2;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = -2*e2*p[22]*(-e1*p[9] + p[8]);
-    out[7] = e1*p[23]*(e3*p[11] + p[10]);
-    out[8] = e1*p[24]*(e3*p[13] + p[12]);
+    const excavator_real e3 = (1.0/2.0) - (1.0/2.0*e2);
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = -2.0*e2*p[22]*((-e1*p[9]) + p[8]);
+    out[7] = e1*p[23]*((e3*p[11]) + p[10]);
+    out[8] = e1*p[24]*((e3*p[13]) + p[12]);
 }
 
 static void excavator_nu_k(const excavator_real * q, const excavator_real * tr, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -487,8 +511,7 @@ void excavator_nu(const excavator_real * q, excavator_real t, const excavator_re
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_nu_k(q, tr, t, p, out);
+    excavator_nu_k(q, tr, t, prepared, out);
 }
 
 static void excavator_gamma_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -517,13 +540,13 @@ static void excavator_gamma_k0(const excavator_real * q, const excavator_real * 
     const excavator_real e21 = e4*q[0];
     const excavator_real e22 = e4*p[17];
     const excavator_real e23 = qd[2]*tr[1];
-    const excavator_real e24 = 2*q[0];
-    const excavator_real e25 = 2*q[1];
-    const excavator_real e26 = 4*qd[0];
-    const excavator_real e27 = 2*(qd[0]*qd[0]) + 2*(qd[1]*qd[1]);
-    const excavator_real e28 = 2*(qd[3]*qd[3]) + 2*(qd[4]*qd[4]);
+    const excavator_real e24 = 2.0*q[0];
+    const excavator_real e25 = 2.0*q[1];
+    const excavator_real e26 = 4.0*qd[0];
+    const excavator_real e27 = (2.0*(qd[0]*qd[0])) + (2.0*(qd[1]*qd[1]));
+    const excavator_real e28 = (2.0*(qd[3]*qd[3])) + (2.0*(qd[4]*qd[4]));
     const excavator_real e29 = (e18*e18);
-    const excavator_real e30 = 1.0/2.0 - 1.0/2.0*e17;
+    const excavator_real e30 = (1.0/2.0) - (1.0/2.0*e17);
     const excavator_real e31 = (3.0/5.0)*qd[5];
     const excavator_real e32 = (6.0/5.0)*qd[2];
     const excavator_real e33 = (11.0/5.0)*qd[2];
@@ -533,10 +556,10 @@ static void excavator_gamma_k0(const excavator_real * q, const excavator_real * 
     const excavator_real e37 = e10*tr[0];
     const excavator_real e38 = e7*tr[1];
     const excavator_real e39 = p[19]*qd[5];
-    const excavator_real e40 = 4*qd[4];
+    const excavator_real e40 = 4.0*qd[4];
     const excavator_real e41 = e39*tr[3];
     const excavator_real e42 = (3.0/5.0)*p[19];
-    const excavator_real e43 = 2*qd[8];
+    const excavator_real e43 = 2.0*qd[8];
     const excavator_real e44 = e43*tr[4];
     const excavator_real e45 = (7.0/5.0)*qd[5];
     const excavator_real e46 = e45*tr[2];
@@ -548,7 +571,7 @@ static void excavator_gamma_k0(const excavator_real * q, const excavator_real * 
     const excavator_real e52 = e10*p[21];
     const excavator_real e53 = p[21]*tr[2];
     const excavator_real e54 = e15*p[20];
-    const excavator_real e55 = 2*p[35];
+    const excavator_real e55 = 2.0*p[35];
     const excavator_real e56 = p[20]*qd[8];
     const excavator_real e57 = e56*tr[5];
     const excavator_real e58 = p[21]*qd[5]*tr[3];
@@ -556,11 +579,11 @@ static void excavator_gamma_k0(const excavator_real * q, const excavator_real * 
     out[1] = -e5;
     out[2] = -e3 - e9;
     out[3] = -e11 - e5;
-    out[4] = -e13*e14 - e9;
-    out[5] = -e11 - e14*e15;
-    out[6] = e1*e24*p[17] - 4.0/5.0*e1*q[1] - 24.0/25.0*e1 + 2*(e17*e17)*p[27] + 2*e18*p[28]*(-e18*p[9] + p[8]) - e19*qd[0]*tr[1] - e19*qd[1]*tr[0] - e20*p[17] + (4.0/5.0)*e21 + e22*e25 + (12.0/5.0)*e22 - 4*e23*p[17]*qd[1] + e26*p[17]*qd[2]*tr[0] - 6.0/25.0*e4 + (-e27);
-    out[7] = (11.0/10.0)*e0*p[19]*tr[0]*tr[3] + (3.0/5.0)*e0*q[0]*tr[1] + (3.0/5.0)*e0*q[1]*tr[0] + (11.0/10.0)*e0*q[1]*tr[1] + (11.0/10.0)*e0*q[3]*tr[0] + (9.0/100.0)*e0*tr[1]*tr[2] - 33.0/200.0*e1*tr[3] - e10*e25*p[19] - 11.0/10.0*e10*p[19]*tr[1] - 3.0/10.0*e10*q[3] + e17*p[31]*(e30*p[11] + p[10]) - e20*p[19]*tr[3] - e20*q[3] - 11.0/10.0*e21 - 9.0/50.0*e23*qd[5]*tr[2] - e24*e7*p[19] - e26*e39*tr[2] + (1.0/2.0)*e29*p[30] - e31*qd[0]*tr[3] - e31*qd[1]*tr[2] - e32*qd[1]*tr[1] - e32*qd[3]*tr[0] - e33*qd[3]*tr[1] - e34*e41 - e34*qd[4] - e35*p[19]*tr[2] - e35*q[4] - e36*e42 - 33.0/200.0*e36 - e37*e42 - 33.0/200.0*e37 - e38*e42 - 33.0/200.0*e38 - 3.0/5.0*e4*q[4] - 9.0/100.0*e4*tr[3] - e40*e41 + 2*e6*p[19]*q[3]*tr[3] + 2*e6*p[19]*q[4]*tr[2] + (11.0/10.0)*e6*p[19]*tr[0]*tr[3] + (3.0/10.0)*e6*q[0]*tr[2] + (3.0/10.0)*e6*q[4]*tr[3] + (9.0/100.0)*e6*tr[1]*tr[2] - 3.0/10.0*e7*q[1] - 9.0/100.0*e7*tr[0] + 4*p[19]*qd[1]*qd[5]*tr[3] + (6.0/5.0)*p[19]*qd[2]*qd[5]*tr[0]*tr[2] + (11.0/5.0)*p[19]*qd[2]*qd[5]*tr[1]*tr[2] + (6.0/5.0)*p[19]*qd[2]*qd[5]*tr[1]*tr[3] + 4*p[19]*qd[3]*qd[5]*tr[2] + (6.0/5.0)*qd[0]*qd[2]*tr[0] + (11.0/5.0)*qd[0]*qd[2]*tr[1] + (11.0/5.0)*qd[1]*qd[2]*tr[0] + (6.0/5.0)*qd[2]*qd[4]*tr[1] + (33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2] + (9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3] + (33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3] + (3.0/5.0)*qd[3]*qd[5]*tr[3] + (3.0/5.0)*qd[4]*qd[5]*tr[2] + (-e27 - e28 + 4*qd[0]*qd[3] + 4*qd[1]*qd[4]);
-    out[8] = -7.0/10.0*e10*q[3] + 2*e12*p[20]*q[6]*tr[5] + 2*e12*p[20]*q[7]*tr[4] + (7.0/10.0)*e12*p[20]*tr[2]*tr[5] + e12*p[21]*tr[3]*tr[4] + e12*q[3]*tr[4] + e12*q[7]*tr[5] - e13*e53 - 2*e13*p[20]*q[3] - e13*q[4] - e15*q[6] + e17*p[34]*(e30*p[13] + p[12]) + (1.0/2.0)*e29*p[33] - e40*e58 - e43*qd[3]*tr[5] - e44*e58 - e44*qd[4] - e45*qd[6]*tr[3] - e46*e57 - e46*qd[7] - e47*p[20]*tr[4] - e47*q[7] - e48*e55 - 7.0/20.0*e48 - e49*e55 - 7.0/20.0*e49 - e50*e55 - 7.0/20.0*e50 - e51*e55 - 7.0/20.0*e51 - 2*e52*q[7] - e52*tr[5] - 4*e53*qd[5]*qd[6] - 2*e54*q[4] - 7.0/10.0*e54*tr[3] - 4*e56*qd[3]*tr[4] - 4*e57*qd[7] + (7.0/10.0)*e6*p[20]*tr[2]*tr[5] + 2*e6*p[21]*q[3]*tr[3] + 2*e6*p[21]*q[4]*tr[2] + e6*p[21]*tr[3]*tr[4] + (7.0/10.0)*e6*q[4]*tr[3] + (7.0/10.0)*e6*q[6]*tr[2] - 2*e7*p[21]*q[6] + 4*p[20]*qd[4]*qd[8]*tr[5] + (7.0/5.0)*p[20]*qd[5]*qd[8]*tr[3]*tr[4] + 4*p[20]*qd[6]*qd[8]*tr[4] + 4*p[21]*qd[3]*qd[5]*tr[2] + 4*p[21]*qd[5]*qd[7]*tr[3] + 2*p[21]*qd[5]*qd[8]*tr[2]*tr[5] + 4*p[35]*qd[5]*qd[8]*tr[2]*tr[4] + 4*p[35]*qd[5]*qd[8]*tr[3]*tr[5] + (7.0/5.0)*qd[3]*qd[5]*tr[3] + (7.0/5.0)*qd[4]*qd[5]*tr[2] + (7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4] + (7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5] + 2*qd[6]*qd[8]*tr[5] + 2*qd[7]*qd[8]*tr[4] + (-e28 + 4*qd[3]*qd[6] + 4*qd[4]*qd[7] - 2*(qd[6]*qd[6]) - 2*(qd[7]*qd[7]));
+    out[4] = (-e13*e14) - e9;
+    out[5] = -e11 - (e14*e15);
+    out[6] = (e1*e24*p[17]) - (4.0/5.0*e1*q[1]) - (24.0/25.0*e1) + (2.0*(e17*e17)*p[27]) + (2.0*e18*p[28]*((-e18*p[9]) + p[8])) - (e19*qd[0]*tr[1]) - (e19*qd[1]*tr[0]) - (e20*p[17]) + ((4.0/5.0)*e21) + (e22*e25) + ((12.0/5.0)*e22) - (4.0*e23*p[17]*qd[1]) + (e26*p[17]*qd[2]*tr[0]) - (6.0/25.0*e4) + (-e27);
+    out[7] = ((11.0/10.0)*e0*p[19]*tr[0]*tr[3]) + ((3.0/5.0)*e0*q[0]*tr[1]) + ((3.0/5.0)*e0*q[1]*tr[0]) + ((11.0/10.0)*e0*q[1]*tr[1]) + ((11.0/10.0)*e0*q[3]*tr[0]) + ((9.0/100.0)*e0*tr[1]*tr[2]) - (33.0/200.0*e1*tr[3]) - (e10*e25*p[19]) - (11.0/10.0*e10*p[19]*tr[1]) - (3.0/10.0*e10*q[3]) + (e17*p[31]*((e30*p[11]) + p[10])) - (e20*p[19]*tr[3]) - (e20*q[3]) - (11.0/10.0*e21) - (9.0/50.0*e23*qd[5]*tr[2]) - (e24*e7*p[19]) - (e26*e39*tr[2]) + ((1.0/2.0)*e29*p[30]) - (e31*qd[0]*tr[3]) - (e31*qd[1]*tr[2]) - (e32*qd[1]*tr[1]) - (e32*qd[3]*tr[0]) - (e33*qd[3]*tr[1]) - (e34*e41) - (e34*qd[4]) - (e35*p[19]*tr[2]) - (e35*q[4]) - (e36*e42) - (33.0/200.0*e36) - (e37*e42) - (33.0/200.0*e37) - (e38*e42) - (33.0/200.0*e38) - (3.0/5.0*e4*q[4]) - (9.0/100.0*e4*tr[3]) - (e40*e41) + (2.0*e6*p[19]*q[3]*tr[3]) + (2.0*e6*p[19]*q[4]*tr[2]) + ((11.0/10.0)*e6*p[19]*tr[0]*tr[3]) + ((3.0/10.0)*e6*q[0]*tr[2]) + ((3.0/10.0)*e6*q[4]*tr[3]) + ((9.0/100.0)*e6*tr[1]*tr[2]) - (3.0/10.0*e7*q[1]) - (9.0/100.0*e7*tr[0]) + (4.0*p[19]*qd[1]*qd[5]*tr[3]) + ((6.0/5.0)*p[19]*qd[2]*qd[5]*tr[0]*tr[2]) + ((11.0/5.0)*p[19]*qd[2]*qd[5]*tr[1]*tr[2]) + ((6.0/5.0)*p[19]*qd[2]*qd[5]*tr[1]*tr[3]) + (4.0*p[19]*qd[3]*qd[5]*tr[2]) + ((6.0/5.0)*qd[0]*qd[2]*tr[0]) + ((11.0/5.0)*qd[0]*qd[2]*tr[1]) + ((11.0/5.0)*qd[1]*qd[2]*tr[0]) + ((6.0/5.0)*qd[2]*qd[4]*tr[1]) + ((33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2]) + ((9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3]) + ((33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3]) + ((3.0/5.0)*qd[3]*qd[5]*tr[3]) + ((3.0/5.0)*qd[4]*qd[5]*tr[2]) + (-e27 - e28 + (4.0*qd[0]*qd[3]) + (4.0*qd[1]*qd[4]));
+    out[8] = (-7.0/10.0*e10*q[3]) + (2.0*e12*p[20]*q[6]*tr[5]) + (2.0*e12*p[20]*q[7]*tr[4]) + ((7.0/10.0)*e12*p[20]*tr[2]*tr[5]) + (e12*p[21]*tr[3]*tr[4]) + (e12*q[3]*tr[4]) + (e12*q[7]*tr[5]) - (e13*e53) - (2.0*e13*p[20]*q[3]) - (e13*q[4]) - (e15*q[6]) + (e17*p[34]*((e30*p[13]) + p[12])) + ((1.0/2.0)*e29*p[33]) - (e40*e58) - (e43*qd[3]*tr[5]) - (e44*e58) - (e44*qd[4]) - (e45*qd[6]*tr[3]) - (e46*e57) - (e46*qd[7]) - (e47*p[20]*tr[4]) - (e47*q[7]) - (e48*e55) - (7.0/20.0*e48) - (e49*e55) - (7.0/20.0*e49) - (e50*e55) - (7.0/20.0*e50) - (e51*e55) - (7.0/20.0*e51) - (2.0*e52*q[7]) - (e52*tr[5]) - (4.0*e53*qd[5]*qd[6]) - (2.0*e54*q[4]) - (7.0/10.0*e54*tr[3]) - (4.0*e56*qd[3]*tr[4]) - (4.0*e57*qd[7]) + ((7.0/10.0)*e6*p[20]*tr[2]*tr[5]) + (2.0*e6*p[21]*q[3]*tr[3]) + (2.0*e6*p[21]*q[4]*tr[2]) + (e6*p[21]*tr[3]*tr[4]) + ((7.0/10.0)*e6*q[4]*tr[3]) + ((7.0/10.0)*e6*q[6]*tr[2]) - (2.0*e7*p[21]*q[6]) + (4.0*p[20]*qd[4]*qd[8]*tr[5]) + ((7.0/5.0)*p[20]*qd[5]*qd[8]*tr[3]*tr[4]) + (4.0*p[20]*qd[6]*qd[8]*tr[4]) + (4.0*p[21]*qd[3]*qd[5]*tr[2]) + (4.0*p[21]*qd[5]*qd[7]*tr[3]) + (2.0*p[21]*qd[5]*qd[8]*tr[2]*tr[5]) + (4.0*p[35]*qd[5]*qd[8]*tr[2]*tr[4]) + (4.0*p[35]*qd[5]*qd[8]*tr[3]*tr[5]) + ((7.0/5.0)*qd[3]*qd[5]*tr[3]) + ((7.0/5.0)*qd[4]*qd[5]*tr[2]) + ((7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4]) + ((7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5]) + (2.0*qd[6]*qd[8]*tr[5]) + (2.0*qd[7]*qd[8]*tr[4]) + (-e28 + (4.0*qd[3]*qd[6]) + (4.0*qd[4]*qd[7]) - (2.0*(qd[6]*qd[6])) - (2.0*(qd[7]*qd[7])));
 }
 
 static void excavator_gamma_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -574,8 +597,7 @@ void excavator_gamma(const excavator_real * q, const excavator_real * qd, excava
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_gamma_k(q, tr, qd, t, p, out);
+    excavator_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void excavator_applied_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -584,15 +606,15 @@ static void excavator_applied_k0(const excavator_real * q, const excavator_real 
     (void)qd;
     const excavator_real e0 = exp(-p[36]*((-p[15] + t)*(-p[15] + t)));
     const excavator_real e1 = e0*p[14];
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[4];
-    out[2] = 0;
-    out[3] = 0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = -981.0/100.0*p[5];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = e1;
-    out[7] = (3.0/10.0)*e1 - 981.0/100.0*p[6];
-    out[8] = -1.0/2.0*e0*p[37]*tr[4] + (3.0/20.0)*e0*p[37]*tr[5];
+    out[7] = ((3.0/10.0)*e1) - (981.0/100.0*p[6]);
+    out[8] = (-1.0/2.0*e0*p[37]*tr[4]) + ((3.0/20.0)*e0*p[37]*tr[5]);
 }
 
 static void excavator_applied_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -606,8 +628,7 @@ void excavator_applied(const excavator_real * q, const excavator_real * qd, exca
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_applied_k(q, tr, qd, t, p, out);
+    excavator_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void excavator_mass_k0(const excavator_real * p, excavator_real *out)
@@ -632,86 +653,85 @@ void excavator_mass(const excavator_real * p, excavator_real *out)
 {
     excavator_real prepared[41];
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_mass_k(p, out);
+    excavator_mass_k(prepared, out);
 }
 
 static void excavator_reactions_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * lam, excavator_real t, const excavator_real * p, excavator_real *out)
 {
     (void)t;
-    const excavator_real e0 = 2*lam[6];
-    const excavator_real e1 = e0*q[0] - 3.0/5.0*lam[6];
+    const excavator_real e0 = 2.0*lam[6];
+    const excavator_real e1 = (e0*q[0]) - (3.0/5.0*lam[6]);
     const excavator_real e2 = (4.0/5.0)*lam[6];
     const excavator_real e3 = e0*p[17];
-    const excavator_real e4 = e2*tr[0] + e3*tr[1];
+    const excavator_real e4 = (e2*tr[0]) + (e3*tr[1]);
     const excavator_real e5 = e2*tr[1];
     const excavator_real e6 = e3*tr[0];
-    const excavator_real e7 = e0*q[1] + (12.0/5.0)*lam[6];
+    const excavator_real e7 = (e0*q[1]) + ((12.0/5.0)*lam[6]);
     const excavator_real e8 = lam[7]*tr[1];
     const excavator_real e9 = (3.0/5.0)*e8;
     const excavator_real e10 = (3.0/10.0)*lam[7];
     const excavator_real e11 = e10*tr[2];
     const excavator_real e12 = lam[7]*tr[0];
     const excavator_real e13 = (11.0/10.0)*e12;
-    const excavator_real e14 = 2*lam[7];
+    const excavator_real e14 = 2.0*lam[7];
     const excavator_real e15 = e14*p[19];
     const excavator_real e16 = e15*tr[3];
-    const excavator_real e17 = e14*q[0] - 2*lam[7]*q[3];
+    const excavator_real e17 = (e14*q[0]) - (2.0*lam[7]*q[3]);
     const excavator_real e18 = (11.0/10.0)*e8;
     const excavator_real e19 = (3.0/5.0)*e12;
     const excavator_real e20 = e10*tr[3];
     const excavator_real e21 = e15*tr[2];
-    const excavator_real e22 = e14*q[1] - 2*lam[7]*q[4];
+    const excavator_real e22 = (e14*q[1]) - (2.0*lam[7]*q[4]);
     const excavator_real e23 = lam[8]*tr[4];
     const excavator_real e24 = (7.0/10.0)*lam[8];
     const excavator_real e25 = e24*tr[2];
-    const excavator_real e26 = 2*lam[8];
+    const excavator_real e26 = 2.0*lam[8];
     const excavator_real e27 = e26*p[21];
     const excavator_real e28 = e27*tr[3];
     const excavator_real e29 = lam[8]*tr[5];
-    const excavator_real e30 = 2*p[20];
+    const excavator_real e30 = 2.0*p[20];
     const excavator_real e31 = e29*e30;
-    const excavator_real e32 = e26*q[3] - 2*lam[8]*q[6];
+    const excavator_real e32 = (e26*q[3]) - (2.0*lam[8]*q[6]);
     const excavator_real e33 = e24*tr[3];
     const excavator_real e34 = e27*tr[2];
     const excavator_real e35 = e23*e30;
-    const excavator_real e36 = e26*q[4] - 2*lam[8]*q[7];
+    const excavator_real e36 = (e26*q[4]) - (2.0*lam[8]*q[7]);
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = lam[4];
     out[13] = lam[5];
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = -lam[4];
     out[16] = -lam[5];
-    out[17] = 0;
+    out[17] = 0.0;
     out[18] = e4 + (e1);
     out[19] = -e5 + e6 + (e7);
-    out[20] = 0;
+    out[20] = 0.0;
     out[21] = -e4 + (-e1);
     out[22] = e5 - e6 + (-e7);
-    out[23] = 0;
+    out[23] = 0.0;
     out[24] = -e11 + e13 + e16 - e9 + (-e17);
     out[25] = -e18 - e19 + e20 + e21 + (-e22);
-    out[26] = 0;
+    out[26] = 0.0;
     out[27] = e11 - e13 - e16 + e9 + (e17);
     out[28] = e18 + e19 - e20 - e21 + (e22);
-    out[29] = 0;
+    out[29] = 0.0;
     out[30] = -e23 + e25 - e28 + e31 + (-e32);
     out[31] = e29 - e33 - e34 + e35 + (-e36);
-    out[32] = 0;
+    out[32] = 0.0;
     out[33] = e23 - e25 + e28 - e31 + (e32);
     out[34] = -e29 + e33 + e34 - e35 + (e36);
-    out[35] = 0;
+    out[35] = 0.0;
 }
 
 static void excavator_reactions_k(const excavator_real * q, const excavator_real * tr, const excavator_real * lam, excavator_real t, const excavator_real * p, excavator_real *out)
@@ -725,8 +745,7 @@ void excavator_reactions(const excavator_real * q, const excavator_real * lam, e
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
-    p = prepared;
-    excavator_reactions_k(q, tr, lam, t, p, out);
+    excavator_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -745,76 +764,82 @@ static int excavator_sparse_factor0(excavator_real *lu)
     excavator_real cm = 0.0;
     cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[33]));
-    if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (EXCAVATOR_THRESHOLD * cm))) { return 1; }
     lu[30] += lu[33];
-    lu[31] -= lu[33] * lu[17];
-    lu[34] -= lu[33] * lu[19];
+    lu[31] -= (lu[33] * lu[17]);
+    lu[34] -= (lu[33] * lu[19]);
     cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[21]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[24]));
-    if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (EXCAVATOR_THRESHOLD * cm))) { return 1; }
     lu[9] += lu[3];
-    lu[22] -= lu[21] * lu[3];
-    lu[25] -= lu[24] * lu[3];
+    lu[22] -= (lu[21] * lu[3]);
+    lu[25] -= (lu[24] * lu[3]);
     piv = lu[20];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, 1.0);
     cm = EXCAVATOR_MAX(cm, fabs(lu[23]));
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[20] = 1.0 / piv;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[20] = 1.0 / piv;
+    piv = lu[20];
     lu[0] = 1.0 * piv;
     lu[4] = -1.0 * piv;
     lu[23] *= piv;
-    lu[1] -= lu[0] * lu[22];
-    lu[5] -= lu[4] * lu[22];
-    lu[25] -= lu[23] * lu[22];
+    lu[1] -= (lu[0] * lu[22]);
+    lu[5] -= (lu[4] * lu[22]);
+    lu[25] -= (lu[23] * lu[22]);
     piv = lu[1];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, fabs(lu[5]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[9]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[25]));
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[1] = 1.0 / piv;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[1] = 1.0 / piv;
+    piv = lu[1];
     lu[5] *= piv;
     lu[9] *= piv;
     lu[25] *= piv;
     cm = 1.0;
     cm = EXCAVATOR_MAX(cm, fabs(lu[27]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[30]));
-    if (!(1.0 >= EXCAVATOR_THRESHOLD * cm)) return 1;
-    lu[28] -= lu[27] * lu[11];
-    lu[31] -= lu[30] * lu[11];
+    if (!(1.0 >= (EXCAVATOR_THRESHOLD * cm))) { return 1; }
+    lu[28] -= (lu[27] * lu[11]);
+    lu[31] -= (lu[30] * lu[11]);
     piv = lu[26];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, 1.0);
     cm = EXCAVATOR_MAX(cm, fabs(lu[29]));
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[26] = 1.0 / piv;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[26] = 1.0 / piv;
+    piv = lu[26];
     lu[6] = 1.0 * piv;
     lu[12] = -1.0 * piv;
     lu[29] *= piv;
-    lu[7] -= lu[6] * lu[28];
-    lu[13] -= lu[12] * lu[28];
-    lu[31] -= lu[29] * lu[28];
+    lu[7] -= (lu[6] * lu[28]);
+    lu[13] -= (lu[12] * lu[28]);
+    lu[31] -= (lu[29] * lu[28]);
     piv = lu[7];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, fabs(lu[13]));
     cm = EXCAVATOR_MAX(cm, fabs(lu[31]));
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[7] = 1.0 / piv;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[7] = 1.0 / piv;
+    piv = lu[7];
     lu[13] *= piv;
     lu[31] *= piv;
     piv = lu[32];
     cm = fabs(piv);
     cm = EXCAVATOR_MAX(cm, 1.0);
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[32] = 1.0 / piv;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[32] = 1.0 / piv;
+    piv = lu[32];
     lu[14] = 1.0 * piv;
-    lu[15] -= lu[14] * lu[34];
+    lu[15] -= (lu[14] * lu[34]);
     piv = lu[15];
     cm = fabs(piv);
-    if (!(fabs(piv) >= EXCAVATOR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[15] = 1.0 / piv;
+    if (!(fabs(piv) >= (EXCAVATOR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[15] = 1.0 / piv;
+    piv = lu[15];
     return 0;
 }
 
@@ -825,38 +850,38 @@ static int excavator_sparse_factor(excavator_real *lu)
 
 static void excavator_sparse_forward0(const excavator_real *EXCAVATOR_RESTRICT lu, excavator_real *EXCAVATOR_RESTRICT y)
 {
-    y[8] -= lu[33] * y[5];
+    y[8] -= (lu[33] * y[5]);
     y[3] += y[1];
-    y[6] -= lu[21] * y[1];
-    y[7] -= lu[24] * y[1];
-    y[0] -= lu[0] * y[6];
-    y[2] -= lu[4] * y[6];
-    y[7] -= lu[23] * y[6];
-    y[2] -= lu[5] * y[0];
-    y[3] -= lu[9] * y[0];
-    y[7] -= lu[25] * y[0];
-    y[7] -= lu[27] * y[3];
-    y[8] -= lu[30] * y[3];
-    y[2] -= lu[6] * y[7];
-    y[4] -= lu[12] * y[7];
-    y[8] -= lu[29] * y[7];
-    y[4] -= lu[13] * y[2];
-    y[8] -= lu[31] * y[2];
-    y[4] -= lu[14] * y[8];
+    y[6] -= (lu[21] * y[1]);
+    y[7] -= (lu[24] * y[1]);
+    y[0] -= (lu[0] * y[6]);
+    y[2] -= (lu[4] * y[6]);
+    y[7] -= (lu[23] * y[6]);
+    y[2] -= (lu[5] * y[0]);
+    y[3] -= (lu[9] * y[0]);
+    y[7] -= (lu[25] * y[0]);
+    y[7] -= (lu[27] * y[3]);
+    y[8] -= (lu[30] * y[3]);
+    y[2] -= (lu[6] * y[7]);
+    y[4] -= (lu[12] * y[7]);
+    y[8] -= (lu[29] * y[7]);
+    y[4] -= (lu[13] * y[2]);
+    y[8] -= (lu[31] * y[2]);
+    y[4] -= (lu[14] * y[8]);
 }
 
 static void excavator_sparse_back0(
     const excavator_real *EXCAVATOR_RESTRICT lu, const excavator_real *EXCAVATOR_RESTRICT y, excavator_real *EXCAVATOR_RESTRICT x)
 {
     x[8] = (y[4]) * lu[15];
-    x[6] = (y[8] - lu[34] * x[8]) * lu[32];
+    x[6] = (y[8] - (lu[34] * x[8])) * lu[32];
     x[5] = (y[2]) * lu[7];
-    x[3] = (y[7] - lu[28] * x[5]) * lu[26];
-    x[4] = y[3] - lu[11] * x[5];
+    x[3] = (y[7] - (lu[28] * x[5])) * lu[26];
+    x[4] = y[3] - (lu[11] * x[5]);
     x[2] = (y[0]) * lu[1];
-    x[0] = (y[6] - lu[22] * x[2]) * lu[20];
-    x[1] = y[1] - lu[3] * x[2];
-    x[7] = y[5] + x[4] - lu[17] * x[5] - lu[19] * x[8];
+    x[0] = (y[6] - (lu[22] * x[2])) * lu[20];
+    x[1] = y[1] - (lu[3] * x[2]);
+    x[7] = y[5] + x[4] - (lu[17] * x[5]) - (lu[19] * x[8]);
 }
 
 /* The solve in place: y holds b on entry and is overwritten (solve_in). */
@@ -868,7 +893,7 @@ static void excavator_sparse_solve_in(const excavator_real *lu, excavator_real *
 
 static void excavator_sparse_solve(const excavator_real *lu, const excavator_real *b, excavator_real *x, excavator_real *y)
 {
-    memcpy(y, b, sizeof(excavator_real) * 9);
+    (void)memcpy(y, b, sizeof(excavator_real) * 9u);
     excavator_sparse_solve_in(lu, y, x);
 }
 
@@ -878,34 +903,34 @@ static void excavator_sparse_t_forward0(
     x[5] = b[7];
     x[1] = b[1];
     x[6] = (b[0]) * lu[20];
-    x[0] = (b[2] - lu[3] * x[1] - lu[22] * x[6]) * lu[1];
+    x[0] = (b[2] - (lu[3] * x[1]) - (lu[22] * x[6])) * lu[1];
     x[3] = b[4] + x[5];
     x[7] = (b[3]) * lu[26];
-    x[2] = (b[5] - lu[17] * x[5] - lu[11] * x[3] - lu[28] * x[7]) * lu[7];
+    x[2] = (b[5] - (lu[17] * x[5]) - (lu[11] * x[3]) - (lu[28] * x[7])) * lu[7];
     x[8] = (b[6]) * lu[32];
-    x[4] = (b[8] - lu[19] * x[5] - lu[34] * x[8]) * lu[15];
+    x[4] = (b[8] - (lu[19] * x[5]) - (lu[34] * x[8])) * lu[15];
 }
 
 static void excavator_sparse_t_back0(const excavator_real *EXCAVATOR_RESTRICT lu, excavator_real *EXCAVATOR_RESTRICT x)
 {
-    x[8] -= lu[14] * x[4];
-    x[2] -= lu[13] * x[4];
-    x[2] -= lu[31] * x[8];
-    x[7] -= lu[6] * x[2];
-    x[7] -= lu[12] * x[4];
-    x[7] -= lu[29] * x[8];
-    x[3] -= lu[27] * x[7];
-    x[3] -= lu[30] * x[8];
-    x[0] -= lu[5] * x[2];
-    x[0] -= lu[9] * x[3];
-    x[0] -= lu[25] * x[7];
-    x[6] -= lu[0] * x[0];
-    x[6] -= lu[4] * x[2];
-    x[6] -= lu[23] * x[7];
+    x[8] -= (lu[14] * x[4]);
+    x[2] -= (lu[13] * x[4]);
+    x[2] -= (lu[31] * x[8]);
+    x[7] -= (lu[6] * x[2]);
+    x[7] -= (lu[12] * x[4]);
+    x[7] -= (lu[29] * x[8]);
+    x[3] -= (lu[27] * x[7]);
+    x[3] -= (lu[30] * x[8]);
+    x[0] -= (lu[5] * x[2]);
+    x[0] -= (lu[9] * x[3]);
+    x[0] -= (lu[25] * x[7]);
+    x[6] -= (lu[0] * x[0]);
+    x[6] -= (lu[4] * x[2]);
+    x[6] -= (lu[23] * x[7]);
     x[1] += x[3];
-    x[1] -= lu[21] * x[6];
-    x[1] -= lu[24] * x[7];
-    x[5] -= lu[33] * x[8];
+    x[1] -= (lu[21] * x[6]);
+    x[1] -= (lu[24] * x[7]);
+    x[5] -= (lu[33] * x[8]);
 }
 
 static void excavator_sparse_solve_t(const excavator_real *lu, const excavator_real *b, excavator_real *x)
@@ -919,58 +944,81 @@ static void excavator_sparse_solve_t(const excavator_real *lu, const excavator_r
 static int excavator_dense_factor(excavator_real *a, int *perm)
 {
     const int n = 9;
-    int i, j, k;
-    excavator_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    excavator_real umax = 0.0;
+    excavator_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                excavator_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return EXCAVATOR_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            excavator_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                excavator_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return EXCAVATOR_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            excavator_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= EXCAVATOR_SINGULAR_RATIO * umax ? EXCAVATOR_SINGULAR : EXCAVATOR_OK;
+    return (umin <= (EXCAVATOR_SINGULAR_RATIO * umax)) ? EXCAVATOR_SINGULAR : EXCAVATOR_OK;
 }
 
 static void excavator_dense_solve(const excavator_real *a, const int *perm, const excavator_real *b, excavator_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(excavator_real) * 9);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(excavator_real) * 9u);
     for (i = 0; i < n; ++i) {
         excavator_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void excavator_dense_solve_t(const excavator_real *a, const int *perm, const excavator_real *b, excavator_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(excavator_real) * 9);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(excavator_real) * 9u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         excavator_real tmp = x[perm[i]];
@@ -978,8 +1026,6 @@ static void excavator_dense_solve_t(const excavator_real *a, const int *perm, co
         x[i] = tmp;
     }
 }
-
-static const int excavator_pivot_slots[6] = { 20, 1, 26, 7, 32, 15 };
 
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
@@ -987,6 +1033,7 @@ static const int excavator_pivot_slots[6] = { 20, 1, 26, 7, 32, 15 };
    hold reciprocals, whose spread is the pivots'. */
 static int excavator_pivots_spread(const excavator_real *lu)
 {
+    static const int excavator_pivot_slots[6] = { 20, 1, 26, 7, 32, 15 };
     excavator_real rmin = 1.0;
     excavator_real rmax = 1.0;
     int k;
@@ -995,7 +1042,7 @@ static int excavator_pivots_spread(const excavator_real *lu)
         rmin = EXCAVATOR_MIN(rmin, r);
         rmax = EXCAVATOR_MAX(rmax, r);
     }
-    return rmin <= EXCAVATOR_SINGULAR_RATIO * rmax;
+    return (rmin <= (EXCAVATOR_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -1008,8 +1055,12 @@ static int excavator_pivots_spread(const excavator_real *lu)
 static int excavator_screen(const excavator_real *lu, int dense, const excavator_real *row, const excavator_real *col,
                           const excavator_real *known)
 {
-    excavator_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    excavator_real wmin = known[0];
+    excavator_real wmax = known[1];
+    excavator_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[20]) * row[6] * col[0];
     wmin = EXCAVATOR_MIN(wmin, w);
     wmax = EXCAVATOR_MAX(wmax, w);
@@ -1032,7 +1083,7 @@ static int excavator_screen(const excavator_real *lu, int dense, const excavator
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= EXCAVATOR_SCREEN * wmin);
+    return (wmax <= (EXCAVATOR_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -1041,7 +1092,8 @@ static int excavator_screen(const excavator_real *lu, int dense, const excavator
 static void excavator_screen_known(const excavator_real *row, const excavator_real *col, excavator_real *known)
 {
     excavator_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[5] * col[7];
     known[0] = EXCAVATOR_MIN(known[0], w);
     known[1] = EXCAVATOR_MAX(known[1], w);
@@ -1062,36 +1114,51 @@ static void excavator_screen_known(const excavator_real *row, const excavator_re
 static int excavator_factorize(const excavator_real *q, const excavator_real *tr, excavator_real t, const excavator_real *p, excavator_real *work,
                              int *iwork, int *dense)
 {
-    excavator_real *values = work, *lu = work + EXCAVATOR_OFF_LU, *a = work + EXCAVATOR_OFF_DENSE;
+    excavator_real *values = work;
+    excavator_real *lu = &work[EXCAVATOR_OFF_LU];
+    excavator_real *a = &work[EXCAVATOR_OFF_DENSE];
     int k;
     excavator_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (excavator_sparse_factor(lu) == 0 && !excavator_pivots_spread(lu)) return EXCAVATOR_OK;
+    if ((excavator_sparse_factor(lu) == 0) && (excavator_pivots_spread(lu) == 0)) {
+        return EXCAVATOR_OK;
+    }
     *dense = 1;
     excavator_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(excavator_real) * 81);
-    for (k = 0; k < 35; ++k) a[excavator_phi_q_rows[k] * 9 + excavator_phi_q_cols[k]] = values[k];
+    (void)memset(a, 0, sizeof(excavator_real) * 81u);
+    for (k = 0; k < 35; ++k) {
+        a[(excavator_phi_q_rows[k] * 9) + excavator_phi_q_cols[k]] = values[k];
+    }
     return excavator_dense_factor(a, iwork);
 }
 
 static void excavator_solve(const excavator_real *work, const int *iwork, int dense, const excavator_real *b, excavator_real *x, excavator_real *y)
 {
-    if (dense) excavator_dense_solve(work + EXCAVATOR_OFF_DENSE, iwork, b, x);
-    else excavator_sparse_solve(work + EXCAVATOR_OFF_LU, b, x, y);
+    if (dense != 0) {
+        excavator_dense_solve(&work[EXCAVATOR_OFF_DENSE], iwork, b, x);
+    } else {
+        excavator_sparse_solve(&work[EXCAVATOR_OFF_LU], b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void excavator_solve_in(const excavator_real *work, const int *iwork, int dense, excavator_real *b, excavator_real *x, excavator_real *y)
 {
-    if (dense) excavator_solve(work, iwork, dense, b, x, y);
-    else excavator_sparse_solve_in(work + EXCAVATOR_OFF_LU, b, x);
+    if (dense != 0) {
+        excavator_solve(work, iwork, dense, b, x, y);
+    } else {
+        excavator_sparse_solve_in(&work[EXCAVATOR_OFF_LU], b, x);
+    }
 }
 
 static void excavator_solve_t(const excavator_real *work, const int *iwork, int dense, const excavator_real *b, excavator_real *x)
 {
-    if (dense) excavator_dense_solve_t(work + EXCAVATOR_OFF_DENSE, iwork, b, x);
-    else excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, b, x);
+    if (dense != 0) {
+        excavator_dense_solve_t(&work[EXCAVATOR_OFF_DENSE], iwork, b, x);
+    } else {
+        excavator_sparse_solve_t(&work[EXCAVATOR_OFF_LU], b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -1101,12 +1168,13 @@ static void excavator_solve_t(const excavator_real *work, const int *iwork, int 
    the refinement's cost (a quarter of an instant) is not paid. */
 static int excavator_mixed(const excavator_real *m)
 {
-    excavator_real lo = m[0], hi = m[0];
+    excavator_real lo = m[0];
+    excavator_real hi = m[0];
     lo = EXCAVATOR_MIN(lo, m[3]);
     hi = EXCAVATOR_MAX(hi, m[3]);
     lo = EXCAVATOR_MIN(lo, m[6]);
     hi = EXCAVATOR_MAX(hi, m[6]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1121,14 +1189,23 @@ static int excavator_mixed(const excavator_real *m)
 static EXCAVATOR_COLD void excavator_refine_t(const excavator_real *q, const excavator_real *tr, excavator_real t, const excavator_real *p,
                                         const excavator_real *b, excavator_real *lam, excavator_real *work, const int *iwork, int dense)
 {
-    excavator_real *values = work, *r = EXCAVATOR_VEC(work, 0), *d = EXCAVATOR_VEC(work, 1);
+    excavator_real *values = work;
+    excavator_real *r = EXCAVATOR_VEC(work, 0);
+    excavator_real *d = EXCAVATOR_VEC(work, 1);
     int k;
     excavator_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(excavator_real) * 9);
-    for (k = 0; k < 35; ++k) r[excavator_phi_q_cols[k]] -= values[k] * lam[excavator_phi_q_rows[k]];
-    if (dense) excavator_dense_solve_t(work + EXCAVATOR_OFF_DENSE, iwork, r, d);
-    else excavator_sparse_solve_t(work + EXCAVATOR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 9; ++k) lam[k] += d[k];
+    (void)memcpy(r, b, sizeof(excavator_real) * 9u);
+    for (k = 0; k < 35; ++k) {
+        r[excavator_phi_q_cols[k]] -= values[k] * lam[excavator_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        excavator_dense_solve_t(&work[EXCAVATOR_OFF_DENSE], iwork, r, d);
+    } else {
+        excavator_sparse_solve_t(&work[EXCAVATOR_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 9; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,
@@ -1143,48 +1220,85 @@ static excavator_real excavator_cond_estimate(const excavator_real *q, const exc
                                     excavator_real *work, const int *iwork, int dense, const excavator_real *row,
                                     const excavator_real *col)
 {
-    excavator_real *vals = work, *x = EXCAVATOR_VEC(work, 0), *z = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
-    excavator_real *b = EXCAVATOR_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    excavator_real *vals = work;
+    excavator_real *x = EXCAVATOR_VEC(work, 0);
+    excavator_real *z = EXCAVATOR_VEC(work, 1);
+    excavator_real *y = EXCAVATOR_VEC(work, 2);
+    excavator_real *b = EXCAVATOR_VEC(work, 3);
+    excavator_real anorm = 0.0;
+    excavator_real est = 0.0;
+    excavator_real s;
+    excavator_real zmax;
+    excavator_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     excavator_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 9; ++k) z[k] = 0.0;
-    for (k = 0; k < 35; ++k)
+    for (k = 0; k < 9; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 35; ++k) {
         z[excavator_phi_q_cols[k]] += fabs(vals[k]) / (row[excavator_phi_q_rows[k]] * col[excavator_phi_q_cols[k]]);
-    for (k = 0; k < 9; ++k) anorm = EXCAVATOR_MAX(anorm, z[k]);
-    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        anorm = EXCAVATOR_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 9; ++k) {
+        x[k] = 1.0 / 9.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = row[k] * x[k];
+        }
         excavator_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         excavator_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 9; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 9; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (excavator_real)k / EXCAVATOR_MAX(1.0, 8.0));
+    for (k = 0; k < 9; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((excavator_real)k / EXCAVATOR_MAX(1.0, 8.0)));
+    }
     excavator_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
-    est = EXCAVATOR_MAX(est, 2.0 * s / (3.0 * 9.0));
+    for (k = 0; k < 9; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = EXCAVATOR_MAX(est, (2.0 * s) / (3.0 * 9.0));
     return anorm * est;
 }
 
@@ -1199,24 +1313,32 @@ static excavator_real excavator_cond_estimate(const excavator_real *q, const exc
 static int excavator_row_finite(const excavator_real *row, const excavator_real *qn, const excavator_real *qdn, const excavator_real *qddn,
                               const excavator_real *lam, const excavator_real *reac)
 {
-    excavator_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    excavator_real s0 = 0.0;
+    excavator_real s1 = 0.0;
+    excavator_real s2 = 0.0;
+    excavator_real s3 = 0.0;
     int k;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     for (k = 0; k < 72; k += 4) {
-        s0 += row[1 + k + 0];
+        s0 += row[1 + k];
         s1 += row[1 + k + 1];
         s2 += row[1 + k + 2];
         s3 += row[1 + k + 3];
     }
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     for (k = 0; k < 72; k += 4) {
-        s0 += row[1 + k + 0] * 0.0;
+        s0 += row[1 + k] * 0.0;
         s1 += row[1 + k + 1] * 0.0;
         s2 += row[1 + k + 2] * 0.0;
         s3 += row[1 + k + 3] * 0.0;
     }
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 9 values, NaN if any v_k is NaN (so that a NaN residual
@@ -1224,37 +1346,45 @@ static int excavator_row_finite(const excavator_real *row, const excavator_real 
    comparison. */
 static excavator_real excavator_maxabs9(const excavator_real *v)
 {
-    excavator_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    excavator_real m0 = 0.0;
+    excavator_real m1 = 0.0;
+    excavator_real m2 = 0.0;
+    excavator_real m3 = 0.0;
+    excavator_real s0 = 0.0;
+    excavator_real s1 = 0.0;
+    excavator_real s2 = 0.0;
+    excavator_real s3 = 0.0;
+    excavator_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[6]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[7]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[8]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     m0 = EXCAVATOR_MAX(EXCAVATOR_MAX(m0, m1), EXCAVATOR_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
@@ -1306,17 +1436,28 @@ static excavator_real excavator_correct(excavator_real *q, excavator_real *dq)
 static int excavator_newton(excavator_real t, const excavator_real *p, excavator_real tol, excavator_real *q, excavator_real *tr, int *info, excavator_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    excavator_real *r = EXCAVATOR_VEC(work, 0), *dq = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
+    excavator_real *r = EXCAVATOR_VEC(work, 0);
+    excavator_real *dq = EXCAVATOR_VEC(work, 1);
+    excavator_real *y = EXCAVATOR_VEC(work, 2);
     excavator_real *base = EXCAVATOR_VEC(work, 10);
-    excavator_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    excavator_real step = ((double)INFINITY);
+    excavator_real lim;
+    excavator_real qmag;
+    excavator_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) excavator_trig_near(q, tr, base);
-    else excavator_trig_base(q, tr, base);
+    if (reuse != 0) {
+        excavator_trig_near(q, tr, base);
+    } else {
+        excavator_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = EXCAVATOR_MAX(1.0, excavator_maxabs9(q));
-    lim = EXCAVATOR_MAX(tol, (excavator_real)EXCAVATOR_FLOOR_ULPS * EXCAVATOR_EPS * qmag);
+    lim = EXCAVATOR_MAX(tol, ((excavator_real)EXCAVATOR_FLOOR_ULPS * EXCAVATOR_EPS) * qmag);
     excavator_phi_k(q, tr, t, p, r);
     rmax = excavator_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1325,15 +1466,17 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? EXCAVATOR_NONFINITE : EXCAVATOR_NOT_CONVERGED;
+            return (it == 0) ? EXCAVATOR_NONFINITE : EXCAVATOR_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == EXCAVATOR_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK) {
+        if (it == EXCAVATOR_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK)) {
             info[0] = it;
             info[1] = *dense;
             return EXCAVATOR_SINGULAR;
@@ -1343,8 +1486,8 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
         excavator_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= EXCAVATOR_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (EXCAVATOR_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1356,8 +1499,10 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return EXCAVATOR_NOT_CONVERGED;
-    if (!current && excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK) {
+    if (converged == 0) {
+        return EXCAVATOR_NOT_CONVERGED;
+    }
+    if ((current == 0) && (excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK)) {
         info[1] = *dense;
         return EXCAVATOR_SINGULAR;
     }
@@ -1369,7 +1514,8 @@ static int excavator_newton(excavator_real t, const excavator_real *p, excavator
 static void excavator_outputs(excavator_real t, const excavator_real *p, const excavator_real *q, const excavator_real *tr, excavator_real *qd, excavator_real *qdd,
                             excavator_real *lam, excavator_real *reactions, excavator_real *work, const int *iwork, int dense)
 {
-    excavator_real *y = EXCAVATOR_VEC(work, 2), *b = EXCAVATOR_VEC(work, 3);
+    excavator_real *y = EXCAVATOR_VEC(work, 2);
+    excavator_real *b = EXCAVATOR_VEC(work, 3);
     excavator_nu_k(q, tr, t, p, b);
     excavator_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     excavator_gamma_k(q, tr, qd, t, p, b);
@@ -1386,7 +1532,9 @@ static void excavator_outputs(excavator_real t, const excavator_real *p, const e
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     excavator_solve_t(work, iwork, dense, b, lam);
-    if (excavator_mixed(y)) excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (excavator_mixed(y) != 0) {
+        excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     excavator_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1395,8 +1543,11 @@ static void excavator_outputs(excavator_real t, const excavator_real *p, const e
    order, so four sums run side by side and the compiler may pack them). */
 static int excavator_allfinite(const excavator_real *v, int n)
 {
-    excavator_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    excavator_real s0 = 0.0;
+    excavator_real s1 = 0.0;
+    excavator_real s2 = 0.0;
+    excavator_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1405,8 +1556,11 @@ static int excavator_allfinite(const excavator_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1428,12 +1582,24 @@ static int excavator_finite(const excavator_real *q, const excavator_real *qd, c
 static void excavator_keep(excavator_real *state, const excavator_real *q, const excavator_real *qd, const excavator_real *qdd,
                          const excavator_real *m1, const excavator_real *m2, const excavator_real *m3)
 {
-    if (m3 != state + 45) memcpy(state + 45, m3, sizeof(excavator_real) * 9);
-    if (m2 != state + 36) memcpy(state + 36, m2, sizeof(excavator_real) * 9);
-    if (m1 != state + 27) memcpy(state + 27, m1, sizeof(excavator_real) * 9);
-    if (qdd != state + 18) memcpy(state + 18, qdd, sizeof(excavator_real) * 9);
-    if (qd != state + 9) memcpy(state + 9, qd, sizeof(excavator_real) * 9);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(excavator_real) * 9);
+    if (m3 != &state[45]) {
+        (void)memcpy(&state[45], m3, sizeof(excavator_real) * 9u);
+    }
+    if (m2 != &state[36]) {
+        (void)memcpy(&state[36], m2, sizeof(excavator_real) * 9u);
+    }
+    if (m1 != &state[27]) {
+        (void)memcpy(&state[27], m1, sizeof(excavator_real) * 9u);
+    }
+    if (qdd != &state[18]) {
+        (void)memcpy(&state[18], qdd, sizeof(excavator_real) * 9u);
+    }
+    if (qd != &state[9]) {
+        (void)memcpy(&state[9], qd, sizeof(excavator_real) * 9u);
+    }
+    if (q != state) {
+        (void)memcpy(state, q, sizeof(excavator_real) * 9u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1443,27 +1609,32 @@ static void excavator_keep(excavator_real *state, const excavator_real *q, const
 static int excavator_unexplained(const excavator_real *q0, const excavator_real *qd0, const excavator_real *qdd0, const excavator_real *q1,
                                const excavator_real *qd1, const excavator_real *qdd1, excavator_real h, const excavator_real *c)
 {
-    const excavator_real half = 0.5 * h, hh = h * h / 12.0;
-    excavator_real mismatch = 0.0, motion = 0.0, d;
+    const excavator_real half = 0.5 * h;
+    const excavator_real hh = (h * h) / 12.0;
+    excavator_real mismatch = 0.0;
+    excavator_real motion = 0.0;
+    excavator_real d;
     d = q1[0] - q0[0];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = EXCAVATOR_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = EXCAVATOR_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = EXCAVATOR_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1482,35 +1653,43 @@ static int excavator_unexplained(const excavator_real *q0, const excavator_real 
     motion = EXCAVATOR_MAX(motion, fabs(d) * c[7]);
     d = q1[8] - q0[8];
     motion = EXCAVATOR_MAX(motion, fabs(d) * c[8]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int excavator_instant(excavator_real t, const excavator_real *p, excavator_real tol, excavator_real *q, excavator_real *qd, excavator_real *qdd,
                     excavator_real *lam, excavator_real *reactions, int *info, excavator_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = EXCAVATOR_BAD_ARGUMENT;
     } else {
-        excavator_real *tr = EXCAVATOR_VEC(work, 9), *pp = work + EXCAVATOR_OFF_PREP, *kept = EXCAVATOR_VEC(work, 11);
-        memcpy(kept, q, sizeof(excavator_real) * 9);  /* the caller's guess, back in q if the call fails */
+        excavator_real *tr = EXCAVATOR_VEC(work, 9);
+        excavator_real *pp = &work[EXCAVATOR_OFF_PREP];
+        excavator_real *kept = EXCAVATOR_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(excavator_real) * 9u);  /* the caller's guess, back in q if the call fails */
         excavator_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = EXCAVATOR_VEC(work, 5);
-        if (qdd == NULL) qdd = EXCAVATOR_VEC(work, 6);
-        if (lam == NULL) lam = EXCAVATOR_VEC(work, 7);
-        if (reactions == NULL) reactions = EXCAVATOR_VEC(work, 8);
+        excavator_real *qd_out = (qd != NULL) ? qd : EXCAVATOR_VEC(work, 5);
+        excavator_real *qdd_out = (qdd != NULL) ? qdd : EXCAVATOR_VEC(work, 6);
+        excavator_real *lam_out = (lam != NULL) ? lam : EXCAVATOR_VEC(work, 7);
+        excavator_real *reactions_out = (reactions != NULL) ? reactions : EXCAVATOR_VEC(work, 8);
         status = excavator_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == EXCAVATOR_OK) {
-            excavator_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!excavator_finite(q, qd, qdd, lam, reactions)) status = EXCAVATOR_NONFINITE;
+            excavator_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (excavator_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = EXCAVATOR_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != EXCAVATOR_OK) memcpy(q, kept, sizeof(excavator_real) * 9);
+        if (status != EXCAVATOR_OK) {
+            (void)memcpy(q, kept, sizeof(excavator_real) * 9u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1528,21 +1707,29 @@ int excavator_instant_at(long whole, excavator_real frac, const excavator_real *
 
 int excavator_screen_at(excavator_real t, const excavator_real *p, const excavator_real *state, excavator_real *work, int *iwork)
 {
-    excavator_real *tr, *pp, known[2];
+    excavator_real *tr;
+    excavator_real *pp;
+    excavator_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return EXCAVATOR_BAD_ARGUMENT;
-    if (!(state[63] > 0.0)) return EXCAVATOR_OK;  /* no scales: no screen */
-    tr = EXCAVATOR_VEC(work, 9), pp = work + EXCAVATOR_OFF_PREP;
+    }
+    if (!(state[63] > 0.0)) {
+        return EXCAVATOR_OK;  /* no scales: no screen */
+    }
+    tr = EXCAVATOR_VEC(work, 9);
+    pp = &work[EXCAVATOR_OFF_PREP];
     excavator_prepare(p, pp);
     excavator_trig(state, tr);
-    if (excavator_factorize(state, tr, t, pp, work, iwork, &dense) != EXCAVATOR_OK)
+    if (excavator_factorize(state, tr, t, pp, work, iwork, &dense) != EXCAVATOR_OK) {
         return EXCAVATOR_ILL_CONDITIONED;
-    excavator_screen_known(state + 63, state + 54, known);
-    if (excavator_screen(work + EXCAVATOR_OFF_LU, dense, state + 63, state + 54, known)
-        && !(excavator_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
-             <= EXCAVATOR_COND_SCREEN))
+    }
+    excavator_screen_known(&state[63], &state[54], known);
+    if ((excavator_screen(&work[EXCAVATOR_OFF_LU], dense, &state[63], &state[54], known) != 0)
+        && !(excavator_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
+             <= EXCAVATOR_COND_SCREEN)) {
         return EXCAVATOR_ILL_CONDITIONED;
+    }
     return EXCAVATOR_OK;
 }
 
@@ -1552,93 +1739,133 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    excavator_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    excavator_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    excavator_real *q;
+    excavator_real *m1;
+    excavator_real *m2;
+    excavator_real *count;
+    excavator_real *qn;
+    excavator_real *qdn;
+    excavator_real *qddn;
+    excavator_real *lam;
+    excavator_real *reac;
+    excavator_real *tr;
+    excavator_real *pp;
+    excavator_real *scale;
+    excavator_real *rscale;
+    excavator_real *qd;
+    excavator_real *qdd;
+    excavator_real *m3;
+    excavator_real known[2];
+    long i;
+    long unused;
+    long *done = &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
+    *done = 0;
     status = EXCAVATOR_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return EXCAVATOR_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
-    scale = state + 54, rscale = state + 63;
-    if (rscale[0] > 0.0) excavator_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 9, qdd = state + 18, m3 = state + 45;
-    tr = EXCAVATOR_VEC(work, 9), pp = work + EXCAVATOR_OFF_PREP;
+    q = state;
+    m1 = &state[27];
+    m2 = &state[36];
+    count = &state[72];
+    scale = &state[54];
+    rscale = &state[63];
+    if (rscale[0] > 0.0) {
+        excavator_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[9];
+    qdd = &state[18];
+    m3 = &state[45];
+    tr = EXCAVATOR_VEC(work, 9);
+    pp = &work[EXCAVATOR_OFF_PREP];
     excavator_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const excavator_real t = t0 + *count * h;
-        excavator_real *row = rows + i * EXCAVATOR_ROW;
+        const excavator_real t = t0 + (*count * h);
+        excavator_real *row = &rows[i * EXCAVATOR_ROW];
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 10;
-        qddn = row + 19;
-        lam = row + 28;
-        reac = row + 37;
+        qn = &row[1];
+        qdn = &row[10];
+        qddn = &row[19];
+        lam = &row[28];
+        reac = &row[37];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
-                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
-            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
-                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
-            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
-                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
-            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
-            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
-        } else
-            memcpy(qn, q, sizeof(excavator_real) * 9);
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+            qn[6] = q[6] + (h * (qd[6] + (h * (((((323.0 / 360.0) * qdd[6]) - ((264.0 / 360.0) * m1[6]))
+                                                 + ((159.0 / 360.0) * m2[6])) - ((38.0 / 360.0) * m3[6])))));
+            qn[7] = q[7] + (h * (qd[7] + (h * (((((323.0 / 360.0) * qdd[7]) - ((264.0 / 360.0) * m1[7]))
+                                                 + ((159.0 / 360.0) * m2[7])) - ((38.0 / 360.0) * m3[7])))));
+            qn[8] = q[8] + (h * (qd[8] + (h * (((((323.0 / 360.0) * qdd[8]) - ((264.0 / 360.0) * m1[8]))
+                                                 + ((159.0 / 360.0) * m2[8])) - ((38.0 / 360.0) * m3[8])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+            qn[6] = q[6] + (h * (qd[6] + ((0.5 * h) * qdd[6])));
+            qn[7] = q[7] + (h * (qd[7] + ((0.5 * h) * qdd[7])));
+            qn[8] = q[8] + (h * (qd[8] + ((0.5 * h) * qdd[8])));
+        } else {
+            (void)memcpy(qn, q, sizeof(excavator_real) * 9u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = excavator_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != EXCAVATOR_OK) break;
-        if (rscale[0] > 0.0 && excavator_screen(work + EXCAVATOR_OFF_LU, dense, rscale, scale, known)
+        status = excavator_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != EXCAVATOR_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (excavator_screen(&work[EXCAVATOR_OFF_LU], dense, rscale, scale, known) != 0)
             && !(excavator_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= EXCAVATOR_COND_SCREEN)) {
             status = EXCAVATOR_ILL_CONDITIONED;
             break;
         }
         excavator_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!excavator_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (excavator_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = EXCAVATOR_NONFINITE;
             break;
         }
-        if (*count >= 1 && excavator_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (excavator_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = EXCAVATOR_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     excavator_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }
@@ -1665,17 +1892,17 @@ static void excavator_drive(excavator_real t, const excavator_real *p, excavator
 {
     (void)t;
     (void)p;
-    const excavator_real d0 = (2*3.141592653589793/p[7]);
+    const excavator_real d0 = (2.0*3.141592653589793/p[7]);
     const excavator_real d1 = d0*t;
     const excavator_real d2 = sin(d1);
     const excavator_real d3 = cos(d1);
-    const excavator_real d4 = 1.0/2.0 - 1.0/2.0*d3;
+    const excavator_real d4 = (1.0/2.0) - (1.0/2.0*d3);
     const excavator_real d5 = (1.0/2.0)*d0*d2;
-    out[0] = -d2*p[9] + p[8];
+    out[0] = (-d2*p[9]) + p[8];
     out[1] = -d0*d3*p[9];
-    out[2] = d4*p[11] + p[10];
+    out[2] = (d4*p[11]) + p[10];
     out[3] = d5*p[11];
-    out[4] = d4*p[13] + p[12];
+    out[4] = (d4*p[13]) + p[12];
     out[5] = d5*p[13];
 }
 
@@ -1687,36 +1914,61 @@ static void excavator_drive(excavator_real t, const excavator_real *p, excavator
 static void excavator_sweep_scales(const excavator_real *q, excavator_real t0, const excavator_real *p, excavator_real *vals,
                                  excavator_real *arms, excavator_real *inv, excavator_real *norm)
 {
-    excavator_real lin[9], rot[9], lref = 0.0, a;
-    int k, r, m = 0, i;
+    excavator_real lin[9];
+    excavator_real rot[9];
+    excavator_real lref = 0.0;
+    excavator_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     excavator_phi_q(q, t0, p, vals);
-    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 9; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 35; ++k) {
         a = fabs(vals[k]);
         r = excavator_phi_q_rows[k];
-        if (excavator_phi_q_cols[k] % 3 == 2) rot[r] = EXCAVATOR_MAX(rot[r], a);
-        else lin[r] = EXCAVATOR_MAX(lin[r], a);
+        if ((excavator_phi_q_cols[k] % 3) == 2) {
+            rot[r] = EXCAVATOR_MAX(rot[r], a);
+        } else {
+            lin[r] = EXCAVATOR_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 9; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
+                arms[i] = arms[i - 1];
+                --i;
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 9; ++k)
-            if (k % 3 != 2) lref = EXCAVATOR_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 9; ++k) {
+            if ((k % 3) != 2) {
+                lref = EXCAVATOR_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 9; ++r) {
         a = EXCAVATOR_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1728,82 +1980,128 @@ static void excavator_sweep_take(const excavator_real *row, const excavator_real
                                excavator_real *drive, long count)
 {
     const excavator_real t = row[0];
-    excavator_real e, rate, w;
+    excavator_real e;
+    excavator_real rate;
+    excavator_real w;
     excavator_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
     (void)drive;
     excavator_drive(t, p, drive);
     /* boom_cylinder */
-    e = -2.0 * fabs(drive[0]) * row[34];
+    e = (-2.0 * fabs(drive[0])) * row[34];
     rate = (excavator_real)((drive[0] > 0.0) - (drive[0] < 0.0)) * drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[10]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[10]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* stick_cylinder */
-    e = -2.0 * fabs(drive[2]) * row[35];
+    e = (-2.0 * fabs(drive[2])) * row[35];
     rate = (excavator_real)((drive[2] > 0.0) - (drive[2] < 0.0)) * drive[3];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[4]) {
+    if ((count == 0) || (fabs(e) > fig[4])) {
         fig[4] = fabs(e);
         fig[5] = t;
     }
-    if (count == 0 || w > fig[7]) fig[7] = w;
-    if (count == 0) acc[4] = acc[5] = 0.0;
-    else acc[4] += (e * e + acc[3] * acc[3]) * (t - acc[10]);
+    if ((count == 0) || (w > fig[7])) {
+        fig[7] = w;
+    }
+    if (count == 0) {
+        acc[5] = 0.0;
+        acc[4] = 0.0;
+    } else {
+        acc[4] += ((e * e) + (acc[3] * acc[3])) * (t - acc[10]);
+    }
     acc[5] += e * e;
     acc[3] = e;
     /* bucket_cylinder */
-    e = -2.0 * fabs(drive[4]) * row[36];
+    e = (-2.0 * fabs(drive[4])) * row[36];
     rate = (excavator_real)((drive[4] > 0.0) - (drive[4] < 0.0)) * drive[5];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[8]) {
+    if ((count == 0) || (fabs(e) > fig[8])) {
         fig[8] = fabs(e);
         fig[9] = t;
     }
-    if (count == 0 || w > fig[11]) fig[11] = w;
-    if (count == 0) acc[7] = acc[8] = 0.0;
-    else acc[7] += (e * e + acc[6] * acc[6]) * (t - acc[10]);
+    if ((count == 0) || (w > fig[11])) {
+        fig[11] = w;
+    }
+    if (count == 0) {
+        acc[8] = 0.0;
+        acc[7] = 0.0;
+    } else {
+        acc[7] += ((e * e) + (acc[6] * acc[6])) * (t - acc[10]);
+    }
     acc[8] += e * e;
     acc[6] = e;
     /* boom_foot_pin.force_peak */
-    m = row[37] * row[37] + row[38] * row[38];
-    if (count == 0 || m > fig[12]) fig[12] = m;
-    m = row[40] * row[40] + row[41] * row[41];
-    if (m > fig[12]) fig[12] = m;
+    m = (row[37] * row[37]) + (row[38] * row[38]);
+    if ((count == 0) || (m > fig[12])) {
+        fig[12] = m;
+    }
+    m = (row[40] * row[40]) + (row[41] * row[41]);
+    if ((m > fig[12])) {
+        fig[12] = m;
+    }
     /* boom_stick_pin.force_peak */
-    m = row[43] * row[43] + row[44] * row[44];
-    if (count == 0 || m > fig[13]) fig[13] = m;
-    m = row[46] * row[46] + row[47] * row[47];
-    if (m > fig[13]) fig[13] = m;
+    m = (row[43] * row[43]) + (row[44] * row[44]);
+    if ((count == 0) || (m > fig[13])) {
+        fig[13] = m;
+    }
+    m = (row[46] * row[46]) + (row[47] * row[47]);
+    if ((m > fig[13])) {
+        fig[13] = m;
+    }
     /* stick_bucket_pin.force_peak */
-    m = row[49] * row[49] + row[50] * row[50];
-    if (count == 0 || m > fig[14]) fig[14] = m;
-    m = row[52] * row[52] + row[53] * row[53];
-    if (m > fig[14]) fig[14] = m;
+    m = (row[49] * row[49]) + (row[50] * row[50]);
+    if ((count == 0) || (m > fig[14])) {
+        fig[14] = m;
+    }
+    m = (row[52] * row[52]) + (row[53] * row[53]);
+    if ((m > fig[14])) {
+        fig[14] = m;
+    }
     /* boom_cylinder.force_peak */
-    m = row[55] * row[55] + row[56] * row[56];
-    if (count == 0 || m > fig[15]) fig[15] = m;
-    m = row[58] * row[58] + row[59] * row[59];
-    if (m > fig[15]) fig[15] = m;
+    m = (row[55] * row[55]) + (row[56] * row[56]);
+    if ((count == 0) || (m > fig[15])) {
+        fig[15] = m;
+    }
+    m = (row[58] * row[58]) + (row[59] * row[59]);
+    if ((m > fig[15])) {
+        fig[15] = m;
+    }
     /* stick_cylinder.force_peak */
-    m = row[61] * row[61] + row[62] * row[62];
-    if (count == 0 || m > fig[16]) fig[16] = m;
-    m = row[64] * row[64] + row[65] * row[65];
-    if (m > fig[16]) fig[16] = m;
+    m = (row[61] * row[61]) + (row[62] * row[62]);
+    if ((count == 0) || (m > fig[16])) {
+        fig[16] = m;
+    }
+    m = (row[64] * row[64]) + (row[65] * row[65]);
+    if ((m > fig[16])) {
+        fig[16] = m;
+    }
     /* bucket_cylinder.force_peak */
-    m = row[67] * row[67] + row[68] * row[68];
-    if (count == 0 || m > fig[17]) fig[17] = m;
-    m = row[70] * row[70] + row[71] * row[71];
-    if (m > fig[17]) fig[17] = m;
-    if (count == 0) acc[9] = t;
+    m = (row[67] * row[67]) + (row[68] * row[68]);
+    if ((count == 0) || (m > fig[17])) {
+        fig[17] = m;
+    }
+    m = (row[70] * row[70]) + (row[71] * row[71]);
+    if ((m > fig[17])) {
+        fig[17] = m;
+    }
+    if (count == 0) {
+        acc[9] = t;
+    }
     acc[10] = t;
 }
 
@@ -1814,7 +2112,9 @@ static void excavator_sweep_finish(excavator_real *fig, const excavator_real *ac
     const excavator_real span = acc[10] - acc[9];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 18; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 18; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1824,11 +2124,11 @@ static void excavator_sweep_finish(excavator_real *fig, const excavator_real *ac
     fig[15] = sqrt(fig[15]);
     fig[16] = sqrt(fig[16]);
     fig[17] = sqrt(fig[17]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (excavator_real)count);
-    fig[6] = span > 0.0 ? sqrt(acc[4] / 2.0 / span)
+    fig[6] = (span > 0.0) ? sqrt((acc[4] / 2.0) / span)
                                      : sqrt(acc[5] / (excavator_real)count);
-    fig[10] = span > 0.0 ? sqrt(acc[7] / 2.0 / span)
+    fig[10] = (span > 0.0) ? sqrt((acc[7] / 2.0) / span)
                                      : sqrt(acc[8] / (excavator_real)count);
 }
 
@@ -1838,10 +2138,14 @@ static void excavator_sweep_finish(excavator_real *fig, const excavator_real *ac
 long excavator_sweep_lanes(long *abandoned)
 {
 #if EXCAVATOR_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&excavator_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&excavator_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return excavator_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1849,25 +2153,37 @@ long excavator_sweep_lanes(long *abandoned)
 int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavator_real h, long n, excavator_real tol,
                   excavator_real *figures, int *status, excavator_real *t_end, long *solved, excavator_real *work, int *iwork)
 {
-    excavator_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    excavator_real *state;
+    excavator_real *rows;
+    excavator_real *vals;
+    excavator_real *arms;
+    excavator_real *drive;
+    excavator_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if EXCAVATOR_LANES > 1
     const long lanes = excavator_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     excavator_real snap[EXCAVATOR_LANES * EXCAVATOR_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return EXCAVATOR_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + EXCAVATOR_WORK, rows = state + EXCAVATOR_STATE;
-    vals = rows + 32 * EXCAVATOR_ROW, arms = vals + 35, drive = arms + 9;
-    acc = drive + 6;
+    state = &work[EXCAVATOR_WORK];
+    rows = &state[EXCAVATOR_STATE];
+    vals = &rows[32 * EXCAVATOR_ROW];
+    arms = &vals[35];
+    drive = &arms[9];
+    acc = &drive[6];
     for (v = 0; v < k; ++v) {
-        const excavator_real *pv = p + v * EXCAVATOR_NP;
-        excavator_real *fig = figures + v * EXCAVATOR_SWEEP_FIGURES;
+        const excavator_real *pv = &p[v * EXCAVATOR_NP];
+        excavator_real *fig = &figures[v * EXCAVATOR_SWEEP_FIGURES];
 #if EXCAVATOR_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (excavator_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1879,26 +2195,28 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const excavator_real *s = snap + (v - first) * EXCAVATOR_SNAP;
-            memcpy(state, s, sizeof(excavator_real) * EXCAVATOR_STATE);
-            memcpy(fig, s + EXCAVATOR_STATE, sizeof(excavator_real) * EXCAVATOR_SWEEP_FIGURES);
-            memcpy(acc, s + EXCAVATOR_STATE + EXCAVATOR_SWEEP_FIGURES, sizeof(excavator_real) * 11);
+            (void)memcpy(state, s, sizeof(excavator_real) * EXCAVATOR_STATE);
+            (void)memcpy(fig, &s[EXCAVATOR_STATE], sizeof(excavator_real) * EXCAVATOR_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[EXCAVATOR_STATE + EXCAVATOR_SWEEP_FIGURES], sizeof(excavator_real) * 11u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(excavator_real) * EXCAVATOR_STATE);
+            (void)memset(state, 0, sizeof(excavator_real) * (size_t)EXCAVATOR_STATE);
             excavator_guess(pv, state);
             done = 0;
         }
         st = EXCAVATOR_OK;
-        while (done < n && st == EXCAVATOR_OK) {
+        while ((done < n) && (st == EXCAVATOR_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : EXCAVATOR_MIN(32, n - done);
+            m = (done == 0) ? 1 : EXCAVATOR_MIN(32, n - done);
             got = 0;
             st = excavator_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) excavator_sweep_take(rows + m * EXCAVATOR_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
-                excavator_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+            for (m = 0; m < got; ++m) {
+                excavator_sweep_take(&rows[m * EXCAVATOR_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
+                excavator_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = excavator_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;
@@ -1906,7 +2224,7 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
         excavator_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[10] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[10] : ((double)NAN);
     }
     return EXCAVATOR_OK;
 }
@@ -1922,14 +2240,14 @@ static void excavator_sp_phi_k0(const excavator_real * q, const excavator_real *
     (void)qd;
     (void)qd_des;
     (void)qdd_des;
-    const excavator_real e0 = 23.0/10.0 - 1.0/2.0*p[0];
+    const excavator_real e0 = (23.0/10.0) - (1.0/2.0*p[0]);
     const excavator_real e1 = (1.0/2.0)*p[1];
-    const excavator_real e2 = -e1 - 3.0/4.0;
-    const excavator_real e3 = -1.0/2.0*p[2] - 1.0/20.0;
-    const excavator_real e4 = 2.0/5.0 - e1;
-    out[6] = -(q_des[0]*q_des[0]) + ((e0*tr[0] - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0))*(e0*tr[0] - 2.0/5.0*tr[1] + (q[1] + 6.0/5.0))) + ((e0*tr[1] + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0))*(e0*tr[1] + (2.0/5.0)*tr[0] + (q[0] - 3.0/10.0)));
-    out[7] = -(q_des[1]*q_des[1]) + ((e2*tr[2] - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3] + (-q[1] + q[4]))*(e2*tr[2] - 3.0/10.0*tr[0] - 11.0/20.0*tr[1] + (3.0/20.0)*tr[3] + (-q[1] + q[4]))) + ((e2*tr[3] + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2] + (-q[0] + q[3]))*(e2*tr[3] + (11.0/20.0)*tr[0] - 3.0/10.0*tr[1] - 3.0/20.0*tr[2] + (-q[0] + q[3])));
-    out[8] = -(q_des[2]*q_des[2]) + ((e3*tr[4] - e4*tr[2] - 7.0/20.0*tr[3] + (1.0/2.0)*tr[5] + (-q[4] + q[7]))*(e3*tr[4] - e4*tr[2] - 7.0/20.0*tr[3] + (1.0/2.0)*tr[5] + (-q[4] + q[7]))) + ((e3*tr[5] - e4*tr[3] + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4] + (-q[3] + q[6]))*(e3*tr[5] - e4*tr[3] + (7.0/20.0)*tr[2] - 1.0/2.0*tr[4] + (-q[3] + q[6])));
+    const excavator_real e2 = -e1 - (3.0/4.0);
+    const excavator_real e3 = (-1.0/2.0*p[2]) - (1.0/20.0);
+    const excavator_real e4 = (2.0/5.0) - e1;
+    out[6] = -(q_des[0]*q_des[0]) + (((e0*tr[0]) - (2.0/5.0*tr[1]) + (q[1] + (6.0/5.0)))*((e0*tr[0]) - (2.0/5.0*tr[1]) + (q[1] + (6.0/5.0)))) + (((e0*tr[1]) + ((2.0/5.0)*tr[0]) + (q[0] - (3.0/10.0)))*((e0*tr[1]) + ((2.0/5.0)*tr[0]) + (q[0] - (3.0/10.0))));
+    out[7] = -(q_des[1]*q_des[1]) + (((e2*tr[2]) - (3.0/10.0*tr[0]) - (11.0/20.0*tr[1]) + ((3.0/20.0)*tr[3]) + (-q[1] + q[4]))*((e2*tr[2]) - (3.0/10.0*tr[0]) - (11.0/20.0*tr[1]) + ((3.0/20.0)*tr[3]) + (-q[1] + q[4]))) + (((e2*tr[3]) + ((11.0/20.0)*tr[0]) - (3.0/10.0*tr[1]) - (3.0/20.0*tr[2]) + (-q[0] + q[3]))*((e2*tr[3]) + ((11.0/20.0)*tr[0]) - (3.0/10.0*tr[1]) - (3.0/20.0*tr[2]) + (-q[0] + q[3])));
+    out[8] = -(q_des[2]*q_des[2]) + (((e3*tr[4]) - (e4*tr[2]) - (7.0/20.0*tr[3]) + ((1.0/2.0)*tr[5]) + (-q[4] + q[7]))*((e3*tr[4]) - (e4*tr[2]) - (7.0/20.0*tr[3]) + ((1.0/2.0)*tr[5]) + (-q[4] + q[7]))) + (((e3*tr[5]) - (e4*tr[3]) + ((7.0/20.0)*tr[2]) - (1.0/2.0*tr[4]) + (-q[3] + q[6]))*((e3*tr[5]) - (e4*tr[3]) + ((7.0/20.0)*tr[2]) - (1.0/2.0*tr[4]) + (-q[3] + q[6])));
 }
 
 static void excavator_sp_phi_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, const excavator_real * q_des, const excavator_real * qd_des, const excavator_real * qdd_des, const excavator_real * p, excavator_real *out)
@@ -1944,9 +2262,9 @@ static void excavator_sp_nu_k0(const excavator_real * q, const excavator_real * 
     (void)qd;
     (void)qdd_des;
     (void)p;
-    out[6] = 2*q_des[0]*qd_des[0];
-    out[7] = 2*q_des[1]*qd_des[1];
-    out[8] = 2*q_des[2]*qd_des[2];
+    out[6] = 2.0*q_des[0]*qd_des[0];
+    out[7] = 2.0*q_des[1]*qd_des[1];
+    out[8] = 2.0*q_des[2]*qd_des[2];
 }
 
 static void excavator_sp_nu_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, const excavator_real * q_des, const excavator_real * qd_des, const excavator_real * qdd_des, const excavator_real * p, excavator_real *out)
@@ -1956,17 +2274,17 @@ static void excavator_sp_nu_k(const excavator_real * q, const excavator_real * t
 
 static void excavator_sp_gamma_k0(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, const excavator_real * q_des, const excavator_real * qd_des, const excavator_real * qdd_des, const excavator_real * p, excavator_real *out)
 {
-    const excavator_real e0 = -2*(qd[0]*qd[0]) - 2*(qd[1]*qd[1]);
+    const excavator_real e0 = (-2.0*(qd[0]*qd[0])) - (2.0*(qd[1]*qd[1]));
     const excavator_real e1 = (qd[2]*qd[2]);
     const excavator_real e2 = e1*tr[0];
     const excavator_real e3 = e1*tr[1];
-    const excavator_real e4 = 23.0/10.0 - 1.0/2.0*p[0];
+    const excavator_real e4 = (23.0/10.0) - (1.0/2.0*p[0]);
     const excavator_real e5 = (3.0/5.0)*e3;
     const excavator_real e6 = (8.0/5.0)*qd[2];
     const excavator_real e7 = qd[2]*tr[1];
-    const excavator_real e8 = 4*qd[3];
-    const excavator_real e9 = 4*qd[4];
-    const excavator_real e10 = -2*(qd[3]*qd[3]) - 2*(qd[4]*qd[4]);
+    const excavator_real e8 = 4.0*qd[3];
+    const excavator_real e9 = 4.0*qd[4];
+    const excavator_real e10 = (-2.0*(qd[3]*qd[3])) - (2.0*(qd[4]*qd[4]));
     const excavator_real e11 = (qd[5]*qd[5]);
     const excavator_real e12 = (3.0/5.0)*e2;
     const excavator_real e13 = (3.0/5.0)*qd[5];
@@ -1981,7 +2299,7 @@ static void excavator_sp_gamma_k0(const excavator_real * q, const excavator_real
     const excavator_real e22 = (33.0/200.0)*tr[3];
     const excavator_real e23 = e11*tr[1];
     const excavator_real e24 = (1.0/2.0)*p[1];
-    const excavator_real e25 = -e24 - 3.0/4.0;
+    const excavator_real e25 = -e24 - (3.0/4.0);
     const excavator_real e26 = e11*e25;
     const excavator_real e27 = e25*qd[5];
     const excavator_real e28 = e27*tr[3];
@@ -1990,7 +2308,7 @@ static void excavator_sp_gamma_k0(const excavator_real * q, const excavator_real
     const excavator_real e31 = (qd[8]*qd[8]);
     const excavator_real e32 = e31*tr[5];
     const excavator_real e33 = e31*tr[4];
-    const excavator_real e34 = 2*qd[8];
+    const excavator_real e34 = 2.0*qd[8];
     const excavator_real e35 = e34*tr[4];
     const excavator_real e36 = (7.0/5.0)*qd[5];
     const excavator_real e37 = e36*tr[2];
@@ -2000,20 +2318,20 @@ static void excavator_sp_gamma_k0(const excavator_real * q, const excavator_real
     const excavator_real e41 = e11*tr[4];
     const excavator_real e42 = (7.0/20.0)*tr[3];
     const excavator_real e43 = e11*tr[5];
-    const excavator_real e44 = 2.0/5.0 - e24;
+    const excavator_real e44 = (2.0/5.0) - e24;
     const excavator_real e45 = e44*tr[2];
-    const excavator_real e46 = -1.0/2.0*p[2] - 1.0/20.0;
+    const excavator_real e46 = (-1.0/2.0*p[2]) - (1.0/20.0);
     const excavator_real e47 = e32*e46;
     const excavator_real e48 = e33*e46;
     const excavator_real e49 = e44*tr[3];
-    const excavator_real e50 = 2*e11;
+    const excavator_real e50 = 2.0*e11;
     const excavator_real e51 = e46*qd[8];
     const excavator_real e52 = e49*qd[5];
     const excavator_real e53 = e51*tr[5];
-    const excavator_real e54 = 2*e46;
-    out[6] = 2*e1*e4*q[0]*tr[1] + 2*e1*e4*q[1]*tr[0] + (12.0/5.0)*e1*e4*tr[0] + (4.0/5.0)*e1*q[0]*tr[0] - 6.0/25.0*e2 - 4.0/5.0*e3*q[1] - 24.0/25.0*e3 - e4*e5 - 4*e4*e7*qd[1] + 4*e4*qd[0]*qd[2]*tr[0] - e6*qd[0]*tr[1] - e6*qd[1]*tr[0] + (e0 + 2*q_des[0]*qdd_des[0] + 2*(qd_des[0]*qd_des[0]));
-    out[7] = (11.0/10.0)*e1*e25*tr[0]*tr[3] + (3.0/5.0)*e1*q[0]*tr[1] + (3.0/5.0)*e1*q[1]*tr[0] + (11.0/10.0)*e1*q[1]*tr[1] + (11.0/10.0)*e1*q[3]*tr[0] + (9.0/100.0)*e1*tr[1]*tr[2] + 2*e11*e25*q[3]*tr[3] + 2*e11*e25*q[4]*tr[2] + (11.0/10.0)*e11*e25*tr[0]*tr[3] + (3.0/10.0)*e11*q[0]*tr[2] + (3.0/10.0)*e11*q[4]*tr[3] + (9.0/100.0)*e11*tr[1]*tr[2] - e12*e29 - e12*q[4] - e13*qd[0]*tr[3] - e13*qd[1]*tr[2] - e14*q[1]*tr[3] - e14*q[3]*tr[2] - e15*qd[1]*tr[1] - e15*qd[3]*tr[0] - e16*e17 - e16*e2 - e17*e21 - 3.0/5.0*e17*e29 - e18*qd[3]*tr[1] - e19*e28 - e19*qd[4] - e2*e21 - 11.0/10.0*e2*q[0] - e20*e29 - e20*q[4] - e22*e23 - e22*e3 - 11.0/10.0*e23*e29 - 3.0/5.0*e23*e30 + 4*e25*qd[1]*qd[5]*tr[3] + (6.0/5.0)*e25*qd[2]*qd[5]*tr[0]*tr[2] + (11.0/5.0)*e25*qd[2]*qd[5]*tr[1]*tr[2] + (6.0/5.0)*e25*qd[2]*qd[5]*tr[1]*tr[3] + 4*e25*qd[3]*qd[5]*tr[2] - 2*e26*q[0]*tr[3] - 2*e26*q[1]*tr[2] - 4*e27*qd[0]*tr[2] - e28*e9 - e30*e5 - e5*q[3] - 9.0/50.0*e7*qd[5]*tr[2] + (6.0/5.0)*qd[0]*qd[2]*tr[0] + (11.0/5.0)*qd[0]*qd[2]*tr[1] + (11.0/5.0)*qd[1]*qd[2]*tr[0] + (6.0/5.0)*qd[2]*qd[4]*tr[1] + (33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2] + (9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3] + (33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3] + (3.0/5.0)*qd[3]*qd[5]*tr[3] + (3.0/5.0)*qd[4]*qd[5]*tr[2] + (e0 + e10 + e8*qd[0] + e9*qd[1] + 2*q_des[1]*qdd_des[1] + 2*(qd_des[1]*qd_des[1]));
-    out[8] = 2*e11*e44*q[3]*tr[3] + 2*e11*e44*q[4]*tr[2] + e11*e44*tr[3]*tr[4] + (7.0/10.0)*e11*e46*tr[2]*tr[5] + (7.0/10.0)*e11*q[4]*tr[3] + (7.0/10.0)*e11*q[6]*tr[2] + e31*e44*tr[3]*tr[4] + 2*e31*e46*q[6]*tr[5] + 2*e31*e46*q[7]*tr[4] + (7.0/10.0)*e31*e46*tr[2]*tr[5] + e31*q[3]*tr[4] + e31*q[7]*tr[5] - e32*e42 - e32*e45 - e32*q[4] - e33*e40 - e33*q[6] - e34*qd[3]*tr[5] - e35*e52 - e35*qd[4] - e36*qd[6]*tr[3] - e37*e53 - e37*qd[7] - e38*q[3]*tr[2] - e39*e46*tr[4] - e39*q[7] - e40*e41 - e41*e45*e54 - e42*e43 - e43*e45 - e43*e49*e54 + 4*e44*e46*qd[5]*qd[8]*tr[2]*tr[4] + 4*e44*e46*qd[5]*qd[8]*tr[3]*tr[5] + 4*e44*qd[3]*qd[5]*tr[2] + 4*e44*qd[5]*qd[7]*tr[3] + 2*e44*qd[5]*qd[8]*tr[2]*tr[5] - 2*e45*e48 - e45*e50*q[7] - 4*e45*qd[5]*qd[6] + 4*e46*qd[4]*qd[8]*tr[5] + (7.0/5.0)*e46*qd[5]*qd[8]*tr[3]*tr[4] + 4*e46*qd[6]*qd[8]*tr[4] - 2*e47*e49 - 2*e47*q[3] - 2*e48*q[4] - 7.0/10.0*e48*tr[3] - e49*e50*q[6] - e51*e8*tr[4] - e52*e9 - 4*e53*qd[7] + (7.0/5.0)*qd[3]*qd[5]*tr[3] + (7.0/5.0)*qd[4]*qd[5]*tr[2] + (7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4] + (7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5] + 2*qd[6]*qd[8]*tr[5] + 2*qd[7]*qd[8]*tr[4] + (e10 + e8*qd[6] + e9*qd[7] + 2*q_des[2]*qdd_des[2] - 2*(qd[6]*qd[6]) - 2*(qd[7]*qd[7]) + 2*(qd_des[2]*qd_des[2]));
+    const excavator_real e54 = 2.0*e46;
+    out[6] = (2.0*e1*e4*q[0]*tr[1]) + (2.0*e1*e4*q[1]*tr[0]) + ((12.0/5.0)*e1*e4*tr[0]) + ((4.0/5.0)*e1*q[0]*tr[0]) - (6.0/25.0*e2) - (4.0/5.0*e3*q[1]) - (24.0/25.0*e3) - (e4*e5) - (4.0*e4*e7*qd[1]) + (4.0*e4*qd[0]*qd[2]*tr[0]) - (e6*qd[0]*tr[1]) - (e6*qd[1]*tr[0]) + (e0 + (2.0*q_des[0]*qdd_des[0]) + (2.0*(qd_des[0]*qd_des[0])));
+    out[7] = ((11.0/10.0)*e1*e25*tr[0]*tr[3]) + ((3.0/5.0)*e1*q[0]*tr[1]) + ((3.0/5.0)*e1*q[1]*tr[0]) + ((11.0/10.0)*e1*q[1]*tr[1]) + ((11.0/10.0)*e1*q[3]*tr[0]) + ((9.0/100.0)*e1*tr[1]*tr[2]) + (2.0*e11*e25*q[3]*tr[3]) + (2.0*e11*e25*q[4]*tr[2]) + ((11.0/10.0)*e11*e25*tr[0]*tr[3]) + ((3.0/10.0)*e11*q[0]*tr[2]) + ((3.0/10.0)*e11*q[4]*tr[3]) + ((9.0/100.0)*e11*tr[1]*tr[2]) - (e12*e29) - (e12*q[4]) - (e13*qd[0]*tr[3]) - (e13*qd[1]*tr[2]) - (e14*q[1]*tr[3]) - (e14*q[3]*tr[2]) - (e15*qd[1]*tr[1]) - (e15*qd[3]*tr[0]) - (e16*e17) - (e16*e2) - (e17*e21) - (3.0/5.0*e17*e29) - (e18*qd[3]*tr[1]) - (e19*e28) - (e19*qd[4]) - (e2*e21) - (11.0/10.0*e2*q[0]) - (e20*e29) - (e20*q[4]) - (e22*e23) - (e22*e3) - (11.0/10.0*e23*e29) - (3.0/5.0*e23*e30) + (4.0*e25*qd[1]*qd[5]*tr[3]) + ((6.0/5.0)*e25*qd[2]*qd[5]*tr[0]*tr[2]) + ((11.0/5.0)*e25*qd[2]*qd[5]*tr[1]*tr[2]) + ((6.0/5.0)*e25*qd[2]*qd[5]*tr[1]*tr[3]) + (4.0*e25*qd[3]*qd[5]*tr[2]) - (2.0*e26*q[0]*tr[3]) - (2.0*e26*q[1]*tr[2]) - (4.0*e27*qd[0]*tr[2]) - (e28*e9) - (e30*e5) - (e5*q[3]) - (9.0/50.0*e7*qd[5]*tr[2]) + ((6.0/5.0)*qd[0]*qd[2]*tr[0]) + ((11.0/5.0)*qd[0]*qd[2]*tr[1]) + ((11.0/5.0)*qd[1]*qd[2]*tr[0]) + ((6.0/5.0)*qd[2]*qd[4]*tr[1]) + ((33.0/100.0)*qd[2]*qd[5]*tr[0]*tr[2]) + ((9.0/50.0)*qd[2]*qd[5]*tr[0]*tr[3]) + ((33.0/100.0)*qd[2]*qd[5]*tr[1]*tr[3]) + ((3.0/5.0)*qd[3]*qd[5]*tr[3]) + ((3.0/5.0)*qd[4]*qd[5]*tr[2]) + (e0 + e10 + (e8*qd[0]) + (e9*qd[1]) + (2.0*q_des[1]*qdd_des[1]) + (2.0*(qd_des[1]*qd_des[1])));
+    out[8] = (2.0*e11*e44*q[3]*tr[3]) + (2.0*e11*e44*q[4]*tr[2]) + (e11*e44*tr[3]*tr[4]) + ((7.0/10.0)*e11*e46*tr[2]*tr[5]) + ((7.0/10.0)*e11*q[4]*tr[3]) + ((7.0/10.0)*e11*q[6]*tr[2]) + (e31*e44*tr[3]*tr[4]) + (2.0*e31*e46*q[6]*tr[5]) + (2.0*e31*e46*q[7]*tr[4]) + ((7.0/10.0)*e31*e46*tr[2]*tr[5]) + (e31*q[3]*tr[4]) + (e31*q[7]*tr[5]) - (e32*e42) - (e32*e45) - (e32*q[4]) - (e33*e40) - (e33*q[6]) - (e34*qd[3]*tr[5]) - (e35*e52) - (e35*qd[4]) - (e36*qd[6]*tr[3]) - (e37*e53) - (e37*qd[7]) - (e38*q[3]*tr[2]) - (e39*e46*tr[4]) - (e39*q[7]) - (e40*e41) - (e41*e45*e54) - (e42*e43) - (e43*e45) - (e43*e49*e54) + (4.0*e44*e46*qd[5]*qd[8]*tr[2]*tr[4]) + (4.0*e44*e46*qd[5]*qd[8]*tr[3]*tr[5]) + (4.0*e44*qd[3]*qd[5]*tr[2]) + (4.0*e44*qd[5]*qd[7]*tr[3]) + (2.0*e44*qd[5]*qd[8]*tr[2]*tr[5]) - (2.0*e45*e48) - (e45*e50*q[7]) - (4.0*e45*qd[5]*qd[6]) + (4.0*e46*qd[4]*qd[8]*tr[5]) + ((7.0/5.0)*e46*qd[5]*qd[8]*tr[3]*tr[4]) + (4.0*e46*qd[6]*qd[8]*tr[4]) - (2.0*e47*e49) - (2.0*e47*q[3]) - (2.0*e48*q[4]) - (7.0/10.0*e48*tr[3]) - (e49*e50*q[6]) - (e51*e8*tr[4]) - (e52*e9) - (4.0*e53*qd[7]) + ((7.0/5.0)*qd[3]*qd[5]*tr[3]) + ((7.0/5.0)*qd[4]*qd[5]*tr[2]) + ((7.0/10.0)*qd[5]*qd[8]*tr[2]*tr[4]) + ((7.0/10.0)*qd[5]*qd[8]*tr[3]*tr[5]) + (2.0*qd[6]*qd[8]*tr[5]) + (2.0*qd[7]*qd[8]*tr[4]) + (e10 + (e8*qd[6]) + (e9*qd[7]) + (2.0*q_des[2]*qdd_des[2]) - (2.0*(qd[6]*qd[6])) - (2.0*(qd[7]*qd[7])) + (2.0*(qd_des[2]*qd_des[2])));
 }
 
 static void excavator_sp_gamma_k(const excavator_real * q, const excavator_real * tr, const excavator_real * qd, const excavator_real * q_des, const excavator_real * qd_des, const excavator_real * qdd_des, const excavator_real * p, excavator_real *out)
@@ -2025,17 +2343,28 @@ static void excavator_sp_gamma_k(const excavator_real * q, const excavator_real 
 static int excavator_sp_newton(excavator_real t, const excavator_real *p, const excavator_real *q_des, excavator_real tol, excavator_real *q, excavator_real *tr, int *info, excavator_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    excavator_real *r = EXCAVATOR_VEC(work, 0), *dq = EXCAVATOR_VEC(work, 1), *y = EXCAVATOR_VEC(work, 2);
+    excavator_real *r = EXCAVATOR_VEC(work, 0);
+    excavator_real *dq = EXCAVATOR_VEC(work, 1);
+    excavator_real *y = EXCAVATOR_VEC(work, 2);
     excavator_real *base = EXCAVATOR_VEC(work, 10);
-    excavator_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    excavator_real step = ((double)INFINITY);
+    excavator_real lim;
+    excavator_real qmag;
+    excavator_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) excavator_trig_near(q, tr, base);
-    else excavator_trig_base(q, tr, base);
+    if (reuse != 0) {
+        excavator_trig_near(q, tr, base);
+    } else {
+        excavator_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = EXCAVATOR_MAX(1.0, excavator_maxabs9(q));
-    lim = EXCAVATOR_MAX(tol, (excavator_real)EXCAVATOR_FLOOR_ULPS * EXCAVATOR_EPS * qmag);
+    lim = EXCAVATOR_MAX(tol, ((excavator_real)EXCAVATOR_FLOOR_ULPS * EXCAVATOR_EPS) * qmag);
     excavator_phi_k(q, tr, t, p, r);
     excavator_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
     rmax = excavator_maxabs9(r);
@@ -2045,15 +2374,17 @@ static int excavator_sp_newton(excavator_real t, const excavator_real *p, const 
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? EXCAVATOR_NONFINITE : EXCAVATOR_NOT_CONVERGED;
+            return (it == 0) ? EXCAVATOR_NONFINITE : EXCAVATOR_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == EXCAVATOR_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK) {
+        if (it == EXCAVATOR_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK)) {
             info[0] = it;
             info[1] = *dense;
             return EXCAVATOR_SINGULAR;
@@ -2063,8 +2394,8 @@ static int excavator_sp_newton(excavator_real t, const excavator_real *p, const 
         excavator_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= EXCAVATOR_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (EXCAVATOR_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -2077,8 +2408,10 @@ static int excavator_sp_newton(excavator_real t, const excavator_real *p, const 
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return EXCAVATOR_NOT_CONVERGED;
-    if (!current && excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK) {
+    if (converged == 0) {
+        return EXCAVATOR_NOT_CONVERGED;
+    }
+    if ((current == 0) && (excavator_factorize(q, tr, t, p, work, iwork, dense) != EXCAVATOR_OK)) {
         info[1] = *dense;
         return EXCAVATOR_SINGULAR;
     }
@@ -2091,7 +2424,8 @@ static void excavator_sp_outputs(excavator_real t, const excavator_real *p, cons
                             excavator_real *lam, excavator_real *reactions, excavator_real *work, const int *iwork, int dense,
                             const excavator_real *q_des, const excavator_real *qd_des, const excavator_real *qdd_des)
 {
-    excavator_real *y = EXCAVATOR_VEC(work, 2), *b = EXCAVATOR_VEC(work, 3);
+    excavator_real *y = EXCAVATOR_VEC(work, 2);
+    excavator_real *b = EXCAVATOR_VEC(work, 3);
     excavator_nu_k(q, tr, t, p, b);
     excavator_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
     excavator_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
@@ -2110,7 +2444,9 @@ static void excavator_sp_outputs(excavator_real t, const excavator_real *p, cons
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     excavator_solve_t(work, iwork, dense, b, lam);
-    if (excavator_mixed(y)) excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (excavator_mixed(y) != 0) {
+        excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     excavator_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -2122,25 +2458,34 @@ static int excavator_sp_instant(excavator_real t, const excavator_real *p, excav
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !excavator_allfinite(q_des, EXCAVATOR_ND) || !excavator_allfinite(qd_des, EXCAVATOR_ND)
-        || !excavator_allfinite(qdd_des, EXCAVATOR_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (excavator_allfinite(q_des, EXCAVATOR_ND) == 0) || (excavator_allfinite(qd_des, EXCAVATOR_ND) == 0)
+        || (excavator_allfinite(qdd_des, EXCAVATOR_ND) == 0)) {
         status = EXCAVATOR_BAD_ARGUMENT;
     } else {
-        excavator_real *tr = EXCAVATOR_VEC(work, 9), *pp = work + EXCAVATOR_OFF_PREP, *kept = EXCAVATOR_VEC(work, 11);
-        memcpy(kept, q, sizeof(excavator_real) * 9);  /* the caller's guess, back in q if the call fails */
+        excavator_real *tr = EXCAVATOR_VEC(work, 9);
+        excavator_real *pp = &work[EXCAVATOR_OFF_PREP];
+        excavator_real *kept = EXCAVATOR_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(excavator_real) * 9u);  /* the caller's guess, back in q if the call fails */
         excavator_prepare(p, pp);
-        if (qd == NULL) qd = EXCAVATOR_VEC(work, 5);
-        if (qdd == NULL) qdd = EXCAVATOR_VEC(work, 6);
-        if (lam == NULL) lam = EXCAVATOR_VEC(work, 7);
-        if (reactions == NULL) reactions = EXCAVATOR_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        excavator_real *qd_out = (qd != NULL) ? qd : EXCAVATOR_VEC(work, 5);
+        excavator_real *qdd_out = (qdd != NULL) ? qdd : EXCAVATOR_VEC(work, 6);
+        excavator_real *lam_out = (lam != NULL) ? lam : EXCAVATOR_VEC(work, 7);
+        excavator_real *reactions_out = (reactions != NULL) ? reactions : EXCAVATOR_VEC(work, 8);
         status = excavator_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == EXCAVATOR_OK) {
-            excavator_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!excavator_finite(q, qd, qdd, lam, reactions)) status = EXCAVATOR_NONFINITE;
+            excavator_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (excavator_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = EXCAVATOR_NONFINITE;
+            }
         }
-        if (status != EXCAVATOR_OK) memcpy(q, kept, sizeof(excavator_real) * 9);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != EXCAVATOR_OK) {
+            (void)memcpy(q, kept, sizeof(excavator_real) * 9u);
+        }
     }
     return status;
 }
@@ -2150,7 +2495,8 @@ int excavator_setpoint(excavator_real t, const excavator_real *p, excavator_real
                      excavator_real *qdd, excavator_real *lam, excavator_real *reactions, int *info, excavator_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = excavator_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

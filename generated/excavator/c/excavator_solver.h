@@ -203,13 +203,13 @@ extern const excavator_real excavator_default_q0[EXCAVATOR_NG];
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 172, phi_q 180, nu 21, gamma 626, applied 27, mass 0, reactions 114, lu_factor 57, lu_forward 17, lu_back 21, lu_t_forward 21, lu_t_back 17. */
-#define EXCAVATOR_OPS_INSTANT 1521
+   work), and of each evaluation: phi 172, phi_q 179, nu 21, gamma 624, applied 26, mass 0, reactions 114, lu_factor 57, lu_forward 17, lu_back 21, lu_t_forward 21, lu_t_back 17. */
+#define EXCAVATOR_OPS_INSTANT 1517
 
 /* Worst case of one instant call (computed at generation from the counts
    above, not measured): Newton reaching MAX_NEWTON, every factorization
    through the pivoting fallback (bounded by a dense LU). At most
-   2855 + 1647 MAX_NEWTON counted floating operations and
+   2850 + 1645 MAX_NEWTON counted floating operations and
    13 + 8 MAX_NEWTON libm calls; as instructions, at most
    WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
    loads, stores and indexing), each libm call 300 (the real type on its
@@ -219,7 +219,7 @@ extern const excavator_real excavator_default_q0[EXCAVATOR_NG];
    test_c_edges checks it under callgrind on x86-64 for every bundled
    example, the cap reached (instant only: a trajectory's instant adds its
    predictor, checks and, if generated, sensitivities). */
-#define EXCAVATOR_WORST_INSTRUCTIONS (41160L + 22564L * (long)EXCAVATOR_MAX_NEWTON)
+#define EXCAVATOR_WORST_INSTRUCTIONS (41100L + 22540L * (long)EXCAVATOR_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int excavator_phi_q_rows[35];

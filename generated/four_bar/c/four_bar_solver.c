@@ -43,7 +43,7 @@ typedef char four_bar_real_must_have_the_size_of_double[sizeof(four_bar_real) ==
 #define FOUR_BAR_OFF_LU 25
 #define FOUR_BAR_OFF_DENSE (FOUR_BAR_OFF_LU + FOUR_BAR_LU_SIZE)
 #define FOUR_BAR_OFF_VEC (FOUR_BAR_OFF_DENSE + 81)
-#define FOUR_BAR_VEC(work, k) ((work) + FOUR_BAR_OFF_VEC + (k) * 30)
+#define FOUR_BAR_VEC(work, k) (&(work)[FOUR_BAR_OFF_VEC + ((k) * 30)])
 /* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
 #define FOUR_BAR_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
 #define FOUR_BAR_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
@@ -151,10 +151,12 @@ static void four_bar_trig_base(const four_bar_real *q, four_bar_real *tr, four_b
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const four_bar_real a = q[3 * b + 2];
+        const four_bar_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -169,45 +171,60 @@ static void four_bar_trig_base(const four_bar_real *q, four_bar_real *tr, four_b
 static void four_bar_trig_near(const four_bar_real *q, four_bar_real *tr, four_bar_real *base)
 {
     {
-        const four_bar_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const four_bar_real a = q[2];
+        const four_bar_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const four_bar_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const four_bar_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const four_bar_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const four_bar_real d2 = d * d;
+            const four_bar_real s = base[1];
+            const four_bar_real c = base[2];
+            const four_bar_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const four_bar_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const four_bar_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const four_bar_real a = q[5];
+        const four_bar_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const four_bar_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const four_bar_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const four_bar_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const four_bar_real d2 = d * d;
+            const four_bar_real s = base[4];
+            const four_bar_real c = base[5];
+            const four_bar_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const four_bar_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const four_bar_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const four_bar_real a = q[8];
+        const four_bar_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const four_bar_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const four_bar_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const four_bar_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const four_bar_real d2 = d * d;
+            const four_bar_real s = base[7];
+            const four_bar_real c = base[8];
+            const four_bar_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const four_bar_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
 }
@@ -220,30 +237,36 @@ static void four_bar_trig_near(const four_bar_real *q, four_bar_real *tr, four_b
 static void four_bar_trig_step(const four_bar_real *q, const four_bar_real *dq, four_bar_real *tr, four_bar_real *base)
 {
     {
-        const four_bar_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const four_bar_real d = -dq[2];
+        const four_bar_real s = tr[0];
+        const four_bar_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             four_bar_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const four_bar_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const four_bar_real d = -dq[5];
+        const four_bar_real s = tr[2];
+        const four_bar_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             four_bar_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const four_bar_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const four_bar_real d = -dq[8];
+        const four_bar_real s = tr[4];
+        const four_bar_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             four_bar_trig_near(q, tr, base);
             return;
@@ -257,9 +280,9 @@ static void four_bar_trig_step(const four_bar_real *q, const four_bar_real *dq, 
    evaluation. The kernels read both from this one vector. */
 static void four_bar_prepare(const four_bar_real *p, four_bar_real *pp)
 {
-    memcpy(pp, p, sizeof(four_bar_real) * 15);
+    (void)memcpy(pp, p, sizeof(four_bar_real) * 15u);
     {
-        pp[15] = (2*3.141592653589793*p[9]);
+        pp[15] = (2.0*3.141592653589793*p[9]);
         pp[16] = (1.0/12.0)*(p[1]*p[1])*p[4];
         pp[17] = (1.0/12.0)*(p[2]*p[2])*p[5];
         pp[18] = (1.0/12.0)*(p[3]*p[3])*p[6];
@@ -287,7 +310,7 @@ static void four_bar_phi_k0(const four_bar_real * q, const four_bar_real * tr, f
     out[5] = -e5 + e9 + (-e10 - q[4]);
     out[6] = -e7 + (-e8 - p[0]);
     out[7] = -e10 - e9;
-    out[8] = -p[15]*t + q[2];
+    out[8] = (-p[15]*t) + q[2];
 }
 
 static void four_bar_phi_k(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -301,8 +324,7 @@ void four_bar_phi(const four_bar_real * q, four_bar_real t, const four_bar_real 
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_phi_k(q, tr, t, p, out);
+    four_bar_phi_k(q, tr, t, prepared, out);
 }
 
 static void four_bar_phi_q_k0(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -318,31 +340,31 @@ static void four_bar_phi_q_k0(const four_bar_real * q, const four_bar_real * tr,
     const four_bar_real e6 = (1.0/2.0)*p[3];
     const four_bar_real e7 = e6*tr[4];
     const four_bar_real e8 = e6*tr[5];
-    out[0] = 1;
+    out[0] = 1.0;
     out[1] = e1;
-    out[2] = 1;
+    out[2] = 1.0;
     out[3] = e2;
-    out[4] = -1;
+    out[4] = -1.0;
     out[5] = e1;
-    out[6] = 1;
+    out[6] = 1.0;
     out[7] = e4;
-    out[8] = -1;
+    out[8] = -1.0;
     out[9] = e2;
-    out[10] = 1;
+    out[10] = 1.0;
     out[11] = e5;
-    out[12] = -1;
+    out[12] = -1.0;
     out[13] = e4;
-    out[14] = 1;
+    out[14] = 1.0;
     out[15] = -e7;
-    out[16] = -1;
+    out[16] = -1.0;
     out[17] = e5;
-    out[18] = 1;
+    out[18] = 1.0;
     out[19] = e8;
-    out[20] = 1;
+    out[20] = 1.0;
     out[21] = e7;
-    out[22] = 1;
+    out[22] = 1.0;
     out[23] = -e8;
-    out[24] = 1;
+    out[24] = 1.0;
 }
 
 static void four_bar_phi_q_k(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -356,8 +378,7 @@ void four_bar_phi_q(const four_bar_real * q, four_bar_real t, const four_bar_rea
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_phi_q_k(q, tr, t, p, out);
+    four_bar_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void four_bar_nu_k0(const four_bar_real * q, const four_bar_real * tr, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -365,14 +386,14 @@ static void four_bar_nu_k0(const four_bar_real * q, const four_bar_real * tr, fo
     (void)q;
     (void)tr;
     (void)t;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
     out[8] = p[15];
 }
 
@@ -387,8 +408,7 @@ void four_bar_nu(const four_bar_real * q, four_bar_real t, const four_bar_real *
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_nu_k(q, tr, t, p, out);
+    four_bar_nu_k(q, tr, t, prepared, out);
 }
 
 static void four_bar_gamma_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -412,7 +432,7 @@ static void four_bar_gamma_k0(const four_bar_real * q, const four_bar_real * tr,
     out[5] = -e5 - e8;
     out[6] = e7;
     out[7] = e8;
-    out[8] = 0;
+    out[8] = 0.0;
 }
 
 static void four_bar_gamma_k(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -426,31 +446,30 @@ void four_bar_gamma(const four_bar_real * q, const four_bar_real * qd, four_bar_
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_gamma_k(q, tr, qd, t, p, out);
+    four_bar_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void four_bar_applied_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    const four_bar_real e0 = p[10]*((1.0/2.0)*sin(p[15]*t) + 1);
+    const four_bar_real e0 = p[10]*(((1.0/2.0)*sin(p[15]*t)) + 1.0);
     const four_bar_real e1 = (1.0/20.0)*tr[4];
-    const four_bar_real e2 = e1 + (q[7] - 3.0/10.0);
+    const four_bar_real e2 = e1 + (q[7] - (3.0/10.0));
     const four_bar_real e3 = (1.0/20.0)*tr[5];
-    const four_bar_real e4 = e3 + (q[6] - 3.0/4.0);
+    const four_bar_real e4 = e3 + (q[6] - (3.0/4.0));
     const four_bar_real e5 = sqrt((e2*e2) + (e4*e4));
     const four_bar_real e6 = (1.0/e5);
     const four_bar_real e7 = e4*e6;
-    const four_bar_real e8 = -p[12]*(e5 - p[14]) - p[13]*(e2*e6*(e3*qd[8] + qd[7]) + e7*(-e1*qd[8] + qd[6]));
+    const four_bar_real e8 = (-p[12]*(e5 - p[14])) - (p[13]*((e2*e6*((e3*qd[8]) + qd[7])) + (e7*((-e1*qd[8]) + qd[6]))));
     const four_bar_real e9 = e7*e8;
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[4];
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = -e0 - 981.0/100.0*p[5];
-    out[5] = -e0*(p[7]*tr[3] - p[8]*tr[2]);
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = -e0 - (981.0/100.0*p[5]);
+    out[5] = -e0*((p[7]*tr[3]) - (p[8]*tr[2]));
     out[6] = e9;
-    out[7] = e2*e6*e8 - 981.0/100.0*p[6];
-    out[8] = -e1*e9 + (1.0/20.0)*e2*e6*e8*tr[5] - p[11];
+    out[7] = (e2*e6*e8) - (981.0/100.0*p[6]);
+    out[8] = (-e1*e9) + ((1.0/20.0)*e2*e6*e8*tr[5]) - p[11];
 }
 
 static void four_bar_applied_k(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -464,8 +483,7 @@ void four_bar_applied(const four_bar_real * q, const four_bar_real * qd, four_ba
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_applied_k(q, tr, qd, t, p, out);
+    four_bar_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void four_bar_mass_k0(const four_bar_real * p, four_bar_real *out)
@@ -490,8 +508,7 @@ void four_bar_mass(const four_bar_real * p, four_bar_real *out)
 {
     four_bar_real prepared[19];
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_mass_k(p, out);
+    four_bar_mass_k(prepared, out);
 }
 
 static void four_bar_reactions_k0(const four_bar_real * q, const four_bar_real * tr, const four_bar_real * lam, four_bar_real t, const four_bar_real * p, four_bar_real *out)
@@ -502,33 +519,33 @@ static void four_bar_reactions_k0(const four_bar_real * q, const four_bar_real *
     (void)p;
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = lam[4];
     out[13] = lam[5];
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = -lam[4];
     out[16] = -lam[5];
-    out[17] = 0;
+    out[17] = 0.0;
     out[18] = lam[6];
     out[19] = lam[7];
-    out[20] = 0;
+    out[20] = 0.0;
     out[21] = -lam[6];
     out[22] = -lam[7];
-    out[23] = 0;
-    out[24] = 0;
-    out[25] = 0;
+    out[23] = 0.0;
+    out[24] = 0.0;
+    out[25] = 0.0;
     out[26] = lam[8];
-    out[27] = 0;
-    out[28] = 0;
+    out[27] = 0.0;
+    out[28] = 0.0;
     out[29] = -lam[8];
 }
 
@@ -543,8 +560,7 @@ void four_bar_reactions(const four_bar_real * q, const four_bar_real * lam, four
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
-    p = prepared;
-    four_bar_reactions_k(q, tr, lam, t, p, out);
+    four_bar_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -566,22 +582,24 @@ static int four_bar_sparse_factor0(four_bar_real *lu)
     cm = FOUR_BAR_MAX(cm, fabs(lu[3]));
     cm = FOUR_BAR_MAX(cm, fabs(lu[5]));
     cm = FOUR_BAR_MAX(cm, fabs(lu[9]));
-    if (!(1.0 >= FOUR_BAR_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (FOUR_BAR_THRESHOLD * cm))) { return 1; }
     lu[13] += lu[7];
     lu[17] += lu[11];
     lu[15] -= lu[21];
     piv = lu[13];
     cm = fabs(piv);
     cm = FOUR_BAR_MAX(cm, fabs(lu[17]));
-    if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[13] = 1.0 / piv;
+    if (!(fabs(piv) >= (FOUR_BAR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[13] = 1.0 / piv;
+    piv = lu[13];
     lu[17] *= piv;
-    lu[19] -= lu[17] * lu[15];
+    lu[19] -= (lu[17] * lu[15]);
     lu[23] -= lu[19];
     piv = lu[23];
     cm = fabs(piv);
-    if (!(fabs(piv) >= FOUR_BAR_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[23] = 1.0 / piv;
+    if (!(fabs(piv) >= (FOUR_BAR_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[23] = 1.0 / piv;
+    piv = lu[23];
     return 0;
 }
 
@@ -592,16 +610,16 @@ static int four_bar_sparse_factor(four_bar_real *lu)
 
 static void four_bar_sparse_forward0(const four_bar_real *FOUR_BAR_RESTRICT lu, four_bar_real *FOUR_BAR_RESTRICT y)
 {
-    y[0] -= lu[1] * y[8];
-    y[1] -= lu[3] * y[8];
-    y[2] -= lu[5] * y[8];
-    y[3] -= lu[9] * y[8];
+    y[0] -= (lu[1] * y[8]);
+    y[1] -= (lu[3] * y[8]);
+    y[2] -= (lu[5] * y[8]);
+    y[3] -= (lu[9] * y[8]);
     y[2] += y[0];
     y[3] += y[1];
     y[4] += y[2];
     y[5] += y[3];
     y[4] -= y[6];
-    y[5] -= lu[17] * y[4];
+    y[5] -= (lu[17] * y[4]);
     y[7] -= y[5];
 }
 
@@ -609,11 +627,11 @@ static void four_bar_sparse_back0(
     const four_bar_real *FOUR_BAR_RESTRICT lu, const four_bar_real *FOUR_BAR_RESTRICT y, four_bar_real *FOUR_BAR_RESTRICT x)
 {
     x[8] = (y[7]) * lu[23];
-    x[7] = y[5] - lu[19] * x[8];
-    x[5] = (y[4] - lu[15] * x[8]) * lu[13];
-    x[6] = y[6] - lu[21] * x[8];
-    x[4] = y[3] - lu[11] * x[5];
-    x[3] = y[2] - lu[7] * x[5];
+    x[7] = y[5] - (lu[19] * x[8]);
+    x[5] = (y[4] - (lu[15] * x[8])) * lu[13];
+    x[6] = y[6] - (lu[21] * x[8]);
+    x[4] = y[3] - (lu[11] * x[5]);
+    x[3] = y[2] - (lu[7] * x[5]);
     x[1] = y[1];
     x[0] = y[0];
     x[2] = y[8];
@@ -628,7 +646,7 @@ static void four_bar_sparse_solve_in(const four_bar_real *lu, four_bar_real *y, 
 
 static void four_bar_sparse_solve(const four_bar_real *lu, const four_bar_real *b, four_bar_real *x, four_bar_real *y)
 {
-    memcpy(y, b, sizeof(four_bar_real) * 9);
+    (void)memcpy(y, b, sizeof(four_bar_real) * 9u);
     four_bar_sparse_solve_in(lu, y, x);
 }
 
@@ -641,24 +659,24 @@ static void four_bar_sparse_t_forward0(
     x[2] = b[3];
     x[3] = b[4];
     x[6] = b[6];
-    x[4] = (b[5] - lu[7] * x[2] - lu[11] * x[3]) * lu[13];
+    x[4] = (b[5] - (lu[7] * x[2]) - (lu[11] * x[3])) * lu[13];
     x[5] = b[7];
-    x[7] = (b[8] - lu[21] * x[6] - lu[15] * x[4] - lu[19] * x[5]) * lu[23];
+    x[7] = (b[8] - (lu[21] * x[6]) - (lu[15] * x[4]) - (lu[19] * x[5])) * lu[23];
 }
 
 static void four_bar_sparse_t_back0(const four_bar_real *FOUR_BAR_RESTRICT lu, four_bar_real *FOUR_BAR_RESTRICT x)
 {
     x[5] -= x[7];
-    x[4] -= lu[17] * x[5];
+    x[4] -= (lu[17] * x[5]);
     x[6] -= x[4];
     x[3] += x[5];
     x[2] += x[4];
     x[1] += x[3];
     x[0] += x[2];
-    x[8] -= lu[1] * x[0];
-    x[8] -= lu[3] * x[1];
-    x[8] -= lu[5] * x[2];
-    x[8] -= lu[9] * x[3];
+    x[8] -= (lu[1] * x[0]);
+    x[8] -= (lu[3] * x[1]);
+    x[8] -= (lu[5] * x[2]);
+    x[8] -= (lu[9] * x[3]);
 }
 
 static void four_bar_sparse_solve_t(const four_bar_real *lu, const four_bar_real *b, four_bar_real *x)
@@ -672,58 +690,81 @@ static void four_bar_sparse_solve_t(const four_bar_real *lu, const four_bar_real
 static int four_bar_dense_factor(four_bar_real *a, int *perm)
 {
     const int n = 9;
-    int i, j, k;
-    four_bar_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    four_bar_real umax = 0.0;
+    four_bar_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                four_bar_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return FOUR_BAR_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            four_bar_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                four_bar_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return FOUR_BAR_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            four_bar_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= FOUR_BAR_SINGULAR_RATIO * umax ? FOUR_BAR_SINGULAR : FOUR_BAR_OK;
+    return (umin <= (FOUR_BAR_SINGULAR_RATIO * umax)) ? FOUR_BAR_SINGULAR : FOUR_BAR_OK;
 }
 
 static void four_bar_dense_solve(const four_bar_real *a, const int *perm, const four_bar_real *b, four_bar_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(four_bar_real) * 9);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(four_bar_real) * 9u);
     for (i = 0; i < n; ++i) {
         four_bar_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void four_bar_dense_solve_t(const four_bar_real *a, const int *perm, const four_bar_real *b, four_bar_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(four_bar_real) * 9);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(four_bar_real) * 9u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         four_bar_real tmp = x[perm[i]];
@@ -731,8 +772,6 @@ static void four_bar_dense_solve_t(const four_bar_real *a, const int *perm, cons
         x[i] = tmp;
     }
 }
-
-static const int four_bar_pivot_slots[2] = { 13, 23 };
 
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
@@ -740,6 +779,7 @@ static const int four_bar_pivot_slots[2] = { 13, 23 };
    hold reciprocals, whose spread is the pivots'. */
 static int four_bar_pivots_spread(const four_bar_real *lu)
 {
+    static const int four_bar_pivot_slots[2] = { 13, 23 };
     four_bar_real rmin = 1.0;
     four_bar_real rmax = 1.0;
     int k;
@@ -748,7 +788,7 @@ static int four_bar_pivots_spread(const four_bar_real *lu)
         rmin = FOUR_BAR_MIN(rmin, r);
         rmax = FOUR_BAR_MAX(rmax, r);
     }
-    return rmin <= FOUR_BAR_SINGULAR_RATIO * rmax;
+    return (rmin <= (FOUR_BAR_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -761,8 +801,12 @@ static int four_bar_pivots_spread(const four_bar_real *lu)
 static int four_bar_screen(const four_bar_real *lu, int dense, const four_bar_real *row, const four_bar_real *col,
                           const four_bar_real *known)
 {
-    four_bar_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    four_bar_real wmin = known[0];
+    four_bar_real wmax = known[1];
+    four_bar_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[13]) * row[4] * col[5];
     wmin = FOUR_BAR_MIN(wmin, w);
     wmax = FOUR_BAR_MAX(wmax, w);
@@ -773,7 +817,7 @@ static int four_bar_screen(const four_bar_real *lu, int dense, const four_bar_re
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= FOUR_BAR_SCREEN * wmin);
+    return (wmax <= (FOUR_BAR_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -782,7 +826,8 @@ static int four_bar_screen(const four_bar_real *lu, int dense, const four_bar_re
 static void four_bar_screen_known(const four_bar_real *row, const four_bar_real *col, four_bar_real *known)
 {
     four_bar_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[8] * col[2];
     known[0] = FOUR_BAR_MIN(known[0], w);
     known[1] = FOUR_BAR_MAX(known[1], w);
@@ -815,36 +860,51 @@ static void four_bar_screen_known(const four_bar_real *row, const four_bar_real 
 static int four_bar_factorize(const four_bar_real *q, const four_bar_real *tr, four_bar_real t, const four_bar_real *p, four_bar_real *work,
                              int *iwork, int *dense)
 {
-    four_bar_real *values = work, *lu = work + FOUR_BAR_OFF_LU, *a = work + FOUR_BAR_OFF_DENSE;
+    four_bar_real *values = work;
+    four_bar_real *lu = &work[FOUR_BAR_OFF_LU];
+    four_bar_real *a = &work[FOUR_BAR_OFF_DENSE];
     int k;
     four_bar_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (four_bar_sparse_factor(lu) == 0 && !four_bar_pivots_spread(lu)) return FOUR_BAR_OK;
+    if ((four_bar_sparse_factor(lu) == 0) && (four_bar_pivots_spread(lu) == 0)) {
+        return FOUR_BAR_OK;
+    }
     *dense = 1;
     four_bar_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(four_bar_real) * 81);
-    for (k = 0; k < 25; ++k) a[four_bar_phi_q_rows[k] * 9 + four_bar_phi_q_cols[k]] = values[k];
+    (void)memset(a, 0, sizeof(four_bar_real) * 81u);
+    for (k = 0; k < 25; ++k) {
+        a[(four_bar_phi_q_rows[k] * 9) + four_bar_phi_q_cols[k]] = values[k];
+    }
     return four_bar_dense_factor(a, iwork);
 }
 
 static void four_bar_solve(const four_bar_real *work, const int *iwork, int dense, const four_bar_real *b, four_bar_real *x, four_bar_real *y)
 {
-    if (dense) four_bar_dense_solve(work + FOUR_BAR_OFF_DENSE, iwork, b, x);
-    else four_bar_sparse_solve(work + FOUR_BAR_OFF_LU, b, x, y);
+    if (dense != 0) {
+        four_bar_dense_solve(&work[FOUR_BAR_OFF_DENSE], iwork, b, x);
+    } else {
+        four_bar_sparse_solve(&work[FOUR_BAR_OFF_LU], b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void four_bar_solve_in(const four_bar_real *work, const int *iwork, int dense, four_bar_real *b, four_bar_real *x, four_bar_real *y)
 {
-    if (dense) four_bar_solve(work, iwork, dense, b, x, y);
-    else four_bar_sparse_solve_in(work + FOUR_BAR_OFF_LU, b, x);
+    if (dense != 0) {
+        four_bar_solve(work, iwork, dense, b, x, y);
+    } else {
+        four_bar_sparse_solve_in(&work[FOUR_BAR_OFF_LU], b, x);
+    }
 }
 
 static void four_bar_solve_t(const four_bar_real *work, const int *iwork, int dense, const four_bar_real *b, four_bar_real *x)
 {
-    if (dense) four_bar_dense_solve_t(work + FOUR_BAR_OFF_DENSE, iwork, b, x);
-    else four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, b, x);
+    if (dense != 0) {
+        four_bar_dense_solve_t(&work[FOUR_BAR_OFF_DENSE], iwork, b, x);
+    } else {
+        four_bar_sparse_solve_t(&work[FOUR_BAR_OFF_LU], b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -854,12 +914,13 @@ static void four_bar_solve_t(const four_bar_real *work, const int *iwork, int de
    the refinement's cost (a quarter of an instant) is not paid. */
 static int four_bar_mixed(const four_bar_real *m)
 {
-    four_bar_real lo = m[0], hi = m[0];
+    four_bar_real lo = m[0];
+    four_bar_real hi = m[0];
     lo = FOUR_BAR_MIN(lo, m[3]);
     hi = FOUR_BAR_MAX(hi, m[3]);
     lo = FOUR_BAR_MIN(lo, m[6]);
     hi = FOUR_BAR_MAX(hi, m[6]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -874,14 +935,23 @@ static int four_bar_mixed(const four_bar_real *m)
 static FOUR_BAR_COLD void four_bar_refine_t(const four_bar_real *q, const four_bar_real *tr, four_bar_real t, const four_bar_real *p,
                                         const four_bar_real *b, four_bar_real *lam, four_bar_real *work, const int *iwork, int dense)
 {
-    four_bar_real *values = work, *r = FOUR_BAR_VEC(work, 0), *d = FOUR_BAR_VEC(work, 1);
+    four_bar_real *values = work;
+    four_bar_real *r = FOUR_BAR_VEC(work, 0);
+    four_bar_real *d = FOUR_BAR_VEC(work, 1);
     int k;
     four_bar_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(four_bar_real) * 9);
-    for (k = 0; k < 25; ++k) r[four_bar_phi_q_cols[k]] -= values[k] * lam[four_bar_phi_q_rows[k]];
-    if (dense) four_bar_dense_solve_t(work + FOUR_BAR_OFF_DENSE, iwork, r, d);
-    else four_bar_sparse_solve_t(work + FOUR_BAR_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 9; ++k) lam[k] += d[k];
+    (void)memcpy(r, b, sizeof(four_bar_real) * 9u);
+    for (k = 0; k < 25; ++k) {
+        r[four_bar_phi_q_cols[k]] -= values[k] * lam[four_bar_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        four_bar_dense_solve_t(&work[FOUR_BAR_OFF_DENSE], iwork, r, d);
+    } else {
+        four_bar_sparse_solve_t(&work[FOUR_BAR_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 9; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,
@@ -896,48 +966,85 @@ static four_bar_real four_bar_cond_estimate(const four_bar_real *q, const four_b
                                     four_bar_real *work, const int *iwork, int dense, const four_bar_real *row,
                                     const four_bar_real *col)
 {
-    four_bar_real *vals = work, *x = FOUR_BAR_VEC(work, 0), *z = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
-    four_bar_real *b = FOUR_BAR_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    four_bar_real *vals = work;
+    four_bar_real *x = FOUR_BAR_VEC(work, 0);
+    four_bar_real *z = FOUR_BAR_VEC(work, 1);
+    four_bar_real *y = FOUR_BAR_VEC(work, 2);
+    four_bar_real *b = FOUR_BAR_VEC(work, 3);
+    four_bar_real anorm = 0.0;
+    four_bar_real est = 0.0;
+    four_bar_real s;
+    four_bar_real zmax;
+    four_bar_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     four_bar_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 9; ++k) z[k] = 0.0;
-    for (k = 0; k < 25; ++k)
+    for (k = 0; k < 9; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 25; ++k) {
         z[four_bar_phi_q_cols[k]] += fabs(vals[k]) / (row[four_bar_phi_q_rows[k]] * col[four_bar_phi_q_cols[k]]);
-    for (k = 0; k < 9; ++k) anorm = FOUR_BAR_MAX(anorm, z[k]);
-    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        anorm = FOUR_BAR_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 9; ++k) {
+        x[k] = 1.0 / 9.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = row[k] * x[k];
+        }
         four_bar_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         four_bar_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 9; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 9; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (four_bar_real)k / FOUR_BAR_MAX(1.0, 8.0));
+    for (k = 0; k < 9; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((four_bar_real)k / FOUR_BAR_MAX(1.0, 8.0)));
+    }
     four_bar_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
-    est = FOUR_BAR_MAX(est, 2.0 * s / (3.0 * 9.0));
+    for (k = 0; k < 9; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = FOUR_BAR_MAX(est, (2.0 * s) / (3.0 * 9.0));
     return anorm * est;
 }
 
@@ -952,28 +1059,36 @@ static four_bar_real four_bar_cond_estimate(const four_bar_real *q, const four_b
 static int four_bar_row_finite(const four_bar_real *row, const four_bar_real *qn, const four_bar_real *qdn, const four_bar_real *qddn,
                               const four_bar_real *lam, const four_bar_real *reac)
 {
-    four_bar_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    four_bar_real s0 = 0.0;
+    four_bar_real s1 = 0.0;
+    four_bar_real s2 = 0.0;
+    four_bar_real s3 = 0.0;
     int k;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     for (k = 0; k < 64; k += 4) {
-        s0 += row[1 + k + 0];
+        s0 += row[1 + k];
         s1 += row[1 + k + 1];
         s2 += row[1 + k + 2];
         s3 += row[1 + k + 3];
     }
     s0 += row[65];
     s1 += row[66];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     for (k = 0; k < 64; k += 4) {
-        s0 += row[1 + k + 0] * 0.0;
+        s0 += row[1 + k] * 0.0;
         s1 += row[1 + k + 1] * 0.0;
         s2 += row[1 + k + 2] * 0.0;
         s3 += row[1 + k + 3] * 0.0;
     }
     s0 += row[65] * 0.0;
     s1 += row[66] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 9 values, NaN if any v_k is NaN (so that a NaN residual
@@ -981,37 +1096,45 @@ static int four_bar_row_finite(const four_bar_real *row, const four_bar_real *qn
    comparison. */
 static four_bar_real four_bar_maxabs9(const four_bar_real *v)
 {
-    four_bar_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    four_bar_real m0 = 0.0;
+    four_bar_real m1 = 0.0;
+    four_bar_real m2 = 0.0;
+    four_bar_real m3 = 0.0;
+    four_bar_real s0 = 0.0;
+    four_bar_real s1 = 0.0;
+    four_bar_real s2 = 0.0;
+    four_bar_real s3 = 0.0;
+    four_bar_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[6]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[7]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[8]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     m0 = FOUR_BAR_MAX(FOUR_BAR_MAX(m0, m1), FOUR_BAR_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
@@ -1063,17 +1186,28 @@ static four_bar_real four_bar_correct(four_bar_real *q, four_bar_real *dq)
 static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_real tol, four_bar_real *q, four_bar_real *tr, int *info, four_bar_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    four_bar_real *r = FOUR_BAR_VEC(work, 0), *dq = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
+    four_bar_real *r = FOUR_BAR_VEC(work, 0);
+    four_bar_real *dq = FOUR_BAR_VEC(work, 1);
+    four_bar_real *y = FOUR_BAR_VEC(work, 2);
     four_bar_real *base = FOUR_BAR_VEC(work, 10);
-    four_bar_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    four_bar_real step = ((double)INFINITY);
+    four_bar_real lim;
+    four_bar_real qmag;
+    four_bar_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) four_bar_trig_near(q, tr, base);
-    else four_bar_trig_base(q, tr, base);
+    if (reuse != 0) {
+        four_bar_trig_near(q, tr, base);
+    } else {
+        four_bar_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = FOUR_BAR_MAX(1.0, four_bar_maxabs9(q));
-    lim = FOUR_BAR_MAX(tol, (four_bar_real)FOUR_BAR_FLOOR_ULPS * FOUR_BAR_EPS * qmag);
+    lim = FOUR_BAR_MAX(tol, ((four_bar_real)FOUR_BAR_FLOOR_ULPS * FOUR_BAR_EPS) * qmag);
     four_bar_phi_k(q, tr, t, p, r);
     rmax = four_bar_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1082,15 +1216,17 @@ static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_rea
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? FOUR_BAR_NONFINITE : FOUR_BAR_NOT_CONVERGED;
+            return (it == 0) ? FOUR_BAR_NONFINITE : FOUR_BAR_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == FOUR_BAR_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK) {
+        if (it == FOUR_BAR_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK)) {
             info[0] = it;
             info[1] = *dense;
             return FOUR_BAR_SINGULAR;
@@ -1100,8 +1236,8 @@ static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_rea
         four_bar_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= FOUR_BAR_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (FOUR_BAR_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1113,8 +1249,10 @@ static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_rea
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return FOUR_BAR_NOT_CONVERGED;
-    if (!current && four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK) {
+    if (converged == 0) {
+        return FOUR_BAR_NOT_CONVERGED;
+    }
+    if ((current == 0) && (four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK)) {
         info[1] = *dense;
         return FOUR_BAR_SINGULAR;
     }
@@ -1126,7 +1264,8 @@ static int four_bar_newton(four_bar_real t, const four_bar_real *p, four_bar_rea
 static void four_bar_outputs(four_bar_real t, const four_bar_real *p, const four_bar_real *q, const four_bar_real *tr, four_bar_real *qd, four_bar_real *qdd,
                             four_bar_real *lam, four_bar_real *reactions, four_bar_real *work, const int *iwork, int dense)
 {
-    four_bar_real *y = FOUR_BAR_VEC(work, 2), *b = FOUR_BAR_VEC(work, 3);
+    four_bar_real *y = FOUR_BAR_VEC(work, 2);
+    four_bar_real *b = FOUR_BAR_VEC(work, 3);
     four_bar_nu_k(q, tr, t, p, b);
     four_bar_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     four_bar_gamma_k(q, tr, qd, t, p, b);
@@ -1143,7 +1282,9 @@ static void four_bar_outputs(four_bar_real t, const four_bar_real *p, const four
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     four_bar_solve_t(work, iwork, dense, b, lam);
-    if (four_bar_mixed(y)) four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (four_bar_mixed(y) != 0) {
+        four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     four_bar_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1152,8 +1293,11 @@ static void four_bar_outputs(four_bar_real t, const four_bar_real *p, const four
    order, so four sums run side by side and the compiler may pack them). */
 static int four_bar_allfinite(const four_bar_real *v, int n)
 {
-    four_bar_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    four_bar_real s0 = 0.0;
+    four_bar_real s1 = 0.0;
+    four_bar_real s2 = 0.0;
+    four_bar_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1162,8 +1306,11 @@ static int four_bar_allfinite(const four_bar_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1185,12 +1332,24 @@ static int four_bar_finite(const four_bar_real *q, const four_bar_real *qd, cons
 static void four_bar_keep(four_bar_real *state, const four_bar_real *q, const four_bar_real *qd, const four_bar_real *qdd,
                          const four_bar_real *m1, const four_bar_real *m2, const four_bar_real *m3)
 {
-    if (m3 != state + 45) memcpy(state + 45, m3, sizeof(four_bar_real) * 9);
-    if (m2 != state + 36) memcpy(state + 36, m2, sizeof(four_bar_real) * 9);
-    if (m1 != state + 27) memcpy(state + 27, m1, sizeof(four_bar_real) * 9);
-    if (qdd != state + 18) memcpy(state + 18, qdd, sizeof(four_bar_real) * 9);
-    if (qd != state + 9) memcpy(state + 9, qd, sizeof(four_bar_real) * 9);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(four_bar_real) * 9);
+    if (m3 != &state[45]) {
+        (void)memcpy(&state[45], m3, sizeof(four_bar_real) * 9u);
+    }
+    if (m2 != &state[36]) {
+        (void)memcpy(&state[36], m2, sizeof(four_bar_real) * 9u);
+    }
+    if (m1 != &state[27]) {
+        (void)memcpy(&state[27], m1, sizeof(four_bar_real) * 9u);
+    }
+    if (qdd != &state[18]) {
+        (void)memcpy(&state[18], qdd, sizeof(four_bar_real) * 9u);
+    }
+    if (qd != &state[9]) {
+        (void)memcpy(&state[9], qd, sizeof(four_bar_real) * 9u);
+    }
+    if (q != state) {
+        (void)memcpy(state, q, sizeof(four_bar_real) * 9u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1200,27 +1359,32 @@ static void four_bar_keep(four_bar_real *state, const four_bar_real *q, const fo
 static int four_bar_unexplained(const four_bar_real *q0, const four_bar_real *qd0, const four_bar_real *qdd0, const four_bar_real *q1,
                                const four_bar_real *qd1, const four_bar_real *qdd1, four_bar_real h, const four_bar_real *c)
 {
-    const four_bar_real half = 0.5 * h, hh = h * h / 12.0;
-    four_bar_real mismatch = 0.0, motion = 0.0, d;
+    const four_bar_real half = 0.5 * h;
+    const four_bar_real hh = (h * h) / 12.0;
+    four_bar_real mismatch = 0.0;
+    four_bar_real motion = 0.0;
+    four_bar_real d;
     d = q1[0] - q0[0];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = FOUR_BAR_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = FOUR_BAR_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = FOUR_BAR_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1239,35 +1403,43 @@ static int four_bar_unexplained(const four_bar_real *q0, const four_bar_real *qd
     motion = FOUR_BAR_MAX(motion, fabs(d) * c[7]);
     d = q1[8] - q0[8];
     motion = FOUR_BAR_MAX(motion, fabs(d) * c[8]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol, four_bar_real *q, four_bar_real *qd, four_bar_real *qdd,
                     four_bar_real *lam, four_bar_real *reactions, int *info, four_bar_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = FOUR_BAR_BAD_ARGUMENT;
     } else {
-        four_bar_real *tr = FOUR_BAR_VEC(work, 9), *pp = work + FOUR_BAR_OFF_PREP, *kept = FOUR_BAR_VEC(work, 11);
-        memcpy(kept, q, sizeof(four_bar_real) * 9);  /* the caller's guess, back in q if the call fails */
+        four_bar_real *tr = FOUR_BAR_VEC(work, 9);
+        four_bar_real *pp = &work[FOUR_BAR_OFF_PREP];
+        four_bar_real *kept = FOUR_BAR_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(four_bar_real) * 9u);  /* the caller's guess, back in q if the call fails */
         four_bar_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = FOUR_BAR_VEC(work, 5);
-        if (qdd == NULL) qdd = FOUR_BAR_VEC(work, 6);
-        if (lam == NULL) lam = FOUR_BAR_VEC(work, 7);
-        if (reactions == NULL) reactions = FOUR_BAR_VEC(work, 8);
+        four_bar_real *qd_out = (qd != NULL) ? qd : FOUR_BAR_VEC(work, 5);
+        four_bar_real *qdd_out = (qdd != NULL) ? qdd : FOUR_BAR_VEC(work, 6);
+        four_bar_real *lam_out = (lam != NULL) ? lam : FOUR_BAR_VEC(work, 7);
+        four_bar_real *reactions_out = (reactions != NULL) ? reactions : FOUR_BAR_VEC(work, 8);
         status = four_bar_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == FOUR_BAR_OK) {
-            four_bar_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!four_bar_finite(q, qd, qdd, lam, reactions)) status = FOUR_BAR_NONFINITE;
+            four_bar_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (four_bar_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = FOUR_BAR_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != FOUR_BAR_OK) memcpy(q, kept, sizeof(four_bar_real) * 9);
+        if (status != FOUR_BAR_OK) {
+            (void)memcpy(q, kept, sizeof(four_bar_real) * 9u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1285,21 +1457,29 @@ int four_bar_instant_at(long whole, four_bar_real frac, const four_bar_real *p, 
 
 int four_bar_screen_at(four_bar_real t, const four_bar_real *p, const four_bar_real *state, four_bar_real *work, int *iwork)
 {
-    four_bar_real *tr, *pp, known[2];
+    four_bar_real *tr;
+    four_bar_real *pp;
+    four_bar_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return FOUR_BAR_BAD_ARGUMENT;
-    if (!(state[63] > 0.0)) return FOUR_BAR_OK;  /* no scales: no screen */
-    tr = FOUR_BAR_VEC(work, 9), pp = work + FOUR_BAR_OFF_PREP;
+    }
+    if (!(state[63] > 0.0)) {
+        return FOUR_BAR_OK;  /* no scales: no screen */
+    }
+    tr = FOUR_BAR_VEC(work, 9);
+    pp = &work[FOUR_BAR_OFF_PREP];
     four_bar_prepare(p, pp);
     four_bar_trig(state, tr);
-    if (four_bar_factorize(state, tr, t, pp, work, iwork, &dense) != FOUR_BAR_OK)
+    if (four_bar_factorize(state, tr, t, pp, work, iwork, &dense) != FOUR_BAR_OK) {
         return FOUR_BAR_ILL_CONDITIONED;
-    four_bar_screen_known(state + 63, state + 54, known);
-    if (four_bar_screen(work + FOUR_BAR_OFF_LU, dense, state + 63, state + 54, known)
-        && !(four_bar_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
-             <= FOUR_BAR_COND_SCREEN))
+    }
+    four_bar_screen_known(&state[63], &state[54], known);
+    if ((four_bar_screen(&work[FOUR_BAR_OFF_LU], dense, &state[63], &state[54], known) != 0)
+        && !(four_bar_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
+             <= FOUR_BAR_COND_SCREEN)) {
         return FOUR_BAR_ILL_CONDITIONED;
+    }
     return FOUR_BAR_OK;
 }
 
@@ -1309,93 +1489,133 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    four_bar_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    four_bar_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    four_bar_real *q;
+    four_bar_real *m1;
+    four_bar_real *m2;
+    four_bar_real *count;
+    four_bar_real *qn;
+    four_bar_real *qdn;
+    four_bar_real *qddn;
+    four_bar_real *lam;
+    four_bar_real *reac;
+    four_bar_real *tr;
+    four_bar_real *pp;
+    four_bar_real *scale;
+    four_bar_real *rscale;
+    four_bar_real *qd;
+    four_bar_real *qdd;
+    four_bar_real *m3;
+    four_bar_real known[2];
+    long i;
+    long unused;
+    long *done = &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
+    *done = 0;
     status = FOUR_BAR_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return FOUR_BAR_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
-    scale = state + 54, rscale = state + 63;
-    if (rscale[0] > 0.0) four_bar_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 9, qdd = state + 18, m3 = state + 45;
-    tr = FOUR_BAR_VEC(work, 9), pp = work + FOUR_BAR_OFF_PREP;
+    q = state;
+    m1 = &state[27];
+    m2 = &state[36];
+    count = &state[72];
+    scale = &state[54];
+    rscale = &state[63];
+    if (rscale[0] > 0.0) {
+        four_bar_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[9];
+    qdd = &state[18];
+    m3 = &state[45];
+    tr = FOUR_BAR_VEC(work, 9);
+    pp = &work[FOUR_BAR_OFF_PREP];
     four_bar_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const four_bar_real t = t0 + *count * h;
-        four_bar_real *row = rows + i * FOUR_BAR_ROW;
+        const four_bar_real t = t0 + (*count * h);
+        four_bar_real *row = &rows[i * FOUR_BAR_ROW];
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 10;
-        qddn = row + 19;
-        lam = row + 28;
-        reac = row + 37;
+        qn = &row[1];
+        qdn = &row[10];
+        qddn = &row[19];
+        lam = &row[28];
+        reac = &row[37];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
-                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
-            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
-                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
-            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
-                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
-            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
-            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
-        } else
-            memcpy(qn, q, sizeof(four_bar_real) * 9);
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+            qn[6] = q[6] + (h * (qd[6] + (h * (((((323.0 / 360.0) * qdd[6]) - ((264.0 / 360.0) * m1[6]))
+                                                 + ((159.0 / 360.0) * m2[6])) - ((38.0 / 360.0) * m3[6])))));
+            qn[7] = q[7] + (h * (qd[7] + (h * (((((323.0 / 360.0) * qdd[7]) - ((264.0 / 360.0) * m1[7]))
+                                                 + ((159.0 / 360.0) * m2[7])) - ((38.0 / 360.0) * m3[7])))));
+            qn[8] = q[8] + (h * (qd[8] + (h * (((((323.0 / 360.0) * qdd[8]) - ((264.0 / 360.0) * m1[8]))
+                                                 + ((159.0 / 360.0) * m2[8])) - ((38.0 / 360.0) * m3[8])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+            qn[6] = q[6] + (h * (qd[6] + ((0.5 * h) * qdd[6])));
+            qn[7] = q[7] + (h * (qd[7] + ((0.5 * h) * qdd[7])));
+            qn[8] = q[8] + (h * (qd[8] + ((0.5 * h) * qdd[8])));
+        } else {
+            (void)memcpy(qn, q, sizeof(four_bar_real) * 9u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = four_bar_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != FOUR_BAR_OK) break;
-        if (rscale[0] > 0.0 && four_bar_screen(work + FOUR_BAR_OFF_LU, dense, rscale, scale, known)
+        status = four_bar_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != FOUR_BAR_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (four_bar_screen(&work[FOUR_BAR_OFF_LU], dense, rscale, scale, known) != 0)
             && !(four_bar_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= FOUR_BAR_COND_SCREEN)) {
             status = FOUR_BAR_ILL_CONDITIONED;
             break;
         }
         four_bar_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!four_bar_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (four_bar_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = FOUR_BAR_NONFINITE;
             break;
         }
-        if (*count >= 1 && four_bar_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (four_bar_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = FOUR_BAR_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     four_bar_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }
@@ -1407,8 +1627,8 @@ static void four_bar_guess(const four_bar_real *p, four_bar_real *out)
 {
     (void)p;
     out[0] = (1.0/2.0)*p[1];
-    out[1] = 0;
-    out[2] = 0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = 202083333333.0/1000000000000.0;
     out[4] = 71070375431.0/500000000000.0;
     out[5] = 947969741383.0/1000000000000.0;
@@ -1422,7 +1642,7 @@ static void four_bar_drive(four_bar_real t, const four_bar_real *p, four_bar_rea
 {
     (void)t;
     (void)p;
-    const four_bar_real d0 = (2*3.141592653589793*p[9]);
+    const four_bar_real d0 = (2.0*3.141592653589793*p[9]);
     out[0] = d0*t;
     out[1] = d0;
 }
@@ -1435,36 +1655,61 @@ static void four_bar_drive(four_bar_real t, const four_bar_real *p, four_bar_rea
 static void four_bar_sweep_scales(const four_bar_real *q, four_bar_real t0, const four_bar_real *p, four_bar_real *vals,
                                  four_bar_real *arms, four_bar_real *inv, four_bar_real *norm)
 {
-    four_bar_real lin[9], rot[9], lref = 0.0, a;
-    int k, r, m = 0, i;
+    four_bar_real lin[9];
+    four_bar_real rot[9];
+    four_bar_real lref = 0.0;
+    four_bar_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     four_bar_phi_q(q, t0, p, vals);
-    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 9; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 25; ++k) {
         a = fabs(vals[k]);
         r = four_bar_phi_q_rows[k];
-        if (four_bar_phi_q_cols[k] % 3 == 2) rot[r] = FOUR_BAR_MAX(rot[r], a);
-        else lin[r] = FOUR_BAR_MAX(lin[r], a);
+        if ((four_bar_phi_q_cols[k] % 3) == 2) {
+            rot[r] = FOUR_BAR_MAX(rot[r], a);
+        } else {
+            lin[r] = FOUR_BAR_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 9; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
+                arms[i] = arms[i - 1];
+                --i;
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 9; ++k)
-            if (k % 3 != 2) lref = FOUR_BAR_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 9; ++k) {
+            if ((k % 3) != 2) {
+                lref = FOUR_BAR_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 9; ++r) {
         a = FOUR_BAR_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1476,7 +1721,9 @@ static void four_bar_sweep_take(const four_bar_real *row, const four_bar_real *p
                                four_bar_real *drive, long count)
 {
     const four_bar_real t = row[0];
-    four_bar_real e, rate, w;
+    four_bar_real e;
+    four_bar_real rate;
+    four_bar_real w;
     four_bar_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1486,41 +1733,69 @@ static void four_bar_sweep_take(const four_bar_real *row, const four_bar_real *p
     e = -row[36];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* crank_pivot.force_peak */
-    m = row[37] * row[37] + row[38] * row[38];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[40] * row[40] + row[41] * row[41];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[37] * row[37]) + (row[38] * row[38]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[40] * row[40]) + (row[41] * row[41]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* crank_coupler_pin.force_peak */
-    m = row[43] * row[43] + row[44] * row[44];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[46] * row[46] + row[47] * row[47];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[43] * row[43]) + (row[44] * row[44]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[46] * row[46]) + (row[47] * row[47]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* coupler_rocker_pin.force_peak */
-    m = row[49] * row[49] + row[50] * row[50];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[52] * row[52] + row[53] * row[53];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[49] * row[49]) + (row[50] * row[50]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[52] * row[52]) + (row[53] * row[53]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* rocker_pivot.force_peak */
-    m = row[55] * row[55] + row[56] * row[56];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[58] * row[58] + row[59] * row[59];
-    if (m > fig[7]) fig[7] = m;
+    m = (row[55] * row[55]) + (row[56] * row[56]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[58] * row[58]) + (row[59] * row[59]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
     /* crank_motor.force_peak */
-    m = row[61] * row[61] + row[62] * row[62];
-    if (count == 0 || m > fig[8]) fig[8] = m;
-    m = row[64] * row[64] + row[65] * row[65];
-    if (m > fig[8]) fig[8] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[61] * row[61]) + (row[62] * row[62]);
+    if ((count == 0) || (m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[64] * row[64]) + (row[65] * row[65]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 
@@ -1531,7 +1806,9 @@ static void four_bar_sweep_finish(four_bar_real *fig, const four_bar_real *acc, 
     const four_bar_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 9; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 9; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1540,7 +1817,7 @@ static void four_bar_sweep_finish(four_bar_real *fig, const four_bar_real *acc, 
     fig[6] = sqrt(fig[6]);
     fig[7] = sqrt(fig[7]);
     fig[8] = sqrt(fig[8]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (four_bar_real)count);
 }
 
@@ -1550,10 +1827,14 @@ static void four_bar_sweep_finish(four_bar_real *fig, const four_bar_real *acc, 
 long four_bar_sweep_lanes(long *abandoned)
 {
 #if FOUR_BAR_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&four_bar_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&four_bar_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return four_bar_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1561,25 +1842,37 @@ long four_bar_sweep_lanes(long *abandoned)
 int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_real h, long n, four_bar_real tol,
                   four_bar_real *figures, int *status, four_bar_real *t_end, long *solved, four_bar_real *work, int *iwork)
 {
-    four_bar_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    four_bar_real *state;
+    four_bar_real *rows;
+    four_bar_real *vals;
+    four_bar_real *arms;
+    four_bar_real *drive;
+    four_bar_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if FOUR_BAR_LANES > 1
     const long lanes = four_bar_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     four_bar_real snap[FOUR_BAR_LANES * FOUR_BAR_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return FOUR_BAR_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + FOUR_BAR_WORK, rows = state + FOUR_BAR_STATE;
-    vals = rows + 32 * FOUR_BAR_ROW, arms = vals + 25, drive = arms + 9;
-    acc = drive + 2;
+    state = &work[FOUR_BAR_WORK];
+    rows = &state[FOUR_BAR_STATE];
+    vals = &rows[32 * FOUR_BAR_ROW];
+    arms = &vals[25];
+    drive = &arms[9];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const four_bar_real *pv = p + v * FOUR_BAR_NP;
-        four_bar_real *fig = figures + v * FOUR_BAR_SWEEP_FIGURES;
+        const four_bar_real *pv = &p[v * FOUR_BAR_NP];
+        four_bar_real *fig = &figures[v * FOUR_BAR_SWEEP_FIGURES];
 #if FOUR_BAR_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (four_bar_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1591,26 +1884,28 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const four_bar_real *s = snap + (v - first) * FOUR_BAR_SNAP;
-            memcpy(state, s, sizeof(four_bar_real) * FOUR_BAR_STATE);
-            memcpy(fig, s + FOUR_BAR_STATE, sizeof(four_bar_real) * FOUR_BAR_SWEEP_FIGURES);
-            memcpy(acc, s + FOUR_BAR_STATE + FOUR_BAR_SWEEP_FIGURES, sizeof(four_bar_real) * 5);
+            (void)memcpy(state, s, sizeof(four_bar_real) * FOUR_BAR_STATE);
+            (void)memcpy(fig, &s[FOUR_BAR_STATE], sizeof(four_bar_real) * FOUR_BAR_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[FOUR_BAR_STATE + FOUR_BAR_SWEEP_FIGURES], sizeof(four_bar_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(four_bar_real) * FOUR_BAR_STATE);
+            (void)memset(state, 0, sizeof(four_bar_real) * (size_t)FOUR_BAR_STATE);
             four_bar_guess(pv, state);
             done = 0;
         }
         st = FOUR_BAR_OK;
-        while (done < n && st == FOUR_BAR_OK) {
+        while ((done < n) && (st == FOUR_BAR_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : FOUR_BAR_MIN(32, n - done);
+            m = (done == 0) ? 1 : FOUR_BAR_MIN(32, n - done);
             got = 0;
             st = four_bar_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) four_bar_sweep_take(rows + m * FOUR_BAR_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
-                four_bar_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+            for (m = 0; m < got; ++m) {
+                four_bar_sweep_take(&rows[m * FOUR_BAR_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
+                four_bar_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = four_bar_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;
@@ -1618,7 +1913,7 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
         four_bar_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return FOUR_BAR_OK;
 }
@@ -1680,17 +1975,28 @@ static void four_bar_sp_gamma_k(const four_bar_real * q, const four_bar_real * t
 static int four_bar_sp_newton(four_bar_real t, const four_bar_real *p, const four_bar_real *q_des, four_bar_real tol, four_bar_real *q, four_bar_real *tr, int *info, four_bar_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    four_bar_real *r = FOUR_BAR_VEC(work, 0), *dq = FOUR_BAR_VEC(work, 1), *y = FOUR_BAR_VEC(work, 2);
+    four_bar_real *r = FOUR_BAR_VEC(work, 0);
+    four_bar_real *dq = FOUR_BAR_VEC(work, 1);
+    four_bar_real *y = FOUR_BAR_VEC(work, 2);
     four_bar_real *base = FOUR_BAR_VEC(work, 10);
-    four_bar_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    four_bar_real step = ((double)INFINITY);
+    four_bar_real lim;
+    four_bar_real qmag;
+    four_bar_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) four_bar_trig_near(q, tr, base);
-    else four_bar_trig_base(q, tr, base);
+    if (reuse != 0) {
+        four_bar_trig_near(q, tr, base);
+    } else {
+        four_bar_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = FOUR_BAR_MAX(1.0, four_bar_maxabs9(q));
-    lim = FOUR_BAR_MAX(tol, (four_bar_real)FOUR_BAR_FLOOR_ULPS * FOUR_BAR_EPS * qmag);
+    lim = FOUR_BAR_MAX(tol, ((four_bar_real)FOUR_BAR_FLOOR_ULPS * FOUR_BAR_EPS) * qmag);
     four_bar_phi_k(q, tr, t, p, r);
     four_bar_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
     rmax = four_bar_maxabs9(r);
@@ -1700,15 +2006,17 @@ static int four_bar_sp_newton(four_bar_real t, const four_bar_real *p, const fou
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? FOUR_BAR_NONFINITE : FOUR_BAR_NOT_CONVERGED;
+            return (it == 0) ? FOUR_BAR_NONFINITE : FOUR_BAR_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == FOUR_BAR_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK) {
+        if (it == FOUR_BAR_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK)) {
             info[0] = it;
             info[1] = *dense;
             return FOUR_BAR_SINGULAR;
@@ -1718,8 +2026,8 @@ static int four_bar_sp_newton(four_bar_real t, const four_bar_real *p, const fou
         four_bar_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= FOUR_BAR_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (FOUR_BAR_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1732,8 +2040,10 @@ static int four_bar_sp_newton(four_bar_real t, const four_bar_real *p, const fou
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return FOUR_BAR_NOT_CONVERGED;
-    if (!current && four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK) {
+    if (converged == 0) {
+        return FOUR_BAR_NOT_CONVERGED;
+    }
+    if ((current == 0) && (four_bar_factorize(q, tr, t, p, work, iwork, dense) != FOUR_BAR_OK)) {
         info[1] = *dense;
         return FOUR_BAR_SINGULAR;
     }
@@ -1746,7 +2056,8 @@ static void four_bar_sp_outputs(four_bar_real t, const four_bar_real *p, const f
                             four_bar_real *lam, four_bar_real *reactions, four_bar_real *work, const int *iwork, int dense,
                             const four_bar_real *q_des, const four_bar_real *qd_des, const four_bar_real *qdd_des)
 {
-    four_bar_real *y = FOUR_BAR_VEC(work, 2), *b = FOUR_BAR_VEC(work, 3);
+    four_bar_real *y = FOUR_BAR_VEC(work, 2);
+    four_bar_real *b = FOUR_BAR_VEC(work, 3);
     four_bar_nu_k(q, tr, t, p, b);
     four_bar_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
     four_bar_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
@@ -1765,7 +2076,9 @@ static void four_bar_sp_outputs(four_bar_real t, const four_bar_real *p, const f
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     four_bar_solve_t(work, iwork, dense, b, lam);
-    if (four_bar_mixed(y)) four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (four_bar_mixed(y) != 0) {
+        four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     four_bar_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1777,25 +2090,34 @@ static int four_bar_sp_instant(four_bar_real t, const four_bar_real *p, four_bar
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !four_bar_allfinite(q_des, FOUR_BAR_ND) || !four_bar_allfinite(qd_des, FOUR_BAR_ND)
-        || !four_bar_allfinite(qdd_des, FOUR_BAR_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (four_bar_allfinite(q_des, FOUR_BAR_ND) == 0) || (four_bar_allfinite(qd_des, FOUR_BAR_ND) == 0)
+        || (four_bar_allfinite(qdd_des, FOUR_BAR_ND) == 0)) {
         status = FOUR_BAR_BAD_ARGUMENT;
     } else {
-        four_bar_real *tr = FOUR_BAR_VEC(work, 9), *pp = work + FOUR_BAR_OFF_PREP, *kept = FOUR_BAR_VEC(work, 11);
-        memcpy(kept, q, sizeof(four_bar_real) * 9);  /* the caller's guess, back in q if the call fails */
+        four_bar_real *tr = FOUR_BAR_VEC(work, 9);
+        four_bar_real *pp = &work[FOUR_BAR_OFF_PREP];
+        four_bar_real *kept = FOUR_BAR_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(four_bar_real) * 9u);  /* the caller's guess, back in q if the call fails */
         four_bar_prepare(p, pp);
-        if (qd == NULL) qd = FOUR_BAR_VEC(work, 5);
-        if (qdd == NULL) qdd = FOUR_BAR_VEC(work, 6);
-        if (lam == NULL) lam = FOUR_BAR_VEC(work, 7);
-        if (reactions == NULL) reactions = FOUR_BAR_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        four_bar_real *qd_out = (qd != NULL) ? qd : FOUR_BAR_VEC(work, 5);
+        four_bar_real *qdd_out = (qdd != NULL) ? qdd : FOUR_BAR_VEC(work, 6);
+        four_bar_real *lam_out = (lam != NULL) ? lam : FOUR_BAR_VEC(work, 7);
+        four_bar_real *reactions_out = (reactions != NULL) ? reactions : FOUR_BAR_VEC(work, 8);
         status = four_bar_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == FOUR_BAR_OK) {
-            four_bar_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!four_bar_finite(q, qd, qdd, lam, reactions)) status = FOUR_BAR_NONFINITE;
+            four_bar_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (four_bar_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = FOUR_BAR_NONFINITE;
+            }
         }
-        if (status != FOUR_BAR_OK) memcpy(q, kept, sizeof(four_bar_real) * 9);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != FOUR_BAR_OK) {
+            (void)memcpy(q, kept, sizeof(four_bar_real) * 9u);
+        }
     }
     return status;
 }
@@ -1805,7 +2127,8 @@ int four_bar_setpoint(four_bar_real t, const four_bar_real *p, four_bar_real tol
                      four_bar_real *qdd, four_bar_real *lam, four_bar_real *reactions, int *info, four_bar_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = four_bar_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -195,13 +195,13 @@ extern const four_bar_real four_bar_default_q0[FOUR_BAR_NG];
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 42, phi_q 20, nu 0, gamma 30, applied 62, mass 0, reactions 9, lu_factor 15, lu_forward 5, lu_back 12, lu_t_forward 12, lu_t_back 5. */
-#define FOUR_BAR_OPS_INSTANT 288
+   work), and of each evaluation: phi 41, phi_q 20, nu 0, gamma 30, applied 60, mass 0, reactions 9, lu_factor 15, lu_forward 5, lu_back 12, lu_t_forward 12, lu_t_back 5. */
+#define FOUR_BAR_OPS_INSTANT 284
 
 /* Worst case of one instant call (computed at generation from the counts
    above, not measured): Newton reaching MAX_NEWTON, every factorization
    through the pivoting fallback (bounded by a dense LU). At most
-   1586 + 1134 MAX_NEWTON counted floating operations and
+   1583 + 1133 MAX_NEWTON counted floating operations and
    8 + 6 MAX_NEWTON libm calls; as instructions, at most
    WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
    loads, stores and indexing), each libm call 300 (the real type on its
@@ -211,7 +211,7 @@ extern const four_bar_real four_bar_default_q0[FOUR_BAR_NG];
    test_c_edges checks it under callgrind on x86-64 for every bundled
    example, the cap reached (instant only: a trajectory's instant adds its
    predictor, checks and, if generated, sensitivities). */
-#define FOUR_BAR_WORST_INSTRUCTIONS (24432L + 15808L * (long)FOUR_BAR_MAX_NEWTON)
+#define FOUR_BAR_WORST_INSTRUCTIONS (24396L + 15796L * (long)FOUR_BAR_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int four_bar_phi_q_rows[25];

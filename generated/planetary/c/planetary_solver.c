@@ -43,7 +43,7 @@ typedef char planetary_real_must_have_the_size_of_double[sizeof(planetary_real) 
 #define PLANETARY_OFF_LU 20
 #define PLANETARY_OFF_DENSE (PLANETARY_OFF_LU + PLANETARY_LU_SIZE)
 #define PLANETARY_OFF_VEC (PLANETARY_OFF_DENSE + 144)
-#define PLANETARY_VEC(work, k) ((work) + PLANETARY_OFF_VEC + (k) * 51)
+#define PLANETARY_VEC(work, k) (&(work)[PLANETARY_OFF_VEC + ((k) * 51)])
 /* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
 #define PLANETARY_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
 #define PLANETARY_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
@@ -186,10 +186,12 @@ static void planetary_trig_base(const planetary_real *q, planetary_real *tr, pla
 {
     int b;
     for (b = 0; b < 4; ++b) {
-        const planetary_real a = q[3 * b + 2];
+        const planetary_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -204,59 +206,79 @@ static void planetary_trig_base(const planetary_real *q, planetary_real *tr, pla
 static void planetary_trig_near(const planetary_real *q, planetary_real *tr, planetary_real *base)
 {
     {
-        const planetary_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const planetary_real a = q[2];
+        const planetary_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const planetary_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const planetary_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const planetary_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const planetary_real d2 = d * d;
+            const planetary_real s = base[1];
+            const planetary_real c = base[2];
+            const planetary_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const planetary_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const planetary_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const planetary_real a = q[5];
+        const planetary_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const planetary_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const planetary_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const planetary_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const planetary_real d2 = d * d;
+            const planetary_real s = base[4];
+            const planetary_real c = base[5];
+            const planetary_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const planetary_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const planetary_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const planetary_real a = q[8];
+        const planetary_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const planetary_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const planetary_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const planetary_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const planetary_real d2 = d * d;
+            const planetary_real s = base[7];
+            const planetary_real c = base[8];
+            const planetary_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const planetary_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
     {
-        const planetary_real a = q[3 * 3 + 2], d = a - base[3 * 3];
+        const planetary_real a = q[11];
+        const planetary_real d = a - base[9];
         if (fabs(d) <= 0.0625) {
-            const planetary_real d2 = d * d, s = base[3 * 3 + 1], c = base[3 * 3 + 2];
-            const planetary_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const planetary_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 3] = s + (s * cm + c * sd);
-            tr[2 * 3 + 1] = c + (c * cm - s * sd);
+            const planetary_real d2 = d * d;
+            const planetary_real s = base[10];
+            const planetary_real c = base[11];
+            const planetary_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const planetary_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[6] = s + ((s * cm) + (c * sd));
+            tr[7] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 3] = a;
-            tr[2 * 3] = base[3 * 3 + 1] = sin(a);
-            tr[2 * 3 + 1] = base[3 * 3 + 2] = cos(a);
+            base[9] = a;
+            base[10] = sin(a);
+            tr[6] = base[10];
+            base[11] = cos(a);
+            tr[7] = base[11];
         }
     }
 }
@@ -269,40 +291,48 @@ static void planetary_trig_near(const planetary_real *q, planetary_real *tr, pla
 static void planetary_trig_step(const planetary_real *q, const planetary_real *dq, planetary_real *tr, planetary_real *base)
 {
     {
-        const planetary_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const planetary_real d = -dq[2];
+        const planetary_real s = tr[0];
+        const planetary_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             planetary_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const planetary_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const planetary_real d = -dq[5];
+        const planetary_real s = tr[2];
+        const planetary_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             planetary_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const planetary_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const planetary_real d = -dq[8];
+        const planetary_real s = tr[4];
+        const planetary_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             planetary_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const planetary_real d = -dq[3 * 3 + 2], s = tr[2 * 3], c = tr[2 * 3 + 1];
+        const planetary_real d = -dq[11];
+        const planetary_real s = tr[6];
+        const planetary_real c = tr[7];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 3] = s + c * d;
-            tr[2 * 3 + 1] = c - s * d;
+            tr[6] = s + (c * d);
+            tr[7] = c - (s * d);
         } else {
             planetary_trig_near(q, tr, base);
             return;
@@ -316,12 +346,12 @@ static void planetary_trig_step(const planetary_real *q, const planetary_real *d
    evaluation. The kernels read both from this one vector. */
 static void planetary_prepare(const planetary_real *p, planetary_real *pp)
 {
-    memcpy(pp, p, sizeof(planetary_real) * 9);
+    (void)memcpy(pp, p, sizeof(planetary_real) * 9u);
     {
         const planetary_real e0 = p[0] + p[1];
         const planetary_real e1 = (1.0/p[1]);
         const planetary_real e2 = e1*p[0];
-        const planetary_real e3 = (1.0/(p[0] + 2*p[1]));
+        const planetary_real e3 = (1.0/(p[0] + (2.0*p[1])));
         const planetary_real e4 = e3*p[1];
         const planetary_real e5 = (1.0/p[0]);
         pp[9] = e0;
@@ -332,9 +362,9 @@ static void planetary_prepare(const planetary_real *p, planetary_real *pp)
         pp[14] = p[0] + p[2];
         pp[15] = e5;
         pp[16] = e5*p[2];
-        pp[17] = (2*3.141592653589793*p[7]);
-        pp[18] = -e2 - 1;
-        pp[19] = e4 - 1;
+        pp[17] = (2.0*3.141592653589793*p[7]);
+        pp[18] = -e2 - 1.0;
+        pp[19] = e4 - 1.0;
         pp[20] = -e4;
         pp[21] = (1.0/2.0)*(p[0]*p[0])*p[3];
         pp[22] = (1.0/2.0)*(e0*e0)*p[6];
@@ -350,14 +380,14 @@ static void planetary_phi_k0(const planetary_real * q, const planetary_real * tr
     out[1] = q[1];
     out[2] = q[3];
     out[3] = q[4];
-    out[4] = -p[9]*tr[3] + (-q[3] + q[6]);
-    out[5] = -p[9]*tr[2] + (-q[4] + q[7]);
-    out[6] = e0 + p[11]*(e0 + q[2]) + q[8];
-    out[7] = -p[13]*(-q[5] + q[8]) - q[5];
+    out[4] = (-p[9]*tr[3]) + (-q[3] + q[6]);
+    out[5] = (-p[9]*tr[2]) + (-q[4] + q[7]);
+    out[6] = e0 + (p[11]*(e0 + q[2])) + q[8];
+    out[7] = (-p[13]*(-q[5] + q[8])) - q[5];
     out[8] = p[14] + q[9];
     out[9] = q[10];
-    out[10] = p[16]*q[11] + q[2];
-    out[11] = -p[17]*t + q[11];
+    out[10] = (p[16]*q[11]) + q[2];
+    out[11] = (-p[17]*t) + q[11];
 }
 
 static void planetary_phi_k(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -371,34 +401,33 @@ void planetary_phi(const planetary_real * q, planetary_real t, const planetary_r
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_phi_k(q, tr, t, p, out);
+    planetary_phi_k(q, tr, t, prepared, out);
 }
 
 static void planetary_phi_q_k0(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
 {
     (void)q;
     (void)t;
-    out[0] = 1;
-    out[1] = 1;
-    out[2] = 1;
-    out[3] = 1;
-    out[4] = -1;
+    out[0] = 1.0;
+    out[1] = 1.0;
+    out[2] = 1.0;
+    out[3] = 1.0;
+    out[4] = -1.0;
     out[5] = p[9]*tr[2];
-    out[6] = 1;
-    out[7] = -1;
+    out[6] = 1.0;
+    out[7] = -1.0;
     out[8] = -p[9]*tr[3];
-    out[9] = 1;
+    out[9] = 1.0;
     out[10] = p[11];
     out[11] = p[18];
-    out[12] = 1;
+    out[12] = 1.0;
     out[13] = p[19];
     out[14] = p[20];
-    out[15] = 1;
-    out[16] = 1;
-    out[17] = 1;
+    out[15] = 1.0;
+    out[16] = 1.0;
+    out[17] = 1.0;
     out[18] = p[16];
-    out[19] = 1;
+    out[19] = 1.0;
 }
 
 static void planetary_phi_q_k(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -412,8 +441,7 @@ void planetary_phi_q(const planetary_real * q, planetary_real t, const planetary
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_phi_q_k(q, tr, t, p, out);
+    planetary_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void planetary_nu_k0(const planetary_real * q, const planetary_real * tr, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -421,17 +449,17 @@ static void planetary_nu_k0(const planetary_real * q, const planetary_real * tr,
     (void)q;
     (void)tr;
     (void)t;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
-    out[9] = 0;
-    out[10] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
+    out[9] = 0.0;
+    out[10] = 0.0;
     out[11] = p[17];
 }
 
@@ -446,8 +474,7 @@ void planetary_nu(const planetary_real * q, planetary_real t, const planetary_re
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_nu_k(q, tr, t, p, out);
+    planetary_nu_k(q, tr, t, prepared, out);
 }
 
 static void planetary_gamma_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -455,18 +482,18 @@ static void planetary_gamma_k0(const planetary_real * q, const planetary_real * 
     (void)q;
     (void)t;
     const planetary_real e0 = p[9]*(qd[5]*qd[5]);
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = -e0*tr[3];
     out[5] = -e0*tr[2];
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
-    out[9] = 0;
-    out[10] = 0;
-    out[11] = 0;
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
+    out[9] = 0.0;
+    out[10] = 0.0;
+    out[11] = 0.0;
 }
 
 static void planetary_gamma_k(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -480,8 +507,7 @@ void planetary_gamma(const planetary_real * q, const planetary_real * qd, planet
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_gamma_k(q, tr, qd, t, p, out);
+    planetary_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void planetary_applied_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -490,18 +516,18 @@ static void planetary_applied_k0(const planetary_real * q, const planetary_real 
     (void)tr;
     (void)qd;
     (void)t;
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[3];
-    out[2] = 0;
-    out[3] = 0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = -981.0/100.0*p[6];
     out[5] = p[8];
-    out[6] = 0;
+    out[6] = 0.0;
     out[7] = -981.0/100.0*p[4];
-    out[8] = 0;
-    out[9] = 0;
+    out[8] = 0.0;
+    out[9] = 0.0;
     out[10] = -981.0/100.0*p[5];
-    out[11] = 0;
+    out[11] = 0.0;
 }
 
 static void planetary_applied_k(const planetary_real * q, const planetary_real * tr, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -515,8 +541,7 @@ void planetary_applied(const planetary_real * q, const planetary_real * qd, plan
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_applied_k(q, tr, qd, t, p, out);
+    planetary_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void planetary_mass_k0(const planetary_real * p, planetary_real *out)
@@ -544,8 +569,7 @@ void planetary_mass(const planetary_real * p, planetary_real *out)
 {
     planetary_real prepared[25];
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_mass_k(p, out);
+    planetary_mass_k(prepared, out);
 }
 
 static void planetary_reactions_k0(const planetary_real * q, const planetary_real * tr, const planetary_real * lam, planetary_real t, const planetary_real * p, planetary_real *out)
@@ -558,51 +582,51 @@ static void planetary_reactions_k0(const planetary_real * q, const planetary_rea
     const planetary_real e2 = -lam[7];
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = lam[4];
     out[13] = lam[5];
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = -lam[4];
     out[16] = -lam[5];
-    out[17] = 0;
-    out[18] = 0;
-    out[19] = 0;
+    out[17] = 0.0;
+    out[18] = 0.0;
+    out[19] = 0.0;
     out[20] = -e0;
-    out[21] = 0;
-    out[22] = 0;
+    out[21] = 0.0;
+    out[22] = 0.0;
     out[23] = -lam[6];
-    out[24] = 0;
-    out[25] = 0;
+    out[24] = 0.0;
+    out[25] = 0.0;
     out[26] = e0 + lam[6];
-    out[27] = 0;
-    out[28] = 0;
+    out[27] = 0.0;
+    out[28] = 0.0;
     out[29] = e1;
-    out[30] = 0;
-    out[31] = 0;
+    out[30] = 0.0;
+    out[31] = 0.0;
     out[32] = e2;
-    out[33] = 0;
-    out[34] = 0;
+    out[33] = 0.0;
+    out[34] = 0.0;
     out[35] = -e1 - e2;
     out[36] = lam[8];
     out[37] = lam[9];
-    out[38] = 0;
+    out[38] = 0.0;
     out[39] = -lam[8];
     out[40] = -lam[9];
-    out[41] = 0;
-    out[42] = 0;
-    out[43] = 0;
+    out[41] = 0.0;
+    out[42] = 0.0;
+    out[43] = 0.0;
     out[44] = -lam[10]*p[16];
-    out[45] = 0;
-    out[46] = 0;
+    out[45] = 0.0;
+    out[46] = 0.0;
     out[47] = -lam[10];
 }
 
@@ -612,8 +636,8 @@ static void planetary_reactions_k1(const planetary_real * q, const planetary_rea
     (void)tr;
     (void)t;
     (void)p;
-    out[48] = 0;
-    out[49] = 0;
+    out[48] = 0.0;
+    out[49] = 0.0;
     out[50] = -lam[11];
 }
 
@@ -629,8 +653,7 @@ void planetary_reactions(const planetary_real * q, const planetary_real * lam, p
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
-    p = prepared;
-    planetary_reactions_k(q, tr, lam, t, p, out);
+    planetary_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -649,21 +672,23 @@ static int planetary_sparse_factor0(planetary_real *lu)
     planetary_real cm = 0.0;
     cm = 1.0;
     cm = PLANETARY_MAX(cm, fabs(lu[18]));
-    if (!(1.0 >= PLANETARY_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (PLANETARY_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = PLANETARY_MAX(cm, fabs(lu[10]));
-    if (!(1.0 >= PLANETARY_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (PLANETARY_THRESHOLD * cm))) { return 1; }
     piv = lu[11];
     cm = fabs(piv);
     cm = PLANETARY_MAX(cm, fabs(lu[13]));
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[11] = 1.0 / piv;
+    if (!(fabs(piv) >= (PLANETARY_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[11] = 1.0 / piv;
+    piv = lu[11];
     lu[13] *= piv;
     lu[14] -= lu[13];
     piv = lu[14];
     cm = fabs(piv);
-    if (!(fabs(piv) >= PLANETARY_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[14] = 1.0 / piv;
+    if (!(fabs(piv) >= (PLANETARY_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[14] = 1.0 / piv;
+    piv = lu[14];
     return 0;
 }
 
@@ -676,9 +701,9 @@ static void planetary_sparse_forward0(const planetary_real *PLANETARY_RESTRICT l
 {
     y[4] += y[2];
     y[5] += y[3];
-    y[10] -= lu[18] * y[11];
-    y[6] -= lu[10] * y[10];
-    y[7] -= lu[13] * y[6];
+    y[10] -= (lu[18] * y[11]);
+    y[6] -= (lu[10] * y[10]);
+    y[7] -= (lu[13] * y[6]);
 }
 
 static void planetary_sparse_back0(
@@ -690,8 +715,8 @@ static void planetary_sparse_back0(
     x[11] = y[11];
     x[10] = y[9];
     x[9] = y[8];
-    x[7] = y[5] - lu[8] * x[5];
-    x[6] = y[4] - lu[5] * x[5];
+    x[7] = y[5] - (lu[8] * x[5]);
+    x[6] = y[4] - (lu[5] * x[5]);
     x[4] = y[3];
     x[3] = y[2];
     x[1] = y[1];
@@ -707,7 +732,7 @@ static void planetary_sparse_solve_in(const planetary_real *lu, planetary_real *
 
 static void planetary_sparse_solve(const planetary_real *lu, const planetary_real *b, planetary_real *x, planetary_real *y)
 {
-    memcpy(y, b, sizeof(planetary_real) * 12);
+    (void)memcpy(y, b, sizeof(planetary_real) * 12u);
     planetary_sparse_solve_in(lu, y, x);
 }
 
@@ -724,15 +749,15 @@ static void planetary_sparse_t_forward0(
     x[9] = b[10];
     x[11] = b[11];
     x[10] = b[2];
-    x[6] = (b[5] - lu[5] * x[4] - lu[8] * x[5]) * lu[11];
+    x[6] = (b[5] - (lu[5] * x[4]) - (lu[8] * x[5])) * lu[11];
     x[7] = (b[8] - x[6]) * lu[14];
 }
 
 static void planetary_sparse_t_back0(const planetary_real *PLANETARY_RESTRICT lu, planetary_real *PLANETARY_RESTRICT x)
 {
-    x[6] -= lu[13] * x[7];
-    x[10] -= lu[10] * x[6];
-    x[11] -= lu[18] * x[10];
+    x[6] -= (lu[13] * x[7]);
+    x[10] -= (lu[10] * x[6]);
+    x[11] -= (lu[18] * x[10]);
     x[3] += x[5];
     x[2] += x[4];
 }
@@ -748,58 +773,81 @@ static void planetary_sparse_solve_t(const planetary_real *lu, const planetary_r
 static int planetary_dense_factor(planetary_real *a, int *perm)
 {
     const int n = 12;
-    int i, j, k;
-    planetary_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    planetary_real umax = 0.0;
+    planetary_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                planetary_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return PLANETARY_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            planetary_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                planetary_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return PLANETARY_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            planetary_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= PLANETARY_SINGULAR_RATIO * umax ? PLANETARY_SINGULAR : PLANETARY_OK;
+    return (umin <= (PLANETARY_SINGULAR_RATIO * umax)) ? PLANETARY_SINGULAR : PLANETARY_OK;
 }
 
 static void planetary_dense_solve(const planetary_real *a, const int *perm, const planetary_real *b, planetary_real *x)
 {
     const int n = 12;
-    int i, j;
-    memcpy(x, b, sizeof(planetary_real) * 12);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(planetary_real) * 12u);
     for (i = 0; i < n; ++i) {
         planetary_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void planetary_dense_solve_t(const planetary_real *a, const int *perm, const planetary_real *b, planetary_real *x)
 {
     const int n = 12;
-    int i, j;
-    memcpy(x, b, sizeof(planetary_real) * 12);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(planetary_real) * 12u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         planetary_real tmp = x[perm[i]];
@@ -807,8 +855,6 @@ static void planetary_dense_solve_t(const planetary_real *a, const int *perm, co
         x[i] = tmp;
     }
 }
-
-static const int planetary_pivot_slots[2] = { 11, 14 };
 
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
@@ -816,6 +862,7 @@ static const int planetary_pivot_slots[2] = { 11, 14 };
    hold reciprocals, whose spread is the pivots'. */
 static int planetary_pivots_spread(const planetary_real *lu)
 {
+    static const int planetary_pivot_slots[2] = { 11, 14 };
     planetary_real rmin = 1.0;
     planetary_real rmax = 1.0;
     int k;
@@ -824,7 +871,7 @@ static int planetary_pivots_spread(const planetary_real *lu)
         rmin = PLANETARY_MIN(rmin, r);
         rmax = PLANETARY_MAX(rmax, r);
     }
-    return rmin <= PLANETARY_SINGULAR_RATIO * rmax;
+    return (rmin <= (PLANETARY_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -837,8 +884,12 @@ static int planetary_pivots_spread(const planetary_real *lu)
 static int planetary_screen(const planetary_real *lu, int dense, const planetary_real *row, const planetary_real *col,
                           const planetary_real *known)
 {
-    planetary_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    planetary_real wmin = known[0];
+    planetary_real wmax = known[1];
+    planetary_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[11]) * row[6] * col[5];
     wmin = PLANETARY_MIN(wmin, w);
     wmax = PLANETARY_MAX(wmax, w);
@@ -849,7 +900,7 @@ static int planetary_screen(const planetary_real *lu, int dense, const planetary
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= PLANETARY_SCREEN * wmin);
+    return (wmax <= (PLANETARY_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -858,7 +909,8 @@ static int planetary_screen(const planetary_real *lu, int dense, const planetary
 static void planetary_screen_known(const planetary_real *row, const planetary_real *col, planetary_real *known)
 {
     planetary_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[0] * col[0];
     known[0] = PLANETARY_MIN(known[0], w);
     known[1] = PLANETARY_MAX(known[1], w);
@@ -900,36 +952,51 @@ static void planetary_screen_known(const planetary_real *row, const planetary_re
 static int planetary_factorize(const planetary_real *q, const planetary_real *tr, planetary_real t, const planetary_real *p, planetary_real *work,
                              int *iwork, int *dense)
 {
-    planetary_real *values = work, *lu = work + PLANETARY_OFF_LU, *a = work + PLANETARY_OFF_DENSE;
+    planetary_real *values = work;
+    planetary_real *lu = &work[PLANETARY_OFF_LU];
+    planetary_real *a = &work[PLANETARY_OFF_DENSE];
     int k;
     planetary_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (planetary_sparse_factor(lu) == 0 && !planetary_pivots_spread(lu)) return PLANETARY_OK;
+    if ((planetary_sparse_factor(lu) == 0) && (planetary_pivots_spread(lu) == 0)) {
+        return PLANETARY_OK;
+    }
     *dense = 1;
     planetary_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(planetary_real) * 144);
-    for (k = 0; k < 20; ++k) a[planetary_phi_q_rows[k] * 12 + planetary_phi_q_cols[k]] = values[k];
+    (void)memset(a, 0, sizeof(planetary_real) * 144u);
+    for (k = 0; k < 20; ++k) {
+        a[(planetary_phi_q_rows[k] * 12) + planetary_phi_q_cols[k]] = values[k];
+    }
     return planetary_dense_factor(a, iwork);
 }
 
 static void planetary_solve(const planetary_real *work, const int *iwork, int dense, const planetary_real *b, planetary_real *x, planetary_real *y)
 {
-    if (dense) planetary_dense_solve(work + PLANETARY_OFF_DENSE, iwork, b, x);
-    else planetary_sparse_solve(work + PLANETARY_OFF_LU, b, x, y);
+    if (dense != 0) {
+        planetary_dense_solve(&work[PLANETARY_OFF_DENSE], iwork, b, x);
+    } else {
+        planetary_sparse_solve(&work[PLANETARY_OFF_LU], b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void planetary_solve_in(const planetary_real *work, const int *iwork, int dense, planetary_real *b, planetary_real *x, planetary_real *y)
 {
-    if (dense) planetary_solve(work, iwork, dense, b, x, y);
-    else planetary_sparse_solve_in(work + PLANETARY_OFF_LU, b, x);
+    if (dense != 0) {
+        planetary_solve(work, iwork, dense, b, x, y);
+    } else {
+        planetary_sparse_solve_in(&work[PLANETARY_OFF_LU], b, x);
+    }
 }
 
 static void planetary_solve_t(const planetary_real *work, const int *iwork, int dense, const planetary_real *b, planetary_real *x)
 {
-    if (dense) planetary_dense_solve_t(work + PLANETARY_OFF_DENSE, iwork, b, x);
-    else planetary_sparse_solve_t(work + PLANETARY_OFF_LU, b, x);
+    if (dense != 0) {
+        planetary_dense_solve_t(&work[PLANETARY_OFF_DENSE], iwork, b, x);
+    } else {
+        planetary_sparse_solve_t(&work[PLANETARY_OFF_LU], b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -939,14 +1006,15 @@ static void planetary_solve_t(const planetary_real *work, const int *iwork, int 
    the refinement's cost (a quarter of an instant) is not paid. */
 static int planetary_mixed(const planetary_real *m)
 {
-    planetary_real lo = m[0], hi = m[0];
+    planetary_real lo = m[0];
+    planetary_real hi = m[0];
     lo = PLANETARY_MIN(lo, m[3]);
     hi = PLANETARY_MAX(hi, m[3]);
     lo = PLANETARY_MIN(lo, m[6]);
     hi = PLANETARY_MAX(hi, m[6]);
     lo = PLANETARY_MIN(lo, m[9]);
     hi = PLANETARY_MAX(hi, m[9]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -961,14 +1029,23 @@ static int planetary_mixed(const planetary_real *m)
 static PLANETARY_COLD void planetary_refine_t(const planetary_real *q, const planetary_real *tr, planetary_real t, const planetary_real *p,
                                         const planetary_real *b, planetary_real *lam, planetary_real *work, const int *iwork, int dense)
 {
-    planetary_real *values = work, *r = PLANETARY_VEC(work, 0), *d = PLANETARY_VEC(work, 1);
+    planetary_real *values = work;
+    planetary_real *r = PLANETARY_VEC(work, 0);
+    planetary_real *d = PLANETARY_VEC(work, 1);
     int k;
     planetary_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(planetary_real) * 12);
-    for (k = 0; k < 20; ++k) r[planetary_phi_q_cols[k]] -= values[k] * lam[planetary_phi_q_rows[k]];
-    if (dense) planetary_dense_solve_t(work + PLANETARY_OFF_DENSE, iwork, r, d);
-    else planetary_sparse_solve_t(work + PLANETARY_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 12; ++k) lam[k] += d[k];
+    (void)memcpy(r, b, sizeof(planetary_real) * 12u);
+    for (k = 0; k < 20; ++k) {
+        r[planetary_phi_q_cols[k]] -= values[k] * lam[planetary_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        planetary_dense_solve_t(&work[PLANETARY_OFF_DENSE], iwork, r, d);
+    } else {
+        planetary_sparse_solve_t(&work[PLANETARY_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 12; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,
@@ -983,48 +1060,85 @@ static planetary_real planetary_cond_estimate(const planetary_real *q, const pla
                                     planetary_real *work, const int *iwork, int dense, const planetary_real *row,
                                     const planetary_real *col)
 {
-    planetary_real *vals = work, *x = PLANETARY_VEC(work, 0), *z = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
-    planetary_real *b = PLANETARY_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    planetary_real *vals = work;
+    planetary_real *x = PLANETARY_VEC(work, 0);
+    planetary_real *z = PLANETARY_VEC(work, 1);
+    planetary_real *y = PLANETARY_VEC(work, 2);
+    planetary_real *b = PLANETARY_VEC(work, 3);
+    planetary_real anorm = 0.0;
+    planetary_real est = 0.0;
+    planetary_real s;
+    planetary_real zmax;
+    planetary_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     planetary_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 12; ++k) z[k] = 0.0;
-    for (k = 0; k < 20; ++k)
+    for (k = 0; k < 12; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 20; ++k) {
         z[planetary_phi_q_cols[k]] += fabs(vals[k]) / (row[planetary_phi_q_rows[k]] * col[planetary_phi_q_cols[k]]);
-    for (k = 0; k < 12; ++k) anorm = PLANETARY_MAX(anorm, z[k]);
-    for (k = 0; k < 12; ++k) x[k] = 1.0 / 12.0;
+    }
+    for (k = 0; k < 12; ++k) {
+        anorm = PLANETARY_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 12; ++k) {
+        x[k] = 1.0 / 12.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 12; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 12; ++k) {
+            b[k] = row[k] * x[k];
+        }
         planetary_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 12; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 12; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 12; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         planetary_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 12; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 12; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 12; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 12; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (planetary_real)k / PLANETARY_MAX(1.0, 11.0));
+    for (k = 0; k < 12; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((planetary_real)k / PLANETARY_MAX(1.0, 11.0)));
+    }
     planetary_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 12; ++k) s += fabs(z[k] * col[k]);
-    est = PLANETARY_MAX(est, 2.0 * s / (3.0 * 12.0));
+    for (k = 0; k < 12; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = PLANETARY_MAX(est, (2.0 * s) / (3.0 * 12.0));
     return anorm * est;
 }
 
@@ -1039,11 +1153,14 @@ static planetary_real planetary_cond_estimate(const planetary_real *q, const pla
 static int planetary_row_finite(const planetary_real *row, const planetary_real *qn, const planetary_real *qdn, const planetary_real *qddn,
                               const planetary_real *lam, const planetary_real *reac)
 {
-    planetary_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    planetary_real s0 = 0.0;
+    planetary_real s1 = 0.0;
+    planetary_real s2 = 0.0;
+    planetary_real s3 = 0.0;
     int k;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     for (k = 0; k < 96; k += 4) {
-        s0 += row[1 + k + 0];
+        s0 += row[1 + k];
         s1 += row[1 + k + 1];
         s2 += row[1 + k + 2];
         s3 += row[1 + k + 3];
@@ -1051,10 +1168,15 @@ static int planetary_row_finite(const planetary_real *row, const planetary_real 
     s0 += row[97];
     s1 += row[98];
     s2 += row[99];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     for (k = 0; k < 96; k += 4) {
-        s0 += row[1 + k + 0] * 0.0;
+        s0 += row[1 + k] * 0.0;
         s1 += row[1 + k + 1] * 0.0;
         s2 += row[1 + k + 2] * 0.0;
         s3 += row[1 + k + 3] * 0.0;
@@ -1062,7 +1184,7 @@ static int planetary_row_finite(const planetary_real *row, const planetary_real 
     s0 += row[97] * 0.0;
     s1 += row[98] * 0.0;
     s2 += row[99] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 12 values, NaN if any v_k is NaN (so that a NaN residual
@@ -1070,46 +1192,54 @@ static int planetary_row_finite(const planetary_real *row, const planetary_real 
    comparison. */
 static planetary_real planetary_maxabs12(const planetary_real *v)
 {
-    planetary_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    planetary_real m0 = 0.0;
+    planetary_real m1 = 0.0;
+    planetary_real m2 = 0.0;
+    planetary_real m3 = 0.0;
+    planetary_real s0 = 0.0;
+    planetary_real s1 = 0.0;
+    planetary_real s2 = 0.0;
+    planetary_real s3 = 0.0;
+    planetary_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[6]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[7]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[8]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[9]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[10]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[11]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     m0 = PLANETARY_MAX(PLANETARY_MAX(m0, m1), PLANETARY_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
@@ -1170,17 +1300,28 @@ static planetary_real planetary_correct(planetary_real *q, planetary_real *dq)
 static int planetary_newton(planetary_real t, const planetary_real *p, planetary_real tol, planetary_real *q, planetary_real *tr, int *info, planetary_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    planetary_real *r = PLANETARY_VEC(work, 0), *dq = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
+    planetary_real *r = PLANETARY_VEC(work, 0);
+    planetary_real *dq = PLANETARY_VEC(work, 1);
+    planetary_real *y = PLANETARY_VEC(work, 2);
     planetary_real *base = PLANETARY_VEC(work, 10);
-    planetary_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    planetary_real step = ((double)INFINITY);
+    planetary_real lim;
+    planetary_real qmag;
+    planetary_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) planetary_trig_near(q, tr, base);
-    else planetary_trig_base(q, tr, base);
+    if (reuse != 0) {
+        planetary_trig_near(q, tr, base);
+    } else {
+        planetary_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = PLANETARY_MAX(1.0, planetary_maxabs12(q));
-    lim = PLANETARY_MAX(tol, (planetary_real)PLANETARY_FLOOR_ULPS * PLANETARY_EPS * qmag);
+    lim = PLANETARY_MAX(tol, ((planetary_real)PLANETARY_FLOOR_ULPS * PLANETARY_EPS) * qmag);
     planetary_phi_k(q, tr, t, p, r);
     rmax = planetary_maxabs12(r);
     for (it = 0;; ++it) {
@@ -1189,15 +1330,17 @@ static int planetary_newton(planetary_real t, const planetary_real *p, planetary
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? PLANETARY_NONFINITE : PLANETARY_NOT_CONVERGED;
+            return (it == 0) ? PLANETARY_NONFINITE : PLANETARY_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == PLANETARY_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) {
+        if (it == PLANETARY_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK)) {
             info[0] = it;
             info[1] = *dense;
             return PLANETARY_SINGULAR;
@@ -1207,8 +1350,8 @@ static int planetary_newton(planetary_real t, const planetary_real *p, planetary
         planetary_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= PLANETARY_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (PLANETARY_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1220,8 +1363,10 @@ static int planetary_newton(planetary_real t, const planetary_real *p, planetary
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return PLANETARY_NOT_CONVERGED;
-    if (!current && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) {
+    if (converged == 0) {
+        return PLANETARY_NOT_CONVERGED;
+    }
+    if ((current == 0) && (planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK)) {
         info[1] = *dense;
         return PLANETARY_SINGULAR;
     }
@@ -1233,7 +1378,8 @@ static int planetary_newton(planetary_real t, const planetary_real *p, planetary
 static void planetary_outputs(planetary_real t, const planetary_real *p, const planetary_real *q, const planetary_real *tr, planetary_real *qd, planetary_real *qdd,
                             planetary_real *lam, planetary_real *reactions, planetary_real *work, const int *iwork, int dense)
 {
-    planetary_real *y = PLANETARY_VEC(work, 2), *b = PLANETARY_VEC(work, 3);
+    planetary_real *y = PLANETARY_VEC(work, 2);
+    planetary_real *b = PLANETARY_VEC(work, 3);
     planetary_nu_k(q, tr, t, p, b);
     planetary_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     planetary_gamma_k(q, tr, qd, t, p, b);
@@ -1253,7 +1399,9 @@ static void planetary_outputs(planetary_real t, const planetary_real *p, const p
     b[10] -= y[10] * qdd[10];
     b[11] -= y[11] * qdd[11];
     planetary_solve_t(work, iwork, dense, b, lam);
-    if (planetary_mixed(y)) planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (planetary_mixed(y) != 0) {
+        planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     planetary_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1262,8 +1410,11 @@ static void planetary_outputs(planetary_real t, const planetary_real *p, const p
    order, so four sums run side by side and the compiler may pack them). */
 static int planetary_allfinite(const planetary_real *v, int n)
 {
-    planetary_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    planetary_real s0 = 0.0;
+    planetary_real s1 = 0.0;
+    planetary_real s2 = 0.0;
+    planetary_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1272,8 +1423,11 @@ static int planetary_allfinite(const planetary_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1295,12 +1449,24 @@ static int planetary_finite(const planetary_real *q, const planetary_real *qd, c
 static void planetary_keep(planetary_real *state, const planetary_real *q, const planetary_real *qd, const planetary_real *qdd,
                          const planetary_real *m1, const planetary_real *m2, const planetary_real *m3)
 {
-    if (m3 != state + 60) memcpy(state + 60, m3, sizeof(planetary_real) * 12);
-    if (m2 != state + 48) memcpy(state + 48, m2, sizeof(planetary_real) * 12);
-    if (m1 != state + 36) memcpy(state + 36, m1, sizeof(planetary_real) * 12);
-    if (qdd != state + 24) memcpy(state + 24, qdd, sizeof(planetary_real) * 12);
-    if (qd != state + 12) memcpy(state + 12, qd, sizeof(planetary_real) * 12);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(planetary_real) * 12);
+    if (m3 != &state[60]) {
+        (void)memcpy(&state[60], m3, sizeof(planetary_real) * 12u);
+    }
+    if (m2 != &state[48]) {
+        (void)memcpy(&state[48], m2, sizeof(planetary_real) * 12u);
+    }
+    if (m1 != &state[36]) {
+        (void)memcpy(&state[36], m1, sizeof(planetary_real) * 12u);
+    }
+    if (qdd != &state[24]) {
+        (void)memcpy(&state[24], qdd, sizeof(planetary_real) * 12u);
+    }
+    if (qd != &state[12]) {
+        (void)memcpy(&state[12], qd, sizeof(planetary_real) * 12u);
+    }
+    if (q != state) {
+        (void)memcpy(state, q, sizeof(planetary_real) * 12u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1310,33 +1476,38 @@ static void planetary_keep(planetary_real *state, const planetary_real *q, const
 static int planetary_unexplained(const planetary_real *q0, const planetary_real *qd0, const planetary_real *qdd0, const planetary_real *q1,
                                const planetary_real *qd1, const planetary_real *qdd1, planetary_real h, const planetary_real *c)
 {
-    const planetary_real half = 0.5 * h, hh = h * h / 12.0;
-    planetary_real mismatch = 0.0, motion = 0.0, d;
+    const planetary_real half = 0.5 * h;
+    const planetary_real hh = (h * h) / 12.0;
+    planetary_real mismatch = 0.0;
+    planetary_real motion = 0.0;
+    planetary_real d;
     d = q1[0] - q0[0];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
     d = q1[9] - q0[9];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[9] + qd1[9]) - hh * (qdd0[9] - qdd1[9])) * c[9]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[9] + qd1[9]))) - (hh * (qdd0[9] - qdd1[9]))) * c[9]);
     d = q1[10] - q0[10];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[10] + qd1[10]) - hh * (qdd0[10] - qdd1[10])) * c[10]);
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[10] + qd1[10]))) - (hh * (qdd0[10] - qdd1[10]))) * c[10]);
     d = q1[11] - q0[11];
-    mismatch = PLANETARY_MAX(mismatch, fabs(d - half * (qd0[11] + qd1[11]) - hh * (qdd0[11] - qdd1[11])) * c[11]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = PLANETARY_MAX(mismatch, fabs((d - (half * (qd0[11] + qd1[11]))) - (hh * (qdd0[11] - qdd1[11]))) * c[11]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = PLANETARY_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1361,35 +1532,43 @@ static int planetary_unexplained(const planetary_real *q0, const planetary_real 
     motion = PLANETARY_MAX(motion, fabs(d) * c[10]);
     d = q1[11] - q0[11];
     motion = PLANETARY_MAX(motion, fabs(d) * c[11]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int planetary_instant(planetary_real t, const planetary_real *p, planetary_real tol, planetary_real *q, planetary_real *qd, planetary_real *qdd,
                     planetary_real *lam, planetary_real *reactions, int *info, planetary_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = PLANETARY_BAD_ARGUMENT;
     } else {
-        planetary_real *tr = PLANETARY_VEC(work, 9), *pp = work + PLANETARY_OFF_PREP, *kept = PLANETARY_VEC(work, 11);
-        memcpy(kept, q, sizeof(planetary_real) * 12);  /* the caller's guess, back in q if the call fails */
+        planetary_real *tr = PLANETARY_VEC(work, 9);
+        planetary_real *pp = &work[PLANETARY_OFF_PREP];
+        planetary_real *kept = PLANETARY_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(planetary_real) * 12u);  /* the caller's guess, back in q if the call fails */
         planetary_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = PLANETARY_VEC(work, 5);
-        if (qdd == NULL) qdd = PLANETARY_VEC(work, 6);
-        if (lam == NULL) lam = PLANETARY_VEC(work, 7);
-        if (reactions == NULL) reactions = PLANETARY_VEC(work, 8);
+        planetary_real *qd_out = (qd != NULL) ? qd : PLANETARY_VEC(work, 5);
+        planetary_real *qdd_out = (qdd != NULL) ? qdd : PLANETARY_VEC(work, 6);
+        planetary_real *lam_out = (lam != NULL) ? lam : PLANETARY_VEC(work, 7);
+        planetary_real *reactions_out = (reactions != NULL) ? reactions : PLANETARY_VEC(work, 8);
         status = planetary_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == PLANETARY_OK) {
-            planetary_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!planetary_finite(q, qd, qdd, lam, reactions)) status = PLANETARY_NONFINITE;
+            planetary_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (planetary_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = PLANETARY_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != PLANETARY_OK) memcpy(q, kept, sizeof(planetary_real) * 12);
+        if (status != PLANETARY_OK) {
+            (void)memcpy(q, kept, sizeof(planetary_real) * 12u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1407,21 +1586,29 @@ int planetary_instant_at(long whole, planetary_real frac, const planetary_real *
 
 int planetary_screen_at(planetary_real t, const planetary_real *p, const planetary_real *state, planetary_real *work, int *iwork)
 {
-    planetary_real *tr, *pp, known[2];
+    planetary_real *tr;
+    planetary_real *pp;
+    planetary_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return PLANETARY_BAD_ARGUMENT;
-    if (!(state[84] > 0.0)) return PLANETARY_OK;  /* no scales: no screen */
-    tr = PLANETARY_VEC(work, 9), pp = work + PLANETARY_OFF_PREP;
+    }
+    if (!(state[84] > 0.0)) {
+        return PLANETARY_OK;  /* no scales: no screen */
+    }
+    tr = PLANETARY_VEC(work, 9);
+    pp = &work[PLANETARY_OFF_PREP];
     planetary_prepare(p, pp);
     planetary_trig(state, tr);
-    if (planetary_factorize(state, tr, t, pp, work, iwork, &dense) != PLANETARY_OK)
+    if (planetary_factorize(state, tr, t, pp, work, iwork, &dense) != PLANETARY_OK) {
         return PLANETARY_ILL_CONDITIONED;
-    planetary_screen_known(state + 84, state + 72, known);
-    if (planetary_screen(work + PLANETARY_OFF_LU, dense, state + 84, state + 72, known)
-        && !(planetary_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 84, state + 72)
-             <= PLANETARY_COND_SCREEN))
+    }
+    planetary_screen_known(&state[84], &state[72], known);
+    if ((planetary_screen(&work[PLANETARY_OFF_LU], dense, &state[84], &state[72], known) != 0)
+        && !(planetary_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[84], &state[72])
+             <= PLANETARY_COND_SCREEN)) {
         return PLANETARY_ILL_CONDITIONED;
+    }
     return PLANETARY_OK;
 }
 
@@ -1431,102 +1618,142 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    planetary_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    planetary_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    planetary_real *q;
+    planetary_real *m1;
+    planetary_real *m2;
+    planetary_real *count;
+    planetary_real *qn;
+    planetary_real *qdn;
+    planetary_real *qddn;
+    planetary_real *lam;
+    planetary_real *reac;
+    planetary_real *tr;
+    planetary_real *pp;
+    planetary_real *scale;
+    planetary_real *rscale;
+    planetary_real *qd;
+    planetary_real *qdd;
+    planetary_real *m3;
+    planetary_real known[2];
+    long i;
+    long unused;
+    long *done = &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
+    *done = 0;
     status = PLANETARY_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return PLANETARY_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 36, m2 = state + 48, count = state + 96;
-    scale = state + 72, rscale = state + 84;
-    if (rscale[0] > 0.0) planetary_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 12, qdd = state + 24, m3 = state + 60;
-    tr = PLANETARY_VEC(work, 9), pp = work + PLANETARY_OFF_PREP;
+    q = state;
+    m1 = &state[36];
+    m2 = &state[48];
+    count = &state[96];
+    scale = &state[72];
+    rscale = &state[84];
+    if (rscale[0] > 0.0) {
+        planetary_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[12];
+    qdd = &state[24];
+    m3 = &state[60];
+    tr = PLANETARY_VEC(work, 9);
+    pp = &work[PLANETARY_OFF_PREP];
     planetary_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const planetary_real t = t0 + *count * h;
-        planetary_real *row = rows + i * PLANETARY_ROW;
+        const planetary_real t = t0 + (*count * h);
+        planetary_real *row = &rows[i * PLANETARY_ROW];
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 13;
-        qddn = row + 25;
-        lam = row + 37;
-        reac = row + 49;
+        qn = &row[1];
+        qdn = &row[13];
+        qddn = &row[25];
+        lam = &row[37];
+        reac = &row[49];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
-                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
-            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
-                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
-            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
-                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
-            qn[9] = q[9] + h * (qd[9] + h * ((323.0 / 360.0) * qdd[9] - (264.0 / 360.0) * m1[9]
-                                                 + (159.0 / 360.0) * m2[9] - (38.0 / 360.0) * m3[9]));
-            qn[10] = q[10] + h * (qd[10] + h * ((323.0 / 360.0) * qdd[10] - (264.0 / 360.0) * m1[10]
-                                                 + (159.0 / 360.0) * m2[10] - (38.0 / 360.0) * m3[10]));
-            qn[11] = q[11] + h * (qd[11] + h * ((323.0 / 360.0) * qdd[11] - (264.0 / 360.0) * m1[11]
-                                                 + (159.0 / 360.0) * m2[11] - (38.0 / 360.0) * m3[11]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
-            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
-            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
-            qn[9] = q[9] + h * (qd[9] + 0.5 * h * qdd[9]);
-            qn[10] = q[10] + h * (qd[10] + 0.5 * h * qdd[10]);
-            qn[11] = q[11] + h * (qd[11] + 0.5 * h * qdd[11]);
-        } else
-            memcpy(qn, q, sizeof(planetary_real) * 12);
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+            qn[6] = q[6] + (h * (qd[6] + (h * (((((323.0 / 360.0) * qdd[6]) - ((264.0 / 360.0) * m1[6]))
+                                                 + ((159.0 / 360.0) * m2[6])) - ((38.0 / 360.0) * m3[6])))));
+            qn[7] = q[7] + (h * (qd[7] + (h * (((((323.0 / 360.0) * qdd[7]) - ((264.0 / 360.0) * m1[7]))
+                                                 + ((159.0 / 360.0) * m2[7])) - ((38.0 / 360.0) * m3[7])))));
+            qn[8] = q[8] + (h * (qd[8] + (h * (((((323.0 / 360.0) * qdd[8]) - ((264.0 / 360.0) * m1[8]))
+                                                 + ((159.0 / 360.0) * m2[8])) - ((38.0 / 360.0) * m3[8])))));
+            qn[9] = q[9] + (h * (qd[9] + (h * (((((323.0 / 360.0) * qdd[9]) - ((264.0 / 360.0) * m1[9]))
+                                                 + ((159.0 / 360.0) * m2[9])) - ((38.0 / 360.0) * m3[9])))));
+            qn[10] = q[10] + (h * (qd[10] + (h * (((((323.0 / 360.0) * qdd[10]) - ((264.0 / 360.0) * m1[10]))
+                                                 + ((159.0 / 360.0) * m2[10])) - ((38.0 / 360.0) * m3[10])))));
+            qn[11] = q[11] + (h * (qd[11] + (h * (((((323.0 / 360.0) * qdd[11]) - ((264.0 / 360.0) * m1[11]))
+                                                 + ((159.0 / 360.0) * m2[11])) - ((38.0 / 360.0) * m3[11])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+            qn[6] = q[6] + (h * (qd[6] + ((0.5 * h) * qdd[6])));
+            qn[7] = q[7] + (h * (qd[7] + ((0.5 * h) * qdd[7])));
+            qn[8] = q[8] + (h * (qd[8] + ((0.5 * h) * qdd[8])));
+            qn[9] = q[9] + (h * (qd[9] + ((0.5 * h) * qdd[9])));
+            qn[10] = q[10] + (h * (qd[10] + ((0.5 * h) * qdd[10])));
+            qn[11] = q[11] + (h * (qd[11] + ((0.5 * h) * qdd[11])));
+        } else {
+            (void)memcpy(qn, q, sizeof(planetary_real) * 12u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = planetary_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != PLANETARY_OK) break;
-        if (rscale[0] > 0.0 && planetary_screen(work + PLANETARY_OFF_LU, dense, rscale, scale, known)
+        status = planetary_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != PLANETARY_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (planetary_screen(&work[PLANETARY_OFF_LU], dense, rscale, scale, known) != 0)
             && !(planetary_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= PLANETARY_COND_SCREEN)) {
             status = PLANETARY_ILL_CONDITIONED;
             break;
         }
         planetary_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!planetary_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (planetary_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = PLANETARY_NONFINITE;
             break;
         }
-        if (*count >= 1 && planetary_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (planetary_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = PLANETARY_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     planetary_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }
@@ -1537,18 +1764,18 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
 static void planetary_guess(const planetary_real *p, planetary_real *out)
 {
     (void)p;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
     out[6] = p[0] + p[1];
-    out[7] = 0;
-    out[8] = 0;
+    out[7] = 0.0;
+    out[8] = 0.0;
     out[9] = -p[0] - p[2];
-    out[10] = 0;
-    out[11] = 0;
+    out[10] = 0.0;
+    out[11] = 0.0;
 }
 
 /* Each driver's f(t) and f'(t), in file order. */
@@ -1556,7 +1783,7 @@ static void planetary_drive(planetary_real t, const planetary_real *p, planetary
 {
     (void)t;
     (void)p;
-    const planetary_real d0 = (2*3.141592653589793*p[7]);
+    const planetary_real d0 = (2.0*3.141592653589793*p[7]);
     out[0] = d0*t;
     out[1] = d0;
 }
@@ -1569,36 +1796,61 @@ static void planetary_drive(planetary_real t, const planetary_real *p, planetary
 static void planetary_sweep_scales(const planetary_real *q, planetary_real t0, const planetary_real *p, planetary_real *vals,
                                  planetary_real *arms, planetary_real *inv, planetary_real *norm)
 {
-    planetary_real lin[12], rot[12], lref = 0.0, a;
-    int k, r, m = 0, i;
+    planetary_real lin[12];
+    planetary_real rot[12];
+    planetary_real lref = 0.0;
+    planetary_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     planetary_phi_q(q, t0, p, vals);
-    for (r = 0; r < 12; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 12; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 20; ++k) {
         a = fabs(vals[k]);
         r = planetary_phi_q_rows[k];
-        if (planetary_phi_q_cols[k] % 3 == 2) rot[r] = PLANETARY_MAX(rot[r], a);
-        else lin[r] = PLANETARY_MAX(lin[r], a);
+        if ((planetary_phi_q_cols[k] % 3) == 2) {
+            rot[r] = PLANETARY_MAX(rot[r], a);
+        } else {
+            lin[r] = PLANETARY_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 12; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
+                arms[i] = arms[i - 1];
+                --i;
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 12; ++k)
-            if (k % 3 != 2) lref = PLANETARY_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 12; ++k) {
+            if ((k % 3) != 2) {
+                lref = PLANETARY_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 12; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 12; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 12; ++r) {
         a = PLANETARY_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1610,7 +1862,9 @@ static void planetary_sweep_take(const planetary_real *row, const planetary_real
                                planetary_real *drive, long count)
 {
     const planetary_real t = row[0];
-    planetary_real e, rate, w;
+    planetary_real e;
+    planetary_real rate;
+    planetary_real w;
     planetary_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1620,58 +1874,100 @@ static void planetary_sweep_take(const planetary_real *row, const planetary_real
     e = -row[48];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* sun_bearing.force_peak */
-    m = row[49] * row[49] + row[50] * row[50];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[52] * row[52] + row[53] * row[53];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[49] * row[49]) + (row[50] * row[50]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[52] * row[52]) + (row[53] * row[53]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* carrier_bearing.force_peak */
-    m = row[55] * row[55] + row[56] * row[56];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[58] * row[58] + row[59] * row[59];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[55] * row[55]) + (row[56] * row[56]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[58] * row[58]) + (row[59] * row[59]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* planet_bearing.force_peak */
-    m = row[61] * row[61] + row[62] * row[62];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[64] * row[64] + row[65] * row[65];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[61] * row[61]) + (row[62] * row[62]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[64] * row[64]) + (row[65] * row[65]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* sun_planet_mesh.force_peak */
-    m = row[67] * row[67] + row[68] * row[68];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[70] * row[70] + row[71] * row[71];
-    if (m > fig[7]) fig[7] = m;
-    m = row[73] * row[73] + row[74] * row[74];
-    if (m > fig[7]) fig[7] = m;
+    m = (row[67] * row[67]) + (row[68] * row[68]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[70] * row[70]) + (row[71] * row[71]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[73] * row[73]) + (row[74] * row[74]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
     /* planet_ring_mesh.force_peak */
-    m = row[76] * row[76] + row[77] * row[77];
-    if (count == 0 || m > fig[8]) fig[8] = m;
-    m = row[79] * row[79] + row[80] * row[80];
-    if (m > fig[8]) fig[8] = m;
-    m = row[82] * row[82] + row[83] * row[83];
-    if (m > fig[8]) fig[8] = m;
+    m = (row[76] * row[76]) + (row[77] * row[77]);
+    if ((count == 0) || (m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[79] * row[79]) + (row[80] * row[80]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[82] * row[82]) + (row[83] * row[83]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
     /* pinion_bearing.force_peak */
-    m = row[85] * row[85] + row[86] * row[86];
-    if (count == 0 || m > fig[9]) fig[9] = m;
-    m = row[88] * row[88] + row[89] * row[89];
-    if (m > fig[9]) fig[9] = m;
+    m = (row[85] * row[85]) + (row[86] * row[86]);
+    if ((count == 0) || (m > fig[9])) {
+        fig[9] = m;
+    }
+    m = (row[88] * row[88]) + (row[89] * row[89]);
+    if ((m > fig[9])) {
+        fig[9] = m;
+    }
     /* pinion_sun_mesh.force_peak */
-    m = row[91] * row[91] + row[92] * row[92];
-    if (count == 0 || m > fig[10]) fig[10] = m;
-    m = row[94] * row[94] + row[95] * row[95];
-    if (m > fig[10]) fig[10] = m;
+    m = (row[91] * row[91]) + (row[92] * row[92]);
+    if ((count == 0) || (m > fig[10])) {
+        fig[10] = m;
+    }
+    m = (row[94] * row[94]) + (row[95] * row[95]);
+    if ((m > fig[10])) {
+        fig[10] = m;
+    }
     /* input_motor.force_peak */
-    m = row[97] * row[97] + row[98] * row[98];
-    if (count == 0 || m > fig[11]) fig[11] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[97] * row[97]) + (row[98] * row[98]);
+    if ((count == 0) || (m > fig[11])) {
+        fig[11] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 
@@ -1682,7 +1978,9 @@ static void planetary_sweep_finish(planetary_real *fig, const planetary_real *ac
     const planetary_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 12; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 12; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1694,7 +1992,7 @@ static void planetary_sweep_finish(planetary_real *fig, const planetary_real *ac
     fig[9] = sqrt(fig[9]);
     fig[10] = sqrt(fig[10]);
     fig[11] = sqrt(fig[11]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (planetary_real)count);
 }
 
@@ -1704,10 +2002,14 @@ static void planetary_sweep_finish(planetary_real *fig, const planetary_real *ac
 long planetary_sweep_lanes(long *abandoned)
 {
 #if PLANETARY_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&planetary_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&planetary_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return planetary_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1715,25 +2017,37 @@ long planetary_sweep_lanes(long *abandoned)
 int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetary_real h, long n, planetary_real tol,
                   planetary_real *figures, int *status, planetary_real *t_end, long *solved, planetary_real *work, int *iwork)
 {
-    planetary_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    planetary_real *state;
+    planetary_real *rows;
+    planetary_real *vals;
+    planetary_real *arms;
+    planetary_real *drive;
+    planetary_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if PLANETARY_LANES > 1
     const long lanes = planetary_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     planetary_real snap[PLANETARY_LANES * PLANETARY_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return PLANETARY_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + PLANETARY_WORK, rows = state + PLANETARY_STATE;
-    vals = rows + 32 * PLANETARY_ROW, arms = vals + 20, drive = arms + 12;
-    acc = drive + 2;
+    state = &work[PLANETARY_WORK];
+    rows = &state[PLANETARY_STATE];
+    vals = &rows[32 * PLANETARY_ROW];
+    arms = &vals[20];
+    drive = &arms[12];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const planetary_real *pv = p + v * PLANETARY_NP;
-        planetary_real *fig = figures + v * PLANETARY_SWEEP_FIGURES;
+        const planetary_real *pv = &p[v * PLANETARY_NP];
+        planetary_real *fig = &figures[v * PLANETARY_SWEEP_FIGURES];
 #if PLANETARY_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (planetary_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1745,26 +2059,28 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const planetary_real *s = snap + (v - first) * PLANETARY_SNAP;
-            memcpy(state, s, sizeof(planetary_real) * PLANETARY_STATE);
-            memcpy(fig, s + PLANETARY_STATE, sizeof(planetary_real) * PLANETARY_SWEEP_FIGURES);
-            memcpy(acc, s + PLANETARY_STATE + PLANETARY_SWEEP_FIGURES, sizeof(planetary_real) * 5);
+            (void)memcpy(state, s, sizeof(planetary_real) * PLANETARY_STATE);
+            (void)memcpy(fig, &s[PLANETARY_STATE], sizeof(planetary_real) * PLANETARY_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[PLANETARY_STATE + PLANETARY_SWEEP_FIGURES], sizeof(planetary_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(planetary_real) * PLANETARY_STATE);
+            (void)memset(state, 0, sizeof(planetary_real) * (size_t)PLANETARY_STATE);
             planetary_guess(pv, state);
             done = 0;
         }
         st = PLANETARY_OK;
-        while (done < n && st == PLANETARY_OK) {
+        while ((done < n) && (st == PLANETARY_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : PLANETARY_MIN(32, n - done);
+            m = (done == 0) ? 1 : PLANETARY_MIN(32, n - done);
             got = 0;
             st = planetary_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) planetary_sweep_take(rows + m * PLANETARY_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
-                planetary_sweep_scales(state, t0, pv, vals, arms, state + 72, state + 84);
+            for (m = 0; m < got; ++m) {
+                planetary_sweep_take(&rows[m * PLANETARY_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
+                planetary_sweep_scales(state, t0, pv, vals, arms, &state[72], &state[84]);
                 st = planetary_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;
@@ -1772,7 +2088,7 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
         planetary_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return PLANETARY_OK;
 }
@@ -1834,17 +2150,28 @@ static void planetary_sp_gamma_k(const planetary_real * q, const planetary_real 
 static int planetary_sp_newton(planetary_real t, const planetary_real *p, const planetary_real *q_des, planetary_real tol, planetary_real *q, planetary_real *tr, int *info, planetary_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    planetary_real *r = PLANETARY_VEC(work, 0), *dq = PLANETARY_VEC(work, 1), *y = PLANETARY_VEC(work, 2);
+    planetary_real *r = PLANETARY_VEC(work, 0);
+    planetary_real *dq = PLANETARY_VEC(work, 1);
+    planetary_real *y = PLANETARY_VEC(work, 2);
     planetary_real *base = PLANETARY_VEC(work, 10);
-    planetary_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    planetary_real step = ((double)INFINITY);
+    planetary_real lim;
+    planetary_real qmag;
+    planetary_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) planetary_trig_near(q, tr, base);
-    else planetary_trig_base(q, tr, base);
+    if (reuse != 0) {
+        planetary_trig_near(q, tr, base);
+    } else {
+        planetary_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = PLANETARY_MAX(1.0, planetary_maxabs12(q));
-    lim = PLANETARY_MAX(tol, (planetary_real)PLANETARY_FLOOR_ULPS * PLANETARY_EPS * qmag);
+    lim = PLANETARY_MAX(tol, ((planetary_real)PLANETARY_FLOOR_ULPS * PLANETARY_EPS) * qmag);
     planetary_phi_k(q, tr, t, p, r);
     planetary_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
     rmax = planetary_maxabs12(r);
@@ -1854,15 +2181,17 @@ static int planetary_sp_newton(planetary_real t, const planetary_real *p, const 
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? PLANETARY_NONFINITE : PLANETARY_NOT_CONVERGED;
+            return (it == 0) ? PLANETARY_NONFINITE : PLANETARY_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == PLANETARY_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) {
+        if (it == PLANETARY_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK)) {
             info[0] = it;
             info[1] = *dense;
             return PLANETARY_SINGULAR;
@@ -1872,8 +2201,8 @@ static int planetary_sp_newton(planetary_real t, const planetary_real *p, const 
         planetary_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= PLANETARY_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (PLANETARY_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1886,8 +2215,10 @@ static int planetary_sp_newton(planetary_real t, const planetary_real *p, const 
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return PLANETARY_NOT_CONVERGED;
-    if (!current && planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK) {
+    if (converged == 0) {
+        return PLANETARY_NOT_CONVERGED;
+    }
+    if ((current == 0) && (planetary_factorize(q, tr, t, p, work, iwork, dense) != PLANETARY_OK)) {
         info[1] = *dense;
         return PLANETARY_SINGULAR;
     }
@@ -1900,7 +2231,8 @@ static void planetary_sp_outputs(planetary_real t, const planetary_real *p, cons
                             planetary_real *lam, planetary_real *reactions, planetary_real *work, const int *iwork, int dense,
                             const planetary_real *q_des, const planetary_real *qd_des, const planetary_real *qdd_des)
 {
-    planetary_real *y = PLANETARY_VEC(work, 2), *b = PLANETARY_VEC(work, 3);
+    planetary_real *y = PLANETARY_VEC(work, 2);
+    planetary_real *b = PLANETARY_VEC(work, 3);
     planetary_nu_k(q, tr, t, p, b);
     planetary_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
     planetary_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
@@ -1922,7 +2254,9 @@ static void planetary_sp_outputs(planetary_real t, const planetary_real *p, cons
     b[10] -= y[10] * qdd[10];
     b[11] -= y[11] * qdd[11];
     planetary_solve_t(work, iwork, dense, b, lam);
-    if (planetary_mixed(y)) planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (planetary_mixed(y) != 0) {
+        planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     planetary_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1934,25 +2268,34 @@ static int planetary_sp_instant(planetary_real t, const planetary_real *p, plane
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !planetary_allfinite(q_des, PLANETARY_ND) || !planetary_allfinite(qd_des, PLANETARY_ND)
-        || !planetary_allfinite(qdd_des, PLANETARY_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (planetary_allfinite(q_des, PLANETARY_ND) == 0) || (planetary_allfinite(qd_des, PLANETARY_ND) == 0)
+        || (planetary_allfinite(qdd_des, PLANETARY_ND) == 0)) {
         status = PLANETARY_BAD_ARGUMENT;
     } else {
-        planetary_real *tr = PLANETARY_VEC(work, 9), *pp = work + PLANETARY_OFF_PREP, *kept = PLANETARY_VEC(work, 11);
-        memcpy(kept, q, sizeof(planetary_real) * 12);  /* the caller's guess, back in q if the call fails */
+        planetary_real *tr = PLANETARY_VEC(work, 9);
+        planetary_real *pp = &work[PLANETARY_OFF_PREP];
+        planetary_real *kept = PLANETARY_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(planetary_real) * 12u);  /* the caller's guess, back in q if the call fails */
         planetary_prepare(p, pp);
-        if (qd == NULL) qd = PLANETARY_VEC(work, 5);
-        if (qdd == NULL) qdd = PLANETARY_VEC(work, 6);
-        if (lam == NULL) lam = PLANETARY_VEC(work, 7);
-        if (reactions == NULL) reactions = PLANETARY_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        planetary_real *qd_out = (qd != NULL) ? qd : PLANETARY_VEC(work, 5);
+        planetary_real *qdd_out = (qdd != NULL) ? qdd : PLANETARY_VEC(work, 6);
+        planetary_real *lam_out = (lam != NULL) ? lam : PLANETARY_VEC(work, 7);
+        planetary_real *reactions_out = (reactions != NULL) ? reactions : PLANETARY_VEC(work, 8);
         status = planetary_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == PLANETARY_OK) {
-            planetary_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!planetary_finite(q, qd, qdd, lam, reactions)) status = PLANETARY_NONFINITE;
+            planetary_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (planetary_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = PLANETARY_NONFINITE;
+            }
         }
-        if (status != PLANETARY_OK) memcpy(q, kept, sizeof(planetary_real) * 12);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != PLANETARY_OK) {
+            (void)memcpy(q, kept, sizeof(planetary_real) * 12u);
+        }
     }
     return status;
 }
@@ -1962,7 +2305,8 @@ int planetary_setpoint(planetary_real t, const planetary_real *p, planetary_real
                      planetary_real *qdd, planetary_real *lam, planetary_real *reactions, int *info, planetary_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = planetary_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

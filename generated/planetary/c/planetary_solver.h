@@ -223,13 +223,13 @@ extern const planetary_real planetary_default_q0[PLANETARY_NG];
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 22, phi_q 5, nu 0, gamma 6, applied 12, mass 0, reactions 20, lu_factor 13, lu_forward 3, lu_back 7, lu_t_forward 7, lu_t_back 3. */
-#define PLANETARY_OPS_INSTANT 140
+   work), and of each evaluation: phi 18, phi_q 5, nu 0, gamma 6, applied 12, mass 0, reactions 20, lu_factor 13, lu_forward 3, lu_back 7, lu_t_forward 7, lu_t_back 3. */
+#define PLANETARY_OPS_INSTANT 132
 
 /* Worst case of one instant call (computed at generation from the counts
    above, not measured): Newton reaching MAX_NEWTON, every factorization
    through the pivoting fallback (bounded by a dense LU). At most
-   2722 + 2099 MAX_NEWTON counted floating operations and
+   2718 + 2095 MAX_NEWTON counted floating operations and
    8 + 8 MAX_NEWTON libm calls; as instructions, at most
    WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
    loads, stores and indexing), each libm call 300 (the real type on its
@@ -239,7 +239,7 @@ extern const planetary_real planetary_default_q0[PLANETARY_NG];
    test_c_edges checks it under callgrind on x86-64 for every bundled
    example, the cap reached (instant only: a trajectory's instant adds its
    predictor, checks and, if generated, sensitivities). */
-#define PLANETARY_WORST_INSTRUCTIONS (38064L + 27988L * (long)PLANETARY_MAX_NEWTON)
+#define PLANETARY_WORST_INSTRUCTIONS (38016L + 27940L * (long)PLANETARY_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int planetary_phi_q_rows[20];

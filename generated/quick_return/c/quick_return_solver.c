@@ -43,7 +43,7 @@ typedef char quick_return_real_must_have_the_size_of_double[sizeof(quick_return_
 #define QUICK_RETURN_OFF_LU 20
 #define QUICK_RETURN_OFF_DENSE (QUICK_RETURN_OFF_LU + QUICK_RETURN_LU_SIZE)
 #define QUICK_RETURN_OFF_VEC (QUICK_RETURN_OFF_DENSE + 81)
-#define QUICK_RETURN_VEC(work, k) ((work) + QUICK_RETURN_OFF_VEC + (k) * 36)
+#define QUICK_RETURN_VEC(work, k) (&(work)[QUICK_RETURN_OFF_VEC + ((k) * 36)])
 /* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
 #define QUICK_RETURN_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
 #define QUICK_RETURN_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
@@ -157,10 +157,12 @@ static void quick_return_trig_base(const quick_return_real *q, quick_return_real
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const quick_return_real a = q[3 * b + 2];
+        const quick_return_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -175,45 +177,60 @@ static void quick_return_trig_base(const quick_return_real *q, quick_return_real
 static void quick_return_trig_near(const quick_return_real *q, quick_return_real *tr, quick_return_real *base)
 {
     {
-        const quick_return_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const quick_return_real a = q[2];
+        const quick_return_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const quick_return_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const quick_return_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const quick_return_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const quick_return_real d2 = d * d;
+            const quick_return_real s = base[1];
+            const quick_return_real c = base[2];
+            const quick_return_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const quick_return_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const quick_return_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const quick_return_real a = q[5];
+        const quick_return_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const quick_return_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const quick_return_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const quick_return_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const quick_return_real d2 = d * d;
+            const quick_return_real s = base[4];
+            const quick_return_real c = base[5];
+            const quick_return_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const quick_return_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const quick_return_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const quick_return_real a = q[8];
+        const quick_return_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const quick_return_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const quick_return_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const quick_return_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const quick_return_real d2 = d * d;
+            const quick_return_real s = base[7];
+            const quick_return_real c = base[8];
+            const quick_return_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const quick_return_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
 }
@@ -226,30 +243,36 @@ static void quick_return_trig_near(const quick_return_real *q, quick_return_real
 static void quick_return_trig_step(const quick_return_real *q, const quick_return_real *dq, quick_return_real *tr, quick_return_real *base)
 {
     {
-        const quick_return_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const quick_return_real d = -dq[2];
+        const quick_return_real s = tr[0];
+        const quick_return_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             quick_return_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const quick_return_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const quick_return_real d = -dq[5];
+        const quick_return_real s = tr[2];
+        const quick_return_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             quick_return_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const quick_return_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const quick_return_real d = -dq[8];
+        const quick_return_real s = tr[4];
+        const quick_return_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             quick_return_trig_near(q, tr, base);
             return;
@@ -263,10 +286,10 @@ static void quick_return_trig_step(const quick_return_real *q, const quick_retur
    evaluation. The kernels read both from this one vector. */
 static void quick_return_prepare(const quick_return_real *p, quick_return_real *pp)
 {
-    memcpy(pp, p, sizeof(quick_return_real) * 13);
+    (void)memcpy(pp, p, sizeof(quick_return_real) * 13u);
     {
         pp[13] = -(p[3]*p[3]);
-        pp[14] = (2*3.141592653589793*p[11]);
+        pp[14] = (2.0*3.141592653589793*p[11]);
         pp[15] = (1.0/2.0)*p[5]*(p[6]*p[6]);
         pp[16] = (1.0/12.0)*(p[2]*p[2])*p[7];
         pp[17] = (1.0/12.0)*p[8]*((p[10]*p[10]) + (p[9]*p[9]));
@@ -284,11 +307,11 @@ static void quick_return_phi_k0(const quick_return_real * q, const quick_return_
     out[1] = q[1];
     out[2] = -e0 - e2;
     out[3] = -e3 + (p[1] + q[4]);
-    out[4] = -tr[2]*(p[0]*tr[1] + (e0 + q[0])) + tr[3]*(p[0]*tr[0] + (q[1] - q[4]));
+    out[4] = (-tr[2]*((p[0]*tr[1]) + (e0 + q[0]))) + (tr[3]*((p[0]*tr[0]) + (q[1] - q[4])));
     out[5] = p[13] + ((-e2 + (-q[3] + q[6]))*(-e2 + (-q[3] + q[6]))) + ((-e3 + (-e4 - q[4]))*(-e3 + (-e4 - q[4])));
     out[6] = -e4 - p[4];
     out[7] = q[8];
-    out[8] = -p[14]*t + q[2];
+    out[8] = (-p[14]*t) + q[2];
 }
 
 static void quick_return_phi_k(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -302,8 +325,7 @@ void quick_return_phi(const quick_return_real * q, quick_return_real t, const qu
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_phi_k(q, tr, t, p, out);
+    quick_return_phi_k(q, tr, t, prepared, out);
 }
 
 static void quick_return_phi_q_k0(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -315,28 +337,28 @@ static void quick_return_phi_q_k0(const quick_return_real * q, const quick_retur
     const quick_return_real e3 = (1.0/2.0)*e2;
     const quick_return_real e4 = p[0]*tr[0];
     const quick_return_real e5 = p[0]*tr[1];
-    const quick_return_real e6 = 2*q[3] - 2*q[6];
-    const quick_return_real e7 = 2*q[4] - 2*q[7];
-    out[0] = 1;
-    out[1] = 1;
-    out[2] = 1;
+    const quick_return_real e6 = (2.0*q[3]) - (2.0*q[6]);
+    const quick_return_real e7 = (2.0*q[4]) - (2.0*q[7]);
+    out[0] = 1.0;
+    out[1] = 1.0;
+    out[2] = 1.0;
     out[3] = e1;
-    out[4] = 1;
+    out[4] = 1.0;
     out[5] = -e3;
     out[6] = -tr[2];
     out[7] = tr[3];
-    out[8] = e4*tr[2] + e5*tr[3];
+    out[8] = (e4*tr[2]) + (e5*tr[3]);
     out[9] = tr[2];
     out[10] = -tr[3];
-    out[11] = -tr[2]*(e4 + (q[1] - q[4])) - tr[3]*(e5 + (q[0] - q[3]));
+    out[11] = (-tr[2]*(e4 + (q[1] - q[4]))) - (tr[3]*(e5 + (q[0] - q[3])));
     out[12] = e2 + (e6);
     out[13] = e0 + (e7);
-    out[14] = e0*(-e3 + (-q[3] + q[6])) - e2*(-e1 + (-q[4] + q[7]));
+    out[14] = (e0*(-e3 + (-q[3] + q[6]))) - (e2*(-e1 + (-q[4] + q[7])));
     out[15] = -e2 + (-e6);
     out[16] = -e0 + (-e7);
-    out[17] = 1;
-    out[18] = 1;
-    out[19] = 1;
+    out[17] = 1.0;
+    out[18] = 1.0;
+    out[19] = 1.0;
 }
 
 static void quick_return_phi_q_k(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -350,8 +372,7 @@ void quick_return_phi_q(const quick_return_real * q, quick_return_real t, const 
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_phi_q_k(q, tr, t, p, out);
+    quick_return_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void quick_return_nu_k0(const quick_return_real * q, const quick_return_real * tr, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -359,14 +380,14 @@ static void quick_return_nu_k0(const quick_return_real * q, const quick_return_r
     (void)q;
     (void)tr;
     (void)t;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
     out[8] = p[14];
 }
 
@@ -381,8 +402,7 @@ void quick_return_nu(const quick_return_real * q, quick_return_real t, const qui
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_nu_k(q, tr, t, p, out);
+    quick_return_nu_k(q, tr, t, prepared, out);
 }
 
 static void quick_return_gamma_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -392,7 +412,7 @@ static void quick_return_gamma_k0(const quick_return_real * q, const quick_retur
     const quick_return_real e1 = e0*tr[3];
     const quick_return_real e2 = (1.0/2.0)*p[2];
     const quick_return_real e3 = e0*tr[2];
-    const quick_return_real e4 = 2*qd[5];
+    const quick_return_real e4 = 2.0*qd[5];
     const quick_return_real e5 = e4*tr[3];
     const quick_return_real e6 = e4*tr[2];
     const quick_return_real e7 = (qd[2]*qd[2]);
@@ -402,15 +422,15 @@ static void quick_return_gamma_k0(const quick_return_real * q, const quick_retur
     const quick_return_real e11 = e3*p[2];
     const quick_return_real e12 = e5*p[2];
     const quick_return_real e13 = e6*p[2];
-    out[0] = 0;
-    out[1] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
     out[2] = -e1*e2;
     out[3] = -e2*e3;
-    out[4] = e1*e8 + e1*q[1] - e1*q[4] - e3*e9 - e3*q[0] + e3*q[3] - e5*e8*qd[2] + e5*qd[0] - e5*qd[3] + e6*e9*qd[2] + e6*qd[1] - e6*qd[4] + e7*e8*tr[3] - e7*e9*tr[2];
-    out[5] = e10*q[3] - e10*q[6] + e11*q[4] - e11*q[7] - e12*qd[4] + e12*qd[7] + e13*qd[3] - e13*qd[6] + (-2*(qd[3]*qd[3]) + 4*qd[3]*qd[6] - 2*(qd[4]*qd[4]) + 4*qd[4]*qd[7] - 2*(qd[6]*qd[6]) - 2*(qd[7]*qd[7]));
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
+    out[4] = (e1*e8) + (e1*q[1]) - (e1*q[4]) - (e3*e9) - (e3*q[0]) + (e3*q[3]) - (e5*e8*qd[2]) + (e5*qd[0]) - (e5*qd[3]) + (e6*e9*qd[2]) + (e6*qd[1]) - (e6*qd[4]) + (e7*e8*tr[3]) - (e7*e9*tr[2]);
+    out[5] = (e10*q[3]) - (e10*q[6]) + (e11*q[4]) - (e11*q[7]) - (e12*qd[4]) + (e12*qd[7]) + (e13*qd[3]) - (e13*qd[6]) + ((-2.0*(qd[3]*qd[3])) + (4.0*qd[3]*qd[6]) - (2.0*(qd[4]*qd[4])) + (4.0*qd[4]*qd[7]) - (2.0*(qd[6]*qd[6])) - (2.0*(qd[7]*qd[7])));
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
 }
 
 static void quick_return_gamma_k(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -424,8 +444,7 @@ void quick_return_gamma(const quick_return_real * q, const quick_return_real * q
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_gamma_k(q, tr, qd, t, p, out);
+    quick_return_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void quick_return_applied_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -433,15 +452,15 @@ static void quick_return_applied_k0(const quick_return_real * q, const quick_ret
     (void)q;
     (void)tr;
     (void)qd;
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[5];
-    out[2] = 0;
-    out[3] = 0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = -981.0/100.0*p[7];
-    out[5] = 0;
-    out[6] = (1.0/2.0)*p[12]*(sin(p[14]*t) + 1);
+    out[5] = 0.0;
+    out[6] = (1.0/2.0)*p[12]*(sin(p[14]*t) + 1.0);
     out[7] = -981.0/100.0*p[8];
-    out[8] = 0;
+    out[8] = 0.0;
 }
 
 static void quick_return_applied_k(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -455,8 +474,7 @@ void quick_return_applied(const quick_return_real * q, const quick_return_real *
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_applied_k(q, tr, qd, t, p, out);
+    quick_return_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void quick_return_mass_k0(const quick_return_real * p, quick_return_real *out)
@@ -481,8 +499,7 @@ void quick_return_mass(const quick_return_real * p, quick_return_real *out)
 {
     quick_return_real prepared[18];
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_mass_k(p, out);
+    quick_return_mass_k(prepared, out);
 }
 
 static void quick_return_reactions_k0(const quick_return_real * q, const quick_return_real * tr, const quick_return_real * lam, quick_return_real t, const quick_return_real * p, quick_return_real *out)
@@ -490,47 +507,47 @@ static void quick_return_reactions_k0(const quick_return_real * q, const quick_r
     (void)t;
     const quick_return_real e0 = lam[4]*tr[2];
     const quick_return_real e1 = lam[4]*tr[3];
-    const quick_return_real e2 = 2*lam[5];
-    const quick_return_real e3 = e2*q[3] - 2*lam[5]*q[6];
+    const quick_return_real e2 = 2.0*lam[5];
+    const quick_return_real e3 = (e2*q[3]) - (2.0*lam[5]*q[6]);
     const quick_return_real e4 = lam[5]*p[2];
     const quick_return_real e5 = e4*tr[3];
-    const quick_return_real e6 = e2*q[4] - 2*lam[5]*q[7];
+    const quick_return_real e6 = (e2*q[4]) - (2.0*lam[5]*q[7]);
     const quick_return_real e7 = e4*tr[2];
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = -e0;
     out[13] = e1;
-    out[14] = e0*p[0]*tr[0] + e0*q[1] - e0*q[4] + e1*p[0]*tr[1] + e1*q[0] - e1*q[3];
+    out[14] = (e0*p[0]*tr[0]) + (e0*q[1]) - (e0*q[4]) + (e1*p[0]*tr[1]) + (e1*q[0]) - (e1*q[3]);
     out[15] = e0;
     out[16] = -e1;
-    out[17] = 0;
+    out[17] = 0.0;
     out[18] = -e5 + (-e3);
     out[19] = -e7 + (-e6);
-    out[20] = 0;
+    out[20] = 0.0;
     out[21] = e5 + (e3);
     out[22] = e7 + (e6);
-    out[23] = 0;
-    out[24] = 0;
+    out[23] = 0.0;
+    out[24] = 0.0;
     out[25] = lam[6];
-    out[26] = lam[6]*q[6] + lam[7];
-    out[27] = 0;
+    out[26] = (lam[6]*q[6]) + lam[7];
+    out[27] = 0.0;
     out[28] = -lam[6];
     out[29] = -lam[7];
-    out[30] = 0;
-    out[31] = 0;
+    out[30] = 0.0;
+    out[31] = 0.0;
     out[32] = lam[8];
-    out[33] = 0;
-    out[34] = 0;
+    out[33] = 0.0;
+    out[34] = 0.0;
     out[35] = -lam[8];
 }
 
@@ -545,8 +562,7 @@ void quick_return_reactions(const quick_return_real * q, const quick_return_real
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
-    p = prepared;
-    quick_return_reactions_k(q, tr, lam, t, p, out);
+    quick_return_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -565,29 +581,31 @@ static int quick_return_sparse_factor0(quick_return_real *lu)
     quick_return_real cm = 0.0;
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[6]));
-    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (QUICK_RETURN_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[7]));
-    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (QUICK_RETURN_THRESHOLD * cm))) { return 1; }
     piv = lu[15];
     cm = fabs(piv);
-    if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[15] = 1.0 / piv;
+    if (!(fabs(piv) >= (QUICK_RETURN_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[15] = 1.0 / piv;
+    piv = lu[15];
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[8]));
-    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (QUICK_RETURN_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[9]));
-    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
-    lu[11] -= lu[9] * lu[3];
+    if (!(1.0 >= (QUICK_RETURN_THRESHOLD * cm))) { return 1; }
+    lu[11] -= (lu[9] * lu[3]);
     cm = 1.0;
     cm = QUICK_RETURN_MAX(cm, fabs(lu[10]));
-    if (!(1.0 >= QUICK_RETURN_THRESHOLD * cm)) return 1;
-    lu[11] -= lu[10] * lu[5];
+    if (!(1.0 >= (QUICK_RETURN_THRESHOLD * cm))) { return 1; }
+    lu[11] -= (lu[10] * lu[5]);
     piv = lu[11];
     cm = fabs(piv);
-    if (!(fabs(piv) >= QUICK_RETURN_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[11] = 1.0 / piv;
+    if (!(fabs(piv) >= (QUICK_RETURN_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[11] = 1.0 / piv;
+    piv = lu[11];
     return 0;
 }
 
@@ -598,23 +616,23 @@ static int quick_return_sparse_factor(quick_return_real *lu)
 
 static void quick_return_sparse_forward0(const quick_return_real *QUICK_RETURN_RESTRICT lu, quick_return_real *QUICK_RETURN_RESTRICT y)
 {
-    y[4] -= lu[6] * y[0];
-    y[4] -= lu[7] * y[1];
-    y[4] -= lu[8] * y[8];
-    y[4] -= lu[9] * y[2];
-    y[4] -= lu[10] * y[3];
+    y[4] -= (lu[6] * y[0]);
+    y[4] -= (lu[7] * y[1]);
+    y[4] -= (lu[8] * y[8]);
+    y[4] -= (lu[9] * y[2]);
+    y[4] -= (lu[10] * y[3]);
 }
 
 static void quick_return_sparse_back0(
     const quick_return_real *QUICK_RETURN_RESTRICT lu, const quick_return_real *QUICK_RETURN_RESTRICT y, quick_return_real *QUICK_RETURN_RESTRICT x)
 {
     x[5] = (y[4]) * lu[11];
-    x[4] = y[3] - lu[5] * x[5];
-    x[3] = y[2] - lu[3] * x[5];
+    x[4] = y[3] - (lu[5] * x[5]);
+    x[3] = y[2] - (lu[3] * x[5]);
     x[2] = y[8];
     x[8] = y[7];
     x[7] = y[6];
-    x[6] = (y[5] - lu[12] * x[3] - lu[13] * x[4] - lu[14] * x[5] - lu[16] * x[7]) * lu[15];
+    x[6] = (y[5] - (lu[12] * x[3]) - (lu[13] * x[4]) - (lu[14] * x[5]) - (lu[16] * x[7])) * lu[15];
     x[1] = y[1];
     x[0] = y[0];
 }
@@ -628,7 +646,7 @@ static void quick_return_sparse_solve_in(const quick_return_real *lu, quick_retu
 
 static void quick_return_sparse_solve(const quick_return_real *lu, const quick_return_real *b, quick_return_real *x, quick_return_real *y)
 {
-    memcpy(y, b, sizeof(quick_return_real) * 9);
+    (void)memcpy(y, b, sizeof(quick_return_real) * 9u);
     quick_return_sparse_solve_in(lu, y, x);
 }
 
@@ -638,21 +656,21 @@ static void quick_return_sparse_t_forward0(
     x[0] = b[0];
     x[1] = b[1];
     x[5] = (b[6]) * lu[15];
-    x[6] = b[7] - lu[16] * x[5];
+    x[6] = b[7] - (lu[16] * x[5]);
     x[7] = b[8];
     x[8] = b[2];
-    x[2] = b[3] - lu[12] * x[5];
-    x[3] = b[4] - lu[13] * x[5];
-    x[4] = (b[5] - lu[14] * x[5] - lu[3] * x[2] - lu[5] * x[3]) * lu[11];
+    x[2] = b[3] - (lu[12] * x[5]);
+    x[3] = b[4] - (lu[13] * x[5]);
+    x[4] = (b[5] - (lu[14] * x[5]) - (lu[3] * x[2]) - (lu[5] * x[3])) * lu[11];
 }
 
 static void quick_return_sparse_t_back0(const quick_return_real *QUICK_RETURN_RESTRICT lu, quick_return_real *QUICK_RETURN_RESTRICT x)
 {
-    x[3] -= lu[10] * x[4];
-    x[2] -= lu[9] * x[4];
-    x[8] -= lu[8] * x[4];
-    x[1] -= lu[7] * x[4];
-    x[0] -= lu[6] * x[4];
+    x[3] -= (lu[10] * x[4]);
+    x[2] -= (lu[9] * x[4]);
+    x[8] -= (lu[8] * x[4]);
+    x[1] -= (lu[7] * x[4]);
+    x[0] -= (lu[6] * x[4]);
 }
 
 static void quick_return_sparse_solve_t(const quick_return_real *lu, const quick_return_real *b, quick_return_real *x)
@@ -666,58 +684,81 @@ static void quick_return_sparse_solve_t(const quick_return_real *lu, const quick
 static int quick_return_dense_factor(quick_return_real *a, int *perm)
 {
     const int n = 9;
-    int i, j, k;
-    quick_return_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    quick_return_real umax = 0.0;
+    quick_return_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                quick_return_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return QUICK_RETURN_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            quick_return_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                quick_return_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return QUICK_RETURN_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            quick_return_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= QUICK_RETURN_SINGULAR_RATIO * umax ? QUICK_RETURN_SINGULAR : QUICK_RETURN_OK;
+    return (umin <= (QUICK_RETURN_SINGULAR_RATIO * umax)) ? QUICK_RETURN_SINGULAR : QUICK_RETURN_OK;
 }
 
 static void quick_return_dense_solve(const quick_return_real *a, const int *perm, const quick_return_real *b, quick_return_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(quick_return_real) * 9);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(quick_return_real) * 9u);
     for (i = 0; i < n; ++i) {
         quick_return_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void quick_return_dense_solve_t(const quick_return_real *a, const int *perm, const quick_return_real *b, quick_return_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(quick_return_real) * 9);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(quick_return_real) * 9u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         quick_return_real tmp = x[perm[i]];
@@ -725,8 +766,6 @@ static void quick_return_dense_solve_t(const quick_return_real *a, const int *pe
         x[i] = tmp;
     }
 }
-
-static const int quick_return_pivot_slots[2] = { 15, 11 };
 
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
@@ -734,6 +773,7 @@ static const int quick_return_pivot_slots[2] = { 15, 11 };
    hold reciprocals, whose spread is the pivots'. */
 static int quick_return_pivots_spread(const quick_return_real *lu)
 {
+    static const int quick_return_pivot_slots[2] = { 15, 11 };
     quick_return_real rmin = 1.0;
     quick_return_real rmax = 1.0;
     int k;
@@ -742,7 +782,7 @@ static int quick_return_pivots_spread(const quick_return_real *lu)
         rmin = QUICK_RETURN_MIN(rmin, r);
         rmax = QUICK_RETURN_MAX(rmax, r);
     }
-    return rmin <= QUICK_RETURN_SINGULAR_RATIO * rmax;
+    return (rmin <= (QUICK_RETURN_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -755,8 +795,12 @@ static int quick_return_pivots_spread(const quick_return_real *lu)
 static int quick_return_screen(const quick_return_real *lu, int dense, const quick_return_real *row, const quick_return_real *col,
                           const quick_return_real *known)
 {
-    quick_return_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    quick_return_real wmin = known[0];
+    quick_return_real wmax = known[1];
+    quick_return_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[15]) * row[5] * col[6];
     wmin = QUICK_RETURN_MIN(wmin, w);
     wmax = QUICK_RETURN_MAX(wmax, w);
@@ -767,7 +811,7 @@ static int quick_return_screen(const quick_return_real *lu, int dense, const qui
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= QUICK_RETURN_SCREEN * wmin);
+    return (wmax <= (QUICK_RETURN_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -776,7 +820,8 @@ static int quick_return_screen(const quick_return_real *lu, int dense, const qui
 static void quick_return_screen_known(const quick_return_real *row, const quick_return_real *col, quick_return_real *known)
 {
     quick_return_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[0] * col[0];
     known[0] = QUICK_RETURN_MIN(known[0], w);
     known[1] = QUICK_RETURN_MAX(known[1], w);
@@ -809,36 +854,51 @@ static void quick_return_screen_known(const quick_return_real *row, const quick_
 static int quick_return_factorize(const quick_return_real *q, const quick_return_real *tr, quick_return_real t, const quick_return_real *p, quick_return_real *work,
                              int *iwork, int *dense)
 {
-    quick_return_real *values = work, *lu = work + QUICK_RETURN_OFF_LU, *a = work + QUICK_RETURN_OFF_DENSE;
+    quick_return_real *values = work;
+    quick_return_real *lu = &work[QUICK_RETURN_OFF_LU];
+    quick_return_real *a = &work[QUICK_RETURN_OFF_DENSE];
     int k;
     quick_return_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (quick_return_sparse_factor(lu) == 0 && !quick_return_pivots_spread(lu)) return QUICK_RETURN_OK;
+    if ((quick_return_sparse_factor(lu) == 0) && (quick_return_pivots_spread(lu) == 0)) {
+        return QUICK_RETURN_OK;
+    }
     *dense = 1;
     quick_return_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(quick_return_real) * 81);
-    for (k = 0; k < 20; ++k) a[quick_return_phi_q_rows[k] * 9 + quick_return_phi_q_cols[k]] = values[k];
+    (void)memset(a, 0, sizeof(quick_return_real) * 81u);
+    for (k = 0; k < 20; ++k) {
+        a[(quick_return_phi_q_rows[k] * 9) + quick_return_phi_q_cols[k]] = values[k];
+    }
     return quick_return_dense_factor(a, iwork);
 }
 
 static void quick_return_solve(const quick_return_real *work, const int *iwork, int dense, const quick_return_real *b, quick_return_real *x, quick_return_real *y)
 {
-    if (dense) quick_return_dense_solve(work + QUICK_RETURN_OFF_DENSE, iwork, b, x);
-    else quick_return_sparse_solve(work + QUICK_RETURN_OFF_LU, b, x, y);
+    if (dense != 0) {
+        quick_return_dense_solve(&work[QUICK_RETURN_OFF_DENSE], iwork, b, x);
+    } else {
+        quick_return_sparse_solve(&work[QUICK_RETURN_OFF_LU], b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void quick_return_solve_in(const quick_return_real *work, const int *iwork, int dense, quick_return_real *b, quick_return_real *x, quick_return_real *y)
 {
-    if (dense) quick_return_solve(work, iwork, dense, b, x, y);
-    else quick_return_sparse_solve_in(work + QUICK_RETURN_OFF_LU, b, x);
+    if (dense != 0) {
+        quick_return_solve(work, iwork, dense, b, x, y);
+    } else {
+        quick_return_sparse_solve_in(&work[QUICK_RETURN_OFF_LU], b, x);
+    }
 }
 
 static void quick_return_solve_t(const quick_return_real *work, const int *iwork, int dense, const quick_return_real *b, quick_return_real *x)
 {
-    if (dense) quick_return_dense_solve_t(work + QUICK_RETURN_OFF_DENSE, iwork, b, x);
-    else quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, b, x);
+    if (dense != 0) {
+        quick_return_dense_solve_t(&work[QUICK_RETURN_OFF_DENSE], iwork, b, x);
+    } else {
+        quick_return_sparse_solve_t(&work[QUICK_RETURN_OFF_LU], b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -848,12 +908,13 @@ static void quick_return_solve_t(const quick_return_real *work, const int *iwork
    the refinement's cost (a quarter of an instant) is not paid. */
 static int quick_return_mixed(const quick_return_real *m)
 {
-    quick_return_real lo = m[0], hi = m[0];
+    quick_return_real lo = m[0];
+    quick_return_real hi = m[0];
     lo = QUICK_RETURN_MIN(lo, m[3]);
     hi = QUICK_RETURN_MAX(hi, m[3]);
     lo = QUICK_RETURN_MIN(lo, m[6]);
     hi = QUICK_RETURN_MAX(hi, m[6]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -868,14 +929,23 @@ static int quick_return_mixed(const quick_return_real *m)
 static QUICK_RETURN_COLD void quick_return_refine_t(const quick_return_real *q, const quick_return_real *tr, quick_return_real t, const quick_return_real *p,
                                         const quick_return_real *b, quick_return_real *lam, quick_return_real *work, const int *iwork, int dense)
 {
-    quick_return_real *values = work, *r = QUICK_RETURN_VEC(work, 0), *d = QUICK_RETURN_VEC(work, 1);
+    quick_return_real *values = work;
+    quick_return_real *r = QUICK_RETURN_VEC(work, 0);
+    quick_return_real *d = QUICK_RETURN_VEC(work, 1);
     int k;
     quick_return_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(quick_return_real) * 9);
-    for (k = 0; k < 20; ++k) r[quick_return_phi_q_cols[k]] -= values[k] * lam[quick_return_phi_q_rows[k]];
-    if (dense) quick_return_dense_solve_t(work + QUICK_RETURN_OFF_DENSE, iwork, r, d);
-    else quick_return_sparse_solve_t(work + QUICK_RETURN_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 9; ++k) lam[k] += d[k];
+    (void)memcpy(r, b, sizeof(quick_return_real) * 9u);
+    for (k = 0; k < 20; ++k) {
+        r[quick_return_phi_q_cols[k]] -= values[k] * lam[quick_return_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        quick_return_dense_solve_t(&work[QUICK_RETURN_OFF_DENSE], iwork, r, d);
+    } else {
+        quick_return_sparse_solve_t(&work[QUICK_RETURN_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 9; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,
@@ -890,48 +960,85 @@ static quick_return_real quick_return_cond_estimate(const quick_return_real *q, 
                                     quick_return_real *work, const int *iwork, int dense, const quick_return_real *row,
                                     const quick_return_real *col)
 {
-    quick_return_real *vals = work, *x = QUICK_RETURN_VEC(work, 0), *z = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
-    quick_return_real *b = QUICK_RETURN_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    quick_return_real *vals = work;
+    quick_return_real *x = QUICK_RETURN_VEC(work, 0);
+    quick_return_real *z = QUICK_RETURN_VEC(work, 1);
+    quick_return_real *y = QUICK_RETURN_VEC(work, 2);
+    quick_return_real *b = QUICK_RETURN_VEC(work, 3);
+    quick_return_real anorm = 0.0;
+    quick_return_real est = 0.0;
+    quick_return_real s;
+    quick_return_real zmax;
+    quick_return_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     quick_return_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 9; ++k) z[k] = 0.0;
-    for (k = 0; k < 20; ++k)
+    for (k = 0; k < 9; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 20; ++k) {
         z[quick_return_phi_q_cols[k]] += fabs(vals[k]) / (row[quick_return_phi_q_rows[k]] * col[quick_return_phi_q_cols[k]]);
-    for (k = 0; k < 9; ++k) anorm = QUICK_RETURN_MAX(anorm, z[k]);
-    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        anorm = QUICK_RETURN_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 9; ++k) {
+        x[k] = 1.0 / 9.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = row[k] * x[k];
+        }
         quick_return_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         quick_return_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 9; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 9; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (quick_return_real)k / QUICK_RETURN_MAX(1.0, 8.0));
+    for (k = 0; k < 9; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((quick_return_real)k / QUICK_RETURN_MAX(1.0, 8.0)));
+    }
     quick_return_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
-    est = QUICK_RETURN_MAX(est, 2.0 * s / (3.0 * 9.0));
+    for (k = 0; k < 9; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = QUICK_RETURN_MAX(est, (2.0 * s) / (3.0 * 9.0));
     return anorm * est;
 }
 
@@ -946,24 +1053,32 @@ static quick_return_real quick_return_cond_estimate(const quick_return_real *q, 
 static int quick_return_row_finite(const quick_return_real *row, const quick_return_real *qn, const quick_return_real *qdn, const quick_return_real *qddn,
                               const quick_return_real *lam, const quick_return_real *reac)
 {
-    quick_return_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    quick_return_real s0 = 0.0;
+    quick_return_real s1 = 0.0;
+    quick_return_real s2 = 0.0;
+    quick_return_real s3 = 0.0;
     int k;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     for (k = 0; k < 72; k += 4) {
-        s0 += row[1 + k + 0];
+        s0 += row[1 + k];
         s1 += row[1 + k + 1];
         s2 += row[1 + k + 2];
         s3 += row[1 + k + 3];
     }
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     for (k = 0; k < 72; k += 4) {
-        s0 += row[1 + k + 0] * 0.0;
+        s0 += row[1 + k] * 0.0;
         s1 += row[1 + k + 1] * 0.0;
         s2 += row[1 + k + 2] * 0.0;
         s3 += row[1 + k + 3] * 0.0;
     }
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 9 values, NaN if any v_k is NaN (so that a NaN residual
@@ -971,37 +1086,45 @@ static int quick_return_row_finite(const quick_return_real *row, const quick_ret
    comparison. */
 static quick_return_real quick_return_maxabs9(const quick_return_real *v)
 {
-    quick_return_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    quick_return_real m0 = 0.0;
+    quick_return_real m1 = 0.0;
+    quick_return_real m2 = 0.0;
+    quick_return_real m3 = 0.0;
+    quick_return_real s0 = 0.0;
+    quick_return_real s1 = 0.0;
+    quick_return_real s2 = 0.0;
+    quick_return_real s3 = 0.0;
+    quick_return_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[6]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[7]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[8]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     m0 = QUICK_RETURN_MAX(QUICK_RETURN_MAX(m0, m1), QUICK_RETURN_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
@@ -1053,17 +1176,28 @@ static quick_return_real quick_return_correct(quick_return_real *q, quick_return
 static int quick_return_newton(quick_return_real t, const quick_return_real *p, quick_return_real tol, quick_return_real *q, quick_return_real *tr, int *info, quick_return_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    quick_return_real *r = QUICK_RETURN_VEC(work, 0), *dq = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
+    quick_return_real *r = QUICK_RETURN_VEC(work, 0);
+    quick_return_real *dq = QUICK_RETURN_VEC(work, 1);
+    quick_return_real *y = QUICK_RETURN_VEC(work, 2);
     quick_return_real *base = QUICK_RETURN_VEC(work, 10);
-    quick_return_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    quick_return_real step = ((double)INFINITY);
+    quick_return_real lim;
+    quick_return_real qmag;
+    quick_return_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) quick_return_trig_near(q, tr, base);
-    else quick_return_trig_base(q, tr, base);
+    if (reuse != 0) {
+        quick_return_trig_near(q, tr, base);
+    } else {
+        quick_return_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = QUICK_RETURN_MAX(1.0, quick_return_maxabs9(q));
-    lim = QUICK_RETURN_MAX(tol, (quick_return_real)QUICK_RETURN_FLOOR_ULPS * QUICK_RETURN_EPS * qmag);
+    lim = QUICK_RETURN_MAX(tol, ((quick_return_real)QUICK_RETURN_FLOOR_ULPS * QUICK_RETURN_EPS) * qmag);
     quick_return_phi_k(q, tr, t, p, r);
     rmax = quick_return_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1072,15 +1206,17 @@ static int quick_return_newton(quick_return_real t, const quick_return_real *p, 
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? QUICK_RETURN_NONFINITE : QUICK_RETURN_NOT_CONVERGED;
+            return (it == 0) ? QUICK_RETURN_NONFINITE : QUICK_RETURN_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == QUICK_RETURN_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK) {
+        if (it == QUICK_RETURN_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK)) {
             info[0] = it;
             info[1] = *dense;
             return QUICK_RETURN_SINGULAR;
@@ -1090,8 +1226,8 @@ static int quick_return_newton(quick_return_real t, const quick_return_real *p, 
         quick_return_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= QUICK_RETURN_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (QUICK_RETURN_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1103,8 +1239,10 @@ static int quick_return_newton(quick_return_real t, const quick_return_real *p, 
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return QUICK_RETURN_NOT_CONVERGED;
-    if (!current && quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK) {
+    if (converged == 0) {
+        return QUICK_RETURN_NOT_CONVERGED;
+    }
+    if ((current == 0) && (quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK)) {
         info[1] = *dense;
         return QUICK_RETURN_SINGULAR;
     }
@@ -1116,7 +1254,8 @@ static int quick_return_newton(quick_return_real t, const quick_return_real *p, 
 static void quick_return_outputs(quick_return_real t, const quick_return_real *p, const quick_return_real *q, const quick_return_real *tr, quick_return_real *qd, quick_return_real *qdd,
                             quick_return_real *lam, quick_return_real *reactions, quick_return_real *work, const int *iwork, int dense)
 {
-    quick_return_real *y = QUICK_RETURN_VEC(work, 2), *b = QUICK_RETURN_VEC(work, 3);
+    quick_return_real *y = QUICK_RETURN_VEC(work, 2);
+    quick_return_real *b = QUICK_RETURN_VEC(work, 3);
     quick_return_nu_k(q, tr, t, p, b);
     quick_return_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     quick_return_gamma_k(q, tr, qd, t, p, b);
@@ -1133,7 +1272,9 @@ static void quick_return_outputs(quick_return_real t, const quick_return_real *p
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     quick_return_solve_t(work, iwork, dense, b, lam);
-    if (quick_return_mixed(y)) quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (quick_return_mixed(y) != 0) {
+        quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     quick_return_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1142,8 +1283,11 @@ static void quick_return_outputs(quick_return_real t, const quick_return_real *p
    order, so four sums run side by side and the compiler may pack them). */
 static int quick_return_allfinite(const quick_return_real *v, int n)
 {
-    quick_return_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    quick_return_real s0 = 0.0;
+    quick_return_real s1 = 0.0;
+    quick_return_real s2 = 0.0;
+    quick_return_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1152,8 +1296,11 @@ static int quick_return_allfinite(const quick_return_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1175,12 +1322,24 @@ static int quick_return_finite(const quick_return_real *q, const quick_return_re
 static void quick_return_keep(quick_return_real *state, const quick_return_real *q, const quick_return_real *qd, const quick_return_real *qdd,
                          const quick_return_real *m1, const quick_return_real *m2, const quick_return_real *m3)
 {
-    if (m3 != state + 45) memcpy(state + 45, m3, sizeof(quick_return_real) * 9);
-    if (m2 != state + 36) memcpy(state + 36, m2, sizeof(quick_return_real) * 9);
-    if (m1 != state + 27) memcpy(state + 27, m1, sizeof(quick_return_real) * 9);
-    if (qdd != state + 18) memcpy(state + 18, qdd, sizeof(quick_return_real) * 9);
-    if (qd != state + 9) memcpy(state + 9, qd, sizeof(quick_return_real) * 9);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(quick_return_real) * 9);
+    if (m3 != &state[45]) {
+        (void)memcpy(&state[45], m3, sizeof(quick_return_real) * 9u);
+    }
+    if (m2 != &state[36]) {
+        (void)memcpy(&state[36], m2, sizeof(quick_return_real) * 9u);
+    }
+    if (m1 != &state[27]) {
+        (void)memcpy(&state[27], m1, sizeof(quick_return_real) * 9u);
+    }
+    if (qdd != &state[18]) {
+        (void)memcpy(&state[18], qdd, sizeof(quick_return_real) * 9u);
+    }
+    if (qd != &state[9]) {
+        (void)memcpy(&state[9], qd, sizeof(quick_return_real) * 9u);
+    }
+    if (q != state) {
+        (void)memcpy(state, q, sizeof(quick_return_real) * 9u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1190,27 +1349,32 @@ static void quick_return_keep(quick_return_real *state, const quick_return_real 
 static int quick_return_unexplained(const quick_return_real *q0, const quick_return_real *qd0, const quick_return_real *qdd0, const quick_return_real *q1,
                                const quick_return_real *qd1, const quick_return_real *qdd1, quick_return_real h, const quick_return_real *c)
 {
-    const quick_return_real half = 0.5 * h, hh = h * h / 12.0;
-    quick_return_real mismatch = 0.0, motion = 0.0, d;
+    const quick_return_real half = 0.5 * h;
+    const quick_return_real hh = (h * h) / 12.0;
+    quick_return_real mismatch = 0.0;
+    quick_return_real motion = 0.0;
+    quick_return_real d;
     d = q1[0] - q0[0];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = QUICK_RETURN_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = QUICK_RETURN_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = QUICK_RETURN_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1229,35 +1393,43 @@ static int quick_return_unexplained(const quick_return_real *q0, const quick_ret
     motion = QUICK_RETURN_MAX(motion, fabs(d) * c[7]);
     d = q1[8] - q0[8];
     motion = QUICK_RETURN_MAX(motion, fabs(d) * c[8]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_return_real tol, quick_return_real *q, quick_return_real *qd, quick_return_real *qdd,
                     quick_return_real *lam, quick_return_real *reactions, int *info, quick_return_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = QUICK_RETURN_BAD_ARGUMENT;
     } else {
-        quick_return_real *tr = QUICK_RETURN_VEC(work, 9), *pp = work + QUICK_RETURN_OFF_PREP, *kept = QUICK_RETURN_VEC(work, 11);
-        memcpy(kept, q, sizeof(quick_return_real) * 9);  /* the caller's guess, back in q if the call fails */
+        quick_return_real *tr = QUICK_RETURN_VEC(work, 9);
+        quick_return_real *pp = &work[QUICK_RETURN_OFF_PREP];
+        quick_return_real *kept = QUICK_RETURN_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(quick_return_real) * 9u);  /* the caller's guess, back in q if the call fails */
         quick_return_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = QUICK_RETURN_VEC(work, 5);
-        if (qdd == NULL) qdd = QUICK_RETURN_VEC(work, 6);
-        if (lam == NULL) lam = QUICK_RETURN_VEC(work, 7);
-        if (reactions == NULL) reactions = QUICK_RETURN_VEC(work, 8);
+        quick_return_real *qd_out = (qd != NULL) ? qd : QUICK_RETURN_VEC(work, 5);
+        quick_return_real *qdd_out = (qdd != NULL) ? qdd : QUICK_RETURN_VEC(work, 6);
+        quick_return_real *lam_out = (lam != NULL) ? lam : QUICK_RETURN_VEC(work, 7);
+        quick_return_real *reactions_out = (reactions != NULL) ? reactions : QUICK_RETURN_VEC(work, 8);
         status = quick_return_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == QUICK_RETURN_OK) {
-            quick_return_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!quick_return_finite(q, qd, qdd, lam, reactions)) status = QUICK_RETURN_NONFINITE;
+            quick_return_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (quick_return_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = QUICK_RETURN_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != QUICK_RETURN_OK) memcpy(q, kept, sizeof(quick_return_real) * 9);
+        if (status != QUICK_RETURN_OK) {
+            (void)memcpy(q, kept, sizeof(quick_return_real) * 9u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1275,21 +1447,29 @@ int quick_return_instant_at(long whole, quick_return_real frac, const quick_retu
 
 int quick_return_screen_at(quick_return_real t, const quick_return_real *p, const quick_return_real *state, quick_return_real *work, int *iwork)
 {
-    quick_return_real *tr, *pp, known[2];
+    quick_return_real *tr;
+    quick_return_real *pp;
+    quick_return_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return QUICK_RETURN_BAD_ARGUMENT;
-    if (!(state[63] > 0.0)) return QUICK_RETURN_OK;  /* no scales: no screen */
-    tr = QUICK_RETURN_VEC(work, 9), pp = work + QUICK_RETURN_OFF_PREP;
+    }
+    if (!(state[63] > 0.0)) {
+        return QUICK_RETURN_OK;  /* no scales: no screen */
+    }
+    tr = QUICK_RETURN_VEC(work, 9);
+    pp = &work[QUICK_RETURN_OFF_PREP];
     quick_return_prepare(p, pp);
     quick_return_trig(state, tr);
-    if (quick_return_factorize(state, tr, t, pp, work, iwork, &dense) != QUICK_RETURN_OK)
+    if (quick_return_factorize(state, tr, t, pp, work, iwork, &dense) != QUICK_RETURN_OK) {
         return QUICK_RETURN_ILL_CONDITIONED;
-    quick_return_screen_known(state + 63, state + 54, known);
-    if (quick_return_screen(work + QUICK_RETURN_OFF_LU, dense, state + 63, state + 54, known)
-        && !(quick_return_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
-             <= QUICK_RETURN_COND_SCREEN))
+    }
+    quick_return_screen_known(&state[63], &state[54], known);
+    if ((quick_return_screen(&work[QUICK_RETURN_OFF_LU], dense, &state[63], &state[54], known) != 0)
+        && !(quick_return_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
+             <= QUICK_RETURN_COND_SCREEN)) {
         return QUICK_RETURN_ILL_CONDITIONED;
+    }
     return QUICK_RETURN_OK;
 }
 
@@ -1299,93 +1479,133 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    quick_return_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    quick_return_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    quick_return_real *q;
+    quick_return_real *m1;
+    quick_return_real *m2;
+    quick_return_real *count;
+    quick_return_real *qn;
+    quick_return_real *qdn;
+    quick_return_real *qddn;
+    quick_return_real *lam;
+    quick_return_real *reac;
+    quick_return_real *tr;
+    quick_return_real *pp;
+    quick_return_real *scale;
+    quick_return_real *rscale;
+    quick_return_real *qd;
+    quick_return_real *qdd;
+    quick_return_real *m3;
+    quick_return_real known[2];
+    long i;
+    long unused;
+    long *done = &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
+    *done = 0;
     status = QUICK_RETURN_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return QUICK_RETURN_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
-    scale = state + 54, rscale = state + 63;
-    if (rscale[0] > 0.0) quick_return_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 9, qdd = state + 18, m3 = state + 45;
-    tr = QUICK_RETURN_VEC(work, 9), pp = work + QUICK_RETURN_OFF_PREP;
+    q = state;
+    m1 = &state[27];
+    m2 = &state[36];
+    count = &state[72];
+    scale = &state[54];
+    rscale = &state[63];
+    if (rscale[0] > 0.0) {
+        quick_return_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[9];
+    qdd = &state[18];
+    m3 = &state[45];
+    tr = QUICK_RETURN_VEC(work, 9);
+    pp = &work[QUICK_RETURN_OFF_PREP];
     quick_return_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const quick_return_real t = t0 + *count * h;
-        quick_return_real *row = rows + i * QUICK_RETURN_ROW;
+        const quick_return_real t = t0 + (*count * h);
+        quick_return_real *row = &rows[i * QUICK_RETURN_ROW];
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 10;
-        qddn = row + 19;
-        lam = row + 28;
-        reac = row + 37;
+        qn = &row[1];
+        qdn = &row[10];
+        qddn = &row[19];
+        lam = &row[28];
+        reac = &row[37];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
-                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
-            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
-                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
-            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
-                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
-            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
-            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
-        } else
-            memcpy(qn, q, sizeof(quick_return_real) * 9);
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+            qn[6] = q[6] + (h * (qd[6] + (h * (((((323.0 / 360.0) * qdd[6]) - ((264.0 / 360.0) * m1[6]))
+                                                 + ((159.0 / 360.0) * m2[6])) - ((38.0 / 360.0) * m3[6])))));
+            qn[7] = q[7] + (h * (qd[7] + (h * (((((323.0 / 360.0) * qdd[7]) - ((264.0 / 360.0) * m1[7]))
+                                                 + ((159.0 / 360.0) * m2[7])) - ((38.0 / 360.0) * m3[7])))));
+            qn[8] = q[8] + (h * (qd[8] + (h * (((((323.0 / 360.0) * qdd[8]) - ((264.0 / 360.0) * m1[8]))
+                                                 + ((159.0 / 360.0) * m2[8])) - ((38.0 / 360.0) * m3[8])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+            qn[6] = q[6] + (h * (qd[6] + ((0.5 * h) * qdd[6])));
+            qn[7] = q[7] + (h * (qd[7] + ((0.5 * h) * qdd[7])));
+            qn[8] = q[8] + (h * (qd[8] + ((0.5 * h) * qdd[8])));
+        } else {
+            (void)memcpy(qn, q, sizeof(quick_return_real) * 9u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = quick_return_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != QUICK_RETURN_OK) break;
-        if (rscale[0] > 0.0 && quick_return_screen(work + QUICK_RETURN_OFF_LU, dense, rscale, scale, known)
+        status = quick_return_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != QUICK_RETURN_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (quick_return_screen(&work[QUICK_RETURN_OFF_LU], dense, rscale, scale, known) != 0)
             && !(quick_return_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= QUICK_RETURN_COND_SCREEN)) {
             status = QUICK_RETURN_ILL_CONDITIONED;
             break;
         }
         quick_return_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!quick_return_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (quick_return_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = QUICK_RETURN_NONFINITE;
             break;
         }
-        if (*count >= 1 && quick_return_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (quick_return_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = QUICK_RETURN_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     quick_return_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }
@@ -1399,15 +1619,15 @@ static void quick_return_guess(const quick_return_real *p, quick_return_real *ou
     const quick_return_real g0 = p[2]/sqrt((p[0]*p[0]) + (p[1]*p[1]));
     const quick_return_real g1 = g0*p[0];
     const quick_return_real g2 = g0*p[1];
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = (1.0/2.0)*g1;
-    out[4] = (1.0/2.0)*g2 - p[1];
+    out[4] = ((1.0/2.0)*g2) - p[1];
     out[5] = atan2(p[1], p[0]);
     out[6] = g1 + sqrt((p[3]*p[3]) - ((-g2 + p[1] + p[4])*(-g2 + p[1] + p[4])));
     out[7] = p[4];
-    out[8] = 0;
+    out[8] = 0.0;
 }
 
 /* Each driver's f(t) and f'(t), in file order. */
@@ -1415,7 +1635,7 @@ static void quick_return_drive(quick_return_real t, const quick_return_real *p, 
 {
     (void)t;
     (void)p;
-    const quick_return_real d0 = (2*3.141592653589793*p[11]);
+    const quick_return_real d0 = (2.0*3.141592653589793*p[11]);
     out[0] = d0*t;
     out[1] = d0;
 }
@@ -1428,36 +1648,61 @@ static void quick_return_drive(quick_return_real t, const quick_return_real *p, 
 static void quick_return_sweep_scales(const quick_return_real *q, quick_return_real t0, const quick_return_real *p, quick_return_real *vals,
                                  quick_return_real *arms, quick_return_real *inv, quick_return_real *norm)
 {
-    quick_return_real lin[9], rot[9], lref = 0.0, a;
-    int k, r, m = 0, i;
+    quick_return_real lin[9];
+    quick_return_real rot[9];
+    quick_return_real lref = 0.0;
+    quick_return_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     quick_return_phi_q(q, t0, p, vals);
-    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 9; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 20; ++k) {
         a = fabs(vals[k]);
         r = quick_return_phi_q_rows[k];
-        if (quick_return_phi_q_cols[k] % 3 == 2) rot[r] = QUICK_RETURN_MAX(rot[r], a);
-        else lin[r] = QUICK_RETURN_MAX(lin[r], a);
+        if ((quick_return_phi_q_cols[k] % 3) == 2) {
+            rot[r] = QUICK_RETURN_MAX(rot[r], a);
+        } else {
+            lin[r] = QUICK_RETURN_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 9; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
+                arms[i] = arms[i - 1];
+                --i;
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 9; ++k)
-            if (k % 3 != 2) lref = QUICK_RETURN_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 9; ++k) {
+            if ((k % 3) != 2) {
+                lref = QUICK_RETURN_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 9; ++r) {
         a = QUICK_RETURN_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1469,7 +1714,9 @@ static void quick_return_sweep_take(const quick_return_real *row, const quick_re
                                quick_return_real *drive, long count)
 {
     const quick_return_real t = row[0];
-    quick_return_real e, rate, w;
+    quick_return_real e;
+    quick_return_real rate;
+    quick_return_real w;
     quick_return_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1479,46 +1726,78 @@ static void quick_return_sweep_take(const quick_return_real *row, const quick_re
     e = -row[36];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* crank_bearing.force_peak */
-    m = row[37] * row[37] + row[38] * row[38];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[40] * row[40] + row[41] * row[41];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[37] * row[37]) + (row[38] * row[38]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[40] * row[40]) + (row[41] * row[41]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* lever_pivot.force_peak */
-    m = row[43] * row[43] + row[44] * row[44];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[46] * row[46] + row[47] * row[47];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[43] * row[43]) + (row[44] * row[44]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[46] * row[46]) + (row[47] * row[47]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* crank_pin_in_lever_slot.force_peak */
-    m = row[49] * row[49] + row[50] * row[50];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[52] * row[52] + row[53] * row[53];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[49] * row[49]) + (row[50] * row[50]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[52] * row[52]) + (row[53] * row[53]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* lever_ram_link.force_peak */
-    m = row[55] * row[55] + row[56] * row[56];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[58] * row[58] + row[59] * row[59];
-    if (m > fig[7]) fig[7] = m;
+    m = (row[55] * row[55]) + (row[56] * row[56]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[58] * row[58]) + (row[59] * row[59]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
     /* ram_guide.force_peak */
-    m = row[61] * row[61] + row[62] * row[62];
-    if (count == 0 || m > fig[8]) fig[8] = m;
-    m = row[64] * row[64] + row[65] * row[65];
-    if (m > fig[8]) fig[8] = m;
+    m = (row[61] * row[61]) + (row[62] * row[62]);
+    if ((count == 0) || (m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[64] * row[64]) + (row[65] * row[65]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
     /* crank_motor.force_peak */
-    m = row[67] * row[67] + row[68] * row[68];
-    if (count == 0 || m > fig[9]) fig[9] = m;
-    m = row[70] * row[70] + row[71] * row[71];
-    if (m > fig[9]) fig[9] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[67] * row[67]) + (row[68] * row[68]);
+    if ((count == 0) || (m > fig[9])) {
+        fig[9] = m;
+    }
+    m = (row[70] * row[70]) + (row[71] * row[71]);
+    if ((m > fig[9])) {
+        fig[9] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 
@@ -1529,7 +1808,9 @@ static void quick_return_sweep_finish(quick_return_real *fig, const quick_return
     const quick_return_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 10; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 10; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1539,7 +1820,7 @@ static void quick_return_sweep_finish(quick_return_real *fig, const quick_return
     fig[7] = sqrt(fig[7]);
     fig[8] = sqrt(fig[8]);
     fig[9] = sqrt(fig[9]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (quick_return_real)count);
 }
 
@@ -1549,10 +1830,14 @@ static void quick_return_sweep_finish(quick_return_real *fig, const quick_return
 long quick_return_sweep_lanes(long *abandoned)
 {
 #if QUICK_RETURN_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&quick_return_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&quick_return_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return quick_return_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1560,25 +1845,37 @@ long quick_return_sweep_lanes(long *abandoned)
 int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0, quick_return_real h, long n, quick_return_real tol,
                   quick_return_real *figures, int *status, quick_return_real *t_end, long *solved, quick_return_real *work, int *iwork)
 {
-    quick_return_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    quick_return_real *state;
+    quick_return_real *rows;
+    quick_return_real *vals;
+    quick_return_real *arms;
+    quick_return_real *drive;
+    quick_return_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if QUICK_RETURN_LANES > 1
     const long lanes = quick_return_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     quick_return_real snap[QUICK_RETURN_LANES * QUICK_RETURN_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return QUICK_RETURN_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + QUICK_RETURN_WORK, rows = state + QUICK_RETURN_STATE;
-    vals = rows + 32 * QUICK_RETURN_ROW, arms = vals + 20, drive = arms + 9;
-    acc = drive + 2;
+    state = &work[QUICK_RETURN_WORK];
+    rows = &state[QUICK_RETURN_STATE];
+    vals = &rows[32 * QUICK_RETURN_ROW];
+    arms = &vals[20];
+    drive = &arms[9];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const quick_return_real *pv = p + v * QUICK_RETURN_NP;
-        quick_return_real *fig = figures + v * QUICK_RETURN_SWEEP_FIGURES;
+        const quick_return_real *pv = &p[v * QUICK_RETURN_NP];
+        quick_return_real *fig = &figures[v * QUICK_RETURN_SWEEP_FIGURES];
 #if QUICK_RETURN_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (quick_return_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1590,26 +1887,28 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const quick_return_real *s = snap + (v - first) * QUICK_RETURN_SNAP;
-            memcpy(state, s, sizeof(quick_return_real) * QUICK_RETURN_STATE);
-            memcpy(fig, s + QUICK_RETURN_STATE, sizeof(quick_return_real) * QUICK_RETURN_SWEEP_FIGURES);
-            memcpy(acc, s + QUICK_RETURN_STATE + QUICK_RETURN_SWEEP_FIGURES, sizeof(quick_return_real) * 5);
+            (void)memcpy(state, s, sizeof(quick_return_real) * QUICK_RETURN_STATE);
+            (void)memcpy(fig, &s[QUICK_RETURN_STATE], sizeof(quick_return_real) * QUICK_RETURN_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[QUICK_RETURN_STATE + QUICK_RETURN_SWEEP_FIGURES], sizeof(quick_return_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(quick_return_real) * QUICK_RETURN_STATE);
+            (void)memset(state, 0, sizeof(quick_return_real) * (size_t)QUICK_RETURN_STATE);
             quick_return_guess(pv, state);
             done = 0;
         }
         st = QUICK_RETURN_OK;
-        while (done < n && st == QUICK_RETURN_OK) {
+        while ((done < n) && (st == QUICK_RETURN_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : QUICK_RETURN_MIN(32, n - done);
+            m = (done == 0) ? 1 : QUICK_RETURN_MIN(32, n - done);
             got = 0;
             st = quick_return_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) quick_return_sweep_take(rows + m * QUICK_RETURN_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
-                quick_return_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+            for (m = 0; m < got; ++m) {
+                quick_return_sweep_take(&rows[m * QUICK_RETURN_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
+                quick_return_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = quick_return_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;
@@ -1617,7 +1916,7 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
         quick_return_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return QUICK_RETURN_OK;
 }
@@ -1679,17 +1978,28 @@ static void quick_return_sp_gamma_k(const quick_return_real * q, const quick_ret
 static int quick_return_sp_newton(quick_return_real t, const quick_return_real *p, const quick_return_real *q_des, quick_return_real tol, quick_return_real *q, quick_return_real *tr, int *info, quick_return_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    quick_return_real *r = QUICK_RETURN_VEC(work, 0), *dq = QUICK_RETURN_VEC(work, 1), *y = QUICK_RETURN_VEC(work, 2);
+    quick_return_real *r = QUICK_RETURN_VEC(work, 0);
+    quick_return_real *dq = QUICK_RETURN_VEC(work, 1);
+    quick_return_real *y = QUICK_RETURN_VEC(work, 2);
     quick_return_real *base = QUICK_RETURN_VEC(work, 10);
-    quick_return_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    quick_return_real step = ((double)INFINITY);
+    quick_return_real lim;
+    quick_return_real qmag;
+    quick_return_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) quick_return_trig_near(q, tr, base);
-    else quick_return_trig_base(q, tr, base);
+    if (reuse != 0) {
+        quick_return_trig_near(q, tr, base);
+    } else {
+        quick_return_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = QUICK_RETURN_MAX(1.0, quick_return_maxabs9(q));
-    lim = QUICK_RETURN_MAX(tol, (quick_return_real)QUICK_RETURN_FLOOR_ULPS * QUICK_RETURN_EPS * qmag);
+    lim = QUICK_RETURN_MAX(tol, ((quick_return_real)QUICK_RETURN_FLOOR_ULPS * QUICK_RETURN_EPS) * qmag);
     quick_return_phi_k(q, tr, t, p, r);
     quick_return_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
     rmax = quick_return_maxabs9(r);
@@ -1699,15 +2009,17 @@ static int quick_return_sp_newton(quick_return_real t, const quick_return_real *
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? QUICK_RETURN_NONFINITE : QUICK_RETURN_NOT_CONVERGED;
+            return (it == 0) ? QUICK_RETURN_NONFINITE : QUICK_RETURN_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == QUICK_RETURN_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK) {
+        if (it == QUICK_RETURN_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK)) {
             info[0] = it;
             info[1] = *dense;
             return QUICK_RETURN_SINGULAR;
@@ -1717,8 +2029,8 @@ static int quick_return_sp_newton(quick_return_real t, const quick_return_real *
         quick_return_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= QUICK_RETURN_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (QUICK_RETURN_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1731,8 +2043,10 @@ static int quick_return_sp_newton(quick_return_real t, const quick_return_real *
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return QUICK_RETURN_NOT_CONVERGED;
-    if (!current && quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK) {
+    if (converged == 0) {
+        return QUICK_RETURN_NOT_CONVERGED;
+    }
+    if ((current == 0) && (quick_return_factorize(q, tr, t, p, work, iwork, dense) != QUICK_RETURN_OK)) {
         info[1] = *dense;
         return QUICK_RETURN_SINGULAR;
     }
@@ -1745,7 +2059,8 @@ static void quick_return_sp_outputs(quick_return_real t, const quick_return_real
                             quick_return_real *lam, quick_return_real *reactions, quick_return_real *work, const int *iwork, int dense,
                             const quick_return_real *q_des, const quick_return_real *qd_des, const quick_return_real *qdd_des)
 {
-    quick_return_real *y = QUICK_RETURN_VEC(work, 2), *b = QUICK_RETURN_VEC(work, 3);
+    quick_return_real *y = QUICK_RETURN_VEC(work, 2);
+    quick_return_real *b = QUICK_RETURN_VEC(work, 3);
     quick_return_nu_k(q, tr, t, p, b);
     quick_return_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
     quick_return_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
@@ -1764,7 +2079,9 @@ static void quick_return_sp_outputs(quick_return_real t, const quick_return_real
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     quick_return_solve_t(work, iwork, dense, b, lam);
-    if (quick_return_mixed(y)) quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (quick_return_mixed(y) != 0) {
+        quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     quick_return_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1776,25 +2093,34 @@ static int quick_return_sp_instant(quick_return_real t, const quick_return_real 
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !quick_return_allfinite(q_des, QUICK_RETURN_ND) || !quick_return_allfinite(qd_des, QUICK_RETURN_ND)
-        || !quick_return_allfinite(qdd_des, QUICK_RETURN_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (quick_return_allfinite(q_des, QUICK_RETURN_ND) == 0) || (quick_return_allfinite(qd_des, QUICK_RETURN_ND) == 0)
+        || (quick_return_allfinite(qdd_des, QUICK_RETURN_ND) == 0)) {
         status = QUICK_RETURN_BAD_ARGUMENT;
     } else {
-        quick_return_real *tr = QUICK_RETURN_VEC(work, 9), *pp = work + QUICK_RETURN_OFF_PREP, *kept = QUICK_RETURN_VEC(work, 11);
-        memcpy(kept, q, sizeof(quick_return_real) * 9);  /* the caller's guess, back in q if the call fails */
+        quick_return_real *tr = QUICK_RETURN_VEC(work, 9);
+        quick_return_real *pp = &work[QUICK_RETURN_OFF_PREP];
+        quick_return_real *kept = QUICK_RETURN_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(quick_return_real) * 9u);  /* the caller's guess, back in q if the call fails */
         quick_return_prepare(p, pp);
-        if (qd == NULL) qd = QUICK_RETURN_VEC(work, 5);
-        if (qdd == NULL) qdd = QUICK_RETURN_VEC(work, 6);
-        if (lam == NULL) lam = QUICK_RETURN_VEC(work, 7);
-        if (reactions == NULL) reactions = QUICK_RETURN_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        quick_return_real *qd_out = (qd != NULL) ? qd : QUICK_RETURN_VEC(work, 5);
+        quick_return_real *qdd_out = (qdd != NULL) ? qdd : QUICK_RETURN_VEC(work, 6);
+        quick_return_real *lam_out = (lam != NULL) ? lam : QUICK_RETURN_VEC(work, 7);
+        quick_return_real *reactions_out = (reactions != NULL) ? reactions : QUICK_RETURN_VEC(work, 8);
         status = quick_return_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == QUICK_RETURN_OK) {
-            quick_return_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!quick_return_finite(q, qd, qdd, lam, reactions)) status = QUICK_RETURN_NONFINITE;
+            quick_return_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (quick_return_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = QUICK_RETURN_NONFINITE;
+            }
         }
-        if (status != QUICK_RETURN_OK) memcpy(q, kept, sizeof(quick_return_real) * 9);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != QUICK_RETURN_OK) {
+            (void)memcpy(q, kept, sizeof(quick_return_real) * 9u);
+        }
     }
     return status;
 }
@@ -1804,7 +2130,8 @@ int quick_return_setpoint(quick_return_real t, const quick_return_real *p, quick
                      quick_return_real *qdd, quick_return_real *lam, quick_return_real *reactions, int *info, quick_return_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = quick_return_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -199,13 +199,13 @@ extern const quick_return_real quick_return_default_q0[QUICK_RETURN_NG];
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 37, phi_q 41, nu 0, gamma 83, applied 15, mass 0, reactions 44, lu_factor 20, lu_forward 5, lu_back 14, lu_t_forward 14, lu_t_back 5. */
-#define QUICK_RETURN_OPS_INSTANT 353
+   work), and of each evaluation: phi 35, phi_q 40, nu 0, gamma 83, applied 15, mass 0, reactions 44, lu_factor 20, lu_forward 5, lu_back 14, lu_t_forward 14, lu_t_back 5. */
+#define QUICK_RETURN_OPS_INSTANT 348
 
 /* Worst case of one instant call (computed at generation from the counts
    above, not measured): Newton reaching MAX_NEWTON, every factorization
    through the pivoting fallback (bounded by a dense LU). At most
-   1683 + 1178 MAX_NEWTON counted floating operations and
+   1679 + 1174 MAX_NEWTON counted floating operations and
    7 + 6 MAX_NEWTON libm calls; as instructions, at most
    WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
    loads, stores and indexing), each libm call 300 (the real type on its
@@ -215,7 +215,7 @@ extern const quick_return_real quick_return_default_q0[QUICK_RETURN_NG];
    test_c_edges checks it under callgrind on x86-64 for every bundled
    example, the cap reached (instant only: a trajectory's instant adds its
    predictor, checks and, if generated, sensitivities). */
-#define QUICK_RETURN_WORST_INSTRUCTIONS (25296L + 16336L * (long)QUICK_RETURN_MAX_NEWTON)
+#define QUICK_RETURN_WORST_INSTRUCTIONS (25248L + 16288L * (long)QUICK_RETURN_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int quick_return_phi_q_rows[20];

@@ -43,7 +43,7 @@ typedef char rack_lift_real_must_have_the_size_of_double[sizeof(rack_lift_real) 
 #define RACK_LIFT_OFF_LU 11
 #define RACK_LIFT_OFF_DENSE (RACK_LIFT_OFF_LU + RACK_LIFT_LU_SIZE)
 #define RACK_LIFT_OFF_VEC (RACK_LIFT_OFF_DENSE + 36)
-#define RACK_LIFT_VEC(work, k) ((work) + RACK_LIFT_OFF_VEC + (k) * 24)
+#define RACK_LIFT_VEC(work, k) (&(work)[RACK_LIFT_OFF_VEC + ((k) * 24)])
 /* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
 #define RACK_LIFT_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
 #define RACK_LIFT_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
@@ -131,10 +131,12 @@ static void rack_lift_trig_base(const rack_lift_real *q, rack_lift_real *tr, rac
 {
     int b;
     for (b = 0; b < 2; ++b) {
-        const rack_lift_real a = q[3 * b + 2];
+        const rack_lift_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -149,31 +151,41 @@ static void rack_lift_trig_base(const rack_lift_real *q, rack_lift_real *tr, rac
 static void rack_lift_trig_near(const rack_lift_real *q, rack_lift_real *tr, rack_lift_real *base)
 {
     {
-        const rack_lift_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const rack_lift_real a = q[2];
+        const rack_lift_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const rack_lift_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const rack_lift_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const rack_lift_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const rack_lift_real d2 = d * d;
+            const rack_lift_real s = base[1];
+            const rack_lift_real c = base[2];
+            const rack_lift_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const rack_lift_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const rack_lift_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const rack_lift_real a = q[5];
+        const rack_lift_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const rack_lift_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const rack_lift_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const rack_lift_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const rack_lift_real d2 = d * d;
+            const rack_lift_real s = base[4];
+            const rack_lift_real c = base[5];
+            const rack_lift_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const rack_lift_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
 }
@@ -186,20 +198,24 @@ static void rack_lift_trig_near(const rack_lift_real *q, rack_lift_real *tr, rac
 static void rack_lift_trig_step(const rack_lift_real *q, const rack_lift_real *dq, rack_lift_real *tr, rack_lift_real *base)
 {
     {
-        const rack_lift_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const rack_lift_real d = -dq[2];
+        const rack_lift_real s = tr[0];
+        const rack_lift_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             rack_lift_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const rack_lift_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const rack_lift_real d = -dq[5];
+        const rack_lift_real s = tr[2];
+        const rack_lift_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             rack_lift_trig_near(q, tr, base);
             return;
@@ -213,7 +229,7 @@ static void rack_lift_trig_step(const rack_lift_real *q, const rack_lift_real *d
    evaluation. The kernels read both from this one vector. */
 static void rack_lift_prepare(const rack_lift_real *p, rack_lift_real *pp)
 {
-    memcpy(pp, p, sizeof(rack_lift_real) * 8);
+    (void)memcpy(pp, p, sizeof(rack_lift_real) * 8u);
     {
         const rack_lift_real e0 = (1.0/p[0]);
         const rack_lift_real e1 = (1.0/p[2]);
@@ -225,7 +241,7 @@ static void rack_lift_prepare(const rack_lift_real *p, rack_lift_real *pp)
         pp[11] = e1*e2;
         pp[12] = e3;
         pp[13] = e2*e3;
-        pp[14] = -981.0/100.0*p[4] - 981.0/100.0*p[6];
+        pp[14] = (-981.0/100.0*p[4]) - (981.0/100.0*p[6]);
         pp[15] = p[6]*p[7];
         pp[16] = (1.0/2.0)*(p[0]*p[0])*p[3];
         pp[17] = (1.0/12.0)*p[4]*(p[5]*p[5]);
@@ -239,8 +255,8 @@ static void rack_lift_phi_k0(const rack_lift_real * q, const rack_lift_real * tr
     out[1] = q[1];
     out[2] = e0 + p[0];
     out[3] = q[5];
-    out[4] = -p[0]*(q[2] - q[5]) - tr[2]*(-e0 - q[0]) + tr[3]*(-q[1] + q[4]);
-    out[5] = -1.0/2.0*p[10]*(1 - cos(2*3.141592653589793*p[9]*t)) + q[2];
+    out[4] = (-p[0]*(q[2] - q[5])) - (tr[2]*(-e0 - q[0])) + (tr[3]*(-q[1] + q[4]));
+    out[5] = (-1.0/2.0*p[10]*(1.0 - cos(2.0*3.141592653589793*p[9]*t))) + q[2];
 }
 
 static void rack_lift_phi_k(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -254,25 +270,24 @@ void rack_lift_phi(const rack_lift_real * q, rack_lift_real t, const rack_lift_r
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_phi_k(q, tr, t, p, out);
+    rack_lift_phi_k(q, tr, t, prepared, out);
 }
 
 static void rack_lift_phi_q_k0(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
     (void)t;
     const rack_lift_real e0 = -p[0];
-    out[0] = 1;
-    out[1] = 1;
-    out[2] = -1;
-    out[3] = 1;
+    out[0] = 1.0;
+    out[1] = 1.0;
+    out[2] = -1.0;
+    out[3] = 1.0;
     out[4] = tr[2];
     out[5] = -tr[3];
     out[6] = e0;
     out[7] = -tr[2];
     out[8] = tr[3];
-    out[9] = -e0 - tr[2]*(-q[1] + q[4]) - tr[3]*(-q[0] + q[3]);
-    out[10] = 1;
+    out[9] = -e0 - (tr[2]*(-q[1] + q[4])) - (tr[3]*(-q[0] + q[3]));
+    out[10] = 1.0;
 }
 
 static void rack_lift_phi_q_k(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -286,20 +301,19 @@ void rack_lift_phi_q(const rack_lift_real * q, rack_lift_real t, const rack_lift
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_phi_q_k(q, tr, t, p, out);
+    rack_lift_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void rack_lift_nu_k0(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
     (void)q;
     (void)tr;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 3.141592653589793*p[11]*sin(2*3.141592653589793*p[9]*t);
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 3.141592653589793*p[11]*sin(2.0*3.141592653589793*p[9]*t);
 }
 
 static void rack_lift_nu_k(const rack_lift_real * q, const rack_lift_real * tr, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -313,8 +327,7 @@ void rack_lift_nu(const rack_lift_real * q, rack_lift_real t, const rack_lift_re
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_nu_k(q, tr, t, p, out);
+    rack_lift_nu_k(q, tr, t, prepared, out);
 }
 
 static void rack_lift_gamma_k0(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -322,15 +335,15 @@ static void rack_lift_gamma_k0(const rack_lift_real * q, const rack_lift_real * 
     const rack_lift_real e0 = (qd[5]*qd[5]);
     const rack_lift_real e1 = e0*tr[2];
     const rack_lift_real e2 = e0*tr[3];
-    const rack_lift_real e3 = 2*qd[5];
+    const rack_lift_real e3 = 2.0*qd[5];
     const rack_lift_real e4 = e3*tr[3];
     const rack_lift_real e5 = e3*tr[2];
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = e1*q[0] - e1*q[3] - e2*q[1] + e2*q[4] - e4*qd[0] + e4*qd[3] - e5*qd[1] + e5*qd[4];
-    out[5] = 2*(3.141592653589793*3.141592653589793)*p[13]*cos(2*3.141592653589793*p[9]*t);
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = (e1*q[0]) - (e1*q[3]) - (e2*q[1]) + (e2*q[4]) - (e4*qd[0]) + (e4*qd[3]) - (e5*qd[1]) + (e5*qd[4]);
+    out[5] = 2.0*(3.141592653589793*3.141592653589793)*p[13]*cos(2.0*3.141592653589793*p[9]*t);
 }
 
 static void rack_lift_gamma_k(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -344,8 +357,7 @@ void rack_lift_gamma(const rack_lift_real * q, const rack_lift_real * qd, rack_l
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_gamma_k(q, tr, qd, t, p, out);
+    rack_lift_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void rack_lift_applied_k0(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -353,10 +365,10 @@ static void rack_lift_applied_k0(const rack_lift_real * q, const rack_lift_real 
     (void)q;
     (void)qd;
     (void)t;
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[3];
-    out[2] = 0;
-    out[3] = 0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = p[14];
     out[5] = -981.0/100.0*p[15]*tr[3];
 }
@@ -372,8 +384,7 @@ void rack_lift_applied(const rack_lift_real * q, const rack_lift_real * qd, rack
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_applied_k(q, tr, qd, t, p, out);
+    rack_lift_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void rack_lift_mass_k0(const rack_lift_real * p, rack_lift_real *out)
@@ -395,8 +406,7 @@ void rack_lift_mass(const rack_lift_real * p, rack_lift_real *out)
 {
     rack_lift_real prepared[18];
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_mass_k(p, out);
+    rack_lift_mass_k(prepared, out);
 }
 
 static void rack_lift_reactions_k0(const rack_lift_real * q, const rack_lift_real * tr, const rack_lift_real * lam, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
@@ -407,27 +417,27 @@ static void rack_lift_reactions_k0(const rack_lift_real * q, const rack_lift_rea
     const rack_lift_real e1 = lam[4]*tr[3];
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = -lam[2];
-    out[7] = 0;
-    out[8] = lam[2]*q[4] + lam[3];
+    out[7] = 0.0;
+    out[8] = (lam[2]*q[4]) + lam[3];
     out[9] = lam[2];
-    out[10] = 0;
+    out[10] = 0.0;
     out[11] = -lam[3];
     out[12] = -e0;
     out[13] = e1;
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = e0;
     out[16] = -e1;
-    out[17] = 0;
-    out[18] = 0;
-    out[19] = 0;
+    out[17] = 0.0;
+    out[18] = 0.0;
+    out[19] = 0.0;
     out[20] = lam[5];
-    out[21] = 0;
-    out[22] = 0;
+    out[21] = 0.0;
+    out[22] = 0.0;
     out[23] = -lam[5];
 }
 
@@ -442,8 +452,7 @@ void rack_lift_reactions(const rack_lift_real * q, const rack_lift_real * lam, r
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
-    p = prepared;
-    rack_lift_reactions_k(q, tr, lam, t, p, out);
+    rack_lift_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -462,21 +471,22 @@ static int rack_lift_sparse_factor0(rack_lift_real *lu)
     rack_lift_real cm = 0.0;
     cm = 1.0;
     cm = RACK_LIFT_MAX(cm, fabs(lu[4]));
-    if (!(1.0 >= RACK_LIFT_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (RACK_LIFT_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = RACK_LIFT_MAX(cm, fabs(lu[5]));
-    if (!(1.0 >= RACK_LIFT_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (RACK_LIFT_THRESHOLD * cm))) { return 1; }
     cm = 1.0;
     cm = RACK_LIFT_MAX(cm, fabs(lu[7]));
-    if (!(1.0 >= RACK_LIFT_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (RACK_LIFT_THRESHOLD * cm))) { return 1; }
     lu[7] = -lu[7];
     cm = 1.0;
     cm = RACK_LIFT_MAX(cm, fabs(lu[9]));
-    if (!(1.0 >= RACK_LIFT_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (RACK_LIFT_THRESHOLD * cm))) { return 1; }
     piv = lu[8];
     cm = fabs(piv);
-    if (!(fabs(piv) >= RACK_LIFT_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[8] = 1.0 / piv;
+    if (!(fabs(piv) >= (RACK_LIFT_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[8] = 1.0 / piv;
+    piv = lu[8];
     return 0;
 }
 
@@ -487,17 +497,17 @@ static int rack_lift_sparse_factor(rack_lift_real *lu)
 
 static void rack_lift_sparse_forward0(const rack_lift_real *RACK_LIFT_RESTRICT lu, rack_lift_real *RACK_LIFT_RESTRICT y)
 {
-    y[4] -= lu[4] * y[0];
-    y[4] -= lu[5] * y[1];
-    y[4] -= lu[7] * y[2];
-    y[4] -= lu[9] * y[3];
+    y[4] -= (lu[4] * y[0]);
+    y[4] -= (lu[5] * y[1]);
+    y[4] -= (lu[7] * y[2]);
+    y[4] -= (lu[9] * y[3]);
 }
 
 static void rack_lift_sparse_back0(
     const rack_lift_real *RACK_LIFT_RESTRICT lu, const rack_lift_real *RACK_LIFT_RESTRICT y, rack_lift_real *RACK_LIFT_RESTRICT x)
 {
     x[2] = y[5];
-    x[4] = (y[4] - lu[6] * x[2]) * lu[8];
+    x[4] = (y[4] - (lu[6] * x[2])) * lu[8];
     x[5] = y[3];
     x[3] = -(y[2]);
     x[1] = y[1];
@@ -513,7 +523,7 @@ static void rack_lift_sparse_solve_in(const rack_lift_real *lu, rack_lift_real *
 
 static void rack_lift_sparse_solve(const rack_lift_real *lu, const rack_lift_real *b, rack_lift_real *x, rack_lift_real *y)
 {
-    memcpy(y, b, sizeof(rack_lift_real) * 6);
+    (void)memcpy(y, b, sizeof(rack_lift_real) * 6u);
     rack_lift_sparse_solve_in(lu, y, x);
 }
 
@@ -525,15 +535,15 @@ static void rack_lift_sparse_t_forward0(
     x[2] = -(b[3]);
     x[3] = b[5];
     x[4] = (b[4]) * lu[8];
-    x[5] = b[2] - lu[6] * x[4];
+    x[5] = b[2] - (lu[6] * x[4]);
 }
 
 static void rack_lift_sparse_t_back0(const rack_lift_real *RACK_LIFT_RESTRICT lu, rack_lift_real *RACK_LIFT_RESTRICT x)
 {
-    x[3] -= lu[9] * x[4];
-    x[2] -= lu[7] * x[4];
-    x[1] -= lu[5] * x[4];
-    x[0] -= lu[4] * x[4];
+    x[3] -= (lu[9] * x[4]);
+    x[2] -= (lu[7] * x[4]);
+    x[1] -= (lu[5] * x[4]);
+    x[0] -= (lu[4] * x[4]);
 }
 
 static void rack_lift_sparse_solve_t(const rack_lift_real *lu, const rack_lift_real *b, rack_lift_real *x)
@@ -547,58 +557,81 @@ static void rack_lift_sparse_solve_t(const rack_lift_real *lu, const rack_lift_r
 static int rack_lift_dense_factor(rack_lift_real *a, int *perm)
 {
     const int n = 6;
-    int i, j, k;
-    rack_lift_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    rack_lift_real umax = 0.0;
+    rack_lift_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                rack_lift_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return RACK_LIFT_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            rack_lift_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                rack_lift_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return RACK_LIFT_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            rack_lift_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= RACK_LIFT_SINGULAR_RATIO * umax ? RACK_LIFT_SINGULAR : RACK_LIFT_OK;
+    return (umin <= (RACK_LIFT_SINGULAR_RATIO * umax)) ? RACK_LIFT_SINGULAR : RACK_LIFT_OK;
 }
 
 static void rack_lift_dense_solve(const rack_lift_real *a, const int *perm, const rack_lift_real *b, rack_lift_real *x)
 {
     const int n = 6;
-    int i, j;
-    memcpy(x, b, sizeof(rack_lift_real) * 6);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(rack_lift_real) * 6u);
     for (i = 0; i < n; ++i) {
         rack_lift_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void rack_lift_dense_solve_t(const rack_lift_real *a, const int *perm, const rack_lift_real *b, rack_lift_real *x)
 {
     const int n = 6;
-    int i, j;
-    memcpy(x, b, sizeof(rack_lift_real) * 6);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(rack_lift_real) * 6u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         rack_lift_real tmp = x[perm[i]];
@@ -606,8 +639,6 @@ static void rack_lift_dense_solve_t(const rack_lift_real *a, const int *perm, co
         x[i] = tmp;
     }
 }
-
-static const int rack_lift_pivot_slots[1] = { 8 };
 
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
@@ -615,6 +646,7 @@ static const int rack_lift_pivot_slots[1] = { 8 };
    hold reciprocals, whose spread is the pivots'. */
 static int rack_lift_pivots_spread(const rack_lift_real *lu)
 {
+    static const int rack_lift_pivot_slots[1] = { 8 };
     rack_lift_real rmin = 1.0;
     rack_lift_real rmax = 1.0;
     int k;
@@ -623,7 +655,7 @@ static int rack_lift_pivots_spread(const rack_lift_real *lu)
         rmin = RACK_LIFT_MIN(rmin, r);
         rmax = RACK_LIFT_MAX(rmax, r);
     }
-    return rmin <= RACK_LIFT_SINGULAR_RATIO * rmax;
+    return (rmin <= (RACK_LIFT_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -636,8 +668,12 @@ static int rack_lift_pivots_spread(const rack_lift_real *lu)
 static int rack_lift_screen(const rack_lift_real *lu, int dense, const rack_lift_real *row, const rack_lift_real *col,
                           const rack_lift_real *known)
 {
-    rack_lift_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    rack_lift_real wmin = known[0];
+    rack_lift_real wmax = known[1];
+    rack_lift_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[8]) * row[4] * col[4];
     wmin = RACK_LIFT_MIN(wmin, w);
     wmax = RACK_LIFT_MAX(wmax, w);
@@ -645,7 +681,7 @@ static int rack_lift_screen(const rack_lift_real *lu, int dense, const rack_lift
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= RACK_LIFT_SCREEN * wmin);
+    return (wmax <= (RACK_LIFT_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -654,7 +690,8 @@ static int rack_lift_screen(const rack_lift_real *lu, int dense, const rack_lift
 static void rack_lift_screen_known(const rack_lift_real *row, const rack_lift_real *col, rack_lift_real *known)
 {
     rack_lift_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[0] * col[0];
     known[0] = RACK_LIFT_MIN(known[0], w);
     known[1] = RACK_LIFT_MAX(known[1], w);
@@ -681,36 +718,51 @@ static void rack_lift_screen_known(const rack_lift_real *row, const rack_lift_re
 static int rack_lift_factorize(const rack_lift_real *q, const rack_lift_real *tr, rack_lift_real t, const rack_lift_real *p, rack_lift_real *work,
                              int *iwork, int *dense)
 {
-    rack_lift_real *values = work, *lu = work + RACK_LIFT_OFF_LU, *a = work + RACK_LIFT_OFF_DENSE;
+    rack_lift_real *values = work;
+    rack_lift_real *lu = &work[RACK_LIFT_OFF_LU];
+    rack_lift_real *a = &work[RACK_LIFT_OFF_DENSE];
     int k;
     rack_lift_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (rack_lift_sparse_factor(lu) == 0 && !rack_lift_pivots_spread(lu)) return RACK_LIFT_OK;
+    if ((rack_lift_sparse_factor(lu) == 0) && (rack_lift_pivots_spread(lu) == 0)) {
+        return RACK_LIFT_OK;
+    }
     *dense = 1;
     rack_lift_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(rack_lift_real) * 36);
-    for (k = 0; k < 11; ++k) a[rack_lift_phi_q_rows[k] * 6 + rack_lift_phi_q_cols[k]] = values[k];
+    (void)memset(a, 0, sizeof(rack_lift_real) * 36u);
+    for (k = 0; k < 11; ++k) {
+        a[(rack_lift_phi_q_rows[k] * 6) + rack_lift_phi_q_cols[k]] = values[k];
+    }
     return rack_lift_dense_factor(a, iwork);
 }
 
 static void rack_lift_solve(const rack_lift_real *work, const int *iwork, int dense, const rack_lift_real *b, rack_lift_real *x, rack_lift_real *y)
 {
-    if (dense) rack_lift_dense_solve(work + RACK_LIFT_OFF_DENSE, iwork, b, x);
-    else rack_lift_sparse_solve(work + RACK_LIFT_OFF_LU, b, x, y);
+    if (dense != 0) {
+        rack_lift_dense_solve(&work[RACK_LIFT_OFF_DENSE], iwork, b, x);
+    } else {
+        rack_lift_sparse_solve(&work[RACK_LIFT_OFF_LU], b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void rack_lift_solve_in(const rack_lift_real *work, const int *iwork, int dense, rack_lift_real *b, rack_lift_real *x, rack_lift_real *y)
 {
-    if (dense) rack_lift_solve(work, iwork, dense, b, x, y);
-    else rack_lift_sparse_solve_in(work + RACK_LIFT_OFF_LU, b, x);
+    if (dense != 0) {
+        rack_lift_solve(work, iwork, dense, b, x, y);
+    } else {
+        rack_lift_sparse_solve_in(&work[RACK_LIFT_OFF_LU], b, x);
+    }
 }
 
 static void rack_lift_solve_t(const rack_lift_real *work, const int *iwork, int dense, const rack_lift_real *b, rack_lift_real *x)
 {
-    if (dense) rack_lift_dense_solve_t(work + RACK_LIFT_OFF_DENSE, iwork, b, x);
-    else rack_lift_sparse_solve_t(work + RACK_LIFT_OFF_LU, b, x);
+    if (dense != 0) {
+        rack_lift_dense_solve_t(&work[RACK_LIFT_OFF_DENSE], iwork, b, x);
+    } else {
+        rack_lift_sparse_solve_t(&work[RACK_LIFT_OFF_LU], b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -720,10 +772,11 @@ static void rack_lift_solve_t(const rack_lift_real *work, const int *iwork, int 
    the refinement's cost (a quarter of an instant) is not paid. */
 static int rack_lift_mixed(const rack_lift_real *m)
 {
-    rack_lift_real lo = m[0], hi = m[0];
+    rack_lift_real lo = m[0];
+    rack_lift_real hi = m[0];
     lo = RACK_LIFT_MIN(lo, m[3]);
     hi = RACK_LIFT_MAX(hi, m[3]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -738,14 +791,23 @@ static int rack_lift_mixed(const rack_lift_real *m)
 static RACK_LIFT_COLD void rack_lift_refine_t(const rack_lift_real *q, const rack_lift_real *tr, rack_lift_real t, const rack_lift_real *p,
                                         const rack_lift_real *b, rack_lift_real *lam, rack_lift_real *work, const int *iwork, int dense)
 {
-    rack_lift_real *values = work, *r = RACK_LIFT_VEC(work, 0), *d = RACK_LIFT_VEC(work, 1);
+    rack_lift_real *values = work;
+    rack_lift_real *r = RACK_LIFT_VEC(work, 0);
+    rack_lift_real *d = RACK_LIFT_VEC(work, 1);
     int k;
     rack_lift_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(rack_lift_real) * 6);
-    for (k = 0; k < 11; ++k) r[rack_lift_phi_q_cols[k]] -= values[k] * lam[rack_lift_phi_q_rows[k]];
-    if (dense) rack_lift_dense_solve_t(work + RACK_LIFT_OFF_DENSE, iwork, r, d);
-    else rack_lift_sparse_solve_t(work + RACK_LIFT_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 6; ++k) lam[k] += d[k];
+    (void)memcpy(r, b, sizeof(rack_lift_real) * 6u);
+    for (k = 0; k < 11; ++k) {
+        r[rack_lift_phi_q_cols[k]] -= values[k] * lam[rack_lift_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        rack_lift_dense_solve_t(&work[RACK_LIFT_OFF_DENSE], iwork, r, d);
+    } else {
+        rack_lift_sparse_solve_t(&work[RACK_LIFT_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 6; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,
@@ -760,48 +822,85 @@ static rack_lift_real rack_lift_cond_estimate(const rack_lift_real *q, const rac
                                     rack_lift_real *work, const int *iwork, int dense, const rack_lift_real *row,
                                     const rack_lift_real *col)
 {
-    rack_lift_real *vals = work, *x = RACK_LIFT_VEC(work, 0), *z = RACK_LIFT_VEC(work, 1), *y = RACK_LIFT_VEC(work, 2);
-    rack_lift_real *b = RACK_LIFT_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    rack_lift_real *vals = work;
+    rack_lift_real *x = RACK_LIFT_VEC(work, 0);
+    rack_lift_real *z = RACK_LIFT_VEC(work, 1);
+    rack_lift_real *y = RACK_LIFT_VEC(work, 2);
+    rack_lift_real *b = RACK_LIFT_VEC(work, 3);
+    rack_lift_real anorm = 0.0;
+    rack_lift_real est = 0.0;
+    rack_lift_real s;
+    rack_lift_real zmax;
+    rack_lift_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     rack_lift_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 6; ++k) z[k] = 0.0;
-    for (k = 0; k < 11; ++k)
+    for (k = 0; k < 6; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 11; ++k) {
         z[rack_lift_phi_q_cols[k]] += fabs(vals[k]) / (row[rack_lift_phi_q_rows[k]] * col[rack_lift_phi_q_cols[k]]);
-    for (k = 0; k < 6; ++k) anorm = RACK_LIFT_MAX(anorm, z[k]);
-    for (k = 0; k < 6; ++k) x[k] = 1.0 / 6.0;
+    }
+    for (k = 0; k < 6; ++k) {
+        anorm = RACK_LIFT_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 6; ++k) {
+        x[k] = 1.0 / 6.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 6; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 6; ++k) {
+            b[k] = row[k] * x[k];
+        }
         rack_lift_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 6; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 6; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 6; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         rack_lift_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 6; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 6; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 6; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 6; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (rack_lift_real)k / RACK_LIFT_MAX(1.0, 5.0));
+    for (k = 0; k < 6; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((rack_lift_real)k / RACK_LIFT_MAX(1.0, 5.0)));
+    }
     rack_lift_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 6; ++k) s += fabs(z[k] * col[k]);
-    est = RACK_LIFT_MAX(est, 2.0 * s / (3.0 * 6.0));
+    for (k = 0; k < 6; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = RACK_LIFT_MAX(est, (2.0 * s) / (3.0 * 6.0));
     return anorm * est;
 }
 
@@ -816,7 +915,10 @@ static rack_lift_real rack_lift_cond_estimate(const rack_lift_real *q, const rac
 static int rack_lift_row_finite(const rack_lift_real *row, const rack_lift_real *qn, const rack_lift_real *qdn, const rack_lift_real *qddn,
                               const rack_lift_real *lam, const rack_lift_real *reac)
 {
-    rack_lift_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    rack_lift_real s0 = 0.0;
+    rack_lift_real s1 = 0.0;
+    rack_lift_real s2 = 0.0;
+    rack_lift_real s3 = 0.0;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     s0 += row[1];
     s1 += row[2];
@@ -866,8 +968,13 @@ static int rack_lift_row_finite(const rack_lift_real *row, const rack_lift_real 
     s1 += row[46];
     s2 += row[47];
     s3 += row[48];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     s0 += row[1] * 0.0;
     s1 += row[2] * 0.0;
     s2 += row[3] * 0.0;
@@ -916,7 +1023,7 @@ static int rack_lift_row_finite(const rack_lift_real *row, const rack_lift_real 
     s1 += row[46] * 0.0;
     s2 += row[47] * 0.0;
     s3 += row[48] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 6 values, NaN if any v_k is NaN (so that a NaN residual
@@ -924,28 +1031,36 @@ static int rack_lift_row_finite(const rack_lift_real *row, const rack_lift_real 
    comparison. */
 static rack_lift_real rack_lift_maxabs6(const rack_lift_real *v)
 {
-    rack_lift_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    rack_lift_real m0 = 0.0;
+    rack_lift_real m1 = 0.0;
+    rack_lift_real m2 = 0.0;
+    rack_lift_real m3 = 0.0;
+    rack_lift_real s0 = 0.0;
+    rack_lift_real s1 = 0.0;
+    rack_lift_real s2 = 0.0;
+    rack_lift_real s3 = 0.0;
+    rack_lift_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     m0 = RACK_LIFT_MAX(RACK_LIFT_MAX(m0, m1), RACK_LIFT_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
@@ -988,17 +1103,28 @@ static rack_lift_real rack_lift_correct(rack_lift_real *q, rack_lift_real *dq)
 static int rack_lift_newton(rack_lift_real t, const rack_lift_real *p, rack_lift_real tol, rack_lift_real *q, rack_lift_real *tr, int *info, rack_lift_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    rack_lift_real *r = RACK_LIFT_VEC(work, 0), *dq = RACK_LIFT_VEC(work, 1), *y = RACK_LIFT_VEC(work, 2);
+    rack_lift_real *r = RACK_LIFT_VEC(work, 0);
+    rack_lift_real *dq = RACK_LIFT_VEC(work, 1);
+    rack_lift_real *y = RACK_LIFT_VEC(work, 2);
     rack_lift_real *base = RACK_LIFT_VEC(work, 10);
-    rack_lift_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    rack_lift_real step = ((double)INFINITY);
+    rack_lift_real lim;
+    rack_lift_real qmag;
+    rack_lift_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) rack_lift_trig_near(q, tr, base);
-    else rack_lift_trig_base(q, tr, base);
+    if (reuse != 0) {
+        rack_lift_trig_near(q, tr, base);
+    } else {
+        rack_lift_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = RACK_LIFT_MAX(1.0, rack_lift_maxabs6(q));
-    lim = RACK_LIFT_MAX(tol, (rack_lift_real)RACK_LIFT_FLOOR_ULPS * RACK_LIFT_EPS * qmag);
+    lim = RACK_LIFT_MAX(tol, ((rack_lift_real)RACK_LIFT_FLOOR_ULPS * RACK_LIFT_EPS) * qmag);
     rack_lift_phi_k(q, tr, t, p, r);
     rmax = rack_lift_maxabs6(r);
     for (it = 0;; ++it) {
@@ -1007,15 +1133,17 @@ static int rack_lift_newton(rack_lift_real t, const rack_lift_real *p, rack_lift
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? RACK_LIFT_NONFINITE : RACK_LIFT_NOT_CONVERGED;
+            return (it == 0) ? RACK_LIFT_NONFINITE : RACK_LIFT_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == RACK_LIFT_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK) {
+        if (it == RACK_LIFT_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK)) {
             info[0] = it;
             info[1] = *dense;
             return RACK_LIFT_SINGULAR;
@@ -1025,8 +1153,8 @@ static int rack_lift_newton(rack_lift_real t, const rack_lift_real *p, rack_lift
         rack_lift_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= RACK_LIFT_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (RACK_LIFT_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1038,8 +1166,10 @@ static int rack_lift_newton(rack_lift_real t, const rack_lift_real *p, rack_lift
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return RACK_LIFT_NOT_CONVERGED;
-    if (!current && rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK) {
+    if (converged == 0) {
+        return RACK_LIFT_NOT_CONVERGED;
+    }
+    if ((current == 0) && (rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK)) {
         info[1] = *dense;
         return RACK_LIFT_SINGULAR;
     }
@@ -1051,7 +1181,8 @@ static int rack_lift_newton(rack_lift_real t, const rack_lift_real *p, rack_lift
 static void rack_lift_outputs(rack_lift_real t, const rack_lift_real *p, const rack_lift_real *q, const rack_lift_real *tr, rack_lift_real *qd, rack_lift_real *qdd,
                             rack_lift_real *lam, rack_lift_real *reactions, rack_lift_real *work, const int *iwork, int dense)
 {
-    rack_lift_real *y = RACK_LIFT_VEC(work, 2), *b = RACK_LIFT_VEC(work, 3);
+    rack_lift_real *y = RACK_LIFT_VEC(work, 2);
+    rack_lift_real *b = RACK_LIFT_VEC(work, 3);
     rack_lift_nu_k(q, tr, t, p, b);
     rack_lift_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     rack_lift_gamma_k(q, tr, qd, t, p, b);
@@ -1065,7 +1196,9 @@ static void rack_lift_outputs(rack_lift_real t, const rack_lift_real *p, const r
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     rack_lift_solve_t(work, iwork, dense, b, lam);
-    if (rack_lift_mixed(y)) rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (rack_lift_mixed(y) != 0) {
+        rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     rack_lift_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1074,8 +1207,11 @@ static void rack_lift_outputs(rack_lift_real t, const rack_lift_real *p, const r
    order, so four sums run side by side and the compiler may pack them). */
 static int rack_lift_allfinite(const rack_lift_real *v, int n)
 {
-    rack_lift_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    rack_lift_real s0 = 0.0;
+    rack_lift_real s1 = 0.0;
+    rack_lift_real s2 = 0.0;
+    rack_lift_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1084,8 +1220,11 @@ static int rack_lift_allfinite(const rack_lift_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1107,12 +1246,24 @@ static int rack_lift_finite(const rack_lift_real *q, const rack_lift_real *qd, c
 static void rack_lift_keep(rack_lift_real *state, const rack_lift_real *q, const rack_lift_real *qd, const rack_lift_real *qdd,
                          const rack_lift_real *m1, const rack_lift_real *m2, const rack_lift_real *m3)
 {
-    if (m3 != state + 30) memcpy(state + 30, m3, sizeof(rack_lift_real) * 6);
-    if (m2 != state + 24) memcpy(state + 24, m2, sizeof(rack_lift_real) * 6);
-    if (m1 != state + 18) memcpy(state + 18, m1, sizeof(rack_lift_real) * 6);
-    if (qdd != state + 12) memcpy(state + 12, qdd, sizeof(rack_lift_real) * 6);
-    if (qd != state + 6) memcpy(state + 6, qd, sizeof(rack_lift_real) * 6);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(rack_lift_real) * 6);
+    if (m3 != &state[30]) {
+        (void)memcpy(&state[30], m3, sizeof(rack_lift_real) * 6u);
+    }
+    if (m2 != &state[24]) {
+        (void)memcpy(&state[24], m2, sizeof(rack_lift_real) * 6u);
+    }
+    if (m1 != &state[18]) {
+        (void)memcpy(&state[18], m1, sizeof(rack_lift_real) * 6u);
+    }
+    if (qdd != &state[12]) {
+        (void)memcpy(&state[12], qdd, sizeof(rack_lift_real) * 6u);
+    }
+    if (qd != &state[6]) {
+        (void)memcpy(&state[6], qd, sizeof(rack_lift_real) * 6u);
+    }
+    if (q != state) {
+        (void)memcpy(state, q, sizeof(rack_lift_real) * 6u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1122,21 +1273,26 @@ static void rack_lift_keep(rack_lift_real *state, const rack_lift_real *q, const
 static int rack_lift_unexplained(const rack_lift_real *q0, const rack_lift_real *qd0, const rack_lift_real *qdd0, const rack_lift_real *q1,
                                const rack_lift_real *qd1, const rack_lift_real *qdd1, rack_lift_real h, const rack_lift_real *c)
 {
-    const rack_lift_real half = 0.5 * h, hh = h * h / 12.0;
-    rack_lift_real mismatch = 0.0, motion = 0.0, d;
+    const rack_lift_real half = 0.5 * h;
+    const rack_lift_real hh = (h * h) / 12.0;
+    rack_lift_real mismatch = 0.0;
+    rack_lift_real motion = 0.0;
+    rack_lift_real d;
     d = q1[0] - q0[0];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = RACK_LIFT_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = RACK_LIFT_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = RACK_LIFT_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1149,35 +1305,43 @@ static int rack_lift_unexplained(const rack_lift_real *q0, const rack_lift_real 
     motion = RACK_LIFT_MAX(motion, fabs(d) * c[4]);
     d = q1[5] - q0[5];
     motion = RACK_LIFT_MAX(motion, fabs(d) * c[5]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real tol, rack_lift_real *q, rack_lift_real *qd, rack_lift_real *qdd,
                     rack_lift_real *lam, rack_lift_real *reactions, int *info, rack_lift_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = RACK_LIFT_BAD_ARGUMENT;
     } else {
-        rack_lift_real *tr = RACK_LIFT_VEC(work, 9), *pp = work + RACK_LIFT_OFF_PREP, *kept = RACK_LIFT_VEC(work, 11);
-        memcpy(kept, q, sizeof(rack_lift_real) * 6);  /* the caller's guess, back in q if the call fails */
+        rack_lift_real *tr = RACK_LIFT_VEC(work, 9);
+        rack_lift_real *pp = &work[RACK_LIFT_OFF_PREP];
+        rack_lift_real *kept = RACK_LIFT_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(rack_lift_real) * 6u);  /* the caller's guess, back in q if the call fails */
         rack_lift_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = RACK_LIFT_VEC(work, 5);
-        if (qdd == NULL) qdd = RACK_LIFT_VEC(work, 6);
-        if (lam == NULL) lam = RACK_LIFT_VEC(work, 7);
-        if (reactions == NULL) reactions = RACK_LIFT_VEC(work, 8);
+        rack_lift_real *qd_out = (qd != NULL) ? qd : RACK_LIFT_VEC(work, 5);
+        rack_lift_real *qdd_out = (qdd != NULL) ? qdd : RACK_LIFT_VEC(work, 6);
+        rack_lift_real *lam_out = (lam != NULL) ? lam : RACK_LIFT_VEC(work, 7);
+        rack_lift_real *reactions_out = (reactions != NULL) ? reactions : RACK_LIFT_VEC(work, 8);
         status = rack_lift_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == RACK_LIFT_OK) {
-            rack_lift_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!rack_lift_finite(q, qd, qdd, lam, reactions)) status = RACK_LIFT_NONFINITE;
+            rack_lift_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (rack_lift_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = RACK_LIFT_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != RACK_LIFT_OK) memcpy(q, kept, sizeof(rack_lift_real) * 6);
+        if (status != RACK_LIFT_OK) {
+            (void)memcpy(q, kept, sizeof(rack_lift_real) * 6u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1195,21 +1359,29 @@ int rack_lift_instant_at(long whole, rack_lift_real frac, const rack_lift_real *
 
 int rack_lift_screen_at(rack_lift_real t, const rack_lift_real *p, const rack_lift_real *state, rack_lift_real *work, int *iwork)
 {
-    rack_lift_real *tr, *pp, known[2];
+    rack_lift_real *tr;
+    rack_lift_real *pp;
+    rack_lift_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return RACK_LIFT_BAD_ARGUMENT;
-    if (!(state[42] > 0.0)) return RACK_LIFT_OK;  /* no scales: no screen */
-    tr = RACK_LIFT_VEC(work, 9), pp = work + RACK_LIFT_OFF_PREP;
+    }
+    if (!(state[42] > 0.0)) {
+        return RACK_LIFT_OK;  /* no scales: no screen */
+    }
+    tr = RACK_LIFT_VEC(work, 9);
+    pp = &work[RACK_LIFT_OFF_PREP];
     rack_lift_prepare(p, pp);
     rack_lift_trig(state, tr);
-    if (rack_lift_factorize(state, tr, t, pp, work, iwork, &dense) != RACK_LIFT_OK)
+    if (rack_lift_factorize(state, tr, t, pp, work, iwork, &dense) != RACK_LIFT_OK) {
         return RACK_LIFT_ILL_CONDITIONED;
-    rack_lift_screen_known(state + 42, state + 36, known);
-    if (rack_lift_screen(work + RACK_LIFT_OFF_LU, dense, state + 42, state + 36, known)
-        && !(rack_lift_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 42, state + 36)
-             <= RACK_LIFT_COND_SCREEN))
+    }
+    rack_lift_screen_known(&state[42], &state[36], known);
+    if ((rack_lift_screen(&work[RACK_LIFT_OFF_LU], dense, &state[42], &state[36], known) != 0)
+        && !(rack_lift_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[42], &state[36])
+             <= RACK_LIFT_COND_SCREEN)) {
         return RACK_LIFT_ILL_CONDITIONED;
+    }
     return RACK_LIFT_OK;
 }
 
@@ -1219,84 +1391,124 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    rack_lift_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    rack_lift_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    rack_lift_real *q;
+    rack_lift_real *m1;
+    rack_lift_real *m2;
+    rack_lift_real *count;
+    rack_lift_real *qn;
+    rack_lift_real *qdn;
+    rack_lift_real *qddn;
+    rack_lift_real *lam;
+    rack_lift_real *reac;
+    rack_lift_real *tr;
+    rack_lift_real *pp;
+    rack_lift_real *scale;
+    rack_lift_real *rscale;
+    rack_lift_real *qd;
+    rack_lift_real *qdd;
+    rack_lift_real *m3;
+    rack_lift_real known[2];
+    long i;
+    long unused;
+    long *done = &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
+    *done = 0;
     status = RACK_LIFT_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return RACK_LIFT_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 18, m2 = state + 24, count = state + 48;
-    scale = state + 36, rscale = state + 42;
-    if (rscale[0] > 0.0) rack_lift_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 6, qdd = state + 12, m3 = state + 30;
-    tr = RACK_LIFT_VEC(work, 9), pp = work + RACK_LIFT_OFF_PREP;
+    q = state;
+    m1 = &state[18];
+    m2 = &state[24];
+    count = &state[48];
+    scale = &state[36];
+    rscale = &state[42];
+    if (rscale[0] > 0.0) {
+        rack_lift_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[6];
+    qdd = &state[12];
+    m3 = &state[30];
+    tr = RACK_LIFT_VEC(work, 9);
+    pp = &work[RACK_LIFT_OFF_PREP];
     rack_lift_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const rack_lift_real t = t0 + *count * h;
-        rack_lift_real *row = rows + i * RACK_LIFT_ROW;
+        const rack_lift_real t = t0 + (*count * h);
+        rack_lift_real *row = &rows[i * RACK_LIFT_ROW];
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 7;
-        qddn = row + 13;
-        lam = row + 19;
-        reac = row + 25;
+        qn = &row[1];
+        qdn = &row[7];
+        qddn = &row[13];
+        lam = &row[19];
+        reac = &row[25];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-        } else
-            memcpy(qn, q, sizeof(rack_lift_real) * 6);
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+        } else {
+            (void)memcpy(qn, q, sizeof(rack_lift_real) * 6u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = rack_lift_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != RACK_LIFT_OK) break;
-        if (rscale[0] > 0.0 && rack_lift_screen(work + RACK_LIFT_OFF_LU, dense, rscale, scale, known)
+        status = rack_lift_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != RACK_LIFT_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (rack_lift_screen(&work[RACK_LIFT_OFF_LU], dense, rscale, scale, known) != 0)
             && !(rack_lift_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= RACK_LIFT_COND_SCREEN)) {
             status = RACK_LIFT_ILL_CONDITIONED;
             break;
         }
         rack_lift_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!rack_lift_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (rack_lift_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = RACK_LIFT_NONFINITE;
             break;
         }
-        if (*count >= 1 && rack_lift_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (rack_lift_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = RACK_LIFT_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     rack_lift_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }
@@ -1307,12 +1519,12 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
 static void rack_lift_guess(const rack_lift_real *p, rack_lift_real *out)
 {
     (void)p;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = p[0];
-    out[4] = 0;
-    out[5] = 0;
+    out[4] = 0.0;
+    out[5] = 0.0;
 }
 
 /* Each driver's f(t) and f'(t), in file order. */
@@ -1321,9 +1533,9 @@ static void rack_lift_drive(rack_lift_real t, const rack_lift_real *p, rack_lift
     (void)t;
     (void)p;
     const rack_lift_real d0 = 3.141592653589793/p[2];
-    const rack_lift_real d1 = 2*d0*t;
+    const rack_lift_real d1 = 2.0*d0*t;
     const rack_lift_real d2 = p[1]/p[0];
-    out[0] = (1.0/2.0)*d2*(1 - cos(d1));
+    out[0] = (1.0/2.0)*d2*(1.0 - cos(d1));
     out[1] = d0*d2*sin(d1);
 }
 
@@ -1335,36 +1547,61 @@ static void rack_lift_drive(rack_lift_real t, const rack_lift_real *p, rack_lift
 static void rack_lift_sweep_scales(const rack_lift_real *q, rack_lift_real t0, const rack_lift_real *p, rack_lift_real *vals,
                                  rack_lift_real *arms, rack_lift_real *inv, rack_lift_real *norm)
 {
-    rack_lift_real lin[6], rot[6], lref = 0.0, a;
-    int k, r, m = 0, i;
+    rack_lift_real lin[6];
+    rack_lift_real rot[6];
+    rack_lift_real lref = 0.0;
+    rack_lift_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     rack_lift_phi_q(q, t0, p, vals);
-    for (r = 0; r < 6; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 6; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 11; ++k) {
         a = fabs(vals[k]);
         r = rack_lift_phi_q_rows[k];
-        if (rack_lift_phi_q_cols[k] % 3 == 2) rot[r] = RACK_LIFT_MAX(rot[r], a);
-        else lin[r] = RACK_LIFT_MAX(lin[r], a);
+        if ((rack_lift_phi_q_cols[k] % 3) == 2) {
+            rot[r] = RACK_LIFT_MAX(rot[r], a);
+        } else {
+            lin[r] = RACK_LIFT_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 6; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
+                arms[i] = arms[i - 1];
+                --i;
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 6; ++k)
-            if (k % 3 != 2) lref = RACK_LIFT_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 6; ++k) {
+            if ((k % 3) != 2) {
+                lref = RACK_LIFT_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 6; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 6; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 6; ++r) {
         a = RACK_LIFT_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1376,7 +1613,9 @@ static void rack_lift_sweep_take(const rack_lift_real *row, const rack_lift_real
                                rack_lift_real *drive, long count)
 {
     const rack_lift_real t = row[0];
-    rack_lift_real e, rate, w;
+    rack_lift_real e;
+    rack_lift_real rate;
+    rack_lift_real w;
     rack_lift_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1386,36 +1625,60 @@ static void rack_lift_sweep_take(const rack_lift_real *row, const rack_lift_real
     e = -row[24];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* axle.force_peak */
-    m = row[25] * row[25] + row[26] * row[26];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[28] * row[28] + row[29] * row[29];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[25] * row[25]) + (row[26] * row[26]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[28] * row[28]) + (row[29] * row[29]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* guide.force_peak */
-    m = row[31] * row[31] + row[32] * row[32];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[34] * row[34] + row[35] * row[35];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[31] * row[31]) + (row[32] * row[32]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[34] * row[34]) + (row[35] * row[35]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* mesh.force_peak */
-    m = row[37] * row[37] + row[38] * row[38];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[40] * row[40] + row[41] * row[41];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[37] * row[37]) + (row[38] * row[38]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[40] * row[40]) + (row[41] * row[41]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* motor.force_peak */
-    m = row[43] * row[43] + row[44] * row[44];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[46] * row[46] + row[47] * row[47];
-    if (m > fig[7]) fig[7] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[43] * row[43]) + (row[44] * row[44]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[46] * row[46]) + (row[47] * row[47]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 
@@ -1426,7 +1689,9 @@ static void rack_lift_sweep_finish(rack_lift_real *fig, const rack_lift_real *ac
     const rack_lift_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 8; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 8; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1434,7 +1699,7 @@ static void rack_lift_sweep_finish(rack_lift_real *fig, const rack_lift_real *ac
     fig[5] = sqrt(fig[5]);
     fig[6] = sqrt(fig[6]);
     fig[7] = sqrt(fig[7]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (rack_lift_real)count);
 }
 
@@ -1444,10 +1709,14 @@ static void rack_lift_sweep_finish(rack_lift_real *fig, const rack_lift_real *ac
 long rack_lift_sweep_lanes(long *abandoned)
 {
 #if RACK_LIFT_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&rack_lift_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&rack_lift_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return rack_lift_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1455,25 +1724,37 @@ long rack_lift_sweep_lanes(long *abandoned)
 int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lift_real h, long n, rack_lift_real tol,
                   rack_lift_real *figures, int *status, rack_lift_real *t_end, long *solved, rack_lift_real *work, int *iwork)
 {
-    rack_lift_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    rack_lift_real *state;
+    rack_lift_real *rows;
+    rack_lift_real *vals;
+    rack_lift_real *arms;
+    rack_lift_real *drive;
+    rack_lift_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if RACK_LIFT_LANES > 1
     const long lanes = rack_lift_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     rack_lift_real snap[RACK_LIFT_LANES * RACK_LIFT_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return RACK_LIFT_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + RACK_LIFT_WORK, rows = state + RACK_LIFT_STATE;
-    vals = rows + 32 * RACK_LIFT_ROW, arms = vals + 11, drive = arms + 6;
-    acc = drive + 2;
+    state = &work[RACK_LIFT_WORK];
+    rows = &state[RACK_LIFT_STATE];
+    vals = &rows[32 * RACK_LIFT_ROW];
+    arms = &vals[11];
+    drive = &arms[6];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const rack_lift_real *pv = p + v * RACK_LIFT_NP;
-        rack_lift_real *fig = figures + v * RACK_LIFT_SWEEP_FIGURES;
+        const rack_lift_real *pv = &p[v * RACK_LIFT_NP];
+        rack_lift_real *fig = &figures[v * RACK_LIFT_SWEEP_FIGURES];
 #if RACK_LIFT_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (rack_lift_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1485,26 +1766,28 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const rack_lift_real *s = snap + (v - first) * RACK_LIFT_SNAP;
-            memcpy(state, s, sizeof(rack_lift_real) * RACK_LIFT_STATE);
-            memcpy(fig, s + RACK_LIFT_STATE, sizeof(rack_lift_real) * RACK_LIFT_SWEEP_FIGURES);
-            memcpy(acc, s + RACK_LIFT_STATE + RACK_LIFT_SWEEP_FIGURES, sizeof(rack_lift_real) * 5);
+            (void)memcpy(state, s, sizeof(rack_lift_real) * RACK_LIFT_STATE);
+            (void)memcpy(fig, &s[RACK_LIFT_STATE], sizeof(rack_lift_real) * RACK_LIFT_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[RACK_LIFT_STATE + RACK_LIFT_SWEEP_FIGURES], sizeof(rack_lift_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(rack_lift_real) * RACK_LIFT_STATE);
+            (void)memset(state, 0, sizeof(rack_lift_real) * (size_t)RACK_LIFT_STATE);
             rack_lift_guess(pv, state);
             done = 0;
         }
         st = RACK_LIFT_OK;
-        while (done < n && st == RACK_LIFT_OK) {
+        while ((done < n) && (st == RACK_LIFT_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : RACK_LIFT_MIN(32, n - done);
+            m = (done == 0) ? 1 : RACK_LIFT_MIN(32, n - done);
             got = 0;
             st = rack_lift_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) rack_lift_sweep_take(rows + m * RACK_LIFT_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
-                rack_lift_sweep_scales(state, t0, pv, vals, arms, state + 36, state + 42);
+            for (m = 0; m < got; ++m) {
+                rack_lift_sweep_take(&rows[m * RACK_LIFT_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
+                rack_lift_sweep_scales(state, t0, pv, vals, arms, &state[36], &state[42]);
                 st = rack_lift_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;
@@ -1512,7 +1795,7 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
         rack_lift_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return RACK_LIFT_OK;
 }
@@ -1574,17 +1857,28 @@ static void rack_lift_sp_gamma_k(const rack_lift_real * q, const rack_lift_real 
 static int rack_lift_sp_newton(rack_lift_real t, const rack_lift_real *p, const rack_lift_real *q_des, rack_lift_real tol, rack_lift_real *q, rack_lift_real *tr, int *info, rack_lift_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    rack_lift_real *r = RACK_LIFT_VEC(work, 0), *dq = RACK_LIFT_VEC(work, 1), *y = RACK_LIFT_VEC(work, 2);
+    rack_lift_real *r = RACK_LIFT_VEC(work, 0);
+    rack_lift_real *dq = RACK_LIFT_VEC(work, 1);
+    rack_lift_real *y = RACK_LIFT_VEC(work, 2);
     rack_lift_real *base = RACK_LIFT_VEC(work, 10);
-    rack_lift_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    rack_lift_real step = ((double)INFINITY);
+    rack_lift_real lim;
+    rack_lift_real qmag;
+    rack_lift_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) rack_lift_trig_near(q, tr, base);
-    else rack_lift_trig_base(q, tr, base);
+    if (reuse != 0) {
+        rack_lift_trig_near(q, tr, base);
+    } else {
+        rack_lift_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = RACK_LIFT_MAX(1.0, rack_lift_maxabs6(q));
-    lim = RACK_LIFT_MAX(tol, (rack_lift_real)RACK_LIFT_FLOOR_ULPS * RACK_LIFT_EPS * qmag);
+    lim = RACK_LIFT_MAX(tol, ((rack_lift_real)RACK_LIFT_FLOOR_ULPS * RACK_LIFT_EPS) * qmag);
     rack_lift_phi_k(q, tr, t, p, r);
     rack_lift_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
     rmax = rack_lift_maxabs6(r);
@@ -1594,15 +1888,17 @@ static int rack_lift_sp_newton(rack_lift_real t, const rack_lift_real *p, const 
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? RACK_LIFT_NONFINITE : RACK_LIFT_NOT_CONVERGED;
+            return (it == 0) ? RACK_LIFT_NONFINITE : RACK_LIFT_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == RACK_LIFT_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK) {
+        if (it == RACK_LIFT_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK)) {
             info[0] = it;
             info[1] = *dense;
             return RACK_LIFT_SINGULAR;
@@ -1612,8 +1908,8 @@ static int rack_lift_sp_newton(rack_lift_real t, const rack_lift_real *p, const 
         rack_lift_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= RACK_LIFT_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (RACK_LIFT_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1626,8 +1922,10 @@ static int rack_lift_sp_newton(rack_lift_real t, const rack_lift_real *p, const 
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return RACK_LIFT_NOT_CONVERGED;
-    if (!current && rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK) {
+    if (converged == 0) {
+        return RACK_LIFT_NOT_CONVERGED;
+    }
+    if ((current == 0) && (rack_lift_factorize(q, tr, t, p, work, iwork, dense) != RACK_LIFT_OK)) {
         info[1] = *dense;
         return RACK_LIFT_SINGULAR;
     }
@@ -1640,7 +1938,8 @@ static void rack_lift_sp_outputs(rack_lift_real t, const rack_lift_real *p, cons
                             rack_lift_real *lam, rack_lift_real *reactions, rack_lift_real *work, const int *iwork, int dense,
                             const rack_lift_real *q_des, const rack_lift_real *qd_des, const rack_lift_real *qdd_des)
 {
-    rack_lift_real *y = RACK_LIFT_VEC(work, 2), *b = RACK_LIFT_VEC(work, 3);
+    rack_lift_real *y = RACK_LIFT_VEC(work, 2);
+    rack_lift_real *b = RACK_LIFT_VEC(work, 3);
     rack_lift_nu_k(q, tr, t, p, b);
     rack_lift_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
     rack_lift_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
@@ -1656,7 +1955,9 @@ static void rack_lift_sp_outputs(rack_lift_real t, const rack_lift_real *p, cons
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     rack_lift_solve_t(work, iwork, dense, b, lam);
-    if (rack_lift_mixed(y)) rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (rack_lift_mixed(y) != 0) {
+        rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     rack_lift_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1668,25 +1969,34 @@ static int rack_lift_sp_instant(rack_lift_real t, const rack_lift_real *p, rack_
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !rack_lift_allfinite(q_des, RACK_LIFT_ND) || !rack_lift_allfinite(qd_des, RACK_LIFT_ND)
-        || !rack_lift_allfinite(qdd_des, RACK_LIFT_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (rack_lift_allfinite(q_des, RACK_LIFT_ND) == 0) || (rack_lift_allfinite(qd_des, RACK_LIFT_ND) == 0)
+        || (rack_lift_allfinite(qdd_des, RACK_LIFT_ND) == 0)) {
         status = RACK_LIFT_BAD_ARGUMENT;
     } else {
-        rack_lift_real *tr = RACK_LIFT_VEC(work, 9), *pp = work + RACK_LIFT_OFF_PREP, *kept = RACK_LIFT_VEC(work, 11);
-        memcpy(kept, q, sizeof(rack_lift_real) * 6);  /* the caller's guess, back in q if the call fails */
+        rack_lift_real *tr = RACK_LIFT_VEC(work, 9);
+        rack_lift_real *pp = &work[RACK_LIFT_OFF_PREP];
+        rack_lift_real *kept = RACK_LIFT_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(rack_lift_real) * 6u);  /* the caller's guess, back in q if the call fails */
         rack_lift_prepare(p, pp);
-        if (qd == NULL) qd = RACK_LIFT_VEC(work, 5);
-        if (qdd == NULL) qdd = RACK_LIFT_VEC(work, 6);
-        if (lam == NULL) lam = RACK_LIFT_VEC(work, 7);
-        if (reactions == NULL) reactions = RACK_LIFT_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        rack_lift_real *qd_out = (qd != NULL) ? qd : RACK_LIFT_VEC(work, 5);
+        rack_lift_real *qdd_out = (qdd != NULL) ? qdd : RACK_LIFT_VEC(work, 6);
+        rack_lift_real *lam_out = (lam != NULL) ? lam : RACK_LIFT_VEC(work, 7);
+        rack_lift_real *reactions_out = (reactions != NULL) ? reactions : RACK_LIFT_VEC(work, 8);
         status = rack_lift_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == RACK_LIFT_OK) {
-            rack_lift_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!rack_lift_finite(q, qd, qdd, lam, reactions)) status = RACK_LIFT_NONFINITE;
+            rack_lift_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (rack_lift_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = RACK_LIFT_NONFINITE;
+            }
         }
-        if (status != RACK_LIFT_OK) memcpy(q, kept, sizeof(rack_lift_real) * 6);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != RACK_LIFT_OK) {
+            (void)memcpy(q, kept, sizeof(rack_lift_real) * 6u);
+        }
     }
     return status;
 }
@@ -1696,7 +2006,8 @@ int rack_lift_setpoint(rack_lift_real t, const rack_lift_real *p, rack_lift_real
                      rack_lift_real *qdd, rack_lift_real *lam, rack_lift_real *reactions, int *info, rack_lift_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = rack_lift_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

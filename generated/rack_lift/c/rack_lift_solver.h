@@ -167,13 +167,13 @@ extern const rack_lift_real rack_lift_default_q0[RACK_LIFT_NG];
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 20, phi_q 10, nu 6, gamma 29, applied 7, mass 0, reactions 11, lu_factor 12, lu_forward 4, lu_back 3, lu_t_forward 3, lu_t_back 4. */
-#define RACK_LIFT_OPS_INSTANT 143
+   work), and of each evaluation: phi 18, phi_q 10, nu 6, gamma 29, applied 7, mass 0, reactions 11, lu_factor 12, lu_forward 4, lu_back 3, lu_t_forward 3, lu_t_back 4. */
+#define RACK_LIFT_OPS_INSTANT 139
 
 /* Worst case of one instant call (computed at generation from the counts
    above, not measured): Newton reaching MAX_NEWTON, every factorization
    through the pivoting fallback (bounded by a dense LU). At most
-   675 + 469 MAX_NEWTON counted floating operations and
+   673 + 467 MAX_NEWTON counted floating operations and
    7 + 5 MAX_NEWTON libm calls; as instructions, at most
    WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
    loads, stores and indexing), each libm call 300 (the real type on its
@@ -183,7 +183,7 @@ extern const rack_lift_real rack_lift_default_q0[RACK_LIFT_NG];
    test_c_edges checks it under callgrind on x86-64 for every bundled
    example, the cap reached (instant only: a trajectory's instant adds its
    predictor, checks and, if generated, sensitivities). */
-#define RACK_LIFT_WORST_INSTRUCTIONS (13200L + 7528L * (long)RACK_LIFT_MAX_NEWTON)
+#define RACK_LIFT_WORST_INSTRUCTIONS (13176L + 7504L * (long)RACK_LIFT_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int rack_lift_phi_q_rows[11];

@@ -43,7 +43,7 @@ typedef char scissor_boom_real_must_have_the_size_of_double[sizeof(scissor_boom_
 #define SCISSOR_BOOM_OFF_LU 151
 #define SCISSOR_BOOM_OFF_DENSE (SCISSOR_BOOM_OFF_LU + SCISSOR_BOOM_LU_SIZE)
 #define SCISSOR_BOOM_OFF_VEC (SCISSOR_BOOM_OFF_DENSE + 2304)
-#define SCISSOR_BOOM_VEC(work, k) ((work) + SCISSOR_BOOM_OFF_VEC + (k) * 150)
+#define SCISSOR_BOOM_VEC(work, k) (&(work)[SCISSOR_BOOM_OFF_VEC + ((k) * 150)])
 /* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
 #define SCISSOR_BOOM_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
 #define SCISSOR_BOOM_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
@@ -453,10 +453,12 @@ static void scissor_boom_trig_base(const scissor_boom_real *q, scissor_boom_real
 {
     int b;
     for (b = 0; b < 16; ++b) {
-        const scissor_boom_real a = q[3 * b + 2];
+        const scissor_boom_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -471,227 +473,307 @@ static void scissor_boom_trig_base(const scissor_boom_real *q, scissor_boom_real
 static void scissor_boom_trig_near(const scissor_boom_real *q, scissor_boom_real *tr, scissor_boom_real *base)
 {
     {
-        const scissor_boom_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const scissor_boom_real a = q[2];
+        const scissor_boom_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[1];
+            const scissor_boom_real c = base[2];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const scissor_boom_real a = q[5];
+        const scissor_boom_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[4];
+            const scissor_boom_real c = base[5];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const scissor_boom_real a = q[8];
+        const scissor_boom_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[7];
+            const scissor_boom_real c = base[8];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 3 + 2], d = a - base[3 * 3];
+        const scissor_boom_real a = q[11];
+        const scissor_boom_real d = a - base[9];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 3 + 1], c = base[3 * 3 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 3] = s + (s * cm + c * sd);
-            tr[2 * 3 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[10];
+            const scissor_boom_real c = base[11];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[6] = s + ((s * cm) + (c * sd));
+            tr[7] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 3] = a;
-            tr[2 * 3] = base[3 * 3 + 1] = sin(a);
-            tr[2 * 3 + 1] = base[3 * 3 + 2] = cos(a);
+            base[9] = a;
+            base[10] = sin(a);
+            tr[6] = base[10];
+            base[11] = cos(a);
+            tr[7] = base[11];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 4 + 2], d = a - base[3 * 4];
+        const scissor_boom_real a = q[14];
+        const scissor_boom_real d = a - base[12];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 4 + 1], c = base[3 * 4 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 4] = s + (s * cm + c * sd);
-            tr[2 * 4 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[13];
+            const scissor_boom_real c = base[14];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[8] = s + ((s * cm) + (c * sd));
+            tr[9] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 4] = a;
-            tr[2 * 4] = base[3 * 4 + 1] = sin(a);
-            tr[2 * 4 + 1] = base[3 * 4 + 2] = cos(a);
+            base[12] = a;
+            base[13] = sin(a);
+            tr[8] = base[13];
+            base[14] = cos(a);
+            tr[9] = base[14];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 5 + 2], d = a - base[3 * 5];
+        const scissor_boom_real a = q[17];
+        const scissor_boom_real d = a - base[15];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 5 + 1], c = base[3 * 5 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 5] = s + (s * cm + c * sd);
-            tr[2 * 5 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[16];
+            const scissor_boom_real c = base[17];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[10] = s + ((s * cm) + (c * sd));
+            tr[11] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 5] = a;
-            tr[2 * 5] = base[3 * 5 + 1] = sin(a);
-            tr[2 * 5 + 1] = base[3 * 5 + 2] = cos(a);
+            base[15] = a;
+            base[16] = sin(a);
+            tr[10] = base[16];
+            base[17] = cos(a);
+            tr[11] = base[17];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 6 + 2], d = a - base[3 * 6];
+        const scissor_boom_real a = q[20];
+        const scissor_boom_real d = a - base[18];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 6 + 1], c = base[3 * 6 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 6] = s + (s * cm + c * sd);
-            tr[2 * 6 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[19];
+            const scissor_boom_real c = base[20];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[12] = s + ((s * cm) + (c * sd));
+            tr[13] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 6] = a;
-            tr[2 * 6] = base[3 * 6 + 1] = sin(a);
-            tr[2 * 6 + 1] = base[3 * 6 + 2] = cos(a);
+            base[18] = a;
+            base[19] = sin(a);
+            tr[12] = base[19];
+            base[20] = cos(a);
+            tr[13] = base[20];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 7 + 2], d = a - base[3 * 7];
+        const scissor_boom_real a = q[23];
+        const scissor_boom_real d = a - base[21];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 7 + 1], c = base[3 * 7 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 7] = s + (s * cm + c * sd);
-            tr[2 * 7 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[22];
+            const scissor_boom_real c = base[23];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[14] = s + ((s * cm) + (c * sd));
+            tr[15] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 7] = a;
-            tr[2 * 7] = base[3 * 7 + 1] = sin(a);
-            tr[2 * 7 + 1] = base[3 * 7 + 2] = cos(a);
+            base[21] = a;
+            base[22] = sin(a);
+            tr[14] = base[22];
+            base[23] = cos(a);
+            tr[15] = base[23];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 8 + 2], d = a - base[3 * 8];
+        const scissor_boom_real a = q[26];
+        const scissor_boom_real d = a - base[24];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 8 + 1], c = base[3 * 8 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 8] = s + (s * cm + c * sd);
-            tr[2 * 8 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[25];
+            const scissor_boom_real c = base[26];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[16] = s + ((s * cm) + (c * sd));
+            tr[17] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 8] = a;
-            tr[2 * 8] = base[3 * 8 + 1] = sin(a);
-            tr[2 * 8 + 1] = base[3 * 8 + 2] = cos(a);
+            base[24] = a;
+            base[25] = sin(a);
+            tr[16] = base[25];
+            base[26] = cos(a);
+            tr[17] = base[26];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 9 + 2], d = a - base[3 * 9];
+        const scissor_boom_real a = q[29];
+        const scissor_boom_real d = a - base[27];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 9 + 1], c = base[3 * 9 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 9] = s + (s * cm + c * sd);
-            tr[2 * 9 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[28];
+            const scissor_boom_real c = base[29];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[18] = s + ((s * cm) + (c * sd));
+            tr[19] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 9] = a;
-            tr[2 * 9] = base[3 * 9 + 1] = sin(a);
-            tr[2 * 9 + 1] = base[3 * 9 + 2] = cos(a);
+            base[27] = a;
+            base[28] = sin(a);
+            tr[18] = base[28];
+            base[29] = cos(a);
+            tr[19] = base[29];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 10 + 2], d = a - base[3 * 10];
+        const scissor_boom_real a = q[32];
+        const scissor_boom_real d = a - base[30];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 10 + 1], c = base[3 * 10 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 10] = s + (s * cm + c * sd);
-            tr[2 * 10 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[31];
+            const scissor_boom_real c = base[32];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[20] = s + ((s * cm) + (c * sd));
+            tr[21] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 10] = a;
-            tr[2 * 10] = base[3 * 10 + 1] = sin(a);
-            tr[2 * 10 + 1] = base[3 * 10 + 2] = cos(a);
+            base[30] = a;
+            base[31] = sin(a);
+            tr[20] = base[31];
+            base[32] = cos(a);
+            tr[21] = base[32];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 11 + 2], d = a - base[3 * 11];
+        const scissor_boom_real a = q[35];
+        const scissor_boom_real d = a - base[33];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 11 + 1], c = base[3 * 11 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 11] = s + (s * cm + c * sd);
-            tr[2 * 11 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[34];
+            const scissor_boom_real c = base[35];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[22] = s + ((s * cm) + (c * sd));
+            tr[23] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 11] = a;
-            tr[2 * 11] = base[3 * 11 + 1] = sin(a);
-            tr[2 * 11 + 1] = base[3 * 11 + 2] = cos(a);
+            base[33] = a;
+            base[34] = sin(a);
+            tr[22] = base[34];
+            base[35] = cos(a);
+            tr[23] = base[35];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 12 + 2], d = a - base[3 * 12];
+        const scissor_boom_real a = q[38];
+        const scissor_boom_real d = a - base[36];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 12 + 1], c = base[3 * 12 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 12] = s + (s * cm + c * sd);
-            tr[2 * 12 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[37];
+            const scissor_boom_real c = base[38];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[24] = s + ((s * cm) + (c * sd));
+            tr[25] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 12] = a;
-            tr[2 * 12] = base[3 * 12 + 1] = sin(a);
-            tr[2 * 12 + 1] = base[3 * 12 + 2] = cos(a);
+            base[36] = a;
+            base[37] = sin(a);
+            tr[24] = base[37];
+            base[38] = cos(a);
+            tr[25] = base[38];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 13 + 2], d = a - base[3 * 13];
+        const scissor_boom_real a = q[41];
+        const scissor_boom_real d = a - base[39];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 13 + 1], c = base[3 * 13 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 13] = s + (s * cm + c * sd);
-            tr[2 * 13 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[40];
+            const scissor_boom_real c = base[41];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[26] = s + ((s * cm) + (c * sd));
+            tr[27] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 13] = a;
-            tr[2 * 13] = base[3 * 13 + 1] = sin(a);
-            tr[2 * 13 + 1] = base[3 * 13 + 2] = cos(a);
+            base[39] = a;
+            base[40] = sin(a);
+            tr[26] = base[40];
+            base[41] = cos(a);
+            tr[27] = base[41];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 14 + 2], d = a - base[3 * 14];
+        const scissor_boom_real a = q[44];
+        const scissor_boom_real d = a - base[42];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 14 + 1], c = base[3 * 14 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 14] = s + (s * cm + c * sd);
-            tr[2 * 14 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[43];
+            const scissor_boom_real c = base[44];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[28] = s + ((s * cm) + (c * sd));
+            tr[29] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 14] = a;
-            tr[2 * 14] = base[3 * 14 + 1] = sin(a);
-            tr[2 * 14 + 1] = base[3 * 14 + 2] = cos(a);
+            base[42] = a;
+            base[43] = sin(a);
+            tr[28] = base[43];
+            base[44] = cos(a);
+            tr[29] = base[44];
         }
     }
     {
-        const scissor_boom_real a = q[3 * 15 + 2], d = a - base[3 * 15];
+        const scissor_boom_real a = q[47];
+        const scissor_boom_real d = a - base[45];
         if (fabs(d) <= 0.0625) {
-            const scissor_boom_real d2 = d * d, s = base[3 * 15 + 1], c = base[3 * 15 + 2];
-            const scissor_boom_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const scissor_boom_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 15] = s + (s * cm + c * sd);
-            tr[2 * 15 + 1] = c + (c * cm - s * sd);
+            const scissor_boom_real d2 = d * d;
+            const scissor_boom_real s = base[46];
+            const scissor_boom_real c = base[47];
+            const scissor_boom_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const scissor_boom_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[30] = s + ((s * cm) + (c * sd));
+            tr[31] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 15] = a;
-            tr[2 * 15] = base[3 * 15 + 1] = sin(a);
-            tr[2 * 15 + 1] = base[3 * 15 + 2] = cos(a);
+            base[45] = a;
+            base[46] = sin(a);
+            tr[30] = base[46];
+            base[47] = cos(a);
+            tr[31] = base[47];
         }
     }
 }
@@ -704,160 +786,192 @@ static void scissor_boom_trig_near(const scissor_boom_real *q, scissor_boom_real
 static void scissor_boom_trig_step(const scissor_boom_real *q, const scissor_boom_real *dq, scissor_boom_real *tr, scissor_boom_real *base)
 {
     {
-        const scissor_boom_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const scissor_boom_real d = -dq[2];
+        const scissor_boom_real s = tr[0];
+        const scissor_boom_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const scissor_boom_real d = -dq[5];
+        const scissor_boom_real s = tr[2];
+        const scissor_boom_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const scissor_boom_real d = -dq[8];
+        const scissor_boom_real s = tr[4];
+        const scissor_boom_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 3 + 2], s = tr[2 * 3], c = tr[2 * 3 + 1];
+        const scissor_boom_real d = -dq[11];
+        const scissor_boom_real s = tr[6];
+        const scissor_boom_real c = tr[7];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 3] = s + c * d;
-            tr[2 * 3 + 1] = c - s * d;
+            tr[6] = s + (c * d);
+            tr[7] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 4 + 2], s = tr[2 * 4], c = tr[2 * 4 + 1];
+        const scissor_boom_real d = -dq[14];
+        const scissor_boom_real s = tr[8];
+        const scissor_boom_real c = tr[9];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 4] = s + c * d;
-            tr[2 * 4 + 1] = c - s * d;
+            tr[8] = s + (c * d);
+            tr[9] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 5 + 2], s = tr[2 * 5], c = tr[2 * 5 + 1];
+        const scissor_boom_real d = -dq[17];
+        const scissor_boom_real s = tr[10];
+        const scissor_boom_real c = tr[11];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 5] = s + c * d;
-            tr[2 * 5 + 1] = c - s * d;
+            tr[10] = s + (c * d);
+            tr[11] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 6 + 2], s = tr[2 * 6], c = tr[2 * 6 + 1];
+        const scissor_boom_real d = -dq[20];
+        const scissor_boom_real s = tr[12];
+        const scissor_boom_real c = tr[13];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 6] = s + c * d;
-            tr[2 * 6 + 1] = c - s * d;
+            tr[12] = s + (c * d);
+            tr[13] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 7 + 2], s = tr[2 * 7], c = tr[2 * 7 + 1];
+        const scissor_boom_real d = -dq[23];
+        const scissor_boom_real s = tr[14];
+        const scissor_boom_real c = tr[15];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 7] = s + c * d;
-            tr[2 * 7 + 1] = c - s * d;
+            tr[14] = s + (c * d);
+            tr[15] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 8 + 2], s = tr[2 * 8], c = tr[2 * 8 + 1];
+        const scissor_boom_real d = -dq[26];
+        const scissor_boom_real s = tr[16];
+        const scissor_boom_real c = tr[17];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 8] = s + c * d;
-            tr[2 * 8 + 1] = c - s * d;
+            tr[16] = s + (c * d);
+            tr[17] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 9 + 2], s = tr[2 * 9], c = tr[2 * 9 + 1];
+        const scissor_boom_real d = -dq[29];
+        const scissor_boom_real s = tr[18];
+        const scissor_boom_real c = tr[19];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 9] = s + c * d;
-            tr[2 * 9 + 1] = c - s * d;
+            tr[18] = s + (c * d);
+            tr[19] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 10 + 2], s = tr[2 * 10], c = tr[2 * 10 + 1];
+        const scissor_boom_real d = -dq[32];
+        const scissor_boom_real s = tr[20];
+        const scissor_boom_real c = tr[21];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 10] = s + c * d;
-            tr[2 * 10 + 1] = c - s * d;
+            tr[20] = s + (c * d);
+            tr[21] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 11 + 2], s = tr[2 * 11], c = tr[2 * 11 + 1];
+        const scissor_boom_real d = -dq[35];
+        const scissor_boom_real s = tr[22];
+        const scissor_boom_real c = tr[23];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 11] = s + c * d;
-            tr[2 * 11 + 1] = c - s * d;
+            tr[22] = s + (c * d);
+            tr[23] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 12 + 2], s = tr[2 * 12], c = tr[2 * 12 + 1];
+        const scissor_boom_real d = -dq[38];
+        const scissor_boom_real s = tr[24];
+        const scissor_boom_real c = tr[25];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 12] = s + c * d;
-            tr[2 * 12 + 1] = c - s * d;
+            tr[24] = s + (c * d);
+            tr[25] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 13 + 2], s = tr[2 * 13], c = tr[2 * 13 + 1];
+        const scissor_boom_real d = -dq[41];
+        const scissor_boom_real s = tr[26];
+        const scissor_boom_real c = tr[27];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 13] = s + c * d;
-            tr[2 * 13 + 1] = c - s * d;
+            tr[26] = s + (c * d);
+            tr[27] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 14 + 2], s = tr[2 * 14], c = tr[2 * 14 + 1];
+        const scissor_boom_real d = -dq[44];
+        const scissor_boom_real s = tr[28];
+        const scissor_boom_real c = tr[29];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 14] = s + c * d;
-            tr[2 * 14 + 1] = c - s * d;
+            tr[28] = s + (c * d);
+            tr[29] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const scissor_boom_real d = -dq[3 * 15 + 2], s = tr[2 * 15], c = tr[2 * 15 + 1];
+        const scissor_boom_real d = -dq[47];
+        const scissor_boom_real s = tr[30];
+        const scissor_boom_real c = tr[31];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 15] = s + c * d;
-            tr[2 * 15 + 1] = c - s * d;
+            tr[30] = s + (c * d);
+            tr[31] = c - (s * d);
         } else {
             scissor_boom_trig_near(q, tr, base);
             return;
@@ -871,7 +985,7 @@ static void scissor_boom_trig_step(const scissor_boom_real *q, const scissor_boo
    evaluation. The kernels read both from this one vector. */
 static void scissor_boom_prepare(const scissor_boom_real *p, scissor_boom_real *pp)
 {
-    memcpy(pp, p, sizeof(scissor_boom_real) * 7);
+    (void)memcpy(pp, p, sizeof(scissor_boom_real) * 7u);
     {
         const scissor_boom_real e0 = p[4] - p[5];
         const scissor_boom_real e1 = (1.0/p[6]);
@@ -879,11 +993,11 @@ static void scissor_boom_prepare(const scissor_boom_real *p, scissor_boom_real *
         const scissor_boom_real e3 = p[2]*p[3];
         pp[7] = e0;
         pp[8] = e1;
-        pp[9] = -1.0/2.0*p[4] - 1.0/2.0*p[5];
+        pp[9] = (-1.0/2.0*p[4]) - (1.0/2.0*p[5]);
         pp[10] = e0*e1;
         pp[11] = e2;
         pp[12] = e0*e2;
-        pp[13] = -e3 - 981.0/100.0*p[1];
+        pp[13] = -e3 - (981.0/100.0*p[1]);
         pp[14] = e3*p[0];
         pp[15] = (1.0/12.0)*(p[0]*p[0])*p[1];
     }
@@ -937,13 +1051,13 @@ static void scissor_boom_phi_k0(const scissor_boom_real * q, const scissor_boom_
     out[0] = -e1 + q[0];
     out[1] = -e2 - e3;
     out[2] = e4 + e5;
-    out[3] = -1.0/2.0*p[7]*cos(3.141592653589793*p[8]*t) + (p[9] + q[2]);
+    out[3] = (-1.0/2.0*p[7]*cos(3.141592653589793*p[8]*t)) + (p[9] + q[2]);
     out[4] = -e4 - q[0];
     out[5] = -q[1] + q[4];
     out[6] = -e1 - e7 + (-e6 - q[0]);
     out[7] = -e3 - e8 + (e2 + q[10]);
     out[8] = -e10 - e5 + (-e9 - q[3]);
-    out[9] = -e0*tr[2] - e12 + (-e11 - q[4]);
+    out[9] = (-e0*tr[2]) - e12 + (-e11 - q[4]);
     out[10] = -e6 - q[6];
     out[11] = e11 + q[10];
     out[12] = -e10 - e13 + (e9 + q[15]);
@@ -976,10 +1090,10 @@ static void scissor_boom_phi_k0(const scissor_boom_real * q, const scissor_boom_
     out[39] = -e32 - e40 + (-q[34] + q[37]);
     out[40] = -e35 - q[36];
     out[41] = -e37 - q[37];
-    out[42] = -e0*tr[31] - e39 + (-e41 - q[36]);
-    out[43] = -e0*tr[30] - e40 + (-e42 - q[37]);
-    out[44] = -e0*tr[29] - e36 + (-q[39] + q[42]);
-    out[45] = -e0*tr[28] - e38 + (-q[40] + q[43]);
+    out[42] = (-e0*tr[31]) - e39 + (-e41 - q[36]);
+    out[43] = (-e0*tr[30]) - e40 + (-e42 - q[37]);
+    out[44] = (-e0*tr[29]) - e36 + (-q[39] + q[42]);
+    out[45] = (-e0*tr[28]) - e38 + (-q[40] + q[43]);
     out[46] = -e41 - q[42];
     out[47] = -e42 - q[43];
 }
@@ -995,8 +1109,7 @@ void scissor_boom_phi(const scissor_boom_real * q, scissor_boom_real t, const sc
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
-    p = prepared;
-    scissor_boom_phi_k(q, tr, t, p, out);
+    scissor_boom_phi_k(q, tr, t, prepared, out);
 }
 
 static void scissor_boom_phi_q_k0(const scissor_boom_real * q, const scissor_boom_real * tr, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1011,54 +1124,54 @@ static void scissor_boom_phi_q_k0(const scissor_boom_real * q, const scissor_boo
     const scissor_boom_real e5 = -e0*tr[7];
     const scissor_boom_real e6 = e0*tr[4];
     const scissor_boom_real e7 = -e0*tr[5];
-    out[0] = 1;
+    out[0] = 1.0;
     out[1] = e1;
-    out[2] = 1;
+    out[2] = 1.0;
     out[3] = e2;
-    out[4] = -1;
+    out[4] = -1.0;
     out[5] = -e3;
-    out[6] = 1;
-    out[7] = -1;
-    out[8] = 1;
-    out[9] = -1;
-    out[10] = 1;
-    out[11] = -1;
+    out[6] = 1.0;
+    out[7] = -1.0;
+    out[8] = 1.0;
+    out[9] = -1.0;
+    out[10] = 1.0;
+    out[11] = -1.0;
     out[12] = e1;
-    out[13] = 1;
+    out[13] = 1.0;
     out[14] = e4;
-    out[15] = -1;
+    out[15] = -1.0;
     out[16] = e2;
-    out[17] = 1;
+    out[17] = 1.0;
     out[18] = e5;
-    out[19] = -1;
+    out[19] = -1.0;
     out[20] = e3;
-    out[21] = 1;
+    out[21] = 1.0;
     out[22] = e6;
-    out[23] = -1;
+    out[23] = -1.0;
     out[24] = -e0*tr[3];
-    out[25] = 1;
+    out[25] = 1.0;
     out[26] = e7;
-    out[27] = -1;
-    out[28] = 1;
-    out[29] = -1;
-    out[30] = 1;
-    out[31] = -1;
+    out[27] = -1.0;
+    out[28] = 1.0;
+    out[29] = -1.0;
+    out[30] = 1.0;
+    out[31] = -1.0;
     out[32] = e6;
-    out[33] = 1;
+    out[33] = 1.0;
     out[34] = e0*tr[10];
-    out[35] = -1;
+    out[35] = -1.0;
     out[36] = e7;
-    out[37] = 1;
+    out[37] = 1.0;
     out[38] = -e0*tr[11];
-    out[39] = -1;
+    out[39] = -1.0;
     out[40] = e4;
-    out[41] = 1;
+    out[41] = 1.0;
     out[42] = e0*tr[8];
-    out[43] = -1;
+    out[43] = -1.0;
     out[44] = e5;
-    out[45] = 1;
+    out[45] = 1.0;
     out[46] = -e0*tr[9];
-    out[47] = -1;
+    out[47] = -1.0;
 }
 
 static void scissor_boom_phi_q_k1(const scissor_boom_real * q, const scissor_boom_real * tr, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1071,54 +1184,54 @@ static void scissor_boom_phi_q_k1(const scissor_boom_real * q, const scissor_boo
     const scissor_boom_real e3 = e0*tr[12];
     const scissor_boom_real e4 = -e0*tr[13];
     const scissor_boom_real e5 = e0*tr[16];
-    out[48] = 1;
-    out[49] = -1;
-    out[50] = 1;
-    out[51] = -1;
+    out[48] = 1.0;
+    out[49] = -1.0;
+    out[50] = 1.0;
+    out[51] = -1.0;
     out[52] = e0*tr[8];
-    out[53] = 1;
+    out[53] = 1.0;
     out[54] = e1;
-    out[55] = -1;
+    out[55] = -1.0;
     out[56] = -e0*tr[9];
-    out[57] = 1;
+    out[57] = 1.0;
     out[58] = e2;
-    out[59] = -1;
+    out[59] = -1.0;
     out[60] = e0*tr[10];
-    out[61] = 1;
+    out[61] = 1.0;
     out[62] = e3;
-    out[63] = -1;
+    out[63] = -1.0;
     out[64] = -e0*tr[11];
-    out[65] = 1;
+    out[65] = 1.0;
     out[66] = e4;
-    out[67] = -1;
-    out[68] = 1;
-    out[69] = -1;
-    out[70] = 1;
-    out[71] = -1;
+    out[67] = -1.0;
+    out[68] = 1.0;
+    out[69] = -1.0;
+    out[70] = 1.0;
+    out[71] = -1.0;
     out[72] = e3;
-    out[73] = 1;
+    out[73] = 1.0;
     out[74] = e0*tr[18];
-    out[75] = -1;
+    out[75] = -1.0;
     out[76] = e4;
-    out[77] = 1;
+    out[77] = 1.0;
     out[78] = -e0*tr[19];
-    out[79] = -1;
+    out[79] = -1.0;
     out[80] = e1;
-    out[81] = 1;
+    out[81] = 1.0;
     out[82] = e5;
-    out[83] = -1;
+    out[83] = -1.0;
     out[84] = e2;
-    out[85] = 1;
+    out[85] = 1.0;
     out[86] = -e0*tr[17];
-    out[87] = -1;
-    out[88] = 1;
-    out[89] = -1;
-    out[90] = 1;
-    out[91] = -1;
+    out[87] = -1.0;
+    out[88] = 1.0;
+    out[89] = -1.0;
+    out[90] = 1.0;
+    out[91] = -1.0;
     out[92] = e5;
-    out[93] = 1;
+    out[93] = 1.0;
     out[94] = e0*tr[22];
-    out[95] = -1;
+    out[95] = -1.0;
 }
 
 static void scissor_boom_phi_q_k2(const scissor_boom_real * q, const scissor_boom_real * tr, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1133,53 +1246,53 @@ static void scissor_boom_phi_q_k2(const scissor_boom_real * q, const scissor_boo
     const scissor_boom_real e5 = e0*tr[24];
     const scissor_boom_real e6 = -e0*tr[25];
     out[96] = -e0*tr[17];
-    out[97] = 1;
+    out[97] = 1.0;
     out[98] = e1;
-    out[99] = -1;
+    out[99] = -1.0;
     out[100] = e0*tr[18];
-    out[101] = 1;
+    out[101] = 1.0;
     out[102] = e2;
-    out[103] = -1;
+    out[103] = -1.0;
     out[104] = -e0*tr[19];
-    out[105] = 1;
+    out[105] = 1.0;
     out[106] = e3;
-    out[107] = -1;
-    out[108] = 1;
-    out[109] = -1;
-    out[110] = 1;
-    out[111] = -1;
+    out[107] = -1.0;
+    out[108] = 1.0;
+    out[109] = -1.0;
+    out[110] = 1.0;
+    out[111] = -1.0;
     out[112] = e2;
-    out[113] = 1;
+    out[113] = 1.0;
     out[114] = e4;
-    out[115] = -1;
+    out[115] = -1.0;
     out[116] = e3;
-    out[117] = 1;
+    out[117] = 1.0;
     out[118] = -e0*tr[27];
-    out[119] = -1;
+    out[119] = -1.0;
     out[120] = e0*tr[22];
-    out[121] = 1;
+    out[121] = 1.0;
     out[122] = e5;
-    out[123] = -1;
+    out[123] = -1.0;
     out[124] = e1;
-    out[125] = 1;
+    out[125] = 1.0;
     out[126] = e6;
-    out[127] = -1;
-    out[128] = 1;
-    out[129] = -1;
-    out[130] = 1;
-    out[131] = -1;
+    out[127] = -1.0;
+    out[128] = 1.0;
+    out[129] = -1.0;
+    out[130] = 1.0;
+    out[131] = -1.0;
     out[132] = e5;
-    out[133] = 1;
+    out[133] = 1.0;
     out[134] = e0*tr[30];
-    out[135] = -1;
+    out[135] = -1.0;
     out[136] = e6;
-    out[137] = 1;
+    out[137] = 1.0;
     out[138] = -e0*tr[31];
-    out[139] = -1;
+    out[139] = -1.0;
     out[140] = e4;
-    out[141] = 1;
+    out[141] = 1.0;
     out[142] = e0*tr[28];
-    out[143] = -1;
+    out[143] = -1.0;
 }
 
 static void scissor_boom_phi_q_k3(const scissor_boom_real * q, const scissor_boom_real * tr, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1188,12 +1301,12 @@ static void scissor_boom_phi_q_k3(const scissor_boom_real * q, const scissor_boo
     (void)t;
     const scissor_boom_real e0 = (1.0/2.0)*p[0];
     out[144] = -e0*tr[27];
-    out[145] = 1;
+    out[145] = 1.0;
     out[146] = -e0*tr[29];
-    out[147] = -1;
-    out[148] = 1;
-    out[149] = -1;
-    out[150] = 1;
+    out[147] = -1.0;
+    out[148] = 1.0;
+    out[149] = -1.0;
+    out[150] = 1.0;
 }
 
 static void scissor_boom_phi_q_k(const scissor_boom_real * q, const scissor_boom_real * tr, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1210,62 +1323,61 @@ void scissor_boom_phi_q(const scissor_boom_real * q, scissor_boom_real t, const 
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
-    p = prepared;
-    scissor_boom_phi_q_k(q, tr, t, p, out);
+    scissor_boom_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void scissor_boom_nu_k0(const scissor_boom_real * q, const scissor_boom_real * tr, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
     (void)q;
     (void)tr;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = -1.0/2.0*3.141592653589793*p[10]*sin(3.141592653589793*p[8]*t);
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
-    out[9] = 0;
-    out[10] = 0;
-    out[11] = 0;
-    out[12] = 0;
-    out[13] = 0;
-    out[14] = 0;
-    out[15] = 0;
-    out[16] = 0;
-    out[17] = 0;
-    out[18] = 0;
-    out[19] = 0;
-    out[20] = 0;
-    out[21] = 0;
-    out[22] = 0;
-    out[23] = 0;
-    out[24] = 0;
-    out[25] = 0;
-    out[26] = 0;
-    out[27] = 0;
-    out[28] = 0;
-    out[29] = 0;
-    out[30] = 0;
-    out[31] = 0;
-    out[32] = 0;
-    out[33] = 0;
-    out[34] = 0;
-    out[35] = 0;
-    out[36] = 0;
-    out[37] = 0;
-    out[38] = 0;
-    out[39] = 0;
-    out[40] = 0;
-    out[41] = 0;
-    out[42] = 0;
-    out[43] = 0;
-    out[44] = 0;
-    out[45] = 0;
-    out[46] = 0;
-    out[47] = 0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
+    out[9] = 0.0;
+    out[10] = 0.0;
+    out[11] = 0.0;
+    out[12] = 0.0;
+    out[13] = 0.0;
+    out[14] = 0.0;
+    out[15] = 0.0;
+    out[16] = 0.0;
+    out[17] = 0.0;
+    out[18] = 0.0;
+    out[19] = 0.0;
+    out[20] = 0.0;
+    out[21] = 0.0;
+    out[22] = 0.0;
+    out[23] = 0.0;
+    out[24] = 0.0;
+    out[25] = 0.0;
+    out[26] = 0.0;
+    out[27] = 0.0;
+    out[28] = 0.0;
+    out[29] = 0.0;
+    out[30] = 0.0;
+    out[31] = 0.0;
+    out[32] = 0.0;
+    out[33] = 0.0;
+    out[34] = 0.0;
+    out[35] = 0.0;
+    out[36] = 0.0;
+    out[37] = 0.0;
+    out[38] = 0.0;
+    out[39] = 0.0;
+    out[40] = 0.0;
+    out[41] = 0.0;
+    out[42] = 0.0;
+    out[43] = 0.0;
+    out[44] = 0.0;
+    out[45] = 0.0;
+    out[46] = 0.0;
+    out[47] = 0.0;
 }
 
 static void scissor_boom_nu_k(const scissor_boom_real * q, const scissor_boom_real * tr, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1279,8 +1391,7 @@ void scissor_boom_nu(const scissor_boom_real * q, scissor_boom_real t, const sci
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
-    p = prepared;
-    scissor_boom_nu_k(q, tr, t, p, out);
+    scissor_boom_nu_k(q, tr, t, prepared, out);
 }
 
 static void scissor_boom_gamma_k0(const scissor_boom_real * q, const scissor_boom_real * tr, const scissor_boom_real * qd, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1334,50 +1445,50 @@ static void scissor_boom_gamma_k0(const scissor_boom_real * q, const scissor_boo
     out[1] = -e3;
     out[2] = e5;
     out[3] = -1.0/2.0*(3.141592653589793*3.141592653589793)*p[12]*cos(3.141592653589793*p[8]*t);
-    out[4] = 0;
-    out[5] = 0;
+    out[4] = 0.0;
+    out[5] = 0.0;
     out[6] = -e2 - e7;
     out[7] = -e3 - e8;
     out[8] = -e10 - e5;
-    out[9] = -e11 - e4*tr[2];
-    out[10] = 0;
-    out[11] = 0;
+    out[9] = -e11 - (e4*tr[2]);
+    out[10] = 0.0;
+    out[11] = 0.0;
     out[12] = -e10 - e13;
     out[13] = -e11 - e14;
     out[14] = -e16 - e7;
     out[15] = -e17 - e8;
-    out[16] = 0;
-    out[17] = 0;
+    out[16] = 0.0;
+    out[17] = 0.0;
     out[18] = -e16 - e19;
     out[19] = -e17 - e20;
     out[20] = -e13 - e22;
     out[21] = -e14 - e23;
-    out[22] = 0;
-    out[23] = 0;
+    out[22] = 0.0;
+    out[23] = 0.0;
     out[24] = -e22 - e25;
     out[25] = -e23 - e26;
     out[26] = -e19 - e28;
     out[27] = -e20 - e29;
-    out[28] = 0;
-    out[29] = 0;
+    out[28] = 0.0;
+    out[29] = 0.0;
     out[30] = -e28 - e31;
     out[31] = -e29 - e32;
     out[32] = -e25 - e34;
     out[33] = -e26 - e35;
-    out[34] = 0;
-    out[35] = 0;
+    out[34] = 0.0;
+    out[35] = 0.0;
     out[36] = -e34 - e37;
     out[37] = -e35 - e38;
     out[38] = -e31 - e40;
     out[39] = -e32 - e41;
-    out[40] = 0;
-    out[41] = 0;
-    out[42] = -e40 - e42*tr[31];
-    out[43] = -e41 - e42*tr[30];
-    out[44] = -e37 - e43*tr[29];
-    out[45] = -e38 - e43*tr[28];
-    out[46] = 0;
-    out[47] = 0;
+    out[40] = 0.0;
+    out[41] = 0.0;
+    out[42] = -e40 - (e42*tr[31]);
+    out[43] = -e41 - (e42*tr[30]);
+    out[44] = -e37 - (e43*tr[29]);
+    out[45] = -e38 - (e43*tr[28]);
+    out[46] = 0.0;
+    out[47] = 0.0;
 }
 
 static void scissor_boom_gamma_k(const scissor_boom_real * q, const scissor_boom_real * tr, const scissor_boom_real * qd, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1391,8 +1502,7 @@ void scissor_boom_gamma(const scissor_boom_real * q, const scissor_boom_real * q
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
-    p = prepared;
-    scissor_boom_gamma_k(q, tr, qd, t, p, out);
+    scissor_boom_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void scissor_boom_applied_k0(const scissor_boom_real * q, const scissor_boom_real * tr, const scissor_boom_real * qd, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1401,54 +1511,54 @@ static void scissor_boom_applied_k0(const scissor_boom_real * q, const scissor_b
     (void)qd;
     (void)t;
     const scissor_boom_real e0 = -981.0/100.0*p[1];
-    out[0] = 0;
+    out[0] = 0.0;
     out[1] = e0;
-    out[2] = 0;
-    out[3] = 0;
+    out[2] = 0.0;
+    out[3] = 0.0;
     out[4] = e0;
-    out[5] = 0;
-    out[6] = 0;
+    out[5] = 0.0;
+    out[6] = 0.0;
     out[7] = e0;
-    out[8] = 0;
-    out[9] = 0;
+    out[8] = 0.0;
+    out[9] = 0.0;
     out[10] = e0;
-    out[11] = 0;
-    out[12] = 0;
+    out[11] = 0.0;
+    out[12] = 0.0;
     out[13] = e0;
-    out[14] = 0;
-    out[15] = 0;
+    out[14] = 0.0;
+    out[15] = 0.0;
     out[16] = e0;
-    out[17] = 0;
-    out[18] = 0;
+    out[17] = 0.0;
+    out[18] = 0.0;
     out[19] = e0;
-    out[20] = 0;
-    out[21] = 0;
+    out[20] = 0.0;
+    out[21] = 0.0;
     out[22] = e0;
-    out[23] = 0;
-    out[24] = 0;
+    out[23] = 0.0;
+    out[24] = 0.0;
     out[25] = e0;
-    out[26] = 0;
-    out[27] = 0;
+    out[26] = 0.0;
+    out[27] = 0.0;
     out[28] = e0;
-    out[29] = 0;
-    out[30] = 0;
+    out[29] = 0.0;
+    out[30] = 0.0;
     out[31] = e0;
-    out[32] = 0;
-    out[33] = 0;
+    out[32] = 0.0;
+    out[33] = 0.0;
     out[34] = e0;
-    out[35] = 0;
-    out[36] = 0;
+    out[35] = 0.0;
+    out[36] = 0.0;
     out[37] = e0;
-    out[38] = 0;
-    out[39] = 0;
+    out[38] = 0.0;
+    out[39] = 0.0;
     out[40] = e0;
-    out[41] = 0;
-    out[42] = 0;
+    out[41] = 0.0;
+    out[42] = 0.0;
     out[43] = p[13];
     out[44] = -1.0/2.0*p[14]*tr[29];
-    out[45] = 0;
+    out[45] = 0.0;
     out[46] = e0;
-    out[47] = 0;
+    out[47] = 0.0;
 }
 
 static void scissor_boom_applied_k(const scissor_boom_real * q, const scissor_boom_real * tr, const scissor_boom_real * qd, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1462,8 +1572,7 @@ void scissor_boom_applied(const scissor_boom_real * q, const scissor_boom_real *
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
-    p = prepared;
-    scissor_boom_applied_k(q, tr, qd, t, p, out);
+    scissor_boom_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void scissor_boom_mass_k0(const scissor_boom_real * p, scissor_boom_real *out)
@@ -1527,8 +1636,7 @@ void scissor_boom_mass(const scissor_boom_real * p, scissor_boom_real *out)
 {
     scissor_boom_real prepared[16];
     scissor_boom_prepare(p, prepared);
-    p = prepared;
-    scissor_boom_mass_k(p, out);
+    scissor_boom_mass_k(prepared, out);
 }
 
 static void scissor_boom_reactions_k0(const scissor_boom_real * q, const scissor_boom_real * tr, const scissor_boom_real * lam, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1536,52 +1644,52 @@ static void scissor_boom_reactions_k0(const scissor_boom_real * q, const scissor
     (void)t;
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = -lam[2];
-    out[7] = 0;
-    out[8] = -1.0/2.0*lam[2]*p[0]*tr[2] + lam[2]*q[4];
+    out[7] = 0.0;
+    out[8] = (-1.0/2.0*lam[2]*p[0]*tr[2]) + (lam[2]*q[4]);
     out[9] = lam[2];
-    out[10] = 0;
-    out[11] = 0;
-    out[12] = 0;
-    out[13] = 0;
+    out[10] = 0.0;
+    out[11] = 0.0;
+    out[12] = 0.0;
+    out[13] = 0.0;
     out[14] = lam[3];
-    out[15] = 0;
-    out[16] = 0;
+    out[15] = 0.0;
+    out[16] = 0.0;
     out[17] = -lam[3];
     out[18] = lam[4];
     out[19] = lam[5];
-    out[20] = 0;
+    out[20] = 0.0;
     out[21] = -lam[4];
     out[22] = -lam[5];
-    out[23] = 0;
+    out[23] = 0.0;
     out[24] = lam[6];
     out[25] = lam[7];
-    out[26] = 0;
+    out[26] = 0.0;
     out[27] = -lam[6];
     out[28] = -lam[7];
-    out[29] = 0;
+    out[29] = 0.0;
     out[30] = lam[8];
     out[31] = lam[9];
-    out[32] = 0;
+    out[32] = 0.0;
     out[33] = -lam[8];
     out[34] = -lam[9];
-    out[35] = 0;
+    out[35] = 0.0;
     out[36] = lam[10];
     out[37] = lam[11];
-    out[38] = 0;
+    out[38] = 0.0;
     out[39] = -lam[10];
     out[40] = -lam[11];
-    out[41] = 0;
+    out[41] = 0.0;
     out[42] = lam[12];
     out[43] = lam[13];
-    out[44] = 0;
+    out[44] = 0.0;
     out[45] = -lam[12];
     out[46] = -lam[13];
-    out[47] = 0;
+    out[47] = 0.0;
 }
 
 static void scissor_boom_reactions_k1(const scissor_boom_real * q, const scissor_boom_real * tr, const scissor_boom_real * lam, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1592,52 +1700,52 @@ static void scissor_boom_reactions_k1(const scissor_boom_real * q, const scissor
     (void)p;
     out[48] = lam[14];
     out[49] = lam[15];
-    out[50] = 0;
+    out[50] = 0.0;
     out[51] = -lam[14];
     out[52] = -lam[15];
-    out[53] = 0;
+    out[53] = 0.0;
     out[54] = lam[16];
     out[55] = lam[17];
-    out[56] = 0;
+    out[56] = 0.0;
     out[57] = -lam[16];
     out[58] = -lam[17];
-    out[59] = 0;
+    out[59] = 0.0;
     out[60] = lam[18];
     out[61] = lam[19];
-    out[62] = 0;
+    out[62] = 0.0;
     out[63] = -lam[18];
     out[64] = -lam[19];
-    out[65] = 0;
+    out[65] = 0.0;
     out[66] = lam[20];
     out[67] = lam[21];
-    out[68] = 0;
+    out[68] = 0.0;
     out[69] = -lam[20];
     out[70] = -lam[21];
-    out[71] = 0;
+    out[71] = 0.0;
     out[72] = lam[22];
     out[73] = lam[23];
-    out[74] = 0;
+    out[74] = 0.0;
     out[75] = -lam[22];
     out[76] = -lam[23];
-    out[77] = 0;
+    out[77] = 0.0;
     out[78] = lam[24];
     out[79] = lam[25];
-    out[80] = 0;
+    out[80] = 0.0;
     out[81] = -lam[24];
     out[82] = -lam[25];
-    out[83] = 0;
+    out[83] = 0.0;
     out[84] = lam[26];
     out[85] = lam[27];
-    out[86] = 0;
+    out[86] = 0.0;
     out[87] = -lam[26];
     out[88] = -lam[27];
-    out[89] = 0;
+    out[89] = 0.0;
     out[90] = lam[28];
     out[91] = lam[29];
-    out[92] = 0;
+    out[92] = 0.0;
     out[93] = -lam[28];
     out[94] = -lam[29];
-    out[95] = 0;
+    out[95] = 0.0;
 }
 
 static void scissor_boom_reactions_k2(const scissor_boom_real * q, const scissor_boom_real * tr, const scissor_boom_real * lam, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1648,52 +1756,52 @@ static void scissor_boom_reactions_k2(const scissor_boom_real * q, const scissor
     (void)p;
     out[96] = lam[30];
     out[97] = lam[31];
-    out[98] = 0;
+    out[98] = 0.0;
     out[99] = -lam[30];
     out[100] = -lam[31];
-    out[101] = 0;
+    out[101] = 0.0;
     out[102] = lam[32];
     out[103] = lam[33];
-    out[104] = 0;
+    out[104] = 0.0;
     out[105] = -lam[32];
     out[106] = -lam[33];
-    out[107] = 0;
+    out[107] = 0.0;
     out[108] = lam[34];
     out[109] = lam[35];
-    out[110] = 0;
+    out[110] = 0.0;
     out[111] = -lam[34];
     out[112] = -lam[35];
-    out[113] = 0;
+    out[113] = 0.0;
     out[114] = lam[36];
     out[115] = lam[37];
-    out[116] = 0;
+    out[116] = 0.0;
     out[117] = -lam[36];
     out[118] = -lam[37];
-    out[119] = 0;
+    out[119] = 0.0;
     out[120] = lam[38];
     out[121] = lam[39];
-    out[122] = 0;
+    out[122] = 0.0;
     out[123] = -lam[38];
     out[124] = -lam[39];
-    out[125] = 0;
+    out[125] = 0.0;
     out[126] = lam[40];
     out[127] = lam[41];
-    out[128] = 0;
+    out[128] = 0.0;
     out[129] = -lam[40];
     out[130] = -lam[41];
-    out[131] = 0;
+    out[131] = 0.0;
     out[132] = lam[42];
     out[133] = lam[43];
-    out[134] = 0;
+    out[134] = 0.0;
     out[135] = -lam[42];
     out[136] = -lam[43];
-    out[137] = 0;
+    out[137] = 0.0;
     out[138] = lam[44];
     out[139] = lam[45];
-    out[140] = 0;
+    out[140] = 0.0;
     out[141] = -lam[44];
     out[142] = -lam[45];
-    out[143] = 0;
+    out[143] = 0.0;
 }
 
 static void scissor_boom_reactions_k3(const scissor_boom_real * q, const scissor_boom_real * tr, const scissor_boom_real * lam, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1704,10 +1812,10 @@ static void scissor_boom_reactions_k3(const scissor_boom_real * q, const scissor
     (void)p;
     out[144] = lam[46];
     out[145] = lam[47];
-    out[146] = 0;
+    out[146] = 0.0;
     out[147] = -lam[46];
     out[148] = -lam[47];
-    out[149] = 0;
+    out[149] = 0.0;
 }
 
 static void scissor_boom_reactions_k(const scissor_boom_real * q, const scissor_boom_real * tr, const scissor_boom_real * lam, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
@@ -1724,8 +1832,7 @@ void scissor_boom_reactions(const scissor_boom_real * q, const scissor_boom_real
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
-    p = prepared;
-    scissor_boom_reactions_k(q, tr, lam, t, p, out);
+    scissor_boom_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -1747,13 +1854,14 @@ static int scissor_boom_sparse_factor0(scissor_boom_real *lu)
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[3]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[12]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[16]));
-    if (!(1.0 >= SCISSOR_BOOM_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (SCISSOR_BOOM_THRESHOLD * cm))) { return 1; }
     piv = lu[5];
     cm = fabs(piv);
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[20]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[24]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[5] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[5] = 1.0 / piv;
+    piv = lu[5];
     lu[20] *= piv;
     lu[24] *= piv;
     lu[153] = 0.0 - lu[14];
@@ -1773,22 +1881,24 @@ static int scissor_boom_sparse_factor0(scissor_boom_real *lu)
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[156]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[32]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[36]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[155] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[155] = 1.0 / piv;
+    piv = lu[155];
     lu[156] *= piv;
     lu[32] *= piv;
     lu[36] *= piv;
-    lu[154] -= lu[156] * lu[153];
-    lu[181] = 0.0 - lu[32] * lu[153];
-    lu[182] = 0.0 - lu[36] * lu[153];
+    lu[154] -= (lu[156] * lu[153]);
+    lu[181] = 0.0 - (lu[32] * lu[153]);
+    lu[182] = 0.0 - (lu[36] * lu[153]);
     piv = lu[154];
     cm = fabs(piv);
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[181]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[182]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[40]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[44]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[154] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[154] = 1.0 / piv;
+    piv = lu[154];
     lu[181] *= piv;
     lu[182] *= piv;
     lu[40] *= piv;
@@ -1804,22 +1914,24 @@ static int scissor_boom_sparse_factor0(scissor_boom_real *lu)
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[46]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[52]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[56]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[42] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[42] = 1.0 / piv;
+    piv = lu[42];
     lu[46] *= piv;
     lu[52] *= piv;
     lu[56] *= piv;
-    lu[185] -= lu[46] * lu[183];
-    lu[184] -= lu[52] * lu[183];
-    lu[186] -= lu[56] * lu[183];
+    lu[185] -= (lu[46] * lu[183]);
+    lu[184] -= (lu[52] * lu[183]);
+    lu[186] -= (lu[56] * lu[183]);
     piv = lu[185];
     cm = fabs(piv);
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[184]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[186]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[60]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[64]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[185] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[185] = 1.0 / piv;
+    piv = lu[185];
     lu[184] *= piv;
     lu[186] *= piv;
     lu[60] *= piv;
@@ -1835,22 +1947,24 @@ static int scissor_boom_sparse_factor0(scissor_boom_real *lu)
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[66]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[72]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[76]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[62] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[62] = 1.0 / piv;
+    piv = lu[62];
     lu[66] *= piv;
     lu[72] *= piv;
     lu[76] *= piv;
-    lu[189] -= lu[66] * lu[187];
-    lu[188] -= lu[72] * lu[187];
-    lu[190] -= lu[76] * lu[187];
+    lu[189] -= (lu[66] * lu[187]);
+    lu[188] -= (lu[72] * lu[187]);
+    lu[190] -= (lu[76] * lu[187]);
     piv = lu[189];
     cm = fabs(piv);
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[188]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[190]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[80]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[84]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[189] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[189] = 1.0 / piv;
+    piv = lu[189];
     lu[188] *= piv;
     lu[190] *= piv;
     lu[80] *= piv;
@@ -1866,22 +1980,24 @@ static int scissor_boom_sparse_factor0(scissor_boom_real *lu)
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[86]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[92]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[96]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[82] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[82] = 1.0 / piv;
+    piv = lu[82];
     lu[86] *= piv;
     lu[92] *= piv;
     lu[96] *= piv;
-    lu[193] -= lu[86] * lu[191];
-    lu[192] -= lu[92] * lu[191];
-    lu[194] -= lu[96] * lu[191];
+    lu[193] -= (lu[86] * lu[191]);
+    lu[192] -= (lu[92] * lu[191]);
+    lu[194] -= (lu[96] * lu[191]);
     piv = lu[193];
     cm = fabs(piv);
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[192]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[194]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[100]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[104]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[193] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[193] = 1.0 / piv;
+    piv = lu[193];
     lu[192] *= piv;
     lu[194] *= piv;
     lu[100] *= piv;
@@ -1897,22 +2013,24 @@ static int scissor_boom_sparse_factor0(scissor_boom_real *lu)
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[106]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[112]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[116]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[102] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[102] = 1.0 / piv;
+    piv = lu[102];
     lu[106] *= piv;
     lu[112] *= piv;
     lu[116] *= piv;
-    lu[197] -= lu[106] * lu[195];
-    lu[196] -= lu[112] * lu[195];
-    lu[198] -= lu[116] * lu[195];
+    lu[197] -= (lu[106] * lu[195]);
+    lu[196] -= (lu[112] * lu[195]);
+    lu[198] -= (lu[116] * lu[195]);
     piv = lu[197];
     cm = fabs(piv);
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[196]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[198]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[120]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[124]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[197] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[197] = 1.0 / piv;
+    piv = lu[197];
     lu[196] *= piv;
     lu[198] *= piv;
     lu[120] *= piv;
@@ -1924,33 +2042,37 @@ static int scissor_boom_sparse_factor0(scissor_boom_real *lu)
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[126]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[177]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[179]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[122] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[122] = 1.0 / piv;
+    piv = lu[122];
     lu[126] *= piv;
     lu[177] *= piv;
     lu[179] *= piv;
-    lu[200] -= lu[126] * lu[199];
-    lu[140] -= lu[177] * lu[199];
-    lu[144] -= lu[179] * lu[199];
+    lu[200] -= (lu[126] * lu[199]);
+    lu[140] -= (lu[177] * lu[199]);
+    lu[144] -= (lu[179] * lu[199]);
     piv = lu[200];
     cm = fabs(piv);
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[140]));
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[144]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[200] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[200] = 1.0 / piv;
+    piv = lu[200];
     lu[140] *= piv;
     lu[144] *= piv;
     piv = lu[142];
     cm = fabs(piv);
     cm = SCISSOR_BOOM_MAX(cm, fabs(lu[146]));
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[142] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[142] = 1.0 / piv;
+    piv = lu[142];
     lu[146] *= piv;
-    lu[180] -= lu[146] * lu[178];
+    lu[180] -= (lu[146] * lu[178]);
     piv = lu[180];
     cm = fabs(piv);
-    if (!(fabs(piv) >= SCISSOR_BOOM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[180] = 1.0 / piv;
+    if (!(fabs(piv) >= (SCISSOR_BOOM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[180] = 1.0 / piv;
+    piv = lu[180];
     return 0;
 }
 
@@ -1961,18 +2083,18 @@ static int scissor_boom_sparse_factor(scissor_boom_real *lu)
 
 static void scissor_boom_sparse_forward0(const scissor_boom_real *SCISSOR_BOOM_RESTRICT lu, scissor_boom_real *SCISSOR_BOOM_RESTRICT y)
 {
-    y[0] -= lu[1] * y[3];
-    y[1] -= lu[3] * y[3];
-    y[6] -= lu[12] * y[3];
-    y[7] -= lu[16] * y[3];
+    y[0] -= (lu[1] * y[3]);
+    y[1] -= (lu[3] * y[3]);
+    y[6] -= (lu[12] * y[3]);
+    y[7] -= (lu[16] * y[3]);
     y[4] += y[0];
     y[6] += y[0];
     y[5] += y[1];
     y[7] += y[1];
     y[2] += y[4];
     y[8] += y[4];
-    y[8] -= lu[20] * y[2];
-    y[9] -= lu[24] * y[2];
+    y[8] -= (lu[20] * y[2]);
+    y[9] -= (lu[24] * y[2]);
     y[9] += y[5];
     y[44] += y[46];
     y[45] += y[47];
@@ -2006,104 +2128,104 @@ static void scissor_boom_sparse_forward0(const scissor_boom_real *SCISSOR_BOOM_R
     y[43] -= y[41];
     y[44] -= y[42];
     y[45] -= y[43];
-    y[11] -= lu[156] * y[10];
-    y[12] -= lu[32] * y[10];
-    y[13] -= lu[36] * y[10];
-    y[12] -= lu[181] * y[11];
-    y[13] -= lu[182] * y[11];
-    y[14] -= lu[40] * y[11];
-    y[15] -= lu[44] * y[11];
+    y[11] -= (lu[156] * y[10]);
+    y[12] -= (lu[32] * y[10]);
+    y[13] -= (lu[36] * y[10]);
+    y[12] -= (lu[181] * y[11]);
+    y[13] -= (lu[182] * y[11]);
+    y[14] -= (lu[40] * y[11]);
+    y[15] -= (lu[44] * y[11]);
     y[14] -= y[12];
     y[18] += y[12];
     y[20] += y[12];
     y[15] -= y[13];
     y[19] += y[13];
     y[21] += y[13];
-    y[15] -= lu[46] * y[14];
-    y[18] -= lu[52] * y[14];
-    y[19] -= lu[56] * y[14];
-    y[18] -= lu[184] * y[15];
-    y[19] -= lu[186] * y[15];
-    y[20] -= lu[60] * y[15];
-    y[21] -= lu[64] * y[15];
+    y[15] -= (lu[46] * y[14]);
+    y[18] -= (lu[52] * y[14]);
+    y[19] -= (lu[56] * y[14]);
+    y[18] -= (lu[184] * y[15]);
+    y[19] -= (lu[186] * y[15]);
+    y[20] -= (lu[60] * y[15]);
+    y[21] -= (lu[64] * y[15]);
     y[20] -= y[18];
     y[24] += y[18];
     y[26] += y[18];
     y[21] -= y[19];
     y[25] += y[19];
     y[27] += y[19];
-    y[21] -= lu[66] * y[20];
-    y[24] -= lu[72] * y[20];
-    y[25] -= lu[76] * y[20];
-    y[24] -= lu[188] * y[21];
-    y[25] -= lu[190] * y[21];
-    y[26] -= lu[80] * y[21];
-    y[27] -= lu[84] * y[21];
+    y[21] -= (lu[66] * y[20]);
+    y[24] -= (lu[72] * y[20]);
+    y[25] -= (lu[76] * y[20]);
+    y[24] -= (lu[188] * y[21]);
+    y[25] -= (lu[190] * y[21]);
+    y[26] -= (lu[80] * y[21]);
+    y[27] -= (lu[84] * y[21]);
     y[26] -= y[24];
     y[30] += y[24];
     y[32] += y[24];
     y[27] -= y[25];
     y[31] += y[25];
     y[33] += y[25];
-    y[27] -= lu[86] * y[26];
-    y[30] -= lu[92] * y[26];
-    y[31] -= lu[96] * y[26];
-    y[30] -= lu[192] * y[27];
-    y[31] -= lu[194] * y[27];
-    y[32] -= lu[100] * y[27];
-    y[33] -= lu[104] * y[27];
+    y[27] -= (lu[86] * y[26]);
+    y[30] -= (lu[92] * y[26]);
+    y[31] -= (lu[96] * y[26]);
+    y[30] -= (lu[192] * y[27]);
+    y[31] -= (lu[194] * y[27]);
+    y[32] -= (lu[100] * y[27]);
+    y[33] -= (lu[104] * y[27]);
     y[32] -= y[30];
     y[36] += y[30];
     y[38] += y[30];
     y[33] -= y[31];
     y[37] += y[31];
     y[39] += y[31];
-    y[33] -= lu[106] * y[32];
-    y[36] -= lu[112] * y[32];
-    y[37] -= lu[116] * y[32];
-    y[36] -= lu[196] * y[33];
-    y[37] -= lu[198] * y[33];
-    y[38] -= lu[120] * y[33];
-    y[39] -= lu[124] * y[33];
+    y[33] -= (lu[106] * y[32]);
+    y[36] -= (lu[112] * y[32]);
+    y[37] -= (lu[116] * y[32]);
+    y[36] -= (lu[196] * y[33]);
+    y[37] -= (lu[198] * y[33]);
+    y[38] -= (lu[120] * y[33]);
+    y[39] -= (lu[124] * y[33]);
     y[38] -= y[36];
     y[39] -= y[37];
-    y[39] -= lu[126] * y[38];
-    y[44] -= lu[177] * y[38];
-    y[45] -= lu[179] * y[38];
-    y[44] -= lu[140] * y[39];
-    y[45] -= lu[144] * y[39];
-    y[45] -= lu[146] * y[44];
+    y[39] -= (lu[126] * y[38]);
+    y[44] -= (lu[177] * y[38]);
+    y[45] -= (lu[179] * y[38]);
+    y[44] -= (lu[140] * y[39]);
+    y[45] -= (lu[144] * y[39]);
+    y[45] -= (lu[146] * y[44]);
 }
 
 static void scissor_boom_sparse_back0(
     const scissor_boom_real *SCISSOR_BOOM_RESTRICT lu, const scissor_boom_real *SCISSOR_BOOM_RESTRICT y, scissor_boom_real *SCISSOR_BOOM_RESTRICT x)
 {
     x[47] = (y[45]) * lu[180];
-    x[44] = (y[44] - lu[178] * x[47]) * lu[142];
+    x[44] = (y[44] - (lu[178] * x[47])) * lu[142];
     x[41] = (y[39]) * lu[200];
-    x[38] = (y[38] - lu[199] * x[41]) * lu[122];
-    x[40] = y[37] - lu[118] * x[41];
-    x[39] = y[36] - lu[114] * x[41];
+    x[38] = (y[38] - (lu[199] * x[41])) * lu[122];
+    x[40] = y[37] - (lu[118] * x[41]);
+    x[39] = y[36] - (lu[114] * x[41]);
     x[35] = (y[33]) * lu[197];
-    x[32] = (y[32] - lu[195] * x[35]) * lu[102];
-    x[34] = y[31] - lu[98] * x[35];
-    x[33] = y[30] - lu[94] * x[35];
+    x[32] = (y[32] - (lu[195] * x[35])) * lu[102];
+    x[34] = y[31] - (lu[98] * x[35]);
+    x[33] = y[30] - (lu[94] * x[35]);
     x[29] = (y[27]) * lu[193];
-    x[26] = (y[26] - lu[191] * x[29]) * lu[82];
-    x[28] = y[25] - lu[78] * x[29];
-    x[27] = y[24] - lu[74] * x[29];
+    x[26] = (y[26] - (lu[191] * x[29])) * lu[82];
+    x[28] = y[25] - (lu[78] * x[29]);
+    x[27] = y[24] - (lu[74] * x[29]);
     x[23] = (y[21]) * lu[189];
-    x[20] = (y[20] - lu[187] * x[23]) * lu[62];
-    x[22] = y[19] - lu[58] * x[23];
-    x[21] = y[18] - lu[54] * x[23];
+    x[20] = (y[20] - (lu[187] * x[23])) * lu[62];
+    x[22] = y[19] - (lu[58] * x[23]);
+    x[21] = y[18] - (lu[54] * x[23]);
     x[17] = (y[15]) * lu[185];
-    x[14] = (y[14] - lu[183] * x[17]) * lu[42];
-    x[16] = y[13] - lu[38] * x[17];
-    x[15] = y[12] - lu[34] * x[17];
+    x[14] = (y[14] - (lu[183] * x[17])) * lu[42];
+    x[16] = y[13] - (lu[38] * x[17]);
+    x[15] = y[12] - (lu[34] * x[17]);
     x[11] = (y[11]) * lu[154];
-    x[8] = (y[10] - lu[153] * x[11]) * lu[155];
-    x[46] = y[43] - lu[136] * x[38] + x[40] - lu[138] * x[47];
-    x[45] = y[42] - lu[132] * x[38] + x[39] - lu[134] * x[47];
+    x[8] = (y[10] - (lu[153] * x[11])) * lu[155];
+    x[46] = y[43] - (lu[136] * x[38]) + x[40] - (lu[138] * x[47]);
+    x[45] = y[42] - (lu[132] * x[38]) + x[39] - (lu[134] * x[47]);
     x[37] = -(y[41] - x[40]);
     x[36] = -(y[40] - x[39]);
     x[31] = -(y[35] - x[34]);
@@ -2114,10 +2236,10 @@ static void scissor_boom_sparse_back0(
     x[18] = -(y[22] - x[21]);
     x[13] = -(y[17] - x[16]);
     x[12] = -(y[16] - x[15]);
-    x[7] = y[9] - lu[26] * x[8];
-    x[6] = y[8] - lu[22] * x[8];
-    x[10] = y[7] - lu[18] * x[11];
-    x[9] = y[6] - lu[14] * x[11];
+    x[7] = y[9] - (lu[26] * x[8]);
+    x[6] = y[8] - (lu[22] * x[8]);
+    x[10] = y[7] - (lu[18] * x[11]);
+    x[9] = y[6] - (lu[14] * x[11]);
     x[43] = -(y[47] - x[46]);
     x[42] = -(y[46] - x[45]);
     x[4] = y[5];
@@ -2137,7 +2259,7 @@ static void scissor_boom_sparse_solve_in(const scissor_boom_real *lu, scissor_bo
 
 static void scissor_boom_sparse_solve(const scissor_boom_real *lu, const scissor_boom_real *b, scissor_boom_real *x, scissor_boom_real *y)
 {
-    memcpy(y, b, sizeof(scissor_boom_real) * 48);
+    (void)memcpy(y, b, sizeof(scissor_boom_real) * 48u);
     scissor_boom_sparse_solve_in(lu, y, x);
 }
 
@@ -2168,101 +2290,101 @@ static void scissor_boom_sparse_t_forward0(
     x[41] = -(b[37]);
     x[42] = b[45] - x[46];
     x[43] = b[46] - x[47];
-    x[10] = (b[8] - lu[22] * x[8] - lu[26] * x[9]) * lu[155];
-    x[11] = (b[11] - lu[14] * x[6] - lu[18] * x[7] - lu[153] * x[10]) * lu[154];
+    x[10] = (b[8] - (lu[22] * x[8]) - (lu[26] * x[9])) * lu[155];
+    x[11] = (b[11] - (lu[14] * x[6]) - (lu[18] * x[7]) - (lu[153] * x[10])) * lu[154];
     x[12] = b[15] - x[16];
     x[13] = b[16] - x[17];
     x[14] = (b[14]) * lu[42];
-    x[15] = (b[17] - lu[34] * x[12] - lu[38] * x[13] - lu[183] * x[14]) * lu[185];
+    x[15] = (b[17] - (lu[34] * x[12]) - (lu[38] * x[13]) - (lu[183] * x[14])) * lu[185];
     x[18] = b[21] - x[22];
     x[19] = b[22] - x[23];
     x[20] = (b[20]) * lu[62];
-    x[21] = (b[23] - lu[54] * x[18] - lu[58] * x[19] - lu[187] * x[20]) * lu[189];
+    x[21] = (b[23] - (lu[54] * x[18]) - (lu[58] * x[19]) - (lu[187] * x[20])) * lu[189];
     x[24] = b[27] - x[28];
     x[25] = b[28] - x[29];
     x[26] = (b[26]) * lu[82];
-    x[27] = (b[29] - lu[74] * x[24] - lu[78] * x[25] - lu[191] * x[26]) * lu[193];
+    x[27] = (b[29] - (lu[74] * x[24]) - (lu[78] * x[25]) - (lu[191] * x[26])) * lu[193];
     x[30] = b[33] - x[34];
     x[31] = b[34] - x[35];
     x[32] = (b[32]) * lu[102];
-    x[33] = (b[35] - lu[94] * x[30] - lu[98] * x[31] - lu[195] * x[32]) * lu[197];
+    x[33] = (b[35] - (lu[94] * x[30]) - (lu[98] * x[31]) - (lu[195] * x[32])) * lu[197];
     x[36] = b[39] - x[40] + x[42];
     x[37] = b[40] - x[41] + x[43];
-    x[38] = (b[38] - lu[132] * x[42] - lu[136] * x[43]) * lu[122];
-    x[39] = (b[41] - lu[114] * x[36] - lu[118] * x[37] - lu[199] * x[38]) * lu[200];
+    x[38] = (b[38] - (lu[132] * x[42]) - (lu[136] * x[43])) * lu[122];
+    x[39] = (b[41] - (lu[114] * x[36]) - (lu[118] * x[37]) - (lu[199] * x[38])) * lu[200];
     x[44] = (b[44]) * lu[142];
-    x[45] = (b[47] - lu[134] * x[42] - lu[138] * x[43] - lu[178] * x[44]) * lu[180];
+    x[45] = (b[47] - (lu[134] * x[42]) - (lu[138] * x[43]) - (lu[178] * x[44])) * lu[180];
 }
 
 static void scissor_boom_sparse_t_back0(const scissor_boom_real *SCISSOR_BOOM_RESTRICT lu, scissor_boom_real *SCISSOR_BOOM_RESTRICT x)
 {
-    x[44] -= lu[146] * x[45];
-    x[39] -= lu[140] * x[44];
-    x[39] -= lu[144] * x[45];
-    x[38] -= lu[126] * x[39];
-    x[38] -= lu[177] * x[44];
-    x[38] -= lu[179] * x[45];
+    x[44] -= (lu[146] * x[45]);
+    x[39] -= (lu[140] * x[44]);
+    x[39] -= (lu[144] * x[45]);
+    x[38] -= (lu[126] * x[39]);
+    x[38] -= (lu[177] * x[44]);
+    x[38] -= (lu[179] * x[45]);
     x[37] -= x[39];
     x[36] -= x[38];
-    x[33] -= lu[196] * x[36];
-    x[33] -= lu[198] * x[37];
-    x[33] -= lu[120] * x[38];
-    x[33] -= lu[124] * x[39];
-    x[32] -= lu[106] * x[33];
-    x[32] -= lu[112] * x[36];
-    x[32] -= lu[116] * x[37];
+    x[33] -= (lu[196] * x[36]);
+    x[33] -= (lu[198] * x[37]);
+    x[33] -= (lu[120] * x[38]);
+    x[33] -= (lu[124] * x[39]);
+    x[32] -= (lu[106] * x[33]);
+    x[32] -= (lu[112] * x[36]);
+    x[32] -= (lu[116] * x[37]);
     x[31] -= x[33];
     x[31] += x[37];
     x[31] += x[39];
     x[30] -= x[32];
     x[30] += x[36];
     x[30] += x[38];
-    x[27] -= lu[192] * x[30];
-    x[27] -= lu[194] * x[31];
-    x[27] -= lu[100] * x[32];
-    x[27] -= lu[104] * x[33];
-    x[26] -= lu[86] * x[27];
-    x[26] -= lu[92] * x[30];
-    x[26] -= lu[96] * x[31];
+    x[27] -= (lu[192] * x[30]);
+    x[27] -= (lu[194] * x[31]);
+    x[27] -= (lu[100] * x[32]);
+    x[27] -= (lu[104] * x[33]);
+    x[26] -= (lu[86] * x[27]);
+    x[26] -= (lu[92] * x[30]);
+    x[26] -= (lu[96] * x[31]);
     x[25] -= x[27];
     x[25] += x[31];
     x[25] += x[33];
     x[24] -= x[26];
     x[24] += x[30];
     x[24] += x[32];
-    x[21] -= lu[188] * x[24];
-    x[21] -= lu[190] * x[25];
-    x[21] -= lu[80] * x[26];
-    x[21] -= lu[84] * x[27];
-    x[20] -= lu[66] * x[21];
-    x[20] -= lu[72] * x[24];
-    x[20] -= lu[76] * x[25];
+    x[21] -= (lu[188] * x[24]);
+    x[21] -= (lu[190] * x[25]);
+    x[21] -= (lu[80] * x[26]);
+    x[21] -= (lu[84] * x[27]);
+    x[20] -= (lu[66] * x[21]);
+    x[20] -= (lu[72] * x[24]);
+    x[20] -= (lu[76] * x[25]);
     x[19] -= x[21];
     x[19] += x[25];
     x[19] += x[27];
     x[18] -= x[20];
     x[18] += x[24];
     x[18] += x[26];
-    x[15] -= lu[184] * x[18];
-    x[15] -= lu[186] * x[19];
-    x[15] -= lu[60] * x[20];
-    x[15] -= lu[64] * x[21];
-    x[14] -= lu[46] * x[15];
-    x[14] -= lu[52] * x[18];
-    x[14] -= lu[56] * x[19];
+    x[15] -= (lu[184] * x[18]);
+    x[15] -= (lu[186] * x[19]);
+    x[15] -= (lu[60] * x[20]);
+    x[15] -= (lu[64] * x[21]);
+    x[14] -= (lu[46] * x[15]);
+    x[14] -= (lu[52] * x[18]);
+    x[14] -= (lu[56] * x[19]);
     x[13] -= x[15];
     x[13] += x[19];
     x[13] += x[21];
     x[12] -= x[14];
     x[12] += x[18];
     x[12] += x[20];
-    x[11] -= lu[181] * x[12];
-    x[11] -= lu[182] * x[13];
-    x[11] -= lu[40] * x[14];
-    x[11] -= lu[44] * x[15];
-    x[10] -= lu[156] * x[11];
-    x[10] -= lu[32] * x[12];
-    x[10] -= lu[36] * x[13];
+    x[11] -= (lu[181] * x[12]);
+    x[11] -= (lu[182] * x[13]);
+    x[11] -= (lu[40] * x[14]);
+    x[11] -= (lu[44] * x[15]);
+    x[10] -= (lu[156] * x[11]);
+    x[10] -= (lu[32] * x[12]);
+    x[10] -= (lu[36] * x[13]);
     x[43] -= x[45];
     x[42] -= x[44];
     x[41] += x[39];
@@ -2296,18 +2418,18 @@ static void scissor_boom_sparse_t_back0(const scissor_boom_real *SCISSOR_BOOM_RE
     x[47] += x[45];
     x[46] += x[44];
     x[5] += x[9];
-    x[2] -= lu[20] * x[8];
-    x[2] -= lu[24] * x[9];
+    x[2] -= (lu[20] * x[8]);
+    x[2] -= (lu[24] * x[9]);
     x[4] += x[2];
     x[4] += x[8];
     x[1] += x[5];
     x[1] += x[7];
     x[0] += x[4];
     x[0] += x[6];
-    x[3] -= lu[1] * x[0];
-    x[3] -= lu[3] * x[1];
-    x[3] -= lu[12] * x[6];
-    x[3] -= lu[16] * x[7];
+    x[3] -= (lu[1] * x[0]);
+    x[3] -= (lu[3] * x[1]);
+    x[3] -= (lu[12] * x[6]);
+    x[3] -= (lu[16] * x[7]);
 }
 
 static void scissor_boom_sparse_solve_t(const scissor_boom_real *lu, const scissor_boom_real *b, scissor_boom_real *x)
@@ -2321,58 +2443,81 @@ static void scissor_boom_sparse_solve_t(const scissor_boom_real *lu, const sciss
 static int scissor_boom_dense_factor(scissor_boom_real *a, int *perm)
 {
     const int n = 48;
-    int i, j, k;
-    scissor_boom_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    scissor_boom_real umax = 0.0;
+    scissor_boom_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                scissor_boom_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return SCISSOR_BOOM_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            scissor_boom_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                scissor_boom_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return SCISSOR_BOOM_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            scissor_boom_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= SCISSOR_BOOM_SINGULAR_RATIO * umax ? SCISSOR_BOOM_SINGULAR : SCISSOR_BOOM_OK;
+    return (umin <= (SCISSOR_BOOM_SINGULAR_RATIO * umax)) ? SCISSOR_BOOM_SINGULAR : SCISSOR_BOOM_OK;
 }
 
 static void scissor_boom_dense_solve(const scissor_boom_real *a, const int *perm, const scissor_boom_real *b, scissor_boom_real *x)
 {
     const int n = 48;
-    int i, j;
-    memcpy(x, b, sizeof(scissor_boom_real) * 48);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(scissor_boom_real) * 48u);
     for (i = 0; i < n; ++i) {
         scissor_boom_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void scissor_boom_dense_solve_t(const scissor_boom_real *a, const int *perm, const scissor_boom_real *b, scissor_boom_real *x)
 {
     const int n = 48;
-    int i, j;
-    memcpy(x, b, sizeof(scissor_boom_real) * 48);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(scissor_boom_real) * 48u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         scissor_boom_real tmp = x[perm[i]];
@@ -2380,8 +2525,6 @@ static void scissor_boom_dense_solve_t(const scissor_boom_real *a, const int *pe
         x[i] = tmp;
     }
 }
-
-static const int scissor_boom_pivot_slots[15] = { 5, 155, 154, 42, 185, 62, 189, 82, 193, 102, 197, 122, 200, 142, 180 };
 
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
@@ -2389,6 +2532,7 @@ static const int scissor_boom_pivot_slots[15] = { 5, 155, 154, 42, 185, 62, 189,
    hold reciprocals, whose spread is the pivots'. */
 static int scissor_boom_pivots_spread(const scissor_boom_real *lu)
 {
+    static const int scissor_boom_pivot_slots[15] = { 5, 155, 154, 42, 185, 62, 189, 82, 193, 102, 197, 122, 200, 142, 180 };
     scissor_boom_real rmin = 1.0;
     scissor_boom_real rmax = 1.0;
     int k;
@@ -2397,7 +2541,7 @@ static int scissor_boom_pivots_spread(const scissor_boom_real *lu)
         rmin = SCISSOR_BOOM_MIN(rmin, r);
         rmax = SCISSOR_BOOM_MAX(rmax, r);
     }
-    return rmin <= SCISSOR_BOOM_SINGULAR_RATIO * rmax;
+    return (rmin <= (SCISSOR_BOOM_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -2410,8 +2554,12 @@ static int scissor_boom_pivots_spread(const scissor_boom_real *lu)
 static int scissor_boom_screen(const scissor_boom_real *lu, int dense, const scissor_boom_real *row, const scissor_boom_real *col,
                           const scissor_boom_real *known)
 {
-    scissor_boom_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    scissor_boom_real wmin = known[0];
+    scissor_boom_real wmax = known[1];
+    scissor_boom_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[5]) * row[2] * col[5];
     wmin = SCISSOR_BOOM_MIN(wmin, w);
     wmax = SCISSOR_BOOM_MAX(wmax, w);
@@ -2461,7 +2609,7 @@ static int scissor_boom_screen(const scissor_boom_real *lu, int dense, const sci
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= SCISSOR_BOOM_SCREEN * wmin);
+    return (wmax <= (SCISSOR_BOOM_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -2470,7 +2618,8 @@ static int scissor_boom_screen(const scissor_boom_real *lu, int dense, const sci
 static void scissor_boom_screen_known(const scissor_boom_real *row, const scissor_boom_real *col, scissor_boom_real *known)
 {
     scissor_boom_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[3] * col[2];
     known[0] = SCISSOR_BOOM_MIN(known[0], w);
     known[1] = SCISSOR_BOOM_MAX(known[1], w);
@@ -2581,37 +2730,52 @@ static void scissor_boom_screen_known(const scissor_boom_real *row, const scisso
 static int scissor_boom_factorize(const scissor_boom_real *q, const scissor_boom_real *tr, scissor_boom_real t, const scissor_boom_real *p, scissor_boom_real *work,
                              int *iwork, int *dense)
 {
-    scissor_boom_real *values = work, *lu = work + SCISSOR_BOOM_OFF_LU, *a = work + SCISSOR_BOOM_OFF_DENSE;
+    scissor_boom_real *values = work;
+    scissor_boom_real *lu = &work[SCISSOR_BOOM_OFF_LU];
+    scissor_boom_real *a = &work[SCISSOR_BOOM_OFF_DENSE];
     int k;
     scissor_boom_phi_q_k(q, tr, t, p, lu);
-    memset(lu + 151, 0, sizeof(scissor_boom_real) * (SCISSOR_BOOM_LU_SIZE - 151));
+    (void)memset(&lu[151], 0, sizeof(scissor_boom_real) * ((size_t)SCISSOR_BOOM_LU_SIZE - 151u));
     *dense = 0;
-    if (scissor_boom_sparse_factor(lu) == 0 && !scissor_boom_pivots_spread(lu)) return SCISSOR_BOOM_OK;
+    if ((scissor_boom_sparse_factor(lu) == 0) && (scissor_boom_pivots_spread(lu) == 0)) {
+        return SCISSOR_BOOM_OK;
+    }
     *dense = 1;
     scissor_boom_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(scissor_boom_real) * 2304);
-    for (k = 0; k < 151; ++k) a[scissor_boom_phi_q_rows[k] * 48 + scissor_boom_phi_q_cols[k]] = values[k];
+    (void)memset(a, 0, sizeof(scissor_boom_real) * 2304u);
+    for (k = 0; k < 151; ++k) {
+        a[(scissor_boom_phi_q_rows[k] * 48) + scissor_boom_phi_q_cols[k]] = values[k];
+    }
     return scissor_boom_dense_factor(a, iwork);
 }
 
 static void scissor_boom_solve(const scissor_boom_real *work, const int *iwork, int dense, const scissor_boom_real *b, scissor_boom_real *x, scissor_boom_real *y)
 {
-    if (dense) scissor_boom_dense_solve(work + SCISSOR_BOOM_OFF_DENSE, iwork, b, x);
-    else scissor_boom_sparse_solve(work + SCISSOR_BOOM_OFF_LU, b, x, y);
+    if (dense != 0) {
+        scissor_boom_dense_solve(&work[SCISSOR_BOOM_OFF_DENSE], iwork, b, x);
+    } else {
+        scissor_boom_sparse_solve(&work[SCISSOR_BOOM_OFF_LU], b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void scissor_boom_solve_in(const scissor_boom_real *work, const int *iwork, int dense, scissor_boom_real *b, scissor_boom_real *x, scissor_boom_real *y)
 {
-    if (dense) scissor_boom_solve(work, iwork, dense, b, x, y);
-    else scissor_boom_sparse_solve_in(work + SCISSOR_BOOM_OFF_LU, b, x);
+    if (dense != 0) {
+        scissor_boom_solve(work, iwork, dense, b, x, y);
+    } else {
+        scissor_boom_sparse_solve_in(&work[SCISSOR_BOOM_OFF_LU], b, x);
+    }
 }
 
 static void scissor_boom_solve_t(const scissor_boom_real *work, const int *iwork, int dense, const scissor_boom_real *b, scissor_boom_real *x)
 {
-    if (dense) scissor_boom_dense_solve_t(work + SCISSOR_BOOM_OFF_DENSE, iwork, b, x);
-    else scissor_boom_sparse_solve_t(work + SCISSOR_BOOM_OFF_LU, b, x);
+    if (dense != 0) {
+        scissor_boom_dense_solve_t(&work[SCISSOR_BOOM_OFF_DENSE], iwork, b, x);
+    } else {
+        scissor_boom_sparse_solve_t(&work[SCISSOR_BOOM_OFF_LU], b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -2621,7 +2785,8 @@ static void scissor_boom_solve_t(const scissor_boom_real *work, const int *iwork
    the refinement's cost (a quarter of an instant) is not paid. */
 static int scissor_boom_mixed(const scissor_boom_real *m)
 {
-    scissor_boom_real lo = m[0], hi = m[0];
+    scissor_boom_real lo = m[0];
+    scissor_boom_real hi = m[0];
     lo = SCISSOR_BOOM_MIN(lo, m[3]);
     hi = SCISSOR_BOOM_MAX(hi, m[3]);
     lo = SCISSOR_BOOM_MIN(lo, m[6]);
@@ -2652,7 +2817,7 @@ static int scissor_boom_mixed(const scissor_boom_real *m)
     hi = SCISSOR_BOOM_MAX(hi, m[42]);
     lo = SCISSOR_BOOM_MIN(lo, m[45]);
     hi = SCISSOR_BOOM_MAX(hi, m[45]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -2667,14 +2832,23 @@ static int scissor_boom_mixed(const scissor_boom_real *m)
 static SCISSOR_BOOM_COLD void scissor_boom_refine_t(const scissor_boom_real *q, const scissor_boom_real *tr, scissor_boom_real t, const scissor_boom_real *p,
                                         const scissor_boom_real *b, scissor_boom_real *lam, scissor_boom_real *work, const int *iwork, int dense)
 {
-    scissor_boom_real *values = work, *r = SCISSOR_BOOM_VEC(work, 0), *d = SCISSOR_BOOM_VEC(work, 1);
+    scissor_boom_real *values = work;
+    scissor_boom_real *r = SCISSOR_BOOM_VEC(work, 0);
+    scissor_boom_real *d = SCISSOR_BOOM_VEC(work, 1);
     int k;
     scissor_boom_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(scissor_boom_real) * 48);
-    for (k = 0; k < 151; ++k) r[scissor_boom_phi_q_cols[k]] -= values[k] * lam[scissor_boom_phi_q_rows[k]];
-    if (dense) scissor_boom_dense_solve_t(work + SCISSOR_BOOM_OFF_DENSE, iwork, r, d);
-    else scissor_boom_sparse_solve_t(work + SCISSOR_BOOM_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 48; ++k) lam[k] += d[k];
+    (void)memcpy(r, b, sizeof(scissor_boom_real) * 48u);
+    for (k = 0; k < 151; ++k) {
+        r[scissor_boom_phi_q_cols[k]] -= values[k] * lam[scissor_boom_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        scissor_boom_dense_solve_t(&work[SCISSOR_BOOM_OFF_DENSE], iwork, r, d);
+    } else {
+        scissor_boom_sparse_solve_t(&work[SCISSOR_BOOM_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 48; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,
@@ -2689,48 +2863,85 @@ static scissor_boom_real scissor_boom_cond_estimate(const scissor_boom_real *q, 
                                     scissor_boom_real *work, const int *iwork, int dense, const scissor_boom_real *row,
                                     const scissor_boom_real *col)
 {
-    scissor_boom_real *vals = work, *x = SCISSOR_BOOM_VEC(work, 0), *z = SCISSOR_BOOM_VEC(work, 1), *y = SCISSOR_BOOM_VEC(work, 2);
-    scissor_boom_real *b = SCISSOR_BOOM_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    scissor_boom_real *vals = work;
+    scissor_boom_real *x = SCISSOR_BOOM_VEC(work, 0);
+    scissor_boom_real *z = SCISSOR_BOOM_VEC(work, 1);
+    scissor_boom_real *y = SCISSOR_BOOM_VEC(work, 2);
+    scissor_boom_real *b = SCISSOR_BOOM_VEC(work, 3);
+    scissor_boom_real anorm = 0.0;
+    scissor_boom_real est = 0.0;
+    scissor_boom_real s;
+    scissor_boom_real zmax;
+    scissor_boom_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     scissor_boom_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 48; ++k) z[k] = 0.0;
-    for (k = 0; k < 151; ++k)
+    for (k = 0; k < 48; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 151; ++k) {
         z[scissor_boom_phi_q_cols[k]] += fabs(vals[k]) / (row[scissor_boom_phi_q_rows[k]] * col[scissor_boom_phi_q_cols[k]]);
-    for (k = 0; k < 48; ++k) anorm = SCISSOR_BOOM_MAX(anorm, z[k]);
-    for (k = 0; k < 48; ++k) x[k] = 1.0 / 48.0;
+    }
+    for (k = 0; k < 48; ++k) {
+        anorm = SCISSOR_BOOM_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 48; ++k) {
+        x[k] = 1.0 / 48.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 48; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 48; ++k) {
+            b[k] = row[k] * x[k];
+        }
         scissor_boom_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 48; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 48; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 48; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         scissor_boom_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 48; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 48; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 48; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 48; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (scissor_boom_real)k / SCISSOR_BOOM_MAX(1.0, 47.0));
+    for (k = 0; k < 48; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((scissor_boom_real)k / SCISSOR_BOOM_MAX(1.0, 47.0)));
+    }
     scissor_boom_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 48; ++k) s += fabs(z[k] * col[k]);
-    est = SCISSOR_BOOM_MAX(est, 2.0 * s / (3.0 * 48.0));
+    for (k = 0; k < 48; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = SCISSOR_BOOM_MAX(est, (2.0 * s) / (3.0 * 48.0));
     return anorm * est;
 }
 
@@ -2745,28 +2956,36 @@ static scissor_boom_real scissor_boom_cond_estimate(const scissor_boom_real *q, 
 static int scissor_boom_row_finite(const scissor_boom_real *row, const scissor_boom_real *qn, const scissor_boom_real *qdn, const scissor_boom_real *qddn,
                               const scissor_boom_real *lam, const scissor_boom_real *reac)
 {
-    scissor_boom_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    scissor_boom_real s0 = 0.0;
+    scissor_boom_real s1 = 0.0;
+    scissor_boom_real s2 = 0.0;
+    scissor_boom_real s3 = 0.0;
     int k;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     for (k = 0; k < 340; k += 4) {
-        s0 += row[1 + k + 0];
+        s0 += row[1 + k];
         s1 += row[1 + k + 1];
         s2 += row[1 + k + 2];
         s3 += row[1 + k + 3];
     }
     s0 += row[341];
     s1 += row[342];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     for (k = 0; k < 340; k += 4) {
-        s0 += row[1 + k + 0] * 0.0;
+        s0 += row[1 + k] * 0.0;
         s1 += row[1 + k + 1] * 0.0;
         s2 += row[1 + k + 2] * 0.0;
         s3 += row[1 + k + 3] * 0.0;
     }
     s0 += row[341] * 0.0;
     s1 += row[342] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 48 values, NaN if any v_k is NaN (so that a NaN residual
@@ -2774,154 +2993,162 @@ static int scissor_boom_row_finite(const scissor_boom_real *row, const scissor_b
    comparison. */
 static scissor_boom_real scissor_boom_maxabs48(const scissor_boom_real *v)
 {
-    scissor_boom_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    scissor_boom_real m0 = 0.0;
+    scissor_boom_real m1 = 0.0;
+    scissor_boom_real m2 = 0.0;
+    scissor_boom_real m3 = 0.0;
+    scissor_boom_real s0 = 0.0;
+    scissor_boom_real s1 = 0.0;
+    scissor_boom_real s2 = 0.0;
+    scissor_boom_real s3 = 0.0;
+    scissor_boom_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[6]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[7]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[8]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[9]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[10]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[11]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[12]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[13]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[14]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[15]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[16]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[17]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[18]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[19]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[20]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[21]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[22]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[23]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[24]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[25]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[26]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[27]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[28]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[29]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[30]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[31]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[32]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[33]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[34]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[35]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[36]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[37]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[38]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[39]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[40]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[41]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[42]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[43]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[44]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[45]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[46]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[47]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     m0 = SCISSOR_BOOM_MAX(SCISSOR_BOOM_MAX(m0, m1), SCISSOR_BOOM_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
@@ -3090,17 +3317,28 @@ static scissor_boom_real scissor_boom_correct(scissor_boom_real *q, scissor_boom
 static int scissor_boom_newton(scissor_boom_real t, const scissor_boom_real *p, scissor_boom_real tol, scissor_boom_real *q, scissor_boom_real *tr, int *info, scissor_boom_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    scissor_boom_real *r = SCISSOR_BOOM_VEC(work, 0), *dq = SCISSOR_BOOM_VEC(work, 1), *y = SCISSOR_BOOM_VEC(work, 2);
+    scissor_boom_real *r = SCISSOR_BOOM_VEC(work, 0);
+    scissor_boom_real *dq = SCISSOR_BOOM_VEC(work, 1);
+    scissor_boom_real *y = SCISSOR_BOOM_VEC(work, 2);
     scissor_boom_real *base = SCISSOR_BOOM_VEC(work, 10);
-    scissor_boom_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    scissor_boom_real step = ((double)INFINITY);
+    scissor_boom_real lim;
+    scissor_boom_real qmag;
+    scissor_boom_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) scissor_boom_trig_near(q, tr, base);
-    else scissor_boom_trig_base(q, tr, base);
+    if (reuse != 0) {
+        scissor_boom_trig_near(q, tr, base);
+    } else {
+        scissor_boom_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SCISSOR_BOOM_MAX(1.0, scissor_boom_maxabs48(q));
-    lim = SCISSOR_BOOM_MAX(tol, (scissor_boom_real)SCISSOR_BOOM_FLOOR_ULPS * SCISSOR_BOOM_EPS * qmag);
+    lim = SCISSOR_BOOM_MAX(tol, ((scissor_boom_real)SCISSOR_BOOM_FLOOR_ULPS * SCISSOR_BOOM_EPS) * qmag);
     scissor_boom_phi_k(q, tr, t, p, r);
     rmax = scissor_boom_maxabs48(r);
     for (it = 0;; ++it) {
@@ -3109,15 +3347,17 @@ static int scissor_boom_newton(scissor_boom_real t, const scissor_boom_real *p, 
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? SCISSOR_BOOM_NONFINITE : SCISSOR_BOOM_NOT_CONVERGED;
+            return (it == 0) ? SCISSOR_BOOM_NONFINITE : SCISSOR_BOOM_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == SCISSOR_BOOM_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && scissor_boom_factorize(q, tr, t, p, work, iwork, dense) != SCISSOR_BOOM_OK) {
+        if (it == SCISSOR_BOOM_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (scissor_boom_factorize(q, tr, t, p, work, iwork, dense) != SCISSOR_BOOM_OK)) {
             info[0] = it;
             info[1] = *dense;
             return SCISSOR_BOOM_SINGULAR;
@@ -3127,8 +3367,8 @@ static int scissor_boom_newton(scissor_boom_real t, const scissor_boom_real *p, 
         scissor_boom_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= SCISSOR_BOOM_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (SCISSOR_BOOM_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -3140,8 +3380,10 @@ static int scissor_boom_newton(scissor_boom_real t, const scissor_boom_real *p, 
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return SCISSOR_BOOM_NOT_CONVERGED;
-    if (!current && scissor_boom_factorize(q, tr, t, p, work, iwork, dense) != SCISSOR_BOOM_OK) {
+    if (converged == 0) {
+        return SCISSOR_BOOM_NOT_CONVERGED;
+    }
+    if ((current == 0) && (scissor_boom_factorize(q, tr, t, p, work, iwork, dense) != SCISSOR_BOOM_OK)) {
         info[1] = *dense;
         return SCISSOR_BOOM_SINGULAR;
     }
@@ -3153,7 +3395,8 @@ static int scissor_boom_newton(scissor_boom_real t, const scissor_boom_real *p, 
 static void scissor_boom_outputs(scissor_boom_real t, const scissor_boom_real *p, const scissor_boom_real *q, const scissor_boom_real *tr, scissor_boom_real *qd, scissor_boom_real *qdd,
                             scissor_boom_real *lam, scissor_boom_real *reactions, scissor_boom_real *work, const int *iwork, int dense)
 {
-    scissor_boom_real *y = SCISSOR_BOOM_VEC(work, 2), *b = SCISSOR_BOOM_VEC(work, 3);
+    scissor_boom_real *y = SCISSOR_BOOM_VEC(work, 2);
+    scissor_boom_real *b = SCISSOR_BOOM_VEC(work, 3);
     scissor_boom_nu_k(q, tr, t, p, b);
     scissor_boom_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     scissor_boom_gamma_k(q, tr, qd, t, p, b);
@@ -3209,7 +3452,9 @@ static void scissor_boom_outputs(scissor_boom_real t, const scissor_boom_real *p
     b[46] -= y[46] * qdd[46];
     b[47] -= y[47] * qdd[47];
     scissor_boom_solve_t(work, iwork, dense, b, lam);
-    if (scissor_boom_mixed(y)) scissor_boom_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (scissor_boom_mixed(y) != 0) {
+        scissor_boom_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     scissor_boom_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -3218,8 +3463,11 @@ static void scissor_boom_outputs(scissor_boom_real t, const scissor_boom_real *p
    order, so four sums run side by side and the compiler may pack them). */
 static int scissor_boom_allfinite(const scissor_boom_real *v, int n)
 {
-    scissor_boom_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    scissor_boom_real s0 = 0.0;
+    scissor_boom_real s1 = 0.0;
+    scissor_boom_real s2 = 0.0;
+    scissor_boom_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -3228,8 +3476,11 @@ static int scissor_boom_allfinite(const scissor_boom_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -3251,12 +3502,24 @@ static int scissor_boom_finite(const scissor_boom_real *q, const scissor_boom_re
 static void scissor_boom_keep(scissor_boom_real *state, const scissor_boom_real *q, const scissor_boom_real *qd, const scissor_boom_real *qdd,
                          const scissor_boom_real *m1, const scissor_boom_real *m2, const scissor_boom_real *m3)
 {
-    if (m3 != state + 240) memcpy(state + 240, m3, sizeof(scissor_boom_real) * 48);
-    if (m2 != state + 192) memcpy(state + 192, m2, sizeof(scissor_boom_real) * 48);
-    if (m1 != state + 144) memcpy(state + 144, m1, sizeof(scissor_boom_real) * 48);
-    if (qdd != state + 96) memcpy(state + 96, qdd, sizeof(scissor_boom_real) * 48);
-    if (qd != state + 48) memcpy(state + 48, qd, sizeof(scissor_boom_real) * 48);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(scissor_boom_real) * 48);
+    if (m3 != &state[240]) {
+        (void)memcpy(&state[240], m3, sizeof(scissor_boom_real) * 48u);
+    }
+    if (m2 != &state[192]) {
+        (void)memcpy(&state[192], m2, sizeof(scissor_boom_real) * 48u);
+    }
+    if (m1 != &state[144]) {
+        (void)memcpy(&state[144], m1, sizeof(scissor_boom_real) * 48u);
+    }
+    if (qdd != &state[96]) {
+        (void)memcpy(&state[96], qdd, sizeof(scissor_boom_real) * 48u);
+    }
+    if (qd != &state[48]) {
+        (void)memcpy(&state[48], qd, sizeof(scissor_boom_real) * 48u);
+    }
+    if (q != state) {
+        (void)memcpy(state, q, sizeof(scissor_boom_real) * 48u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -3266,105 +3529,110 @@ static void scissor_boom_keep(scissor_boom_real *state, const scissor_boom_real 
 static int scissor_boom_unexplained(const scissor_boom_real *q0, const scissor_boom_real *qd0, const scissor_boom_real *qdd0, const scissor_boom_real *q1,
                                const scissor_boom_real *qd1, const scissor_boom_real *qdd1, scissor_boom_real h, const scissor_boom_real *c)
 {
-    const scissor_boom_real half = 0.5 * h, hh = h * h / 12.0;
-    scissor_boom_real mismatch = 0.0, motion = 0.0, d;
+    const scissor_boom_real half = 0.5 * h;
+    const scissor_boom_real hh = (h * h) / 12.0;
+    scissor_boom_real mismatch = 0.0;
+    scissor_boom_real motion = 0.0;
+    scissor_boom_real d;
     d = q1[0] - q0[0];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
     d = q1[9] - q0[9];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[9] + qd1[9]) - hh * (qdd0[9] - qdd1[9])) * c[9]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[9] + qd1[9]))) - (hh * (qdd0[9] - qdd1[9]))) * c[9]);
     d = q1[10] - q0[10];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[10] + qd1[10]) - hh * (qdd0[10] - qdd1[10])) * c[10]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[10] + qd1[10]))) - (hh * (qdd0[10] - qdd1[10]))) * c[10]);
     d = q1[11] - q0[11];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[11] + qd1[11]) - hh * (qdd0[11] - qdd1[11])) * c[11]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[11] + qd1[11]))) - (hh * (qdd0[11] - qdd1[11]))) * c[11]);
     d = q1[12] - q0[12];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[12] + qd1[12]) - hh * (qdd0[12] - qdd1[12])) * c[12]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[12] + qd1[12]))) - (hh * (qdd0[12] - qdd1[12]))) * c[12]);
     d = q1[13] - q0[13];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[13] + qd1[13]) - hh * (qdd0[13] - qdd1[13])) * c[13]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[13] + qd1[13]))) - (hh * (qdd0[13] - qdd1[13]))) * c[13]);
     d = q1[14] - q0[14];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[14] + qd1[14]) - hh * (qdd0[14] - qdd1[14])) * c[14]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[14] + qd1[14]))) - (hh * (qdd0[14] - qdd1[14]))) * c[14]);
     d = q1[15] - q0[15];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[15] + qd1[15]) - hh * (qdd0[15] - qdd1[15])) * c[15]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[15] + qd1[15]))) - (hh * (qdd0[15] - qdd1[15]))) * c[15]);
     d = q1[16] - q0[16];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[16] + qd1[16]) - hh * (qdd0[16] - qdd1[16])) * c[16]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[16] + qd1[16]))) - (hh * (qdd0[16] - qdd1[16]))) * c[16]);
     d = q1[17] - q0[17];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[17] + qd1[17]) - hh * (qdd0[17] - qdd1[17])) * c[17]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[17] + qd1[17]))) - (hh * (qdd0[17] - qdd1[17]))) * c[17]);
     d = q1[18] - q0[18];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[18] + qd1[18]) - hh * (qdd0[18] - qdd1[18])) * c[18]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[18] + qd1[18]))) - (hh * (qdd0[18] - qdd1[18]))) * c[18]);
     d = q1[19] - q0[19];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[19] + qd1[19]) - hh * (qdd0[19] - qdd1[19])) * c[19]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[19] + qd1[19]))) - (hh * (qdd0[19] - qdd1[19]))) * c[19]);
     d = q1[20] - q0[20];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[20] + qd1[20]) - hh * (qdd0[20] - qdd1[20])) * c[20]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[20] + qd1[20]))) - (hh * (qdd0[20] - qdd1[20]))) * c[20]);
     d = q1[21] - q0[21];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[21] + qd1[21]) - hh * (qdd0[21] - qdd1[21])) * c[21]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[21] + qd1[21]))) - (hh * (qdd0[21] - qdd1[21]))) * c[21]);
     d = q1[22] - q0[22];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[22] + qd1[22]) - hh * (qdd0[22] - qdd1[22])) * c[22]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[22] + qd1[22]))) - (hh * (qdd0[22] - qdd1[22]))) * c[22]);
     d = q1[23] - q0[23];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[23] + qd1[23]) - hh * (qdd0[23] - qdd1[23])) * c[23]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[23] + qd1[23]))) - (hh * (qdd0[23] - qdd1[23]))) * c[23]);
     d = q1[24] - q0[24];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[24] + qd1[24]) - hh * (qdd0[24] - qdd1[24])) * c[24]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[24] + qd1[24]))) - (hh * (qdd0[24] - qdd1[24]))) * c[24]);
     d = q1[25] - q0[25];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[25] + qd1[25]) - hh * (qdd0[25] - qdd1[25])) * c[25]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[25] + qd1[25]))) - (hh * (qdd0[25] - qdd1[25]))) * c[25]);
     d = q1[26] - q0[26];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[26] + qd1[26]) - hh * (qdd0[26] - qdd1[26])) * c[26]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[26] + qd1[26]))) - (hh * (qdd0[26] - qdd1[26]))) * c[26]);
     d = q1[27] - q0[27];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[27] + qd1[27]) - hh * (qdd0[27] - qdd1[27])) * c[27]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[27] + qd1[27]))) - (hh * (qdd0[27] - qdd1[27]))) * c[27]);
     d = q1[28] - q0[28];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[28] + qd1[28]) - hh * (qdd0[28] - qdd1[28])) * c[28]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[28] + qd1[28]))) - (hh * (qdd0[28] - qdd1[28]))) * c[28]);
     d = q1[29] - q0[29];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[29] + qd1[29]) - hh * (qdd0[29] - qdd1[29])) * c[29]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[29] + qd1[29]))) - (hh * (qdd0[29] - qdd1[29]))) * c[29]);
     d = q1[30] - q0[30];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[30] + qd1[30]) - hh * (qdd0[30] - qdd1[30])) * c[30]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[30] + qd1[30]))) - (hh * (qdd0[30] - qdd1[30]))) * c[30]);
     d = q1[31] - q0[31];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[31] + qd1[31]) - hh * (qdd0[31] - qdd1[31])) * c[31]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[31] + qd1[31]))) - (hh * (qdd0[31] - qdd1[31]))) * c[31]);
     d = q1[32] - q0[32];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[32] + qd1[32]) - hh * (qdd0[32] - qdd1[32])) * c[32]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[32] + qd1[32]))) - (hh * (qdd0[32] - qdd1[32]))) * c[32]);
     d = q1[33] - q0[33];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[33] + qd1[33]) - hh * (qdd0[33] - qdd1[33])) * c[33]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[33] + qd1[33]))) - (hh * (qdd0[33] - qdd1[33]))) * c[33]);
     d = q1[34] - q0[34];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[34] + qd1[34]) - hh * (qdd0[34] - qdd1[34])) * c[34]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[34] + qd1[34]))) - (hh * (qdd0[34] - qdd1[34]))) * c[34]);
     d = q1[35] - q0[35];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[35] + qd1[35]) - hh * (qdd0[35] - qdd1[35])) * c[35]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[35] + qd1[35]))) - (hh * (qdd0[35] - qdd1[35]))) * c[35]);
     d = q1[36] - q0[36];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[36] + qd1[36]) - hh * (qdd0[36] - qdd1[36])) * c[36]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[36] + qd1[36]))) - (hh * (qdd0[36] - qdd1[36]))) * c[36]);
     d = q1[37] - q0[37];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[37] + qd1[37]) - hh * (qdd0[37] - qdd1[37])) * c[37]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[37] + qd1[37]))) - (hh * (qdd0[37] - qdd1[37]))) * c[37]);
     d = q1[38] - q0[38];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[38] + qd1[38]) - hh * (qdd0[38] - qdd1[38])) * c[38]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[38] + qd1[38]))) - (hh * (qdd0[38] - qdd1[38]))) * c[38]);
     d = q1[39] - q0[39];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[39] + qd1[39]) - hh * (qdd0[39] - qdd1[39])) * c[39]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[39] + qd1[39]))) - (hh * (qdd0[39] - qdd1[39]))) * c[39]);
     d = q1[40] - q0[40];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[40] + qd1[40]) - hh * (qdd0[40] - qdd1[40])) * c[40]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[40] + qd1[40]))) - (hh * (qdd0[40] - qdd1[40]))) * c[40]);
     d = q1[41] - q0[41];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[41] + qd1[41]) - hh * (qdd0[41] - qdd1[41])) * c[41]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[41] + qd1[41]))) - (hh * (qdd0[41] - qdd1[41]))) * c[41]);
     d = q1[42] - q0[42];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[42] + qd1[42]) - hh * (qdd0[42] - qdd1[42])) * c[42]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[42] + qd1[42]))) - (hh * (qdd0[42] - qdd1[42]))) * c[42]);
     d = q1[43] - q0[43];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[43] + qd1[43]) - hh * (qdd0[43] - qdd1[43])) * c[43]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[43] + qd1[43]))) - (hh * (qdd0[43] - qdd1[43]))) * c[43]);
     d = q1[44] - q0[44];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[44] + qd1[44]) - hh * (qdd0[44] - qdd1[44])) * c[44]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[44] + qd1[44]))) - (hh * (qdd0[44] - qdd1[44]))) * c[44]);
     d = q1[45] - q0[45];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[45] + qd1[45]) - hh * (qdd0[45] - qdd1[45])) * c[45]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[45] + qd1[45]))) - (hh * (qdd0[45] - qdd1[45]))) * c[45]);
     d = q1[46] - q0[46];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[46] + qd1[46]) - hh * (qdd0[46] - qdd1[46])) * c[46]);
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[46] + qd1[46]))) - (hh * (qdd0[46] - qdd1[46]))) * c[46]);
     d = q1[47] - q0[47];
-    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs(d - half * (qd0[47] + qd1[47]) - hh * (qdd0[47] - qdd1[47])) * c[47]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = SCISSOR_BOOM_MAX(mismatch, fabs((d - (half * (qd0[47] + qd1[47]))) - (hh * (qdd0[47] - qdd1[47]))) * c[47]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = SCISSOR_BOOM_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -3461,35 +3729,43 @@ static int scissor_boom_unexplained(const scissor_boom_real *q0, const scissor_b
     motion = SCISSOR_BOOM_MAX(motion, fabs(d) * c[46]);
     d = q1[47] - q0[47];
     motion = SCISSOR_BOOM_MAX(motion, fabs(d) * c[47]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int scissor_boom_instant(scissor_boom_real t, const scissor_boom_real *p, scissor_boom_real tol, scissor_boom_real *q, scissor_boom_real *qd, scissor_boom_real *qdd,
                     scissor_boom_real *lam, scissor_boom_real *reactions, int *info, scissor_boom_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = SCISSOR_BOOM_BAD_ARGUMENT;
     } else {
-        scissor_boom_real *tr = SCISSOR_BOOM_VEC(work, 9), *pp = work + SCISSOR_BOOM_OFF_PREP, *kept = SCISSOR_BOOM_VEC(work, 11);
-        memcpy(kept, q, sizeof(scissor_boom_real) * 48);  /* the caller's guess, back in q if the call fails */
+        scissor_boom_real *tr = SCISSOR_BOOM_VEC(work, 9);
+        scissor_boom_real *pp = &work[SCISSOR_BOOM_OFF_PREP];
+        scissor_boom_real *kept = SCISSOR_BOOM_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(scissor_boom_real) * 48u);  /* the caller's guess, back in q if the call fails */
         scissor_boom_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = SCISSOR_BOOM_VEC(work, 5);
-        if (qdd == NULL) qdd = SCISSOR_BOOM_VEC(work, 6);
-        if (lam == NULL) lam = SCISSOR_BOOM_VEC(work, 7);
-        if (reactions == NULL) reactions = SCISSOR_BOOM_VEC(work, 8);
+        scissor_boom_real *qd_out = (qd != NULL) ? qd : SCISSOR_BOOM_VEC(work, 5);
+        scissor_boom_real *qdd_out = (qdd != NULL) ? qdd : SCISSOR_BOOM_VEC(work, 6);
+        scissor_boom_real *lam_out = (lam != NULL) ? lam : SCISSOR_BOOM_VEC(work, 7);
+        scissor_boom_real *reactions_out = (reactions != NULL) ? reactions : SCISSOR_BOOM_VEC(work, 8);
         status = scissor_boom_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == SCISSOR_BOOM_OK) {
-            scissor_boom_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!scissor_boom_finite(q, qd, qdd, lam, reactions)) status = SCISSOR_BOOM_NONFINITE;
+            scissor_boom_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (scissor_boom_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = SCISSOR_BOOM_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != SCISSOR_BOOM_OK) memcpy(q, kept, sizeof(scissor_boom_real) * 48);
+        if (status != SCISSOR_BOOM_OK) {
+            (void)memcpy(q, kept, sizeof(scissor_boom_real) * 48u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -3507,21 +3783,29 @@ int scissor_boom_instant_at(long whole, scissor_boom_real frac, const scissor_bo
 
 int scissor_boom_screen_at(scissor_boom_real t, const scissor_boom_real *p, const scissor_boom_real *state, scissor_boom_real *work, int *iwork)
 {
-    scissor_boom_real *tr, *pp, known[2];
+    scissor_boom_real *tr;
+    scissor_boom_real *pp;
+    scissor_boom_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return SCISSOR_BOOM_BAD_ARGUMENT;
-    if (!(state[336] > 0.0)) return SCISSOR_BOOM_OK;  /* no scales: no screen */
-    tr = SCISSOR_BOOM_VEC(work, 9), pp = work + SCISSOR_BOOM_OFF_PREP;
+    }
+    if (!(state[336] > 0.0)) {
+        return SCISSOR_BOOM_OK;  /* no scales: no screen */
+    }
+    tr = SCISSOR_BOOM_VEC(work, 9);
+    pp = &work[SCISSOR_BOOM_OFF_PREP];
     scissor_boom_prepare(p, pp);
     scissor_boom_trig(state, tr);
-    if (scissor_boom_factorize(state, tr, t, pp, work, iwork, &dense) != SCISSOR_BOOM_OK)
+    if (scissor_boom_factorize(state, tr, t, pp, work, iwork, &dense) != SCISSOR_BOOM_OK) {
         return SCISSOR_BOOM_ILL_CONDITIONED;
-    scissor_boom_screen_known(state + 336, state + 288, known);
-    if (scissor_boom_screen(work + SCISSOR_BOOM_OFF_LU, dense, state + 336, state + 288, known)
-        && !(scissor_boom_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 336, state + 288)
-             <= SCISSOR_BOOM_COND_SCREEN))
+    }
+    scissor_boom_screen_known(&state[336], &state[288], known);
+    if ((scissor_boom_screen(&work[SCISSOR_BOOM_OFF_LU], dense, &state[336], &state[288], known) != 0)
+        && !(scissor_boom_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[336], &state[288])
+             <= SCISSOR_BOOM_COND_SCREEN)) {
         return SCISSOR_BOOM_ILL_CONDITIONED;
+    }
     return SCISSOR_BOOM_OK;
 }
 
@@ -3531,210 +3815,250 @@ int scissor_boom_trajectory(scissor_boom_real t0, scissor_boom_real h, long n, c
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    scissor_boom_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    scissor_boom_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    scissor_boom_real *q;
+    scissor_boom_real *m1;
+    scissor_boom_real *m2;
+    scissor_boom_real *count;
+    scissor_boom_real *qn;
+    scissor_boom_real *qdn;
+    scissor_boom_real *qddn;
+    scissor_boom_real *lam;
+    scissor_boom_real *reac;
+    scissor_boom_real *tr;
+    scissor_boom_real *pp;
+    scissor_boom_real *scale;
+    scissor_boom_real *rscale;
+    scissor_boom_real *qd;
+    scissor_boom_real *qdd;
+    scissor_boom_real *m3;
+    scissor_boom_real known[2];
+    long i;
+    long unused;
+    long *done = &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
+    *done = 0;
     status = SCISSOR_BOOM_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return SCISSOR_BOOM_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 144, m2 = state + 192, count = state + 384;
-    scale = state + 288, rscale = state + 336;
-    if (rscale[0] > 0.0) scissor_boom_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 48, qdd = state + 96, m3 = state + 240;
-    tr = SCISSOR_BOOM_VEC(work, 9), pp = work + SCISSOR_BOOM_OFF_PREP;
+    q = state;
+    m1 = &state[144];
+    m2 = &state[192];
+    count = &state[384];
+    scale = &state[288];
+    rscale = &state[336];
+    if (rscale[0] > 0.0) {
+        scissor_boom_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[48];
+    qdd = &state[96];
+    m3 = &state[240];
+    tr = SCISSOR_BOOM_VEC(work, 9);
+    pp = &work[SCISSOR_BOOM_OFF_PREP];
     scissor_boom_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const scissor_boom_real t = t0 + *count * h;
-        scissor_boom_real *row = rows + i * SCISSOR_BOOM_ROW;
+        const scissor_boom_real t = t0 + (*count * h);
+        scissor_boom_real *row = &rows[i * SCISSOR_BOOM_ROW];
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 49;
-        qddn = row + 97;
-        lam = row + 145;
-        reac = row + 193;
+        qn = &row[1];
+        qdn = &row[49];
+        qddn = &row[97];
+        lam = &row[145];
+        reac = &row[193];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
-                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
-            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
-                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
-            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
-                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
-            qn[9] = q[9] + h * (qd[9] + h * ((323.0 / 360.0) * qdd[9] - (264.0 / 360.0) * m1[9]
-                                                 + (159.0 / 360.0) * m2[9] - (38.0 / 360.0) * m3[9]));
-            qn[10] = q[10] + h * (qd[10] + h * ((323.0 / 360.0) * qdd[10] - (264.0 / 360.0) * m1[10]
-                                                 + (159.0 / 360.0) * m2[10] - (38.0 / 360.0) * m3[10]));
-            qn[11] = q[11] + h * (qd[11] + h * ((323.0 / 360.0) * qdd[11] - (264.0 / 360.0) * m1[11]
-                                                 + (159.0 / 360.0) * m2[11] - (38.0 / 360.0) * m3[11]));
-            qn[12] = q[12] + h * (qd[12] + h * ((323.0 / 360.0) * qdd[12] - (264.0 / 360.0) * m1[12]
-                                                 + (159.0 / 360.0) * m2[12] - (38.0 / 360.0) * m3[12]));
-            qn[13] = q[13] + h * (qd[13] + h * ((323.0 / 360.0) * qdd[13] - (264.0 / 360.0) * m1[13]
-                                                 + (159.0 / 360.0) * m2[13] - (38.0 / 360.0) * m3[13]));
-            qn[14] = q[14] + h * (qd[14] + h * ((323.0 / 360.0) * qdd[14] - (264.0 / 360.0) * m1[14]
-                                                 + (159.0 / 360.0) * m2[14] - (38.0 / 360.0) * m3[14]));
-            qn[15] = q[15] + h * (qd[15] + h * ((323.0 / 360.0) * qdd[15] - (264.0 / 360.0) * m1[15]
-                                                 + (159.0 / 360.0) * m2[15] - (38.0 / 360.0) * m3[15]));
-            qn[16] = q[16] + h * (qd[16] + h * ((323.0 / 360.0) * qdd[16] - (264.0 / 360.0) * m1[16]
-                                                 + (159.0 / 360.0) * m2[16] - (38.0 / 360.0) * m3[16]));
-            qn[17] = q[17] + h * (qd[17] + h * ((323.0 / 360.0) * qdd[17] - (264.0 / 360.0) * m1[17]
-                                                 + (159.0 / 360.0) * m2[17] - (38.0 / 360.0) * m3[17]));
-            qn[18] = q[18] + h * (qd[18] + h * ((323.0 / 360.0) * qdd[18] - (264.0 / 360.0) * m1[18]
-                                                 + (159.0 / 360.0) * m2[18] - (38.0 / 360.0) * m3[18]));
-            qn[19] = q[19] + h * (qd[19] + h * ((323.0 / 360.0) * qdd[19] - (264.0 / 360.0) * m1[19]
-                                                 + (159.0 / 360.0) * m2[19] - (38.0 / 360.0) * m3[19]));
-            qn[20] = q[20] + h * (qd[20] + h * ((323.0 / 360.0) * qdd[20] - (264.0 / 360.0) * m1[20]
-                                                 + (159.0 / 360.0) * m2[20] - (38.0 / 360.0) * m3[20]));
-            qn[21] = q[21] + h * (qd[21] + h * ((323.0 / 360.0) * qdd[21] - (264.0 / 360.0) * m1[21]
-                                                 + (159.0 / 360.0) * m2[21] - (38.0 / 360.0) * m3[21]));
-            qn[22] = q[22] + h * (qd[22] + h * ((323.0 / 360.0) * qdd[22] - (264.0 / 360.0) * m1[22]
-                                                 + (159.0 / 360.0) * m2[22] - (38.0 / 360.0) * m3[22]));
-            qn[23] = q[23] + h * (qd[23] + h * ((323.0 / 360.0) * qdd[23] - (264.0 / 360.0) * m1[23]
-                                                 + (159.0 / 360.0) * m2[23] - (38.0 / 360.0) * m3[23]));
-            qn[24] = q[24] + h * (qd[24] + h * ((323.0 / 360.0) * qdd[24] - (264.0 / 360.0) * m1[24]
-                                                 + (159.0 / 360.0) * m2[24] - (38.0 / 360.0) * m3[24]));
-            qn[25] = q[25] + h * (qd[25] + h * ((323.0 / 360.0) * qdd[25] - (264.0 / 360.0) * m1[25]
-                                                 + (159.0 / 360.0) * m2[25] - (38.0 / 360.0) * m3[25]));
-            qn[26] = q[26] + h * (qd[26] + h * ((323.0 / 360.0) * qdd[26] - (264.0 / 360.0) * m1[26]
-                                                 + (159.0 / 360.0) * m2[26] - (38.0 / 360.0) * m3[26]));
-            qn[27] = q[27] + h * (qd[27] + h * ((323.0 / 360.0) * qdd[27] - (264.0 / 360.0) * m1[27]
-                                                 + (159.0 / 360.0) * m2[27] - (38.0 / 360.0) * m3[27]));
-            qn[28] = q[28] + h * (qd[28] + h * ((323.0 / 360.0) * qdd[28] - (264.0 / 360.0) * m1[28]
-                                                 + (159.0 / 360.0) * m2[28] - (38.0 / 360.0) * m3[28]));
-            qn[29] = q[29] + h * (qd[29] + h * ((323.0 / 360.0) * qdd[29] - (264.0 / 360.0) * m1[29]
-                                                 + (159.0 / 360.0) * m2[29] - (38.0 / 360.0) * m3[29]));
-            qn[30] = q[30] + h * (qd[30] + h * ((323.0 / 360.0) * qdd[30] - (264.0 / 360.0) * m1[30]
-                                                 + (159.0 / 360.0) * m2[30] - (38.0 / 360.0) * m3[30]));
-            qn[31] = q[31] + h * (qd[31] + h * ((323.0 / 360.0) * qdd[31] - (264.0 / 360.0) * m1[31]
-                                                 + (159.0 / 360.0) * m2[31] - (38.0 / 360.0) * m3[31]));
-            qn[32] = q[32] + h * (qd[32] + h * ((323.0 / 360.0) * qdd[32] - (264.0 / 360.0) * m1[32]
-                                                 + (159.0 / 360.0) * m2[32] - (38.0 / 360.0) * m3[32]));
-            qn[33] = q[33] + h * (qd[33] + h * ((323.0 / 360.0) * qdd[33] - (264.0 / 360.0) * m1[33]
-                                                 + (159.0 / 360.0) * m2[33] - (38.0 / 360.0) * m3[33]));
-            qn[34] = q[34] + h * (qd[34] + h * ((323.0 / 360.0) * qdd[34] - (264.0 / 360.0) * m1[34]
-                                                 + (159.0 / 360.0) * m2[34] - (38.0 / 360.0) * m3[34]));
-            qn[35] = q[35] + h * (qd[35] + h * ((323.0 / 360.0) * qdd[35] - (264.0 / 360.0) * m1[35]
-                                                 + (159.0 / 360.0) * m2[35] - (38.0 / 360.0) * m3[35]));
-            qn[36] = q[36] + h * (qd[36] + h * ((323.0 / 360.0) * qdd[36] - (264.0 / 360.0) * m1[36]
-                                                 + (159.0 / 360.0) * m2[36] - (38.0 / 360.0) * m3[36]));
-            qn[37] = q[37] + h * (qd[37] + h * ((323.0 / 360.0) * qdd[37] - (264.0 / 360.0) * m1[37]
-                                                 + (159.0 / 360.0) * m2[37] - (38.0 / 360.0) * m3[37]));
-            qn[38] = q[38] + h * (qd[38] + h * ((323.0 / 360.0) * qdd[38] - (264.0 / 360.0) * m1[38]
-                                                 + (159.0 / 360.0) * m2[38] - (38.0 / 360.0) * m3[38]));
-            qn[39] = q[39] + h * (qd[39] + h * ((323.0 / 360.0) * qdd[39] - (264.0 / 360.0) * m1[39]
-                                                 + (159.0 / 360.0) * m2[39] - (38.0 / 360.0) * m3[39]));
-            qn[40] = q[40] + h * (qd[40] + h * ((323.0 / 360.0) * qdd[40] - (264.0 / 360.0) * m1[40]
-                                                 + (159.0 / 360.0) * m2[40] - (38.0 / 360.0) * m3[40]));
-            qn[41] = q[41] + h * (qd[41] + h * ((323.0 / 360.0) * qdd[41] - (264.0 / 360.0) * m1[41]
-                                                 + (159.0 / 360.0) * m2[41] - (38.0 / 360.0) * m3[41]));
-            qn[42] = q[42] + h * (qd[42] + h * ((323.0 / 360.0) * qdd[42] - (264.0 / 360.0) * m1[42]
-                                                 + (159.0 / 360.0) * m2[42] - (38.0 / 360.0) * m3[42]));
-            qn[43] = q[43] + h * (qd[43] + h * ((323.0 / 360.0) * qdd[43] - (264.0 / 360.0) * m1[43]
-                                                 + (159.0 / 360.0) * m2[43] - (38.0 / 360.0) * m3[43]));
-            qn[44] = q[44] + h * (qd[44] + h * ((323.0 / 360.0) * qdd[44] - (264.0 / 360.0) * m1[44]
-                                                 + (159.0 / 360.0) * m2[44] - (38.0 / 360.0) * m3[44]));
-            qn[45] = q[45] + h * (qd[45] + h * ((323.0 / 360.0) * qdd[45] - (264.0 / 360.0) * m1[45]
-                                                 + (159.0 / 360.0) * m2[45] - (38.0 / 360.0) * m3[45]));
-            qn[46] = q[46] + h * (qd[46] + h * ((323.0 / 360.0) * qdd[46] - (264.0 / 360.0) * m1[46]
-                                                 + (159.0 / 360.0) * m2[46] - (38.0 / 360.0) * m3[46]));
-            qn[47] = q[47] + h * (qd[47] + h * ((323.0 / 360.0) * qdd[47] - (264.0 / 360.0) * m1[47]
-                                                 + (159.0 / 360.0) * m2[47] - (38.0 / 360.0) * m3[47]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
-            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
-            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
-            qn[9] = q[9] + h * (qd[9] + 0.5 * h * qdd[9]);
-            qn[10] = q[10] + h * (qd[10] + 0.5 * h * qdd[10]);
-            qn[11] = q[11] + h * (qd[11] + 0.5 * h * qdd[11]);
-            qn[12] = q[12] + h * (qd[12] + 0.5 * h * qdd[12]);
-            qn[13] = q[13] + h * (qd[13] + 0.5 * h * qdd[13]);
-            qn[14] = q[14] + h * (qd[14] + 0.5 * h * qdd[14]);
-            qn[15] = q[15] + h * (qd[15] + 0.5 * h * qdd[15]);
-            qn[16] = q[16] + h * (qd[16] + 0.5 * h * qdd[16]);
-            qn[17] = q[17] + h * (qd[17] + 0.5 * h * qdd[17]);
-            qn[18] = q[18] + h * (qd[18] + 0.5 * h * qdd[18]);
-            qn[19] = q[19] + h * (qd[19] + 0.5 * h * qdd[19]);
-            qn[20] = q[20] + h * (qd[20] + 0.5 * h * qdd[20]);
-            qn[21] = q[21] + h * (qd[21] + 0.5 * h * qdd[21]);
-            qn[22] = q[22] + h * (qd[22] + 0.5 * h * qdd[22]);
-            qn[23] = q[23] + h * (qd[23] + 0.5 * h * qdd[23]);
-            qn[24] = q[24] + h * (qd[24] + 0.5 * h * qdd[24]);
-            qn[25] = q[25] + h * (qd[25] + 0.5 * h * qdd[25]);
-            qn[26] = q[26] + h * (qd[26] + 0.5 * h * qdd[26]);
-            qn[27] = q[27] + h * (qd[27] + 0.5 * h * qdd[27]);
-            qn[28] = q[28] + h * (qd[28] + 0.5 * h * qdd[28]);
-            qn[29] = q[29] + h * (qd[29] + 0.5 * h * qdd[29]);
-            qn[30] = q[30] + h * (qd[30] + 0.5 * h * qdd[30]);
-            qn[31] = q[31] + h * (qd[31] + 0.5 * h * qdd[31]);
-            qn[32] = q[32] + h * (qd[32] + 0.5 * h * qdd[32]);
-            qn[33] = q[33] + h * (qd[33] + 0.5 * h * qdd[33]);
-            qn[34] = q[34] + h * (qd[34] + 0.5 * h * qdd[34]);
-            qn[35] = q[35] + h * (qd[35] + 0.5 * h * qdd[35]);
-            qn[36] = q[36] + h * (qd[36] + 0.5 * h * qdd[36]);
-            qn[37] = q[37] + h * (qd[37] + 0.5 * h * qdd[37]);
-            qn[38] = q[38] + h * (qd[38] + 0.5 * h * qdd[38]);
-            qn[39] = q[39] + h * (qd[39] + 0.5 * h * qdd[39]);
-            qn[40] = q[40] + h * (qd[40] + 0.5 * h * qdd[40]);
-            qn[41] = q[41] + h * (qd[41] + 0.5 * h * qdd[41]);
-            qn[42] = q[42] + h * (qd[42] + 0.5 * h * qdd[42]);
-            qn[43] = q[43] + h * (qd[43] + 0.5 * h * qdd[43]);
-            qn[44] = q[44] + h * (qd[44] + 0.5 * h * qdd[44]);
-            qn[45] = q[45] + h * (qd[45] + 0.5 * h * qdd[45]);
-            qn[46] = q[46] + h * (qd[46] + 0.5 * h * qdd[46]);
-            qn[47] = q[47] + h * (qd[47] + 0.5 * h * qdd[47]);
-        } else
-            memcpy(qn, q, sizeof(scissor_boom_real) * 48);
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+            qn[6] = q[6] + (h * (qd[6] + (h * (((((323.0 / 360.0) * qdd[6]) - ((264.0 / 360.0) * m1[6]))
+                                                 + ((159.0 / 360.0) * m2[6])) - ((38.0 / 360.0) * m3[6])))));
+            qn[7] = q[7] + (h * (qd[7] + (h * (((((323.0 / 360.0) * qdd[7]) - ((264.0 / 360.0) * m1[7]))
+                                                 + ((159.0 / 360.0) * m2[7])) - ((38.0 / 360.0) * m3[7])))));
+            qn[8] = q[8] + (h * (qd[8] + (h * (((((323.0 / 360.0) * qdd[8]) - ((264.0 / 360.0) * m1[8]))
+                                                 + ((159.0 / 360.0) * m2[8])) - ((38.0 / 360.0) * m3[8])))));
+            qn[9] = q[9] + (h * (qd[9] + (h * (((((323.0 / 360.0) * qdd[9]) - ((264.0 / 360.0) * m1[9]))
+                                                 + ((159.0 / 360.0) * m2[9])) - ((38.0 / 360.0) * m3[9])))));
+            qn[10] = q[10] + (h * (qd[10] + (h * (((((323.0 / 360.0) * qdd[10]) - ((264.0 / 360.0) * m1[10]))
+                                                 + ((159.0 / 360.0) * m2[10])) - ((38.0 / 360.0) * m3[10])))));
+            qn[11] = q[11] + (h * (qd[11] + (h * (((((323.0 / 360.0) * qdd[11]) - ((264.0 / 360.0) * m1[11]))
+                                                 + ((159.0 / 360.0) * m2[11])) - ((38.0 / 360.0) * m3[11])))));
+            qn[12] = q[12] + (h * (qd[12] + (h * (((((323.0 / 360.0) * qdd[12]) - ((264.0 / 360.0) * m1[12]))
+                                                 + ((159.0 / 360.0) * m2[12])) - ((38.0 / 360.0) * m3[12])))));
+            qn[13] = q[13] + (h * (qd[13] + (h * (((((323.0 / 360.0) * qdd[13]) - ((264.0 / 360.0) * m1[13]))
+                                                 + ((159.0 / 360.0) * m2[13])) - ((38.0 / 360.0) * m3[13])))));
+            qn[14] = q[14] + (h * (qd[14] + (h * (((((323.0 / 360.0) * qdd[14]) - ((264.0 / 360.0) * m1[14]))
+                                                 + ((159.0 / 360.0) * m2[14])) - ((38.0 / 360.0) * m3[14])))));
+            qn[15] = q[15] + (h * (qd[15] + (h * (((((323.0 / 360.0) * qdd[15]) - ((264.0 / 360.0) * m1[15]))
+                                                 + ((159.0 / 360.0) * m2[15])) - ((38.0 / 360.0) * m3[15])))));
+            qn[16] = q[16] + (h * (qd[16] + (h * (((((323.0 / 360.0) * qdd[16]) - ((264.0 / 360.0) * m1[16]))
+                                                 + ((159.0 / 360.0) * m2[16])) - ((38.0 / 360.0) * m3[16])))));
+            qn[17] = q[17] + (h * (qd[17] + (h * (((((323.0 / 360.0) * qdd[17]) - ((264.0 / 360.0) * m1[17]))
+                                                 + ((159.0 / 360.0) * m2[17])) - ((38.0 / 360.0) * m3[17])))));
+            qn[18] = q[18] + (h * (qd[18] + (h * (((((323.0 / 360.0) * qdd[18]) - ((264.0 / 360.0) * m1[18]))
+                                                 + ((159.0 / 360.0) * m2[18])) - ((38.0 / 360.0) * m3[18])))));
+            qn[19] = q[19] + (h * (qd[19] + (h * (((((323.0 / 360.0) * qdd[19]) - ((264.0 / 360.0) * m1[19]))
+                                                 + ((159.0 / 360.0) * m2[19])) - ((38.0 / 360.0) * m3[19])))));
+            qn[20] = q[20] + (h * (qd[20] + (h * (((((323.0 / 360.0) * qdd[20]) - ((264.0 / 360.0) * m1[20]))
+                                                 + ((159.0 / 360.0) * m2[20])) - ((38.0 / 360.0) * m3[20])))));
+            qn[21] = q[21] + (h * (qd[21] + (h * (((((323.0 / 360.0) * qdd[21]) - ((264.0 / 360.0) * m1[21]))
+                                                 + ((159.0 / 360.0) * m2[21])) - ((38.0 / 360.0) * m3[21])))));
+            qn[22] = q[22] + (h * (qd[22] + (h * (((((323.0 / 360.0) * qdd[22]) - ((264.0 / 360.0) * m1[22]))
+                                                 + ((159.0 / 360.0) * m2[22])) - ((38.0 / 360.0) * m3[22])))));
+            qn[23] = q[23] + (h * (qd[23] + (h * (((((323.0 / 360.0) * qdd[23]) - ((264.0 / 360.0) * m1[23]))
+                                                 + ((159.0 / 360.0) * m2[23])) - ((38.0 / 360.0) * m3[23])))));
+            qn[24] = q[24] + (h * (qd[24] + (h * (((((323.0 / 360.0) * qdd[24]) - ((264.0 / 360.0) * m1[24]))
+                                                 + ((159.0 / 360.0) * m2[24])) - ((38.0 / 360.0) * m3[24])))));
+            qn[25] = q[25] + (h * (qd[25] + (h * (((((323.0 / 360.0) * qdd[25]) - ((264.0 / 360.0) * m1[25]))
+                                                 + ((159.0 / 360.0) * m2[25])) - ((38.0 / 360.0) * m3[25])))));
+            qn[26] = q[26] + (h * (qd[26] + (h * (((((323.0 / 360.0) * qdd[26]) - ((264.0 / 360.0) * m1[26]))
+                                                 + ((159.0 / 360.0) * m2[26])) - ((38.0 / 360.0) * m3[26])))));
+            qn[27] = q[27] + (h * (qd[27] + (h * (((((323.0 / 360.0) * qdd[27]) - ((264.0 / 360.0) * m1[27]))
+                                                 + ((159.0 / 360.0) * m2[27])) - ((38.0 / 360.0) * m3[27])))));
+            qn[28] = q[28] + (h * (qd[28] + (h * (((((323.0 / 360.0) * qdd[28]) - ((264.0 / 360.0) * m1[28]))
+                                                 + ((159.0 / 360.0) * m2[28])) - ((38.0 / 360.0) * m3[28])))));
+            qn[29] = q[29] + (h * (qd[29] + (h * (((((323.0 / 360.0) * qdd[29]) - ((264.0 / 360.0) * m1[29]))
+                                                 + ((159.0 / 360.0) * m2[29])) - ((38.0 / 360.0) * m3[29])))));
+            qn[30] = q[30] + (h * (qd[30] + (h * (((((323.0 / 360.0) * qdd[30]) - ((264.0 / 360.0) * m1[30]))
+                                                 + ((159.0 / 360.0) * m2[30])) - ((38.0 / 360.0) * m3[30])))));
+            qn[31] = q[31] + (h * (qd[31] + (h * (((((323.0 / 360.0) * qdd[31]) - ((264.0 / 360.0) * m1[31]))
+                                                 + ((159.0 / 360.0) * m2[31])) - ((38.0 / 360.0) * m3[31])))));
+            qn[32] = q[32] + (h * (qd[32] + (h * (((((323.0 / 360.0) * qdd[32]) - ((264.0 / 360.0) * m1[32]))
+                                                 + ((159.0 / 360.0) * m2[32])) - ((38.0 / 360.0) * m3[32])))));
+            qn[33] = q[33] + (h * (qd[33] + (h * (((((323.0 / 360.0) * qdd[33]) - ((264.0 / 360.0) * m1[33]))
+                                                 + ((159.0 / 360.0) * m2[33])) - ((38.0 / 360.0) * m3[33])))));
+            qn[34] = q[34] + (h * (qd[34] + (h * (((((323.0 / 360.0) * qdd[34]) - ((264.0 / 360.0) * m1[34]))
+                                                 + ((159.0 / 360.0) * m2[34])) - ((38.0 / 360.0) * m3[34])))));
+            qn[35] = q[35] + (h * (qd[35] + (h * (((((323.0 / 360.0) * qdd[35]) - ((264.0 / 360.0) * m1[35]))
+                                                 + ((159.0 / 360.0) * m2[35])) - ((38.0 / 360.0) * m3[35])))));
+            qn[36] = q[36] + (h * (qd[36] + (h * (((((323.0 / 360.0) * qdd[36]) - ((264.0 / 360.0) * m1[36]))
+                                                 + ((159.0 / 360.0) * m2[36])) - ((38.0 / 360.0) * m3[36])))));
+            qn[37] = q[37] + (h * (qd[37] + (h * (((((323.0 / 360.0) * qdd[37]) - ((264.0 / 360.0) * m1[37]))
+                                                 + ((159.0 / 360.0) * m2[37])) - ((38.0 / 360.0) * m3[37])))));
+            qn[38] = q[38] + (h * (qd[38] + (h * (((((323.0 / 360.0) * qdd[38]) - ((264.0 / 360.0) * m1[38]))
+                                                 + ((159.0 / 360.0) * m2[38])) - ((38.0 / 360.0) * m3[38])))));
+            qn[39] = q[39] + (h * (qd[39] + (h * (((((323.0 / 360.0) * qdd[39]) - ((264.0 / 360.0) * m1[39]))
+                                                 + ((159.0 / 360.0) * m2[39])) - ((38.0 / 360.0) * m3[39])))));
+            qn[40] = q[40] + (h * (qd[40] + (h * (((((323.0 / 360.0) * qdd[40]) - ((264.0 / 360.0) * m1[40]))
+                                                 + ((159.0 / 360.0) * m2[40])) - ((38.0 / 360.0) * m3[40])))));
+            qn[41] = q[41] + (h * (qd[41] + (h * (((((323.0 / 360.0) * qdd[41]) - ((264.0 / 360.0) * m1[41]))
+                                                 + ((159.0 / 360.0) * m2[41])) - ((38.0 / 360.0) * m3[41])))));
+            qn[42] = q[42] + (h * (qd[42] + (h * (((((323.0 / 360.0) * qdd[42]) - ((264.0 / 360.0) * m1[42]))
+                                                 + ((159.0 / 360.0) * m2[42])) - ((38.0 / 360.0) * m3[42])))));
+            qn[43] = q[43] + (h * (qd[43] + (h * (((((323.0 / 360.0) * qdd[43]) - ((264.0 / 360.0) * m1[43]))
+                                                 + ((159.0 / 360.0) * m2[43])) - ((38.0 / 360.0) * m3[43])))));
+            qn[44] = q[44] + (h * (qd[44] + (h * (((((323.0 / 360.0) * qdd[44]) - ((264.0 / 360.0) * m1[44]))
+                                                 + ((159.0 / 360.0) * m2[44])) - ((38.0 / 360.0) * m3[44])))));
+            qn[45] = q[45] + (h * (qd[45] + (h * (((((323.0 / 360.0) * qdd[45]) - ((264.0 / 360.0) * m1[45]))
+                                                 + ((159.0 / 360.0) * m2[45])) - ((38.0 / 360.0) * m3[45])))));
+            qn[46] = q[46] + (h * (qd[46] + (h * (((((323.0 / 360.0) * qdd[46]) - ((264.0 / 360.0) * m1[46]))
+                                                 + ((159.0 / 360.0) * m2[46])) - ((38.0 / 360.0) * m3[46])))));
+            qn[47] = q[47] + (h * (qd[47] + (h * (((((323.0 / 360.0) * qdd[47]) - ((264.0 / 360.0) * m1[47]))
+                                                 + ((159.0 / 360.0) * m2[47])) - ((38.0 / 360.0) * m3[47])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+            qn[6] = q[6] + (h * (qd[6] + ((0.5 * h) * qdd[6])));
+            qn[7] = q[7] + (h * (qd[7] + ((0.5 * h) * qdd[7])));
+            qn[8] = q[8] + (h * (qd[8] + ((0.5 * h) * qdd[8])));
+            qn[9] = q[9] + (h * (qd[9] + ((0.5 * h) * qdd[9])));
+            qn[10] = q[10] + (h * (qd[10] + ((0.5 * h) * qdd[10])));
+            qn[11] = q[11] + (h * (qd[11] + ((0.5 * h) * qdd[11])));
+            qn[12] = q[12] + (h * (qd[12] + ((0.5 * h) * qdd[12])));
+            qn[13] = q[13] + (h * (qd[13] + ((0.5 * h) * qdd[13])));
+            qn[14] = q[14] + (h * (qd[14] + ((0.5 * h) * qdd[14])));
+            qn[15] = q[15] + (h * (qd[15] + ((0.5 * h) * qdd[15])));
+            qn[16] = q[16] + (h * (qd[16] + ((0.5 * h) * qdd[16])));
+            qn[17] = q[17] + (h * (qd[17] + ((0.5 * h) * qdd[17])));
+            qn[18] = q[18] + (h * (qd[18] + ((0.5 * h) * qdd[18])));
+            qn[19] = q[19] + (h * (qd[19] + ((0.5 * h) * qdd[19])));
+            qn[20] = q[20] + (h * (qd[20] + ((0.5 * h) * qdd[20])));
+            qn[21] = q[21] + (h * (qd[21] + ((0.5 * h) * qdd[21])));
+            qn[22] = q[22] + (h * (qd[22] + ((0.5 * h) * qdd[22])));
+            qn[23] = q[23] + (h * (qd[23] + ((0.5 * h) * qdd[23])));
+            qn[24] = q[24] + (h * (qd[24] + ((0.5 * h) * qdd[24])));
+            qn[25] = q[25] + (h * (qd[25] + ((0.5 * h) * qdd[25])));
+            qn[26] = q[26] + (h * (qd[26] + ((0.5 * h) * qdd[26])));
+            qn[27] = q[27] + (h * (qd[27] + ((0.5 * h) * qdd[27])));
+            qn[28] = q[28] + (h * (qd[28] + ((0.5 * h) * qdd[28])));
+            qn[29] = q[29] + (h * (qd[29] + ((0.5 * h) * qdd[29])));
+            qn[30] = q[30] + (h * (qd[30] + ((0.5 * h) * qdd[30])));
+            qn[31] = q[31] + (h * (qd[31] + ((0.5 * h) * qdd[31])));
+            qn[32] = q[32] + (h * (qd[32] + ((0.5 * h) * qdd[32])));
+            qn[33] = q[33] + (h * (qd[33] + ((0.5 * h) * qdd[33])));
+            qn[34] = q[34] + (h * (qd[34] + ((0.5 * h) * qdd[34])));
+            qn[35] = q[35] + (h * (qd[35] + ((0.5 * h) * qdd[35])));
+            qn[36] = q[36] + (h * (qd[36] + ((0.5 * h) * qdd[36])));
+            qn[37] = q[37] + (h * (qd[37] + ((0.5 * h) * qdd[37])));
+            qn[38] = q[38] + (h * (qd[38] + ((0.5 * h) * qdd[38])));
+            qn[39] = q[39] + (h * (qd[39] + ((0.5 * h) * qdd[39])));
+            qn[40] = q[40] + (h * (qd[40] + ((0.5 * h) * qdd[40])));
+            qn[41] = q[41] + (h * (qd[41] + ((0.5 * h) * qdd[41])));
+            qn[42] = q[42] + (h * (qd[42] + ((0.5 * h) * qdd[42])));
+            qn[43] = q[43] + (h * (qd[43] + ((0.5 * h) * qdd[43])));
+            qn[44] = q[44] + (h * (qd[44] + ((0.5 * h) * qdd[44])));
+            qn[45] = q[45] + (h * (qd[45] + ((0.5 * h) * qdd[45])));
+            qn[46] = q[46] + (h * (qd[46] + ((0.5 * h) * qdd[46])));
+            qn[47] = q[47] + (h * (qd[47] + ((0.5 * h) * qdd[47])));
+        } else {
+            (void)memcpy(qn, q, sizeof(scissor_boom_real) * 48u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = scissor_boom_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != SCISSOR_BOOM_OK) break;
-        if (rscale[0] > 0.0 && scissor_boom_screen(work + SCISSOR_BOOM_OFF_LU, dense, rscale, scale, known)
+        status = scissor_boom_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != SCISSOR_BOOM_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (scissor_boom_screen(&work[SCISSOR_BOOM_OFF_LU], dense, rscale, scale, known) != 0)
             && !(scissor_boom_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= SCISSOR_BOOM_COND_SCREEN)) {
             status = SCISSOR_BOOM_ILL_CONDITIONED;
             break;
         }
         scissor_boom_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!scissor_boom_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (scissor_boom_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = SCISSOR_BOOM_NONFINITE;
             break;
         }
-        if (*count >= 1 && scissor_boom_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (scissor_boom_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = SCISSOR_BOOM_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     scissor_boom_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }
@@ -3815,8 +4139,8 @@ static void scissor_boom_drive(scissor_boom_real t, const scissor_boom_real *p, 
     (void)p;
     const scissor_boom_real d0 = 3.141592653589793/p[6];
     const scissor_boom_real d1 = d0*t;
-    const scissor_boom_real d2 = (1.0/2.0)*p[4] - 1.0/2.0*p[5];
-    out[0] = d2*cos(d1) + (1.0/2.0)*p[4] + (1.0/2.0)*p[5];
+    const scissor_boom_real d2 = ((1.0/2.0)*p[4]) - (1.0/2.0*p[5]);
+    out[0] = (d2*cos(d1)) + ((1.0/2.0)*p[4]) + ((1.0/2.0)*p[5]);
     out[1] = -d0*d2*sin(d1);
 }
 
@@ -3828,36 +4152,61 @@ static void scissor_boom_drive(scissor_boom_real t, const scissor_boom_real *p, 
 static void scissor_boom_sweep_scales(const scissor_boom_real *q, scissor_boom_real t0, const scissor_boom_real *p, scissor_boom_real *vals,
                                  scissor_boom_real *arms, scissor_boom_real *inv, scissor_boom_real *norm)
 {
-    scissor_boom_real lin[48], rot[48], lref = 0.0, a;
-    int k, r, m = 0, i;
+    scissor_boom_real lin[48];
+    scissor_boom_real rot[48];
+    scissor_boom_real lref = 0.0;
+    scissor_boom_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     scissor_boom_phi_q(q, t0, p, vals);
-    for (r = 0; r < 48; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 48; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 151; ++k) {
         a = fabs(vals[k]);
         r = scissor_boom_phi_q_rows[k];
-        if (scissor_boom_phi_q_cols[k] % 3 == 2) rot[r] = SCISSOR_BOOM_MAX(rot[r], a);
-        else lin[r] = SCISSOR_BOOM_MAX(lin[r], a);
+        if ((scissor_boom_phi_q_cols[k] % 3) == 2) {
+            rot[r] = SCISSOR_BOOM_MAX(rot[r], a);
+        } else {
+            lin[r] = SCISSOR_BOOM_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 48; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
+                arms[i] = arms[i - 1];
+                --i;
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 48; ++k)
-            if (k % 3 != 2) lref = SCISSOR_BOOM_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 48; ++k) {
+            if ((k % 3) != 2) {
+                lref = SCISSOR_BOOM_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 48; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 48; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 48; ++r) {
         a = SCISSOR_BOOM_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -3869,7 +4218,9 @@ static void scissor_boom_sweep_take(const scissor_boom_real *row, const scissor_
                                scissor_boom_real *drive, long count)
 {
     const scissor_boom_real t = row[0];
-    scissor_boom_real e, rate, w;
+    scissor_boom_real e;
+    scissor_boom_real rate;
+    scissor_boom_real w;
     scissor_boom_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -3879,141 +4230,249 @@ static void scissor_boom_sweep_take(const scissor_boom_real *row, const scissor_
     e = -row[148];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* root_pivot.force_peak */
-    m = row[193] * row[193] + row[194] * row[194];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[196] * row[196] + row[197] * row[197];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[193] * row[193]) + (row[194] * row[194]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[196] * row[196]) + (row[197] * row[197]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* root_slot.force_peak */
-    m = row[199] * row[199] + row[200] * row[200];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[202] * row[202] + row[203] * row[203];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[199] * row[199]) + (row[200] * row[200]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[202] * row[202]) + (row[203] * row[203]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* motor.force_peak */
-    m = row[205] * row[205] + row[206] * row[206];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[208] * row[208] + row[209] * row[209];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[205] * row[205]) + (row[206] * row[206]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[208] * row[208]) + (row[209] * row[209]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* centre0.force_peak */
-    m = row[211] * row[211] + row[212] * row[212];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[214] * row[214] + row[215] * row[215];
-    if (m > fig[7]) fig[7] = m;
+    m = (row[211] * row[211]) + (row[212] * row[212]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[214] * row[214]) + (row[215] * row[215]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
     /* upper0.force_peak */
-    m = row[217] * row[217] + row[218] * row[218];
-    if (count == 0 || m > fig[8]) fig[8] = m;
-    m = row[220] * row[220] + row[221] * row[221];
-    if (m > fig[8]) fig[8] = m;
+    m = (row[217] * row[217]) + (row[218] * row[218]);
+    if ((count == 0) || (m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[220] * row[220]) + (row[221] * row[221]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
     /* lower0.force_peak */
-    m = row[223] * row[223] + row[224] * row[224];
-    if (count == 0 || m > fig[9]) fig[9] = m;
-    m = row[226] * row[226] + row[227] * row[227];
-    if (m > fig[9]) fig[9] = m;
+    m = (row[223] * row[223]) + (row[224] * row[224]);
+    if ((count == 0) || (m > fig[9])) {
+        fig[9] = m;
+    }
+    m = (row[226] * row[226]) + (row[227] * row[227]);
+    if ((m > fig[9])) {
+        fig[9] = m;
+    }
     /* centre1.force_peak */
-    m = row[229] * row[229] + row[230] * row[230];
-    if (count == 0 || m > fig[10]) fig[10] = m;
-    m = row[232] * row[232] + row[233] * row[233];
-    if (m > fig[10]) fig[10] = m;
+    m = (row[229] * row[229]) + (row[230] * row[230]);
+    if ((count == 0) || (m > fig[10])) {
+        fig[10] = m;
+    }
+    m = (row[232] * row[232]) + (row[233] * row[233]);
+    if ((m > fig[10])) {
+        fig[10] = m;
+    }
     /* upper1.force_peak */
-    m = row[235] * row[235] + row[236] * row[236];
-    if (count == 0 || m > fig[11]) fig[11] = m;
-    m = row[238] * row[238] + row[239] * row[239];
-    if (m > fig[11]) fig[11] = m;
+    m = (row[235] * row[235]) + (row[236] * row[236]);
+    if ((count == 0) || (m > fig[11])) {
+        fig[11] = m;
+    }
+    m = (row[238] * row[238]) + (row[239] * row[239]);
+    if ((m > fig[11])) {
+        fig[11] = m;
+    }
     /* lower1.force_peak */
-    m = row[241] * row[241] + row[242] * row[242];
-    if (count == 0 || m > fig[12]) fig[12] = m;
-    m = row[244] * row[244] + row[245] * row[245];
-    if (m > fig[12]) fig[12] = m;
+    m = (row[241] * row[241]) + (row[242] * row[242]);
+    if ((count == 0) || (m > fig[12])) {
+        fig[12] = m;
+    }
+    m = (row[244] * row[244]) + (row[245] * row[245]);
+    if ((m > fig[12])) {
+        fig[12] = m;
+    }
     /* centre2.force_peak */
-    m = row[247] * row[247] + row[248] * row[248];
-    if (count == 0 || m > fig[13]) fig[13] = m;
-    m = row[250] * row[250] + row[251] * row[251];
-    if (m > fig[13]) fig[13] = m;
+    m = (row[247] * row[247]) + (row[248] * row[248]);
+    if ((count == 0) || (m > fig[13])) {
+        fig[13] = m;
+    }
+    m = (row[250] * row[250]) + (row[251] * row[251]);
+    if ((m > fig[13])) {
+        fig[13] = m;
+    }
     /* upper2.force_peak */
-    m = row[253] * row[253] + row[254] * row[254];
-    if (count == 0 || m > fig[14]) fig[14] = m;
-    m = row[256] * row[256] + row[257] * row[257];
-    if (m > fig[14]) fig[14] = m;
+    m = (row[253] * row[253]) + (row[254] * row[254]);
+    if ((count == 0) || (m > fig[14])) {
+        fig[14] = m;
+    }
+    m = (row[256] * row[256]) + (row[257] * row[257]);
+    if ((m > fig[14])) {
+        fig[14] = m;
+    }
     /* lower2.force_peak */
-    m = row[259] * row[259] + row[260] * row[260];
-    if (count == 0 || m > fig[15]) fig[15] = m;
-    m = row[262] * row[262] + row[263] * row[263];
-    if (m > fig[15]) fig[15] = m;
+    m = (row[259] * row[259]) + (row[260] * row[260]);
+    if ((count == 0) || (m > fig[15])) {
+        fig[15] = m;
+    }
+    m = (row[262] * row[262]) + (row[263] * row[263]);
+    if ((m > fig[15])) {
+        fig[15] = m;
+    }
     /* centre3.force_peak */
-    m = row[265] * row[265] + row[266] * row[266];
-    if (count == 0 || m > fig[16]) fig[16] = m;
-    m = row[268] * row[268] + row[269] * row[269];
-    if (m > fig[16]) fig[16] = m;
+    m = (row[265] * row[265]) + (row[266] * row[266]);
+    if ((count == 0) || (m > fig[16])) {
+        fig[16] = m;
+    }
+    m = (row[268] * row[268]) + (row[269] * row[269]);
+    if ((m > fig[16])) {
+        fig[16] = m;
+    }
     /* upper3.force_peak */
-    m = row[271] * row[271] + row[272] * row[272];
-    if (count == 0 || m > fig[17]) fig[17] = m;
-    m = row[274] * row[274] + row[275] * row[275];
-    if (m > fig[17]) fig[17] = m;
+    m = (row[271] * row[271]) + (row[272] * row[272]);
+    if ((count == 0) || (m > fig[17])) {
+        fig[17] = m;
+    }
+    m = (row[274] * row[274]) + (row[275] * row[275]);
+    if ((m > fig[17])) {
+        fig[17] = m;
+    }
     /* lower3.force_peak */
-    m = row[277] * row[277] + row[278] * row[278];
-    if (count == 0 || m > fig[18]) fig[18] = m;
-    m = row[280] * row[280] + row[281] * row[281];
-    if (m > fig[18]) fig[18] = m;
+    m = (row[277] * row[277]) + (row[278] * row[278]);
+    if ((count == 0) || (m > fig[18])) {
+        fig[18] = m;
+    }
+    m = (row[280] * row[280]) + (row[281] * row[281]);
+    if ((m > fig[18])) {
+        fig[18] = m;
+    }
     /* centre4.force_peak */
-    m = row[283] * row[283] + row[284] * row[284];
-    if (count == 0 || m > fig[19]) fig[19] = m;
-    m = row[286] * row[286] + row[287] * row[287];
-    if (m > fig[19]) fig[19] = m;
+    m = (row[283] * row[283]) + (row[284] * row[284]);
+    if ((count == 0) || (m > fig[19])) {
+        fig[19] = m;
+    }
+    m = (row[286] * row[286]) + (row[287] * row[287]);
+    if ((m > fig[19])) {
+        fig[19] = m;
+    }
     /* upper4.force_peak */
-    m = row[289] * row[289] + row[290] * row[290];
-    if (count == 0 || m > fig[20]) fig[20] = m;
-    m = row[292] * row[292] + row[293] * row[293];
-    if (m > fig[20]) fig[20] = m;
+    m = (row[289] * row[289]) + (row[290] * row[290]);
+    if ((count == 0) || (m > fig[20])) {
+        fig[20] = m;
+    }
+    m = (row[292] * row[292]) + (row[293] * row[293]);
+    if ((m > fig[20])) {
+        fig[20] = m;
+    }
     /* lower4.force_peak */
-    m = row[295] * row[295] + row[296] * row[296];
-    if (count == 0 || m > fig[21]) fig[21] = m;
-    m = row[298] * row[298] + row[299] * row[299];
-    if (m > fig[21]) fig[21] = m;
+    m = (row[295] * row[295]) + (row[296] * row[296]);
+    if ((count == 0) || (m > fig[21])) {
+        fig[21] = m;
+    }
+    m = (row[298] * row[298]) + (row[299] * row[299]);
+    if ((m > fig[21])) {
+        fig[21] = m;
+    }
     /* centre5.force_peak */
-    m = row[301] * row[301] + row[302] * row[302];
-    if (count == 0 || m > fig[22]) fig[22] = m;
-    m = row[304] * row[304] + row[305] * row[305];
-    if (m > fig[22]) fig[22] = m;
+    m = (row[301] * row[301]) + (row[302] * row[302]);
+    if ((count == 0) || (m > fig[22])) {
+        fig[22] = m;
+    }
+    m = (row[304] * row[304]) + (row[305] * row[305]);
+    if ((m > fig[22])) {
+        fig[22] = m;
+    }
     /* upper5.force_peak */
-    m = row[307] * row[307] + row[308] * row[308];
-    if (count == 0 || m > fig[23]) fig[23] = m;
-    m = row[310] * row[310] + row[311] * row[311];
-    if (m > fig[23]) fig[23] = m;
+    m = (row[307] * row[307]) + (row[308] * row[308]);
+    if ((count == 0) || (m > fig[23])) {
+        fig[23] = m;
+    }
+    m = (row[310] * row[310]) + (row[311] * row[311]);
+    if ((m > fig[23])) {
+        fig[23] = m;
+    }
     /* lower5.force_peak */
-    m = row[313] * row[313] + row[314] * row[314];
-    if (count == 0 || m > fig[24]) fig[24] = m;
-    m = row[316] * row[316] + row[317] * row[317];
-    if (m > fig[24]) fig[24] = m;
+    m = (row[313] * row[313]) + (row[314] * row[314]);
+    if ((count == 0) || (m > fig[24])) {
+        fig[24] = m;
+    }
+    m = (row[316] * row[316]) + (row[317] * row[317]);
+    if ((m > fig[24])) {
+        fig[24] = m;
+    }
     /* centre6.force_peak */
-    m = row[319] * row[319] + row[320] * row[320];
-    if (count == 0 || m > fig[25]) fig[25] = m;
-    m = row[322] * row[322] + row[323] * row[323];
-    if (m > fig[25]) fig[25] = m;
+    m = (row[319] * row[319]) + (row[320] * row[320]);
+    if ((count == 0) || (m > fig[25])) {
+        fig[25] = m;
+    }
+    m = (row[322] * row[322]) + (row[323] * row[323]);
+    if ((m > fig[25])) {
+        fig[25] = m;
+    }
     /* upper6.force_peak */
-    m = row[325] * row[325] + row[326] * row[326];
-    if (count == 0 || m > fig[26]) fig[26] = m;
-    m = row[328] * row[328] + row[329] * row[329];
-    if (m > fig[26]) fig[26] = m;
+    m = (row[325] * row[325]) + (row[326] * row[326]);
+    if ((count == 0) || (m > fig[26])) {
+        fig[26] = m;
+    }
+    m = (row[328] * row[328]) + (row[329] * row[329]);
+    if ((m > fig[26])) {
+        fig[26] = m;
+    }
     /* lower6.force_peak */
-    m = row[331] * row[331] + row[332] * row[332];
-    if (count == 0 || m > fig[27]) fig[27] = m;
-    m = row[334] * row[334] + row[335] * row[335];
-    if (m > fig[27]) fig[27] = m;
+    m = (row[331] * row[331]) + (row[332] * row[332]);
+    if ((count == 0) || (m > fig[27])) {
+        fig[27] = m;
+    }
+    m = (row[334] * row[334]) + (row[335] * row[335]);
+    if ((m > fig[27])) {
+        fig[27] = m;
+    }
     /* centre7.force_peak */
-    m = row[337] * row[337] + row[338] * row[338];
-    if (count == 0 || m > fig[28]) fig[28] = m;
-    m = row[340] * row[340] + row[341] * row[341];
-    if (m > fig[28]) fig[28] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[337] * row[337]) + (row[338] * row[338]);
+    if ((count == 0) || (m > fig[28])) {
+        fig[28] = m;
+    }
+    m = (row[340] * row[340]) + (row[341] * row[341]);
+    if ((m > fig[28])) {
+        fig[28] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 
@@ -4024,7 +4483,9 @@ static void scissor_boom_sweep_finish(scissor_boom_real *fig, const scissor_boom
     const scissor_boom_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 29; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 29; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -4053,7 +4514,7 @@ static void scissor_boom_sweep_finish(scissor_boom_real *fig, const scissor_boom
     fig[26] = sqrt(fig[26]);
     fig[27] = sqrt(fig[27]);
     fig[28] = sqrt(fig[28]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (scissor_boom_real)count);
 }
 
@@ -4063,10 +4524,14 @@ static void scissor_boom_sweep_finish(scissor_boom_real *fig, const scissor_boom
 long scissor_boom_sweep_lanes(long *abandoned)
 {
 #if SCISSOR_BOOM_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&scissor_boom_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&scissor_boom_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return scissor_boom_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -4074,25 +4539,37 @@ long scissor_boom_sweep_lanes(long *abandoned)
 int scissor_boom_sweep(long k, const scissor_boom_real *p, scissor_boom_real t0, scissor_boom_real h, long n, scissor_boom_real tol,
                   scissor_boom_real *figures, int *status, scissor_boom_real *t_end, long *solved, scissor_boom_real *work, int *iwork)
 {
-    scissor_boom_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    scissor_boom_real *state;
+    scissor_boom_real *rows;
+    scissor_boom_real *vals;
+    scissor_boom_real *arms;
+    scissor_boom_real *drive;
+    scissor_boom_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if SCISSOR_BOOM_LANES > 1
     const long lanes = scissor_boom_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     scissor_boom_real snap[SCISSOR_BOOM_LANES * SCISSOR_BOOM_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return SCISSOR_BOOM_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + SCISSOR_BOOM_WORK, rows = state + SCISSOR_BOOM_STATE;
-    vals = rows + 32 * SCISSOR_BOOM_ROW, arms = vals + 151, drive = arms + 48;
-    acc = drive + 2;
+    state = &work[SCISSOR_BOOM_WORK];
+    rows = &state[SCISSOR_BOOM_STATE];
+    vals = &rows[32 * SCISSOR_BOOM_ROW];
+    arms = &vals[151];
+    drive = &arms[48];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const scissor_boom_real *pv = p + v * SCISSOR_BOOM_NP;
-        scissor_boom_real *fig = figures + v * SCISSOR_BOOM_SWEEP_FIGURES;
+        const scissor_boom_real *pv = &p[v * SCISSOR_BOOM_NP];
+        scissor_boom_real *fig = &figures[v * SCISSOR_BOOM_SWEEP_FIGURES];
 #if SCISSOR_BOOM_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (scissor_boom_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -4104,26 +4581,28 @@ int scissor_boom_sweep(long k, const scissor_boom_real *p, scissor_boom_real t0,
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const scissor_boom_real *s = snap + (v - first) * SCISSOR_BOOM_SNAP;
-            memcpy(state, s, sizeof(scissor_boom_real) * SCISSOR_BOOM_STATE);
-            memcpy(fig, s + SCISSOR_BOOM_STATE, sizeof(scissor_boom_real) * SCISSOR_BOOM_SWEEP_FIGURES);
-            memcpy(acc, s + SCISSOR_BOOM_STATE + SCISSOR_BOOM_SWEEP_FIGURES, sizeof(scissor_boom_real) * 5);
+            (void)memcpy(state, s, sizeof(scissor_boom_real) * SCISSOR_BOOM_STATE);
+            (void)memcpy(fig, &s[SCISSOR_BOOM_STATE], sizeof(scissor_boom_real) * SCISSOR_BOOM_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[SCISSOR_BOOM_STATE + SCISSOR_BOOM_SWEEP_FIGURES], sizeof(scissor_boom_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(scissor_boom_real) * SCISSOR_BOOM_STATE);
+            (void)memset(state, 0, sizeof(scissor_boom_real) * (size_t)SCISSOR_BOOM_STATE);
             scissor_boom_guess(pv, state);
             done = 0;
         }
         st = SCISSOR_BOOM_OK;
-        while (done < n && st == SCISSOR_BOOM_OK) {
+        while ((done < n) && (st == SCISSOR_BOOM_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : SCISSOR_BOOM_MIN(32, n - done);
+            m = (done == 0) ? 1 : SCISSOR_BOOM_MIN(32, n - done);
             got = 0;
             st = scissor_boom_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) scissor_boom_sweep_take(rows + m * SCISSOR_BOOM_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
-                scissor_boom_sweep_scales(state, t0, pv, vals, arms, state + 288, state + 336);
+            for (m = 0; m < got; ++m) {
+                scissor_boom_sweep_take(&rows[m * SCISSOR_BOOM_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
+                scissor_boom_sweep_scales(state, t0, pv, vals, arms, &state[288], &state[336]);
                 st = scissor_boom_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;
@@ -4131,7 +4610,7 @@ int scissor_boom_sweep(long k, const scissor_boom_real *p, scissor_boom_real t0,
         scissor_boom_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return SCISSOR_BOOM_OK;
 }
@@ -4193,17 +4672,28 @@ static void scissor_boom_sp_gamma_k(const scissor_boom_real * q, const scissor_b
 static int scissor_boom_sp_newton(scissor_boom_real t, const scissor_boom_real *p, const scissor_boom_real *q_des, scissor_boom_real tol, scissor_boom_real *q, scissor_boom_real *tr, int *info, scissor_boom_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    scissor_boom_real *r = SCISSOR_BOOM_VEC(work, 0), *dq = SCISSOR_BOOM_VEC(work, 1), *y = SCISSOR_BOOM_VEC(work, 2);
+    scissor_boom_real *r = SCISSOR_BOOM_VEC(work, 0);
+    scissor_boom_real *dq = SCISSOR_BOOM_VEC(work, 1);
+    scissor_boom_real *y = SCISSOR_BOOM_VEC(work, 2);
     scissor_boom_real *base = SCISSOR_BOOM_VEC(work, 10);
-    scissor_boom_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    scissor_boom_real step = ((double)INFINITY);
+    scissor_boom_real lim;
+    scissor_boom_real qmag;
+    scissor_boom_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) scissor_boom_trig_near(q, tr, base);
-    else scissor_boom_trig_base(q, tr, base);
+    if (reuse != 0) {
+        scissor_boom_trig_near(q, tr, base);
+    } else {
+        scissor_boom_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SCISSOR_BOOM_MAX(1.0, scissor_boom_maxabs48(q));
-    lim = SCISSOR_BOOM_MAX(tol, (scissor_boom_real)SCISSOR_BOOM_FLOOR_ULPS * SCISSOR_BOOM_EPS * qmag);
+    lim = SCISSOR_BOOM_MAX(tol, ((scissor_boom_real)SCISSOR_BOOM_FLOOR_ULPS * SCISSOR_BOOM_EPS) * qmag);
     scissor_boom_phi_k(q, tr, t, p, r);
     scissor_boom_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
     rmax = scissor_boom_maxabs48(r);
@@ -4213,15 +4703,17 @@ static int scissor_boom_sp_newton(scissor_boom_real t, const scissor_boom_real *
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? SCISSOR_BOOM_NONFINITE : SCISSOR_BOOM_NOT_CONVERGED;
+            return (it == 0) ? SCISSOR_BOOM_NONFINITE : SCISSOR_BOOM_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == SCISSOR_BOOM_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && scissor_boom_factorize(q, tr, t, p, work, iwork, dense) != SCISSOR_BOOM_OK) {
+        if (it == SCISSOR_BOOM_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (scissor_boom_factorize(q, tr, t, p, work, iwork, dense) != SCISSOR_BOOM_OK)) {
             info[0] = it;
             info[1] = *dense;
             return SCISSOR_BOOM_SINGULAR;
@@ -4231,8 +4723,8 @@ static int scissor_boom_sp_newton(scissor_boom_real t, const scissor_boom_real *
         scissor_boom_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= SCISSOR_BOOM_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (SCISSOR_BOOM_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -4245,8 +4737,10 @@ static int scissor_boom_sp_newton(scissor_boom_real t, const scissor_boom_real *
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return SCISSOR_BOOM_NOT_CONVERGED;
-    if (!current && scissor_boom_factorize(q, tr, t, p, work, iwork, dense) != SCISSOR_BOOM_OK) {
+    if (converged == 0) {
+        return SCISSOR_BOOM_NOT_CONVERGED;
+    }
+    if ((current == 0) && (scissor_boom_factorize(q, tr, t, p, work, iwork, dense) != SCISSOR_BOOM_OK)) {
         info[1] = *dense;
         return SCISSOR_BOOM_SINGULAR;
     }
@@ -4259,7 +4753,8 @@ static void scissor_boom_sp_outputs(scissor_boom_real t, const scissor_boom_real
                             scissor_boom_real *lam, scissor_boom_real *reactions, scissor_boom_real *work, const int *iwork, int dense,
                             const scissor_boom_real *q_des, const scissor_boom_real *qd_des, const scissor_boom_real *qdd_des)
 {
-    scissor_boom_real *y = SCISSOR_BOOM_VEC(work, 2), *b = SCISSOR_BOOM_VEC(work, 3);
+    scissor_boom_real *y = SCISSOR_BOOM_VEC(work, 2);
+    scissor_boom_real *b = SCISSOR_BOOM_VEC(work, 3);
     scissor_boom_nu_k(q, tr, t, p, b);
     scissor_boom_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
     scissor_boom_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
@@ -4317,7 +4812,9 @@ static void scissor_boom_sp_outputs(scissor_boom_real t, const scissor_boom_real
     b[46] -= y[46] * qdd[46];
     b[47] -= y[47] * qdd[47];
     scissor_boom_solve_t(work, iwork, dense, b, lam);
-    if (scissor_boom_mixed(y)) scissor_boom_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (scissor_boom_mixed(y) != 0) {
+        scissor_boom_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     scissor_boom_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -4329,25 +4826,34 @@ static int scissor_boom_sp_instant(scissor_boom_real t, const scissor_boom_real 
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !scissor_boom_allfinite(q_des, SCISSOR_BOOM_ND) || !scissor_boom_allfinite(qd_des, SCISSOR_BOOM_ND)
-        || !scissor_boom_allfinite(qdd_des, SCISSOR_BOOM_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (scissor_boom_allfinite(q_des, SCISSOR_BOOM_ND) == 0) || (scissor_boom_allfinite(qd_des, SCISSOR_BOOM_ND) == 0)
+        || (scissor_boom_allfinite(qdd_des, SCISSOR_BOOM_ND) == 0)) {
         status = SCISSOR_BOOM_BAD_ARGUMENT;
     } else {
-        scissor_boom_real *tr = SCISSOR_BOOM_VEC(work, 9), *pp = work + SCISSOR_BOOM_OFF_PREP, *kept = SCISSOR_BOOM_VEC(work, 11);
-        memcpy(kept, q, sizeof(scissor_boom_real) * 48);  /* the caller's guess, back in q if the call fails */
+        scissor_boom_real *tr = SCISSOR_BOOM_VEC(work, 9);
+        scissor_boom_real *pp = &work[SCISSOR_BOOM_OFF_PREP];
+        scissor_boom_real *kept = SCISSOR_BOOM_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(scissor_boom_real) * 48u);  /* the caller's guess, back in q if the call fails */
         scissor_boom_prepare(p, pp);
-        if (qd == NULL) qd = SCISSOR_BOOM_VEC(work, 5);
-        if (qdd == NULL) qdd = SCISSOR_BOOM_VEC(work, 6);
-        if (lam == NULL) lam = SCISSOR_BOOM_VEC(work, 7);
-        if (reactions == NULL) reactions = SCISSOR_BOOM_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        scissor_boom_real *qd_out = (qd != NULL) ? qd : SCISSOR_BOOM_VEC(work, 5);
+        scissor_boom_real *qdd_out = (qdd != NULL) ? qdd : SCISSOR_BOOM_VEC(work, 6);
+        scissor_boom_real *lam_out = (lam != NULL) ? lam : SCISSOR_BOOM_VEC(work, 7);
+        scissor_boom_real *reactions_out = (reactions != NULL) ? reactions : SCISSOR_BOOM_VEC(work, 8);
         status = scissor_boom_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == SCISSOR_BOOM_OK) {
-            scissor_boom_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!scissor_boom_finite(q, qd, qdd, lam, reactions)) status = SCISSOR_BOOM_NONFINITE;
+            scissor_boom_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (scissor_boom_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = SCISSOR_BOOM_NONFINITE;
+            }
         }
-        if (status != SCISSOR_BOOM_OK) memcpy(q, kept, sizeof(scissor_boom_real) * 48);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != SCISSOR_BOOM_OK) {
+            (void)memcpy(q, kept, sizeof(scissor_boom_real) * 48u);
+        }
     }
     return status;
 }
@@ -4357,7 +4863,8 @@ int scissor_boom_setpoint(scissor_boom_real t, const scissor_boom_real *p, sciss
                      scissor_boom_real *qdd, scissor_boom_real *lam, scissor_boom_real *reactions, int *info, scissor_boom_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = scissor_boom_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -460,13 +460,13 @@ extern const scissor_boom_real scissor_boom_default_q0[SCISSOR_BOOM_NG];
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 206, phi_q 116, nu 8, gamma 133, applied 6, mass 0, reactions 55, lu_factor 155, lu_forward 47, lu_back 79, lu_t_forward 79, lu_t_back 47. */
-#define SCISSOR_BOOM_OPS_INSTANT 1389
+   work), and of each evaluation: phi 200, phi_q 116, nu 8, gamma 133, applied 6, mass 0, reactions 54, lu_factor 155, lu_forward 47, lu_back 79, lu_t_forward 79, lu_t_back 47. */
+#define SCISSOR_BOOM_OPS_INSTANT 1376
 
 /* Worst case of one instant call (computed at generation from the counts
    above, not measured): Newton reaching MAX_NEWTON, every factorization
    through the pivoting fallback (bounded by a dense LU). At most
-   96313 + 86655 MAX_NEWTON counted floating operations and
+   96306 + 86649 MAX_NEWTON counted floating operations and
    35 + 33 MAX_NEWTON libm calls; as instructions, at most
    WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
    loads, stores and indexing), each libm call 300 (the real type on its
@@ -476,7 +476,7 @@ extern const scissor_boom_real scissor_boom_default_q0[SCISSOR_BOOM_NG];
    test_c_edges checks it under callgrind on x86-64 for every bundled
    example, the cap reached (instant only: a trajectory's instant adds its
    predictor, checks and, if generated, sensitivities). */
-#define SCISSOR_BOOM_WORST_INSTRUCTIONS (1169256L + 1050160L * (long)SCISSOR_BOOM_MAX_NEWTON)
+#define SCISSOR_BOOM_WORST_INSTRUCTIONS (1169172L + 1050088L * (long)SCISSOR_BOOM_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int scissor_boom_phi_q_rows[151];

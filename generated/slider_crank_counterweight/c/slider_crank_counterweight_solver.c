@@ -43,7 +43,7 @@ typedef char slider_crank_counterweight_real_must_have_the_size_of_double[sizeof
 #define SLIDER_CRANK_COUNTERWEIGHT_OFF_LU 21
 #define SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE (SLIDER_CRANK_COUNTERWEIGHT_OFF_LU + SLIDER_CRANK_COUNTERWEIGHT_LU_SIZE)
 #define SLIDER_CRANK_COUNTERWEIGHT_OFF_VEC (SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE + 81)
-#define SLIDER_CRANK_COUNTERWEIGHT_VEC(work, k) ((work) + SLIDER_CRANK_COUNTERWEIGHT_OFF_VEC + (k) * 30)
+#define SLIDER_CRANK_COUNTERWEIGHT_VEC(work, k) (&(work)[SLIDER_CRANK_COUNTERWEIGHT_OFF_VEC + ((k) * 30)])
 /* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
 #define SLIDER_CRANK_COUNTERWEIGHT_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
 #define SLIDER_CRANK_COUNTERWEIGHT_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
@@ -151,10 +151,12 @@ static void slider_crank_counterweight_trig_base(const slider_crank_counterweigh
 {
     int b;
     for (b = 0; b < 3; ++b) {
-        const slider_crank_counterweight_real a = q[3 * b + 2];
+        const slider_crank_counterweight_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -169,45 +171,60 @@ static void slider_crank_counterweight_trig_base(const slider_crank_counterweigh
 static void slider_crank_counterweight_trig_near(const slider_crank_counterweight_real *q, slider_crank_counterweight_real *tr, slider_crank_counterweight_real *base)
 {
     {
-        const slider_crank_counterweight_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const slider_crank_counterweight_real a = q[2];
+        const slider_crank_counterweight_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const slider_crank_counterweight_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const slider_crank_counterweight_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const slider_crank_counterweight_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const slider_crank_counterweight_real d2 = d * d;
+            const slider_crank_counterweight_real s = base[1];
+            const slider_crank_counterweight_real c = base[2];
+            const slider_crank_counterweight_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const slider_crank_counterweight_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const slider_crank_counterweight_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const slider_crank_counterweight_real a = q[5];
+        const slider_crank_counterweight_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const slider_crank_counterweight_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const slider_crank_counterweight_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const slider_crank_counterweight_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const slider_crank_counterweight_real d2 = d * d;
+            const slider_crank_counterweight_real s = base[4];
+            const slider_crank_counterweight_real c = base[5];
+            const slider_crank_counterweight_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const slider_crank_counterweight_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
     {
-        const slider_crank_counterweight_real a = q[3 * 2 + 2], d = a - base[3 * 2];
+        const slider_crank_counterweight_real a = q[8];
+        const slider_crank_counterweight_real d = a - base[6];
         if (fabs(d) <= 0.0625) {
-            const slider_crank_counterweight_real d2 = d * d, s = base[3 * 2 + 1], c = base[3 * 2 + 2];
-            const slider_crank_counterweight_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const slider_crank_counterweight_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 2] = s + (s * cm + c * sd);
-            tr[2 * 2 + 1] = c + (c * cm - s * sd);
+            const slider_crank_counterweight_real d2 = d * d;
+            const slider_crank_counterweight_real s = base[7];
+            const slider_crank_counterweight_real c = base[8];
+            const slider_crank_counterweight_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const slider_crank_counterweight_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[4] = s + ((s * cm) + (c * sd));
+            tr[5] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 2] = a;
-            tr[2 * 2] = base[3 * 2 + 1] = sin(a);
-            tr[2 * 2 + 1] = base[3 * 2 + 2] = cos(a);
+            base[6] = a;
+            base[7] = sin(a);
+            tr[4] = base[7];
+            base[8] = cos(a);
+            tr[5] = base[8];
         }
     }
 }
@@ -220,30 +237,36 @@ static void slider_crank_counterweight_trig_near(const slider_crank_counterweigh
 static void slider_crank_counterweight_trig_step(const slider_crank_counterweight_real *q, const slider_crank_counterweight_real *dq, slider_crank_counterweight_real *tr, slider_crank_counterweight_real *base)
 {
     {
-        const slider_crank_counterweight_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const slider_crank_counterweight_real d = -dq[2];
+        const slider_crank_counterweight_real s = tr[0];
+        const slider_crank_counterweight_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             slider_crank_counterweight_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const slider_crank_counterweight_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const slider_crank_counterweight_real d = -dq[5];
+        const slider_crank_counterweight_real s = tr[2];
+        const slider_crank_counterweight_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             slider_crank_counterweight_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const slider_crank_counterweight_real d = -dq[3 * 2 + 2], s = tr[2 * 2], c = tr[2 * 2 + 1];
+        const slider_crank_counterweight_real d = -dq[8];
+        const slider_crank_counterweight_real s = tr[4];
+        const slider_crank_counterweight_real c = tr[5];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 2] = s + c * d;
-            tr[2 * 2 + 1] = c - s * d;
+            tr[4] = s + (c * d);
+            tr[5] = c - (s * d);
         } else {
             slider_crank_counterweight_trig_near(q, tr, base);
             return;
@@ -257,7 +280,7 @@ static void slider_crank_counterweight_trig_step(const slider_crank_counterweigh
    evaluation. The kernels read both from this one vector. */
 static void slider_crank_counterweight_prepare(const slider_crank_counterweight_real *p, slider_crank_counterweight_real *pp)
 {
-    memcpy(pp, p, sizeof(slider_crank_counterweight_real) * 12);
+    (void)memcpy(pp, p, sizeof(slider_crank_counterweight_real) * 12u);
     {
         const slider_crank_counterweight_real e0 = (p[2] + p[9]);
         const slider_crank_counterweight_real e1 = (1.0/e0);
@@ -265,15 +288,15 @@ static void slider_crank_counterweight_prepare(const slider_crank_counterweight_
         const slider_crank_counterweight_real e3 = (e1*e2*p[9]);
         const slider_crank_counterweight_real e4 = (1.0/2.0)*p[0];
         const slider_crank_counterweight_real e5 = p[10]*cos(p[11]);
-        const slider_crank_counterweight_real e6 = (e1*(e4*p[2] + e5*p[9]));
+        const slider_crank_counterweight_real e6 = (e1*((e4*p[2]) + (e5*p[9])));
         const slider_crank_counterweight_real e7 = -e6;
         pp[12] = e3;
         pp[13] = e6;
         pp[14] = e7 + p[0];
-        pp[15] = (2*3.141592653589793*p[7]);
+        pp[15] = (2.0*3.141592653589793*p[7]);
         pp[16] = -981.0/100.0*e0;
         pp[17] = e0;
-        pp[18] = ((1.0/12.0)*(p[0]*p[0])*p[2] + p[2]*((e3*e3) + ((e4 + e7)*(e4 + e7))) + p[9]*(((e2 - e3)*(e2 - e3)) + ((e5 + e7)*(e5 + e7))));
+        pp[18] = (((1.0/12.0)*(p[0]*p[0])*p[2]) + (p[2]*((e3*e3) + ((e4 + e7)*(e4 + e7)))) + (p[9]*(((e2 - e3)*(e2 - e3)) + ((e5 + e7)*(e5 + e7)))));
         pp[19] = (1.0/12.0)*(p[1]*p[1])*p[3];
         pp[20] = (1.0/12.0)*p[4]*((p[5]*p[5]) + (p[6]*p[6]));
     }
@@ -286,15 +309,15 @@ static void slider_crank_counterweight_phi_k0(const slider_crank_counterweight_r
     const slider_crank_counterweight_real e2 = (1.0/2.0)*p[1];
     const slider_crank_counterweight_real e3 = e2*tr[3];
     const slider_crank_counterweight_real e4 = e2*tr[2];
-    out[0] = e0 - p[13]*tr[1] + q[0];
-    out[1] = -e1 - p[13]*tr[0] + q[1];
-    out[2] = -e0 - e3 - p[14]*tr[1] + (-q[0] + q[3]);
-    out[3] = e1 - e4 - p[14]*tr[0] + (-q[1] + q[4]);
+    out[0] = e0 - (p[13]*tr[1]) + q[0];
+    out[1] = -e1 - (p[13]*tr[0]) + q[1];
+    out[2] = -e0 - e3 - (p[14]*tr[1]) + (-q[0] + q[3]);
+    out[3] = e1 - e4 - (p[14]*tr[0]) + (-q[1] + q[4]);
     out[4] = -e3 + (-q[3] + q[6]);
     out[5] = -e4 + (-q[4] + q[7]);
     out[6] = q[7];
     out[7] = q[8];
-    out[8] = -p[15]*t + q[2];
+    out[8] = (-p[15]*t) + q[2];
 }
 
 static void slider_crank_counterweight_phi_k(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -308,8 +331,7 @@ void slider_crank_counterweight_phi(const slider_crank_counterweight_real * q, s
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_phi_k(q, tr, t, p, out);
+    slider_crank_counterweight_phi_k(q, tr, t, prepared, out);
 }
 
 static void slider_crank_counterweight_phi_q_k0(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -321,27 +343,27 @@ static void slider_crank_counterweight_phi_q_k0(const slider_crank_counterweight
     const slider_crank_counterweight_real e2 = (1.0/2.0)*p[1];
     const slider_crank_counterweight_real e3 = e2*tr[2];
     const slider_crank_counterweight_real e4 = -e2*tr[3];
-    out[0] = 1;
-    out[1] = e0 + p[13]*tr[0];
-    out[2] = 1;
-    out[3] = e1 - p[13]*tr[1];
-    out[4] = -1;
-    out[5] = -e0 + p[14]*tr[0];
-    out[6] = 1;
+    out[0] = 1.0;
+    out[1] = e0 + (p[13]*tr[0]);
+    out[2] = 1.0;
+    out[3] = e1 - (p[13]*tr[1]);
+    out[4] = -1.0;
+    out[5] = -e0 + (p[14]*tr[0]);
+    out[6] = 1.0;
     out[7] = e3;
-    out[8] = -1;
-    out[9] = -e1 - p[14]*tr[1];
-    out[10] = 1;
+    out[8] = -1.0;
+    out[9] = -e1 - (p[14]*tr[1]);
+    out[10] = 1.0;
     out[11] = e4;
-    out[12] = -1;
+    out[12] = -1.0;
     out[13] = e3;
-    out[14] = 1;
-    out[15] = -1;
+    out[14] = 1.0;
+    out[15] = -1.0;
     out[16] = e4;
-    out[17] = 1;
-    out[18] = 1;
-    out[19] = 1;
-    out[20] = 1;
+    out[17] = 1.0;
+    out[18] = 1.0;
+    out[19] = 1.0;
+    out[20] = 1.0;
 }
 
 static void slider_crank_counterweight_phi_q_k(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -355,8 +377,7 @@ void slider_crank_counterweight_phi_q(const slider_crank_counterweight_real * q,
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_phi_q_k(q, tr, t, p, out);
+    slider_crank_counterweight_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void slider_crank_counterweight_nu_k0(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -364,14 +385,14 @@ static void slider_crank_counterweight_nu_k0(const slider_crank_counterweight_re
     (void)q;
     (void)tr;
     (void)t;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = 0;
-    out[7] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
     out[8] = p[15];
 }
 
@@ -386,8 +407,7 @@ void slider_crank_counterweight_nu(const slider_crank_counterweight_real * q, sl
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_nu_k(q, tr, t, p, out);
+    slider_crank_counterweight_nu_k(q, tr, t, prepared, out);
 }
 
 static void slider_crank_counterweight_gamma_k0(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -403,15 +423,15 @@ static void slider_crank_counterweight_gamma_k0(const slider_crank_counterweight
     const slider_crank_counterweight_real e6 = (1.0/2.0)*p[1]*(qd[5]*qd[5]);
     const slider_crank_counterweight_real e7 = e6*tr[3];
     const slider_crank_counterweight_real e8 = e6*tr[2];
-    out[0] = e2 - e3*tr[1];
-    out[1] = -e3*tr[0] - e4;
-    out[2] = -e2 - e5*tr[1] - e7;
-    out[3] = e4 - e5*tr[0] - e8;
+    out[0] = e2 - (e3*tr[1]);
+    out[1] = (-e3*tr[0]) - e4;
+    out[2] = -e2 - (e5*tr[1]) - e7;
+    out[3] = e4 - (e5*tr[0]) - e8;
     out[4] = -e7;
     out[5] = -e8;
-    out[6] = 0;
-    out[7] = 0;
-    out[8] = 0;
+    out[6] = 0.0;
+    out[7] = 0.0;
+    out[8] = 0.0;
 }
 
 static void slider_crank_counterweight_gamma_k(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -425,8 +445,7 @@ void slider_crank_counterweight_gamma(const slider_crank_counterweight_real * q,
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_gamma_k(q, tr, qd, t, p, out);
+    slider_crank_counterweight_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void slider_crank_counterweight_applied_k0(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -435,14 +454,14 @@ static void slider_crank_counterweight_applied_k0(const slider_crank_counterweig
     (void)tr;
     (void)qd;
     out[0] = p[16];
-    out[1] = 0;
-    out[2] = 0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = -981.0/100.0*p[3];
-    out[4] = 0;
-    out[5] = 0;
-    out[6] = -981.0/100.0*p[4] - p[8]*sin(p[15]*t);
-    out[7] = 0;
-    out[8] = 0;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = (-981.0/100.0*p[4]) - (p[8]*sin(p[15]*t));
+    out[7] = 0.0;
+    out[8] = 0.0;
 }
 
 static void slider_crank_counterweight_applied_k(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -456,8 +475,7 @@ void slider_crank_counterweight_applied(const slider_crank_counterweight_real * 
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_applied_k(q, tr, qd, t, p, out);
+    slider_crank_counterweight_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void slider_crank_counterweight_mass_k0(const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -482,8 +500,7 @@ void slider_crank_counterweight_mass(const slider_crank_counterweight_real * p, 
 {
     slider_crank_counterweight_real prepared[21];
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_mass_k(p, out);
+    slider_crank_counterweight_mass_k(prepared, out);
 }
 
 static void slider_crank_counterweight_reactions_k0(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * tr, const slider_crank_counterweight_real * lam, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
@@ -493,33 +510,33 @@ static void slider_crank_counterweight_reactions_k0(const slider_crank_counterwe
     (void)p;
     out[0] = lam[0];
     out[1] = lam[1];
-    out[2] = 0;
+    out[2] = 0.0;
     out[3] = -lam[0];
     out[4] = -lam[1];
-    out[5] = 0;
+    out[5] = 0.0;
     out[6] = lam[2];
     out[7] = lam[3];
-    out[8] = 0;
+    out[8] = 0.0;
     out[9] = -lam[2];
     out[10] = -lam[3];
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = lam[4];
     out[13] = lam[5];
-    out[14] = 0;
+    out[14] = 0.0;
     out[15] = -lam[4];
     out[16] = -lam[5];
-    out[17] = 0;
-    out[18] = 0;
+    out[17] = 0.0;
+    out[18] = 0.0;
     out[19] = lam[6];
-    out[20] = lam[6]*q[6] + lam[7];
-    out[21] = 0;
+    out[20] = (lam[6]*q[6]) + lam[7];
+    out[21] = 0.0;
     out[22] = -lam[6];
     out[23] = -lam[7];
-    out[24] = 0;
-    out[25] = 0;
+    out[24] = 0.0;
+    out[25] = 0.0;
     out[26] = lam[8];
-    out[27] = 0;
-    out[28] = 0;
+    out[27] = 0.0;
+    out[28] = 0.0;
     out[29] = -lam[8];
 }
 
@@ -534,8 +551,7 @@ void slider_crank_counterweight_reactions(const slider_crank_counterweight_real 
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
-    p = prepared;
-    slider_crank_counterweight_reactions_k(q, tr, lam, t, p, out);
+    slider_crank_counterweight_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -555,12 +571,13 @@ static int slider_crank_counterweight_sparse_factor0(slider_crank_counterweight_
     cm = 1.0;
     cm = SLIDER_CRANK_COUNTERWEIGHT_MAX(cm, fabs(lu[3]));
     cm = SLIDER_CRANK_COUNTERWEIGHT_MAX(cm, fabs(lu[9]));
-    if (!(1.0 >= SLIDER_CRANK_COUNTERWEIGHT_THRESHOLD * cm)) return 1;
+    if (!(1.0 >= (SLIDER_CRANK_COUNTERWEIGHT_THRESHOLD * cm))) { return 1; }
     lu[16] += lu[11];
     piv = lu[16];
     cm = fabs(piv);
-    if (!(fabs(piv) >= SLIDER_CRANK_COUNTERWEIGHT_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[16] = 1.0 / piv;
+    if (!(fabs(piv) >= (SLIDER_CRANK_COUNTERWEIGHT_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[16] = 1.0 / piv;
+    piv = lu[16];
     return 0;
 }
 
@@ -572,8 +589,8 @@ static int slider_crank_counterweight_sparse_factor(slider_crank_counterweight_r
 static void slider_crank_counterweight_sparse_forward0(const slider_crank_counterweight_real *SLIDER_CRANK_COUNTERWEIGHT_RESTRICT lu, slider_crank_counterweight_real *SLIDER_CRANK_COUNTERWEIGHT_RESTRICT y)
 {
     y[5] -= y[6];
-    y[1] -= lu[3] * y[8];
-    y[3] -= lu[9] * y[8];
+    y[1] -= (lu[3] * y[8]);
+    y[3] -= (lu[9] * y[8]);
     y[3] += y[1];
     y[5] += y[3];
 }
@@ -582,14 +599,14 @@ static void slider_crank_counterweight_sparse_back0(
     const slider_crank_counterweight_real *SLIDER_CRANK_COUNTERWEIGHT_RESTRICT lu, const slider_crank_counterweight_real *SLIDER_CRANK_COUNTERWEIGHT_RESTRICT y, slider_crank_counterweight_real *SLIDER_CRANK_COUNTERWEIGHT_RESTRICT x)
 {
     x[5] = (y[5]) * lu[16];
-    x[4] = y[3] - lu[11] * x[5];
+    x[4] = y[3] - (lu[11] * x[5]);
     x[1] = y[1];
     x[2] = y[8];
     x[8] = y[7];
     x[7] = y[6];
-    x[0] = y[0] - lu[1] * x[2];
-    x[3] = y[2] + x[0] - lu[5] * x[2] - lu[7] * x[5];
-    x[6] = y[4] + x[3] - lu[13] * x[5];
+    x[0] = y[0] - (lu[1] * x[2]);
+    x[3] = y[2] + x[0] - (lu[5] * x[2]) - (lu[7] * x[5]);
+    x[6] = y[4] + x[3] - (lu[13] * x[5]);
 }
 
 /* The solve in place: y holds b on entry and is overwritten (solve_in). */
@@ -601,7 +618,7 @@ static void slider_crank_counterweight_sparse_solve_in(const slider_crank_counte
 
 static void slider_crank_counterweight_sparse_solve(const slider_crank_counterweight_real *lu, const slider_crank_counterweight_real *b, slider_crank_counterweight_real *x, slider_crank_counterweight_real *y)
 {
-    memcpy(y, b, sizeof(slider_crank_counterweight_real) * 9);
+    (void)memcpy(y, b, sizeof(slider_crank_counterweight_real) * 9u);
     slider_crank_counterweight_sparse_solve_in(lu, y, x);
 }
 
@@ -613,18 +630,18 @@ static void slider_crank_counterweight_sparse_t_forward0(
     x[0] = b[0] + x[2];
     x[6] = b[7];
     x[7] = b[8];
-    x[8] = b[2] - lu[5] * x[2] - lu[1] * x[0];
+    x[8] = b[2] - (lu[5] * x[2]) - (lu[1] * x[0]);
     x[1] = b[1];
     x[3] = b[4];
-    x[5] = (b[5] - lu[13] * x[4] - lu[7] * x[2] - lu[11] * x[3]) * lu[16];
+    x[5] = (b[5] - (lu[13] * x[4]) - (lu[7] * x[2]) - (lu[11] * x[3])) * lu[16];
 }
 
 static void slider_crank_counterweight_sparse_t_back0(const slider_crank_counterweight_real *SLIDER_CRANK_COUNTERWEIGHT_RESTRICT lu, slider_crank_counterweight_real *SLIDER_CRANK_COUNTERWEIGHT_RESTRICT x)
 {
     x[3] += x[5];
     x[1] += x[3];
-    x[8] -= lu[3] * x[1];
-    x[8] -= lu[9] * x[3];
+    x[8] -= (lu[3] * x[1]);
+    x[8] -= (lu[9] * x[3]);
     x[6] -= x[5];
 }
 
@@ -639,58 +656,81 @@ static void slider_crank_counterweight_sparse_solve_t(const slider_crank_counter
 static int slider_crank_counterweight_dense_factor(slider_crank_counterweight_real *a, int *perm)
 {
     const int n = 9;
-    int i, j, k;
-    slider_crank_counterweight_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    slider_crank_counterweight_real umax = 0.0;
+    slider_crank_counterweight_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                slider_crank_counterweight_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return SLIDER_CRANK_COUNTERWEIGHT_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            slider_crank_counterweight_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                slider_crank_counterweight_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return SLIDER_CRANK_COUNTERWEIGHT_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            slider_crank_counterweight_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= SLIDER_CRANK_COUNTERWEIGHT_SINGULAR_RATIO * umax ? SLIDER_CRANK_COUNTERWEIGHT_SINGULAR : SLIDER_CRANK_COUNTERWEIGHT_OK;
+    return (umin <= (SLIDER_CRANK_COUNTERWEIGHT_SINGULAR_RATIO * umax)) ? SLIDER_CRANK_COUNTERWEIGHT_SINGULAR : SLIDER_CRANK_COUNTERWEIGHT_OK;
 }
 
 static void slider_crank_counterweight_dense_solve(const slider_crank_counterweight_real *a, const int *perm, const slider_crank_counterweight_real *b, slider_crank_counterweight_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(slider_crank_counterweight_real) * 9);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(slider_crank_counterweight_real) * 9u);
     for (i = 0; i < n; ++i) {
         slider_crank_counterweight_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void slider_crank_counterweight_dense_solve_t(const slider_crank_counterweight_real *a, const int *perm, const slider_crank_counterweight_real *b, slider_crank_counterweight_real *x)
 {
     const int n = 9;
-    int i, j;
-    memcpy(x, b, sizeof(slider_crank_counterweight_real) * 9);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(slider_crank_counterweight_real) * 9u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         slider_crank_counterweight_real tmp = x[perm[i]];
@@ -698,8 +738,6 @@ static void slider_crank_counterweight_dense_solve_t(const slider_crank_counterw
         x[i] = tmp;
     }
 }
-
-static const int slider_crank_counterweight_pivot_slots[1] = { 16 };
 
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
@@ -707,6 +745,7 @@ static const int slider_crank_counterweight_pivot_slots[1] = { 16 };
    hold reciprocals, whose spread is the pivots'. */
 static int slider_crank_counterweight_pivots_spread(const slider_crank_counterweight_real *lu)
 {
+    static const int slider_crank_counterweight_pivot_slots[1] = { 16 };
     slider_crank_counterweight_real rmin = 1.0;
     slider_crank_counterweight_real rmax = 1.0;
     int k;
@@ -715,7 +754,7 @@ static int slider_crank_counterweight_pivots_spread(const slider_crank_counterwe
         rmin = SLIDER_CRANK_COUNTERWEIGHT_MIN(rmin, r);
         rmax = SLIDER_CRANK_COUNTERWEIGHT_MAX(rmax, r);
     }
-    return rmin <= SLIDER_CRANK_COUNTERWEIGHT_SINGULAR_RATIO * rmax;
+    return (rmin <= (SLIDER_CRANK_COUNTERWEIGHT_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -728,8 +767,12 @@ static int slider_crank_counterweight_pivots_spread(const slider_crank_counterwe
 static int slider_crank_counterweight_screen(const slider_crank_counterweight_real *lu, int dense, const slider_crank_counterweight_real *row, const slider_crank_counterweight_real *col,
                           const slider_crank_counterweight_real *known)
 {
-    slider_crank_counterweight_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    slider_crank_counterweight_real wmin = known[0];
+    slider_crank_counterweight_real wmax = known[1];
+    slider_crank_counterweight_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[16]) * row[5] * col[5];
     wmin = SLIDER_CRANK_COUNTERWEIGHT_MIN(wmin, w);
     wmax = SLIDER_CRANK_COUNTERWEIGHT_MAX(wmax, w);
@@ -737,7 +780,7 @@ static int slider_crank_counterweight_screen(const slider_crank_counterweight_re
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= SLIDER_CRANK_COUNTERWEIGHT_SCREEN * wmin);
+    return (wmax <= (SLIDER_CRANK_COUNTERWEIGHT_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -746,7 +789,8 @@ static int slider_crank_counterweight_screen(const slider_crank_counterweight_re
 static void slider_crank_counterweight_screen_known(const slider_crank_counterweight_real *row, const slider_crank_counterweight_real *col, slider_crank_counterweight_real *known)
 {
     slider_crank_counterweight_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[4] * col[6];
     known[0] = SLIDER_CRANK_COUNTERWEIGHT_MIN(known[0], w);
     known[1] = SLIDER_CRANK_COUNTERWEIGHT_MAX(known[1], w);
@@ -782,36 +826,51 @@ static void slider_crank_counterweight_screen_known(const slider_crank_counterwe
 static int slider_crank_counterweight_factorize(const slider_crank_counterweight_real *q, const slider_crank_counterweight_real *tr, slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, slider_crank_counterweight_real *work,
                              int *iwork, int *dense)
 {
-    slider_crank_counterweight_real *values = work, *lu = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_LU, *a = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE;
+    slider_crank_counterweight_real *values = work;
+    slider_crank_counterweight_real *lu = &work[SLIDER_CRANK_COUNTERWEIGHT_OFF_LU];
+    slider_crank_counterweight_real *a = &work[SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE];
     int k;
     slider_crank_counterweight_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (slider_crank_counterweight_sparse_factor(lu) == 0 && !slider_crank_counterweight_pivots_spread(lu)) return SLIDER_CRANK_COUNTERWEIGHT_OK;
+    if ((slider_crank_counterweight_sparse_factor(lu) == 0) && (slider_crank_counterweight_pivots_spread(lu) == 0)) {
+        return SLIDER_CRANK_COUNTERWEIGHT_OK;
+    }
     *dense = 1;
     slider_crank_counterweight_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(slider_crank_counterweight_real) * 81);
-    for (k = 0; k < 21; ++k) a[slider_crank_counterweight_phi_q_rows[k] * 9 + slider_crank_counterweight_phi_q_cols[k]] = values[k];
+    (void)memset(a, 0, sizeof(slider_crank_counterweight_real) * 81u);
+    for (k = 0; k < 21; ++k) {
+        a[(slider_crank_counterweight_phi_q_rows[k] * 9) + slider_crank_counterweight_phi_q_cols[k]] = values[k];
+    }
     return slider_crank_counterweight_dense_factor(a, iwork);
 }
 
 static void slider_crank_counterweight_solve(const slider_crank_counterweight_real *work, const int *iwork, int dense, const slider_crank_counterweight_real *b, slider_crank_counterweight_real *x, slider_crank_counterweight_real *y)
 {
-    if (dense) slider_crank_counterweight_dense_solve(work + SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE, iwork, b, x);
-    else slider_crank_counterweight_sparse_solve(work + SLIDER_CRANK_COUNTERWEIGHT_OFF_LU, b, x, y);
+    if (dense != 0) {
+        slider_crank_counterweight_dense_solve(&work[SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE], iwork, b, x);
+    } else {
+        slider_crank_counterweight_sparse_solve(&work[SLIDER_CRANK_COUNTERWEIGHT_OFF_LU], b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void slider_crank_counterweight_solve_in(const slider_crank_counterweight_real *work, const int *iwork, int dense, slider_crank_counterweight_real *b, slider_crank_counterweight_real *x, slider_crank_counterweight_real *y)
 {
-    if (dense) slider_crank_counterweight_solve(work, iwork, dense, b, x, y);
-    else slider_crank_counterweight_sparse_solve_in(work + SLIDER_CRANK_COUNTERWEIGHT_OFF_LU, b, x);
+    if (dense != 0) {
+        slider_crank_counterweight_solve(work, iwork, dense, b, x, y);
+    } else {
+        slider_crank_counterweight_sparse_solve_in(&work[SLIDER_CRANK_COUNTERWEIGHT_OFF_LU], b, x);
+    }
 }
 
 static void slider_crank_counterweight_solve_t(const slider_crank_counterweight_real *work, const int *iwork, int dense, const slider_crank_counterweight_real *b, slider_crank_counterweight_real *x)
 {
-    if (dense) slider_crank_counterweight_dense_solve_t(work + SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE, iwork, b, x);
-    else slider_crank_counterweight_sparse_solve_t(work + SLIDER_CRANK_COUNTERWEIGHT_OFF_LU, b, x);
+    if (dense != 0) {
+        slider_crank_counterweight_dense_solve_t(&work[SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE], iwork, b, x);
+    } else {
+        slider_crank_counterweight_sparse_solve_t(&work[SLIDER_CRANK_COUNTERWEIGHT_OFF_LU], b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -821,12 +880,13 @@ static void slider_crank_counterweight_solve_t(const slider_crank_counterweight_
    the refinement's cost (a quarter of an instant) is not paid. */
 static int slider_crank_counterweight_mixed(const slider_crank_counterweight_real *m)
 {
-    slider_crank_counterweight_real lo = m[0], hi = m[0];
+    slider_crank_counterweight_real lo = m[0];
+    slider_crank_counterweight_real hi = m[0];
     lo = SLIDER_CRANK_COUNTERWEIGHT_MIN(lo, m[3]);
     hi = SLIDER_CRANK_COUNTERWEIGHT_MAX(hi, m[3]);
     lo = SLIDER_CRANK_COUNTERWEIGHT_MIN(lo, m[6]);
     hi = SLIDER_CRANK_COUNTERWEIGHT_MAX(hi, m[6]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -841,14 +901,23 @@ static int slider_crank_counterweight_mixed(const slider_crank_counterweight_rea
 static SLIDER_CRANK_COUNTERWEIGHT_COLD void slider_crank_counterweight_refine_t(const slider_crank_counterweight_real *q, const slider_crank_counterweight_real *tr, slider_crank_counterweight_real t, const slider_crank_counterweight_real *p,
                                         const slider_crank_counterweight_real *b, slider_crank_counterweight_real *lam, slider_crank_counterweight_real *work, const int *iwork, int dense)
 {
-    slider_crank_counterweight_real *values = work, *r = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0), *d = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1);
+    slider_crank_counterweight_real *values = work;
+    slider_crank_counterweight_real *r = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0);
+    slider_crank_counterweight_real *d = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1);
     int k;
     slider_crank_counterweight_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(slider_crank_counterweight_real) * 9);
-    for (k = 0; k < 21; ++k) r[slider_crank_counterweight_phi_q_cols[k]] -= values[k] * lam[slider_crank_counterweight_phi_q_rows[k]];
-    if (dense) slider_crank_counterweight_dense_solve_t(work + SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE, iwork, r, d);
-    else slider_crank_counterweight_sparse_solve_t(work + SLIDER_CRANK_COUNTERWEIGHT_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 9; ++k) lam[k] += d[k];
+    (void)memcpy(r, b, sizeof(slider_crank_counterweight_real) * 9u);
+    for (k = 0; k < 21; ++k) {
+        r[slider_crank_counterweight_phi_q_cols[k]] -= values[k] * lam[slider_crank_counterweight_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        slider_crank_counterweight_dense_solve_t(&work[SLIDER_CRANK_COUNTERWEIGHT_OFF_DENSE], iwork, r, d);
+    } else {
+        slider_crank_counterweight_sparse_solve_t(&work[SLIDER_CRANK_COUNTERWEIGHT_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 9; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,
@@ -863,48 +932,85 @@ static slider_crank_counterweight_real slider_crank_counterweight_cond_estimate(
                                     slider_crank_counterweight_real *work, const int *iwork, int dense, const slider_crank_counterweight_real *row,
                                     const slider_crank_counterweight_real *col)
 {
-    slider_crank_counterweight_real *vals = work, *x = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0), *z = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1), *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
-    slider_crank_counterweight_real *b = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    slider_crank_counterweight_real *vals = work;
+    slider_crank_counterweight_real *x = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0);
+    slider_crank_counterweight_real *z = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1);
+    slider_crank_counterweight_real *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
+    slider_crank_counterweight_real *b = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 3);
+    slider_crank_counterweight_real anorm = 0.0;
+    slider_crank_counterweight_real est = 0.0;
+    slider_crank_counterweight_real s;
+    slider_crank_counterweight_real zmax;
+    slider_crank_counterweight_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     slider_crank_counterweight_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 9; ++k) z[k] = 0.0;
-    for (k = 0; k < 21; ++k)
+    for (k = 0; k < 9; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 21; ++k) {
         z[slider_crank_counterweight_phi_q_cols[k]] += fabs(vals[k]) / (row[slider_crank_counterweight_phi_q_rows[k]] * col[slider_crank_counterweight_phi_q_cols[k]]);
-    for (k = 0; k < 9; ++k) anorm = SLIDER_CRANK_COUNTERWEIGHT_MAX(anorm, z[k]);
-    for (k = 0; k < 9; ++k) x[k] = 1.0 / 9.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        anorm = SLIDER_CRANK_COUNTERWEIGHT_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 9; ++k) {
+        x[k] = 1.0 / 9.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 9; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = row[k] * x[k];
+        }
         slider_crank_counterweight_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 9; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 9; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         slider_crank_counterweight_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 9; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 9; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 9; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 9; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (slider_crank_counterweight_real)k / SLIDER_CRANK_COUNTERWEIGHT_MAX(1.0, 8.0));
+    for (k = 0; k < 9; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((slider_crank_counterweight_real)k / SLIDER_CRANK_COUNTERWEIGHT_MAX(1.0, 8.0)));
+    }
     slider_crank_counterweight_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 9; ++k) s += fabs(z[k] * col[k]);
-    est = SLIDER_CRANK_COUNTERWEIGHT_MAX(est, 2.0 * s / (3.0 * 9.0));
+    for (k = 0; k < 9; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = SLIDER_CRANK_COUNTERWEIGHT_MAX(est, (2.0 * s) / (3.0 * 9.0));
     return anorm * est;
 }
 
@@ -919,28 +1025,36 @@ static slider_crank_counterweight_real slider_crank_counterweight_cond_estimate(
 static int slider_crank_counterweight_row_finite(const slider_crank_counterweight_real *row, const slider_crank_counterweight_real *qn, const slider_crank_counterweight_real *qdn, const slider_crank_counterweight_real *qddn,
                               const slider_crank_counterweight_real *lam, const slider_crank_counterweight_real *reac)
 {
-    slider_crank_counterweight_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    slider_crank_counterweight_real s0 = 0.0;
+    slider_crank_counterweight_real s1 = 0.0;
+    slider_crank_counterweight_real s2 = 0.0;
+    slider_crank_counterweight_real s3 = 0.0;
     int k;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     for (k = 0; k < 64; k += 4) {
-        s0 += row[1 + k + 0];
+        s0 += row[1 + k];
         s1 += row[1 + k + 1];
         s2 += row[1 + k + 2];
         s3 += row[1 + k + 3];
     }
     s0 += row[65];
     s1 += row[66];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     for (k = 0; k < 64; k += 4) {
-        s0 += row[1 + k + 0] * 0.0;
+        s0 += row[1 + k] * 0.0;
         s1 += row[1 + k + 1] * 0.0;
         s2 += row[1 + k + 2] * 0.0;
         s3 += row[1 + k + 3] * 0.0;
     }
     s0 += row[65] * 0.0;
     s1 += row[66] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 9 values, NaN if any v_k is NaN (so that a NaN residual
@@ -948,37 +1062,45 @@ static int slider_crank_counterweight_row_finite(const slider_crank_counterweigh
    comparison. */
 static slider_crank_counterweight_real slider_crank_counterweight_maxabs9(const slider_crank_counterweight_real *v)
 {
-    slider_crank_counterweight_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    slider_crank_counterweight_real m0 = 0.0;
+    slider_crank_counterweight_real m1 = 0.0;
+    slider_crank_counterweight_real m2 = 0.0;
+    slider_crank_counterweight_real m3 = 0.0;
+    slider_crank_counterweight_real s0 = 0.0;
+    slider_crank_counterweight_real s1 = 0.0;
+    slider_crank_counterweight_real s2 = 0.0;
+    slider_crank_counterweight_real s3 = 0.0;
+    slider_crank_counterweight_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[6]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[7]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[8]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     m0 = SLIDER_CRANK_COUNTERWEIGHT_MAX(SLIDER_CRANK_COUNTERWEIGHT_MAX(m0, m1), SLIDER_CRANK_COUNTERWEIGHT_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
@@ -1030,17 +1152,28 @@ static slider_crank_counterweight_real slider_crank_counterweight_correct(slider
 static int slider_crank_counterweight_newton(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, slider_crank_counterweight_real tol, slider_crank_counterweight_real *q, slider_crank_counterweight_real *tr, int *info, slider_crank_counterweight_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    slider_crank_counterweight_real *r = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0), *dq = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1), *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
+    slider_crank_counterweight_real *r = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0);
+    slider_crank_counterweight_real *dq = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1);
+    slider_crank_counterweight_real *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
     slider_crank_counterweight_real *base = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 10);
-    slider_crank_counterweight_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    slider_crank_counterweight_real step = ((double)INFINITY);
+    slider_crank_counterweight_real lim;
+    slider_crank_counterweight_real qmag;
+    slider_crank_counterweight_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) slider_crank_counterweight_trig_near(q, tr, base);
-    else slider_crank_counterweight_trig_base(q, tr, base);
+    if (reuse != 0) {
+        slider_crank_counterweight_trig_near(q, tr, base);
+    } else {
+        slider_crank_counterweight_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_CRANK_COUNTERWEIGHT_MAX(1.0, slider_crank_counterweight_maxabs9(q));
-    lim = SLIDER_CRANK_COUNTERWEIGHT_MAX(tol, (slider_crank_counterweight_real)SLIDER_CRANK_COUNTERWEIGHT_FLOOR_ULPS * SLIDER_CRANK_COUNTERWEIGHT_EPS * qmag);
+    lim = SLIDER_CRANK_COUNTERWEIGHT_MAX(tol, ((slider_crank_counterweight_real)SLIDER_CRANK_COUNTERWEIGHT_FLOOR_ULPS * SLIDER_CRANK_COUNTERWEIGHT_EPS) * qmag);
     slider_crank_counterweight_phi_k(q, tr, t, p, r);
     rmax = slider_crank_counterweight_maxabs9(r);
     for (it = 0;; ++it) {
@@ -1049,15 +1182,17 @@ static int slider_crank_counterweight_newton(slider_crank_counterweight_real t, 
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? SLIDER_CRANK_COUNTERWEIGHT_NONFINITE : SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
+            return (it == 0) ? SLIDER_CRANK_COUNTERWEIGHT_NONFINITE : SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK) {
+        if (it == SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK)) {
             info[0] = it;
             info[1] = *dense;
             return SLIDER_CRANK_COUNTERWEIGHT_SINGULAR;
@@ -1067,8 +1202,8 @@ static int slider_crank_counterweight_newton(slider_crank_counterweight_real t, 
         slider_crank_counterweight_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= SLIDER_CRANK_COUNTERWEIGHT_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (SLIDER_CRANK_COUNTERWEIGHT_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1080,8 +1215,10 @@ static int slider_crank_counterweight_newton(slider_crank_counterweight_real t, 
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
-    if (!current && slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK) {
+    if (converged == 0) {
+        return SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
+    }
+    if ((current == 0) && (slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK)) {
         info[1] = *dense;
         return SLIDER_CRANK_COUNTERWEIGHT_SINGULAR;
     }
@@ -1093,7 +1230,8 @@ static int slider_crank_counterweight_newton(slider_crank_counterweight_real t, 
 static void slider_crank_counterweight_outputs(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, const slider_crank_counterweight_real *q, const slider_crank_counterweight_real *tr, slider_crank_counterweight_real *qd, slider_crank_counterweight_real *qdd,
                             slider_crank_counterweight_real *lam, slider_crank_counterweight_real *reactions, slider_crank_counterweight_real *work, const int *iwork, int dense)
 {
-    slider_crank_counterweight_real *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2), *b = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 3);
+    slider_crank_counterweight_real *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
+    slider_crank_counterweight_real *b = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 3);
     slider_crank_counterweight_nu_k(q, tr, t, p, b);
     slider_crank_counterweight_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     slider_crank_counterweight_gamma_k(q, tr, qd, t, p, b);
@@ -1110,7 +1248,9 @@ static void slider_crank_counterweight_outputs(slider_crank_counterweight_real t
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_counterweight_solve_t(work, iwork, dense, b, lam);
-    if (slider_crank_counterweight_mixed(y)) slider_crank_counterweight_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (slider_crank_counterweight_mixed(y) != 0) {
+        slider_crank_counterweight_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     slider_crank_counterweight_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1119,8 +1259,11 @@ static void slider_crank_counterweight_outputs(slider_crank_counterweight_real t
    order, so four sums run side by side and the compiler may pack them). */
 static int slider_crank_counterweight_allfinite(const slider_crank_counterweight_real *v, int n)
 {
-    slider_crank_counterweight_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    slider_crank_counterweight_real s0 = 0.0;
+    slider_crank_counterweight_real s1 = 0.0;
+    slider_crank_counterweight_real s2 = 0.0;
+    slider_crank_counterweight_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1129,8 +1272,11 @@ static int slider_crank_counterweight_allfinite(const slider_crank_counterweight
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1152,12 +1298,24 @@ static int slider_crank_counterweight_finite(const slider_crank_counterweight_re
 static void slider_crank_counterweight_keep(slider_crank_counterweight_real *state, const slider_crank_counterweight_real *q, const slider_crank_counterweight_real *qd, const slider_crank_counterweight_real *qdd,
                          const slider_crank_counterweight_real *m1, const slider_crank_counterweight_real *m2, const slider_crank_counterweight_real *m3)
 {
-    if (m3 != state + 45) memcpy(state + 45, m3, sizeof(slider_crank_counterweight_real) * 9);
-    if (m2 != state + 36) memcpy(state + 36, m2, sizeof(slider_crank_counterweight_real) * 9);
-    if (m1 != state + 27) memcpy(state + 27, m1, sizeof(slider_crank_counterweight_real) * 9);
-    if (qdd != state + 18) memcpy(state + 18, qdd, sizeof(slider_crank_counterweight_real) * 9);
-    if (qd != state + 9) memcpy(state + 9, qd, sizeof(slider_crank_counterweight_real) * 9);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(slider_crank_counterweight_real) * 9);
+    if (m3 != &state[45]) {
+        (void)memcpy(&state[45], m3, sizeof(slider_crank_counterweight_real) * 9u);
+    }
+    if (m2 != &state[36]) {
+        (void)memcpy(&state[36], m2, sizeof(slider_crank_counterweight_real) * 9u);
+    }
+    if (m1 != &state[27]) {
+        (void)memcpy(&state[27], m1, sizeof(slider_crank_counterweight_real) * 9u);
+    }
+    if (qdd != &state[18]) {
+        (void)memcpy(&state[18], qdd, sizeof(slider_crank_counterweight_real) * 9u);
+    }
+    if (qd != &state[9]) {
+        (void)memcpy(&state[9], qd, sizeof(slider_crank_counterweight_real) * 9u);
+    }
+    if (q != state) {
+        (void)memcpy(state, q, sizeof(slider_crank_counterweight_real) * 9u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1167,27 +1325,32 @@ static void slider_crank_counterweight_keep(slider_crank_counterweight_real *sta
 static int slider_crank_counterweight_unexplained(const slider_crank_counterweight_real *q0, const slider_crank_counterweight_real *qd0, const slider_crank_counterweight_real *qdd0, const slider_crank_counterweight_real *q1,
                                const slider_crank_counterweight_real *qd1, const slider_crank_counterweight_real *qdd1, slider_crank_counterweight_real h, const slider_crank_counterweight_real *c)
 {
-    const slider_crank_counterweight_real half = 0.5 * h, hh = h * h / 12.0;
-    slider_crank_counterweight_real mismatch = 0.0, motion = 0.0, d;
+    const slider_crank_counterweight_real half = 0.5 * h;
+    const slider_crank_counterweight_real hh = (h * h) / 12.0;
+    slider_crank_counterweight_real mismatch = 0.0;
+    slider_crank_counterweight_real motion = 0.0;
+    slider_crank_counterweight_real d;
     d = q1[0] - q0[0];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
     d = q1[6] - q0[6];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[6] + qd1[6]) - hh * (qdd0[6] - qdd1[6])) * c[6]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[6] + qd1[6]))) - (hh * (qdd0[6] - qdd1[6]))) * c[6]);
     d = q1[7] - q0[7];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[7] + qd1[7]) - hh * (qdd0[7] - qdd1[7])) * c[7]);
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[7] + qd1[7]))) - (hh * (qdd0[7] - qdd1[7]))) * c[7]);
     d = q1[8] - q0[8];
-    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs(d - half * (qd0[8] + qd1[8]) - hh * (qdd0[8] - qdd1[8])) * c[8]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = SLIDER_CRANK_COUNTERWEIGHT_MAX(mismatch, fabs((d - (half * (qd0[8] + qd1[8]))) - (hh * (qdd0[8] - qdd1[8]))) * c[8]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = SLIDER_CRANK_COUNTERWEIGHT_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1206,35 +1369,43 @@ static int slider_crank_counterweight_unexplained(const slider_crank_counterweig
     motion = SLIDER_CRANK_COUNTERWEIGHT_MAX(motion, fabs(d) * c[7]);
     d = q1[8] - q0[8];
     motion = SLIDER_CRANK_COUNTERWEIGHT_MAX(motion, fabs(d) * c[8]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int slider_crank_counterweight_instant(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, slider_crank_counterweight_real tol, slider_crank_counterweight_real *q, slider_crank_counterweight_real *qd, slider_crank_counterweight_real *qdd,
                     slider_crank_counterweight_real *lam, slider_crank_counterweight_real *reactions, int *info, slider_crank_counterweight_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = SLIDER_CRANK_COUNTERWEIGHT_BAD_ARGUMENT;
     } else {
-        slider_crank_counterweight_real *tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9), *pp = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP, *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
-        memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9);  /* the caller's guess, back in q if the call fails */
+        slider_crank_counterweight_real *tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9);
+        slider_crank_counterweight_real *pp = &work[SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP];
+        slider_crank_counterweight_real *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_counterweight_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 5);
-        if (qdd == NULL) qdd = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 6);
-        if (lam == NULL) lam = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 7);
-        if (reactions == NULL) reactions = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 8);
+        slider_crank_counterweight_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 5);
+        slider_crank_counterweight_real *qdd_out = (qdd != NULL) ? qdd : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 6);
+        slider_crank_counterweight_real *lam_out = (lam != NULL) ? lam : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 7);
+        slider_crank_counterweight_real *reactions_out = (reactions != NULL) ? reactions : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 8);
         status = slider_crank_counterweight_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == SLIDER_CRANK_COUNTERWEIGHT_OK) {
-            slider_crank_counterweight_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!slider_crank_counterweight_finite(q, qd, qdd, lam, reactions)) status = SLIDER_CRANK_COUNTERWEIGHT_NONFINITE;
+            slider_crank_counterweight_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (slider_crank_counterweight_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = SLIDER_CRANK_COUNTERWEIGHT_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != SLIDER_CRANK_COUNTERWEIGHT_OK) memcpy(q, kept, sizeof(slider_crank_counterweight_real) * 9);
+        if (status != SLIDER_CRANK_COUNTERWEIGHT_OK) {
+            (void)memcpy(q, kept, sizeof(slider_crank_counterweight_real) * 9u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1252,21 +1423,29 @@ int slider_crank_counterweight_instant_at(long whole, slider_crank_counterweight
 
 int slider_crank_counterweight_screen_at(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, const slider_crank_counterweight_real *state, slider_crank_counterweight_real *work, int *iwork)
 {
-    slider_crank_counterweight_real *tr, *pp, known[2];
+    slider_crank_counterweight_real *tr;
+    slider_crank_counterweight_real *pp;
+    slider_crank_counterweight_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return SLIDER_CRANK_COUNTERWEIGHT_BAD_ARGUMENT;
-    if (!(state[63] > 0.0)) return SLIDER_CRANK_COUNTERWEIGHT_OK;  /* no scales: no screen */
-    tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9), pp = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP;
+    }
+    if (!(state[63] > 0.0)) {
+        return SLIDER_CRANK_COUNTERWEIGHT_OK;  /* no scales: no screen */
+    }
+    tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9);
+    pp = &work[SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP];
     slider_crank_counterweight_prepare(p, pp);
     slider_crank_counterweight_trig(state, tr);
-    if (slider_crank_counterweight_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_CRANK_COUNTERWEIGHT_OK)
+    if (slider_crank_counterweight_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_CRANK_COUNTERWEIGHT_OK) {
         return SLIDER_CRANK_COUNTERWEIGHT_ILL_CONDITIONED;
-    slider_crank_counterweight_screen_known(state + 63, state + 54, known);
-    if (slider_crank_counterweight_screen(work + SLIDER_CRANK_COUNTERWEIGHT_OFF_LU, dense, state + 63, state + 54, known)
-        && !(slider_crank_counterweight_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 63, state + 54)
-             <= SLIDER_CRANK_COUNTERWEIGHT_COND_SCREEN))
+    }
+    slider_crank_counterweight_screen_known(&state[63], &state[54], known);
+    if ((slider_crank_counterweight_screen(&work[SLIDER_CRANK_COUNTERWEIGHT_OFF_LU], dense, &state[63], &state[54], known) != 0)
+        && !(slider_crank_counterweight_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[63], &state[54])
+             <= SLIDER_CRANK_COUNTERWEIGHT_COND_SCREEN)) {
         return SLIDER_CRANK_COUNTERWEIGHT_ILL_CONDITIONED;
+    }
     return SLIDER_CRANK_COUNTERWEIGHT_OK;
 }
 
@@ -1276,93 +1455,133 @@ int slider_crank_counterweight_trajectory(slider_crank_counterweight_real t0, sl
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    slider_crank_counterweight_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    slider_crank_counterweight_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    slider_crank_counterweight_real *q;
+    slider_crank_counterweight_real *m1;
+    slider_crank_counterweight_real *m2;
+    slider_crank_counterweight_real *count;
+    slider_crank_counterweight_real *qn;
+    slider_crank_counterweight_real *qdn;
+    slider_crank_counterweight_real *qddn;
+    slider_crank_counterweight_real *lam;
+    slider_crank_counterweight_real *reac;
+    slider_crank_counterweight_real *tr;
+    slider_crank_counterweight_real *pp;
+    slider_crank_counterweight_real *scale;
+    slider_crank_counterweight_real *rscale;
+    slider_crank_counterweight_real *qd;
+    slider_crank_counterweight_real *qdd;
+    slider_crank_counterweight_real *m3;
+    slider_crank_counterweight_real known[2];
+    long i;
+    long unused;
+    long *done = &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
+    *done = 0;
     status = SLIDER_CRANK_COUNTERWEIGHT_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return SLIDER_CRANK_COUNTERWEIGHT_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 27, m2 = state + 36, count = state + 72;
-    scale = state + 54, rscale = state + 63;
-    if (rscale[0] > 0.0) slider_crank_counterweight_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 9, qdd = state + 18, m3 = state + 45;
-    tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9), pp = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP;
+    q = state;
+    m1 = &state[27];
+    m2 = &state[36];
+    count = &state[72];
+    scale = &state[54];
+    rscale = &state[63];
+    if (rscale[0] > 0.0) {
+        slider_crank_counterweight_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[9];
+    qdd = &state[18];
+    m3 = &state[45];
+    tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9);
+    pp = &work[SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP];
     slider_crank_counterweight_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const slider_crank_counterweight_real t = t0 + *count * h;
-        slider_crank_counterweight_real *row = rows + i * SLIDER_CRANK_COUNTERWEIGHT_ROW;
+        const slider_crank_counterweight_real t = t0 + (*count * h);
+        slider_crank_counterweight_real *row = &rows[i * SLIDER_CRANK_COUNTERWEIGHT_ROW];
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 10;
-        qddn = row + 19;
-        lam = row + 28;
-        reac = row + 37;
+        qn = &row[1];
+        qdn = &row[10];
+        qddn = &row[19];
+        lam = &row[28];
+        reac = &row[37];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-            qn[6] = q[6] + h * (qd[6] + h * ((323.0 / 360.0) * qdd[6] - (264.0 / 360.0) * m1[6]
-                                                 + (159.0 / 360.0) * m2[6] - (38.0 / 360.0) * m3[6]));
-            qn[7] = q[7] + h * (qd[7] + h * ((323.0 / 360.0) * qdd[7] - (264.0 / 360.0) * m1[7]
-                                                 + (159.0 / 360.0) * m2[7] - (38.0 / 360.0) * m3[7]));
-            qn[8] = q[8] + h * (qd[8] + h * ((323.0 / 360.0) * qdd[8] - (264.0 / 360.0) * m1[8]
-                                                 + (159.0 / 360.0) * m2[8] - (38.0 / 360.0) * m3[8]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-            qn[6] = q[6] + h * (qd[6] + 0.5 * h * qdd[6]);
-            qn[7] = q[7] + h * (qd[7] + 0.5 * h * qdd[7]);
-            qn[8] = q[8] + h * (qd[8] + 0.5 * h * qdd[8]);
-        } else
-            memcpy(qn, q, sizeof(slider_crank_counterweight_real) * 9);
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+            qn[6] = q[6] + (h * (qd[6] + (h * (((((323.0 / 360.0) * qdd[6]) - ((264.0 / 360.0) * m1[6]))
+                                                 + ((159.0 / 360.0) * m2[6])) - ((38.0 / 360.0) * m3[6])))));
+            qn[7] = q[7] + (h * (qd[7] + (h * (((((323.0 / 360.0) * qdd[7]) - ((264.0 / 360.0) * m1[7]))
+                                                 + ((159.0 / 360.0) * m2[7])) - ((38.0 / 360.0) * m3[7])))));
+            qn[8] = q[8] + (h * (qd[8] + (h * (((((323.0 / 360.0) * qdd[8]) - ((264.0 / 360.0) * m1[8]))
+                                                 + ((159.0 / 360.0) * m2[8])) - ((38.0 / 360.0) * m3[8])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+            qn[6] = q[6] + (h * (qd[6] + ((0.5 * h) * qdd[6])));
+            qn[7] = q[7] + (h * (qd[7] + ((0.5 * h) * qdd[7])));
+            qn[8] = q[8] + (h * (qd[8] + ((0.5 * h) * qdd[8])));
+        } else {
+            (void)memcpy(qn, q, sizeof(slider_crank_counterweight_real) * 9u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = slider_crank_counterweight_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != SLIDER_CRANK_COUNTERWEIGHT_OK) break;
-        if (rscale[0] > 0.0 && slider_crank_counterweight_screen(work + SLIDER_CRANK_COUNTERWEIGHT_OFF_LU, dense, rscale, scale, known)
+        status = slider_crank_counterweight_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != SLIDER_CRANK_COUNTERWEIGHT_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (slider_crank_counterweight_screen(&work[SLIDER_CRANK_COUNTERWEIGHT_OFF_LU], dense, rscale, scale, known) != 0)
             && !(slider_crank_counterweight_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= SLIDER_CRANK_COUNTERWEIGHT_COND_SCREEN)) {
             status = SLIDER_CRANK_COUNTERWEIGHT_ILL_CONDITIONED;
             break;
         }
         slider_crank_counterweight_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!slider_crank_counterweight_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (slider_crank_counterweight_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = SLIDER_CRANK_COUNTERWEIGHT_NONFINITE;
             break;
         }
-        if (*count >= 1 && slider_crank_counterweight_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (slider_crank_counterweight_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = SLIDER_CRANK_COUNTERWEIGHT_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     slider_crank_counterweight_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }
@@ -1375,15 +1594,15 @@ static void slider_crank_counterweight_guess(const slider_crank_counterweight_re
     (void)p;
     const slider_crank_counterweight_real g0 = (1.0/(p[2] + p[9]));
     const slider_crank_counterweight_real g1 = p[10]*p[9];
-    out[0] = (g0*(g1*cos(p[11]) + (1.0/2.0)*p[0]*p[2]));
+    out[0] = (g0*((g1*cos(p[11])) + ((1.0/2.0)*p[0]*p[2])));
     out[1] = (g0*g1*sin(p[11]));
-    out[2] = 0;
-    out[3] = p[0] + (1.0/2.0)*p[1];
-    out[4] = 0;
-    out[5] = 0;
+    out[2] = 0.0;
+    out[3] = p[0] + ((1.0/2.0)*p[1]);
+    out[4] = 0.0;
+    out[5] = 0.0;
     out[6] = p[0] + p[1];
-    out[7] = 0;
-    out[8] = 0;
+    out[7] = 0.0;
+    out[8] = 0.0;
 }
 
 /* Each driver's f(t) and f'(t), in file order. */
@@ -1391,7 +1610,7 @@ static void slider_crank_counterweight_drive(slider_crank_counterweight_real t, 
 {
     (void)t;
     (void)p;
-    const slider_crank_counterweight_real d0 = (2*3.141592653589793*p[7]);
+    const slider_crank_counterweight_real d0 = (2.0*3.141592653589793*p[7]);
     out[0] = d0*t;
     out[1] = d0;
 }
@@ -1404,36 +1623,61 @@ static void slider_crank_counterweight_drive(slider_crank_counterweight_real t, 
 static void slider_crank_counterweight_sweep_scales(const slider_crank_counterweight_real *q, slider_crank_counterweight_real t0, const slider_crank_counterweight_real *p, slider_crank_counterweight_real *vals,
                                  slider_crank_counterweight_real *arms, slider_crank_counterweight_real *inv, slider_crank_counterweight_real *norm)
 {
-    slider_crank_counterweight_real lin[9], rot[9], lref = 0.0, a;
-    int k, r, m = 0, i;
+    slider_crank_counterweight_real lin[9];
+    slider_crank_counterweight_real rot[9];
+    slider_crank_counterweight_real lref = 0.0;
+    slider_crank_counterweight_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     slider_crank_counterweight_phi_q(q, t0, p, vals);
-    for (r = 0; r < 9; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 9; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 21; ++k) {
         a = fabs(vals[k]);
         r = slider_crank_counterweight_phi_q_rows[k];
-        if (slider_crank_counterweight_phi_q_cols[k] % 3 == 2) rot[r] = SLIDER_CRANK_COUNTERWEIGHT_MAX(rot[r], a);
-        else lin[r] = SLIDER_CRANK_COUNTERWEIGHT_MAX(lin[r], a);
+        if ((slider_crank_counterweight_phi_q_cols[k] % 3) == 2) {
+            rot[r] = SLIDER_CRANK_COUNTERWEIGHT_MAX(rot[r], a);
+        } else {
+            lin[r] = SLIDER_CRANK_COUNTERWEIGHT_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 9; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
+                arms[i] = arms[i - 1];
+                --i;
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 9; ++k)
-            if (k % 3 != 2) lref = SLIDER_CRANK_COUNTERWEIGHT_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 9; ++k) {
+            if ((k % 3) != 2) {
+                lref = SLIDER_CRANK_COUNTERWEIGHT_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 9; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 9; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 9; ++r) {
         a = SLIDER_CRANK_COUNTERWEIGHT_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1445,7 +1689,9 @@ static void slider_crank_counterweight_sweep_take(const slider_crank_counterweig
                                slider_crank_counterweight_real *drive, long count)
 {
     const slider_crank_counterweight_real t = row[0];
-    slider_crank_counterweight_real e, rate, w;
+    slider_crank_counterweight_real e;
+    slider_crank_counterweight_real rate;
+    slider_crank_counterweight_real w;
     slider_crank_counterweight_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1455,41 +1701,69 @@ static void slider_crank_counterweight_sweep_take(const slider_crank_counterweig
     e = -row[36];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[4]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* main_bearing.force_peak */
-    m = row[37] * row[37] + row[38] * row[38];
-    if (count == 0 || m > fig[4]) fig[4] = m;
-    m = row[40] * row[40] + row[41] * row[41];
-    if (m > fig[4]) fig[4] = m;
+    m = (row[37] * row[37]) + (row[38] * row[38]);
+    if ((count == 0) || (m > fig[4])) {
+        fig[4] = m;
+    }
+    m = (row[40] * row[40]) + (row[41] * row[41]);
+    if ((m > fig[4])) {
+        fig[4] = m;
+    }
     /* crank_pin.force_peak */
-    m = row[43] * row[43] + row[44] * row[44];
-    if (count == 0 || m > fig[5]) fig[5] = m;
-    m = row[46] * row[46] + row[47] * row[47];
-    if (m > fig[5]) fig[5] = m;
+    m = (row[43] * row[43]) + (row[44] * row[44]);
+    if ((count == 0) || (m > fig[5])) {
+        fig[5] = m;
+    }
+    m = (row[46] * row[46]) + (row[47] * row[47]);
+    if ((m > fig[5])) {
+        fig[5] = m;
+    }
     /* wrist_pin.force_peak */
-    m = row[49] * row[49] + row[50] * row[50];
-    if (count == 0 || m > fig[6]) fig[6] = m;
-    m = row[52] * row[52] + row[53] * row[53];
-    if (m > fig[6]) fig[6] = m;
+    m = (row[49] * row[49]) + (row[50] * row[50]);
+    if ((count == 0) || (m > fig[6])) {
+        fig[6] = m;
+    }
+    m = (row[52] * row[52]) + (row[53] * row[53]);
+    if ((m > fig[6])) {
+        fig[6] = m;
+    }
     /* cylinder_guide.force_peak */
-    m = row[55] * row[55] + row[56] * row[56];
-    if (count == 0 || m > fig[7]) fig[7] = m;
-    m = row[58] * row[58] + row[59] * row[59];
-    if (m > fig[7]) fig[7] = m;
+    m = (row[55] * row[55]) + (row[56] * row[56]);
+    if ((count == 0) || (m > fig[7])) {
+        fig[7] = m;
+    }
+    m = (row[58] * row[58]) + (row[59] * row[59]);
+    if ((m > fig[7])) {
+        fig[7] = m;
+    }
     /* motor.force_peak */
-    m = row[61] * row[61] + row[62] * row[62];
-    if (count == 0 || m > fig[8]) fig[8] = m;
-    m = row[64] * row[64] + row[65] * row[65];
-    if (m > fig[8]) fig[8] = m;
-    if (count == 0) acc[3] = t;
+    m = (row[61] * row[61]) + (row[62] * row[62]);
+    if ((count == 0) || (m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[64] * row[64]) + (row[65] * row[65]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
+    if (count == 0) {
+        acc[3] = t;
+    }
     acc[4] = t;
 }
 
@@ -1500,7 +1774,9 @@ static void slider_crank_counterweight_sweep_finish(slider_crank_counterweight_r
     const slider_crank_counterweight_real span = acc[4] - acc[3];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 9; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 9; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1509,7 +1785,7 @@ static void slider_crank_counterweight_sweep_finish(slider_crank_counterweight_r
     fig[6] = sqrt(fig[6]);
     fig[7] = sqrt(fig[7]);
     fig[8] = sqrt(fig[8]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (slider_crank_counterweight_real)count);
 }
 
@@ -1519,10 +1795,14 @@ static void slider_crank_counterweight_sweep_finish(slider_crank_counterweight_r
 long slider_crank_counterweight_sweep_lanes(long *abandoned)
 {
 #if SLIDER_CRANK_COUNTERWEIGHT_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&slider_crank_counterweight_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&slider_crank_counterweight_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return slider_crank_counterweight_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1530,25 +1810,37 @@ long slider_crank_counterweight_sweep_lanes(long *abandoned)
 int slider_crank_counterweight_sweep(long k, const slider_crank_counterweight_real *p, slider_crank_counterweight_real t0, slider_crank_counterweight_real h, long n, slider_crank_counterweight_real tol,
                   slider_crank_counterweight_real *figures, int *status, slider_crank_counterweight_real *t_end, long *solved, slider_crank_counterweight_real *work, int *iwork)
 {
-    slider_crank_counterweight_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    slider_crank_counterweight_real *state;
+    slider_crank_counterweight_real *rows;
+    slider_crank_counterweight_real *vals;
+    slider_crank_counterweight_real *arms;
+    slider_crank_counterweight_real *drive;
+    slider_crank_counterweight_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if SLIDER_CRANK_COUNTERWEIGHT_LANES > 1
     const long lanes = slider_crank_counterweight_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     slider_crank_counterweight_real snap[SLIDER_CRANK_COUNTERWEIGHT_LANES * SLIDER_CRANK_COUNTERWEIGHT_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return SLIDER_CRANK_COUNTERWEIGHT_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + SLIDER_CRANK_COUNTERWEIGHT_WORK, rows = state + SLIDER_CRANK_COUNTERWEIGHT_STATE;
-    vals = rows + 32 * SLIDER_CRANK_COUNTERWEIGHT_ROW, arms = vals + 21, drive = arms + 9;
-    acc = drive + 2;
+    state = &work[SLIDER_CRANK_COUNTERWEIGHT_WORK];
+    rows = &state[SLIDER_CRANK_COUNTERWEIGHT_STATE];
+    vals = &rows[32 * SLIDER_CRANK_COUNTERWEIGHT_ROW];
+    arms = &vals[21];
+    drive = &arms[9];
+    acc = &drive[2];
     for (v = 0; v < k; ++v) {
-        const slider_crank_counterweight_real *pv = p + v * SLIDER_CRANK_COUNTERWEIGHT_NP;
-        slider_crank_counterweight_real *fig = figures + v * SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES;
+        const slider_crank_counterweight_real *pv = &p[v * SLIDER_CRANK_COUNTERWEIGHT_NP];
+        slider_crank_counterweight_real *fig = &figures[v * SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES];
 #if SLIDER_CRANK_COUNTERWEIGHT_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (slider_crank_counterweight_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1560,26 +1852,28 @@ int slider_crank_counterweight_sweep(long k, const slider_crank_counterweight_re
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const slider_crank_counterweight_real *s = snap + (v - first) * SLIDER_CRANK_COUNTERWEIGHT_SNAP;
-            memcpy(state, s, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_STATE);
-            memcpy(fig, s + SLIDER_CRANK_COUNTERWEIGHT_STATE, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES);
-            memcpy(acc, s + SLIDER_CRANK_COUNTERWEIGHT_STATE + SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES, sizeof(slider_crank_counterweight_real) * 5);
+            (void)memcpy(state, s, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_STATE);
+            (void)memcpy(fig, &s[SLIDER_CRANK_COUNTERWEIGHT_STATE], sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[SLIDER_CRANK_COUNTERWEIGHT_STATE + SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES], sizeof(slider_crank_counterweight_real) * 5u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_STATE);
+            (void)memset(state, 0, sizeof(slider_crank_counterweight_real) * (size_t)SLIDER_CRANK_COUNTERWEIGHT_STATE);
             slider_crank_counterweight_guess(pv, state);
             done = 0;
         }
         st = SLIDER_CRANK_COUNTERWEIGHT_OK;
-        while (done < n && st == SLIDER_CRANK_COUNTERWEIGHT_OK) {
+        while ((done < n) && (st == SLIDER_CRANK_COUNTERWEIGHT_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : SLIDER_CRANK_COUNTERWEIGHT_MIN(32, n - done);
+            m = (done == 0) ? 1 : SLIDER_CRANK_COUNTERWEIGHT_MIN(32, n - done);
             got = 0;
             st = slider_crank_counterweight_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) slider_crank_counterweight_sweep_take(rows + m * SLIDER_CRANK_COUNTERWEIGHT_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
-                slider_crank_counterweight_sweep_scales(state, t0, pv, vals, arms, state + 54, state + 63);
+            for (m = 0; m < got; ++m) {
+                slider_crank_counterweight_sweep_take(&rows[m * SLIDER_CRANK_COUNTERWEIGHT_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
+                slider_crank_counterweight_sweep_scales(state, t0, pv, vals, arms, &state[54], &state[63]);
                 st = slider_crank_counterweight_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;
@@ -1587,7 +1881,7 @@ int slider_crank_counterweight_sweep(long k, const slider_crank_counterweight_re
         slider_crank_counterweight_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[4] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[4] : ((double)NAN);
     }
     return SLIDER_CRANK_COUNTERWEIGHT_OK;
 }
@@ -1649,17 +1943,28 @@ static void slider_crank_counterweight_sp_gamma_k(const slider_crank_counterweig
 static int slider_crank_counterweight_sp_newton(slider_crank_counterweight_real t, const slider_crank_counterweight_real *p, const slider_crank_counterweight_real *q_des, slider_crank_counterweight_real tol, slider_crank_counterweight_real *q, slider_crank_counterweight_real *tr, int *info, slider_crank_counterweight_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    slider_crank_counterweight_real *r = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0), *dq = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1), *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
+    slider_crank_counterweight_real *r = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0);
+    slider_crank_counterweight_real *dq = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 1);
+    slider_crank_counterweight_real *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
     slider_crank_counterweight_real *base = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 10);
-    slider_crank_counterweight_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    slider_crank_counterweight_real step = ((double)INFINITY);
+    slider_crank_counterweight_real lim;
+    slider_crank_counterweight_real qmag;
+    slider_crank_counterweight_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) slider_crank_counterweight_trig_near(q, tr, base);
-    else slider_crank_counterweight_trig_base(q, tr, base);
+    if (reuse != 0) {
+        slider_crank_counterweight_trig_near(q, tr, base);
+    } else {
+        slider_crank_counterweight_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_CRANK_COUNTERWEIGHT_MAX(1.0, slider_crank_counterweight_maxabs9(q));
-    lim = SLIDER_CRANK_COUNTERWEIGHT_MAX(tol, (slider_crank_counterweight_real)SLIDER_CRANK_COUNTERWEIGHT_FLOOR_ULPS * SLIDER_CRANK_COUNTERWEIGHT_EPS * qmag);
+    lim = SLIDER_CRANK_COUNTERWEIGHT_MAX(tol, ((slider_crank_counterweight_real)SLIDER_CRANK_COUNTERWEIGHT_FLOOR_ULPS * SLIDER_CRANK_COUNTERWEIGHT_EPS) * qmag);
     slider_crank_counterweight_phi_k(q, tr, t, p, r);
     slider_crank_counterweight_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
     rmax = slider_crank_counterweight_maxabs9(r);
@@ -1669,15 +1974,17 @@ static int slider_crank_counterweight_sp_newton(slider_crank_counterweight_real 
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? SLIDER_CRANK_COUNTERWEIGHT_NONFINITE : SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
+            return (it == 0) ? SLIDER_CRANK_COUNTERWEIGHT_NONFINITE : SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK) {
+        if (it == SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK)) {
             info[0] = it;
             info[1] = *dense;
             return SLIDER_CRANK_COUNTERWEIGHT_SINGULAR;
@@ -1687,8 +1994,8 @@ static int slider_crank_counterweight_sp_newton(slider_crank_counterweight_real 
         slider_crank_counterweight_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= SLIDER_CRANK_COUNTERWEIGHT_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (SLIDER_CRANK_COUNTERWEIGHT_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1701,8 +2008,10 @@ static int slider_crank_counterweight_sp_newton(slider_crank_counterweight_real 
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
-    if (!current && slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK) {
+    if (converged == 0) {
+        return SLIDER_CRANK_COUNTERWEIGHT_NOT_CONVERGED;
+    }
+    if ((current == 0) && (slider_crank_counterweight_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_CRANK_COUNTERWEIGHT_OK)) {
         info[1] = *dense;
         return SLIDER_CRANK_COUNTERWEIGHT_SINGULAR;
     }
@@ -1715,7 +2024,8 @@ static void slider_crank_counterweight_sp_outputs(slider_crank_counterweight_rea
                             slider_crank_counterweight_real *lam, slider_crank_counterweight_real *reactions, slider_crank_counterweight_real *work, const int *iwork, int dense,
                             const slider_crank_counterweight_real *q_des, const slider_crank_counterweight_real *qd_des, const slider_crank_counterweight_real *qdd_des)
 {
-    slider_crank_counterweight_real *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2), *b = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 3);
+    slider_crank_counterweight_real *y = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 2);
+    slider_crank_counterweight_real *b = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 3);
     slider_crank_counterweight_nu_k(q, tr, t, p, b);
     slider_crank_counterweight_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
     slider_crank_counterweight_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
@@ -1734,7 +2044,9 @@ static void slider_crank_counterweight_sp_outputs(slider_crank_counterweight_rea
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_counterweight_solve_t(work, iwork, dense, b, lam);
-    if (slider_crank_counterweight_mixed(y)) slider_crank_counterweight_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (slider_crank_counterweight_mixed(y) != 0) {
+        slider_crank_counterweight_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     slider_crank_counterweight_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1746,25 +2058,34 @@ static int slider_crank_counterweight_sp_instant(slider_crank_counterweight_real
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !slider_crank_counterweight_allfinite(q_des, SLIDER_CRANK_COUNTERWEIGHT_ND) || !slider_crank_counterweight_allfinite(qd_des, SLIDER_CRANK_COUNTERWEIGHT_ND)
-        || !slider_crank_counterweight_allfinite(qdd_des, SLIDER_CRANK_COUNTERWEIGHT_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (slider_crank_counterweight_allfinite(q_des, SLIDER_CRANK_COUNTERWEIGHT_ND) == 0) || (slider_crank_counterweight_allfinite(qd_des, SLIDER_CRANK_COUNTERWEIGHT_ND) == 0)
+        || (slider_crank_counterweight_allfinite(qdd_des, SLIDER_CRANK_COUNTERWEIGHT_ND) == 0)) {
         status = SLIDER_CRANK_COUNTERWEIGHT_BAD_ARGUMENT;
     } else {
-        slider_crank_counterweight_real *tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9), *pp = work + SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP, *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
-        memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9);  /* the caller's guess, back in q if the call fails */
+        slider_crank_counterweight_real *tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9);
+        slider_crank_counterweight_real *pp = &work[SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP];
+        slider_crank_counterweight_real *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_counterweight_prepare(p, pp);
-        if (qd == NULL) qd = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 5);
-        if (qdd == NULL) qdd = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 6);
-        if (lam == NULL) lam = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 7);
-        if (reactions == NULL) reactions = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        slider_crank_counterweight_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 5);
+        slider_crank_counterweight_real *qdd_out = (qdd != NULL) ? qdd : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 6);
+        slider_crank_counterweight_real *lam_out = (lam != NULL) ? lam : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 7);
+        slider_crank_counterweight_real *reactions_out = (reactions != NULL) ? reactions : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 8);
         status = slider_crank_counterweight_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == SLIDER_CRANK_COUNTERWEIGHT_OK) {
-            slider_crank_counterweight_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!slider_crank_counterweight_finite(q, qd, qdd, lam, reactions)) status = SLIDER_CRANK_COUNTERWEIGHT_NONFINITE;
+            slider_crank_counterweight_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (slider_crank_counterweight_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = SLIDER_CRANK_COUNTERWEIGHT_NONFINITE;
+            }
         }
-        if (status != SLIDER_CRANK_COUNTERWEIGHT_OK) memcpy(q, kept, sizeof(slider_crank_counterweight_real) * 9);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != SLIDER_CRANK_COUNTERWEIGHT_OK) {
+            (void)memcpy(q, kept, sizeof(slider_crank_counterweight_real) * 9u);
+        }
     }
     return status;
 }
@@ -1774,7 +2095,8 @@ int slider_crank_counterweight_setpoint(slider_crank_counterweight_real t, const
                      slider_crank_counterweight_real *qdd, slider_crank_counterweight_real *lam, slider_crank_counterweight_real *reactions, int *info, slider_crank_counterweight_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = slider_crank_counterweight_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

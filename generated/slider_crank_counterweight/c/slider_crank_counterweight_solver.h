@@ -196,13 +196,13 @@ extern const slider_crank_counterweight_real slider_crank_counterweight_default_
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 33, phi_q 21, nu 0, gamma 26, applied 10, mass 0, reactions 11, lu_factor 7, lu_forward 2, lu_back 13, lu_t_forward 13, lu_t_back 2. */
-#define SLIDER_CRANK_COUNTERWEIGHT_OPS_INSTANT 201
+   work), and of each evaluation: phi 32, phi_q 21, nu 0, gamma 25, applied 9, mass 0, reactions 11, lu_factor 7, lu_forward 2, lu_back 13, lu_t_forward 13, lu_t_back 2. */
+#define SLIDER_CRANK_COUNTERWEIGHT_OPS_INSTANT 197
 
 /* Worst case of one instant call (computed at generation from the counts
    above, not measured): Newton reaching MAX_NEWTON, every factorization
    through the pivoting fallback (bounded by a dense LU). At most
-   1509 + 1117 MAX_NEWTON counted floating operations and
+   1506 + 1116 MAX_NEWTON counted floating operations and
    7 + 6 MAX_NEWTON libm calls; as instructions, at most
    WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
    loads, stores and indexing), each libm call 300 (the real type on its
@@ -212,7 +212,7 @@ extern const slider_crank_counterweight_real slider_crank_counterweight_default_
    test_c_edges checks it under callgrind on x86-64 for every bundled
    example, the cap reached (instant only: a trajectory's instant adds its
    predictor, checks and, if generated, sensitivities). */
-#define SLIDER_CRANK_COUNTERWEIGHT_WORST_INSTRUCTIONS (23208L + 15604L * (long)SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON)
+#define SLIDER_CRANK_COUNTERWEIGHT_WORST_INSTRUCTIONS (23172L + 15592L * (long)SLIDER_CRANK_COUNTERWEIGHT_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int slider_crank_counterweight_phi_q_rows[21];

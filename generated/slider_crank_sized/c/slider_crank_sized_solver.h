@@ -189,13 +189,13 @@ extern const slider_crank_sized_real slider_crank_sized_default_q0[SLIDER_CRANK_
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 29, phi_q 14, nu 0, gamma 20, applied 13, mass 0, reactions 11, lu_factor 7, lu_forward 2, lu_back 13, lu_t_forward 13, lu_t_back 2. */
-#define SLIDER_CRANK_SIZED_OPS_INSTANT 183
+   work), and of each evaluation: phi 28, phi_q 14, nu 0, gamma 20, applied 13, mass 0, reactions 11, lu_factor 7, lu_forward 2, lu_back 13, lu_t_forward 13, lu_t_back 2. */
+#define SLIDER_CRANK_SIZED_OPS_INSTANT 181
 
 /* Worst case of one instant call (computed at generation from the counts
    above, not measured): Newton reaching MAX_NEWTON, every factorization
    through the pivoting fallback (bounded by a dense LU). At most
-   1488 + 1099 MAX_NEWTON counted floating operations and
+   1487 + 1098 MAX_NEWTON counted floating operations and
    7 + 6 MAX_NEWTON libm calls; as instructions, at most
    WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
    loads, stores and indexing), each libm call 300 (the real type on its
@@ -205,7 +205,7 @@ extern const slider_crank_sized_real slider_crank_sized_default_q0[SLIDER_CRANK_
    test_c_edges checks it under callgrind on x86-64 for every bundled
    example, the cap reached (instant only: a trajectory's instant adds its
    predictor, checks and, if generated, sensitivities). */
-#define SLIDER_CRANK_SIZED_WORST_INSTRUCTIONS (22956L + 15388L * (long)SLIDER_CRANK_SIZED_MAX_NEWTON)
+#define SLIDER_CRANK_SIZED_WORST_INSTRUCTIONS (22944L + 15376L * (long)SLIDER_CRANK_SIZED_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int slider_crank_sized_phi_q_rows[21];

@@ -43,7 +43,7 @@ typedef char slider_pendulum_real_must_have_the_size_of_double[sizeof(slider_pen
 #define SLIDER_PENDULUM_OFF_LU 15
 #define SLIDER_PENDULUM_OFF_DENSE (SLIDER_PENDULUM_OFF_LU + SLIDER_PENDULUM_LU_SIZE)
 #define SLIDER_PENDULUM_OFF_VEC (SLIDER_PENDULUM_OFF_DENSE + 36)
-#define SLIDER_PENDULUM_VEC(work, k) ((work) + SLIDER_PENDULUM_OFF_VEC + (k) * 30)
+#define SLIDER_PENDULUM_VEC(work, k) (&(work)[SLIDER_PENDULUM_OFF_VEC + ((k) * 30)])
 /* the work vectors k of VEC(work, k), by their main use (symid.codegen.c.layout) */
 #define SLIDER_PENDULUM_VEC_R 0  /* the Newton residual; scratch: a refinement's residual, the estimate's x, statics' masses */
 #define SLIDER_PENDULUM_VEC_DQ 1  /* the Newton step; scratch: a refinement's correction, the estimate's z */
@@ -137,10 +137,12 @@ static void slider_pendulum_trig_base(const slider_pendulum_real *q, slider_pend
 {
     int b;
     for (b = 0; b < 2; ++b) {
-        const slider_pendulum_real a = q[3 * b + 2];
+        const slider_pendulum_real a = q[(3 * b) + 2];
         base[3 * b] = a;
-        tr[2 * b] = base[3 * b + 1] = sin(a);
-        tr[2 * b + 1] = base[3 * b + 2] = cos(a);
+        base[(3 * b) + 1] = sin(a);
+        tr[2 * b] = base[(3 * b) + 1];
+        base[(3 * b) + 2] = cos(a);
+        tr[(2 * b) + 1] = base[(3 * b) + 2];
     }
 }
 
@@ -155,31 +157,41 @@ static void slider_pendulum_trig_base(const slider_pendulum_real *q, slider_pend
 static void slider_pendulum_trig_near(const slider_pendulum_real *q, slider_pendulum_real *tr, slider_pendulum_real *base)
 {
     {
-        const slider_pendulum_real a = q[3 * 0 + 2], d = a - base[3 * 0];
+        const slider_pendulum_real a = q[2];
+        const slider_pendulum_real d = a - base[0];
         if (fabs(d) <= 0.0625) {
-            const slider_pendulum_real d2 = d * d, s = base[3 * 0 + 1], c = base[3 * 0 + 2];
-            const slider_pendulum_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const slider_pendulum_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 0] = s + (s * cm + c * sd);
-            tr[2 * 0 + 1] = c + (c * cm - s * sd);
+            const slider_pendulum_real d2 = d * d;
+            const slider_pendulum_real s = base[1];
+            const slider_pendulum_real c = base[2];
+            const slider_pendulum_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const slider_pendulum_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[0] = s + ((s * cm) + (c * sd));
+            tr[1] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 0] = a;
-            tr[2 * 0] = base[3 * 0 + 1] = sin(a);
-            tr[2 * 0 + 1] = base[3 * 0 + 2] = cos(a);
+            base[0] = a;
+            base[1] = sin(a);
+            tr[0] = base[1];
+            base[2] = cos(a);
+            tr[1] = base[2];
         }
     }
     {
-        const slider_pendulum_real a = q[3 * 1 + 2], d = a - base[3 * 1];
+        const slider_pendulum_real a = q[5];
+        const slider_pendulum_real d = a - base[3];
         if (fabs(d) <= 0.0625) {
-            const slider_pendulum_real d2 = d * d, s = base[3 * 1 + 1], c = base[3 * 1 + 2];
-            const slider_pendulum_real sd = d + d * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 / 362880.0)));
-            const slider_pendulum_real cm = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 / 40320.0)));
-            tr[2 * 1] = s + (s * cm + c * sd);
-            tr[2 * 1 + 1] = c + (c * cm - s * sd);
+            const slider_pendulum_real d2 = d * d;
+            const slider_pendulum_real s = base[4];
+            const slider_pendulum_real c = base[5];
+            const slider_pendulum_real sd = d + ((d * d2) * ((-1.0 / 6.0) + (d2 * ((1.0 / 120.0) + (d2 * ((-1.0 / 5040.0) + (d2 / 362880.0)))))));
+            const slider_pendulum_real cm = d2 * (-0.5 + (d2 * ((1.0 / 24.0) + (d2 * ((-1.0 / 720.0) + (d2 / 40320.0))))));
+            tr[2] = s + ((s * cm) + (c * sd));
+            tr[3] = c + ((c * cm) - (s * sd));
         } else {
-            base[3 * 1] = a;
-            tr[2 * 1] = base[3 * 1 + 1] = sin(a);
-            tr[2 * 1 + 1] = base[3 * 1 + 2] = cos(a);
+            base[3] = a;
+            base[4] = sin(a);
+            tr[2] = base[4];
+            base[5] = cos(a);
+            tr[3] = base[5];
         }
     }
 }
@@ -192,20 +204,24 @@ static void slider_pendulum_trig_near(const slider_pendulum_real *q, slider_pend
 static void slider_pendulum_trig_step(const slider_pendulum_real *q, const slider_pendulum_real *dq, slider_pendulum_real *tr, slider_pendulum_real *base)
 {
     {
-        const slider_pendulum_real d = -dq[3 * 0 + 2], s = tr[2 * 0], c = tr[2 * 0 + 1];
+        const slider_pendulum_real d = -dq[2];
+        const slider_pendulum_real s = tr[0];
+        const slider_pendulum_real c = tr[1];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 0] = s + c * d;
-            tr[2 * 0 + 1] = c - s * d;
+            tr[0] = s + (c * d);
+            tr[1] = c - (s * d);
         } else {
             slider_pendulum_trig_near(q, tr, base);
             return;
         }
     }
     {
-        const slider_pendulum_real d = -dq[3 * 1 + 2], s = tr[2 * 1], c = tr[2 * 1 + 1];
+        const slider_pendulum_real d = -dq[5];
+        const slider_pendulum_real s = tr[2];
+        const slider_pendulum_real c = tr[3];
         if (fabs(d) < 9.313225746154785e-10) {  /* 2^-30 */
-            tr[2 * 1] = s + c * d;
-            tr[2 * 1 + 1] = c - s * d;
+            tr[2] = s + (c * d);
+            tr[3] = c - (s * d);
         } else {
             slider_pendulum_trig_near(q, tr, base);
             return;
@@ -219,7 +235,7 @@ static void slider_pendulum_trig_step(const slider_pendulum_real *q, const slide
    evaluation. The kernels read both from this one vector. */
 static void slider_pendulum_prepare(const slider_pendulum_real *p, slider_pendulum_real *pp)
 {
-    memcpy(pp, p, sizeof(slider_pendulum_real) * 13);
+    (void)memcpy(pp, p, sizeof(slider_pendulum_real) * 13u);
     {
         const slider_pendulum_real e0 = cos(p[0]);
         const slider_pendulum_real e1 = sin(p[0]);
@@ -249,14 +265,14 @@ static void slider_pendulum_prepare(const slider_pendulum_real *p, slider_pendul
 
 static void slider_pendulum_phi_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    const slider_pendulum_real e0 = 2*3.141592653589793*t;
+    const slider_pendulum_real e0 = 2.0*3.141592653589793*t;
     const slider_pendulum_real e1 = (1.0/2.0)*p[9];
-    out[0] = p[13]*(p[13]*tr[0] + p[14]*tr[1]) - p[14]*(p[13]*tr[1] - p[14]*tr[0]);
-    out[1] = p[13]*q[1] - p[14]*q[0];
-    out[2] = p[16]*q[0] + p[17]*q[1] - p[1]*sin(e0*p[2]);
-    out[3] = -e1*tr[3] - p[8]*tr[0] + (-q[0] + q[3]);
-    out[4] = -e1*tr[2] + p[8]*tr[1] + (-q[1] + q[4]);
-    out[5] = -p[3]*sin(e0*p[4]) + (-q[2] + q[5] + (1.0/2.0)*3.141592653589793);
+    out[0] = (p[13]*((p[13]*tr[0]) + (p[14]*tr[1]))) - (p[14]*((p[13]*tr[1]) - (p[14]*tr[0])));
+    out[1] = (p[13]*q[1]) - (p[14]*q[0]);
+    out[2] = (p[16]*q[0]) + (p[17]*q[1]) - (p[1]*sin(e0*p[2]));
+    out[3] = (-e1*tr[3]) - (p[8]*tr[0]) + (-q[0] + q[3]);
+    out[4] = (-e1*tr[2]) + (p[8]*tr[1]) + (-q[1] + q[4]);
+    out[5] = (-p[3]*sin(e0*p[4])) + (-q[2] + q[5] + ((1.0/2.0)*3.141592653589793));
 }
 
 static void slider_pendulum_phi_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -270,8 +286,7 @@ void slider_pendulum_phi(const slider_pendulum_real * q, slider_pendulum_real t,
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_phi_k(q, tr, t, p, out);
+    slider_pendulum_phi_k(q, tr, t, prepared, out);
 }
 
 static void slider_pendulum_phi_q_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -279,21 +294,21 @@ static void slider_pendulum_phi_q_k0(const slider_pendulum_real * q, const slide
     (void)q;
     (void)t;
     const slider_pendulum_real e0 = (1.0/2.0)*p[9];
-    out[0] = p[13]*(p[13]*tr[1] - p[14]*tr[0]) - p[14]*(-p[13]*tr[0] - p[14]*tr[1]);
+    out[0] = (p[13]*((p[13]*tr[1]) - (p[14]*tr[0]))) - (p[14]*((-p[13]*tr[0]) - (p[14]*tr[1])));
     out[1] = p[18];
     out[2] = p[13];
     out[3] = p[16];
     out[4] = p[17];
-    out[5] = -1;
+    out[5] = -1.0;
     out[6] = -p[8]*tr[1];
-    out[7] = 1;
+    out[7] = 1.0;
     out[8] = e0*tr[2];
-    out[9] = -1;
+    out[9] = -1.0;
     out[10] = -p[8]*tr[0];
-    out[11] = 1;
+    out[11] = 1.0;
     out[12] = -e0*tr[3];
-    out[13] = -1;
-    out[14] = 1;
+    out[13] = -1.0;
+    out[14] = 1.0;
 }
 
 static void slider_pendulum_phi_q_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -307,21 +322,20 @@ void slider_pendulum_phi_q(const slider_pendulum_real * q, slider_pendulum_real 
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_phi_q_k(q, tr, t, p, out);
+    slider_pendulum_phi_q_k(q, tr, t, prepared, out);
 }
 
 static void slider_pendulum_nu_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     (void)q;
     (void)tr;
-    const slider_pendulum_real e0 = 2*3.141592653589793;
+    const slider_pendulum_real e0 = 2.0*3.141592653589793;
     const slider_pendulum_real e1 = e0*t;
-    out[0] = 0;
-    out[1] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
     out[2] = e0*p[19]*cos(e1*p[2]);
-    out[3] = 0;
-    out[4] = 0;
+    out[3] = 0.0;
+    out[4] = 0.0;
     out[5] = e0*p[20]*cos(e1*p[4]);
 }
 
@@ -336,8 +350,7 @@ void slider_pendulum_nu(const slider_pendulum_real * q, slider_pendulum_real t, 
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_nu_k(q, tr, t, p, out);
+    slider_pendulum_nu_k(q, tr, t, prepared, out);
 }
 
 static void slider_pendulum_gamma_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -345,14 +358,14 @@ static void slider_pendulum_gamma_k0(const slider_pendulum_real * q, const slide
     (void)q;
     const slider_pendulum_real e0 = (qd[2]*qd[2]);
     const slider_pendulum_real e1 = e0*tr[0];
-    const slider_pendulum_real e2 = 2*3.141592653589793*t;
-    const slider_pendulum_real e3 = 4*(3.141592653589793*3.141592653589793);
+    const slider_pendulum_real e2 = 2.0*3.141592653589793*t;
+    const slider_pendulum_real e3 = 4.0*(3.141592653589793*3.141592653589793);
     const slider_pendulum_real e4 = (1.0/2.0)*p[9]*(qd[5]*qd[5]);
-    out[0] = e1*p[21] + e1*p[22];
-    out[1] = 0;
+    out[0] = (e1*p[21]) + (e1*p[22]);
+    out[1] = 0.0;
     out[2] = -e3*p[24]*sin(e2*p[2]);
-    out[3] = -e1*p[8] - e4*tr[3];
-    out[4] = e0*p[8]*tr[1] - e4*tr[2];
+    out[3] = (-e1*p[8]) - (e4*tr[3]);
+    out[4] = (e0*p[8]*tr[1]) - (e4*tr[2]);
     out[5] = -e3*p[26]*sin(e2*p[4]);
 }
 
@@ -367,19 +380,18 @@ void slider_pendulum_gamma(const slider_pendulum_real * q, const slider_pendulum
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_gamma_k(q, tr, qd, t, p, out);
+    slider_pendulum_gamma_k(q, tr, qd, t, prepared, out);
 }
 
 static void slider_pendulum_applied_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     (void)tr;
     (void)t;
-    const slider_pendulum_real e0 = p[11]*(-q[2] + q[5] + (1.0/2.0)*3.141592653589793) + p[12]*(-qd[2] + qd[5]);
-    out[0] = 0;
+    const slider_pendulum_real e0 = (p[11]*(-q[2] + q[5] + ((1.0/2.0)*3.141592653589793))) + (p[12]*(-qd[2] + qd[5]));
+    out[0] = 0.0;
     out[1] = -981.0/100.0*p[5];
     out[2] = e0;
-    out[3] = 0;
+    out[3] = 0.0;
     out[4] = -981.0/100.0*p[10];
     out[5] = -e0;
 }
@@ -395,8 +407,7 @@ void slider_pendulum_applied(const slider_pendulum_real * q, const slider_pendul
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_applied_k(q, tr, qd, t, p, out);
+    slider_pendulum_applied_k(q, tr, qd, t, prepared, out);
 }
 
 static void slider_pendulum_mass_k0(const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -418,48 +429,47 @@ void slider_pendulum_mass(const slider_pendulum_real * p, slider_pendulum_real *
 {
     slider_pendulum_real prepared[29];
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_mass_k(p, out);
+    slider_pendulum_mass_k(prepared, out);
 }
 
 static void slider_pendulum_reactions_k0(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * lam, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
     (void)t;
     const slider_pendulum_real e0 = lam[0]*tr[1];
-    const slider_pendulum_real e1 = e0*p[21] + e0*p[22];
+    const slider_pendulum_real e1 = (e0*p[21]) + (e0*p[22]);
     const slider_pendulum_real e2 = lam[1]*p[14];
     const slider_pendulum_real e3 = lam[1]*p[13];
     const slider_pendulum_real e4 = lam[2]*p[16];
     const slider_pendulum_real e5 = lam[2]*p[17];
-    out[0] = 0;
-    out[1] = 0;
+    out[0] = 0.0;
+    out[1] = 0.0;
     out[2] = e1;
-    out[3] = 0;
-    out[4] = 0;
+    out[3] = 0.0;
+    out[4] = 0.0;
     out[5] = -e1;
     out[6] = -e2;
     out[7] = e3;
-    out[8] = e2*q[1] + e3*q[0];
+    out[8] = (e2*q[1]) + (e3*q[0]);
     out[9] = e2;
     out[10] = -e3;
-    out[11] = 0;
+    out[11] = 0.0;
     out[12] = e4;
     out[13] = e5;
-    out[14] = -e4*q[1] + lam[2]*p[17]*q[0];
+    out[14] = (-e4*q[1]) + (lam[2]*p[17]*q[0]);
     out[15] = -e4;
     out[16] = -e5;
-    out[17] = 0;
+    out[17] = 0.0;
     out[18] = lam[3];
     out[19] = lam[4];
-    out[20] = 0;
+    out[20] = 0.0;
     out[21] = -lam[3];
     out[22] = -lam[4];
-    out[23] = 0;
-    out[24] = 0;
-    out[25] = 0;
+    out[23] = 0.0;
+    out[24] = 0.0;
+    out[25] = 0.0;
     out[26] = lam[5];
-    out[27] = 0;
-    out[28] = 0;
+    out[27] = 0.0;
+    out[28] = 0.0;
     out[29] = -lam[5];
 }
 
@@ -474,8 +484,7 @@ void slider_pendulum_reactions(const slider_pendulum_real * q, const slider_pend
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
-    p = prepared;
-    slider_pendulum_reactions_k(q, tr, lam, t, p, out);
+    slider_pendulum_reactions_k(q, tr, lam, t, prepared, out);
 }
 
 /* Sparse LU in the elimination order fixed at generation time, in pieces of
@@ -494,19 +503,22 @@ static int slider_pendulum_sparse_factor0(slider_pendulum_real *lu)
     slider_pendulum_real cm = 0.0;
     piv = lu[0];
     cm = fabs(piv);
-    if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[0] = 1.0 / piv;
+    if (!(fabs(piv) >= (SLIDER_PENDULUM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[0] = 1.0 / piv;
+    piv = lu[0];
     piv = lu[2];
     cm = fabs(piv);
     cm = SLIDER_PENDULUM_MAX(cm, fabs(lu[4]));
-    if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[2] = 1.0 / piv;
+    if (!(fabs(piv) >= (SLIDER_PENDULUM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[2] = 1.0 / piv;
+    piv = lu[2];
     lu[4] *= piv;
-    lu[3] -= lu[4] * lu[1];
+    lu[3] -= (lu[4] * lu[1]);
     piv = lu[3];
     cm = fabs(piv);
-    if (!(fabs(piv) >= SLIDER_PENDULUM_THRESHOLD * cm) || piv == 0.0) return 1;
-    piv = lu[3] = 1.0 / piv;
+    if (!(fabs(piv) >= (SLIDER_PENDULUM_THRESHOLD * cm)) || (piv == 0.0)) { return 1; }
+    lu[3] = 1.0 / piv;
+    piv = lu[3];
     return 0;
 }
 
@@ -517,18 +529,18 @@ static int slider_pendulum_sparse_factor(slider_pendulum_real *lu)
 
 static void slider_pendulum_sparse_forward0(const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT lu, slider_pendulum_real *SLIDER_PENDULUM_RESTRICT y)
 {
-    y[2] -= lu[4] * y[1];
+    y[2] -= (lu[4] * y[1]);
 }
 
 static void slider_pendulum_sparse_back0(
     const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT lu, const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT y, slider_pendulum_real *SLIDER_PENDULUM_RESTRICT x)
 {
     x[0] = (y[2]) * lu[3];
-    x[1] = (y[1] - lu[1] * x[0]) * lu[2];
+    x[1] = (y[1] - (lu[1] * x[0])) * lu[2];
     x[2] = (y[0]) * lu[0];
     x[5] = y[5] + x[2];
-    x[4] = y[4] + x[1] - lu[10] * x[2] - lu[12] * x[5];
-    x[3] = y[3] + x[0] - lu[6] * x[2] - lu[8] * x[5];
+    x[4] = y[4] + x[1] - (lu[10] * x[2]) - (lu[12] * x[5]);
+    x[3] = y[3] + x[0] - (lu[6] * x[2]) - (lu[8] * x[5]);
 }
 
 /* The solve in place: y holds b on entry and is overwritten (solve_in). */
@@ -540,7 +552,7 @@ static void slider_pendulum_sparse_solve_in(const slider_pendulum_real *lu, slid
 
 static void slider_pendulum_sparse_solve(const slider_pendulum_real *lu, const slider_pendulum_real *b, slider_pendulum_real *x, slider_pendulum_real *y)
 {
-    memcpy(y, b, sizeof(slider_pendulum_real) * 6);
+    (void)memcpy(y, b, sizeof(slider_pendulum_real) * 6u);
     slider_pendulum_sparse_solve_in(lu, y, x);
 }
 
@@ -549,15 +561,15 @@ static void slider_pendulum_sparse_t_forward0(
 {
     x[3] = b[3];
     x[4] = b[4];
-    x[5] = b[5] - lu[8] * x[3] - lu[12] * x[4];
-    x[0] = (b[2] - lu[6] * x[3] - lu[10] * x[4] + x[5]) * lu[0];
+    x[5] = b[5] - (lu[8] * x[3]) - (lu[12] * x[4]);
+    x[0] = (b[2] - (lu[6] * x[3]) - (lu[10] * x[4]) + x[5]) * lu[0];
     x[1] = (b[1] + x[4]) * lu[2];
-    x[2] = (b[0] + x[3] - lu[1] * x[1]) * lu[3];
+    x[2] = (b[0] + x[3] - (lu[1] * x[1])) * lu[3];
 }
 
 static void slider_pendulum_sparse_t_back0(const slider_pendulum_real *SLIDER_PENDULUM_RESTRICT lu, slider_pendulum_real *SLIDER_PENDULUM_RESTRICT x)
 {
-    x[1] -= lu[4] * x[2];
+    x[1] -= (lu[4] * x[2]);
 }
 
 static void slider_pendulum_sparse_solve_t(const slider_pendulum_real *lu, const slider_pendulum_real *b, slider_pendulum_real *x)
@@ -571,58 +583,81 @@ static void slider_pendulum_sparse_solve_t(const slider_pendulum_real *lu, const
 static int slider_pendulum_dense_factor(slider_pendulum_real *a, int *perm)
 {
     const int n = 6;
-    int i, j, k;
-    slider_pendulum_real umax = 0.0, umin = ((double)INFINITY);
+    int i;
+    int j;
+    int k;
+    slider_pendulum_real umax = 0.0;
+    slider_pendulum_real umin = ((double)INFINITY);
     for (k = 0; k < n; ++k) {
         int best = k;
-        for (i = k + 1; i < n; ++i)
-            if (fabs(a[i * n + k]) > fabs(a[best * n + k])) best = i;
-        perm[k] = best;
-        if (best != k)
-            for (j = 0; j < n; ++j) {
-                slider_pendulum_real tmp = a[k * n + j];
-                a[k * n + j] = a[best * n + j];
-                a[best * n + j] = tmp;
-            }
-        if (a[k * n + k] == 0.0) return SLIDER_PENDULUM_SINGULAR;
-        umax = fmax(umax, fabs(a[k * n + k]));
-        umin = fmin(umin, fabs(a[k * n + k]));
         for (i = k + 1; i < n; ++i) {
-            slider_pendulum_real m = a[i * n + k] /= a[k * n + k];
-            for (j = k + 1; j < n; ++j) a[i * n + j] -= m * a[k * n + j];
+            if (fabs(a[(i * n) + k]) > fabs(a[(best * n) + k])) {
+                best = i;
+            }
+        }
+        perm[k] = best;
+        if (best != k) {
+            for (j = 0; j < n; ++j) {
+                slider_pendulum_real tmp = a[(k * n) + j];
+                a[(k * n) + j] = a[(best * n) + j];
+                a[(best * n) + j] = tmp;
+            }
+        }
+        if (a[(k * n) + k] == 0.0) {
+            return SLIDER_PENDULUM_SINGULAR;
+        }
+        umax = fmax(umax, fabs(a[(k * n) + k]));
+        umin = fmin(umin, fabs(a[(k * n) + k]));
+        for (i = k + 1; i < n; ++i) {
+            slider_pendulum_real m;
+            a[(i * n) + k] /= a[(k * n) + k];
+            m = a[(i * n) + k];
+            for (j = k + 1; j < n; ++j) {
+                a[(i * n) + j] -= m * a[(k * n) + j];
+            }
         }
     }
-    return umin <= SLIDER_PENDULUM_SINGULAR_RATIO * umax ? SLIDER_PENDULUM_SINGULAR : SLIDER_PENDULUM_OK;
+    return (umin <= (SLIDER_PENDULUM_SINGULAR_RATIO * umax)) ? SLIDER_PENDULUM_SINGULAR : SLIDER_PENDULUM_OK;
 }
 
 static void slider_pendulum_dense_solve(const slider_pendulum_real *a, const int *perm, const slider_pendulum_real *b, slider_pendulum_real *x)
 {
     const int n = 6;
-    int i, j;
-    memcpy(x, b, sizeof(slider_pendulum_real) * 6);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(slider_pendulum_real) * 6u);
     for (i = 0; i < n; ++i) {
         slider_pendulum_real tmp = x[perm[i]];
         x[perm[i]] = x[i];
         x[i] = tmp;
-        for (j = 0; j < i; ++j) x[i] -= a[i * n + j] * x[j];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[i * n + j] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(i * n) + j] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
 }
 
 static void slider_pendulum_dense_solve_t(const slider_pendulum_real *a, const int *perm, const slider_pendulum_real *b, slider_pendulum_real *x)
 {
     const int n = 6;
-    int i, j;
-    memcpy(x, b, sizeof(slider_pendulum_real) * 6);
+    int i;
+    int j;
+    (void)memcpy(x, b, sizeof(slider_pendulum_real) * 6u);
     for (i = 0; i < n; ++i) {
-        for (j = 0; j < i; ++j) x[i] -= a[j * n + i] * x[j];
-        x[i] /= a[i * n + i];
+        for (j = 0; j < i; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
+        x[i] /= a[(i * n) + i];
     }
     for (i = n - 1; i >= 0; --i) {
-        for (j = i + 1; j < n; ++j) x[i] -= a[j * n + i] * x[j];
+        for (j = i + 1; j < n; ++j) {
+            x[i] -= a[(j * n) + i] * x[j];
+        }
     }
     for (i = n - 1; i >= 0; --i) {
         slider_pendulum_real tmp = x[perm[i]];
@@ -630,8 +665,6 @@ static void slider_pendulum_dense_solve_t(const slider_pendulum_real *a, const i
         x[i] = tmp;
     }
 }
-
-static const int slider_pendulum_pivot_slots[3] = { 0, 2, 3 };
 
 /* 1 where the sparse factors' pivots span more than 1 / SINGULAR_RATIO (the
    dense fallback's test): the threshold test compares a pivot with its own
@@ -639,6 +672,7 @@ static const int slider_pendulum_pivot_slots[3] = { 0, 2, 3 };
    hold reciprocals, whose spread is the pivots'. */
 static int slider_pendulum_pivots_spread(const slider_pendulum_real *lu)
 {
+    static const int slider_pendulum_pivot_slots[3] = { 0, 2, 3 };
     slider_pendulum_real rmin = 1.0;
     slider_pendulum_real rmax = 1.0;
     int k;
@@ -647,7 +681,7 @@ static int slider_pendulum_pivots_spread(const slider_pendulum_real *lu)
         rmin = SLIDER_PENDULUM_MIN(rmin, r);
         rmax = SLIDER_PENDULUM_MAX(rmax, r);
     }
-    return rmin <= SLIDER_PENDULUM_SINGULAR_RATIO * rmax;
+    return (rmin <= (SLIDER_PENDULUM_SINGULAR_RATIO * rmax)) ? 1 : 0;
 }
 
 /* The conditioning screen's cheap test: 1 where the pivots of the factors
@@ -660,8 +694,12 @@ static int slider_pendulum_pivots_spread(const slider_pendulum_real *lu)
 static int slider_pendulum_screen(const slider_pendulum_real *lu, int dense, const slider_pendulum_real *row, const slider_pendulum_real *col,
                           const slider_pendulum_real *known)
 {
-    slider_pendulum_real wmin = known[0], wmax = known[1], w;
-    if (dense) return 1;
+    slider_pendulum_real wmin = known[0];
+    slider_pendulum_real wmax = known[1];
+    slider_pendulum_real w;
+    if (dense != 0) {
+        return 1;
+    }
     w = fabs(lu[0]) * row[0] * col[2];
     wmin = SLIDER_PENDULUM_MIN(wmin, w);
     wmax = SLIDER_PENDULUM_MAX(wmax, w);
@@ -675,7 +713,7 @@ static int slider_pendulum_screen(const slider_pendulum_real *lu, int dense, con
     (void)row;
     (void)col;
     (void)w;
-    return !(wmax <= SLIDER_PENDULUM_SCREEN * wmin);
+    return (wmax <= (SLIDER_PENDULUM_SCREEN * wmin)) ? 0 : 1;
 }
 
 /* The smallest and largest of the pivots known at generation, in the
@@ -684,7 +722,8 @@ static int slider_pendulum_screen(const slider_pendulum_real *lu, int dense, con
 static void slider_pendulum_screen_known(const slider_pendulum_real *row, const slider_pendulum_real *col, slider_pendulum_real *known)
 {
     slider_pendulum_real w;
-    known[0] = ((double)INFINITY), known[1] = 0.0;
+    known[0] = ((double)INFINITY);
+    known[1] = 0.0;
     w = 1.0 * row[3] * col[3];
     known[0] = SLIDER_PENDULUM_MIN(known[0], w);
     known[1] = SLIDER_PENDULUM_MAX(known[1], w);
@@ -705,36 +744,51 @@ static void slider_pendulum_screen_known(const slider_pendulum_real *row, const 
 static int slider_pendulum_factorize(const slider_pendulum_real *q, const slider_pendulum_real *tr, slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real *work,
                              int *iwork, int *dense)
 {
-    slider_pendulum_real *values = work, *lu = work + SLIDER_PENDULUM_OFF_LU, *a = work + SLIDER_PENDULUM_OFF_DENSE;
+    slider_pendulum_real *values = work;
+    slider_pendulum_real *lu = &work[SLIDER_PENDULUM_OFF_LU];
+    slider_pendulum_real *a = &work[SLIDER_PENDULUM_OFF_DENSE];
     int k;
     slider_pendulum_phi_q_k(q, tr, t, p, lu);
     *dense = 0;
-    if (slider_pendulum_sparse_factor(lu) == 0 && !slider_pendulum_pivots_spread(lu)) return SLIDER_PENDULUM_OK;
+    if ((slider_pendulum_sparse_factor(lu) == 0) && (slider_pendulum_pivots_spread(lu) == 0)) {
+        return SLIDER_PENDULUM_OK;
+    }
     *dense = 1;
     slider_pendulum_phi_q_k(q, tr, t, p, values);
-    memset(a, 0, sizeof(slider_pendulum_real) * 36);
-    for (k = 0; k < 15; ++k) a[slider_pendulum_phi_q_rows[k] * 6 + slider_pendulum_phi_q_cols[k]] = values[k];
+    (void)memset(a, 0, sizeof(slider_pendulum_real) * 36u);
+    for (k = 0; k < 15; ++k) {
+        a[(slider_pendulum_phi_q_rows[k] * 6) + slider_pendulum_phi_q_cols[k]] = values[k];
+    }
     return slider_pendulum_dense_factor(a, iwork);
 }
 
 static void slider_pendulum_solve(const slider_pendulum_real *work, const int *iwork, int dense, const slider_pendulum_real *b, slider_pendulum_real *x, slider_pendulum_real *y)
 {
-    if (dense) slider_pendulum_dense_solve(work + SLIDER_PENDULUM_OFF_DENSE, iwork, b, x);
-    else slider_pendulum_sparse_solve(work + SLIDER_PENDULUM_OFF_LU, b, x, y);
+    if (dense != 0) {
+        slider_pendulum_dense_solve(&work[SLIDER_PENDULUM_OFF_DENSE], iwork, b, x);
+    } else {
+        slider_pendulum_sparse_solve(&work[SLIDER_PENDULUM_OFF_LU], b, x, y);
+    }
 }
 
 /* As solve, with b overwritten: the sparse factors eliminate in b itself,
    without copying it to y first (the same operations on the same values). */
 static void slider_pendulum_solve_in(const slider_pendulum_real *work, const int *iwork, int dense, slider_pendulum_real *b, slider_pendulum_real *x, slider_pendulum_real *y)
 {
-    if (dense) slider_pendulum_solve(work, iwork, dense, b, x, y);
-    else slider_pendulum_sparse_solve_in(work + SLIDER_PENDULUM_OFF_LU, b, x);
+    if (dense != 0) {
+        slider_pendulum_solve(work, iwork, dense, b, x, y);
+    } else {
+        slider_pendulum_sparse_solve_in(&work[SLIDER_PENDULUM_OFF_LU], b, x);
+    }
 }
 
 static void slider_pendulum_solve_t(const slider_pendulum_real *work, const int *iwork, int dense, const slider_pendulum_real *b, slider_pendulum_real *x)
 {
-    if (dense) slider_pendulum_dense_solve_t(work + SLIDER_PENDULUM_OFF_DENSE, iwork, b, x);
-    else slider_pendulum_sparse_solve_t(work + SLIDER_PENDULUM_OFF_LU, b, x);
+    if (dense != 0) {
+        slider_pendulum_dense_solve_t(&work[SLIDER_PENDULUM_OFF_DENSE], iwork, b, x);
+    } else {
+        slider_pendulum_sparse_solve_t(&work[SLIDER_PENDULUM_OFF_LU], b, x);
+    }
 }
 
 /* 1 where the bodies' masses (m: the diagonal of M, three entries a body)
@@ -744,10 +798,11 @@ static void slider_pendulum_solve_t(const slider_pendulum_real *work, const int 
    the refinement's cost (a quarter of an instant) is not paid. */
 static int slider_pendulum_mixed(const slider_pendulum_real *m)
 {
-    slider_pendulum_real lo = m[0], hi = m[0];
+    slider_pendulum_real lo = m[0];
+    slider_pendulum_real hi = m[0];
     lo = SLIDER_PENDULUM_MIN(lo, m[3]);
     hi = SLIDER_PENDULUM_MAX(hi, m[3]);
-    return lo * 100.0 < hi;
+    return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -762,14 +817,23 @@ static int slider_pendulum_mixed(const slider_pendulum_real *m)
 static SLIDER_PENDULUM_COLD void slider_pendulum_refine_t(const slider_pendulum_real *q, const slider_pendulum_real *tr, slider_pendulum_real t, const slider_pendulum_real *p,
                                         const slider_pendulum_real *b, slider_pendulum_real *lam, slider_pendulum_real *work, const int *iwork, int dense)
 {
-    slider_pendulum_real *values = work, *r = SLIDER_PENDULUM_VEC(work, 0), *d = SLIDER_PENDULUM_VEC(work, 1);
+    slider_pendulum_real *values = work;
+    slider_pendulum_real *r = SLIDER_PENDULUM_VEC(work, 0);
+    slider_pendulum_real *d = SLIDER_PENDULUM_VEC(work, 1);
     int k;
     slider_pendulum_phi_q_k(q, tr, t, p, values);
-    memcpy(r, b, sizeof(slider_pendulum_real) * 6);
-    for (k = 0; k < 15; ++k) r[slider_pendulum_phi_q_cols[k]] -= values[k] * lam[slider_pendulum_phi_q_rows[k]];
-    if (dense) slider_pendulum_dense_solve_t(work + SLIDER_PENDULUM_OFF_DENSE, iwork, r, d);
-    else slider_pendulum_sparse_solve_t(work + SLIDER_PENDULUM_OFF_LU, r, d);  /* solve_t, not called: a second call site would take it out of outputs */
-    for (k = 0; k < 6; ++k) lam[k] += d[k];
+    (void)memcpy(r, b, sizeof(slider_pendulum_real) * 6u);
+    for (k = 0; k < 15; ++k) {
+        r[slider_pendulum_phi_q_cols[k]] -= values[k] * lam[slider_pendulum_phi_q_rows[k]];
+    }
+    if (dense != 0) {
+        slider_pendulum_dense_solve_t(&work[SLIDER_PENDULUM_OFF_DENSE], iwork, r, d);
+    } else {
+        slider_pendulum_sparse_solve_t(&work[SLIDER_PENDULUM_OFF_LU], r, d);  /* solve_t, not called: a second call site would take it out of outputs */
+    }
+    for (k = 0; k < 6; ++k) {
+        lam[k] += d[k];
+    }
 }
 
 /* The 1-norm condition estimate of Phi_q in the screen's scales,
@@ -784,48 +848,85 @@ static slider_pendulum_real slider_pendulum_cond_estimate(const slider_pendulum_
                                     slider_pendulum_real *work, const int *iwork, int dense, const slider_pendulum_real *row,
                                     const slider_pendulum_real *col)
 {
-    slider_pendulum_real *vals = work, *x = SLIDER_PENDULUM_VEC(work, 0), *z = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
-    slider_pendulum_real *b = SLIDER_PENDULUM_VEC(work, 3), anorm = 0.0, est = 0.0, s, zmax, ztx;
-    int k, it, j = 0, last = -1;
+    slider_pendulum_real *vals = work;
+    slider_pendulum_real *x = SLIDER_PENDULUM_VEC(work, 0);
+    slider_pendulum_real *z = SLIDER_PENDULUM_VEC(work, 1);
+    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2);
+    slider_pendulum_real *b = SLIDER_PENDULUM_VEC(work, 3);
+    slider_pendulum_real anorm = 0.0;
+    slider_pendulum_real est = 0.0;
+    slider_pendulum_real s;
+    slider_pendulum_real zmax;
+    slider_pendulum_real ztx;
+    int k;
+    int it;
+    int j = 0;
+    int last = -1;
     slider_pendulum_phi_q_k(q, tr, t, p, vals);
-    for (k = 0; k < 6; ++k) z[k] = 0.0;
-    for (k = 0; k < 15; ++k)
+    for (k = 0; k < 6; ++k) {
+        z[k] = 0.0;
+    }
+    for (k = 0; k < 15; ++k) {
         z[slider_pendulum_phi_q_cols[k]] += fabs(vals[k]) / (row[slider_pendulum_phi_q_rows[k]] * col[slider_pendulum_phi_q_cols[k]]);
-    for (k = 0; k < 6; ++k) anorm = SLIDER_PENDULUM_MAX(anorm, z[k]);
-    for (k = 0; k < 6; ++k) x[k] = 1.0 / 6.0;
+    }
+    for (k = 0; k < 6; ++k) {
+        anorm = SLIDER_PENDULUM_MAX(anorm, z[k]);
+    }
+    for (k = 0; k < 6; ++k) {
+        x[k] = 1.0 / 6.0;
+    }
     for (it = 0; it < 5; ++it) {
         /* z = A^-1 x = col (Phi_q^-1 (row x)) */
-        for (k = 0; k < 6; ++k) b[k] = row[k] * x[k];
+        for (k = 0; k < 6; ++k) {
+            b[k] = row[k] * x[k];
+        }
         slider_pendulum_solve(work, iwork, dense, b, z, y);
         s = 0.0;
         for (k = 0; k < 6; ++k) {
             z[k] *= col[k];
             s += fabs(z[k]);
         }
-        if (!(s == s)) return s;  /* NaN: no estimate, symid's loop decides */
-        if (it > 0 && s <= est) break;
+        if (!(s == s)) {
+            return s;  /* NaN: no estimate, symid's loop decides */
+        }
+        if ((it > 0) && (s <= est)) {
+            break;
+        }
         est = s;
         /* z = A^-T sign(z) = row (Phi_q^-T (col sign(z))) */
-        for (k = 0; k < 6; ++k) b[k] = z[k] >= 0.0 ? col[k] : -col[k];
+        for (k = 0; k < 6; ++k) {
+            b[k] = (z[k] >= 0.0) ? col[k] : -col[k];
+        }
         slider_pendulum_solve_t(work, iwork, dense, b, z);
-        zmax = -1.0, ztx = 0.0;
+        zmax = -1.0;
+        ztx = 0.0;
         for (k = 0; k < 6; ++k) {
             z[k] *= row[k];
             ztx += z[k] * x[k];
-            if (fabs(z[k]) > zmax) zmax = fabs(z[k]), j = k;
+            if (fabs(z[k]) > zmax) {
+                zmax = fabs(z[k]);
+                j = k;
+            }
         }
-        if (it > 0 && (j == last || zmax <= ztx)) break;
-        for (k = 0; k < 6; ++k) x[k] = 0.0;
+        if ((it > 0) && ((j == last) || (zmax <= ztx))) {
+            break;
+        }
+        for (k = 0; k < 6; ++k) {
+            x[k] = 0.0;
+        }
         x[j] = 1.0;
         last = j;
     }
     /* Higham's vector x_k = (-1)^k (1 + k / (n - 1)): 2 ||A^-1 x||_1 / (3 n) */
-    for (k = 0; k < 6; ++k)
-        b[k] = row[k] * (k % 2 ? -1.0 : 1.0) * (1.0 + (slider_pendulum_real)k / SLIDER_PENDULUM_MAX(1.0, 5.0));
+    for (k = 0; k < 6; ++k) {
+        b[k] = (row[k] * (((k % 2) != 0) ? -1.0 : 1.0)) * (1.0 + ((slider_pendulum_real)k / SLIDER_PENDULUM_MAX(1.0, 5.0)));
+    }
     slider_pendulum_solve(work, iwork, dense, b, z, y);
     s = 0.0;
-    for (k = 0; k < 6; ++k) s += fabs(z[k] * col[k]);
-    est = SLIDER_PENDULUM_MAX(est, 2.0 * s / (3.0 * 6.0));
+    for (k = 0; k < 6; ++k) {
+        s += fabs(z[k] * col[k]);
+    }
+    est = SLIDER_PENDULUM_MAX(est, (2.0 * s) / (3.0 * 6.0));
     return anorm * est;
 }
 
@@ -840,7 +941,10 @@ static slider_pendulum_real slider_pendulum_cond_estimate(const slider_pendulum_
 static int slider_pendulum_row_finite(const slider_pendulum_real *row, const slider_pendulum_real *qn, const slider_pendulum_real *qdn, const slider_pendulum_real *qddn,
                               const slider_pendulum_real *lam, const slider_pendulum_real *reac)
 {
-    slider_pendulum_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    slider_pendulum_real s0 = 0.0;
+    slider_pendulum_real s1 = 0.0;
+    slider_pendulum_real s2 = 0.0;
+    slider_pendulum_real s3 = 0.0;
     (void)row; (void)qn; (void)qdn; (void)qddn; (void)lam; (void)reac;
     s0 += row[1];
     s1 += row[2];
@@ -896,8 +1000,13 @@ static int slider_pendulum_row_finite(const slider_pendulum_real *row, const sli
     s3 += row[52];
     s0 += row[53];
     s1 += row[54];
-    if (((s0 + s1) + (s2 + s3)) * 0.0 == 0.0) return 1;
-    s0 = s1 = s2 = s3 = 0.0;
+    if ((((s0 + s1) + (s2 + s3)) * 0.0) == 0.0) {
+        return 1;
+    }
+    s0 = 0.0;
+    s1 = 0.0;
+    s2 = 0.0;
+    s3 = 0.0;
     s0 += row[1] * 0.0;
     s1 += row[2] * 0.0;
     s2 += row[3] * 0.0;
@@ -952,7 +1061,7 @@ static int slider_pendulum_row_finite(const slider_pendulum_real *row, const sli
     s3 += row[52] * 0.0;
     s0 += row[53] * 0.0;
     s1 += row[54] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* max |v_k| over 6 values, NaN if any v_k is NaN (so that a NaN residual
@@ -960,28 +1069,36 @@ static int slider_pendulum_row_finite(const slider_pendulum_real *row, const sli
    comparison. */
 static slider_pendulum_real slider_pendulum_maxabs6(const slider_pendulum_real *v)
 {
-    slider_pendulum_real m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0, s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a;
+    slider_pendulum_real m0 = 0.0;
+    slider_pendulum_real m1 = 0.0;
+    slider_pendulum_real m2 = 0.0;
+    slider_pendulum_real m3 = 0.0;
+    slider_pendulum_real s0 = 0.0;
+    slider_pendulum_real s1 = 0.0;
+    slider_pendulum_real s2 = 0.0;
+    slider_pendulum_real s3 = 0.0;
+    slider_pendulum_real a;
     a = fabs(v[0]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[1]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     a = fabs(v[2]);
-    m2 = a > m2 ? a : m2;
+    m2 = (a > m2) ? a : m2;
     s2 += a;
     a = fabs(v[3]);
-    m3 = a > m3 ? a : m3;
+    m3 = (a > m3) ? a : m3;
     s3 += a;
     a = fabs(v[4]);
-    m0 = a > m0 ? a : m0;
+    m0 = (a > m0) ? a : m0;
     s0 += a;
     a = fabs(v[5]);
-    m1 = a > m1 ? a : m1;
+    m1 = (a > m1) ? a : m1;
     s1 += a;
     m0 = SLIDER_PENDULUM_MAX(SLIDER_PENDULUM_MAX(m0, m1), SLIDER_PENDULUM_MAX(m2, m3));
     s0 += s1 + s2 + s3;
-    return s0 == s0 ? m0 : s0;
+    return (s0 == s0) ? m0 : s0;
 }
 
 /* q -= dq; returns max |dq_k| (NaN if any is NaN), as maxabsN does. dq is
@@ -1024,17 +1141,28 @@ static slider_pendulum_real slider_pendulum_correct(slider_pendulum_real *q, sli
 static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *q, slider_pendulum_real *tr, int *info, slider_pendulum_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    slider_pendulum_real *r = SLIDER_PENDULUM_VEC(work, 0), *dq = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
+    slider_pendulum_real *r = SLIDER_PENDULUM_VEC(work, 0);
+    slider_pendulum_real *dq = SLIDER_PENDULUM_VEC(work, 1);
+    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2);
     slider_pendulum_real *base = SLIDER_PENDULUM_VEC(work, 10);
-    slider_pendulum_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    slider_pendulum_real step = ((double)INFINITY);
+    slider_pendulum_real lim;
+    slider_pendulum_real qmag;
+    slider_pendulum_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) slider_pendulum_trig_near(q, tr, base);
-    else slider_pendulum_trig_base(q, tr, base);
+    if (reuse != 0) {
+        slider_pendulum_trig_near(q, tr, base);
+    } else {
+        slider_pendulum_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_PENDULUM_MAX(1.0, slider_pendulum_maxabs6(q));
-    lim = SLIDER_PENDULUM_MAX(tol, (slider_pendulum_real)SLIDER_PENDULUM_FLOOR_ULPS * SLIDER_PENDULUM_EPS * qmag);
+    lim = SLIDER_PENDULUM_MAX(tol, ((slider_pendulum_real)SLIDER_PENDULUM_FLOOR_ULPS * SLIDER_PENDULUM_EPS) * qmag);
     slider_pendulum_phi_k(q, tr, t, p, r);
     rmax = slider_pendulum_maxabs6(r);
     for (it = 0;; ++it) {
@@ -1043,15 +1171,17 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? SLIDER_PENDULUM_NONFINITE : SLIDER_PENDULUM_NOT_CONVERGED;
+            return (it == 0) ? SLIDER_PENDULUM_NONFINITE : SLIDER_PENDULUM_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == SLIDER_PENDULUM_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK) {
+        if (it == SLIDER_PENDULUM_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK)) {
             info[0] = it;
             info[1] = *dense;
             return SLIDER_PENDULUM_SINGULAR;
@@ -1061,8 +1191,8 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
         slider_pendulum_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= SLIDER_PENDULUM_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (SLIDER_PENDULUM_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1074,8 +1204,10 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return SLIDER_PENDULUM_NOT_CONVERGED;
-    if (!current && slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK) {
+    if (converged == 0) {
+        return SLIDER_PENDULUM_NOT_CONVERGED;
+    }
+    if ((current == 0) && (slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK)) {
         info[1] = *dense;
         return SLIDER_PENDULUM_SINGULAR;
     }
@@ -1087,7 +1219,8 @@ static int slider_pendulum_newton(slider_pendulum_real t, const slider_pendulum_
 static void slider_pendulum_outputs(slider_pendulum_real t, const slider_pendulum_real *p, const slider_pendulum_real *q, const slider_pendulum_real *tr, slider_pendulum_real *qd, slider_pendulum_real *qdd,
                             slider_pendulum_real *lam, slider_pendulum_real *reactions, slider_pendulum_real *work, const int *iwork, int dense)
 {
-    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2), *b = SLIDER_PENDULUM_VEC(work, 3);
+    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2);
+    slider_pendulum_real *b = SLIDER_PENDULUM_VEC(work, 3);
     slider_pendulum_nu_k(q, tr, t, p, b);
     slider_pendulum_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
     slider_pendulum_gamma_k(q, tr, qd, t, p, b);
@@ -1101,7 +1234,9 @@ static void slider_pendulum_outputs(slider_pendulum_real t, const slider_pendulu
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     slider_pendulum_solve_t(work, iwork, dense, b, lam);
-    if (slider_pendulum_mixed(y)) slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (slider_pendulum_mixed(y) != 0) {
+        slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1110,8 +1245,11 @@ static void slider_pendulum_outputs(slider_pendulum_real t, const slider_pendulu
    order, so four sums run side by side and the compiler may pack them). */
 static int slider_pendulum_allfinite(const slider_pendulum_real *v, int n)
 {
-    slider_pendulum_real s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    const int whole = n - n % 4;  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
+    slider_pendulum_real s0 = 0.0;
+    slider_pendulum_real s1 = 0.0;
+    slider_pendulum_real s2 = 0.0;
+    slider_pendulum_real s3 = 0.0;
+    const int whole = n - (n % 4);  /* not k + 4 <= n: arm-none-eabi-gcc -O2 then warns of
                                      an overflow of k once n is a constant */
     int k;
     for (k = 0; k < whole; k += 4) {
@@ -1120,8 +1258,11 @@ static int slider_pendulum_allfinite(const slider_pendulum_real *v, int n)
         s2 += v[k + 2] * 0.0;
         s3 += v[k + 3] * 0.0;
     }
-    for (; k < n; ++k) s0 += v[k] * 0.0;
-    return (s0 + s1) + (s2 + s3) == 0.0;
+    while (k < n) {
+        s0 += v[k] * 0.0;
+        ++k;
+    }
+    return (((s0 + s1) + (s2 + s3)) == 0.0) ? 1 : 0;
 }
 
 /* Whether everything an instant computed is finite (allfinite: a
@@ -1143,12 +1284,24 @@ static int slider_pendulum_finite(const slider_pendulum_real *q, const slider_pe
 static void slider_pendulum_keep(slider_pendulum_real *state, const slider_pendulum_real *q, const slider_pendulum_real *qd, const slider_pendulum_real *qdd,
                          const slider_pendulum_real *m1, const slider_pendulum_real *m2, const slider_pendulum_real *m3)
 {
-    if (m3 != state + 30) memcpy(state + 30, m3, sizeof(slider_pendulum_real) * 6);
-    if (m2 != state + 24) memcpy(state + 24, m2, sizeof(slider_pendulum_real) * 6);
-    if (m1 != state + 18) memcpy(state + 18, m1, sizeof(slider_pendulum_real) * 6);
-    if (qdd != state + 12) memcpy(state + 12, qdd, sizeof(slider_pendulum_real) * 6);
-    if (qd != state + 6) memcpy(state + 6, qd, sizeof(slider_pendulum_real) * 6);
-    if (q != state + 0) memcpy(state + 0, q, sizeof(slider_pendulum_real) * 6);
+    if (m3 != &state[30]) {
+        (void)memcpy(&state[30], m3, sizeof(slider_pendulum_real) * 6u);
+    }
+    if (m2 != &state[24]) {
+        (void)memcpy(&state[24], m2, sizeof(slider_pendulum_real) * 6u);
+    }
+    if (m1 != &state[18]) {
+        (void)memcpy(&state[18], m1, sizeof(slider_pendulum_real) * 6u);
+    }
+    if (qdd != &state[12]) {
+        (void)memcpy(&state[12], qdd, sizeof(slider_pendulum_real) * 6u);
+    }
+    if (qd != &state[6]) {
+        (void)memcpy(&state[6], qd, sizeof(slider_pendulum_real) * 6u);
+    }
+    if (q != state) {
+        (void)memcpy(state, q, sizeof(slider_pendulum_real) * 6u);
+    }
 }
 
 /* Whether the motion q1 - q0 of a step h is not what the rates at both ends
@@ -1158,21 +1311,26 @@ static void slider_pendulum_keep(slider_pendulum_real *state, const slider_pendu
 static int slider_pendulum_unexplained(const slider_pendulum_real *q0, const slider_pendulum_real *qd0, const slider_pendulum_real *qdd0, const slider_pendulum_real *q1,
                                const slider_pendulum_real *qd1, const slider_pendulum_real *qdd1, slider_pendulum_real h, const slider_pendulum_real *c)
 {
-    const slider_pendulum_real half = 0.5 * h, hh = h * h / 12.0;
-    slider_pendulum_real mismatch = 0.0, motion = 0.0, d;
+    const slider_pendulum_real half = 0.5 * h;
+    const slider_pendulum_real hh = (h * h) / 12.0;
+    slider_pendulum_real mismatch = 0.0;
+    slider_pendulum_real motion = 0.0;
+    slider_pendulum_real d;
     d = q1[0] - q0[0];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[0] + qd1[0]) - hh * (qdd0[0] - qdd1[0])) * c[0]);
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[0] + qd1[0]))) - (hh * (qdd0[0] - qdd1[0]))) * c[0]);
     d = q1[1] - q0[1];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[1] + qd1[1]) - hh * (qdd0[1] - qdd1[1])) * c[1]);
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[1] + qd1[1]))) - (hh * (qdd0[1] - qdd1[1]))) * c[1]);
     d = q1[2] - q0[2];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[2] + qd1[2]) - hh * (qdd0[2] - qdd1[2])) * c[2]);
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[2] + qd1[2]))) - (hh * (qdd0[2] - qdd1[2]))) * c[2]);
     d = q1[3] - q0[3];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[3] + qd1[3]) - hh * (qdd0[3] - qdd1[3])) * c[3]);
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[3] + qd1[3]))) - (hh * (qdd0[3] - qdd1[3]))) * c[3]);
     d = q1[4] - q0[4];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[4] + qd1[4]) - hh * (qdd0[4] - qdd1[4])) * c[4]);
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[4] + qd1[4]))) - (hh * (qdd0[4] - qdd1[4]))) * c[4]);
     d = q1[5] - q0[5];
-    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs(d - half * (qd0[5] + qd1[5]) - hh * (qdd0[5] - qdd1[5])) * c[5]);
-    if (!(mismatch > 1e-07)) return 0;  /* the usual step: the motion is not needed */
+    mismatch = SLIDER_PENDULUM_MAX(mismatch, fabs((d - (half * (qd0[5] + qd1[5]))) - (hh * (qdd0[5] - qdd1[5]))) * c[5]);
+    if (!(mismatch > 1e-07)) {
+        return 0;  /* the usual step: the motion is not needed */
+    }
     d = q1[0] - q0[0];
     motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[0]);
     d = q1[1] - q0[1];
@@ -1185,35 +1343,43 @@ static int slider_pendulum_unexplained(const slider_pendulum_real *q0, const sli
     motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[4]);
     d = q1[5] - q0[5];
     motion = SLIDER_PENDULUM_MAX(motion, fabs(d) * c[5]);
-    return !(mismatch <= 0.5 * motion);
+    return (mismatch <= (0.5 * motion)) ? 0 : 1;
 }
 
 int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *p, slider_pendulum_real tol, slider_pendulum_real *q, slider_pendulum_real *qd, slider_pendulum_real *qdd,
                     slider_pendulum_real *lam, slider_pendulum_real *reactions, int *info, slider_pendulum_real *work, int *iwork)
 {
-    int dense = 0, status, counts[2] = {0, 0};
+    int dense = 0;
+    int status;
+    int counts[2] = {0, 0};
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t)
-        || !isfinite(tol) || tol <= 0.0) {
+    if ((q == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)
+        || !isfinite(tol) || (tol <= 0.0)) {
         status = SLIDER_PENDULUM_BAD_ARGUMENT;
     } else {
-        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9), *pp = work + SLIDER_PENDULUM_OFF_PREP, *kept = SLIDER_PENDULUM_VEC(work, 11);
-        memcpy(kept, q, sizeof(slider_pendulum_real) * 6);  /* the caller's guess, back in q if the call fails */
+        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9);
+        slider_pendulum_real *pp = &work[SLIDER_PENDULUM_OFF_PREP];
+        slider_pendulum_real *kept = SLIDER_PENDULUM_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(slider_pendulum_real) * 6u);  /* the caller's guess, back in q if the call fails */
         slider_pendulum_prepare(p, pp);
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
-        if (qd == NULL) qd = SLIDER_PENDULUM_VEC(work, 5);
-        if (qdd == NULL) qdd = SLIDER_PENDULUM_VEC(work, 6);
-        if (lam == NULL) lam = SLIDER_PENDULUM_VEC(work, 7);
-        if (reactions == NULL) reactions = SLIDER_PENDULUM_VEC(work, 8);
+        slider_pendulum_real *qd_out = (qd != NULL) ? qd : SLIDER_PENDULUM_VEC(work, 5);
+        slider_pendulum_real *qdd_out = (qdd != NULL) ? qdd : SLIDER_PENDULUM_VEC(work, 6);
+        slider_pendulum_real *lam_out = (lam != NULL) ? lam : SLIDER_PENDULUM_VEC(work, 7);
+        slider_pendulum_real *reactions_out = (reactions != NULL) ? reactions : SLIDER_PENDULUM_VEC(work, 8);
         status = slider_pendulum_newton(t, pp, tol, q, tr, counts, work, iwork, &dense, 0);
         if (status == SLIDER_PENDULUM_OK) {
-            slider_pendulum_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, dense);
-            if (!slider_pendulum_finite(q, qd, qdd, lam, reactions)) status = SLIDER_PENDULUM_NONFINITE;
+            slider_pendulum_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, dense);
+            if (slider_pendulum_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = SLIDER_PENDULUM_NONFINITE;
+            }
         }
         /* a failed call leaves q as it came: its last Newton iterate would
            be a worse guess for the next call than the caller's own */
-        if (status != SLIDER_PENDULUM_OK) memcpy(q, kept, sizeof(slider_pendulum_real) * 6);
+        if (status != SLIDER_PENDULUM_OK) {
+            (void)memcpy(q, kept, sizeof(slider_pendulum_real) * 6u);
+        }
     }
     if (info != NULL) {
         info[0] = counts[0];
@@ -1231,21 +1397,29 @@ int slider_pendulum_instant_at(long whole, slider_pendulum_real frac, const slid
 
 int slider_pendulum_screen_at(slider_pendulum_real t, const slider_pendulum_real *p, const slider_pendulum_real *state, slider_pendulum_real *work, int *iwork)
 {
-    slider_pendulum_real *tr, *pp, known[2];
+    slider_pendulum_real *tr;
+    slider_pendulum_real *pp;
+    slider_pendulum_real known[2];
     int dense = 0;
-    if (state == NULL || work == NULL || iwork == NULL || p == NULL || !isfinite(t))
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || (p == NULL) || !isfinite(t)) {
         return SLIDER_PENDULUM_BAD_ARGUMENT;
-    if (!(state[42] > 0.0)) return SLIDER_PENDULUM_OK;  /* no scales: no screen */
-    tr = SLIDER_PENDULUM_VEC(work, 9), pp = work + SLIDER_PENDULUM_OFF_PREP;
+    }
+    if (!(state[42] > 0.0)) {
+        return SLIDER_PENDULUM_OK;  /* no scales: no screen */
+    }
+    tr = SLIDER_PENDULUM_VEC(work, 9);
+    pp = &work[SLIDER_PENDULUM_OFF_PREP];
     slider_pendulum_prepare(p, pp);
     slider_pendulum_trig(state, tr);
-    if (slider_pendulum_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_PENDULUM_OK)
+    if (slider_pendulum_factorize(state, tr, t, pp, work, iwork, &dense) != SLIDER_PENDULUM_OK) {
         return SLIDER_PENDULUM_ILL_CONDITIONED;
-    slider_pendulum_screen_known(state + 42, state + 36, known);
-    if (slider_pendulum_screen(work + SLIDER_PENDULUM_OFF_LU, dense, state + 42, state + 36, known)
-        && !(slider_pendulum_cond_estimate(state, tr, t, pp, work, iwork, dense, state + 42, state + 36)
-             <= SLIDER_PENDULUM_COND_SCREEN))
+    }
+    slider_pendulum_screen_known(&state[42], &state[36], known);
+    if ((slider_pendulum_screen(&work[SLIDER_PENDULUM_OFF_LU], dense, &state[42], &state[36], known) != 0)
+        && !(slider_pendulum_cond_estimate(state, tr, t, pp, work, iwork, dense, &state[42], &state[36])
+             <= SLIDER_PENDULUM_COND_SCREEN)) {
         return SLIDER_PENDULUM_ILL_CONDITIONED;
+    }
     return SLIDER_PENDULUM_OK;
 }
 
@@ -1255,84 +1429,124 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
     /* state: q, qd, qdd of the last instant, the three accelerations (statics:
        two positions) before it, count; q .. m3 point at them: in state, or,
        once this call has solved them, where it solved them (checks.rolling) */
-    slider_pendulum_real *q, *m1, *m2, *count, *qn, *qdn, *qddn, *lam, *reac, *tr, *pp, *scale, *rscale, known[2];
-    slider_pendulum_real *qd, *qdd, *m3;
-    long i, unused;
-    int status, info[2], dense = 0;
-    if (solved == NULL) solved = &unused;
-    *solved = 0;
+    slider_pendulum_real *q;
+    slider_pendulum_real *m1;
+    slider_pendulum_real *m2;
+    slider_pendulum_real *count;
+    slider_pendulum_real *qn;
+    slider_pendulum_real *qdn;
+    slider_pendulum_real *qddn;
+    slider_pendulum_real *lam;
+    slider_pendulum_real *reac;
+    slider_pendulum_real *tr;
+    slider_pendulum_real *pp;
+    slider_pendulum_real *scale;
+    slider_pendulum_real *rscale;
+    slider_pendulum_real *qd;
+    slider_pendulum_real *qdd;
+    slider_pendulum_real *m3;
+    slider_pendulum_real known[2];
+    long i;
+    long unused;
+    long *done = &unused;
+    int status;
+    int info[2];
+    int dense = 0;
+    if (solved != NULL) {
+        done = solved;
+    }
+    *done = 0;
     status = SLIDER_PENDULUM_OK;
-    if (state == NULL || work == NULL || iwork == NULL || (rows == NULL && n > 0) || p == NULL        || n < 0 || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || tol <= 0.0)
+    if ((state == NULL) || (work == NULL) || (iwork == NULL) || ((rows == NULL) && (n > 0)) || (p == NULL)        || (n < 0) || !isfinite(t0) || !isfinite(h) || !isfinite(tol) || (tol <= 0.0)) {
         return SLIDER_PENDULUM_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    q = state, m1 = state + 18, m2 = state + 24, count = state + 48;
-    scale = state + 36, rscale = state + 42;
-    if (rscale[0] > 0.0) slider_pendulum_screen_known(rscale, scale, known);
-    else known[0] = known[1] = 0.0;  /* no screen: never read */
-    qd = state + 6, qdd = state + 12, m3 = state + 30;
-    tr = SLIDER_PENDULUM_VEC(work, 9), pp = work + SLIDER_PENDULUM_OFF_PREP;
+    q = state;
+    m1 = &state[18];
+    m2 = &state[24];
+    count = &state[48];
+    scale = &state[36];
+    rscale = &state[42];
+    if (rscale[0] > 0.0) {
+        slider_pendulum_screen_known(rscale, scale, known);
+    } else {
+        known[0] = 0.0;  /* no screen: never read */
+        known[1] = 0.0;
+    }
+    qd = &state[6];
+    qdd = &state[12];
+    m3 = &state[30];
+    tr = SLIDER_PENDULUM_VEC(work, 9);
+    pp = &work[SLIDER_PENDULUM_OFF_PREP];
     slider_pendulum_prepare(p, pp);
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
-        const slider_pendulum_real t = t0 + *count * h;
-        slider_pendulum_real *row = rows + i * SLIDER_PENDULUM_ROW;
+        const slider_pendulum_real t = t0 + (*count * h);
+        slider_pendulum_real *row = &rows[i * SLIDER_PENDULUM_ROW];
         /* what the row holds is solved straight into it */
-        qn = row + 1;
-        qdn = row + 7;
-        qddn = row + 13;
-        lam = row + 19;
-        reac = row + 25;
+        qn = &row[1];
+        qdn = &row[7];
+        qddn = &row[13];
+        lam = &row[19];
+        reac = &row[25];
         /* Taylor to h^5 with q, qd, qdd solved and the next three derivatives
            from the cubic through the last four accelerations (error O(h^6);
            exact for quintics): one Newton correction suffices */
-        if (*count >= 4) {
-            qn[0] = q[0] + h * (qd[0] + h * ((323.0 / 360.0) * qdd[0] - (264.0 / 360.0) * m1[0]
-                                                 + (159.0 / 360.0) * m2[0] - (38.0 / 360.0) * m3[0]));
-            qn[1] = q[1] + h * (qd[1] + h * ((323.0 / 360.0) * qdd[1] - (264.0 / 360.0) * m1[1]
-                                                 + (159.0 / 360.0) * m2[1] - (38.0 / 360.0) * m3[1]));
-            qn[2] = q[2] + h * (qd[2] + h * ((323.0 / 360.0) * qdd[2] - (264.0 / 360.0) * m1[2]
-                                                 + (159.0 / 360.0) * m2[2] - (38.0 / 360.0) * m3[2]));
-            qn[3] = q[3] + h * (qd[3] + h * ((323.0 / 360.0) * qdd[3] - (264.0 / 360.0) * m1[3]
-                                                 + (159.0 / 360.0) * m2[3] - (38.0 / 360.0) * m3[3]));
-            qn[4] = q[4] + h * (qd[4] + h * ((323.0 / 360.0) * qdd[4] - (264.0 / 360.0) * m1[4]
-                                                 + (159.0 / 360.0) * m2[4] - (38.0 / 360.0) * m3[4]));
-            qn[5] = q[5] + h * (qd[5] + h * ((323.0 / 360.0) * qdd[5] - (264.0 / 360.0) * m1[5]
-                                                 + (159.0 / 360.0) * m2[5] - (38.0 / 360.0) * m3[5]));
-        } else if (*count >= 1) {
-            qn[0] = q[0] + h * (qd[0] + 0.5 * h * qdd[0]);
-            qn[1] = q[1] + h * (qd[1] + 0.5 * h * qdd[1]);
-            qn[2] = q[2] + h * (qd[2] + 0.5 * h * qdd[2]);
-            qn[3] = q[3] + h * (qd[3] + 0.5 * h * qdd[3]);
-            qn[4] = q[4] + h * (qd[4] + 0.5 * h * qdd[4]);
-            qn[5] = q[5] + h * (qd[5] + 0.5 * h * qdd[5]);
-        } else
-            memcpy(qn, q, sizeof(slider_pendulum_real) * 6);
+        if (*count >= 4.0) {
+            qn[0] = q[0] + (h * (qd[0] + (h * (((((323.0 / 360.0) * qdd[0]) - ((264.0 / 360.0) * m1[0]))
+                                                 + ((159.0 / 360.0) * m2[0])) - ((38.0 / 360.0) * m3[0])))));
+            qn[1] = q[1] + (h * (qd[1] + (h * (((((323.0 / 360.0) * qdd[1]) - ((264.0 / 360.0) * m1[1]))
+                                                 + ((159.0 / 360.0) * m2[1])) - ((38.0 / 360.0) * m3[1])))));
+            qn[2] = q[2] + (h * (qd[2] + (h * (((((323.0 / 360.0) * qdd[2]) - ((264.0 / 360.0) * m1[2]))
+                                                 + ((159.0 / 360.0) * m2[2])) - ((38.0 / 360.0) * m3[2])))));
+            qn[3] = q[3] + (h * (qd[3] + (h * (((((323.0 / 360.0) * qdd[3]) - ((264.0 / 360.0) * m1[3]))
+                                                 + ((159.0 / 360.0) * m2[3])) - ((38.0 / 360.0) * m3[3])))));
+            qn[4] = q[4] + (h * (qd[4] + (h * (((((323.0 / 360.0) * qdd[4]) - ((264.0 / 360.0) * m1[4]))
+                                                 + ((159.0 / 360.0) * m2[4])) - ((38.0 / 360.0) * m3[4])))));
+            qn[5] = q[5] + (h * (qd[5] + (h * (((((323.0 / 360.0) * qdd[5]) - ((264.0 / 360.0) * m1[5]))
+                                                 + ((159.0 / 360.0) * m2[5])) - ((38.0 / 360.0) * m3[5])))));
+        } else if (*count >= 1.0) {
+            qn[0] = q[0] + (h * (qd[0] + ((0.5 * h) * qdd[0])));
+            qn[1] = q[1] + (h * (qd[1] + ((0.5 * h) * qdd[1])));
+            qn[2] = q[2] + (h * (qd[2] + ((0.5 * h) * qdd[2])));
+            qn[3] = q[3] + (h * (qd[3] + ((0.5 * h) * qdd[3])));
+            qn[4] = q[4] + (h * (qd[4] + ((0.5 * h) * qdd[4])));
+            qn[5] = q[5] + (h * (qd[5] + ((0.5 * h) * qdd[5])));
+        } else {
+            (void)memcpy(qn, q, sizeof(slider_pendulum_real) * 6u);
+        }
         /* from the second instant of a call on, the previous instant's factors
            and trigonometric bases (left in work) serve this one */
-        status = slider_pendulum_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, i > 0);
-        if (status != SLIDER_PENDULUM_OK) break;
-        if (rscale[0] > 0.0 && slider_pendulum_screen(work + SLIDER_PENDULUM_OFF_LU, dense, rscale, scale, known)
+        status = slider_pendulum_newton(t, pp, tol, qn, tr, info, work, iwork, &dense, (i > 0) ? 1 : 0);
+        if (status != SLIDER_PENDULUM_OK) {
+            break;
+        }
+        if ((rscale[0] > 0.0) && (slider_pendulum_screen(&work[SLIDER_PENDULUM_OFF_LU], dense, rscale, scale, known) != 0)
             && !(slider_pendulum_cond_estimate(qn, tr, t, pp, work, iwork, dense, rscale, scale) <= SLIDER_PENDULUM_COND_SCREEN)) {
             status = SLIDER_PENDULUM_ILL_CONDITIONED;
             break;
         }
         slider_pendulum_outputs(t, pp, qn, tr, qdn, qddn, lam, reac, work, iwork, dense);
-        if (!slider_pendulum_row_finite(row, qn, qdn, qddn, lam, reac)) {
+        if (slider_pendulum_row_finite(row, qn, qdn, qddn, lam, reac) == 0) {
             status = SLIDER_PENDULUM_NONFINITE;
             break;
         }
-        if (*count >= 1 && slider_pendulum_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale)) {
+        if ((*count >= 1.0) && (slider_pendulum_unexplained(q, qd, qdd, qn, qdn, qddn, h, scale) != 0)) {
             status = SLIDER_PENDULUM_UNEXPLAINED;
             break;
         }
         /* the history stays where it was solved, in the rows (state is written when the call ends) */
-        m3 = m2, m2 = m1, m1 = qdd, qd = qdn, qdd = qddn;
+        m3 = m2;
+        m2 = m1;
+        m1 = qdd;
+        qd = qdn;
+        qdd = qddn;
         q = qn;
         *count += 1.0;
         row[0] = t;
     }
-    *solved = i;
+    *done = i;
     slider_pendulum_keep(state, q, qd, qdd, m1, m2, m3);
     return status;
 }
@@ -1343,11 +1557,11 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
 static void slider_pendulum_guess(const slider_pendulum_real *p, slider_pendulum_real *out)
 {
     (void)p;
-    out[0] = 0;
-    out[1] = 0;
-    out[2] = 0;
-    out[3] = 0;
-    out[4] = -p[8] - 1.0/2.0*p[9];
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
+    out[3] = 0.0;
+    out[4] = -p[8] - (1.0/2.0*p[9]);
     out[5] = -1.0/2.0*3.141592653589793;
 }
 
@@ -1356,7 +1570,7 @@ static void slider_pendulum_drive(slider_pendulum_real t, const slider_pendulum_
 {
     (void)t;
     (void)p;
-    const slider_pendulum_real d0 = 2*3.141592653589793;
+    const slider_pendulum_real d0 = 2.0*3.141592653589793;
     const slider_pendulum_real d1 = d0*t;
     const slider_pendulum_real d2 = d1*p[2];
     const slider_pendulum_real d3 = d1*p[4];
@@ -1374,36 +1588,61 @@ static void slider_pendulum_drive(slider_pendulum_real t, const slider_pendulum_
 static void slider_pendulum_sweep_scales(const slider_pendulum_real *q, slider_pendulum_real t0, const slider_pendulum_real *p, slider_pendulum_real *vals,
                                  slider_pendulum_real *arms, slider_pendulum_real *inv, slider_pendulum_real *norm)
 {
-    slider_pendulum_real lin[6], rot[6], lref = 0.0, a;
-    int k, r, m = 0, i;
+    slider_pendulum_real lin[6];
+    slider_pendulum_real rot[6];
+    slider_pendulum_real lref = 0.0;
+    slider_pendulum_real a;
+    int k;
+    int r;
+    int m = 0;
+    int i;
     slider_pendulum_phi_q(q, t0, p, vals);
-    for (r = 0; r < 6; ++r) lin[r] = rot[r] = 0.0;
+    for (r = 0; r < 6; ++r) {
+        rot[r] = 0.0;
+        lin[r] = 0.0;
+    }
     for (k = 0; k < 15; ++k) {
         a = fabs(vals[k]);
         r = slider_pendulum_phi_q_rows[k];
-        if (slider_pendulum_phi_q_cols[k] % 3 == 2) rot[r] = SLIDER_PENDULUM_MAX(rot[r], a);
-        else lin[r] = SLIDER_PENDULUM_MAX(lin[r], a);
+        if ((slider_pendulum_phi_q_cols[k] % 3) == 2) {
+            rot[r] = SLIDER_PENDULUM_MAX(rot[r], a);
+        } else {
+            lin[r] = SLIDER_PENDULUM_MAX(lin[r], a);
+        }
     }
     for (r = 0; r < 6; ++r) {
-        if (lin[r] > 0.0 && rot[r] > 0.0) {
+        if ((lin[r] > 0.0) && (rot[r] > 0.0)) {
             /* insertion sort: NC is small and this runs once per variant */
             a = rot[r] / lin[r];
-            for (i = m; i > 0 && arms[i - 1] > a; --i) arms[i] = arms[i - 1];
+            i = m;
+            while ((i > 0) && (arms[i - 1] > a)) {
+                arms[i] = arms[i - 1];
+                --i;
+            }
             arms[i] = a;
             ++m;
         }
     }
-    if (m > 0) lref = m % 2 ? arms[m / 2] : (arms[m / 2 - 1] + arms[m / 2]) / 2.0;
+    if (m > 0) {
+        lref = ((m % 2) != 0) ? arms[m / 2] : ((arms[(m / 2) - 1] + arms[m / 2]) / 2.0);
+    }
     if (!(lref > 0.0)) {
         lref = 0.0;
-        for (k = 0; k < 6; ++k)
-            if (k % 3 != 2) lref = SLIDER_PENDULUM_MAX(lref, fabs(q[k]));
+        for (k = 0; k < 6; ++k) {
+            if ((k % 3) != 2) {
+                lref = SLIDER_PENDULUM_MAX(lref, fabs(q[k]));
+            }
+        }
     }
-    if (!(lref > 0.0) || !isfinite(lref)) lref = 1.0;
-    for (k = 0; k < 6; ++k) inv[k] = k % 3 == 2 ? 1.0 : 1.0 / lref;
+    if (!(lref > 0.0) || !isfinite(lref)) {
+        lref = 1.0;
+    }
+    for (k = 0; k < 6; ++k) {
+        inv[k] = ((k % 3) == 2) ? 1.0 : (1.0 / lref);
+    }
     for (r = 0; r < 6; ++r) {
         a = SLIDER_PENDULUM_MAX(lin[r] * lref, rot[r]);
-        norm[r] = a > 0.0 && isfinite(a) ? a : 1.0;
+        norm[r] = ((a > 0.0) && isfinite(a)) ? a : 1.0;
     }
 }
 
@@ -1415,7 +1654,9 @@ static void slider_pendulum_sweep_take(const slider_pendulum_real *row, const sl
                                slider_pendulum_real *drive, long count)
 {
     const slider_pendulum_real t = row[0];
-    slider_pendulum_real e, rate, w;
+    slider_pendulum_real e;
+    slider_pendulum_real rate;
+    slider_pendulum_real w;
     slider_pendulum_real m;
     (void)p;
     (void)fig;  /* a mechanism without drivers or reactions in its rows has no figures */
@@ -1425,54 +1666,88 @@ static void slider_pendulum_sweep_take(const slider_pendulum_real *row, const sl
     e = -row[21];
     rate = drive[1];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[0]) {
+    if ((count == 0) || (fabs(e) > fig[0])) {
         fig[0] = fabs(e);
         fig[1] = t;
     }
-    if (count == 0 || w > fig[3]) fig[3] = w;
-    if (count == 0) acc[1] = acc[2] = 0.0;
-    else acc[1] += (e * e + acc[0] * acc[0]) * (t - acc[7]);
+    if ((count == 0) || (w > fig[3])) {
+        fig[3] = w;
+    }
+    if (count == 0) {
+        acc[2] = 0.0;
+        acc[1] = 0.0;
+    } else {
+        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[7]);
+    }
     acc[2] += e * e;
     acc[0] = e;
     /* pendulum_motor */
     e = -row[24];
     rate = drive[3];
     w = fabs(e * rate);
-    if (count == 0 || fabs(e) > fig[4]) {
+    if ((count == 0) || (fabs(e) > fig[4])) {
         fig[4] = fabs(e);
         fig[5] = t;
     }
-    if (count == 0 || w > fig[7]) fig[7] = w;
-    if (count == 0) acc[4] = acc[5] = 0.0;
-    else acc[4] += (e * e + acc[3] * acc[3]) * (t - acc[7]);
+    if ((count == 0) || (w > fig[7])) {
+        fig[7] = w;
+    }
+    if (count == 0) {
+        acc[5] = 0.0;
+        acc[4] = 0.0;
+    } else {
+        acc[4] += ((e * e) + (acc[3] * acc[3])) * (t - acc[7]);
+    }
     acc[5] += e * e;
     acc[3] = e;
     /* guide_parallel.force_peak */
-    m = row[25] * row[25] + row[26] * row[26];
-    if (count == 0 || m > fig[8]) fig[8] = m;
-    m = row[28] * row[28] + row[29] * row[29];
-    if (m > fig[8]) fig[8] = m;
+    m = (row[25] * row[25]) + (row[26] * row[26]);
+    if ((count == 0) || (m > fig[8])) {
+        fig[8] = m;
+    }
+    m = (row[28] * row[28]) + (row[29] * row[29]);
+    if ((m > fig[8])) {
+        fig[8] = m;
+    }
     /* guide_slot.force_peak */
-    m = row[31] * row[31] + row[32] * row[32];
-    if (count == 0 || m > fig[9]) fig[9] = m;
-    m = row[34] * row[34] + row[35] * row[35];
-    if (m > fig[9]) fig[9] = m;
+    m = (row[31] * row[31]) + (row[32] * row[32]);
+    if ((count == 0) || (m > fig[9])) {
+        fig[9] = m;
+    }
+    m = (row[34] * row[34]) + (row[35] * row[35]);
+    if ((m > fig[9])) {
+        fig[9] = m;
+    }
     /* carriage_actuator.force_peak */
-    m = row[37] * row[37] + row[38] * row[38];
-    if (count == 0 || m > fig[10]) fig[10] = m;
-    m = row[40] * row[40] + row[41] * row[41];
-    if (m > fig[10]) fig[10] = m;
+    m = (row[37] * row[37]) + (row[38] * row[38]);
+    if ((count == 0) || (m > fig[10])) {
+        fig[10] = m;
+    }
+    m = (row[40] * row[40]) + (row[41] * row[41]);
+    if ((m > fig[10])) {
+        fig[10] = m;
+    }
     /* pendulum_hinge.force_peak */
-    m = row[43] * row[43] + row[44] * row[44];
-    if (count == 0 || m > fig[11]) fig[11] = m;
-    m = row[46] * row[46] + row[47] * row[47];
-    if (m > fig[11]) fig[11] = m;
+    m = (row[43] * row[43]) + (row[44] * row[44]);
+    if ((count == 0) || (m > fig[11])) {
+        fig[11] = m;
+    }
+    m = (row[46] * row[46]) + (row[47] * row[47]);
+    if ((m > fig[11])) {
+        fig[11] = m;
+    }
     /* pendulum_motor.force_peak */
-    m = row[49] * row[49] + row[50] * row[50];
-    if (count == 0 || m > fig[12]) fig[12] = m;
-    m = row[52] * row[52] + row[53] * row[53];
-    if (m > fig[12]) fig[12] = m;
-    if (count == 0) acc[6] = t;
+    m = (row[49] * row[49]) + (row[50] * row[50]);
+    if ((count == 0) || (m > fig[12])) {
+        fig[12] = m;
+    }
+    m = (row[52] * row[52]) + (row[53] * row[53]);
+    if ((m > fig[12])) {
+        fig[12] = m;
+    }
+    if (count == 0) {
+        acc[6] = t;
+    }
     acc[7] = t;
 }
 
@@ -1483,7 +1758,9 @@ static void slider_pendulum_sweep_finish(slider_pendulum_real *fig, const slider
     const slider_pendulum_real span = acc[7] - acc[6];
     (void)acc;  /* no drivers: no time average */
     if (count == 0) {
-        for (k = 0; k < 13; ++k) fig[k] = ((double)NAN);
+        for (k = 0; k < 13; ++k) {
+            fig[k] = ((double)NAN);
+        }
         return;
     }
     (void)k;
@@ -1492,9 +1769,9 @@ static void slider_pendulum_sweep_finish(slider_pendulum_real *fig, const slider
     fig[10] = sqrt(fig[10]);
     fig[11] = sqrt(fig[11]);
     fig[12] = sqrt(fig[12]);
-    fig[2] = span > 0.0 ? sqrt(acc[1] / 2.0 / span)
+    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
                                      : sqrt(acc[2] / (slider_pendulum_real)count);
-    fig[6] = span > 0.0 ? sqrt(acc[4] / 2.0 / span)
+    fig[6] = (span > 0.0) ? sqrt((acc[4] / 2.0) / span)
                                      : sqrt(acc[5] / (slider_pendulum_real)count);
 }
 
@@ -1504,10 +1781,14 @@ static void slider_pendulum_sweep_finish(slider_pendulum_real *fig, const slider
 long slider_pendulum_sweep_lanes(long *abandoned)
 {
 #if SLIDER_PENDULUM_LANES > 1
-    if (abandoned != NULL) *abandoned = __atomic_load_n(&slider_pendulum_lanes_abandoned, __ATOMIC_RELAXED);
+    if (abandoned != NULL) {
+        *abandoned = __atomic_load_n(&slider_pendulum_lanes_abandoned, __ATOMIC_RELAXED);
+    }
     return slider_pendulum_lanes_width();
 #else
-    if (abandoned != NULL) *abandoned = 0;
+    if (abandoned != NULL) {
+        *abandoned = 0;
+    }
     return 1;
 #endif
 }
@@ -1515,25 +1796,37 @@ long slider_pendulum_sweep_lanes(long *abandoned)
 int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum_real t0, slider_pendulum_real h, long n, slider_pendulum_real tol,
                   slider_pendulum_real *figures, int *status, slider_pendulum_real *t_end, long *solved, slider_pendulum_real *work, int *iwork)
 {
-    slider_pendulum_real *state, *rows, *vals, *arms, *drive, *acc;
-    long v, done, got, m;
+    slider_pendulum_real *state;
+    slider_pendulum_real *rows;
+    slider_pendulum_real *vals;
+    slider_pendulum_real *arms;
+    slider_pendulum_real *drive;
+    slider_pendulum_real *acc;
+    long v;
+    long done;
+    long got;
+    long m;
     int st;
 #if SLIDER_PENDULUM_LANES > 1
     const long lanes = slider_pendulum_lanes_width();  /* variants side by side (templates/c/lanes.j2) */
     long first = 0, handed = 0, at = 0;  /* an abandoned group's variants first .. first + handed resume at `at` */
     slider_pendulum_real snap[SLIDER_PENDULUM_LANES * SLIDER_PENDULUM_SNAP];
 #endif
-    if (k < 0 || n < 0 || work == NULL || iwork == NULL || (k > 0 && (figures == NULL || status == NULL
-        || t_end == NULL || solved == NULL || p == NULL)) || !isfinite(t0) || !isfinite(h)
-        || !isfinite(tol) || tol <= 0.0)
+    if ((k < 0) || (n < 0) || (work == NULL) || (iwork == NULL) || ((k > 0) && ((figures == NULL) || (status == NULL)
+        || (t_end == NULL) || (solved == NULL) || (p == NULL))) || !isfinite(t0) || !isfinite(h)
+        || !isfinite(tol) || (tol <= 0.0)) {
         return SLIDER_PENDULUM_BAD_ARGUMENT;
+    }
     /* set after the checks: arithmetic on a NULL pointer is undefined */
-    state = work + SLIDER_PENDULUM_WORK, rows = state + SLIDER_PENDULUM_STATE;
-    vals = rows + 32 * SLIDER_PENDULUM_ROW, arms = vals + 15, drive = arms + 6;
-    acc = drive + 4;
+    state = &work[SLIDER_PENDULUM_WORK];
+    rows = &state[SLIDER_PENDULUM_STATE];
+    vals = &rows[32 * SLIDER_PENDULUM_ROW];
+    arms = &vals[15];
+    drive = &arms[6];
+    acc = &drive[4];
     for (v = 0; v < k; ++v) {
-        const slider_pendulum_real *pv = p + v * SLIDER_PENDULUM_NP;
-        slider_pendulum_real *fig = figures + v * SLIDER_PENDULUM_SWEEP_FIGURES;
+        const slider_pendulum_real *pv = &p[v * SLIDER_PENDULUM_NP];
+        slider_pendulum_real *fig = &figures[v * SLIDER_PENDULUM_SWEEP_FIGURES];
 #if SLIDER_PENDULUM_LANES > 1
         if (lanes > 1 && v % lanes == 0 && k - v >= lanes) {
             if (slider_pendulum_lanes_group(lanes, pv, t0, h, n, tol, fig, status + v, t_end + v, solved + v, snap, &at)) {
@@ -1545,26 +1838,28 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
         }
         if (v - first < handed) {  /* from where the lanes parted: the start of their last call */
             const slider_pendulum_real *s = snap + (v - first) * SLIDER_PENDULUM_SNAP;
-            memcpy(state, s, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
-            memcpy(fig, s + SLIDER_PENDULUM_STATE, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_SWEEP_FIGURES);
-            memcpy(acc, s + SLIDER_PENDULUM_STATE + SLIDER_PENDULUM_SWEEP_FIGURES, sizeof(slider_pendulum_real) * 8);
+            (void)memcpy(state, s, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
+            (void)memcpy(fig, &s[SLIDER_PENDULUM_STATE], sizeof(slider_pendulum_real) * SLIDER_PENDULUM_SWEEP_FIGURES);
+            (void)memcpy(acc, &s[SLIDER_PENDULUM_STATE + SLIDER_PENDULUM_SWEEP_FIGURES], sizeof(slider_pendulum_real) * 8u);
             done = at;
         } else
 #endif
         {
-            memset(state, 0, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
+            (void)memset(state, 0, sizeof(slider_pendulum_real) * (size_t)SLIDER_PENDULUM_STATE);
             slider_pendulum_guess(pv, state);
             done = 0;
         }
         st = SLIDER_PENDULUM_OK;
-        while (done < n && st == SLIDER_PENDULUM_OK) {
+        while ((done < n) && (st == SLIDER_PENDULUM_OK)) {
             /* t0 alone first: its assembled q fixes the scales of the jump check */
-            m = done == 0 ? 1 : SLIDER_PENDULUM_MIN(32, n - done);
+            m = (done == 0) ? 1 : SLIDER_PENDULUM_MIN(32, n - done);
             got = 0;
             st = slider_pendulum_trajectory(t0, h, m, pv, tol, state, rows, &got, work, iwork);
-            for (m = 0; m < got; ++m) slider_pendulum_sweep_take(rows + m * SLIDER_PENDULUM_ROW, pv, fig, acc, drive, done + m);
-            if (done == 0 && got == 1) {
-                slider_pendulum_sweep_scales(state, t0, pv, vals, arms, state + 36, state + 42);
+            for (m = 0; m < got; ++m) {
+                slider_pendulum_sweep_take(&rows[m * SLIDER_PENDULUM_ROW], pv, fig, acc, drive, done + m);
+            }
+            if ((done == 0) && (got == 1)) {
+                slider_pendulum_sweep_scales(state, t0, pv, vals, arms, &state[36], &state[42]);
                 st = slider_pendulum_screen_at(t0, pv, state, work, iwork);  /* t0, solved before its scales were known */
             }
             done += got;
@@ -1572,7 +1867,7 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
         slider_pendulum_sweep_finish(fig, acc, done);
         status[v] = st;
         solved[v] = done;
-        t_end[v] = done > 0 ? acc[7] : ((double)NAN);
+        t_end[v] = (done > 0) ? acc[7] : ((double)NAN);
     }
     return SLIDER_PENDULUM_OK;
 }
@@ -1592,8 +1887,8 @@ static void slider_pendulum_sp_phi_k0(const slider_pendulum_real * q, const slid
     const slider_pendulum_real e0 = cos(p[0]);
     const slider_pendulum_real e1 = sin(p[0]);
     const slider_pendulum_real e2 = (1.0/sqrt((e0*e0) + (e1*e1)));
-    out[2] = e0*e2*q[0] + e1*e2*q[1] - q_des[0];
-    out[5] = -q[2] + q[5] - q_des[1] + (1.0/2.0)*3.141592653589793;
+    out[2] = (e0*e2*q[0]) + (e1*e2*q[1]) - q_des[0];
+    out[5] = -q[2] + q[5] - q_des[1] + ((1.0/2.0)*3.141592653589793);
 }
 
 static void slider_pendulum_sp_phi_k(const slider_pendulum_real * q, const slider_pendulum_real * tr, const slider_pendulum_real * qd, const slider_pendulum_real * q_des, const slider_pendulum_real * qd_des, const slider_pendulum_real * qdd_des, const slider_pendulum_real * p, slider_pendulum_real *out)
@@ -1639,17 +1934,28 @@ static void slider_pendulum_sp_gamma_k(const slider_pendulum_real * q, const sli
 static int slider_pendulum_sp_newton(slider_pendulum_real t, const slider_pendulum_real *p, const slider_pendulum_real *q_des, slider_pendulum_real tol, slider_pendulum_real *q, slider_pendulum_real *tr, int *info, slider_pendulum_real *work,
                           int *iwork, int *dense, int reuse)
 {
-    slider_pendulum_real *r = SLIDER_PENDULUM_VEC(work, 0), *dq = SLIDER_PENDULUM_VEC(work, 1), *y = SLIDER_PENDULUM_VEC(work, 2);
+    slider_pendulum_real *r = SLIDER_PENDULUM_VEC(work, 0);
+    slider_pendulum_real *dq = SLIDER_PENDULUM_VEC(work, 1);
+    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2);
     slider_pendulum_real *base = SLIDER_PENDULUM_VEC(work, 10);
-    slider_pendulum_real step = ((double)INFINITY), lim, qmag, rmax;
-    int it, converged = 0, current = 0, chord;
+    slider_pendulum_real step = ((double)INFINITY);
+    slider_pendulum_real lim;
+    slider_pendulum_real qmag;
+    slider_pendulum_real rmax;
+    int it;
+    int converged = 0;
+    int current = 0;
+    int chord;
     /* no base yet: sin and cos at the guess (a flag, not a NaN base: comparing
        a NaN would raise FE_INVALID) */
-    if (reuse) slider_pendulum_trig_near(q, tr, base);
-    else slider_pendulum_trig_base(q, tr, base);
+    if (reuse != 0) {
+        slider_pendulum_trig_near(q, tr, base);
+    } else {
+        slider_pendulum_trig_base(q, tr, base);
+    }
     /* the rounding floor of the tolerance, from the guess's magnitude */
     qmag = SLIDER_PENDULUM_MAX(1.0, slider_pendulum_maxabs6(q));
-    lim = SLIDER_PENDULUM_MAX(tol, (slider_pendulum_real)SLIDER_PENDULUM_FLOOR_ULPS * SLIDER_PENDULUM_EPS * qmag);
+    lim = SLIDER_PENDULUM_MAX(tol, ((slider_pendulum_real)SLIDER_PENDULUM_FLOOR_ULPS * SLIDER_PENDULUM_EPS) * qmag);
     slider_pendulum_phi_k(q, tr, t, p, r);
     slider_pendulum_sp_phi_k(q, tr, NULL, q_des, NULL, NULL, p, r);
     rmax = slider_pendulum_maxabs6(r);
@@ -1659,15 +1965,17 @@ static int slider_pendulum_sp_newton(slider_pendulum_real t, const slider_pendul
                (the prediction is finite); later: Newton diverged */
             info[0] = it;
             info[1] = *dense;
-            return it == 0 ? SLIDER_PENDULUM_NONFINITE : SLIDER_PENDULUM_NOT_CONVERGED;
+            return (it == 0) ? SLIDER_PENDULUM_NONFINITE : SLIDER_PENDULUM_NOT_CONVERGED;
         }
-        if (rmax <= lim && step <= lim) {
+        if ((rmax <= lim) && (step <= lim)) {
             converged = 1;
             break;
         }
-        if (it == SLIDER_PENDULUM_MAX_NEWTON) break;
-        chord = reuse && it == 0;
-        if (!chord && slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK) {
+        if (it == SLIDER_PENDULUM_MAX_NEWTON) {
+            break;
+        }
+        chord = ((reuse != 0) && (it == 0)) ? 1 : 0;
+        if ((chord == 0) && (slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK)) {
             info[0] = it;
             info[1] = *dense;
             return SLIDER_PENDULUM_SINGULAR;
@@ -1677,8 +1985,8 @@ static int slider_pendulum_sp_newton(slider_pendulum_real t, const slider_pendul
         slider_pendulum_trig_step(q, dq, tr, base);
         /* factors of the iterate before a step at rounding level serve this
            one (a larger step, even 1e-14, would show in the outputs' last digits) */
-        current = !chord && step <= SLIDER_PENDULUM_EPS * qmag;
-        if (rmax <= lim && step <= lim) {
+        current = ((chord == 0) && (step <= (SLIDER_PENDULUM_EPS * qmag))) ? 1 : 0;
+        if ((rmax <= lim) && (step <= lim)) {
             /* |Phi| was within tolerance where this last correction was
                computed, and the correction is too: converged */
             converged = 1;
@@ -1691,8 +1999,10 @@ static int slider_pendulum_sp_newton(slider_pendulum_real t, const slider_pendul
     }
     info[0] = it;
     info[1] = *dense;
-    if (!converged) return SLIDER_PENDULUM_NOT_CONVERGED;
-    if (!current && slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK) {
+    if (converged == 0) {
+        return SLIDER_PENDULUM_NOT_CONVERGED;
+    }
+    if ((current == 0) && (slider_pendulum_factorize(q, tr, t, p, work, iwork, dense) != SLIDER_PENDULUM_OK)) {
         info[1] = *dense;
         return SLIDER_PENDULUM_SINGULAR;
     }
@@ -1705,7 +2015,8 @@ static void slider_pendulum_sp_outputs(slider_pendulum_real t, const slider_pend
                             slider_pendulum_real *lam, slider_pendulum_real *reactions, slider_pendulum_real *work, const int *iwork, int dense,
                             const slider_pendulum_real *q_des, const slider_pendulum_real *qd_des, const slider_pendulum_real *qdd_des)
 {
-    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2), *b = SLIDER_PENDULUM_VEC(work, 3);
+    slider_pendulum_real *y = SLIDER_PENDULUM_VEC(work, 2);
+    slider_pendulum_real *b = SLIDER_PENDULUM_VEC(work, 3);
     slider_pendulum_nu_k(q, tr, t, p, b);
     slider_pendulum_sp_nu_k(q, tr, NULL, q_des, qd_des, NULL, p, b);
     slider_pendulum_solve_in(work, iwork, dense, b, qd, y);  /* b is written afresh after each */
@@ -1721,7 +2032,9 @@ static void slider_pendulum_sp_outputs(slider_pendulum_real t, const slider_pend
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     slider_pendulum_solve_t(work, iwork, dense, b, lam);
-    if (slider_pendulum_mixed(y)) slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    if (slider_pendulum_mixed(y) != 0) {
+        slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
+    }
     slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
 }
 
@@ -1733,25 +2046,34 @@ static int slider_pendulum_sp_instant(slider_pendulum_real t, const slider_pendu
 {
     int status;
     /* isfinite first: an ordered comparison with a NaN would raise FE_INVALID */
-    if (q == NULL || q_des == NULL || qd_des == NULL || qdd_des == NULL || work == NULL
-        || iwork == NULL || p == NULL || !isfinite(t) || !isfinite(tol) || tol <= 0.0
-        || !slider_pendulum_allfinite(q_des, SLIDER_PENDULUM_ND) || !slider_pendulum_allfinite(qd_des, SLIDER_PENDULUM_ND)
-        || !slider_pendulum_allfinite(qdd_des, SLIDER_PENDULUM_ND)) {
+    if ((q == NULL) || (q_des == NULL) || (qd_des == NULL) || (qdd_des == NULL) || (work == NULL)
+        || (iwork == NULL) || (p == NULL) || !isfinite(t) || !isfinite(tol) || (tol <= 0.0)
+        || (slider_pendulum_allfinite(q_des, SLIDER_PENDULUM_ND) == 0) || (slider_pendulum_allfinite(qd_des, SLIDER_PENDULUM_ND) == 0)
+        || (slider_pendulum_allfinite(qdd_des, SLIDER_PENDULUM_ND) == 0)) {
         status = SLIDER_PENDULUM_BAD_ARGUMENT;
     } else {
-        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9), *pp = work + SLIDER_PENDULUM_OFF_PREP, *kept = SLIDER_PENDULUM_VEC(work, 11);
-        memcpy(kept, q, sizeof(slider_pendulum_real) * 6);  /* the caller's guess, back in q if the call fails */
+        slider_pendulum_real *tr = SLIDER_PENDULUM_VEC(work, 9);
+        slider_pendulum_real *pp = &work[SLIDER_PENDULUM_OFF_PREP];
+        slider_pendulum_real *kept = SLIDER_PENDULUM_VEC(work, 11);
+        (void)memcpy(kept, q, sizeof(slider_pendulum_real) * 6u);  /* the caller's guess, back in q if the call fails */
         slider_pendulum_prepare(p, pp);
-        if (qd == NULL) qd = SLIDER_PENDULUM_VEC(work, 5);
-        if (qdd == NULL) qdd = SLIDER_PENDULUM_VEC(work, 6);
-        if (lam == NULL) lam = SLIDER_PENDULUM_VEC(work, 7);
-        if (reactions == NULL) reactions = SLIDER_PENDULUM_VEC(work, 8);
+        /* outputs not asked for are computed into the work vectors the
+           trajectory uses for its own (as instant's) */
+        slider_pendulum_real *qd_out = (qd != NULL) ? qd : SLIDER_PENDULUM_VEC(work, 5);
+        slider_pendulum_real *qdd_out = (qdd != NULL) ? qdd : SLIDER_PENDULUM_VEC(work, 6);
+        slider_pendulum_real *lam_out = (lam != NULL) ? lam : SLIDER_PENDULUM_VEC(work, 7);
+        slider_pendulum_real *reactions_out = (reactions != NULL) ? reactions : SLIDER_PENDULUM_VEC(work, 8);
         status = slider_pendulum_sp_newton(t, pp, q_des, tol, q, tr, counts, work, iwork, dense, 0);
         if (status == SLIDER_PENDULUM_OK) {
-            slider_pendulum_sp_outputs(t, pp, q, tr, qd, qdd, lam, reactions, work, iwork, *dense, q_des, qd_des, qdd_des);
-            if (!slider_pendulum_finite(q, qd, qdd, lam, reactions)) status = SLIDER_PENDULUM_NONFINITE;
+            slider_pendulum_sp_outputs(t, pp, q, tr, qd_out, qdd_out, lam_out, reactions_out, work, iwork, *dense, q_des, qd_des, qdd_des);
+            if (slider_pendulum_finite(q, qd_out, qdd_out, lam_out, reactions_out) == 0) {
+                status = SLIDER_PENDULUM_NONFINITE;
+            }
         }
-        if (status != SLIDER_PENDULUM_OK) memcpy(q, kept, sizeof(slider_pendulum_real) * 6);
+        /* a failed call leaves q as it came (as instant's) */
+        if (status != SLIDER_PENDULUM_OK) {
+            (void)memcpy(q, kept, sizeof(slider_pendulum_real) * 6u);
+        }
     }
     return status;
 }
@@ -1761,7 +2083,8 @@ int slider_pendulum_setpoint(slider_pendulum_real t, const slider_pendulum_real 
                      slider_pendulum_real *qdd, slider_pendulum_real *lam, slider_pendulum_real *reactions, int *info, slider_pendulum_real *work,
                      int *iwork)
 {
-    int dense = 0, counts[2] = {0, 0};
+    int dense = 0;
+    int counts[2] = {0, 0};
     const int status = slider_pendulum_sp_instant(t, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, counts, work,
                                           iwork, &dense);
     if (info != NULL) {

@@ -178,13 +178,13 @@ extern const slider_pendulum_real slider_pendulum_default_q0[SLIDER_PENDULUM_NG]
 /* Floating operations (+ - * / and calls, counted on the emitted code) of one
    instant of a trajectory (one chord correction, the factors at the solution
    and the outputs; besides the angles' sines and cosines and O(NG) vector
-   work), and of each evaluation: phi 44, phi_q 21, nu 10, gamma 31, applied 15, mass 0, reactions 24, lu_factor 14, lu_forward 1, lu_back 16, lu_t_forward 16, lu_t_back 1. */
-#define SLIDER_PENDULUM_OPS_INSTANT 271
+   work), and of each evaluation: phi 41, phi_q 21, nu 10, gamma 30, applied 15, mass 0, reactions 23, lu_factor 14, lu_forward 1, lu_back 16, lu_t_forward 16, lu_t_back 1. */
+#define SLIDER_PENDULUM_OPS_INSTANT 263
 
 /* Worst case of one instant call (computed at generation from the counts
    above, not measured): Newton reaching MAX_NEWTON, every factorization
    through the pivoting fallback (bounded by a dense LU). At most
-   796 + 527 MAX_NEWTON counted floating operations and
+   791 + 524 MAX_NEWTON counted floating operations and
    10 + 6 MAX_NEWTON libm calls; as instructions, at most
    WORST_INSTRUCTIONS, charging each counted operation 12 instructions (its
    loads, stores and indexing), each libm call 300 (the real type on its
@@ -194,7 +194,7 @@ extern const slider_pendulum_real slider_pendulum_default_q0[SLIDER_PENDULUM_NG]
    test_c_edges checks it under callgrind on x86-64 for every bundled
    example, the cap reached (instant only: a trajectory's instant adds its
    predictor, checks and, if generated, sensitivities). */
-#define SLIDER_PENDULUM_WORST_INSTRUCTIONS (15552L + 8524L * (long)SLIDER_PENDULUM_MAX_NEWTON)
+#define SLIDER_PENDULUM_WORST_INSTRUCTIONS (15492L + 8488L * (long)SLIDER_PENDULUM_MAX_NEWTON)
 
 /* Sparsity of Phi_q: row and column of each stored value (row-major). */
 extern const int slider_pendulum_phi_q_rows[15];

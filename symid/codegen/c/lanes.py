@@ -138,7 +138,7 @@ class Converter:
         words = {"piv", "cm"}
         if line.startswith("return 1;"):
             return line
-        m = re.fullmatch(r"if \(!\((?P<a>.*) >= (?P<b>.*)\)(?P<z> \|\| piv == 0\.0)?\) return 1;", line)
+        m = re.fullmatch(r"if \(!\((?P<a>.*) >= \((?P<b>.*)\)\)(?P<z> \|\| \(piv == 0\.0\))?\) \{ return 1; \}", line)
         if m:
             # only the lanes still iterating (act) decide: the others' values are not read
             a, _ = self.expr(m["a"], words)

@@ -24,7 +24,7 @@ def _minus(c: Coef, var: str) -> str:
     """' - c * var', with a known 0 or +-1 left out (the same value exactly)."""
     if isinstance(c, Known) and c.value in (0.0, 1.0, -1.0):
         return "" if c.value == 0.0 else f" - {var}" if c.value == 1.0 else f" + {var}"
-    return f" - {_read(c)} * {var}"
+    return f" - ({_read(c)} * {var})"  # the product in parentheses: MISRA C:2012 12.1
 
 
 def _times(expr: str, c: Coef) -> str:
@@ -54,9 +54,9 @@ def _factor_lines(st: FoldedStep, P: str) -> list[str]:
             lines.append(f"cm = {known_max!r};")
         lines += [f"cm = {P}_MAX(cm, fabs(lu[{k}]));" for k in unknown]
         size = "fabs(piv)" if st.pivot is None else repr(abs(st.pivot))
-        lines.append(f"if (!({size} >= {P}_THRESHOLD * cm){' || piv == 0.0' if variable else ''}) return 1;")
+        lines.append(f"if (!({size} >= ({P}_THRESHOLD * cm)){' || (piv == 0.0)' if variable else ''}) {{ return 1; }}")
     if variable:
-        lines.append(f"piv = lu[{st.pivot_slot}] = 1.0 / piv;")
+        lines += [f"lu[{st.pivot_slot}] = 1.0 / piv;", f"piv = lu[{st.pivot_slot}];"]  # no assignment in an expression (13.4)
     for m, source in st.scale:
         if variable:
             lines.append(f"lu[{m}] *= piv;" if isinstance(source, int) else f"lu[{m}] = {source.value!r} * piv;")

@@ -124,8 +124,8 @@ def _factor_ops(t: dict[str, Any], fabs: str, P: str, f: str) -> list[Op]:
         nb = len(below)
         text = [f"piv = lu[{{0}}]; cm = {fabs}(piv);"]
         text += [f"cm = {P}_MAX(cm, {fabs}(lu[{{{1 + i}}}]));" for i in range(nb)]
-        text.append(f"if (!({fabs}(piv) >= {P}_THRESHOLD * cm) || piv == 0.0{f}) return 1;")
-        text.append("piv = lu[{0}] = 1.0" + f + " / piv;")
+        text.append(f"if (!({fabs}(piv) >= ({P}_THRESHOLD * cm)) || (piv == 0.0{f})) {{{{ return 1; }}}}")
+        text.append("lu[{0}] = 1.0" + f + " / piv; piv = lu[{0}];")  # no assignment in an expression (13.4)
         text += [f"lu[{{{1 + i}}}] *= piv;" for i in range(nb)]
         for j in range(len(upd)):
             a = 1 + nb + 3 * j

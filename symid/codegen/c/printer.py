@@ -86,6 +86,12 @@ class Printer(C99CodePrinter):
     def scalar(self) -> Scalar:
         return self._settings["scalar"]  # type: ignore[no-any-return]
 
+    def _print_Add(self, expr: sp.Add, order: str | None = None) -> str:
+        # a product or quotient among the terms in parentheses: the precedence
+        # explicit (MISRA C:2012 rule 12.1), the grouping C parses anyway
+        text = super()._print_Add(expr, order=order)
+        return " ".join(f"({t})" if _loose(t) else t for t in _terms(text))
+
     def _print_TableSpline(self, expr: sp.Expr) -> str:
         key, order, x = expr.args
         return f"{self._settings['prefix']}_spline_{key.name}({self._print(x)}, {int(order)})"
@@ -112,8 +118,8 @@ class Printer(C99CodePrinter):
 
     def _print_Integer(self, expr: sp.Integer) -> str:
         # an integer literal past 2^63 does not compile; past `exact` it is not a value of the type
-        n = int(expr)
-        return str(n) if abs(n) < self.scalar.exact else self.scalar.lit(_quotient(n, 1))
+        n = int(expr)  # a floating literal: every value printed is of the real type (MISRA C:2012 10.3, 10.4)
+        return self.scalar.lit(float(n)) if abs(n) < self.scalar.exact else self.scalar.lit(_quotient(n, 1))
 
     def _print_Rational(self, expr: sp.Rational) -> str:
         p, q = int(expr.p), int(expr.q)
@@ -145,6 +151,30 @@ class Printer(C99CodePrinter):
             root = f"{self.scalar.fn('sqrt')}({self._print(base)})"
             return f"({whole}*{root})" if exp > 0 else f"({one}/({whole}*{root}))"
         return super()._print_Pow(expr)  # type: ignore[no-any-return]
+
+
+def _terms(text: str) -> list[str]:
+    """The words of a printed sum split at its top-level ' + ' / ' - ' (kept
+    as words of their own)."""
+    out, depth, start = [], 0, 0
+    for i, ch in enumerate(text):
+        depth += ch in "(["
+        depth -= ch in ")]"
+        if depth == 0 and text.startswith((" + ", " - "), i):
+            out += [text[start:i], text[i + 1]]
+            start = i + 3
+    return out + [text[start:]]
+
+
+def _loose(term: str) -> bool:
+    """Whether a printed term has a top-level * or / (outside brackets)."""
+    depth = 0
+    for ch in term:
+        depth += ch in "(["
+        depth -= ch in ")]"
+        if depth == 0 and ch in "*/":
+            return True
+    return False
 
 
 def _quotient(p: int, q: int) -> float:
