@@ -19,8 +19,8 @@ from symid.codegen import c as c_target
 from symid.codegen.c.layout import COUNT_CARRY
 from symid.codegen.model import code_model
 from symid.io.reader import load
-from test_c_single_long_run import GROUP_FLOOR, LONG_BOUND, _driver, _rows, _turned
-from test_codegen import needs_cc
+from cbuild import needs_cc
+from longrun import GROUP_FLOOR, LONG_BOUND, _driver, _rows, _turned
 
 pytestmark = pytest.mark.slow  # two to four C builds per test
 
