@@ -419,7 +419,7 @@ def test_four_bar_of_expressions_costs_within_1_2x_the_built_in_instant_in_c(tmp
     import sys
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-    from benchmarks import instructions
+    from benchmarks import callgrind as instructions
 
     rewritten = tmp_path / "four_bar.toml"
     rewritten.write_text(as_expressions(api.example("four_bar").read_text()))

@@ -65,7 +65,7 @@ def test_both_templates_are_written_from_the_rule(tmp_path: Path, monkeypatch: p
     py = (tmp_path / "numpy" / "slider_crank_solver.py").read_text()
     assert "#define SLIDER_CRANK_MAX_NEWTON 7\n" in h
     assert "#define SLIDER_CRANK_FLOOR_ULPS 16.0\n" in h  # the floor: the header's #ifndef default, read by
-    assert "lim = SLIDER_CRANK_MAX(tol, (slider_crank_real)SLIDER_CRANK_FLOOR_ULPS * SLIDER_CRANK_EPS * qmag);" in c
+    assert "lim = SLIDER_CRANK_MAX(tol, ((slider_crank_real)SLIDER_CRANK_FLOOR_ULPS * SLIDER_CRANK_EPS) * qmag);" in c  # MISRA 12.1: explicit grouping, the same product
     assert "\nMAX_NEWTON = 7\n" in py
     assert "lim = max(tol, 16.0 * EPS * qmag)" in py
 

@@ -15,7 +15,11 @@ from symid.model.mechanism import parameter_symbol
 from symid.model.params import base_names
 from symid.symbolic.columns import GROUP_SUFFIXES
 
-EXAMPLES = [e for e in api.examples() if "friction" not in e]  # friction: tests/numeric/test_friction_sensitivity.py
+# friction: tests/numeric/test_friction_sensitivity.py. The scissor boom: its
+# 16-bar lattice carries the runs' rounding into the differences at 8e-9 of a
+# column's scale (above this file's 2e-9 floor); its forces are checked
+# against Lagrange's equation in tests/numeric/test_scissor_boom.py
+EXAMPLES = [e for e in api.examples() if "friction" not in e and e != "scissor_boom"]
 BACKENDS = ("reference", "numpy", "casadi", "c")
 STEPS = 4  # t0, t1 and two instants between (not only the slider-crank's dead centres)
 REL = 2e-4  # the difference step, relative to the parameter's value
