@@ -15,30 +15,34 @@ from symid.errors import InputError
 CFLAGS = ("-std=c99", "-fno-math-errno", "-fPIC", "-shared")
 
 
-def _words(cc: str) -> list[str]:
+def _words(cc: str, who: str = "--backend c") -> list[str]:
     """$CC as make reads it: "ccache gcc" is a command and its argument."""
     try:
         return shlex.split(cc)
     except ValueError as exc:  # an unbalanced quote
-        raise InputError(f"--backend c: the C compiler CC={cc} is not a command line: {exc}") from None
+        raise InputError(f"{who}: the C compiler CC={cc} is not a command line: {exc}") from None
 
 
-def compiler() -> str:
-    """The C compiler to use ($CC, cc, gcc or clang), or an input error naming the others."""
-    from symid.backends import names
-
+def find(who: str, otherwise: str, purpose: str = "") -> str:
+    """The C compiler to use ($CC, cc, gcc or clang), or an input error for
+    `who` (the command's words) saying `otherwise` (what else the user can do)."""
     chosen = os.environ.get("CC", "").strip()
     if chosen:  # the user's choice is used or refused, never silently replaced
-        words = _words(chosen)
+        words = _words(chosen, who)
         if not words or shutil.which(words[0]) is None:
-            raise InputError(f"--backend c: the C compiler CC={chosen} was not found")
+            raise InputError(f"{who}: the C compiler CC={chosen} was not found")
         return chosen
     for candidate in ("cc", "gcc", "clang"):
         if shutil.which(candidate):
             return candidate
-    others = ", ".join(n for n in names() if n != "c")
-    raise InputError(f"--backend c: no C compiler found (set CC, or install cc/gcc/clang); "
-                     f"other backends: {others}")
+    raise InputError(f"{who}: no C compiler found{purpose} (set CC, or install cc/gcc/clang); {otherwise}")
+
+
+def compiler() -> str:
+    """The C compiler of the C backend, or an input error naming the other backends."""
+    from symid.backends import names
+
+    return find("--backend c", "other backends: " + ", ".join(n for n in names() if n != "c"))
 
 
 def _first_error(stderr: str) -> str:
@@ -47,19 +51,20 @@ def _first_error(stderr: str) -> str:
     return next((line for line in lines if "error" in line.lower()), lines[0] if lines else "")
 
 
-def _compile(cc: str, args: list[str], artifact: Path) -> None:
+def _compile(cc: str, args: list[str], artifact: Path, who: str = "--backend c",
+             what: str = "the generated solver") -> None:
     """Run the compiler; a failure is an unusable resource (exit 2), one line
     naming the compiler and its first error line."""
     try:
-        result = subprocess.run([*_words(cc), *args], capture_output=True, text=True, errors="replace")
+        result = subprocess.run([*_words(cc, who), *args], capture_output=True, text=True, errors="replace")
     except OSError as exc:
-        raise InputError(f"--backend c: the C compiler {cc} could not be run: {exc.strerror or exc}") from None
+        raise InputError(f"{who}: the C compiler {cc} could not be run: {exc.strerror or exc}") from None
     if result.returncode != 0:
         said = _first_error(result.stderr) or f"exit status {result.returncode}, no message"
-        raise InputError(f"--backend c: the C compiler {cc} failed on the generated solver: {said}")
+        raise InputError(f"{who}: the C compiler {cc} failed on {what}: {said}")
     if not artifact.is_file() or artifact.stat().st_size == 0:
         left = f"left {artifact.name} empty" if artifact.is_file() else f"wrote no {artifact.name}"
-        raise InputError(f"--backend c: the C compiler {cc} reported success but {left}")
+        raise InputError(f"{who}: the C compiler {cc} reported success but {left}")
 
 
 def compile_library(source: Path, artifact: Path) -> None:

@@ -23,10 +23,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
-import shlex
-import shutil
-import subprocess
 import sys
 import tempfile
 import zipfile
@@ -39,6 +35,7 @@ from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen import c as c_target
 from symid.errors import InputError
+from symid.backends.c_compiler import _compile, find
 from symid.model.mechanism import T
 from symid.model.params import parameter_values
 from symid.symbolic.derive import DerivedConstraint
@@ -129,42 +126,18 @@ def _guid(fmu: dict[str, Any], solver: Path) -> str:
     return "{%s-%s-%s-%s-%s}" % (h[:8], h[8:12], h[12:16], h[16:20], h[20:32])
 
 
-def compiler() -> list[str]:
-    """The C compiler ($CC, else cc, gcc or clang) as a command line; an input
-    error (exit 2) naming what to do when there is none."""
-    chosen = os.environ.get("CC", "").strip()
-    if chosen:
-        try:
-            words = shlex.split(chosen)
-        except ValueError as exc:
-            raise InputError(f"generate --target fmu: the C compiler CC={chosen} is not a command line: {exc}") \
-                from None
-        if not words or shutil.which(words[0]) is None:
-            raise InputError(f"generate --target fmu: the C compiler CC={chosen} was not found")
-        return words
-    for candidate in ("cc", "gcc", "clang"):
-        if shutil.which(candidate):
-            return [candidate]
-    raise InputError("generate --target fmu: no C compiler found to build the FMU's binary (set CC, or install "
-                     "cc/gcc/clang); --target c writes the sources without compiling")
+WHO = "generate --target fmu"
 
 
-def _build(cc: list[str], sources: list[Path], library: Path) -> None:
+def compiler() -> str:
+    """The C compiler ($CC, else cc, gcc or clang); an input error (exit 2)
+    naming what to do when there is none."""
+    return find(WHO, "--target c writes the sources without compiling", " to build the FMU's binary")
+
+
+def _build(cc: str, sources: list[Path], library: Path) -> None:
     """Compile the sources into the shared library; a failure is one line (exit 2)."""
-    try:
-        result = subprocess.run([*cc, *CFLAGS, *map(str, sources), "-o", str(library), "-lm"],
-                                capture_output=True, text=True, errors="replace")
-    except OSError as exc:
-        raise InputError(f"generate --target fmu: the C compiler {cc[0]} could not be run: "
-                         f"{exc.strerror or exc}") from None
-    if result.returncode != 0:
-        lines = [line.strip() for line in result.stderr.splitlines() if line.strip()]
-        said = next((x for x in lines if "error" in x.lower()), lines[0] if lines else
-                    f"exit status {result.returncode}, no message")
-        raise InputError(f"generate --target fmu: the C compiler {cc[0]} failed on the FMU's sources: {said}")
-    if not library.is_file() or library.stat().st_size == 0:
-        raise InputError(f"generate --target fmu: the C compiler {cc[0]} reported success but wrote no "
-                         f"{library.name}")
+    _compile(cc, [*CFLAGS, *map(str, sources), "-o", str(library), "-lm"], library, WHO, "the FMU's sources")
 
 
 def _zip(folder: Path, target: Path) -> None:
