@@ -17,7 +17,7 @@ import numpy as np
 
 from symid.model.analysis import Analysis
 from symid.backends import Array, Capabilities, Needs
-from symid.backends.c_compiler import CFLAGS, _compile, compile_library, compiler  # noqa: F401 (this module's API)
+from symid.codegen.compiler import CFLAGS, _compile, find
 from symid.errors import check_signal
 from symid.progress import stage
 
@@ -30,12 +30,22 @@ if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a built solver withou
     from symid.numeric.friction import FrictionModel
     from symid.numeric.stability import Notes
 
-# -fno-math-errno lets sqrt compile to one instruction; results are unchanged.
-# No warning flags: a user's run never depends on what a compiler warns about
-# (the tests compile every generated solver with -Wall -Wextra -Werror -pedantic).
 CHUNK = 1024
 CHUNK_BYTES = 1 << 20  # a chunk's rows stay in cache while Python copies them out
 LARGE_SOURCE = 200_000  # bytes of generated C
+
+
+def compiler() -> str:
+    """The C compiler of the C backend, or an input error naming the other backends."""
+    from symid.backends import names
+
+    return find("--backend c", "other backends: " + ", ".join(n for n in names() if n != "c"))
+
+
+def compile_library(source: Path, artifact: Path) -> None:
+    """Compile one C file into a shared library at -O2 with `compiler()`: an input
+    error (exit 2) when there is no compiler or it fails, as for a solver."""
+    _compile(compiler(), ["-O2", *CFLAGS, str(source), "-o", str(artifact), "-lm"], artifact)
 
 
 def chunk_rows(width: int) -> int:

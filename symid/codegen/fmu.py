@@ -35,7 +35,7 @@ from symid.codegen.model import CodeModel
 from symid.codegen.render import render
 from symid.codegen import c as c_target
 from symid.errors import InputError
-from symid.backends.c_compiler import _compile, find
+from symid.codegen.compiler import _compile, find
 from symid.model.mechanism import T
 from symid.model.params import parameter_values
 from symid.symbolic.derive import DerivedConstraint

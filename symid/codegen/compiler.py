@@ -1,6 +1,6 @@
-"""The system C compiler, as the C backend (and `symid solve`'s compiled
-CSV formatter) runs it: found from $CC, cc, gcc or clang, its failures one
-line naming the compiler and its first error (exit 2)."""
+"""The system C compiler, as the C backend, the FMU export and `symid solve`'s
+compiled CSV formatter run it: found from $CC, cc, gcc or clang, its failures
+one line naming the compiler and its first error (exit 2)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,9 @@ from pathlib import Path
 
 from symid.errors import InputError
 
+# -fno-math-errno lets sqrt compile to one instruction; results are unchanged.
+# No warning flags: a user's run never depends on what a compiler warns about
+# (the tests compile every generated solver with -Wall -Wextra -Werror -pedantic).
 CFLAGS = ("-std=c99", "-fno-math-errno", "-fPIC", "-shared")
 
 
@@ -38,13 +41,6 @@ def find(who: str, otherwise: str, purpose: str = "") -> str:
     raise InputError(f"{who}: no C compiler found{purpose} (set CC, or install cc/gcc/clang); {otherwise}")
 
 
-def compiler() -> str:
-    """The C compiler of the C backend, or an input error naming the other backends."""
-    from symid.backends import names
-
-    return find("--backend c", "other backends: " + ", ".join(n for n in names() if n != "c"))
-
-
 def _first_error(stderr: str) -> str:
     """The line of a compiler's output that says what went wrong first."""
     lines = [line.strip() for line in stderr.splitlines() if line.strip()]
@@ -65,9 +61,3 @@ def _compile(cc: str, args: list[str], artifact: Path, who: str = "--backend c",
     if not artifact.is_file() or artifact.stat().st_size == 0:
         left = f"left {artifact.name} empty" if artifact.is_file() else f"wrote no {artifact.name}"
         raise InputError(f"{who}: the C compiler {cc} reported success but {left}")
-
-
-def compile_library(source: Path, artifact: Path) -> None:
-    """Compile one C file into a shared library at -O2 with `compiler()`: an input
-    error (exit 2) when there is no compiler or it fails, as for a solver."""
-    _compile(compiler(), ["-O2", *CFLAGS, str(source), "-o", str(artifact), "-lm"], artifact)
