@@ -170,9 +170,8 @@ def figure_gradients(mechanism: Mechanism, results: Results, names: Sequence[str
         out[at[f"{c.name}.power_peak"]] = np.sign(power[k]) * (d.de[k] * d.v[k] + d.e[k] * d.dv[k])
         if f"{c.name}.motor_rms" in at:
             side = _motor_side(c, d, mechanism, names, values)
-            if side.exact:
-                out[at[f"{c.name}.motor_rms"]] = side.rms_gradient()
-                out[at[f"{c.name}.motor_peak"]] = side.peak_gradient()
+            out[at[f"{c.name}.motor_rms"]] = side.rms_gradient()
+            out[at[f"{c.name}.motor_peak"]] = side.peak_gradient()
     for figure in figures:
         if figure.endswith(".force_peak"):
             out[at[figure]] = _force_peak_gradient(results, figure[: -len(".force_peak")], names)
@@ -219,7 +218,7 @@ def drive_margins(mechanism: Mechanism, results: Results, names: Sequence[str],
             where = source(c, results.columns)
             assert where is not None  # a drive's driver has an effort (`load_of` read it)
             side = _motor_side(c, _Driver(c, where, mechanism, results, names, values), mechanism, names, values)
-            grads = margin_gradients(drive, side, mechanism, names)
+            grads = margin_gradients(drive, side, mechanism, names, values)
         out[c.name] = (margins, grads)
     return out
 

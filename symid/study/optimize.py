@@ -228,8 +228,8 @@ class Problem:
                                         f"is {values[m]} there, not a number SLSQP can bound")
                 if bad:
                     raise AnalysisError(f"the optimizer visited {where}: the {check} margin of {driver}.fits>=1 "
-                                        f"has no gradient by {', '.join(bad)}: a drive whose ratio, efficiencies, "
-                                        "rotor inertia or ratings depend on a parameter varied has none")
+                                        f"has no gradient by {', '.join(bad)}: an envelope whose points depend on a "
+                                        "parameter varied has none")
         for figure in dict.fromkeys([self.objective, *(lim.figure for lim in self.limits
                                                        if not lim.figure.endswith(".fits"))]):
             k = self.figures.index(figure)

@@ -3,10 +3,11 @@ to base parameters, from one run's per-instant sensitivities, each
 differentiated exactly as it is computed:
 
 - a drive's motor torque tau = J n a + k T / n (k = 1/eta or eta_b, the side
-  of each instant, piecewise constant) through the effort T and the driver's
-  acceleration a; the best ratio of a range, n^4 = gamma / alpha, moves with
-  them: dn = n/4 (dgamma/gamma - dalpha/alpha) inside the range, 0 on a bound
-  (it changes the RMS by nothing to first order, the peak and speed by dtau/dn dn);
+  of each instant, piecewise constant) through the effort T, the driver's
+  acceleration a and the drive's J, n, eta, eta_b; the best ratio of a range,
+  n^4 = gamma / alpha, moves with them: dn = n/4 (dgamma/gamma - dalpha/alpha)
+  inside the range, the bound's derivative on a bound (inside, it changes the
+  RMS by nothing to first order, the peak and speed by dtau/dn dn);
 - `D.fits` is a verdict (1 or 0) with no derivative, but its four checks as
   margins (`Verdict.margins`: RMS, peak, speed, the worst point against the
   envelope) each have one, which `symid optimize --subject-to D.fits>=1` bounds;
@@ -22,10 +23,11 @@ differentiated exactly as it is computed:
   with dr_k from the bodies' `d(B.omega)/d(P)` (the velocity sensitivities the
   solve provides) and dF_k = F . dF / F.
 
-NaN where a figure has no derivative: a drive whose ratio, efficiencies or
-rotor inertia (for the margins also its ratings) depend on a parameter
-differentiated, an envelope of points that do, a bearing whose joint does
-not turn or carries no load.
+The drive's own values (ratio or the bound of its range the best ratio sits
+on, efficiencies, rotor inertia, ratings) and a bearing's C and p may be
+expressions of the parameters: the derivatives go through them. NaN where a
+figure has no derivative: the envelope's margin when its points depend on a
+parameter differentiated, a bearing whose joint does not turn or carries no load.
 """
 
 from __future__ import annotations
@@ -78,16 +80,17 @@ def _depends(exprs: Sequence[object], mechanism: Mechanism, names: Sequence[str]
 
 class MotorSide:
     """A drive's motor torque and speed over the run and their derivatives,
-    shape (instants,) and (instants, params); None-valued `tau` when the
-    drive's own values depend on a parameter differentiated."""
+    shape (instants,) and (instants, params), through the load and the drive's
+    own values (ratio, efficiencies, rotor inertia: expressions of parameters)."""
 
     def __init__(self, drive: Drive, c: Element, d: _Driver, mechanism: Mechanism, names: Sequence[str],
                  values: Mapping[sp.Symbol, float]) -> None:
         from symid.output.sizing.motor import Load
 
+        def by(e: object) -> Array:
+            return _by(e, mechanism, names, values)
+
         self.motor: Motor = motor_of(drive, values)
-        self.exact = not _depends((*drive.ratio, drive.efficiency, drive.back_efficiency, drive.rotor_inertia),
-                                  mechanism, names)
         f = c.values["f"]
         a = time_function(f, values, d.t, 2)
         definitions = tuple((n, e) for n, e in mechanism.parameters.items() if is_derived(e))
@@ -97,20 +100,25 @@ class MotorSide:
             a, da = s * a, s[:, None] * da
         load = Load(d.t, d.e, d.v, a)
         motor = self.motor
-        n = motor.ratio[0] if motor.ratio[0] == motor.ratio[1] else best_ratio(load, motor)
+        lo, hi = motor.ratio
+        n = lo if lo == hi else best_ratio(load, motor)
         _, through = split(load, motor)  # the load through the gearbox, its side per instant
-        k = np.where(d.e * d.v >= 0, 1 / motor.efficiency, motor.back_efficiency)  # as `split`
-        J = motor.rotor_inertia
-        dn = np.zeros(len(names))
-        if motor.ratio[0] < n < motor.ratio[1]:  # the best ratio inside its range moves with the load
+        motoring = d.e * d.v >= 0  # as `split`: the side does not move with a parameter
+        k = np.where(motoring, 1 / motor.efficiency, motor.back_efficiency)
+        dk = np.where(motoring[:, None], -by(drive.efficiency) / motor.efficiency ** 2, by(drive.back_efficiency))
+        dthrough = dk * d.e[:, None] + k[:, None] * d.de
+        J, dJ = motor.rotor_inertia, by(drive.rotor_inertia)
+        if lo < n < hi:  # the best ratio inside its range moves with the load: n^4 = gamma / alpha
             alpha, _, gamma = rms_terms(load, motor)
             w = weights(d.t)
-            dalpha = 2 * J * J * (w * a) @ da
-            dgamma = 2 * (w * through * k) @ d.de
+            dalpha = 2 * J * np.sum(w * a * a) * dJ + 2 * J * J * (w * a) @ da
+            dgamma = 2 * (w * through) @ dthrough
             dn = n / 4 * (dgamma / gamma - dalpha / alpha)
+        else:  # a fixed ratio, or the best on a bound of its range
+            dn = by(drive.ratio[0] if n == lo else drive.ratio[1])
         self.t, self.n = d.t, n
         self.tau = J * n * a + through / n
-        self.dtau = J * n * da + k[:, None] * d.de / n + np.outer(J * a - through / n ** 2, dn)
+        self.dtau = (np.outer(n * a, dJ) + np.outer(J * a - through / n ** 2, dn) + J * n * da + dthrough / n)
         self.w = n * d.v
         self.dw = n * d.dv + np.outer(d.v, dn)
 
@@ -122,25 +130,53 @@ class MotorSide:
         return np.sign(self.tau[j]) * self.dtau[j]
 
 
-def margin_gradients(drive: Drive, side: MotorSide, mechanism: Mechanism, names: Sequence[str]) -> Array:
+def _available_by_ratings(m: Motor, speed: float) -> tuple[float, float, float]:
+    """d available / d(peak_torque, max_speed, corner_speed) at motor speed `speed`
+    (the corner model; with envelope points, the peak's cap only)."""
+    w = abs(float(speed))
+    if w > m.max_speed:
+        return 0.0, 0.0, 0.0
+    if m.envelope is not None:
+        ws, ts = np.array(m.envelope).T
+        capped = w <= ws[-1] and np.interp(w, ws, ts) >= m.peak_torque
+        return float(capped), 0.0, 0.0
+    corner = m.max_speed if m.corner_speed is None else m.corner_speed
+    if w <= corner or corner >= m.max_speed:
+        return 1.0, 0.0, 0.0
+    span = m.max_speed - corner
+    return (m.max_speed - w) / span, m.peak_torque * (w - corner) / span ** 2, \
+        m.peak_torque * (m.max_speed - w) / span ** 2
+
+
+def margin_gradients(drive: Drive, side: MotorSide, mechanism: Mechanism, names: Sequence[str],
+                     values: Mapping[sp.Symbol, float]) -> Array:
     """d/dP of `Verdict.margins`, shape (4, len(names)): each check's margin
     through its figure at the figure's own instant (the worst operating point's
-    for the envelope, through the curve's slope there)."""
-    out = np.full((len(MARGINS), len(names)), np.nan)
-    ratings = (drive.continuous_torque, drive.peak_torque, drive.max_speed,
-               *(() if drive.corner_speed is None else (drive.corner_speed,)))
-    curve = () if drive.envelope is None else tuple(x for point in drive.envelope for x in point)
-    if not side.exact or _depends((*ratings, *curve), mechanism, names):
-        return out
+    for the envelope, through the curve's slope there) and through the ratings
+    (the envelope's NaN when its points depend on a parameter differentiated)."""
+    def by(e: object) -> Array:
+        return _by(e, mechanism, names, values)
+
     m = side.motor
-    out[0] = -side.rms_gradient() / m.continuous_torque
-    out[1] = -side.peak_gradient() / m.peak_torque
+    cont, peak, top = m.continuous_torque, m.peak_torque, m.max_speed
+    dcont, dpeak, dtop = by(drive.continuous_torque), by(drive.peak_torque), by(drive.max_speed)
+    dcorner = np.zeros(len(names)) if drive.corner_speed is None else by(drive.corner_speed)
+    rms = float(np.sqrt(np.sum(weights(side.t) * side.tau ** 2)))
+    out = np.empty((len(MARGINS), len(names)))
+    out[0] = -side.rms_gradient() / cont + rms * dcont / cont ** 2
+    j = int(np.argmax(np.abs(side.tau)))
+    out[1] = -side.peak_gradient() / peak + abs(side.tau[j]) * dpeak / peak ** 2
     j = int(np.argmax(np.abs(side.w)))
-    out[2] = -np.sign(side.w[j]) * side.dw[j] / m.max_speed
+    out[2] = -np.sign(side.w[j]) * side.dw[j] / top + abs(side.w[j]) * dtop / top ** 2
     inside = m.available(side.w) - np.abs(side.tau)
     k = int(np.argmin(inside))
-    out[3] = (m.slope(side.w[k]) * np.sign(side.w[k]) * side.dw[k] - np.sign(side.tau[k]) * side.dtau[k]) \
-        / m.peak_torque
+    by_peak, by_top, by_corner = _available_by_ratings(m, side.w[k])
+    davailable = m.slope(side.w[k]) * np.sign(side.w[k]) * side.dw[k] + by_peak * dpeak + by_top * dtop \
+        + by_corner * dcorner
+    out[3] = (davailable - np.sign(side.tau[k]) * side.dtau[k]) / peak - inside[k] * dpeak / peak ** 2
+    curve = () if drive.envelope is None else tuple(x for point in drive.envelope for x in point)
+    if _depends(curve, mechanism, names):
+        out[3] = np.nan  # the curve's points moving are not differentiated
     return out
 
 

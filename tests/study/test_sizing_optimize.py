@@ -146,6 +146,8 @@ type = "point_force"
 body = "wheel"
 s = [0.1, 0.0]
 F = [0.0, "-F0"]
+"""
+SWING_DRIVE = """
 [[drive]]
 driver = "motor"
 ratio = [1.0, 100.0]
@@ -156,6 +158,22 @@ continuous_torque = 0.3
 peak_torque = 0.6
 max_speed = 200.0
 corner_speed = 60.0
+"""
+# the same drive's own values as parameters (a fixed ratio k; a range whose
+# best ratio sits on its upper bound hi): the derivatives through them
+SWING_PARAMETERS = {"k": 30.0, "hi": 10.0, "eta": 0.8, "eta_b": 0.7, "J_m": 2e-4, "T_c": 0.3, "T_p": 0.6,
+                    "w_max": 200.0, "w_c": 20.0}
+SWING_DRIVE_OF_PARAMETERS = """
+[[drive]]
+driver = "motor"
+ratio = RATIO
+efficiency = "eta"
+back_efficiency = "eta_b"
+rotor_inertia = "J_m"
+continuous_torque = "T_c"
+peak_torque = "T_p"
+max_speed = "w_max"
+corner_speed = "w_c"
 """
 
 
@@ -170,7 +188,7 @@ def test_fit_margins_and_motor_peak_gradients_match_central_differences_of_the_v
     motor_peak against central differences of the verdict (h = 1e-6 P:
     truncation ~1e-12, rounding ~1e-10 relative: held to 1e-7)."""
     names = ["A", "F0"]
-    mech = study_analysis(loads(SWING, "swing.toml"))
+    mech = study_analysis(loads(SWING + SWING_DRIVE, "swing.toml"))
     results = solver("numpy")(mech, names, needed_columns(mech, columns(assemble(mech), mech.analysis)))
     margins, grads = drive_margins(mech, results, names, ["motor"])["motor"]
     peak = figure_gradients(mech, results, names)[figure_names(mech).index("motor.motor_peak")]
@@ -189,9 +207,37 @@ def test_fit_margins_and_motor_peak_gradients_match_central_differences_of_the_v
         assert peak[j] == pytest.approx((up.motor_peak - down.motor_peak) / (2 * h), rel=1e-7), name
 
 
+@pytest.mark.parametrize("ratio", ['"k"', '[1.0, "hi"]'])
+def test_margin_gradients_through_the_drives_own_values_match_central_differences(ratio):
+    """Ratio (fixed, or the upper bound its best sits on), efficiencies, rotor
+    inertia and ratings as parameters: d/dP of the margins and of motor_rms,
+    motor_peak against central differences of the verdict (as above)."""
+    head = SWING.replace("F0 = 40.0\n", "F0 = 40.0\n" + "".join(f"{n} = {v!r}\n" for n, v in SWING_PARAMETERS.items()))
+    mech = study_analysis(loads(head + SWING_DRIVE_OF_PARAMETERS.replace("RATIO", ratio), "swing.toml"))
+    names = [n for n in SWING_PARAMETERS if n != ("hi" if ratio == '"k"' else "k")]
+    results = solver("numpy")(mech, names, needed_columns(mech, columns(assemble(mech), mech.analysis)))
+    margins, grads = drive_margins(mech, results, names, ["motor"])["motor"]
+    figures = figure_gradients(mech, results, names)
+    at = [figure_names(mech).index(f"motor.motor_{f}") for f in ("rms", "peak")]
+    v = _verdict(mech)
+    assert v.ratio == (30.0 if ratio == '"k"' else 10.0)
+    k = int(np.argmin(v.motor.available(v.speed) - np.abs(v.torque)))
+    assert abs(v.speed[k]) > 20.0  # past the corner: the corner and max speed move the envelope there
+    for j, name in enumerate(names):
+        p = SWING_PARAMETERS[name]
+        h = 1e-6 * p
+        up, down = _verdict(with_values(mech, [name], [p + h])), _verdict(with_values(mech, [name], [p - h]))
+        central = (up.margins() - down.margins()) / (2 * h)
+        np.testing.assert_allclose(grads[:, j], central, rtol=1e-6, atol=1e-9 / p, err_msg=name)
+        for i, f in zip(at, ("motor_rms", "motor_peak")):
+            assert figures[i, j] == pytest.approx((getattr(up, f) - getattr(down, f)) / (2 * h), rel=1e-6,
+                                                  abs=1e-12 / p), (name, f)
+
+
 def test_margins_say_what_the_verdict_says():
     """Each margin negative exactly when its check fails (the RMS just over, the peak just under)."""
-    v = _verdict(loads(SWING.replace("continuous_torque = 0.3", "continuous_torque = 0.2"), "swing.toml"))
+    v = _verdict(loads(SWING + SWING_DRIVE.replace("continuous_torque = 0.3", "continuous_torque = 0.2"),
+                       "swing.toml"))
     m = v.margins()
     assert not v.fits and m[0] < 0 and np.all(m[1:] > 0) and v.why[0].startswith("RMS torque")
     assert m[0] == pytest.approx(1 - v.motor_rms / 0.2, rel=1e-12)
@@ -241,3 +287,16 @@ def test_a_life_bound_and_the_verdict_bound_pass_the_checks():
     bounds = opt.parse_vary(["n=4:6"])
     for spec in ("motor.fits>=1", "main_bearing.L10_h>=20000", "crank_pin.L10_h<=1e9"):
         opt.check(mech, "motor.motor_rms", bounds, opt.parse_limits([spec]))
+
+
+def test_envelope_points_of_a_parameter_varied_stop_the_fits_bound_naming_them():
+    """The one case without a gradient (exit 3 on the command line, nothing written)."""
+    from symid.errors import AnalysisError
+
+    drive = SWING_DRIVE.replace("corner_speed = 60.0", 'envelope = [[0.0, 0.6], ["w_e", 0.3], [200.0, 0.0]]')
+    mech = loads(SWING.replace("F0 = 40.0\n", "F0 = 40.0\nw_e = 100.0\n") + drive, "swing.toml")
+    problem = opt.Problem(mech, "motor.motor_rms", opt.parse_vary(["w_e=50:150"]),
+                          opt.parse_limits(["motor.fits>=1"]), solver("numpy"))
+    with pytest.raises(AnalysisError, match=r"the envelope margin of motor.fits>=1 has no gradient by w_e \(nan\): "
+                                            "an envelope whose points depend on a parameter varied has none"):
+        opt.run(problem)
