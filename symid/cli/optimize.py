@@ -24,7 +24,10 @@ OPTIMIZE_EPILOG = """examples:
       --subject-to crank_pin.force_peak<=800 -o best.toml
 
 Figures: per driver D D.effort_peak D.effort_rms D.power_peak, per constraint
-C C.force_peak (as `symid sweep` names them; D.effort_t_peak has no gradient).
+C C.force_peak (as `symid sweep` names them; D.effort_t_peak has no gradient);
+with drives and bearings (symid help sizing) D.motor_rms D.motor_peak, a
+bearing's C.L10_h as a bound (--subject-to C.L10_h>=20000), and the verdict
+only as --subject-to D.fits>=1 (the drive fits: RMS, peak, speed, envelope).
 Each iteration prints the figure and the norm of its gradient; the optimum is
 written as a [parameters] TOML snippet to paste into the file.
 The start is the file's value of each varied parameter (after --set); a start

@@ -16,13 +16,16 @@ computed (`symid.study.slow.figures_of`, `symid.output.summary.summarize`):
   (a force that is zero throughout, a driver's pure torque: max |dF|, its
   derivative from above, 0 when it stays zero).
 - `effort_t_peak` is an instant of a discrete grid: it has no derivative
-  (NaN in every gradient column).
+  (NaN in every gradient column); nor has a drive's `fits` (1 or 0), whose
+  checks' margins do (`drive_margins`).
+- a drive's `motor_rms`, `motor_peak` and a bearing's `L10_h`:
+  `symid.study.sizing_gradients`.
 """
 
 from __future__ import annotations
 
 import functools
-from typing import Mapping, Sequence
+from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 import sympy as sp
@@ -34,9 +37,12 @@ from symid.output.results import Results
 from symid.output.summary import Source, drivers, source, time_function, time_functions
 from symid.study.figures import figure_names
 
-# figures with no derivative: an instant of the grid, a verdict (1 or 0), and a
-# bearing's life (its relative rotation's sensitivity is not solved)
-NO_GRADIENT = ("effort_t_peak", "fits", "L10_h")
+if TYPE_CHECKING:
+    from symid.study.sizing_gradients import MotorSide
+
+# figures with no derivative: an instant of the grid and a verdict (1 or 0; its
+# checks' margins have one: `drive_margins`)
+NO_GRADIENT = ("effort_t_peak", "fits")
 
 
 def sensitivity_column(column: str, name: str) -> str:
@@ -66,7 +72,11 @@ def needed_columns(mechanism: Mechanism, header: Sequence[str]) -> list[str]:
         if figure.endswith(".force_peak"):
             joint = figure[: -len(".force_peak")]
             out += [col for col in header if col.startswith((f"{joint}.Fx_", f"{joint}.Fy_"))]
-    return out
+    if mechanism.sizing:  # a bearing's life: its joint's force and relative rotation
+        from symid.study.sizing_gradients import needed_columns as sizing_columns
+
+        out += sizing_columns(mechanism, header)
+    return list(dict.fromkeys(out))
 
 
 def in_base(expr: sp.Expr, parameters: Mapping[str, sp.Expr]) -> sp.Expr:
@@ -110,40 +120,6 @@ class _Driver:
             sign = -1.0 if where.column.endswith(".lambda") else 1.0
             self.e, self.v, self.de, self.dv = sign * raw, fd, sign * draw, dfd_
         self.t = t
-
-
-def _motor_gradients(out: Array, at: Mapping[str, int], c: Element, d: _Driver, mechanism: Mechanism,
-                     names: Sequence[str], values: Mapping[sp.Symbol, float]) -> None:
-    """d motor_rms / dP and d motor_peak / dP of the drive on driver `c`: tau = J n a + k T / n
-    (k = 1/eta or eta_b, piecewise constant) differentiated through T and the
-    driver's acceleration a; the best ratio of a range moves without changing
-    RMS to first order (its derivative in n is 0 there, or n sits on a bound).
-    NaN when the drive's own values depend on a parameter differentiated."""
-    from symid.output.sizing.motor import Load, best_ratio, motor_of, split
-
-    drive = next(x for x in mechanism.sizing.drives if x.driver == c.name)
-    definitions = dict(mechanism.parameters)
-    used = set().union(*(sp.sympify(in_base(e, definitions)).free_symbols for e in
-                         (*drive.ratio, drive.efficiency, drive.back_efficiency, drive.rotor_inertia)))
-    if used & {parameter_symbol(p) for p in names}:
-        return
-    motor = motor_of(drive, values)
-    f = c.values["f"]
-    a = time_function(f, values, d.t, 2)
-    by = _by_parameters(f, tuple((n, e) for n, e in definitions.items() if is_derived(e)), tuple(names))
-    da = time_functions(by[len(names):], values, d.t, 1)  # d(f'')/dP
-    if c.type == "distance_driver":
-        s = np.sign(time_function(f, values, d.t))
-        a, da = s * a, s[:, None] * da
-    load = Load(d.t, d.e, d.v, a)
-    n = motor.ratio[0] if motor.ratio[0] == motor.ratio[1] else best_ratio(load, motor)
-    _, through = split(load, motor)  # the load through the gearbox, its side per instant
-    k = np.where(d.e * d.v >= 0, 1 / motor.efficiency, motor.back_efficiency)  # as `split`
-    tau = motor.rotor_inertia * n * a + through / n
-    dtau = motor.rotor_inertia * n * da + k[:, None] * d.de / n
-    out[at[f"{c.name}.motor_rms"]] = _rms_gradient(d.t, tau, dtau)
-    j = int(np.argmax(np.abs(tau)))
-    out[at[f"{c.name}.motor_peak"]] = np.sign(tau[j]) * dtau[j]
 
 
 def _rms_gradient(t: Array, e: Array, de: Array) -> Array:
@@ -193,10 +169,57 @@ def figure_gradients(mechanism: Mechanism, results: Results, names: Sequence[str
         k = int(np.argmax(np.abs(power)))
         out[at[f"{c.name}.power_peak"]] = np.sign(power[k]) * (d.de[k] * d.v[k] + d.e[k] * d.dv[k])
         if f"{c.name}.motor_rms" in at:
-            _motor_gradients(out, at, c, d, mechanism, names, values)
+            side = _motor_side(c, d, mechanism, names, values)
+            out[at[f"{c.name}.motor_rms"]] = side.rms_gradient()
+            out[at[f"{c.name}.motor_peak"]] = side.peak_gradient()
     for figure in figures:
         if figure.endswith(".force_peak"):
             out[at[figure]] = _force_peak_gradient(results, figure[: -len(".force_peak")], names)
+    bearings = [b for b in mechanism.sizing.bearings if f"{b.joint}.L10_h" in at]
+    if bearings:
+        from symid.study.sizing_gradients import life_gradient
+
+        joints = {c.name: c for c in mechanism.constraints}
+        for b in bearings:
+            out[at[f"{b.joint}.L10_h"]] = life_gradient(b, joints[b.joint], mechanism, results, names, values)
+    return out
+
+
+def _motor_side(c: Element, d: _Driver, mechanism: Mechanism, names: Sequence[str],
+                values: Mapping[sp.Symbol, float]) -> MotorSide:
+    from symid.study.sizing_gradients import MotorSide
+
+    drive = next(x for x in mechanism.sizing.drives if x.driver == c.name)
+    return MotorSide(drive, c, d, mechanism, names, values)
+
+
+def drive_margins(mechanism: Mechanism, results: Results, names: Sequence[str],
+                  only: Sequence[str]) -> dict[str, tuple[Array, Array | None]]:
+    """Per driver of `only` (each with a drive), `Verdict.margins` of its
+    drive and their gradients (4 x len(names); None without `names`).
+
+    Args:
+        results: the run, with the sensitivity columns of `needed_columns` by `names`.
+    """
+    from symid.output.sizing import load_of
+    from symid.output.sizing.motor import motor_of, verdict
+    from symid.study.sizing_gradients import margin_gradients
+
+    values = parameter_values(mechanism.parameters)
+    out: dict[str, tuple[Array, Array | None]] = {}
+    for c in drivers(mechanism):
+        if c.name not in only:
+            continue
+        drive = next(x for x in mechanism.sizing.drives if x.driver == c.name)
+        load, _, _ = load_of(mechanism, results, c.name, values)
+        margins = verdict(load, motor_of(drive, values)).margins()
+        grads = None
+        if names:
+            where = source(c, results.columns)
+            assert where is not None  # a drive's driver has an effort (`load_of` read it)
+            side = _motor_side(c, _Driver(c, where, mechanism, results, names, values), mechanism, names, values)
+            grads = margin_gradients(drive, side, mechanism, names, values)
+        out[c.name] = (margins, grads)
     return out
 
 

@@ -24,10 +24,12 @@ from symid.errors import AnalysisError, InputError
 from symid.model.mechanism import Mechanism, parameter_symbol
 from symid.model.params import parameter_values
 from symid.output.results import Results, columns
+from symid.study import sizing_limits
 from symid.study.design import check_names, check_span, finite_number
 from symid.study.figures import figure_names
-from symid.study.gradients import figure_gradients, has_gradient, needed_columns
+from symid.study.gradients import drive_margins, figure_gradients, has_gradient, needed_columns
 from symid.study.inertials import checker
+from symid.study.sizing_gradients import MARGINS
 from symid.study.slow import figures_of, study_analysis, with_values
 from symid.symbolic.assemble import assemble
 from symid.text import number
@@ -101,11 +103,15 @@ def check(mechanism: Mechanism, objective: str, bounds: Sequence[Bound], limits:
     for option, figure in [("--minimize", objective)] + [(f"--subject-to {lim.text()}", lim.figure)
                                                         for lim in limits]:
         if figure not in names:
-            raise InputError(f"{source}: {option}: no figure {figure!r} (figures: {', '.join(names) or 'none'})")
+            raise InputError(f"{source}: {option}: no figure {figure!r} (figures: {', '.join(names) or 'none'})"
+                             + sizing_limits.hint(figure))
+    sizing_limits.check(objective, limits, source)
+    for option, figure in [("--minimize", objective)] + [(f"--subject-to {lim.text()}", lim.figure)
+                                                        for lim in limits if not lim.figure.endswith(".fits")]:
         if not has_gradient(figure):
-            what = "is an instant of the time grid" if figure.endswith("effort_t_peak") else "is a verdict or a life"
-            raise InputError(f"{source}: {option}: {figure!r} {what} and has no gradient: optimize effort_peak, "
-                             "effort_rms, power_peak or force_peak (a drive's motor_rms or motor_peak)")
+            raise InputError(f"{source}: {option}: {figure!r} is an instant of the time grid and has no gradient: "
+                             "optimize effort_peak, effort_rms, power_peak or force_peak (a drive's motor_rms "
+                             "or motor_peak, a bearing's L10_h)")
     check_names([b.name for b in bounds], mechanism.parameters, source, "--vary")
     values = parameter_values(mechanism.parameters)
     for b in bounds:
@@ -119,11 +125,13 @@ def check(mechanism: Mechanism, objective: str, bounds: Sequence[Bound], limits:
 @dataclass
 class Point:
     """One visited point: parameter values, figures (figure_names order) and
-    their gradients (figures x parameters; None without sensitivities)."""
+    their gradients (figures x parameters; None without sensitivities); per
+    driver of a `D.fits>=1` limit, its verdict's margins and their gradients."""
 
     p: Array
     figures: Array
     gradients: Array | None
+    margins: dict[str, tuple[Array, Array | None]] = field(default_factory=dict)
 
 
 @dataclass
@@ -156,6 +164,7 @@ class Problem:
         self.figures = list(figure_names(self.mechanism))
         self._negative = checker(self.mechanism, self.names)  # lambdified once, asked at every point
         self.columns = needed_columns(self.mechanism, columns(assemble(self.mechanism), self.mechanism.analysis))
+        self.fits = [lim.figure[: -len(".fits")] for lim in self.limits if lim.figure.endswith(".fits")]
 
     def params(self, u: Array) -> Array:
         """Parameter values of the scaled point u in [0, 1]^n."""
@@ -195,12 +204,14 @@ class Problem:
                                     f"{value:.6g} over the instants before t = {when}: "
                                     f"{results.error}") from None
             grads = figure_gradients(variant, results, self.names) if self.exact else None
-        self._check_finite(where, figures, grads)
-        point = Point(p, figures, grads)
+            margins = drive_margins(variant, results, self.names if self.exact else (), self.fits)
+        self._check_finite(where, figures, grads, margins)
+        point = Point(p, figures, grads, margins)
         self._cache[key] = point
         return point
 
-    def _check_finite(self, where: str, figures: Array, grads: Array | None) -> None:
+    def _check_finite(self, where: str, figures: Array, grads: Array | None,
+                      margins: dict[str, tuple[Array, Array | None]]) -> None:
         """Refuse a point where a figure SLSQP uses (the objective, each limit's) or
         its gradient is not finite: SLSQP would go on from NaN and end with a
         message about something else ("Inequality constraints incompatible").
@@ -208,7 +219,19 @@ class Problem:
         Raises:
             AnalysisError: naming the point, the figure and the parameters.
         """
-        for figure in dict.fromkeys([self.objective, *(lim.figure for lim in self.limits)]):
+        for driver, (values, slopes) in margins.items():
+            for m, check in enumerate(MARGINS):
+                bad = [] if slopes is None else [f"{n} ({g})" for n, g in zip(self.names, slopes[m])
+                                                  if not math.isfinite(g)]
+                if not math.isfinite(values[m]):
+                    raise AnalysisError(f"the optimizer visited {where}: the {check} margin of {driver}.fits>=1 "
+                                        f"is {values[m]} there, not a number SLSQP can bound")
+                if bad:
+                    raise AnalysisError(f"the optimizer visited {where}: the {check} margin of {driver}.fits>=1 "
+                                        f"has no gradient by {', '.join(bad)}: an envelope whose points depend on a "
+                                        "parameter varied has none")
+        for figure in dict.fromkeys([self.objective, *(lim.figure for lim in self.limits
+                                                       if not lim.figure.endswith(".fits"))]):
             k = self.figures.index(figure)
             if not math.isfinite(figures[k]):
                 raise AnalysisError(f"the optimizer visited {where}: {figure} = {figures[k]} there, not a "
@@ -223,6 +246,16 @@ class Problem:
 
     def value(self, u: Array, figure: str) -> float:
         return float(self.at(u).figures[self.figures.index(figure)])
+
+    def margin(self, u: Array, driver: str, m: int) -> float:
+        """The m-th margin of the drive on `driver` (`Verdict.margins`)."""
+        return float(self.at(u).margins[driver][0][m])
+
+    def margin_gradient(self, u: Array, driver: str, m: int) -> Array:
+        """d(margin)/du (scaled parameters)."""
+        slopes = self.at(u).margins[driver][1]
+        assert slopes is not None, "gradients are asked only of an exact problem"
+        return slopes[m] * self.width
 
     def gradient(self, u: Array, figure: str) -> Array:
         """d(figure)/du (scaled parameters)."""
@@ -288,11 +321,19 @@ def run(problem: Problem, report: Callable[[int, float, float], None] | None = N
         return problem.gradient(u, problem.objective) / scale
 
     constraints = []
+    for driver in problem.fits:  # the drive fits: each check of its verdict as a margin >= 0
+        for m in range(len(MARGINS)):
+            c: dict[str, object] = {"type": "ineq", "fun": lambda u, d=driver, m=m: problem.margin(u, d, m)}
+            if exact:
+                c["jac"] = lambda u, d=driver, m=m: problem.margin_gradient(u, d, m)
+            constraints.append(c)
     for lim in problem.limits:
+        if lim.figure.endswith(".fits"):
+            continue
         sign = 1.0 if lim.sense == "<=" else -1.0
         size = abs(lim.value) if lim.value != 0 else 1.0
-        c: dict[str, object] = {"type": "ineq",
-                                "fun": lambda u, lim=lim, s=sign, z=size: s * (lim.value - problem.value(u, lim.figure)) / z}
+        c = {"type": "ineq",
+             "fun": lambda u, lim=lim, s=sign, z=size: s * (lim.value - problem.value(u, lim.figure)) / z}
         if exact:
             c["jac"] = lambda u, lim=lim, s=sign, z=size: -s * problem.gradient(u, lim.figure) / z
         constraints.append(c)
@@ -327,6 +368,10 @@ def _unmet(problem: Problem, u: Array) -> tuple[str, ...]:
     unmet = []
     for lim in problem.limits:
         value = problem.value(u, lim.figure)
+        if lim.figure.endswith(".fits"):  # the verdict itself, as `symid size` gives it
+            if value != 1:
+                unmet.append(sizing_limits.unmet(lim.figure, value, problem.at(u).margins))
+            continue
         excess = value - lim.value if lim.sense == "<=" else lim.value - value
         if not excess <= UNMET * (abs(lim.value) if lim.value != 0 else 1.0):
             unmet.append(f"{lim.figure} = {value:.6g} ({lim.sense} {lim.value:g})")

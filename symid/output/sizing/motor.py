@@ -71,6 +71,24 @@ class Motor:
         falling = self.peak_torque * (self.max_speed - w) / (self.max_speed - corner)
         return np.clip(np.where(w <= corner, self.peak_torque, falling), 0.0, None)
 
+    def slope(self, speed: float) -> float:
+        """d available / d|speed| at motor speed `speed` (either sign): 0 where
+        the peak caps it or past max_speed; at a kink, the slope of the
+        segment below it (the side `available` takes the value of)."""
+        w = abs(float(speed))
+        if w > self.max_speed:
+            return 0.0
+        if self.envelope is not None:
+            ws, ts = np.array(self.envelope).T
+            if w <= ws[0] or w > ws[-1] or np.interp(w, ws, ts) >= self.peak_torque:
+                return 0.0
+            k = int(np.searchsorted(ws, w, side="left")) - 1  # the segment (ws[k], ws[k + 1]] holding w
+            return float((ts[k + 1] - ts[k]) / (ws[k + 1] - ws[k]))
+        corner = self.max_speed if self.corner_speed is None else self.corner_speed
+        if w <= corner or corner >= self.max_speed:
+            return 0.0
+        return -self.peak_torque / (self.max_speed - corner)
+
 
 def motor_of(drive: Drive, values: Mapping[object, float]) -> Motor:
     """The drive's expressions evaluated at the parameter values."""
@@ -184,6 +202,16 @@ class Verdict:
     @property
     def fits(self) -> bool:
         return not self.why
+
+    def margins(self) -> Array:
+        """The verdict's checks as margins, each >= 0 when it passes, shape (4,):
+        1 - RMS / continuous, 1 - peak / peak_torque, 1 - speed / max_speed, and
+        the worst operating point's min_k (available(w_k) - |tau_k|) / peak_torque.
+        (`symid optimize --subject-to D.fits>=1` keeps each >= 0.)"""
+        m = self.motor
+        inside = (m.available(self.speed) - np.abs(self.torque)) / m.peak_torque
+        return np.array([1 - self.motor_rms / m.continuous_torque, 1 - self.motor_peak / m.peak_torque,
+                         1 - self.speed_peak / m.max_speed, float(np.min(inside))])
 
     def json(self) -> dict[str, object]:
         return {"driver": self.motor.driver, "ratio": self.ratio, "motor_rms": self.motor_rms,
