@@ -269,8 +269,10 @@ class _Reader:
         bodies: dict[str, str] = {}
         values: dict[str, Any] = {}
         options: dict[str, str] = {}
-        readable = [n for n, what in names.items() if what == "body"]
-        self.state_bodies = readable if section == "force" and kind in state.TYPES else None
+        # the bodies a force's state functions may read (listed only for those: a
+        # list per element is quadratic in a file of thousands of bodies)
+        self.state_bodies = ([n for n, what in names.items() if what == "body"]
+                             if section == "force" and kind in state.TYPES else None)
         for key in family.keys:
             kw = f"{where} key '{key.name}'"
             if key.name not in data:
@@ -298,8 +300,8 @@ class _Reader:
                     options[key.name] = value
                 else:
                     values[key.name] = value
-        self.state_bodies = None
-        if section == "force" and kind in state.TYPES:  # its terms of the state become its variant
+        readable, self.state_bodies = self.state_bodies, None
+        if readable is not None:  # a force's terms of the state become its variant
             timed = tuple(k.name for k in family.keys if k.kind in ("function", "function2"))
             more, more_options, extra = state.generalize(values, timed, bodies["i"], readable,
                                                          set(self.params.values()), where, self.fail)
