@@ -16,7 +16,7 @@ for C):
   `DENSE_COPIES` copies at once (the matrix, its equilibrated copy, the LU
   factors, the temporaries of the scaling), wherever the rank analysis of
   redundant rows, or the Python loop of a small mechanism, factors it
-  (`dense_checks`; from `SPARSE_MIN` coordinates on the loop is sparse).
+  (`dense_checks`; from `SPARSE_MIN` coordinates on both are sparse).
 """
 
 from __future__ import annotations
@@ -69,13 +69,16 @@ class Footprint:
 
 
 def dense_checks(layout: Layout, backend: str) -> str:
-    """What factors Phi_q densely in this run ("" when nothing does): the
-    rank analysis of more rows than coordinates (the redundancy report, on
-    every backend), and the Python loop of a backend without a compiled loop
-    below `SPARSE_MIN` coordinates (from there on it factors Phi_q sparse)."""
+    """What factors Phi_q densely in this run ("" when nothing does), below
+    `SPARSE_MIN` coordinates only (from there on Phi_q is sparse, its rank
+    analysis too: `symid.numeric.sparse_rank`): the rank analysis of more rows
+    than coordinates (the redundancy report, on every backend), and the
+    Python loop of a backend without a compiled loop."""
+    if layout.ng >= SPARSE_MIN:
+        return ""
     if layout.nc > layout.ng:
         return "the rank analysis of the redundant rows"
-    if layout.ng < SPARSE_MIN and not backends.capabilities(backend).compiled_loop:
+    if not backends.capabilities(backend).compiled_loop:
         return "the Python loop's factorizations of Phi_q"
     return ""
 
