@@ -50,7 +50,8 @@ def rank_of(jac: Array, scaling: Scaling, layout: Layout, singular: bool = False
             return full
         from scipy.sparse import diags
 
-        found = sparse_rank.analyse(diags(1.0 / scaling.row) @ jac @ diags(scaling.col), singular)  # type: ignore[operator]
+        equilibrated = diags(1.0 / scaling.row) @ jac @ diags(scaling.col)  # type: ignore[operator]
+        found = sparse_rank.analyse(equilibrated, singular)
     else:
         found = sparse_rank.dense(jac / scaling.row[:, None] * scaling.col[None, :], singular)
     share = found.share
@@ -218,7 +219,8 @@ def _min_norm_step(a: Array, b: Array) -> Array:
     if is_sparse(a):
         from scipy.sparse.linalg import lsmr
 
-        return lsmr(a, b, atol=LSMR_TOL, btol=LSMR_TOL, conlim=1 / (1e3 * EPS), maxiter=10 * a.shape[1])[0]  # type: ignore[no-any-return]
+        found = lsmr(a, b, atol=LSMR_TOL, btol=LSMR_TOL, conlim=1 / (1e3 * EPS), maxiter=10 * a.shape[1])
+        return found[0]  # type: ignore[no-any-return]
     return np.linalg.lstsq(a, b, rcond=1e3 * EPS)[0]
 
 

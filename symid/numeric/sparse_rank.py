@@ -92,14 +92,14 @@ def analyse(a, singular: bool = False) -> Analysis:  # type: ignore[no-untyped-d
         return Analysis(0, np.ones(nc), np.inf)
     threshold = max(nc, ng) * EPS * smax
     shift = threshold / 2
-    for attempt in range(4):
+    for _ in range(4):
         try:
             lu = _augmented(a, shift)
             break
         except RuntimeError:  # an exactly zero pivot: the shift met a singular value
             shift *= 1.7
-    else:
-        raise RuntimeError("the augmented matrix of Phi_q is singular at every shift tried")
+    else:  # never seen: the dense SVD, as before this module
+        return dense(a.toarray(), singular)
     rng = np.random.default_rng(SEED)
     k = min(least + 2, nc)
     while True:
@@ -107,32 +107,34 @@ def analyse(a, singular: bool = False) -> Analysis:  # type: ignore[no-untyped-d
         previous = None
         for iteration in range(MAX_ITERATIONS):
             x = np.linalg.qr(lu.solve(np.vstack([x, np.zeros((ng, k))]))[:nc])[0]
-            null, vectors = _ritz(a, x, threshold, least)
+            null, vectors, sv = _ritz(a, x, threshold, least)
             # converged: the null directions' span no longer moves (at once for exact null
             # ones; a singular value counted as null by `singular` converges against the next)
-            if previous is not None and iteration + 1 >= ITERATIONS and null == previous.shape[1] and \
-                    np.abs(vectors[:, :null] - previous @ (previous.T @ vectors[:, :null])).max(initial=0.0) <= SPAN_TOL:
-                break
+            if previous is not None and iteration + 1 >= ITERATIONS and null == previous.shape[1]:
+                span = vectors[:, :null]
+                if np.abs(span - previous @ (previous.T @ span)).max(initial=0.0) <= SPAN_TOL:
+                    break
             previous = vectors[:, :null]
         if null < k or k == nc:
             break
         k = min(2 * k, nc)  # every direction found is null: look at more
     share = np.sum(vectors[:, :null] ** 2, axis=1)
     rank = nc - null
-    cond = smax / _smallest(lu, a, vectors[:, :null], shift) if rank == ng else np.inf
+    cond = smax / _smallest(lu, a, vectors[:, :null], shift, float(sv[null])) if rank == ng else np.inf
     return Analysis(rank, share, cond)
 
 
-def _ritz(a, x: Array, threshold: float, least: int) -> tuple[int, Array]:  # type: ignore[no-untyped-def]
+def _ritz(a, x: Array, threshold: float, least: int) -> tuple[int, Array, Array]:  # type: ignore[no-untyped-def]
     """Rayleigh-Ritz on span(x) (nc, k): how many of a's singular values there
-    are null (at least `least`) and the left singular vectors, smallest first."""
+    are null (at least `least`), the left singular vectors and the singular
+    values, smallest first."""
     k = x.shape[1]
     w, sv, _ = np.linalg.svd((a.T @ x).T, full_matrices=False)  # of (k, ng)
     if sv.size < k:  # more vectors than coordinates: the rest of span(x) is null
         w = np.linalg.qr(w, mode="complete")[0]
         sv = np.concatenate([sv, np.zeros(k - sv.size)])
     order = np.argsort(sv, kind="stable")
-    return max(int(np.sum(sv <= threshold)), least), x @ w[:, order]
+    return max(int(np.sum(sv <= threshold)), least), x @ w[:, order], sv[order]
 
 
 def dense(a: Array, singular: bool = False) -> Analysis:
@@ -146,11 +148,12 @@ def dense(a: Array, singular: bool = False) -> Analysis:
     return Analysis(rank, np.sum(u[:, rank:] ** 2, axis=1), cond)
 
 
-def _smallest(lu, a, null: Array, shift: float) -> float:  # type: ignore[no-untyped-def]
+def _smallest(lu, a, null: Array, shift: float, ritz: float) -> float:  # type: ignore[no-untyped-def]
     """a's smallest singular value at full column rank: by Lanczos (ARPACK) on
     the inverse iteration's operator with the null directions projected out
-    (its largest eigenvalue is 1 / (s_min^2 - shift^2))."""
-    from scipy.sparse.linalg import LinearOperator, eigsh
+    (its largest eigenvalue is 1 / (s_min^2 - shift^2)); the block's Ritz
+    value `ritz` (an upper bound) should ARPACK not converge."""
+    from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh
 
     nc, ng = a.shape
 
@@ -161,8 +164,11 @@ def _smallest(lu, a, null: Array, shift: float) -> float:  # type: ignore[no-unt
 
     op = LinearOperator((nc, nc), matvec=apply, dtype=float)
     v0 = np.random.default_rng(SEED).standard_normal(nc)
-    mu = float(eigsh(op, k=1, which="LA", v0=v0, return_eigenvectors=False)[0])
-    return float(np.sqrt(1.0 / mu + shift ** 2))
+    try:
+        mu = float(eigsh(op, k=1, which="LA", v0=v0, return_eigenvectors=False)[0])
+    except ArpackNoConvergence:
+        return ritz
+    return float(np.sqrt(1.0 / mu + shift ** 2)) if mu > 0 else ritz
 
 
 class LeastSquares:
