@@ -26,6 +26,7 @@ instructions and time per instant (before / after, measured in the same run).
     python -m benchmarks scale                      # N = 64 128 256, auto
     python -m benchmarks scale --ladders 512 1024 --forms auto unrolled compact
     python -m benchmarks scale --ladders 64 --forms before_runs auto
+    python -m benchmarks scale --ladders 64 --numpy 64 256 1024   # and numpy's setup memory (issue 31)
 
 The targets of issue 17 are checked from the auto form's figures.
 """
@@ -199,6 +200,27 @@ def run_one(ctx: Context, n: int, form: str, instants: int, cap_s: float) -> dic
     return {**got.result, "process_s": round(got.wall_s, 2), "peak_process_mb": got.peak_rss_mb}
 
 
+def numpy_row(ctx: Context, n: int, instants: int, cap_s: float) -> dict[str, Any]:
+    """`symid bench` on the ladder with the numpy backend, cold, as a user runs
+    it (issue 31: its peak memory at N = 1024 at most 1 GB): the command's
+    JSON, its wall time and peak resident memory (through launch.py)."""
+    import sys
+
+    from benchmarks import ladder
+
+    folder = Path(tempfile.mkdtemp(prefix=f"scale-numpy-{n}-", dir=ctx.work))
+    path = ladder.write(n, folder, steps=1001)
+    with tempfile.TemporaryFile() as out:
+        got = ctx.process([sys.executable, "-m", "symid", "bench", str(path), "--backend", "numpy", "--instants",
+                           str(instants), "--json"], cap_s, stdout=out)
+        out.seek(0)
+        stdout = out.read().decode(errors="replace")
+    if got.status != 0 or not stdout.strip():
+        return {"n": n, "form": "numpy", "error": f"symid bench exited with status {got.status}"}
+    return {**json.loads(stdout), "n": n, "form": "numpy", "process_s": round(got.wall_s, 2),
+            "peak_process_mb": got.peak_rss_mb}
+
+
 def targets(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Issue 17's targets from the auto form's figures (None: not measured)."""
     auto = {r["n"]: r for r in rows if r.get("form") == "auto" and not r.get("error")}
@@ -215,6 +237,10 @@ def targets(rows: list[dict[str, Any]]) -> dict[str, Any]:
     if 512 in auto:
         out["gflops_512"] = auto[512]["gflops"]
         out["gflops_512_with_vector_work"] = auto[512].get("gflops_with_vector_work")
+    numpy = {r["n"]: r for r in rows if r.get("form") == "numpy" and not r.get("error")}
+    if 1024 in numpy:  # issue 31: numpy at the ladder of 1024 within 1 GB
+        out["numpy_peak_mb_1024"] = numpy[1024]["peak_process_mb"]
+        out["numpy_peak_target_mb"] = 1024
     return out
 
 
@@ -237,6 +263,8 @@ def _options(group: Any) -> None:
     group.add_argument("--forms", nargs="+", choices=sorted(FORMS), default=["auto"])
     group.add_argument("--instants", type=int, default=2000)
     group.add_argument("--cap", type=float, default=1800.0, help="seconds before a run is stopped")
+    group.add_argument("--numpy", type=int, nargs="*", default=[], metavar="N",
+                       help="also these ladders on the numpy backend, `symid bench` as a user runs it")
 
 
 @register("scale", "the ladder from N = 64 up on the C backend: cold setup by stage, memory, code size, us and "
@@ -254,4 +282,9 @@ def scale(ctx: Context) -> dict[str, Any]:
                 continue
             ctx.log(f"ladder {n:5d} {form:8s} ng {row['ng']:5d}  setup {row['setup_s']:7.2f} s  "
                     f"{row['us_per_instant']:.2f} us  {row['instructions_per_instant']} instr/instant")
+    for n in (2,) if ctx.smoke else args.numpy:
+        row = numpy_row(ctx, n, 5 if ctx.smoke else 20, args.cap)
+        rows.append(row)
+        ctx.log(f"ladder {n:5d} numpy    " + (f"error: {row['error']}" if row.get("error") else
+                f"ng {row['ng']:5d}  setup {row['setup_s']:7.2f} s  peak {row['peak_process_mb']:.0f} MB"))
     return {"rows": rows, "targets": targets(rows), "ratios": ratios(rows)}

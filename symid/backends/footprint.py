@@ -1,7 +1,8 @@
 """What a run will hold in memory, estimated before any work, and the limit
 it is refused against (exit 2, naming the resource, the estimate and the
-limit): the file's counts say little, since a chain of 2049 bodies is cheap
-on the C backend (its setup is linear) and 1.4 GiB on numpy (its module).
+limit): the file's counts say little, since a chain of 2049 bodies takes
+180 MiB on the C backend (its setup is linear) and 530 MiB on numpy (its
+module).
 
 The estimate is a sum of three parts, each fitted to peak resident sizes
 measured with `/usr/bin/time -v symid bench` on the ladder of
@@ -15,7 +16,7 @@ for C):
   `DENSE_COPIES` copies at once (the matrix, its equilibrated copy, the LU
   factors, the temporaries of the scaling), wherever the rank analysis of
   redundant rows, or the Python loop of a small mechanism, factors it
-  (`dense_checks`; from `SPARSE_MIN` coordinates on the loop is sparse).
+  (`dense_checks`; from `SPARSE_MIN` coordinates on both are sparse).
 """
 
 from __future__ import annotations
@@ -39,10 +40,12 @@ LIMIT_VARIABLE = "SYMID_MEMORY_LIMIT"
 BASE_MB = 100.0  # measured: 98 MiB for the C bench of the ladder of 64, its setup's share subtracted
 # Each backend's setup per coordinate is its `Capabilities.setup_kb`, a slope
 # fitted to peak MiB of `symid bench` on the ladder at ng 387, 1539 and 6147
-# (rounded up): numpy 186, 428, 1396 (215 kB: sympy's printing of the module and
-# the module itself; 220 declared, the default, the reference backend's too),
-# casadi 131, 330 at ng 1539 (100 kB: its functions' expression graphs; 110
-# declared), c 99, 106, 176 and 299 at ng 12291 (17 kB; 18 declared; gcc's peak
+# (rounded up): numpy 128, 185, 527 (71 kB: the code model's sympy trees, the
+# printed module and CPython's compiler on its largest function, which
+# `numpy_backend.compile_module` compiles alone; 80 declared; 186, 428, 1396
+# when the module was compiled in one piece), the reference backend the
+# default's 220, casadi 131, 330 at ng 1539 (100 kB: its functions' expression
+# graphs; 110 declared), c 99, 106, 176 and 299 at ng 12291 (17 kB; 18 declared; gcc's peak
 # counts when larger than Python's: it compiles a loop per constraint family).
 DENSE_COPIES = 5
 
@@ -66,13 +69,16 @@ class Footprint:
 
 
 def dense_checks(layout: Layout, backend: str) -> str:
-    """What factors Phi_q densely in this run ("" when nothing does): the
-    rank analysis of more rows than coordinates (the redundancy report, on
-    every backend), and the Python loop of a backend without a compiled loop
-    below `SPARSE_MIN` coordinates (from there on it factors Phi_q sparse)."""
+    """What factors Phi_q densely in this run ("" when nothing does), below
+    `SPARSE_MIN` coordinates only (from there on Phi_q is sparse, its rank
+    analysis too: `symid.numeric.sparse_rank`): the rank analysis of more rows
+    than coordinates (the redundancy report, on every backend), and the
+    Python loop of a backend without a compiled loop."""
+    if layout.ng >= SPARSE_MIN:
+        return ""
     if layout.nc > layout.ng:
         return "the rank analysis of the redundant rows"
-    if layout.ng < SPARSE_MIN and not backends.capabilities(backend).compiled_loop:
+    if not backends.capabilities(backend).compiled_loop:
         return "the Python loop's factorizations of Phi_q"
     return ""
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import copy
 import marshal
+import re
 import sys
 from pathlib import Path
 from types import CodeType, ModuleType
@@ -36,6 +37,7 @@ if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a generated module wi
 
     from symid.symbolic.assemble import Layout
     from symid.codegen.flat import Options
+    from symid.model.mechanism import Mechanism
     from symid.numeric.friction import FrictionModel
 
 
@@ -47,19 +49,69 @@ def build(layout: Layout, options: Options) -> Path:
     mech = layout.mechanism
 
     def make(folder: Path) -> None:
-        from symid.codegen.model import code_model
-        from symid.codegen.targets import numpy_target
-        from symid.progress import stage
-
-        stage("deriving")
-        model = code_model(mech, options)
-        stage("generating")
-        (path,) = numpy_target.generate(model, folder)
+        path = _generate(mech, options, folder)  # its sympy trees freed on return
         if TAG is not None:  # compiled once here, checked with the entry's other files
-            code = compile(path.read_bytes(), str(staged_entry(folder) / path.name), "exec")
+            code = compile_module(path.read_bytes(), str(staged_entry(folder) / path.name))
             _code_path(path).write_bytes(marshal.dumps(code))
 
     return cached(mech, options, "numpy", make, (f"{mech.name}_solver.py",)) / f"{mech.name}_solver.py"
+
+
+def _generate(mech: Mechanism, options: Options, folder: Path) -> Path:
+    """Derive and write the module: the code model (every instance's sympy
+    expressions, 50 kB a coordinate) lives only in this call, so the memory
+    it held is free again when the module is compiled."""
+    from symid.codegen.model import code_model
+    from symid.codegen.targets import numpy_target
+    from symid.progress import stage
+
+    stage("deriving")
+    model = code_model(mech, options)
+    stage("generating")
+    (path,) = numpy_target.generate(model, folder)
+    return path
+
+
+# A top-level definition of the generated module starts a line with `def ` or
+# `class ` (the template's layout: nothing at column 0 inside one); its imports
+# are lines of their own at column 0 before the first one.
+_TOP = re.compile(rb"^(?:def|class) ", re.M)
+_IMPORT = re.compile(rb"^(?:import|from) [^\n]*$", re.M)
+
+
+def compile_module(source: bytes, filename: str) -> tuple[CodeType, ...]:
+    """The generated module compiled one top-level definition at a time.
+
+    CPython's compiler holds about 110 bytes per byte of the source it
+    compiles at once (syntax tree, symbol table, instruction lists): the
+    module of the ladder of 1024 four-bars (10 MB) in one piece took most of
+    numpy's 1.36 GiB. Compiled a definition at a time, the peak is the
+    largest function's. Each piece is preceded by the module's import lines
+    and blank lines, each at its line in the file, so the functions'
+    bytecode is that of the whole module compiled at once (CPython compiles
+    a call on an imported module's attribute differently from a method
+    call) and line numbers are the file's. Run in order in one namespace,
+    the pieces are the module (its imports run once a piece: bound again,
+    not loaded again). A source that does not split there (a `def ` at
+    column 0 inside a string: not what the template writes) is compiled whole.
+    """
+    starts = [0] + [m.start() for m in _TOP.finditer(source) if m.start() > 0] + [len(source)]
+    head = source[:starts[1]]
+    imports = [(head.count(b"\n", 0, m.start()), m.group()) for m in _IMPORT.finditer(head)]
+    codes, line = [], head.count(b"\n")
+    try:
+        codes.append(compile(head, filename, "exec", dont_inherit=True))
+        for a, b in zip(starts[1:], starts[2:]):
+            piece, at, prelude = source[a:b], 0, []
+            for number, text in imports:
+                prelude += [b"\n" * (number - at), text]
+                at = number
+            prelude.append(b"\n" * (line - at))
+            codes.append(compile(b"".join(prelude) + piece, filename, "exec", dont_inherit=True))
+            line += piece.count(b"\n")
+    except SyntaxError:
+        return (compile(source, filename, "exec", dont_inherit=True),)
+    return tuple(codes)
 
 
 # The module's bytecode is kept in its cache entry, under the interpreter's tag
@@ -75,17 +127,18 @@ def _code_path(path: Path) -> Path:
 def load_module(path: Path) -> ModuleType:
     """Import a generated module from its file (or its verified bytecode beside
     it, 30x faster to load than compiling the source), under a private name."""
-    code: CodeType | None = None
+    code: object = None
     if TAG is not None:
         try:
             code = marshal.loads(_code_path(path).read_bytes())
         except (OSError, EOFError, ValueError, TypeError):  # another interpreter built the entry
             code = None
     if code is None:
-        code = compile(path.read_bytes(), str(path), "exec")
+        code = compile_module(path.read_bytes(), str(path))
     module = ModuleType(f"symid_generated_{path.stem}")
     module.__file__ = str(path)
-    exec(code, module.__dict__)  # noqa: S102 (our own generated module, checked against the cache's sha256)
+    for piece in code if isinstance(code, tuple) else (code,):  # compile_module's pieces, or one
+        exec(piece, module.__dict__)  # noqa: S102 (our own generated module, checked against the cache's sha256)
     return module
 
 
@@ -104,7 +157,7 @@ class NumpyEvaluator:
 
     # the module's own loop (rows, not blocks); its vectorized functions run a
     # study's variants together (symid.study.batch_numpy), but not with friction
-    capabilities = Capabilities(own_loop=True, batch="vectorized", with_params=True, loads=True)
+    capabilities = Capabilities(own_loop=True, batch="vectorized", with_params=True, loads=True, setup_kb=80.0)
     layout: Layout  # None only in a planned run, which never reads it (see above)
 
     def __init__(self, path: Path, params: Mapping[str, float], layout: Layout | None,

@@ -10,8 +10,8 @@ MAX_FILE_BYTES = 16 * 1024 * 1024
 MAX_NAME_LENGTH = 64
 # A run's memory is estimated from what it will use, per backend and analysis,
 # and refused above SYMID_MEMORY_LIMIT (symid.backends.footprint): the ladder of
-# 2048 four-bars (4097 bodies) is cheap on the C backend, and the Python loop's
-# dense checks of 1000 bodies are not. These counts bound only what is done before
+# 2048 four-bars (4097 bodies) is cheap on the C backend, and the numpy backend's
+# module of 10^4 bodies is not (2.3 GB). These counts bound only what is done before
 # any estimate can be: the reader's own objects (about 13 kB per body measured,
 # 26 MB for the 4097 of that ladder, its sympy symbols included), so 20000 bodies
 # read within about 0.3 GB and a few seconds.

@@ -269,10 +269,10 @@ class _Reader:
         bodies: dict[str, str] = {}
         values: dict[str, Any] = {}
         options: dict[str, str] = {}
-        # the bodies a force's state functions may read (listed only for those: a
-        # list per element is quadratic in a file of thousands of bodies)
-        self.state_bodies = ([n for n, what in names.items() if what == "body"]
-                             if section == "force" and kind in state.TYPES else None)
+        reads_state = section == "force" and kind in state.TYPES
+        # only a force that reads a body's state lists the bodies (once per element: quadratic in the file)
+        readable = [n for n, what in names.items() if what == "body"] if reads_state else []
+        self.state_bodies = readable if reads_state else None
         for key in family.keys:
             kw = f"{where} key '{key.name}'"
             if key.name not in data:
@@ -300,8 +300,8 @@ class _Reader:
                     options[key.name] = value
                 else:
                     values[key.name] = value
-        readable, self.state_bodies = self.state_bodies, None
-        if readable is not None:  # a force's terms of the state become its variant
+        self.state_bodies = None
+        if reads_state:  # its terms of the state become its variant
             timed = tuple(k.name for k in family.keys if k.kind in ("function", "function2"))
             more, more_options, extra = state.generalize(values, timed, bodies["i"], readable,
                                                          set(self.params.values()), where, self.fail)

@@ -70,8 +70,9 @@ class Capabilities:
         lacks: the `[analysis]` features it cannot provide
             (`symid.numeric.stability.FEATURES` keys).
         setup_kb: the memory its setup holds per coordinate, kB (measured:
-            `symid.backends.footprint`); the default is the generated
-            Python module's.
+            `symid.backends.footprint`); the default is what the generated
+            Python module took when compiled in one piece (the reference
+            backend keeps it).
     """
 
     own_loop: bool = False

@@ -13,7 +13,7 @@ import numpy as np
 from symid.errors import AnalysisError, InputError
 from symid.numeric.evaluator import Array, Evaluator
 from symid.numeric.newton import RULE
-from symid.numeric.stability import EPS, NULL_SHARE, Scaling, is_sparse
+from symid.numeric.stability import EPS, NULL_SHARE, Scaling, is_sparse, jacobian
 
 if TYPE_CHECKING:
     from symid.model.mechanism import Mechanism
@@ -39,25 +39,27 @@ class Rank:
 def rank_of(jac: Array, scaling: Scaling, layout: Layout, singular: bool = False) -> Rank:
     """The rank analysis of Phi_q (nc, ng); cost one SVD. `singular`: the caller's
     factorization found it singular, so the smallest singular value counts as null
-    even when just above this rank threshold (else no constraint would be named)."""
+    even when just above this rank threshold (else no constraint would be named).
+    A sparse Phi_q (large mechanisms) is analysed with nothing nc x ng
+    (`symid.numeric.sparse_rank`): the same rank, names and condition number."""
+    from symid.numeric import sparse_rank
+
     if is_sparse(jac):  # the Python loop's sparse Phi_q (large mechanisms)
         full = None if singular else _full_rank_sparse(jac, scaling)
         if full is not None:
             return full
-        jac = jac.toarray()  # type: ignore[attr-defined]  # rows to name, or redundant ones: dense (footprint)
-    nc, ng = jac.shape
-    a = jac / scaling.row[:, None] * scaling.col[None, :]
-    u, sv, _ = np.linalg.svd(a)
-    smax = sv[0] if sv.size else 0.0
-    rank = int(np.sum(sv > max(nc, ng) * EPS * smax))
-    rank = min(rank, min(nc, ng) - 1) if singular else rank
-    cond = float(smax / sv[-1]) if rank == ng and sv.size and sv[-1] > 0 else np.inf
-    share = np.sum(u[:, rank:] ** 2, axis=1)
+        from scipy.sparse import diags
+
+        equilibrated = diags(1.0 / scaling.row) @ jac @ diags(scaling.col)  # type: ignore[operator]
+        found = sparse_rank.analyse(equilibrated, singular)
+    else:
+        found = sparse_rank.dense(jac / scaling.row[:, None] * scaling.col[None, :], singular)
+    share = found.share
     rows = (np.flatnonzero(share > NULL_SHARE * share.max()) if share.size and share.max() > 0
             else np.zeros(0, dtype=int))
     dependent = layout.constraint_names_of_rows(rows)
     order = [c.name for c in layout.mechanism.constraints]
-    return Rank(rank, cond, tuple(sorted(dependent, key=order.index)))
+    return Rank(found.rank, found.cond, tuple(sorted(dependent, key=order.index)))
 
 
 def _full_rank_sparse(jac: object, scaling: Scaling) -> Rank | None:
@@ -135,8 +137,8 @@ def redundancy_error(layout: Layout, values: object, hint: str) -> InputError:
         q, _ = assemble_lstsq(ev, q0, analysis.t0, analysis.tol)
     except AnalysisError as exc:
         return InputError(f"{head}{' the rows' if extra else ', and they'} cannot all hold at t0 ({exc})")
-    scaling = Scaling.of(ev.phi_q(q, analysis.t0), q)
-    rank = rank_of(ev.phi_q(q, analysis.t0), scaling, layout)
+    jac = jacobian(ev, q, analysis.t0)  # sparse from SPARSE_MIN coordinates on
+    rank = rank_of(jac, Scaling.of(jac, q), layout)
     if rank.rank < ng:
         hint = f"with rank {rank.rank} < {ng} a coordinate is also undriven"
     return InputError(f"{head}{'' if extra else ':'} the rows of {', '.join(rank.dependent)} are dependent at t0 "
@@ -154,6 +156,9 @@ class _Without:
 
     def phi_q(self, q: Array, t: float) -> Array:
         return self.ev.phi_q(q, t)[self.keep]
+
+    def phi_q_sparse(self, q: Array, t: float):  # type: ignore[no-untyped-def]
+        return self.ev.phi_q_sparse(q, t).tocsr()[self.keep]  # type: ignore[attr-defined]
 
 
 def _extra_driver(layout: Layout, ev: Evaluator, q0: Array, t0: float, tol: float) -> str:
@@ -174,10 +179,16 @@ def _extra_driver(layout: Layout, ev: Evaluator, q0: Array, t0: float, tol: floa
             q, _ = assemble_lstsq(rest, q0, t0, tol)  # type: ignore[arg-type]
         except AnalysisError:
             continue
-        jac = rest.phi_q(q, t0)
-        scaling = Scaling.of(jac, q)
-        sv = np.linalg.svd(jac / scaling.row[:, None] * scaling.col[None, :], compute_uv=False)
-        if sv.size >= ng and sv[ng - 1] > max(jac.shape) * EPS * sv[0]:  # rank_of's threshold
+        jac = jacobian(rest, q, t0)
+        a = _equilibrated(jac, Scaling.of(jac, q))
+        if is_sparse(a):
+            from symid.numeric.sparse_rank import analyse
+
+            full = analyse(a).rank >= ng  # rank_of's threshold, with nothing nc x ng
+        else:
+            sv = np.linalg.svd(a, compute_uv=False)
+            full = sv.size >= ng and sv[ng - 1] > max(jac.shape) * EPS * sv[0]  # rank_of's threshold
+        if full:
             fits.append(name)
     if not fits:
         return ""
@@ -185,6 +196,32 @@ def _extra_driver(layout: Layout, ev: Evaluator, q0: Array, t0: float, tol: floa
         return (f"driver {fits[-1]} is one too many (or {', '.join(fits[:-1])}: each alone drives what the "
                 "other rows leave free)")
     return f"driver {fits[-1]} is one too many (without it the other rows drive every coordinate)"
+
+
+# LSMR stops when the step's residual (or a^T of it) is this small relative to
+# b (to a, b): a Gauss-Newton step that exact converges as the SVD's does.
+LSMR_TOL = 1e-14
+
+
+def _equilibrated(jac: Array, scaling: Scaling) -> Array:
+    """Phi_q with rows divided by their norms, columns by their lengths (dense or sparse)."""
+    if is_sparse(jac):
+        from scipy.sparse import diags
+
+        return (diags(1.0 / scaling.row) @ jac @ diags(scaling.col)).tocsc()  # type: ignore[no-any-return,operator]
+    return jac / scaling.row[:, None] * scaling.col[None, :]
+
+
+def _min_norm_step(a: Array, b: Array) -> Array:
+    """The minimum-norm least-squares x of a x = b: the SVD's, singular values
+    below 1e3 eps of the largest left out; sparse, LSMR's (Krylov on a and
+    a^T from x = 0: the minimum-norm solution, to its tolerances)."""
+    if is_sparse(a):
+        from scipy.sparse.linalg import lsmr
+
+        found = lsmr(a, b, atol=LSMR_TOL, btol=LSMR_TOL, conlim=1 / (1e3 * EPS), maxiter=10 * a.shape[1])
+        return found[0]  # type: ignore[no-any-return]
+    return np.linalg.lstsq(a, b, rcond=1e3 * EPS)[0]
 
 
 def assemble_lstsq(ev: Evaluator, q: Array, t: float, tol: float,
@@ -196,16 +233,14 @@ def assemble_lstsq(ev: Evaluator, q: Array, t: float, tol: float,
     Raises:
         AnalysisError: no configuration within tol (scaled) reached.
     """
-    scaling = Scaling.of(ev.phi_q(q, t), q)
+    scaling = Scaling.of(jacobian(ev, q, t), q)
     phi = ev.phi(q, t)
     for it in range(1, max_iterations + 1):
         floor = RULE.floor(scaling.size(q))  # the Newton rule's (symid.numeric.newton)
         res = scaling.residual(phi)
         if not np.isfinite(res):
             break
-        jac = ev.phi_q(q, t)
-        a = jac / scaling.row[:, None] * scaling.col[None, :]
-        dq = scaling.col * np.linalg.lstsq(a, -phi / scaling.row, rcond=1e3 * EPS)[0]
+        dq = scaling.col * _min_norm_step(_equilibrated(jacobian(ev, q, t), scaling), -phi / scaling.row)
         q = q + dq
         phi = ev.phi(q, t)
         if scaling.residual(phi) <= max(tol, floor) and scaling.size(dq) <= max(tol, floor):

@@ -153,7 +153,8 @@ class Factor:
     Square: LU of D_r Phi_q D_c (LAPACK directly: the scipy wrappers cost more
     than a small factorization). More rows than columns (redundant
     constraints): thin QR of Phi_q D_c, rows unscaled so that `solve_t` gives
-    the minimum-norm multipliers of the file's own rows. D_r, D_c are the
+    the minimum-norm multipliers of the file's own rows (sparse: the same
+    solves through `symid.numeric.sparse_rank.LeastSquares`). D_r, D_c are the
     scaling's powers of two, so equilibrating adds no rounding.
 
     Attributes:
@@ -164,11 +165,11 @@ class Factor:
         nc, ng = jac.shape
         self.dc = scaling.dc
         self.square = nc == ng
-        self.splu = None
-        if is_sparse(jac) and not self.square:  # redundant rows: the thin QR below, dense
-            jac = jac.toarray()  # type: ignore[attr-defined]
+        self.splu = self.lsq = None
         self.jac = jac
-        if is_sparse(jac):
+        if is_sparse(jac) and not self.square:  # redundant rows, large: the thin QR's solves, sparse
+            self._sparse_lstsq(jac)
+        elif is_sparse(jac):
             self.dr = scaling.dr
             self._sparse_lu(jac, scaling)
         elif self.square:
@@ -211,6 +212,17 @@ class Factor:
         self.splu = lu
         self.rcond = 1.0 / (anorm * inorm) if inorm > 0 and np.isfinite(inorm) else 0.0
 
+    def _sparse_lstsq(self, jac: object) -> None:
+        from scipy import sparse
+
+        from symid.numeric.sparse_rank import LeastSquares
+
+        try:
+            self.lsq = LeastSquares(jac @ sparse.diags(self.dc))  # type: ignore[operator]
+            self.rcond = self.lsq.rcond
+        except RuntimeError:  # "Factor is exactly singular": column-rank deficient
+            self.rcond = 0.0
+
     @property
     def cond(self) -> float:
         return np.inf if self.rcond == 0 else 1.0 / self.rcond
@@ -219,6 +231,8 @@ class Factor:
         """x with Phi_q x = b (size nc -> ng; least squares when nc > ng)."""
         if self.splu is not None:
             return self.dc * self.splu.solve(self.dr * b)
+        if self.lsq is not None:
+            return self.dc * self.lsq.solve(b)
         if self.square:
             return self.dc * _getrs(self.lu, self.piv, self.dr * b)[0]
         return self.dc * _sla().solve_triangular(self.r, self.q.T @ b, check_finite=False)
@@ -239,6 +253,8 @@ class Factor:
     def _solve_t(self, b: Array) -> Array:
         if self.splu is not None:
             return self.dr * self.splu.solve(self.dc * b, trans="T")
+        if self.lsq is not None:
+            return self.lsq.solve_t(self.dc * b)
         if self.square:
             return self.dr * _getrs(self.lu, self.piv, self.dc * b, trans=1)[0]
         return self.q @ _sla().solve_triangular(self.r, self.dc * b, trans="T", check_finite=False)

@@ -217,8 +217,8 @@ def test_endless_motion_table_is_read_only_up_to_the_limit(tmp_path, capsys):
     assert "constraint 'motor' key 'f'" in line and "/dev/zero" in line and str(MAX_FILE_BYTES) in line, line
 
 
-def test_six_thousand_bodies_on_numpy_are_refused_up_front(tmp_path, capsys, monkeypatch):
-    """6000 driven pendulums on numpy: its setup of 220 kB per coordinate (3.9 GiB),
+def test_nine_thousand_bodies_on_numpy_are_refused_up_front(tmp_path, capsys, monkeypatch):
+    """9000 driven pendulums on numpy: its setup of 80 kB per coordinate (2.2 GiB),
     refused by the memory estimate before anything is derived or cached."""
     monkeypatch.delenv("SYMID_MEMORY_LIMIT", raising=False)
     monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
@@ -226,11 +226,11 @@ def test_six_thousand_bodies_on_numpy_are_refused_up_front(tmp_path, capsys, mon
         f'[[body]]\nname = "b{k}"\nmass = 1\ninertia = 1\nq0 = [{k}, 0, 0]\n'
         f'[[constraint]]\nname = "p{k}"\ntype = "revolute"\ni = "ground"\nj = "b{k}"\nsi = [{k}, 0]\nsj = [0, 0]\n'
         f'[[constraint]]\nname = "d{k}"\ntype = "relative_angle_driver"\ni = "ground"\nj = "b{k}"\nf = "t"\n'
-        for k in range(6000)))
+        for k in range(9000)))
     start = time.process_time()  # CPU time: refused up front, whatever the machine's load
     status, line = run_main(["solve", str(tmp_path / "big.toml"), "-o", str(tmp_path / "out.csv")], capsys)
     assert status == 2 and time.process_time() - start < 30
-    assert "big.toml: memory: a run of 6000 bodies (ng 18000) needs about" in line, line
+    assert "big.toml: memory: a run of 9000 bodies (ng 27000) needs about" in line, line
     assert "more than the 2048 MiB allowed (SYMID_MEMORY_LIMIT sets it)" in line, line
     assert not (tmp_path / "out.csv").exists()
 
