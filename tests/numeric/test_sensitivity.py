@@ -98,11 +98,21 @@ def test_differences_reach_the_bound_they_are_used_for(example: str) -> None:
     assert worst < 2e-9
 
 
+# The generated C of every parameter of Andrews' squeezer and the excavator is
+# the costliest compile of the suite (a minute and a half under load): on the C
+# backend these two are checked on three of their parameters (the code of each
+# parameter's columns is the same derivation; tests/c/test_c_sensitivity.py
+# checks chosen parameters of the others against the C solver's own differences).
+FEW_ON_C = {"andrews_squeezer": 3, "excavator": 3}
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("example", EXAMPLES)
 def test_sensitivities_match_central_differences_to_1e_9_of_peak(example: str, backend: str) -> None:
     fd, scale = _truth(example)
     names = base_names(api.load_mechanism(api.example(example)).parameters)
+    if backend == "c" and example in FEW_ON_C:
+        names = names[:FEW_ON_C[example]]
     results = api.solve(api.example(example), backend, sensitivity=names, steps=STEPS)
     assert results.error is None
     sens = [c for c in results.columns if c.startswith("d(")]
