@@ -276,8 +276,8 @@ def nu_lines(nu: Sequence[sp.Expr], np_: int, off_nu: int, printer: Callable[[sp
 
     for j, v in enumerate(nu):
         r = emit(_plain(v))
-        lines.append(f"{{p}}_ff_norm({r}[0], {r}[1], pp + {off_nu + 2 * j});")
-    return ([f"{{p}}_real {', '.join(f'ff{k}[2]' for k in range(count[0]))};"] if count[0] else []) + lines
+        lines.append(f"{{p}}_ff_norm({r}[0], {r}[1], &pp[{off_nu + 2 * j}]);")  # by index (MISRA C:2012 18.4)
+    return [f"{{p}}_real ff{k}[2];" for k in range(count[0])] + lines  # one declaration a statement (12.3)
 
 
 @dataclass(frozen=True)
