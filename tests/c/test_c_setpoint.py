@@ -319,3 +319,48 @@ def test_position_only_sensitivities_compile_strictly_and_hold_the_crank(tmp_pat
     assert status == OK
     assert sens[0] == 0.0 and sens[1] == 0.0  # d(crank.phi)/d(m_slider), d(crank.phi)/d(L_rod): the set-point's
     assert sens[2] == 0.0 and abs(sens[3]) > 0.5  # the slider's position: not by mass, by the rod's length
+
+
+# --- split time: setpoint_at(whole, frac) ---
+
+# The four-bar's coupler load F_tool (1 + 0.5 sin(omega t)) reads t through a
+# phase while its driver reads the set-points: at t = 1e6 s a float t is a
+# multiple of 1/16 s. n = 2.375 rev/s, exact in float (a rounded n would move
+# the phase by n's rounding times 1e6 s), makes whole seconds no whole turns.
+SPLIT_N, SPLIT_WHOLE, SPLIT_FRAC = 2.375, 1_000_001, 0.3
+
+
+@needs_cc
+def test_setpoint_at_a_million_seconds_in_single_is_double_within_the_header_bound(tmp_path: Path) -> None:
+    from cbuild import single_bound
+
+    source = api.example("four_bar").read_text()
+    double, single = Solver(source, tmp_path / "double"), Solver(source, tmp_path / "single", "single")
+    at = double.mech_params.index("n")
+    double.p[at], single.p[at] = SPLIT_N, SPLIT_N
+    frac = float(np.float32(SPLIT_FRAC))  # the time single is given: whole + its float fraction, exactly
+    t = SPLIT_WHOLE + frac
+    omega = 2 * math.pi * SPLIT_N
+    angle = math.remainder(omega * SPLIT_WHOLE, 2 * math.pi) + omega * frac  # the crank's law, reduced
+    des = (np.array([angle]), np.array([omega]), np.array([0.0]))
+    # the guess: the file's run (at this n) at the crank angle nearest (positions depend on the angle only)
+    runs = _instants(double, 201)
+    guess = min(runs, key=lambda r: abs(math.remainder(omega * r[0] - angle, 2 * math.pi)))[1]
+    status, truth = double.call("setpoint", t, guess, des)
+    assert status == OK
+    status, same = double.call("setpoint_at", (SPLIT_WHOLE, frac), guess, des)
+    assert status == OK and all(np.array_equal(same[k], truth[k]) for k in truth)  # double: whole + frac, rounded once
+    status, split = single.call("setpoint_at", (SPLIT_WHOLE, frac), guess, des)
+    assert status == OK
+    status, naive = single.call("setpoint", t, guess, des)  # t rounded to a float: 1000001.3125
+    assert status == OK
+    bound = single_bound(tmp_path / "single", "four_bar")  # what the single header states
+    worst = {}
+    for name, got in (("split", split), ("naive", naive)):
+        for key in ("q", "qd", "qdd", "lam", "reactions"):
+            a, b = truth[key].astype(float), got[key].astype(float)
+            if key == "q":  # angles modulo 2 pi
+                a[2::3] = np.angle(np.exp(1j * (a[2::3] - b[2::3]))) + b[2::3]
+            worst[name, key] = np.max(np.abs(a - b)) / np.max(np.abs(a))
+    assert max(v for (name, _), v in worst.items() if name == "split") <= bound, worst
+    assert max(v for (name, _), v in worst.items() if name == "naive") > 100 * bound, worst  # the split is what holds

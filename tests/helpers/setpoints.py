@@ -57,17 +57,19 @@ class Solver:
     def _ptr(self, a: np.ndarray | None) -> Any:
         return None if a is None else a.ctypes.data_as(ctypes.c_void_p)
 
-    def call(self, entry: str, t: float, q: np.ndarray, des: tuple[np.ndarray | None, ...] = (),
+    def call(self, entry: str, t: float | tuple[int, float], q: np.ndarray, des: tuple[np.ndarray | None, ...] = (),
              tol: float = 1e-12) -> tuple[int, dict[str, np.ndarray]]:
-        """instant or setpoint from the guess q: status and outputs."""
+        """instant or setpoint (or their _at forms, t then (whole, frac)) from
+        the guess q: status and outputs."""
         out = {"q": np.array(q, dtype=self.real), "qd": np.zeros(self.ng, self.real),
                "qdd": np.zeros(self.ng, self.real), "lam": np.zeros(self.nc, self.real),
                "reactions": np.zeros(max(self.nr, 1), self.real)}
         work, iwork = np.zeros(self.ctx.work, self.real), np.zeros(self.ng, np.intc)
         fn = getattr(self.lib, f"{self.name}_{entry}")
         fn.restype = ctypes.c_int
-        args = [self.ct(t), self._ptr(self.p), self.ct(tol)]
-        if entry == "setpoint":
+        when = [ctypes.c_long(t[0]), self.ct(t[1])] if isinstance(t, tuple) else [self.ct(t)]
+        args = [*when, self._ptr(self.p), self.ct(tol)]
+        if entry.startswith("setpoint"):
             args += [self._ptr(None if d is None else np.asarray(d, self.real)) for d in des]
         args += [self._ptr(out[k]) for k in ("q", "qd", "qdd", "lam", "reactions")]
         args += [None, self._ptr(work), self._ptr(iwork)]

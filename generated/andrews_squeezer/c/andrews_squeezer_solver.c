@@ -2947,3 +2947,12 @@ int andrews_squeezer_setpoint(andrews_squeezer_real t, const andrews_squeezer_re
     }
     return status;
 }
+
+int andrews_squeezer_setpoint_at(long whole, andrews_squeezer_real frac, const andrews_squeezer_real *p, andrews_squeezer_real tol,
+                        const andrews_squeezer_real *q_des, const andrews_squeezer_real *qd_des, const andrews_squeezer_real *qdd_des,
+                        andrews_squeezer_real *q, andrews_squeezer_real *qd, andrews_squeezer_real *qdd, andrews_squeezer_real *lam,
+                        andrews_squeezer_real *reactions, int *info, andrews_squeezer_real *work, int *iwork)
+{
+    return andrews_squeezer_setpoint((andrews_squeezer_real)whole + frac, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, info,
+                            work, iwork);
+}

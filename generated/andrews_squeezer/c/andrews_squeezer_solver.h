@@ -408,6 +408,13 @@ int andrews_squeezer_setpoint(andrews_squeezer_real t, const andrews_squeezer_re
                      const andrews_squeezer_real *qd_des, const andrews_squeezer_real *qdd_des, andrews_squeezer_real *q, andrews_squeezer_real *qd,
                      andrews_squeezer_real *qdd, andrews_squeezer_real *lam, andrews_squeezer_real *reactions, int *info, andrews_squeezer_real *work,
                      int *iwork);
+/* setpoint at t = whole + frac, whole a long of seconds and frac a real
+   fraction (as instant_at: time split for a controller's clock that runs
+   for days). In double, t = whole + frac rounded once. */
+int andrews_squeezer_setpoint_at(long whole, andrews_squeezer_real frac, const andrews_squeezer_real *p, andrews_squeezer_real tol,
+                        const andrews_squeezer_real *q_des, const andrews_squeezer_real *qd_des, const andrews_squeezer_real *qdd_des,
+                        andrews_squeezer_real *q, andrews_squeezer_real *qd, andrews_squeezer_real *qdd, andrews_squeezer_real *lam,
+                        andrews_squeezer_real *reactions, int *info, andrews_squeezer_real *work, int *iwork);
 
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved

@@ -2123,3 +2123,12 @@ int disc_cam_setpoint(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol
     }
     return status;
 }
+
+int disc_cam_setpoint_at(long whole, disc_cam_real frac, const disc_cam_real *p, disc_cam_real tol,
+                        const disc_cam_real *q_des, const disc_cam_real *qd_des, const disc_cam_real *qdd_des,
+                        disc_cam_real *q, disc_cam_real *qd, disc_cam_real *qdd, disc_cam_real *lam,
+                        disc_cam_real *reactions, int *info, disc_cam_real *work, int *iwork)
+{
+    return disc_cam_setpoint((disc_cam_real)whole + frac, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, info,
+                            work, iwork);
+}

@@ -270,6 +270,13 @@ int disc_cam_setpoint(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol
                      const disc_cam_real *qd_des, const disc_cam_real *qdd_des, disc_cam_real *q, disc_cam_real *qd,
                      disc_cam_real *qdd, disc_cam_real *lam, disc_cam_real *reactions, int *info, disc_cam_real *work,
                      int *iwork);
+/* setpoint at t = whole + frac, whole a long of seconds and frac a real
+   fraction (as instant_at: time split for a controller's clock that runs
+   for days). In double, t = whole + frac rounded once. */
+int disc_cam_setpoint_at(long whole, disc_cam_real frac, const disc_cam_real *p, disc_cam_real tol,
+                        const disc_cam_real *q_des, const disc_cam_real *qd_des, const disc_cam_real *qdd_des,
+                        disc_cam_real *q, disc_cam_real *qd, disc_cam_real *qdd, disc_cam_real *lam,
+                        disc_cam_real *reactions, int *info, disc_cam_real *work, int *iwork);
 
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved

@@ -2505,3 +2505,12 @@ int excavator_setpoint(excavator_real t, const excavator_real *p, excavator_real
     }
     return status;
 }
+
+int excavator_setpoint_at(long whole, excavator_real frac, const excavator_real *p, excavator_real tol,
+                        const excavator_real *q_des, const excavator_real *qd_des, const excavator_real *qdd_des,
+                        excavator_real *q, excavator_real *qd, excavator_real *qdd, excavator_real *lam,
+                        excavator_real *reactions, int *info, excavator_real *work, int *iwork)
+{
+    return excavator_setpoint((excavator_real)whole + frac, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, info,
+                            work, iwork);
+}

@@ -305,6 +305,13 @@ int excavator_setpoint(excavator_real t, const excavator_real *p, excavator_real
                      const excavator_real *qd_des, const excavator_real *qdd_des, excavator_real *q, excavator_real *qd,
                      excavator_real *qdd, excavator_real *lam, excavator_real *reactions, int *info, excavator_real *work,
                      int *iwork);
+/* setpoint at t = whole + frac, whole a long of seconds and frac a real
+   fraction (as instant_at: time split for a controller's clock that runs
+   for days). In double, t = whole + frac rounded once. */
+int excavator_setpoint_at(long whole, excavator_real frac, const excavator_real *p, excavator_real tol,
+                        const excavator_real *q_des, const excavator_real *qd_des, const excavator_real *qdd_des,
+                        excavator_real *q, excavator_real *qd, excavator_real *qdd, excavator_real *lam,
+                        excavator_real *reactions, int *info, excavator_real *work, int *iwork);
 
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved

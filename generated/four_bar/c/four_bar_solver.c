@@ -2137,3 +2137,12 @@ int four_bar_setpoint(four_bar_real t, const four_bar_real *p, four_bar_real tol
     }
     return status;
 }
+
+int four_bar_setpoint_at(long whole, four_bar_real frac, const four_bar_real *p, four_bar_real tol,
+                        const four_bar_real *q_des, const four_bar_real *qd_des, const four_bar_real *qdd_des,
+                        four_bar_real *q, four_bar_real *qd, four_bar_real *qdd, four_bar_real *lam,
+                        four_bar_real *reactions, int *info, four_bar_real *work, int *iwork)
+{
+    return four_bar_setpoint((four_bar_real)whole + frac, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, info,
+                            work, iwork);
+}

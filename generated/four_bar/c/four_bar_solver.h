@@ -295,6 +295,13 @@ int four_bar_setpoint(four_bar_real t, const four_bar_real *p, four_bar_real tol
                      const four_bar_real *qd_des, const four_bar_real *qdd_des, four_bar_real *q, four_bar_real *qd,
                      four_bar_real *qdd, four_bar_real *lam, four_bar_real *reactions, int *info, four_bar_real *work,
                      int *iwork);
+/* setpoint at t = whole + frac, whole a long of seconds and frac a real
+   fraction (as instant_at: time split for a controller's clock that runs
+   for days). In double, t = whole + frac rounded once. */
+int four_bar_setpoint_at(long whole, four_bar_real frac, const four_bar_real *p, four_bar_real tol,
+                        const four_bar_real *q_des, const four_bar_real *qd_des, const four_bar_real *qdd_des,
+                        four_bar_real *q, four_bar_real *qd, four_bar_real *qdd, four_bar_real *lam,
+                        four_bar_real *reactions, int *info, four_bar_real *work, int *iwork);
 
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved

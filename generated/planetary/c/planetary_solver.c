@@ -2315,3 +2315,12 @@ int planetary_setpoint(planetary_real t, const planetary_real *p, planetary_real
     }
     return status;
 }
+
+int planetary_setpoint_at(long whole, planetary_real frac, const planetary_real *p, planetary_real tol,
+                        const planetary_real *q_des, const planetary_real *qd_des, const planetary_real *qdd_des,
+                        planetary_real *q, planetary_real *qd, planetary_real *qdd, planetary_real *lam,
+                        planetary_real *reactions, int *info, planetary_real *work, int *iwork)
+{
+    return planetary_setpoint((planetary_real)whole + frac, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, info,
+                            work, iwork);
+}

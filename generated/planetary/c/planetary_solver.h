@@ -323,6 +323,13 @@ int planetary_setpoint(planetary_real t, const planetary_real *p, planetary_real
                      const planetary_real *qd_des, const planetary_real *qdd_des, planetary_real *q, planetary_real *qd,
                      planetary_real *qdd, planetary_real *lam, planetary_real *reactions, int *info, planetary_real *work,
                      int *iwork);
+/* setpoint at t = whole + frac, whole a long of seconds and frac a real
+   fraction (as instant_at: time split for a controller's clock that runs
+   for days). In double, t = whole + frac rounded once. */
+int planetary_setpoint_at(long whole, planetary_real frac, const planetary_real *p, planetary_real tol,
+                        const planetary_real *q_des, const planetary_real *qd_des, const planetary_real *qdd_des,
+                        planetary_real *q, planetary_real *qd, planetary_real *qdd, planetary_real *lam,
+                        planetary_real *reactions, int *info, planetary_real *work, int *iwork);
 
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved

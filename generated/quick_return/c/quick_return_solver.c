@@ -2140,3 +2140,12 @@ int quick_return_setpoint(quick_return_real t, const quick_return_real *p, quick
     }
     return status;
 }
+
+int quick_return_setpoint_at(long whole, quick_return_real frac, const quick_return_real *p, quick_return_real tol,
+                        const quick_return_real *q_des, const quick_return_real *qd_des, const quick_return_real *qdd_des,
+                        quick_return_real *q, quick_return_real *qd, quick_return_real *qdd, quick_return_real *lam,
+                        quick_return_real *reactions, int *info, quick_return_real *work, int *iwork)
+{
+    return quick_return_setpoint((quick_return_real)whole + frac, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, info,
+                            work, iwork);
+}

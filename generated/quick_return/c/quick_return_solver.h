@@ -299,6 +299,13 @@ int quick_return_setpoint(quick_return_real t, const quick_return_real *p, quick
                      const quick_return_real *qd_des, const quick_return_real *qdd_des, quick_return_real *q, quick_return_real *qd,
                      quick_return_real *qdd, quick_return_real *lam, quick_return_real *reactions, int *info, quick_return_real *work,
                      int *iwork);
+/* setpoint at t = whole + frac, whole a long of seconds and frac a real
+   fraction (as instant_at: time split for a controller's clock that runs
+   for days). In double, t = whole + frac rounded once. */
+int quick_return_setpoint_at(long whole, quick_return_real frac, const quick_return_real *p, quick_return_real tol,
+                        const quick_return_real *q_des, const quick_return_real *qd_des, const quick_return_real *qdd_des,
+                        quick_return_real *q, quick_return_real *qd, quick_return_real *qdd, quick_return_real *lam,
+                        quick_return_real *reactions, int *info, quick_return_real *work, int *iwork);
 
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved

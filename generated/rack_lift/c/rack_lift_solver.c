@@ -2016,3 +2016,12 @@ int rack_lift_setpoint(rack_lift_real t, const rack_lift_real *p, rack_lift_real
     }
     return status;
 }
+
+int rack_lift_setpoint_at(long whole, rack_lift_real frac, const rack_lift_real *p, rack_lift_real tol,
+                        const rack_lift_real *q_des, const rack_lift_real *qd_des, const rack_lift_real *qdd_des,
+                        rack_lift_real *q, rack_lift_real *qd, rack_lift_real *qdd, rack_lift_real *lam,
+                        rack_lift_real *reactions, int *info, rack_lift_real *work, int *iwork)
+{
+    return rack_lift_setpoint((rack_lift_real)whole + frac, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, info,
+                            work, iwork);
+}

@@ -267,6 +267,13 @@ int rack_lift_setpoint(rack_lift_real t, const rack_lift_real *p, rack_lift_real
                      const rack_lift_real *qd_des, const rack_lift_real *qdd_des, rack_lift_real *q, rack_lift_real *qd,
                      rack_lift_real *qdd, rack_lift_real *lam, rack_lift_real *reactions, int *info, rack_lift_real *work,
                      int *iwork);
+/* setpoint at t = whole + frac, whole a long of seconds and frac a real
+   fraction (as instant_at: time split for a controller's clock that runs
+   for days). In double, t = whole + frac rounded once. */
+int rack_lift_setpoint_at(long whole, rack_lift_real frac, const rack_lift_real *p, rack_lift_real tol,
+                        const rack_lift_real *q_des, const rack_lift_real *qd_des, const rack_lift_real *qdd_des,
+                        rack_lift_real *q, rack_lift_real *qd, rack_lift_real *qdd, rack_lift_real *lam,
+                        rack_lift_real *reactions, int *info, rack_lift_real *work, int *iwork);
 
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved

@@ -4873,3 +4873,12 @@ int scissor_boom_setpoint(scissor_boom_real t, const scissor_boom_real *p, sciss
     }
     return status;
 }
+
+int scissor_boom_setpoint_at(long whole, scissor_boom_real frac, const scissor_boom_real *p, scissor_boom_real tol,
+                        const scissor_boom_real *q_des, const scissor_boom_real *qd_des, const scissor_boom_real *qdd_des,
+                        scissor_boom_real *q, scissor_boom_real *qd, scissor_boom_real *qdd, scissor_boom_real *lam,
+                        scissor_boom_real *reactions, int *info, scissor_boom_real *work, int *iwork)
+{
+    return scissor_boom_setpoint((scissor_boom_real)whole + frac, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, info,
+                            work, iwork);
+}

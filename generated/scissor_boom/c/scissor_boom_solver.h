@@ -560,6 +560,13 @@ int scissor_boom_setpoint(scissor_boom_real t, const scissor_boom_real *p, sciss
                      const scissor_boom_real *qd_des, const scissor_boom_real *qdd_des, scissor_boom_real *q, scissor_boom_real *qd,
                      scissor_boom_real *qdd, scissor_boom_real *lam, scissor_boom_real *reactions, int *info, scissor_boom_real *work,
                      int *iwork);
+/* setpoint at t = whole + frac, whole a long of seconds and frac a real
+   fraction (as instant_at: time split for a controller's clock that runs
+   for days). In double, t = whole + frac rounded once. */
+int scissor_boom_setpoint_at(long whole, scissor_boom_real frac, const scissor_boom_real *p, scissor_boom_real tol,
+                        const scissor_boom_real *q_des, const scissor_boom_real *qd_des, const scissor_boom_real *qdd_des,
+                        scissor_boom_real *q, scissor_boom_real *qd, scissor_boom_real *qdd, scissor_boom_real *lam,
+                        scissor_boom_real *reactions, int *info, scissor_boom_real *work, int *iwork);
 
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved

@@ -2089,3 +2089,12 @@ int slider_crank_setpoint(slider_crank_real t, const slider_crank_real *p, slide
     }
     return status;
 }
+
+int slider_crank_setpoint_at(long whole, slider_crank_real frac, const slider_crank_real *p, slider_crank_real tol,
+                        const slider_crank_real *q_des, const slider_crank_real *qd_des, const slider_crank_real *qdd_des,
+                        slider_crank_real *q, slider_crank_real *qd, slider_crank_real *qdd, slider_crank_real *lam,
+                        slider_crank_real *reactions, int *info, slider_crank_real *work, int *iwork)
+{
+    return slider_crank_setpoint((slider_crank_real)whole + frac, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, info,
+                            work, iwork);
+}

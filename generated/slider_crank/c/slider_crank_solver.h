@@ -289,6 +289,13 @@ int slider_crank_setpoint(slider_crank_real t, const slider_crank_real *p, slide
                      const slider_crank_real *qd_des, const slider_crank_real *qdd_des, slider_crank_real *q, slider_crank_real *qd,
                      slider_crank_real *qdd, slider_crank_real *lam, slider_crank_real *reactions, int *info, slider_crank_real *work,
                      int *iwork);
+/* setpoint at t = whole + frac, whole a long of seconds and frac a real
+   fraction (as instant_at: time split for a controller's clock that runs
+   for days). In double, t = whole + frac rounded once. */
+int slider_crank_setpoint_at(long whole, slider_crank_real frac, const slider_crank_real *p, slider_crank_real tol,
+                        const slider_crank_real *q_des, const slider_crank_real *qd_des, const slider_crank_real *qdd_des,
+                        slider_crank_real *q, slider_crank_real *qd, slider_crank_real *qdd, slider_crank_real *lam,
+                        slider_crank_real *reactions, int *info, slider_crank_real *work, int *iwork);
 
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved

@@ -2105,3 +2105,12 @@ int slider_crank_counterweight_setpoint(slider_crank_counterweight_real t, const
     }
     return status;
 }
+
+int slider_crank_counterweight_setpoint_at(long whole, slider_crank_counterweight_real frac, const slider_crank_counterweight_real *p, slider_crank_counterweight_real tol,
+                        const slider_crank_counterweight_real *q_des, const slider_crank_counterweight_real *qd_des, const slider_crank_counterweight_real *qdd_des,
+                        slider_crank_counterweight_real *q, slider_crank_counterweight_real *qd, slider_crank_counterweight_real *qdd, slider_crank_counterweight_real *lam,
+                        slider_crank_counterweight_real *reactions, int *info, slider_crank_counterweight_real *work, int *iwork)
+{
+    return slider_crank_counterweight_setpoint((slider_crank_counterweight_real)whole + frac, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, info,
+                            work, iwork);
+}

@@ -296,6 +296,13 @@ int slider_crank_counterweight_setpoint(slider_crank_counterweight_real t, const
                      const slider_crank_counterweight_real *qd_des, const slider_crank_counterweight_real *qdd_des, slider_crank_counterweight_real *q, slider_crank_counterweight_real *qd,
                      slider_crank_counterweight_real *qdd, slider_crank_counterweight_real *lam, slider_crank_counterweight_real *reactions, int *info, slider_crank_counterweight_real *work,
                      int *iwork);
+/* setpoint at t = whole + frac, whole a long of seconds and frac a real
+   fraction (as instant_at: time split for a controller's clock that runs
+   for days). In double, t = whole + frac rounded once. */
+int slider_crank_counterweight_setpoint_at(long whole, slider_crank_counterweight_real frac, const slider_crank_counterweight_real *p, slider_crank_counterweight_real tol,
+                        const slider_crank_counterweight_real *q_des, const slider_crank_counterweight_real *qd_des, const slider_crank_counterweight_real *qdd_des,
+                        slider_crank_counterweight_real *q, slider_crank_counterweight_real *qd, slider_crank_counterweight_real *qdd, slider_crank_counterweight_real *lam,
+                        slider_crank_counterweight_real *reactions, int *info, slider_crank_counterweight_real *work, int *iwork);
 
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved

@@ -2093,3 +2093,12 @@ int slider_pendulum_setpoint(slider_pendulum_real t, const slider_pendulum_real 
     }
     return status;
 }
+
+int slider_pendulum_setpoint_at(long whole, slider_pendulum_real frac, const slider_pendulum_real *p, slider_pendulum_real tol,
+                        const slider_pendulum_real *q_des, const slider_pendulum_real *qd_des, const slider_pendulum_real *qdd_des,
+                        slider_pendulum_real *q, slider_pendulum_real *qd, slider_pendulum_real *qdd, slider_pendulum_real *lam,
+                        slider_pendulum_real *reactions, int *info, slider_pendulum_real *work, int *iwork)
+{
+    return slider_pendulum_setpoint((slider_pendulum_real)whole + frac, p, tol, q_des, qd_des, qdd_des, q, qd, qdd, lam, reactions, info,
+                            work, iwork);
+}

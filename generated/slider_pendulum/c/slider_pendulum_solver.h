@@ -279,6 +279,13 @@ int slider_pendulum_setpoint(slider_pendulum_real t, const slider_pendulum_real 
                      const slider_pendulum_real *qd_des, const slider_pendulum_real *qdd_des, slider_pendulum_real *q, slider_pendulum_real *qd,
                      slider_pendulum_real *qdd, slider_pendulum_real *lam, slider_pendulum_real *reactions, int *info, slider_pendulum_real *work,
                      int *iwork);
+/* setpoint at t = whole + frac, whole a long of seconds and frac a real
+   fraction (as instant_at: time split for a controller's clock that runs
+   for days). In double, t = whole + frac rounded once. */
+int slider_pendulum_setpoint_at(long whole, slider_pendulum_real frac, const slider_pendulum_real *p, slider_pendulum_real tol,
+                        const slider_pendulum_real *q_des, const slider_pendulum_real *qd_des, const slider_pendulum_real *qdd_des,
+                        slider_pendulum_real *q, slider_pendulum_real *qd, slider_pendulum_real *qdd, slider_pendulum_real *lam,
+                        slider_pendulum_real *reactions, int *info, slider_pendulum_real *work, int *iwork);
 
 /* A design study: K parameter vectors through the trajectory loop, keeping
    per variant only its figures, accumulated as the instants are solved

@@ -59,7 +59,8 @@ class CContext:
     Literals (of the real type, printed): defaults, threshold, refine_spread,
     floor_ulps, jump_floor, unexplained, screen_ratio, cond_screen, inf, nan;
     real: the C type, f: its literals' suffix, eps: its epsilon, lm: libm's
-    names for it.
+    names for it; single_bound: single precision's bound against double
+    (c.phase.single_bound), printed.
     row_parts: (group, source, size, offset) of the row; outputs: (variable,
     row offset or None, work vector) of the trajectory's outputs.
     """
@@ -126,6 +127,7 @@ class CContext:
     f: str
     eps: str
     precision: str
+    single_bound: str
     lm: dict[str, str]
     comment_open: str = "/*"
     comment_line: str = " *"
@@ -265,7 +267,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         singular=model.plan.singular, trig_loop=ng >= c_lu.LU_TABLES_MIN,
         splines=[_relit_tables(piece_tables(s), scalar) for s in tables(used)],
         inf=scalar.lit(float("inf")), nan=scalar.lit(float("nan")), real=scalar.ctype, f=scalar.suffix,
-        eps=scalar.eps, precision=precision,
+        eps=scalar.eps, precision=precision, single_bound=scalar.lit(c_phase.single_bound(fr is not None)),
         lm={k: scalar.fn(k) for k in ("sin", "cos", "sqrt", "fabs", "fmax", "fmin", "tanh")},
     )
     # the sweep's variants side by side (None: one by one)

@@ -276,8 +276,25 @@ def nu_lines(nu: Sequence[sp.Expr], np_: int, off_nu: int, printer: Callable[[sp
 
     for j, v in enumerate(nu):
         r = emit(_plain(v))
-        lines.append(f"{{p}}_ff_norm({r}[0], {r}[1], pp + {off_nu + 2 * j});")
-    return ([f"{{p}}_real {', '.join(f'ff{k}[2]' for k in range(count[0]))};"] if count[0] else []) + lines
+        lines.append(f"{{p}}_ff_norm({r}[0], {r}[1], &pp[{off_nu + 2 * j}]);")  # by index (MISRA C:2012 18.4)
+    return [f"{{p}}_real ff{k}[2];" for k in range(count[0])] + lines  # one declaration a statement (12.3)
+
+
+# Single precision against double over the mechanism file's run: each column
+# within this fraction of its peak (docs/c-export.md, single precision; the
+# header states it as <P>_SINGLE_BOUND and the tests read it from there).
+# The float rounding (6e-8) magnified by the conditioning of the bundled
+# mechanisms' multipliers stays below 1e-5; joint friction's smooth sign
+# tanh(v / v_smooth) turns the rounding of a speed near reversal into up to
+# 3 % of a joint's friction (v_smooth 1e-4: the bundled friction example).
+SINGLE_BOUND = 1e-5
+FRICTION_BOUND = 5e-2
+
+
+def single_bound(friction: bool) -> float:
+    """The bound of single precision against double the header states, of a
+    mechanism with (or without) joint friction."""
+    return FRICTION_BOUND if friction else SINGLE_BOUND
 
 
 @dataclass(frozen=True)
