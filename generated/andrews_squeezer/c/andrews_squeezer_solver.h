@@ -431,7 +431,7 @@ int andrews_squeezer_setpoint(andrews_squeezer_real t, const andrews_squeezer_re
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define ANDREWS_SQUEEZER_SWEEP_WORK (ANDREWS_SQUEEZER_WORK + ANDREWS_SQUEEZER_STATE + 32 * ANDREWS_SQUEEZER_ROW + 93)  /* reals of workspace of a sweep */
+#define ANDREWS_SQUEEZER_SWEEP_WORK (ANDREWS_SQUEEZER_WORK + ANDREWS_SQUEEZER_STATE + 32 * ANDREWS_SQUEEZER_ROW + 95)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

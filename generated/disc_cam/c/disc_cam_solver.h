@@ -286,7 +286,7 @@ int disc_cam_setpoint(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define DISC_CAM_SWEEP_WORK (DISC_CAM_WORK + DISC_CAM_STATE + 32 * DISC_CAM_ROW + 23)  /* reals of workspace of a sweep */
+#define DISC_CAM_SWEEP_WORK (DISC_CAM_WORK + DISC_CAM_STATE + 32 * DISC_CAM_ROW + 25)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

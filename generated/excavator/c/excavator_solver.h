@@ -331,7 +331,7 @@ int excavator_setpoint(excavator_real t, const excavator_real *p, excavator_real
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define EXCAVATOR_SWEEP_WORK (EXCAVATOR_WORK + EXCAVATOR_STATE + 32 * EXCAVATOR_ROW + 61)  /* reals of workspace of a sweep */
+#define EXCAVATOR_SWEEP_WORK (EXCAVATOR_WORK + EXCAVATOR_STATE + 32 * EXCAVATOR_ROW + 63)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

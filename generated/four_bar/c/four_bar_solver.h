@@ -312,7 +312,7 @@ int four_bar_setpoint(four_bar_real t, const four_bar_real *p, four_bar_real tol
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define FOUR_BAR_SWEEP_WORK (FOUR_BAR_WORK + FOUR_BAR_STATE + 32 * FOUR_BAR_ROW + 41)  /* reals of workspace of a sweep */
+#define FOUR_BAR_SWEEP_WORK (FOUR_BAR_WORK + FOUR_BAR_STATE + 32 * FOUR_BAR_ROW + 43)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

@@ -343,7 +343,7 @@ int planetary_setpoint(planetary_real t, const planetary_real *p, planetary_real
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define PLANETARY_SWEEP_WORK (PLANETARY_WORK + PLANETARY_STATE + 32 * PLANETARY_ROW + 39)  /* reals of workspace of a sweep */
+#define PLANETARY_SWEEP_WORK (PLANETARY_WORK + PLANETARY_STATE + 32 * PLANETARY_ROW + 41)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

@@ -1706,15 +1706,72 @@ static void quick_return_sweep_scales(const quick_return_real *q, quick_return_r
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static QUICK_RETURN_COLD quick_return_real quick_return_sweep_big(const quick_return_real *v, int n, quick_return_real *fig, quick_return_real *acc)
+{
+    const quick_return_real x = v[0];
+    const quick_return_real y = (n > 1) ? v[1] : 0.0;
+    quick_return_real s = acc[6];
+    quick_return_real r = 1.0;
+    quick_return_real a = QUICK_RETURN_MAX(fabs(x * s), fabs(y * s));
+    quick_return_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 4; k < 10; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 3; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[5] = -1.0;
+        acc[6] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void quick_return_sweep_start(quick_return_real *fig, quick_return_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[5] = 1.157920892373162e+77;
+    acc[6] = 1.0;
+    for (k = 0; k < 3; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 4; k < 10; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void quick_return_sweep_take(const quick_return_real *row, const quick_return_real *p, quick_return_real *fig, quick_return_real *acc,
                                quick_return_real *drive, long count)
 {
     const quick_return_real t = row[0];
     quick_return_real e;
+    quick_return_real e2;
     quick_return_real rate;
     quick_return_real w;
     quick_return_real m;
@@ -1733,66 +1790,116 @@ static void quick_return_sweep_take(const quick_return_real *row, const quick_re
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    e2 = e * e;
+    if (!(e2 <= acc[5])) {
+        const quick_return_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = quick_return_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[4]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* crank_bearing.force_peak */
     m = (row[37] * row[37]) + (row[38] * row[38]);
     if ((count == 0) || (m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[37], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     m = (row[40] * row[40]) + (row[41] * row[41]);
     if ((m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[40], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     /* lever_pivot.force_peak */
     m = (row[43] * row[43]) + (row[44] * row[44]);
     if ((count == 0) || (m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[43], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     m = (row[46] * row[46]) + (row[47] * row[47]);
     if ((m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[46], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     /* crank_pin_in_lever_slot.force_peak */
     m = (row[49] * row[49]) + (row[50] * row[50]);
     if ((count == 0) || (m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[49], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     m = (row[52] * row[52]) + (row[53] * row[53]);
     if ((m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[52], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     /* lever_ram_link.force_peak */
     m = (row[55] * row[55]) + (row[56] * row[56]);
     if ((count == 0) || (m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[55], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     m = (row[58] * row[58]) + (row[59] * row[59]);
     if ((m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[58], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     /* ram_guide.force_peak */
     m = (row[61] * row[61]) + (row[62] * row[62]);
     if ((count == 0) || (m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[61], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     m = (row[64] * row[64]) + (row[65] * row[65]);
     if ((m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[64], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     /* crank_motor.force_peak */
     m = (row[67] * row[67]) + (row[68] * row[68]);
     if ((count == 0) || (m > fig[9])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[67], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     m = (row[70] * row[70]) + (row[71] * row[71]);
     if ((m > fig[9])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[70], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     if (count == 0) {
@@ -1806,22 +1913,19 @@ static void quick_return_sweep_finish(quick_return_real *fig, const quick_return
 {
     int k;
     const quick_return_real span = acc[4] - acc[3];
-    (void)acc;  /* no drivers: no time average */
+    quick_return_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 10; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[4] = sqrt(fig[4]);
-    fig[5] = sqrt(fig[5]);
-    fig[6] = sqrt(fig[6]);
-    fig[7] = sqrt(fig[7]);
-    fig[8] = sqrt(fig[8]);
-    fig[9] = sqrt(fig[9]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (quick_return_real)count);
+    unit = acc[6];
+    for (k = 4; k < 10; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (quick_return_real)count)) / unit;
 }
 
 
@@ -1889,13 +1993,14 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
             const quick_return_real *s = snap + (v - first) * QUICK_RETURN_SNAP;
             (void)memcpy(state, s, sizeof(quick_return_real) * QUICK_RETURN_STATE);
             (void)memcpy(fig, &s[QUICK_RETURN_STATE], sizeof(quick_return_real) * QUICK_RETURN_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[QUICK_RETURN_STATE + QUICK_RETURN_SWEEP_FIGURES], sizeof(quick_return_real) * 5u);
+            (void)memcpy(acc, &s[QUICK_RETURN_STATE + QUICK_RETURN_SWEEP_FIGURES], sizeof(quick_return_real) * 7u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(quick_return_real) * (size_t)QUICK_RETURN_STATE);
             quick_return_guess(pv, state);
+            quick_return_sweep_start(fig, acc);
             done = 0;
         }
         st = QUICK_RETURN_OK;

@@ -317,7 +317,7 @@ int quick_return_setpoint(quick_return_real t, const quick_return_real *p, quick
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define QUICK_RETURN_SWEEP_WORK (QUICK_RETURN_WORK + QUICK_RETURN_STATE + 32 * QUICK_RETURN_ROW + 36)  /* reals of workspace of a sweep */
+#define QUICK_RETURN_SWEEP_WORK (QUICK_RETURN_WORK + QUICK_RETURN_STATE + 32 * QUICK_RETURN_ROW + 38)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

@@ -283,7 +283,7 @@ int rack_lift_setpoint(rack_lift_real t, const rack_lift_real *p, rack_lift_real
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define RACK_LIFT_SWEEP_WORK (RACK_LIFT_WORK + RACK_LIFT_STATE + 32 * RACK_LIFT_ROW + 24)  /* reals of workspace of a sweep */
+#define RACK_LIFT_SWEEP_WORK (RACK_LIFT_WORK + RACK_LIFT_STATE + 32 * RACK_LIFT_ROW + 26)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

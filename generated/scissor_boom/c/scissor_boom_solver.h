@@ -597,7 +597,7 @@ int scissor_boom_setpoint(scissor_boom_real t, const scissor_boom_real *p, sciss
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define SCISSOR_BOOM_SWEEP_WORK (SCISSOR_BOOM_WORK + SCISSOR_BOOM_STATE + 32 * SCISSOR_BOOM_ROW + 206)  /* reals of workspace of a sweep */
+#define SCISSOR_BOOM_SWEEP_WORK (SCISSOR_BOOM_WORK + SCISSOR_BOOM_STATE + 32 * SCISSOR_BOOM_ROW + 208)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

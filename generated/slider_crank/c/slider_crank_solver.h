@@ -306,7 +306,7 @@ int slider_crank_setpoint(slider_crank_real t, const slider_crank_real *p, slide
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define SLIDER_CRANK_SWEEP_WORK (SLIDER_CRANK_WORK + SLIDER_CRANK_STATE + 32 * SLIDER_CRANK_ROW + 37)  /* reals of workspace of a sweep */
+#define SLIDER_CRANK_SWEEP_WORK (SLIDER_CRANK_WORK + SLIDER_CRANK_STATE + 32 * SLIDER_CRANK_ROW + 39)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

@@ -313,7 +313,7 @@ int slider_crank_counterweight_setpoint(slider_crank_counterweight_real t, const
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define SLIDER_CRANK_COUNTERWEIGHT_SWEEP_WORK (SLIDER_CRANK_COUNTERWEIGHT_WORK + SLIDER_CRANK_COUNTERWEIGHT_STATE + 32 * SLIDER_CRANK_COUNTERWEIGHT_ROW + 37)  /* reals of workspace of a sweep */
+#define SLIDER_CRANK_COUNTERWEIGHT_SWEEP_WORK (SLIDER_CRANK_COUNTERWEIGHT_WORK + SLIDER_CRANK_COUNTERWEIGHT_STATE + 32 * SLIDER_CRANK_COUNTERWEIGHT_ROW + 39)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

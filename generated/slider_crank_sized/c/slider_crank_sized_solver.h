@@ -306,7 +306,7 @@ int slider_crank_sized_setpoint(slider_crank_sized_real t, const slider_crank_si
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define SLIDER_CRANK_SIZED_SWEEP_WORK (SLIDER_CRANK_SIZED_WORK + SLIDER_CRANK_SIZED_STATE + 32 * SLIDER_CRANK_SIZED_ROW + 37)  /* reals of workspace of a sweep */
+#define SLIDER_CRANK_SIZED_SWEEP_WORK (SLIDER_CRANK_SIZED_WORK + SLIDER_CRANK_SIZED_STATE + 32 * SLIDER_CRANK_SIZED_ROW + 39)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

@@ -1646,15 +1646,72 @@ static void slider_pendulum_sweep_scales(const slider_pendulum_real *q, slider_p
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static SLIDER_PENDULUM_COLD slider_pendulum_real slider_pendulum_sweep_big(const slider_pendulum_real *v, int n, slider_pendulum_real *fig, slider_pendulum_real *acc)
+{
+    const slider_pendulum_real x = v[0];
+    const slider_pendulum_real y = (n > 1) ? v[1] : 0.0;
+    slider_pendulum_real s = acc[9];
+    slider_pendulum_real r = 1.0;
+    slider_pendulum_real a = SLIDER_PENDULUM_MAX(fabs(x * s), fabs(y * s));
+    slider_pendulum_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 8; k < 13; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 6; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[8] = -1.0;
+        acc[9] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void slider_pendulum_sweep_start(slider_pendulum_real *fig, slider_pendulum_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[8] = 1.157920892373162e+77;
+    acc[9] = 1.0;
+    for (k = 0; k < 6; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 8; k < 13; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void slider_pendulum_sweep_take(const slider_pendulum_real *row, const slider_pendulum_real *p, slider_pendulum_real *fig, slider_pendulum_real *acc,
                                slider_pendulum_real *drive, long count)
 {
     const slider_pendulum_real t = row[0];
     slider_pendulum_real e;
+    slider_pendulum_real e2;
     slider_pendulum_real rate;
     slider_pendulum_real w;
     slider_pendulum_real m;
@@ -1673,14 +1730,16 @@ static void slider_pendulum_sweep_take(const slider_pendulum_real *row, const sl
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[7]);
+    e2 = e * e;
+    if (!(e2 <= acc[8])) {
+        const slider_pendulum_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = slider_pendulum_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[7]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* pendulum_motor */
     e = -row[24];
     rate = drive[3];
@@ -1692,57 +1751,99 @@ static void slider_pendulum_sweep_take(const slider_pendulum_real *row, const sl
     if ((count == 0) || (w > fig[7])) {
         fig[7] = w;
     }
-    if (count == 0) {
-        acc[5] = 0.0;
-        acc[4] = 0.0;
-    } else {
-        acc[4] += ((e * e) + (acc[3] * acc[3])) * (t - acc[7]);
+    e2 = e * e;
+    if (!(e2 <= acc[8])) {
+        const slider_pendulum_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = slider_pendulum_sweep_big(ev, 1, fig, acc);
     }
-    acc[5] += e * e;
-    acc[3] = e;
+    if (count != 0) {
+        acc[4] += (e2 + acc[3]) * (t - acc[7]);
+    }
+    acc[5] += e2;
+    acc[3] = e2;
     /* guide_parallel.force_peak */
     m = (row[25] * row[25]) + (row[26] * row[26]);
     if ((count == 0) || (m > fig[8])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[25], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     m = (row[28] * row[28]) + (row[29] * row[29]);
     if ((m > fig[8])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[28], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     /* guide_slot.force_peak */
     m = (row[31] * row[31]) + (row[32] * row[32]);
     if ((count == 0) || (m > fig[9])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[31], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     m = (row[34] * row[34]) + (row[35] * row[35]);
     if ((m > fig[9])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[34], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     /* carriage_actuator.force_peak */
     m = (row[37] * row[37]) + (row[38] * row[38]);
     if ((count == 0) || (m > fig[10])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[37], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[10]);
+        }
         fig[10] = m;
     }
     m = (row[40] * row[40]) + (row[41] * row[41]);
     if ((m > fig[10])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[40], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[10]);
+        }
         fig[10] = m;
     }
     /* pendulum_hinge.force_peak */
     m = (row[43] * row[43]) + (row[44] * row[44]);
     if ((count == 0) || (m > fig[11])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[43], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[11]);
+        }
         fig[11] = m;
     }
     m = (row[46] * row[46]) + (row[47] * row[47]);
     if ((m > fig[11])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[46], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[11]);
+        }
         fig[11] = m;
     }
     /* pendulum_motor.force_peak */
     m = (row[49] * row[49]) + (row[50] * row[50]);
     if ((count == 0) || (m > fig[12])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[49], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[12]);
+        }
         fig[12] = m;
     }
     m = (row[52] * row[52]) + (row[53] * row[53]);
     if ((m > fig[12])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[52], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[12]);
+        }
         fig[12] = m;
     }
     if (count == 0) {
@@ -1756,23 +1857,21 @@ static void slider_pendulum_sweep_finish(slider_pendulum_real *fig, const slider
 {
     int k;
     const slider_pendulum_real span = acc[7] - acc[6];
-    (void)acc;  /* no drivers: no time average */
+    slider_pendulum_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 13; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[8] = sqrt(fig[8]);
-    fig[9] = sqrt(fig[9]);
-    fig[10] = sqrt(fig[10]);
-    fig[11] = sqrt(fig[11]);
-    fig[12] = sqrt(fig[12]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (slider_pendulum_real)count);
-    fig[6] = (span > 0.0) ? sqrt((acc[4] / 2.0) / span)
-                                     : sqrt(acc[5] / (slider_pendulum_real)count);
+    unit = acc[9];
+    for (k = 8; k < 13; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (slider_pendulum_real)count)) / unit;
+    fig[6] = ((span > 0.0) ? sqrt((acc[4] / 2.0) / span)
+                                      : sqrt(acc[5] / (slider_pendulum_real)count)) / unit;
 }
 
 
@@ -1840,13 +1939,14 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
             const slider_pendulum_real *s = snap + (v - first) * SLIDER_PENDULUM_SNAP;
             (void)memcpy(state, s, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
             (void)memcpy(fig, &s[SLIDER_PENDULUM_STATE], sizeof(slider_pendulum_real) * SLIDER_PENDULUM_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[SLIDER_PENDULUM_STATE + SLIDER_PENDULUM_SWEEP_FIGURES], sizeof(slider_pendulum_real) * 8u);
+            (void)memcpy(acc, &s[SLIDER_PENDULUM_STATE + SLIDER_PENDULUM_SWEEP_FIGURES], sizeof(slider_pendulum_real) * 10u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(slider_pendulum_real) * (size_t)SLIDER_PENDULUM_STATE);
             slider_pendulum_guess(pv, state);
+            slider_pendulum_sweep_start(fig, acc);
             done = 0;
         }
         st = SLIDER_PENDULUM_OK;

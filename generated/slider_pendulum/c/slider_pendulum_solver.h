@@ -300,7 +300,7 @@ int slider_pendulum_setpoint(slider_pendulum_real t, const slider_pendulum_real 
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define SLIDER_PENDULUM_SWEEP_WORK (SLIDER_PENDULUM_WORK + SLIDER_PENDULUM_STATE + 32 * SLIDER_PENDULUM_ROW + 33)  /* reals of workspace of a sweep */
+#define SLIDER_PENDULUM_SWEEP_WORK (SLIDER_PENDULUM_WORK + SLIDER_PENDULUM_STATE + 32 * SLIDER_PENDULUM_ROW + 35)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

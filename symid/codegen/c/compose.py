@@ -245,7 +245,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         state=state_layout(ng).size, state_layout=state_layout(ng), vectors=vec,
         lu=lu, phase=c_phase.context(red, off_nu, len(f.params)),
         checks=c_checks.context(outputs, ng, nc, o.velocity, o.multipliers, nr),
-        sweep=c_sweep.context(model, printer, work, offset),
+        sweep=c_sweep.context(model, printer, work, offset, scalar.lit, precision),
         fb=None if dense_fallback(model) else c_fallback.context(model.plan, f.jac, ng),
         d=d, sens=sens, friction=fr, lanes=None, setpoint=setpoint, functions=functions, prepare=prepare,
         uses_powi=any(f"{f.name}_powi(" in e for b in _all_blocks(functions + (sens.functions if sens else []),
