@@ -294,6 +294,11 @@ class Notes:
         if cond > self.analysis.cond_threshold:
             self.mark("cond", t, cond, index)
 
+    def worst_cond(self) -> float:
+        """The largest condition estimate above cond_warn in the run (0.0: none, no warning)."""
+        span = self.spans.get("cond")
+        return 0.0 if span is None else float(span.worst)
+
     def lines(self) -> list[str]:
         """The warnings, one line each (without the `symid: warning: ` prefix)."""
         out = list(self.fixed)

@@ -71,7 +71,7 @@ def truth(tmp_path: Path, capsys, backend: str, values: dict[str, str]) -> tuple
 
 def assert_rows_match_solves(tmp_path, capsys, path: Path, params: list[str], backend: str) -> None:
     header, rows = read_rows(path)
-    assert header == ["variant", *params, "status", "t_end", *FIGURES]
+    assert header == ["variant", *params, "status", "t_end", *FIGURES, "cond_worst"]
     for k, row in enumerate(rows):
         cells = dict(zip(header, row))
         assert cells["variant"] == str(k)
