@@ -261,8 +261,10 @@ class Factor:
 # Where the first solve is at rounding (measured on the bundled
 # examples: <= 2 eps at 95 % of the instants, 50 at the worst) the
 # correction's solve is not made; a 2 g part on a 1 t boom (~1e6) and
-# Andrews' mechanism (~400) are refined. The rule of every solver, generated
-# code included (symid.codegen.c, templates/numpy).
+# Andrews' mechanism (~400) are refined. The Python loop's rule (friction and
+# the sensitivities included: they solve through Factor.solve_t); the
+# generated code gates on the masses' spread instead (REFINE_SPREAD, found
+# once a call), its outputs having no length scale for the angle rows.
 REFINE_BERR = 16.0
 
 

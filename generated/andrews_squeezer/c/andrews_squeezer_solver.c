@@ -58,7 +58,8 @@ typedef char andrews_squeezer_real_must_have_the_size_of_double[sizeof(andrews_s
 #define ANDREWS_SQUEEZER_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define ANDREWS_SQUEEZER_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define ANDREWS_SQUEEZER_OFF_PREP 1368  /* the prepared parameters (NPP), after the vectors */
-#define ANDREWS_SQUEEZER_NPP 59
+#define ANDREWS_SQUEEZER_NPP 60
+#define ANDREWS_SQUEEZER_PP_MIXED 59  /* the prepared values' last: the call's refinement gate (gate) */
 
 const andrews_squeezer_real andrews_squeezer_default_params[44] = { 0.04325, 0.00365, 0.02373, 0.00706, 0.0705, 0.00706, 0.05498, 2.194e-06, 4.41e-07, 5.255e-06, 5.667e-07, 1.169e-05, 5.667e-07, 1.912e-05, -0.06934, -0.00227, -0.03635, 0.03273, 0.014, 0.072, 0.028, 0.0115, 0.02, 0.01421, 0.007, 0.00092, 0.035, 0.01874, 0.01043, 0.018, 0.02, 0.02308, 0.00916, 0.04, 0.01228, 0.00449, 0.02, 0.04, 0.01421, 4530.0, 0.07785, -0.06171389001427645, 14222.443919954114, 10.0 };
 const char *const andrews_squeezer_row_names[ANDREWS_SQUEEZER_ROW] = {
@@ -568,7 +569,7 @@ static void andrews_squeezer_phi_k(const andrews_squeezer_real * q, const andrew
 
 void andrews_squeezer_phi(const andrews_squeezer_real * q, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -668,7 +669,7 @@ static void andrews_squeezer_phi_q_k(const andrews_squeezer_real * q, const andr
 
 void andrews_squeezer_phi_q(const andrews_squeezer_real * q, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -710,7 +711,7 @@ static void andrews_squeezer_nu_k(const andrews_squeezer_real * q, const andrews
 
 void andrews_squeezer_nu(const andrews_squeezer_real * q, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -780,7 +781,7 @@ static void andrews_squeezer_gamma_k(const andrews_squeezer_real * q, const andr
 
 void andrews_squeezer_gamma(const andrews_squeezer_real * q, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -829,7 +830,7 @@ static void andrews_squeezer_applied_k(const andrews_squeezer_real * q, const an
 
 void andrews_squeezer_applied(const andrews_squeezer_real * q, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -868,7 +869,7 @@ static void andrews_squeezer_mass_k(const andrews_squeezer_real * p, andrews_squ
 
 void andrews_squeezer_mass(const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_prepare(p, prepared);
     andrews_squeezer_mass_k(prepared, out);
 }
@@ -963,7 +964,7 @@ static void andrews_squeezer_reactions_k(const andrews_squeezer_real * q, const 
 
 void andrews_squeezer_reactions(const andrews_squeezer_real * q, const andrews_squeezer_real * lam, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -1479,6 +1480,16 @@ static int andrews_squeezer_mixed(const andrews_squeezer_real *m)
     return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void andrews_squeezer_gate(andrews_squeezer_real *pp, andrews_squeezer_real *m)
+{
+    andrews_squeezer_mass_k(pp, m);
+    pp[ANDREWS_SQUEEZER_PP_MIXED] = (andrews_squeezer_mixed(m) != 0) ? 1.0 : 0.0;
+}
+
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
    masses span scales (mixed): a transposed solve is backward stable in the
    norm of the whole b, so a light body's multipliers (a 2 g part on a boom
@@ -1922,7 +1933,7 @@ static void andrews_squeezer_outputs(andrews_squeezer_real t, const andrews_sque
     b[19] -= y[19] * qdd[19];
     b[20] -= y[20] * qdd[20];
     andrews_squeezer_solve_t(work, iwork, dense, b, lam);
-    if (andrews_squeezer_mixed(y) != 0) {
+    if (p[ANDREWS_SQUEEZER_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     andrews_squeezer_reactions_k(q, tr, lam, t, p, reactions);
@@ -2110,6 +2121,7 @@ int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_rea
         andrews_squeezer_real *kept = ANDREWS_SQUEEZER_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(andrews_squeezer_real) * 21u);  /* the caller's guess, back in q if the call fails */
         andrews_squeezer_prepare(p, pp);
+        andrews_squeezer_gate(pp, ANDREWS_SQUEEZER_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         andrews_squeezer_real *qd_out = (qd != NULL) ? qd : ANDREWS_SQUEEZER_VEC(work, 5);
@@ -2227,6 +2239,7 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
     tr = ANDREWS_SQUEEZER_VEC(work, 9);
     pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
     andrews_squeezer_prepare(p, pp);
+    andrews_squeezer_gate(pp, ANDREWS_SQUEEZER_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -3026,7 +3039,7 @@ static void andrews_squeezer_sp_outputs(andrews_squeezer_real t, const andrews_s
     b[19] -= y[19] * qdd[19];
     b[20] -= y[20] * qdd[20];
     andrews_squeezer_solve_t(work, iwork, dense, b, lam);
-    if (andrews_squeezer_mixed(y) != 0) {
+    if (p[ANDREWS_SQUEEZER_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     andrews_squeezer_reactions_k(q, tr, lam, t, p, reactions);
@@ -3051,6 +3064,7 @@ static int andrews_squeezer_sp_instant(andrews_squeezer_real t, const andrews_sq
         andrews_squeezer_real *kept = ANDREWS_SQUEEZER_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(andrews_squeezer_real) * 21u);  /* the caller's guess, back in q if the call fails */
         andrews_squeezer_prepare(p, pp);
+        andrews_squeezer_gate(pp, ANDREWS_SQUEEZER_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         andrews_squeezer_real *qd_out = (qd != NULL) ? qd : ANDREWS_SQUEEZER_VEC(work, 5);

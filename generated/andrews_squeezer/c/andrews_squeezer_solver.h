@@ -37,7 +37,7 @@ typedef double andrews_squeezer_real;
 #define ANDREWS_SQUEEZER_NNZ 65          /* structural nonzeros of Phi_q */
 #define ANDREWS_SQUEEZER_NR 66            /* reaction values (Fx, Fy, T per body role) */
 #define ANDREWS_SQUEEZER_ROW 151          /* values per instant in a trajectory row */
-#define ANDREWS_SQUEEZER_WORK 1427        /* reals of workspace every solver call needs */
+#define ANDREWS_SQUEEZER_WORK 1428        /* reals of workspace every solver call needs */
 #define ANDREWS_SQUEEZER_IWORK 21         /* ints of workspace */
 #define ANDREWS_SQUEEZER_STATE 170       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in

@@ -58,7 +58,8 @@ typedef char disc_cam_real_must_have_the_size_of_double[sizeof(disc_cam_real) ==
 #define DISC_CAM_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define DISC_CAM_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define DISC_CAM_OFF_PREP 344  /* the prepared parameters (NPP), after the vectors */
-#define DISC_CAM_NPP 9
+#define DISC_CAM_NPP 10
+#define DISC_CAM_PP_MIXED 9  /* the prepared values' last: the call's refinement gate (gate) */
 
 const disc_cam_real disc_cam_default_params[8] = { 0.05, 0.02, 2.0, 1.5, 0.002, 0.4, 2000.0, 0.2 };
 const char *const disc_cam_row_names[DISC_CAM_ROW] = {
@@ -256,7 +257,7 @@ static void disc_cam_phi_k(const disc_cam_real * q, const disc_cam_real * tr, di
 
 void disc_cam_phi(const disc_cam_real * q, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -296,7 +297,7 @@ static void disc_cam_phi_q_k(const disc_cam_real * q, const disc_cam_real * tr, 
 
 void disc_cam_phi_q(const disc_cam_real * q, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -323,7 +324,7 @@ static void disc_cam_nu_k(const disc_cam_real * q, const disc_cam_real * tr, dis
 
 void disc_cam_nu(const disc_cam_real * q, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -449,7 +450,7 @@ static void disc_cam_gamma_k(const disc_cam_real * q, const disc_cam_real * tr, 
 
 void disc_cam_gamma(const disc_cam_real * q, const disc_cam_real * qd, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -480,7 +481,7 @@ static void disc_cam_applied_k(const disc_cam_real * q, const disc_cam_real * tr
 
 void disc_cam_applied(const disc_cam_real * q, const disc_cam_real * qd, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -504,7 +505,7 @@ static void disc_cam_mass_k(const disc_cam_real * p, disc_cam_real *out)
 
 void disc_cam_mass(const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_prepare(p, prepared);
     disc_cam_mass_k(prepared, out);
 }
@@ -562,7 +563,7 @@ static void disc_cam_reactions_k(const disc_cam_real * q, const disc_cam_real * 
 
 void disc_cam_reactions(const disc_cam_real * q, const disc_cam_real * lam, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -886,6 +887,16 @@ static int disc_cam_mixed(const disc_cam_real *m)
     lo = DISC_CAM_MIN(lo, m[3]);
     hi = DISC_CAM_MAX(hi, m[3]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void disc_cam_gate(disc_cam_real *pp, disc_cam_real *m)
+{
+    disc_cam_mass_k(pp, m);
+    pp[DISC_CAM_PP_MIXED] = (disc_cam_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1305,7 +1316,7 @@ static void disc_cam_outputs(disc_cam_real t, const disc_cam_real *p, const disc
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     disc_cam_solve_t(work, iwork, dense, b, lam);
-    if (disc_cam_mixed(y) != 0) {
+    if (p[DISC_CAM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         disc_cam_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     disc_cam_reactions_k(q, tr, lam, t, p, reactions);
@@ -1433,6 +1444,7 @@ int disc_cam_instant(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol,
         disc_cam_real *kept = DISC_CAM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(disc_cam_real) * 6u);  /* the caller's guess, back in q if the call fails */
         disc_cam_prepare(p, pp);
+        disc_cam_gate(pp, DISC_CAM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         disc_cam_real *qd_out = (qd != NULL) ? qd : DISC_CAM_VEC(work, 5);
@@ -1550,6 +1562,7 @@ int disc_cam_trajectory(disc_cam_real t0, disc_cam_real h, long n, const disc_ca
     tr = DISC_CAM_VEC(work, 9);
     pp = &work[DISC_CAM_OFF_PREP];
     disc_cam_prepare(p, pp);
+    disc_cam_gate(pp, DISC_CAM_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -2153,7 +2166,7 @@ static void disc_cam_sp_outputs(disc_cam_real t, const disc_cam_real *p, const d
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     disc_cam_solve_t(work, iwork, dense, b, lam);
-    if (disc_cam_mixed(y) != 0) {
+    if (p[DISC_CAM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         disc_cam_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     disc_cam_reactions_k(q, tr, lam, t, p, reactions);
@@ -2178,6 +2191,7 @@ static int disc_cam_sp_instant(disc_cam_real t, const disc_cam_real *p, disc_cam
         disc_cam_real *kept = DISC_CAM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(disc_cam_real) * 6u);  /* the caller's guess, back in q if the call fails */
         disc_cam_prepare(p, pp);
+        disc_cam_gate(pp, DISC_CAM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         disc_cam_real *qd_out = (qd != NULL) ? qd : DISC_CAM_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double disc_cam_real;
 #define DISC_CAM_NNZ 10          /* structural nonzeros of Phi_q */
 #define DISC_CAM_NR 24            /* reaction values (Fx, Fy, T per body role) */
 #define DISC_CAM_ROW 49          /* values per instant in a trajectory row */
-#define DISC_CAM_WORK 353        /* reals of workspace every solver call needs */
+#define DISC_CAM_WORK 354        /* reals of workspace every solver call needs */
 #define DISC_CAM_IWORK 6         /* ints of workspace */
 #define DISC_CAM_STATE 50       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in

@@ -58,7 +58,8 @@ typedef char excavator_real_must_have_the_size_of_double[sizeof(excavator_real) 
 #define EXCAVATOR_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define EXCAVATOR_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define EXCAVATOR_OFF_PREP 583  /* the prepared parameters (NPP), after the vectors */
-#define EXCAVATOR_NPP 41
+#define EXCAVATOR_NPP 42
+#define EXCAVATOR_PP_MIXED 41  /* the prepared values' last: the call's refinement gate (gate) */
 
 const excavator_real excavator_default_params[17] = { 5.7, 2.9, 1.5, 1.0, 1500.0, 700.0, 500.0, 8.0, 2.68, 0.25, 2.31, 0.65, 2.3, 0.55, 30000.0, 2.4, 1.0 };
 const char *const excavator_row_names[EXCAVATOR_ROW] = {
@@ -368,7 +369,7 @@ static void excavator_phi_k(const excavator_real * q, const excavator_real * tr,
 
 void excavator_phi(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -474,7 +475,7 @@ static void excavator_phi_q_k(const excavator_real * q, const excavator_real * t
 
 void excavator_phi_q(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -507,7 +508,7 @@ static void excavator_nu_k(const excavator_real * q, const excavator_real * tr, 
 
 void excavator_nu(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -593,7 +594,7 @@ static void excavator_gamma_k(const excavator_real * q, const excavator_real * t
 
 void excavator_gamma(const excavator_real * q, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -624,7 +625,7 @@ static void excavator_applied_k(const excavator_real * q, const excavator_real *
 
 void excavator_applied(const excavator_real * q, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -651,7 +652,7 @@ static void excavator_mass_k(const excavator_real * p, excavator_real *out)
 
 void excavator_mass(const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_prepare(p, prepared);
     excavator_mass_k(prepared, out);
 }
@@ -741,7 +742,7 @@ static void excavator_reactions_k(const excavator_real * q, const excavator_real
 
 void excavator_reactions(const excavator_real * q, const excavator_real * lam, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -1177,6 +1178,16 @@ static int excavator_mixed(const excavator_real *m)
     return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void excavator_gate(excavator_real *pp, excavator_real *m)
+{
+    excavator_mass_k(pp, m);
+    pp[EXCAVATOR_PP_MIXED] = (excavator_mixed(m) != 0) ? 1.0 : 0.0;
+}
+
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
    masses span scales (mixed): a transposed solve is backward stable in the
    norm of the whole b, so a light body's multipliers (a 2 g part on a boom
@@ -1532,7 +1543,7 @@ static void excavator_outputs(excavator_real t, const excavator_real *p, const e
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     excavator_solve_t(work, iwork, dense, b, lam);
-    if (excavator_mixed(y) != 0) {
+    if (p[EXCAVATOR_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     excavator_reactions_k(q, tr, lam, t, p, reactions);
@@ -1672,6 +1683,7 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
         excavator_real *kept = EXCAVATOR_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(excavator_real) * 9u);  /* the caller's guess, back in q if the call fails */
         excavator_prepare(p, pp);
+        excavator_gate(pp, EXCAVATOR_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         excavator_real *qd_out = (qd != NULL) ? qd : EXCAVATOR_VEC(work, 5);
@@ -1789,6 +1801,7 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
     tr = EXCAVATOR_VEC(work, 9);
     pp = &work[EXCAVATOR_OFF_PREP];
     excavator_prepare(p, pp);
+    excavator_gate(pp, EXCAVATOR_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -2553,7 +2566,7 @@ static void excavator_sp_outputs(excavator_real t, const excavator_real *p, cons
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     excavator_solve_t(work, iwork, dense, b, lam);
-    if (excavator_mixed(y) != 0) {
+    if (p[EXCAVATOR_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     excavator_reactions_k(q, tr, lam, t, p, reactions);
@@ -2578,6 +2591,7 @@ static int excavator_sp_instant(excavator_real t, const excavator_real *p, excav
         excavator_real *kept = EXCAVATOR_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(excavator_real) * 9u);  /* the caller's guess, back in q if the call fails */
         excavator_prepare(p, pp);
+        excavator_gate(pp, EXCAVATOR_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         excavator_real *qd_out = (qd != NULL) ? qd : EXCAVATOR_VEC(work, 5);

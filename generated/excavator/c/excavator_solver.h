@@ -37,7 +37,7 @@ typedef double excavator_real;
 #define EXCAVATOR_NNZ 35          /* structural nonzeros of Phi_q */
 #define EXCAVATOR_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define EXCAVATOR_ROW 73          /* values per instant in a trajectory row */
-#define EXCAVATOR_WORK 624        /* reals of workspace every solver call needs */
+#define EXCAVATOR_WORK 625        /* reals of workspace every solver call needs */
 #define EXCAVATOR_IWORK 9         /* ints of workspace */
 #define EXCAVATOR_STATE 74       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in

@@ -58,7 +58,8 @@ typedef char four_bar_real_must_have_the_size_of_double[sizeof(four_bar_real) ==
 #define FOUR_BAR_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define FOUR_BAR_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define FOUR_BAR_OFF_PREP 491  /* the prepared parameters (NPP), after the vectors */
-#define FOUR_BAR_NPP 19
+#define FOUR_BAR_NPP 20
+#define FOUR_BAR_PP_MIXED 19  /* the prepared values' last: the call's refinement gate (gate) */
 
 const four_bar_real four_bar_default_params[15] = { 0.4, 0.1, 0.35, 0.3, 0.3, 0.8, 0.7, 0.05, 0.1, 2.0, 50.0, 2.0, 500.0, 5.0, 0.3 };
 const char *const four_bar_row_names[FOUR_BAR_ROW] = {
@@ -320,7 +321,7 @@ static void four_bar_phi_k(const four_bar_real * q, const four_bar_real * tr, fo
 
 void four_bar_phi(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -374,7 +375,7 @@ static void four_bar_phi_q_k(const four_bar_real * q, const four_bar_real * tr, 
 
 void four_bar_phi_q(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -404,7 +405,7 @@ static void four_bar_nu_k(const four_bar_real * q, const four_bar_real * tr, fou
 
 void four_bar_nu(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -442,7 +443,7 @@ static void four_bar_gamma_k(const four_bar_real * q, const four_bar_real * tr, 
 
 void four_bar_gamma(const four_bar_real * q, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -479,7 +480,7 @@ static void four_bar_applied_k(const four_bar_real * q, const four_bar_real * tr
 
 void four_bar_applied(const four_bar_real * q, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -506,7 +507,7 @@ static void four_bar_mass_k(const four_bar_real * p, four_bar_real *out)
 
 void four_bar_mass(const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_prepare(p, prepared);
     four_bar_mass_k(prepared, out);
 }
@@ -556,7 +557,7 @@ static void four_bar_reactions_k(const four_bar_real * q, const four_bar_real * 
 
 void four_bar_reactions(const four_bar_real * q, const four_bar_real * lam, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -923,6 +924,16 @@ static int four_bar_mixed(const four_bar_real *m)
     return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void four_bar_gate(four_bar_real *pp, four_bar_real *m)
+{
+    four_bar_mass_k(pp, m);
+    pp[FOUR_BAR_PP_MIXED] = (four_bar_mixed(m) != 0) ? 1.0 : 0.0;
+}
+
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
    masses span scales (mixed): a transposed solve is backward stable in the
    norm of the whole b, so a light body's multipliers (a 2 g part on a boom
@@ -1282,7 +1293,7 @@ static void four_bar_outputs(four_bar_real t, const four_bar_real *p, const four
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     four_bar_solve_t(work, iwork, dense, b, lam);
-    if (four_bar_mixed(y) != 0) {
+    if (p[FOUR_BAR_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     four_bar_reactions_k(q, tr, lam, t, p, reactions);
@@ -1422,6 +1433,7 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
         four_bar_real *kept = FOUR_BAR_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(four_bar_real) * 9u);  /* the caller's guess, back in q if the call fails */
         four_bar_prepare(p, pp);
+        four_bar_gate(pp, FOUR_BAR_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         four_bar_real *qd_out = (qd != NULL) ? qd : FOUR_BAR_VEC(work, 5);
@@ -1539,6 +1551,7 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
     tr = FOUR_BAR_VEC(work, 9);
     pp = &work[FOUR_BAR_OFF_PREP];
     four_bar_prepare(p, pp);
+    four_bar_gate(pp, FOUR_BAR_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -2174,7 +2187,7 @@ static void four_bar_sp_outputs(four_bar_real t, const four_bar_real *p, const f
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     four_bar_solve_t(work, iwork, dense, b, lam);
-    if (four_bar_mixed(y) != 0) {
+    if (p[FOUR_BAR_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     four_bar_reactions_k(q, tr, lam, t, p, reactions);
@@ -2199,6 +2212,7 @@ static int four_bar_sp_instant(four_bar_real t, const four_bar_real *p, four_bar
         four_bar_real *kept = FOUR_BAR_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(four_bar_real) * 9u);  /* the caller's guess, back in q if the call fails */
         four_bar_prepare(p, pp);
+        four_bar_gate(pp, FOUR_BAR_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         four_bar_real *qd_out = (qd != NULL) ? qd : FOUR_BAR_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double four_bar_real;
 #define FOUR_BAR_NNZ 25          /* structural nonzeros of Phi_q */
 #define FOUR_BAR_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define FOUR_BAR_ROW 67          /* values per instant in a trajectory row */
-#define FOUR_BAR_WORK 510        /* reals of workspace every solver call needs */
+#define FOUR_BAR_WORK 511        /* reals of workspace every solver call needs */
 #define FOUR_BAR_IWORK 9         /* ints of workspace */
 #define FOUR_BAR_STATE 74       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in

@@ -58,7 +58,8 @@ typedef char planetary_real_must_have_the_size_of_double[sizeof(planetary_real) 
 #define PLANETARY_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define PLANETARY_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define PLANETARY_OFF_PREP 796  /* the prepared parameters (NPP), after the vectors */
-#define PLANETARY_NPP 25
+#define PLANETARY_NPP 26
+#define PLANETARY_PP_MIXED 25  /* the prepared values' last: the call's refinement gate (gate) */
 
 const planetary_real planetary_default_params[9] = { 0.03, 0.03, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 5.0 };
 const char *const planetary_row_names[PLANETARY_ROW] = {
@@ -397,7 +398,7 @@ static void planetary_phi_k(const planetary_real * q, const planetary_real * tr,
 
 void planetary_phi(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -437,7 +438,7 @@ static void planetary_phi_q_k(const planetary_real * q, const planetary_real * t
 
 void planetary_phi_q(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -470,7 +471,7 @@ static void planetary_nu_k(const planetary_real * q, const planetary_real * tr, 
 
 void planetary_nu(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -503,7 +504,7 @@ static void planetary_gamma_k(const planetary_real * q, const planetary_real * t
 
 void planetary_gamma(const planetary_real * q, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -537,7 +538,7 @@ static void planetary_applied_k(const planetary_real * q, const planetary_real *
 
 void planetary_applied(const planetary_real * q, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -567,7 +568,7 @@ static void planetary_mass_k(const planetary_real * p, planetary_real *out)
 
 void planetary_mass(const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_prepare(p, prepared);
     planetary_mass_k(prepared, out);
 }
@@ -649,7 +650,7 @@ static void planetary_reactions_k(const planetary_real * q, const planetary_real
 
 void planetary_reactions(const planetary_real * q, const planetary_real * lam, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -1015,6 +1016,16 @@ static int planetary_mixed(const planetary_real *m)
     lo = PLANETARY_MIN(lo, m[9]);
     hi = PLANETARY_MAX(hi, m[9]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void planetary_gate(planetary_real *pp, planetary_real *m)
+{
+    planetary_mass_k(pp, m);
+    pp[PLANETARY_PP_MIXED] = (planetary_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1399,7 +1410,7 @@ static void planetary_outputs(planetary_real t, const planetary_real *p, const p
     b[10] -= y[10] * qdd[10];
     b[11] -= y[11] * qdd[11];
     planetary_solve_t(work, iwork, dense, b, lam);
-    if (planetary_mixed(y) != 0) {
+    if (p[PLANETARY_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     planetary_reactions_k(q, tr, lam, t, p, reactions);
@@ -1551,6 +1562,7 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
         planetary_real *kept = PLANETARY_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(planetary_real) * 12u);  /* the caller's guess, back in q if the call fails */
         planetary_prepare(p, pp);
+        planetary_gate(pp, PLANETARY_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         planetary_real *qd_out = (qd != NULL) ? qd : PLANETARY_VEC(work, 5);
@@ -1668,6 +1680,7 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
     tr = PLANETARY_VEC(work, 9);
     pp = &work[PLANETARY_OFF_PREP];
     planetary_prepare(p, pp);
+    planetary_gate(pp, PLANETARY_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -2377,7 +2390,7 @@ static void planetary_sp_outputs(planetary_real t, const planetary_real *p, cons
     b[10] -= y[10] * qdd[10];
     b[11] -= y[11] * qdd[11];
     planetary_solve_t(work, iwork, dense, b, lam);
-    if (planetary_mixed(y) != 0) {
+    if (p[PLANETARY_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     planetary_reactions_k(q, tr, lam, t, p, reactions);
@@ -2402,6 +2415,7 @@ static int planetary_sp_instant(planetary_real t, const planetary_real *p, plane
         planetary_real *kept = PLANETARY_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(planetary_real) * 12u);  /* the caller's guess, back in q if the call fails */
         planetary_prepare(p, pp);
+        planetary_gate(pp, PLANETARY_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         planetary_real *qd_out = (qd != NULL) ? qd : PLANETARY_VEC(work, 5);

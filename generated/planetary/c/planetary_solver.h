@@ -37,7 +37,7 @@ typedef double planetary_real;
 #define PLANETARY_NNZ 20          /* structural nonzeros of Phi_q */
 #define PLANETARY_NR 51            /* reaction values (Fx, Fy, T per body role) */
 #define PLANETARY_ROW 100          /* values per instant in a trajectory row */
-#define PLANETARY_WORK 821        /* reals of workspace every solver call needs */
+#define PLANETARY_WORK 822        /* reals of workspace every solver call needs */
 #define PLANETARY_IWORK 12         /* ints of workspace */
 #define PLANETARY_STATE 98       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in

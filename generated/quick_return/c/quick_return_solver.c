@@ -58,7 +58,8 @@ typedef char quick_return_real_must_have_the_size_of_double[sizeof(quick_return_
 #define QUICK_RETURN_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define QUICK_RETURN_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define QUICK_RETURN_OFF_PREP 553  /* the prepared parameters (NPP), after the vectors */
-#define QUICK_RETURN_NPP 18
+#define QUICK_RETURN_NPP 19
+#define QUICK_RETURN_PP_MIXED 18  /* the prepared values' last: the call's refinement gate (gate) */
 
 const quick_return_real quick_return_default_params[13] = { 0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 500.0 };
 const char *const quick_return_row_names[QUICK_RETURN_ROW] = {
@@ -321,7 +322,7 @@ static void quick_return_phi_k(const quick_return_real * q, const quick_return_r
 
 void quick_return_phi(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -368,7 +369,7 @@ static void quick_return_phi_q_k(const quick_return_real * q, const quick_return
 
 void quick_return_phi_q(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -398,7 +399,7 @@ static void quick_return_nu_k(const quick_return_real * q, const quick_return_re
 
 void quick_return_nu(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -440,7 +441,7 @@ static void quick_return_gamma_k(const quick_return_real * q, const quick_return
 
 void quick_return_gamma(const quick_return_real * q, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -470,7 +471,7 @@ static void quick_return_applied_k(const quick_return_real * q, const quick_retu
 
 void quick_return_applied(const quick_return_real * q, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -497,7 +498,7 @@ static void quick_return_mass_k(const quick_return_real * p, quick_return_real *
 
 void quick_return_mass(const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_prepare(p, prepared);
     quick_return_mass_k(prepared, out);
 }
@@ -558,7 +559,7 @@ static void quick_return_reactions_k(const quick_return_real * q, const quick_re
 
 void quick_return_reactions(const quick_return_real * q, const quick_return_real * lam, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -917,6 +918,16 @@ static int quick_return_mixed(const quick_return_real *m)
     return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void quick_return_gate(quick_return_real *pp, quick_return_real *m)
+{
+    quick_return_mass_k(pp, m);
+    pp[QUICK_RETURN_PP_MIXED] = (quick_return_mixed(m) != 0) ? 1.0 : 0.0;
+}
+
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
    masses span scales (mixed): a transposed solve is backward stable in the
    norm of the whole b, so a light body's multipliers (a 2 g part on a boom
@@ -1272,7 +1283,7 @@ static void quick_return_outputs(quick_return_real t, const quick_return_real *p
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     quick_return_solve_t(work, iwork, dense, b, lam);
-    if (quick_return_mixed(y) != 0) {
+    if (p[QUICK_RETURN_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     quick_return_reactions_k(q, tr, lam, t, p, reactions);
@@ -1412,6 +1423,7 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
         quick_return_real *kept = QUICK_RETURN_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(quick_return_real) * 9u);  /* the caller's guess, back in q if the call fails */
         quick_return_prepare(p, pp);
+        quick_return_gate(pp, QUICK_RETURN_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         quick_return_real *qd_out = (qd != NULL) ? qd : QUICK_RETURN_VEC(work, 5);
@@ -1529,6 +1541,7 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
     tr = QUICK_RETURN_VEC(work, 9);
     pp = &work[QUICK_RETURN_OFF_PREP];
     quick_return_prepare(p, pp);
+    quick_return_gate(pp, QUICK_RETURN_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -2184,7 +2197,7 @@ static void quick_return_sp_outputs(quick_return_real t, const quick_return_real
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     quick_return_solve_t(work, iwork, dense, b, lam);
-    if (quick_return_mixed(y) != 0) {
+    if (p[QUICK_RETURN_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     quick_return_reactions_k(q, tr, lam, t, p, reactions);
@@ -2209,6 +2222,7 @@ static int quick_return_sp_instant(quick_return_real t, const quick_return_real 
         quick_return_real *kept = QUICK_RETURN_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(quick_return_real) * 9u);  /* the caller's guess, back in q if the call fails */
         quick_return_prepare(p, pp);
+        quick_return_gate(pp, QUICK_RETURN_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         quick_return_real *qd_out = (qd != NULL) ? qd : QUICK_RETURN_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double quick_return_real;
 #define QUICK_RETURN_NNZ 20          /* structural nonzeros of Phi_q */
 #define QUICK_RETURN_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define QUICK_RETURN_ROW 73          /* values per instant in a trajectory row */
-#define QUICK_RETURN_WORK 571        /* reals of workspace every solver call needs */
+#define QUICK_RETURN_WORK 572        /* reals of workspace every solver call needs */
 #define QUICK_RETURN_IWORK 9         /* ints of workspace */
 #define QUICK_RETURN_STATE 74       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in

@@ -58,7 +58,8 @@ typedef char rack_lift_real_must_have_the_size_of_double[sizeof(rack_lift_real) 
 #define RACK_LIFT_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define RACK_LIFT_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define RACK_LIFT_OFF_PREP 346  /* the prepared parameters (NPP), after the vectors */
-#define RACK_LIFT_NPP 18
+#define RACK_LIFT_NPP 19
+#define RACK_LIFT_PP_MIXED 18  /* the prepared values' last: the call's refinement gate (gate) */
 
 const rack_lift_real rack_lift_default_params[8] = { 0.04, 0.25, 2.0, 0.8, 6.0, 0.6, 25.0, 0.25 };
 const char *const rack_lift_row_names[RACK_LIFT_ROW] = {
@@ -266,7 +267,7 @@ static void rack_lift_phi_k(const rack_lift_real * q, const rack_lift_real * tr,
 
 void rack_lift_phi(const rack_lift_real * q, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -297,7 +298,7 @@ static void rack_lift_phi_q_k(const rack_lift_real * q, const rack_lift_real * t
 
 void rack_lift_phi_q(const rack_lift_real * q, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -323,7 +324,7 @@ static void rack_lift_nu_k(const rack_lift_real * q, const rack_lift_real * tr, 
 
 void rack_lift_nu(const rack_lift_real * q, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -353,7 +354,7 @@ static void rack_lift_gamma_k(const rack_lift_real * q, const rack_lift_real * t
 
 void rack_lift_gamma(const rack_lift_real * q, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -380,7 +381,7 @@ static void rack_lift_applied_k(const rack_lift_real * q, const rack_lift_real *
 
 void rack_lift_applied(const rack_lift_real * q, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -404,7 +405,7 @@ static void rack_lift_mass_k(const rack_lift_real * p, rack_lift_real *out)
 
 void rack_lift_mass(const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_prepare(p, prepared);
     rack_lift_mass_k(prepared, out);
 }
@@ -448,7 +449,7 @@ static void rack_lift_reactions_k(const rack_lift_real * q, const rack_lift_real
 
 void rack_lift_reactions(const rack_lift_real * q, const rack_lift_real * lam, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -777,6 +778,16 @@ static int rack_lift_mixed(const rack_lift_real *m)
     lo = RACK_LIFT_MIN(lo, m[3]);
     hi = RACK_LIFT_MAX(hi, m[3]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void rack_lift_gate(rack_lift_real *pp, rack_lift_real *m)
+{
+    rack_lift_mass_k(pp, m);
+    pp[RACK_LIFT_PP_MIXED] = (rack_lift_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1196,7 +1207,7 @@ static void rack_lift_outputs(rack_lift_real t, const rack_lift_real *p, const r
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     rack_lift_solve_t(work, iwork, dense, b, lam);
-    if (rack_lift_mixed(y) != 0) {
+    if (p[RACK_LIFT_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     rack_lift_reactions_k(q, tr, lam, t, p, reactions);
@@ -1324,6 +1335,7 @@ int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real 
         rack_lift_real *kept = RACK_LIFT_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(rack_lift_real) * 6u);  /* the caller's guess, back in q if the call fails */
         rack_lift_prepare(p, pp);
+        rack_lift_gate(pp, RACK_LIFT_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         rack_lift_real *qd_out = (qd != NULL) ? qd : RACK_LIFT_VEC(work, 5);
@@ -1441,6 +1453,7 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
     tr = RACK_LIFT_VEC(work, 9);
     pp = &work[RACK_LIFT_OFF_PREP];
     rack_lift_prepare(p, pp);
+    rack_lift_gate(pp, RACK_LIFT_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -2046,7 +2059,7 @@ static void rack_lift_sp_outputs(rack_lift_real t, const rack_lift_real *p, cons
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     rack_lift_solve_t(work, iwork, dense, b, lam);
-    if (rack_lift_mixed(y) != 0) {
+    if (p[RACK_LIFT_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     rack_lift_reactions_k(q, tr, lam, t, p, reactions);
@@ -2071,6 +2084,7 @@ static int rack_lift_sp_instant(rack_lift_real t, const rack_lift_real *p, rack_
         rack_lift_real *kept = RACK_LIFT_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(rack_lift_real) * 6u);  /* the caller's guess, back in q if the call fails */
         rack_lift_prepare(p, pp);
+        rack_lift_gate(pp, RACK_LIFT_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         rack_lift_real *qd_out = (qd != NULL) ? qd : RACK_LIFT_VEC(work, 5);

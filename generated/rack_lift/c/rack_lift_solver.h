@@ -37,7 +37,7 @@ typedef double rack_lift_real;
 #define RACK_LIFT_NNZ 11          /* structural nonzeros of Phi_q */
 #define RACK_LIFT_NR 24            /* reaction values (Fx, Fy, T per body role) */
 #define RACK_LIFT_ROW 49          /* values per instant in a trajectory row */
-#define RACK_LIFT_WORK 364        /* reals of workspace every solver call needs */
+#define RACK_LIFT_WORK 365        /* reals of workspace every solver call needs */
 #define RACK_LIFT_IWORK 6         /* ints of workspace */
 #define RACK_LIFT_STATE 50       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in

@@ -58,7 +58,8 @@ typedef char scissor_boom_real_must_have_the_size_of_double[sizeof(scissor_boom_
 #define SCISSOR_BOOM_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define SCISSOR_BOOM_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define SCISSOR_BOOM_OFF_PREP 4456  /* the prepared parameters (NPP), after the vectors */
-#define SCISSOR_BOOM_NPP 16
+#define SCISSOR_BOOM_NPP 17
+#define SCISSOR_BOOM_PP_MIXED 16  /* the prepared values' last: the call's refinement gate (gate) */
 
 const scissor_boom_real scissor_boom_default_params[7] = { 0.6, 1.2, 5.0, 9.81, 1.05, 0.45, 4.0 };
 const char *const scissor_boom_row_names[SCISSOR_BOOM_ROW] = {
@@ -1105,7 +1106,7 @@ static void scissor_boom_phi_k(const scissor_boom_real * q, const scissor_boom_r
 
 void scissor_boom_phi(const scissor_boom_real * q, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -1319,7 +1320,7 @@ static void scissor_boom_phi_q_k(const scissor_boom_real * q, const scissor_boom
 
 void scissor_boom_phi_q(const scissor_boom_real * q, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -1387,7 +1388,7 @@ static void scissor_boom_nu_k(const scissor_boom_real * q, const scissor_boom_re
 
 void scissor_boom_nu(const scissor_boom_real * q, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -1498,7 +1499,7 @@ static void scissor_boom_gamma_k(const scissor_boom_real * q, const scissor_boom
 
 void scissor_boom_gamma(const scissor_boom_real * q, const scissor_boom_real * qd, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -1568,7 +1569,7 @@ static void scissor_boom_applied_k(const scissor_boom_real * q, const scissor_bo
 
 void scissor_boom_applied(const scissor_boom_real * q, const scissor_boom_real * qd, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -1634,7 +1635,7 @@ static void scissor_boom_mass_k(const scissor_boom_real * p, scissor_boom_real *
 
 void scissor_boom_mass(const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_prepare(p, prepared);
     scissor_boom_mass_k(prepared, out);
 }
@@ -1828,7 +1829,7 @@ static void scissor_boom_reactions_k(const scissor_boom_real * q, const scissor_
 
 void scissor_boom_reactions(const scissor_boom_real * q, const scissor_boom_real * lam, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -2820,6 +2821,16 @@ static int scissor_boom_mixed(const scissor_boom_real *m)
     return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void scissor_boom_gate(scissor_boom_real *pp, scissor_boom_real *m)
+{
+    scissor_boom_mass_k(pp, m);
+    pp[SCISSOR_BOOM_PP_MIXED] = (scissor_boom_mixed(m) != 0) ? 1.0 : 0.0;
+}
+
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
    masses span scales (mixed): a transposed solve is backward stable in the
    norm of the whole b, so a light body's multipliers (a 2 g part on a boom
@@ -3452,7 +3463,7 @@ static void scissor_boom_outputs(scissor_boom_real t, const scissor_boom_real *p
     b[46] -= y[46] * qdd[46];
     b[47] -= y[47] * qdd[47];
     scissor_boom_solve_t(work, iwork, dense, b, lam);
-    if (scissor_boom_mixed(y) != 0) {
+    if (p[SCISSOR_BOOM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         scissor_boom_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     scissor_boom_reactions_k(q, tr, lam, t, p, reactions);
@@ -3748,6 +3759,7 @@ int scissor_boom_instant(scissor_boom_real t, const scissor_boom_real *p, scisso
         scissor_boom_real *kept = SCISSOR_BOOM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(scissor_boom_real) * 48u);  /* the caller's guess, back in q if the call fails */
         scissor_boom_prepare(p, pp);
+        scissor_boom_gate(pp, SCISSOR_BOOM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         scissor_boom_real *qd_out = (qd != NULL) ? qd : SCISSOR_BOOM_VEC(work, 5);
@@ -3865,6 +3877,7 @@ int scissor_boom_trajectory(scissor_boom_real t0, scissor_boom_real h, long n, c
     tr = SCISSOR_BOOM_VEC(work, 9);
     pp = &work[SCISSOR_BOOM_OFF_PREP];
     scissor_boom_prepare(p, pp);
+    scissor_boom_gate(pp, SCISSOR_BOOM_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -5050,7 +5063,7 @@ static void scissor_boom_sp_outputs(scissor_boom_real t, const scissor_boom_real
     b[46] -= y[46] * qdd[46];
     b[47] -= y[47] * qdd[47];
     scissor_boom_solve_t(work, iwork, dense, b, lam);
-    if (scissor_boom_mixed(y) != 0) {
+    if (p[SCISSOR_BOOM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         scissor_boom_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     scissor_boom_reactions_k(q, tr, lam, t, p, reactions);
@@ -5075,6 +5088,7 @@ static int scissor_boom_sp_instant(scissor_boom_real t, const scissor_boom_real 
         scissor_boom_real *kept = SCISSOR_BOOM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(scissor_boom_real) * 48u);  /* the caller's guess, back in q if the call fails */
         scissor_boom_prepare(p, pp);
+        scissor_boom_gate(pp, SCISSOR_BOOM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         scissor_boom_real *qd_out = (qd != NULL) ? qd : SCISSOR_BOOM_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double scissor_boom_real;
 #define SCISSOR_BOOM_NNZ 151          /* structural nonzeros of Phi_q */
 #define SCISSOR_BOOM_NR 150            /* reaction values (Fx, Fy, T per body role) */
 #define SCISSOR_BOOM_ROW 343          /* values per instant in a trajectory row */
-#define SCISSOR_BOOM_WORK 4472        /* reals of workspace every solver call needs */
+#define SCISSOR_BOOM_WORK 4473        /* reals of workspace every solver call needs */
 #define SCISSOR_BOOM_IWORK 48         /* ints of workspace */
 #define SCISSOR_BOOM_STATE 386       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in

@@ -58,7 +58,8 @@ typedef char slider_crank_counterweight_real_must_have_the_size_of_double[sizeof
 #define SLIDER_CRANK_COUNTERWEIGHT_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define SLIDER_CRANK_COUNTERWEIGHT_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP 483  /* the prepared parameters (NPP), after the vectors */
-#define SLIDER_CRANK_COUNTERWEIGHT_NPP 21
+#define SLIDER_CRANK_COUNTERWEIGHT_NPP 22
+#define SLIDER_CRANK_COUNTERWEIGHT_PP_MIXED 21  /* the prepared values' last: the call's refinement gate (gate) */
 
 const slider_crank_counterweight_real slider_crank_counterweight_default_params[12] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 1.0, 5.0, 1.0, 0.1, 3.141592653589793 };
 const char *const slider_crank_counterweight_row_names[SLIDER_CRANK_COUNTERWEIGHT_ROW] = {
@@ -327,7 +328,7 @@ static void slider_crank_counterweight_phi_k(const slider_crank_counterweight_re
 
 void slider_crank_counterweight_phi(const slider_crank_counterweight_real * q, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -373,7 +374,7 @@ static void slider_crank_counterweight_phi_q_k(const slider_crank_counterweight_
 
 void slider_crank_counterweight_phi_q(const slider_crank_counterweight_real * q, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -403,7 +404,7 @@ static void slider_crank_counterweight_nu_k(const slider_crank_counterweight_rea
 
 void slider_crank_counterweight_nu(const slider_crank_counterweight_real * q, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -441,7 +442,7 @@ static void slider_crank_counterweight_gamma_k(const slider_crank_counterweight_
 
 void slider_crank_counterweight_gamma(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -471,7 +472,7 @@ static void slider_crank_counterweight_applied_k(const slider_crank_counterweigh
 
 void slider_crank_counterweight_applied(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -498,7 +499,7 @@ static void slider_crank_counterweight_mass_k(const slider_crank_counterweight_r
 
 void slider_crank_counterweight_mass(const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_prepare(p, prepared);
     slider_crank_counterweight_mass_k(prepared, out);
 }
@@ -547,7 +548,7 @@ static void slider_crank_counterweight_reactions_k(const slider_crank_counterwei
 
 void slider_crank_counterweight_reactions(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * lam, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -887,6 +888,16 @@ static int slider_crank_counterweight_mixed(const slider_crank_counterweight_rea
     lo = SLIDER_CRANK_COUNTERWEIGHT_MIN(lo, m[6]);
     hi = SLIDER_CRANK_COUNTERWEIGHT_MAX(hi, m[6]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void slider_crank_counterweight_gate(slider_crank_counterweight_real *pp, slider_crank_counterweight_real *m)
+{
+    slider_crank_counterweight_mass_k(pp, m);
+    pp[SLIDER_CRANK_COUNTERWEIGHT_PP_MIXED] = (slider_crank_counterweight_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1248,7 +1259,7 @@ static void slider_crank_counterweight_outputs(slider_crank_counterweight_real t
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_counterweight_solve_t(work, iwork, dense, b, lam);
-    if (slider_crank_counterweight_mixed(y) != 0) {
+    if (p[SLIDER_CRANK_COUNTERWEIGHT_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_crank_counterweight_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_crank_counterweight_reactions_k(q, tr, lam, t, p, reactions);
@@ -1388,6 +1399,7 @@ int slider_crank_counterweight_instant(slider_crank_counterweight_real t, const 
         slider_crank_counterweight_real *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_counterweight_prepare(p, pp);
+        slider_crank_counterweight_gate(pp, SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         slider_crank_counterweight_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 5);
@@ -1505,6 +1517,7 @@ int slider_crank_counterweight_trajectory(slider_crank_counterweight_real t0, sl
     tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9);
     pp = &work[SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP];
     slider_crank_counterweight_prepare(p, pp);
+    slider_crank_counterweight_gate(pp, SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -2142,7 +2155,7 @@ static void slider_crank_counterweight_sp_outputs(slider_crank_counterweight_rea
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_counterweight_solve_t(work, iwork, dense, b, lam);
-    if (slider_crank_counterweight_mixed(y) != 0) {
+    if (p[SLIDER_CRANK_COUNTERWEIGHT_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_crank_counterweight_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_crank_counterweight_reactions_k(q, tr, lam, t, p, reactions);
@@ -2167,6 +2180,7 @@ static int slider_crank_counterweight_sp_instant(slider_crank_counterweight_real
         slider_crank_counterweight_real *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_counterweight_prepare(p, pp);
+        slider_crank_counterweight_gate(pp, SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         slider_crank_counterweight_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double slider_crank_counterweight_real;
 #define SLIDER_CRANK_COUNTERWEIGHT_NNZ 21          /* structural nonzeros of Phi_q */
 #define SLIDER_CRANK_COUNTERWEIGHT_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_CRANK_COUNTERWEIGHT_ROW 67          /* values per instant in a trajectory row */
-#define SLIDER_CRANK_COUNTERWEIGHT_WORK 504        /* reals of workspace every solver call needs */
+#define SLIDER_CRANK_COUNTERWEIGHT_WORK 505        /* reals of workspace every solver call needs */
 #define SLIDER_CRANK_COUNTERWEIGHT_IWORK 9         /* ints of workspace */
 #define SLIDER_CRANK_COUNTERWEIGHT_STATE 74       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in

@@ -58,7 +58,8 @@ typedef char slider_crank_sized_real_must_have_the_size_of_double[sizeof(slider_
 #define SLIDER_CRANK_SIZED_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define SLIDER_CRANK_SIZED_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define SLIDER_CRANK_SIZED_OFF_PREP 483  /* the prepared parameters (NPP), after the vectors */
-#define SLIDER_CRANK_SIZED_NPP 13
+#define SLIDER_CRANK_SIZED_NPP 14
+#define SLIDER_CRANK_SIZED_PP_MIXED 13  /* the prepared values' last: the call's refinement gate (gate) */
 
 const slider_crank_sized_real slider_crank_sized_default_params[9] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 5.0, 100.0 };
 const char *const slider_crank_sized_row_names[SLIDER_CRANK_SIZED_ROW] = {
@@ -315,7 +316,7 @@ static void slider_crank_sized_phi_k(const slider_crank_sized_real * q, const sl
 
 void slider_crank_sized_phi(const slider_crank_sized_real * q, slider_crank_sized_real t, const slider_crank_sized_real * p, slider_crank_sized_real *out)
 {
-    slider_crank_sized_real prepared[13];
+    slider_crank_sized_real prepared[14];
     slider_crank_sized_real tr[6];
     slider_crank_sized_trig(q, tr);
     slider_crank_sized_prepare(p, prepared);
@@ -362,7 +363,7 @@ static void slider_crank_sized_phi_q_k(const slider_crank_sized_real * q, const 
 
 void slider_crank_sized_phi_q(const slider_crank_sized_real * q, slider_crank_sized_real t, const slider_crank_sized_real * p, slider_crank_sized_real *out)
 {
-    slider_crank_sized_real prepared[13];
+    slider_crank_sized_real prepared[14];
     slider_crank_sized_real tr[6];
     slider_crank_sized_trig(q, tr);
     slider_crank_sized_prepare(p, prepared);
@@ -392,7 +393,7 @@ static void slider_crank_sized_nu_k(const slider_crank_sized_real * q, const sli
 
 void slider_crank_sized_nu(const slider_crank_sized_real * q, slider_crank_sized_real t, const slider_crank_sized_real * p, slider_crank_sized_real *out)
 {
-    slider_crank_sized_real prepared[13];
+    slider_crank_sized_real prepared[14];
     slider_crank_sized_real tr[6];
     slider_crank_sized_trig(q, tr);
     slider_crank_sized_prepare(p, prepared);
@@ -427,7 +428,7 @@ static void slider_crank_sized_gamma_k(const slider_crank_sized_real * q, const 
 
 void slider_crank_sized_gamma(const slider_crank_sized_real * q, const slider_crank_sized_real * qd, slider_crank_sized_real t, const slider_crank_sized_real * p, slider_crank_sized_real *out)
 {
-    slider_crank_sized_real prepared[13];
+    slider_crank_sized_real prepared[14];
     slider_crank_sized_real tr[6];
     slider_crank_sized_trig(q, tr);
     slider_crank_sized_prepare(p, prepared);
@@ -457,7 +458,7 @@ static void slider_crank_sized_applied_k(const slider_crank_sized_real * q, cons
 
 void slider_crank_sized_applied(const slider_crank_sized_real * q, const slider_crank_sized_real * qd, slider_crank_sized_real t, const slider_crank_sized_real * p, slider_crank_sized_real *out)
 {
-    slider_crank_sized_real prepared[13];
+    slider_crank_sized_real prepared[14];
     slider_crank_sized_real tr[6];
     slider_crank_sized_trig(q, tr);
     slider_crank_sized_prepare(p, prepared);
@@ -484,7 +485,7 @@ static void slider_crank_sized_mass_k(const slider_crank_sized_real * p, slider_
 
 void slider_crank_sized_mass(const slider_crank_sized_real * p, slider_crank_sized_real *out)
 {
-    slider_crank_sized_real prepared[13];
+    slider_crank_sized_real prepared[14];
     slider_crank_sized_prepare(p, prepared);
     slider_crank_sized_mass_k(prepared, out);
 }
@@ -533,7 +534,7 @@ static void slider_crank_sized_reactions_k(const slider_crank_sized_real * q, co
 
 void slider_crank_sized_reactions(const slider_crank_sized_real * q, const slider_crank_sized_real * lam, slider_crank_sized_real t, const slider_crank_sized_real * p, slider_crank_sized_real *out)
 {
-    slider_crank_sized_real prepared[13];
+    slider_crank_sized_real prepared[14];
     slider_crank_sized_real tr[6];
     slider_crank_sized_trig(q, tr);
     slider_crank_sized_prepare(p, prepared);
@@ -873,6 +874,16 @@ static int slider_crank_sized_mixed(const slider_crank_sized_real *m)
     lo = SLIDER_CRANK_SIZED_MIN(lo, m[6]);
     hi = SLIDER_CRANK_SIZED_MAX(hi, m[6]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void slider_crank_sized_gate(slider_crank_sized_real *pp, slider_crank_sized_real *m)
+{
+    slider_crank_sized_mass_k(pp, m);
+    pp[SLIDER_CRANK_SIZED_PP_MIXED] = (slider_crank_sized_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1234,7 +1245,7 @@ static void slider_crank_sized_outputs(slider_crank_sized_real t, const slider_c
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_sized_solve_t(work, iwork, dense, b, lam);
-    if (slider_crank_sized_mixed(y) != 0) {
+    if (p[SLIDER_CRANK_SIZED_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_crank_sized_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_crank_sized_reactions_k(q, tr, lam, t, p, reactions);
@@ -1374,6 +1385,7 @@ int slider_crank_sized_instant(slider_crank_sized_real t, const slider_crank_siz
         slider_crank_sized_real *kept = SLIDER_CRANK_SIZED_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_crank_sized_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_sized_prepare(p, pp);
+        slider_crank_sized_gate(pp, SLIDER_CRANK_SIZED_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         slider_crank_sized_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_SIZED_VEC(work, 5);
@@ -1491,6 +1503,7 @@ int slider_crank_sized_trajectory(slider_crank_sized_real t0, slider_crank_sized
     tr = SLIDER_CRANK_SIZED_VEC(work, 9);
     pp = &work[SLIDER_CRANK_SIZED_OFF_PREP];
     slider_crank_sized_prepare(p, pp);
+    slider_crank_sized_gate(pp, SLIDER_CRANK_SIZED_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -2126,7 +2139,7 @@ static void slider_crank_sized_sp_outputs(slider_crank_sized_real t, const slide
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_sized_solve_t(work, iwork, dense, b, lam);
-    if (slider_crank_sized_mixed(y) != 0) {
+    if (p[SLIDER_CRANK_SIZED_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_crank_sized_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_crank_sized_reactions_k(q, tr, lam, t, p, reactions);
@@ -2151,6 +2164,7 @@ static int slider_crank_sized_sp_instant(slider_crank_sized_real t, const slider
         slider_crank_sized_real *kept = SLIDER_CRANK_SIZED_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_crank_sized_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_sized_prepare(p, pp);
+        slider_crank_sized_gate(pp, SLIDER_CRANK_SIZED_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         slider_crank_sized_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_SIZED_VEC(work, 5);

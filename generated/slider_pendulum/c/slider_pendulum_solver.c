@@ -58,7 +58,8 @@ typedef char slider_pendulum_real_must_have_the_size_of_double[sizeof(slider_pen
 #define SLIDER_PENDULUM_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define SLIDER_PENDULUM_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define SLIDER_PENDULUM_OFF_PREP 426  /* the prepared parameters (NPP), after the vectors */
-#define SLIDER_PENDULUM_NPP 29
+#define SLIDER_PENDULUM_NPP 30
+#define SLIDER_PENDULUM_PP_MIXED 29  /* the prepared values' last: the call's refinement gate (gate) */
 
 const slider_pendulum_real slider_pendulum_default_params[13] = { 0.17453292519943295, 0.2, 1.0, 0.6, 2.0, 2.0, 0.2, 0.08, 0.04, 0.5, 1.0, 20.0, 0.5 };
 const char *const slider_pendulum_row_names[SLIDER_PENDULUM_ROW] = {
@@ -282,7 +283,7 @@ static void slider_pendulum_phi_k(const slider_pendulum_real * q, const slider_p
 
 void slider_pendulum_phi(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -318,7 +319,7 @@ static void slider_pendulum_phi_q_k(const slider_pendulum_real * q, const slider
 
 void slider_pendulum_phi_q(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -346,7 +347,7 @@ static void slider_pendulum_nu_k(const slider_pendulum_real * q, const slider_pe
 
 void slider_pendulum_nu(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -376,7 +377,7 @@ static void slider_pendulum_gamma_k(const slider_pendulum_real * q, const slider
 
 void slider_pendulum_gamma(const slider_pendulum_real * q, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -403,7 +404,7 @@ static void slider_pendulum_applied_k(const slider_pendulum_real * q, const slid
 
 void slider_pendulum_applied(const slider_pendulum_real * q, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -427,7 +428,7 @@ static void slider_pendulum_mass_k(const slider_pendulum_real * p, slider_pendul
 
 void slider_pendulum_mass(const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_prepare(p, prepared);
     slider_pendulum_mass_k(prepared, out);
 }
@@ -480,7 +481,7 @@ static void slider_pendulum_reactions_k(const slider_pendulum_real * q, const sl
 
 void slider_pendulum_reactions(const slider_pendulum_real * q, const slider_pendulum_real * lam, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -803,6 +804,16 @@ static int slider_pendulum_mixed(const slider_pendulum_real *m)
     lo = SLIDER_PENDULUM_MIN(lo, m[3]);
     hi = SLIDER_PENDULUM_MAX(hi, m[3]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void slider_pendulum_gate(slider_pendulum_real *pp, slider_pendulum_real *m)
+{
+    slider_pendulum_mass_k(pp, m);
+    pp[SLIDER_PENDULUM_PP_MIXED] = (slider_pendulum_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1234,7 +1245,7 @@ static void slider_pendulum_outputs(slider_pendulum_real t, const slider_pendulu
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     slider_pendulum_solve_t(work, iwork, dense, b, lam);
-    if (slider_pendulum_mixed(y) != 0) {
+    if (p[SLIDER_PENDULUM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
@@ -1362,6 +1373,7 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
         slider_pendulum_real *kept = SLIDER_PENDULUM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_pendulum_real) * 6u);  /* the caller's guess, back in q if the call fails */
         slider_pendulum_prepare(p, pp);
+        slider_pendulum_gate(pp, SLIDER_PENDULUM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         slider_pendulum_real *qd_out = (qd != NULL) ? qd : SLIDER_PENDULUM_VEC(work, 5);
@@ -1479,6 +1491,7 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
     tr = SLIDER_PENDULUM_VEC(work, 9);
     pp = &work[SLIDER_PENDULUM_OFF_PREP];
     slider_pendulum_prepare(p, pp);
+    slider_pendulum_gate(pp, SLIDER_PENDULUM_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -2132,7 +2145,7 @@ static void slider_pendulum_sp_outputs(slider_pendulum_real t, const slider_pend
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     slider_pendulum_solve_t(work, iwork, dense, b, lam);
-    if (slider_pendulum_mixed(y) != 0) {
+    if (p[SLIDER_PENDULUM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
@@ -2157,6 +2170,7 @@ static int slider_pendulum_sp_instant(slider_pendulum_real t, const slider_pendu
         slider_pendulum_real *kept = SLIDER_PENDULUM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_pendulum_real) * 6u);  /* the caller's guess, back in q if the call fails */
         slider_pendulum_prepare(p, pp);
+        slider_pendulum_gate(pp, SLIDER_PENDULUM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         slider_pendulum_real *qd_out = (qd != NULL) ? qd : SLIDER_PENDULUM_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double slider_pendulum_real;
 #define SLIDER_PENDULUM_NNZ 15          /* structural nonzeros of Phi_q */
 #define SLIDER_PENDULUM_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_PENDULUM_ROW 55          /* values per instant in a trajectory row */
-#define SLIDER_PENDULUM_WORK 455        /* reals of workspace every solver call needs */
+#define SLIDER_PENDULUM_WORK 456        /* reals of workspace every solver call needs */
 #define SLIDER_PENDULUM_IWORK 6         /* ints of workspace */
 #define SLIDER_PENDULUM_STATE 50       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in

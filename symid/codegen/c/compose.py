@@ -229,7 +229,8 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         used += fr.fixed + fr.normal
     lu = c_lu.context(model, fold_constants, scalar)
     d = describe(model, offset, functions, lu, scalar.lit, fr.fixed + fr.normal if fr else [])
-    npp = off_nu + 3 * nph + (sens.npieces if sens else 0)  # every prepared value: NPP
+    # every prepared value: NPP (with multipliers, the last one the refinement's gate of the call: PP_MIXED)
+    npp = off_nu + 3 * nph + (sens.npieces if sens else 0) + (1 if o.multipliers else 0)
     work = work_size(model) + npp + (sens.work if sens else 0)
     # the trajectory's output vectors (variable, source, work vector): solved
     # straight into the row where it holds the source, else into the work vector
