@@ -80,7 +80,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from symid.study.figures import figure_names
     from symid.study.cluster import ClusterLost
     from symid.study.run import Sweep, check_memory
-    from symid.study.table import FORMATS
+    from symid.study.table import FORMATS, conditioning_note
 
     if args.gradients and args.scheduler:
         raise InputError("--gradients runs each variant on this machine (solved on its own with its "
@@ -136,6 +136,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     table.write(out)
     print(f"{out}: {plural(len(table), 'variant')}, {table.failed} failed", file=sys.stderr if args.json else
           sys.stdout)
+    warned = conditioning_note(table, mech.analysis.cond_threshold)
+    if warned:
+        print(f"symid: warning: {warned}", file=sys.stderr)
     if args.json:
         instants = sweep.instants()
         print(json.dumps({"variants": len(table), "failed": table.failed, "setup_s": sweep.setup_s,

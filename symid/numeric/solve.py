@@ -233,7 +233,7 @@ class Stepper:
                 else:
                     correction = scaling.size(q - guess)
                     if correction > JUMP_FLOOR and correction > JUMP_RATIO * scaling.size(guess - prev.q):
-                        q = _branch(ev, analysis, prev, t, q, guess, scaling, notes, n) or q
+                        q = q if (turned := _branch(ev, analysis, prev, t, q, guess, scaling, notes, n)) is None else turned
                         guess = q  # checked
             out = self._outputs(q, t, iterations)
             notes.cond(t, out.cond, n)  # also where the check below stops the run: it says why

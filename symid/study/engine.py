@@ -103,11 +103,12 @@ def _decided(mech: Mechanism, full: Array, backend: str, order: tuple[str, ...],
     values = got[:, [list(names).index(n) for n in order]] if order else np.zeros((len(full), 0))
     status = np.zeros(len(full), dtype=np.intc)
     t_end = ends.copy()
+    cond = np.zeros(len(full))  # the loops hand every variant past their conditioning screen back
     retry = np.flatnonzero(codes != 0)
     if retry.size:  # rare: decided as a solve decides them
         again = _normal_path(mech, full[retry], backend)
-        values[retry], status[retry], t_end[retry] = again.values, again.status, again.t_end
-    return Figures(order, values, status, t_end)
+        values[retry], status[retry], t_end[retry], cond[retry] = again.values, again.status, again.t_end, again.cond
+    return Figures(order, values, status, t_end, cond)
 
 
 def variant_mechanism(mech: Mechanism, row: Array) -> Mechanism:
@@ -133,22 +134,24 @@ def _normal_path(mech: Mechanism, full: Array, backend: str) -> Figures:
     values = np.full((k, len(measure.names)), np.nan)
     status = np.zeros(k, dtype=np.intc)
     t_end = np.full(k, np.nan)
-    for v, (data, error) in enumerate(trajectories(mech, layout, full, backend)):
+    notes: list[Notes] = []
+    for v, (data, error) in enumerate(trajectories(mech, layout, full, backend, notes=notes)):
         status[v] = status_of(error)
         if len(data):
             values[v] = measure(data, variant_values(mech, full[v]))
             t_end[v] = data[-1, 0]
-    return Figures(measure.names, values, status, t_end)
+    return Figures(measure.names, values, status, t_end, np.array([n.worst_cond() for n in notes]))
 
 
 def trajectories(mech: Mechanism, layout: Layout, full: Array, backend: str, solver: Solver | None = None,
-                 ) -> Iterator[tuple[Array, AnalysisError | None]]:
+                 notes: list[Notes] | None = None) -> Iterator[tuple[Array, AnalysisError | None]]:
     """Each variant's solved table (instants, columns) and its failure (None
     if it ran to t1), in order, one at a time.
 
     Args:
         full: (K, NP) base parameter vectors (`variants.base_matrix`).
         solver: a solver of `mech` on `backend` already built, to reuse.
+        notes: if given, each variant's warnings (`Notes`) are appended to it.
     """
     width = len(columns(layout, mech.analysis))
     first = solver
@@ -156,9 +159,14 @@ def trajectories(mech: Mechanism, layout: Layout, full: Array, backend: str, sol
         try:
             values = variant_values(mech, row)
         except ValueError as exc:  # a derived parameter is not finite: nothing solved
+            if notes is not None:
+                notes.append(Notes(mech.analysis))
             yield np.empty((0, width)), AnalysisError(f"parameter {exc.args[0]} {exc.args[1]}: not finite")
             continue
         q0 = initial_guess(mech, values)
+        kept = Notes(mech.analysis)
+        if notes is not None:
+            notes.append(kept)
         if first is None:  # built at the first variant's values, friction model included
             first = prepare(mech, backend, layout=layout, values=values)
             ev = first.evaluator
@@ -167,7 +175,7 @@ def trajectories(mech: Mechanism, layout: Layout, full: Array, backend: str, sol
         rows: list[Array] = []
         error = None
         try:
-            for r in table_rows(ev, mech.analysis, q0, Notes(mech.analysis)):
+            for r in table_rows(ev, mech.analysis, q0, kept):
                 rows.append(r)
         except AnalysisError as exc:
             error = exc

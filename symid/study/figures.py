@@ -9,6 +9,7 @@ with drives or bearings adds `D.motor_rms D.motor_peak D.fits` per drive and
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,6 +19,10 @@ from symid.model.mechanism import Mechanism, is_driver
 
 # Why a variant's run stopped (index = code); "ok" when it ran to t1.
 STATUS = ("ok", "not_converged", "singular", "jump", "nonfinite")
+# The sweep table's last column: per variant the largest condition estimate of
+# Phi_q above cond_warn at any instant (where `symid solve --set` warns
+# "ill-conditioned"), 0 where none passed it.
+COND_COLUMN = "cond_worst"
 DRIVER_FIGURES = ("effort_peak", "effort_t_peak", "effort_rms", "power_peak")
 
 
@@ -33,6 +38,16 @@ def figure_names(mechanism: Mechanism) -> tuple[str, ...]:
 
         names += sizing_names(mechanism)
     return tuple(names)
+
+
+def cond_of(warnings: list[str]) -> float:
+    """The worst condition estimate of a run from its warning lines
+    (`Notes.lines`: "... worst 3.2e+09 at t = ..."), 0.0 without one."""
+    for line in warnings:
+        found = re.search(r"^Phi_q is ill-conditioned: .* worst ([^ ]+) at t = ", line)
+        if found:
+            return float(found.group(1))
+    return 0.0
 
 
 def status_of(error: AnalysisError | None) -> int:
@@ -61,17 +76,27 @@ class Figures:
             the instants solved before it stopped (NaN when none was).
         status: shape (K,), an index into `STATUS`.
         t_end: shape (K,), the last instant solved (NaN when none was).
+        cond: shape (K,), the largest condition estimate above cond_warn
+            (`COND_COLUMN`; 0 where no instant passed it; None: zeros).
     """
 
     names: tuple[str, ...]
     values: np.ndarray
     status: np.ndarray
     t_end: np.ndarray
+    cond: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         k = len(self.status)
-        if self.values.shape != (k, len(self.names)) or self.t_end.shape != (k,):
+        if self.cond is None:
+            object.__setattr__(self, "cond", np.zeros(k))
+        if self.values.shape != (k, len(self.names)) or self.t_end.shape != (k,) or self.cond.shape != (k,):
             raise ValueError(f"figures of {k} variants: values {self.values.shape}, t_end {self.t_end.shape}")
+
+    @property
+    def warned(self) -> np.ndarray:
+        """Indices of the variants whose run passed cond_warn somewhere."""
+        return np.flatnonzero(np.asarray(self.cond) > 0)
 
     def __len__(self) -> int:
         return len(self.status)

@@ -19,7 +19,7 @@ import numpy as np
 from symid.model.mechanism import Mechanism
 from symid.output.results import columns
 from symid.study.design import Variants
-from symid.study.figures import STATUS, Figures, figure_names, status_of
+from symid.study.figures import STATUS, Figures, cond_of, figure_names, status_of
 from symid.study.gradients import figure_gradients, gradient_names, needed_columns
 from symid.study.optimize import Solver
 from symid.study.run import Sweep
@@ -54,7 +54,7 @@ class GradientSweep(Sweep):
         for row, values in enumerate(self.variants.values):
             variant = with_values(self.study, names, values)
             out = np.full((1, width), np.nan)
-            status, t_end = 0, np.nan
+            status, t_end, cond = 0, np.nan, 0.0
             try:
                 results = self.solver(variant, names, self.needed)
             except ValueError:  # a derived parameter is not finite for these values: nothing solved
@@ -64,5 +64,7 @@ class GradientSweep(Sweep):
                 out[0] = np.concatenate([figures, figure_gradients(variant, results, names).ravel()])
                 t_end = results.t[-1] if len(results.t) else np.nan
                 status = status_of(results.error)
-            self.parts[row] = Figures(self.columns(), out, np.array([status], dtype=np.int8), np.array([t_end]))
+                cond = cond_of(results.warnings)
+            self.parts[row] = Figures(self.columns(), out, np.array([status], dtype=np.int8), np.array([t_end]),
+                                      np.array([cond]))
             yield 1

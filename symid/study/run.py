@@ -191,7 +191,8 @@ class Sweep:
         if firsts:
             parts = [self.parts[f] for f in firsts]
             figures = Figures(names, np.concatenate([p.values for p in parts]),
-                              np.concatenate([p.status for p in parts]), np.concatenate([p.t_end for p in parts]))
+                              np.concatenate([p.status for p in parts]), np.concatenate([p.t_end for p in parts]),
+                              np.concatenate([p.cond for p in parts]))
             index = np.concatenate([np.arange(f, f + len(self.parts[f])) for f in firsts])
         else:
             figures = Figures(names, np.empty((0, len(names))), np.zeros(0, dtype=np.int8), np.zeros(0))

@@ -23,7 +23,7 @@ from symid.model.mechanism import Mechanism
 from symid.output.results import Results, columns, table_rows
 from symid.output.summary import efforts, summarize
 from symid.numeric.stability import Notes
-from symid.study.figures import STATUS, Figures, figure_names, status_of
+from symid.study.figures import STATUS, Figures, cond_of, figure_names, status_of
 
 
 def with_values(mechanism: Mechanism, names: Sequence[str], values: Sequence[float]) -> Mechanism:
@@ -53,13 +53,14 @@ def solve_variant(mechanism: Mechanism, backend: str) -> Results:
     header = columns(solver.layout, a)
     rows: list[Array] = []
     error = None
+    notes = Notes(a)
     try:
-        for row in table_rows(solver.evaluator, a, solver.q0(), Notes(a)):
+        for row in table_rows(solver.evaluator, a, solver.q0(), notes):
             rows.append(np.asarray(row, dtype=float))
     except AnalysisError as exc:
         error = exc
     data = np.array(rows).reshape(len(rows), len(header))
-    return Results(header, data, error, mechanism=mechanism)
+    return Results(header, data, error, notes.lines(), mechanism=mechanism)
 
 
 def figures_of(mechanism: Mechanism, results: Results) -> Array:
@@ -106,6 +107,7 @@ def figures_by_solving(mechanism: Mechanism, names: Sequence[str], base: Array, 
     values = np.full((k, len(fig_names)), np.nan)
     status = np.zeros(k, dtype=np.int8)
     t_end = np.full(k, np.nan)
+    cond = np.zeros(k)
     for row in range(k):
         variant = study_analysis(with_values(mechanism, names, base[row]))
         try:
@@ -118,4 +120,5 @@ def figures_by_solving(mechanism: Mechanism, names: Sequence[str], base: Array, 
             t_end[row] = results.t[-1]
         if results.error is not None:
             status[row] = status_of(results.error)
-    return Figures(fig_names, values, status, t_end)
+        cond[row] = cond_of(results.warnings)
+    return Figures(fig_names, values, status, t_end, cond)

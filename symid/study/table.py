@@ -1,7 +1,9 @@
 """The results table of a design study: one row per variant, in variant order.
 
 Columns (the contract's `symid sweep`): `variant`, one per varied parameter,
-`status`, `t_end`, then the figures (`symid.study.figures.figure_names`).
+`status`, `t_end`, then the figures (`symid.study.figures.figure_names`), then
+`cond_worst` (`symid.study.figures.COND_COLUMN`: the variant's worst condition
+estimate past cond_warn, 0 without a warning).
 Written as CSV (17 significant digits, as the solve table) or Parquet, atomically.
 """
 
@@ -18,7 +20,8 @@ from symid.errors import InputError
 from symid.io.files import atomic_write, output_format, read_text
 from symid.output.compiled_csv import csv_block, formatter
 from symid.output.tables import arrow, read_arrow
-from symid.study.figures import STATUS, Figures
+from symid.study.figures import COND_COLUMN, STATUS, Figures
+from symid.text import plural
 
 FORMATS = (".csv", ".parquet")
 
@@ -44,14 +47,14 @@ class SweepTable:
     @property
     def columns(self) -> list[str]:
         """Column names in table order."""
-        return ["variant", *self.params, "status", "t_end", *self.figures.names]
+        return ["variant", *self.params, "status", "t_end", *self.figures.names, COND_COLUMN]
 
     @property
     def data(self) -> np.ndarray:
         """shape (K, len(columns)) floats; the `status` column holds the index into `STATUS`."""
         f = self.figures
         return np.column_stack([self.variant.astype(float), self.values, f.status.astype(float), f.t_end,
-                                f.values]).reshape(len(f), len(self.columns))
+                                f.values, f.cond]).reshape(len(f), len(self.columns))
 
     def __len__(self) -> int:
         return len(self.variant)
@@ -121,9 +124,25 @@ def _write_parquet(t: SweepTable, path: Path) -> None:
     arrays["t_end"] = pa.array(t.figures.t_end, type=pa.float64())
     for k, name in enumerate(t.figures.names):
         arrays[name] = pa.array(t.figures.values[:, k], type=pa.float64())
+    arrays[COND_COLUMN] = pa.array(t.figures.cond, type=pa.float64())
     table = pa.table(arrays, metadata={"symid.kind": t.kind})
     with atomic_write(path, binary=True) as out:  # a device or FIFO written into, never replaced
         pq.write_table(table, out)
+
+
+def conditioning_note(table: SweepTable, threshold: float, shown: int = 10) -> str:
+    """One line naming the variants whose run passed cond_warn (as `symid
+    solve --set` would warn for each), or "" when none did."""
+    warned = table.figures.warned
+    if not warned.size:
+        return ""
+    names = ", ".join(str(int(v)) for v in table.variant[warned[:shown]])
+    more = f" and {warned.size - shown} more" if warned.size > shown else ""
+    worst = warned[int(np.argmax(table.figures.cond[warned]))]
+    return (f"Phi_q is ill-conditioned (cond above cond_warn = {threshold:g}) in {warned.size} of "
+            f"{plural(len(table), 'variant')}: {names}{more} (worst {table.figures.cond[worst]:.3g} in variant "
+            f"{int(table.variant[worst])}); their figures may have lost digits: the table's {COND_COLUMN} "
+            f"column, `symid solve --set` for the times")
 
 
 def is_sweep(columns: list[str]) -> bool:
@@ -135,7 +154,7 @@ def _assemble(columns: list[str], variant: np.ndarray, numbers: dict[str, np.nda
               where: str, kind: str = "") -> SweepTable:
     at = columns.index("status")
     params = tuple(columns[1:at])
-    figures = tuple(columns[at + 2:])
+    figures = tuple(c for c in columns[at + 2:] if c != COND_COLUMN)  # a table of before it has none
     if columns[at + 1: at + 2] != ["t_end"]:
         raise InputError(f"{where}: not a symid sweep table (no t_end after status)")
     bad = [s for s in status if s not in STATUS]
@@ -144,7 +163,8 @@ def _assemble(columns: list[str], variant: np.ndarray, numbers: dict[str, np.nda
     k = len(variant)
     values = np.column_stack([numbers[p] for p in params]).reshape(k, len(params))
     fig = Figures(figures, np.column_stack([numbers[f] for f in figures]).reshape(k, len(figures)),
-                  np.array([STATUS.index(s) for s in status], dtype=np.int8), numbers["t_end"])
+                  np.array([STATUS.index(s) for s in status], dtype=np.int8), numbers["t_end"],
+                  numbers.get(COND_COLUMN))
     return SweepTable(kind, params, values, fig, variant.astype(np.int64))
 
 

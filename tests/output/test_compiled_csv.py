@@ -265,7 +265,7 @@ def test_sweep_csv_is_the_row_by_row_text(tmp_path: Path, monkeypatch, variants:
     table.write(tmp_path / "s.csv")
     from symid.study.figures import STATUS
 
-    expected = "variant,L_rod,n,status,t_end,a.x,b.y,m.T\n" + "".join(
-        f"{k},{format_row(values[k])},{STATUS[status[k]]},{format_row([t_end[k], *figures[k]])}\n"
+    expected = "variant,L_rod,n,status,t_end,a.x,b.y,m.T,cond_worst\n" + "".join(
+        f"{k},{format_row(values[k])},{STATUS[status[k]]},{format_row([t_end[k], *figures[k], 0.0])}\n"
         for k in range(variants))
     assert (tmp_path / "s.csv").read_text() == expected

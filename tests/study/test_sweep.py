@@ -71,7 +71,7 @@ def truth(tmp_path: Path, capsys, backend: str, values: dict[str, str]) -> tuple
 
 def assert_rows_match_solves(tmp_path, capsys, path: Path, params: list[str], backend: str) -> None:
     header, rows = read_rows(path)
-    assert header == ["variant", *params, "status", "t_end", *FIGURES]
+    assert header == ["variant", *params, "status", "t_end", *FIGURES, "cond_worst"]
     for k, row in enumerate(rows):
         cells = dict(zip(header, row))
         assert cells["variant"] == str(k)
@@ -230,7 +230,7 @@ def test_sigint_mid_sweep_writes_the_finished_variants_and_exits_130(tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary left
     grid = vary.grid(["L_rod=0.25:0.35:1000", "n=4:6:1000"])
     first = api.sweep(api.load_mechanism(CRANK, steps=201), {"L_rod": grid.values[:2, 0], "n": grid.values[:2, 1]})
-    assert np.array_equal(np.array([r[5:] for r in rows[:2]], dtype=float), first.figures.values)
+    assert np.array_equal(np.array([r[5:-1] for r in rows[:2]], dtype=float), first.figures.values)  # cond_worst last
 
 
 def test_status_names_why_a_run_stopped():

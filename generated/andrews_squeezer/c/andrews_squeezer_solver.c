@@ -58,7 +58,8 @@ typedef char andrews_squeezer_real_must_have_the_size_of_double[sizeof(andrews_s
 #define ANDREWS_SQUEEZER_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define ANDREWS_SQUEEZER_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define ANDREWS_SQUEEZER_OFF_PREP 1368  /* the prepared parameters (NPP), after the vectors */
-#define ANDREWS_SQUEEZER_NPP 59
+#define ANDREWS_SQUEEZER_NPP 60
+#define ANDREWS_SQUEEZER_PP_MIXED 59  /* the prepared values' last: the call's refinement gate (gate) */
 
 const andrews_squeezer_real andrews_squeezer_default_params[44] = { 0.04325, 0.00365, 0.02373, 0.00706, 0.0705, 0.00706, 0.05498, 2.194e-06, 4.41e-07, 5.255e-06, 5.667e-07, 1.169e-05, 5.667e-07, 1.912e-05, -0.06934, -0.00227, -0.03635, 0.03273, 0.014, 0.072, 0.028, 0.0115, 0.02, 0.01421, 0.007, 0.00092, 0.035, 0.01874, 0.01043, 0.018, 0.02, 0.02308, 0.00916, 0.04, 0.01228, 0.00449, 0.02, 0.04, 0.01421, 4530.0, 0.07785, -0.06171389001427645, 14222.443919954114, 10.0 };
 const char *const andrews_squeezer_row_names[ANDREWS_SQUEEZER_ROW] = {
@@ -568,7 +569,7 @@ static void andrews_squeezer_phi_k(const andrews_squeezer_real * q, const andrew
 
 void andrews_squeezer_phi(const andrews_squeezer_real * q, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -668,7 +669,7 @@ static void andrews_squeezer_phi_q_k(const andrews_squeezer_real * q, const andr
 
 void andrews_squeezer_phi_q(const andrews_squeezer_real * q, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -710,7 +711,7 @@ static void andrews_squeezer_nu_k(const andrews_squeezer_real * q, const andrews
 
 void andrews_squeezer_nu(const andrews_squeezer_real * q, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -780,7 +781,7 @@ static void andrews_squeezer_gamma_k(const andrews_squeezer_real * q, const andr
 
 void andrews_squeezer_gamma(const andrews_squeezer_real * q, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -829,7 +830,7 @@ static void andrews_squeezer_applied_k(const andrews_squeezer_real * q, const an
 
 void andrews_squeezer_applied(const andrews_squeezer_real * q, const andrews_squeezer_real * qd, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -868,7 +869,7 @@ static void andrews_squeezer_mass_k(const andrews_squeezer_real * p, andrews_squ
 
 void andrews_squeezer_mass(const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_prepare(p, prepared);
     andrews_squeezer_mass_k(prepared, out);
 }
@@ -963,7 +964,7 @@ static void andrews_squeezer_reactions_k(const andrews_squeezer_real * q, const 
 
 void andrews_squeezer_reactions(const andrews_squeezer_real * q, const andrews_squeezer_real * lam, andrews_squeezer_real t, const andrews_squeezer_real * p, andrews_squeezer_real *out)
 {
-    andrews_squeezer_real prepared[59];
+    andrews_squeezer_real prepared[60];
     andrews_squeezer_real tr[14];
     andrews_squeezer_trig(q, tr);
     andrews_squeezer_prepare(p, prepared);
@@ -1479,6 +1480,16 @@ static int andrews_squeezer_mixed(const andrews_squeezer_real *m)
     return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void andrews_squeezer_gate(andrews_squeezer_real *pp, andrews_squeezer_real *m)
+{
+    andrews_squeezer_mass_k(pp, m);
+    pp[ANDREWS_SQUEEZER_PP_MIXED] = (andrews_squeezer_mixed(m) != 0) ? 1.0 : 0.0;
+}
+
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
    masses span scales (mixed): a transposed solve is backward stable in the
    norm of the whole b, so a light body's multipliers (a 2 g part on a boom
@@ -1922,7 +1933,7 @@ static void andrews_squeezer_outputs(andrews_squeezer_real t, const andrews_sque
     b[19] -= y[19] * qdd[19];
     b[20] -= y[20] * qdd[20];
     andrews_squeezer_solve_t(work, iwork, dense, b, lam);
-    if (andrews_squeezer_mixed(y) != 0) {
+    if (p[ANDREWS_SQUEEZER_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     andrews_squeezer_reactions_k(q, tr, lam, t, p, reactions);
@@ -2110,6 +2121,7 @@ int andrews_squeezer_instant(andrews_squeezer_real t, const andrews_squeezer_rea
         andrews_squeezer_real *kept = ANDREWS_SQUEEZER_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(andrews_squeezer_real) * 21u);  /* the caller's guess, back in q if the call fails */
         andrews_squeezer_prepare(p, pp);
+        andrews_squeezer_gate(pp, ANDREWS_SQUEEZER_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         andrews_squeezer_real *qd_out = (qd != NULL) ? qd : ANDREWS_SQUEEZER_VEC(work, 5);
@@ -2227,6 +2239,7 @@ int andrews_squeezer_trajectory(andrews_squeezer_real t0, andrews_squeezer_real 
     tr = ANDREWS_SQUEEZER_VEC(work, 9);
     pp = &work[ANDREWS_SQUEEZER_OFF_PREP];
     andrews_squeezer_prepare(p, pp);
+    andrews_squeezer_gate(pp, ANDREWS_SQUEEZER_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -2451,15 +2464,72 @@ static void andrews_squeezer_sweep_scales(const andrews_squeezer_real *q, andrew
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static ANDREWS_SQUEEZER_COLD andrews_squeezer_real andrews_squeezer_sweep_big(const andrews_squeezer_real *v, int n, andrews_squeezer_real *fig, andrews_squeezer_real *acc)
+{
+    const andrews_squeezer_real x = v[0];
+    const andrews_squeezer_real y = (n > 1) ? v[1] : 0.0;
+    andrews_squeezer_real s = acc[6];
+    andrews_squeezer_real r = 1.0;
+    andrews_squeezer_real a = ANDREWS_SQUEEZER_MAX(fabs(x * s), fabs(y * s));
+    andrews_squeezer_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 4; k < 15; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 3; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[5] = -1.0;
+        acc[6] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void andrews_squeezer_sweep_start(andrews_squeezer_real *fig, andrews_squeezer_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[5] = 1.157920892373162e+77;
+    acc[6] = 1.0;
+    for (k = 0; k < 3; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 4; k < 15; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void andrews_squeezer_sweep_take(const andrews_squeezer_real *row, const andrews_squeezer_real *p, andrews_squeezer_real *fig, andrews_squeezer_real *acc,
                                andrews_squeezer_real *drive, long count)
 {
     const andrews_squeezer_real t = row[0];
     andrews_squeezer_real e;
+    andrews_squeezer_real e2;
     andrews_squeezer_real rate;
     andrews_squeezer_real w;
     andrews_squeezer_real m;
@@ -2478,111 +2548,201 @@ static void andrews_squeezer_sweep_take(const andrews_squeezer_real *row, const 
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    e2 = e * e;
+    if (!(e2 <= acc[5])) {
+        const andrews_squeezer_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = andrews_squeezer_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[4]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* O.force_peak */
     m = (row[85] * row[85]) + (row[86] * row[86]);
     if ((count == 0) || (m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[85], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     m = (row[88] * row[88]) + (row[89] * row[89]);
     if ((m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[88], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     /* P.force_peak */
     m = (row[91] * row[91]) + (row[92] * row[92]);
     if ((count == 0) || (m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[91], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     m = (row[94] * row[94]) + (row[95] * row[95]);
     if ((m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[94], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     /* B.force_peak */
     m = (row[97] * row[97]) + (row[98] * row[98]);
     if ((count == 0) || (m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[97], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     m = (row[100] * row[100]) + (row[101] * row[101]);
     if ((m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[100], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     /* A_5.force_peak */
     m = (row[103] * row[103]) + (row[104] * row[104]);
     if ((count == 0) || (m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[103], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     m = (row[106] * row[106]) + (row[107] * row[107]);
     if ((m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[106], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     /* F.force_peak */
     m = (row[109] * row[109]) + (row[110] * row[110]);
     if ((count == 0) || (m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[109], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     m = (row[112] * row[112]) + (row[113] * row[113]);
     if ((m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[112], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     /* A_7.force_peak */
     m = (row[115] * row[115]) + (row[116] * row[116]);
     if ((count == 0) || (m > fig[9])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[115], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     m = (row[118] * row[118]) + (row[119] * row[119]);
     if ((m > fig[9])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[118], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     /* G.force_peak */
     m = (row[121] * row[121]) + (row[122] * row[122]);
     if ((count == 0) || (m > fig[10])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[121], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[10]);
+        }
         fig[10] = m;
     }
     m = (row[124] * row[124]) + (row[125] * row[125]);
     if ((m > fig[10])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[124], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[10]);
+        }
         fig[10] = m;
     }
     /* E_3.force_peak */
     m = (row[127] * row[127]) + (row[128] * row[128]);
     if ((count == 0) || (m > fig[11])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[127], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[11]);
+        }
         fig[11] = m;
     }
     m = (row[130] * row[130]) + (row[131] * row[131]);
     if ((m > fig[11])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[130], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[11]);
+        }
         fig[11] = m;
     }
     /* E_4.force_peak */
     m = (row[133] * row[133]) + (row[134] * row[134]);
     if ((count == 0) || (m > fig[12])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[133], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[12]);
+        }
         fig[12] = m;
     }
     m = (row[136] * row[136]) + (row[137] * row[137]);
     if ((m > fig[12])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[136], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[12]);
+        }
         fig[12] = m;
     }
     /* E_6.force_peak */
     m = (row[139] * row[139]) + (row[140] * row[140]);
     if ((count == 0) || (m > fig[13])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[139], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[13]);
+        }
         fig[13] = m;
     }
     m = (row[142] * row[142]) + (row[143] * row[143]);
     if ((m > fig[13])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[142], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[13]);
+        }
         fig[13] = m;
     }
     /* motor.force_peak */
     m = (row[145] * row[145]) + (row[146] * row[146]);
     if ((count == 0) || (m > fig[14])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[145], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[14]);
+        }
         fig[14] = m;
     }
     m = (row[148] * row[148]) + (row[149] * row[149]);
     if ((m > fig[14])) {
+        if (!(m <= acc[5])) {
+            m = andrews_squeezer_sweep_big(&row[148], 2, fig, acc);
+            m = ANDREWS_SQUEEZER_MAX(m, fig[14]);
+        }
         fig[14] = m;
     }
     if (count == 0) {
@@ -2596,27 +2756,19 @@ static void andrews_squeezer_sweep_finish(andrews_squeezer_real *fig, const andr
 {
     int k;
     const andrews_squeezer_real span = acc[4] - acc[3];
-    (void)acc;  /* no drivers: no time average */
+    andrews_squeezer_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 15; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[4] = sqrt(fig[4]);
-    fig[5] = sqrt(fig[5]);
-    fig[6] = sqrt(fig[6]);
-    fig[7] = sqrt(fig[7]);
-    fig[8] = sqrt(fig[8]);
-    fig[9] = sqrt(fig[9]);
-    fig[10] = sqrt(fig[10]);
-    fig[11] = sqrt(fig[11]);
-    fig[12] = sqrt(fig[12]);
-    fig[13] = sqrt(fig[13]);
-    fig[14] = sqrt(fig[14]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (andrews_squeezer_real)count);
+    unit = acc[6];
+    for (k = 4; k < 15; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (andrews_squeezer_real)count)) / unit;
 }
 
 
@@ -2684,13 +2836,14 @@ int andrews_squeezer_sweep(long k, const andrews_squeezer_real *p, andrews_squee
             const andrews_squeezer_real *s = snap + (v - first) * ANDREWS_SQUEEZER_SNAP;
             (void)memcpy(state, s, sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_STATE);
             (void)memcpy(fig, &s[ANDREWS_SQUEEZER_STATE], sizeof(andrews_squeezer_real) * ANDREWS_SQUEEZER_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[ANDREWS_SQUEEZER_STATE + ANDREWS_SQUEEZER_SWEEP_FIGURES], sizeof(andrews_squeezer_real) * 5u);
+            (void)memcpy(acc, &s[ANDREWS_SQUEEZER_STATE + ANDREWS_SQUEEZER_SWEEP_FIGURES], sizeof(andrews_squeezer_real) * 7u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(andrews_squeezer_real) * (size_t)ANDREWS_SQUEEZER_STATE);
             andrews_squeezer_guess(pv, state);
+            andrews_squeezer_sweep_start(fig, acc);
             done = 0;
         }
         st = ANDREWS_SQUEEZER_OK;
@@ -2886,7 +3039,7 @@ static void andrews_squeezer_sp_outputs(andrews_squeezer_real t, const andrews_s
     b[19] -= y[19] * qdd[19];
     b[20] -= y[20] * qdd[20];
     andrews_squeezer_solve_t(work, iwork, dense, b, lam);
-    if (andrews_squeezer_mixed(y) != 0) {
+    if (p[ANDREWS_SQUEEZER_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         andrews_squeezer_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     andrews_squeezer_reactions_k(q, tr, lam, t, p, reactions);
@@ -2911,6 +3064,7 @@ static int andrews_squeezer_sp_instant(andrews_squeezer_real t, const andrews_sq
         andrews_squeezer_real *kept = ANDREWS_SQUEEZER_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(andrews_squeezer_real) * 21u);  /* the caller's guess, back in q if the call fails */
         andrews_squeezer_prepare(p, pp);
+        andrews_squeezer_gate(pp, ANDREWS_SQUEEZER_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         andrews_squeezer_real *qd_out = (qd != NULL) ? qd : ANDREWS_SQUEEZER_VEC(work, 5);

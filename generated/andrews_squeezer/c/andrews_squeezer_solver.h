@@ -37,7 +37,7 @@ typedef double andrews_squeezer_real;
 #define ANDREWS_SQUEEZER_NNZ 65          /* structural nonzeros of Phi_q */
 #define ANDREWS_SQUEEZER_NR 66            /* reaction values (Fx, Fy, T per body role) */
 #define ANDREWS_SQUEEZER_ROW 151          /* values per instant in a trajectory row */
-#define ANDREWS_SQUEEZER_WORK 1427        /* reals of workspace every solver call needs */
+#define ANDREWS_SQUEEZER_WORK 1428        /* reals of workspace every solver call needs */
 #define ANDREWS_SQUEEZER_IWORK 21         /* ints of workspace */
 #define ANDREWS_SQUEEZER_STATE 170       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
@@ -438,7 +438,7 @@ int andrews_squeezer_setpoint_at(long whole, andrews_squeezer_real frac, const a
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define ANDREWS_SQUEEZER_SWEEP_WORK (ANDREWS_SQUEEZER_WORK + ANDREWS_SQUEEZER_STATE + 32 * ANDREWS_SQUEEZER_ROW + 93)  /* reals of workspace of a sweep */
+#define ANDREWS_SQUEEZER_SWEEP_WORK (ANDREWS_SQUEEZER_WORK + ANDREWS_SQUEEZER_STATE + 32 * ANDREWS_SQUEEZER_ROW + 95)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

@@ -58,7 +58,8 @@ typedef char disc_cam_real_must_have_the_size_of_double[sizeof(disc_cam_real) ==
 #define DISC_CAM_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define DISC_CAM_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define DISC_CAM_OFF_PREP 344  /* the prepared parameters (NPP), after the vectors */
-#define DISC_CAM_NPP 9
+#define DISC_CAM_NPP 10
+#define DISC_CAM_PP_MIXED 9  /* the prepared values' last: the call's refinement gate (gate) */
 
 const disc_cam_real disc_cam_default_params[8] = { 0.05, 0.02, 2.0, 1.5, 0.002, 0.4, 2000.0, 0.2 };
 const char *const disc_cam_row_names[DISC_CAM_ROW] = {
@@ -256,7 +257,7 @@ static void disc_cam_phi_k(const disc_cam_real * q, const disc_cam_real * tr, di
 
 void disc_cam_phi(const disc_cam_real * q, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -296,7 +297,7 @@ static void disc_cam_phi_q_k(const disc_cam_real * q, const disc_cam_real * tr, 
 
 void disc_cam_phi_q(const disc_cam_real * q, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -323,7 +324,7 @@ static void disc_cam_nu_k(const disc_cam_real * q, const disc_cam_real * tr, dis
 
 void disc_cam_nu(const disc_cam_real * q, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -449,7 +450,7 @@ static void disc_cam_gamma_k(const disc_cam_real * q, const disc_cam_real * tr, 
 
 void disc_cam_gamma(const disc_cam_real * q, const disc_cam_real * qd, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -480,7 +481,7 @@ static void disc_cam_applied_k(const disc_cam_real * q, const disc_cam_real * tr
 
 void disc_cam_applied(const disc_cam_real * q, const disc_cam_real * qd, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -504,7 +505,7 @@ static void disc_cam_mass_k(const disc_cam_real * p, disc_cam_real *out)
 
 void disc_cam_mass(const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_prepare(p, prepared);
     disc_cam_mass_k(prepared, out);
 }
@@ -562,7 +563,7 @@ static void disc_cam_reactions_k(const disc_cam_real * q, const disc_cam_real * 
 
 void disc_cam_reactions(const disc_cam_real * q, const disc_cam_real * lam, disc_cam_real t, const disc_cam_real * p, disc_cam_real *out)
 {
-    disc_cam_real prepared[9];
+    disc_cam_real prepared[10];
     disc_cam_real tr[4];
     disc_cam_trig(q, tr);
     disc_cam_prepare(p, prepared);
@@ -886,6 +887,16 @@ static int disc_cam_mixed(const disc_cam_real *m)
     lo = DISC_CAM_MIN(lo, m[3]);
     hi = DISC_CAM_MAX(hi, m[3]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void disc_cam_gate(disc_cam_real *pp, disc_cam_real *m)
+{
+    disc_cam_mass_k(pp, m);
+    pp[DISC_CAM_PP_MIXED] = (disc_cam_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1305,7 +1316,7 @@ static void disc_cam_outputs(disc_cam_real t, const disc_cam_real *p, const disc
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     disc_cam_solve_t(work, iwork, dense, b, lam);
-    if (disc_cam_mixed(y) != 0) {
+    if (p[DISC_CAM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         disc_cam_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     disc_cam_reactions_k(q, tr, lam, t, p, reactions);
@@ -1433,6 +1444,7 @@ int disc_cam_instant(disc_cam_real t, const disc_cam_real *p, disc_cam_real tol,
         disc_cam_real *kept = DISC_CAM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(disc_cam_real) * 6u);  /* the caller's guess, back in q if the call fails */
         disc_cam_prepare(p, pp);
+        disc_cam_gate(pp, DISC_CAM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         disc_cam_real *qd_out = (qd != NULL) ? qd : DISC_CAM_VEC(work, 5);
@@ -1550,6 +1562,7 @@ int disc_cam_trajectory(disc_cam_real t0, disc_cam_real h, long n, const disc_ca
     tr = DISC_CAM_VEC(work, 9);
     pp = &work[DISC_CAM_OFF_PREP];
     disc_cam_prepare(p, pp);
+    disc_cam_gate(pp, DISC_CAM_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -1712,15 +1725,72 @@ static void disc_cam_sweep_scales(const disc_cam_real *q, disc_cam_real t0, cons
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static DISC_CAM_COLD disc_cam_real disc_cam_sweep_big(const disc_cam_real *v, int n, disc_cam_real *fig, disc_cam_real *acc)
+{
+    const disc_cam_real x = v[0];
+    const disc_cam_real y = (n > 1) ? v[1] : 0.0;
+    disc_cam_real s = acc[6];
+    disc_cam_real r = 1.0;
+    disc_cam_real a = DISC_CAM_MAX(fabs(x * s), fabs(y * s));
+    disc_cam_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 4; k < 8; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 3; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[5] = -1.0;
+        acc[6] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void disc_cam_sweep_start(disc_cam_real *fig, disc_cam_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[5] = 1.157920892373162e+77;
+    acc[6] = 1.0;
+    for (k = 0; k < 3; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 4; k < 8; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void disc_cam_sweep_take(const disc_cam_real *row, const disc_cam_real *p, disc_cam_real *fig, disc_cam_real *acc,
                                disc_cam_real *drive, long count)
 {
     const disc_cam_real t = row[0];
     disc_cam_real e;
+    disc_cam_real e2;
     disc_cam_real rate;
     disc_cam_real w;
     disc_cam_real m;
@@ -1739,48 +1809,82 @@ static void disc_cam_sweep_take(const disc_cam_real *row, const disc_cam_real *p
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    e2 = e * e;
+    if (!(e2 <= acc[5])) {
+        const disc_cam_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = disc_cam_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[4]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* pivot.force_peak */
     m = (row[25] * row[25]) + (row[26] * row[26]);
     if ((count == 0) || (m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = disc_cam_sweep_big(&row[25], 2, fig, acc);
+            m = DISC_CAM_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     m = (row[28] * row[28]) + (row[29] * row[29]);
     if ((m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = disc_cam_sweep_big(&row[28], 2, fig, acc);
+            m = DISC_CAM_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     /* guide.force_peak */
     m = (row[31] * row[31]) + (row[32] * row[32]);
     if ((count == 0) || (m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = disc_cam_sweep_big(&row[31], 2, fig, acc);
+            m = DISC_CAM_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     m = (row[34] * row[34]) + (row[35] * row[35]);
     if ((m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = disc_cam_sweep_big(&row[34], 2, fig, acc);
+            m = DISC_CAM_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     /* contact.force_peak */
     m = (row[37] * row[37]) + (row[38] * row[38]);
     if ((count == 0) || (m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = disc_cam_sweep_big(&row[37], 2, fig, acc);
+            m = DISC_CAM_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     m = (row[40] * row[40]) + (row[41] * row[41]);
     if ((m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = disc_cam_sweep_big(&row[40], 2, fig, acc);
+            m = DISC_CAM_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     /* motor.force_peak */
     m = (row[43] * row[43]) + (row[44] * row[44]);
     if ((count == 0) || (m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = disc_cam_sweep_big(&row[43], 2, fig, acc);
+            m = DISC_CAM_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     m = (row[46] * row[46]) + (row[47] * row[47]);
     if ((m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = disc_cam_sweep_big(&row[46], 2, fig, acc);
+            m = DISC_CAM_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     if (count == 0) {
@@ -1794,20 +1898,19 @@ static void disc_cam_sweep_finish(disc_cam_real *fig, const disc_cam_real *acc, 
 {
     int k;
     const disc_cam_real span = acc[4] - acc[3];
-    (void)acc;  /* no drivers: no time average */
+    disc_cam_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 8; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[4] = sqrt(fig[4]);
-    fig[5] = sqrt(fig[5]);
-    fig[6] = sqrt(fig[6]);
-    fig[7] = sqrt(fig[7]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (disc_cam_real)count);
+    unit = acc[6];
+    for (k = 4; k < 8; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (disc_cam_real)count)) / unit;
 }
 
 
@@ -1875,13 +1978,14 @@ int disc_cam_sweep(long k, const disc_cam_real *p, disc_cam_real t0, disc_cam_re
             const disc_cam_real *s = snap + (v - first) * DISC_CAM_SNAP;
             (void)memcpy(state, s, sizeof(disc_cam_real) * DISC_CAM_STATE);
             (void)memcpy(fig, &s[DISC_CAM_STATE], sizeof(disc_cam_real) * DISC_CAM_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[DISC_CAM_STATE + DISC_CAM_SWEEP_FIGURES], sizeof(disc_cam_real) * 5u);
+            (void)memcpy(acc, &s[DISC_CAM_STATE + DISC_CAM_SWEEP_FIGURES], sizeof(disc_cam_real) * 7u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(disc_cam_real) * (size_t)DISC_CAM_STATE);
             disc_cam_guess(pv, state);
+            disc_cam_sweep_start(fig, acc);
             done = 0;
         }
         st = DISC_CAM_OK;
@@ -2062,7 +2166,7 @@ static void disc_cam_sp_outputs(disc_cam_real t, const disc_cam_real *p, const d
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     disc_cam_solve_t(work, iwork, dense, b, lam);
-    if (disc_cam_mixed(y) != 0) {
+    if (p[DISC_CAM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         disc_cam_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     disc_cam_reactions_k(q, tr, lam, t, p, reactions);
@@ -2087,6 +2191,7 @@ static int disc_cam_sp_instant(disc_cam_real t, const disc_cam_real *p, disc_cam
         disc_cam_real *kept = DISC_CAM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(disc_cam_real) * 6u);  /* the caller's guess, back in q if the call fails */
         disc_cam_prepare(p, pp);
+        disc_cam_gate(pp, DISC_CAM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         disc_cam_real *qd_out = (qd != NULL) ? qd : DISC_CAM_VEC(work, 5);

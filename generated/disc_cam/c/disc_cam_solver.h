@@ -37,7 +37,7 @@ typedef double disc_cam_real;
 #define DISC_CAM_NNZ 10          /* structural nonzeros of Phi_q */
 #define DISC_CAM_NR 24            /* reaction values (Fx, Fy, T per body role) */
 #define DISC_CAM_ROW 49          /* values per instant in a trajectory row */
-#define DISC_CAM_WORK 353        /* reals of workspace every solver call needs */
+#define DISC_CAM_WORK 354        /* reals of workspace every solver call needs */
 #define DISC_CAM_IWORK 6         /* ints of workspace */
 #define DISC_CAM_STATE 50       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
@@ -293,7 +293,7 @@ int disc_cam_setpoint_at(long whole, disc_cam_real frac, const disc_cam_real *p,
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define DISC_CAM_SWEEP_WORK (DISC_CAM_WORK + DISC_CAM_STATE + 32 * DISC_CAM_ROW + 23)  /* reals of workspace of a sweep */
+#define DISC_CAM_SWEEP_WORK (DISC_CAM_WORK + DISC_CAM_STATE + 32 * DISC_CAM_ROW + 25)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

@@ -58,7 +58,8 @@ typedef char excavator_real_must_have_the_size_of_double[sizeof(excavator_real) 
 #define EXCAVATOR_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define EXCAVATOR_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define EXCAVATOR_OFF_PREP 583  /* the prepared parameters (NPP), after the vectors */
-#define EXCAVATOR_NPP 41
+#define EXCAVATOR_NPP 42
+#define EXCAVATOR_PP_MIXED 41  /* the prepared values' last: the call's refinement gate (gate) */
 
 const excavator_real excavator_default_params[17] = { 5.7, 2.9, 1.5, 1.0, 1500.0, 700.0, 500.0, 8.0, 2.68, 0.25, 2.31, 0.65, 2.3, 0.55, 30000.0, 2.4, 1.0 };
 const char *const excavator_row_names[EXCAVATOR_ROW] = {
@@ -368,7 +369,7 @@ static void excavator_phi_k(const excavator_real * q, const excavator_real * tr,
 
 void excavator_phi(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -474,7 +475,7 @@ static void excavator_phi_q_k(const excavator_real * q, const excavator_real * t
 
 void excavator_phi_q(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -507,7 +508,7 @@ static void excavator_nu_k(const excavator_real * q, const excavator_real * tr, 
 
 void excavator_nu(const excavator_real * q, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -593,7 +594,7 @@ static void excavator_gamma_k(const excavator_real * q, const excavator_real * t
 
 void excavator_gamma(const excavator_real * q, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -624,7 +625,7 @@ static void excavator_applied_k(const excavator_real * q, const excavator_real *
 
 void excavator_applied(const excavator_real * q, const excavator_real * qd, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -651,7 +652,7 @@ static void excavator_mass_k(const excavator_real * p, excavator_real *out)
 
 void excavator_mass(const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_prepare(p, prepared);
     excavator_mass_k(prepared, out);
 }
@@ -741,7 +742,7 @@ static void excavator_reactions_k(const excavator_real * q, const excavator_real
 
 void excavator_reactions(const excavator_real * q, const excavator_real * lam, excavator_real t, const excavator_real * p, excavator_real *out)
 {
-    excavator_real prepared[41];
+    excavator_real prepared[42];
     excavator_real tr[6];
     excavator_trig(q, tr);
     excavator_prepare(p, prepared);
@@ -1177,6 +1178,16 @@ static int excavator_mixed(const excavator_real *m)
     return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void excavator_gate(excavator_real *pp, excavator_real *m)
+{
+    excavator_mass_k(pp, m);
+    pp[EXCAVATOR_PP_MIXED] = (excavator_mixed(m) != 0) ? 1.0 : 0.0;
+}
+
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
    masses span scales (mixed): a transposed solve is backward stable in the
    norm of the whole b, so a light body's multipliers (a 2 g part on a boom
@@ -1532,7 +1543,7 @@ static void excavator_outputs(excavator_real t, const excavator_real *p, const e
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     excavator_solve_t(work, iwork, dense, b, lam);
-    if (excavator_mixed(y) != 0) {
+    if (p[EXCAVATOR_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     excavator_reactions_k(q, tr, lam, t, p, reactions);
@@ -1672,6 +1683,7 @@ int excavator_instant(excavator_real t, const excavator_real *p, excavator_real 
         excavator_real *kept = EXCAVATOR_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(excavator_real) * 9u);  /* the caller's guess, back in q if the call fails */
         excavator_prepare(p, pp);
+        excavator_gate(pp, EXCAVATOR_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         excavator_real *qd_out = (qd != NULL) ? qd : EXCAVATOR_VEC(work, 5);
@@ -1789,6 +1801,7 @@ int excavator_trajectory(excavator_real t0, excavator_real h, long n, const exca
     tr = EXCAVATOR_VEC(work, 9);
     pp = &work[EXCAVATOR_OFF_PREP];
     excavator_prepare(p, pp);
+    excavator_gate(pp, EXCAVATOR_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -1972,15 +1985,72 @@ static void excavator_sweep_scales(const excavator_real *q, excavator_real t0, c
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static EXCAVATOR_COLD excavator_real excavator_sweep_big(const excavator_real *v, int n, excavator_real *fig, excavator_real *acc)
+{
+    const excavator_real x = v[0];
+    const excavator_real y = (n > 1) ? v[1] : 0.0;
+    excavator_real s = acc[12];
+    excavator_real r = 1.0;
+    excavator_real a = EXCAVATOR_MAX(fabs(x * s), fabs(y * s));
+    excavator_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 12; k < 18; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 9; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[11] = -1.0;
+        acc[12] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void excavator_sweep_start(excavator_real *fig, excavator_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[11] = 1.157920892373162e+77;
+    acc[12] = 1.0;
+    for (k = 0; k < 9; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 12; k < 18; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void excavator_sweep_take(const excavator_real *row, const excavator_real *p, excavator_real *fig, excavator_real *acc,
                                excavator_real *drive, long count)
 {
     const excavator_real t = row[0];
     excavator_real e;
+    excavator_real e2;
     excavator_real rate;
     excavator_real w;
     excavator_real m;
@@ -1999,14 +2069,16 @@ static void excavator_sweep_take(const excavator_real *row, const excavator_real
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[10]);
+    e2 = e * e;
+    if (!(e2 <= acc[11])) {
+        const excavator_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = excavator_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[10]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* stick_cylinder */
     e = (-2.0 * fabs(drive[2])) * row[35];
     rate = (excavator_real)((drive[2] > 0.0) - (drive[2] < 0.0)) * drive[3];
@@ -2018,14 +2090,16 @@ static void excavator_sweep_take(const excavator_real *row, const excavator_real
     if ((count == 0) || (w > fig[7])) {
         fig[7] = w;
     }
-    if (count == 0) {
-        acc[5] = 0.0;
-        acc[4] = 0.0;
-    } else {
-        acc[4] += ((e * e) + (acc[3] * acc[3])) * (t - acc[10]);
+    e2 = e * e;
+    if (!(e2 <= acc[11])) {
+        const excavator_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = excavator_sweep_big(ev, 1, fig, acc);
     }
-    acc[5] += e * e;
-    acc[3] = e;
+    if (count != 0) {
+        acc[4] += (e2 + acc[3]) * (t - acc[10]);
+    }
+    acc[5] += e2;
+    acc[3] = e2;
     /* bucket_cylinder */
     e = (-2.0 * fabs(drive[4])) * row[36];
     rate = (excavator_real)((drive[4] > 0.0) - (drive[4] < 0.0)) * drive[5];
@@ -2037,66 +2111,116 @@ static void excavator_sweep_take(const excavator_real *row, const excavator_real
     if ((count == 0) || (w > fig[11])) {
         fig[11] = w;
     }
-    if (count == 0) {
-        acc[8] = 0.0;
-        acc[7] = 0.0;
-    } else {
-        acc[7] += ((e * e) + (acc[6] * acc[6])) * (t - acc[10]);
+    e2 = e * e;
+    if (!(e2 <= acc[11])) {
+        const excavator_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = excavator_sweep_big(ev, 1, fig, acc);
     }
-    acc[8] += e * e;
-    acc[6] = e;
+    if (count != 0) {
+        acc[7] += (e2 + acc[6]) * (t - acc[10]);
+    }
+    acc[8] += e2;
+    acc[6] = e2;
     /* boom_foot_pin.force_peak */
     m = (row[37] * row[37]) + (row[38] * row[38]);
     if ((count == 0) || (m > fig[12])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[37], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[12]);
+        }
         fig[12] = m;
     }
     m = (row[40] * row[40]) + (row[41] * row[41]);
     if ((m > fig[12])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[40], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[12]);
+        }
         fig[12] = m;
     }
     /* boom_stick_pin.force_peak */
     m = (row[43] * row[43]) + (row[44] * row[44]);
     if ((count == 0) || (m > fig[13])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[43], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[13]);
+        }
         fig[13] = m;
     }
     m = (row[46] * row[46]) + (row[47] * row[47]);
     if ((m > fig[13])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[46], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[13]);
+        }
         fig[13] = m;
     }
     /* stick_bucket_pin.force_peak */
     m = (row[49] * row[49]) + (row[50] * row[50]);
     if ((count == 0) || (m > fig[14])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[49], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[14]);
+        }
         fig[14] = m;
     }
     m = (row[52] * row[52]) + (row[53] * row[53]);
     if ((m > fig[14])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[52], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[14]);
+        }
         fig[14] = m;
     }
     /* boom_cylinder.force_peak */
     m = (row[55] * row[55]) + (row[56] * row[56]);
     if ((count == 0) || (m > fig[15])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[55], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[15]);
+        }
         fig[15] = m;
     }
     m = (row[58] * row[58]) + (row[59] * row[59]);
     if ((m > fig[15])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[58], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[15]);
+        }
         fig[15] = m;
     }
     /* stick_cylinder.force_peak */
     m = (row[61] * row[61]) + (row[62] * row[62]);
     if ((count == 0) || (m > fig[16])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[61], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[16]);
+        }
         fig[16] = m;
     }
     m = (row[64] * row[64]) + (row[65] * row[65]);
     if ((m > fig[16])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[64], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[16]);
+        }
         fig[16] = m;
     }
     /* bucket_cylinder.force_peak */
     m = (row[67] * row[67]) + (row[68] * row[68]);
     if ((count == 0) || (m > fig[17])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[67], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[17]);
+        }
         fig[17] = m;
     }
     m = (row[70] * row[70]) + (row[71] * row[71]);
     if ((m > fig[17])) {
+        if (!(m <= acc[11])) {
+            m = excavator_sweep_big(&row[70], 2, fig, acc);
+            m = EXCAVATOR_MAX(m, fig[17]);
+        }
         fig[17] = m;
     }
     if (count == 0) {
@@ -2110,26 +2234,23 @@ static void excavator_sweep_finish(excavator_real *fig, const excavator_real *ac
 {
     int k;
     const excavator_real span = acc[10] - acc[9];
-    (void)acc;  /* no drivers: no time average */
+    excavator_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 18; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[12] = sqrt(fig[12]);
-    fig[13] = sqrt(fig[13]);
-    fig[14] = sqrt(fig[14]);
-    fig[15] = sqrt(fig[15]);
-    fig[16] = sqrt(fig[16]);
-    fig[17] = sqrt(fig[17]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (excavator_real)count);
-    fig[6] = (span > 0.0) ? sqrt((acc[4] / 2.0) / span)
-                                     : sqrt(acc[5] / (excavator_real)count);
-    fig[10] = (span > 0.0) ? sqrt((acc[7] / 2.0) / span)
-                                     : sqrt(acc[8] / (excavator_real)count);
+    unit = acc[12];
+    for (k = 12; k < 18; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (excavator_real)count)) / unit;
+    fig[6] = ((span > 0.0) ? sqrt((acc[4] / 2.0) / span)
+                                      : sqrt(acc[5] / (excavator_real)count)) / unit;
+    fig[10] = ((span > 0.0) ? sqrt((acc[7] / 2.0) / span)
+                                      : sqrt(acc[8] / (excavator_real)count)) / unit;
 }
 
 
@@ -2197,13 +2318,14 @@ int excavator_sweep(long k, const excavator_real *p, excavator_real t0, excavato
             const excavator_real *s = snap + (v - first) * EXCAVATOR_SNAP;
             (void)memcpy(state, s, sizeof(excavator_real) * EXCAVATOR_STATE);
             (void)memcpy(fig, &s[EXCAVATOR_STATE], sizeof(excavator_real) * EXCAVATOR_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[EXCAVATOR_STATE + EXCAVATOR_SWEEP_FIGURES], sizeof(excavator_real) * 11u);
+            (void)memcpy(acc, &s[EXCAVATOR_STATE + EXCAVATOR_SWEEP_FIGURES], sizeof(excavator_real) * 13u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(excavator_real) * (size_t)EXCAVATOR_STATE);
             excavator_guess(pv, state);
+            excavator_sweep_start(fig, acc);
             done = 0;
         }
         st = EXCAVATOR_OK;
@@ -2444,7 +2566,7 @@ static void excavator_sp_outputs(excavator_real t, const excavator_real *p, cons
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     excavator_solve_t(work, iwork, dense, b, lam);
-    if (excavator_mixed(y) != 0) {
+    if (p[EXCAVATOR_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         excavator_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     excavator_reactions_k(q, tr, lam, t, p, reactions);
@@ -2469,6 +2591,7 @@ static int excavator_sp_instant(excavator_real t, const excavator_real *p, excav
         excavator_real *kept = EXCAVATOR_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(excavator_real) * 9u);  /* the caller's guess, back in q if the call fails */
         excavator_prepare(p, pp);
+        excavator_gate(pp, EXCAVATOR_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         excavator_real *qd_out = (qd != NULL) ? qd : EXCAVATOR_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double excavator_real;
 #define EXCAVATOR_NNZ 35          /* structural nonzeros of Phi_q */
 #define EXCAVATOR_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define EXCAVATOR_ROW 73          /* values per instant in a trajectory row */
-#define EXCAVATOR_WORK 624        /* reals of workspace every solver call needs */
+#define EXCAVATOR_WORK 625        /* reals of workspace every solver call needs */
 #define EXCAVATOR_IWORK 9         /* ints of workspace */
 #define EXCAVATOR_STATE 74       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
@@ -338,7 +338,7 @@ int excavator_setpoint_at(long whole, excavator_real frac, const excavator_real 
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define EXCAVATOR_SWEEP_WORK (EXCAVATOR_WORK + EXCAVATOR_STATE + 32 * EXCAVATOR_ROW + 61)  /* reals of workspace of a sweep */
+#define EXCAVATOR_SWEEP_WORK (EXCAVATOR_WORK + EXCAVATOR_STATE + 32 * EXCAVATOR_ROW + 63)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

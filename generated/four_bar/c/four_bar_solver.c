@@ -58,7 +58,8 @@ typedef char four_bar_real_must_have_the_size_of_double[sizeof(four_bar_real) ==
 #define FOUR_BAR_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define FOUR_BAR_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define FOUR_BAR_OFF_PREP 491  /* the prepared parameters (NPP), after the vectors */
-#define FOUR_BAR_NPP 19
+#define FOUR_BAR_NPP 20
+#define FOUR_BAR_PP_MIXED 19  /* the prepared values' last: the call's refinement gate (gate) */
 
 const four_bar_real four_bar_default_params[15] = { 0.4, 0.1, 0.35, 0.3, 0.3, 0.8, 0.7, 0.05, 0.1, 2.0, 50.0, 2.0, 500.0, 5.0, 0.3 };
 const char *const four_bar_row_names[FOUR_BAR_ROW] = {
@@ -320,7 +321,7 @@ static void four_bar_phi_k(const four_bar_real * q, const four_bar_real * tr, fo
 
 void four_bar_phi(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -374,7 +375,7 @@ static void four_bar_phi_q_k(const four_bar_real * q, const four_bar_real * tr, 
 
 void four_bar_phi_q(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -404,7 +405,7 @@ static void four_bar_nu_k(const four_bar_real * q, const four_bar_real * tr, fou
 
 void four_bar_nu(const four_bar_real * q, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -442,7 +443,7 @@ static void four_bar_gamma_k(const four_bar_real * q, const four_bar_real * tr, 
 
 void four_bar_gamma(const four_bar_real * q, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -479,7 +480,7 @@ static void four_bar_applied_k(const four_bar_real * q, const four_bar_real * tr
 
 void four_bar_applied(const four_bar_real * q, const four_bar_real * qd, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -506,7 +507,7 @@ static void four_bar_mass_k(const four_bar_real * p, four_bar_real *out)
 
 void four_bar_mass(const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_prepare(p, prepared);
     four_bar_mass_k(prepared, out);
 }
@@ -556,7 +557,7 @@ static void four_bar_reactions_k(const four_bar_real * q, const four_bar_real * 
 
 void four_bar_reactions(const four_bar_real * q, const four_bar_real * lam, four_bar_real t, const four_bar_real * p, four_bar_real *out)
 {
-    four_bar_real prepared[19];
+    four_bar_real prepared[20];
     four_bar_real tr[6];
     four_bar_trig(q, tr);
     four_bar_prepare(p, prepared);
@@ -923,6 +924,16 @@ static int four_bar_mixed(const four_bar_real *m)
     return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void four_bar_gate(four_bar_real *pp, four_bar_real *m)
+{
+    four_bar_mass_k(pp, m);
+    pp[FOUR_BAR_PP_MIXED] = (four_bar_mixed(m) != 0) ? 1.0 : 0.0;
+}
+
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
    masses span scales (mixed): a transposed solve is backward stable in the
    norm of the whole b, so a light body's multipliers (a 2 g part on a boom
@@ -1282,7 +1293,7 @@ static void four_bar_outputs(four_bar_real t, const four_bar_real *p, const four
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     four_bar_solve_t(work, iwork, dense, b, lam);
-    if (four_bar_mixed(y) != 0) {
+    if (p[FOUR_BAR_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     four_bar_reactions_k(q, tr, lam, t, p, reactions);
@@ -1422,6 +1433,7 @@ int four_bar_instant(four_bar_real t, const four_bar_real *p, four_bar_real tol,
         four_bar_real *kept = FOUR_BAR_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(four_bar_real) * 9u);  /* the caller's guess, back in q if the call fails */
         four_bar_prepare(p, pp);
+        four_bar_gate(pp, FOUR_BAR_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         four_bar_real *qd_out = (qd != NULL) ? qd : FOUR_BAR_VEC(work, 5);
@@ -1539,6 +1551,7 @@ int four_bar_trajectory(four_bar_real t0, four_bar_real h, long n, const four_ba
     tr = FOUR_BAR_VEC(work, 9);
     pp = &work[FOUR_BAR_OFF_PREP];
     four_bar_prepare(p, pp);
+    four_bar_gate(pp, FOUR_BAR_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -1713,15 +1726,72 @@ static void four_bar_sweep_scales(const four_bar_real *q, four_bar_real t0, cons
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static FOUR_BAR_COLD four_bar_real four_bar_sweep_big(const four_bar_real *v, int n, four_bar_real *fig, four_bar_real *acc)
+{
+    const four_bar_real x = v[0];
+    const four_bar_real y = (n > 1) ? v[1] : 0.0;
+    four_bar_real s = acc[6];
+    four_bar_real r = 1.0;
+    four_bar_real a = FOUR_BAR_MAX(fabs(x * s), fabs(y * s));
+    four_bar_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 4; k < 9; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 3; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[5] = -1.0;
+        acc[6] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void four_bar_sweep_start(four_bar_real *fig, four_bar_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[5] = 1.157920892373162e+77;
+    acc[6] = 1.0;
+    for (k = 0; k < 3; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 4; k < 9; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void four_bar_sweep_take(const four_bar_real *row, const four_bar_real *p, four_bar_real *fig, four_bar_real *acc,
                                four_bar_real *drive, long count)
 {
     const four_bar_real t = row[0];
     four_bar_real e;
+    four_bar_real e2;
     four_bar_real rate;
     four_bar_real w;
     four_bar_real m;
@@ -1740,57 +1810,99 @@ static void four_bar_sweep_take(const four_bar_real *row, const four_bar_real *p
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    e2 = e * e;
+    if (!(e2 <= acc[5])) {
+        const four_bar_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = four_bar_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[4]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* crank_pivot.force_peak */
     m = (row[37] * row[37]) + (row[38] * row[38]);
     if ((count == 0) || (m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = four_bar_sweep_big(&row[37], 2, fig, acc);
+            m = FOUR_BAR_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     m = (row[40] * row[40]) + (row[41] * row[41]);
     if ((m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = four_bar_sweep_big(&row[40], 2, fig, acc);
+            m = FOUR_BAR_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     /* crank_coupler_pin.force_peak */
     m = (row[43] * row[43]) + (row[44] * row[44]);
     if ((count == 0) || (m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = four_bar_sweep_big(&row[43], 2, fig, acc);
+            m = FOUR_BAR_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     m = (row[46] * row[46]) + (row[47] * row[47]);
     if ((m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = four_bar_sweep_big(&row[46], 2, fig, acc);
+            m = FOUR_BAR_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     /* coupler_rocker_pin.force_peak */
     m = (row[49] * row[49]) + (row[50] * row[50]);
     if ((count == 0) || (m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = four_bar_sweep_big(&row[49], 2, fig, acc);
+            m = FOUR_BAR_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     m = (row[52] * row[52]) + (row[53] * row[53]);
     if ((m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = four_bar_sweep_big(&row[52], 2, fig, acc);
+            m = FOUR_BAR_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     /* rocker_pivot.force_peak */
     m = (row[55] * row[55]) + (row[56] * row[56]);
     if ((count == 0) || (m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = four_bar_sweep_big(&row[55], 2, fig, acc);
+            m = FOUR_BAR_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     m = (row[58] * row[58]) + (row[59] * row[59]);
     if ((m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = four_bar_sweep_big(&row[58], 2, fig, acc);
+            m = FOUR_BAR_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     /* crank_motor.force_peak */
     m = (row[61] * row[61]) + (row[62] * row[62]);
     if ((count == 0) || (m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = four_bar_sweep_big(&row[61], 2, fig, acc);
+            m = FOUR_BAR_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     m = (row[64] * row[64]) + (row[65] * row[65]);
     if ((m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = four_bar_sweep_big(&row[64], 2, fig, acc);
+            m = FOUR_BAR_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     if (count == 0) {
@@ -1804,21 +1916,19 @@ static void four_bar_sweep_finish(four_bar_real *fig, const four_bar_real *acc, 
 {
     int k;
     const four_bar_real span = acc[4] - acc[3];
-    (void)acc;  /* no drivers: no time average */
+    four_bar_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 9; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[4] = sqrt(fig[4]);
-    fig[5] = sqrt(fig[5]);
-    fig[6] = sqrt(fig[6]);
-    fig[7] = sqrt(fig[7]);
-    fig[8] = sqrt(fig[8]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (four_bar_real)count);
+    unit = acc[6];
+    for (k = 4; k < 9; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (four_bar_real)count)) / unit;
 }
 
 
@@ -1886,13 +1996,14 @@ int four_bar_sweep(long k, const four_bar_real *p, four_bar_real t0, four_bar_re
             const four_bar_real *s = snap + (v - first) * FOUR_BAR_SNAP;
             (void)memcpy(state, s, sizeof(four_bar_real) * FOUR_BAR_STATE);
             (void)memcpy(fig, &s[FOUR_BAR_STATE], sizeof(four_bar_real) * FOUR_BAR_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[FOUR_BAR_STATE + FOUR_BAR_SWEEP_FIGURES], sizeof(four_bar_real) * 5u);
+            (void)memcpy(acc, &s[FOUR_BAR_STATE + FOUR_BAR_SWEEP_FIGURES], sizeof(four_bar_real) * 7u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(four_bar_real) * (size_t)FOUR_BAR_STATE);
             four_bar_guess(pv, state);
+            four_bar_sweep_start(fig, acc);
             done = 0;
         }
         st = FOUR_BAR_OK;
@@ -2076,7 +2187,7 @@ static void four_bar_sp_outputs(four_bar_real t, const four_bar_real *p, const f
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     four_bar_solve_t(work, iwork, dense, b, lam);
-    if (four_bar_mixed(y) != 0) {
+    if (p[FOUR_BAR_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         four_bar_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     four_bar_reactions_k(q, tr, lam, t, p, reactions);
@@ -2101,6 +2212,7 @@ static int four_bar_sp_instant(four_bar_real t, const four_bar_real *p, four_bar
         four_bar_real *kept = FOUR_BAR_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(four_bar_real) * 9u);  /* the caller's guess, back in q if the call fails */
         four_bar_prepare(p, pp);
+        four_bar_gate(pp, FOUR_BAR_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         four_bar_real *qd_out = (qd != NULL) ? qd : FOUR_BAR_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double four_bar_real;
 #define FOUR_BAR_NNZ 25          /* structural nonzeros of Phi_q */
 #define FOUR_BAR_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define FOUR_BAR_ROW 67          /* values per instant in a trajectory row */
-#define FOUR_BAR_WORK 510        /* reals of workspace every solver call needs */
+#define FOUR_BAR_WORK 511        /* reals of workspace every solver call needs */
 #define FOUR_BAR_IWORK 9         /* ints of workspace */
 #define FOUR_BAR_STATE 74       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
@@ -319,7 +319,7 @@ int four_bar_setpoint_at(long whole, four_bar_real frac, const four_bar_real *p,
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define FOUR_BAR_SWEEP_WORK (FOUR_BAR_WORK + FOUR_BAR_STATE + 32 * FOUR_BAR_ROW + 41)  /* reals of workspace of a sweep */
+#define FOUR_BAR_SWEEP_WORK (FOUR_BAR_WORK + FOUR_BAR_STATE + 32 * FOUR_BAR_ROW + 43)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

@@ -58,7 +58,8 @@ typedef char planetary_real_must_have_the_size_of_double[sizeof(planetary_real) 
 #define PLANETARY_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define PLANETARY_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define PLANETARY_OFF_PREP 796  /* the prepared parameters (NPP), after the vectors */
-#define PLANETARY_NPP 25
+#define PLANETARY_NPP 26
+#define PLANETARY_PP_MIXED 25  /* the prepared values' last: the call's refinement gate (gate) */
 
 const planetary_real planetary_default_params[9] = { 0.03, 0.03, 0.02, 0.45, 0.45, 0.2, 1.0, 5.0, 5.0 };
 const char *const planetary_row_names[PLANETARY_ROW] = {
@@ -397,7 +398,7 @@ static void planetary_phi_k(const planetary_real * q, const planetary_real * tr,
 
 void planetary_phi(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -437,7 +438,7 @@ static void planetary_phi_q_k(const planetary_real * q, const planetary_real * t
 
 void planetary_phi_q(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -470,7 +471,7 @@ static void planetary_nu_k(const planetary_real * q, const planetary_real * tr, 
 
 void planetary_nu(const planetary_real * q, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -503,7 +504,7 @@ static void planetary_gamma_k(const planetary_real * q, const planetary_real * t
 
 void planetary_gamma(const planetary_real * q, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -537,7 +538,7 @@ static void planetary_applied_k(const planetary_real * q, const planetary_real *
 
 void planetary_applied(const planetary_real * q, const planetary_real * qd, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -567,7 +568,7 @@ static void planetary_mass_k(const planetary_real * p, planetary_real *out)
 
 void planetary_mass(const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_prepare(p, prepared);
     planetary_mass_k(prepared, out);
 }
@@ -649,7 +650,7 @@ static void planetary_reactions_k(const planetary_real * q, const planetary_real
 
 void planetary_reactions(const planetary_real * q, const planetary_real * lam, planetary_real t, const planetary_real * p, planetary_real *out)
 {
-    planetary_real prepared[25];
+    planetary_real prepared[26];
     planetary_real tr[8];
     planetary_trig(q, tr);
     planetary_prepare(p, prepared);
@@ -1015,6 +1016,16 @@ static int planetary_mixed(const planetary_real *m)
     lo = PLANETARY_MIN(lo, m[9]);
     hi = PLANETARY_MAX(hi, m[9]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void planetary_gate(planetary_real *pp, planetary_real *m)
+{
+    planetary_mass_k(pp, m);
+    pp[PLANETARY_PP_MIXED] = (planetary_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1399,7 +1410,7 @@ static void planetary_outputs(planetary_real t, const planetary_real *p, const p
     b[10] -= y[10] * qdd[10];
     b[11] -= y[11] * qdd[11];
     planetary_solve_t(work, iwork, dense, b, lam);
-    if (planetary_mixed(y) != 0) {
+    if (p[PLANETARY_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     planetary_reactions_k(q, tr, lam, t, p, reactions);
@@ -1551,6 +1562,7 @@ int planetary_instant(planetary_real t, const planetary_real *p, planetary_real 
         planetary_real *kept = PLANETARY_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(planetary_real) * 12u);  /* the caller's guess, back in q if the call fails */
         planetary_prepare(p, pp);
+        planetary_gate(pp, PLANETARY_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         planetary_real *qd_out = (qd != NULL) ? qd : PLANETARY_VEC(work, 5);
@@ -1668,6 +1680,7 @@ int planetary_trajectory(planetary_real t0, planetary_real h, long n, const plan
     tr = PLANETARY_VEC(work, 9);
     pp = &work[PLANETARY_OFF_PREP];
     planetary_prepare(p, pp);
+    planetary_gate(pp, PLANETARY_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -1854,15 +1867,72 @@ static void planetary_sweep_scales(const planetary_real *q, planetary_real t0, c
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static PLANETARY_COLD planetary_real planetary_sweep_big(const planetary_real *v, int n, planetary_real *fig, planetary_real *acc)
+{
+    const planetary_real x = v[0];
+    const planetary_real y = (n > 1) ? v[1] : 0.0;
+    planetary_real s = acc[6];
+    planetary_real r = 1.0;
+    planetary_real a = PLANETARY_MAX(fabs(x * s), fabs(y * s));
+    planetary_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 4; k < 12; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 3; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[5] = -1.0;
+        acc[6] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void planetary_sweep_start(planetary_real *fig, planetary_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[5] = 1.157920892373162e+77;
+    acc[6] = 1.0;
+    for (k = 0; k < 3; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 4; k < 12; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void planetary_sweep_take(const planetary_real *row, const planetary_real *p, planetary_real *fig, planetary_real *acc,
                                planetary_real *drive, long count)
 {
     const planetary_real t = row[0];
     planetary_real e;
+    planetary_real e2;
     planetary_real rate;
     planetary_real w;
     planetary_real m;
@@ -1881,88 +1951,158 @@ static void planetary_sweep_take(const planetary_real *row, const planetary_real
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    e2 = e * e;
+    if (!(e2 <= acc[5])) {
+        const planetary_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = planetary_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[4]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* sun_bearing.force_peak */
     m = (row[49] * row[49]) + (row[50] * row[50]);
     if ((count == 0) || (m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[49], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     m = (row[52] * row[52]) + (row[53] * row[53]);
     if ((m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[52], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     /* carrier_bearing.force_peak */
     m = (row[55] * row[55]) + (row[56] * row[56]);
     if ((count == 0) || (m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[55], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     m = (row[58] * row[58]) + (row[59] * row[59]);
     if ((m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[58], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     /* planet_bearing.force_peak */
     m = (row[61] * row[61]) + (row[62] * row[62]);
     if ((count == 0) || (m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[61], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     m = (row[64] * row[64]) + (row[65] * row[65]);
     if ((m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[64], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     /* sun_planet_mesh.force_peak */
     m = (row[67] * row[67]) + (row[68] * row[68]);
     if ((count == 0) || (m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[67], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     m = (row[70] * row[70]) + (row[71] * row[71]);
     if ((m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[70], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     m = (row[73] * row[73]) + (row[74] * row[74]);
     if ((m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[73], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     /* planet_ring_mesh.force_peak */
     m = (row[76] * row[76]) + (row[77] * row[77]);
     if ((count == 0) || (m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[76], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     m = (row[79] * row[79]) + (row[80] * row[80]);
     if ((m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[79], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     m = (row[82] * row[82]) + (row[83] * row[83]);
     if ((m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[82], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     /* pinion_bearing.force_peak */
     m = (row[85] * row[85]) + (row[86] * row[86]);
     if ((count == 0) || (m > fig[9])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[85], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     m = (row[88] * row[88]) + (row[89] * row[89]);
     if ((m > fig[9])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[88], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     /* pinion_sun_mesh.force_peak */
     m = (row[91] * row[91]) + (row[92] * row[92]);
     if ((count == 0) || (m > fig[10])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[91], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[10]);
+        }
         fig[10] = m;
     }
     m = (row[94] * row[94]) + (row[95] * row[95]);
     if ((m > fig[10])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[94], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[10]);
+        }
         fig[10] = m;
     }
     /* input_motor.force_peak */
     m = (row[97] * row[97]) + (row[98] * row[98]);
     if ((count == 0) || (m > fig[11])) {
+        if (!(m <= acc[5])) {
+            m = planetary_sweep_big(&row[97], 2, fig, acc);
+            m = PLANETARY_MAX(m, fig[11]);
+        }
         fig[11] = m;
     }
     if (count == 0) {
@@ -1976,24 +2116,19 @@ static void planetary_sweep_finish(planetary_real *fig, const planetary_real *ac
 {
     int k;
     const planetary_real span = acc[4] - acc[3];
-    (void)acc;  /* no drivers: no time average */
+    planetary_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 12; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[4] = sqrt(fig[4]);
-    fig[5] = sqrt(fig[5]);
-    fig[6] = sqrt(fig[6]);
-    fig[7] = sqrt(fig[7]);
-    fig[8] = sqrt(fig[8]);
-    fig[9] = sqrt(fig[9]);
-    fig[10] = sqrt(fig[10]);
-    fig[11] = sqrt(fig[11]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (planetary_real)count);
+    unit = acc[6];
+    for (k = 4; k < 12; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (planetary_real)count)) / unit;
 }
 
 
@@ -2061,13 +2196,14 @@ int planetary_sweep(long k, const planetary_real *p, planetary_real t0, planetar
             const planetary_real *s = snap + (v - first) * PLANETARY_SNAP;
             (void)memcpy(state, s, sizeof(planetary_real) * PLANETARY_STATE);
             (void)memcpy(fig, &s[PLANETARY_STATE], sizeof(planetary_real) * PLANETARY_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[PLANETARY_STATE + PLANETARY_SWEEP_FIGURES], sizeof(planetary_real) * 5u);
+            (void)memcpy(acc, &s[PLANETARY_STATE + PLANETARY_SWEEP_FIGURES], sizeof(planetary_real) * 7u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(planetary_real) * (size_t)PLANETARY_STATE);
             planetary_guess(pv, state);
+            planetary_sweep_start(fig, acc);
             done = 0;
         }
         st = PLANETARY_OK;
@@ -2254,7 +2390,7 @@ static void planetary_sp_outputs(planetary_real t, const planetary_real *p, cons
     b[10] -= y[10] * qdd[10];
     b[11] -= y[11] * qdd[11];
     planetary_solve_t(work, iwork, dense, b, lam);
-    if (planetary_mixed(y) != 0) {
+    if (p[PLANETARY_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         planetary_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     planetary_reactions_k(q, tr, lam, t, p, reactions);
@@ -2279,6 +2415,7 @@ static int planetary_sp_instant(planetary_real t, const planetary_real *p, plane
         planetary_real *kept = PLANETARY_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(planetary_real) * 12u);  /* the caller's guess, back in q if the call fails */
         planetary_prepare(p, pp);
+        planetary_gate(pp, PLANETARY_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         planetary_real *qd_out = (qd != NULL) ? qd : PLANETARY_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double planetary_real;
 #define PLANETARY_NNZ 20          /* structural nonzeros of Phi_q */
 #define PLANETARY_NR 51            /* reaction values (Fx, Fy, T per body role) */
 #define PLANETARY_ROW 100          /* values per instant in a trajectory row */
-#define PLANETARY_WORK 821        /* reals of workspace every solver call needs */
+#define PLANETARY_WORK 822        /* reals of workspace every solver call needs */
 #define PLANETARY_IWORK 12         /* ints of workspace */
 #define PLANETARY_STATE 98       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
@@ -350,7 +350,7 @@ int planetary_setpoint_at(long whole, planetary_real frac, const planetary_real 
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define PLANETARY_SWEEP_WORK (PLANETARY_WORK + PLANETARY_STATE + 32 * PLANETARY_ROW + 39)  /* reals of workspace of a sweep */
+#define PLANETARY_SWEEP_WORK (PLANETARY_WORK + PLANETARY_STATE + 32 * PLANETARY_ROW + 41)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

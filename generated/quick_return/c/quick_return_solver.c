@@ -58,7 +58,8 @@ typedef char quick_return_real_must_have_the_size_of_double[sizeof(quick_return_
 #define QUICK_RETURN_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define QUICK_RETURN_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define QUICK_RETURN_OFF_PREP 553  /* the prepared parameters (NPP), after the vectors */
-#define QUICK_RETURN_NPP 18
+#define QUICK_RETURN_NPP 19
+#define QUICK_RETURN_PP_MIXED 18  /* the prepared values' last: the call's refinement gate (gate) */
 
 const quick_return_real quick_return_default_params[13] = { 0.1, 0.3, 0.6, 0.3, 0.3, 6.0, 0.15, 4.0, 15.0, 0.5, 0.12, 1.0, 500.0 };
 const char *const quick_return_row_names[QUICK_RETURN_ROW] = {
@@ -321,7 +322,7 @@ static void quick_return_phi_k(const quick_return_real * q, const quick_return_r
 
 void quick_return_phi(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -368,7 +369,7 @@ static void quick_return_phi_q_k(const quick_return_real * q, const quick_return
 
 void quick_return_phi_q(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -398,7 +399,7 @@ static void quick_return_nu_k(const quick_return_real * q, const quick_return_re
 
 void quick_return_nu(const quick_return_real * q, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -440,7 +441,7 @@ static void quick_return_gamma_k(const quick_return_real * q, const quick_return
 
 void quick_return_gamma(const quick_return_real * q, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -470,7 +471,7 @@ static void quick_return_applied_k(const quick_return_real * q, const quick_retu
 
 void quick_return_applied(const quick_return_real * q, const quick_return_real * qd, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -497,7 +498,7 @@ static void quick_return_mass_k(const quick_return_real * p, quick_return_real *
 
 void quick_return_mass(const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_prepare(p, prepared);
     quick_return_mass_k(prepared, out);
 }
@@ -558,7 +559,7 @@ static void quick_return_reactions_k(const quick_return_real * q, const quick_re
 
 void quick_return_reactions(const quick_return_real * q, const quick_return_real * lam, quick_return_real t, const quick_return_real * p, quick_return_real *out)
 {
-    quick_return_real prepared[18];
+    quick_return_real prepared[19];
     quick_return_real tr[6];
     quick_return_trig(q, tr);
     quick_return_prepare(p, prepared);
@@ -917,6 +918,16 @@ static int quick_return_mixed(const quick_return_real *m)
     return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void quick_return_gate(quick_return_real *pp, quick_return_real *m)
+{
+    quick_return_mass_k(pp, m);
+    pp[QUICK_RETURN_PP_MIXED] = (quick_return_mixed(m) != 0) ? 1.0 : 0.0;
+}
+
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
    masses span scales (mixed): a transposed solve is backward stable in the
    norm of the whole b, so a light body's multipliers (a 2 g part on a boom
@@ -1272,7 +1283,7 @@ static void quick_return_outputs(quick_return_real t, const quick_return_real *p
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     quick_return_solve_t(work, iwork, dense, b, lam);
-    if (quick_return_mixed(y) != 0) {
+    if (p[QUICK_RETURN_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     quick_return_reactions_k(q, tr, lam, t, p, reactions);
@@ -1412,6 +1423,7 @@ int quick_return_instant(quick_return_real t, const quick_return_real *p, quick_
         quick_return_real *kept = QUICK_RETURN_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(quick_return_real) * 9u);  /* the caller's guess, back in q if the call fails */
         quick_return_prepare(p, pp);
+        quick_return_gate(pp, QUICK_RETURN_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         quick_return_real *qd_out = (qd != NULL) ? qd : QUICK_RETURN_VEC(work, 5);
@@ -1529,6 +1541,7 @@ int quick_return_trajectory(quick_return_real t0, quick_return_real h, long n, c
     tr = QUICK_RETURN_VEC(work, 9);
     pp = &work[QUICK_RETURN_OFF_PREP];
     quick_return_prepare(p, pp);
+    quick_return_gate(pp, QUICK_RETURN_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -1706,15 +1719,72 @@ static void quick_return_sweep_scales(const quick_return_real *q, quick_return_r
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static QUICK_RETURN_COLD quick_return_real quick_return_sweep_big(const quick_return_real *v, int n, quick_return_real *fig, quick_return_real *acc)
+{
+    const quick_return_real x = v[0];
+    const quick_return_real y = (n > 1) ? v[1] : 0.0;
+    quick_return_real s = acc[6];
+    quick_return_real r = 1.0;
+    quick_return_real a = QUICK_RETURN_MAX(fabs(x * s), fabs(y * s));
+    quick_return_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 4; k < 10; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 3; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[5] = -1.0;
+        acc[6] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void quick_return_sweep_start(quick_return_real *fig, quick_return_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[5] = 1.157920892373162e+77;
+    acc[6] = 1.0;
+    for (k = 0; k < 3; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 4; k < 10; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void quick_return_sweep_take(const quick_return_real *row, const quick_return_real *p, quick_return_real *fig, quick_return_real *acc,
                                quick_return_real *drive, long count)
 {
     const quick_return_real t = row[0];
     quick_return_real e;
+    quick_return_real e2;
     quick_return_real rate;
     quick_return_real w;
     quick_return_real m;
@@ -1733,66 +1803,116 @@ static void quick_return_sweep_take(const quick_return_real *row, const quick_re
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    e2 = e * e;
+    if (!(e2 <= acc[5])) {
+        const quick_return_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = quick_return_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[4]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* crank_bearing.force_peak */
     m = (row[37] * row[37]) + (row[38] * row[38]);
     if ((count == 0) || (m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[37], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     m = (row[40] * row[40]) + (row[41] * row[41]);
     if ((m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[40], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     /* lever_pivot.force_peak */
     m = (row[43] * row[43]) + (row[44] * row[44]);
     if ((count == 0) || (m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[43], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     m = (row[46] * row[46]) + (row[47] * row[47]);
     if ((m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[46], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     /* crank_pin_in_lever_slot.force_peak */
     m = (row[49] * row[49]) + (row[50] * row[50]);
     if ((count == 0) || (m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[49], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     m = (row[52] * row[52]) + (row[53] * row[53]);
     if ((m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[52], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     /* lever_ram_link.force_peak */
     m = (row[55] * row[55]) + (row[56] * row[56]);
     if ((count == 0) || (m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[55], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     m = (row[58] * row[58]) + (row[59] * row[59]);
     if ((m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[58], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     /* ram_guide.force_peak */
     m = (row[61] * row[61]) + (row[62] * row[62]);
     if ((count == 0) || (m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[61], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     m = (row[64] * row[64]) + (row[65] * row[65]);
     if ((m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[64], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     /* crank_motor.force_peak */
     m = (row[67] * row[67]) + (row[68] * row[68]);
     if ((count == 0) || (m > fig[9])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[67], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     m = (row[70] * row[70]) + (row[71] * row[71]);
     if ((m > fig[9])) {
+        if (!(m <= acc[5])) {
+            m = quick_return_sweep_big(&row[70], 2, fig, acc);
+            m = QUICK_RETURN_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     if (count == 0) {
@@ -1806,22 +1926,19 @@ static void quick_return_sweep_finish(quick_return_real *fig, const quick_return
 {
     int k;
     const quick_return_real span = acc[4] - acc[3];
-    (void)acc;  /* no drivers: no time average */
+    quick_return_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 10; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[4] = sqrt(fig[4]);
-    fig[5] = sqrt(fig[5]);
-    fig[6] = sqrt(fig[6]);
-    fig[7] = sqrt(fig[7]);
-    fig[8] = sqrt(fig[8]);
-    fig[9] = sqrt(fig[9]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (quick_return_real)count);
+    unit = acc[6];
+    for (k = 4; k < 10; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (quick_return_real)count)) / unit;
 }
 
 
@@ -1889,13 +2006,14 @@ int quick_return_sweep(long k, const quick_return_real *p, quick_return_real t0,
             const quick_return_real *s = snap + (v - first) * QUICK_RETURN_SNAP;
             (void)memcpy(state, s, sizeof(quick_return_real) * QUICK_RETURN_STATE);
             (void)memcpy(fig, &s[QUICK_RETURN_STATE], sizeof(quick_return_real) * QUICK_RETURN_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[QUICK_RETURN_STATE + QUICK_RETURN_SWEEP_FIGURES], sizeof(quick_return_real) * 5u);
+            (void)memcpy(acc, &s[QUICK_RETURN_STATE + QUICK_RETURN_SWEEP_FIGURES], sizeof(quick_return_real) * 7u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(quick_return_real) * (size_t)QUICK_RETURN_STATE);
             quick_return_guess(pv, state);
+            quick_return_sweep_start(fig, acc);
             done = 0;
         }
         st = QUICK_RETURN_OK;
@@ -2079,7 +2197,7 @@ static void quick_return_sp_outputs(quick_return_real t, const quick_return_real
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     quick_return_solve_t(work, iwork, dense, b, lam);
-    if (quick_return_mixed(y) != 0) {
+    if (p[QUICK_RETURN_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         quick_return_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     quick_return_reactions_k(q, tr, lam, t, p, reactions);
@@ -2104,6 +2222,7 @@ static int quick_return_sp_instant(quick_return_real t, const quick_return_real 
         quick_return_real *kept = QUICK_RETURN_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(quick_return_real) * 9u);  /* the caller's guess, back in q if the call fails */
         quick_return_prepare(p, pp);
+        quick_return_gate(pp, QUICK_RETURN_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         quick_return_real *qd_out = (qd != NULL) ? qd : QUICK_RETURN_VEC(work, 5);

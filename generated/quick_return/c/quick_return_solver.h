@@ -37,7 +37,7 @@ typedef double quick_return_real;
 #define QUICK_RETURN_NNZ 20          /* structural nonzeros of Phi_q */
 #define QUICK_RETURN_NR 36            /* reaction values (Fx, Fy, T per body role) */
 #define QUICK_RETURN_ROW 73          /* values per instant in a trajectory row */
-#define QUICK_RETURN_WORK 571        /* reals of workspace every solver call needs */
+#define QUICK_RETURN_WORK 572        /* reals of workspace every solver call needs */
 #define QUICK_RETURN_IWORK 9         /* ints of workspace */
 #define QUICK_RETURN_STATE 74       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
@@ -324,7 +324,7 @@ int quick_return_setpoint_at(long whole, quick_return_real frac, const quick_ret
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define QUICK_RETURN_SWEEP_WORK (QUICK_RETURN_WORK + QUICK_RETURN_STATE + 32 * QUICK_RETURN_ROW + 36)  /* reals of workspace of a sweep */
+#define QUICK_RETURN_SWEEP_WORK (QUICK_RETURN_WORK + QUICK_RETURN_STATE + 32 * QUICK_RETURN_ROW + 38)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

@@ -58,7 +58,8 @@ typedef char rack_lift_real_must_have_the_size_of_double[sizeof(rack_lift_real) 
 #define RACK_LIFT_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define RACK_LIFT_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define RACK_LIFT_OFF_PREP 346  /* the prepared parameters (NPP), after the vectors */
-#define RACK_LIFT_NPP 18
+#define RACK_LIFT_NPP 19
+#define RACK_LIFT_PP_MIXED 18  /* the prepared values' last: the call's refinement gate (gate) */
 
 const rack_lift_real rack_lift_default_params[8] = { 0.04, 0.25, 2.0, 0.8, 6.0, 0.6, 25.0, 0.25 };
 const char *const rack_lift_row_names[RACK_LIFT_ROW] = {
@@ -266,7 +267,7 @@ static void rack_lift_phi_k(const rack_lift_real * q, const rack_lift_real * tr,
 
 void rack_lift_phi(const rack_lift_real * q, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -297,7 +298,7 @@ static void rack_lift_phi_q_k(const rack_lift_real * q, const rack_lift_real * t
 
 void rack_lift_phi_q(const rack_lift_real * q, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -323,7 +324,7 @@ static void rack_lift_nu_k(const rack_lift_real * q, const rack_lift_real * tr, 
 
 void rack_lift_nu(const rack_lift_real * q, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -353,7 +354,7 @@ static void rack_lift_gamma_k(const rack_lift_real * q, const rack_lift_real * t
 
 void rack_lift_gamma(const rack_lift_real * q, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -380,7 +381,7 @@ static void rack_lift_applied_k(const rack_lift_real * q, const rack_lift_real *
 
 void rack_lift_applied(const rack_lift_real * q, const rack_lift_real * qd, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -404,7 +405,7 @@ static void rack_lift_mass_k(const rack_lift_real * p, rack_lift_real *out)
 
 void rack_lift_mass(const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_prepare(p, prepared);
     rack_lift_mass_k(prepared, out);
 }
@@ -448,7 +449,7 @@ static void rack_lift_reactions_k(const rack_lift_real * q, const rack_lift_real
 
 void rack_lift_reactions(const rack_lift_real * q, const rack_lift_real * lam, rack_lift_real t, const rack_lift_real * p, rack_lift_real *out)
 {
-    rack_lift_real prepared[18];
+    rack_lift_real prepared[19];
     rack_lift_real tr[4];
     rack_lift_trig(q, tr);
     rack_lift_prepare(p, prepared);
@@ -777,6 +778,16 @@ static int rack_lift_mixed(const rack_lift_real *m)
     lo = RACK_LIFT_MIN(lo, m[3]);
     hi = RACK_LIFT_MAX(hi, m[3]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void rack_lift_gate(rack_lift_real *pp, rack_lift_real *m)
+{
+    rack_lift_mass_k(pp, m);
+    pp[RACK_LIFT_PP_MIXED] = (rack_lift_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1196,7 +1207,7 @@ static void rack_lift_outputs(rack_lift_real t, const rack_lift_real *p, const r
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     rack_lift_solve_t(work, iwork, dense, b, lam);
-    if (rack_lift_mixed(y) != 0) {
+    if (p[RACK_LIFT_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     rack_lift_reactions_k(q, tr, lam, t, p, reactions);
@@ -1324,6 +1335,7 @@ int rack_lift_instant(rack_lift_real t, const rack_lift_real *p, rack_lift_real 
         rack_lift_real *kept = RACK_LIFT_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(rack_lift_real) * 6u);  /* the caller's guess, back in q if the call fails */
         rack_lift_prepare(p, pp);
+        rack_lift_gate(pp, RACK_LIFT_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         rack_lift_real *qd_out = (qd != NULL) ? qd : RACK_LIFT_VEC(work, 5);
@@ -1441,6 +1453,7 @@ int rack_lift_trajectory(rack_lift_real t0, rack_lift_real h, long n, const rack
     tr = RACK_LIFT_VEC(work, 9);
     pp = &work[RACK_LIFT_OFF_PREP];
     rack_lift_prepare(p, pp);
+    rack_lift_gate(pp, RACK_LIFT_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -1605,15 +1618,72 @@ static void rack_lift_sweep_scales(const rack_lift_real *q, rack_lift_real t0, c
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static RACK_LIFT_COLD rack_lift_real rack_lift_sweep_big(const rack_lift_real *v, int n, rack_lift_real *fig, rack_lift_real *acc)
+{
+    const rack_lift_real x = v[0];
+    const rack_lift_real y = (n > 1) ? v[1] : 0.0;
+    rack_lift_real s = acc[6];
+    rack_lift_real r = 1.0;
+    rack_lift_real a = RACK_LIFT_MAX(fabs(x * s), fabs(y * s));
+    rack_lift_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 4; k < 8; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 3; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[5] = -1.0;
+        acc[6] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void rack_lift_sweep_start(rack_lift_real *fig, rack_lift_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[5] = 1.157920892373162e+77;
+    acc[6] = 1.0;
+    for (k = 0; k < 3; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 4; k < 8; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void rack_lift_sweep_take(const rack_lift_real *row, const rack_lift_real *p, rack_lift_real *fig, rack_lift_real *acc,
                                rack_lift_real *drive, long count)
 {
     const rack_lift_real t = row[0];
     rack_lift_real e;
+    rack_lift_real e2;
     rack_lift_real rate;
     rack_lift_real w;
     rack_lift_real m;
@@ -1632,48 +1702,82 @@ static void rack_lift_sweep_take(const rack_lift_real *row, const rack_lift_real
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    e2 = e * e;
+    if (!(e2 <= acc[5])) {
+        const rack_lift_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = rack_lift_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[4]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* axle.force_peak */
     m = (row[25] * row[25]) + (row[26] * row[26]);
     if ((count == 0) || (m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = rack_lift_sweep_big(&row[25], 2, fig, acc);
+            m = RACK_LIFT_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     m = (row[28] * row[28]) + (row[29] * row[29]);
     if ((m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = rack_lift_sweep_big(&row[28], 2, fig, acc);
+            m = RACK_LIFT_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     /* guide.force_peak */
     m = (row[31] * row[31]) + (row[32] * row[32]);
     if ((count == 0) || (m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = rack_lift_sweep_big(&row[31], 2, fig, acc);
+            m = RACK_LIFT_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     m = (row[34] * row[34]) + (row[35] * row[35]);
     if ((m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = rack_lift_sweep_big(&row[34], 2, fig, acc);
+            m = RACK_LIFT_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     /* mesh.force_peak */
     m = (row[37] * row[37]) + (row[38] * row[38]);
     if ((count == 0) || (m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = rack_lift_sweep_big(&row[37], 2, fig, acc);
+            m = RACK_LIFT_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     m = (row[40] * row[40]) + (row[41] * row[41]);
     if ((m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = rack_lift_sweep_big(&row[40], 2, fig, acc);
+            m = RACK_LIFT_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     /* motor.force_peak */
     m = (row[43] * row[43]) + (row[44] * row[44]);
     if ((count == 0) || (m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = rack_lift_sweep_big(&row[43], 2, fig, acc);
+            m = RACK_LIFT_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     m = (row[46] * row[46]) + (row[47] * row[47]);
     if ((m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = rack_lift_sweep_big(&row[46], 2, fig, acc);
+            m = RACK_LIFT_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     if (count == 0) {
@@ -1687,20 +1791,19 @@ static void rack_lift_sweep_finish(rack_lift_real *fig, const rack_lift_real *ac
 {
     int k;
     const rack_lift_real span = acc[4] - acc[3];
-    (void)acc;  /* no drivers: no time average */
+    rack_lift_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 8; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[4] = sqrt(fig[4]);
-    fig[5] = sqrt(fig[5]);
-    fig[6] = sqrt(fig[6]);
-    fig[7] = sqrt(fig[7]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (rack_lift_real)count);
+    unit = acc[6];
+    for (k = 4; k < 8; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (rack_lift_real)count)) / unit;
 }
 
 
@@ -1768,13 +1871,14 @@ int rack_lift_sweep(long k, const rack_lift_real *p, rack_lift_real t0, rack_lif
             const rack_lift_real *s = snap + (v - first) * RACK_LIFT_SNAP;
             (void)memcpy(state, s, sizeof(rack_lift_real) * RACK_LIFT_STATE);
             (void)memcpy(fig, &s[RACK_LIFT_STATE], sizeof(rack_lift_real) * RACK_LIFT_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[RACK_LIFT_STATE + RACK_LIFT_SWEEP_FIGURES], sizeof(rack_lift_real) * 5u);
+            (void)memcpy(acc, &s[RACK_LIFT_STATE + RACK_LIFT_SWEEP_FIGURES], sizeof(rack_lift_real) * 7u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(rack_lift_real) * (size_t)RACK_LIFT_STATE);
             rack_lift_guess(pv, state);
+            rack_lift_sweep_start(fig, acc);
             done = 0;
         }
         st = RACK_LIFT_OK;
@@ -1955,7 +2059,7 @@ static void rack_lift_sp_outputs(rack_lift_real t, const rack_lift_real *p, cons
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     rack_lift_solve_t(work, iwork, dense, b, lam);
-    if (rack_lift_mixed(y) != 0) {
+    if (p[RACK_LIFT_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         rack_lift_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     rack_lift_reactions_k(q, tr, lam, t, p, reactions);
@@ -1980,6 +2084,7 @@ static int rack_lift_sp_instant(rack_lift_real t, const rack_lift_real *p, rack_
         rack_lift_real *kept = RACK_LIFT_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(rack_lift_real) * 6u);  /* the caller's guess, back in q if the call fails */
         rack_lift_prepare(p, pp);
+        rack_lift_gate(pp, RACK_LIFT_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         rack_lift_real *qd_out = (qd != NULL) ? qd : RACK_LIFT_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double rack_lift_real;
 #define RACK_LIFT_NNZ 11          /* structural nonzeros of Phi_q */
 #define RACK_LIFT_NR 24            /* reaction values (Fx, Fy, T per body role) */
 #define RACK_LIFT_ROW 49          /* values per instant in a trajectory row */
-#define RACK_LIFT_WORK 364        /* reals of workspace every solver call needs */
+#define RACK_LIFT_WORK 365        /* reals of workspace every solver call needs */
 #define RACK_LIFT_IWORK 6         /* ints of workspace */
 #define RACK_LIFT_STATE 50       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
@@ -290,7 +290,7 @@ int rack_lift_setpoint_at(long whole, rack_lift_real frac, const rack_lift_real 
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define RACK_LIFT_SWEEP_WORK (RACK_LIFT_WORK + RACK_LIFT_STATE + 32 * RACK_LIFT_ROW + 24)  /* reals of workspace of a sweep */
+#define RACK_LIFT_SWEEP_WORK (RACK_LIFT_WORK + RACK_LIFT_STATE + 32 * RACK_LIFT_ROW + 26)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

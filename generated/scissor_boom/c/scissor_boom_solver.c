@@ -58,7 +58,8 @@ typedef char scissor_boom_real_must_have_the_size_of_double[sizeof(scissor_boom_
 #define SCISSOR_BOOM_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define SCISSOR_BOOM_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define SCISSOR_BOOM_OFF_PREP 4456  /* the prepared parameters (NPP), after the vectors */
-#define SCISSOR_BOOM_NPP 16
+#define SCISSOR_BOOM_NPP 17
+#define SCISSOR_BOOM_PP_MIXED 16  /* the prepared values' last: the call's refinement gate (gate) */
 
 const scissor_boom_real scissor_boom_default_params[7] = { 0.6, 1.2, 5.0, 9.81, 1.05, 0.45, 4.0 };
 const char *const scissor_boom_row_names[SCISSOR_BOOM_ROW] = {
@@ -1105,7 +1106,7 @@ static void scissor_boom_phi_k(const scissor_boom_real * q, const scissor_boom_r
 
 void scissor_boom_phi(const scissor_boom_real * q, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -1319,7 +1320,7 @@ static void scissor_boom_phi_q_k(const scissor_boom_real * q, const scissor_boom
 
 void scissor_boom_phi_q(const scissor_boom_real * q, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -1387,7 +1388,7 @@ static void scissor_boom_nu_k(const scissor_boom_real * q, const scissor_boom_re
 
 void scissor_boom_nu(const scissor_boom_real * q, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -1498,7 +1499,7 @@ static void scissor_boom_gamma_k(const scissor_boom_real * q, const scissor_boom
 
 void scissor_boom_gamma(const scissor_boom_real * q, const scissor_boom_real * qd, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -1568,7 +1569,7 @@ static void scissor_boom_applied_k(const scissor_boom_real * q, const scissor_bo
 
 void scissor_boom_applied(const scissor_boom_real * q, const scissor_boom_real * qd, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -1634,7 +1635,7 @@ static void scissor_boom_mass_k(const scissor_boom_real * p, scissor_boom_real *
 
 void scissor_boom_mass(const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_prepare(p, prepared);
     scissor_boom_mass_k(prepared, out);
 }
@@ -1828,7 +1829,7 @@ static void scissor_boom_reactions_k(const scissor_boom_real * q, const scissor_
 
 void scissor_boom_reactions(const scissor_boom_real * q, const scissor_boom_real * lam, scissor_boom_real t, const scissor_boom_real * p, scissor_boom_real *out)
 {
-    scissor_boom_real prepared[16];
+    scissor_boom_real prepared[17];
     scissor_boom_real tr[32];
     scissor_boom_trig(q, tr);
     scissor_boom_prepare(p, prepared);
@@ -2820,6 +2821,16 @@ static int scissor_boom_mixed(const scissor_boom_real *m)
     return ((lo * 100.0) < hi) ? 1 : 0;
 }
 
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void scissor_boom_gate(scissor_boom_real *pp, scissor_boom_real *m)
+{
+    scissor_boom_mass_k(pp, m);
+    pp[SCISSOR_BOOM_PP_MIXED] = (scissor_boom_mixed(m) != 0) ? 1.0 : 0.0;
+}
+
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
    masses span scales (mixed): a transposed solve is backward stable in the
    norm of the whole b, so a light body's multipliers (a 2 g part on a boom
@@ -3452,7 +3463,7 @@ static void scissor_boom_outputs(scissor_boom_real t, const scissor_boom_real *p
     b[46] -= y[46] * qdd[46];
     b[47] -= y[47] * qdd[47];
     scissor_boom_solve_t(work, iwork, dense, b, lam);
-    if (scissor_boom_mixed(y) != 0) {
+    if (p[SCISSOR_BOOM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         scissor_boom_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     scissor_boom_reactions_k(q, tr, lam, t, p, reactions);
@@ -3748,6 +3759,7 @@ int scissor_boom_instant(scissor_boom_real t, const scissor_boom_real *p, scisso
         scissor_boom_real *kept = SCISSOR_BOOM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(scissor_boom_real) * 48u);  /* the caller's guess, back in q if the call fails */
         scissor_boom_prepare(p, pp);
+        scissor_boom_gate(pp, SCISSOR_BOOM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         scissor_boom_real *qd_out = (qd != NULL) ? qd : SCISSOR_BOOM_VEC(work, 5);
@@ -3865,6 +3877,7 @@ int scissor_boom_trajectory(scissor_boom_real t0, scissor_boom_real h, long n, c
     tr = SCISSOR_BOOM_VEC(work, 9);
     pp = &work[SCISSOR_BOOM_OFF_PREP];
     scissor_boom_prepare(p, pp);
+    scissor_boom_gate(pp, SCISSOR_BOOM_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -4210,15 +4223,72 @@ static void scissor_boom_sweep_scales(const scissor_boom_real *q, scissor_boom_r
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static SCISSOR_BOOM_COLD scissor_boom_real scissor_boom_sweep_big(const scissor_boom_real *v, int n, scissor_boom_real *fig, scissor_boom_real *acc)
+{
+    const scissor_boom_real x = v[0];
+    const scissor_boom_real y = (n > 1) ? v[1] : 0.0;
+    scissor_boom_real s = acc[6];
+    scissor_boom_real r = 1.0;
+    scissor_boom_real a = SCISSOR_BOOM_MAX(fabs(x * s), fabs(y * s));
+    scissor_boom_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 4; k < 29; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 3; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[5] = -1.0;
+        acc[6] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void scissor_boom_sweep_start(scissor_boom_real *fig, scissor_boom_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[5] = 1.157920892373162e+77;
+    acc[6] = 1.0;
+    for (k = 0; k < 3; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 4; k < 29; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void scissor_boom_sweep_take(const scissor_boom_real *row, const scissor_boom_real *p, scissor_boom_real *fig, scissor_boom_real *acc,
                                scissor_boom_real *drive, long count)
 {
     const scissor_boom_real t = row[0];
     scissor_boom_real e;
+    scissor_boom_real e2;
     scissor_boom_real rate;
     scissor_boom_real w;
     scissor_boom_real m;
@@ -4237,237 +4307,439 @@ static void scissor_boom_sweep_take(const scissor_boom_real *row, const scissor_
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    e2 = e * e;
+    if (!(e2 <= acc[5])) {
+        const scissor_boom_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = scissor_boom_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[4]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* root_pivot.force_peak */
     m = (row[193] * row[193]) + (row[194] * row[194]);
     if ((count == 0) || (m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[193], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     m = (row[196] * row[196]) + (row[197] * row[197]);
     if ((m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[196], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     /* root_slot.force_peak */
     m = (row[199] * row[199]) + (row[200] * row[200]);
     if ((count == 0) || (m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[199], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     m = (row[202] * row[202]) + (row[203] * row[203]);
     if ((m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[202], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     /* motor.force_peak */
     m = (row[205] * row[205]) + (row[206] * row[206]);
     if ((count == 0) || (m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[205], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     m = (row[208] * row[208]) + (row[209] * row[209]);
     if ((m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[208], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     /* centre0.force_peak */
     m = (row[211] * row[211]) + (row[212] * row[212]);
     if ((count == 0) || (m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[211], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     m = (row[214] * row[214]) + (row[215] * row[215]);
     if ((m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[214], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     /* upper0.force_peak */
     m = (row[217] * row[217]) + (row[218] * row[218]);
     if ((count == 0) || (m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[217], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     m = (row[220] * row[220]) + (row[221] * row[221]);
     if ((m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[220], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     /* lower0.force_peak */
     m = (row[223] * row[223]) + (row[224] * row[224]);
     if ((count == 0) || (m > fig[9])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[223], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     m = (row[226] * row[226]) + (row[227] * row[227]);
     if ((m > fig[9])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[226], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     /* centre1.force_peak */
     m = (row[229] * row[229]) + (row[230] * row[230]);
     if ((count == 0) || (m > fig[10])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[229], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[10]);
+        }
         fig[10] = m;
     }
     m = (row[232] * row[232]) + (row[233] * row[233]);
     if ((m > fig[10])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[232], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[10]);
+        }
         fig[10] = m;
     }
     /* upper1.force_peak */
     m = (row[235] * row[235]) + (row[236] * row[236]);
     if ((count == 0) || (m > fig[11])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[235], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[11]);
+        }
         fig[11] = m;
     }
     m = (row[238] * row[238]) + (row[239] * row[239]);
     if ((m > fig[11])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[238], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[11]);
+        }
         fig[11] = m;
     }
     /* lower1.force_peak */
     m = (row[241] * row[241]) + (row[242] * row[242]);
     if ((count == 0) || (m > fig[12])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[241], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[12]);
+        }
         fig[12] = m;
     }
     m = (row[244] * row[244]) + (row[245] * row[245]);
     if ((m > fig[12])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[244], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[12]);
+        }
         fig[12] = m;
     }
     /* centre2.force_peak */
     m = (row[247] * row[247]) + (row[248] * row[248]);
     if ((count == 0) || (m > fig[13])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[247], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[13]);
+        }
         fig[13] = m;
     }
     m = (row[250] * row[250]) + (row[251] * row[251]);
     if ((m > fig[13])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[250], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[13]);
+        }
         fig[13] = m;
     }
     /* upper2.force_peak */
     m = (row[253] * row[253]) + (row[254] * row[254]);
     if ((count == 0) || (m > fig[14])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[253], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[14]);
+        }
         fig[14] = m;
     }
     m = (row[256] * row[256]) + (row[257] * row[257]);
     if ((m > fig[14])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[256], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[14]);
+        }
         fig[14] = m;
     }
     /* lower2.force_peak */
     m = (row[259] * row[259]) + (row[260] * row[260]);
     if ((count == 0) || (m > fig[15])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[259], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[15]);
+        }
         fig[15] = m;
     }
     m = (row[262] * row[262]) + (row[263] * row[263]);
     if ((m > fig[15])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[262], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[15]);
+        }
         fig[15] = m;
     }
     /* centre3.force_peak */
     m = (row[265] * row[265]) + (row[266] * row[266]);
     if ((count == 0) || (m > fig[16])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[265], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[16]);
+        }
         fig[16] = m;
     }
     m = (row[268] * row[268]) + (row[269] * row[269]);
     if ((m > fig[16])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[268], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[16]);
+        }
         fig[16] = m;
     }
     /* upper3.force_peak */
     m = (row[271] * row[271]) + (row[272] * row[272]);
     if ((count == 0) || (m > fig[17])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[271], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[17]);
+        }
         fig[17] = m;
     }
     m = (row[274] * row[274]) + (row[275] * row[275]);
     if ((m > fig[17])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[274], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[17]);
+        }
         fig[17] = m;
     }
     /* lower3.force_peak */
     m = (row[277] * row[277]) + (row[278] * row[278]);
     if ((count == 0) || (m > fig[18])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[277], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[18]);
+        }
         fig[18] = m;
     }
     m = (row[280] * row[280]) + (row[281] * row[281]);
     if ((m > fig[18])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[280], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[18]);
+        }
         fig[18] = m;
     }
     /* centre4.force_peak */
     m = (row[283] * row[283]) + (row[284] * row[284]);
     if ((count == 0) || (m > fig[19])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[283], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[19]);
+        }
         fig[19] = m;
     }
     m = (row[286] * row[286]) + (row[287] * row[287]);
     if ((m > fig[19])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[286], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[19]);
+        }
         fig[19] = m;
     }
     /* upper4.force_peak */
     m = (row[289] * row[289]) + (row[290] * row[290]);
     if ((count == 0) || (m > fig[20])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[289], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[20]);
+        }
         fig[20] = m;
     }
     m = (row[292] * row[292]) + (row[293] * row[293]);
     if ((m > fig[20])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[292], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[20]);
+        }
         fig[20] = m;
     }
     /* lower4.force_peak */
     m = (row[295] * row[295]) + (row[296] * row[296]);
     if ((count == 0) || (m > fig[21])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[295], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[21]);
+        }
         fig[21] = m;
     }
     m = (row[298] * row[298]) + (row[299] * row[299]);
     if ((m > fig[21])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[298], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[21]);
+        }
         fig[21] = m;
     }
     /* centre5.force_peak */
     m = (row[301] * row[301]) + (row[302] * row[302]);
     if ((count == 0) || (m > fig[22])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[301], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[22]);
+        }
         fig[22] = m;
     }
     m = (row[304] * row[304]) + (row[305] * row[305]);
     if ((m > fig[22])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[304], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[22]);
+        }
         fig[22] = m;
     }
     /* upper5.force_peak */
     m = (row[307] * row[307]) + (row[308] * row[308]);
     if ((count == 0) || (m > fig[23])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[307], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[23]);
+        }
         fig[23] = m;
     }
     m = (row[310] * row[310]) + (row[311] * row[311]);
     if ((m > fig[23])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[310], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[23]);
+        }
         fig[23] = m;
     }
     /* lower5.force_peak */
     m = (row[313] * row[313]) + (row[314] * row[314]);
     if ((count == 0) || (m > fig[24])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[313], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[24]);
+        }
         fig[24] = m;
     }
     m = (row[316] * row[316]) + (row[317] * row[317]);
     if ((m > fig[24])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[316], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[24]);
+        }
         fig[24] = m;
     }
     /* centre6.force_peak */
     m = (row[319] * row[319]) + (row[320] * row[320]);
     if ((count == 0) || (m > fig[25])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[319], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[25]);
+        }
         fig[25] = m;
     }
     m = (row[322] * row[322]) + (row[323] * row[323]);
     if ((m > fig[25])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[322], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[25]);
+        }
         fig[25] = m;
     }
     /* upper6.force_peak */
     m = (row[325] * row[325]) + (row[326] * row[326]);
     if ((count == 0) || (m > fig[26])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[325], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[26]);
+        }
         fig[26] = m;
     }
     m = (row[328] * row[328]) + (row[329] * row[329]);
     if ((m > fig[26])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[328], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[26]);
+        }
         fig[26] = m;
     }
     /* lower6.force_peak */
     m = (row[331] * row[331]) + (row[332] * row[332]);
     if ((count == 0) || (m > fig[27])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[331], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[27]);
+        }
         fig[27] = m;
     }
     m = (row[334] * row[334]) + (row[335] * row[335]);
     if ((m > fig[27])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[334], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[27]);
+        }
         fig[27] = m;
     }
     /* centre7.force_peak */
     m = (row[337] * row[337]) + (row[338] * row[338]);
     if ((count == 0) || (m > fig[28])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[337], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[28]);
+        }
         fig[28] = m;
     }
     m = (row[340] * row[340]) + (row[341] * row[341]);
     if ((m > fig[28])) {
+        if (!(m <= acc[5])) {
+            m = scissor_boom_sweep_big(&row[340], 2, fig, acc);
+            m = SCISSOR_BOOM_MAX(m, fig[28]);
+        }
         fig[28] = m;
     }
     if (count == 0) {
@@ -4481,41 +4753,19 @@ static void scissor_boom_sweep_finish(scissor_boom_real *fig, const scissor_boom
 {
     int k;
     const scissor_boom_real span = acc[4] - acc[3];
-    (void)acc;  /* no drivers: no time average */
+    scissor_boom_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 29; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[4] = sqrt(fig[4]);
-    fig[5] = sqrt(fig[5]);
-    fig[6] = sqrt(fig[6]);
-    fig[7] = sqrt(fig[7]);
-    fig[8] = sqrt(fig[8]);
-    fig[9] = sqrt(fig[9]);
-    fig[10] = sqrt(fig[10]);
-    fig[11] = sqrt(fig[11]);
-    fig[12] = sqrt(fig[12]);
-    fig[13] = sqrt(fig[13]);
-    fig[14] = sqrt(fig[14]);
-    fig[15] = sqrt(fig[15]);
-    fig[16] = sqrt(fig[16]);
-    fig[17] = sqrt(fig[17]);
-    fig[18] = sqrt(fig[18]);
-    fig[19] = sqrt(fig[19]);
-    fig[20] = sqrt(fig[20]);
-    fig[21] = sqrt(fig[21]);
-    fig[22] = sqrt(fig[22]);
-    fig[23] = sqrt(fig[23]);
-    fig[24] = sqrt(fig[24]);
-    fig[25] = sqrt(fig[25]);
-    fig[26] = sqrt(fig[26]);
-    fig[27] = sqrt(fig[27]);
-    fig[28] = sqrt(fig[28]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (scissor_boom_real)count);
+    unit = acc[6];
+    for (k = 4; k < 29; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (scissor_boom_real)count)) / unit;
 }
 
 
@@ -4583,13 +4833,14 @@ int scissor_boom_sweep(long k, const scissor_boom_real *p, scissor_boom_real t0,
             const scissor_boom_real *s = snap + (v - first) * SCISSOR_BOOM_SNAP;
             (void)memcpy(state, s, sizeof(scissor_boom_real) * SCISSOR_BOOM_STATE);
             (void)memcpy(fig, &s[SCISSOR_BOOM_STATE], sizeof(scissor_boom_real) * SCISSOR_BOOM_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[SCISSOR_BOOM_STATE + SCISSOR_BOOM_SWEEP_FIGURES], sizeof(scissor_boom_real) * 5u);
+            (void)memcpy(acc, &s[SCISSOR_BOOM_STATE + SCISSOR_BOOM_SWEEP_FIGURES], sizeof(scissor_boom_real) * 7u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(scissor_boom_real) * (size_t)SCISSOR_BOOM_STATE);
             scissor_boom_guess(pv, state);
+            scissor_boom_sweep_start(fig, acc);
             done = 0;
         }
         st = SCISSOR_BOOM_OK;
@@ -4812,7 +5063,7 @@ static void scissor_boom_sp_outputs(scissor_boom_real t, const scissor_boom_real
     b[46] -= y[46] * qdd[46];
     b[47] -= y[47] * qdd[47];
     scissor_boom_solve_t(work, iwork, dense, b, lam);
-    if (scissor_boom_mixed(y) != 0) {
+    if (p[SCISSOR_BOOM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         scissor_boom_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     scissor_boom_reactions_k(q, tr, lam, t, p, reactions);
@@ -4837,6 +5088,7 @@ static int scissor_boom_sp_instant(scissor_boom_real t, const scissor_boom_real 
         scissor_boom_real *kept = SCISSOR_BOOM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(scissor_boom_real) * 48u);  /* the caller's guess, back in q if the call fails */
         scissor_boom_prepare(p, pp);
+        scissor_boom_gate(pp, SCISSOR_BOOM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         scissor_boom_real *qd_out = (qd != NULL) ? qd : SCISSOR_BOOM_VEC(work, 5);

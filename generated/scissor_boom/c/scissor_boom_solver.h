@@ -37,7 +37,7 @@ typedef double scissor_boom_real;
 #define SCISSOR_BOOM_NNZ 151          /* structural nonzeros of Phi_q */
 #define SCISSOR_BOOM_NR 150            /* reaction values (Fx, Fy, T per body role) */
 #define SCISSOR_BOOM_ROW 343          /* values per instant in a trajectory row */
-#define SCISSOR_BOOM_WORK 4472        /* reals of workspace every solver call needs */
+#define SCISSOR_BOOM_WORK 4473        /* reals of workspace every solver call needs */
 #define SCISSOR_BOOM_IWORK 48         /* ints of workspace */
 #define SCISSOR_BOOM_STATE 386       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
@@ -604,7 +604,7 @@ int scissor_boom_setpoint_at(long whole, scissor_boom_real frac, const scissor_b
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define SCISSOR_BOOM_SWEEP_WORK (SCISSOR_BOOM_WORK + SCISSOR_BOOM_STATE + 32 * SCISSOR_BOOM_ROW + 206)  /* reals of workspace of a sweep */
+#define SCISSOR_BOOM_SWEEP_WORK (SCISSOR_BOOM_WORK + SCISSOR_BOOM_STATE + 32 * SCISSOR_BOOM_ROW + 208)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

@@ -58,7 +58,8 @@ typedef char slider_crank_real_must_have_the_size_of_double[sizeof(slider_crank_
 #define SLIDER_CRANK_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define SLIDER_CRANK_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define SLIDER_CRANK_OFF_PREP 483  /* the prepared parameters (NPP), after the vectors */
-#define SLIDER_CRANK_NPP 13
+#define SLIDER_CRANK_NPP 14
+#define SLIDER_CRANK_PP_MIXED 13  /* the prepared values' last: the call's refinement gate (gate) */
 
 const slider_crank_real slider_crank_default_params[9] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 5.0, 100.0 };
 const char *const slider_crank_row_names[SLIDER_CRANK_ROW] = {
@@ -315,7 +316,7 @@ static void slider_crank_phi_k(const slider_crank_real * q, const slider_crank_r
 
 void slider_crank_phi(const slider_crank_real * q, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    slider_crank_real prepared[13];
+    slider_crank_real prepared[14];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
@@ -362,7 +363,7 @@ static void slider_crank_phi_q_k(const slider_crank_real * q, const slider_crank
 
 void slider_crank_phi_q(const slider_crank_real * q, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    slider_crank_real prepared[13];
+    slider_crank_real prepared[14];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
@@ -392,7 +393,7 @@ static void slider_crank_nu_k(const slider_crank_real * q, const slider_crank_re
 
 void slider_crank_nu(const slider_crank_real * q, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    slider_crank_real prepared[13];
+    slider_crank_real prepared[14];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
@@ -427,7 +428,7 @@ static void slider_crank_gamma_k(const slider_crank_real * q, const slider_crank
 
 void slider_crank_gamma(const slider_crank_real * q, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    slider_crank_real prepared[13];
+    slider_crank_real prepared[14];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
@@ -457,7 +458,7 @@ static void slider_crank_applied_k(const slider_crank_real * q, const slider_cra
 
 void slider_crank_applied(const slider_crank_real * q, const slider_crank_real * qd, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    slider_crank_real prepared[13];
+    slider_crank_real prepared[14];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
@@ -484,7 +485,7 @@ static void slider_crank_mass_k(const slider_crank_real * p, slider_crank_real *
 
 void slider_crank_mass(const slider_crank_real * p, slider_crank_real *out)
 {
-    slider_crank_real prepared[13];
+    slider_crank_real prepared[14];
     slider_crank_prepare(p, prepared);
     slider_crank_mass_k(prepared, out);
 }
@@ -533,7 +534,7 @@ static void slider_crank_reactions_k(const slider_crank_real * q, const slider_c
 
 void slider_crank_reactions(const slider_crank_real * q, const slider_crank_real * lam, slider_crank_real t, const slider_crank_real * p, slider_crank_real *out)
 {
-    slider_crank_real prepared[13];
+    slider_crank_real prepared[14];
     slider_crank_real tr[6];
     slider_crank_trig(q, tr);
     slider_crank_prepare(p, prepared);
@@ -873,6 +874,16 @@ static int slider_crank_mixed(const slider_crank_real *m)
     lo = SLIDER_CRANK_MIN(lo, m[6]);
     hi = SLIDER_CRANK_MAX(hi, m[6]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void slider_crank_gate(slider_crank_real *pp, slider_crank_real *m)
+{
+    slider_crank_mass_k(pp, m);
+    pp[SLIDER_CRANK_PP_MIXED] = (slider_crank_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1234,7 +1245,7 @@ static void slider_crank_outputs(slider_crank_real t, const slider_crank_real *p
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_solve_t(work, iwork, dense, b, lam);
-    if (slider_crank_mixed(y) != 0) {
+    if (p[SLIDER_CRANK_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_crank_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_crank_reactions_k(q, tr, lam, t, p, reactions);
@@ -1374,6 +1385,7 @@ int slider_crank_instant(slider_crank_real t, const slider_crank_real *p, slider
         slider_crank_real *kept = SLIDER_CRANK_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_crank_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_prepare(p, pp);
+        slider_crank_gate(pp, SLIDER_CRANK_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         slider_crank_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_VEC(work, 5);
@@ -1491,6 +1503,7 @@ int slider_crank_trajectory(slider_crank_real t0, slider_crank_real h, long n, c
     tr = SLIDER_CRANK_VEC(work, 9);
     pp = &work[SLIDER_CRANK_OFF_PREP];
     slider_crank_prepare(p, pp);
+    slider_crank_gate(pp, SLIDER_CRANK_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -1665,15 +1678,72 @@ static void slider_crank_sweep_scales(const slider_crank_real *q, slider_crank_r
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static SLIDER_CRANK_COLD slider_crank_real slider_crank_sweep_big(const slider_crank_real *v, int n, slider_crank_real *fig, slider_crank_real *acc)
+{
+    const slider_crank_real x = v[0];
+    const slider_crank_real y = (n > 1) ? v[1] : 0.0;
+    slider_crank_real s = acc[6];
+    slider_crank_real r = 1.0;
+    slider_crank_real a = SLIDER_CRANK_MAX(fabs(x * s), fabs(y * s));
+    slider_crank_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 4; k < 9; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 3; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[5] = -1.0;
+        acc[6] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void slider_crank_sweep_start(slider_crank_real *fig, slider_crank_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[5] = 1.157920892373162e+77;
+    acc[6] = 1.0;
+    for (k = 0; k < 3; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 4; k < 9; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void slider_crank_sweep_take(const slider_crank_real *row, const slider_crank_real *p, slider_crank_real *fig, slider_crank_real *acc,
                                slider_crank_real *drive, long count)
 {
     const slider_crank_real t = row[0];
     slider_crank_real e;
+    slider_crank_real e2;
     slider_crank_real rate;
     slider_crank_real w;
     slider_crank_real m;
@@ -1692,57 +1762,99 @@ static void slider_crank_sweep_take(const slider_crank_real *row, const slider_c
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    e2 = e * e;
+    if (!(e2 <= acc[5])) {
+        const slider_crank_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = slider_crank_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[4]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* main_bearing.force_peak */
     m = (row[37] * row[37]) + (row[38] * row[38]);
     if ((count == 0) || (m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_sweep_big(&row[37], 2, fig, acc);
+            m = SLIDER_CRANK_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     m = (row[40] * row[40]) + (row[41] * row[41]);
     if ((m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_sweep_big(&row[40], 2, fig, acc);
+            m = SLIDER_CRANK_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     /* crank_pin.force_peak */
     m = (row[43] * row[43]) + (row[44] * row[44]);
     if ((count == 0) || (m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_sweep_big(&row[43], 2, fig, acc);
+            m = SLIDER_CRANK_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     m = (row[46] * row[46]) + (row[47] * row[47]);
     if ((m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_sweep_big(&row[46], 2, fig, acc);
+            m = SLIDER_CRANK_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     /* wrist_pin.force_peak */
     m = (row[49] * row[49]) + (row[50] * row[50]);
     if ((count == 0) || (m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_sweep_big(&row[49], 2, fig, acc);
+            m = SLIDER_CRANK_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     m = (row[52] * row[52]) + (row[53] * row[53]);
     if ((m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_sweep_big(&row[52], 2, fig, acc);
+            m = SLIDER_CRANK_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     /* cylinder_guide.force_peak */
     m = (row[55] * row[55]) + (row[56] * row[56]);
     if ((count == 0) || (m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_sweep_big(&row[55], 2, fig, acc);
+            m = SLIDER_CRANK_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     m = (row[58] * row[58]) + (row[59] * row[59]);
     if ((m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_sweep_big(&row[58], 2, fig, acc);
+            m = SLIDER_CRANK_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     /* motor.force_peak */
     m = (row[61] * row[61]) + (row[62] * row[62]);
     if ((count == 0) || (m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_sweep_big(&row[61], 2, fig, acc);
+            m = SLIDER_CRANK_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     m = (row[64] * row[64]) + (row[65] * row[65]);
     if ((m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_sweep_big(&row[64], 2, fig, acc);
+            m = SLIDER_CRANK_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     if (count == 0) {
@@ -1756,21 +1868,19 @@ static void slider_crank_sweep_finish(slider_crank_real *fig, const slider_crank
 {
     int k;
     const slider_crank_real span = acc[4] - acc[3];
-    (void)acc;  /* no drivers: no time average */
+    slider_crank_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 9; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[4] = sqrt(fig[4]);
-    fig[5] = sqrt(fig[5]);
-    fig[6] = sqrt(fig[6]);
-    fig[7] = sqrt(fig[7]);
-    fig[8] = sqrt(fig[8]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (slider_crank_real)count);
+    unit = acc[6];
+    for (k = 4; k < 9; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (slider_crank_real)count)) / unit;
 }
 
 
@@ -1838,13 +1948,14 @@ int slider_crank_sweep(long k, const slider_crank_real *p, slider_crank_real t0,
             const slider_crank_real *s = snap + (v - first) * SLIDER_CRANK_SNAP;
             (void)memcpy(state, s, sizeof(slider_crank_real) * SLIDER_CRANK_STATE);
             (void)memcpy(fig, &s[SLIDER_CRANK_STATE], sizeof(slider_crank_real) * SLIDER_CRANK_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[SLIDER_CRANK_STATE + SLIDER_CRANK_SWEEP_FIGURES], sizeof(slider_crank_real) * 5u);
+            (void)memcpy(acc, &s[SLIDER_CRANK_STATE + SLIDER_CRANK_SWEEP_FIGURES], sizeof(slider_crank_real) * 7u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(slider_crank_real) * (size_t)SLIDER_CRANK_STATE);
             slider_crank_guess(pv, state);
+            slider_crank_sweep_start(fig, acc);
             done = 0;
         }
         st = SLIDER_CRANK_OK;
@@ -2028,7 +2139,7 @@ static void slider_crank_sp_outputs(slider_crank_real t, const slider_crank_real
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_solve_t(work, iwork, dense, b, lam);
-    if (slider_crank_mixed(y) != 0) {
+    if (p[SLIDER_CRANK_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_crank_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_crank_reactions_k(q, tr, lam, t, p, reactions);
@@ -2053,6 +2164,7 @@ static int slider_crank_sp_instant(slider_crank_real t, const slider_crank_real 
         slider_crank_real *kept = SLIDER_CRANK_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_crank_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_prepare(p, pp);
+        slider_crank_gate(pp, SLIDER_CRANK_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         slider_crank_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double slider_crank_real;
 #define SLIDER_CRANK_NNZ 21          /* structural nonzeros of Phi_q */
 #define SLIDER_CRANK_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_CRANK_ROW 67          /* values per instant in a trajectory row */
-#define SLIDER_CRANK_WORK 496        /* reals of workspace every solver call needs */
+#define SLIDER_CRANK_WORK 497        /* reals of workspace every solver call needs */
 #define SLIDER_CRANK_IWORK 9         /* ints of workspace */
 #define SLIDER_CRANK_STATE 74       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
@@ -313,7 +313,7 @@ int slider_crank_setpoint_at(long whole, slider_crank_real frac, const slider_cr
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define SLIDER_CRANK_SWEEP_WORK (SLIDER_CRANK_WORK + SLIDER_CRANK_STATE + 32 * SLIDER_CRANK_ROW + 37)  /* reals of workspace of a sweep */
+#define SLIDER_CRANK_SWEEP_WORK (SLIDER_CRANK_WORK + SLIDER_CRANK_STATE + 32 * SLIDER_CRANK_ROW + 39)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

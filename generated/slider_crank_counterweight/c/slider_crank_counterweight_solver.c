@@ -58,7 +58,8 @@ typedef char slider_crank_counterweight_real_must_have_the_size_of_double[sizeof
 #define SLIDER_CRANK_COUNTERWEIGHT_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define SLIDER_CRANK_COUNTERWEIGHT_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP 483  /* the prepared parameters (NPP), after the vectors */
-#define SLIDER_CRANK_COUNTERWEIGHT_NPP 21
+#define SLIDER_CRANK_COUNTERWEIGHT_NPP 22
+#define SLIDER_CRANK_COUNTERWEIGHT_PP_MIXED 21  /* the prepared values' last: the call's refinement gate (gate) */
 
 const slider_crank_counterweight_real slider_crank_counterweight_default_params[12] = { 0.1, 0.3, 0.5, 1.0, 0.8, 0.06, 0.04, 1.0, 5.0, 1.0, 0.1, 3.141592653589793 };
 const char *const slider_crank_counterweight_row_names[SLIDER_CRANK_COUNTERWEIGHT_ROW] = {
@@ -327,7 +328,7 @@ static void slider_crank_counterweight_phi_k(const slider_crank_counterweight_re
 
 void slider_crank_counterweight_phi(const slider_crank_counterweight_real * q, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -373,7 +374,7 @@ static void slider_crank_counterweight_phi_q_k(const slider_crank_counterweight_
 
 void slider_crank_counterweight_phi_q(const slider_crank_counterweight_real * q, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -403,7 +404,7 @@ static void slider_crank_counterweight_nu_k(const slider_crank_counterweight_rea
 
 void slider_crank_counterweight_nu(const slider_crank_counterweight_real * q, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -441,7 +442,7 @@ static void slider_crank_counterweight_gamma_k(const slider_crank_counterweight_
 
 void slider_crank_counterweight_gamma(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -471,7 +472,7 @@ static void slider_crank_counterweight_applied_k(const slider_crank_counterweigh
 
 void slider_crank_counterweight_applied(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * qd, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -498,7 +499,7 @@ static void slider_crank_counterweight_mass_k(const slider_crank_counterweight_r
 
 void slider_crank_counterweight_mass(const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_prepare(p, prepared);
     slider_crank_counterweight_mass_k(prepared, out);
 }
@@ -547,7 +548,7 @@ static void slider_crank_counterweight_reactions_k(const slider_crank_counterwei
 
 void slider_crank_counterweight_reactions(const slider_crank_counterweight_real * q, const slider_crank_counterweight_real * lam, slider_crank_counterweight_real t, const slider_crank_counterweight_real * p, slider_crank_counterweight_real *out)
 {
-    slider_crank_counterweight_real prepared[21];
+    slider_crank_counterweight_real prepared[22];
     slider_crank_counterweight_real tr[6];
     slider_crank_counterweight_trig(q, tr);
     slider_crank_counterweight_prepare(p, prepared);
@@ -887,6 +888,16 @@ static int slider_crank_counterweight_mixed(const slider_crank_counterweight_rea
     lo = SLIDER_CRANK_COUNTERWEIGHT_MIN(lo, m[6]);
     hi = SLIDER_CRANK_COUNTERWEIGHT_MAX(hi, m[6]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void slider_crank_counterweight_gate(slider_crank_counterweight_real *pp, slider_crank_counterweight_real *m)
+{
+    slider_crank_counterweight_mass_k(pp, m);
+    pp[SLIDER_CRANK_COUNTERWEIGHT_PP_MIXED] = (slider_crank_counterweight_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1248,7 +1259,7 @@ static void slider_crank_counterweight_outputs(slider_crank_counterweight_real t
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_counterweight_solve_t(work, iwork, dense, b, lam);
-    if (slider_crank_counterweight_mixed(y) != 0) {
+    if (p[SLIDER_CRANK_COUNTERWEIGHT_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_crank_counterweight_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_crank_counterweight_reactions_k(q, tr, lam, t, p, reactions);
@@ -1388,6 +1399,7 @@ int slider_crank_counterweight_instant(slider_crank_counterweight_real t, const 
         slider_crank_counterweight_real *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_counterweight_prepare(p, pp);
+        slider_crank_counterweight_gate(pp, SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         slider_crank_counterweight_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 5);
@@ -1505,6 +1517,7 @@ int slider_crank_counterweight_trajectory(slider_crank_counterweight_real t0, sl
     tr = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 9);
     pp = &work[SLIDER_CRANK_COUNTERWEIGHT_OFF_PREP];
     slider_crank_counterweight_prepare(p, pp);
+    slider_crank_counterweight_gate(pp, SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -1681,15 +1694,72 @@ static void slider_crank_counterweight_sweep_scales(const slider_crank_counterwe
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static SLIDER_CRANK_COUNTERWEIGHT_COLD slider_crank_counterweight_real slider_crank_counterweight_sweep_big(const slider_crank_counterweight_real *v, int n, slider_crank_counterweight_real *fig, slider_crank_counterweight_real *acc)
+{
+    const slider_crank_counterweight_real x = v[0];
+    const slider_crank_counterweight_real y = (n > 1) ? v[1] : 0.0;
+    slider_crank_counterweight_real s = acc[6];
+    slider_crank_counterweight_real r = 1.0;
+    slider_crank_counterweight_real a = SLIDER_CRANK_COUNTERWEIGHT_MAX(fabs(x * s), fabs(y * s));
+    slider_crank_counterweight_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 4; k < 9; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 3; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[5] = -1.0;
+        acc[6] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void slider_crank_counterweight_sweep_start(slider_crank_counterweight_real *fig, slider_crank_counterweight_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[5] = 1.157920892373162e+77;
+    acc[6] = 1.0;
+    for (k = 0; k < 3; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 4; k < 9; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void slider_crank_counterweight_sweep_take(const slider_crank_counterweight_real *row, const slider_crank_counterweight_real *p, slider_crank_counterweight_real *fig, slider_crank_counterweight_real *acc,
                                slider_crank_counterweight_real *drive, long count)
 {
     const slider_crank_counterweight_real t = row[0];
     slider_crank_counterweight_real e;
+    slider_crank_counterweight_real e2;
     slider_crank_counterweight_real rate;
     slider_crank_counterweight_real w;
     slider_crank_counterweight_real m;
@@ -1708,57 +1778,99 @@ static void slider_crank_counterweight_sweep_take(const slider_crank_counterweig
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[4]);
+    e2 = e * e;
+    if (!(e2 <= acc[5])) {
+        const slider_crank_counterweight_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = slider_crank_counterweight_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[4]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* main_bearing.force_peak */
     m = (row[37] * row[37]) + (row[38] * row[38]);
     if ((count == 0) || (m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_counterweight_sweep_big(&row[37], 2, fig, acc);
+            m = SLIDER_CRANK_COUNTERWEIGHT_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     m = (row[40] * row[40]) + (row[41] * row[41]);
     if ((m > fig[4])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_counterweight_sweep_big(&row[40], 2, fig, acc);
+            m = SLIDER_CRANK_COUNTERWEIGHT_MAX(m, fig[4]);
+        }
         fig[4] = m;
     }
     /* crank_pin.force_peak */
     m = (row[43] * row[43]) + (row[44] * row[44]);
     if ((count == 0) || (m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_counterweight_sweep_big(&row[43], 2, fig, acc);
+            m = SLIDER_CRANK_COUNTERWEIGHT_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     m = (row[46] * row[46]) + (row[47] * row[47]);
     if ((m > fig[5])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_counterweight_sweep_big(&row[46], 2, fig, acc);
+            m = SLIDER_CRANK_COUNTERWEIGHT_MAX(m, fig[5]);
+        }
         fig[5] = m;
     }
     /* wrist_pin.force_peak */
     m = (row[49] * row[49]) + (row[50] * row[50]);
     if ((count == 0) || (m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_counterweight_sweep_big(&row[49], 2, fig, acc);
+            m = SLIDER_CRANK_COUNTERWEIGHT_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     m = (row[52] * row[52]) + (row[53] * row[53]);
     if ((m > fig[6])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_counterweight_sweep_big(&row[52], 2, fig, acc);
+            m = SLIDER_CRANK_COUNTERWEIGHT_MAX(m, fig[6]);
+        }
         fig[6] = m;
     }
     /* cylinder_guide.force_peak */
     m = (row[55] * row[55]) + (row[56] * row[56]);
     if ((count == 0) || (m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_counterweight_sweep_big(&row[55], 2, fig, acc);
+            m = SLIDER_CRANK_COUNTERWEIGHT_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     m = (row[58] * row[58]) + (row[59] * row[59]);
     if ((m > fig[7])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_counterweight_sweep_big(&row[58], 2, fig, acc);
+            m = SLIDER_CRANK_COUNTERWEIGHT_MAX(m, fig[7]);
+        }
         fig[7] = m;
     }
     /* motor.force_peak */
     m = (row[61] * row[61]) + (row[62] * row[62]);
     if ((count == 0) || (m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_counterweight_sweep_big(&row[61], 2, fig, acc);
+            m = SLIDER_CRANK_COUNTERWEIGHT_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     m = (row[64] * row[64]) + (row[65] * row[65]);
     if ((m > fig[8])) {
+        if (!(m <= acc[5])) {
+            m = slider_crank_counterweight_sweep_big(&row[64], 2, fig, acc);
+            m = SLIDER_CRANK_COUNTERWEIGHT_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     if (count == 0) {
@@ -1772,21 +1884,19 @@ static void slider_crank_counterweight_sweep_finish(slider_crank_counterweight_r
 {
     int k;
     const slider_crank_counterweight_real span = acc[4] - acc[3];
-    (void)acc;  /* no drivers: no time average */
+    slider_crank_counterweight_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 9; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[4] = sqrt(fig[4]);
-    fig[5] = sqrt(fig[5]);
-    fig[6] = sqrt(fig[6]);
-    fig[7] = sqrt(fig[7]);
-    fig[8] = sqrt(fig[8]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (slider_crank_counterweight_real)count);
+    unit = acc[6];
+    for (k = 4; k < 9; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (slider_crank_counterweight_real)count)) / unit;
 }
 
 
@@ -1854,13 +1964,14 @@ int slider_crank_counterweight_sweep(long k, const slider_crank_counterweight_re
             const slider_crank_counterweight_real *s = snap + (v - first) * SLIDER_CRANK_COUNTERWEIGHT_SNAP;
             (void)memcpy(state, s, sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_STATE);
             (void)memcpy(fig, &s[SLIDER_CRANK_COUNTERWEIGHT_STATE], sizeof(slider_crank_counterweight_real) * SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[SLIDER_CRANK_COUNTERWEIGHT_STATE + SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES], sizeof(slider_crank_counterweight_real) * 5u);
+            (void)memcpy(acc, &s[SLIDER_CRANK_COUNTERWEIGHT_STATE + SLIDER_CRANK_COUNTERWEIGHT_SWEEP_FIGURES], sizeof(slider_crank_counterweight_real) * 7u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(slider_crank_counterweight_real) * (size_t)SLIDER_CRANK_COUNTERWEIGHT_STATE);
             slider_crank_counterweight_guess(pv, state);
+            slider_crank_counterweight_sweep_start(fig, acc);
             done = 0;
         }
         st = SLIDER_CRANK_COUNTERWEIGHT_OK;
@@ -2044,7 +2155,7 @@ static void slider_crank_counterweight_sp_outputs(slider_crank_counterweight_rea
     b[7] -= y[7] * qdd[7];
     b[8] -= y[8] * qdd[8];
     slider_crank_counterweight_solve_t(work, iwork, dense, b, lam);
-    if (slider_crank_counterweight_mixed(y) != 0) {
+    if (p[SLIDER_CRANK_COUNTERWEIGHT_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_crank_counterweight_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_crank_counterweight_reactions_k(q, tr, lam, t, p, reactions);
@@ -2069,6 +2180,7 @@ static int slider_crank_counterweight_sp_instant(slider_crank_counterweight_real
         slider_crank_counterweight_real *kept = SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_crank_counterweight_real) * 9u);  /* the caller's guess, back in q if the call fails */
         slider_crank_counterweight_prepare(p, pp);
+        slider_crank_counterweight_gate(pp, SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         slider_crank_counterweight_real *qd_out = (qd != NULL) ? qd : SLIDER_CRANK_COUNTERWEIGHT_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double slider_crank_counterweight_real;
 #define SLIDER_CRANK_COUNTERWEIGHT_NNZ 21          /* structural nonzeros of Phi_q */
 #define SLIDER_CRANK_COUNTERWEIGHT_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_CRANK_COUNTERWEIGHT_ROW 67          /* values per instant in a trajectory row */
-#define SLIDER_CRANK_COUNTERWEIGHT_WORK 504        /* reals of workspace every solver call needs */
+#define SLIDER_CRANK_COUNTERWEIGHT_WORK 505        /* reals of workspace every solver call needs */
 #define SLIDER_CRANK_COUNTERWEIGHT_IWORK 9         /* ints of workspace */
 #define SLIDER_CRANK_COUNTERWEIGHT_STATE 74       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
@@ -320,7 +320,7 @@ int slider_crank_counterweight_setpoint_at(long whole, slider_crank_counterweigh
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define SLIDER_CRANK_COUNTERWEIGHT_SWEEP_WORK (SLIDER_CRANK_COUNTERWEIGHT_WORK + SLIDER_CRANK_COUNTERWEIGHT_STATE + 32 * SLIDER_CRANK_COUNTERWEIGHT_ROW + 37)  /* reals of workspace of a sweep */
+#define SLIDER_CRANK_COUNTERWEIGHT_SWEEP_WORK (SLIDER_CRANK_COUNTERWEIGHT_WORK + SLIDER_CRANK_COUNTERWEIGHT_STATE + 32 * SLIDER_CRANK_COUNTERWEIGHT_ROW + 39)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

@@ -58,7 +58,8 @@ typedef char slider_pendulum_real_must_have_the_size_of_double[sizeof(slider_pen
 #define SLIDER_PENDULUM_VEC_BASE 10  /* per body the angle its sines and cosines are rotated from, and theirs (trig_near) */
 #define SLIDER_PENDULUM_VEC_KEPT 11  /* the guess a call was given (back in q if the call fails) */
 #define SLIDER_PENDULUM_OFF_PREP 426  /* the prepared parameters (NPP), after the vectors */
-#define SLIDER_PENDULUM_NPP 29
+#define SLIDER_PENDULUM_NPP 30
+#define SLIDER_PENDULUM_PP_MIXED 29  /* the prepared values' last: the call's refinement gate (gate) */
 
 const slider_pendulum_real slider_pendulum_default_params[13] = { 0.17453292519943295, 0.2, 1.0, 0.6, 2.0, 2.0, 0.2, 0.08, 0.04, 0.5, 1.0, 20.0, 0.5 };
 const char *const slider_pendulum_row_names[SLIDER_PENDULUM_ROW] = {
@@ -282,7 +283,7 @@ static void slider_pendulum_phi_k(const slider_pendulum_real * q, const slider_p
 
 void slider_pendulum_phi(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -318,7 +319,7 @@ static void slider_pendulum_phi_q_k(const slider_pendulum_real * q, const slider
 
 void slider_pendulum_phi_q(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -346,7 +347,7 @@ static void slider_pendulum_nu_k(const slider_pendulum_real * q, const slider_pe
 
 void slider_pendulum_nu(const slider_pendulum_real * q, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -376,7 +377,7 @@ static void slider_pendulum_gamma_k(const slider_pendulum_real * q, const slider
 
 void slider_pendulum_gamma(const slider_pendulum_real * q, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -403,7 +404,7 @@ static void slider_pendulum_applied_k(const slider_pendulum_real * q, const slid
 
 void slider_pendulum_applied(const slider_pendulum_real * q, const slider_pendulum_real * qd, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -427,7 +428,7 @@ static void slider_pendulum_mass_k(const slider_pendulum_real * p, slider_pendul
 
 void slider_pendulum_mass(const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_prepare(p, prepared);
     slider_pendulum_mass_k(prepared, out);
 }
@@ -480,7 +481,7 @@ static void slider_pendulum_reactions_k(const slider_pendulum_real * q, const sl
 
 void slider_pendulum_reactions(const slider_pendulum_real * q, const slider_pendulum_real * lam, slider_pendulum_real t, const slider_pendulum_real * p, slider_pendulum_real *out)
 {
-    slider_pendulum_real prepared[29];
+    slider_pendulum_real prepared[30];
     slider_pendulum_real tr[4];
     slider_pendulum_trig(q, tr);
     slider_pendulum_prepare(p, prepared);
@@ -803,6 +804,16 @@ static int slider_pendulum_mixed(const slider_pendulum_real *m)
     lo = SLIDER_PENDULUM_MIN(lo, m[3]);
     hi = SLIDER_PENDULUM_MAX(hi, m[3]);
     return ((lo * 100.0) < hi) ? 1 : 0;
+}
+
+/* The refinement's gate of a call, kept in the prepared values (PP_MIXED):
+   mixed of the masses, a function of p alone, so found once per call of
+   instant, trajectory, setpoint or the sensitivities instead of at every
+   instant (m: NG reals of scratch). */
+static void slider_pendulum_gate(slider_pendulum_real *pp, slider_pendulum_real *m)
+{
+    slider_pendulum_mass_k(pp, m);
+    pp[SLIDER_PENDULUM_PP_MIXED] = (slider_pendulum_mixed(m) != 0) ? 1.0 : 0.0;
 }
 
 /* One step of iterative refinement of lambda = Phi_q^T \ b, where the
@@ -1234,7 +1245,7 @@ static void slider_pendulum_outputs(slider_pendulum_real t, const slider_pendulu
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     slider_pendulum_solve_t(work, iwork, dense, b, lam);
-    if (slider_pendulum_mixed(y) != 0) {
+    if (p[SLIDER_PENDULUM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
@@ -1362,6 +1373,7 @@ int slider_pendulum_instant(slider_pendulum_real t, const slider_pendulum_real *
         slider_pendulum_real *kept = SLIDER_PENDULUM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_pendulum_real) * 6u);  /* the caller's guess, back in q if the call fails */
         slider_pendulum_prepare(p, pp);
+        slider_pendulum_gate(pp, SLIDER_PENDULUM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (instant never needs them) */
         slider_pendulum_real *qd_out = (qd != NULL) ? qd : SLIDER_PENDULUM_VEC(work, 5);
@@ -1479,6 +1491,7 @@ int slider_pendulum_trajectory(slider_pendulum_real t0, slider_pendulum_real h, 
     tr = SLIDER_PENDULUM_VEC(work, 9);
     pp = &work[SLIDER_PENDULUM_OFF_PREP];
     slider_pendulum_prepare(p, pp);
+    slider_pendulum_gate(pp, SLIDER_PENDULUM_VEC(work, 0));
     for (i = 0; i < n; ++i) {
         /* the instant's index is the state's count: a run cut into calls
            computes every t as one call would */
@@ -1646,15 +1659,72 @@ static void slider_pendulum_sweep_scales(const slider_pendulum_real *q, slider_p
     }
 }
 
+/* The square of |(v[0], v[n - 1])| (n: 1 or 2) in the unit of the variant's squares (acc[UNIT]:
+   a power of two, symid/codegen/c/sweep.py SCALE_BITS), for a value whose
+   plain square passed acc[LIM] (BIG2 while the unit is 1, else -1: every
+   value comes here). Where the square passes BIG2 in that unit too, the
+   unit grows in steps of 2^SCALE_BITS until |x| and |y| are at most 1, and
+   every square kept (the force peaks, each driver's sums) takes the change,
+   exactly (twice by r: r^2 may underflow where the squares do not matter).
+   Only a variant of forces past ~1e38 (single: 4e9) comes here. */
+static SLIDER_PENDULUM_COLD slider_pendulum_real slider_pendulum_sweep_big(const slider_pendulum_real *v, int n, slider_pendulum_real *fig, slider_pendulum_real *acc)
+{
+    const slider_pendulum_real x = v[0];
+    const slider_pendulum_real y = (n > 1) ? v[1] : 0.0;
+    slider_pendulum_real s = acc[9];
+    slider_pendulum_real r = 1.0;
+    slider_pendulum_real a = SLIDER_PENDULUM_MAX(fabs(x * s), fabs(y * s));
+    slider_pendulum_real m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    int k;
+    if (m > 1.157920892373162e+77) {
+        for (k = 0; k < 8; ++k) {  /* |x|, |y| < 2^(SCALE_BITS steps): the largest finite */
+            if ((a * r) > 1.0) {
+                r *= 2.938735877055719e-39;
+            }
+        }
+        for (k = 8; k < 13; ++k) {
+            fig[k] = (fig[k] * r) * r;
+        }
+        for (k = 0; k < 6; ++k) {
+            acc[k] = (acc[k] * r) * r;
+        }
+        s *= r;
+        acc[8] = -1.0;
+        acc[9] = s;
+        m = ((x * s) * (x * s)) + ((y * s) * (y * s));
+    }
+    return m;
+}
+
+/* A variant's figures and accumulators before its first instant: the
+   squares' unit 1 (LIM BIG2), and the squares sweep_big may rescale zero. */
+static void slider_pendulum_sweep_start(slider_pendulum_real *fig, slider_pendulum_real *acc)
+{
+    int k;
+    (void)fig;
+    acc[8] = 1.157920892373162e+77;
+    acc[9] = 1.0;
+    for (k = 0; k < 6; ++k) {
+        acc[k] = 0.0;
+    }
+    for (k = 8; k < 13; ++k) {
+        fig[k] = 0.0;
+    }
+}
+
 /* Take one solved row's figures; count: the variant's instants taken before.
-   A force_peak is kept squared until the end (one sqrt, not one per instant).
-   acc: per driver the last effort, the trapezoid sum of squares and the
-   plain sum of squares, then the first and the last time. */
+   A force_peak is kept squared until the end (one sqrt, not one per instant),
+   checked against LIM only where it is a new peak: past LIM a plain square
+   is past every peak kept (or, once scaled, larger than its scaled value).
+   acc: per driver the last effort's square, the trapezoid sum of squares and
+   the plain sum of squares, then the first and the last time, then LIM and
+   UNIT of the squares (BIG2 and 1 but past BIG2: sweep_big). */
 static void slider_pendulum_sweep_take(const slider_pendulum_real *row, const slider_pendulum_real *p, slider_pendulum_real *fig, slider_pendulum_real *acc,
                                slider_pendulum_real *drive, long count)
 {
     const slider_pendulum_real t = row[0];
     slider_pendulum_real e;
+    slider_pendulum_real e2;
     slider_pendulum_real rate;
     slider_pendulum_real w;
     slider_pendulum_real m;
@@ -1673,14 +1743,16 @@ static void slider_pendulum_sweep_take(const slider_pendulum_real *row, const sl
     if ((count == 0) || (w > fig[3])) {
         fig[3] = w;
     }
-    if (count == 0) {
-        acc[2] = 0.0;
-        acc[1] = 0.0;
-    } else {
-        acc[1] += ((e * e) + (acc[0] * acc[0])) * (t - acc[7]);
+    e2 = e * e;
+    if (!(e2 <= acc[8])) {
+        const slider_pendulum_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = slider_pendulum_sweep_big(ev, 1, fig, acc);
     }
-    acc[2] += e * e;
-    acc[0] = e;
+    if (count != 0) {
+        acc[1] += (e2 + acc[0]) * (t - acc[7]);
+    }
+    acc[2] += e2;
+    acc[0] = e2;
     /* pendulum_motor */
     e = -row[24];
     rate = drive[3];
@@ -1692,57 +1764,99 @@ static void slider_pendulum_sweep_take(const slider_pendulum_real *row, const sl
     if ((count == 0) || (w > fig[7])) {
         fig[7] = w;
     }
-    if (count == 0) {
-        acc[5] = 0.0;
-        acc[4] = 0.0;
-    } else {
-        acc[4] += ((e * e) + (acc[3] * acc[3])) * (t - acc[7]);
+    e2 = e * e;
+    if (!(e2 <= acc[8])) {
+        const slider_pendulum_real ev[1] = { e };  /* a copy: e's own address would keep it in memory */
+        e2 = slider_pendulum_sweep_big(ev, 1, fig, acc);
     }
-    acc[5] += e * e;
-    acc[3] = e;
+    if (count != 0) {
+        acc[4] += (e2 + acc[3]) * (t - acc[7]);
+    }
+    acc[5] += e2;
+    acc[3] = e2;
     /* guide_parallel.force_peak */
     m = (row[25] * row[25]) + (row[26] * row[26]);
     if ((count == 0) || (m > fig[8])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[25], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     m = (row[28] * row[28]) + (row[29] * row[29]);
     if ((m > fig[8])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[28], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[8]);
+        }
         fig[8] = m;
     }
     /* guide_slot.force_peak */
     m = (row[31] * row[31]) + (row[32] * row[32]);
     if ((count == 0) || (m > fig[9])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[31], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     m = (row[34] * row[34]) + (row[35] * row[35]);
     if ((m > fig[9])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[34], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[9]);
+        }
         fig[9] = m;
     }
     /* carriage_actuator.force_peak */
     m = (row[37] * row[37]) + (row[38] * row[38]);
     if ((count == 0) || (m > fig[10])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[37], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[10]);
+        }
         fig[10] = m;
     }
     m = (row[40] * row[40]) + (row[41] * row[41]);
     if ((m > fig[10])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[40], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[10]);
+        }
         fig[10] = m;
     }
     /* pendulum_hinge.force_peak */
     m = (row[43] * row[43]) + (row[44] * row[44]);
     if ((count == 0) || (m > fig[11])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[43], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[11]);
+        }
         fig[11] = m;
     }
     m = (row[46] * row[46]) + (row[47] * row[47]);
     if ((m > fig[11])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[46], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[11]);
+        }
         fig[11] = m;
     }
     /* pendulum_motor.force_peak */
     m = (row[49] * row[49]) + (row[50] * row[50]);
     if ((count == 0) || (m > fig[12])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[49], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[12]);
+        }
         fig[12] = m;
     }
     m = (row[52] * row[52]) + (row[53] * row[53]);
     if ((m > fig[12])) {
+        if (!(m <= acc[8])) {
+            m = slider_pendulum_sweep_big(&row[52], 2, fig, acc);
+            m = SLIDER_PENDULUM_MAX(m, fig[12]);
+        }
         fig[12] = m;
     }
     if (count == 0) {
@@ -1756,23 +1870,21 @@ static void slider_pendulum_sweep_finish(slider_pendulum_real *fig, const slider
 {
     int k;
     const slider_pendulum_real span = acc[7] - acc[6];
-    (void)acc;  /* no drivers: no time average */
+    slider_pendulum_real unit;  /* the root of the squares' unit: a power of two, divided by exactly */
     if (count == 0) {
         for (k = 0; k < 13; ++k) {
             fig[k] = ((double)NAN);
         }
         return;
     }
-    (void)k;
-    fig[8] = sqrt(fig[8]);
-    fig[9] = sqrt(fig[9]);
-    fig[10] = sqrt(fig[10]);
-    fig[11] = sqrt(fig[11]);
-    fig[12] = sqrt(fig[12]);
-    fig[2] = (span > 0.0) ? sqrt((acc[1] / 2.0) / span)
-                                     : sqrt(acc[2] / (slider_pendulum_real)count);
-    fig[6] = (span > 0.0) ? sqrt((acc[4] / 2.0) / span)
-                                     : sqrt(acc[5] / (slider_pendulum_real)count);
+    unit = acc[9];
+    for (k = 8; k < 13; ++k) {
+        fig[k] = sqrt(fig[k]) / unit;
+    }
+    fig[2] = ((span > 0.0) ? sqrt((acc[1] / 2.0) / span)
+                                      : sqrt(acc[2] / (slider_pendulum_real)count)) / unit;
+    fig[6] = ((span > 0.0) ? sqrt((acc[4] / 2.0) / span)
+                                      : sqrt(acc[5] / (slider_pendulum_real)count)) / unit;
 }
 
 
@@ -1840,13 +1952,14 @@ int slider_pendulum_sweep(long k, const slider_pendulum_real *p, slider_pendulum
             const slider_pendulum_real *s = snap + (v - first) * SLIDER_PENDULUM_SNAP;
             (void)memcpy(state, s, sizeof(slider_pendulum_real) * SLIDER_PENDULUM_STATE);
             (void)memcpy(fig, &s[SLIDER_PENDULUM_STATE], sizeof(slider_pendulum_real) * SLIDER_PENDULUM_SWEEP_FIGURES);
-            (void)memcpy(acc, &s[SLIDER_PENDULUM_STATE + SLIDER_PENDULUM_SWEEP_FIGURES], sizeof(slider_pendulum_real) * 8u);
+            (void)memcpy(acc, &s[SLIDER_PENDULUM_STATE + SLIDER_PENDULUM_SWEEP_FIGURES], sizeof(slider_pendulum_real) * 10u);
             done = at;
         } else
 #endif
         {
             (void)memset(state, 0, sizeof(slider_pendulum_real) * (size_t)SLIDER_PENDULUM_STATE);
             slider_pendulum_guess(pv, state);
+            slider_pendulum_sweep_start(fig, acc);
             done = 0;
         }
         st = SLIDER_PENDULUM_OK;
@@ -2032,7 +2145,7 @@ static void slider_pendulum_sp_outputs(slider_pendulum_real t, const slider_pend
     b[4] -= y[4] * qdd[4];
     b[5] -= y[5] * qdd[5];
     slider_pendulum_solve_t(work, iwork, dense, b, lam);
-    if (slider_pendulum_mixed(y) != 0) {
+    if (p[SLIDER_PENDULUM_PP_MIXED] != 0.0) {  /* the call's gate (gate) */
         slider_pendulum_refine_t(q, tr, t, p, b, lam, work, iwork, dense);
     }
     slider_pendulum_reactions_k(q, tr, lam, t, p, reactions);
@@ -2057,6 +2170,7 @@ static int slider_pendulum_sp_instant(slider_pendulum_real t, const slider_pendu
         slider_pendulum_real *kept = SLIDER_PENDULUM_VEC(work, 11);
         (void)memcpy(kept, q, sizeof(slider_pendulum_real) * 6u);  /* the caller's guess, back in q if the call fails */
         slider_pendulum_prepare(p, pp);
+        slider_pendulum_gate(pp, SLIDER_PENDULUM_VEC(work, 0));
         /* outputs not asked for are computed into the work vectors the
            trajectory uses for its own (as instant's) */
         slider_pendulum_real *qd_out = (qd != NULL) ? qd : SLIDER_PENDULUM_VEC(work, 5);

@@ -37,7 +37,7 @@ typedef double slider_pendulum_real;
 #define SLIDER_PENDULUM_NNZ 15          /* structural nonzeros of Phi_q */
 #define SLIDER_PENDULUM_NR 30            /* reaction values (Fx, Fy, T per body role) */
 #define SLIDER_PENDULUM_ROW 55          /* values per instant in a trajectory row */
-#define SLIDER_PENDULUM_WORK 455        /* reals of workspace every solver call needs */
+#define SLIDER_PENDULUM_WORK 456        /* reals of workspace every solver call needs */
 #define SLIDER_PENDULUM_IWORK 6         /* ints of workspace */
 #define SLIDER_PENDULUM_STATE 50       /* reals of trajectory state */
 /* The trajectory state's parts (symid.codegen.c.layout): each one's offset in
@@ -307,7 +307,7 @@ int slider_pendulum_setpoint_at(long whole, slider_pendulum_real frac, const sli
    (per driver: largest |effort| (torque or force), its time, RMS effort
    (trapezoidal time average) and largest |effort x rate|; per constraint
    with reactions: the largest |(Fx, Fy)| on any of its bodies) */
-#define SLIDER_PENDULUM_SWEEP_WORK (SLIDER_PENDULUM_WORK + SLIDER_PENDULUM_STATE + 32 * SLIDER_PENDULUM_ROW + 33)  /* reals of workspace of a sweep */
+#define SLIDER_PENDULUM_SWEEP_WORK (SLIDER_PENDULUM_WORK + SLIDER_PENDULUM_STATE + 32 * SLIDER_PENDULUM_ROW + 35)  /* reals of workspace of a sweep */
 
 /* Variant v (0 <= v < k) takes p + v NP as its parameters and q0 computed
    from them (the file's initial guesses), and solves the n instants

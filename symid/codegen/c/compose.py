@@ -231,7 +231,8 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         used += fr.fixed + fr.normal
     lu = c_lu.context(model, fold_constants, scalar)
     d = describe(model, offset, functions, lu, scalar.lit, fr.fixed + fr.normal if fr else [])
-    npp = off_nu + 3 * nph + (sens.npieces if sens else 0)  # every prepared value: NPP
+    # every prepared value: NPP (with multipliers, the last one the refinement's gate of the call: PP_MIXED)
+    npp = off_nu + 3 * nph + (sens.npieces if sens else 0) + (1 if o.multipliers else 0)
     work = work_size(model) + npp + (sens.work if sens else 0)
     # the trajectory's output vectors (variable, source, work vector): solved
     # straight into the row where it holds the source, else into the work vector
@@ -247,7 +248,7 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
         state=state_layout(ng).size, state_layout=state_layout(ng), vectors=vec,
         lu=lu, phase=c_phase.context(red, off_nu, len(f.params)),
         checks=c_checks.context(outputs, ng, nc, o.velocity, o.multipliers, nr),
-        sweep=c_sweep.context(model, printer, work, offset),
+        sweep=c_sweep.context(model, printer, work, offset, scalar.lit, precision),
         fb=None if dense_fallback(model) else c_fallback.context(model.plan, f.jac, ng),
         d=d, sens=sens, friction=fr, lanes=None, setpoint=setpoint, functions=functions, prepare=prepare,
         uses_powi=any(f"{f.name}_powi(" in e for b in _all_blocks(functions + (sens.functions if sens else []),

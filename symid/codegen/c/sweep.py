@@ -82,6 +82,18 @@ def _reactions(model: CodeModel) -> list[dict[str, Any]]:
 # the same order: the figures are bitwise the same.
 PAIR_TABLE_MIN = 64
 
+# The squared figures (each reaction's |F|^2, each driver's sums of e^2) are
+# kept in units of a per-variant power of two: 1 until a square passes
+# 2^(2 SCALE_BITS) (past ~1.3e154 in double, 1.8e19 in single, a square
+# overflows); from then on every value is scaled (sweep_big), the unit
+# growing in steps of 2^SCALE_BITS so that the largest is at most 1, and
+# every square kept takes the change, exactly. Below the threshold the
+# figures are bitwise those of plain squares, at the cost of a compare per
+# effort and per new force peak (the lanes: one check of their peaks a call).
+# In single the sums keep room for 2^63 instants times seconds.
+SCALE_BITS = {"double": 128, "single": 32}
+MAX_EXPONENT = {"double": 1024, "single": 128}  # every finite value is below 2^MAX_EXPONENT
+
 
 def _pair_table(reactions: list[dict[str, Any]], first_slot: int) -> dict[str, list[int]] | None:
     """Per body role (in `_reactions` order) its row offset, its figure's slot
@@ -102,7 +114,7 @@ def work_size(model: CodeModel, solver_work: int, row_width: int) -> int:
     the solver's own (WORK, prepared parameters included) and its row (ROW)."""
     f = model.flat
     return (solver_work + state_size(model) + SWEEP_ROWS * row_width + len(f.jac) + f.nc
-            + 5 * len(_drivers(model)) + 2)
+            + 5 * len(_drivers(model)) + 4)
 
 
 @dataclass(frozen=True)
@@ -118,6 +130,9 @@ class Sweep:
         drivers: per driver its multiplier's row offset, distance or not, name.
         reactions: per constraint with reactions its figure name and (Fx, Fy) offsets.
         nfig: figures per variant; names: their columns.
+        big2, shrink: literals of 2^(2 SCALE_BITS), the largest square kept
+            in the unit 1, and 2^-SCALE_BITS, a step of the unit's root;
+            steps: how many such steps bring the largest finite value to 1.
     """
 
     pairs: dict[str, list[int]] | None
@@ -129,10 +144,14 @@ class Sweep:
     reactions: list[dict[str, Any]]
     nfig: int
     names: list[str]
+    big2: str
+    shrink: str
+    steps: int
 
 
-def context(model: CodeModel, printer: Callable[[sp.Expr], str], solver_work: int, row_width: int) -> Sweep:
-    """The sweep's part of the C templates' context."""
+def context(model: CodeModel, printer: Callable[[sp.Expr], str], solver_work: int, row_width: int,
+            lit: Callable[[float], str] = repr, precision: str = "double") -> Sweep:
+    """The sweep's part of the C templates' context (lit: a literal of the real type)."""
     mech = model.layout.mechanism
     _, pmap, _ = parameter_map(mech.parameters)
     drivers = _drivers(model)
@@ -152,4 +171,7 @@ def context(model: CodeModel, printer: Callable[[sp.Expr], str], solver_work: in
         reactions=reactions,
         nfig=4 * len(drivers) + len(reactions),
         names=figure_names(model),
+        big2=lit(2.0 ** (2 * SCALE_BITS[precision])),
+        shrink=lit(2.0 ** -SCALE_BITS[precision]),
+        steps=MAX_EXPONENT[precision] // SCALE_BITS[precision],
     )
