@@ -61,6 +61,24 @@ def render(label: str, done: int, total: int | None, elapsed: float, width: int,
     return (head + "|" + fill * filled + " " * (cells - filled) + "|" + tail)[:width]
 
 
+# Streams on which a bar's line is open (shown, not yet ended by a newline).
+# A bar suspended at its `yield` when the consumer fails ends its line only
+# when the generator is closed, which may be after the error is printed:
+# `end_lines` ends them first, so the message starts on a line of its own.
+_OPEN: list[TextIO] = []
+
+
+def end_lines() -> None:
+    """End the line of every bar still open (before a message on stderr)."""
+    while _OPEN:
+        stream = _OPEN.pop()
+        try:
+            stream.write("\n")
+            stream.flush()
+        except (OSError, ValueError):  # a closed or broken stream: nothing to end
+            pass
+
+
 def bar(items: Iterable[Item], total: int | None = None, label: str = "solve",
         stream: TextIO | None = None, environ: Mapping[str, str] | None = None,
         delay: float | None = None, clock: Callable[[], float] = time.monotonic,
@@ -99,10 +117,13 @@ def bar(items: Iterable[Item], total: int | None = None, label: str = "solve",
             if now - start >= wait and now - last >= INTERVAL:
                 out.write("\r" + render(label, done, total, now - start, width, fill, unit).ljust(width))
                 out.flush()
+                if not shown:
+                    _OPEN.append(out)
                 last, shown = now, True
             yield item
     finally:
-        if shown:
+        if shown and out in _OPEN:  # not ended already by end_lines (an error's message)
+            _OPEN.remove(out)
             out.write("\r" + render(label, done, total, clock() - start, width, fill, unit).ljust(width) + "\n")
             out.flush()
 

@@ -16,6 +16,7 @@ import sys
 from types import FrameType
 from typing import Any, Callable, NoReturn, Sequence
 
+from symid import progress
 from symid.cli.options import Parser, UsageError
 from symid.errors import (EXIT_INPUT, EXIT_SIGNAL_BASE, AnalysisError, SymidError, Terminated, check_signal,
                           clear_signals, note_signal)
@@ -117,6 +118,8 @@ def _run(run: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> 
         except Exception:
             check_signal()  # an error a signal caused inside C code (its exception swallowed): the signal's
             raise
+        finally:
+            progress.end_lines()  # a bar whose generator is not yet closed ends its line before any message
         sys.stdout.flush()  # a closed pipe is found here, not at exit where it would be printed
         return status
     except SymidError as exc:

@@ -44,6 +44,30 @@ def test_terminal_shows_the_bar_with_its_rate_and_ends_the_line():
     assert text.count("\r") < 200  # redrawn at most every INTERVAL, not per instant
 
 
+def test_a_message_after_a_failure_in_the_consumer_starts_on_a_line_of_its_own(capsys, monkeypatch):
+    """The consumer fails while the bar is suspended at its yield (a signal
+    landing while rows are written): the generator, still referenced by the
+    traceback, is not closed yet. The CLI's one-line message must not be
+    glued to the bar's line (seen as `...0:19 leftsymid: interrupted`), and
+    the bar writes nothing after it when it is closed at last."""
+    out = Terminal()
+    rows = progress.bar(range(10**6), 10**6, "sweep", stream=out, environ={}, delay=0, clock=ticking(0.2))
+
+    def run(args):  # a subcommand interrupted between two rows
+        for k in rows:
+            if k == 5:
+                raise KeyboardInterrupt
+        return 0
+
+    from symid.cli import entry
+    status = entry._run(run, None)
+    assert status == 130
+    text = out.getvalue()
+    assert text.endswith("\n") and "6/1000000" in text.rstrip("\n").split("\r")[-1], text
+    rows.close()  # the traceback is gone: the generator's finally runs now
+    assert out.getvalue() == text, "the bar wrote again after the message"
+
+
 @pytest.mark.parametrize("ci", ["true", "1", "yes"])
 def test_ci_keeps_it_silent_even_on_a_terminal(ci):
     out = Terminal()
