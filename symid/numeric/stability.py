@@ -22,7 +22,6 @@ from symid.model.analysis import Analysis
 from symid.numeric.evaluator import Array
 
 
-
 @functools.cache
 def _sla():  # type: ignore[no-untyped-def]
     """scipy.linalg, imported on first use: a run on a compiled backend never needs it."""
@@ -273,14 +272,13 @@ class Factor:
 # the larger of their two and its angle's row at least that force times the
 # mechanism's length (Scaling.lref): a row whose terms all vanish (a
 # platform with no horizontal load, a lamp's angle held with no torque)
-# would otherwise ask for a correction of its rounding noise.
-# Where the first solve is at rounding (measured on the bundled
-# examples: <= 2 eps at 95 % of the instants, 50 at the worst) the
-# correction's solve is not made; a 2 g part on a 1 t boom (~1e6) and
-# Andrews' mechanism (~400) are refined. The Python loop's rule (friction and
-# the sensitivities included: they solve through Factor.solve_t); the
-# generated code gates on the masses' spread instead (REFINE_SPREAD, found
-# once a call), its outputs having no length scale for the angle rows.
+# would otherwise ask for a correction of its rounding noise. Where the first
+# solve is at rounding (the bundled examples: <= 2 eps at 95 % of the instants,
+# 50 at the worst) no correction is solved; a 2 g part on a 1 t boom (~1e6)
+# and Andrews' mechanism (~400) are refined. The Python loop's rule (friction
+# and the sensitivities too: they solve through Factor.solve_t); generated
+# code gates on the masses' spread (REFINE_SPREAD, once a call): its outputs
+# have no length scale for the angle rows.
 REFINE_BERR = 16.0
 
 
@@ -347,8 +345,7 @@ class Notes:
 
     def worst_cond(self) -> float:
         """The largest condition estimate above cond_warn in the run (0.0: none, no warning)."""
-        span = self.spans.get("cond")
-        return 0.0 if span is None else float(span.worst)
+        return float(self.spans["cond"].worst) if "cond" in self.spans else 0.0
 
     def lines(self) -> list[str]:
         """The warnings, one line each (without the `symid: warning: ` prefix)."""
