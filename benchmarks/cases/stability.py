@@ -254,7 +254,7 @@ def _plot(result: dict[str, Any], out: Path) -> list[Path]:
 @register("stability", "accuracy near singular positions against 40-digit references, units, a long run's error "
           "and memory", options=_options, report=_plot)
 def stability(ctx: Context) -> dict[str, Any]:
-    instants = 2_000 if ctx.smoke else ctx.options.instants  # fewer: steps of whole turns, a jump
+    instants = 10_000 if ctx.smoke else ctx.options.instants  # fewer: steps of whole turns, a jump
     report: dict[str, Any] = {"eps": EPS}
     report["stress"] = stress_part(ctx.work, ctx.smoke)
     report["units"] = units_part(ctx.work, ["slider_crank"] if ctx.smoke else api.examples())

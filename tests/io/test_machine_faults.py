@@ -28,6 +28,7 @@ from symid import api
 from symid.cli import main
 from symid.io.limits import MAX_BODIES, MAX_FILE_BYTES, MAX_NAME_LENGTH, MAX_STEPS
 from symid.output.results import MAX_TABLE_VALUES
+from shell import default_signals
 
 REPO = Path(__file__).resolve().parents[2]
 SLIDER_CRANK = REPO / "symid" / "examples" / "slider_crank.toml"
@@ -145,10 +146,6 @@ def test_fifo_with_a_reader_receives_the_whole_table(warm, tmp_path):
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
 def test_signal_mid_run_removes_the_temporary_file(tmp_path, signum):
-    def default_signals() -> None:  # as a user's shell starts it, whatever pytest inherited (nohup)
-        for s in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
-            signal.signal(s, signal.SIG_DFL)
-
     # the reference backend builds nothing and takes ~1 ms per instant: far longer than the wait
     proc = subprocess.Popen([sys.executable, "-m", "symid", "solve", str(SLIDER_CRANK), "--backend", "reference",
                              "--steps", "1000000", "-o", "out.csv"], cwd=tmp_path, env=child_env(), text=True,

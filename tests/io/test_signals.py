@@ -28,6 +28,7 @@ from symid import api
 from symid.cli import main
 from symid.errors import note_signal
 from symid.text import plural
+from shell import default_signals
 
 REPO = Path(__file__).resolve().parents[2]
 CRANK = str(api.example("slider_crank"))
@@ -41,11 +42,6 @@ def child_env() -> dict[str, str]:
     env["PYTHONDONTWRITEBYTECODE"] = "1"
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))
     return env
-
-
-def default_signals() -> None:  # as a user's shell starts it, whatever pytest inherited (nohup)
-    for s in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
-        signal.signal(s, signal.SIG_DFL)
 
 
 def ended(proc: subprocess.Popen, signum: int, what: str) -> float:

@@ -22,6 +22,7 @@ from symid import api
 from symid.cli import main
 from symid.study import table as sweep_table
 from symid.study import design as vary
+from shell import default_signals
 
 REPO = Path(__file__).resolve().parents[2]
 CRANK = str(api.example("slider_crank"))
@@ -196,7 +197,8 @@ def test_sigint_mid_sweep_writes_the_finished_variants_and_exits_130(tmp_path):
     master, slave = pty.openpty()
     proc = subprocess.Popen([sys.executable, "-m", "symid", "sweep", CRANK, "--steps", "201",
                              "--grid", "L_rod=0.25:0.35:1000", "--grid", "n=4:6:1000", "-o", str(out)],
-                            stdout=subprocess.PIPE, stderr=slave, stdin=subprocess.DEVNULL, env=env, cwd=tmp_path)
+                            stdout=subprocess.PIPE, stderr=slave, stdin=subprocess.DEVNULL, env=env, cwd=tmp_path,
+                            preexec_fn=default_signals)  # a suite run as a background job ignores SIGINT
     os.close(slave)
     seen = b""
     deadline = time.monotonic() + 120
