@@ -24,110 +24,18 @@ import numpy as np
 import pytest
 
 from symid import api, cli
+from scissor import scissor_lift
 
 BACKENDS = ("reference", "numpy", "casadi", "c")
 
-SCISSOR = """
-[mechanism]
-name = "scissor"
-gravity = [0.0, -9.81]
-
-[parameters]
+SCISSOR = scissor_lift("scissor", """
 L = 1.0
 a0 = 0.6
 c0 = 0.6                       # the arms' angle in q0
 e = 0.0
 m_arm = 5.0
 m_top = 50.0
-
-[analysis]
-t1 = 1.0
-steps = 101
-
-[[body]]
-name = "arm1"
-mass = "m_arm"
-inertia = "m_arm*L^2/12"
-q0 = ["L/2*cos(c0)", "L/2*sin(c0)", "c0"]
-
-[[body]]
-name = "arm2"
-mass = "m_arm"
-inertia = "m_arm*L^2/12"
-q0 = ["L/2*cos(c0)", "L/2*sin(c0)", "pi - c0"]
-
-[[body]]
-name = "foot"
-mass = 1.0
-inertia = 0.01
-q0 = ["L*cos(c0)", 0.0, 0.0]
-
-[[body]]
-name = "platform"
-mass = "m_top"
-inertia = "m_top*L^2/12"
-q0 = ["L/2", "L*sin(c0)", 0.0]
-
-[[constraint]]
-name = "A"
-type = "revolute"
-i = "ground"
-j = "arm1"
-si = [0.0, 0.0]
-sj = ["-L/2", 0.0]
-
-[[constraint]]
-name = "mid"
-type = "revolute"
-i = "arm1"
-j = "arm2"
-si = [0.0, 0.0]
-sj = [0.0, 0.0]
-
-[[constraint]]
-name = "F"
-type = "revolute"
-i = "arm2"
-j = "foot"
-si = ["-L/2", 0.0]
-sj = [0.0, 0.0]
-
-[[constraint]]
-name = "guide"
-type = "translational"
-i = "ground"
-j = "foot"
-si = [0.0, 0.0]
-vi = [1.0, 0.0]
-sj = [0.0, 0.0]
-
-[[constraint]]
-name = "top"
-type = "revolute"
-i = "arm2"
-j = "platform"
-si = ["L/2", 0.0]
-sj = ["-L/2", 0.0]
-
-[[constraint]]
-name = "roller"
-type = "pin_in_slot"
-i = "platform"
-j = "arm1"
-si = [0.0, 0.0]
-vi = [1.0, 0.0]
-sj = ["L/2", 0.0]
-
-[[constraint]]
-name = "drive"
-type = "translational_driver"
-i = "ground"
-j = "foot"
-si = [0.0, 0.0]
-vi = [1.0, 0.0]
-sj = [0.0, 0.0]
-f = "{drive}"
-"""
+""", 101, "c0", "pi - c0", "{drive}", "m_arm", "m_top")
 # the foot's position for arms at a0 (1 - t) + e: flat at t1 when e = 0
 SMOOTH = "L*cos(a0*(1 - t) + e)"
 # the foot pushed at constant speed to where the arms lie flat (the issue's

@@ -18,112 +18,17 @@ from symid import api
 from symid.io.reader import loads
 from symid.numeric import stability
 from symid.numeric.stability import Factor, Scaling, jacobian
+from scissor import scissor_lift
 
-SCISSOR_LAMP = """
-[mechanism]
-name = "scissor_lamp"
-gravity = [0.0, -9.81]
-
-[parameters]
-L = 1.0
-a0 = 0.6
-e = 1e-7
-m_lamp = 2e-5
-
-[analysis]
-t1 = 1.0
-steps = 41
-
-[[body]]
-name = "arm1"
-mass = 5.0
-inertia = "5.0*L^2/12"
-q0 = ["L/2*cos(a0 + e)", "L/2*sin(a0 + e)", "a0 + e"]
-
-[[body]]
-name = "arm2"
-mass = 5.0
-inertia = "5.0*L^2/12"
-q0 = ["L/2*cos(a0 + e)", "L/2*sin(a0 + e)", "pi - a0 - e"]
-
-[[body]]
-name = "foot"
-mass = 1.0
-inertia = 0.01
-q0 = ["L*cos(a0 + e)", 0.0, 0.0]
-
-[[body]]
-name = "platform"
-mass = 50.0
-inertia = "50.0*L^2/12"
-q0 = ["L/2", "L*sin(a0 + e)", 0.0]
-
+# a 20 mg lamp held on the platform by a pin and a fixed angle
+LAMP_BODY = """
 [[body]]
 name = "lamp"
 mass = "m_lamp"
 inertia = "m_lamp"
 q0 = ["L/2", "L*sin(a0 + e) + 0.1", 0.0]
-
-[[constraint]]
-name = "A"
-type = "revolute"
-i = "ground"
-j = "arm1"
-si = [0.0, 0.0]
-sj = ["-L/2", 0.0]
-
-[[constraint]]
-name = "mid"
-type = "revolute"
-i = "arm1"
-j = "arm2"
-si = [0.0, 0.0]
-sj = [0.0, 0.0]
-
-[[constraint]]
-name = "F"
-type = "revolute"
-i = "arm2"
-j = "foot"
-si = ["-L/2", 0.0]
-sj = [0.0, 0.0]
-
-[[constraint]]
-name = "guide"
-type = "translational"
-i = "ground"
-j = "foot"
-si = [0.0, 0.0]
-vi = [1.0, 0.0]
-sj = [0.0, 0.0]
-
-[[constraint]]
-name = "top"
-type = "revolute"
-i = "arm2"
-j = "platform"
-si = ["L/2", 0.0]
-sj = ["-L/2", 0.0]
-
-[[constraint]]
-name = "roller"
-type = "pin_in_slot"
-i = "platform"
-j = "arm1"
-si = [0.0, 0.0]
-vi = [1.0, 0.0]
-sj = ["L/2", 0.0]
-
-[[constraint]]
-name = "drive"
-type = "translational_driver"
-i = "ground"
-j = "foot"
-si = [0.0, 0.0]
-vi = [1.0, 0.0]
-sj = [0.0, 0.0]
-f = "L*cos(a0*(1 - t) + e)"
-
+"""
+LAMP_CONSTRAINTS = """
 [[constraint]]
 name = "lamp_pin"
 type = "revolute"
@@ -139,6 +44,12 @@ i = "platform"
 j = "lamp"
 f = "0"
 """
+SCISSOR_LAMP = scissor_lift("scissor_lamp", """
+L = 1.0
+a0 = 0.6
+e = 1e-7
+m_lamp = 2e-5
+""", 41, "a0 + e", "pi - a0 - e", "L*cos(a0*(1 - t) + e)", more_bodies=LAMP_BODY, more_constraints=LAMP_CONSTRAINTS)
 
 
 def test_near_a_singular_position_refinement_takes_a_light_bodys_multipliers_to_40_digits() -> None:

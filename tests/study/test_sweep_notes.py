@@ -18,107 +18,15 @@ import pytest
 from symid import api
 from symid.cli import main
 from symid.study import table as sweep_table
+from scissor import scissor_lift
 
-SCISSOR = """
-[mechanism]
-name = "scissor_notes"
-gravity = [0.0, -9.81]
-
-[parameters]
+SCISSOR = scissor_lift("scissor_notes", """
 L = 1.0
 a0 = 0.6
 e = 0.05
 m_arm = 5.0
 m_top = 50.0
-
-[analysis]
-t1 = 1.0
-steps = 41
-
-[[body]]
-name = "arm1"
-mass = "m_arm"
-inertia = "m_arm*L^2/12"
-q0 = ["L/2*cos(a0 + e)", "L/2*sin(a0 + e)", "a0 + e"]
-
-[[body]]
-name = "arm2"
-mass = "m_arm"
-inertia = "m_arm*L^2/12"
-q0 = ["L/2*cos(a0 + e)", "L/2*sin(a0 + e)", "pi - a0 - e"]
-
-[[body]]
-name = "foot"
-mass = 1.0
-inertia = 0.01
-q0 = ["L*cos(a0 + e)", 0.0, 0.0]
-
-[[body]]
-name = "platform"
-mass = "m_top"
-inertia = "m_top*L^2/12"
-q0 = ["L/2", "L*sin(a0 + e)", 0.0]
-
-[[constraint]]
-name = "A"
-type = "revolute"
-i = "ground"
-j = "arm1"
-si = [0.0, 0.0]
-sj = ["-L/2", 0.0]
-
-[[constraint]]
-name = "mid"
-type = "revolute"
-i = "arm1"
-j = "arm2"
-si = [0.0, 0.0]
-sj = [0.0, 0.0]
-
-[[constraint]]
-name = "F"
-type = "revolute"
-i = "arm2"
-j = "foot"
-si = ["-L/2", 0.0]
-sj = [0.0, 0.0]
-
-[[constraint]]
-name = "guide"
-type = "translational"
-i = "ground"
-j = "foot"
-si = [0.0, 0.0]
-vi = [1.0, 0.0]
-sj = [0.0, 0.0]
-
-[[constraint]]
-name = "top"
-type = "revolute"
-i = "arm2"
-j = "platform"
-si = ["L/2", 0.0]
-sj = ["-L/2", 0.0]
-
-[[constraint]]
-name = "roller"
-type = "pin_in_slot"
-i = "platform"
-j = "arm1"
-si = [0.0, 0.0]
-vi = [1.0, 0.0]
-sj = ["L/2", 0.0]
-
-[[constraint]]
-name = "drive"
-type = "translational_driver"
-i = "ground"
-j = "foot"
-si = [0.0, 0.0]
-vi = [1.0, 0.0]
-sj = [0.0, 0.0]
-f = "L*cos(a0*(1 - t) + e)"
-"""
+""", 41, "a0 + e", "pi - a0 - e", "L*cos(a0*(1 - t) + e)", "m_arm", "m_top")
 VALUES = ("0.05", "1e-7", "0.1")  # variant 1 near the singular position at t1
 
 
