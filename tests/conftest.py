@@ -20,10 +20,9 @@ def _private_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     if "SYMID_TEST_CACHE" in os.environ:  # reuse between local runs when asked to (shared: content-addressed)
         os.environ["SYMID_CACHE"] = os.environ["SYMID_TEST_CACHE"]
         return
-    run = tmp_path_factory.getbasetemp()
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        run = run.parent  # the run's folder, above this worker's popen-gwN
-    cache = run / "symid-cache"
+    from runshare import run_folder
+
+    cache = run_folder(tmp_path_factory) / "symid-cache"
     cache.mkdir(mode=0o700, exist_ok=True)
     os.environ["SYMID_CACHE"] = str(cache)
 
