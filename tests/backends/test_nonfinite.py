@@ -22,6 +22,7 @@ import stress
 from compare import assert_agree as _agree
 from symid import api
 from symid.cli import main
+from tiers import diagonal
 
 BACKENDS = ("numpy", "c", "casadi", "reference")
 
@@ -99,8 +100,7 @@ def reference_rows(files, tmp_path_factory) -> dict[str, np.ndarray]:
     return out
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-@pytest.mark.parametrize("case", DOMAINS)
+@pytest.mark.parametrize("case, backend", diagonal(list(DOMAINS), BACKENDS))
 def test_a_domain_error_stops_at_its_time_naming_the_element_keeping_the_rows(
         files, reference_rows, tmp_path, capsys, case, backend):
     param, element = DOMAINS[case]

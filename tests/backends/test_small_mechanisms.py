@@ -20,6 +20,7 @@ import sympy as sp
 
 from cbuild import STRICT, needs_cc
 from small_mechanisms import cases
+from tiers import diagonal, first_quick
 from symid import api
 from symid.api import Results
 from symid.cli import main
@@ -62,8 +63,7 @@ def assert_same_table(got: Results, expected: Results, rel: float = 1e-12) -> No
     assert np.array_equal(got.data[:, 0], expected.data[:, 0])
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
-@pytest.mark.parametrize("name", CASES)
+@pytest.mark.parametrize("name, backend", diagonal(list(CASES), BACKENDS))
 def test_small_mechanism_agrees_with_reference(name: str, backend: str) -> None:
     if backend == "c" and shutil.which("cc") is None and shutil.which("gcc") is None:
         pytest.skip("no C compiler")
@@ -73,7 +73,7 @@ def test_small_mechanism_agrees_with_reference(name: str, backend: str) -> None:
 
 
 @needs_cc
-@pytest.mark.parametrize("name", CASES)
+@pytest.mark.parametrize("name", first_quick(list(CASES)))  # strict flags over every case: slow tier
 def test_generated_c_of_small_mechanism_compiles_with_strict_flags(name: str, tmp_path: Path) -> None:
     """The source the C backend built above (from the cache: generated once)."""
     from symid.symbolic.assemble import assemble

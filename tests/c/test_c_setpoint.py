@@ -22,6 +22,7 @@ from symid import api
 from symid.model.mechanism import DRIVER_TYPES
 from small_mechanisms import _body, _constraint, _coordinate, text
 from setpoints import BAD_ARGUMENT, G, J, L, M, OK, PENDULUM, Solver, expression_drivers, laws, needs_cc
+from tiers import diagonal, first_quick
 
 
 
@@ -70,8 +71,7 @@ SINGLE_BOUND = 1e-5
 
 
 @needs_cc
-@pytest.mark.parametrize("precision", ["double", "single"])
-@pytest.mark.parametrize("example", api.examples())
+@pytest.mark.parametrize("example, precision", diagonal(api.examples(), ("double", "single")))
 def test_setpoints_of_the_compiled_law_reproduce_instant(doubles, tmp_path_factory, example: str,
                                                          precision: str) -> None:
     reference = _solver(doubles, tmp_path_factory, example, "double")
@@ -110,8 +110,7 @@ EXPRESSION_DRIVEN = ("four_bar", "disc_cam", "slider_pendulum")
 
 
 @needs_cc
-@pytest.mark.parametrize("precision", ["double", "single"])
-@pytest.mark.parametrize("example", EXPRESSION_DRIVEN)
+@pytest.mark.parametrize("example, precision", diagonal(EXPRESSION_DRIVEN, ("double", "single")))
 def test_setpoints_of_an_expression_driver_reproduce_instant(tmp_path: Path, example: str, precision: str) -> None:
     """An expression driver row g(q) - f(t) is a driver of setpoint (its f
     the set-point), listed in the order of its row among the others."""
@@ -135,8 +134,7 @@ PENDULUMS.update({row: (PENDULUM.replace(_coordinate("bar", "phi", "sin(t)"),
 
 
 @needs_cc
-@pytest.mark.parametrize("precision", ["double", "single"])
-@pytest.mark.parametrize("drive", PENDULUMS)
+@pytest.mark.parametrize("drive, precision", diagonal(list(PENDULUMS), ("double", "single")))
 def test_computed_torque_of_a_pendulum_is_the_closed_form(tmp_path: Path, drive: str, precision: str) -> None:
     source, driver, sign = PENDULUMS[drive]
     solver = Solver(source, tmp_path, precision)
@@ -254,7 +252,7 @@ assert 'type = "expression"' in SENSITIVITY_CASES["expression_offset_pendulum"][
 
 
 @needs_cc
-@pytest.mark.parametrize("case", SENSITIVITY_CASES)
+@pytest.mark.parametrize("case", first_quick(list(SENSITIVITY_CASES)))
 def test_setpoint_sensitivities_are_central_differences_with_the_setpoints_held(tmp_path: Path, case: str) -> None:
     """setpoint_sensitivity against central differences of setpoint itself,
     the set-points held: a parameter read by the driver's row moves the

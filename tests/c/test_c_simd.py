@@ -28,6 +28,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks import ladder  # noqa: E402
+from tiers import diagonal
 
 DP = ctypes.POINTER(ctypes.c_double)
 FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared"]
@@ -75,8 +76,7 @@ def _build(ctx: c_target.CContext, folder: Path, form: str, cc: str = "cc") -> c
     return ctypes.CDLL(str(folder / "s.so"))
 
 
-@pytest.mark.parametrize("example", ["slider_crank", "four_bar", "excavator", "ladder_5"])
-@pytest.mark.parametrize("kind", ["inverse_dynamics", "statics"])
+@pytest.mark.parametrize("example, kind", diagonal(["slider_crank", "four_bar", "excavator", "ladder_5"], ["inverse_dynamics", "statics"]))
 def test_simd_passes_give_the_scalar_codes_rows_and_state_bitwise(tmp_path: Path, example: str, kind: str) -> None:
     # the ladder of 5: 11 bodies, so the four-body AVX pass of the sines and cosines runs, with a tail
     ctx = _context(ladder.write(5, tmp_path, steps=61) if example == "ladder_5" else example, kind)

@@ -20,6 +20,7 @@ import pytest
 from symid import api
 from symid.io.reader import load, loads
 from setpoints import PENDULUM, expression_drivers, laws
+from tiers import first_quick
 
 fmpy = pytest.importorskip("fmpy", reason="FMPy is the test extra's FMI importer (pip install fmpy)")
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
@@ -98,7 +99,7 @@ def test_fmu_validates_and_matches_solve_on_every_example(tmp_path: Path, exampl
 
 
 @needs_cc
-@pytest.mark.parametrize("example", ["four_bar", "slider_pendulum"])
+@pytest.mark.parametrize("example", first_quick(["four_bar", "slider_pendulum"]))
 def test_fmu_takes_an_expression_driver_as_inputs_and_matches_solve(tmp_path: Path, example: str) -> None:
     """The examples' angle drivers written as expression rows g(q) - f(t):
     each is a driver whose three set-points are inputs (the slider

@@ -25,6 +25,7 @@ from symid.model.expr import parse_expression
 from symid.io.reader import load, loads
 from symid.model.mechanism import T
 from symid.model.motion import LAWS
+from tiers import diagonal
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler")
 SLIDER_CRANK = api.example("slider_crank").read_text()
@@ -93,8 +94,8 @@ def torque_bound(h: float, j_max: float) -> float:
 # -- motion from a table -------------------------------------------------------
 
 
-@pytest.mark.parametrize("backend", ["reference", "numpy", pytest.param("c", marks=needs_cc)])
-@pytest.mark.parametrize("h", [2e-3, 1e-3])
+@pytest.mark.parametrize("backend, h", [pytest.param(*p.values, id=p.id, marks=[*p.marks, needs_cc] if p.values[0] == "c" else p.marks)
+                                        for p in diagonal(["reference", "numpy", "c"], [2e-3, 1e-3])])
 def test_table_sampled_from_a_formula_recovers_its_motor_torque(tmp_path, formula_run, backend, h) -> None:
     res = api.solve(tabled_mechanism(tmp_path, h), backend=backend)
     assert res.error is None

@@ -15,6 +15,7 @@ from benchmarks import ladder
 from symid import api
 from symid.backends.prepare import prepare
 from symid.numeric.stability import SINGULAR_RCOND, SPARSE_MIN, Factor, Scaling
+from tiers import first_quick
 
 N = 100  # ng 603: just past SPARSE_MIN
 OUTPUTS = ["q", "qdot", "qddot", "lambda", "reactions", "cond"]
@@ -58,7 +59,7 @@ def test_a_dependent_row_is_singular_sparse_as_dense(path: Path) -> None:
     assert Factor(jac, scaling).rcond <= SINGULAR_RCOND
 
 
-@pytest.mark.parametrize("backend", ["reference", "numpy", "casadi"])
+@pytest.mark.parametrize("backend", first_quick(["reference", "numpy", "casadi"]))  # one Python loop, three evaluators
 def test_the_python_loop_of_a_large_mechanism_holds_nothing_nc_by_ng(path: Path, backend: str,
                                                                      monkeypatch) -> None:
     """The cond column asks for the Python loop at every instant; the dense Phi_q is

@@ -23,6 +23,7 @@ from symid import api, backends
 from symid.cli import main
 from symid.output.results import write_csv
 from cli_files import SLIDER_CRANK, base_text, read_csv, set_line, with_analysis
+from tiers import diagonal
 
 REPO = Path(__file__).resolve().parents[2]
 BACKENDS = ("numpy", "c", "casadi", "reference")
@@ -160,8 +161,7 @@ def summary_lines(stdout: str) -> list[str]:
     return [line for line in stdout.splitlines() if re.match(r"^\w+: peak ", line)]
 
 
-@pytest.mark.parametrize("subset", sorted(SUBSETS))
-@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("subset, backend", diagonal(sorted(SUBSETS), BACKENDS))
 def test_output_subset_rows_are_as_wide_as_the_header_and_equal_the_full_run(
         tmp_path: Path, capsys, backend: str, subset: str, full_reference) -> None:
     available(backend)

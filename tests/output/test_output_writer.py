@@ -25,6 +25,7 @@ import pytest
 from symid import api
 from symid.cli import main
 from symid.io.folder import MANIFEST
+from tiers import first_quick
 
 REPO = Path(__file__).resolve().parents[2]
 CRANK = str(api.example("slider_crank"))
@@ -162,7 +163,7 @@ TABLES = [(SWEEP, ".parquet"), (SWEEP, ".csv"), (SOLVE, ".npz"), (SOLVE, ".parqu
 TABLE_IDS = ["sweep-parquet", "sweep-csv", "solve-npz", "solve-parquet"]
 
 
-@pytest.mark.parametrize("command, suffix", TABLES, ids=TABLE_IDS)
+@pytest.mark.parametrize("command, suffix", first_quick(TABLES, keep=2, ids=TABLE_IDS))
 def test_a_table_over_a_file_size_limit_is_exit_2_and_the_old_one_kept(tmp_path, capsys, command, suffix):
     (tmp_path / "warm").mkdir()  # the solver built first: the limit must hit the table, not the cache
     assert run([*command, "-o", str(tmp_path / "warm" / f"out{suffix}")], capsys)[0] == 0
@@ -296,8 +297,8 @@ def test_no_command_leaves_a_file_in_the_current_folder(tmp_path):
     assert not [p for p in out.rglob("*") if ".tmp" in p.name or p.name.startswith(".symid-generate.")]
 
 
-@pytest.mark.parametrize("command, stem", [(SOLVE, "slider_crank"), (SWEEP, "slider_crank_sweep")],
-                         ids=["solve", "sweep"])
+@pytest.mark.parametrize("command, stem", first_quick([(SOLVE, "slider_crank"), (SWEEP, "slider_crank_sweep")],
+                                                     ids=["solve", "sweep"]))
 def test_plots_of_a_table_sent_to_a_fifo_go_to_the_current_folder_named_after_the_mechanism(tmp_path, command, stem):
     """`-o PIPE --plot`: the pictures cannot go beside a stream (they were
     written as /dev/null_figures.png); they go to the current folder, named

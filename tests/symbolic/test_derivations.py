@@ -16,6 +16,7 @@ from symid.symbolic import symbols as s
 from symid.symbolic.assemble import assemble
 from symid.symbolic.derive import _derive_constraint, derive_constraint, derive_force, reaction
 from symid.model.mechanism import Body, Element, Mechanism
+from tiers import first_quick
 
 # -- the families ---------------------------------------------------------------
 
@@ -328,7 +329,7 @@ def test_reactions_reduce_to_reference_table_at_consistent_configurations(varian
 
 # -- 5: reactions do not depend on the sign convention of a row -----------------
 
-@pytest.mark.parametrize("name", ["revolute", "pin_in_slot", "translational", "gear_on_link", "rack_and_pinion"])
+@pytest.mark.parametrize("name", first_quick(["revolute", "rack_and_pinion", "pin_in_slot", "translational", "gear_on_link"], keep=2))
 def test_reaction_unchanged_when_a_row_and_its_multiplier_change_sign(name):
     der = derive_constraint(name)
     lam = sp.Matrix(der.lam)
