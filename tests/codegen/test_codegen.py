@@ -28,6 +28,7 @@ from symid.codegen import c as c_target
 from symid.codegen.c import layout as c_layout
 from symid.codegen.c import lu as c_lu
 from symid.io.reader import load, loads
+from tiers import first_quick
 
 ROOT = Path(__file__).resolve().parents[2]
 GENERATED_BACKENDS = ("numpy", "c")
@@ -122,7 +123,7 @@ def _instant(lib: ctypes.CDLL, name: str, ctx: c_target.CContext, t: float, q: n
 
 
 @needs_cc
-@pytest.mark.parametrize("fallback", ["dense", "sparse"])
+@pytest.mark.parametrize("fallback", first_quick(["sparse", "dense"]))
 def test_fixed_pivot_too_small_falls_back_and_stays_exact(fallback: str, tmp_path: Path,
                                                           monkeypatch: pytest.MonkeyPatch) -> None:
     """Two cables: where a planned pivot fails at run time the solver
@@ -372,6 +373,7 @@ def test_every_generated_file_names_symid_template_mechanism_and_do_not_edit(tmp
             assert ".j2" in head and str(ROOT) not in path.read_text()
 
 
+@pytest.mark.slow  # generates every bundled example on every target (sympy): CI checks it on every commit
 def test_generated_folder_is_current(tmp_path: Path) -> None:
     """generated/ holds every example's output; `symid generate --examples` rewrites it."""
     committed = ROOT / "generated"

@@ -214,6 +214,7 @@ def test_endless_motion_table_is_read_only_up_to_the_limit(tmp_path, capsys):
     assert "constraint 'motor' key 'f'" in line and "/dev/zero" in line and str(MAX_FILE_BYTES) in line, line
 
 
+@pytest.mark.slow  # reads and lays out a file of 9000 bodies
 def test_nine_thousand_bodies_on_numpy_are_refused_up_front(tmp_path, capsys, monkeypatch):
     """9000 driven pendulums on numpy: its setup of 80 kB per coordinate (2.2 GiB),
     refused by the memory estimate before anything is derived or cached."""

@@ -105,6 +105,7 @@ def test_table_sampled_from_a_formula_recovers_its_motor_torque(tmp_path, formul
     assert err >= bound / 100, "suspiciously exact: is the table really what was solved?"
 
 
+@pytest.mark.slow  # solves the tabled run at several step sizes
 def test_torque_error_falls_as_h_squared(tmp_path, formula_run) -> None:
     errors = []
     for h in (4e-3, 2e-3, 1e-3):
@@ -384,7 +385,8 @@ def cycloidal_mechanism(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-@pytest.mark.parametrize("backend", ["numpy", pytest.param("c", marks=needs_cc), "casadi"])
+@pytest.mark.parametrize("backend", [pytest.param("c", marks=needs_cc), pytest.param("numpy", marks=pytest.mark.slow),
+                                     pytest.param("casadi", marks=pytest.mark.slow)])  # one law: c in the quick tier
 def test_cycloidal_driver_agrees_on_every_backend(cycloidal_mechanism, backend) -> None:
     reference = api.solve(cycloidal_mechanism, backend="reference").data
     got = api.solve(cycloidal_mechanism, backend=backend).data
@@ -411,7 +413,8 @@ def hand_at(t: np.ndarray, x0: float, dur: float, h: float) -> tuple[np.ndarray,
             np.where(inside, 2 * np.pi * h / dur**2 * np.sin(2 * np.pi * u), 0.0))
 
 
-@pytest.mark.parametrize("backend", ["reference", "numpy", pytest.param("c", marks=needs_cc), "casadi"])
+@pytest.mark.parametrize("backend", [pytest.param("c", marks=needs_cc)] + [pytest.param(b, marks=pytest.mark.slow)
+                                                                    for b in ("reference", "numpy", "casadi")])  # c: quick
 def test_tabled_driver_agrees_on_every_backend(tmp_path, backend) -> None:
     path = tabled_mechanism(tmp_path, 2e-3)
     reference = api.solve(path, backend="reference").data

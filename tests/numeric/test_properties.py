@@ -170,6 +170,7 @@ def test_the_four_bar_file_is_a_four_bar():
     assert len(mech.bodies) == 3 and [c.type for c in mech.constraints].count("revolute") == 4
 
 
+@pytest.mark.slow  # a four-bar derived and solved per drawn example, on every backend
 @SETTINGS
 @given(values=crank_rockers())
 def test_random_four_bars_balance_power_and_forces_on_every_backend(files, values):

@@ -256,6 +256,7 @@ def test_generate_onto_a_full_disk_leaves_the_old_folder_byte_for_byte(tiny_disk
     assert contents(out)["four_bar_solver.c"] != before["four_bar_solver.c"]
 
 
+@pytest.mark.slow  # generates the four-bar twice, once in a child under the limit
 def test_generate_over_a_file_size_limit_leaves_the_old_folder_byte_for_byte(tmp_path, capsys):
     out = tmp_path / "fb"
     before = old_and_new(out)

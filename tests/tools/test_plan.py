@@ -20,6 +20,7 @@ from symid.cli import solve as solve_command
 
 from symid.tools import plan
 from symid.errors import AnalysisError
+from tiers import first_quick
 
 REPO = Path(__file__).resolve().parents[2]
 SLIDER_CRANK = api.example("slider_crank")
@@ -45,7 +46,7 @@ def run_subprocess(args: list[str], cwd: Path, cache: Path) -> tuple[subprocess.
     return proc, json.loads(modules)
 
 
-@pytest.mark.parametrize("backend", backends_here())
+@pytest.mark.parametrize("backend", first_quick(backends_here()))  # one planner; c: the slow tier
 def test_warm_run_imports_no_sympy_and_repeats_the_cold_run(tmp_path, backend):
     """Same CSV bytes, stdout, stderr (with a warning) and exit status as the
     normal path; the warm run never imports sympy."""
