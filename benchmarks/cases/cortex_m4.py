@@ -27,8 +27,6 @@ from benchmarks.cases import register
 from benchmarks.processes import ROOT
 from benchmarks.run import Context
 from symid import api
-from symid.codegen import c as c_target
-from symid.codegen.model import code_model
 from symid.io.reader import load
 
 BOARD = ROOT / "tests" / "c" / "m4"
@@ -75,6 +73,9 @@ def _size(obj: Path) -> dict[str, int]:
 
 
 def example(ctx: Context, name: str) -> dict[str, Any]:
+    from symid.codegen import c as c_target  # here: every harness process imports this module (the registry)
+    from symid.codegen.model import code_model
+
     model = code_model(load(api.example(name)))
     n1, n2 = (2, 4) if ctx.smoke else (3, 13)
     out: dict[str, Any] = {}
