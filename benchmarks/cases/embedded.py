@@ -36,8 +36,6 @@ from typing import Any, Sequence
 import numpy as np
 
 from symid import api
-from symid.codegen.model import code_model
-from symid.codegen import c as c_target
 from symid.io.reader import load
 
 from benchmarks.cases import register
@@ -52,6 +50,9 @@ GROUP_FLOOR = 1e-3
 
 def build(name: str, precision: str, folder: Path) -> tuple[Path, Any]:
     """Generate one example's C in one precision and link the driver."""
+    from symid.codegen import c as c_target  # here: every harness process imports this module (the registry)
+    from symid.codegen.model import code_model
+
     model = code_model(load(api.example(name)))
     c_target.generate(model, folder, precision=precision)
     exe = folder / "driver"
@@ -132,6 +133,8 @@ def arm(name: str, precision: str, level: str, folder: Path) -> dict[str, Any]:
 
 def example(name: str, quick: bool, work: Path) -> dict[str, Any]:
     """Every figure of one example."""
+    from symid.codegen import c as c_target
+
     out: dict[str, Any] = {}
     exes, models = {}, {}
     for precision in ("double", "single"):

@@ -32,7 +32,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
 
 from symid import api
 
@@ -61,6 +60,8 @@ def _guess(order: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, h: float,
 
 def python_newton(study: api.Study, order: int, tol: float, n: int) -> dict[str, Any]:
     """n instants of the study's grid with a predictor of the given order."""
+    import scipy.linalg as sla  # here: every harness process imports this module (the registry), few call this
+
     ev, a = study.evaluator, study.analysis
     h = (a.t1 - a.t0) / (a.steps - 1)
     index = motor_reaction_index(study)
