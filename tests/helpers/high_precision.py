@@ -182,6 +182,11 @@ class Instant:
         self._applied, self._mass = fn(applied), fn(mass)
         self._reactions = fn([e for c in mech.constraints for e in reactions[c.name]])
         self._friction = fn(friction) if friction else None
+        # only each joint's normal force depends on the multipliers: the fixed-point
+        # iteration evaluates those alone (the rest once per instant)
+        normals = friction[1::self.fw]
+        assert not any(set(lam) & e.free_symbols for k, e in enumerate(friction) if k % self.fw != 1)
+        self._normals = fn(normals) if friction else None
         self._starts = {}
         at = 0
         for c in mech.constraints:
@@ -218,12 +223,14 @@ class Instant:
             # with friction: Phi_q^T lam = rhs + G f(lam), by fixed-point
             # iteration (a contraction for these friction coefficients) to 40 digits
             fw, ng = self.fw, self.ng
+            v = self._friction(q, qdl, list(lam), t, p)  # all but the normal forces: fixed at this instant
             for _ in range(400):
-                v = self._friction(q, qdl, list(lam), t, p)
+                normals = self._normals(q, qdl, list(lam), t, p)
                 f = []
                 total = mpmath.matrix(rhs)
                 for k in range(self.nf):
-                    speed, normal, c, visc, vs = v[k * fw:k * fw + 5]
+                    speed, c, visc, vs = v[k * fw], *v[k * fw + 2:k * fw + 5]
+                    normal = normals[k]
                     s = mpmath.tanh(speed / vs) if vs > 0 else mpmath.sign(speed)
                     f.append(-(c * s * normal + visc * speed))
                     for r in range(ng):
