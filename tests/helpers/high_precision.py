@@ -27,6 +27,51 @@ from symid.symbolic.friction import ARM_INV, derive_friction
 DIGITS = 40
 
 
+class _LU:
+    """Gaussian elimination with partial pivoting of a square matrix of mpf,
+    factored once and solved for any number of right-hand sides: the same
+    40-digit solution as mpmath.lu_solve, on plain lists (mpmath's matrix
+    indexing made its LU 20 times slower than its arithmetic)."""
+
+    @mpmath.extraprec(10)  # as mpmath.lu_solve works
+    def __init__(self, rows) -> None:  # type: ignore[no-untyped-def]
+        a = [[mpmath.mpf(e) for e in r] for r in rows]
+        n = len(a)
+        perm = list(range(n))
+        for k in range(n):
+            p = max(range(k, n), key=lambda i: abs(a[i][k]))
+            if not a[p][k]:
+                raise ZeroDivisionError("matrix is numerically singular")
+            if p != k:
+                a[k], a[p] = a[p], a[k]
+                perm[k], perm[p] = perm[p], perm[k]
+            pivot, row_k = a[k][k], a[k]
+            for i in range(k + 1, n):
+                row_i = a[i]
+                f = row_i[k] / pivot
+                row_i[k] = f
+                if f:
+                    for j in range(k + 1, n):
+                        row_i[j] -= f * row_k[j]
+        self.a, self.perm, self.n = a, perm, n
+
+    @mpmath.extraprec(10)
+    def solve(self, b) -> mpmath.matrix:  # type: ignore[no-untyped-def]
+        a, n = self.a, self.n
+        x = [mpmath.mpf(b[i]) for i in self.perm]
+        for i in range(n):
+            row = a[i]
+            x[i] -= mpmath.fsum(row[j] * x[j] for j in range(i)) if i else 0
+        for i in reversed(range(n)):
+            row = a[i]
+            x[i] = (x[i] - mpmath.fsum(row[j] * x[j] for j in range(i + 1, n))) / row[i]
+        return mpmath.matrix(x)
+
+
+def _transposed(rows: list[list]) -> list[list]:
+    return [list(c) for c in zip(*rows)]
+
+
 def _base_only(expr: sp.Expr, parameters: Mapping[str, sp.Expr]) -> sp.Expr:
     out = sp.sympify(expr)
     for _ in range(len(parameters) + 1):
@@ -137,6 +182,11 @@ class Instant:
         self._applied, self._mass = fn(applied), fn(mass)
         self._reactions = fn([e for c in mech.constraints for e in reactions[c.name]])
         self._friction = fn(friction) if friction else None
+        # only each joint's normal force depends on the multipliers: the fixed-point
+        # iteration evaluates those alone (the rest once per instant)
+        normals = friction[1::self.fw]
+        assert not any(set(lam) & e.free_symbols for k, e in enumerate(friction) if k % self.fw != 1)
+        self._normals = fn(normals) if friction else None
         self._starts = {}
         at = 0
         for c in mech.constraints:
@@ -150,20 +200,21 @@ class Instant:
             q = [mpmath.mpf(v) for v in q_guess]
             zeros_v, zeros_l = [0] * self.ng, [0] * self.nc
             for _ in range(60):
-                phi = mpmath.matrix(self._phi(q, zeros_v, zeros_l, t, p))
-                dq = mpmath.lu_solve(mpmath.matrix(self._jac(q, zeros_v, zeros_l, t, p)), -phi)
+                phi = self._phi(q, zeros_v, zeros_l, t, p)
+                dq = _LU(self._jac(q, zeros_v, zeros_l, t, p)).solve([-e for e in phi])
                 q = [a + b for a, b in zip(q, dq)]
                 if mpmath.norm(dq, mpmath.inf) < mpmath.mpf(10) ** (-DIGITS + 5):
                     break
-            jac = mpmath.matrix(self._jac(q, zeros_v, zeros_l, t, p))
-            qd = mpmath.lu_solve(jac, mpmath.matrix(self._nu(q, zeros_v, zeros_l, t, p)))
+            jac = self._jac(q, zeros_v, zeros_l, t, p)
+            lu, lu_t = _LU(jac), _LU(_transposed(jac))  # Phi_q for the rates, Phi_q^T for the multipliers
+            qd = lu.solve(self._nu(q, zeros_v, zeros_l, t, p))
             qdl = list(qd)
-            qdd = mpmath.lu_solve(jac, mpmath.matrix(self._gamma(q, qdl, zeros_l, t, p)))
+            qdd = lu.solve(self._gamma(q, qdl, zeros_l, t, p))
             rhs = mpmath.matrix(self._applied(q, qdl, zeros_l, t, p))
             mass = self._mass(q, qdl, zeros_l, t, p)
             for k in range(self.ng):
                 rhs[k] -= mass[k] * qdd[k]
-            lam = mpmath.lu_solve(jac.T, rhs)
+            lam = lu_t.solve(rhs)
             out = {"q": mpmath.matrix(q), "qd": qd, "qdd": qdd}
             if self._friction is None:
                 out["lam"] = lam
@@ -172,17 +223,19 @@ class Instant:
             # with friction: Phi_q^T lam = rhs + G f(lam), by fixed-point
             # iteration (a contraction for these friction coefficients) to 40 digits
             fw, ng = self.fw, self.ng
+            v = self._friction(q, qdl, list(lam), t, p)  # all but the normal forces: fixed at this instant
             for _ in range(400):
-                v = self._friction(q, qdl, list(lam), t, p)
+                normals = self._normals(q, qdl, list(lam), t, p)
                 f = []
                 total = mpmath.matrix(rhs)
                 for k in range(self.nf):
-                    speed, normal, c, visc, vs = v[k * fw:k * fw + 5]
+                    speed, c, visc, vs = v[k * fw], *v[k * fw + 2:k * fw + 5]
+                    normal = normals[k]
                     s = mpmath.tanh(speed / vs) if vs > 0 else mpmath.sign(speed)
                     f.append(-(c * s * normal + visc * speed))
                     for r in range(ng):
                         total[r] += v[k * fw + 5 + r] * f[k]
-                new = mpmath.lu_solve(jac.T, total)
+                new = lu_t.solve(total)
                 moved = mpmath.norm(new - lam, mpmath.inf)
                 lam = new
                 if moved < mpmath.mpf(10) ** (-DIGITS + 5):

@@ -122,14 +122,22 @@ def _solved(which: str, backend: str) -> api.Results:
 
 
 @functools.cache
+def _instant(which: str):  # type: ignore[no-untyped-def]
+    """The 40-digit instant of a mechanism, derived once for both instants."""
+    from high_precision import Instant
+
+    return Instant(_mechanism(which))
+
+
+@functools.cache
 def _truth(which: str, k: int) -> dict[str, float]:
     """d(column)/d(name) at instant k by central differences (step 1e-15 of
     the parameter) of the 40-digit solver: truncation ~1e-30 times the third
     derivative (1e12 at most through tanh(v / v_smooth)), rounding 1e-40 / 1e-15."""
-    from high_precision import DIGITS, Instant
+    from high_precision import DIGITS
 
     mech = _mechanism(which)
-    hp = Instant(mech)
+    hp = _instant(which)
     study = api.prepare(mech, "reference", steps=STEPS)
     plain = _solved(which, "reference")
     header = study.columns()

@@ -5,14 +5,16 @@ balance, and CasADi's own automatic differentiation of the generated instant."""
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 import pytest
 
+from runshare import key_of, shared_value
+from sensitivity_runs import solved
 from symid import api
 from symid.model.mechanism import parameter_symbol
 from symid.model.params import base_names
+from symid.output.results import columns
+from symid.symbolic.assemble import assemble
 from symid.symbolic.columns import GROUP_SUFFIXES
 
 # friction: tests/numeric/test_friction_sensitivity.py. The scissor boom: its
@@ -60,40 +62,56 @@ def _kind(column: str) -> str:
     return next((g for g, names in GROUP_SUFFIXES.items() if suffix in names), "force")
 
 
-@functools.cache
-def _truth(example: str) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+_TRUTHS: dict[str, tuple[dict[str, dict[str, np.ndarray]], dict[str, float]]] = {}
+
+
+def _truth(example: str, factory: pytest.TempPathFactory) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, float]]:
+    """_differences(example), computed once per run: its tests (every backend, the
+    40-digit one's scales) fall on either xdist worker, and each computed it."""
+    if example not in _TRUTHS:
+        key = key_of("test_sensitivity._differences", example, api.example(example), STEPS, REL_OF.get(example, REL))
+        _TRUTHS[example] = shared_value(factory, key, lambda: _differences(example))
+    return _TRUTHS[example]
+
+
+def _differences(example: str) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, float]]:
     """The differences at two steps (h and h/2) and each sensitivity column's scale."""
     study = api.prepare(api.example(example), "numpy", steps=STEPS)
     names = base_names(study.mechanism.parameters)
     rel = REL_OF.get(example, REL)
     coarse, fine = _stencil(study, names, rel), _stencil(study, names, rel / 2)
     plain = study.solve()
+    # floor for sensitivities that vanish (an angle's by a mass, or the
+    # x of a body that stays on its axis): 1% of the peak of the columns
+    # of the same kind (every body's vx, say) per unit relative change
+    # of the parameter, above the differences' rounding (eps |column| / step).
+    # The peaks per suffix and per kind are taken once (not once per column and parameter)
+    top = {c: float(np.abs(plain[c]).max()) for c in plain.columns}
+    by_suffix: dict[str, float] = {}
+    for c in plain.columns:
+        by_suffix[c.rsplit(".", 1)[-1]] = max(by_suffix.get(c.rsplit(".", 1)[-1], 0.0), top[c])
+    by_kind: dict[str, float] = {}
+    for c in plain.columns[1:]:  # a distance driver's T is 0
+        by_kind[_kind(c)] = max(by_kind.get(_kind(c), 0.0), top[c])
     scale = {}
     for key in fine:
         if key.startswith("d(t)/"):
             continue
         column, name = key[2:].split(")/d(")
-        # floor for sensitivities that vanish (an angle's by a mass, or the
-        # x of a body that stays on its axis): 1% of the peak of the columns
-        # of the same kind (every body's vx, say) per unit relative change
-        # of the parameter, above the differences' rounding (eps |column| / step)
-        suffix = column.rsplit(".", 1)[1]
-        peers = [c for c in plain.columns if c.rsplit(".", 1)[-1] == suffix]
-        kind = [c for c in plain.columns[1:] if _kind(c) == _kind(column)]  # a distance driver's T is 0
-        peak = max(max(np.abs(plain[c]).max() for c in peers), 1e-3 * max(np.abs(plain[c]).max() for c in kind))
+        peak = max(by_suffix[column.rsplit(".", 1)[1]], 1e-3 * by_kind[_kind(column)])
         value = abs(study.values[parameter_symbol(name[:-1])])
         scale[key] = max(np.abs(fine[key]).max(), peak / max(value, 1e-2) * 1e-2, 1e-9)
-    return {"coarse": coarse, "fine": fine}, scale  # type: ignore[return-value]
+    return {"coarse": coarse, "fine": fine}, scale
 
 
 @pytest.mark.parametrize("example", EXAMPLES)
-def test_differences_reach_the_bound_they_are_used_for(example: str) -> None:
+def test_differences_reach_the_bound_they_are_used_for(example: str, tmp_path_factory) -> None:
     """Two step sizes of the extrapolated differences agree to 2e-9 of each
     column's scale: their truncation is gone and what is left is the runs'
     rounding over the step (worst: the excavator's bucket.alpha by L_bucket,
     1e-12 rad/s^2 absolute). The sensitivities meet 1e-9 against them; the
     CasADi test below is the tighter (1e-10) independent check."""
-    fd, scale = _truth(example)
+    fd, scale = _truth(example, tmp_path_factory)
     worst = max(np.abs(fd["coarse"][k] - fd["fine"][k]).max() / scale[k] for k in scale)
     assert worst < 2e-9
 
@@ -108,12 +126,12 @@ FEW_ON_C = {"andrews_squeezer": 3, "excavator": 3}
 
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("example", EXAMPLES)
-def test_sensitivities_match_central_differences_to_1e_9_of_peak(example: str, backend: str) -> None:
-    fd, scale = _truth(example)
+def test_sensitivities_match_central_differences_to_1e_9_of_peak(example: str, backend: str, tmp_path_factory) -> None:
+    fd, scale = _truth(example, tmp_path_factory)
     names = base_names(api.load_mechanism(api.example(example)).parameters)
     if backend == "c" and example in FEW_ON_C:
         names = names[:FEW_ON_C[example]]
-    results = api.solve(api.example(example), backend, sensitivity=names, steps=STEPS)
+    results = solved(tmp_path_factory, example, backend, names, STEPS)  # the disc cam's: the expressions' test's too
     assert results.error is None
     sens = [c for c in results.columns if c.startswith("d(")]
     assert sens, "the default columns (efforts and reactions) are present"
@@ -177,7 +195,7 @@ def test_sensitivities_agree_with_casadi_automatic_differentiation(example: str,
 
 
 @pytest.mark.parametrize("example", EXAMPLES)
-def test_sensitivities_match_40_digit_central_differences(example: str) -> None:
+def test_sensitivities_match_40_digit_central_differences(example: str, tmp_path_factory) -> None:
     """Central differences (step 1e-12) of a 40-digit instant solver
     (`high_precision`), exact to ~1e-20, at an interior instant."""
     from high_precision import DIGITS, Instant
@@ -187,10 +205,10 @@ def test_sensitivities_match_40_digit_central_differences(example: str) -> None:
     path = api.example(example)
     mech = api.load_mechanism(path)
     hp = Instant(mech)
-    study = api.prepare(path, "reference", steps=STEPS, sensitivity=hp.names,
-                        sensitivity_of=[c for c in api.prepare(path, "reference", steps=2).columns()[1:]])
+    every = columns(assemble(mech), mech.analysis)[1:]  # every column of the table, but t
+    study = api.prepare(path, "reference", steps=STEPS, sensitivity=hp.names, sensitivity_of=every)
     results = study.solve()
-    _, scale = _truth(example)
+    _, scale = _truth(example, tmp_path_factory)
     header = study.columns()
     groups = {"q": [c for c in header if _kind(c) == "q"][:study.layout.ng],
               "qd": [c for c in header if _kind(c) == "qdot"][:study.layout.ng],
