@@ -203,8 +203,7 @@ def test_generated_c_calls_only_sin_cos_sqrt_and_what_the_file_calls(tmp_path_fa
 # the optimizers' warnings (-Waggressive-loop-optimizations, uninitialized
 # values) run too: every example and small case at -O2 in single and -Os in
 # double (each optimizer level and each precision seen once; the emulated run,
-# tests/c/test_c_qemu.py, builds every example's solver at -O2 in both
-# precisions with the same warnings, the single objects being these).
+# tests/c/test_c_qemu.py, runs these objects of every example).
 
 
 @pytest.fixture(scope="module")
@@ -247,8 +246,7 @@ def test_every_solver_compiles_warning_free_with_strict_flags(sources, tmp_path:
 def test_every_solver_compiles_warning_free_for_a_cortex_m4f(sources, tmp_path_factory, precision: str,
                                                              level: str) -> None:
     """The objects are the run's shared ones (cbuild.object_file: no warning):
-    the single -O2 ones are those the double-helper link and the emulated run
-    use."""
+    the emulated run links them, the double-helper link the single ones."""
     if shutil.which("arm-none-eabi-gcc") is None:
         pytest.skip("arm-none-eabi-gcc is not installed (.ci/run installs gcc-arm-none-eabi where apt-get may): "
                     "the Cortex-M4F build is not checked")

@@ -36,12 +36,18 @@ def _tools() -> None:
                     "qemu-system-arm where apt-get may): the emulated Cortex-M4F run is not checked")
 
 
+# The solver's optimizer level per precision: the strict Cortex-M4F build's
+# (tests/c/test_c_embedded.py), whose objects these are: each level run on the
+# emulator once, as each is compiled there once (the single objects are the
+# double-helper link's too).
+LEVEL = {"single": "-O2", "double": "-Os"}
+
+
 def _run_on_m4(factory: pytest.TempPathFactory, export: Export, precision: str, folder: Path) -> np.ndarray:
-    """The export's solver object for the M4F at -O2 (the run's shared one, no
-    warning: the single one is the strict build's and the double-helper
-    link's) linked with the board's start-up and rows_main.c, run on QEMU."""
+    """The export's solver object for the M4F (the run's shared one, no
+    warning) linked with the board's start-up and rows_main.c, run on QEMU."""
     name = export.name
-    obj = object_file(factory, ["arm-none-eabi-gcc", *WARNINGS, *M4F, "-O2"], export.source(precision))
+    obj = object_file(factory, ["arm-none-eabi-gcc", *WARNINGS, *M4F, LEVEL[precision]], export.source(precision))
     elf = folder / f"rows_{precision}.elf"
     built = subprocess.run(["arm-none-eabi-gcc", *WARNINGS, "-Wno-conversion", *M4F, "-O2", "-nostartfiles",
                     "--specs=nosys.specs", f"-T{BOARD / 'mps2_an386.ld'}", f"-I{export.folder / precision}",
