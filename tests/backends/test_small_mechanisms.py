@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from cbuild import STRICT, needs_cc
+from cbuild import STRICT, case_export, needs_cc
 from small_mechanisms import cases
 from tiers import diagonal, first_quick
 from symid import api
@@ -89,29 +89,23 @@ def test_generated_c_of_small_mechanism_compiles_with_strict_flags(name: str, tm
 @pytest.mark.slow  # every small mechanism compiled and linked (33 s each under load)
 @needs_cc
 @pytest.mark.parametrize("precision", ("double", "single"))
-def test_every_small_mechanism_compiles_and_links_in_both_precisions(precision: str, tmp_path: Path) -> None:
+def test_every_small_mechanism_compiles_and_links_in_both_precisions(precision: str, tmp_path_factory,
+                                                                    tmp_path: Path) -> None:
     """`symid generate --precision P` of every shape, built as a user builds
     it: strict flags, linked into a shared library that may leave no symbol
     undefined (a helper called but only defined for another shape, as
     `<name>_frac` was for linkages with wraps but no phase, is a link error;
-    -fsyntax-only alone would see it only as an implicit declaration)."""
+    -fsyntax-only alone would see it only as an implicit declaration). The
+    generated sources are the run's shared ones (cbuild.case_export, which
+    runs that command; the Cortex-M4F and strict builds read them too)."""
     failed = {}
     for name in CASES:
-        folder = tmp_path / name
-        assert main(["generate", "--target", "c", "--precision", precision, "-o", str(folder),
-                     _write(tmp_path, name)]) == 0
-        source = next(folder.rglob(f"{name}_solver.c"))
+        source = case_export(tmp_path_factory, name, CASES[name], precision)
         result = subprocess.run(["cc", *STRICT, "-fPIC", "-shared", "-Wl,--no-undefined", str(source), "-lm",
-                                 "-o", str(folder / f"lib{name}.so")], capture_output=True, text=True)
+                                 "-o", str(tmp_path / f"lib{name}.so")], capture_output=True, text=True)
         if result.returncode != 0:
             failed[name] = result.stderr[:600]
     assert not failed, failed
-
-
-def _write(folder: Path, name: str) -> str:
-    path = folder / f"{name}.toml"
-    path.write_text(CASES[name])
-    return str(path)
 
 
 def test_family_has_linkages_that_wrap_angles_without_a_phase() -> None:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cbuild import M4F, WARNINGS
+from cbuild import HOST_O2, M4F, WARNINGS, example_export, object_file
 from csolver import slider_crank_mode
 from symid import api
 from symid.codegen.model import code_model
@@ -41,14 +41,19 @@ def _generate(folder: Path, example: str, precision: str, text: str | None = Non
 
 @pytest.fixture(scope="module")
 def singles(tmp_path_factory) -> dict[str, Path]:
-    root = tmp_path_factory.mktemp("single")
-    return {name: _generate(root / name, name, "single") for name in EXAMPLES}
+    """Every example's single export (the run's shared ones: read, never written to)."""
+    return {name: example_export(tmp_path_factory, name).source("single") for name in EXAMPLES}
 
 
-def _driver(source: Path, *defines: str, cc: str = "cc") -> subprocess.CompletedProcess[str]:
-    """instant_driver.c built with the solver at `source` and -D defines (the exe beside it, named by them)."""
+def _exe(source: Path, defines: tuple[str, ...], out: Path | None) -> Path:
+    """Where _driver puts its program: in out (else beside the source), named by the defines."""
+    return (out or source.parent) / ("drv" + "".join("_" + re.sub(r"\W", "", d) for d in defines))
+
+
+def _driver(source: Path, *defines: str, cc: str = "cc", out: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """instant_driver.c built with the solver at `source` and -D defines (the exe in _exe's place)."""
     name = source.name.removesuffix("_solver.c")
-    exe = source.parent / ("drv" + "".join("_" + re.sub(r"\W", "", d) for d in defines))
+    exe = _exe(source, defines, out)
     return subprocess.run([cc, *WARNINGS, "-O2", f"-I{source.parent}", f'-DSOLVER_H="{name}_solver.h"',
                            f"-DP={name}", f"-DPU={name.upper()}", *defines, str(DRIVER), str(source), "-lm",
                            "-o", str(exe)], capture_output=True, text=True)
@@ -59,7 +64,7 @@ def _calls(source: Path, *groups: tuple[float, float], q0, defines: tuple[str, .
     the one before left: per call (status, iterations, fallback, q)."""
     built = _driver(source, *defines)
     assert built.returncode == 0, built.stderr[:3000]
-    exe = source.parent / ("drv" + "".join("_" + re.sub(r"\W", "", d) for d in defines))
+    exe = _exe(source, defines, None)
     args = [repr(groups[0][0]), repr(groups[0][1]), *(repr(float(v)) for v in q0)]
     for t, tol in groups[1:]:
         args += ["--", repr(t), repr(tol)]
@@ -70,25 +75,31 @@ def _calls(source: Path, *groups: tuple[float, float], q0, defines: tuple[str, .
 # --- no double in a single build ---
 
 
-def test_single_source_names_no_double_and_builds_with_double_promotion_an_error(singles) -> None:
+def test_single_source_names_no_double_and_builds_with_double_promotion_an_error(singles, tmp_path_factory) -> None:
     """The host gcc with -Wdouble-promotion -Werror (every implicit float to
-    double), and no `double` in the code (an explicit cast is not warned)."""
-    if shutil.which("gcc") is None:
+    double), and no `double` in the code (an explicit cast is not warned).
+    The build is the run's shared host object (HOST_O2: WARNINGS, which hold
+    -Wdouble-promotion and -Werror, with -Wfloat-conversion at -O2), the one
+    the single-precision rows driver links."""
+    if shutil.which("gcc") is None or shutil.which("cc") is None:
         pytest.skip("gcc is not installed: the host single-precision build is not checked")
+    assert {"-Wdouble-promotion", "-Wfloat-conversion", "-Werror", "-O2"} <= set(HOST_O2)
     for name, source in singles.items():
         code = re.sub(r"/\*.*?\*/", "", source.read_text() + source.with_suffix(".h").read_text(), flags=re.S)
         assert not re.search(r"\bdouble\b", code), name
-        built = subprocess.run(["gcc", *WARNINGS, "-Wdouble-promotion", "-Wfloat-conversion", "-Werror", "-O2",
-                                "-c", str(source), "-o", str(source.with_suffix(".o"))], capture_output=True, text=True)
-        assert built.returncode == 0, (name, built.stderr[:2000])
+    with ThreadPoolExecutor(max_workers=2) as pool:  # two at a time: CI has two cores
+        objects = list(pool.map(lambda source: object_file(tmp_path_factory, HOST_O2, source), singles.values()))
+    assert all(o.is_file() for o in objects)
 
 
-def test_every_single_build_links_for_a_cortex_m4f_without_double_helpers(singles, tmp_path: Path) -> None:
+def test_every_single_build_links_for_a_cortex_m4f_without_double_helpers(singles, tmp_path_factory,
+                                                                         tmp_path: Path) -> None:
     """Each example's single export compiled for a Cortex-M4F (single-precision
     FPU: a double would be a call to the EABI's soft-float helpers) and linked
     with newlib into a program calling instant, trajectory and sweep: no
     __aeabi_d* nor double libm referenced by the object, none in the program,
-    and no double-precision instruction."""
+    and no double-precision instruction. The object is the run's shared one
+    (the strict M4F build's and the emulated run's: same flags)."""
     for tool in ("arm-none-eabi-gcc", "arm-none-eabi-nm", "arm-none-eabi-objdump"):
         if shutil.which(tool) is None:
             pytest.skip(f"{tool} is not installed (.ci/run installs gcc-arm-none-eabi where apt-get may): "
@@ -115,15 +126,15 @@ def test_every_single_build_links_for_a_cortex_m4f_without_double_helpers(single
                         f"    s += {name}_sweep(1, {name}_default_params, 0.0f, 1e-3f, 2, 1e-5f, fig, status, t_end, "
                         "solved, work, iwork);\n"
                         "    return s;\n}\n")
-        obj, elf = tmp_path / f"{name}.o", tmp_path / f"{name}.elf"
+        elf = tmp_path / f"{name}.elf"
+        obj = object_file(tmp_path_factory, ["arm-none-eabi-gcc", *WARNINGS, *M4F, "-O2"], source)
         flags = ["arm-none-eabi-gcc", *WARNINGS, *M4F, "-O2", f"-I{source.parent}"]
-        subprocess.run([*flags, "-c", str(source), "-o", str(obj)], check=True)
         undefined = set(subprocess.run(["arm-none-eabi-nm", "-u", str(obj)], check=True, capture_output=True,
                                        text=True).stdout.split()) - {"U"}
         bad = {s for s in undefined if s.startswith(("__aeabi_d", "__aeabi_f2d", "__aeabi_l2d", "__aeabi_i2d"))
                or s in DOUBLE_LIBM}
         assert not bad, (name, sorted(bad))
-        linked = subprocess.run([*flags, str(main), str(source), "--specs=nosys.specs", "-lm", "-o", str(elf)],
+        linked = subprocess.run([*flags, str(main), str(obj), "--specs=nosys.specs", "-lm", "-o", str(elf)],
                                 capture_output=True, text=True)
         assert linked.returncode == 0, (name, linked.stderr[:2000])
         symbols = subprocess.run(["arm-none-eabi-nm", str(elf)], check=True, capture_output=True, text=True).stdout
@@ -280,8 +291,8 @@ def test_real_type_override_takes_a_same_size_typedef_and_refuses_another_size(t
 
 
 @pytest.mark.parametrize("precision", ["double", "single"])
-def test_worst_case_instructions_stated_and_a_capped_call_stays_under_them(singles, tmp_path: Path,
-                                                                          precision: str) -> None:
+def test_worst_case_instructions_stated_and_a_capped_call_stays_under_them(singles, tmp_path_factory,
+                                                                          tmp_path: Path, precision: str) -> None:
     """Every example: the header states WORST_INSTRUCTIONS (fixed + per
     iteration times the cap); a call that cannot meet its tolerance (floor 0,
     tol 1e-30: Newton runs to the cap unless it lands on an exact zero)
@@ -293,19 +304,19 @@ def test_worst_case_instructions_stated_and_a_capped_call_stays_under_them(singl
     # checked on the slider-crank, Andrews' squeezer (the most coordinates) and
     # the excavator (the longest instant); double on every example
     for name in EXAMPLES if precision == "double" else ("slider_crank", "andrews_squeezer", "excavator"):
-        source = singles[name] if precision == "single" else _generate(root / name, name, "double")
+        export = example_export(tmp_path_factory, name)  # shared: the programs go to tmp_path
+        source = export.source(precision)
         header = source.with_suffix(".h").read_text()
         m = re.search(rf"#define {name.upper()}_WORST_INSTRUCTIONS \((\d+)L \+ (\d+)L \* \(long\)"
                       rf"{name.upper()}_MAX_NEWTON\)", header)
         cap = int(re.search(rf"#define {name.upper()}_MAX_NEWTON (\d+)", header).group(1))
         assert m is not None, name
         bound = int(m.group(1)) + cap * int(m.group(2))
-        model = code_model(load(api.example(name)))
-        a = model.layout.mechanism.analysis
-        built = _driver(source, f"-D{name.upper()}_FLOOR_ULPS=0")
+        defines = (f"-D{name.upper()}_FLOOR_ULPS=0",)
+        built = _driver(source, *defines, out=tmp_path)
         assert built.returncode == 0, built.stderr[:2000]
-        exe = source.parent / ("drv_D" + f"{name.upper()}_FLOOR_ULPS0")
-        args = [repr(a.t0 + 0.37 * (a.t1 - a.t0)), "1e-30", *(repr(float(v) + 1e-3) for v in model.q0)]
+        exe = _exe(source, defines, tmp_path)
+        args = [repr(export.t0 + 0.37 * (export.t1 - export.t0)), "1e-30", *(repr(float(v) + 1e-3) for v in export.q0)]
         run = subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={root / (name + '.cg')}",
                               f"--toggle-collect={name}_instant", str(exe), *args],
                              capture_output=True, text=True, check=True)

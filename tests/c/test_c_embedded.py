@@ -13,17 +13,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cbuild import GROUP_FLOOR, M4F, WARNINGS, single_bound, needs_cc, rows_driver as _driver, driver_rows as _rows
+from cbuild import (GROUP_FLOOR, M4F, PRECISIONS, WARNINGS, case_export, example_export, host_rows, needs_cc,
+                    object_file, single_bound)
 from csolver import BAD_ARGUMENT, NONFINITE, OK, Solver, slider_crank_mode
 from small_mechanisms import cases
 from symid import api
 from symid.codegen.model import code_model
 from symid.codegen import c as c_target
-from symid.io.reader import load, loads
+from symid.io.reader import load
 from symid.model.params import base_names
 
 ROOT = Path(__file__).resolve().parents[2]
-DRIVER = ROOT / "tests" / "c" / "rows_driver.c"
 EXAMPLES = tuple(api.examples())
 
 
@@ -102,25 +102,20 @@ def test_instant_solves_from_its_guess_and_the_trajectory_keeps_the_branch(solve
 
 @needs_cc
 @pytest.mark.parametrize("example", EXAMPLES)
-def test_single_precision_rows_within_the_readme_bound_of_double(tmp_path: Path, example: str) -> None:
-    mech = load(api.example(example))
-    model = code_model(mech)
-    a = mech.analysis
-    h = (a.t1 - a.t0) / (a.steps - 1)
-    runs = {p: _rows(_driver(tmp_path / p, example, p, model), a.t0, h, a.steps, model.q0)
-            for p in ("double", "single")}
-    header = (tmp_path / "single" / f"{example}_solver.h").read_text()
+def test_single_precision_rows_within_the_readme_bound_of_double(tmp_path_factory, example: str) -> None:
+    export = example_export(tmp_path_factory, example)  # shared with the emulated run's host rows
+    runs = {p: host_rows(tmp_path_factory, export, p)[1] for p in PRECISIONS}
+    header = (export.folder / "single" / f"{example}_solver.h").read_text()
     assert f"typedef float {example}_real;" in header
-    ctx = c_target.context(model)
-    groups_of = [0] + [k + 1 for k, (_, _, size, _) in enumerate(ctx.row_parts) for _ in range(size)]
+    groups_of = [0] + [k + 1 for k, size in enumerate(export.row_sizes) for _ in range(size)]
     friction = runs["double"].shape[1] - len(groups_of)  # C.friction, C.friction_power: a group of their own
-    groups = np.array(groups_of + [len(ctx.row_parts) + 1] * friction)
+    groups = np.array(groups_of + [len(export.row_sizes) + 1] * friction)
     peak = np.max(np.abs(runs["double"]), axis=0)
     scale = np.maximum(peak, GROUP_FLOOR * np.array([np.max(peak[groups == g]) for g in groups]))
     error = np.max(np.abs(runs["single"] - runs["double"]), axis=0) / scale
-    bound = single_bound(tmp_path / "single", example)  # the header's statement
+    bound = single_bound(export.folder / "single", example)  # the header's statement
     worst = int(np.argmax(error))
-    assert error[worst] <= bound, (model.row_columns[worst], error[worst])
+    assert error[worst] <= bound, (export.row_columns[worst], error[worst])
     assert error.max() > 1e-9  # the single run is single: it differs from double
 
 
@@ -141,13 +136,12 @@ def test_cli_generates_single_precision_c_and_refuses_it_for_other_targets(tmp_p
 
 @needs_cc
 @pytest.mark.parametrize("example", ["slider_crank", "quick_return"])
-def test_header_names_columns_parameters_q0_and_time_grid_of_the_file(tmp_path: Path, example: str) -> None:
+def test_header_names_columns_parameters_q0_and_time_grid_of_the_file(tmp_path_factory, example: str) -> None:
     """row_names as the CSV header of `symid solve`, param_names as the
     file's [parameters], default_q0 the configuration the reference backend
     assembles at t0, T0/T1/STEPS/TOL the file's [analysis]."""
     mech = load(api.example(example))
-    model = code_model(mech)
-    exe = _driver(tmp_path, example, "double", model)
+    exe = host_rows(tmp_path_factory, example_export(tmp_path_factory, example), "double")[0]
     lines = subprocess.run([str(exe), "describe"], check=True, capture_output=True, text=True).stdout.splitlines()
     truth = api.solve(api.example(example), backend="reference", steps=2)
     assert lines[0].split() == list(truth.columns)
@@ -185,15 +179,14 @@ ALLOWED = {"sin", "cos", "sqrt", "fabs", "fmax", "fmin", "isfinite", "memcpy", "
 # longest to generate.
 @pytest.mark.parametrize("name", EXAMPLES)
 @pytest.mark.parametrize("precision", ["double", "single"])
-def test_generated_c_calls_only_sin_cos_sqrt_and_what_the_file_calls(tmp_path: Path, precision: str, name: str) -> None:
+def test_generated_c_calls_only_sin_cos_sqrt_and_what_the_file_calls(tmp_path_factory, precision: str,
+                                                                     name: str) -> None:
     """No pow (integer powers are products, x^(-1/2) is 1/sqrt), and no libm
     call the mechanism's own expressions do not make; parameter-only pieces
     (the inertias) are computed by prepare, not in the kernels."""
     text = api.example(name).read_text()
     own = set(re.findall(r"\b([a-z][a-z0-9]*)\(", text)) | ({"tanh"} if "friction" in text else set())  # s(v)
-    model = code_model(load(api.example(name)))
-    c_target.generate(model, tmp_path / name, precision=precision)
-    source = (tmp_path / name / f"{name}_solver.c").read_text()
+    source = example_export(tmp_path_factory, name).source(precision).read_text()
     body = re.sub(r"/\*.*?\*/", "", source, flags=re.S)
     called = set(re.findall(r"\b([a-z][a-z0-9]*)\(", body))
     suffix = "f" if precision == "single" else ""
@@ -210,25 +203,18 @@ def test_generated_c_calls_only_sin_cos_sqrt_and_what_the_file_calls(tmp_path: P
 # the optimizers' warnings (-Waggressive-loop-optimizations, uninitialized
 # values) run too: every example and small case at -O2 in single and -Os in
 # double (each optimizer level and each precision seen once; the emulated run,
-# tests/c/test_c_qemu.py, builds every example at -O2 in both precisions with
-# the same warnings but -Wconversion).
+# tests/c/test_c_qemu.py, runs these objects of every example).
 
 
 @pytest.fixture(scope="module")
 def sources(tmp_path_factory) -> dict[str, dict[str, list[Path]]]:
     """Every example and every small-mechanism case, generated in both
-    precisions: {"examples" | "cases": {precision: sources}}."""
-    root = tmp_path_factory.mktemp("strict")
-    kinds = {"examples": {name: api.example(name).read_text() for name in EXAMPLES}, "cases": cases()}
-    out: dict[str, dict[str, list[Path]]] = {}
-    for kind, texts in kinds.items():
-        out[kind] = {"double": [], "single": []}
-        for name, text in texts.items():
-            model = code_model(loads(text, f"{name}.toml"))
-            for precision in ("double", "single"):
-                c_target.generate(model, root / precision / name, precision=precision)
-                out[kind][precision].append(root / precision / name / f"{model.name}_solver.c")
-    return out
+    precisions (the exports the other C tests share, the cases as `symid
+    generate` writes them): {"examples" | "cases": {precision: sources}}."""
+    exports = [example_export(tmp_path_factory, name) for name in EXAMPLES]
+    return {"examples": {p: [e.source(p) for e in exports] for p in PRECISIONS},
+            "cases": {p: [case_export(tmp_path_factory, name, text, p) for name, text in cases().items()]
+                      for p in PRECISIONS}}
 
 
 def _compile_all(compiler: list[str], files: list[Path], cwd: Path) -> None:
@@ -257,10 +243,17 @@ def test_every_solver_compiles_warning_free_with_strict_flags(sources, tmp_path:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("precision, level", [("single", "-O2"), ("double", "-Os")])
-def test_every_solver_compiles_warning_free_for_a_cortex_m4f(sources, tmp_path: Path, precision: str,
+def test_every_solver_compiles_warning_free_for_a_cortex_m4f(sources, tmp_path_factory, precision: str,
                                                              level: str) -> None:
+    """The objects are the run's shared ones (cbuild.object_file: no warning):
+    the emulated run links them, the double-helper link the single ones."""
     if shutil.which("arm-none-eabi-gcc") is None:
         pytest.skip("arm-none-eabi-gcc is not installed (.ci/run installs gcc-arm-none-eabi where apt-get may): "
                     "the Cortex-M4F build is not checked")
+    from concurrent.futures import ThreadPoolExecutor
+
     files = sources["examples"][precision] + sources["cases"][precision]
-    _compile_all(["arm-none-eabi-gcc", *WARNINGS, *M4F, level], files, tmp_path)
+    with ThreadPoolExecutor(max_workers=2) as pool:  # two at a time: CI has two cores
+        objects = list(pool.map(lambda f: object_file(tmp_path_factory, ["arm-none-eabi-gcc", *WARNINGS, *M4F, level],
+                                                      f), files))
+    assert all(o.is_file() for o in objects)

@@ -17,10 +17,7 @@ import numpy as np
 import pytest
 
 from symid import api
-from symid.codegen.model import code_model
-from symid.codegen import c as c_target
-from symid.io.reader import load
-from cbuild import GROUP_FLOOR, M4F, WARNINGS, single_bound, driver_rows as _rows, rows_driver as _driver
+from cbuild import GROUP_FLOOR, M4F, PRECISIONS, WARNINGS, Export, example_export, host_rows, object_file, single_bound
 
 pytestmark = pytest.mark.slow
 
@@ -39,12 +36,23 @@ def _tools() -> None:
                     "qemu-system-arm where apt-get may): the emulated Cortex-M4F run is not checked")
 
 
-def _run_on_m4(folder: Path, name: str) -> np.ndarray:
-    elf = folder / "rows.elf"
+# The solver's optimizer level per precision: the strict Cortex-M4F build's
+# (tests/c/test_c_embedded.py), whose objects these are: each level run on the
+# emulator once, as each is compiled there once (the single objects are the
+# double-helper link's too).
+LEVEL = {"single": "-O2", "double": "-Os"}
+
+
+def _run_on_m4(factory: pytest.TempPathFactory, export: Export, precision: str, folder: Path) -> np.ndarray:
+    """The export's solver object for the M4F (the run's shared one, no
+    warning) linked with the board's start-up and rows_main.c, run on QEMU."""
+    name = export.name
+    obj = object_file(factory, ["arm-none-eabi-gcc", *WARNINGS, *M4F, LEVEL[precision]], export.source(precision))
+    elf = folder / f"rows_{precision}.elf"
     built = subprocess.run(["arm-none-eabi-gcc", *WARNINGS, "-Wno-conversion", *M4F, "-O2", "-nostartfiles",
-                    "--specs=nosys.specs", f"-T{BOARD / 'mps2_an386.ld'}", f"-I{folder}",
+                    "--specs=nosys.specs", f"-T{BOARD / 'mps2_an386.ld'}", f"-I{export.folder / precision}",
                     f'-DSOLVER_H="{name}_solver.h"', f"-DP={name}", f"-DPU={name.upper()}",
-                    str(BOARD / "startup.c"), str(BOARD / "rows_main.c"), str(folder / f"{name}_solver.c"),
+                    str(BOARD / "startup.c"), str(BOARD / "rows_main.c"), str(obj),
                     "-lm", "-o", str(elf)], capture_output=True, text=True)
     assert built.returncode == 0, (name, built.stderr[-3000:])
     run = subprocess.run(["qemu-system-arm", "-M", "mps2-an386", "-nographic",
@@ -58,23 +66,19 @@ def _run_on_m4(folder: Path, name: str) -> np.ndarray:
 
 
 @pytest.mark.parametrize("example", EXAMPLES)
-def test_every_example_on_an_emulated_cortex_m4f_matches_the_host(tmp_path: Path, example: str) -> None:
+def test_every_example_on_an_emulated_cortex_m4f_matches_the_host(tmp_path_factory, tmp_path: Path,
+                                                                 example: str) -> None:
     _tools()
-    mech = load(api.example(example))
-    model = code_model(mech)
-    a = mech.analysis
-    h = (a.t1 - a.t0) / (a.steps - 1)
-    host = _rows(_driver(tmp_path / "host", example, "double", model), a.t0, h, a.steps, model.q0)
+    export = example_export(tmp_path_factory, example)
+    host = host_rows(tmp_path_factory, export, "double")[1]  # shared with the single-precision rows test
     peak = np.max(np.abs(host), axis=0)
     # a column zero but for rounding is measured against 1e-3 of the run's peak
     scale = np.maximum(peak, GROUP_FLOOR * peak.max())
-    for precision in ("double", "single"):
-        folder = tmp_path / precision
-        c_target.generate(model, folder, precision=precision)
-        rows = _run_on_m4(folder, example).reshape(host.shape)
+    for precision in PRECISIONS:
+        rows = _run_on_m4(tmp_path_factory, export, precision, tmp_path).reshape(host.shape)
         error = np.max(np.abs(rows - host), axis=0) / scale
         worst = int(np.argmax(error))
-        bound = DOUBLE_BOUND if precision == "double" else single_bound(folder, example)  # the header's statement
-        assert error[worst] <= bound, (precision, model.row_columns[worst], error[worst])
+        bound = DOUBLE_BOUND if precision == "double" else single_bound(export.folder / precision, example)
+        assert error[worst] <= bound, (precision, export.row_columns[worst], error[worst])
         if precision == "single":
             assert error.max() > 1e-9  # the single run is single: it differs from double
