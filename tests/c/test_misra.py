@@ -89,6 +89,7 @@ def test_record_keeps_rules_with_a_reason_each() -> None:
     assert not re.search(r"^pending misra-c2012-", text, re.M)
 
 
+@pytest.mark.slow  # cppcheck's MISRA addon over the excavator's exports (seconds)
 def test_record_rules_each_still_occur_and_nothing_else(tmp_path_factory, tmp_path: Path) -> None:
     """The fixed set of exports holds every rule the record keeps (a rule
     fixed away must leave the record) and no other."""
