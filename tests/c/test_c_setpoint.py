@@ -21,7 +21,8 @@ import pytest
 from symid import api
 from symid.model.mechanism import DRIVER_TYPES
 from small_mechanisms import _body, _constraint, _coordinate, text
-from setpoints import BAD_ARGUMENT, G, J, L, M, OK, PENDULUM, Solver, expression_drivers, laws, needs_cc
+from setpoints import BAD_ARGUMENT, G, J, L, M, OK, PENDULUM, Laws, Solver, expression_drivers, laws, needs_cc
+from runshare import key_of, shared_value
 from tiers import diagonal, first_quick
 
 
@@ -74,22 +75,27 @@ SINGLE_BOUND = 1e-5
 @pytest.mark.parametrize("example, precision", diagonal(api.examples(), ("double", "single")))
 def test_setpoints_of_the_compiled_law_reproduce_instant(doubles, tmp_path_factory, example: str,
                                                          precision: str) -> None:
-    reference = _solver(doubles, tmp_path_factory, example, "double")
-    solver = reference if precision == "double" else _solver(doubles, tmp_path_factory, example, precision)
-    _reproduces_instant(reference, solver, example, precision)
+    solver = _solver(doubles, tmp_path_factory, example, precision)
+    # the double build's 7 instants, once per run for both precisions (any worker):
+    # a single case elsewhere needs no double build of its own
+    instants = shared_value(tmp_path_factory, key_of("setpoint-instants", api.example(example).read_text(), 7),
+                            lambda: _instants(_solver(doubles, tmp_path_factory, example, "double"), 7))
+    _reproduces_instant(instants, solver, example, precision)
 
 
-def _reproduces_instant(reference: Solver, solver: Solver, example: str, precision: str) -> None:
-    """setpoint fed the compiled laws (by sympy) against instant at 7 instants
-    of the file's grid (from reference's trajectory), each output group to
-    the precision's bound of its peak."""
+def _reproduces_instant(instants: list[tuple[float, np.ndarray]], solver: Solver, example: str,
+                        precision: str) -> None:
+    """setpoint fed the compiled laws (by sympy) against instant at the
+    instants (t, q) of the file's grid (a double build's trajectory), each
+    output group to the precision's bound of its peak."""
     bound = DOUBLE_BOUND if precision == "double" else SINGLE_BOUND
     results: dict[str, list[np.ndarray]] = {"instant": [], "setpoint": []}
-    for t, q in _instants(reference, 7):
+    law = Laws(solver.mech)
+    for t, q in instants:
         guess = q + OFFSET
         status, inst = solver.call("instant", t, guess)
         assert status == OK, (example, t)
-        status, sp_out = solver.call("setpoint", t, guess, laws(solver.mech, t))
+        status, sp_out = solver.call("setpoint", t, guess, law(t))
         assert status == OK, (example, t)
         results["instant"].append(inst)
         results["setpoint"].append(sp_out)
@@ -122,7 +128,7 @@ def test_setpoints_of_an_expression_driver_reproduce_instant(tmp_path: Path, exa
     assert any(c.type == "expression" and c.name in drivers for c in reference.mech.constraints)
     assert [d.name for d in reference.ctx.setpoint.drivers] == drivers
     assert reference.rows == sorted(reference.rows) and len(reference.rows) == len(drivers)
-    _reproduces_instant(reference, solver, example, precision)
+    _reproduces_instant(_instants(reference, 7), solver, example, precision)
 
 
 # A pendulum: a bar of mass m and inertia J about its centre of mass, pinned
@@ -207,8 +213,9 @@ def test_statics_and_kinematics_setpoints_reproduce_instant(tmp_path: Path, kind
     """The analyses with no rates (statics: q_des only, qd_des and qdd_des
     may be NULL) or no multipliers (kinematics)."""
     solver = Solver(PENDULUM.replace("[analysis]\n", f'[analysis]\nkind = "{kind}"\n'), tmp_path)
+    law = Laws(solver.mech)
     for t in (0.3, 1.7):
-        f, fd, fdd = laws(solver.mech, t)
+        f, fd, fdd = law(t)
         status, inst = solver.call("instant", t, solver.q0 + OFFSET)
         assert status == OK
         status, got = solver.call("setpoint", t, solver.q0 + OFFSET, (f, None, None) if kind == "statics"
@@ -266,8 +273,9 @@ def test_setpoint_sensitivities_are_central_differences_with_the_setpoints_held(
     columns = list(solver.columns)
     fn = getattr(solver.lib, f"{solver.name}_setpoint_sensitivity")
     fn.restype = ctypes.c_int
+    law = Laws(solver.mech)
     for t, q in _instants(solver, 3)[1:]:
-        des = laws(solver.mech, t)
+        des = law(t)
         sens = np.zeros(len(of) * ns)
         work, iwork = np.zeros(solver.ctx.work), np.zeros(solver.ng, np.intc)
         guess = q + OFFSET
