@@ -55,7 +55,8 @@ def doubles(tmp_path_factory) -> dict[str, Solver]:
 def _solver(cache: dict[str, Solver], tmp_path_factory, example: str, precision: str) -> Solver:
     key = f"{example}-{precision}"
     if key not in cache:
-        cache[key] = Solver(api.example(example).read_text(), tmp_path_factory.mktemp(key), precision)
+        cache[key] = Solver(api.example(example).read_text(), tmp_path_factory.mktemp(key), precision,
+                            share=tmp_path_factory)
     return cache[key]
 
 
@@ -142,9 +143,10 @@ PENDULUMS.update({row: (PENDULUM.replace(_coordinate("bar", "phi", "sin(t)"),
 
 @needs_cc
 @pytest.mark.parametrize("drive, precision", diagonal(list(PENDULUMS), ("double", "single")))
-def test_computed_torque_of_a_pendulum_is_the_closed_form(tmp_path: Path, drive: str, precision: str) -> None:
+def test_computed_torque_of_a_pendulum_is_the_closed_form(tmp_path: Path, tmp_path_factory, drive: str,
+                                                          precision: str) -> None:
     source, driver, sign = PENDULUMS[drive]
-    solver = Solver(source, tmp_path, precision)
+    solver = Solver(source, tmp_path, precision, share=tmp_path_factory)
     assert solver.nd == 1
     rng = np.random.default_rng(30)
     bound = 1e-12 if precision == "double" else 1e-5  # of the torque's scale (single: README's bound)
@@ -227,8 +229,8 @@ def test_statics_and_kinematics_setpoints_reproduce_instant(tmp_path: Path, kind
 
 
 @needs_cc
-def test_bad_setpoints_are_refused_and_leave_q(tmp_path: Path) -> None:
-    solver = Solver(PENDULUM, tmp_path)
+def test_bad_setpoints_are_refused_and_leave_q(tmp_path: Path, tmp_path_factory) -> None:
+    solver = Solver(PENDULUM, tmp_path, share=tmp_path_factory)
     f, fd, fdd = laws(solver.mech, 0.5)
     for des in ((f * np.nan, fd, fdd), (f, fd * np.inf, fdd), (f, fd, fdd * np.nan), (None, fd, fdd),
                 (f, None, fdd), (f, fd, None)):
@@ -339,11 +341,13 @@ SPLIT_N, SPLIT_WHOLE, SPLIT_FRAC = 2.375, 1_000_001, 0.3
 
 
 @needs_cc
-def test_setpoint_at_a_million_seconds_in_single_is_double_within_the_header_bound(tmp_path: Path) -> None:
+def test_setpoint_at_a_million_seconds_in_single_is_double_within_the_header_bound(tmp_path: Path,
+                                                                                    tmp_path_factory) -> None:
     from cbuild import single_bound
 
     source = api.example("four_bar").read_text()
-    double, single = Solver(source, tmp_path / "double"), Solver(source, tmp_path / "single", "single")
+    double = Solver(source, tmp_path / "double", share=tmp_path_factory)
+    single = Solver(source, tmp_path / "single", "single", share=tmp_path_factory)
     at = double.mech_params.index("n")
     double.p[at], single.p[at] = SPLIT_N, SPLIT_N
     frac = float(np.float32(SPLIT_FRAC))  # the time single is given: whole + its float fraction, exactly

@@ -182,7 +182,7 @@ def test_compiler_faults_are_one_line_and_exit_2_with_nothing_written(tmp_path: 
 
 
 @needs_cc
-def test_fmu_reads_time_when_only_time_changes(tmp_path: Path) -> None:
+def test_fmu_reads_time_when_only_time_changes(tmp_path: Path, tmp_path_factory) -> None:
     """An importer may advance time without setting unchanged inputs: the
     four-bar's coupler load F_tool (1 + 0.5 sin(omega t)) moves the efforts
     then, as the generated C's _setpoint at that time gives them (the
@@ -203,7 +203,7 @@ def test_fmu_reads_time_when_only_time_changes(tmp_path: Path) -> None:
     model.enterInitializationMode()
     model.exitInitializationMode()
     model.enterContinuousTimeMode()
-    solver = Solver(api.example("four_bar").read_text(), tmp_path / "c")
+    solver = Solver(api.example("four_bar").read_text(), tmp_path / "c", share=tmp_path_factory)
     t1, t2 = 0.05, 0.3
     des = laws(solver.mech, t1)
     model.setTime(t1)

@@ -23,9 +23,11 @@ from symid.model.mechanism import T
 from symid.model.params import parameter_values
 from symid.symbolic.assemble import assemble
 from symid.symbolic.derive import DerivedConstraint
+from runshare import key_of, shared_dir
 from small_mechanisms import _body, _constraint, _coordinate, text
 
 OK, BAD_ARGUMENT = 0, 5
+STRICT = ["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared"]
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 # each mechanism text's code model, derived once in this process: code_model
 # takes no precision (only c_target.context does), so a double and a single
@@ -37,7 +39,10 @@ class Solver:
     """A generated solver compiled into a shared library, in one precision."""
 
     def __init__(self, source: str, folder: Path, precision: str = "double", sensitivity: str | None = None,
-                 of: str | None = None) -> None:
+                 of: str | None = None, share: pytest.TempPathFactory | None = None) -> None:
+        """share: the files and library built once per test run for every Solver of
+        the same text, precision and sensitivity (runshare), copied into folder
+        (a library of its own: a second handle of one path would share its state)."""
         self.mech = loads(source, "mech.toml")
         if sensitivity:
             model = api._sensitivity_model(self.mech, "c", sensitivity, of)
@@ -46,14 +51,23 @@ class Solver:
                 _MODELS[source] = code_model(self.mech)
             model = _MODELS[source]
         self.ctx = c_target.context(model, precision=precision)
-        c_target.write(self.ctx, folder)  # c_target.generate's files, of the context built once
-        self.name, self.ng, self.nc, self.nr = model.name, self.ctx.ng, self.ctx.nc, self.ctx.nr
+        self.name = model.name
+
+        def build(into: Path) -> None:
+            c_target.write(self.ctx, into)  # c_target.generate's files, of the context built once
+            subprocess.run([*STRICT, str(into / f"{self.name}_solver.c"), "-o", str(into / "s.so"), "-lm"],
+                           check=True)
+
+        if share is None:
+            build(folder)
+        else:
+            built = shared_dir(share, key_of("setpoint-solver", source, precision, sensitivity, of, STRICT), build)
+            shutil.copytree(built, folder, dirs_exist_ok=True)
+        self.ng, self.nc, self.nr = self.ctx.ng, self.ctx.nc, self.ctx.nr
         self.real = np.float64 if precision == "double" else np.float32
         self.ct = ctypes.c_double if precision == "double" else ctypes.c_float
         self.q0 = np.array(model.q0, dtype=self.real)
         self.p = np.array(model.flat.defaults, dtype=self.real)
-        subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared",
-                        str(folder / f"{self.name}_solver.c"), "-o", str(folder / "s.so"), "-lm"], check=True)
         self.lib = ctypes.CDLL(str(folder / "s.so"))
         self.nd = self.ctx.setpoint.nd
         self.rows = list((ctypes.c_int * self.nd).in_dll(self.lib, f"{self.name}_setpoint_rows"))
