@@ -21,7 +21,8 @@ import pytest
 from symid import api
 from symid.model.mechanism import DRIVER_TYPES
 from small_mechanisms import _body, _constraint, _coordinate, text
-from setpoints import BAD_ARGUMENT, G, J, L, M, OK, PENDULUM, Solver, expression_drivers, laws, needs_cc
+from setpoints import BAD_ARGUMENT, G, J, L, M, OK, PENDULUM, Laws, Solver, expression_drivers, laws, needs_cc
+from runshare import key_of, shared_value
 from tiers import diagonal, first_quick
 
 
@@ -54,7 +55,8 @@ def doubles(tmp_path_factory) -> dict[str, Solver]:
 def _solver(cache: dict[str, Solver], tmp_path_factory, example: str, precision: str) -> Solver:
     key = f"{example}-{precision}"
     if key not in cache:
-        cache[key] = Solver(api.example(example).read_text(), tmp_path_factory.mktemp(key), precision)
+        cache[key] = Solver(api.example(example).read_text(), tmp_path_factory.mktemp(key), precision,
+                            share=tmp_path_factory)
     return cache[key]
 
 
@@ -74,22 +76,27 @@ SINGLE_BOUND = 1e-5
 @pytest.mark.parametrize("example, precision", diagonal(api.examples(), ("double", "single")))
 def test_setpoints_of_the_compiled_law_reproduce_instant(doubles, tmp_path_factory, example: str,
                                                          precision: str) -> None:
-    reference = _solver(doubles, tmp_path_factory, example, "double")
-    solver = reference if precision == "double" else _solver(doubles, tmp_path_factory, example, precision)
-    _reproduces_instant(reference, solver, example, precision)
+    solver = _solver(doubles, tmp_path_factory, example, precision)
+    # the double build's 7 instants, once per run for both precisions (any worker):
+    # a single case elsewhere needs no double build of its own
+    instants = shared_value(tmp_path_factory, key_of("setpoint-instants", api.example(example).read_text(), 7),
+                            lambda: _instants(_solver(doubles, tmp_path_factory, example, "double"), 7))
+    _reproduces_instant(instants, solver, example, precision)
 
 
-def _reproduces_instant(reference: Solver, solver: Solver, example: str, precision: str) -> None:
-    """setpoint fed the compiled laws (by sympy) against instant at 7 instants
-    of the file's grid (from reference's trajectory), each output group to
-    the precision's bound of its peak."""
+def _reproduces_instant(instants: list[tuple[float, np.ndarray]], solver: Solver, example: str,
+                        precision: str) -> None:
+    """setpoint fed the compiled laws (by sympy) against instant at the
+    instants (t, q) of the file's grid (a double build's trajectory), each
+    output group to the precision's bound of its peak."""
     bound = DOUBLE_BOUND if precision == "double" else SINGLE_BOUND
     results: dict[str, list[np.ndarray]] = {"instant": [], "setpoint": []}
-    for t, q in _instants(reference, 7):
+    law = Laws(solver.mech)
+    for t, q in instants:
         guess = q + OFFSET
         status, inst = solver.call("instant", t, guess)
         assert status == OK, (example, t)
-        status, sp_out = solver.call("setpoint", t, guess, laws(solver.mech, t))
+        status, sp_out = solver.call("setpoint", t, guess, law(t))
         assert status == OK, (example, t)
         results["instant"].append(inst)
         results["setpoint"].append(sp_out)
@@ -122,7 +129,7 @@ def test_setpoints_of_an_expression_driver_reproduce_instant(tmp_path: Path, exa
     assert any(c.type == "expression" and c.name in drivers for c in reference.mech.constraints)
     assert [d.name for d in reference.ctx.setpoint.drivers] == drivers
     assert reference.rows == sorted(reference.rows) and len(reference.rows) == len(drivers)
-    _reproduces_instant(reference, solver, example, precision)
+    _reproduces_instant(_instants(reference, 7), solver, example, precision)
 
 
 # A pendulum: a bar of mass m and inertia J about its centre of mass, pinned
@@ -136,9 +143,10 @@ PENDULUMS.update({row: (PENDULUM.replace(_coordinate("bar", "phi", "sin(t)"),
 
 @needs_cc
 @pytest.mark.parametrize("drive, precision", diagonal(list(PENDULUMS), ("double", "single")))
-def test_computed_torque_of_a_pendulum_is_the_closed_form(tmp_path: Path, drive: str, precision: str) -> None:
+def test_computed_torque_of_a_pendulum_is_the_closed_form(tmp_path: Path, tmp_path_factory, drive: str,
+                                                          precision: str) -> None:
     source, driver, sign = PENDULUMS[drive]
-    solver = Solver(source, tmp_path, precision)
+    solver = Solver(source, tmp_path, precision, share=tmp_path_factory)
     assert solver.nd == 1
     rng = np.random.default_rng(30)
     bound = 1e-12 if precision == "double" else 1e-5  # of the torque's scale (single: README's bound)
@@ -207,8 +215,9 @@ def test_statics_and_kinematics_setpoints_reproduce_instant(tmp_path: Path, kind
     """The analyses with no rates (statics: q_des only, qd_des and qdd_des
     may be NULL) or no multipliers (kinematics)."""
     solver = Solver(PENDULUM.replace("[analysis]\n", f'[analysis]\nkind = "{kind}"\n'), tmp_path)
+    law = Laws(solver.mech)
     for t in (0.3, 1.7):
-        f, fd, fdd = laws(solver.mech, t)
+        f, fd, fdd = law(t)
         status, inst = solver.call("instant", t, solver.q0 + OFFSET)
         assert status == OK
         status, got = solver.call("setpoint", t, solver.q0 + OFFSET, (f, None, None) if kind == "statics"
@@ -220,8 +229,8 @@ def test_statics_and_kinematics_setpoints_reproduce_instant(tmp_path: Path, kind
 
 
 @needs_cc
-def test_bad_setpoints_are_refused_and_leave_q(tmp_path: Path) -> None:
-    solver = Solver(PENDULUM, tmp_path)
+def test_bad_setpoints_are_refused_and_leave_q(tmp_path: Path, tmp_path_factory) -> None:
+    solver = Solver(PENDULUM, tmp_path, share=tmp_path_factory)
     f, fd, fdd = laws(solver.mech, 0.5)
     for des in ((f * np.nan, fd, fdd), (f, fd * np.inf, fdd), (f, fd, fdd * np.nan), (None, fd, fdd),
                 (f, None, fdd), (f, fd, None)):
@@ -266,8 +275,9 @@ def test_setpoint_sensitivities_are_central_differences_with_the_setpoints_held(
     columns = list(solver.columns)
     fn = getattr(solver.lib, f"{solver.name}_setpoint_sensitivity")
     fn.restype = ctypes.c_int
+    law = Laws(solver.mech)
     for t, q in _instants(solver, 3)[1:]:
-        des = laws(solver.mech, t)
+        des = law(t)
         sens = np.zeros(len(of) * ns)
         work, iwork = np.zeros(solver.ctx.work), np.zeros(solver.ng, np.intc)
         guess = q + OFFSET
@@ -331,11 +341,13 @@ SPLIT_N, SPLIT_WHOLE, SPLIT_FRAC = 2.375, 1_000_001, 0.3
 
 
 @needs_cc
-def test_setpoint_at_a_million_seconds_in_single_is_double_within_the_header_bound(tmp_path: Path) -> None:
+def test_setpoint_at_a_million_seconds_in_single_is_double_within_the_header_bound(tmp_path: Path,
+                                                                                    tmp_path_factory) -> None:
     from cbuild import single_bound
 
     source = api.example("four_bar").read_text()
-    double, single = Solver(source, tmp_path / "double"), Solver(source, tmp_path / "single", "single")
+    double = Solver(source, tmp_path / "double", share=tmp_path_factory)
+    single = Solver(source, tmp_path / "single", "single", share=tmp_path_factory)
     at = double.mech_params.index("n")
     double.p[at], single.p[at] = SPLIT_N, SPLIT_N
     frac = float(np.float32(SPLIT_FRAC))  # the time single is given: whole + its float fraction, exactly

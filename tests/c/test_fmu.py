@@ -19,7 +19,7 @@ import pytest
 
 from symid import api
 from symid.io.reader import load, loads
-from setpoints import PENDULUM, expression_drivers, laws
+from setpoints import PENDULUM, Laws, expression_drivers, laws
 from tiers import first_quick
 
 fmpy = pytest.importorskip("fmpy", reason="FMPy is the test extra's FMI importer (pip install fmpy)")
@@ -67,8 +67,9 @@ def _check_against_solve(example: str, folder: Path, text: str | None = None) ->
     signals = np.zeros(a.steps, dtype=[("time", float)] + [(n, float) for n in inputs])
     signals["time"] = times
     velocity = a.kind != "statics"
+    law = Laws(mech)
     for k, t in enumerate(times):
-        f, fd, fdd = laws(mech, float(t))
+        f, fd, fdd = law(float(t))
         values = np.stack([f, fd, fdd], axis=1)[:, :3 if velocity else 1].ravel()  # per driver q, qd, qdd
         for n, v in zip(inputs, values):
             signals[n][k] = v
@@ -144,8 +145,9 @@ def test_fmu_holds_sources_and_model_description_and_takes_tunable_parameters(tm
     inputs = [v.name for v in md.modelVariables if v.causality == "input"]
     signals = np.zeros(a.steps, dtype=[("time", float)] + [(n, float) for n in inputs])
     signals["time"] = times
+    law = Laws(mech)
     for k, t in enumerate(times):
-        for n, v in zip(inputs, np.stack(laws(mech, float(t)), axis=1).ravel()):
+        for n, v in zip(inputs, np.stack(law(float(t)), axis=1).ravel()):
             signals[n][k] = v
     result = simulate_fmu(str(path), start_time=a.t0, stop_time=a.t1, solver="Euler", step_size=h, output_interval=h,
                           input=signals, start_values={"m_slider": 3.0}, output=["motor.lambda"])
@@ -180,7 +182,7 @@ def test_compiler_faults_are_one_line_and_exit_2_with_nothing_written(tmp_path: 
 
 
 @needs_cc
-def test_fmu_reads_time_when_only_time_changes(tmp_path: Path) -> None:
+def test_fmu_reads_time_when_only_time_changes(tmp_path: Path, tmp_path_factory) -> None:
     """An importer may advance time without setting unchanged inputs: the
     four-bar's coupler load F_tool (1 + 0.5 sin(omega t)) moves the efforts
     then, as the generated C's _setpoint at that time gives them (the
@@ -201,7 +203,7 @@ def test_fmu_reads_time_when_only_time_changes(tmp_path: Path) -> None:
     model.enterInitializationMode()
     model.exitInitializationMode()
     model.enterContinuousTimeMode()
-    solver = Solver(api.example("four_bar").read_text(), tmp_path / "c")
+    solver = Solver(api.example("four_bar").read_text(), tmp_path / "c", share=tmp_path_factory)
     t1, t2 = 0.05, 0.3
     des = laws(solver.mech, t1)
     model.setTime(t1)

@@ -23,26 +23,51 @@ from symid.model.mechanism import T
 from symid.model.params import parameter_values
 from symid.symbolic.assemble import assemble
 from symid.symbolic.derive import DerivedConstraint
+from runshare import key_of, shared_dir
 from small_mechanisms import _body, _constraint, _coordinate, text
 
 OK, BAD_ARGUMENT = 0, 5
+STRICT = ["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared"]
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
+# each mechanism text's code model, derived once in this process: code_model
+# takes no precision (only c_target.context does), so a double and a single
+# build of one file render the same model
+_MODELS: dict[str, Any] = {}
+
+
 class Solver:
     """A generated solver compiled into a shared library, in one precision."""
 
     def __init__(self, source: str, folder: Path, precision: str = "double", sensitivity: str | None = None,
-                 of: str | None = None) -> None:
+                 of: str | None = None, share: pytest.TempPathFactory | None = None) -> None:
+        """share: the files and library built once per test run for every Solver of
+        the same text, precision and sensitivity (runshare), copied into folder
+        (a library of its own: a second handle of one path would share its state)."""
         self.mech = loads(source, "mech.toml")
-        model = api._sensitivity_model(self.mech, "c", sensitivity, of) if sensitivity else code_model(self.mech)
-        c_target.generate(model, folder, precision=precision)
+        if sensitivity:
+            model = api._sensitivity_model(self.mech, "c", sensitivity, of)
+        else:  # the file's code model, derived once per text for both precisions (a frozen dataclass)
+            if source not in _MODELS:
+                _MODELS[source] = code_model(self.mech)
+            model = _MODELS[source]
         self.ctx = c_target.context(model, precision=precision)
-        self.name, self.ng, self.nc, self.nr = model.name, self.ctx.ng, self.ctx.nc, self.ctx.nr
+        self.name = model.name
+
+        def build(into: Path) -> None:
+            c_target.write(self.ctx, into)  # c_target.generate's files, of the context built once
+            subprocess.run([*STRICT, str(into / f"{self.name}_solver.c"), "-o", str(into / "s.so"), "-lm"],
+                           check=True)
+
+        if share is None:
+            build(folder)
+        else:
+            built = shared_dir(share, key_of("setpoint-solver", source, precision, sensitivity, of, STRICT), build)
+            shutil.copytree(built, folder, dirs_exist_ok=True)
+        self.ng, self.nc, self.nr = self.ctx.ng, self.ctx.nc, self.ctx.nr
         self.real = np.float64 if precision == "double" else np.float32
         self.ct = ctypes.c_double if precision == "double" else ctypes.c_float
         self.q0 = np.array(model.q0, dtype=self.real)
         self.p = np.array(model.flat.defaults, dtype=self.real)
-        subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared",
-                        str(folder / f"{self.name}_solver.c"), "-o", str(folder / "s.so"), "-lm"], check=True)
         self.lib = ctypes.CDLL(str(folder / "s.so"))
         self.nd = self.ctx.setpoint.nd
         self.rows = list((ctypes.c_int * self.nd).in_dll(self.lib, f"{self.name}_setpoint_rows"))
@@ -76,20 +101,33 @@ class Solver:
         status = fn(*args)
         return status, out
 
+class Laws:
+    """Each driver's f, f', f'' (drivers in constraint-row order), by sympy
+    from the file's expressions with the parameters' values: the layout
+    assembled and the derivatives taken once, then evaluated at each t."""
+
+    def __init__(self, mech: Any) -> None:
+        layout = assemble(mech)
+        values = parameter_values(mech.parameters)
+        found = []
+        for group in layout.constraint_groups:
+            assert isinstance(group.derived, DerivedConstraint)
+            if group.derived.functions:
+                for m in range(group.size):
+                    found.append((int(group.rows[m]), sp.sympify(group.functions[m][0]).xreplace(values)))
+        found.sort(key=lambda x: x[0])
+        self.derivatives = [[sp.diff(f, T, n) for _, f in found] for n in range(3)]
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """f, f', f'' at t, evaluated to 30 digits at t (a float), rounded to float."""
+        out = [[float(d.evalf(30, subs={T: t})) for d in row] for row in self.derivatives]
+        return np.array(out[0]), np.array(out[1]), np.array(out[2])
+
+
 def laws(mech: Any, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each driver's f, f', f'' at t (drivers in constraint-row order), by
-    sympy from the file's expressions with the parameters' values."""
-    layout = assemble(mech)
-    values = parameter_values(mech.parameters)
-    found = []
-    for group in layout.constraint_groups:
-        assert isinstance(group.derived, DerivedConstraint)
-        if group.derived.functions:
-            for m in range(group.size):
-                found.append((int(group.rows[m]), sp.sympify(group.functions[m][0]).xreplace(values)))
-    found.sort(key=lambda x: x[0])
-    out = [[float(sp.diff(f, T, n).subs(T, t).evalf(30)) for _, f in found] for n in range(3)]
-    return np.array(out[0]), np.array(out[1]), np.array(out[2])
+    """Each driver's f, f', f'' at t (Laws at one instant)."""
+    return Laws(mech)(t)
+
 
 def expression_drivers(source: str) -> str:
     """A mechanism file with each relative_angle_driver written as an expression

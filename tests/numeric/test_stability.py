@@ -25,6 +25,7 @@ from symid.cli import main
 from symid.errors import AnalysisError
 from symid.io.reader import load, loads
 from truth import Truth, newton_euler_residual
+from runshare import key_of, shared_value
 from tiers import diagonal
 
 EPS = np.finfo(float).eps
@@ -575,11 +576,21 @@ def _unit_of(column: str) -> tuple[str, tuple[int, int]]:
     return "other", (0, 0)
 
 
+def _in_own_units(tmp_path_factory, text: str):
+    """The file in its own units (in_units by 1, 1) solved: the same for the
+    three unit cases of an example, so solved once per run (any worker)."""
+    def solve_base():
+        folder = tmp_path_factory.mktemp("own-units")
+        return api.solve(write(folder, in_units(text, 1.0, 1.0), "a.toml"), "reference", steps=41, cond_column=True)
+
+    return shared_value(tmp_path_factory, key_of("own-units", text, 41), solve_base)
+
+
 @pytest.mark.parametrize("name, units", diagonal(EXAMPLES, ["mm", "mass1e6", "both"]))
-def test_other_units_give_the_same_results_to_1e_12(tmp_path, name, units):
+def test_other_units_give_the_same_results_to_1e_12(tmp_path, tmp_path_factory, name, units):
     u, m = {"mm": (1000.0, 1.0), "mass1e6": (1.0, 1e6), "both": (1000.0, 1e6)}[units]
     text = api.example(name).read_text(encoding="utf-8")
-    base = api.solve(write(tmp_path, in_units(text, 1.0, 1.0), "a.toml"), "reference", steps=41, cond_column=True)
+    base = _in_own_units(tmp_path_factory, text)
     other = api.solve(write(tmp_path, in_units(text, u, m), "b.toml"), "reference", steps=41, cond_column=True)
     assert base.error is None and other.error is None
     kinds: dict[str, list[int]] = {}

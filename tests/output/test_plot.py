@@ -18,6 +18,7 @@ from symid.output import plot
 from symid.output import summary
 from symid.cli import main
 from symid.io.reader import load, loads
+from runshare import key_of, shared_value
 from truth import Truth
 
 EXAMPLES = api.examples()
@@ -26,11 +27,18 @@ PNG = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module", params=EXAMPLES)
-def solved(request):
+def solved(request, tmp_path_factory):
+    """The example's mechanism and its run, the run solved once per run of the
+    tests (any worker: this module's tests of one example may run on both)."""
     mech = load(api.example(request.param), analysis={"steps": STEPS})
-    results = api.solve(mech)
-    assert results.error is None, results.error
-    return mech, results
+
+    def solve():
+        results = api.solve(mech)
+        assert results.error is None, results.error
+        return results
+
+    return mech, shared_value(tmp_path_factory, key_of("plot-run", api.example(request.param).read_text(), STEPS),
+                              solve)
 
 
 def lines(fig, prefix: str) -> dict[str, object]:

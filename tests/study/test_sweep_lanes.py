@@ -23,6 +23,7 @@ from symid.codegen.render import render
 from symid.codegen.c import lanes as c_lanes
 from symid.study import batch_c
 from symid.study.variants import base_matrix, study_mechanism
+from runshare import key_of, shared_dir
 
 STEPS = 101  # crosses the scalar sweep's chunk boundaries (1, then 32 instants a call)
 
@@ -160,16 +161,20 @@ def width(request: pytest.FixtureRequest) -> str:
 class Sweep:
     """One compiled solver's `<name>_sweep` and `<name>_sweep_lanes`, called directly."""
 
-    def __init__(self, mech: Any, width: str = "native", tmp_path: Path | None = None) -> None:
+    def __init__(self, mech: Any, width: str = "native", factory: pytest.TempPathFactory | None = None) -> None:
         self.mech = mech
         self.compiled = batch_c._load(mech)
         library = self.compiled.folder / "solver.so"
         if width == "sse2":  # the same source, the two-lane code whatever the processor
-            assert tmp_path is not None
-            library = tmp_path / "sse2.so"
+            assert factory is not None
             source = self.compiled.folder / f"{mech.name}_solver.c"
-            subprocess.run([c_backend.compiler(), "-O2", *c_backend.CFLAGS, f"-D{mech.name.upper()}_LANES_SSE2",
-                            str(source), "-o", str(library), "-lm"], check=True)
+            command = [c_backend.compiler(), "-O2", *c_backend.CFLAGS, f"-D{mech.name.upper()}_LANES_SSE2"]
+
+            def build(folder: Path) -> None:
+                subprocess.run([*command, str(source), "-o", str(folder / "sse2.so"), "-lm"], check=True)
+
+            # built once per run for every test (any worker) of the same source and flags
+            library = shared_dir(factory, key_of("sse2", source, command), build) / "sse2.so"
         lib = ctypes.CDLL(str(library))
         self._sweep = lib[f"{mech.name}_sweep"]
         self._sweep.argtypes = self.compiled.sweep.argtypes
@@ -223,9 +228,10 @@ def _assert_lanes_are_scalar(sweep: Sweep, p: np.ndarray) -> int:
 
 
 @pytest.mark.parametrize("name", sorted(GRIDS) + sorted(INLINE))
-def test_a_grid_in_lanes_is_each_variant_alone_bit_for_bit(name: str, width: str, tmp_path: Path) -> None:
+def test_a_grid_in_lanes_is_each_variant_alone_bit_for_bit(name: str, width: str, tmp_path: Path,
+                                                          tmp_path_factory: pytest.TempPathFactory) -> None:
     mech = _mechanism(name, tmp_path)
-    sweep = Sweep(mech, width, tmp_path)
+    sweep = Sweep(mech, width, tmp_path_factory)
     k = 2 * sweep.width + 1  # two groups and a variant left over
     p = _grid(name, mech, k)
     abandoned = _assert_lanes_are_scalar(sweep, p)
@@ -265,12 +271,13 @@ def _index(mech: Any, name: str) -> int:
     return list(base_names(mech.parameters)).index(name)
 
 
-def test_lanes_whose_sines_refresh_at_different_instants_are_each_alone(width: str, tmp_path: Path) -> None:
+def test_lanes_whose_sines_refresh_at_different_instants_are_each_alone(width: str, tmp_path: Path,
+        tmp_path_factory: pytest.TempPathFactory) -> None:
     """Crank speeds 2 and 12 rev/s side by side: one lane's crank turns past
     trig_near's 1/16 rad every instant (sin and cos from libm each time), the
     other's only every few instants, so the lanes refresh apart."""
     mech = _mechanism("slider_crank", tmp_path)
-    sweep = Sweep(mech, width, tmp_path)
+    sweep = Sweep(mech, width, tmp_path_factory)
     rods = np.linspace(0.25, 0.45, sweep.width + 1)
     p = base_matrix(mech, ("L_rod", "n"), np.array([(r, n) for r in rods for n in (2.0, 12.0)]))
     n = p[:, _index(mech, "n")]
@@ -283,13 +290,14 @@ def test_lanes_whose_sines_refresh_at_different_instants_are_each_alone(width: s
     assert _assert_lanes_are_scalar(sweep, p) == 0
 
 
-def test_a_lane_failing_mid_run_leaves_its_neighbours_their_scalar_figures(width: str, tmp_path: Path) -> None:
+def test_a_lane_failing_mid_run_leaves_its_neighbours_their_scalar_figures(width: str, tmp_path: Path,
+        tmp_path_factory: pytest.TempPathFactory) -> None:
     """A rod shorter than the crank cannot close the loop a quarter turn on:
     that variant stops mid-run (status not OK, some instants solved), its
     group is abandoned to the scalar path, and every lane, the neighbours
     included, is its own scalar run."""
     mech = _mechanism("slider_crank", tmp_path)
-    sweep = Sweep(mech, width, tmp_path)
+    sweep = Sweep(mech, width, tmp_path_factory)
     rods = np.linspace(0.3, 0.45, 2 * sweep.width + 1)
     rods[1] = 0.07
     p = base_matrix(mech, ("L_rod",), rods[:, None])
@@ -300,13 +308,14 @@ def test_a_lane_failing_mid_run_leaves_its_neighbours_their_scalar_figures(width
     assert abandoned == 1, "the failing lane's group only"
 
 
-def test_a_scattered_sample_in_lanes_is_each_variant_alone(width: str, tmp_path: Path) -> None:
+def test_a_scattered_sample_in_lanes_is_each_variant_alone(width: str, tmp_path: Path,
+        tmp_path_factory: pytest.TempPathFactory) -> None:
     """A tolerance study's sample (5 % normal scatter on lengths, masses and
     speed, seeded): neighbours whose Newton takes a different number of
     iterations at an instant stay in the lanes, the one that converged
     first waiting with its state, and still give their scalar bits."""
     mech = _mechanism("slider_crank", tmp_path)
-    sweep = Sweep(mech, width, tmp_path)
+    sweep = Sweep(mech, width, tmp_path_factory)
     names = ("L_crank", "L_rod", "m_crank", "m_rod", "m_slider", "n")
     rng = np.random.default_rng(0)
     base = np.array([0.1, 0.3, 0.5, 1.0, 0.8, 5.0]) * (1 + 0.05 * rng.standard_normal((8 * sweep.width, len(names))))
