@@ -22,6 +22,7 @@ from csolver import DP, run_in_cuts
 from symid import api
 from symid.codegen.model import code_model
 from symid.codegen import c as c_target
+from tiers import diagonal
 
 FLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared"]
 HARNESS = """
@@ -69,8 +70,8 @@ def _compiler() -> None:
         pytest.skip("no C compiler")
 
 
-@pytest.mark.parametrize("outputs", [None, ["q", "lambda"], ["q", "qddot", "reactions"]])
-@pytest.mark.parametrize("bad", [np.inf, -np.inf, np.nan])
+@pytest.mark.parametrize("outputs, bad", [pytest.param(*p.values, id=f"{'+'.join(p.values[0] or ['all'])}-{p.values[1]}", marks=p.marks)
+                                          for p in diagonal([None, ["q", "lambda"], ["q", "qddot", "reactions"]], [np.inf, -np.inf, np.nan])])
 def test_row_finite_rejects_a_non_finite_value_in_any_checked_slot(tmp_path, outputs, bad: float) -> None:
     ctx = _context(outputs)
     lib = _build(ctx, tmp_path)

@@ -29,6 +29,7 @@ from symid.cli import main
 from symid.io.limits import MAX_BODIES, MAX_FILE_BYTES, MAX_NAME_LENGTH, MAX_STEPS
 from symid.output.results import MAX_TABLE_VALUES
 from shell import default_signals
+from tiers import first_quick
 
 REPO = Path(__file__).resolve().parents[2]
 SLIDER_CRANK = REPO / "symid" / "examples" / "slider_crank.toml"
@@ -144,7 +145,7 @@ def test_fifo_with_a_reader_receives_the_whole_table(warm, tmp_path):
 
 # -- signals --------------------------------------------------------------------------
 
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
+@pytest.mark.parametrize("signum", first_quick([signal.SIGTERM, signal.SIGHUP, signal.SIGINT]))  # one handler
 def test_signal_mid_run_removes_the_temporary_file(tmp_path, signum):
     # the reference backend builds nothing and takes ~1 ms per instant: far longer than the wait
     proc = subprocess.Popen([sys.executable, "-m", "symid", "solve", str(SLIDER_CRANK), "--backend", "reference",

@@ -89,6 +89,7 @@ def test_the_python_loop_of_a_large_mechanism_holds_nothing_nc_by_ng(path: Path,
     assert backends.capabilities(backend).compiled_loop is False
 
 
+@pytest.mark.slow  # the dense rank and condition of a large mechanism, for the comparison
 def test_symid_check_of_a_large_mechanism_gives_the_dense_rank_and_condition(path: Path, monkeypatch) -> None:
     """Rank and 2-norm condition number of the equilibrated Phi_q by Lanczos on
     the sparse matrix and its LU, against numpy's SVD of the dense one."""
