@@ -23,11 +23,12 @@ from symid.model.mechanism import T
 from symid.model.params import parameter_values
 from symid.symbolic.assemble import assemble
 from symid.symbolic.derive import DerivedConstraint
+import cbuild
 from runshare import key_of, shared_dir
 from small_mechanisms import _body, _constraint, _coordinate, text
 
 OK, BAD_ARGUMENT = 0, 5
-STRICT = ["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-fPIC", "-shared"]
+STRICT = ["cc", *cbuild.STRICT, "-fPIC", "-shared"]
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 # each mechanism text's code model, derived once in this process: code_model
 # takes no precision (only c_target.context does), so a double and a single

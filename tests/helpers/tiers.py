@@ -14,12 +14,13 @@ REASON = "slow: the rest of a product the quick tier runs on its diagonal (tests
 
 
 def diagonal(rows: Sequence[object], columns: Sequence[object]) -> list:
-    """pytest.param(row, column) for every pair: the pair (rows[k], columns[k mod n])
-    in the quick tier, every other pair marked slow. Ids are `row-column`."""
+    """pytest.param(row, column) for every pair: (rows[k], columns[k mod n]) and, with
+    fewer rows than columns, (rows[m mod r], columns[m]) in the quick tier, every
+    other pair marked slow. Ids are `row-column`."""
     out = []
     for k, row in enumerate(rows):
         for m, column in enumerate(columns):
-            quick = m == k % len(columns) or (k < len(columns) and m >= len(rows) and m % len(rows) == k)
+            quick = m == k % len(columns) or k == m % len(rows)  # row k's column, and column m's row
             out.append(pytest.param(row, column, id=f"{row}-{column}", marks=() if quick else pytest.mark.slow))
     return out
 
