@@ -160,6 +160,8 @@ def test_instant_reproduces_the_solved_instants(slider_crank: tuple, tmp_path: P
             assert np.max(np.abs(got - value)) <= RTOL * np.max(np.abs(value)), (k, key)
 
 
+# slow: three casadi generations, one in a fresh child; the casadi backend's agreement stays in the quick tier
+@pytest.mark.slow
 def test_generating_twice_gives_identical_bytes(slider_crank: tuple, tmp_path: Path) -> None:
     """Twice in this process and once in a fresh one (node numbering, hashing)."""
     mech, model = slider_crank

@@ -52,6 +52,7 @@ def test_the_setup_grows_linearly_with_the_coordinates(tmp_path: Path) -> None:
         assert grown == pytest.approx(kb * 6 * 48 / 1024, rel=1e-12), backend
 
 
+@pytest.mark.slow  # compiles a 33-body ladder; the estimates' tests stay in the quick tier
 def test_a_limit_between_the_estimates_refuses_numpy_and_c_solves_the_ladder(tmp_path: Path, capsys,
                                                                                monkeypatch) -> None:
     """SYMID_MEMORY_LIMIT below numpy's estimate and above c's: numpy refused in one

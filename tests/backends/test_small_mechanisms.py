@@ -120,8 +120,8 @@ def test_family_has_linkages_that_wrap_angles_without_a_phase() -> None:
 
 
 @needs_cc
-@pytest.mark.parametrize("name", ("pendulum", "only_q", "kinematics_q_only", "statics_q_and_one_reaction",
-                                  "lambda_only", "numbers"))
+@pytest.mark.parametrize("name", first_quick(["pendulum", "only_q", "kinematics_q_only", "statics_q_and_one_reaction",
+                                              "lambda_only", "numbers"], keep=2))  # the quick tier: every output and one
 def test_casadi_c_of_small_mechanism_compiles(name: str, tmp_path: Path) -> None:
     """CasADi's own C for the shapes that leave groups out. Its fixed calling
     convention f(arg, res, iw, w, mem) leaves parameters unused: the only
@@ -147,6 +147,7 @@ def test_subsets_give_the_columns_asked_for() -> None:
                                                               for c in ("x", "y", "phi")]
 
 
+@pytest.mark.slow  # a cold c build and a bench run; the small mechanisms' agreement on c stays in the quick tier
 @needs_cc
 def test_driven_pendulum_solves_on_c_from_the_command_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                            capsys: pytest.CaptureFixture[str]) -> None:

@@ -175,6 +175,7 @@ int main()
 """
 
 
+@pytest.mark.slow  # a C++ compile of the export; the export's C tests stay in the quick tier
 @needs_cc
 def test_cxx_program_compiles_the_source_and_links_the_c_object(tmp_path: Path) -> None:
     if shutil.which("g++") is None:

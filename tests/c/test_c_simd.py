@@ -100,6 +100,8 @@ def test_clangs_build_of_the_simd_passes_gives_gccs_scalar_rows(tmp_path: Path) 
     assert got[1].tobytes() == want[1].tobytes()
 
 
+# slow: three builds of the slider-crank's checks; the SIMD passes' bitwise test stays in the quick tier
+@pytest.mark.slow
 def test_simd_checks_answer_as_the_scalar_ones_with_non_finite_values(tmp_path: Path) -> None:
     ctx = _context("slider_crank")  # ng 9: two SSE2 pairs and a scalar tail
     ng = ctx.ng
@@ -128,6 +130,7 @@ def test_simd_checks_answer_as_the_scalar_ones_with_non_finite_values(tmp_path: 
         assert answers[0] == answers[2] and answers[1] == answers[2], (trial, v)
 
 
+@pytest.mark.slow  # compiles a 25-body ladder; the SIMD passes' bitwise test stays in the quick tier
 def test_ladder_solved_with_simd_passes_gives_the_closed_form_torque(tmp_path: Path) -> None:
     n = 12  # ng 75: past checks.straight, so the cache's build uses the SSE2 forms
     lad = ladder.Ladder(n)

@@ -161,7 +161,7 @@ def _generate(tmp_path: Path, env: dict[str, str]) -> subprocess.CompletedProces
                           capture_output=True, text=True, env=env, cwd=tmp_path)
 
 
-@pytest.mark.parametrize("case", ["no compiler", "CC not found", "CC fails"])
+@pytest.mark.parametrize("case", first_quick(["no compiler", "CC not found", "CC fails"]))  # one fault, one path
 def test_compiler_faults_are_one_line_and_exit_2_with_nothing_written(tmp_path: Path, case: str) -> None:
     env = {k: v for k, v in os.environ.items() if k != "CC"}
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")

@@ -122,6 +122,9 @@ def _instant(lib: ctypes.CDLL, name: str, ctx: c_target.CContext, t: float, q: n
     return status, info, q, lam[: ctx.nc]
 
 
+# slow: builds the two cables with a dense limit of its own; tests/codegen/test_scale.py keeps the sparse
+# fallback in the quick tier
+@pytest.mark.slow
 @needs_cc
 @pytest.mark.parametrize("fallback", first_quick(["sparse", "dense"]))
 def test_fixed_pivot_too_small_falls_back_and_stays_exact(fallback: str, tmp_path: Path,

@@ -96,6 +96,9 @@ def test_no_child_is_forked_beside_another_thread() -> None:
     assert forked.Pending(lambda: os.getpid()).result() != os.getpid(), "computed in a child"
 
 
+# slow: a cold solve in a child of its own; tests/codegen/test_cache_faults.py keeps the unusable caches in the
+# quick tier
+@pytest.mark.slow
 def test_the_process_still_runs_its_exit_handlers_and_flushes(tmp_path: Path) -> None:
     """A cache path that is a file: symid builds in a private temporary cache
     that an exit handler removes; the table and the report are complete."""

@@ -32,6 +32,9 @@ def generate(out: Path, target: str, cache: Path, limit: int | None) -> subproce
                           preexec_fn=limited)
 
 
+# slow: two `symid generate` children of the c export; tests/io/test_machine_faults.py keeps a full disk in the
+# quick tier
+@pytest.mark.slow
 @pytest.mark.parametrize("target", first_quick(["c", "numpy", "casadi"]))  # one writer of files; c writes the most
 def test_generate_on_a_full_disk_leaves_whole_files_and_names_the_file(tmp_path, target):
     whole = generate(tmp_path / "whole", target, tmp_path / "cache", None)

@@ -40,6 +40,9 @@ def no_dense_fallback(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
 
 
+# slow: builds the two cables without the dense fallback; the sparse fallback's looped ladder stays in the quick
+# tier
+@pytest.mark.slow
 @needs_cc
 def test_without_dense_fallback_failing_pivots_are_solved_by_the_sparse_fallback(no_dense_fallback: None,
                                                                                  monkeypatch: pytest.MonkeyPatch,
@@ -129,6 +132,7 @@ def looped(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
 
 
+@pytest.mark.slow  # compiles a looped 25-body ladder; the sparse fallback's looped ladder stays in the quick tier
 @needs_cc
 def test_looped_kernels_agree_with_reference(looped: None, no_dense_fallback: None, tmp_path: Path) -> None:
     """A ladder of 12 solved by C with its revolutes looped, its LU rolled

@@ -158,6 +158,7 @@ def drain(master: int, seen: bytes) -> bytes:
 SWEEPS = [("numpy", signal.SIGTERM), ("casadi", signal.SIGINT), ("c", signal.SIGHUP), ("reference", signal.SIGTERM)]
 
 
+@pytest.mark.slow  # a sweep child run until the signal lands; a solve's signal stays in the quick tier
 @pytest.mark.parametrize("backend, signum", [pytest.param(b, s, id=f"{b}-{signal.Signals(s).name}",
                                                           marks=[] if b == "c" else [SLOW_START])
                                              for b, s in SWEEPS])

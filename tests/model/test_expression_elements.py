@@ -63,6 +63,9 @@ def four_bars(tmp_path_factory):
             {b: api.solve(rewritten, backend=b) for b in BACKENDS})
 
 
+# slow: the four-bar of expressions solved on every backend (seconds); the cart's closed forms keep expression
+# rows on every backend in the quick tier
+@pytest.mark.slow
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_four_bar_of_expressions_equals_the_built_in_four_bar(four_bars, backend):
     builtin, rewritten = four_bars
@@ -255,6 +258,9 @@ def cam_runs():
     return path, {b: api.solve(path, backend=b) for b in BACKENDS}
 
 
+# slow: the disc cam solved on every backend (seconds); the cart and the torque reading other bodies keep
+# expression elements' power balance and Newton-Euler in the quick tier
+@pytest.mark.slow
 def test_cam_power_balance_and_newton_euler_on_every_body(cam_runs):
     from symid.io.reader import loads
     from truth import Truth, newton_euler_residual
@@ -413,6 +419,8 @@ def test_verify_checks_a_hand_derivation_of_an_expression_constraint(tmp_path, c
     assert "NOT EQUAL" in capsys.readouterr().out
 
 
+# slow: derives the disc cam in LaTeX; tests/symbolic/test_show.py keeps derive's printing in the quick tier
+@pytest.mark.slow
 def test_derive_shows_an_expression_constraint_of_a_file_and_refuses_the_bare_type(capsys):
     assert main(["derive", str(api.example("disc_cam")), "--latex"]) == 0
     out = capsys.readouterr().out

@@ -385,8 +385,9 @@ def cycloidal_mechanism(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-@pytest.mark.parametrize("backend", [pytest.param("c", marks=needs_cc), pytest.param("numpy", marks=pytest.mark.slow),
-                                     pytest.param("casadi", marks=pytest.mark.slow)])  # one law: c in the quick tier
+# slow: one law on every backend; the other motion laws' tests keep c in the quick tier
+@pytest.mark.slow
+@pytest.mark.parametrize("backend", [pytest.param("c", marks=needs_cc), "numpy", "casadi"])
 def test_cycloidal_driver_agrees_on_every_backend(cycloidal_mechanism, backend) -> None:
     reference = api.solve(cycloidal_mechanism, backend="reference").data
     got = api.solve(cycloidal_mechanism, backend=backend).data

@@ -266,6 +266,8 @@ steps = 49
 """
 
 
+# slow: every backend on a second rack mechanism; the driven pinion's closed form stays in the quick tier
+@pytest.mark.slow
 def test_pinion_on_a_moving_arm_couples_the_relative_turn(tmp_path):
     path = tmp_path / "rack_arm.toml"
     path.write_text(ARM)

@@ -20,6 +20,7 @@ from symid import api
 from symid.cli import main
 from symid.io.reader import load, loads
 from symid.numeric.solve import run
+from tiers import first_quick
 from truth import Truth, newton_euler_residual
 
 BACKENDS = ["reference", "numpy", "casadi", "c"]
@@ -187,6 +188,7 @@ def test_friction_approaches_frictionless_as_mu_goes_to_zero():
     np.testing.assert_allclose(gaps[1], 2 * gaps[0], rtol=1e-3, atol=1e-9 * size)
 
 
+@pytest.mark.slow  # the reference backend over the whole example; friction's truths stay in the quick tier
 def test_friction_newton_converges_in_three_iterations_on_the_example():
     study = api.prepare(api.example("slider_crank_friction"), backend="reference")
     counts = [inst.friction.iterations for inst in run(study.evaluator, study.analysis, study.q0())]
@@ -314,6 +316,9 @@ def test_summary_line_gives_the_energy_friction_took_and_its_mean_power(crank):
     assert "cylinder_guide" in line and "main_bearing" in line
 
 
+# slow: every figure of the friction crank on each backend; friction's power balance and Newton-Euler stay in
+# the quick tier
+@pytest.mark.slow
 def test_plot_draws_each_joints_friction_power(crank, tmp_path):
     from symid.output import plot
 
@@ -327,6 +332,7 @@ def test_plot_draws_each_joints_friction_power(crank, tmp_path):
             np.testing.assert_array_equal(lines[f"friction:{c.name}"].get_ydata(), res[f"{c.name}.friction_power"])
 
 
+@pytest.mark.slow  # a reference solve and every figure; the friction figure's test stays in the quick tier
 def test_plot_of_a_frictionless_table_has_no_friction_figure(tmp_path):
     from symid.output import plot
 
@@ -335,7 +341,7 @@ def test_plot_of_a_frictionless_table_has_no_friction_figure(tmp_path):
     assert not (tmp_path / "run_friction.png").exists() and not written.skipped
 
 
-@pytest.mark.parametrize("backend", ["reference", "c"])
+@pytest.mark.parametrize("backend", first_quick(["c", "reference"]))
 def test_slot_between_moving_bodies_balances_power_and_every_body(backend):
     mech = loads(quick_return_with_friction(), "quick_return.toml")
     res = api.solve(mech, backend=backend, steps=41)
@@ -408,7 +414,7 @@ f = "0.2 + 0.1*sin(5*t)"
 """
 
 
-@pytest.mark.parametrize("backend", ["reference", "c"])
+@pytest.mark.parametrize("backend", first_quick(["c", "reference"]))
 def test_slide_on_a_moving_offset_line_balances_power_and_every_body(backend):
     """The slide's line is off the carriage's centre and the carriage turns:
     the friction's moment on the slide body counts."""

@@ -62,6 +62,7 @@ def test_a_second_parameter_value_derives_and_lambdifies_at_least_ten_times_less
     assert counted["lambdify"] == 0 and counted["jacobian"] == 0, counted
 
 
+@pytest.mark.slow  # a fresh child that derives the crank's sensitivities; the reuse counts stay in the quick tier
 def test_a_reused_evaluator_gives_a_fresh_process_numbers() -> None:
     _solve("0.1")  # builds the structure at one value ...
     reused = _solve("0.11")  # ... and this run reuses it at another

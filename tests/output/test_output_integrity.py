@@ -104,6 +104,9 @@ def _preexec() -> None:
     resource.setrlimit(resource.RLIMIT_FSIZE, (512 << 20, 512 << 20))
 
 
+# slow: a solve child run until the signal lands; tests/io/test_machine_faults.py keeps a signal mid-run in the
+# quick tier
+@pytest.mark.slow
 def test_sigint_mid_run_keeps_the_old_table_and_leaves_no_temporary(tmp_path: Path) -> None:
     """`symid solve` interrupted while writing rows: exit 130, the old
     table intact, no temporary file left."""

@@ -298,6 +298,9 @@ def test_no_command_leaves_a_file_in_the_current_folder(tmp_path):
     assert not [p for p in out.rglob("*") if ".tmp" in p.name or p.name.startswith(".symid-generate.")]
 
 
+# slow: a child writing to a FIFO and its figures; tests/io/test_machine_faults.py keeps a FIFO in the quick
+# tier
+@pytest.mark.slow
 @pytest.mark.parametrize("command, stem", first_quick([(SOLVE, "slider_crank"), (SWEEP, "slider_crank_sweep")],
                                                      ids=["solve", "sweep"]))
 def test_plots_of_a_table_sent_to_a_fifo_go_to_the_current_folder_named_after_the_mechanism(tmp_path, command, stem):

@@ -86,6 +86,7 @@ def test_sample_is_histograms_with_percentiles_and_scatter_against_the_primary_f
         assert cross.get_xdata().tolist() == s.values[~ok, k].tolist()
 
 
+@pytest.mark.slow  # a sweep and its figures twice; the sweep plots' other tests stay in the quick tier
 @pytest.mark.parametrize("suffix", first_quick([".parquet", ".csv"]))
 def test_symid_plot_of_a_sweep_table_writes_its_pngs(tmp_path, capsys, suffix):
     out = tmp_path / f"study{suffix}"

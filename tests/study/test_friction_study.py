@@ -14,6 +14,7 @@ import pytest
 
 from symid import api
 from symid.cli import main
+from tiers import first_quick
 
 EXAMPLE = str(api.example("slider_crank_friction"))
 STEPS = "9"
@@ -102,7 +103,7 @@ def test_solve_many_with_friction_parameters_gives_each_variants_own_run(backend
     assert not np.allclose(runs[0]["motor.T_j"], runs[1]["motor.T_j"], rtol=1e-6)
 
 
-@pytest.mark.parametrize("unrolled", [4, 0], ids=["written_out", "dense"])
+@pytest.mark.parametrize("unrolled", first_quick([4, 0], ids=["written_out", "dense"]))
 def test_c_friction_newton_system_solved_either_way_matches_the_reference(monkeypatch, tmp_path, unrolled):
     """The generated solve of the NF x NF Newton system, written out (NF <= 4)
     or by the dense solver (past it), gives the reference's run to 1e-10, and

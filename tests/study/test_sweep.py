@@ -186,6 +186,9 @@ def test_grid_product_order_last_fastest():
 
 # -- Ctrl-C --------------------------------------------------------------------------
 
+# slow: a sweep child run until the signal lands; tests/io/test_signals.py keeps a signal mid-run in the quick
+# tier
+@pytest.mark.slow
 def test_sigint_mid_sweep_writes_the_finished_variants_and_exits_130(tmp_path):
     """The progress bar (stderr on a terminal) says when the variants run; then SIGINT.
     10^6 variants x 201 instants: over ten seconds on the batch engine (6e4

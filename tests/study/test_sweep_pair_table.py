@@ -22,6 +22,8 @@ def _sweep(name: str, monkeypatch: pytest.MonkeyPatch, cache: Path, table_min: i
     return api.sweep(api.load_mechanism(api.example(name), steps=41), {"n": [0.5, 1.5]}, backend="c", workers=1)
 
 
+# slow: two sweeps of the same grid; tests/study/test_sweep.py keeps the sweeps' tables in the quick tier
+@pytest.mark.slow
 @pytest.mark.parametrize("name", first_quick(["slider_crank", "quick_return", "four_bar"]))
 def test_peak_forces_from_tables_are_the_written_out_ones(name: str, monkeypatch: pytest.MonkeyPatch,
                                                           tmp_path: Path) -> None:

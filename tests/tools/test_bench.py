@@ -17,6 +17,7 @@ import pytest
 
 from symid import api
 from symid.cli import main
+from tiers import first_quick
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
@@ -154,6 +155,7 @@ def test_a_missing_program_is_one_line_and_exit_2(tmp_path: Path) -> None:
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.slow  # a harness child; the harness's list and errors stay in the quick tier
 def test_a_run_that_fails_is_one_line_and_exit_3(tmp_path: Path) -> None:
     done = harness("optimize", "--smoke", "--backend", "no_such_backend", "--out", str(tmp_path))
     assert done.returncode == 3, done.stderr
@@ -233,7 +235,7 @@ def test_overview_smoke_run_writes_every_output(tmp_path: Path) -> None:
     assert 'Function.map(K, "thread", 2)' in (tmp_path / "overview.md").read_text()
 
 
-@pytest.mark.parametrize("backend", ["c", "numpy", "reference", "casadi"])
+@pytest.mark.parametrize("backend", first_quick(["c", "numpy", "reference", "casadi"]))
 def test_a_ladder_far_from_the_origin_keeps_its_torque_to_1e_13(backend: str, tmp_path: Path) -> None:
     # At x ~ 16384 m a coordinate's ulp is 3.6e-12: a residual summed left
     # to right rounds there, and eight bays in series turn that into torque

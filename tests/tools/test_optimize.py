@@ -81,6 +81,7 @@ def cli(monkeypatch, tmp_path):
     return run
 
 
+@pytest.mark.slow  # an optimization from the command line; the optimizer's API tests stay in the quick tier
 def test_cli_prints_iterations_and_writes_the_optimum_as_a_parameters_snippet(cli, capsys, optimum):
     args = ["--minimize", "motor.effort_rms"] + [a for v in VARY for a in ("--vary", v)]
     assert cli(*args) == 0

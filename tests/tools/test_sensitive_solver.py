@@ -13,12 +13,12 @@ from symid.model.mechanism import parameter_symbol
 from symid.model.params import parameter_values
 from symid.study.slow import study_analysis, with_values
 from symid.tools.sensitive import solver
+from tiers import diagonal
 
 STEPS = 21
 
 
-@pytest.mark.parametrize("backend", ["c", "numpy"])
-@pytest.mark.parametrize("names", [("L_rod", "n"), ()])
+@pytest.mark.parametrize("names, backend", diagonal([("L_rod", "n"), ()], ["c", "numpy"]))
 def test_a_reused_study_solves_each_variant_as_a_fresh_one_does(backend, names):
     mech = study_analysis(api.load_mechanism(api.example("slider_crank"), steps=STEPS))
     columns = ["motor.T_j"] if names else []

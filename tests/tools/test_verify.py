@@ -117,6 +117,7 @@ def test_wrong_body_block_is_caught_with_a_valid_counterexample():
     assert abs(at(derived, bad.point)[0] - at(claimed, bad.point)[0]) > 1e-6
 
 
+@pytest.mark.slow  # three verifications of mutated claims; verify's other outcomes stay in the quick tier
 def test_consistent_condition_is_meant_and_its_counterexamples_are_consistent():
     general = mutated("parallel", 'value = "norm(a_i_x, a_i_y)*norm(a_j_x, a_j_y)*lambda"\ncondition = "consistent"',
                       'value = "norm(a_i_x, a_i_y)*norm(a_j_x, a_j_y)*lambda"\ncondition = "general"')
@@ -142,6 +143,7 @@ def test_pin_in_slot_counterexample_puts_the_pin_ahead_on_the_slot():
     assert at(a.dot(d), bad.point)[0] > 0
 
 
+@pytest.mark.slow  # two numeric verifications of a claim; verify's other outcomes stay in the quick tier
 def test_inconclusive_simplification_falls_back_to_seeded_numeric_testing(monkeypatch):
     monkeypatch.setattr(verify_module, "_simplified", lambda e: e)
     report = verify(CLAIMS["revolute_revolute"])
