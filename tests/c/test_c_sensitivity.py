@@ -66,7 +66,9 @@ def _prepare(example: str) -> Run:
     return Run(study.mechanism, ev, ev.meta["columns"], of, names, study.q0(), Path(ev.artifact))
 
 
-@pytest.fixture(scope="module", params=sorted(CHOSEN))
+# the quick tier: the slider-crank's; quick_return's with the other examples in the slow tier
+@pytest.fixture(scope="module", params=[pytest.param(e, marks=pytest.mark.slow) if e == "quick_return" else e
+                                        for e in sorted(CHOSEN)])
 def run(request: pytest.FixtureRequest) -> Run:
     return _prepare(request.param)
 

@@ -288,6 +288,9 @@ def test_cam_power_balance_and_newton_euler_on_every_body(cam_runs):
                                atol=1e-12 * np.max(res["contact.Fy_j"]))
 
 
+# slow: the disc cam solved on every backend (its fixture, seconds); the cart keeps expression rows on every
+# backend in the quick tier
+@pytest.mark.slow
 @pytest.mark.parametrize("backend", BACKENDS[1:])
 def test_cam_every_backend_agrees_with_the_reference(cam_runs, backend):
     _, runs = cam_runs

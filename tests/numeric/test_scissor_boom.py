@@ -50,6 +50,9 @@ def test_the_motor_torque_is_lagranges(runs, backend: str) -> None:
     assert abs(rate[0]) < 1e-12 and abs(rate[-1]) < 1e-12
 
 
+# slow: the 16-bar boom solved on every backend (its fixture), a big example; power balance and Newton-Euler of
+# the bundled quick examples stay in the quick tier
+@pytest.mark.slow
 def test_power_balance_and_newton_euler_on_every_bar(runs) -> None:
     from truth import Truth, newton_euler_residual
 

@@ -22,6 +22,9 @@ from symid.symbolic.columns import GROUP_SUFFIXES
 # column's scale (above this file's 2e-9 floor); its forces are checked
 # against Lagrange's equation in tests/numeric/test_scissor_boom.py
 EXAMPLES = [e for e in api.examples() if "friction" not in e and e != "scissor_boom"]
+# the quick tier checks the slider-crank's sensitivities; quick_return's (a slider in a moving slot: the same
+# derivation, more parameters) are with the other examples in the slow tier
+CHECKED = [pytest.param(e, marks=pytest.mark.slow) if e == "quick_return" else e for e in EXAMPLES]
 BACKENDS = ("reference", "numpy", "casadi", "c")
 STEPS = 4  # t0, t1 and two instants between (not only the slider-crank's dead centres)
 REL = 2e-4  # the difference step, relative to the parameter's value
@@ -104,7 +107,7 @@ def _differences(example: str) -> tuple[dict[str, dict[str, np.ndarray]], dict[s
     return {"coarse": coarse, "fine": fine}, scale
 
 
-@pytest.mark.parametrize("example", EXAMPLES)
+@pytest.mark.parametrize("example", CHECKED)
 def test_differences_reach_the_bound_they_are_used_for(example: str, tmp_path_factory) -> None:
     """Two step sizes of the extrapolated differences agree to 2e-9 of each
     column's scale: their truncation is gone and what is left is the runs'
@@ -125,7 +128,7 @@ FEW_ON_C = {"andrews_squeezer": 3, "excavator": 3}
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-@pytest.mark.parametrize("example", EXAMPLES)
+@pytest.mark.parametrize("example", CHECKED)
 def test_sensitivities_match_central_differences_to_1e_9_of_peak(example: str, backend: str, tmp_path_factory) -> None:
     fd, scale = _truth(example, tmp_path_factory)
     names = base_names(api.load_mechanism(api.example(example)).parameters)
