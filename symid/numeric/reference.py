@@ -103,7 +103,7 @@ class _GroupData:
         wanted = np.arange(self.group.size) if members is None else members
         out: Array | None = None
         for part, ground in self.parts:
-            pick = np.intersect1d(part, wanted, assume_unique=True)
+            pick = part if members is None else np.intersect1d(part, wanted, assume_unique=True)  # both sorted
             if pick.size == 0:
                 continue
             everything = pick.size == self.group.size
@@ -135,8 +135,12 @@ class _GroupData:
 
 
 def _stack(values: list, n: int) -> Array:
-    """Kernel outputs (arrays or scalar constants) as one (len, n) array."""
-    return np.array([np.broadcast_to(np.asarray(v, dtype=float), (n,)) for v in values])
+    """Kernel outputs (arrays or scalar constants) as one (len, n) array (each
+    row assigned in place: a constant broadcasts, an array is copied)."""
+    out = np.empty((len(values), n))
+    for k, v in enumerate(values):
+        out[k] = v
+    return out
 
 
 class ReferenceEvaluator:
