@@ -170,8 +170,9 @@ CASES = {
 
 
 @pytest.mark.parametrize("case", first_quick(["crank_near_dead_centre", "scissor_flat"]
-                                               + sorted(set(CASES) - {"crank_near_dead_centre", "scissor_flat"}), keep=2))
-# the quick tier: a warning (exit 0) and a singular stop (exit 3); the others are the same screen at other positions
+                                               + sorted(set(CASES) - {"crank_near_dead_centre", "scissor_flat"})))
+# the quick tier: a warning (exit 0; the singular stop, exit 3, is tests/backends/test_singular_names_constraints.py's);
+# the others are the same screen at other positions
 def test_every_backend_warns_alike_at_a_singular_position(case: str, tmp_path: Path,
                                                           capsys: pytest.CaptureFixture[str]) -> None:
     text, extra, status, said = CASES[case]

@@ -21,6 +21,7 @@ from symid.codegen.model import options_for
 from symid.errors import InputError
 from symid.output.sensitivity import choose
 from symid.symbolic.assemble import assemble
+from tiers import first_quick
 
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wconversion", "-Wdouble-promotion", "-Wshadow"]
 
@@ -186,11 +187,11 @@ def test_cache_key_includes_the_sensitivity_set() -> None:
     assert len(keys) == 4
 
 
-@pytest.mark.parametrize("names, said", [
+@pytest.mark.parametrize("names, said", first_quick([  # one refusal in the quick tier: each is one line of the same check
     ("omega", "'omega' is a derived parameter (omega = \"2*pi*n\""),
     ("L_crank,nope", "--sensitivity nope: no such parameter"),
     ("n,n", "'n' is named twice"),
-])
+], ids=["derived", "unknown", "twice"]))
 def test_bad_sensitivity_names_are_one_line_and_exit_2(tmp_path: Path, names: str, said: str) -> None:
     import sys
 
