@@ -102,6 +102,7 @@ def _indexed(misra: types.ModuleType) -> bool:
 def main() -> None:
     stock = stock_addon()
     assert stock is not None, "the installed cppcheck's misra.py is not found"
+    sys.dont_write_bytecode = True  # imported here, run as a script by cppcheck: no __pycache__ beside it
     sys.path.insert(0, str(stock.parent))
     sys.argv[0] = str(stock)
     import misra  # type: ignore[import-not-found]
