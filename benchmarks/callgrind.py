@@ -62,9 +62,15 @@ def per_instant(example: str, first: int = 200, second: int = 2200, checks: bool
     """Instructions per instant of the example's compiled trajectory (its own
     t0, t1 and tol, cut into `second - 1` steps so that every run is as fine);
     `checks`: with the scales of the checks set, as `symid solve` runs it."""
+    return per_instant_each(example, first, second, (checks,))[0]
+
+
+def per_instant_each(example: str, first: int, second: int, checks: Sequence[bool]) -> list[float]:
+    """`per_instant` for each of `checks`, the solver compiled once for all."""
     study = api.prepare(api.example(example), backend="c")
-    return counted(Path(study.evaluator.artifact), study.mechanism.name,  # type: ignore[attr-defined]
-                   study.analysis, study.q0(), first, second, run_scales(study) if checks else ())
+    scales = run_scales(study)
+    return counted_each(Path(study.evaluator.artifact), study.mechanism.name,  # type: ignore[attr-defined]
+                        study.analysis, study.q0(), first, second, [scales if c else () for c in checks])
 
 
 def run_scales(study: api.Study) -> list[float]:
@@ -91,21 +97,34 @@ def counted(folder: Path, name: str, a: Analysis, q0: Sequence[float], first: in
     """Instructions per instant of the solver `name` built in `folder` (what
     `symid solve --backend c` leaves there), run from `q0` over `a`'s t0 to t1
     cut into `second - 1` steps: (Ir(second) - Ir(first)) / (second - first)."""
-    source = driver_source(name, a, q0, second, scales)
-    counts = []
+    return counted_each(folder, name, a, q0, first, second, [scales])[0]
+
+
+def counted_each(folder: Path, name: str, a: Analysis, q0: Sequence[float], first: int, second: int,
+                 scale_sets: Sequence[Sequence[float]]) -> list[float]:
+    """`counted` for each set of scales: one driver each, the solver compiled
+    once to an object they all link (each file is its own translation unit
+    either way: the same machine code as compiling them together)."""
+    per: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
-        driver, exe = Path(tmp) / "driver.c", Path(tmp) / "driver"
-        driver.write_text(source, encoding="utf-8")
-        subprocess.run(["gcc", "-O2", "-std=c99", "-fno-math-errno", "-I", str(folder), str(driver),
-                        str(folder / f"{name}_solver.c"), "-o", str(exe), "-lm"], check=True)
-        for n in (first, second):
-            out = subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={tmp}/cg.out",
-                                  str(exe), str(n)], capture_output=True, text=True, check=True)
-            found = re.search(r"Collected : (\d+)", out.stderr)
-            if found is None or out.stdout.split() != ["0", str(n)]:
-                raise RuntimeError(f"callgrind run of {name} failed: {out.stdout} {out.stderr[-300:]}")
-            counts.append(int(found.group(1)))
-    return (counts[1] - counts[0]) / (second - first)
+        solver = Path(tmp) / "solver.o"
+        subprocess.run(["gcc", *FLAGS, "-c", "-I", str(folder), str(folder / f"{name}_solver.c"), "-o", str(solver)],
+                       check=True)
+        for k, scales in enumerate(scale_sets):
+            driver, exe = Path(tmp) / f"driver{k}.c", Path(tmp) / f"driver{k}"
+            driver.write_text(driver_source(name, a, q0, second, scales), encoding="utf-8")
+            subprocess.run(["gcc", *FLAGS, "-I", str(folder), str(driver), str(solver), "-o", str(exe), "-lm"],
+                           check=True)
+            counts = []
+            for n in (first, second):
+                out = subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={tmp}/cg.out",
+                                      str(exe), str(n)], capture_output=True, text=True, check=True)
+                found = re.search(r"Collected : (\d+)", out.stderr)
+                if found is None or out.stdout.split() != ["0", str(n)]:
+                    raise RuntimeError(f"callgrind run of {name} failed: {out.stdout} {out.stderr[-300:]}")
+                counts.append(int(found.group(1)))
+            per.append((counts[1] - counts[0]) / (second - first))
+    return per
 
 
 FLAGS = ["-O2", "-std=c99", "-fno-math-errno"]

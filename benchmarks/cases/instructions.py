@@ -35,8 +35,7 @@ def example(ctx: Context, name: str, rounds: int) -> dict[str, Any]:
     first, second = (20, 60) if ctx.smoke else (200, 2200)
     calls = (5, 15) if ctx.smoke else (50, 550)
     n_wall, reps = (101, 2) if ctx.smoke else (2001, 100)
-    plain = callgrind.per_instant(name, first, second)
-    checked = callgrind.per_instant(name, first, second, checks=True)
+    plain, checked = callgrind.per_instant_each(name, first, second, (False, True))
     folder = ctx.work / name
     toml = api.example(name)
     subprocess.run([sys.executable, "-m", "symid", "generate", str(toml), "--target", "c", "-o", str(folder)],

@@ -135,13 +135,14 @@ def _plot_sweep(args: argparse.Namespace) -> int:
 
 def run(args: argparse.Namespace) -> int:
     from symid.output import plot
-    from symid.io.reader import load
 
     if _is_sweep(Path(args.file)):
         return _plot_sweep(args)
     table = read_results(args.file)
     mechanism = None
-    if args.mechanism:
+    if args.mechanism:  # the reader imports sympy: a table plotted alone never needs it
+        from symid.io.reader import load
+
         mechanism = load(args.mechanism, set_values(args.set))
         check_match(table, mechanism, args.file, args.mechanism)
         check_configurations(table, mechanism, args.file, args.mechanism)

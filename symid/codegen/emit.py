@@ -135,7 +135,7 @@ def sample_jacobian(flat: Flat, q: np.ndarray, t: float, p: np.ndarray) -> np.nd
     """Phi_q as a dense matrix at one configuration (for the pivot choice)."""
     syms = [sp.Symbol(f"q[{k}]", real=True) for k in range(flat.ng)]
     psyms = [sp.Symbol(f"p[{k}]", real=True) for k in range(len(flat.params))]
-    fn = sp.lambdify([syms, sp.Symbol("t", real=True), psyms], [e for _, _, e in flat.jac], "numpy")
+    fn = sp.lambdify([syms, sp.Symbol("t", real=True), psyms], [e for _, _, e in flat.jac], [np])
     values = np.array(fn(list(q), t, list(p)), dtype=float).reshape(-1)
     out = np.zeros((flat.nc, flat.ng))
     for (r, c, _), v in zip(flat.jac, values):

@@ -45,7 +45,7 @@ def _kernel(name: str) -> tuple[DerivedFriction, Callable[..., list]]:
     args = [*s.q("i"), *s.q("j"), *s.qd("i"), *s.qd("j"), *c.constants, *c.lam, ARM_INV]
     exprs = [d.speed, d.normal, *d.d_normal, *d.generalized["i"], *d.generalized["j"], *d.loads["i"],
              *d.loads["j"]]
-    return d, sp.lambdify(args, exprs, modules="numpy", cse=True)
+    return d, sp.lambdify(args, exprs, modules=[np], cse=True)
 
 
 @dataclass(frozen=True)

@@ -64,7 +64,7 @@ def _family(name: str) -> _Family:
     args = [*s.q("i"), *s.q("j"), *s.qd("i"), *s.qd("j"), *c.constants, *c.lam, ARM_INV]
     values = [d.speed, d.normal, *d.generalized["i"], *d.generalized["j"], *d.loads["i"], *d.loads["j"]]
     jac = sp.Matrix(values).jacobian(sp.Matrix(args))
-    fn = sp.lambdify(args, values + list(jac), modules="numpy", cse=True)
+    fn = sp.lambdify(args, values + list(jac), modules=[np], cse=True)
     return _Family(len(args), len(c.constants), len(c.lam), fn)
 
 

@@ -21,14 +21,15 @@ import numpy as np
 
 from symid.backends import Array
 from symid.io.files import atomic_path, atomic_write, make_folder
-from symid.model.mechanism import Mechanism
-from symid.output.scene import GEARS, Scene, draw, draw_paths, scene
 from symid.output import friction_loss
 from symid.output.friction_plot import friction_figure
 from symid.output.summary import Table, efforts
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the mechanism's and the scene's modules import sympy: only the figures that draw it need them
     from matplotlib.figure import Figure
+
+    from symid.model.mechanism import Mechanism
+    from symid.output.scene import Scene
 
 DPI = 110
 PANELS = 4           # instants drawn in the mechanism figure
@@ -146,7 +147,7 @@ def reactions_figure(table: Table, mechanism: Mechanism | None = None) -> "Figur
     axes[-1].set_xlabel(time_label(mechanism))
     name = mechanism.name if mechanism else "results"
     fig.suptitle(f"{name}: joint reactions (magnitude, on body j)", fontsize=12)
-    if any(types.get(r.name) in GEARS for r in found):
+    if types and any(types.get(r.name) in _gears() for r in found):
         fig.supxlabel("Gear rows couple angles only: their reactions are couples, and the tooth "
                       "force's share of the bearing loads is not represented.", fontsize=8, color="0.35")
     return fig
@@ -174,8 +175,17 @@ def _panel_size(sc: Scene, width: float) -> tuple[float, float]:
     return width, float(np.clip(width * (y1 - y0) / (x1 - x0), 1.6, 1.5 * width))
 
 
+def _gears() -> Any:
+    """The gear types (symid.output.scene imports sympy: a table plotted alone never needs it)."""
+    from symid.output.scene import GEARS
+
+    return GEARS
+
+
 def mechanism_figure(table: Table, mechanism: Mechanism, panels: int = PANELS) -> "Figure":
     """The mechanism drawn at a few instants, each with the paths of its moving points."""
+    from symid.output.scene import draw, draw_paths, scene
+
     sc = scene(table, mechanism)
     t = np.asarray(table["t"])
     ks = _instants(sc, len(t), panels)
@@ -203,6 +213,8 @@ def mechanism_figure(table: Table, mechanism: Mechanism, panels: int = PANELS) -
 def write_gif(table: Table, mechanism: Mechanism, path: str | Path, frames: int = 60, fps: int = 15) -> Path:
     """An animated GIF of the motion (at most `frames` frames), written atomically."""
     from matplotlib.animation import PillowWriter
+
+    from symid.output.scene import draw, draw_paths, scene
 
     path = Path(path)
     sc = scene(table, mechanism)

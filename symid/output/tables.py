@@ -68,6 +68,8 @@ def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int
     is solved and the oldest one written, in order (the compiled formatter
     and NumPy's loops release the GIL); at most AHEAD blocks per core wait,
     so memory stays bounded by a few blocks (~4 MB each with their text).
+    The first block is written as soon as it is formatted, later ones as soon
+    as they are formatted and next in order.
     """
     from symid.output.compiled_csv import csv_block, formatter
 
@@ -83,7 +85,9 @@ def write_csv(path: str | Path, header: list[str], rows: Iterable[Array]) -> int
                 for block in blocks(rows, len(header)):
                     seen += block.size
                     waiting.append((pool.submit(csv_block, block, formatter(seen)), len(block)))
-                    while len(waiting) > AHEAD * workers:
+                    # the first block, and any formatted one next in line, is written at once: a slow
+                    # loop's rows reach the file a block after they are solved, not AHEAD blocks later
+                    while waiting and (not count or len(waiting) > AHEAD * workers or waiting[0][0].done()):
                         count += _drain(waiting, out)
             except AnalysisError as exc:  # keep the instants before it: the file is completed
                 failure = exc

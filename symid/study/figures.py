@@ -11,11 +11,14 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from symid.errors import AnalysisError
-from symid.model.mechanism import Mechanism, is_driver
+
+if TYPE_CHECKING:  # the mechanism's module imports sympy: reading a sweep table (symid plot) never needs it
+    from symid.model.mechanism import Mechanism
 
 # Why a variant's run stopped (index = code); "ok" when it ran to t1.
 STATUS = ("ok", "not_converged", "singular", "jump", "nonfinite")
@@ -28,6 +31,8 @@ DRIVER_FIGURES = ("effort_peak", "effort_t_peak", "effort_rms", "power_peak")
 
 def figure_names(mechanism: Mechanism) -> tuple[str, ...]:
     """The figure columns of a study of `mechanism`, in contract order."""
+    from symid.model.mechanism import is_driver
+
     a = mechanism.analysis
     if a.kind == "kinematics":  # no forces solved: no efforts, no reactions
         return ()

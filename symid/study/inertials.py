@@ -35,7 +35,8 @@ def checker(mechanism: Mechanism, names: Sequence[str]) -> Callable[[Array], tup
             expr = sp.sympify(getattr(body, key)).xreplace(derived)
             if expr.free_symbols & set(varied):  # else fixed for every variant: the reader checked it
                 args = sorted(expr.free_symbols, key=str)
-                tests.append((body.name, key, args, sp.lambdify(args, expr, "numpy")))
+                # a module object, not "numpy" (which runs `from numpy import *`: numpy.f2py, .testing, .ma)
+                tests.append((body.name, key, args, sp.lambdify(args, expr, [np])))
 
     def first(values: Array) -> tuple[int, str] | None:
         values = np.asarray(values, dtype=float).reshape(-1, len(names))

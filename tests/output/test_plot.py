@@ -16,6 +16,7 @@ from symid import api
 from symid.output import plot
 
 from symid.output import summary
+from symid.output.scene import scene
 from symid.cli import main
 from symid.io.reader import load, loads
 from runshare import key_of, shared_value
@@ -114,7 +115,7 @@ def test_pins_are_drawn_at_the_joint_points_of_each_instant(solved):
 def test_the_slider_crank_paths_are_the_crank_circle_and_the_guide_line():
     mech = load(api.example("slider_crank"), analysis={"steps": STEPS})
     results = api.solve(mech)
-    sc = plot.scene(results, mech)
+    sc = scene(results, mech)
     assert set(sc.outlines) == {"crank", "connecting_rod", "slider"} and sc.anchors == [(0.0, 0.0)]
     radii = [np.hypot(*path.T) for _, path in sc.paths]
     # geometry of lengths of order 0.1 m: rounding
@@ -130,7 +131,7 @@ def test_every_slot_holds_its_pin_at_every_instant(name):
     mech = load(api.example(name), analysis={"steps": STEPS})
     results = api.solve(mech)
     truth = Truth(mech, results)
-    sc = plot.scene(results, mech)
+    sc = scene(results, mech)
     assert sc.slots
     for slot, start, end, _ in sc.slots:
         c = next(c for c in mech.constraints if c.name == slot)
@@ -144,7 +145,7 @@ def test_every_slot_holds_its_pin_at_every_instant(name):
 
 def test_planetary_gears_are_drawn_with_their_pitch_radii():
     mech = load(api.example("planetary"), analysis={"steps": 9})
-    sc = plot.scene(api.solve(mech), mech)
+    sc = scene(api.solve(mech), mech)
     radii = {(body, round(r, 12)) for body, _, r, _ in sc.gears}
     assert radii == {("sun", 0.03), ("planet", 0.03), ("ground", 0.09), ("input_pinion", 0.02)}
 
@@ -165,7 +166,7 @@ def test_an_eccentric_gears_pitch_circle_turns_about_its_axis_not_its_centre_of_
     mech = loads(text("eccentric", gears), "eccentric.toml")
     results = api.solve(mech)
     truth = Truth(mech, results)
-    drawn = {body: (centre, radius) for body, centre, radius, _ in plot.scene(results, mech).gears}
+    drawn = {body: (centre, radius) for body, centre, radius, _ in scene(results, mech).gears}
     for body, bearing, radius in (("pinion", "bearing1", 0.05), ("wheel", "bearing2", 0.1)):
         c = next(c for c in mech.constraints if c.name == bearing)
         axis, _ = truth.point(body, c.values["sj"])

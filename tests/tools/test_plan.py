@@ -237,6 +237,30 @@ def test_plots_take_the_normal_path(tmp_path, capsys, spy):
     assert len(spy) == 2
 
 
+def test_a_table_plotted_alone_imports_no_sympy(tmp_path, capsys):
+    """`symid plot TABLE` without --mechanism draws from the table only: neither a
+    results table nor a sweep table needs the reader, the mechanism or sympy (the
+    sweep table read and its plot module imported, not drawn: its figure takes a second)."""
+    pytest.importorskip("matplotlib")
+    run = ["solve", str(SLIDER_CRANK), "--steps", "21", "--backend", "numpy", "-o", str(tmp_path / "run.csv")]
+    sweep = ["sweep", str(SLIDER_CRANK), "--grid", "L_rod=0.25:0.4:2", "--steps", "21", "--backend", "numpy",
+             "-o", str(tmp_path / "sw.csv")]
+    assert cli.main(run) == 0 and cli.main(sweep) == 0
+    capsys.readouterr()
+    code = ("import sys, json\nfrom symid.cli import main\nfrom symid.cli import plot\n"
+            "from symid.output import sweep_plot\nfrom symid.study.table import read\n"
+            "status = [main(['plot', 'run.csv', '-o', 'figures']), plot._is_sweep(plot.Path('sw.csv')),"
+            " len(read('sw.csv').values)]\n"
+            f"print(json.dumps([status, [m for m in sys.modules if m.startswith({HEAVY!r})]]))")
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)
+    status, modules = json.loads(proc.stdout.splitlines()[-1])
+    assert status == [0, True, 2], proc.stderr
+    assert modules == []
+    assert sorted(p.name for p in (tmp_path / "figures").iterdir()) == ["run_reactions.png"]
+
+
 def test_an_output_error_on_a_planned_run_is_the_same_input_error(tmp_path, capsys, spy):
     (tmp_path / "m.toml").write_text(SLIDER_CRANK.read_text())
     solve(tmp_path, capsys)
