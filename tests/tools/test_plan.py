@@ -237,6 +237,9 @@ def test_plots_take_the_normal_path(tmp_path, capsys, spy):
     assert len(spy) == 2
 
 
+# slow: a child that draws a table and reads a sweep's (seconds cold); test_warm_run_imports_no_sympy keeps a
+# sympy-free child in the quick tier
+@pytest.mark.slow
 def test_a_table_plotted_alone_imports_no_sympy(tmp_path, capsys):
     """`symid plot TABLE` without --mechanism draws from the table only: neither a
     results table nor a sweep table needs the reader, the mechanism or sympy (the
