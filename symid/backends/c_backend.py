@@ -55,8 +55,15 @@ def chunk_rows(width: int) -> int:
     return max(16, min(CHUNK, CHUNK_BYTES // (8 * width)))
 
 
-def build(layout: Layout, options: Options) -> Path:
-    """The folder holding the compiled solver for this model, building it if needed."""
+def build(layout: Layout, options: Options, batch: bool = True) -> Path:
+    """The folder holding the compiled solver for this model, building it if needed.
+
+    The build compiles what the backend calls: never the set-point entries
+    (`<name>_setpoint*`, for a controller's export), and the sweep's
+    variants in SIMD lanes only for `batch` (a study's build, which runs
+    `<name>_sweep`); without, `<name>_sweep` is the one-by-one loop and the
+    build compiles in about half the time. The two are separate entries.
+    """
     from symid.codegen.cache import cached
 
     mech = layout.mechanism
@@ -73,7 +80,8 @@ def build(layout: Layout, options: Options) -> Path:
         model = code_model(mech, options, looped=True,
                            meanwhile=lambda sample: preload(c.TEMPLATES, sample.ready))
         stage("generating")
-        ctx = c.context(model, lanes=True)  # studies run this build: their variants in SIMD lanes
+        # studies run the batch build: their variants in SIMD lanes; no set-points (nothing here calls them)
+        ctx = c.context(model, lanes=batch, setpoints=False)
         c.write(ctx, folder)
         source = folder / f"{mech.name}_solver.c"
         # gcc -O2 time grows faster than the code; past LARGE_SOURCE -O1 compiles
@@ -91,7 +99,7 @@ def build(layout: Layout, options: Options) -> Path:
                 "sens_width": ctx.sens.width if ctx.sens else 0}
         (folder / "meta.json").write_text(json.dumps(meta))
 
-    return cached(mech, options, "c", make, ("solver.so", "meta.json"))
+    return cached(mech, options, "c" if batch else "c-solve", make, ("solver.so", "meta.json"))
 
 
 _P = ctypes.POINTER(ctypes.c_double)
@@ -347,7 +355,7 @@ class CBackend:
         options = options_for(layout.mechanism)
         if needs.sensitivity:  # computed in the compiled loop, with the factors of each instant
             options = dataclasses.replace(options, sensitivity=needs.sensitivity, sensitivity_of=needs.sensitivity_of)
-        folder = build(layout, options)
+        folder = build(layout, options, batch=needs.batch)
         return CEvaluator(folder, layout.mechanism.name, {s.name: v for s, v in values.items()}, layout, friction)
 
     def load(self, artifact: Path, name: str, params: Mapping[str, float]) -> CEvaluator:

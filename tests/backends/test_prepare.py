@@ -6,7 +6,9 @@ solver, and no second copy of the build sequence comes back."""
 from __future__ import annotations
 
 import dataclasses
+import platform
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -127,6 +129,27 @@ def test_prepare_refuses_a_batch_entry_a_backend_lacks() -> None:
         if backends.capabilities(name).batch is None:
             with pytest.raises(InputError, match=f"the {name} backend has no batch entry; use --backend numpy or c"):
                 prepare(mech, name, dataclasses.replace(needs_of(mech), batch=True))
+
+
+@pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler")
+def test_the_c_backend_compiles_what_it_calls_set_points_never_lanes_for_a_batch() -> None:
+    """A solve's solver has no set-point entry nor SIMD lanes (nothing calls
+    them: half the compile), a study's (Needs.batch) has the lanes its sweep
+    runs; the slider-crank has a driver, so its export has a set-point entry."""
+    import ctypes
+
+    mech = api.load_mechanism(api.example("slider_crank"))
+    solve = prepare(mech, "c").evaluator
+    batch = prepare(mech, "c", dataclasses.replace(needs_of(mech), batch=True)).evaluator
+    assert solve.artifact != batch.artifact  # two cache entries
+    for ev, lanes in ((solve, False), (batch, True)):
+        source = next(Path(ev.artifact).glob("*_solver.c")).read_text()
+        assert "slider_crank_setpoint(" not in source and not hasattr(ev.lib, "slider_crank_setpoint")
+        width = ev.lib["slider_crank_sweep_lanes"]  # variants side by side: 1 without lanes, 2 or 4 with
+        width.argtypes, width.restype = [ctypes.c_void_p], ctypes.c_long
+        assert width(None) == 1 if not lanes else width(None) > 1 or platform.machine() not in ("x86_64", "AMD64")
+        assert ("slider_crank_w2_" in source) == lanes  # the SSE2 lanes' code, compiled on any x86-64 or not
+    assert "slider_crank_setpoint(" in (PACKAGE.parent / "generated/slider_crank/c/slider_crank_solver.c").read_text()
 
 
 def test_an_unknown_backend_is_refused_naming_the_valid_ones() -> None:

@@ -59,12 +59,14 @@ def _driver(source: Path, *defines: str, cc: str = "cc", out: Path | None = None
                            "-o", str(exe)], capture_output=True, text=True)
 
 
-def _calls(source: Path, *groups: tuple[float, float], q0, defines: tuple[str, ...] = ()) -> list[tuple]:  # type: ignore[no-untyped-def]
+def _calls(source: Path, *groups: tuple[float, float], q0, defines: tuple[str, ...] = (),  # type: ignore[no-untyped-def]
+           out: Path | None = None) -> list[tuple]:
     """Each (t, tol) an instant call, the first from q0, each next from the q
-    the one before left: per call (status, iterations, fallback, q)."""
-    built = _driver(source, *defines)
+    the one before left: per call (status, iterations, fallback, q); the
+    program in out (else beside the source)."""
+    built = _driver(source, *defines, out=out)
     assert built.returncode == 0, built.stderr[:3000]
-    exe = _exe(source, defines, None)
+    exe = _exe(source, defines, out)
     args = [repr(groups[0][0]), repr(groups[0][1]), *(repr(float(v)) for v in q0)]
     for t, tol in groups[1:]:
         args += ["--", repr(t), repr(tol)]
@@ -244,42 +246,45 @@ def test_failed_instant_leaves_the_callers_q_and_the_next_call_solves(tmp_path: 
 
 
 @pytest.mark.parametrize("precision, tol", [("double", 1e-12), ("single", 1e-5)])
-def test_max_newton_and_floor_overrides_take_effect(tmp_path: Path, precision: str, tol: float) -> None:
+def test_max_newton_and_floor_overrides_take_effect(tmp_path: Path, tmp_path_factory, precision: str,
+                                                    tol: float) -> None:
     """From a guess 1e-3 off at t = 0.01 s: the default needs >= 3 Newton
     iterations (single, to 1e-5: 2) and solves to the closed form; MAX_NEWTON=1 makes the same
     call NOT_CONVERGED after one; a tolerance floor of 1e13 ulps (2e-3 in
-    double) accepts the first correction (error ~1e-6, quadratic from 1e-3)."""
-    source = _generate(tmp_path, "slider_crank", precision)
+    double) accepts the first correction (error ~1e-6, quadratic from 1e-3).
+    The source is the example's export (the run's shared one, read only)."""
+    source = example_export(tmp_path_factory, "slider_crank").source(precision)
     truth = slider_crank_mode(2 * np.pi * 5 * 0.01, 1.0)
     guess = truth + 1e-3
     floor = "1e13" if precision == "double" else "1e4"  # 2.2e-3 and 1.2e-3: above the guess's residual
-    (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess)
+    (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess, out=tmp_path)
     assert status == OK and iterations >= (3 if precision == "double" else 2)  # single: 1e-5 after two
     assert np.max(np.abs(q - truth)) <= (1e-12 if precision == "double" else 2e-6)
-    (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess, defines=("-DSLIDER_CRANK_MAX_NEWTON=1",))
+    (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess, defines=("-DSLIDER_CRANK_MAX_NEWTON=1",),
+                                         out=tmp_path)
     assert (status, iterations) == (NOT_CONVERGED, 1)
     assert np.array_equal(q, guess.astype(np.float32 if precision == "single" else float))  # kept, as failed
     (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess,
-                                         defines=(f"-DSLIDER_CRANK_FLOOR_ULPS={floor}",))
+                                         defines=(f"-DSLIDER_CRANK_FLOOR_ULPS={floor}",), out=tmp_path)
     error = np.max(np.abs(q - truth))
     # the docstring's first correction, ~1e-6 (quadratic from 1e-3): above a converged error, below the guess's
     assert status == OK and iterations == 1 and 1e-8 < error < 1e-4, (iterations, error)
 
 
 @pytest.mark.parametrize("precision", ["double", "single"])
-def test_real_type_override_takes_a_same_size_typedef_and_refuses_another_size(tmp_path: Path,
+def test_real_type_override_takes_a_same_size_typedef_and_refuses_another_size(tmp_path: Path, tmp_path_factory,
                                                                                precision: str) -> None:
-    source = _generate(tmp_path, "slider_crank", precision)
+    source = example_export(tmp_path_factory, "slider_crank").source(precision)  # shared: the programs go to tmp_path
     real = "double" if precision == "double" else "float"
     (tmp_path / "mine.h").write_text(f"typedef {real} my_real;\n")
     guess = slider_crank_mode(0.3, 1.0) + 1e-3
     tol = 1e-12 if precision == "double" else 1e-5
-    plain = _calls(source, (0.01, tol), q0=guess)
+    plain = _calls(source, (0.01, tol), q0=guess, out=tmp_path)
     mine = _calls(source, (0.01, tol), q0=guess, defines=("-include", str(tmp_path / "mine.h"),
-                                                          "-DSLIDER_CRANK_REAL=my_real"))
+                                                          "-DSLIDER_CRANK_REAL=my_real"), out=tmp_path)
     assert plain[0][:3] == mine[0][:3] == (OK, plain[0][1], 0) and np.array_equal(plain[0][3], mine[0][3])
     other = "float" if precision == "double" else "double"
-    built = _driver(source, f"-DSLIDER_CRANK_REAL={other}")
+    built = _driver(source, f"-DSLIDER_CRANK_REAL={other}", out=tmp_path)
     assert built.returncode != 0 and f"slider_crank_real_must_have_the_size_of_{real}" in built.stderr
     header = source.with_suffix(".h").read_text()
     assert "#ifdef SLIDER_CRANK_REAL\n" in header

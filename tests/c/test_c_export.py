@@ -23,7 +23,8 @@ EXAMPLES = ("slider_crank", "four_bar")
 def solvers(tmp_path_factory) -> dict[str, Solver]:
     if shutil.which("cc") is None:
         pytest.skip("no C compiler")
-    return {name: Solver(api.example(name).read_text(), tmp_path_factory.mktemp(name)) for name in EXAMPLES}
+    return {name: Solver(api.example(name).read_text(), tmp_path_factory.mktemp(name), share=tmp_path_factory)
+            for name in EXAMPLES}
 
 
 @needs_cc

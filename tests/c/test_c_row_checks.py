@@ -11,13 +11,14 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import shutil
-import subprocess
+from functools import cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from cbuild import STRICT, strict_library
 from csolver import DP, run_in_cuts
 from symid import api
 from symid.codegen.model import code_model
@@ -44,21 +45,27 @@ double test_maxabs{n}(const double *v)
 """
 
 
-def _build(ctx: c_target.CContext, folder: Path) -> ctypes.CDLL:
-    """The solver of a context, with a harness reaching its static checks."""
+def _build(ctx: c_target.CContext, folder: Path, share: pytest.TempPathFactory) -> ctypes.CDLL:
+    """The solver of a context, with a harness reaching its static checks,
+    compiled with FLAGS (cbuild.strict_library's: once per run for one text)."""
+    assert FLAGS == [*STRICT, "-fPIC", "-shared"]
     c_target.write(ctx, folder)
     p = ctx.name
     source = folder / f"{p}_solver.c"
     maxabs = "".join(MAXABS.format(p=p, n=n) for n in ctx.checks.maxabs)
     source.write_text(source.read_text() + HARNESS.format(p=p, maxabs=maxabs))
-    subprocess.run(["cc", *FLAGS, str(source), "-o", str(folder / "s.so"), "-lm"], check=True)
-    return ctypes.CDLL(str(folder / "s.so"))
+    return ctypes.CDLL(str(strict_library(share, source, folder)))
 
 
 def _context(outputs: list[str] | None = None, kind: str | None = None) -> c_target.CContext:
+    return _context_of(tuple(outputs) if outputs else None, kind)
+
+
+@cache  # one derivation per analysis in this process (a frozen record: the tests replace, never mutate)
+def _context_of(outputs: tuple[str, ...] | None, kind: str | None) -> c_target.CContext:
     analysis: dict[str, Any] = {}
     if outputs:
-        analysis["outputs"] = outputs
+        analysis["outputs"] = list(outputs)
     if kind:
         analysis["kind"] = kind
     return c_target.context(code_model(api.load_mechanism(api.example("slider_crank"), **analysis)))
@@ -72,9 +79,10 @@ def _compiler() -> None:
 
 @pytest.mark.parametrize("outputs, bad", [pytest.param(*p.values, id=f"{'+'.join(p.values[0] or ['all'])}-{p.values[1]}", marks=p.marks)
                                           for p in diagonal([None, ["q", "lambda"], ["q", "qddot", "reactions"]], [np.inf, -np.inf, np.nan])])
-def test_row_finite_rejects_a_non_finite_value_in_any_checked_slot(tmp_path, outputs, bad: float) -> None:
+def test_row_finite_rejects_a_non_finite_value_in_any_checked_slot(tmp_path, tmp_path_factory, outputs,
+                                                                  bad: float) -> None:
     ctx = _context(outputs)
-    lib = _build(ctx, tmp_path)
+    lib = _build(ctx, tmp_path, tmp_path_factory)
     f = lib.test_row_finite
     f.argtypes = [DP] * 6
     f.restype = ctypes.c_int
@@ -109,9 +117,9 @@ def test_row_finite_rejects_a_non_finite_value_in_any_checked_slot(tmp_path, out
     assert check()
 
 
-def test_maxabs_is_the_largest_magnitude_and_keeps_nan(tmp_path) -> None:
+def test_maxabs_is_the_largest_magnitude_and_keeps_nan(tmp_path, tmp_path_factory) -> None:
     ctx = _context()
-    lib = _build(ctx, tmp_path)
+    lib = _build(ctx, tmp_path, tmp_path_factory)
     rng = np.random.default_rng(3)
     for n in ctx.checks.maxabs:
         f = getattr(lib, f"test_maxabs{n}")
@@ -128,11 +136,11 @@ def test_maxabs_is_the_largest_magnitude_and_keeps_nan(tmp_path) -> None:
 
 
 @pytest.mark.parametrize("kind", ["inverse_dynamics", "statics"])
-def test_written_out_code_gives_the_loop_forms_rows_and_state_bitwise(tmp_path, kind: str) -> None:
+def test_written_out_code_gives_the_loop_forms_rows_and_state_bitwise(tmp_path, tmp_path_factory, kind: str) -> None:
     ctx = _context(kind=kind)
     assert ctx.checks.rolling
     looped = dataclasses.replace(ctx, checks=dataclasses.replace(ctx.checks, straight=0, rolling=False, looped=True))
-    new, old = _build(ctx, tmp_path / "new"), _build(looped, tmp_path / "old")
+    new, old = _build(ctx, tmp_path / "new", tmp_path_factory), _build(looped, tmp_path / "old", tmp_path_factory)
     for cuts in ([60], [1, 1, 2, 3, 5, 8, 40], [7] * 8 + [4]):
         got, want = run_in_cuts(new, ctx, cuts), run_in_cuts(old, looped, cuts)
         assert got[0].tobytes() == want[0].tobytes(), cuts

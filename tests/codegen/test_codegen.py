@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cbuild import HOST_O2, STRICT, example_export, needs_cc, object_file
+from cbuild import HOST_O2, STRICT, example_export, needs_cc, object_file, strict_library
 from compare import assert_agree
 from data_mechanisms import SINGULAR_PENDULUM, TWO_CABLES
 from symid import api
@@ -24,6 +24,7 @@ from symid.cli import main
 from symid.codegen import sparse
 from symid.codegen.emit import sample_jacobian
 from symid.codegen.model import code_model
+from symid.codegen.render import render
 from symid.codegen import c as c_target
 from symid.codegen.c import layout as c_layout
 from symid.codegen.c import lu as c_lu
@@ -192,20 +193,26 @@ def _trajectory(lib: ctypes.CDLL, name: str, ctx: c_target.CContext, q0: np.ndar
 
 @needs_cc
 @pytest.mark.parametrize("example", EXAMPLES)
-def test_folded_constants_give_the_factorization_bitwise(example: str, tmp_path: Path) -> None:
+def test_folded_constants_give_the_factorization_bitwise(example: str, tmp_path: Path, tmp_path_factory) -> None:
     """The known entries of Phi_q are folded into the generated LU (no
     division by a known pivot, no test the constants decide): every row of a
-    trajectory is bitwise the one of the solver that reads them at run time."""
+    trajectory is bitwise the one of the solver that reads them at run time.
+    The folded solver is the example's export (the run's shared one, compiled
+    strictly once per run: cbuild.strict_library), the other written here."""
     model = code_model(load(api.example(example)))
+    contexts = {fold: c_target.context(model, fold) for fold in (True, False)}
+    c_target.write(contexts[False], tmp_path / "False")
+    sources = {True: example_export(tmp_path_factory, example).source("double"),
+               False: tmp_path / "False" / f"{model.name}_solver.c"}
+    # the export is this model's folded text (the harness below reads this context's sizes)
+    assert sources[True].read_text() == render("c/solver.c.j2", **contexts[True].namespace())
     rows = {}
     for fold in (True, False):
-        folder = tmp_path / str(fold)
-        c_target.generate(model, folder, fold_constants=fold)
-        lib = _compile(folder, model.name)
-        rows[fold] = _trajectory(lib, model.name, c_target.context(model, fold), np.array(model.q0),
+        lib = ctypes.CDLL(str(strict_library(tmp_path_factory, sources[fold], tmp_path / f"lib{fold}")))
+        rows[fold] = _trajectory(lib, model.name, contexts[fold], np.array(model.q0),
                                  np.array(model.flat.defaults), 1e-3, 200)
     assert np.array_equal(rows[True], rows[False])
-    folded, full = ((tmp_path / str(f) / f"{model.name}_solver.c").read_text() for f in (True, False))
+    folded, full = (sources[f].read_text() for f in (True, False))
     assert folded.count("1.0 / piv") < full.count("1.0 / piv")
 
 

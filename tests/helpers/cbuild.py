@@ -149,6 +149,22 @@ def object_file(factory: pytest.TempPathFactory, compiler: list[str], source: Pa
     return shared_dir(factory, key_of("object", command, source, *headers), build) / (source.stem + ".o")
 
 
+def strict_library(factory: pytest.TempPathFactory, source: Path, into: Path) -> Path:
+    """source compiled by `cc STRICT -fPIC -shared` (the strict build a user
+    makes of an export) once per run for the same text, headers beside it and
+    command, copied into `into` (a library of its own: a second handle of one
+    path would share its state); the copy's path."""
+    command = _command(["cc", *STRICT, "-fPIC", "-shared"])
+    headers = sorted(source.parent.glob("*.h"))
+
+    def build(folder: Path) -> None:
+        subprocess.run([*command, f"-I{source.parent}", str(source), "-o", str(folder / "s.so"), "-lm"], check=True)
+
+    built = shared_dir(factory, key_of("strict library", command, source, *headers), build) / "s.so"
+    into.mkdir(parents=True, exist_ok=True)
+    return Path(shutil.copy2(built, into / "s.so"))
+
+
 def host_rows(factory: pytest.TempPathFactory, export: Export, precision: str) -> tuple[Path, np.ndarray]:
     """The rows driver (tests/c/rows_driver.c) linked with the export's host
     object (HOST_O2) in `precision`, and its rows over the file's grid from

@@ -11,8 +11,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 
-from cbuild import STRICT
+from cbuild import STRICT, strict_library
 from symid.codegen.model import CodeModel, code_model
 from symid.codegen import c as c_target
 from symid.io.reader import loads
@@ -26,16 +27,21 @@ IP = ctypes.POINTER(ctypes.c_int)
 class Solver:
     """One generated C solver compiled strictly into a shared library."""
 
-    def __init__(self, text: str, folder: Path) -> None:
+    def __init__(self, text: str, folder: Path, share: pytest.TempPathFactory | None = None) -> None:
+        """share: the library compiled once per run for the same generated
+        text (cbuild.strict_library: an example's is its export's), copied into folder."""
         mech = loads(text, "mech.toml")
         model = code_model(mech)
-        c_target.generate(model, folder)
         self.name, self.folder, self.ctx = model.name, folder, c_target.context(model)
+        c_target.write(self.ctx, folder)  # c_target.generate's files, of the context built once
         self.q0 = np.array(model.q0, dtype=float)
         self.p = np.array(model.flat.defaults, dtype=float)
         self.analysis = mech.analysis
-        subprocess.run(["cc", *STRICT, "-fPIC", "-shared", str(folder / f"{self.name}_solver.c"), "-o",
-                        str(folder / "s.so"), "-lm"], check=True)
+        if share is not None:
+            strict_library(share, folder / f"{self.name}_solver.c", folder)
+        else:
+            subprocess.run(["cc", *STRICT, "-fPIC", "-shared", str(folder / f"{self.name}_solver.c"), "-o",
+                            str(folder / "s.so"), "-lm"], check=True)
         self.lib = ctypes.CDLL(str(folder / "s.so"))
         # getattr keeps the function object (and its argtypes); indexing makes a new one
         self.instant_fn, self.trajectory_fn = getattr(self.lib, f"{self.name}_instant"), \

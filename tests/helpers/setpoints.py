@@ -56,6 +56,9 @@ class Solver:
 
         def build(into: Path) -> None:
             c_target.write(self.ctx, into)  # c_target.generate's files, of the context built once
+            if share is not None:  # one strict build per run of this text (an example's: its export's text)
+                cbuild.strict_library(share, into / f"{self.name}_solver.c", into)
+                return
             subprocess.run([*STRICT, str(into / f"{self.name}_solver.c"), "-o", str(into / "s.so"), "-lm"],
                            check=True)
 

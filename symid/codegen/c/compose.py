@@ -159,14 +159,16 @@ def _all_blocks(functions: list[Kernel], prepare: list[Block]) -> list[Block]:
 
 
 def context(model: CodeModel, fold_constants: bool = True, precision: str = "double",
-            lanes: bool = False) -> CContext:
+            lanes: bool = False, setpoints: bool = True) -> CContext:
     """Everything the C templates need, expressions already printed;
     fold_constants=False prints the factorization with every value read at
     run time (the same factors bitwise: for the tests); precision: "double"
     or "single" (float: literals, libm functions and epsilon of float);
     lanes: the sweep's variants side by side (c.lanes), for the cache's
     build, which studies run; an exported solver (`symid generate`, for a
-    controller or a board) has the one-by-one sweep, twice less code."""
+    controller or a board) has the one-by-one sweep, twice less code;
+    setpoints=False leaves the set-point entries out (the c backend's
+    build, which never calls them; an export has them)."""
     scalar = PRECISIONS[precision]
     f = model.flat
     o = f.options
@@ -241,7 +243,8 @@ def context(model: CodeModel, fold_constants: bool = True, precision: str = "dou
     outputs = [(var, placed.get(source), vec.at(var))
                for var, source in (("qn", "q"), ("qdn", "qd"), ("qddn", "qdd"), ("lam", "lam"), ("reac", "reac"))]
     # the drivers' values from the caller (c/setpoint.py; None: no driver)
-    setpoint = c_setpoint.context(model, red, function, trig, printer, real, sens.stages if sens else ())
+    setpoint = (c_setpoint.context(model, red, function, trig, printer, real, sens.stages if sens else ())
+                if setpoints else None)
     ctx = CContext(
         name=f.name, p=f.name, P=f.name.upper(), ng=ng, nc=nc, np_=len(f.params), nnz=len(f.jac), nr=nr,
         nb=ng // 3, row_width=offset, work=work, npp=npp, off_prep=work_size(model), stride=vector_stride(model),
