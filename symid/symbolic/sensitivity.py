@@ -58,6 +58,7 @@ import sympy as sp
 from symid.model.mechanism import T, Mechanism, parameter_symbol
 from symid.symbolic import symbols as s
 from symid.symbolic.assemble import Group, Layout
+from symid.symbolic.differentiate import Differentiator
 from symid.symbolic.derive import (DerivedConstraint, DerivedForce, Variant, derive_constraint, derive_force, reaction,
                                    total_derivative)
 
@@ -162,7 +163,9 @@ def block(matrix: sp.Matrix, sens: ConstraintSensitivity | ForceSensitivity, whi
 
 
 def _jacobian(exprs: Sequence[sp.Expr], args: Sequence[sp.Symbol]) -> sp.Matrix:
-    return sp.Matrix(exprs).jacobian(sp.Matrix(args)) if args else sp.zeros(len(exprs), 0)
+    """`Matrix(exprs).jacobian(args)`, element for element (`Differentiator`: the
+    same expressions, each shared subtree's derivative built once)."""
+    return Differentiator().jacobian(exprs, args)
 
 
 def constraint_sensitivity(name: str, options: Variant = ()) -> ConstraintSensitivity:
