@@ -160,7 +160,9 @@ def _derive_constraint(name: str, options: Variant) -> DerivedConstraint:
     phi_t = sp.Matrix([total_derivative(e, (), by) for e in phi])
     second = [total_derivative(total_derivative(e, roles, by), roles, by) for e in phi]
     no_accel = {a: 0 for role in roles for a in s.qdd(role)}
-    gamma = sp.Matrix([-e.subs(no_accel) for e in second])
+    # qdd -> 0 by xreplace, one walk for all of them (subs walks once per symbol, each
+    # node asking _eval_subs): the same trees for every family (tests/symbolic/test_differentiate.py)
+    gamma = sp.Matrix([-e.xreplace(no_accel) for e in second])
     lam = s.lam(family.rows)
     lam_m = sp.Matrix(lam)
     reactions = {role: reaction(jac[role], lam_m, family.points[role], role) for role in roles}

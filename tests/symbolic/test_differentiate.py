@@ -14,7 +14,9 @@ import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from symid import api
 from symid.symbolic import symbols as s
+from symid.symbolic.assemble import assemble
 from symid.symbolic.derive import derive_constraint, reaction, total_derivative
 from symid.symbolic.differentiate import Differentiator
 
@@ -80,3 +82,18 @@ def test_a_family_jacobians_equal_matrix_jacobian():
     truth = sp.Matrix(rows).jacobian(sp.Matrix(args))
     assert mine == truth
     assert [sp.srepr(a) for a in mine] == [sp.srepr(b) for b in truth]
+
+
+def test_gamma_sets_the_accelerations_to_zero_as_subs_does():
+    # derive_constraint takes gamma from Phi's second total derivative with qdd -> 0 by
+    # xreplace: the trees subs gives, on a revolute and on an expression row (a cam's shape)
+    cam = [(g.family, g.variant) for g in assemble(api.load(api.example("disc_cam"))).constraint_groups
+           if g.family == "expression"]
+    assert cam
+    for name, options in [("revolute", ())] + cam:
+        dc = derive_constraint(name, options)
+        by = Differentiator()
+        second = [total_derivative(total_derivative(e, dc.roles, by), dc.roles, by) for e in dc.phi]
+        zero = {a: 0 for r in dc.roles for a in s.qdd(r)}
+        truth = [sp.expand(-e.subs(zero)) for e in second]  # derive's _tidy is expand
+        assert list(dc.gamma) == truth and [sp.srepr(g) for g in dc.gamma] == [sp.srepr(t) for t in truth]
