@@ -111,7 +111,8 @@ class _Reader:
         key = (time, type(value), value)
         got = self._parsed[2].get(key)
         if got is None:
-            got = self._parsed[2][key] = signals.parse(value, self.params, self.signals, time, f"{self.source}: {where}",
+            got = self._parsed[2][key] = signals.parse(value, self.params, self.signals, time,
+                                                       f"{self.source}: {where}",
                                                        lambda message: self.fail(where, message))
         return got
 
