@@ -42,6 +42,28 @@ class Hoisted:
     np: int
     values: list[sp.Expr] = field(default_factory=list)
     index: dict[sp.Expr, sp.Symbol] = field(default_factory=dict)
+    # per subtree: (reads a symbol, reads parameters only): `_param_only` without
+    # recomputing free_symbols at every level of the walk
+    kinds: dict[sp.Basic, tuple[bool, bool]] = field(default_factory=dict)
+
+    def _kind(self, e: sp.Basic) -> tuple[bool, bool]:
+        got = self.kinds.get(e)
+        if got is None:
+            if e.is_Symbol:
+                got = (True, _is_param(e))
+            elif e.is_Atom or type(e).free_symbols is not sp.Basic.free_symbols:
+                free = e.free_symbols  # numbers; nodes binding their own symbols
+                got = (bool(free), all(_is_param(x) for x in free))
+            else:
+                kinds = [self._kind(a) for a in e.args]
+                got = (any(k[0] for k in kinds), all(k[1] for k in kinds))
+            self.kinds[e] = got
+        return got
+
+    def param_only(self, e: sp.Basic) -> bool:
+        """`_param_only(e)`, each subtree's answer found once."""
+        some, params = self._kind(e)
+        return some and params
 
     def symbol(self, e: sp.Expr) -> sp.Symbol:
         if e not in self.index:
@@ -54,16 +76,16 @@ class Hoisted:
         if e.is_Atom or not isinstance(e, sp.Expr):  # a condition, a pair: left whole
             return e
         if isinstance(e, sp.Piecewise):  # its pieces and conditions stay together
-            return self.symbol(e) if _param_only(e) else e
-        if _param_only(e):
+            return self.symbol(e) if self.param_only(e) else e
+        if self.param_only(e):
             return self.symbol(e) if _worth(e) else e
         args = [self.walk(a) for a in e.args]
         if e.is_Add or e.is_Mul:  # the parameter-only factors or terms, as one piece
-            plain = [a for a, old in zip(args, e.args) if _param_only(old)]
+            plain = [a for a, old in zip(args, e.args) if self.param_only(old)]
             if len(plain) >= 2:
-                piece = e.func(*[old for old in e.args if _param_only(old)])
+                piece = e.func(*[old for old in e.args if self.param_only(old)])
                 if _worth(piece):
-                    rest = [a for a, old in zip(args, e.args) if not _param_only(old)]
+                    rest = [a for a, old in zip(args, e.args) if not self.param_only(old)]
                     return e.func(self.symbol(piece), *rest)
         return e.func(*args) if args != list(e.args) else e
 

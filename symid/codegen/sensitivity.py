@@ -62,6 +62,33 @@ class Tangents:
         return len(self.names)
 
 
+class _Replace:
+    """`e.xreplace(rule)` for many e sharing subtrees, each subtree rebuilt once:
+    the walk of sympy's `Basic._xreplace`, the same results."""
+
+    def __init__(self, rule: dict[sp.Symbol, sp.Expr]) -> None:
+        self.rule = rule
+        self.memo: dict[sp.Basic, tuple[sp.Basic, bool]] = {}
+
+    def __call__(self, e: sp.Basic) -> sp.Basic:
+        return self._walk(e)[0]
+
+    def _walk(self, e: sp.Basic) -> tuple[sp.Basic, bool]:
+        got = self.memo.get(e)
+        if got is None:
+            if e in self.rule:
+                got = (self.rule[e], True)
+            else:
+                args, changed = [], False
+                for a in e.args:
+                    new, moved = self._walk(a) if isinstance(a, sp.Basic) else (a, False)
+                    args.append(new)
+                    changed |= moved
+                got = (e.func(*args), True) if changed else (e, False)
+            self.memo[e] = got
+        return got
+
+
 def _dot(row: sp.Matrix, vec: Sequence[sp.Expr]) -> sp.Expr:
     return sp.Add(*[a * b for a, b in zip(row, vec) if a != 0 and b != 0])
 
@@ -88,7 +115,12 @@ class _Instance:
                 self.sub[xdd] = sp.Integer(0) if ground or not velocity else sp.Symbol(f"qdd[{3 * b + c}]", real=True)
 
     def part(self, matrix: sp.Matrix, which: str) -> sp.Matrix:
-        return block(matrix, self.sens, which).xreplace(self.sub)
+        """`block(matrix, ...).xreplace(self.sub)`: the Jacobians of one instance share most
+        subtrees (the sines and cosines of its angles), each substituted once (`self.sub`
+        is complete by the first call)."""
+        if getattr(self, "_put", None) is None:
+            self._put = _Replace(self.sub)
+        return block(matrix, self.sens, which).applyfunc(self._put)
 
     def tangent(self, matrix: sp.Matrix, blocks: Sequence[str], chain: dict[str, list[list[sp.Expr]]],
                 k: int) -> list[sp.Expr]:

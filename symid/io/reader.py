@@ -68,6 +68,10 @@ class _Reader:
         self.params: dict[str, sp.Symbol] = {}
         self.values: dict[sp.Symbol, float] = {}
         self.bearings: list[Any] = []  # the revolutes' `bearing` tables, in file order
+        self.signals: dict[str, sp.Expr] = {}
+        # expressions parsed (and evaluated), for the names (values) they were parsed with: `expr`, `number`
+        self._parsed: tuple[Any, Any, dict[tuple[bool, type, Any], sp.Expr]] = (None, None, {})
+        self._numbers: tuple[Any, dict[sp.Expr, float]] = (None, {})
 
     def fail(self, where: str, message: str) -> InputError:
         return InputError(f"{self.source}: {where}: {message}")
@@ -100,8 +104,17 @@ class _Reader:
             return got
         if time:
             expressions.refuse_state(value, where, self.fail, f"forces of type {' and '.join(state.TYPES)} only")
-        return signals.parse(value, self.params, self.signals, time,
-                             f"{self.source}: {where}", lambda message: self.fail(where, message))
+        # A text met again (a ladder's 1024 "-a/2", "m_r", 0.0) is the same expression while the names
+        # it may read are: parsed once (an error is raised each time, naming its own key).
+        if self._parsed[0] is not self.params or self._parsed[1] is not self.signals:
+            self._parsed = (self.params, self.signals, {})
+        key = (time, type(value), value)
+        got = self._parsed[2].get(key)
+        if got is None:
+            got = self._parsed[2][key] = signals.parse(value, self.params, self.signals, time,
+                                                       f"{self.source}: {where}",
+                                                       lambda message: self.fail(where, message))
+        return got
 
     def signal(self, value: Any, where: str) -> sp.Expr:
         expressions.refuse_state(value, where, self.fail, "a signal is an expression of t and the parameters "
@@ -117,10 +130,15 @@ class _Reader:
 
     def number(self, value: Any, where: str) -> tuple[sp.Expr, float]:
         expr = self.expr(value, where)
-        try:
-            return expr, to_float(expr, self.values)
-        except ValueError as exc:
-            raise self.fail(where, str(exc.args[1])) from None
+        if self._numbers[0] is not self.values:  # the values an expression evaluates with
+            self._numbers = (self.values, {})
+        got = self._numbers[1].get(expr)
+        if got is None:
+            try:
+                got = self._numbers[1][expr] = to_float(expr, self.values)
+            except ValueError as exc:
+                raise self.fail(where, str(exc.args[1])) from None
+        return expr, got
 
     def pair(self, value: Any, where: str, time: bool = False, n: int = 2) -> tuple[sp.Expr, ...]:
         if not isinstance(value, list):

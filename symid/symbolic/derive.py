@@ -17,6 +17,7 @@ import sympy as sp
 
 from symid.symbolic import symbols as s
 from symid.symbolic.constraints import TYPES as CONSTRAINTS
+from symid.symbolic.differentiate import Differentiator
 from symid.model.elements import ConstraintType, Family, ForceType
 from symid.symbolic.forces import TYPES as FORCES
 
@@ -57,14 +58,17 @@ def time_functions_of(family: Family) -> tuple[sp.Symbol, ...]:
     return tuple(out)
 
 
-def total_derivative(expr: sp.Expr, roles: tuple[str, ...]) -> sp.Expr:
-    """d/dt of an expression of q, qdot, t and the f series (chain rule by hand)."""
-    out = sp.diff(expr, s.T)
+def total_derivative(expr: sp.Expr, roles: tuple[str, ...], by: Differentiator | None = None) -> sp.Expr:
+    """d/dt of an expression of q, qdot, t and the f series (chain rule by hand).
+    `by`: a Differentiator to share (its derivatives are sympy's own)."""
+    d = (by or Differentiator()).diff
+    expr = sp.sympify(expr)
+    out = d(expr, s.T)
     for role in roles:
         for qc, qdc, qddc in zip(s.q(role), s.qd(role), s.qdd(role)):
-            out += sp.diff(expr, qc) * qdc + sp.diff(expr, qdc) * qddc
+            out += d(expr, qc) * qdc + d(expr, qdc) * qddc
     for f, fd in zip(s.F_SERIES, s.F_SERIES[1:]):
-        out += sp.diff(expr, f) * fd
+        out += d(expr, f) * fd
     return out
 
 
@@ -151,11 +155,14 @@ def _derive_constraint(name: str, options: Variant) -> DerivedConstraint:
     family = CONSTRAINTS[name].at(dict(options))
     roles = family.roles
     phi = sp.Matrix(family.phi(dict(options)))
-    jac = {role: phi.jacobian(sp.Matrix(s.q(role))) for role in roles}
-    phi_t = sp.Matrix([total_derivative(e, ()) for e in phi])
-    second = [total_derivative(total_derivative(e, roles), roles) for e in phi]
+    by = Differentiator()  # the Jacobian and both time derivatives share subtrees
+    jac = {role: by.jacobian(list(phi), s.q(role)) for role in roles}
+    phi_t = sp.Matrix([total_derivative(e, (), by) for e in phi])
+    second = [total_derivative(total_derivative(e, roles, by), roles, by) for e in phi]
     no_accel = {a: 0 for role in roles for a in s.qdd(role)}
-    gamma = sp.Matrix([-e.subs(no_accel) for e in second])
+    # qdd -> 0 by xreplace, one walk for all of them (subs walks once per symbol, each
+    # node asking _eval_subs): the same trees for every family (tests/symbolic/test_differentiate.py)
+    gamma = sp.Matrix([-e.xreplace(no_accel) for e in second])
     lam = s.lam(family.rows)
     lam_m = sp.Matrix(lam)
     reactions = {role: reaction(jac[role], lam_m, family.points[role], role) for role in roles}

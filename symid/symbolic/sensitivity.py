@@ -58,6 +58,7 @@ import sympy as sp
 from symid.model.mechanism import T, Mechanism, parameter_symbol
 from symid.symbolic import symbols as s
 from symid.symbolic.assemble import Group, Layout
+from symid.symbolic.differentiate import Differentiator
 from symid.symbolic.derive import (DerivedConstraint, DerivedForce, Variant, derive_constraint, derive_force, reaction,
                                    total_derivative)
 
@@ -102,35 +103,42 @@ class ConstraintSensitivity:
         return tuple(x for b in self.blocks.values() for x in b)
 
     @cached_property
+    def _by(self) -> Differentiator:
+        """One memo for all five Jacobians: their rows share most subtrees."""
+        return Differentiator()
+
+    @cached_property
     def _first(self) -> list[sp.Expr]:
         # V = Phi_q qd - nu and A = Phi_q qdd - gamma are the first and second total
         # time derivatives of Phi: differentiated in that compact form (not the
         # expanded gamma), sympy's diff is several times faster.
-        return [total_derivative(e, self.derived.roles) for e in self.derived.phi]
+        return [total_derivative(e, self.derived.roles, self._by) for e in self.derived.phi]
 
     @cached_property
     def phi(self) -> sp.Matrix:
-        return _jacobian(list(self.derived.phi), self.args)
+        return _jacobian(list(self.derived.phi), self.args, self._by)
 
     @cached_property
     def velocity(self) -> sp.Matrix:
-        return _jacobian(self._first, self.args)
+        return _jacobian(self._first, self.args, self._by)
 
     @cached_property
     def acceleration(self) -> sp.Matrix:
-        return _jacobian([total_derivative(e, self.derived.roles) for e in self._first], self.args)
+        by = self._by
+        return _jacobian([total_derivative(e, self.derived.roles, by) for e in self._first], self.args, by)
 
     @cached_property
     def eom(self) -> sp.Matrix:
         d = self.derived
         lam = sp.Matrix(d.lam)
-        return _jacobian([e for r in d.roles for e in d.jac[r].T * lam], self.args)
+        return _jacobian([e for r in d.roles for e in d.jac[r].T * lam], self.args, self._by)
 
     @cached_property
     def reactions(self) -> sp.Matrix:
         d = self.derived
         lam = sp.Matrix(d.lam)
-        return _jacobian([e for r in d.roles for e in reaction(d.jac[r], lam, d.family.points[r], r)], self.args)
+        return _jacobian([e for r in d.roles for e in reaction(d.jac[r], lam, d.family.points[r], r)], self.args,
+                         self._by)
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,8 +169,10 @@ def block(matrix: sp.Matrix, sens: ConstraintSensitivity | ForceSensitivity, whi
     raise KeyError(which)
 
 
-def _jacobian(exprs: Sequence[sp.Expr], args: Sequence[sp.Symbol]) -> sp.Matrix:
-    return sp.Matrix(exprs).jacobian(sp.Matrix(args)) if args else sp.zeros(len(exprs), 0)
+def _jacobian(exprs: Sequence[sp.Expr], args: Sequence[sp.Symbol], by: Differentiator | None = None) -> sp.Matrix:
+    """`Matrix(exprs).jacobian(args)`, element for element (`Differentiator`: the
+    same expressions, each shared subtree's derivative built once)."""
+    return (by or Differentiator()).jacobian(exprs, args)
 
 
 def constraint_sensitivity(name: str, options: Variant = ()) -> ConstraintSensitivity:

@@ -29,6 +29,7 @@ from symid.codegen.flat import _role_map, parameter_map, vector
 from symid.codegen.model import CodeModel
 from symid.codegen.c import phase as c_phase
 from symid.symbolic.derive import DerivedConstraint
+from symid.symbolic.differentiate import Differentiator
 from symid.symbolic.rounding import grouped
 
 
@@ -168,22 +169,23 @@ def _sensitivity(model: CodeModel, r: Rows, make: Make, trig: dict[sp.Expr, sp.S
     ns = len(o.sensitivity)
     stages: dict[str, list[sp.Expr]] = {"q": [], "qdot": [], "qddot": []}
     where: list[int] = []
+    dd = Differentiator().diff  # sympy's own derivatives, shared subtrees differentiated once
     for k, name in enumerate(o.sensitivity):
         pk = sp.Symbol(f"p[{f.params.index(name)}]", real=True)
         sq = vector("sq", ng * (k + 1))[k * ng:]
         sqd = vector("sqd", ng * (k + 1))[k * ng:]
         for d, phi, nu, gamma in zip(r.drivers, r.phi, r.nu, r.gamma):
             e = c_phase._plain(phi)
-            grad = [sp.diff(e, x) for x in q]
+            grad = [dd(e, x) for x in q]
             where.append(k * ng + d.row)
-            stages["q"].append(-sp.diff(e, pk))
+            stages["q"].append(-dd(e, pk))
             if not o.velocity:
                 continue
             rv = sp.Add(*[g * v for g, v in zip(grad, qd) if g != 0]) - c_phase._plain(nu)
             ra = sp.Add(*[g * a for g, a in zip(grad, qdd) if g != 0]) - c_phase._plain(gamma)
-            stages["qdot"].append(-(sp.Add(*[sp.diff(rv, x) * s for x, s in zip(q, sq)]) + sp.diff(rv, pk)))
-            stages["qddot"].append(-(sp.Add(*[sp.diff(ra, x) * s for x, s in zip(q, sq)])
-                                     + sp.Add(*[sp.diff(ra, v) * s for v, s in zip(qd, sqd)]) + sp.diff(ra, pk)))
+            stages["qdot"].append(-(sp.Add(*[dd(rv, x) * s for x, s in zip(q, sq)]) + dd(rv, pk)))
+            stages["qddot"].append(-(sp.Add(*[dd(ra, x) * s for x, s in zip(q, sq)])
+                                     + sp.Add(*[dd(ra, v) * s for v, s in zip(qd, sqd)]) + dd(ra, pk)))
     assert len(where) == ns * len(r.drivers)
     cv = lambda name: (f"const {real} *", name)  # noqa: E731
     args = [cv("q"), cv("qd"), cv("qdd"), cv("q_des"), cv("qd_des"), cv("qdd_des"), cv("p"), cv("sq"), cv("sqd")]
