@@ -131,6 +131,9 @@ def test_prepare_refuses_a_batch_entry_a_backend_lacks() -> None:
                 prepare(mech, name, dataclasses.replace(needs_of(mech), batch=True))
 
 
+# slow: two c builds of the slider-crank (a solve's and a study's); the c backend's solves and studies stay in
+# the quick tier
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler")
 def test_the_c_backend_compiles_what_it_calls_set_points_never_lanes_for_a_batch() -> None:
     """A solve's solver has no set-point entry nor SIMD lanes (nothing calls

@@ -213,6 +213,7 @@ def test_near_a_singular_position_nothing_warns_and_backends_agree(name: str, tm
         assert np.abs(got - ref).max() <= 1e-12 * peak, (backend, np.abs(got - ref).max() / peak)
 
 
+@pytest.mark.slow  # a c sweep and a solve of a screened variant; the screen's warning stays in the quick tier
 def test_the_c_sweep_hands_a_screened_variant_to_the_solve(tmp_path: Path) -> None:
     """A sweep's variant whose C loop trips the screen (in SIMD lanes or one
     by one) goes back to the normal path, as the NumPy sweep's does: its
@@ -239,6 +240,7 @@ def test_the_c_sweep_hands_a_screened_variant_to_the_solve(tmp_path: Path) -> No
         assert abs(got - peak) <= 1e-12 * peak, (v, got, peak)
 
 
+@pytest.mark.slow  # a sweep whose variants the screen reads at t0; the screen's warning stays in the quick tier
 def test_a_sweep_screens_its_variants_t0(tmp_path: Path) -> None:
     """t0 is solved before the scales of the checks are known: the sweep
     screens it once they are (`_screen_at`), as `symid solve` on c does."""

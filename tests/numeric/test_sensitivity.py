@@ -197,7 +197,7 @@ def test_sensitivities_agree_with_casadi_automatic_differentiation(example: str,
     assert ng == len(q_cols)
 
 
-@pytest.mark.parametrize("example", EXAMPLES)
+@pytest.mark.parametrize("example", CHECKED)
 def test_sensitivities_match_40_digit_central_differences(example: str, tmp_path_factory) -> None:
     """Central differences (step 1e-12) of a 40-digit instant solver
     (`high_precision`), exact to ~1e-20, at an interior instant."""

@@ -36,6 +36,9 @@ def _rows(path: Path) -> tuple[list[str], list[list[str]]]:
     return rows[0], rows[1:]
 
 
+# slow: a sweep over ill-conditioned variants on two backends; the sweep notes' other tests stay in the quick
+# tier
+@pytest.mark.slow
 @pytest.mark.parametrize("backend", ["c", "numpy"])
 def test_a_sweep_names_its_ill_conditioned_variants_as_their_solves_warn(tmp_path: Path, capsys,
                                                                           backend: str) -> None:

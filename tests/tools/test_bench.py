@@ -17,7 +17,6 @@ import pytest
 
 from symid import api
 from symid.cli import main
-from tiers import first_quick
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
@@ -235,7 +234,8 @@ def test_overview_smoke_run_writes_every_output(tmp_path: Path) -> None:
     assert 'Function.map(K, "thread", 2)' in (tmp_path / "overview.md").read_text()
 
 
-@pytest.mark.parametrize("backend", first_quick(["c", "numpy", "reference", "casadi"]))
+@pytest.mark.slow  # a ladder solved far from the origin; the ladder's closed form stays in the quick tier
+@pytest.mark.parametrize("backend", ["c", "numpy", "reference", "casadi"])
 def test_a_ladder_far_from_the_origin_keeps_its_torque_to_1e_13(backend: str, tmp_path: Path) -> None:
     # At x ~ 16384 m a coordinate's ulp is 3.6e-12: a residual summed left
     # to right rounds there, and eight bays in series turn that into torque
