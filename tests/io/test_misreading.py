@@ -99,6 +99,9 @@ def test_plot_refuses_a_table_solved_with_other_parameters(longer_rod_table: Pat
     assert not list(tmp_path.glob("*.png"))
 
 
+# slow: a solve and a plot of its table with --set; the misreading checks of a plot's table stay in the quick
+# tier
+@pytest.mark.slow
 def test_plot_accepts_the_table_with_the_parameters_it_was_solved_with(longer_rod_table: Path,
                                                                        tmp_path: Path) -> None:
     assert main(["plot", str(longer_rod_table), "--mechanism", str(SLIDER_CRANK), "--set", "L_rod=0.35",

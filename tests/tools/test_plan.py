@@ -229,6 +229,7 @@ def test_a_failed_run_leaves_no_plan(tmp_path, capsys, monkeypatch):
     assert plans(tmp_path / "cache") == []
 
 
+@pytest.mark.slow  # a planned solve with its figures; the planned runs' other tests stay in the quick tier
 def test_plots_take_the_normal_path(tmp_path, capsys, spy):
     pytest.importorskip("matplotlib")
     (tmp_path / "m.toml").write_text(SLIDER_CRANK.read_text())
