@@ -115,11 +115,11 @@ def bar(items: Iterable[Item], total: int | None = None, label: str = "solve",
             done += 1 if size is None else size(item)
             now = clock()
             if now - start >= wait and now - last >= INTERVAL:
-                out.write("\r" + render(label, done, total, now - start, width, fill, unit).ljust(width))
-                out.flush()
-                if not shown:
+                if not shown:  # open before its first write: a signal inside that write still ends the line
                     _OPEN.append(out)
                 last, shown = now, True
+                out.write("\r" + render(label, done, total, now - start, width, fill, unit).ljust(width))
+                out.flush()
             yield item
     finally:
         if shown and out in _OPEN:  # not ended already by end_lines (an error's message)

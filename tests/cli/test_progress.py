@@ -68,6 +68,37 @@ def test_a_message_after_a_failure_in_the_consumer_starts_on_a_line_of_its_own(c
     assert out.getvalue() == text, "the bar wrote again after the message"
 
 
+class InterruptedAtFirstDraw(Terminal):
+    """A terminal whose first flush is interrupted: a signal landing while the
+    bar's first line is written (the sweep's Ctrl-C test sends it the moment
+    it sees that line)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.flushes = 0
+
+    def flush(self) -> None:
+        self.flushes += 1
+        if self.flushes == 1:
+            raise KeyboardInterrupt
+
+
+def test_a_signal_during_the_first_draw_still_ends_the_bars_line(capsys):
+    """The bar's line counts as open from its first write on: a signal inside
+    that write's flush ends it like any later one (it was glued to the
+    message, `...0:18 leftsymid: interrupted`, once in a suite run)."""
+    out = InterruptedAtFirstDraw()
+
+    def run(args):  # a subcommand whose bar is interrupted while it first draws
+        for _ in progress.bar(range(10**6), 10**6, "sweep", stream=out, environ={}, delay=0, clock=ticking(0.2)):
+            pass
+        return 0
+
+    from symid.cli import entry
+    assert entry._run(run, None) == 130
+    assert out.getvalue().startswith("\rsweep ") and out.getvalue().endswith("\n"), repr(out.getvalue())
+
+
 @pytest.mark.parametrize("ci", ["true", "1", "yes"])
 def test_ci_keeps_it_silent_even_on_a_terminal(ci):
     out = Terminal()
