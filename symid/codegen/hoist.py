@@ -14,6 +14,8 @@ from typing import Sequence
 
 import sympy as sp
 
+from symid.symbolic.differentiate import Differentiator
+
 
 def _is_param(sym: sp.Basic) -> bool:
     return isinstance(sym, sp.Symbol) and sym.name.startswith("p[")
@@ -42,28 +44,13 @@ class Hoisted:
     np: int
     values: list[sp.Expr] = field(default_factory=list)
     index: dict[sp.Expr, sp.Symbol] = field(default_factory=dict)
-    # per subtree: (reads a symbol, reads parameters only): `_param_only` without
-    # recomputing free_symbols at every level of the walk
-    kinds: dict[sp.Basic, tuple[bool, bool]] = field(default_factory=dict)
-
-    def _kind(self, e: sp.Basic) -> tuple[bool, bool]:
-        got = self.kinds.get(e)
-        if got is None:
-            if e.is_Symbol:
-                got = (True, _is_param(e))
-            elif e.is_Atom or type(e).free_symbols is not sp.Basic.free_symbols:
-                free = e.free_symbols  # numbers; nodes binding their own symbols
-                got = (bool(free), all(_is_param(x) for x in free))
-            else:
-                kinds = [self._kind(a) for a in e.args]
-                got = (any(k[0] for k in kinds), all(k[1] for k in kinds))
-            self.kinds[e] = got
-        return got
+    # each subtree's free symbols found once (`_param_only` recomputes them at every level of the walk)
+    free: Differentiator = field(default_factory=Differentiator)
 
     def param_only(self, e: sp.Basic) -> bool:
-        """`_param_only(e)`, each subtree's answer found once."""
-        some, params = self._kind(e)
-        return some and params
+        """`_param_only(e)`, from each subtree's free symbols found once."""
+        free = self.free.free(e)
+        return bool(free) and all(_is_param(s) for s in free)
 
     def symbol(self, e: sp.Expr) -> sp.Symbol:
         if e not in self.index:

@@ -101,6 +101,9 @@ class _Instance:
         self.sens = sensitivity_of(group)
         d = self.sens.derived
         self.sub: dict[sp.Symbol, sp.Expr] = dict(sub_base)
+        # its Jacobians share most subtrees (the sines and cosines of its angles): each substituted
+        # once, by the rule `sub` is when `part` is first called (the multipliers are added before)
+        self._put = _Replace(self.sub)
         self.bodies = [int(group.bodies[role][member]) for role in d.roles]
         self.dirs: dict[str, list[list[sp.Expr]]] = {}
         for name, sym in (("q", "sq"), ("qd", "sqd"), ("qdd", "sqdd")):
@@ -115,11 +118,7 @@ class _Instance:
                 self.sub[xdd] = sp.Integer(0) if ground or not velocity else sp.Symbol(f"qdd[{3 * b + c}]", real=True)
 
     def part(self, matrix: sp.Matrix, which: str) -> sp.Matrix:
-        """`block(matrix, ...).xreplace(self.sub)`: the Jacobians of one instance share most
-        subtrees (the sines and cosines of its angles), each substituted once (`self.sub`
-        is complete by the first call)."""
-        if getattr(self, "_put", None) is None:
-            self._put = _Replace(self.sub)
+        """`block(matrix, ...).xreplace(self.sub)`, each shared subtree substituted once."""
         return block(matrix, self.sens, which).applyfunc(self._put)
 
     def tangent(self, matrix: sp.Matrix, blocks: Sequence[str], chain: dict[str, list[list[sp.Expr]]],
