@@ -170,14 +170,26 @@ def _scale(results: api.Results, key: str) -> float:
     plain columns of its kind (every body's alpha, every Fx_i, ...) per unit
     relative change of the parameter, as tests/numeric/test_sensitivity.py does."""
     column, name = key[2:-1].split(")/d(")
-    suffix = column.rsplit(".", 1)[-1]
-    peers = [c for c in results.columns if not c.startswith("d(") and c.rsplit(".", 1)[-1] == suffix]
-    peak = max(float(np.abs(results[c]).max()) for c in peers)
+    peak = _peaks(results)[column.rsplit(".", 1)[-1]]
     value = abs(_VALUES[id(results)][name])
     return max(float(np.abs(results[key]).max()), 1e-2 * peak / max(value, 1e-2), 1e-12)
 
 
 _VALUES: dict[int, dict[str, float]] = {}  # id of a solved run -> its base parameters' values
+_PEAKS: dict[int, dict[str, float]] = {}  # id of a solved run -> the peak of its plain columns by suffix
+
+
+def _peaks(results: api.Results) -> dict[str, float]:
+    """The peak over the run of the plain columns (not d(...)) of each kind, by
+    the column's last dotted part; worked out once per run (every key asks)."""
+    if id(results) not in _PEAKS:
+        peaks: dict[str, float] = {}
+        for c in results.columns:
+            if not c.startswith("d("):
+                suffix = c.rsplit(".", 1)[-1]
+                peaks[suffix] = max(peaks.get(suffix, 0.0), float(np.abs(results[c]).max()))
+        _PEAKS[id(results)] = peaks
+    return _PEAKS[id(results)]
 
 
 @pytest.mark.parametrize("which", MECHANISMS)
