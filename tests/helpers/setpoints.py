@@ -56,8 +56,8 @@ class Solver:
 
         def build(into: Path) -> None:
             c_target.write(self.ctx, into)  # c_target.generate's files, of the context built once
-            if share is not None:  # one strict build per run of this text (an example's: its export's text)
-                cbuild.strict_library(share, into / f"{self.name}_solver.c", into)
+            if share is not None:  # one strict build per run of this text (an example's: its export's object)
+                cbuild.export_library(share, into / f"{self.name}_solver.c", into)
                 return
             subprocess.run([*STRICT, str(into / f"{self.name}_solver.c"), "-o", str(into / "s.so"), "-lm"],
                            check=True)
@@ -65,7 +65,8 @@ class Solver:
         if share is None:
             build(folder)
         else:
-            built = shared_dir(share, key_of("setpoint-solver", source, precision, sensitivity, of, STRICT), build)
+            built = shared_dir(share, key_of("setpoint-solver", source, precision, sensitivity, of, STRICT,
+                                             cbuild.HOST_O2), build)
             shutil.copytree(built, folder, dirs_exist_ok=True)
         self.ng, self.nc, self.nr = self.ctx.ng, self.ctx.nc, self.ctx.nr
         self.real = np.float64 if precision == "double" else np.float32
