@@ -119,11 +119,12 @@ EXPRESSION_DRIVEN = ("four_bar", "disc_cam", "slider_pendulum")
 @needs_cc
 @pytest.mark.parametrize("example, precision", [pytest.param(e, p, id=f"{e}-{p}", marks=() if (e, p) == ("four_bar", "double") else pytest.mark.slow)
                                                 for e in EXPRESSION_DRIVEN for p in ("double", "single")])
-def test_setpoints_of_an_expression_driver_reproduce_instant(tmp_path: Path, example: str, precision: str) -> None:
+def test_setpoints_of_an_expression_driver_reproduce_instant(tmp_path: Path, tmp_path_factory, example: str,
+                                                             precision: str) -> None:
     """An expression driver row g(q) - f(t) is a driver of setpoint (its f
     the set-point), listed in the order of its row among the others."""
     source = expression_drivers(api.example(example).read_text())
-    reference = Solver(source, tmp_path / "double")
+    reference = Solver(source, tmp_path / "double", share=tmp_path_factory)  # built once for both precisions' cases
     solver = reference if precision == "double" else Solver(source, tmp_path / precision, precision)
     drivers = [c.name for c in reference.mech.constraints if c.type in DRIVER_TYPES or "f" in c.values]
     assert any(c.type == "expression" and c.name in drivers for c in reference.mech.constraints)
