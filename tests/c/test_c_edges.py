@@ -349,7 +349,7 @@ def test_friction_parameters_are_read_and_the_header_says_so(tmp_path: Path, tmp
 
     if shutil.which("cc") is None:
         pytest.skip("no C compiler")
-    solver = Solver(api.example("slider_crank_friction").read_text(), tmp_path, share=tmp_path_factory)  # its export's
+    solver = Solver(api.example("slider_crank_friction"), tmp_path, share=tmp_path_factory)  # its export's object
     header = (tmp_path / f"{solver.name}_solver.h").read_text()
     assert "read by nothing" not in header.lower()
     for name in ("mu_pin", "mu_guide", "r_main", "r_crank_pin", "r_wrist", "c_main", "c_guide"):

@@ -55,7 +55,8 @@ def doubles(tmp_path_factory) -> dict[str, Solver]:
 def _solver(cache: dict[str, Solver], tmp_path_factory, example: str, precision: str) -> Solver:
     key = f"{example}-{precision}"
     if key not in cache:
-        cache[key] = Solver(api.example(example).read_text(), tmp_path_factory.mktemp(key), precision,
+        # the file, not its text: the export's text and header, so the run's shared object
+        cache[key] = Solver(api.example(example), tmp_path_factory.mktemp(key), precision,
                             share=tmp_path_factory)
     return cache[key]
 
@@ -346,7 +347,7 @@ def test_setpoint_at_a_million_seconds_in_single_is_double_within_the_header_bou
                                                                                     tmp_path_factory) -> None:
     from cbuild import single_bound
 
-    source = api.example("four_bar").read_text()
+    source = api.example("four_bar")  # the file: the export's text and object
     double = Solver(source, tmp_path / "double", share=tmp_path_factory)
     single = Solver(source, tmp_path / "single", "single", share=tmp_path_factory)
     at = double.mech_params.index("n")
