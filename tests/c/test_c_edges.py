@@ -50,21 +50,28 @@ def _exe(source: Path, defines: tuple[str, ...], out: Path | None) -> Path:
     return (out or source.parent) / ("drv" + "".join("_" + re.sub(r"\W", "", d) for d in defines))
 
 
-def _driver(source: Path, *defines: str, cc: str = "cc", out: Path | None = None) -> subprocess.CompletedProcess[str]:
-    """instant_driver.c built with the solver at `source` and -D defines (the exe in _exe's place)."""
+def _driver(source: Path, *defines: str, cc: str = "cc", out: Path | None = None,
+            obj: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """instant_driver.c built with the solver at `source` and -D defines (the
+    exe in _exe's place); with `obj`, the solver's object compiled without
+    defines (the run's shared HOST_O2 one, whose flags hold these) instead
+    of the source: the solver reads none of the driver's macros."""
     name = source.name.removesuffix("_solver.c")
     exe = _exe(source, defines, out)
     return subprocess.run([cc, *WARNINGS, "-O2", f"-I{source.parent}", f'-DSOLVER_H="{name}_solver.h"',
-                           f"-DP={name}", f"-DPU={name.upper()}", *defines, str(DRIVER), str(source), "-lm",
+                           f"-DP={name}", f"-DPU={name.upper()}", *defines, str(DRIVER), str(obj or source), "-lm",
                            "-o", str(exe)], capture_output=True, text=True)
 
 
 def _calls(source: Path, *groups: tuple[float, float], q0, defines: tuple[str, ...] = (),  # type: ignore[no-untyped-def]
-           out: Path | None = None) -> list[tuple]:
+           out: Path | None = None, share: pytest.TempPathFactory | None = None) -> list[tuple]:
     """Each (t, tol) an instant call, the first from q0, each next from the q
     the one before left: per call (status, iterations, fallback, q); the
-    program in out (else beside the source)."""
-    built = _driver(source, *defines, out=out)
+    program in out (else beside the source). With `share` and no defines the
+    solver is the run's shared HOST_O2 object of the source (object_file)."""
+    assert set(WARNINGS) | {"-O2"} <= set(HOST_O2)  # the object is built at least as strictly as the source was
+    obj = object_file(share, HOST_O2, source) if share is not None and not defines else None
+    built = _driver(source, *defines, out=out, obj=obj)
     assert built.returncode == 0, built.stderr[:3000]
     exe = _exe(source, defines, out)
     args = [repr(groups[0][0]), repr(groups[0][1]), *(repr(float(v)) for v in q0)]
@@ -182,12 +189,14 @@ def test_single_nu_in_float_float_keeps_the_phase_of_double(tmp_path: Path) -> N
 
 
 @pytest.mark.parametrize("precision", ["double", "single"])
-def test_fast_math_build_stops_with_an_error_naming_the_nan_guards(tmp_path: Path, precision: str) -> None:
+def test_fast_math_build_stops_with_an_error_naming_the_nan_guards(tmp_path: Path, tmp_path_factory,
+                                                                   precision: str) -> None:
     if shutil.which("gcc") is None:
         pytest.skip("gcc is not installed: the fast-math refusal is not checked")
-    source = _generate(tmp_path, "slider_crank", precision)
+    source = example_export(tmp_path_factory, "slider_crank").source(precision)  # shared: the object goes to tmp_path
     base = ["gcc", *WARNINGS, "-O2", "-c", str(source), "-o", str(tmp_path / "s.o")]
-    assert subprocess.run(base, capture_output=True).returncode == 0
+    # without the flag it builds: the run's shared HOST_O2 object of this source (its flags hold base's)
+    assert set(base[1:-4]) <= set(HOST_O2) and object_file(tmp_path_factory, ["gcc", *HOST_O2[1:]], source).is_file()
     for flag in ("-ffast-math", "-ffinite-math-only"):
         built = subprocess.run([*base, flag], capture_output=True, text=True)
         assert built.returncode != 0 and "needs IEEE floating point" in built.stderr, (flag, built.stderr[:500])
@@ -257,7 +266,7 @@ def test_max_newton_and_floor_overrides_take_effect(tmp_path: Path, tmp_path_fac
     truth = slider_crank_mode(2 * np.pi * 5 * 0.01, 1.0)
     guess = truth + 1e-3
     floor = "1e13" if precision == "double" else "1e4"  # 2.2e-3 and 1.2e-3: above the guess's residual
-    (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess, out=tmp_path)
+    (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess, out=tmp_path, share=tmp_path_factory)
     assert status == OK and iterations >= (3 if precision == "double" else 2)  # single: 1e-5 after two
     assert np.max(np.abs(q - truth)) <= (1e-12 if precision == "double" else 2e-6)
     (status, iterations, _, q), = _calls(source, (0.01, tol), q0=guess, defines=("-DSLIDER_CRANK_MAX_NEWTON=1",),
@@ -279,7 +288,7 @@ def test_real_type_override_takes_a_same_size_typedef_and_refuses_another_size(t
     (tmp_path / "mine.h").write_text(f"typedef {real} my_real;\n")
     guess = slider_crank_mode(0.3, 1.0) + 1e-3
     tol = 1e-12 if precision == "double" else 1e-5
-    plain = _calls(source, (0.01, tol), q0=guess, out=tmp_path)
+    plain = _calls(source, (0.01, tol), q0=guess, out=tmp_path, share=tmp_path_factory)
     mine = _calls(source, (0.01, tol), q0=guess, defines=("-include", str(tmp_path / "mine.h"),
                                                           "-DSLIDER_CRANK_REAL=my_real"), out=tmp_path)
     assert plain[0][:3] == mine[0][:3] == (OK, plain[0][1], 0) and np.array_equal(plain[0][3], mine[0][3])
@@ -332,7 +341,7 @@ def test_worst_case_instructions_stated_and_a_capped_call_stays_under_them(singl
 # --- the header's parameter list is true ---
 
 
-def test_friction_parameters_are_read_and_the_header_says_so(tmp_path: Path) -> None:
+def test_friction_parameters_are_read_and_the_header_says_so(tmp_path: Path, tmp_path_factory) -> None:
     """The bundled friction example's coefficients, pin radii and viscous
     drags were listed as read by nothing: each set to NaN now makes an
     instant NONFINITE (it is read), and the header lists none as unread."""
@@ -340,7 +349,7 @@ def test_friction_parameters_are_read_and_the_header_says_so(tmp_path: Path) -> 
 
     if shutil.which("cc") is None:
         pytest.skip("no C compiler")
-    solver = Solver(api.example("slider_crank_friction").read_text(), tmp_path)
+    solver = Solver(api.example("slider_crank_friction"), tmp_path, share=tmp_path_factory)  # its export's object
     header = (tmp_path / f"{solver.name}_solver.h").read_text()
     assert "read by nothing" not in header.lower()
     for name in ("mu_pin", "mu_guide", "r_main", "r_crank_pin", "r_wrist", "c_main", "c_guide"):

@@ -23,7 +23,7 @@ EXAMPLES = ("slider_crank", "four_bar")
 def solvers(tmp_path_factory) -> dict[str, Solver]:
     if shutil.which("cc") is None:
         pytest.skip("no C compiler")
-    return {name: Solver(api.example(name).read_text(), tmp_path_factory.mktemp(name), share=tmp_path_factory)
+    return {name: Solver(api.example(name), tmp_path_factory.mktemp(name), share=tmp_path_factory)  # the export's
             for name in EXAMPLES}
 
 

@@ -55,7 +55,8 @@ def doubles(tmp_path_factory) -> dict[str, Solver]:
 def _solver(cache: dict[str, Solver], tmp_path_factory, example: str, precision: str) -> Solver:
     key = f"{example}-{precision}"
     if key not in cache:
-        cache[key] = Solver(api.example(example).read_text(), tmp_path_factory.mktemp(key), precision,
+        # the file, not its text: the export's text and header, so the run's shared object
+        cache[key] = Solver(api.example(example), tmp_path_factory.mktemp(key), precision,
                             share=tmp_path_factory)
     return cache[key]
 
@@ -119,11 +120,12 @@ EXPRESSION_DRIVEN = ("four_bar", "disc_cam", "slider_pendulum")
 @needs_cc
 @pytest.mark.parametrize("example, precision", [pytest.param(e, p, id=f"{e}-{p}", marks=() if (e, p) == ("four_bar", "double") else pytest.mark.slow)
                                                 for e in EXPRESSION_DRIVEN for p in ("double", "single")])
-def test_setpoints_of_an_expression_driver_reproduce_instant(tmp_path: Path, example: str, precision: str) -> None:
+def test_setpoints_of_an_expression_driver_reproduce_instant(tmp_path: Path, tmp_path_factory, example: str,
+                                                             precision: str) -> None:
     """An expression driver row g(q) - f(t) is a driver of setpoint (its f
     the set-point), listed in the order of its row among the others."""
     source = expression_drivers(api.example(example).read_text())
-    reference = Solver(source, tmp_path / "double")
+    reference = Solver(source, tmp_path / "double", share=tmp_path_factory)  # built once for both precisions' cases
     solver = reference if precision == "double" else Solver(source, tmp_path / precision, precision)
     drivers = [c.name for c in reference.mech.constraints if c.type in DRIVER_TYPES or "f" in c.values]
     assert any(c.type == "expression" and c.name in drivers for c in reference.mech.constraints)
@@ -345,7 +347,7 @@ def test_setpoint_at_a_million_seconds_in_single_is_double_within_the_header_bou
                                                                                     tmp_path_factory) -> None:
     from cbuild import single_bound
 
-    source = api.example("four_bar").read_text()
+    source = api.example("four_bar")  # the file: the export's text and object
     double = Solver(source, tmp_path / "double", share=tmp_path_factory)
     single = Solver(source, tmp_path / "single", "single", share=tmp_path_factory)
     at = double.mech_params.index("n")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
+import os
 import platform
 import shutil
 import subprocess
@@ -23,6 +24,7 @@ from symid import api
 from symid.codegen.model import code_model
 from symid.codegen import c as c_target
 from csolver import run_in_cuts
+from runshare import key_of, shared_dir
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
@@ -63,8 +65,12 @@ def _context(example: str | Path, kind: str | None = None, straight: int = 0) ->
 FORMS = {"avx": [], "sse2": ["NO_AVX"], "scalar": ["NO_SIMD"]}  # the macros each form defines
 
 
-def _build(ctx: c_target.CContext, folder: Path, form: str, cc: str = "cc") -> ctypes.CDLL:
-    """The solver in one of FORMS, compiled by cc, with a harness reaching its static passes."""
+def _build(ctx: c_target.CContext, folder: Path, form: str, share: pytest.TempPathFactory,
+           cc: str = "cc") -> ctypes.CDLL:
+    """The solver in one of FORMS, compiled by cc, with a harness reaching its
+    static passes; built once per run for the same text, form and compiler
+    (runshare: two tests compare the same builds), copied into folder (a
+    library of its own: a second handle of one path would share its state)."""
     c_target.write(ctx, folder)
     p, ng = ctx.name, ctx.ng
     source = folder / f"{p}_solver.c"
@@ -73,8 +79,13 @@ def _build(ctx: c_target.CContext, folder: Path, form: str, cc: str = "cc") -> c
     extra = HARNESS.format(p=p, ng=ng, **{f"ng{k}": k * ng for k in range(2, 7)}) if ctx.velocity else ""
     source.write_text(text + extra)
     define = [f"-D{p.upper()}_{m}" for m in FORMS[form]]
-    subprocess.run([cc, *FLAGS, *define, str(source), "-o", str(folder / "s.so"), "-lm"], check=True)
-    return ctypes.CDLL(str(folder / "s.so"))
+    command = [os.path.realpath(shutil.which(cc) or cc), *FLAGS, *define]
+
+    def build(into: Path) -> None:
+        subprocess.run([*command, f"-I{folder}", str(source), "-o", str(into / "s.so"), "-lm"], check=True)
+
+    built = shared_dir(share, key_of("simd build", command, source, source.with_suffix(".h")), build)
+    return ctypes.CDLL(shutil.copy2(built / "s.so", folder / "s.so"))
 
 
 SIMD_CASES = [(e, k) for e in ("slider_crank", "four_bar", "excavator", "ladder_5") for k in ("inverse_dynamics", "statics")]
@@ -82,10 +93,11 @@ SIMD_CASES = [(e, k) for e in ("slider_crank", "four_bar", "excavator", "ladder_
 
 # the quick tier: the slider-crank's inverse dynamics (the passes are the same code for every mechanism and kind)
 @pytest.mark.parametrize("example, kind", first_quick(SIMD_CASES, ids=[f"{e}-{k}" for e, k in SIMD_CASES]))
-def test_simd_passes_give_the_scalar_codes_rows_and_state_bitwise(tmp_path: Path, example: str, kind: str) -> None:
+def test_simd_passes_give_the_scalar_codes_rows_and_state_bitwise(tmp_path: Path, tmp_path_factory, example: str,
+                                                                  kind: str) -> None:
     # the ladder of 5: 11 bodies, so the four-body AVX pass of the sines and cosines runs, with a tail
     ctx = _context(ladder.write(5, tmp_path, steps=61) if example == "ladder_5" else example, kind)
-    libs = {form: _build(ctx, tmp_path / form, form) for form in FORMS}
+    libs = {form: _build(ctx, tmp_path / form, form, tmp_path_factory) for form in FORMS}
     for cuts in ([60], [1, 1, 2, 3, 5, 8, 40]):
         want = run_in_cuts(libs["scalar"], ctx, cuts)
         for form in ("avx", "sse2"):
@@ -96,10 +108,11 @@ def test_simd_passes_give_the_scalar_codes_rows_and_state_bitwise(tmp_path: Path
 
 @pytest.mark.slow
 @pytest.mark.skipif(shutil.which("clang") is None, reason="no clang")
-def test_clangs_build_of_the_simd_passes_gives_gccs_scalar_rows(tmp_path: Path) -> None:
+def test_clangs_build_of_the_simd_passes_gives_gccs_scalar_rows(tmp_path: Path, tmp_path_factory) -> None:
     """The AVX passes are GCC vector extensions, whose shuffle clang spells differently."""
     ctx = _context(ladder.write(5, tmp_path, steps=61))
-    clang, scalar = _build(ctx, tmp_path / "clang", "avx", "clang"), _build(ctx, tmp_path / "scalar", "scalar")
+    clang = _build(ctx, tmp_path / "clang", "avx", tmp_path_factory, "clang")
+    scalar = _build(ctx, tmp_path / "scalar", "scalar", tmp_path_factory)  # the bitwise test's own scalar build
     got, want = run_in_cuts(clang, ctx, [60]), run_in_cuts(scalar, ctx, [60])
     assert got[0].tobytes() == want[0].tobytes()
     assert got[1].tobytes() == want[1].tobytes()
@@ -107,10 +120,10 @@ def test_clangs_build_of_the_simd_passes_gives_gccs_scalar_rows(tmp_path: Path) 
 
 # slow: three builds of the slider-crank's checks; the SIMD passes' bitwise test stays in the quick tier
 @pytest.mark.slow
-def test_simd_checks_answer_as_the_scalar_ones_with_non_finite_values(tmp_path: Path) -> None:
-    ctx = _context("slider_crank")  # ng 9: two SSE2 pairs and a scalar tail
+def test_simd_checks_answer_as_the_scalar_ones_with_non_finite_values(tmp_path: Path, tmp_path_factory) -> None:
+    ctx = _context("slider_crank")  # ng 9: two SSE2 pairs and a scalar tail (the bitwise test's builds)
     ng = ctx.ng
-    libs = [_build(ctx, tmp_path / form, form) for form in FORMS]
+    libs = [_build(ctx, tmp_path / form, form, tmp_path_factory) for form in FORMS]
     for lib in libs:
         lib.test_maxabs.argtypes, lib.test_maxabs.restype = [DP], ctypes.c_double
         lib.test_correct.argtypes, lib.test_correct.restype = [DP, DP], ctypes.c_double

@@ -203,7 +203,7 @@ def test_fmu_reads_time_when_only_time_changes(tmp_path: Path, tmp_path_factory)
     model.enterInitializationMode()
     model.exitInitializationMode()
     model.enterContinuousTimeMode()
-    solver = Solver(api.example("four_bar").read_text(), tmp_path / "c", share=tmp_path_factory)
+    solver = Solver(api.example("four_bar"), tmp_path / "c", share=tmp_path_factory)  # the export's object
     t1, t2 = 0.05, 0.3
     des = laws(solver.mech, t1)
     model.setTime(t1)

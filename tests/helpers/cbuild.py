@@ -8,9 +8,10 @@ by the workers (tests/helpers/runshare.py): each example's export in both
 precisions (example_export), each small mechanism's (case_export), an object
 compiled from a source with given flags (object_file: the Cortex-M4F objects
 that the strict build, the double-helper link and the emulated run each
-compiled, the host objects the rows driver and the double-promotion check
-each compiled) and the host rows driver's run of an example (host_rows). Each
-entry is keyed on the content it is made from and on the command."""
+compiled, the host objects the rows driver, the double-promotion check and
+the exports' strict libraries each compiled) and the host rows driver's run
+of an example (host_rows). Each entry is keyed on the content it is made from and
+on the command."""
 
 from __future__ import annotations
 
@@ -68,9 +69,11 @@ def driver_rows(exe: Path, t0: float, h: float, n: int, q0) -> np.ndarray:  # ty
 
 PRECISIONS = ("double", "single")
 # the host build of a solver's object (the rows driver's, the double-promotion
-# check's, the strict check's): WARNINGS (-Wconversion holds -Wfloat-conversion,
-# named for the single build's check) at -O2, so the optimizer's warnings run too
-HOST_O2 = ["cc", *WARNINGS, "-Wfloat-conversion", "-O2"]
+# check's, the strict check's, an export's library): WARNINGS (-Wconversion
+# holds -Wfloat-conversion, named for the single build's check) at -O2, so the
+# optimizer's warnings run too, position-independent as the emitted Makefile
+# builds it (one object links into a program and into a shared library)
+HOST_O2 = ["cc", *WARNINGS, "-Wfloat-conversion", "-O2", "-fPIC"]
 
 
 @dataclass(frozen=True)
@@ -163,6 +166,23 @@ def strict_library(factory: pytest.TempPathFactory, source: Path, into: Path) ->
     built = shared_dir(factory, key_of("strict library", command, source, *headers), build) / "s.so"
     into.mkdir(parents=True, exist_ok=True)
     return Path(shutil.copy2(built, into / "s.so"))
+
+
+def export_library(factory: pytest.TempPathFactory, source: Path, into: Path) -> Path:
+    """An export's source (a mechanism's text as `symid generate` writes it,
+    which the embedded build checks warning-free under WARNINGS) built as a
+    user builds it, strictly: its HOST_O2 object (object_file: no warning
+    under flags that hold STRICT's, -fPIC as the emitted Makefile compiles it;
+    once per run for the same text, headers beside it and command: the object
+    the rows driver and the double-promotion check link too) linked by
+    `cc -shared` into `into` (a library of its own: a second handle of one
+    path would share its state); the library's path. A text of another
+    context (a test's variant of the checks) is strict_library's."""
+    assert set(STRICT) <= set(HOST_O2) and "-fPIC" in HOST_O2
+    obj = object_file(factory, HOST_O2, source)
+    into.mkdir(parents=True, exist_ok=True)
+    subprocess.run([*_command(["cc"]), "-shared", str(obj), "-o", str(into / "s.so"), "-lm"], check=True)
+    return into / "s.so"
 
 
 def host_rows(factory: pytest.TempPathFactory, export: Export, precision: str) -> tuple[Path, np.ndarray]:

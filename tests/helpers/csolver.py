@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from cbuild import STRICT, strict_library
+from cbuild import STRICT, export_library
 from symid.codegen.model import CodeModel, code_model
 from symid.codegen import c as c_target
-from symid.io.reader import loads
+from symid.io.reader import load, loads
 
 OPTIONAL = ("qd", "qdd", "lam", "reactions")
 OK, NONFINITE, BAD_ARGUMENT = 0, 3, 5
@@ -27,10 +27,13 @@ IP = ctypes.POINTER(ctypes.c_int)
 class Solver:
     """One generated C solver compiled strictly into a shared library."""
 
-    def __init__(self, text: str, folder: Path, share: pytest.TempPathFactory | None = None) -> None:
-        """share: the library compiled once per run for the same generated
-        text (cbuild.strict_library: an example's is its export's), copied into folder."""
-        mech = loads(text, "mech.toml")
+    def __init__(self, text: str | Path, folder: Path, share: pytest.TempPathFactory | None = None) -> None:
+        """text: a mechanism's text, or its file (read as `symid generate`
+        reads it: the header's parameter comments are the file's). share: the
+        library built once per run for the same generated text and header
+        (cbuild.export_library, the text being an export's: an example's
+        file gives its export's object), linked into folder."""
+        mech = load(text) if isinstance(text, Path) else loads(text, "mech.toml")
         model = code_model(mech)
         self.name, self.folder, self.ctx = model.name, folder, c_target.context(model)
         c_target.write(self.ctx, folder)  # c_target.generate's files, of the context built once
@@ -38,7 +41,7 @@ class Solver:
         self.p = np.array(model.flat.defaults, dtype=float)
         self.analysis = mech.analysis
         if share is not None:
-            strict_library(share, folder / f"{self.name}_solver.c", folder)
+            export_library(share, folder / f"{self.name}_solver.c", folder)
         else:
             subprocess.run(["cc", *STRICT, "-fPIC", "-shared", str(folder / f"{self.name}_solver.c"), "-o",
                             str(folder / "s.so"), "-lm"], check=True)

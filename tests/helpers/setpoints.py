@@ -18,7 +18,7 @@ import sympy as sp
 from symid import api
 from symid.codegen.model import code_model
 from symid.codegen import c as c_target
-from symid.io.reader import loads
+from symid.io.reader import load, loads
 from symid.model.mechanism import T
 from symid.model.params import parameter_values
 from symid.symbolic.assemble import assemble
@@ -39,12 +39,18 @@ _MODELS: dict[str, Any] = {}
 class Solver:
     """A generated solver compiled into a shared library, in one precision."""
 
-    def __init__(self, source: str, folder: Path, precision: str = "double", sensitivity: str | None = None,
+    def __init__(self, source: str | Path, folder: Path, precision: str = "double", sensitivity: str | None = None,
                  of: str | None = None, share: pytest.TempPathFactory | None = None) -> None:
-        """share: the files and library built once per test run for every Solver of
-        the same text, precision and sensitivity (runshare), copied into folder
-        (a library of its own: a second handle of one path would share its state)."""
-        self.mech = loads(source, "mech.toml")
+        """source: a mechanism's text, or its file (read as `symid generate`
+        reads it: the header's parameter comments are the file's, the text an
+        export's). share: the files and library built once per test run for
+        every Solver of the same text, precision and sensitivity (runshare),
+        copied into folder (a library of its own: a second handle of one path
+        would share its state)."""
+        if isinstance(source, Path):
+            self.mech, source = load(source), f"{source}\n{source.read_text()}"
+        else:
+            self.mech = loads(source, "mech.toml")
         if sensitivity:
             model = api._sensitivity_model(self.mech, "c", sensitivity, of)
         else:  # the file's code model, derived once per text for both precisions (a frozen dataclass)
@@ -56,8 +62,8 @@ class Solver:
 
         def build(into: Path) -> None:
             c_target.write(self.ctx, into)  # c_target.generate's files, of the context built once
-            if share is not None:  # one strict build per run of this text (an example's: its export's text)
-                cbuild.strict_library(share, into / f"{self.name}_solver.c", into)
+            if share is not None:  # one strict build per run of this text (an example's: its export's object)
+                cbuild.export_library(share, into / f"{self.name}_solver.c", into)
                 return
             subprocess.run([*STRICT, str(into / f"{self.name}_solver.c"), "-o", str(into / "s.so"), "-lm"],
                            check=True)
@@ -65,7 +71,8 @@ class Solver:
         if share is None:
             build(folder)
         else:
-            built = shared_dir(share, key_of("setpoint-solver", source, precision, sensitivity, of, STRICT), build)
+            built = shared_dir(share, key_of("setpoint-solver", source, precision, sensitivity, of, STRICT,
+                                             cbuild.HOST_O2), build)
             shutil.copytree(built, folder, dirs_exist_ok=True)
         self.ng, self.nc, self.nr = self.ctx.ng, self.ctx.nc, self.ctx.nr
         self.real = np.float64 if precision == "double" else np.float32
