@@ -10,6 +10,7 @@ no command leaves a file in the current folder that nobody asked for.
 from __future__ import annotations
 
 import errno
+import json
 import os
 import resource
 import shutil
@@ -296,10 +297,27 @@ def test_no_command_leaves_a_file_in_the_current_folder(tmp_path):
         ["generate", FOUR_BAR, "--target", "casadi", "-o", str(out / "fb")],
         ["sweep", CRANK, "--grid", "L_rod=0.25:0.4:2", *few, "--gradients", "-o", str(out / "g.csv")],
     ]
-    for command in commands:
-        proc = symid(command, here)
-        assert proc.returncode == 0, (command, proc.stderr)
-        assert list(here.iterdir()) == [], f"{command[0]} left {[p.name for p in here.iterdir()]}"
+    # one interpreter runs them in turn as `python -m symid` runs one (cli.main,
+    # then leave(): the exit handlers), listing the folder after each: the
+    # imports of sympy, numpy, matplotlib and casadi once, not seven times
+    driver = ("import json, os, sys\n"
+              "from symid.cli.entry import leave, main\n"
+              "for command in json.loads(sys.argv[1]):\n"
+              "    status = main(command)\n"
+              "    print('symid-test-left', json.dumps([status, sorted(os.listdir())]), flush=True)\n"
+              "leave(0)\n")
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1",
+           "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))}
+    proc = subprocess.run([sys.executable, "-c", driver, json.dumps(commands)], cwd=here, env=env,
+                          capture_output=True, text=True, timeout=TIMEOUT)
+    assert proc.returncode == 0, proc.stderr
+    reports = [json.loads(line.split(" ", 1)[1]) for line in proc.stdout.splitlines()
+               if line.startswith("symid-test-left ")]
+    assert len(reports) == len(commands), (proc.stdout, proc.stderr)
+    for command, (status, left) in zip(commands, reports):
+        assert status == 0, (command, proc.stderr)
+        assert left == [], f"{command[0]} left {left}"
+    assert list(here.iterdir()) == [], f"the process's exit left {[p.name for p in here.iterdir()]}"
     assert not [p for p in out.rglob("*") if ".tmp" in p.name or p.name.startswith(".symid-generate.")]
 
 
