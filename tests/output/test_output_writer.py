@@ -53,7 +53,8 @@ def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
     return status, capsys.readouterr().err
 
 
-def symid(args: list[str], cwd: Path, limit: int | None = None, python: bool = False) -> subprocess.CompletedProcess[str]:
+def symid(args: list[str], cwd: Path, limit: int | None = None,
+          python: bool = False) -> subprocess.CompletedProcess[str]:
     """`python -m symid ARGS` (`python ARGS` if `python`) in a child, under a file-size limit of
     `limit` bytes if given (SIGXFSZ ignored before symid starts, as a shell's `ulimit -f` with
     `trap '' XFSZ` would)."""
