@@ -97,7 +97,7 @@ def test_a_ladder_past_a_thousand_bodies_solves_on_c_from_the_command_line(tmp_p
     limit (exit 2 were it refused): past the 1000 bodies the reader once
     refused by count, and on every path of the ladder of 1024 (the docs' 2049
     bodies, in twice the time): Phi_q sparse (ng >= SPARSE_MIN), the
-    generated C past LARGE_SOURCE (compiled -O1), a chunk of 16 instants."""
+    generated C past LARGE_SOURCE (compiled -O1)."""
     monkeypatch.delenv("SYMID_MEMORY_LIMIT", raising=False)
     monkeypatch.setenv("SYMID_CACHE", str(tmp_path / "cache"))
     n = 512
