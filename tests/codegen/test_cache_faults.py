@@ -11,8 +11,10 @@ table with the one of the undamaged cache, byte for byte.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import hashlib
+import io
 import json
 import marshal
 import os
@@ -26,6 +28,7 @@ from typing import Callable, Iterator
 import numpy as np
 import pytest
 
+from runshare import key_of, run_folder, shared_dir
 from symid import api, cli
 from symid.codegen import cache
 
@@ -61,37 +64,63 @@ def symid(cache_dir: Path | None, cwd: Path, *args: str, env: dict[str, str] | N
 
 
 class Pristine:
-    """A cache built once per backend, with its plan, and the table it gives."""
+    """A cache built once per backend in the run (either xdist worker builds it,
+    the other waits: tests/helpers/runshare.py), with its plan, and the table it
+    gives. Every child runs in the one folder `root` of the run, the built one
+    too: a plan's key holds the current folder, and a case finds the plan
+    its cache was built with."""
 
-    def __init__(self, root: Path) -> None:
-        self.root = root
-        self.built: dict[str, tuple[Path, bytes]] = {}
+    def __init__(self, factory: pytest.TempPathFactory) -> None:
+        self.factory = factory
+        self.root = run_folder(factory) / "cache-faults-cwd"
+        self.root.mkdir(exist_ok=True)
+        self.built: dict[str, tuple[Path, bytes, str]] = {}
 
     def get(self, backend: str) -> tuple[Path, bytes]:
+        return self.entry(backend)[:2]  # type: ignore[return-value]
+
+    def entry(self, backend: str) -> tuple[Path, bytes, str]:
+        """The cache, its table, and the path the cache was built at (its plans name it)."""
         if backend not in self.built:
-            where = self.root / backend
-            proc = symid(where, self.root, "--backend", backend, "-o", str(self.root / f"{backend}.csv"))
-            assert (proc.returncode, proc.stderr) == (0, ""), proc.stderr
-            self.built[backend] = where, (self.root / f"{backend}.csv").read_bytes()
+            def build(folder: Path) -> None:
+                # `symid solve` in this process (its derivations are at hand here): the entry, its
+                # plan and the table a child writes; the children of the cases load them
+                err, here, chosen = io.StringIO(), os.getcwd(), os.environ.get("SYMID_CACHE")
+                os.environ["SYMID_CACHE"] = str(folder / "cache")
+                os.chdir(self.root)
+                try:
+                    with contextlib.redirect_stderr(err):
+                        status = cli.main([*ARGS, "--backend", backend, "-o", str(folder / "table.csv")])
+                finally:
+                    os.chdir(here)
+                    if chosen is None:
+                        del os.environ["SYMID_CACHE"]
+                    else:
+                        os.environ["SYMID_CACHE"] = chosen
+                assert (status, err.getvalue()) == (0, ""), err.getvalue()
+                (folder / "built-at").write_text(str(folder / "cache"))
+
+            where = shared_dir(self.factory, key_of("test_cache_faults.Pristine", backend, SLIDER_CRANK, ARGS), build)
+            self.built[backend] = where / "cache", (where / "table.csv").read_bytes(), (where / "built-at").read_text()
         return self.built[backend]
 
 
 @pytest.fixture(scope="module")
 def pristine(tmp_path_factory: pytest.TempPathFactory) -> Pristine:
-    return Pristine(tmp_path_factory.mktemp("pristine"))
+    return Pristine(tmp_path_factory)
 
 
 class Case:
     """A private copy of a backend's pristine cache, its plans pointing at the copy."""
 
     def __init__(self, pristine: Pristine, backend: str, tmp_path: Path) -> None:
-        source, self.expected = pristine.get(backend)
+        source, self.expected, built_at = pristine.entry(backend)
         self.backend, self.cwd, self.tmp = backend, pristine.root, tmp_path
         self.cache = tmp_path / "cache"
         shutil.copytree(source, self.cache)
         for path in (self.cache / "plans").glob("*.json"):
             data = json.loads(path.read_text())
-            data["artifact"] = data["artifact"].replace(str(source), str(self.cache))
+            data["artifact"] = data["artifact"].replace(built_at, str(self.cache))
             path.write_text(json.dumps(data))
         (self.entry,) = [p for p in self.cache.iterdir() if p.name.startswith(f"{backend}-")]
         (self.plan,) = (self.cache / "plans").glob("*.json") if backend != "casadi" else (None,)

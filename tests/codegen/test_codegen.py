@@ -237,21 +237,41 @@ def _lu_case(rng: np.random.Generator, n: int) -> tuple[list[tuple[int, int]], n
     return pattern, values, known
 
 
-def _run_lu(tmp_path: Path, plan: sparse.Plan, values: list[float | None], inputs: str) -> tuple[str, str]:
-    """Render templates/c/sparse_lu.j2 for the plan, build tests/c/lu_harness.c, run it on inputs."""
+def _run_lus(tmp_path: Path, cases: list[tuple[sparse.Plan, list[float | None], str]]) -> list[tuple[str, str]]:
+    """Render templates/c/sparse_lu.j2 for each case's plan (prefix t0, t1, ...)
+    into one lu.c, build tests/c/lu_harness.c with it (one compile: each case's
+    functions are its own, in the same floating-point operations as in a file
+    alone), run case k on its inputs; (output, factor lines) per case."""
     from symid.codegen.render import render
 
-    chunks = c_lu.lu_chunks(plan, values, "T")
-    lu = c_lu.LU(size=plan.size, tables=None, runs=None, **chunks)
-    text = render("c/sparse_lu.j2", p="t", P="T", ng=plan.n, multipliers=True, singular=plan.singular, f="", lu=lu)
-    head = (f"#define T_N {plan.n}\n#define T_NNZ {len(values)}\n#define T_LU_SIZE {plan.size}\n"
-            "#define T_THRESHOLD 0.1\n#define T_MAX(a, b) ((a) > (b) ? (a) : (b))\n#define T_RESTRICT restrict\n")
-    (tmp_path / "lu.c").write_text(head + text)
+    parts, lines = [], []
+    for k, (plan, values, _) in enumerate(cases):
+        p, P = f"t{k}", f"T{k}"
+        chunks = c_lu.lu_chunks(plan, values, P)
+        lu = c_lu.LU(size=plan.size, tables=None, runs=None, **chunks)
+        parts.append(f"typedef double {p}_real;\n#define {P}_N {plan.n}\n#define {P}_THRESHOLD 0.1\n"
+                     f"#define {P}_MAX(a, b) ((a) > (b) ? (a) : (b))\n#define {P}_RESTRICT restrict\n"
+                     + render("c/sparse_lu.j2", p=p, P=P, ng=plan.n, multipliers=True, singular=plan.singular,
+                              f="", lu=lu))
+        lines.append("\n".join(line for ch in chunks["factor_chunks"] for line in ch["lines"]))
+    table = ", ".join
+    k_all = range(len(cases))
+    parts.append(f"#define T_CASES {len(cases)}\n"
+                 f"#define T_LU_SIZE {max(plan.size for plan, _, _ in cases)}\n"
+                 f"#define T_N {max(plan.n for plan, _, _ in cases)}\n"
+                 f"static const int t_n[] = {{{table(str(plan.n) for plan, _, _ in cases)}}};\n"
+                 f"static const int t_nnz[] = {{{table(str(len(values)) for _, values, _ in cases)}}};\n"
+                 f"static int (*const t_factor[])(double *) = {{{table(f't{k}_sparse_factor' for k in k_all)}}};\n"
+                 "static void (*const t_solve[])(const double *, const double *, double *, double *) = "
+                 f"{{{table(f't{k}_sparse_solve' for k in k_all)}}};\n"
+                 "static void (*const t_solve_t[])(const double *, const double *, double *) = "
+                 f"{{{table(f't{k}_sparse_solve_t' for k in k_all)}}};\n")
+    (tmp_path / "lu.c").write_text("\n".join(parts))
     exe = tmp_path / "lu"
     subprocess.run(["cc", *STRICT, f"-I{tmp_path}", str(ROOT / "tests/c/lu_harness.c"), "-o", str(exe), "-lm"],
                    check=True)
-    out = subprocess.run([str(exe)], input=inputs, check=True, capture_output=True, text=True).stdout
-    return out, "\n".join(line for ch in chunks["factor_chunks"] for line in ch["lines"])
+    return [(subprocess.run([str(exe), str(k)], input=inputs, check=True, capture_output=True, text=True).stdout,
+             lines[k]) for k, (_, _, inputs) in enumerate(cases)]
 
 
 @pytest.mark.slow  # many random matrices through two compiled LUs (38 s under load)
@@ -262,6 +282,7 @@ def test_folded_lu_factors_and_solves_random_matrices_bitwise_like_the_full_one(
     every value at run time, and solve the system; every printer branch runs."""
     rng = np.random.default_rng(7)
     seen = dict.fromkeys(_FOLDED_FORMS, 0)
+    systems, cases = [], []
     for _ in range(30):
         n = int(rng.integers(4, 14))
         pattern, values, known = _lu_case(rng, n)
@@ -271,8 +292,11 @@ def test_folded_lu_factors_and_solves_random_matrices_bitwise_like_the_full_one(
         plan = sparse.plan(pattern, a)
         b = rng.normal(size=n)
         inputs = " ".join(repr(float(v)) for v in [*values, *b])
-        folded, code = _run_lu(tmp_path, plan, [float(v) if k else None for v, k in zip(values, known)], inputs)
-        full, _ = _run_lu(tmp_path, plan, [None] * len(values), inputs)
+        systems.append((n, a, b))
+        cases += [(plan, [float(v) if k else None for v, k in zip(values, known)], inputs),
+                  (plan, [None] * len(values), inputs)]
+    runs = _run_lus(tmp_path, cases)  # folded, full, folded, full, ...
+    for (n, a, b), (folded, code), (full, _) in zip(systems, runs[0::2], runs[1::2]):
         assert folded == full
         for form, pattern_re in _FOLDED_FORMS.items():
             seen[form] += len(re.findall(pattern_re, code))
@@ -293,9 +317,10 @@ def test_known_pivot_that_fails_its_test_falls_back_like_the_full_lu(tmp_path: P
     plan = sparse.plan(pattern, np.zeros((2, 2)))
     assert (plan.steps[0].row, plan.steps[0].col) == (0, 0)
     inputs = "0.01 1.0 1.0 1.0 1.0 2.0"
-    folded, code = _run_lu(tmp_path, plan, [0.01, None, 1.0, None], inputs)
+    (folded, code), (full, _) = _run_lus(tmp_path, [(plan, [0.01, None, 1.0, None], inputs),
+                                                    (plan, [None] * 4, inputs)])
     assert "known values fail" in code
-    assert folded.strip() == "fallback" == _run_lu(tmp_path, plan, [None] * 4, inputs)[0].strip()
+    assert folded.strip() == "fallback" == full.strip()
 
 
 @needs_cc

@@ -10,6 +10,7 @@ no command leaves a file in the current folder that nobody asked for.
 from __future__ import annotations
 
 import errno
+import json
 import os
 import resource
 import shutil
@@ -52,9 +53,11 @@ def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
     return status, capsys.readouterr().err
 
 
-def symid(args: list[str], cwd: Path, limit: int | None = None) -> subprocess.CompletedProcess[str]:
-    """`python -m symid ARGS` in a child, under a file-size limit of `limit` bytes if given
-    (SIGXFSZ ignored before symid starts, as a shell's `ulimit -f` with `trap '' XFSZ` would)."""
+def symid(args: list[str], cwd: Path, limit: int | None = None,
+          python: bool = False) -> subprocess.CompletedProcess[str]:
+    """`python -m symid ARGS` (`python ARGS` if `python`) in a child, under a file-size limit of
+    `limit` bytes if given (SIGXFSZ ignored before symid starts, as a shell's `ulimit -f` with
+    `trap '' XFSZ` would)."""
     def limited() -> None:
         if limit is not None:
             signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
@@ -62,8 +65,34 @@ def symid(args: list[str], cwd: Path, limit: int | None = None) -> subprocess.Co
 
     env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1",
            "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))}
-    return subprocess.run([sys.executable, "-m", "symid", *args], cwd=cwd, env=env, capture_output=True,
+    return subprocess.run([sys.executable, *([] if python else ["-m", "symid"]), *args], cwd=cwd, env=env,
+                          capture_output=True,
                           text=True, timeout=TIMEOUT, preexec_fn=limited)
+
+
+MARK = "symid-test-command"
+
+
+def symids(commands: list[list[str]], cwd: Path, limit: int | None = None) -> list[tuple[int, str, list[str]]]:
+    """Each `symid ARGS` of `commands` in turn in one child interpreter (the
+    limit and SIGXFSZ as `symid`'s), as `python -m symid` runs one (cli.main;
+    at the end leave(), the exit handlers): per command its exit status, its
+    stderr and the current folder's names after it. The imports and the
+    derivations the commands share happen once."""
+    driver = ("import json, os, sys\n"
+              "from symid.cli.entry import leave, main\n"
+              "for command in json.loads(sys.argv[1]):\n"
+              f"    print({MARK!r}, file=sys.stderr, flush=True)\n"
+              "    status = main(command)\n"
+              "    sys.stderr.flush()\n"
+              f"    print({MARK!r}, json.dumps([status, sorted(os.listdir())]), flush=True)\n"
+              "leave(0)\n")
+    proc = symid(["-c", driver, json.dumps(commands)], cwd, limit, python=True)
+    assert proc.returncode == 0, proc.stderr
+    reports = [json.loads(line.split(" ", 1)[1]) for line in proc.stdout.splitlines() if line.startswith(MARK + " ")]
+    errs = proc.stderr.split(MARK + "\n")
+    assert len(reports) == len(commands) and errs[0] == "" and len(errs) == len(commands) + 1, proc.stderr
+    return [(status, err, left) for (status, left), err in zip(reports, errs[1:])]
 
 
 def contents(folder: Path) -> dict[str, bytes]:
@@ -262,14 +291,14 @@ def test_generate_over_a_file_size_limit_leaves_the_old_folder_byte_for_byte(tmp
     before = old_and_new(out)
     capsys.readouterr()
     limit = 16 << 10  # the new header (13 KB) fits, the new source (54 KB) does not
-    proc = symid([*NEW, "-o", str(out)], tmp_path, limit)
-    assert proc.returncode == 2, proc.stderr
-    line = one_line(proc.stderr)
+    fresh = tmp_path / "fresh"  # a new folder that cannot be written whole is not left behind at all
+    (status, err, _), (fresh_status, fresh_err, _) = symids([[*NEW, "-o", str(out)], [*NEW, "-o", str(fresh / "c")]],
+                                                            tmp_path, limit)
+    assert status == 2, err
+    line = one_line(err)
     assert line.startswith(f"symid: {out}/") and line.endswith(f": cannot write: {os.strerror(errno.EFBIG)}"), line
     assert contents(out) == before, "the old folder changed"
-    fresh = tmp_path / "fresh"  # a new folder that cannot be written whole is not left behind at all
-    proc = symid([*NEW, "-o", str(fresh / "c")], tmp_path, limit)
-    assert proc.returncode == 2, proc.stderr
+    assert fresh_status == 2, fresh_err
     assert not fresh.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fb"]
 
@@ -296,10 +325,11 @@ def test_no_command_leaves_a_file_in_the_current_folder(tmp_path):
         ["generate", FOUR_BAR, "--target", "casadi", "-o", str(out / "fb")],
         ["sweep", CRANK, "--grid", "L_rod=0.25:0.4:2", *few, "--gradients", "-o", str(out / "g.csv")],
     ]
-    for command in commands:
-        proc = symid(command, here)
-        assert proc.returncode == 0, (command, proc.stderr)
-        assert list(here.iterdir()) == [], f"{command[0]} left {[p.name for p in here.iterdir()]}"
+    # one interpreter runs them in turn (symids): the imports of sympy, numpy, matplotlib and casadi once
+    for command, (status, err, left) in zip(commands, symids(commands, here)):
+        assert status == 0, (command, err)
+        assert left == [], f"{command[0]} left {left}"
+    assert list(here.iterdir()) == [], f"the process's exit left {[p.name for p in here.iterdir()]}"
     assert not [p for p in out.rglob("*") if ".tmp" in p.name or p.name.startswith(".symid-generate.")]
 
 
