@@ -89,13 +89,14 @@ class Config:
 # the smoke run checks that every cell runs, on a machine however loaded: no
 # run budget skips a cell (its cap only stops a hung one)
 SMOKE = Config(ladders=(1,), steps=101, compiled_instants=40, budget_s=0.5, cap_s=600.0, total_s=float("inf"), reserve_s=0.0,
-               sweep_mechs=(("ladder_1", 1001),), sweep_instants=15, tolerances=(1e-6, 1e-12), orders=(0, 2),
-               stream_instants=2001, solve_runs=1, jobs=2, paired_mechs=("ladder_1",), paired_rounds=3,
+               sweep_mechs=(("slider_crank", 101),), sweep_instants=15, tolerances=(1e-6, 1e-12), orders=(0, 2),
+               stream_instants=2001, solve_runs=1, jobs=2, paired_mechs=("slider_crank",), paired_rounds=3,
                study_rods=2, study_speeds=2, study_steps=21, study_map_variants=4, study_map_steps=21,
                study_processes=False, symid_ladder_cells=False, fill_cache=False)
 # The smoke run's sizes: a period in 101 instants (the full run's coarse sweep
 # grid: the Python loops and the 30-digit exact torque do a tenth of a full
-# run's); symid's backends in cells on the slider-crank only (the
+# run's); symid on the slider-crank only, in the cells, the sweep and the pair
+# (the solvers the solve processes use too), its backends in cells (the
 # same worker as on a ladder; tests/tools/test_bench.py checks each of them on a
 # ladder file against Ladder.torque to 1e-13), the baselines on both (their own
 # description of the ladder, systems.ladder, is checked here only); every worker,
