@@ -155,7 +155,9 @@ def run_cells(cfg: Config, mechs: list[dict[str, Any]], exact: dict[str, np.ndar
             cell: dict[str, Any] = {"approach": label, "kind": kind, "mechanism": mech["key"], "ng": mech["ng"]}
             cells.append(cell)
             compiled = label in COMPILED
-            spec = {"kind": kind, "mech": mech, "backend": name, "approach": name,
+            # smoke: symid's cells from the run's shared cache too (`symid bench`'s cold
+            # build in a cache of its own is what tests/tools/test_bench.py runs in-process)
+            spec = {"kind": kind, "mech": mech, "backend": name, "approach": name, "cold": not ctx.smoke,
                     "instants": cfg.compiled_instants if compiled else cfg.steps,
                     "budget_s": cfg.budget_s, "torque": str(ctx.work / f"{label}-{mech['key']}.npy")}
             jobs.append((cell, spec))
