@@ -288,7 +288,7 @@ def stability(ctx: Context) -> dict[str, Any]:
     report: dict[str, Any] = {"eps": EPS}
     report["stress"] = stress_part(ctx.work, ctx.smoke)
     report["units"] = units_part(ctx.work, ["slider_crank"] if ctx.smoke else api.examples())
-    # smoke: 100 samples against the 40-digit closed form show the comparison as 1000 do
-    report["long_run"] = [long_part(ctx.work, instants, b, 100 if ctx.smoke else 1000, t1)
+    # smoke: 20 samples against the 40-digit closed form show the comparison as 1000 do
+    report["long_run"] = [long_part(ctx.work, instants, b, 20 if ctx.smoke else 1000, t1)
                           for b in ("numpy", "c") if b in available_backends()]
     return report
