@@ -7,7 +7,7 @@
 A case (a module of `benchmarks/cases/`) measures and returns a dict of
 figures; the harness gives it a scratch folder, runs its cold measurements
 in worker processes of their own (a fresh interpreter and cache, peak memory
-read by `launch.py`), writes `<out>/<case>.json` (default
+read by `launch.py`; a smoke run's workers share one cache), writes `<out>/<case>.json` (default
 `benchmarks/results/`; with `--smoke`, nothing unless `--out` is given) and
 prints the figures. `--smoke` runs tiny sizes: a check that the case runs,
 whose figures mean nothing. BLAS is pinned to one thread in every worker
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.metadata
 import json
 import os
 import platform
@@ -64,18 +65,25 @@ class Context:
         """One progress line, with the seconds since the run began."""
         print(f"[{time.time() - self.started:6.0f} s] {message}", flush=True)
 
+    def cache(self, cache: Path | None = None) -> Path:
+        """The SYMID_CACHE of a worker: `cache`, or a fresh folder. A smoke run's
+        workers all share the run's own (the harness's SYMID_CACHE: the caller's
+        when set, else the scratch one): its figures mean nothing, and a solver
+        one worker built, another would only build again from the same text."""
+        if self.smoke:
+            return Path(os.environ["SYMID_CACHE"])
+        return cache if cache is not None else Path(tempfile.mkdtemp(prefix="cache-", dir=self.work))
+
     def env(self, cache: Path | None = None) -> dict[str, str]:
         """The environment of a worker: this checkout first, BLAS on one
-        thread, and its own SYMID_CACHE (a fresh folder unless given)."""
-        if cache is None:
-            cache = Path(tempfile.mkdtemp(prefix="cache-", dir=self.work))
-        return env_for(cache)
+        thread, and its own SYMID_CACHE (`cache`)."""
+        return env_for(self.cache(cache))
 
     def isolated(self, call: str, spec: dict[str, Any], cap_s: float, cache: Path | None = None) -> Spawned:
         """`call` ("module:function", the function taking spec) in a worker
         process of its own with an empty cache (or `cache`), killed past cap_s:
         its JSON result, wall time and peak memory."""
-        fresh = cache is None
+        fresh = cache is None and not self.smoke
         env = self.env(cache)
         try:
             return spawn(call, spec, cap_s, env)
@@ -92,9 +100,11 @@ class Context:
 
 
 def _version(module: str) -> str:
+    """The installed distribution's version (its metadata: the module's own
+    `__version__`, without importing it where the case did not)."""
     try:
-        return str(importlib.import_module(module).__version__)
-    except ImportError:
+        return importlib.metadata.version(module)
+    except importlib.metadata.PackageNotFoundError:
         return "not installed"
 
 

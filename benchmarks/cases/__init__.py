@@ -4,11 +4,17 @@ A case is a function of a `benchmarks.run.Context` that measures and returns
 a dict of figures; the harness (`python -m benchmarks CASE`) runs it, writes
 the figures to `<out>/<case>.json` and prints them. Modules here that
 register nothing are a case's helpers.
+
+The registry is read from the `@register(...)` lines of the modules' source
+(their literal arguments), without importing them: a module is imported when
+its case runs or its options are asked for, so that `--list`, `--help` and
+the harness's errors do not import symid, sympy and numpy for every case.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
 import pkgutil
 from dataclasses import dataclass, field
@@ -41,7 +47,7 @@ class Case:
     tools: tuple[str, ...] = field(default_factory=tuple)
 
 
-CASES: dict[str, Case] = {}
+CASES: dict[str, Case] = {}  # the cases of the modules imported so far
 
 
 def register(name: str, summary: str, **kw: Any) -> Callable[[Callable[[Context], dict[str, Any]]],
@@ -55,8 +61,51 @@ def register(name: str, summary: str, **kw: Any) -> Callable[[Callable[[Context]
     return add
 
 
+def _imported(module: str, name: str) -> Case:
+    importlib.import_module(module)
+    return CASES[name]
+
+
+def _deferred(module: str, name: str, attr: str) -> Callable[..., Any]:
+    """The case's `attr` (run, options, report), its module imported at the first call."""
+    def call(*args: Any) -> Any:
+        return getattr(_imported(module, name), attr)(*args)
+    return call
+
+
+def _declared(module: str, path: Path) -> list[Case] | None:
+    """The cases the module's `@register(...)` lines declare, or None if an argument is
+    not a literal (a name or string the module computes: then it is imported)."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for deco in getattr(node, "decorator_list", []):
+            if not (isinstance(deco, ast.Call) and isinstance(deco.func, ast.Name) and deco.func.id == "register"):
+                continue
+            try:
+                name, summary = (ast.literal_eval(a) for a in deco.args)
+                keys = {k.arg: k.value for k in deco.keywords}
+                tools = tuple(ast.literal_eval(keys.pop("tools", ast.Constant(()))))
+            except ValueError:
+                return None
+            if set(keys) - {"options", "report"}:
+                return None
+            found.append(Case(name, _deferred(module, name, "run"), summary, tools=tools,
+                              **{k: _deferred(module, name, k) for k in keys}))
+    return found
+
+
 def load_all() -> dict[str, Case]:
-    """Import every module of this package (each registers its cases); the registry by name."""
+    """Every case of this package's modules, by name (each module imported only when its
+    case runs, unless its `@register` line is not literal)."""
+    declared: dict[str, Case] = {}
     for info in pkgutil.iter_modules(__path__):
-        importlib.import_module(f"{__name__}.{info.name}")
-    return dict(sorted(CASES.items()))
+        module = f"{__name__}.{info.name}"
+        cases = _declared(module, Path(__path__[0]) / f"{info.name}.py")
+        if cases is None:
+            importlib.import_module(module)
+            cases = [c for c in CASES.values() if c.run.__module__ == module]
+        for case in cases:
+            if case.name in declared:
+                raise ValueError(f"two benchmark cases named {case.name}")
+            declared[case.name] = case
+    return dict(sorted(declared.items()))

@@ -54,8 +54,7 @@ def run_study(cfg: Any, ctx: Any) -> dict[str, Any]:
     spec = {"kind": "study", "steps": cfg.study_steps, "rods": cfg.study_rods, "speeds": cfg.study_speeds,
             "map_variants": cfg.study_map_variants, "map_steps": cfg.study_map_steps,
             "instructions": cfg.study_processes}
-    cache = ctx.work / "shared-cache" if cfg.shared_cache else None  # a smoke run's (overview.shared)
-    got = ctx.isolated("benchmarks.cases.overview_workers:worker", spec, 4 * cfg.cap_s, cache)
+    got = ctx.isolated("benchmarks.cases.overview_workers:worker", spec, 4 * cfg.cap_s)
     out: dict[str, Any] = {"status": got.status, "note": got.note, **got.result}
     ctx.log(f"design study: {got.status} {got.note}")
     if cfg.study_processes:

@@ -28,7 +28,7 @@ import numpy as np
 
 from benchmarks.cases import register
 from benchmarks.run import Context
-from symid import api
+from symid import api, backends
 from symid.study import optimize as opt
 
 EXAMPLE = "slider_crank_counterweight"
@@ -91,6 +91,8 @@ def _options(group: Any) -> None:
           "same optimum", options=_options)
 def optimize_case(ctx: Context) -> dict[str, Any]:
     steps = 21 if ctx.smoke else ctx.options.steps
+    if ctx.options.backend not in backends.names():  # said before any worker starts
+        raise RuntimeError(f"no backend {ctx.options.backend!r}; the backends: {', '.join(backends.names())}")
     runs = {}
     cache = ctx.work / "cache"  # shared, and filled by a first untimed run of each: neither times a compile
     # smoke: no untimed first runs (they fill the cache so that no timed run pays a compile;

@@ -83,23 +83,25 @@ class Config:
     study_processes: bool = True
     # smoke runs only (a check that every part runs, whose figures mean nothing):
     symid_ladder_cells: bool = True  # symid's own backends on the ladders too (not just the slider-crank)
-    shared_cache: bool = False     # the sweeps, pairs, processes and study share one cache of solvers
     fill_cache: bool = True        # an untimed `symid solve` first, so the timed ones are cached
 
 
 # the smoke run checks that every cell runs, on a machine however loaded: no
 # run budget skips a cell (its cap only stops a hung one)
-SMOKE = Config(ladders=(1,), steps=1001, compiled_instants=40, budget_s=0.5, cap_s=600.0, total_s=float("inf"), reserve_s=0.0,
-               sweep_mechs=(("ladder_1", 1001),), sweep_instants=15, tolerances=(1e-6, 1e-12), orders=(0, 2),
-               stream_instants=2001, solve_runs=1, jobs=2, paired_mechs=("ladder_1",), paired_rounds=3,
+SMOKE = Config(ladders=(1,), steps=101, compiled_instants=40, budget_s=0.5, cap_s=600.0, total_s=float("inf"), reserve_s=0.0,
+               sweep_mechs=(("slider_crank", 101),), sweep_instants=15, tolerances=(1e-6, 1e-12), orders=(0, 2),
+               stream_instants=2001, solve_runs=1, jobs=2, paired_mechs=("slider_crank",), paired_rounds=3,
                study_rods=2, study_speeds=2, study_steps=21, study_map_variants=4, study_map_steps=21,
-               study_processes=False, symid_ladder_cells=False, shared_cache=True, fill_cache=False)
-# The smoke run's sizes: symid's backends in cells on the slider-crank only (the
+               study_processes=False, symid_ladder_cells=False, fill_cache=False)
+# The smoke run's sizes: a period in 101 instants (the full run's coarse sweep
+# grid: the Python loops and the 30-digit exact torque do a tenth of a full
+# run's); symid on the slider-crank only, in the cells, the sweep and the pair
+# (the solvers the solve processes use too), its backends in cells (the
 # same worker as on a ladder; tests/tools/test_bench.py checks each of them on a
 # ladder file against Ladder.torque to 1e-13), the baselines on both (their own
-# description of the ladder, systems.ladder, is checked here only); the workers
-# after the cells, cold measurements in a real run, compile the ladder and the
-# slider-crank once for all (the same text each compiled again); no untimed
+# description of the ladder, systems.ladder, is checked here only); every worker,
+# a cold measurement in a real run, shares the run's cache (Context.cache: each
+# solver is built once for all, not again from the same text); no untimed
 # `symid solve` before the timed one.
 
 
@@ -139,11 +141,6 @@ def approaches() -> list[tuple[str, str, str]]:
     return [(f"symid-{b}", "symid", b) for b in backends.names()] + [(b, "baseline", b) for b in BASELINES]
 
 
-def shared(cfg: Config, ctx: Context) -> Path | None:
-    """The cache the workers after the cells share (smoke runs), or None: each its own, empty."""
-    return ctx.work / "shared-cache" if cfg.shared_cache else None
-
-
 def run_cells(cfg: Config, mechs: list[dict[str, Any]], exact: dict[str, np.ndarray], ctx: Context,
               deadline: float) -> list[dict[str, Any]]:
     """Every approach on every mechanism, smallest first; an approach stopped
@@ -158,7 +155,9 @@ def run_cells(cfg: Config, mechs: list[dict[str, Any]], exact: dict[str, np.ndar
             cell: dict[str, Any] = {"approach": label, "kind": kind, "mechanism": mech["key"], "ng": mech["ng"]}
             cells.append(cell)
             compiled = label in COMPILED
-            spec = {"kind": kind, "mech": mech, "backend": name, "approach": name,
+            # smoke: symid's cells from the run's shared cache too (`symid bench`'s cold
+            # build in a cache of its own is what tests/tools/test_bench.py runs in-process)
+            spec = {"kind": kind, "mech": mech, "backend": name, "approach": name, "cold": not ctx.smoke,
                     "instants": cfg.compiled_instants if compiled else cfg.steps,
                     "budget_s": cfg.budget_s, "torque": str(ctx.work / f"{label}-{mech['key']}.npy")}
             jobs.append((cell, spec))
@@ -213,7 +212,7 @@ def run_sweeps(cfg: Config, mechs: list[dict[str, Any]], exact: dict[str, np.nda
         folder.mkdir()
         spec = {"kind": "sweep", "mech": mech, "folder": str(folder), "instants": min(cfg.sweep_instants, steps),
                 "tolerances": list(cfg.tolerances), "orders": list(cfg.orders), "budget_s": cfg.budget_s / 2}
-        got = ctx.isolated(WORKER, spec, 4 * cfg.cap_s, shared(cfg, ctx))
+        got = ctx.isolated(WORKER, spec, 4 * cfg.cap_s)
         if got.status != "ok":
             out[key] = {"status": got.status, "note": got.note}
             ctx.log(f"sweep {key}: {got.status} {got.note}")
@@ -234,7 +233,7 @@ def run_paired(cfg: Config, mechs: list[dict[str, Any]], ctx: Context) -> dict[s
         if mech is None:
             continue
         got = ctx.isolated(WORKER, {"kind": "paired", "mech": mech, "rounds": cfg.paired_rounds,
-                                    "budget_s": cfg.cap_s}, 4 * cfg.cap_s, shared(cfg, ctx))
+                                    "budget_s": cfg.cap_s}, 4 * cfg.cap_s)
         out[key] = {"status": got.status, "note": got.note, "ng": mech["ng"], **got.result}
         ctx.log(f"paired {key}: {got.status} {got.note} {got.result}")
     return out
@@ -245,7 +244,7 @@ def run_processes(cfg: Config, ctx: Context) -> dict[str, Any]:
     the peak memory of streaming many instants to CSV."""
     from symid import api
 
-    env = ctx.env(shared(cfg, ctx) or ctx.work / "solve-cache")
+    env = ctx.env(ctx.work / "solve-cache")
     file = str(api.example("slider_crank"))
     csv = str(ctx.work / "solve.csv")
     out: dict[str, Any] = {"solve_1001": {}}
@@ -257,7 +256,7 @@ def run_processes(cfg: Config, ctx: Context) -> dict[str, Any]:
         out["solve_1001"][backend] = {"wall_s": float(np.median([w for w, _, _ in walls])),
                                       "peak_rss_mb": max((r for _, r, _ in walls if r), default=None),
                                       "status": max(s for _, _, s in walls)}
-        ctx.log(f"symid solve slider_crank 1001 instants, {backend}, {'cached' if cfg.fill_cache else 'cold'}: "
+        ctx.log(f"symid solve slider_crank 1001 instants, {backend}, {'cached' if cfg.fill_cache else 'cache not filled first'}: "
                 f"{out['solve_1001'][backend]}")
     cmd = [sys.executable, "-m", "symid", "solve", file, "--backend", "c", "--steps", str(cfg.stream_instants),
            "-o", csv]

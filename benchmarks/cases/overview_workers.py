@@ -34,7 +34,7 @@ def worker_symid(spec: dict[str, Any]) -> dict[str, Any]:
 
     mech = spec["mech"]
     res = bench(mech["file"], spec["backend"], instants=spec["instants"], budget_s=spec["budget_s"],
-                keep=("motor.T_j",), cold=True, steps=mech["steps"], t1=mech["t1"])
+                keep=("motor.T_j",), cold=spec.get("cold", True), steps=mech["steps"], t1=mech["t1"])
     np.save(spec["torque"], np.array(res.pop("kept")["motor.T_j"]))
     return res
 

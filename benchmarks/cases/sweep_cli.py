@@ -165,8 +165,8 @@ def sweep_cli(ctx: Context) -> dict[str, Any]:
         if args.no_grid:  # the solver into the cache first: the Monte Carlo is timed cached
             sweep(ctx, [*mc[:1], "--sample", "2", *mc[3:]], env)
         report["mc_local"] = sweep(ctx, mc, env)
-    if not args.no_dask:
-        with cluster(env, ctx.work) as address:
+    if not args.no_dask:  # smoke: one worker, the same steps (a second only starts another interpreter)
+        with cluster(env, ctx.work, 1 if ctx.smoke else 2) as address:
             if not args.no_grid:
                 report["dask"] = on_cluster(ctx, grid, env, address)
                 for key in ("solve_s", "process_s"):

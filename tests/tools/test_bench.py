@@ -80,6 +80,23 @@ def test_list_names_every_registered_case_once() -> None:
     assert {"overview", "scale", "stability", "instructions", "mutation"} <= set(listed)
 
 
+def test_the_registry_read_from_the_sources_is_what_the_modules_register() -> None:
+    # load_all reads each module's @register line without importing it: once imported,
+    # every module registers the same cases with the same summary, tools, options and report
+    import importlib
+    import pkgutil
+
+    from benchmarks import cases as package
+
+    for info in pkgutil.iter_modules(package.__path__):
+        importlib.import_module(f"benchmarks.cases.{info.name}")
+    assert sorted(package.CASES) == sorted(CASES)
+    for name, case in CASES.items():
+        own = package.CASES[name]
+        assert (case.summary, case.tools) == (own.summary, own.tools), name
+        assert (case.options is None, case.report is None) == (own.options is None, own.report is None), name
+
+
 def test_docs_describe_every_case_and_only_registered_ones() -> None:
     import re
 
@@ -169,6 +186,27 @@ def test_a_case_option_is_the_cases_own() -> None:
     assert done.returncode == 0 and "--ladders" in done.stdout
 
 
+def test_a_smoke_runs_workers_share_its_cache_and_leave_it_there(tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    import argparse
+
+    from benchmarks.run import Context
+
+    cache, work = tmp_path / "cache", tmp_path / "work"
+    cache.mkdir()
+    work.mkdir()
+    (cache / "entry").write_text("")
+    monkeypatch.setenv("SYMID_CACHE", str(cache))  # the run's cache, as the harness leaves it set
+    smoke, full = (Context("x", s, argparse.Namespace(), work, None) for s in (True, False))
+    assert smoke.env()["SYMID_CACHE"] == smoke.env(work / "own")["SYMID_CACHE"] == str(cache)
+    assert full.env(work / "own")["SYMID_CACHE"] == str(work / "own")
+    got = smoke.isolated("json:loads", '{"a": 1}', 120)  # a worker: `python -m benchmarks --worker`
+    assert got.status == "ok" and got.result["a"] == 1, got
+    assert (cache / "entry").is_file()  # the shared cache outlives the worker
+    fresh = Path(full.env()["SYMID_CACHE"])  # a full run's worker: a fresh, empty folder of its own
+    assert fresh.parent == work and fresh != cache and list(fresh.iterdir()) == []
+
+
 def test_flat_lists_every_scalar_by_its_dotted_key() -> None:
     figures = {"a": 1.5, "b": {"c": 2, "d": [1, {"k": 2.5}], "e": {"f": "x", "g": None}}, "h": True}
     assert flat(figures) == [("a", 1.5), ("b.c", 2), ("b.d.0", 1), ("b.d.1.k", 2.5), ("b.e.f", "x"),
@@ -191,6 +229,7 @@ def test_every_case_runs_in_smoke_mode_and_writes_its_json(name: str, tmp_path: 
     result = json.loads((tmp_path / "out" / f"{name}.json").read_text())
     assert result["case"] == name and result["smoke"] is True
     assert result["machine"]["cpu_count"] >= 1 and result["run_s"] > 0
+    assert result["machine"]["numpy"] == np.__version__  # read from the package's metadata, not by importing it
     figures = flat(result["figures"])
     assert figures, "a case returns figures"
     # the figures are printed, one dotted key a line
