@@ -85,18 +85,11 @@ class Pristine:
             def build(folder: Path) -> None:
                 # `symid solve` in this process (its derivations are at hand here): the entry, its
                 # plan and the table a child writes; the children of the cases load them
-                err, here, chosen = io.StringIO(), os.getcwd(), os.environ.get("SYMID_CACHE")
-                os.environ["SYMID_CACHE"] = str(folder / "cache")
-                os.chdir(self.root)
-                try:
-                    with contextlib.redirect_stderr(err):
-                        status = cli.main([*ARGS, "--backend", backend, "-o", str(folder / "table.csv")])
-                finally:
-                    os.chdir(here)
-                    if chosen is None:
-                        del os.environ["SYMID_CACHE"]
-                    else:
-                        os.environ["SYMID_CACHE"] = chosen
+                err = io.StringIO()
+                with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stderr(err):
+                    patch.setenv("SYMID_CACHE", str(folder / "cache"))
+                    patch.chdir(self.root)
+                    status = cli.main([*ARGS, "--backend", backend, "-o", str(folder / "table.csv")])
                 assert (status, err.getvalue()) == (0, ""), err.getvalue()
                 (folder / "built-at").write_text(str(folder / "cache"))
 
