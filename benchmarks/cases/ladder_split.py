@@ -114,7 +114,7 @@ def measure(n: int, reps: int, instants: int) -> dict[str, Any]:
                    .replace("P_VEC_", f"{P}_VEC").replace("P_", p + "_"))
         main = folder / "split.c"
         main.write_text("#define _POSIX_C_SOURCE 199309L\n" + source + harness)
-        level = "-O2" if len(source) < c_backend.LARGE_SOURCE else "-O1"  # as the cache compiles it
+        level = c_backend.level(len(source.encode()), batch=False)  # as the cache compiles it
         subprocess.run(["gcc", level, "-std=c99", "-fno-math-errno", "-I", str(built), str(main),
                         "-o", str(folder / "split"), "-lm"], check=True)
         out = subprocess.run([str(folder / "split")], capture_output=True, text=True, check=True).stdout

@@ -32,7 +32,19 @@ if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a built solver withou
 
 CHUNK = 1024
 CHUNK_BYTES = 1 << 20  # a chunk's rows stay in cache while Python copies them out
+# The optimization level of the builds. The solve build (scalar: the
+# trajectory loop) compiles at -O1: as fast a run as at -O2, about two thirds
+# of the compile time, the same rows byte for byte (`python -m benchmarks
+# c_level`: every example, gcc and clang). The study build (batch) stays at
+# -O2 below LARGE_SOURCE (its sweep's lanes carry their own -O1,
+# templates/c/lanes.j2); past it gcc's -O2 time grows faster than the code,
+# and -O1 compiles ~2.5x faster for the same run time.
 LARGE_SOURCE = 200_000  # bytes of generated C
+
+
+def level(size: int, batch: bool) -> str:
+    """The optimization level of a build of `size` bytes of C (`batch`: the study build)."""
+    return "-O2" if batch and size < LARGE_SOURCE else "-O1"
 
 
 def compiler() -> str:
@@ -84,11 +96,8 @@ def build(layout: Layout, options: Options, batch: bool = True) -> Path:
         ctx = c.context(model, lanes=batch, setpoints=False)
         c.write(ctx, folder)
         source = folder / f"{mech.name}_solver.c"
-        # gcc -O2 time grows faster than the code; past LARGE_SOURCE -O1 compiles
-        # ~2.5x faster for the same run time (ladder of 64: 7.6 s -> 3.0 s).
-        level = "-O2" if source.stat().st_size < LARGE_SOURCE else "-O1"
         stage("compiling")
-        _compile(cc, [level, *CFLAGS, str(source), "-o", str(folder / "solver.so"), "-lm"], folder / "solver.so")
+        _compile(cc, [level(source.stat().st_size, batch), *CFLAGS, str(source), "-o", str(folder / "solver.so"), "-lm"], folder / "solver.so")
         f = model.flat
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
                 "row": len(model.row_columns), "columns": list(model.row_columns),
