@@ -3,6 +3,7 @@ elimination plan, handed to each target's printer."""
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Callable, Sequence, TypeVar
 
@@ -44,10 +45,34 @@ def has_word(text: str, word: str) -> bool:
     return re.search(rf"(?<![\w\[.]){word}(?![\w\[])", text) is not None
 
 
+# CSE'd lists by their expressions: a process that builds several solvers of
+# one mechanism (the C solve and study builds, their variants with
+# sensitivities, set-points or another precision; the numpy module) CSEs each
+# kernel they share once. sympy's CSE is deterministic, so a hit is the result
+# a new CSE would give; equality is structural (sympy >= 1.13: 1.0 is not 1).
+_CSE: OrderedDict[tuple[str, tuple[sp.Expr, ...]], tuple[tuple[tuple[sp.Symbol, sp.Expr], ...],
+                                                        tuple[sp.Expr, ...]]] = OrderedDict()
+CSE_HELD = 512  # lists (chunks of at most CHUNK outputs)
+
+
+def cse(exprs: Sequence[sp.Expr], prefix: str) -> tuple[tuple[tuple[sp.Symbol, sp.Expr], ...], tuple[sp.Expr, ...]]:
+    """sympy's CSE of a list, temporaries named prefix0, prefix1, ... (real), in order."""
+    key = (prefix, tuple(sp.sympify(e) for e in exprs))  # 1.0 and 1 are one Python key, not one sympy one
+    found = _CSE.get(key)
+    if found is None:
+        temps, reduced = sp.cse(list(key[1]), symbols=sp.numbered_symbols(prefix, real=True), order="none")
+        found = _CSE[key] = (tuple(temps), tuple(reduced))
+        if len(_CSE) > CSE_HELD:
+            _CSE.popitem(last=False)
+    else:
+        _CSE.move_to_end(key)
+    return found
+
+
 def block(exprs: Sequence[sp.Expr], printer: Callable[[sp.Expr], str], prefix: str = "e",
           offset: int = 0) -> Block:
     """CSE a list of expressions once and print it; outputs numbered from `offset`."""
-    temps, reduced = sp.cse(list(exprs), symbols=sp.numbered_symbols(prefix, real=True), order="none")
+    temps, reduced = cse(exprs, prefix)
     return Block(
         temps=tuple((str(sym), printer(e)) for sym, e in temps),
         outputs=tuple((offset + k, printer(e)) for k, e in enumerate(reduced)),
@@ -84,9 +109,8 @@ def reduce(exprs: Sequence[sp.Expr], chunk: int = CHUNK) -> list[Reduced]:
     """CSE consecutive chunks once, for printing in several dialects."""
     out = []
     for k in range(0, len(exprs), chunk):
-        temps, reduced = sp.cse(list(exprs[k:k + chunk]), symbols=sp.numbered_symbols("e", real=True),
-                                order="none")
-        out.append(Reduced(tuple(temps), tuple(reduced), k))
+        temps, reduced = cse(exprs[k:k + chunk], "e")
+        out.append(Reduced(temps, reduced, k))
     return out
 
 
