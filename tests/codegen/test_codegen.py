@@ -600,3 +600,24 @@ def test_numpy_module_loop_warns_and_fails_near_a_toggle_like_the_python_loop(py
     # shows up to cond eps in positions and cond^2 eps in the rest
     assert_agree(got.data[:, :10], expected.data[:, :10], rel=3.9e6 * 1e-15)
     assert_agree(got.data, expected.data, rel=3.9e6**2 * 1e-15)
+
+
+def test_a_cse_list_held_for_reuse_is_never_another_lists() -> None:
+    """emit.cse keeps what it CSE'd by the expressions: a list that Python
+    calls equal but sympy does not (1 and 1.0, 2*x and 2.0*x) gets its own
+    CSE and prints its own literals; a list given again prints what a fresh
+    CSE of it printed, and a held result is the same object."""
+    import sympy as sp
+
+    from symid.codegen import emit
+
+    x = sp.Symbol("x", real=True)
+    text = lambda exprs: emit.block(exprs, sp.ccode)  # noqa: E731
+    shared = sp.sin(x) * sp.cos(x)
+    first = text([1, shared + 1, shared * 2])
+    assert first.outputs[0][1] == "1" and first.outputs[2][1] == "2*e0"
+    assert text([1.0, shared + 1, shared * 2]).outputs[0][1] == "1.0"  # the lists: == in Python, not in sympy
+    again = text([1, shared + 1.0, shared * sp.Float(2.0)])
+    assert again.outputs[1][1] == "e0 + 1.0" and again.outputs[2][1] == "2.0*e0", again
+    assert text([1, shared + 1, shared * 2]) == first
+    assert emit.cse([shared + 1, shared * 2], "e") is emit.cse([shared + 1, shared * 2], "e")
