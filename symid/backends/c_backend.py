@@ -32,13 +32,13 @@ if TYPE_CHECKING:  # a cached run (symid.tools.plan) loads a built solver withou
 
 CHUNK = 1024
 CHUNK_BYTES = 1 << 20  # a chunk's rows stay in cache while Python copies them out
-# The optimization level of the builds. The solve build (scalar: the
-# trajectory loop) compiles at -O1: as fast a run as at -O2, about two thirds
-# of the compile time, the same rows byte for byte (`python -m benchmarks
-# c_level`: every example, gcc and clang). The study build (batch) stays at
-# -O2 below LARGE_SOURCE (its sweep's lanes carry their own -O1,
-# templates/c/lanes.j2); past it gcc's -O2 time grows faster than the code,
-# and -O1 compiles ~2.5x faster for the same run time.
+# The optimization level of the builds (`python -m benchmarks c_level`: every
+# example, gcc and clang). The solve build (the trajectory loop) compiles at
+# -O1: as fast a run as at -O2, about two thirds of gcc's compile time, the
+# same rows byte for byte. The study build stays at -O2 below LARGE_SOURCE:
+# clang's sweep runs slower at -O1 (gcc's lanes carry their own -O1,
+# templates/c/lanes.j2, clang's do not). Past LARGE_SOURCE gcc's -O2 time
+# grows faster than the code, and -O1 compiles ~2.5x faster for the same run.
 LARGE_SOURCE = 200_000  # bytes of generated C
 
 
