@@ -8,11 +8,12 @@ variants in SIMD lanes). Per bundled example and per level (-O1, -O2), with
 each C compiler installed of `cc` and `clang`, for the solve build:
 
 - compile_cpu_s: the compiler's CPU seconds on that source with the
-  product's flags (`symid.codegen.compiler.CFLAGS`), the least of the
-  repeats (CPU time: a shared machine's load does not add to it);
+  product's flags (`symid.codegen.compiler.CFLAGS`; with the timing driver
+  below, a program instead of a library), the least of the repeats (CPU
+  time: a shared machine's load does not add to it);
 - us_per_instant: the trajectory loop and `_instant` continued from the last
-  solution, one instant each (`tests/c/rows_driver.c` linked with that
-  source at that level; the least over its repeats);
+  solution, one instant each (`tests/c/rows_driver.c`, the timing driver,
+  linked with that source at that level; the least over its repeats);
 - rows_identical: the bundled run's rows (%.17g) at -O1 are those at -O2,
   byte for byte (neither level reassociates floating point; -std=c99 keeps
   products out of sums);
@@ -20,7 +21,7 @@ each C compiler installed of `cc` and `clang`, for the solve build:
 
 and under `study` the same for the study build: its compile, and the
 microseconds per variant-instant of `<name>_sweep` over K variants near the
-file's parameters (benchmarks/cases/sweep_driver.c), with whether their
+file's parameters (the driver's `sweep` mode), with whether their
 figures are the same bits at both levels (`figures_identical`).
 
     python -m benchmarks c_level [--examples a,b] [--repeats R] [--variants K]
@@ -33,7 +34,7 @@ import shutil
 import statistics
 import subprocess
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from benchmarks.cases import register
 from benchmarks.processes import ROOT
@@ -42,7 +43,6 @@ from symid import api
 from symid.codegen.compiler import CFLAGS
 
 DRIVER = ROOT / "tests" / "c" / "rows_driver.c"
-SWEEP_DRIVER = Path(__file__).resolve().parent / "sweep_driver.c"
 LEVELS = ("-O1", "-O2")
 
 
@@ -54,33 +54,56 @@ def _cpu(args: list[str]) -> float:
     return after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
 
 
-def example(ctx: Context, name: str, cc: str, repeats: int) -> dict[str, Any]:
-    """One example's figures with one compiler: each level's compile and run."""
-    built = Path(api.prepare(api.example(name), backend="c").evaluator.artifact)  # type: ignore[attr-defined]
-    source = built / f"{name}_solver.c"
+def _out(command: list[Any]) -> str:
+    return subprocess.run([str(c) for c in command], check=True, capture_output=True, text=True).stdout
+
+
+def _build(cc: str, level: str, built: Path, name: str, exe: Path, repeats: int) -> float:
+    """The driver linked with the built source at `level`, with the product's flags (a
+    position-independent program instead of a library): the least CPU seconds of
+    `repeats` builds (the driver is a page of C beside the solver's thousands of lines)."""
+    flags = [f for f in CFLAGS if f != "-shared"]
+    command = [cc, level, *flags, f"-I{built}", f'-DSOLVER_H="{name}_solver.h"', f"-DP={name}",
+               f"-DPU={name.upper()}", str(DRIVER), str(built / f"{name}_solver.c"), "-lm", "-o", str(exe)]
+    return round(min(_cpu(command) for _ in range(repeats)), 3)
+
+
+def _levels(ctx: Context, name: str, built: Path, cc: str, repeats: int, timed: str, same: str,
+            run: Callable[[Path, list[str]], tuple[Any, str]]) -> dict[str, Any]:
+    """One build's figures at each level: the compile's CPU seconds, `timed` (what
+    `run(exe, [t0, h, n])` times) and `same`: whether what it prints is the same bits."""
     a = api.load_mechanism(api.example(name)).analysis
     n = min(a.steps, 64) if ctx.smoke else a.steps
-    h = (a.t1 - a.t0) / (a.steps - 1)
-    out: dict[str, Any] = {"source_bytes": source.stat().st_size, "compile_cpu_s": {}, "us_per_instant": {}}
-    rows: dict[str, str] = {}
+    grid = [repr(a.t0), repr((a.t1 - a.t0) / (a.steps - 1)), str(n)]
+    out: dict[str, Any] = {"source_bytes": (built / f"{name}_solver.c").stat().st_size, "compile_cpu_s": {},
+                           timed: {}}
+    printed: dict[str, str] = {}
     for level in LEVELS:
-        lib = ctx.work / f"{name}-{cc}{level}.so"
-        out["compile_cpu_s"][level] = round(min(_cpu([cc, level, *CFLAGS, str(source), "-o", str(lib), "-lm"])
-                                                for _ in range(repeats)), 3)
-        exe = ctx.work / f"{name}-{cc}{level}"
-        subprocess.run([cc, "-std=c99", level, "-fno-math-errno", f"-I{built}", f'-DSOLVER_H="{name}_solver.h"',
-                        f"-DP={name}", f"-DPU={name.upper()}", str(DRIVER), str(source), "-lm", "-o", str(exe)],
-                       check=True)
-        q0 = subprocess.run([str(exe), "describe"], check=True, capture_output=True, text=True).stdout.splitlines()[2]
-        args = [repr(a.t0), repr(h), str(n), *q0.split()]
-        loop, instant = (float(v) for v in subprocess.run([str(exe), "time", *args], check=True, capture_output=True,
-                                                          text=True).stdout.split())
-        out["us_per_instant"][level] = {"trajectory": loop, "instant": instant}
-        rows[level] = subprocess.run([str(exe), "rows", *args], check=True, capture_output=True, text=True).stdout
-    out["rows_identical"] = rows["-O1"] == rows["-O2"]
-    c, us = out["compile_cpu_s"], out["us_per_instant"]
-    out["o1_over_o2"] = {"compile": round(c["-O1"] / c["-O2"], 3),
-                         **{k: round(us["-O1"][k] / us["-O2"][k], 3) for k in ("trajectory", "instant")}}
+        exe = ctx.work / f"{built.name}-{cc}{level}"
+        out["compile_cpu_s"][level] = _build(cc, level, built, name, exe, repeats)
+        out[timed][level], printed[level] = run(exe, grid)
+    out[same] = printed["-O1"] == printed["-O2"]
+    return out
+
+
+def _ratio(by_level: dict[str, Any], part: str | None = None) -> float:
+    """-O1's figure over -O2's (`part` of each, if given)."""
+    one, two = by_level["-O1"], by_level["-O2"]
+    return round(one[part] / two[part] if part else one / two, 3)
+
+
+def example(ctx: Context, name: str, cc: str, repeats: int) -> dict[str, Any]:
+    """One example's solve build with one compiler: each level's compile and run."""
+    built = Path(api.prepare(api.example(name), backend="c").evaluator.artifact)  # type: ignore[attr-defined]
+
+    def run(exe: Path, grid: list[str]) -> tuple[dict[str, float], str]:
+        q0 = _out([exe, "describe"]).splitlines()[2].split()
+        loop, instant = (float(v) for v in _out([exe, "time", *grid, *q0]).split())
+        return {"trajectory": loop, "instant": instant}, _out([exe, "rows", *grid, *q0])
+
+    out = _levels(ctx, name, built, cc, repeats, "us_per_instant", "rows_identical", run)
+    out["o1_over_o2"] = {"compile": _ratio(out["compile_cpu_s"]),
+                         **{k: _ratio(out["us_per_instant"], k) for k in ("trajectory", "instant")}}
     return out
 
 
@@ -89,32 +112,20 @@ def study(ctx: Context, name: str, cc: str, repeats: int, variants: int) -> dict
     from symid.backends import Needs
     from symid.backends.prepare import prepare
 
-    mech = api.load_mechanism(api.example(name))
-    solver = prepare(mech, "c", Needs(velocity=True, reactions=True, batch=True, friction=False))
+    solver = prepare(api.load_mechanism(api.example(name)), "c",
+                     Needs(velocity=True, reactions=True, batch=True, friction=False))
     built = Path(solver.evaluator.artifact)  # type: ignore[attr-defined]
-    source = built / f"{name}_solver.c"
-    a = mech.analysis
-    n = min(a.steps, 64) if ctx.smoke else a.steps
-    h = (a.t1 - a.t0) / (a.steps - 1)
-    out: dict[str, Any] = {"source_bytes": source.stat().st_size, "compile_cpu_s": {}, "us_per_variant_instant": {}}
-    figures: dict[str, str] = {}
-    for level in LEVELS:
-        lib = ctx.work / f"{name}-study-{cc}{level}.so"
-        out["compile_cpu_s"][level] = round(min(_cpu([cc, level, *CFLAGS, str(source), "-o", str(lib), "-lm"])
-                                                for _ in range(repeats)), 3)
-        exe = ctx.work / f"{name}-study-{cc}{level}"
-        subprocess.run([cc, "-std=c99", level, "-fno-math-errno", f"-I{built}", f'-DSOLVER_H="{name}_solver.h"',
-                        f"-DP={name}", f"-DPU={name.upper()}", str(SWEEP_DRIVER), str(source), "-lm", "-o", str(exe)],
-                       check=True)
-        ran = subprocess.run([str(exe), str(variants), repr(a.t0), repr(h), str(n)], check=True, capture_output=True,
-                             text=True).stdout.split("\n", 1)
-        us, lanes = ran[0].split()
-        out["us_per_variant_instant"][level] = float(us)
-        out["lanes"] = int(lanes)
-        figures[level] = ran[1]
-    out["figures_identical"] = figures["-O1"] == figures["-O2"]
-    c, us = out["compile_cpu_s"], out["us_per_variant_instant"]
-    out["o1_over_o2"] = {"compile": round(c["-O1"] / c["-O2"], 3), "sweep": round(us["-O1"] / us["-O2"], 3)}
+    lanes: list[int] = []
+
+    def run(exe: Path, grid: list[str]) -> tuple[float, str]:
+        first, figures = _out([exe, "sweep", *grid, str(variants)]).split("\n", 1)
+        us, width = first.split()
+        lanes.append(int(width))
+        return float(us), figures
+
+    out = _levels(ctx, name, built, cc, repeats, "us_per_variant_instant", "figures_identical", run)
+    out["lanes"] = lanes[-1]
+    out["o1_over_o2"] = {"compile": _ratio(out["compile_cpu_s"]), "sweep": _ratio(out["us_per_variant_instant"])}
     return out
 
 

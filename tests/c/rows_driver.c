@@ -3,7 +3,8 @@
    prints a trajectory's rows (%.17g); "time t0 h n q0..." prints the
    microseconds per instant of the trajectory loop and of instants continued
    from the last solution (the minimum over repeats: the machine is shared);
-   "describe" prints what the header says of the mechanism, a line each. */
+   "describe" prints what the header says of the mechanism, a line each;
+   "sweep t0 h n K" runs K variants through <name>_sweep (benchmarks/cases/c_level.py). */
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>
 #include <stdlib.h>
@@ -38,6 +39,39 @@ static int run(real t0, real h, long n, const real *q0, real *rows)
     return status != M(_OK) ? status : (solved == n ? 0 : 99);
 }
 
+/* K variants through the sweep, variant v the default parameters each scaled by
+   1 + 1e-6 v: the microseconds per variant-instant (the least of 5 rounds) and the
+   lanes a group takes, then per variant its status, instants solved and figures. */
+static int run_sweep(real t0, real h, long n, long k)
+{
+    real *p = (real *)malloc(sizeof(real) * (size_t)(k * M(_NP) + 1));
+    real *figures = (real *)malloc(sizeof(real) * (size_t)(k * M(_SWEEP_FIGURES) + 1));
+    real *t_end = (real *)malloc(sizeof(real) * (size_t)k);
+    real *sweep_work = (real *)malloc(sizeof(real) * (size_t)M(_SWEEP_WORK));
+    long *solved = (long *)malloc(sizeof(long) * (size_t)k), v, j;
+    int *status = (int *)malloc(sizeof(int) * (size_t)k), rep, failed = 0;
+    double best = 1e300;
+    if (p == NULL || figures == NULL || t_end == NULL || sweep_work == NULL || solved == NULL || status == NULL) return 2;
+    for (v = 0; v < k; ++v)
+        for (j = 0; j < M(_NP); ++j) p[v * M(_NP) + j] = FN(_default_params)[j] * (real)(1.0 + 1e-6 * (double)v);
+    for (rep = 0; rep < 5 && !failed; ++rep) {
+        double start = now(), took;
+        failed = FN(_sweep)(k, p, t0, h, n, (real)1e-12, figures, status, t_end, solved, sweep_work, iwork) != M(_OK);
+        took = (now() - start) / ((double)k * (double)n);
+        best = took < best ? took : best;
+    }
+    if (!failed) {
+        printf("%.4f %ld\n", 1e6 * best, FN(_sweep_lanes)(NULL));
+        for (v = 0; v < k; ++v) {
+            printf("%d %ld", status[v], solved[v]);
+            for (j = 0; j < M(_SWEEP_FIGURES); ++j) printf(" %.17g", (double)figures[v * M(_SWEEP_FIGURES) + j]);
+            printf("\n");
+        }
+    }
+    free(p), free(figures), free(t_end), free(sweep_work), free(solved), free(status);
+    return failed;
+}
+
 int main(int argc, char **argv)
 {
     real q0[M(_NG)], t0, h, *rows;
@@ -51,6 +85,8 @@ int main(int argc, char **argv)
                M(_OPS_INSTANT));
         return 0;
     }
+    if (argc == 6 && strcmp(argv[1], "sweep") == 0)
+        return run_sweep((real)atof(argv[2]), (real)atof(argv[3]), atol(argv[4]), atol(argv[5]));
     if (argc != 5 + M(_NG)) return 2;
     t0 = (real)atof(argv[2]);
     h = (real)atof(argv[3]);
