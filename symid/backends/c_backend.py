@@ -97,7 +97,8 @@ def build(layout: Layout, options: Options, batch: bool = True) -> Path:
         c.write(ctx, folder)
         source = folder / f"{mech.name}_solver.c"
         stage("compiling")
-        _compile(cc, [level(source.stat().st_size, batch), *CFLAGS, str(source), "-o", str(folder / "solver.so"), "-lm"], folder / "solver.so")
+        chosen = level(source.stat().st_size, batch)
+        _compile(cc, [chosen, *CFLAGS, str(source), "-o", str(folder / "solver.so"), "-lm"], folder / "solver.so")
         f = model.flat
         meta = {"ng": f.ng, "nc": f.nc, "nnz": len(f.jac), "nr": len(f.reactions),
                 "row": len(model.row_columns), "columns": list(model.row_columns),

@@ -52,7 +52,10 @@ def has_word(text: str, word: str) -> bool:
 # a new CSE would give; equality is structural (sympy >= 1.13: 1.0 is not 1).
 _CSE: OrderedDict[tuple[str, tuple[sp.Expr, ...]], tuple[tuple[tuple[sp.Symbol, sp.Expr], ...],
                                                         tuple[sp.Expr, ...]]] = OrderedDict()
-CSE_HELD = 512  # lists (chunks of at most CHUNK outputs)
+# A small mechanism's kernels fit; a large one's build keeps only its last
+# lists alive past their printing (ladder of 256, numpy: 512 held added 5 % to
+# the peak; with 64 it is within run-to-run noise).
+CSE_HELD = 64  # lists (chunks of at most CHUNK outputs)
 
 
 def cse(exprs: Sequence[sp.Expr], prefix: str) -> tuple[tuple[tuple[sp.Symbol, sp.Expr], ...], tuple[sp.Expr, ...]]:
