@@ -136,7 +136,8 @@ def _options(group: Any) -> None:
 
 
 @register("c_level", "the C backend's solve and study builds at -O1 and -O2, per example and compiler: the "
-          "compile's CPU seconds, us per instant (per variant-instant of the sweep), the results bit for bit", options=_options, tools=("cc",))
+          "compile's CPU seconds, us per instant (per variant-instant of the sweep), the results bit for bit",
+          options=_options, tools=("cc",))
 def c_level(ctx: Context) -> dict[str, Any]:
     names = (ctx.options.examples.split(",") if ctx.options.examples
              else ["slider_crank"] if ctx.smoke else api.examples())
@@ -145,7 +146,7 @@ def c_level(ctx: Context) -> dict[str, Any]:
     variants = 8 if ctx.smoke else ctx.options.variants
     out: dict[str, Any] = {"flags": list(CFLAGS), "compilers": {}}
     for cc in compilers:
-        results = out["compilers"][cc] = {name: example(ctx, name, cc, repeats) for name in names}
+        results = {name: example(ctx, name, cc, repeats) for name in names}
         for name, r in results.items():
             ratio = r["o1_over_o2"]
             ctx.log(f"{cc:5s} {name:28s} -O1/-O2: compile {ratio['compile']:.2f}, trajectory "
