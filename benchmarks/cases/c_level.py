@@ -10,7 +10,8 @@ each C compiler installed of `cc` and `clang`, for the solve build:
 - compile_cpu_s: the compiler's CPU seconds on that source with the
   product's flags (`symid.codegen.compiler.CFLAGS`; with the timing driver
   below, a program instead of a library), the least of the repeats (CPU
-  time: a shared machine's load does not add to it);
+  time: a shared machine's load does not add to it; each build a process of
+  the harness's, `Context.process`);
 - us_per_instant: the trajectory loop and `_instant` continued from the last
   solution, one instant each (`tests/c/rows_driver.c`, the timing driver,
   linked with that source at that level; the least over its repeats);
@@ -29,7 +30,6 @@ figures are the same bits at both levels (`figures_identical`).
 
 from __future__ import annotations
 
-import resource
 import shutil
 import statistics
 import subprocess
@@ -41,38 +41,38 @@ from benchmarks.processes import ROOT
 from benchmarks.run import Context
 from symid import api
 from symid.codegen.compiler import CFLAGS
+from symid.model.mechanism import Mechanism
 
 DRIVER = ROOT / "tests" / "c" / "rows_driver.c"
 LEVELS = ("-O1", "-O2")
-
-
-def _cpu(args: list[str]) -> float:
-    """Run a command; the CPU seconds (user + system) it took."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    subprocess.run(args, check=True, capture_output=True)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+COMPILE_CAP_S = 600.0
 
 
 def _out(command: list[Any]) -> str:
     return subprocess.run([str(c) for c in command], check=True, capture_output=True, text=True).stdout
 
 
-def _build(cc: str, level: str, built: Path, name: str, exe: Path, repeats: int) -> float:
+def _build(ctx: Context, cc: str, level: str, built: Path, name: str, exe: Path, repeats: int) -> float:
     """The driver linked with the built source at `level`, with the product's flags (a
     position-independent program instead of a library): the least CPU seconds of
     `repeats` builds (the driver is a page of C beside the solver's thousands of lines)."""
     flags = [f for f in CFLAGS if f != "-shared"]
     command = [cc, level, *flags, f"-I{built}", f'-DSOLVER_H="{name}_solver.h"', f"-DP={name}",
                f"-DPU={name.upper()}", str(DRIVER), str(built / f"{name}_solver.c"), "-lm", "-o", str(exe)]
-    return round(min(_cpu(command) for _ in range(repeats)), 3)
+    cpu = []
+    for _ in range(repeats):
+        got = ctx.process(command, COMPILE_CAP_S)
+        if got.status != 0 or got.cpu_s is None:
+            raise RuntimeError(f"{cc} {level} failed on {name}_solver.c with status {got.status}")
+        cpu.append(got.cpu_s)
+    return round(min(cpu), 3)
 
 
-def _levels(ctx: Context, name: str, built: Path, cc: str, repeats: int, timed: str, same: str,
+def _levels(ctx: Context, mech: Mechanism, built: Path, cc: str, repeats: int, timed: str, same: str,
             run: Callable[[Path, list[str]], tuple[Any, str]]) -> dict[str, Any]:
     """One build's figures at each level: the compile's CPU seconds, `timed` (what
     `run(exe, [t0, h, n])` times) and `same`: whether what it prints is the same bits."""
-    a = api.load_mechanism(api.example(name)).analysis
+    name, a = mech.name, mech.analysis
     n = min(a.steps, 64) if ctx.smoke else a.steps
     grid = [repr(a.t0), repr((a.t1 - a.t0) / (a.steps - 1)), str(n)]
     out: dict[str, Any] = {"source_bytes": (built / f"{name}_solver.c").stat().st_size, "compile_cpu_s": {},
@@ -80,7 +80,7 @@ def _levels(ctx: Context, name: str, built: Path, cc: str, repeats: int, timed: 
     printed: dict[str, str] = {}
     for level in LEVELS:
         exe = ctx.work / f"{built.name}-{cc}{level}"
-        out["compile_cpu_s"][level] = _build(cc, level, built, name, exe, repeats)
+        out["compile_cpu_s"][level] = _build(ctx, cc, level, built, name, exe, repeats)
         out[timed][level], printed[level] = run(exe, grid)
     out[same] = printed["-O1"] == printed["-O2"]
     return out
@@ -94,14 +94,15 @@ def _ratio(by_level: dict[str, Any], part: str | None = None) -> float:
 
 def example(ctx: Context, name: str, cc: str, repeats: int) -> dict[str, Any]:
     """One example's solve build with one compiler: each level's compile and run."""
-    built = Path(api.prepare(api.example(name), backend="c").evaluator.artifact)  # type: ignore[attr-defined]
+    mech = api.load_mechanism(api.example(name))
+    built = Path(api.prepare(mech, backend="c").evaluator.artifact)  # type: ignore[attr-defined]
 
     def run(exe: Path, grid: list[str]) -> tuple[dict[str, float], str]:
         q0 = _out([exe, "describe"]).splitlines()[2].split()
         loop, instant = (float(v) for v in _out([exe, "time", *grid, *q0]).split())
         return {"trajectory": loop, "instant": instant}, _out([exe, "rows", *grid, *q0])
 
-    out = _levels(ctx, name, built, cc, repeats, "us_per_instant", "rows_identical", run)
+    out = _levels(ctx, mech, built, cc, repeats, "us_per_instant", "rows_identical", run)
     out["o1_over_o2"] = {"compile": _ratio(out["compile_cpu_s"]),
                          **{k: _ratio(out["us_per_instant"], k) for k in ("trajectory", "instant")}}
     return out
@@ -112,8 +113,8 @@ def study(ctx: Context, name: str, cc: str, repeats: int, variants: int) -> dict
     from symid.backends import Needs
     from symid.backends.prepare import prepare
 
-    solver = prepare(api.load_mechanism(api.example(name)), "c",
-                     Needs(velocity=True, reactions=True, batch=True, friction=False))
+    mech = api.load_mechanism(api.example(name))
+    solver = prepare(mech, "c", Needs(velocity=True, reactions=True, batch=True, friction=False))
     built = Path(solver.evaluator.artifact)  # type: ignore[attr-defined]
     lanes: list[int] = []
 
@@ -123,7 +124,7 @@ def study(ctx: Context, name: str, cc: str, repeats: int, variants: int) -> dict
         lanes.append(int(width))
         return float(us), figures
 
-    out = _levels(ctx, name, built, cc, repeats, "us_per_variant_instant", "figures_identical", run)
+    out = _levels(ctx, mech, built, cc, repeats, "us_per_variant_instant", "figures_identical", run)
     out["lanes"] = lanes[-1]
     out["o1_over_o2"] = {"compile": _ratio(out["compile_cpu_s"]), "sweep": _ratio(out["us_per_variant_instant"])}
     return out
