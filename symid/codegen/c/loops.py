@@ -19,7 +19,7 @@ from typing import Any, Callable, Sequence
 
 import sympy as sp
 
-from symid.codegen.emit import Block, CHUNK, has_word
+from symid.codegen.emit import Block, CHUNK, cse, has_word
 from symid.codegen.flat import Flat, parameter_map
 from symid.symbolic import symbols as s
 from symid.symbolic.assemble import Group, Layout
@@ -225,7 +225,7 @@ def kernel(part: Part, fn: str, printer: Printer, args: list[str], table: dict[s
     """One function's loop over a part: CSE'd once, printed once; a slot is
     tested only where some member lacks it."""
     items = _exprs(part, fn)
-    temps, reduced = sp.cse([e for _, e in items], symbols=sp.numbered_symbols("e", real=True), order="none")
+    temps, reduced = cse([e for _, e in items], "e")
     code = Block(tuple((str(t), printer(e)) for t, e in temps),
                  tuple((k, printer(e)) for k, e in enumerate(reduced)))
     outputs: list[dict[str, str | None]] = []
@@ -272,7 +272,7 @@ def remaining(exprs: Sequence[sp.Expr], covered: set[int], printer: Printer) -> 
     out = []
     for i in range(0, len(left), CHUNK):
         piece = left[i:i + CHUNK]
-        temps, reduced = sp.cse([e for _, e in piece], symbols=sp.numbered_symbols("e", real=True), order="none")
+        temps, reduced = cse([e for _, e in piece], "e")
         out.append(Block(tuple((str(t), printer(e)) for t, e in temps),
                          tuple((k, printer(e)) for (k, _), e in zip(piece, reduced))))
     return out
